@@ -1,0 +1,125 @@
+"""The one interface every model component follows: named parameters lowered onto
+signal-path slots (see :mod:`pneubayes.effects.path`)."""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.rig import Rig
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named model parameter with unit, physical bounds and a default prior.
+
+    ``prior`` is ``"uniform"`` on [lower, upper] or ``"log-uniform"`` (lower > 0).
+    ``neutral`` is the value at which the component has no effect (None for the base).
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    prior: str
+    description: str
+    neutral: float | None = None
+
+    def __post_init__(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"Parameter {self.name}: lower {self.lower} >= upper {self.upper}")
+        if self.prior not in ("uniform", "log-uniform"):
+            raise ValueError(f"Parameter {self.name}: unknown prior {self.prior!r}")
+        if self.prior == "log-uniform" and self.lower <= 0:
+            raise ValueError(f"Parameter {self.name}: log-uniform prior needs lower > 0")
+
+    def log_prior(self, value):
+        """Log density of the default prior (unnormalised), -inf outside the bounds."""
+        v = np.asarray(value, dtype=np.float64)
+        inside = (v >= self.lower) & (v <= self.upper)
+        if self.prior == "uniform":
+            dens = np.zeros_like(v)
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                dens = -np.log(np.where(v > 0, v, 1.0))
+        return np.where(inside, dens, -np.inf)
+
+    def sample_prior(self, rng: np.random.Generator, size=None):
+        """Draw from the default prior."""
+        if self.prior == "uniform":
+            return rng.uniform(self.lower, self.upper, size)
+        return np.exp(rng.uniform(math.log(self.lower), math.log(self.upper), size))
+
+
+class Component(ABC):
+    """Base of the thin-port core and of every effect.
+
+    A component declares its parameters and lowers a batch of their values onto
+    signal-path slots. Constructors only store options; they never compute.
+    """
+
+    #: Catalogue name, e.g. ``"tube_delay"``.
+    name: ClassVar[str]
+    #: Signal-path slots this component writes (documentation and checks).
+    acts_on: ClassVar[tuple[str, ...]]
+
+    @abstractmethod
+    def parameters(self) -> tuple[Parameter, ...]:
+        """The component's parameters, in order."""
+
+    @abstractmethod
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig) -> dict[str, np.ndarray]:
+        """Map parameter arrays (each shape ``(B,)``) to slot contributions ``(B,)``."""
+
+    def options(self) -> dict[str, Any]:
+        """Constructor options, as stored in a model card."""
+        return {}
+
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters())
+
+    def check_lowering(self, contributions: Mapping[str, np.ndarray]) -> None:
+        unknown = set(contributions) - set(self.acts_on)
+        if unknown:
+            raise RuntimeError(f"{self.name} wrote slots it does not declare: {sorted(unknown)}")
+        for slot in contributions:
+            if slot not in SLOT_INDEX:
+                raise RuntimeError(f"{self.name} wrote unknown slot {slot!r}")
+
+    def __repr__(self) -> str:
+        opts = ", ".join(f"{k}={v!r}" for k, v in self.options().items())
+        return f"{type(self).__name__}({opts})"
+
+    def __eq__(self, other) -> bool:
+        return type(self) is type(other) and self.options() == other.options()
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, tuple(sorted(self.options().items()))))
+
+
+class Effect(Component):
+    """A switchable physical effect: one entry of the catalogue.
+
+    Besides the component interface, an effect carries realistic default strengths for
+    the virtual bench (:meth:`bench_defaults`) and may perturb the drive signals the
+    bench generates (:meth:`perturb_inputs`), so the same object plants the effect in
+    synthetic data and fits it in a model.
+    """
+
+    def neutral_values(self) -> dict[str, float]:
+        """Parameter values at which the effect vanishes (zero strength)."""
+        return {p.name: float(p.neutral) for p in self.parameters()}
+
+    @abstractmethod
+    def bench_defaults(self) -> dict[str, float]:
+        """Realistic true values for the virtual bench."""
+
+    def perturb_inputs(self, time_s: np.ndarray, supply_pressure_Pa: np.ndarray,
+                       rig: Rig, rng: np.random.Generator) -> np.ndarray:
+        """Return the true supply pressure the bench should use (default: unchanged)."""
+        return supply_pressure_Pa

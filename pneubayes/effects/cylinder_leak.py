@@ -1,0 +1,62 @@
+"""Cylinder leak to atmosphere (paper eqs. 6-9), in two physical forms.
+
+``form="orifice"`` (the paper's): an equivalent orifice of area ``leak_area_m2`` with
+the thin-port law, ``mdot = a_l f(p, P_r)``. This is *exactly* the exhaust port's law,
+so from pressure data alone it is confounded with the exhaust-area offset (only their
+sum is identifiable) unless the valve is characterised separately (a flow-meter map as
+in the paper's Fig. 4, or a recording with the valve blocked).
+
+``form="laminar"``: viscous flow through the piston's clearance gap, the physical law of
+an air-gap anti-stiction cylinder (AIRPEL): ``mdot = k (p^2 - P_r^2)`` with
+``k = pi D h^3 / (24 mu L Rs T)`` for bore D, gap h and seal length L. Its pressure
+dependence differs from an orifice's, so it is separable from the exhaust offset.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.rig import Rig
+
+_FORMS = ("orifice", "laminar")
+
+
+class CylinderLeak(Effect):
+    """Leak from the chamber to atmosphere past the piston (eqs. 6-9)."""
+
+    name = "cylinder_leak"
+    acts_on = ("leak_orifice_area_m2", "leak_laminar_kg_per_s_Pa2")
+
+    def __init__(self, form: str = "orifice"):
+        self.form = form
+
+    def _check(self):
+        if self.form not in _FORMS:
+            raise ValueError(f"cylinder_leak: form must be one of {_FORMS}, got {self.form!r}")
+
+    def options(self):
+        return {"form": self.form}
+
+    def parameters(self):
+        self._check()
+        if self.form == "orifice":
+            return (Parameter("leak_area_m2", "m^2", 0.0, 2e-7, "uniform",
+                              "equivalent leak orifice area (eqs. 6-9)", neutral=0.0),)
+        return (Parameter("leak_conductance_kg_per_s_Pa2", "kg/(s Pa^2)", 0.0, 2e-15, "uniform",
+                          "laminar clearance leak k in k (p^2 - P_r^2)", neutral=0.0),)
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        self._check()
+        if self.form == "orifice":
+            return {"leak_orifice_area_m2": values["leak_area_m2"]}
+        return {"leak_laminar_kg_per_s_Pa2": values["leak_conductance_kg_per_s_Pa2"]}
+
+    def bench_defaults(self):
+        # Paper VI-B-3: equivalent diameter 1.9665e-4 m for the AIRPELs -> 3.04e-8 m^2.
+        # The laminar value gives the same flow at about 3 bar absolute (gap ~10 um).
+        if self.form == "orifice":
+            return {"leak_area_m2": float(np.pi / 4 * 1.9665e-4 ** 2)}
+        return {"leak_conductance_kg_per_s_Pa2": 1.9e-16}

@@ -1,0 +1,42 @@
+"""Heat exchange between the chamber air and its wall (Richer & Hurmuzlu 2000).
+
+The paper's eq. 5 is isentropic with the temperature fixed at the supply's. This effect
+makes the chamber temperature T a state and adds the wall heat flow
+``Q = m c_v (T_w - T) / tau`` (wall at the supply temperature):
+
+- ``dp/dt = eq. 5 + p (T_w - T) / (T tau)``,
+- ``dT/dt = T (dp/dt / p + dV/dt / V - Rs T mdot / (p V))`` (ideal gas, mass balance).
+
+Its parameter is the exchange rate ``heat_transfer_rate_per_s`` = 1/tau (tau is the
+wall time constant). At rate 0 the pressure equation is eq. 5 exactly (zero strength);
+as the rate grows, the pressure relaxes after each fill or vent, which eq. 5 cannot do.
+Port flows keep the paper's supply temperature, so the effect is a first-order
+correction to eq. 5 rather than a full energy equation.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.rig import Rig
+
+
+class HeatTransfer(Effect):
+    """Chamber temperature as a state, relaxing to the wall at ``heat_transfer_rate_per_s``."""
+
+    name = "heat_transfer"
+    acts_on = ("heat_rate_per_s",)
+
+    def parameters(self):
+        return (Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
+                          "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),)
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        return {"heat_rate_per_s": values["heat_transfer_rate_per_s"]}
+
+    def bench_defaults(self):
+        # A wall time constant of 0.2 s, typical of small cylinders.
+        return {"heat_transfer_rate_per_s": 5.0}

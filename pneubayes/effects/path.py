@@ -1,0 +1,41 @@
+"""Points on the signal path where the model's components act.
+
+command -> [delay] -> spool [lag] -> [dead band] -> port areas (Gompertz, eq. 11)
+-> port mass flows (eqs. 1-3, supply and attenuation) + extra flows (leaks, eq. 9)
+-> chamber (eq. 5: volume, pressure, temperature) -> sensor.
+
+Each slot is one number per parameter set that the compiled simulator reads. Components
+(the thin-port base and every effect) *lower* their named parameters onto slots; the
+contributions of several components to one slot add up, and every slot's neutral value
+is 0, so a model without an effect is exactly the model with that effect at zero
+strength. The simulator never asks which effects are present.
+"""
+
+from __future__ import annotations
+
+SLOTS: tuple[tuple[str, str], ...] = (
+    # name, meaning (unit)
+    ("inlet_offset_m2", "inlet Gompertz offset (m^2)"),
+    ("inlet_a_m2", "inlet Gompertz a (m^2)"),
+    ("inlet_b", "inlet Gompertz b (-)"),
+    ("inlet_c_per_V", "inlet Gompertz c (1/V)"),
+    ("inlet_d_V", "inlet Gompertz d (V)"),
+    ("exhaust_offset_m2", "exhaust Gompertz offset (m^2)"),
+    ("exhaust_a_m2", "exhaust Gompertz a (m^2)"),
+    ("exhaust_b", "exhaust Gompertz b (-)"),
+    ("exhaust_c_per_V", "exhaust Gompertz c (1/V)"),
+    ("exhaust_d_V", "exhaust Gompertz d (V)"),
+    ("volume_m3", "chamber volume at position 0: dead volume plus any tube volume (m^3)"),
+    ("command_delay_s", "transport delay of the command reaching the chamber (s)"),
+    ("spool_time_constant_s", "first-order spool lag time constant, 0 = none (s)"),
+    ("deadband_halfwidth_V", "dead band on the spool position before the area maps (V)"),
+    ("supply_gain", "weight of the measured supply deviation: P_c = P_nom + g (P_meas - P_nom)"),
+    ("flow_attenuation_Pa", "port flows reach the chamber scaled by exp(-value / p) (Pa)"),
+    ("leak_orifice_area_m2", "orifice leak to atmosphere, eqs. 6-9 (m^2)"),
+    ("leak_laminar_kg_per_s_Pa2", "laminar leak k (p^2 - P_atm^2) (kg/(s Pa^2))"),
+    ("heat_rate_per_s", "wall heat exchange rate 1/tau; > 0 makes temperature a state (1/s)"),
+)
+
+SLOT_NAMES: tuple[str, ...] = tuple(name for name, _ in SLOTS)
+SLOT_INDEX: dict[str, int] = {name: i for i, name in enumerate(SLOT_NAMES)}
+N_SLOTS = len(SLOTS)

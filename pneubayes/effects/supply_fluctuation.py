@@ -1,0 +1,70 @@
+"""Supply-pressure fluctuation (paper IV-F): the inlet sees the measured supply.
+
+In a model: ``P_c = P_nom + g (P_meas - P_nom)`` with ``supply_gain`` g (1 = the measured
+supply column, 0 = the nominal value of the recording's JSON). Recordings without a
+supply column carry the nominal value, so the effect is then inert.
+
+On the bench: the true supply wanders around the nominal as the other ~40 cylinders of
+the hand draw air (an Ornstein-Uhlenbeck process plus occasional load steps that
+recover through the regulator), and the plant sees it with gain 1.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.rig import Rig
+
+
+class SupplyFluctuation(Effect):
+    """Measured rather than nominal supply pressure at the inlet port."""
+
+    name = "supply_fluctuation"
+    acts_on = ("supply_gain",)
+
+    def __init__(self, fluctuation_std_Pa: float = 12_000.0, correlation_time_s: float = 0.4,
+                 load_step_rate_per_s: float = 0.5, load_step_Pa: float = 25_000.0,
+                 recovery_time_s: float = 0.25):
+        self.fluctuation_std_Pa = fluctuation_std_Pa
+        self.correlation_time_s = correlation_time_s
+        self.load_step_rate_per_s = load_step_rate_per_s
+        self.load_step_Pa = load_step_Pa
+        self.recovery_time_s = recovery_time_s
+
+    def options(self):
+        return {"fluctuation_std_Pa": self.fluctuation_std_Pa,
+                "correlation_time_s": self.correlation_time_s,
+                "load_step_rate_per_s": self.load_step_rate_per_s,
+                "load_step_Pa": self.load_step_Pa,
+                "recovery_time_s": self.recovery_time_s}
+
+    def parameters(self):
+        return (Parameter("supply_gain", "-", 0.0, 1.5, "uniform",
+                          "weight of the measured supply deviation at the inlet", neutral=0.0),)
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        return {"supply_gain": values["supply_gain"]}
+
+    def bench_defaults(self):
+        return {"supply_gain": 1.0}
+
+    def perturb_inputs(self, time_s, supply_pressure_Pa, rig: Rig, rng: np.random.Generator):
+        """True supply: nominal + OU wander + decaying load dips (Pa)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        dt = np.diff(t, prepend=t[0])
+        tau, sd = self.correlation_time_s, self.fluctuation_std_Pa
+        ou = np.empty_like(t)
+        ou[0] = rng.normal(0.0, sd)
+        decay = np.exp(-dt / tau)
+        kicks = rng.normal(0.0, 1.0, t.size) * sd * np.sqrt(1.0 - decay**2)
+        dip = np.zeros_like(t)
+        steps = rng.random(t.size) < self.load_step_rate_per_s * dt
+        depth = rng.uniform(0.5, 1.0, t.size) * self.load_step_Pa
+        rec = np.exp(-dt / self.recovery_time_s)
+        for i in range(1, t.size):
+            ou[i] = ou[i - 1] * decay[i] + kicks[i]
+            dip[i] = dip[i - 1] * rec[i] + (depth[i] if steps[i] else 0.0)
+        return np.asarray(supply_pressure_Pa, dtype=np.float64) + ou - dip

@@ -1,0 +1,13 @@
+"""Simulation layer: the compiled exponential integrator and its Python entry points."""
+
+from pneubayes.simulation.config import SolverConfig
+from pneubayes.simulation.simulator import (
+    Inputs,
+    Trajectory,
+    rig_constants,
+    simulate,
+    simulate_windows,
+)
+
+__all__ = ["Inputs", "SolverConfig", "Trajectory", "rig_constants", "simulate",
+           "simulate_windows"]

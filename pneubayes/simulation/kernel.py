@@ -1,0 +1,280 @@
+"""Compiled integrator for the chamber ODE: adaptive exponential Rosenbrock (exprb32).
+
+The chamber pressure obeys a scalar, stiff ODE ``dp/dt = F(t, p)`` (eq. 5) whose
+Jacobian ``J = dF/dp`` is known analytically. One step of length h is
+
+    U      = p + h phi1(hJ) F(p)                       (exponential Euler, order 2)
+    D      = F(U) - F(p) - J (U - p)                   (nonlinear remainder)
+    p_next = U + 2 h phi3(hJ) D                        (exprb32, order 3)
+
+and ``|2 h phi3(hJ) D|`` estimates the local error for step-size control. Exponential
+integrators are exact for linear problems, so stiffness (tiny volumes, J ~ -1e8 /s)
+costs nothing; near pressure equilibrium, where F has a square-root singularity, the
+step behaves like a damped Newton step instead of chattering.
+
+Inputs follow the recording: the command is held between samples (zero-order hold),
+position and supply are linear between samples. A transport delay shifts the held
+command, which adds one break point inside some sample intervals; the integrator
+stops exactly on every break point. The spool lag is integrated in closed form. With
+heat transfer on, the chamber temperature is a second state (diagonal Jacobian).
+
+Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
+3 non-finite state. This module is the only compiled code of the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.physics.orifice import flow_slopes, flow_terms
+from pneubayes.physics.valve import gompertz_scalar
+
+OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE = 0, 1, 2, 3
+STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
+               STEP_BUDGET: "more than max_steps steps in one window",
+               NONFINITE: "state became non-finite"}
+
+# Constant-vector layout (rig and gas); built by pneubayes.simulation.simulator.
+C_BORE_AREA, C_P_ATM, C_P_NOM, C_T_SUPPLY, C_ALPHA, C_BETA, C_THETA, C_KAPPA, C_RS = range(9)
+N_CONSTS = 9
+# Solver-vector layout.
+S_RTOL, S_ATOL_P, S_ATOL_T, S_MAX_STEP, S_MIN_STEP, S_MAX_STEPS = range(6)
+N_SOLVER = 6
+
+_IN = SLOT_INDEX["inlet_offset_m2"]
+_EX = SLOT_INDEX["exhaust_offset_m2"]
+_VOL = SLOT_INDEX["volume_m3"]
+_DELAY = SLOT_INDEX["command_delay_s"]
+_SPOOL = SLOT_INDEX["spool_time_constant_s"]
+_DEAD = SLOT_INDEX["deadband_halfwidth_V"]
+_SUPG = SLOT_INDEX["supply_gain"]
+_ATT = SLOT_INDEX["flow_attenuation_Pa"]
+_LEAK_O = SLOT_INDEX["leak_orifice_area_m2"]
+_LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
+_HEAT = SLOT_INDEX["heat_rate_per_s"]
+
+
+@njit(cache=True, inline="always")
+def _phi13(z):
+    """phi1(z) = (e^z - 1)/z and phi3(z) = (e^z - 1 - z - z^2/2)/z^3, stable for all z <= ~0."""
+    if abs(z) < 0.1:
+        phi1 = 1.0 + z * (0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0
+                                                                          + z / 720.0))))
+        phi3 = 1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (1.0 / 720.0 + z * (
+            1.0 / 5040.0 + z / 40320.0))))
+        return phi1, phi3
+    em1 = math.expm1(z)
+    phi1 = em1 / z
+    phi2 = (phi1 - 1.0) / z
+    phi3 = (phi2 - 0.5) / z
+    return phi1, phi3
+
+
+@njit(cache=True, inline="always")
+def _areas(spool, dead, sl):
+    """Port areas (eq. 11) for spool position ``spool`` behind a dead band of half-width dead."""
+    mag = abs(spool) - dead
+    u = 0.0 if mag <= 0.0 else (mag if spool > 0.0 else -mag)
+    a_in = gompertz_scalar(u, sl[_IN], sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
+    a_ex = gompertz_scalar(u, sl[_EX], sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
+    return a_in, a_ex
+
+
+@njit(cache=True, inline="always")
+def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j):
+    """Chamber right-hand side: ``(dp/dt, J_p, dT/dt, J_T)``.
+
+    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange.
+    ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
+    a port at pressure balance is replaced by the secant over the step's expected
+    movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
+    frozen by an infinite slope (a W-method Jacobian; the error control checks it).
+    Jacobians are only computed when ``need_j``.
+    """
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    p_atm = cs[C_P_ATM]
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    valve = a_in * f_in - a_ex * f_ex
+    att = sl[_ATT]
+    phi = math.exp(-att / p) if att > 0.0 else 1.0
+    leak_o, leak_l = sl[_LEAK_O], sl[_LEAK_L]
+    mdot = phi * valve - leak_o * f_ex - leak_l * (p * p - p_atm * p_atm)
+    rs = cs[C_RS]
+    t_wall = cs[C_T_SUPPLY]
+    rs_t = rs * t_wall
+    n_over_v = kappa / vol
+    fp_eq5 = n_over_v * (rs_t * mdot - p * vdot)
+    fp = fp_eq5
+    heat = sl[_HEAT]
+    ft = 0.0
+    if heat > 0.0:
+        fp += p * heat * (t_wall - temp) / temp
+        ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
+    if not need_j:
+        return fp, 0.0, ft, 0.0
+    dfloor = abs(fp) * h
+    _, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa, dfloor)
+    dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dvalve = a_in * dfin_dp - a_ex * dfex_dp
+    dmdot = phi * dvalve + phi * att / (p * p) * valve - leak_o * dfex_dp - 2.0 * leak_l * p
+    jp = n_over_v * (rs_t * dmdot - vdot)
+    jt = 0.0
+    if heat > 0.0:
+        jp += heat * (t_wall - temp) / temp
+        jt = fp_eq5 / p - heat * t_wall / temp + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
+    return fp, jp, ft, jt
+
+
+@njit(cache=True)
+def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
+    """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0."""
+    rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
+    hmax, hmin, max_steps = sv[S_MAX_STEP], sv[S_MIN_STEP], int(sv[S_MAX_STEPS])
+    n = t.shape[0]
+    delay, tau_s, dead = sl[_DELAY], sl[_SPOOL], sl[_DEAD]
+    gain = sl[_SUPG]
+    p_nom = cs[C_P_NOM]
+    v0, bore = sl[_VOL], cs[C_BORE_AREA]
+    thermal = sl[_HEAT] > 0.0
+    p = p0
+    temp = cs[C_T_SUPPLY]
+    out[0] = p
+    # Delayed-command pointer: index j of the sample held at time t - delay.
+    j = 0
+    t_start = t[i0]
+    while j + 1 < n and t[j + 1] + delay <= t_start:
+        j += 1
+    spool = u[j]  # steady spool at the start
+    h = hmax
+    steps = 0
+    s_cached = math.nan
+    a_in_c, a_ex_c = 0.0, 0.0
+    for k in range(i0, i0 + length - 1):
+        ta, tb = t[k], t[k + 1]
+        seg = tb - ta
+        xa, xb = x[k], x[k + 1]
+        vdot = bore * (xb - xa) / seg
+        sa, sb = ps[k], ps[k + 1]
+        tau = ta
+        while tau < tb:
+            # Sub-interval [tau, t_end) on which the delayed command is constant.
+            while j + 1 < n and t[j + 1] + delay <= tau:
+                j += 1
+            cmd = u[j]
+            t_end = tb
+            if j + 1 < n and t[j + 1] + delay < tb:
+                t_end = t[j + 1] + delay
+            spool_a, t_sub = spool, tau
+            # Port areas are constant on the sub-interval unless the spool moves; the
+            # command is held for many samples, so reuse them while it is unchanged.
+            moving = tau_s > 0.0 and spool_a != cmd
+            s_eff = spool_a if tau_s > 0.0 else cmd
+            if s_eff != s_cached:
+                a_in_c, a_ex_c = _areas(s_eff, dead, sl)
+                s_cached = s_eff
+            a_in, a_ex = a_in_c, a_ex_c
+            while tau < t_end:
+                hh = h if h < t_end - tau else t_end - tau
+                if t_end - tau - hh < 1e-3 * hh:
+                    hh = t_end - tau
+                steps += 1
+                if steps > max_steps:
+                    return STEP_BUDGET
+                # state and inputs at tau
+                fr = (tau - ta) / seg
+                vol = v0 + bore * (xa + fr * (xb - xa))
+                psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
+                if moving:
+                    s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
+                    a_in, a_ex = _areas(s_now, dead, sl)
+                fp, jp, ft, jt = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh, True)
+                zp = hh * jp
+                phi1p, phi3p = _phi13(zp)
+                up = p + hh * phi1p * fp
+                ut = temp
+                if thermal:
+                    zt = hh * jt
+                    phi1t, phi3t = _phi13(zt)
+                    ut = temp + hh * phi1t * ft
+                # stage 2 at tau + hh
+                fr2 = (tau + hh - ta) / seg
+                vol2 = v0 + bore * (xa + fr2 * (xb - xa))
+                psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
+                if moving:
+                    s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
+                    a_in2, a_ex2 = _areas(s2, dead, sl)
+                else:
+                    a_in2, a_ex2 = a_in, a_ex
+                ok = up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)
+                err = 10.0
+                pn, tn = up, ut
+                if ok:
+                    fp2, _, ft2, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False)
+                    dp = fp2 - fp - jp * (up - p)
+                    ep = 2.0 * hh * phi3p * dp
+                    pn = up + ep
+                    err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                    if thermal:
+                        dt_ = ft2 - ft - jt * (ut - temp)
+                        et = 2.0 * hh * phi3t * dt_
+                        tn = ut + et
+                        e2 = abs(et) / (atol_t + rtol * max(temp, abs(tn)))
+                        if e2 > err:
+                            err = e2
+                    if not (pn > 0.0 and math.isfinite(pn) and tn > 0.0 and math.isfinite(tn)):
+                        err = 10.0
+                if err <= 1.0:
+                    tau = tau + hh if hh < t_end - tau else t_end
+                    p, temp = pn, tn
+                    fac = 5.0 if err < 1e-4 else min(5.0, 0.9 * err ** (-1.0 / 3.0))
+                    if hh >= h or fac < 1.0:
+                        h = min(hmax, hh * fac)
+                else:
+                    if not math.isfinite(err):
+                        err = 10.0
+                    h = hh * max(0.1, 0.9 * err ** (-1.0 / 3.0))
+                    if h < hmin:
+                        if not (math.isfinite(p) and math.isfinite(temp)):
+                            return NONFINITE
+                        return STEP_UNDERFLOW
+            # spool position at the end of the sub-interval (closed form)
+            if tau_s > 0.0:
+                spool = cmd + (spool_a - cmd) * math.exp(-(t_end - t_sub) / tau_s)
+            else:
+                spool = cmd
+        out[k + 1 - i0] = p
+    return OK
+
+
+@njit(cache=True, parallel=True)
+def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
+    """Simulate every (parameter set, window) pair.
+
+    Parameters
+    ----------
+    slots : (B, N_SLOTS) float64      lowered parameters (see effects.path)
+    consts, solver : float64 vectors  rig/gas constants and solver settings (layouts above)
+    t, u, x, ps : (N,) float64        time (s), command (V), position (m), supply (Pa)
+    starts : (W,) int64               first sample of each window
+    length : int                      samples per window (output includes the start)
+    p0 : (W,) float64                 initial pressure of each window (Pa)
+
+    Returns
+    -------
+    out : (B, W, length) float64 pressures (Pa); status : (B, W) int64
+    """
+    nb = slots.shape[0]
+    nw = starts.shape[0]
+    out = np.empty((nb, nw, length))
+    status = np.zeros((nb, nw), dtype=np.int64)
+    for task in prange(nb * nw):
+        b = task // nw
+        w = task % nw
+        status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
+                               p0[w], out[b, w])
+    return out, status

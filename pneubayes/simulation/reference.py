@@ -1,0 +1,94 @@
+"""Independent reference: the same model integrated by scipy's ``solve_ivp``.
+
+Used by the tests (accuracy, step halving) and the benchmark (speed baseline). It shares
+only the lowered slots and the vectorised physics functions with the compiled
+integrator; the integration, input handling and the spool (an ODE state here, closed
+form there) are written separately. Slow: thousands of Python calls per second.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from pneubayes.effects.path import SLOT_INDEX as S
+from pneubayes.model import Model
+from pneubayes.physics.orifice import flow_function
+from pneubayes.physics.valve import gompertz_area
+from pneubayes.rig import Rig
+from pneubayes.simulation.simulator import Inputs
+
+
+def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
+    g = rig.gas
+    kappa, rs, t_s = g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K, g.temperature_K
+    p_atm = rig.atmospheric_pressure_Pa
+    ins = [sl[S[k]] for k in ("inlet_offset_m2", "inlet_a_m2", "inlet_b", "inlet_c_per_V",
+                              "inlet_d_V")]
+    exs = [sl[S[k]] for k in ("exhaust_offset_m2", "exhaust_a_m2", "exhaust_b",
+                              "exhaust_c_per_V", "exhaust_d_V")]
+    tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
+    heat = sl[S["heat_rate_per_s"]]
+
+    def rhs(t, y):
+        p, temp, spool = y
+        s = spool if tau_s > 0 else cmd
+        ueff = np.sign(s) * max(abs(s) - dead, 0.0)
+        a_in = gompertz_area(ueff, *ins)
+        a_ex = gompertz_area(ueff, *exs)
+        fr = (t - ta) / seg
+        vol = sl[S["volume_m3"]] + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2)
+        psup = rig.supply_pressure_Pa + sl[S["supply_gain"]] * (
+            sa + fr * (sb - sa) - rig.supply_pressure_Pa)
+        valve = a_in * flow_function(psup, p, g) - a_ex * flow_function(p, p_atm, g)
+        valve = valve * np.exp(-sl[S["flow_attenuation_Pa"]] / p)
+        mdot = (valve - sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
+                - sl[S["leak_laminar_kg_per_s_Pa2"]] * (p * p - p_atm * p_atm))
+        dp = kappa / vol * (rs * t_s * mdot - p * vdot)
+        dtemp = 0.0
+        if heat > 0:
+            dp = dp + p * heat * (t_s - temp) / temp
+            dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
+        dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
+        return [float(dp), float(dtemp), float(dspool)]
+
+    return rhs
+
+
+def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
+                       initial_pressure_Pa: float, method: str = "Radau", rtol: float = 1e-10,
+                       atol: float = 1e-6, return_stats: bool = False):
+    """Simulate one parameter set with ``solve_ivp`` on every hold interval separately.
+
+    Break points are the sample times and the delayed-command switch times; on each
+    interval the command is constant and position and supply are linear, as in the
+    compiled integrator. Returns pressures ``(N,)`` in Pa (and the rhs count if asked).
+    """
+    sl = model.lower(model.as_matrix(params), rig)[0]
+    t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
+    delay = sl[S["command_delay_s"]]
+    y = np.array([initial_pressure_Pa, rig.gas.temperature_K, 0.0])
+    j = int(np.searchsorted(t + delay, t[0], side="right") - 1) if delay > 0 else 0
+    y[2] = u[max(j, 0)]
+    out = np.empty(t.size)
+    out[0] = y[0]
+    nfev = 0
+    for k in range(t.size - 1):
+        ta, tb = t[k], t[k + 1]
+        seg = tb - ta
+        vdot = rig.bore_area_m2 * (x[k + 1] - x[k]) / seg
+        shifted = t + delay
+        cuts = shifted[(shifted > ta) & (shifted < tb)]
+        edges = np.concatenate([[ta], cuts, [tb]])
+        for a, b in zip(edges[:-1], edges[1:]):
+            jj = int(np.searchsorted(shifted, a, side="right") - 1)
+            cmd = u[max(jj, 0)]
+            rhs = _rhs_factory(sl, rig, cmd, x[k], vdot, ta, seg, ps[k], ps[k + 1])
+            sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
+                            atol=[atol, atol * 1e-4, 1e-9])
+            if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
+                raise RuntimeError(f"reference solver failed at t={a:.6f}: {sol.message}")
+            nfev += sol.nfev
+            y = sol.y[:, -1]
+        out[k + 1] = y[0]
+    return (out, nfev) if return_stats else out

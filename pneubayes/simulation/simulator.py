@@ -1,0 +1,158 @@
+"""Simulate a model on a recording's inputs: the one entry point of the simulation layer.
+
+>>> traj = simulate(model, params, inputs, rig, solver=SolverConfig.standard())
+
+``params`` may be a dict, a vector or a batch ``(B, P)``; the result's pressure has a
+leading batch axis. Windows (e.g. the paper's 2-s predictions started from the measured
+pressure) are simulated in one compiled call with :func:`simulate_windows`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pneubayes.errors import SimulationError
+from pneubayes.model import Model
+from pneubayes.rig import Rig
+from pneubayes.simulation import kernel
+from pneubayes.simulation.config import SolverConfig
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """Drive signals on the sample grid (the recording's time base).
+
+    Parameters
+    ----------
+    time_s : (N,) strictly increasing sample times, s
+    command_V : (N,) valve command, V, held between samples (zero-order hold)
+    position_m : (N,) piston position, m, linear between samples
+    supply_pressure_Pa : (N,) measured absolute supply, Pa, linear between samples
+    """
+
+    time_s: np.ndarray
+    command_V: np.ndarray
+    position_m: np.ndarray
+    supply_pressure_Pa: np.ndarray
+
+    def __post_init__(self):
+        arrs = {k: np.ascontiguousarray(getattr(self, k), dtype=np.float64)
+                for k in ("time_s", "command_V", "position_m", "supply_pressure_Pa")}
+        n = arrs["time_s"].shape
+        for k, a in arrs.items():
+            if a.ndim != 1 or a.shape != n:
+                raise ValueError(f"Inputs.{k} has shape {a.shape}; all inputs must be 1-D of "
+                                 f"the same length as time_s {n}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"Inputs.{k} contains NaN or infinite values")
+            object.__setattr__(self, k, a)
+        if n[0] < 2:
+            raise ValueError("Inputs: need at least 2 samples")
+        if np.any(np.diff(arrs["time_s"]) <= 0):
+            raise ValueError("Inputs.time_s must be strictly increasing")
+
+    @property
+    def n_samples(self) -> int:
+        return self.time_s.shape[0]
+
+    @classmethod
+    def constant(cls, time_s, command_V, position_m: float, supply_pressure_Pa: float):
+        """Inputs with a fixed position and a constant supply."""
+        t = np.asarray(time_s, dtype=np.float64)
+        return cls(t, np.broadcast_to(np.asarray(command_V, np.float64), t.shape).copy(),
+                   np.full(t.shape, float(position_m)), np.full(t.shape, float(supply_pressure_Pa)))
+
+    @classmethod
+    def from_recording(cls, recording) -> "Inputs":
+        """Inputs of a :class:`pneubayes.io.Recording` (nominal supply/fixed position if absent)."""
+        return cls(recording.time_s, recording.command_V, recording.position_or_fixed(),
+                   recording.supply_or_nominal())
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Simulated pressures. ``pressure_Pa`` is ``(B, W, L)`` for windows, ``(B, N)`` else."""
+
+    time_s: np.ndarray
+    pressure_Pa: np.ndarray
+    solver: SolverConfig
+    parameter_names: tuple[str, ...]
+    parameters: np.ndarray
+
+
+def rig_constants(rig: Rig) -> np.ndarray:
+    """Rig and gas constants in the kernel's layout."""
+    g = rig.gas
+    c = np.empty(kernel.N_CONSTS)
+    c[kernel.C_BORE_AREA] = rig.bore_area_m2
+    c[kernel.C_P_ATM] = rig.atmospheric_pressure_Pa
+    c[kernel.C_P_NOM] = rig.supply_pressure_Pa
+    c[kernel.C_T_SUPPLY] = g.temperature_K
+    c[kernel.C_ALPHA] = g.alpha_s_per_m
+    c[kernel.C_BETA] = g.beta_s_per_m
+    c[kernel.C_THETA] = g.theta
+    c[kernel.C_KAPPA] = g.heat_capacity_ratio
+    c[kernel.C_RS] = g.specific_gas_constant_J_per_kg_K
+    return c
+
+
+def _check_solver(solver) -> SolverConfig:
+    if not isinstance(solver, SolverConfig):
+        raise TypeError("solver must be a SolverConfig (e.g. SolverConfig.standard()); "
+                        f"got {type(solver).__name__}")
+    return solver
+
+
+def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,
+                     initial_pressure_Pa, solver: SolverConfig,
+                     check_bounds: bool = True) -> np.ndarray:
+    """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
+
+    Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
+    measured pressure there). Raises :class:`SimulationError` naming the parameter sets
+    that failed.
+    """
+    solver = _check_solver(solver)
+    theta = model.as_matrix(params)
+    if check_bounds:
+        model.check_bounds(theta)
+    starts = np.ascontiguousarray(starts, dtype=np.int64).reshape(-1)
+    length = int(length)
+    p0 = np.ascontiguousarray(np.broadcast_to(np.asarray(initial_pressure_Pa, np.float64),
+                                              starts.shape))
+    if length < 1:
+        raise ValueError(f"length must be >= 1, got {length}")
+    if starts.size and (starts.min() < 0 or starts.max() + length > inputs.n_samples):
+        raise ValueError(f"windows run past the inputs: starts in [{starts.min()}, "
+                         f"{starts.max()}], length {length}, {inputs.n_samples} samples")
+    if not np.all(np.isfinite(p0) & (p0 > 0)):
+        raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
+    slots = np.ascontiguousarray(model.lower(theta, rig))
+    out, status = kernel.simulate_windows(
+        slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
+        inputs.position_m, inputs.supply_pressure_Pa, starts, length, p0)
+    failed = np.nonzero(status.any(axis=1))[0]
+    if failed.size:
+        lines = []
+        for b in failed[:5]:
+            w = int(np.nonzero(status[b])[0][0])
+            why = kernel.STATUS_TEXT[int(status[b, w])]
+            vals = ", ".join(f"{n}={v:.6g}" for n, v in zip(model.parameter_names, theta[b]))
+            lines.append(f"parameter set {b} (window starting at sample {starts[w]}): "
+                         f"{why}; {vals}")
+        more = f" (and {failed.size - 5} more)" if failed.size > 5 else ""
+        raise SimulationError(f"simulation failed for {failed.size} parameter set(s){more}:\n  "
+                              + "\n  ".join(lines))
+    return out
+
+
+def simulate(model: Model, params, inputs: Inputs, rig: Rig, initial_pressure_Pa: float,
+             solver: SolverConfig, check_bounds: bool = True) -> Trajectory:
+    """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa."""
+    theta = model.as_matrix(params)
+    out = simulate_windows(model, theta, inputs, rig, np.array([0]), inputs.n_samples,
+                           np.array([initial_pressure_Pa], dtype=np.float64), solver,
+                           check_bounds=check_bounds)
+    return Trajectory(inputs.time_s, out[:, 0, :], solver, model.parameter_names, theta)
