@@ -1,0 +1,203 @@
+"""Run the virtual bench: plant effects, simulate the truth finely, measure, write.
+
+The truth is the thin-port model plus the planted effects (the same effect objects a
+model fits), with rig-specific true values (:func:`truth_parameters`), simulated on a
+fine grid with tight tolerances (:meth:`SolverConfig.reference`) and passed through the
+:class:`SensorChain`. Recordings follow ``recording-format.md``; the truth goes to
+``truth.json`` (a model card of the true model plus a ``bench`` section).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+import pneubayes
+from pneubayes.bench.protocols import piston_motion, step_commands
+from pneubayes.bench.sensors import SensorChain
+from pneubayes.effects import Effect, make_effect
+from pneubayes.io.recording import Recording, RecordingMetadata, write_recording
+from pneubayes.model import Model, write_json_atomic
+from pneubayes.physics.cylinder import cylinder_preset
+from pneubayes.physics.gas import GasConstants
+from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
+from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+ATMOSPHERE_PA = 101_325.0
+#: About 5.5 bar absolute (NOTES.md): a 450 kPa working range, as Table III implies.
+SUPPLY_PA = ATMOSPHERE_PA + 450_000.0
+TEMPERATURE_K = 293.15
+
+#: Rig-specific truth: dead volume (valve port, fittings and end cap; the tube of the
+#: tube_delay effect comes on top) and the scale of the leak relative to the AIRPEL's
+#: (paper: AIRPEL anti-stiction cylinders leak, SMC and PRN hardly).
+CYLINDER_TRUTH: dict[str, dict[str, float]] = {
+    "AIR37": {"dead_volume_m3": 1.5e-7, "leak_scale": 1.0},
+    "AIR200": {"dead_volume_m3": 1.5e-7, "leak_scale": 1.0},
+    "SMC": {"dead_volume_m3": 2.0e-6, "leak_scale": 0.05},
+    "PRN": {"dead_volume_m3": 5.0e-7, "leak_scale": 0.05},
+}
+
+PROTOCOLS = ("fixed", "moving")
+
+
+def truth_parameters(model: Model, cylinder: str, valve: str,
+                     overrides: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Realistic true parameter values for a rig: Table II valve, rig dead volume,
+    each effect's bench defaults (the leak scaled per cylinder), then ``overrides``."""
+    values = dict(valve_preset(valve).parameters())
+    rig_truth = CYLINDER_TRUTH.get(cylinder, {"dead_volume_m3": 5e-7, "leak_scale": 1.0})
+    values["dead_volume_m3"] = rig_truth["dead_volume_m3"]
+    for e in model.effects:
+        d = e.bench_defaults()
+        if e.name == "cylinder_leak":
+            d = {k: v * rig_truth["leak_scale"] for k, v in d.items()}
+        values.update(d)
+    for k, v in (overrides or {}).items():
+        if k not in model.parameter_names:
+            raise ValueError(f"--set {k}: not a parameter of the bench model "
+                             f"{list(model.parameter_names)}")
+        values[k] = float(v)
+    model.check_bounds(model.vector(values))
+    return values
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """One bench session: rig, planted effects, protocol and sensors.
+
+    ``ranges_V`` and ``positions`` (fractions of the stroke) define the fixed-volume
+    recordings (one per pair); ``count`` the number of moving-volume recordings.
+    """
+
+    cylinder: str
+    valve: str
+    effects: tuple[Effect, ...] = ()
+    protocol: str = "fixed"
+    duration_s: float = 20.0
+    seed: int = 0
+    overrides: Mapping[str, float] = field(default_factory=dict)
+    ranges_V: tuple[float, ...] = (5.0, 3.0, 0.5)
+    positions: tuple[float, ...] = (0.1, 0.5, 0.9)
+    count: int = 2
+    moving_range_V: float = 5.0
+    fine_rate_Hz: float = 10_000.0
+    sensor: SensorChain = field(default_factory=SensorChain)
+    solver: SolverConfig = field(default_factory=SolverConfig.reference)
+
+    def __post_init__(self):
+        if self.protocol not in PROTOCOLS:
+            raise ValueError(f"protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        ratio = self.fine_rate_Hz / self.sensor.sample_rate_Hz
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError("fine_rate_Hz must be an integer multiple of the sample rate")
+        for f in self.positions:
+            if not 0.0 <= f <= 1.0:
+                raise ValueError(f"positions are fractions of the stroke in [0, 1], got {f}")
+
+    @property
+    def model(self) -> Model:
+        return Model(self.effects)
+
+
+@dataclass(frozen=True)
+class BenchResult:
+    """Paths written and the truth."""
+
+    recordings: tuple[Path, ...]
+    truth_path: Path
+    truth: dict
+
+
+def _plans(cfg: BenchConfig, stroke: float) -> list[dict]:
+    if cfg.protocol == "fixed":
+        return [{"name": f"fixed_u{r:g}_x{100 * f:.0f}".replace(".", "p"), "range_V": r,
+                 "position_m": f * stroke}
+                for f in cfg.positions for r in cfg.ranges_V]
+    return [{"name": f"moving_{i:02d}", "range_V": cfg.moving_range_V, "position_m": None}
+            for i in range(cfg.count)]
+
+
+def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
+              progress: Callable[[str], None] | None = None) -> BenchResult:
+    """Generate the recordings of ``cfg`` into ``out_dir`` and write ``truth.json``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cyl = cylinder_preset(cfg.cylinder)
+    model = cfg.model
+    truth = truth_parameters(model, cfg.cylinder, cfg.valve, cfg.overrides)
+    rig = Rig(cyl.bore_m, ATMOSPHERE_PA, SUPPLY_PA, GasConstants(temperature_K=TEMPERATURE_K))
+    fs_out = cfg.sensor.sample_rate_Hz
+    step = int(round(cfg.fine_rate_Hz / fs_out))
+    n_out = int(round(cfg.duration_s * fs_out)) + 1
+    t_out = np.arange(n_out) / fs_out
+    t_fine = np.arange((n_out - 1) * step + 1) / cfg.fine_rate_Hz
+    plans = _plans(cfg, cyl.stroke_m)
+    seeds = np.random.SeedSequence(cfg.seed).spawn(len(plans))
+    written, entries = [], []
+    for plan, ss in zip(plans, seeds):
+        if progress:
+            progress(f"bench: {plan['name']} ({cfg.duration_s:g} s)")
+        rng = np.random.default_rng(ss)
+        u_out = np.round(step_commands(t_out, rng, plan["range_V"], clock_s=1.0 / fs_out), 4)
+        u_fine = np.repeat(u_out, step)[: t_fine.size]
+        if plan["position_m"] is None:
+            x_fine = piston_motion(t_fine, rng, cyl.stroke_m)
+        else:
+            x_fine = np.full(t_fine.size, plan["position_m"])
+        supply_fine = np.full(t_fine.size, SUPPLY_PA)
+        for e in model.effects:
+            supply_fine = e.perturb_inputs(t_fine, supply_fine, rig, rng)
+        inputs = Inputs(t_fine, u_fine, x_fine, supply_fine)
+        p_true = simulate(model, truth, inputs, rig, ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
+        s = cfg.sensor
+        p_meas = s.measure(t_fine, p_true, t_out, s.pressure_noise_Pa, rng,
+                           s.pressure_quantum_Pa)
+        sup_meas = s.measure(t_fine, supply_fine, t_out, s.supply_noise_Pa, rng,
+                             s.pressure_quantum_Pa)
+        meta = RecordingMetadata(
+            cylinder=cfg.cylinder, valve=cfg.valve, bore_m=cyl.bore_m, stroke_m=cyl.stroke_m,
+            atmospheric_pressure_Pa=ATMOSPHERE_PA, supply_pressure_Pa=SUPPLY_PA,
+            temperature_K=TEMPERATURE_K, position_m=plan["position_m"],
+            extra={"source": "pneubayes virtual bench", "protocol": cfg.protocol,
+                   "command_range_V": plan["range_V"]})
+        pos = None
+        if plan["position_m"] is None:
+            pos = np.clip(s.measure(t_fine, x_fine, t_out, s.position_noise_m, rng), 0.0,
+                          cyl.stroke_m)
+        # Logged at the ADC/DAC resolution: 0.1 Pa, 0.1 um, 0.1 mV.
+        rec = Recording(metadata=meta, time_s=t_out, command_V=np.round(u_out, 4),
+                        pressure_Pa=np.round(p_meas, 1), supply_pressure_Pa=np.round(sup_meas, 1),
+                        position_m=None if pos is None else np.round(pos, 7))
+        stem = out / plan["name"]
+        write_recording(rec, stem, overwrite=overwrite)
+        written.append(out / f"{plan['name']}.csv")
+        entries.append({"file": f"{plan['name']}.csv", "range_V": plan["range_V"],
+                        "position_m": plan["position_m"]})
+    card = model.to_card(truth, extra={"bench": {
+        "cylinder": cfg.cylinder, "valve": cfg.valve, "protocol": cfg.protocol,
+        "planted_effects": list(model.effect_names), "duration_s": cfg.duration_s,
+        "seed": cfg.seed, "overrides": dict(cfg.overrides),
+        "fine_rate_Hz": cfg.fine_rate_Hz, "sensor": cfg.sensor.to_dict(),
+        "solver": cfg.solver.to_dict(), "initial_pressure_Pa": ATMOSPHERE_PA,
+        "rig": {"bore_m": cyl.bore_m, "stroke_m": cyl.stroke_m,
+                "atmospheric_pressure_Pa": ATMOSPHERE_PA, "supply_pressure_Pa": SUPPLY_PA,
+                "temperature_K": TEMPERATURE_K},
+        "recordings": entries, "pneubayes_version": pneubayes.__version__}})
+    truth_path = out / "truth.json"
+    if truth_path.exists() and not overwrite:
+        raise FileExistsError(f"{truth_path} exists (use overwrite)")
+    write_json_atomic(truth_path, card)
+    return BenchResult(tuple(written), truth_path, card)
+
+
+def effects_from_names(names: Sequence[str], leak_form: str = "orifice") -> tuple[Effect, ...]:
+    """Effect objects for CLI names (``cylinder_leak`` takes ``leak_form``)."""
+    return tuple(make_effect(n, form=leak_form) if n == "cylinder_leak" else make_effect(n)
+                 for n in names)

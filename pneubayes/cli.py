@@ -1,0 +1,182 @@
+"""The ``pneubayes`` command: ``check``, ``bench``, ``simulate``.
+
+Each subcommand is a thin layer over the library; errors are printed as one clear
+message naming the file, row, key or argument (exit 2 for usage or input errors,
+1 for ``check`` when any file has problems).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.errors import PneubayesError
+
+
+def _floats(text: str, what: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}: expected comma-separated numbers, "
+                                         f"got {text!r}") from None
+
+
+def _setting(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
+
+
+def cmd_check(args) -> int:
+    from pneubayes.io.recording import check_recording
+
+    bad = 0
+    for path in args.files:
+        problems = check_recording(path)
+        if problems:
+            bad += 1
+            for loc, why in problems:
+                print(f"{loc}: {why}")
+        elif not args.quiet:
+            print(f"{path}: ok")
+    if bad:
+        print(f"{bad} of {len(args.files)} recording(s) have problems", file=sys.stderr)
+    return 1 if bad else 0
+
+
+def cmd_bench(args) -> int:
+    from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.effects import CATALOGUE
+
+    names = [n.strip() for n in args.effects.split(",") if n.strip()] if args.effects else []
+    unknown = [n for n in names if n not in CATALOGUE]
+    if unknown:
+        raise PneubayesError(f"--effects: unknown effect(s) {unknown}; "
+                             f"the catalogue has {sorted(CATALOGUE)}")
+    sensor = SensorChain(sample_rate_Hz=args.rate, pressure_noise_Pa=args.pressure_noise,
+                         supply_noise_Pa=args.pressure_noise)
+    cfg = BenchConfig(cylinder=args.cylinder, valve=args.valve,
+                      effects=effects_from_names(names, args.leak_form),
+                      protocol=args.protocol, duration_s=args.duration, seed=args.seed,
+                      overrides=dict(args.set or []), ranges_V=args.ranges,
+                      positions=args.positions, count=args.count,
+                      fine_rate_Hz=args.fine_rate, sensor=sensor)
+    res = run_bench(cfg, args.out, overwrite=args.overwrite,
+                    progress=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
+    for p in res.recordings:
+        print(p)
+    print(res.truth_path)
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    from pneubayes.io.recording import read_recording
+    from pneubayes.model import Model
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    rec = read_recording(args.recording)
+    model, params = Model.load_card(args.model)
+    solver = SolverConfig(rtol=args.rtol, atol_Pa=args.atol, atol_K=0.01,
+                          max_step_s=args.max_step, min_step_s=1e-12, max_steps=50_000_000)
+    traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
+                    float(rec.pressure_Pa[0]), solver)
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise PneubayesError(f"--out {out}: file exists (use --overwrite)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp")
+    np.savetxt(tmp, np.column_stack([rec.time_s, traj.pressure_Pa[0]]), delimiter=",",
+               header="time_s,pressure_Pa", comments="", fmt=["%.9g", "%.6f"])
+    tmp.replace(out)
+    p = traj.pressure_Pa[0]
+    rmse = float(np.sqrt(np.mean((p - rec.pressure_Pa) ** 2)))
+    print(f"{out}: {p.size} samples; open-loop RMSE against the measured pressure "
+          f"{rmse:.0f} Pa ({100 * rmse / rec.working_range_Pa:.2f} % of range)")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pneubayes",
+        description="Thin-port pneumatic actuator models: simulate, check recordings, run "
+                    "the virtual test bench.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    c = sub.add_parser("check", help="validate recordings against recording-format.md",
+                       description="Validate recordings (CSV + JSON pairs); print every "
+                                   "problem with file, row or key, and reason. Exit 1 if any.")
+    c.add_argument("files", nargs="+", help="recording .csv/.json paths or stems")
+    c.add_argument("-q", "--quiet", action="store_true", help="print only problems")
+    c.set_defaults(func=cmd_check)
+
+    b = sub.add_parser(
+        "bench", help="generate recordings on the virtual test bench",
+        description="Simulate a rig with planted effects on a fine grid, pass it through a "
+                    "sensor chain (anti-alias low-pass, sampling, noise) and write "
+                    "recordings plus DIR/truth.json with every true parameter.")
+    b.add_argument("--cylinder", required=True, help="AIR37, AIR200, SMC or PRN (Table I)")
+    b.add_argument("--valve", required=True, help="valve1 or valve2 (Table II)")
+    b.add_argument("--effects", default="", help="comma-separated effects to plant, e.g. "
+                   "tube_delay,spool_lag (catalogue: cylinder_leak, tube_delay, "
+                   "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag)")
+    b.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"),
+                   help="law of a planted cylinder_leak (default orifice, the paper's)")
+    b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",
+                   help="override a true parameter, e.g. --set tube_delay_s=0.005")
+    b.add_argument("--protocol", default="fixed", choices=("fixed", "moving"),
+                   help="fixed: random steps at fixed positions; moving: aggressive piston "
+                        "motion")
+    b.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
+    b.add_argument("--seed", type=int, required=True, help="random seed (recorded in truth)")
+    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=(5.0, 3.0, 0.5),
+                   help="fixed protocol: command ranges in V (default 5,3,0.5)")
+    b.add_argument("--positions", type=lambda s: _floats(s, "--positions"),
+                   default=(0.1, 0.5, 0.9),
+                   help="fixed protocol: positions as fractions of stroke (default 0.1,0.5,0.9)")
+    b.add_argument("--count", type=int, default=2, help="moving protocol: recordings")
+    b.add_argument("--rate", type=float, default=1000.0, help="output sample rate, Hz")
+    b.add_argument("--fine-rate", type=float, default=10_000.0,
+                   help="truth simulation grid, Hz (a multiple of --rate)")
+    b.add_argument("--pressure-noise", type=float, default=500.0,
+                   help="pressure sensor noise std, Pa")
+    b.add_argument("--out", required=True, help="output directory")
+    b.add_argument("--overwrite", action="store_true", help="replace existing files")
+    b.add_argument("-q", "--quiet", action="store_true")
+    b.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser(
+        "simulate", help="simulate a model card on a recording's inputs",
+        description="Run MODEL.json on the recording's command, position and supply from "
+                    "its first measured pressure; write time_s,pressure_Pa.")
+    s.add_argument("recording", help="recording .csv/.json path or stem")
+    s.add_argument("--model", required=True, help="model card (pneubayes-model/1 JSON)")
+    s.add_argument("--out", required=True, help="output CSV (time_s,pressure_Pa)")
+    s.add_argument("--rtol", type=float, default=1e-5, help="relative tolerance (1e-5)")
+    s.add_argument("--atol", type=float, default=5.0, help="absolute tolerance, Pa (5)")
+    s.add_argument("--max-step", type=float, default=0.02, help="largest step, s (0.02)")
+    s.add_argument("--overwrite", action="store_true")
+    s.set_defaults(func=cmd_simulate)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (PneubayesError, FileExistsError, FileNotFoundError, KeyError, ValueError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        print(f"pneubayes {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
