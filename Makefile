@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(PY) -m pneubayes.demo --out results/demo
+	$(PY) -m pneubayes.demo --data data --out results/demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -45,10 +45,13 @@ CYLINDER_TRUTH: dict[str, dict[str, float]] = {
 PROTOCOLS = ("fixed", "moving")
 
 
-def truth_parameters(model: Model, cylinder: str, valve: str,
+def truth_parameters(model: Model, cylinder: str, valve: str, rig: Rig,
                      overrides: Mapping[str, float] | None = None) -> dict[str, float]:
     """Realistic true parameter values for a rig: Table II valve, rig dead volume,
-    each effect's bench defaults (the leak scaled per cylinder), then ``overrides``."""
+    each effect's bench defaults (the leak scaled per cylinder), then ``overrides``.
+
+    A planted tube adds its volume to the dead volume (the format's dead volume
+    includes the tube), unless ``dead_volume_m3`` is overridden."""
     values = dict(valve_preset(valve).parameters())
     rig_truth = CYLINDER_TRUTH.get(cylinder, {"dead_volume_m3": 5e-7, "leak_scale": 1.0})
     values["dead_volume_m3"] = rig_truth["dead_volume_m3"]
@@ -62,6 +65,9 @@ def truth_parameters(model: Model, cylinder: str, valve: str,
             raise ValueError(f"--set {k}: not a parameter of the bench model "
                              f"{list(model.parameter_names)}")
         values[k] = float(v)
+    if model.has("tube_delay") and "dead_volume_m3" not in (overrides or {}):
+        values["dead_volume_m3"] += float(
+            model.effect("tube_delay").tube_volume_m3(values["tube_delay_s"], rig))
     model.check_bounds(model.vector(values))
     return values
 
@@ -131,8 +137,8 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     out.mkdir(parents=True, exist_ok=True)
     cyl = cylinder_preset(cfg.cylinder)
     model = cfg.model
-    truth = truth_parameters(model, cfg.cylinder, cfg.valve, cfg.overrides)
     rig = Rig(cyl.bore_m, ATMOSPHERE_PA, SUPPLY_PA, GasConstants(temperature_K=TEMPERATURE_K))
+    truth = truth_parameters(model, cfg.cylinder, cfg.valve, rig, cfg.overrides)
     fs_out = cfg.sensor.sample_rate_Hz
     step = int(round(cfg.fine_rate_Hz / fs_out))
     n_out = int(round(cfg.duration_s * fs_out)) + 1

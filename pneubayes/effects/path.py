@@ -25,7 +25,7 @@ SLOTS: tuple[tuple[str, str], ...] = (
     ("exhaust_b", "exhaust Gompertz b (-)"),
     ("exhaust_c_per_V", "exhaust Gompertz c (1/V)"),
     ("exhaust_d_V", "exhaust Gompertz d (V)"),
-    ("volume_m3", "chamber volume at position 0: dead volume plus any tube volume (m^3)"),
+    ("volume_m3", "chamber volume at position 0, tube included (m^3)"),
     ("command_delay_s", "transport delay of the command reaching the chamber (s)"),
     ("spool_time_constant_s", "first-order spool lag time constant, 0 = none (s)"),
     ("deadband_halfwidth_V", "dead band on the spool position before the area maps (V)"),

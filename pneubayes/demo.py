@@ -1,0 +1,146 @@
+"""``make demo``: the shipped bench recordings simulated with the true model and with
+the plain thin-port model, scored by the paper's 2-s prediction metric.
+
+    python -m pneubayes.demo --data data --out results/demo
+
+Steps: verify the shipped files against ``data/registry.json``; for each set, predict
+every recording over 2-s windows (from the measured pressure, every 0.5 s) with the
+true model, with the plain thin-port model (every planted effect removed) and with each
+single effect removed; print the RMSE in Pa and as % of the working range; generate a
+fresh bench set to show the bench; write figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.evaluation import predict_windows
+from pneubayes.io.recording import read_recording
+from pneubayes.model import Model, write_json_atomic
+from pneubayes.simulation import SolverConfig
+
+HORIZON_S, STRIDE_S = 2.0, 0.5
+
+
+def verify_registry(data: Path) -> list[str]:
+    """Problems with the shipped files (missing or changed), per ``registry.json``."""
+    reg = json.loads((data / "registry.json").read_text())
+    problems = []
+    for e in reg["files"]:
+        f = data / e["file"]
+        if not f.exists():
+            problems.append(f"{f}: missing")
+        elif hashlib.sha256(f.read_bytes()).hexdigest() != e["sha256"]:
+            problems.append(f"{f}: sha256 differs from data/registry.json")
+    return problems
+
+
+def score_set(folder: Path, solver: SolverConfig) -> tuple[list[dict], dict]:
+    """2-s RMSE of the true model, the plain model and each single ablation."""
+    truth_model, truth = Model.load_card(folder / "truth.json")
+    variants = {"true model": (truth_model, truth)}
+    plain = Model()
+    variants["plain thin-port"] = (plain, {n: truth[n] for n in plain.parameter_names})
+    if len(truth_model.effects) > 1:
+        for e in truth_model.effects:
+            m = truth_model.without(e.name)
+            variants[f"without {e.name}"] = (m, {n: truth[n] for n in m.parameter_names})
+    rows, example = [], {}
+    for csv in sorted(folder.glob("*.csv")):
+        rec = read_recording(csv)
+        row = {"recording": str(csv), "range_Pa": rec.working_range_Pa}
+        for name, (m, v) in variants.items():
+            wp = predict_windows(m, v, rec, HORIZON_S, STRIDE_S, solver)
+            row[name] = float(wp.rmse_Pa()[0])
+            if not example and rec.position_m is not None:
+                example = {"recording": rec, "variants": variants}
+        rows.append(row)
+    return rows, example
+
+
+def print_table(title: str, rows: list[dict]) -> None:
+    names = [k for k in rows[0] if k not in ("recording", "range_Pa")]
+    print(f"\n{title}: 2-s prediction RMSE, Pa (% of working range)")
+    head = f"{'recording':28s}" + "".join(f"{n:>24s}" for n in names)
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        cells = "".join(f"{r[n]:>13.0f} ({100 * r[n] / r['range_Pa']:5.2f} %)" for n in names)
+        print(f"{Path(r['recording']).name:28s}{cells}")
+
+
+def figure(example: dict, out: Path, solver: SolverConfig) -> Path | None:
+    try:
+        from pneubayes.plotting import plot_predictions
+    except ImportError:  # matplotlib is a core dependency; keep the demo going regardless
+        return None
+    rec = example["recording"]
+    n = int(round(HORIZON_S / float(np.median(np.diff(rec.time_s))))) + 1
+    i0 = min(int(2.0 / float(np.median(np.diff(rec.time_s)))), rec.n_samples - n)
+    part = rec.slice(i0, i0 + n)
+    preds = {}
+    for name, (m, v) in example["variants"].items():
+        if name == "true model" or name == "plain thin-port":
+            wp = predict_windows(m, v, part, HORIZON_S, STRIDE_S, solver)
+            preds[name] = wp.predicted_Pa[0, 0]
+    return plot_predictions(part.time_s, part.pressure_Pa, preds, out,
+                            title=f"{Path(rec.source).name}: 2-s prediction from the measured "
+                                  "pressure", command_V=part.command_V,
+                            position_m=part.position_m)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="pneubayes demo on the shipped bench data")
+    ap.add_argument("--data", default="data", help="shipped data folder (data/)")
+    ap.add_argument("--out", default="results/demo", help="output folder")
+    ap.add_argument("--seed", type=int, default=2026, help="seed of the fresh bench set")
+    args = ap.parse_args(argv)
+    data, out = Path(args.data), Path(args.out)
+    t0 = time.perf_counter()
+    solver = SolverConfig.standard()
+    problems = verify_registry(data)
+    if problems:
+        print("shipped data does not match data/registry.json:\n  " + "\n  ".join(problems),
+              file=sys.stderr)
+        return 1
+    print(f"shipped data verified against {data / 'registry.json'}")
+    summary = {"solver": solver.to_dict(), "horizon_s": HORIZON_S, "stride_s": STRIDE_S,
+               "sets": {}}
+    example = {}
+    for truth in sorted(data.glob("**/truth.json")):
+        folder = truth.parent
+        rows, ex = score_set(folder, solver)
+        example = example or ex
+        planted = json.loads(truth.read_text())["bench"]["planted_effects"]
+        print_table(f"{folder.relative_to(data)} (planted: {', '.join(planted)})", rows)
+        summary["sets"][str(folder.relative_to(data))] = rows
+
+    fresh = out / "bench"
+    print(f"\nfresh bench set (seed {args.seed}): AIR200 + valve2 with a valve dead band and "
+          f"spool lag, moving piston -> {fresh}")
+    cfg = BenchConfig("AIR200", "valve2", effects_from_names(["valve_deadzone", "spool_lag"]),
+                      protocol="moving", duration_s=10.0, seed=args.seed, count=1)
+    run_bench(cfg, fresh, overwrite=True)
+    rows, _ = score_set(fresh, solver)
+    print_table("fresh bench set", rows)
+    summary["sets"]["fresh"] = rows
+    summary["fresh_seed"] = args.seed
+    if example:
+        fig = figure(example, out / "demo_prediction.png", solver)
+        if fig:
+            print(f"\nfigure: {fig}")
+    write_json_atomic(out / "demo_summary.json", summary)
+    print(f"summary: {out / 'demo_summary.json'}  ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
