@@ -1,0 +1,32 @@
+"""The shipped data match their registry, and the demo runs on them."""
+
+import json
+from pathlib import Path
+
+from pneubayes.demo import main as demo_main
+from pneubayes.demo import verify_registry
+from pneubayes.io import check_recording
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def test_shipped_data_match_registry_and_format():
+    assert verify_registry(DATA) == []
+    reg = json.loads((DATA / "registry.json").read_text())
+    csvs = [DATA / e["file"] for e in reg["files"] if e["file"].endswith(".csv")]
+    assert csvs
+    for f in csvs:
+        assert check_recording(f) == []
+    total = sum((DATA / e["file"]).stat().st_size for e in reg["files"])
+    assert total < 5e6  # a few MB at most
+
+
+def test_demo_runs_on_shipped_data(tmp_path, capsys):
+    assert demo_main(["--data", str(DATA), "--out", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "demo_summary.json").read_text())
+    for rows in summary["sets"].values():
+        for r in rows:
+            # the true model beats the plain thin-port model on every recording
+            assert r["true model"] < r["plain thin-port"]
+    assert (tmp_path / "demo_prediction.png").stat().st_size > 10_000
+    assert "plain thin-port" in capsys.readouterr().out
