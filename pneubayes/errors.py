@@ -12,9 +12,15 @@ class RecordingError(PneubayesError, ValueError):
     location names the file and the row or key.
     """
 
+    #: At most this many problems are spelled out in the message (all stay in .problems).
+    MAX_LISTED = 25
+
     def __init__(self, problems):
         self.problems = list(problems)
-        lines = [f"{loc}: {why}" for loc, why in self.problems]
+        lines = [f"{loc}: {why}" for loc, why in self.problems[: self.MAX_LISTED]]
+        more = len(self.problems) - len(lines)
+        if more > 0:
+            lines.append(f"... and {more} more problem(s) (see RecordingError.problems)")
         super().__init__("invalid recording:\n  " + "\n  ".join(lines))
 
 

@@ -152,6 +152,17 @@ def test_reads_contract_example_by_any_name(tmp_path):
     assert recording_paths("run.01") == (recording_paths("run.01.csv"))
 
 
+@pytest.mark.parametrize("newline", ["\r\n", "\r"])
+def test_spreadsheet_exports_are_read(tmp_path, newline):
+    """A BOM, CRLF or CR line ends, quoted cells, spaces and trailing blank lines."""
+    text = newline.join(["\ufefftime_s, command_V ,pressure_Pa", '0,"1.5",1e5', " 1e-3 ,-2, 2E5",
+                         "", ""])
+    (tmp_path / "x.csv").write_bytes(text.encode())
+    (tmp_path / "x.json").write_text(json.dumps(META))
+    rec = read_recording(tmp_path / "x")
+    assert rec.time_s.tolist() == [0.0, 0.001] and rec.command_V.tolist() == [1.5, -2.0]
+
+
 def test_derived_quantities(tmp_path):
     rec = read_recording(make_files(tmp_path))
     assert rec.n_samples == 6
@@ -194,10 +205,10 @@ def test_command_within_rounding_is_clipped(tmp_path):
 BAD = {
     # name: (csv text, json text or meta dict, location, reason)
     "missing_column": (
-        "\n".join(["time_s,pressure_Pa", "0,101325", "1,101325"]), None,
+        "time_s,pressure_Pa\n0,101325\n1,101325", None,
         "run01.csv row 1", "missing required column 'command_V'"),
     "missing_column_case": (
-        "\n".join(["Time_s,command_V,pressure_Pa", "0,0,101325"]), None,
+        "Time_s,command_V,pressure_Pa\n0,0,101325", None,
         "run01.csv row 1", "missing required column 'time_s' (found 'Time_s'"),
     "no_header": ("\n".join(ROWS), None, "run01.csv row 1", "header row is needed"),
     "semicolons": ("time_s;command_V;pressure_Pa\n0;0;101325\n", None,
@@ -210,10 +221,10 @@ BAD = {
         "time_s,command_V,pressure_Pa,\n0,0,101325,1\n", None,
         "run01.csv row 1", "column 4 has an empty name"),
     "too_many_fields": (rows_with(3, "0.001,2.5,150000.0,551000.0,0.011,7"), None,
-                        "run01.csv row 3", "has 6 fields, the header has 5"),
+                        "run01.csv row 3", "has 6 field(s), the header has 5"),
     "decimal_comma": (rows_with(4, "0.002,5.0,250000.0,550500.0,0,012"), None,
-                      "run01.csv row 4", "has 6 fields"),
-    "too_few_fields": (rows_with(5, "0.003,-1.0"), None, "run01.csv row 5", "has 2 fields"),
+                      "run01.csv row 4", "has 6 field(s)"),
+    "too_few_fields": (rows_with(5, "0.003,-1.0"), None, "run01.csv row 5", "has 2 field(s)"),
     "blank_line": (rows_with(6, ""), None, "run01.csv row 6", "blank line"),
     "no_data_rows": (HEADER + "\n", None, "run01.csv row 2", "no data rows"),
     "non_numeric": (rows_with(4, "0.002,5.0,2.5 bar,550500.0,0.012"), None,
@@ -297,8 +308,8 @@ def test_missing_partner_file(tmp_path, missing):
     with pytest.raises(RecordingError) as err:
         read_recording(tmp_path / "run01.csv")
     assert err.value.problems == [(str(tmp_path / f"run01.{missing}"),
-                                   "file not found (a recording is a .csv and a .json file "
-                                   "with the same stem)")]
+                                   ("file not found (a recording is a .csv and a .json file "
+                                   "with the same stem)"))]
     assert check_recording(stem) == err.value.problems
 
 
@@ -391,7 +402,7 @@ def recordings(draw):
         cylinder=draw(name), valve=draw(name), bore_m=draw(positive), stroke_m=stroke,
         atmospheric_pressure_Pa=atm, supply_pressure_Pa=sup, temperature_K=draw(positive),
         position_m=draw(st.none() | st.floats(0.0, stroke)),
-        extra=draw(st.dictionaries(st.text().filter(lambda k: k not in META), st.none()
+        extra=draw(st.dictionaries(st.text().filter(lambda k: k not in {**META, "position_m": 0}), st.none()
                                    | st.booleans() | finite | st.text(), max_size=3)))
     extra_name = st.text(min_size=1).filter(
         lambda s: s == s.strip() and s not in ("time_s", "command_V", "pressure_Pa",

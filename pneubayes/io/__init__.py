@@ -1,0 +1,23 @@
+"""Reading and writing measured data in the project's interchange format."""
+
+from pneubayes.io.recording import (
+    COMMAND_LIMIT_V,
+    COMMAND_TOLERANCE_V,
+    Recording,
+    RecordingMetadata,
+    check_recording,
+    read_recording,
+    recording_paths,
+    write_recording,
+)
+
+__all__ = [
+    "COMMAND_LIMIT_V",
+    "COMMAND_TOLERANCE_V",
+    "Recording",
+    "RecordingMetadata",
+    "check_recording",
+    "read_recording",
+    "recording_paths",
+    "write_recording",
+]
