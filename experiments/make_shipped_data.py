@@ -14,8 +14,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from pneubayes.atomic import write_json_atomic
 from pneubayes.cli import main as cli_main
-from pneubayes.model import write_json_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 

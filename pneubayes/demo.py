@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.evaluation import predict_windows
 from pneubayes.io.recording import read_recording
-from pneubayes.model import Model, write_json_atomic
+from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
 HORIZON_S, STRIDE_S = 2.0, 0.5

@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
+from collections.abc import Iterable, Mapping
 from functools import cached_property
 from pathlib import Path
-from typing import Iterable, Mapping
 
 import numpy as np
 
+from pneubayes.atomic import write_json_atomic
 from pneubayes.effects import CATALOGUE, Effect, Parameter, ThinPort, make_effect
 from pneubayes.effects.path import N_SLOTS, SLOT_INDEX
 from pneubayes.errors import ModelCardError, ParameterError
@@ -269,22 +268,3 @@ class Model:
             raise ModelCardError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") \
                 from None
         return cls.from_card(card, source=str(path))
-
-
-def write_json_atomic(path, obj) -> None:
-    """Write JSON to ``path`` via a temporary file in the same folder and a rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the usual mode
-        with os.fdopen(fd, "w") as fh:
-            json.dump(obj, fh, indent=2, sort_keys=False)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise

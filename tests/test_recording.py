@@ -295,7 +295,8 @@ def test_bad_input_is_reported_with_file_location_and_reason(tmp_path, case):
     with pytest.raises(RecordingError) as err:
         read_recording(stem)
     problems = err.value.problems
-    assert any(loc.startswith(str(tmp_path / location)) and reason in why for loc, why in problems), problems
+    assert any(loc.startswith(str(tmp_path / location)) and reason in why
+               for loc, why in problems), problems
     assert str(tmp_path / location) in str(err.value) and reason in str(err.value)
     assert isinstance(err.value, ValueError)
     assert check_recording(stem) == problems
@@ -402,8 +403,9 @@ def recordings(draw):
         cylinder=draw(name), valve=draw(name), bore_m=draw(positive), stroke_m=stroke,
         atmospheric_pressure_Pa=atm, supply_pressure_Pa=sup, temperature_K=draw(positive),
         position_m=draw(st.none() | st.floats(0.0, stroke)),
-        extra=draw(st.dictionaries(st.text().filter(lambda k: k not in {**META, "position_m": 0}), st.none()
-                                   | st.booleans() | finite | st.text(), max_size=3)))
+        extra=draw(st.dictionaries(
+            st.text().filter(lambda k: k not in {**META, "position_m": 0}),
+            st.none() | st.booleans() | finite | st.text(), max_size=3)))
     extra_name = st.text(min_size=1).filter(
         lambda s: s == s.strip() and s not in ("time_s", "command_V", "pressure_Pa",
                                                "supply_pressure_Pa", "position_m"))

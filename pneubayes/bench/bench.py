@@ -9,18 +9,19 @@ fine grid with tight tolerances (:meth:`SolverConfig.reference`) and passed thro
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 import pneubayes
+from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.protocols import piston_motion, step_commands
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.effects import Effect, make_effect
 from pneubayes.io.recording import Recording, RecordingMetadata, write_recording
-from pneubayes.model import Model, write_json_atomic
+from pneubayes.model import Model
 from pneubayes.physics.cylinder import cylinder_preset
 from pneubayes.physics.gas import GasConstants
 from pneubayes.physics.valve import valve_preset

@@ -473,7 +473,8 @@ def _recording_problems(rec: Recording, csv_name: str, json_name: str) -> list:
             problems.append((f"{csv_name} column {col!r}", ("extra column name must be a "
                              "non-empty string without surrounding spaces, not a standard name")))
     if n == 0:
-        problems.append((f"{csv_name} row 2", "no data rows: a recording needs at least one sample"))
+        problems.append((f"{csv_name} row 2",
+                         "no data rows: a recording needs at least one sample"))
     return problems + _check_columns(cols, {}, range(2, n + 2), csv_name)
 
 

@@ -214,7 +214,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                 err = 10.0
                 pn, tn = up, ut
                 if ok:
-                    fp2, _, ft2, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False)
+                    fp2, _, ft2, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
+                                          hh, False)
                     dp = fp2 - fp - jp * (up - p)
                     ep = 2.0 * hh * phi3p * dp
                     pn = up + ep

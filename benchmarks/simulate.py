@@ -1,0 +1,665 @@
+"""Speed and accuracy benchmark of the pneubayes simulator against scipy's solve_ivp.
+
+    .venv/bin/python benchmarks/simulate.py --json results/bench_simulate.json [--quick]
+
+One run measures, on seeded 2-s trajectories (1 kHz, random step commands) for three
+chamber volumes (fixed 2.4e-6 m^3, fixed 1e-7 m^3, moving piston on 2e-7 m^3):
+
+1. pneubayes wall time per trajectory (warm, single thread, batch of one), its maximum
+   error against a tight Radau reference (rtol 1e-10), and the scipy LSODA and RK45
+   baselines (rtol 1e-6) with their own errors against the same reference;
+2. batched throughput (1, 64 and 1024 perturbed parameter sets on 1 and 2 threads) for
+   the fixed 2.4e-6 m^3 case, plus batch-64 single-thread throughput for every case.
+
+It prints a table and writes every number to the JSON file (atomically). It never fails
+on slow times: the floors of the issue are reported as booleans. See benchmarks/README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import gc
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.atomic import write_json_atomic
+
+SCHEMA = "pneubayes-bench-simulate/1"
+
+# ----------------------------------------------------------------------------- setup
+SAMPLE_RATE_HZ = 1000.0
+DURATION_S = 2.0
+P_ATM = 101325.0
+P_SUPPLY = 551325.0
+BORE_M = 0.009            # AIR37
+STROKE_M = 0.0375
+STROKE_MARGIN_M = 0.00125  # keep the moving piston this far from both ends
+MAX_PISTON_SPEED = 0.5     # m/s, the moving case is scaled to reach (at most) this
+MOTION_FREQS_HZ = (1.0, 2.0, 3.5, 5.5, 8.0)
+LEAK_AREA_M2 = 3.04e-8
+HOLD_MS = (30, 300)        # command holds, uniform (inclusive), ms
+LEVEL_V = (-5.0, 5.0)      # command levels, uniform, V
+PERTURB = 0.10             # +-10 % multiplicative parameter perturbation
+BATCH_SIZES = (1, 64, 1024)
+THREAD_COUNTS = (1, 2)
+
+SCIPY_RTOL, SCIPY_ATOL_PA = 1e-6, 1e-3
+RADAU_RTOL, RADAU_ATOL_PA = 1e-10, 1e-6
+SCIPY_CHUNK_S = 0.25       # scipy runs proceed in chunks so a slow one can be cut short
+
+FLOOR_SIM_S_PER_S_PER_CORE = 3000.0
+FLOOR_SPEEDUP_LSODA_FIXED = 100.0
+FLOOR_SPEEDUP_LSODA_MOVING = 1000.0
+LOAD_WARN = 0.5            # 1-min load average above which the run notes contention
+ACCURACY_FLOOR_PERCENT = 0.1  # SolverConfig.standard()'s documented accuracy, % of range
+
+CASES = (
+    # name, dead volume m^3, moving?
+    ("fixed_2.4e-6", 2.4e-6, False),
+    ("fixed_1e-7", 1e-7, False),
+    ("moving_2e-7", 2e-7, True),
+)
+FIXED_CASE = "fixed_2.4e-6"
+MOVING_CASE = "moving_2e-7"
+
+
+def _parse(argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", required=True, metavar="OUT.json",
+                    help="where to write all measurements (written atomically)")
+    ap.add_argument("--seed", type=int, default=0,
+                    help="seed of the command, motion and parameter perturbations (default 0)")
+    ap.add_argument("--quick", action="store_true",
+                    help="smoke test: ~0.2 s of repetitions per timing and 0.5-s scipy "
+                         "baselines (compared per simulated second)")
+    ap.add_argument("--scipy-budget", type=float, default=60.0, metavar="SECONDS",
+                    help="wall-time budget of one scipy run; a run that exceeds it stops at "
+                         "the next 0.25-s chunk and is normalised per simulated second "
+                         "(default 60)")
+    return ap.parse_args(argv)
+
+
+# ----------------------------------------------------------------------------- signals
+def make_command(rng, n):
+    """Random step command on n samples: holds uniform in HOLD_MS, levels in LEVEL_V."""
+    u = np.empty(n)
+    i = 0
+    while i < n:
+        hold = int(rng.integers(HOLD_MS[0], HOLD_MS[1] + 1))  # samples at 1 kHz
+        u[i:i + hold] = rng.uniform(*LEVEL_V)
+        i += hold
+    return u
+
+
+def make_motion(rng, t):
+    """Aggressive piston motion: sum of sinusoids (1-8 Hz, random phases) within the stroke.
+
+    Amplitudes fall as f^-0.2; the sum is scaled so the largest sample-to-sample speed is
+    MAX_PISTON_SPEED unless that would leave the stroke (then it fills the stroke).
+    """
+    f = np.asarray(MOTION_FREQS_HZ)
+    phase = rng.uniform(0.0, 2.0 * np.pi, f.size)
+    x = (f[:, None] ** -0.2 * np.sin(2 * np.pi * f[:, None] * t[None, :]
+                                     + phase[:, None])).sum(axis=0)
+    speed = np.abs(np.diff(x) / np.diff(t)).max()
+    usable = STROKE_M - 2 * STROKE_MARGIN_M
+    scale = min(MAX_PISTON_SPEED / speed, usable / np.ptp(x))
+    x = (x - 0.5 * (x.max() + x.min())) * scale + 0.5 * STROKE_M
+    return x
+
+
+# ----------------------------------------------------------------------------- helpers
+def _git_revision():
+    here = Path(__file__).resolve().parent
+    out = {"revision": None, "dirty": None}
+    try:
+        out["revision"] = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here,
+                                         capture_output=True, text=True, timeout=10,
+                                         check=True).stdout.strip() or None
+        st = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                            cwd=here, capture_output=True, text=True, timeout=10, check=True)
+        out["dirty"] = bool(st.stdout.strip())
+    except Exception as exc:  # noqa: BLE001 - no git, not a repo, ...: tolerated
+        out["error"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def _loadavg():
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (OSError, AttributeError):
+        return None
+
+
+def time_calls(fn, min_total_s, min_reps):
+    """Warm call, then repeat fn until min_total_s and min_reps are both reached."""
+    t0 = time.perf_counter()
+    fn()
+    warm = time.perf_counter() - t0
+    times = []
+    gc_was = gc.isenabled()
+    gc.disable()
+    try:
+        start = time.perf_counter()
+        while len(times) < min_reps or time.perf_counter() - start < min_total_s:
+            a = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - a)
+    finally:
+        if gc_was:
+            gc.enable()
+    arr = np.asarray(times)
+    return {"median_s": float(np.median(arr)), "mean_s": float(arr.mean()),
+            "min_s": float(arr.min()), "max_s": float(arr.max()), "repetitions": int(arr.size),
+            "warm_call_s": warm}
+
+
+def _pct(err_pa, working_range):
+    return None if err_pa is None else 100.0 * err_pa / working_range
+
+
+# ----------------------------------------------------------------------------- scipy runs
+def run_scipy(ctx, inputs, params, method, rtol, atol, max_horizon_s, budget_s):
+    """reference_simulate in SCIPY_CHUNK_S chunks up to max_horizon_s or the wall budget.
+
+    Each chunk restarts from the previous chunk's last pressure. reference_simulate already
+    integrates every sample interval separately, and this model (cylinder_leak, no delay,
+    spool lag or heat transfer) has pressure as its only state, so chunking does not
+    change the result.
+    """
+    Inputs, reference_simulate = ctx["Inputs"], ctx["reference_simulate"]
+    t = inputs.time_s
+    dt = t[1] - t[0]
+    n_max = round(max_horizon_s / dt)  # intervals
+    n_max = min(n_max, t.size - 1)
+    chunk = max(1, round(SCIPY_CHUNK_S / dt))
+    out = [np.array([ctx["p0"]])]
+    p = ctx["p0"]
+    k = 0
+    nfev = 0
+    wall = 0.0
+    error = None
+    stopped_by_budget = False
+    while k < n_max:
+        b = min(k + chunk, n_max)
+        sub = Inputs(t[k:b + 1], inputs.command_V[k:b + 1], inputs.position_m[k:b + 1],
+                     inputs.supply_pressure_Pa[k:b + 1])
+        a0 = time.perf_counter()
+        try:
+            y, nf = reference_simulate(ctx["model"], params, sub, ctx["rig"], p, method=method,
+                                       rtol=rtol, atol=atol, return_stats=True)
+        except Exception as exc:  # noqa: BLE001 - any solver failure: record, stop
+            wall += time.perf_counter() - a0
+            error = f"{type(exc).__name__}: {exc}".strip()[:500]
+            break
+        wall += time.perf_counter() - a0
+        nfev += nf
+        out.append(y[1:])
+        p = float(y[-1])
+        k = b
+        if not np.all(np.isfinite(y)):
+            break
+        if wall > budget_s and k < n_max:
+            stopped_by_budget = True
+            break
+    traj = np.concatenate(out)
+    horizon = (traj.size - 1) * dt
+    returned_nan = bool(not np.all(np.isfinite(traj)))
+    ok = error is None and not returned_nan and traj.size - 1 == n_max
+    return {
+        "method": method, "rtol": rtol, "atol_Pa": atol,
+        "requested_horizon_s": n_max * dt, "horizon_s": horizon,
+        "wall_s": wall, "wall_per_simulated_second_s": wall / horizon if horizon > 0 else None,
+        "rhs_evaluations": nfev, "failed": error is not None, "error": error,
+        "returned_nan": returned_nan, "completed": ok,
+        "shortened_by_budget": stopped_by_budget, "budget_s": budget_s,
+    }, traj
+
+
+def max_abs_diff(a, b):
+    n = min(a.size, b.size)
+    if n < 2:
+        return None, 0
+    d = np.abs(a[:n] - b[:n])
+    if not np.all(np.isfinite(d)):
+        return None, n
+    return float(d.max()), n
+
+
+# ----------------------------------------------------------------------------- main
+def main(argv=None):
+    args = _parse(argv)
+    run_start = time.perf_counter()
+    started = _dt.datetime.now(_dt.UTC)
+    load_start = _loadavg()
+
+    import numba
+    import scipy
+
+    from pneubayes.errors import SimulationError
+    from pneubayes.model import Model
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.rig import Rig
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+    from pneubayes.simulation.reference import reference_simulate
+
+    quick = args.quick
+    min_total = 0.2 if quick else 1.0
+    min_reps = 1 if quick else 3
+    scipy_horizon = 0.5 if quick else DURATION_S
+    notes = []
+    if quick:
+        notes.append("--quick: timings repeat for ~0.2 s; scipy baselines and the Radau "
+                     "reference cover the first 0.5 s of each trajectory, so scipy is "
+                     "compared per simulated second and errors are over 0.5 s.")
+
+    ss = np.random.SeedSequence(args.seed)
+    rng_cmd, rng_motion, rng_params = (np.random.default_rng(s) for s in ss.spawn(3))
+
+    n = round(DURATION_S * SAMPLE_RATE_HZ) + 1
+    t = np.arange(n) / SAMPLE_RATE_HZ
+    sim_s = float(t[-1] - t[0])
+    command = make_command(rng_cmd, n)
+    motion = make_motion(rng_motion, t)
+    supply = np.full(n, P_SUPPLY)
+
+    model = Model(["cylinder_leak"])
+    rig = Rig(BORE_M, P_ATM, P_SUPPLY)
+    working_range = rig.working_range_Pa
+    solver = SolverConfig.standard()
+    lo, hi = model.bounds
+    threads_available = int(numba.config.NUMBA_NUM_THREADS)
+
+    # One perturbation matrix, reused (rescaled per case) so batches are comparable.
+    perturb = rng_params.uniform(1.0 - PERTURB, 1.0 + PERTURB,
+                                 size=(max(BATCH_SIZES), model.n_parameters))
+    perturb[0] = 1.0  # row 0 is the base vector: batch 1 is the section-1 trajectory
+
+    cases = {}
+    for name, volume, moving in CASES:
+        params = valve_preset("valve1").parameters()
+        params.update(dead_volume_m3=volume, leak_area_m2=LEAK_AREA_M2)
+        base = model.vector(params)
+        batch = np.clip(base[None, :] * perturb, lo, hi)
+        pos = motion if moving else np.zeros(n)
+        inputs = Inputs(t, command, pos, supply)
+        cases[name] = {"volume": volume, "moving": moving, "params": params, "base": base,
+                       "batch": batch, "inputs": inputs}
+
+    ctx = {"model": model, "rig": rig, "p0": P_ATM, "Inputs": Inputs,
+           "reference_simulate": reference_simulate}
+
+    def sim(theta, inputs):
+        return simulate(model, theta, inputs, rig, P_ATM, solver)
+
+    # Diagnostic: the compiled kernel alone (no Python wrapper); internal API, optional.
+    try:
+        from pneubayes.simulation import kernel as _kernel
+        from pneubayes.simulation import rig_constants as _rig_constants
+
+        def kernel_only(theta, inputs):
+            slots = np.ascontiguousarray(model.lower(model.as_matrix(theta), rig))
+            return _kernel.simulate_windows(
+                slots, _rig_constants(rig), solver.as_array(), inputs.time_s,
+                inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa,
+                np.array([0], dtype=np.int64), inputs.n_samples, np.array([P_ATM]))
+    except Exception as exc:  # noqa: BLE001 - internal API moved: skip the diagnostic
+        kernel_only = None
+        notes.append(f"kernel-only diagnostic unavailable: {type(exc).__name__}: {exc}")
+
+    # ---------------------------------------------------------------- 1. per trajectory
+    numba.set_num_threads(1)
+    per_case = {}
+    first_call_s = None
+    for name, c in cases.items():
+        res = {"dead_volume_m3": c["volume"], "moving": c["moving"]}
+        if c["moving"]:
+            x = c["inputs"].position_m
+            res["position_min_m"] = float(x.min())
+            res["position_max_m"] = float(x.max())
+            res["max_piston_speed_m_per_s"] = float(np.abs(np.diff(x) / np.diff(t)).max())
+        print(f"[{name}] pneubayes ...", file=sys.stderr, flush=True)
+        pb = {"threads": 1, "batch": 1}
+        try:
+            if first_call_s is None:
+                a = time.perf_counter()
+                sim(c["base"], c["inputs"])
+                first_call_s = time.perf_counter() - a
+            timing = time_calls(lambda c=c: sim(c["base"], c["inputs"]), min_total,
+                                min_reps)
+            pb.update(timing)
+            pb["wall_per_trajectory_s"] = timing["median_s"]
+            pb["wall_per_simulated_second_s"] = timing["median_s"] / sim_s
+            pb["sim_seconds_per_second"] = sim_s / timing["median_s"]
+            traj = sim(c["base"], c["inputs"]).pressure_Pa[0]
+            pb["returned_nan"] = bool(not np.all(np.isfinite(traj)))
+        except SimulationError as exc:
+            pb["error"] = str(exc)[:500]
+            traj = None
+        if kernel_only is not None:
+            try:
+                kt = time_calls(lambda c=c: kernel_only(c["base"], c["inputs"]), min_total,
+                                min_reps)
+                pb["kernel_only_median_s"] = kt["median_s"]
+                pb["kernel_only_sim_seconds_per_second"] = sim_s / kt["median_s"]
+            except Exception as exc:  # noqa: BLE001 - diagnostic only
+                pb["kernel_only_error"] = f"{type(exc).__name__}: {exc}"[:300]
+        res["pneubayes"] = pb
+
+        # batch 64, one thread, for the batched headline
+        b64 = {"threads": 1, "batch": 64}
+        try:
+            timing = time_calls(lambda c=c: sim(c["batch"][:64], c["inputs"]), min_total,
+                                min_reps)
+            b64.update(timing)
+            b64["sim_seconds_per_second"] = 64 * sim_s / timing["median_s"]
+            b64["sim_seconds_per_second_per_core"] = b64["sim_seconds_per_second"]
+        except SimulationError as exc:
+            b64["error"] = str(exc)[:500]
+        res["pneubayes_batch64"] = b64
+
+        # Radau reference and scipy baselines
+        print(f"[{name}] scipy Radau reference ...", file=sys.stderr, flush=True)
+        radau, radau_traj = run_scipy(ctx, c["inputs"], c["base"], "Radau", RADAU_RTOL,
+                                      RADAU_ATOL_PA, scipy_horizon, args.scipy_budget)
+        res["reference_radau"] = radau
+        ref_ok = not radau["failed"] and not radau["returned_nan"]
+        if traj is not None and ref_ok:
+            err, nn = max_abs_diff(traj, radau_traj)
+            pb["max_abs_error_vs_radau_Pa"] = err
+            pb["max_abs_error_vs_radau_percent_of_range"] = _pct(err, working_range)
+            pb["error_horizon_s"] = (nn - 1) / SAMPLE_RATE_HZ
+        res["scipy"] = {}
+        for method in ("LSODA", "RK45"):
+            print(f"[{name}] scipy {method} ...", file=sys.stderr, flush=True)
+            r, y = run_scipy(ctx, c["inputs"], c["base"], method, SCIPY_RTOL, SCIPY_ATOL_PA,
+                             scipy_horizon, args.scipy_budget)
+            if ref_ok and not r["failed"] and not r["returned_nan"]:
+                err, nn = max_abs_diff(y, radau_traj)
+                r["max_abs_diff_vs_radau_Pa"] = err
+                r["max_abs_diff_vs_radau_percent_of_range"] = _pct(err, working_range)
+                r["diff_horizon_s"] = (nn - 1) / SAMPLE_RATE_HZ
+            else:
+                r["max_abs_diff_vs_radau_Pa"] = None
+                r["max_abs_diff_vs_radau_percent_of_range"] = None
+            if (not r["failed"] and not r["returned_nan"] and r["horizon_s"] > 0
+                    and "wall_per_simulated_second_s" in pb):
+                r["speedup_of_pneubayes"] = (r["wall_per_simulated_second_s"]
+                                             / pb["wall_per_simulated_second_s"])
+            else:
+                r["speedup_of_pneubayes"] = None
+            res["scipy"][method] = r
+            if r["shortened_by_budget"]:
+                notes.append(f"{name}: {method} exceeded the {args.scipy_budget:g}-s budget and "
+                             f"was measured over {r['horizon_s']:g} s; its speed is per "
+                             "simulated second.")
+            if r["failed"] or r["returned_nan"]:
+                notes.append(f"{name}: scipy {method} failed ({r['error'] or 'NaN output'}); "
+                             "no speedup or error recorded for it.")
+        if radau["shortened_by_budget"]:
+            notes.append(f"{name}: the Radau reference exceeded the budget; errors are over "
+                         f"the first {radau['horizon_s']:g} s.")
+        if not ref_ok:
+            notes.append(f"{name}: the Radau reference failed ({radau['error']}); no errors.")
+        per_case[name] = res
+
+    # ---------------------------------------------------------------- 2. throughput
+    throughput = []
+    c = cases[FIXED_CASE]
+    for nt in THREAD_COUNTS:
+        for bsz in BATCH_SIZES:
+            row = {"case": FIXED_CASE, "threads": nt, "batch": bsz}
+            if nt > threads_available:
+                row["skipped"] = (f"numba.config.NUMBA_NUM_THREADS={threads_available} < {nt}")
+                throughput.append(row)
+                continue
+            numba.set_num_threads(nt)
+            print(f"[throughput] batch {bsz}, {nt} thread(s) ...", file=sys.stderr, flush=True)
+            theta = c["batch"][:bsz]
+            try:
+                timing = time_calls(lambda theta=theta: sim(theta, c["inputs"]), min_total,
+                                    min_reps)
+                row.update(timing)
+                row["wall_per_call_s"] = timing["median_s"]
+                row["sim_seconds_per_second"] = bsz * sim_s / timing["median_s"]
+                row["sim_seconds_per_second_per_core"] = row["sim_seconds_per_second"] / nt
+            except SimulationError as exc:
+                row["error"] = str(exc)[:500]
+            throughput.append(row)
+    numba.set_num_threads(1)
+
+    # ---------------------------------------------------------------- headline + floors
+    def _get(d, *keys):
+        for k in keys:
+            if not isinstance(d, dict) or d.get(k) is None:
+                return None
+            d = d[k]
+        return d
+
+    by_case = {k: _get(v, "pneubayes", "sim_seconds_per_second") for k, v in per_case.items()}
+    by_case_b64 = {k: _get(v, "pneubayes_batch64", "sim_seconds_per_second_per_core")
+                   for k, v in per_case.items()}
+    headline = (min(by_case.values()) if all(v is not None for v in by_case.values())
+                else None)
+    headline_b64 = (min(by_case_b64.values())
+                    if all(v is not None for v in by_case_b64.values()) else None)
+    sp_fixed = _get(per_case, FIXED_CASE, "scipy", "LSODA", "speedup_of_pneubayes")
+    sp_moving = _get(per_case, MOVING_CASE, "scipy", "LSODA", "speedup_of_pneubayes")
+
+    def _met(v, floor):
+        return None if v is None else bool(v >= floor)
+
+    floors = {
+        "sim_seconds_per_second_per_core": {
+            "floor": FLOOR_SIM_S_PER_S_PER_CORE, "value": headline,
+            "met": _met(headline, FLOOR_SIM_S_PER_S_PER_CORE),
+            "per_case": {k: {"value": v, "met": _met(v, FLOOR_SIM_S_PER_S_PER_CORE)}
+                         for k, v in by_case.items()},
+            "definition": "single thread, batch of 1, via pneubayes.simulation.simulate; "
+                          "minimum over the three volume cases",
+        },
+        "speedup_vs_lsoda_fixed": {
+            "floor": FLOOR_SPEEDUP_LSODA_FIXED, "value": sp_fixed,
+            "met": _met(sp_fixed, FLOOR_SPEEDUP_LSODA_FIXED), "case": FIXED_CASE},
+        "speedup_vs_lsoda_moving": {
+            "floor": FLOOR_SPEEDUP_LSODA_MOVING, "value": sp_moving,
+            "met": _met(sp_moving, FLOOR_SPEEDUP_LSODA_MOVING), "case": MOVING_CASE},
+    }
+    acc = {k: _get(v, "pneubayes", "max_abs_error_vs_radau_percent_of_range")
+           for k, v in per_case.items()}
+    accuracy_check = {
+        "floor_percent_of_range": ACCURACY_FLOOR_PERCENT,
+        "per_case_percent_of_range": acc,
+        "met": (None if any(v is None for v in acc.values())
+                else all(v <= ACCURACY_FLOOR_PERCENT for v in acc.values())),
+        "note": "informational; SolverConfig.standard()'s documented accuracy against Radau "
+                "rtol 1e-10, not one of the issue's speed floors",
+    }
+
+    try:
+        threading_layer = numba.threading_layer()
+    except Exception:  # noqa: BLE001
+        threading_layer = None
+    try:
+        affinity = len(os.sched_getaffinity(0))
+    except Exception:  # noqa: BLE001
+        affinity = None
+    total_s = time.perf_counter() - run_start
+    load_end = _loadavg()
+    if load_start is not None and load_start[0] > LOAD_WARN:
+        notes.append(f"the 1-min load average was {load_start[0]:.2f} when the run started: "
+                     "other processes were using the CPUs, so timings (especially the "
+                     "2-thread ones) may be pessimistic and noisy.")
+    report = {
+        "schema": SCHEMA,
+        "sim_seconds_per_second_per_core": headline,
+        "sim_seconds_per_second_per_core_by_case": by_case,
+        "sim_seconds_per_second_per_core_batched": headline_b64,
+        "sim_seconds_per_second_per_core_batched_by_case": by_case_b64,
+        "speedup_vs_lsoda_fixed": sp_fixed,
+        "speedup_vs_lsoda_moving": sp_moving,
+        "floors": floors,
+        "all_floors_met": (None if any(f["met"] is None for f in floors.values())
+                           else all(f["met"] for f in floors.values())),
+        "accuracy_check": accuracy_check,
+        "cases": per_case,
+        "throughput": throughput,
+        "setup": {
+            "duration_s": sim_s, "sample_rate_Hz": SAMPLE_RATE_HZ, "samples": n,
+            "initial_pressure_Pa": P_ATM, "supply_pressure_Pa": P_SUPPLY,
+            "atmospheric_pressure_Pa": P_ATM, "working_range_Pa": working_range,
+            "bore_m": BORE_M, "stroke_m": STROKE_M,
+            "command": {"kind": "random steps, zero-order hold", "hold_ms": list(HOLD_MS),
+                        "level_V": list(LEVEL_V), "min_V": float(command.min()),
+                        "max_V": float(command.max()),
+                        "steps": int(np.count_nonzero(np.diff(command)))},
+            "motion": {"kind": "sum of sinusoids, amplitude ~ f^-0.2, random phases",
+                       "frequencies_Hz": list(MOTION_FREQS_HZ),
+                       "max_speed_target_m_per_s": MAX_PISTON_SPEED,
+                       "stroke_margin_m": STROKE_MARGIN_M},
+            "model_effects": list(model.effect_names), "valve": "valve1",
+            "leak_area_m2": LEAK_AREA_M2,
+            "base_parameters": {k: cases[k]["params"] for k in cases},
+            "parameter_perturbation": f"uniform multiplicative 1 +- {PERTURB:g}, clipped to "
+                                      "bounds; row 0 is the base vector; batch B uses "
+                                      "the first B rows",
+            "solver": solver.to_dict(),
+            "scipy": {"baseline_rtol": SCIPY_RTOL, "baseline_atol_Pa": SCIPY_ATOL_PA,
+                      "reference": "Radau", "reference_rtol": RADAU_RTOL,
+                      "reference_atol_Pa": RADAU_ATOL_PA,
+                      "horizon_s": scipy_horizon, "chunk_s": SCIPY_CHUNK_S,
+                      "budget_s_per_run": args.scipy_budget,
+                      "speed_compared": "per simulated second"},
+            "timing": {"statistic": "median", "min_total_s": min_total, "min_reps": min_reps,
+                       "warm": "one untimed call before timing; gc disabled while timing"},
+        },
+        "metadata": {
+            "seed": args.seed, "quick": quick, "argv": sys.argv if argv is None else list(argv),
+            "git": _git_revision(),
+            "python": sys.version.split()[0], "numpy": np.__version__,
+            "scipy": scipy.__version__, "numba": numba.__version__,
+            "platform": platform.platform(), "machine": platform.machine(),
+            "processor": platform.processor() or None,
+            "cpu_count": os.cpu_count(), "cpu_affinity": affinity,
+            "numba_num_threads": threads_available, "numba_threading_layer": threading_layer,
+            "first_call_s": first_call_s,
+            "timestamp_utc": started.isoformat(timespec="seconds"),
+            "loadavg_at_start": load_start, "loadavg_at_end": load_end,
+            "total_runtime_s": total_s,
+        },
+        "notes": notes,
+    }
+    write_json_atomic(args.json, report)
+    print(format_table(report))
+    print(f"\nwrote {args.json} ({total_s:.1f} s)")
+    return 0
+
+
+# ----------------------------------------------------------------------------- table
+def _f(v, fmt, width):
+    return f"{'-':>{width}}" if v is None else f"{v:{width}{fmt}}"
+
+
+def format_table(r):
+    s = r["setup"]
+    m = r["metadata"]
+    L = []
+    L.append(f"pneubayes simulate benchmark  seed={m['seed']}  quick={m['quick']}  "
+             f"git={(m['git'].get('revision') or '?')[:12]}"
+             f"{' (dirty)' if m['git'].get('dirty') else ''}")
+    L.append(f"python {m['python']}  numpy {m['numpy']}  scipy {m['scipy']}  numba "
+             f"{m['numba']}  cpus {m['cpu_count']}  numba threads {m['numba_num_threads']}"
+             f" ({m['numba_threading_layer']})  load at start "
+             f"{(m['loadavg_at_start'] or ['?'])[0]}")
+    L.append(f"{s['duration_s']:g}-s trajectories at {s['sample_rate_Hz']:g} Hz, random steps; "
+             f"error = max |p - Radau(rtol 1e-10)| over {s['scipy']['horizon_s']:g} s; "
+             f"range {s['working_range_Pa']:g} Pa")
+    L.append("")
+    L.append("1) pneubayes, 1 thread (median wall per trajectory)")
+    L.append(f"{'case':<14}{'V0 m^3':>9}{'ms/traj':>10}{'sim-s/s':>10}{'kernel':>10}"
+             f"{'b64 sim-s/s':>13}{'err Pa':>10}{'% range':>10}")
+    for name, c in r["cases"].items():
+        pb, b = c["pneubayes"], c["pneubayes_batch64"]
+        ms = None if pb.get("median_s") is None else 1e3 * pb["median_s"]
+        L.append(f"{name:<14}{c['dead_volume_m3']:>9.1e}{_f(ms, '.3f', 10)}"
+                 f"{_f(pb.get('sim_seconds_per_second'), '.0f', 10)}"
+                 f"{_f(pb.get('kernel_only_sim_seconds_per_second'), '.0f', 10)}"
+                 f"{_f(b.get('sim_seconds_per_second'), '.0f', 13)}"
+                 f"{_f(pb.get('max_abs_error_vs_radau_Pa'), '.2f', 10)}"
+                 f"{_f(pb.get('max_abs_error_vs_radau_percent_of_range'), '.4f', 10)}")
+        if c.get("moving"):
+            L.append(f"{'':<14}piston {c['position_min_m'] * 1e3:.2f}-"
+                     f"{c['position_max_m'] * 1e3:.2f} mm, max speed "
+                     f"{c['max_piston_speed_m_per_s']:.3f} m/s")
+    L.append("  (kernel = compiled kernel alone, without the Python wrapper: diagnostic)")
+    L.append("")
+    L.append("   scipy solve_ivp (rtol 1e-6, atol 1e-3 Pa) and Radau reference")
+    L.append(f"{'case':<14}{'solver':<7}{'horizon s':>10}{'wall s':>9}{'s/sim-s':>9}"
+             f"{'speedup':>10}{'err Pa':>10}{'% range':>9}  status")
+    for name, c in r["cases"].items():
+        rows = [("Radau", c["reference_radau"])] + list(c["scipy"].items())
+        for meth, x in rows:
+            status = ("FAILED: " + (x["error"] or "")[:40] if x["failed"]
+                      else "NaN" if x["returned_nan"]
+                      else "shortened (budget)" if x["shortened_by_budget"] else "ok")
+            L.append(f"{name:<14}{meth:<7}{x['horizon_s']:>10.3f}{x['wall_s']:>9.2f}"
+                     f"{_f(x.get('wall_per_simulated_second_s'), '.2f', 9)}"
+                     f"{_f(x.get('speedup_of_pneubayes'), '.0f', 10)}"
+                     f"{_f(x.get('max_abs_diff_vs_radau_Pa'), '.2f', 10)}"
+                     f"{_f(x.get('max_abs_diff_vs_radau_percent_of_range'), '.4f', 9)}  "
+                     f"{status}")
+    L.append("  (speedup = scipy wall per simulated second / pneubayes wall per simulated "
+             "second)")
+    L.append("")
+    L.append(f"2) throughput, {r['throughput'][0]['case']}, perturbed parameter sets")
+    L.append(f"{'batch':>6}{'threads':>8}{'wall/call s':>13}{'reps':>6}{'sim-s/s':>12}"
+             f"{'per core':>11}")
+    for row in r["throughput"]:
+        if "skipped" in row:
+            L.append(f"{row['batch']:>6}{row['threads']:>8}  skipped: {row['skipped']}")
+            continue
+        L.append(f"{row['batch']:>6}{row['threads']:>8}"
+                 f"{_f(row.get('wall_per_call_s'), '.5f', 13)}"
+                 f"{row.get('repetitions', 0):>6}"
+                 f"{_f(row.get('sim_seconds_per_second'), '.0f', 12)}"
+                 f"{_f(row.get('sim_seconds_per_second_per_core'), '.0f', 11)}")
+    L.append("")
+    L.append("headline")
+
+    def met(x):
+        return "n/a" if x is None else ("MET" if x else "NOT MET")
+
+    fl = r["floors"]
+    rows = [
+        ("sim_seconds_per_second_per_core (min over volumes, batch 1, 1 thread)",
+         r["sim_seconds_per_second_per_core"], fl["sim_seconds_per_second_per_core"]),
+        ("sim_seconds_per_second_per_core_batched (min over volumes, batch 64)",
+         r["sim_seconds_per_second_per_core_batched"], None),
+        (f"speedup_vs_lsoda_fixed  ({fl['speedup_vs_lsoda_fixed']['case']})",
+         r["speedup_vs_lsoda_fixed"], fl["speedup_vs_lsoda_fixed"]),
+        (f"speedup_vs_lsoda_moving ({fl['speedup_vs_lsoda_moving']['case']})",
+         r["speedup_vs_lsoda_moving"], fl["speedup_vs_lsoda_moving"]),
+    ]
+    for label, value, floor in rows:
+        tail = "" if floor is None else f"  floor {floor['floor']:>6.0f}  {met(floor['met'])}"
+        L.append(f"  {label:<72}{_f(value, '.0f', 8)}{tail}")
+    a = r["accuracy_check"]
+    label = f"accuracy: max error <= {a['floor_percent_of_range']:g} % of range in every case"
+    L.append(f"  {label:<72}{'':>8}  {met(a['met'])}")
+    if r["notes"]:
+        L.append("")
+        L.append("notes")
+        L.extend(f"  - {x}" for x in r["notes"])
+    return "\n".join(L)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
