@@ -3,9 +3,13 @@
 The chamber pressure obeys a scalar, stiff ODE ``dp/dt = F(t, p)`` (eq. 5) whose
 Jacobian ``J = dF/dp`` is known analytically. One step of length h is
 
-    U      = p + h phi1(hJ) F(p)                       (exponential Euler, order 2)
-    D      = F(U) - F(p) - J (U - p)                   (nonlinear remainder)
+    U      = p + h phi1(hJ) F(t, p) + h^2 phi2(hJ) v   (exponential Rosenbrock-Euler)
+    D      = F(t + h, U) - F(t, p) - J (U - p) - h v   (nonlinear remainder)
     p_next = U + 2 h phi3(hJ) D                        (exprb32, order 3)
+
+with ``v = dF/dt`` at fixed p, the explicit time dependence through the moving volume,
+the supply ramp and a moving spool; without it the method drops to first order
+whenever the inputs change within a step.
 
 and ``|2 h phi3(hJ) D|`` estimates the local error for step-size control. Exponential
 integrators are exact for linear problems, so stiffness (tiny volumes, J ~ -1e8 /s)
@@ -59,19 +63,28 @@ _HEAT = SLOT_INDEX["heat_rate_per_s"]
 
 
 @njit(cache=True, inline="always")
-def _phi13(z):
-    """phi1(z) = (e^z - 1)/z and phi3(z) = (e^z - 1 - z - z^2/2)/z^3, stable for all z <= ~0."""
+def _phi123(z):
+    """phi_k(z) = (e^z - sum_{j<k} z^j/j!) / z^k for k = 1, 2, 3; stable for all z <= ~0."""
     if abs(z) < 0.1:
         phi1 = 1.0 + z * (0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0
                                                                           + z / 720.0))))
+        phi2 = 0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (
+            1.0 / 720.0 + z / 5040.0))))
         phi3 = 1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (1.0 / 720.0 + z * (
             1.0 / 5040.0 + z / 40320.0))))
-        return phi1, phi3
+        return phi1, phi2, phi3
     em1 = math.expm1(z)
     phi1 = em1 / z
     phi2 = (phi1 - 1.0) / z
     phi3 = (phi2 - 0.5) / z
-    return phi1, phi3
+    return phi1, phi2, phi3
+
+
+@njit(cache=True, inline="always")
+def _gompertz_rate(u, a, b, c, d):
+    """d(area)/du of eq. 11 (without the offset), m^2/V."""
+    inner = math.exp(-c * (u + d))
+    return a * math.exp(-b * inner) * b * c * inner
 
 
 @njit(cache=True, inline="always")
@@ -85,8 +98,24 @@ def _areas(spool, dead, sl):
 
 
 @njit(cache=True, inline="always")
-def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j):
-    """Chamber right-hand side: ``(dp/dt, J_p, dT/dt, J_T)``.
+def _area_rates(spool, spool_rate, dead, sl):
+    """Time derivatives of the two port areas for a spool moving at ``spool_rate`` V/s."""
+    mag = abs(spool) - dead
+    if mag <= 0.0:
+        return 0.0, 0.0
+    u = mag if spool > 0.0 else -mag
+    r_in = _gompertz_rate(u, sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
+    r_ex = _gompertz_rate(u, sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
+    return r_in * spool_rate, r_ex * spool_rate
+
+
+@njit(cache=True, inline="always")
+def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex):
+    """Chamber right-hand side: ``(dp/dt, J_p, dT/dt, J_T, v_p)``.
+
+    ``v_p`` is the explicit time derivative of dp/dt at fixed state, from the volume
+    changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and the port areas moving
+    at ``da_in``, ``da_ex`` m^2/s (the non-autonomous term of the exponential method).
 
     Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange.
     ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
@@ -116,9 +145,10 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j):
         fp += p * heat * (t_wall - temp) / temp
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
-        return fp, 0.0, ft, 0.0
+        return fp, 0.0, ft, 0.0, 0.0
     dfloor = abs(fp) * h
-    _, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa, dfloor)
+    dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+                                     dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
     dmdot = phi * dvalve + phi * att / (p * p) * valve - leak_o * dfex_dp - 2.0 * leak_l * p
@@ -126,8 +156,11 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j):
     jt = 0.0
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
-        jt = fp_eq5 / p - heat * t_wall / temp + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
-    return fp, jp, ft, jt
+        jt = fp_eq5 / p - heat + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
+    # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+    vp = -fp_eq5 / vol * vdot + n_over_v * rs_t * dmdot_dt
+    return fp, jp, ft, jt, vp
 
 
 @njit(cache=True)
@@ -160,6 +193,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
         xa, xb = x[k], x[k + 1]
         vdot = bore * (xb - xa) / seg
         sa, sb = ps[k], ps[k + 1]
+        dsup = gain * (sb - sa) / seg
         tau = ta
         while tau < tb:
             # Sub-interval [tau, t_end) on which the delayed command is constant.
@@ -189,17 +223,21 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                 fr = (tau - ta) / seg
                 vol = v0 + bore * (xa + fr * (xb - xa))
                 psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
+                da_in = 0.0
+                da_ex = 0.0
                 if moving:
                     s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
                     a_in, a_ex = _areas(s_now, dead, sl)
-                fp, jp, ft, jt = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh, True)
+                    da_in, da_ex = _area_rates(s_now, (cmd - s_now) / tau_s, dead, sl)
+                fp, jp, ft, jt, vp = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh,
+                                          True, dsup, da_in, da_ex)
                 zp = hh * jp
-                phi1p, phi3p = _phi13(zp)
-                up = p + hh * phi1p * fp
+                phi1p, phi2p, phi3p = _phi123(zp)
+                up = p + hh * (phi1p * fp + hh * phi2p * vp)
                 ut = temp
                 if thermal:
                     zt = hh * jt
-                    phi1t, phi3t = _phi13(zt)
+                    phi1t, _, phi3t = _phi123(zt)
                     ut = temp + hh * phi1t * ft
                 # stage 2 at tau + hh
                 fr2 = (tau + hh - ta) / seg
@@ -214,9 +252,9 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                 err = 10.0
                 pn, tn = up, ut
                 if ok:
-                    fp2, _, ft2, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
-                                          hh, False)
-                    dp = fp2 - fp - jp * (up - p)
+                    fp2, _, ft2, _, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
+                                             hh, False, 0.0, 0.0, 0.0)
+                    dp = fp2 - fp - jp * (up - p) - hh * vp
                     ep = 2.0 * hh * phi3p * dp
                     pn = up + ep
                     err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))

@@ -1,0 +1,189 @@
+"""Shared fixtures of the numerical test-suite.
+
+Everything "independent" in here (gas constants, flow function, Gompertz map, chamber
+right-hand side) is written with plain ``math`` from the paper's formulas (section III
+and the appendix) and deliberately does not call into :mod:`pneubayes.physics`, so a
+mistake there cannot cancel out in a comparison.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
+from pneubayes.simulation import Inputs, SolverConfig
+
+P_ATM = 101325.0
+P_SUP = 551325.0
+WORKING_RANGE = P_SUP - P_ATM  # 450 kPa, the denominator of Table III's percentages
+BORE = 0.009
+
+# Table IV (appendix) and NOTES.md temperature.
+C_DIS, Z_CMP, M_AIR, R_GAS, KAPPA, T_GAS = 0.72, 0.99, 0.029, 8.31, 1.4, 293.15
+
+
+# ---------------------------------------------------------------- independent physics
+def hand_gas():
+    """alpha, beta, theta, Rs from the appendix formulas with plain math."""
+    k = KAPPA
+    alpha = C_DIS * math.sqrt(2.0 * M_AIR / (Z_CMP * R_GAS * T_GAS) * k / (k - 1.0))
+    beta = C_DIS * math.sqrt(k * M_AIR / (Z_CMP * R_GAS * T_GAS)
+                             * (2.0 / (k + 1.0)) ** ((k + 1.0) / (k - 1.0)))
+    theta = ((k + 1.0) / 2.0) ** (k / (k - 1.0))
+    rs = R_GAS / M_AIR
+    return SimpleNamespace(alpha=alpha, beta=beta, theta=theta, rs=rs, kappa=k, T=T_GAS)
+
+
+def hand_z(pu, pd):
+    """Eq. 3 for pu >= pd, plain math."""
+    g = hand_gas()
+    if pu / pd > g.theta:
+        return g.beta * pu
+    r = pd / pu
+    val = r ** (2.0 / g.kappa) - r ** ((g.kappa + 1.0) / g.kappa)
+    return g.alpha * pu * math.sqrt(max(val, 0.0))
+
+
+def hand_flow(pu, pd):
+    """Signed eq. 2 with the roles swapped for reverse flow (NOTES.md)."""
+    return hand_z(pu, pd) if pu >= pd else -hand_z(pd, pu)
+
+
+def hand_gompertz(u, offset, a, b, c, d):
+    """Eq. 11, plain math."""
+    return offset + a * math.exp(-b * math.exp(-c * (u + d)))
+
+
+def hand_equilibrium(params, supply=P_SUP, atm=P_ATM, u=5.0):
+    """Pressure at which the net mass flow of eqs. 4/9 vanishes at a held command (brentq)."""
+    from scipy.optimize import brentq
+
+    a_in = hand_gompertz(u, params["inlet_offset_m2"], params["inlet_a_m2"], params["inlet_b"],
+                         params["inlet_c_per_V"], params["inlet_d_V"])
+    a_ex = hand_gompertz(u, params["exhaust_offset_m2"], params["exhaust_a_m2"],
+                         params["exhaust_b"], params["exhaust_c_per_V"], params["exhaust_d_V"])
+    a_l = params.get("leak_area_m2", 0.0)
+
+    def net(p):
+        return a_in * hand_flow(supply, p) - (a_ex + a_l) * hand_flow(p, atm)
+
+    return brentq(net, atm * (1 + 1e-12), supply * (1 - 1e-12), xtol=1e-6, rtol=1e-14)
+
+
+def hand_reference(params, t, u, x, supply, p0, bore=BORE, rtol=1e-10, atol=1e-6):
+    """Independent Radau solution of eqs. 1-5, 9 and 11 (thin port + orifice leak).
+
+    Command zero-order held, position and supply linear between samples, solved per
+    sample interval. Plain-math right-hand side; no pneubayes code is used.
+    """
+    g = hand_gas()
+    area = math.pi / 4.0 * bore * bore
+    ins = [params[f"inlet_{n}"] for n in ("offset_m2", "a_m2", "b", "c_per_V", "d_V")]
+    exs = [params[f"exhaust_{n}"] for n in ("offset_m2", "a_m2", "b", "c_per_V", "d_V")]
+    v0 = params["dead_volume_m3"]
+    a_l = params.get("leak_area_m2", 0.0)
+    out = np.empty(len(t))
+    out[0] = p = float(p0)
+    for k in range(len(t) - 1):
+        ta, tb = float(t[k]), float(t[k + 1])
+        a_in = hand_gompertz(u[k], *ins)
+        a_ex = hand_gompertz(u[k], *exs)
+        vdot = area * (x[k + 1] - x[k]) / (tb - ta)
+        sa, sb, xa = float(supply[k]), float(supply[k + 1]), float(x[k])
+
+        def rhs(tt, y, a_in=a_in, a_ex=a_ex, vdot=vdot, ta=ta, tb=tb, sa=sa, sb=sb, xa=xa):
+            pp = y[0]
+            fr = (tt - ta) / (tb - ta)
+            vol = v0 + area * xa + vdot * (tt - ta)
+            ps = sa + fr * (sb - sa)
+            mdot = a_in * hand_flow(ps, pp) - (a_ex + a_l) * hand_flow(pp, P_ATM)
+            return [g.kappa / vol * (g.rs * g.T * mdot - pp * vdot)]
+
+        sol = solve_ivp(rhs, (ta, tb), [p], method="Radau", rtol=rtol, atol=atol)
+        assert sol.success, sol.message
+        p = float(sol.y[0, -1])
+        out[k + 1] = p
+    return out
+
+
+# ---------------------------------------------------------------- input generators
+def random_steps(rng, n, dt, hold_s=(0.03, 0.3), levels=(-5.0, 5.0)):
+    """Random step command: holds uniform in ``hold_s`` seconds, levels uniform."""
+    u = np.empty(n)
+    i = 0
+    while i < n:
+        hold = max(1, int(round(rng.uniform(*hold_s) / dt)))
+        u[i:i + hold] = rng.uniform(*levels)
+        i += hold
+    return u
+
+
+def moving_position(t, mean=0.015, amp=0.01, freq=2.0):
+    """A sinusoidal piston position, m (moves the volume by ~ +-6.4e-7 m^3 at 9 mm bore)."""
+    return mean + amp * np.sin(2.0 * np.pi * freq * np.asarray(t))
+
+
+def fluctuating_supply(t, nominal=P_SUP, amp=15_000.0):
+    """A supply column that wanders around the nominal (two sines), Pa."""
+    t = np.asarray(t)
+    return nominal + amp * (0.7 * np.sin(2 * np.pi * 1.3 * t) + 0.3 * np.sin(2 * np.pi * 7.1 * t))
+
+
+# ---------------------------------------------------------------- fixtures
+@pytest.fixture(scope="session")
+def rig():
+    return Rig(BORE, P_ATM, P_SUP)
+
+
+@pytest.fixture(scope="session")
+def leak_model():
+    return Model(["cylinder_leak"])
+
+
+@pytest.fixture
+def base_params():
+    """Valve 1 of Table II, 2.4e-6 m^3 dead volume, AIRPEL leak (orifice form)."""
+    v = valve_preset("valve1").parameters()
+    v.update(dead_volume_m3=2.4e-6, leak_area_m2=3.04e-8)
+    return v
+
+
+@pytest.fixture(scope="session")
+def standard():
+    return SolverConfig.standard()
+
+
+@pytest.fixture
+def step_command():
+    """``step_command(seed, n, dt, **kw)``: seeded random step command."""
+    def make(seed, n, dt, **kw):
+        return random_steps(np.random.default_rng(seed), n, dt, **kw)
+    return make
+
+
+@pytest.fixture
+def make_inputs():
+    """``make_inputs(t, u, position=0.0 | array, supply=P_SUP | array)``."""
+    def make(t, u, position=0.0, supply=P_SUP):
+        t = np.asarray(t, dtype=np.float64)
+        x = np.broadcast_to(np.asarray(position, np.float64), t.shape).copy()
+        s = np.broadcast_to(np.asarray(supply, np.float64), t.shape).copy()
+        return Inputs(t, np.asarray(u, np.float64), x, s)
+    return make
+
+
+@pytest.fixture(scope="session")
+def hand():
+    """The independent plain-math physics of this file."""
+    return SimpleNamespace(gas=hand_gas, z=hand_z, flow=hand_flow, gompertz=hand_gompertz,
+                           equilibrium=hand_equilibrium, reference=hand_reference,
+                           random_steps=random_steps, moving_position=moving_position,
+                           fluctuating_supply=fluctuating_supply, P_ATM=P_ATM, P_SUP=P_SUP,
+                           RANGE=WORKING_RANGE)

@@ -1,0 +1,414 @@
+"""The compiled integrator against invariants, closed forms and independent solvers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pneubayes.effects.path import N_SLOTS, SLOT_INDEX
+from pneubayes.errors import SimulationError
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    kernel,
+    rig_constants,
+    simulate,
+    simulate_windows,
+)
+from pneubayes.simulation.reference import reference_simulate
+
+P_ATM, P_SUP = 101325.0, 551325.0
+RANGE = P_SUP - P_ATM
+VOLUMES = (1e-7, 2.4e-6, 2e-5)
+ALL_EFFECTS = ["cylinder_leak", "tube_delay", "valve_deadzone", "supply_fluctuation",
+               "heat_transfer", "spool_lag"]
+
+
+def _config(rtol):
+    """A SolverConfig whose absolute tolerance scales with rtol (1e5 Pa reference)."""
+    return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=0.01, max_step_s=0.02,
+                        min_step_s=1e-12, max_steps=5_000_000)
+
+
+def _closed_slots(volume):
+    """A slot matrix with both ports shut: offset 0 and a 0, so every area is exactly 0."""
+    sl = np.zeros((1, N_SLOTS))
+    for port, c in (("inlet", 1.5), ("exhaust", -1.5)):
+        sl[0, SLOT_INDEX[f"{port}_b"]] = 3.0
+        sl[0, SLOT_INDEX[f"{port}_c_per_V"]] = c
+    sl[0, SLOT_INDEX["volume_m3"]] = volume
+    return sl
+
+
+def _run_kernel(slots, rig, solver, t, u, x, ps, p0):
+    out, status = kernel.simulate_windows(
+        np.ascontiguousarray(slots), rig_constants(rig), solver.as_array(), t, u, x, ps,
+        np.array([0], dtype=np.int64), t.size, np.array([float(p0)]))
+    assert not status.any(), status
+    return out[:, 0, :]
+
+
+# ---------------------------------------------------------------- conservation
+@pytest.mark.parametrize("volume", VOLUMES)
+@pytest.mark.parametrize("p0", [1.2e5, 3.3e5, 5.4e5])
+def test_closed_valve_fixed_volume_keeps_pressure(rig, volume, p0, step_command):
+    t = np.arange(2001) * 1e-3
+    u = step_command(11, t.size, 1e-3)
+    p = _run_kernel(_closed_slots(volume), rig, SolverConfig.standard(), t, u,
+                    np.full(t.size, 0.01), np.full(t.size, P_SUP), p0)[0]
+    assert np.max(np.abs(p / p0 - 1.0)) < 1e-9
+
+
+@pytest.mark.parametrize("solver", [SolverConfig.standard(), SolverConfig.reference()],
+                         ids=["standard", "reference"])
+@pytest.mark.parametrize("volume", [2.4e-6, 2e-5])
+def test_closed_valve_moving_piston_is_adiabatic(rig, solver, volume, hand):
+    """Closed chamber, moving piston: eq. 5 reduces to dp/p = -k dV/V, so p V^1.4 is constant.
+
+    The position is linear between samples, so V(t) is known exactly at the samples.
+    Allowed drift: 10 rtol, at most 1e-6 — an order-3 integrator with local error
+    control stays far below either.
+    """
+    t = np.arange(2001) * 1e-3
+    x = hand.moving_position(t, mean=0.01, amp=0.01, freq=3.0)
+    u = np.zeros(t.size)
+    p0 = 3e5
+    p = _run_kernel(_closed_slots(volume), rig, solver, t, u, x, np.full(t.size, P_SUP), p0)[0]
+    vol = volume + rig.bore_area_m2 * x
+    invariant = p * vol ** 1.4
+    drift = np.max(np.abs(invariant / invariant[0] - 1.0))
+    assert drift < max(10 * solver.rtol, 1e-6), (
+        f"p V^1.4 drifts by {drift:.3g} (rtol {solver.rtol:g})")
+
+
+CLOSABLE = {  # inside the model's bounds; both Gompertz terms underflow to 0 at u = 0
+    "inlet_offset_m2": 0.0, "inlet_a_m2": 5.5e-7, "inlet_b": 3.5, "inlet_c_per_V": 20.0,
+    "inlet_d_V": -3.0, "exhaust_offset_m2": 0.0, "exhaust_a_m2": 6e-7, "exhaust_b": 3.5,
+    "exhaust_c_per_V": -20.0, "exhaust_d_V": 3.0}
+
+
+@pytest.mark.parametrize("volume,freq", [(1e-6, 2.0), (2.4e-6, 3.0), (2e-5, 3.0)])
+def test_standard_preset_meets_accuracy_floor_on_a_moving_closed_chamber(rig, volume, freq,
+                                                                        hand, make_inputs):
+    """SolverConfig.standard promises 0.1 % of the range for volumes 1e-7..2e-5 m^3.
+
+    A model inside its bounds whose valve is shut at u = 0 (a dead band does the same),
+    the piston swinging +-10 mm (AIR37 stroke 37.5 mm): the exact answer is
+    p0 (V0 / V)^1.4, and the pressure stays within 1.3-3.5 bar.
+    """
+    params = dict(CLOSABLE, dead_volume_m3=volume)
+    t = np.arange(2001) * 1e-3
+    x = hand.moving_position(t, freq=freq)
+    inputs = make_inputs(t, np.zeros(t.size), position=x)
+    p = simulate(Model([]), params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
+    vol = volume + rig.bore_area_m2 * x
+    exact = 2e5 * (vol[0] / vol) ** 1.4
+    err = np.max(np.abs(p - exact))
+    assert err <= 1e-3 * RANGE, f"max error {err:.0f} Pa > {1e-3 * RANGE:.0f} Pa"
+
+
+# ---------------------------------------------------------------- limits
+@pytest.mark.parametrize("volume", VOLUMES)
+def test_full_command_settles_at_supply_and_atmosphere(leak_model, base_params, rig, volume,
+                                                       standard, make_inputs, hand):
+    base_params["dead_volume_m3"] = volume
+    t = np.arange(2001) * 1e-3
+    up = simulate(leak_model, base_params, make_inputs(t, np.full(t.size, 5.0)), rig, P_ATM,
+                  standard).pressure_Pa[0]
+    down = simulate(leak_model, base_params, make_inputs(t, np.full(t.size, -5.0)), rig, P_SUP,
+                    standard).pressure_Pa[0]
+    assert np.all(np.isfinite(up)) and np.all(np.isfinite(down))
+    # within 1 % of the range of the rails, on the right side of them
+    assert P_SUP - 0.01 * RANGE < up[-1] < P_SUP
+    assert P_ATM < down[-1] < P_ATM + 0.01 * RANGE
+    # and exactly at the flow balance of eqs. 4/9 (independent root finding)
+    assert up[-1] == pytest.approx(hand.equilibrium(base_params, u=5.0), abs=1.0)
+    assert down[-1] == pytest.approx(hand.equilibrium(base_params, u=-5.0), abs=1.0)
+    # monotone approach: the fill never overshoots the balance
+    assert np.all(np.diff(up) >= -1e-6 * P_SUP) and np.all(np.diff(down) <= 1e-6 * P_SUP)
+
+
+# ---------------------------------------------------------------- agreement with Radau
+_REF_CACHE: dict = {}
+
+
+def _random_inputs(hand, seed, n, dt, moving=False):
+    t = np.arange(n) * dt
+    u = hand.random_steps(np.random.default_rng(seed), n, dt)
+    x = hand.moving_position(t) if moving else np.full(n, 0.0)
+    return Inputs(t, u, x, np.full(n, P_SUP))
+
+
+def _reference(model, params, inputs, rig, key):
+    if key not in _REF_CACHE:
+        _REF_CACHE[key] = reference_simulate(model, params, inputs, rig, P_ATM, method="Radau",
+                                             rtol=1e-10)
+    return _REF_CACHE[key]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("volume", VOLUMES)
+def test_agrees_with_radau_fixed_volume(leak_model, base_params, rig, volume, standard, hand):
+    base_params["dead_volume_m3"] = volume
+    inputs = _random_inputs(hand, 100, 1001, 1e-3)
+    ref = _reference(leak_model, base_params, inputs, rig, ("fixed", volume))
+    got = simulate(leak_model, base_params, inputs, rig, P_ATM, standard).pressure_Pa[0]
+    err = np.max(np.abs(got - ref))
+    assert err <= 1e-3 * RANGE, f"max error {err:.1f} Pa"
+    assert np.ptp(ref) > 0.5 * RANGE  # the command really swept the range
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("volume", [2.4e-6, 2e-5])
+def test_agrees_with_radau_moving_volume(leak_model, base_params, rig, volume, standard, hand):
+    base_params["dead_volume_m3"] = volume
+    inputs = _random_inputs(hand, 101, 1001, 1e-3, moving=True)
+    ref = _reference(leak_model, base_params, inputs, rig, ("moving", volume))
+    got = simulate(leak_model, base_params, inputs, rig, P_ATM, standard).pressure_Pa[0]
+    err = np.max(np.abs(got - ref))
+    assert err <= 1e-3 * RANGE, f"max error {err:.1f} Pa"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dt,n", [(1e-2, 201), (1e-4, 1501)], ids=["100Hz", "10kHz"])
+def test_agrees_with_radau_other_output_rates(leak_model, base_params, rig, dt, n, standard,
+                                              hand):
+    base_params["dead_volume_m3"] = 1e-6
+    inputs = _random_inputs(hand, 102, n, dt)
+    ref = reference_simulate(leak_model, base_params, inputs, rig, P_ATM, rtol=1e-10)
+    got = simulate(leak_model, base_params, inputs, rig, P_ATM, standard).pressure_Pa[0]
+    err = np.max(np.abs(got - ref))
+    assert err <= 1e-3 * RANGE, f"max error {err:.1f} Pa"
+
+
+@pytest.mark.slow
+def test_reference_solver_matches_independent_plain_math_solver(leak_model, base_params, rig,
+                                                               hand):
+    """The project's reference shares the physics functions; check it against ours.
+
+    Inputs exercise everything the plain-math solver models: random steps, a moving
+    piston and a fluctuating supply column (seen with supply_gain 1).
+    """
+    base_params["dead_volume_m3"] = 2.4e-6
+    n, dt = 301, 1e-3
+    t = np.arange(n) * dt
+    u = hand.random_steps(np.random.default_rng(5), n, dt, hold_s=(0.02, 0.06))
+    x = hand.moving_position(t, freq=4.0)
+    s = hand.fluctuating_supply(t)
+    inputs = Inputs(t, u, x, s)
+    model = leak_model.with_effect("supply_fluctuation")
+    params = dict(base_params, supply_gain=1.0)
+    mine = hand.reference(base_params, t, u, x, s, P_ATM)
+    theirs = reference_simulate(model, params, inputs, rig, P_ATM, rtol=1e-10)
+    assert np.max(np.abs(mine - theirs)) < 0.05  # Pa: both are Radau at rtol 1e-10
+    # the compiled integrator against the independent solution, at the accuracy floor
+    got = simulate(model, params, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(got - mine)) <= 1e-3 * RANGE
+    # with the nominal supply (gain 0) the column is ignored
+    nominal = hand.reference(base_params, t, u, x, np.full(n, P_SUP), P_ATM)
+    got0 = simulate(leak_model, base_params, inputs, rig, P_ATM,
+                    SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(got0 - nominal)) <= 1e-3 * RANGE
+
+
+# ---------------------------------------------------------------- convergence
+@pytest.mark.slow
+def test_error_decreases_with_tolerance(leak_model, base_params, rig, hand):
+    base_params["dead_volume_m3"] = 2.4e-6
+    inputs = _random_inputs(hand, 100, 1001, 1e-3)
+    ref = _reference(leak_model, base_params, inputs, rig, ("fixed", 2.4e-6))
+    errs = []
+    for rtol in (1e-4, 1e-5, 1e-6, 1e-7):
+        got = simulate(leak_model, base_params, inputs, rig, P_ATM, _config(rtol)).pressure_Pa[0]
+        errs.append(float(np.max(np.abs(got - ref))))
+    assert all(b < a for a, b in zip(errs, errs[1:])), errs
+    assert errs[-1] < 10.0, errs
+    assert errs[0] > 2 * errs[-1], errs  # the tolerance really controls the error
+
+
+def test_halving_the_sample_interval_gives_the_same_trajectory(leak_model, base_params, rig,
+                                                              hand):
+    base_params["dead_volume_m3"] = 2.4e-6
+    n, dt = 1001, 1e-3
+    t = np.arange(n) * dt
+    u = hand.random_steps(np.random.default_rng(7), n, dt)
+    x = hand.moving_position(t)
+    t2 = np.arange(2 * n - 1) * (dt / 2)
+    u2 = np.repeat(u, 2)[:-1]  # each sample's hold duplicated
+    x2 = np.interp(t2, t, x)  # position is linear between samples: the same signal
+    coarse = Inputs(t, u, x, np.full(n, P_SUP))
+    fine = Inputs(t2, u2, x2, np.full(t2.size, P_SUP))
+    tight = _config(1e-8)
+    a = simulate(leak_model, base_params, coarse, rig, P_ATM, tight).pressure_Pa[0]
+    b = simulate(leak_model, base_params, fine, rig, P_ATM, tight).pressure_Pa[0][::2]
+    assert np.max(np.abs(a - b)) < 1.0  # Pa
+    # and with the standard preset within its accuracy floor
+    std = SolverConfig.standard()
+    a = simulate(leak_model, base_params, coarse, rig, P_ATM, std).pressure_Pa[0]
+    b = simulate(leak_model, base_params, fine, rig, P_ATM, std).pressure_Pa[0][::2]
+    assert np.max(np.abs(a - b)) < 1e-3 * RANGE
+
+
+# ---------------------------------------------------------------- batching and windows
+def test_batch_equals_separate_runs(rig, hand, standard):
+    model = Model(ALL_EFFECTS)
+    rng = np.random.default_rng(21)
+    batch = np.array([[p.sample_prior(rng) for p in model.parameters] for _ in range(6)])
+    n = 801
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(rng, n, 1e-3), hand.moving_position(t, amp=0.0005,
+                                                                               mean=0.0105),
+                    hand.fluctuating_supply(t))
+    together = simulate(model, batch, inputs, rig, 2e5, standard).pressure_Pa
+    assert together.shape == (6, n)
+    for b in range(6):
+        alone = simulate(model, batch[b], inputs, rig, 2e5, standard).pressure_Pa
+        assert np.array_equal(together[b], alone[0])
+    # and a dict gives the same as its vector
+    as_dict = simulate(model, model.as_dict(batch[2]), inputs, rig, 2e5, standard).pressure_Pa
+    assert np.array_equal(as_dict[0], together[2])
+
+
+def test_windows_equal_simulations_started_at_those_samples(rig, hand, standard):
+    model = Model(["cylinder_leak", "valve_deadzone", "supply_fluctuation", "heat_transfer",
+                   "spool_lag"])
+    params = valve_preset("valve2").parameters()
+    params.update(dead_volume_m3=1.5e-6, leak_area_m2=3e-8, deadzone_halfwidth_V=0.3,
+                  supply_gain=1.0, heat_transfer_rate_per_s=5.0, spool_time_constant_s=1.3e-3)
+    n = 1201
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(np.random.default_rng(8), n, 1e-3),
+                    hand.moving_position(t), hand.fluctuating_supply(t))
+    starts = np.array([0, 137, 500, 880])
+    length = 300
+    p0 = np.array([1.1e5, 2.5e5, 4.0e5, 5.2e5])
+    win = simulate_windows(model, params, inputs, rig, starts, length, p0, standard)
+    assert win.shape == (1, 4, length)
+    for w, s in enumerate(starts):
+        sl = slice(s, s + length)
+        sub = Inputs(t[sl], inputs.command_V[sl], inputs.position_m[sl],
+                     inputs.supply_pressure_Pa[sl])
+        alone = simulate(model, params, sub, rig, p0[w], standard).pressure_Pa[0]
+        assert np.array_equal(win[0, w], alone)
+
+
+def test_windows_with_delay_use_the_command_history(rig, hand, standard):
+    """A delayed window must see the commands issued before its start.
+
+    Started from the full run's pressure at sample s, it reproduces the full run
+    (to solver accuracy); slicing the inputs instead (no history) would not.
+    """
+    model = Model(["cylinder_leak", "tube_delay"])
+    params = valve_preset("valve1").parameters()
+    params.update(dead_volume_m3=1e-6, leak_area_m2=3e-8, tube_delay_s=0.02)
+    n = 1201
+    t = np.arange(n) * 1e-3
+    u = hand.random_steps(np.random.default_rng(9), n, 1e-3, hold_s=(0.01, 0.04))
+    inputs = Inputs(t, u, np.zeros(n), np.full(n, P_SUP))
+    full = simulate(model, params, inputs, rig, P_ATM, _config(1e-8)).pressure_Pa[0]
+    # windows that start 5 samples after a command change (inside the delay)
+    changes = np.nonzero(np.abs(np.diff(u)) > 3.0)[0] + 1  # large command steps
+    changes = changes[(changes > 30) & (changes < n - 300)]
+    starts = changes[[0, len(changes) // 2, -1]] + 5
+    assert starts.max() + 250 <= n
+    length = 250
+    win = simulate_windows(model, params, inputs, rig, starts, length, full[starts],
+                           _config(1e-8))[0]
+    for w, s in enumerate(starts):
+        assert np.max(np.abs(win[w] - full[s:s + length])) < 5.0
+    # control: without the history (inputs sliced at the start) the windows differ
+    for s in starts:
+        sub = Inputs(t[s:s + length], u[s:s + length], np.zeros(length), np.full(length, P_SUP))
+        cut = simulate(model, params, sub, rig, full[s], _config(1e-8)).pressure_Pa[0]
+        assert np.max(np.abs(cut - full[s:s + length])) > 1e3
+
+
+# ---------------------------------------------------------------- robustness
+@pytest.mark.slow
+@pytest.mark.parametrize("form", ["orifice", "laminar"])
+def test_random_parameters_inside_bounds_simulate(rig, hand, form, standard):
+    from pneubayes.effects import make_effect
+
+    effects = [make_effect("cylinder_leak", form=form)] + ALL_EFFECTS[1:]
+    model = Model(effects)
+    assert set(model.effect_names) == set(ALL_EFFECTS)
+    rng = np.random.default_rng(2024 if form == "orifice" else 2025)
+    n = 1001
+    t = np.arange(n) * 1e-3
+    draws = 50 if form == "orifice" else 20
+    failures, out_of_range = [], []
+    lo_bound, hi_bound = 0.5 * P_ATM, 1.5 * P_SUP
+    for i in range(draws):
+        theta = np.array([p.sample_prior(rng) for p in model.parameters])
+        lo, hi = model.bounds
+        assert np.all((theta >= lo) & (theta <= hi))
+        inputs = Inputs(t, hand.random_steps(rng, n, 1e-3),
+                        hand.moving_position(t, mean=0.0105, amp=0.0005),
+                        hand.fluctuating_supply(t, amp=10_000.0))
+        p0 = rng.uniform(P_ATM, P_SUP)
+        try:
+            p = simulate(model, theta, inputs, rig, p0, standard).pressure_Pa[0]
+        except SimulationError as exc:
+            failures.append((i, str(exc).splitlines()[1][:300]))
+            continue
+        assert np.all(np.isfinite(p)), model.as_dict(theta)
+        if p.min() < lo_bound or p.max() > hi_bound:
+            out_of_range.append((i, float(p.min()), float(p.max()), model.as_dict(theta)))
+    assert not failures, f"{len(failures)} of {draws} draws failed: {failures[:3]}"
+    assert not out_of_range, f"{len(out_of_range)} of {draws} left [0.5 P_atm, 1.5 P_sup]: " \
+                             f"{out_of_range[:2]}"
+
+
+def test_simulation_error_names_the_parameters(leak_model, base_params, rig, make_inputs):
+    t = np.arange(201) * 1e-3
+    tiny = SolverConfig(rtol=1e-5, atol_Pa=5.0, atol_K=0.01, max_step_s=0.02, min_step_s=1e-12,
+                        max_steps=3)
+    batch = np.stack([leak_model.vector(base_params)] * 2)
+    with pytest.raises(SimulationError) as info:
+        simulate(leak_model, batch, make_inputs(t, np.full(t.size, 5.0)), rig, P_ATM, tiny)
+    msg = str(info.value)
+    assert "parameter set" in msg
+    for name in leak_model.parameter_names:
+        assert name in msg
+    assert "parameter set 0" in msg and "parameter set 1" in msg
+    assert "max_steps" in msg
+    assert f"{base_params['inlet_b']:.6g}" in msg
+
+
+# ---------------------------------------------------------------- argument checks
+def test_simulate_rejects_bad_arguments(leak_model, base_params, rig, make_inputs):
+    t = np.arange(11) * 1e-3
+    inputs = make_inputs(t, np.zeros(t.size))
+    with pytest.raises(TypeError):
+        simulate(leak_model, base_params, inputs, rig, P_ATM, None)
+    with pytest.raises(ValueError):
+        simulate(leak_model, dict(base_params, inlet_b=100.0), inputs, rig, P_ATM,
+                 SolverConfig.standard())
+    with pytest.raises(ValueError):
+        simulate(leak_model, base_params, inputs, rig, -1.0, SolverConfig.standard())
+    with pytest.raises(ValueError):
+        simulate_windows(leak_model, base_params, inputs, rig, [5], 10, [P_ATM],
+                         SolverConfig.standard())
+    with pytest.raises(ValueError):
+        Inputs(t, np.zeros(t.size), np.zeros(t.size), np.full(t.size, np.nan))
+    with pytest.raises(ValueError):
+        Inputs(t[::-1], np.zeros(t.size), np.zeros(t.size), np.full(t.size, P_SUP))
+    with pytest.raises(ValueError):
+        SolverConfig(rtol=0.0, atol_Pa=1.0, atol_K=1.0, max_step_s=1.0, min_step_s=0.1,
+                     max_steps=10)
+
+
+def test_trajectory_records_solver_and_parameters(leak_model, base_params, rig, make_inputs,
+                                                  standard):
+    t = np.arange(21) * 1e-3
+    traj = simulate(leak_model, base_params, make_inputs(t, np.zeros(t.size)), rig, 2e5,
+                    standard)
+    assert traj.solver == standard
+    assert traj.parameter_names == leak_model.parameter_names
+    assert np.array_equal(traj.parameters[0], leak_model.vector(base_params))
+    assert traj.pressure_Pa[0, 0] == 2e5
+    assert math.isclose(traj.time_s[-1], 0.02)
