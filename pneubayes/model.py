@@ -229,6 +229,10 @@ class Model:
             raise ModelCardError(f"{source}: key 'parameters' must be an object name -> value")
         if not isinstance(options, Mapping):
             raise ModelCardError(f"{source}: key 'effect_options' must be an object")
+        stray = sorted(set(options) - set(names))
+        if stray:
+            raise ModelCardError(f"{source}: key 'effect_options' names effect(s) {stray} "
+                                 f"that are not in 'effects' {names}")
         effects = []
         for n in names:
             opt = dict(options.get(n, {}))

@@ -283,3 +283,16 @@ def test_import_does_not_pull_in_matplotlib(module):
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "0"
+
+
+def test_card_rejects_options_of_an_unlisted_effect():
+    import json
+
+    from pneubayes.errors import ModelCardError
+    from pneubayes.model import Model
+    from pneubayes.physics.valve import valve_preset
+
+    card = Model().to_card({**valve_preset("valve1").parameters(), "dead_volume_m3": 2e-7})
+    card["effect_options"] = {"tube_delay": {"tube_diameter_m": 0.004}}
+    with pytest.raises(ModelCardError, match="tube_delay"):
+        Model.from_card(json.loads(json.dumps(card)), source="card.json")
