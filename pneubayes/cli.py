@@ -159,8 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("recording", help="recording .csv/.json path or stem")
     s.add_argument("--model", required=True, help="model card (pneubayes-model/1 JSON)")
     s.add_argument("--out", required=True, help="output CSV (time_s,pressure_Pa)")
-    s.add_argument("--rtol", type=float, default=1e-5, help="relative tolerance (1e-5)")
-    s.add_argument("--atol", type=float, default=5.0, help="absolute tolerance, Pa (5)")
+    s.add_argument("--rtol", type=float, default=3e-5, help="relative tolerance (3e-5, as "
+                   "SolverConfig.standard)")
+    s.add_argument("--atol", type=float, default=10.0, help="absolute tolerance, Pa (10)")
     s.add_argument("--max-step", type=float, default=0.02, help="largest step, s (0.02)")
     s.add_argument("--overwrite", action="store_true")
     s.set_defaults(func=cmd_simulate)

@@ -195,8 +195,7 @@ class Model:
             contrib = comp.lower({n: values[n] for n in names}, rig)
             comp.check_lowering(contrib)
             for slot, v in contrib.items():
-                slots[:, SLOT_INDEX[slot]] += np.broadcast_to(np.asarray(v, np.float64),
-                                                              (m.shape[0],))
+                slots[:, SLOT_INDEX[slot]] += v  # (B,) or scalar, broadcast
         return slots
 
     # ------------------------------------------------------------------ model card

@@ -14,7 +14,7 @@ dependence differs from an orifice's, so it is separable from the exhaust offset
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

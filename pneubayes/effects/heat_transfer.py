@@ -16,7 +16,7 @@ correction to eq. 5 rather than a full energy equation.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

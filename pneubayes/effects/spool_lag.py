@@ -7,7 +7,7 @@ command u. Within a sample interval the command is held, so s is integrated exac
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

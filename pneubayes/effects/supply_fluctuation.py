@@ -11,7 +11,7 @@ recover through the regulator), and the plant sees it with gain 1.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

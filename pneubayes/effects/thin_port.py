@@ -7,7 +7,7 @@ monotone in the right direction (inlet c > 0, exhaust c < 0), volumes positive.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

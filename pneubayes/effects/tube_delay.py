@@ -19,7 +19,7 @@ a given inner diameter D (2 mm in the paper). From it follow:
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -6,7 +6,7 @@ volts) and half-width w: no change of area for |s| < w, continuous outside it.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

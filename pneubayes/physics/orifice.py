@@ -51,10 +51,10 @@ def z_slopes(p_up, sg, dg_dr, r, alpha, beta, kappa, dp_floor):
     """
     if sg < 0.0:
         return beta, 0.0
-    floor = math.sqrt((kappa - 1.0) / kappa * dp_floor / p_up)
-    if floor < _SQRT_G_FLOOR:
-        floor = _SQRT_G_FLOOR
-    sgd = sg if sg > floor else floor
+    floor2 = (kappa - 1.0) / kappa * dp_floor / p_up
+    if floor2 < _SQRT_G_FLOOR * _SQRT_G_FLOOR:
+        floor2 = _SQRT_G_FLOOR * _SQRT_G_FLOOR
+    sgd = sg if sg * sg > floor2 else math.sqrt(floor2)
     dz_dpd = alpha * dg_dr / (2.0 * sgd)
     return alpha * sg - r * dz_dpd, dz_dpd
 

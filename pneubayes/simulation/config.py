@@ -51,8 +51,13 @@ class SolverConfig:
 
     @classmethod
     def standard(cls) -> "SolverConfig":
-        """Preset for fitting and prediction (about 1e-5 of range local error)."""
-        return cls(rtol=1e-5, atol_Pa=5.0, atol_K=0.01, max_step_s=0.02, min_step_s=1e-12,
+        """Preset for fitting and prediction.
+
+        Measured against Radau (rtol 1e-10) on 1-s random-step trajectories, valve2,
+        moving and fixed chambers from 1e-7 to 2e-5 m^3, all six effects: at most 36 Pa
+        (0.008 % of a 450 kPa range), a twelvefold margin on the 0.1 % floor.
+        """
+        return cls(rtol=3e-5, atol_Pa=10.0, atol_K=0.01, max_step_s=0.02, min_step_s=1e-12,
                    max_steps=5_000_000)
 
     @classmethod

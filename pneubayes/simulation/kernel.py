@@ -190,10 +190,11 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
     for k in range(i0, i0 + length - 1):
         ta, tb = t[k], t[k + 1]
         seg = tb - ta
+        inv_seg = 1.0 / seg
         xa, xb = x[k], x[k + 1]
-        vdot = bore * (xb - xa) / seg
+        vdot = bore * (xb - xa) * inv_seg
         sa, sb = ps[k], ps[k + 1]
-        dsup = gain * (sb - sa) / seg
+        dsup = gain * (sb - sa) * inv_seg
         tau = ta
         while tau < tb:
             # Sub-interval [tau, t_end) on which the delayed command is constant.
@@ -220,7 +221,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                 if steps > max_steps:
                     return STEP_BUDGET
                 # state and inputs at tau
-                fr = (tau - ta) / seg
+                fr = (tau - ta) * inv_seg
                 vol = v0 + bore * (xa + fr * (xb - xa))
                 psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
                 da_in = 0.0
@@ -240,7 +241,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                     phi1t, _, phi3t = _phi123(zt)
                     ut = temp + hh * phi1t * ft
                 # stage 2 at tau + hh
-                fr2 = (tau + hh - ta) / seg
+                fr2 = (tau + hh - ta) * inv_seg
                 vol2 = v0 + bore * (xa + fr2 * (xb - xa))
                 psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
                 if moving:
@@ -270,13 +271,13 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
                     p, temp = pn, tn
-                    fac = 5.0 if err < 1e-4 else min(5.0, 0.9 * err ** (-1.0 / 3.0))
+                    fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
                     if hh >= h or fac < 1.0:
                         h = min(hmax, hh * fac)
                 else:
                     if not math.isfinite(err):
                         err = 10.0
-                    h = hh * max(0.1, 0.9 * err ** (-1.0 / 3.0))
+                    h = hh * max(0.1, 0.9 / np.cbrt(err))
                     if h < hmin:
                         if not (math.isfinite(p) and math.isfinite(temp)):
                             return NONFINITE
