@@ -124,3 +124,29 @@ class Effect(Component):
                        rig: Rig, rng: np.random.Generator) -> np.ndarray:
         """Return the true supply pressure the bench should use (default: unchanged)."""
         return supply_pressure_Pa
+
+
+class DirectEffect(Effect):
+    """An effect whose single parameter sets one signal-path slot unchanged.
+
+    Subclasses declare ``parameter`` (its neutral value is the slot's 0), ``slot`` and
+    ``bench_value`` (the realistic true value for the bench).
+    """
+
+    parameter: ClassVar[Parameter]
+    slot: ClassVar[str]
+    bench_value: ClassVar[float]
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "slot" in cls.__dict__:
+            cls.acts_on = (cls.slot,)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (self.parameter,)
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig) -> dict[str, np.ndarray]:
+        return {self.slot: values[self.parameter.name]}
+
+    def bench_defaults(self) -> dict[str, float]:
+        return {self.parameter.name: float(self.bench_value)}

@@ -16,27 +16,15 @@ correction to eq. 5 rather than a full energy equation.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
-import numpy as np
-
-from pneubayes.effects.base import Effect, Parameter
-from pneubayes.rig import Rig
+from pneubayes.effects.base import DirectEffect, Parameter
 
 
-class HeatTransfer(Effect):
+class HeatTransfer(DirectEffect):
     """Chamber temperature as a state, relaxing to the wall at ``heat_transfer_rate_per_s``."""
 
     name = "heat_transfer"
-    acts_on = ("heat_rate_per_s",)
-
-    def parameters(self):
-        return (Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
-                          "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),)
-
-    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
-        return {"heat_rate_per_s": values["heat_transfer_rate_per_s"]}
-
-    def bench_defaults(self):
-        # A wall time constant of 0.2 s, typical of small cylinders.
-        return {"heat_transfer_rate_per_s": 5.0}
+    slot = "heat_rate_per_s"
+    parameter = Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
+                          "wall heat-exchange rate, 1 / wall time constant", neutral=0.0)
+    #: A wall time constant of 0.2 s, typical of small cylinders.
+    bench_value = 5.0

@@ -7,26 +7,16 @@ command u. Within a sample interval the command is held, so s is integrated exac
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
-import numpy as np
-
-from pneubayes.effects.base import Effect, Parameter
-from pneubayes.rig import Rig
+from pneubayes.effects.base import DirectEffect, Parameter
 
 
-class SpoolLag(Effect):
+class SpoolLag(DirectEffect):
     """Spool lag with time constant ``spool_time_constant_s``."""
 
     name = "spool_lag"
-    acts_on = ("spool_time_constant_s",)
-
-    def parameters(self):
-        return (Parameter("spool_time_constant_s", "s", 0.0, 0.02, "uniform",
-                          "first-order spool time constant", neutral=0.0),)
-
-    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
-        return {"spool_time_constant_s": values["spool_time_constant_s"]}
-
-    def bench_defaults(self):
-        return {"spool_time_constant_s": 1.0 / (2.0 * math.pi * 125.0)}
+    slot = "spool_time_constant_s"
+    parameter = Parameter("spool_time_constant_s", "s", 0.0, 0.02, "uniform",
+                          "first-order spool time constant", neutral=0.0)
+    #: 125 Hz bandwidth at full spool stroke (paper VI-A).
+    bench_value = 1.0 / (2.0 * math.pi * 125.0)

@@ -11,19 +11,20 @@ recover through the regulator), and the plant sees it with gain 1.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
 
-from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.base import DirectEffect, Parameter
 from pneubayes.rig import Rig
 
 
-class SupplyFluctuation(Effect):
+class SupplyFluctuation(DirectEffect):
     """Measured rather than nominal supply pressure at the inlet port."""
 
     name = "supply_fluctuation"
-    acts_on = ("supply_gain",)
+    slot = "supply_gain"
+    parameter = Parameter("supply_gain", "-", 0.0, 1.5, "uniform",
+                          "weight of the measured supply deviation at the inlet", neutral=0.0)
+    bench_value = 1.0
 
     def __init__(self, fluctuation_std_Pa: float = 12_000.0, correlation_time_s: float = 0.4,
                  load_step_rate_per_s: float = 0.5, load_step_Pa: float = 25_000.0,
@@ -40,16 +41,6 @@ class SupplyFluctuation(Effect):
                 "load_step_rate_per_s": self.load_step_rate_per_s,
                 "load_step_Pa": self.load_step_Pa,
                 "recovery_time_s": self.recovery_time_s}
-
-    def parameters(self):
-        return (Parameter("supply_gain", "-", 0.0, 1.5, "uniform",
-                          "weight of the measured supply deviation at the inlet", neutral=0.0),)
-
-    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
-        return {"supply_gain": values["supply_gain"]}
-
-    def bench_defaults(self):
-        return {"supply_gain": 1.0}
 
     def perturb_inputs(self, time_s, supply_pressure_Pa, rig: Rig, rng: np.random.Generator):
         """True supply: nominal + OU wander + decaying load dips (Pa)."""
