@@ -107,13 +107,16 @@ def _check_solver(solver) -> SolverConfig:
 
 def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,
                      initial_pressure_Pa, solver: SolverConfig,
-                     check_bounds: bool = True) -> np.ndarray:
+                     check_bounds: bool = True, on_failure: str = "raise") -> np.ndarray:
     """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
 
     Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
-    measured pressure there). Raises :class:`SimulationError` naming the parameter sets
-    that failed.
+    measured pressure there). With ``on_failure="raise"`` a failure raises
+    :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
+    rows are NaN (samplers turn them into zero likelihood).
     """
+    if on_failure not in ("raise", "nan"):
+        raise ValueError(f"on_failure must be 'raise' or 'nan', got {on_failure!r}")
     solver = _check_solver(solver)
     theta = model.as_matrix(params)
     if check_bounds:
@@ -134,7 +137,9 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
         slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
         inputs.position_m, inputs.supply_pressure_Pa, starts, length, p0)
     failed = np.nonzero(status.any(axis=1))[0]
-    if failed.size:
+    if failed.size and on_failure == "nan":
+        out[failed] = np.nan
+    elif failed.size:
         lines = []
         for b in failed[:5]:
             w = int(np.nonzero(status[b])[0][0])

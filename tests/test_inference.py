@@ -1,0 +1,113 @@
+"""Trajectory refinement, the AR(1) window likelihood, sampling coordinates, emcee."""
+
+import numpy as np
+import pytest
+
+from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.inference.likelihood import WindowLikelihood, ar1_loglike
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
+from pneubayes.inference.windows import WindowSet
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+from pneubayes.simulation import SolverConfig
+
+TIGHT = SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
+                     min_step_s=1e-12, max_steps=5_000_000)
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    out = tmp_path_factory.mktemp("inference")
+    cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
+                      duration_s=6.0, seed=3, positions=(0.5, 0.9), ranges_V=(5.0,))
+    res = run_bench(cfg, out)
+    model, truth = Model.load_card(res.truth_path)
+    return [read_recording(p) for p in res.recordings], model, truth
+
+
+def test_ar1_loglike_matches_a_direct_density():
+    rng = np.random.default_rng(0)
+    r = rng.normal(size=(1, 3, 7))
+    sigma, rho = np.array([0.7]), np.array([0.4])
+    direct = 0.0
+    for w in range(3):
+        prev = 0.0
+        for k in range(7):
+            e = r[0, w, k] - rho[0] * prev
+            direct += -0.5 * e**2 / sigma[0] ** 2 - np.log(sigma[0]) - 0.5 * np.log(2 * np.pi)
+            prev = r[0, w, k]
+    assert ar1_loglike(r, sigma, rho)[0] == pytest.approx(direct)
+
+
+def test_window_set_shapes_and_truth_residuals(bench):
+    recs, model, truth = bench
+    data = WindowSet(recs, 2.0, 2.0)
+    assert data.n_windows == 2 * 3 and data.length == 2001
+    r = data.residuals(model, model.vector(truth)[None], TIGHT)
+    assert r.shape == (1, 6, 2000)
+    assert 400 < np.std(r) < 650  # the true model leaves the 500 Pa sensor noise
+
+
+def test_refinement_recovers_a_perturbed_start(bench):
+    recs, model, truth = bench
+    start = dict(truth)
+    for k, f in (("inlet_a_m2", 1.15), ("exhaust_a_m2", 0.85), ("dead_volume_m3", 1.3),
+                 ("inlet_c_per_V", 1.2)):
+        start[k] = truth[k] * f
+    ref = TrajectoryRefiner(model, TIGHT, max_nfev=40).fit(recs, start)
+    assert ref.rmse_Pa_ < 0.5 * ref.start_rmse_Pa_
+    assert ref.rmse_Pa_ < 600.0
+    for k in ("inlet_a_m2", "exhaust_a_m2", "dead_volume_m3", "inlet_c_per_V"):
+        assert ref.params_[k] == pytest.approx(truth[k], rel=0.05), k
+
+
+def test_sampling_coordinates_round_trip_and_jacobian(bench):
+    recs, model, truth = bench
+    like = WindowLikelihood(model, WindowSet(recs[:1], 2.0, 2.0), SolverConfig.standard())
+    x = np.concatenate([model.vector(truth), [500.0, 0.1]])[None]
+    z = like.to_sampling(x)
+    np.testing.assert_allclose(like.from_sampling(z), x, rtol=1e-12)
+    # Jacobian: numerical log|det dx/dz| equals what log_prob_sampling adds
+    eps = 1e-6
+    jac = np.empty((x.size, x.size))
+    for j in range(x.size):
+        dz = np.zeros_like(z)
+        dz[0, j] = eps * max(abs(z[0, j]), 1.0)
+        jac[:, j] = (like.from_sampling(z + dz) - like.from_sampling(z - dz))[0] / (2 * dz[0, j])
+    logdet = np.linalg.slogdet(jac)[1]
+    lp_x = like.log_prob(x)[0]
+    assert like.log_prob_sampling(z)[0] - lp_x == pytest.approx(logdet, abs=1e-5)
+    # the nuisance coordinates leave the likelihood unchanged
+    z2 = z.copy()
+    for j, (lo, hi) in like.nuisance().items():
+        z2[0, j] = lo + 0.37 * (hi - lo)
+    x2 = like.from_sampling(z2)
+    r1 = like.data.residuals(model, x[:, :-2], like.solver)
+    r2 = like.data.residuals(model, x2[:, :-2], like.solver)
+    if np.all(like.log_prior(x2) > -np.inf):
+        np.testing.assert_allclose(r1, r2, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_emcee_smoke_and_resume(bench, tmp_path):
+    recs, model, truth = bench
+    settings = SamplerSettings(n_walkers=32, max_steps=60, check_every=30, seed=4)
+    path = tmp_path / "chain.h5"
+    fit = BayesianIdentification(model, SolverConfig.standard(), settings, backend_path=path,
+                                 progress=False).fit(recs[:2], truth)
+    assert fit.sampler_.iteration == 60 and not fit.resumed_
+    assert np.all(np.isfinite(fit.samples()))
+    lo, hi = model.bounds
+    ms = fit.model_samples()
+    assert np.all((ms >= lo) & (ms <= hi))
+    s = fit.summary()
+    assert set(s) == set(model.parameter_names) | {"noise_scale_Pa", "noise_ar1"}
+    assert 350 < s["noise_scale_Pa"]["median"] < 700
+    # a longer budget resumes the stored chain instead of starting again
+    longer = SamplerSettings(n_walkers=32, max_steps=90, check_every=30, seed=4)
+    again = BayesianIdentification(model, SolverConfig.standard(), longer, backend_path=path,
+                                   progress=False).fit(recs[:2], truth)
+    assert again.resumed_ and again.sampler_.iteration == 90
+    idata = again.inference_data({"seed": 4})
+    assert idata.posterior["inlet_a_m2"].shape[0] == 32
