@@ -1,4 +1,4 @@
-"""The ``pneubayes`` command: ``check``, ``bench``, ``simulate``.
+"""The ``pneubayes`` command: ``check``, ``bench``, ``simulate``, ``fit``, ``predict``.
 
 Each subcommand is a thin layer over the library; errors are printed as one clear
 message naming the file, row, key or argument (exit 2 for usage or input errors,
@@ -103,6 +103,67 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _read_all(paths):
+    from pneubayes.io.recording import read_recording
+
+    return [read_recording(p) for p in paths]
+
+
+def cmd_fit(args) -> int:
+    from pneubayes.bench.bench import effects_from_names
+    from pneubayes.inference.pipeline import FitSettings, run_fit
+    from pneubayes.inference.sampler import SamplerSettings
+    from pneubayes.model import Model
+
+    recs = _read_all(args.recordings)
+    if args.model:
+        model, _ = Model.load_card(args.model)
+    else:
+        names = [n.strip() for n in args.effects.split(",") if n.strip()]
+        model = Model(effects_from_names(names, args.leak_form))
+    settings = FitSettings(sampler=SamplerSettings(
+        n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed))
+    summary = run_fit(recs, model, settings, args.out, progress=not args.quiet,
+                      log=(lambda m: None) if args.quiet else
+                      (lambda m: print(m, file=sys.stderr)), figures=not args.no_figures)
+    print(f"{args.out}/model.json  (posterior median; converged={summary['converged']}, "
+          f"{summary['steps']} steps, {summary['wall_time_s']:.0f} s)")
+    for name, s in summary["parameters"].items():
+        print(f"  {name:32s} {s['median']:12.5g}  90% [{s['q05']:.5g}, {s['q95']:.5g}]"
+              f"  R-hat {s['rhat']:.3f}  ESS {s['ess']:.0f}")
+    for g in summary["identifiability"]["groups"]:
+        why = g.get("reason") or f"correlation {g.get('correlation', 0.0):.2f}"
+        print(f"  confounded: {' ~ '.join(g['parameters'])}: {why}")
+    return 0
+
+
+def cmd_predict(args) -> int:
+    from pneubayes.inference.pipeline import run_predict
+    from pneubayes.io.recording import read_recording
+    from pneubayes.simulation import SolverConfig
+
+    rec = read_recording(args.recording)
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise PneubayesError(f"--out {out}: file exists (use --overwrite)")
+    m = run_predict(args.run, rec, args.horizon, out, args.draws, args.seed,
+                    SolverConfig.standard(), stride_s=args.stride)
+    print(f"{out}: RMSE {m['rmse_Pa']:.0f} Pa ({m['rmse_percent_of_range']:.2f} % of range), "
+          f"noise floor {m['noise_floor_Pa']:.0f} Pa, coverage 50 % -> {m['coverage_50']:.2f}, "
+          f"90 % -> {m['coverage_90']:.2f}")
+    if not args.no_figure:
+        from pneubayes.inference.pipeline import load_posterior
+        from pneubayes.inference.predictive import PosteriorPredictive
+        from pneubayes.plotting import plot_prediction_bands
+
+        rng = np.random.default_rng(args.seed)
+        model, draws, noise = load_posterior(args.run, min(args.draws, 100), rng)
+        bands = PosteriorPredictive(model, draws, noise, SolverConfig.standard()).bands(
+            rec, args.horizon, args.stride or args.horizon, rng)
+        print(plot_prediction_bands(bands, out.with_suffix(".png")))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pneubayes",
@@ -165,6 +226,43 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-step", type=float, default=0.02, help="largest step, s (0.02)")
     s.add_argument("--overwrite", action="store_true")
     s.set_defaults(func=cmd_simulate)
+
+    f = sub.add_parser(
+        "fit", help="identify a model: paper least squares, refinement, emcee posterior",
+        description="Fit the thin-port model (and effects) to recordings: the paper's "
+                    "eq.-10 least squares on fixed-volume recordings, multiple shooting on "
+                    "2-s windows, then an emcee posterior. Writes RUNDIR/model.json "
+                    "(posterior median), posterior.nc, summary.json, chain.h5 (a killed "
+                    "run resumes), figures/.")
+    f.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
+    f.add_argument("--out", required=True, help="run folder")
+    f.add_argument("--model", help="model card whose effects (and options) to fit")
+    f.add_argument("--effects", default="cylinder_leak",
+                   help="effects of the fitted model when no --model (default: the paper's "
+                        "cylinder_leak)")
+    f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
+    f.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
+    f.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
+    f.add_argument("--seed", type=int, default=0, help="sampler seed (recorded)")
+    f.add_argument("--no-figures", action="store_true")
+    f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    f.set_defaults(func=cmd_fit)
+
+    r = sub.add_parser(
+        "predict", help="posterior-predictive 2-s pressure bands for a recording",
+        description="Rolling windows from the measured pressure with the posterior "
+                    "predictive mean and 5/50/95 % bands; PRED.metrics.json holds RMSE, "
+                    "band coverage and the noise floor.")
+    r.add_argument("run", help="run folder written by 'pneubayes fit'")
+    r.add_argument("recording", help="recording .csv/.json path or stem")
+    r.add_argument("--horizon", type=float, default=2.0, help="window length, s")
+    r.add_argument("--stride", type=float, default=None, help="window spacing (= horizon)")
+    r.add_argument("--draws", type=int, default=200, help="posterior draws")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--out", required=True, help="output CSV")
+    r.add_argument("--no-figure", action="store_true")
+    r.add_argument("--overwrite", action="store_true")
+    r.set_defaults(func=cmd_predict)
     return p
 
 

@@ -46,3 +46,112 @@ def plot_predictions(time_s, measured_Pa, predictions: Mapping[str, np.ndarray],
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _save(fig, path) -> Path:
+    plt = _pyplot()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_area_bands(model, samples, path, n_draws: int = 300) -> Path:
+    """Port area against command with 90 % posterior bands (the paper's Fig. 5a)."""
+    from pneubayes.physics.valve import gompertz_area
+
+    plt = _pyplot()
+    names = list(model.parameter_names)
+    x = np.asarray(samples)[:: max(1, len(samples) // n_draws)]
+    u = np.linspace(-5, 5, 201)
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for port, color in (("inlet", "tab:blue"), ("exhaust", "tab:red")):
+        cols = [names.index(f"{port}_{g}") for g in ("offset_m2", "a_m2", "b", "c_per_V",
+                                                     "d_V")]
+        areas = np.array([gompertz_area(u, *row[cols]) for row in x]) * 1e6
+        lo, med, hi = np.quantile(areas, [0.05, 0.5, 0.95], axis=0)
+        ax.fill_between(u, lo, hi, color=color, alpha=0.3, lw=0)
+        ax.plot(u, med, color=color, label=f"{port} (median, 90 % band)")
+    ax.set_xlabel("command (V)")
+    ax.set_ylabel("port area (mm$^2$)")
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_volume_map(model, samples, bore_m: float, stroke_m: float, path) -> Path:
+    """Chamber volume against position with its 90 % band (the paper's Fig. 5b)."""
+    plt = _pyplot()
+    v0 = np.asarray(samples)[:, list(model.parameter_names).index("dead_volume_m3")]
+    x = np.linspace(0, stroke_m, 50)
+    area = np.pi / 4 * bore_m**2
+    vols = (v0[:, None] + area * x[None, :]) * 1e6
+    lo, med, hi = np.quantile(vols, [0.05, 0.5, 0.95], axis=0)
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    ax.fill_between(x * 1e3, lo, hi, alpha=0.3, lw=0)
+    ax.plot(x * 1e3, med)
+    ax.set_xlabel("piston position (mm)")
+    ax.set_ylabel("chamber volume (cm$^3$)")
+    ax.set_title(f"dead volume {np.median(v0) * 1e6:.3g} cm$^3$ "
+                 f"[{np.quantile(v0, 0.05) * 1e6:.3g}, {np.quantile(v0, 0.95) * 1e6:.3g}]",
+                 fontsize=9)
+    return _save(fig, path)
+
+
+def plot_corner(names, samples, path, max_points: int = 2000) -> Path:
+    """Pairwise scatter and marginal histograms of posterior draws."""
+    plt = _pyplot()
+    x = np.asarray(samples)
+    x = x[:: max(1, len(x) // max_points)]
+    d = len(names)
+    fig, axes = plt.subplots(d, d, figsize=(1.6 * d, 1.6 * d), squeeze=False)
+    for i in range(d):
+        for j in range(d):
+            ax = axes[i, j]
+            if j > i:
+                ax.axis("off")
+                continue
+            if i == j:
+                ax.hist(x[:, i], bins=30, color="0.4")
+            else:
+                ax.plot(x[:, j], x[:, i], ",", alpha=0.4, color="k")
+            ax.tick_params(labelsize=5)
+            if i == d - 1:
+                ax.set_xlabel(names[j], fontsize=6)
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i], fontsize=6)
+    return _save(fig, path)
+
+
+def plot_fit_figures(model, samples, recordings, folder, idata=None) -> list[Path]:
+    """The figures of a fit run: area bands, volume map, corner plot."""
+    folder = Path(folder)
+    rec = recordings[0]
+    names = [n for n in ("inlet_a_m2", "inlet_c_per_V", "exhaust_a_m2", "exhaust_c_per_V",
+                         "dead_volume_m3", "leak_area_m2", "leak_conductance_kg_per_s_Pa2")
+             if n in model.parameter_names]
+    cols = [list(model.parameter_names).index(n) for n in names]
+    return [plot_area_bands(model, samples, folder / "areas.png"),
+            plot_volume_map(model, samples, rec.metadata.bore_m, rec.metadata.stroke_m,
+                            folder / "volume.png"),
+            plot_corner(names, np.asarray(samples)[:, cols], folder / "corner.png")]
+
+
+def plot_prediction_bands(bands, path, max_windows: int = 3) -> Path:
+    """Measured pressure against the posterior-predictive mean and 90 % band (Figs. 7-10)."""
+    plt = _pyplot()
+    w = min(max_windows, bands.mean.shape[0])
+    fig, axes = plt.subplots(w, 1, figsize=(9, 2.6 * w), squeeze=False)
+    for k in range(w):
+        ax = axes[k, 0]
+        t = bands.time_s[k]
+        ax.fill_between(t, bands.q05[k] / 1e3, bands.q95[k] / 1e3, alpha=0.3, lw=0,
+                        label="90 % predictive band")
+        ax.plot(t, bands.measured[k] / 1e3, color="0.4", lw=0.8, label="measured")
+        ax.plot(t, bands.mean[k] / 1e3, lw=1.0, label="posterior mean")
+        ax.set_ylabel("kPa abs")
+        if k == 0:
+            ax.legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time (s)")
+    return _save(fig, path)

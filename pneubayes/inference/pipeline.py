@@ -1,0 +1,173 @@
+"""``pneubayes fit`` and ``pneubayes predict``: the identification pipeline end to end.
+
+fit: the paper's least squares on the fixed-volume recordings (when they span two or
+more positions) -> trajectory refinement on every recording -> emcee posterior ->
+RUNDIR/model.json (posterior median card), posterior.nc (arviz), summary.json,
+chain.h5 (resumable), figures/.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import pneubayes
+from pneubayes.atomic import write_json_atomic, write_text_atomic
+from pneubayes.inference.derivative import SavitzkyGolay
+from pneubayes.inference.identifiability import identifiability_report
+from pneubayes.inference.lsq import PaperLeastSquares
+from pneubayes.inference.predictive import PosteriorPredictive, estimate_noise_std
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, arviz
+from pneubayes.inference.windows import WindowSet
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.simulation import SolverConfig
+
+
+def _tight() -> SolverConfig:
+    return SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
+                        min_step_s=1e-12, max_steps=5_000_000)
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Every setting of ``pneubayes fit`` (saved in summary.json)."""
+
+    horizon_s: float = 2.0
+    stride_s: float = 2.0
+    sg_window_s: float = 0.011
+    sg_polyorder: int = 3
+    refine_max_nfev: int = 60
+    refine_solver: SolverConfig = field(default_factory=_tight)
+    sample_solver: SolverConfig = field(default_factory=SolverConfig.standard)
+    sampler: SamplerSettings = field(default_factory=SamplerSettings)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _fixed(rec) -> bool:
+    return rec.position_m is None or np.ptp(rec.position_m) < 0.02 * rec.metadata.stroke_m
+
+
+def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: float):
+    """The paper's least squares where the data allow it, else a generic start."""
+    fixed = [r for r in recordings if _fixed(r)]
+    notes = []
+    if fixed:
+        try:
+            lsq = PaperLeastSquares(model, SavitzkyGolay(settings.sg_window_s,
+                                                         settings.sg_polyorder),
+                                    noise_std_Pa=noise_Pa).fit(fixed)
+            return lsq.params_, lsq.notes_, "paper least squares (eq. 10)"
+        except ValueError as exc:
+            notes.append(f"paper least squares skipped: {exc}")
+    start = dict(model.neutral_values())
+    start.update(valve_preset("valve1").parameters())
+    start["dead_volume_m3"] = 1e-6
+    if model.has("cylinder_leak"):
+        e = model.effect("cylinder_leak")
+        start.update({k: 0.2 * v for k, v in e.bench_defaults().items()})
+    notes.append("started from the Table II valve1 maps and a 1e-6 m^3 dead volume")
+    return start, notes, "generic"
+
+
+def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
+            progress: bool = True, log=print, figures: bool = True) -> dict:
+    """Fit ``model`` to ``recordings``; write the run folder; return the summary."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    recs = list(recordings)
+    t0 = time.perf_counter()
+    noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+    start, notes, how = starting_point(model, recs, settings, noise)
+    log(f"fit: start from {how}")
+    data = WindowSet(recs, settings.horizon_s, settings.stride_s)
+    ref = TrajectoryRefiner(model, settings.refine_solver,
+                            max_nfev=settings.refine_max_nfev).fit(data, start)
+    log(f"fit: refined 2-s RMSE {ref.start_rmse_Pa_:.0f} -> {ref.rmse_Pa_:.0f} Pa "
+        f"({ref.n_evaluations_} evaluations)")
+    bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
+                                backend_path=out / "chain.h5", progress=progress)
+    bi.fit(data, ref.params_, covariance=ref.covariance_)
+    log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
+        f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s")
+    median = bi.median_params()
+    card_extra = {"fit": {"estimate": "posterior median", "posterior": "posterior.nc",
+                          "summary": "summary.json"}}
+    model.save_card(median, out / "model.json", extra=card_extra)
+    idata = bi.inference_data({"seed": settings.sampler.seed,
+                               "pneubayes_version": pneubayes.__version__,
+                               "model_card": json.dumps(model.to_card(median))})
+    tmp = out / ".posterior.nc.tmp"
+    idata.to_netcdf(str(tmp))
+    os.replace(tmp, out / "posterior.nc")
+    ident = identifiability_report(model, bi.names_, bi.samples())
+    summary = {
+        "format": "pneubayes-fit-summary/1",
+        "recordings": [str(r.source) for r in recs],
+        "parameters": bi.summary(),
+        "converged": bi.converged_,
+        "steps": bi.diagnostics_["steps"], "burn": bi.burn_,
+        "n_walkers": int(bi.chain_.shape[1]), "tau_max": bi.diagnostics_["tau_max"],
+        "acceptance_fraction": bi.acceptance_fraction_,
+        "resumed": bi.resumed_,
+        "start": {"method": how, "notes": notes, "parameters": start},
+        "refined": {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
+                    "start_rmse_Pa": ref.start_rmse_Pa_},
+        "noise_floor_Pa": noise,
+        "identifiability": ident,
+        "settings": settings.to_dict(), "seed": settings.sampler.seed,
+        "wall_time_s": time.perf_counter() - t0,
+        "pneubayes_version": pneubayes.__version__,
+    }
+    write_json_atomic(out / "summary.json", summary)
+    if figures:
+        from pneubayes.plotting import plot_fit_figures
+
+        plot_fit_figures(model, bi.model_samples(), recs, out / "figures", idata=idata)
+    return summary
+
+
+def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
+    """(model, model draws (N, P), noise draws (N, 2)) from a run folder."""
+    run = Path(run_dir)
+    model, _ = Model.load_card(run / "model.json")
+    idata = arviz().from_netcdf(str(run / "posterior.nc"))
+    post = idata.posterior
+    names = list(model.parameter_names) + ["noise_scale_Pa", "noise_ar1"]
+    missing = [n for n in names if n not in post]
+    if missing:
+        raise ValueError(f"{run / 'posterior.nc'}: missing variables {missing}")
+    flat = np.column_stack([np.asarray(post[n]).reshape(-1) for n in names])
+    pick = rng.choice(flat.shape[0], size=min(n_draws, flat.shape[0]), replace=False)
+    draws = flat[pick]
+    return model, draws[:, : model.n_parameters], draws[:, model.n_parameters:]
+
+
+def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,
+                solver: SolverConfig, stride_s: float | None = None) -> dict:
+    """Rolling windows with posterior-predictive bands -> CSV + ``.metrics.json``."""
+    rng = np.random.default_rng(seed)
+    model, draws, noise = load_posterior(run_dir, n_draws, rng)
+    pp = PosteriorPredictive(model, draws, noise, solver)
+    bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
+    w, n = bands.mean.shape
+    cols = [np.repeat(np.arange(w), n), bands.time_s.ravel(),
+            (bands.time_s - bands.time_s[:, :1]).ravel(), bands.measured.ravel(),
+            bands.mean.ravel(), bands.q05.ravel(), bands.q50.ravel(), bands.q95.ravel()]
+    header = "window,time_s,horizon_s,measured_Pa,mean_Pa,q05_Pa,q50_Pa,q95_Pa"
+    lines = [header] + [",".join(f"{v:.10g}" for v in row) for row in zip(*cols)]
+    out = Path(out_csv)
+    write_text_atomic(out, "\n".join(lines) + "\n")
+    metrics = bands.metrics()
+    metrics.update({"recording": str(recording.source), "run": str(run_dir),
+                    "horizon_s": horizon_s, "n_draws": int(draws.shape[0]), "seed": seed})
+    write_json_atomic(out.with_suffix(".metrics.json"), metrics)
+    return metrics
