@@ -23,9 +23,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SETS = {
     "air37_leak_tube/fixed": (
         "AIR37 + valve1 with the paper's orifice leak and a hidden 3 ms connecting tube; "
-        "fixed volume (mid-stroke), random steps in +-5, +-3 and +-0.5 V, 10 s each",
+        "fixed volume at 25 % and 75 % of the stroke, random steps in +-5, +-3 and +-0.5 V, "
+        "10 s each",
         "--cylinder AIR37 --valve valve1 --effects cylinder_leak,tube_delay --protocol fixed "
-        "--positions 0.5 --duration 10 --seed 11"),
+        "--positions 0.25,0.75 --duration 10 --seed 11"),
     "air37_leak_tube/moving": (
         "same rig; aggressive piston motion with random steps in +-5 V, 2 x 10 s",
         "--cylinder AIR37 --valve valve1 --effects cylinder_leak,tube_delay --protocol moving "

@@ -125,7 +125,17 @@ def cmd_fit(args) -> int:
         n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed))
     summary = run_fit(recs, model, settings, args.out, progress=not args.quiet,
                       log=(lambda m: None) if args.quiet else
-                      (lambda m: print(m, file=sys.stderr)), figures=not args.no_figures)
+                      (lambda m: print(m, file=sys.stderr)), figures=not args.no_figures,
+                      method=args.method)
+    if args.method != "mcmc":
+        est = summary["start"] if args.method == "lsq" else summary["refined"]
+        print(f"{args.out}/model.json  ({args.method} estimate, "
+              f"{summary['wall_time_s']:.1f} s)")
+        for name, v in est["parameters"].items():
+            print(f"  {name:32s} {v:12.5g}")
+        for note in summary["start"]["notes"]:
+            print(f"  note: {note}")
+        return 0
     print(f"{args.out}/model.json  (posterior median; converged={summary['converged']}, "
           f"{summary['steps']} steps, {summary['wall_time_s']:.0f} s)")
     for name, s in summary["parameters"].items():
@@ -241,6 +251,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="effects of the fitted model when no --model (default: the paper's "
                         "cylinder_leak)")
     f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
+    f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
+                   help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
+                        "shooting on 2-s windows; mcmc (default): then the emcee posterior")
     f.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
     f.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
     f.add_argument("--seed", type=int, default=0, help="sampler seed (recorded)")

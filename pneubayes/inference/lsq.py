@@ -139,64 +139,64 @@ class PaperLeastSquares:
 
     # -------------------------------------------------------------- eq. 10 per hold
     def _design(self, recs):
-        """Stack eq. 10 over holds: sparse design, target dp/dt, hold bookkeeping."""
+        """Stack eq. 10 over holds: sparse design, target dp/dt, hold bookkeeping.
+
+        Columns: two per hold (a_c / V and (a_a + a_l) / V); with a laminar leak, one
+        more per recording (k / V), shared by that recording's holds.
+        """
         laminar = (self.model.has("cylinder_leak")
                    and self.model.effect("cylinder_leak").form == "laminar")
         rows, cols, vals, target, holds = [], [], [], [], []
-        n_col = 0
-        leak_cols = {}
-        row0 = 0
+        leak_rows: dict[int, list] = {}
+        n_col = row0 = 0
         for j, rec in enumerate(recs):
             g = rec.rig().gas
-            k = g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K
+            rs_t = g.specific_gas_constant_J_per_kg_K * g.temperature_K
+            k = g.heat_capacity_ratio * rs_t
             t, p, u = rec.time_s, rec.pressure_Pa, rec.command_V
             dt = float(np.median(np.diff(t)))
             half = self.differentiator.window_samples(dt) // 2 + 1
             dpdt = self.differentiator.derivative(t, p)
             ps = self.differentiator.smooth(t, p)
+            p_atm = rec.metadata.atmospheric_pressure_Pa
             supply = rec.supply_or_nominal() if self.use_measured_supply else np.full(
                 p.size, rec.metadata.supply_pressure_Pa)
             f_in = k * flow_function(supply, ps, g)
-            f_out = k * flow_function(ps, rec.metadata.atmospheric_pressure_Pa, g)
-            lam = k * (ps**2 - rec.metadata.atmospheric_pressure_Pa**2) / (
-                g.specific_gas_constant_J_per_kg_K * g.temperature_K)
+            f_out = k * flow_function(ps, p_atm, g)
+            lam = k * (ps**2 - p_atm**2) / rs_t
             ok = switch_mask(u, half)
             if self.noise_std_Pa is not None:
                 coarse = SavitzkyGolay(2.0 * self.differentiator.window_s,
                                        self.differentiator.polyorder)
                 ok &= consistency_mask(t, p, self.differentiator, coarse, self.noise_std_Pa)
             edges = np.concatenate([[0], np.nonzero(np.diff(u) != 0)[0] + 1, [u.size]])
-            if laminar:
-                leak_cols[j] = None
             for a, b in zip(edges[:-1], edges[1:]):
                 idx = np.arange(a, b)[ok[a:b]]
                 if idx.size < self.min_hold_samples:
                     continue
-                n = idx.size
-                r = row0 + np.arange(n)
+                r = row0 + np.arange(idx.size)
                 rows += [r, r]
-                cols += [np.full(n, n_col), np.full(n, n_col + 1)]
+                cols += [np.full(idx.size, n_col), np.full(idx.size, n_col + 1)]
                 vals += [f_in[idx], -f_out[idx]]
                 if laminar:
-                    if leak_cols[j] is None:
-                        leak_cols[j] = -1  # placeholder, assigned after holds
-                    rows.append(r)
-                    cols.append(np.full(n, -1 - j))  # patched below
-                    vals.append(-lam[idx])
+                    leak_rows.setdefault(j, []).append((r, -lam[idx]))
                 target.append(dpdt[idx])
-                holds.append((j, float(u[a]), n_col, n))
+                holds.append((j, float(u[a]), n_col, idx.size))
                 n_col += 2
-                row0 += n
+                row0 += idx.size
         if not holds:
             raise ValueError("no usable command holds: recordings too short or switches too "
                              "frequent for the differentiator window")
-        cols = np.concatenate(cols)
-        if laminar:
-            for j in leak_cols:
-                leak_cols[j] = n_col
-                cols[cols == -1 - j] = n_col
-                n_col += 1
-        A = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), cols)),
+        leak_cols = {}
+        for j, pieces in leak_rows.items():
+            leak_cols[j] = n_col
+            for r, v in pieces:
+                rows.append(r)
+                cols.append(np.full(r.size, n_col))
+                vals.append(v)
+            n_col += 1
+        A = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                      np.concatenate(cols))),
                               shape=(row0, n_col))
         return A, np.concatenate(target), holds, leak_cols
 

@@ -78,9 +78,28 @@ def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: fl
     return start, notes, "generic"
 
 
+METHODS = ("lsq", "refine", "mcmc")
+
+
+def _point_summary(method, recs, start, notes, how, noise, settings, t0, refined=None):
+    return {"format": "pneubayes-fit-summary/1", "method": method,
+            "recordings": [str(r.source) for r in recs],
+            "start": {"method": how, "notes": notes, "parameters": start},
+            "refined": refined, "noise_floor_Pa": noise, "settings": settings.to_dict(),
+            "wall_time_s": time.perf_counter() - t0,
+            "pneubayes_version": pneubayes.__version__}
+
+
 def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
-            progress: bool = True, log=print, figures: bool = True) -> dict:
-    """Fit ``model`` to ``recordings``; write the run folder; return the summary."""
+            progress: bool = True, log=print, figures: bool = True,
+            method: str = "mcmc") -> dict:
+    """Fit ``model`` to ``recordings``; write the run folder; return the summary.
+
+    ``method``: ``"lsq"`` stops after the paper's least squares (section VI-B),
+    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     recs = list(recordings)
@@ -88,11 +107,26 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
     start, notes, how = starting_point(model, recs, settings, noise)
     log(f"fit: start from {how}")
+    if method == "lsq":
+        if how == "generic":
+            raise ValueError("--method lsq needs fixed-volume recordings at two or more "
+                             "positions: " + "; ".join(notes))
+        model.save_card(start, out / "model.json", extra={"fit": {"estimate": "lsq"}})
+        summary = _point_summary(method, recs, start, notes, how, noise, settings, t0)
+        write_json_atomic(out / "summary.json", summary)
+        return summary
     data = WindowSet(recs, settings.horizon_s, settings.stride_s)
     ref = TrajectoryRefiner(model, settings.refine_solver,
                             max_nfev=settings.refine_max_nfev).fit(data, start)
     log(f"fit: refined 2-s RMSE {ref.start_rmse_Pa_:.0f} -> {ref.rmse_Pa_:.0f} Pa "
         f"({ref.n_evaluations_} evaluations)")
+    if method == "refine":
+        model.save_card(ref.params_, out / "model.json", extra={"fit": {"estimate": "refine"}})
+        summary = _point_summary(method, recs, start, notes, how, noise, settings, t0,
+                                 {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
+                                  "start_rmse_Pa": ref.start_rmse_Pa_})
+        write_json_atomic(out / "summary.json", summary)
+        return summary
     bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
                                 backend_path=out / "chain.h5", progress=progress)
     bi.fit(data, ref.params_, covariance=ref.covariance_)
@@ -110,7 +144,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     os.replace(tmp, out / "posterior.nc")
     ident = identifiability_report(model, bi.names_, bi.samples())
     summary = {
-        "format": "pneubayes-fit-summary/1",
+        "format": "pneubayes-fit-summary/1", "method": method,
         "recordings": [str(r.source) for r in recs],
         "parameters": bi.summary(),
         "converged": bi.converged_,

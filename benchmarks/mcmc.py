@@ -1,0 +1,113 @@
+"""Benchmark of Bayesian identification and of the controller API (issue 3 floors).
+
+    python benchmarks/mcmc.py --json OUT.json [--seed 0] [--cylinder AIR37] [--quick]
+
+1. ``pneubayes fit`` (least squares -> refinement -> emcee) on 4 x 20-s fixed-volume
+   bench recordings of the paper's model (two positions x command ranges +-5 and
+   +-0.5 V); reports wall time, steps, the worst R-hat and ESS, and whether each
+   parameter's 90 % interval covers the truth. Floors: R-hat <= 1.01 and ESS >= 400
+   for every parameter within 15 minutes on 2 cores.
+2. ``predict`` on a held-out moving recording: RMSE against the noise floor (<= 1.5x)
+   and 90 % band coverage (0.85-0.95).
+3. The controller API: 64 posterior draws over a 2-s horizon at 1 kHz (floor 20 ms,
+   aim 5 ms), median of repeated calls on all cores.
+Times are reported, never asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.atomic import write_json_atomic
+from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
+from pneubayes.inference.predictive import PressurePredictor
+from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+from pneubayes.simulation import SolverConfig
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", required=True)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--cylinder", default="AIR37")
+    ap.add_argument("--valve", default="valve1")
+    ap.add_argument("--max-steps", type=int, default=12000)
+    ap.add_argument("--quick", action="store_true", help="short chains: exercises the path")
+    args = ap.parse_args(argv)
+    work = Path(tempfile.mkdtemp(prefix="pneubayes-mcmc-"))
+    leak = effects_from_names(["cylinder_leak"])
+    dur = 5.0 if args.quick else 20.0
+    train = run_bench(BenchConfig(args.cylinder, args.valve, leak, protocol="fixed",
+                                  duration_s=dur, seed=args.seed, positions=(0.5, 0.9),
+                                  ranges_V=(5.0, 0.5)), work / "train")
+    held = run_bench(BenchConfig(args.cylinder, args.valve, leak, protocol="moving",
+                                 duration_s=dur, seed=args.seed + 1000, count=1),
+                     work / "held")
+    _, truth = Model.load_card(train.truth_path)
+    recs = [read_recording(p) for p in train.recordings]
+    settings = FitSettings(sampler=SamplerSettings(
+        n_walkers=32, max_steps=300 if args.quick else args.max_steps, seed=args.seed))
+    t0 = time.perf_counter()
+    summary = run_fit(recs, Model(leak), settings, work / "run", progress=False,
+                      log=lambda m: print(m, file=sys.stderr), figures=False)
+    wall = time.perf_counter() - t0
+    params = summary["parameters"]
+    rhat = max(p["rhat"] for p in params.values())
+    ess = min(p["ess"] for p in params.values())
+    cover = {n: bool(p["q05"] <= truth[n] <= p["q95"]) for n, p in params.items()
+             if n in truth}
+    pred = run_predict(work / "run", read_recording(held.recordings[0]), 2.0,
+                       work / "pred.csv", 200, args.seed, SolverConfig.standard())
+    # controller API
+    rng = np.random.default_rng(args.seed)
+    model, draws, _ = load_posterior(work / "run", 64, rng)
+    rig = recs[0].rig()
+    api = PressurePredictor(model, draws, rig, SolverConfig.standard())
+    cmd = np.repeat(rng.uniform(-5, 5, 20), 100)[None]  # 2 s of 100-ms holds at 1 kHz
+    api.predict(3e5, cmd, 0.01, 1e-3)
+    times = []
+    for _ in range(30):
+        a = time.perf_counter()
+        api.predict(3e5, cmd, 0.01, 1e-3)
+        times.append(time.perf_counter() - a)
+    ctrl_ms = 1e3 * float(np.median(times))
+    report = {
+        "format": "pneubayes-bench-mcmc/1", "seed": args.seed, "quick": args.quick,
+        "rig": [args.cylinder, args.valve], "recordings": f"4 x {dur:g} s fixed",
+        "fit_wall_time_s": wall, "emcee_steps": summary["steps"],
+        "n_walkers": summary["n_walkers"], "converged": summary["converged"],
+        "tau_max": summary["tau_max"], "max_rhat": rhat, "min_ess": ess,
+        "coverage_90_by_parameter": cover,
+        "coverage_90_fraction": float(np.mean(list(cover.values()))),
+        "heldout": pred, "controller_ms_64_draws_2s": ctrl_ms,
+        "floors": {"rhat_le_1.01": rhat <= 1.01, "ess_ge_400": ess >= 400,
+                   "wall_le_900s": wall <= 900,
+                   "heldout_rmse_le_1.5x_noise": pred["rmse_over_noise_floor"] <= 1.5,
+                   "coverage_90_in_0.85_0.95": 0.85 <= pred["coverage_90"] <= 0.95,
+                   "controller_le_20ms": ctrl_ms <= 20.0},
+    }
+    write_json_atomic(args.json, report)
+    print(f"fit {wall:.0f} s, {summary['steps']} steps x 32 walkers, converged "
+          f"{summary['converged']}, max R-hat {rhat:.3f}, min ESS {ess:.0f}, tau_max "
+          f"{summary['tau_max']:.0f}")
+    print(f"90 % intervals covering the truth: {sum(cover.values())}/{len(cover)} "
+          f"{[n for n, c in cover.items() if not c]}")
+    print(f"held-out: RMSE {pred['rmse_Pa']:.0f} Pa = {pred['rmse_over_noise_floor']:.2f} x "
+          f"noise floor; coverage 90 % {pred['coverage_90']:.3f}, 50 % {pred['coverage_50']:.3f}")
+    print(f"controller API: 64 draws x 2 s at 1 kHz in {ctrl_ms:.1f} ms (median)")
+    for k, v in report["floors"].items():
+        print(f"  {k:32s} {'MET' if v else 'NOT MET'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
