@@ -22,11 +22,16 @@ def test_shipped_data_match_registry_and_format():
 
 
 def test_demo_runs_on_shipped_data(tmp_path, capsys):
-    assert demo_main(["--data", str(DATA), "--out", str(tmp_path)]) == 0
+    assert demo_main(["--data", str(DATA), "--out", str(tmp_path), "--fit-steps", "60"]) == 0
     summary = json.loads((tmp_path / "demo_summary.json").read_text())
     for rows in summary["sets"].values():
         for r in rows:
             # the true model beats the plain thin-port model on every recording
             assert r["true model"] < r["plain thin-port"]
     assert (tmp_path / "demo_prediction.png").stat().st_size > 10_000
-    assert "plain thin-port" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "plain thin-port" in out and "identification" in out
+    ident = summary["identification"]
+    assert (tmp_path / "fit" / "posterior.nc").exists()
+    for m in ident["predictions"]:
+        assert 0.0 <= m["coverage_90"] <= 1.0 and m["rmse_Pa"] > m["noise_floor_Pa"]
