@@ -13,8 +13,6 @@ with the config, seed, git revision and package versions.
 from __future__ import annotations
 
 import argparse
-import platform
-import subprocess
 import sys
 from pathlib import Path
 
@@ -28,25 +26,8 @@ from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.plotting import plot_prediction_bands
+from pneubayes.provenance import provenance
 from pneubayes.simulation import SolverConfig
-
-
-def provenance() -> dict:
-    """Git revision and package versions, recorded with every result."""
-    try:
-        rev = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                             check=True, cwd=Path(__file__).parent).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        rev = None
-    import emcee
-    import numba
-    import scipy
-
-    import pneubayes
-
-    return {"git_revision": rev, "python": platform.python_version(),
-            "numpy": np.__version__, "scipy": scipy.__version__, "numba": numba.__version__,
-            "emcee": emcee.__version__, "pneubayes": pneubayes.__version__}
 
 
 def main(argv=None) -> int:
