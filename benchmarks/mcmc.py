@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import effects_from_names, identification_sets
 from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
 from pneubayes.inference.predictive import PressurePredictor
 from pneubayes.inference.sampler import SamplerSettings
@@ -46,12 +46,7 @@ def main(argv=None) -> int:
     work = Path(tempfile.mkdtemp(prefix="pneubayes-mcmc-"))
     leak = effects_from_names(["cylinder_leak"])
     dur = 5.0 if args.quick else 20.0
-    train = run_bench(BenchConfig(args.cylinder, args.valve, leak, protocol="fixed",
-                                  duration_s=dur, seed=args.seed, positions=(0.5, 0.9),
-                                  ranges_V=(5.0, 0.5)), work / "train")
-    held = run_bench(BenchConfig(args.cylinder, args.valve, leak, protocol="moving",
-                                 duration_s=dur, seed=args.seed + 1000, count=1),
-                     work / "held")
+    train, held = identification_sets(args.cylinder, args.valve, args.seed, dur, work)
     _, truth = Model.load_card(train.truth_path)
     recs = [read_recording(p) for p in train.recordings]
     settings = FitSettings(sampler=SamplerSettings(

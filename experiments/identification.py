@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import effects_from_names, identification_sets
 from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
 from pneubayes.inference.predictive import PosteriorPredictive
 from pneubayes.inference.sampler import SamplerSettings
@@ -45,12 +45,8 @@ def main(argv=None) -> int:
     config = {"cylinder": args.cylinder, "valve": args.valve, "seed": args.seed,
               "duration_s": dur, "train": "fixed, positions 0.5/0.9, ranges +-5/+-0.5 V",
               "held_out": "2 moving recordings", "smoke": args.smoke}
-    train = run_bench(BenchConfig(args.cylinder, args.valve, leak, protocol="fixed",
-                                  duration_s=dur, seed=args.seed, positions=(0.5, 0.9),
-                                  ranges_V=(5.0, 0.5)), out / "bench_train", overwrite=True)
-    held = run_bench(BenchConfig(args.cylinder, args.valve, leak, protocol="moving",
-                                 duration_s=dur, seed=args.seed + 1000, count=2),
-                     out / "bench_held", overwrite=True)
+    train, held = identification_sets(args.cylinder, args.valve, args.seed, dur,
+                                      out / "bench", held_count=2, overwrite=True)
     steps = 100 if args.smoke else args.max_steps
     settings = FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps,
                                                    check_every=min(250, steps), seed=args.seed))

@@ -187,3 +187,15 @@ def hand():
                            random_steps=random_steps, moving_position=moving_position,
                            fluctuating_supply=fluctuating_supply, P_ATM=P_ATM, P_SUP=P_SUP,
                            RANGE=WORKING_RANGE)
+
+
+def load_experiment(name: str):
+    """Import ``experiments/<name>.py`` (scripts, not a package) as a module."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

@@ -117,14 +117,11 @@ def test_lsq_rejects_moving_recordings(tmp_path):
 
 
 def test_lsq_recovery_experiment_smoke(tmp_path):
-    import importlib.util
     import json
-    from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "experiments" / "lsq_recovery.py"
-    spec = importlib.util.spec_from_file_location("lsq_recovery", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    from conftest import load_experiment
+
+    mod = load_experiment("lsq_recovery")
     assert mod.main(["--smoke", "--out", str(tmp_path)]) == 0
     rep = json.loads((tmp_path / "lsq_recovery.json").read_text())
     assert rep["noise_free_worst_area_error"] < 0.02 and rep["provenance"]["numpy"]

@@ -133,13 +133,9 @@ def test_fit_method_lsq_writes_a_point_estimate(fitted, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_identification_experiment_smoke(tmp_path):
-    import importlib.util
-    from pathlib import Path
+    from conftest import load_experiment
 
-    path = Path(__file__).resolve().parents[1] / "experiments" / "identification.py"
-    spec = importlib.util.spec_from_file_location("identification", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = load_experiment("identification")
     assert mod.main(["--smoke", "--out", str(tmp_path)]) == 0
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["config"]["smoke"] and report["provenance"]["numpy"]

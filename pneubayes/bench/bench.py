@@ -208,3 +208,23 @@ def effects_from_names(names: Sequence[str], leak_form: str = "orifice") -> tupl
     """Effect objects for CLI names (``cylinder_leak`` takes ``leak_form``)."""
     return tuple(make_effect(n, form=leak_form) if n == "cylinder_leak" else make_effect(n)
                  for n in names)
+
+
+def identification_sets(cylinder: str, valve: str, seed: int, duration_s: float, out_dir,
+                        held_count: int = 1, overwrite: bool = False,
+                        effects: Sequence[str] = ("cylinder_leak",)):
+    """The identification design used by experiments and benchmarks.
+
+    Training: fixed-volume recordings at 50 % and 90 % of the stroke with command ranges
+    +-5 and +-0.5 V (4 recordings); held out: ``held_count`` moving-piston recordings
+    (seed + 1000). Returns ``(train, held)`` :class:`BenchResult` objects.
+    """
+    out = Path(out_dir)
+    eff = effects_from_names(effects)
+    train = run_bench(BenchConfig(cylinder, valve, eff, protocol="fixed",
+                                  duration_s=duration_s, seed=seed, positions=(0.5, 0.9),
+                                  ranges_V=(5.0, 0.5)), out / "train", overwrite=overwrite)
+    held = run_bench(BenchConfig(cylinder, valve, eff, protocol="moving",
+                                 duration_s=duration_s, seed=seed + 1000, count=held_count),
+                     out / "held", overwrite=overwrite)
+    return train, held
