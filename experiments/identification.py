@@ -16,16 +16,12 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import effects_from_names, identification_sets
-from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
-from pneubayes.inference.predictive import PosteriorPredictive
+from pneubayes.inference.pipeline import FitSettings, run_fit, run_predict
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
-from pneubayes.plotting import plot_prediction_bands
 from pneubayes.provenance import provenance
 from pneubayes.simulation import SolverConfig
 
@@ -53,17 +49,12 @@ def main(argv=None) -> int:
     summary = run_fit([read_recording(p) for p in train.recordings], Model(leak), settings,
                       out / "run", progress=not args.smoke)
     _, truth = Model.load_card(train.truth_path)
-    rng = np.random.default_rng(args.seed)
-    model, draws, noise = load_posterior(out / "run", 100, rng)
     preds = []
     for p in held.recordings:
-        rec = read_recording(p)
-        m = run_predict(out / "run", rec, 2.0, out / f"pred_{p.stem}.csv", 200, args.seed,
-                        SolverConfig.standard())
-        bands = PosteriorPredictive(model, draws, noise, SolverConfig.standard()).bands(
-            rec, 2.0, 2.0, rng)
-        plot_prediction_bands(bands, out / f"pred_{p.stem}.png")
-        preds.append(m)
+        preds.append(run_predict(out / "run", read_recording(p), 2.0,
+                                 out / f"pred_{p.stem}.csv", 200, args.seed,
+                                 SolverConfig.standard(),
+                                 figure_path=out / f"pred_{p.stem}.png"))
     cover = {n: bool(s["q05"] <= truth[n] <= s["q95"])
              for n, s in summary["parameters"].items() if n in truth}
     write_json_atomic(out / "report.json", {

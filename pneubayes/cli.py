@@ -156,21 +156,14 @@ def cmd_predict(args) -> int:
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise PneubayesError(f"--out {out}: file exists (use --overwrite)")
+    figure = None if args.no_figure else out.with_suffix(".png")
     m = run_predict(args.run, rec, args.horizon, out, args.draws, args.seed,
-                    SolverConfig.standard(), stride_s=args.stride)
+                    SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
     print(f"{out}: RMSE {m['rmse_Pa']:.0f} Pa ({m['rmse_percent_of_range']:.2f} % of range), "
           f"noise floor {m['noise_floor_Pa']:.0f} Pa, coverage 50 % -> {m['coverage_50']:.2f}, "
           f"90 % -> {m['coverage_90']:.2f}")
-    if not args.no_figure:
-        from pneubayes.inference.pipeline import load_posterior
-        from pneubayes.inference.predictive import PosteriorPredictive
-        from pneubayes.plotting import plot_prediction_bands
-
-        rng = np.random.default_rng(args.seed)
-        model, draws, noise = load_posterior(args.run, min(args.draws, 100), rng)
-        bands = PosteriorPredictive(model, draws, noise, SolverConfig.standard()).bands(
-            rec, args.horizon, args.stride or args.horizon, rng)
-        print(plot_prediction_bands(bands, out.with_suffix(".png")))
+    if figure is not None:
+        print(figure)
     return 0
 
 

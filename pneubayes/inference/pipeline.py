@@ -186,8 +186,12 @@ def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
 
 
 def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,
-                solver: SolverConfig, stride_s: float | None = None) -> dict:
-    """Rolling windows with posterior-predictive bands -> CSV + ``.metrics.json``."""
+                solver: SolverConfig, stride_s: float | None = None,
+                figure_path=None) -> dict:
+    """Rolling windows with posterior-predictive bands -> CSV + ``.metrics.json``.
+
+    With ``figure_path``, the same bands are also drawn there (Figs. 7-10 style).
+    """
     rng = np.random.default_rng(seed)
     model, draws, noise = load_posterior(run_dir, n_draws, rng)
     pp = PosteriorPredictive(model, draws, noise, solver)
@@ -204,4 +208,8 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     metrics.update({"recording": str(recording.source), "run": str(run_dir),
                     "horizon_s": horizon_s, "n_draws": int(draws.shape[0]), "seed": seed})
     write_json_atomic(out.with_suffix(".metrics.json"), metrics)
+    if figure_path is not None:
+        from pneubayes.plotting import plot_prediction_bands
+
+        plot_prediction_bands(bands, figure_path)
     return metrics

@@ -200,9 +200,6 @@ class BayesianIdentification:
             if diag["converged"]:
                 converged = True
                 break
-            state = None if backend is not None else state
-            if state is None:
-                state = sampler.get_last_sample()
         self.wall_time_s_ = time.perf_counter() - t0
         self.resumed_ = resume
         self.names_ = like.names
