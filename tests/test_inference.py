@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
-from pneubayes.inference.likelihood import WindowLikelihood, ar1_loglike
+from scipy import integrate
+
+from pneubayes.inference.likelihood import (
+    WindowLikelihood,
+    ar1_loglike,
+    ar1_marginal_loglike,
+    ar1_sums,
+    draw_ar1_noise,
+)
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
 from pneubayes.inference.windows import WindowSet
@@ -40,6 +48,50 @@ def test_ar1_loglike_matches_a_direct_density():
     assert ar1_loglike(r, sigma, rho)[0] == pytest.approx(direct)
 
 
+def _ar1_residuals(seed, w=3, k=40, sigma=0.8, rho=0.35):
+    rng = np.random.default_rng(seed)
+    r = np.zeros((1, w, k))
+    prev = np.zeros(w)
+    for j in range(k):
+        prev = rho * prev + sigma * rng.normal(size=w)
+        r[0, :, j] = prev
+    return r
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ar1_marginal_equals_quadrature_over_sigma_and_rho(seed):
+    r = _ar1_residuals(seed)
+    n = r.size
+    sig_b, rho_b = (0.05, 50.0), (-0.5, 0.9)
+
+    def integrand(sigma, rho):  # likelihood x prior
+        ll = ar1_loglike(r, np.array([sigma]), np.array([rho]))[0]
+        return np.exp(ll) / (sigma * np.log(sig_b[1] / sig_b[0]) * (rho_b[1] - rho_b[0]))
+
+    val, _ = integrate.dblquad(integrand, *rho_b, 0.2, 3.0, epsabs=0, epsrel=1e-8)
+    got = ar1_marginal_loglike(ar1_sums(r), n, sig_b, rho_b)[0]
+    assert got == pytest.approx(np.log(val), abs=2e-5)
+
+
+def test_ar1_noise_draws_follow_the_conditional_posterior():
+    r = _ar1_residuals(2, w=2, k=30)
+    n = r.size
+    rho_b = (-0.2, 0.6)  # the upper bound truncates the posterior of rho
+    sums = np.repeat(ar1_sums(r), 40000, axis=0)
+    d = draw_ar1_noise(sums, n, np.random.default_rng(0), rho_b)
+    assert np.all((d[:, 1] >= rho_b[0]) & (d[:, 1] <= rho_b[1]))
+    # reference moments by quadrature of the joint posterior
+    def post(sigma, rho):
+        return np.exp(ar1_loglike(r, np.array([sigma]), np.array([rho]))[0] + 60.0) / sigma
+
+    z = integrate.dblquad(post, *rho_b, 0.2, 3.0)[0]
+    m_rho = integrate.dblquad(lambda s, q: q * post(s, q), *rho_b, 0.2, 3.0)[0] / z
+    m_sig = integrate.dblquad(lambda s, q: s * post(s, q), *rho_b, 0.2, 3.0)[0] / z
+    se = d.std(axis=0) / np.sqrt(d.shape[0])
+    assert abs(d[:, 1].mean() - m_rho) < 5 * se[1]
+    assert abs(d[:, 0].mean() - m_sig) < 5 * se[0]
+
+
 def test_window_set_shapes_and_truth_residuals(bench):
     recs, model, truth = bench
     data = WindowSet(recs, 2.0, 2.0)
@@ -65,7 +117,7 @@ def test_refinement_recovers_a_perturbed_start(bench):
 def test_sampling_coordinates_round_trip_and_jacobian(bench):
     recs, model, truth = bench
     like = WindowLikelihood(model, WindowSet(recs[:1], 2.0, 2.0), SolverConfig.standard())
-    x = np.concatenate([model.vector(truth), [500.0, 0.1]])[None]
+    x = model.vector(truth)[None]
     z = like.to_sampling(x)
     np.testing.assert_allclose(like.from_sampling(z), x, rtol=1e-12)
     # Jacobian: numerical log|det dx/dz| equals what log_prob_sampling adds
@@ -83,8 +135,8 @@ def test_sampling_coordinates_round_trip_and_jacobian(bench):
     for j, (lo, hi) in like.nuisance().items():
         z2[0, j] = lo + 0.37 * (hi - lo)
     x2 = like.from_sampling(z2)
-    r1 = like.data.residuals(model, x[:, :-2], like.solver)
-    r2 = like.data.residuals(model, x2[:, :-2], like.solver)
+    r1 = like.data.residuals(model, x, like.solver)
+    r2 = like.data.residuals(model, x2, like.solver)
     if np.all(like.log_prior(x2) > -np.inf):
         np.testing.assert_allclose(r1, r2, atol=1e-6)
 
@@ -92,7 +144,8 @@ def test_sampling_coordinates_round_trip_and_jacobian(bench):
 @pytest.mark.slow
 def test_emcee_smoke_and_resume(bench, tmp_path):
     recs, model, truth = bench
-    settings = SamplerSettings(n_walkers=32, max_steps=60, check_every=30, seed=4)
+    settings = SamplerSettings(n_walkers=32, max_steps=60, check_every=20, adapt_rounds=2,
+                               adapt_steps=20, seed=4)
     path = tmp_path / "chain.h5"
     fit = BayesianIdentification(model, SolverConfig.standard(), settings, backend_path=path,
                                  progress=False).fit(recs[:2], truth)
@@ -105,9 +158,32 @@ def test_emcee_smoke_and_resume(bench, tmp_path):
     assert set(s) == set(model.parameter_names) | {"noise_scale_Pa", "noise_ar1"}
     assert 350 < s["noise_scale_Pa"]["median"] < 700
     # a longer budget resumes the stored chain instead of starting again
-    longer = SamplerSettings(n_walkers=32, max_steps=90, check_every=30, seed=4)
+    longer = SamplerSettings(n_walkers=32, max_steps=90, check_every=20, adapt_rounds=2,
+                             adapt_steps=20, seed=4)
     again = BayesianIdentification(model, SolverConfig.standard(), longer, backend_path=path,
                                    progress=False).fit(recs[:2], truth)
     assert again.resumed_ and again.sampler_.iteration == 90
     idata = again.inference_data({"seed": 4})
     assert idata.posterior["inlet_a_m2"].shape[0] == 32
+
+
+def test_nuisance_ranges_keep_natural_parameters_in_bounds(bench):
+    recs, model, truth = bench
+    like = WindowLikelihood(model, WindowSet(recs[:1], 2.0, 2.0), SolverConfig.standard())
+    z = like.to_sampling(model.vector(truth)[None])
+    lo, hi = like.nuisance_ranges(z)
+    cols = sorted(like.nuisance())
+    assert np.all(hi > lo)
+    assert np.all((lo <= z[:, cols] + 1e-12) & (z[:, cols] <= hi + 1e-12))
+    blo, bhi = model.bounds
+    for frac in (0.0, 0.5, 1.0):  # inside the range: natural values inside their bounds
+        z2 = z.copy()
+        z2[0, cols] = lo[0] + frac * (1 - 1e-9) * (hi[0] - lo[0]) + 1e-12 * (hi[0] - lo[0])
+        x2 = like.from_sampling(z2)[0]
+        assert np.all((x2 >= blo) & (x2 <= bhi))
+    for k in range(len(cols)):  # just outside a range edge that is not a coordinate bound
+        p = like.parameters[cols[k]]
+        if lo[0, k] > p.lower:
+            z3 = z.copy()
+            z3[0, cols[k]] = lo[0, k] - 1e-6 * (hi[0, k] - lo[0, k])
+            assert np.isinf(like.log_prior(like.from_sampling(z3))[0])

@@ -7,10 +7,21 @@ the measured pressure):
 
     r_k = rho r_{k-1} + e_k,   e_k ~ N(0, sigma^2),   r_0 = 0,
 
-with the innovation scale ``sigma`` (``noise_scale_Pa``) and ``rho`` (``noise_ar1``)
-sampled with the physical parameters. We prefer this to inflating an i.i.d. likelihood
-by an effective sample size: it is still a proper density, costs one subtraction, and
-the data themselves set how much the correlation discounts them.
+with the innovation scale ``sigma`` (``noise_scale_Pa``) and ``rho`` (``noise_ar1``).
+We prefer this to inflating an i.i.d. likelihood by an effective sample size: it is
+still a proper density, costs one subtraction, and the data themselves set how much
+the correlation discounts them.
+
+The two noise parameters are integrated out in closed form rather than sampled. The
+innovation sum of squares is quadratic in rho,
+
+    SS(rho) = A - 2 rho B + rho^2 C = S* + C (rho - rho*)^2,   rho* = B / C,
+
+so with the scale-invariant prior p(sigma) ~ 1/sigma the sigma-integral is a Gamma
+function and the rho-integral a Student-t probability (:func:`ar1_marginal_loglike`).
+The sampler then sees only the physical parameters (two dimensions fewer, and no
+boundary at rho = 0 to crawl along); :func:`draw_ar1_noise` draws (sigma, rho) exactly
+from their conditional posterior afterwards, from the three sums kept per draw.
 """
 
 from __future__ import annotations
@@ -18,6 +29,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import special, stats
 
 from pneubayes.effects.base import Parameter
 from pneubayes.inference.windows import WindowSet
@@ -27,7 +39,7 @@ from pneubayes.simulation import SolverConfig
 NOISE_PARAMETERS = (
     Parameter("noise_scale_Pa", "Pa", 1.0, 1e5, "log-uniform",
               "innovation std of the AR(1) prediction residual"),
-    Parameter("noise_ar1", "-", 0.0, 0.999, "uniform",
+    Parameter("noise_ar1", "-", -0.99, 0.999, "uniform",
               "lag-1 autocorrelation of the prediction residual"),
 )
 
@@ -42,11 +54,91 @@ def ar1_loglike(residuals: np.ndarray, sigma: np.ndarray, rho: np.ndarray) -> np
     return -0.5 * ss / sigma**2 - n * np.log(sigma) - 0.5 * n * math.log(2 * math.pi)
 
 
-class WindowLikelihood:
-    """Posterior density over model parameters plus the two noise parameters.
+def ar1_sums(residuals: np.ndarray) -> np.ndarray:
+    """The sums ``(A, B, C)`` of residuals ``(B, W, K)`` that SS(rho) needs; ``(B, 3)``.
 
-    ``log_prob`` takes a batch ``(B, D)`` (emcee's ``vectorize=True``) and simulates all
-    rows in one compiled call per recording.
+    ``A = sum r_k^2``, ``B = sum r_k r_{k-1}``, ``C = sum r_{k-1}^2`` (k >= 1 within a
+    window; each window's AR(1) starts from zero).
+    """
+    r = residuals
+    a = np.einsum("bwk,bwk->b", r, r)
+    b = np.einsum("bwk,bwk->b", r[:, :, 1:], r[:, :, :-1])
+    c = np.einsum("bwk,bwk->b", r[:, :, :-1], r[:, :, :-1])
+    return np.column_stack([a, b, c])
+
+
+def _rho_terms(sums: np.ndarray, rho_bounds: tuple[float, float], n: int):
+    """rho*, S*, the t scale of rho and the standardised bounds, per row of ``sums``."""
+    a, b, c = (np.asarray(sums, dtype=np.float64)[:, j] for j in range(3))
+    c = np.maximum(c, 1e-300)
+    rho_star = b / c
+    s_star = np.maximum(a - b * b / c, 1e-300 * a + 1e-300)
+    nu = n - 1
+    scale = np.sqrt(s_star / (c * nu))
+    t_lo = (rho_bounds[0] - rho_star) / scale
+    t_hi = (rho_bounds[1] - rho_star) / scale
+    return rho_star, s_star, c, scale, t_lo, t_hi, nu
+
+
+def _log_t_mass(t_lo, t_hi, nu):
+    """log(F(t_hi) - F(t_lo)) for Student-t with ``nu`` dof, accurate in both tails."""
+    out = np.empty_like(t_lo)
+    upper = t_lo > 0  # both in the upper tail: use survival functions
+    lower = t_hi < 0  # both in the lower tail: use the cdf
+    mid = ~(upper | lower)
+    if upper.any():
+        a, b = stats.t.logsf(t_lo[upper], nu), stats.t.logsf(t_hi[upper], nu)
+        out[upper] = a + np.log1p(-np.exp(b - a))
+    if lower.any():
+        a, b = stats.t.logcdf(t_hi[lower], nu), stats.t.logcdf(t_lo[lower], nu)
+        out[lower] = a + np.log1p(-np.exp(b - a))
+    if mid.any():
+        out[mid] = np.log1p(-stats.t.cdf(t_lo[mid], nu) - stats.t.sf(t_hi[mid], nu))
+    return out
+
+
+def ar1_marginal_loglike(sums: np.ndarray, n: int, sigma_bounds=(1.0, 1e5),
+                         rho_bounds=(-0.99, 0.999)) -> np.ndarray:
+    """log p(residuals) with sigma and rho integrated out; ``(B,)`` from ``(B, 3)`` sums.
+
+    Priors: ``p(sigma) = 1 / (sigma ln(hi/lo))`` (log-uniform; the data pin sigma far
+    inside its bounds, so the sigma-integral runs over (0, inf)) and rho uniform on
+    ``rho_bounds``. ``n`` is the number of residuals. The result is the exact integral
+    of ``exp(ar1_loglike)`` against that prior (tested by quadrature).
+    """
+    rho_star, s_star, c, scale, t_lo, t_hi, nu = _rho_terms(sums, rho_bounds, n)
+    log_const = (special.gammaln(0.5 * n) - math.log(2.0) - 0.5 * n * math.log(math.pi)
+                 - math.log(math.log(sigma_bounds[1] / sigma_bounds[0]))
+                 - math.log(rho_bounds[1] - rho_bounds[0]))
+    return (log_const - 0.5 * n * np.log(s_star) + 0.5 * np.log(s_star / c)
+            + special.betaln(0.5, 0.5 * nu) + _log_t_mass(t_lo, t_hi, nu))
+
+
+def draw_ar1_noise(sums: np.ndarray, n: int, rng: np.random.Generator,
+                   rho_bounds=(-0.99, 0.999)) -> np.ndarray:
+    """One exact draw of (sigma, rho) from p(sigma, rho | residuals) per row; ``(B, 2)``.
+
+    rho follows a Student-t truncated to its bounds; given rho,
+    ``sigma^2 = SS(rho) / (2 G)`` with ``G ~ Gamma(n / 2)``.
+    """
+    s = np.asarray(sums, dtype=np.float64)
+    rho_star, s_star, c, scale, t_lo, t_hi, nu = _rho_terms(s, rho_bounds, n)
+    f_lo, f_hi = stats.t.cdf(t_lo, nu), stats.t.cdf(t_hi, nu)
+    u = f_lo + (f_hi - f_lo) * rng.uniform(size=s.shape[0])
+    rho = np.clip(rho_star + scale * stats.t.ppf(u, nu), *rho_bounds)
+    ss = s[:, 0] - 2 * rho * s[:, 1] + rho**2 * s[:, 2]
+    sigma = np.sqrt(ss / (2.0 * rng.gamma(0.5 * n, size=s.shape[0])))
+    return np.column_stack([sigma, rho])
+
+
+class WindowLikelihood:
+    """Posterior density over the model parameters, the AR(1) noise integrated out.
+
+    ``log_prob`` takes a batch ``(B, P)`` (emcee's ``vectorize=True``) and simulates all
+    rows in one compiled call per recording. :meth:`emcee_target` also returns the
+    residual sums per row (emcee blobs), from which :func:`draw_ar1_noise` later draws
+    the noise parameters, so the posterior still covers ``noise_scale_Pa`` and
+    ``noise_ar1``.
 
     Samplers work in *sampling coordinates* (:meth:`to_sampling`): log-uniform
     parameters as their logarithm, and each Gompertz ``b`` as ``ln b - c d``. Eq. 11
@@ -62,9 +154,14 @@ class WindowLikelihood:
         self.model = model
         self.data = data
         self.solver = solver
-        self.parameters = model.parameters + NOISE_PARAMETERS
+        self.parameters = model.parameters
         self.names = tuple(p.name for p in self.parameters)
+        self.noise_names = tuple(p.name for p in NOISE_PARAMETERS)
         self.n_model = model.n_parameters
+        self.n_residuals = data.n_residuals
+        sig, rho = NOISE_PARAMETERS
+        self.sigma_bounds = (sig.lower, sig.upper)
+        self.rho_bounds = (rho.lower, rho.upper)
 
     # ------------------------------------------------------------ sampling coordinates
     def _gompertz_columns(self):
@@ -97,6 +194,37 @@ class WindowLikelihood:
             out[split[0]] = (p.lower, p.upper)
         return out
 
+    def nuisance_ranges(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where each nuisance coordinate may go given the others: ``(lo, hi)``, ``(B, K)``
+        in the column order of ``sorted(nuisance())``.
+
+        A Gompertz ``d`` must keep the natural ``b = exp(z_b + c d)`` inside b's bounds;
+        the exhaust offset must keep the leak area (leak column minus offset) inside the
+        leak's bounds. Within these ranges the posterior is flat in the coordinate.
+        """
+        z = np.atleast_2d(z)
+        nuis = self.nuisance()
+        cols = sorted(nuis)
+        lo = np.array([[nuis[c][0] for c in cols]] * z.shape[0], dtype=np.float64)
+        hi = np.array([[nuis[c][1] for c in cols]] * z.shape[0], dtype=np.float64)
+        for jb, jc, jd in self._gompertz_columns():
+            k = cols.index(jd)
+            pb = self.parameters[jb]
+            c = z[:, jc]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a = (math.log(pb.lower) - z[:, jb]) / c
+                b = (math.log(pb.upper) - z[:, jb]) / c
+            lo[:, k] = np.maximum(lo[:, k], np.where(c > 0, a, b))
+            hi[:, k] = np.minimum(hi[:, k], np.where(c > 0, b, a))
+        split = self._leak_split()
+        if split is not None:
+            jo, jl = split
+            k = cols.index(jo)
+            pl = self.parameters[jl]
+            lo[:, k] = np.maximum(lo[:, k], z[:, jl] - pl.upper)
+            hi[:, k] = np.minimum(hi[:, k], z[:, jl] - pl.lower)
+        return lo, hi
+
     def to_sampling(self, batch: np.ndarray) -> np.ndarray:
         """Natural parameters ``(B, D)`` -> sampling coordinates."""
         x = np.array(np.atleast_2d(batch), dtype=np.float64)
@@ -124,18 +252,34 @@ class WindowLikelihood:
             x[:, split[1]] = z[:, split[1]] - z[:, split[0]]
         return x
 
-    def log_prob_sampling(self, batch: np.ndarray) -> np.ndarray:
-        """Posterior log-density in sampling coordinates (Jacobian included)."""
+    def _evaluate_sampling(self, batch: np.ndarray):
         x = self.from_sampling(batch)
         logc = self._log_columns()
         # d(natural)/d(sampling) = natural value on every log column (b included: the
         # shear ln b -> ln b - c d has unit Jacobian)
         with np.errstate(divide="ignore", invalid="ignore"):
             jac = np.sum(np.log(np.where(x[:, logc] > 0, x[:, logc], np.nan)), axis=1)
-        lp = self.log_prob(x)
+        lp, sums = self.log_prob_and_sums(x)
         out = lp + jac
         out[~np.isfinite(out)] = -np.inf
-        return out
+        return out, sums
+
+    def log_prob_sampling(self, batch: np.ndarray) -> np.ndarray:
+        """Posterior log-density in sampling coordinates (Jacobian included)."""
+        return self._evaluate_sampling(batch)[0]
+
+    def emcee_target(self, batch: np.ndarray) -> np.ndarray:
+        """``(B, 4)``: log-density in sampling coordinates, then the sums (A, B, C).
+
+        emcee (``vectorize=True``) reads column 0 as the log-probability and the rest
+        as blobs.
+        """
+        lp, sums = self._evaluate_sampling(batch)
+        return np.column_stack([lp, sums])
+
+    def draw_noise(self, sums: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(noise_scale_Pa, noise_ar1) drawn from their conditional posterior ``(B, 2)``."""
+        return draw_ar1_noise(sums, self.n_residuals, rng, self.rho_bounds)
 
     @property
     def bounds(self):
@@ -146,17 +290,25 @@ class WindowLikelihood:
         x = np.atleast_2d(batch)
         return sum(p.log_prior(x[:, j]) for j, p in enumerate(self.parameters))
 
-    def log_prob(self, batch: np.ndarray) -> np.ndarray:
+    def log_prob_and_sums(self, batch: np.ndarray):
+        """Log posterior ``(B,)`` of model parameters and the residual sums ``(B, 3)``."""
         x = np.atleast_2d(np.asarray(batch, dtype=np.float64))
         lp = self.log_prior(x)
         out = np.full(x.shape[0], -np.inf)
+        sums = np.full((x.shape[0], 3), np.nan)
         ok = np.isfinite(lp)
         if not ok.any():
-            return out
-        xs = x[ok]
-        r = self.data.residuals(self.model, xs[:, : self.n_model], self.solver,
-                                on_failure="nan")
-        ll = ar1_loglike(r, xs[:, self.n_model], xs[:, self.n_model + 1])
+            return out, sums
+        r = self.data.residuals(self.model, x[ok], self.solver, on_failure="nan")
+        s = ar1_sums(r)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ll = ar1_marginal_loglike(s, self.n_residuals, self.sigma_bounds,
+                                      self.rho_bounds)
         ll[~np.isfinite(ll)] = -np.inf
         out[ok] = lp[ok] + ll
-        return out
+        sums[ok] = s
+        return out, sums
+
+    def log_prob(self, batch: np.ndarray) -> np.ndarray:
+        """Log posterior (up to the evidence) of model parameter rows ``(B, P)``."""
+        return self.log_prob_and_sums(batch)[0]

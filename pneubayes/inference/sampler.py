@@ -1,10 +1,19 @@
 """Bayesian identification with emcee: posteriors over the thin-port parameters.
 
 The walkers start in a small ball around the refined point; the log-probability is
-vectorised (one batched simulation per recording for half the ensemble); an HDF5
-backend makes a killed run resume where it stopped; the run ends when the chain is
-longer than ``tau_factor`` integrated autocorrelation times and every parameter has
-split R-hat <= ``max_rhat`` and bulk ESS >= ``target_ess`` (arviz), or at ``max_steps``.
+vectorised (one batched simulation per recording per move); an HDF5 backend makes a
+killed run resume where it stopped.
+
+With thousands of residuals the posterior is close to Gaussian in the sampling
+coordinates, and a random-walk ensemble mixes slowly there (tau ~ 100 steps in 12
+dimensions). So the run adapts: differential-evolution moves first, then an
+independence Metropolis-Hastings move whose Student-t proposal is refitted to the
+previous round, and production with that proposal frozen (a fixed proposal keeps the
+chain Markov and the posterior invariant). Differential evolution and a Gibbs move for
+the coordinates only the prior informs stay in the mixture for robustness.
+The run ends when the production chain is longer than ``tau_factor`` integrated
+autocorrelation times and every parameter has split R-hat <= ``max_rhat`` and bulk ESS
+>= ``target_ess`` (arviz), or at ``max_steps``.
 """
 
 from __future__ import annotations
@@ -35,46 +44,143 @@ class SamplerSettings:
     """Every setting of an emcee run (saved with its results).
 
     n_walkers: ensemble size (0 = max(32, 4 x dimensions), rounded up to even).
-    max_steps: hard limit on steps per walker. check_every: steps between checks.
-    tau_factor: the chain must be this many autocorrelation times long.
+    max_steps: hard limit on steps per walker, adaptation included.
+    check_every: production steps between convergence checks.
+    tau_factor: the production chain must be this many autocorrelation times long.
     target_ess, max_rhat: convergence floors for every parameter.
-    burn_taus: discard this many autocorrelation times at the start.
+    adapt_rounds, adapt_steps: adaptation (all discarded as burn-in). Round 0 runs
+        differential-evolution moves from the walker ball; each later round adds an
+        independence proposal fitted to the round before; production freezes the
+        proposal fitted to the last round.
+    proposal_df, proposal_scale: the independence proposal is a multivariate Student-t
+        with these degrees of freedom and this inflation of the fitted covariance.
+    independence_weight: probability of the independence move in a step once fitted.
     init_scale: walker ball size relative to the refined covariance's std.
     """
 
     n_walkers: int = 0
     max_steps: int = 20000
-    check_every: int = 250
+    check_every: int = 100
     tau_factor: float = 50.0
     target_ess: float = 400.0
     max_rhat: float = 1.01
-    burn_taus: float = 3.0
+    adapt_rounds: int = 3
+    adapt_steps: int = 150
+    proposal_df: float = 5.0
+    proposal_scale: float = 1.2
+    independence_weight: float = 0.6
     init_scale: float = 1.0
     seed: int = 0
+
+    def __post_init__(self):
+        for name in ("max_steps", "check_every", "adapt_steps"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"SamplerSettings.{name} must be >= 1, "
+                                 f"got {getattr(self, name)}")
+        if self.adapt_rounds < 1:
+            raise ValueError(f"SamplerSettings.adapt_rounds must be >= 1, "
+                             f"got {self.adapt_rounds}")
+        if not 0.0 <= self.independence_weight < 1.0:
+            raise ValueError("SamplerSettings.independence_weight must be in [0, 1), "
+                             f"got {self.independence_weight}")
+
+    @property
+    def burn(self) -> int:
+        """Steps of adaptation, all discarded."""
+        return self.adapt_rounds * self.adapt_steps
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
-def prior_refresh_move(nuisance: dict[int, tuple[float, float]]):
-    """An emcee MH move that redraws the nuisance coordinates uniformly in their ranges.
+def nuisance_gibbs_move(like: WindowLikelihood):
+    """An emcee move that redraws every nuisance coordinate uniformly over the range the
+    other coordinates allow (:meth:`WindowLikelihood.nuisance_ranges`).
 
-    The likelihood does not depend on them and their prior is uniform in sampling
-    coordinates, so the proposal is symmetric and the move leaves the posterior
-    invariant; it mixes those flat directions in one step instead of a random walk.
+    The posterior is flat in those coordinates within that range, so this is an exact
+    Gibbs update (always accepted); it mixes the directions only the prior informs in
+    one step instead of a random walk.
     """
     import emcee
 
-    cols = np.array(sorted(nuisance))
-    lo = np.array([nuisance[c][0] for c in cols])
-    hi = np.array([nuisance[c][1] for c in cols])
+    cols = np.array(sorted(like.nuisance()))
 
     def propose(x0, random):
+        lo, hi = like.nuisance_ranges(x0)
         x = x0.copy()
-        x[:, cols] = lo + (hi - lo) * random.random_sample((x.shape[0], cols.size))
-        return x, np.zeros(x.shape[0])
+        ok = hi > lo
+        draw = lo + (hi - lo) * random.random_sample(lo.shape)
+        x[:, cols] = np.where(ok, draw, x0[:, cols])
+        return x, np.zeros(x.shape[0])  # symmetric: the range depends on the others only
 
     return emcee.moves.MHMove(propose)
+
+
+@dataclass(frozen=True)
+class StudentTProposal:
+    """The independence proposal: a multivariate Student-t over the identified
+    coordinates, and each nuisance coordinate uniform over the range the proposed
+    identified ones allow (the posterior is flat there).
+
+    ``columns`` are the Student-t coordinates; ``nuisance`` the others.
+    """
+
+    columns: np.ndarray
+    nuisance: np.ndarray
+    mean: np.ndarray
+    chol: np.ndarray  # lower Cholesky factor of the scale matrix
+    df: float
+
+    @classmethod
+    def fit(cls, samples: np.ndarray, nuisance, df: float, scale: float):
+        """Fit to ``samples (N, D)``: their mean, and covariance x ``scale**2``."""
+        nuis = np.array(sorted(nuisance), dtype=np.int64)
+        cols = np.array([j for j in range(samples.shape[1]) if j not in set(nuis.tolist())],
+                        dtype=np.int64)
+        x = samples[:, cols]
+        cov = np.atleast_2d(np.cov(x, rowvar=False)) * scale**2
+        jitter = 1e-10 * np.maximum(np.diag(cov), 1e-300)
+        chol = np.linalg.cholesky(cov + np.diag(jitter))
+        return cls(cols, nuis, x.mean(axis=0), chol, float(df))
+
+    def log_density(self, x: np.ndarray, ranges=None) -> np.ndarray:
+        """Log-density of rows ``x (B, D)`` up to a constant; ``ranges = (lo, hi)`` of
+        the nuisance coordinates given the others (uniform factors)."""
+        from scipy.linalg import solve_triangular
+
+        y = solve_triangular(self.chol, (x[:, self.columns] - self.mean).T, lower=True)
+        k = self.columns.size
+        out = -0.5 * (self.df + k) * np.log1p(np.sum(y * y, axis=0) / self.df)
+        if ranges is not None and self.nuisance.size:
+            lo, hi = ranges
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out = out - np.sum(np.log(np.where(hi > lo, hi - lo, np.nan)), axis=1)
+            out[~np.isfinite(out)] = -np.inf
+        return out
+
+    def move(self, like: WindowLikelihood):
+        """An emcee MH move proposing from this distribution, independently of x."""
+        import emcee
+
+        def propose(x0, random):
+            n, k = x0.shape[0], self.columns.size
+            g = random.standard_normal((n, k)) @ self.chol.T
+            w = random.chisquare(self.df, n) / self.df
+            x = x0.copy()
+            x[:, self.columns] = self.mean + g / np.sqrt(w)[:, None]
+            r_new = r_old = None
+            if self.nuisance.size:
+                r_old = like.nuisance_ranges(x0)
+                r_new = like.nuisance_ranges(x)
+                lo, hi = r_new
+                x[:, self.nuisance] = lo + (hi - lo) * random.random_sample(lo.shape)
+            with np.errstate(invalid="ignore"):
+                factor = self.log_density(x0, r_old) - self.log_density(x, r_new)
+            # an empty range: the proposal lies outside the prior; reject it
+            factor[~np.isfinite(factor)] = -np.inf
+            return x, factor
+
+        return emcee.moves.MHMove(propose)
 
 
 def _walkers(settings: SamplerSettings, ndim: int) -> int:
@@ -84,6 +190,10 @@ def _walkers(settings: SamplerSettings, ndim: int) -> int:
 
 class BayesianIdentification:
     """emcee posterior of a model's parameters from recordings (scikit-learn contract).
+
+    The noise scale and AR(1) coefficient are integrated out of the likelihood
+    (:mod:`pneubayes.inference.likelihood`) and drawn afterwards from their exact
+    conditional, one draw per stored sample; results cover both.
 
     Parameters
     ----------
@@ -116,7 +226,7 @@ class BayesianIdentification:
             std = 1e-3 * np.maximum(np.abs(start), 1e-2 * (hi - lo))
             draws = start + rng.normal(size=(n, d)) * std
         else:
-            c = np.asarray(cov, dtype=np.float64)
+            c = np.asarray(cov, dtype=np.float64)[:d, :d]
             c = 0.5 * (c + c.T) + np.diag(1e-12 * np.maximum(np.abs(start), 1e-30) ** 2)
             draws = rng.multivariate_normal(start, c * self.settings.init_scale**2, size=n,
                                             method="eigh")
@@ -131,13 +241,28 @@ class BayesianIdentification:
         z[bad] = good[rng.integers(0, good.shape[0], bad.sum())]
         return z
 
-    def fit(self, recordings, start: dict, noise_start: tuple[float, float] | None = None,
-            covariance=None) -> "BayesianIdentification":
+    def _moves(self, like: WindowLikelihood, proposal: StudentTProposal | None):
+        import emcee
+
+        rest = [(emcee.moves.DEMove(), 0.8)]
+        rest.append((nuisance_gibbs_move(like), 0.2) if like.nuisance()
+                    else (emcee.moves.DESnookerMove(), 0.2))
+        if proposal is None:
+            return rest
+        w = self.settings.independence_weight
+        return [(proposal.move(like), w)] + [(m, (1 - w) * p) for m, p in rest]
+
+    def _proposal(self, chain: np.ndarray, like: WindowLikelihood, round_: int):
+        """The independence proposal fitted to adaptation round ``round_ - 1``."""
+        s = self.settings
+        seg = chain[(round_ - 1) * s.adapt_steps: round_ * s.adapt_steps]
+        return StudentTProposal.fit(seg.reshape(-1, chain.shape[-1]), like.nuisance(),
+                                    s.proposal_df, s.proposal_scale)
+
+    def fit(self, recordings, start: dict, covariance=None) -> "BayesianIdentification":
         """Sample the posterior starting around ``start`` (refined parameter dict).
 
-        ``noise_start`` = (noise_scale_Pa, noise_ar1); estimated from the residuals at
-        ``start`` when None. ``covariance`` (model parameters plus noise, optional) sizes
-        the walker ball.
+        ``covariance`` (model parameters, optional) sizes the walker ball.
         """
         import emcee
 
@@ -145,23 +270,10 @@ class BayesianIdentification:
         data = recordings if isinstance(recordings, WindowSet) else WindowSet(
             recordings, self.horizon_s, self.stride_s)
         like = WindowLikelihood(self.model, data, self.solver)
-        theta = self.model.vector(start)
-        if noise_start is None:
-            r = data.residuals(self.model, theta[None], self.solver)[0]
-            rho = float(np.clip(np.sum(r[:, 1:] * r[:, :-1]) / np.sum(r[:, :-1] ** 2), 0, 0.99))
-            sig = float(np.std(r[:, 1:] - rho * r[:, :-1]))
-            noise_start = (max(sig, 2.0), rho)
-        x0 = np.concatenate([theta, np.asarray(noise_start, dtype=np.float64)])
+        x0 = self.model.vector(start)
         ndim = x0.size
         nw = _walkers(s, ndim)
         rng = np.random.default_rng(s.seed)
-        cov = None
-        if covariance is not None:
-            cov = np.zeros((ndim, ndim))
-            c = np.asarray(covariance)
-            cov[: c.shape[0], : c.shape[1]] = c
-            for j, v in zip(range(c.shape[0], ndim), noise_start):
-                cov[j, j] = (0.05 * max(abs(v), 1e-3)) ** 2
         backend = None
         resume = False
         if self.backend_path is not None:
@@ -177,58 +289,89 @@ class BayesianIdentification:
                 resume = it > 0 and shape == (nw, ndim)
             if not resume:
                 backend.reset(nw, ndim)
-        moves = [(emcee.moves.DEMove(), 0.7), (emcee.moves.DESnookerMove(), 0.1)]
-        nuisance = like.nuisance()
-        moves.append((prior_refresh_move(nuisance), 0.2) if nuisance
-                     else (emcee.moves.DEMove(), 0.2))
-        sampler = emcee.EnsembleSampler(nw, ndim, like.log_prob_sampling, vectorize=True,
-                                        backend=backend, moves=moves)
-        # emcee draws from its own RandomState; seed it (never numpy's global state)
-        sampler.random_state = np.random.RandomState(s.seed).get_state()
-        if resume:
-            state = None
         else:
-            state = self._initial(like, x0, cov, rng, nw)
+            backend = emcee.backends.Backend()
+            backend.reset(nw, ndim)
+        state = None if resume else self._initial(like, x0, covariance, rng, nw)
         t0 = time.perf_counter()
         converged = False
         diag: dict = {}
-        while sampler.iteration < s.max_steps:
-            n = min(s.check_every, s.max_steps - sampler.iteration)
+        # emcee draws from its own RandomState: seeded here, handed from one sampler
+        # object to the next (never numpy's global state)
+        random_state = np.random.RandomState(s.seed).get_state()
+
+        def sampler_for(proposal):
+            smp = emcee.EnsembleSampler(nw, ndim, like.emcee_target, vectorize=True,
+                                        backend=backend, moves=self._moves(like, proposal))
+            smp.random_state = random_state
+            return smp
+
+        # adaptation: rounds of adapt_steps, each with the proposal of the round before
+        while backend.iteration < min(s.burn, s.max_steps):
+            r = backend.iteration // s.adapt_steps
+            proposal = None if r == 0 else self._proposal(backend.get_chain(), like, r)
+            sampler = sampler_for(proposal)
+            n = min((r + 1) * s.adapt_steps, s.max_steps) - backend.iteration
             state = sampler.run_mcmc(state, n, progress=self.progress,
                                      skip_initial_state_check=True)
-            diag = self._diagnose(sampler, like)
-            if diag["converged"]:
-                converged = True
+            random_state = sampler.random_state
+        # production with the proposal frozen
+        sampler = sampler_for(self._proposal(backend.get_chain(), like, s.adapt_rounds)
+                              if backend.iteration >= s.burn else None)
+        while True:
+            if backend.iteration > s.burn:
+                diag = self._diagnose(backend, like)
+                if diag["converged"]:
+                    converged = True
+                    break
+            if backend.iteration >= s.max_steps:
                 break
+            n = min(s.check_every, s.max_steps - backend.iteration)
+            state = sampler.run_mcmc(state, n, progress=self.progress,
+                                     skip_initial_state_check=True)
+        if not diag:
+            diag = self._diagnose(backend, like)
         self.wall_time_s_ = time.perf_counter() - t0
         self.resumed_ = resume
-        self.names_ = like.names
+        self.names_ = like.names + like.noise_names
         self.sampler_ = sampler
         self.likelihood_ = like
         self.converged_ = converged
         self.diagnostics_ = diag
         self.burn_ = diag["burn"]
-        z = sampler.get_chain(discard=self.burn_)  # (steps, walkers, D), sampling coords
-        self.chain_ = like.from_sampling(z.reshape(-1, ndim)).reshape(z.shape)
-        self.acceptance_fraction_ = float(np.mean(sampler.acceptance_fraction))
+        self.chain_ = self._natural_chain(backend, like, self.burn_)
+        self.acceptance_fraction_ = float(np.mean(backend.accepted / backend.iteration))
         return self
 
-    def _diagnose(self, sampler, like: WindowLikelihood) -> dict:
+    def _natural_chain(self, backend, like: WindowLikelihood, burn: int) -> np.ndarray:
+        """Post-burn draws in natural parameters, noise draws appended ``(S, W, P + 2)``."""
+        z = backend.get_chain(discard=burn)
+        sums = backend.get_blobs(discard=burn)
+        shape = z.shape
+        x = like.from_sampling(z.reshape(-1, shape[-1]))
+        noise = like.draw_noise(sums.reshape(-1, 3), np.random.default_rng(
+            [self.settings.seed, 1]))
+        return np.concatenate([x, noise], axis=1).reshape(shape[0], shape[1], -1)
+
+    def _diagnose(self, backend, like: WindowLikelihood) -> dict:
         """Autocorrelation time (sampling coordinates), R-hat and ESS (natural ones)."""
-        names = like.names
+        import emcee
+
         s = self.settings
-        chain = sampler.get_chain()
-        n = chain.shape[0]
-        tau = np.asarray(sampler.get_autocorr_time(tol=0), dtype=np.float64)
+        names = like.names + like.noise_names
+        n = backend.iteration
+        burn = min(s.burn, n // 2)
+        post = backend.get_chain(discard=burn)
+        with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved
+            tau = np.asarray(emcee.autocorr.integrated_time(post, tol=0), dtype=np.float64)
         tau_max = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else float("inf")
-        burn = int(min(n // 2, np.ceil(s.burn_taus * tau_max))) if np.isfinite(tau_max) \
-            else n // 2
-        post = chain[burn:]
-        nat = like.from_sampling(post.reshape(-1, post.shape[-1]))
-        rhat, ess = self.rhat_ess(nat.reshape(post.shape), names)
-        ok = (np.isfinite(tau_max) and n >= s.tau_factor * tau_max
+        nat = self._natural_chain(backend, like, burn)
+        rhat, ess = self.rhat_ess(nat, names)
+        ok = (n >= s.burn and np.isfinite(tau_max) and post.shape[0] >= s.tau_factor * tau_max
               and max(rhat.values()) <= s.max_rhat and min(ess.values()) >= s.target_ess)
-        return {"steps": n, "tau": dict(zip(names, tau.tolist())), "tau_max": tau_max,
+        tau_d = dict(zip(like.names, tau.tolist()))
+        tau_d.update({k: float("nan") for k in like.noise_names})
+        return {"steps": n, "tau": tau_d, "tau_max": tau_max,
                 "burn": burn, "rhat": rhat, "ess": ess, "converged": bool(ok)}
 
     @staticmethod
