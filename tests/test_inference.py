@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from scipy import integrate
 
+from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.inference.likelihood import (
     WindowLikelihood,
     ar1_loglike,

@@ -5,6 +5,16 @@ model fits), with rig-specific true values (:func:`truth_parameters`), simulated
 fine grid with tight tolerances (:meth:`SolverConfig.reference`) and passed through the
 :class:`SensorChain`. Recordings follow ``recording-format.md``; the truth goes to
 ``truth.json`` (a model card of the true model plus a ``bench`` section).
+
+With ``BenchConfig.forms`` (realistic forms of effects, :mod:`pneubayes.bench.forms`)
+the truth is simulated instead by the independent high-fidelity plant
+(:func:`pneubayes.bench.plant.simulate_plant`), with the catalogue ``effects`` planted
+beside the forms (each catalogue effect once: as an effect or as a form). The supply
+column then records the supply at the valve inlet (a RegulatorDroop shows there). The
+card's model is the catalogue part (effects and base; with an AcousticTube its
+``dead_volume_m3`` includes the tube's volume, as the format defines it, unless
+overridden, when the override is the total); ``bench.planted_forms`` records the forms
+and ``bench.planted_effects`` names the catalogue effects of both.
 """
 
 from __future__ import annotations
@@ -17,9 +27,11 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import write_json_atomic
+from pneubayes.bench.forms import AcousticTube, PlantForm, check_forms
+from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.bench.protocols import piston_motion, step_commands
 from pneubayes.bench.sensors import SensorChain
-from pneubayes.effects import Effect, make_effect
+from pneubayes.effects import CATALOGUE, Effect, make_effect
 from pneubayes.io.recording import Recording, RecordingMetadata, write_recording
 from pneubayes.model import Model
 from pneubayes.physics.cylinder import cylinder_preset
@@ -79,6 +91,8 @@ class BenchConfig:
 
     ``ranges_V`` and ``positions`` (fractions of the stroke) define the fixed-volume
     recordings (one per pair); ``count`` the number of moving-volume recordings.
+    ``forms`` (realistic effect forms) switch the truth to the high-fidelity plant,
+    integrated with ``plant_solver``.
     """
 
     cylinder: str
@@ -95,8 +109,15 @@ class BenchConfig:
     fine_rate_Hz: float = 10_000.0
     sensor: SensorChain = field(default_factory=SensorChain)
     solver: SolverConfig = field(default_factory=SolverConfig.reference)
+    forms: tuple[PlantForm, ...] = ()
+    plant_solver: PlantConfig = field(default_factory=PlantConfig.reference)
 
     def __post_init__(self):
+        object.__setattr__(self, "forms", check_forms(self.forms,
+                                                      [e.name for e in self.effects]))
+        if not isinstance(self.plant_solver, PlantConfig):
+            raise TypeError(f"plant_solver must be a PlantConfig, got "
+                            f"{type(self.plant_solver).__name__}")
         if self.protocol not in PROTOCOLS:
             raise ValueError(f"protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
         if not self.duration_s > 0:
@@ -140,6 +161,7 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     model = cfg.model
     rig = Rig(cyl.bore_m, ATMOSPHERE_PA, SUPPLY_PA, GasConstants(temperature_K=TEMPERATURE_K))
     truth = truth_parameters(model, cfg.cylinder, cfg.valve, rig, cfg.overrides)
+    truth, plant_truth = _form_truth(cfg, truth)
     fs_out = cfg.sensor.sample_rate_Hz
     step = int(round(cfg.fine_rate_Hz / fs_out))
     n_out = int(round(cfg.duration_s * fs_out)) + 1
@@ -162,7 +184,13 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for e in model.effects:
             supply_fine = e.perturb_inputs(t_fine, supply_fine, rig, rng)
         inputs = Inputs(t_fine, u_fine, x_fine, supply_fine)
-        p_true = simulate(model, truth, inputs, rig, ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
+        if cfg.forms:
+            traj = simulate_plant(plant_truth, cfg.forms, inputs, rig, ATMOSPHERE_PA,
+                                  cfg.plant_solver, effects=model.effects)
+            p_true, supply_fine = traj.pressure_Pa, traj.supply_at_valve_Pa
+        else:
+            p_true = simulate(model, truth, inputs, rig, ATMOSPHERE_PA,
+                              cfg.solver).pressure_Pa[0]
         s = cfg.sensor
         p_meas = s.measure(t_fine, p_true, t_out, s.pressure_noise_Pa, rng,
                            s.pressure_quantum_Pa)
@@ -187,9 +215,14 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         written.append(out / f"{plan['name']}.csv")
         entries.append({"file": f"{plan['name']}.csv", "range_V": plan["range_V"],
                         "position_m": plan["position_m"]})
+    planted = set(model.effect_names) | {f.catalogue_name for f in cfg.forms}
+    forms_extra = {"plant_solver": cfg.plant_solver.to_dict(),
+                   "plant_dead_volume_m3": plant_truth["dead_volume_m3"]} if cfg.forms else {}
     card = model.to_card(truth, extra={"bench": {
         "cylinder": cfg.cylinder, "valve": cfg.valve, "protocol": cfg.protocol,
-        "planted_effects": list(model.effect_names), "duration_s": cfg.duration_s,
+        "planted_effects": [n for n in CATALOGUE if n in planted],
+        "planted_forms": [f.to_dict() for f in cfg.forms], **forms_extra,
+        "duration_s": cfg.duration_s,
         "seed": cfg.seed, "overrides": dict(cfg.overrides),
         "fine_rate_Hz": cfg.fine_rate_Hz, "sensor": cfg.sensor.to_dict(),
         "solver": cfg.solver.to_dict(), "initial_pressure_Pa": ATMOSPHERE_PA,
@@ -202,6 +235,25 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         raise FileExistsError(f"{truth_path} exists (use overwrite)")
     write_json_atomic(truth_path, card)
     return BenchResult(tuple(written), truth_path, card)
+
+
+def _form_truth(cfg: BenchConfig, truth: dict[str, float]):
+    """``(card values, plant values)``: the plant's chamber excludes an AcousticTube's
+    volume, which its cells hold; the card's dead volume includes it (the format's)."""
+    card, plant = dict(truth), dict(truth)
+    tube = next((f for f in cfg.forms if isinstance(f, AcousticTube)), None)
+    if tube is None:
+        return card, plant
+    if "dead_volume_m3" in cfg.overrides:
+        plant["dead_volume_m3"] = truth["dead_volume_m3"] - tube.volume_m3
+        if not plant["dead_volume_m3"] > 0:
+            raise ValueError(f"--set dead_volume_m3={truth['dead_volume_m3']:g} is the total "
+                             f"dead volume, tube included; it must exceed the AcousticTube's "
+                             f"volume {tube.volume_m3:g} m^3")
+    else:
+        card["dead_volume_m3"] = truth["dead_volume_m3"] + tube.volume_m3
+    cfg.model.check_bounds(cfg.model.vector(card))
+    return card, plant
 
 
 def effects_from_names(names: Sequence[str], leak_form: str = "orifice") -> tuple[Effect, ...]:

@@ -1,0 +1,554 @@
+"""High-fidelity plant: the thin-port chamber plus realistic forms of the effects.
+
+Written independently of the compiled simulator (:mod:`pneubayes.simulation.kernel`):
+the right-hand side below is its own code (it reuses only the scalar orifice law of
+eqs. 1-3 and the Gompertz map of eq. 11 from :mod:`pneubayes.physics`), and it is
+integrated by scipy's ``solve_ivp`` (Radau or LSODA) with explicit tolerances.
+
+State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
+as the forms and effects require: chamber temperature, spool position and velocity,
+regulator droop, and the acoustic tube's cell pressures and mass flows
+(:mod:`pneubayes.bench.forms` documents each form's equations).
+
+Catalogue effects may be planted beside the forms: the plant reads their lowered
+signal-path slots (:mod:`pneubayes.effects.path`) with the meanings the model gives
+them (dead band, first-order spool, supply gain, command delay and flow attenuation,
+orifice and laminar leaks, heat exchange), so with no forms the plant and the compiled
+simulator solve the same equations and a test checks they agree. A form replaces its
+catalogue effect; planting both is an error.
+
+Inputs: the command is held between samples (zero-order hold), as in the recording.
+Position and supply are interpolated by a C2 cubic spline through the samples, not
+linearly as in the models: the plant is the truth, whose piston moves smoothly, and a
+smooth right-hand side between command switches keeps the adaptive solver's error
+control valid (with linear inputs dV/dt jumps at every sample, which LSODA and Radau
+step over blindly: a closed chamber's p V^1.4 then drifts by up to 1e-3). At the
+samples both interpolations agree; between them they differ by about dt^2 x''/8 (1e-9 m
+for the bench's motions at 10 kHz). The integration restarts where the (delayed)
+command switches; between switches the solver steps across sample times freely and
+``t_eval`` gives the samples.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numba import njit
+from scipy.integrate import solve_ivp
+from scipy.interpolate import CubicSpline
+
+from pneubayes.bench.forms import (
+    AcousticTube,
+    ClearanceLeak,
+    PlantForm,
+    RegulatorDroop,
+    RoundedDeadzone,
+    SecondOrderSpool,
+    WallHeatTransfer,
+    check_forms,
+)
+from pneubayes.effects import Effect
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.errors import SimulationError
+from pneubayes.physics.orifice import flow_terms
+from pneubayes.physics.valve import gompertz_scalar
+from pneubayes.rig import Rig
+from pneubayes.simulation.simulator import Inputs
+
+# ---------------------------------------------------------------- constant layout
+(K_KAPPA, K_RS, K_TS, K_ALPHA, K_BETA, K_THETA, K_PATM, K_PNOM, K_ABORE, K_BORE) = range(10)
+K_IN, K_EX, K_VDEAD = 10, 15, 20
+(K_TAU, K_DEAD, K_GAIN, K_ATT, K_LEAKO, K_LEAKL, K_HEAT) = range(21, 28)
+K_ROUND, K_WN, K_ZETA = 28, 29, 30
+K_CL_C, K_CL_L0, K_CL_SLOPE = 31, 32, 33
+K_DROOP, K_DROOP_TAU = 34, 35
+K_TUBE_A, K_TUBE_DX, K_TUBE_D, K_TUBE_MU = 36, 37, 38, 39
+K_H, K_TWALL = 40, 41
+N_K = 42
+# Integer layout: modes and state indices (-1 = absent).
+(L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
+ L_ITQ, L_N) = range(13)
+N_L = 13
+
+
+@njit(cache=True, inline="always")
+def _churchill_fre(re):
+    """Darcy friction factor times Reynolds number for a smooth tube (Churchill 1977).
+
+    ``f = 8 ((8/Re)^12 + (A + B)^-1.5)^(1/12)``, A = (2.457 ln(1 / (7/Re)^0.9))^16,
+    B = (37530 / Re)^16; returned as ``f Re`` (64 in laminar flow), smooth in Re.
+    """
+    if re < 1.0:
+        return 64.0  # the turbulent correction is below 1e-100 here
+    a = (2.457 * 0.9 * math.log(re / 7.0)) ** 16
+    b = (37530.0 / re) ** 16
+    return 8.0 * (8.0**12 + re**12 * (a + b) ** -1.5) ** (1.0 / 12.0)
+
+
+@njit(cache=True)
+def rounded_deadband(s, halfwidth, rounding):
+    """Dead band with C1 quadratic corners (:class:`RoundedDeadzone`), V.
+
+    ``sign(s) phi(|s| - w)``, phi(z) = 0 (z <= -r), (z + r)^2 / (4r) (|z| < r), z (z >= r);
+    ``rounding = 0`` is the hard dead band ``sign(s) max(|s| - w, 0)``.
+    """
+    z = abs(s) - halfwidth
+    if rounding > 0.0 and abs(z) < rounding:
+        mag = (z + rounding) * (z + rounding) / (4.0 * rounding)
+    else:
+        mag = z if z > 0.0 else 0.0
+    return mag if s >= 0.0 else -mag
+
+
+@njit(cache=True)
+def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
+    """Right-hand side of the plant into ``dy``; returns the valve-inlet supply, Pa.
+
+    ``u`` is the held command (V); ``xx`` and ``ss`` are the cubic-spline coefficients
+    (ascending powers of t - tt[k], one row per sample interval k) of the position (m)
+    and the upstream supply (Pa).
+    """
+    n = tt.shape[0]
+    k = np.searchsorted(tt, t, side="right") - 1
+    k = min(max(k, 0), n - 2)
+    tau = t - tt[k]
+    x = xx[k, 0] + tau * (xx[k, 1] + tau * (xx[k, 2] + tau * xx[k, 3]))
+    xdot = xx[k, 1] + tau * (2.0 * xx[k, 2] + tau * 3.0 * xx[k, 3])
+    sup_in = ss[k, 0] + tau * (ss[k, 1] + tau * (ss[k, 2] + tau * ss[k, 3]))
+    kappa, rs, ts, p_atm = P[K_KAPPA], P[K_RS], P[K_TS], P[K_PATM]
+    alpha, beta, theta = P[K_ALPHA], P[K_BETA], P[K_THETA]
+    for i in range(y.shape[0]):
+        dy[i] = 0.0
+    # command -> spool
+    mode = L[L_SPOOL]
+    if mode == 0:
+        s = u
+    elif mode == 1:
+        s = y[L[L_IS]]
+        dy[L[L_IS]] = (u - s) / P[K_TAU]
+    else:
+        s = y[L[L_IS]]
+        v = y[L[L_ISV]]
+        wn = P[K_WN]
+        dy[L[L_IS]] = v
+        dy[L[L_ISV]] = wn * wn * (u - s) - 2.0 * P[K_ZETA] * wn * v
+    ue = rounded_deadband(s, P[K_DEAD], P[K_ROUND] if L[L_DZ_ROUND] == 1 else 0.0)
+    a_in = gompertz_scalar(ue, P[K_IN], P[K_IN + 1], P[K_IN + 2], P[K_IN + 3], P[K_IN + 4])
+    a_ex = gompertz_scalar(ue, P[K_EX], P[K_EX + 1], P[K_EX + 2], P[K_EX + 3], P[K_EX + 4])
+    # supply at the valve inlet
+    p_up = P[K_PNOM] + P[K_GAIN] * (sup_in - P[K_PNOM])
+    if L[L_DROOP] == 1:
+        p_up -= y[L[L_ID]]
+    p = y[0]
+    heat = L[L_HEAT]
+    temp = y[L[L_IT]] if heat > 0 else ts
+    nseg = L[L_NSEG]
+    pv = y[L[L_ITP]] if nseg > 0 else p
+    # port flows (eqs. 1-3); a hot or cold chamber gas scales them by sqrt(T_s / T)
+    f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
+    f_ex = flow_terms(pv, p_atm, alpha, beta, theta, kappa)[0]
+    hot = heat == 2 and nseg == 0
+    if hot and f_in < 0.0:
+        f_in *= math.sqrt(ts / temp)
+    if hot and f_ex > 0.0:
+        f_ex *= math.sqrt(ts / temp)
+    m_in = a_in * f_in
+    m_ex = a_ex * f_ex
+    if L[L_DROOP] == 1:
+        dy[L[L_ID]] = (P[K_DROOP] * m_in - y[L[L_ID]]) / P[K_DROOP_TAU]
+    att = math.exp(-P[K_ATT] / p) if P[K_ATT] > 0.0 else 1.0
+    # enthalpy bookkeeping for the energy equation: sum(T_src * mdot_into_chamber)
+    if nseg > 0:
+        area, dx, dia, mu = P[K_TUBE_A], P[K_TUBE_DX], P[K_TUBE_D], P[K_TUBE_MU]
+        itp, itq = L[L_ITP], L[L_ITQ]
+        c_cell = kappa * rs * ts / (area * dx)
+        q_prev = att * (m_in - m_ex)
+        for i in range(nseg):
+            p_i = y[itp + i]
+            p_next = y[itp + i + 1] if i < nseg - 1 else p
+            q = y[itq + i]
+            dy[itp + i] = c_cell * (q_prev - q)
+            rho = 0.5 * (p_i + p_next) / (rs * ts)
+            re = abs(q) * dia / (area * mu)
+            dy[itq + i] = (area / dx * (p_i - p_next)
+                           - _churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
+            q_prev = q
+        inflow = q_prev
+        h_in = inflow * (ts if inflow > 0.0 else temp)
+    else:
+        inflow = att * (m_in - m_ex)
+        h_in = att * (m_in * (ts if m_in > 0.0 else temp) - m_ex * (temp if m_ex > 0.0 else ts))
+    # leaks to atmosphere
+    f_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0] if P[K_LEAKO] > 0.0 else 0.0
+    if heat == 2 and f_l > 0.0:
+        f_l *= math.sqrt(ts / temp)
+    k_lam = P[K_LEAKL]
+    if L[L_CLEAR] == 1:
+        k_lam += P[K_CL_C] / (P[K_CL_L0] + P[K_CL_SLOPE] * x)
+    leak = P[K_LEAKO] * f_l + k_lam * (p * p - p_atm * p_atm)
+    mdot = inflow - leak
+    # chamber (eq. 5, or the energy equation)
+    vol = P[K_VDEAD] + P[K_ABORE] * x
+    vdot = P[K_ABORE] * xdot
+    if heat == 2:
+        enth = h_in - leak * (temp if leak > 0.0 else ts)
+        a_wall = 2.0 * P[K_ABORE] + math.pi * P[K_BORE] * vol / P[K_ABORE]
+        q_heat = P[K_H] * a_wall * (P[K_TWALL] - temp)
+        dp = kappa / vol * (rs * enth - p * vdot) + (kappa - 1.0) * q_heat / vol
+    else:
+        dp = kappa / vol * (rs * ts * mdot - p * vdot)
+        if heat == 1:
+            dp += p * P[K_HEAT] * (ts - temp) / temp
+    dy[0] = dp
+    if heat > 0:
+        dy[L[L_IT]] = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
+    return p_up
+
+
+@njit(cache=True)
+def _rhs(t, y, u, P, L, tt, xx, ss):
+    dy = np.empty_like(y)
+    _rhs_into(t, y, u, P, L, tt, xx, ss, dy)
+    return dy
+
+
+@njit(cache=True)
+def _jac(t, y, u, P, L, tt, xx, ss, scale):
+    """Forward-difference Jacobian, column j stepped by 1e-7 max(|y_j|, scale_j)."""
+    n = y.shape[0]
+    f0 = np.empty(n)
+    f1 = np.empty(n)
+    _rhs_into(t, y, u, P, L, tt, xx, ss, f0)
+    jac = np.empty((n, n))
+    yy = y.copy()
+    for j in range(n):
+        h = 1e-7 * max(abs(y[j]), scale[j])
+        yy[j] = y[j] + h
+        _rhs_into(t, yy, u, P, L, tt, xx, ss, f1)
+        yy[j] = y[j]
+        for i in range(n):
+            jac[i, j] = (f1[i] - f0[i]) / h
+    return jac
+
+
+@njit(cache=True)
+def _supply_trace(ts_out, ys, P, L, tt, xx, ss):
+    """Valve-inlet supply (Pa) at each output time from the states ``ys`` (N, n)."""
+    out = np.empty(ts_out.shape[0])
+    dy = np.empty(ys.shape[1])
+    for i in range(ts_out.shape[0]):
+        out[i] = _rhs_into(ts_out[i], ys[i], 0.0, P, L, tt, xx, ss, dy)
+    return out
+
+
+# ---------------------------------------------------------------- Python interface
+_METHODS = ("Radau", "LSODA", "BDF")
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    """Integration settings of the plant (no hidden defaults; saved with each result).
+
+    Parameters
+    ----------
+    method : str
+        ``solve_ivp`` method: "Radau", "BDF" or "LSODA".
+    rtol : float
+        Relative tolerance.
+    atol_Pa : float
+        Absolute tolerance on pressures (chamber, tube cells, regulator droop), Pa. The
+        tube's mass flows get the flow of an acoustic wave of that amplitude,
+        ``atol_Pa A / c`` (kg/s).
+    atol_K : float
+        Absolute tolerance on the chamber temperature, K.
+    atol_V : float
+        Absolute tolerance on the spool position, V (its velocity: ``atol_V`` times the
+        spool's natural angular frequency, V/s).
+    max_step_s : float
+        Largest step, s.
+    """
+
+    method: str
+    rtol: float
+    atol_Pa: float
+    atol_K: float
+    atol_V: float
+    max_step_s: float
+
+    def __post_init__(self):
+        if self.method not in _METHODS:
+            raise ValueError(f"PlantConfig.method must be one of {_METHODS}, "
+                             f"got {self.method!r}")
+        for name in ("rtol", "atol_Pa", "atol_K", "atol_V", "max_step_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                    math.isfinite(v) and v > 0):
+                raise ValueError(f"PlantConfig.{name} must be a finite number > 0, got {v!r}")
+
+    @classmethod
+    def reference(cls) -> "PlantConfig":
+        """The bench's preset: LSODA, rtol 1e-8, 0.01 Pa.
+
+        Measured on 1-s moving-piston recordings (AIR37, valve1, 10 kHz inputs) with
+        each default form and all six together: within 0.25 Pa of Radau at rtol 1e-10.
+        Cost on one core: about 0.02 s per second of recording without a tube, 0.2 s
+        with the 1 m AcousticTube (its waves need steps of ~20 us).
+        """
+        return cls(method="LSODA", rtol=1e-8, atol_Pa=0.01, atol_K=1e-5, atol_V=1e-7,
+                   max_step_s=0.005)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class PlantTrajectory:
+    """Plant output on the input sample times.
+
+    ``pressure_Pa`` (N,) chamber pressure, ``supply_at_valve_Pa`` (N,) the absolute
+    supply at the valve inlet (what a supply sensor there reads),
+    ``chamber_temperature_K`` (N,) or None without a temperature state; ``stats`` holds
+    the solver's counts (``nfev``, ``njev``, ``spans``).
+    """
+
+    time_s: np.ndarray
+    pressure_Pa: np.ndarray
+    supply_at_valve_Pa: np.ndarray
+    chamber_temperature_K: np.ndarray | None
+    config: PlantConfig
+    forms: tuple[PlantForm, ...]
+    stats: dict
+
+
+@dataclass(frozen=True)
+class _Setup:
+    P: np.ndarray
+    L: np.ndarray
+    y0_extra: dict
+    atol: np.ndarray
+    scale: np.ndarray
+    delay_s: float
+
+
+def _lower_catalogue(params: Mapping[str, float], effects: Sequence[Effect], rig: Rig):
+    from pneubayes.model import Model  # model imports effects only; no cycle at run time
+
+    model = Model(effects)
+    vec = model.vector(params)  # ParameterError names missing / unknown names
+    model.check_bounds(vec)
+    return model.lower(vec, rig)[0]
+
+
+def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -> _Setup:
+    sl = _lower_catalogue(params, effects, rig)
+    g = rig.gas
+    P = np.zeros(N_K)
+    P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,
+                                    g.temperature_K)
+    P[K_ALPHA], P[K_BETA], P[K_THETA] = g.alpha_s_per_m, g.beta_s_per_m, g.theta
+    P[K_PATM], P[K_PNOM] = rig.atmospheric_pressure_Pa, rig.supply_pressure_Pa
+    P[K_ABORE], P[K_BORE] = rig.bore_area_m2, rig.bore_m
+    for i, name in enumerate(("inlet_offset_m2", "inlet_a_m2", "inlet_b", "inlet_c_per_V",
+                              "inlet_d_V")):
+        P[K_IN + i] = sl[SLOT_INDEX[name]]
+        P[K_EX + i] = sl[SLOT_INDEX[name.replace("inlet", "exhaust")]]
+    P[K_VDEAD] = sl[SLOT_INDEX["volume_m3"]]
+    for k, slot in ((K_TAU, "spool_time_constant_s"), (K_DEAD, "deadband_halfwidth_V"),
+                    (K_GAIN, "supply_gain"), (K_ATT, "flow_attenuation_Pa"),
+                    (K_LEAKO, "leak_orifice_area_m2"), (K_LEAKL, "leak_laminar_kg_per_s_Pa2"),
+                    (K_HEAT, "heat_rate_per_s")):
+        P[k] = sl[SLOT_INDEX[slot]]
+    L = np.full(N_L, -1, dtype=np.int64)
+    L[[L_SPOOL, L_DZ_ROUND, L_HEAT, L_DROOP, L_CLEAR, L_NSEG]] = 0
+    L[L_SPOOL] = 1 if P[K_TAU] > 0 else 0
+    L[L_HEAT] = 1 if P[K_HEAT] > 0 else 0
+    by = {type(f): f for f in forms}
+    if RoundedDeadzone in by:
+        f = by[RoundedDeadzone]
+        P[K_DEAD], P[K_ROUND], L[L_DZ_ROUND] = f.halfwidth_V, f.rounding_V, 1
+    if SecondOrderSpool in by:
+        f = by[SecondOrderSpool]
+        P[K_WN], P[K_ZETA], L[L_SPOOL] = 2 * math.pi * f.natural_frequency_Hz, f.damping, 2
+    if WallHeatTransfer in by:
+        f = by[WallHeatTransfer]
+        P[K_H], L[L_HEAT] = f.h_W_per_m2_K, 2
+        P[K_TWALL] = g.temperature_K if f.wall_temperature_K is None else f.wall_temperature_K
+    if ClearanceLeak in by:
+        f = by[ClearanceLeak]
+        lo, hi = float(inputs.position_m.min()), float(inputs.position_m.max())
+        for xpos in (lo, hi):
+            if not f.seal_length_at(xpos) > 0:
+                raise ValueError(f"ClearanceLeak: seal length {f.seal_length_at(xpos)} m at "
+                                 f"position {xpos} m is not > 0 (seal_length_slope "
+                                 f"{f.seal_length_slope})")
+        d = rig.bore_m if f.seal_diameter_m is None else f.seal_diameter_m
+        P[K_CL_C] = math.pi * d * f.gap_m**3 / (24.0 * f.air_viscosity_Pa_s * P[K_RS] * P[K_TS])
+        P[K_CL_L0], P[K_CL_SLOPE], L[L_CLEAR] = f.seal_length_m, f.seal_length_slope, 1
+    if RegulatorDroop in by:
+        f = by[RegulatorDroop]
+        P[K_DROOP], P[K_DROOP_TAU] = 1000.0 * f.droop_Pa_per_g_per_s, f.time_constant_s
+        L[L_DROOP] = 1
+    tube = by.get(AcousticTube)
+    if tube is not None:
+        P[K_TUBE_A], P[K_TUBE_DX] = tube.area_m2, tube.length_m / tube.segments
+        P[K_TUBE_D], P[K_TUBE_MU] = tube.diameter_m, tube.air_viscosity_Pa_s
+        L[L_NSEG] = tube.segments
+    vmin = P[K_VDEAD] + P[K_ABORE] * float(inputs.position_m.min())
+    if not vmin > 0:
+        raise ValueError(f"chamber volume {vmin} m^3 at the smallest position is not > 0 "
+                         f"(dead_volume_m3 {P[K_VDEAD]})")
+    # state layout and per-state tolerances / Jacobian scales
+    atol, scale, extra = [cfg.atol_Pa], [1e5], {}
+    n = 1
+    if L[L_HEAT] > 0:
+        L[L_IT] = n
+        n += 1
+        t0 = P[K_TWALL] if L[L_HEAT] == 2 else g.temperature_K
+        extra[L_IT] = t0
+        atol.append(cfg.atol_K)
+        scale.append(300.0)
+    if L[L_SPOOL] > 0:
+        L[L_IS] = n
+        n += 1
+        atol.append(cfg.atol_V)
+        scale.append(1.0)
+        if L[L_SPOOL] == 2:
+            L[L_ISV] = n
+            n += 1
+            atol.append(cfg.atol_V * P[K_WN])
+            scale.append(P[K_WN])
+    if L[L_DROOP] == 1:
+        L[L_ID] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e4)
+        extra[L_ID] = 0.0
+    if tube is not None:
+        c = g.speed_of_sound_m_per_s
+        L[L_ITP] = n
+        L[L_ITQ] = n + tube.segments
+        n += 2 * tube.segments
+        atol += [cfg.atol_Pa] * tube.segments + [cfg.atol_Pa * tube.area_m2 / c] * tube.segments
+        scale += [1e5] * tube.segments + [1e5 * tube.area_m2 / c] * tube.segments
+    L[L_N] = n
+    return _Setup(P, L, extra, np.array(atol), np.array(scale),
+                  float(sl[SLOT_INDEX["command_delay_s"]]))
+
+
+def _spline_rows(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """C2 cubic spline through the samples: rows ``(c0, c1, c2, c3)`` per interval."""
+    if np.all(v == v[0]):
+        rows = np.zeros((t.size - 1, 4))
+        rows[:, 0] = v[0]
+        return rows
+    c = CubicSpline(t, v).c  # (4, N - 1), highest power first
+    return np.ascontiguousarray(c[::-1].T)
+
+
+def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
+    L = su.L
+    y = np.zeros(int(L[L_N]))
+    y[0] = p0
+    for idx, v in su.y0_extra.items():
+        y[L[idx]] = v
+    if L[L_SPOOL] > 0:
+        y[L[L_IS]] = u0  # at rest at the first (delayed) command
+    if L[L_NSEG] > 0:
+        y[L[L_ITP]:L[L_ITP] + L[L_NSEG]] = p0  # tube at rest at the chamber's pressure
+    return y
+
+
+def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inputs: Inputs,
+                   rig: Rig, initial_pressure_Pa: float, config: PlantConfig,
+                   effects: Sequence[Effect] = ()) -> PlantTrajectory:
+    """Simulate the high-fidelity plant on ``inputs``.
+
+    Parameters
+    ----------
+    params : mapping
+        Parameters of ``Model(effects)``: the thin-port base (Gompertz maps, chamber
+        ``dead_volume_m3`` *without* any AcousticTube, whose cells hold its volume) and
+        the catalogue effects planted beside the forms.
+    forms : sequence of PlantForm
+        Realistic effect forms (:mod:`pneubayes.bench.forms`), each catalogue effect at
+        most once among forms and ``effects``.
+    inputs : Inputs
+        Command (held), position and upstream supply (linear between samples).
+    rig : Rig
+        Bore, atmosphere, nominal supply and gas.
+    initial_pressure_Pa : float
+        Absolute chamber (and tube) pressure at ``inputs.time_s[0]``, Pa.
+    config : PlantConfig
+        Solver and tolerances.
+    effects : sequence of Effect
+        Catalogue effects planted as the model defines them.
+    """
+    if not isinstance(config, PlantConfig):
+        raise TypeError(f"config must be a PlantConfig (e.g. PlantConfig.reference()), got "
+                        f"{type(config).__name__}")
+    if not isinstance(inputs, Inputs):
+        raise TypeError(f"inputs must be pneubayes.simulation.Inputs, got "
+                        f"{type(inputs).__name__}")
+    if not isinstance(rig, Rig):
+        raise TypeError(f"rig must be a pneubayes.rig.Rig, got {type(rig).__name__}")
+    p0 = float(initial_pressure_Pa)
+    if not (math.isfinite(p0) and p0 > 0):
+        raise ValueError(f"initial_pressure_Pa must be finite and > 0 (absolute), got "
+                         f"{initial_pressure_Pa!r}")
+    effects = tuple(effects)
+    forms = check_forms(forms, [e.name for e in effects])
+    su = _setup(params, effects, forms, rig, inputs, config)
+    t, u = inputs.time_s, inputs.command_V
+    xx, ss = _spline_rows(t, inputs.position_m), _spline_rows(t, inputs.supply_pressure_Pa)
+    delay = su.delay_s
+    shifted = t + delay
+
+    def command_at(tau):
+        return float(u[max(int(np.searchsorted(shifted, tau, side="right")) - 1, 0)])
+
+    change = np.nonzero(np.diff(u) != 0)[0] + 1
+    cuts = shifted[change]
+    cuts = cuts[(cuts > t[0]) & (cuts < t[-1])]
+    edges = np.unique(np.concatenate([[t[0]], cuts, [t[-1]]]))
+    y = _initial_state(su, p0, command_at(t[0]))
+    ys = np.empty((t.size, y.size))
+    ys[0] = y
+    P, L, scale = su.P, su.L, su.scale
+    nfev = njev = 0
+    start = time.perf_counter()
+    for a, b in zip(edges[:-1], edges[1:]):
+        cmd = command_at(a)
+        i0 = int(np.searchsorted(t, a, side="right"))
+        i1 = int(np.searchsorted(t, b, side="right"))  # samples i0..i1-1 lie in (a, b]
+        t_eval = t[i0:i1]
+        at_sample = t_eval.size > 0 and t_eval[-1] == b
+        if not at_sample:
+            t_eval = np.append(t_eval, b)
+
+        def fun(tau, yy, cmd=cmd):
+            return _rhs(tau, yy, cmd, P, L, t, xx, ss)
+
+        def jac(tau, yy, cmd=cmd):
+            return _jac(tau, yy, cmd, P, L, t, xx, ss, scale)
+
+        sol = solve_ivp(fun, (a, b), y, method=config.method, t_eval=t_eval, jac=jac,
+                        rtol=config.rtol, atol=su.atol, max_step=config.max_step_s)
+        if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+            raise SimulationError(f"plant: {config.method} failed between t={a:.6f} s and "
+                                  f"{b:.6f} s ({sol.message}); forms "
+                                  f"{[type(f).__name__ for f in forms]}")
+        nfev += sol.nfev
+        njev += sol.njev
+        got = sol.y.T
+        ys[i0:i1] = got if at_sample else got[:-1]
+        y = got[-1].copy()
+    elapsed = time.perf_counter() - start
+    supply = _supply_trace(t, ys, P, L, t, xx, ss)
+    temp = ys[:, L[L_IT]].copy() if L[L_HEAT] > 0 else None
+    return PlantTrajectory(t.copy(), ys[:, 0].copy(), supply, temp, config, forms,
+                           {"nfev": int(nfev), "njev": int(njev), "spans": int(edges.size - 1),
+                            "seconds": elapsed})
