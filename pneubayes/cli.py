@@ -1,4 +1,5 @@
-"""The ``pneubayes`` command: ``check``, ``bench``, ``simulate``, ``fit``, ``predict``.
+"""The ``pneubayes`` command: ``check``, ``bench``, ``simulate``, ``fit``, ``predict``,
+``discover``.
 
 Each subcommand is a thin layer over the library; errors are printed as one clear
 message naming the file, row, key or argument (exit 2 for usage or input errors,
@@ -167,6 +168,36 @@ def cmd_predict(args) -> int:
     return 0
 
 
+def cmd_discover(args) -> int:
+    from pneubayes.discovery.loop import DiscoverySettings
+    from pneubayes.discovery.report import run_discover
+    from pneubayes.inference.pipeline import FitSettings
+    from pneubayes.inference.sampler import SamplerSettings
+
+    recs = _read_all(args.recordings)
+    settings = DiscoverySettings(
+        holdout_fraction=args.holdout, max_effects=args.max_effects,
+        posterior=not args.no_posterior, seed=args.seed,
+        fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
+                                                max_steps=args.max_steps, seed=args.seed)))
+    log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
+    doc = run_discover(recs, settings, args.out, log=log, figures=not args.no_figures)
+    print(f"{args.out}/discovery.json: base held-out 2-s RMSE {doc['rmse_base_Pa']:.0f} Pa, "
+          f"final {doc['rmse_final_Pa']:.0f} Pa (noise floor {doc['noise_floor_Pa']:.0f} Pa)")
+    if not doc["effects"]:
+        print("  no missing effect is supported")
+    for e in doc["effects"]:
+        ps = ", ".join(
+            f"{n} = {p.get('median', p.get('estimate')):.4g}"
+            + (f" [{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "")
+            for n, p in e["parameters"].items())
+        print(f"  + {e['name']}: {ps}; inclusion "
+              f"{e['evidence']['inclusion_probability']:.2f}, RMSE {e['rmse_before_Pa']:.0f}"
+              f" -> {e['rmse_after_Pa']:.0f} Pa")
+    print(f"{args.out}/report.md")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pneubayes",
@@ -269,6 +300,28 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
     r.set_defaults(func=cmd_predict)
+
+    d = sub.add_parser(
+        "discover", help="find which physical effect the model misses, add it, verify",
+        description="Start from the plain thin-port model; fit; map where predictions and "
+                    "measurements disagree; run grouped SINDy on the dp/dt residual with "
+                    "physically named candidate terms; add the best-supported effect, "
+                    "refit, and keep it only if held-out predictions improve; repeat. "
+                    "Writes RUNDIR/discovery.json, model.json, disagreement.json, "
+                    "report.md and figures/.")
+    d.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
+    d.add_argument("--out", required=True, help="run folder (an interrupted run resumes)")
+    d.add_argument("--holdout", type=float, default=1.0 / 3.0,
+                   help="fraction of every recording (its end) held out to verify (1/3)")
+    d.add_argument("--max-effects", type=int, default=4, help="stop after adding this many")
+    d.add_argument("--no-posterior", action="store_true",
+                   help="skip the final emcee posterior (refined point estimates only)")
+    d.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
+    d.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
+    d.add_argument("--seed", type=int, default=0, help="seed of bagging and sampler")
+    d.add_argument("--no-figures", action="store_true")
+    d.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    d.set_defaults(func=cmd_discover)
     return p
 
 

@@ -155,3 +155,53 @@ def plot_prediction_bands(bands, path, max_windows: int = 3) -> Path:
             ax.legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("time (s)")
     return _save(fig, path)
+
+
+def plot_disagreement(dmap: Mapping, path, title: str = "") -> Path:
+    """Residual RMS per operating-regime bin (2-s prediction and dp/dt), flagged bins
+    highlighted, the noise level as a line."""
+    plt = _pyplot()
+    fams = list(dmap["prediction"])
+    fig, axes = plt.subplots(2, len(fams), figsize=(2.1 * len(fams), 5.2), squeeze=False)
+    for row, (kind, noise, unit, scale) in enumerate(
+            (("prediction", dmap["noise_floor_Pa"], "kPa", 1e-3),
+             ("rate", dmap["rate_noise_Pa_per_s"], "MPa/s", 1e-6))):
+        for col, fam in enumerate(fams):
+            ax = axes[row, col]
+            bins = dmap[kind][fam]
+            names = [b["bin"] for b in bins]
+            rms = [b["rms"] * scale for b in bins]
+            colors = ["tab:red" if b["flagged"] else "tab:gray" for b in bins]
+            ax.bar(range(len(bins)), rms, color=colors)
+            ax.axhline(noise * scale, color="k", lw=0.8, ls="--")
+            ax.set_xticks(range(len(bins)))
+            ax.set_xticklabels(names, rotation=60, ha="right", fontsize=6)
+            ax.tick_params(axis="y", labelsize=6)
+            if row == 0:
+                ax.set_title(fam, fontsize=7)
+            if col == 0:
+                ax.set_ylabel(f"{'2-s prediction' if kind == 'prediction' else 'dp/dt'} "
+                              f"RMS ({unit})", fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=8)
+    return _save(fig, path)
+
+
+def plot_evidence(searches, path) -> Path:
+    """Bagged inclusion probability of every candidate group, one panel per round."""
+    plt = _pyplot()
+    n = len(searches)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(3.2 * max(n, 1), 2.8), squeeze=False)
+    for k, s in enumerate(searches):
+        ax = axes[0, k]
+        groups = s["ranking"]
+        p = [s["evidence"][g]["inclusion_probability"] for g in groups]
+        ax.barh(range(len(groups)), p, color="tab:blue")
+        ax.set_yticks(range(len(groups)))
+        ax.set_yticklabels(groups, fontsize=7)
+        ax.invert_yaxis()
+        ax.set_xlim(0, 1.05)
+        ax.set_xlabel("inclusion probability", fontsize=7)
+        ax.set_title(f"round {s['round']}: model + {', '.join(s['model']) or 'nothing'}",
+                     fontsize=7)
+    return _save(fig, path)

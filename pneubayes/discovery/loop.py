@@ -1,0 +1,472 @@
+"""The name-add-refit loop: fit, map the disagreement, search, name, add, verify, repeat.
+
+Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
+
+1. **Fit** on the training part of every recording (the first ``1 - holdout_fraction``
+   of its samples): the paper's least squares where possible, then 2-s multiple
+   shooting (:mod:`pneubayes.inference`).
+2. **Map** the disagreement (:mod:`disagreement`).
+3. **Search**: grouped SINDy on the one-step residual (:mod:`library`, :mod:`sindy`).
+4. **Name and add** the best-supported effect (the catalogue's effect object, started
+   at the strength of its best term) and refit.
+5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
+   the 2-s prediction RMSE must drop *and* the held-out log predictive density must
+   rise, significantly: the per-window gains (2-s windows are the independent units)
+   must pass a one-sided Wilcoxon signed-rank test at ``max_p_value``. The gains are
+   heavy-tailed -- a model that is wrong in a few windows loses heavily there -- so a
+   rank test is used instead of a normal standard error. Otherwise the effect is
+   rejected and the next supported group is tried.
+6. **Prune**: once an effect is added, each earlier one is refitted away; if the model
+   without it is not significantly worse (the same test), it only stood in for the
+   newcomer and is removed.
+7. **Repeat** with the extended model until no group is supported, or none of the
+   ``max_trials_per_round`` best-supported groups passes verification.
+
+The final model gets an emcee posterior on the training data. A ledger records every
+step; finished fits are cached in ``RUNDIR/steps`` so an interrupted run resumes.
+
+The held-out score is a plug-in log predictive density: the refined parameters with
+the AR(1) noise at its conditional mode given the *training* residuals. With thousands
+of residuals per window set the parameter uncertainty is far below the noise, so the
+plug-in is close to the full posterior predictive, at a fraction of the cost.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import pneubayes
+from pneubayes.atomic import json_safe, write_json_atomic
+from pneubayes.discovery.disagreement import RegimeSettings, disagreement_map, flagged_bins
+from pneubayes.discovery.library import LibraryGrid, build_library
+from pneubayes.discovery.one_step import one_step_data
+from pneubayes.discovery.sindy import GroupedSINDy
+from pneubayes.effects import make_effect
+from pneubayes.inference.likelihood import ar1_sums
+from pneubayes.inference.pipeline import FitSettings, starting_point
+from pneubayes.inference.predictive import estimate_noise_std
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.sampler import BayesianIdentification
+from pneubayes.inference.windows import WindowSet
+from pneubayes.model import Model
+from pneubayes.simulation import SolverConfig
+
+FORMAT = "pneubayes-discovery/1"
+
+
+@dataclass(frozen=True)
+class DiscoverySettings:
+    """Every setting of ``pneubayes discover`` (saved in discovery.json).
+
+    holdout_fraction: the last fraction of every recording is held out for verification.
+    block: one-step errors summed per regression row. threshold_t, n_bags, chunk_rows:
+    the grouped SINDy (:class:`GroupedSINDy`). min_inclusion: a group is *supported*
+    when its bagged inclusion probability reaches this. max_p_value: the one-sided
+    Wilcoxon signed-rank test of the per-window log predictive density gains must
+    reach this level. max_effects: stop after adding this many. max_trials_per_round:
+    supported groups refitted per round. max_refine_restarts: refinement is restarted
+    from where it stopped until it converges, at most this many times.
+    """
+
+    holdout_fraction: float = 1.0 / 3.0
+    block: int = 5
+    grid: LibraryGrid = field(default_factory=LibraryGrid)
+    regimes: RegimeSettings = field(default_factory=RegimeSettings)
+    threshold_t: float = 5.0
+    n_bags: int = 40
+    chunk_rows: int = 200
+    min_inclusion: float = 0.6
+    max_effects: int = 4
+    max_trials_per_round: int = 3
+    max_refine_restarts: int = 3
+    max_p_value: float = 0.01
+    fit: FitSettings = field(default_factory=FitSettings)
+    posterior: bool = True
+    library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
+    seed: int = 0
+
+    def __post_init__(self):
+        if not 0.0 < self.holdout_fraction < 1.0:
+            raise ValueError(f"holdout_fraction must be in (0, 1), got {self.holdout_fraction}")
+        if not 0.0 < self.min_inclusion <= 1.0:
+            raise ValueError(f"min_inclusion must be in (0, 1], got {self.min_inclusion}")
+        if self.block < 1:
+            raise ValueError(f"block must be >= 1, got {self.block}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+# ---------------------------------------------------------------------------- helpers
+def split_recordings(recordings, holdout_fraction: float, horizon_s: float):
+    """(train, held): the first and last parts of every recording (time kept)."""
+    train, held = [], []
+    for rec in recordings:
+        n = rec.n_samples
+        dt = float(np.median(np.diff(rec.time_s)))
+        cut = int(round(n * (1.0 - holdout_fraction)))
+        need = int(round(horizon_s / dt)) + 1
+        if cut < need or n - cut < need:
+            raise ValueError(f"{rec.source}: {n * dt:.3g} s is too short to hold out "
+                             f"{holdout_fraction:.2g} of it and keep {horizon_s:g}-s windows "
+                             "on both sides")
+        train.append(rec.slice(0, cut))
+        held.append(rec.slice(cut, None))
+    return train, held
+
+
+@dataclass
+class StepFit:
+    """One fitted model and its scores."""
+
+    model: Model
+    params: dict
+    train_rmse_Pa: float
+    heldout_rmse_Pa: float
+    heldout_lpd_per_window: np.ndarray
+    noise_scale_Pa: float
+    noise_ar1: float
+    covariance: np.ndarray | None = None
+    wall_time_s: float = 0.0
+
+    @property
+    def heldout_lpd(self) -> float:
+        return float(np.sum(self.heldout_lpd_per_window))
+
+
+def _ar1_mode(sums: np.ndarray, n: int) -> tuple[float, float]:
+    a, b, c = sums
+    rho = float(np.clip(b / c, -0.99, 0.999))
+    ss = a - 2 * rho * b + rho * rho * c
+    return math.sqrt(ss / n), rho
+
+
+def _window_lpd(res: np.ndarray, sigma: float, rho: float) -> np.ndarray:
+    """AR(1) log-density of each window's residuals ``(W, K)`` -> ``(W,)``."""
+    e = res.copy()
+    e[:, 1:] -= rho * res[:, :-1]
+    k = res.shape[1]
+    return (-0.5 * np.sum(e * e, axis=1) / sigma**2 - k * math.log(sigma)
+            - 0.5 * k * math.log(2 * math.pi))
+
+
+def _signed_rank_p(diff: np.ndarray) -> float:
+    """One-sided p-value that the per-window gains ``diff`` are centred above zero."""
+    from scipy.stats import wilcoxon
+
+    d = np.asarray(diff, dtype=np.float64)
+    if d.size == 0 or np.all(d == 0):
+        return 1.0
+    return float(wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue)
+
+
+def _fingerprint(*parts) -> str:
+    h = hashlib.sha256()
+    for p in parts:
+        h.update(json.dumps(json_safe(p), sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+class Discovery:
+    """The loop (scikit-learn-style: configure, then :meth:`fit`; results as attributes).
+
+    Parameters
+    ----------
+    settings : DiscoverySettings
+    out_dir : path or None
+        Run folder for the step cache (resume); None keeps everything in memory.
+    log : callable
+        Progress messages.
+    """
+
+    def __init__(self, settings: DiscoverySettings, out_dir=None, log=print):
+        self.settings = settings
+        self.out_dir = None if out_dir is None else Path(out_dir)
+        self.log = log
+
+    # ------------------------------------------------------------------ fitting
+    def _cache_path(self, key: str) -> Path | None:
+        return None if self.out_dir is None else self.out_dir / "steps" / f"{key}.json"
+
+    def _fit(self, model: Model, start: dict, train_ws: WindowSet, held_ws: WindowSet,
+             data_key: str) -> StepFit:
+        s = self.settings
+        key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key)
+        path = self._cache_path(key)
+        t0 = time.perf_counter()
+        if path is not None and path.exists():
+            cached = json.loads(path.read_text())
+            params = {k: float(v) for k, v in cached["params"].items()}
+        else:
+            # refine to convergence: a base model stopped early would make any extended
+            # model's extra refinement look like a gain of the effect
+            params = start
+            for _ in range(s.max_refine_restarts + 1):
+                ref = TrajectoryRefiner(model, s.fit.refine_solver,
+                                        max_nfev=s.fit.refine_max_nfev).fit(train_ws, params)
+                params = ref.params_
+                if ref.success_:
+                    break
+            if path is not None:
+                write_json_atomic(path, {"model": model.to_card(params), "params": params})
+        theta = model.vector(params)[None]
+        r_tr = train_ws.residuals(model, theta, s.fit.refine_solver)
+        sig, rho = _ar1_mode(ar1_sums(r_tr)[0], r_tr[0].size)
+        r_ho = held_ws.residuals(model, theta, s.fit.refine_solver)[0]
+        return StepFit(model, params, float(np.sqrt(np.mean(r_tr**2))),
+                       float(np.sqrt(np.mean(r_ho**2))), _window_lpd(r_ho, sig, rho), sig, rho,
+                       wall_time_s=time.perf_counter() - t0)
+
+    # ------------------------------------------------------------------ search
+    def _search(self, fit: StepFit, train):
+        s = self.settings
+        data = [one_step_data(r, s.block) for r in train]
+        lib = build_library(fit.model, fit.params, data, s.grid, s.library_solver)
+        sindy = GroupedSINDy(threshold_t=s.threshold_t, n_models=s.n_bags,
+                             chunk_rows=s.chunk_rows, seed=s.seed).fit(lib)
+        return lib, sindy, data
+
+    def _candidate(self, fit: StepFit, group: str, evidence: dict):
+        """The effect object and its start values from the group's best term."""
+        term = evidence.get("best_term") or ""
+        num = [float(t) for t in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", term)]
+        start = dict(fit.params)
+        if group == "cylinder_leak":
+            form = "laminar" if term.startswith("laminar") else "orifice"
+            effect = make_effect("cylinder_leak", form=form)
+        else:
+            effect = make_effect(group)
+        model = fit.model.with_effect(effect)
+        start.update(effect.neutral_values())
+        pname = effect.parameter_names()[0]
+        value = {"tube_delay": 1e-3 * num[0] if num else 0.003,
+                 "spool_lag": 1e-3 * num[0] if num else 0.003,
+                 "valve_deadzone": num[0] if num else 0.2,
+                 "supply_fluctuation": 1.0,
+                 "heat_transfer": num[0] if num else 5.0}.get(group)
+        if group == "cylinder_leak":
+            value = 0.3 * effect.bench_defaults()[pname]
+        if value is not None:
+            p = model.parameter(pname)
+            start[pname] = float(np.clip(value, p.lower + 1e-6 * (p.upper - p.lower),
+                                         p.upper - 1e-6 * (p.upper - p.lower)))
+        return model, start
+
+    # ------------------------------------------------------------------ the loop
+    def fit(self, recordings) -> "Discovery":
+        s = self.settings
+        t_start = time.perf_counter()
+        recs = list(recordings)
+        if not recs:
+            raise ValueError("discover: no recordings")
+        train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)
+        train_ws = WindowSet(train, s.fit.horizon_s, s.fit.stride_s)
+        held_ws = WindowSet(held, s.fit.horizon_s, s.fit.stride_s)
+        data_key = _fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
+                                 for r in recs], s.holdout_fraction)
+        noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+        self.noise_floor_Pa_ = noise
+        self.range_Pa_ = float(recs[0].rig().working_range_Pa)
+        model = Model()
+        start, notes, how = starting_point(model, train, s.fit, noise)
+        self.log(f"discover: base model (eqs. 1-5, Gompertz maps) from {how}")
+        current = self._fit(model, start, train_ws, held_ws, data_key)
+        self.log(f"discover: base held-out 2-s RMSE {current.heldout_rmse_Pa:.0f} Pa "
+                 f"(noise floor {noise:.0f} Pa)")
+        base = current
+        ledger = [{"step": 0, "action": "fit base", "model": list(model.effect_names),
+                   "start": how, "train_rmse_Pa": current.train_rmse_Pa,
+                   "heldout_rmse_Pa": current.heldout_rmse_Pa,
+                   "heldout_lpd": current.heldout_lpd}]
+        accepted: list[dict] = []
+        maps, searches = [], []
+        for round_ in range(1, s.max_effects + 1):
+            lib, sindy, data = self._search(current, train)
+            dmap = self._map(current, train_ws, train, data, noise)
+            maps.append(dmap)
+            searches.append({"round": round_, "model": list(current.model.effect_names),
+                             "evidence": sindy.evidence_, "ranking": sindy.ranking_,
+                             "labels": lib.labels, "groups": lib.groups})
+            flags = flagged_bins(dmap, "prediction")[:3]
+            self.log(f"discover: round {round_}: disagreement in "
+                     + (", ".join(f"{f} = {b['bin']} (RMS {b['rms']:.0f} Pa)" for f, b in flags)
+                        or "no regime"))
+            self.log("discover: evidence " + ", ".join(
+                f"{g} {sindy.evidence_[g]['inclusion_probability']:.2f}"
+                for g in sindy.ranking_))
+            supported = sindy.supported(s.min_inclusion)
+            ledger.append({"step": len(ledger), "action": "search", "round": round_,
+                           "supported": supported,
+                           "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
+                                         for g in sindy.ranking_}})
+            if not supported:
+                self.log("discover: no effect is supported; stop")
+                break
+            added = False
+            for g in supported[: s.max_trials_per_round]:
+                model2, start2 = self._candidate(current, g, sindy.evidence_[g])
+                trial = self._fit(model2, start2, train_ws, held_ws, data_key)
+                # control: the current model refined from the trial's other parameters.
+                # Refinement finds local optima; if the trial's gain came from moving the
+                # other parameters to a better basin, the control gets it too.
+                control = self._fit(current.model, {k: trial.params[k] for k in
+                                                    current.model.parameter_names},
+                                    train_ws, held_ws, data_key)
+                if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
+                    self.log(f"discover: a better optimum of the current model: train RMSE "
+                             f"{current.train_rmse_Pa:.0f} -> {control.train_rmse_Pa:.0f} Pa")
+                    ledger.append({"step": len(ledger), "action": "refit current",
+                                   "model": list(current.model.effect_names),
+                                   "train_rmse_Pa": control.train_rmse_Pa,
+                                   "heldout_rmse_Pa": control.heldout_rmse_Pa,
+                                   "heldout_lpd": control.heldout_lpd})
+                    current = control
+                ok, gain, pval, diff = self._better(trial, current)
+                entry = {"step": len(ledger), "action": "add" if ok else "reject",
+                         "effect": g, "effect_options": model2.effect(g).options(),
+                         "start": {k: start2[k] for k in model2.effect(g).parameter_names()},
+                         "fitted": {k: trial.params[k]
+                                    for k in model2.effect(g).parameter_names()},
+                         "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                         "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                         "score_gain": gain, "score_p_value": pval,
+                         "windows_improved": int(np.sum(diff > 0)),
+                         "windows": int(diff.size),
+                         "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s}
+                ledger.append(entry)
+                self.log(f"discover: {'ADD' if ok else 'reject'} {g}: held-out RMSE "
+                         f"{current.heldout_rmse_Pa:.0f} -> {trial.heldout_rmse_Pa:.0f} Pa, "
+                         f"log predictive gain {gain:.1f} in {int(np.sum(diff > 0))}/"
+                         f"{diff.size} windows (p = {pval:.2g})")
+                if ok:
+                    accepted.append({"name": g, "evidence": sindy.evidence_[g],
+                                     "score_gain": gain, "score_p_value": pval,
+                                     "rmse_before_Pa": current.heldout_rmse_Pa,
+                                     "rmse_after_Pa": trial.heldout_rmse_Pa})
+                    current = trial
+                    added = True
+                    current = self._prune(current, accepted, ledger, train_ws, held_ws,
+                                          data_key)
+                    break
+            if not added:
+                self.log("discover: no supported effect passed verification; stop")
+                break
+        self.base_ = base
+        self.final_ = current
+        self.accepted_ = accepted
+        self.ledger_ = ledger
+        self.maps_ = maps
+        self.searches_ = searches
+        self.train_, self.held_ = train, held
+        self.posterior_ = None
+        if s.posterior:
+            self.posterior_ = self._posterior(current, train_ws)
+        self.wall_time_s_ = time.perf_counter() - t_start
+        return self
+
+    def _better(self, new: StepFit, old: StepFit) -> tuple[bool, float, float, np.ndarray]:
+        """Does ``new`` predict the held-out data better than ``old`` (RMSE and the
+        signed-rank test of per-window log predictive gains)?"""
+        diff = new.heldout_lpd_per_window - old.heldout_lpd_per_window
+        gain = float(diff.sum())
+        pval = _signed_rank_p(diff)
+        ok = (new.heldout_rmse_Pa < old.heldout_rmse_Pa and gain > 0
+              and pval <= self.settings.max_p_value)
+        return ok, gain, pval, diff
+
+    def _prune(self, current: StepFit, accepted: list, ledger: list, train_ws, held_ws,
+               data_key) -> StepFit:
+        """Backward step: drop an earlier effect the newest one has made unnecessary
+        (an effect that only stood in for the newcomer)."""
+        for a in list(accepted[:-1]):
+            name = a["name"]
+            reduced = current.model.without(name)
+            fit = self._fit(reduced, {k: current.params[k] for k in reduced.parameter_names},
+                            train_ws, held_ws, data_key)
+            needed, gain, pval, _ = self._better(current, fit)
+            if needed:
+                continue
+            self.log(f"discover: REMOVE {name}: without it held-out RMSE "
+                     f"{current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa "
+                     f"(its gain is no longer significant, p = {pval:.2g})")
+            ledger.append({"step": len(ledger), "action": "remove", "effect": name,
+                           "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                           "heldout_rmse_after_Pa": fit.heldout_rmse_Pa,
+                           "score_gain": -gain, "score_p_value": pval})
+            accepted.remove(a)
+            current = fit
+        return current
+
+    def _map(self, fit: StepFit, train_ws: WindowSet, train, data, noise: float) -> dict:
+        s = self.settings
+        theta = fit.model.vector(fit.params)[None]
+        res = train_ws.simulate(fit.model, theta, s.fit.refine_solver)[0] - train_ws.measured
+        per_rec, starts, one = [], [], []
+        k = 0
+        for b, d in zip(train_ws.blocks, data):
+            w = b.starts.size
+            per_rec.append(res[k:k + w])
+            starts.append(b.starts)
+            k += w
+            p = np.asarray(d.recording.pressure_Pa, dtype=np.float64)
+            one.append(p[1:] - d.predict(fit.model, theta, s.library_solver)[0])
+        return disagreement_map(fit.model, fit.params, train, per_rec, starts,
+                                train_ws.length, one, noise, s.regimes)
+
+    def _posterior(self, fit: StepFit, train_ws: WindowSet):
+        s = self.settings
+        backend = None if self.out_dir is None else self.out_dir / "chain.h5"
+        bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
+                                    backend_path=backend, progress=False)
+        ref = TrajectoryRefiner(fit.model, s.fit.refine_solver, max_nfev=1)
+        start = fit.params
+        cov = None
+        try:  # the Laplace covariance at the refined point sizes the walker ball
+            cov = ref.fit(train_ws, start).covariance_
+        except FloatingPointError:
+            cov = None
+        self.log(f"discover: emcee posterior of {list(fit.model.effect_names) or 'the base'}"
+                 " model")
+        bi.fit(train_ws, start, covariance=cov)
+        self.log(f"discover: emcee {bi.diagnostics_['steps']} steps, converged "
+                 f"{bi.converged_}, {bi.wall_time_s_:.0f} s")
+        return bi
+
+    # ------------------------------------------------------------------ results
+    def result(self) -> dict:
+        """The ``pneubayes-discovery/1`` document."""
+        post = self.posterior_.summary() if self.posterior_ is not None else None
+        effects = []
+        for a in self.accepted_:
+            eff = self.final_.model.effect(a["name"])
+            params = {}
+            for n in eff.parameter_names():
+                if post is not None:
+                    params[n] = {k: post[n][k] for k in ("median", "q05", "q95")}
+                else:
+                    params[n] = {"estimate": self.final_.params[n]}
+            effects.append({"name": a["name"], "options": eff.options(), "parameters": params,
+                            "evidence": {"inclusion_probability":
+                                         a["evidence"]["inclusion_probability"],
+                                         "t_max": a["evidence"]["t_max"],
+                                         "best_term": a["evidence"]["best_term"],
+                                         "score_gain": a["score_gain"],
+                                         "score_p_value": a["score_p_value"]},
+                            "rmse_before_Pa": a["rmse_before_Pa"],
+                            "rmse_after_Pa": a["rmse_after_Pa"]})
+        return {"format": FORMAT, "effects": effects,
+                "rmse_base_Pa": self.base_.heldout_rmse_Pa,
+                "rmse_final_Pa": self.final_.heldout_rmse_Pa,
+                "noise_floor_Pa": self.noise_floor_Pa_, "range_Pa": self.range_Pa_,
+                "model": "model.json", "ledger": self.ledger_,
+                "settings": self.settings.to_dict(), "seed": self.settings.seed,
+                "wall_time_s": getattr(self, "wall_time_s_", None),
+                "pneubayes_version": pneubayes.__version__}

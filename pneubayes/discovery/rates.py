@@ -1,0 +1,82 @@
+"""The model's pressure rate at a *given* state, vectorised over samples.
+
+The simulator integrates dp/dt along its own trajectory; discovery needs the model's
+dp/dt at the *measured* pressure (the equation error of section VI-B) with inputs that
+may be modified (a delayed or filtered command, a dead band, the measured supply). This
+is eq. 5 with the port flows of eqs. 1-4 and 9, composed from the lowered slots of any
+model (:mod:`pneubayes.effects.path`) -- except the temperature state of
+``heat_transfer``, which needs a trajectory: here T is the supply temperature.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pneubayes.effects.path import SLOT_INDEX as S
+from pneubayes.physics.orifice import flow_function
+from pneubayes.physics.valve import gompertz_area
+from pneubayes.rig import Rig
+
+_PORT = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
+
+
+def dead_band(spool_V, halfwidth_V):
+    """``sign(s) max(|s| - w, 0)`` (paper Fig. 4), V."""
+    s = np.asarray(spool_V, dtype=np.float64)
+    return np.sign(s) * np.maximum(np.abs(s) - halfwidth_V, 0.0)
+
+
+@dataclass(frozen=True)
+class RateTerms:
+    """dp/dt contributions, Pa/s, at each sample (arrays of one shape).
+
+    ``inlet`` and ``exhaust`` are the valve ports' terms (attenuation included),
+    ``leak`` the cylinder leak's, ``volume`` the -n p dV/dt / V term; ``total`` their sum.
+    ``inlet_choked`` / ``exhaust_choked`` flag choked ports (eq. 2).
+    """
+
+    inlet: np.ndarray
+    exhaust: np.ndarray
+    leak: np.ndarray
+    volume: np.ndarray
+    inlet_choked: np.ndarray
+    exhaust_choked: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.inlet + self.exhaust + self.leak + self.volume
+
+
+def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
+               velocity_m_per_s, supply_measured_Pa) -> RateTerms:
+    """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
+
+    ``spool_V`` is the command after any delay and lag (the caller shifts or filters
+    it); the dead band, Gompertz maps (eq. 11), supply weighting, attenuation and leaks
+    come from ``slots``. Pressures absolute, Pa; position m; velocity m/s.
+    """
+    sl = np.asarray(slots, dtype=np.float64)
+    g = rig.gas
+    kappa = g.heat_capacity_ratio
+    rs_t = g.specific_gas_constant_J_per_kg_K * g.temperature_K
+    p_atm = rig.atmospheric_pressure_Pa
+    p = np.asarray(pressure_Pa, dtype=np.float64)
+    u = dead_band(spool_V, sl[S["deadband_halfwidth_V"]])
+    a_in = gompertz_area(u, *(sl[S[f"inlet_{k}"]] for k in _PORT))
+    a_ex = gompertz_area(u, *(sl[S[f"exhaust_{k}"]] for k in _PORT))
+    p_nom = rig.supply_pressure_Pa
+    p_sup = p_nom + sl[S["supply_gain"]] * (np.asarray(supply_measured_Pa) - p_nom)
+    atten = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
+    vol = sl[S["volume_m3"]] + rig.bore_area_m2 * np.asarray(position_m, dtype=np.float64)
+    vdot = rig.bore_area_m2 * np.asarray(velocity_m_per_s, dtype=np.float64)
+    scale = kappa * rs_t / vol
+    inlet = scale * atten * a_in * flow_function(p_sup, p, g)
+    exhaust = -scale * atten * a_ex * flow_function(p, p_atm, g)
+    leak = -scale * (sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
+                     + sl[S["leak_laminar_kg_per_s_Pa2"]] * (p * p - p_atm * p_atm))
+    volume = -kappa * p * vdot / vol
+    crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
+    return RateTerms(inlet, exhaust, leak, volume,
+                     inlet_choked=p < crit * p_sup, exhaust_choked=p_atm < crit * p)

@@ -1,0 +1,146 @@
+"""``pneubayes discover``: run the loop and write the run folder.
+
+``RUNDIR/discovery.json`` (format ``pneubayes-discovery/1``), ``RUNDIR/model.json`` (the
+final model card: posterior median, or the refined point without a posterior),
+``RUNDIR/disagreement.json`` (the regime maps of every round), ``RUNDIR/report.md``
+and ``RUNDIR/figures/``. Everything is written atomically.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pneubayes.atomic import write_json_atomic, write_text_atomic
+from pneubayes.discovery.disagreement import flagged_bins
+from pneubayes.discovery.loop import Discovery, DiscoverySettings
+
+
+def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
+                 figures: bool = True) -> dict:
+    """Run :class:`Discovery` on ``recordings``; write ``out_dir``; return discovery.json."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    recs = list(recordings)
+    disc = Discovery(settings, out, log).fit(recs)
+    doc = disc.result()
+    doc["recordings"] = [str(r.source) for r in recs]
+    final = disc.final_
+    if disc.posterior_ is not None:
+        params = disc.posterior_.median_params()
+        estimate = "posterior median"
+        doc["posterior"] = {"converged": disc.posterior_.converged_,
+                            "steps": disc.posterior_.diagnostics_["steps"],
+                            "summary": disc.posterior_.summary()}
+    else:
+        params = final.params
+        estimate = "refined (multiple shooting)"
+    final.model.save_card(params, out / "model.json",
+                          extra={"fit": {"estimate": estimate, "by": "pneubayes discover"}})
+    write_json_atomic(out / "disagreement.json", {"rounds": disc.maps_})
+    write_json_atomic(out / "discovery.json", doc)
+    figs = {}
+    if figures:
+        from pneubayes.plotting import plot_disagreement, plot_evidence
+
+        figs["disagreement"] = plot_disagreement(
+            disc.maps_[0], out / "figures" / "disagreement.png",
+            "base model: residual RMS by regime (red: flagged; dashed: noise)").name
+        if len(disc.maps_) > 1:
+            figs["disagreement_final"] = plot_disagreement(
+                disc.maps_[-1], out / "figures" / "disagreement_final.png",
+                "final model: residual RMS by regime").name
+        figs["evidence"] = plot_evidence(disc.searches_, out / "figures" / "evidence.png").name
+    write_text_atomic(out / "report.md", _report(doc, disc, figs))
+    return doc
+
+
+def _fmt(v, spec=".4g"):
+    return "-" if v is None else format(v, spec)
+
+
+def _report(doc: dict, disc: Discovery, figs: dict) -> str:
+    noise = doc["noise_floor_Pa"]
+    base, final = doc["rmse_base_Pa"], doc["rmse_final_Pa"]
+    gap0, gap1 = max(base - noise, 0.0), max(final - noise, 0.0)
+    lines = ["# What the model misses: discovery report", ""]
+    lines += [f"Recordings: {len(doc['recordings'])} (each split in time: the first "
+              f"{1 - disc.settings.holdout_fraction:.0%} to fit and search, the rest to "
+              "verify). Noise floor (sensor) "
+              f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa.", ""]
+    lines += ["## Result", ""]
+    if doc["effects"]:
+        lines += ["| effect | parameter | estimate | 90 % interval | inclusion | "
+                  "held-out RMSE before -> after (Pa) | log predictive gain (p) |",
+                  "|---|---|---|---|---|---|---|"]
+        for e in doc["effects"]:
+            for n, p in e["parameters"].items():
+                est = p.get("median", p.get("estimate"))
+                iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
+                ev = e["evidence"]
+                lines.append(f"| {e['name']} | {n} | {est:.4g} | {iv} | "
+                             f"{ev['inclusion_probability']:.2f} | "
+                             f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} | "
+                             f"{ev['score_gain']:.1f} ({ev['score_p_value']:.2g}) |")
+    else:
+        lines.append("No missing effect is supported: the plain thin-port model explains "
+                     "the recordings to within the evidence.")
+    shrink = "" if gap0 <= 0 else f" ({100 * (1 - gap1 / gap0):.0f} % of the gap closed)"
+    lines += ["", f"Held-out 2-s prediction RMSE: base {base:.0f} Pa -> final {final:.0f} Pa; "
+              f"gap above the noise floor {gap0:.0f} -> {gap1:.0f} Pa{shrink}.", ""]
+    lines += ["## Where the base model disagrees", ""]
+    flags = flagged_bins(disc.maps_[0], "prediction")
+    if flags:
+        lines += ["| regime | bin | samples | RMS (Pa) | excess over noise (Pa) | bias z |",
+                  "|---|---|---|---|---|---|"]
+        for fam, b in flags[:12]:
+            lines.append(f"| {fam} | {b['bin']} | {b['n']} | {b['rms']:.0f} | "
+                         f"{b['excess_rms']:.0f} | {b['z_bias']:.1f} |")
+    else:
+        lines.append("No regime bin is flagged.")
+    if "disagreement" in figs:
+        lines += ["", f"![disagreement](figures/{figs['disagreement']})"]
+    lines += ["", "## Evidence (grouped SINDy on the one-step residual, block-bagged)", ""]
+    for s in disc.searches_:
+        lines += [f"Round {s['round']} (model: thin port"
+                  + "".join(f" + {m}" for m in s["model"]) + ")", "",
+                  "| effect | inclusion probability | best term | t | explained |",
+                  "|---|---|---|---|---|"]
+        for g in s["ranking"]:
+            e = s["evidence"][g]
+            lines.append(f"| {g} | {e['inclusion_probability']:.2f} | {e['best_term']} | "
+                         f"{e['t_max']:.1f} | {100 * e['explained_fraction']:.2f} % |")
+        lines.append("")
+    if "evidence" in figs:
+        lines += [f"![evidence](figures/{figs['evidence']})", ""]
+    lines += ["## Ledger", "", "| step | action | effect | fitted | held-out RMSE (Pa) | "
+              "log predictive gain (windows better, p) |", "|---|---|---|---|---|---|"]
+    for e in doc["ledger"]:
+        if e["action"] == "remove":
+            lines.append(f"| {e['step']} | remove | {e['effect']} | | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | p = {e['score_p_value']:.2g} |")
+        elif e["action"] in ("add", "reject"):
+            fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
+            lines.append(f"| {e['step']} | {e['action']} | {e['effect']} | {fitted} | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
+                         f"p = {e['score_p_value']:.2g}) |")
+        elif e["action"] == "search":
+            lines.append(f"| {e['step']} | search | {', '.join(e['supported']) or 'none'} "
+                         "supported | | | |")
+        else:
+            lines.append(f"| {e['step']} | {e['action']} | | | "
+                         f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")
+    if "disagreement_final" in figs:
+        lines += ["", "## Final model", "", f"![final](figures/{figs['disagreement_final']})"]
+    if disc.posterior_ is not None:
+        lines += ["", f"Posterior: emcee, {disc.posterior_.diagnostics_['steps']} steps, "
+                  f"converged {disc.posterior_.converged_} (R-hat <= "
+                  f"{disc.settings.fit.sampler.max_rhat}, ESS >= "
+                  f"{disc.settings.fit.sampler.target_ess:g})."]
+    lines += ["", f"Seed {doc['seed']}; pneubayes {doc['pneubayes_version']}; wall time "
+              f"{_fmt(doc['wall_time_s'], '.0f')} s.", ""]
+    return "\n".join(lines)
+
+
+__all__ = ["run_discover"]

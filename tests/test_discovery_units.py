@@ -1,0 +1,156 @@
+"""Discovery building blocks: one-step errors, grouped SINDy, the disagreement map."""
+
+import numpy as np
+import pytest
+
+from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.discovery.disagreement import RegimeSettings, _bins, flagged_bins
+from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, build_library
+from pneubayes.discovery.one_step import first_order_lag, one_step_data
+from pneubayes.discovery.rates import rate_terms
+from pneubayes.discovery.sindy import GroupedSINDy, cluster_se
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+from pneubayes.physics.chamber import net_mass_flow, pressure_rate
+from pneubayes.physics.valve import gompertz_area
+from pneubayes.simulation import SolverConfig
+
+TIGHT = SolverConfig(rtol=1e-8, atol_Pa=0.01, atol_K=1e-4, max_step_s=0.02,
+                     min_step_s=1e-14, max_steps=5_000_000)
+
+
+def _synthetic_library(rng, n=6000, signal=None):
+    """Three groups of correlated columns, two absorbers; y = signal + noise."""
+    base = rng.normal(size=(n, 3))
+    cols, groups, labels = [], [], []
+    for g, name in enumerate(("tube_delay", "valve_deadzone", "heat_transfer")):
+        for k in range(3):  # collinear trial strengths, as on a grid
+            cols.append(base[:, g] + 0.3 * k * rng.normal(size=n))
+            groups.append(name)
+            labels.append(f"{name} {k}")
+    x = np.column_stack(cols)
+    absorbers = rng.normal(size=(n, 2))
+    y = 50.0 * rng.normal(size=n) + absorbers @ np.array([300.0, -200.0])
+    if signal is not None:
+        y = y + signal(x)
+    return CandidateLibrary(target=y, columns=x, labels=labels, groups=groups,
+                            absorbers=absorbers, absorber_labels=["a", "b"],
+                            row_recording=np.zeros(n, int), row_sample=np.arange(n))
+
+
+def test_grouped_sindy_names_the_planted_group_and_nothing_in_noise():
+    rng = np.random.default_rng(0)
+    lib = _synthetic_library(rng, signal=lambda x: 12.0 * x[:, 4])  # valve_deadzone
+    s = GroupedSINDy(threshold_t=5.0, n_models=30, chunk_rows=100, seed=1).fit(lib)
+    assert s.ranking_[0] == "valve_deadzone"
+    assert s.evidence_["valve_deadzone"]["inclusion_probability"] >= 0.9
+    assert s.supported(0.6) == ["valve_deadzone"]
+    assert s.evidence_["valve_deadzone"]["best_term"] == "valve_deadzone 1"
+    # pure noise (the absorbers' part is projected out): nothing is supported
+    for seed in range(3):
+        lib0 = _synthetic_library(np.random.default_rng(10 + seed))
+        s0 = GroupedSINDy(threshold_t=5.0, n_models=30, chunk_rows=100, seed=seed).fit(lib0)
+        assert s0.supported(0.6) == []
+
+
+def test_cluster_se_matches_ols_se_for_white_noise():
+    rng = np.random.default_rng(3)
+    n = 20000
+    x = rng.normal(size=(n, 1))
+    x /= np.linalg.norm(x)
+    e = rng.normal(size=n) * 2.0
+    se = cluster_se(x, e, np.arange(n) // 50)[0]
+    assert se == pytest.approx(2.0, rel=0.1)  # unit column: OLS se = noise std
+
+
+def test_first_order_lag_is_exact_for_held_inputs():
+    u = np.array([0.0, 1.0, 1.0, 1.0, -2.0, -2.0])
+    dt, tau = 0.001, 0.003
+    y = first_order_lag(u, dt, tau)
+    a = np.exp(-dt / tau)
+    ref = [a * u[0] + (1 - a) * u[0]]
+    for k in range(1, u.size):
+        ref.append(a * ref[-1] + (1 - a) * u[k])
+    np.testing.assert_allclose(y, ref)
+
+
+def test_rate_terms_match_eq5_for_the_paper_model():
+    model = Model()
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.rig import Rig
+
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
+    rig = Rig(0.01, 101325.0, 551325.0)
+    rng = np.random.default_rng(0)
+    p = rng.uniform(1.1e5, 5.4e5, 50)
+    u = rng.uniform(-5, 5, 50)
+    x = rng.uniform(0, 0.02, 50)
+    v = rng.uniform(-0.1, 0.1, 50)
+    slots = model.lower(model.vector(params)[None], rig)[0]
+    t = rate_terms(slots, rig, p, u, x, x * 0 + v, np.full(50, rig.supply_pressure_Pa))
+    a_in = gompertz_area(u, *(params[f"inlet_{k}"] for k in
+                              ("offset_m2", "a_m2", "b", "c_per_V", "d_V")))
+    a_ex = gompertz_area(u, *(params[f"exhaust_{k}"] for k in
+                              ("offset_m2", "a_m2", "b", "c_per_V", "d_V")))
+    vol = 2e-6 + rig.bore_area_m2 * x
+    mdot = net_mass_flow(p, a_in, a_ex, rig.supply_pressure_Pa, rig.atmospheric_pressure_Pa,
+                         rig.gas)
+    ref = pressure_rate(p, vol, rig.bore_area_m2 * v, mdot, rig.gas)
+    np.testing.assert_allclose(t.total, ref, rtol=1e-10)
+
+
+def test_disagreement_bins_flag_a_planted_bias_only_where_it_is():
+    rng = np.random.default_rng(2)
+    n = 40000
+    lab = {f: np.array(["a"] * n, dtype=object) for f in
+           ("command band", "flow regime", "direction", "time since step",
+            "supply deviation", "piston speed", "pressure level")}
+    lab["direction"] = np.where(rng.random(n) < 0.5, "filling", "exhausting")
+    res = rng.normal(size=n) * 500.0
+    res[lab["direction"] == "filling"] += 300.0
+    cluster = np.arange(n) // 200
+    bins = _bins(res, lab, cluster, 500.0, RegimeSettings())
+    flagged = [(f, b["bin"]) for f, rows in bins.items() for b in rows if b["flagged"]]
+    assert ("direction", "filling") in flagged
+    assert ("direction", "exhausting") not in flagged
+    clean = _bins(rng.normal(size=n) * 500.0, lab, cluster, 500.0, RegimeSettings())
+    assert flagged_bins({"prediction": clean}) == []
+
+
+@pytest.fixture(scope="module")
+def delay_bench(tmp_path_factory):
+    out = tmp_path_factory.mktemp("one_step")
+    cfg = BenchConfig("SMC", "valve1", effects_from_names(["tube_delay"]), protocol="fixed",
+                      duration_s=3.0, seed=5, positions=(0.5,), ranges_V=(5.0,))
+    res = run_bench(cfg, out)
+    model, truth = Model.load_card(res.truth_path)
+    return read_recording(res.recordings[0]), model, truth
+
+
+def test_one_step_errors_are_sensor_noise_at_the_truth(delay_bench):
+    rec, model, truth = delay_bench
+    d = one_step_data(rec, 5)
+    e = d.errors(model, model.vector(truth)[None], TIGHT)[0]
+    # the measured pressure carries 500 Pa of noise at both ends of an interval
+    assert 500.0 < np.std(e) < 900.0
+    assert abs(np.mean(e)) < 30.0
+
+
+def test_library_finds_the_planted_delay_and_absorbs_parameter_errors(delay_bench):
+    rec, model, truth = delay_bench
+    plain = Model()
+    params = {k: truth[k] for k in plain.parameter_names}
+    d = one_step_data(rec, 5)
+    lib = build_library(plain, params, [d], LibraryGrid(), TIGHT)
+    s = GroupedSINDy(n_models=20, chunk_rows=100).fit(lib)
+    assert s.ranking_[0] == "tube_delay"
+    assert s.evidence_["tube_delay"]["inclusion_probability"] >= 0.9
+    # a pure parameter error lies in the absorbers' span: projected out almost entirely
+    wrong = dict(params, inlet_a_m2=params["inlet_a_m2"] * 1.001)
+    p = np.asarray(rec.pressure_Pa, dtype=np.float64)
+    r_true = d.rows(p[1:] - d.predict(plain, plain.vector(params)[None], TIGHT)[0])
+    r_wrong = d.rows(p[1:] - d.predict(plain, plain.vector(wrong)[None], TIGHT)[0])
+    diff = r_wrong - r_true
+    q, _ = np.linalg.qr(lib.absorbers)
+    left = diff - q @ (q.T @ diff)
+    assert np.linalg.norm(left) < 0.05 * np.linalg.norm(diff)
