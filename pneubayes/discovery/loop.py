@@ -270,6 +270,12 @@ class Discovery:
         train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)
         train_ws = WindowSet(train, s.fit.horizon_s, s.fit.stride_s)
         held_ws = WindowSet(held, s.fit.horizon_s, s.fit.stride_s)
+        if 0.5 ** held_ws.n_windows > s.max_p_value:
+            raise ValueError(
+                f"discover: only {held_ws.n_windows} held-out {s.fit.horizon_s:g}-s windows; "
+                f"the signed-rank test cannot reach p <= {s.max_p_value:g} with fewer than "
+                f"{math.ceil(math.log(s.max_p_value) / math.log(0.5))}: give longer "
+                "recordings or a larger holdout fraction")
         data_key = _fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
                                  for r in recs], s.holdout_fraction)
         noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
