@@ -1,0 +1,69 @@
+"""The whole discovery loop on bench data with a hidden effect, and with none."""
+
+import json
+
+import pytest
+
+from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.cli import main as cli_main
+from pneubayes.discovery.loop import Discovery, DiscoverySettings
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+
+
+def _bench(out, hidden, seed):
+    eff = effects_from_names(hidden)
+    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
+                                  seed=seed, positions=(0.5, 0.9), ranges_V=(5.0, 0.5)),
+                      out / "fixed")
+    moving = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="moving", duration_s=14.0,
+                                   seed=seed + 500, count=2), out / "moving")
+    return list(fixed.recordings) + list(moving.recordings), fixed.truth_path
+
+
+@pytest.mark.slow
+def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
+    paths, truth_path = _bench(tmp_path / "bench", ["tube_delay"], seed=11)
+    run = tmp_path / "run"
+    rc = cli_main(["discover", *map(str, paths), "--out", str(run), "--no-posterior",
+                   "--no-figures", "-q"])
+    assert rc == 0
+    doc = json.loads((run / "discovery.json").read_text())
+    assert doc["format"] == "pneubayes-discovery/1"
+    assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
+    _, truth = Model.load_card(truth_path)
+    est = doc["effects"][0]["parameters"]["tube_delay_s"]["estimate"]
+    assert est == pytest.approx(truth["tube_delay_s"], rel=0.1)
+    noise = doc["noise_floor_Pa"]
+    assert doc["rmse_final_Pa"] - noise < 0.5 * (doc["rmse_base_Pa"] - noise)
+    model, params = Model.load_card(run / "model.json")
+    assert model.effect_names == ("tube_delay",)
+    assert "tube_delay" in (run / "report.md").read_text()
+    out = capsys.readouterr().out
+    assert "+ tube_delay" in out
+    # a second run resumes from the cached fits and reaches the same answer
+    again = cli_main(["discover", *map(str, paths), "--out", str(run), "--no-posterior",
+                      "--no-figures", "-q"])
+    assert again == 0
+    doc2 = json.loads((run / "discovery.json").read_text())
+    assert doc2["effects"][0]["parameters"] == doc["effects"][0]["parameters"]
+
+
+@pytest.mark.slow
+def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
+    paths, _ = _bench(tmp_path / "bench", [], seed=12)
+    d = Discovery(DiscoverySettings(posterior=False), tmp_path / "run",
+                  log=lambda m: None).fit([read_recording(p) for p in paths])
+    doc = d.result()
+    assert doc["effects"] == []
+    assert doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
+    assert doc["rmse_base_Pa"] < 1.2 * doc["noise_floor_Pa"]
+
+
+def test_discover_refuses_a_held_out_set_too_small_to_test(tmp_path):
+    cfg = BenchConfig("AIR37", "valve1", (), protocol="fixed", duration_s=7.0, seed=1,
+                      positions=(0.5, 0.9), ranges_V=(5.0,))
+    res = run_bench(cfg, tmp_path)
+    recs = [read_recording(p) for p in res.recordings]
+    with pytest.raises(ValueError, match="held-out"):
+        Discovery(DiscoverySettings(posterior=False), None, log=lambda m: None).fit(recs)
