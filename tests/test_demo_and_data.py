@@ -30,8 +30,10 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
             assert r["true model"] < r["plain thin-port"]
     assert (tmp_path / "demo_prediction.png").stat().st_size > 10_000
     out = capsys.readouterr().out
-    assert "plain thin-port" in out and "identification" in out
-    ident = summary["identification"]
-    assert (tmp_path / "fit" / "posterior.nc").exists()
-    for m in ident["predictions"]:
-        assert 0.0 <= m["coverage_90"] <= 1.0 and m["rmse_Pa"] > m["noise_floor_Pa"]
+    assert "plain thin-port" in out and "named: tube_delay" in out
+    doc = json.loads((tmp_path / "discover" / "discovery.json").read_text())
+    assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
+    assert doc["rmse_final_Pa"] < 0.2 * doc["rmse_base_Pa"]
+    pred = summary["discovery"]["prediction"]
+    assert (tmp_path / "discover" / "posterior.nc").exists()
+    assert 0.0 <= pred["coverage_90"] <= 1.0

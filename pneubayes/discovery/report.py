@@ -2,12 +2,16 @@
 
 ``RUNDIR/discovery.json`` (format ``pneubayes-discovery/1``), ``RUNDIR/model.json`` (the
 final model card: posterior median, or the refined point without a posterior),
-``RUNDIR/disagreement.json`` (the regime maps of every round), ``RUNDIR/report.md``
-and ``RUNDIR/figures/``. Everything is written atomically.
+``RUNDIR/posterior.nc`` with ``RUNDIR/chain.h5`` (the final model's emcee posterior, so
+``pneubayes predict RUNDIR`` works), ``RUNDIR/disagreement.json`` (the regime maps of
+every round), ``RUNDIR/report.md`` and ``RUNDIR/figures/``. Files are written
+atomically.
 """
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
@@ -36,6 +40,14 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
         estimate = "refined (multiple shooting)"
     final.model.save_card(params, out / "model.json",
                           extra={"fit": {"estimate": estimate, "by": "pneubayes discover"}})
+    if disc.posterior_ is not None:  # beside the card, as pneubayes fit writes it
+        idata = disc.posterior_.inference_data({
+            "seed": settings.seed, "pneubayes_version": doc["pneubayes_version"],
+            "model_card": json.dumps(final.model.to_card(params))})
+        tmp = out / ".posterior.nc.tmp"
+        idata.to_netcdf(str(tmp))
+        os.replace(tmp, out / "posterior.nc")
+        doc["posterior"]["file"] = "posterior.nc"
     write_json_atomic(out / "disagreement.json", {"rounds": disc.maps_})
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
