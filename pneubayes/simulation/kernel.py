@@ -182,7 +182,19 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
     t_start = t[i0]
     while j + 1 < n and t[j + 1] + delay <= t_start:
         j += 1
-    spool = u[j]  # steady spool at the start
+    spool = u[j]  # steady spool at the start of the recording
+    if tau_s > 0.0 and i0 > 0:
+        # mid-recording: the spool state follows from the command history (the lag in
+        # closed form over the held samples of up to 20 time constants before t_start)
+        jj = j
+        while jj > 0 and t_start - (t[jj] + delay) < 20.0 * tau_s:
+            jj -= 1
+        spool = u[jj]
+        for k in range(jj, j):
+            spool = u[k] + (spool - u[k]) * math.exp(-(t[k + 1] - t[k]) / tau_s)
+        span = t_start - (t[j] + delay)
+        if span > 0.0:
+            spool = u[j] + (spool - u[j]) * math.exp(-span / tau_s)
     h = hmax
     steps = 0
     s_cached = math.nan
