@@ -125,8 +125,9 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
             trials.append(aug.vector({**base, name: v}))
             unit = {"tube_delay": ("delay", 1e3, "ms"), "valve_deadzone": ("dead band", 1, "V"),
                     "supply_fluctuation": ("measured supply x", 1, ""),
-                    "cylinder_leak": ("orifice leak", 1e9, "mm^2 x 1e-3")}[g]
-            trial_labels.append((g, f"{unit[0]} {v * unit[1]:g} {unit[2]}".strip()))
+                    "cylinder_leak": ("orifice leak", None, "")}[g]
+            label = unit[0] if unit[1] is None else f"{unit[0]} {v * unit[1]:g} {unit[2]}"
+            trial_labels.append((g, label.strip()))
     lam = None
     if "cylinder_leak" in groups:
         lam, lam_base = _augmented(model, params, ["cylinder_leak"], "laminar")

@@ -66,6 +66,11 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
     return doc
 
 
+def _md(text) -> str:
+    """Text safe inside a Markdown table cell."""
+    return str(text).replace("|", "\\|")
+
+
 def _fmt(v, spec=".4g"):
     return "-" if v is None else format(v, spec)
 
@@ -105,7 +110,7 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
         lines += ["| regime | bin | samples | RMS (Pa) | excess over noise (Pa) | bias z |",
                   "|---|---|---|---|---|---|"]
         for fam, b in flags[:12]:
-            lines.append(f"| {fam} | {b['bin']} | {b['n']} | {b['rms']:.0f} | "
+            lines.append(f"| {fam} | {_md(b['bin'])} | {b['n']} | {b['rms']:.0f} | "
                          f"{b['excess_rms']:.0f} | {b['z_bias']:.1f} |")
     else:
         lines.append("No regime bin is flagged.")
@@ -119,7 +124,7 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
                   "|---|---|---|---|---|"]
         for g in s["ranking"]:
             e = s["evidence"][g]
-            lines.append(f"| {g} | {e['inclusion_probability']:.2f} | {e['best_term']} | "
+            lines.append(f"| {g} | {e['inclusion_probability']:.2f} | {_md(e['best_term'])} | "
                          f"{e['t_max']:.1f} | {100 * e['explained_fraction']:.2f} % |")
         lines.append("")
     if "evidence" in figs:
