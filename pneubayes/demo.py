@@ -176,9 +176,9 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int) -> dict:
                        if "median" in p else f"{n} = {p['estimate']:.4g}"
                        for n, p in e["parameters"].items())
         print(f"  4. named: {e['name']}: {ps}")
-        print(f"     held-out RMSE {e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa, "
-              f"log predictive gain {e['evidence']['score_gain']:.0f} "
-              f"(signed-rank p = {e['evidence']['score_p_value']:.2g})")
+        print(f"     held-out RMSE {e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa "
+              f"(signed-rank p = {e['evidence']['score_p_value']:.2g}), held-out log "
+              f"predictive gain {e['evidence']['score_gain']:.0f}")
     gap0 = max(doc["rmse_base_Pa"] - noise, 0.0)
     gap1 = max(doc["rmse_final_Pa"] - noise, 0.0)
     closed = f", {100 * (1 - gap1 / gap0):.0f} % of the gap closed" if gap0 > 0 else ""

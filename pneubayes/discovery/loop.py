@@ -10,12 +10,11 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
 4. **Name and add** the best-supported effect (the catalogue's effect object, started
    at the strength of its best term) and refit.
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
-   the 2-s prediction RMSE must drop *and* the held-out log predictive density must
-   rise, significantly: the per-window gains (2-s windows are the independent units)
-   must pass a one-sided Wilcoxon signed-rank test at ``max_p_value``. The gains are
-   heavy-tailed -- a model that is wrong in a few windows loses heavily there -- so a
-   rank test is used instead of a normal standard error. Otherwise the effect is
-   rejected and the next supported group is tried.
+   the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
+   mean squared error (2-s windows are the independent units) must pass a one-sided
+   Wilcoxon signed-rank test at ``max_p_value``, a rank test because the reductions
+   are heavy-tailed -- *and* the held-out log predictive density must rise. Otherwise
+   the effect is rejected and the next supported group is tried.
 6. **Prune**: once an effect is added, each earlier one is refitted away; if the model
    without it is not significantly worse (the same test), it only stood in for the
    newcomer and is removed.
@@ -70,8 +69,8 @@ class DiscoverySettings:
     block: one-step errors summed per regression row. threshold_t, n_bags, chunk_rows:
     the grouped SINDy (:class:`GroupedSINDy`). min_inclusion: a group is *supported*
     when its bagged inclusion probability reaches this. max_p_value: the one-sided
-    Wilcoxon signed-rank test of the per-window log predictive density gains must
-    reach this level. max_effects: stop after adding this many. max_trials_per_round:
+    Wilcoxon signed-rank test of the per-window squared-error reductions must reach
+    this level. max_effects: stop after adding this many. max_trials_per_round:
     supported groups refitted per round. max_refine_restarts: refinement is restarted
     from where it stopped until it converges, at most this many times.
     """
@@ -132,6 +131,7 @@ class StepFit:
     train_rmse_Pa: float
     heldout_rmse_Pa: float
     heldout_lpd_per_window: np.ndarray
+    heldout_mse_per_window: np.ndarray
     noise_scale_Pa: float
     noise_ar1: float
     covariance: np.ndarray | None = None
@@ -222,7 +222,8 @@ class Discovery:
         sig, rho = _ar1_mode(ar1_sums(r_tr)[0], r_tr[0].size)
         r_ho = held_ws.residuals(model, theta, s.fit.refine_solver)[0]
         return StepFit(model, params, float(np.sqrt(np.mean(r_tr**2))),
-                       float(np.sqrt(np.mean(r_ho**2))), _window_lpd(r_ho, sig, rho), sig, rho,
+                       float(np.sqrt(np.mean(r_ho**2))), _window_lpd(r_ho, sig, rho),
+                       np.mean(r_ho**2, axis=1), sig, rho,
                        wall_time_s=time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ search
@@ -350,8 +351,8 @@ class Discovery:
                 ledger.append(entry)
                 self.log(f"discover: {'ADD' if ok else 'reject'} {g}: held-out RMSE "
                          f"{current.heldout_rmse_Pa:.0f} -> {trial.heldout_rmse_Pa:.0f} Pa, "
-                         f"log predictive gain {gain:.1f} in {int(np.sum(diff > 0))}/"
-                         f"{diff.size} windows (p = {pval:.2g})")
+                         f"better in {int(np.sum(diff > 0))}/{diff.size} windows "
+                         f"(p = {pval:.2g}), log predictive gain {gain:.1f}")
                 if ok:
                     accepted.append({"name": g, "evidence": sindy.evidence_[g],
                                      "score_gain": gain, "score_p_value": pval,
@@ -381,8 +382,8 @@ class Discovery:
     def _better(self, new: StepFit, old: StepFit) -> tuple[bool, float, float, np.ndarray]:
         """Does ``new`` predict the held-out data better than ``old`` (RMSE and the
         signed-rank test of per-window log predictive gains)?"""
-        diff = new.heldout_lpd_per_window - old.heldout_lpd_per_window
-        gain = float(diff.sum())
+        gain = float(np.sum(new.heldout_lpd_per_window - old.heldout_lpd_per_window))
+        diff = old.heldout_mse_per_window - new.heldout_mse_per_window
         pval = _signed_rank_p(diff)
         ok = (new.heldout_rmse_Pa < old.heldout_rmse_Pa and gain > 0
               and pval <= self.settings.max_p_value)

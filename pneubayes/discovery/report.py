@@ -87,7 +87,7 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
     lines += ["## Result", ""]
     if doc["effects"]:
         lines += ["| effect | parameter | estimate | 90 % interval | inclusion | "
-                  "held-out RMSE before -> after (Pa) | log predictive gain (p) |",
+                  "held-out RMSE before -> after (Pa) | log predictive gain (p of the RMSE drop) |",
                   "|---|---|---|---|---|---|---|"]
         for e in doc["effects"]:
             for n, p in e["parameters"].items():
