@@ -10,7 +10,9 @@ a group holds one catalogue effect over a grid of strengths:
 - ``valve_deadzone``: dead bands of a grid of half-widths;
 - ``supply_fluctuation``: the inlet at the measured instead of the nominal supply (the
   supply deviation times the inlet flow's sensitivity, to all orders);
-- ``cylinder_leak``: the orifice and the laminar leak laws (eq. 9);
+- ``cylinder_leak``: the laminar leak law ``k (p^2 - P_atm^2)``. The paper's orifice
+  leak (eq. 9) has the exhaust port's own law, so a model with a free exhaust offset
+  already contains it (eq. 10 sees only their sum): it can never be *missing*;
 - ``heat_transfer``: wall heat exchange. A one-step prediction starts at the wall
   temperature, so it cannot show heat transfer; its terms are ``-(p - LP_r[p]) dt``
   for a grid of rates r instead: after a fill or a vent the air relaxes to the wall
@@ -36,9 +38,9 @@ from pneubayes.simulation import SolverConfig
 EFFECT_GROUPS = ("tube_delay", "spool_lag", "valve_deadzone", "supply_fluctuation",
                  "cylinder_leak", "heat_transfer")
 
-#: The parameter of each effect that the grid varies (the orifice leak is the default).
+#: The parameter of each effect that the grid varies (the laminar leak is added apart).
 _GRID_PARAMETER = {"tube_delay": "tube_delay_s", "valve_deadzone": "deadzone_halfwidth_V",
-                   "supply_fluctuation": "supply_gain", "cylinder_leak": "leak_area_m2"}
+                   "supply_fluctuation": "supply_gain"}
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,6 @@ class LibraryGrid:
     lags_s: tuple[float, ...] = (0.001, 0.002, 0.004, 0.007, 0.012, 0.02)
     deadbands_V: tuple[float, ...] = (0.05, 0.1, 0.2, 0.35, 0.6, 1.0)
     supply_gains: tuple[float, ...] = (1.0,)
-    leak_area_m2: float = 2e-9
     leak_conductance_kg_per_s_Pa2: float = 1e-16
     heat_rates_per_s: tuple[float, ...] = (1.0, 3.0, 10.0, 30.0, 100.0)
 
@@ -88,11 +89,8 @@ def _sensitivity_points(model: Model, theta: np.ndarray):
     return np.array(rows), plus - minus, steps
 
 
-def _augmented(model: Model, params: dict, groups: Sequence[str], leak_form: str):
-    """The model plus every candidate effect (neutral), and its base parameter vector."""
-    effects = [g for g in groups if g in _GRID_PARAMETER and g != "cylinder_leak"]
-    if "cylinder_leak" in groups:
-        effects.append(make_effect("cylinder_leak", form=leak_form))
+def _augmented(model: Model, params: dict, effects: Sequence):
+    """The model plus the given candidate effects (neutral), and its base parameters."""
     aug = model
     for e in effects:
         aug = aug.with_effect(e)
@@ -112,25 +110,23 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
         groups = [g for g in EFFECT_GROUPS if not model.has(g)]
     theta = model.vector(params)
     sens_points, widths, steps = _sensitivity_points(model, theta)
-    aug, base = _augmented(model, params, groups, "orifice")
+    aug, base = _augmented(model, params, [g for g in groups if g in _GRID_PARAMETER])
     trials, trial_labels = [aug.vector(base)], []
     for g in groups:
         if g not in _GRID_PARAMETER:
             continue
         name = _GRID_PARAMETER[g]
         values = {"tube_delay": grid.delays_s, "valve_deadzone": grid.deadbands_V,
-                  "supply_fluctuation": grid.supply_gains,
-                  "cylinder_leak": (grid.leak_area_m2,)}[g]
+                  "supply_fluctuation": grid.supply_gains}[g]
         for v in values:
             trials.append(aug.vector({**base, name: v}))
             unit = {"tube_delay": ("delay", 1e3, "ms"), "valve_deadzone": ("dead band", 1, "V"),
-                    "supply_fluctuation": ("measured supply x", 1, ""),
-                    "cylinder_leak": ("orifice leak", None, "")}[g]
-            label = unit[0] if unit[1] is None else f"{unit[0]} {v * unit[1]:g} {unit[2]}"
-            trial_labels.append((g, label.strip()))
+                    "supply_fluctuation": ("measured supply x", 1, "")}[g]
+            trial_labels.append((g, f"{unit[0]} {v * unit[1]:g} {unit[2]}".strip()))
     lam = None
     if "cylinder_leak" in groups:
-        lam, lam_base = _augmented(model, params, ["cylinder_leak"], "laminar")
+        lam, lam_base = _augmented(model, params, [make_effect("cylinder_leak",
+                                                                form="laminar")])
     targets, cols, absorbers, rec_idx, first = [], [], [], [], []
     labels, group_of = [], []
     for i, d in enumerate(data):

@@ -240,9 +240,8 @@ class Discovery:
         term = evidence.get("best_term") or ""
         num = [float(t) for t in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", term)]
         start = dict(fit.params)
-        if group == "cylinder_leak":
-            form = "laminar" if term.startswith("laminar") else "orifice"
-            effect = make_effect("cylinder_leak", form=form)
+        if group == "cylinder_leak":  # the laminar law: an orifice leak is never missing
+            effect = make_effect("cylinder_leak", form="laminar")
         else:
             effect = make_effect(group)
         model = fit.model.with_effect(effect)
