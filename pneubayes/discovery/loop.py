@@ -7,14 +7,16 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    shooting (:mod:`pneubayes.inference`).
 2. **Map** the disagreement (:mod:`disagreement`).
 3. **Search**: grouped SINDy on the one-step residual (:mod:`library`, :mod:`sindy`).
-4. **Name and add** the best-supported effect (the catalogue's effect object, started
-   at the strength of its best term) and refit.
+4. **Name and add**: the ``max_trials_per_round`` best-supported effects (the
+   catalogue's effect objects, started at the strength of their best terms) are each
+   added and refitted.
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
    mean squared error (2-s windows are the independent units) must pass a one-sided
    Wilcoxon signed-rank test at ``max_p_value``, a rank test because the reductions
    are heavy-tailed -- *and* the held-out log predictive density must rise. Otherwise
-   the effect is rejected and the next supported group is tried.
+   the effect is rejected. Of those that pass, the one with the lowest held-out RMSE
+   is added.
 6. **Prune**: once an effect is added, each earlier one is refitted away; if the model
    without it is not significantly worse (the same test), it only stood in for the
    newcomer and is removed.
@@ -316,7 +318,7 @@ class Discovery:
             if not supported:
                 self.log("discover: no effect is supported; stop")
                 break
-            added = False
+            trials = []
             for g in supported[: s.max_trials_per_round]:
                 model2, start2 = self._candidate(current, g, sindy.evidence_[g])
                 trial = self._fit(model2, start2, train_ws, held_ws, data_key)
@@ -335,33 +337,41 @@ class Discovery:
                                    "heldout_rmse_Pa": control.heldout_rmse_Pa,
                                    "heldout_lpd": control.heldout_lpd})
                     current = control
+                trials.append((g, model2, start2, trial))
+            # every trial against the final current fit; the best that passes is added
+            passing = []
+            for g, model2, start2, trial in trials:
                 ok, gain, pval, diff = self._better(trial, current)
-                entry = {"step": len(ledger), "action": "add" if ok else "reject",
-                         "effect": g, "effect_options": model2.effect(g).options(),
-                         "start": {k: start2[k] for k in model2.effect(g).parameter_names()},
-                         "fitted": {k: trial.params[k]
-                                    for k in model2.effect(g).parameter_names()},
-                         "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
-                         "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
-                         "score_gain": gain, "score_p_value": pval,
-                         "windows_improved": int(np.sum(diff > 0)),
-                         "windows": int(diff.size),
-                         "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s}
-                ledger.append(entry)
-                self.log(f"discover: {'ADD' if ok else 'reject'} {g}: held-out RMSE "
+                names = model2.effect(g).parameter_names()
+                ledger.append({
+                    "step": len(ledger), "action": "pass" if ok else "reject", "effect": g,
+                    "effect_options": model2.effect(g).options(),
+                    "start": {k: start2[k] for k in names},
+                    "fitted": {k: trial.params[k] for k in names},
+                    "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                    "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                    "score_gain": gain, "score_p_value": pval,
+                    "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
+                    "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s})
+                self.log(f"discover: {'passes' if ok else 'reject'} {g}: held-out RMSE "
                          f"{current.heldout_rmse_Pa:.0f} -> {trial.heldout_rmse_Pa:.0f} Pa, "
                          f"better in {int(np.sum(diff > 0))}/{diff.size} windows "
                          f"(p = {pval:.2g}), log predictive gain {gain:.1f}")
                 if ok:
-                    accepted.append({"name": g, "evidence": sindy.evidence_[g],
-                                     "score_gain": gain, "score_p_value": pval,
-                                     "rmse_before_Pa": current.heldout_rmse_Pa,
-                                     "rmse_after_Pa": trial.heldout_rmse_Pa})
-                    current = trial
-                    added = True
-                    current = self._prune(current, accepted, ledger, train_ws, held_ws,
-                                          data_key)
-                    break
+                    passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
+            added = bool(passing)
+            if passing:
+                _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
+                self.log(f"discover: ADD {g} (the largest held-out improvement)")
+                ledger.append({"step": len(ledger), "action": "add", "effect": g,
+                               "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                               "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                               "score_gain": gain, "score_p_value": pval})
+                accepted.append({"name": g, "evidence": sindy.evidence_[g],
+                                 "score_gain": gain, "score_p_value": pval,
+                                 "rmse_before_Pa": current.heldout_rmse_Pa,
+                                 "rmse_after_Pa": trial.heldout_rmse_Pa})
+                current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key)
             if not added:
                 self.log("discover: no supported effect passed verification; stop")
                 break

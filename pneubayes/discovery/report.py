@@ -136,7 +136,11 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
             lines.append(f"| {e['step']} | remove | {e['effect']} | | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | p = {e['score_p_value']:.2g} |")
-        elif e["action"] in ("add", "reject"):
+        elif e["action"] == "add":
+            lines.append(f"| {e['step']} | add | {e['effect']} | | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | {e['score_gain']:.1f} (p = {e['score_p_value']:.2g}) |")
+        elif e["action"] in ("pass", "reject"):
             fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
             lines.append(f"| {e['step']} | {e['action']} | {e['effect']} | {fitted} | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
