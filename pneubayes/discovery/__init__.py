@@ -1,9 +1,10 @@
 """Discovery: where a fitted model disagrees with recordings, and which effect it misses.
 
 Layers: :mod:`~pneubayes.discovery.rates` (the model's dp/dt at the measured state),
-:mod:`~pneubayes.discovery.weak_form` (dp/dt residuals in integral form),
+:mod:`~pneubayes.discovery.one_step` (dp/dt residuals as one-step prediction errors),
 :mod:`~pneubayes.discovery.library` (physically named candidate terms),
 :mod:`~pneubayes.discovery.sindy` (grouped sparse regression with block bagging),
-:mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime) and
+:mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime),
+:mod:`~pneubayes.discovery.verification` (held-out scores and the acceptance test) and
 :mod:`~pneubayes.discovery.loop` (fit, map, search, name, add, verify, repeat).
 """

@@ -50,6 +50,13 @@ from pneubayes.discovery.disagreement import RegimeSettings, disagreement_map, f
 from pneubayes.discovery.library import LibraryGrid, build_library
 from pneubayes.discovery.one_step import one_step_data
 from pneubayes.discovery.sindy import GroupedSINDy
+from pneubayes.discovery.verification import (
+    StepFit,
+    ar1_noise_mode,
+    compare_heldout,
+    split_recordings,
+    window_lpd,
+)
 from pneubayes.effects import make_effect
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import FitSettings, starting_point
@@ -106,70 +113,6 @@ class DiscoverySettings:
         return asdict(self)
 
 
-# ---------------------------------------------------------------------------- helpers
-def split_recordings(recordings, holdout_fraction: float, horizon_s: float):
-    """(train, held): the first and last parts of every recording (time kept)."""
-    train, held = [], []
-    for rec in recordings:
-        n = rec.n_samples
-        dt = float(np.median(np.diff(rec.time_s)))
-        cut = int(round(n * (1.0 - holdout_fraction)))
-        need = int(round(horizon_s / dt)) + 1
-        if cut < need or n - cut < need:
-            raise ValueError(f"{rec.source}: {n * dt:.3g} s is too short to hold out "
-                             f"{holdout_fraction:.2g} of it and keep {horizon_s:g}-s windows "
-                             "on both sides")
-        train.append(rec.slice(0, cut))
-        held.append(rec.slice(cut, None))
-    return train, held
-
-
-@dataclass
-class StepFit:
-    """One fitted model and its scores."""
-
-    model: Model
-    params: dict
-    train_rmse_Pa: float
-    heldout_rmse_Pa: float
-    heldout_lpd_per_window: np.ndarray
-    heldout_mse_per_window: np.ndarray
-    noise_scale_Pa: float
-    noise_ar1: float
-    covariance: np.ndarray | None = None
-    wall_time_s: float = 0.0
-
-    @property
-    def heldout_lpd(self) -> float:
-        return float(np.sum(self.heldout_lpd_per_window))
-
-
-def _ar1_mode(sums: np.ndarray, n: int) -> tuple[float, float]:
-    a, b, c = sums
-    rho = float(np.clip(b / c, -0.99, 0.999))
-    ss = a - 2 * rho * b + rho * rho * c
-    return math.sqrt(ss / n), rho
-
-
-def _window_lpd(res: np.ndarray, sigma: float, rho: float) -> np.ndarray:
-    """AR(1) log-density of each window's residuals ``(W, K)`` -> ``(W,)``."""
-    e = res.copy()
-    e[:, 1:] -= rho * res[:, :-1]
-    k = res.shape[1]
-    return (-0.5 * np.sum(e * e, axis=1) / sigma**2 - k * math.log(sigma)
-            - 0.5 * k * math.log(2 * math.pi))
-
-
-def _signed_rank_p(diff: np.ndarray) -> float:
-    """One-sided p-value that the per-window gains ``diff`` are centred above zero."""
-    from scipy.stats import wilcoxon
-
-    d = np.asarray(diff, dtype=np.float64)
-    if d.size == 0 or np.all(d == 0):
-        return 1.0
-    return float(wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue)
-
-
 def _fingerprint(*parts) -> str:
     h = hashlib.sha256()
     for p in parts:
@@ -221,10 +164,10 @@ class Discovery:
                 write_json_atomic(path, {"model": model.to_card(params), "params": params})
         theta = model.vector(params)[None]
         r_tr = train_ws.residuals(model, theta, s.fit.refine_solver)
-        sig, rho = _ar1_mode(ar1_sums(r_tr)[0], r_tr[0].size)
+        sig, rho = ar1_noise_mode(ar1_sums(r_tr)[0], r_tr[0].size)
         r_ho = held_ws.residuals(model, theta, s.fit.refine_solver)[0]
         return StepFit(model, params, float(np.sqrt(np.mean(r_tr**2))),
-                       float(np.sqrt(np.mean(r_ho**2))), _window_lpd(r_ho, sig, rho),
+                       float(np.sqrt(np.mean(r_ho**2))), window_lpd(r_ho, sig, rho),
                        np.mean(r_ho**2, axis=1), sig, rho,
                        wall_time_s=time.perf_counter() - t0)
 
@@ -388,15 +331,8 @@ class Discovery:
         self.wall_time_s_ = time.perf_counter() - t_start
         return self
 
-    def _better(self, new: StepFit, old: StepFit) -> tuple[bool, float, float, np.ndarray]:
-        """Does ``new`` predict the held-out data better than ``old`` (RMSE and the
-        signed-rank test of per-window log predictive gains)?"""
-        gain = float(np.sum(new.heldout_lpd_per_window - old.heldout_lpd_per_window))
-        diff = old.heldout_mse_per_window - new.heldout_mse_per_window
-        pval = _signed_rank_p(diff)
-        ok = (new.heldout_rmse_Pa < old.heldout_rmse_Pa and gain > 0
-              and pval <= self.settings.max_p_value)
-        return ok, gain, pval, diff
+    def _better(self, new: StepFit, old: StepFit):
+        return compare_heldout(new, old, self.settings.max_p_value)
 
     def _prune(self, current: StepFit, accepted: list, ledger: list, train_ws, held_ws,
                data_key) -> StepFit:
