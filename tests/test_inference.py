@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from scipy import integrate
+from scipy import integrate, special
 
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.inference.likelihood import (
@@ -11,6 +11,9 @@ from pneubayes.inference.likelihood import (
     ar1_marginal_loglike,
     ar1_sums,
     draw_ar1_noise,
+    draw_start_noise,
+    start_noise_loglike,
+    start_noise_sums,
 )
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
@@ -89,6 +92,79 @@ def test_ar1_noise_draws_follow_the_conditional_posterior():
     se = d.std(axis=0) / np.sqrt(d.shape[0])
     assert abs(d[:, 1].mean() - m_rho) < 5 * se[1]
     assert abs(d[:, 0].mean() - m_sig) < 5 * se[0]
+
+
+def _start_noise_case(seed, n_windows=3, k=40, sigma=2.0, rho=0.4):
+    """Residuals r_k = n_k - S_k n_0 of stationary AR(1) noise, with decaying S."""
+    rng = np.random.default_rng(seed)
+    sens = np.exp(-np.arange(k + 1)[None, :] / rng.uniform(3, 200, size=(n_windows, 1)))
+    noise = np.empty((n_windows, k + 1))
+    noise[:, 0] = rng.normal(size=n_windows) * sigma / np.sqrt(1 - rho**2)
+    for j in range(1, k + 1):
+        noise[:, j] = rho * noise[:, j - 1] + sigma * rng.normal(size=n_windows)
+    return noise[:, 1:] - sens[:, 1:] * noise[:, :1], sens
+
+
+def _dense_quad_logdet(r, sens, rhos):
+    """Per rho: the quadratic form and log-determinant of the dense correlation of
+    ``n - S n_0`` (sigma = 1), from its Cholesky factor."""
+    n_w, k = r.shape
+    idx = np.arange(k + 1)
+    quad, logdet = np.zeros(rhos.size), np.zeros(rhos.size)
+    for j, rho in enumerate(rhos):
+        corr = rho ** np.abs(idx[:, None] - idx[None, :]) / (1 - rho**2)
+        for w in range(n_w):
+            m = np.hstack([-sens[w, 1:, None], np.eye(k)])
+            chol = np.linalg.cholesky(m @ corr @ m.T)
+            z = np.linalg.solve(chol, r[w])
+            quad[j] += z @ z
+            logdet[j] += 2 * np.sum(np.log(np.diag(chol)))
+    return quad, logdet
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_start_noise_likelihood_equals_dense_gaussian_quadrature(seed):
+    # long enough windows that rho's conditional is near-Gaussian (the draws' approximation)
+    r, sens = _start_noise_case(seed, n_windows=3, k=200)
+    n = r.size
+    sig_b, rho_b = (0.1, 100.0), (-0.99, 0.999)
+    pooled, win = start_noise_sums(r[None], sens[None])
+    got, summary = start_noise_loglike(pooled, win, n, sig_b, rho_b)
+    rhos = np.linspace(0.05, 0.75, 101)
+    quad, logdet = _dense_quad_logdet(r, sens, rhos)
+    # sigma (prior 1 / (sigma ln(hi/lo))) by the textbook Gamma integral, rho on the grid
+    log_f = (special.gammaln(n / 2) - np.log(2) + 0.5 * n * np.log(2 / quad) - 0.5 * logdet
+             - 0.5 * n * np.log(2 * np.pi) - np.log(np.log(sig_b[1] / sig_b[0]))
+             - np.log(rho_b[1] - rho_b[0]))
+    top = log_f.max()
+    assert got[0] == pytest.approx(top + np.log(integrate.trapezoid(np.exp(log_f - top), rhos)),
+                                   abs=2e-3)
+    # the noise draws follow the posterior's moments
+    post = np.exp(log_f - top)
+    post /= integrate.trapezoid(post, rhos)
+    mean_rho = integrate.trapezoid(post * rhos, rhos)
+    sd_rho = np.sqrt(integrate.trapezoid(post * (rhos - mean_rho) ** 2, rhos))
+    e_sigma_given_rho = (np.sqrt(quad / 2) * np.exp(special.gammaln((n - 1) / 2)
+                                                    - special.gammaln(n / 2)))
+    mean_sigma = integrate.trapezoid(post * e_sigma_given_rho, rhos)
+    d = draw_start_noise(np.repeat(summary, 40000, axis=0), n, np.random.default_rng(seed),
+                         rho_b)
+    assert d[:, 0].mean() == pytest.approx(mean_sigma, rel=0.005)
+    assert d[:, 1].mean() == pytest.approx(mean_rho, abs=0.1 * sd_rho)
+    assert d[:, 1].std() == pytest.approx(sd_rho, rel=0.1)
+
+
+def test_start_noise_likelihood_prefers_the_true_start_sensitivity():
+    # a persistent start error is explained by S ~ 1, not by S = 0 (the start forgotten)
+    r, sens = _start_noise_case(5, n_windows=30, k=200, rho=0.0)
+    n = r.size
+    pooled, win = start_noise_sums(r[None], sens[None])
+    right, _ = start_noise_loglike(pooled, win, n)
+    forget = np.zeros_like(sens)
+    forget[:, 0] = 1.0
+    pooled0, win0 = start_noise_sums(r[None], forget[None])
+    wrong, _ = start_noise_loglike(pooled0, win0, n)
+    assert right[0] > wrong[0] + 10.0
 
 
 def test_window_set_shapes_and_truth_residuals(bench):

@@ -32,6 +32,15 @@ def test_ar1_noise_has_the_requested_statistics():
     assert lag1 == pytest.approx(0.8, abs=0.02)
 
 
+def test_stationary_ar1_noise_is_stationary_from_the_first_sample():
+    e = ar1_noise(np.random.default_rng(3), np.array([2.0]), np.array([0.8]), (1, 4000, 50),
+                  stationary=True)
+    sd = 2.0 / np.sqrt(1 - 0.8**2)
+    assert np.std(e[0, :, 0]) == pytest.approx(sd, rel=0.04)
+    assert np.std(e[0, :, -1]) == pytest.approx(sd, rel=0.04)
+    assert np.corrcoef(e[0, :, 0], e[0, :, 1])[0, 1] == pytest.approx(0.8, abs=0.02)
+
+
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
     root = tmp_path_factory.mktemp("pipeline")

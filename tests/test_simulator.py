@@ -18,6 +18,7 @@ from pneubayes.simulation import (
     rig_constants,
     simulate,
     simulate_windows,
+    simulate_windows_sensitivity,
 )
 from pneubayes.simulation.reference import reference_simulate
 
@@ -294,6 +295,44 @@ def test_windows_equal_simulations_started_at_those_samples(rig, hand, standard)
                      inputs.supply_pressure_Pa[sl])
         alone = simulate(model, params, sub, rig, p0[w], standard).pressure_Pa[0]
         assert np.array_equal(win[0, w], alone)
+
+
+def test_start_sensitivity_matches_finite_differences(rig, hand, standard):
+    model = Model(["cylinder_leak"])
+    params = valve_preset("valve1").parameters()
+    params.update(dead_volume_m3=1.5e-6, leak_area_m2=3e-9)
+    n = 801
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(np.random.default_rng(4), n, 1e-3, levels=(-1.0, 1.0)),
+                    np.full(n, 0.01), np.full(n, 6.0e5))
+    starts = np.array([0, 200, 400])
+    p0 = np.array([2.0e5, 3.0e5, 4.0e5])
+    tight = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=1e-6, max_step_s=1e-3,
+                         min_step_s=1e-14, max_steps=10_000_000)
+    out, sens = simulate_windows_sensitivity(model, params, inputs, rig, starts, 400, p0, tight)
+    assert np.array_equal(out, simulate_windows(model, params, inputs, rig, starts, 400, p0,
+                                                tight))
+    d = 20.0
+    up = simulate_windows(model, params, inputs, rig, starts, 400, p0 + d, tight)
+    dn = simulate_windows(model, params, inputs, rig, starts, 400, p0 - d, tight)
+    fd = (up - dn) / (2 * d)
+    assert np.all(sens[..., 0] == 1.0)
+    assert np.all((sens >= 0) & (sens <= 1 + 1e-12))
+    # first order in the step: a few per cent of the start error at worst
+    assert np.max(np.abs(sens - fd)) < 0.03
+
+
+def test_start_sensitivity_is_one_in_a_closed_fixed_chamber(rig, standard):
+    # both ports shut, no leak, fixed volume: dp/dt = 0, so a start error never decays
+    n = 501
+    t = np.arange(n) * 1e-3
+    u = np.where(t < 0.2, 3.0, -3.0)
+    out, sens, status = kernel.simulate_windows_sensitivity(
+        _closed_slots(1e-6), rig_constants(rig), standard.as_array(), t, u,
+        np.full(n, 0.01), np.full(n, 6.0e5), np.array([0, 100], dtype=np.int64), 400,
+        np.array([3e5, 2e5]))
+    assert not status.any()
+    assert np.all(out[0, 0] == 3e5) and np.all(sens == 1.0)
 
 
 @pytest.mark.parametrize("effects,extra,without_history_Pa", [

@@ -1,8 +1,11 @@
 """Posterior-predictive pressure: bands for rolling windows, and a controller API.
 
 Each posterior draw (model parameters plus AR(1) noise) is simulated from the measured
-pressure over the horizon; AR(1) residual noise is added, so the bands are predictive
-for *measurements*, which is what their coverage is checked against.
+pressure over the horizon. The noise model of the likelihood is added: stationary AR(1)
+measurement noise, and the start's own noise carried through the window by the start
+sensitivity (``r_k = n_k - S_k n_0``, see :mod:`pneubayes.inference.likelihood`), so the
+bands are predictive for *measurements*, which is what their coverage is checked
+against.
 """
 
 from __future__ import annotations
@@ -13,7 +16,12 @@ import numpy as np
 
 from pneubayes.evaluation import window_starts
 from pneubayes.model import Model
-from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    simulate_windows,
+    simulate_windows_sensitivity,
+)
 
 
 def estimate_noise_std(pressure_Pa) -> float:
@@ -28,12 +36,24 @@ def estimate_noise_std(pressure_Pa) -> float:
     return float(1.4826 * mad / np.sqrt(6.0))
 
 
-def ar1_noise(rng: np.random.Generator, sigma, rho, shape) -> np.ndarray:
-    """AR(1) sequences from zero: ``shape = (N, W, K)``, per-draw sigma and rho ``(N,)``."""
+def ar1_noise(rng: np.random.Generator, sigma, rho, shape,
+              stationary: bool = False) -> np.ndarray:
+    """AR(1) sequences ``shape = (N, W, K)`` with per-draw sigma and rho ``(N,)``.
+
+    They start from zero, or with ``stationary`` from the stationary distribution
+    (column 0 then has variance ``sigma^2 / (1 - rho^2)``).
+    """
     e = rng.normal(size=shape) * np.asarray(sigma)[:, None, None]
     out = np.empty(shape)
-    prev = np.zeros(shape[:2])
     rho = np.asarray(rho)[:, None]
+    prev = np.zeros(shape[:2])
+    if stationary:
+        prev = e[:, :, 0] / np.sqrt(1.0 - rho**2)
+        out[:, :, 0] = prev
+        for k in range(1, shape[2]):
+            prev = rho * prev + e[:, :, k]
+            out[:, :, k] = prev
+        return out
     for k in range(shape[2]):
         prev = rho * prev + e[:, :, k]
         out[:, :, k] = prev
@@ -94,13 +114,15 @@ class PosteriorPredictive:
         """Predict ``horizon_s`` windows every ``stride_s`` from the measured pressure."""
         starts, length = window_starts(recording.time_s, horizon_s, stride_s)
         p = np.asarray(recording.pressure_Pa, dtype=np.float64)
-        sim = simulate_windows(self.model, self.draws, Inputs.from_recording(recording),
-                               recording.rig(), starts, length, p[starts], self.solver)
+        sim, sens = simulate_windows_sensitivity(
+            self.model, self.draws, Inputs.from_recording(recording), recording.rig(),
+            starts, length, p[starts], self.solver)
         meas = p[starts[:, None] + np.arange(length)[None, :]]
         noisy = sim.copy()
         if self.noise is not None:
-            noisy[:, :, 1:] += ar1_noise(rng, self.noise[:, 0], self.noise[:, 1],
-                                         sim[:, :, 1:].shape)
+            n = ar1_noise(rng, self.noise[:, 0], self.noise[:, 1], sim.shape,
+                          stationary=True)
+            noisy[:, :, 1:] += n[:, :, 1:] - sens[:, :, 1:] * n[:, :, :1]
         q = np.quantile(noisy, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
         t = np.asarray(recording.time_s)[starts[:, None] + np.arange(length)[None, :]]
         return PredictionBands(t, starts, meas, sim.mean(axis=0), *q,

@@ -349,7 +349,7 @@ class BayesianIdentification:
         sums = backend.get_blobs(discard=burn)
         shape = z.shape
         x = like.from_sampling(z.reshape(-1, shape[-1]))
-        noise = like.draw_noise(sums.reshape(-1, 3), np.random.default_rng(
+        noise = like.draw_noise(sums.reshape(-1, sums.shape[-1]), np.random.default_rng(
             [self.settings.seed, 1]))
         return np.concatenate([x, noise], axis=1).reshape(shape[0], shape[1], -1)
 

@@ -14,7 +14,12 @@ import numpy as np
 
 from pneubayes.evaluation import window_starts
 from pneubayes.model import Model
-from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    simulate_windows,
+    simulate_windows_sensitivity,
+)
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,20 @@ class WindowSet:
                                  on_failure=on_failure)
                 for b in self.blocks]
         return np.concatenate(outs, axis=1)
+
+    def residuals_and_sensitivity(self, model: Model, params, solver: SolverConfig,
+                                  on_failure: str = "raise"):
+        """Prediction minus measurement ``(B, W_total, L - 1)`` (window starts dropped)
+        and the start sensitivity dp/dp(start) ``(B, W_total, L)`` (starts included)."""
+        theta = model.as_matrix(params)
+        preds, sens = [], []
+        for b in self.blocks:
+            p, s = simulate_windows_sensitivity(model, theta, b.inputs, b.rig, b.starts,
+                                                self.length, b.measured[:, 0], solver,
+                                                check_bounds=False, on_failure=on_failure)
+            preds.append(p - b.measured[None])
+            sens.append(s)
+        return np.concatenate(preds, axis=1)[:, :, 1:], np.concatenate(sens, axis=1)
 
     def residuals(self, model: Model, params, solver: SolverConfig,
                   on_failure: str = "raise") -> np.ndarray:

@@ -7,7 +7,9 @@ from pneubayes.simulation.simulator import (
     rig_constants,
     simulate,
     simulate_windows,
+    simulate_windows_sensitivity,
 )
 
 __all__ = ["Inputs", "SolverConfig", "Trajectory", "rig_constants", "simulate",
-           "simulate_windows"]
+           "simulate_windows",
+           "simulate_windows_sensitivity"]

@@ -164,8 +164,13 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
 
 
 @njit(cache=True)
-def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
-    """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0."""
+def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens):
+    """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
+
+    ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
+    the pressure to the initial pressure: the product of the accepted steps'
+    ``exp(h J_p)`` (first order in h; the temperature coupling is ignored).
+    """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin, max_steps = sv[S_MAX_STEP], sv[S_MIN_STEP], int(sv[S_MAX_STEPS])
     n = t.shape[0]
@@ -177,6 +182,10 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
     p = p0
     temp = cs[C_T_SUPPLY]
     out[0] = p
+    want_sens = sens.shape[0] > 0
+    s_p0 = 1.0
+    if want_sens:
+        sens[0] = 1.0
     # Delayed-command pointer: index j of the sample held at time t - delay.
     j = 0
     t_start = t[i0]
@@ -283,6 +292,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
                     p, temp = pn, tn
+                    if want_sens:
+                        s_p0 *= math.exp(zp)
                     fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
                     if hh >= h or fac < 1.0:
                         h = min(hmax, hh * fac)
@@ -300,6 +311,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out):
             else:
                 spool = cmd
         out[k + 1 - i0] = p
+        if want_sens:
+            sens[k + 1 - i0] = s_p0
     return OK
 
 
@@ -328,5 +341,21 @@ def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
         b = task // nw
         w = task % nw
         status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
-                               p0[w], out[b, w])
+                               p0[w], out[b, w], np.empty(0))
     return out, status
+
+
+@njit(cache=True, parallel=True)
+def simulate_windows_sensitivity(slots, consts, solver, t, u, x, ps, starts, length, p0):
+    """:func:`simulate_windows` plus dp(t)/dp0 per sample: ``(out, sens, status)``."""
+    nb = slots.shape[0]
+    nw = starts.shape[0]
+    out = np.empty((nb, nw, length))
+    sens = np.empty((nb, nw, length))
+    status = np.zeros((nb, nw), dtype=np.int64)
+    for task in prange(nb * nw):
+        b = task // nw
+        w = task % nw
+        status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
+                               p0[w], out[b, w], sens[b, w])
+    return out, sens, status

@@ -105,16 +105,8 @@ def _check_solver(solver) -> SolverConfig:
     return solver
 
 
-def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,
-                     initial_pressure_Pa, solver: SolverConfig,
-                     check_bounds: bool = True, on_failure: str = "raise") -> np.ndarray:
-    """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
-
-    Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
-    measured pressure there). With ``on_failure="raise"`` a failure raises
-    :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
-    rows are NaN (samplers turn them into zero likelihood).
-    """
+def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
+                 check_bounds, on_failure, kernel_fn):
     if on_failure not in ("raise", "nan"):
         raise ValueError(f"on_failure must be 'raise' or 'nan', got {on_failure!r}")
     solver = _check_solver(solver)
@@ -133,12 +125,13 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     if not np.all(np.isfinite(p0) & (p0 > 0)):
         raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
     slots = np.ascontiguousarray(model.lower(theta, rig))
-    out, status = kernel.simulate_windows(
+    *arrays, status = kernel_fn(
         slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
         inputs.position_m, inputs.supply_pressure_Pa, starts, length, p0)
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
-        out[failed] = np.nan
+        for a in arrays:
+            a[failed] = np.nan
     elif failed.size:
         lines = []
         for b in failed[:5]:
@@ -150,7 +143,36 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
         more = f" (and {failed.size - 5} more)" if failed.size > 5 else ""
         raise SimulationError(f"simulation failed for {failed.size} parameter set(s){more}:\n  "
                               + "\n  ".join(lines))
-    return out
+    return arrays
+
+
+def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,
+                     initial_pressure_Pa, solver: SolverConfig,
+                     check_bounds: bool = True, on_failure: str = "raise") -> np.ndarray:
+    """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
+
+    Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
+    measured pressure there). With ``on_failure="raise"`` a failure raises
+    :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
+    rows are NaN (samplers turn them into zero likelihood).
+    """
+    return _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
+                        solver, check_bounds, on_failure, kernel.simulate_windows)[0]
+
+
+def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig, starts,
+                                 length: int, initial_pressure_Pa, solver: SolverConfig,
+                                 check_bounds: bool = True, on_failure: str = "raise"):
+    """:func:`simulate_windows` and the start sensitivity dp(t)/dp(t_start) (``-``).
+
+    Returns ``(pressure_Pa, sensitivity)``, both ``(B, W, length)``. The sensitivity is 1
+    at the window start and decays with the chamber's time constant; the likelihood
+    uses it to carry the noise of the measured start pressure through each window.
+    """
+    out, sens = _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
+                             solver, check_bounds, on_failure,
+                             kernel.simulate_windows_sensitivity)
+    return out, sens
 
 
 def simulate(model: Model, params, inputs: Inputs, rig: Rig, initial_pressure_Pa: float,
