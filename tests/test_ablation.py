@@ -125,11 +125,13 @@ def test_grid_expansion_counts_defaults_and_stable_ids():
     grid = {"rigs": ["AIR37:valve1", "SMC:valve2"],
             "data_effects": [[], ["tube_delay", "cylinder_leak"]],
             "data_forms": ["catalogue", "realistic"],
-            "model_effects": [[], ["cylinder_leak"], "discover"],
+            "model_effects": [[], ["cylinder_leak"], "discover", "tassa"],
             "command_ranges_V": [3, 0.1], "protocols": ["fixed", "moving"], "seeds": [0, 7]}
     study = parse_study(toml(grid), "g.toml")
     cells = study.cells()
-    assert len(cells) == study.n_cells == 2 * 2 * 2 * 3 * 2 * 2 * 2
+    assert len(cells) == study.n_cells == 2 * 2 * 2 * 4 * 2 * 2 * 2
+    assert {c.kind for c in cells} == {"effects", "discover", "tassa"}
+    assert all(c.model_effects == () for c in cells if c.kind == "tassa")
     ids = [c.id for c in cells]
     assert len(set(ids)) == len(ids)
     assert ids == [c.id for c in parse_study(toml(grid), "other.toml").cells()]
@@ -301,21 +303,25 @@ def test_cli_errors(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_real_cells_through_the_cli(tmp_path, capsys):
-    """Bench data with a tube: the model with tube_delay beats the plain model on the
-    held-out moving-piston recording, and reaches the noise floor."""
+    """Bench data with a tube: the model with tube_delay beats the plain model and the
+    Tassa peer baseline on the held-out moving-piston recording, and reaches the noise
+    floor."""
     grid = {"rigs": ["AIR37:valve1"], "data_effects": [["tube_delay"]],
-            "model_effects": [[], ["tube_delay"]], "command_ranges_V": [3.0],
+            "model_effects": [[], ["tube_delay"], "tassa"], "command_ranges_V": [3.0],
             "protocols": ["moving"], "seeds": [0]}
     settings = {"duration_s": 4.0, "fit_moving_count": 0, "eval_moving_count": 1,
                 "eval_command_bands_V": [0.5, 3.0]}
     path = write_study(tmp_path, grid, settings, name="tube")
     out = tmp_path / "run"
     assert main(["ablate", str(path), "--out", str(out), "-q"]) == 0
-    assert "2 ok, 0 failed" in capsys.readouterr().out
+    assert "3 ok, 0 failed" in capsys.readouterr().out
     doc = json.loads((out / "results.json").read_text())
-    plain, tube = doc["cells"]
+    plain, tube, tassa = doc["cells"]
+    assert tassa["cell"]["model"] == "tassa" and tassa["model"]["effects"] == ["tassa"]
+    assert set(tassa["model"]["parameters"]) == {f"c{i}" for i in range(10)}
+    assert tube["metrics"]["rmse_Pa"] < tassa["metrics"]["rmse_Pa"] < 0.1 * 450e3
     assert plain["cell"]["model"] == "plain" and tube["model"]["effects"] == ["tube_delay"]
-    for r in (plain, tube):
+    for r in (plain, tube, tassa):
         m = r["metrics"]
         assert r["status"] == "ok" and math.isfinite(m["rmse_Pa"])
         assert m["windows"] == 2 and 300 < m["noise_floor_Pa"] < 800
@@ -329,7 +335,7 @@ def test_real_cells_through_the_cli(tmp_path, capsys):
         tube["truth"]["parameters"]["tube_delay_s"], rel=0.3)
     # resumes: nothing runs again
     assert main(["ablate", str(path), "--out", str(out), "-q"]) == 0
-    assert "0 run now, 2 cached" in capsys.readouterr().out
+    assert "0 run now, 3 cached" in capsys.readouterr().out
 
 
 @pytest.mark.slow

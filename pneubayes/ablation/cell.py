@@ -2,8 +2,8 @@
 
 :func:`run_cell` makes the cell's bench recordings (:func:`make_data`), fits the cell's
 model on the fitting recordings (:func:`fit_model`: ``pneubayes fit`` with the study's
-method, or the discovery loop from the plain model) and scores open-loop predictions of
-``horizon_s`` started from the measured pressure on the held-out recordings
+method, the discovery loop from the plain model, or the Tassa peer baseline) and scores
+open-loop predictions of ``horizon_s`` started from the measured pressure on the held-out recordings
 (:func:`evaluate`, the paper's section-VIII metric, with ``SolverConfig.standard()``).
 
 Data design (seeds are the cell's ``seed`` plus fixed offsets, so every cell of a seed
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pneubayes.ablation.study import Cell, Settings
+from pneubayes.ablation.study import TASSA, Cell, Settings
 from pneubayes.atomic import json_safe
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.bench.forms import forms_from_names
@@ -112,6 +112,15 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
     folder's ``model.json``.
     """
     s, out = cell.settings, Path(out_dir)
+    if cell.kind == TASSA:
+        from pneubayes.baselines.tassa import PARAMETER_NAMES, TassaModel
+
+        est = TassaModel(horizon_s=s.horizon_s, stride_s=s.effective_stride_s,
+                         seed=cell.seed).fit(recordings)
+        info = {"method": "tassa", "estimate": "least squares (one-step, then 2-s windows)",
+                "train_rmse_Pa": est.rmse_Pa_, "train_start_rmse_Pa": est.start_rmse_Pa_,
+                "frozen": list(est.frozen_), "success": bool(est.success_)}
+        return est, dict(zip(PARAMETER_NAMES, map(float, est.params_))), info
     if cell.discover:
         from pneubayes.discovery.loop import DiscoverySettings
         from pneubayes.discovery.report import run_discover
@@ -151,9 +160,20 @@ def band_key(band_V: float) -> str:
     return f"within_{band_V:g}V"
 
 
-def evaluate(model: Model, params, recordings, settings: Settings,
+def _predictor(model, params, settings: Settings, solver: SolverConfig):
+    """``recording -> WindowPrediction`` for a thin-port model or a fitted baseline."""
+    if isinstance(model, Model):
+        return lambda rec: predict_windows(model, params, rec, settings.horizon_s,
+                                           settings.effective_stride_s, solver)
+    return model.predict_windows  # a fitted estimator (the Tassa baseline)
+
+
+def evaluate(model, params, recordings, settings: Settings,
              solver: SolverConfig) -> tuple[dict, list[dict]]:
     """Held-out ``horizon_s`` predictions from the measured pressure every ``stride_s``.
+
+    ``model`` is a :class:`Model` with ``params``, or a fitted baseline estimator
+    (``params`` unused) whose ``predict_windows(recording)`` gives the same windows.
 
     Returns ``(metrics, per-recording rows)``. The RMSE pools every predicted sample of
     every window (the measured start excluded), Pa and % of the working range; the
@@ -166,9 +186,9 @@ def evaluate(model: Model, params, recordings, settings: Settings,
     sq, n = 0.0, 0
     band_sq, band_n = np.zeros(len(bands)), np.zeros(len(bands), dtype=np.int64)
     rows, noise, windows = [], [], 0
+    predict = _predictor(model, params, settings, solver)
     for rec in recordings:
-        wp = predict_windows(model, params, rec, settings.horizon_s,
-                             settings.effective_stride_s, solver)
+        wp = predict(rec)
         r = wp.residual_Pa[0, :, 1:]
         idx = wp.starts[:, None] + np.arange(1, wp.length)[None, :]
         u = np.abs(np.asarray(rec.command_V)[idx - 1])
@@ -227,7 +247,8 @@ def run_cell(cell: Cell, workdir) -> dict:
     t_end = time.perf_counter()
     return json_safe({
         "id": cell.id, "status": "ok", "cell": cell.axes(), "metrics": metrics,
-        "model": {"effects": list(model.effect_names), "parameters": params},
+        "model": {"effects": list(model.effect_names) if isinstance(model, Model)
+                  else [cell.kind], "parameters": params},
         "fit": fit_info, "truth": truth,
         "recordings": {"fit": [p.name for p in data.fit], "held_out": rows},
         "solver": solver.to_dict(),

@@ -23,9 +23,10 @@ A study file has a ``[grid]`` table, whose axes are crossed (cartesian product),
 ``data_forms``: ``"catalogue"`` plants the catalogue's effect objects in the bench's
 model; ``"realistic"`` plants :func:`pneubayes.bench.forms.forms_from_names` (acoustic
 tube, rounded dead zone, ...) simulated by the independent plant. ``model_effects``
-entries are lists of catalogue names, or ``"discover"``: the discovery loop from the
-plain model. Every cell is fitted on a fixed design (``fit_*`` settings) and scored on
-held-out recordings of its own protocol and command range (:mod:`pneubayes.ablation.cell`).
+entries are lists of catalogue names, ``"discover"`` (the discovery loop from the plain
+model) or ``"tassa"`` (the Tassa et al. 2013 peer baseline). Every cell is fitted on a
+fixed design (``fit_*`` settings) and scored on held-out recordings of its own protocol
+and command range (:mod:`pneubayes.ablation.cell`).
 ``[settings]`` keys and defaults are :data:`SETTINGS`; unknown keys are errors.
 
 Each cell has a stable, human-readable id ending in a short hash of everything that
@@ -58,6 +59,10 @@ METHODS = ("lsq", "refine", "mcmc")
 SUPPLIES = ("measured", "nominal")
 LEAK_FORMS = ("orifice", "laminar")
 DISCOVER = "discover"
+#: The peer baseline (Tassa et al. 2013, :mod:`pneubayes.baselines.tassa`) as a model.
+TASSA = "tassa"
+#: ``model_effects`` entries that are not effect lists.
+SPECIAL_MODELS = (DISCOVER, TASSA)
 #: Bench sample rate, Hz (the SensorChain default): used to check that windows fit.
 SAMPLE_RATE_HZ = 1000.0
 #: Largest valve command magnitude, V (paper section V: -5..+5).
@@ -189,8 +194,10 @@ def _number_label(value: float) -> str:
 class Cell:
     """One cell of a study: a rig, the data, the fitted model and the held-out protocol.
 
-    ``discover`` cells run the discovery loop from the plain model (``model_effects``
-    is then empty). ``id`` is stable and readable; its last part is :attr:`digest`.
+    ``kind`` is ``"effects"`` (the thin-port model with ``model_effects``),
+    ``"discover"`` (the discovery loop from the plain model) or ``"tassa"`` (the peer
+    baseline); ``model_effects`` is empty for the last two. ``id`` is stable and
+    readable; its last part is :attr:`digest`.
     """
 
     cylinder: str
@@ -198,16 +205,22 @@ class Cell:
     data_effects: tuple[str, ...]
     data_form: str
     model_effects: tuple[str, ...]
-    discover: bool
+    kind: str
     command_range_V: float
     protocol: str
     seed: int
     settings: Settings
 
     @property
+    def discover(self) -> bool:
+        return self.kind == DISCOVER
+
+    @property
     def model_label(self) -> str:
-        """``"discover"``, ``"plain"`` or the effects joined by ``+``."""
-        return DISCOVER if self.discover else _label(self.model_effects, "plain")
+        """``"discover"``, ``"tassa"``, ``"plain"`` or the effects joined by ``+``."""
+        if self.kind in SPECIAL_MODELS:
+            return self.kind
+        return _label(self.model_effects, "plain")
 
     def axes(self) -> dict:
         """The cell's grid coordinates (JSON-ready)."""
@@ -274,9 +287,9 @@ class Study:
         for (cyl, valve), data, form, model, rng, proto, seed in itertools.product(
                 g.rigs, g.data_effects, g.data_forms, g.model_effects, g.command_ranges_V,
                 g.protocols, g.seeds):
-            disc = model == DISCOVER
-            out.append(Cell(cyl, valve, data, form, () if disc else model, disc, rng, proto,
-                            seed, self.settings))
+            kind = model if model in SPECIAL_MODELS else "effects"
+            out.append(Cell(cyl, valve, data, form, () if kind != "effects" else model, kind,
+                            rng, proto, seed, self.settings))
         return tuple(out)
 
     @property
@@ -444,10 +457,10 @@ def _grid(source, doc) -> Grid:
                 out.append(_effects(source, at, v))
             elif key == "model_effects":
                 if isinstance(v, str):
-                    if v != DISCOVER:
-                        raise StudyError(f"{source}: {at}: expected a list of effect names or "
-                                         f"\"{DISCOVER}\", got {v!r}")
-                    out.append(DISCOVER)
+                    if v not in SPECIAL_MODELS:
+                        raise StudyError(f"{source}: {at}: expected a list of effect names, "
+                                         f"\"{DISCOVER}\" or \"{TASSA}\", got {v!r}")
+                    out.append(v)
                 else:
                     out.append(_effects(source, at, v))
             elif key == "data_forms":
