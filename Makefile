@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench clean setup
+.PHONY: demo test bench paper clean setup
 
 setup: $(STAMP)
 
@@ -19,6 +19,11 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q
+
+# Runs the paper's studies (cached per cell; about 30 min on 2 cores from scratch) and
+# assembles paper/report.md from their saved results.
+paper: $(STAMP)
+	$(PY) experiments/make_paper.py --out results/paper --paper paper --workers 2
 
 bench: $(STAMP)
 	$(PY) benchmarks/simulate.py --json results/bench_simulate.json

@@ -33,10 +33,11 @@ def main(argv=None) -> int:
     ap.add_argument("--cylinder", default="AIR37")
     ap.add_argument("--valve", default="valve1")
     ap.add_argument("--max-steps", type=int, default=12000)
+    ap.add_argument("--duration", type=float, default=20.0, help="recording length, s")
     ap.add_argument("--smoke", action="store_true", help="tiny data and chains (seconds)")
     args = ap.parse_args(argv)
     out = Path(args.out)
-    dur = 4.0 if args.smoke else 20.0
+    dur = 4.0 if args.smoke else args.duration
     leak = effects_from_names(["cylinder_leak"])
     config = {"cylinder": args.cylinder, "valve": args.valve, "seed": args.seed,
               "duration_s": dur, "train": "fixed, positions 0.5/0.9, ranges +-5/+-0.5 V",

@@ -1,0 +1,328 @@
+"""Build ``paper/``: run the paper's studies (cached) and assemble the report from their
+saved results (``make paper``).
+
+    python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
+    python experiments/make_paper.py --assemble-only     # only re-assemble saved results
+    python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
+
+Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
+(one shared study), ``fig12b_deadzone.py``, ``supply_study.py`` and
+``identification.py`` (the emcee posterior and prediction bands: skipped when its
+``report.json`` exists). Every study cell is cached, so a second run only assembles.
+The report is ``PAPER/report.md`` with figures copied to ``PAPER/figures``; every
+table and figure names the result file, study, seeds, git revision(s) and package
+versions that made it. Nothing is computed during assembly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import fig11_volume  # noqa: E402
+import fig12a_leak  # noqa: E402
+import fig12b_deadzone  # noqa: E402
+import identification  # noqa: E402
+import peer_baseline  # noqa: E402
+import supply_study  # noqa: E402
+import table3  # noqa: E402
+
+from pneubayes.atomic import write_text_atomic  # noqa: E402
+
+STUDY_SCRIPTS = (("table3", table3), ("fig11_volume", fig11_volume),
+                 ("fig12a_leak", fig12a_leak), ("peer_baseline", peer_baseline),
+                 ("fig12b_deadzone", fig12b_deadzone), ("supply_study", supply_study))
+PAPER_NAME = {"SMC": "SMC", "PRN": "PRN", "AIR37": "AR37", "AIR200": "AR200"}
+
+
+def run_all(args) -> dict[str, float]:
+    """Run every study script (cached cells); return wall times, s."""
+    common = ["--out", args.out, "--workers", str(args.workers), "-q"]
+    if args.smoke:
+        common.append("--smoke")
+    times = {}
+    for name, mod in STUDY_SCRIPTS:
+        t0 = time.perf_counter()
+        print(f"make_paper: {name} ...", flush=True)
+        rc = mod.main(common)
+        times[name] = time.perf_counter() - t0
+        if rc:
+            print(f"make_paper: {name} had failed cells (see its results.json); "
+                  "the report marks them missing", flush=True)
+    ident = Path(args.out) / ("identification-smoke" if args.smoke else "identification")
+    if not (ident / "report.json").exists():
+        t0 = time.perf_counter()
+        print("make_paper: identification (emcee posterior, bands) ...", flush=True)
+        identification.main(["--out", str(ident), "--duration", "10", "--max-steps", "4000"]
+                            + (["--smoke"] if args.smoke else []))
+        times["identification"] = time.perf_counter() - t0
+    return times
+
+
+# ---------------------------------------------------------------- assembly
+def _load(out: Path, name: str, smoke: bool) -> dict | None:
+    p = out / (name + ("-smoke" if smoke else "") + ".json")
+    return json.loads(p.read_text()) if p.exists() else None
+
+
+def _provenance_line(doc: dict, source: str) -> str:
+    seeds = {key: st["seeds"] for key, st in doc.get("studies", {}).items()}
+    revs = set(doc.get("_cell_revisions", []))  # the revision(s) that made the numbers
+    prov = doc["provenance"]
+    versions = ", ".join(f"{k} {prov[k]}" for k in ("python", "numpy", "scipy", "numba",
+                                                    "emcee", "pneubayes") if k in prov)
+    studies = "; ".join(f"study `{k}` (experiments/studies/{k}.toml), seeds {v}"
+                        for k, v in seeds.items())
+    rev = ", ".join(sorted(revs)) or str(prov.get("git_revision"))[:12]
+    return (f"*Source: `{source}`; {studies}; cells computed at git revision {rev}; "
+            f"assembled with {versions}.*")
+
+
+def _src(out: Path, name: str, smoke: bool) -> str:
+    return str(out / (name + ("-smoke" if smoke else "") + ".json"))
+
+
+def _cell_revisions(out: Path, doc: dict, smoke: bool) -> list[str]:
+    revs = set()
+    for key in doc.get("studies", {}):
+        res = out / "studies" / (key + ("-smoke" if smoke else "")) / "results.json"
+        if res.exists():
+            for c in json.loads(res.read_text())["cells"]:
+                p = c.get("provenance") or {}
+                if p.get("git_revision"):
+                    revs.add(p["git_revision"][:12] + (" (uncommitted changes)"
+                                                       if p.get("git_dirty") else ""))
+    return sorted(revs)
+
+
+def _fig(paper: Path, out: Path, doc: dict, caption: str) -> str:
+    lines = []
+    for f in doc.get("figures", []):
+        src = Path(f)
+        if not src.exists():
+            src = out / "figures" / src.name
+        if src.exists():
+            dst = paper / "figures" / src.name
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(src, dst)
+            lines.append(f"![{caption}](figures/{src.name})")
+    return "\n\n".join(lines)
+
+
+def _pct(v) -> str:
+    return "n/a" if v is None else f"{v:.2f} %"
+
+
+def assemble(out: Path, paper: Path, smoke: bool) -> Path:
+    """Write ``paper/report.md`` from the saved results in ``out``."""
+    paper.mkdir(parents=True, exist_ok=True)
+    docs = {}
+    for name, _ in STUDY_SCRIPTS:
+        d = _load(out, name, smoke)
+        if d is not None:
+            d["_cell_revisions"] = _cell_revisions(out, d, smoke)
+            docs[name] = d
+    ident_dir = out / ("identification-smoke" if smoke else "identification")
+    ident = (json.loads((ident_dir / "report.json").read_text())
+             if (ident_dir / "report.json").exists() else None)
+    L = ["# pneubayes reproduces and extends *pneumatic muscle modelling for the ADROIT hand*",
+         "",
+         "This report is assembled by `make paper` (`experiments/make_paper.py`) from the "
+         "saved results of the scripts in `experiments/`; nothing in it is typed by hand "
+         "except this prose. All data come from the virtual test bench "
+         "(`pneubayes.bench`), whose rigs carry *realistic* forms of the effects the "
+         "paper's model lacks (an acoustic tube with friction, a rounded valve dead zone, "
+         "a regulator that droops under flow, a clearance leak), simulated by an "
+         "independent plant; the paper's hardware recordings are not available.",
+         "" + (" **Smoke build: one short cell per study; the numbers mean nothing.**"
+               if smoke else ""), ""]
+    # ---------------- Table III
+    L += ["## Table III: 2-s prediction error", ""]
+    t3 = docs.get("table3")
+    if t3:
+        rows = t3["numbers"]["rows"]
+        L += [t3["numbers"]["markdown"], _provenance_line(t3, _src(out, "table3", smoke)), ""]
+        ours = [r.get("ours_paper_model_percent") for r in rows
+                if r.get("ours_paper_model_percent") is not None]
+        disc = [r for r in rows if r.get("ours_discovery_rmse_Pa") is not None
+                and r.get("ours_paper_model_rmse_Pa")]
+        if ours:
+            L.append(f"With the paper's model our errors are {min(ours):.2f}-{max(ours):.2f} % "
+                     "of the working range, against the paper's 3.0-11.4 %.")
+        if disc:
+            red = [100 * (1 - r["ours_discovery_rmse_Pa"] / r["ours_paper_model_rmse_Pa"])
+                   for r in disc]
+            L.append(f"The discovery loop, started from the plain thin-port model, changes "
+                     f"the error by {-max(red):+.0f} to {-min(red):+.0f} % relative to the "
+                     "paper's model (negative: smaller).")
+        L.append("")
+    else:
+        L += ["*Missing: run `python experiments/table3.py`.*", ""]
+    # ---------------- Fig 11
+    L += ["## Fig. 11: effect of volume and leakage", ""]
+    f11 = docs.get("fig11_volume")
+    if f11:
+        L += [_fig(paper, out, f11, "Fig. 11"), "",
+              "| cylinder | swept volume (cm^3) | leak | paper | ours, paper's model | "
+              "ours, after discovery |", "|---|---|---|---|---|---|"]
+        for r in f11["numbers"]["rows"]:
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | {r['swept_volume_m3'] * 1e6:.2f} | "
+                     f"{r['leak']} | {_pct(r['paper_percent'])} | "
+                     f"{_pct(r['ours_paper_model_percent'])} | "
+                     f"{_pct(r['ours_discovery_percent'])} |")
+        L += ["", _provenance_line(f11, _src(out, "fig11_volume", smoke)), ""]
+    # ---------------- Fig 12a
+    L += ["## Fig. 12a: modelling the leak", ""]
+    f12 = docs.get("fig12a_leak")
+    if f12:
+        L += [_fig(paper, out, f12, "Fig. 12a"), "",
+              "| cylinder | seed | without leak (Pa) | with the orifice leak (Pa) | "
+              "reduction | noise floor (Pa) |", "|---|---|---|---|---|---|"]
+        for r in f12["numbers"]["rows"]:
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | {r['seed']} | "
+                     f"{r['without_leak_rmse_Pa']:.0f} | {r['with_leak_rmse_Pa']:.0f} | "
+                     f"{r['reduction_percent']:.0f} % | {r['noise_floor_Pa']:.0f} |")
+        L += ["", _provenance_line(f12, _src(out, "fig12a_leak", smoke)), ""]
+    # ---------------- Fig 12b / 13
+    L += ["## Figs. 12b and 13: the valve dead zone", ""]
+    fd = docs.get("fig12b_deadzone")
+    if fd:
+        L += [_fig(paper, out, fd, "Figs. 12b/13"), "",
+              "| cylinder | model | commands | RMSE (Pa) | % of range | fitted half-width (V) |",
+              "|---|---|---|---|---|---|"]
+        for r in sorted(fd["numbers"]["rows"], key=lambda r: (r["cylinder"], r["model"],
+                                                               r["command_range_V"])):
+            hw = r.get("deadzone_halfwidth_V")
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | {r['model']} | "
+                     f"+-{r['command_range_V']:g} V | {r['rmse_Pa']:.0f} | "
+                     f"{r['rmse_percent']:.2f} | {'-' if hw is None else f'{hw:.3f}'} |")
+        L += ["", _provenance_line(fd, _src(out, "fig12b_deadzone", smoke)), ""]
+    # ---------------- supply
+    L += ["## Measured against nominal supply pressure", ""]
+    fs = docs.get("supply_study")
+    if fs:
+        L += [_fig(paper, out, fs, "supply"), "",
+              "| cylinder | seed | nominal supply (Pa) | measured supply (Pa) | noise floor (Pa) |",
+              "|---|---|---|---|---|"]
+        for r in fs["numbers"]["rows"]:
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | {r['seed']} | "
+                     f"{r['nominal_rmse_Pa']:.0f} | {r['measured_rmse_Pa']:.0f} | "
+                     f"{r['noise_floor_Pa']:.0f} |")
+        L += ["", _provenance_line(fs, _src(out, "supply_study", smoke)), ""]
+    # ---------------- peer baseline
+    L += ["## Peer baseline: Tassa et al. (2013)", ""]
+    fp = docs.get("peer_baseline")
+    if fp:
+        L += [_fig(paper, out, fp, "peer baseline"), "",
+              "| cylinder | seed | Tassa (% of range) | paper's model | after discovery |",
+              "|---|---|---|---|---|"]
+        for r in fp["numbers"]["rows"]:
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | {r['seed']} | "
+                     f"{_pct(r.get('tassa_percent'))} | "
+                     f"{_pct(r.get('cylinder_leak+supply_fluctuation_percent'))} | "
+                     f"{_pct(r.get('discover_percent'))} |")
+        L += ["", "The first-order model has no gas dynamics: it relaxes towards a "
+              "command-dependent target at a command-dependent rate, so it cannot follow "
+              "the choked-flow ramps and the volume-driven compression the thin-port model "
+              "has by construction.", "",
+              _provenance_line(fp, _src(out, "peer_baseline", smoke)), ""]
+    # ---------------- new
+    L += ["## What is new: posteriors, band coverage and discovery", ""]
+    if ident:
+        cov = ident["coverage_90_by_parameter"]
+        cfg = ident["config"]
+        L += [f"**emcee posterior** (`experiments/identification.py`: {cfg['cylinder']} "
+              f"{cfg['valve']}, seed {cfg['seed']}, train {cfg['train']}, "
+              f"{cfg['duration_s']:g}-s recordings; held out: {cfg['held_out']}): "
+              f"converged {ident['converged']} after {ident['steps']} steps; 90 % intervals "
+              f"cover the bench's true value for {sum(cov.values())} of {len(cov)} "
+              "parameters (the Gompertz b and d and the offset/leak split are not "
+              "identifiable separately; see the identifiability report in the run "
+              "folder).", ""]
+        L += ["| held-out recording | RMSE (Pa) | RMSE / noise | 50 % band covers | "
+              "90 % band covers |", "|---|---|---|---|---|"]
+        for p in ident["predictions"]:
+            L.append(f"| {Path(str(p.get('recording', p.get('csv', '?')))).name} | "
+                     f"{p['rmse_Pa']:.0f} | {p['rmse_over_noise_floor']:.2f} | "
+                     f"{p['coverage_50']:.3f} | {p['coverage_90']:.3f} |")
+        L.append("")
+        for f in ident.get("figures", []):
+            src = ident_dir / f
+            if src.exists():
+                dst = paper / "figures" / ("identification_" + src.name)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(src, dst)
+                L.append(f"![{src.stem}](figures/{dst.name})")
+        prov = ident["provenance"]
+        L += ["", f"*Source: `{ident_dir}/report.json`; seed {ident['config']['seed']}; git "
+              f"revision {str(prov.get('git_revision'))[:12]}; numpy {prov.get('numpy')}, "
+              f"emcee {prov.get('emcee')}.*", ""]
+    if t3:
+        L += ["**Discovery on the Table III rigs**: the loop starts from the plain "
+              "thin-port model, names the effect with the strongest SINDy evidence, adds "
+              "the catalogue's model of it, refits, and keeps it only if held-out 2-s "
+              "predictions improve significantly.", "",
+              "| cylinder | effects named | paper's model (Pa) | after discovery (Pa) |",
+              "|---|---|---|---|"]
+        for r in t3["numbers"]["rows"]:
+            if r.get("ours_discovery_rmse_Pa") is None:
+                continue
+            pm = r.get("ours_paper_model_rmse_Pa")
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | {', '.join(r['discovered']) or 'none'} | "
+                     f"{'n/a' if pm is None else f'{pm:.0f}'} | "
+                     f"{r['ours_discovery_rmse_Pa']:.0f} |")
+        L.append("")
+    # ---------------- differences
+    L += ["## Where we differ from the paper, and why", "",
+          "- **Data.** The paper's numbers come from four real cylinders; ours from a "
+          "virtual bench with the Table I/II rigs and realistic effect forms. Our absolute "
+          "errors therefore measure how much of *our planted* effects the paper's model "
+          "misses, not the paper's hardware. The ordering (larger volume and more leak "
+          "give larger errors) is what can be compared.",
+          "- **Supply pressure.** The paper states 60 kPa; Table III's percentages imply a "
+          "working range of about 450 kPa (NOTES.md), which we use.",
+          "- **Leak law.** The paper's orifice leak is the exhaust port's own law "
+          "(eq. 10), so on fixed-volume data it is absorbed by the exhaust offset; our "
+          "planted leak is a clearance gap whose conductance changes with position, which "
+          "neither the orifice nor the laminar candidate captures exactly.",
+          "- **Dead zone.** The paper attributes the larger error near 0 V to the valve "
+          "dead zone that the Gompertz maps only approximate; our data have a rounded dead "
+          "zone, and the catalogue's sharp dead band is a second approximation of it.",
+          "- **Fitting.** The paper fits areas by least squares on dp/dt and stops; we "
+          "start there and refine on the 2-s metric itself (multiple shooting), which is "
+          "what the tables score.", ""]
+    L += ["## Reproduce", "", "```", "make paper            # runs the studies (cached) "
+          "and assembles this file", "python experiments/make_paper.py --assemble-only",
+          "```", ""]
+    path = paper / "report.md"
+    write_text_atomic(path, "\n".join(L))
+    return path
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="results/paper")
+    ap.add_argument("--paper", default="paper")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--smoke", action="store_true")
+    ap.add_argument("--assemble-only", action="store_true")
+    args = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    if not args.assemble_only:
+        times = run_all(args)
+        print("make_paper: step times (s): "
+              + ", ".join(f"{k} {v:.0f}" for k, v in times.items()))
+    path = assemble(Path(args.out), Path(args.paper), args.smoke)
+    print(f"{path} ({time.perf_counter() - t0:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

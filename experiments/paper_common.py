@@ -1,0 +1,88 @@
+"""Shared plumbing of the paper's study scripts (issue 5): run a study TOML from
+``experiments/studies`` through the ablation runner, and save a script's numbers with
+their provenance.
+
+Every script takes ``--out`` (default ``results/paper``), ``--smoke`` (one short cell per
+study), ``--workers`` (local processes), ``--scheduler`` (a Dask cluster) and ``--seeds``
+(override the study's seeds). Studies run into ``OUT/studies/NAME`` and are cached per
+cell, so scripts sharing a study (Table III, Figs. 11 and 12a, the peer baseline) fit
+each cell once, and an interrupted run resumes. Each script writes ``OUT/NAME.json``
+(numbers, study configs, seeds, git revision and package versions) and its figures in
+``OUT/figures``; ``experiments/make_paper.py`` assembles ``paper/`` from those files.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+from pneubayes.ablation import DaskExecutor, LocalExecutor, load_study, run_study
+from pneubayes.atomic import write_json_atomic
+from pneubayes.provenance import provenance
+
+STUDIES = Path(__file__).resolve().parent / "studies"
+
+#: Table III of the paper: RMSE (Pa) and percent of the working pressure range.
+PAPER_TABLE3 = {"SMC": (1.476e4, 3.2), "PRN": (1.369e4, 3.042), "AIR200": (5.161e4, 11.4),
+                "AIR37": (1.370e4, 3.04)}
+#: The paper's names of the Airpel cylinders.
+PAPER_NAME = {"SMC": "SMC", "PRN": "PRN", "AIR37": "AR37", "AIR200": "AR200"}
+
+
+def parser(description: str) -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--out", default="results/paper", help="results folder (default "
+                    "results/paper)")
+    ap.add_argument("--smoke", action="store_true", help="one short cell per study")
+    ap.add_argument("--workers", type=int, default=2, help="local worker processes")
+    ap.add_argument("--scheduler", default=None, help="Dask scheduler address")
+    ap.add_argument("--seeds", default=None, help="comma-separated seeds (default: the "
+                    "study file's)")
+    ap.add_argument("-q", "--quiet", action="store_true")
+    return ap
+
+
+def run_named_study(name: str, args) -> dict:
+    """Run (or resume) ``studies/NAME.toml``; return its ``results.json`` document."""
+    study = load_study(STUDIES / f"{name}.toml")
+    if args.seeds:
+        seeds = tuple(int(s) for s in args.seeds.split(","))
+        study = replace(study, grid=replace(study.grid, seeds=seeds))
+    if args.smoke:
+        study = study.smoke()
+    out = Path(args.out) / "studies" / (name + ("-smoke" if args.smoke else ""))
+    executor = (DaskExecutor(args.scheduler) if args.scheduler
+                else LocalExecutor(max(1, args.workers)))
+    log = (lambda m: None) if args.quiet else print
+    with executor:
+        return run_study(study, out, executor, progress=not args.quiet, log=log)
+
+
+def ok_cells(doc: dict) -> list[dict]:
+    return [c for c in doc["cells"] if c.get("status") == "ok"]
+
+
+def find(cells, **axes) -> dict | None:
+    """The one cell whose ``cell`` axes match ``axes`` (None if absent)."""
+    hits = [c for c in cells if all(c["cell"].get(k) == v for k, v in axes.items())]
+    return hits[0] if hits else None
+
+
+def save(args, name: str, numbers: dict, studies: dict[str, dict], figures=()) -> Path:
+    """Write ``OUT/NAME.json``: the numbers with the studies' configs and provenance."""
+    out = Path(args.out) / (name + ("-smoke" if args.smoke else "") + ".json")
+    doc = {"format": "pneubayes-paper-result/1", "name": name, "smoke": bool(args.smoke),
+           "numbers": numbers, "figures": [str(f) for f in figures],
+           "studies": {k: {"study": d["study"], "seeds": d["seeds"],
+                           "counts": d["counts"], "cell_provenance": d["provenance"]}
+                       for k, d in studies.items()},
+           "provenance": provenance()}
+    write_json_atomic(out, doc)
+    return out
+
+
+def figure_path(args, name: str) -> Path:
+    p = Path(args.out) / "figures" / (name + ("-smoke" if args.smoke else "") + ".png")
+    p.parent.mkdir(parents=True, exist_ok=True)
+    return p
