@@ -39,7 +39,7 @@ from pneubayes.evaluation import predict_windows
 from pneubayes.inference.pipeline import FitSettings, run_fit
 from pneubayes.inference.predictive import estimate_noise_std
 from pneubayes.inference.sampler import SamplerSettings
-from pneubayes.io import read_recording
+from pneubayes.io import read_recording, smooth_position
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
@@ -99,6 +99,7 @@ def with_supply(recording, supply: str):
 def _fit_settings(cell: Cell) -> FitSettings:
     s = cell.settings
     return FitSettings(horizon_s=s.horizon_s, stride_s=s.horizon_s,
+                       position_cutoff_Hz=s.position_cutoff_Hz,
                        sampler=SamplerSettings(n_walkers=s.mcmc_walkers,
                                                max_steps=s.mcmc_max_steps, seed=cell.seed))
 
@@ -116,7 +117,8 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
         from pneubayes.baselines.tassa import PARAMETER_NAMES, TassaModel
 
         est = TassaModel(horizon_s=s.horizon_s, stride_s=s.effective_stride_s,
-                         seed=cell.seed).fit(recordings)
+                         seed=cell.seed).fit([smooth_position(r, s.position_cutoff_Hz)
+                                              for r in recordings])
         info = {"method": "tassa", "estimate": "least squares (one-step, then 2-s windows)",
                 "train_rmse_Pa": est.rmse_Pa_, "train_start_rmse_Pa": est.start_rmse_Pa_,
                 "frozen": list(est.frozen_), "success": bool(est.success_)}
@@ -188,7 +190,8 @@ def evaluate(model, params, recordings, settings: Settings,
     rows, noise, windows = [], [], 0
     predict = _predictor(model, params, settings, solver)
     for rec in recordings:
-        wp = predict(rec)
+        # scored with the position low-passed as in fitting (pneubayes predict does too)
+        wp = predict(smooth_position(rec, settings.position_cutoff_Hz))
         r = wp.residual_Pa[0, :, 1:]
         idx = wp.starts[:, None] + np.arange(1, wp.length)[None, :]
         u = np.abs(np.asarray(rec.command_V)[idx - 1])

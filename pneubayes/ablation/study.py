@@ -51,7 +51,7 @@ from pneubayes.physics.valve import VALVES
 
 #: Bump when :func:`pneubayes.ablation.cell.run_cell` changes what a cell computes: every
 #: cell id changes with it, so no stale cached result is reused.
-CELL_VERSION = 1
+CELL_VERSION = 2
 
 DATA_FORMS = ("catalogue", "realistic")
 PROTOCOLS = ("fixed", "moving")
@@ -97,6 +97,8 @@ class Settings:
     mcmc_walkers (0: automatic), mcmc_max_steps: the emcee run of ``method = "mcmc"``.
     discovery_max_effects, discovery_n_bags: the discovery loop of ``"discover"`` cells.
     smoke_duration_s: recording length of ``--smoke`` runs, s.
+    position_cutoff_Hz: low-pass of the measured position before it drives any model
+    (fitting and scoring; :func:`pneubayes.io.smooth_position`), Hz.
     """
 
     duration_s: float = 20.0
@@ -119,6 +121,7 @@ class Settings:
     discovery_max_effects: int = 4
     discovery_n_bags: int = 40
     smoke_duration_s: float = 14.0
+    position_cutoff_Hz: float = 50.0
 
     @property
     def effective_stride_s(self) -> float:
@@ -150,6 +153,7 @@ SETTINGS: dict[str, tuple] = {
     "discovery_max_effects": ("int", 1),
     "discovery_n_bags": ("int", 2),
     "smoke_duration_s": ("float", 0.0, None),
+    "position_cutoff_Hz": ("float", 0.0, None),
 }
 
 GRID_KEYS = ("rigs", "data_effects", "data_forms", "model_effects", "command_ranges_V",

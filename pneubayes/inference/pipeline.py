@@ -25,6 +25,7 @@ from pneubayes.inference.predictive import PosteriorPredictive, estimate_noise_s
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, arviz
 from pneubayes.inference.windows import WindowSet
+from pneubayes.io.preprocess import smooth_position
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import SolverConfig
@@ -47,6 +48,10 @@ class FitSettings:
     refine_solver: SolverConfig = field(default_factory=_tight)
     sample_solver: SolverConfig = field(default_factory=SolverConfig.standard)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
+    #: zero-phase low-pass of the measured position before it drives the model, Hz
+    #: (None: raw); see :func:`pneubayes.io.smooth_position`. Saved in the model card,
+    #: and ``pneubayes predict`` applies the same.
+    position_cutoff_Hz: float | None = 50.0
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -102,16 +107,18 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    recs = list(recordings)
+    recs = [smooth_position(r, settings.position_cutoff_Hz) for r in recordings]
     t0 = time.perf_counter()
     noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+    inputs_card = {"position_cutoff_Hz": settings.position_cutoff_Hz}
     start, notes, how = starting_point(model, recs, settings, noise)
     log(f"fit: start from {how}")
     if method == "lsq":
         if how == "generic":
             raise ValueError("--method lsq needs fixed-volume recordings at two or more "
                              "positions: " + "; ".join(notes))
-        model.save_card(start, out / "model.json", extra={"fit": {"estimate": "lsq"}})
+        model.save_card(start, out / "model.json",
+                        extra={"fit": {"estimate": "lsq", **inputs_card}})
         summary = _point_summary(method, recs, start, notes, how, noise, settings, t0)
         write_json_atomic(out / "summary.json", summary)
         return summary
@@ -121,7 +128,8 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     log(f"fit: refined 2-s RMSE {ref.start_rmse_Pa_:.0f} -> {ref.rmse_Pa_:.0f} Pa "
         f"({ref.n_evaluations_} evaluations)")
     if method == "refine":
-        model.save_card(ref.params_, out / "model.json", extra={"fit": {"estimate": "refine"}})
+        model.save_card(ref.params_, out / "model.json",
+                        extra={"fit": {"estimate": "refine", **inputs_card}})
         summary = _point_summary(method, recs, start, notes, how, noise, settings, t0,
                                  {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
                                   "start_rmse_Pa": ref.start_rmse_Pa_})
@@ -134,7 +142,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s")
     median = bi.median_params()
     card_extra = {"fit": {"estimate": "posterior median", "posterior": "posterior.nc",
-                          "summary": "summary.json"}}
+                          "summary": "summary.json", **inputs_card}}
     model.save_card(median, out / "model.json", extra=card_extra)
     idata = bi.inference_data({"seed": settings.sampler.seed,
                                "pneubayes_version": pneubayes.__version__,
@@ -185,6 +193,12 @@ def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
     return model, draws[:, : model.n_parameters], draws[:, model.n_parameters:]
 
 
+def run_position_cutoff_Hz(run_dir) -> float | None:
+    """The position low-pass a run was fitted with (its model card), Hz; None: raw."""
+    card = json.loads((Path(run_dir) / "model.json").read_text())
+    return (card.get("fit") or {}).get("position_cutoff_Hz")
+
+
 def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,
                 solver: SolverConfig, stride_s: float | None = None,
                 figure_path=None) -> dict:
@@ -194,6 +208,7 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     """
     rng = np.random.default_rng(seed)
     model, draws, noise = load_posterior(run_dir, n_draws, rng)
+    recording = smooth_position(recording, run_position_cutoff_Hz(run_dir))
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
     w, n = bands.mean.shape

@@ -1,5 +1,6 @@
 """Reading and writing measured data in the project's interchange format."""
 
+from pneubayes.io.preprocess import smooth_position
 from pneubayes.io.recording import (
     COMMAND_LIMIT_V,
     COMMAND_TOLERANCE_V,
@@ -19,5 +20,6 @@ __all__ = [
     "check_recording",
     "read_recording",
     "recording_paths",
+    "smooth_position",
     "write_recording",
 ]
