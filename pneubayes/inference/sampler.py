@@ -55,6 +55,11 @@ class SamplerSettings:
     proposal_df, proposal_scale: the independence proposal is a multivariate Student-t
         with these degrees of freedom and this inflation of the fitted covariance.
     independence_weight: probability of the independence move in a step once fitted.
+    readapt_below_acceptance, max_readapts: if a convergence check finds the production
+        chain unconverged and its recent acceptance below this fraction, the proposal was
+        fitted before the walkers reached the posterior: it is refitted to the last
+        ``adapt_steps`` steps and production restarts there (everything before is
+        discarded, so the kept chain always has one fixed kernel); at most this often.
     init_scale: walker ball size relative to the refined covariance's std.
     """
 
@@ -69,6 +74,8 @@ class SamplerSettings:
     proposal_df: float = 5.0
     proposal_scale: float = 1.2
     independence_weight: float = 0.6
+    readapt_below_acceptance: float = 0.35
+    max_readapts: int = 3
     init_scale: float = 1.0
     seed: int = 0
 
@@ -252,12 +259,29 @@ class BayesianIdentification:
         w = self.settings.independence_weight
         return [(proposal.move(like), w)] + [(m, (1 - w) * p) for m, p in rest]
 
-    def _proposal(self, chain: np.ndarray, like: WindowLikelihood, round_: int):
-        """The independence proposal fitted to adaptation round ``round_ - 1``."""
+    def _proposal(self, chain: np.ndarray, like: WindowLikelihood, end: int):
+        """The independence proposal fitted to the ``adapt_steps`` steps before ``end``."""
         s = self.settings
-        seg = chain[(round_ - 1) * s.adapt_steps: round_ * s.adapt_steps]
+        seg = chain[max(0, end - s.adapt_steps): end]
         return StudentTProposal.fit(seg.reshape(-1, chain.shape[-1]), like.nuisance(),
                                     s.proposal_df, s.proposal_scale)
+
+    @staticmethod
+    def _stored_burn(backend, default: int) -> int:
+        """Where production started (re-adaptations move it), as stored in the file."""
+        try:
+            with backend.open() as f:
+                return int(f[backend.name].attrs.get("pneubayes_burn", default))
+        except (AttributeError, OSError, KeyError):
+            return int(getattr(backend, "pneubayes_burn", default))
+
+    @staticmethod
+    def _store_burn(backend, burn: int) -> None:
+        try:
+            with backend.open("a") as f:
+                f[backend.name].attrs["pneubayes_burn"] = int(burn)
+        except AttributeError:  # the in-memory backend
+            backend.pneubayes_burn = int(burn)
 
     def fit(self, recordings, start: dict, covariance=None) -> "BayesianIdentification":
         """Sample the posterior starting around ``start`` (refined parameter dict).
@@ -309,28 +333,42 @@ class BayesianIdentification:
         # adaptation: rounds of adapt_steps, each with the proposal of the round before
         while backend.iteration < min(s.burn, s.max_steps):
             r = backend.iteration // s.adapt_steps
-            proposal = None if r == 0 else self._proposal(backend.get_chain(), like, r)
+            proposal = (None if r == 0 else
+                        self._proposal(backend.get_chain(), like, r * s.adapt_steps))
             sampler = sampler_for(proposal)
             n = min((r + 1) * s.adapt_steps, s.max_steps) - backend.iteration
             state = sampler.run_mcmc(state, n, progress=self.progress,
                                      skip_initial_state_check=True)
             random_state = sampler.random_state
-        # production with the proposal frozen
-        sampler = sampler_for(self._proposal(backend.get_chain(), like, s.adapt_rounds)
-                              if backend.iteration >= s.burn else None)
+        # production with the proposal frozen (refitted if it proves stale, see settings)
+        burn = self._stored_burn(backend, s.burn) if resume else s.burn
+        readapts = 0 if burn == s.burn else None  # None: unknown after a resume
+        sampler = sampler_for(self._proposal(backend.get_chain(), like, burn)
+                              if backend.iteration >= burn else None)
         while True:
-            if backend.iteration > s.burn:
-                diag = self._diagnose(backend, like)
+            if backend.iteration > burn:
+                diag = self._diagnose(backend, like, burn)
                 if diag["converged"]:
                     converged = True
                     break
+                recent = backend.get_chain()[-s.check_every - 1:]
+                acc = float(np.mean(np.any(np.diff(recent, axis=0) != 0, axis=2)))
+                if (acc < s.readapt_below_acceptance and (readapts or 0) < s.max_readapts
+                        and backend.iteration - burn >= s.check_every
+                        and backend.iteration + s.check_every < s.max_steps):
+                    burn = backend.iteration
+                    readapts = (readapts or 0) + 1
+                    self._store_burn(backend, burn)
+                    random_state = sampler.random_state
+                    sampler = sampler_for(self._proposal(backend.get_chain(), like, burn))
             if backend.iteration >= s.max_steps:
                 break
             n = min(s.check_every, s.max_steps - backend.iteration)
             state = sampler.run_mcmc(state, n, progress=self.progress,
                                      skip_initial_state_check=True)
         if not diag:
-            diag = self._diagnose(backend, like)
+            diag = self._diagnose(backend, like, burn)
+        diag["readapts"] = readapts
         self.wall_time_s_ = time.perf_counter() - t0
         self.resumed_ = resume
         self.names_ = like.names + like.noise_names
@@ -353,14 +391,15 @@ class BayesianIdentification:
             [self.settings.seed, 1]))
         return np.concatenate([x, noise], axis=1).reshape(shape[0], shape[1], -1)
 
-    def _diagnose(self, backend, like: WindowLikelihood) -> dict:
-        """Autocorrelation time (sampling coordinates), R-hat and ESS (natural ones)."""
+    def _diagnose(self, backend, like: WindowLikelihood, burn: int) -> dict:
+        """Autocorrelation time (sampling coordinates), R-hat and ESS (natural ones) of
+        the chain after ``burn`` (production start)."""
         import emcee
 
         s = self.settings
         names = like.names + like.noise_names
         n = backend.iteration
-        burn = min(s.burn, n // 2)
+        burn = min(burn, n - 1)
         post = backend.get_chain(discard=burn)
         with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved
             tau = np.asarray(emcee.autocorr.integrated_time(post, tol=0), dtype=np.float64)
