@@ -189,6 +189,32 @@ def test_refinement_recovers_a_perturbed_start(bench):
         assert ref.params_[k] == pytest.approx(truth[k], rel=0.05), k
 
 
+def test_refinement_survives_trial_steps_that_do_not_simulate(bench, monkeypatch):
+    # the first trial step "cannot be simulated": least squares must back off and go on
+    recs, model, truth = bench
+    real = WindowSet.residuals
+    calls = []
+
+    def flaky(self, m, params, solver, on_failure="raise"):
+        r = real(self, m, params, solver, on_failure)
+        calls.append(len(calls))
+        if len(calls) == 2:  # the first trial point (call 1 is the start)
+            r[0] = np.nan
+        return r
+
+    monkeypatch.setattr(WindowSet, "residuals", flaky)
+    start = dict(truth, dead_volume_m3=1.2 * truth["dead_volume_m3"],
+                 inlet_a_m2=1.1 * truth["inlet_a_m2"])
+    ref = TrajectoryRefiner(model, TIGHT, max_nfev=30).fit(recs, start)
+    assert len(calls) > 3
+    assert ref.rmse_Pa_ < 0.5 * ref.start_rmse_Pa_
+    assert ref.params_["dead_volume_m3"] == pytest.approx(truth["dead_volume_m3"], rel=0.05)
+    calls.clear()
+    calls.append(-1)  # now the start itself fails
+    with pytest.raises(FloatingPointError, match="fails at the start parameters"):
+        TrajectoryRefiner(model, TIGHT, max_nfev=5).fit(recs, start)
+
+
 def test_sampling_coordinates_round_trip_and_jacobian(bench):
     recs, model, truth = bench
     like = WindowLikelihood(model, WindowSet(recs[:1], 2.0, 2.0), SolverConfig.standard())

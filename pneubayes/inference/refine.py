@@ -16,6 +16,10 @@ from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
+#: Residual (Pa) returned for a trial point that does not simulate: far above any real
+#: prediction error, so least squares never accepts the step.
+FAILED_RESIDUAL_PA = 1e7
+
 
 class TrajectoryRefiner:
     """Least squares on window predictions (scikit-learn estimator contract).
@@ -88,7 +92,13 @@ class TrajectoryRefiner:
             r = data.residuals(model, np.array(rows), self.solver, on_failure="nan")
             r = r.reshape(r.shape[0], -1)
             if not np.all(np.isfinite(r[0])):
-                raise FloatingPointError("simulation failed at the current parameters")
+                if not cache and np.array_equal(x, x0):
+                    raise FloatingPointError("refinement: the simulation fails at the start "
+                                             f"parameters {model.as_dict(full(x))}")
+                # a trial step the solver cannot simulate: a residual so large that the
+                # trust region rejects the step and shrinks (the cache keeps the last good)
+                bad = np.full(r.shape[1], FAILED_RESIDUAL_PA)
+                return bad, np.zeros((r.shape[1], x.size))
             jac = (r[1:] - r[0]).T / steps
             jac[~np.isfinite(jac)] = 0.0
             cache.clear()
