@@ -399,7 +399,10 @@ class BayesianIdentification:
         s = self.settings
         names = like.names + like.noise_names
         n = backend.iteration
-        burn = min(burn, n - 1)
+        if n - burn < min(s.check_every, n // 2):
+            # stopped (max_steps) before production really began: report the last half,
+            # never converged (n < s.burn or too short for the tau criterion)
+            burn = n // 2
         post = backend.get_chain(discard=burn)
         with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved
             tau = np.asarray(emcee.autocorr.integrated_time(post, tol=0), dtype=np.float64)
