@@ -18,21 +18,25 @@ from __future__ import annotations
 
 import multiprocessing
 import signal
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 from concurrent import futures as cf
 
 
-class Executor:
-    """The interface the runner uses."""
+class Executor(ABC):
+    """The interface the runner uses (an abstract base: subclasses implement all three)."""
 
+    @abstractmethod
     def submit(self, fn: Callable, *args):
-        raise NotImplementedError
+        """Start ``fn(*args)``; return a future."""
 
+    @abstractmethod
     def as_completed(self, futures: Iterable) -> Iterator:
-        raise NotImplementedError
+        """Yield each future as it finishes."""
 
+    @abstractmethod
     def shutdown(self, cancel: bool = False) -> None:
-        raise NotImplementedError
+        """Release the workers; with ``cancel`` drop what has not started."""
 
     def __enter__(self):
         return self
