@@ -317,6 +317,20 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens):
 
 
 @njit(cache=True, parallel=True)
+def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensitivity):
+    nb = slots.shape[0]
+    nw = starts.shape[0]
+    out = np.empty((nb, nw, length))
+    sens = np.empty((nb, nw, length if with_sensitivity else 0))
+    status = np.zeros((nb, nw), dtype=np.int64)
+    for task in prange(nb * nw):
+        b = task // nw
+        w = task % nw
+        status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
+                               p0[w], out[b, w], sens[b, w])
+    return out, sens, status
+
+
 def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
     """Simulate every (parameter set, window) pair.
 
@@ -333,29 +347,10 @@ def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
     -------
     out : (B, W, length) float64 pressures (Pa); status : (B, W) int64
     """
-    nb = slots.shape[0]
-    nw = starts.shape[0]
-    out = np.empty((nb, nw, length))
-    status = np.zeros((nb, nw), dtype=np.int64)
-    for task in prange(nb * nw):
-        b = task // nw
-        w = task % nw
-        status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
-                               p0[w], out[b, w], np.empty(0))
+    out, _, status = _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, False)
     return out, status
 
 
-@njit(cache=True, parallel=True)
 def simulate_windows_sensitivity(slots, consts, solver, t, u, x, ps, starts, length, p0):
     """:func:`simulate_windows` plus dp(t)/dp0 per sample: ``(out, sens, status)``."""
-    nb = slots.shape[0]
-    nw = starts.shape[0]
-    out = np.empty((nb, nw, length))
-    sens = np.empty((nb, nw, length))
-    status = np.zeros((nb, nw), dtype=np.int64)
-    for task in prange(nb * nw):
-        b = task // nw
-        w = task % nw
-        status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
-                               p0[w], out[b, w], sens[b, w])
-    return out, sens, status
+    return _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, True)
