@@ -15,7 +15,15 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from paper_common import PAPER_NAME, PAPER_TABLE3, figure_path, parser, run_named_study, save
+from paper_common import (
+    PAPER_NAME,
+    PAPER_TABLE3,
+    parser,
+    pyplot,
+    run_named_study,
+    save,
+    save_figure,
+)
 from table3 import rows
 
 from pneubayes.physics.cylinder import cylinder_preset
@@ -30,11 +38,7 @@ def main(argv=None) -> int:
     for r in table:
         r["swept_volume_m3"] = cylinder_preset(r["cylinder"]).swept_volume_m3
         r["leak"] = LEAK[r["cylinder"]]
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4))
     for key, label, marker in (("paper_percent", "paper (Table III)", "s"),
                                ("ours_paper_model_percent", "ours, paper's model", "o"),
@@ -64,10 +68,7 @@ def main(argv=None) -> int:
     bx.set_ylabel("2-s RMSE (% of working range)")
     bx.set_title("(b) SMC against PRN")
     bx.legend(fontsize=8)
-    fig.tight_layout()
-    path = figure_path(args, "fig11_volume")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    path = save_figure(args, fig, "fig11_volume")
     numbers = {"rows": [{k: r.get(k) for k in (
         "cylinder", "seed", "swept_volume_m3", "leak", "paper_percent",
         "ours_paper_model_percent", "ours_discovery_percent", "noise_floor_Pa")}

@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-from paper_common import PAPER_NAME, figure_path, find, ok_cells, parser, run_named_study, save
+from paper_common import bars_against_noise, find, ok_cells, parser, run_named_study, save
 
 WITH, WITHOUT = "cylinder_leak+supply_fluctuation", "supply_fluctuation"
 
@@ -38,27 +37,10 @@ def main(argv=None) -> int:
                                                       / a["metrics"]["rmse_Pa"]),
                           "noise_floor_Pa": b["metrics"]["noise_floor_Pa"],
                           "cells": [a["id"], b["id"]]})
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    x = np.arange(len(table))
-    ax.bar(x - 0.2, [r["without_leak_rmse_Pa"] / 1e3 for r in table], 0.4,
-           label="without leak")
-    ax.bar(x + 0.2, [r["with_leak_rmse_Pa"] / 1e3 for r in table], 0.4,
-           label="with the orifice leak")
-    ax.plot(x, [r["noise_floor_Pa"] / 1e3 for r in table], "k_", markersize=30,
-            label="noise floor")
-    ax.set_xticks(x, [f"{PAPER_NAME[r['cylinder']]} s{r['seed']}" for r in table])
-    ax.set_ylabel("2-s RMSE (kPa)")
-    ax.set_title("Fig. 12a: modelling the leak")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    path = figure_path(args, "fig12a_leak")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    path = bars_against_noise(args, "fig12a_leak", table,
+                              (("without_leak_rmse_Pa", "without leak"),
+                               ("with_leak_rmse_Pa", "with the orifice leak")),
+                              "Fig. 12a: modelling the leak")
     save(args, "fig12a_leak", {"rows": table}, {"table3": doc}, [path])
     for r in table:
         print(r)

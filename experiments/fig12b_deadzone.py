@@ -14,7 +14,16 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from paper_common import PAPER_NAME, figure_path, find, ok_cells, parser, run_named_study, save
+from paper_common import (
+    PAPER_NAME,
+    find,
+    ok_cells,
+    parser,
+    pyplot,
+    run_named_study,
+    save,
+    save_figure,
+)
 
 MODELS = {"cylinder_leak": "paper's model", "cylinder_leak+valve_deadzone": "+ valve_deadzone"}
 
@@ -33,11 +42,7 @@ def main(argv=None) -> int:
                       "noise_floor_Pa": c["metrics"]["noise_floor_Pa"],
                       "deadzone_halfwidth_V": c["model"]["parameters"].get(
                           "deadzone_halfwidth_V"), "cell": c["id"]})
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     rigs = sorted({(r["cylinder"], r["seed"]) for r in table})
     fig, axes = plt.subplots(1, max(1, len(rigs)), figsize=(5 * max(1, len(rigs)), 4),
                              squeeze=False)
@@ -54,10 +59,7 @@ def main(argv=None) -> int:
         ax.set_title(f"{PAPER_NAME[cyl]}, seed {seed}")
         ax.legend(fontsize=8)
     fig.suptitle("Figs. 12b/13: error near the valve dead zone")
-    fig.tight_layout()
-    path = figure_path(args, "fig12b_deadzone")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    path = save_figure(args, fig, "fig12b_deadzone")
     save(args, "fig12b_deadzone", {"rows": table}, {"deadzone": doc}, [path])
     for r in table:
         print(r)

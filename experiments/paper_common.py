@@ -86,3 +86,41 @@ def figure_path(args, name: str) -> Path:
     p = Path(args.out) / "figures" / (name + ("-smoke" if args.smoke else "") + ".png")
     p.parent.mkdir(parents=True, exist_ok=True)
     return p
+
+
+def pyplot():
+    """matplotlib.pyplot on the file-only Agg backend (scripts run headless)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(args, fig, name: str) -> Path:
+    """Write ``fig`` to ``OUT/figures/NAME.png`` and close it; return the path."""
+    path = figure_path(args, name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    pyplot().close(fig)
+    return path
+
+
+def bars_against_noise(args, name: str, table: list[dict], bars: tuple, title: str) -> Path:
+    """Two bars per rig (``bars``: ``((key, label), (key, label))``, RMSE in Pa) and the
+    noise floor, in kPa; the figure of Fig. 12a and of the supply study."""
+    import numpy as np
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    x = np.arange(len(table))
+    for (key, label), dx in zip(bars, (-0.2, 0.2)):
+        ax.bar(x + dx, [r[key] / 1e3 for r in table], 0.4, label=label)
+    ax.plot(x, [r["noise_floor_Pa"] / 1e3 for r in table], "k_", markersize=30,
+            label="noise floor")
+    ax.set_xticks(x, [f"{PAPER_NAME[r['cylinder']]} s{r['seed']}" for r in table])
+    ax.set_ylabel("2-s RMSE (kPa)")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    return save_figure(args, fig, name)

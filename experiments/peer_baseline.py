@@ -14,7 +14,16 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from paper_common import PAPER_NAME, figure_path, find, ok_cells, parser, run_named_study, save
+from paper_common import (
+    PAPER_NAME,
+    find,
+    ok_cells,
+    parser,
+    pyplot,
+    run_named_study,
+    save,
+    save_figure,
+)
 
 COLUMNS = (("tassa", "Tassa et al. 2013"), ("cylinder_leak+supply_fluctuation",
                                              "paper's model"), ("discover", "after discovery"))
@@ -40,11 +49,7 @@ def main(argv=None) -> int:
                         row["tassa_frozen"] = c["fit"].get("frozen")
             if any(row[f"{m}_rmse_Pa"] is not None for m, _ in COLUMNS):
                 table.append(row)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     x = np.arange(len(table))
     for i, (model, label) in enumerate(COLUMNS):
@@ -55,10 +60,7 @@ def main(argv=None) -> int:
     ax.set_ylabel("2-s RMSE (% of working range)")
     ax.set_title("Peer baseline against the thin-port model")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path = figure_path(args, "peer_baseline")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    path = save_figure(args, fig, "peer_baseline")
     save(args, "peer_baseline", {"rows": table}, {"table3": doc}, [path])
     for r in table:
         print({k: v for k, v in r.items() if k != "tassa_parameters"})

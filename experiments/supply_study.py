@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-from paper_common import PAPER_NAME, figure_path, find, ok_cells, parser, run_named_study, save
+from paper_common import bars_against_noise, find, ok_cells, parser, run_named_study, save
 
 
 def main(argv=None) -> int:
@@ -35,26 +34,10 @@ def main(argv=None) -> int:
                       "noise_floor_Pa": c["metrics"]["noise_floor_Pa"],
                       "supply_gain_measured": c["model"]["parameters"].get("supply_gain"),
                       "cells": [c["id"], other["id"]]})
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    x = np.arange(len(table))
-    ax.bar(x - 0.2, [r["nominal_rmse_Pa"] / 1e3 for r in table], 0.4, label="nominal supply")
-    ax.bar(x + 0.2, [r["measured_rmse_Pa"] / 1e3 for r in table], 0.4,
-           label="measured supply")
-    ax.plot(x, [r["noise_floor_Pa"] / 1e3 for r in table], "k_", markersize=30,
-            label="noise floor")
-    ax.set_xticks(x, [f"{PAPER_NAME[r['cylinder']]} s{r['seed']}" for r in table])
-    ax.set_ylabel("2-s RMSE (kPa)")
-    ax.set_title("Measured against nominal supply pressure")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    path = figure_path(args, "supply_study")
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    path = bars_against_noise(args, "supply_study", table,
+                              (("nominal_rmse_Pa", "nominal supply"),
+                               ("measured_rmse_Pa", "measured supply")),
+                              "Measured against nominal supply pressure")
     save(args, "supply_study", {"rows": table}, docs, [path])
     for r in table:
         print(r)
