@@ -175,11 +175,11 @@ def _start_terms(pooled, win, rho):
 
 
 def _start_log_curve(pooled, win, rho, n: int):
-    """log p(residuals | rho) up to constants, sigma integrated out; ``(B, M)``."""
+    """log p(residuals | rho) up to constants, sigma integrated out, and Q; ``(B, M)``."""
     q, log_a = _start_terms(pooled, win, rho)
     n_w = win.shape[1]
     with np.errstate(invalid="ignore", divide="ignore"):
-        return 0.5 * n_w * np.log1p(-rho * rho) - 0.5 * log_a - 0.5 * n * np.log(q)
+        return 0.5 * n_w * np.log1p(-rho * rho) - 0.5 * log_a - 0.5 * n * np.log(q), q
 
 
 def start_noise_loglike(pooled, win, n: int, sigma_bounds=(1.0, 1e5),
@@ -208,20 +208,20 @@ def start_noise_loglike(pooled, win, n: int, sigma_bounds=(1.0, 1e5),
     eps = 1e-4
     for _ in range(4):  # Newton on the log rho-curve, central differences
         grid = rho[:, None] + eps * np.array([-1.0, 0.0, 1.0])
-        fv = _start_log_curve(pooled, win, grid, n)
+        fv, _ = _start_log_curve(pooled, win, grid, n)
         g1 = (fv[:, 2] - fv[:, 0]) / (2 * eps)
         g2 = (fv[:, 2] - 2 * fv[:, 1] + fv[:, 0]) / eps**2
         step = np.where(g2 < 0, -g1 / np.where(g2 < 0, g2, -1.0), np.sign(g1) * 0.01)
         step = np.where(np.isfinite(step), np.clip(step, -0.05, 0.05), 0.0)
         rho = np.clip(rho + step, lo + 1e-6, hi - 1e-6)
     grid = rho[:, None] + eps * np.array([-1.0, 0.0, 1.0])
-    fv = _start_log_curve(pooled, win, grid, n)
+    fv, qv = _start_log_curve(pooled, win, grid, n)
     g2 = (fv[:, 2] - 2 * fv[:, 1] + fv[:, 0]) / eps**2
     sd = 1.0 / np.sqrt(np.maximum(-g2, 1e-12))
     sd = np.minimum(sd, 0.5 * (hi - lo))
     nodes = rho[:, None] + np.sqrt(2.0) * sd[:, None] * _GH_X[None, :]
     inside = (nodes > lo) & (nodes < hi)
-    fn = _start_log_curve(pooled, win, np.clip(nodes, lo + 1e-9, hi - 1e-9), n)
+    fn, _ = _start_log_curve(pooled, win, np.clip(nodes, lo + 1e-9, hi - 1e-9), n)
     fn = np.where(inside, fn, -np.inf)
     f0 = fv[:, 1]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -230,7 +230,6 @@ def start_noise_loglike(pooled, win, n: int, sigma_bounds=(1.0, 1e5),
     log_const = (special.gammaln(0.5 * n) - math.log(2.0) - 0.5 * n * math.log(math.pi)
                  - math.log(math.log(sigma_bounds[1] / sigma_bounds[0]))
                  - math.log(hi - lo))
-    qv, _ = _start_terms(pooled, win, grid)
     summary = np.column_stack([rho, sd, qv[:, 1], (qv[:, 2] - qv[:, 0]) / (2 * eps),
                                (qv[:, 2] - 2 * qv[:, 1] + qv[:, 0]) / eps**2])
     return log_const + log_int, summary
