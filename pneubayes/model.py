@@ -237,7 +237,8 @@ class Model:
             opt = dict(options.get(n, {}))
             # cylinder_leak's form follows from its parameter name when not given.
             if n == "cylinder_leak" and "form" not in opt:
-                opt["form"] = ("laminar" if "leak_conductance_kg_per_s_Pa2" in params
+                opt["form"] = ("graded" if "leak_conductance_gradient" in params else
+                               "laminar" if "leak_conductance_kg_per_s_Pa2" in params
                                else "orifice")
             try:
                 effects.append(make_effect(n, **opt))

@@ -23,15 +23,20 @@ class Rig:
         Nominal absolute supply pressure P_c, Pa.
     gas : GasConstants
         Gas constants; ``gas.temperature_K`` is the supply temperature.
+    stroke_m : float or None
+        Piston stroke, m (None when unknown; an effect that is graded along the stroke
+        needs it).
     """
 
     bore_m: float
     atmospheric_pressure_Pa: float
     supply_pressure_Pa: float
     gas: GasConstants = field(default_factory=GasConstants)
+    stroke_m: float | None = None
 
     def __post_init__(self):
-        for name in ("bore_m", "atmospheric_pressure_Pa", "supply_pressure_Pa"):
+        names = ("bore_m", "atmospheric_pressure_Pa", "supply_pressure_Pa")
+        for name in names + (("stroke_m",) if self.stroke_m is not None else ()):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"Rig.{name} must be a finite number > 0, got {v!r}")

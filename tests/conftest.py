@@ -24,6 +24,7 @@ P_ATM = 101325.0
 P_SUP = 551325.0
 WORKING_RANGE = P_SUP - P_ATM  # 450 kPa, the denominator of Table III's percentages
 BORE = 0.009
+STROKE = 0.03  # m: moving_position's default sine stays inside it
 
 # Table IV (appendix) and NOTES.md temperature.
 C_DIS, Z_CMP, M_AIR, R_GAS, KAPPA, T_GAS = 0.72, 0.99, 0.029, 8.31, 1.4, 293.15
@@ -139,7 +140,7 @@ def fluctuating_supply(t, nominal=P_SUP, amp=15_000.0):
 # ---------------------------------------------------------------- fixtures
 @pytest.fixture(scope="session")
 def rig():
-    return Rig(BORE, P_ATM, P_SUP)
+    return Rig(BORE, P_ATM, P_SUP, stroke_m=STROKE)
 
 
 @pytest.fixture(scope="session")

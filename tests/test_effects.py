@@ -13,6 +13,7 @@ from pneubayes.effects import CATALOGUE, Effect, make_effect
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
 from pneubayes.simulation import Inputs, SolverConfig, simulate
 from pneubayes.simulation.reference import reference_simulate
 
@@ -20,10 +21,11 @@ P_ATM, P_SUP = 101325.0, 551325.0
 RANGE = P_SUP - P_ATM
 
 VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "laminar"}),
+            ("cylinder_leak", {"form": "graded"}),
             ("tube_delay", {}), ("valve_deadzone", {}), ("supply_fluctuation", {}),
             ("heat_transfer", {}), ("spool_lag", {})]
-IDS = ["leak_orifice", "leak_laminar", "tube_delay", "valve_deadzone", "supply_fluctuation",
-       "heat_transfer", "spool_lag"]
+IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "valve_deadzone",
+       "supply_fluctuation", "heat_transfer", "spool_lag"]
 
 
 def _tight():
@@ -316,6 +318,42 @@ def test_laminar_leak_depletes_a_closed_chamber(rig, closable_params, make_input
     e = (p0 - a) / (p0 + a) * np.exp(-2 * a * c * t)
     np.testing.assert_allclose(got, a * (1 + e) / (1 - e), rtol=0, atol=1.0)
     assert got[-1] < 0.5 * p0  # a real depletion over the 2 s
+
+
+@pytest.mark.parametrize("position_fraction", [0.1, 0.9])
+def test_graded_leak_depletes_a_closed_chamber_at_its_position(
+        rig, closable_params, make_inputs, hand, position_fraction):
+    """A fixed piston at x: the laminar closed form with k(x) = k (1 + g (x/S - 1/2))."""
+    k_mid, grad, p0 = 1.9e-16, 0.8, 5.0e5
+    x = position_fraction * rig.stroke_m
+    model = Model([make_effect("cylinder_leak", form="graded")])
+    params = dict(closable_params, leak_conductance_kg_per_s_Pa2=k_mid,
+                  leak_conductance_gradient=grad)
+    t = np.arange(2001) * 1e-3
+    got = _sim(model, params, make_inputs(t, np.zeros(t.size), position=x), rig, p0)
+    g = hand.gas()
+    vol = closable_params["dead_volume_m3"] + rig.bore_area_m2 * x
+    c = g.kappa * g.rs * g.T * k_mid * (1.0 + grad * (position_fraction - 0.5)) / vol
+    a = P_ATM
+    e = (p0 - a) / (p0 + a) * np.exp(-2 * a * c * t)
+    np.testing.assert_allclose(got, a * (1 + e) / (1 - e), rtol=0, atol=1.0)
+
+
+def test_graded_leak_without_gradient_is_the_laminar_leak(rig, valve_params, rich_inputs):
+    k = {"leak_conductance_kg_per_s_Pa2": 3e-16}
+    lam = _sim(Model([make_effect("cylinder_leak", form="laminar")]), dict(valve_params, **k),
+               rich_inputs, rig)
+    graded = _sim(Model([make_effect("cylinder_leak", form="graded")]),
+                  dict(valve_params, leak_conductance_gradient=0.0, **k), rich_inputs, rig)
+    np.testing.assert_array_equal(graded, lam)
+
+
+def test_graded_leak_needs_the_stroke(valve_params):
+    model = Model([make_effect("cylinder_leak", form="graded")])
+    params = dict(valve_params, leak_conductance_kg_per_s_Pa2=1e-16,
+                  leak_conductance_gradient=0.5)
+    with pytest.raises(ValueError, match="stroke_m"):
+        model.lower(model.vector(params)[None], Rig(0.009, P_ATM, P_SUP))
 
 
 def test_orifice_leak_depletes_a_closed_chamber(rig, closable_params, make_inputs, hand):

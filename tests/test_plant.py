@@ -237,7 +237,8 @@ def test_clearance_leak_matches_its_closed_form_at_a_position(rig):
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
     p = simulate_plant(params, (form,), inputs, rig, 5e5, REF).pressure_Pa
     k = form.conductance_kg_per_s_Pa2(BORE, rig.gas, position_m=x)
-    assert k == pytest.approx(form.conductance_kg_per_s_Pa2(BORE, rig.gas) * 0.004 / 0.0056)
+    assert k == pytest.approx(form.conductance_kg_per_s_Pa2(BORE, rig.gas) * 0.004 / 0.0056,
+                              rel=1e-12, abs=0)
     g = rig.gas
     a = k * g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K / (
         1.5e-7 + rig.bore_area_m2 * x)
@@ -348,7 +349,7 @@ def test_default_forms_are_realistic(rig):
     leak = forms["cylinder_leak"]
     k = leak.conductance_kg_per_s_Pa2(BORE, rig.gas)
     assert k == pytest.approx(make_effect("cylinder_leak", form="laminar")
-                              .bench_defaults()["leak_conductance_kg_per_s_Pa2"])
+                              .bench_defaults()["leak_conductance_kg_per_s_Pa2"], rel=1e-9, abs=0)
     assert 5e-6 < leak.gap_m < 2e-5  # an air-gap cylinder's clearance
     for f in forms.values():
         assert form_from_dict(json.loads(json.dumps(f.to_dict()))) == f

@@ -159,7 +159,8 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     out.mkdir(parents=True, exist_ok=True)
     cyl = cylinder_preset(cfg.cylinder)
     model = cfg.model
-    rig = Rig(cyl.bore_m, ATMOSPHERE_PA, SUPPLY_PA, GasConstants(temperature_K=TEMPERATURE_K))
+    rig = Rig(cyl.bore_m, ATMOSPHERE_PA, SUPPLY_PA, GasConstants(temperature_K=TEMPERATURE_K),
+              stroke_m=cyl.stroke_m)
     truth = truth_parameters(model, cfg.cylinder, cfg.valve, rig, cfg.overrides)
     truth, plant_truth = _form_truth(cfg, truth)
     fs_out = cfg.sensor.sample_rate_Hz

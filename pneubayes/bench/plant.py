@@ -345,6 +345,9 @@ def _lower_catalogue(params: Mapping[str, float], effects: Sequence[Effect], rig
 
 def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -> _Setup:
     sl = _lower_catalogue(params, effects, rig)
+    if sl[SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]] != 0.0:
+        raise ValueError("plant: a catalogue leak graded along the stroke is not simulated "
+                         "here; plant a ClearanceLeak form with a seal_length_slope instead")
     g = rig.gas
     P = np.zeros(N_K)
     P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,

@@ -75,7 +75,10 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     inlet = scale * atten * a_in * flow_function(p_sup, p, g)
     exhaust = -scale * atten * a_ex * flow_function(p, p_atm, g)
     leak = -scale * (sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
-                     + sl[S["leak_laminar_kg_per_s_Pa2"]] * (p * p - p_atm * p_atm))
+                     + np.maximum(sl[S["leak_laminar_kg_per_s_Pa2"]]
+                                  + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
+                                  * np.asarray(position_m, dtype=np.float64), 0.0)
+                     * (p * p - p_atm * p_atm))
     volume = -kappa * p * vdot / vol
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
     return RateTerms(inlet, exhaust, leak, volume,

@@ -10,6 +10,13 @@ in the paper's Fig. 4, or a recording with the valve blocked).
 an air-gap anti-stiction cylinder (AIRPEL): ``mdot = k (p^2 - P_r^2)`` with
 ``k = pi D h^3 / (24 mu L Rs T)`` for bore D, gap h and seal length L. Its pressure
 dependence differs from an orifice's, so it is separable from the exhaust offset.
+
+``form="graded"``: the laminar law with a conductance that changes linearly along the
+stroke, ``k(x) = k (1 + g (x / stroke - 1/2))``: ``leak_conductance_kg_per_s_Pa2`` is
+k at mid-stroke and ``leak_conductance_gradient`` the relative change g over the full
+stroke. A clearance leak's path length is the seal's engagement, which changes along
+the stroke in a tapered bore or a bushing; with g = 0 this is the laminar form. The
+bound |g| < 1.9 keeps k above 5 % of its mid-stroke value everywhere on the stroke.
 """
 
 from __future__ import annotations
@@ -21,14 +28,15 @@ import numpy as np
 from pneubayes.effects.base import Effect, Parameter
 from pneubayes.rig import Rig
 
-_FORMS = ("orifice", "laminar")
+_FORMS = ("orifice", "laminar", "graded")
 
 
 class CylinderLeak(Effect):
     """Leak from the chamber to atmosphere past the piston (eqs. 6-9)."""
 
     name = "cylinder_leak"
-    acts_on = ("leak_orifice_area_m2", "leak_laminar_kg_per_s_Pa2")
+    acts_on = ("leak_orifice_area_m2", "leak_laminar_kg_per_s_Pa2",
+               "leak_laminar_gradient_kg_per_s_Pa2_m")
 
     def __init__(self, form: str = "orifice"):
         self.form = form
@@ -45,18 +53,34 @@ class CylinderLeak(Effect):
         if self.form == "orifice":
             return (Parameter("leak_area_m2", "m^2", 0.0, 2e-7, "uniform",
                               "equivalent leak orifice area (eqs. 6-9)", neutral=0.0),)
-        return (Parameter("leak_conductance_kg_per_s_Pa2", "kg/(s Pa^2)", 0.0, 2e-15, "uniform",
-                          "laminar clearance leak k in k (p^2 - P_r^2)", neutral=0.0),)
+        k = Parameter("leak_conductance_kg_per_s_Pa2", "kg/(s Pa^2)", 0.0, 2e-15, "uniform",
+                      "laminar clearance leak k in k (p^2 - P_r^2)"
+                      + (" at mid-stroke" if self.form == "graded" else ""), neutral=0.0)
+        if self.form == "laminar":
+            return (k,)
+        return (k, Parameter("leak_conductance_gradient", "-", -1.9, 1.9, "uniform",
+                             "relative change of k over the full stroke", neutral=0.0))
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
         if self.form == "orifice":
             return {"leak_orifice_area_m2": values["leak_area_m2"]}
-        return {"leak_laminar_kg_per_s_Pa2": values["leak_conductance_kg_per_s_Pa2"]}
+        k = np.asarray(values["leak_conductance_kg_per_s_Pa2"], dtype=np.float64)
+        if self.form == "laminar":
+            return {"leak_laminar_kg_per_s_Pa2": k}
+        g = np.asarray(values["leak_conductance_gradient"], dtype=np.float64)
+        if rig.stroke_m is None:
+            raise ValueError("cylinder_leak (graded): the rig's stroke_m is needed to grade "
+                             "the leak along the stroke; it is unknown")
+        return {"leak_laminar_kg_per_s_Pa2": k * (1.0 - 0.5 * g),
+                "leak_laminar_gradient_kg_per_s_Pa2_m": k * g / rig.stroke_m}
 
     def bench_defaults(self):
         # Paper VI-B-3: equivalent diameter 1.9665e-4 m for the AIRPELs -> 3.04e-8 m^2.
         # The laminar value gives the same flow at about 3 bar absolute (gap ~10 um).
         if self.form == "orifice":
             return {"leak_area_m2": float(np.pi / 4 * 1.9665e-4 ** 2)}
-        return {"leak_conductance_kg_per_s_Pa2": 1.9e-16}
+        if self.form == "laminar":
+            return {"leak_conductance_kg_per_s_Pa2": 1.9e-16}
+        # a seal engagement that changes the conductance by half over the stroke
+        return {"leak_conductance_kg_per_s_Pa2": 1.9e-16, "leak_conductance_gradient": 0.5}

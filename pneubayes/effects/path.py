@@ -32,7 +32,9 @@ SLOTS: tuple[tuple[str, str], ...] = (
     ("supply_gain", "weight of the measured supply deviation: P_c = P_nom + g (P_meas - P_nom)"),
     ("flow_attenuation_Pa", "port flows reach the chamber scaled by exp(-value / p) (Pa)"),
     ("leak_orifice_area_m2", "orifice leak to atmosphere, eqs. 6-9 (m^2)"),
-    ("leak_laminar_kg_per_s_Pa2", "laminar leak k (p^2 - P_atm^2) (kg/(s Pa^2))"),
+    ("leak_laminar_kg_per_s_Pa2", "laminar leak k (p^2 - P_atm^2) at position 0 (kg/(s Pa^2))"),
+    ("leak_laminar_gradient_kg_per_s_Pa2_m",
+     "change of the laminar leak's k per metre of piston position (kg/(s Pa^2 m))"),
     ("heat_rate_per_s", "wall heat exchange rate 1/tau; > 0 makes temperature a state (1/s)"),
 )
 

@@ -55,6 +55,24 @@ def _fixed_position(rec) -> float:
     return float(rec.position_or_fixed()[0])
 
 
+def _graded_leak(k, weight, position_m, stroke_m, gradient) -> dict:
+    """k (1 + g (x/S - 1/2)) through per-recording conductances at fixed positions.
+
+    A weighted straight line through (x/S, k) gives k at mid-stroke and its relative
+    change g over the stroke (clipped to g's bounds); one position alone leaves g = 0.
+    """
+    xi = np.asarray(position_m) / np.asarray(stroke_m)
+    mean = float(np.sum(weight * k) / np.sum(weight))
+    if np.unique(np.round(xi[weight > 0], 9)).size < 2:
+        return {"leak_conductance_kg_per_s_Pa2": mean, "leak_conductance_gradient": 0.0}
+    slope, at_zero = np.polyfit(xi, k, 1, w=np.sqrt(weight))
+    mid = at_zero + 0.5 * slope
+    if not mid > 0:
+        return {"leak_conductance_kg_per_s_Pa2": mean, "leak_conductance_gradient": 0.0}
+    g = float(np.clip(slope / mid, gradient.lower, gradient.upper))
+    return {"leak_conductance_kg_per_s_Pa2": float(mid), "leak_conductance_gradient": g}
+
+
 def _fit_gompertz(u, area, se, port: str, model: Model, rng: np.random.Generator,
                   warm: dict | None = None):
     """Weighted Gompertz fit (eq. 11) to area points, within model bounds.
@@ -145,7 +163,7 @@ class PaperLeastSquares:
         more per recording (k / V), shared by that recording's holds.
         """
         laminar = (self.model.has("cylinder_leak")
-                   and self.model.effect("cylinder_leak").form == "laminar")
+                   and self.model.effect("cylinder_leak").form in ("laminar", "graded"))
         rows, cols, vals, target, holds = [], [], [], [], []
         leak_rows: dict[int, list] = {}
         n_col = row0 = 0
@@ -220,9 +238,17 @@ class PaperLeastSquares:
         resid = y - A @ x
         out = []
         row = 0
+        leak_info = dict.fromkeys(leak_cols, 0.0)
         for j, u, c, n in holds:
             blk = As[row:row + n, c:c + 2].toarray()
             rr = resid[row:row + n]
+            if j in leak_cols:
+                # the leak column's information in this hold, after the hold's own two
+                # area columns: |lam - proj(lam)|^2 / s^2
+                lam = A[row:row + n, leak_cols[j]].toarray().ravel()
+                coef = np.linalg.lstsq(blk, lam, rcond=None)[0]
+                free = lam - blk @ coef
+                leak_info[j] += float(free @ free) / max(float(rr @ rr) / max(n - 3, 1), 1e-300)
             row += n
             sv = np.linalg.svd(blk, compute_uv=False)
             if sv[-1] <= self.max_condition ** -1 * sv[0]:
@@ -235,7 +261,8 @@ class PaperLeastSquares:
             out.append(HoldArea(j, u, x[c], x[c + 1], se[0], se[1], n))
         if not out:
             raise ValueError("no command hold moved the pressure enough to identify areas")
-        leak_per_volume = {j: x[c] for j, c in leak_cols.items()}
+        leak_per_volume = {j: (x[c], 1.0 / np.sqrt(leak_info[j]) if leak_info[j] > 0 else np.inf)
+                           for j, c in leak_cols.items()}
         return out, leak_per_volume, float(np.sqrt(np.mean(resid**2)))
 
     # -------------------------------------------------------------- volume + Gompertz
@@ -313,9 +340,22 @@ class PaperLeastSquares:
         notes = []
         if self.model.has("cylinder_leak"):
             leak = self.model.effect("cylinder_leak")
-            if leak.form == "laminar":
-                ks = [leak_pv[j] * volumes[j] for j in leak_pv]
-                params["leak_conductance_kg_per_s_Pa2"] = float(np.mean(ks))
+            if leak.form in ("laminar", "graded"):
+                # per recording: k / (Rs T) / V with its standard error (dp/dt = kappa
+                # Rs T k (p^2 - P_atm^2) / V); combined by inverse variance, because a
+                # recording of large commands hides the leak behind the port flows
+                js = sorted(leak_pv)
+                rs_t = [recs[j].rig().gas.specific_gas_constant_J_per_kg_K
+                        * recs[j].rig().gas.temperature_K for j in js]
+                ks = np.array([leak_pv[j][0] * volumes[j] / rs_t[i] for i, j in enumerate(js)])
+                se = np.array([leak_pv[j][1] * volumes[j] / rs_t[i] for i, j in enumerate(js)])
+                w = np.where(np.isfinite(se) & (se > 0), 1.0 / np.maximum(se, 1e-300)**2, 0.0)
+                w = w if w.sum() > 0 else np.ones_like(ks)
+                params["leak_conductance_kg_per_s_Pa2"] = float(np.sum(w * ks) / np.sum(w))
+                if leak.form == "graded":
+                    params.update(_graded_leak(ks, w, positions[js],
+                                               np.array([recs[j].metadata.stroke_m for j in js]),
+                                               self.model.parameter("leak_conductance_gradient")))
             else:
                 lumped = p_ex["exhaust_offset_m2"]
                 if "exhaust_offset_m2" in known:

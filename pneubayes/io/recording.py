@@ -172,7 +172,7 @@ class Recording:
         """The :class:`~pneubayes.rig.Rig` described by the metadata (gas at ``temperature_K``)."""
         md = self.metadata
         return Rig(md.bore_m, md.atmospheric_pressure_Pa, md.supply_pressure_Pa,
-                   gas=GasConstants(temperature_K=md.temperature_K))
+                   gas=GasConstants(temperature_K=md.temperature_K), stroke_m=md.stroke_m)
 
     def slice(self, start: int | None, stop: int | None) -> Recording:
         """Samples ``start:stop`` (Python slice rules) as a new recording, times kept.

@@ -59,6 +59,7 @@ _SUPG = SLOT_INDEX["supply_gain"]
 _ATT = SLOT_INDEX["flow_attenuation_Pa"]
 _LEAK_O = SLOT_INDEX["leak_orifice_area_m2"]
 _LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
+_LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 
 
@@ -131,8 +132,13 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     valve = a_in * f_in - a_ex * f_ex
     att = sl[_ATT]
     phi = math.exp(-att / p) if att > 0.0 else 1.0
-    leak_o, leak_l = sl[_LEAK_O], sl[_LEAK_L]
-    mdot = phi * valve - leak_o * f_ex - leak_l * (p * p - p_atm * p_atm)
+    leak_o, leak_g = sl[_LEAK_O], sl[_LEAK_LG]
+    # laminar k at the piston's position x = (V - V_0) / A (never negative)
+    leak_l = sl[_LEAK_L] + leak_g * (vol - sl[_VOL]) / cs[C_BORE_AREA]
+    if leak_l < 0.0:
+        leak_l, leak_g = 0.0, 0.0
+    lam = p * p - p_atm * p_atm
+    mdot = phi * valve - leak_o * f_ex - leak_l * lam
     rs = cs[C_RS]
     t_wall = cs[C_T_SUPPLY]
     rs_t = rs * t_wall
@@ -158,7 +164,8 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
         jp += heat * (t_wall - temp) / temp
         jt = fp_eq5 / p - heat + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
-    dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+    dmdot_dt = (phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+                - leak_g * vdot / cs[C_BORE_AREA] * lam)
     vp = -fp_eq5 / vol * vdot + n_over_v * rs_t * dmdot_dt
     return fp, jp, ft, jt, vp
 

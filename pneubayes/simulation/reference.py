@@ -43,7 +43,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         valve = a_in * flow_function(psup, p, g) - a_ex * flow_function(p, p_atm, g)
         valve = valve * np.exp(-sl[S["flow_attenuation_Pa"]] / p)
         mdot = (valve - sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
-                - sl[S["leak_laminar_kg_per_s_Pa2"]] * (p * p - p_atm * p_atm))
+                - max(sl[S["leak_laminar_kg_per_s_Pa2"]]
+                      + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
+                      * (vol - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
+                * (p * p - p_atm * p_atm))
         dp = kappa / vol * (rs * t_s * mdot - p * vdot)
         dtemp = 0.0
         if heat > 0:
