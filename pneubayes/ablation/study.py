@@ -249,7 +249,7 @@ class Cell:
         if not self.discover:
             s = {k: v for k, v in s.items() if not k.startswith("discovery_")}
         if "cylinder_leak" not in self.model_effects:
-            s.pop("leak_form")  # the discovery loop's leak candidate is always laminar
+            s.pop("leak_form")  # the discovery loop picks its own leak law (graded laminar)
         if not ("cylinder_leak" in self.data_effects and self.data_form == "catalogue"):
             s.pop("data_leak_form")
         if not self.settings.fit_moving_count:

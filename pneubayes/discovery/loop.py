@@ -186,8 +186,10 @@ class Discovery:
         term = evidence.get("best_term") or ""
         num = [float(t) for t in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", term)]
         start = dict(fit.params)
-        if group == "cylinder_leak":  # the laminar law: an orifice leak is never missing
-            effect = make_effect("cylinder_leak", form="laminar")
+        if group == "cylinder_leak":
+            # the laminar law, graded along the stroke (a clearance whose seal engagement
+            # varies; gradient 0 is the uniform gap): an orifice leak is never missing
+            effect = make_effect("cylinder_leak", form="graded")
         else:
             effect = make_effect(group)
         model = fit.model.with_effect(effect)
