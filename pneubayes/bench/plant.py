@@ -194,13 +194,15 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     # chamber (eq. 5, or the energy equation)
     vol = P[K_VDEAD] + P[K_ABORE] * x
     vdot = P[K_ABORE] * xdot
+    # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
+    # temperature state, where this is eq. 5)
+    enth = h_in - leak * (temp if leak > 0.0 else ts)
     if heat == 2:
-        enth = h_in - leak * (temp if leak > 0.0 else ts)
         a_wall = 2.0 * P[K_ABORE] + math.pi * P[K_BORE] * vol / P[K_ABORE]
         q_heat = P[K_H] * a_wall * (P[K_TWALL] - temp)
         dp = kappa / vol * (rs * enth - p * vdot) + (kappa - 1.0) * q_heat / vol
     else:
-        dp = kappa / vol * (rs * ts * mdot - p * vdot)
+        dp = kappa / vol * (rs * enth - p * vdot)
         if heat == 1:
             dp += p * P[K_HEAT] * (ts - temp) / temp
     dy[0] = dp

@@ -143,9 +143,17 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     t_wall = cs[C_T_SUPPLY]
     rs_t = rs * t_wall
     n_over_v = kappa / vol
-    fp_eq5 = n_over_v * (rs_t * mdot - p * vdot)
-    fp = fp_eq5
     heat = sl[_HEAT]
+    # With a temperature state, air leaving the chamber carries the chamber's enthalpy
+    # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
+    # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
+    m_out = 0.0
+    if heat > 0.0:
+        leak_out = leak_o * f_ex + leak_l * lam
+        m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
+                 + max(leak_out, 0.0))
+    fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
+    fp = fp_eq5
     ft = 0.0
     if heat > 0.0:
         fp += p * heat * (t_wall - temp) / temp
@@ -162,7 +170,8 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     jt = 0.0
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
-        jt = fp_eq5 / p - heat + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
+        jt = (fp_eq5 / p - heat + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
+              - n_over_v * rs * temp * m_out / p)
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = (phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
                 - leak_g * vdot / cs[C_BORE_AREA] * lam)

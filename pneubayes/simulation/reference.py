@@ -40,14 +40,20 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         vol = sl[S["volume_m3"]] + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2)
         psup = rig.supply_pressure_Pa + sl[S["supply_gain"]] * (
             sa + fr * (sb - sa) - rig.supply_pressure_Pa)
-        valve = a_in * flow_function(psup, p, g) - a_ex * flow_function(p, p_atm, g)
-        valve = valve * np.exp(-sl[S["flow_attenuation_Pa"]] / p)
-        mdot = (valve - sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
-                - max(sl[S["leak_laminar_kg_per_s_Pa2"]]
-                      + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
-                      * (vol - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
-                * (p * p - p_atm * p_atm))
-        dp = kappa / vol * (rs * t_s * mdot - p * vdot)
+        att = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
+        k_lam = max(sl[S["leak_laminar_kg_per_s_Pa2"]]
+                    + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
+                    * (vol - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
+        # each mass flow into the chamber (kg/s, negative = out)
+        flows = [att * a_in * flow_function(psup, p, g), -att * a_ex * flow_function(p, p_atm, g),
+                 -sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g),
+                 -k_lam * (p * p - p_atm * p_atm)]
+        mdot = float(sum(flows))
+        # enthalpy: inflow at the supply temperature, outflow at the chamber's (T = T_s
+        # without heat exchange, where this is eq. 5)
+        t_chamber = temp if heat > 0 else t_s
+        enthalpy = sum(rs * (t_s if q > 0 else t_chamber) * q for q in map(float, flows))
+        dp = kappa / vol * (enthalpy - p * vdot)
         dtemp = 0.0
         if heat > 0:
             dp = dp + p * heat * (t_s - temp) / temp
