@@ -57,7 +57,7 @@ DATA_FORMS = ("catalogue", "realistic")
 PROTOCOLS = ("fixed", "moving")
 METHODS = ("lsq", "refine", "mcmc")
 SUPPLIES = ("measured", "nominal")
-LEAK_FORMS = ("orifice", "laminar")
+LEAK_FORMS = ("orifice", "laminar", "graded")
 DISCOVER = "discover"
 #: The peer baseline (Tassa et al. 2013, :mod:`pneubayes.baselines.tassa`) as a model.
 TASSA = "tassa"
@@ -92,7 +92,7 @@ class Settings:
     fit_moving_range_V are added (seed + 500). eval_positions / eval_moving_count: the
     held-out recordings of a fixed / moving cell (seed + heldout_seed_offset).
     leak_form: law of ``cylinder_leak`` in fitted models (the paper's orifice by
-    default); data_leak_form: law of a planted catalogue leak (laminar by default: an
+    default; ``laminar``, or ``graded`` along the stroke); data_leak_form: law of a planted catalogue leak (laminar by default: an
     orifice leak is the exhaust port's own law and is absorbed by the exhaust offset).
     mcmc_walkers (0: automatic), mcmc_max_steps: the emcee run of ``method = "mcmc"``.
     discovery_max_effects, discovery_n_bags: the discovery loop of ``"discover"`` cells.
