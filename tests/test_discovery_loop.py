@@ -67,3 +67,32 @@ def test_discover_refuses_a_held_out_set_too_small_to_test(tmp_path):
     recs = [read_recording(p) for p in res.recordings]
     with pytest.raises(ValueError, match="held-out"):
         Discovery(DiscoverySettings(posterior=False), None, log=lambda m: None).fit(recs)
+
+
+@pytest.mark.slow
+def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
+    """The first round's gap fallback: with every inclusion probability halved (as for a
+    slow leak in a large chamber, where the one-step search is weak), a hidden laminar
+    leak is found only because the plain model's 2-s error is far above the noise."""
+    import pneubayes.discovery.loop as loop
+
+    class Halved(loop.GroupedSINDy):
+        def supported(self, min_inclusion):
+            return [g for g in self.ranking_
+                    if 0.5 * self.evidence_[g]["inclusion_probability"] >= min_inclusion]
+
+    monkeypatch.setattr(loop, "GroupedSINDy", Halved)
+    eff = effects_from_names(["cylinder_leak"], "laminar")
+    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
+                                  seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
+                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
+                      tmp_path / "fixed")
+    recs = [read_recording(p) for p in fixed.recordings]
+    found = Discovery(DiscoverySettings(posterior=False), None, log=lambda m: None).fit(recs)
+    doc = found.result()
+    assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
+    assert doc["rmse_base_Pa"] > 2.0 * doc["noise_floor_Pa"]
+    assert doc["ledger"][1]["supported"] == [] and "cylinder_leak" in doc["ledger"][1]["tentative"]
+    off = Discovery(DiscoverySettings(posterior=False, gap_fallback_ratio=0.0), None,
+                    log=lambda m: None).fit(recs)
+    assert off.result()["effects"] == []

@@ -83,6 +83,13 @@ class DiscoverySettings:
     this level. max_effects: stop after adding this many. max_trials_per_round:
     supported groups refitted per round. max_refine_restarts: refinement is restarted
     from where it stopped until it converges, at most this many times.
+    gap_fallback_ratio, fallback_min_inclusion: the one-step search has little power for
+    slow effects (a small leak in a large chamber changes dp/dt by less than the noise
+    per step, yet its 2-s error is many times the noise). So when no group is supported
+    in the first round but the plain model's held-out 2-s RMSE exceeds
+    ``gap_fallback_ratio`` x the noise floor, the best-ranked groups with inclusion at
+    least ``fallback_min_inclusion`` are refitted as tentative candidates; held-out
+    verification decides, as for any candidate. ``gap_fallback_ratio = 0`` disables it.
     """
 
     holdout_fraction: float = 1.0 / 3.0
@@ -97,6 +104,8 @@ class DiscoverySettings:
     max_trials_per_round: int = 3
     max_refine_restarts: int = 3
     max_p_value: float = 0.01
+    gap_fallback_ratio: float = 2.0
+    fallback_min_inclusion: float = 0.25
     fit: FitSettings = field(default_factory=FitSettings)
     posterior: bool = True
     library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
@@ -107,6 +116,12 @@ class DiscoverySettings:
             raise ValueError(f"holdout_fraction must be in (0, 1), got {self.holdout_fraction}")
         if not 0.0 < self.min_inclusion <= 1.0:
             raise ValueError(f"min_inclusion must be in (0, 1], got {self.min_inclusion}")
+        if not 0.0 < self.fallback_min_inclusion <= 1.0:
+            raise ValueError(f"fallback_min_inclusion must be in (0, 1], got "
+                             f"{self.fallback_min_inclusion}")
+        if not (self.gap_fallback_ratio == 0.0 or self.gap_fallback_ratio >= 1.0):
+            raise ValueError(f"gap_fallback_ratio must be 0 (off) or >= 1, got "
+                             f"{self.gap_fallback_ratio}")
         if self.block < 1:
             raise ValueError(f"block must be >= 1, got {self.block}")
 
@@ -258,10 +273,19 @@ class Discovery:
                 f"{g} {sindy.evidence_[g]['inclusion_probability']:.2f}"
                 for g in sindy.ranking_))
             supported = sindy.supported(s.min_inclusion)
+            tentative = []
+            if (not supported and not accepted and s.gap_fallback_ratio > 0
+                    and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise):
+                tentative = sindy.supported(s.fallback_min_inclusion)
+                if tentative:
+                    self.log(f"discover: no effect reaches inclusion {s.min_inclusion:g}, but "
+                             f"the held-out error is {current.heldout_rmse_Pa / noise:.1f} x "
+                             f"the noise floor: trying {', '.join(tentative[:s.max_trials_per_round])}")
             ledger.append({"step": len(ledger), "action": "search", "round": round_,
-                           "supported": supported,
+                           "supported": supported, "tentative": tentative,
                            "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
                                          for g in sindy.ranking_}})
+            supported = supported or tentative
             if not supported:
                 self.log("discover: no effect is supported; stop")
                 break
