@@ -341,9 +341,10 @@ class PaperLeastSquares:
         if self.model.has("cylinder_leak"):
             leak = self.model.effect("cylinder_leak")
             if leak.form in ("laminar", "graded"):
-                # per recording: k / (Rs T) / V with its standard error (dp/dt = kappa
-                # Rs T k (p^2 - P_atm^2) / V); combined by inverse variance, because a
-                # recording of large commands hides the leak behind the port flows
+                # per recording the leak column's coefficient is Rs T k / V (dp/dt =
+                # kappa Rs T k (p^2 - P_atm^2) / V), with its standard error; k is
+                # combined by inverse variance, because a recording of large commands
+                # hides the leak behind the port flows
                 js = sorted(leak_pv)
                 rs_t = [recs[j].rig().gas.specific_gas_constant_J_per_kg_K
                         * recs[j].rig().gas.temperature_K for j in js]
