@@ -44,26 +44,33 @@ NOT_IDENTIFIABLE = ("inlet_b", "inlet_d_V", "exhaust_b", "exhaust_d_V", "exhaust
                     "leak_area_m2")
 
 
-def truth_hpd_level(work: Path) -> float:
-    """The joint check: the fraction of posterior draws denser than the truth.
+def truth_checks(work: Path) -> tuple[float, dict]:
+    """The joint checks of one case: ``(truth HPD level, truth Mahalanobis distance)``.
 
-    The truth's density uses the fit's own likelihood (data, solver, sampling
-    coordinates). Per-parameter intervals of correlated parameters miss together (one 2-sigma
-    deviation along a correlated direction fails several at once); the truth's
-    highest-posterior-density level is one number per case, uniform over replicates
-    when the posterior is calibrated, and <= 0.9 when the truth is inside the 90 % HPD
-    region.
+    *HPD level*: the fraction of posterior draws denser than the truth, the truth's
+    density from the fit's own likelihood (data, solver, sampling coordinates). It is one
+    number per case, uniform over replicates when the posterior is calibrated, and <= 0.9
+    when the truth is inside the 90 % HPD region.
+
+    *Mahalanobis distance*: in the sampler's coordinates (logs, ``ln b - c d``, offset +
+    leak) without those the data do not inform (:meth:`WindowLikelihood.nuisance`), the
+    draws' mean and covariance give ``m2 = (z_true - mean)^T C^-1 (z_true - mean)``. For
+    a calibrated, near-Gaussian posterior ``m2 ~ chi^2_k``; the m2 of independent cases
+    add up to a chi^2 with the summed k.
+
+    Both count a deviation along a correlated direction once, where per-parameter
+    intervals of correlated parameters miss together.
     """
     import emcee
+    from scipy import stats
 
     from pneubayes.inference.likelihood import WindowLikelihood
+    from pneubayes.inference.pipeline import run_position_cutoff_Hz
     from pneubayes.inference.windows import WindowSet
+    from pneubayes.io import smooth_position
 
     summary = json.loads((work / "run" / "summary.json").read_text())
     model, truth = Model.load_card(work / "bench" / "train" / "truth.json")
-    from pneubayes.inference.pipeline import run_position_cutoff_Hz
-    from pneubayes.io import smooth_position
-
     cutoff = run_position_cutoff_Hz(work / "run")  # the inputs exactly as fitted
     recs = [smooth_position(read_recording(p), cutoff)
             for p in sorted((work / "bench" / "train").glob("*.csv"))]
@@ -72,42 +79,15 @@ def truth_hpd_level(work: Path) -> float:
                             settings.sample_solver)
     backend = emcee.backends.HDFBackend(str(work / "run" / "chain.h5"), name="pneubayes",
                                         read_only=True)
-    lp = backend.get_log_prob(discard=int(summary["burn"])).ravel()
-    lp_truth = like.log_prob_sampling(like.to_sampling(model.vector(truth)[None]))[0]
-    return float(np.mean(lp > lp_truth))
-
-
-def truth_mahalanobis(work: Path) -> dict:
-    """The truth's squared Mahalanobis distance from the posterior, identified coordinates.
-
-    In the sampler's coordinates (logs, ``ln b - c d``, offset + leak) without the
-    coordinates the data do not inform (:meth:`WindowLikelihood.nuisance`), the draws'
-    mean and covariance give ``m2 = (z_true - mean)^T C^-1 (z_true - mean)``. For a
-    calibrated, near-Gaussian posterior ``m2 ~ chi^2_k``: its p-value is uniform over
-    replicates, and the m2 of independent cases add up to a chi^2 with the summed k.
-    Unlike per-parameter coverage this counts a deviation along a correlated direction
-    once, in its own posterior scale.
-    """
-    import emcee
-    from scipy import stats
-
-    from pneubayes.inference.likelihood import WindowLikelihood
-    from pneubayes.inference.windows import WindowSet
-
-    summary = json.loads((work / "run" / "summary.json").read_text())
-    model, truth = Model.load_card(work / "bench" / "train" / "truth.json")
-    rec = read_recording(sorted((work / "bench" / "train").glob("*.csv"))[0])
-    settings = FitSettings()  # coordinates only; no likelihood evaluation
-    like = WindowLikelihood(model, WindowSet([rec], settings.horizon_s, settings.stride_s),
-                            settings.sample_solver)
-    backend = emcee.backends.HDFBackend(str(work / "run" / "chain.h5"), name="pneubayes",
-                                        read_only=True)
-    z = backend.get_chain(discard=int(summary["burn"]), flat=True)
+    burn = int(summary["burn"])
+    z_true = like.to_sampling(model.vector(truth)[None])
+    lp = backend.get_log_prob(discard=burn).ravel()
+    hpd = float(np.mean(lp > like.log_prob_sampling(z_true)[0]))
+    z = backend.get_chain(discard=burn, flat=True)
     cols = [j for j in range(z.shape[1]) if j not in like.nuisance()]
-    z_true = like.to_sampling(model.vector(truth)[None])[0, cols]
-    dev = z_true - z[:, cols].mean(axis=0)
+    dev = z_true[0, cols] - z[:, cols].mean(axis=0)
     m2 = float(dev @ np.linalg.solve(np.cov(z[:, cols].T), dev))
-    return {"m2": m2, "k": len(cols), "p_value": float(stats.chi2.sf(m2, len(cols)))}
+    return hpd, {"m2": m2, "k": len(cols), "p_value": float(stats.chi2.sf(m2, len(cols)))}
 
 
 def run_case(cyl: str, valve: str, seed: int, args, root: Path) -> dict:
@@ -133,11 +113,11 @@ def run_case(cyl: str, valve: str, seed: int, args, root: Path) -> dict:
     q05, q95 = np.quantile(s, [0.05, 0.95])
     cover["exhaust_offset_m2 + leak_area_m2"] = bool(
         q05 <= truth["exhaust_offset_m2"] + truth["leak_area_m2"] <= q95)
+    hpd, mahalanobis = truth_checks(work)
     preds = [run_predict(work / "run", read_recording(p), 2.0, work / f"pred_{p.stem}.csv",
                          200, seed, SolverConfig.standard()) for p in held.recordings]
     return {"cylinder": cyl, "valve": valve, "seed": seed, "fit_wall_time_s": wall,
-            "truth_hpd_level": truth_hpd_level(work),
-            "truth_mahalanobis": truth_mahalanobis(work),
+            "truth_hpd_level": hpd, "truth_mahalanobis": mahalanobis,
             "converged": summary["converged"], "steps": summary["steps"],
             "max_rhat": max(p["rhat"] for p in params.values()),
             "min_ess": min(p["ess"] for p in params.values()),
@@ -183,8 +163,8 @@ def main(argv=None) -> int:
             work = root / "work" / f"{cyl}_{valve}_s{seed}"
             if "error" not in res and work.is_dir() and not (
                     "truth_hpd_level" in res and "truth_mahalanobis" in res):
-                res["truth_hpd_level"] = truth_hpd_level(work)  # a case cached before
-                res["truth_mahalanobis"] = truth_mahalanobis(work)
+                # a case cached before the joint checks existed
+                res["truth_hpd_level"], res["truth_mahalanobis"] = truth_checks(work)
                 write_json_atomic(path, res)
             results.append(res)
             continue
