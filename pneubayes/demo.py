@@ -193,7 +193,8 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int) -> dict:
           + ", ".join(f"{k} = {v:.4g}" for k, v in truth["parameters"].items()
                       if k in ("tube_delay_s", "leak_area_m2", "deadzone_halfwidth_V",
                                "spool_time_constant_s", "supply_gain",
-                               "heat_transfer_rate_per_s")))
+                               "heat_transfer_rate_per_s",
+                               "heat_transfer_coefficient_W_per_m2_K")))
     print("     (an orifice leak has the exhaust port's own law: the base model absorbs it "
           "into the exhaust offset, so it is not missing)" if "cylinder_leak" in
           truth["bench"]["planted_effects"] else "")

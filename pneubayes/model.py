@@ -235,11 +235,15 @@ class Model:
         effects = []
         for n in names:
             opt = dict(options.get(n, {}))
-            # cylinder_leak's form follows from its parameter name when not given.
+            # cylinder_leak's and heat_transfer's forms follow from their parameter
+            # names when not given.
             if n == "cylinder_leak" and "form" not in opt:
                 opt["form"] = ("graded" if "leak_conductance_gradient" in params else
                                "laminar" if "leak_conductance_kg_per_s_Pa2" in params
                                else "orifice")
+            if n == "heat_transfer" and "form" not in opt:
+                opt["form"] = ("convective" if "heat_transfer_coefficient_W_per_m2_K" in params
+                               else "rate")
             try:
                 effects.append(make_effect(n, **opt))
             except ValueError as exc:

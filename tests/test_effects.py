@@ -23,9 +23,10 @@ RANGE = P_SUP - P_ATM
 VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "laminar"}),
             ("cylinder_leak", {"form": "graded"}),
             ("tube_delay", {}), ("valve_deadzone", {}), ("supply_fluctuation", {}),
-            ("heat_transfer", {}), ("spool_lag", {})]
+            ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
+            ("spool_lag", {})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "valve_deadzone",
-       "supply_fluctuation", "heat_transfer", "spool_lag"]
+       "supply_fluctuation", "heat_rate", "heat_convective", "spool_lag"]
 
 
 def _tight():
@@ -441,6 +442,56 @@ def test_heat_transfer_relaxes_after_a_fast_fill(rig, closable_params, make_inpu
     # than its relaxed value, and the final value approaches p_hold * T_w / T_fill < p_hold
     p_inf = h[i[2]] - d2 * math.exp(-rate * 0.2) / (1 - math.exp(-rate * 0.2))
     assert p_inf < h[-1] and h[-1] - p_inf < 0.01 * (h[0] - p_inf)
+
+
+def _wall_area_over_volume(rig, vol):
+    """A_w / V of a cylinder: two end caps 2 A and the barrel pi D V / A."""
+    d = 2.0 * math.sqrt(rig.bore_area_m2 / math.pi)
+    return (2.0 * rig.bore_area_m2 + math.pi * d * vol / rig.bore_area_m2) / vol
+
+
+def test_convective_heat_relaxes_at_its_closed_form_rate(rig, closable_params, make_inputs,
+                                                         hand):
+    """Fill fast, then hold shut: with no flow, p / T stays fixed, so
+    dT/dt = (kappa - 1) h (A_w / V) (T_w - T) T / p relaxes at the constant rate
+    r = (kappa - 1) h (A_w / V) T_w / p_inf, with p_inf the pressure once T = T_w."""
+    h = 30.0
+    t = np.arange(1501) * 1e-3
+    u = np.where(t < 0.05, 5.0, 0.0)
+    model = Model([make_effect("heat_transfer", form="convective")])
+    got = _sim(model, dict(closable_params, heat_transfer_coefficient_W_per_m2_K=h),
+               make_inputs(t, u), rig, P_ATM, _tight())
+    hold = got[t >= 0.051]
+    assert hold[0] > 2e5 and np.all(np.diff(hold) < 0)
+    i = [100, 300, 500]
+    d1, d2 = hold[i[0]] - hold[i[1]], hold[i[1]] - hold[i[2]]
+    q = d2 / d1  # exp(-r 0.2)
+    p_inf = hold[i[2]] - d2 * q / (1.0 - q)
+    gas = hand.gas()
+    vol = closable_params["dead_volume_m3"]  # make_inputs holds the piston at 0
+    rate = ((gas.kappa - 1.0) * h * _wall_area_over_volume(rig, vol) * gas.T / p_inf)
+    assert -math.log(q) / 0.2 == pytest.approx(rate, rel=2e-3)
+
+
+def test_convective_heat_tends_to_isothermal_and_off_is_adiabatic(rig, closable_params, hand):
+    """A shut chamber compressed 2.2x in 0.5 s: p V^kappa = const at h = 0 (eq. 5) and
+    p V = const once h is large (wall time constant << the compression)."""
+    t = np.arange(501) * 1e-3
+    x = 0.025 - 0.015 * t / t[-1]
+    inputs = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    model = Model([make_effect("heat_transfer", form="convective")])
+    closable_params = dict(closable_params, dead_volume_m3=1.5e-7)
+    vol = closable_params["dead_volume_m3"] + rig.bore_area_m2 * x
+    gas = hand.gas()
+    p0 = 1.5e5
+    adiabatic = _sim(model, dict(closable_params, heat_transfer_coefficient_W_per_m2_K=0.0),
+                     inputs, rig, p0, _tight())
+    np.testing.assert_allclose(adiabatic * vol ** gas.kappa, p0 * vol[0] ** gas.kappa,
+                               rtol=1e-6)
+    iso = _sim(model, dict(closable_params, heat_transfer_coefficient_W_per_m2_K=1000.0),
+               inputs, rig, p0, _tight())
+    assert iso[-1] * vol[-1] == pytest.approx(p0 * vol[0], rel=0.01)
+    assert adiabatic[-1] * vol[-1] > 1.3 * p0 * vol[0]
 
 
 # ---------------------------------------------------------------- supply fluctuation

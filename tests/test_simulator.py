@@ -373,6 +373,39 @@ def test_windows_with_delay_use_the_command_history(rig, hand, standard, effects
         assert np.max(np.abs(cut - full[s:s + length])) > without_history_Pa
 
 
+@pytest.mark.parametrize("form, extra", [
+    ("rate", {"heat_transfer_rate_per_s": 20.0}),
+    ("convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0}),
+])
+def test_contiguous_windows_carry_the_chamber_temperature(rig, hand, form, extra):
+    """The temperature is a state no recording measures. Contiguous windows restarted
+    from the full run's own pressures reproduce the full run (to solver accuracy) only
+    because each window starts at the temperature the previous one ended with; the
+    same windows simulated apart (each starting at the supply temperature) do not."""
+    from pneubayes.effects import make_effect
+
+    model = Model([make_effect("heat_transfer", form=form)])
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=5e-7, **extra)
+    n = 1201
+    t = np.arange(n) * 1e-3
+    u = hand.random_steps(np.random.default_rng(10), n, 1e-3, hold_s=(0.02, 0.08))
+    inputs = Inputs(t, u, hand.moving_position(t), np.full(n, P_SUP))
+    tight = _config(1e-8)
+    full = simulate(model, params, inputs, rig, 2e5, tight).pressure_Pa[0]
+    length = 301
+    starts = np.arange(0, n - length + 1, length - 1)
+    assert starts.size == 4
+    win = simulate_windows(model, params, inputs, rig, starts, length, full[starts], tight)[0]
+    for w, s in enumerate(starts):
+        assert np.max(np.abs(win[w] - full[s:s + length])) < 5.0
+    # control: one window at a time starts each at the supply temperature
+    apart = [simulate_windows(model, params, inputs, rig, starts[w:w + 1], length,
+                              full[starts[w:w + 1]], tight)[0, 0] for w in range(4)]
+    assert np.max(np.abs(apart[0] - full[:length])) < 5.0  # the first is the same
+    assert max(np.max(np.abs(apart[w] - full[s:s + length]))
+               for w, s in enumerate(starts) if w > 0) > 1e3
+
+
 # ---------------------------------------------------------------- robustness
 @pytest.mark.slow
 @pytest.mark.parametrize("form", ["orifice", "laminar"])

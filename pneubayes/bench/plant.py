@@ -350,6 +350,9 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]] != 0.0:
         raise ValueError("plant: a catalogue leak graded along the stroke is not simulated "
                          "here; plant a ClearanceLeak form with a seal_length_slope instead")
+    if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
+        raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
+                         "here; plant a WallHeatTransfer form instead")
     g = rig.gas
     P = np.zeros(N_K)
     P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,

@@ -1,35 +1,80 @@
-"""Heat exchange between the chamber air and its wall (Richer & Hurmuzlu 2000).
+"""Heat exchange between the chamber air and its wall (Richer & Hurmuzlu 2000), in two forms.
 
-The paper's eq. 5 is isentropic with the temperature fixed at the supply's. This effect
-makes the chamber temperature T a state and adds the wall heat flow
-``Q = m c_v (T_w - T) / tau`` (wall at the supply temperature):
+The paper's eq. 5 is isentropic with the temperature fixed at the supply's. Both forms
+make the chamber temperature T a state, with the wall at the supply temperature T_w:
 
-- ``dp/dt = kappa / V (Rs (T_w m_in - T m_out) - p dV/dt) + p (T_w - T) / (T tau)``:
-  eq. 5 with the air that leaves carrying the chamber's temperature (inflow at the
-  supply's), plus the wall exchange;
+- ``dp/dt = kappa / V (Rs (T_w m_in - T m_out) - p dV/dt) + (kappa - 1) Q / V``: eq. 5
+  with the air that leaves carrying the chamber's temperature (inflow at the supply's),
+  plus the wall heat flow Q;
 - ``dT/dt = T (dp/dt / p + dV/dt / V - Rs T mdot / (p V))`` (ideal gas, mass balance).
 
 (Outflow at the supply's enthalpy, as an earlier version had it, makes T run away once
 it exceeds kappa T_w -- after a compression -- whenever the chamber vents.)
 
-Its parameter is the exchange rate ``heat_transfer_rate_per_s`` = 1/tau (tau is the
-wall time constant). At rate 0 the pressure equation is eq. 5 exactly (zero strength);
-as the rate grows, the pressure relaxes after each fill or vent, which eq. 5 cannot do.
-The orifice mass flows keep the paper's supply temperature (no sqrt(T_w / T) on eq. 1),
-so the effect is a first-order correction to eq. 5 rather than a full energy equation.
+``form="rate"``: ``Q = m c_v (T_w - T) / tau``, i.e. ``(kappa - 1) Q / V = p (T_w - T) /
+(T tau)``, with the exchange rate ``heat_transfer_rate_per_s`` = 1/tau. The orifice mass
+flows keep the paper's supply temperature (no sqrt(T_w / T) on eq. 1), so this form is a
+first-order correction to eq. 5 with one time constant for every pressure and volume.
+
+``form="convective"``: Newton's law on the chamber's wall, ``Q = h A_w (T_w - T)`` with
+``A_w = 2 A + pi D V / A`` (two end caps and the barrel of a cylinder of bore D, section
+A, holding volume V), and orifice flows leaving the chamber scaled by sqrt(T_w / T)
+(eq. 1's upstream temperature). Its parameter is the coefficient
+``heat_transfer_coefficient_W_per_m2_K`` h. The relaxation rate it implies,
+``(kappa - 1) h A_w T / (p V)``, is fastest in small volumes and at low pressure, as in
+real chambers; the rate form cannot change its rate along a stroke.
+
+At zero strength (rate 0, h = 0) the pressure equation is eq. 5 exactly.
 """
 
 from __future__ import annotations
 
-from pneubayes.effects.base import DirectEffect, Parameter
+from collections.abc import Mapping
+
+import numpy as np
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.rig import Rig
+
+_FORMS = ("rate", "convective")
 
 
-class HeatTransfer(DirectEffect):
-    """Chamber temperature as a state, relaxing to the wall at ``heat_transfer_rate_per_s``."""
+class HeatTransfer(Effect):
+    """Chamber temperature as a state, exchanging heat with the wall."""
 
     name = "heat_transfer"
-    slot = "heat_rate_per_s"
-    parameter = Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
-                          "wall heat-exchange rate, 1 / wall time constant", neutral=0.0)
-    #: A wall time constant of 0.2 s, typical of small cylinders.
-    bench_value = 5.0
+    acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K")
+
+    def __init__(self, form: str = "rate"):
+        self.form = form
+
+    def _check(self):
+        if self.form not in _FORMS:
+            raise ValueError(f"heat_transfer: form must be one of {_FORMS}, got {self.form!r}")
+
+    def options(self):
+        return {"form": self.form}
+
+    def parameters(self):
+        self._check()
+        if self.form == "rate":
+            return (Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
+                              "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),)
+        return (Parameter("heat_transfer_coefficient_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
+                          "uniform", "convective heat-transfer coefficient to the wall",
+                          neutral=0.0),)
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        self._check()
+        if self.form == "rate":
+            return {"heat_rate_per_s": np.asarray(values["heat_transfer_rate_per_s"],
+                                                  dtype=np.float64)}
+        return {"heat_coefficient_W_per_m2_K": np.asarray(
+            values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64)}
+
+    def bench_defaults(self):
+        if self.form == "rate":
+            # a wall time constant of 0.2 s, typical of small cylinders
+            return {"heat_transfer_rate_per_s": 5.0}
+        # natural to weakly forced convection in a small cylinder
+        return {"heat_transfer_coefficient_W_per_m2_K": 30.0}

@@ -36,6 +36,9 @@ SLOTS: tuple[tuple[str, str], ...] = (
     ("leak_laminar_gradient_kg_per_s_Pa2_m",
      "change of the laminar leak's k per metre of piston position (kg/(s Pa^2 m))"),
     ("heat_rate_per_s", "wall heat exchange rate 1/tau; > 0 makes temperature a state (1/s)"),
+    ("heat_coefficient_W_per_m2_K",
+     "convective wall coefficient h on the chamber's wall area; > 0 makes temperature a "
+     "state and scales orifice outflows by sqrt(T_w / T) (W/(m^2 K))"),
 )
 
 SLOT_NAMES: tuple[str, ...] = tuple(name for name, _ in SLOTS)

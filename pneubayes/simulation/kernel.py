@@ -20,7 +20,8 @@ Inputs follow the recording: the command is held between samples (zero-order hol
 position and supply are linear between samples. A transport delay shifts the held
 command, which adds one break point inside some sample intervals; the integrator
 stops exactly on every break point. The spool lag is integrated in closed form. With
-heat transfer on, the chamber temperature is a second state (diagonal Jacobian).
+heat transfer on (either form), the chamber temperature is a second state (diagonal
+Jacobian).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 3 non-finite state. This module is the only compiled code of the simulator.
@@ -61,6 +62,7 @@ _LEAK_O = SLOT_INDEX["leak_orifice_area_m2"]
 _LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
 _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
+_HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 
 
 @njit(cache=True, inline="always")
@@ -118,7 +120,9 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and the port areas moving
     at ``da_in``, ``da_ex`` m^2/s (the non-autonomous term of the exponential method).
 
-    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange.
+    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
+    (a rate, or a convective coefficient on the wall area with orifice outflows at the
+    chamber's temperature; see :mod:`pneubayes.effects.heat_transfer`).
     ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
     a port at pressure balance is replaced by the secant over the step's expected
     movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
@@ -129,6 +133,18 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     p_atm = cs[C_P_ATM]
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    t_wall = cs[C_T_SUPPLY]
+    hconv = sl[_HCONV]
+    # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
+    sq_in, sq_ex = 1.0, 1.0
+    if hconv > 0.0:
+        sq = math.sqrt(t_wall / temp)
+        if f_in < 0.0:
+            sq_in = sq
+        if f_ex > 0.0:
+            sq_ex = sq
+        f_in *= sq_in
+        f_ex *= sq_ex
     valve = a_in * f_in - a_ex * f_ex
     att = sl[_ATT]
     phi = math.exp(-att / p) if att > 0.0 else 1.0
@@ -140,23 +156,31 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     lam = p * p - p_atm * p_atm
     mdot = phi * valve - leak_o * f_ex - leak_l * lam
     rs = cs[C_RS]
-    t_wall = cs[C_T_SUPPLY]
     rs_t = rs * t_wall
     n_over_v = kappa / vol
     heat = sl[_HEAT]
+    thermal = heat > 0.0 or hconv > 0.0
     # With a temperature state, air leaving the chamber carries the chamber's enthalpy
     # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
     # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
     m_out = 0.0
-    if heat > 0.0:
+    if thermal:
         leak_out = leak_o * f_ex + leak_l * lam
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
     fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
     fp = fp_eq5
     ft = 0.0
+    # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T) with
+    # A_w / V = 2 A / V + pi D / A (end caps and barrel; D = 2 sqrt(A / pi))
+    c_wall = 0.0
+    if hconv > 0.0:
+        bore_a = cs[C_BORE_AREA]
+        c_wall = (kappa - 1.0) * hconv * (2.0 * bore_a / vol + 2.0 * math.sqrt(math.pi / bore_a))
+        fp += c_wall * (t_wall - temp)
     if heat > 0.0:
         fp += p * heat * (t_wall - temp) / temp
+    if thermal:
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
         return fp, 0.0, ft, 0.0, 0.0
@@ -164,28 +188,37 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dfin_dp *= sq_in
+    dfin_dsup *= sq_in
+    dfex_dp *= sq_ex
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
     dmdot = phi * dvalve + phi * att / (p * p) * valve - leak_o * dfex_dp - 2.0 * leak_l * p
     jp = n_over_v * (rs_t * dmdot - vdot)
     jt = 0.0
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
-        jt = (fp_eq5 / p - heat + vdot / vol - 2.0 * rs * temp * mdot / (p * vol)
-              - n_over_v * rs * temp * m_out / p)
+    if thermal:
+        # d(ft)/dT at fixed p; the sqrt(T_w / T) of the outflows is left out (W-method)
+        jt = (fp_eq5 / p - heat + c_wall * (t_wall - 2.0 * temp) / p + vdot / vol
+              - 2.0 * rs * temp * mdot / (p * vol) - n_over_v * rs * temp * m_out / p)
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = (phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
                 - leak_g * vdot / cs[C_BORE_AREA] * lam)
     vp = -fp_eq5 / vol * vdot + n_over_v * rs_t * dmdot_dt
+    if hconv > 0.0:
+        vp -= (kappa - 1.0) * hconv * (t_wall - temp) * 2.0 * cs[C_BORE_AREA] * vdot / (vol * vol)
     return fp, jp, ft, jt, vp
 
 
 @njit(cache=True)
-def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens):
+def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
     ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
     the pressure to the initial pressure: the product of the accepted steps'
     ``exp(h J_p)`` (first order in h; the temperature coupling is ignored).
+    ``temp_io[0]`` is the chamber temperature at the start (K; used with heat transfer)
+    and receives the temperature at the window's end.
     """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin, max_steps = sv[S_MAX_STEP], sv[S_MIN_STEP], int(sv[S_MAX_STEPS])
@@ -194,9 +227,9 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens):
     gain = sl[_SUPG]
     p_nom = cs[C_P_NOM]
     v0, bore = sl[_VOL], cs[C_BORE_AREA]
-    thermal = sl[_HEAT] > 0.0
+    thermal = sl[_HEAT] > 0.0 or sl[_HCONV] > 0.0
     p = p0
-    temp = cs[C_T_SUPPLY]
+    temp = temp_io[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p
     want_sens = sens.shape[0] > 0
     s_p0 = 1.0
@@ -329,26 +362,53 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens):
         out[k + 1 - i0] = p
         if want_sens:
             sens[k + 1 - i0] = s_p0
+    temp_io[0] = temp
     return OK
 
 
 @njit(cache=True, parallel=True)
 def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensitivity):
+    """Every (parameter set, window) pair; see :func:`simulate_windows`."""
     nb = slots.shape[0]
     nw = starts.shape[0]
     out = np.empty((nb, nw, length))
     sens = np.empty((nb, nw, length if with_sensitivity else 0))
     status = np.zeros((nb, nw), dtype=np.int64)
-    for task in prange(nb * nw):
-        b = task // nw
-        w = task % nw
-        status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
-                               p0[w], out[b, w], sens[b, w])
+    # Contiguous windows (each starts on the previous one's last sample) carry the
+    # chamber temperature, a state the recording does not measure, from one window to
+    # the next; only the measured pressure is reset at each start.
+    chained = nw > 1
+    for w in range(1, nw):
+        if starts[w] != starts[w - 1] + length - 1:
+            chained = False
+    thermal = False
+    for b in range(nb):
+        if slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0:
+            thermal = True
+    if chained and thermal:
+        for b in prange(nb):
+            temp_io = np.full(1, consts[C_T_SUPPLY])
+            for w in range(nw):
+                status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w],
+                                       length, p0[w], out[b, w], sens[b, w], temp_io)
+                if status[b, w] != OK:
+                    temp_io[0] = consts[C_T_SUPPLY]
+    else:
+        for task in prange(nb * nw):
+            b = task // nw
+            w = task % nw
+            temp_io = np.full(1, consts[C_T_SUPPLY])
+            status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
+                                   p0[w], out[b, w], sens[b, w], temp_io)
     return out, sens, status
 
 
 def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
     """Simulate every (parameter set, window) pair.
+
+    The chamber temperature (a state only with heat transfer) starts at the supply's in
+    the first window; when every window starts on the previous one's last sample, each
+    later window starts from the temperature the previous one ended with.
 
     Parameters
     ----------

@@ -29,6 +29,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
                               "exhaust_c_per_V", "exhaust_d_V")]
     tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
     heat = sl[S["heat_rate_per_s"]]
+    h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
+    thermal = heat > 0 or h_wall > 0
+    bore_d = 2.0 * np.sqrt(rig.bore_area_m2 / np.pi)
 
     def rhs(t, y):
         p, temp, spool = y
@@ -45,18 +48,27 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                     * (vol - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
         # each mass flow into the chamber (kg/s, negative = out)
-        flows = [att * a_in * flow_function(psup, p, g), -att * a_ex * flow_function(p, p_atm, g),
-                 -sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g),
+        f_in = float(flow_function(psup, p, g))
+        f_out = float(flow_function(p, p_atm, g))
+        if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1)
+            f_in = f_in * (np.sqrt(t_s / temp) if f_in < 0 else 1.0)
+            f_out = f_out * (np.sqrt(t_s / temp) if f_out > 0 else 1.0)
+        flows = [att * a_in * f_in, -att * a_ex * f_out,
+                 -sl[S["leak_orifice_area_m2"]] * f_out,
                  -k_lam * (p * p - p_atm * p_atm)]
         mdot = float(sum(flows))
         # enthalpy: inflow at the supply temperature, outflow at the chamber's (T = T_s
         # without heat exchange, where this is eq. 5)
-        t_chamber = temp if heat > 0 else t_s
+        t_chamber = temp if thermal else t_s
         enthalpy = sum(rs * (t_s if q > 0 else t_chamber) * q for q in map(float, flows))
         dp = kappa / vol * (enthalpy - p * vdot)
         dtemp = 0.0
         if heat > 0:
             dp = dp + p * heat * (t_s - temp) / temp
+        if h_wall > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel
+            wall_area = 2.0 * rig.bore_area_m2 + np.pi * bore_d * vol / rig.bore_area_m2
+            dp = dp + (kappa - 1.0) * h_wall * wall_area * (t_s - temp) / vol
+        if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
         return [float(dp), float(dtemp), float(dspool)]

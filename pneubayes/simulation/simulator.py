@@ -152,7 +152,10 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
 
     Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
-    measured pressure there). With ``on_failure="raise"`` a failure raises
+    measured pressure there). With heat transfer, the chamber temperature (not measured)
+    starts at the supply's; contiguous windows (each starting on the previous one's last
+    sample, as 2-s windows with a 2-s stride do) carry it from window to window, so only
+    the measured pressure is reset. With ``on_failure="raise"`` a failure raises
     :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
     rows are NaN (samplers turn them into zero likelihood).
     """
