@@ -176,6 +176,44 @@ def test_window_set_shapes_and_truth_residuals(bench):
     assert 400 < np.std(r) < 650  # the true model leaves the 500 Pa sensor noise
 
 
+def test_held_out_windows_are_warmed_up_on_the_recording_before_them(rig, hand):
+    """``score_from_s`` scores the same windows as the sliced recording would, but a heat
+    model's temperature comes in from the history: on noise-free data of that model the
+    scored windows are exact, while the sliced recording starts them at the wall
+    temperature and misses."""
+    from pneubayes.effects import make_effect
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, simulate
+
+    model = Model([make_effect("heat_transfer", form="convective")])
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=5e-7,
+                  heat_transfer_coefficient_W_per_m2_K=60.0)
+    n = 1601
+    t = np.arange(n) * 1e-3
+    u = hand.random_steps(np.random.default_rng(11), n, 1e-3, hold_s=(0.02, 0.08))
+    x = hand.moving_position(t)
+    p = simulate(model, params, Inputs(t, u, x, np.full(n, rig.supply_pressure_Pa)), rig,
+                 2e5, TIGHT).pressure_Pa[0]
+    meta = RecordingMetadata("test", "valve1", 2 * np.sqrt(rig.bore_area_m2 / np.pi),
+                             rig.stroke_m, rig.atmospheric_pressure_Pa,
+                             rig.supply_pressure_Pa, rig.gas.temperature_K)
+    rec = Recording(meta, t, u, p, None, x)
+    cut = 1050
+    sliced = WindowSet([rec.slice(cut, None)], 0.25, 0.25)
+    warmed = WindowSet([rec], 0.25, 0.25, score_from_s=[t[cut]])
+    assert warmed.n_windows == sliced.n_windows == 2
+    assert np.array_equal(warmed.measured, sliced.measured)
+    theta = model.vector(params)[None]
+    assert np.max(np.abs(warmed.residuals(model, theta, TIGHT))) < 5.0
+    assert np.max(np.abs(sliced.residuals(model, theta, TIGHT))) > 300.0
+    # without a temperature state the history changes nothing
+    base = Model()
+    bp = {k: params[k] for k in base.parameter_names}
+    np.testing.assert_array_equal(warmed.residuals(base, base.vector(bp)[None], TIGHT),
+                                  sliced.residuals(base, base.vector(bp)[None], TIGHT))
+
+
 def test_refinement_recovers_a_perturbed_start(bench):
     recs, model, truth = bench
     start = dict(truth)

@@ -26,9 +26,17 @@ from pneubayes.simulation import (
 class _Block:
     inputs: Inputs
     rig: object
-    starts: np.ndarray
-    measured: np.ndarray  # (W, L)
+    starts: np.ndarray  # scored windows
+    measured: np.ndarray  # (W, L), scored windows
     source: str
+    warmup_starts: np.ndarray  # windows simulated before the scored ones, never scored
+    warmup_p0: np.ndarray
+
+    def run_starts(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(every simulated start, its start pressure, number of warm-up windows)."""
+        k = self.warmup_starts.size
+        return (np.concatenate([self.warmup_starts, self.starts]),
+                np.concatenate([self.warmup_p0, self.measured[:, 0]]), k)
 
 
 class WindowSet:
@@ -42,23 +50,46 @@ class WindowSet:
     stride_s : float
         Distance between window starts; equal to ``horizon_s`` for non-overlapping
         windows (each sample used once, as a likelihood needs).
+    score_from_s : sequence of float, optional
+        Per recording, the time (s) from which windows are scored. The recording before
+        it is history: with ``stride_s == horizon_s`` it is covered by contiguous
+        *warm-up* windows (each restarted from the measured pressure, never scored)
+        that bring the unmeasured chamber temperature of a heat-transfer model to the
+        first scored window, as a controller's running model would. A held-out stretch
+        at the end of a recording is scored this way.
     """
 
-    def __init__(self, recordings, horizon_s: float, stride_s: float):
+    def __init__(self, recordings, horizon_s: float, stride_s: float,
+                 score_from_s=None):
         self.horizon_s = float(horizon_s)
         self.stride_s = float(stride_s)
+        recordings = list(recordings)
+        if score_from_s is not None and len(score_from_s) != len(recordings):
+            raise ValueError(f"score_from_s has {len(score_from_s)} entries for "
+                             f"{len(recordings)} recordings")
         blocks = []
         length = None
-        for rec in recordings:
-            starts, n = window_starts(rec.time_s, horizon_s, stride_s)
+        for i, rec in enumerate(recordings):
+            t = np.asarray(rec.time_s, dtype=np.float64)
+            first = 0
+            if score_from_s is not None:
+                first = int(np.searchsorted(t, float(score_from_s[i]) - 1e-9))
+                if first >= t.size:
+                    raise ValueError(f"{rec.source}: score_from_s {score_from_s[i]} s is "
+                                     "after the recording's end")
+            starts, n = window_starts(t[first:], horizon_s, stride_s)
+            starts = starts + first
             if length is not None and n != length:
                 raise ValueError(f"{rec.source}: sample rate differs from the other recordings "
                                  f"({n} vs {length} samples per window)")
             length = n
             p = np.asarray(rec.pressure_Pa, dtype=np.float64)
             idx = starts[:, None] + np.arange(n)[None, :]
+            warm = np.zeros(0, dtype=np.int64)
+            if first > 0 and np.all(np.diff(starts) == n - 1):  # contiguous windows
+                warm = np.arange(first % (n - 1), first, n - 1, dtype=np.int64)
             blocks.append(_Block(Inputs.from_recording(rec), rec.rig(), starts, p[idx],
-                                 str(rec.source)))
+                                 str(rec.source), warm, p[warm]))
         if not blocks:
             raise ValueError("WindowSet: no recordings")
         self.blocks = tuple(blocks)
@@ -84,12 +115,14 @@ class WindowSet:
 
     def simulate(self, model: Model, params, solver: SolverConfig,
                  on_failure: str = "raise") -> np.ndarray:
-        """Predictions ``(B, W_total, L)`` for a batch of parameter sets."""
+        """Predictions ``(B, W_total, L)`` for a batch of parameter sets (scored windows)."""
         theta = model.as_matrix(params)
-        outs = [simulate_windows(model, theta, b.inputs, b.rig, b.starts, self.length,
-                                 b.measured[:, 0], solver, check_bounds=False,
-                                 on_failure=on_failure)
-                for b in self.blocks]
+        outs = []
+        for b in self.blocks:
+            starts, p0, k = b.run_starts()
+            outs.append(simulate_windows(model, theta, b.inputs, b.rig, starts, self.length,
+                                         p0, solver, check_bounds=False,
+                                         on_failure=on_failure)[:, k:])
         return np.concatenate(outs, axis=1)
 
     def residuals_and_sensitivity(self, model: Model, params, solver: SolverConfig,
@@ -99,11 +132,12 @@ class WindowSet:
         theta = model.as_matrix(params)
         preds, sens = [], []
         for b in self.blocks:
-            p, s = simulate_windows_sensitivity(model, theta, b.inputs, b.rig, b.starts,
-                                                self.length, b.measured[:, 0], solver,
+            starts, p0, k = b.run_starts()
+            p, s = simulate_windows_sensitivity(model, theta, b.inputs, b.rig, starts,
+                                                self.length, p0, solver,
                                                 check_bounds=False, on_failure=on_failure)
-            preds.append(p - b.measured[None])
-            sens.append(s)
+            preds.append(p[:, k:] - b.measured[None])
+            sens.append(s[:, k:])
         return np.concatenate(preds, axis=1)[:, :, 1:], np.concatenate(sens, axis=1)
 
     def residuals(self, model: Model, params, solver: SolverConfig,
