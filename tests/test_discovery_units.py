@@ -154,3 +154,33 @@ def test_library_finds_the_planted_delay_and_absorbs_parameter_errors(delay_benc
     q, _ = np.linalg.qr(lib.absorbers)
     left = diff - q @ (q.T @ diff)
     assert np.linalg.norm(left) < 0.05 * np.linalg.norm(diff)
+
+
+def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
+    """The convective candidate starts at the coefficient whose relaxation rate,
+    (kappa - 1) h (A_w / V) T / p, equals the rate candidate's at mid-stroke and
+    mid-range pressure, so neither form starts handicapped."""
+    import math
+
+    from pneubayes.discovery.loop import Discovery, DiscoverySettings, StepFit
+    from pneubayes.model import Model
+    from pneubayes.physics.valve import valve_preset
+
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
+    fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    disc = Discovery(DiscoverySettings())
+    cands = disc._candidates(fit, "heat_transfer", {"best_term": "heat 10/s"}, rig)
+    forms = [m.effect("heat_transfer").options()["form"] for m, _ in cands]
+    assert forms == ["rate", "convective"]
+    (_, rate_start), (_, conv_start) = cands
+    assert rate_start["heat_transfer_rate_per_s"] == pytest.approx(10.0)
+    h = conv_start["heat_transfer_coefficient_W_per_m2_K"]
+    gas = rig.gas
+    vol = 2e-6 + rig.bore_area_m2 * 0.5 * rig.stroke_m
+    d = 2.0 * math.sqrt(rig.bore_area_m2 / math.pi)
+    wall_per_vol = (2.0 * rig.bore_area_m2 + math.pi * d * vol / rig.bore_area_m2) / vol
+    p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
+    rate = (gas.heat_capacity_ratio - 1.0) * h * wall_per_vol * gas.temperature_K / p_mid
+    assert rate == pytest.approx(10.0, rel=1e-9)
+    # other effects keep a single candidate
+    assert len(disc._candidates(fit, "spool_lag", {"best_term": "lag 4 ms"}, rig)) == 1

@@ -92,8 +92,9 @@ class Settings:
     fit_moving_range_V are added (seed + 500). eval_positions / eval_moving_count: the
     held-out recordings of a fixed / moving cell (seed + heldout_seed_offset).
     leak_form: law of ``cylinder_leak`` in fitted models (the paper's orifice by
-    default; ``laminar``, or ``graded`` along the stroke); data_leak_form: law of a planted catalogue leak (laminar by default: an
-    orifice leak is the exhaust port's own law and is absorbed by the exhaust offset).
+    default; ``laminar``, or ``graded`` along the stroke); data_leak_form: law of a
+    planted catalogue leak (laminar by default: an orifice leak is the exhaust port's
+    own law and is absorbed by the exhaust offset).
     mcmc_walkers (0: automatic), mcmc_max_steps: the emcee run of ``method = "mcmc"``.
     discovery_max_effects, discovery_n_bags: the discovery loop of ``"discover"`` cells.
     smoke_duration_s: recording length of ``--smoke`` runs, s.

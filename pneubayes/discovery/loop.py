@@ -9,7 +9,9 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
 3. **Search**: grouped SINDy on the one-step residual (:mod:`library`, :mod:`sindy`).
 4. **Name and add**: the ``max_trials_per_round`` best-supported effects (the
    catalogue's effect objects, started at the strength of their best terms) are each
-   added and refitted.
+   added and refitted. A named leak is fitted in the graded laminar form; a named heat
+   exchange in both its forms (one rate, or a convective coefficient on the wall area),
+   and the form with the lower *training* error goes on to verification.
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
    mean squared error (2-s windows are the independent units) must pass a one-sided
@@ -196,7 +198,28 @@ class Discovery:
                              chunk_rows=s.chunk_rows, seed=s.seed).fit(lib)
         return lib, sindy, data
 
-    def _candidate(self, fit: StepFit, group: str, evidence: dict):
+    def _candidates(self, fit: StepFit, group: str, evidence: dict, rig):
+        """``[(model, start), ...]``: the group's effect form(s) with start values from
+        the group's best term."""
+        if group != "heat_transfer":
+            return [self._candidate(fit, group, evidence)]
+        rate_model, rate_start = self._candidate(fit, group, evidence)
+        rate = rate_start["heat_transfer_rate_per_s"]
+        # the coefficient giving that rate, (kappa - 1) h (A_w / V) T / p = rate, at
+        # mid-stroke and mid-range pressure
+        gas = rig.gas
+        vol = fit.params["dead_volume_m3"] + rig.bore_area_m2 * 0.5 * (rig.stroke_m or 0.0)
+        bore_d = 2.0 * math.sqrt(rig.bore_area_m2 / math.pi)
+        wall = 2.0 * rig.bore_area_m2 + math.pi * bore_d * vol / rig.bore_area_m2
+        p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
+        h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
+        conv_model, conv_start = self._candidate(fit, group, evidence, form="convective")
+        p = conv_model.parameter("heat_transfer_coefficient_W_per_m2_K")
+        conv_start["heat_transfer_coefficient_W_per_m2_K"] = float(
+            np.clip(h, p.lower + 1e-6 * (p.upper - p.lower), p.upper - 1e-6 * (p.upper - p.lower)))
+        return [(rate_model, rate_start), (conv_model, conv_start)]
+
+    def _candidate(self, fit: StepFit, group: str, evidence: dict, **options):
         """The effect object and its start values from the group's best term."""
         term = evidence.get("best_term") or ""
         num = [float(t) for t in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", term)]
@@ -206,7 +229,7 @@ class Discovery:
             # varies; gradient 0 is the uniform gap): an orifice leak is never missing
             effect = make_effect("cylinder_leak", form="graded")
         else:
-            effect = make_effect(group)
+            effect = make_effect(group, **options)
         model = fit.model.with_effect(effect)
         start.update(effect.neutral_values())
         pname = effect.parameter_names()[0]
@@ -233,7 +256,10 @@ class Discovery:
             raise ValueError("discover: no recordings")
         train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)
         train_ws = WindowSet(train, s.fit.horizon_s, s.fit.stride_s)
-        held_ws = WindowSet(held, s.fit.horizon_s, s.fit.stride_s)
+        # the held-out windows are scored on the held-out stretch only; the recording
+        # before it is history (warm-up windows carry a heat model's temperature in)
+        held_ws = WindowSet(recs, s.fit.horizon_s, s.fit.stride_s,
+                            score_from_s=[h.time_s[0] for h in held])
         if 0.5 ** held_ws.n_windows > s.max_p_value:
             raise ValueError(
                 f"discover: only {held_ws.n_windows} held-out {s.fit.horizon_s:g}-s windows; "
@@ -280,7 +306,8 @@ class Discovery:
                 if tentative:
                     self.log(f"discover: no effect reaches inclusion {s.min_inclusion:g}, but "
                              f"the held-out error is {current.heldout_rmse_Pa / noise:.1f} x "
-                             f"the noise floor: trying {', '.join(tentative[:s.max_trials_per_round])}")
+                             "the noise floor: trying "
+                             f"{', '.join(tentative[:s.max_trials_per_round])}")
             ledger.append({"step": len(ledger), "action": "search", "round": round_,
                            "supported": supported, "tentative": tentative,
                            "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
@@ -291,8 +318,18 @@ class Discovery:
                 break
             trials = []
             for g in supported[: s.max_trials_per_round]:
-                model2, start2 = self._candidate(current, g, sindy.evidence_[g])
-                trial = self._fit(model2, start2, train_ws, held_ws, data_key)
+                forms = []
+                for model2, start2 in self._candidates(current, g, sindy.evidence_[g],
+                                                       train[0].rig()):
+                    forms.append((self._fit(model2, start2, train_ws, held_ws, data_key),
+                                  model2, start2))
+                # the effect's form that fits the training data best (never the held-out)
+                trial, model2, start2 = min(forms, key=lambda f: f[0].train_rmse_Pa)
+                if len(forms) > 1:
+                    self.log(f"discover: {g}: form {model2.effect(g).options()} fits best "
+                             "(training RMSE " + ", ".join(
+                                 f"{m.effect(g).options().get('form')} {f.train_rmse_Pa:.0f} Pa"
+                                 for f, m, _ in forms) + ")")
                 # control: the current model refined from the trial's other parameters.
                 # Refinement finds local optima; if the trial's gain came from moving the
                 # other parameters to a better basin, the control gets it too.
