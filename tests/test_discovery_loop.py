@@ -96,3 +96,33 @@ def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
     off = Discovery(DiscoverySettings(posterior=False, gap_fallback_ratio=0.0), None,
                     log=lambda m: None).fit(recs)
     assert off.result()["effects"] == []
+
+
+@pytest.mark.slow
+def test_a_large_gap_also_tries_weak_groups_beside_supported_ones(tmp_path, monkeypatch):
+    """The fallback in any round: when the search supports a wrong group (here it is
+    made to support only spool_lag) while the 2-s error is far above the noise, the
+    weakly supported groups are tried beside it, and the hidden leak is named."""
+    import pneubayes.discovery.loop as loop
+
+    class Misled(loop.GroupedSINDy):
+        def supported(self, min_inclusion):
+            if min_inclusion >= 0.5:
+                return ["spool_lag"]
+            return [g for g in self.ranking_ if g != "spool_lag"]
+
+    monkeypatch.setattr(loop, "GroupedSINDy", Misled)
+    eff = effects_from_names(["cylinder_leak"], "laminar")
+    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
+                                  seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
+                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
+                      tmp_path / "fixed")
+    recs = [read_recording(p) for p in fixed.recordings]
+    settings = DiscoverySettings(posterior=False, max_effects=1)
+    doc = Discovery(settings, None, log=lambda m: None).fit(recs).result()
+    assert doc["ledger"][1]["supported"] == ["spool_lag"]
+    assert "cylinder_leak" in doc["ledger"][1]["tentative"]
+    assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
+    off = Discovery(DiscoverySettings(posterior=False, max_effects=1, gap_fallback_ratio=0.0),
+                    None, log=lambda m: None).fit(recs).result()
+    assert "cylinder_leak" not in [e["name"] for e in off["effects"]]

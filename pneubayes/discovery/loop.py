@@ -11,7 +11,9 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    catalogue's effect objects, started at the strength of their best terms) are each
    added and refitted. A named leak is fitted in the graded laminar form; a named heat
    exchange in both its forms (one rate, or a convective coefficient on the wall area),
-   and the form with the lower *training* error goes on to verification.
+   and the form with the lower *training* error goes on to verification. While the
+   held-out error is far above the noise, weakly supported groups are tried too (see
+   ``gap_fallback_ratio``).
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
    mean squared error (2-s windows are the independent units) must pass a one-sided
@@ -87,11 +89,12 @@ class DiscoverySettings:
     from where it stopped until it converges, at most this many times.
     gap_fallback_ratio, fallback_min_inclusion: the one-step search has little power for
     slow effects (a small leak in a large chamber changes dp/dt by less than the noise
-    per step, yet its 2-s error is many times the noise). So when no group is supported
-    in the first round but the plain model's held-out 2-s RMSE exceeds
-    ``gap_fallback_ratio`` x the noise floor, the best-ranked groups with inclusion at
-    least ``fallback_min_inclusion`` are refitted as tentative candidates; held-out
-    verification decides, as for any candidate. ``gap_fallback_ratio = 0`` disables it.
+    per step, yet its 2-s error is many times the noise). So in any round where the
+    current model's held-out 2-s RMSE exceeds ``gap_fallback_ratio`` x the noise floor,
+    the best-ranked unsupported groups with inclusion at least ``fallback_min_inclusion``
+    (at most ``max_trials_per_round``) are refitted as tentative candidates beside the
+    supported ones; held-out verification decides, as for any candidate, and the best
+    that passes is added. ``gap_fallback_ratio = 0`` disables it.
     """
 
     holdout_fraction: float = 1.0 / 3.0
@@ -300,24 +303,25 @@ class Discovery:
                 for g in sindy.ranking_))
             supported = sindy.supported(s.min_inclusion)
             tentative = []
-            if (not supported and not accepted and s.gap_fallback_ratio > 0
+            if (s.gap_fallback_ratio > 0
                     and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise):
-                tentative = sindy.supported(s.fallback_min_inclusion)
+                tentative = [g for g in sindy.supported(s.fallback_min_inclusion)
+                             if g not in supported][: s.max_trials_per_round]
                 if tentative:
-                    self.log(f"discover: no effect reaches inclusion {s.min_inclusion:g}, but "
-                             f"the held-out error is {current.heldout_rmse_Pa / noise:.1f} x "
-                             "the noise floor: trying "
-                             f"{', '.join(tentative[:s.max_trials_per_round])}")
+                    self.log(f"discover: the held-out error is "
+                             f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor: also "
+                             f"trying {', '.join(tentative)} (inclusion below "
+                             f"{s.min_inclusion:g})")
             ledger.append({"step": len(ledger), "action": "search", "round": round_,
                            "supported": supported, "tentative": tentative,
                            "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
                                          for g in sindy.ranking_}})
-            supported = supported or tentative
-            if not supported:
+            candidates = supported[: s.max_trials_per_round] + tentative
+            if not candidates:
                 self.log("discover: no effect is supported; stop")
                 break
             trials = []
-            for g in supported[: s.max_trials_per_round]:
+            for g in candidates:
                 forms = []
                 for model2, start2 in self._candidates(current, g, sindy.evidence_[g],
                                                        train[0].rig()):
