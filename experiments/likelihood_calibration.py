@@ -49,11 +49,12 @@ HESSIAN_STEP_SD = 0.05
 Z90 = stats.norm.ppf(0.95)
 
 
-def run_seed(cylinder: str, valve: str, seed: int, duration_s: float) -> dict:
+def run_seed(cylinder: str, valve: str, seed: int, duration_s: float,
+             effects: tuple[str, ...] = ("cylinder_leak",)) -> dict:
     """MAP, Laplace covariance and the truth's z for one bench seed."""
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
-        train, _ = identification_sets(cylinder, valve, seed, duration_s, d)
+        train, _ = identification_sets(cylinder, valve, seed, duration_s, d, effects=effects)
         model, truth = Model.load_card(train.truth_path)
         recs = [read_recording(p) for p in train.recordings]
     like = WindowLikelihood(model, WindowSet(recs, 2.0, 2.0), SOLVER)
@@ -97,7 +98,7 @@ def run_seed(cylinder: str, valve: str, seed: int, duration_s: float) -> dict:
                                        - neg_lp(v - ea + eb) + neg_lp(v - ea - eb)) / (4 * e * e)
     cov = np.linalg.inv(hess)
     z = -v / np.sqrt(np.diag(cov))  # (truth - MAP) / sd
-    return {"cylinder": cylinder, "valve": valve, "seed": seed,
+    return {"cylinder": cylinder, "valve": valve, "seed": seed, "effects": list(effects),
             "coordinates": [like.names[j] for j in cols],
             "z": z.tolist(), "m2": float(v @ hess @ v), "k": k,
             "optimizer_iterations": int(opt.nit), "optimizer_message": str(opt.message),
@@ -147,7 +148,11 @@ def main(argv=None) -> int:
     ap.add_argument("--rig", default="AIR200:valve2", help="CYLINDER:VALVE")
     ap.add_argument("--seeds", default="100:140", help="FIRST:STOP (Python range)")
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
+    ap.add_argument("--effects", default="cylinder_leak",
+                    help="comma-separated effects planted and fitted (the paper's model: "
+                         "cylinder_leak)")
     args = ap.parse_args(argv)
+    effects = tuple(e for e in args.effects.split(",") if e)
     try:
         cylinder, valve = args.rig.split(":")
         first, stop = (int(v) for v in args.seeds.split(":"))
@@ -158,11 +163,12 @@ def main(argv=None) -> int:
     (out / "cases").mkdir(parents=True, exist_ok=True)
     cases = []
     for i, seed in enumerate(range(first, stop)):
-        path = out / "cases" / f"{cylinder}_{valve}_s{seed}.json"
+        extra = "" if effects == ("cylinder_leak",) else "_" + "+".join(effects)
+        path = out / "cases" / f"{cylinder}_{valve}{extra}_s{seed}.json"
         if path.exists():
             cases.append(json.loads(path.read_text()))
             continue
-        case = run_seed(cylinder, valve, seed, args.duration)
+        case = run_seed(cylinder, valve, seed, args.duration, effects)
         write_json_atomic(path, case)
         cases.append(case)
         print(f"[{i + 1}/{stop - first}] seed {seed}: m2 {case['m2']:.1f}, z "
