@@ -21,6 +21,17 @@ def _bench(out, hidden, seed):
     return list(fixed.recordings) + list(moving.recordings), fixed.truth_path
 
 
+def _leak_recordings(out):
+    """Fixed-volume AIR37 recordings with a hidden laminar leak (a slow effect the
+    one-step search sees weakly)."""
+    eff = effects_from_names(["cylinder_leak"], "laminar")
+    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
+                                  seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
+                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
+                      out / "fixed")
+    return [read_recording(p) for p in fixed.recordings]
+
+
 @pytest.mark.slow
 def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
     paths, truth_path = _bench(tmp_path / "bench", ["tube_delay"], seed=11)
@@ -82,12 +93,7 @@ def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
                     if 0.5 * self.evidence_[g]["inclusion_probability"] >= min_inclusion]
 
     monkeypatch.setattr(loop, "GroupedSINDy", Halved)
-    eff = effects_from_names(["cylinder_leak"], "laminar")
-    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
-                                  seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
-                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
-                      tmp_path / "fixed")
-    recs = [read_recording(p) for p in fixed.recordings]
+    recs = _leak_recordings(tmp_path)
     found = Discovery(DiscoverySettings(posterior=False), None, log=lambda m: None).fit(recs)
     doc = found.result()
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
@@ -112,12 +118,7 @@ def test_a_large_gap_also_tries_weak_groups_beside_supported_ones(tmp_path, monk
             return [g for g in self.ranking_ if g != "spool_lag"]
 
     monkeypatch.setattr(loop, "GroupedSINDy", Misled)
-    eff = effects_from_names(["cylinder_leak"], "laminar")
-    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
-                                  seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
-                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
-                      tmp_path / "fixed")
-    recs = [read_recording(p) for p in fixed.recordings]
+    recs = _leak_recordings(tmp_path)
     settings = DiscoverySettings(posterior=False, max_effects=1)
     doc = Discovery(settings, None, log=lambda m: None).fit(recs).result()
     assert doc["ledger"][1]["supported"] == ["spool_lag"]

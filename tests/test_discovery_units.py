@@ -162,14 +162,14 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     mid-range pressure, so neither form starts handicapped."""
     import math
 
-    from pneubayes.discovery.loop import Discovery, DiscoverySettings, StepFit
+    from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.verification import StepFit
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
 
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
     fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-    disc = Discovery(DiscoverySettings())
-    cands = disc._candidates(fit, "heat_transfer", {"best_term": "heat 10/s"}, rig)
+    cands = effect_candidates(fit, "heat_transfer", {"best_term": "heat 10/s"}, rig)
     forms = [m.effect("heat_transfer").options()["form"] for m, _ in cands]
     assert forms == ["rate", "convective"]
     (_, rate_start), (_, conv_start) = cands
@@ -183,4 +183,4 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     rate = (gas.heat_capacity_ratio - 1.0) * h * wall_per_vol * gas.temperature_K / p_mid
     assert rate == pytest.approx(10.0, rel=1e-9)
     # other effects keep a single candidate
-    assert len(disc._candidates(fit, "spool_lag", {"best_term": "lag 4 ms"}, rig)) == 1
+    assert len(effect_candidates(fit, "spool_lag", {"best_term": "lag 4 ms"}, rig)) == 1

@@ -41,7 +41,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -50,6 +49,7 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import json_safe, write_json_atomic
+from pneubayes.discovery.candidates import effect_candidates
 from pneubayes.discovery.disagreement import RegimeSettings, disagreement_map, flagged_bins
 from pneubayes.discovery.library import LibraryGrid, build_library
 from pneubayes.discovery.one_step import one_step_data
@@ -61,7 +61,6 @@ from pneubayes.discovery.verification import (
     split_recordings,
     window_lpd,
 )
-from pneubayes.effects import make_effect
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import FitSettings, starting_point
 from pneubayes.inference.predictive import estimate_noise_std
@@ -201,54 +200,6 @@ class Discovery:
                              chunk_rows=s.chunk_rows, seed=s.seed).fit(lib)
         return lib, sindy, data
 
-    def _candidates(self, fit: StepFit, group: str, evidence: dict, rig):
-        """``[(model, start), ...]``: the group's effect form(s) with start values from
-        the group's best term."""
-        if group != "heat_transfer":
-            return [self._candidate(fit, group, evidence)]
-        rate_model, rate_start = self._candidate(fit, group, evidence)
-        rate = rate_start["heat_transfer_rate_per_s"]
-        # the coefficient giving that rate, (kappa - 1) h (A_w / V) T / p = rate, at
-        # mid-stroke and mid-range pressure
-        gas = rig.gas
-        vol = fit.params["dead_volume_m3"] + rig.bore_area_m2 * 0.5 * (rig.stroke_m or 0.0)
-        bore_d = 2.0 * math.sqrt(rig.bore_area_m2 / math.pi)
-        wall = 2.0 * rig.bore_area_m2 + math.pi * bore_d * vol / rig.bore_area_m2
-        p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
-        h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
-        conv_model, conv_start = self._candidate(fit, group, evidence, form="convective")
-        p = conv_model.parameter("heat_transfer_coefficient_W_per_m2_K")
-        conv_start["heat_transfer_coefficient_W_per_m2_K"] = float(
-            np.clip(h, p.lower + 1e-6 * (p.upper - p.lower), p.upper - 1e-6 * (p.upper - p.lower)))
-        return [(rate_model, rate_start), (conv_model, conv_start)]
-
-    def _candidate(self, fit: StepFit, group: str, evidence: dict, **options):
-        """The effect object and its start values from the group's best term."""
-        term = evidence.get("best_term") or ""
-        num = [float(t) for t in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", term)]
-        start = dict(fit.params)
-        if group == "cylinder_leak":
-            # the laminar law, graded along the stroke (a clearance whose seal engagement
-            # varies; gradient 0 is the uniform gap): an orifice leak is never missing
-            effect = make_effect("cylinder_leak", form="graded")
-        else:
-            effect = make_effect(group, **options)
-        model = fit.model.with_effect(effect)
-        start.update(effect.neutral_values())
-        pname = effect.parameter_names()[0]
-        value = {"tube_delay": 1e-3 * num[0] if num else 0.003,
-                 "spool_lag": 1e-3 * num[0] if num else 0.003,
-                 "valve_deadzone": num[0] if num else 0.2,
-                 "supply_fluctuation": 1.0,
-                 "heat_transfer": num[0] if num else 5.0}.get(group)
-        if group == "cylinder_leak":
-            value = 0.3 * effect.bench_defaults()[pname]
-        if value is not None:
-            p = model.parameter(pname)
-            start[pname] = float(np.clip(value, p.lower + 1e-6 * (p.upper - p.lower),
-                                         p.upper - 1e-6 * (p.upper - p.lower)))
-        return model, start
-
     # ------------------------------------------------------------------ the loop
     def fit(self, recordings) -> "Discovery":
         s = self.settings
@@ -323,8 +274,8 @@ class Discovery:
             trials = []
             for g in candidates:
                 forms = []
-                for model2, start2 in self._candidates(current, g, sindy.evidence_[g],
-                                                       train[0].rig()):
+                for model2, start2 in effect_candidates(current, g, sindy.evidence_[g],
+                                                        train[0].rig()):
                     forms.append((self._fit(model2, start2, train_ws, held_ws, data_key),
                                   model2, start2))
                 # the effect's form that fits the training data best (never the held-out)

@@ -24,6 +24,14 @@ def chamber_volume(position_m, dead_volume_m3: float, bore_m: float):
     return dead_volume_m3 + bore_area_m2(bore_m) * np.asarray(position_m, dtype=np.float64)
 
 
+def wall_area_m2(volume_m3, bore_area: float):
+    """Inner wall area of a cylinder of section ``bore_area`` (m^2) holding ``volume_m3``:
+    two end caps and the barrel, ``2 A + pi D V / A`` with ``D = 2 sqrt(A / pi)``, m^2
+    (the convective heat form of :mod:`pneubayes.effects.heat_transfer`)."""
+    bore_d = 2.0 * math.sqrt(bore_area / math.pi)
+    return 2.0 * bore_area + math.pi * bore_d * np.asarray(volume_m3, np.float64) / bore_area
+
+
 @dataclass(frozen=True)
 class CylinderPreset:
     """A Table I cylinder: name, part number, bore and stroke (m)."""

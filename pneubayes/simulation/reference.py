@@ -13,6 +13,7 @@ from scipy.integrate import solve_ivp
 
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
+from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.valve import gompertz_area
 from pneubayes.rig import Rig
@@ -31,7 +32,6 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
     thermal = heat > 0 or h_wall > 0
-    bore_d = 2.0 * np.sqrt(rig.bore_area_m2 / np.pi)
 
     def rhs(t, y):
         p, temp, spool = y
@@ -66,8 +66,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         if heat > 0:
             dp = dp + p * heat * (t_s - temp) / temp
         if h_wall > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel
-            wall_area = 2.0 * rig.bore_area_m2 + np.pi * bore_d * vol / rig.bore_area_m2
-            dp = dp + (kappa - 1.0) * h_wall * wall_area * (t_s - temp) / vol
+            dp = dp + ((kappa - 1.0) * h_wall * float(wall_area_m2(vol, rig.bore_area_m2))
+                       * (t_s - temp) / vol)
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0

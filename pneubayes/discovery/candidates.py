@@ -1,0 +1,67 @@
+"""Candidate models for a named group: the catalogue effect, its form(s) and start values.
+
+A named group becomes the current model plus that group's catalogue effect, started at
+the strength of the group's best library term. A leak is fitted in the graded laminar
+form (an orifice leak is the exhaust port's own law, never missing); a heat exchange in
+both its forms, one rate and a convective coefficient started at the same relaxation.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from pneubayes.discovery.verification import StepFit
+from pneubayes.effects import make_effect
+from pneubayes.physics.cylinder import wall_area_m2
+from pneubayes.rig import Rig
+
+
+def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig):
+    """``[(model, start), ...]``: the group's effect form(s) with start values from
+    the group's best term."""
+    if group != "heat_transfer":
+        return [effect_candidate(fit, group, evidence)]
+    rate_model, rate_start = effect_candidate(fit, group, evidence)
+    rate = rate_start["heat_transfer_rate_per_s"]
+    # the coefficient giving that rate, (kappa - 1) h (A_w / V) T / p = rate, at
+    # mid-stroke and mid-range pressure
+    gas = rig.gas
+    vol = fit.params["dead_volume_m3"] + rig.bore_area_m2 * 0.5 * (rig.stroke_m or 0.0)
+    wall = float(wall_area_m2(vol, rig.bore_area_m2))
+    p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
+    h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
+    conv_model, conv_start = effect_candidate(fit, group, evidence, form="convective")
+    p = conv_model.parameter("heat_transfer_coefficient_W_per_m2_K")
+    conv_start["heat_transfer_coefficient_W_per_m2_K"] = float(
+        np.clip(h, p.lower + 1e-6 * (p.upper - p.lower), p.upper - 1e-6 * (p.upper - p.lower)))
+    return [(rate_model, rate_start), (conv_model, conv_start)]
+
+
+def effect_candidate(fit: StepFit, group: str, evidence: dict, **options):
+    """The effect object and its start values from the group's best term."""
+    term = evidence.get("best_term") or ""
+    num = [float(t) for t in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", term)]
+    start = dict(fit.params)
+    if group == "cylinder_leak":
+        # the laminar law, graded along the stroke (a clearance whose seal engagement
+        # varies; gradient 0 is the uniform gap): an orifice leak is never missing
+        effect = make_effect("cylinder_leak", form="graded")
+    else:
+        effect = make_effect(group, **options)
+    model = fit.model.with_effect(effect)
+    start.update(effect.neutral_values())
+    pname = effect.parameter_names()[0]
+    value = {"tube_delay": 1e-3 * num[0] if num else 0.003,
+             "spool_lag": 1e-3 * num[0] if num else 0.003,
+             "valve_deadzone": num[0] if num else 0.2,
+             "supply_fluctuation": 1.0,
+             "heat_transfer": num[0] if num else 5.0}.get(group)
+    if group == "cylinder_leak":
+        value = 0.3 * effect.bench_defaults()[pname]
+    if value is not None:
+        p = model.parameter(pname)
+        start[pname] = float(np.clip(value, p.lower + 1e-6 * (p.upper - p.lower),
+                                     p.upper - 1e-6 * (p.upper - p.lower)))
+    return model, start
