@@ -32,8 +32,14 @@ class _Block:
     warmup_starts: np.ndarray  # windows simulated before the scored ones, never scored
     warmup_p0: np.ndarray
 
-    def run_starts(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """(every simulated start, its start pressure, number of warm-up windows)."""
+    def run_starts(self, model: Model) -> tuple[np.ndarray, np.ndarray, int]:
+        """(every start to simulate, its start pressure, number of warm-up windows).
+
+        Warm-up windows only matter to a model with a state the recording does not
+        measure (the chamber temperature of ``heat_transfer``); others skip them.
+        """
+        if "heat_transfer" not in model.effect_names or not self.warmup_starts.size:
+            return self.starts, self.measured[:, 0], 0
         k = self.warmup_starts.size
         return (np.concatenate([self.warmup_starts, self.starts]),
                 np.concatenate([self.warmup_p0, self.measured[:, 0]]), k)
@@ -119,7 +125,7 @@ class WindowSet:
         theta = model.as_matrix(params)
         outs = []
         for b in self.blocks:
-            starts, p0, k = b.run_starts()
+            starts, p0, k = b.run_starts(model)
             outs.append(simulate_windows(model, theta, b.inputs, b.rig, starts, self.length,
                                          p0, solver, check_bounds=False,
                                          on_failure=on_failure)[:, k:])
@@ -132,7 +138,7 @@ class WindowSet:
         theta = model.as_matrix(params)
         preds, sens = [], []
         for b in self.blocks:
-            starts, p0, k = b.run_starts()
+            starts, p0, k = b.run_starts(model)
             p, s = simulate_windows_sensitivity(model, theta, b.inputs, b.rig, starts,
                                                 self.length, p0, solver,
                                                 check_bounds=False, on_failure=on_failure)
