@@ -18,6 +18,13 @@ from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.rig import Rig
 
 
+def _inside(model, name: str, value: float) -> float:
+    """``value`` moved just inside the parameter's bounds (a refiner's start)."""
+    p = model.parameter(name)
+    margin = 1e-6 * (p.upper - p.lower)
+    return float(np.clip(value, p.lower + margin, p.upper - margin))
+
+
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig):
     """``[(model, start), ...]``: the group's effect form(s) with start values from
     the group's best term."""
@@ -33,9 +40,8 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig):
     p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
     h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
     conv_model, conv_start = effect_candidate(fit, group, evidence, form="convective")
-    p = conv_model.parameter("heat_transfer_coefficient_W_per_m2_K")
-    conv_start["heat_transfer_coefficient_W_per_m2_K"] = float(
-        np.clip(h, p.lower + 1e-6 * (p.upper - p.lower), p.upper - 1e-6 * (p.upper - p.lower)))
+    name = "heat_transfer_coefficient_W_per_m2_K"
+    conv_start[name] = _inside(conv_model, name, h)
     return [(rate_model, rate_start), (conv_model, conv_start)]
 
 
@@ -61,7 +67,5 @@ def effect_candidate(fit: StepFit, group: str, evidence: dict, **options):
     if group == "cylinder_leak":
         value = 0.3 * effect.bench_defaults()[pname]
     if value is not None:
-        p = model.parameter(pname)
-        start[pname] = float(np.clip(value, p.lower + 1e-6 * (p.upper - p.lower),
-                                     p.upper - 1e-6 * (p.upper - p.lower)))
+        start[pname] = _inside(model, pname, value)
     return model, start
