@@ -16,7 +16,7 @@ from pneubayes.inference.likelihood import (
     start_noise_sums,
 )
 from pneubayes.inference.refine import TrajectoryRefiner
-from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
+from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, settle_solver
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -304,6 +304,31 @@ def test_emcee_smoke_and_resume(bench, tmp_path):
     assert again.resumed_ and again.sampler_.iteration == 90
     idata = again.inference_data({"seed": 4})
     assert idata.posterior["inlet_a_m2"].shape[0] == 32
+
+
+def test_a_rough_solver_is_tightened_until_the_log_density_is_smooth(bench):
+    """A coarse adaptive solver makes the log-density jitter by nats between nearby
+    points; the check measures it against a 10x tighter solver and tightens until the
+    jitter is below the limit (and reports it honestly when it may not tighten)."""
+    recs, model, truth = bench
+    data = WindowSet(recs, 2.0, 2.0)
+    like = WindowLikelihood(model, data, TIGHT)
+    rng = np.random.default_rng(0)
+    # points a posterior's width apart (the log-density spreads over a few nats)
+    x = model.vector(truth) * (1 + 1e-4 * rng.standard_normal((32, len(truth))))
+    lo, hi = model.bounds
+    z = like.to_sampling(np.clip(x, lo, hi))
+    assert 1.0 < np.std(like.log_prob_sampling(z)) < 20.0
+    rough_solver = SolverConfig(rtol=1e-4, atol_Pa=30.0, atol_K=0.1, max_step_s=0.02,
+                                min_step_s=1e-12, max_steps=5_000_000)
+    _, same, rough = settle_solver(model, data, rough_solver, z, 0.3, 0)
+    assert same == rough_solver and rough > 0.6
+    _, settled, jitter = settle_solver(model, data, rough_solver, z, 0.3, 4)
+    assert jitter <= 0.3 and settled.rtol < rough_solver.rtol
+    # independent check of the claim: the settled solver agrees with a far tighter one
+    lp = WindowLikelihood(model, data, settled).log_prob_sampling(z)
+    lp_ref = WindowLikelihood(model, data, settled.tightened(1e3)).log_prob_sampling(z)
+    assert np.std(lp - lp_ref) <= 0.5
 
 
 def test_nuisance_ranges_keep_natural_parameters_in_bounds(bench):

@@ -61,6 +61,13 @@ class SamplerSettings:
         ``adapt_steps`` steps and production restarts there (everything before is
         discarded, so the kept chain always has one fixed kernel); at most this often.
     init_scale: walker ball size relative to the refined covariance's std.
+    max_solver_jitter_nats, max_solver_tightenings: the adaptive solver's numerical error
+        makes the log-density a rough function of the parameters; where that roughness
+        is a sizeable part of the posterior's spread, moves are rejected for it (an
+        independence proposal most). Before sampling, the log-density of the starting
+        walkers is evaluated with the solver and with one 10x tighter; while the SD of
+        the difference across walkers exceeds ``max_solver_jitter_nats``, the solver is
+        tightened 10x, at most ``max_solver_tightenings`` times.
     """
 
     n_walkers: int = 0
@@ -77,6 +84,8 @@ class SamplerSettings:
     readapt_below_acceptance: float = 0.35
     max_readapts: int = 3
     init_scale: float = 1.0
+    max_solver_jitter_nats: float = 0.3
+    max_solver_tightenings: int = 3
     seed: int = 0
 
     def __post_init__(self):
@@ -87,6 +96,9 @@ class SamplerSettings:
         if self.adapt_rounds < 1:
             raise ValueError(f"SamplerSettings.adapt_rounds must be >= 1, "
                              f"got {self.adapt_rounds}")
+        if not self.max_solver_jitter_nats > 0.0 or self.max_solver_tightenings < 0:
+            raise ValueError("SamplerSettings: max_solver_jitter_nats must be > 0 and "
+                             "max_solver_tightenings >= 0")
         if not 0.0 <= self.independence_weight < 1.0:
             raise ValueError("SamplerSettings.independence_weight must be in [0, 1), "
                              f"got {self.independence_weight}")
@@ -188,6 +200,30 @@ class StudentTProposal:
             return x, factor
 
         return emcee.moves.MHMove(propose)
+
+
+def settle_solver(model: Model, data: WindowSet, solver: SolverConfig, z: np.ndarray,
+                  max_jitter_nats: float, max_tightenings: int):
+    """Tighten ``solver`` until the log-density's numerical roughness is small.
+
+    The roughness is the SD, across the points ``z`` (sampling coordinates, e.g. the
+    starting walkers), of the difference between the log-density with the solver and
+    with one 10x tighter (:meth:`SolverConfig.tightened`). While it exceeds
+    ``max_jitter_nats`` the solver is tightened 10x, at most ``max_tightenings`` times.
+    Returns (likelihood, solver, roughness in nats).
+    """
+    like = WindowLikelihood(model, data, solver)
+    lp = like.log_prob_sampling(z)
+    for k in range(max_tightenings + 1):
+        finer = solver.tightened(10.0)
+        like_f = WindowLikelihood(model, data, finer)
+        lp_f = like_f.log_prob_sampling(z)
+        ok = np.isfinite(lp) & np.isfinite(lp_f)
+        jitter = float(np.std(lp[ok] - lp_f[ok])) if ok.sum() > 1 else float("inf")
+        if jitter <= max_jitter_nats or k == max_tightenings:
+            return like, solver, jitter
+        solver, like, lp = finer, like_f, lp_f
+    raise AssertionError("unreachable")
 
 
 def _walkers(settings: SamplerSettings, ndim: int) -> int:
@@ -316,7 +352,14 @@ class BayesianIdentification:
         else:
             backend = emcee.backends.Backend()
             backend.reset(nw, ndim)
-        state = None if resume else self._initial(like, x0, covariance, rng, nw)
+        # the starting walkers are drawn (seeded) on a resume too: the solver check runs
+        # on them, so a resumed chain continues with the solver it was started with
+        state = self._initial(like, x0, covariance, rng, nw)
+        like, solver, jitter = settle_solver(self.model, data, self.solver, state,
+                                             s.max_solver_jitter_nats,
+                                             s.max_solver_tightenings)
+        if resume:
+            state = None
         t0 = time.perf_counter()
         converged = False
         diag: dict = {}
@@ -369,11 +412,14 @@ class BayesianIdentification:
         if not diag:
             diag = self._diagnose(backend, like, burn)
         diag["readapts"] = readapts
+        diag["solver"] = solver.to_dict()
+        diag["solver_jitter_nats"] = jitter
         self.wall_time_s_ = time.perf_counter() - t0
         self.resumed_ = resume
         self.names_ = like.names + like.noise_names
         self.sampler_ = sampler
         self.likelihood_ = like
+        self.solver_ = solver
         self.converged_ = converged
         self.diagnostics_ = diag
         self.burn_ = diag["burn"]

@@ -7,7 +7,7 @@ for volumes 1e-7 to 2e-5 m^3; :meth:`SolverConfig.reference` is a tight one for 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -68,6 +68,14 @@ class SolverConfig:
         """Tight preset for the virtual bench's ground truth."""
         return cls(rtol=1e-8, atol_Pa=0.01, atol_K=1e-5, max_step_s=0.005, min_step_s=1e-14,
                    max_steps=50_000_000)
+
+    def tightened(self, factor: float) -> "SolverConfig":
+        """The same settings with ``rtol`` and both absolute tolerances divided by
+        ``factor`` (> 1)."""
+        if not (math.isfinite(factor) and factor > 1.0):
+            raise ValueError(f"SolverConfig.tightened: factor must be > 1, got {factor!r}")
+        return replace(self, rtol=self.rtol / factor, atol_Pa=self.atol_Pa / factor,
+                       atol_K=self.atol_K / factor)
 
     def to_dict(self) -> dict:
         return asdict(self)
