@@ -302,6 +302,10 @@ def test_emcee_smoke_and_resume(bench, tmp_path):
     again = BayesianIdentification(model, SolverConfig.standard(), longer, backend_path=path,
                                    progress=False).fit(recs[:2], truth)
     assert again.resumed_ and again.sampler_.iteration == 90
+    # the resumed chain goes on with the solver the run settled on at its start
+    assert again.solver_ == fit.solver_
+    assert again.diagnostics_["solver"] == fit.solver_.to_dict()
+    assert fit.diagnostics_["solver_jitter_nats"] <= 0.3 or fit.solver_.rtol < 3e-8
     idata = again.inference_data({"seed": 4})
     assert idata.posterior["inlet_a_m2"].shape[0] == 32
 

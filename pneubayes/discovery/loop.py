@@ -413,7 +413,8 @@ class Discovery:
                  " model")
         bi.fit(train_ws, start, covariance=cov)
         self.log(f"discover: emcee {bi.diagnostics_['steps']} steps, converged "
-                 f"{bi.converged_}, {bi.wall_time_s_:.0f} s")
+                 f"{bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol {bi.solver_.rtol:.0e}, "
+                 f"log-density roughness {bi.diagnostics_['solver_jitter_nats']:.2f} nat)")
         return bi
 
     # ------------------------------------------------------------------ results

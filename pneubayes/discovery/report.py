@@ -34,6 +34,9 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
         estimate = "posterior median"
         doc["posterior"] = {"converged": disc.posterior_.converged_,
                             "steps": disc.posterior_.diagnostics_["steps"],
+                            "sampling_solver": disc.posterior_.diagnostics_["solver"],
+                            "solver_roughness_nats":
+                                disc.posterior_.diagnostics_["solver_jitter_nats"],
                             "summary": disc.posterior_.summary()}
     else:
         params = final.params

@@ -139,7 +139,9 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
                                 backend_path=out / "chain.h5", progress=progress)
     bi.fit(data, ref.params_, covariance=ref.covariance_)
     log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
-        f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s")
+        f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol "
+        f"{bi.solver_.rtol:.0e}, log-density roughness "
+        f"{bi.diagnostics_['solver_jitter_nats']:.2f} nat)")
     median = bi.median_params()
     card_extra = {"fit": {"estimate": "posterior median", "posterior": "posterior.nc",
                           "summary": "summary.json", **inputs_card}}
@@ -160,6 +162,8 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         "n_walkers": int(bi.chain_.shape[1]), "tau_max": bi.diagnostics_["tau_max"],
         "acceptance_fraction": bi.acceptance_fraction_,
         "resumed": bi.resumed_,
+        "sampling_solver": bi.diagnostics_["solver"],
+        "solver_roughness_nats": bi.diagnostics_["solver_jitter_nats"],
         "start": {"method": how, "notes": notes, "parameters": start},
         "refined": {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
                     "start_rmse_Pa": ref.start_rmse_Pa_},
