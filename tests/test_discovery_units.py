@@ -186,17 +186,18 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     assert len(effect_candidates(fit, "spool_lag", {"best_term": "lag 4 ms"}, rig)) == 1
 
 
-def test_crossfit_score_is_each_windows_density_under_the_other_windows_noise():
-    from pneubayes.discovery.verification import ar1_noise_mode, crossfit_window_lpd, window_lpd
-    from pneubayes.inference.likelihood import ar1_sums
+def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():
+    from scipy.stats import norm
+
+    from pneubayes.discovery.verification import crossfit_window_lpd
 
     rng = np.random.default_rng(3)
     res = rng.normal(0.0, 500.0, (6, 400)) * np.linspace(0.5, 2.0, 6)[:, None]
     got = crossfit_window_lpd(res)
     for w in (0, 5):
         rest = np.delete(res, w, axis=0)
-        sig, rho = ar1_noise_mode(ar1_sums(rest[None])[0], rest.size)
-        assert got[w] == pytest.approx(window_lpd(res[w:w + 1], sig, rho)[0], rel=1e-12)
+        scale = np.sqrt(np.mean(rest**2))
+        assert got[w] == pytest.approx(norm.logpdf(res[w], 0.0, scale).sum(), rel=1e-12)
     with pytest.raises(ValueError, match="2 windows"):
         crossfit_window_lpd(res[:1])
 
@@ -206,8 +207,12 @@ def test_heldout_score_favours_the_better_predictor_whatever_its_training_fit():
     tube shows more on held-out data) and its held-out errors were 2.7x smaller than the
     reduced model's, yet a density using each model's training noise preferred the
     reduced model. The cross-fitted score must not."""
-    from pneubayes.discovery.verification import StepFit, compare_heldout, crossfit_window_lpd
-    from pneubayes.discovery.verification import window_lpd
+    from pneubayes.discovery.verification import (
+        StepFit,
+        compare_heldout,
+        crossfit_window_lpd,
+        window_lpd,
+    )
 
     rng = np.random.default_rng(4)
     full = rng.normal(0.0, 2200.0, (12, 2000))
@@ -218,9 +223,24 @@ def test_heldout_score_favours_the_better_predictor_whatever_its_training_fit():
                        np.mean(res**2, axis=1), train_sigma, 0.0)
 
     # the old plug-in: each model's own training noise (520 vs 2500 Pa)
-    old_full = step(full, 520.0, window_lpd(full, 520.0, 0.0))
-    old_reduced = step(reduced, 2500.0, window_lpd(reduced, 2500.0, 0.0))
+    old_full = step(full, 520.0, window_lpd(full, 520.0))
+    old_reduced = step(reduced, 2500.0, window_lpd(reduced, 2500.0))
     assert not compare_heldout(old_full, old_reduced, 0.05)[0]  # the defect
+    # a joint AR(1) density with its noise fitted prefers a large smooth error (a
+    # random walk) to a small rough one
+    from pneubayes.discovery.verification import ar1_noise_mode
+    from pneubayes.inference.likelihood import ar1_loglike, ar1_sums
+
+    smooth = np.cumsum(rng.normal(0.0, 150.0, (12, 2000)), axis=1)  # RMS ~ 5 kPa
+    rough = full
+    assert np.sqrt(np.mean(smooth**2)) > 2 * np.sqrt(np.mean(rough**2))
+
+    def ar1_lpd(res):
+        sig, rho = ar1_noise_mode(ar1_sums(res[None])[0], res.size)
+        return float(ar1_loglike(res[None], np.array([sig]), np.array([rho]))[0])
+
+    assert ar1_lpd(smooth) > ar1_lpd(rough)  # the second defect
+    assert crossfit_window_lpd(rough).sum() > crossfit_window_lpd(smooth).sum()
     ok, gain, p, _ = compare_heldout(step(full, 520.0, crossfit_window_lpd(full)),
                                      step(reduced, 2500.0, crossfit_window_lpd(reduced)), 0.05)
     assert ok and gain > 0 and p < 1e-3
