@@ -82,7 +82,7 @@ def test_bench_writes_valid_recordings_and_truth(fixed_set):
     assert truth["tube_delay_s"] == 0.004
     assert truth["leak_area_m2"] == pytest.approx(np.pi / 4 * 1.9665e-4**2)
     # the tube's volume is part of the dead volume (recording-format.md)
-    tube = model.effect("tube_delay").tube_volume_m3(0.004, read_recording(
+    tube = model.effect("tube_delay").tube_volume_m3({"tube_delay_s": 0.004}, read_recording(
         fixed_set.recordings[0]).rig())
     assert truth["dead_volume_m3"] == pytest.approx(1.5e-7 + tube)
     bench = json.loads(fixed_set.truth_path.read_text())["bench"]

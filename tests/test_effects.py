@@ -22,10 +22,11 @@ RANGE = P_SUP - P_ATM
 
 VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "laminar"}),
             ("cylinder_leak", {"form": "graded"}),
-            ("tube_delay", {}), ("valve_deadzone", {}), ("supply_fluctuation", {}),
+            ("tube_delay", {}), ("tube_delay", {"form": "line", "segments": 3}),
+            ("valve_deadzone", {}), ("supply_fluctuation", {}),
             ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
             ("spool_lag", {})]
-IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "valve_deadzone",
+IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "valve_deadzone",
        "supply_fluctuation", "heat_rate", "heat_convective", "spool_lag"]
 
 
@@ -244,7 +245,7 @@ def test_tube_delay_lowering_by_hand(rig):
                                32 * mu / d ** 2 * rs * temp * length / (2 * c), rtol=1e-13)
     # the tube's volume is part of the dead volume (recording format), not added here
     assert "volume_m3" not in out
-    vol = eff.tube_volume_m3(delays, rig)
+    vol = eff.tube_volume_m3({"tube_delay_s": delays}, rig)
     np.testing.assert_allclose(vol, math.pi / 4 * d * d * length, rtol=1e-13)
     assert vol[2] == pytest.approx(1.08e-5, rel=0.01)  # a 3.4 m tube of 2 mm
 

@@ -90,6 +90,24 @@ def test_without_forms_the_plant_agrees_with_the_compiled_simulator(rig, base, m
     assert np.all(plant.supply_at_valve_Pa == P_SUP) and plant.chamber_temperature_K is None
 
 
+@pytest.mark.parametrize("moving", [False, True], ids=["fixed", "moving"])
+@pytest.mark.parametrize("segments, length_m, diameter_m", [(3, 1.0, 0.002), (1, 0.5, 0.004)])
+def test_the_line_form_of_tube_delay_agrees_with_the_plants_acoustic_tube(
+        rig, base, moving, segments, length_m, diameter_m):
+    """The model's acoustic line (exponential Rosenbrock, full Jacobian) and the plant's
+    AcousticTube (LSODA), written apart, solve the same lumped line."""
+    tube = AcousticTube(length_m=length_m, diameter_m=diameter_m, segments=segments)
+    inputs = _inputs(1.0, 1, moving)
+    plant = simulate_plant(base, (tube,), inputs, rig, P_ATM, REF).pressure_Pa
+    model = Model([make_effect("tube_delay", form="line", segments=segments)])
+    params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=diameter_m)
+    params["dead_volume_m3"] += tube.volume_m3  # the model's dead volume holds the tube's
+    err = np.max(np.abs(plant - _compiled(model, params, inputs, rig)))
+    assert err < 20.0, f"plant vs compiled line: {err:.1f} Pa"
+    bare = _compiled(Model(), dict(base, dead_volume_m3=params["dead_volume_m3"]), inputs, rig)
+    assert np.max(np.abs(plant - bare)) > 5e3  # and the line matters
+
+
 @pytest.mark.parametrize("leak", ["orifice", "laminar"])
 def test_catalogue_effects_in_the_plant_agree_with_the_compiled_simulator(rig, base, leak):
     """The plant reads the catalogue's lowered slots with the model's meanings."""

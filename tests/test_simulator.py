@@ -373,19 +373,23 @@ def test_windows_with_delay_use_the_command_history(rig, hand, standard, effects
         assert np.max(np.abs(cut - full[s:s + length])) > without_history_Pa
 
 
-@pytest.mark.parametrize("form, extra", [
-    ("rate", {"heat_transfer_rate_per_s": 20.0}),
-    ("convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0}),
+@pytest.mark.parametrize("effect, form, extra", [
+    ("heat_transfer", "rate", {"heat_transfer_rate_per_s": 20.0}),
+    ("heat_transfer", "convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0}),
+    ("tube_delay", "line", {"tube_delay_s": 0.002, "tube_diameter_m": 0.002}),
 ])
-def test_contiguous_windows_carry_the_chamber_temperature(rig, hand, form, extra):
-    """The temperature is a state no recording measures. Contiguous windows restarted
-    from the full run's own pressures reproduce the full run (to solver accuracy) only
-    because each window starts at the temperature the previous one ended with; the
-    same windows simulated apart (each starting at the supply temperature) do not."""
+def test_contiguous_windows_carry_the_unmeasured_states(rig, hand, effect, form, extra):
+    """The temperature and an acoustic line's cells are states no recording measures.
+    Contiguous windows restarted from the full run's own pressures reproduce the full
+    run (to solver accuracy) only because each window starts where the previous one
+    ended; the same windows simulated apart (each from the supply temperature, or the
+    line at rest) do not."""
     from pneubayes.effects import make_effect
 
-    model = Model([make_effect("heat_transfer", form=form)])
+    model = Model([make_effect(effect, form=form)])
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=5e-7, **extra)
+    if form == "line":  # the dead volume includes the tube's
+        params["dead_volume_m3"] += float(model.effect("tube_delay").tube_volume_m3(extra, rig))
     n = 1201
     t = np.arange(n) * 1e-3
     u = hand.random_steps(np.random.default_rng(10), n, 1e-3, hold_s=(0.02, 0.08))
@@ -404,6 +408,83 @@ def test_contiguous_windows_carry_the_chamber_temperature(rig, hand, form, extra
     assert np.max(np.abs(apart[0] - full[:length])) < 5.0  # the first is the same
     assert max(np.max(np.abs(apart[w] - full[s:s + length]))
                for w, s in enumerate(starts) if w > 0) > 1e3
+
+
+def _line_model_params(rig, delay_s=0.002, dia_m=0.002, segments=3):
+    from pneubayes.effects import make_effect
+
+    model = Model(["cylinder_leak", make_effect("tube_delay", form="line", segments=segments)])
+    params = dict(valve_preset("valve1").parameters(), leak_area_m2=3e-9,
+                  tube_delay_s=delay_s, tube_diameter_m=dia_m)
+    params["dead_volume_m3"] = 5e-7 + float(
+        model.effect("tube_delay").tube_volume_m3(params, rig))
+    return model, params
+
+
+def test_an_acoustic_line_fills_to_supply_and_vents_to_atmosphere(rig, standard, make_inputs,
+                                                                  hand):
+    """Through a 2-m line (5.8 ms) the chamber still settles at the flow balance of the
+    bare chamber (eqs. 4/9): without a leak the settled line passes no flow and drops no
+    pressure."""
+    model, params = _line_model_params(rig, delay_s=0.0058)
+    params["leak_area_m2"] = 0.0
+    bare = {k: v for k, v in params.items() if not k.startswith("tube_")}
+    t = np.arange(3001) * 1e-3
+    up = simulate(model, params, make_inputs(t, np.full(t.size, 5.0)), rig, P_ATM,
+                  standard).pressure_Pa[0]
+    down = simulate(model, params, make_inputs(t, np.full(t.size, -5.0)), rig, P_SUP,
+                    standard).pressure_Pa[0]
+    assert up[-1] == pytest.approx(hand.equilibrium(bare, u=5.0), abs=5.0)
+    assert down[-1] == pytest.approx(hand.equilibrium(bare, u=-5.0), abs=5.0)
+    # the line delays the start: nothing reaches the chamber early (three lumped cells
+    # smear the front: 0.5 Pa at L / 6c, 50 Pa at L / 3c), then it fills
+    assert abs(up[1] - P_ATM) < 5.0 and up[8] - P_ATM > 1e3
+
+
+def test_an_acoustic_line_rings_and_a_bare_chamber_does_not(rig, standard, make_inputs):
+    """A valve slammed shut on a flowing line: the chamber overshoots its final pressure
+    and rings at about the line's quarter-wave frequency; a bare chamber stops at once."""
+    model, params = _line_model_params(rig, delay_s=0.0058, dia_m=0.004)
+    t = np.arange(801) * 1e-4  # 10 kHz to see the wave
+    u = np.where(t < 0.02, 5.0, 0.0)
+    p = simulate(model, params, make_inputs(t, u), rig, P_ATM, standard).pressure_Pa[0]
+    after = p[t >= 0.02]
+    final = after[-1]
+    assert after.max() - final > 2e3  # overshoot after the valve shut
+    crossings = np.nonzero(np.diff(np.sign(after - final)) != 0)[0]
+    assert crossings.size >= 3  # it oscillates about the final pressure
+
+
+def test_start_sensitivity_through_an_acoustic_line_matches_finite_differences(rig, hand):
+    model, params = _line_model_params(rig)
+    n = 801
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(np.random.default_rng(4), n, 1e-3, levels=(-1.0, 1.0)),
+                    np.full(n, 0.01), np.full(n, 6.0e5))
+    starts = np.array([0, 400])
+    p0 = np.array([2.0e5, 4.0e5])
+    tight = _config(1e-9)
+    out, sens = simulate_windows_sensitivity(model, params, inputs, rig, starts, 400, p0, tight)
+    d = 20.0
+    up = simulate_windows(model, params, inputs, rig, starts, 400, p0 + d, tight)
+    dn = simulate_windows(model, params, inputs, rig, starts, 400, p0 - d, tight)
+    fd = (up - dn) / (2 * d)
+    assert np.all(sens[..., 0] == 1.0)
+    assert np.max(np.abs(sens - fd)) < 0.03
+
+
+def test_an_acoustic_line_refuses_heat_transfer_and_an_oversized_tube(rig, make_inputs):
+    from pneubayes.effects import make_effect
+
+    model, params = _line_model_params(rig)
+    t = np.arange(11) * 1e-3
+    hot = model.with_effect(make_effect("heat_transfer"))
+    with pytest.raises(ValueError, match="isothermal"):
+        simulate(hot, dict(params, heat_transfer_rate_per_s=5.0), make_inputs(t, 0 * t), rig,
+                 P_ATM, _config(1e-6))
+    with pytest.raises(SimulationError, match="line's volume"):
+        simulate(model, dict(params, dead_volume_m3=1e-7), make_inputs(t, 0 * t), rig, P_ATM,
+                 _config(1e-6))
 
 
 # ---------------------------------------------------------------- robustness

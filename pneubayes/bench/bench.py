@@ -80,7 +80,7 @@ def truth_parameters(model: Model, cylinder: str, valve: str, rig: Rig,
         values[k] = float(v)
     if model.has("tube_delay") and "dead_volume_m3" not in (overrides or {}):
         values["dead_volume_m3"] += float(
-            model.effect("tube_delay").tube_volume_m3(values["tube_delay_s"], rig))
+            model.effect("tube_delay").tube_volume_m3(values, rig))
     model.check_bounds(model.vector(values))
     return values
 

@@ -2,7 +2,8 @@
 
 Written independently of the compiled simulator (:mod:`pneubayes.simulation.kernel`):
 the right-hand side below is its own code (it reuses only the scalar orifice law of
-eqs. 1-3 and the Gompertz map of eq. 11 from :mod:`pneubayes.physics`), and it is
+eqs. 1-3, the Gompertz map of eq. 11 and the tube's friction correlation from
+:mod:`pneubayes.physics`), and it is
 integrated by scipy's ``solve_ivp`` (Radau or LSODA) with explicit tolerances.
 
 State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
@@ -55,6 +56,7 @@ from pneubayes.effects import Effect
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 from pneubayes.physics.orifice import flow_terms
+from pneubayes.physics.tube import churchill_fre
 from pneubayes.physics.valve import gompertz_scalar
 from pneubayes.rig import Rig
 from pneubayes.simulation.simulator import Inputs
@@ -73,20 +75,6 @@ N_K = 42
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
  L_ITQ, L_N) = range(13)
 N_L = 13
-
-
-@njit(cache=True, inline="always")
-def _churchill_fre(re):
-    """Darcy friction factor times Reynolds number for a smooth tube (Churchill 1977).
-
-    ``f = 8 ((8/Re)^12 + (A + B)^-1.5)^(1/12)``, A = (2.457 ln(1 / (7/Re)^0.9))^16,
-    B = (37530 / Re)^16; returned as ``f Re`` (64 in laminar flow), smooth in Re.
-    """
-    if re < 1.0:
-        return 64.0  # the turbulent correction is below 1e-100 here
-    a = (2.457 * 0.9 * math.log(re / 7.0)) ** 16
-    b = (37530.0 / re) ** 16
-    return 8.0 * (8.0**12 + re**12 * (a + b) ** -1.5) ** (1.0 / 12.0)
 
 
 @njit(cache=True)
@@ -175,7 +163,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             rho = 0.5 * (p_i + p_next) / (rs * ts)
             re = abs(q) * dia / (area * mu)
             dy[itq + i] = (area / dx * (p_i - p_next)
-                           - _churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
+                           - churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
             q_prev = q
         inflow = q_prev
         h_in = inflow * (ts if inflow > 0.0 else temp)

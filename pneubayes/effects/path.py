@@ -1,8 +1,8 @@
 """Points on the signal path where the model's components act.
 
 command -> [delay] -> spool [lag] -> [dead band] -> port areas (Gompertz, eq. 11)
--> port mass flows (eqs. 1-3, supply and attenuation) + extra flows (leaks, eq. 9)
--> chamber (eq. 5: volume, pressure, temperature) -> sensor.
+-> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
++ extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor.
 
 Each slot is one number per parameter set that the compiled simulator reads. Components
 (the thin-port base and every effect) *lower* their named parameters onto slots; the
@@ -39,7 +39,15 @@ SLOTS: tuple[tuple[str, str], ...] = (
     ("heat_coefficient_W_per_m2_K",
      "convective wall coefficient h on the chamber's wall area; > 0 makes temperature a "
      "state and scales orifice outflows by sqrt(T_w / T) (W/(m^2 K))"),
+    ("line_length_m", "valve-chamber tube as a lumped acoustic line of this length; > 0 "
+     "makes its cell pressures and flows states, its volume leaves the chamber's (m)"),
+    ("line_diameter_m", "inner diameter of the acoustic line (m)"),
+    ("line_segments", "cells of the acoustic line (count)"),
+    ("line_viscosity_Pa_s", "dynamic viscosity of the air in the acoustic line (Pa s)"),
 )
+
+#: Most cells of an acoustic line the compiled simulator holds.
+LINE_MAX_SEGMENTS = 8
 
 SLOT_NAMES: tuple[str, ...] = tuple(name for name, _ in SLOTS)
 SLOT_INDEX: dict[str, int] = {name: i for i, name in enumerate(SLOT_NAMES)}

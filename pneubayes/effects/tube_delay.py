@@ -1,7 +1,9 @@
 """Connecting tube between valve and chamber (paper IV-E; Richer & Hurmuzlu 2000).
 
-One parameter, the transport delay ``tube_delay_s`` = L / c, sets the tube length L for
-a given inner diameter D (2 mm in the paper). From it follow:
+In both forms the parameter ``tube_delay_s`` = L / c, the one-way acoustic transit
+time, sets the tube length L.
+
+``form="transport"`` (the paper's): for a given inner diameter D (2 mm in the paper),
 
 - the delay: the flow the valve passes at t - L/c reaches the chamber at t; we apply it
   to the command (the valve's opening), which keeps the chamber's pressure feedback
@@ -14,6 +16,16 @@ a given inner diameter D (2 mm in the paper). From it follow:
   here: a model with and without this effect then share one volume map, and the tube
   volume is not confounded with the dead volume. The bench adds it to the true dead
   volume when it plants a tube.
+
+``form="line"``: the tube as a lumped acoustic line of ``segments`` cells, with its
+inner diameter ``tube_diameter_m`` a second parameter. Each cell (volume A L / n) has a
+pressure obeying eq. 5 at the supply temperature, and each junction towards the next
+cell (the last: the chamber) a mass flow q with inertia and smooth-pipe friction,
+``dq/dt = A n / L (p_i - p_{i+1}) - f Re mu q / (2 rho D^2)``
+(:mod:`pneubayes.physics.tube`). The valve's port flows enter the first cell and see
+its pressure, not the chamber's; waves travel and reflect. The line's volume is part of
+``dead_volume_m3`` (as above) and is taken out of the chamber's. An outside tube is an
+acoustic line; a pure delay cannot lag and ring as one does.
 """
 
 from __future__ import annotations
@@ -24,34 +36,65 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.path import LINE_MAX_SEGMENTS
 from pneubayes.rig import Rig
+
+_FORMS = ("transport", "line")
 
 
 class TubeDelay(Effect):
-    """Transport delay, friction attenuation and volume of the connecting tube."""
+    """The valve-chamber tube: transport delay with attenuation, or an acoustic line."""
 
     name = "tube_delay"
-    acts_on = ("command_delay_s", "flow_attenuation_Pa")
+    acts_on = ("command_delay_s", "flow_attenuation_Pa", "line_length_m", "line_diameter_m",
+               "line_segments", "line_viscosity_Pa_s")
 
-    def __init__(self, tube_diameter_m: float = 0.002, air_viscosity_Pa_s: float = 1.81e-5):
+    def __init__(self, tube_diameter_m: float = 0.002, air_viscosity_Pa_s: float = 1.81e-5,
+                 form: str = "transport", segments: int = 3):
         self.tube_diameter_m = tube_diameter_m
         self.air_viscosity_Pa_s = air_viscosity_Pa_s
+        self.form = form
+        self.segments = segments
+
+    def _check(self):
+        if self.form not in _FORMS:
+            raise ValueError(f"tube_delay: form must be one of {_FORMS}, got {self.form!r}")
+        if not (self.tube_diameter_m > 0 and self.air_viscosity_Pa_s > 0):
+            raise ValueError("tube_delay: tube_diameter_m and air_viscosity_Pa_s must be > 0")
+        if (isinstance(self.segments, bool) or not isinstance(self.segments, int)
+                or not 1 <= self.segments <= LINE_MAX_SEGMENTS):
+            raise ValueError(f"tube_delay: segments must be an integer in 1..{LINE_MAX_SEGMENTS}, "
+                             f"got {self.segments!r}")
 
     def options(self):
-        return {"tube_diameter_m": self.tube_diameter_m,
-                "air_viscosity_Pa_s": self.air_viscosity_Pa_s}
+        opts = {"tube_diameter_m": self.tube_diameter_m,
+                "air_viscosity_Pa_s": self.air_viscosity_Pa_s, "form": self.form}
+        if self.form == "line":
+            opts["segments"] = self.segments
+        return opts
 
     def parameters(self):
-        return (Parameter("tube_delay_s", "s", 0.0, 0.03, "uniform",
-                          "transport delay L/c of the valve-chamber tube", neutral=0.0),)
+        self._check()
+        delay = Parameter("tube_delay_s", "s", 0.0, 0.03, "uniform",
+                          "transport delay L/c of the valve-chamber tube", neutral=0.0)
+        if self.form == "transport":
+            return (delay,)
+        # any diameter is neutral at zero length
+        return (delay, Parameter("tube_diameter_m", "m", 5e-4, 1e-2, "log-uniform",
+                                 "inner diameter of the valve-chamber tube",
+                                 neutral=self.tube_diameter_m))
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
-        d = self.tube_diameter_m
-        if not (d > 0 and self.air_viscosity_Pa_s > 0):
-            raise ValueError("tube_delay: tube_diameter_m and air_viscosity_Pa_s must be > 0")
+        self._check()
         delay = np.asarray(values["tube_delay_s"], dtype=np.float64)
         c = rig.gas.speed_of_sound_m_per_s
         length = c * delay
+        if self.form == "line":
+            dia = np.asarray(values["tube_diameter_m"], dtype=np.float64)
+            return {"line_length_m": length, "line_diameter_m": dia,
+                    "line_segments": np.full(delay.shape, float(self.segments)),
+                    "line_viscosity_Pa_s": np.full(delay.shape, self.air_viscosity_Pa_s)}
+        d = self.tube_diameter_m
         rs_t = rig.gas.specific_gas_constant_J_per_kg_K * rig.gas.temperature_K
         r_t = 32.0 * self.air_viscosity_Pa_s / d**2
         return {
@@ -60,11 +103,15 @@ class TubeDelay(Effect):
             "flow_attenuation_Pa": r_t * rs_t * length / (2.0 * c),
         }
 
-    def tube_volume_m3(self, tube_delay_s, rig: Rig):
-        """Volume of the tube whose delay is ``tube_delay_s``: pi D^2/4 c tau, m^3."""
-        return (math.pi / 4.0 * self.tube_diameter_m**2 * rig.gas.speed_of_sound_m_per_s
-                * np.asarray(tube_delay_s, dtype=np.float64))
+    def tube_volume_m3(self, values: Mapping[str, np.ndarray], rig: Rig):
+        """Volume pi D^2/4 c tau of the tube the parameter ``values`` describe, m^3."""
+        d = (values["tube_diameter_m"] if self.form == "line" else self.tube_diameter_m)
+        return (math.pi / 4.0 * np.asarray(d, dtype=np.float64) ** 2
+                * rig.gas.speed_of_sound_m_per_s
+                * np.asarray(values["tube_delay_s"], dtype=np.float64))
 
     def bench_defaults(self):
         # A 1 m tube: 2.9 ms at 343 m/s, 3.1e-6 m^3 of 2 mm tube.
+        if self.form == "line":  # a 34-cm tube of 2.5 mm bore, 1.7e-6 m^3
+            return {"tube_delay_s": 0.001, "tube_diameter_m": 0.0025}
         return {"tube_delay_s": 0.003}

@@ -21,7 +21,9 @@ position and supply are linear between samples. A transport delay shifts the hel
 command, which adds one break point inside some sample intervals; the integrator
 stops exactly on every break point. The spool lag is integrated in closed form. With
 heat transfer on (either form), the chamber temperature is a second state (diagonal
-Jacobian).
+Jacobian). With the tube as an acoustic line, the state is the chamber's pressure and
+the line's cells and flows, stepped by the same method with the full Jacobian
+(:mod:`pneubayes.simulation.line`).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 3 non-finite state. This module is the only compiled code of the simulator.
@@ -34,21 +36,39 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.physics.valve import gompertz_scalar
+from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
+    C_ALPHA,
+    C_BETA,
+    C_BORE_AREA,
+    C_KAPPA,
+    C_P_ATM,
+    C_P_NOM,
+    C_RS,
+    C_T_SUPPLY,
+    C_THETA,
+    N_CONSTS,
+    N_SOLVER,
+    S_ATOL_P,
+    S_ATOL_T,
+    S_MAX_STEP,
+    S_MAX_STEPS,
+    S_MIN_STEP,
+    S_RTOL,
+)
+from pneubayes.simulation.line import line_step
 
-OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE = 0, 1, 2, 3
+OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME = 0, 1, 2, 3, 4
 STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more than max_steps steps in one window",
-               NONFINITE: "state became non-finite"}
+               NONFINITE: "state became non-finite",
+               LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume"}
+#: Length of the state carried from one window to the next: the chamber temperature
+#: and an acoustic line's cell pressures and flows (NaN: start the line at rest).
+N_CARRY = 1 + 2 * LINE_MAX_SEGMENTS
 
-# Constant-vector layout (rig and gas); built by pneubayes.simulation.simulator.
-C_BORE_AREA, C_P_ATM, C_P_NOM, C_T_SUPPLY, C_ALPHA, C_BETA, C_THETA, C_KAPPA, C_RS = range(9)
-N_CONSTS = 9
-# Solver-vector layout.
-S_RTOL, S_ATOL_P, S_ATOL_T, S_MAX_STEP, S_MIN_STEP, S_MAX_STEPS = range(6)
-N_SOLVER = 6
 
 _IN = SLOT_INDEX["inlet_offset_m2"]
 _EX = SLOT_INDEX["exhaust_offset_m2"]
@@ -63,6 +83,9 @@ _LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
 _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
+_LLEN = SLOT_INDEX["line_length_m"]
+_LDIA = SLOT_INDEX["line_diameter_m"]
+_LSEG = SLOT_INDEX["line_segments"]
 
 
 @njit(cache=True, inline="always")
@@ -211,14 +234,16 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
 
 
 @njit(cache=True)
-def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
+def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
     ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
     the pressure to the initial pressure: the product of the accepted steps'
-    ``exp(h J_p)`` (first order in h; the temperature coupling is ignored).
-    ``temp_io[0]`` is the chamber temperature at the start (K; used with heat transfer)
-    and receives the temperature at the window's end.
+    ``exp(h J_p)`` (first order in h; the temperature coupling is ignored; with an
+    acoustic line the propagators ``exp(h J)`` of the whole state).
+    ``carry`` (``N_CARRY``) holds the unmeasured states at the start and receives them
+    at the end: ``carry[0]`` the chamber temperature (K; used with heat transfer),
+    ``carry[1:]`` an acoustic line's cell pressures and flows (NaN: at rest at p0).
     """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin, max_steps = sv[S_MAX_STEP], sv[S_MIN_STEP], int(sv[S_MAX_STEPS])
@@ -229,12 +254,32 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
     v0, bore = sl[_VOL], cs[C_BORE_AREA]
     thermal = sl[_HEAT] > 0.0 or sl[_HCONV] > 0.0
     p = p0
-    temp = temp_io[0] if thermal else cs[C_T_SUPPLY]
+    temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p
     want_sens = sens.shape[0] > 0
     s_p0 = 1.0
     if want_sens:
         sens[0] = 1.0
+    # acoustic line: state [p, cell pressures, flows]; its volume leaves the chamber's
+    nseg = int(sl[_LSEG]) if sl[_LLEN] > 0.0 else 0
+    line = nseg > 0
+    ny = 1 + 2 * nseg
+    y = np.empty(ny)
+    y_new = np.empty(ny)
+    s_vec = np.zeros(ny)
+    prop = np.eye(ny)
+    if line:
+        v0 = v0 - 0.25 * math.pi * sl[_LDIA] ** 2 * sl[_LLEN]
+        if not v0 > 0.0:
+            return LINE_VOLUME
+        y[0] = p0
+        s_vec[0] = 1.0
+        if math.isnan(carry[1]):
+            y[1:1 + nseg] = p0  # at rest at the chamber's pressure
+            y[1 + nseg:] = 0.0
+            s_vec[1:1 + nseg] = 1.0
+        else:
+            y[1:] = carry[1:ny]
     # Delayed-command pointer: index j of the sample held at time t - delay.
     j = 0
     t_start = t[i0]
@@ -300,17 +345,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
                     s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
                     a_in, a_ex = _areas(s_now, dead, sl)
                     da_in, da_ex = _area_rates(s_now, (cmd - s_now) / tau_s, dead, sl)
-                fp, jp, ft, jt, vp = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh,
-                                          True, dsup, da_in, da_ex)
-                zp = hh * jp
-                phi1p, phi2p, phi3p = _phi123(zp)
-                up = p + hh * (phi1p * fp + hh * phi2p * vp)
-                ut = temp
-                if thermal:
-                    zt = hh * jt
-                    phi1t, _, phi3t = _phi123(zt)
-                    ut = temp + hh * phi1t * ft
-                # stage 2 at tau + hh
+                # inputs at tau + hh (stage 2)
                 fr2 = (tau + hh - ta) * inv_seg
                 vol2 = v0 + bore * (xa + fr2 * (xb - xa))
                 psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
@@ -319,9 +354,28 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
                     a_in2, a_ex2 = _areas(s2, dead, sl)
                 else:
                     a_in2, a_ex2 = a_in, a_ex
-                ok = up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)
                 err = 10.0
-                pn, tn = up, ut
+                pn, tn = p, temp
+                zp = 0.0
+                ok = False
+                if line:
+                    err, prop = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup,
+                                          da_in, da_ex, a_in2, a_ex2, vol2, psup2, sl, cs,
+                                          atol_p, rtol, y_new)
+                    pn = y_new[0]
+                else:
+                    fp, jp, ft, jt, vp = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs,
+                                              hh, True, dsup, da_in, da_ex)
+                    zp = hh * jp
+                    phi1p, phi2p, phi3p = _phi123(zp)
+                    up = p + hh * (phi1p * fp + hh * phi2p * vp)
+                    ut = temp
+                    if thermal:
+                        zt = hh * jt
+                        phi1t, _, phi3t = _phi123(zt)
+                        ut = temp + hh * phi1t * ft
+                    ok = up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)
+                    pn, tn = up, ut
                 if ok:
                     fp2, _, ft2, _, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
                                              hh, False, 0.0, 0.0, 0.0)
@@ -341,7 +395,12 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
                     p, temp = pn, tn
-                    if want_sens:
+                    if line:
+                        y[:] = y_new
+                        if want_sens:
+                            s_vec = prop @ s_vec
+                            s_p0 = s_vec[0]
+                    elif want_sens:
                         s_p0 *= math.exp(zp)
                     fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
                     if hh >= h or fac < 1.0:
@@ -362,7 +421,9 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, temp_io):
         out[k + 1 - i0] = p
         if want_sens:
             sens[k + 1 - i0] = s_p0
-    temp_io[0] = temp
+    carry[0] = temp
+    if line:
+        carry[1:ny] = y[1:]
     return OK
 
 
@@ -375,40 +436,48 @@ def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensi
     sens = np.empty((nb, nw, length if with_sensitivity else 0))
     status = np.zeros((nb, nw), dtype=np.int64)
     # Contiguous windows (each starts on the previous one's last sample) carry the
-    # chamber temperature, a state the recording does not measure, from one window to
-    # the next; only the measured pressure is reset at each start.
+    # states the recording does not measure (chamber temperature, an acoustic line) from
+    # one window to the next; only the measured pressure is reset at each start.
     chained = nw > 1
     for w in range(1, nw):
         if starts[w] != starts[w - 1] + length - 1:
             chained = False
-    thermal = False
+    hidden = False  # a state the recording does not measure
     for b in range(nb):
-        if slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0:
-            thermal = True
-    if chained and thermal:
+        if slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0 or slots[b, _LLEN] > 0.0:
+            hidden = True
+    if chained and hidden:
         for b in prange(nb):
-            temp_io = np.full(1, consts[C_T_SUPPLY])
+            carry = _fresh_carry(consts)
             for w in range(nw):
                 status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w],
-                                       length, p0[w], out[b, w], sens[b, w], temp_io)
+                                       length, p0[w], out[b, w], sens[b, w], carry)
                 if status[b, w] != OK:
-                    temp_io[0] = consts[C_T_SUPPLY]
+                    carry = _fresh_carry(consts)
     else:
         for task in prange(nb * nw):
             b = task // nw
             w = task % nw
-            temp_io = np.full(1, consts[C_T_SUPPLY])
             status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
-                                   p0[w], out[b, w], sens[b, w], temp_io)
+                                   p0[w], out[b, w], sens[b, w], _fresh_carry(consts))
     return out, sens, status
+
+
+@njit(cache=True)
+def _fresh_carry(consts):
+    """Unmeasured states at a recording's start: supply temperature, line at rest."""
+    carry = np.full(N_CARRY, np.nan)
+    carry[0] = consts[C_T_SUPPLY]
+    return carry
 
 
 def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
     """Simulate every (parameter set, window) pair.
 
     The chamber temperature (a state only with heat transfer) starts at the supply's in
-    the first window; when every window starts on the previous one's last sample, each
-    later window starts from the temperature the previous one ended with.
+    the first window, an acoustic line at rest at the chamber's pressure; when every
+    window starts on the previous one's last sample, each later window starts from the
+    temperature and line state the previous one ended with.
 
     Parameters
     ----------

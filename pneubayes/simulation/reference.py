@@ -15,6 +15,7 @@ from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.orifice import flow_function
+from pneubayes.physics.tube import churchill_fre
 from pneubayes.physics.valve import gompertz_area
 from pneubayes.rig import Rig
 from pneubayes.simulation.simulator import Inputs
@@ -32,30 +33,57 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
     thermal = heat > 0 or h_wall > 0
+    nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
+    if nseg:
+        dia, mu = sl[S["line_diameter_m"]], sl[S["line_viscosity_Pa_s"]]
+        area = np.pi / 4 * dia**2
+        dx = sl[S["line_length_m"]] / nseg
+        v_line = area * sl[S["line_length_m"]]
+    else:
+        v_line = 0.0
 
     def rhs(t, y):
-        p, temp, spool = y
+        p, temp, spool = y[:3]
+        cells, flows_q = y[3:3 + nseg], y[3 + nseg:]
+        p_valve = cells[0] if nseg else p
         s = spool if tau_s > 0 else cmd
         ueff = np.sign(s) * max(abs(s) - dead, 0.0)
         a_in = gompertz_area(ueff, *ins)
         a_ex = gompertz_area(ueff, *exs)
         fr = (t - ta) / seg
-        vol = sl[S["volume_m3"]] + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2)
+        vol = (sl[S["volume_m3"]] - v_line
+               + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2))
         psup = rig.supply_pressure_Pa + sl[S["supply_gain"]] * (
             sa + fr * (sb - sa) - rig.supply_pressure_Pa)
         att = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
         k_lam = max(sl[S["leak_laminar_kg_per_s_Pa2"]]
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
-                    * (vol - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
+                    * (vol + v_line - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
         # each mass flow into the chamber (kg/s, negative = out)
-        f_in = float(flow_function(psup, p, g))
-        f_out = float(flow_function(p, p_atm, g))
+        f_in = float(flow_function(psup, p_valve, g))
+        f_out = float(flow_function(p_valve, p_atm, g))
+        f_leak = float(flow_function(p, p_atm, g))
         if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1)
             f_in = f_in * (np.sqrt(t_s / temp) if f_in < 0 else 1.0)
             f_out = f_out * (np.sqrt(t_s / temp) if f_out > 0 else 1.0)
-        flows = [att * a_in * f_in, -att * a_ex * f_out,
-                 -sl[S["leak_orifice_area_m2"]] * f_out,
-                 -k_lam * (p * p - p_atm * p_atm)]
+            f_leak = f_leak * (np.sqrt(t_s / temp) if f_leak > 0 else 1.0)
+        port = [att * a_in * f_in, -att * a_ex * f_out]
+        d_line = []
+        if nseg:  # the ports feed the line's first cell; its last flow feeds the chamber
+            c_cell = kappa * rs * t_s / (area * dx)
+            q_prev, dcells, dq = sum(port), [], []
+            for i in range(nseg):
+                p_next = cells[i + 1] if i < nseg - 1 else p
+                dcells.append(c_cell * (q_prev - flows_q[i]))
+                rho = 0.5 * (cells[i] + p_next) / (rs * t_s)
+                re = abs(flows_q[i]) * dia / (area * mu)
+                dq.append(area / dx * (cells[i] - p_next)
+                          - churchill_fre(re) * mu * flows_q[i] / (2 * rho * dia**2))
+                q_prev = flows_q[i]
+            port = [q_prev]
+            d_line = dcells + dq
+        flows = port + [-sl[S["leak_orifice_area_m2"]] * f_leak,
+                        -k_lam * (p * p - p_atm * p_atm)]
         mdot = float(sum(flows))
         # enthalpy: inflow at the supply temperature, outflow at the chamber's (T = T_s
         # without heat exchange, where this is eq. 5)
@@ -71,7 +99,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
-        return [float(dp), float(dtemp), float(dspool)]
+        return [float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
 
     return rhs
 
@@ -88,7 +116,14 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     sl = model.lower(model.as_matrix(params), rig)[0]
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]
-    y = np.array([initial_pressure_Pa, rig.gas.temperature_K, 0.0])
+    nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
+    # an acoustic line starts at rest at the chamber's pressure
+    y = np.array([initial_pressure_Pa, rig.gas.temperature_K, 0.0]
+                 + [initial_pressure_Pa] * nseg + [0.0] * nseg)
+    atols = [atol, atol * 1e-4, 1e-9] + [atol] * nseg
+    if nseg:
+        area = np.pi / 4 * sl[S["line_diameter_m"]] ** 2
+        atols += [atol * area / rig.gas.speed_of_sound_m_per_s] * nseg
     j = int(np.searchsorted(t + delay, t[0], side="right") - 1) if delay > 0 else 0
     y[2] = u[max(j, 0)]
     out = np.empty(t.size)
@@ -106,7 +141,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             cmd = u[max(jj, 0)]
             rhs = _rhs_factory(sl, rig, cmd, x[k], vdot, ta, seg, ps[k], ps[k + 1])
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
-                            atol=[atol, atol * 1e-4, 1e-9])
+                            atol=atols)
             if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
                 raise RuntimeError(f"reference solver failed at t={a:.6f}: {sol.message}")
             nfev += sol.nfev

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 from pneubayes.model import Model
 from pneubayes.rig import Rig
@@ -125,6 +126,12 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if not np.all(np.isfinite(p0) & (p0 > 0)):
         raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
     slots = np.ascontiguousarray(model.lower(theta, rig))
+    line = slots[:, SLOT_INDEX["line_length_m"]] > 0
+    hot = (slots[:, SLOT_INDEX["heat_rate_per_s"]] > 0) | (
+        slots[:, SLOT_INDEX["heat_coefficient_W_per_m2_K"]] > 0)
+    if np.any(line & hot):
+        raise ValueError("the tube's acoustic line (tube_delay form 'line') is isothermal: "
+                         "it cannot be combined with heat_transfer in one model")
     *arrays, status = kernel_fn(
         slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
         inputs.position_m, inputs.supply_pressure_Pa, starts, length, p0)

@@ -1,0 +1,235 @@
+"""Compiled step of the acoustic-line model (``tube_delay`` form ``"line"``).
+
+The state is ``y = [p, p_1 .. p_n, q_1 .. q_n]``: the chamber pressure, the line's
+cell pressures (cell 1 at the valve) and the mass flows from each cell into the next
+(the last into the chamber). With ``A = pi D^2 / 4``, ``dx = L / n`` and the supply
+temperature T (the line is isothermal, as eq. 5 is)::
+
+    dp_1/dt = kappa Rs T / (A dx) (m_valve(p_1) - q_1)
+    dp_i/dt = kappa Rs T / (A dx) (q_{i-1} - q_i)
+    dq_i/dt = A / dx (p_i - p_{i+1}) - f Re mu q_i / (2 rho_i D^2),  p_{n+1} = p
+    dp/dt   = kappa / V (Rs T (q_n - m_leak(p)) - p dV/dt)                    (eq. 5)
+
+with ``rho_i`` the mean density of the two cells and ``f Re`` the smooth-pipe
+correlation of :mod:`pneubayes.physics.tube`. The valve's port flows (eqs. 1-3) see the
+first cell's pressure.
+
+Waves make this system oscillatory and the orifice into a small cell makes it stiff, so
+the step is the kernel's exponential Rosenbrock method (exprb32) with the *full*
+Jacobian: the phi-functions of the small matrix ``h J`` act on vectors through the
+exponential of an augmented matrix (Al-Mohy and Higham 2011, Thm. 2.1), computed by
+scaling and squaring with a [6/6] Pade approximant. The method is exact for linear
+problems, so the waves cost no stability, only the accuracy the error control asks for.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.physics.orifice import flow_slopes, flow_terms
+from pneubayes.physics.tube import churchill_fre, churchill_fre_slope
+from pneubayes.simulation.layout import (
+    C_ALPHA,
+    C_BETA,
+    C_BORE_AREA,
+    C_KAPPA,
+    C_P_ATM,
+    C_RS,
+    C_T_SUPPLY,
+    C_THETA,
+)
+
+_VOL = SLOT_INDEX["volume_m3"]
+_LEAK_O = SLOT_INDEX["leak_orifice_area_m2"]
+_LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
+_LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
+_LEN = SLOT_INDEX["line_length_m"]
+_DIA = SLOT_INDEX["line_diameter_m"]
+_MU = SLOT_INDEX["line_viscosity_Pa_s"]
+
+_PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
+               / (math.factorial(12) * math.factorial(k) * math.factorial(6 - k))
+               for k in range(7))
+
+
+@njit(cache=True)
+def expm_small(a):
+    """Matrix exponential of a small square matrix: [6/6] Pade, scaling and squaring.
+
+    The matrix is scaled by 2^-s until its 1-norm is <= 0.5, where the approximant's
+    relative error is below 1e-16, and the result squared s times.
+    """
+    n = a.shape[0]
+    norm = 0.0
+    for j in range(n):
+        col = 0.0
+        for i in range(n):
+            col += abs(a[i, j])
+        norm = max(norm, col)
+    s = 0
+    if norm > 0.5:
+        s = int(math.ceil(math.log2(norm / 0.5)))
+    x = a * (0.5 ** s)
+    num = np.eye(n) * _PADE6[0]
+    den = np.eye(n) * _PADE6[0]
+    power = np.eye(n)
+    for k in range(1, 7):
+        power = power @ x
+        num += _PADE6[k] * power
+        den += ((-1.0) ** k * _PADE6[k]) * power
+    e = np.ascontiguousarray(np.linalg.solve(den, num))
+    for _ in range(s):
+        e = e @ e
+    return e
+
+
+@njit(cache=True)
+def phi_combination(hj, vectors):
+    """``sum_k phi_k(hJ) b_k`` for the columns ``vectors = [b_1, ..., b_m]`` ``(n, m)``,
+    and ``exp(hJ)``: the top rows of the exponential of ``[[hJ, W], [0, K]]`` with
+    ``W = [b_m, ..., b_1]`` and K the m x m shift (Al-Mohy and Higham 2011, Thm. 2.1)."""
+    n, m = vectors.shape
+    big = np.zeros((n + m, n + m))
+    big[:n, :n] = hj
+    # each column is scaled to unit size (the result is linear in it)
+    scale = 0.0
+    for i in range(n):
+        for k in range(m):
+            scale = max(scale, abs(vectors[i, k]))
+    if scale == 0.0:
+        scale = 1.0
+    for k in range(m):
+        big[:n, n + k] = vectors[:, m - 1 - k] / scale
+    for k in range(m - 1):
+        big[n + k, n + k + 1] = 1.0
+    e = expm_small(big)
+    return e[:n, n + m - 1] * scale, np.ascontiguousarray(e[:n, :n])
+
+
+@njit(cache=True)
+def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
+             f, jac, vt):
+    """Right-hand side ``f`` of the line model at state ``y``; with ``need_j`` also its
+    Jacobian ``jac`` and the explicit time derivative ``vt`` (volume, supply and port
+    areas moving at ``vdot`` m^3/s, ``dsup`` Pa/s, ``da_in``/``da_ex`` m^2/s).
+
+    The port's square-root singularity at pressure balance is replaced by the secant
+    over the step's expected movement, as in the scalar kernel (a W-method Jacobian).
+    """
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    p_atm, rs, temp = cs[C_P_ATM], cs[C_RS], cs[C_T_SUPPLY]
+    rs_t = rs * temp
+    length, dia, mu = sl[_LEN], sl[_DIA], sl[_MU]
+    area = 0.25 * math.pi * dia * dia
+    dx = length / nseg
+    c_cell = kappa * rs_t / (area * dx)
+    inert = area / dx
+    p = y[0]
+    p1 = y[1]
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p1, alpha, beta, theta, kappa)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p1, p_atm, alpha, beta, theta, kappa)
+    m_valve = a_in * f_in - a_ex * f_ex
+    iq = 1 + nseg
+    q_prev = m_valve
+    if need_j:
+        jac[:, :] = 0.0
+        vt[:] = 0.0
+    for i in range(nseg):
+        p_i = y[1 + i]
+        inext = 2 + i if i < nseg - 1 else 0
+        p_next = y[inext]
+        q = y[iq + i]
+        f[1 + i] = c_cell * (q_prev - q)
+        rho = 0.5 * (p_i + p_next) / rs_t
+        re = abs(q) * dia / (area * mu)
+        k_f = churchill_fre(re) * mu / (2.0 * rho * dia * dia)
+        f[iq + i] = inert * (p_i - p_next) - k_f * q
+        if need_j:
+            jac[1 + i, iq + i] = -c_cell
+            if i > 0:
+                jac[1 + i, iq + i - 1] = c_cell
+            dfric_dp = k_f * q / (p_i + p_next)  # d(-k_f q)/dp through rho
+            jac[iq + i, 1 + i] = inert + dfric_dp
+            jac[iq + i, inext] += -inert + dfric_dp
+            jac[iq + i, iq + i] = -k_f * (1.0 + churchill_fre_slope(re))
+        q_prev = q
+    # chamber: the last line flow in, leaks out (laminar k graded along the stroke)
+    leak_o, leak_g = sl[_LEAK_O], sl[_LEAK_LG]
+    leak_l = sl[_LEAK_L] + leak_g * (vol - sl[_VOL] + area * length) / cs[C_BORE_AREA]
+    if leak_l < 0.0:
+        leak_l, leak_g = 0.0, 0.0
+    f_l = 0.0
+    sg_l, dg_l, r_l, rev_l = 0.0, 0.0, 0.0, False
+    if leak_o > 0.0:
+        f_l, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    lam = p * p - p_atm * p_atm
+    mdot = q_prev - leak_o * f_l - leak_l * lam
+    f[0] = kappa / vol * (rs_t * mdot - p * vdot)
+    if not need_j:
+        return
+    dfloor = abs(f[1]) * h
+    dfin_dsup, dfin_dp1 = flow_slopes(p_sup, p1, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+                                      dfloor)
+    dfex_dp1, _ = flow_slopes(p1, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    jac[1, 1] += c_cell * (a_in * dfin_dp1 - a_ex * dfex_dp1)
+    dleak = 2.0 * leak_l * p
+    if leak_o > 0.0:
+        dfl_dp, _ = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                                abs(f[0]) * h)
+        dleak += leak_o * dfl_dp
+    jac[0, 0] += kappa / vol * (-rs_t * dleak - vdot)
+    jac[0, iq + nseg - 1] += kappa / vol * rs_t
+    vt[0] = -f[0] / vol * vdot - kappa / vol * rs_t * leak_g * vdot / cs[C_BORE_AREA] * lam
+    vt[1] = c_cell * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+
+
+@njit(cache=True)
+def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
+              a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, rtol, y_new):
+    """One exprb32 step of length ``hh`` from ``y`` (inputs at both ends of the step).
+
+    Writes the new state to ``y_new``; returns ``(err, propagator)``: the error norm
+    (<= 1 accepts) and ``exp(hh J)``, which carries sensitivities to the initial state.
+    """
+    n = y.shape[0]
+    f = np.empty(n)
+    jac = np.empty((n, n))
+    vt = np.empty(n)
+    line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, hh, True, dsup, da_in, da_ex,
+             f, jac, vt)
+    hj = hh * jac
+    b = np.empty((n, 2))
+    b[:, 0] = hh * f
+    b[:, 1] = hh * hh * vt
+    incr, prop = phi_combination(hj, b)
+    u = y + incr
+    for i in range(1 + nseg):
+        if not (u[i] > 0.0 and math.isfinite(u[i])):
+            return 10.0, prop
+    for i in range(1 + nseg, n):
+        if not math.isfinite(u[i]):
+            return 10.0, prop
+    f2 = np.empty(n)
+    # need_j False: jac and vt keep the values at y
+    line_rhs(u, nseg, a_in2, a_ex2, vol2, vdot, p_sup2, sl, cs, hh, False, 0.0, 0.0, 0.0,
+             f2, jac, vt)
+    d = f2 - f - jac @ (u - y) - hh * vt
+    b3 = np.zeros((n, 3))
+    b3[:, 2] = 2.0 * hh * d
+    corr, _ = phi_combination(hj, b3)
+    # flows are weighed by the flow of an acoustic wave of atol_p: atol_p A / c
+    area = 0.25 * math.pi * sl[_DIA] ** 2
+    atol_q = atol_p * area / math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
+    err = 0.0
+    for i in range(n):
+        y_new[i] = u[i] + corr[i]
+        tol = atol_p if i <= nseg else atol_q
+        e = abs(corr[i]) / (tol + rtol * max(abs(y[i]), abs(y_new[i])))
+        if not math.isfinite(y_new[i]) or (i <= nseg and y_new[i] <= 0.0):
+            e = 10.0
+        err = max(err, e)
+    return err, prop
