@@ -186,6 +186,36 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     assert len(effect_candidates(fit, "spool_lag", {"best_term": "lag 4 ms"}, rig)) == 1
 
 
+def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig):
+    """Both forms start at the delay of the best term; the line's volume, which comes
+    out of the dead volume, is kept to half of it; a line is never tried beside a heat
+    model (it is isothermal) and heat never beside a line."""
+    from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.verification import StepFit
+    from pneubayes.effects import make_effect
+    from pneubayes.model import Model
+    from pneubayes.physics.valve import valve_preset
+
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
+    fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    cands = effect_candidates(fit, "tube_delay", {"best_term": "flows lag 4 ms"}, rig, 3)
+    forms = [m.effect("tube_delay").options()["form"] for m, _ in cands]
+    assert forms == ["transport", "line"]
+    assert cands[0][1]["tube_delay_s"] == pytest.approx(0.004)
+    line_model, line_start = cands[1]
+    assert line_model.effect("tube_delay").segments == 3
+    vol = float(line_model.effect("tube_delay").tube_volume_m3(line_start, rig))
+    assert vol == pytest.approx(1e-6, rel=1e-3)  # 4 ms of 2-mm tube is 4.3e-6 m^3: halved
+    assert line_start["tube_diameter_m"] == 0.002
+    hot = StepFit(Model([make_effect("heat_transfer")]), dict(params, heat_transfer_rate_per_s=5.0),
+                  1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    assert [m.effect("tube_delay").form for m, _ in
+            effect_candidates(hot, "tube_delay", {"best_term": "lag 4 ms"}, rig, 3)] == [
+        "transport"]
+    lined = StepFit(line_model, dict(line_start), 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    assert effect_candidates(lined, "heat_transfer", {"best_term": "heat 10/s"}, rig, 3) == []
+
+
 def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():
     from scipy.stats import norm
 

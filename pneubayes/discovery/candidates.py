@@ -3,7 +3,9 @@
 A named group becomes the current model plus that group's catalogue effect, started at
 the strength of the group's best library term. A leak is fitted in the graded laminar
 form (an orifice leak is the exhaust port's own law, never missing); a heat exchange in
-both its forms, one rate and a convective coefficient started at the same relaxation.
+both its forms, one rate and a convective coefficient started at the same relaxation; a
+tube in both its forms, the paper's transport delay and an acoustic line (2-mm bore to
+start, the delay from the best term; outside tubes are lines, which lag and ring).
 """
 
 from __future__ import annotations
@@ -25,11 +27,16 @@ def _inside(model, name: str, value: float) -> float:
     return float(np.clip(value, p.lower + margin, p.upper - margin))
 
 
-def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig):
+def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
+                      line_segments: int = 3):
     """``[(model, start), ...]``: the group's effect form(s) with start values from
     the group's best term."""
+    if group == "tube_delay":
+        return _tube_candidates(fit, evidence, rig, line_segments)
     if group != "heat_transfer":
         return [effect_candidate(fit, group, evidence)]
+    if _has_line(fit.model):  # the acoustic line is isothermal
+        return []
     rate_model, rate_start = effect_candidate(fit, group, evidence)
     rate = rate_start["heat_transfer_rate_per_s"]
     # the coefficient giving that rate, (kappa - 1) h (A_w / V) T / p = rate, at
@@ -69,3 +76,24 @@ def effect_candidate(fit: StepFit, group: str, evidence: dict, **options):
     if value is not None:
         start[pname] = _inside(model, pname, value)
     return model, start
+
+
+def _has_line(model) -> bool:
+    return model.has("tube_delay") and model.effect("tube_delay").form == "line"
+
+
+def _tube_candidates(fit: StepFit, evidence: dict, rig: Rig, segments: int):
+    """The tube as a transport delay (the paper's) and as an acoustic line of
+    ``segments`` cells (no line beside a heat model: the line is isothermal)."""
+    out = [effect_candidate(fit, "tube_delay", evidence)]
+    if fit.model.has("heat_transfer"):
+        return out
+    model, start = effect_candidate(fit, "tube_delay", evidence, form="line", segments=segments)
+    tube = model.effect("tube_delay")
+    # the line's volume comes out of the fitted dead volume: keep it to half of that
+    vol = float(tube.tube_volume_m3(start, rig))
+    if vol > 0.5 * start["dead_volume_m3"]:
+        start["tube_delay_s"] = _inside(model, "tube_delay_s",
+                                        start["tube_delay_s"] * 0.5 * start["dead_volume_m3"] / vol)
+    out.append((model, start))
+    return out
