@@ -74,40 +74,56 @@ def expm_small(a):
     if norm > 0.5:
         s = int(math.ceil(math.log2(norm / 0.5)))
     x = a * (0.5 ** s)
-    num = np.eye(n) * _PADE6[0]
-    den = np.eye(n) * _PADE6[0]
-    power = np.eye(n)
-    for k in range(1, 7):
-        power = power @ x
-        num += _PADE6[k] * power
-        den += ((-1.0) ** k * _PADE6[k]) * power
-    e = np.ascontiguousarray(np.linalg.solve(den, num))
+    # even and odd parts: num = V + U, den = V - U (four products instead of six)
+    x2 = x @ x
+    x4 = x2 @ x2
+    x6 = x4 @ x2
+    even = _PADE6[2] * x2 + _PADE6[4] * x4 + _PADE6[6] * x6
+    odd = _PADE6[1] * np.eye(n) + _PADE6[3] * x2 + _PADE6[5] * x4
+    for i in range(n):
+        even[i, i] += _PADE6[0]
+    odd = x @ odd
+    e = np.ascontiguousarray(np.linalg.solve(even - odd, even + odd))
     for _ in range(s):
         e = e @ e
     return e
 
 
 @njit(cache=True)
-def phi_combination(hj, vectors):
+def phi_combination(hj, vectors, scale):
     """``sum_k phi_k(hJ) b_k`` for the columns ``vectors = [b_1, ..., b_m]`` ``(n, m)``,
     and ``exp(hJ)``: the top rows of the exponential of ``[[hJ, W], [0, K]]`` with
-    ``W = [b_m, ..., b_1]`` and K the m x m shift (Al-Mohy and Higham 2011, Thm. 2.1)."""
+    ``W = [b_m, ..., b_1]`` and K the m x m shift (Al-Mohy and Higham 2011, Thm. 2.1).
+
+    ``scale`` (n,) are the states' natural sizes: the exponential is taken of the
+    balanced ``S^-1 hJ S`` (S = diag(scale)), whose norm -- and so the number of
+    squarings -- does not depend on the units of the states.
+    """
     n, m = vectors.shape
     big = np.zeros((n + m, n + m))
-    big[:n, :n] = hj
-    # each column is scaled to unit size (the result is linear in it)
-    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            big[i, j] = hj[i, j] * scale[j] / scale[i]
+    # each column is also scaled to unit size (the result is linear in it)
+    size = 0.0
     for i in range(n):
         for k in range(m):
-            scale = max(scale, abs(vectors[i, k]))
-    if scale == 0.0:
-        scale = 1.0
+            size = max(size, abs(vectors[i, k]) / scale[i])
+    if size == 0.0:
+        size = 1.0
     for k in range(m):
-        big[:n, n + k] = vectors[:, m - 1 - k] / scale
+        for i in range(n):
+            big[i, n + k] = vectors[i, m - 1 - k] / (scale[i] * size)
     for k in range(m - 1):
         big[n + k, n + k + 1] = 1.0
     e = expm_small(big)
-    return e[:n, n + m - 1] * scale, np.ascontiguousarray(e[:n, :n])
+    out = np.empty(n)
+    prop = np.empty((n, n))
+    for i in range(n):
+        out[i] = e[i, n + m - 1] * size * scale[i]
+        for j in range(n):
+            prop[i, j] = e[i, j] * scale[i] / scale[j]
+    return out, prop
 
 
 @njit(cache=True)
@@ -205,7 +221,12 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     b = np.empty((n, 2))
     b[:, 0] = hh * f
     b[:, 1] = hh * hh * vt
-    incr, prop = phi_combination(hj, b)
+    # a flow's natural size: that of an acoustic wave of 1 Pa, A / c (kg/s)
+    area = 0.25 * math.pi * sl[_DIA] ** 2
+    wave = area / math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
+    scale = np.ones(n)
+    scale[1 + nseg:] = wave
+    incr, prop = phi_combination(hj, b, scale)
     u = y + incr
     for i in range(1 + nseg):
         if not (u[i] > 0.0 and math.isfinite(u[i])):
@@ -220,10 +241,9 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     d = f2 - f - jac @ (u - y) - hh * vt
     b3 = np.zeros((n, 3))
     b3[:, 2] = 2.0 * hh * d
-    corr, _ = phi_combination(hj, b3)
-    # flows are weighed by the flow of an acoustic wave of atol_p: atol_p A / c
-    area = 0.25 * math.pi * sl[_DIA] ** 2
-    atol_q = atol_p * area / math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
+    corr, _ = phi_combination(hj, b3, scale)
+    # flows are weighed by the flow of an acoustic wave of atol_p
+    atol_q = atol_p * wave
     err = 0.0
     for i in range(n):
         y_new[i] = u[i] + corr[i]
