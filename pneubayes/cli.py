@@ -180,6 +180,7 @@ def cmd_discover(args) -> int:
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, max_effects=args.max_effects,
         posterior=not args.no_posterior, seed=args.seed,
+        tube_line_segments=args.tube_line_segments,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
@@ -361,6 +362,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--holdout", type=float, default=1.0 / 3.0,
                    help="fraction of every recording (its end) held out to verify (1/3)")
     d.add_argument("--max-effects", type=int, default=4, help="stop after adding this many")
+    d.add_argument("--tube-line-segments", type=int, default=3,
+                   help="cells of the acoustic-line form tried for a named tube; 0 tries the "
+                        "transport delay only (the line is 15-40x slower to simulate) (3)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     d.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")

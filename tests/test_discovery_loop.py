@@ -11,6 +11,13 @@ from pneubayes.io import read_recording
 from pneubayes.model import Model
 
 
+def _settings(**kw):
+    """No posterior, and the tube's transport form only: these tests are about the loop
+    on catalogue effects, and fitting the line form costs minutes (the demo test runs
+    the loop with both forms)."""
+    return DiscoverySettings(posterior=False, tube_line_segments=0, **kw)
+
+
 def _bench(out, hidden, seed):
     eff = effects_from_names(hidden)
     fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
@@ -36,8 +43,10 @@ def _leak_recordings(out):
 def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
     paths, truth_path = _bench(tmp_path / "bench", ["tube_delay"], seed=11)
     run = tmp_path / "run"
+    # the transport form only: the bench planted one, and fitting the line form too
+    # costs minutes (the demo test runs the loop with both forms)
     rc = cli_main(["discover", *map(str, paths), "--out", str(run), "--no-posterior",
-                   "--no-figures", "-q"])
+                   "--no-figures", "-q", "--tube-line-segments", "0"])
     assert rc == 0
     doc = json.loads((run / "discovery.json").read_text())
     assert doc["format"] == "pneubayes-discovery/1"
@@ -54,7 +63,7 @@ def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
     assert "+ tube_delay" in out
     # a second run resumes from the cached fits and reaches the same answer
     again = cli_main(["discover", *map(str, paths), "--out", str(run), "--no-posterior",
-                      "--no-figures", "-q"])
+                      "--no-figures", "-q", "--tube-line-segments", "0"])
     assert again == 0
     doc2 = json.loads((run / "discovery.json").read_text())
     assert doc2["effects"][0]["parameters"] == doc["effects"][0]["parameters"]
@@ -63,7 +72,7 @@ def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
 @pytest.mark.slow
 def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
     paths, _ = _bench(tmp_path / "bench", [], seed=12)
-    d = Discovery(DiscoverySettings(posterior=False), tmp_path / "run",
+    d = Discovery(_settings(), tmp_path / "run",
                   log=lambda m: None).fit([read_recording(p) for p in paths])
     doc = d.result()
     assert doc["effects"] == []
@@ -77,7 +86,7 @@ def test_discover_refuses_a_held_out_set_too_small_to_test(tmp_path):
     res = run_bench(cfg, tmp_path)
     recs = [read_recording(p) for p in res.recordings]
     with pytest.raises(ValueError, match="held-out"):
-        Discovery(DiscoverySettings(posterior=False), None, log=lambda m: None).fit(recs)
+        Discovery(_settings(), None, log=lambda m: None).fit(recs)
 
 
 @pytest.mark.slow
@@ -94,12 +103,12 @@ def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
 
     monkeypatch.setattr(loop, "GroupedSINDy", Halved)
     recs = _leak_recordings(tmp_path)
-    found = Discovery(DiscoverySettings(posterior=False), None, log=lambda m: None).fit(recs)
+    found = Discovery(_settings(), None, log=lambda m: None).fit(recs)
     doc = found.result()
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     assert doc["rmse_base_Pa"] > 2.0 * doc["noise_floor_Pa"]
     assert doc["ledger"][1]["supported"] == [] and "cylinder_leak" in doc["ledger"][1]["tentative"]
-    off = Discovery(DiscoverySettings(posterior=False, gap_fallback_ratio=0.0), None,
+    off = Discovery(_settings(gap_fallback_ratio=0.0), None,
                     log=lambda m: None).fit(recs)
     assert off.result()["effects"] == []
 
@@ -119,11 +128,11 @@ def test_a_large_gap_also_tries_weak_groups_beside_supported_ones(tmp_path, monk
 
     monkeypatch.setattr(loop, "GroupedSINDy", Misled)
     recs = _leak_recordings(tmp_path)
-    settings = DiscoverySettings(posterior=False, max_effects=1)
+    settings = _settings(max_effects=1)
     doc = Discovery(settings, None, log=lambda m: None).fit(recs).result()
     assert doc["ledger"][1]["supported"] == ["spool_lag"]
     assert "cylinder_leak" in doc["ledger"][1]["tentative"]
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
-    off = Discovery(DiscoverySettings(posterior=False, max_effects=1, gap_fallback_ratio=0.0),
+    off = Discovery(_settings(max_effects=1, gap_fallback_ratio=0.0),
                     None, log=lambda m: None).fit(recs).result()
     assert "cylinder_leak" not in [e["name"] for e in off["effects"]]

@@ -84,9 +84,9 @@ def _has_line(model) -> bool:
 
 def _tube_candidates(fit: StepFit, evidence: dict, rig: Rig, segments: int):
     """The tube as a transport delay (the paper's) and as an acoustic line of
-    ``segments`` cells (no line beside a heat model: the line is isothermal)."""
+    ``segments`` cells (none if 0; no line beside a heat model: it is isothermal)."""
     out = [effect_candidate(fit, "tube_delay", evidence)]
-    if fit.model.has("heat_transfer"):
+    if fit.model.has("heat_transfer") or segments == 0:
         return out
     model, start = effect_candidate(fit, "tube_delay", evidence, form="line", segments=segments)
     tube = model.effect("tube_delay")

@@ -68,6 +68,7 @@ from pneubayes.discovery.verification import (
     crossfit_window_lpd,
     split_recordings,
 )
+from pneubayes.effects.path import LINE_MAX_SEGMENTS
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import FitSettings, starting_point
 from pneubayes.inference.predictive import estimate_noise_std
@@ -102,7 +103,8 @@ class DiscoverySettings:
     supported ones; held-out verification decides, as for any candidate, and the best
     that passes is added. ``gap_fallback_ratio = 0`` disables it.
     tube_line_segments: cells of the acoustic-line form tried for a named tube (three
-    cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x).
+    cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
+    the transport delay only. The line costs 15-40x a plain simulation per step.
     """
 
     holdout_fraction: float = 1.0 / 3.0
@@ -138,6 +140,9 @@ class DiscoverySettings:
                              f"{self.gap_fallback_ratio}")
         if self.block < 1:
             raise ValueError(f"block must be >= 1, got {self.block}")
+        if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
+            raise ValueError(f"tube_line_segments must be in 0..{LINE_MAX_SEGMENTS} "
+                             f"(0: no line form), got {self.tube_line_segments}")
 
     def to_dict(self) -> dict:
         return asdict(self)
