@@ -364,7 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--max-effects", type=int, default=4, help="stop after adding this many")
     d.add_argument("--tube-line-segments", type=int, default=3,
                    help="cells of the acoustic-line form tried for a named tube; 0 tries the "
-                        "transport delay only (the line is 15-40x slower to simulate) (3)")
+                        "transport delay only (the line is tens of times slower to simulate) (3)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     d.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")

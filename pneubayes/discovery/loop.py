@@ -104,7 +104,7 @@ class DiscoverySettings:
     that passes is added. ``gap_fallback_ratio = 0`` disables it.
     tube_line_segments: cells of the acoustic-line form tried for a named tube (three
     cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
-    the transport delay only. The line costs 15-40x a plain simulation per step.
+    the transport delay only. A line step costs tens of times a plain one.
     """
 
     holdout_fraction: float = 1.0 / 3.0
