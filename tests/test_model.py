@@ -155,9 +155,13 @@ def test_card_keeps_effect_options():
     values.update(inlet_c_per_V=1.0, exhaust_c_per_V=-1.0)
     card = json.loads(json.dumps(model.to_card(values)))
     assert card["effect_options"]["tube_delay"] == {"tube_diameter_m": 0.004,
-                                                    "air_viscosity_Pa_s": 1.81e-5}
+                                                    "air_viscosity_Pa_s": 1.81e-5,
+                                                    "form": "transport"}
     again, vals = Model.from_card(card)
     assert again == model and again.effect("tube_delay").tube_diameter_m == 0.004
+    # a card written before the tube had forms is the transport form
+    del card["effect_options"]["tube_delay"]["form"]
+    assert Model.from_card(card)[0] == model
     assert again != Model(["tube_delay", make_effect("cylinder_leak", form="laminar")])
     assert vals == model.as_dict(model.vector(values))
 

@@ -278,10 +278,11 @@ def _check_columns(cols: dict, bad: dict, lines, name: str) -> list:
                                         f"-5..+5 V")))
         if col == "time_s":
             idx = np.flatnonzero(finite)
-            steps = np.diff(x[idx])
-            for k in np.flatnonzero(steps <= 0):
+            t = x[idx]
+            # compared, not subtracted: a difference of huge times overflows
+            for k in np.flatnonzero(t[1:] <= t[:-1]):
                 i, j = idx[k + 1], idx[k]
-                kind = "duplicated" if steps[k] == 0 else "decreasing"
+                kind = "duplicated" if t[k + 1] == t[k] else "decreasing"
                 problems.append((at(i), (f"column 'time_s': {kind} time {_show(x[i])} s (row "
                                         f"{lines[j]} has {_show(x[j])} s); time must be "
                                         f"strictly increasing")))
