@@ -26,7 +26,8 @@ the line's cells and flows, stepped by the same method with the full Jacobian
 (:mod:`pneubayes.simulation.line`).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
-3 non-finite state. This module is the only compiled code of the simulator.
+3 non-finite state, 4 an acoustic line not smaller than the dead volume. This module and
+:mod:`pneubayes.simulation.line` are the only compiled code of the simulator.
 """
 
 from __future__ import annotations

@@ -160,9 +160,10 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
 
     Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
     measured pressure there). With heat transfer, the chamber temperature (not measured)
-    starts at the supply's; contiguous windows (each starting on the previous one's last
-    sample, as 2-s windows with a 2-s stride do) carry it from window to window, so only
-    the measured pressure is reset. With ``on_failure="raise"`` a failure raises
+    starts at the supply's, and an acoustic line starts at rest at the chamber's pressure;
+    contiguous windows (each starting on the previous one's last sample, as 2-s windows
+    with a 2-s stride do) carry these states from window to window, so only the measured
+    pressure is reset. With ``on_failure="raise"`` a failure raises
     :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
     rows are NaN (samplers turn them into zero likelihood).
     """
