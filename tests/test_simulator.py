@@ -572,3 +572,26 @@ def test_trajectory_records_solver_and_parameters(leak_model, base_params, rig, 
     assert np.array_equal(traj.parameters[0], leak_model.vector(base_params))
     assert traj.pressure_Pa[0, 0] == 2e5
     assert math.isclose(traj.time_s[-1], 0.02)
+
+
+def test_read_only_inputs_reuse_the_one_compiled_kernel(rig, base_params, leak_model,
+                                                         make_inputs):
+    """A recording's arrays are read-only; numba would compile a new copy of the kernel
+    (tens of seconds) for every combination of read-only flags. The simulator hands the
+    kernel writeable copies, so read-only and writeable inputs share one signature."""
+    t = np.arange(201) * 1e-3
+    inputs = make_inputs(t, np.where(t < 0.1, 3.0, -3.0))
+    for a in (inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa):
+        a.flags.writeable = False
+    before = set(kernel._simulate.signatures)
+    ro = simulate(leak_model, base_params, inputs, rig, P_ATM, SolverConfig.standard())
+    p0 = np.array([P_ATM, 2e5])
+    p0.flags.writeable = False
+    simulate_windows(leak_model, base_params, inputs, rig, np.array([0, 100]), 100, p0,
+                     SolverConfig.standard())
+    writeable = make_inputs(np.arange(201) * 1e-3, np.where(t < 0.1, 3.0, -3.0))
+    rw = simulate(leak_model, base_params, writeable, rig, P_ATM, SolverConfig.standard())
+    np.testing.assert_array_equal(ro.pressure_Pa, rw.pressure_Pa)
+    new = set(kernel._simulate.signatures) - before
+    assert len(new) <= 1, new
+    assert all(not arg.readonly for sig in new for arg in sig if hasattr(arg, "readonly"))

@@ -106,6 +106,13 @@ def _check_solver(solver) -> SolverConfig:
     return solver
 
 
+def _kernel_arrays(*arrays):
+    """The arrays as the compiled kernel's one signature wants them: C-contiguous and
+    writeable. numba compiles a separate copy of the kernel for every combination of
+    read-only flags (a recording's arrays are read-only), tens of seconds each."""
+    return [np.require(a, requirements=("C", "W")) for a in arrays]
+
+
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
                  check_bounds, on_failure, kernel_fn):
     if on_failure not in ("raise", "nan"):
@@ -132,9 +139,9 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if np.any(line & hot):
         raise ValueError("the tube's acoustic line (tube_delay form 'line') is isothermal: "
                          "it cannot be combined with heat_transfer in one model")
-    *arrays, status = kernel_fn(
+    *arrays, status = kernel_fn(*_kernel_arrays(
         slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
-        inputs.position_m, inputs.supply_pressure_Pa, starts, length, p0)
+        inputs.position_m, inputs.supply_pressure_Pa, starts), length, _kernel_arrays(p0)[0])
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
         for a in arrays:
