@@ -3,8 +3,9 @@
 Minimises the squared error of open-loop predictions over windows started from the
 measured pressure (the paper's metric), with ``scipy.optimize.least_squares``
 (trust-region reflective, within the model's bounds). The Jacobian is taken by forward
-differences in ONE batched call of the compiled simulator (the base point plus one
-perturbed copy per free parameter). Its result is the point that starts the sampler.
+differences in ONE batched call of the compiled simulator (one perturbed copy per free
+parameter), at accepted points only: a rejected trial step costs one simulation. Its
+result is the point that starts the sampler.
 """
 
 from __future__ import annotations
@@ -70,46 +71,63 @@ class TrajectoryRefiner:
         flo, fhi = lo[idx], hi[idx]
         scale = self._scales(theta0)[idx]
         x0 = np.clip(theta0[idx], flo + 1e-9 * (fhi - flo), fhi - 1e-9 * (fhi - flo))
-        cache: dict = {}
+        res_cache: dict = {}
+        jac_cache: dict = {}
+        failed: set = set()
 
         def full(x):
             th = theta0.copy()
             th[idx] = x
             return th
 
-        def batch(x):
+        def residual(x):
+            # one simulation per trial point: the trust region rejects many trials, and
+            # those need no Jacobian (it is asked for at accepted points only)
             key = x.tobytes()
-            if key in cache:
-                return cache[key]
-            steps = self.relative_step * scale
-            up = x + steps > fhi
-            steps = np.where(up, -steps, steps)  # step inward at the upper bound
-            rows = [full(x)]
-            for j in range(x.size):
-                xj = x.copy()
-                xj[j] += steps[j]
-                rows.append(full(xj))
-            r = data.residuals(model, np.array(rows), self.solver, on_failure="nan")
-            r = r.reshape(r.shape[0], -1)
-            if not np.all(np.isfinite(r[0])):
-                if not cache and np.array_equal(x, x0):
-                    raise FloatingPointError("refinement: the simulation fails at the start "
-                                             f"parameters {model.as_dict(full(x))}")
-                # a trial step the solver cannot simulate: a residual so large that the
-                # trust region rejects the step and shrinks (the cache keeps the last good)
-                bad = np.full(r.shape[1], FAILED_RESIDUAL_PA)
-                return bad, np.zeros((r.shape[1], x.size))
-            jac = (r[1:] - r[0]).T / steps
-            jac[~np.isfinite(jac)] = 0.0
-            cache.clear()
-            cache[key] = (r[0], jac)
-            return cache[key]
+            if key not in res_cache:
+                r = data.residuals(model, full(x)[None], self.solver, on_failure="nan")
+                r = r.reshape(-1)
+                if not np.all(np.isfinite(r)):
+                    if np.array_equal(x, x0) and not res_cache:
+                        raise FloatingPointError("refinement: the simulation fails at the "
+                                                 f"start parameters {model.as_dict(full(x))}")
+                    # a trial step the solver cannot simulate: a residual so large that
+                    # the trust region rejects the step and shrinks
+                    r = np.full(r.size, FAILED_RESIDUAL_PA)
+                    failed.add(key)
+                if len(res_cache) > 8:
+                    res_cache.clear()
+                res_cache[key] = r
+            return res_cache[key]
 
-        sol = optimize.least_squares(lambda x: batch(x)[0], x0, jac=lambda x: batch(x)[1],
+        def jacobian(x):
+            key = x.tobytes()
+            if key not in jac_cache:
+                r0 = residual(x)
+                if key in failed:  # never accepted; no slope to take
+                    return np.zeros((r0.size, x.size))
+                steps = self.relative_step * scale
+                up = x + steps > fhi
+                steps = np.where(up, -steps, steps)  # step inward at the upper bound
+                rows = []
+                for j in range(x.size):
+                    xj = x.copy()
+                    xj[j] += steps[j]
+                    rows.append(full(xj))
+                # the perturbed copies in ONE batched call of the compiled simulator
+                r = data.residuals(model, np.array(rows), self.solver, on_failure="nan")
+                r = r.reshape(r.shape[0], -1)
+                jac = (r - r0).T / steps
+                jac[~np.isfinite(jac)] = 0.0
+                jac_cache.clear()
+                jac_cache[key] = jac
+            return jac_cache[key]
+
+        sol = optimize.least_squares(residual, x0, jac=jacobian,
                                      bounds=(flo, fhi), x_scale=scale, method="trf",
                                      max_nfev=self.max_nfev, xtol=1e-8, ftol=1e-10)
         theta = full(sol.x)
-        r, jac = batch(sol.x)
+        r, jac = residual(sol.x), jacobian(sol.x)
         n, p = r.size, idx.size
         sigma2 = float(r @ r) / max(n - p, 1)
         cov = sigma2 * np.linalg.pinv(jac.T @ jac)
