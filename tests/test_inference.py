@@ -308,6 +308,13 @@ def test_emcee_smoke_and_resume(bench, tmp_path):
     assert fit.diagnostics_["solver_jitter_nats"] <= 0.3 or fit.solver_.rtol < 3e-8
     idata = again.inference_data({"seed": 4})
     assert idata.posterior["inlet_a_m2"].shape[0] == 32
+    # a chain of another posterior (other data, same dimensions) is neither resumed nor
+    # overwritten: it is an error naming the file
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match="chain.h5: this chain samples another posterior"):
+        BayesianIdentification(model, SolverConfig.standard(), longer, backend_path=path,
+                               progress=False).fit(recs[1:3], truth)
+    assert path.read_bytes() == before
 
 
 def test_a_rough_solver_is_tightened_until_the_log_density_is_smooth(bench):

@@ -18,6 +18,8 @@ autocorrelation times and every parameter has split R-hat <= ``max_rhat`` and bu
 
 from __future__ import annotations
 
+import hashlib
+import json
 import time
 import warnings
 from dataclasses import asdict, dataclass
@@ -25,10 +27,36 @@ from pathlib import Path
 
 import numpy as np
 
-from pneubayes.inference.likelihood import WindowLikelihood
+from pneubayes.inference.likelihood import N_NOISE_SUMMARY, WindowLikelihood
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
-from pneubayes.simulation import SolverConfig
+from pneubayes.simulation import SolverConfig, rig_constants
+
+#: Version of what a stored chain holds (parameters, noise-summary blobs); part of the
+#: posterior fingerprint, so a chain written by an incompatible version is not resumed.
+CHAIN_FORMAT = "pneubayes-chain/2"
+
+
+def posterior_fingerprint(model: Model, data: WindowSet) -> str:
+    """A digest of what defines the posterior a chain samples: the model (effects,
+    options, parameter names and prior bounds), the data (every block's inputs, rig,
+    windows and measured pressures) and the chain format. Two runs with equal digests
+    sample the same posterior, so one may resume the other's chain."""
+    h = hashlib.sha256()
+    lo, hi = model.bounds
+    h.update(json.dumps({"format": CHAIN_FORMAT, "noise_summary": N_NOISE_SUMMARY,
+                         "effects": list(model.effect_names),
+                         "options": {e.name: e.options() for e in model.effects},
+                         "parameters": list(model.parameter_names),
+                         "lower": lo.tolist(), "upper": hi.tolist(),
+                         "horizon_s": data.horizon_s, "stride_s": data.stride_s,
+                         "length": data.length}, sort_keys=True, default=str).encode())
+    for b in data.blocks:
+        for a in (b.inputs.time_s, b.inputs.command_V, b.inputs.position_m,
+                  b.inputs.supply_pressure_Pa, rig_constants(b.rig), b.starts, b.measured,
+                  b.warmup_starts, b.warmup_p0):
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:24]
 
 
 def arviz():
@@ -246,7 +274,9 @@ class BayesianIdentification:
     horizon_s, stride_s : float
         Likelihood windows (non-overlapping 2-s windows by default).
     backend_path : path or None
-        HDF5 file for the chain; an existing compatible chain is resumed.
+        HDF5 file for the chain. A chain there of the same posterior (equal
+        :func:`posterior_fingerprint`) is resumed; one of another posterior is an error
+        (it is never overwritten).
     progress : bool
         Show emcee's progress bar.
     """
@@ -303,6 +333,16 @@ class BayesianIdentification:
                                     s.proposal_df, s.proposal_scale)
 
     @staticmethod
+    def _stored_attr(backend, name: str):
+        try:
+            with backend.open() as f:
+                value = f[backend.name].attrs.get(name)
+        except (OSError, KeyError):
+            return None
+        return value.decode() if isinstance(value, bytes) else (
+            None if value is None else str(value))
+
+    @staticmethod
     def _stored_burn(backend, default: int) -> int:
         """Where production started (re-adaptations move it), as stored in the file."""
         try:
@@ -330,6 +370,7 @@ class BayesianIdentification:
         data = recordings if isinstance(recordings, WindowSet) else WindowSet(
             recordings, self.horizon_s, self.stride_s)
         like = WindowLikelihood(self.model, data, self.solver)
+        key = posterior_fingerprint(self.model, data)
         x0 = self.model.vector(start)
         ndim = x0.size
         nw = _walkers(s, ndim)
@@ -343,12 +384,21 @@ class BayesianIdentification:
             if path.exists():
                 try:
                     it = backend.iteration
-                    shape = backend.shape
                 except (OSError, KeyError, AttributeError):
-                    it, shape = 0, None
-                resume = it > 0 and shape == (nw, ndim)
+                    it = 0
+                if it > 0:
+                    stored = self._stored_attr(backend, "pneubayes_fingerprint")
+                    if stored != key or backend.shape != (nw, ndim):
+                        raise ValueError(
+                            f"{path}: this chain samples another posterior (its model, "
+                            "data, walkers or pneubayes chain format differ: fingerprint "
+                            f"{stored!r}, this run {key!r}); it is left untouched. Remove "
+                            "it, or give another output folder")
+                    resume = True
             if not resume:
                 backend.reset(nw, ndim)
+                with backend.open("a") as f:
+                    f[backend.name].attrs["pneubayes_fingerprint"] = key
         else:
             backend = emcee.backends.Backend()
             backend.reset(nw, ndim)
