@@ -190,7 +190,7 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     """Both forms start at the delay of the best term; the line's volume, which comes
     out of the dead volume, is kept to half of it; a line is never tried beside a heat
     model (it is isothermal) and heat never beside a line."""
-    from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.candidates import effect_candidates, first_free
     from pneubayes.discovery.verification import StepFit
     from pneubayes.effects import make_effect
     from pneubayes.model import Model
@@ -207,6 +207,10 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     vol = float(line_model.effect("tube_delay").tube_volume_m3(line_start, rig))
     assert vol == pytest.approx(1e-6, rel=1e-3)  # 4 ms of 2-mm tube is 4.3e-6 m^3: halved
     assert line_start["tube_diameter_m"] == 0.002
+    # the line (a costly step) is refined first in its own parameters and the dead volume
+    assert first_free(line_model, "tube_delay") == ("tube_delay_s", "tube_diameter_m",
+                                                    "dead_volume_m3")
+    assert first_free(cands[0][0], "tube_delay") is None
     hot = StepFit(Model([make_effect("heat_transfer")]), dict(params, heat_transfer_rate_per_s=5.0),
                   1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     assert [m.effect("tube_delay").form for m, _ in

@@ -55,7 +55,7 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import json_safe, write_json_atomic
-from pneubayes.discovery.candidates import effect_candidates
+from pneubayes.discovery.candidates import effect_candidates, first_free
 from pneubayes.discovery.disagreement import RegimeSettings, disagreement_map, flagged_bins
 from pneubayes.discovery.library import LibraryGrid, build_library
 from pneubayes.discovery.one_step import one_step_data
@@ -176,9 +176,12 @@ class Discovery:
         return None if self.out_dir is None else self.out_dir / "steps" / f"{key}.json"
 
     def _fit(self, model: Model, start: dict, train_ws: WindowSet, held_ws: WindowSet,
-             data_key: str) -> StepFit:
+             data_key: str, first=None) -> StepFit:
+        """Refine ``model`` from ``start`` (``first``: parameters refined on their own
+        before all of them) and score it on the training and held-out windows."""
         s = self.settings
-        key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key)
+        key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key,
+                           *([list(first)] if first else []))
         path = self._cache_path(key)
         t0 = time.perf_counter()
         if path is not None and path.exists():
@@ -188,6 +191,10 @@ class Discovery:
             # refine to convergence: a base model stopped early would make any extended
             # model's extra refinement look like a gain of the effect
             params = start
+            if first:
+                params = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
+                                           max_nfev=s.fit.refine_max_nfev
+                                           ).fit(train_ws, params).params_
             for _ in range(s.max_refine_restarts + 1):
                 ref = TrajectoryRefiner(model, s.fit.refine_solver,
                                         max_nfev=s.fit.refine_max_nfev).fit(train_ws, params)
@@ -291,8 +298,8 @@ class Discovery:
                 for model2, start2 in effect_candidates(current, g, sindy.evidence_[g],
                                                         train[0].rig(),
                                                         s.tube_line_segments):
-                    forms.append((self._fit(model2, start2, train_ws, held_ws, data_key),
-                                  model2, start2))
+                    forms.append((self._fit(model2, start2, train_ws, held_ws, data_key,
+                                            first_free(model2, g)), model2, start2))
                 if not forms:
                     self.log(f"discover: {g} has no form that fits beside "
                              f"{list(current.model.effect_names)}; skipped")
