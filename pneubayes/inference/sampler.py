@@ -370,7 +370,6 @@ class BayesianIdentification:
         data = recordings if isinstance(recordings, WindowSet) else WindowSet(
             recordings, self.horizon_s, self.stride_s)
         like = WindowLikelihood(self.model, data, self.solver)
-        key = posterior_fingerprint(self.model, data)
         x0 = self.model.vector(start)
         ndim = x0.size
         nw = _walkers(s, ndim)
@@ -381,6 +380,7 @@ class BayesianIdentification:
             path = Path(self.backend_path)
             path.parent.mkdir(parents=True, exist_ok=True)
             backend = emcee.backends.HDFBackend(str(path), name="pneubayes")
+            key = posterior_fingerprint(self.model, data)
             if path.exists():
                 try:
                     it = backend.iteration

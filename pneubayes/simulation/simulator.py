@@ -132,16 +132,17 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                          f"{starts.max()}], length {length}, {inputs.n_samples} samples")
     if not np.all(np.isfinite(p0) & (p0 > 0)):
         raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
-    slots = np.ascontiguousarray(model.lower(theta, rig))
+    slots = model.lower(theta, rig)
     line = slots[:, SLOT_INDEX["line_length_m"]] > 0
     hot = (slots[:, SLOT_INDEX["heat_rate_per_s"]] > 0) | (
         slots[:, SLOT_INDEX["heat_coefficient_W_per_m2_K"]] > 0)
     if np.any(line & hot):
         raise ValueError("the tube's acoustic line (tube_delay form 'line') is isothermal: "
                          "it cannot be combined with heat_transfer in one model")
-    *arrays, status = kernel_fn(*_kernel_arrays(
+    slots, consts, sv, t, u, x, ps, starts, p0 = _kernel_arrays(
         slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
-        inputs.position_m, inputs.supply_pressure_Pa, starts), length, _kernel_arrays(p0)[0])
+        inputs.position_m, inputs.supply_pressure_Pa, starts, p0)
+    *arrays, status = kernel_fn(slots, consts, sv, t, u, x, ps, starts, length, p0)
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
         for a in arrays:
