@@ -278,3 +278,28 @@ def test_heldout_score_favours_the_better_predictor_whatever_its_training_fit():
     ok, gain, p, _ = compare_heldout(step(full, 520.0, crossfit_window_lpd(full)),
                                      step(reduced, 2500.0, crossfit_window_lpd(reduced)), 0.05)
     assert ok and gain > 0 and p < 1e-3
+
+
+def test_later_forms_of_an_effect_are_skipped_once_one_fits_at_the_noise_floor():
+    """The forms are fitted in order; a form at the noise floor ends the list (the
+    training fit, which picks the form, cannot tell forms apart there)."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.loop import DiscoverySettings, fit_forms
+
+    options = [("transport", {"a": 1}), ("line", {"a": 2})]
+    fitted = []
+
+    def fit(model, start):
+        fitted.append(model)
+        return SimpleNamespace(train_rmse_Pa={"transport": 508.0, "line": 2153.0}[model])
+
+    forms = fit_forms(options, fit, 1.05 * 503.0)
+    assert fitted == ["transport"] and [m for _, m, _ in forms] == ["transport"]
+    fitted.clear()
+    forms = fit_forms(options, fit, 1.05 * 400.0)  # above the floor: every form is fitted
+    assert fitted == ["transport", "line"] and len(forms) == 2
+    fitted.clear()
+    assert len(fit_forms(options, fit, 0.0)) == 2 and fitted == ["transport", "line"]
+    with pytest.raises(ValueError, match="form_settled_ratio"):
+        DiscoverySettings(form_settled_ratio=0.5)

@@ -104,6 +104,10 @@ class DiscoverySettings:
     tube_line_segments: cells of the acoustic-line form tried for a named tube (three
     cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
     the transport delay only. A line step costs tens of times a plain one.
+    form_settled_ratio: an effect with several forms (heat, tube) has them fitted in
+    order until one's training RMSE is at most this x the noise floor; the later forms
+    are then skipped (at the noise floor the training fit, which picks the form, cannot
+    tell them apart, and a line fit costs minutes). 0 fits every form.
     """
 
     holdout_fraction: float = 1.0 / 3.0
@@ -121,6 +125,7 @@ class DiscoverySettings:
     gap_fallback_ratio: float = 2.0
     fallback_min_inclusion: float = 0.25
     tube_line_segments: int = 3
+    form_settled_ratio: float = 1.05
     fit: FitSettings = field(default_factory=FitSettings)
     posterior: bool = True
     library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
@@ -139,12 +144,28 @@ class DiscoverySettings:
                              f"{self.gap_fallback_ratio}")
         if self.block < 1:
             raise ValueError(f"block must be >= 1, got {self.block}")
+        if not (self.form_settled_ratio == 0.0 or self.form_settled_ratio >= 1.0):
+            raise ValueError(f"form_settled_ratio must be 0 (fit every form) or >= 1, got "
+                             f"{self.form_settled_ratio}")
         if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
             raise ValueError(f"tube_line_segments must be in 0..{LINE_MAX_SEGMENTS} "
                              f"(0: no line form), got {self.tube_line_segments}")
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def fit_forms(options, fit, settled_Pa: float) -> list:
+    """``[(fit, model, start), ...]``: an effect's forms ``options`` (``[(model,
+    start), ...]``) fitted in order by ``fit(model, start)``, stopping after the first
+    whose training RMSE is at most ``settled_Pa`` (0: fit every form)."""
+    out = []
+    for model, start in options:
+        f = fit(model, start)
+        out.append((f, model, start))
+        if f.train_rmse_Pa <= settled_Pa:
+            break
+    return out
 
 
 def _fingerprint(*parts) -> str:
@@ -294,12 +315,16 @@ class Discovery:
                 break
             trials = []
             for g in candidates:
-                forms = []
-                for model2, start2 in effect_candidates(current, g, sindy.evidence_[g],
-                                                        train[0].rig(),
-                                                        s.tube_line_segments):
-                    forms.append((self._fit(model2, start2, train_ws, held_ws, data_key,
-                                            first_free(model2, g)), model2, start2))
+                options = effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
+                                            s.tube_line_segments)
+                forms = fit_forms(options, lambda m, x, g=g: self._fit(
+                    m, x, train_ws, held_ws, data_key, first_free(m, g)),
+                    s.form_settled_ratio * noise)
+                if len(forms) < len(options):
+                    self.log(f"discover: {g}: form {forms[-1][1].effect(g).options()} fits "
+                             f"at the noise floor (training RMSE "
+                             f"{forms[-1][0].train_rmse_Pa:.0f} Pa); "
+                             f"{len(options) - len(forms)} other form(s) not fitted")
                 if not forms:
                     self.log(f"discover: {g} has no form that fits beside "
                              f"{list(current.model.effect_names)}; skipped")
