@@ -181,6 +181,7 @@ def cmd_discover(args) -> int:
         holdout_fraction=args.holdout, max_effects=args.max_effects,
         posterior=not args.no_posterior, seed=args.seed,
         tube_line_segments=args.tube_line_segments,
+        form_settled_ratio=args.form_settled_ratio,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
@@ -365,6 +366,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--tube-line-segments", type=int, default=3,
                    help="cells of the acoustic-line form tried for a named tube; 0 tries the "
                         "transport delay only (the line is tens of times slower to simulate) (3)")
+    d.add_argument("--form-settled-ratio", type=float, default=1.05,
+                   help="an effect's later forms are not fitted once one form's training "
+                        "RMSE is within this x the noise floor; 0 fits every form (1.05)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     d.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")

@@ -31,6 +31,9 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
     assert (tmp_path / "demo_prediction.png").stat().st_size > 10_000
     out = capsys.readouterr().out
     assert "plain thin-port" in out and "named: tube_delay" in out
+    # the transport delay fits at the noise floor: the costly line form is not fitted
+    assert "'form': 'transport'} fits at the noise floor" in out
+    assert "1 other form(s) not fitted" in out
     doc = json.loads((tmp_path / "discover" / "discovery.json").read_text())
     assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
     assert doc["rmse_final_Pa"] < 0.2 * doc["rmse_base_Pa"]
