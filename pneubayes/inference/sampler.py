@@ -18,45 +18,17 @@ autocorrelation times and every parameter has split R-hat <= ``max_rhat`` and bu
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 import warnings
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 
-from pneubayes.inference.likelihood import N_NOISE_SUMMARY, WindowLikelihood
+from pneubayes.inference.chain_store import open_chain, store_burn, stored_burn
+from pneubayes.inference.likelihood import WindowLikelihood
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
-from pneubayes.simulation import SolverConfig, rig_constants
-
-#: Version of what a stored chain holds (parameters, noise-summary blobs); part of the
-#: posterior fingerprint, so a chain written by an incompatible version is not resumed.
-CHAIN_FORMAT = "pneubayes-chain/2"
-
-
-def posterior_fingerprint(model: Model, data: WindowSet) -> str:
-    """A digest of what defines the posterior a chain samples: the model (effects,
-    options, parameter names and prior bounds), the data (every block's inputs, rig,
-    windows and measured pressures) and the chain format. Two runs with equal digests
-    sample the same posterior, so one may resume the other's chain."""
-    h = hashlib.sha256()
-    lo, hi = model.bounds
-    h.update(json.dumps({"format": CHAIN_FORMAT, "noise_summary": N_NOISE_SUMMARY,
-                         "effects": list(model.effect_names),
-                         "options": {e.name: e.options() for e in model.effects},
-                         "parameters": list(model.parameter_names),
-                         "lower": lo.tolist(), "upper": hi.tolist(),
-                         "horizon_s": data.horizon_s, "stride_s": data.stride_s,
-                         "length": data.length}, sort_keys=True, default=str).encode())
-    for b in data.blocks:
-        for a in (b.inputs.time_s, b.inputs.command_V, b.inputs.position_m,
-                  b.inputs.supply_pressure_Pa, rig_constants(b.rig), b.starts, b.measured,
-                  b.warmup_starts, b.warmup_p0):
-            h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()[:24]
+from pneubayes.simulation import SolverConfig
 
 
 def arviz():
@@ -274,9 +246,9 @@ class BayesianIdentification:
     horizon_s, stride_s : float
         Likelihood windows (non-overlapping 2-s windows by default).
     backend_path : path or None
-        HDF5 file for the chain. A chain there of the same posterior (equal
-        :func:`posterior_fingerprint`) is resumed; one of another posterior is an error
-        (it is never overwritten).
+        HDF5 file for the chain (:mod:`pneubayes.inference.chain_store`). A chain there
+        of the same posterior is resumed; one of another posterior is an error (it is
+        never overwritten).
     progress : bool
         Show emcee's progress bar.
     """
@@ -332,33 +304,6 @@ class BayesianIdentification:
         return StudentTProposal.fit(seg.reshape(-1, chain.shape[-1]), like.nuisance(),
                                     s.proposal_df, s.proposal_scale)
 
-    @staticmethod
-    def _stored_attr(backend, name: str):
-        try:
-            with backend.open() as f:
-                value = f[backend.name].attrs.get(name)
-        except (OSError, KeyError):
-            return None
-        return value.decode() if isinstance(value, bytes) else (
-            None if value is None else str(value))
-
-    @staticmethod
-    def _stored_burn(backend, default: int) -> int:
-        """Where production started (re-adaptations move it), as stored in the file."""
-        try:
-            with backend.open() as f:
-                return int(f[backend.name].attrs.get("pneubayes_burn", default))
-        except (AttributeError, OSError, KeyError):
-            return int(getattr(backend, "pneubayes_burn", default))
-
-    @staticmethod
-    def _store_burn(backend, burn: int) -> None:
-        try:
-            with backend.open("a") as f:
-                f[backend.name].attrs["pneubayes_burn"] = int(burn)
-        except AttributeError:  # the in-memory backend
-            backend.pneubayes_burn = int(burn)
-
     def fit(self, recordings, start: dict, covariance=None) -> "BayesianIdentification":
         """Sample the posterior starting around ``start`` (refined parameter dict).
 
@@ -374,34 +319,7 @@ class BayesianIdentification:
         ndim = x0.size
         nw = _walkers(s, ndim)
         rng = np.random.default_rng(s.seed)
-        backend = None
-        resume = False
-        if self.backend_path is not None:
-            path = Path(self.backend_path)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            backend = emcee.backends.HDFBackend(str(path), name="pneubayes")
-            key = posterior_fingerprint(self.model, data)
-            if path.exists():
-                try:
-                    it = backend.iteration
-                except (OSError, KeyError, AttributeError):
-                    it = 0
-                if it > 0:
-                    stored = self._stored_attr(backend, "pneubayes_fingerprint")
-                    if stored != key or backend.shape != (nw, ndim):
-                        raise ValueError(
-                            f"{path}: this chain samples another posterior (its model, "
-                            "data, walkers or pneubayes chain format differ: fingerprint "
-                            f"{stored!r}, this run {key!r}); it is left untouched. Remove "
-                            "it, or give another output folder")
-                    resume = True
-            if not resume:
-                backend.reset(nw, ndim)
-                with backend.open("a") as f:
-                    f[backend.name].attrs["pneubayes_fingerprint"] = key
-        else:
-            backend = emcee.backends.Backend()
-            backend.reset(nw, ndim)
+        backend, resume = open_chain(self.backend_path, self.model, data, nw, ndim)
         # the starting walkers are drawn (seeded) on a resume too: the solver check runs
         # on them, so a resumed chain continues with the solver it was started with
         state = self._initial(like, x0, covariance, rng, nw)
@@ -434,7 +352,7 @@ class BayesianIdentification:
                                      skip_initial_state_check=True)
             random_state = sampler.random_state
         # production with the proposal frozen (refitted if it proves stale, see settings)
-        burn = self._stored_burn(backend, s.burn) if resume else s.burn
+        burn = stored_burn(backend, s.burn) if resume else s.burn
         readapts = 0 if burn == s.burn else None  # None: unknown after a resume
         sampler = sampler_for(self._proposal(backend.get_chain(), like, burn)
                               if backend.iteration >= burn else None)
@@ -451,7 +369,7 @@ class BayesianIdentification:
                         and backend.iteration + s.check_every < s.max_steps):
                     burn = backend.iteration
                     readapts = (readapts or 0) + 1
-                    self._store_burn(backend, burn)
+                    store_burn(backend, burn)
                     random_state = sampler.random_state
                     sampler = sampler_for(self._proposal(backend.get_chain(), like, burn))
             if backend.iteration >= s.max_steps:
