@@ -36,6 +36,9 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
     assert "1 other form(s) not fitted" in out
     doc = json.loads((tmp_path / "discover" / "discovery.json").read_text())
     assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
+    tube = [e for e in doc["ledger"] if e.get("effect") == "tube_delay" and "forms" in e][0]
+    assert list(tube["forms"]["train_rmse_Pa"]) == ["transport"]
+    assert tube["forms"]["not_fitted"] == ["line"]
     assert doc["rmse_final_Pa"] < 0.2 * doc["rmse_base_Pa"]
     pred = summary["discovery"]["prediction"]
     assert (tmp_path / "discover" / "posterior.nc").exists()

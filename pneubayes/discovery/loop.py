@@ -168,6 +168,11 @@ def fit_forms(options, fit, settled_Pa: float) -> list:
     return out
 
 
+def _form(model: Model, group: str) -> str:
+    """The form of a model's effect (``"-"`` for an effect with one form)."""
+    return str(model.effect(group).options().get("form", "-"))
+
+
 def _fingerprint(*parts) -> str:
     h = hashlib.sha256()
     for p in parts:
@@ -320,6 +325,9 @@ class Discovery:
                 forms = fit_forms(options, lambda m, x, g=g: self._fit(
                     m, x, train_ws, held_ws, data_key, first_free(m, g)),
                     s.form_settled_ratio * noise)
+                forms_info = {"train_rmse_Pa": {_form(m, g): f.train_rmse_Pa
+                                                for f, m, _ in forms},
+                              "not_fitted": [_form(m, g) for m, _ in options[len(forms):]]}
                 if len(forms) < len(options):
                     self.log(f"discover: {g}: form {forms[-1][1].effect(g).options()} fits "
                              f"at the noise floor (training RMSE "
@@ -344,22 +352,22 @@ class Discovery:
                                     train_ws, held_ws, data_key)
                 if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
                     self.log(f"discover: a better optimum of the current model: train RMSE "
-                             f"{current.train_rmse_Pa:.0f} -> {control.train_rmse_Pa:.0f} Pa")
+                             f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")
                     ledger.append({"step": len(ledger), "action": "refit current",
                                    "model": list(current.model.effect_names),
                                    "train_rmse_Pa": control.train_rmse_Pa,
                                    "heldout_rmse_Pa": control.heldout_rmse_Pa,
                                    "heldout_lpd": control.heldout_lpd})
                     current = control
-                trials.append((g, model2, start2, trial))
+                trials.append((g, model2, start2, trial, forms_info))
             # every trial against the final current fit; the best that passes is added
             passing = []
-            for g, model2, start2, trial in trials:
+            for g, model2, start2, trial, forms_info in trials:
                 ok, gain, pval, diff = self._better(trial, current)
                 names = model2.effect(g).parameter_names()
                 ledger.append({
                     "step": len(ledger), "action": "pass" if ok else "reject", "effect": g,
-                    "effect_options": model2.effect(g).options(),
+                    "effect_options": model2.effect(g).options(), "forms": forms_info,
                     "start": {k: start2[k] for k in names},
                     "fitted": {k: trial.params[k] for k in names},
                     "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
