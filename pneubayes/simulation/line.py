@@ -61,7 +61,10 @@ def expm_small(a):
     """Matrix exponential of a small square matrix: [6/6] Pade, scaling and squaring.
 
     The matrix is scaled by 2^-s until its 1-norm is <= 0.5, where the approximant's
-    relative error is below 1e-16, and the result squared s times.
+    relative error is below 1e-16, and the result squared s times. A matrix with a
+    non-finite entry gives a matrix of NaN (the step that asked is rejected): the
+    compiled solve would raise, and an exception cannot leave the kernel's parallel
+    loop cleanly.
     """
     n = a.shape[0]
     norm = 0.0
@@ -69,6 +72,8 @@ def expm_small(a):
         col = 0.0
         for i in range(n):
             col += abs(a[i, j])
+        if not math.isfinite(col):  # (max() would drop a NaN)
+            return np.full((n, n), np.nan)
         norm = max(norm, col)
     s = 0
     if norm > 0.5:
