@@ -7,15 +7,21 @@ Layers (imported in one direction only):
 CLI. Nothing here imports matplotlib; plotting lives in :mod:`pneubayes.plotting`.
 """
 
-from pneubayes.errors import (
+from pneubayes.compile_cache import clear_stale_package_cache
+
+# numba's cache misses edits to code a cached kernel calls from other files: clear it
+# when the compiled packages' sources changed (before any compiled function loads)
+clear_stale_package_cache()
+
+from pneubayes.errors import (  # noqa: E402
     ModelCardError,
     ParameterError,
     PneubayesError,
     RecordingError,
     SimulationError,
 )
-from pneubayes.model import Model
-from pneubayes.physics.gas import GasConstants
+from pneubayes.model import Model  # noqa: E402
+from pneubayes.physics.gas import GasConstants  # noqa: E402
 
 __all__ = [
     "GasConstants",

@@ -473,6 +473,24 @@ def test_start_sensitivity_through_an_acoustic_line_matches_finite_differences(r
     assert np.max(np.abs(sens - fd)) < 0.03
 
 
+def test_the_line_exponential_of_a_non_finite_matrix_is_nan_not_an_exception():
+    """A trial parameter set can make the line's Jacobian non-finite; the compiled solve
+    would raise inside the kernel's parallel loop (numba then reports a SystemError and
+    the whole fit dies). The exponential returns NaN instead, and the step is rejected."""
+    from scipy.linalg import expm
+
+    from pneubayes.simulation.line import expm_small, phi_combination
+
+    a = np.array([[-3.0, 1.0], [0.5, -2.0]])
+    assert np.allclose(expm_small(a), expm(a), rtol=1e-13)
+    for bad in (np.nan, np.inf):
+        a2 = a.copy()
+        a2[0, 1] = bad
+        assert np.all(np.isnan(expm_small(a2)))
+        out, prop = phi_combination(a2, np.ones((2, 2)), np.ones(2))
+        assert np.all(np.isnan(out)) and np.all(np.isnan(prop))
+
+
 def test_an_acoustic_line_refuses_heat_transfer_and_an_oversized_tube(rig, make_inputs):
     from pneubayes.effects import make_effect
 
@@ -595,3 +613,33 @@ def test_read_only_inputs_reuse_the_one_compiled_kernel(rig, base_params, leak_m
     new = set(kernel._simulate.signatures) - before
     assert len(new) <= 1, new
     assert all(not arg.readonly for sig in new for arg in sig if hasattr(arg, "readonly"))
+
+
+def test_numba_cache_is_cleared_when_any_compiled_source_changes(tmp_path):
+    """numba checks only a cached function's own file; an edit to a file it calls must
+    clear the cache too (pneubayes.compile_cache)."""
+    from pneubayes.compile_cache import clear_if_stale
+
+    kern, phys = tmp_path / "simulation", tmp_path / "physics"
+    for d in (kern, phys):
+        (d / "__pycache__").mkdir(parents=True)
+    (kern / "kernel.py").write_text("def f(): return g()\n")
+    (phys / "orifice.py").write_text("def g(): return 1\n")
+    stamp = kern / "__pycache__" / "stamp"
+
+    def cached():
+        for d in (kern, phys):
+            (d / "__pycache__" / "m.f-1.py311.nbi").write_text("index")
+            (d / "__pycache__" / "m.f-1.py311.1.nbc").write_text("code")
+        (kern / "__pycache__" / "kernel.cpython-311.pyc").write_text("bytecode")
+
+    cached()
+    assert clear_if_stale([kern, phys], stamp) == 4  # no stamp yet: cleared once
+    cached()
+    assert clear_if_stale([kern, phys], stamp) == 0  # same sources: the cache stays
+    assert (kern / "__pycache__" / "m.f-1.py311.1.nbc").exists()
+    (phys / "orifice.py").write_text("def g(): return 2\n")  # only the callee changes
+    assert clear_if_stale([kern, phys], stamp) == 4
+    assert not list((phys / "__pycache__").glob("*.nb*"))
+    assert (kern / "__pycache__" / "kernel.cpython-311.pyc").exists()  # not numba's
+    assert clear_if_stale([kern, phys], stamp) == 0
