@@ -491,6 +491,29 @@ def test_the_line_exponential_of_a_non_finite_matrix_is_nan_not_an_exception():
         assert np.all(np.isnan(out)) and np.all(np.isnan(prop))
 
 
+def test_the_line_right_hand_side_divides_by_zero_without_raising(rig):
+    """The kernel computes with IEEE semantics (numba's error_model="numpy"): a division
+    by zero gives inf or NaN, which fails the step, instead of a ZeroDivisionError. Inside
+    the kernel's parallel loop an exception surfaces as numba's opaque "SystemError:
+    CPUDispatcher(_simulate) returned a result with an exception set" and kills the
+    caller: a least-squares Jacobian of a discovery line fit died so (AIR37 dead-zone case,
+    a 9-mm line of 1.4 mm). Here two empty cells (zero density) divide by zero."""
+    from pneubayes.effects.path import N_SLOTS, SLOT_INDEX
+    from pneubayes.simulation.line import line_rhs
+    from pneubayes.simulation.simulator import rig_constants
+
+    sl = np.zeros(N_SLOTS)
+    sl[SLOT_INDEX["volume_m3"]] = 2e-7
+    sl[SLOT_INDEX["line_length_m"]] = 0.01
+    sl[SLOT_INDEX["line_diameter_m"]] = 0.002
+    sl[SLOT_INDEX["line_viscosity_Pa_s"]] = 1.81e-5
+    y = np.array([2.0e5, 0.0, 0.0, 2.0e5, 1e-4, 1e-4, 1e-4])
+    f, jac, vt = np.empty(7), np.empty((7, 7)), np.empty(7)
+    line_rhs(y, 3, 1e-7, 0.0, 2e-7, 0.0, 6e5, sl, rig_constants(rig), 1e-5, True, 0.0, 0.0,
+             0.0, f, jac, vt)
+    assert not np.all(np.isfinite(f))
+
+
 def test_an_acoustic_line_refuses_heat_transfer_and_an_oversized_tube(rig, make_inputs):
     from pneubayes.effects import make_effect
 

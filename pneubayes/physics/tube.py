@@ -14,7 +14,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def churchill_fre(re):
     """Darcy friction factor times Reynolds number for a smooth tube (Churchill 1977).
 
@@ -28,7 +28,7 @@ def churchill_fre(re):
     return 8.0 * (8.0**12 + re**12 * (a + b) ** -1.5) ** (1.0 / 12.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def churchill_fre_slope(re):
     """``d ln(f Re) / d ln Re`` of :func:`churchill_fre` (0 laminar, ~0.75 turbulent)."""
     if re < 1.0:

@@ -89,7 +89,7 @@ _LDIA = SLOT_INDEX["line_diameter_m"]
 _LSEG = SLOT_INDEX["line_segments"]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _phi123(z):
     """phi_k(z) = (e^z - sum_{j<k} z^j/j!) / z^k for k = 1, 2, 3; stable for all z <= ~0."""
     if abs(z) < 0.1:
@@ -107,14 +107,14 @@ def _phi123(z):
     return phi1, phi2, phi3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _gompertz_rate(u, a, b, c, d):
     """d(area)/du of eq. 11 (without the offset), m^2/V."""
     inner = math.exp(-c * (u + d))
     return a * math.exp(-b * inner) * b * c * inner
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _areas(spool, dead, sl):
     """Port areas (eq. 11) for spool position ``spool`` behind a dead band of half-width dead."""
     mag = abs(spool) - dead
@@ -124,7 +124,7 @@ def _areas(spool, dead, sl):
     return a_in, a_ex
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _area_rates(spool, spool_rate, dead, sl):
     """Time derivatives of the two port areas for a spool moving at ``spool_rate`` V/s."""
     mag = abs(spool) - dead
@@ -136,7 +136,7 @@ def _area_rates(spool, spool_rate, dead, sl):
     return r_in * spool_rate, r_ex * spool_rate
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex):
     """Chamber right-hand side: ``(dp/dt, J_p, dT/dt, J_T, v_p)``.
 
@@ -234,7 +234,7 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     return fp, jp, ft, jt, vp
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
@@ -428,7 +428,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     return OK
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensitivity):
     """Every (parameter set, window) pair; see :func:`simulate_windows`."""
     nb = slots.shape[0]
@@ -464,7 +464,7 @@ def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensi
     return out, sens, status
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _fresh_carry(consts):
     """Unmeasured states at a recording's start: supply temperature, line at rest."""
     carry = np.full(N_CARRY, np.nan)

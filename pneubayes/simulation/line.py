@@ -56,7 +56,7 @@ _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
                for k in range(7))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def expm_small(a):
     """Matrix exponential of a small square matrix: [6/6] Pade, scaling and squaring.
 
@@ -94,7 +94,7 @@ def expm_small(a):
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def phi_combination(hj, vectors, scale):
     """``sum_k phi_k(hJ) b_k`` for the columns ``vectors = [b_1, ..., b_m]`` ``(n, m)``,
     and ``exp(hJ)``: the top rows of the exponential of ``[[hJ, W], [0, K]]`` with
@@ -131,7 +131,7 @@ def phi_combination(hj, vectors, scale):
     return out, prop
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
              f, jac, vt):
     """Right-hand side ``f`` of the line model at state ``y``; with ``need_j`` also its
@@ -208,7 +208,7 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
     vt[1] = c_cell * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
               a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, rtol, y_new):
     """One exprb32 step of length ``hh`` from ``y`` (inputs at both ends of the step).
