@@ -12,7 +12,8 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    added and refitted. A named leak is fitted in the graded laminar form; a named heat
    exchange in both its forms (one rate, or a convective coefficient on the wall area),
    a named tube in both of its (transport delay, acoustic line), and the form with the
-   lower *training* error goes on to verification. While the held-out error is far
+   lower *training* error goes on to verification; a form that already fits at the noise
+   floor ends the list (``form_settled_ratio``). While the held-out error is far
    above the noise, weakly supported groups are tried too (see ``gap_fallback_ratio``).
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
