@@ -12,15 +12,15 @@ run the old code.
 cached function and, when the digest differs from the one stamped beside the cache (or
 there is no stamp), removes those packages' numba cache files (``*.nbi``, ``*.nbc``)
 before anything loads them (``pneubayes/__init__.py`` calls it first; this module
-imports nothing of pneubayes). A fresh clone has no cache and nothing to remove.
+imports nothing compiled). A fresh clone has no cache and nothing to remove.
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 from pathlib import Path
+
+from pneubayes.atomic import write_text_atomic
 
 #: Packages (folders of pneubayes) whose numba functions are cached or compiled into a
 #: cached function.
@@ -64,11 +64,7 @@ def clear_if_stale(folders, stamp: Path) -> int:
             except OSError:
                 return removed
     try:
-        stamp.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=stamp.parent, prefix=".stamp-")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(digest + "\n")
-        os.replace(tmp, stamp)
+        write_text_atomic(stamp, digest + "\n")
     except OSError:
         pass
     return removed
