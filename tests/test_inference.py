@@ -16,7 +16,12 @@ from pneubayes.inference.likelihood import (
     start_noise_sums,
 )
 from pneubayes.inference.refine import TrajectoryRefiner
-from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, settle_solver
+from pneubayes.inference.sampler import (
+    BayesianIdentification,
+    SamplerSettings,
+    sampling_jacobian,
+    settle_solver,
+)
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -278,6 +283,63 @@ def test_sampling_coordinates_round_trip_and_jacobian(bench):
     r2 = like.data.residuals(model, x2, like.solver)
     if np.all(like.log_prior(x2) > -np.inf):
         np.testing.assert_allclose(r1, r2, atol=1e-6)
+
+
+def test_walker_ball_is_the_laplace_image_with_nuisance_spread_over_its_range(bench):
+    """The walkers start from the refined covariance carried into sampling coordinates
+    (delta method), and each nuisance coordinate uniform over the range the others
+    allow (its posterior is flat there), not in a ball of zero width."""
+    recs, model, truth = bench
+    like = WindowLikelihood(model, WindowSet(recs[:1], 2.0, 2.0), SolverConfig.standard())
+    x = model.vector(truth)
+    g = sampling_jacobian(like, x)
+    # independent check: dz/dx times a numerical dx/dz is the identity
+    z0 = like.to_sampling(x[None])
+    dxdz = np.empty((x.size, x.size))
+    for j in range(x.size):
+        dz = np.zeros_like(z0)
+        dz[0, j] = 1e-6 * max(abs(z0[0, j]), 1.0)
+        dxdz[:, j] = (like.from_sampling(z0 + dz) - like.from_sampling(z0 - dz))[0] / (
+            2 * dz[0, j])
+    np.testing.assert_allclose(g @ dxdz, np.eye(x.size), atol=1e-6)
+    cov = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(recs[:1], truth).covariance_
+    n = 96
+    bi = BayesianIdentification(model, SolverConfig.standard(), SamplerSettings(n_walkers=n),
+                                progress=False)
+    z = bi._initial(like, x, cov, np.random.default_rng(0), n)
+    assert np.unique(z, axis=0).shape[0] == n  # every draw had a finite density
+    nuis = sorted(like.nuisance())
+    ident = [j for j in range(x.size) if j not in nuis]
+    want = np.sqrt(np.diag(g @ cov @ g.T))[ident]
+    np.testing.assert_allclose(z[:, ident].std(axis=0), want, rtol=0.3)
+    lo, hi = like.nuisance_ranges(z)
+    u = (z[:, nuis] - lo) / (hi - lo)
+    assert np.all((u >= 0) & (u <= 1))
+    assert np.all(np.abs(u.std(axis=0) - np.sqrt(1 / 12)) < 0.06)  # uniform: 0.289
+
+
+def test_adaptation_ends_after_the_first_round_whose_proposal_is_accepted(bench, tmp_path):
+    """With ``adapt_acceptance`` reached, production starts after round 1 (the first with
+    a proposal), and a resumed chain keeps that start; unreachable, all rounds run."""
+    recs, model, truth = bench
+    common = dict(n_walkers=32, check_every=10, adapt_rounds=3, adapt_steps=15,
+                  readapt_below_acceptance=0.0, seed=5)
+    path = tmp_path / "early.h5"
+    early = BayesianIdentification(
+        model, SolverConfig.standard(), SamplerSettings(max_steps=50, adapt_acceptance=0.0,
+                                                        **common),
+        backend_path=path, progress=False).fit(recs[:1], truth)
+    assert early.sampler_.iteration == 50 and early.burn_ == 30
+    again = BayesianIdentification(
+        model, SolverConfig.standard(), SamplerSettings(max_steps=60, adapt_acceptance=0.0,
+                                                        **common),
+        backend_path=path, progress=False).fit(recs[:1], truth)
+    assert again.resumed_ and again.sampler_.iteration == 60 and again.burn_ == 30
+    full = BayesianIdentification(
+        model, SolverConfig.standard(), SamplerSettings(max_steps=60, adapt_acceptance=1.5,
+                                                        **common),
+        progress=False).fit(recs[:1], truth)
+    assert full.burn_ == 45
 
 
 @pytest.mark.slow

@@ -130,7 +130,11 @@ class TrajectoryRefiner:
         r, jac = residual(sol.x), jacobian(sol.x)
         n, p = r.size, idx.size
         sigma2 = float(r @ r) / max(n - p, 1)
-        cov = sigma2 * np.linalg.pinv(jac.T @ jac)
+        # pseudo-inverse in scaled coordinates: the columns differ by many orders of
+        # magnitude (areas ~1e-6 m^2, slopes ~10 /V), and pinv's cut-off is relative to
+        # the largest singular value, so unscaled it drops informed directions too
+        js = jac * scale
+        cov = sigma2 * (scale[:, None] * np.linalg.pinv(js.T @ js) * scale[None, :])
         self.params_ = model.as_dict(theta)
         self.free_ = tuple(free)
         self.covariance_ = cov

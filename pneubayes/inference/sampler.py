@@ -48,17 +48,24 @@ class SamplerSettings:
     check_every: production steps between convergence checks.
     tau_factor: the production chain must be this many autocorrelation times long.
     target_ess, max_rhat: convergence floors for every parameter.
-    adapt_rounds, adapt_steps: adaptation (all discarded as burn-in). Round 0 runs
-        differential-evolution moves from the walker ball; each later round adds an
-        independence proposal fitted to the round before; production freezes the
-        proposal fitted to the last round.
+    adapt_rounds, adapt_steps: adaptation (all discarded as burn-in), at most
+        ``adapt_rounds`` rounds of ``adapt_steps``. Round 0 runs differential-evolution
+        moves from the walker ball; each later round adds an independence proposal
+        fitted to the round before; production freezes the proposal fitted to the last
+        round.
+    adapt_acceptance: adaptation ends early after the first round with a proposal whose
+        acceptance (walker steps that moved) reaches this fraction: the proposal it
+        was fitted to already describes the posterior (> 1: always ``adapt_rounds``).
     proposal_df, proposal_scale: the independence proposal is a multivariate Student-t
         with these degrees of freedom and this inflation of the fitted covariance.
+    proposal_fit_fraction: the proposal is fitted to this last fraction of the round
+        before (the round's first steps carry the walkers from where they started: the
+        refined point is not the posterior mean, measured up to 4 posterior SDs off).
     independence_weight: probability of the independence move in a step once fitted.
     readapt_below_acceptance, max_readapts: if a convergence check finds the production
         chain unconverged and its recent acceptance below this fraction, the proposal was
-        fitted before the walkers reached the posterior: it is refitted to the last
-        ``adapt_steps`` steps and production restarts there (everything before is
+        fitted before the walkers reached the posterior: it is refitted to the steps
+        before the check (as after a round) and production restarts there (everything before is
         discarded, so the kept chain always has one fixed kernel); at most this often.
     init_scale: walker ball size relative to the refined covariance's std.
     max_solver_jitter_nats, max_solver_tightenings: the adaptive solver's numerical error
@@ -78,8 +85,10 @@ class SamplerSettings:
     max_rhat: float = 1.01
     adapt_rounds: int = 3
     adapt_steps: int = 150
+    adapt_acceptance: float = 0.35
     proposal_df: float = 5.0
     proposal_scale: float = 1.2
+    proposal_fit_fraction: float = 0.5
     independence_weight: float = 0.6
     readapt_below_acceptance: float = 0.35
     max_readapts: int = 3
@@ -99,13 +108,16 @@ class SamplerSettings:
         if not self.max_solver_jitter_nats > 0.0 or self.max_solver_tightenings < 0:
             raise ValueError("SamplerSettings: max_solver_jitter_nats must be > 0 and "
                              "max_solver_tightenings >= 0")
+        if not 0.0 < self.proposal_fit_fraction <= 1.0:
+            raise ValueError("SamplerSettings.proposal_fit_fraction must be in (0, 1], "
+                             f"got {self.proposal_fit_fraction}")
         if not 0.0 <= self.independence_weight < 1.0:
             raise ValueError("SamplerSettings.independence_weight must be in [0, 1), "
                              f"got {self.independence_weight}")
 
     @property
     def burn(self) -> int:
-        """Steps of adaptation, all discarded."""
+        """Most steps of adaptation, all discarded (fewer if it ends early)."""
         return self.adapt_rounds * self.adapt_steps
 
     def to_dict(self) -> dict:
@@ -226,6 +238,23 @@ def settle_solver(model: Model, data: WindowSet, solver: SolverConfig, z: np.nda
     raise AssertionError("unreachable")
 
 
+def moved_fraction(chain: np.ndarray) -> float:
+    """Fraction of walker steps that moved in ``chain (steps + 1, walkers, D)``: the
+    acceptance rate of the move mixture (a Gibbs move always moves)."""
+    return float(np.mean(np.any(np.diff(chain, axis=0) != 0, axis=2)))
+
+
+def sampling_jacobian(like: WindowLikelihood, x: np.ndarray) -> np.ndarray:
+    """``dz/dx`` of :meth:`WindowLikelihood.to_sampling` at natural parameters ``x``
+    (central differences; the map is elementary, so steps of 1e-6 of each value are
+    exact to about 1e-10 relative)."""
+    d = x.size
+    h = 1e-6 * np.maximum(np.abs(x), 1e-300)
+    rows = np.concatenate([x + np.diag(h), x - np.diag(h)])
+    z = like.to_sampling(rows)
+    return ((z[:d] - z[d:]) / (2.0 * h)[:, None]).T
+
+
 def _walkers(settings: SamplerSettings, ndim: int) -> int:
     n = settings.n_walkers or max(32, 4 * ndim)
     return n + (n % 2)
@@ -265,19 +294,41 @@ class BayesianIdentification:
         self.progress = progress
 
     def _initial(self, like: WindowLikelihood, start: np.ndarray, cov, rng, n: int):
+        """``n`` starting walkers in sampling coordinates.
+
+        With ``cov`` (the Laplace covariance of the model parameters at ``start``), the
+        identified sampling coordinates are drawn from its image under the change of
+        coordinates (delta method: ``G cov G^T``, ``G = dz/dx``), and each nuisance
+        coordinate uniformly over the range the others allow: its posterior is flat there
+        (:meth:`WindowLikelihood.nuisance`), so the walkers start spread as the
+        posterior is in the directions only the prior informs.
+        """
         lo, hi = like.bounds
         d = start.size
+        eps = 1e-9 * (hi - lo)
+        x0 = np.clip(start, lo + eps, hi - eps)
         if cov is None:
-            std = 1e-3 * np.maximum(np.abs(start), 1e-2 * (hi - lo))
-            draws = start + rng.normal(size=(n, d)) * std
+            std = 1e-3 * np.maximum(np.abs(x0), 1e-2 * (hi - lo))
+            draws = np.clip(x0 + rng.normal(size=(n, d)) * std, lo + eps, hi - eps)
+            z = like.to_sampling(draws)
         else:
             c = np.asarray(cov, dtype=np.float64)[:d, :d]
-            c = 0.5 * (c + c.T) + np.diag(1e-12 * np.maximum(np.abs(start), 1e-30) ** 2)
-            draws = rng.multivariate_normal(start, c * self.settings.init_scale**2, size=n,
-                                            method="eigh")
-        eps = 1e-9 * (hi - lo)
-        draws = np.clip(draws, lo + eps, hi - eps)
-        z = like.to_sampling(draws)
+            g = sampling_jacobian(like, x0)
+            cz = g @ (0.5 * (c + c.T)) @ g.T
+            z0 = like.to_sampling(x0)[0]
+            nuis = sorted(like.nuisance())
+            ident = np.array([j for j in range(d) if j not in nuis], dtype=np.int64)
+            cz = cz[np.ix_(ident, ident)]
+            cz += np.diag(1e-12 * np.maximum(np.abs(z0[ident]), 1e-30) ** 2)
+            z = np.tile(z0, (n, 1))
+            z[:, ident] = rng.multivariate_normal(
+                z0[ident], cz * self.settings.init_scale**2, size=n, method="eigh")
+            z = like.to_sampling(np.clip(like.from_sampling(z), lo + eps, hi - eps))
+            if nuis:
+                rlo, rhi = like.nuisance_ranges(z)
+                u = rng.random(size=rlo.shape)
+                ok = rhi > rlo
+                z[:, nuis] = np.where(ok, rlo + (rhi - rlo) * u, z[:, nuis])
         lp = like.log_prob_sampling(z)
         bad = ~np.isfinite(lp)
         if bad.all():
@@ -298,9 +349,11 @@ class BayesianIdentification:
         return [(proposal.move(like), w)] + [(m, (1 - w) * p) for m, p in rest]
 
     def _proposal(self, chain: np.ndarray, like: WindowLikelihood, end: int):
-        """The independence proposal fitted to the ``adapt_steps`` steps before ``end``."""
+        """The independence proposal fitted to the last ``proposal_fit_fraction`` of the
+        ``adapt_steps`` steps before ``end``."""
         s = self.settings
-        seg = chain[max(0, end - s.adapt_steps): end]
+        n = max(1, int(round(s.proposal_fit_fraction * s.adapt_steps)))
+        seg = chain[max(0, end - n): end]
         return StudentTProposal.fit(seg.reshape(-1, chain.shape[-1]), like.nuisance(),
                                     s.proposal_df, s.proposal_scale)
 
@@ -341,8 +394,10 @@ class BayesianIdentification:
             smp.random_state = random_state
             return smp
 
-        # adaptation: rounds of adapt_steps, each with the proposal of the round before
-        while backend.iteration < min(s.burn, s.max_steps):
+        # adaptation: rounds of adapt_steps, each with the proposal of the round before;
+        # it ends after the first round with a proposal that accepts adapt_acceptance
+        end = stored_burn(backend, s.burn) if resume else s.burn
+        while backend.iteration < min(end, s.max_steps):
             r = backend.iteration // s.adapt_steps
             proposal = (None if r == 0 else
                         self._proposal(backend.get_chain(), like, r * s.adapt_steps))
@@ -351,19 +406,24 @@ class BayesianIdentification:
             state = sampler.run_mcmc(state, n, progress=self.progress,
                                      skip_initial_state_check=True)
             random_state = sampler.random_state
+            if (r >= 1 and backend.iteration == (r + 1) * s.adapt_steps < end
+                    and moved_fraction(backend.get_chain()[-s.adapt_steps - 1:])
+                    >= s.adapt_acceptance):
+                end = backend.iteration
+                store_burn(backend, end)
         # production with the proposal frozen (refitted if it proves stale, see settings)
-        burn = stored_burn(backend, s.burn) if resume else s.burn
-        readapts = 0 if burn == s.burn else None  # None: unknown after a resume
+        burn = end
+        adapted = backend.iteration >= burn
+        readapts = 0 if burn <= s.burn else None  # None: unknown after a resume
         sampler = sampler_for(self._proposal(backend.get_chain(), like, burn)
-                              if backend.iteration >= burn else None)
+                              if adapted else None)
         while True:
             if backend.iteration > burn:
                 diag = self._diagnose(backend, like, burn)
                 if diag["converged"]:
                     converged = True
                     break
-                recent = backend.get_chain()[-s.check_every - 1:]
-                acc = float(np.mean(np.any(np.diff(recent, axis=0) != 0, axis=2)))
+                acc = moved_fraction(backend.get_chain()[-s.check_every - 1:])
                 if (acc < s.readapt_below_acceptance and (readapts or 0) < s.max_readapts
                         and backend.iteration - burn >= s.check_every
                         and backend.iteration + s.check_every < s.max_steps):
@@ -413,9 +473,10 @@ class BayesianIdentification:
         s = self.settings
         names = like.names + like.noise_names
         n = backend.iteration
+        adapted = n > burn
         if n - burn < min(s.check_every, n // 2):
             # stopped (max_steps) before production really began: report the last half,
-            # never converged (n < s.burn or too short for the tau criterion)
+            # never converged (adaptation unfinished or too short for the tau criterion)
             burn = n // 2
         post = backend.get_chain(discard=burn)
         with np.errstate(invalid="ignore", divide="ignore"):  # a walker that never moved
@@ -423,7 +484,7 @@ class BayesianIdentification:
         tau_max = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else float("inf")
         nat = self._natural_chain(backend, like, burn)
         rhat, ess = self.rhat_ess(nat, names)
-        ok = (n >= s.burn and np.isfinite(tau_max) and post.shape[0] >= s.tau_factor * tau_max
+        ok = (adapted and np.isfinite(tau_max) and post.shape[0] >= s.tau_factor * tau_max
               and max(rhat.values()) <= s.max_rhat and min(ess.values()) >= s.target_ess)
         tau_d = dict(zip(like.names, tau.tolist()))
         tau_d.update({k: float("nan") for k in like.noise_names})
