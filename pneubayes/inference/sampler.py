@@ -45,7 +45,8 @@ class SamplerSettings:
 
     n_walkers: ensemble size (0 = max(32, 4 x dimensions), rounded up to even).
     max_steps: hard limit on steps per walker, adaptation included.
-    check_every: production steps between convergence checks.
+    check_every: production steps between convergence checks (a check costs well under
+        a second; the run stops on average half this past convergence).
     tau_factor: the production chain must be this many autocorrelation times long.
     target_ess, max_rhat: convergence floors for every parameter.
     adapt_rounds, adapt_steps: adaptation (all discarded as burn-in), at most
@@ -82,7 +83,7 @@ class SamplerSettings:
 
     n_walkers: int = 0
     max_steps: int = 20000
-    check_every: int = 100
+    check_every: int = 50
     tau_factor: float = 50.0
     target_ess: float = 400.0
     max_rhat: float = 1.01
