@@ -19,9 +19,9 @@ from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import (
     BayesianIdentification,
     SamplerSettings,
-    sampling_jacobian,
     settle_solver,
 )
+from pneubayes.inference.walker_start import posterior_centre, sampling_jacobian, walker_ball
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -304,9 +304,7 @@ def test_walker_ball_is_the_laplace_image_with_nuisance_spread_over_its_range(be
     np.testing.assert_allclose(g @ dxdz, np.eye(x.size), atol=1e-6)
     cov = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(recs[:1], truth).covariance_
     n = 96
-    bi = BayesianIdentification(model, SolverConfig.standard(), SamplerSettings(n_walkers=n),
-                                progress=False)
-    z = bi._initial(like, x, cov, np.random.default_rng(0), n)
+    z = walker_ball(like, x, cov, np.random.default_rng(0), n, 1.0)
     assert np.unique(z, axis=0).shape[0] == n  # every draw had a finite density
     nuis = sorted(like.nuisance())
     ident = [j for j in range(x.size) if j not in nuis]
@@ -363,7 +361,7 @@ def test_posterior_centre_moves_the_start_to_the_mode_of_a_gaussian():
         start[ident] += offset
         start[2] = 7.0
         assert np.sqrt(offset @ target.precision @ offset) > 5.0
-        x = BayesianIdentification._posterior_centre(target, start, cov, 2)
+        x = posterior_centre(target, start, cov, 2)
         r = np.delete(x - mean, 2)
         assert np.sqrt(r @ target.precision @ r) < 1e-6
         assert x[2] == 7.0

@@ -1,7 +1,8 @@
 """Bayesian identification with emcee: posteriors over the thin-port parameters.
 
-The walkers start in a small ball around the refined point; the log-probability is
-vectorised (one batched simulation per recording per move); an HDF5 backend makes a
+The walkers start around the log-posterior's centre, spread as the refined point's
+Laplace covariance says (:mod:`pneubayes.inference.walker_start`); the log-probability
+is vectorised (one batched simulation per recording per move); an HDF5 backend makes a
 killed run resume where it stopped.
 
 With thousands of residuals the posterior is close to Gaussian in the sampling
@@ -26,6 +27,7 @@ import numpy as np
 
 from pneubayes.inference.chain_store import open_chain, store_burn, stored_burn
 from pneubayes.inference.likelihood import WindowLikelihood
+from pneubayes.inference.walker_start import posterior_centre, walker_ball
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
@@ -246,25 +248,10 @@ def settle_solver(model: Model, data: WindowSet, solver: SolverConfig, z: np.nda
     raise AssertionError("unreachable")
 
 
-#: Factors of the Newton step tried at once (one batched call) by the start's centring.
-_LINE_SEARCH = np.array([0.25, 0.5, 1.0, 1.5])
-
-
 def moved_fraction(chain: np.ndarray) -> float:
     """Fraction of walker steps that moved in ``chain (steps + 1, walkers, D)``: the
     acceptance rate of the move mixture (a Gibbs move always moves)."""
     return float(np.mean(np.any(np.diff(chain, axis=0) != 0, axis=2)))
-
-
-def sampling_jacobian(like: WindowLikelihood, x: np.ndarray) -> np.ndarray:
-    """``dz/dx`` of :meth:`WindowLikelihood.to_sampling` at natural parameters ``x``
-    (central differences; the map is elementary, so steps of 1e-6 of each value are
-    exact to about 1e-10 relative)."""
-    d = x.size
-    h = 1e-6 * np.maximum(np.abs(x), 1e-300)
-    rows = np.concatenate([x + np.diag(h), x - np.diag(h)])
-    z = like.to_sampling(rows)
-    return ((z[:d] - z[d:]) / (2.0 * h)[:, None]).T
 
 
 def _walkers(settings: SamplerSettings, ndim: int) -> int:
@@ -305,114 +292,6 @@ class BayesianIdentification:
         self.backend_path = backend_path
         self.progress = progress
 
-    def _initial(self, like: WindowLikelihood, start: np.ndarray, cov, rng, n: int):
-        """``n`` starting walkers in sampling coordinates.
-
-        With ``cov`` (the Laplace covariance of the model parameters at ``start``), the
-        identified sampling coordinates are drawn from its image under the change of
-        coordinates (delta method: ``G cov G^T``, ``G = dz/dx``), and each nuisance
-        coordinate uniformly over the range the others allow: its posterior is flat there
-        (:meth:`WindowLikelihood.nuisance`), so the walkers start spread as the
-        posterior is in the directions only the prior informs.
-        """
-        lo, hi = like.bounds
-        d = start.size
-        eps = 1e-9 * (hi - lo)
-        x0 = np.clip(start, lo + eps, hi - eps)
-        if cov is None:
-            std = 1e-3 * np.maximum(np.abs(x0), 1e-2 * (hi - lo))
-            draws = np.clip(x0 + rng.normal(size=(n, d)) * std, lo + eps, hi - eps)
-            z = like.to_sampling(draws)
-        else:
-            c = np.asarray(cov, dtype=np.float64)[:d, :d]
-            g = sampling_jacobian(like, x0)
-            cz = g @ (0.5 * (c + c.T)) @ g.T
-            z0 = like.to_sampling(x0)[0]
-            nuis = sorted(like.nuisance())
-            ident = np.array([j for j in range(d) if j not in nuis], dtype=np.int64)
-            cz = cz[np.ix_(ident, ident)]
-            cz += np.diag(1e-12 * np.maximum(np.abs(z0[ident]), 1e-30) ** 2)
-            z = np.tile(z0, (n, 1))
-            z[:, ident] = rng.multivariate_normal(
-                z0[ident], cz * self.settings.init_scale**2, size=n, method="eigh")
-            z = like.to_sampling(np.clip(like.from_sampling(z), lo + eps, hi - eps))
-            if nuis:
-                rlo, rhi = like.nuisance_ranges(z)
-                u = rng.random(size=rlo.shape)
-                ok = rhi > rlo
-                z[:, nuis] = np.where(ok, rlo + (rhi - rlo) * u, z[:, nuis])
-        lp = like.log_prob_sampling(z)
-        bad = ~np.isfinite(lp)
-        if bad.all():
-            raise FloatingPointError("no walker has a finite posterior density at the start")
-        good = z[~bad]
-        z[bad] = good[rng.integers(0, good.shape[0], bad.sum())]
-        return z
-
-    @staticmethod
-    def _posterior_centre(like: WindowLikelihood, start: np.ndarray, cov,
-                          iterations: int) -> np.ndarray:
-        """Newton steps on the log-posterior from ``start`` in the identified sampling
-        coordinates, whitened by the Laplace covariance.
-
-        Each iteration evaluates, in one batched call, the points at +-2 (whitened) along
-        every axis and at +2 along every pair of axes: central slopes, and the Hessian by
-        second differences (2 Laplace SDs keep the solver's log-density roughness small
-        against the differences). The Newton step uses the Hessian's eigenvalues' absolute
-        values (an ascent direction even where the Hessian is not negative definite); it
-        is scaled by the best of ``_LINE_SEARCH`` (a second batched call) and kept only if
-        the log-posterior rises. Points outside the prior stop the centring. Returns
-        natural parameters.
-        """
-        lo, hi = like.bounds
-        d = start.size
-        eps = 1e-9 * (hi - lo)
-        x0 = np.clip(start, lo + eps, hi - eps)
-        g = sampling_jacobian(like, x0)
-        c = np.asarray(cov, dtype=np.float64)[:d, :d]
-        nuis = sorted(like.nuisance())
-        ident = np.array([j for j in range(d) if j not in nuis], dtype=np.int64)
-        cz = (g @ (0.5 * (c + c.T)) @ g.T)[np.ix_(ident, ident)]
-        sd = np.sqrt(np.maximum(np.diag(cz), 0.0))
-        if not np.all(sd > 0):
-            return x0
-        corr = cz / np.outer(sd, sd)
-        w, v = np.linalg.eigh(corr)
-        keep = w > 1e-10 * w.max()
-        basis = sd[:, None] * (v[:, keep] * np.sqrt(w[keep]))  # z = z0 + basis @ y
-        k = basis.shape[1]
-        h = 2.0
-        pairs = [(a, b) for a in range(k) for b in range(a + 1, k)]
-        y = np.concatenate([h * np.eye(k), -h * np.eye(k)]
-                           + ([np.array([h * (np.eye(k)[a] + np.eye(k)[b])
-                                         for a, b in pairs])] if pairs else []))
-        z = like.to_sampling(x0)[0]
-        f0 = float(like.log_prob_sampling(z[None])[0])
-        if not np.isfinite(f0):
-            return x0
-        for _ in range(iterations):
-            rows = np.tile(z, (y.shape[0], 1))
-            rows[:, ident] += y @ basis.T
-            f = like.log_prob_sampling(rows)
-            if not np.all(np.isfinite(f)):
-                break
-            fp, fm, fpair = f[:k], f[k:2 * k], f[2 * k:]
-            grad = (fp - fm) / (2.0 * h)
-            hess = np.diag((fp - 2.0 * f0 + fm) / h**2)
-            for (a, b), fab in zip(pairs, fpair):
-                hess[a, b] = hess[b, a] = (fab - fp[a] - fp[b] + f0) / h**2
-            lam, q = np.linalg.eigh(0.5 * (hess + hess.T))
-            lam = np.maximum(np.abs(lam), 1e-3)
-            step = np.clip(q @ ((q.T @ grad) / lam), -5.0, 5.0)  # at most 5 SDs an axis
-            cand = np.tile(z, (len(_LINE_SEARCH), 1))
-            cand[:, ident] += np.outer(_LINE_SEARCH, basis @ step)
-            fc = like.log_prob_sampling(cand)
-            best = int(np.argmax(np.where(np.isfinite(fc), fc, -np.inf)))
-            if not fc[best] > f0:
-                break
-            z, f0 = cand[best], float(fc[best])
-        return like.from_sampling(z[None])[0]
-
     def _moves(self, like: WindowLikelihood, proposal: StudentTProposal | None):
         import emcee
 
@@ -451,7 +330,7 @@ class BayesianIdentification:
         backend, resume = open_chain(self.backend_path, self.model, data, nw, ndim)
         # the starting walkers are drawn (seeded) on a resume too: the solver check runs
         # on them, so a resumed chain continues with the solver it was started with
-        state = self._initial(like, x0, covariance, rng, nw)
+        state = walker_ball(like, x0, covariance, rng, nw, s.init_scale)
         like, solver, jitter = settle_solver(self.model, data, self.solver, state,
                                              s.max_solver_jitter_nats,
                                              s.max_solver_tightenings)
@@ -460,8 +339,8 @@ class BayesianIdentification:
         elif covariance is not None and s.centre_iterations > 0:
             # the refined point is a least-squares optimum, not the posterior's centre:
             # move the ball to the posterior's own Newton centre (few batched calls)
-            x0 = self._posterior_centre(like, x0, covariance, s.centre_iterations)
-            state = self._initial(like, x0, covariance, rng, nw)
+            x0 = posterior_centre(like, x0, covariance, s.centre_iterations)
+            state = walker_ball(like, x0, covariance, rng, nw, s.init_scale)
         t0 = time.perf_counter()
         converged = False
         diag: dict = {}
