@@ -5,6 +5,7 @@ import pytest
 from scipy import integrate, special
 
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.effects.base import Parameter
 from pneubayes.inference.likelihood import (
     WindowLikelihood,
     ar1_loglike,
@@ -302,6 +303,14 @@ def test_walker_ball_is_the_laplace_image_with_nuisance_spread_over_its_range(be
         dxdz[:, j] = (like.from_sampling(z0 + dz) - like.from_sampling(z0 - dz))[0] / (
             2 * dz[0, j])
     np.testing.assert_allclose(g @ dxdz, np.eye(x.size), atol=1e-6)
+    # a linear parameter at exactly 0 (a Gompertz d): its column still has its slope
+    x_zero = x.copy()
+    jd = list(model.parameter_names).index("inlet_d_V")
+    x_zero[jd] = 0.0
+    jb = list(model.parameter_names).index("inlet_b")
+    jc = list(model.parameter_names).index("inlet_c_per_V")
+    # z_b = ln b - c d, so dz_b/dd = -c
+    assert sampling_jacobian(like, x_zero)[jb, jd] == pytest.approx(-x[jc], rel=1e-6)
     cov = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(recs[:1], truth).covariance_
     n = 96
     z = walker_ball(like, x, cov, np.random.default_rng(0), n, 1.0)
@@ -323,6 +332,8 @@ class _GaussianTarget:
     def __init__(self, mean, precision):
         self.mean, self.precision = mean, precision
         self.bounds = (np.full(mean.size, -100.0), np.full(mean.size, 100.0))
+        self.parameters = [Parameter(f"p{j}", "-", -100.0, 100.0, "uniform", "test")
+                           for j in range(mean.size)]
         self.calls = 0
 
     def nuisance(self):

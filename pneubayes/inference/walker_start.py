@@ -21,10 +21,13 @@ LINE_SEARCH = np.array([0.25, 0.5, 1.0, 1.5])
 
 def sampling_jacobian(like: WindowLikelihood, x: np.ndarray) -> np.ndarray:
     """``dz/dx`` of :meth:`WindowLikelihood.to_sampling` at natural parameters ``x``
-    (central differences; the map is elementary, so steps of 1e-6 of each value are
-    exact to about 1e-10 relative)."""
+    (central differences; the map is elementary, so steps of 1e-6 of each value, or of
+    1e-2 of the prior range where a linear parameter is near 0, are exact to about
+    1e-10 relative)."""
     d = x.size
-    h = 1e-6 * np.maximum(np.abs(x), 1e-300)
+    lo, hi = like.bounds
+    log = np.array([p.prior == "log-uniform" for p in like.parameters])
+    h = 1e-6 * np.where(log, np.abs(x), np.maximum(np.abs(x), 1e-2 * (hi - lo)))
     rows = np.concatenate([x + np.diag(h), x - np.diag(h)])
     z = like.to_sampling(rows)
     return ((z[:d] - z[d:]) / (2.0 * h)[:, None]).T
