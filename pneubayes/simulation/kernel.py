@@ -399,7 +399,11 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                     if line:
                         y[:] = y_new
                         if want_sens:
-                            s_vec = prop @ s_vec
+                            s_next = np.zeros(ny)
+                            for ii in range(ny):
+                                for kk in range(ny):
+                                    s_next[ii] += prop[ii, kk] * s_vec[kk]
+                            s_vec = s_next
                             s_p0 = s_vec[0]
                     elif want_sens:
                         s_p0 *= math.exp(zp)
@@ -447,20 +451,19 @@ def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensi
     for b in range(nb):
         if slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0 or slots[b, _LLEN] > 0.0:
             hidden = True
-    if chained and hidden:
-        for b in prange(nb):
-            carry = _fresh_carry(consts)
-            for w in range(nw):
-                status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w],
-                                       length, p0[w], out[b, w], sens[b, w], carry)
-                if status[b, w] != OK:
-                    carry = _fresh_carry(consts)
-    else:
-        for task in prange(nb * nw):
-            b = task // nw
-            w = task % nw
-            status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w], length,
-                                   p0[w], out[b, w], sens[b, w], _fresh_carry(consts))
+    # chained with a hidden state: one task per parameter set runs its windows in order;
+    # otherwise one task per (parameter set, window) pair
+    per_task = nw if chained and hidden else 1  # windows per task
+    tasks_per_set = nw // per_task
+    for task in prange(nb * tasks_per_set):
+        b = task // tasks_per_set
+        w0 = (task % tasks_per_set) * per_task
+        carry = _fresh_carry(consts)
+        for w in range(w0, w0 + per_task):
+            status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w],
+                                   length, p0[w], out[b, w], sens[b, w], carry)
+            if status[b, w] != OK:
+                carry = _fresh_carry(consts)
     return out, sens, status
 
 

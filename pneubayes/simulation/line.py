@@ -57,6 +57,59 @@ _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
 
 
 @njit(cache=True, error_model="numpy")
+def _matmul(a, b):
+    """``a @ b`` for small matrices (plain loops: no BLAS to compile or call)."""
+    n, k = a.shape
+    m = b.shape[1]
+    c = np.zeros((n, m))
+    for i in range(n):
+        for p in range(k):
+            aip = a[i, p]
+            if aip != 0.0:
+                for j in range(m):
+                    c[i, j] += aip * b[p, j]
+    return c
+
+
+@njit(cache=True, error_model="numpy")
+def _solve(a, b):
+    """``a^-1 b`` by Gaussian elimination with partial pivoting (small, well-conditioned
+    ``a``: the Pade denominator at norm <= 0.5); a singular ``a`` gives NaN."""
+    n = a.shape[0]
+    m = b.shape[1]
+    lu = a.copy()
+    x = b.copy()
+    for k in range(n):
+        piv = k
+        big = abs(lu[k, k])
+        for i in range(k + 1, n):
+            if abs(lu[i, k]) > big:
+                big = abs(lu[i, k])
+                piv = i
+        if big == 0.0:
+            return np.full((n, m), np.nan)
+        if piv != k:
+            for j in range(n):
+                lu[k, j], lu[piv, j] = lu[piv, j], lu[k, j]
+            for j in range(m):
+                x[k, j], x[piv, j] = x[piv, j], x[k, j]
+        for i in range(k + 1, n):
+            f = lu[i, k] / lu[k, k]
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    lu[i, j] -= f * lu[k, j]
+                for j in range(m):
+                    x[i, j] -= f * x[k, j]
+    for k in range(n - 1, -1, -1):
+        for j in range(m):
+            acc = x[k, j]
+            for i in range(k + 1, n):
+                acc -= lu[k, i] * x[i, j]
+            x[k, j] = acc / lu[k, k]
+    return x
+
+
+@njit(cache=True, error_model="numpy")
 def expm_small(a):
     """Matrix exponential of a small square matrix: [6/6] Pade, scaling and squaring.
 
@@ -80,17 +133,17 @@ def expm_small(a):
         s = int(math.ceil(math.log2(norm / 0.5)))
     x = a * (0.5 ** s)
     # even and odd parts: num = V + U, den = V - U (four products instead of six)
-    x2 = x @ x
-    x4 = x2 @ x2
-    x6 = x4 @ x2
+    x2 = _matmul(x, x)
+    x4 = _matmul(x2, x2)
+    x6 = _matmul(x4, x2)
     even = _PADE6[2] * x2 + _PADE6[4] * x4 + _PADE6[6] * x6
     odd = _PADE6[1] * np.eye(n) + _PADE6[3] * x2 + _PADE6[5] * x4
     for i in range(n):
         even[i, i] += _PADE6[0]
-    odd = x @ odd
-    e = np.ascontiguousarray(np.linalg.solve(even - odd, even + odd))
+    odd = _matmul(x, odd)
+    e = _solve(even - odd, even + odd)
     for _ in range(s):
-        e = e @ e
+        e = _matmul(e, e)
     return e
 
 
@@ -243,7 +296,10 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     # need_j False: jac and vt keep the values at y
     line_rhs(u, nseg, a_in2, a_ex2, vol2, vdot, p_sup2, sl, cs, hh, False, 0.0, 0.0, 0.0,
              f2, jac, vt)
-    d = f2 - f - jac @ (u - y) - hh * vt
+    d = f2 - f - hh * vt
+    for i in range(n):
+        for k in range(n):
+            d[i] -= jac[i, k] * (u[k] - y[k])
     b3 = np.zeros((n, 3))
     b3[:, 2] = 2.0 * hh * d
     corr, _ = phi_combination(hj, b3, scale)
