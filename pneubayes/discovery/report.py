@@ -159,10 +159,13 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
     if "disagreement_final" in figs:
         lines += ["", "## Final model", "", f"![final](figures/{figs['disagreement_final']})"]
     if disc.posterior_ is not None:
+        sm = disc.settings.fit.sampler
+        chains = (f"{sm.rhat_groups} walker groups" if sm.rhat_groups else "walkers")
         lines += ["", f"Posterior: emcee, {disc.posterior_.diagnostics_['steps']} steps, "
                   f"converged {disc.posterior_.converged_} (R-hat <= "
-                  f"{disc.settings.fit.sampler.max_rhat}, ESS >= "
-                  f"{disc.settings.fit.sampler.target_ess:g})."]
+                  f"{sm.max_rhat} over {chains} as chains, bulk "
+                  f"and tail ESS >= {sm.target_ess:g}, {sm.tau_factor:g} autocorrelation "
+                  "times)."]
     lines += ["", f"Seed {doc['seed']}; pneubayes {doc['pneubayes_version']}; wall time "
               f"{_fmt(doc['wall_time_s'], '.0f')} s.", ""]
     return "\n".join(lines)
