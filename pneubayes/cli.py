@@ -88,7 +88,7 @@ def cmd_simulate(args) -> int:
     rec = read_recording(args.recording)
     model, params = Model.load_card(args.model)
     solver = SolverConfig(rtol=args.rtol, atol_Pa=args.atol, atol_K=0.01,
-                          max_step_s=args.max_step, min_step_s=1e-12, max_steps=50_000_000)
+                          max_step_s=args.max_step, min_step_s=1e-12, max_steps_per_s=2.5e7)
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
                     float(rec.pressure_Pa[0]), solver)
     out = Path(args.out)

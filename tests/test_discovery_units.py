@@ -16,7 +16,7 @@ from pneubayes.physics.valve import gompertz_area
 from pneubayes.simulation import SolverConfig
 
 TIGHT = SolverConfig(rtol=1e-8, atol_Pa=0.01, atol_K=1e-4, max_step_s=0.02,
-                     min_step_s=1e-14, max_steps=5_000_000)
+                     min_step_s=1e-14, max_steps_per_s=2.5e6)
 
 
 def _synthetic_library(rng, n=6000, signal=None):

@@ -32,7 +32,7 @@ IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line",
 
 def _tight():
     return SolverConfig(rtol=1e-8, atol_Pa=1e-3, atol_K=1e-6, max_step_s=0.02,
-                        min_step_s=1e-14, max_steps=50_000_000)
+                        min_step_s=1e-14, max_steps_per_s=2.5e7)
 
 
 @pytest.fixture(params=VARIANTS, ids=IDS)

@@ -29,7 +29,7 @@ from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
 TIGHT = SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
-                     min_step_s=1e-12, max_steps=5_000_000)
+                     min_step_s=1e-12, max_steps_per_s=2.5e6)
 
 
 @pytest.fixture(scope="module")
@@ -506,7 +506,7 @@ def test_a_rough_solver_is_tightened_until_the_log_density_is_smooth(bench):
     z = like.to_sampling(np.clip(x, lo, hi))
     assert 1.0 < np.std(like.log_prob_sampling(z)) < 20.0
     rough_solver = SolverConfig(rtol=1e-4, atol_Pa=30.0, atol_K=0.1, max_step_s=0.02,
-                                min_step_s=1e-12, max_steps=5_000_000)
+                                min_step_s=1e-12, max_steps_per_s=2.5e6)
     _, same, rough = settle_solver(model, data, rough_solver, z, 0.3, 0)
     assert same == rough_solver and rough > 0.6
     _, settled, jitter = settle_solver(model, data, rough_solver, z, 0.3, 4)

@@ -32,7 +32,7 @@ ALL_EFFECTS = ["cylinder_leak", "tube_delay", "valve_deadzone", "supply_fluctuat
 def _config(rtol):
     """A SolverConfig whose absolute tolerance scales with rtol (1e5 Pa reference)."""
     return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=0.01, max_step_s=0.02,
-                        min_step_s=1e-12, max_steps=5_000_000)
+                        min_step_s=1e-12, max_steps_per_s=2.5e6)
 
 
 def _closed_slots(volume):
@@ -308,7 +308,7 @@ def test_start_sensitivity_matches_finite_differences(rig, hand, standard):
     starts = np.array([0, 200, 400])
     p0 = np.array([2.0e5, 3.0e5, 4.0e5])
     tight = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=1e-6, max_step_s=1e-3,
-                         min_step_s=1e-14, max_steps=10_000_000)
+                         min_step_s=1e-14, max_steps_per_s=5e6)
     out, sens = simulate_windows_sensitivity(model, params, inputs, rig, starts, 400, p0, tight)
     assert np.array_equal(out, simulate_windows(model, params, inputs, rig, starts, 400, p0,
                                                 tight))
@@ -592,7 +592,7 @@ def test_random_parameters_inside_bounds_simulate(rig, hand, form, standard):
 def test_simulation_error_names_the_parameters(leak_model, base_params, rig, make_inputs):
     t = np.arange(201) * 1e-3
     tiny = SolverConfig(rtol=1e-5, atol_Pa=5.0, atol_K=0.01, max_step_s=0.02, min_step_s=1e-12,
-                        max_steps=3)
+                        max_steps_per_s=3.0)
     batch = np.stack([leak_model.vector(base_params)] * 2)
     with pytest.raises(SimulationError) as info:
         simulate(leak_model, batch, make_inputs(t, np.full(t.size, 5.0)), rig, P_ATM, tiny)
@@ -601,8 +601,36 @@ def test_simulation_error_names_the_parameters(leak_model, base_params, rig, mak
     for name in leak_model.parameter_names:
         assert name in msg
     assert "parameter set 0" in msg and "parameter set 1" in msg
-    assert "max_steps" in msg
+    assert "max_steps_per_s" in msg
     assert f"{base_params['inlet_b']:.6g}" in msg
+
+
+def test_step_budget_is_per_simulated_second_beyond_one_step_per_sample(
+        leak_model, base_params, rig, make_inputs):
+    """SolverConfig.max_steps_per_s: a window of N samples over D s may take
+    N - 1 + max_steps_per_s * D steps. A fill from atmospheric pressure needs extra steps
+    in its first 0.2 s and about one per sample once the chamber is full, so a 2-s window
+    of the same fill passes with about a tenth of the rate the 0.2-s window needs; were
+    the one step per sample not free, it would need 1,800 more steps than that."""
+    t = np.arange(2001) * 1e-3
+    fill = make_inputs(t, np.full(t.size, 5.0))
+
+    def passes(rate, length):
+        solver = SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
+                              min_step_s=1e-12, max_steps_per_s=rate)
+        out = simulate_windows(leak_model, base_params, fill, rig, [0], length, P_ATM,
+                               solver, on_failure="nan")
+        return bool(np.all(np.isfinite(out)))
+
+    assert not passes(1e-9, 201)
+    assert passes(2.5e6, 201)
+    lo, hi = 1e-9, 2.5e6  # bisection for the smallest rate the 0.2-s window passes with
+    while hi / lo > 1.01:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (lo, mid) if passes(mid, 201) else (mid, hi)
+    assert not passes(lo, 201)
+    assert hi * 0.2 < 1800  # the extra steps of the fill: fewer than the free ones
+    assert passes(hi / 9.0, 2001)
 
 
 # ---------------------------------------------------------------- argument checks
@@ -625,7 +653,7 @@ def test_simulate_rejects_bad_arguments(leak_model, base_params, rig, make_input
         Inputs(t[::-1], np.zeros(t.size), np.zeros(t.size), np.full(t.size, P_SUP))
     with pytest.raises(ValueError):
         SolverConfig(rtol=0.0, atol_Pa=1.0, atol_K=1.0, max_step_s=1.0, min_step_s=0.1,
-                     max_steps=10)
+                     max_steps_per_s=10.0)
 
 
 def test_trajectory_records_solver_and_parameters(leak_model, base_params, rig, make_inputs,

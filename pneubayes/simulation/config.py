@@ -28,8 +28,12 @@ class SolverConfig:
         Largest step, s. Steps also stop on every sample and delay break point.
     min_step_s : float
         Smallest step before the integrator gives up, s.
-    max_steps : int
-        Step budget per simulated window.
+    max_steps_per_s : float
+        Step budget per simulated second of a window, beyond the one step every sample
+        interval takes at least (a window of duration D s with N samples may take
+        N - 1 + max_steps_per_s * D steps). Legitimate 2-s windows take 1-10 steps per
+        1-ms sample; a budget that scales with the window lets a fit fail a degenerate
+        trial in a second instead of minutes.
     """
 
     rtol: float
@@ -37,17 +41,16 @@ class SolverConfig:
     atol_K: float
     max_step_s: float
     min_step_s: float
-    max_steps: int
+    max_steps_per_s: float
 
     def __post_init__(self):
-        for name in ("rtol", "atol_Pa", "atol_K", "max_step_s", "min_step_s"):
+        for name in ("rtol", "atol_Pa", "atol_K", "max_step_s", "min_step_s",
+                     "max_steps_per_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"SolverConfig.{name} must be finite and > 0, got {v!r}")
         if self.min_step_s >= self.max_step_s:
             raise ValueError("SolverConfig.min_step_s must be < max_step_s")
-        if int(self.max_steps) < 1:
-            raise ValueError("SolverConfig.max_steps must be >= 1")
 
     @classmethod
     def standard(cls) -> "SolverConfig":
@@ -61,13 +64,13 @@ class SolverConfig:
         (0.06 %).
         """
         return cls(rtol=3e-5, atol_Pa=10.0, atol_K=0.01, max_step_s=0.02, min_step_s=1e-12,
-                   max_steps=5_000_000)
+                   max_steps_per_s=2.5e6)
 
     @classmethod
     def reference(cls) -> "SolverConfig":
         """Tight preset for the virtual bench's ground truth."""
         return cls(rtol=1e-8, atol_Pa=0.01, atol_K=1e-5, max_step_s=0.005, min_step_s=1e-14,
-                   max_steps=50_000_000)
+                   max_steps_per_s=2.5e7)
 
     def tightened(self, factor: float) -> "SolverConfig":
         """The same settings with ``rtol`` and both absolute tolerances divided by
@@ -82,4 +85,4 @@ class SolverConfig:
 
     def as_array(self) -> np.ndarray:
         return np.array([self.rtol, self.atol_Pa, self.atol_K, self.max_step_s,
-                         self.min_step_s, float(self.max_steps)])
+                         self.min_step_s, self.max_steps_per_s])

@@ -55,7 +55,7 @@ from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-
     S_ATOL_P,
     S_ATOL_T,
     S_MAX_STEP,
-    S_MAX_STEPS,
+    S_MAX_STEPS_PER_S,
     S_MIN_STEP,
     S_RTOL,
 )
@@ -63,7 +63,7 @@ from pneubayes.simulation.line import line_step
 
 OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME = 0, 1, 2, 3, 4
 STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
-               STEP_BUDGET: "more than max_steps steps in one window",
+               STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
                LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume"}
 #: Length of the state carried from one window to the next: the chamber temperature
@@ -247,8 +247,11 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     ``carry[1:]`` an acoustic line's cell pressures and flows (NaN: at rest at p0).
     """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
-    hmax, hmin, max_steps = sv[S_MAX_STEP], sv[S_MIN_STEP], int(sv[S_MAX_STEPS])
+    hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
     n = t.shape[0]
+    # step budget: max_steps_per_s per simulated second, beyond the one step each
+    # sample interval takes at least
+    max_steps = (length - 1) + int(sv[S_MAX_STEPS_PER_S] * (t[i0 + length - 1] - t[i0]))
     delay, tau_s, dead = sl[_DELAY], sl[_SPOOL], sl[_DEAD]
     gain = sl[_SUPG]
     p_nom = cs[C_P_NOM]

@@ -7,5 +7,5 @@ Built by :mod:`pneubayes.simulation.simulator`; read by :mod:`kernel` and :mod:`
 C_BORE_AREA, C_P_ATM, C_P_NOM, C_T_SUPPLY, C_ALPHA, C_BETA, C_THETA, C_KAPPA, C_RS = range(9)
 N_CONSTS = 9
 # Solver-vector layout.
-S_RTOL, S_ATOL_P, S_ATOL_T, S_MAX_STEP, S_MIN_STEP, S_MAX_STEPS = range(6)
+S_RTOL, S_ATOL_P, S_ATOL_T, S_MAX_STEP, S_MIN_STEP, S_MAX_STEPS_PER_S = range(6)
 N_SOLVER = 6
