@@ -523,3 +523,37 @@ def test_supply_fluctuation_bench_perturbation(rig):
     # the same seed gives the same supply
     again = eff.perturb_inputs(t, np.full(t.size, P_SUP), rig, np.random.default_rng(4))
     assert np.array_equal(s, again)
+
+
+def test_supply_hose_lag_filters_the_header_and_leaves_no_sub_millisecond_steps(rig):
+    """The valve inlet sees the header through a first-order lag: the same header
+    (same seed, lag 0) filtered by scipy's exact discretisation of 1/(1 + tau s) for a
+    held input; and the lag removes the header's sub-millisecond content (its Brownian
+    wander and instant load dips), which linear interpolation between 1-kHz samples,
+    as a model reads a recording, cannot follow."""
+    from scipy import signal
+
+    from pneubayes.effects.supply_fluctuation import SupplyFluctuation
+
+    dt, tau = 5e-5, 0.005
+    t = np.arange(100_001) * dt  # 5 s on the bench's fine grid
+    flat = np.full(t.size, P_SUP)
+    header = SupplyFluctuation(load_step_rate_per_s=4.0, line_time_constant_s=0.0)
+    hose = SupplyFluctuation(load_step_rate_per_s=4.0, line_time_constant_s=tau)
+    raw = header.perturb_inputs(t, flat, rig, np.random.default_rng(9)) - P_SUP
+    lagged = hose.perturb_inputs(t, flat, rig, np.random.default_rng(9)) - P_SUP
+    a = math.exp(-dt / tau)
+    expected = signal.lfilter([1.0 - a], [1.0, -a], raw[1:], zi=[a * raw[0]])[0]
+    assert np.allclose(lagged[1:], expected, rtol=0.0, atol=1e-6)
+    assert lagged[0] == raw[0]
+
+    def between_samples(dev):  # RMS gap to linear interpolation of 1-kHz samples
+        k = 20  # fine steps per ms
+        n = (dev.size - 1) // k * k + 1
+        lin = np.interp(t[:n], t[:n:k], dev[:n:k])
+        return float(np.sqrt(np.mean((dev[:n] - lin) ** 2)))
+
+    assert between_samples(raw) > 200.0
+    assert between_samples(lagged) < 0.2 * between_samples(raw)
+    with pytest.raises(ValueError, match="line_time_constant_s"):
+        SupplyFluctuation(line_time_constant_s=-1.0)
