@@ -31,14 +31,17 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
     assert (tmp_path / "demo_prediction.png").stat().st_size > 10_000
     out = capsys.readouterr().out
     assert "plain thin-port" in out and "named: tube_delay" in out
-    # the transport delay fits at the noise floor: the costly line form is not fitted
+    # the transport delay fits at the noise floor: the costly line form is not fitted,
+    # nor the later forms of the other trials of the round
     assert "'form': 'transport'} fits at the noise floor" in out
-    assert "1 other form(s) not fitted" in out
+    assert "tube_delay: 1 later form(s) not fitted" in out
     doc = json.loads((tmp_path / "discover" / "discovery.json").read_text())
     assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
     tube = [e for e in doc["ledger"] if e.get("effect") == "tube_delay" and "forms" in e][0]
     assert list(tube["forms"]["train_rmse_Pa"]) == ["transport"]
     assert tube["forms"]["not_fitted"] == ["line"]
+    heat = [e for e in doc["ledger"] if e.get("effect") == "heat_transfer" and "forms" in e]
+    assert heat and all(e["forms"]["not_fitted"] == ["convective"] for e in heat)
     assert doc["rmse_final_Pa"] < 0.2 * doc["rmse_base_Pa"]
     pred = summary["discovery"]["prediction"]
     assert (tmp_path / "discover" / "posterior.nc").exists()

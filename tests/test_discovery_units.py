@@ -280,26 +280,48 @@ def test_heldout_score_favours_the_better_predictor_whatever_its_training_fit():
     assert ok and gain > 0 and p < 1e-3
 
 
-def test_later_forms_of_an_effect_are_skipped_once_one_fits_at_the_noise_floor():
-    """The forms are fitted in order; a form at the noise floor ends the list (the
-    training fit, which picks the form, cannot tell forms apart there)."""
+def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_floor():
+    """Every effect's first form is fitted; later forms (the costly acoustic line) only
+    while no trial of the round, of this effect or another, is at the noise floor (the
+    training fit, which picks among trials, cannot tell them apart there)."""
     from types import SimpleNamespace
 
-    from pneubayes.discovery.loop import DiscoverySettings, fit_forms
+    from pneubayes.discovery.loop import DiscoverySettings, fit_round_forms
 
-    options = [("transport", {"a": 1}), ("line", {"a": 2})]
+    rmse = {"transport": 508.0, "line": 2153.0, "spool": 505.0, "rate": 900.0,
+            "convective": 700.0}
     fitted = []
 
-    def fit(model, start):
+    def fit(g, model, start):
         fitted.append(model)
-        return SimpleNamespace(train_rmse_Pa={"transport": 508.0, "line": 2153.0}[model])
+        return SimpleNamespace(train_rmse_Pa=rmse[model])
 
-    forms = fit_forms(options, fit, 1.05 * 503.0)
-    assert fitted == ["transport"] and [m for _, m, _ in forms] == ["transport"]
+    tube = [("transport", {}), ("line", {})]
+    heat = [("rate", {}), ("convective", {})]
+    floor = 1.05 * 503.0
+    # the tube's own transport form settles the round: its line is not fitted
+    forms, settled = fit_round_forms({"tube_delay": tube}, fit, floor)
+    assert fitted == ["transport"] and [m for _, m, _ in forms["tube_delay"]] == ["transport"]
+    assert settled[0] == "tube_delay" and settled[1] == "transport"
+    # above the floor every form is fitted, first forms first
     fitted.clear()
-    forms = fit_forms(options, fit, 1.05 * 400.0)  # above the floor: every form is fitted
-    assert fitted == ["transport", "line"] and len(forms) == 2
+    forms, settled = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit,
+                                     1.05 * 400.0)
+    assert fitted == ["transport", "rate", "line", "convective"] and settled is None
+    # another effect at the floor (a spool lag taken for a tube): no line, no convective
+    rmse["transport"] = 1500.0
     fitted.clear()
-    assert len(fit_forms(options, fit, 0.0)) == 2 and fitted == ["transport", "line"]
+    forms, settled = fit_round_forms({"tube_delay": tube, "spool_lag": [("spool", {})],
+                                      "heat_transfer": heat}, fit, floor)
+    assert fitted == ["transport", "spool", "rate"]
+    assert settled[0] == "spool_lag" and [len(v) for v in forms.values()] == [1, 1, 1]
+    # a later form that settles stops the later forms of the effects after it
+    rmse["line"] = 500.0
+    fitted.clear()
+    forms, settled = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit, floor)
+    assert fitted == ["transport", "rate", "line"] and settled[1] == "line"
+    fitted.clear()
+    fit_round_forms({"tube_delay": tube, "heat_transfer": heat, "none": []}, fit, 0.0)
+    assert fitted == ["transport", "rate", "line", "convective"]  # 0: every form
     with pytest.raises(ValueError, match="form_settled_ratio"):
         DiscoverySettings(form_settled_ratio=0.5)

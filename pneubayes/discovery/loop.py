@@ -12,9 +12,10 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    added and refitted. A named leak is fitted in the graded laminar form; a named heat
    exchange in both its forms (one rate, or a convective coefficient on the wall area),
    a named tube in both of its (transport delay, acoustic line), and the form with the
-   lower *training* error goes on to verification; a form that already fits at the noise
-   floor ends the list (``form_settled_ratio``). While the held-out error is far
-   above the noise, weakly supported groups are tried too (see ``gap_fallback_ratio``).
+   lower *training* error goes on to verification; once any trial of the round fits at
+   the noise floor, no later form is fitted (``form_settled_ratio``). While the held-out
+   error is far above the noise, weakly supported groups are tried too (see
+   ``gap_fallback_ratio``).
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
    mean squared error (2-s windows are the independent units) must pass a one-sided
@@ -105,10 +106,11 @@ class DiscoverySettings:
     tube_line_segments: cells of the acoustic-line form tried for a named tube (three
     cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
     the transport delay only. A line step costs tens of times a plain one.
-    form_settled_ratio: an effect with several forms (heat, tube) has them fitted in
-    order until one's training RMSE is at most this x the noise floor; the later forms
-    are then skipped (at the noise floor the training fit, which picks the form, cannot
-    tell them apart, and a line fit costs minutes). 0 fits every form.
+    form_settled_ratio: an effect with several forms (heat, tube) has its first form
+    fitted, and its later ones only while no trial of the round (of any effect) has a
+    training RMSE at most this x the noise floor (at the noise floor the training fit,
+    which picks the form, cannot tell trials apart, and a line fit costs minutes). 0
+    fits every form.
     """
 
     holdout_fraction: float = 1.0 / 3.0
@@ -156,17 +158,36 @@ class DiscoverySettings:
         return asdict(self)
 
 
-def fit_forms(options, fit, settled_Pa: float) -> list:
-    """``[(fit, model, start), ...]``: an effect's forms ``options`` (``[(model,
-    start), ...]``) fitted in order by ``fit(model, start)``, stopping after the first
-    whose training RMSE is at most ``settled_Pa`` (0: fit every form)."""
-    out = []
-    for model, start in options:
-        f = fit(model, start)
-        out.append((f, model, start))
-        if f.train_rmse_Pa <= settled_Pa:
-            break
-    return out
+def fit_round_forms(options: dict, fit, settled_Pa: float) -> tuple[dict, tuple | None]:
+    """Fit a round's candidate forms: ``options`` maps each effect to its forms
+    ``[(model, start), ...]`` in order; ``fit(effect, model, start)`` fits one.
+
+    Every effect's first form is fitted; the later (costlier) forms only while no fit of
+    the round has a training RMSE at most ``settled_Pa`` (0: fit every form). At the
+    noise floor the training fit, which picks among the trials, cannot tell them apart,
+    and an acoustic-line form costs minutes. Returns ``{effect: [(fit, model, start),
+    ...]}`` in form order and the ``(effect, model, fit)`` that settled the round, or
+    None.
+    """
+    fitted: dict = {g: [] for g in options}
+    settled = None
+
+    def run(g, model, start):
+        nonlocal settled
+        f = fit(g, model, start)
+        fitted[g].append((f, model, start))
+        if settled is None and f.train_rmse_Pa <= settled_Pa:
+            settled = (g, model, f)
+
+    for g, forms in options.items():
+        if forms:
+            run(g, *forms[0])
+    for g, forms in options.items():
+        for model, start in forms[1:]:
+            if settled is not None:
+                break
+            run(g, model, start)
+    return fitted, settled
 
 
 def _form(model: Model, group: str) -> str:
@@ -320,20 +341,22 @@ class Discovery:
                 self.log("discover: no effect is supported; stop")
                 break
             trials = []
+            options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
+                                            s.tube_line_segments) for g in candidates}
+            round_forms, settled = fit_round_forms(
+                options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
+                                                   first_free(m, g)),
+                s.form_settled_ratio * noise)
             for g in candidates:
-                options = effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
-                                            s.tube_line_segments)
-                forms = fit_forms(options, lambda m, x, g=g: self._fit(
-                    m, x, train_ws, held_ws, data_key, first_free(m, g)),
-                    s.form_settled_ratio * noise)
+                forms = round_forms[g]
                 forms_info = {"train_rmse_Pa": {_form(m, g): f.train_rmse_Pa
                                                 for f, m, _ in forms},
-                              "not_fitted": [_form(m, g) for m, _ in options[len(forms):]]}
-                if len(forms) < len(options):
-                    self.log(f"discover: {g}: form {forms[-1][1].effect(g).options()} fits "
-                             f"at the noise floor (training RMSE "
-                             f"{forms[-1][0].train_rmse_Pa:.0f} Pa); "
-                             f"{len(options) - len(forms)} other form(s) not fitted")
+                              "not_fitted": [_form(m, g) for m, _ in options[g][len(forms):]]}
+                if len(forms) < len(options[g]):
+                    sg, sm, sf = settled
+                    self.log(f"discover: {g}: {len(options[g]) - len(forms)} later form(s) "
+                             f"not fitted: {sg} form {sm.effect(sg).options()} fits at the "
+                             f"noise floor (training RMSE {sf.train_rmse_Pa:.0f} Pa)")
                 if not forms:
                     self.log(f"discover: {g} has no form that fits beside "
                              f"{list(current.model.effect_names)}; skipped")
