@@ -37,6 +37,21 @@ def _setting(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
 
 
+def _cutoffs(args) -> dict:
+    """FitSettings' input low-passes from --position-cutoff/--supply-cutoff (0: raw)."""
+    return {"position_cutoff_Hz": args.position_cutoff or None,
+            "supply_cutoff_Hz": args.supply_cutoff or None}
+
+
+def _add_cutoffs(p) -> None:
+    p.add_argument("--position-cutoff", type=float, default=50.0, metavar="HZ",
+                   help="zero-phase low-pass of the measured position before it drives "
+                        "the model, Hz; 0: raw (50)")
+    p.add_argument("--supply-cutoff", type=float, default=100.0, metavar="HZ",
+                   help="the same for the measured supply (its sensor noise biases the "
+                        "supply gain); 0: raw (100)")
+
+
 def cmd_check(args) -> int:
     from pneubayes.io.recording import check_recording
 
@@ -125,7 +140,7 @@ def cmd_fit(args) -> int:
         names = [n.strip() for n in args.effects.split(",") if n.strip()]
         model = Model(effects_from_names(names, args.leak_form))
     settings = FitSettings(sampler=SamplerSettings(
-        n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed))
+        n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args))
     summary = run_fit(recs, model, settings, args.out, progress=not args.quiet,
                       log=(lambda m: None) if args.quiet else
                       (lambda m: print(m, file=sys.stderr)), figures=not args.no_figures,
@@ -183,7 +198,8 @@ def cmd_discover(args) -> int:
         tube_line_segments=args.tube_line_segments,
         form_settled_ratio=args.form_settled_ratio,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
-                                                max_steps=args.max_steps, seed=args.seed)))
+                                                max_steps=args.max_steps, seed=args.seed),
+                        **_cutoffs(args)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     doc = run_discover(recs, settings, args.out, log=log, figures=not args.no_figures)
     print(f"{args.out}/discovery.json: base held-out 2-s RMSE {doc['rmse_base_Pa']:.0f} Pa, "
@@ -330,6 +346,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
     f.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
     f.add_argument("--seed", type=int, default=0, help="sampler seed (recorded)")
+    _add_cutoffs(f)
     f.add_argument("--no-figures", action="store_true")
     f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     f.set_defaults(func=cmd_fit)
@@ -367,13 +384,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cells of the acoustic-line form tried for a named tube; 0 tries the "
                         "transport delay only (the line is tens of times slower to simulate) (3)")
     d.add_argument("--form-settled-ratio", type=float, default=1.05,
-                   help="an effect's later forms are not fitted once one form's training "
-                        "RMSE is within this x the noise floor; 0 fits every form (1.05)")
+                   help="later forms (the acoustic line, convective heat) are not fitted "
+                        "once a trial of the round has a training RMSE within this x the "
+                        "noise floor; 0 fits every form (1.05)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     d.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
     d.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
     d.add_argument("--seed", type=int, default=0, help="seed of bagging and sampler")
+    _add_cutoffs(d)
     d.add_argument("--no-figures", action="store_true")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     d.set_defaults(func=cmd_discover)

@@ -130,8 +130,18 @@ def test_fit_method_lsq_writes_a_point_estimate(fitted, tmp_path, capsys):
     _, train, _ = fitted
     out = tmp_path / "lsq"
     assert main(["fit", *map(str, train.recordings), "--out", str(out), "--method", "lsq",
-                 "-q"]) == 0
+                 "--supply-cutoff", "80", "-q"]) == 0
     model, params = Model.load_card(out / "model.json")
+    # the input low-passes are in the card, and predict reads them back from it
+    from pneubayes.inference.pipeline import run_input_cutoffs
+
+    card = json.loads((out / "model.json").read_text())
+    assert card["fit"]["position_cutoff_Hz"] == 50.0 and card["fit"]["supply_cutoff_Hz"] == 80.0
+    assert run_input_cutoffs(out) == {"position_cutoff_Hz": 50.0, "supply_cutoff_Hz": 80.0}
+    del card["fit"]["supply_cutoff_Hz"]  # a card from before the supply's low-pass: raw
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "model.json").write_text(json.dumps(card))
+    assert run_input_cutoffs(tmp_path / "old")["supply_cutoff_Hz"] is None
     _, truth = Model.load_card(train.truth_path)
     # equation-error least squares is biased by sensor noise (500 Pa here); the
     # refinement stage removes that bias (test_fit_writes_the_run_folder: 5 %)

@@ -25,7 +25,7 @@ from pneubayes.inference.predictive import PosteriorPredictive, estimate_noise_s
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, arviz
 from pneubayes.inference.windows import WindowSet
-from pneubayes.io.preprocess import smooth_position
+from pneubayes.io.preprocess import smooth_inputs
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import SolverConfig
@@ -56,9 +56,18 @@ class FitSettings:
     #: (None: raw); see :func:`pneubayes.io.smooth_position`. Saved in the model card,
     #: and ``pneubayes predict`` applies the same.
     position_cutoff_Hz: float | None = 50.0
+    #: zero-phase low-pass of the measured supply before it drives a model (with
+    #: supply_fluctuation), Hz (None: raw); see :func:`pneubayes.io.smooth_supply`.
+    #: Saved in the model card like the position's.
+    supply_cutoff_Hz: float | None = 100.0
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def input_cutoffs(self) -> dict:
+        """The input low-passes, as the model card records them."""
+        return {"position_cutoff_Hz": self.position_cutoff_Hz,
+                "supply_cutoff_Hz": self.supply_cutoff_Hz}
 
 
 def _fixed(rec) -> bool:
@@ -111,10 +120,10 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    recs = [smooth_position(r, settings.position_cutoff_Hz) for r in recordings]
+    inputs_card = settings.input_cutoffs()
+    recs = [smooth_inputs(r, inputs_card) for r in recordings]
     t0 = time.perf_counter()
     noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
-    inputs_card = {"position_cutoff_Hz": settings.position_cutoff_Hz}
     start, notes, how = starting_point(model, recs, settings, noise)
     log(f"fit: start from {how}")
     if method == "lsq":
@@ -201,10 +210,12 @@ def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
     return model, draws[:, : model.n_parameters], draws[:, model.n_parameters:]
 
 
-def run_position_cutoff_Hz(run_dir) -> float | None:
-    """The position low-pass a run was fitted with (its model card), Hz; None: raw."""
+def run_input_cutoffs(run_dir) -> dict:
+    """The input low-passes a run was fitted with (its model card), Hz; None or absent
+    (a card written before the supply's): raw."""
     card = json.loads((Path(run_dir) / "model.json").read_text())
-    return (card.get("fit") or {}).get("position_cutoff_Hz")
+    fit = card.get("fit") or {}
+    return {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz")}
 
 
 def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,
@@ -216,7 +227,7 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     """
     rng = np.random.default_rng(seed)
     model, draws, noise = load_posterior(run_dir, n_draws, rng)
-    recording = smooth_position(recording, run_position_cutoff_Hz(run_dir))
+    recording = smooth_inputs(recording, run_input_cutoffs(run_dir))
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
     w, n = bands.mean.shape

@@ -1,6 +1,6 @@
 """Reading and writing measured data in the project's interchange format."""
 
-from pneubayes.io.preprocess import smooth_position
+from pneubayes.io.preprocess import smooth_inputs, smooth_position, smooth_supply
 from pneubayes.io.recording import (
     COMMAND_LIMIT_V,
     COMMAND_TOLERANCE_V,
@@ -20,6 +20,8 @@ __all__ = [
     "check_recording",
     "read_recording",
     "recording_paths",
+    "smooth_inputs",
     "smooth_position",
+    "smooth_supply",
     "write_recording",
 ]
