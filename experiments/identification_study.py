@@ -65,14 +65,14 @@ def truth_checks(work: Path) -> tuple[float, dict]:
     from scipy import stats
 
     from pneubayes.inference.likelihood import WindowLikelihood
-    from pneubayes.inference.pipeline import run_input_cutoffs
+    from pneubayes.inference.pipeline import run_preparation
     from pneubayes.inference.windows import WindowSet
-    from pneubayes.io import smooth_inputs
+    from pneubayes.io import prepare_recording
 
     summary = json.loads((work / "run" / "summary.json").read_text())
     model, truth = Model.load_card(work / "bench" / "train" / "truth.json")
-    cutoffs = run_input_cutoffs(work / "run")  # the inputs exactly as fitted
-    recs = [smooth_inputs(read_recording(p), cutoffs)
+    cutoffs = run_preparation(work / "run")  # the recordings exactly as fitted
+    recs = [prepare_recording(read_recording(p), cutoffs)
             for p in sorted((work / "bench" / "train").glob("*.csv"))]
     settings = FitSettings()
     like = WindowLikelihood(model, WindowSet(recs, settings.horizon_s, settings.stride_s),

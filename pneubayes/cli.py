@@ -38,9 +38,20 @@ def _setting(text: str) -> tuple[str, float]:
 
 
 def _cutoffs(args) -> dict:
-    """FitSettings' input low-passes from --position-cutoff/--supply-cutoff (0: raw)."""
+    """FitSettings' preparation from --position-cutoff/--supply-cutoff (0: raw) and
+    --pressure-filter."""
     return {"position_cutoff_Hz": args.position_cutoff or None,
-            "supply_cutoff_Hz": args.supply_cutoff or None}
+            "supply_cutoff_Hz": args.supply_cutoff or None,
+            "pressure_filter": args.pressure_filter}
+
+
+def _pressure_filter(text: str):
+    from pneubayes.physics.sensor_filter import PressureFilter
+
+    try:
+        return PressureFilter.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--pressure-filter: {exc}") from None
 
 
 def _add_cutoffs(p) -> None:
@@ -50,6 +61,11 @@ def _add_cutoffs(p) -> None:
     p.add_argument("--supply-cutoff", type=float, default=100.0, metavar="HZ",
                    help="the same for the measured supply (its sensor noise biases the "
                         "supply gain); 0: raw (100)")
+    p.add_argument("--pressure-filter", type=_pressure_filter, default=None,
+                   metavar="ORDER:HZ",
+                   help="the pressure channel's zero-phase (delay-compensated) Butterworth "
+                        "anti-alias filter, e.g. 2:1000 for the virtual bench's DAQ; the "
+                        "model then predicts the reading (default: none declared)")
 
 
 def cmd_check(args) -> int:

@@ -25,7 +25,7 @@ import numpy as np
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.evaluation import predict_windows
-from pneubayes.io.preprocess import smooth_inputs
+from pneubayes.io.preprocess import prepare_recording
 from pneubayes.io.recording import read_recording
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
@@ -59,9 +59,9 @@ def score_set(folder: Path, solver: SolverConfig) -> tuple[list[dict], dict]:
     rows, example = [], {}
     from pneubayes.inference.pipeline import FitSettings
 
-    cutoffs = FitSettings().input_cutoffs()  # the inputs low-passed as every fit does
+    preparation = FitSettings().preparation()  # the inputs low-passed as every fit does
     for csv in sorted(folder.glob("*.csv")):
-        rec = smooth_inputs(read_recording(csv), cutoffs)
+        rec = prepare_recording(read_recording(csv), preparation)
         row = {"recording": str(csv), "range_Pa": rec.working_range_Pa}
         for name, (m, v) in variants.items():
             wp = predict_windows(m, v, rec, HORIZON_S, STRIDE_S, solver)

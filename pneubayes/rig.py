@@ -7,11 +7,13 @@ from dataclasses import dataclass, field
 
 from pneubayes.physics.cylinder import bore_area_m2
 from pneubayes.physics.gas import GasConstants
+from pneubayes.physics.sensor_filter import PressureFilter
 
 
 @dataclass(frozen=True)
 class Rig:
-    """What is known about the rig: bore, ambient and nominal supply pressures, gas.
+    """What is known about the rig: bore, ambient and nominal supply pressures, gas, and
+    the pressure channel's anti-alias filter when it is declared.
 
     Parameters
     ----------
@@ -26,6 +28,10 @@ class Rig:
     stroke_m : float or None
         Piston stroke, m (None when unknown; an effect that is graded along the stroke
         needs it).
+    pressure_filter : PressureFilter or None
+        The pressure channel's zero-phase anti-alias filter (None: the reading is the
+        chamber pressure); the simulator then predicts what the sensor reads
+        (:mod:`pneubayes.simulation.measurement`).
     """
 
     bore_m: float
@@ -33,8 +39,13 @@ class Rig:
     supply_pressure_Pa: float
     gas: GasConstants = field(default_factory=GasConstants)
     stroke_m: float | None = None
+    pressure_filter: PressureFilter | None = None
 
     def __post_init__(self):
+        if self.pressure_filter is not None and not isinstance(self.pressure_filter,
+                                                               PressureFilter):
+            raise TypeError(f"Rig.pressure_filter must be a PressureFilter or None, got "
+                            f"{type(self.pressure_filter).__name__}")
         names = ("bore_m", "atmospheric_pressure_Pa", "supply_pressure_Pa")
         for name in names + (("stroke_m",) if self.stroke_m is not None else ()):
             v = getattr(self, name)

@@ -7,13 +7,13 @@ from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.discovery.disagreement import RegimeSettings, _bins, flagged_bins
 from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, build_library
 from pneubayes.discovery.one_step import first_order_lag, one_step_data
-from pneubayes.discovery.rates import rate_terms
 from pneubayes.discovery.sindy import GroupedSINDy, cluster_se
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.physics.chamber import net_mass_flow, pressure_rate
 from pneubayes.physics.valve import gompertz_area
 from pneubayes.simulation import SolverConfig
+from pneubayes.simulation.rates import rate_terms
 
 TIGHT = SolverConfig(rtol=1e-8, atol_Pa=0.01, atol_K=1e-4, max_step_s=0.02,
                      min_step_s=1e-14, max_steps_per_s=2.5e6)

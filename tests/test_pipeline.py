@@ -12,8 +12,9 @@ from pneubayes.inference.predictive import (
     ar1_noise,
     estimate_noise_std,
 )
-from pneubayes.io import read_recording
+from pneubayes.io import prepare_recording, read_recording
 from pneubayes.model import Model
+from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.simulation import SolverConfig
 
 
@@ -130,18 +131,26 @@ def test_fit_method_lsq_writes_a_point_estimate(fitted, tmp_path, capsys):
     _, train, _ = fitted
     out = tmp_path / "lsq"
     assert main(["fit", *map(str, train.recordings), "--out", str(out), "--method", "lsq",
-                 "--supply-cutoff", "80", "-q"]) == 0
+                 "--supply-cutoff", "80", "--pressure-filter", "2:1000", "-q"]) == 0
     model, params = Model.load_card(out / "model.json")
-    # the input low-passes are in the card, and predict reads them back from it
-    from pneubayes.inference.pipeline import run_input_cutoffs
+    # the preparation is in the card, and predict reads it back from there
+    from pneubayes.inference.pipeline import run_preparation
 
     card = json.loads((out / "model.json").read_text())
     assert card["fit"]["position_cutoff_Hz"] == 50.0 and card["fit"]["supply_cutoff_Hz"] == 80.0
-    assert run_input_cutoffs(out) == {"position_cutoff_Hz": 50.0, "supply_cutoff_Hz": 80.0}
+    declared = {"order": 2, "cutoff_Hz": 1000.0, "phase": "zero"}
+    assert run_preparation(out) == {"position_cutoff_Hz": 50.0, "supply_cutoff_Hz": 80.0,
+                                    "pressure_filter": declared}
+    rec = prepare_recording(read_recording(train.recordings[0]), run_preparation(out))
+    assert rec.rig().pressure_filter == PressureFilter(2, 1000.0)
     del card["fit"]["supply_cutoff_Hz"]  # a card from before the supply's low-pass: raw
+    del card["fit"]["pressure_filter"]  # and from before the pressure filter: none
     (tmp_path / "old").mkdir()
     (tmp_path / "old" / "model.json").write_text(json.dumps(card))
-    assert run_input_cutoffs(tmp_path / "old")["supply_cutoff_Hz"] is None
+    old = run_preparation(tmp_path / "old")
+    assert old["supply_cutoff_Hz"] is None and old["pressure_filter"] is None
+    assert prepare_recording(read_recording(train.recordings[0]), old).rig().pressure_filter \
+        is None
     _, truth = Model.load_card(train.truth_path)
     # equation-error least squares is biased by sensor noise (500 Pa here); the
     # refinement stage removes that bias (test_fit_writes_the_run_folder: 5 %)

@@ -1,7 +1,8 @@
 """Discovery: where a fitted model disagrees with recordings, and which effect it misses.
 
-Layers: :mod:`~pneubayes.discovery.rates` (the model's dp/dt at the measured state),
-:mod:`~pneubayes.discovery.one_step` (dp/dt residuals as one-step prediction errors),
+Layers: :mod:`~pneubayes.simulation.rates` (the model's dp/dt at the measured state,
+shared with the simulation layer), :mod:`~pneubayes.discovery.one_step` (dp/dt residuals
+as one-step prediction errors),
 :mod:`~pneubayes.discovery.library` (physically named candidate terms),
 :mod:`~pneubayes.discovery.sindy` (grouped sparse regression with block bagging),
 :mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime),

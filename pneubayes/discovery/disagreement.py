@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.discovery.rates import rate_terms
 from pneubayes.model import Model
+from pneubayes.simulation.rates import rate_terms
 
 FAMILIES = ("command band", "flow regime", "direction", "time since step",
             "supply deviation", "piston speed", "pressure level")

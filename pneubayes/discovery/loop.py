@@ -76,7 +76,7 @@ from pneubayes.inference.predictive import estimate_noise_std
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.windows import WindowSet
-from pneubayes.io.preprocess import smooth_inputs
+from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
@@ -273,8 +273,8 @@ class Discovery:
     def fit(self, recordings) -> "Discovery":
         s = self.settings
         t_start = time.perf_counter()
-        # the measured position and supply low-passed as pneubayes fit does (FitSettings)
-        recs = [smooth_inputs(r, s.fit.input_cutoffs()) for r in recordings]
+        # prepared as pneubayes fit does (FitSettings): inputs low-passed, pressure filter
+        recs = [prepare_recording(r, s.fit.preparation()) for r in recordings]
         if not recs:
             raise ValueError("discover: no recordings")
         train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)

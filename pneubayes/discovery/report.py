@@ -43,7 +43,7 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
         estimate = "refined (multiple shooting)"
     final.model.save_card(params, out / "model.json",
                           extra={"fit": {"estimate": estimate, "by": "pneubayes discover",
-                                         **settings.fit.input_cutoffs()}})
+                                         **settings.fit.preparation()}})
     if disc.posterior_ is not None:  # beside the card, as pneubayes fit writes it
         idata = disc.posterior_.inference_data({
             "seed": settings.seed, "pneubayes_version": doc["pneubayes_version"],

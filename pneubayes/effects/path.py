@@ -2,7 +2,8 @@
 
 command -> [delay] -> spool [lag] -> [dead band] -> port areas (Gompertz, eq. 11)
 -> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
-+ extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor.
++ extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor
+(the rig's declared anti-alias filter, :mod:`pneubayes.simulation.measurement`).
 
 Each slot is one number per parameter set that the compiled simulator reads. Components
 (the thin-port base and every effect) *lower* their named parameters onto slots; the

@@ -25,8 +25,9 @@ from pneubayes.inference.predictive import PosteriorPredictive, estimate_noise_s
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, arviz
 from pneubayes.inference.windows import WindowSet
-from pneubayes.io.preprocess import smooth_inputs
+from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
+from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import SolverConfig
 
@@ -60,14 +61,27 @@ class FitSettings:
     #: supply_fluctuation), Hz (None: raw); see :func:`pneubayes.io.smooth_supply`.
     #: Saved in the model card like the position's.
     supply_cutoff_Hz: float | None = 100.0
+    #: the pressure channel's zero-phase anti-alias filter (None: the reading is the
+    #: chamber pressure). The recording format does not carry it; declare the DAQ's
+    #: (the bench's: order 2 at 1 kHz). Saved in the model card like the cutoffs.
+    pressure_filter: PressureFilter | None = None
+
+    def __post_init__(self):
+        if self.pressure_filter is not None and not isinstance(self.pressure_filter,
+                                                               PressureFilter):
+            raise TypeError("FitSettings.pressure_filter must be a PressureFilter or None, "
+                            f"got {type(self.pressure_filter).__name__}")
 
     def to_dict(self) -> dict:
         return asdict(self)
 
-    def input_cutoffs(self) -> dict:
-        """The input low-passes, as the model card records them."""
+    def preparation(self) -> dict:
+        """How the recordings are prepared (:func:`pneubayes.io.prepare_recording`): the
+        input low-passes and the declared pressure filter, as the model card records them."""
         return {"position_cutoff_Hz": self.position_cutoff_Hz,
-                "supply_cutoff_Hz": self.supply_cutoff_Hz}
+                "supply_cutoff_Hz": self.supply_cutoff_Hz,
+                "pressure_filter": (None if self.pressure_filter is None
+                                    else self.pressure_filter.to_dict())}
 
 
 def _fixed(rec) -> bool:
@@ -120,8 +134,8 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    inputs_card = settings.input_cutoffs()
-    recs = [smooth_inputs(r, inputs_card) for r in recordings]
+    inputs_card = settings.preparation()
+    recs = [prepare_recording(r, inputs_card) for r in recordings]
     t0 = time.perf_counter()
     noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
     start, notes, how = starting_point(model, recs, settings, noise)
@@ -210,12 +224,14 @@ def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
     return model, draws[:, : model.n_parameters], draws[:, model.n_parameters:]
 
 
-def run_input_cutoffs(run_dir) -> dict:
-    """The input low-passes a run was fitted with (its model card), Hz; None or absent
-    (a card written before the supply's): raw."""
+def run_preparation(run_dir) -> dict:
+    """How a run prepared its recordings (its model card): the input low-passes, Hz (None
+    or absent, as in a card written before the supply's: raw), and the declared pressure
+    filter (None or absent: none)."""
     card = json.loads((Path(run_dir) / "model.json").read_text())
     fit = card.get("fit") or {}
-    return {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz")}
+    return {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz",
+                                     "pressure_filter")}
 
 
 def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,
@@ -227,7 +243,7 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     """
     rng = np.random.default_rng(seed)
     model, draws, noise = load_posterior(run_dir, n_draws, rng)
-    recording = smooth_inputs(recording, run_input_cutoffs(run_dir))
+    recording = prepare_recording(recording, run_preparation(run_dir))
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
     w, n = bands.mean.shape

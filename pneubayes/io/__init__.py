@@ -1,6 +1,11 @@
 """Reading and writing measured data in the project's interchange format."""
 
-from pneubayes.io.preprocess import smooth_inputs, smooth_position, smooth_supply
+from pneubayes.io.preprocess import (
+    prepare_recording,
+    smooth_inputs,
+    smooth_position,
+    smooth_supply,
+)
 from pneubayes.io.recording import (
     COMMAND_LIMIT_V,
     COMMAND_TOLERANCE_V,
@@ -18,6 +23,7 @@ __all__ = [
     "Recording",
     "RecordingMetadata",
     "check_recording",
+    "prepare_recording",
     "read_recording",
     "recording_paths",
     "smooth_inputs",

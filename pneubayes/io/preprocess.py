@@ -14,6 +14,10 @@ Its sensor noise is noise in a regressor, which pulls the fitted supply gain tow
 (errors in variables: by about the noise variance over the supply's variance, 0.2 % for
 500 Pa of noise on 12 kPa of wander, several posterior SDs). A supply fed through a
 hose varies slowly, so the supply column is low-passed too.
+
+:func:`prepare_recording` applies a fit's whole preparation, as its model card records
+it: both low-passes, and the pressure channel's anti-alias filter when one is declared
+(the recording format does not carry it; the simulator then predicts the reading).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import numpy as np
 from scipy import signal
 
 from pneubayes.io.recording import Recording
+from pneubayes.physics.sensor_filter import PressureFilter
 
 
 def _lowpass_column(recording: Recording, column: str, cutoff_Hz: float | None,
@@ -75,3 +80,15 @@ def smooth_supply(recording: Recording, cutoff_Hz: float | None, order: int = 2)
     """The recording with its ``supply_pressure_Pa`` column low-passed at ``cutoff_Hz``
     (Hz); as :func:`smooth_position` otherwise (unchanged without a supply column)."""
     return _lowpass_column(recording, "supply_pressure_Pa", cutoff_Hz, order)
+
+
+def prepare_recording(recording: Recording, preparation: Mapping) -> Recording:
+    """The recording as a fit uses it: :func:`smooth_inputs` with
+    ``preparation``'s cutoffs, and ``preparation["pressure_filter"]`` (a
+    :class:`~pneubayes.physics.sensor_filter.PressureFilter`, its dict form, or
+    None/absent: the reading is the chamber pressure) declared on it."""
+    out = smooth_inputs(recording, preparation)
+    filt = preparation.get("pressure_filter")
+    if filt is not None and not isinstance(filt, PressureFilter):
+        filt = PressureFilter.from_dict(filt, source=recording.source or "recording")
+    return out if filt is None else replace(out, pressure_filter=filt)

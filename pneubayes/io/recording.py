@@ -39,6 +39,7 @@ import numpy as np
 
 from pneubayes.errors import RecordingError
 from pneubayes.physics.gas import GasConstants
+from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.rig import Rig
 
 COMMAND_LIMIT_V = 5.0
@@ -121,6 +122,10 @@ class Recording:
         Unknown CSV columns, kept (and written back) but not used.
     source : str or None
         The CSV path the recording was read from.
+    pressure_filter : PressureFilter or None
+        The pressure channel's zero-phase anti-alias filter, when the user declares it
+        (:func:`pneubayes.io.prepare_recording`); the recording format does not carry
+        it, so a recording read from files has None. Passed on to :meth:`rig`.
     """
 
     metadata: RecordingMetadata
@@ -131,6 +136,7 @@ class Recording:
     position_m: np.ndarray | None = None
     extra_columns: dict[str, np.ndarray] = field(default_factory=dict)
     source: str | None = None
+    pressure_filter: PressureFilter | None = None
 
     def __post_init__(self):
         for name in _KNOWN_COLUMNS:
@@ -172,7 +178,8 @@ class Recording:
         """The :class:`~pneubayes.rig.Rig` described by the metadata (gas at ``temperature_K``)."""
         md = self.metadata
         return Rig(md.bore_m, md.atmospheric_pressure_Pa, md.supply_pressure_Pa,
-                   gas=GasConstants(temperature_K=md.temperature_K), stroke_m=md.stroke_m)
+                   gas=GasConstants(temperature_K=md.temperature_K), stroke_m=md.stroke_m,
+                   pressure_filter=self.pressure_filter)
 
     def slice(self, start: int | None, stop: int | None) -> Recording:
         """Samples ``start:stop`` (Python slice rules) as a new recording, times kept.

@@ -19,6 +19,7 @@ from pneubayes.model import Model
 from pneubayes.rig import Rig
 from pneubayes.simulation import kernel
 from pneubayes.simulation.config import SolverConfig
+from pneubayes.simulation.measurement import sensor_reading
 
 
 @dataclass(frozen=True)
@@ -158,6 +159,8 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         more = f" (and {failed.size - 5} more)" if failed.size > 5 else ""
         raise SimulationError(f"simulation failed for {failed.size} parameter set(s){more}:\n  "
                               + "\n  ".join(lines))
+    # the sensor point: what a declared anti-alias filter reads of the chamber pressure
+    arrays[0] = sensor_reading(arrays[0], slots, rig, inputs, starts, length)
     return arrays
 
 
@@ -173,7 +176,9 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     with a 2-s stride do) carry these states from window to window, so only the measured
     pressure is reset. With ``on_failure="raise"`` a failure raises
     :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
-    rows are NaN (samplers turn them into zero likelihood).
+    rows are NaN (samplers turn them into zero likelihood). With a pressure filter
+    declared on ``rig``, the result is the sensor's reading of the chamber pressure
+    (:mod:`pneubayes.simulation.measurement`).
     """
     return _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
                         solver, check_bounds, on_failure, kernel.simulate_windows)[0]

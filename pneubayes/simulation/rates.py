@@ -2,7 +2,9 @@
 
 The simulator integrates dp/dt along its own trajectory; discovery needs the model's
 dp/dt at the *measured* pressure (the equation error of section VI-B) with inputs that
-may be modified (a delayed or filtered command, a dead band, the measured supply). This
+may be modified (a delayed or filtered command, a dead band, the measured supply), and
+the sensor point (:mod:`pneubayes.simulation.measurement`) the jump of dp/dt where a
+port switches. This
 is eq. 5 with the port flows of eqs. 1-4 and 9, composed from the lowered slots of any
 model (:mod:`pneubayes.effects.path`) -- except the temperature state of
 ``heat_transfer``, which needs a trajectory: here T is the supply temperature.
