@@ -19,6 +19,7 @@ from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.loop import DiscoverySettings
 from pneubayes.discovery.report import run_discover
 from pneubayes.inference.pipeline import FitSettings
@@ -49,9 +50,11 @@ def main(argv=None) -> int:
     docs = {}
     for label, posterior in (("loop without posterior (baseline)", False),
                              ("whole loop with posterior", True)):
+        # the bench DAQ's zero-phase anti-alias filter, declared as a user declares theirs
         settings = DiscoverySettings(posterior=posterior, seed=args.seed,
                                      fit=FitSettings(sampler=SamplerSettings(
-                                         n_walkers=32, seed=args.seed)))
+                                         n_walkers=32, seed=args.seed),
+                                         pressure_filter=SensorChain().declared_filter()))
         t0 = time.perf_counter()
         docs[label] = run_discover(recs, settings, work / label.split()[0] / str(posterior),
                                    log=lambda m: print("  " + m, file=sys.stderr),
@@ -63,6 +66,7 @@ def main(argv=None) -> int:
     write_json_atomic(args.json, {
         "format": "pneubayes-bench-discovery/1", "hidden": hidden, "seed": args.seed,
         "rig": [args.cylinder, args.valve], "recordings": "6 x 20 s",
+        "pressure_filter": SensorChain().declared_filter().to_dict(),
         "wall_time_s": timings, "named": [e["name"] for e in doc["effects"]],
         "effects": doc["effects"], "rmse_base_Pa": doc["rmse_base_Pa"],
         "rmse_final_Pa": doc["rmse_final_Pa"], "noise_floor_Pa": doc["noise_floor_Pa"],

@@ -35,6 +35,7 @@ import numpy as np
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.bench.forms import forms_from_names
+from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.loop import DiscoverySettings
 from pneubayes.discovery.report import run_discover
 from pneubayes.inference.pipeline import FitSettings
@@ -74,9 +75,12 @@ def run_case(name: str, rig: str, valve: str, hidden, forms: str, seed: int, arg
     paths, truth = bench_case(rig, valve, tuple(hidden), forms, seed, args.duration, work)
     recs = [read_recording(p) for p in paths]
     steps = 400 if args.smoke else args.max_steps
+    # the bench DAQ's anti-alias filter, declared as a user declares their DAQ's
+    declared = SensorChain().declared_filter() if args.pressure_filter == "bench" else None
     settings = DiscoverySettings(
         posterior=args.posterior, seed=seed, n_bags=20 if args.smoke else 40,
-        fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed)))
+        fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed),
+                        pressure_filter=declared))
     t0 = time.perf_counter()
     doc = run_discover(recs, settings, work / "run", log=lambda m: None, figures=False)
     wall = time.perf_counter() - t0
@@ -148,6 +152,10 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
     ap.add_argument("--posterior", action="store_true", help="emcee posterior per case")
     ap.add_argument("--max-steps", type=int, default=4000)
+    ap.add_argument("--pressure-filter", choices=("bench", "none"), default="bench",
+                    help="declare the bench DAQ's zero-phase anti-alias filter to the fits "
+                         "(bench, default) or not (none: the model reads the chamber "
+                         "pressure)")
     ap.add_argument("--smoke", action="store_true", help="one short case per form (minutes)")
     args = ap.parse_args(argv)
     root = Path(args.out)
@@ -190,7 +198,8 @@ def main(argv=None) -> int:
     table, md = summarise(results)
     config = {"argv": list(argv if argv is not None else sys.argv[1:]), "rigs": args.rigs,
               "conditions": args.conditions, "forms": args.forms, "seeds": seeds,
-              "duration_s": args.duration, "posterior": args.posterior}
+              "duration_s": args.duration, "posterior": args.posterior,
+              "pressure_filter": args.pressure_filter}
     write_json_atomic(root / "summary.json", {"table": table, "cases": len(results),
                                               "wall_time_s": time.perf_counter() - t_all,
                                               "config": config, "provenance": provenance()})

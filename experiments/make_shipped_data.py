@@ -3,7 +3,9 @@
     python experiments/make_shipped_data.py            # writes data/ (overwrites)
 
 Every set is made by the ``pneubayes bench`` command line recorded in the registry, with
-a fixed seed; the registry lists each file with its sha256.
+a fixed seed; the registry lists each file with its sha256, and the bench DAQ's pressure
+anti-alias filter, as a rig's data sheet gives it (the recording format does not carry
+it; the demo declares it to its fits).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import sys
 from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.bench.sensors import SensorChain
 from pneubayes.cli import main as cli_main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,6 +59,7 @@ def main(argv=None) -> int:
     write_json_atomic(data / "registry.json", {
         "format": "pneubayes-data-registry/1",
         "how_to_regenerate": "python experiments/make_shipped_data.py",
+        "pressure_filter": SensorChain().declared_filter().to_dict(),
         "files": entries})
     print(f"wrote {len(entries)} files and {data / 'registry.json'}")
     return 0

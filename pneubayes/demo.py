@@ -9,7 +9,9 @@ the second half to verify) and print the base error, where the disagreement is, 
 evidence for each candidate effect, the named effect with its posterior, and the error
 after; show the final model's 2-s predictions with posterior-predictive bands; then
 the answer key: the bench's true model and its ablations, scored by the paper's 2-s
-metric. ``--identify-steps N`` also fits the paper's own model with posteriors.
+metric. The shipped data's pressure anti-alias filter (the bench DAQ's, listed in the
+registry as a rig's data sheet gives it) is declared to every fit and score.
+``--identify-steps N`` also fits the paper's own model with posteriors.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from pneubayes.evaluation import predict_windows
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.io.recording import read_recording
 from pneubayes.model import Model
+from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.simulation import SolverConfig
 
 HORIZON_S, STRIDE_S = 2.0, 0.5
@@ -46,7 +49,16 @@ def verify_registry(data: Path) -> list[str]:
     return problems
 
 
-def score_set(folder: Path, solver: SolverConfig) -> tuple[list[dict], dict]:
+def declared_filter(data: Path) -> PressureFilter | None:
+    """The shipped data's pressure filter, as ``registry.json`` declares it (None: none)."""
+    reg = json.loads((data / "registry.json").read_text())
+    spec = reg.get("pressure_filter")
+    return None if spec is None else PressureFilter.from_dict(
+        spec, source=str(data / "registry.json"))
+
+
+def score_set(folder: Path, solver: SolverConfig,
+              pressure_filter: PressureFilter | None) -> tuple[list[dict], dict]:
     """2-s RMSE of the true model, the plain model and each single ablation."""
     truth_model, truth = Model.load_card(folder / "truth.json")
     variants = {"true model": (truth_model, truth)}
@@ -59,7 +71,8 @@ def score_set(folder: Path, solver: SolverConfig) -> tuple[list[dict], dict]:
     rows, example = [], {}
     from pneubayes.inference.pipeline import FitSettings
 
-    preparation = FitSettings().preparation()  # the inputs low-passed as every fit does
+    # prepared as every fit does: inputs low-passed, the pressure filter declared
+    preparation = FitSettings(pressure_filter=pressure_filter).preparation()
     for csv in sorted(folder.glob("*.csv")):
         rec = prepare_recording(read_recording(csv), preparation)
         row = {"recording": str(csv), "range_Pa": rec.working_range_Pa}
@@ -103,7 +116,8 @@ def figure(example: dict, out: Path, solver: SolverConfig) -> Path | None:
                             position_m=part.position_m)
 
 
-def identify(folder: Path, out: Path, seed: int, steps: int) -> dict:
+def identify(folder: Path, out: Path, seed: int, steps: int,
+             pressure_filter: PressureFilter | None) -> dict:
     """Fit the paper's model to a set's fixed recordings; predict its moving ones."""
     from pneubayes.inference.pipeline import FitSettings, run_fit, run_predict
     from pneubayes.inference.sampler import SamplerSettings
@@ -112,7 +126,8 @@ def identify(folder: Path, out: Path, seed: int, steps: int) -> dict:
     moving = [read_recording(p) for p in sorted((folder / "moving").glob("*.csv"))]
     model = Model(["cylinder_leak"])
     settings = FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps,
-                                                   check_every=steps // 2, seed=seed))
+                                                   check_every=steps // 2, seed=seed),
+                           pressure_filter=pressure_filter)
     print(f"\nidentification: the paper's model (thin-port + orifice leak) fitted to "
           f"{len(fixed)} fixed-volume recordings ({steps} emcee steps x 32 walkers)")
     summary = run_fit(fixed, model, settings, out / "fit", progress=False,
@@ -142,7 +157,8 @@ def identify(folder: Path, out: Path, seed: int, steps: int) -> dict:
     return {"summary": str(out / "fit" / "summary.json"), "predictions": rows}
 
 
-def discover_story(folder: Path, out: Path, seed: int, steps: int) -> dict:
+def discover_story(folder: Path, out: Path, seed: int, steps: int,
+                   pressure_filter: PressureFilter | None) -> dict:
     """Run the discovery loop on a shipped set and tell its story."""
     from pneubayes.discovery.disagreement import flagged_bins
     from pneubayes.discovery.loop import DiscoverySettings
@@ -158,7 +174,12 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int) -> dict:
     # the noise floor, so the loop skips the acoustic-line form (form_settled_ratio)
     settings = DiscoverySettings(
         holdout_fraction=0.5, seed=seed,
-        fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed)))
+        fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed),
+                        pressure_filter=pressure_filter))
+    if pressure_filter is not None:
+        print(f"  pressure channel: zero-phase Butterworth anti-alias filter, order "
+              f"{pressure_filter.order}, {pressure_filter.cutoff_Hz:g} Hz (declared in the "
+              "registry); the model predicts the sensor's reading")
     run = out / "discover"
     doc = run_discover(recs, settings, run, log=lambda m: print("  " + m))
     rng = doc["range_Pa"]
@@ -232,17 +253,19 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 1
     print(f"shipped data verified against {data / 'registry.json'}")
+    declared = declared_filter(data)
     summary = {"solver": solver.to_dict(), "horizon_s": HORIZON_S, "stride_s": STRIDE_S,
                "sets": {}}
     sets = sorted({p.parent.parent for p in data.glob("*/fixed/truth.json")})
     if sets:
-        summary["discovery"] = discover_story(sets[0], out, seed=0, steps=args.fit_steps)
+        summary["discovery"] = discover_story(sets[0], out, seed=0, steps=args.fit_steps,
+                                              pressure_filter=declared)
     print("\nanswer key: the bench's true model and its ablations, 2-s windows every "
           f"{STRIDE_S:g} s")
     example = {}
     for truth in sorted(data.glob("**/truth.json")):
         folder = truth.parent
-        rows, ex = score_set(folder, solver)
+        rows, ex = score_set(folder, solver, declared)
         example = example or ex
         planted = json.loads(truth.read_text())["bench"]["planted_effects"]
         print_table(f"{folder.relative_to(data)} (planted: {', '.join(planted)})", rows)
@@ -250,7 +273,8 @@ def main(argv=None) -> int:
     if args.identify_steps > 0:
         for folder in sets[:1]:
             summary["identification"] = identify(folder, out, seed=0,
-                                                 steps=args.identify_steps)
+                                                 steps=args.identify_steps,
+                                                 pressure_filter=declared)
     if example:
         fig = figure(example, out / "demo_prediction.png", solver)
         if fig:

@@ -10,6 +10,10 @@ from pneubayes.io import check_recording
 DATA = Path(__file__).resolve().parents[1] / "data"
 
 
+def reg_filter():
+    return json.loads((DATA / "registry.json").read_text())["pressure_filter"]
+
+
 def test_shipped_data_match_registry_and_format():
     assert verify_registry(DATA) == []
     reg = json.loads((DATA / "registry.json").read_text())
@@ -43,6 +47,11 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
     heat = [e for e in doc["ledger"] if e.get("effect") == "heat_transfer" and "forms" in e]
     assert heat and all(e["forms"]["not_fitted"] == ["convective"] for e in heat)
     assert doc["rmse_final_Pa"] < 0.2 * doc["rmse_base_Pa"]
+    # the registry's DAQ filter is declared to the fits and recorded in the card
+    assert "pressure channel: zero-phase Butterworth anti-alias filter, order 2" in out
+    card = json.loads((tmp_path / "discover" / "model.json").read_text())
+    assert card["fit"]["pressure_filter"] == reg_filter() == {"order": 2, "cutoff_Hz": 1000.0,
+                                                              "phase": "zero"}
     pred = summary["discovery"]["prediction"]
     assert (tmp_path / "discover" / "posterior.nc").exists()
     assert 0.0 <= pred["coverage_90"] <= 1.0

@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy import signal
 
+from pneubayes.physics.sensor_filter import PressureFilter
+
 
 @dataclass(frozen=True)
 class SensorChain:
@@ -45,6 +47,14 @@ class SensorChain:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def declared_filter(self) -> PressureFilter | None:
+        """The pressure filter a user of this DAQ declares to a fit (its data sheet):
+        the zero-phase filter for ``phase="linear"``; None for ``"causal"``, whose
+        group delay no model represents."""
+        if self.phase != "linear":
+            return None
+        return PressureFilter(self.order, self.cutoff_Hz)
 
     def measure(self, fine_t, fine_values, out_t, noise_std, rng: np.random.Generator,
                 quantum: float = 0.0) -> np.ndarray:
