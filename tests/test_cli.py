@@ -82,3 +82,16 @@ def test_help_lists_subcommands(capsys):
     out = capsys.readouterr().out
     for sub in ("check", "bench", "simulate"):
         assert sub in out
+
+
+@pytest.mark.parametrize("spec, why", [("1000", "ORDER:CUTOFF_HZ"), ("9:1000", "1..8"),
+                                       ("2:-5", "cutoff_Hz")])
+def test_fit_and_discover_reject_a_bad_pressure_filter(bench_dir, tmp_path, capsys, spec, why):
+    for cmd in ("fit", "discover"):
+        with pytest.raises(SystemExit) as exc:
+            main([cmd, str(bench_dir / "fixed_u5_x10.csv"), "--out", str(tmp_path / cmd),
+                  "--pressure-filter", spec])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert "--pressure-filter" in err and why in err
+        assert not (tmp_path / cmd).exists()
