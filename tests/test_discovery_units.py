@@ -300,28 +300,58 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
     heat = [("rate", {}), ("convective", {})]
     floor = 1.05 * 503.0
     # the tube's own transport form settles the round: its line is not fitted
-    forms, settled = fit_round_forms({"tube_delay": tube}, fit, floor)
+    forms, settled, _ = fit_round_forms({"tube_delay": tube}, fit, floor)
     assert fitted == ["transport"] and [m for _, m, _ in forms["tube_delay"]] == ["transport"]
     assert settled[0] == "tube_delay" and settled[1] == "transport"
     # above the floor every form is fitted, first forms first
     fitted.clear()
-    forms, settled = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit,
+    forms, settled, _ = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit,
                                      1.05 * 400.0)
     assert fitted == ["transport", "rate", "line", "convective"] and settled is None
     # another effect at the floor (a spool lag taken for a tube): no line, no convective
     rmse["transport"] = 1500.0
     fitted.clear()
-    forms, settled = fit_round_forms({"tube_delay": tube, "spool_lag": [("spool", {})],
+    forms, settled, _ = fit_round_forms({"tube_delay": tube, "spool_lag": [("spool", {})],
                                       "heat_transfer": heat}, fit, floor)
     assert fitted == ["transport", "spool", "rate"]
     assert settled[0] == "spool_lag" and [len(v) for v in forms.values()] == [1, 1, 1]
     # a later form that settles stops the later forms of the effects after it
     rmse["line"] = 500.0
     fitted.clear()
-    forms, settled = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit, floor)
+    forms, settled, _ = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit, floor)
     assert fitted == ["transport", "rate", "line"] and settled[1] == "line"
     fitted.clear()
     fit_round_forms({"tube_delay": tube, "heat_transfer": heat, "none": []}, fit, 0.0)
     assert fitted == ["transport", "rate", "line", "convective"]  # 0: every form
     with pytest.raises(ValueError, match="form_settled_ratio"):
         DiscoverySettings(form_settled_ratio=0.5)
+
+
+def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():
+    """A 55-us acoustic line started on an empty line fails at its start parameters
+    (seen in the catalogue study: dead zone + supply on AIR37); the round goes on."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.loop import fit_round_forms
+    from pneubayes.errors import SimulationError
+
+    def fit(g, model, start):
+        if model == "line":
+            raise FloatingPointError("refinement: the simulation fails at the start "
+                                     "parameters {...}\nmore")
+        if model == "convective":
+            raise SimulationError("simulation failed for 1 parameter set(s)")
+        if model == "bug":
+            raise KeyError("a programming error is not a failed trial")
+        return SimpleNamespace(train_rmse_Pa={"transport": 900.0, "rate": 800.0}[model])
+
+    forms, settled, failed = fit_round_forms(
+        {"tube_delay": [("transport", {}), ("line", {})],
+         "heat_transfer": [("rate", {}), ("convective", {})]}, fit, 500.0)
+    assert settled is None
+    assert [m for _, m, _ in forms["tube_delay"]] == ["transport"]
+    assert failed["tube_delay"] == [("line", "FloatingPointError: refinement: the simulation "
+                                             "fails at the start parameters {...}")]
+    assert [m for m, _ in failed["heat_transfer"]] == ["convective"]
+    with pytest.raises(KeyError):
+        fit_round_forms({"tube_delay": [("bug", {})]}, fit, 500.0)

@@ -70,6 +70,7 @@ from pneubayes.discovery.verification import (
     split_recordings,
 )
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
+from pneubayes.errors import SimulationError
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import FitSettings, starting_point
 from pneubayes.inference.predictive import estimate_noise_std
@@ -158,23 +159,32 @@ class DiscoverySettings:
         return asdict(self)
 
 
-def fit_round_forms(options: dict, fit, settled_Pa: float) -> tuple[dict, tuple | None]:
+def fit_round_forms(options: dict, fit, settled_Pa: float):
     """Fit a round's candidate forms: ``options`` maps each effect to its forms
     ``[(model, start), ...]`` in order; ``fit(effect, model, start)`` fits one.
 
     Every effect's first form is fitted; the later (costlier) forms only while no fit of
     the round has a training RMSE at most ``settled_Pa`` (0: fit every form). At the
     noise floor the training fit, which picks among the trials, cannot tell them apart,
-    and an acoustic-line form costs minutes. Returns ``{effect: [(fit, model, start),
-    ...]}`` in form order and the ``(effect, model, fit)`` that settled the round, or
-    None.
+    and an acoustic-line form costs minutes. A form that cannot be simulated from its
+    start or at its fitted point (``FloatingPointError`` from the refinement,
+    :class:`~pneubayes.errors.SimulationError`) is a failed trial, not a failed loop.
+
+    Returns ``({effect: [(fit, model, start), ...]}`` in form order, the ``(effect,
+    model, fit)`` that settled the round or None, ``{effect: [(model, why), ...]}`` of
+    the failed forms).
     """
     fitted: dict = {g: [] for g in options}
+    failed: dict = {g: [] for g in options}
     settled = None
 
     def run(g, model, start):
         nonlocal settled
-        f = fit(g, model, start)
+        try:
+            f = fit(g, model, start)
+        except (FloatingPointError, SimulationError) as exc:
+            failed[g].append((model, f"{type(exc).__name__}: {str(exc).splitlines()[0]}"))
+            return
         fitted[g].append((f, model, start))
         if settled is None and f.train_rmse_Pa <= settled_Pa:
             settled = (g, model, f)
@@ -187,7 +197,7 @@ def fit_round_forms(options: dict, fit, settled_Pa: float) -> tuple[dict, tuple 
             if settled is not None:
                 break
             run(g, model, start)
-    return fitted, settled
+    return fitted, settled, failed
 
 
 def _form(model: Model, group: str) -> str:
@@ -343,18 +353,24 @@ class Discovery:
             trials = []
             options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
                                             s.tube_line_segments) for g in candidates}
-            round_forms, settled = fit_round_forms(
+            round_forms, settled, failed = fit_round_forms(
                 options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
                                                    first_free(m, g)),
                 s.form_settled_ratio * noise)
             for g in candidates:
                 forms = round_forms[g]
+                tried = {id(m) for _, m, _ in forms} | {id(m) for m, _ in failed[g]}
                 forms_info = {"train_rmse_Pa": {_form(m, g): f.train_rmse_Pa
                                                 for f, m, _ in forms},
-                              "not_fitted": [_form(m, g) for m, _ in options[g][len(forms):]]}
-                if len(forms) < len(options[g]):
+                              "not_fitted": [_form(m, g) for m, _ in options[g]
+                                             if id(m) not in tried],
+                              "failed": {_form(m, g): why for m, why in failed[g]}}
+                for m, why in failed[g]:
+                    self.log(f"discover: {g}: form {m.effect(g).options()} failed ({why}); "
+                             "a failed trial")
+                if forms_info["not_fitted"]:
                     sg, sm, sf = settled
-                    self.log(f"discover: {g}: {len(options[g]) - len(forms)} later form(s) "
+                    self.log(f"discover: {g}: {len(forms_info['not_fitted'])} later form(s) "
                              f"not fitted: {sg} form {sm.effect(sg).options()} fits at the "
                              f"noise floor (training RMSE {sf.train_rmse_Pa:.0f} Pa)")
                 if not forms:
