@@ -202,8 +202,8 @@ def cmd_predict(args) -> int:
 
 
 def cmd_discover(args) -> int:
-    from pneubayes.discovery.loop import DiscoverySettings
     from pneubayes.discovery.report import run_discover
+    from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 

@@ -161,8 +161,8 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int,
                    pressure_filter: PressureFilter | None) -> dict:
     """Run the discovery loop on a shipped set and tell its story."""
     from pneubayes.discovery.disagreement import flagged_bins
-    from pneubayes.discovery.loop import DiscoverySettings
     from pneubayes.discovery.report import run_discover
+    from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.inference.pipeline import FitSettings, run_predict
     from pneubayes.inference.sampler import SamplerSettings
 

@@ -6,7 +6,8 @@ import pytest
 
 from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
 from pneubayes.cli import main as cli_main
-from pneubayes.discovery.loop import Discovery, DiscoverySettings
+from pneubayes.discovery.loop import Discovery
+from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 

@@ -286,7 +286,8 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
     training fit, which picks among trials, cannot tell them apart there)."""
     from types import SimpleNamespace
 
-    from pneubayes.discovery.loop import DiscoverySettings, fit_round_forms
+    from pneubayes.discovery.rounds import fit_round_forms
+    from pneubayes.discovery.settings import DiscoverySettings
 
     rmse = {"transport": 508.0, "line": 2153.0, "spool": 505.0, "rate": 900.0,
             "convective": 700.0}
@@ -332,7 +333,7 @@ def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():
     (seen in the catalogue study: dead zone + supply on AIR37); the round goes on."""
     from types import SimpleNamespace
 
-    from pneubayes.discovery.loop import fit_round_forms
+    from pneubayes.discovery.rounds import fit_round_forms
     from pneubayes.errors import SimulationError
 
     def fit(g, model, start):

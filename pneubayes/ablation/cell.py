@@ -124,8 +124,8 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
                 "frozen": list(est.frozen_), "success": bool(est.success_)}
         return est, dict(zip(PARAMETER_NAMES, map(float, est.params_))), info
     if cell.discover:
-        from pneubayes.discovery.loop import DiscoverySettings
         from pneubayes.discovery.report import run_discover
+        from pneubayes.discovery.settings import DiscoverySettings
 
         ds = DiscoverySettings(max_effects=s.discovery_max_effects,
                                n_bags=s.discovery_n_bags, posterior=s.method == "mcmc",

@@ -542,7 +542,7 @@ def _check_consistency(source, grid: Grid, s: Settings) -> None:
 def _check_discovery_data(source, s: Settings) -> None:
     """The discovery loop holds out the last third of every fitting recording and needs
     enough whole windows there for its signed-rank test (as ``Discovery.fit`` checks)."""
-    from pneubayes.discovery.loop import DiscoverySettings
+    from pneubayes.discovery.settings import DiscoverySettings
 
     d = DiscoverySettings()
     n = int(round(s.duration_s * SAMPLE_RATE_HZ)) + 1

@@ -6,6 +6,8 @@ as one-step prediction errors),
 :mod:`~pneubayes.discovery.library` (physically named candidate terms),
 :mod:`~pneubayes.discovery.sindy` (grouped sparse regression with block bagging),
 :mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime),
-:mod:`~pneubayes.discovery.verification` (held-out scores and the acceptance test) and
+:mod:`~pneubayes.discovery.verification` (held-out scores and the acceptance test),
+:mod:`~pneubayes.discovery.rounds` (one round's candidate forms, cheapest first),
+:mod:`~pneubayes.discovery.settings` (every setting, saved with the result) and
 :mod:`~pneubayes.discovery.loop` (fit, map, search, name, add, verify, repeat).
 """

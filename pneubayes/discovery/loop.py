@@ -50,7 +50,6 @@ import hashlib
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -58,9 +57,11 @@ import numpy as np
 import pneubayes
 from pneubayes.atomic import json_safe, write_json_atomic
 from pneubayes.discovery.candidates import effect_candidates, first_free
-from pneubayes.discovery.disagreement import RegimeSettings, disagreement_map, flagged_bins
-from pneubayes.discovery.library import LibraryGrid, build_library
+from pneubayes.discovery.disagreement import disagreement_map, flagged_bins
+from pneubayes.discovery.library import build_library
 from pneubayes.discovery.one_step import one_step_data
+from pneubayes.discovery.rounds import fit_round_forms
+from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.sindy import GroupedSINDy
 from pneubayes.discovery.verification import (
     StepFit,
@@ -69,135 +70,16 @@ from pneubayes.discovery.verification import (
     crossfit_window_lpd,
     split_recordings,
 )
-from pneubayes.effects.path import LINE_MAX_SEGMENTS
-from pneubayes.errors import SimulationError
 from pneubayes.inference.likelihood import ar1_sums
-from pneubayes.inference.pipeline import FitSettings, starting_point
+from pneubayes.inference.pipeline import starting_point
 from pneubayes.inference.predictive import estimate_noise_std
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
-from pneubayes.simulation import SolverConfig
 
 FORMAT = "pneubayes-discovery/1"
-
-
-@dataclass(frozen=True)
-class DiscoverySettings:
-    """Every setting of ``pneubayes discover`` (saved in discovery.json).
-
-    holdout_fraction: the last fraction of every recording is held out for verification.
-    block: one-step errors summed per regression row. threshold_t, n_bags, chunk_rows:
-    the grouped SINDy (:class:`GroupedSINDy`). min_inclusion: a group is *supported*
-    when its bagged inclusion probability reaches this. max_p_value: the one-sided
-    Wilcoxon signed-rank test of the per-window squared-error reductions must reach
-    this level. max_effects: stop after adding this many. max_trials_per_round:
-    supported groups refitted per round. max_refine_restarts: refinement is restarted
-    from where it stopped until it converges, at most this many times.
-    gap_fallback_ratio, fallback_min_inclusion: the one-step search has little power for
-    slow effects (a small leak in a large chamber changes dp/dt by less than the noise
-    per step, yet its 2-s error is many times the noise). So in any round where the
-    current model's held-out 2-s RMSE exceeds ``gap_fallback_ratio`` x the noise floor,
-    the best-ranked unsupported groups with inclusion at least ``fallback_min_inclusion``
-    (at most ``max_trials_per_round``) are refitted as tentative candidates beside the
-    supported ones; held-out verification decides, as for any candidate, and the best
-    that passes is added. ``gap_fallback_ratio = 0`` disables it.
-    tube_line_segments: cells of the acoustic-line form tried for a named tube (three
-    cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
-    the transport delay only. A line step costs tens of times a plain one.
-    form_settled_ratio: an effect with several forms (heat, tube) has its first form
-    fitted, and its later ones only while no trial of the round (of any effect) has a
-    training RMSE at most this x the noise floor (at the noise floor the training fit,
-    which picks the form, cannot tell trials apart, and a line fit costs minutes). 0
-    fits every form.
-    """
-
-    holdout_fraction: float = 1.0 / 3.0
-    block: int = 5
-    grid: LibraryGrid = field(default_factory=LibraryGrid)
-    regimes: RegimeSettings = field(default_factory=RegimeSettings)
-    threshold_t: float = 5.0
-    n_bags: int = 40
-    chunk_rows: int = 200
-    min_inclusion: float = 0.6
-    max_effects: int = 4
-    max_trials_per_round: int = 3
-    max_refine_restarts: int = 3
-    max_p_value: float = 0.01
-    gap_fallback_ratio: float = 2.0
-    fallback_min_inclusion: float = 0.25
-    tube_line_segments: int = 3
-    form_settled_ratio: float = 1.05
-    fit: FitSettings = field(default_factory=FitSettings)
-    posterior: bool = True
-    library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
-    seed: int = 0
-
-    def __post_init__(self):
-        if not 0.0 < self.holdout_fraction < 1.0:
-            raise ValueError(f"holdout_fraction must be in (0, 1), got {self.holdout_fraction}")
-        if not 0.0 < self.min_inclusion <= 1.0:
-            raise ValueError(f"min_inclusion must be in (0, 1], got {self.min_inclusion}")
-        if not 0.0 < self.fallback_min_inclusion <= 1.0:
-            raise ValueError(f"fallback_min_inclusion must be in (0, 1], got "
-                             f"{self.fallback_min_inclusion}")
-        if not (self.gap_fallback_ratio == 0.0 or self.gap_fallback_ratio >= 1.0):
-            raise ValueError(f"gap_fallback_ratio must be 0 (off) or >= 1, got "
-                             f"{self.gap_fallback_ratio}")
-        if self.block < 1:
-            raise ValueError(f"block must be >= 1, got {self.block}")
-        if not (self.form_settled_ratio == 0.0 or self.form_settled_ratio >= 1.0):
-            raise ValueError(f"form_settled_ratio must be 0 (fit every form) or >= 1, got "
-                             f"{self.form_settled_ratio}")
-        if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
-            raise ValueError(f"tube_line_segments must be in 0..{LINE_MAX_SEGMENTS} "
-                             f"(0: no line form), got {self.tube_line_segments}")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-def fit_round_forms(options: dict, fit, settled_Pa: float):
-    """Fit a round's candidate forms: ``options`` maps each effect to its forms
-    ``[(model, start), ...]`` in order; ``fit(effect, model, start)`` fits one.
-
-    Every effect's first form is fitted; the later (costlier) forms only while no fit of
-    the round has a training RMSE at most ``settled_Pa`` (0: fit every form). At the
-    noise floor the training fit, which picks among the trials, cannot tell them apart,
-    and an acoustic-line form costs minutes. A form that cannot be simulated from its
-    start or at its fitted point (``FloatingPointError`` from the refinement,
-    :class:`~pneubayes.errors.SimulationError`) is a failed trial, not a failed loop.
-
-    Returns ``({effect: [(fit, model, start), ...]}`` in form order, the ``(effect,
-    model, fit)`` that settled the round or None, ``{effect: [(model, why), ...]}`` of
-    the failed forms).
-    """
-    fitted: dict = {g: [] for g in options}
-    failed: dict = {g: [] for g in options}
-    settled = None
-
-    def run(g, model, start):
-        nonlocal settled
-        try:
-            f = fit(g, model, start)
-        except (FloatingPointError, SimulationError) as exc:
-            failed[g].append((model, f"{type(exc).__name__}: {str(exc).splitlines()[0]}"))
-            return
-        fitted[g].append((f, model, start))
-        if settled is None and f.train_rmse_Pa <= settled_Pa:
-            settled = (g, model, f)
-
-    for g, forms in options.items():
-        if forms:
-            run(g, *forms[0])
-    for g, forms in options.items():
-        for model, start in forms[1:]:
-            if settled is not None:
-                break
-            run(g, model, start)
-    return fitted, settled, failed
 
 
 def _form(model: Model, group: str) -> str:

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.discovery.disagreement import flagged_bins
-from pneubayes.discovery.loop import Discovery, DiscoverySettings
+from pneubayes.discovery.loop import Discovery
+from pneubayes.discovery.settings import DiscoverySettings
 
 
 def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,

@@ -1,0 +1,86 @@
+"""Every setting of the discovery loop (``pneubayes discover``), saved with its result."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from pneubayes.discovery.disagreement import RegimeSettings
+from pneubayes.discovery.library import LibraryGrid
+from pneubayes.effects.path import LINE_MAX_SEGMENTS
+from pneubayes.inference.pipeline import FitSettings
+from pneubayes.simulation import SolverConfig
+
+
+@dataclass(frozen=True)
+class DiscoverySettings:
+    """Every setting of ``pneubayes discover`` (saved in discovery.json).
+
+    holdout_fraction: the last fraction of every recording is held out for verification.
+    block: one-step errors summed per regression row. threshold_t, n_bags, chunk_rows:
+    the grouped SINDy (:class:`GroupedSINDy`). min_inclusion: a group is *supported*
+    when its bagged inclusion probability reaches this. max_p_value: the one-sided
+    Wilcoxon signed-rank test of the per-window squared-error reductions must reach
+    this level. max_effects: stop after adding this many. max_trials_per_round:
+    supported groups refitted per round. max_refine_restarts: refinement is restarted
+    from where it stopped until it converges, at most this many times.
+    gap_fallback_ratio, fallback_min_inclusion: the one-step search has little power for
+    slow effects (a small leak in a large chamber changes dp/dt by less than the noise
+    per step, yet its 2-s error is many times the noise). So in any round where the
+    current model's held-out 2-s RMSE exceeds ``gap_fallback_ratio`` x the noise floor,
+    the best-ranked unsupported groups with inclusion at least ``fallback_min_inclusion``
+    (at most ``max_trials_per_round``) are refitted as tentative candidates beside the
+    supported ones; held-out verification decides, as for any candidate, and the best
+    that passes is added. ``gap_fallback_ratio = 0`` disables it.
+    tube_line_segments: cells of the acoustic-line form tried for a named tube (three
+    cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
+    the transport delay only. A line step costs tens of times a plain one.
+    form_settled_ratio: an effect with several forms (heat, tube) has its first form
+    fitted, and its later ones only while no trial of the round (of any effect) has a
+    training RMSE at most this x the noise floor (at the noise floor the training fit,
+    which picks the form, cannot tell trials apart, and a line fit costs minutes). 0
+    fits every form.
+    """
+
+    holdout_fraction: float = 1.0 / 3.0
+    block: int = 5
+    grid: LibraryGrid = field(default_factory=LibraryGrid)
+    regimes: RegimeSettings = field(default_factory=RegimeSettings)
+    threshold_t: float = 5.0
+    n_bags: int = 40
+    chunk_rows: int = 200
+    min_inclusion: float = 0.6
+    max_effects: int = 4
+    max_trials_per_round: int = 3
+    max_refine_restarts: int = 3
+    max_p_value: float = 0.01
+    gap_fallback_ratio: float = 2.0
+    fallback_min_inclusion: float = 0.25
+    tube_line_segments: int = 3
+    form_settled_ratio: float = 1.05
+    fit: FitSettings = field(default_factory=FitSettings)
+    posterior: bool = True
+    library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
+    seed: int = 0
+
+    def __post_init__(self):
+        if not 0.0 < self.holdout_fraction < 1.0:
+            raise ValueError(f"holdout_fraction must be in (0, 1), got {self.holdout_fraction}")
+        if not 0.0 < self.min_inclusion <= 1.0:
+            raise ValueError(f"min_inclusion must be in (0, 1], got {self.min_inclusion}")
+        if not 0.0 < self.fallback_min_inclusion <= 1.0:
+            raise ValueError(f"fallback_min_inclusion must be in (0, 1], got "
+                             f"{self.fallback_min_inclusion}")
+        if not (self.gap_fallback_ratio == 0.0 or self.gap_fallback_ratio >= 1.0):
+            raise ValueError(f"gap_fallback_ratio must be 0 (off) or >= 1, got "
+                             f"{self.gap_fallback_ratio}")
+        if self.block < 1:
+            raise ValueError(f"block must be >= 1, got {self.block}")
+        if not (self.form_settled_ratio == 0.0 or self.form_settled_ratio >= 1.0):
+            raise ValueError(f"form_settled_ratio must be 0 (fit every form) or >= 1, got "
+                             f"{self.form_settled_ratio}")
+        if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
+            raise ValueError(f"tube_line_segments must be in 0..{LINE_MAX_SEGMENTS} "
+                             f"(0: no line form), got {self.tube_line_segments}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
