@@ -141,3 +141,29 @@ def test_declared_filter_removes_the_planted_delay_bias(tmp_path):
     # the data pin the delay to about 1.2 us (Laplace SD, session 8)
     assert abs(errors["declared"]) < 1.5e-6, errors
     assert abs(errors["raw"]) > 3.0 * abs(errors["declared"]) + 2e-6, errors
+
+
+def test_a_declared_filter_is_part_of_the_posterior_a_chain_samples():
+    """A stored chain resumes only for the same posterior: the same recordings read
+    through a declared filter are another posterior; without one the digest is as
+    before the filter existed (stored chains still resume)."""
+    from pneubayes.inference.chain_store import posterior_fingerprint
+    from pneubayes.inference.windows import WindowSet
+    from pneubayes.io import Recording, RecordingMetadata
+
+    t = np.arange(4001) * 1e-3
+    rec = Recording(RecordingMetadata("AIR37", "valve1", 0.009, 0.0375, 101325.0, 551325.0,
+                                      293.15, position_m=0.01),
+                    t, np.where(t % 0.5 < 0.25, 3.0, -3.0), 2e5 + 1e3 * np.sin(t))
+    model = Model()
+    plain = posterior_fingerprint(model, WindowSet([rec], 2.0, 2.0))
+    none = posterior_fingerprint(
+        model, WindowSet([prepare_recording(rec, {"pressure_filter": None})], 2.0, 2.0))
+    declared = posterior_fingerprint(
+        model, WindowSet([prepare_recording(rec, {"pressure_filter": FILTER})], 2.0, 2.0))
+    other = posterior_fingerprint(
+        model, WindowSet([prepare_recording(rec, {"pressure_filter": {"order": 2,
+                                                                    "cutoff_Hz": 800.0}})],
+                         2.0, 2.0))
+    assert plain == none
+    assert len({plain, declared, other}) == 3

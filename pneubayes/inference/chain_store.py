@@ -28,11 +28,16 @@ GROUP = "pneubayes"
 
 def posterior_fingerprint(model: Model, data: WindowSet) -> str:
     """A digest of what defines the posterior a chain samples: the model (effects,
-    options, parameter names and prior bounds), the data (every block's inputs, rig,
-    windows and measured pressures) and the chain format. Two runs with equal digests
-    sample the same posterior, so one may resume the other's chain."""
+    options, parameter names and prior bounds), the data (every block's inputs, rig --
+    its declared pressure filter included --, windows and measured pressures) and the
+    chain format. Two runs with equal digests sample the same posterior, so one may
+    resume the other's chain."""
     h = hashlib.sha256()
     lo, hi = model.bounds
+    filters = [None if b.rig.pressure_filter is None else b.rig.pressure_filter.to_dict()
+               for b in data.blocks]
+    if any(f is not None for f in filters):  # (digests without a filter stay as they were)
+        h.update(json.dumps({"pressure_filters": filters}, sort_keys=True).encode())
     h.update(json.dumps({"format": CHAIN_FORMAT, "noise_summary": N_NOISE_SUMMARY,
                          "effects": list(model.effect_names),
                          "options": {e.name: e.options() for e in model.effects},
