@@ -167,3 +167,43 @@ def test_a_declared_filter_is_part_of_the_posterior_a_chain_samples():
                          2.0, 2.0))
     assert plain == none
     assert len({plain, declared, other}) == 3
+
+
+def test_each_window_is_read_as_if_alone(rig, base_params, step_command, make_inputs):
+    """Corners are matched to windows in one vectorised pass: overlapping windows, a
+    window that ends at the last sample and short ones read exactly as each alone."""
+    model = Model(["tube_delay"])
+    params = {k: v for k, v in {**base_params, "tube_delay_s": 0.0027}.items()
+              if k in model.parameter_names}
+    params = model.as_matrix([model.vector(params),
+                              model.vector({**params, "tube_delay_s": 0.0063})])
+    t = np.arange(3001) * 1e-3
+    inputs = make_inputs(t, step_command(5, t.size, 1e-3, hold_s=(0.004, 0.05)))
+    filtered = dataclasses.replace(rig, pressure_filter=FILTER)
+    solver = SolverConfig.standard()
+    for length, starts in ((1001, [0, 7, 1000, 1996, 2000]), (3, [0, 1, 500, 2998])):
+        starts = np.array(starts)
+        p0 = np.linspace(1.5e5, 5e5, starts.size)
+        together = simulate_windows(model, params, inputs, filtered, starts, length, p0,
+                                    solver)
+        for i in range(starts.size):
+            alone = simulate_windows(model, params, inputs, filtered, starts[i:i + 1],
+                                     length, p0[i:i + 1], solver)
+            np.testing.assert_allclose(together[:, i], alone[:, 0], rtol=0, atol=1e-9)
+        raw = simulate_windows(model, params, inputs, rig, starts, length, p0, solver)
+        assert np.abs(together - raw).max() > 1.0  # the corners were read
+
+
+def test_one_step_errors_start_from_readings_without_the_sensor_term(tmp_path):
+    """Each one-step prediction starts from a measured reading, which already holds the
+    filter's rounding: the discovery's one-step data leave the sensor term out."""
+    from pneubayes.discovery.one_step import one_step_data
+    from pneubayes.io import Recording, RecordingMetadata
+
+    t = np.arange(201) * 1e-3
+    rec = Recording(RecordingMetadata("AIR37", "valve1", 0.009, 0.0375, 101325.0, 551325.0,
+                                      293.15), t, np.where(t < 0.1, 2.0, -2.0),
+                    np.full(t.size, 2e5))
+    declared = prepare_recording(rec, {"pressure_filter": FILTER})
+    assert declared.rig().pressure_filter == FILTER
+    assert one_step_data(declared, 5).rig.pressure_filter is None

@@ -8,14 +8,19 @@ compiled simulator and compare with the next measured sample:
     e[k] = p[k+1] - p_model(t[k+1] | p(t[k]) = p[k]),
 
 the integral of the dp/dt residual over the interval, with no derivative and no
-interpolation of a fast transient. Rows of the regression are sums of ``block``
-consecutive errors (Pa); a candidate term is the same sum of the difference between
-the one-step predictions with and without the candidate mechanism.
+interpolation of a fast transient. The predictions are of the chamber pressure, with no
+declared pressure filter applied: each starts from a measured reading, which already
+holds the filter's rounding of a nearby corner, so adding the corner term again
+(:mod:`pneubayes.simulation.measurement`) would count it twice.
+
+Rows of the regression are sums of ``block`` consecutive errors (Pa); a candidate term
+is the same sum of the difference between the one-step predictions with and without
+the candidate mechanism.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import lfilter
@@ -87,4 +92,6 @@ def one_step_data(recording, block: int) -> OneStepData:
         raise ValueError(f"block must be >= 1 sample interval, got {block}")
     if recording.n_samples < block + 1:
         raise ValueError(f"{recording.source}: shorter than one block of {block} intervals")
-    return OneStepData(recording, Inputs.from_recording(recording), recording.rig(), block)
+    # the chamber pressure from each measured reading: no sensor term (see module doc)
+    rig = replace(recording.rig(), pressure_filter=None)
+    return OneStepData(recording, Inputs.from_recording(recording), rig, block)
