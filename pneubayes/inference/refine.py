@@ -38,6 +38,10 @@ class TrajectoryRefiner:
         Finite-difference step relative to each parameter's scale.
     max_nfev : int
         Budget of residual evaluations (each Jacobian is one more batched call).
+
+    After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
+    ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
+    ``covariance_``, its pseudo-inverse (the Laplace covariance); ``rmse_Pa_``.
     """
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = 2.0,
@@ -123,11 +127,17 @@ class TrajectoryRefiner:
                 jac_cache[key] = jac
             return jac_cache[key]
 
-        sol = optimize.least_squares(residual, x0, jac=jacobian,
-                                     bounds=(flo, fhi), x_scale=scale, method="trf",
+        # least squares runs on x / scale, every variable of order 1: scipy's trust region
+        # keeps its start strictly feasible with an absolute margin of 1e-10, which for a
+        # parameter of order 1e-16 (a laminar leak conductance, kg/(s Pa^2)) moved it to
+        # the middle of its bounds before the first evaluation
+        sol = optimize.least_squares(lambda u: residual(u * scale), x0 / scale,
+                                     jac=lambda u: jacobian(u * scale) * scale,
+                                     bounds=(flo / scale, fhi / scale), method="trf",
                                      max_nfev=self.max_nfev, xtol=1e-8, ftol=1e-10)
-        theta = full(sol.x)
-        r, jac = residual(sol.x), jacobian(sol.x)
+        x_sol = sol.x * scale
+        theta = full(x_sol)
+        r, jac = residual(x_sol), jacobian(x_sol)
         n, p = r.size, idx.size
         sigma2 = float(r @ r) / max(n - p, 1)
         # pseudo-inverse in scaled coordinates: the columns differ by many orders of
@@ -138,6 +148,7 @@ class TrajectoryRefiner:
         self.params_ = model.as_dict(theta)
         self.free_ = tuple(free)
         self.covariance_ = cov
+        self.information_ = (jac.T @ jac) / sigma2
         self.rmse_Pa_ = float(np.sqrt(np.mean(r * r)))
         r0 = data.residuals(model, theta0[None], self.solver)
         self.start_rmse_Pa_ = float(np.sqrt(np.mean(r0 * r0)))
