@@ -286,10 +286,26 @@ def test_sampling_coordinates_round_trip_and_jacobian(bench):
         np.testing.assert_allclose(r1, r2, atol=1e-6)
 
 
+def _sampling_information(like, model, recs, z0, ident, solver):
+    """Gauss-Newton information of the window residuals, differenced directly in the
+    identified sampling coordinates (an independent route to the Laplace there)."""
+    ws = WindowSet(recs, 2.0, 2.0)
+    h = 1e-4 * np.where(z0[ident] != 0, np.abs(z0[ident]), 1.0)
+    rows = np.tile(z0, (len(ident) + 1, 1))
+    rows[1 + np.arange(len(ident)), ident] += h
+    r = ws.residuals(model, like.from_sampling(rows), solver).reshape(rows.shape[0], -1)
+    jz = ((r[1:] - r[0]) / h[:, None]).T
+    sigma2 = float(r[0] @ r[0]) / (r.shape[1] - z0.size)
+    return jz.T @ jz / sigma2
+
+
 def test_walker_ball_is_the_laplace_image_with_nuisance_spread_over_its_range(bench):
-    """The walkers start from the refined covariance carried into sampling coordinates
-    (delta method), and each nuisance coordinate uniform over the range the others
-    allow (its posterior is flat there), not in a ball of zero width."""
+    """The walkers start from the refined information carried into sampling coordinates
+    and inverted there given the nuisance coordinates, and each nuisance coordinate
+    uniform over the range the others allow (its posterior is flat there), not in a
+    ball of zero width. Checked against the information differenced directly in the
+    sampling coordinates: the draws' SDs, and their Mahalanobis distance (a covariance
+    carried by the delta method, or drawn unscaled, fails the second by tens of times)."""
     recs, model, truth = bench
     like = WindowLikelihood(model, WindowSet(recs[:1], 2.0, 2.0), SolverConfig.standard())
     x = model.vector(truth)
@@ -311,18 +327,50 @@ def test_walker_ball_is_the_laplace_image_with_nuisance_spread_over_its_range(be
     jc = list(model.parameter_names).index("inlet_c_per_V")
     # z_b = ln b - c d, so dz_b/dd = -c
     assert sampling_jacobian(like, x_zero)[jb, jd] == pytest.approx(-x[jc], rel=1e-6)
-    cov = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(recs[:1], truth).covariance_
+    info = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(recs[:1], truth).information_
     n = 96
-    z = walker_ball(like, x, cov, np.random.default_rng(0), n, 1.0)
+    z = walker_ball(like, x, info, np.random.default_rng(0), n, 1.0)
     assert np.unique(z, axis=0).shape[0] == n  # every draw had a finite density
     nuis = sorted(like.nuisance())
     ident = [j for j in range(x.size) if j not in nuis]
-    want = np.sqrt(np.diag(g @ cov @ g.T))[ident]
+    hz = _sampling_information(like, model, recs[:1], z0[0], ident, TIGHT)
+    want = np.sqrt(np.diag(np.linalg.inv(hz)))
     np.testing.assert_allclose(z[:, ident].std(axis=0), want, rtol=0.3)
+    dev = z[:, ident] - z0[0, ident]
+    m2 = np.einsum("bi,ij,bj->b", dev, hz, dev)
+    assert m2.mean() == pytest.approx(len(ident), rel=0.3)  # chi-square, k dof
     lo, hi = like.nuisance_ranges(z)
     u = (z[:, nuis] - lo) / (hi - lo)
     assert np.all((u >= 0) & (u <= 1))
     assert np.all(np.abs(u.std(axis=0) - np.sqrt(1 / 12)) < 0.06)  # uniform: 0.289
+
+
+def test_refinement_starts_where_asked_with_a_parameter_of_order_1e_16(tmp_path):
+    """A laminar leak conductance is ~1e-16 kg/(s Pa^2). scipy's trust region keeps its
+    start 1e-10 (absolute) inside the bounds, which moved such a start to the middle of
+    its bounds; the refiner works on scaled variables, so a one-evaluation refinement
+    stays at its start, and its information matches the objective's own curvature
+    (central second difference of the squared residuals along the leak)."""
+    cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"], leak_form="laminar"),
+                      protocol="fixed", duration_s=4.0, seed=4, positions=(0.5,),
+                      ranges_V=(5.0,))
+    res = run_bench(cfg, tmp_path)
+    model, start = Model.load_card(res.truth_path)
+    recs = [read_recording(p) for p in res.recordings]
+    assert start["leak_conductance_kg_per_s_Pa2"] < 1e-15
+    ref = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(recs[:1], start)
+    assert ref.params_ == start
+    assert ref.rmse_Pa_ == ref.start_rmse_Pa_
+    j = list(model.parameter_names).index("leak_conductance_kg_per_s_Pa2")
+    step = 1.0 / np.sqrt(ref.information_[j, j])  # conditional SD of the leak
+    assert step < 0.05 * start["leak_conductance_kg_per_s_Pa2"]
+    rows = np.tile(model.vector(start), (3, 1))
+    rows[1, j] += step
+    rows[2, j] -= step
+    r = WindowSet(recs[:1], 2.0, 2.0).residuals(model, rows, TIGHT).reshape(3, -1)
+    ssr = np.sum(r * r, axis=1)
+    sigma2 = ssr[0] / (r.shape[1] - rows.shape[1])
+    assert (ssr[1] + ssr[2] - 2 * ssr[0]) / (2 * sigma2) == pytest.approx(1.0, rel=0.2)
 
 
 class _GaussianTarget:
@@ -372,7 +420,7 @@ def test_posterior_centre_moves_the_start_to_the_mode_of_a_gaussian():
         start[ident] += offset
         start[2] = 7.0
         assert np.sqrt(offset @ target.precision @ offset) > 5.0
-        x = posterior_centre(target, start, cov, 2)
+        x = posterior_centre(target, start, np.linalg.inv(cov), 2)
         r = np.delete(x - mean, 2)
         assert np.sqrt(r @ target.precision @ r) < 1e-6
         assert x[2] == 7.0

@@ -381,14 +381,14 @@ class Discovery:
                                     backend_path=backend, progress=False)
         ref = TrajectoryRefiner(fit.model, s.fit.refine_solver, max_nfev=1)
         start = fit.params
-        cov = None
-        try:  # the Laplace covariance at the refined point sizes the walker ball
-            cov = ref.fit(train_ws, start).covariance_
+        info = None
+        try:  # the Laplace approximation at the refined point sizes the walker ball
+            info = ref.fit(train_ws, start).information_
         except FloatingPointError:
-            cov = None
+            info = None
         self.log(f"discover: emcee posterior of {list(fit.model.effect_names) or 'the base'}"
                  " model")
-        bi.fit(train_ws, start, covariance=cov)
+        bi.fit(train_ws, start, information=info)
         self.log(f"discover: emcee {bi.diagnostics_['steps']} steps, converged "
                  f"{bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol {bi.solver_.rtol:.0e}, "
                  f"log-density roughness {bi.diagnostics_['solver_jitter_nats']:.2f} nat)")

@@ -164,7 +164,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         return summary
     bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
                                 backend_path=out / "chain.h5", progress=progress)
-    bi.fit(data, ref.params_, covariance=ref.covariance_)
+    bi.fit(data, ref.params_, information=ref.information_)
     log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
         f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol "
         f"{bi.solver_.rtol:.0e}, log-density roughness "

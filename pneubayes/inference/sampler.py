@@ -1,7 +1,7 @@
 """Bayesian identification with emcee: posteriors over the thin-port parameters.
 
 The walkers start around the log-posterior's centre, spread as the refined point's
-Laplace covariance says (:mod:`pneubayes.inference.walker_start`); the log-probability
+Laplace approximation says (:mod:`pneubayes.inference.walker_start`); the log-probability
 is vectorised (one batched simulation per recording per move); an HDF5 backend makes a
 killed run resume where it stopped.
 
@@ -80,8 +80,8 @@ class SamplerSettings:
         fitted before the walkers reached the posterior: it is refitted to the steps
         before the check (as after a round) and production restarts there (everything before is
         discarded, so the kept chain always has one fixed kernel); at most this often.
-    init_scale: walker ball size relative to the refined covariance's std.
-    centre_iterations: with a refined covariance, Newton iterations that move the ball's
+    init_scale: walker ball size relative to the Laplace approximation's SDs.
+    centre_iterations: with the refined information, Newton iterations that move the ball's
         centre from the refined (least-squares) point towards the posterior's own
         centre before sampling (0: start at the refined point).
     max_solver_jitter_nats, max_solver_tightenings: the adaptive solver's numerical error
@@ -230,10 +230,12 @@ class BayesianIdentification:
         return StudentTProposal.fit(seg.reshape(-1, chain.shape[-1]), like.nuisance(),
                                     s.proposal_df, s.proposal_scale)
 
-    def fit(self, recordings, start: dict, covariance=None) -> "BayesianIdentification":
+    def fit(self, recordings, start: dict, information=None) -> "BayesianIdentification":
         """Sample the posterior starting around ``start`` (refined parameter dict).
 
-        ``covariance`` (model parameters, optional) sizes the walker ball.
+        ``information`` (optional): the Fisher information of the model parameters at
+        ``start`` (:attr:`TrajectoryRefiner.information_
+        <pneubayes.inference.refine.TrajectoryRefiner>`); it sizes the walker ball.
         """
         import emcee
 
@@ -248,17 +250,17 @@ class BayesianIdentification:
         backend, resume = open_chain(self.backend_path, self.model, data, nw, ndim)
         # the starting walkers are drawn (seeded) on a resume too: the solver check runs
         # on them, so a resumed chain continues with the solver it was started with
-        state = walker_ball(like, x0, covariance, rng, nw, s.init_scale)
+        state = walker_ball(like, x0, information, rng, nw, s.init_scale)
         like, solver, jitter = settle_solver(self.model, data, self.solver, state,
                                              s.max_solver_jitter_nats,
                                              s.max_solver_tightenings)
         if resume:
             state = None
-        elif covariance is not None and s.centre_iterations > 0:
+        elif information is not None and s.centre_iterations > 0:
             # the refined point is a least-squares optimum, not the posterior's centre:
             # move the ball to the posterior's own Newton centre (few batched calls)
-            x0 = posterior_centre(like, x0, covariance, s.centre_iterations)
-            state = walker_ball(like, x0, covariance, rng, nw, s.init_scale)
+            x0 = posterior_centre(like, x0, information, s.centre_iterations)
+            state = walker_ball(like, x0, information, rng, nw, s.init_scale)
         t0 = time.perf_counter()
         converged = False
         diag: dict = {}
