@@ -215,8 +215,9 @@ class Discovery:
                 for g in sindy.ranking_))
             supported = sindy.supported(s.min_inclusion)
             tentative = []
-            if (s.gap_fallback_ratio > 0
-                    and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise):
+            gap = (s.gap_fallback_ratio > 0
+                   and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise)
+            if gap:
                 tentative = [g for g in sindy.supported(s.fallback_min_inclusion)
                              if g not in supported][: s.max_trials_per_round]
                 if tentative:
@@ -229,80 +230,21 @@ class Discovery:
                            "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
                                          for g in sindy.ranking_}})
             candidates = supported[: s.max_trials_per_round] + tentative
-            if not candidates:
+            if not candidates and not (gap and s.try_all_on_gap):
                 self.log("discover: no effect is supported; stop")
                 break
-            trials = []
-            options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
-                                            s.tube_line_segments) for g in candidates}
-            round_forms, settled, failed = fit_round_forms(
-                options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
-                                                   first_free(m, g)),
-                s.form_settled_ratio * noise)
-            for g in candidates:
-                forms = round_forms[g]
-                tried = {id(m) for _, m, _ in forms} | {id(m) for m, _ in failed[g]}
-                forms_info = {"train_rmse_Pa": {_form(m, g): f.train_rmse_Pa
-                                                for f, m, _ in forms},
-                              "not_fitted": [_form(m, g) for m, _ in options[g]
-                                             if id(m) not in tried],
-                              "failed": {_form(m, g): why for m, why in failed[g]}}
-                for m, why in failed[g]:
-                    self.log(f"discover: {g}: form {m.effect(g).options()} failed ({why}); "
-                             "a failed trial")
-                if forms_info["not_fitted"]:
-                    sg, sm, sf = settled
-                    self.log(f"discover: {g}: {len(forms_info['not_fitted'])} later form(s) "
-                             f"not fitted: {sg} form {sm.effect(sg).options()} fits at the "
-                             f"noise floor (training RMSE {sf.train_rmse_Pa:.0f} Pa)")
-                if not forms:
-                    self.log(f"discover: {g} has no form that fits beside "
-                             f"{list(current.model.effect_names)}; skipped")
-                    continue
-                # the effect's form that fits the training data best (never the held-out)
-                trial, model2, start2 = min(forms, key=lambda f: f[0].train_rmse_Pa)
-                if len(forms) > 1:
-                    self.log(f"discover: {g}: form {model2.effect(g).options()} fits best "
-                             "(training RMSE " + ", ".join(
-                                 f"{m.effect(g).options().get('form')} {f.train_rmse_Pa:.0f} Pa"
-                                 for f, m, _ in forms) + ")")
-                # control: the current model refined from the trial's other parameters.
-                # Refinement finds local optima; if the trial's gain came from moving the
-                # other parameters to a better basin, the control gets it too.
-                control = self._fit(current.model, {k: trial.params[k] for k in
-                                                    current.model.parameter_names},
-                                    train_ws, held_ws, data_key)
-                if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
-                    self.log(f"discover: a better optimum of the current model: train RMSE "
-                             f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")
-                    ledger.append({"step": len(ledger), "action": "refit current",
-                                   "model": list(current.model.effect_names),
-                                   "train_rmse_Pa": control.train_rmse_Pa,
-                                   "heldout_rmse_Pa": control.heldout_rmse_Pa,
-                                   "heldout_lpd": control.heldout_lpd})
-                    current = control
-                trials.append((g, model2, start2, trial, forms_info))
-            # every trial against the final current fit; the best that passes is added
-            passing = []
-            for g, model2, start2, trial, forms_info in trials:
-                ok, gain, pval, diff = self._better(trial, current)
-                names = model2.effect(g).parameter_names()
-                ledger.append({
-                    "step": len(ledger), "action": "pass" if ok else "reject", "effect": g,
-                    "effect_options": model2.effect(g).options(), "forms": forms_info,
-                    "start": {k: start2[k] for k in names},
-                    "fitted": {k: trial.params[k] for k in names},
-                    "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
-                    "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
-                    "score_gain": gain, "score_p_value": pval,
-                    "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
-                    "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s})
-                self.log(f"discover: {'passes' if ok else 'reject'} {g}: held-out RMSE "
-                         f"{current.heldout_rmse_Pa:.0f} -> {trial.heldout_rmse_Pa:.0f} Pa, "
-                         f"better in {int(np.sum(diff > 0))}/{diff.size} windows "
-                         f"(p = {pval:.2g}), log predictive gain {gain:.1f}")
-                if ok:
-                    passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
+            ctx = (sindy, train, train_ws, held_ws, data_key, noise, ledger)
+            current, passing = self._trials(candidates, current, ctx)
+            rest = [g for g in sindy.ranking_ if g not in candidates]
+            gap = gap and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise
+            if not passing and gap and s.try_all_on_gap and rest:
+                self.log(f"discover: the held-out error is still "
+                         f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor and no "
+                         f"candidate passed: trying the rest ({', '.join(rest)})")
+                ledger.append({"step": len(ledger), "action": "last resort",
+                               "round": round_, "groups": rest})
+                current, passing = self._trials(rest, current, ctx,
+                                                s.last_resort_min_gap_closed)
             added = bool(passing)
             if passing:
                 _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
@@ -331,6 +273,95 @@ class Discovery:
             self.posterior_ = self._posterior(current, train_ws)
         self.wall_time_s_ = time.perf_counter() - t_start
         return self
+
+    def _trials(self, candidates, current: StepFit, ctx, min_gap_closed: float = 0.0):
+        """Fit each candidate group's forms beside ``current``, refit the current model
+        from each trial's other parameters (a better basin is not the effect's gain),
+        and verify every trial on the held-out windows against the final current fit;
+        a trial that passes must also close ``min_gap_closed`` of the held-out RMSE's
+        gap above the noise floor. Appends to the ledger; returns (current, passing
+        trials)."""
+        s = self.settings
+        sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
+        trials = []
+        options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
+                                        s.tube_line_segments) for g in candidates}
+        round_forms, settled, failed = fit_round_forms(
+            options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
+                                               first_free(m, g)),
+            s.form_settled_ratio * noise)
+        for g in candidates:
+            forms = round_forms[g]
+            tried = {id(m) for _, m, _ in forms} | {id(m) for m, _ in failed[g]}
+            forms_info = {"train_rmse_Pa": {_form(m, g): f.train_rmse_Pa
+                                            for f, m, _ in forms},
+                          "not_fitted": [_form(m, g) for m, _ in options[g]
+                                         if id(m) not in tried],
+                          "failed": {_form(m, g): why for m, why in failed[g]}}
+            for m, why in failed[g]:
+                self.log(f"discover: {g}: form {m.effect(g).options()} failed ({why}); "
+                         "a failed trial")
+            if forms_info["not_fitted"]:
+                sg, sm, sf = settled
+                self.log(f"discover: {g}: {len(forms_info['not_fitted'])} later form(s) "
+                         f"not fitted: {sg} form {sm.effect(sg).options()} fits at the "
+                         f"noise floor (training RMSE {sf.train_rmse_Pa:.0f} Pa)")
+            if not forms:
+                self.log(f"discover: {g} has no form that fits beside "
+                         f"{list(current.model.effect_names)}; skipped")
+                continue
+            # the effect's form that fits the training data best (never the held-out)
+            trial, model2, start2 = min(forms, key=lambda f: f[0].train_rmse_Pa)
+            if len(forms) > 1:
+                self.log(f"discover: {g}: form {model2.effect(g).options()} fits best "
+                         "(training RMSE " + ", ".join(
+                             f"{m.effect(g).options().get('form')} {f.train_rmse_Pa:.0f} Pa"
+                             for f, m, _ in forms) + ")")
+            # control: the current model refined from the trial's other parameters.
+            # Refinement finds local optima; if the trial's gain came from moving the
+            # other parameters to a better basin, the control gets it too.
+            control = self._fit(current.model, {k: trial.params[k] for k in
+                                                current.model.parameter_names},
+                                train_ws, held_ws, data_key)
+            if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
+                self.log(f"discover: a better optimum of the current model: train RMSE "
+                         f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")
+                ledger.append({"step": len(ledger), "action": "refit current",
+                               "model": list(current.model.effect_names),
+                               "train_rmse_Pa": control.train_rmse_Pa,
+                               "heldout_rmse_Pa": control.heldout_rmse_Pa,
+                               "heldout_lpd": control.heldout_lpd})
+                current = control
+            trials.append((g, model2, start2, trial, forms_info))
+        # every trial against the final current fit; the best that passes is added
+        passing = []
+        gap_Pa = max(current.heldout_rmse_Pa - noise, 1e-9)
+        for g, model2, start2, trial, forms_info in trials:
+            ok, gain, pval, diff = self._better(trial, current)
+            closed = (current.heldout_rmse_Pa - trial.heldout_rmse_Pa) / gap_Pa
+            small = ok and closed < min_gap_closed
+            ok = ok and not small
+            names = model2.effect(g).parameter_names()
+            ledger.append({
+                "step": len(ledger), "action": "pass" if ok else "reject", "effect": g,
+                "gap_closed": closed,
+                "effect_options": model2.effect(g).options(), "forms": forms_info,
+                "start": {k: start2[k] for k in names},
+                "fitted": {k: trial.params[k] for k in names},
+                "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                "score_gain": gain, "score_p_value": pval,
+                "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
+                "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s})
+            self.log(f"discover: {'passes' if ok else 'reject'} {g}: held-out RMSE "
+                     f"{current.heldout_rmse_Pa:.0f} -> {trial.heldout_rmse_Pa:.0f} Pa, "
+                     f"better in {int(np.sum(diff > 0))}/{diff.size} windows "
+                     f"(p = {pval:.2g}), log predictive gain {gain:.1f}"
+                     + (f"; it closes {100 * closed:.0f} % of the gap, under "
+                        f"{100 * min_gap_closed:.0f} %" if small else ""))
+            if ok:
+                passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
+        return current, passing
 
     def _better(self, new: StepFit, old: StepFit):
         return compare_heldout(new, old, self.settings.max_p_value)

@@ -154,6 +154,9 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
         elif e["action"] == "search":
             lines.append(f"| {e['step']} | search | {', '.join(e['supported']) or 'none'} "
                          "supported | | | |")
+        elif e["action"] == "last resort":
+            lines.append(f"| {e['step']} | last resort | {', '.join(e['groups'])} tried "
+                         "(the gap stayed large) | | | |")
         else:
             lines.append(f"| {e['step']} | {e['action']} | | | "
                          f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")
