@@ -15,7 +15,8 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    lower *training* error goes on to verification; once any trial of the round fits at
    the noise floor, no later form is fitted (``form_settled_ratio``). While the held-out
    error is far above the noise, weakly supported groups are tried too (see
-   ``gap_fallback_ratio``).
+   ``gap_fallback_ratio``), and if none of those passes either, every other group, as
+   a last resort that must close a quarter of the gap (``try_all_on_gap``).
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
    mean squared error (2-s windows are the independent units) must pass a one-sided
@@ -27,7 +28,7 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    without it is not significantly worse (the same test), it only stood in for the
    newcomer and is removed.
 7. **Repeat** with the extended model until no group is supported, or none of the
-   ``max_trials_per_round`` best-supported groups passes verification.
+   groups tried in a round passes verification.
 
 The final model gets an emcee posterior on the training data. A ledger records every
 step; finished fits are cached in ``RUNDIR/steps`` so an interrupted run resumes.
