@@ -135,7 +135,7 @@ class TrajectoryRefiner:
                                      jac=lambda u: jacobian(u * scale) * scale,
                                      bounds=(flo / scale, fhi / scale), method="trf",
                                      max_nfev=self.max_nfev, xtol=1e-8, ftol=1e-10)
-        x_sol = sol.x * scale
+        x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
         theta = full(x_sol)
         r, jac = residual(x_sol), jacobian(x_sol)
         n, p = r.size, idx.size
