@@ -38,15 +38,22 @@ def sampling_jacobian(like: WindowLikelihood, x: np.ndarray) -> np.ndarray:
     return ((z[:d] - z[d:]) / (2.0 * h)[:, None]).T
 
 
-def standardised_inverse(m: np.ndarray) -> np.ndarray:
-    """Pseudo-inverse of the symmetric ``m`` taken on its correlation form: the
-    coordinates differ by many orders of magnitude (areas ~1e-8 m^2, slopes ~1 /V), and
-    an unscaled inverse or eigen-decomposition loses the small ones' correlations. A
-    coordinate with a zero diagonal gets zero variance."""
+def _correlation_form(m: np.ndarray):
+    """``(sd, s, m / outer(s, s))`` of the symmetric ``m``: its diagonal's square roots,
+    and the same with 1 for a zero diagonal (so the division is safe). The coordinates
+    differ by many orders of magnitude (areas ~1e-8 m^2, slopes ~1 /V), and an unscaled
+    inverse or eigen-decomposition loses the small ones' correlations."""
     m = 0.5 * (m + m.T)
     sd = np.sqrt(np.maximum(np.diag(m), 0.0))
     s = np.where(sd > 0, sd, 1.0)
-    inv = np.linalg.pinv(m / np.outer(s, s), rcond=1e-12, hermitian=True) / np.outer(s, s)
+    return sd, s, m / np.outer(s, s)
+
+
+def standardised_inverse(m: np.ndarray) -> np.ndarray:
+    """Pseudo-inverse of the symmetric ``m`` taken on its correlation form
+    (:func:`_correlation_form`). A coordinate with a zero diagonal gets zero variance."""
+    sd, s, r = _correlation_form(m)
+    inv = np.linalg.pinv(r, rcond=1e-12, hermitian=True) / np.outer(s, s)
     inv[sd == 0, :] = 0.0
     inv[:, sd == 0] = 0.0
     return inv
@@ -80,12 +87,10 @@ def laplace_in_sampling(like: WindowLikelihood, start: np.ndarray, information):
 
 def gaussian_draws(mean: np.ndarray, cov: np.ndarray, rng: np.random.Generator,
                    n: int) -> np.ndarray:
-    """``n`` draws of N(mean, cov), taken on the correlation form (see
-    :func:`standardised_inverse`: numpy's own draw decomposes ``cov`` unscaled)."""
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    s = np.where(sd > 0, sd, 1.0)
-    y = rng.multivariate_normal(np.zeros(sd.size), cov / np.outer(s, s), size=n,
-                                method="eigh")
+    """``n`` draws of N(mean, cov), taken on the correlation form
+    (:func:`_correlation_form`: numpy's own draw decomposes ``cov`` unscaled)."""
+    sd, _, r = _correlation_form(cov)
+    y = rng.multivariate_normal(np.zeros(sd.size), r, size=n, method="eigh")
     return mean + y * sd
 
 
