@@ -719,3 +719,34 @@ def test_numba_cache_is_cleared_when_any_compiled_source_changes(tmp_path):
     assert not list((phys / "__pycache__").glob("*.nb*"))
     assert (kern / "__pycache__" / "kernel.cpython-311.pyc").exists()  # not numba's
     assert clear_if_stale([kern, phys], stamp) == 0
+
+
+@pytest.mark.parametrize("m", [
+    [[-3.0, 1.0], [0.5, -2.0]],                # real, distinct
+    [[-2.0, 1.0], [0.0, -2.0]],                # repeated eigenvalue, a Jordan block
+    [[-0.5, 4.0], [-4.0, -0.5]],               # complex pair (oscillatory)
+    [[-4.0e4, 3.0e2], [-2.0e-1, -1.0e-2]],     # stiff pressure beside slow temperature
+    [[1e-9, 0.0], [0.0, -1e-9]],               # at the origin: the Taylor branch only
+    [[0.3, -0.2], [0.1, 0.05]],                # positive eigenvalues (a growing state)
+], ids=["real", "jordan", "complex", "stiff", "tiny", "growing"])
+def test_the_thermal_phi_functions_match_scipys_augmented_exponential(m):
+    """phi_0..phi_3 of a 2 x 2 matrix (the (p, T) step) against the top row of
+    expm([[M, I, 0, 0], [0, 0, I, 0], [0, 0, 0, I], [0, 0, 0, 0]]) = [e^M, phi_1, phi_2,
+    phi_3] (Sidje 1998)."""
+    from scipy.linalg import expm
+
+    from pneubayes.simulation.kernel import _phi0123_2x2
+
+    m = np.array(m)
+    big = np.zeros((8, 8))
+    big[:2, :2] = m
+    for k in range(3):
+        big[2 * k:2 * k + 2, 2 * k + 2:2 * k + 4] = np.eye(2)
+    top = expm(big)[:2]
+    got = _phi0123_2x2(tuple(m.ravel()))
+    for k in range(4):
+        want = top[:, 2 * k:2 * k + 2]
+        np.testing.assert_allclose(np.reshape(got[k], (2, 2)), want, rtol=1e-10,
+                                   atol=1e-13 * np.abs(want).max(), err_msg=f"phi_{k}")
+    nan = _phi0123_2x2((np.nan, 0.0, 0.0, 1.0))
+    assert all(np.all(np.isnan(f)) for f in nan)

@@ -20,10 +20,11 @@ Inputs follow the recording: the command is held between samples (zero-order hol
 position and supply are linear between samples. A transport delay shifts the held
 command, which adds one break point inside some sample intervals; the integrator
 stops exactly on every break point. The spool lag is integrated in closed form. With
-heat transfer on (either form), the chamber temperature is a second state (diagonal
-Jacobian). With the tube as an acoustic line, the state is the chamber's pressure and
-the line's cells and flows, stepped by the same method with the full Jacobian
-(:mod:`pneubayes.simulation.line`).
+heat transfer on (either form), the chamber temperature is a second state, stepped by
+the same method with the full 2 x 2 Jacobian (a diagonal one leaves the method first
+order in the p-T coupling). With the tube as an acoustic line, the state is the
+chamber's pressure and the line's cells and flows, stepped by the same method with the
+full Jacobian (:mod:`pneubayes.simulation.line`).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 3 non-finite state, 4 an acoustic line not smaller than the dead volume. This module and
@@ -138,11 +139,13 @@ def _area_rates(spool, spool_rate, dead, sl):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex):
-    """Chamber right-hand side: ``(dp/dt, J_p, dT/dt, J_T, v_p)``.
+    """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
 
-    ``v_p`` is the explicit time derivative of dp/dt at fixed state, from the volume
-    changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and the port areas moving
-    at ``da_in``, ``da_ex`` m^2/s (the non-autonomous term of the exponential method).
+    ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
+    state, from the volume changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and
+    the port areas moving at ``da_in``, ``da_ex`` m^2/s (the non-autonomous terms of the
+    exponential method). ``J_xy`` is d(dx/dt)/dy; the temperature's entries and ``v_T``
+    are 0 without heat transfer.
 
     Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
     (a rate, or a convective coefficient on the wall area with orifice outflows at the
@@ -207,7 +210,7 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     if thermal:
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
-        return fp, 0.0, ft, 0.0, 0.0
+        return fp, 0.0, ft, 0.0, 0.0, 0.0, 0.0, 0.0
     dfloor = abs(fp) * h
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
@@ -218,20 +221,136 @@ def _rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, 
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
     dmdot = phi * dvalve + phi * att / (p * p) * valve - leak_o * dfex_dp - 2.0 * leak_l * p
     jp = n_over_v * (rs_t * dmdot - vdot)
-    jt = 0.0
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
-    if thermal:
-        # d(ft)/dT at fixed p; the sqrt(T_w / T) of the outflows is left out (W-method)
-        jt = (fp_eq5 / p - heat + c_wall * (t_wall - 2.0 * temp) / p + vdot / vol
-              - 2.0 * rs * temp * mdot / (p * vol) - n_over_v * rs * temp * m_out / p)
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = (phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
                 - leak_g * vdot / cs[C_BORE_AREA] * lam)
     vp = -fp_eq5 / vol * vdot + n_over_v * rs_t * dmdot_dt
     if hconv > 0.0:
         vp -= (kappa - 1.0) * hconv * (t_wall - temp) * 2.0 * cs[C_BORE_AREA] * vdot / (vol * vol)
-    return fp, jp, ft, jt, vp
+    if not thermal:
+        return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
+    # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).
+    # Outflow m_out (air leaving at T) and its slopes in p, T and t:
+    dmout_dp = phi * att / (p * p) * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
+    dmout_dt = 0.0
+    if f_ex > 0.0:
+        dmout_dp += phi * a_ex * dfex_dp
+        dmout_dt += phi * f_ex * da_ex
+    if f_in < 0.0:
+        dmout_dp -= phi * a_in * dfin_dp
+        dmout_dt -= phi * (f_in * da_in + a_in * dfin_dsup * dsup)
+    if leak_o * f_ex + leak_l * lam > 0.0:
+        dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
+        dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
+    # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
+    dmdot_dT, dmout_dT = 0.0, 0.0
+    if hconv > 0.0:
+        half = -0.5 / temp
+        if f_in < 0.0:
+            dmdot_dT += phi * a_in * f_in * half
+            dmout_dT -= phi * a_in * f_in * half
+        if f_ex > 0.0:
+            dmdot_dT -= (phi * a_ex + leak_o) * f_ex * half
+            dmout_dT += (phi * a_ex + leak_o) * f_ex * half
+    jp += n_over_v * rs * (t_wall - temp) * dmout_dp
+    vp += n_over_v * rs * (t_wall - temp) * dmout_dt
+    jpt = n_over_v * (rs_t * dmdot_dT - rs * m_out + rs * (t_wall - temp) * dmout_dT) - c_wall
+    if heat > 0.0:
+        jpt -= p * heat * t_wall / (temp * temp)
+    # ft = T (fp / p + vdot / V - Rs T mdot / (p V))
+    g = rs * temp / (p * vol)
+    jtp = temp * (jp / p - fp / (p * p) - g * dmdot + g * mdot / p)
+    jt = ft / temp + temp * (jpt / p - rs * mdot / (p * vol) - g * dmdot_dT)
+    vt = temp * (vp / p - (vdot / vol) ** 2 - g * dmdot_dt + g * mdot * vdot / vol)
+    return fp, jp, ft, jt, vp, jpt, jtp, vt
+
+
+_INV_FACT = tuple(1.0 / math.factorial(j) for j in range(17))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mm2(x, y):
+    """Product of 2 x 2 matrices stored row-major as 4-tuples."""
+    return (x[0] * y[0] + x[1] * y[2], x[0] * y[1] + x[1] * y[3],
+            x[2] * y[0] + x[3] * y[2], x[2] * y[1] + x[3] * y[3])
+
+
+@njit(cache=True, error_model="numpy")
+def _phi0123_2x2(m):
+    """``phi_k(M)`` for k = 0..3 of a 2 x 2 matrix (row-major 4-tuple): scaling and
+    squaring with the doubling rule ``phi_k(2M) = 2^-k (phi_0(M) phi_k(M) +
+    sum_{j=1..k} phi_j(M) / (k - j)!)`` (Skaflestad and Wright 2009) from a 13-term
+    Taylor series at 1-norm <= 1/4 (truncation below 1e-17). A non-finite ``m`` gives NaN.
+    """
+    norm = max(abs(m[0]) + abs(m[2]), abs(m[1]) + abs(m[3]))
+    if not math.isfinite(norm):
+        nan = (math.nan, math.nan, math.nan, math.nan)
+        return nan, nan, nan, nan
+    sq = 0
+    if norm > 0.25:
+        sq = int(math.ceil(math.log2(norm / 0.25)))
+    c = 0.5 ** sq
+    x = (m[0] * c, m[1] * c, m[2] * c, m[3] * c)
+    pw = (1.0, 0.0, 0.0, 1.0)
+    f0 = (0.0, 0.0, 0.0, 0.0)
+    f1, f2, f3 = f0, f0, f0
+    for j in range(13):
+        a0, a1, a2, a3 = _INV_FACT[j], _INV_FACT[j + 1], _INV_FACT[j + 2], _INV_FACT[j + 3]
+        f0 = (f0[0] + a0 * pw[0], f0[1] + a0 * pw[1], f0[2] + a0 * pw[2], f0[3] + a0 * pw[3])
+        f1 = (f1[0] + a1 * pw[0], f1[1] + a1 * pw[1], f1[2] + a1 * pw[2], f1[3] + a1 * pw[3])
+        f2 = (f2[0] + a2 * pw[0], f2[1] + a2 * pw[1], f2[2] + a2 * pw[2], f2[3] + a2 * pw[3])
+        f3 = (f3[0] + a3 * pw[0], f3[1] + a3 * pw[1], f3[2] + a3 * pw[2], f3[3] + a3 * pw[3])
+        pw = _mm2(pw, x)
+    for _ in range(sq):
+        e3, e2, e1 = _mm2(f0, f3), _mm2(f0, f2), _mm2(f0, f1)
+        f3 = ((e3[0] + 0.5 * f1[0] + f2[0] + f3[0]) * 0.125,
+              (e3[1] + 0.5 * f1[1] + f2[1] + f3[1]) * 0.125,
+              (e3[2] + 0.5 * f1[2] + f2[2] + f3[2]) * 0.125,
+              (e3[3] + 0.5 * f1[3] + f2[3] + f3[3]) * 0.125)
+        f2 = ((e2[0] + f1[0] + f2[0]) * 0.25, (e2[1] + f1[1] + f2[1]) * 0.25,
+              (e2[2] + f1[2] + f2[2]) * 0.25, (e2[3] + f1[3] + f2[3]) * 0.25)
+        f1 = ((e1[0] + f1[0]) * 0.5, (e1[1] + f1[1]) * 0.5, (e1[2] + f1[2]) * 0.5,
+              (e1[3] + f1[3]) * 0.5)
+        f0 = _mm2(f0, f0)
+    return f0, f1, f2, f3
+
+
+@njit(cache=True, error_model="numpy")
+def _thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2, a_ex2,
+                  vol2, psup2, sl, cs, atol_p, atol_t, rtol):
+    """One exprb32 step of the state (p, T) with its full 2 x 2 Jacobian.
+
+    The phi-functions are taken of the balanced ``S^-1 h J S``, ``S = diag(p, T)``
+    (:func:`_phi0123_2x2`). Returns ``(err, p_new, T_new, exp(h J))``, the propagator
+    as a row-major 4-tuple; ``err`` <= 1 accepts the step.
+    """
+    fp, jpp, ft, jtt, vp, jpt, jtp, vt = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs,
+                                              hh, True, dsup, da_in, da_ex)
+    r = temp / p
+    f0, f1, f2, f3 = _phi0123_2x2((hh * jpp, hh * jpt * r, hh * jtp / r, hh * jtt))
+    prop = (f0[0], f0[1] / r, f0[2] * r, f0[3])
+    # in balanced units (state / S)
+    w1p, w1t = hh * fp / p, hh * ft / temp
+    w2p, w2t = hh * hh * vp / p, hh * hh * vt / temp
+    up = p + p * (f1[0] * w1p + f1[1] * w1t + f2[0] * w2p + f2[1] * w2t)
+    ut = temp + temp * (f1[2] * w1p + f1[3] * w1t + f2[2] * w2p + f2[3] * w2t)
+    if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
+        return 10.0, p, temp, prop
+    fp2, _, ft2, _, _, _, _, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh,
+                                      False, 0.0, 0.0, 0.0)
+    dp, dt = up - p, ut - temp
+    w3p = 2.0 * hh * (fp2 - fp - jpp * dp - jpt * dt - hh * vp) / p
+    w3t = 2.0 * hh * (ft2 - ft - jtp * dp - jtt * dt - hh * vt) / temp
+    ep = p * (f3[0] * w3p + f3[1] * w3t)
+    et = temp * (f3[2] * w3p + f3[3] * w3t)
+    pn, tn = up + ep, ut + et
+    if not (pn > 0.0 and math.isfinite(pn) and tn > 0.0 and math.isfinite(tn)):
+        return 10.0, p, temp, prop
+    err = max(abs(ep) / (atol_p + rtol * max(abs(p), abs(pn))),
+              abs(et) / (atol_t + rtol * max(temp, tn)))
+    return err, pn, tn, prop
 
 
 @njit(cache=True, error_model="numpy")
@@ -240,8 +359,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
 
     ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
     the pressure to the initial pressure: the product of the accepted steps'
-    ``exp(h J_p)`` (first order in h; the temperature coupling is ignored; with an
-    acoustic line the propagators ``exp(h J)`` of the whole state).
+    ``exp(h J_p)`` (first order in h; with heat transfer or an acoustic line the
+    propagators ``exp(h J)`` of the whole state).
     ``carry`` (``N_CARRY``) holds the unmeasured states at the start and receives them
     at the end: ``carry[0]`` the chamber temperature (K; used with heat transfer),
     ``carry[1:]`` an acoustic line's cell pressures and flows (NaN: at rest at p0).
@@ -261,7 +380,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p
     want_sens = sens.shape[0] > 0
-    s_p0 = 1.0
+    s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0
+    prop_t = (1.0, 0.0, 0.0, 1.0)  # a thermal step's propagator (row-major)
     if want_sens:
         sens[0] = 1.0
     # acoustic line: state [p, cell pressures, flows]; its volume leaves the chamber's
@@ -361,41 +481,30 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                 err = 10.0
                 pn, tn = p, temp
                 zp = 0.0
-                ok = False
                 if line:
                     err, prop = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup,
                                           da_in, da_ex, a_in2, a_ex2, vol2, psup2, sl, cs,
                                           atol_p, rtol, y_new)
                     pn = y_new[0]
+                elif thermal:
+                    err, pn, tn, prop_t = _thermal_step(p, temp, hh, a_in, a_ex, vol, vdot,
+                                                      psup, dsup, da_in, da_ex, a_in2, a_ex2,
+                                                      vol2, psup2, sl, cs, atol_p, atol_t,
+                                                      rtol)
                 else:
-                    fp, jp, ft, jt, vp = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs,
-                                              hh, True, dsup, da_in, da_ex)
+                    fp, jp, _, _, vp, _, _, _ = _rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl,
+                                                     cs, hh, True, dsup, da_in, da_ex)
                     zp = hh * jp
                     phi1p, phi2p, phi3p = _phi123(zp)
                     up = p + hh * (phi1p * fp + hh * phi2p * vp)
-                    ut = temp
-                    if thermal:
-                        zt = hh * jt
-                        phi1t, _, phi3t = _phi123(zt)
-                        ut = temp + hh * phi1t * ft
-                    ok = up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)
-                    pn, tn = up, ut
-                if ok:
-                    fp2, _, ft2, _, _ = _rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
-                                             hh, False, 0.0, 0.0, 0.0)
-                    dp = fp2 - fp - jp * (up - p) - hh * vp
-                    ep = 2.0 * hh * phi3p * dp
-                    pn = up + ep
-                    err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
-                    if thermal:
-                        dt_ = ft2 - ft - jt * (ut - temp)
-                        et = 2.0 * hh * phi3t * dt_
-                        tn = ut + et
-                        e2 = abs(et) / (atol_t + rtol * max(temp, abs(tn)))
-                        if e2 > err:
-                            err = e2
-                    if not (pn > 0.0 and math.isfinite(pn) and tn > 0.0 and math.isfinite(tn)):
-                        err = 10.0
+                    if up > 0.0 and math.isfinite(up):
+                        fp2 = _rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False,
+                                   0.0, 0.0, 0.0)[0]
+                        ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
+                        pn = up + ep
+                        err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                        if not (pn > 0.0 and math.isfinite(pn)):
+                            err = 10.0
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
                     p, temp = pn, tn
@@ -408,6 +517,10 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                                     s_next[ii] += prop[ii, kk] * s_vec[kk]
                             s_vec = s_next
                             s_p0 = s_vec[0]
+                    elif thermal:
+                        if want_sens:  # (dp, dT)/dp0 through the step's propagator
+                            s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
+                                          prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
                         s_p0 *= math.exp(zp)
                     fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
