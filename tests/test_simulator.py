@@ -735,7 +735,7 @@ def test_the_thermal_phi_functions_match_scipys_augmented_exponential(m):
     phi_3] (Sidje 1998)."""
     from scipy.linalg import expm
 
-    from pneubayes.simulation.kernel import _phi0123_2x2
+    from pneubayes.simulation.thermal import phi0123_2x2
 
     m = np.array(m)
     big = np.zeros((8, 8))
@@ -743,10 +743,10 @@ def test_the_thermal_phi_functions_match_scipys_augmented_exponential(m):
     for k in range(3):
         big[2 * k:2 * k + 2, 2 * k + 2:2 * k + 4] = np.eye(2)
     top = expm(big)[:2]
-    got = _phi0123_2x2(tuple(m.ravel()))
+    got = phi0123_2x2(tuple(m.ravel()))
     for k in range(4):
         want = top[:, 2 * k:2 * k + 2]
         np.testing.assert_allclose(np.reshape(got[k], (2, 2)), want, rtol=1e-10,
                                    atol=1e-13 * np.abs(want).max(), err_msg=f"phi_{k}")
-    nan = _phi0123_2x2((np.nan, 0.0, 0.0, 1.0))
+    nan = phi0123_2x2((np.nan, 0.0, 0.0, 1.0))
     assert all(np.all(np.isnan(f)) for f in nan)

@@ -1,0 +1,100 @@
+"""The step of heat-transfer models: exprb32 on the state (p, T) with its full Jacobian.
+
+With wall heat exchange the chamber temperature is a second state. Stepping it with a
+diagonal Jacobian leaves the exponential method first order in the p-T coupling (the
+outflow's enthalpy and the wall term make dp/dt depend on T, and dT/dt on p); here the
+phi-functions of the full 2 x 2 ``h J`` are taken in one pass (:func:`phi0123_2x2`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from pneubayes.simulation.chamber import chamber_rhs
+
+_INV_FACT = tuple(1.0 / math.factorial(j) for j in range(17))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mm2(x, y):
+    """Product of 2 x 2 matrices stored row-major as 4-tuples."""
+    return (x[0] * y[0] + x[1] * y[2], x[0] * y[1] + x[1] * y[3],
+            x[2] * y[0] + x[3] * y[2], x[2] * y[1] + x[3] * y[3])
+
+
+@njit(cache=True, error_model="numpy")
+def phi0123_2x2(m):
+    """``phi_k(M)`` for k = 0..3 of a 2 x 2 matrix (row-major 4-tuple): scaling and
+    squaring with the doubling rule ``phi_k(2M) = 2^-k (phi_0(M) phi_k(M) +
+    sum_{j=1..k} phi_j(M) / (k - j)!)`` (Skaflestad and Wright 2009) from a 13-term
+    Taylor series at 1-norm <= 1/4 (truncation below 1e-17). A non-finite ``m`` gives NaN.
+    """
+    norm = max(abs(m[0]) + abs(m[2]), abs(m[1]) + abs(m[3]))
+    if not math.isfinite(norm):
+        nan = (math.nan, math.nan, math.nan, math.nan)
+        return nan, nan, nan, nan
+    sq = 0
+    if norm > 0.25:
+        sq = int(math.ceil(math.log2(norm / 0.25)))
+    c = 0.5 ** sq
+    x = (m[0] * c, m[1] * c, m[2] * c, m[3] * c)
+    pw = (1.0, 0.0, 0.0, 1.0)
+    f0 = (0.0, 0.0, 0.0, 0.0)
+    f1, f2, f3 = f0, f0, f0
+    for j in range(13):
+        a0, a1, a2, a3 = _INV_FACT[j], _INV_FACT[j + 1], _INV_FACT[j + 2], _INV_FACT[j + 3]
+        f0 = (f0[0] + a0 * pw[0], f0[1] + a0 * pw[1], f0[2] + a0 * pw[2], f0[3] + a0 * pw[3])
+        f1 = (f1[0] + a1 * pw[0], f1[1] + a1 * pw[1], f1[2] + a1 * pw[2], f1[3] + a1 * pw[3])
+        f2 = (f2[0] + a2 * pw[0], f2[1] + a2 * pw[1], f2[2] + a2 * pw[2], f2[3] + a2 * pw[3])
+        f3 = (f3[0] + a3 * pw[0], f3[1] + a3 * pw[1], f3[2] + a3 * pw[2], f3[3] + a3 * pw[3])
+        pw = _mm2(pw, x)
+    for _ in range(sq):
+        e3, e2, e1 = _mm2(f0, f3), _mm2(f0, f2), _mm2(f0, f1)
+        f3 = ((e3[0] + 0.5 * f1[0] + f2[0] + f3[0]) * 0.125,
+              (e3[1] + 0.5 * f1[1] + f2[1] + f3[1]) * 0.125,
+              (e3[2] + 0.5 * f1[2] + f2[2] + f3[2]) * 0.125,
+              (e3[3] + 0.5 * f1[3] + f2[3] + f3[3]) * 0.125)
+        f2 = ((e2[0] + f1[0] + f2[0]) * 0.25, (e2[1] + f1[1] + f2[1]) * 0.25,
+              (e2[2] + f1[2] + f2[2]) * 0.25, (e2[3] + f1[3] + f2[3]) * 0.25)
+        f1 = ((e1[0] + f1[0]) * 0.5, (e1[1] + f1[1]) * 0.5, (e1[2] + f1[2]) * 0.5,
+              (e1[3] + f1[3]) * 0.5)
+        f0 = _mm2(f0, f0)
+    return f0, f1, f2, f3
+
+
+@njit(cache=True, error_model="numpy")
+def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2, a_ex2,
+                  vol2, psup2, sl, cs, atol_p, atol_t, rtol):
+    """One exprb32 step of the state (p, T) with its full 2 x 2 Jacobian.
+
+    The phi-functions are taken of the balanced ``S^-1 h J S``, ``S = diag(p, T)``
+    (:func:`phi0123_2x2`). Returns ``(err, p_new, T_new, exp(h J))``, the propagator
+    as a row-major 4-tuple; ``err`` <= 1 accepts the step.
+    """
+    fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup,
+                                                     sl, cs, hh, True, dsup, da_in, da_ex)
+    r = temp / p
+    f0, f1, f2, f3 = phi0123_2x2((hh * jpp, hh * jpt * r, hh * jtp / r, hh * jtt))
+    prop = (f0[0], f0[1] / r, f0[2] * r, f0[3])
+    # in balanced units (state / S)
+    w1p, w1t = hh * fp / p, hh * ft / temp
+    w2p, w2t = hh * hh * vp / p, hh * hh * vt / temp
+    up = p + p * (f1[0] * w1p + f1[1] * w1t + f2[0] * w2p + f2[1] * w2t)
+    ut = temp + temp * (f1[2] * w1p + f1[3] * w1t + f2[2] * w2p + f2[3] * w2t)
+    if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
+        return 10.0, p, temp, prop
+    fp2, _, ft2, _, _, _, _, _ = chamber_rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
+                                             cs, hh, False, 0.0, 0.0, 0.0)
+    dp, dt = up - p, ut - temp
+    w3p = 2.0 * hh * (fp2 - fp - jpp * dp - jpt * dt - hh * vp) / p
+    w3t = 2.0 * hh * (ft2 - ft - jtp * dp - jtt * dt - hh * vt) / temp
+    ep = p * (f3[0] * w3p + f3[1] * w3t)
+    et = temp * (f3[2] * w3p + f3[3] * w3t)
+    pn, tn = up + ep, ut + et
+    if not (pn > 0.0 and math.isfinite(pn) and tn > 0.0 and math.isfinite(tn)):
+        return 10.0, p, temp, prop
+    err = max(abs(ep) / (atol_p + rtol * max(abs(p), abs(pn))),
+              abs(et) / (atol_t + rtol * max(temp, tn)))
+    return err, pn, tn, prop
