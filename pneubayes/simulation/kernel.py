@@ -271,9 +271,9 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                     pn = y_new[0]
                 elif thermal:
                     err, pn, tn, prop_t = thermal_step(p, temp, hh, a_in, a_ex, vol, vdot,
-                                                      psup, dsup, da_in, da_ex, a_in2, a_ex2,
-                                                      vol2, psup2, sl, cs, atol_p, atol_t,
-                                                      rtol)
+                                                       psup, dsup, da_in, da_ex, a_in2, a_ex2,
+                                                       vol2, psup2, sl, cs, atol_p, atol_t,
+                                                       rtol)
                 else:
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot,
                                                             psup, sl, cs, hh, True, dsup,

@@ -66,7 +66,7 @@ def phi0123_2x2(m):
 
 @njit(cache=True, error_model="numpy")
 def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2, a_ex2,
-                  vol2, psup2, sl, cs, atol_p, atol_t, rtol):
+                 vol2, psup2, sl, cs, atol_p, atol_t, rtol):
     """One exprb32 step of the state (p, T) with its full 2 x 2 Jacobian.
 
     The phi-functions are taken of the balanced ``S^-1 h J S``, ``S = diag(p, T)``
