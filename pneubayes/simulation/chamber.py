@@ -86,8 +86,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
     # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
     m_out = 0.0
+    leak_out = leak_o * f_ex + leak_l * lam
     if thermal:
-        leak_out = leak_o * f_ex + leak_l * lam
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
     fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
@@ -136,7 +136,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if f_in < 0.0:
         dmout_dp -= phi * a_in * dfin_dp
         dmout_dt -= phi * (f_in * da_in + a_in * dfin_dsup * dsup)
-    if leak_o * f_ex + leak_l * lam > 0.0:
+    if leak_out > 0.0:
         dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
     # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
