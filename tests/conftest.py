@@ -9,12 +9,14 @@ mistake there cannot cancel out in a comparison.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from pneubayes.io.recording import Recording, RecordingMetadata
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig
@@ -200,3 +202,34 @@ def load_experiment(name: str):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+# ---------------------------------------------------------------- plausibility recordings
+ATM = 101325.0
+SUPPLY = 601325.0
+
+
+def chamber_recording(rate_Hz=1000.0, duration_s=3.0, seed=0, atm=ATM, supply=SUPPLY,
+                      tau_s=0.02, noise_Pa=300.0, position=True) -> Recording:
+    """A first-order chamber following random full-scale command steps (SI, absolute)."""
+    rng = np.random.default_rng(seed)
+    n = int(duration_s * rate_Hz) + 1
+    t = np.arange(n) / rate_Hz
+    hold = int(0.25 * rate_Hz)
+    u = np.repeat(rng.choice([-5.0, 5.0], size=n // hold + 1), hold)[:n]
+    target = np.where(u > 0, supply, atm)
+    p = np.empty(n)
+    p[0] = atm
+    a = np.exp(-1.0 / (rate_Hz * tau_s))
+    for i in range(1, n):
+        p[i] = target[i] + (p[i - 1] - target[i]) * a
+    md = RecordingMetadata("AIR37", "valve1", 0.009, 0.0375, atm, supply, 293.15)
+    pos = 0.0375 * (0.5 + 0.3 * np.sin(2 * np.pi * t)) if position else None
+    return Recording(md, t, u, p + rng.normal(0, noise_Pa, n), position_m=pos)
+
+
+def ventilator_like(seed=0) -> Recording:
+    """100 Hz, a few kPa gauge over a 5-kPa blower: unusual but real."""
+    rec = chamber_recording(rate_Hz=100.0, duration_s=20.0, seed=seed, supply=ATM + 5e3,
+                            tau_s=0.15, noise_Pa=20.0, position=False)
+    return replace(rec, pressure_Pa=ATM + 0.7 * (rec.pressure_Pa - ATM))
