@@ -37,6 +37,29 @@ def _setting(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
 
 
+def _accept(text: str) -> tuple[str, ...]:
+    from pneubayes.io.plausibility import check_accept
+
+    try:
+        return check_accept([v.strip() for v in text.split(",") if v.strip()], "--accept")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _add_accept(p) -> None:
+    p.add_argument("--accept", type=_accept, default=(), metavar="RULE[,RULE]",
+                   help="accept these plausibility rules for every recording (an unusual "
+                        "but real rig, e.g. sample-interval,pressure-span); a recording's "
+                        "JSON can list them in accept_unusual")
+
+
+def _print_findings(command: str, recordings) -> None:
+    """Plausibility warnings (and accepted findings) of recordings, on stderr."""
+    for rec in recordings:
+        for f in rec.findings:
+            print(f"pneubayes {command}: warning: {f.location}: {f.text()}", file=sys.stderr)
+
+
 def _cutoffs(args) -> dict:
     """FitSettings' preparation from --position-cutoff/--supply-cutoff (0: raw) and
     --pressure-filter."""
@@ -69,17 +92,23 @@ def _add_cutoffs(p) -> None:
 
 
 def cmd_check(args) -> int:
-    from pneubayes.io.recording import check_recording
+    from pneubayes.io.recording import inspect_recording
 
     bad = 0
     for path in args.files:
-        problems = check_recording(path)
-        if problems:
+        found = inspect_recording(path, args.accept)
+        if found.problems:
             bad += 1
-            for loc, why in problems:
+            for loc, why in found.problems:
                 print(f"{loc}: {why}")
-        elif not args.quiet:
-            print(f"{path}: ok")
+            continue
+        warned = [f for f in found.warnings if not f.accepted]
+        if not args.quiet:
+            print(f"{path}: ok" + (f" ({len(warned)} warning(s))" if warned else ""))
+            for note in found.conversions:
+                print(f"  converted {note}")
+        for f in found.warnings:
+            print(f"{f.location}: {'note' if f.accepted else 'warning'}: {f.text()}")
     if bad:
         print(f"{bad} of {len(args.files)} recording(s) have problems", file=sys.stderr)
     return 1 if bad else 0
@@ -116,8 +145,9 @@ def cmd_simulate(args) -> int:
     from pneubayes.model import Model
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
-    rec = read_recording(args.recording)
+    rec = read_recording(args.recording, args.accept)
     model, params = Model.load_card(args.model)
+    _print_findings("simulate", [rec])
     solver = SolverConfig(rtol=args.rtol, atol_Pa=args.atol, atol_K=0.01,
                           max_step_s=args.max_step, min_step_s=1e-12, max_steps_per_s=2.5e7)
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
@@ -137,10 +167,12 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-def _read_all(paths):
+def _read_all(paths, accept, command):
     from pneubayes.io.recording import read_recording
 
-    return [read_recording(p) for p in paths]
+    recs = [read_recording(p, accept) for p in paths]
+    _print_findings(command, recs)
+    return recs
 
 
 def cmd_fit(args) -> int:
@@ -149,7 +181,7 @@ def cmd_fit(args) -> int:
     from pneubayes.inference.sampler import SamplerSettings
     from pneubayes.model import Model
 
-    recs = _read_all(args.recordings)
+    recs = _read_all(args.recordings, args.accept, "fit")
     if args.model:
         model, _ = Model.load_card(args.model)
     else:
@@ -186,7 +218,8 @@ def cmd_predict(args) -> int:
     from pneubayes.io.recording import read_recording
     from pneubayes.simulation import SolverConfig
 
-    rec = read_recording(args.recording)
+    rec = read_recording(args.recording, args.accept)
+    _print_findings("predict", [rec])
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise PneubayesError(f"--out {out}: file exists (use --overwrite)")
@@ -207,7 +240,7 @@ def cmd_discover(args) -> int:
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 
-    recs = _read_all(args.recordings)
+    recs = _read_all(args.recordings, args.accept, "discover")
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, max_effects=args.max_effects,
         posterior=not args.no_posterior, seed=args.seed,
@@ -251,6 +284,11 @@ def cmd_ablate(args) -> int:
                              "workers)")
     if args.workers is not None and args.workers < 1:
         raise PneubayesError(f"--workers must be >= 1, got {args.workers}")
+    if args.dry_run:
+        for cell in study.cells():
+            print(cell.id)
+        print(f"{args.study}: valid; {study.n_cells} cell(s) (nothing run)")
+        return 0
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     try:
         executor = (DaskExecutor(args.scheduler) if args.scheduler
@@ -290,7 +328,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Validate recordings (CSV + JSON pairs); print every "
                                    "problem with file, row or key, and reason. Exit 1 if any.")
     c.add_argument("files", nargs="+", help="recording .csv/.json paths or stems")
-    c.add_argument("-q", "--quiet", action="store_true", help="print only problems")
+    c.add_argument("-q", "--quiet", action="store_true",
+                   help="print only problems and plausibility warnings")
+    _add_accept(c)
     c.set_defaults(func=cmd_check)
 
     b = sub.add_parser(
@@ -340,6 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--atol", type=float, default=10.0, help="absolute tolerance, Pa (10)")
     s.add_argument("--max-step", type=float, default=0.02, help="largest step, s (0.02)")
     s.add_argument("--overwrite", action="store_true")
+    _add_accept(s)
     s.set_defaults(func=cmd_simulate)
 
     f = sub.add_parser(
@@ -365,6 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_cutoffs(f)
     f.add_argument("--no-figures", action="store_true")
     f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    _add_accept(f)
     f.set_defaults(func=cmd_fit)
 
     r = sub.add_parser(
@@ -381,6 +423,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output CSV")
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
+    _add_accept(r)
     r.set_defaults(func=cmd_predict)
 
     d = sub.add_parser(
@@ -411,6 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_cutoffs(d)
     d.add_argument("--no-figures", action="store_true")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    _add_accept(d)
     d.set_defaults(func=cmd_discover)
 
     a = sub.add_parser(
@@ -431,6 +475,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="local worker processes (default 1: in this process)")
     a.add_argument("--smoke", action="store_true",
                    help="one cell (the first value of every axis) with short recordings")
+    a.add_argument("--dry-run", action="store_true",
+                   help="validate the study and list its cells; run and write nothing")
     a.add_argument("--keep-work", action="store_true",
                    help="keep each cell's bench recordings and fit folder in RUNDIR/work")
     a.add_argument("-q", "--quiet", action="store_true", help="no progress output")

@@ -133,6 +133,8 @@ def test_fit_method_lsq_writes_a_point_estimate(fitted, tmp_path, capsys):
     assert main(["fit", *map(str, train.recordings), "--out", str(out), "--method", "lsq",
                  "--supply-cutoff", "80", "--pressure-filter", "2:1000", "-q"]) == 0
     model, params = Model.load_card(out / "model.json")
+    # the bench's recordings are plausible: the run records no input finding
+    assert json.loads((out / "summary.json").read_text())["input_findings"] == []
     # the preparation is in the card, and predict reads it back from there
     from pneubayes.inference.pipeline import run_preparation
 

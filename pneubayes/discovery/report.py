@@ -18,6 +18,7 @@ from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.discovery.disagreement import flagged_bins
 from pneubayes.discovery.loop import Discovery
 from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.io.plausibility import recorded_findings
 
 
 def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
@@ -29,6 +30,7 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
     disc = Discovery(settings, out, log).fit(recs)
     doc = disc.result()
     doc["recordings"] = [str(r.source) for r in recs]
+    doc["input_findings"] = recorded_findings(recs)
     final = disc.final_
     if disc.posterior_ is not None:
         params = disc.posterior_.median_params()

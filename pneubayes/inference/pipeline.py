@@ -9,6 +9,7 @@ chain.h5 (resumable), figures/.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -18,6 +19,7 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import write_json_atomic, write_text_atomic
+from pneubayes.errors import ModelCardError
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
 from pneubayes.inference.lsq import PaperLeastSquares
@@ -25,6 +27,7 @@ from pneubayes.inference.predictive import PosteriorPredictive, estimate_noise_s
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings, arviz
 from pneubayes.inference.windows import WindowSet
+from pneubayes.io.plausibility import recorded_findings
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 from pneubayes.physics.sensor_filter import PressureFilter
@@ -116,6 +119,7 @@ METHODS = ("lsq", "refine", "mcmc")
 def _point_summary(method, recs, start, notes, how, noise, settings, t0, refined=None):
     return {"format": "pneubayes-fit-summary/1", "method": method,
             "recordings": [str(r.source) for r in recs],
+            "input_findings": recorded_findings(recs),
             "start": {"method": how, "notes": notes, "parameters": start},
             "refined": refined, "noise_floor_Pa": noise, "settings": settings.to_dict(),
             "wall_time_s": time.perf_counter() - t0,
@@ -183,6 +187,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     summary = {
         "format": "pneubayes-fit-summary/1", "method": method,
         "recordings": [str(r.source) for r in recs],
+        "input_findings": recorded_findings(recs),
         "parameters": bi.summary(),
         "converged": bi.converged_,
         "steps": bi.diagnostics_["steps"], "burn": bi.burn_,
@@ -228,10 +233,31 @@ def run_preparation(run_dir) -> dict:
     """How a run prepared its recordings (its model card): the input low-passes, Hz (None
     or absent, as in a card written before the supply's: raw), and the declared pressure
     filter (None or absent: none)."""
-    card = json.loads((Path(run_dir) / "model.json").read_text())
-    fit = card.get("fit") or {}
-    return {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz",
-                                     "pressure_filter")}
+    path = Path(run_dir) / "model.json"
+    try:
+        card = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ModelCardError(f"{path}: cannot read the model card ({exc})") from None
+    fit = card.get("fit") if isinstance(card, dict) else None
+    if fit is None:
+        fit = {}
+    if not isinstance(fit, dict):
+        raise ModelCardError(f"{path}: key 'fit' must be an object, got {fit!r}")
+    out = {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz",
+                                    "pressure_filter")}
+    for key in ("position_cutoff_Hz", "supply_cutoff_Hz"):
+        v = out[key]
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                              or not math.isfinite(v) or v < 0):
+            raise ModelCardError(f"{path}: key 'fit' -> {key!r} must be a number >= 0 (Hz) "
+                                 f"or null, got {v!r}")
+    if out["pressure_filter"] is not None:
+        try:
+            PressureFilter.from_dict(out["pressure_filter"],
+                                     source=f"{path} key 'fit' -> 'pressure_filter'")
+        except ValueError as exc:
+            raise ModelCardError(str(exc)) from None
+    return out
 
 
 def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,
@@ -256,6 +282,7 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     write_text_atomic(out, "\n".join(lines) + "\n")
     metrics = bands.metrics()
     metrics.update({"recording": str(recording.source), "run": str(run_dir),
+                    "input_findings": recorded_findings([recording]),
                     "horizon_s": horizon_s, "n_draws": int(draws.shape[0]), "seed": seed})
     write_json_atomic(out.with_suffix(".metrics.json"), metrics)
     if figure_path is not None:
