@@ -234,7 +234,11 @@ class Model:
                                  f"that are not in 'effects' {names}")
         effects = []
         for n in names:
-            opt = dict(options.get(n, {}))
+            opt = options.get(n, {})
+            if not isinstance(opt, Mapping) or not all(isinstance(k, str) for k in opt):
+                raise ModelCardError(f"{source}: key 'effect_options' -> {n!r} must be an "
+                                     f"object option -> value, got {opt!r}")
+            opt = dict(opt)
             # cylinder_leak's and heat_transfer's forms follow from their parameter
             # names when not given.
             if n == "cylinder_leak" and "form" not in opt:

@@ -6,6 +6,10 @@ Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_de
 
 from __future__ import annotations
 
+import inspect
+import math
+import numbers
+
 from pneubayes.effects.base import Component, Effect, Parameter
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
@@ -29,10 +33,36 @@ def make_effect(name: str, **options) -> Effect:
     except KeyError:
         raise ValueError(f"unknown effect {name!r}; the catalogue has {sorted(CATALOGUE)}") \
             from None
+    _check_options(cls, options)
     try:
         return cls(**options)
     except TypeError as exc:
         raise ValueError(f"effect {name!r}: bad options {options!r} ({exc})") from None
+
+
+def _check_options(cls: type[Effect], options: dict) -> None:
+    """Every option is a constructor argument, of the kind of its default (a string, an
+    integer or a finite real number); raises ValueError naming the option."""
+    params = inspect.signature(cls.__init__).parameters
+    known = [k for k in params if k != "self"]
+    for key, value in options.items():
+        if key not in known:
+            raise ValueError(f"effect {cls.name!r}: unknown option {key!r}; its options are "
+                             f"{known}")
+        default = params[key].default
+        if isinstance(default, str):
+            ok, kind = isinstance(value, str), "a string"
+        elif isinstance(default, int) and not isinstance(default, bool):
+            ok, kind = isinstance(value, int) and not isinstance(value, bool), "an integer"
+        elif isinstance(default, float):
+            ok = (isinstance(value, numbers.Real) and not isinstance(value, bool)
+                  and math.isfinite(value))
+            kind = "a finite number"
+        else:
+            continue
+        if not ok:
+            raise ValueError(f"effect {cls.name!r}: option {key!r} must be {kind}, got "
+                             f"{value!r}")
 
 
 __all__ = ["CATALOGUE", "Component", "CylinderLeak", "Effect", "HeatTransfer", "Parameter",
