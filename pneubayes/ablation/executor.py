@@ -22,6 +22,8 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 from concurrent import futures as cf
 
+from pneubayes import interrupt
+
 
 class Executor(ABC):
     """The interface the runner uses (an abstract base: subclasses implement all three)."""
@@ -92,7 +94,13 @@ class LocalExecutor(Executor):
                 f.run()
                 yield f
             return
-        yield from cf.as_completed(futures)
+        # wait in short slices: a stop request (pneubayes.interrupt) is seen within a
+        # second, not when the next cell happens to finish
+        waiting = set(futures)
+        while waiting:
+            done, waiting = cf.wait(waiting, timeout=0.5, return_when=cf.FIRST_COMPLETED)
+            yield from done
+            interrupt.check()
 
     def shutdown(self, cancel: bool = False) -> None:
         pool, self._pool = self._pool, None

@@ -25,6 +25,7 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+from pneubayes import interrupt
 from pneubayes.ablation.cell import run_cell
 from pneubayes.ablation.executor import Executor, LocalExecutor
 from pneubayes.ablation.study import Cell, Study
@@ -175,6 +176,7 @@ def run_study(study: Study, out_dir, executor: Executor | None = None, progress:
             except Exception as exc:  # the executor lost the task (e.g. a worker died)
                 res = _error_result(c, exc)
             record(c, res)
+            interrupt.check()  # between cells (the in-process executor runs them here)
     except BaseException as exc:
         failed_exc = exc
         if isinstance(exc, KeyboardInterrupt):

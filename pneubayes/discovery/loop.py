@@ -410,7 +410,7 @@ class Discovery:
         s = self.settings
         backend = None if self.out_dir is None else self.out_dir / "chain.h5"
         bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
-                                    backend_path=backend, progress=False)
+                                    backend_path=backend, progress=False, log=self.log)
         ref = TrajectoryRefiner(fit.model, s.fit.refine_solver, max_nfev=1)
         start = fit.params
         info = None

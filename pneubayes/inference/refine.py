@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize
 
+from pneubayes import interrupt
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
@@ -89,6 +90,7 @@ class TrajectoryRefiner:
             # those need no Jacobian (it is asked for at accepted points only)
             key = x.tobytes()
             if key not in res_cache:
+                interrupt.check()  # between compiled calls: a clean stop point
                 r = data.residuals(model, full(x)[None], self.solver, on_failure="nan")
                 r = r.reshape(-1)
                 if not np.all(np.isfinite(r)):
@@ -107,6 +109,7 @@ class TrajectoryRefiner:
         def jacobian(x):
             key = x.tobytes()
             if key not in jac_cache:
+                interrupt.check()
                 r0 = residual(x)
                 if key in failed:  # never accepted; no slope to take
                     return np.zeros((r0.size, x.size))

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from pneubayes import interrupt
 from pneubayes.inference.chain_store import open_chain, store_burn, stored_burn
 from pneubayes.inference.likelihood import WindowLikelihood
 from pneubayes.inference.moves import StudentTProposal, moved_fraction, nuisance_gibbs_move
@@ -197,11 +198,14 @@ class BayesianIdentification:
         never overwritten).
     progress : bool
         Show emcee's progress bar.
+    log : callable or None
+        Receives a line after every block of steps: the step, the diagnostics and an
+        estimate of the time left (None: silent).
     """
 
     def __init__(self, model: Model, solver: SolverConfig, settings: SamplerSettings,
                  horizon_s: float = 2.0, stride_s: float = 2.0, backend_path=None,
-                 progress: bool = True):
+                 progress: bool = True, log=None):
         self.model = model
         self.solver = solver
         self.settings = settings
@@ -209,6 +213,44 @@ class BayesianIdentification:
         self.stride_s = stride_s
         self.backend_path = backend_path
         self.progress = progress
+        self.log = log
+
+    def _advance(self, sampler, state, n: int):
+        """``n`` steps, as ``run_mcmc`` takes them (the same draws), stopping cleanly
+        between steps when a stop is requested (:mod:`pneubayes.interrupt`); every step
+        is already in the chain file then."""
+        start = sampler.get_last_sample() if state is None else state  # None: resumed
+        last = start
+        for step in sampler.sample(start, iterations=n, progress=self.progress,
+                                   skip_initial_state_check=True):
+            last = step
+            interrupt.check()
+        return last
+
+    def _report(self, backend, burn: int, diag: dict | None, t0: float, start_step: int):
+        """One progress line: where the run is and how long it may still take."""
+        if self.log is None:
+            return
+        s = self.settings
+        n = backend.iteration
+        done = n - start_step
+        per_step = (time.perf_counter() - t0) / done if done > 0 else float("nan")
+        if not diag or n <= burn:
+            left = max(burn - n, 0) + s.check_every
+            what = f"adapting (production from step {burn})"
+        else:
+            ess = min(min(diag["ess"].values()), min(diag["ess_tail"].values()))
+            rhat = max(diag["rhat"].values())
+            prod = n - burn
+            # ESS grows about linearly with the production length
+            need = prod * (s.target_ess / ess - 1.0) if ess > 0 else float("inf")
+            need = max(need, s.tau_factor * diag["tau_max"] - prod, 0.0)
+            left = min(need, s.max_steps - n)
+            what = f"R-hat {rhat:.3f}, min ESS {ess:.0f} of {s.target_ess:.0f}"
+        eta = left * per_step
+        eta_text = f"about {eta / 60:.1f} min left" if np.isfinite(eta) else "time left unknown"
+        self.log(f"emcee: step {n} of at most {s.max_steps}; {what}; "
+                 f"{per_step:.2f} s/step, {eta_text}")
 
     def _moves(self, like: WindowLikelihood, proposal: StudentTProposal | None):
         import emcee
@@ -262,6 +304,10 @@ class BayesianIdentification:
             x0 = posterior_centre(like, x0, information, s.centre_iterations)
             state = walker_ball(like, x0, information, rng, nw, s.init_scale)
         t0 = time.perf_counter()
+        start_step = backend.iteration
+        self.resumed_from_step_ = start_step if resume else 0
+        if resume and self.log is not None:
+            self.log(f"emcee: resumed from step {start_step} ({self.backend_path})")
         converged = False
         diag: dict = {}
         # emcee draws from its own RandomState: seeded here, handed from one sampler
@@ -283,9 +329,9 @@ class BayesianIdentification:
                         self._proposal(backend.get_chain(), like, r * s.adapt_steps))
             sampler = sampler_for(proposal)
             n = min((r + 1) * s.adapt_steps, s.max_steps) - backend.iteration
-            state = sampler.run_mcmc(state, n, progress=self.progress,
-                                     skip_initial_state_check=True)
+            state = self._advance(sampler, state, n)
             random_state = sampler.random_state
+            self._report(backend, end, None, t0, start_step)
             if (r >= 1 and backend.iteration == (r + 1) * s.adapt_steps < end
                     and moved_fraction(backend.get_chain()[-s.adapt_steps - 1:])
                     >= s.adapt_acceptance):
@@ -300,6 +346,7 @@ class BayesianIdentification:
         while True:
             if backend.iteration > burn:
                 diag = self._diagnose(backend, like, burn)
+                self._report(backend, burn, diag, t0, start_step)
                 if diag["converged"]:
                     converged = True
                     break
@@ -315,8 +362,7 @@ class BayesianIdentification:
             if backend.iteration >= s.max_steps:
                 break
             n = min(s.check_every, s.max_steps - backend.iteration)
-            state = sampler.run_mcmc(state, n, progress=self.progress,
-                                     skip_initial_state_check=True)
+            state = self._advance(sampler, state, n)
         if not diag:
             diag = self._diagnose(backend, like, burn)
         diag["readapts"] = readapts
