@@ -75,7 +75,11 @@ def open_chain(path, model: Model, data: WindowSet, n_walkers: int, ndim: int):
     if path.exists():
         try:
             steps = backend.iteration
-        except (OSError, KeyError, AttributeError):
+        except OSError as exc:  # not HDF5, or truncated: never reset over it
+            raise ValueError(f"{path}: the chain file cannot be read ({exc}); it is left "
+                             "untouched. Remove it to start the chain again, or give another "
+                             "output folder") from None
+        except (KeyError, AttributeError):  # a file without a chain yet
             steps = 0
         if steps > 0:
             stored = stored_attr(backend, "pneubayes_fingerprint")

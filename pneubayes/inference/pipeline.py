@@ -8,6 +8,7 @@ chain.h5 (resumable), figures/.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import pneubayes
-from pneubayes.atomic import write_json_atomic, write_text_atomic
+from pneubayes.atomic import json_safe, write_json_atomic, write_text_atomic
 from pneubayes.errors import ModelCardError
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
@@ -116,6 +117,57 @@ def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: fl
 METHODS = ("lsq", "refine", "mcmc")
 
 
+@dataclass(frozen=True)
+class _SavedRefinement:
+    """The refiner's results a posterior needs, as :class:`_StageCache` keeps them."""
+
+    params_: dict
+    information_: np.ndarray | None
+    rmse_Pa_: float
+    start_rmse_Pa_: float
+
+
+class _StageCache:
+    """The start and the refined point of a posterior fit, saved beside its chain so a
+    resumed fit skips least squares and refinement. Used only when it was saved for the
+    same model, recordings (paths and digests of their samples) and fit settings."""
+
+    def __init__(self, path: Path, model: Model, recs, settings: FitSettings):
+        self.path = path
+        digest = hashlib.sha256()
+        for r in recs:
+            for a in (r.time_s, r.command_V, r.pressure_Pa):
+                digest.update(np.ascontiguousarray(a).tobytes())
+        settings_doc = settings.to_dict()
+        settings_doc.pop("sampler", None)  # a longer chain resumes from the same start
+        self.key = json_safe({"effects": list(model.effect_names),
+                              "options": {e.name: e.options() for e in model.effects},
+                              "recordings": [str(r.source) for r in recs],
+                              "samples_sha256": digest.hexdigest(),
+                              "settings": settings_doc})
+
+    def load(self) -> dict | None:
+        try:
+            doc = json.loads(self.path.read_text())
+        except (OSError, ValueError):
+            return None
+        if not isinstance(doc, dict) or doc.get("key") != self.key:
+            return None
+        r = doc["refined"]
+        info = None if r["information"] is None else np.asarray(r["information"], float)
+        return {"start": doc["start"], "notes": doc["notes"], "how": doc["how"],
+                "refined": _SavedRefinement(r["params"], info, r["rmse_Pa"],
+                                            r["start_rmse_Pa"])}
+
+    def save(self, start, notes, how, ref) -> None:
+        info = getattr(ref, "information_", None)
+        write_json_atomic(self.path, {
+            "key": self.key, "start": start, "notes": notes, "how": how,
+            "refined": {"params": ref.params_, "rmse_Pa": ref.rmse_Pa_,
+                        "start_rmse_Pa": ref.start_rmse_Pa_,
+                        "information": None if info is None else np.asarray(info).tolist()}})
+
+
 def _point_summary(method, recs, start, notes, how, noise, settings, t0, refined=None):
     return {"format": "pneubayes-fit-summary/1", "method": method,
             "recordings": [str(r.source) for r in recs],
@@ -142,8 +194,15 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     recs = [prepare_recording(r, inputs_card) for r in recordings]
     t0 = time.perf_counter()
     noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
-    start, notes, how = starting_point(model, recs, settings, noise)
-    log(f"fit: start from {how}")
+    stages = _StageCache(out / "refined.json", model, recs, settings)
+    saved = stages.load() if method == "mcmc" else None
+    if saved is not None:
+        start, notes, how = saved["start"], saved["notes"], saved["how"]
+        log("fit: least squares and refinement skipped: their result is saved in "
+            f"{stages.path}")
+    else:
+        start, notes, how = starting_point(model, recs, settings, noise)
+        log(f"fit: start from {how}")
     if method == "lsq":
         if how == "generic":
             raise ValueError("--method lsq needs fixed-volume recordings at two or more "
@@ -154,10 +213,15 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         write_json_atomic(out / "summary.json", summary)
         return summary
     data = WindowSet(recs, settings.horizon_s, settings.stride_s)
-    ref = TrajectoryRefiner(model, settings.refine_solver,
-                            max_nfev=settings.refine_max_nfev).fit(data, start)
-    log(f"fit: refined 2-s RMSE {ref.start_rmse_Pa_:.0f} -> {ref.rmse_Pa_:.0f} Pa "
-        f"({ref.n_evaluations_} evaluations)")
+    if saved is not None:
+        ref = saved["refined"]
+    else:
+        ref = TrajectoryRefiner(model, settings.refine_solver,
+                                max_nfev=settings.refine_max_nfev).fit(data, start)
+        log(f"fit: refined 2-s RMSE {ref.start_rmse_Pa_:.0f} -> {ref.rmse_Pa_:.0f} Pa "
+            f"({ref.n_evaluations_} evaluations)")
+        if method == "mcmc":
+            stages.save(start, notes, how, ref)
     if method == "refine":
         model.save_card(ref.params_, out / "model.json",
                         extra={"fit": {"estimate": "refine", **inputs_card}})
@@ -167,7 +231,8 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         write_json_atomic(out / "summary.json", summary)
         return summary
     bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
-                                backend_path=out / "chain.h5", progress=progress)
+                                backend_path=out / "chain.h5", progress=progress,
+                                log=log)
     bi.fit(data, ref.params_, information=ref.information_)
     log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
         f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol "
@@ -216,9 +281,24 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
 def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
     """(model, model draws (N, P), noise draws (N, 2)) from a run folder."""
     run = Path(run_dir)
-    model, _ = Model.load_card(run / "model.json")
-    idata = arviz().from_netcdf(str(run / "posterior.nc"))
-    post = idata.posterior
+    model, params = Model.load_card(run / "model.json")
+    try:
+        idata = arviz().from_netcdf(str(run / "posterior.nc"))
+        post = idata.posterior
+    except (OSError, ValueError, AttributeError, KeyError) as exc:
+        raise ValueError(f"{run / 'posterior.nc'}: not a readable posterior ({exc})") from None
+    recorded = (getattr(idata, "attrs", None) or {}).get("model_card",
+                                                         post.attrs.get("model_card"))
+    if recorded is not None:  # the card the posterior was sampled for: never mix runs
+        try:
+            card = json.loads(recorded)
+        except ValueError:
+            card = None
+        if not isinstance(card, dict) or card.get("effects") != list(model.effect_names) \
+                or card.get("parameters") != {k: float(v) for k, v in params.items()}:
+            raise ValueError(f"{run}: posterior.nc was sampled for another model card than "
+                             "model.json (files of different runs); fit again into an empty "
+                             "folder")
     names = list(model.parameter_names) + ["noise_scale_Pa", "noise_ar1"]
     missing = [n for n in names if n not in post]
     if missing:
@@ -288,5 +368,8 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     if figure_path is not None:
         from pneubayes.plotting import plot_prediction_bands
 
-        plot_prediction_bands(bands, figure_path)
+        effects = " + ".join(model.effect_names) or "thin-port model"
+        name = Path(recording.source).name if recording.source else "recording"
+        plot_prediction_bands(bands, figure_path,
+                              title=f"{name}: {effects} ({run_dir}), {horizon_s:g}-s windows")
     return metrics
