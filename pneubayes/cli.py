@@ -9,14 +9,24 @@ message naming the file, row, key or argument (exit 2 for usage or input errors,
 from __future__ import annotations
 
 import argparse
-import signal
+import math
+import os
 import sys
-import threading
+import traceback
 from pathlib import Path
 
 import numpy as np
 
+from pneubayes import interrupt
 from pneubayes.errors import PneubayesError
+from pneubayes.run_folder import check_file, inputs_digest, open_run_folder
+
+#: What each folder-writing command may write (removed by --overwrite when the folder
+#: has no stamp listing the earlier run's files).
+FIT_OUTPUTS = ("model.json", "summary.json", "posterior.nc", "chain.h5", "refined.json",
+               "figures")
+DISCOVER_OUTPUTS = ("discovery.json", "model.json", "posterior.nc", "chain.h5",
+                    "disagreement.json", "report.md", "figures", "steps")
 
 
 def _floats(text: str, what: str) -> tuple[float, ...]:
@@ -25,6 +35,34 @@ def _floats(text: str, what: str) -> tuple[float, ...]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{what}: expected comma-separated numbers, "
                                          f"got {text!r}") from None
+
+
+def _number(kind: str, low: float, strict: bool):
+    """An argparse type: a finite number > low (strict) or >= low, named in errors."""
+    def parse(text: str):
+        try:
+            v = int(text) if kind == "integer" else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {'an' if kind == 'integer' else 'a'} "
+                                             f"{kind}, got {text!r}") from None
+        if not math.isfinite(v) or (v <= low if strict else v < low):
+            raise argparse.ArgumentTypeError(
+                f"must be {'>' if strict else '>='} {low:g}, got {text!r}")
+        return v
+    return parse
+
+
+POSITIVE = _number("number", 0.0, strict=True)
+NON_NEGATIVE = _number("number", 0.0, strict=False)
+POSITIVE_INT = _number("integer", 0, strict=True)
+NON_NEGATIVE_INT = _number("integer", 0, strict=False)
+
+
+def _fraction(text: str) -> float:
+    v = POSITIVE(text)
+    if v >= 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
+    return v
 
 
 def _setting(text: str) -> tuple[str, float]:
@@ -53,6 +91,14 @@ def _add_accept(p) -> None:
                         "JSON can list them in accept_unusual")
 
 
+def _add_run_folder(p) -> None:
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the run already in --out (its files only; yours stay)")
+    p.add_argument("--resume", action="store_true",
+                   help="insist on resuming the run in --out (an error if there is none); "
+                        "the same command on the same inputs and settings resumes anyway")
+
+
 def _print_findings(command: str, recordings) -> None:
     """Plausibility warnings (and accepted findings) of recordings, on stderr."""
     for rec in recordings:
@@ -78,10 +124,10 @@ def _pressure_filter(text: str):
 
 
 def _add_cutoffs(p) -> None:
-    p.add_argument("--position-cutoff", type=float, default=50.0, metavar="HZ",
+    p.add_argument("--position-cutoff", type=NON_NEGATIVE, default=50.0, metavar="HZ",
                    help="zero-phase low-pass of the measured position before it drives "
                         "the model, Hz; 0: raw (50)")
-    p.add_argument("--supply-cutoff", type=float, default=100.0, metavar="HZ",
+    p.add_argument("--supply-cutoff", type=NON_NEGATIVE, default=100.0, metavar="HZ",
                    help="the same for the measured supply (its sensor noise biases the "
                         "supply gain); 0: raw (100)")
     p.add_argument("--pressure-filter", type=_pressure_filter, default=None,
@@ -132,8 +178,13 @@ def cmd_bench(args) -> int:
                       overrides=dict(args.set or []), ranges_V=args.ranges,
                       positions=args.positions, count=args.count,
                       fine_rate_Hz=args.fine_rate, sensor=sensor)
-    res = run_bench(cfg, args.out, overwrite=args.overwrite,
-                    progress=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
+    try:
+        res = run_bench(cfg, args.out, overwrite=args.overwrite,
+                        progress=None if args.quiet else
+                        (lambda m: print(m, file=sys.stderr)))
+    except FileExistsError as exc:
+        raise PneubayesError(f"--out {args.out}: {exc.filename or exc} exists (use "
+                             "--overwrite to replace the recordings)") from None
     for p in res.recordings:
         print(p)
     print(res.truth_path)
@@ -141,10 +192,12 @@ def cmd_bench(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    from pneubayes.atomic import write_text_atomic
     from pneubayes.io.recording import read_recording
     from pneubayes.model import Model
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
+    out = _output_file(args.out, ".csv", args.overwrite)
     rec = read_recording(args.recording, args.accept)
     model, params = Model.load_card(args.model)
     _print_findings("simulate", [rec])
@@ -152,19 +205,38 @@ def cmd_simulate(args) -> int:
                           max_step_s=args.max_step, min_step_s=1e-12, max_steps_per_s=2.5e7)
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
                     float(rec.pressure_Pa[0]), solver)
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise PneubayesError(f"--out {out}: file exists (use --overwrite)")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp")
-    np.savetxt(tmp, np.column_stack([rec.time_s, traj.pressure_Pa[0]]), delimiter=",",
-               header="time_s,pressure_Pa", comments="", fmt=["%.9g", "%.6f"])
-    tmp.replace(out)
     p = traj.pressure_Pa[0]
+    write_text_atomic(out, "time_s,pressure_Pa\n" + "".join(
+        f"{t:.9g},{v:.6f}\n" for t, v in zip(rec.time_s, p)))
     rmse = float(np.sqrt(np.mean((p - rec.pressure_Pa) ** 2)))
     print(f"{out}: {p.size} samples; open-loop RMSE against the measured pressure "
           f"{rmse:.0f} Pa ({100 * rmse / rec.working_range_Pa:.2f} % of range)")
     return 0
+
+
+def _output_file(path: str, suffix: str, overwrite: bool, *companions: str) -> Path:
+    """Check an output file name before any work: its suffix, not a folder, and neither
+    it nor its ``companions`` (suffixes written beside it) existing without --overwrite."""
+    out = Path(path)
+    if out.suffix != suffix:
+        raise PneubayesError(f"--out {out}: must end in {suffix}" + (
+            f" (written beside it: {', '.join(out.stem + c for c in companions)})"
+            if companions else ""))
+    parent = next((q for q in out.parents if q.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise PneubayesError(f"--out {out}: {parent} is a file, not a folder")
+    for p in (out, *(out.with_suffix(c) for c in companions)):
+        if p.is_dir():
+            raise PneubayesError(f"--out {out}: {p} is a folder")
+        if p.exists() and not overwrite:
+            raise PneubayesError(f"--out {out}: {p} exists (use --overwrite to replace it)")
+    return out
+
+
+def _recording_files(paths) -> list[Path]:
+    from pneubayes.io.recording import recording_paths
+
+    return [f for p in paths for f in recording_paths(p)]
 
 
 def _read_all(paths, accept, command):
@@ -187,12 +259,25 @@ def cmd_fit(args) -> int:
     else:
         names = [n.strip() for n in args.effects.split(",") if n.strip()]
         model = Model(effects_from_names(names, args.leak_form))
+    if args.walkers and args.walkers < 2 * model.n_parameters:
+        raise PneubayesError(f"--walkers {args.walkers}: emcee needs at least twice the "
+                             f"{model.n_parameters} sampled dimensions of this model, >= "
+                             f"{2 * model.n_parameters} (or 0: automatic)")
     settings = FitSettings(sampler=SamplerSettings(
         n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args))
-    summary = run_fit(recs, model, settings, args.out, progress=not args.quiet,
-                      log=(lambda m: None) if args.quiet else
-                      (lambda m: print(m, file=sys.stderr)), figures=not args.no_figures,
-                      method=args.method)
+    identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
+                "effects": list(model.effect_names),
+                "options": {e.name: e.options() for e in model.effects},
+                "method": args.method, "walkers": args.walkers, "seed": args.seed,
+                "preparation": settings.preparation(), "accept": list(args.accept)}
+    folder = open_run_folder(args.out, "fit", identity, overwrite=args.overwrite,
+                             resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
+    log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
+    if folder.resumed:
+        log(f"fit: resuming the run in {args.out}")
+    summary = run_fit(recs, model, settings, args.out, progress=not args.quiet, log=log,
+                      figures=not args.no_figures, method=args.method)
+    folder.record(*(n for n in FIT_OUTPUTS if n != "figures"))
     if args.method != "mcmc":
         est = summary["start"] if args.method == "lsq" else summary["refined"]
         print(f"{args.out}/model.json  ({args.method} estimate, "
@@ -218,11 +303,16 @@ def cmd_predict(args) -> int:
     from pneubayes.io.recording import read_recording
     from pneubayes.simulation import SolverConfig
 
+    companions = (".metrics.json",) + (() if args.no_figure else (".png",))
+    out = _output_file(args.out, ".csv", args.overwrite, *companions)
+    run = Path(args.run)
+    for name in ("model.json", "posterior.nc"):
+        if not (run / name).is_file():
+            raise PneubayesError(f"{run}: no {name} (a run folder of 'pneubayes fit' with "
+                                 "the default --method mcmc, or of 'pneubayes discover')")
+        check_file(run, name)
     rec = read_recording(args.recording, args.accept)
     _print_findings("predict", [rec])
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise PneubayesError(f"--out {out}: file exists (use --overwrite)")
     figure = None if args.no_figure else out.with_suffix(".png")
     m = run_predict(args.run, rec, args.horizon, out, args.draws, args.seed,
                     SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
@@ -250,7 +340,16 @@ def cmd_discover(args) -> int:
                                                 max_steps=args.max_steps, seed=args.seed),
                         **_cutoffs(args)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
+    identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
+                "settings": settings.to_dict(), "accept": list(args.accept)}
+    folder = open_run_folder(args.out, "discover", identity, overwrite=args.overwrite,
+                             resume=args.resume, outputs=DISCOVER_OUTPUTS,
+                             argv=args.argv)
+    if folder.resumed:
+        log(f"discover: resuming the run in {args.out} (finished fits are reused)")
     doc = run_discover(recs, settings, args.out, log=log, figures=not args.no_figures)
+    folder.record("discovery.json", "model.json", "posterior.nc", "disagreement.json",
+                  "report.md")
     print(f"{args.out}/discovery.json: base held-out 2-s RMSE {doc['rmse_base_Pa']:.0f} Pa, "
           f"final {doc['rmse_final_Pa']:.0f} Pa (noise floor {doc['noise_floor_Pa']:.0f} Pa)")
     if not doc["effects"]:
@@ -267,10 +366,6 @@ def cmd_discover(args) -> int:
     return 0
 
 
-def _terminate(signum, frame):
-    raise KeyboardInterrupt
-
-
 def cmd_ablate(args) -> int:
     from pneubayes.ablation.executor import DaskExecutor, LocalExecutor
     from pneubayes.ablation.runner import run_study
@@ -282,34 +377,29 @@ def cmd_ablate(args) -> int:
     if args.scheduler and args.workers is not None:
         raise PneubayesError("--workers: not with --scheduler (the Dask cluster has its own "
                              "workers)")
-    if args.workers is not None and args.workers < 1:
-        raise PneubayesError(f"--workers must be >= 1, got {args.workers}")
     if args.dry_run:
         for cell in study.cells():
             print(cell.id)
         print(f"{args.study}: valid; {study.n_cells} cell(s) (nothing run)")
         return 0
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
+    folder = open_run_folder(args.out, "ablate", {"study": study.to_dict()},
+                             overwrite=args.overwrite, resume=args.resume,
+                             outputs=("results.json", "results.csv", "cells", "work"),
+                             argv=args.argv)
+    if folder.resumed:
+        log(f"ablate: resuming the study in {args.out}")
     try:
         executor = (DaskExecutor(args.scheduler) if args.scheduler
                     else LocalExecutor(args.workers or 1))
     except (ImportError, OSError) as exc:
         raise PneubayesError(f"--scheduler {args.scheduler}: {exc}") from None
-    # A batch system's SIGTERM stops the study like Ctrl-C: running cells are cancelled
-    # (local worker processes ended), finished ones are already on disk.
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _terminate) if in_main else None
-    try:
-        with executor:
-            doc = run_study(study, args.out, executor, progress=not args.quiet, log=log,
-                            keep_work=args.keep_work)
-    except KeyboardInterrupt:
-        print(f"pneubayes ablate: interrupted; finished cells are in {args.out}/cells "
-              "(run the same command again to resume)", file=sys.stderr)
-        return 130
-    finally:
-        if in_main:
-            signal.signal(signal.SIGTERM, previous)
+    # SIGINT or SIGTERM (a batch system's stop) ends the study between cells: running
+    # cells are cancelled (local worker processes ended), finished ones are on disk
+    with executor:
+        doc = run_study(study, args.out, executor, progress=not args.quiet, log=log,
+                        keep_work=args.keep_work)
+    folder.record("results.json", "results.csv")
     c = doc["counts"]
     print(f"{args.out}/results.json  ({c['cells']} cells: {c['ok']} ok, {c['error']} failed; "
           f"{c['run_now']} run now, {c['cached']} cached)")
@@ -324,9 +414,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "the virtual test bench.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    c = sub.add_parser("check", help="validate recordings against recording-format.md",
-                       description="Validate recordings (CSV + JSON pairs); print every "
-                                   "problem with file, row or key, and reason. Exit 1 if any.")
+    c = sub.add_parser("check", help="validate recordings against docs/recording-format.md",
+                       description="Validate recordings (CSV + JSON pairs, "
+                                   "docs/recording-format.md): print every problem with "
+                                   "file, row or key, and reason (exit 1 if any), the "
+                                   "plausibility warnings and the unit conversions.")
     c.add_argument("files", nargs="+", help="recording .csv/.json paths or stems")
     c.add_argument("-q", "--quiet", action="store_true",
                    help="print only problems and plausibility warnings")
@@ -350,18 +442,19 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--protocol", default="fixed", choices=("fixed", "moving"),
                    help="fixed: random steps at fixed positions; moving: aggressive piston "
                         "motion")
-    b.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
-    b.add_argument("--seed", type=int, required=True, help="random seed (recorded in truth)")
+    b.add_argument("--duration", type=POSITIVE, default=20.0, help="seconds per recording")
+    b.add_argument("--seed", type=NON_NEGATIVE_INT, required=True,
+                   help="random seed (recorded in truth)")
     b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=(5.0, 3.0, 0.5),
                    help="fixed protocol: command ranges in V (default 5,3,0.5)")
     b.add_argument("--positions", type=lambda s: _floats(s, "--positions"),
                    default=(0.1, 0.5, 0.9),
                    help="fixed protocol: positions as fractions of stroke (default 0.1,0.5,0.9)")
-    b.add_argument("--count", type=int, default=2, help="moving protocol: recordings")
-    b.add_argument("--rate", type=float, default=1000.0, help="output sample rate, Hz")
-    b.add_argument("--fine-rate", type=float, default=10_000.0,
+    b.add_argument("--count", type=POSITIVE_INT, default=2, help="moving protocol: recordings")
+    b.add_argument("--rate", type=POSITIVE, default=1000.0, help="output sample rate, Hz")
+    b.add_argument("--fine-rate", type=POSITIVE, default=10_000.0,
                    help="truth simulation grid, Hz (a multiple of --rate)")
-    b.add_argument("--pressure-noise", type=float, default=500.0,
+    b.add_argument("--pressure-noise", type=NON_NEGATIVE, default=500.0,
                    help="pressure sensor noise std, Pa")
     b.add_argument("--out", required=True, help="output directory")
     b.add_argument("--overwrite", action="store_true", help="replace existing files")
@@ -375,10 +468,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("recording", help="recording .csv/.json path or stem")
     s.add_argument("--model", required=True, help="model card (pneubayes-model/1 JSON)")
     s.add_argument("--out", required=True, help="output CSV (time_s,pressure_Pa)")
-    s.add_argument("--rtol", type=float, default=3e-5, help="relative tolerance (3e-5, as "
+    s.add_argument("--rtol", type=POSITIVE, default=3e-5, help="relative tolerance (3e-5, as "
                    "SolverConfig.standard)")
-    s.add_argument("--atol", type=float, default=10.0, help="absolute tolerance, Pa (10)")
-    s.add_argument("--max-step", type=float, default=0.02, help="largest step, s (0.02)")
+    s.add_argument("--atol", type=POSITIVE, default=10.0, help="absolute tolerance, Pa (10)")
+    s.add_argument("--max-step", type=POSITIVE, default=0.02, help="largest step, s (0.02)")
     s.add_argument("--overwrite", action="store_true")
     _add_accept(s)
     s.set_defaults(func=cmd_simulate)
@@ -400,10 +493,12 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
                    help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
                         "shooting on 2-s windows; mcmc (default): then the emcee posterior")
-    f.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
-    f.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
-    f.add_argument("--seed", type=int, default=0, help="sampler seed (recorded)")
+    f.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
+                   help="emcee walkers (0: automatic)")
+    f.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
+    f.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="sampler seed (recorded)")
     _add_cutoffs(f)
+    _add_run_folder(f)
     f.add_argument("--no-figures", action="store_true")
     f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     _add_accept(f)
@@ -416,10 +511,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "band coverage and the noise floor.")
     r.add_argument("run", help="run folder written by 'pneubayes fit'")
     r.add_argument("recording", help="recording .csv/.json path or stem")
-    r.add_argument("--horizon", type=float, default=2.0, help="window length, s")
-    r.add_argument("--stride", type=float, default=None, help="window spacing (= horizon)")
-    r.add_argument("--draws", type=int, default=200, help="posterior draws")
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--horizon", type=POSITIVE, default=2.0, help="window length, s")
+    r.add_argument("--stride", type=POSITIVE, default=None, help="window spacing (= horizon)")
+    r.add_argument("--draws", type=POSITIVE_INT, default=200, help="posterior draws")
+    r.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
     r.add_argument("--out", required=True, help="output CSV")
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
@@ -436,22 +531,25 @@ def build_parser() -> argparse.ArgumentParser:
                     "report.md and figures/.")
     d.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
     d.add_argument("--out", required=True, help="run folder (an interrupted run resumes)")
-    d.add_argument("--holdout", type=float, default=1.0 / 3.0,
+    d.add_argument("--holdout", type=_fraction, default=1.0 / 3.0,
                    help="fraction of every recording (its end) held out to verify (1/3)")
-    d.add_argument("--max-effects", type=int, default=4, help="stop after adding this many")
-    d.add_argument("--tube-line-segments", type=int, default=3,
+    d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=4,
+                   help="stop after adding this many")
+    d.add_argument("--tube-line-segments", type=NON_NEGATIVE_INT, default=3,
                    help="cells of the acoustic-line form tried for a named tube; 0 tries the "
                         "transport delay only (the line is tens of times slower to simulate) (3)")
-    d.add_argument("--form-settled-ratio", type=float, default=1.05,
+    d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "
                         "noise floor; 0 fits every form (1.05)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
-    d.add_argument("--walkers", type=int, default=0, help="emcee walkers (0: automatic)")
-    d.add_argument("--max-steps", type=int, default=20000, help="emcee step limit")
-    d.add_argument("--seed", type=int, default=0, help="seed of bagging and sampler")
+    d.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
+                   help="emcee walkers (0: automatic)")
+    d.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
+    d.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="seed of bagging and sampler")
     _add_cutoffs(d)
+    _add_run_folder(d)
     d.add_argument("--no-figures", action="store_true")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     _add_accept(d)
@@ -471,10 +569,11 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on a Dask distributed cluster at this scheduler address "
                         "(needs pip install 'pneubayes[dask]')")
-    a.add_argument("--workers", type=int, default=None,
+    a.add_argument("--workers", type=POSITIVE_INT, default=None,
                    help="local worker processes (default 1: in this process)")
     a.add_argument("--smoke", action="store_true",
                    help="one cell (the first value of every axis) with short recordings")
+    _add_run_folder(a)
     a.add_argument("--dry-run", action="store_true",
                    help="validate the study and list its cells; run and write nothing")
     a.add_argument("--keep-work", action="store_true",
@@ -484,15 +583,48 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _stopped_message(args, exc) -> str:
+    out = getattr(args, "out", None)
+    kept = f"finished work is kept in {out}; " if out else ""
+    return (f"pneubayes {args.command}: {exc}; {kept}run the same command again to "
+            "resume")
+
+
 def main(argv=None) -> int:
+    """Run one command. Errors are one message naming the file, option or key (exit 2;
+    ``check`` exits 1 when a file has problems); a stop by SIGINT or SIGTERM keeps the
+    finished work and exits 130 or 143; an unexpected failure is reported as an internal
+    error (exit 70), with the traceback only when ``PNEUBAYES_TRACEBACK=1``."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
+
+    def fail(message: str, code: int = 2) -> int:
+        print(f"pneubayes {args.command}: error: {message}", file=sys.stderr)
+        return code
     try:
-        return args.func(args)
-    except (PneubayesError, FileExistsError, FileNotFoundError, KeyError, ValueError) as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        print(f"pneubayes {args.command}: error: {msg}", file=sys.stderr)
-        return 2
+        with interrupt.stop_on_signals():
+            return args.func(args)
+    except interrupt.Interrupted as exc:
+        print(_stopped_message(args, exc), file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print(_stopped_message(args, "interrupted by SIGINT"), file=sys.stderr)
+        return 130
+    except (PneubayesError, KeyError, ValueError) as exc:
+        return fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc))
+    except OSError as exc:  # permissions, a full disk, a folder for a file, HDF5 files
+        where = exc.filename or ""
+        what = exc.strerror or str(exc)
+        return fail(f"{where}: {what}" if where else what)
+    except (ArithmeticError, MemoryError) as exc:
+        return fail(f"numerical failure ({type(exc).__name__}: {exc})")
+    except Exception as exc:  # a bug: say so, in one message
+        if os.environ.get("PNEUBAYES_TRACEBACK"):
+            traceback.print_exc()
+        return fail(f"internal error ({type(exc).__name__}: {exc}); this is a bug in "
+                    "pneubayes, please report it with the command line (set "
+                    "PNEUBAYES_TRACEBACK=1 to see where it happened)", 70)
 
 
 if __name__ == "__main__":

@@ -585,3 +585,41 @@ def test_nuisance_ranges_keep_natural_parameters_in_bounds(bench):
             z3 = z.copy()
             z3[0, cols[k]] = lo[0, k] - 1e-6 * (hi[0, k] - lo[0, k])
             assert np.isinf(like.log_prior(like.from_sampling(z3))[0])
+
+
+@pytest.mark.slow
+def test_a_stop_request_ends_the_chain_between_steps_and_it_resumes(bench, tmp_path):
+    import os
+    import signal
+
+    import emcee
+
+    from pneubayes import interrupt
+
+    recs, model, truth = bench
+    settings = SamplerSettings(n_walkers=32, max_steps=60, check_every=20, adapt_rounds=2,
+                               adapt_steps=20, seed=4)
+    path = tmp_path / "chain.h5"
+    lines = []
+
+    def log(message):
+        lines.append(message)
+        if message.startswith("emcee: step 20 "):
+            os.kill(os.getpid(), signal.SIGTERM)
+    with interrupt.stop_on_signals(), pytest.raises(interrupt.Interrupted) as exc:
+        BayesianIdentification(model, SolverConfig.standard(), settings, backend_path=path,
+                               progress=False, log=log).fit(recs[:2], truth)
+    assert exc.value.exit_code == 143
+    # the stop lands after the step that was running: every finished step is stored
+    from pneubayes.inference.chain_store import GROUP
+
+    stored = emcee.backends.HDFBackend(str(path), name=GROUP, read_only=True)
+    assert stored.iteration == 21
+    assert "of at most 60" in lines[0] and "min left" in lines[0]
+    lines.clear()
+    again = BayesianIdentification(model, SolverConfig.standard(), settings,
+                                   backend_path=path, progress=False,
+                                   log=lines.append).fit(recs[:2], truth)
+    assert again.resumed_ and again.resumed_from_step_ == 21
+    assert again.sampler_.iteration == 60
+    assert lines[0].startswith("emcee: resumed from step 21")

@@ -189,3 +189,104 @@ def test_refine_from_the_generic_start_recovers_another_valve(tmp_path):
     for k in ("inlet_a_m2", "exhaust_a_m2", "dead_volume_m3", "inlet_c_per_V",
               "exhaust_c_per_V"):
         assert est[k] == pytest.approx(truth[k], rel=0.02), k
+
+
+def _snapshot(folder):
+    return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def test_predict_never_combines_files_of_different_runs(fitted, tmp_path, capsys):
+    import shutil
+
+    run, _, held = fitted
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    rec = str(held.recordings[0])
+    out = tmp_path / "p.csv"
+    card = json.loads((copy / "model.json").read_text())
+    card["parameters"]["dead_volume_m3"] *= 1.01  # a card edited, or taken from another run
+    (copy / "model.json").write_text(json.dumps(card))
+    capsys.readouterr()
+    assert main(["predict", str(copy), rec, "--out", str(out), "--no-figure"]) == 2
+    assert "not the file its run produced" in capsys.readouterr().err
+    # a folder without a stamp (written before stamps): the posterior's own card tells
+    (copy / "run.json").unlink()
+    assert main(["predict", str(copy), rec, "--out", str(out), "--no-figure"]) == 2
+    assert "sampled for another model card" in capsys.readouterr().err
+    # a truncated posterior is a message, not a traceback
+    shutil.copy(run / "model.json", copy / "model.json")
+    data = (run / "posterior.nc").read_bytes()
+    (copy / "posterior.nc").write_bytes(data[: len(data) // 2])
+    assert main(["predict", str(copy), rec, "--out", str(out), "--no-figure"]) == 2
+    err = capsys.readouterr().err
+    assert "posterior.nc" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_predict_checks_its_output_names_and_options_before_any_work(fitted, tmp_path,
+                                                                     capsys):
+    run, _, held = fitted
+    rec = str(held.recordings[0])
+    capsys.readouterr()
+    assert main(["predict", str(run), rec, "--out", str(tmp_path / "p.png")]) == 2
+    assert "must end in .csv" in capsys.readouterr().err
+    (tmp_path / "p.png").write_text("a figure of mine")
+    assert main(["predict", str(run), rec, "--out", str(tmp_path / "p.csv")]) == 2
+    assert "p.png exists" in capsys.readouterr().err
+    assert (tmp_path / "p.png").read_text() == "a figure of mine"
+    for bad in (["--horizon", "-1"], ["--horizon", "0"], ["--draws", "0"], ["--stride", "0"]):
+        with pytest.raises(SystemExit) as exc:
+            main(["predict", str(run), rec, "--out", str(tmp_path / "q.csv"), *bad])
+        assert exc.value.code == 2
+        assert "must be >" in capsys.readouterr().err
+    assert not (tmp_path / "q.csv").exists()
+
+
+def test_fit_refuses_to_mix_runs_and_overwrites_only_its_own_files(fitted, tmp_path, capsys):
+    import shutil
+
+    run, train, held = fitted
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    recs = [str(p) for p in train.recordings]
+    before = _snapshot(copy)
+    capsys.readouterr()
+    # the stale-posterior case: another method into a copy of a finished run
+    assert main(["fit", *recs, "--out", str(copy), "--method", "refine", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "refusing to mix runs" in err and "--overwrite" in err
+    assert _snapshot(copy) == before
+    (copy / "notes.txt").write_text("mine")
+    assert main(["fit", *recs, "--out", str(copy), "--method", "lsq", "--overwrite", "-q"]) == 0
+    assert not (copy / "posterior.nc").exists() and not (copy / "chain.h5").exists()
+    assert (copy / "notes.txt").read_text() == "mine"
+    stamp = json.loads((copy / "run.json").read_text())
+    assert stamp["command"] == "fit" and set(stamp["files"]) == {"model.json", "summary.json"}
+    assert stamp["argv"][:1] == ["fit"]
+    assert main(["predict", str(copy), str(held.recordings[0]), "--out",
+                 str(tmp_path / "p.csv")]) == 2
+    assert "no posterior.nc" in capsys.readouterr().err
+    # the same command again is its own run: allowed; --resume on an empty folder is not
+    assert main(["fit", *recs, "--out", str(copy), "--method", "lsq", "-q"]) == 0
+    assert main(["fit", *recs, "--out", str(tmp_path / "new"), "--resume", "-q"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err
+    # emcee needs twice as many walkers as dimensions: said before any work
+    assert main(["fit", *recs, "--out", str(tmp_path / "w"), "--walkers", "1", "-q"]) == 2
+    assert "--walkers 1" in capsys.readouterr().err and not (tmp_path / "w").exists()
+
+
+def test_a_truncated_chain_is_a_message_naming_it(fitted, tmp_path, capsys):
+    import shutil
+
+    run, train, _ = fitted
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    data = (copy / "chain.h5").read_bytes()
+    (copy / "chain.h5").write_bytes(data[: len(data) // 3])
+    capsys.readouterr()
+    # the same fit resumes (its least squares and refinement are saved) and meets the file
+    rc = main(["fit", *map(str, train.recordings), "--out", str(copy), "--walkers", "32",
+               "--max-steps", "150", "--seed", "3", "-q", "--no-figures"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "chain.h5" in err and "Traceback" not in err

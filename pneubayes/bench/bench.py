@@ -19,6 +19,7 @@ and ``bench.planted_effects`` names the catalogue effects of both.
 
 from __future__ import annotations
 
+import errno
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -156,6 +157,10 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
               progress: Callable[[str], None] | None = None) -> BenchResult:
     """Generate the recordings of ``cfg`` into ``out_dir`` and write ``truth.json``."""
     out = Path(out_dir)
+    truth_path = out / "truth.json"
+    if truth_path.exists() and not overwrite:  # before any work, so nothing is half-done
+        raise FileExistsError(errno.EEXIST, "refusing to overwrite (pass overwrite=True)",
+                              str(truth_path))
     out.mkdir(parents=True, exist_ok=True)
     cyl = cylinder_preset(cfg.cylinder)
     model = cfg.model
@@ -231,9 +236,6 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
                 "atmospheric_pressure_Pa": ATMOSPHERE_PA, "supply_pressure_Pa": SUPPLY_PA,
                 "temperature_K": TEMPERATURE_K},
         "recordings": entries, "pneubayes_version": pneubayes.__version__}})
-    truth_path = out / "truth.json"
-    if truth_path.exists() and not overwrite:
-        raise FileExistsError(f"{truth_path} exists (use overwrite)")
     write_json_atomic(truth_path, card)
     return BenchResult(tuple(written), truth_path, card)
 
