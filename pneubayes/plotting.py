@@ -99,61 +99,99 @@ def plot_volume_map(model, samples, bore_m: float, stroke_m: float, path) -> Pat
     return _save(fig, path)
 
 
-def plot_corner(names, samples, path, max_points: int = 2000) -> Path:
-    """Pairwise scatter and marginal histograms of posterior draws."""
+def plot_corner(names, samples, path, max_points: int = 2000, title: str = "") -> Path:
+    """Pairwise scatter and marginal histograms of posterior draws; few ticks per axis and
+    rotated labels, so nothing overlaps."""
+    from matplotlib.ticker import MaxNLocator
+
     plt = _pyplot()
     x = np.asarray(samples)
     x = x[:: max(1, len(x) // max_points)]
     d = len(names)
-    fig, axes = plt.subplots(d, d, figsize=(1.6 * d, 1.6 * d), squeeze=False)
+    size = max(1.9 * d, 4.0)
+    fig, axes = plt.subplots(d, d, figsize=(size, size), squeeze=False)
     for i in range(d):
         for j in range(d):
             ax = axes[i, j]
             if j > i:
                 ax.axis("off")
                 continue
+            ax.xaxis.set_major_locator(MaxNLocator(3))
+            ax.yaxis.set_major_locator(MaxNLocator(3))
             if i == j:
                 ax.hist(x[:, i], bins=30, color="0.4")
+                ax.set_yticks([])
             else:
                 ax.plot(x[:, j], x[:, i], ",", alpha=0.4, color="k")
             ax.tick_params(labelsize=5)
+            ax.xaxis.get_offset_text().set_fontsize(5)
+            ax.yaxis.get_offset_text().set_fontsize(5)
             if i == d - 1:
-                ax.set_xlabel(names[j], fontsize=6)
+                ax.set_xlabel(names[j], fontsize=6, rotation=20, ha="right")
+                ax.tick_params(axis="x", labelrotation=45)
+            else:
+                ax.set_xticklabels([])
             if j == 0 and i > 0:
-                ax.set_ylabel(names[i], fontsize=6)
+                ax.set_ylabel(names[i], fontsize=6, rotation=70, ha="right")
+            elif i != j:
+                ax.set_yticklabels([])
+    if title:
+        fig.suptitle(title, fontsize=8)
+    fig.align_labels()
     return _save(fig, path)
+
+
+def corner_names(model) -> list[str]:
+    """The parameters a fit's corner plot shows: the Gompertz scales and slopes, the dead
+    volume and every effect's parameters (the fitted additions)."""
+    base = ("inlet_a_m2", "inlet_c_per_V", "exhaust_a_m2", "exhaust_c_per_V",
+            "dead_volume_m3")
+    effects = [p.name for e in model.effects for p in e.parameters()]
+    return [n for n in model.parameter_names if n in base or n in effects]
 
 
 def plot_fit_figures(model, samples, recordings, folder, idata=None) -> list[Path]:
     """The figures of a fit run: area bands, volume map, corner plot."""
     folder = Path(folder)
     rec = recordings[0]
-    names = [n for n in ("inlet_a_m2", "inlet_c_per_V", "exhaust_a_m2", "exhaust_c_per_V",
-                         "dead_volume_m3", "leak_area_m2", "leak_conductance_kg_per_s_Pa2")
-             if n in model.parameter_names]
+    names = corner_names(model)
     cols = [list(model.parameter_names).index(n) for n in names]
     return [plot_area_bands(model, samples, folder / "areas.png"),
             plot_volume_map(model, samples, rec.metadata.bore_m, rec.metadata.stroke_m,
                             folder / "volume.png"),
-            plot_corner(names, np.asarray(samples)[:, cols], folder / "corner.png")]
+            plot_corner(names, np.asarray(samples)[:, cols], folder / "corner.png",
+                        title="posterior of " + (" + ".join(model.effect_names)
+                                                 or "the thin-port model"))]
 
 
-def plot_prediction_bands(bands, path, max_windows: int = 3) -> Path:
-    """Measured pressure against the posterior-predictive mean and 90 % band (Figs. 7-10)."""
+def plot_prediction_bands(bands, path, max_windows: int = 3, title: str = "") -> Path:
+    """Measured pressure against the posterior-predictive mean and 90 % band (Figs. 7-10),
+    and below each window the residual (measured - mean) with the band drawn around it,
+    where a band narrower than the signal's scale can be seen."""
     plt = _pyplot()
     w = min(max_windows, bands.mean.shape[0])
-    fig, axes = plt.subplots(w, 1, figsize=(9, 2.6 * w), squeeze=False)
+    fig, axes = plt.subplots(2 * w, 1, figsize=(9, 3.6 * w), squeeze=False,
+                             height_ratios=[2, 1] * w)
     for k in range(w):
-        ax = axes[k, 0]
+        ax, res = axes[2 * k, 0], axes[2 * k + 1, 0]
         t = bands.time_s[k]
+        mean = bands.mean[k]
         ax.fill_between(t, bands.q05[k] / 1e3, bands.q95[k] / 1e3, alpha=0.3, lw=0,
-                        label="90 % predictive band")
-        ax.plot(t, bands.measured[k] / 1e3, color="0.4", lw=0.8, label="measured")
-        ax.plot(t, bands.mean[k] / 1e3, lw=1.0, label="posterior mean")
-        ax.set_ylabel("kPa abs")
+                        color="tab:blue", label="90 % predictive band")
+        ax.plot(t, bands.measured[k] / 1e3, color="k", lw=0.7, label="measured")
+        ax.plot(t, mean / 1e3, lw=1.0, ls="--", color="tab:orange", label="posterior mean")
+        ax.set_ylabel("kPa abs", fontsize=8)
+        ax.set_xticklabels([])
+        res.fill_between(t, (bands.q05[k] - mean) / 1e3, (bands.q95[k] - mean) / 1e3,
+                         alpha=0.3, lw=0, color="tab:blue")
+        res.plot(t, (bands.measured[k] - mean) / 1e3, color="k", lw=0.6)
+        res.axhline(0.0, color="tab:orange", lw=0.8, ls="--")
+        res.set_ylabel("residual (kPa)", fontsize=8)
         if k == 0:
             ax.legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("time (s)")
+    if title:
+        fig.suptitle(title, fontsize=9)
     return _save(fig, path)
 
 
