@@ -267,3 +267,15 @@ def test_runs_record_the_findings_of_their_recordings(tmp_path):
         ("pressure-span", False), ("sample-interval", False), ("working-range", True)]
     assert all(d["recording"] == str(path) and d["severity"] == "warning" for d in doc)
     json.dumps(doc)  # as a run writes it
+
+
+def test_unit_slips_experiment_smoke(tmp_path):
+    from conftest import load_experiment
+
+    mod = load_experiment("unit_slips")
+    assert mod.main(["--smoke", "--out", str(tmp_path)]) == 0
+    doc = json.loads((tmp_path / "unit_slips.json").read_text())
+    table = doc["table"]["bench"]
+    assert table["correct"]["caught"] == 0 and table["correct"]["n"] == 2
+    for slip in mod.SLIPS:
+        assert table[slip]["caught"] == table[slip]["named"] == 2, slip

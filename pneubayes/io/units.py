@@ -44,6 +44,10 @@ QUANTITIES: dict[str, tuple[str, str, bool]] = {
 #: A pneumatic chamber's usual swing (a shop supply of a few bar gauge), Pa: ranks the
 #: readings of a slipped pressure column.
 TYPICAL_SWING_Pa = 400e3
+#: How much more a reading's distance from the resting pressure counts than its swing's
+#: distance from the usual one (in log ratio): a chamber rests near the atmosphere
+#: (within a few %), while swings range from a few kPa (ventilators) to MPa.
+REST_WEIGHT = 40.0
 _TABLES = {"pressure": PRESSURE_UNITS, "time": TIME_UNITS, "length": LENGTH_UNITS,
            "temperature": TEMPERATURE_UNITS}
 
@@ -154,8 +158,9 @@ def pressure_readings(values_Pa, low_Pa: float, high_Pa: float,
                 text = f"{name} ({v:g} {name} = {x:.6g} Pa absolute)"
                 if rest_Pa is None:
                     score = abs(math.log(max(si) / middle))
-                else:  # rests near rest_Pa and swings over a working range
+                else:  # rests near rest_Pa (strongly) and swings over a working range
                     swing = max(max(si) - min(si), 1.0) / TYPICAL_SWING_Pa
-                    score = abs(math.log(min(si) / rest_Pa)) + abs(math.log(swing))
+                    score = (REST_WEIGHT * abs(math.log(min(si) / rest_Pa))
+                             + abs(math.log(swing)))
                 found.append((score, text))
     return [text for _, text in sorted(found)[:limit]]
