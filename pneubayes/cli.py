@@ -583,6 +583,19 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _check_single_values(parser, args) -> None:
+    """argparse lets ``--opt=--`` through as an empty list, unconverted: refuse any
+    single-valued option whose value is a list, as a usage error naming it."""
+    subparsers = next(a for a in parser._actions
+                      if isinstance(a, argparse._SubParsersAction))
+    sub = subparsers.choices[args.command]
+    for action in sub._actions:
+        value = getattr(args, action.dest, None)
+        if (type(action) is argparse._StoreAction and action.nargs is None
+                and action.option_strings and isinstance(value, list)):
+            sub.error(f"argument {'/'.join(action.option_strings)}: expected one value")
+
+
 def _stopped_message(args, exc) -> str:
     out = getattr(args, "out", None)
     kept = f"finished work is kept in {out}; " if out else ""
@@ -597,6 +610,7 @@ def main(argv=None) -> int:
     error (exit 70), with the traceback only when ``PNEUBAYES_TRACEBACK=1``."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    _check_single_values(parser, args)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
 
     def fail(message: str, code: int = 2) -> int:

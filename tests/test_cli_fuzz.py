@@ -220,3 +220,34 @@ def test_mutated_study_files_never_raise(seeds, data, capsys):
                     capsys) in (0, 2)
         assert _snapshot(inputs) == before
         assert not (out / "abl").exists()
+
+
+OPTION_VALUES = ["-1", "0", "-0", "nan", "inf", "-inf", "1e400", "abc", "", " ", "3.5",
+                 "2", "1e-300", "0x10", "1_0", "--", "5,5"]
+
+
+@FUZZ
+@given(data=st.data())
+def test_mutated_options_never_raise(seeds, data, capsys):
+    with fresh(seeds) as (inputs, out):
+        rec, card, study = (str(inputs / n) for n in ("rec.csv", "card.json", "study.toml"))
+        commands = {
+            "check": (["check", rec], ["--accept"]),
+            "simulate": (["simulate", rec, "--model", card, "--out", str(out / "p.csv")],
+                         ["--rtol", "--atol", "--max-step", "--accept"]),
+            "predict": (["predict", str(inputs), rec, "--out", str(out / "p.csv")],
+                        ["--horizon", "--stride", "--draws", "--seed"]),
+            "ablate": (["ablate", study, "--out", str(out / "abl"), "--dry-run"],
+                       ["--workers"]),
+            # one recording: --method lsq refuses it once the options have passed
+            "fit": (["fit", rec, "--out", str(out / "fit"), "--method", "lsq"],
+                    ["--walkers", "--max-steps", "--seed", "--supply-cutoff",
+                     "--pressure-filter"]),
+        }
+        name = data.draw(st.sampled_from(sorted(commands)))
+        argv, options = commands[name]
+        option = data.draw(st.sampled_from(options))
+        value = data.draw(st.one_of(st.sampled_from(OPTION_VALUES), st.text(max_size=4)))
+        before = _snapshot(inputs)
+        assert _run([*argv, f"{option}={value}"], capsys) in (0, 1, 2)
+        assert _snapshot(inputs) == before

@@ -137,6 +137,14 @@ def test_bad_options_are_refused_before_any_work(argv, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_ablate_into_a_file_is_a_message(tmp_path, capsys):
+    (tmp_path / "a_file").write_text("mine")
+    study = str(ROOT / "experiments" / "studies" / "smoke.toml")
+    assert main(["ablate", study, "--out", str(tmp_path / "a_file"), "-q"]) == 2
+    assert "is a file" in capsys.readouterr().err
+    assert (tmp_path / "a_file").read_text() == "mine"
+
+
 def test_simulate_into_a_folder_or_under_a_file_is_a_message(rec, tmp_path, capsys):
     card = str(ROOT / "data" / "air37_leak_tube" / "moving" / "truth.json")
     (tmp_path / "dir.csv").mkdir()
