@@ -1,7 +1,7 @@
 """Read, check and write recordings: the CSV + JSON interchange format.
 
 ``<stem>.csv`` holds the samples, ``<stem>.json`` what is known about the rig (the
-contract is ``recording-format.md``). Reading collects *every* problem and raises one
+contract is ``docs/recording-format.md``). Reading collects *every* problem and raises one
 :class:`~pneubayes.errors.RecordingError` with ``(location, reason)`` pairs; a location
 names the file and the row (1-based CSV line number, header = row 1) or the JSON key.
 
