@@ -125,3 +125,54 @@ def _physical_order(name: str) -> tuple:
         return (1, 0, name)
     side = {"<": -2, "<=": -1, None: 0, ">=": 1, ">": 2}[m.group(1)]
     return (0, float(m.group(2)), side)
+
+
+def disagreement_map(model: Model, params: dict, recordings, prediction_residuals,
+                     window_starts, horizon_samples: int, one_step_errors,
+                     noise_floor_Pa: float, settings: RegimeSettings) -> dict:
+    """Bin both residuals of ``recordings`` by regime.
+
+    ``prediction_residuals[i]`` ``(W_i, L)`` are the 2-s prediction errors of recording i
+    for windows starting at ``window_starts[i]``; ``one_step_errors[i]`` ``(N_i - 1,)``
+    its one-step errors (Pa). Returns ``{"prediction": {...}, "rate": {...}}``
+    (families -> bins) plus the noise levels used.
+    """
+    pr, pl, pc, rr, rl, rc = [], [], [], [], [], []
+    dt_all = []
+    cluster_base = 0
+    for i, rec in enumerate(recordings):
+        lab = regime_labels(model, params, rec, settings)
+        res = np.asarray(prediction_residuals[i])
+        idx = np.asarray(window_starts[i])[:, None] + np.arange(horizon_samples)[None, :]
+        idx, res = idx[:, 1:], res[:, 1:]  # window starts are measured, not predicted
+        pr.append(res.ravel())
+        pl.append({f: lab[f][idx.ravel()] for f in FAMILIES})
+        pc.append(cluster_base + np.repeat(np.arange(res.shape[0]), res.shape[1]))
+        cluster_base += res.shape[0]
+        t = np.asarray(rec.time_s)
+        dt = float(np.median(np.diff(t)))
+        dt_all.append(dt)
+        e = np.asarray(one_step_errors[i]) / dt
+        rr.append(e)
+        rl.append({f: lab[f][1:] for f in FAMILIES})
+        rc.append(cluster_base + (np.arange(e.size) * dt // 1.0).astype(np.int64))
+        cluster_base += int(e.size * dt // 1.0) + 1
+
+    def cat(parts):
+        return {f: np.concatenate([p[f] for p in parts]) for f in FAMILIES}
+
+    rate = np.concatenate(rr)
+    dt = float(np.median(dt_all))
+    rate_noise = float(np.sqrt(2.0) * noise_floor_Pa / dt)
+    return {
+        "noise_floor_Pa": noise_floor_Pa, "rate_noise_Pa_per_s": rate_noise,
+        "prediction": _bins(np.concatenate(pr), cat(pl), np.concatenate(pc), noise_floor_Pa,
+                            settings),
+        "rate": _bins(rate, cat(rl), np.concatenate(rc), rate_noise, settings),
+    }
+
+
+def flagged_bins(dmap: dict, kind: str = "prediction") -> list[tuple[str, dict]]:
+    """The flagged bins of one residual, strongest excess first."""
+    out = [(fam, b) for fam, bins in dmap[kind].items() for b in bins if b["flagged"]]
+    return sorted(out, key=lambda fb: fb[1]["excess_rms"], reverse=True)
