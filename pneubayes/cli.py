@@ -114,6 +114,38 @@ def _cutoffs(args) -> dict:
             "pressure_filter": args.pressure_filter}
 
 
+def _run_horizon(run: Path) -> float:
+    """The window length a run was fitted on (its summary or discovery document), s;
+    2 s for runs that do not record it."""
+    import json
+
+    for name, keys in (("summary.json", ("settings", "horizon_s")),
+                       ("discovery.json", ("horizon_s",))):
+        try:
+            doc = json.loads((run / name).read_text())
+            for k in keys:
+                doc = doc[k]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if isinstance(doc, (int, float)) and not isinstance(doc, bool) and doc > 0:
+            return float(doc)
+    return 2.0
+
+
+def _windows(args) -> dict:
+    """FitSettings' windows from --horizon and --stride (default: the horizon)."""
+    return {"horizon_s": args.horizon, "stride_s": args.stride or args.horizon}
+
+
+def _add_windows(p) -> None:
+    p.add_argument("--horizon", type=POSITIVE, default=2.0, metavar="S",
+                   help="length of the open-loop prediction windows the model is fitted "
+                        "and judged on, s (2, the paper's; shorter for short triggered "
+                        "trials)")
+    p.add_argument("--stride", type=POSITIVE, default=None, metavar="S",
+                   help="spacing of the windows, s (default: the horizon, no overlap)")
+
+
 def _pressure_filter(text: str):
     from pneubayes.physics.sensor_filter import PressureFilter
 
@@ -264,11 +296,13 @@ def cmd_fit(args) -> int:
                              f"{model.n_parameters} sampled dimensions of this model, >= "
                              f"{2 * model.n_parameters} (or 0: automatic)")
     settings = FitSettings(sampler=SamplerSettings(
-        n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args))
+        n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args),
+        **_windows(args))
     identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
                 "effects": list(model.effect_names),
                 "options": {e.name: e.options() for e in model.effects},
                 "method": args.method, "walkers": args.walkers, "seed": args.seed,
+                "windows": _windows(args),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
     folder = open_run_folder(args.out, "fit", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
@@ -314,7 +348,8 @@ def cmd_predict(args) -> int:
     rec = read_recording(args.recording, args.accept)
     _print_findings("predict", [rec])
     figure = None if args.no_figure else out.with_suffix(".png")
-    m = run_predict(args.run, rec, args.horizon, out, args.draws, args.seed,
+    horizon = args.horizon or _run_horizon(run)
+    m = run_predict(args.run, rec, horizon, out, args.draws, args.seed,
                     SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
     print(f"{out}: RMSE {m['rmse_Pa']:.0f} Pa ({m['rmse_percent_of_range']:.2f} % of range), "
           f"noise floor {m['noise_floor_Pa']:.0f} Pa, coverage 50 % -> {m['coverage_50']:.2f}, "
@@ -338,7 +373,7 @@ def cmd_discover(args) -> int:
         form_settled_ratio=args.form_settled_ratio,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed),
-                        **_cutoffs(args)))
+                        **_cutoffs(args), **_windows(args)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
                 "settings": settings.to_dict(), "accept": list(args.accept)}
@@ -350,7 +385,8 @@ def cmd_discover(args) -> int:
     doc = run_discover(recs, settings, args.out, log=log, figures=not args.no_figures)
     folder.record("discovery.json", "model.json", "posterior.nc", "disagreement.json",
                   "report.md")
-    print(f"{args.out}/discovery.json: base held-out 2-s RMSE {doc['rmse_base_Pa']:.0f} Pa, "
+    print(f"{args.out}/discovery.json: base held-out {args.horizon:g}-s RMSE "
+          f"{doc['rmse_base_Pa']:.0f} Pa, "
           f"final {doc['rmse_final_Pa']:.0f} Pa (noise floor {doc['noise_floor_Pa']:.0f} Pa)")
     if not doc["effects"]:
         print("  no missing effect is supported")
@@ -480,9 +516,9 @@ def build_parser() -> argparse.ArgumentParser:
         "fit", help="identify a model: paper least squares, refinement, emcee posterior",
         description="Fit the thin-port model (and effects) to recordings: the paper's "
                     "eq.-10 least squares on fixed-volume recordings, multiple shooting on "
-                    "2-s windows, then an emcee posterior. Writes RUNDIR/model.json "
-                    "(posterior median), posterior.nc, summary.json, chain.h5 (a killed "
-                    "run resumes), figures/.")
+                    "prediction windows (--horizon, 2 s by default), then an emcee "
+                    "posterior. Writes RUNDIR/model.json (posterior median), posterior.nc, "
+                    "summary.json, chain.h5 (a killed run resumes), run.json, figures/.")
     f.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
     f.add_argument("--out", required=True, help="run folder")
     f.add_argument("--model", help="model card whose effects (and options) to fit")
@@ -492,12 +528,13 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
     f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
                    help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
-                        "shooting on 2-s windows; mcmc (default): then the emcee posterior")
+                        "shooting on the windows; mcmc (default): then the emcee posterior")
     f.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
                    help="emcee walkers (0: automatic)")
     f.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
     f.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="sampler seed (recorded)")
     _add_cutoffs(f)
+    _add_windows(f)
     _add_run_folder(f)
     f.add_argument("--no-figures", action="store_true")
     f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -505,13 +542,14 @@ def build_parser() -> argparse.ArgumentParser:
     f.set_defaults(func=cmd_fit)
 
     r = sub.add_parser(
-        "predict", help="posterior-predictive 2-s pressure bands for a recording",
+        "predict", help="posterior-predictive pressure bands (--horizon windows) for a recording",
         description="Rolling windows from the measured pressure with the posterior "
                     "predictive mean and 5/50/95 % bands; PRED.metrics.json holds RMSE, "
                     "band coverage and the noise floor.")
     r.add_argument("run", help="run folder written by 'pneubayes fit'")
     r.add_argument("recording", help="recording .csv/.json path or stem")
-    r.add_argument("--horizon", type=POSITIVE, default=2.0, help="window length, s")
+    r.add_argument("--horizon", type=POSITIVE, default=None,
+                   help="window length, s (default: the run's, 2 s for older runs)")
     r.add_argument("--stride", type=POSITIVE, default=None, help="window spacing (= horizon)")
     r.add_argument("--draws", type=POSITIVE_INT, default=200, help="posterior draws")
     r.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
@@ -549,6 +587,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
     d.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="seed of bagging and sampler")
     _add_cutoffs(d)
+    _add_windows(d)
     _add_run_folder(d)
     d.add_argument("--no-figures", action="store_true")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress output")

@@ -5,7 +5,8 @@ Every command that writes a folder (``fit``, ``discover``, ``ablate``) opens it 
 the command, its *identity* (the digests of its inputs and the settings that define its
 result) and, as they are written, the sha256 of each file it produced. Rules:
 
-* a missing or empty folder starts a new run;
+* a missing or empty folder starts a new run (so does one holding only a stamp: that
+  run failed before it wrote anything);
 * a folder holding this command's run with the same identity is resumed (a killed fit,
   discovery or study goes on where it stopped);
 * anything else (another command's or another identity's run, or files with no stamp)
@@ -121,7 +122,8 @@ def open_run_folder(out, command: str, identity: Mapping, *, overwrite: bool = F
         raise RunFolderError(f"--out {out}: is a file, not a folder")
     digest = _identity_digest(identity)
     stamp = read_stamp(out) if out.is_dir() else None
-    busy = out.is_dir() and any(out.iterdir())
+    # a stamp alone (a run that failed before writing anything) holds nothing to protect
+    busy = out.is_dir() and any(p.name != STAMP for p in out.iterdir())
     same = (stamp is not None and stamp.get("command") == command
             and stamp.get("identity_digest") == digest)
     if resume and not same:

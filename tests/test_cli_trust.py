@@ -31,6 +31,9 @@ def test_a_new_or_empty_folder_starts_a_run_and_the_same_run_resumes(tmp_path):
         check_file(tmp_path / "run", "model.json")
     (tmp_path / "empty").mkdir()
     assert not open_run_folder(tmp_path / "empty", "fit", {"x": 1}).resumed
+    # a stamp alone: that run wrote nothing; another run may start there
+    assert not open_run_folder(tmp_path / "empty", "discover", {"y": 2}).resumed
+    assert read_stamp(tmp_path / "empty")["command"] == "discover"
 
 
 def test_another_run_is_refused_and_overwrite_removes_only_its_files(tmp_path):
@@ -180,3 +183,24 @@ def test_an_unexpected_failure_is_one_message_with_exit_70(rec, monkeypatch, cap
     assert main(["check", str(rec)]) == 70
     err = capsys.readouterr().err
     assert "internal error (RuntimeError: boom)" in err and "Traceback" not in err
+
+
+def test_short_triggered_trials_fit_on_shorter_windows(tmp_path, capsys):
+    data = tmp_path / "short"
+    assert main(["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "2",
+                 "--duration", "0.8", "--positions", "0.25,0.75", "--ranges", "5",
+                 "--out", str(data), "-q"]) == 0
+    recs = [str(p) for p in sorted(data.glob("fixed_*.csv"))]
+    capsys.readouterr()
+    assert main(["fit", *recs, "--out", str(tmp_path / "a"), "--method", "refine", "-q"]) == 2
+    assert "longer than the recording" in capsys.readouterr().err
+    out = tmp_path / "b"
+    assert main(["fit", *recs, "--out", str(out), "--method", "refine", "--horizon", "0.2",
+                 "--no-figures"]) == 0
+    err = capsys.readouterr().err
+    assert "refined 0.2-s RMSE" in err and " 2-s" not in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["horizon_s"] == 0.2 and summary["settings"]["stride_s"] == 0.2
+    from pneubayes.cli import _run_horizon
+
+    assert _run_horizon(out) == 0.2 and _run_horizon(tmp_path) == 2.0

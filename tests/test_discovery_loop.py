@@ -79,6 +79,16 @@ def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
     assert doc["effects"] == []
     assert doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
     assert doc["rmse_base_Pa"] < 1.2 * doc["noise_floor_Pa"]
+    # the report says what was measured: within the noise here; misfit when it is not
+    from pneubayes.discovery.report import _report
+
+    doc["recordings"] = [str(p) for p in paths]  # as run_discover adds them
+    text = _report(doc, d, {})
+    assert "within 1.5 x the noise floor" in text and "% of the measured span" in text
+    worse = dict(doc, rmse_final_Pa=3.0 * doc["noise_floor_Pa"])
+    text = _report(worse, d, {})
+    assert "the model still misses" in text and "3.0 x the noise floor" in text
+    assert "explains" not in text
 
 
 def test_discover_refuses_a_held_out_set_too_small_to_test(tmp_path):

@@ -535,7 +535,8 @@ def test_smooth_position_off_and_bad_cutoffs():
 
     rec, _ = _moving_recording(1e-5)
     assert smooth_position(rec, None) is rec and smooth_position(rec, 0) is rec
-    with pytest.raises(ValueError, match=r"mem.csv: position cutoff 600 Hz must be in"):
+    with pytest.raises(ValueError, match=r"mem.csv: position cutoff 600 Hz must be in .*"
+                       r"set --position-cutoff \(0: raw\)"):
         smooth_position(rec, 600.0)
 
 

@@ -187,11 +187,14 @@ class Discovery:
         noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
         self.noise_floor_Pa_ = noise
         self.range_Pa_ = float(recs[0].rig().working_range_Pa)
+        lo, hi = np.percentile(np.concatenate([r.pressure_Pa for r in recs]), [1, 99])
+        self.span_Pa_ = float(hi - lo)  # measured, not the nominal supply's range
         model = Model()
         start, notes, how = starting_point(model, train, s.fit, noise)
         self.log(f"discover: base model (eqs. 1-5, Gompertz maps) from {how}")
         current = self._fit(model, start, train_ws, held_ws, data_key)
-        self.log(f"discover: base held-out 2-s RMSE {current.heldout_rmse_Pa:.0f} Pa "
+        self.log(f"discover: base held-out {s.fit.horizon_s:g}-s RMSE "
+                 f"{current.heldout_rmse_Pa:.0f} Pa "
                  f"(noise floor {noise:.0f} Pa)")
         base = current
         ledger = [{"step": 0, "action": "fit base", "model": list(model.effect_names),
@@ -452,6 +455,7 @@ class Discovery:
                 "rmse_base_Pa": self.base_.heldout_rmse_Pa,
                 "rmse_final_Pa": self.final_.heldout_rmse_Pa,
                 "noise_floor_Pa": self.noise_floor_Pa_, "range_Pa": self.range_Pa_,
+                "span_Pa": self.span_Pa_, "horizon_s": self.settings.fit.horizon_s,
                 "model": "model.json", "ledger": self.ledger_,
                 "settings": self.settings.to_dict(), "seed": self.settings.seed,
                 "wall_time_s": getattr(self, "wall_time_s_", None),

@@ -82,7 +82,13 @@ def _fmt(v, spec=".4g"):
     return "-" if v is None else format(v, spec)
 
 
+#: A held-out error above this x the noise floor is reported as misfit, never as
+#: explained (the noise floor is the sensor's, estimated from the recordings).
+MISFIT_RATIO = 1.5
+
+
 def _report(doc: dict, disc: Discovery, figs: dict) -> str:
+    horizon = disc.settings.fit.horizon_s
     noise = doc["noise_floor_Pa"]
     base, final = doc["rmse_base_Pa"], doc["rmse_final_Pa"]
     gap0, gap1 = max(base - noise, 0.0), max(final - noise, 0.0)
@@ -105,12 +111,24 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
                              f"{ev['inclusion_probability']:.2f} | "
                              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} | "
                              f"{ev['score_gain']:.1f} ({ev['score_p_value']:.2g}) |")
+    elif final <= MISFIT_RATIO * noise:
+        lines.append(f"No missing effect is supported, and the plain thin-port model's "
+                     f"held-out error ({final:.0f} Pa) is within {MISFIT_RATIO:g} x the "
+                     f"noise floor ({noise:.0f} Pa).")
     else:
-        lines.append("No missing effect is supported: the plain thin-port model explains "
-                     "the recordings to within the evidence.")
+        lines.append(f"No candidate effect is supported, but the model still misses: its "
+                     f"held-out error ({final:.0f} Pa) is {final / noise:.1f} x the noise "
+                     f"floor ({noise:.0f} Pa). What is missing is not among the "
+                     "catalogue's candidates, or the data cannot show it.")
+    if doc["effects"] and final > MISFIT_RATIO * noise:
+        lines.append(f"\nThe final model still misses by {final / noise:.1f} x the noise "
+                     "floor: the named effects do not explain everything.")
     shrink = "" if gap0 <= 0 else f" ({100 * (1 - gap1 / gap0):.0f} % of the gap closed)"
-    lines += ["", f"Held-out 2-s prediction RMSE: base {base:.0f} Pa -> final {final:.0f} Pa; "
-              f"gap above the noise floor {gap0:.0f} -> {gap1:.0f} Pa{shrink}.", ""]
+    span = doc.get("span_Pa")
+    of_span = "" if not span else f" ({100 * final / span:.2f} % of the measured span)"
+    lines += ["", f"Held-out {horizon:g}-s prediction RMSE: base {base:.0f} Pa -> final "
+              f"{final:.0f} Pa{of_span}; gap above the noise floor {gap0:.0f} -> "
+              f"{gap1:.0f} Pa{shrink}.", ""]
     lines += ["## Where the base model disagrees", ""]
     flags = flagged_bins(disc.maps_[0], "prediction")
     if flags:

@@ -218,7 +218,8 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     else:
         ref = TrajectoryRefiner(model, settings.refine_solver,
                                 max_nfev=settings.refine_max_nfev).fit(data, start)
-        log(f"fit: refined 2-s RMSE {ref.start_rmse_Pa_:.0f} -> {ref.rmse_Pa_:.0f} Pa "
+        log(f"fit: refined {settings.horizon_s:g}-s RMSE {ref.start_rmse_Pa_:.0f} -> "
+            f"{ref.rmse_Pa_:.0f} Pa "
             f"({ref.n_evaluations_} evaluations)")
         if method == "mcmc":
             stages.save(start, notes, how, ref)

@@ -44,13 +44,15 @@ def _lowpass_column(recording: Recording, column: str, cutoff_Hz: float | None,
     where = recording.source or "recording"
     if not 0 < cutoff_Hz < 0.5 * fs:
         raise ValueError(f"{where}: {what} cutoff {cutoff_Hz:g} Hz must be in (0, "
-                         f"{0.5 * fs:g}) Hz (below the Nyquist frequency)")
+                         f"{0.5 * fs:g}) Hz (below the Nyquist frequency of this "
+                         f"{fs:.3g}-Hz recording); set --{what}-cutoff (0: raw)")
     sos = signal.butter(order, cutoff_Hz, fs=fs, output="sos")
     # odd extension over 10 filter time constants, so the ends settle (value and slope)
     pad = int(np.ceil(10.0 * fs / cutoff_Hz))
     if t.size <= 2 * pad:
         raise ValueError(f"{where}: {t.size} samples are too few to low-pass the {what} "
-                         f"at {cutoff_Hz:g} Hz (need more than {2 * pad})")
+                         f"at {cutoff_Hz:g} Hz (need more than {2 * pad}); set a higher "
+                         f"--{what}-cutoff, or 0 for the raw {what}")
     x = signal.sosfiltfilt(sos, np.asarray(values, dtype=np.float64), padtype="odd",
                            padlen=pad)
     return replace(recording, **{column: x})
