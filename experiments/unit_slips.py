@@ -32,7 +32,7 @@ import numpy as np
 from pneubayes.atomic import write_json_atomic
 from pneubayes.errors import RecordingError
 from pneubayes.io import read_recording, write_recording
-from pneubayes.io.recording import Recording, RecordingMetadata, inspect_recording
+from pneubayes.io.recording import Recording, inspect_recording
 from pneubayes.provenance import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
