@@ -365,9 +365,10 @@ def cmd_discover(args) -> int:
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 
-    recs = _read_all(args.recordings, args.accept, "discover")
+    recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover")
     settings = DiscoverySettings(
-        holdout_fraction=args.holdout, max_effects=args.max_effects,
+        holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
+        max_effects=args.max_effects,
         posterior=not args.no_posterior, seed=args.seed,
         tube_line_segments=args.tube_line_segments,
         form_settled_ratio=args.form_settled_ratio,
@@ -375,7 +376,8 @@ def cmd_discover(args) -> int:
                                                 max_steps=args.max_steps, seed=args.seed),
                         **_cutoffs(args), **_windows(args)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
-    identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
+    identity = {"recordings": inputs_digest(_recording_files([*args.recordings,
+                                                              *args.held_out])),
                 "settings": settings.to_dict(), "accept": list(args.accept)}
     folder = open_run_folder(args.out, "discover", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=DISCOVER_OUTPUTS,
@@ -569,6 +571,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "report.md and figures/.")
     d.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
     d.add_argument("--out", required=True, help="run folder (an interrupted run resumes)")
+    d.add_argument("--held-out", nargs="+", default=[], metavar="REC",
+                   help="recordings held out whole to verify (triggered trials, whose ends "
+                        "hold no valve event); then --holdout is not used")
     d.add_argument("--holdout", type=_fraction, default=1.0 / 3.0,
                    help="fraction of every recording (its end) held out to verify (1/3)")
     d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=4,

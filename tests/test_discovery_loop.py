@@ -175,3 +175,21 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
     off = Discovery(_settings(max_effects=1, try_all_on_gap=False), None,
                     log=lambda m: None).fit(recs).result()
     assert off["effects"] == []
+
+
+def test_whole_recordings_can_be_held_out(tmp_path):
+    """Triggered trials hold no valve event at their ends: hold whole recordings out."""
+    paths, _ = _bench(tmp_path / "bench", [], seed=21)
+    recs = [read_recording(p) for p in paths]
+    d = Discovery(_settings(holdout_recordings=2), tmp_path / "run",
+                  log=lambda m: None).fit(recs)
+    assert [r.source for r in d.held_] == [r.source for r in recs[-2:]]
+    assert [r.source for r in d.train_] == [r.source for r in recs[:-2]]
+    assert d.held_[0].n_samples == recs[-2].n_samples  # whole, not a tail
+    doc = d.result()
+    assert doc["effects"] == [] and doc["settings"]["holdout_recordings"] == 2
+    assert doc["rmse_final_Pa"] < 1.2 * doc["noise_floor_Pa"]
+    with pytest.raises(ValueError, match="leave none of the 6 to fit on"):
+        Discovery(_settings(holdout_recordings=6), None, log=lambda m: None).fit(recs)
+    with pytest.raises(ValueError, match="holdout_recordings must be an integer >= 0"):
+        _settings(holdout_recordings=-1)

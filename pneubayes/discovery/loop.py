@@ -170,20 +170,31 @@ class Discovery:
         recs = [prepare_recording(r, s.fit.preparation()) for r in recordings]
         if not recs:
             raise ValueError("discover: no recordings")
-        train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)
+        if s.holdout_recordings:
+            n_held = s.holdout_recordings
+            if n_held >= len(recs):
+                raise ValueError(f"discover: {n_held} recording(s) held out whole leave none "
+                                 f"of the {len(recs)} to fit on")
+            train, held = recs[:-n_held], recs[-n_held:]
+            held_ws = WindowSet(held, s.fit.horizon_s, s.fit.stride_s)
+            more = "more held-out recordings, or shorter windows (--horizon)"
+            split = ("recordings", n_held)
+        else:
+            train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)
+            # the held-out windows are scored on the held-out stretch only; the recording
+            # before it is history (warm-up windows carry a heat model's temperature in)
+            held_ws = WindowSet(recs, s.fit.horizon_s, s.fit.stride_s,
+                                score_from_s=[h.time_s[0] for h in held])
+            more = "longer recordings or a larger holdout fraction"
+            split = s.holdout_fraction
         train_ws = WindowSet(train, s.fit.horizon_s, s.fit.stride_s)
-        # the held-out windows are scored on the held-out stretch only; the recording
-        # before it is history (warm-up windows carry a heat model's temperature in)
-        held_ws = WindowSet(recs, s.fit.horizon_s, s.fit.stride_s,
-                            score_from_s=[h.time_s[0] for h in held])
         if 0.5 ** held_ws.n_windows > s.max_p_value:
             raise ValueError(
                 f"discover: only {held_ws.n_windows} held-out {s.fit.horizon_s:g}-s windows; "
                 f"the signed-rank test cannot reach p <= {s.max_p_value:g} with fewer than "
-                f"{math.ceil(math.log(s.max_p_value) / math.log(0.5))}: give longer "
-                "recordings or a larger holdout fraction")
+                f"{math.ceil(math.log(s.max_p_value) / math.log(0.5))}: give {more}")
         data_key = _fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
-                                 for r in recs], s.holdout_fraction)
+                                 for r in recs], split)
         noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
         self.noise_floor_Pa_ = noise
         self.range_Pa_ = float(recs[0].rig().working_range_Pa)

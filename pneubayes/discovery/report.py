@@ -93,9 +93,11 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
     base, final = doc["rmse_base_Pa"], doc["rmse_final_Pa"]
     gap0, gap1 = max(base - noise, 0.0), max(final - noise, 0.0)
     lines = ["# What the model misses: discovery report", ""]
-    lines += [f"Recordings: {len(doc['recordings'])} (each split in time: the first "
-              f"{1 - disc.settings.holdout_fraction:.0%} to fit and search, the rest to "
-              "verify). Noise floor (sensor) "
+    k = disc.settings.holdout_recordings
+    how = (f"the last {k} held out whole to verify, the others to fit and search" if k else
+           f"each split in time: the first {1 - disc.settings.holdout_fraction:.0%} to fit "
+           "and search, the rest to verify")
+    lines += [f"Recordings: {len(doc['recordings'])} ({how}). Noise floor (sensor) "
               f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa.", ""]
     lines += ["## Result", ""]
     if doc["effects"]:

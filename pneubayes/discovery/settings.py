@@ -16,6 +16,9 @@ class DiscoverySettings:
     """Every setting of ``pneubayes discover`` (saved in discovery.json).
 
     holdout_fraction: the last fraction of every recording is held out for verification.
+    holdout_recordings: when > 0, the last this many recordings given are held out whole
+    instead (triggered trials: the end of a trial holds no valve event to verify on), and
+    holdout_fraction is not used.
     block: one-step errors summed per regression row. threshold_t, n_bags, chunk_rows:
     the grouped SINDy (:class:`GroupedSINDy`). min_inclusion: a group is *supported*
     when its bagged inclusion probability reaches this. max_p_value: the one-sided
@@ -50,6 +53,7 @@ class DiscoverySettings:
     """
 
     holdout_fraction: float = 1.0 / 3.0
+    holdout_recordings: int = 0
     block: int = 5
     grid: LibraryGrid = field(default_factory=LibraryGrid)
     regimes: RegimeSettings = field(default_factory=RegimeSettings)
@@ -75,6 +79,10 @@ class DiscoverySettings:
     def __post_init__(self):
         if not 0.0 < self.holdout_fraction < 1.0:
             raise ValueError(f"holdout_fraction must be in (0, 1), got {self.holdout_fraction}")
+        if isinstance(self.holdout_recordings, bool) or not isinstance(
+                self.holdout_recordings, int) or self.holdout_recordings < 0:
+            raise ValueError("holdout_recordings must be an integer >= 0, got "
+                             f"{self.holdout_recordings!r}")
         if not 0.0 < self.min_inclusion <= 1.0:
             raise ValueError(f"min_inclusion must be in (0, 1], got {self.min_inclusion}")
         if not 0.0 < self.fallback_min_inclusion <= 1.0:
