@@ -326,6 +326,8 @@ def cmd_fit(args) -> int:
     for name, s in summary["parameters"].items():
         print(f"  {name:32s} {s['median']:12.5g}  90% [{s['q05']:.5g}, {s['q95']:.5g}]"
               f"  R-hat {s['rhat']:.3f}  ESS {s['ess']:.0f}")
+    if summary["misfit"]["note"]:
+        print(f"  misfit: {summary['misfit']['note']}")
     for g in summary["identifiability"]["groups"]:
         why = g.get("reason") or f"correlation {g.get('correlation', 0.0):.2f}"
         print(f"  confounded: {' ~ '.join(g['parameters'])}: {why}")
@@ -351,9 +353,18 @@ def cmd_predict(args) -> int:
     horizon = args.horizon or _run_horizon(run)
     m = run_predict(args.run, rec, horizon, out, args.draws, args.seed,
                     SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
-    print(f"{out}: RMSE {m['rmse_Pa']:.0f} Pa ({m['rmse_percent_of_range']:.2f} % of range), "
-          f"noise floor {m['noise_floor_Pa']:.0f} Pa, coverage 50 % -> {m['coverage_50']:.2f}, "
-          f"90 % -> {m['coverage_90']:.2f}")
+    span = m["rmse_percent_of_span"]
+    print(f"{out}: RMSE {m['rmse_Pa']:.0f} Pa ("
+          + (f"{span:.2f} % of the measured span, " if span is not None else "")
+          + f"{m['rmse_over_noise_floor']:.2f} x the noise floor of "
+          f"{m['noise_floor_Pa']:.0f} Pa); coverage 50 % -> {m['coverage_50']:.2f}, "
+          f"90 % -> {m['coverage_90']:.2f} with a 90 % band {m['band_90_width_Pa']:.0f} Pa "
+          f"wide ({m['band_90_width_over_sensor_noise']:.1f} x what sensor noise alone gives)")
+    if m["rmse_over_noise_floor"] > 1.5:
+        print(f"  misfit: the model misses by {m['rmse_over_noise_floor']:.1f} x the noise "
+              "floor" + (" and its bands cover only by being wide (the noise model "
+                         "absorbs the misfit)"
+                         if m["band_90_width_over_sensor_noise"] > 2 else ""))
     if figure is not None:
         print(figure)
     return 0

@@ -68,6 +68,9 @@ def test_fit_writes_the_run_folder(fitted):
     assert model.effect_names == ("cylinder_leak",)
     summary = json.loads((run / "summary.json").read_text())
     assert summary["seed"] == 3 and summary["steps"] == 150
+    # the catalogue's leak model fits the bench's leak data at the noise floor: no misfit
+    assert summary["misfit"]["note"] is None
+    assert summary["misfit"]["rmse_over_noise_floor"] < 1.5
     for name, s in summary["parameters"].items():
         assert s["q05"] <= s["median"] <= s["q95"], name
         assert np.isfinite(s["rhat"]) and s["ess"] > 0
@@ -96,6 +99,10 @@ def test_predict_writes_bands_and_metrics(fitted, tmp_path):
         assert k in m
     assert m["rmse_Pa"] < 2.0 * m["noise_floor_Pa"]
     assert 0.7 < m["coverage_90"] <= 1.0
+    # a model at the noise floor: its band is what white sensor noise gives, not wider
+    assert 0.7 < m["band_90_width_over_sensor_noise"] < 1.5
+    assert m["rmse_percent_of_span"] == pytest.approx(100 * m["rmse_Pa"]
+                                                      / m["measured_span_Pa"])
 
 
 @pytest.mark.slow
@@ -290,3 +297,12 @@ def test_a_truncated_chain_is_a_message_naming_it(fitted, tmp_path, capsys):
                "--max-steps", "150", "--seed", "3", "-q", "--no-figures"])
     err = capsys.readouterr().err
     assert rc == 2 and "chain.h5" in err and "Traceback" not in err
+
+
+def test_misfit_is_stated_apart_from_noise():
+    from pneubayes.inference.pipeline import misfit_report
+
+    assert misfit_report(520.0, 500.0, 0.05)["note"] is None
+    note = misfit_report(4000.0, 500.0, 0.98)["note"]
+    assert "8.0 x the noise floor" in note and "absorbs" in note
+    assert "absorbs" not in misfit_report(4000.0, 500.0, 0.2)["note"]

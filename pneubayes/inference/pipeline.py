@@ -116,6 +116,27 @@ def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: fl
 
 METHODS = ("lsq", "refine", "mcmc")
 
+#: A fit error above this x the noise floor is misfit; an AR(1) noise coefficient above
+#: the other limit means the noise model stands in for it.
+MISFIT_RATIO = 1.5
+ABSORBING_AR1 = 0.9
+
+
+def misfit_report(rmse_Pa: float, noise_floor_Pa: float, noise_ar1: float) -> dict:
+    """Misfit stated apart from noise: the refined window RMSE against the sensor's noise
+    floor, and whether the AR(1) noise model absorbs what the model misses."""
+    ratio = rmse_Pa / noise_floor_Pa
+    note = None
+    if ratio > MISFIT_RATIO:
+        note = (f"the model misses by {ratio:.1f} x the noise floor ({rmse_Pa:.0f} Pa "
+                f"against {noise_floor_Pa:.0f} Pa)")
+        if noise_ar1 > ABSORBING_AR1:
+            note += (f"; the noise model absorbs it (AR(1) coefficient {noise_ar1:.3f}), so "
+                     "its bands are wide because the model misses, not because the sensor "
+                     "is noisy")
+    return {"rmse_Pa": rmse_Pa, "rmse_over_noise_floor": ratio, "noise_ar1_median": noise_ar1,
+            "note": note}
+
 
 @dataclass(frozen=True)
 class _SavedRefinement:
@@ -266,6 +287,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         "refined": {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
                     "start_rmse_Pa": ref.start_rmse_Pa_},
         "noise_floor_Pa": noise,
+        "misfit": misfit_report(ref.rmse_Pa_, noise, bi.summary()["noise_ar1"]["median"]),
         "identifiability": ident,
         "settings": settings.to_dict(), "seed": settings.sampler.seed,
         "wall_time_s": time.perf_counter() - t0,

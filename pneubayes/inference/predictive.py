@@ -86,9 +86,18 @@ class PredictionBands:
         rmse = float(np.sqrt(np.mean((m - y) ** 2)))
         c90 = float(np.mean((y >= self.q05[:, 1:]) & (y <= self.q95[:, 1:])))
         c50 = float(np.mean((y >= self.q25[:, 1:]) & (y <= self.q75[:, 1:])))
+        lo, hi = np.percentile(y, [1, 99])
+        width = float(np.median(self.q95[:, 1:] - self.q05[:, 1:]))
+        # white sensor noise alone gives a 90 % band 2 x 1.645 noise floors wide: a band
+        # much wider covers because the noise model absorbed misfit, not because the
+        # model predicts
         return {"rmse_Pa": rmse, "rmse_percent_of_range": 100.0 * rmse / self.working_range_Pa,
+                "measured_span_Pa": float(hi - lo),
+                "rmse_percent_of_span": 100.0 * rmse / float(hi - lo) if hi > lo else None,
                 "coverage_50": c50, "coverage_90": c90, "noise_floor_Pa": self.noise_floor_Pa,
                 "rmse_over_noise_floor": rmse / self.noise_floor_Pa,
+                "band_90_width_Pa": width,
+                "band_90_width_over_sensor_noise": width / (2 * 1.645 * self.noise_floor_Pa),
                 "n_windows": int(self.starts.size), "window_samples": int(self.mean.shape[1])}
 
 
