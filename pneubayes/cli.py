@@ -328,6 +328,9 @@ def cmd_fit(args) -> int:
               f"  R-hat {s['rhat']:.3f}  ESS {s['ess']:.0f}")
     if summary["misfit"]["note"]:
         print(f"  misfit: {summary['misfit']['note']}")
+    for b in summary["at_bounds"]:
+        print(f"  at its {b['bound']} bound: {b['parameter']} (90 % [{b['q05']:.4g}, "
+              f"{b['q95']:.4g}], bound {b['value']:.4g}): the data push it there")
     for g in summary["identifiability"]["groups"]:
         why = g.get("reason") or f"correlation {g.get('correlation', 0.0):.2f}"
         print(f"  confounded: {' ~ '.join(g['parameters'])}: {why}")

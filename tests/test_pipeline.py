@@ -306,3 +306,25 @@ def test_misfit_is_stated_apart_from_noise():
     note = misfit_report(4000.0, 500.0, 0.98)["note"]
     assert "8.0 x the noise floor" in note and "absorbs" in note
     assert "absorbs" not in misfit_report(4000.0, 500.0, 0.2)["note"]
+
+
+def test_parameters_pushed_to_a_bound_are_named():
+    from pneubayes.effects import make_effect
+    from pneubayes.inference.pipeline import at_bounds
+
+    model = Model([make_effect("cylinder_leak")])
+    lo, hi = model.bounds
+    j = model.parameter_names.index("leak_area_m2")
+    summary = {"leak_area_m2": {"q05": lo[j], "q95": lo[j] + 1e-3 * (hi[j] - lo[j])},
+               "dead_volume_m3": {"q05": 1e-6, "q95": 1.1e-6}}
+    found = at_bounds(model, summary)
+    assert found == [{"parameter": "leak_area_m2", "bound": "lower", "value": lo[j],
+                      "q05": summary["leak_area_m2"]["q05"],
+                      "q95": summary["leak_area_m2"]["q95"]}]
+    # a parameter the data leave at its prior (a Gompertz nuisance) is not "pushed"
+    i = model.parameter_names.index("inlet_d_V")
+    assert at_bounds(model, {"inlet_d_V": {"q05": lo[i], "q95": hi[i]}}) == []
+    k = model.parameter_names.index("dead_volume_m3")
+    summary["dead_volume_m3"] = {"q05": 0.5 * hi[k], "q95": hi[k]}
+    assert {(f["parameter"], f["bound"]) for f in at_bounds(model, summary)} == {
+        ("dead_volume_m3", "upper"), ("leak_area_m2", "lower")}

@@ -122,6 +122,34 @@ MISFIT_RATIO = 1.5
 ABSORBING_AR1 = 0.9
 
 
+#: A 90 % interval within this fraction of the bounds' width from a bound "sits" there.
+BOUND_FRACTION = 0.01
+
+
+def at_bounds(model: Model, summary: dict) -> list[dict]:
+    """Parameters whose posterior 90 % interval reaches within ``BOUND_FRACTION`` of the
+    bounds' width of a bound: the data push them there (an effect the data do not show
+    sits at its zero; a bound sized for another rig cuts the posterior off)."""
+    out = []
+    lo, hi = model.bounds
+    for name, a, b in zip(model.parameter_names, lo, hi):
+        s = summary.get(name)
+        if s is None or not (np.isfinite(a) and np.isfinite(b)) or b <= a:
+            continue
+        # bounds over decades (a dead volume, 1e-8..1e-4 m^3) are judged in log space
+        f = np.log10 if a > 0 and b / a > 100 else (lambda v: v)
+        tol = BOUND_FRACTION * (f(b) - f(a))
+        q05, q95 = max(s["q05"], a), min(s["q95"], b)
+        if f(q95) - f(q05) > 0.5 * (f(b) - f(a)):
+            continue  # spread over its range: the prior's, not pushed by the data
+        for side, bound, reached in (("lower", a, f(q05) <= f(a) + tol),
+                                     ("upper", b, f(q95) >= f(b) - tol)):
+            if reached:
+                out.append({"parameter": name, "bound": side, "value": float(bound),
+                            "q05": s["q05"], "q95": s["q95"]})
+    return out
+
+
 def misfit_report(rmse_Pa: float, noise_floor_Pa: float, noise_ar1: float) -> dict:
     """Misfit stated apart from noise: the refined window RMSE against the sensor's noise
     floor, and whether the AR(1) noise model absorbs what the model misses."""
@@ -288,6 +316,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
                     "start_rmse_Pa": ref.start_rmse_Pa_},
         "noise_floor_Pa": noise,
         "misfit": misfit_report(ref.rmse_Pa_, noise, bi.summary()["noise_ar1"]["median"]),
+        "at_bounds": at_bounds(model, bi.summary()),
         "identifiability": ident,
         "settings": settings.to_dict(), "seed": settings.sampler.seed,
         "wall_time_s": time.perf_counter() - t0,
