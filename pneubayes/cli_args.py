@@ -1,0 +1,301 @@
+"""The command line's arguments: option types that check their values, the option
+groups several commands share, and the parser (:func:`build_parser`).
+
+Every numeric option is a checked type, so a bad value is a usage error before any work
+starts; :func:`check_single_values` closes argparse's one gap (``--opt=--``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def _floats(text: str, what: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}: expected comma-separated numbers, "
+                                         f"got {text!r}") from None
+
+
+def _number(kind: str, low: float, strict: bool):
+    """An argparse type: a finite number > low (strict) or >= low, named in errors."""
+    def parse(text: str):
+        try:
+            v = int(text) if kind == "integer" else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {'an' if kind == 'integer' else 'a'} "
+                                             f"{kind}, got {text!r}") from None
+        if not math.isfinite(v) or (v <= low if strict else v < low):
+            raise argparse.ArgumentTypeError(
+                f"must be {'>' if strict else '>='} {low:g}, got {text!r}")
+        return v
+    return parse
+
+
+POSITIVE = _number("number", 0.0, strict=True)
+NON_NEGATIVE = _number("number", 0.0, strict=False)
+POSITIVE_INT = _number("integer", 0, strict=True)
+NON_NEGATIVE_INT = _number("integer", 0, strict=False)
+
+
+def _fraction(text: str) -> float:
+    v = POSITIVE(text)
+    if v >= 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
+    return v
+
+
+def _setting(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
+
+
+def _accept(text: str) -> tuple[str, ...]:
+    from pneubayes.io.plausibility import check_accept
+
+    try:
+        return check_accept([v.strip() for v in text.split(",") if v.strip()], "--accept")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _add_accept(p) -> None:
+    p.add_argument("--accept", type=_accept, default=(), metavar="RULE[,RULE]",
+                   help="accept these plausibility rules for every recording (an unusual "
+                        "but real rig, e.g. sample-interval,pressure-span); a recording's "
+                        "JSON can list them in accept_unusual")
+
+
+def _add_run_folder(p) -> None:
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the run already in --out (its files only; yours stay)")
+    p.add_argument("--resume", action="store_true",
+                   help="insist on resuming the run in --out (an error if there is none); "
+                        "the same command on the same inputs and settings resumes anyway")
+
+
+def _add_windows(p) -> None:
+    p.add_argument("--horizon", type=POSITIVE, default=2.0, metavar="S",
+                   help="length of the open-loop prediction windows the model is fitted "
+                        "and judged on, s (2, the paper's; shorter for short triggered "
+                        "trials)")
+    p.add_argument("--stride", type=POSITIVE, default=None, metavar="S",
+                   help="spacing of the windows, s (default: the horizon, no overlap)")
+
+
+def _pressure_filter(text: str):
+    from pneubayes.physics.sensor_filter import PressureFilter
+
+    try:
+        return PressureFilter.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--pressure-filter: {exc}") from None
+
+
+def _add_cutoffs(p) -> None:
+    p.add_argument("--position-cutoff", type=NON_NEGATIVE, default=50.0, metavar="HZ",
+                   help="zero-phase low-pass of the measured position before it drives "
+                        "the model, Hz; 0: raw (50)")
+    p.add_argument("--supply-cutoff", type=NON_NEGATIVE, default=100.0, metavar="HZ",
+                   help="the same for the measured supply (its sensor noise biases the "
+                        "supply gain); 0: raw (100)")
+    p.add_argument("--pressure-filter", type=_pressure_filter, default=None,
+                   metavar="ORDER:HZ",
+                   help="the pressure channel's zero-phase (delay-compensated) Butterworth "
+                        "anti-alias filter, e.g. 2:1000 for the virtual bench's DAQ; the "
+                        "model then predicts the reading (default: none declared)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pneubayes",
+        description="Thin-port pneumatic actuator models: simulate, check recordings, run "
+                    "the virtual test bench.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    c = sub.add_parser("check", help="validate recordings against docs/recording-format.md",
+                       description="Validate recordings (CSV + JSON pairs, "
+                                   "docs/recording-format.md): print every problem with "
+                                   "file, row or key, and reason (exit 1 if any), the "
+                                   "plausibility warnings and the unit conversions.")
+    c.add_argument("files", nargs="+", help="recording .csv/.json paths or stems")
+    c.add_argument("-q", "--quiet", action="store_true",
+                   help="print only problems and plausibility warnings")
+    _add_accept(c)
+
+    b = sub.add_parser(
+        "bench", help="generate recordings on the virtual test bench",
+        description="Simulate a rig with planted effects on a fine grid, pass it through a "
+                    "sensor chain (anti-alias low-pass, sampling, noise) and write "
+                    "recordings plus DIR/truth.json with every true parameter.")
+    b.add_argument("--cylinder", required=True, help="AIR37, AIR200, SMC or PRN (Table I)")
+    b.add_argument("--valve", required=True, help="valve1 or valve2 (Table II)")
+    b.add_argument("--effects", default="", help="comma-separated effects to plant, e.g. "
+                   "tube_delay,spool_lag (catalogue: cylinder_leak, tube_delay, "
+                   "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag)")
+    b.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"),
+                   help="law of a planted cylinder_leak (default orifice, the paper's)")
+    b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",
+                   help="override a true parameter, e.g. --set tube_delay_s=0.005")
+    b.add_argument("--protocol", default="fixed", choices=("fixed", "moving"),
+                   help="fixed: random steps at fixed positions; moving: aggressive piston "
+                        "motion")
+    b.add_argument("--duration", type=POSITIVE, default=20.0, help="seconds per recording")
+    b.add_argument("--seed", type=NON_NEGATIVE_INT, required=True,
+                   help="random seed (recorded in truth)")
+    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=(5.0, 3.0, 0.5),
+                   help="fixed protocol: command ranges in V (default 5,3,0.5)")
+    b.add_argument("--positions", type=lambda s: _floats(s, "--positions"),
+                   default=(0.1, 0.5, 0.9),
+                   help="fixed protocol: positions as fractions of stroke (default 0.1,0.5,0.9)")
+    b.add_argument("--count", type=POSITIVE_INT, default=2, help="moving protocol: recordings")
+    b.add_argument("--rate", type=POSITIVE, default=1000.0, help="output sample rate, Hz")
+    b.add_argument("--fine-rate", type=POSITIVE, default=10_000.0,
+                   help="truth simulation grid, Hz (a multiple of --rate)")
+    b.add_argument("--pressure-noise", type=NON_NEGATIVE, default=500.0,
+                   help="pressure sensor noise std, Pa")
+    b.add_argument("--out", required=True, help="output directory")
+    b.add_argument("--overwrite", action="store_true", help="replace existing files")
+    b.add_argument("-q", "--quiet", action="store_true")
+
+    s = sub.add_parser(
+        "simulate", help="simulate a model card on a recording's inputs",
+        description="Run MODEL.json on the recording's command, position and supply from "
+                    "its first measured pressure; write time_s,pressure_Pa.")
+    s.add_argument("recording", help="recording .csv/.json path or stem")
+    s.add_argument("--model", required=True, help="model card (pneubayes-model/1 JSON)")
+    s.add_argument("--out", required=True, help="output CSV (time_s,pressure_Pa)")
+    s.add_argument("--rtol", type=POSITIVE, default=3e-5, help="relative tolerance (3e-5, as "
+                   "SolverConfig.standard)")
+    s.add_argument("--atol", type=POSITIVE, default=10.0, help="absolute tolerance, Pa (10)")
+    s.add_argument("--max-step", type=POSITIVE, default=0.02, help="largest step, s (0.02)")
+    s.add_argument("--overwrite", action="store_true")
+    _add_accept(s)
+
+    f = sub.add_parser(
+        "fit", help="identify a model: paper least squares, refinement, emcee posterior",
+        description="Fit the thin-port model (and effects) to recordings: the paper's "
+                    "eq.-10 least squares on fixed-volume recordings, multiple shooting on "
+                    "prediction windows (--horizon, 2 s by default), then an emcee "
+                    "posterior. Writes RUNDIR/model.json (posterior median), posterior.nc, "
+                    "summary.json, chain.h5 (a killed run resumes), run.json, figures/.")
+    f.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
+    f.add_argument("--out", required=True, help="run folder")
+    f.add_argument("--model", help="model card whose effects (and options) to fit")
+    f.add_argument("--effects", default="cylinder_leak",
+                   help="effects of the fitted model when no --model (default: the paper's "
+                        "cylinder_leak)")
+    f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
+    f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
+                   help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
+                        "shooting on the windows; mcmc (default): then the emcee posterior")
+    f.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
+                   help="emcee walkers (0: automatic)")
+    f.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
+    f.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="sampler seed (recorded)")
+    _add_cutoffs(f)
+    _add_windows(f)
+    _add_run_folder(f)
+    f.add_argument("--no-figures", action="store_true")
+    f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    _add_accept(f)
+
+    r = sub.add_parser(
+        "predict", help="posterior-predictive pressure bands (--horizon windows) for a recording",
+        description="Rolling windows from the measured pressure with the posterior "
+                    "predictive mean and 5/50/95 % bands; PRED.metrics.json holds RMSE, "
+                    "band coverage and the noise floor.")
+    r.add_argument("run", help="run folder written by 'pneubayes fit'")
+    r.add_argument("recording", help="recording .csv/.json path or stem")
+    r.add_argument("--horizon", type=POSITIVE, default=None,
+                   help="window length, s (default: the run's, 2 s for older runs)")
+    r.add_argument("--stride", type=POSITIVE, default=None, help="window spacing (= horizon)")
+    r.add_argument("--draws", type=POSITIVE_INT, default=200, help="posterior draws")
+    r.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
+    r.add_argument("--out", required=True, help="output CSV")
+    r.add_argument("--no-figure", action="store_true")
+    r.add_argument("--overwrite", action="store_true")
+    _add_accept(r)
+
+    d = sub.add_parser(
+        "discover", help="find which physical effect the model misses, add it, verify",
+        description="Start from the plain thin-port model; fit; map where predictions and "
+                    "measurements disagree; run grouped SINDy on the dp/dt residual with "
+                    "physically named candidate terms; add the best-supported effect, "
+                    "refit, and keep it only if held-out predictions improve; repeat. "
+                    "Writes RUNDIR/discovery.json, model.json, disagreement.json, "
+                    "report.md and figures/.")
+    d.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
+    d.add_argument("--out", required=True, help="run folder (an interrupted run resumes)")
+    d.add_argument("--held-out", nargs="+", default=[], metavar="REC",
+                   help="recordings held out whole to verify (triggered trials, whose ends "
+                        "hold no valve event); then --holdout is not used")
+    d.add_argument("--holdout", type=_fraction, default=1.0 / 3.0,
+                   help="fraction of every recording (its end) held out to verify (1/3)")
+    d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=4,
+                   help="stop after adding this many")
+    d.add_argument("--tube-line-segments", type=NON_NEGATIVE_INT, default=3,
+                   help="cells of the acoustic-line form tried for a named tube; 0 tries the "
+                        "transport delay only (the line is tens of times slower to simulate) (3)")
+    d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
+                   help="later forms (the acoustic line, convective heat) are not fitted "
+                        "once a trial of the round has a training RMSE within this x the "
+                        "noise floor; 0 fits every form (1.05)")
+    d.add_argument("--no-posterior", action="store_true",
+                   help="skip the final emcee posterior (refined point estimates only)")
+    d.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
+                   help="emcee walkers (0: automatic)")
+    d.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
+    d.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="seed of bagging and sampler")
+    _add_cutoffs(d)
+    _add_windows(d)
+    _add_run_folder(d)
+    d.add_argument("--no-figures", action="store_true")
+    d.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    _add_accept(d)
+
+    a = sub.add_parser(
+        "ablate", help="run a declarative ablation study (a grid of fits) with caching",
+        description="Run every cell of STUDY.toml (rigs x data effects x data forms x "
+                    "model effects x command ranges x protocols x seeds): bench data, fit, "
+                    "held-out 2-s prediction RMSE. Each cell is cached in "
+                    "RUNDIR/cells/ID.json as it finishes, so an interrupted study resumes; "
+                    "a failed cell records its error and traceback, the study goes on, "
+                    "and running again retries it. Writes RUNDIR/results.json and "
+                    "results.csv. Exit 1 if any cell failed.")
+    a.add_argument("study", help="study TOML file (see experiments/studies/smoke.toml)")
+    a.add_argument("--out", required=True, help="run folder (an interrupted run resumes)")
+    a.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on a Dask distributed cluster at this scheduler address "
+                        "(needs pip install 'pneubayes[dask]')")
+    a.add_argument("--workers", type=POSITIVE_INT, default=None,
+                   help="local worker processes (default 1: in this process)")
+    a.add_argument("--smoke", action="store_true",
+                   help="one cell (the first value of every axis) with short recordings")
+    _add_run_folder(a)
+    a.add_argument("--dry-run", action="store_true",
+                   help="validate the study and list its cells; run and write nothing")
+    a.add_argument("--keep-work", action="store_true",
+                   help="keep each cell's bench recordings and fit folder in RUNDIR/work")
+    a.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    return p
+
+
+def check_single_values(parser, args) -> None:
+    """argparse lets ``--opt=--`` through as an empty list, unconverted: refuse any
+    single-valued option whose value is a list, as a usage error naming it."""
+    subparsers = next(a for a in parser._actions
+                      if isinstance(a, argparse._SubParsersAction))
+    sub = subparsers.choices[args.command]
+    for action in sub._actions:
+        value = getattr(args, action.dest, None)
+        if (type(action) is argparse._StoreAction and action.nargs is None
+                and action.option_strings and isinstance(value, list)):
+            sub.error(f"argument {'/'.join(action.option_strings)}: expected one value")
