@@ -189,7 +189,10 @@ def cmd_fit(args) -> int:
     else:
         names = [n.strip() for n in args.effects.split(",") if n.strip()]
         model = Model(effects_from_names(names, args.leak_form))
-    if args.walkers and args.walkers < 2 * model.n_parameters:
+    if args.bounds:
+        model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)})
+    n_dims = model.n_parameters  # a bound for a parameter the model lacks fails here
+    if args.walkers and args.walkers < 2 * n_dims:
         raise PneubayesError(f"--walkers {args.walkers}: emcee needs at least twice the "
                              f"{model.n_parameters} sampled dimensions of this model, >= "
                              f"{2 * model.n_parameters} (or 0: automatic)")
@@ -199,6 +202,7 @@ def cmd_fit(args) -> int:
     identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
                 "effects": list(model.effect_names),
                 "options": {e.name: e.options() for e in model.effects},
+                "bounds": model.bound_overrides,
                 "method": args.method, "walkers": args.walkers, "seed": args.seed,
                 "windows": _windows(args),
                 "preparation": settings.preparation(), "accept": list(args.accept)}

@@ -47,6 +47,22 @@ def _fraction(text: str) -> float:
     return v
 
 
+def _bound(text: str) -> tuple[str, tuple[float, float]]:
+    """NAME=LOWER:UPPER, two finite numbers with lower < upper."""
+    name, sep, rest = text.partition("=")
+    lo, colon, hi = rest.partition(":")
+    try:
+        if not (sep and colon and name.strip()):
+            raise ValueError
+        pair = (float(lo), float(hi))
+        if not (all(math.isfinite(v) for v in pair) and pair[0] < pair[1]):
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--bounds expects NAME=LOWER:UPPER with finite "
+                                         f"LOWER < UPPER, got {text!r}") from None
+    return name.strip(), pair
+
+
 def _setting(text: str) -> tuple[str, float]:
     name, sep, value = text.partition("=")
     try:
@@ -202,6 +218,11 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="sampler seed (recorded)")
     _add_cutoffs(f)
     _add_windows(f)
+    f.add_argument("--bounds", action="append", type=_bound, default=[],
+                   metavar="NAME=LOWER:UPPER",
+                   help="replace a parameter's bounds, in its unit (a rig unlike the "
+                        "paper's: e.g. dead_volume_m3=1e-5:5e-3 for a 1-L chamber); "
+                        "repeatable; recorded in the model card")
     _add_run_folder(f)
     f.add_argument("--no-figures", action="store_true")
     f.add_argument("-q", "--quiet", action="store_true", help="no progress output")

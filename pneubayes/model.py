@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import replace
 from functools import cached_property
 from pathlib import Path
 
@@ -26,6 +27,23 @@ from pneubayes.rig import Rig
 CARD_FORMAT = "pneubayes-model/1"
 
 
+def check_bound_overrides(bounds, where: str) -> dict[str, tuple[float, float]]:
+    """``{name: (lower, upper)}`` from a mapping of names to two finite numbers with
+    lower < upper; raises ValueError naming ``where`` and the parameter otherwise."""
+    if not isinstance(bounds, Mapping):
+        raise ValueError(f"{where}: must be an object name -> [lower, upper], got {bounds!r}")
+    out = {}
+    for name, pair in bounds.items():
+        ok = (isinstance(name, str) and isinstance(pair, (list, tuple)) and len(pair) == 2
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                      and math.isfinite(v) for v in pair) and pair[0] < pair[1])
+        if not ok:
+            raise ValueError(f"{where}: {name!r} must be [lower, upper], two finite numbers "
+                             f"with lower < upper, got {pair!r}")
+        out[name] = (float(pair[0]), float(pair[1]))
+    return out
+
+
 class Model:
     """The thin-port model (eqs. 1-5, 11) composed with effects.
 
@@ -33,9 +51,15 @@ class Model:
     ----------
     effects : iterable of Effect or str
         Catalogue effects (objects, or names for default options). Each name at most once.
+    bounds : mapping of str to (lower, upper), optional
+        Bounds that replace a parameter's default ones (a rig unlike the paper's: a 1-L
+        test lung's dead volume, a large valve's port area), in the parameter's unit; the
+        default prior keeps its kind on the new bounds. Every name must be a parameter of
+        the model. Recorded in the model card.
     """
 
-    def __init__(self, effects: Iterable[Effect | str] = ()):
+    def __init__(self, effects: Iterable[Effect | str] = (),
+                 bounds: Mapping[str, tuple[float, float]] | None = None):
         built = []
         for e in effects:
             built.append(make_effect(e) if isinstance(e, str) else e)
@@ -50,6 +74,8 @@ class Model:
         order = list(CATALOGUE)
         self.effects: tuple[Effect, ...] = tuple(sorted(built, key=lambda e: order.index(e.name)))
         self.base = ThinPort()
+        self.bound_overrides: dict[str, tuple[float, float]] = check_bound_overrides(
+            bounds or {}, "Model bounds")
 
     # ------------------------------------------------------------------ structure
     @property
@@ -62,7 +88,17 @@ class Model:
 
     @cached_property
     def parameters(self) -> tuple[Parameter, ...]:
-        return tuple(p for c in self.components for p in c.parameters())
+        ps = tuple(p for c in self.components for p in c.parameters())
+        unknown = sorted(set(self.bound_overrides) - {p.name for p in ps})
+        if unknown:
+            raise ParameterError(f"bounds for {unknown}, which the model does not have; its "
+                                 f"parameters are {[p.name for p in ps]}")
+        try:
+            return tuple(replace(p, lower=self.bound_overrides[p.name][0],
+                                 upper=self.bound_overrides[p.name][1])
+                         if p.name in self.bound_overrides else p for p in ps)
+        except ValueError as exc:  # e.g. a log-uniform prior's lower bound <= 0
+            raise ParameterError(f"bounds: {exc}") from None
 
     @cached_property
     def parameter_names(self) -> tuple[str, ...]:
@@ -102,23 +138,35 @@ class Model:
         raise KeyError(f"model has no effect {name!r}; it has {self.effect_names}")
 
     def with_effect(self, effect: Effect | str) -> "Model":
-        """A new model with one more effect."""
+        """A new model with one more effect (the bound overrides kept)."""
         return Model(self.effects + ((make_effect(effect) if isinstance(effect, str)
-                                      else effect),))
+                                      else effect),), self.bound_overrides)
 
     def without(self, name: str) -> "Model":
-        """A new model with the named effect removed (an ablation)."""
-        self.effect(name)
-        return Model(e for e in self.effects if e.name != name)
+        """A new model with the named effect removed (an ablation); overrides of the
+        removed effect's parameters go with it."""
+        gone = set(self.effect(name).parameter_names())
+        return Model((e for e in self.effects if e.name != name),
+                     {k: v for k, v in self.bound_overrides.items() if k not in gone})
+
+    def with_bounds(self, bounds: Mapping[str, tuple[float, float]]) -> "Model":
+        """The same model with those of ``bounds`` that name its parameters overriding
+        (others, for effects it does not have, are ignored: the discovery loop applies one
+        set of overrides to every model it builds)."""
+        names = {p.name for c in self.components for p in c.parameters()}
+        return Model(self.effects, {**self.bound_overrides,
+                                    **{k: v for k, v in bounds.items() if k in names}})
 
     def __repr__(self):
-        return f"Model(effects={list(self.effects)!r})"
+        extra = f", bounds={self.bound_overrides!r}" if self.bound_overrides else ""
+        return f"Model(effects={list(self.effects)!r}{extra})"
 
     def __eq__(self, other):
-        return isinstance(other, Model) and self.effects == other.effects
+        return (isinstance(other, Model) and self.effects == other.effects
+                and self.bound_overrides == other.bound_overrides)
 
     def __hash__(self):
-        return hash(self.effects)
+        return hash((self.effects, tuple(sorted(self.bound_overrides.items()))))
 
     # ------------------------------------------------------------------ values
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
@@ -207,6 +255,8 @@ class Model:
         opts = {e.name: e.options() for e in self.effects if e.options()}
         if opts:
             card["effect_options"] = opts
+        if self.bound_overrides:
+            card["bounds"] = {k: list(v) for k, v in self.bound_overrides.items()}
         if extra:
             card.update(dict(extra))
         return card
@@ -253,7 +303,8 @@ class Model:
             except ValueError as exc:
                 raise ModelCardError(f"{source}: key 'effects': {exc}") from None
         try:
-            model = cls(effects)
+            bounds = check_bound_overrides(card.get("bounds", {}), "key 'bounds'")
+            model = cls(effects, bounds)
             for k, v in params.items():
                 if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
                     raise ParameterError(f"parameter {k!r} must be a finite number, got {v!r}")

@@ -204,3 +204,13 @@ def test_short_triggered_trials_fit_on_shorter_windows(tmp_path, capsys):
     from pneubayes.cli import _run_horizon
 
     assert _run_horizon(out) == 0.2 and _run_horizon(tmp_path) == 2.0
+    # bounds sized for another rig are set per run and recorded in the card
+    wide = tmp_path / "wide"
+    assert main(["fit", *recs, "--out", str(wide), "--method", "refine", "--horizon", "0.2",
+                 "--bounds", "dead_volume_m3=1e-7:5e-3", "--no-figures", "-q"]) == 0
+    card = json.loads((wide / "model.json").read_text())
+    assert card["bounds"] == {"dead_volume_m3": [1e-7, 5e-3]}
+    capsys.readouterr()
+    assert main(["fit", *recs, "--out", str(tmp_path / "c"), "--bounds", "volume=1:2"]) == 2
+    assert "bounds for ['volume']" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()

@@ -300,3 +300,35 @@ def test_card_rejects_options_of_an_unlisted_effect():
     card["effect_options"] = {"tube_delay": {"tube_diameter_m": 0.004}}
     with pytest.raises(ModelCardError, match="tube_delay"):
         Model.from_card(json.loads(json.dumps(card)), source="card.json")
+
+
+def test_bound_overrides_replace_the_defaults_and_travel_with_the_model(tmp_path):
+    m = Model([make_effect("cylinder_leak")], {"dead_volume_m3": (1e-5, 5e-3)})
+    j = m.parameter_names.index("dead_volume_m3")
+    assert m.bounds[0][j] == 1e-5 and m.bounds[1][j] == 5e-3
+    assert m.parameter("dead_volume_m3").prior == Model().parameter("dead_volume_m3").prior
+    assert m != Model([make_effect("cylinder_leak")])
+    grown = m.with_effect("tube_delay")
+    assert grown.bound_overrides == m.bound_overrides
+    assert grown.without("tube_delay") == m
+    both = grown.with_bounds({"tube_delay_s": (0.0, 0.1), "spool_time_constant_s": (0, 1)})
+    assert both.bound_overrides["tube_delay_s"] == (0.0, 0.1)
+    assert "spool_time_constant_s" not in both.bound_overrides  # not in this model
+    assert "tube_delay_s" not in both.without("tube_delay").bound_overrides
+    values = dict(m.neutral_values())
+    values.update({n: float(0.5 * (lo + hi)) for n, lo, hi in
+                   zip(m.parameter_names, *m.bounds)})
+    m.save_card(values, tmp_path / "card.json")
+    back, params = Model.load_card(tmp_path / "card.json")
+    assert back == m and params["dead_volume_m3"] == pytest.approx(values["dead_volume_m3"])
+    with pytest.raises(ParameterError, match=r"bounds for \['nope'\]"):
+        Model((), {"nope": (0.0, 1.0)}).parameters
+    with pytest.raises(ValueError, match="lower < upper"):
+        Model((), {"dead_volume_m3": (1e-3, 1e-5)})
+    with pytest.raises(ParameterError, match="log-uniform prior needs lower > 0"):
+        Model((), {"inlet_a_m2": (0.0, 1e-5)}).parameters
+    card = json.loads((tmp_path / "card.json").read_text())
+    card["bounds"] = {"dead_volume_m3": [1e-3]}
+    (tmp_path / "bad.json").write_text(json.dumps(card))
+    with pytest.raises(ModelCardError, match=r"key 'bounds': 'dead_volume_m3' must be"):
+        Model.load_card(tmp_path / "bad.json")
