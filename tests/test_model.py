@@ -322,11 +322,11 @@ def test_bound_overrides_replace_the_defaults_and_travel_with_the_model(tmp_path
     back, params = Model.load_card(tmp_path / "card.json")
     assert back == m and params["dead_volume_m3"] == pytest.approx(values["dead_volume_m3"])
     with pytest.raises(ParameterError, match=r"bounds for \['nope'\]"):
-        Model((), {"nope": (0.0, 1.0)}).parameters
+        _ = Model((), {"nope": (0.0, 1.0)}).parameters
     with pytest.raises(ValueError, match="lower < upper"):
         Model((), {"dead_volume_m3": (1e-3, 1e-5)})
     with pytest.raises(ParameterError, match="log-uniform prior needs lower > 0"):
-        Model((), {"inlet_a_m2": (0.0, 1e-5)}).parameters
+        _ = Model((), {"inlet_a_m2": (0.0, 1e-5)}).parameters
     card = json.loads((tmp_path / "card.json").read_text())
     card["bounds"] = {"dead_volume_m3": [1e-3]}
     (tmp_path / "bad.json").write_text(json.dumps(card))
