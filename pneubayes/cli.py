@@ -284,6 +284,7 @@ def cmd_discover(args) -> int:
     recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover")
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
+        bounds=dict(args.bounds),
         max_effects=args.max_effects,
         posterior=not args.no_posterior, seed=args.seed,
         tube_line_segments=args.tube_line_segments,

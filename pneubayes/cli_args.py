@@ -97,6 +97,14 @@ def _add_run_folder(p) -> None:
                         "the same command on the same inputs and settings resumes anyway")
 
 
+def _add_bounds(p) -> None:
+    p.add_argument("--bounds", action="append", type=_bound, default=[],
+                   metavar="NAME=LOWER:UPPER",
+                   help="replace a parameter's bounds, in its unit (a rig unlike the "
+                        "paper's: e.g. dead_volume_m3=1e-5:5e-3 for a 1-L chamber); "
+                        "repeatable; recorded in the model card")
+
+
 def _add_windows(p) -> None:
     p.add_argument("--horizon", type=POSITIVE, default=2.0, metavar="S",
                    help="length of the open-loop prediction windows the model is fitted "
@@ -218,11 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="sampler seed (recorded)")
     _add_cutoffs(f)
     _add_windows(f)
-    f.add_argument("--bounds", action="append", type=_bound, default=[],
-                   metavar="NAME=LOWER:UPPER",
-                   help="replace a parameter's bounds, in its unit (a rig unlike the "
-                        "paper's: e.g. dead_volume_m3=1e-5:5e-3 for a 1-L chamber); "
-                        "repeatable; recorded in the model card")
+    _add_bounds(f)
     _add_run_folder(f)
     f.add_argument("--no-figures", action="store_true")
     f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -277,6 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="seed of bagging and sampler")
     _add_cutoffs(d)
     _add_windows(d)
+    _add_bounds(d)
     _add_run_folder(d)
     d.add_argument("--no-figures", action="store_true")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress output")

@@ -181,8 +181,11 @@ def test_whole_recordings_can_be_held_out(tmp_path):
     """Triggered trials hold no valve event at their ends: hold whole recordings out."""
     paths, _ = _bench(tmp_path / "bench", [], seed=21)
     recs = [read_recording(p) for p in paths]
-    d = Discovery(_settings(holdout_recordings=2), tmp_path / "run",
+    bounds = {"dead_volume_m3": (1e-7, 1e-3), "tube_delay_s": (0.0, 0.1)}
+    d = Discovery(_settings(holdout_recordings=2, bounds=bounds), tmp_path / "run",
                   log=lambda m: None).fit(recs)
+    # the bounds apply to every model fitted (the tube's waits until a tube is added)
+    assert d.final_.model.bound_overrides == {"dead_volume_m3": (1e-7, 1e-3)}
     assert [r.source for r in d.held_] == [r.source for r in recs[-2:]]
     assert [r.source for r in d.train_] == [r.source for r in recs[:-2]]
     assert d.held_[0].n_samples == recs[-2].n_samples  # whole, not a tail
@@ -193,3 +196,7 @@ def test_whole_recordings_can_be_held_out(tmp_path):
         Discovery(_settings(holdout_recordings=6), None, log=lambda m: None).fit(recs)
     with pytest.raises(ValueError, match="holdout_recordings must be an integer >= 0"):
         _settings(holdout_recordings=-1)
+    with pytest.raises(ValueError, match=r"\['volume'\] name no parameter"):
+        _settings(bounds={"volume": (0.0, 1.0)})
+    with pytest.raises(ValueError, match="lower < upper"):
+        _settings(bounds={"tube_delay_s": (0.1, 0.0)})

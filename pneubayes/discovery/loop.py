@@ -119,8 +119,12 @@ class Discovery:
     def _fit(self, model: Model, start: dict, train_ws: WindowSet, held_ws: WindowSet,
              data_key: str, first=None) -> StepFit:
         """Refine ``model`` from ``start`` (``first``: parameters refined on their own
-        before all of them) and score it on the training and held-out windows."""
+        before all of them) and score it on the training and held-out windows. The
+        settings' bound overrides apply to every model fitted here (the refiner starts
+        inside them)."""
         s = self.settings
+        if s.bounds:
+            model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
         key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key,
                            *([list(first)] if first else []))
         path = self._cache_path(key)

@@ -6,8 +6,10 @@ from dataclasses import asdict, dataclass, field
 
 from pneubayes.discovery.disagreement import RegimeSettings
 from pneubayes.discovery.library import LibraryGrid
+from pneubayes.effects import catalogue_parameter_names
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
 from pneubayes.inference.pipeline import FitSettings
+from pneubayes.model import Model, check_bound_overrides
 from pneubayes.simulation import SolverConfig
 
 
@@ -16,6 +18,9 @@ class DiscoverySettings:
     """Every setting of ``pneubayes discover`` (saved in discovery.json).
 
     holdout_fraction: the last fraction of every recording is held out for verification.
+    bounds: parameter name -> [lower, upper] replacing the default bounds in every model
+    the loop fits (a rig unlike the paper's); names of effects a model does not have wait
+    until the loop adds them.
     holdout_recordings: when > 0, the last this many recordings given are held out whole
     instead (triggered trials: the end of a trial holds no valve event to verify on), and
     holdout_fraction is not used.
@@ -54,6 +59,7 @@ class DiscoverySettings:
 
     holdout_fraction: float = 1.0 / 3.0
     holdout_recordings: int = 0
+    bounds: dict = field(default_factory=dict)
     block: int = 5
     grid: LibraryGrid = field(default_factory=LibraryGrid)
     regimes: RegimeSettings = field(default_factory=RegimeSettings)
@@ -79,6 +85,13 @@ class DiscoverySettings:
     def __post_init__(self):
         if not 0.0 < self.holdout_fraction < 1.0:
             raise ValueError(f"holdout_fraction must be in (0, 1), got {self.holdout_fraction}")
+        bounds = check_bound_overrides(self.bounds, "DiscoverySettings.bounds")
+        unknown = sorted(set(bounds) - set(Model().parameter_names)
+                         - catalogue_parameter_names())
+        if unknown:
+            raise ValueError(f"DiscoverySettings.bounds: {unknown} name no parameter of the "
+                             "thin-port model or of any catalogue effect")
+        object.__setattr__(self, "bounds", {k: list(v) for k, v in bounds.items()})
         if isinstance(self.holdout_recordings, bool) or not isinstance(
                 self.holdout_recordings, int) or self.holdout_recordings < 0:
             raise ValueError("holdout_recordings must be an integer >= 0, got "

@@ -40,6 +40,15 @@ def make_effect(name: str, **options) -> Effect:
         raise ValueError(f"effect {name!r}: bad options {options!r} ({exc})") from None
 
 
+def catalogue_parameter_names() -> frozenset[str]:
+    """Every parameter name of every catalogue effect, in every form."""
+    names = set()
+    for cls in CATALOGUE.values():
+        for options in ([{"form": f} for f in cls.forms] or [{}]):
+            names.update(cls(**options).parameter_names())
+    return frozenset(names)
+
+
 def _check_options(cls: type[Effect], options: dict) -> None:
     """Every option is a constructor argument, of the kind of its default (a string, an
     integer or a finite real number); raises ValueError naming the option."""
@@ -67,4 +76,4 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 
 __all__ = ["CATALOGUE", "Component", "CylinderLeak", "Effect", "HeatTransfer", "Parameter",
            "SpoolLag", "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone",
-           "make_effect"]
+           "catalogue_parameter_names", "make_effect"]

@@ -112,6 +112,9 @@ class Effect(Component):
     synthetic data and fits it in a model.
     """
 
+    #: The forms of an effect with a ``form`` option (empty: one form only).
+    forms: ClassVar[tuple[str, ...]] = ()
+
     def neutral_values(self) -> dict[str, float]:
         """Parameter values at which the effect vanishes (zero strength)."""
         return {p.name: float(p.neutral) for p in self.parameters()}

@@ -35,6 +35,8 @@ class CylinderLeak(Effect):
     """Leak from the chamber to atmosphere past the piston (eqs. 6-9)."""
 
     name = "cylinder_leak"
+    #: The forms (``form`` option) this effect has; the first is the default.
+    forms = _FORMS
     acts_on = ("leak_orifice_area_m2", "leak_laminar_kg_per_s_Pa2",
                "leak_laminar_gradient_kg_per_s_Pa2_m")
 

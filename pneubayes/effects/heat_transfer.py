@@ -49,6 +49,8 @@ class HeatTransfer(Effect):
     """Chamber temperature as a state, exchanging heat with the wall."""
 
     name = "heat_transfer"
+    #: The forms (``form`` option) this effect has; the first is the default.
+    forms = _FORMS
     acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K")
 
     def __init__(self, form: str = "rate"):

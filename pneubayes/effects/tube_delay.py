@@ -46,6 +46,8 @@ class TubeDelay(Effect):
     """The valve-chamber tube: transport delay with attenuation, or an acoustic line."""
 
     name = "tube_delay"
+    #: The forms (``form`` option) this effect has; the first is the default.
+    forms = _FORMS
     acts_on = ("command_delay_s", "flow_attenuation_Pa", "line_length_m", "line_diameter_m",
                "line_segments", "line_viscosity_Pa_s")
 
