@@ -240,7 +240,7 @@ def cmd_fit(args) -> int:
 
 
 def cmd_predict(args) -> int:
-    from pneubayes.inference.pipeline import run_predict
+    from pneubayes.inference.pipeline import MISFIT_RATIO, run_predict
     from pneubayes.io.recording import read_recording
     from pneubayes.simulation import SolverConfig
 
@@ -265,7 +265,7 @@ def cmd_predict(args) -> int:
           f"{m['noise_floor_Pa']:.0f} Pa); coverage 50 % -> {m['coverage_50']:.2f}, "
           f"90 % -> {m['coverage_90']:.2f} with a 90 % band {m['band_90_width_Pa']:.0f} Pa "
           f"wide ({m['band_90_width_over_sensor_noise']:.1f} x what sensor noise alone gives)")
-    if m["rmse_over_noise_floor"] > 1.5:
+    if m["rmse_over_noise_floor"] > MISFIT_RATIO:
         print(f"  misfit: the model misses by {m['rmse_over_noise_floor']:.1f} x the noise "
               "floor" + (" and its bands cover only by being wide (the noise model "
                          "absorbs the misfit)"

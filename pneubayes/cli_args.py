@@ -97,6 +97,22 @@ def _add_run_folder(p) -> None:
                         "the same command on the same inputs and settings resumes anyway")
 
 
+def _add_identification(p, seed_help: str) -> None:
+    """The options fit and discover share: the sampler, the inputs' preparation, the
+    windows, the bounds, the run folder, output and plausibility."""
+    p.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
+                   help="emcee walkers (0: automatic)")
+    p.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
+    p.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help=seed_help)
+    _add_cutoffs(p)
+    _add_windows(p)
+    _add_bounds(p)
+    _add_run_folder(p)
+    p.add_argument("--no-figures", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    _add_accept(p)
+
+
 def _add_bounds(p) -> None:
     p.add_argument("--bounds", action="append", type=_bound, default=[],
                    metavar="NAME=LOWER:UPPER",
@@ -220,17 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
                    help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
                         "shooting on the windows; mcmc (default): then the emcee posterior")
-    f.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
-                   help="emcee walkers (0: automatic)")
-    f.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
-    f.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="sampler seed (recorded)")
-    _add_cutoffs(f)
-    _add_windows(f)
-    _add_bounds(f)
-    _add_run_folder(f)
-    f.add_argument("--no-figures", action="store_true")
-    f.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    _add_accept(f)
+    _add_identification(f, "sampler seed (recorded)")
 
     r = sub.add_parser(
         "predict", help="posterior-predictive pressure bands (--horizon windows) for a recording",
@@ -275,17 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "noise floor; 0 fits every form (1.05)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
-    d.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
-                   help="emcee walkers (0: automatic)")
-    d.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
-    d.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help="seed of bagging and sampler")
-    _add_cutoffs(d)
-    _add_windows(d)
-    _add_bounds(d)
-    _add_run_folder(d)
-    d.add_argument("--no-figures", action="store_true")
-    d.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    _add_accept(d)
+    _add_identification(d, "seed of bagging and sampler (recorded)")
 
     a = sub.add_parser(
         "ablate", help="run a declarative ablation study (a grid of fits) with caching",

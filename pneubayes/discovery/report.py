@@ -18,6 +18,7 @@ from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.discovery.disagreement import flagged_bins
 from pneubayes.discovery.loop import Discovery
 from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.inference.pipeline import MISFIT_RATIO
 from pneubayes.io.plausibility import recorded_findings
 
 
@@ -80,11 +81,6 @@ def _md(text) -> str:
 
 def _fmt(v, spec=".4g"):
     return "-" if v is None else format(v, spec)
-
-
-#: A held-out error above this x the noise floor is reported as misfit, never as
-#: explained (the noise floor is the sensor's, estimated from the recordings).
-MISFIT_RATIO = 1.5
 
 
 def _report(doc: dict, disc: Discovery, figs: dict) -> str:

@@ -336,4 +336,4 @@ def recorded_findings(recordings) -> list[dict]:
     """The findings the recordings carry, as a run records them (one dict per finding,
     with the recording's source)."""
     return [{"recording": str(r.source), **f.as_dict()} for r in recordings
-            for f in getattr(r, "findings", ())]
+            for f in r.findings]

@@ -97,14 +97,8 @@ def _format_version(data: dict, name: str, problems: list) -> int:
 def _declared_keys(data: dict, name: str, problems: list) -> list[str]:
     """Format 2: replace keys in declared units (``bore_mm``, ``supply_pressure_psi_gauge``)
     by their SI, absolute keys in place; return what was converted."""
-    declared = {k: d for k in list(data) if (d := parse_declared(k)) is not None
-                and d.si_name in KNOWN_KEYS and not d.is_si}
-    seen = {}
-    for k, d in declared.items():
-        other = seen.get(d.si_name, d.si_name if d.si_name in data else None)
-        if other is not None:
-            problems.append((f"{name} key {k!r}", f"gives {d.si_name} again (also {other!r})"))
-        seen[d.si_name] = k
+    declared = _declared(list(data), KNOWN_KEYS, problems,
+                         lambda k: (f"{name} key {k!r}", ""))
     atm = None
     order = sorted(declared.items(), key=lambda kd: kd[1].gauge)  # the atmosphere first
     conversions = []
@@ -146,15 +140,23 @@ def _declared_columns(header_names, name: str, version: int, problems: list) -> 
     """Format 2: the header's columns in declared units, name -> :class:`DeclaredUnit`."""
     if version != 2:
         return {}
-    declared = {c: d for c in header_names if (d := parse_declared(c)) is not None
-                and d.si_name in KNOWN_COLUMNS and not d.is_si}
+    return _declared(list(header_names), KNOWN_COLUMNS, problems,
+                     lambda c: (f"{name} row 1 (header)", f"column {c!r} "))
+
+
+def _declared(names: list, known, problems: list, where) -> dict:
+    """The ``names`` in declared units of a quantity in ``known``, name ->
+    :class:`DeclaredUnit`; a quantity given twice (two units, or a unit and its SI name)
+    is a problem at ``where(name)``, a (location, message prefix) pair."""
+    declared = {n: d for n in names if (d := parse_declared(n)) is not None
+                and d.si_name in known and not d.is_si}
     seen = {}
-    for c, d in declared.items():
-        other = seen.get(d.si_name, d.si_name if d.si_name in header_names else None)
+    for n, d in declared.items():
+        other = seen.get(d.si_name, d.si_name if d.si_name in names else None)
         if other is not None:
-            problems.append((f"{name} row 1 (header)",
-                             f"column {c!r} gives {d.si_name} again (also {other!r})"))
-        seen[d.si_name] = c
+            location, prefix = where(n)
+            problems.append((location, f"{prefix}gives {d.si_name} again (also {other!r})"))
+        seen[d.si_name] = n
     return declared
 
 
