@@ -1,6 +1,7 @@
 """Points on the signal path where the model's components act.
 
-command -> [delay] -> spool [lag] -> [dead band] -> port areas (Gompertz, eq. 11)
+command -> [delay] -> spool [lag] -> [dead band] -> port areas (Gompertz, eq. 11, and
+a switching valve's area proportional to its opening)
 -> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
 + extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor
 (the rig's declared anti-alias filter, :mod:`pneubayes.simulation.measurement`).
@@ -45,6 +46,12 @@ SLOTS: tuple[tuple[str, str], ...] = (
     ("line_diameter_m", "inner diameter of the acoustic line (m)"),
     ("line_segments", "cells of the acoustic line (count)"),
     ("line_viscosity_Pa_s", "dynamic viscosity of the air in the acoustic line (Pa s)"),
+    ("compliance_m3_per_Pa", "chamber compliance C: the volume grows by C (p - P_atm) with "
+     "its pressure (a bellows, a test lung; m^3/Pa)"),
+    ("inlet_open_area_m2", "switching valve: inlet area A clip(u, 0, 1) added to the map's, "
+     "u the spool (0 closed, 1 open; m^2)"),
+    ("exhaust_open_area_m2", "switching valve: exhaust area A clip(1 - u, 0, 1) added to the "
+     "map's (a 3/2 valve venting when closed; m^2)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

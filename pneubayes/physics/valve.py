@@ -25,6 +25,20 @@ def gompertz_area(command_V, offset_m2, a_m2, b, c_per_V, d_V):
     return offset_m2 + a_m2 * np.exp(-b * np.exp(-c_per_V * (cmd + d_V)))
 
 
+@njit(cache=True, inline="always")
+def switching_scalar(u, inlet_open_m2, exhaust_open_m2):
+    """A switching (on/off) valve's port areas for opening ``u`` (0 closed, 1 open), m^2:
+    the inlet ``A_in clip(u, 0, 1)``, the exhaust ``A_ex clip(1 - u, 0, 1)``."""
+    f = 0.0 if u <= 0.0 else (1.0 if u >= 1.0 else u)
+    return inlet_open_m2 * f, exhaust_open_m2 * (1.0 - f)
+
+
+def switching_areas(u, inlet_open_m2, exhaust_open_m2):
+    """:func:`switching_scalar`, vectorised: ``(inlet_m2, exhaust_m2)``."""
+    f = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
+    return inlet_open_m2 * f, exhaust_open_m2 * (1.0 - f)
+
+
 @dataclass(frozen=True)
 class GompertzMap:
     """One port's area map (eq. 11). Areas in m^2, ``c`` in 1/V, ``d`` in V."""

@@ -30,6 +30,7 @@ _LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
 _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
+_COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -79,7 +80,13 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     mdot = phi * valve - leak_o * f_ex - leak_l * lam
     rs = cs[C_RS]
     rs_t = rs * t_wall
-    n_over_v = kappa / vol
+    # a compliant chamber, V = vol + C (p - P_atm): eq. 5 with dV/dt = vdot + C dp/dt
+    # gives dp/dt = n (Rs T mdot - p vdot) / (V + n p C)
+    compl = sl[_COMPL]
+    if compl > 0.0:
+        vol = vol + compl * (p - p_atm)
+    denom = vol + kappa * p * compl
+    n_over_v = kappa / denom
     heat = sl[_HEAT]
     thermal = heat > 0.0 or hconv > 0.0
     # With a temperature state, air leaving the chamber carries the chamber's enthalpy
@@ -116,12 +123,14 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
     dmdot = phi * dvalve + phi * att / (p * p) * valve - leak_o * dfex_dp - 2.0 * leak_l * p
     jp = n_over_v * (rs_t * dmdot - vdot)
+    if compl > 0.0:  # d(denominator)/dp = C (1 + n)
+        jp -= fp_eq5 * compl * (1.0 + kappa) / denom
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = (phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
                 - leak_g * vdot / cs[C_BORE_AREA] * lam)
-    vp = -fp_eq5 / vol * vdot + n_over_v * rs_t * dmdot_dt
+    vp = -fp_eq5 / denom * vdot + n_over_v * rs_t * dmdot_dt
     if hconv > 0.0:
         vp -= (kappa - 1.0) * hconv * (t_wall - temp) * 2.0 * cs[C_BORE_AREA] * vdot / (vol * vol)
     if not thermal:

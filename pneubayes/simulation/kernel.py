@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit, prange
 
 from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX
-from pneubayes.physics.valve import gompertz_scalar
+from pneubayes.physics.valve import gompertz_scalar, switching_scalar
 from pneubayes.simulation.chamber import chamber_rhs
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
     C_ALPHA,
@@ -87,6 +87,8 @@ _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _LLEN = SLOT_INDEX["line_length_m"]
 _LDIA = SLOT_INDEX["line_diameter_m"]
 _LSEG = SLOT_INDEX["line_segments"]
+_OPEN_IN = SLOT_INDEX["inlet_open_area_m2"]
+_OPEN_EX = SLOT_INDEX["exhaust_open_area_m2"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -121,6 +123,10 @@ def _areas(spool, dead, sl):
     u = 0.0 if mag <= 0.0 else (mag if spool > 0.0 else -mag)
     a_in = gompertz_scalar(u, sl[_IN], sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
     a_ex = gompertz_scalar(u, sl[_EX], sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
+    if sl[_OPEN_IN] != 0.0 or sl[_OPEN_EX] != 0.0:
+        s_in, s_ex = switching_scalar(u, sl[_OPEN_IN], sl[_OPEN_EX])
+        a_in += s_in
+        a_ex += s_ex
     return a_in, a_ex
 
 
@@ -133,6 +139,9 @@ def _area_rates(spool, spool_rate, dead, sl):
     u = mag if spool > 0.0 else -mag
     r_in = _gompertz_rate(u, sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
     r_ex = _gompertz_rate(u, sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
+    if 0.0 < u < 1.0:  # a switching valve's areas move with its opening
+        r_in += sl[_OPEN_IN]
+        r_ex -= sl[_OPEN_EX]
     return r_in * spool_rate, r_ex * spool_rate
 
 

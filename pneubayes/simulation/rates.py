@@ -18,7 +18,7 @@ import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
-from pneubayes.physics.valve import gompertz_area
+from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
 
 _PORT = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
@@ -51,6 +51,18 @@ class RateTerms:
         return self.inlet + self.exhaust + self.leak + self.volume
 
 
+def port_areas(slots: np.ndarray, spool_V) -> tuple[np.ndarray, np.ndarray]:
+    """Inlet and exhaust areas (m^2) for one slot row at spool positions ``spool_V`` (in
+    the command's unit): the dead band, the Gompertz maps (eq. 11) and a switching
+    valve's opening, as the compiled simulator computes them."""
+    sl = np.asarray(slots, dtype=np.float64)
+    u = dead_band(spool_V, sl[S["deadband_halfwidth_V"]])
+    a_in = gompertz_area(u, *(sl[S[f"inlet_{k}"]] for k in _PORT))
+    a_ex = gompertz_area(u, *(sl[S[f"exhaust_{k}"]] for k in _PORT))
+    s_in, s_ex = switching_areas(u, sl[S["inlet_open_area_m2"]], sl[S["exhaust_open_area_m2"]])
+    return a_in + s_in, a_ex + s_ex
+
+
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                velocity_m_per_s, supply_measured_Pa) -> RateTerms:
     """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
@@ -65,15 +77,16 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     rs_t = g.specific_gas_constant_J_per_kg_K * g.temperature_K
     p_atm = rig.atmospheric_pressure_Pa
     p = np.asarray(pressure_Pa, dtype=np.float64)
-    u = dead_band(spool_V, sl[S["deadband_halfwidth_V"]])
-    a_in = gompertz_area(u, *(sl[S[f"inlet_{k}"]] for k in _PORT))
-    a_ex = gompertz_area(u, *(sl[S[f"exhaust_{k}"]] for k in _PORT))
+    a_in, a_ex = port_areas(sl, spool_V)
     p_nom = rig.supply_pressure_Pa
     p_sup = p_nom + sl[S["supply_gain"]] * (np.asarray(supply_measured_Pa) - p_nom)
     atten = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
     vol = sl[S["volume_m3"]] + rig.bore_area_m2 * np.asarray(position_m, dtype=np.float64)
     vdot = rig.bore_area_m2 * np.asarray(velocity_m_per_s, dtype=np.float64)
-    scale = kappa * rs_t / vol
+    compl = sl[S["compliance_m3_per_Pa"]]
+    vol = vol + compl * (p - p_atm)  # a compliant chamber (0: none)
+    denom = vol + kappa * p * compl
+    scale = kappa * rs_t / denom
     inlet = scale * atten * a_in * flow_function(p_sup, p, g)
     exhaust = -scale * atten * a_ex * flow_function(p, p_atm, g)
     leak = -scale * (sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
@@ -81,7 +94,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                                   + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                                   * np.asarray(position_m, dtype=np.float64), 0.0)
                      * (p * p - p_atm * p_atm))
-    volume = -kappa * p * vdot / vol
+    volume = -kappa * p * vdot / denom
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
     return RateTerms(inlet, exhaust, leak, volume,
                      inlet_choked=p < crit * p_sup, exhaust_choked=p_atm < crit * p)

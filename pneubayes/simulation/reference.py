@@ -16,7 +16,7 @@ from pneubayes.model import Model
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.tube import churchill_fre
-from pneubayes.physics.valve import gompertz_area
+from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
 from pneubayes.simulation.simulator import Inputs
 
@@ -50,6 +50,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         ueff = np.sign(s) * max(abs(s) - dead, 0.0)
         a_in = gompertz_area(ueff, *ins)
         a_ex = gompertz_area(ueff, *exs)
+        s_in, s_ex = switching_areas(ueff, sl[S["inlet_open_area_m2"]],
+                                     sl[S["exhaust_open_area_m2"]])
+        a_in, a_ex = a_in + s_in, a_ex + s_ex
         fr = (t - ta) / seg
         vol = (sl[S["volume_m3"]] - v_line
                + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2))
@@ -89,7 +92,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         # without heat exchange, where this is eq. 5)
         t_chamber = temp if thermal else t_s
         enthalpy = sum(rs * (t_s if q > 0 else t_chamber) * q for q in map(float, flows))
-        dp = kappa / vol * (enthalpy - p * vdot)
+        compl = sl[S["compliance_m3_per_Pa"]]  # V grows by C (p - P_atm)
+        dp = kappa * (enthalpy - p * vdot) / (vol + compl * (p - p_atm) + kappa * p * compl)
         dtemp = 0.0
         if heat > 0:
             dp = dp + p * heat * (t_s - temp) / temp
@@ -124,8 +128,14 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     if nseg:
         area = np.pi / 4 * sl[S["line_diameter_m"]] ** 2
         atols += [atol * area / rig.gas.speed_of_sound_m_per_s] * nseg
-    j = int(np.searchsorted(t + delay, t[0], side="right") - 1) if delay > 0 else 0
-    y[2] = u[max(j, 0)]
+    before = inputs.command_before_start
+
+    def held(jj):
+        """The command held at delayed index jj (before the first sample: the declared
+        pre-trigger command, else the first sample's)."""
+        return u[0] if jj < 0 and before is None else (before if jj < 0 else u[jj])
+    j = int(np.searchsorted(t + delay, t[0], side="right") - 1)
+    y[2] = held(j)
     out = np.empty(t.size)
     out[0] = y[0]
     nfev = 0
@@ -138,7 +148,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         edges = np.concatenate([[ta], cuts, [tb]])
         for a, b in zip(edges[:-1], edges[1:]):
             jj = int(np.searchsorted(shifted, a, side="right") - 1)
-            cmd = u[max(jj, 0)]
+            cmd = held(jj)
             rhs = _rhs_factory(sl, rig, cmd, x[k], vdot, ta, seg, ps[k], ps[k + 1])
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
                             atol=atols)

@@ -32,14 +32,26 @@ class Inputs:
     command_V : (N,) valve command, V, held between samples (zero-order hold)
     position_m : (N,) piston position, m, linear between samples
     supply_pressure_Pa : (N,) measured absolute supply, Pa, linear between samples
+    command_before_start : float or None
+        The command held before the first sample (a triggered recording's pre-trigger
+        command, in the command's unit), which a delayed or lagging valve still sees
+        after the recording starts; None: the first sample's command, held since long
+        before the start.
     """
 
     time_s: np.ndarray
     command_V: np.ndarray
     position_m: np.ndarray
     supply_pressure_Pa: np.ndarray
+    command_before_start: float | None = None
 
     def __post_init__(self):
+        before = self.command_before_start
+        if before is not None and not (isinstance(before, (int, float))
+                                       and not isinstance(before, bool)
+                                       and np.isfinite(before)):
+            raise ValueError(f"Inputs.command_before_start must be a finite number or None, "
+                             f"got {before!r}")
         arrs = {k: np.ascontiguousarray(getattr(self, k), dtype=np.float64)
                 for k in ("time_s", "command_V", "position_m", "supply_pressure_Pa")}
         n = arrs["time_s"].shape
@@ -70,7 +82,18 @@ class Inputs:
     def from_recording(cls, recording) -> "Inputs":
         """Inputs of a :class:`pneubayes.io.Recording` (nominal supply/fixed position if absent)."""
         return cls(recording.time_s, recording.command_V, recording.position_or_fixed(),
-                   recording.supply_or_nominal())
+                   recording.supply_or_nominal(), recording.command_before_start)
+
+    def kernel_arrays(self):
+        """``(t, u, x, ps, offset)``: the drive arrays the compiled kernel reads, with a
+        declared pre-trigger command as one extra sample held from 10 s before the
+        start (``offset`` 1: window starts shift by one), else the arrays as they are."""
+        t, u, x, ps = self.time_s, self.command_V, self.position_m, self.supply_pressure_Pa
+        if self.command_before_start is None:
+            return t, u, x, ps, 0
+        return (np.concatenate(([t[0] - 10.0], t)),
+                np.concatenate(([float(self.command_before_start)], u)),
+                np.concatenate((x[:1], x)), np.concatenate((ps[:1], ps)), 1)
 
 
 @dataclass(frozen=True)
@@ -140,10 +163,15 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if np.any(line & hot):
         raise ValueError("the tube's acoustic line (tube_delay form 'line') is isothermal: "
                          "it cannot be combined with heat_transfer in one model")
-    slots, consts, sv, t, u, x, ps, starts, p0 = _kernel_arrays(
-        slots, rig_constants(rig), solver.as_array(), inputs.time_s, inputs.command_V,
-        inputs.position_m, inputs.supply_pressure_Pa, starts, p0)
-    *arrays, status = kernel_fn(slots, consts, sv, t, u, x, ps, starts, length, p0)
+    compliant = slots[:, SLOT_INDEX["compliance_m3_per_Pa"]] > 0
+    if np.any(compliant & (line | hot)):
+        raise ValueError("a compliant chamber is simulated with the pressure as its only "
+                         "state: it cannot be combined with heat_transfer or the tube's "
+                         "acoustic line (tube_delay form 'line') in one model")
+    t, u, x, ps, offset = inputs.kernel_arrays()
+    slots, consts, sv, t, u, x, ps, kstarts, p0 = _kernel_arrays(
+        slots, rig_constants(rig), solver.as_array(), t, u, x, ps, starts + offset, p0)
+    *arrays, status = kernel_fn(slots, consts, sv, t, u, x, ps, kstarts, length, p0)
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
         for a in arrays:
