@@ -34,3 +34,7 @@ class ModelCardError(PneubayesError, ValueError):
 
 class SimulationError(PneubayesError, RuntimeError):
     """The integrator failed; the message names the parameter sets that caused it."""
+
+
+class RigCardError(PneubayesError, ValueError):
+    """A rig card (``pneubayes-rig/1``) that breaks its contract; names the file and key."""

@@ -56,13 +56,21 @@ class Model:
         test lung's dead volume, a large valve's port area), in the parameter's unit; the
         default prior keeps its kind on the new bounds. Every name must be a parameter of
         the model. Recorded in the model card.
+    rig_card : RigCard, optional
+        A lab's own rig (:mod:`pneubayes.rigcard`): its valve, chamber and supply replace
+        the thin-port core as the model's base, its ``bounds`` apply to effects' parameters
+        (``bounds`` given here override them) and it gives effects its options (the
+        tube's bore). Recorded in the model card. None: the paper's thin-port core.
     """
 
     def __init__(self, effects: Iterable[Effect | str] = (),
-                 bounds: Mapping[str, tuple[float, float]] | None = None):
+                 bounds: Mapping[str, tuple[float, float]] | None = None,
+                 rig_card=None):
+        self.rig_card = rig_card
         built = []
         for e in effects:
-            built.append(make_effect(e) if isinstance(e, str) else e)
+            built.append(make_effect(e, **self.effect_options(e)) if isinstance(e, str)
+                         else e)
         names = [e.name for e in built]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
@@ -73,14 +81,31 @@ class Model:
         # Canonical order: catalogue order, so equal models have equal parameter order.
         order = list(CATALOGUE)
         self.effects: tuple[Effect, ...] = tuple(sorted(built, key=lambda e: order.index(e.name)))
-        self.base = ThinPort()
+        self.base: tuple = (ThinPort(),) if rig_card is None else rig_card.components
+        card_bounds = {} if rig_card is None else {
+            k: v for k, v in rig_card.bounds.items()
+            if k in {p.name for c in self.base + self.effects for p in c.parameters()}}
         self.bound_overrides: dict[str, tuple[float, float]] = check_bound_overrides(
-            bounds or {}, "Model bounds")
+            {**card_bounds, **(bounds or {})}, "Model bounds")
 
     # ------------------------------------------------------------------ structure
     @property
     def components(self):
-        return (self.base,) + self.effects
+        return self.base + self.effects
+
+    def effect_options(self, name: str) -> dict:
+        """Options the rig card gives the named catalogue effect (``{}`` without one)."""
+        return {} if self.rig_card is None else self.rig_card.effect_options(name)
+
+    def base_start_values(self) -> dict[str, float] | None:
+        """Start values of the rig card's fitted quantities (None for the thin-port
+        core, whose start comes from the paper's least squares or the Table II maps)."""
+        if self.rig_card is None:
+            return None
+        out = {}
+        for c in self.base:
+            out.update(c.start_values())
+        return out
 
     @property
     def effect_names(self) -> tuple[str, ...]:
@@ -139,15 +164,17 @@ class Model:
 
     def with_effect(self, effect: Effect | str) -> "Model":
         """A new model with one more effect (the bound overrides kept)."""
-        return Model(self.effects + ((make_effect(effect) if isinstance(effect, str)
-                                      else effect),), self.bound_overrides)
+        return Model(self.effects + ((make_effect(effect, **self.effect_options(effect))
+                                      if isinstance(effect, str) else effect),),
+                     self.bound_overrides, self.rig_card)
 
     def without(self, name: str) -> "Model":
         """A new model with the named effect removed (an ablation); overrides of the
         removed effect's parameters go with it."""
         gone = set(self.effect(name).parameter_names())
         return Model((e for e in self.effects if e.name != name),
-                     {k: v for k, v in self.bound_overrides.items() if k not in gone})
+                     {k: v for k, v in self.bound_overrides.items() if k not in gone},
+                     self.rig_card)
 
     def with_bounds(self, bounds: Mapping[str, tuple[float, float]]) -> "Model":
         """The same model with those of ``bounds`` that name its parameters overriding
@@ -155,18 +182,23 @@ class Model:
         set of overrides to every model it builds)."""
         names = {p.name for c in self.components for p in c.parameters()}
         return Model(self.effects, {**self.bound_overrides,
-                                    **{k: v for k, v in bounds.items() if k in names}})
+                                    **{k: v for k, v in bounds.items() if k in names}},
+                     self.rig_card)
 
     def __repr__(self):
         extra = f", bounds={self.bound_overrides!r}" if self.bound_overrides else ""
+        if self.rig_card is not None:
+            extra += f", rig_card={self.rig_card.name!r}"
         return f"Model(effects={list(self.effects)!r}{extra})"
 
     def __eq__(self, other):
         return (isinstance(other, Model) and self.effects == other.effects
-                and self.bound_overrides == other.bound_overrides)
+                and self.bound_overrides == other.bound_overrides
+                and self.rig_card == other.rig_card)
 
     def __hash__(self):
-        return hash((self.effects, tuple(sorted(self.bound_overrides.items()))))
+        return hash((self.effects, tuple(sorted(self.bound_overrides.items())),
+                     self.rig_card))
 
     # ------------------------------------------------------------------ values
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
@@ -257,6 +289,8 @@ class Model:
             card["effect_options"] = opts
         if self.bound_overrides:
             card["bounds"] = {k: list(v) for k, v in self.bound_overrides.items()}
+        if self.rig_card is not None:
+            card["rig"] = self.rig_card.to_dict()
         if extra:
             card.update(dict(extra))
         return card
@@ -282,13 +316,22 @@ class Model:
         if stray:
             raise ModelCardError(f"{source}: key 'effect_options' names effect(s) {stray} "
                                  f"that are not in 'effects' {names}")
+        rig_card = None
+        if "rig" in card:
+            from pneubayes.errors import RigCardError
+            from pneubayes.rigcard import RigCard
+
+            try:
+                rig_card = RigCard.from_dict(card["rig"], f"{source} key 'rig'")
+            except RigCardError as exc:
+                raise ModelCardError(str(exc)) from None
         effects = []
         for n in names:
             opt = options.get(n, {})
             if not isinstance(opt, Mapping) or not all(isinstance(k, str) for k in opt):
                 raise ModelCardError(f"{source}: key 'effect_options' -> {n!r} must be an "
                                      f"object option -> value, got {opt!r}")
-            opt = dict(opt)
+            opt = {**({} if rig_card is None else rig_card.effect_options(n)), **opt}
             # cylinder_leak's and heat_transfer's forms follow from their parameter
             # names when not given.
             if n == "cylinder_leak" and "form" not in opt:
@@ -304,7 +347,7 @@ class Model:
                 raise ModelCardError(f"{source}: key 'effects': {exc}") from None
         try:
             bounds = check_bound_overrides(card.get("bounds", {}), "key 'bounds'")
-            model = cls(effects, bounds)
+            model = cls(effects, bounds, rig_card)
             for k, v in params.items():
                 if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
                     raise ParameterError(f"parameter {k!r} must be a finite number, got {v!r}")

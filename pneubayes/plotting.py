@@ -58,23 +58,27 @@ def _save(fig, path) -> Path:
     return path
 
 
-def plot_area_bands(model, samples, path, n_draws: int = 300) -> Path:
-    """Port area against command with 90 % posterior bands (the paper's Fig. 5a)."""
-    from pneubayes.physics.valve import gompertz_area
+def plot_area_bands(model, samples, path, rig, n_draws: int = 300) -> Path:
+    """Port area against command with 90 % posterior bands (the paper's Fig. 5a), over
+    the command range a rig card declares (else -5..+5 V)."""
+    from pneubayes.simulation.rates import port_areas
 
     plt = _pyplot()
-    names = list(model.parameter_names)
     x = np.asarray(samples)[:: max(1, len(samples) // n_draws)]
-    u = np.linspace(-5, 5, 201)
+    card = model.rig_card
+    lo_u, hi_u, unit = ((-5.0, 5.0, "V") if card is None else
+                        (card.command.lower, card.command.upper, card.command.unit))
+    u = np.linspace(lo_u, hi_u, 201)
+    slots = model.lower(x, rig)
+    areas = np.array([port_areas(row, u) for row in slots]) * 1e6  # (draws, 2, u)
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for port, color in (("inlet", "tab:blue"), ("exhaust", "tab:red")):
-        cols = [names.index(f"{port}_{g}") for g in ("offset_m2", "a_m2", "b", "c_per_V",
-                                                     "d_V")]
-        areas = np.array([gompertz_area(u, *row[cols]) for row in x]) * 1e6
-        lo, med, hi = np.quantile(areas, [0.05, 0.5, 0.95], axis=0)
+    for k, (port, color) in enumerate((("inlet", "tab:blue"), ("exhaust", "tab:red"))):
+        if not np.any(areas[:, k]):
+            continue
+        lo, med, hi = np.quantile(areas[:, k], [0.05, 0.5, 0.95], axis=0)
         ax.fill_between(u, lo, hi, color=color, alpha=0.3, lw=0)
         ax.plot(u, med, color=color, label=f"{port} (median, 90 % band)")
-    ax.set_xlabel("command (V)")
+    ax.set_xlabel(f"command ({unit})")
     ax.set_ylabel("port area (mm$^2$)")
     ax.legend(fontsize=8)
     return _save(fig, path)
@@ -146,6 +150,8 @@ def corner_names(model) -> list[str]:
     volume and every effect's parameters (the fitted additions)."""
     base = ("inlet_a_m2", "inlet_c_per_V", "exhaust_a_m2", "exhaust_c_per_V",
             "dead_volume_m3")
+    if model.rig_card is not None:  # a rig card's unknowns are few: show them all
+        base = tuple(p.name for c in model.base for p in c.parameters())
     effects = [p.name for e in model.effects for p in e.parameters()]
     return [n for n in model.parameter_names if n in base or n in effects]
 
@@ -156,12 +162,15 @@ def plot_fit_figures(model, samples, recordings, folder, idata=None) -> list[Pat
     rec = recordings[0]
     names = corner_names(model)
     cols = [list(model.parameter_names).index(n) for n in names]
-    return [plot_area_bands(model, samples, folder / "areas.png"),
-            plot_volume_map(model, samples, rec.metadata.bore_m, rec.metadata.stroke_m,
-                            folder / "volume.png"),
-            plot_corner(names, np.asarray(samples)[:, cols], folder / "corner.png",
-                        title="posterior of " + (" + ".join(model.effect_names)
-                                                 or "the thin-port model"))]
+    out = [plot_area_bands(model, samples, folder / "areas.png", rec.rig())]
+    if "dead_volume_m3" in model.parameter_names and model.rig_card is None:
+        out.append(plot_volume_map(model, samples, rec.metadata.bore_m,
+                                   rec.metadata.stroke_m, folder / "volume.png"))
+    base = ("the thin-port model" if model.rig_card is None
+            else f"the rig card {model.rig_card.name!r}")
+    out.append(plot_corner(names, np.asarray(samples)[:, cols], folder / "corner.png",
+                           title="posterior of " + (" + ".join(model.effect_names) or base)))
+    return out
 
 
 def plot_prediction_bands(bands, path, max_windows: int = 3, title: str = "") -> Path:

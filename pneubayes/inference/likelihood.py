@@ -286,16 +286,22 @@ class WindowLikelihood:
 
     # ------------------------------------------------------------ sampling coordinates
     def _gompertz_columns(self):
+        """(b, c, d) columns of each Gompertz port whose three are all fitted (a rig
+        card may know some, or have a valve without Gompertz maps)."""
         names = self.names
-        return [(names.index(f"{port}_b"), names.index(f"{port}_c_per_V"),
-                 names.index(f"{port}_d_V")) for port in ("inlet", "exhaust")]
+        out = []
+        for port in ("inlet", "exhaust"):
+            cols = (f"{port}_b", f"{port}_c_per_V", f"{port}_d_V")
+            if all(c in names for c in cols):
+                out.append(tuple(names.index(c) for c in cols))
+        return out
 
     def _log_columns(self) -> np.ndarray:
         return np.array([p.prior == "log-uniform" for p in self.parameters])
 
     def _leak_split(self):
         """(exhaust offset column, orifice leak column) when both are present."""
-        if "leak_area_m2" in self.names:
+        if "leak_area_m2" in self.names and "exhaust_offset_m2" in self.names:
             return self.names.index("exhaust_offset_m2"), self.names.index("leak_area_m2")
         return None
 

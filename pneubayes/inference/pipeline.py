@@ -93,9 +93,17 @@ def _fixed(rec) -> bool:
 
 
 def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: float):
-    """The paper's least squares where the data allow it, else a generic start."""
-    fixed = [r for r in recordings if _fixed(r)]
+    """The paper's least squares where the data allow it, else a generic start (a rig
+    card's model: the card's starts, or its priors' centres)."""
     notes = []
+    card_start = model.base_start_values()
+    if card_start is not None:
+        start = {**model.neutral_values(), **card_start}
+        notes.append(f"started from the rig card {model.rig_card.name!r}: its start "
+                     "values, else its priors' centres (the paper's least squares needs "
+                     "the Gompertz ports of the thin-port core)")
+        return start, notes, "rig card"
+    fixed = [r for r in recordings if _fixed(r)]
     if fixed:
         try:
             lsq = PaperLeastSquares(model, SavitzkyGolay(settings.sg_window_s,
@@ -254,7 +262,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
         start, notes, how = starting_point(model, recs, settings, noise)
         log(f"fit: start from {how}")
     if method == "lsq":
-        if how == "generic":
+        if how != "paper least squares (eq. 10)":
             raise ValueError("--method lsq needs fixed-volume recordings at two or more "
                              "positions: " + "; ".join(notes))
         model.save_card(start, out / "model.json",
@@ -403,6 +411,12 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     """
     rng = np.random.default_rng(seed)
     model, draws, noise = load_posterior(run_dir, n_draws, rng)
+    if model.rig_card != recording.rig_card:
+        def rig(c):
+            return "the paper's cylinders" if c is None else f"the rig card {c.name!r}"
+        raise ValueError(f"{recording.source} describes {rig(recording.rig_card)}, the run "
+                         f"{run_dir} {rig(model.rig_card)}: predict on the rig it was "
+                         "fitted to (give --rig CARD if the sidecar names none)")
     recording = prepare_recording(recording, run_preparation(run_dir))
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)

@@ -29,7 +29,11 @@ REQUIRED_COLUMNS = ("time_s", "command_V", "pressure_Pa")
 OPTIONAL_COLUMNS = ("supply_pressure_Pa", "position_m")
 REQUIRED_KEYS = ("cylinder", "valve", "bore_m", "stroke_m", "atmospheric_pressure_Pa",
                  "supply_pressure_Pa", "temperature_K")
-OPTIONAL_KEYS = ("position_m",)
+OPTIONAL_KEYS = ("position_m", "command_before_start")
+#: The JSON key naming the recording's rig card (a path relative to the sidecar).
+RIG_KEY = "rig"
+#: Keys that may be any finite number (others must be > 0).
+SIGNED_KEYS = ("position_m", "command_before_start")
 #: The JSON key naming the format; absent or FORMAT_1 is format 1, FORMAT_2 allows
 #: columns and keys in declared units (:mod:`pneubayes.io.units`).
 FORMAT_KEY = "format"
@@ -66,6 +70,9 @@ class RecordingMetadata:
     position_m : float or None
         Fixed piston position, m (0 = fully retracted), for recordings without a
         ``position_m`` column; None when not given.
+    command_before_start : float or None
+        The command held before the first sample (a triggered recording's pre-trigger
+        command), in the command's unit; None: the first sample's command.
     accept_unusual : tuple of str
         Plausibility rules accepted for this recording (:mod:`pneubayes.io.plausibility`).
     extra : dict
@@ -80,6 +87,7 @@ class RecordingMetadata:
     supply_pressure_Pa: float
     temperature_K: float
     position_m: float | None = None
+    command_before_start: float | None = None
     accept_unusual: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -117,6 +125,10 @@ class Recording:
         The pressure channel's zero-phase anti-alias filter, when the user declares it
         (:func:`pneubayes.io.prepare_recording`); the recording format does not carry
         it, so a recording read from files has None. Passed on to :meth:`rig`.
+    rig_card : RigCard or None
+        The rig card the recording is bound to (:meth:`pneubayes.rigcard.RigCard.bind`):
+        its columns are then as the card's model reads them (a chamber coordinate
+        mapped to the equivalent piston position).
     findings : tuple of Finding
         Plausibility warnings and accepted findings found when it was read (errors stop
         the reading); runs record them.
@@ -133,6 +145,7 @@ class Recording:
     extra_columns: dict[str, np.ndarray] = field(default_factory=dict)
     source: str | None = None
     pressure_filter: PressureFilter | None = None
+    rig_card: Any = None
     findings: tuple[Finding, ...] = ()
     conversions: tuple[str, ...] = ()
 
@@ -152,6 +165,11 @@ class Recording:
     def working_range_Pa(self) -> float:
         """Nominal supply minus atmospheric pressure, Pa."""
         return self.metadata.supply_pressure_Pa - self.metadata.atmospheric_pressure_Pa
+
+    @property
+    def command_before_start(self) -> float | None:
+        """The pre-trigger command (metadata), or None."""
+        return self.metadata.command_before_start
 
     def supply_or_nominal(self) -> np.ndarray:
         """Absolute supply pressure per sample, Pa: the column, else the nominal value."""
@@ -239,7 +257,7 @@ def check_metadata(data: dict, name: str, problems: list) -> RecordingMetadata |
         x = finite_number(v)
         if x is None:
             problems.append((at(key), f"must be a finite number, got {show_value(v)}"))
-        elif key != "position_m" and x <= 0:
+        elif key not in SIGNED_KEYS and x <= 0:
             what = "absolute pressure" if "pressure" in key else "value"
             problems.append((at(key), f"{what} must be > 0, got {x!r}"))
         else:

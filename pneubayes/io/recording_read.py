@@ -28,6 +28,7 @@ from pneubayes.io.recording_format import (
     NUMBER_PATTERN,
     PLAIN_PATTERN,
     REQUIRED_COLUMNS,
+    RIG_KEY,
     Recording,
     check_columns,
     check_metadata,
@@ -53,8 +54,10 @@ def _read_text(path: Path, problems: list) -> str | None:
     return None
 
 
-def _parse_json(text: str, name: str, problems: list):
-    """``(metadata or None, format version, conversions)``; append problems."""
+def _parse_json(text: str, name: str, problems: list, rig_card=None):
+    """``(metadata or None, format version, conversions, rig card or None)``; append
+    problems. The card is ``rig_card`` if given, else the one the ``rig`` key names
+    (a path relative to the sidecar); it supplies the keys the sidecar leaves out."""
     duplicates = []
 
     def pairs(items):
@@ -69,18 +72,42 @@ def _parse_json(text: str, name: str, problems: list):
     except json.JSONDecodeError as e:
         problems.append((f"{name} line {e.lineno} column {e.colno}",
                          f"JSON does not parse: {e.msg}"))
-        return None, 1, []
+        return None, 1, [], None
     except RecursionError:
         problems.append((name, "JSON does not parse: nested too deeply"))
-        return None, 1, []
+        return None, 1, [], None
     problems.extend(duplicates)
     if not isinstance(data, dict):
         problems.append((f"{name} top level", f"must be a JSON object, got {type(data).__name__}"))
-        return None, 1, []
+        return None, 1, [], None
     version = _format_version(data, name, problems)
     conversions = _declared_keys(data, name, problems) if version == 2 else []
+    card = rig_card if rig_card is not None else _named_rig_card(data, name, problems)
+    if card is not None:
+        for key, value in card.metadata_defaults().items():
+            data.setdefault(key, value)
     metadata = check_metadata(data, name, problems)
-    return (None if duplicates else metadata), version, conversions
+    return (None if duplicates else metadata), version, conversions, card
+
+
+def _named_rig_card(data: dict, name: str, problems: list):
+    """The rig card the sidecar's ``rig`` key names, or None (absent or broken: a
+    problem naming the key)."""
+    from pneubayes.errors import RigCardError
+    from pneubayes.rigcard import load_rig_card
+
+    ref = data.get(RIG_KEY)
+    if ref is None:
+        return None
+    if not (isinstance(ref, str) and ref.strip()):
+        problems.append((f"{name} key {RIG_KEY!r}", f"must be the path of a rig card "
+                         f"(relative to this file), got {show_value(ref)}"))
+        return None
+    try:
+        return load_rig_card(Path(name).parent / ref)
+    except RigCardError as exc:
+        problems.append((f"{name} key {RIG_KEY!r}", str(exc)))
+        return None
 
 
 def _format_version(data: dict, name: str, problems: list) -> int:
@@ -245,14 +272,16 @@ def _parse_csv(text: str, name: str, problems: list, version: int = 1,
     return known, extra, conversions
 
 
-def _problems_and_recording(path, accept=()) -> tuple[list, Recording | None]:
+def _problems_and_recording(path, accept=(), rig_card=None) -> tuple[list, Recording | None]:
+    from pneubayes.errors import RigCardError
+
     csv_path, json_path = recording_paths(path)
     accept = check_accept(accept, "accept")
     problems: list = []
     csv_text = _read_text(csv_path, problems)
     json_text = _read_text(json_path, problems)
-    metadata, version, conversions = (None, 1, []) if json_text is None else \
-        _parse_json(json_text, str(json_path), problems)
+    metadata, version, conversions, card = (None, 1, [], None) if json_text is None else \
+        _parse_json(json_text, str(json_path), problems, rig_card)
     atm = None if metadata is None else metadata.atmospheric_pressure_Pa
     parsed = None if csv_text is None else _parse_csv(csv_text, str(csv_path), problems,
                                                       version, atm)
@@ -268,7 +297,13 @@ def _problems_and_recording(path, accept=()) -> tuple[list, Recording | None]:
               if f.severity == "error" and not f.accepted]
     if errors:
         return errors, None
-    return [], replace(rec, findings=tuple(findings))
+    rec = replace(rec, findings=tuple(findings))
+    if card is not None:
+        try:
+            rec = card.bind(rec)
+        except RigCardError as exc:
+            return [(str(json_path), str(exc))], None
+    return [], rec
 
 
 @dataclass(frozen=True)
@@ -290,14 +325,14 @@ class RecordingCheck:
         return () if self.recording is None else self.recording.conversions
 
 
-def inspect_recording(path: str | os.PathLike, accept=()) -> RecordingCheck:
+def inspect_recording(path: str | os.PathLike, accept=(), rig_card=None) -> RecordingCheck:
     """Read the recording at ``path`` and report everything: the contract's problems,
     plausibility errors (as problems) and warnings, and unit conversions.
 
     ``accept`` lists plausibility rules to accept beyond the recording's own
     ``accept_unusual`` (:mod:`pneubayes.io.plausibility`). Never raises for bad content.
     """
-    return RecordingCheck(*_problems_and_recording(path, accept))
+    return RecordingCheck(*_problems_and_recording(path, accept, rig_card))
 
 
 def check_recording(path: str | os.PathLike, accept=()) -> list[tuple[str, str]]:
@@ -310,20 +345,23 @@ def check_recording(path: str | os.PathLike, accept=()) -> list[tuple[str, str]]
     return _problems_and_recording(path, accept)[0]
 
 
-def read_recording(path: str | os.PathLike, accept=()) -> Recording:
+def read_recording(path: str | os.PathLike, accept=(), rig_card=None) -> Recording:
     """Read and validate a recording given its .csv, its .json or its stem.
 
     The rules are listed in the module docstring; then the plausibility rules of
     :mod:`pneubayes.io.plausibility` run, except those in ``accept`` or the recording's
     ``accept_unusual``: an error is a problem, warnings are kept in
-    ``Recording.findings``.
+    ``Recording.findings``. With a rig card (``rig_card``, a
+    :class:`~pneubayes.rigcard.RigCard`, or the one the sidecar's ``rig`` key names) the
+    card supplies the keys the sidecar leaves out and binds the recording
+    (:meth:`~pneubayes.rigcard.RigCard.bind`).
 
     Raises
     ------
     RecordingError
         Listing every problem found, each with file and row or key.
     """
-    problems, recording = _problems_and_recording(path, accept)
+    problems, recording = _problems_and_recording(path, accept, rig_card)
     if recording is None:
         raise RecordingError(problems)
     return recording

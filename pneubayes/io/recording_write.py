@@ -104,6 +104,10 @@ def write_recording(recording: Recording, stem_path: str | os.PathLike,
         If a target file exists and ``overwrite`` is False.
     """
     csv_path, json_path = recording_paths(stem_path)
+    if recording.rig_card is not None:
+        raise ValueError(f"write_recording: {recording.source} is bound to the rig card "
+                         f"{recording.rig_card.source} (its columns are as the model reads "
+                         "them); write the recording as read, before binding")
     problems = _recording_problems(recording, str(csv_path), str(json_path))
     if problems:
         raise RecordingError(problems)

@@ -1,0 +1,280 @@
+"""The rig card (``pneubayes-rig/1``): a lab's own chamber, valve and supply.
+
+A JSON or TOML file (see the README's "Your own rig")::
+
+    format = "pneubayes-rig/1"
+    name = "GTDynamics knee muscle"
+    atmospheric_pressure_Pa = 101325.0
+    temperature_K = 296.15
+    [command]                  # unit "V", "duty" or "binary"; range [lower, upper]
+    unit = "binary"
+    [chamber]                  # kind "fixed", "compliant", "piston" or "polynomial"
+    kind = "polynomial"
+    dead_volume_m3 = {prior = "log-uniform", bounds = [1e-5, 3e-4]}
+    coefficients_m3_per_m = [3.141e-3, -3.251e-2, 0.128]
+    coordinate_range_m = [0.0, 0.04]
+    [valve]                    # kind "gompertz" or "switching"
+    kind = "switching"
+    open_area_m2 = {prior = "log-uniform", bounds = [1e-7, 1e-4]}
+    exhaust_area_m2 = 0.0
+    opening_delay_s = 0.0
+    opening_time_constant_s = 1e-3
+    [supply]                   # kind "measured" or "constant"
+    kind = "measured"
+    [tube]                     # optional: the valve-chamber tube
+    length_m = 1.88
+    inner_diameter_m = 0.004
+    [bounds]                   # optional: bounds of effects' parameters on this rig
+    tube_delay_s = [0.0, 0.1]
+
+Each component is a plug-in (:mod:`pneubayes.rigcard.component`, one file per kind).
+A recording names its card with the sidecar key ``"rig"`` (a path relative to the
+sidecar) or is given one (``--rig``); :meth:`RigCard.bind` then completes its metadata
+from the card, maps its columns as the chamber kind reads them and checks its commands
+against the declared range.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.errors import RigCardError
+from pneubayes.rigcard.component import KINDS, ROLES, RigComponent, kinds_of
+from pneubayes.rigcard.values import real
+
+RIG_FORMAT = "pneubayes-rig/1"
+COMMAND_UNITS = ("V", "duty", "binary")
+_TOP_KEYS = ("format", "name", "atmospheric_pressure_Pa", "temperature_K", "command",
+             "tube", "bounds", "notes") + ROLES
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    """The command's unit and range: volts (any declared range), duty 0..1, or binary
+    (0 = closed, 1 = open)."""
+
+    unit: str
+    lower: float
+    upper: float
+
+    def check(self, command, source: str) -> None:
+        """Raise RigCardError naming the first row outside the declared range."""
+        u = np.asarray(command, dtype=np.float64)
+        bad = (u < self.lower) | (u > self.upper)
+        if self.unit == "binary":
+            bad |= (u != 0.0) & (u != 1.0)
+        if bad.any():
+            i = int(np.argmax(bad))
+            what = "0 or 1" if self.unit == "binary" else f"[{self.lower:g}, {self.upper:g}]"
+            raise RigCardError(f"{source} row {i + 1}: command {u[i]:g} is outside the rig "
+                               f"card's declared range ({self.unit}: {what})")
+
+    def to_card(self) -> dict:
+        out = {"unit": self.unit}
+        if self.unit != "binary":
+            out["range"] = [self.lower, self.upper]
+        return out
+
+
+@dataclass(frozen=True)
+class Tube:
+    """The tube between valve and chamber (its volume belongs to the dead volume)."""
+
+    length_m: float
+    inner_diameter_m: float
+
+    @property
+    def volume_m3(self) -> float:
+        return math.pi / 4.0 * self.inner_diameter_m ** 2 * self.length_m
+
+
+@dataclass(frozen=True, eq=False)
+class RigCard:
+    """A rig described by its components; see the module docstring for the card."""
+
+    name: str
+    atmospheric_pressure_Pa: float
+    temperature_K: float
+    command: CommandSpec
+    chamber: RigComponent
+    valve: RigComponent
+    supply: RigComponent
+    tube: Tube | None = None
+    bounds: dict = field(default_factory=dict)
+    notes: str = ""
+    source: str = "rig card"
+
+    @property
+    def components(self) -> tuple[RigComponent, ...]:
+        """The model's base components: valve, chamber, supply."""
+        return (self.valve, self.chamber, self.supply)
+
+    def effect_options(self, name: str) -> dict:
+        """Options this rig gives a catalogue effect (the tube's bore for tube_delay)."""
+        if name == "tube_delay" and self.tube is not None:
+            return {"tube_diameter_m": self.tube.inner_diameter_m}
+        return {}
+
+    # ------------------------------------------------------------------ card
+    def to_dict(self) -> dict:
+        out = {"format": RIG_FORMAT, "name": self.name,
+               "atmospheric_pressure_Pa": self.atmospheric_pressure_Pa,
+               "temperature_K": self.temperature_K, "command": self.command.to_card(),
+               "chamber": self.chamber.to_table(), "valve": self.valve.to_table(),
+               "supply": self.supply.to_table()}
+        if self.tube is not None:
+            out["tube"] = {"length_m": self.tube.length_m,
+                           "inner_diameter_m": self.tube.inner_diameter_m}
+        if self.bounds:
+            out["bounds"] = {k: list(v) for k, v in self.bounds.items()}
+        if self.notes:
+            out["notes"] = self.notes
+        return out
+
+    def __eq__(self, other):
+        return isinstance(other, RigCard) and self.to_dict() == other.to_dict()
+
+    def __hash__(self):
+        return hash(json.dumps(self.to_dict(), sort_keys=True))
+
+    @classmethod
+    def from_dict(cls, card: Mapping, source: str = "rig card") -> "RigCard":
+        """Read and check a card dict; every error names ``source`` and the key."""
+        from pneubayes.io.plausibility import rig_findings
+        from pneubayes.model import check_bound_overrides
+
+        if not isinstance(card, Mapping):
+            raise RigCardError(f"{source}: expected a table (JSON object)")
+        if card.get("format") != RIG_FORMAT:
+            raise RigCardError(f"{source} key 'format': must be {RIG_FORMAT!r}, got "
+                               f"{card.get('format')!r}")
+        stray = sorted(set(card) - set(_TOP_KEYS))
+        if stray:
+            raise RigCardError(f"{source}: unknown key(s) {stray}; a rig card has "
+                               f"{sorted(_TOP_KEYS)}")
+        name = card.get("name")
+        if not (isinstance(name, str) and name.strip()):
+            raise RigCardError(f"{source} key 'name': must be a non-empty string, got "
+                               f"{name!r}")
+        atm = real(card.get("atmospheric_pressure_Pa"),
+                   f"{source} key 'atmospheric_pressure_Pa'", positive=True)
+        temp = real(card.get("temperature_K"), f"{source} key 'temperature_K'", positive=True)
+        errors = [f for f in rig_findings({"atmospheric_pressure_Pa": atm,
+                                           "temperature_K": temp}, source)
+                  if f.severity == "error"]
+        if errors:
+            raise RigCardError(f"{errors[0].location}: {errors[0].message}")
+        parts = {role: _component(card, role, source) for role in ROLES}
+        tube = None
+        if "tube" in card:
+            t = card["tube"]
+            at = f"{source} key 'tube'"
+            if not isinstance(t, Mapping) or set(t) != {"length_m", "inner_diameter_m"}:
+                raise RigCardError(f"{at}: must be a table with length_m and "
+                                   f"inner_diameter_m (m), got {t!r}")
+            tube = Tube(real(t["length_m"], f"{at} -> 'length_m'", positive=True),
+                        real(t["inner_diameter_m"], f"{at} -> 'inner_diameter_m'",
+                             positive=True))
+        try:
+            bounds = check_bound_overrides(card.get("bounds", {}), f"{source} key 'bounds'")
+        except ValueError as exc:
+            raise RigCardError(str(exc)) from None
+        notes = card.get("notes", "")
+        if not isinstance(notes, str):
+            raise RigCardError(f"{source} key 'notes': must be a string")
+        return cls(name, atm, temp, _command(card.get("command"), source), parts["chamber"],
+                   parts["valve"], parts["supply"], tube, bounds, notes, source)
+
+    # ------------------------------------------------------------------ recordings
+    def metadata_defaults(self) -> dict:
+        """Recording metadata the card supplies where a sidecar leaves it out."""
+        out = {"cylinder": f"{self.name} ({self.chamber.kind} chamber)",
+               "valve": f"{self.valve.kind} valve",
+               "atmospheric_pressure_Pa": self.atmospheric_pressure_Pa,
+               "temperature_K": self.temperature_K}
+        for c in self.components:
+            out.update(c.metadata_defaults())
+        return out
+
+    def bind(self, recording):
+        """The recording as this rig's model reads it: the command checked against the
+        declared range, columns mapped by the chamber kind (its ``position_m`` becomes
+        the equivalent piston position), and the card attached (``rig_card``)."""
+        where = f"{self.source} (for {recording.source})"
+        self.command.check(recording.command_V, str(recording.source))
+        if recording.command_before_start is not None:
+            self.command.check([recording.command_before_start],
+                               f"{recording.source} key 'command_before_start'")
+        columns = {}
+        for c in self.components:
+            columns.update(c.bind_columns(recording, where))
+        return replace(recording, **columns, rig_card=self)
+
+
+def _component(card: Mapping, role: str, source: str) -> RigComponent:
+    at = f"{source} key {role!r}"
+    table = card.get(role)
+    if not isinstance(table, Mapping):
+        raise RigCardError(f"{at}: missing or not a table; give its 'kind' "
+                           f"(one of {kinds_of(role)})")
+    kind = table.get("kind")
+    cls = KINDS.get((role, kind))
+    if cls is None:
+        raise RigCardError(f"{at} -> 'kind': unknown {role} kind {kind!r}; known kinds are "
+                           f"{kinds_of(role)}")
+    return cls.from_table(table, at)
+
+
+def _command(spec, source: str) -> CommandSpec:
+    at = f"{source} key 'command'"
+    if not isinstance(spec, Mapping):
+        raise RigCardError(f"{at}: missing; declare the command's unit, e.g. "
+                           "{\"unit\": \"V\", \"range\": [-5, 5]} or {\"unit\": \"binary\"}")
+    unit = spec.get("unit")
+    if unit not in COMMAND_UNITS:
+        raise RigCardError(f"{at} -> 'unit': must be one of {list(COMMAND_UNITS)}, got "
+                           f"{unit!r}")
+    stray = sorted(set(spec) - {"unit", "range"})
+    if stray:
+        raise RigCardError(f"{at}: unknown key(s) {stray}; it has 'unit' and 'range'")
+    if unit == "binary":
+        if "range" in spec and list(spec["range"]) != [0, 1]:
+            raise RigCardError(f"{at} -> 'range': a binary command is 0 or 1")
+        return CommandSpec(unit, 0.0, 1.0)
+    r = spec.get("range", [0.0, 1.0] if unit == "duty" else None)
+    if not (isinstance(r, (list, tuple)) and len(r) == 2):
+        raise RigCardError(f"{at} -> 'range': must be [lower, upper], got {r!r}")
+    lo, hi = real(r[0], f"{at} -> 'range'"), real(r[1], f"{at} -> 'range'")
+    if not lo < hi:
+        raise RigCardError(f"{at} -> 'range': lower {lo!r} must be below upper {hi!r}")
+    if unit == "duty" and not (0.0 <= lo and hi <= 1.0):
+        raise RigCardError(f"{at} -> 'range': a duty lies within [0, 1], got [{lo!r}, {hi!r}]")
+    return CommandSpec(unit, lo, hi)
+
+
+def load_rig_card(path) -> RigCard:
+    """Read a rig card from a .json or .toml file; errors name the file and key."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise RigCardError(f"{path}: cannot read the rig card ({exc.strerror})") from None
+    if path.suffix == ".toml":
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise RigCardError(f"{path}: not valid TOML ({exc})") from None
+    else:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise RigCardError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") \
+                from None
+    return RigCard.from_dict(data, str(path))
