@@ -42,7 +42,8 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
     # the coefficient giving that rate, (kappa - 1) h (A_w / V) T / p = rate, at
     # mid-stroke and mid-range pressure
     gas = rig.gas
-    vol = fit.params["dead_volume_m3"] + rig.bore_area_m2 * 0.5 * (rig.stroke_m or 0.0)
+    vol = _dead_volume(fit.model, fit.params, rig) + rig.bore_area_m2 * 0.5 * (
+        rig.stroke_m or 0.0)
     wall = float(wall_area_m2(vol, rig.bore_area_m2))
     p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
     h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
@@ -61,8 +62,8 @@ def effect_candidate(fit: StepFit, group: str, evidence: dict, **options):
         # the laminar law, graded along the stroke (a clearance whose seal engagement
         # varies; gradient 0 is the uniform gap): an orifice leak is never missing
         effect = make_effect("cylinder_leak", form="graded")
-    else:
-        effect = make_effect(group, **options)
+    else:  # the rig card's options (the tube's bore), then the form asked for
+        effect = make_effect(group, **{**fit.model.effect_options(group), **options})
     model = fit.model.with_effect(effect)
     start.update(effect.neutral_values())
     pname = effect.parameter_names()[0]
@@ -87,8 +88,17 @@ def first_free(model, group: str):
     dozen), then everything from there.
     """
     if group == "tube_delay" and _has_line(model):
-        return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3")
+        return tuple(n for n in ("tube_delay_s", "tube_diameter_m", "dead_volume_m3")
+                     if n in model.parameter_names)
     return None
+
+
+def _dead_volume(model, params: dict, rig: Rig) -> float:
+    """The chamber's volume at position 0 (m^3), fitted or known to a rig card."""
+    from pneubayes.effects.path import SLOT_INDEX
+
+    slots = model.lower(model.vector(params)[None, :], rig)
+    return float(slots[0, SLOT_INDEX["volume_m3"]])
 
 
 def _has_line(model) -> bool:
@@ -105,8 +115,9 @@ def _tube_candidates(fit: StepFit, evidence: dict, rig: Rig, segments: int):
     tube = model.effect("tube_delay")
     # the line's volume comes out of the fitted dead volume: keep it to half of that
     vol = float(tube.tube_volume_m3(start, rig))
-    if vol > 0.5 * start["dead_volume_m3"]:
+    dead = _dead_volume(fit.model, fit.params, rig)
+    if vol > 0.5 * dead:
         start["tube_delay_s"] = _inside(model, "tube_delay_s",
-                                        start["tube_delay_s"] * 0.5 * start["dead_volume_m3"] / vol)
+                                        start["tube_delay_s"] * 0.5 * dead / vol)
     out.append((model, start))
     return out

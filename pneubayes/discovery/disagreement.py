@@ -70,9 +70,15 @@ def regime_labels(model: Model, params: dict, recording, settings: RegimeSetting
     se = settings.speed_edges_m_per_s
     speed_names = ["still", "slow", "fast"]
     frac = (p - rig.atmospheric_pressure_Pa) / rig.working_range_Pa
+    card = recording.rig_card
+    unit = "V" if card is None else card.command.unit
+    if unit == "binary":
+        band = np.where(u <= 0.5, "closed (u = 0)", "open (u = 1)")
+    else:  # the band's width in the command's own unit
+        band = np.where(np.abs(u) <= settings.band_V, f"|u| <= {settings.band_V:g} {unit}",
+                        f"|u| > {settings.band_V:g} {unit}")
     return {
-        "command band": np.where(np.abs(u) <= settings.band_V,
-                                 f"|u| <= {settings.band_V:g} V", f"|u| > {settings.band_V:g} V"),
+        "command band": band,
         "flow regime": np.where(choked, "choked", "subsonic"),
         "direction": np.where(net >= 0, "filling", "exhausting"),
         "time since step": np.array(step_names)[np.searchsorted(np.array(e), since)],
@@ -112,7 +118,8 @@ def _bins(residual: np.ndarray, labels: dict, cluster: np.ndarray, noise: float,
 #: Bins of the word-labelled families, in physical order.
 _WORD_ORDER = {name: k for k, name in enumerate((
     "still", "slow", "fast", "low", "mid", "high", "below nominal", "near nominal",
-    "above nominal", "choked", "subsonic", "filling", "exhausting"))}
+    "above nominal", "choked", "subsonic", "filling", "exhausting", "closed (u = 0)",
+    "open (u = 1)"))}
 
 
 def _physical_order(name: str) -> tuple:

@@ -71,6 +71,7 @@ from pneubayes.discovery.verification import (
     crossfit_window_lpd,
     split_recordings,
 )
+from pneubayes.errors import SimulationError
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import starting_point
 from pneubayes.inference.predictive import estimate_noise_std
@@ -204,9 +205,15 @@ class Discovery:
         self.range_Pa_ = float(recs[0].rig().working_range_Pa)
         lo, hi = np.percentile(np.concatenate([r.pressure_Pa for r in recs]), [1, 99])
         self.span_Pa_ = float(hi - lo)  # measured, not the nominal supply's range
-        model = Model()
+        card = recs[0].rig_card
+        if any(r.rig_card != card for r in recs):
+            raise ValueError("discover: the recordings describe different rigs (rig cards); "
+                             "discover on one rig at a time")
+        model = Model(rig_card=card)
         start, notes, how = starting_point(model, train, s.fit, noise)
-        self.log(f"discover: base model (eqs. 1-5, Gompertz maps) from {how}")
+        self.log("discover: base model ("
+                 + ("eqs. 1-5, Gompertz maps" if card is None else f"rig card {card.name!r}")
+                 + f") from {how}")
         current = self._fit(model, start, train_ws, held_ws, data_key)
         self.log(f"discover: base held-out {s.fit.horizon_s:g}-s RMSE "
                  f"{current.heldout_rmse_Pa:.0f} Pa "
@@ -339,9 +346,16 @@ class Discovery:
             # control: the current model refined from the trial's other parameters.
             # Refinement finds local optima; if the trial's gain came from moving the
             # other parameters to a better basin, the control gets it too.
-            control = self._fit(current.model, {k: trial.params[k] for k in
-                                                current.model.parameter_names},
-                                train_ws, held_ws, data_key)
+            try:
+                control = self._fit(current.model, {k: trial.params[k] for k in
+                                                    current.model.parameter_names},
+                                    train_ws, held_ws, data_key)
+            except (FloatingPointError, SimulationError) as exc:
+                # the trial's point leaves the current model's simulable region: no
+                # better optimum of the current model there
+                self.log(f"discover: {g}: no control fit from the trial's point "
+                         f"({type(exc).__name__})")
+                control = current
             if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
                 self.log(f"discover: a better optimum of the current model: train RMSE "
                          f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")

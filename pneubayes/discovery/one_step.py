@@ -82,9 +82,11 @@ class OneStepData:
         # value of the lagged held command half-way through each interval
         a = np.exp(-0.5 * dt / time_constant_s)
         lag = first_order_lag(u, dt, time_constant_s)
-        prev = np.concatenate([[u[0]], lag[:-1]])
+        before = self.inputs.command_before_start
+        prev = np.concatenate([[u[0] if before is None else before], lag[:-1]])
         mid = u + (prev - u) * a
-        return Inputs(t, mid, self.inputs.position_m, self.inputs.supply_pressure_Pa)
+        return Inputs(t, mid, self.inputs.position_m, self.inputs.supply_pressure_Pa,
+                      before)
 
 
 def one_step_data(recording, block: int) -> OneStepData:

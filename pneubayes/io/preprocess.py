@@ -47,12 +47,12 @@ def _lowpass_column(recording: Recording, column: str, cutoff_Hz: float | None,
                          f"{0.5 * fs:g}) Hz (below the Nyquist frequency of this "
                          f"{fs:.3g}-Hz recording); set --{what}-cutoff (0: raw)")
     sos = signal.butter(order, cutoff_Hz, fs=fs, output="sos")
-    # odd extension over 10 filter time constants, so the ends settle (value and slope)
-    pad = int(np.ceil(10.0 * fs / cutoff_Hz))
-    if t.size <= 2 * pad:
+    # odd extension over 10 filter time constants, so the ends settle (value and slope);
+    # a short recording (a triggered trial) is extended by as much as it has
+    pad = min(int(np.ceil(10.0 * fs / cutoff_Hz)), t.size - 1)
+    if t.size < 8:
         raise ValueError(f"{where}: {t.size} samples are too few to low-pass the {what} "
-                         f"at {cutoff_Hz:g} Hz (need more than {2 * pad}); set a higher "
-                         f"--{what}-cutoff, or 0 for the raw {what}")
+                         f"(need at least 8); set 0 for the raw {what}")
     x = signal.sosfiltfilt(sos, np.asarray(values, dtype=np.float64), padtype="odd",
                            padlen=pad)
     return replace(recording, **{column: x})
