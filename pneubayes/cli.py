@@ -72,7 +72,7 @@ def cmd_check(args) -> int:
 
     bad = 0
     for path in args.files:
-        found = inspect_recording(path, args.accept)
+        found = inspect_recording(path, args.accept, args.rig)
         if found.problems:
             bad += 1
             for loc, why in found.problems:
@@ -128,9 +128,12 @@ def cmd_simulate(args) -> int:
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
     out = _output_file(args.out, ".csv", args.overwrite)
-    rec = read_recording(args.recording, args.accept)
+    rec = read_recording(args.recording, args.accept, args.rig)
     model, params = Model.load_card(args.model)
     _print_findings("simulate", [rec])
+    if model.rig_card != rec.rig_card:
+        raise PneubayesError(f"--model {args.model} and {rec.source} describe different "
+                             "rigs (rig cards)")
     solver = SolverConfig(rtol=args.rtol, atol_Pa=args.atol, atol_K=0.01,
                           max_step_s=args.max_step, min_step_s=1e-12, max_steps_per_s=2.5e7)
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
@@ -139,8 +142,9 @@ def cmd_simulate(args) -> int:
     write_text_atomic(out, "time_s,pressure_Pa\n" + "".join(
         f"{t:.9g},{v:.6f}\n" for t, v in zip(rec.time_s, p)))
     rmse = float(np.sqrt(np.mean((p - rec.pressure_Pa) ** 2)))
+    lo, hi = np.percentile(rec.pressure_Pa, [1, 99])
     print(f"{out}: {p.size} samples; open-loop RMSE against the measured pressure "
-          f"{rmse:.0f} Pa ({100 * rmse / rec.working_range_Pa:.2f} % of range)")
+          f"{rmse:.0f} Pa ({100 * rmse / max(hi - lo, 1e-9):.2f} % of the measured span)")
     return 0
 
 
@@ -169,12 +173,26 @@ def _recording_files(paths) -> list[Path]:
     return [f for p in paths for f in recording_paths(p)]
 
 
-def _read_all(paths, accept, command):
+def _read_all(paths, accept, command, rig=None):
     from pneubayes.io.recording import read_recording
 
-    recs = [read_recording(p, accept) for p in paths]
+    recs = [read_recording(p, accept, rig) for p in paths]
     _print_findings(command, recs)
+    _rig_card_of(recs)
     return recs
+
+
+def _rig_card_of(recs):
+    """The one rig card the recordings share (None: the paper's cylinders); mixing
+    rigs in one fit is an error naming two recordings that differ."""
+    first = recs[0]
+    for r in recs[1:]:
+        if r.rig_card != first.rig_card:
+            def name(x):
+                return x.rig_card.source if x.rig_card is not None else "no rig card"
+            raise PneubayesError(f"{r.source} ({name(r)}) and {first.source} ({name(first)}) "
+                                 "describe different rigs; fit one rig at a time")
+    return first.rig_card
 
 
 def cmd_fit(args) -> int:
@@ -183,14 +201,22 @@ def cmd_fit(args) -> int:
     from pneubayes.inference.sampler import SamplerSettings
     from pneubayes.model import Model
 
-    recs = _read_all(args.recordings, args.accept, "fit")
+    recs = _read_all(args.recordings, args.accept, "fit", args.rig)
+    card = _rig_card_of(recs)
     if args.model:
         model, _ = Model.load_card(args.model)
+        if model.rig_card != card:
+            raise PneubayesError(f"--model {args.model} describes "
+                                 + (f"the rig {model.rig_card.name!r}" if model.rig_card
+                                    else "the paper's cylinders")
+                                 + ", the recordings " + (f"the rig {card.name!r}" if card
+                                                          else "the paper's cylinders"))
     else:
         names = [n.strip() for n in args.effects.split(",") if n.strip()]
-        model = Model(effects_from_names(names, args.leak_form))
+        model = Model(effects_from_names(names, args.leak_form), rig_card=card)
     if args.bounds:
-        model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)})
+        model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)},
+                      model.rig_card)
     n_dims = model.n_parameters  # a bound for a parameter the model lacks fails here
     if args.walkers and args.walkers < 2 * n_dims:
         raise PneubayesError(f"--walkers {args.walkers}: emcee needs at least twice the "
@@ -203,6 +229,7 @@ def cmd_fit(args) -> int:
                 "effects": list(model.effect_names),
                 "options": {e.name: e.options() for e in model.effects},
                 "bounds": model.bound_overrides,
+                "rig": None if card is None else card.to_dict(),
                 "method": args.method, "walkers": args.walkers, "seed": args.seed,
                 "windows": _windows(args),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
@@ -252,7 +279,7 @@ def cmd_predict(args) -> int:
             raise PneubayesError(f"{run}: no {name} (a run folder of 'pneubayes fit' with "
                                  "the default --method mcmc, or of 'pneubayes discover')")
         check_file(run, name)
-    rec = read_recording(args.recording, args.accept)
+    rec = read_recording(args.recording, args.accept, args.rig)
     _print_findings("predict", [rec])
     figure = None if args.no_figure else out.with_suffix(".png")
     horizon = args.horizon or _run_horizon(run)
@@ -281,7 +308,7 @@ def cmd_discover(args) -> int:
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 
-    recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover")
+    recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover", args.rig)
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
         bounds=dict(args.bounds),
@@ -295,7 +322,8 @@ def cmd_discover(args) -> int:
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     identity = {"recordings": inputs_digest(_recording_files([*args.recordings,
                                                               *args.held_out])),
-                "settings": settings.to_dict(), "accept": list(args.accept)}
+                "settings": settings.to_dict(), "accept": list(args.accept),
+                "rig": None if recs[0].rig_card is None else recs[0].rig_card.to_dict()}
     folder = open_run_folder(args.out, "discover", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=DISCOVER_OUTPUTS,
                              argv=args.argv)
@@ -318,6 +346,24 @@ def cmd_discover(args) -> int:
               f"{e['evidence']['inclusion_probability']:.2f}, RMSE {e['rmse_before_Pa']:.0f}"
               f" -> {e['rmse_after_Pa']:.0f} Pa")
     print(f"{args.out}/report.md")
+    return 0
+
+
+def cmd_import(args) -> int:
+    from pneubayes.io.importers import IMPORTERS
+
+    out = Path(args.out)
+    if out.exists() and any(out.iterdir()) and not args.overwrite:
+        raise PneubayesError(f"--out {out}: exists and is not empty (pass --overwrite to "
+                             "write into it)")
+    if args.end and args.source != "gtdynamics":
+        raise PneubayesError("--end: only the gtdynamics importer cuts its trials")
+    written = IMPORTERS[args.source](args.inputs, out, **({"end_s": args.end}
+                                                         if args.end else {}))
+    for p in written:
+        print(p)
+    print(f"{len(written)} recording(s) and their rig card in {out}; check them with "
+          f"'pneubayes check {out}/*/*.csv'")
     return 0
 
 
@@ -379,7 +425,7 @@ def main(argv=None) -> int:
     check_single_values(parser, args)
     args.func = {"check": cmd_check, "bench": cmd_bench, "simulate": cmd_simulate,
                  "fit": cmd_fit, "predict": cmd_predict, "discover": cmd_discover,
-                 "ablate": cmd_ablate}[args.command]
+                 "ablate": cmd_ablate, "import": cmd_import}[args.command]
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
 
     def fail(message: str, code: int = 2) -> int:

@@ -82,7 +82,20 @@ def _accept(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _rig(text: str):
+    from pneubayes.errors import RigCardError
+    from pneubayes.rigcard import load_rig_card
+
+    try:
+        return load_rig_card(text)
+    except RigCardError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _add_accept(p) -> None:
+    p.add_argument("--rig", type=_rig, default=None, metavar="CARD",
+                   help="a rig card (pneubayes-rig/1, .json or .toml) describing the rig of "
+                        "every recording (instead of the one a sidecar's 'rig' key names)")
     p.add_argument("--accept", type=_accept, default=(), metavar="RULE[,RULE]",
                    help="accept these plausibility rules for every recording (an unusual "
                         "but real rig, e.g. sample-interval,pressure-span); a recording's "
@@ -282,6 +295,20 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     _add_identification(d, "seed of bagging and sampler (recorded)")
+
+    im = sub.add_parser(
+        "import", help="convert third-party recordings to the recording format plus a rig "
+                       "card (the inputs are never modified)")
+    im.add_argument("source", choices=["gtdynamics", "respiraworks"],
+                    help="gtdynamics: trial folders of the GTDynamics jumping robot; "
+                         "respiraworks: the ventilator's AIR/ and OXY/ covent_pc_N.dat runs")
+    im.add_argument("inputs", nargs="+", help="the data set's trial folders or files")
+    im.add_argument("--out", required=True, help="folder for the recordings and rig card")
+    im.add_argument("--end", type=POSITIVE, default=None, metavar="S",
+                    help="keep samples up to this time, s (gtdynamics: 0.33, before the "
+                         "muscles are vented by something not in the command)")
+    im.add_argument("--overwrite", action="store_true",
+                    help="write into a non-empty --out folder")
 
     a = sub.add_parser(
         "ablate", help="run a declarative ablation study (a grid of fits) with caching",

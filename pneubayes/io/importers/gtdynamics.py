@@ -1,0 +1,167 @@
+"""Import the GTDynamics jumping-robot system-identification trials.
+
+Source: ``borglab/GTDynamics`` at commit ``2dd29bf3``,
+``examples/example_jumping_robot/system-id-data/`` (BSD-2-Clause, Georgia Tech), as laid
+out in ``realdata/gtdynamics-jumping-robot/trials/<trial>/``. Per trial and muscle
+(knee_right, hip_right, hip_left, knee_left) one format-2 recording:
+
+- ``time_s``: the raw file's time (s; the valves' recorded open time is the origin);
+- ``pressure_psi_gauge``: the raw (unfiltered) muscle channel, psi gauge, made absolute
+  by the reader with the stated atmosphere;
+- ``supply_pressure_psi_gauge``: the raw source-tank channel (the tank drains during the
+  fill; it is measured, so the rig card's supply is ``measured``);
+- ``command_V``: the muscle's valve, 1 between its recorded open and close times, else
+  0 (binary; the rig card declares it), with ``command_before_start`` 0;
+- rows up to ``end_s`` only: the muscles are vented at about 0.33-0.40 s by something
+  the recorded command does not contain (the data's README).
+
+The atmosphere is not recorded: 101325 Pa, as the data authors' own model uses. The
+temperature is the authors' configured 296.15 K. Video angles and marker pixels are not
+converted (the muscles' contraction is not derivable from them without the authors'
+cam geometry code; see the rig card's notes).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.atomic import write_json_atomic
+from pneubayes.io.recording_format import FORMAT_2
+
+JOINTS = ("knee_right", "hip_right", "hip_left", "knee_left")
+SOURCE = {"repository": "https://github.com/borglab/GTDynamics",
+          "commit": "2dd29bf31606357bbd9dd67f0caf224a8573be93",
+          "path": "examples/example_jumping_robot/system-id-data/",
+          "licence": "BSD-2-Clause (Copyright (c) 2020 Georgia Tech Research Corporation)"}
+ATMOSPHERE_PA = 101325.0
+TEMPERATURE_K = 296.15   # robot_config*.yaml 'T'
+TUBE_LENGTH_M = 74 * 0.0254      # robot_config 'l_tube_valve_musc' (in)
+TUBE_DIAMETER_M = 0.1575 * 0.0254  # robot_config 'd_tube_valve_musc' (in)
+VALVE_TIME_CONSTANT_S = 1e-3     # robot_config 'time_constant_valve'
+RIG_CARD_NAME = "gtdynamics-muscle.rig.json"
+
+
+def rig_card() -> dict:
+    """The muscles' rig card: what the data authors documented, priors for the rest."""
+    tube_volume = math.pi / 4 * TUBE_DIAMETER_M ** 2 * TUBE_LENGTH_M
+    return {
+        "format": "pneubayes-rig/1",
+        "name": "GTDynamics jumping-robot McKibben muscle",
+        "atmospheric_pressure_Pa": ATMOSPHERE_PA,
+        "temperature_K": TEMPERATURE_K,
+        "command": {"unit": "binary"},
+        "chamber": {"kind": "fixed",
+                    "volume_m3": {"prior": "log-uniform", "bounds": [1e-5, 5e-4]}},
+        "valve": {"kind": "switching",
+                  "open_area_m2": {"prior": "log-uniform", "bounds": [1e-7, 1e-4]},
+                  "exhaust_area_m2": 0.0, "opening_delay_s": 0.0,
+                  "opening_time_constant_s": VALVE_TIME_CONSTANT_S},
+        "supply": {"kind": "measured"},
+        "tube": {"length_m": TUBE_LENGTH_M, "inner_diameter_m": TUBE_DIAMETER_M},
+        "notes": (
+            "Valve: on/off, brand undocumented; time constant 1 ms and no opening delay "
+            "as the authors' robot_config.yaml states. Chamber: the muscle volume at "
+            f"rest is 4.24e-5 m^3 plus the tube's {tube_volume:.3g} m^3 in the authors' "
+            "model and grows with contraction during the jump; contraction is not "
+            "recorded, so the volume is a fixed unknown here (its change is misfit). "
+            "Supply: the source tank's measured pressure. Atmosphere not recorded "
+            "(101325 Pa assumed, as the authors' model)."),
+    }
+
+
+def _read_matrix(path: Path, ncols: int) -> np.ndarray:
+    rows = []
+    with path.open(newline="") as fh:
+        for i, row in enumerate(csv.reader(fh), start=1):
+            if not row or row[0].lstrip().startswith("#"):
+                continue
+            try:
+                vals = [float(c) for c in row if c.strip()]
+            except ValueError:
+                raise ValueError(f"{path} row {i}: not numbers: {row!r}") from None
+            if len(vals) != ncols:
+                raise ValueError(f"{path} row {i}: expected {ncols} values, got {len(vals)}")
+            rows.append(vals)
+    if not rows:
+        raise ValueError(f"{path}: no data rows")
+    return np.array(rows)
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
+    """Write the four muscles' recordings of one trial under ``out_dir/<trial>/``;
+    returns the written CSV paths. The rig card is written by :func:`import_gtdynamics`."""
+    trial = Path(trial_dir)
+    raw_path, valve_path = trial / "pressure_raw_psi.csv", trial / "t_valve.csv"
+    for p in (raw_path, valve_path):
+        if not p.is_file():
+            raise ValueError(f"{trial}: not a GTDynamics trial folder (no {p.name})")
+    raw = _read_matrix(raw_path, 6)
+    valve = _read_matrix(valve_path, 4)
+    if valve.shape[0] != 2:
+        raise ValueError(f"{valve_path}: expected 2 rows (open, close times), got "
+                         f"{valve.shape[0]}")
+    keep = raw[:, 0] <= end_s
+    if keep.sum() < 20:
+        raise ValueError(f"{raw_path}: fewer than 20 samples before end_s = {end_s} s")
+    raw = raw[keep]
+    t = raw[:, 0]
+    out = Path(out_dir) / trial.name
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for j, joint in enumerate(JOINTS):
+        t_open, t_close = valve[0, j], valve[1, j]
+        # held command: the sample at t is open when the valve was open at t
+        cmd = ((t >= t_open) & (t < t_close)).astype(float)
+        stem = out / joint
+        lines = ["time_s,command_V,pressure_psi_gauge,supply_pressure_psi_gauge"]
+        lines += [f"{a!r},{c:g},{p!r},{s!r}"
+                  for a, c, p, s in zip(t.tolist(), cmd, raw[:, 1 + 1 + j].tolist(),
+                                        raw[:, 1].tolist())]
+        sidecar = {
+            "format": FORMAT_2, "rig": f"../{RIG_CARD_NAME}",
+            "cylinder": f"GTDynamics {joint} muscle", "valve": f"{joint} on/off valve",
+            "atmospheric_pressure_Pa": ATMOSPHERE_PA, "temperature_K": TEMPERATURE_K,
+            "supply_pressure_psi_gauge": float(raw[0, 1]),
+            "command_before_start": 0.0,
+            "import": {
+                **SOURCE, "trial": trial.name, "channel": joint,
+                "files": {raw_path.name: _sha256(raw_path), valve_path.name: _sha256(valve_path)},
+                "valve_open_s": float(t_open), "valve_close_s": float(t_close),
+                "rows": f"t <= {end_s} s of {int(keep.size)} (venting after it is not "
+                        "in the recorded command)",
+                "conversion": "raw psi gauge columns kept in psi gauge (format 2); the "
+                              "reader adds the stated atmosphere; nominal supply = the "
+                              "source's first reading",
+            },
+        }
+        tmp = stem.with_suffix(".csv.tmp")
+        tmp.write_text("\n".join(lines) + "\n")
+        tmp.replace(stem.with_suffix(".csv"))
+        write_json_atomic(stem.with_suffix(".json"), sidecar)
+        written.append(stem.with_suffix(".csv"))
+    return written
+
+
+def import_gtdynamics(trial_dirs, out_dir, end_s: float = 0.33) -> list[Path]:
+    """Import trial folders into ``out_dir`` (one sub-folder per trial) and write the
+    shared rig card ``out_dir/gtdynamics-muscle.rig.json``; returns the CSV paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / RIG_CARD_NAME, rig_card())
+    written = []
+    for d in trial_dirs:
+        written += import_trial(d, out, end_s)
+    (out / "import.json").write_text(json.dumps(
+        {"importer": "gtdynamics", **SOURCE, "trials": [Path(d).name for d in trial_dirs],
+         "end_s": end_s}, indent=2) + "\n")
+    return written

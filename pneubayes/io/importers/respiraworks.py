@@ -1,0 +1,166 @@
+"""Import the RespiraWorks ventilator's 2020-07-01 control-variable tests.
+
+Source: ``RespiraWorks/Ventilator`` at commit ``718bce04``,
+``quality-assurance/testing/testing-data/v0.2/2020-07-01-Control-Tests-AIR-and-OXY/``
+(Apache-2.0), as laid out in ``realdata/respiraworks-ventilator/{AIR,OXY}/``. One
+format-2 recording per run file (the test lung is one chamber):
+
+- ``time_s``: the file's time (s, 100 Hz);
+- ``pressure_kPa_gauge``: the patient (test-lung side) pressure; the firmware labels it
+  cmH2O but the numbers are kPa (they track the set-point at 1/10.2 of its cmH2O value;
+  the data's README), made absolute by the reader with the stated atmosphere;
+- ``command_V``: the inhale actuator's 0..1 command (OXY: ``cmd_psol``, the proportional
+  solenoid, PWM duty 0.80 + 0.10 cmd in the firmware and closed below it; AIR:
+  ``cmd_inh_valve``, the inhale pinch valve); the rig card declares it as unit ``duty``
+  on [0, 1];
+- the other columns kept as extra columns (``pc_setpoint_cmH2O``, ``dp_inhale``,
+  ``dp_exhale``, ``cmd_exh_valve``, the unused inhale command).
+
+The exhale pinch valve is commanded in closed loop from the inhale command
+(``1 - 0.6 cmd - 0.4`` OXY, ``1 - 0.55 cmd - 0.4`` AIR, test READMEs; in the files it
+follows ``0.63 - 0.62 cmd`` to within 0.03): the rig card's exhaust is the Gompertz
+exhaust port of the same command, an approximation the report states. Neither the
+atmosphere, the temperature nor the supply pressure is recorded: 101325 Pa and 296 K
+are assumed, and the supply is a constant of the card (OXY: a regulated line, 400 kPa
+absolute assumed within the design's 120-440 kPa, so the inhale flow is choked and the
+fitted area scales with the assumption; AIR: the blower's 5 kPa gauge).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.atomic import write_json_atomic
+from pneubayes.io.recording_format import FORMAT_2
+
+SOURCE = {"repository": "https://github.com/RespiraWorks/Ventilator",
+          "commit": "718bce04b057355dfa2d07d054d4cf412ec41643",
+          "path": "quality-assurance/testing/testing-data/v0.2/"
+                  "2020-07-01-Control-Tests-AIR-and-OXY/",
+          "licence": "Apache-2.0"}
+COLUMNS = ("time(sec)", "pc_setpoint", "pressure", "dp_inhale", "dp_exhale",
+           "cmd_inh_valve", "cmd_exh_valve", "cmd_psol")
+ATMOSPHERE_PA = 101325.0
+TEMPERATURE_K = 296.0
+SUPPLY_PA = {"OXY": 401325.0, "AIR": ATMOSPHERE_PA + 5000.0}
+INHALE = {"OXY": "cmd_psol", "AIR": "cmd_inh_valve"}
+
+
+def rig_card(kind: str) -> dict:
+    """The test lung on the OXY (proportional solenoid) or AIR (blower + pinch valve)
+    path: a compliant chamber, a Gompertz inhale/exhale pair on the inhale command."""
+    inlet = {"inlet_offset_m2": 0.0,
+             "inlet_a_m2": {"prior": "log-uniform", "bounds": [1e-9, 1e-3]},
+             "inlet_b": {"prior": "log-uniform", "bounds": [0.05, 50.0]},
+             "inlet_c_per_V": {"prior": "uniform", "bounds": [0.5, 40.0]},
+             "inlet_d_V": {"prior": "uniform", "bounds": [-1.5, 1.0]}}
+    exhaust = {"exhaust_offset_m2": {"prior": "uniform", "bounds": [0.0, 1e-4]},
+               "exhaust_a_m2": {"prior": "log-uniform", "bounds": [1e-7, 1e-3]},
+               "exhaust_b": {"prior": "log-uniform", "bounds": [0.05, 50.0]},
+               "exhaust_c_per_V": {"prior": "uniform", "bounds": [-40.0, -0.5]},
+               "exhaust_d_V": {"prior": "uniform", "bounds": [-1.5, 1.0]}}
+    supply = SUPPLY_PA[kind]
+    return {
+        "format": "pneubayes-rig/1",
+        "name": f"RespiraWorks ventilator, {kind} path, QuickLung test lung",
+        "atmospheric_pressure_Pa": ATMOSPHERE_PA, "temperature_K": TEMPERATURE_K,
+        "command": {"unit": "duty", "range": [0.0, 1.0]},
+        "chamber": {"kind": "compliant",
+                    "volume_m3": {"prior": "log-uniform", "bounds": [2e-4, 1e-2]},
+                    "compliance_m3_per_Pa": {"prior": "log-uniform",
+                                             "bounds": [3e-8, 2e-6]}},
+        "valve": {"kind": "gompertz", **inlet, **exhaust},
+        "supply": {"kind": "constant", "pressure_Pa": supply},
+        "notes": (
+            "Command: the inhale actuator's 0..1 command "
+            + ("(PSOL; PWM duty 0.80 + 0.10 cmd, closed below about 0.80 duty). "
+               if kind == "OXY" else "(inhale pinch valve, linearised in firmware). ")
+            + "Exhaust: the exhale pinch valve, commanded in closed loop from the inhale "
+            "command (0.63 - 0.62 cmd to within 0.03), mapped as the exhaust port of the "
+            "same command. Chamber: the QuickLung's compliance C (10-50 mL/cmH2O by the "
+            "ISO test table, setting not in the files) and the circuit's volume. Supply "
+            + ("not recorded: a regulated line, 400 kPa absolute assumed (the inhale flow "
+               "is choked, so the inhale area scales with this assumption). "
+               if kind == "OXY" else "the blower at 100 % speed, about 5 kPa gauge. ")
+            + "Atmosphere and temperature not recorded (101325 Pa, 296 K assumed)."),
+    }
+
+
+def _read(path: Path) -> np.ndarray:
+    lines = path.read_text().splitlines()
+    header = [ln for ln in lines if ln.strip() and not ln.startswith("#")][0].split()
+    if tuple(header) != COLUMNS:
+        raise ValueError(f"{path}: expected the columns {' '.join(COLUMNS)}, got "
+                         f"{' '.join(header)}")
+    rows = []
+    for i, ln in enumerate(lines, start=1):
+        if not ln.strip() or ln.startswith("#") or ln.split() == list(COLUMNS):
+            continue
+        try:
+            vals = [float(v) for v in ln.split()]
+        except ValueError:
+            raise ValueError(f"{path} line {i}: not numbers: {ln!r}") from None
+        if len(vals) != len(COLUMNS):
+            raise ValueError(f"{path} line {i}: expected {len(COLUMNS)} values, got "
+                             f"{len(vals)}")
+        rows.append(vals)
+    return np.array(rows)
+
+
+def import_run(path, out_dir) -> Path:
+    """Write one run file as ``out_dir/<SET>/<file stem>``; returns the CSV path."""
+    path = Path(path)
+    kind = path.parent.name.upper()
+    if kind not in SUPPLY_PA:
+        raise ValueError(f"{path}: the run's folder must be AIR or OXY (it names the gas "
+                         f"path), got {path.parent.name!r}")
+    data = _read(path)
+    col = {c: data[:, i] for i, c in enumerate(COLUMNS)}
+    cmd = col[INHALE[kind]]
+    other = "cmd_inh_valve" if kind == "OXY" else "cmd_psol"
+    out = Path(out_dir) / kind
+    out.mkdir(parents=True, exist_ok=True)
+    stem = out / path.stem
+    names = ["time_s", "command_V", "pressure_kPa_gauge", "pc_setpoint_cmH2O", "dp_inhale",
+             "dp_exhale", "cmd_exh_valve", other]
+    arrays = [col["time(sec)"], cmd, col["pressure"], col["pc_setpoint"], col["dp_inhale"],
+              col["dp_exhale"], col["cmd_exh_valve"], col[other]]
+    text = ",".join(names) + "\n" + "".join(
+        ",".join(repr(float(a[i])) for a in arrays) + "\n" for i in range(data.shape[0]))
+    tmp = stem.with_suffix(".csv.tmp")
+    tmp.write_text(text)
+    tmp.replace(stem.with_suffix(".csv"))
+    sidecar = {
+        "format": FORMAT_2, "rig": f"../respiraworks-{kind.lower()}.rig.json",
+        "cylinder": "IngMar QuickLung test lung", "valve": (
+            "PSOL proportional solenoid (SMC PVQ31 or Uflow IBV19M) + exhale pinch valve"
+            if kind == "OXY" else "inhale pinch valve + exhale pinch valve"),
+        "atmospheric_pressure_Pa": ATMOSPHERE_PA, "temperature_K": TEMPERATURE_K,
+        "accept_unusual": ["working-range"] if kind == "AIR" else [],
+        "import": {**SOURCE, "file": f"{kind}/{path.name}",
+                   "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+                   "conversion": "pressure kept in kPa gauge (format 2; the reader adds "
+                                 "the stated atmosphere); command = " + INHALE[kind]
+                                 + "; other columns kept as extra columns"},
+    }
+    write_json_atomic(stem.with_suffix(".json"), sidecar)
+    return stem.with_suffix(".csv")
+
+
+def import_respiraworks(files, out_dir) -> list[Path]:
+    """Import run files (``.../AIR/covent_pc_N.dat``, ``.../OXY/...``) into ``out_dir``
+    with one rig card per gas path; returns the CSV paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = [Path(f) for f in files]
+    written = [import_run(f, out) for f in files]
+    for kind in sorted({f.parent.name.upper() for f in files}):
+        write_json_atomic(out / f"respiraworks-{kind.lower()}.rig.json", rig_card(kind))
+    (out / "import.json").write_text(json.dumps(
+        {"importer": "respiraworks", **SOURCE,
+         "files": [f"{f.parent.name}/{f.name}" for f in files]}, indent=2) + "\n")
+    return written
