@@ -31,6 +31,8 @@ import fig12a_leak  # noqa: E402
 import fig12b_deadzone  # noqa: E402
 import identification  # noqa: E402
 import peer_baseline  # noqa: E402
+import real_gtdynamics  # noqa: E402
+import real_respiraworks  # noqa: E402
 import supply_study  # noqa: E402
 import table3  # noqa: E402
 
@@ -63,6 +65,14 @@ def run_all(args) -> dict[str, float]:
         identification.main(["--out", str(ident), "--duration", "10", "--max-steps", "4000"]
                             + (["--smoke"] if args.smoke else []))
         times["identification"] = time.perf_counter() - t0
+    for name, mod in (("real_gtdynamics", real_gtdynamics),
+                      ("real_respiraworks", real_respiraworks)):
+        folder = Path(args.out) / (name + ("-smoke" if args.smoke else ""))
+        if not (folder / f"{name}.json").exists():
+            t0 = time.perf_counter()
+            print(f"make_paper: {name} (real recordings) ...", flush=True)
+            mod.main(["--out", str(folder)] + (["--smoke"] if args.smoke else []))
+            times[name] = time.perf_counter() - t0
     return times
 
 
@@ -347,6 +357,8 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
                      f"{'n/a' if pm is None else f'{pm:.0f}'} | "
                      f"{r['ours_discovery_rmse_Pa']:.0f} |")
         L.append("")
+    # ---------------- real recordings
+    L += real_section(out, paper, smoke)
     # ---------------- the paper's claims, checked
     L += ["## The paper's claims, checked on our data", ""]
     L += claims(docs)
@@ -376,6 +388,132 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
     path = paper / "report.md"
     write_text_atomic(path, "\n".join(L))
     return path
+
+
+def _copy_fig(paper: Path, src) -> str:
+    src = Path(src)
+    if not src.exists():
+        return ""
+    dst = paper / "figures" / src.name
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(src, dst)
+    return f"![{src.stem}](figures/{src.name})"
+
+
+def _interval(s: dict, scale: float = 1.0, fmt: str = ".3g") -> str:
+    return (f"{s['median'] * scale:{fmt}} [{s['q05'] * scale:{fmt}}, "
+            f"{s['q95'] * scale:{fmt}}]")
+
+
+def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """The "Real recordings" section from the two real-data experiments' results."""
+    suffix = "-smoke" if smoke else ""
+    L = ["## Real recordings", ""]
+    g_path = out / f"real_gtdynamics{suffix}" / "real_gtdynamics.json"
+    if g_path.exists():
+        g = json.loads(g_path.read_text())
+        post = (g.get("posterior") or {}).get("summary", {})
+        eff = [e["name"] for e in g["effects"]]
+        span = g["span_Pa"]
+        L += ["**GTDynamics jumping robot** (`experiments/real_gtdynamics.py`; data "
+              "`data/real/gtdynamics`, BSD-2-Clause). Four McKibben muscles per trial, "
+              "filled through on/off valves and 1.88-m tubes from a tank whose pressure is "
+              "measured; 500 Hz raw psi. The rig card states what the data authors "
+              "documented (valve time constant 1 ms, no opening delay, the tube) and "
+              "priors for the muscle volume and the valve's open area. Fitted: the fill, "
+              f"trigger to {g['window']['after_close_s'] * 1e3:.0f} ms after the valve "
+              f"closes, in {g['window']['horizon_s'] * 1e3:.0f}-ms windows from the "
+              "measured pressure; three trials train, two trials (one per source "
+              f"pressure, {len(g['held_out_recordings'])} recordings) are held out whole.",
+              "",
+              "| | held-out RMSE (Pa) | x noise floor | % of measured span |",
+              "|---|---|---|---|",
+              f"| plain rig-card model | {g['held_out_rmse_plain_Pa']:.0f} | "
+              f"{g['held_out_rmse_plain_Pa'] / g['noise_floor_Pa']:.1f} | "
+              f"{100 * g['held_out_rmse_plain_Pa'] / span:.1f} |",
+              f"| after discovery (+ {', '.join(eff) or 'nothing'}) | "
+              f"{g['held_out_rmse_final_Pa']:.0f} | {g['final_over_noise']:.1f} | "
+              f"{100 * g['held_out_rmse_final_Pa'] / span:.1f} |", "",
+              f"Noise floor {g['noise_floor_Pa']:.0f} Pa, measured span {span:.0f} Pa. "
+              f"The held-out error falls to {g['ratio_final_over_plain']:.2f} of the plain "
+              "model's."]
+        if "tube_delay_s" in post:
+            d = post["tube_delay_s"]
+            L[-1] += (f" Discovery names `tube_delay`: a dead time of "
+                      f"{_interval(d, 1e3)} ms (posterior median [90 % interval]; measured "
+                      "from the first sample, 2 ms after the recorded open time). The tube's "
+                      "own acoustic transit is 1.88 m / 343 m/s = 5.5 ms, so most of the "
+                      "dead time is the valve opening, which the authors' configuration "
+                      "does not state; the effect is named for what it does (the command "
+                      "reaches the chamber late), not for where the delay arises.")
+            if "tube_diameter_m" in post:
+                L[-1] += (f" Its acoustic-line form fits best (a line of bore "
+                          f"{_interval(post['tube_diameter_m'], 1e3)} mm whose length is the "
+                          "dead time x c): the tube's friction limits the flow, which is "
+                          "the data authors' own model class (tank + tube with "
+                          "Darcy-Weisbach friction); with it the valve's open area is only "
+                          "bounded from below.")
+        L[-1] += (f" The remaining error is {g['final_over_noise']:.1f} x the noise floor: "
+                  "misfit, not noise. Not modelled: the muscles' volume growth with their "
+                  "contraction during the jump (not recorded; the fitted volume is a fixed "
+                  "unknown), and sensor offsets (the muscles read 18-30 kPa gauge at rest).")
+        conv = (g.get("posterior") or {}).get("converged")
+        L += ["", f"emcee converged: {conv}. Seed {g['seed']}.", ""]
+        for f in g.get("figures", []):
+            L += [_copy_fig(paper, f), ""]
+    r_path = out / f"real_respiraworks{suffix}" / "real_respiraworks.json"
+    if r_path.exists():
+        r = json.loads(r_path.read_text())
+        L += ["**RespiraWorks ventilator** (`experiments/real_respiraworks.py`; data "
+              "`data/real/respiraworks`, Apache-2.0). A QuickLung test lung filled through "
+              "a proportional solenoid (OXY) or a pinch valve from a blower (AIR) and "
+              "emptied through an exhale pinch valve, 100 Hz, closed loop. Rig card: a "
+              "compliant chamber (volume and compliance as priors), Gompertz inhale and "
+              "exhale maps of the inhale command (the exhale valve follows it in the "
+              "firmware's loop), a constant supply (OXY 400 kPa absolute assumed, AIR 5 kPa "
+              "gauge). Runs 1-4 train, runs 5-6 are held out whole, "
+              f"{r['horizon_s']:g}-s windows.", "",
+              "| set | plain (Pa) | after discovery (Pa) | effects | noise floor (Pa) | "
+              "x noise | % of span | set-point baseline (Pa) | at a prior bound |",
+              "|---|---|---|---|---|---|---|---|---|"]
+        for kind, res in r["sets"].items():
+            L.append(f"| {kind} | {res['held_out_rmse_plain_Pa']:.0f} | "
+                     f"{res['held_out_rmse_final_Pa']:.0f} | "
+                     f"{', '.join(res['effects']) or 'none'} | {res['noise_floor_Pa']:.0f} | "
+                     f"{res['final_over_noise']:.1f} | "
+                     f"{100 * res['held_out_rmse_final_Pa'] / res['span_Pa']:.1f} | "
+                     f"{res['setpoint_baseline_rmse_Pa']:.0f} | "
+                     f"{', '.join(res.get('at_bounds', [])) or 'none'} |")
+        misfit = [k for k, res in r["sets"].items() if res["final_over_noise"] > 1.5]
+        worse = [k for k, res in r["sets"].items()
+                 if res["held_out_rmse_final_Pa"] > res["setpoint_baseline_rmse_Pa"]]
+        text = []
+        if misfit:
+            text.append(f"On {', '.join(misfit)} the held-out error stays above 1.5 x the "
+                        "noise floor: misfit, which the thin-port family with these "
+                        "components does not close.")
+        if worse:
+            text.append(f"On {', '.join(worse)} the model loses to simply predicting the "
+                        "controller's set-point, which a closed loop tracks.")
+        if misfit or worse:
+            text.append(
+                "A likely cause, not tested here: the sensor is on the ventilator side of "
+                "the test lung's airway resistance R (5-50 cmH2O/(L/s) in the ISO test "
+                "table), so it sees a fast circuit volume in series with a slow lung "
+                "compliance, where a single chamber has one time constant. What it would "
+                "take: a two-compartment chamber kind (circuit volume, a laminar "
+                "resistance, the lung's compliance); the measured inhale and exhale flows "
+                "(`dp_inhale`, `dp_exhale`, kept as extra columns) in the likelihood, to "
+                "separate the valves' areas from the compliance, which the pressure alone "
+                "confounds; and the exhale valve's own command column.")
+        L += ["", " ".join(text), ""]
+        for res in r["sets"].values():
+            if res.get("figure"):
+                L += [_copy_fig(paper, res["figure"]), ""]
+    if len(L) == 2:
+        L += ["(not run: `python experiments/real_gtdynamics.py --out "
+              f"{out}/real_gtdynamics` and `real_respiraworks.py`)", ""]
+    return L
 
 
 def main(argv=None) -> int:

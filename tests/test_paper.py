@@ -37,3 +37,34 @@ def test_table3_smoke_then_report_carries_numbers_and_provenance(tmp_path):
     assert table3.main(["--smoke", "--out", str(out), "--workers", "1", "-q"]) == 0
     again = json.loads((out / "studies" / "table3-smoke" / "results.json").read_text())
     assert again["counts"]["cached"] == 1 and again["counts"]["run_now"] == 0
+
+
+def _real_results(out: Path, rw_final: float, setpoint: float):
+    g = {"window": {"after_close_s": 0.03, "horizon_s": 0.044},
+         "held_out_recordings": ["a"] * 8, "noise_floor_Pa": 1000.0, "span_Pa": 300000.0,
+         "held_out_rmse_plain_Pa": 40000.0, "held_out_rmse_final_Pa": 8000.0,
+         "ratio_final_over_plain": 0.2, "final_over_noise": 8.0,
+         "effects": [{"name": "tube_delay"}], "seed": 0, "figures": [],
+         "posterior": {"converged": False, "summary": {
+             "tube_delay_s": {"median": 0.02, "q05": 0.018, "q95": 0.022}}}}
+    (out / "real_gtdynamics").mkdir(parents=True)
+    (out / "real_gtdynamics" / "real_gtdynamics.json").write_text(json.dumps(g))
+    r = {"horizon_s": 2.0, "sets": {"OXY": {
+        "held_out_rmse_plain_Pa": 400.0, "held_out_rmse_final_Pa": rw_final,
+        "effects": [], "noise_floor_Pa": 10.0, "final_over_noise": rw_final / 10.0,
+        "span_Pa": 3000.0, "setpoint_baseline_rmse_Pa": setpoint, "at_bounds": []}}}
+    (out / "real_respiraworks").mkdir(parents=True)
+    (out / "real_respiraworks" / "real_respiraworks.json").write_text(json.dumps(r))
+
+
+def test_real_section_states_the_numbers_and_never_claims_a_fit_it_misses(tmp_path):
+    _real_results(tmp_path / "out", rw_final=390.0, setpoint=250.0)
+    text = "\n".join(make_paper.real_section(tmp_path / "out", tmp_path / "paper", False))
+    assert "| plain rig-card model | 40000 | 40.0 | 13.3 |" in text
+    assert "20 [18, 22] ms" in text and "8.0 x the noise floor: misfit" in text
+    assert "loses to simply predicting the controller's set-point" in text
+    assert "| OXY | 400 | 390 | none | 10 | 39.0 |" in text
+    # a model within 1.5 x the noise that beats the baseline gets no misfit sentence
+    _real_results(tmp_path / "good", rw_final=12.0, setpoint=250.0)
+    text = "\n".join(make_paper.real_section(tmp_path / "good", tmp_path / "p2", False))
+    assert "On OXY" not in text and "A likely cause" not in text

@@ -1,0 +1,69 @@
+"""Shared by the real-recording experiments: the plain model's refit and the figure of
+measured pressure against the plain model and the discovered model's posterior band."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pneubayes.inference.pipeline import load_posterior
+from pneubayes.inference.predictive import PosteriorPredictive
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.windows import WindowSet
+from pneubayes.model import Model
+from pneubayes.simulation import SolverConfig, simulate_windows
+from pneubayes.simulation.simulator import Inputs
+
+
+def plain_fit(train, horizon_s: float, solver: SolverConfig, max_nfev: int = 60) -> dict:
+    """The rig card's plain model refined on the training windows from the card's start
+    (the discovery loop's base fit, repeated here to draw it)."""
+    model = Model(rig_card=train[0].rig_card)
+    ws = WindowSet(train, horizon_s, horizon_s)
+    return TrajectoryRefiner(model, solver, max_nfev=max_nfev).fit(
+        ws, model.base_start_values()).params_
+
+
+def prediction_figure(recs, plain_params: dict, run_dir: Path, horizon_s: float,
+                      path: Path, title: str, seed: int, n_draws: int = 200) -> Path:
+    """Per held-out recording: measured pressure (gauge kPa), the plain model's windowed
+    prediction, and the discovered model's posterior-predictive mean and 90 % band."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    rng = np.random.default_rng(seed)
+    model, draws, noise = load_posterior(run_dir, n_draws, rng)
+    pred = PosteriorPredictive(model, draws, noise, SolverConfig.standard())
+    plain = Model(rig_card=recs[0].rig_card)
+    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 2.2 * len(recs)), squeeze=False)
+    for ax, rec in zip(axes[:, 0], recs):
+        b = pred.bands(rec, horizon_s, horizon_s, rng)
+        atm = rec.metadata.atmospheric_pressure_Pa
+        base = simulate_windows(plain, plain_params, Inputs.from_recording(rec), rec.rig(),
+                                b.starts, b.mean.shape[1],
+                                rec.pressure_Pa[b.starts], SolverConfig.standard())[0]
+        for w in range(b.starts.size):
+            t = b.time_s[w]
+            ax.fill_between(t, (b.q05[w] - atm) / 1e3, (b.q95[w] - atm) / 1e3,
+                            color="tab:blue", alpha=0.3, lw=0,
+                            label="after discovery: 90 % band" if w == 0 else None)
+            ax.plot(t, (b.mean[w] - atm) / 1e3, color="tab:blue", lw=1.0,
+                    label="after discovery: mean" if w == 0 else None)
+            ax.plot(t, (base[w] - atm) / 1e3, color="tab:orange", lw=1.0, ls="--",
+                    label="plain model" if w == 0 else None)
+        ax.plot(rec.time_s, (rec.pressure_Pa - atm) / 1e3, color="k", lw=0.7,
+                label="measured")
+        ax.set_ylabel("kPa gauge", fontsize=8)
+        ax.set_title(Path(str(rec.source)).parent.name + "/" + Path(str(rec.source)).stem,
+                     fontsize=8)
+    axes[0, 0].legend(fontsize=7, loc="upper left")
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
