@@ -388,7 +388,7 @@ def test_shipped_respiraworks_recordings_read_with_their_cards():
     recs = {k: [read_recording(p) for p in sorted((RW / k).glob("*.csv"))]
             for k in ("AIR", "OXY")}
     assert len(recs["AIR"]) == len(recs["OXY"]) == 6
-    for kind, rs in recs.items():
+    for rs in recs.values():
         card_ = rs[0].rig_card
         assert card_.chamber.kind == "compliant" and card_.command.unit == "duty"
         for r in rs:
@@ -518,3 +518,25 @@ def test_the_shipped_paper_rig_cards_are_current():
         for valve in VALVES:
             shipped = load_rig_card(ROOT / "data" / "rigs" / f"{cyl}-{valve}.rig.json")
             assert shipped == paper_rig_card(cyl, valve)
+
+
+def test_discovery_offers_a_compliant_chamber_only_forms_it_can_simulate():
+    """Heat transfer and the acoustic line need states a compliant chamber's integration
+    does not carry: discovery offers neither beside it (the transport delay it can)."""
+    from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.verification import StepFit
+
+    c = card(chamber={"kind": "compliant", "volume_m3": 1e-3,
+                      "compliance_m3_per_Pa": {"prior": "log-uniform",
+                                               "bounds": [1e-8, 1e-6]}})
+    m = Model(rig_card=c)
+    fit = StepFit(m, {"valve_open_area_m2": 1e-6, "chamber_compliance_m3_per_Pa": 2e-7},
+                  1.0, 1.0, np.zeros(1), np.zeros(1), 1.0, 0.0)
+    rig = _rig(c)
+    assert effect_candidates(fit, "heat_transfer", {}, rig) == []
+    tubes = effect_candidates(fit, "tube_delay", {"best_term": "delay 4 ms"}, rig)
+    assert [mm.effect("tube_delay").form for mm, _ in tubes] == ["transport"]
+    fixed = Model(rig_card=card())
+    fit2 = StepFit(fixed, {"valve_open_area_m2": 1e-6, "dead_volume_m3": 1e-4},
+                   1.0, 1.0, np.zeros(1), np.zeros(1), 1.0, 0.0)
+    assert len(effect_candidates(fit2, "heat_transfer", {}, rig)) == 2

@@ -31,11 +31,12 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       line_segments: int = 3):
     """``[(model, start), ...]``: the group's effect form(s) with start values from
     the group's best term."""
+    compliant = _compliant(fit, rig)  # the pressure is its only state
     if group == "tube_delay":
-        return _tube_candidates(fit, evidence, rig, line_segments)
+        return _tube_candidates(fit, evidence, rig, 0 if compliant else line_segments)
     if group != "heat_transfer":
         return [effect_candidate(fit, group, evidence)]
-    if _has_line(fit.model):  # the acoustic line is isothermal
+    if _has_line(fit.model) or compliant:  # the acoustic line is isothermal
         return []
     rate_model, rate_start = effect_candidate(fit, group, evidence)
     rate = rate_start["heat_transfer_rate_per_s"]
@@ -91,6 +92,16 @@ def first_free(model, group: str):
         return tuple(n for n in ("tube_delay_s", "tube_diameter_m", "dead_volume_m3")
                      if n in model.parameter_names)
     return None
+
+
+def _compliant(fit: StepFit, rig: Rig) -> bool:
+    """Whether the fitted model's chamber is compliant (a rig card's), which the
+    simulator integrates with the pressure as its only state: no heat transfer and no
+    acoustic line beside it."""
+    from pneubayes.effects.path import SLOT_INDEX
+
+    slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)
+    return bool(slots[0, SLOT_INDEX["compliance_m3_per_Pa"]] > 0)
 
 
 def _dead_volume(model, params: dict, rig: Rig) -> float:
