@@ -3,6 +3,7 @@ saved results (``make paper``).
 
     python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
     python experiments/make_paper.py --assemble-only     # only re-assemble saved results
+    python experiments/make_paper.py --assemble-only --only real   # one section
     python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
 
 Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
@@ -516,6 +517,27 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     return L
 
 
+def update_real_section(out: Path, paper: Path, smoke: bool) -> Path:
+    """Rewrite only the "Real recordings" section of an existing ``PAPER/report.md``
+    from the real-data results (``--only real``), leaving every other section as its
+    studies made it; inserted before the claims' section when absent."""
+    path = paper / "report.md"
+    if not path.exists():
+        raise SystemExit(f"{path}: no report to update; run make_paper.py without --only")
+    lines = path.read_text().split("\n")
+    new = real_section(out, paper, smoke)
+    head = "## Real recordings"
+    if head in lines:
+        i = lines.index(head)
+        j = next((k for k in range(i + 1, len(lines)) if lines[k].startswith("## ")),
+                 len(lines))
+    else:
+        claims_head = "## The paper's claims, checked on our data"
+        i = j = lines.index(claims_head) if claims_head in lines else len(lines)
+    write_text_atomic(path, "\n".join(lines[:i] + new + lines[j:]))
+    return path
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/paper")
@@ -523,7 +545,15 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
+    ap.add_argument("--only", choices=["real"], default=None,
+                    help="with --assemble-only: rewrite only this section of an existing "
+                         "report (real: the real recordings)")
     args = ap.parse_args(argv)
+    if args.only:
+        if not args.assemble_only:
+            ap.error("--only needs --assemble-only")
+        print(update_real_section(Path(args.out), Path(args.paper), args.smoke))
+        return 0
     t0 = time.perf_counter()
     if not args.assemble_only:
         times = run_all(args)

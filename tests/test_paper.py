@@ -68,3 +68,19 @@ def test_real_section_states_the_numbers_and_never_claims_a_fit_it_misses(tmp_pa
     _real_results(tmp_path / "good", rw_final=12.0, setpoint=250.0)
     text = "\n".join(make_paper.real_section(tmp_path / "good", tmp_path / "p2", False))
     assert "On OXY" not in text and "A likely cause" not in text
+
+
+def test_only_the_real_section_is_rewritten(tmp_path):
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    (paper / "report.md").write_text("# R\n\n## Table III\n\nkept\n\n"
+                                     "## The paper's claims, checked on our data\n\nc\n")
+    _real_results(tmp_path / "out", rw_final=390.0, setpoint=250.0)
+    assert make_paper.main(["--out", str(tmp_path / "out"), "--paper", str(paper),
+                            "--assemble-only", "--only", "real"]) == 0
+    text = (paper / "report.md").read_text()
+    assert text.index("kept") < text.index("## Real recordings") < text.index("claims")
+    first = text
+    assert make_paper.main(["--out", str(tmp_path / "out"), "--paper", str(paper),
+                            "--assemble-only", "--only", "real"]) == 0
+    assert (paper / "report.md").read_text() == first  # replaced, not added again

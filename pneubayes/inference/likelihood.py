@@ -387,7 +387,8 @@ class WindowLikelihood:
         with np.errstate(divide="ignore", invalid="ignore"):
             jac = np.sum(np.log(np.where(x[:, logc] > 0, x[:, logc], np.nan)), axis=1)
         lp, sums = self.log_prob_and_sums(x)
-        out = lp + jac
+        with np.errstate(invalid="ignore"):  # -inf + inf far outside: no density
+            out = lp + jac
         out[~np.isfinite(out)] = -np.inf
         return out, sums
 
