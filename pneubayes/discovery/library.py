@@ -129,7 +129,7 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
     if "cylinder_leak" in groups:
         lam, lam_base = _augmented(model, params, [make_effect("cylinder_leak",
                                                                 form="laminar")])
-    targets, cols, absorbers, rec_idx, first = [], [], [], [], []
+    targets, cols, absorbers, rec_idx, first, keep = [], [], [], [], [], []
     labels, group_of = [], []
     for i, d in enumerate(data):
         pred = d.predict(aug, np.array(trials), solver)
@@ -167,9 +167,11 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
         absorbers.append(d.rows(sens).T)
         rec_idx.append(np.full(d.n_rows, i))
         first.append(np.arange(d.n_rows) * d.block)
+        keep.append(d.valid_rows())
+    k = np.concatenate(keep)  # rows touching a masked sample are left out
     return CandidateLibrary(
-        target=np.concatenate(targets), columns=np.concatenate(cols),
-        labels=labels, groups=group_of, absorbers=np.concatenate(absorbers),
+        target=np.concatenate(targets)[k], columns=np.concatenate(cols)[k],
+        labels=labels, groups=group_of, absorbers=np.concatenate(absorbers)[k],
         absorber_labels=[f"d/d {n}" for n in model.parameter_names],
-        row_recording=np.concatenate(rec_idx), row_sample=np.concatenate(first),
+        row_recording=np.concatenate(rec_idx)[k], row_sample=np.concatenate(first)[k],
         meta={"grid": grid.to_dict(), "groups": list(groups)})

@@ -55,6 +55,15 @@ class OneStepData:
     def n_rows(self) -> int:
         return (self.recording.n_samples - 1) // self.block
 
+    def valid_rows(self) -> np.ndarray:
+        """Per row (block of intervals), whether all its samples are valid (the
+        recording's ``valid`` column)."""
+        ok = self.recording.valid_mask()
+        rows = np.arange(self.n_rows)
+        bad = np.concatenate([[0], np.cumsum(~ok)])  # invalid samples before each index
+        # row r spans samples r * block .. (r + 1) * block
+        return bad[(rows + 1) * self.block + 1] - bad[rows * self.block] == 0
+
     def rows(self, per_interval: np.ndarray) -> np.ndarray:
         """Sum ``(..., N - 1)`` per-interval values over blocks -> ``(..., n_rows)``."""
         v = np.asarray(per_interval)

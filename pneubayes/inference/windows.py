@@ -85,6 +85,12 @@ class WindowSet:
                                      "after the recording's end")
             starts, n = window_starts(t[first:], horizon_s, stride_s)
             starts = starts + first
+            valid = rec.valid_mask() if hasattr(rec, "valid_mask") else None
+            if valid is not None and not valid.all():  # no window touches a masked sample
+                bad = np.concatenate([[0], np.cumsum(~valid)])
+                starts = starts[bad[starts + n] - bad[starts] == 0]
+                if starts.size == 0:
+                    continue
             if length is not None and n != length:
                 raise ValueError(f"{rec.source}: sample rate differs from the other recordings "
                                  f"({n} vs {length} samples per window)")
@@ -97,7 +103,8 @@ class WindowSet:
             blocks.append(_Block(Inputs.from_recording(rec), rec.rig(), starts, p[idx],
                                  str(rec.source), warm, p[warm]))
         if not blocks:
-            raise ValueError("WindowSet: no recordings")
+            raise ValueError("WindowSet: no recordings" if not recordings else
+                             "WindowSet: no window lies within the recordings' valid samples")
         self.blocks = tuple(blocks)
         self.length = int(length)
 

@@ -32,6 +32,10 @@ REQUIRED_KEYS = ("cylinder", "valve", "bore_m", "stroke_m", "atmospheric_pressur
 OPTIONAL_KEYS = ("position_m", "command_before_start")
 #: The JSON key naming the recording's rig card (a path relative to the sidecar).
 RIG_KEY = "rig"
+#: The optional column marking invalid stretches (1 valid, 0 invalid: a sensor glitch,
+#: an event the command does not contain); windows and discovery rows touching an
+#: invalid sample are left out.
+VALID_COLUMN = "valid"
 #: Keys that may be any finite number (others must be > 0).
 SIGNED_KEYS = ("position_m", "command_before_start")
 #: The JSON key naming the format; absent or FORMAT_1 is format 1, FORMAT_2 allows
@@ -165,6 +169,13 @@ class Recording:
     def working_range_Pa(self) -> float:
         """Nominal supply minus atmospheric pressure, Pa."""
         return self.metadata.supply_pressure_Pa - self.metadata.atmospheric_pressure_Pa
+
+    def valid_mask(self) -> np.ndarray:
+        """Per sample, whether it may be used (the ``valid`` column; all True without)."""
+        v = self.extra_columns.get(VALID_COLUMN)
+        if v is None:
+            return np.ones(self.n_samples, dtype=bool)
+        return np.asarray(v).astype(float) > 0.5
 
     @property
     def command_before_start(self) -> float | None:

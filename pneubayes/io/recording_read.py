@@ -29,6 +29,7 @@ from pneubayes.io.recording_format import (
     PLAIN_PATTERN,
     REQUIRED_COLUMNS,
     RIG_KEY,
+    VALID_COLUMN,
     Recording,
     check_columns,
     check_metadata,
@@ -288,6 +289,12 @@ def _problems_and_recording(path, accept=(), rig_card=None) -> tuple[list, Recor
     if problems or parsed is None or metadata is None:
         return problems, None
     known, extra, column_conversions = parsed
+    if VALID_COLUMN in extra:  # the mask of invalid stretches: 1 valid, 0 invalid
+        v = extra[VALID_COLUMN]
+        bad = np.nonzero(~np.isin(np.asarray(v).astype(str), ("0", "1", "0.0", "1.0")))[0]
+        if bad.size:
+            return [(f"{csv_path} row {int(bad[0]) + 2} column {VALID_COLUMN!r}",
+                     f"must be 1 (valid) or 0 (invalid), got {show_value(v[bad[0]])}")], None
     known["command_V"] = np.clip(known["command_V"], -COMMAND_LIMIT_V, COMMAND_LIMIT_V)
     rec = Recording(metadata=metadata, extra_columns=extra, source=str(csv_path),
                     conversions=tuple(conversions + column_conversions), **known)
