@@ -406,6 +406,23 @@ def _interval(s: dict, scale: float = 1.0, fmt: str = ".3g") -> str:
             f"{s['q95'] * scale:{fmt}}]")
 
 
+def _predictive_sentence(m: dict | None) -> str:
+    """The posterior predictive on the held-out windows, with the noise model's share."""
+    if not m:
+        return ""
+    out = (f"The posterior predictive (after discovery, {m['n_draws']} draws) has a "
+           f"held-out RMSE of its mean of {m['posterior_mean_rmse_Pa']:.0f} Pa, and its "
+           f"90 % band covers {100 * m['coverage_90']:.0f} % of the held-out samples at a "
+           f"median width of {m['band_90_width_Pa']:.0f} Pa, "
+           f"{m['band_90_width_over_sensor_noise']:.1f} x what sensor noise alone gives")
+    if m["band_90_width_over_sensor_noise"] > 2:
+        out += (": the band covers by being wide (the AR(1) noise model absorbs misfit)"
+                if m["coverage_90"] >= 0.85 else
+                ": the band is wide (the AR(1) noise model absorbs misfit) and still "
+                "under-covers")
+    return out + "."
+
+
 def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     """The "Real recordings" section from the two real-data experiments' results."""
     suffix = "-smoke" if smoke else ""
@@ -450,16 +467,26 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
             if "tube_diameter_m" in post:
                 L[-1] += (f" Its acoustic-line form fits best (a line of bore "
                           f"{_interval(post['tube_diameter_m'], 1e3)} mm whose length is the "
-                          "dead time x c): the tube's friction limits the flow, which is "
-                          "the data authors' own model class (tank + tube with "
-                          "Darcy-Weisbach friction); with it the valve's open area is only "
-                          "bounded from below.")
+                          "dead time x c, not the tube's 1.88 m): the line's friction and "
+                          "inertia shape the flow, as in the data authors' own model class "
+                          "(tank + tube with Darcy-Weisbach friction)")
+                if "valve_open_area_m2" in post:
+                    L[-1] += (f"; the valve's open area goes to "
+                              f"{_interval(post['valve_open_area_m2'], 1e6)} mm^2 against "
+                              f"{g['plain_parameters']['valve_open_area_m2'] * 1e6:.3g} mm^2 "
+                              "in the plain model, where the valve alone limited the flow")
+                L[-1] += "."
         L[-1] += (f" The remaining error is {g['final_over_noise']:.1f} x the noise floor: "
                   "misfit, not noise. Not modelled: the muscles' volume growth with their "
                   "contraction during the jump (not recorded; the fitted volume is a fixed "
-                  "unknown), and sensor offsets (the muscles read 18-30 kPa gauge at rest).")
+                  "unknown)"
+                  + (", and the muscles' reading at rest, "
+                     f"{g['rest_gauge_Pa'][0] / 1e3:.0f}-{g['rest_gauge_Pa'][1] / 1e3:.0f} kPa "
+                     "gauge before the valves open (an undocumented sensor offset or "
+                     "residual pressure)" if "rest_gauge_Pa" in g else "") + ".")
         conv = (g.get("posterior") or {}).get("converged")
-        L += ["", f"emcee converged: {conv}. Seed {g['seed']}.", ""]
+        L += ["", _predictive_sentence(g.get("posterior_predictive")),
+              "", f"emcee converged: {conv}. Seed {g['seed']}.", ""]
         for f in g.get("figures", []):
             L += [_copy_fig(paper, f), ""]
     r_path = out / f"real_respiraworks{suffix}" / "real_respiraworks.json"
@@ -507,6 +534,8 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                 "(`dp_inhale`, `dp_exhale`, kept as extra columns) in the likelihood, to "
                 "separate the valves' areas from the compliance, which the pressure alone "
                 "confounds; and the exhale valve's own command column.")
+        for kind, res in r["sets"].items():
+            text.append(f"{kind}: " + _predictive_sentence(res.get("posterior_predictive")))
         L += ["", " ".join(text), ""]
         for res in r["sets"].values():
             if res.get("figure"):

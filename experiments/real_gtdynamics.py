@@ -39,6 +39,7 @@ from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
+from pneubayes.io.importers.gtdynamics import ATMOSPHERE_PA
 from pneubayes.provenance import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,11 +89,12 @@ def main(argv=None) -> int:
     noise = doc["noise_floor_Pa"]
     span = doc.get("span_Pa")
     plain = plain_fit(train, HORIZON_S, FitSettings().refine_solver)
-    figs = [str(prediction_figure(
+    fig, predictive = prediction_figure(
         held, plain, out / "discovery", HORIZON_S, out / "figures" / "gtdynamics_heldout.png",
         "GTDynamics held-out trials: plain rig-card model (orange) and after discovery "
         f"({', '.join(e['name'] for e in doc['effects']) or 'nothing added'}; blue)",
-        SEED))]
+        SEED)
+    figs = [str(fig)]
     result = {
         "data": str(Path(args.data).relative_to(ROOT)) if Path(args.data).is_relative_to(ROOT)
         else args.data,
@@ -107,6 +109,12 @@ def main(argv=None) -> int:
         "effects": doc["effects"],
         "posterior": doc.get("posterior"),
         "plain_parameters": plain,
+        # the muscles' reading before the valves open (gauge): an offset or a residue
+        "rest_gauge_Pa": [float(min(r.pressure_Pa[:5].mean() for r in train + held)
+                                - ATMOSPHERE_PA),
+                          float(max(r.pressure_Pa[:5].mean() for r in train + held)
+                                - ATMOSPHERE_PA)],
+        "posterior_predictive": predictive,
         "figures": figs,
         "seed": SEED, "smoke": args.smoke,
         "provenance": provenance(),

@@ -101,7 +101,7 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
     noise = doc["noise_floor_Pa"]
     post = (doc.get("posterior") or {}).get("summary", {})
     plain = plain_fit(train, HORIZON_S, FitSettings().refine_solver)
-    fig = prediction_figure(
+    fig, predictive = prediction_figure(
         held, plain, out / kind, HORIZON_S, out / "figures" / f"respiraworks_{kind}.png",
         f"RespiraWorks {kind}, held-out runs: plain rig-card model (orange) and after "
         f"discovery ({', '.join(e['name'] for e in doc['effects']) or 'nothing added'}; "
@@ -118,6 +118,7 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
         "converged": (doc.get("posterior") or {}).get("converged"),
         "at_bounds": _at_bounds(post, read_recording(paths[0]).rig_card),
         "plain_parameters": plain, "figure": str(fig),
+        "posterior_predictive": predictive,
     }
 
 
