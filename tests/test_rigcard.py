@@ -540,3 +540,11 @@ def test_discovery_offers_a_compliant_chamber_only_forms_it_can_simulate():
     fit2 = StepFit(fixed, {"valve_open_area_m2": 1e-6, "dead_volume_m3": 1e-4},
                    1.0, 1.0, np.zeros(1), np.zeros(1), 1.0, 0.0)
     assert len(effect_candidates(fit2, "heat_transfer", {}, rig)) == 2
+
+
+def test_components_compare_and_hash_by_their_tables():
+    poly = {"kind": "polynomial", "dead_volume_m3": 1e-4,
+            "coefficients_m3_per_m": [1e-3, 0.01], "coordinate_range_m": [0.0, 0.02]}
+    a, b = card(chamber=poly).chamber, card(chamber=dict(poly)).chamber
+    assert a == b and hash(a) == hash(b) and len({a, b}) == 1
+    assert a != card().chamber

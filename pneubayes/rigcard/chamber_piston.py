@@ -7,9 +7,8 @@ its fixed ``position_m`` key) is the piston position.
 
 from __future__ import annotations
 
-from pneubayes.effects.thin_port import ThinPort
 from pneubayes.rigcard.component import RigComponent, register
-from pneubayes.rigcard.values import Unknown, real
+from pneubayes.rigcard.values import real
 
 
 @register
@@ -32,12 +31,4 @@ class PistonChamber(RigComponent):
 
     def metadata_defaults(self):
         return {"bore_m": self.extra["bore_m"], "stroke_m": self.extra["stroke_m"]}
-
-
-def default_dead_volume() -> Unknown:
-    """The thin-port core's dead-volume prior (used when a card gives none)."""
-    p = ThinPort().parameters()[-1]
-    return Unknown(p.prior, p.lower, p.upper)
-
-
 

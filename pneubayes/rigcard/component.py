@@ -128,6 +128,11 @@ class RigComponent(Component):
     def options(self) -> dict:
         return self.to_table()
 
+    def __hash__(self) -> int:  # the table holds lists (a polynomial's coefficients)
+        import json
+
+        return hash((type(self).__name__, json.dumps(self.to_table(), sort_keys=True)))
+
     # ---- binding to a recording (chamber and supply kinds override)
     def metadata_defaults(self) -> dict:
         """Recording metadata this component supplies (e.g. an equivalent bore)."""
