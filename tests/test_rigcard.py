@@ -548,3 +548,17 @@ def test_components_compare_and_hash_by_their_tables():
     a, b = card(chamber=poly).chamber, card(chamber=dict(poly)).chamber
     assert a == b and hash(a) == hash(b) and len({a, b}) == 1
     assert a != card().chamber
+
+
+def test_the_documented_examples_are_valid_cards():
+    """The README's and the card module's TOML examples read as cards."""
+    import tomllib
+
+    from pneubayes.rigcard import card as card_module
+
+    readme = (ROOT / "README.md").read_text()
+    block = readme[readme.index("## Your own rig"):].split("```toml\n", 1)[1].split("```")[0]
+    assert RigCard.from_dict(tomllib.loads(block), "README").valve.kind == "switching"
+    doc = card_module.__doc__.split("::\n\n", 1)[1].split("\n\n")[0]
+    text = "\n".join(line[4:] for line in doc.splitlines())
+    assert RigCard.from_dict(tomllib.loads(text), "card.py").chamber.kind == "polynomial"
