@@ -30,9 +30,10 @@ from real_common import plain_fit, prediction_figure
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DiscoverySettings
-from pneubayes.inference.pipeline import FitSettings
+from pneubayes.inference.pipeline import FitSettings, at_bounds
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
+from pneubayes.model import Model
 from pneubayes.provenance import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,29 +59,6 @@ def setpoint_rmse_Pa(recs, horizon_s: float) -> float:
             errs.append(gauge[s + 1:s + n + 1] - sp[s + 1:s + n + 1])
     e = np.concatenate(errs)
     return float(np.sqrt(np.mean(e ** 2)))
-
-
-def _at_bounds(post: dict, card) -> list[str]:
-    """Parameters whose 90 % interval touches a bound of the card's prior (1 % of the
-    width, in the prior's scale)."""
-    from pneubayes.model import Model
-
-    model = Model(rig_card=card)
-    out = []
-    for p in model.parameters:
-        s = post.get(p.name)
-        if s is None:
-            continue
-        lo, hi = p.lower, p.upper
-        if p.prior == "log-uniform":
-            f = np.log
-            lo, hi, q05, q95 = f(lo), f(hi), f(max(s["q05"], 1e-300)), f(s["q95"])
-        else:
-            q05, q95 = s["q05"], s["q95"]
-        tol = 0.01 * (hi - lo)
-        if q05 - lo < tol or hi - q95 < tol:
-            out.append(p.name)
-    return out
 
 
 def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
@@ -116,7 +94,8 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
         "effects": [e["name"] for e in doc["effects"]],
         "posterior": post,
         "converged": (doc.get("posterior") or {}).get("converged"),
-        "at_bounds": _at_bounds(post, read_recording(paths[0]).rig_card),
+        "at_bounds": [b["parameter"] for b in at_bounds(Model(rig_card=recs[0].rig_card),
+                                                         post)],
         "plain_parameters": plain, "figure": str(fig),
         "posterior_predictive": predictive,
     }
