@@ -70,7 +70,8 @@ def plot_area_bands(model, samples, path, rig, n_draws: int = 300) -> Path:
                         (card.command.lower, card.command.upper, card.command.unit))
     u = np.linspace(lo_u, hi_u, 201)
     slots = model.lower(x, rig)
-    areas = np.array([port_areas(row, u) for row in slots]) * 1e6  # (draws, 2, u)
+    # a separate exhaust valve's area against its own command on the same axis
+    areas = np.array([port_areas(row, u, u) for row in slots]) * 1e6  # (draws, 2, u)
     fig, ax = plt.subplots(figsize=(6.5, 4))
     for k, (port, color) in enumerate((("inlet", "tab:blue"), ("exhaust", "tab:red"))):
         if not np.any(areas[:, k]):

@@ -31,7 +31,7 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       line_segments: int = 3):
     """``[(model, start), ...]``: the group's effect form(s) with start values from
     the group's best term."""
-    compliant = _compliant(fit, rig)  # the pressure is its only state
+    compliant = _compliant(fit, rig)  # no temperature or line state beside it
     if group == "tube_delay":
         return _tube_candidates(fit, evidence, rig, 0 if compliant else line_segments)
     if group != "heat_transfer":
@@ -95,13 +95,15 @@ def first_free(model, group: str):
 
 
 def _compliant(fit: StepFit, rig: Rig) -> bool:
-    """Whether the fitted model's chamber is compliant (a rig card's), which the
-    simulator integrates with the pressure as its only state: no heat transfer and no
-    acoustic line beside it."""
+    """Whether the fitted model's chamber is compliant or has a second compartment, or
+    its supply is a tank (a rig card's), which the simulator integrates without a
+    temperature or line state: no heat transfer and no acoustic line beside them."""
     from pneubayes.effects.path import SLOT_INDEX
 
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)
-    return bool(slots[0, SLOT_INDEX["compliance_m3_per_Pa"]] > 0)
+    return bool(slots[0, SLOT_INDEX["compliance_m3_per_Pa"]] > 0
+                or slots[0, SLOT_INDEX["tank_volume_m3"]] > 0
+                or slots[0, SLOT_INDEX["lung_volume_m3"]] > 0)
 
 
 def _dead_volume(model, params: dict, rig: Rig) -> float:

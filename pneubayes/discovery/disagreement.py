@@ -50,7 +50,8 @@ def regime_labels(model: Model, params: dict, recording, settings: RegimeSetting
     ps = recording.supply_or_nominal()
     rig = recording.rig()
     slots = model.lower(model.vector(params)[None], rig)[0]
-    terms = rate_terms(slots, rig, np.maximum(p, 1.0), u, x, v, ps)
+    terms = rate_terms(slots, rig, np.maximum(p, 1.0), u, x, v, ps,
+                       recording.exhaust_command())
     inlet_dominant = np.abs(terms.inlet) >= np.abs(terms.exhaust)
     choked = np.where(inlet_dominant, terms.inlet_choked, terms.exhaust_choked)
     net = terms.inlet + terms.exhaust + terms.leak

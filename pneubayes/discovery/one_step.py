@@ -94,8 +94,7 @@ class OneStepData:
         before = self.inputs.command_before_start
         prev = np.concatenate([[u[0] if before is None else before], lag[:-1]])
         mid = u + (prev - u) * a
-        return Inputs(t, mid, self.inputs.position_m, self.inputs.supply_pressure_Pa,
-                      before)
+        return self.inputs.with_command(mid)
 
 
 def one_step_data(recording, block: int) -> OneStepData:

@@ -52,7 +52,33 @@ SLOTS: tuple[tuple[str, str], ...] = (
      "u the spool (0 closed, 1 open; m^2)"),
     ("exhaust_open_area_m2", "switching valve: exhaust area A clip(1 - u, 0, 1) added to the "
      "map's (a 3/2 valve venting when closed; m^2)"),
+    ("exhaust_own_command", "1: the exhaust port is a separate valve driven by its own "
+     "command (the inputs' exhaust command, held between samples, undelayed): its area is "
+     "the exhaust map of that command plus the exhaust open area times clip(command, 0, 1); "
+     "0: the exhaust is a port of the one valve (-)"),
+    ("tank_volume_m3", "a finite supply tank of this effective volume per chamber fed; > 0 "
+     "makes the supply pressure a state that starts at the window's supply and falls as "
+     "the inlet draws from it, dP/dt = -n Rs T m_in / V (m^3)"),
+    ("lung_volume_m3", "a second, compliant compartment behind a laminar resistance (a "
+     "test lung); > 0 makes its pressure a state: its volume at atmospheric pressure (m^3)"),
+    ("lung_compliance_m3_per_Pa", "the second compartment's compliance: its volume grows "
+     "by C_L (p_L - P_atm) (m^3/Pa)"),
+    ("lung_conductance_kg_per_s_Pa2", "the resistance's laminar conductance k: mass flow "
+     "k (p^2 - p_L^2) from the measured compartment into the second (kg/(s Pa^2))"),
 )
+
+#: Most points of a tabulated valve map (rig card valve kind ``table``).
+TABLE_MAX_POINTS = 16
+
+SLOTS += (
+    ("table_points", "a tabulated valve map: the number of its points (0: none); its "
+     "areas add to the maps above, linear between points, flat beyond the ends (count)"),
+) + tuple((f"table_command_{k}", f"tabulated map: command of point {k} (the command's "
+           "unit; increasing)") for k in range(TABLE_MAX_POINTS)) + tuple(
+    (f"table_inlet_m2_{k}", f"tabulated map: inlet area at point {k} (m^2)")
+    for k in range(TABLE_MAX_POINTS)) + tuple(
+    (f"table_exhaust_m2_{k}", f"tabulated map: exhaust area at point {k} (m^2)")
+    for k in range(TABLE_MAX_POINTS))
 
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8

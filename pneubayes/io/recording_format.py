@@ -36,6 +36,9 @@ RIG_KEY = "rig"
 #: an event the command does not contain); windows and discovery rows touching an
 #: invalid sample are left out.
 VALID_COLUMN = "valid"
+#: A separately commanded exhaust valve's command (its unit declared by the rig card's
+#: ``exhaust`` table), held between samples like ``command_V``.
+EXHAUST_COMMAND_COLUMN = "exhaust_command"
 #: Keys that may be any finite number (others must be > 0).
 SIGNED_KEYS = ("position_m", "command_before_start")
 #: The JSON key naming the format; absent or FORMAT_1 is format 1, FORMAT_2 allows
@@ -176,6 +179,12 @@ class Recording:
         if v is None:
             return np.ones(self.n_samples, dtype=bool)
         return np.asarray(v).astype(float) > 0.5
+
+    def exhaust_command(self) -> np.ndarray | None:
+        """A separate exhaust valve's command per sample (the ``exhaust_command`` column,
+        in the unit its rig card declares), or None without one."""
+        v = self.extra_columns.get(EXHAUST_COMMAND_COLUMN)
+        return None if v is None else np.asarray(v, dtype=np.float64)
 
     @property
     def command_before_start(self) -> float | None:

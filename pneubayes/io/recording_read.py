@@ -20,6 +20,7 @@ from pneubayes.errors import RecordingError
 from pneubayes.io.plausibility import Finding, check_accept, recording_findings
 from pneubayes.io.recording_format import (
     COMMAND_LIMIT_V,
+    EXHAUST_COMMAND_COLUMN,
     FORMAT_1,
     FORMAT_2,
     FORMAT_KEY,
@@ -295,6 +296,13 @@ def _problems_and_recording(path, accept=(), rig_card=None) -> tuple[list, Recor
         if bad.size:
             return [(f"{csv_path} row {int(bad[0]) + 2} column {VALID_COLUMN!r}",
                      f"must be 1 (valid) or 0 (invalid), got {show_value(v[bad[0]])}")], None
+    if EXHAUST_COMMAND_COLUMN in extra:  # a separate exhaust valve's command
+        v = np.asarray(extra[EXHAUST_COMMAND_COLUMN])
+        ok = np.isfinite(v) if v.dtype.kind == "f" else np.zeros(v.shape, bool)
+        if not ok.all():
+            i = int(np.nonzero(~ok)[0][0])
+            return [(f"{csv_path} row {i + 2} column {EXHAUST_COMMAND_COLUMN!r}",
+                     f"must be a finite number, got {show_value(v[i])}")], None
     known["command_V"] = np.clip(known["command_V"], -COMMAND_LIMIT_V, COMMAND_LIMIT_V)
     rec = Recording(metadata=metadata, extra_columns=extra, source=str(csv_path),
                     conversions=tuple(conversions + column_conversions), **known)

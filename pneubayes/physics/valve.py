@@ -1,4 +1,5 @@
-"""Valve port-area maps: the Gompertz curve of eq. 11 and the Table II valves.
+"""Valve port-area maps: the Gompertz curve of eq. 11, a switching valve's opening, a
+tabulated command -> area map, and the Table II valves.
 
 ``area(cmd) = offset + a exp(-b exp(-c (cmd + d)))``, m^2, command in V (-5..+5).
 Inlet maps have c > 0 (area grows with the command); exhaust maps have c < 0.
@@ -37,6 +38,22 @@ def switching_areas(u, inlet_open_m2, exhaust_open_m2):
     """:func:`switching_scalar`, vectorised: ``(inlet_m2, exhaust_m2)``."""
     f = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
     return inlet_open_m2 * f, exhaust_open_m2 * (1.0 - f)
+
+
+@njit(cache=True, inline="always")
+def table_scalar(u, commands, areas, n):
+    """A tabulated map's area at command ``u``, m^2: linear between the first ``n``
+    points ``(commands[k], areas[k])`` (commands increasing), held flat beyond the ends.
+    Returns ``(area, d area / du)``."""
+    if u <= commands[0]:
+        return areas[0], 0.0
+    if u >= commands[n - 1]:
+        return areas[n - 1], 0.0
+    k = 0
+    while commands[k + 1] < u:
+        k += 1
+    slope = (areas[k + 1] - areas[k]) / (commands[k + 1] - commands[k])
+    return areas[k] + slope * (u - commands[k]), slope
 
 
 @dataclass(frozen=True)

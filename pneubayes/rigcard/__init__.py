@@ -1,8 +1,10 @@
 """Rig cards: a lab's own chamber, valve and supply as plug-in components.
 
 Importing this package registers the shipped kinds (one module each):
-chamber ``fixed``, ``compliant``, ``piston`` and ``polynomial``; valve ``gompertz`` and
-``switching``; supply ``measured`` and ``constant``.
+chamber ``fixed``, ``compliant``, ``piston``, ``polynomial``, ``table`` and
+``two_compartment``; valve
+``gompertz``, ``switching`` and ``table``; supply ``measured``, ``constant`` and ``tank``;
+a separate exhaust valve ``gompertz`` and ``linear``.
 """
 
 from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
@@ -10,10 +12,16 @@ from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
     chamber_fixed,
     chamber_piston,
     chamber_polynomial,
+    chamber_table,
+    chamber_two_compartment,
+    exhaust_gompertz,
+    exhaust_linear,
     supply_constant,
     supply_measured,
+    supply_tank,
     valve_gompertz,
     valve_switching,
+    valve_table,
 )
 from pneubayes.rigcard.card import RIG_FORMAT, CommandSpec, RigCard, Tube, load_rig_card
 from pneubayes.rigcard.component import KINDS, RigComponent, kinds_of, register

@@ -8,18 +8,18 @@ A JSON or TOML file (see the README's "Your own rig")::
     temperature_K = 296.15
     [command]                  # unit "V", "duty" or "binary"; range [lower, upper]
     unit = "binary"
-    [chamber]                  # kind "fixed", "compliant", "piston" or "polynomial"
+    [chamber]                  # kind: see rigcard.KINDS (README "Your own rig")
     kind = "polynomial"
     dead_volume_m3 = {prior = "log-uniform", bounds = [1e-5, 3e-4]}
     coefficients_m3_per_m = [3.141e-3, -3.251e-2, 0.128]
     coordinate_range_m = [0.0, 0.04]
-    [valve]                    # kind "gompertz" or "switching"
+    [valve]                    # kind "gompertz", "switching" or "table"
     kind = "switching"
     open_area_m2 = {prior = "log-uniform", bounds = [1e-7, 1e-4]}
     exhaust_area_m2 = 0.0
     opening_delay_s = 0.0
     opening_time_constant_s = 1e-3
-    [supply]                   # kind "measured" or "constant"
+    [supply]                   # kind "measured", "constant" or "tank"
     kind = "measured"
     [tube]                     # optional: the valve-chamber tube
     length_m = 1.88
@@ -43,44 +43,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
-
 from pneubayes.errors import RigCardError
-from pneubayes.rigcard.component import KINDS, ROLES, RigComponent, kinds_of
+from pneubayes.rigcard.command import CommandSpec, read_command
+from pneubayes.rigcard.component import KINDS, OPTIONAL_ROLES, ROLES, RigComponent, kinds_of
 from pneubayes.rigcard.values import real
 
 RIG_FORMAT = "pneubayes-rig/1"
-COMMAND_UNITS = ("V", "duty", "binary")
 _TOP_KEYS = ("format", "name", "atmospheric_pressure_Pa", "temperature_K", "command",
-             "tube", "bounds", "notes") + ROLES
-
-
-@dataclass(frozen=True)
-class CommandSpec:
-    """The command's unit and range: volts (any declared range), duty 0..1, or binary
-    (0 = closed, 1 = open)."""
-
-    unit: str
-    lower: float
-    upper: float
-
-    def check(self, command, source: str) -> None:
-        """Raise RigCardError naming the first row outside the declared range."""
-        u = np.asarray(command, dtype=np.float64)
-        bad = (u < self.lower) | (u > self.upper)
-        if self.unit == "binary":
-            bad |= (u != 0.0) & (u != 1.0)
-        if bad.any():
-            i = int(np.argmax(bad))
-            what = "0 or 1" if self.unit == "binary" else f"[{self.lower:g}, {self.upper:g}]"
-            raise RigCardError(f"{source} row {i + 1}: command {u[i]:g} is outside the rig "
-                               f"card's declared range ({self.unit}: {what})")
-
-    def to_card(self) -> dict:
-        out = {"unit": self.unit}
-        if self.unit != "binary":
-            out["range"] = [self.lower, self.upper]
-        return out
+             "tube", "bounds", "notes") + ROLES + OPTIONAL_ROLES
 
 
 @dataclass(frozen=True)
@@ -110,11 +80,14 @@ class RigCard:
     bounds: dict = field(default_factory=dict)
     notes: str = ""
     source: str = "rig card"
+    exhaust: RigComponent | None = None
 
     @property
     def components(self) -> tuple[RigComponent, ...]:
-        """The model's base components: valve, chamber, supply."""
-        return (self.valve, self.chamber, self.supply)
+        """The model's base components: valve, chamber, supply (and a separate exhaust
+        valve)."""
+        extra = () if self.exhaust is None else (self.exhaust,)
+        return (self.valve, self.chamber, self.supply) + extra
 
     def effect_options(self, name: str) -> dict:
         """Options this rig gives a catalogue effect (the tube's bore for tube_delay)."""
@@ -129,6 +102,8 @@ class RigCard:
                "temperature_K": self.temperature_K, "command": self.command.to_card(),
                "chamber": self.chamber.to_table(), "valve": self.valve.to_table(),
                "supply": self.supply.to_table()}
+        if self.exhaust is not None:
+            out["exhaust"] = self.exhaust.to_table()
         if self.tube is not None:
             out["tube"] = {"length_m": self.tube.length_m,
                            "inner_diameter_m": self.tube.inner_diameter_m}
@@ -172,6 +147,10 @@ class RigCard:
         if errors:
             raise RigCardError(f"{errors[0].location}: {errors[0].message}")
         parts = {role: _component(card, role, source) for role in ROLES}
+        exhaust = None
+        if "exhaust" in card:  # a separate exhaust valve: the valve keeps no exhaust
+            exhaust = _component(card, "exhaust", source)
+            parts["valve"] = parts["valve"].without_exhaust(f"{source} key 'valve'")
         tube = None
         if "tube" in card:
             t = card["tube"]
@@ -189,8 +168,9 @@ class RigCard:
         notes = card.get("notes", "")
         if not isinstance(notes, str):
             raise RigCardError(f"{source} key 'notes': must be a string")
-        return cls(name, atm, temp, _command(card.get("command"), source), parts["chamber"],
-                   parts["valve"], parts["supply"], tube, bounds, notes, source)
+        return cls(name, atm, temp, read_command(card.get("command"), f"{source} key 'command'"),
+                   parts["chamber"], parts["valve"], parts["supply"], tube, bounds, notes,
+                   source, exhaust)
 
     # ------------------------------------------------------------------ recordings
     def metadata_defaults(self) -> dict:
@@ -230,33 +210,6 @@ def _component(card: Mapping, role: str, source: str) -> RigComponent:
         raise RigCardError(f"{at} -> 'kind': unknown {role} kind {kind!r}; known kinds are "
                            f"{kinds_of(role)}")
     return cls.from_table(table, at)
-
-
-def _command(spec, source: str) -> CommandSpec:
-    at = f"{source} key 'command'"
-    if not isinstance(spec, Mapping):
-        raise RigCardError(f"{at}: missing; declare the command's unit, e.g. "
-                           "{\"unit\": \"V\", \"range\": [-5, 5]} or {\"unit\": \"binary\"}")
-    unit = spec.get("unit")
-    if unit not in COMMAND_UNITS:
-        raise RigCardError(f"{at} -> 'unit': must be one of {list(COMMAND_UNITS)}, got "
-                           f"{unit!r}")
-    stray = sorted(set(spec) - {"unit", "range"})
-    if stray:
-        raise RigCardError(f"{at}: unknown key(s) {stray}; it has 'unit' and 'range'")
-    if unit == "binary":
-        if "range" in spec and list(spec["range"]) != [0, 1]:
-            raise RigCardError(f"{at} -> 'range': a binary command is 0 or 1")
-        return CommandSpec(unit, 0.0, 1.0)
-    r = spec.get("range", [0.0, 1.0] if unit == "duty" else None)
-    if not (isinstance(r, (list, tuple)) and len(r) == 2):
-        raise RigCardError(f"{at} -> 'range': must be [lower, upper], got {r!r}")
-    lo, hi = real(r[0], f"{at} -> 'range'"), real(r[1], f"{at} -> 'range'")
-    if not lo < hi:
-        raise RigCardError(f"{at} -> 'range': lower {lo!r} must be below upper {hi!r}")
-    if unit == "duty" and not (0.0 <= lo and hi <= 1.0):
-        raise RigCardError(f"{at} -> 'range': a duty lies within [0, 1], got [{lo!r}, {hi!r}]")
-    return CommandSpec(unit, lo, hi)
 
 
 def load_rig_card(path) -> RigCard:

@@ -80,22 +80,27 @@ class PolynomialChamber(RigComponent):
     def lower_all(self, values, rig):
         return {"volume_m3": values["dead_volume_m3"]}
 
-    def metadata_defaults(self):
+    def coordinate_range(self) -> tuple[float, float]:
+        """The coordinate's declared range ``(lower, upper)``, m."""
         lo, hi = self.extra["coordinate_range_m"]
+        return lo, hi
+
+    def metadata_defaults(self):
+        lo, hi = self.coordinate_range()
         return {"bore_m": math.sqrt(4.0 * self.area_m2 / math.pi),
                 "stroke_m": float(self.equivalent_position_m(hi))}
 
     def bind_columns(self, recording, where):
         s = recording.position_m
         if s is None:
-            raise RigCardError(f"{where}: chamber kind 'polynomial' needs the coordinate in "
+            raise RigCardError(f"{where}: chamber kind {self.kind!r} needs the coordinate in "
                                f"the recording's position column; {recording.source} has none")
-        lo, hi = self.extra["coordinate_range_m"]
+        lo, hi = self.coordinate_range()
         span = hi - lo
         out = np.nonzero((s < lo - 0.05 * span) | (s > hi + 0.05 * span))[0]
         if out.size:
             i = int(out[0])
             raise RigCardError(f"{recording.source} row {i + 1}: coordinate {s[i]:g} m is "
-                               f"outside the rig card's coordinate_range_m [{lo:g}, {hi:g}] "
+                               f"outside the rig card's coordinate range [{lo:g}, {hi:g}] "
                                f"(5 % margin)")
         return {"position_m": self.equivalent_position_m(s)}

@@ -6,7 +6,8 @@ writes itself back. Its known quantities are lowered as constants; its unknown o
 (priors in the card) are the model parameters the fit estimates.
 
 Kinds register themselves with :func:`register`; :data:`KINDS` maps
-``(role, kind)`` to the class. Roles: ``chamber``, ``valve``, ``supply``.
+``(role, kind)`` to the class. Roles: ``chamber``, ``valve``, ``supply`` (each card
+has one) and ``exhaust`` (optional: a separately commanded exhaust valve).
 """
 
 from __future__ import annotations
@@ -21,14 +22,16 @@ from pneubayes.errors import RigCardError
 from pneubayes.rigcard.values import Unknown, to_card
 
 ROLES = ("chamber", "valve", "supply")
+OPTIONAL_ROLES = ("exhaust",)
 KINDS: dict[tuple[str, str], type["RigComponent"]] = {}
 
 
 def register(cls: type["RigComponent"]) -> type["RigComponent"]:
     """Class decorator: add a component kind to :data:`KINDS`."""
     key = (cls.role, cls.kind)
-    if cls.role not in ROLES:
-        raise ValueError(f"{cls.__name__}: role {cls.role!r} is not one of {ROLES}")
+    if cls.role not in ROLES + OPTIONAL_ROLES:
+        raise ValueError(f"{cls.__name__}: role {cls.role!r} is not one of "
+                         f"{ROLES + OPTIONAL_ROLES}")
     if key in KINDS:
         raise ValueError(f"component kind {key} registered twice")
     KINDS[key] = cls
@@ -40,7 +43,7 @@ def kinds_of(role: str) -> list[str]:
 
 
 class RigComponent(Component):
-    """A chamber, valve or supply of a rig card.
+    """A chamber, valve, supply or separate exhaust valve of a rig card.
 
     Subclasses declare ``role``, ``kind`` and ``quantities``: per quantity its card key
     (the parameter name when fitted), unit, description and whether it must be positive
@@ -134,6 +137,13 @@ class RigComponent(Component):
         return hash((type(self).__name__, json.dumps(self.to_table(), sort_keys=True)))
 
     # ---- binding to a recording (chamber and supply kinds override)
+    def without_exhaust(self, where: str) -> "RigComponent":
+        """A valve whose exhaust port is closed, for a rig whose exhaust is a separate
+        valve (valve kinds override; raise RigCardError naming ``where`` when the card
+        also gives this valve an exhaust)."""
+        raise RigCardError(f"{where}: a {self.role} of kind {self.kind!r} has no exhaust "
+                           "port to hand to a separate exhaust valve")
+
     def metadata_defaults(self) -> dict:
         """Recording metadata this component supplies (e.g. an equivalent bore)."""
         return {}

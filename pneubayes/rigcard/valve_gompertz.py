@@ -8,6 +8,7 @@ in the unit the card's ``command`` declares (c in 1/unit, d in the unit).
 from __future__ import annotations
 
 from pneubayes.effects.thin_port import ThinPort
+from pneubayes.errors import RigCardError
 from pneubayes.rigcard.component import RigComponent, register
 from pneubayes.rigcard.values import Unknown, quantity
 
@@ -22,13 +23,12 @@ class GompertzValve(RigComponent):
 
     @classmethod
     def from_table(cls, table, where):
-        from pneubayes.errors import RigCardError
-
         stray = sorted(set(table) - set(_CORE) - {"kind"})
         if stray:
             raise RigCardError(f"{where}: unknown key(s) {stray} for kind 'gompertz'; its "
                                f"keys are {sorted(_CORE)}")
         values = {}
+        given = tuple(n for n in _CORE if n in table)
         for n, p in _CORE.items():
             v = quantity(table, n, where, required=False,
                          default=Unknown(p.prior, p.lower, p.upper))
@@ -39,7 +39,23 @@ class GompertzValve(RigComponent):
                     raise RigCardError(f"{where} key {n!r}: must be "
                                        f"{'> 0' if p.lower > 0 else '< 0'}, got {v!r}")
             values[n] = v
-        return cls(values)
+        out = cls(values)
+        out.given = given
+        return out
+
+    #: the keys the card gave (the others take the core's default priors)
+    given: tuple = ()
+
+    def without_exhaust(self, where):
+        given = [n for n in self.given if n.startswith("exhaust_") and self.values[n] != 0.0]
+        if given:
+            raise RigCardError(f"{where}: the rig's exhaust is a separate valve (its "
+                               f"'exhaust' table); leave this valve's exhaust keys {given} "
+                               "out (or 0)")
+        out = type(self)({n: (0.0 if n.startswith("exhaust_") else v)
+                          for n, v in self.values.items()})
+        out.given = self.given
+        return out
 
     def lower_all(self, values, rig):
         return dict(values)

@@ -12,6 +12,7 @@ Card keys (each known or a prior): ``open_area_m2`` (> 0), ``exhaust_area_m2``
 
 from __future__ import annotations
 
+from pneubayes.errors import RigCardError
 from pneubayes.rigcard.component import RigComponent, register
 
 
@@ -29,6 +30,12 @@ class SwitchingValve(RigComponent):
     parameter_names_by_key = {q[0]: f"valve_{q[0]}" for q in quantities}
     slots_written = ("inlet_open_area_m2", "exhaust_open_area_m2", "command_delay_s",
                      "spool_time_constant_s")
+
+    def without_exhaust(self, where):
+        if self.values["exhaust_area_m2"] != 0.0:
+            raise RigCardError(f"{where} key 'exhaust_area_m2': the rig's exhaust is a "
+                               "separate valve (its [exhaust] table); set this to 0")
+        return self
 
     def lower_all(self, values, rig):
         return {"inlet_open_area_m2": values["open_area_m2"],

@@ -40,8 +40,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX
-from pneubayes.physics.valve import gompertz_scalar, switching_scalar
+from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX, TABLE_MAX_POINTS
+from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
 from pneubayes.simulation.chamber import chamber_rhs
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
     C_ALPHA,
@@ -63,6 +63,8 @@ from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-
     S_RTOL,
 )
 from pneubayes.simulation.line import line_step
+from pneubayes.simulation.lung import lung_step
+from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 
 OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME = 0, 1, 2, 3, 4
@@ -70,9 +72,13 @@ STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
                LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume"}
-#: Length of the state carried from one window to the next: the chamber temperature
-#: and an acoustic line's cell pressures and flows (NaN: start the line at rest).
-N_CARRY = 1 + 2 * LINE_MAX_SEGMENTS
+#: Length of the state carried from one window to the next: the chamber temperature,
+#: an acoustic line's cell pressures and flows (NaN: start the line at rest) and a
+#: supply tank's pressure (NaN: start at the window's supply) and a second
+#: compartment's pressure (NaN: start at the window's initial pressure).
+N_CARRY = 3 + 2 * LINE_MAX_SEGMENTS
+CARRY_TANK = N_CARRY - 2
+CARRY_LUNG = N_CARRY - 1
 
 
 _IN = SLOT_INDEX["inlet_offset_m2"]
@@ -89,6 +95,14 @@ _LDIA = SLOT_INDEX["line_diameter_m"]
 _LSEG = SLOT_INDEX["line_segments"]
 _OPEN_IN = SLOT_INDEX["inlet_open_area_m2"]
 _OPEN_EX = SLOT_INDEX["exhaust_open_area_m2"]
+_OWN_EX = SLOT_INDEX["exhaust_own_command"]
+_TANK = SLOT_INDEX["tank_volume_m3"]
+_LUNG = SLOT_INDEX["lung_volume_m3"]
+_TAB_N = SLOT_INDEX["table_points"]
+_TAB_C = SLOT_INDEX["table_command_0"]
+_TAB_I = SLOT_INDEX["table_inlet_m2_0"]
+_TAB_E = SLOT_INDEX["table_exhaust_m2_0"]
+_TAB_MAX = TABLE_MAX_POINTS
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -118,16 +132,37 @@ def _gompertz_rate(u, a, b, c, d):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _areas(spool, dead, sl):
-    """Port areas (eq. 11) for spool position ``spool`` behind a dead band of half-width dead."""
+    """Port areas (eq. 11) for spool position ``spool`` behind a dead band of half-width
+    dead; the exhaust's is 0 when it is a separate valve (:func:`_own_exhaust_area`)."""
     mag = abs(spool) - dead
     u = 0.0 if mag <= 0.0 else (mag if spool > 0.0 else -mag)
+    own = sl[_OWN_EX] != 0.0
     a_in = gompertz_scalar(u, sl[_IN], sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
-    a_ex = gompertz_scalar(u, sl[_EX], sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
-    if sl[_OPEN_IN] != 0.0 or sl[_OPEN_EX] != 0.0:
-        s_in, s_ex = switching_scalar(u, sl[_OPEN_IN], sl[_OPEN_EX])
+    a_ex = 0.0
+    if not own:
+        a_ex = gompertz_scalar(u, sl[_EX], sl[_EX + 1], sl[_EX + 2], sl[_EX + 3],
+                               sl[_EX + 4])
+    if sl[_OPEN_IN] != 0.0 or (sl[_OPEN_EX] != 0.0 and not own):
+        s_in, s_ex = switching_scalar(u, sl[_OPEN_IN], 0.0 if own else sl[_OPEN_EX])
         a_in += s_in
         a_ex += s_ex
+    n = int(sl[_TAB_N])
+    if n > 0:  # a tabulated map (its exhaust table is 0 beside a separate exhaust)
+        cmds = sl[_TAB_C:_TAB_C + _TAB_MAX]
+        a_in += table_scalar(u, cmds, sl[_TAB_I:_TAB_I + _TAB_MAX], n)[0]
+        a_ex += table_scalar(u, cmds, sl[_TAB_E:_TAB_E + _TAB_MAX], n)[0]
     return a_in, a_ex
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _own_exhaust_area(ue, sl):
+    """A separately commanded exhaust valve's area at its command ``ue``, m^2: the exhaust
+    map (eq. 11) of ue plus the open area times clip(ue, 0, 1); 0 without one."""
+    if sl[_OWN_EX] == 0.0:
+        return 0.0
+    f = 0.0 if ue <= 0.0 else (1.0 if ue >= 1.0 else ue)
+    return (gompertz_scalar(ue, sl[_EX], sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
+            + sl[_OPEN_EX] * f)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -137,17 +172,28 @@ def _area_rates(spool, spool_rate, dead, sl):
     if mag <= 0.0:
         return 0.0, 0.0
     u = mag if spool > 0.0 else -mag
+    own = sl[_OWN_EX] != 0.0  # a separate exhaust valve does not move with the spool
     r_in = _gompertz_rate(u, sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
-    r_ex = _gompertz_rate(u, sl[_EX + 1], sl[_EX + 2], sl[_EX + 3], sl[_EX + 4])
+    r_ex = 0.0 if own else _gompertz_rate(u, sl[_EX + 1], sl[_EX + 2], sl[_EX + 3],
+                                          sl[_EX + 4])
     if 0.0 < u < 1.0:  # a switching valve's areas move with its opening
         r_in += sl[_OPEN_IN]
-        r_ex -= sl[_OPEN_EX]
+        if not own:
+            r_ex -= sl[_OPEN_EX]
+    n = int(sl[_TAB_N])
+    if n > 0:
+        cmds = sl[_TAB_C:_TAB_C + _TAB_MAX]
+        r_in += table_scalar(u, cmds, sl[_TAB_I:_TAB_I + _TAB_MAX], n)[1]
+        r_ex += table_scalar(u, cmds, sl[_TAB_E:_TAB_E + _TAB_MAX], n)[1]
     return r_in * spool_rate, r_ex * spool_rate
 
 
 @njit(cache=True, error_model="numpy")
-def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
+def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
+
+    ``ue`` is a separately commanded exhaust valve's command (read only when the slot
+    ``exhaust_own_command`` is set), held between samples.
 
     ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
     the pressure to the initial pressure: the product of the accepted steps'
@@ -155,7 +201,14 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     propagators ``exp(h J)`` of the whole state).
     ``carry`` (``N_CARRY``) holds the unmeasured states at the start and receives them
     at the end: ``carry[0]`` the chamber temperature (K; used with heat transfer),
-    ``carry[1:]`` an acoustic line's cell pressures and flows (NaN: at rest at p0).
+    ``carry[1:-1]`` an acoustic line's cell pressures and flows (NaN: at rest at p0),
+    ``carry[CARRY_TANK]`` a supply tank's pressure (NaN: the window's supply at its
+    start), ``carry[CARRY_LUNG]`` a second compartment's (NaN: p0, no flow between them).
+
+    A supply tank (slot ``tank_volume_m3`` > 0) is a second state stepped with the
+    chamber's (:mod:`pneubayes.simulation.tank`), and so is a second compartment (slot
+    ``lung_volume_m3`` > 0; :mod:`pneubayes.simulation.lung`); neither beside heat
+    transfer, a line or the other.
     """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
@@ -168,11 +221,25 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     p_nom = cs[C_P_NOM]
     v0, bore = sl[_VOL], cs[C_BORE_AREA]
     thermal = sl[_HEAT] > 0.0 or sl[_HCONV] > 0.0
+    own_ex = sl[_OWN_EX] != 0.0
+    tank = sl[_TANK] > 0.0
+    # a tank's pressure falls by c_tank per kg drawn (polytropic index n, air at T_s)
+    c_tank = cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY] / sl[_TANK] if tank else 0.0
+    p_tank = carry[CARRY_TANK]
+    if tank and math.isnan(p_tank):
+        p_tank = p_nom + gain * (ps[i0] - p_nom)
+    lung = sl[_LUNG] > 0.0
+    p_lung = carry[CARRY_LUNG]
+    lung_from_p0 = lung and math.isnan(p_lung)
+    if lung_from_p0:
+        p_lung = p0
     p = p0
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p
     want_sens = sens.shape[0] > 0
-    s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0
+    s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0 (T: or the tank's or second compartment's p)
+    if lung_from_p0:
+        s_t0 = 1.0
     prop_t = (1.0, 0.0, 0.0, 1.0)  # a thermal step's propagator (row-major)
     if want_sens:
         sens[0] = 1.0
@@ -226,6 +293,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
         vdot = bore * (xb - xa) * inv_seg
         sa, sb = ps[k], ps[k + 1]
         dsup = gain * (sb - sa) * inv_seg
+        a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
         tau = ta
         while tau < tb:
             # Sub-interval [tau, t_end) on which the delayed command is constant.
@@ -243,7 +311,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
             if s_eff != s_cached:
                 a_in_c, a_ex_c = _areas(s_eff, dead, sl)
                 s_cached = s_eff
-            a_in, a_ex = a_in_c, a_ex_c
+            a_in, a_ex = a_in_c, a_ex_c + a_own
             while tau < t_end:
                 hh = h if h < t_end - tau else t_end - tau
                 if t_end - tau - hh < 1e-3 * hh:
@@ -260,6 +328,7 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                 if moving:
                     s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
                     a_in, a_ex = _areas(s_now, dead, sl)
+                    a_ex += a_own
                     da_in, da_ex = _area_rates(s_now, (cmd - s_now) / tau_s, dead, sl)
                 # inputs at tau + hh (stage 2)
                 fr2 = (tau + hh - ta) * inv_seg
@@ -268,16 +337,29 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                 if moving:
                     s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
                     a_in2, a_ex2 = _areas(s2, dead, sl)
+                    a_ex2 += a_own
                 else:
                     a_in2, a_ex2 = a_in, a_ex
                 err = 10.0
                 pn, tn = p, temp
+                p_tank_new = p_tank
+                p_lung_new = p_lung
                 zp = 0.0
                 if line:
                     err, prop = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup,
                                           da_in, da_ex, a_in2, a_ex2, vol2, psup2, sl, cs,
                                           atol_p, rtol, y_new)
                     pn = y_new[0]
+                elif tank:
+                    err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
+                                                            vdot, da_in, da_ex, a_in2, a_ex2,
+                                                            vol2, sl, cs, c_tank, atol_p,
+                                                            rtol)
+                elif lung:
+                    err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
+                                                            vdot, psup, dsup, da_in, da_ex,
+                                                            a_in2, a_ex2, vol2, psup2, sl, cs,
+                                                            atol_p, rtol)
                 elif thermal:
                     err, pn, tn, prop_t = thermal_step(p, temp, hh, a_in, a_ex, vol, vdot,
                                                        psup, dsup, da_in, da_ex, a_in2, a_ex2,
@@ -300,6 +382,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                             err = 10.0
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
+                    p_tank = p_tank_new
+                    p_lung = p_lung_new
                     p, temp = pn, tn
                     if line:
                         y[:] = y_new
@@ -310,8 +394,8 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
                                     s_next[ii] += prop[ii, kk] * s_vec[kk]
                             s_vec = s_next
                             s_p0 = s_vec[0]
-                    elif thermal:
-                        if want_sens:  # (dp, dT)/dp0 through the step's propagator
+                    elif thermal or tank or lung:
+                        if want_sens:  # (dp, dT or the second p)/dp0 through the propagator
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
@@ -338,11 +422,15 @@ def _window(sl, cs, sv, t, u, x, ps, i0, length, p0, out, sens, carry):
     carry[0] = temp
     if line:
         carry[1:ny] = y[1:]
+    if tank:
+        carry[CARRY_TANK] = p_tank
+    if lung:
+        carry[CARRY_LUNG] = p_lung
     return OK
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensitivity):
+def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, with_sensitivity):
     """Every (parameter set, window) pair; see :func:`simulate_windows`."""
     nb = slots.shape[0]
     nw = starts.shape[0]
@@ -358,7 +446,8 @@ def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensi
             chained = False
     hidden = False  # a state the recording does not measure
     for b in range(nb):
-        if slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0 or slots[b, _LLEN] > 0.0:
+        if (slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0 or slots[b, _LLEN] > 0.0
+                or slots[b, _TANK] > 0.0 or slots[b, _LUNG] > 0.0):
             hidden = True
     # chained with a hidden state: one task per parameter set runs its windows in order;
     # otherwise one task per (parameter set, window) pair
@@ -369,7 +458,7 @@ def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensi
         w0 = (task % tasks_per_set) * per_task
         carry = _fresh_carry(consts)
         for w in range(w0, w0 + per_task):
-            status[b, w] = _window(slots[b], consts, solver, t, u, x, ps, starts[w],
+            status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, starts[w],
                                    length, p0[w], out[b, w], sens[b, w], carry)
             if status[b, w] != OK:
                 carry = _fresh_carry(consts)
@@ -378,25 +467,27 @@ def _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, with_sensi
 
 @njit(cache=True, error_model="numpy")
 def _fresh_carry(consts):
-    """Unmeasured states at a recording's start: supply temperature, line at rest."""
+    """Unmeasured states at a recording's start: supply temperature, line at rest, a
+    tank at the window's supply, a second compartment at the first window's p0."""
     carry = np.full(N_CARRY, np.nan)
     carry[0] = consts[C_T_SUPPLY]
     return carry
 
 
-def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
+def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0):
     """Simulate every (parameter set, window) pair.
 
     The chamber temperature (a state only with heat transfer) starts at the supply's in
     the first window, an acoustic line at rest at the chamber's pressure; when every
     window starts on the previous one's last sample, each later window starts from the
-    temperature and line state the previous one ended with.
+    temperature, line and tank state the previous one ended with.
 
     Parameters
     ----------
     slots : (B, N_SLOTS) float64      lowered parameters (see effects.path)
     consts, solver : float64 vectors  rig/gas constants and solver settings (layouts above)
     t, u, x, ps : (N,) float64        time (s), command (V), position (m), supply (Pa)
+    ue : (N,) float64                 a separate exhaust valve's command (its unit)
     starts : (W,) int64               first sample of each window
     length : int                      samples per window (output includes the start)
     p0 : (W,) float64                 initial pressure of each window (Pa)
@@ -405,10 +496,11 @@ def simulate_windows(slots, consts, solver, t, u, x, ps, starts, length, p0):
     -------
     out : (B, W, length) float64 pressures (Pa); status : (B, W) int64
     """
-    out, _, status = _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, False)
+    out, _, status = _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
+                               False)
     return out, status
 
 
-def simulate_windows_sensitivity(slots, consts, solver, t, u, x, ps, starts, length, p0):
+def simulate_windows_sensitivity(slots, consts, solver, t, u, ue, x, ps, starts, length, p0):
     """:func:`simulate_windows` plus dp(t)/dp0 per sample: ``(out, sens, status)``."""
-    return _simulate(slots, consts, solver, t, u, x, ps, starts, length, p0, True)
+    return _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, True)

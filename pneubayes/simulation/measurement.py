@@ -28,8 +28,9 @@ from pneubayes.rig import Rig
 from pneubayes.simulation.rates import rate_terms
 
 
-def _port_rate(sl, rig, p, spool_V, position_m, supply_Pa):
-    r = rate_terms(sl, rig, p, spool_V, position_m, np.zeros_like(p), supply_Pa)
+def _port_rate(sl, rig, p, spool_V, position_m, supply_Pa, exhaust_command):
+    r = rate_terms(sl, rig, p, spool_V, position_m, np.zeros_like(p), supply_Pa,
+                   exhaust_command)
     return r.inlet + r.exhaust
 
 
@@ -81,8 +82,11 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     x = np.interp(tau, t, inputs.position_m)
     ps = np.interp(tau, t, inputs.supply_pressure_Pa)
     sl = slots[rows].T[:, :, None]  # (N_SLOTS, b, 1): broadcasts over the corners
-    jump = (_port_rate(sl, rig, p, u[j], x, ps)
-            - _port_rate(sl, rig, p, u[j - 1], x, ps))  # (b, P), Pa/s
+    # the valve command's corners (a separate exhaust valve's command held as at j)
+    ue = inputs.exhaust_command
+    ue_j = None if ue is None else np.broadcast_to(ue[j], p.shape)
+    jump = (_port_rate(sl, rig, p, u[j], x, ps, ue_j)
+            - _port_rate(sl, rig, p, u[j - 1], x, ps, ue_j))  # (b, P), Pa/s
     # the samples within the filter's reach of each corner
     dt_min = float(np.min(np.diff(t)))
     span = int(np.ceil((reach_hi - reach_lo) / dt_min)) + 2

@@ -51,25 +51,64 @@ class RateTerms:
         return self.inlet + self.exhaust + self.leak + self.volume
 
 
-def port_areas(slots: np.ndarray, spool_V) -> tuple[np.ndarray, np.ndarray]:
+def port_areas(slots: np.ndarray, spool_V, exhaust_command=None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """Inlet and exhaust areas (m^2) for one slot row at spool positions ``spool_V`` (in
     the command's unit): the dead band, the Gompertz maps (eq. 11) and a switching
-    valve's opening, as the compiled simulator computes them."""
+    valve's opening, as the compiled simulator computes them. A separately commanded
+    exhaust valve (slot ``exhaust_own_command``) reads ``exhaust_command`` instead."""
     sl = np.asarray(slots, dtype=np.float64)
     u = dead_band(spool_V, sl[S["deadband_halfwidth_V"]])
     a_in = gompertz_area(u, *(sl[S[f"inlet_{k}"]] for k in _PORT))
-    a_ex = gompertz_area(u, *(sl[S[f"exhaust_{k}"]] for k in _PORT))
-    s_in, s_ex = switching_areas(u, sl[S["inlet_open_area_m2"]], sl[S["exhaust_open_area_m2"]])
-    return a_in + s_in, a_ex + s_ex
+    own = np.asarray(sl[S["exhaust_own_command"]]) != 0
+    if np.any(own) and exhaust_command is None:
+        raise ValueError("port_areas: the exhaust is a separate valve (slot "
+                         "exhaust_own_command); give its exhaust_command")
+    ue = np.zeros_like(u) if exhaust_command is None else np.asarray(exhaust_command, float)
+    exhaust_u = np.where(own, ue, u)
+    a_ex = gompertz_area(exhaust_u, *(sl[S[f"exhaust_{k}"]] for k in _PORT))
+    s_in, _ = switching_areas(u, sl[S["inlet_open_area_m2"]], 0.0)
+    # the one valve's exhaust opens as its inlet closes; a separate one with its command
+    s_ex = sl[S["exhaust_open_area_m2"]] * np.where(own, np.clip(ue, 0.0, 1.0),
+                                                    1.0 - np.clip(u, 0.0, 1.0))
+    t_in, t_ex = tabulated_areas(sl, u)
+    return a_in + s_in + t_in, a_ex + s_ex + t_ex
+
+
+def tabulated_areas(slots: np.ndarray, u) -> tuple[np.ndarray, np.ndarray]:
+    """A tabulated valve map's inlet and exhaust areas (m^2) at commands ``u`` (after the
+    dead band; zeros without a table, slot ``table_points`` 0). ``slots`` may carry
+    trailing dimensions that broadcast against ``u``: the map is evaluated as
+    ``A_0 + sum_k (A_k+1 - A_k) clip((u - c_k) / (c_k+1 - c_k), 0, 1)`` over the table's
+    segments, linear between points and flat beyond the ends."""
+    sl = np.asarray(slots, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    n = sl[S["table_points"]]
+    zero = np.zeros(np.broadcast_shapes(np.shape(u), np.shape(n)))
+    if not np.any(n > 0):
+        return zero, zero
+    c0, i0, e0 = (S[f"table_{k}_0"] for k in ("command", "inlet_m2", "exhaust_m2"))
+    a_in, a_ex = zero + sl[i0], zero + sl[e0]
+    for k in range(int(np.max(n)) - 1):
+        live = k < n - 1
+        width = np.where(live, sl[c0 + k + 1] - sl[c0 + k], 1.0)
+        frac = np.where(live, np.clip((u - sl[c0 + k]) / width, 0.0, 1.0), 0.0)
+        a_in = a_in + (sl[i0 + k + 1] - sl[i0 + k]) * frac
+        a_ex = a_ex + (sl[e0 + k + 1] - sl[e0 + k]) * frac
+    return a_in, a_ex
 
 
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
-               velocity_m_per_s, supply_measured_Pa) -> RateTerms:
+               velocity_m_per_s, supply_measured_Pa, exhaust_command=None) -> RateTerms:
     """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
 
     ``spool_V`` is the command after any delay and lag (the caller shifts or filters
     it); the dead band, Gompertz maps (eq. 11), supply weighting, attenuation and leaks
     come from ``slots``. Pressures absolute, Pa; position m; velocity m/s.
+    ``exhaust_command`` drives a separately commanded exhaust valve. A supply tank
+    (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
+    does a second compartment's pressure (slot ``lung_volume_m3``): its flow is left out
+    here (the simulator carries it).
     """
     sl = np.asarray(slots, dtype=np.float64)
     g = rig.gas
@@ -77,7 +116,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     rs_t = g.specific_gas_constant_J_per_kg_K * g.temperature_K
     p_atm = rig.atmospheric_pressure_Pa
     p = np.asarray(pressure_Pa, dtype=np.float64)
-    a_in, a_ex = port_areas(sl, spool_V)
+    a_in, a_ex = port_areas(sl, spool_V, exhaust_command)
     p_nom = rig.supply_pressure_Pa
     p_sup = p_nom + sl[S["supply_gain"]] * (np.asarray(supply_measured_Pa) - p_nom)
     atten = np.exp(-sl[S["flow_attenuation_Pa"]] / p)

@@ -21,7 +21,7 @@ from pneubayes.rig import Rig
 from pneubayes.simulation.simulator import Inputs
 
 
-def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
+def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     g = rig.gas
     kappa, rs, t_s = g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K, g.temperature_K
     p_atm = rig.atmospheric_pressure_Pa
@@ -42,28 +42,45 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
     else:
         v_line = 0.0
 
+    own_ex = sl[S["exhaust_own_command"]] != 0
+    tank_v = sl[S["tank_volume_m3"]]
+    lung_v = sl[S["lung_volume_m3"]]
+    n_tab = int(sl[S["table_points"]])
+    tab_c, tab_i, tab_e = (sl[S[f"table_{k}_0"]:S[f"table_{k}_0"] + n_tab]
+                           for k in ("command", "inlet_m2", "exhaust_m2"))
+
     def rhs(t, y):
         p, temp, spool = y[:3]
-        cells, flows_q = y[3:3 + nseg], y[3 + nseg:]
+        cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
         s = spool if tau_s > 0 else cmd
         ueff = np.sign(s) * max(abs(s) - dead, 0.0)
         a_in = gompertz_area(ueff, *ins)
-        a_ex = gompertz_area(ueff, *exs)
-        s_in, s_ex = switching_areas(ueff, sl[S["inlet_open_area_m2"]],
-                                     sl[S["exhaust_open_area_m2"]])
+        if own_ex:  # a separate exhaust valve, on its own (undelayed) command
+            a_ex = (gompertz_area(cmd_ex, *exs)
+                    + sl[S["exhaust_open_area_m2"]] * min(max(cmd_ex, 0.0), 1.0))
+            s_in, s_ex = switching_areas(ueff, sl[S["inlet_open_area_m2"]], 0.0)
+        else:
+            a_ex = gompertz_area(ueff, *exs)
+            s_in, s_ex = switching_areas(ueff, sl[S["inlet_open_area_m2"]],
+                                         sl[S["exhaust_open_area_m2"]])
+        if n_tab:  # a tabulated map, linear between its points
+            s_in += np.interp(ueff, tab_c, tab_i)
+            s_ex += np.interp(ueff, tab_c, tab_e)
         a_in, a_ex = a_in + s_in, a_ex + s_ex
         fr = (t - ta) / seg
         vol = (sl[S["volume_m3"]] - v_line
                + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2))
         psup = rig.supply_pressure_Pa + sl[S["supply_gain"]] * (
             sa + fr * (sb - sa) - rig.supply_pressure_Pa)
+        if tank_v > 0:  # a supply tank: its pressure is the last state
+            psup = y[-1]
         att = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
         k_lam = max(sl[S["leak_laminar_kg_per_s_Pa2"]]
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                     * (vol + v_line - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
         # each mass flow into the chamber (kg/s, negative = out)
-        f_in = float(flow_function(psup, p_valve, g))
+        f_in = f_in_raw = float(flow_function(psup, p_valve, g))
         f_out = float(flow_function(p_valve, p_atm, g))
         f_leak = float(flow_function(p, p_atm, g))
         if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1)
@@ -87,6 +104,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
             d_line = dcells + dq
         flows = port + [-sl[S["leak_orifice_area_m2"]] * f_leak,
                         -k_lam * (p * p - p_atm * p_atm)]
+        m_lung = 0.0
+        if lung_v > 0:  # laminar flow into the second compartment (its pressure: last)
+            m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[-1] ** 2)
+            flows.append(-m_lung)
         mdot = float(sum(flows))
         # enthalpy: inflow at the supply temperature, outflow at the chamber's (T = T_s
         # without heat exchange, where this is eq. 5)
@@ -103,7 +124,14 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb):
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
-        return [float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
+        d_tank = []
+        if tank_v > 0:  # the tank loses what the inlet draws (polytropic, air at T_s)
+            d_tank = [-kappa * rs * t_s * float(a_in * f_in_raw) / tank_v]
+        if lung_v > 0:  # eq. 5 in the second, compliant compartment
+            pl, cl = y[-1], sl[S["lung_compliance_m3_per_Pa"]]
+            d_tank = [kappa * rs * t_s * m_lung / (lung_v + cl * (pl - p_atm) + kappa * pl * cl)]
+        return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
+                + d_tank)
 
     return rhs
 
@@ -115,7 +143,9 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
 
     Break points are the sample times and the delayed-command switch times; on each
     interval the command is constant and position and supply are linear, as in the
-    compiled integrator. Returns pressures ``(N,)`` in Pa (and the rhs count if asked).
+    compiled integrator. A supply tank is one more state, integrated with the chamber
+    (the compiled integrator couples it by splitting). Returns pressures ``(N,)`` in Pa
+    (and the rhs count if asked).
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
@@ -128,6 +158,14 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     if nseg:
         area = np.pi / 4 * sl[S["line_diameter_m"]] ** 2
         atols += [atol * area / rig.gas.speed_of_sound_m_per_s] * nseg
+    if sl[S["tank_volume_m3"]] > 0:  # a supply tank starts at the supply's first sample
+        p_nom = rig.supply_pressure_Pa
+        y = np.append(y, p_nom + sl[S["supply_gain"]] * (ps[0] - p_nom))
+        atols.append(atol)
+    if sl[S["lung_volume_m3"]] > 0:  # a second compartment starts with no flow into it
+        y = np.append(y, initial_pressure_Pa)
+        atols.append(atol)
+    ue = inputs.exhaust_command if inputs.exhaust_command is not None else np.zeros(t.size)
     before = inputs.command_before_start
 
     def held(jj):
@@ -149,7 +187,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         for a, b in zip(edges[:-1], edges[1:]):
             jj = int(np.searchsorted(shifted, a, side="right") - 1)
             cmd = held(jj)
-            rhs = _rhs_factory(sl, rig, cmd, x[k], vdot, ta, seg, ps[k], ps[k + 1])
+            rhs = _rhs_factory(sl, rig, cmd, x[k], vdot, ta, seg, ps[k], ps[k + 1], ue[k])
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
                             atol=atols)
             if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):

@@ -37,6 +37,10 @@ class Inputs:
         command, in the command's unit), which a delayed or lagging valve still sees
         after the recording starts; None: the first sample's command, held since long
         before the start.
+    exhaust_command : (N,) or None
+        A separately commanded exhaust valve's command (in its own unit, held between
+        samples; the recording's ``exhaust_command`` column); None when the exhaust is a
+        port of the one valve.
     """
 
     time_s: np.ndarray
@@ -44,6 +48,7 @@ class Inputs:
     position_m: np.ndarray
     supply_pressure_Pa: np.ndarray
     command_before_start: float | None = None
+    exhaust_command: np.ndarray | None = None
 
     def __post_init__(self):
         before = self.command_before_start
@@ -52,8 +57,10 @@ class Inputs:
                                        and np.isfinite(before)):
             raise ValueError(f"Inputs.command_before_start must be a finite number or None, "
                              f"got {before!r}")
-        arrs = {k: np.ascontiguousarray(getattr(self, k), dtype=np.float64)
-                for k in ("time_s", "command_V", "position_m", "supply_pressure_Pa")}
+        names = ("time_s", "command_V", "position_m", "supply_pressure_Pa")
+        if self.exhaust_command is not None:
+            names += ("exhaust_command",)
+        arrs = {k: np.ascontiguousarray(getattr(self, k), dtype=np.float64) for k in names}
         n = arrs["time_s"].shape
         for k, a in arrs.items():
             if a.ndim != 1 or a.shape != n:
@@ -82,17 +89,26 @@ class Inputs:
     def from_recording(cls, recording) -> "Inputs":
         """Inputs of a :class:`pneubayes.io.Recording` (nominal supply/fixed position if absent)."""
         return cls(recording.time_s, recording.command_V, recording.position_or_fixed(),
-                   recording.supply_or_nominal(), recording.command_before_start)
+                   recording.supply_or_nominal(), recording.command_before_start,
+                   recording.exhaust_command())
+
+    def with_command(self, command_V) -> "Inputs":
+        """The same inputs with another (e.g. delayed or filtered) valve command."""
+        return Inputs(self.time_s, command_V, self.position_m, self.supply_pressure_Pa,
+                      self.command_before_start, self.exhaust_command)
 
     def kernel_arrays(self):
-        """``(t, u, x, ps, offset)``: the drive arrays the compiled kernel reads, with a
-        declared pre-trigger command as one extra sample held from 10 s before the
-        start (``offset`` 1: window starts shift by one), else the arrays as they are."""
+        """``(t, u, ue, x, ps, offset)``: the drive arrays the compiled kernel reads (``ue``
+        the exhaust command, zeros without one), with a declared pre-trigger command as
+        one extra sample held from 10 s before the start (``offset`` 1: window starts
+        shift by one), else the arrays as they are."""
         t, u, x, ps = self.time_s, self.command_V, self.position_m, self.supply_pressure_Pa
+        ue = self.exhaust_command if self.exhaust_command is not None else np.zeros_like(t)
         if self.command_before_start is None:
-            return t, u, x, ps, 0
+            return t, u, ue, x, ps, 0
         return (np.concatenate(([t[0] - 10.0], t)),
                 np.concatenate(([float(self.command_before_start)], u)),
+                np.concatenate((ue[:1], ue)),
                 np.concatenate((x[:1], x)), np.concatenate((ps[:1], ps)), 1)
 
 
@@ -168,10 +184,25 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         raise ValueError("a compliant chamber is simulated with the pressure as its only "
                          "state: it cannot be combined with heat_transfer or the tube's "
                          "acoustic line (tube_delay form 'line') in one model")
-    t, u, x, ps, offset = inputs.kernel_arrays()
-    slots, consts, sv, t, u, x, ps, kstarts, p0 = _kernel_arrays(
-        slots, rig_constants(rig), solver.as_array(), t, u, x, ps, starts + offset, p0)
-    *arrays, status = kernel_fn(slots, consts, sv, t, u, x, ps, kstarts, length, p0)
+    if inputs.exhaust_command is None and np.any(slots[:, SLOT_INDEX["exhaust_own_command"]]):
+        raise ValueError("the model's exhaust is a separate valve with its own command, but "
+                         "the inputs have no exhaust command (a recording's "
+                         "'exhaust_command' column, or the column its rig card names)")
+    tank = slots[:, SLOT_INDEX["tank_volume_m3"]] > 0
+    if np.any(tank & (line | hot)):
+        raise ValueError("a supply tank is simulated with the chamber's pressure and the "
+                         "tank's as the states: it cannot be combined with heat_transfer "
+                         "or the tube's acoustic line (tube_delay form 'line') in one model")
+    lung = slots[:, SLOT_INDEX["lung_volume_m3"]] > 0
+    if np.any(lung & (line | hot | tank)):
+        raise ValueError("a two-compartment chamber is simulated with the two pressures as "
+                         "the states: it cannot be combined with heat_transfer, the tube's "
+                         "acoustic line (tube_delay form 'line') or a supply tank in one "
+                         "model")
+    t, u, ue, x, ps, offset = inputs.kernel_arrays()
+    slots, consts, sv, t, u, ue, x, ps, kstarts, p0 = _kernel_arrays(
+        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, starts + offset, p0)
+    *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0)
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
         for a in arrays:

@@ -1,0 +1,129 @@
+"""Valve kind ``table``: a tabulated command -> area map (a lab's measured flow table).
+
+The port areas are linear between the table's points and held flat beyond its ends
+(:func:`pneubayes.physics.valve.table_scalar`), of the command after any delay, lag and
+dead band, like the Gompertz map of eq. 11 they replace.
+
+Card keys:
+
+- ``command`` ([c_0, c_1, ...], the card command's unit, strictly increasing, 2 to
+  :data:`pneubayes.effects.path.TABLE_MAX_POINTS` points);
+- ``inlet_area_m2`` (the inlet area at each point, m^2, >= 0, non-decreasing: the inlet
+  opens as the command grows);
+- ``exhaust_area_m2`` (optional, the exhaust area at each point, m^2, >= 0,
+  non-increasing: a 3/2 or 5/3 valve's exhaust opens as the command falls; left out or
+  all 0 for a 2/2 valve or beside a separate ``[exhaust]`` valve);
+- ``inlet_scale`` and ``exhaust_scale`` (optional, > 0, known or a prior; default 1):
+  factors on the tabulated areas, for a table whose shape is trusted but whose size is
+  not (a flow table measured at another supply, a discharge coefficient). Fitted, they
+  are the parameters ``valve_inlet_scale`` and ``valve_exhaust_scale``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pneubayes.effects.path import TABLE_MAX_POINTS
+from pneubayes.errors import RigCardError
+from pneubayes.rigcard.component import RigComponent, register
+from pneubayes.rigcard.values import quantity, real
+
+
+def _column(table, key: str, where: str, n: int | None) -> list[float]:
+    at = f"{where} key {key!r}"
+    v = table.get(key)
+    if not isinstance(v, list) or isinstance(v, str):
+        raise RigCardError(f"{at}: must be a list of numbers, got {v!r}")
+    if n is None and not 2 <= len(v) <= TABLE_MAX_POINTS:
+        raise RigCardError(f"{at}: a table has 2 to {TABLE_MAX_POINTS} points, got "
+                           f"{len(v)} (resample a longer one)")
+    if n is not None and len(v) != n:
+        raise RigCardError(f"{at}: must have one value per command point ({n}), got "
+                           f"{len(v)}")
+    return [real(x, f"{at} [{i}]") for i, x in enumerate(v)]
+
+
+def _monotone(values: list[float], at: str, direction: int, strict: bool = False) -> None:
+    """Raise naming the first index where ``values`` breaks the order."""
+    for i in range(1, len(values)):
+        step = (values[i] - values[i - 1]) * direction
+        if step < 0 or (strict and step == 0):
+            if strict:
+                word = "strictly " + ("increasing" if direction > 0 else "decreasing")
+            else:
+                word = "non-" + ("decreasing" if direction > 0 else "increasing")
+            raise RigCardError(f"{at} [{i}]: the table must be {word}: {values[i]!r} "
+                               f"follows {values[i - 1]!r}")
+
+
+@register
+class TableValve(RigComponent):
+    role, kind = "valve", "table"
+    quantities = (
+        ("inlet_scale", "-", "factor on the tabulated inlet areas", "positive"),
+        ("exhaust_scale", "-", "factor on the tabulated exhaust areas", "positive"),
+    )
+    parameter_names_by_key = {q[0]: f"valve_{q[0]}" for q in quantities}
+    slots_written = ("table_points",
+                     *(f"table_command_{k}" for k in range(TABLE_MAX_POINTS)),
+                     *(f"table_inlet_m2_{k}" for k in range(TABLE_MAX_POINTS)),
+                     *(f"table_exhaust_m2_{k}" for k in range(TABLE_MAX_POINTS)))
+
+    @classmethod
+    def from_table(cls, table, where):
+        known = {q[0] for q in cls.quantities} | set(cls.option_keys()) | {"kind"}
+        stray = sorted(set(table) - known)
+        if stray:
+            raise RigCardError(f"{where}: unknown key(s) {stray} for kind 'table'; its "
+                               f"keys are {sorted(known)}")
+        values = {key: quantity(table, key, where, positive=True, required=False,
+                                default=1.0)
+                  for key, *_ in cls.quantities}
+        out = cls(values, cls.read_options(table, where))
+        if "exhaust_scale" in table and not any(out.extra["exhaust_area_m2"]):
+            raise RigCardError(f"{where} key 'exhaust_scale': the table has no exhaust "
+                               "areas to scale")
+        return out
+
+    @classmethod
+    def option_keys(cls):
+        return ("command", "inlet_area_m2", "exhaust_area_m2")
+
+    @classmethod
+    def read_options(cls, table, where):
+        cmd = _column(table, "command", where, None)
+        if not all(math.isfinite(c) for c in cmd):
+            raise RigCardError(f"{where} key 'command': every point must be finite")
+        _monotone(cmd, f"{where} key 'command'", +1, strict=True)
+        n = len(cmd)
+        inlet = _column(table, "inlet_area_m2", where, n)
+        exhaust = (_column(table, "exhaust_area_m2", where, n)
+                   if "exhaust_area_m2" in table else [0.0] * n)
+        for key, areas, direction in (("inlet_area_m2", inlet, +1),
+                                      ("exhaust_area_m2", exhaust, -1)):
+            at = f"{where} key {key!r}"
+            for i, a in enumerate(areas):
+                if not (math.isfinite(a) and a >= 0.0):
+                    raise RigCardError(f"{at} [{i}]: an area must be finite and >= 0 "
+                                       f"(m^2), got {a!r}")
+            _monotone(areas, at, direction)
+        if not any(a > 0 for a in inlet):
+            raise RigCardError(f"{where} key 'inlet_area_m2': the inlet never opens (all 0)")
+        return {"command": cmd, "inlet_area_m2": inlet, "exhaust_area_m2": exhaust}
+
+    def without_exhaust(self, where):
+        if any(a != 0.0 for a in self.extra["exhaust_area_m2"]):
+            raise RigCardError(f"{where} key 'exhaust_area_m2': the rig's exhaust is a "
+                               "separate valve (its [exhaust] table); leave this out (or "
+                               "all 0)")
+        return self
+
+    def lower_all(self, values, rig):
+        cmd = self.extra["command"]
+        out = {"table_points": float(len(cmd))}
+        for k, c in enumerate(cmd):
+            out[f"table_command_{k}"] = c
+            out[f"table_inlet_m2_{k}"] = values["inlet_scale"] * self.extra["inlet_area_m2"][k]
+            out[f"table_exhaust_m2_{k}"] = (values["exhaust_scale"]
+                                            * self.extra["exhaust_area_m2"][k])
+        return out

@@ -1,0 +1,78 @@
+"""The step of models with a supply tank: exprb32 on the state (p, P_tank).
+
+A finite tank (slot ``tank_volume_m3``; :mod:`pneubayes.rigcard.supply_tank`) makes the
+supply pressure a second state, drained by what the inlet draws,
+``dP_tank/dt = -n Rs T a_in f(P_tank, p) / V_tank`` (eqs. 1-3 upstream of the port). The
+chamber and the tank exchange air through the port, a stiff mode near pressure balance
+(both sides' slopes are those of the port's square-root flow), so the two are stepped
+together with the full 2 x 2 Jacobian, as the (p, T) step of
+:mod:`pneubayes.simulation.thermal`; an explicit tank update is first order there.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from pneubayes.physics.orifice import flow_slopes, flow_terms
+from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.layout import C_ALPHA, C_BETA, C_KAPPA, C_T_SUPPLY, C_THETA
+from pneubayes.simulation.thermal import phi0123_2x2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def tank_rhs(p, pt, a_in, cs, c_tank, dp_floor, need_j, da_in):
+    """The tank's ``(dP_t/dt, d/dp, d/dP_t, explicit d/dt)``; c_tank = n Rs T / V_t.
+
+    ``dp_floor`` (Pa) is the secant floor of the port's square-root slope; it must be the
+    chamber's (:func:`chamber_rhs` uses ``|dp/dt| h``) so that the two Jacobians keep
+    ``V p + V_t P_t`` (the air the port exchanges) conserved near pressure balance."""
+    f, sg, dg, r, rev = flow_terms(pt, p, cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA])
+    ft = -c_tank * a_in * f
+    if not need_j:
+        return ft, 0.0, 0.0, 0.0
+    d_up, d_down = flow_slopes(pt, p, sg, dg, r, rev, cs[C_ALPHA], cs[C_BETA], cs[C_KAPPA],
+                               dp_floor)
+    return ft, -c_tank * a_in * d_down, -c_tank * a_in * d_up, -c_tank * f * da_in
+
+
+@njit(cache=True, error_model="numpy")
+def tank_step(p, pt, hh, a_in, a_ex, vol, vdot, da_in, da_ex, a_in2, a_ex2, vol2, sl, cs,
+              c_tank, atol_p, rtol):
+    """One exprb32 step of (p, P_tank) with the full 2 x 2 Jacobian.
+
+    Returns ``(err, p_new, P_tank_new, exp(h J))``, the propagator row-major; ``err`` <= 1
+    accepts the step. The chamber's d(dp/dt)/dP_tank is the rate of its explicit time
+    derivative per unit supply ramp (:func:`chamber_rhs` is linear in the ramp).
+    """
+    temp = cs[C_T_SUPPLY]
+    fp, jpp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, pt, sl, cs, hh,
+                                             True, 0.0, da_in, da_ex)
+    vp_ramp = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, pt, sl, cs, hh, True, 1.0, da_in,
+                          da_ex)[4]
+    jpt = vp_ramp - vp
+    ft, jtp, jtt, vt = tank_rhs(p, pt, a_in, cs, c_tank, abs(fp) * hh, True, da_in)
+    r = pt / p
+    f0, f1, f2, f3 = phi0123_2x2((hh * jpp, hh * jpt * r, hh * jtp / r, hh * jtt))
+    prop = (f0[0], f0[1] / r, f0[2] * r, f0[3])
+    w1p, w1t = hh * fp / p, hh * ft / pt
+    w2p, w2t = hh * hh * vp / p, hh * hh * vt / pt
+    up = p + p * (f1[0] * w1p + f1[1] * w1t + f2[0] * w2p + f2[1] * w2t)
+    ut = pt + pt * (f1[2] * w1p + f1[3] * w1t + f2[2] * w2p + f2[3] * w2t)
+    if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
+        return 10.0, p, pt, prop
+    fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, ut, sl, cs, hh, False, 0.0, 0.0,
+                      0.0)[0]
+    ft2 = tank_rhs(up, ut, a_in2, cs, c_tank, 0.0, False, 0.0)[0]
+    dp, dt = up - p, ut - pt
+    w3p = 2.0 * hh * (fp2 - fp - jpp * dp - jpt * dt - hh * vp) / p
+    w3t = 2.0 * hh * (ft2 - ft - jtp * dp - jtt * dt - hh * vt) / pt
+    ep = p * (f3[0] * w3p + f3[1] * w3t)
+    et = pt * (f3[2] * w3p + f3[3] * w3t)
+    pn, tn = up + ep, ut + et
+    if not (pn > 0.0 and math.isfinite(pn) and tn > 0.0 and math.isfinite(tn)):
+        return 10.0, p, pt, prop
+    err = max(abs(ep) / (atol_p + rtol * max(abs(p), abs(pn))),
+              abs(et) / (atol_p + rtol * max(pt, tn)))
+    return err, pn, tn, prop
