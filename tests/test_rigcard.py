@@ -390,7 +390,8 @@ def test_shipped_respiraworks_recordings_read_with_their_cards():
     assert len(recs["AIR"]) == len(recs["OXY"]) == 6
     for rs in recs.values():
         card_ = rs[0].rig_card
-        assert card_.chamber.kind == "compliant" and card_.command.unit == "duty"
+        assert card_.chamber.kind == "two_compartment" and card_.command.unit == "duty"
+        assert card_.exhaust is not None and card_.exhaust.extra["column"] == "cmd_exh_valve"
         for r in rs:
             assert r.rig_card == card_
             assert 0.0 <= r.command_V.min() and r.command_V.max() <= 1.0

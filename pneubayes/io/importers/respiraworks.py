@@ -18,8 +18,11 @@ format-2 recording per run file (the test lung is one chamber):
 
 The exhale pinch valve is commanded in closed loop from the inhale command
 (``1 - 0.6 cmd - 0.4`` OXY, ``1 - 0.55 cmd - 0.4`` AIR, test READMEs; in the files it
-follows ``0.63 - 0.62 cmd`` to within 0.03): the rig card's exhaust is the Gompertz
-exhaust port of the same command, an approximation the report states. Neither the
+follows ``0.63 - 0.62 cmd`` to within 0.03) and logged as ``cmd_exh_valve``: the rig
+card's exhaust is a separate valve (kind ``gompertz``) on that column. The chamber is
+two compartments (kind ``two_compartment``): the circuit, where the pressure is
+measured, and the test lung behind its airway resistance (the QuickLung's selectable R
+and C; the settings are not in the files, so all four are priors). Neither the
 atmosphere, the temperature nor the supply pressure is recorded: 101325 Pa and 296 K
 are assumed, and the supply is a constant of the card (OXY: a regulated line, 400 kPa
 absolute assumed within the design's 120-440 kPa, so the inhale flow is choked and the
@@ -52,37 +55,47 @@ INHALE = {"OXY": "cmd_psol", "AIR": "cmd_inh_valve"}
 
 def rig_card(kind: str) -> dict:
     """The test lung on the OXY (proportional solenoid) or AIR (blower + pinch valve)
-    path: a compliant chamber, a Gompertz inhale/exhale pair on the inhale command."""
+    path: the circuit and the lung behind its resistance, a Gompertz inhale valve on the
+    inhale command and a Gompertz exhale valve on its own logged command
+    ``cmd_exh_valve``."""
     inlet = {"inlet_offset_m2": 0.0,
              "inlet_a_m2": {"prior": "log-uniform", "bounds": [1e-9, 1e-3]},
              "inlet_b": {"prior": "log-uniform", "bounds": [0.05, 50.0]},
              "inlet_c_per_V": {"prior": "uniform", "bounds": [0.5, 40.0]},
              "inlet_d_V": {"prior": "uniform", "bounds": [-1.5, 1.0]}}
-    exhaust = {"exhaust_offset_m2": {"prior": "uniform", "bounds": [0.0, 1e-4]},
-               "exhaust_a_m2": {"prior": "log-uniform", "bounds": [1e-7, 1e-3]},
-               "exhaust_b": {"prior": "log-uniform", "bounds": [0.05, 50.0]},
-               "exhaust_c_per_V": {"prior": "uniform", "bounds": [-40.0, -0.5]},
-               "exhaust_d_V": {"prior": "uniform", "bounds": [-1.5, 1.0]}}
+    exhaust = {"kind": "gompertz", "column": "cmd_exh_valve",
+               "command": {"unit": "duty", "range": [0.0, 1.0]},
+               "offset_m2": {"prior": "uniform", "bounds": [0.0, 1e-4]},
+               "a_m2": {"prior": "log-uniform", "bounds": [1e-7, 1e-3]},
+               "b": {"prior": "log-uniform", "bounds": [0.05, 50.0]},
+               "c_per_V": {"prior": "uniform", "bounds": [0.5, 40.0]},
+               "d_V": {"prior": "uniform", "bounds": [-1.5, 1.0]}}
     supply = SUPPLY_PA[kind]
     return {
         "format": "pneubayes-rig/1",
         "name": f"RespiraWorks ventilator, {kind} path, QuickLung test lung",
         "atmospheric_pressure_Pa": ATMOSPHERE_PA, "temperature_K": TEMPERATURE_K,
         "command": {"unit": "duty", "range": [0.0, 1.0]},
-        "chamber": {"kind": "compliant",
-                    "volume_m3": {"prior": "log-uniform", "bounds": [2e-4, 1e-2]},
-                    "compliance_m3_per_Pa": {"prior": "log-uniform",
-                                             "bounds": [3e-8, 2e-6]}},
-        "valve": {"kind": "gompertz", **inlet, **exhaust},
+        "chamber": {"kind": "two_compartment",
+                    "volume_m3": {"prior": "log-uniform", "bounds": [1e-5, 5e-3]},
+                    "lung_volume_m3": {"prior": "log-uniform", "bounds": [2e-4, 1e-2]},
+                    "lung_compliance_m3_per_Pa": {"prior": "log-uniform",
+                                                  "bounds": [3e-8, 2e-6]},
+                    "resistance_Pa_s_per_m3": {"prior": "log-uniform",
+                                               "bounds": [1e4, 1e8]}},
+        "valve": {"kind": "gompertz", **inlet},
+        "exhaust": exhaust,
         "supply": {"kind": "constant", "pressure_Pa": supply},
         "notes": (
             "Command: the inhale actuator's 0..1 command "
             + ("(PSOL; PWM duty 0.80 + 0.10 cmd, closed below about 0.80 duty). "
                if kind == "OXY" else "(inhale pinch valve, linearised in firmware). ")
-            + "Exhaust: the exhale pinch valve, commanded in closed loop from the inhale "
-            "command (0.63 - 0.62 cmd to within 0.03), mapped as the exhaust port of the "
-            "same command. Chamber: the QuickLung's compliance C (10-50 mL/cmH2O by the "
-            "ISO test table, setting not in the files) and the circuit's volume. Supply "
+            + "Exhaust: the exhale pinch valve on its own logged command cmd_exh_valve "
+            "(0..1; closed loop, 0.63 - 0.62 cmd to within 0.03). Chamber: two "
+            "compartments, the circuit at the pressure sensor (its volume) and the "
+            "QuickLung behind its airway resistance R (5-50 cmH2O/(L/s)) with its "
+            "compliance C (10-50 mL/cmH2O), both by the ISO test table, settings not in "
+            "the files. Supply "
             + ("not recorded: a regulated line, 400 kPa absolute assumed (the inhale flow "
                "is choked, so the inhale area scales with this assumption). "
                if kind == "OXY" else "the blower at 100 % speed, about 5 kPa gauge. ")
