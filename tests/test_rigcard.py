@@ -563,3 +563,24 @@ def test_the_documented_examples_are_valid_cards():
     doc = card_module.__doc__.split("::\n\n", 1)[1].split("\n\n")[0]
     text = "\n".join(line[4:] for line in doc.splitlines())
     assert RigCard.from_dict(tomllib.loads(text), "card.py").chamber.kind == "polynomial"
+
+
+def test_known_at_fixes_a_fits_values_and_keeps_the_named_unknowns():
+    c = card(valve__opening_delay_s={"prior": "uniform", "bounds": [0.0, 0.05]})
+    m = Model(rig_card=c)
+    assert set(m.parameter_names) == {"valve_open_area_m2", "valve_opening_delay_s",
+                                      "dead_volume_m3"}
+    params = {"valve_open_area_m2": 2e-6, "valve_opening_delay_s": 0.01,
+              "dead_volume_m3": 3e-5}
+    k = c.known_at(params, keep_unknown=("dead_volume_m3",))
+    assert Model(rig_card=k).parameter_names == ("dead_volume_m3",)
+    assert k.valve.values["open_area_m2"] == 2e-6
+    assert k.valve.values["opening_delay_s"] == 0.01
+    t = np.arange(201) * 1e-3
+    inp = _inputs(t, (t > 0.02).astype(float), before=0.0)
+    a = simulate(m, params, inp, _rig(c), P_ATM, TIGHT).pressure_Pa[0]
+    b = simulate(Model(rig_card=k), {"dead_volume_m3": 3e-5}, inp, _rig(c), P_ATM,
+                 TIGHT).pressure_Pa[0]
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(RigCardError, match="'valve_opening_delay_s'"):
+        c.known_at({"valve_open_area_m2": 2e-6, "dead_volume_m3": 3e-5})

@@ -113,6 +113,29 @@ class RigCard:
             out["notes"] = self.notes
         return out
 
+    def known_at(self, params: Mapping[str, float], keep_unknown=()) -> "RigCard":
+        """The card with its unknown quantities made known at ``params`` (by model
+        parameter name), except those named in ``keep_unknown``, which stay priors: a
+        fit's valve seeding another fit, or a shared fit whose lung is recalibrated per
+        recording. Raises RigCardError naming a parameter ``params`` lacks."""
+        from pneubayes.rigcard.values import Unknown
+
+        keep = set(keep_unknown)
+        d = self.to_dict()
+        for role in ROLES + OPTIONAL_ROLES:
+            comp = getattr(self, role)
+            if comp is None:
+                continue
+            for key, value in comp.values.items():
+                name = comp.parameter_name(key)
+                if not isinstance(value, Unknown) or name in keep:
+                    continue
+                if name not in params:
+                    raise RigCardError(f"{self.source}: known_at needs a value for the "
+                                       f"fitted quantity {name!r} (key {role!r} -> {key!r})")
+                d[role][key] = float(params[name])
+        return RigCard.from_dict(d, f"{self.source} (known at given values)")
+
     def __eq__(self, other):
         return isinstance(other, RigCard) and self.to_dict() == other.to_dict()
 
