@@ -55,6 +55,29 @@ def _real_results(out: Path, rw_final: float, setpoint: float):
         "span_Pa": 3000.0, "setpoint_baseline_rmse_Pa": setpoint, "at_bounds": []}}}
     (out / "real_respiraworks").mkdir(parents=True)
     (out / "real_respiraworks" / "real_respiraworks.json").write_text(json.dumps(r))
+    fit = {"held_out_rmse_Pa": 9000.0}
+    tank = {"window_s": 0.044, "seed": 0, "noise_floor_Pa": 1000.0,
+            "held_out_span_Pa": 300000.0,
+            "fits": {k: fit for k in ("measured", "constant", "tank", "measured+tube_delay",
+                                      "constant+tube_delay", "tank+tube_delay")},
+            "tank_posterior": {
+                "tank_volume_m3": {"median": 1.4e-3, "q05": 1.2e-3, "q95": 1.7e-3},
+                "tube_delay_s": {"median": 0.02, "q05": 0.018, "q95": 0.022},
+                "documented_tank_volume_m3": 1.475e-3, "documented_inside_90": True,
+                "converged": True, "misfit": {"note": None}}}
+    (out / "real_gtdynamics_tank").mkdir(parents=True)
+    (out / "real_gtdynamics_tank" / "real_gtdynamics_tank.json").write_text(json.dumps(tank))
+    form = {"train_rmse_Pa": 200.0, "held_out_after_cal_shared_Pa": 400.0,
+            "held_out_after_cal_calibrated_Pa": 200.0, "noise_floor_Pa": 10.0,
+            "span_after_cal_Pa": 2000.0, "setpoint_baseline_after_cal_Pa": setpoint}
+    forms = {"horizon_s": 2.0, "calibration_s": 4.0, "max_nfev": 100,
+             "forms": ["compliant/port", "two_compartment/separate"],
+             "sets": {"OXY": {"compliant/port": form,
+                              "two_compartment/separate": {
+                                  **form, "held_out_after_cal_calibrated_Pa": 100.0}}}}
+    (out / "real_respiraworks_forms").mkdir(parents=True)
+    (out / "real_respiraworks_forms" / "real_respiraworks_forms.json").write_text(
+        json.dumps(forms))
 
 
 def test_real_section_states_the_numbers_and_never_claims_a_fit_it_misses(tmp_path):
@@ -64,10 +87,16 @@ def test_real_section_states_the_numbers_and_never_claims_a_fit_it_misses(tmp_pa
     assert "20 [18, 22] ms" in text and "8.0 x the noise floor: misfit" in text
     assert "loses to simply predicting the controller's set-point" in text
     assert "| OXY | 400 | 390 | none | 10 | 39.0 |" in text
+    # the draining tank and the ventilator's forms, with their numbers
+    assert "1.4 [1.2, 1.7] L" in text and "inside the interval" in text
+    assert "| OXY | two compartment / its own command | 200 | 400 | 100 | 10 | 5.0 |" in text
+    assert "cuts the held-out error by 62 %" in text
+    assert "best form (two_compartment/separate) reaches 100 Pa, 10 x the noise floor, " \
+        "below the set-point baseline's 250 Pa" in text
     # a model within 1.5 x the noise that beats the baseline gets no misfit sentence
     _real_results(tmp_path / "good", rw_final=12.0, setpoint=250.0)
     text = "\n".join(make_paper.real_section(tmp_path / "good", tmp_path / "p2", False))
-    assert "On OXY" not in text and "A likely cause" not in text
+    assert "On OXY" not in text and "What the model lacks" not in text
 
 
 def test_only_the_real_section_is_rewritten(tmp_path):
