@@ -309,7 +309,8 @@ def main(argv=None):
             slots = np.ascontiguousarray(model.lower(model.as_matrix(theta), rig))
             return _kernel.simulate_windows(
                 slots, _rig_constants(rig), solver.as_array(), inputs.time_s,
-                inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa,
+                inputs.command_V, np.zeros(inputs.n_samples), inputs.position_m,
+                inputs.supply_pressure_Pa,
                 np.array([0], dtype=np.int64), inputs.n_samples, np.array([P_ATM]))
     except Exception as exc:  # noqa: BLE001 - internal API moved: skip the diagnostic
         kernel_only = None

@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 import pytest
+from rig_helpers import edited_card
 
 from pneubayes.errors import RecordingError, RigCardError
 from pneubayes.io import read_recording
@@ -40,16 +41,7 @@ BASE = {
 
 
 def card(**changes) -> RigCard:
-    d = copy.deepcopy(BASE)
-    for key, value in changes.items():
-        section, _, sub = key.partition("__")
-        if sub:
-            d[section][sub] = value
-        elif value is None:
-            d.pop(section)
-        else:
-            d[section] = value
-    return RigCard.from_dict(d, "card.json")
+    return edited_card(BASE, **changes)
 
 
 def inputs(t, u, ue):

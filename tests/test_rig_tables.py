@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from rig_helpers import edited_card
 
 from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.errors import RigCardError
@@ -42,16 +43,7 @@ BASE = {
 
 
 def card(**changes) -> RigCard:
-    d = copy.deepcopy(BASE)
-    for key, value in changes.items():
-        section, _, sub = key.partition("__")
-        if sub:
-            d[section][sub] = value
-        elif value is None:
-            d.pop(section)
-        else:
-            d[section] = value
-    return RigCard.from_dict(d, "card.json")
+    return edited_card(BASE, **changes)
 
 
 def inputs(t, u, x=None):

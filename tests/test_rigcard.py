@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from rig_helpers import edited_card
 
 from pneubayes.errors import ModelCardError, RecordingError, RigCardError
 from pneubayes.io import read_recording
@@ -40,16 +40,7 @@ CARD = {
 
 
 def card(**changes) -> RigCard:
-    d = copy.deepcopy(CARD)
-    for key, value in changes.items():
-        section, _, sub = key.partition("__")
-        if sub:
-            d[section][sub] = value
-        elif value is None:
-            d.pop(section)
-        else:
-            d[section] = value
-    return RigCard.from_dict(d, "card.json")
+    return edited_card(CARD, **changes)
 
 
 # ---------------------------------------------------------------- reading

@@ -47,8 +47,9 @@ def _closed_slots(volume):
 
 def _run_kernel(slots, rig, solver, t, u, x, ps, p0):
     out, status = kernel.simulate_windows(
-        np.ascontiguousarray(slots), rig_constants(rig), solver.as_array(), t, u, x, ps,
-        np.array([0], dtype=np.int64), t.size, np.array([float(p0)]))
+        np.ascontiguousarray(slots), rig_constants(rig), solver.as_array(), t, u,
+        np.zeros_like(t), x, ps, np.array([0], dtype=np.int64), t.size,
+        np.array([float(p0)]))
     assert not status.any(), status
     return out[:, 0, :]
 
@@ -328,7 +329,7 @@ def test_start_sensitivity_is_one_in_a_closed_fixed_chamber(rig, standard):
     t = np.arange(n) * 1e-3
     u = np.where(t < 0.2, 3.0, -3.0)
     out, sens, status = kernel.simulate_windows_sensitivity(
-        _closed_slots(1e-6), rig_constants(rig), standard.as_array(), t, u,
+        _closed_slots(1e-6), rig_constants(rig), standard.as_array(), t, u, np.zeros(n),
         np.full(n, 0.01), np.full(n, 6.0e5), np.array([0, 100], dtype=np.int64), 400,
         np.array([3e5, 2e5]))
     assert not status.any()

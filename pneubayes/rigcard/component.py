@@ -58,6 +58,9 @@ class RigComponent(Component):
     #: card key -> model parameter name where they differ (a fitted quantity's name must
     #: be unique in a model: ``open_area_m2`` -> ``valve_open_area_m2``)
     parameter_names_by_key: ClassVar[dict[str, str]] = {}
+    #: card key -> the value (a number or an Unknown prior) of a quantity the card may
+    #: leave out; a quantity not named here is required
+    defaults: ClassVar[dict] = {}
 
     def parameter_name(self, key: str) -> str:
         return self.parameter_names_by_key.get(key, key)
@@ -82,7 +85,9 @@ class RigComponent(Component):
             raise RigCardError(f"{where}: unknown key(s) {stray} for kind {cls.kind!r}; its "
                                f"keys are {sorted(known)}")
         values = {key: quantity(table, key, where, positive=sign == "positive",
-                                nonnegative=sign == "nonnegative")
+                                nonnegative=sign == "nonnegative",
+                                required=key not in cls.defaults,
+                                default=cls.defaults.get(key))
                   for key, _, _, sign in cls.quantities}
         obj = cls(values, cls.read_options(table, where))
         obj.check(where)

@@ -7,32 +7,14 @@ from pneubayes.errors import RigCardError
 from pneubayes.io.recording_format import EXHAUST_COMMAND_COLUMN
 from pneubayes.rigcard.command import read_command
 from pneubayes.rigcard.component import RigComponent
-from pneubayes.rigcard.values import quantity
 
 
 class SeparateExhaust(RigComponent):
     """Base of the ``exhaust`` kinds (options ``command`` and ``column``)."""
 
-    #: card key -> default prior of a quantity the card leaves out (none: required)
-    defaults: dict = {}
-
     @classmethod
     def option_keys(cls):
         return ("command", "column")
-
-    @classmethod
-    def from_table(cls, table, where):
-        known = {q[0] for q in cls.quantities} | set(cls.option_keys()) | {"kind"}
-        stray = sorted(set(table) - known)
-        if stray:
-            raise RigCardError(f"{where}: unknown key(s) {stray} for kind {cls.kind!r}; its "
-                               f"keys are {sorted(known)}")
-        values = {key: quantity(table, key, where, positive=sign == "positive",
-                                nonnegative=sign == "nonnegative",
-                                required=key not in cls.defaults,
-                                default=cls.defaults.get(key))
-                  for key, _, _, sign in cls.quantities}
-        return cls(values, cls.read_options(table, where))
 
     @classmethod
     def read_options(cls, table, where):

@@ -26,7 +26,7 @@ import math
 from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.errors import RigCardError
 from pneubayes.rigcard.component import RigComponent, register
-from pneubayes.rigcard.values import quantity, real
+from pneubayes.rigcard.values import real
 
 
 def _column(table, key: str, where: str, n: int | None) -> list[float]:
@@ -69,21 +69,7 @@ class TableValve(RigComponent):
                      *(f"table_inlet_m2_{k}" for k in range(TABLE_MAX_POINTS)),
                      *(f"table_exhaust_m2_{k}" for k in range(TABLE_MAX_POINTS)))
 
-    @classmethod
-    def from_table(cls, table, where):
-        known = {q[0] for q in cls.quantities} | set(cls.option_keys()) | {"kind"}
-        stray = sorted(set(table) - known)
-        if stray:
-            raise RigCardError(f"{where}: unknown key(s) {stray} for kind 'table'; its "
-                               f"keys are {sorted(known)}")
-        values = {key: quantity(table, key, where, positive=True, required=False,
-                                default=1.0)
-                  for key, *_ in cls.quantities}
-        out = cls(values, cls.read_options(table, where))
-        if "exhaust_scale" in table and not any(out.extra["exhaust_area_m2"]):
-            raise RigCardError(f"{where} key 'exhaust_scale': the table has no exhaust "
-                               "areas to scale")
-        return out
+    defaults = {"inlet_scale": 1.0, "exhaust_scale": 1.0}
 
     @classmethod
     def option_keys(cls):
@@ -110,6 +96,11 @@ class TableValve(RigComponent):
         if not any(a > 0 for a in inlet):
             raise RigCardError(f"{where} key 'inlet_area_m2': the inlet never opens (all 0)")
         return {"command": cmd, "inlet_area_m2": inlet, "exhaust_area_m2": exhaust}
+
+    def check(self, where):
+        if self.values["exhaust_scale"] != 1.0 and not any(self.extra["exhaust_area_m2"]):
+            raise RigCardError(f"{where} key 'exhaust_scale': the table has no exhaust "
+                               "areas to scale")
 
     def without_exhaust(self, where):
         if any(a != 0.0 for a in self.extra["exhaust_area_m2"]):

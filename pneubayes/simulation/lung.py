@@ -26,7 +26,7 @@ from numba import njit
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.simulation.chamber import chamber_rhs
 from pneubayes.simulation.layout import C_KAPPA, C_P_ATM, C_RS, C_T_SUPPLY
-from pneubayes.simulation.thermal import phi0123_2x2
+from pneubayes.simulation.thermal import exprb2_correct, exprb2_predict
 
 _LUNG_V = SLOT_INDEX["lung_volume_m3"]
 _LUNG_C = SLOT_INDEX["lung_compliance_m3_per_Pa"]
@@ -74,27 +74,12 @@ def lung_step(p, pl, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
                                             True, dsup, da_in, da_ex)
     fa, fl, ja, jpl, jlp, jll, va = lung_terms(p, pl, vol, vdot, sl, cs, True)
     fp, jpp, vp = fc + fa, jc + ja, vc + va
-    r = pl / p
-    f0, f1, f2, f3 = phi0123_2x2((hh * jpp, hh * jpl * r, hh * jlp / r, hh * jll))
-    prop = (f0[0], f0[1] / r, f0[2] * r, f0[3])
-    w1p, w1l = hh * fp / p, hh * fl / pl
-    w2p = hh * hh * vp / p
-    up = p + p * (f1[0] * w1p + f1[1] * w1l + f2[0] * w2p)
-    ul = pl + pl * (f1[2] * w1p + f1[3] * w1l + f2[2] * w2p)
+    up, ul, f3, prop = exprb2_predict(p, pl, hh, fp, fl, jpp, jpl, jlp, jll, vp, 0.0)
     if not (up > 0.0 and math.isfinite(up) and ul > 0.0 and math.isfinite(ul)):
         return 10.0, p, pl, prop
-    fp2 = (chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False, 0.0,
-                       0.0, 0.0)[0]
-           + lung_terms(up, ul, vol2, vdot, sl, cs, False)[0])
-    fl2 = lung_terms(up, ul, vol2, vdot, sl, cs, False)[1]
-    dp, dl = up - p, ul - pl
-    w3p = 2.0 * hh * (fp2 - fp - jpp * dp - jpl * dl - hh * vp) / p
-    w3l = 2.0 * hh * (fl2 - fl - jlp * dp - jll * dl) / pl
-    ep = p * (f3[0] * w3p + f3[1] * w3l)
-    el = pl * (f3[2] * w3p + f3[3] * w3l)
-    pn, ln = up + ep, ul + el
-    if not (pn > 0.0 and math.isfinite(pn) and ln > 0.0 and math.isfinite(ln)):
-        return 10.0, p, pl, prop
-    err = max(abs(ep) / (atol_p + rtol * max(abs(p), abs(pn))),
-              abs(el) / (atol_p + rtol * max(pl, ln)))
+    fa2, fl2, _, _, _, _, _ = lung_terms(up, ul, vol2, vdot, sl, cs, False)
+    fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False, 0.0, 0.0,
+                      0.0)[0] + fa2
+    err, pn, ln = exprb2_correct(p, pl, up, ul, hh, f3, fp, fl, fp2, fl2, jpp, jpl, jlp, jll,
+                                 vp, 0.0, atol_p, atol_p, rtol)
     return err, pn, ln, prop

@@ -179,26 +179,25 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if np.any(line & hot):
         raise ValueError("the tube's acoustic line (tube_delay form 'line') is isothermal: "
                          "it cannot be combined with heat_transfer in one model")
-    compliant = slots[:, SLOT_INDEX["compliance_m3_per_Pa"]] > 0
-    if np.any(compliant & (line | hot)):
-        raise ValueError("a compliant chamber is simulated with the pressure as its only "
-                         "state: it cannot be combined with heat_transfer or the tube's "
-                         "acoustic line (tube_delay form 'line') in one model")
     if inputs.exhaust_command is None and np.any(slots[:, SLOT_INDEX["exhaust_own_command"]]):
         raise ValueError("the model's exhaust is a separate valve with its own command, but "
                          "the inputs have no exhaust command (a recording's "
                          "'exhaust_command' column, or the column its rig card names)")
+    # states the kernel steps with the pressure, one at a time: what each excludes
     tank = slots[:, SLOT_INDEX["tank_volume_m3"]] > 0
-    if np.any(tank & (line | hot)):
-        raise ValueError("a supply tank is simulated with the chamber's pressure and the "
-                         "tank's as the states: it cannot be combined with heat_transfer "
-                         "or the tube's acoustic line (tube_delay form 'line') in one model")
-    lung = slots[:, SLOT_INDEX["lung_volume_m3"]] > 0
-    if np.any(lung & (line | hot | tank)):
-        raise ValueError("a two-compartment chamber is simulated with the two pressures as "
-                         "the states: it cannot be combined with heat_transfer, the tube's "
-                         "acoustic line (tube_delay form 'line') or a supply tank in one "
-                         "model")
+    exclusive = (
+        (slots[:, SLOT_INDEX["compliance_m3_per_Pa"]] > 0, line | hot,
+         "a compliant chamber is simulated with the pressure as its only state"),
+        (tank, line | hot,
+         "a supply tank is simulated with the chamber's pressure and the tank's as the states"),
+        (slots[:, SLOT_INDEX["lung_volume_m3"]] > 0, line | hot | tank,
+         "a two-compartment chamber is simulated with the two pressures as the states"),
+    )
+    for present, others, what in exclusive:
+        if np.any(present & others):
+            raise ValueError(f"{what}: it cannot be combined with heat_transfer, the tube's "
+                             "acoustic line (tube_delay form 'line') or another second state "
+                             "(a supply tank, a second compartment) in one model")
     t, u, ue, x, ps, offset = inputs.kernel_arrays()
     slots, consts, sv, t, u, ue, x, ps, kstarts, p0 = _kernel_arrays(
         slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, starts + offset, p0)

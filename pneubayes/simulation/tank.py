@@ -18,7 +18,7 @@ from numba import njit
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.simulation.chamber import chamber_rhs
 from pneubayes.simulation.layout import C_ALPHA, C_BETA, C_KAPPA, C_T_SUPPLY, C_THETA
-from pneubayes.simulation.thermal import phi0123_2x2
+from pneubayes.simulation.thermal import exprb2_correct, exprb2_predict
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -53,26 +53,12 @@ def tank_step(p, pt, hh, a_in, a_ex, vol, vdot, da_in, da_ex, a_in2, a_ex2, vol2
                           da_ex)[4]
     jpt = vp_ramp - vp
     ft, jtp, jtt, vt = tank_rhs(p, pt, a_in, cs, c_tank, abs(fp) * hh, True, da_in)
-    r = pt / p
-    f0, f1, f2, f3 = phi0123_2x2((hh * jpp, hh * jpt * r, hh * jtp / r, hh * jtt))
-    prop = (f0[0], f0[1] / r, f0[2] * r, f0[3])
-    w1p, w1t = hh * fp / p, hh * ft / pt
-    w2p, w2t = hh * hh * vp / p, hh * hh * vt / pt
-    up = p + p * (f1[0] * w1p + f1[1] * w1t + f2[0] * w2p + f2[1] * w2t)
-    ut = pt + pt * (f1[2] * w1p + f1[3] * w1t + f2[2] * w2p + f2[3] * w2t)
+    up, ut, f3, prop = exprb2_predict(p, pt, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, pt, prop
     fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, ut, sl, cs, hh, False, 0.0, 0.0,
                       0.0)[0]
     ft2 = tank_rhs(up, ut, a_in2, cs, c_tank, 0.0, False, 0.0)[0]
-    dp, dt = up - p, ut - pt
-    w3p = 2.0 * hh * (fp2 - fp - jpp * dp - jpt * dt - hh * vp) / p
-    w3t = 2.0 * hh * (ft2 - ft - jtp * dp - jtt * dt - hh * vt) / pt
-    ep = p * (f3[0] * w3p + f3[1] * w3t)
-    et = pt * (f3[2] * w3p + f3[3] * w3t)
-    pn, tn = up + ep, ut + et
-    if not (pn > 0.0 and math.isfinite(pn) and tn > 0.0 and math.isfinite(tn)):
-        return 10.0, p, pt, prop
-    err = max(abs(ep) / (atol_p + rtol * max(abs(p), abs(pn))),
-              abs(et) / (atol_p + rtol * max(pt, tn)))
+    err, pn, tn = exprb2_correct(p, pt, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp, jtt,
+                                 vp, vt, atol_p, atol_p, rtol)
     return err, pn, tn, prop
