@@ -103,7 +103,8 @@ def _compliant(fit: StepFit, rig: Rig) -> bool:
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)
     return bool(slots[0, SLOT_INDEX["compliance_m3_per_Pa"]] > 0
                 or slots[0, SLOT_INDEX["tank_volume_m3"]] > 0
-                or slots[0, SLOT_INDEX["lung_volume_m3"]] > 0)
+                or slots[0, SLOT_INDEX["lung_volume_m3"]] > 0
+                or slots[0, SLOT_INDEX["volume_table_points"]] > 0)
 
 
 def _dead_volume(model, params: dict, rig: Rig) -> float:

@@ -80,6 +80,15 @@ SLOTS += (
     (f"table_exhaust_m2_{k}", f"tabulated map: exhaust area at point {k} (m^2)")
     for k in range(TABLE_MAX_POINTS))
 
+SLOTS += (
+    ("volume_table_points", "a compliant chamber's tabulated V(p): the number of its points "
+     "(0: none); the volume grows by dV(p), linear between points, the end segments "
+     "extended (count)"),
+) + tuple((f"volume_table_pressure_Pa_{k}", f"tabulated V(p): absolute pressure of point {k} "
+           "(Pa; increasing)") for k in range(TABLE_MAX_POINTS)) + tuple(
+    (f"volume_table_volume_m3_{k}", f"tabulated V(p): volume change at point {k} (m^3)")
+    for k in range(TABLE_MAX_POINTS))
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 

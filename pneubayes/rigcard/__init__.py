@@ -1,14 +1,15 @@
 """Rig cards: a lab's own chamber, valve and supply as plug-in components.
 
 Importing this package registers the shipped kinds (one module each):
-chamber ``fixed``, ``compliant``, ``piston``, ``polynomial``, ``table`` and
-``two_compartment``; valve
-``gompertz``, ``switching`` and ``table``; supply ``measured``, ``constant`` and ``tank``;
-a separate exhaust valve ``gompertz`` and ``linear``.
+chamber ``fixed``, ``compliant``, ``compliant_table``, ``piston``, ``polynomial``,
+``table`` and ``two_compartment``; valve ``gompertz``, ``switching`` and ``table``;
+supply ``measured``, ``constant`` and ``tank``; a separate exhaust valve ``gompertz``
+and ``linear``.
 """
 
 from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
     chamber_compliant,
+    chamber_compliant_table,
     chamber_fixed,
     chamber_piston,
     chamber_polynomial,

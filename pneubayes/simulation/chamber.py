@@ -31,6 +31,30 @@ _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
+_VT_N = SLOT_INDEX["volume_table_points"]
+_VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
+_VT_V = SLOT_INDEX["volume_table_volume_m3_0"]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def compliant_volume(p, vol, sl, p_atm):
+    """The chamber's volume and compliance at pressure ``p``: ``(V, dV/dp)`` in m^3 and
+    m^3/Pa, from ``vol`` (before compliance) plus ``C (p - P_atm)`` (slot
+    ``compliance_m3_per_Pa``) plus a tabulated ``dV(p)`` (slots ``volume_table_*``:
+    linear between points, the end segments extended, so dV/dp is piecewise constant)."""
+    compl = sl[_COMPL]
+    if compl > 0.0:
+        vol = vol + compl * (p - p_atm)
+    n = int(sl[_VT_N])
+    if n > 0:
+        k = 0
+        while k < n - 2 and sl[_VT_P + k + 1] < p:
+            k += 1
+        slope = ((sl[_VT_V + k + 1] - sl[_VT_V + k])
+                 / (sl[_VT_P + k + 1] - sl[_VT_P + k]))
+        vol = vol + sl[_VT_V + k] + slope * (p - sl[_VT_P + k])
+        compl = compl + slope
+    return vol, compl
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -82,9 +106,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     rs_t = rs * t_wall
     # a compliant chamber, V = vol + C (p - P_atm): eq. 5 with dV/dt = vdot + C dp/dt
     # gives dp/dt = n (Rs T mdot - p vdot) / (V + n p C)
-    compl = sl[_COMPL]
-    if compl > 0.0:
-        vol = vol + compl * (p - p_atm)
+    vol, compl = compliant_volume(p, vol, sl, p_atm)
     denom = vol + kappa * p * compl
     n_over_v = kappa / denom
     heat = sl[_HEAT]

@@ -24,14 +24,13 @@ import math
 from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX
-from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.chamber import chamber_rhs, compliant_volume
 from pneubayes.simulation.layout import C_KAPPA, C_P_ATM, C_RS, C_T_SUPPLY
 from pneubayes.simulation.thermal import exprb2_correct, exprb2_predict
 
 _LUNG_V = SLOT_INDEX["lung_volume_m3"]
 _LUNG_C = SLOT_INDEX["lung_compliance_m3_per_Pa"]
 _LUNG_K = SLOT_INDEX["lung_conductance_kg_per_s_Pa2"]
-_COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -45,8 +44,7 @@ def lung_terms(p, pl, vol, vdot, sl, cs, need_j):
     rs_t = cs[C_RS] * cs[C_T_SUPPLY]
     k = sl[_LUNG_K]
     m = k * (p * p - pl * pl)
-    compl = sl[_COMPL]
-    vc = vol + compl * (p - p_atm) if compl > 0.0 else vol
+    vc, compl = compliant_volume(p, vol, sl, p_atm)
     den = vc + kappa * p * compl
     cl = sl[_LUNG_C]
     den_l = sl[_LUNG_V] + cl * (pl - p_atm) + kappa * pl * cl

@@ -98,6 +98,22 @@ def tabulated_areas(slots: np.ndarray, u) -> tuple[np.ndarray, np.ndarray]:
     return a_in, a_ex
 
 
+def tabulated_volume(slots: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.ndarray]:
+    """A compliant chamber's tabulated volume change and its slope at ``pressure_Pa``:
+    ``(dV m^3, dV/dp m^3/Pa)``, linear between points, the end segments extended; zeros
+    without a table (slot ``volume_table_points`` 0)."""
+    sl = np.asarray(slots, dtype=np.float64)
+    p = np.asarray(pressure_Pa, dtype=np.float64)
+    n = int(sl[S["volume_table_points"]])
+    if n == 0:
+        return np.zeros(p.shape), np.zeros(p.shape)
+    p0, v0 = S["volume_table_pressure_Pa_0"], S["volume_table_volume_m3_0"]
+    pts, vols = sl[p0:p0 + n], sl[v0:v0 + n]
+    k = np.clip(np.searchsorted(pts, p, side="left") - 1, 0, n - 2)
+    slope = (vols[k + 1] - vols[k]) / (pts[k + 1] - pts[k])
+    return vols[k] + slope * (p - pts[k]), slope
+
+
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                velocity_m_per_s, supply_measured_Pa, exhaust_command=None) -> RateTerms:
     """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
@@ -122,8 +138,9 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     atten = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
     vol = sl[S["volume_m3"]] + rig.bore_area_m2 * np.asarray(position_m, dtype=np.float64)
     vdot = rig.bore_area_m2 * np.asarray(velocity_m_per_s, dtype=np.float64)
-    compl = sl[S["compliance_m3_per_Pa"]]
-    vol = vol + compl * (p - p_atm)  # a compliant chamber (0: none)
+    dvol, compl = tabulated_volume(sl, p)  # a tabulated V(p) (0: none)
+    compl = compl + sl[S["compliance_m3_per_Pa"]]
+    vol = vol + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol  # a compliant chamber
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
     inlet = scale * atten * a_in * flow_function(p_sup, p, g)

@@ -45,6 +45,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     own_ex = sl[S["exhaust_own_command"]] != 0
     tank_v = sl[S["tank_volume_m3"]]
     lung_v = sl[S["lung_volume_m3"]]
+    n_vt = int(sl[S["volume_table_points"]])
+    vt_p = sl[S["volume_table_pressure_Pa_0"]:S["volume_table_pressure_Pa_0"] + n_vt]
+    vt_v = sl[S["volume_table_volume_m3_0"]:S["volume_table_volume_m3_0"] + n_vt]
     n_tab = int(sl[S["table_points"]])
     tab_c, tab_i, tab_e = (sl[S[f"table_{k}_0"]:S[f"table_{k}_0"] + n_tab]
                            for k in ("command", "inlet_m2", "exhaust_m2"))
@@ -113,8 +116,13 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         # without heat exchange, where this is eq. 5)
         t_chamber = temp if thermal else t_s
         enthalpy = sum(rs * (t_s if q > 0 else t_chamber) * q for q in map(float, flows))
-        compl = sl[S["compliance_m3_per_Pa"]]  # V grows by C (p - P_atm)
-        dp = kappa * (enthalpy - p * vdot) / (vol + compl * (p - p_atm) + kappa * p * compl)
+        compl = sl[S["compliance_m3_per_Pa"]]  # V grows by C (p - P_atm) + dV(p)
+        v_c = vol + compl * (p - p_atm)
+        if n_vt:  # a tabulated V(p): np.interp inside, the end segments extended
+            k = min(max(int(np.searchsorted(vt_p, p)) - 1, 0), n_vt - 2)
+            slope = (vt_v[k + 1] - vt_v[k]) / (vt_p[k + 1] - vt_p[k])
+            v_c, compl = v_c + vt_v[k] + slope * (p - vt_p[k]), compl + slope
+        dp = kappa * (enthalpy - p * vdot) / (v_c + kappa * p * compl)
         dtemp = 0.0
         if heat > 0:
             dp = dp + p * heat * (t_s - temp) / temp

@@ -186,7 +186,8 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     # states the kernel steps with the pressure, one at a time: what each excludes
     tank = slots[:, SLOT_INDEX["tank_volume_m3"]] > 0
     exclusive = (
-        (slots[:, SLOT_INDEX["compliance_m3_per_Pa"]] > 0, line | hot,
+        ((slots[:, SLOT_INDEX["compliance_m3_per_Pa"]] > 0)
+         | (slots[:, SLOT_INDEX["volume_table_points"]] > 0), line | hot,
          "a compliant chamber is simulated with the pressure as its only state"),
         (tank, line | hot,
          "a supply tank is simulated with the chamber's pressure and the tank's as the states"),
