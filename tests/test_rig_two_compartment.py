@@ -204,3 +204,21 @@ def test_a_bad_volume_table_names_the_key_and_the_point(pressures, volumes, word
         _vp_card(pressures, volumes)
     for w in words:
         assert w in str(err.value), (w, str(err.value))
+
+
+def test_the_rates_layer_and_the_kernel_read_the_volume_table_alike():
+    """rates.tabulated_volume (discovery's regime labels, broadcast over slot rows) and
+    the kernel's compliant_volume give the same volume and compliance."""
+    from pneubayes.simulation.chamber import compliant_volume
+    from pneubayes.simulation.rates import tabulated_volume
+
+    c = _vp_card([P_ATM, P_ATM + 2e3, P_ATM + 5e3, P_ATM + 1e4], [0.0, 6e-4, 9e-4, 1e-3])
+    sl = Model(rig_card=c).lower(np.zeros((1, 0)), RIG)[0]
+    p = P_ATM + np.array([-1e3, 0.0, 1e3, 2e3, 3e3, 1e4, 2e4])
+    dv, slope = tabulated_volume(sl, p)
+    kern = np.array([compliant_volume(float(q), VC, sl, P_ATM) for q in p])
+    np.testing.assert_allclose(VC + dv, kern[:, 0], rtol=1e-12)
+    np.testing.assert_allclose(slope, kern[:, 1], rtol=1e-12)
+    rows = np.stack([sl, sl], axis=1)[:, :, None]  # (slots, 2, 1) against (1, 7)
+    dv2, _ = tabulated_volume(rows, p[None, :])
+    np.testing.assert_allclose(dv2, np.stack([dv, dv]), rtol=1e-12)

@@ -101,17 +101,27 @@ def tabulated_areas(slots: np.ndarray, u) -> tuple[np.ndarray, np.ndarray]:
 def tabulated_volume(slots: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.ndarray]:
     """A compliant chamber's tabulated volume change and its slope at ``pressure_Pa``:
     ``(dV m^3, dV/dp m^3/Pa)``, linear between points, the end segments extended; zeros
-    without a table (slot ``volume_table_points`` 0)."""
+    without a table (slot ``volume_table_points`` 0). ``slots`` may carry trailing
+    dimensions that broadcast against the pressure (as :func:`tabulated_areas`)."""
     sl = np.asarray(slots, dtype=np.float64)
     p = np.asarray(pressure_Pa, dtype=np.float64)
-    n = int(sl[S["volume_table_points"]])
-    if n == 0:
-        return np.zeros(p.shape), np.zeros(p.shape)
+    n = sl[S["volume_table_points"]]
+    zero = np.zeros(np.broadcast_shapes(p.shape, np.shape(n)))
+    if not np.any(n > 0):
+        return zero, zero
     p0, v0 = S["volume_table_pressure_Pa_0"], S["volume_table_volume_m3_0"]
-    pts, vols = sl[p0:p0 + n], sl[v0:v0 + n]
-    k = np.clip(np.searchsorted(pts, p, side="left") - 1, 0, n - 2)
-    slope = (vols[k + 1] - vols[k]) / (pts[k + 1] - pts[k])
-    return vols[k] + slope * (p - pts[k]), slope
+    dv, slope = zero.copy(), zero.copy()
+    for k in range(int(np.max(n)) - 1):
+        # segment k holds p when it is the first, or p lies above its start, and it is
+        # the last, or p lies at or below its end (the end segments extended)
+        last = k == n - 2
+        live = k < n - 1
+        width = np.where(live, sl[p0 + k + 1] - sl[p0 + k], 1.0)
+        here = live & ((k == 0) | (p > sl[p0 + k])) & (last | (p <= sl[p0 + k + 1]))
+        sk = (sl[v0 + k + 1] - sl[v0 + k]) / width
+        dv = np.where(here, sl[v0 + k] + sk * (p - sl[p0 + k]), dv)
+        slope = np.where(here, sk, slope)
+    return dv, slope
 
 
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
