@@ -544,6 +544,12 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                 "falls from 1 to 0.4, a regulator or flow limit upstream).")
         for kind, res in r["sets"].items():
             text.append(f"{kind}: " + _predictive_sentence(res.get("posterior_predictive")))
+        text.append("emcee converged: " + ", ".join(
+            f"{kind} {res.get('converged')}" for kind, res in r["sets"].items())
+            + f" (seed {r.get('seed', 0)})"
+            + ("; the posterior-predictive numbers of an unconverged chain are its draws', "
+               "not a converged posterior's." if not all(
+                   res.get("converged") for res in r["sets"].values()) else "."))
         L += ["", " ".join(text), ""]
         for res in r["sets"].values():
             if res.get("figure"):
@@ -582,7 +588,7 @@ def _tank_paragraph(path: Path) -> list[str]:
             "held-out trials as above:")
     post = (f"The tank's posterior (emcee, seed {g['seed']}, converged: "
             f"{t['converged']}): volume {_interval(vol, 1e3)} L (median [90 % interval]) "
-            f"against the {t['documented_tank_volume_m3'] * 1e3:.3g} L the data authors "
+            f"against the {t['documented_tank_volume_m3'] * 1e3:.4g} L the data authors "
             "document (`robot_config.yaml`), "
             + ("inside" if t["documented_inside_90"] else "outside")
             + f" the interval; the dead time {_interval(d, 1e3)} ms. Noise floor "
