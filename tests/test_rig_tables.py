@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from rig_helpers import edited_card
+from rig_helpers import assert_converges_to, edited_card
 
 from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.errors import RigCardError
@@ -115,11 +115,7 @@ def test_a_lagging_table_valve_matches_the_reference_solver():
     std = run(c, inputs(t, u), 2e5, params, ("spool_lag",), SolverConfig.standard())
     tight = run(c, inputs(t, u), 2e5, params, ("spool_lag",),
                 SolverConfig.standard().tightened(100))
-    span = np.ptp(ref)
-    assert span > 1e5
-    err_std, err_tight = np.max(np.abs(std - ref)), np.max(np.abs(tight - ref))
-    assert err_std < 1e-3 * span
-    assert err_tight < 0.5 * err_std
+    assert_converges_to(ref, std, tight, min_span=1e5, std_of_span=1e-3, shrink=0.5)
 
 
 def test_a_fine_table_of_a_gompertz_map_simulates_as_the_map():

@@ -23,24 +23,7 @@ from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.errors import RigCardError
 from pneubayes.rigcard.chamber_fixed import FixedChamber
 from pneubayes.rigcard.component import register
-from pneubayes.rigcard.values import real
-
-
-def _points(table, key: str, where: str, n: int | None, strict: bool) -> list[float]:
-    at = f"{where} key {key!r}"
-    v = table.get(key)
-    if not isinstance(v, list) or not (2 <= len(v) <= TABLE_MAX_POINTS) or (
-            n is not None and len(v) != n):
-        want = (f"2 to {TABLE_MAX_POINTS} points" if n is None
-                else f"one value per pressure point ({n})")
-        raise RigCardError(f"{at}: must be a list of numbers, {want}; got {v!r}")
-    out = [real(x, f"{at} [{i}]") for i, x in enumerate(v)]
-    for i in range(1, len(out)):
-        if out[i] < out[i - 1] or (strict and out[i] == out[i - 1]):
-            word = "strictly increasing" if strict else "non-decreasing"
-            raise RigCardError(f"{at} [{i}]: the table must be {word}: {out[i]!r} follows "
-                               f"{out[i - 1]!r}")
-    return out
+from pneubayes.rigcard.values import table_column
 
 
 @register
@@ -59,11 +42,13 @@ class CompliantTableChamber(FixedChamber):
 
     @classmethod
     def read_options(cls, table, where):
-        p = _points(table, "pressure_Pa", where, None, strict=True)
+        p = table_column(table, "pressure_Pa", where, order="increasing",
+                         max_points=TABLE_MAX_POINTS)
         if not p[0] > 0:
             raise RigCardError(f"{where} key 'pressure_Pa' [0]: pressures are absolute "
                                f"(> 0 Pa), got {p[0]!r}")
-        dv = _points(table, "volume_change_m3", where, len(p), strict=False)
+        dv = table_column(table, "volume_change_m3", where, order="non-decreasing",
+                          length=len(p), per="pressure point")
         return {"pressure_Pa": p, "volume_change_m3": dv}
 
     def lower_all(self, values, rig):

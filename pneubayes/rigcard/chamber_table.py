@@ -20,24 +20,9 @@ import math
 
 import numpy as np
 
-from pneubayes.errors import RigCardError
 from pneubayes.rigcard.chamber_polynomial import PolynomialChamber
 from pneubayes.rigcard.component import register
-from pneubayes.rigcard.values import real
-
-
-def _points(table, key: str, where: str, n: int | None) -> list[float]:
-    at = f"{where} key {key!r}"
-    v = table.get(key)
-    if not isinstance(v, list) or len(v) < 2 or (n is not None and len(v) != n):
-        want = "at least 2 points" if n is None else f"one value per coordinate ({n})"
-        raise RigCardError(f"{at}: must be a list of numbers, {want}; got {v!r}")
-    out = [real(x, f"{at} [{i}]") for i, x in enumerate(v)]
-    for i in range(1, len(out)):
-        if not out[i] > out[i - 1]:
-            raise RigCardError(f"{at} [{i}]: the table must be strictly increasing: "
-                               f"{out[i]!r} follows {out[i - 1]!r}")
-    return out
+from pneubayes.rigcard.values import table_column
 
 
 @register
@@ -53,8 +38,9 @@ class TableChamber(PolynomialChamber):
 
     @classmethod
     def read_options(cls, table, where):
-        s = _points(table, "coordinate_m", where, None)
-        dv = _points(table, "volume_change_m3", where, len(s))
+        s = table_column(table, "coordinate_m", where, order="increasing")
+        dv = table_column(table, "volume_change_m3", where, order="increasing",
+                          length=len(s), per="coordinate")
         return {"coordinate_m": s, "volume_change_m3": dv}
 
     def check(self, where):

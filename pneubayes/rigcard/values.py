@@ -30,6 +30,40 @@ def real(value, where: str, positive: bool = False, nonnegative: bool = False) -
     return float(value)
 
 
+#: order name -> (sign of each step, whether a zero step is allowed, the word for it)
+_ORDERS = {"increasing": (1.0, False, "strictly increasing"),
+           "non-decreasing": (1.0, True, "non-decreasing"),
+           "non-increasing": (-1.0, True, "non-increasing")}
+
+
+def table_column(table: Mapping, key: str, where: str, *, order: str,
+                 length: int | None = None, per: str = "point",
+                 max_points: int | None = None, nonnegative: bool = False) -> list[float]:
+    """A rig card's table column ``table[key]``: a list of finite numbers in ``order``
+    (``"increasing"`` strictly, ``"non-decreasing"`` or ``"non-increasing"``), of
+    ``length`` values (one per ``per``) or else 2 to ``max_points``; errors name the key
+    and the point (``valve key 'inlet_area_m2' [2]: the table must be non-decreasing``)."""
+    at = f"{where} key {key!r}"
+    v = table.get(key)
+    if not isinstance(v, list):
+        raise RigCardError(f"{at}: must be a list of numbers, got {v!r}")
+    if length is not None and len(v) != length:
+        raise RigCardError(f"{at}: must have one value per {per} ({length}), got {len(v)}")
+    if length is None and len(v) < 2:
+        raise RigCardError(f"{at}: a table has at least 2 points, got {len(v)}")
+    if length is None and max_points is not None and len(v) > max_points:
+        raise RigCardError(f"{at}: a table has 2 to {max_points} points, got {len(v)} "
+                           "(resample a longer one)")
+    out = [real(x, f"{at} [{i}]", nonnegative=nonnegative) for i, x in enumerate(v)]
+    sign, flat_ok, word = _ORDERS[order]
+    for i in range(1, len(out)):
+        step = (out[i] - out[i - 1]) * sign
+        if step < 0 or (step == 0 and not flat_ok):
+            raise RigCardError(f"{at} [{i}]: the table must be {word}: {out[i]!r} follows "
+                               f"{out[i - 1]!r}")
+    return out
+
+
 @dataclass(frozen=True)
 class Unknown:
     """A quantity to be fitted: its prior kind, bounds and optional start value."""

@@ -21,39 +21,10 @@ Card keys:
 
 from __future__ import annotations
 
-import math
-
 from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.errors import RigCardError
 from pneubayes.rigcard.component import RigComponent, register
-from pneubayes.rigcard.values import real
-
-
-def _column(table, key: str, where: str, n: int | None) -> list[float]:
-    at = f"{where} key {key!r}"
-    v = table.get(key)
-    if not isinstance(v, list) or isinstance(v, str):
-        raise RigCardError(f"{at}: must be a list of numbers, got {v!r}")
-    if n is None and not 2 <= len(v) <= TABLE_MAX_POINTS:
-        raise RigCardError(f"{at}: a table has 2 to {TABLE_MAX_POINTS} points, got "
-                           f"{len(v)} (resample a longer one)")
-    if n is not None and len(v) != n:
-        raise RigCardError(f"{at}: must have one value per command point ({n}), got "
-                           f"{len(v)}")
-    return [real(x, f"{at} [{i}]") for i, x in enumerate(v)]
-
-
-def _monotone(values: list[float], at: str, direction: int, strict: bool = False) -> None:
-    """Raise naming the first index where ``values`` breaks the order."""
-    for i in range(1, len(values)):
-        step = (values[i] - values[i - 1]) * direction
-        if step < 0 or (strict and step == 0):
-            if strict:
-                word = "strictly " + ("increasing" if direction > 0 else "decreasing")
-            else:
-                word = "non-" + ("decreasing" if direction > 0 else "increasing")
-            raise RigCardError(f"{at} [{i}]: the table must be {word}: {values[i]!r} "
-                               f"follows {values[i - 1]!r}")
+from pneubayes.rigcard.values import table_column
 
 
 @register
@@ -77,22 +48,14 @@ class TableValve(RigComponent):
 
     @classmethod
     def read_options(cls, table, where):
-        cmd = _column(table, "command", where, None)
-        if not all(math.isfinite(c) for c in cmd):
-            raise RigCardError(f"{where} key 'command': every point must be finite")
-        _monotone(cmd, f"{where} key 'command'", +1, strict=True)
+        cmd = table_column(table, "command", where, order="increasing",
+                           max_points=TABLE_MAX_POINTS)
         n = len(cmd)
-        inlet = _column(table, "inlet_area_m2", where, n)
-        exhaust = (_column(table, "exhaust_area_m2", where, n)
+        inlet = table_column(table, "inlet_area_m2", where, order="non-decreasing",
+                             length=n, per="command point", nonnegative=True)
+        exhaust = (table_column(table, "exhaust_area_m2", where, order="non-increasing",
+                                length=n, per="command point", nonnegative=True)
                    if "exhaust_area_m2" in table else [0.0] * n)
-        for key, areas, direction in (("inlet_area_m2", inlet, +1),
-                                      ("exhaust_area_m2", exhaust, -1)):
-            at = f"{where} key {key!r}"
-            for i, a in enumerate(areas):
-                if not (math.isfinite(a) and a >= 0.0):
-                    raise RigCardError(f"{at} [{i}]: an area must be finite and >= 0 "
-                                       f"(m^2), got {a!r}")
-            _monotone(areas, at, direction)
         if not any(a > 0 for a in inlet):
             raise RigCardError(f"{where} key 'inlet_area_m2': the inlet never opens (all 0)")
         return {"command": cmd, "inlet_area_m2": inlet, "exhaust_area_m2": exhaust}
