@@ -19,6 +19,8 @@ and 2-s windows as ``real_respiraworks.py``:
    lung's quantities (compliance, volume, resistance; the card's other quantities made
    known at the shared fit) on the run's first ``CAL_S`` seconds, and predicts the rest
    of the run, as a ventilator that estimates the patient's lung at the start would.
+   The *own-fit* protocol refines every quantity on the first half of each held-out run
+   and predicts its second half: what the family reaches with the run's own rig.
 
 Per set and form: the training RMSE, and on runs 5-6 after their first ``CAL_S``
 seconds (the same samples for every form and for the set-point baseline) the RMSE of
@@ -125,9 +127,25 @@ def run_form(kind: str, name: str, log) -> dict:
            "setpoint_baseline_after_cal_Pa": setpoint_rmse_Pa(rests, HORIZON_S),
            "shared_parameters": shared.params_, "lung_per_run": per_run,
            "lung_parameters": list(lung)}
+    # within-run: every quantity refined on the first half of each held-out run (from
+    # the shared fit), the second half predicted: the family with the run's own rig
+    halves, errs = [], []
+    for r in held:
+        mid = r.n_samples // 2
+        first, second = r.slice(0, mid + 1), r.slice(mid, None)
+        own = TrajectoryRefiner(model, solver, max_nfev=MAX_NFEV).fit(
+            WindowSet([first], HORIZON_S, HORIZON_S), shared.params_)
+        errs.append(WindowSet([second], HORIZON_S, HORIZON_S).residuals(
+            model, own.params_, SolverConfig.standard()))
+        halves.append(second)
+    out["held_out_second_half_own_fit_Pa"] = float(np.sqrt(np.mean(np.concatenate(errs) ** 2)))
+    out["setpoint_baseline_second_half_Pa"] = setpoint_rmse_Pa(halves, HORIZON_S)
+    out["span_second_half_Pa"] = float(max(np.ptp(r.pressure_Pa) for r in halves))
     log(f"[{kind}] {name:26s} train {shared.rmse_Pa_:5.0f}  held-out {out['held_out_rmse_Pa']:5.0f}"
         f"  after {CAL_S:g} s: shared {shared_rest:5.0f}, calibrated {calibrated:5.0f} Pa "
-        f"(set-point {out['setpoint_baseline_after_cal_Pa']:.0f}, noise {noise:.0f} Pa)")
+        f"(set-point {out['setpoint_baseline_after_cal_Pa']:.0f}, noise {noise:.0f} Pa); "
+        f"own fit on the first half: {out['held_out_second_half_own_fit_Pa']:.0f} Pa on the "
+        f"second (set-point {out['setpoint_baseline_second_half_Pa']:.0f} Pa)")
     return out
 
 

@@ -69,7 +69,8 @@ def _real_results(out: Path, rw_final: float, setpoint: float):
     (out / "real_gtdynamics_tank" / "real_gtdynamics_tank.json").write_text(json.dumps(tank))
     form = {"train_rmse_Pa": 200.0, "held_out_after_cal_shared_Pa": 400.0,
             "held_out_after_cal_calibrated_Pa": 200.0, "noise_floor_Pa": 10.0,
-            "span_after_cal_Pa": 2000.0, "setpoint_baseline_after_cal_Pa": setpoint}
+            "span_after_cal_Pa": 2000.0, "setpoint_baseline_after_cal_Pa": setpoint,
+            "held_out_second_half_own_fit_Pa": 40.0, "setpoint_baseline_second_half_Pa": 240.0}
     forms = {"horizon_s": 2.0, "calibration_s": 4.0, "max_nfev": 100,
              "forms": ["compliant/port", "two_compartment/separate"],
              "sets": {"OXY": {"compliant/port": form,
@@ -89,7 +90,9 @@ def test_real_section_states_the_numbers_and_never_claims_a_fit_it_misses(tmp_pa
     assert "| OXY | 400 | 390 | none | 10 | 39.0 |" in text
     # the draining tank and the ventilator's forms, with their numbers
     assert "1.4 [1.2, 1.7] L" in text and "inside the interval" in text
-    assert "| OXY | two compartment / its own command | 200 | 400 | 100 | 10 | 5.0 |" in text
+    assert ("| OXY | two compartment / its own command | 200 | 400 | 100 | 10 | 5.0 | 250 |"
+            " 40 | 4 | 240 |") in text
+    assert "second half is predicted to 40 Pa (compliant/port), 4 x the noise floor" in text
     assert "cuts the held-out error by 62 %" in text
     assert "best form (two_compartment/separate) reaches 100 Pa, 10 x the noise floor, " \
         "below the set-point baseline's 250 Pa" in text
