@@ -195,14 +195,54 @@ def _rig_card_of(recs):
     return first.rig_card
 
 
+def _known_from(args):
+    """``(rig card, parameters)`` of the fit ``--known-from`` names (a run folder or its
+    model.json); --refit without it is a usage error."""
+    from pneubayes.model import Model
+
+    if not args.known_from:
+        raise PneubayesError("--refit needs --known-from (the fit whose values the other "
+                             "quantities keep)")
+    path = Path(args.known_from)
+    if path.is_dir():
+        path = path / "model.json"
+    model, params = Model.load_card(path)
+    if model.rig_card is None:
+        raise PneubayesError(f"--known-from {path}: the model has no rig card (the paper's "
+                             "cylinders); --known-from fixes a rig card's quantities")
+    return model.rig_card, params, path
+
+
+def _card_known_at(card, known, args):
+    """The recordings' card with its fitted quantities known at ``known``'s values but
+    those --refit names; errors name what does not match."""
+    from pneubayes.model import Model
+
+    known_card, params, path = known
+    if card != known_card:
+        raise PneubayesError(f"--known-from {path} was fitted on the rig "
+                             f"{known_card.name!r}, the recordings are of "
+                             + (f"the rig {card.name!r}" if card else "the paper's cylinders"))
+    fitted = Model(rig_card=card).parameter_names
+    stray = [n for n in args.refit if n not in fitted]
+    if stray:
+        raise PneubayesError(f"--refit: {stray} are not fitted quantities of the rig card "
+                             f"{card.name!r}; its are {list(fitted)}")
+    return card.known_at(params, keep_unknown=args.refit)
+
+
 def cmd_fit(args) -> int:
     from pneubayes.bench.bench import effects_from_names
     from pneubayes.inference.pipeline import FitSettings, run_fit
     from pneubayes.inference.sampler import SamplerSettings
     from pneubayes.model import Model
 
+    known = _known_from(args) if args.known_from or args.refit else None
     recs = _read_all(args.recordings, args.accept, "fit", args.rig)
     card = _rig_card_of(recs)
+    if known is not None:  # the card's quantities known at another fit's values
+        card = _card_known_at(card, known, args)
+        recs = _read_all(args.recordings, args.accept, "fit", card)
     if args.model:
         model, _ = Model.load_card(args.model)
         if model.rig_card != card:
@@ -230,6 +270,7 @@ def cmd_fit(args) -> int:
                 "options": {e.name: e.options() for e in model.effects},
                 "bounds": model.bound_overrides,
                 "rig": None if card is None else card.to_dict(),
+                "known_from": None if known is None else str(known[2]),
                 "method": args.method, "walkers": args.walkers, "seed": args.seed,
                 "windows": _windows(args),
                 "preparation": settings.preparation(), "accept": list(args.accept)}

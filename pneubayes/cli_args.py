@@ -73,6 +73,13 @@ def _setting(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
 
 
+def _names(text: str) -> tuple[str, ...]:
+    names = tuple(v.strip() for v in text.split(",") if v.strip())
+    if not names:
+        raise argparse.ArgumentTypeError("give one or more parameter names, comma-separated")
+    return names
+
+
 def _accept(text: str) -> tuple[str, ...]:
     from pneubayes.io.plausibility import check_accept
 
@@ -246,6 +253,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="effects of the fitted model when no --model (default: the paper's "
                         "cylinder_leak)")
     f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
+    f.add_argument("--known-from", default=None, metavar="RUN|MODEL.json",
+                   help="a fit of the same rig card (its run folder or model.json): the "
+                        "card's fitted quantities are known at that fit's values, except "
+                        "those named by --refit (a valve identified once; a lung "
+                        "recalibrated per recording)")
+    f.add_argument("--refit", type=_names, default=(), metavar="NAME[,NAME]",
+                   help="with --known-from: the card quantities (parameter names) fitted "
+                        "again")
     f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
                    help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
                         "shooting on the windows; mcmc (default): then the emcee posterior")

@@ -478,6 +478,35 @@ def test_cli_rig_option_and_a_fit_on_a_card(tmp_path, capsys):
     assert "cannot read the rig card" in capsys.readouterr().err
 
 
+def test_fit_known_from_another_fit_refits_only_the_named_quantities(tmp_path, capsys):
+    """fit --known-from RUN --refit NAME: the card's other fitted quantities are known at
+    RUN's values (recorded in the new model card); a name the card does not fit, --refit
+    alone and another rig's run are one-line errors."""
+    from pneubayes.cli import main
+
+    if not GTD.is_dir():
+        pytest.skip("shipped GTDynamics data absent")
+    paths = [str(p) for p in sorted(GTD.glob("0p00_0p09_hipknee-80source*/*.csv"))[:2]]
+    first = tmp_path / "fit"
+    assert main(["fit", *paths, "--method", "refine", "--horizon", "0.1", "--effects",
+                 "tube_delay", "--out", str(first)]) == 0
+    one = json.loads((first / "model.json").read_text())
+    assert main(["fit", *paths, "--method", "refine", "--horizon", "0.1", "--effects",
+                 "tube_delay", "--known-from", str(first), "--refit", "dead_volume_m3",
+                 "--out", str(tmp_path / "again")]) == 0
+    two = json.loads((tmp_path / "again" / "model.json").read_text())
+    assert set(two["parameters"]) == {"dead_volume_m3", "tube_delay_s"}
+    assert two["rig"]["valve"]["open_area_m2"] == pytest.approx(
+        one["parameters"]["valve_open_area_m2"], rel=1e-12)
+    capsys.readouterr()
+    for extra, words in ((["--known-from", str(first), "--refit", "tank_volume_m3"],
+                          "not fitted quantities"),
+                         (["--refit", "dead_volume_m3"], "--refit needs --known-from")):
+        assert main(["fit", *paths, "--method", "refine", "--horizon", "0.1", *extra,
+                     "--out", str(tmp_path / "bad")]) == 2
+        assert words in capsys.readouterr().err
+
+
 def test_a_paper_rig_card_is_the_thin_port_model_under_other_names(rig, base_params, hand):
     """The paper's cylinder and valve as a card (piston chamber, Gompertz valve, constant
     supply) simulate exactly as the thin-port core: the plug-ins lower onto the same
