@@ -201,7 +201,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
     propagators ``exp(h J)`` of the whole state).
     ``carry`` (``N_CARRY``) holds the unmeasured states at the start and receives them
     at the end: ``carry[0]`` the chamber temperature (K; used with heat transfer),
-    ``carry[1:-1]`` an acoustic line's cell pressures and flows (NaN: at rest at p0),
+    ``carry[1:1 + 2 * LINE_MAX_SEGMENTS]`` an acoustic line's cell pressures and flows
+    (NaN: at rest at p0),
     ``carry[CARRY_TANK]`` a supply tank's pressure (NaN: the window's supply at its
     start), ``carry[CARRY_LUNG]`` a second compartment's (NaN: p0, no flow between them).
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
+from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
@@ -75,53 +76,52 @@ def port_areas(slots: np.ndarray, spool_V, exhaust_command=None
     return a_in + s_in + t_in, a_ex + s_ex + t_ex
 
 
+def _piecewise_linear(x, xs, ys, n, extend: bool):
+    """``(y, dy/dx)`` of the tables ``(xs[k], ys[k])``, k < n, at ``x``: linear between
+    points, beyond the ends flat (``extend`` False) or the end segments extended. ``xs``
+    and ``ys`` are lists of slot values (each an array broadcasting against ``x``); ``n``
+    may differ per slot row (rows with n < 2 give zeros)."""
+    y = slope = np.zeros(np.broadcast_shapes(np.shape(x), np.shape(n)))
+    for k in range(int(np.max(n)) - 1):
+        live = k < n - 1
+        width = np.where(live, xs[k + 1] - xs[k], 1.0)
+        sk = np.where(live, (ys[k + 1] - ys[k]) / width, 0.0)
+        first, last = k == 0, k == n - 2
+        # segment k holds x above its start (or all below, the first) and at or below
+        # its end (or all above, the last); flat ends hold y_0 below, y_n-1 above
+        here = live & ((x > xs[k]) | first) & ((x <= xs[k + 1]) | last)
+        xk = x if extend else np.clip(x, xs[k], xs[k + 1])
+        y = np.where(here, ys[k] + sk * (xk - xs[k]), y)
+        inside = (x > xs[k]) & (x < xs[k + 1])
+        slope = np.where(here & (extend | inside), sk, slope)
+    return y, slope
+
+
 def tabulated_areas(slots: np.ndarray, u) -> tuple[np.ndarray, np.ndarray]:
     """A tabulated valve map's inlet and exhaust areas (m^2) at commands ``u`` (after the
-    dead band; zeros without a table, slot ``table_points`` 0). ``slots`` may carry
-    trailing dimensions that broadcast against ``u``: the map is evaluated as
-    ``A_0 + sum_k (A_k+1 - A_k) clip((u - c_k) / (c_k+1 - c_k), 0, 1)`` over the table's
-    segments, linear between points and flat beyond the ends."""
+    dead band; zeros without a table, slot ``table_points`` 0), linear between points
+    and flat beyond the ends. ``slots`` may carry trailing dimensions that broadcast
+    against ``u``."""
     sl = np.asarray(slots, dtype=np.float64)
     u = np.asarray(u, dtype=np.float64)
     n = sl[S["table_points"]]
-    zero = np.zeros(np.broadcast_shapes(np.shape(u), np.shape(n)))
-    if not np.any(n > 0):
-        return zero, zero
-    c0, i0, e0 = (S[f"table_{k}_0"] for k in ("command", "inlet_m2", "exhaust_m2"))
-    a_in, a_ex = zero + sl[i0], zero + sl[e0]
-    for k in range(int(np.max(n)) - 1):
-        live = k < n - 1
-        width = np.where(live, sl[c0 + k + 1] - sl[c0 + k], 1.0)
-        frac = np.where(live, np.clip((u - sl[c0 + k]) / width, 0.0, 1.0), 0.0)
-        a_in = a_in + (sl[i0 + k + 1] - sl[i0 + k]) * frac
-        a_ex = a_ex + (sl[e0 + k + 1] - sl[e0 + k]) * frac
-    return a_in, a_ex
+    cmds = [sl[S[f"table_command_{k}"]] for k in range(TABLE_MAX_POINTS)]
+    return tuple(_piecewise_linear(u, cmds, [sl[S[f"table_{port}_m2_{k}"]]
+                                             for k in range(TABLE_MAX_POINTS)], n, False)[0]
+                 for port in ("inlet", "exhaust"))
 
 
 def tabulated_volume(slots: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.ndarray]:
     """A compliant chamber's tabulated volume change and its slope at ``pressure_Pa``:
     ``(dV m^3, dV/dp m^3/Pa)``, linear between points, the end segments extended; zeros
     without a table (slot ``volume_table_points`` 0). ``slots`` may carry trailing
-    dimensions that broadcast against the pressure (as :func:`tabulated_areas`)."""
+    dimensions that broadcast against the pressure."""
     sl = np.asarray(slots, dtype=np.float64)
-    p = np.asarray(pressure_Pa, dtype=np.float64)
-    n = sl[S["volume_table_points"]]
-    zero = np.zeros(np.broadcast_shapes(p.shape, np.shape(n)))
-    if not np.any(n > 0):
-        return zero, zero
-    p0, v0 = S["volume_table_pressure_Pa_0"], S["volume_table_volume_m3_0"]
-    dv, slope = zero.copy(), zero.copy()
-    for k in range(int(np.max(n)) - 1):
-        # segment k holds p when it is the first, or p lies above its start, and it is
-        # the last, or p lies at or below its end (the end segments extended)
-        last = k == n - 2
-        live = k < n - 1
-        width = np.where(live, sl[p0 + k + 1] - sl[p0 + k], 1.0)
-        here = live & ((k == 0) | (p > sl[p0 + k])) & (last | (p <= sl[p0 + k + 1]))
-        sk = (sl[v0 + k + 1] - sl[v0 + k]) / width
-        dv = np.where(here, sl[v0 + k] + sk * (p - sl[p0 + k]), dv)
-        slope = np.where(here, sk, slope)
-    return dv, slope
+    return _piecewise_linear(
+        np.asarray(pressure_Pa, dtype=np.float64),
+        [sl[S[f"volume_table_pressure_Pa_{k}"]] for k in range(TABLE_MAX_POINTS)],
+        [sl[S[f"volume_table_volume_m3_{k}"]] for k in range(TABLE_MAX_POINTS)],
+        sl[S["volume_table_points"]], True)
 
 
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
