@@ -96,25 +96,23 @@ def run_form(kind: str, name: str, log) -> dict:
     shared = TrajectoryRefiner(model, solver, max_nfev=MAX_NFEV).fit(
         WindowSet(train, HORIZON_S, HORIZON_S), model.base_start_values())
     lung = LUNG[chamber]
-    per_run, cal_err, cal_err_shared = {}, [], []
+    per_run, cal_err, cal_err_shared, rests = {}, [], [], []
     local_card = card.known_at(shared.params_, keep_unknown=lung)
     local = Model(rig_card=local_card)
     for r in recs:
-        r = read_recording(r.source, rig_card=local_card)
         n_cal = int(np.searchsorted(r.time_s, r.time_s[0] + CAL_S))
-        cal, rest = r.slice(0, n_cal + 1), r.slice(n_cal, None)
+        bound = read_recording(r.source, rig_card=local_card)  # the lung-only card
+        cal, rest = bound.slice(0, n_cal + 1), bound.slice(n_cal, None)
         fit = TrajectoryRefiner(local, solver, max_nfev=MAX_NFEV).fit(
             WindowSet([cal], HORIZON_S, HORIZON_S), {k: shared.params_[k] for k in lung})
         stem = Path(r.source).stem
         per_run[stem] = {k: fit.params_[k] for k in lung}
         if stem in HELD_OUT:
+            rests.append(r.slice(n_cal, None))
             cal_err.append(WindowSet([rest], HORIZON_S, HORIZON_S).residuals(
                 local, fit.params_, SolverConfig.standard()))
-            rest_shared = read_recording(r.source, rig_card=card).slice(n_cal, None)
-            cal_err_shared.append(WindowSet([rest_shared], HORIZON_S, HORIZON_S).residuals(
+            cal_err_shared.append(WindowSet([rests[-1]], HORIZON_S, HORIZON_S).residuals(
                 model, shared.params_, SolverConfig.standard()))
-    rests = [r.slice(int(np.searchsorted(r.time_s, r.time_s[0] + CAL_S)), None)
-             for r in held]
     noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
     span = float(max(np.ptp(r.pressure_Pa) for r in rests))
     shared_rest = float(np.sqrt(np.mean(np.concatenate(cal_err_shared) ** 2)))
