@@ -191,3 +191,10 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     jt = ft / temp + temp * (jpt / p - rs * mdot / (p * vol) - g * dmdot_dT)
     vt = temp * (vp / p - (vdot / vol) ** 2 - g * dmdot_dt + g * mdot * vdot / vol)
     return fp, jp, ft, jt, vp, jpt, jtp, vt
+
+
+#: :func:`chamber_rhs` compiled as a function of its own rather than inlined at each call
+#: site: the forms with a second state (:mod:`~pneubayes.simulation.thermal`, ``tank``,
+#: ``lung``) call it, which keeps their compile time down at a few per cent of their
+#: speed. Same code, so the two dispatchers may share numba's cache entries.
+chamber_rhs_call = njit(cache=True, error_model="numpy")(chamber_rhs.py_func)

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -62,16 +63,24 @@ from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-
     S_MIN_STEP,
     S_RTOL,
 )
-from pneubayes.simulation.line import line_step
+from pneubayes.simulation.line import (
+    line_accept,
+    line_finish,
+    line_start,
+    line_step,
+    line_volume,
+)
 from pneubayes.simulation.lung import lung_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 
-OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME = 0, 1, 2, 3, 4
+OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME, NEEDS_GENERAL = 0, 1, 2, 3, 4, 5
 STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
-               LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume"}
+               LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume",
+               NEEDS_GENERAL: "a form with a second state reached the pressure-only kernel "
+                              "(an internal error)"}
 #: Length of the state carried from one window to the next: the chamber temperature,
 #: an acoustic line's cell pressures and flows (NaN: start the line at rest) and a
 #: supply tank's pressure (NaN: start at the window's supply) and a second
@@ -91,7 +100,6 @@ _SUPG = SLOT_INDEX["supply_gain"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _LLEN = SLOT_INDEX["line_length_m"]
-_LDIA = SLOT_INDEX["line_diameter_m"]
 _LSEG = SLOT_INDEX["line_segments"]
 _OPEN_IN = SLOT_INDEX["inlet_open_area_m2"]
 _OPEN_EX = SLOT_INDEX["exhaust_open_area_m2"]
@@ -130,7 +138,7 @@ def _gompertz_rate(u, a, b, c, d):
     return a * math.exp(-b * inner) * b * c * inner
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _areas(spool, dead, sl):
     """Port areas (eq. 11) for spool position ``spool`` behind a dead band of half-width
     dead; the exhaust's is 0 when it is a separate valve (:func:`_own_exhaust_area`)."""
@@ -154,7 +162,7 @@ def _areas(spool, dead, sl):
     return a_in, a_ex
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _own_exhaust_area(ue, sl):
     """A separately commanded exhaust valve's area at its command ``ue``, m^2: the exhaust
     map (eq. 11) of ue plus the open area times clip(ue, 0, 1); 0 without one."""
@@ -165,7 +173,7 @@ def _own_exhaust_area(ue, sl):
             + sl[_OPEN_EX] * f)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _area_rates(spool, spool_rate, dead, sl):
     """Time derivatives of the two port areas for a spool moving at ``spool_rate`` V/s."""
     mag = abs(spool) - dead
@@ -189,11 +197,15 @@ def _area_rates(spool, spool_rate, dead, sl):
 
 
 @njit(cache=True, error_model="numpy")
-def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
+def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
+
+    ``general`` is None for the pressure-only kernel: numba prunes the branches of the
+    forms with a second state (heat transfer, an acoustic line, a tank, a second
+    compartment), so they are compiled only when a model uses them (any other value).
 
     ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
     the pressure to the initial pressure: the product of the accepted steps'
@@ -234,6 +246,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
     lung_from_p0 = lung and math.isnan(p_lung)
     if lung_from_p0:
         p_lung = p0
+    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0):
+        return NEEDS_GENERAL
     p = p0
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p
@@ -251,19 +265,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
     y = np.empty(ny)
     y_new = np.empty(ny)
     s_vec = np.zeros(ny)
-    prop = np.eye(ny)
-    if line:
-        v0 = v0 - 0.25 * math.pi * sl[_LDIA] ** 2 * sl[_LLEN]
+    prop = np.empty((ny, ny))
+    if general is not None and line:
+        v0 = v0 - line_volume(sl)
         if not v0 > 0.0:
             return LINE_VOLUME
-        y[0] = p0
-        s_vec[0] = 1.0
-        if math.isnan(carry[1]):
-            y[1:1 + nseg] = p0  # at rest at the chamber's pressure
-            y[1 + nseg:] = 0.0
-            s_vec[1:1 + nseg] = 1.0
-        else:
-            y[1:] = carry[1:ny]
+        line_start(y, s_vec, p0, carry, nseg)
     # Delayed-command pointer: index j of the sample held at time t - delay.
     j = 0
     t_start = t[i0]
@@ -346,22 +353,22 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
                 p_tank_new = p_tank
                 p_lung_new = p_lung
                 zp = 0.0
-                if line:
+                if general is not None and line:
                     err, prop = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup,
                                           da_in, da_ex, a_in2, a_ex2, vol2, psup2, sl, cs,
                                           atol_p, rtol, y_new)
                     pn = y_new[0]
-                elif tank:
+                elif general is not None and tank:
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
                                                             vdot, da_in, da_ex, a_in2, a_ex2,
                                                             vol2, sl, cs, c_tank, atol_p,
                                                             rtol)
-                elif lung:
+                elif general is not None and lung:
                     err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
                                                             vdot, psup, dsup, da_in, da_ex,
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
                                                             atol_p, rtol)
-                elif thermal:
+                elif general is not None and thermal:
                     err, pn, tn, prop_t = thermal_step(p, temp, hh, a_in, a_ex, vol, vdot,
                                                        psup, dsup, da_in, da_ex, a_in2, a_ex2,
                                                        vol2, psup2, sl, cs, atol_p, atol_t,
@@ -386,23 +393,18 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
                     p_tank = p_tank_new
                     p_lung = p_lung_new
                     p, temp = pn, tn
-                    if line:
-                        y[:] = y_new
-                        if want_sens:
-                            s_next = np.zeros(ny)
-                            for ii in range(ny):
-                                for kk in range(ny):
-                                    s_next[ii] += prop[ii, kk] * s_vec[kk]
-                            s_vec = s_next
-                            s_p0 = s_vec[0]
+                    if general is not None and line:
+                        s_p0 = line_accept(y, y_new, prop, s_vec, want_sens)
                     elif thermal or tank or lung:
                         if want_sens:  # (dp, dT or the second p)/dp0 through the propagator
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
                         s_p0 *= math.exp(zp)
-                    fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
-                    if hh >= h or fac < 1.0:
+                    # grow the step only when it was not cut short by a break point;
+                    # shrink it when the error asks (0.9 / cbrt(err) < 1 iff err > 0.729)
+                    if hh >= h or err > 0.729:
+                        fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
                         h = min(hmax, hh * fac)
                 else:
                     if not math.isfinite(err):
@@ -421,8 +423,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
         if want_sens:
             sens[k + 1 - i0] = s_p0
     carry[0] = temp
-    if line:
-        carry[1:ny] = y[1:]
+    if general is not None and line:
+        line_finish(y, carry)
     if tank:
         carry[CARRY_TANK] = p_tank
     if lung:
@@ -430,40 +432,87 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry):
     return OK
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, with_sensitivity):
-    """Every (parameter set, window) pair; see :func:`simulate_windows`."""
-    nb = slots.shape[0]
+@njit(cache=True, error_model="numpy")
+def _layout(slots, starts, length):
+    """Windows per task: a parameter set's windows run in order in one task when they are
+    contiguous (each starts on the previous one's last sample) and a state the recording
+    does not measure is carried between them; otherwise one task per window."""
     nw = starts.shape[0]
-    out = np.empty((nb, nw, length))
-    sens = np.empty((nb, nw, length if with_sensitivity else 0))
-    status = np.zeros((nb, nw), dtype=np.int64)
-    # Contiguous windows (each starts on the previous one's last sample) carry the
-    # states the recording does not measure (chamber temperature, an acoustic line) from
-    # one window to the next; only the measured pressure is reset at each start.
     chained = nw > 1
     for w in range(1, nw):
         if starts[w] != starts[w - 1] + length - 1:
             chained = False
-    hidden = False  # a state the recording does not measure
-    for b in range(nb):
+    hidden = False
+    for b in range(slots.shape[0]):
         if (slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0 or slots[b, _LLEN] > 0.0
                 or slots[b, _TANK] > 0.0 or slots[b, _LUNG] > 0.0):
             hidden = True
-    # chained with a hidden state: one task per parameter set runs its windows in order;
-    # otherwise one task per (parameter set, window) pair
-    per_task = nw if chained and hidden else 1  # windows per task
-    tasks_per_set = nw // per_task
-    for task in prange(nb * tasks_per_set):
-        b = task // tasks_per_set
-        w0 = (task % tasks_per_set) * per_task
-        carry = _fresh_carry(consts)
-        for w in range(w0, w0 + per_task):
-            status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, starts[w],
-                                   length, p0[w], out[b, w], sens[b, w], carry)
-            if status[b, w] != OK:
-                carry = _fresh_carry(consts)
+    return nw if chained and hidden else 1
+
+
+@njit(cache=True, error_model="numpy")
+def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out,
+          sens, status, general):
+    """One task: parameter set ``task // (W / per_task)``, its windows from
+    ``(task % (W / per_task)) * per_task`` on, carrying the unmeasured states."""
+    tasks_per_set = starts.shape[0] // per_task
+    b = task // tasks_per_set
+    w0 = (task % tasks_per_set) * per_task
+    carry = _fresh_carry(consts)
+    for w in range(w0, w0 + per_task):
+        status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, starts[w], length,
+                               p0[w], out[b, w], sens[b, w], carry, general)
+        if status[b, w] != OK:
+            carry = _fresh_carry(consts)
+
+
+@njit(cache=True, error_model="numpy")
+def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out, sens,
+                     status, general):
+    """Every (parameter set, window) pair on the calling thread."""
+    per_task = _layout(slots, starts, length)
+    for task in range(slots.shape[0] * (starts.shape[0] // per_task)):
+        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
+              out, sens, status, general)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out,
+                       sens, status, general):
+    """Every (parameter set, window) pair, tasks spread over numba's threads."""
+    per_task = _layout(slots, starts, length)
+    for task in prange(slots.shape[0] * (starts.shape[0] // per_task)):
+        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
+              out, sens, status, general)
+
+
+def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, with_sensitivity):
+    """Every (parameter set, window) pair; see :func:`simulate_windows`.
+
+    Compiled variants are chosen here and built on first use: the pressure-only kernel
+    unless a parameter set has a second state, and the multi-threaded loop only when
+    numba has more than one thread and there is more than one task.
+    """
+    nb, nw = slots.shape[0], starts.shape[0]
+    out = np.empty((nb, nw, length))
+    sens = np.empty((nb, nw, length if with_sensitivity else 0))
+    status = np.zeros((nb, nw), dtype=np.int64)
+    general = True if needs_general(slots) else None
+    run = _simulate_serial
+    if nb * nw > 1 and numba.get_num_threads() > 1:
+        run = _simulate_parallel
+    run(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out, sens, status,
+        general)
     return out, sens, status
+
+
+def needs_general(slots) -> bool:
+    """True when a parameter set (row of ``slots``) has a second state: heat transfer, an
+    acoustic line, a supply tank or a second compartment."""
+    slots = np.asarray(slots)
+    return bool(np.any((slots[:, _HEAT] > 0.0) | (slots[:, _HCONV] > 0.0)
+                       | (slots[:, _LLEN] > 0.0) | (slots[:, _TANK] > 0.0)
+                       | (slots[:, _LUNG] > 0.0)))
 
 
 @njit(cache=True, error_model="numpy")

@@ -314,3 +314,50 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
             e = 10.0
         err = max(err, e)
     return err, prop
+
+
+@njit(cache=True, error_model="numpy")
+def line_volume(sl):
+    """The line's volume, m^3 (it leaves the chamber's dead volume)."""
+    return 0.25 * math.pi * sl[_DIA] ** 2 * sl[_LEN]
+
+
+@njit(cache=True, error_model="numpy")
+def line_start(y, s_vec, p0, carry, nseg):
+    """A window's start: ``y`` = [p0, cells, flows] from ``carry`` (NaN: at rest at p0)
+    and ``s_vec`` = dy/dp0 (1 for p and cells at rest, 0 otherwise)."""
+    ny = 1 + 2 * nseg
+    y[0] = p0
+    for i in range(ny):
+        s_vec[i] = 0.0
+    s_vec[0] = 1.0
+    if math.isnan(carry[1]):
+        for i in range(1, 1 + nseg):
+            y[i] = p0
+            s_vec[i] = 1.0
+        for i in range(1 + nseg, ny):
+            y[i] = 0.0
+    else:
+        for i in range(1, ny):
+            y[i] = carry[i]
+
+
+@njit(cache=True, error_model="numpy")
+def line_accept(y, y_new, prop, s_vec, want_sens):
+    """An accepted step: ``y <- y_new`` and, when ``want_sens``, ``s_vec <- prop s_vec``;
+    returns dp/dp0 (``s_vec[0]``)."""
+    ny = y.shape[0]
+    for i in range(ny):
+        y[i] = y_new[i]
+    if want_sens:
+        s_next = _matmul(prop, s_vec.reshape((ny, 1)))
+        for i in range(ny):
+            s_vec[i] = s_next[i, 0]
+    return s_vec[0]
+
+
+@njit(cache=True, error_model="numpy")
+def line_finish(y, carry):
+    """A window's end: the cells and flows into ``carry[1:]``."""
+    for i in range(1, y.shape[0]):
+        carry[i] = y[i]

@@ -12,12 +12,12 @@ import math
 
 from numba import njit
 
-from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.chamber import chamber_rhs_call
 
 _INV_FACT = tuple(1.0 / math.factorial(j) for j in range(17))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _mm2(x, y):
     """Product of 2 x 2 matrices stored row-major as 4-tuples."""
     return (x[0] * y[0] + x[1] * y[2], x[0] * y[1] + x[1] * y[3],
@@ -64,7 +64,7 @@ def phi0123_2x2(m):
     return f0, f1, f2, f3
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def exprb2_predict(p, q, hh, fp, fq, jpp, jpq, jqp, jqq, vp, vq):
     """Stage 1 of exprb32 for a positive 2-state ``(p, q)`` with slopes ``fp, fq``,
     Jacobian ``J`` and explicit time derivatives ``vp, vq``; the phi-functions are taken
@@ -82,7 +82,7 @@ def exprb2_predict(p, q, hh, fp, fq, jpp, jpq, jqp, jqq, vp, vq):
     return up, uq, f3, prop
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def exprb2_correct(p, q, up, uq, hh, f3, fp, fq, fp2, fq2, jpp, jpq, jqp, jqq, vp, vq,
                    atol_p, atol_q, rtol):
     """Stage 2 of exprb32 from the slopes ``fp2, fq2`` at ``(up, uq)``: the nonlinear
@@ -110,12 +110,12 @@ def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a
     Returns ``(err, p_new, T_new, exp(h J))``, the propagator as a row-major 4-tuple;
     ``err`` <= 1 accepts the step.
     """
-    fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup,
+    fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs_call(p, temp, a_in, a_ex, vol, vdot, psup,
                                                      sl, cs, hh, True, dsup, da_in, da_ex)
     up, ut, f3, prop = exprb2_predict(p, temp, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, temp, prop
-    fp2, _, ft2, _, _, _, _, _ = chamber_rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
+    fp2, _, ft2, _, _, _, _, _ = chamber_rhs_call(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
                                              cs, hh, False, 0.0, 0.0, 0.0)
     err, pn, tn = exprb2_correct(p, temp, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp,
                                  jtt, vp, vt, atol_p, atol_t, rtol)
