@@ -55,6 +55,9 @@ RADAU_RTOL, RADAU_ATOL_PA = 1e-10, 1e-6
 SCIPY_CHUNK_S = 0.25       # scipy runs proceed in chunks so a slow one can be cut short
 
 FLOOR_SIM_S_PER_S_PER_CORE = 3000.0
+FLOOR_SIM_S_PER_S_BATCH1 = 5000.0    # issue 23: batch 1, one thread, via simulate()
+FLOOR_BATCH64_RATIO = 1.2            # issue 23: batch-64 cost per trajectory / batch-1's
+FLOOR_FIRST_CALL_S = 20.0            # issue 23: first simulate on a fresh install
 FLOOR_SPEEDUP_LSODA_FIXED = 100.0
 FLOOR_SPEEDUP_LSODA_MOVING = 1000.0
 LOAD_WARN = 0.5            # 1-min load average above which the run notes contention
@@ -164,6 +167,129 @@ def time_calls(fn, min_total_s, min_reps):
 
 def _pct(err_pa, working_range):
     return None if err_pa is None else 100.0 * err_pa / working_range
+
+
+# ----------------------------------------------------------------------------- cold start
+_COLD_SNIPPET = r"""
+import json, sys, time
+t0 = time.perf_counter()
+import numpy as np
+import numba
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
+from pneubayes.simulation import Inputs, SolverConfig, simulate
+out = {"import_s": time.perf_counter() - t0}
+n = 2001
+t = np.arange(n) / 1000.0
+rig = Rig(0.009, 101325.0, 551325.0)
+inputs = Inputs(t, np.where(t < 1.0, 3.0, -3.0), np.zeros(n), np.full(n, 551325.0))
+p = valve_preset("valve1").parameters()
+p.update(dead_volume_m3=2.4e-6, leak_area_m2=3.04e-8)
+model = Model(["cylinder_leak"])
+a = time.perf_counter()
+simulate(model, model.vector(p), inputs, rig, 101325.0, SolverConfig.standard())
+out["first_simulate_s"] = time.perf_counter() - a
+out["first_call_total_s"] = time.perf_counter() - t0
+if numba.config.NUMBA_NUM_THREADS > 1:
+    numba.set_num_threads(2)
+    a = time.perf_counter()
+    simulate(model, np.tile(model.vector(p), (8, 1)), inputs, rig, 101325.0,
+             SolverConfig.standard())
+    out["first_batched_two_threads_s"] = time.perf_counter() - a
+if "--general" in sys.argv:
+    hot = Model(["cylinder_leak", "heat_transfer"])
+    q = {**hot.neutral_values(), **p, "heat_rate_per_s": 20.0}
+    a = time.perf_counter()
+    simulate(hot, hot.vector(q), inputs, rig, 101325.0, SolverConfig.standard())
+    out["first_general_form_s"] = time.perf_counter() - a
+print(json.dumps(out))
+"""
+
+
+def cold_start(general):
+    """The first calls of a fresh install: a new process with an empty numba cache
+    (``NUMBA_CACHE_DIR`` a new temporary folder), timing the import, the first
+    ``simulate`` of the paper's model (which compiles it), the first batched call on 2
+    threads and, with ``general``, the first model with a second state (heat transfer)."""
+    import json
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="pneubayes-cold-") as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        a = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-c", _COLD_SNIPPET]
+                              + (["--general"] if general else []),
+                              capture_output=True, text=True, env=env, timeout=900)
+        wall = time.perf_counter() - a
+    if proc.returncode != 0:
+        return {"error": proc.stderr[-800:], "process_wall_s": wall}
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    out["process_wall_s"] = wall
+    return out
+
+
+# ----------------------------------------------------------------------------- user's scipy
+def make_user_rhs(params, volume_m3, gas, inputs):
+    """The chamber ODE as a user would write it for scipy: plain Python floats, eqs. 1-5
+    and 11 with the orifice leak, command held between samples, piston linear between
+    samples. Returns ``rhs(t, y)``; it calls nothing from pneubayes."""
+    k = gas.heat_capacity_ratio
+    rs_t = gas.specific_gas_constant_J_per_kg_K * gas.temperature_K
+    alpha, beta, theta = gas.alpha_s_per_m, gas.beta_s_per_m, gas.theta
+    t0, dt = float(inputs.time_s[0]), float(inputs.time_s[1] - inputs.time_s[0])
+    u, x = inputs.command_V.tolist(), inputs.position_m.tolist()
+    n = len(u)
+    area = np.pi * BORE_M ** 2 / 4.0
+    pin = [params[f"inlet_{q}"] for q in ("offset_m2", "a_m2", "b", "c_per_V", "d_V")]
+    pex = [params[f"exhaust_{q}"] for q in ("offset_m2", "a_m2", "b", "c_per_V", "d_V")]
+    leak = params["leak_area_m2"]
+
+    def gompertz(c, off, a, b, cc, d):
+        return off + a * np.exp(-b * np.exp(-cc * (c + d)))
+
+    def z(pu, pd):  # eq. 3, pu >= pd
+        if pu > theta * pd:
+            return beta * pu
+        r = pd / pu
+        return alpha * pu * np.sqrt(max(r ** (2.0 / k) - r ** ((k + 1.0) / k), 0.0))
+
+    def f(pu, pd):  # eq. 2, signed
+        return z(pu, pd) if pu >= pd else -z(pd, pu)
+
+    def rhs(t, y):
+        p = y[0]
+        i = min(int((t - t0) / dt), n - 2)
+        c = u[i]
+        fr = (t - t0) / dt - i
+        vol = volume_m3 + area * (x[i] + fr * (x[i + 1] - x[i]))
+        vdot = area * (x[i + 1] - x[i]) / dt
+        mdot = (gompertz(c, *pin) * f(P_SUPPLY, p)
+                - (gompertz(c, *pex) + leak) * f(p, P_ATM))
+        return [k / vol * (rs_t * mdot - p * vdot)]
+
+    return rhs
+
+
+def run_user_scipy(rhs, inputs, method, rtol, atol, p0, max_horizon_s):
+    """solve_ivp on the user's right-hand side, one call per sample interval (the held
+    command is discontinuous at samples; so is the piston speed), up to max_horizon_s."""
+    from scipy.integrate import solve_ivp
+
+    t = inputs.time_s
+    n_max = min(round(max_horizon_s * SAMPLE_RATE_HZ), t.size - 1)
+    y = np.empty(n_max + 1)
+    y[0] = p0
+    a = time.perf_counter()
+    for i in range(n_max):
+        sol = solve_ivp(rhs, (t[i], t[i + 1]), [y[i]], method=method, rtol=rtol, atol=atol)
+        if not sol.success:
+            return {"failed": True, "error": sol.message}, None
+        y[i + 1] = sol.y[0, -1]
+    wall = time.perf_counter() - a
+    horizon = float(t[n_max] - t[0])
+    return {"failed": False, "horizon_s": horizon, "wall_s": wall,
+            "wall_per_simulated_second_s": wall / horizon}, y
 
 
 # ----------------------------------------------------------------------------- scipy runs
@@ -367,6 +493,22 @@ def main(argv=None):
             b64["error"] = str(exc)[:500]
         res["pneubayes_batch64"] = b64
 
+        # batch 64 of the identical parameter vector: the cost per trajectory against
+        # batch 1's (a trajectory should cost the same alone or in a batch)
+        same = {"threads": 1, "batch": 64, "parameters": "base vector tiled"}
+        try:
+            tiled = np.tile(c["base"], (64, 1))
+            timing = time_calls(lambda tiled=tiled, c=c: sim(tiled, c["inputs"]),
+                                min_total, min_reps)
+            same.update(timing)
+            same["wall_per_trajectory_s"] = timing["median_s"] / 64
+            if pb.get("wall_per_trajectory_s"):
+                same["ratio_to_batch1"] = (same["wall_per_trajectory_s"]
+                                           / pb["wall_per_trajectory_s"])
+        except SimulationError as exc:
+            same["error"] = str(exc)[:500]
+        res["pneubayes_batch64_identical"] = same
+
         # Radau reference and scipy baselines
         print(f"[{name}] scipy Radau reference ...", file=sys.stderr, flush=True)
         radau, radau_traj = run_scipy(ctx, c["inputs"], c["base"], "Radau", RADAU_RTOL,
@@ -405,6 +547,23 @@ def main(argv=None):
             if r["failed"] or r["returned_nan"]:
                 notes.append(f"{name}: scipy {method} failed ({r['error'] or 'NaN output'}); "
                              "no speedup or error recorded for it.")
+        # the same solvers on a lean NumPy right-hand side written as a user would
+        res["scipy_user_rhs"] = {}
+        user_rhs = make_user_rhs({**c["params"]}, c["volume"], rig.gas, c["inputs"])
+        for method in ("LSODA", "RK45"):
+            print(f"[{name}] scipy {method} on a user's NumPy right-hand side ...",
+                  file=sys.stderr, flush=True)
+            r, y = run_user_scipy(user_rhs, c["inputs"], method, SCIPY_RTOL, SCIPY_ATOL_PA,
+                                  P_ATM, scipy_horizon)
+            if not r["failed"]:
+                if ref_ok:
+                    err, nn = max_abs_diff(y, radau_traj)
+                    r["max_abs_diff_vs_radau_Pa"] = err
+                    r["max_abs_diff_vs_radau_percent_of_range"] = _pct(err, working_range)
+                if "wall_per_simulated_second_s" in pb:
+                    r["speedup_of_pneubayes"] = (r["wall_per_simulated_second_s"]
+                                                 / pb["wall_per_simulated_second_s"])
+            res["scipy_user_rhs"][method] = r
         if radau["shortened_by_budget"]:
             notes.append(f"{name}: the Radau reference exceeded the budget; errors are over "
                          f"the first {radau['horizon_s']:g} s.")
@@ -437,6 +596,11 @@ def main(argv=None):
             throughput.append(row)
     numba.set_num_threads(1)
 
+    # ---------------------------------------------------------------- 3. cold start
+    print("[cold start] a fresh process with an empty numba cache ...", file=sys.stderr,
+          flush=True)
+    cold = cold_start(general=not quick)
+
     # ---------------------------------------------------------------- headline + floors
     def _get(d, *keys):
         for k in keys:
@@ -452,6 +616,10 @@ def main(argv=None):
                 else None)
     headline_b64 = (min(by_case_b64.values())
                     if all(v is not None for v in by_case_b64.values()) else None)
+    ratios = {k: _get(v, "pneubayes_batch64_identical", "ratio_to_batch1")
+              for k, v in per_case.items()}
+    worst_ratio = (max(ratios.values()) if all(v is not None for v in ratios.values())
+                   else None)
     sp_fixed = _get(per_case, FIXED_CASE, "scipy", "LSODA", "speedup_of_pneubayes")
     sp_moving = _get(per_case, MOVING_CASE, "scipy", "LSODA", "speedup_of_pneubayes")
 
@@ -466,6 +634,27 @@ def main(argv=None):
                          for k, v in by_case.items()},
             "definition": "single thread, batch of 1, via pneubayes.simulation.simulate; "
                           "minimum over the three volume cases",
+        },
+        "batch1_sim_seconds_per_second_issue23": {
+            "floor": FLOOR_SIM_S_PER_S_BATCH1, "value": headline,
+            "met": _met(headline, FLOOR_SIM_S_PER_S_BATCH1),
+            "per_case": {k: {"value": v, "met": _met(v, FLOOR_SIM_S_PER_S_BATCH1)}
+                         for k, v in by_case.items()},
+            "definition": "as sim_seconds_per_second_per_core, against issue 23's floor",
+        },
+        "batch64_over_batch1_per_trajectory": {
+            "ceiling": FLOOR_BATCH64_RATIO, "value": worst_ratio,
+            "met": None if worst_ratio is None else bool(worst_ratio <= FLOOR_BATCH64_RATIO),
+            "per_case": ratios,
+            "definition": "wall per trajectory of 64 copies of the base vector in one call "
+                          "over that of one, single thread, via simulate; maximum over cases",
+        },
+        "first_call_s": {
+            "ceiling": FLOOR_FIRST_CALL_S, "value": cold.get("first_call_total_s"),
+            "met": (None if cold.get("first_call_total_s") is None
+                    else bool(cold["first_call_total_s"] <= FLOOR_FIRST_CALL_S)),
+            "definition": "import plus the first simulate of the paper's model in a new "
+                          "process with an empty numba cache",
         },
         "speedup_vs_lsoda_fixed": {
             "floor": FLOOR_SPEEDUP_LSODA_FIXED, "value": sp_fixed,
@@ -510,6 +699,7 @@ def main(argv=None):
         "floors": floors,
         "all_floors_met": (None if any(f["met"] is None for f in floors.values())
                            else all(f["met"] for f in floors.values())),
+        "cold_start": cold,
         "accuracy_check": accuracy_check,
         "cases": per_case,
         "throughput": throughput,
@@ -601,6 +791,12 @@ def format_table(r):
                      f"{c['position_max_m'] * 1e3:.2f} mm, max speed "
                      f"{c['max_piston_speed_m_per_s']:.3f} m/s")
     L.append("  (kernel = compiled kernel alone, without the Python wrapper: diagnostic)")
+    for name, c in r["cases"].items():
+        same = c.get("pneubayes_batch64_identical", {})
+        if same.get("ratio_to_batch1") is not None:
+            L.append(f"  {name}: 64 copies of the base vector in one call: "
+                     f"{1e3 * same['wall_per_trajectory_s']:.3f} ms per trajectory = "
+                     f"{same['ratio_to_batch1']:.2f} x batch 1")
     L.append("")
     L.append("   scipy solve_ivp (rtol 1e-6, atol 1e-3 Pa) and Radau reference")
     L.append(f"{'case':<14}{'solver':<7}{'horizon s':>10}{'wall s':>9}{'s/sim-s':>9}"
@@ -617,6 +813,18 @@ def format_table(r):
                      f"{_f(x.get('max_abs_diff_vs_radau_Pa'), '.2f', 10)}"
                      f"{_f(x.get('max_abs_diff_vs_radau_percent_of_range'), '.4f', 9)}  "
                      f"{status}")
+    for name, c in r["cases"].items():
+        for meth, x in c.get("scipy_user_rhs", {}).items():
+            if x.get("failed"):
+                L.append(f"{name:<14}{meth + '*':<7}  FAILED: {(x.get('error') or '')[:50]}")
+                continue
+            L.append(f"{name:<14}{meth + '*':<7}{x['horizon_s']:>10.3f}{x['wall_s']:>9.2f}"
+                     f"{_f(x.get('wall_per_simulated_second_s'), '.2f', 9)}"
+                     f"{_f(x.get('speedup_of_pneubayes'), '.0f', 10)}"
+                     f"{_f(x.get('max_abs_diff_vs_radau_Pa'), '.2f', 10)}"
+                     f"{_f(x.get('max_abs_diff_vs_radau_percent_of_range'), '.4f', 9)}  ok")
+    L.append("  (* = solve_ivp on a lean NumPy right-hand side written as a user would, "
+             "not the toolkit's reference one)")
     L.append("  (speedup = scipy wall per simulated second / pneubayes wall per simulated "
              "second)")
     L.append("")
@@ -632,6 +840,18 @@ def format_table(r):
                  f"{row.get('repetitions', 0):>6}"
                  f"{_f(row.get('sim_seconds_per_second'), '.0f', 12)}"
                  f"{_f(row.get('sim_seconds_per_second_per_core'), '.0f', 11)}")
+    cold = r.get("cold_start", {})
+    L.append("")
+    L.append("3) cold start (new process, empty numba cache)")
+    if "error" in cold:
+        L.append(f"  FAILED: {cold['error'][:200]}")
+    for key, label in (("import_s", "import"),
+                       ("first_simulate_s", "first simulate, paper's model (compiles)"),
+                       ("first_call_total_s", "import + first simulate"),
+                       ("first_batched_two_threads_s", "then first batched call, 2 threads"),
+                       ("first_general_form_s", "then first heat-transfer model")):
+        if cold.get(key) is not None:
+            L.append(f"  {label:<50}{cold[key]:>8.1f} s")
     L.append("")
     L.append("headline")
 
@@ -644,6 +864,8 @@ def format_table(r):
          r["sim_seconds_per_second_per_core"], fl["sim_seconds_per_second_per_core"]),
         ("sim_seconds_per_second_per_core_batched (min over volumes, batch 64)",
          r["sim_seconds_per_second_per_core_batched"], None),
+        ("batch 1 sim-s/s, issue 23's floor (min over volumes)",
+         r["sim_seconds_per_second_per_core"], fl["batch1_sim_seconds_per_second_issue23"]),
         (f"speedup_vs_lsoda_fixed  ({fl['speedup_vs_lsoda_fixed']['case']})",
          r["speedup_vs_lsoda_fixed"], fl["speedup_vs_lsoda_fixed"]),
         (f"speedup_vs_lsoda_moving ({fl['speedup_vs_lsoda_moving']['case']})",
@@ -652,6 +874,12 @@ def format_table(r):
     for label, value, floor in rows:
         tail = "" if floor is None else f"  floor {floor['floor']:>6.0f}  {met(floor['met'])}"
         L.append(f"  {label:<72}{_f(value, '.0f', 8)}{tail}")
+    for key, label, fmt in (("batch64_over_batch1_per_trajectory",
+                             "batch-64 / batch-1 cost per trajectory (max over volumes)", ".2f"),
+                            ("first_call_s", "first call on a fresh install, s", ".1f")):
+        f = fl[key]
+        L.append(f"  {label:<72}{_f(f['value'], fmt, 8)}  ceiling {f['ceiling']:>4g}  "
+                 f"{met(f['met'])}")
     a = r["accuracy_check"]
     label = f"accuracy: max error <= {a['floor_percent_of_range']:g} % of range in every case"
     L.append(f"  {label:<72}{'':>8}  {met(a['met'])}")
