@@ -9,8 +9,9 @@
    for every parameter within 15 minutes on 2 cores.
 2. ``predict`` on a held-out moving recording: RMSE against the noise floor (<= 1.5x)
    and 90 % band coverage (0.85-0.95).
-3. The controller API: 64 posterior draws over a 2-s horizon at 1 kHz (floor 20 ms,
-   aim 5 ms), median of repeated calls on all cores.
+3. The controller API: 64 posterior draws over a 2-s horizon on the controller's 200-Hz
+   grid (issue 23's floor 5 ms) and on a 1-kHz grid, median of repeated calls on all
+   cores.
 Times are reported, never asserted.
 """
 
@@ -67,14 +68,20 @@ def main(argv=None) -> int:
     model, draws, _ = load_posterior(work / "run", 64, rng)
     rig = recs[0].rig()
     api = PressurePredictor(model, draws, rig, SolverConfig.standard())
-    cmd = np.repeat(rng.uniform(-5, 5, 20), 100)[None]  # 2 s of 100-ms holds at 1 kHz
-    api.predict(3e5, cmd, 0.01, 1e-3)
-    times = []
-    for _ in range(30):
-        a = time.perf_counter()
-        api.predict(3e5, cmd, 0.01, 1e-3)
-        times.append(time.perf_counter() - a)
-    ctrl_ms = 1e3 * float(np.median(times))
+    levels = rng.uniform(-5, 5, 20)  # 2 s of 100-ms holds
+
+    def controller_ms(rate_hz):
+        cmd = np.repeat(levels, round(0.1 * rate_hz))[None]
+        api.predict(3e5, cmd, 0.01, 1.0 / rate_hz)
+        times = []
+        for _ in range(30):
+            a = time.perf_counter()
+            api.predict(3e5, cmd, 0.01, 1.0 / rate_hz)
+            times.append(time.perf_counter() - a)
+        return 1e3 * float(np.median(times))
+
+    ctrl_ms = controller_ms(200.0)  # the controller's own grid (the paper's 200-Hz loop)
+    ctrl_ms_1khz = controller_ms(1000.0)
     report = {
         "format": "pneubayes-bench-mcmc/1", "seed": args.seed, "quick": args.quick,
         "rig": [args.cylinder, args.valve], "recordings": f"4 x {dur:g} s fixed",
@@ -83,12 +90,14 @@ def main(argv=None) -> int:
         "tau_max": summary["tau_max"], "max_rhat": rhat, "min_ess": ess,
         "coverage_90_by_parameter": cover,
         "coverage_90_fraction": float(np.mean(list(cover.values()))),
-        "heldout": pred, "controller_ms_64_draws_2s": ctrl_ms,
+        "heldout": pred, "controller_ms_64_draws_2s_200Hz": ctrl_ms,
+        "controller_ms_64_draws_2s_1kHz": ctrl_ms_1khz,
         "floors": {"rhat_le_1.01": rhat <= 1.01, "ess_ge_400": ess >= 400,
                    "wall_le_900s": wall <= 900,
                    "heldout_rmse_le_1.5x_noise": pred["rmse_over_noise_floor"] <= 1.5,
                    "coverage_90_in_0.85_0.95": 0.85 <= pred["coverage_90"] <= 0.95,
-                   "controller_le_20ms": ctrl_ms <= 20.0},
+                   "controller_le_20ms": ctrl_ms <= 20.0,
+                   "controller_le_5ms_issue23": ctrl_ms <= 5.0},
     }
     write_json_atomic(args.json, report)
     print(f"fit {wall:.0f} s, {summary['steps']} steps x 32 walkers, converged "
@@ -98,7 +107,8 @@ def main(argv=None) -> int:
           f"{[n for n, c in cover.items() if not c]}")
     print(f"held-out: RMSE {pred['rmse_Pa']:.0f} Pa = {pred['rmse_over_noise_floor']:.2f} x "
           f"noise floor; coverage 90 % {pred['coverage_90']:.3f}, 50 % {pred['coverage_50']:.3f}")
-    print(f"controller API: 64 draws x 2 s at 1 kHz in {ctrl_ms:.1f} ms (median)")
+    print(f"controller API: 64 draws x 2 s in {ctrl_ms:.1f} ms at 200 Hz, {ctrl_ms_1khz:.1f} ms "
+          "at 1 kHz (median)")
     for k, v in report["floors"].items():
         print(f"  {k:32s} {'MET' if v else 'NOT MET'}")
     return 0
