@@ -3,13 +3,14 @@ saved results (``make paper``).
 
     python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
     python experiments/make_paper.py --assemble-only     # only re-assemble saved results
-    python experiments/make_paper.py --assemble-only --only real   # one section
+    python experiments/make_paper.py --assemble-only --only real   # one section (or mpc)
     python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
 
 Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
 (one shared study), ``fig12b_deadzone.py``, ``supply_study.py`` and
 ``identification.py`` (the emcee posterior and prediction bands: skipped when its
-``report.json`` exists). Every study cell is cached, so a second run only assembles.
+``report.json`` exists), the real-data experiments and ``mpc_tracking.py`` (skipped
+when their results exist). Every study cell is cached, so a second run only assembles.
 The report is ``PAPER/report.md`` with figures copied to ``PAPER/figures``; every
 table and figure names the result file, study, seeds, git revision(s) and package
 versions that made it. Nothing is computed during assembly.
@@ -33,6 +34,7 @@ import fig11_volume  # noqa: E402
 import fig12a_leak  # noqa: E402
 import fig12b_deadzone  # noqa: E402
 import identification  # noqa: E402
+import mpc_tracking  # noqa: E402
 import peer_baseline  # noqa: E402
 import real_gtdynamics  # noqa: E402
 import real_gtdynamics_tank  # noqa: E402
@@ -80,6 +82,13 @@ def run_all(args) -> dict[str, float]:
             print(f"make_paper: {name} (real recordings) ...", flush=True)
             mod.main(["--out", str(folder)] + (["--smoke"] if args.smoke and smokes else []))
             times[name] = time.perf_counter() - t0
+    mpc = Path(args.out) / ("mpc_tracking-smoke" if args.smoke else "mpc_tracking")
+    if not (mpc / "summary.json").exists():
+        t0 = time.perf_counter()
+        print("make_paper: mpc_tracking (closed loop) ...", flush=True)
+        mpc_tracking.main(["--out", str(mpc)] + (["--quick", "--seeds", "0"] if args.smoke
+                                                 else []))
+        times["mpc_tracking"] = time.perf_counter() - t0
     return times
 
 
@@ -366,6 +375,8 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
         L.append("")
     # ---------------- real recordings
     L += real_section(out, paper, smoke)
+    # ---------------- closed loop
+    L += mpc_section(out, paper, smoke)
     # ---------------- the paper's claims, checked
     L += ["## The paper's claims, checked on our data", ""]
     L += claims(docs)
@@ -665,16 +676,69 @@ def _forms_paragraph(path: Path) -> list[str]:
             "noise.", ""]
 
 
-def update_real_section(out: Path, paper: Path, smoke: bool) -> Path:
-    """Rewrite only the "Real recordings" section of an existing ``PAPER/report.md``
-    from the real-data results (``--only real``), leaving every other section as its
-    studies made it; inserted before the claims' section when absent."""
+def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """The "Closed loop" section from ``experiments/mpc_tracking.py``'s summary."""
+    folder = out / ("mpc_tracking-smoke" if smoke else "mpc_tracking")
+    path = folder / "summary.json"
+    L = [MPC_HEAD, ""]
+    if not path.exists():
+        return L + [f"(not run: `python experiments/mpc_tracking.py --out {folder}`)", ""]
+    s = json.loads(path.read_text())
+    c = s["controllers"]
+    prov = s["provenance"]
+    L += [f"`experiments/mpc_tracking.py`, seeds {s['seeds']}"
+          f"{' (quick)' if s['quick'] else ''}. The bench hides a "
+          f"{s['hidden_delay_s'] * 1e3:g}-ms transport delay; the paper's model (no delay) is "
+          f"fitted by emcee on two fixed-volume recordings per seed, and a sampling MPC at "
+          f"{s['rate_Hz']:g} Hz ({s['candidates']} candidate command sequences over "
+          f"{s['horizon_s'] * 1e3:g} ms) tracks {s['run_s']:g} s of pressure set-points, some "
+          f"above the {s['p_max_Pa'] / 1e5:g}-bar limit, on the planted plant read through "
+          "500-Pa sensor noise. The controllers differ only in what they predict: "
+          "`nominal` the posterior mean parameters; `posterior` the 95 % quantile of "
+          f"{s['draws']} parameter draws; `predictive` the same draws each with a path of "
+          "its fitted AR(1) noise (the posterior predictive).", "",
+          "| controller | tracking RMSE, kPa (median [min, max] over seeds) | ticks above "
+          "the limit (per seed) | largest excess, kPa (max) | compute per tick, ms "
+          "(median) |", "|---|---|---|---|---|"]
+    for kind, v in c.items():
+        r = np.asarray(v["tracking_rmse_Pa"]) / 1e3
+        L.append(f"| {kind} | {np.median(r):.1f} [{r.min():.1f}, {r.max():.1f}] | "
+                 f"{', '.join(str(x) for x in v['ticks_above_limit'])} | "
+                 f"{max(v['largest_excess_Pa']) / 1e3:.1f} | "
+                 f"{np.median(v['compute_ms_per_tick_median']):.2f} |")
+    L.append("")
+    found = []
+    for kind in ("posterior", "predictive"):
+        vs = c[kind]["versus_nominal"]
+        n = len(s["seeds"])
+        found.append(f"`{kind}` had {vs['total_ticks_above_limit'][0]} ticks above the "
+                     f"limit against `nominal`'s {vs['total_ticks_above_limit'][1]} (fewer on "
+                     f"{vs['seeds_fewer_violations']} of {n} seeds), at a median RMSE of "
+                     f"{vs['median_tracking_rmse_Pa'][0] / 1e3:.1f} against "
+                     f"{vs['median_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
+                     f"{vs['seeds_rmse_not_worse']} of {n} seeds)")
+    L += ["Measured: " + "; ".join(found) + ". The RMSE includes the time spent where a "
+          "set-point lies above the limit, which no controller may reach. The fits' "
+          f"convergence: {[f.get('converged') for f in s['fits']]}.", "",
+          _copy_fig(paper, folder / "mpc_tracking.png"), "",
+          f"*Source: `{path}`; git revision {str(prov.get('git_revision'))[:12]}.*", ""]
+    return L
+
+
+MPC_HEAD = "## Closed loop: a 200-Hz MPC that uses the posterior"
+
+
+def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
+    """Rewrite only one section of an existing ``PAPER/report.md`` (``--only real``: the
+    real recordings; ``--only mpc``: the closed loop) from its saved results, leaving
+    every other section as its studies made it; inserted before the claims' section when
+    absent."""
     path = paper / "report.md"
     if not path.exists():
         raise SystemExit(f"{path}: no report to update; run make_paper.py without --only")
     lines = path.read_text().split("\n")
-    new = real_section(out, paper, smoke)
-    head = "## Real recordings"
+    new = (real_section if which == "real" else mpc_section)(out, paper, smoke)
+    head = "## Real recordings" if which == "real" else MPC_HEAD
     if head in lines:
         i = lines.index(head)
         j = next((k for k in range(i + 1, len(lines)) if lines[k].startswith("## ")),
@@ -693,14 +757,14 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
-    ap.add_argument("--only", choices=["real"], default=None,
+    ap.add_argument("--only", choices=["real", "mpc"], default=None,
                     help="with --assemble-only: rewrite only this section of an existing "
-                         "report (real: the real recordings)")
+                         "report (real: the real recordings; mpc: the closed loop)")
     args = ap.parse_args(argv)
     if args.only:
         if not args.assemble_only:
             ap.error("--only needs --assemble-only")
-        print(update_real_section(Path(args.out), Path(args.paper), args.smoke))
+        print(update_section(args.only, Path(args.out), Path(args.paper), args.smoke))
         return 0
     t0 = time.perf_counter()
     if not args.assemble_only:

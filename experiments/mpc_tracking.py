@@ -55,6 +55,7 @@ from pneubayes.inference.predictive import PressurePredictor, ar1_noise
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
+from pneubayes.provenance import provenance
 from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
 
 RATE_HZ = 200.0
@@ -318,7 +319,8 @@ def main(argv=None) -> int:
                "draws": N_DRAWS, "hidden_delay_s": HIDDEN_DELAY_S, "p_max_Pa": P_MAX_PA,
                "run_s": RUN_S, "controllers": summarise(results),
                "fits": [r["fit"] for r in results],
-               "posterior_noise_scale_Pa": [r["posterior_noise_scale_Pa"] for r in results]}
+               "posterior_noise_scale_Pa": [r["posterior_noise_scale_Pa"] for r in results],
+               "provenance": provenance()}
     write_json_atomic(args.json or out / "summary.json", summary)
     figure(results, Path(args.figure) if args.figure else out / "mpc_tracking.png")
     for kind, s in summary["controllers"].items():

@@ -116,3 +116,42 @@ def test_only_the_real_section_is_rewritten(tmp_path):
     assert make_paper.main(["--out", str(tmp_path / "out"), "--paper", str(paper),
                             "--assemble-only", "--only", "real"]) == 0
     assert (paper / "report.md").read_text() == first  # replaced, not added again
+
+
+def _mpc_results(out: Path):
+    """A summary as experiments/mpc_tracking.py writes it, from two made-up seeds."""
+    import mpc_tracking
+
+    def seed(s, rmse, ticks):
+        return {"seed": s, "fit": {"converged": True}, "posterior_noise_scale_Pa": 800.0,
+                "controllers": {k: {"tracking_rmse_Pa": r, "ticks_above_limit": t,
+                                    "largest_excess_Pa": 1000.0 * t,
+                                    "compute_ms_per_tick_median": 2.0}
+                                for k, r, t in zip(mpc_tracking.CONTROLLERS, rmse, ticks)}}
+
+    results = [seed(0, (40e3, 38e3, 39e3), (30, 12, 0)), seed(1, (42e3, 41e3, 43e3),
+                                                            (20, 25, 2))]
+    folder = out / "mpc_tracking"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text(json.dumps({
+        "seeds": [0, 1], "quick": False, "rate_Hz": 200.0, "horizon_s": 0.15,
+        "candidates": 15, "draws": 64, "hidden_delay_s": 0.015, "p_max_Pa": 4.8e5,
+        "run_s": 6.0, "controllers": mpc_tracking.summarise(results),
+        "fits": [r["fit"] for r in results], "provenance": {"git_revision": "abc"}}))
+
+
+def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
+    _mpc_results(tmp_path / "out")
+    text = "\n".join(make_paper.mpc_section(tmp_path / "out", tmp_path / "paper", False))
+    assert "| nominal | 41.0 [40.0, 42.0] | 30, 20 | 30.0 | 2.00 |" in text
+    assert ("`predictive` had 2 ticks above the limit against `nominal`'s 50 (fewer on 2 of "
+            "2 seeds), at a median RMSE of 41.0 against 41.0 kPa (not worse on 1 of 2 "
+            "seeds)") in text
+    assert "`posterior` had 37 ticks" in text and "(fewer on 1 of 2 seeds)" in text
+    paper = tmp_path / "paper"
+    paper.mkdir(exist_ok=True)
+    (paper / "report.md").write_text("# R\n\n## The paper's claims, checked on our data\n")
+    assert make_paper.main(["--out", str(tmp_path / "out"), "--paper", str(paper),
+                            "--assemble-only", "--only", "mpc"]) == 0
+    text = (paper / "report.md").read_text()
+    assert text.index(make_paper.MPC_HEAD) < text.index("claims")
