@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.bench import effects_from_names, identification_sets
+from pneubayes.bench.bench import identification_sets
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
 from pneubayes.inference.predictive import PressurePredictor
 from pneubayes.inference.sampler import SamplerSettings

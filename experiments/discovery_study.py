@@ -33,11 +33,12 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import forms_from_names
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording

@@ -17,7 +17,8 @@ import sys
 from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.bench import effects_from_names, identification_sets
+from pneubayes.bench.bench import identification_sets
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings, run_fit, run_predict
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording

@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.sensors import SensorChain
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.io import read_recording

@@ -48,8 +48,9 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.sensors import SensorChain
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit
 from pneubayes.inference.predictive import PressurePredictor, ar1_noise
 from pneubayes.inference.sampler import SamplerSettings

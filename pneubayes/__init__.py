@@ -23,6 +23,28 @@ from pneubayes.errors import (  # noqa: E402
 from pneubayes.model import Model  # noqa: E402
 from pneubayes.physics.gas import GasConstants  # noqa: E402
 
+#: The public face: what a user needs for the main jobs, imported on first use (so
+#: ``import pneubayes`` stays light and the CLI starts fast). name -> module.
+_PUBLIC = {
+    "Rig": "pneubayes.rig",
+    "Inputs": "pneubayes.simulation",
+    "SolverConfig": "pneubayes.simulation",
+    "simulate": "pneubayes.simulation",
+    "simulate_windows": "pneubayes.simulation",
+    "read_recording": "pneubayes.io",
+    "write_recording": "pneubayes.io",
+    "effects_from_names": "pneubayes.effects",
+    "make_effect": "pneubayes.effects",
+    "identify": "pneubayes.inference.fit",
+    "Fit": "pneubayes.inference.fit",
+    "write_fit": "pneubayes.inference.fit",
+    "FitSettings": "pneubayes.inference.fit",
+    "SamplerSettings": "pneubayes.inference.sampler",
+    "PressurePredictor": "pneubayes.inference.predictive",
+    "Discovery": "pneubayes.discovery.loop",
+    "DiscoverySettings": "pneubayes.discovery.settings",
+}
+
 __all__ = [
     "GasConstants",
     "Model",
@@ -31,5 +53,22 @@ __all__ = [
     "PneubayesError",
     "RecordingError",
     "SimulationError",
+    *sorted(_PUBLIC),
 ]
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    """The public names of :data:`_PUBLIC`, imported when first asked for."""
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pneubayes' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -91,9 +91,9 @@ def cmd_check(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+    from pneubayes.bench.bench import BenchConfig, run_bench
     from pneubayes.bench.sensors import SensorChain
-    from pneubayes.effects import CATALOGUE
+    from pneubayes.effects import CATALOGUE, effects_from_names
 
     names = [n.strip() for n in args.effects.split(",") if n.strip()] if args.effects else []
     unknown = [n for n in names if n not in CATALOGUE]
@@ -232,7 +232,7 @@ def _card_known_at(card, known, args):
 
 
 def cmd_fit(args) -> int:
-    from pneubayes.bench.bench import effects_from_names
+    from pneubayes.effects import effects_from_names
     from pneubayes.inference.pipeline import FitSettings, run_fit
     from pneubayes.inference.sampler import SamplerSettings
     from pneubayes.model import Model

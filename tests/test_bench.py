@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from pneubayes.bench import SensorChain, piston_motion, step_commands
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
+from pneubayes.effects import effects_from_names
 from pneubayes.evaluation import predict_windows
 from pneubayes.io import check_recording, read_recording
 from pneubayes.model import Model

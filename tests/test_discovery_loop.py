@@ -4,10 +4,11 @@ import json
 
 import pytest
 
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.cli import main as cli_main
 from pneubayes.discovery.loop import Discovery
 from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.effects import effects_from_names
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 

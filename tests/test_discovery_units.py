@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.discovery.disagreement import RegimeSettings, _bins, flagged_bins
 from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, build_library
 from pneubayes.discovery.one_step import first_order_lag, one_step_data
 from pneubayes.discovery.sindy import GroupedSINDy, cluster_se
+from pneubayes.effects import effects_from_names
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.physics.chamber import net_mass_flow, pressure_rate

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
+from pneubayes.effects import effects_from_names
 from pneubayes.effects.base import Parameter
 from pneubayes.inference.likelihood import (
     WindowLikelihood,

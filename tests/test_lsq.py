@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.sensors import SensorChain
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.derivative import SavitzkyGolay, consistency_mask, switch_mask
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.io import read_recording

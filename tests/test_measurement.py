@@ -120,8 +120,9 @@ def test_declared_filter_removes_the_planted_delay_bias(tmp_path):
     """Bench data (1-kHz zero-phase anti-alias filter): refined from the truth, a model
     that reads the chamber pressure puts the 3-ms tube's corner microseconds early; the
     same fit with the filter declared recovers it."""
-    from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+    from pneubayes.bench.bench import BenchConfig, run_bench
     from pneubayes.bench.sensors import SensorChain
+    from pneubayes.effects import effects_from_names
     from pneubayes.inference.pipeline import _tight
     from pneubayes.inference.refine import TrajectoryRefiner
 

@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.cli import main
+from pneubayes.effects import effects_from_names
 from pneubayes.inference.predictive import (
     PressurePredictor,
     ar1_noise,

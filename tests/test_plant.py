@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     AcousticTube,
     ClearanceLeak,
@@ -24,7 +24,7 @@ from pneubayes.bench.forms import (
     forms_from_names,
 )
 from pneubayes.bench.plant import PlantConfig, rounded_deadband, simulate_plant
-from pneubayes.effects import make_effect
+from pneubayes.effects import effects_from_names, make_effect
 from pneubayes.errors import ParameterError
 from pneubayes.io import check_recording, read_recording
 from pneubayes.model import Model

@@ -33,8 +33,9 @@ import numpy as np
 
 from pneubayes.ablation.study import TASSA, Cell, Settings
 from pneubayes.atomic import json_safe
-from pneubayes.bench.bench import BenchConfig, effects_from_names, run_bench
+from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import forms_from_names
+from pneubayes.effects import effects_from_names
 from pneubayes.evaluation import predict_windows
 from pneubayes.inference.pipeline import FitSettings, run_fit
 from pneubayes.inference.predictive import estimate_noise_std

@@ -32,7 +32,7 @@ from pneubayes.bench.forms import AcousticTube, PlantForm, check_forms
 from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.bench.protocols import piston_motion, step_commands
 from pneubayes.bench.sensors import SensorChain
-from pneubayes.effects import CATALOGUE, Effect, make_effect
+from pneubayes.effects import CATALOGUE, Effect, effects_from_names  # noqa: F401 (re-exported)
 from pneubayes.io.recording import Recording, RecordingMetadata, write_recording
 from pneubayes.model import Model
 from pneubayes.physics.cylinder import cylinder_preset
@@ -257,12 +257,6 @@ def _form_truth(cfg: BenchConfig, truth: dict[str, float]):
         card["dead_volume_m3"] = truth["dead_volume_m3"] + tube.volume_m3
     cfg.model.check_bounds(cfg.model.vector(card))
     return card, plant
-
-
-def effects_from_names(names: Sequence[str], leak_form: str = "orifice") -> tuple[Effect, ...]:
-    """Effect objects for CLI names (``cylinder_leak`` takes ``leak_form``)."""
-    return tuple(make_effect(n, form=leak_form) if n == "cylinder_leak" else make_effect(n)
-                 for n in names)
 
 
 def identification_sets(cylinder: str, valve: str, seed: int, duration_s: float, out_dir,

@@ -96,6 +96,10 @@ def _fingerprint(*parts) -> str:
     return h.hexdigest()[:16]
 
 
+def _silent(message: str) -> None:
+    """A log that drops its messages."""
+
+
 class Discovery:
     """The loop (scikit-learn-style: configure, then :meth:`fit`; results as attributes).
 
@@ -104,14 +108,14 @@ class Discovery:
     settings : DiscoverySettings
     out_dir : path or None
         Run folder for the step cache (resume); None keeps everything in memory.
-    log : callable
-        Progress messages.
+    log : callable or None
+        Progress messages (None: silent).
     """
 
     def __init__(self, settings: DiscoverySettings, out_dir=None, log=print):
         self.settings = settings
         self.out_dir = None if out_dir is None else Path(out_dir)
-        self.log = log
+        self.log = log if log is not None else _silent
 
     # ------------------------------------------------------------------ fitting
     def _cache_path(self, key: str) -> Path | None:

@@ -40,6 +40,13 @@ def make_effect(name: str, **options) -> Effect:
         raise ValueError(f"effect {name!r}: bad options {options!r} ({exc})") from None
 
 
+def effects_from_names(names, leak_form: str = "orifice") -> tuple[Effect, ...]:
+    """Effect objects for catalogue names (``cylinder_leak`` takes ``leak_form``), e.g.
+    ``Model(effects_from_names(["cylinder_leak", "tube_delay"]))``."""
+    return tuple(make_effect(n, form=leak_form) if n == "cylinder_leak" else make_effect(n)
+                 for n in names)
+
+
 def catalogue_parameter_names() -> frozenset[str]:
     """Every parameter name of every catalogue effect, in every form."""
     names = set()

@@ -1,0 +1,407 @@
+"""Identification in memory: ``identify(recordings, model, settings) -> Fit``.
+
+The paper's least squares on the fixed-volume recordings (when they span two or more
+positions) -> trajectory refinement on every recording -> emcee posterior. The result
+is a :class:`Fit` value object (point estimate, posterior as arviz InferenceData, noise
+floor, diagnostics); :func:`write_fit` writes it as a run folder (``pneubayes fit``,
+:func:`pneubayes.inference.pipeline.run_fit`). With ``checkpoint_dir`` the chain and
+the refined start are kept there as they are made, so a killed fit resumes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import pneubayes
+from pneubayes.atomic import json_safe, write_json_atomic
+from pneubayes.inference.derivative import SavitzkyGolay
+from pneubayes.inference.identifiability import identifiability_report
+from pneubayes.inference.lsq import PaperLeastSquares
+from pneubayes.inference.predictive import PressurePredictor, estimate_noise_std
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
+from pneubayes.inference.windows import WindowSet
+from pneubayes.io.plausibility import recorded_findings
+from pneubayes.io.preprocess import prepare_recording
+from pneubayes.model import Model
+from pneubayes.physics.sensor_filter import PressureFilter
+from pneubayes.physics.valve import valve_preset
+from pneubayes.simulation import SolverConfig
+
+
+def _tight() -> SolverConfig:
+    """The refinement solver: tight tolerances for smooth least-squares Jacobians, and a
+    step budget of 1e5 per simulated second, about ten times what the costliest
+    legitimate window measured needs (a 0.3-ms acoustic line: 9,000 steps per second),
+    so a degenerate trial of a fit fails in about a second instead of a minute."""
+    return SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
+                        min_step_s=1e-12, max_steps_per_s=1e5)
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Every setting of ``pneubayes fit`` (saved in summary.json)."""
+
+    horizon_s: float = 2.0
+    stride_s: float = 2.0
+    sg_window_s: float = 0.011
+    sg_polyorder: int = 3
+    refine_max_nfev: int = 60
+    refine_solver: SolverConfig = field(default_factory=_tight)
+    sample_solver: SolverConfig = field(default_factory=SolverConfig.standard)
+    sampler: SamplerSettings = field(default_factory=SamplerSettings)
+    #: zero-phase low-pass of the measured position before it drives the model, Hz
+    #: (None: raw); see :func:`pneubayes.io.smooth_position`. Saved in the model card,
+    #: and ``pneubayes predict`` applies the same.
+    position_cutoff_Hz: float | None = 50.0
+    #: zero-phase low-pass of the measured supply before it drives a model (with
+    #: supply_fluctuation), Hz (None: raw); see :func:`pneubayes.io.smooth_supply`.
+    #: Saved in the model card like the position's.
+    supply_cutoff_Hz: float | None = 100.0
+    #: the pressure channel's zero-phase anti-alias filter (None: the reading is the
+    #: chamber pressure). The recording format does not carry it; declare the DAQ's
+    #: (the bench's: order 2 at 1 kHz). Saved in the model card like the cutoffs.
+    pressure_filter: PressureFilter | None = None
+
+    def __post_init__(self):
+        if self.pressure_filter is not None and not isinstance(self.pressure_filter,
+                                                               PressureFilter):
+            raise TypeError("FitSettings.pressure_filter must be a PressureFilter or None, "
+                            f"got {type(self.pressure_filter).__name__}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def preparation(self) -> dict:
+        """How the recordings are prepared (:func:`pneubayes.io.prepare_recording`): the
+        input low-passes and the declared pressure filter, as the model card records them."""
+        return {"position_cutoff_Hz": self.position_cutoff_Hz,
+                "supply_cutoff_Hz": self.supply_cutoff_Hz,
+                "pressure_filter": (None if self.pressure_filter is None
+                                    else self.pressure_filter.to_dict())}
+
+
+def _fixed(rec) -> bool:
+    return rec.position_m is None or np.ptp(rec.position_m) < 0.02 * rec.metadata.stroke_m
+
+
+def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: float):
+    """The paper's least squares where the data allow it, else a generic start (a rig
+    card's model: the card's starts, or its priors' centres)."""
+    notes = []
+    card_start = model.base_start_values()
+    if card_start is not None:
+        start = {**model.neutral_values(), **card_start}
+        notes.append(f"started from the rig card {model.rig_card.name!r}: its start "
+                     "values, else its priors' centres (the paper's least squares needs "
+                     "the Gompertz ports of the thin-port core)")
+        return start, notes, "rig card"
+    fixed = [r for r in recordings if _fixed(r)]
+    if fixed:
+        try:
+            lsq = PaperLeastSquares(model, SavitzkyGolay(settings.sg_window_s,
+                                                         settings.sg_polyorder),
+                                    noise_std_Pa=noise_Pa).fit(fixed)
+            return lsq.params_, lsq.notes_, "paper least squares (eq. 10)"
+        except ValueError as exc:
+            notes.append(f"paper least squares skipped: {exc}")
+    start = dict(model.neutral_values())
+    start.update(valve_preset("valve1").parameters())
+    start["dead_volume_m3"] = 1e-6
+    if model.has("cylinder_leak"):
+        e = model.effect("cylinder_leak")
+        start.update({k: 0.2 * v for k, v in e.bench_defaults().items()})
+    notes.append("started from the Table II valve1 maps and a 1e-6 m^3 dead volume")
+    return start, notes, "generic"
+
+
+METHODS = ("lsq", "refine", "mcmc")
+
+#: A fit or held-out error above this x the noise floor is reported as misfit, never as
+#: explained (fit, predict, the discovery report); an AR(1) noise coefficient above the
+#: other limit means the noise model stands in for the misfit.
+MISFIT_RATIO = 1.5
+ABSORBING_AR1 = 0.9
+
+
+#: A 90 % interval within this fraction of the bounds' width from a bound "sits" there.
+BOUND_FRACTION = 0.01
+
+
+def at_bounds(model: Model, summary: dict) -> list[dict]:
+    """Parameters whose posterior 90 % interval reaches within ``BOUND_FRACTION`` of the
+    bounds' width of a bound: the data push them there (an effect the data do not show
+    sits at its zero; a bound sized for another rig cuts the posterior off)."""
+    out = []
+    lo, hi = model.bounds
+    for name, a, b in zip(model.parameter_names, lo, hi):
+        s = summary.get(name)
+        if s is None or not (np.isfinite(a) and np.isfinite(b)) or b <= a:
+            continue
+        # bounds over decades (a dead volume, 1e-8..1e-4 m^3) are judged in log space
+        f = np.log10 if a > 0 and b / a > 100 else (lambda v: v)
+        tol = BOUND_FRACTION * (f(b) - f(a))
+        q05, q95 = max(s["q05"], a), min(s["q95"], b)
+        if f(q95) - f(q05) > 0.5 * (f(b) - f(a)):
+            continue  # spread over its range: the prior's, not pushed by the data
+        for side, bound, reached in (("lower", a, f(q05) <= f(a) + tol),
+                                     ("upper", b, f(q95) >= f(b) - tol)):
+            if reached:
+                out.append({"parameter": name, "bound": side, "value": float(bound),
+                            "q05": s["q05"], "q95": s["q95"]})
+    return out
+
+
+def misfit_report(rmse_Pa: float, noise_floor_Pa: float, noise_ar1: float) -> dict:
+    """Misfit stated apart from noise: the refined window RMSE against the sensor's noise
+    floor, and whether the AR(1) noise model absorbs what the model misses."""
+    ratio = rmse_Pa / noise_floor_Pa
+    note = None
+    if ratio > MISFIT_RATIO:
+        note = (f"the model misses by {ratio:.1f} x the noise floor ({rmse_Pa:.0f} Pa "
+                f"against {noise_floor_Pa:.0f} Pa)")
+        if noise_ar1 > ABSORBING_AR1:
+            note += (f"; the noise model absorbs it (AR(1) coefficient {noise_ar1:.3f}), so "
+                     "its bands are wide because the model misses, not because the sensor "
+                     "is noisy")
+    return {"rmse_Pa": rmse_Pa, "rmse_over_noise_floor": ratio, "noise_ar1_median": noise_ar1,
+            "note": note}
+
+
+@dataclass(frozen=True)
+class _SavedRefinement:
+    """The refiner's results a posterior needs, as :class:`_StageCache` keeps them."""
+
+    params_: dict
+    information_: np.ndarray | None
+    rmse_Pa_: float
+    start_rmse_Pa_: float
+
+
+class _StageCache:
+    """The start and the refined point of a posterior fit, saved beside its chain so a
+    resumed fit skips least squares and refinement. Used only when it was saved for the
+    same model, recordings (paths and digests of their samples) and fit settings."""
+
+    def __init__(self, path: Path, model: Model, recs, settings: FitSettings):
+        self.path = path
+        digest = hashlib.sha256()
+        for r in recs:
+            for a in (r.time_s, r.command_V, r.pressure_Pa):
+                digest.update(np.ascontiguousarray(a).tobytes())
+        settings_doc = settings.to_dict()
+        settings_doc.pop("sampler", None)  # a longer chain resumes from the same start
+        self.key = json_safe({"effects": list(model.effect_names),
+                              "options": {e.name: e.options() for e in model.effects},
+                              "recordings": [str(r.source) for r in recs],
+                              "samples_sha256": digest.hexdigest(),
+                              "settings": settings_doc})
+
+    def load(self) -> dict | None:
+        try:
+            doc = json.loads(self.path.read_text())
+        except (OSError, ValueError):
+            return None
+        if not isinstance(doc, dict) or doc.get("key") != self.key:
+            return None
+        r = doc["refined"]
+        info = None if r["information"] is None else np.asarray(r["information"], float)
+        return {"start": doc["start"], "notes": doc["notes"], "how": doc["how"],
+                "refined": _SavedRefinement(r["params"], info, r["rmse_Pa"],
+                                            r["start_rmse_Pa"])}
+
+    def save(self, start, notes, how, ref) -> None:
+        info = getattr(ref, "information_", None)
+        write_json_atomic(self.path, {
+            "key": self.key, "start": start, "notes": notes, "how": how,
+            "refined": {"params": ref.params_, "rmse_Pa": ref.rmse_Pa_,
+                        "start_rmse_Pa": ref.start_rmse_Pa_,
+                        "information": None if info is None else np.asarray(info).tolist()}})
+
+
+def _point_summary(method, recs, start, notes, how, noise, settings, t0, refined=None):
+    return {"format": "pneubayes-fit-summary/1", "method": method,
+            "recordings": [str(r.source) for r in recs],
+            "input_findings": recorded_findings(recs),
+            "start": {"method": how, "notes": notes, "parameters": start},
+            "refined": refined, "noise_floor_Pa": noise, "settings": settings.to_dict(),
+            "wall_time_s": time.perf_counter() - t0,
+            "pneubayes_version": pneubayes.__version__}
+
+
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """What a fit found, in memory.
+
+    Attributes
+    ----------
+    model : Model
+    method : "lsq", "refine" or "mcmc"
+    params : the point estimate (the posterior median for "mcmc"), by parameter name
+    summary : the diagnostics ``summary.json`` holds (start, refinement, posterior
+        quantiles, R-hat and ESS, misfit against the noise floor, settings)
+    preparation : how the recordings were prepared (the model card records it, and
+        predictions prepare theirs the same way)
+    posterior : arviz InferenceData of the chain ("mcmc"; None otherwise)
+    recordings : the prepared recordings the fit saw
+    """
+
+    model: Model
+    method: str
+    params: dict
+    summary: dict
+    preparation: dict
+    posterior: object | None = None
+    recordings: tuple = field(default=(), repr=False)
+
+    @property
+    def noise_floor_Pa(self) -> float:
+        """The recordings' white-noise floor (median over recordings), Pa."""
+        return float(self.summary["noise_floor_Pa"])
+
+    def card_extra(self) -> dict:
+        """The model card's ``fit`` entry: what the estimate is and the preparation."""
+        if self.method == "mcmc":
+            return {"fit": {"estimate": "posterior median", "posterior": "posterior.nc",
+                            "summary": "summary.json", **self.preparation}}
+        return {"fit": {"estimate": self.method, **self.preparation}}
+
+    def draws(self, n_draws: int, rng: np.random.Generator):
+        """``(model draws (N, P), noise draws (N, 2))`` from the posterior."""
+        if self.posterior is None:
+            raise ValueError(f"a {self.method!r} fit has no posterior; fit with method "
+                             "'mcmc' for draws")
+        from pneubayes.inference.pipeline import posterior_draws
+
+        return posterior_draws(self.model, self.posterior, n_draws, rng)
+
+    def predictor(self, rig, solver: SolverConfig, n_draws: int,
+                  rng: np.random.Generator) -> PressurePredictor:
+        """The controller API over ``n_draws`` posterior draws."""
+        return PressurePredictor(self.model, self.draws(n_draws, rng)[0], rig, solver)
+
+
+def identify(recordings, model: Model, settings: FitSettings, method: str = "mcmc",
+             checkpoint_dir=None, progress: bool = False, log=None) -> Fit:
+    """Fit ``model`` to ``recordings`` in memory; returns a :class:`Fit`.
+
+    ``method``: ``"lsq"`` stops after the paper's least squares (section VI-B),
+    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior.
+    ``checkpoint_dir`` (a folder or None) keeps the chain (``chain.h5``) and the refined
+    start (``refined.json``) as they are made, and resumes from them. ``log`` receives
+    progress lines (None: silent).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    log = log if log is not None else (lambda m: None)
+    ckpt = None if checkpoint_dir is None else Path(checkpoint_dir)
+    if ckpt is not None:
+        ckpt.mkdir(parents=True, exist_ok=True)
+    inputs_card = settings.preparation()
+    recs = [prepare_recording(r, inputs_card) for r in recordings]
+    t0 = time.perf_counter()
+    noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+    stages = (_StageCache(ckpt / "refined.json", model, recs, settings)
+              if ckpt is not None else None)
+    saved = stages.load() if stages is not None and method == "mcmc" else None
+    if saved is not None:
+        start, notes, how = saved["start"], saved["notes"], saved["how"]
+        log("fit: least squares and refinement skipped: their result is saved in "
+            f"{stages.path}")
+    else:
+        start, notes, how = starting_point(model, recs, settings, noise)
+        log(f"fit: start from {how}")
+
+    def point(params, refined=None):
+        return Fit(model, method, dict(params),
+                   _point_summary(method, recs, start, notes, how, noise, settings, t0,
+                                  refined), inputs_card, None, tuple(recs))
+
+    if method == "lsq":
+        if how != "paper least squares (eq. 10)":
+            raise ValueError("--method lsq needs fixed-volume recordings at two or more "
+                             "positions: " + "; ".join(notes))
+        return point(start)
+    data = WindowSet(recs, settings.horizon_s, settings.stride_s)
+    if saved is not None:
+        ref = saved["refined"]
+    else:
+        ref = TrajectoryRefiner(model, settings.refine_solver,
+                                max_nfev=settings.refine_max_nfev).fit(data, start)
+        log(f"fit: refined {settings.horizon_s:g}-s RMSE {ref.start_rmse_Pa_:.0f} -> "
+            f"{ref.rmse_Pa_:.0f} Pa "
+            f"({ref.n_evaluations_} evaluations)")
+        if method == "mcmc" and stages is not None:
+            stages.save(start, notes, how, ref)
+    if method == "refine":
+        return point(ref.params_, {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
+                                   "start_rmse_Pa": ref.start_rmse_Pa_})
+    bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
+                                backend_path=None if ckpt is None else ckpt / "chain.h5",
+                                progress=progress, log=log)
+    bi.fit(data, ref.params_, information=ref.information_)
+    log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
+        f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol "
+        f"{bi.solver_.rtol:.0e}, log-density roughness "
+        f"{bi.diagnostics_['solver_jitter_nats']:.2f} nat)")
+    median = bi.median_params()
+    idata = bi.inference_data({"seed": settings.sampler.seed,
+                               "pneubayes_version": pneubayes.__version__,
+                               "model_card": json.dumps(model.to_card(median))})
+    ident = identifiability_report(model, bi.names_, bi.samples())
+    posterior = bi.summary()
+    summary = {
+        "format": "pneubayes-fit-summary/1", "method": method,
+        "recordings": [str(r.source) for r in recs],
+        "input_findings": recorded_findings(recs),
+        "parameters": posterior,
+        "converged": bi.converged_,
+        "steps": bi.diagnostics_["steps"], "burn": bi.burn_,
+        "n_walkers": int(bi.chain_.shape[1]), "tau_max": bi.diagnostics_["tau_max"],
+        "acceptance_fraction": bi.acceptance_fraction_,
+        "resumed": bi.resumed_,
+        "sampling_solver": bi.diagnostics_["solver"],
+        "solver_roughness_nats": bi.diagnostics_["solver_jitter_nats"],
+        "start": {"method": how, "notes": notes, "parameters": start},
+        "refined": {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
+                    "start_rmse_Pa": ref.start_rmse_Pa_},
+        "noise_floor_Pa": noise,
+        "misfit": misfit_report(ref.rmse_Pa_, noise, posterior["noise_ar1"]["median"]),
+        "at_bounds": at_bounds(model, posterior),
+        "identifiability": ident,
+        "settings": settings.to_dict(), "seed": settings.sampler.seed,
+        "wall_time_s": time.perf_counter() - t0,
+        "pneubayes_version": pneubayes.__version__,
+    }
+    return Fit(model, method, median, summary, inputs_card, idata, tuple(recs))
+
+
+def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
+    """Write ``fit`` as a run folder: ``model.json`` (the point estimate's card),
+    ``posterior.nc`` (arviz; "mcmc"), ``summary.json`` and, with ``figures``,
+    ``figures/`` (every file atomically)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fit.model.save_card(fit.params, out / "model.json", extra=fit.card_extra())
+    if fit.posterior is not None:
+        tmp = out / ".posterior.nc.tmp"
+        fit.posterior.to_netcdf(str(tmp))
+        os.replace(tmp, out / "posterior.nc")
+    write_json_atomic(out / "summary.json", fit.summary)
+    if figures and fit.posterior is not None:
+        from pneubayes.plotting import plot_fit_figures
+
+        post = fit.posterior.posterior
+        samples = np.column_stack([np.asarray(post[n]).T.reshape(-1)  # step-major
+                                   for n in fit.model.parameter_names])
+        plot_fit_figures(fit.model, samples, list(fit.recordings), out / "figures",
+                         idata=fit.posterior)
