@@ -37,7 +37,7 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import forms_from_names
 from pneubayes.effects import effects_from_names
 from pneubayes.evaluation import predict_windows
-from pneubayes.inference.pipeline import FitSettings, run_fit
+from pneubayes.inference.fit import FitSettings, identify, write_fit
 from pneubayes.inference.predictive import estimate_noise_std
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording, smooth_position
@@ -125,14 +125,16 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
                 "frozen": list(est.frozen_), "success": bool(est.success_)}
         return est, dict(zip(PARAMETER_NAMES, map(float, est.params_))), info
     if cell.discover:
-        from pneubayes.discovery.report import run_discover
+        from pneubayes.discovery.loop import Discovery
+        from pneubayes.discovery.report import final_estimate, write_discovery
         from pneubayes.discovery.settings import DiscoverySettings
 
         ds = DiscoverySettings(max_effects=s.discovery_max_effects,
                                n_bags=s.discovery_n_bags, posterior=s.method == "mcmc",
                                seed=cell.seed, fit=_fit_settings(cell))
-        doc = run_discover(recordings, ds, out, log=log, figures=False)
-        model, params = Model.load_card(out / "model.json")
+        disc = Discovery(ds, out, log).fit(recordings)
+        doc = write_discovery(disc, recordings, out, figures=False)
+        model, params = disc.final_.model, final_estimate(disc)[0]
         info = {"method": "discover",
                 "estimate": "posterior median" if ds.posterior else "refined",
                 "discovered": [e["name"] for e in doc["effects"]],
@@ -141,9 +143,10 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
                 "discovery_effects": doc["effects"]}
         return model, params, info
     model = Model(effects_from_names(cell.model_effects, s.leak_form))
-    summary = run_fit(recordings, model, _fit_settings(cell), out, progress=False, log=log,
-                      figures=False, method=s.method)
-    model, params = Model.load_card(out / "model.json")
+    fit = identify(recordings, model, _fit_settings(cell), method=s.method,
+                   checkpoint_dir=out, log=log)
+    write_fit(fit, out, figures=False)
+    summary, params = fit.summary, fit.params
     info = {"method": s.method, "start": summary["start"]["method"],
             "notes": summary["start"]["notes"],
             "train_noise_floor_Pa": summary["noise_floor_Pa"]}

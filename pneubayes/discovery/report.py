@@ -29,22 +29,35 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
     out.mkdir(parents=True, exist_ok=True)
     recs = list(recordings)
     disc = Discovery(settings, out, log).fit(recs)
+    return write_discovery(disc, recs, out, figures)
+
+
+def final_estimate(disc: Discovery) -> tuple[dict, str]:
+    """The final model's parameters and what they are: the posterior median when the
+    loop sampled one, else the refined point."""
+    if disc.posterior_ is not None:
+        return disc.posterior_.median_params(), "posterior median"
+    return dict(disc.final_.params), "refined (multiple shooting)"
+
+
+def write_discovery(disc: Discovery, recordings, out_dir, figures: bool = True) -> dict:
+    """Write a fitted :class:`Discovery` as a run folder; return discovery.json's doc."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    settings = disc.settings
+    recs = list(recordings)
     doc = disc.result()
     doc["recordings"] = [str(r.source) for r in recs]
     doc["input_findings"] = recorded_findings(recs)
     final = disc.final_
+    params, estimate = final_estimate(disc)
     if disc.posterior_ is not None:
-        params = disc.posterior_.median_params()
-        estimate = "posterior median"
         doc["posterior"] = {"converged": disc.posterior_.converged_,
                             "steps": disc.posterior_.diagnostics_["steps"],
                             "sampling_solver": disc.posterior_.diagnostics_["solver"],
                             "solver_roughness_nats":
                                 disc.posterior_.diagnostics_["solver_jitter_nats"],
                             "summary": disc.posterior_.summary()}
-    else:
-        params = final.params
-        estimate = "refined (multiple shooting)"
     final.model.save_card(params, out / "model.json",
                           extra={"fit": {"estimate": estimate, "by": "pneubayes discover",
                                          **settings.fit.preparation()}})
