@@ -62,9 +62,9 @@ def truth_checks(work: Path) -> tuple[float, dict]:
     Both count a deviation along a correlated direction once, where per-parameter
     intervals of correlated parameters miss together.
     """
-    import emcee
     from scipy import stats
 
+    from pneubayes.inference.chain_store import read_chain
     from pneubayes.inference.likelihood import WindowLikelihood
     from pneubayes.inference.pipeline import run_preparation
     from pneubayes.inference.windows import WindowSet
@@ -78,8 +78,7 @@ def truth_checks(work: Path) -> tuple[float, dict]:
     settings = FitSettings()
     like = WindowLikelihood(model, WindowSet(recs, settings.horizon_s, settings.stride_s),
                             settings.sample_solver)
-    backend = emcee.backends.HDFBackend(str(work / "run" / "chain.h5"), name="pneubayes",
-                                        read_only=True)
+    backend = read_chain(work / "run" / "chain.h5")
     burn = int(summary["burn"])
     z_true = like.to_sampling(model.vector(truth)[None])
     lp = backend.get_log_prob(discard=burn).ravel()

@@ -96,6 +96,14 @@ def open_chain(path, model: Model, data: WindowSet, n_walkers: int, ndim: int):
     return backend, False
 
 
+def read_chain(path):
+    """A stored chain, read only: the emcee backend of ``path`` (``get_chain``,
+    ``get_log_prob``; the chain is in the sampler's coordinates)."""
+    import emcee
+
+    return emcee.backends.HDFBackend(str(path), name=GROUP, read_only=True)
+
+
 def stored_attr(backend, name: str):
     """A string attribute of the chain's group, or None."""
     try:
