@@ -42,8 +42,7 @@ from pneubayes.simulation import SolverConfig
 
 #: the refinement solver (pneubayes fit's refine_solver): smooth enough in the
 #: parameters for finite differences, unlike the sampler's looser preset
-SOLVER = SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
-                      min_step_s=1e-12, max_steps_per_s=2.5e6)
+SOLVER = SolverConfig.refinement()
 #: Hessian step, in (diagonal-curvature) standard deviations
 HESSIAN_STEP_SD = 0.05
 Z90 = stats.norm.ppf(0.95)

@@ -11,6 +11,11 @@ import numpy as np
 from pneubayes.model import Model
 from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
 
+#: The paper's prediction horizon (section VI, Table III), s: open-loop windows of this
+#: length started from the measured pressure, the default window length and stride of
+#: fits, samplers, refinement, baselines and studies (declared here once).
+PAPER_HORIZON_S = 2.0
+
 
 def window_starts(time_s, horizon_s: float, stride_s: float) -> tuple[np.ndarray, int]:
     """Start indices of windows of ``horizon_s`` every ``stride_s``, and the window length.

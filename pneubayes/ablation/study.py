@@ -46,6 +46,7 @@ from pathlib import Path
 
 from pneubayes.effects import CATALOGUE
 from pneubayes.errors import PneubayesError
+from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.physics.cylinder import CYLINDERS
 from pneubayes.physics.valve import VALVES
 
@@ -104,7 +105,7 @@ class Settings:
 
     duration_s: float = 20.0
     method: str = "refine"
-    horizon_s: float = 2.0
+    horizon_s: float = PAPER_HORIZON_S
     stride_s: float | None = None
     eval_command_bands_V: tuple[float, ...] = ()
     supply: str = "measured"

@@ -33,7 +33,7 @@ from pneubayes.baselines.tassa_dynamics import (
     zoh_step,
 )
 from pneubayes.errors import ParameterError, PneubayesError
-from pneubayes.evaluation import WindowPrediction, window_starts
+from pneubayes.evaluation import PAPER_HORIZON_S, WindowPrediction, window_starts
 from pneubayes.io.recording import Recording
 
 __all__ = ["COMMAND_FULL_SCALE_V", "LOWER_BOUNDS", "PARAMETER_NAMES", "PUBLISHED_PARAMETERS",
@@ -173,7 +173,8 @@ class TassaModel:
         Convergence of the trajectory stage, as scipy reports it.
     """
 
-    def __init__(self, horizon_s: float = 2.0, stride_s: float = 2.0, max_nfev: int = 200,
+    def __init__(self, horizon_s: float = PAPER_HORIZON_S,
+                 stride_s: float = PAPER_HORIZON_S, max_nfev: int = 200,
                  seed: int = 0, initial_params=None, n_restarts: int = 3,
                  one_step_max_nfev: int = 200, tol: float = 1e-8, tr_solver: str = "exact",
                  softabs_eps: float = SOFTABS_EPS):

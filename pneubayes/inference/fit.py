@@ -21,6 +21,7 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import json_safe, write_json_atomic
+from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
 from pneubayes.inference.lsq import PaperLeastSquares
@@ -37,24 +38,20 @@ from pneubayes.simulation import SolverConfig
 
 
 def _tight() -> SolverConfig:
-    """The refinement solver: tight tolerances for smooth least-squares Jacobians, and a
-    step budget of 1e5 per simulated second, about ten times what the costliest
-    legitimate window measured needs (a 0.3-ms acoustic line: 9,000 steps per second),
-    so a degenerate trial of a fit fails in about a second instead of a minute."""
-    return SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
-                        min_step_s=1e-12, max_steps_per_s=1e5)
+    """The refinement solver, :meth:`SolverConfig.refinement` (kept for old imports)."""
+    return SolverConfig.refinement()
 
 
 @dataclass(frozen=True)
 class FitSettings:
     """Every setting of ``pneubayes fit`` (saved in summary.json)."""
 
-    horizon_s: float = 2.0
-    stride_s: float = 2.0
+    horizon_s: float = PAPER_HORIZON_S
+    stride_s: float = PAPER_HORIZON_S
     sg_window_s: float = 0.011
     sg_polyorder: int = 3
     refine_max_nfev: int = 60
-    refine_solver: SolverConfig = field(default_factory=_tight)
+    refine_solver: SolverConfig = field(default_factory=SolverConfig.refinement)
     sample_solver: SolverConfig = field(default_factory=SolverConfig.standard)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     #: zero-phase low-pass of the measured position before it drives the model, Hz

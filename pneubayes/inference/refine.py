@@ -14,6 +14,7 @@ import numpy as np
 from scipy import optimize
 
 from pneubayes import interrupt
+from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
@@ -45,8 +46,8 @@ class TrajectoryRefiner:
     ``covariance_``, its pseudo-inverse (the Laplace covariance); ``rmse_Pa_``.
     """
 
-    def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = 2.0,
-                 stride_s: float = 2.0, free=None, relative_step: float = 1e-3,
+    def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
+                 stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
                  max_nfev: int = 60):
         self.model = model
         self.solver = solver

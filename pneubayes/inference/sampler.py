@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from pneubayes import interrupt
+from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.chain_store import open_chain, store_burn, stored_burn
 from pneubayes.inference.likelihood import WindowLikelihood
 from pneubayes.inference.moves import StudentTProposal, moved_fraction, nuisance_gibbs_move
@@ -204,7 +205,8 @@ class BayesianIdentification:
     """
 
     def __init__(self, model: Model, solver: SolverConfig, settings: SamplerSettings,
-                 horizon_s: float = 2.0, stride_s: float = 2.0, backend_path=None,
+                 horizon_s: float = PAPER_HORIZON_S, stride_s: float = PAPER_HORIZON_S,
+                 backend_path=None,
                  progress: bool = True, log=None):
         self.model = model
         self.solver = solver
