@@ -23,7 +23,9 @@ Per seed:
    smallest predicted squared tracking error; with none feasible, the smallest predicted
    excess wins. Three controllers differ only in the prediction:
 
-   * ``nominal``: the posterior mean parameters, one trajectory;
+   * ``nominal``: the fit's point estimate (the posterior median of each parameter, the
+     model card ``pneubayes fit`` writes), one trajectory;
+   * ``nominal_mean``: the same with the posterior mean;
    * ``posterior``: the 64 parameter draws, feasible if the 95 % quantile stays under
      ``P_MAX``, tracking scored on the median;
    * ``predictive``: as ``posterior`` with a path of each draw's fitted stationary AR(1)
@@ -73,7 +75,7 @@ FIRST_LEVELS_V = (-5.0, -2.0, -0.8, 0.0, 0.8, 2.0, 5.0)
 SECOND_LEVELS_V = (-0.3, 0.3)
 N_DRAWS = 64
 QUANTILE = 0.95
-CONTROLLERS = ("nominal", "posterior", "predictive")
+CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive")
 
 
 def candidates(previous: np.ndarray) -> np.ndarray:
@@ -103,7 +105,7 @@ def choose(pred_Pa: np.ndarray, reference_Pa: np.ndarray, limit_Pa: np.ndarray) 
 
 class Controller:
     """One MPC: a predictor over some draws and how its predictions are scored
-    (``nominal``: one parameter vector, the posterior mean)."""
+    (``nominal``, ``nominal_mean``: one parameter vector)."""
 
     def __init__(self, kind, model, draws, noise, rig, rng):
         self.kind = kind
@@ -123,7 +125,7 @@ class Controller:
         cands = candidates(self.plan)
         sims = self.predictor.predict_draws(measured_Pa, cands, position_m, DT_S,
                                             command_history_V=history_V)[:, :, 1:]
-        if self.kind == "nominal":
+        if self.kind.startswith("nominal"):
             pred = limit = sims[0]
         else:
             if self.noise is not None:
@@ -206,6 +208,8 @@ def run_seed(seed: int, out: Path, quick: bool, log) -> dict:
     seqs = np.random.SeedSequence(seed).spawn(4)
     draw_rng, ref_rng = np.random.default_rng(seqs[0]), np.random.default_rng(seqs[1])
     model, draws, noise = load_posterior(fit_dir, N_DRAWS, draw_rng)
+    fit_median = {n: v["median"] for n, v in fit_summary["parameters"].items()
+                  if n in model.parameter_names}
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
     result = {"seed": seed, "hidden_delay_s": HIDDEN_DELAY_S, "p_max_Pa": P_MAX_PA,
@@ -213,7 +217,8 @@ def run_seed(seed: int, out: Path, quick: bool, log) -> dict:
               "posterior_noise_scale_Pa": float(np.median(noise[:, 0])),
               "reference_Pa": reference[: n + 1].tolist(), "controllers": {}}
     for kind in CONTROLLERS:
-        use = draws.mean(axis=0, keepdims=True) if kind == "nominal" else draws
+        use = {"nominal": model.vector(fit_median)[None],
+               "nominal_mean": draws.mean(axis=0, keepdims=True)}.get(kind, draws)
         ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(seqs[3]))
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
@@ -251,7 +256,7 @@ def summarise(results: list[dict]) -> dict:
             "compute_ms_per_tick_median": [c["compute_ms_per_tick_median"] for c in rows],
         }
     nom = out["nominal"]
-    for kind in ("posterior", "predictive"):
+    for kind in ("nominal_mean", "posterior", "predictive"):
         k = out[kind]
         out[kind]["versus_nominal"] = {
             "total_ticks_above_limit": [sum(k["ticks_above_limit"]),
@@ -281,7 +286,7 @@ def figure(results: list[dict], path: Path) -> None:
     axes[0].step(t, np.asarray(r["reference_Pa"]) / 1e5, where="post", color="k", lw=1,
                  label="reference")
     axes[0].axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
-    for kind, colour in zip(CONTROLLERS, ("tab:orange", "tab:blue", "tab:green")):
+    for kind, colour in zip(CONTROLLERS, ("tab:orange", "tab:red", "tab:blue", "tab:green")):
         c = r["controllers"][kind]
         axes[0].plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
                      label=f"{kind}: RMSE {c['tracking_rmse_Pa'] / 1e3:.1f} kPa, "

@@ -25,7 +25,7 @@ def test_shipped_data_match_registry_and_format():
     assert total < 5e6  # a few MB at most
 
 
-def test_demo_runs_on_shipped_data(tmp_path, capsys):
+def test_demo_runs_on_shipped_data(tmp_path):
     assert demo_main(["--data", str(DATA), "--out", str(tmp_path), "--fit-steps", "60"]) == 0
     summary = json.loads((tmp_path / "demo_summary.json").read_text())
     for rows in summary["sets"].values():
@@ -33,12 +33,9 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
             # the true model beats the plain thin-port model on every recording
             assert r["true model"] < r["plain thin-port"]
     assert (tmp_path / "demo_prediction.png").stat().st_size > 10_000
-    out = capsys.readouterr().out
-    assert "plain thin-port" in out and "named: tube_delay" in out
-    # the transport delay fits at the noise floor: the costly line form is not fitted,
-    # nor the later forms of the other trials of the round
-    assert "'form': 'transport'} fits at the noise floor" in out
-    assert "tube_delay: 1 later form(s) not fitted" in out
+    # what the demo found, from its files (never from its log's wording): the transport
+    # delay fits at the noise floor, so the costly line form is not fitted, nor the later
+    # forms of the other trials of the round
     doc = json.loads((tmp_path / "discover" / "discovery.json").read_text())
     assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
     tube = [e for e in doc["ledger"] if e.get("effect") == "tube_delay" and "forms" in e][0]
@@ -48,7 +45,6 @@ def test_demo_runs_on_shipped_data(tmp_path, capsys):
     assert heat and all(e["forms"]["not_fitted"] == ["convective"] for e in heat)
     assert doc["rmse_final_Pa"] < 0.2 * doc["rmse_base_Pa"]
     # the registry's DAQ filter is declared to the fits and recorded in the card
-    assert "pressure channel: zero-phase Butterworth anti-alias filter, order 2" in out
     card = json.loads((tmp_path / "discover" / "model.json").read_text())
     assert card["fit"]["pressure_filter"] == reg_filter() == {"order": 2, "cutoff_Hz": 1000.0,
                                                               "phase": "zero"}

@@ -129,8 +129,8 @@ def _mpc_results(out: Path):
                                     "compute_ms_per_tick_median": 2.0}
                                 for k, r, t in zip(mpc_tracking.CONTROLLERS, rmse, ticks)}}
 
-    results = [seed(0, (40e3, 38e3, 39e3), (30, 12, 0)), seed(1, (42e3, 41e3, 43e3),
-                                                            (20, 25, 2))]
+    results = [seed(0, (40e3, 45e3, 38e3, 39e3), (30, 40, 12, 0)),
+               seed(1, (42e3, 44e3, 41e3, 43e3), (20, 30, 25, 2))]
     folder = out / "mpc_tracking"
     folder.mkdir(parents=True)
     (folder / "summary.json").write_text(json.dumps({
