@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench paper clean setup
+.PHONY: demo test test-all bench paper clean setup
 
 setup: $(STAMP)
 
@@ -17,7 +17,12 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(PY) -m pneubayes.demo --data data --out results/demo
 
+# The fast tier (what CI runs): every test but the statistical and end-to-end ones
+# marked slow. `make test-all` runs both tiers.
 test: $(STAMP)
+	$(PY) -m pytest -q -m "not slow"
+
+test-all: $(STAMP)
 	$(PY) -m pytest -q
 
 # Runs the paper's studies (cached per cell; about 30 min on 2 cores from scratch) and

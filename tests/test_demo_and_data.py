@@ -3,6 +3,8 @@
 import json
 from pathlib import Path
 
+import pytest
+
 from pneubayes.demo import main as demo_main
 from pneubayes.demo import verify_registry
 from pneubayes.io import check_recording
@@ -25,6 +27,7 @@ def test_shipped_data_match_registry_and_format():
     assert total < 5e6  # a few MB at most
 
 
+@pytest.mark.slow
 def test_demo_runs_on_shipped_data(tmp_path):
     assert demo_main(["--data", str(DATA), "--out", str(tmp_path), "--fit-steps", "60"]) == 0
     summary = json.loads((tmp_path / "demo_summary.json").read_text())

@@ -556,14 +556,18 @@ def test_a_rough_solver_is_tightened_until_the_log_density_is_smooth(bench):
     assert 1.0 < np.std(like.log_prob_sampling(z)) < 20.0
     rough_solver = SolverConfig(rtol=1e-4, atol_Pa=30.0, atol_K=0.1, max_step_s=0.02,
                                 min_step_s=1e-12, max_steps_per_s=2.5e6)
-    _, same, rough = settle_solver(model, data, rough_solver, z, 0.3, 0)
-    assert same == rough_solver and rough > 0.6
-    _, settled, jitter = settle_solver(model, data, rough_solver, z, 0.3, 4)
-    assert jitter <= 0.3 and settled.rtol < rough_solver.rtol
+    # Since the step restarts small where the valve switches, the adaptive solver's
+    # jitter is a few hundredths of a nat even this coarse (it was about 1 nat): the
+    # check is exercised with a limit below it.
+    limit = 0.01
+    _, same, rough = settle_solver(model, data, rough_solver, z, limit, 0)
+    assert same == rough_solver and rough > 2 * limit
+    _, settled, jitter = settle_solver(model, data, rough_solver, z, limit, 4)
+    assert jitter <= limit and settled.rtol < rough_solver.rtol
     # independent check of the claim: the settled solver agrees with a far tighter one
     lp = WindowLikelihood(model, data, settled).log_prob_sampling(z)
     lp_ref = WindowLikelihood(model, data, settled.tightened(1e3)).log_prob_sampling(z)
-    assert np.std(lp - lp_ref) <= 0.5
+    assert np.std(lp - lp_ref) <= 2 * limit
 
 
 def test_nuisance_ranges_keep_natural_parameters_in_bounds(bench):
