@@ -614,3 +614,17 @@ def test_start_sensitivity_with_heat_transfer_matches_finite_differences(rig, ha
     fd = (up - dn) / (2 * d)
     assert np.all(sens[..., 0] == 1.0)
     assert np.max(np.abs(sens - fd)) < 0.03, np.max(np.abs(sens - fd))
+
+
+@pytest.mark.parametrize("name", sorted(CATALOGUE))
+def test_every_effect_declares_a_start_inside_its_bounds_in_every_form(name):
+    """The plug-in contract's start: each effect, in each form, names only its own
+    parameters and starts them inside their bounds."""
+    cls = CATALOGUE[name]
+    for options in ([{"form": f} for f in cls.forms] or [{}]):
+        effect = cls(**options)
+        start = effect.start_values()
+        assert set(start) <= set(effect.parameter_names()), (name, options)
+        for p in effect.parameters():
+            if p.name in start:
+                assert p.lower <= start[p.name] <= p.upper, (name, options, p.name)

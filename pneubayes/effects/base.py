@@ -123,6 +123,12 @@ class Effect(Component):
     def bench_defaults(self) -> dict[str, float]:
         """Realistic true values for the virtual bench."""
 
+    def start_values(self) -> dict[str, float]:
+        """Where a fit starts this effect when the data allow no better start (the
+        paper's least squares does not apply): zero strength, unless the effect says
+        otherwise."""
+        return self.neutral_values()
+
     def perturb_inputs(self, time_s: np.ndarray, supply_pressure_Pa: np.ndarray,
                        rig: Rig, rng: np.random.Generator) -> np.ndarray:
         """Return the true supply pressure the bench should use (default: unchanged)."""

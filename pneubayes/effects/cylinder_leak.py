@@ -77,6 +77,10 @@ class CylinderLeak(Effect):
         return {"leak_laminar_kg_per_s_Pa2": k * (1.0 - 0.5 * g),
                 "leak_laminar_gradient_kg_per_s_Pa2_m": k * g / rig.stroke_m}
 
+    def start_values(self):
+        """A fifth of the bench's realistic leak (the generic fit's start)."""
+        return {k: 0.2 * v for k, v in self.bench_defaults().items()}
+
     def bench_defaults(self):
         # Paper VI-B-3: equivalent diameter 1.9665e-4 m for the AIRPELs -> 3.04e-8 m^2.
         # The laminar value gives the same flow at about 3 bar absolute (gap ~10 um).

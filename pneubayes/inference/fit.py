@@ -112,9 +112,8 @@ def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: fl
     start = dict(model.neutral_values())
     start.update(valve_preset("valve1").parameters())
     start["dead_volume_m3"] = 1e-6
-    if model.has("cylinder_leak"):
-        e = model.effect("cylinder_leak")
-        start.update({k: 0.2 * v for k, v in e.bench_defaults().items()})
+    for effect in model.effects:  # each effect's own generic start
+        start.update(effect.start_values())
     notes.append("started from the Table II valve1 maps and a 1e-6 m^3 dead volume")
     return start, notes, "generic"
 
