@@ -159,8 +159,9 @@ def closed_loop(controller, plant_model, truth, rig, position_m, reference, nois
     sup = np.full(n + 1, rig.supply_pressure_Pa)
     theta = plant_model.vector(truth)
     ref_solver = SolverConfig.reference()
+    noise_Pa = SensorChain().pressure_noise_Pa
     for k in range(n):
-        measured[k] = p_true[k] + noise_rng.normal(0.0, SensorChain().pressure_noise_Pa)
+        measured[k] = p_true[k] + noise_rng.normal(0.0, noise_Pa)
         a = time.perf_counter()
         u[k] = controller.step(measured[k], reference[k + 1:k + 1 + HORIZON_TICKS],
                                u[:k] if k else None, position_m)
@@ -170,7 +171,7 @@ def closed_loop(controller, plant_model, truth, rig, position_m, reference, nois
                         command_before_start=0.0)
         p_true[k + 1] = simulate_windows(plant_model, theta, inputs, rig, np.array([k]), 2,
                                          np.array([p_true[k]]), ref_solver)[0, 0, -1]
-    measured[n] = p_true[n] + noise_rng.normal(0.0, SensorChain().pressure_noise_Pa)
+    measured[n] = p_true[n] + noise_rng.normal(0.0, noise_Pa)
     return {"time_s": t, "pressure_Pa": p_true, "measured_Pa": measured, "command_V": u,
             "compute_s": compute}
 

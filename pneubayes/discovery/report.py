@@ -11,14 +11,13 @@ atomically.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.discovery.disagreement import flagged_bins
 from pneubayes.discovery.loop import Discovery
 from pneubayes.discovery.settings import DiscoverySettings
-from pneubayes.inference.pipeline import MISFIT_RATIO
+from pneubayes.inference.fit import MISFIT_RATIO, write_posterior
 from pneubayes.io.plausibility import recorded_findings
 
 
@@ -65,9 +64,7 @@ def write_discovery(disc: Discovery, recordings, out_dir, figures: bool = True) 
         idata = disc.posterior_.inference_data({
             "seed": settings.seed, "pneubayes_version": doc["pneubayes_version"],
             "model_card": json.dumps(final.model.to_card(params))})
-        tmp = out / ".posterior.nc.tmp"
-        idata.to_netcdf(str(tmp))
-        os.replace(tmp, out / "posterior.nc")
+        write_posterior(idata, out / "posterior.nc")
         doc["posterior"]["file"] = "posterior.nc"
     write_json_atomic(out / "disagreement.json", {"rounds": disc.maps_})
     write_json_atomic(out / "discovery.json", doc)

@@ -234,6 +234,21 @@ def _point_summary(method, recs, start, notes, how, noise, settings, t0, refined
 
 
 
+def posterior_draws(model: Model, idata, n_draws: int, rng: np.random.Generator,
+                    source: str = "posterior"):
+    """``(model draws (N, P), noise draws (N, 2))``: ``n_draws`` stored samples of
+    ``idata`` (arviz InferenceData of a fit of ``model``) picked without replacement."""
+    post = idata.posterior
+    names = list(model.parameter_names) + ["noise_scale_Pa", "noise_ar1"]
+    missing = [n for n in names if n not in post]
+    if missing:
+        raise ValueError(f"{source}: missing variables {missing}")
+    flat = np.column_stack([np.asarray(post[n]).reshape(-1) for n in names])
+    pick = rng.choice(flat.shape[0], size=min(n_draws, flat.shape[0]), replace=False)
+    draws = flat[pick]
+    return draws[:, : model.n_parameters], draws[:, model.n_parameters:]
+
+
 @dataclass(frozen=True, eq=False)
 class Fit:
     """What a fit found, in memory.
@@ -276,8 +291,6 @@ class Fit:
         if self.posterior is None:
             raise ValueError(f"a {self.method!r} fit has no posterior; fit with method "
                              "'mcmc' for draws")
-        from pneubayes.inference.pipeline import posterior_draws
-
         return posterior_draws(self.model, self.posterior, n_draws, rng)
 
     def predictor(self, rig, solver: SolverConfig, n_draws: int,
@@ -381,6 +394,15 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
     return Fit(model, method, median, summary, inputs_card, idata, tuple(recs))
 
 
+def write_posterior(idata, path) -> None:
+    """Write arviz InferenceData to ``path`` (netCDF) atomically: a temporary file
+    beside it, then a rename."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    idata.to_netcdf(str(tmp))
+    os.replace(tmp, path)
+
+
 def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
     """Write ``fit`` as a run folder: ``model.json`` (the point estimate's card),
     ``posterior.nc`` (arviz; "mcmc"), ``summary.json`` and, with ``figures``,
@@ -389,9 +411,7 @@ def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
     out.mkdir(parents=True, exist_ok=True)
     fit.model.save_card(fit.params, out / "model.json", extra=fit.card_extra())
     if fit.posterior is not None:
-        tmp = out / ".posterior.nc.tmp"
-        fit.posterior.to_netcdf(str(tmp))
-        os.replace(tmp, out / "posterior.nc")
+        write_posterior(fit.posterior, out / "posterior.nc")
     write_json_atomic(out / "summary.json", fit.summary)
     if figures and fit.posterior is not None:
         from pneubayes.plotting import plot_fit_figures

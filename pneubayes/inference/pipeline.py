@@ -29,6 +29,7 @@ from pneubayes.inference.fit import (  # noqa: E402,F401
     at_bounds,
     identify,
     misfit_report,
+    posterior_draws,
     starting_point,
     write_fit,
 )
@@ -83,21 +84,6 @@ def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
                              "folder")
     draws, noise = posterior_draws(model, idata, n_draws, rng, str(run / "posterior.nc"))
     return model, draws, noise
-
-
-def posterior_draws(model: Model, idata, n_draws: int, rng: np.random.Generator,
-                    source: str = "posterior"):
-    """``(model draws (N, P), noise draws (N, 2))``: ``n_draws`` stored samples of
-    ``idata`` (arviz InferenceData of a fit of ``model``) picked without replacement."""
-    post = idata.posterior
-    names = list(model.parameter_names) + ["noise_scale_Pa", "noise_ar1"]
-    missing = [n for n in names if n not in post]
-    if missing:
-        raise ValueError(f"{source}: missing variables {missing}")
-    flat = np.column_stack([np.asarray(post[n]).reshape(-1) for n in names])
-    pick = rng.choice(flat.shape[0], size=min(n_draws, flat.shape[0]), replace=False)
-    draws = flat[pick]
-    return draws[:, : model.n_parameters], draws[:, model.n_parameters:]
 
 
 def run_preparation(run_dir) -> dict:

@@ -13,8 +13,8 @@ whenever the inputs change within a step.
 
 and ``|2 h phi3(hJ) D|`` estimates the local error for step-size control. Where the
 valve switches, the step restarts at ``max_step_s / 1000``: a long first step from a
-port's pressure balance is accepted on an estimate that misses most of its error. Exponential
-integrators are exact for linear problems, so stiffness (tiny volumes, J ~ -1e8 /s)
+port's pressure balance is accepted on an estimate that misses most of its error.
+Exponential integrators are exact for linear problems, so stiffness (tiny volumes, J ~ -1e8 /s)
 costs nothing; near pressure equilibrium, where F has a square-root singularity, the
 step behaves like a damped Newton step instead of chattering.
 
@@ -439,24 +439,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, gener
 
 
 @njit(cache=True, error_model="numpy")
-def _layout(slots, starts, length):
-    """Windows per task: a parameter set's windows run in order in one task when they are
-    contiguous (each starts on the previous one's last sample) and a state the recording
-    does not measure is carried between them; otherwise one task per window."""
-    nw = starts.shape[0]
-    chained = nw > 1
-    for w in range(1, nw):
-        if starts[w] != starts[w - 1] + length - 1:
-            chained = False
-    hidden = False
-    for b in range(slots.shape[0]):
-        if (slots[b, _HEAT] > 0.0 or slots[b, _HCONV] > 0.0 or slots[b, _LLEN] > 0.0
-                or slots[b, _TANK] > 0.0 or slots[b, _LUNG] > 0.0):
-            hidden = True
-    return nw if chained and hidden else 1
-
-
-@njit(cache=True, error_model="numpy")
 def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out,
           sens, status, general):
     """One task: parameter set ``task // (W / per_task)``, its windows from
@@ -474,9 +456,8 @@ def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length
 
 @njit(cache=True, error_model="numpy")
 def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out, sens,
-                     status, general):
+                     status, general, per_task):
     """Every (parameter set, window) pair on the calling thread."""
-    per_task = _layout(slots, starts, length)
     for task in range(slots.shape[0] * (starts.shape[0] // per_task)):
         _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
               out, sens, status, general)
@@ -484,9 +465,8 @@ def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out,
-                       sens, status, general):
+                       sens, status, general, per_task):
     """Every (parameter set, window) pair, tasks spread over numba's threads."""
-    per_task = _layout(slots, starts, length)
     for task in prange(slots.shape[0] * (starts.shape[0] // per_task)):
         _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
               out, sens, status, general)
@@ -503,12 +483,16 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, with_s
     out = np.empty((nb, nw, length))
     sens = np.empty((nb, nw, length if with_sensitivity else 0))
     status = np.zeros((nb, nw), dtype=np.int64)
-    general = True if needs_general(slots) else None
+    hidden = needs_general(slots)  # a state the recording does not measure
+    # contiguous windows (each starts on the previous one's last sample) with a hidden
+    # state run in order in one task per parameter set, carrying it; else a task each
+    chained = nw > 1 and bool(np.all(np.diff(starts) == length - 1))
+    per_task = nw if chained and hidden else 1
     run = _simulate_serial
     if nb * nw > 1 and numba.get_num_threads() > 1:
         run = _simulate_parallel
     run(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out, sens, status,
-        general)
+        True if hidden else None, per_task)
     return out, sens, status
 
 
