@@ -332,15 +332,9 @@ class Model:
                 raise ModelCardError(f"{source}: key 'effect_options' -> {n!r} must be an "
                                      f"object option -> value, got {opt!r}")
             opt = {**({} if rig_card is None else rig_card.effect_options(n)), **opt}
-            # cylinder_leak's and heat_transfer's forms follow from their parameter
-            # names when not given.
-            if n == "cylinder_leak" and "form" not in opt:
-                opt["form"] = ("graded" if "leak_conductance_gradient" in params else
-                               "laminar" if "leak_conductance_kg_per_s_Pa2" in params
-                               else "orifice")
-            if n == "heat_transfer" and "form" not in opt:
-                opt["form"] = ("convective" if "heat_transfer_coefficient_W_per_m2_K" in params
-                               else "rate")
+            # an effect's form, when not given, follows from its parameter names
+            if n in CATALOGUE and CATALOGUE[n].forms and "form" not in opt:
+                opt["form"] = CATALOGUE[n].form_from_parameters(params)
             try:
                 effects.append(make_effect(n, **opt))
             except ValueError as exc:

@@ -8,7 +8,7 @@ from pneubayes.discovery.disagreement import RegimeSettings, _bins, flagged_bins
 from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, build_library
 from pneubayes.discovery.one_step import first_order_lag, one_step_data
 from pneubayes.discovery.sindy import GroupedSINDy, cluster_se
-from pneubayes.effects import effects_from_names
+from pneubayes.effects import CATALOGUE, effects_from_names
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.physics.chamber import net_mass_flow, pressure_rate
@@ -143,9 +143,14 @@ def test_library_finds_the_planted_delay_and_absorbs_parameter_errors(delay_benc
     params = {k: truth[k] for k in plain.parameter_names}
     d = one_step_data(rec, 5)
     lib = build_library(plain, params, [d], LibraryGrid(), TIGHT)
+    # every catalogue effect offers its terms, each column with the values it stands for
+    assert set(lib.groups) == set(CATALOGUE)
+    assert len(lib.starts) == len(lib.labels) == lib.columns.shape[1]
     s = GroupedSINDy(n_models=20, chunk_rows=100).fit(lib)
     assert s.ranking_[0] == "tube_delay"
     assert s.evidence_["tube_delay"]["inclusion_probability"] >= 0.9
+    best = s.evidence_["tube_delay"]
+    assert best["best_term_start"] == lib.starts[lib.labels.index(best["best_term"])]
     # a pure parameter error lies in the absorbers' span: projected out almost entirely
     wrong = dict(params, inlet_a_m2=params["inlet_a_m2"] * 1.001)
     p = np.asarray(rec.pressure_Pa, dtype=np.float64)
@@ -170,7 +175,8 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
 
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
     fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-    cands = effect_candidates(fit, "heat_transfer", {"best_term": "heat 10/s"}, rig)
+    heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
+    cands = effect_candidates(fit, "heat_transfer", heat_10, rig)
     forms = [m.effect("heat_transfer").options()["form"] for m, _ in cands]
     assert forms == ["rate", "convective"]
     (_, rate_start), (_, conv_start) = cands
@@ -184,7 +190,8 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     rate = (gas.heat_capacity_ratio - 1.0) * h * wall_per_vol * gas.temperature_K / p_mid
     assert rate == pytest.approx(10.0, rel=1e-9)
     # other effects keep a single candidate
-    assert len(effect_candidates(fit, "spool_lag", {"best_term": "lag 4 ms"}, rig)) == 1
+    lag_4ms = {"best_term_start": {"spool_time_constant_s": 0.004}}
+    assert len(effect_candidates(fit, "spool_lag", lag_4ms, rig)) == 1
 
 
 def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig):
@@ -199,7 +206,8 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
 
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
     fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-    cands = effect_candidates(fit, "tube_delay", {"best_term": "flows lag 4 ms"}, rig, 3)
+    tube_4ms = {"best_term_start": {"tube_delay_s": 0.004}}
+    cands = effect_candidates(fit, "tube_delay", tube_4ms, rig, 3)
     forms = [m.effect("tube_delay").options()["form"] for m, _ in cands]
     assert forms == ["transport", "line"]
     assert cands[0][1]["tube_delay_s"] == pytest.approx(0.004)
@@ -215,10 +223,11 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     hot = StepFit(Model([make_effect("heat_transfer")]), dict(params, heat_transfer_rate_per_s=5.0),
                   1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     assert [m.effect("tube_delay").form for m, _ in
-            effect_candidates(hot, "tube_delay", {"best_term": "lag 4 ms"}, rig, 3)] == [
+            effect_candidates(hot, "tube_delay", tube_4ms, rig, 3)] == [
         "transport"]
     lined = StepFit(line_model, dict(line_start), 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-    assert effect_candidates(lined, "heat_transfer", {"best_term": "heat 10/s"}, rig, 3) == []
+    heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
+    assert effect_candidates(lined, "heat_transfer", heat_10, rig, 3) == []
 
 
 def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():
@@ -357,3 +366,16 @@ def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():
     assert [m for m, _ in failed["heat_transfer"]] == ["convective"]
     with pytest.raises(KeyError):
         fit_round_forms({"tube_delay": [("bug", {})]}, fit, 500.0)
+
+
+def test_library_grid_replaces_an_effects_strengths_and_names_bad_ones():
+    grid = LibraryGrid({"tube_delay": [0.005]})
+    assert grid.for_effect("tube_delay") == (0.005,)
+    assert grid.for_effect("spool_lag") == CATALOGUE["spool_lag"].library_strengths
+    assert grid.to_dict()["tube_delay"] == [0.005]
+    with pytest.raises(ValueError, match="unknown effect 'tube'"):
+        LibraryGrid({"tube": [0.005]})
+    with pytest.raises(ValueError, match=r"strengths\['spool_lag'\] must be a non-empty"):
+        LibraryGrid({"spool_lag": []})
+    with pytest.raises(ValueError, match="finite"):
+        LibraryGrid({"spool_lag": [float("nan")]})

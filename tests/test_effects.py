@@ -628,3 +628,77 @@ def test_every_effect_declares_a_start_inside_its_bounds_in_every_form(name):
         for p in effect.parameters():
             if p.name in start:
                 assert p.lower <= start[p.name] <= p.upper, (name, options, p.name)
+
+
+def _every_form(cls):
+    return [cls(**o) for o in ([{"form": f} for f in cls.forms] or [{}])]
+
+
+@pytest.mark.parametrize("name", sorted(CATALOGUE))
+def test_every_effect_declares_its_library_terms_in_its_own_parameters(name):
+    """The plug-in contract's search side: each effect, in each form, offers the
+    library at least one term per trial strength, of a kind the library computes, whose
+    start names the effect's own parameters inside their bounds."""
+    from pneubayes.effects.discovery import FormTrialTerm, InputLagTerm, RelaxationTerm, TrialTerm
+
+    for effect in _every_form(CATALOGUE[name]):
+        strengths = effect.library_strengths
+        terms = effect.library_terms(strengths)
+        assert len(terms) == len(strengths) >= 1, (name, effect)
+        assert len({t.label for t in terms}) == len(terms)
+        # a term may stand for another form of the effect (the leak's laminar law)
+        any_form = {p.name: p for e in _every_form(CATALOGUE[name]) for p in e.parameters()}
+        own = {p.name: p for p in effect.parameters()}
+        for t in terms:
+            assert isinstance(t, (TrialTerm, FormTrialTerm, InputLagTerm, RelaxationTerm))
+            for k, v in t.start.items():
+                assert k in any_form and any_form[k].lower <= v <= any_form[k].upper, t
+            if isinstance(t, TrialTerm):
+                assert set(t.values) <= set(own) and t.values, (name, t)
+            if isinstance(t, FormTrialTerm):
+                assert t.effect.name == name and set(t.values) <= set(
+                    t.effect.parameter_names())
+            if isinstance(t, InputLagTerm):
+                assert t.lag_s > 0
+            if isinstance(t, RelaxationTerm):
+                assert t.rate_per_s > 0
+    # labels are unique over the whole catalogue: a term names its effect on its own
+    labels = [t.label for cls in CATALOGUE.values()
+              for t in cls().library_terms(cls.library_strengths)]
+    assert len(labels) == len(set(labels))
+
+
+@pytest.mark.parametrize("name", sorted(CATALOGUE))
+def test_every_effect_proposes_candidates_that_start_inside_their_bounds(name, rig):
+    """The plug-in contract's fit side: a named effect proposes forms of itself, whose
+    start values name their own parameters and lie inside their bounds, from its best
+    term's start or from its fallback; what it refines first are the model's
+    parameters."""
+    from pneubayes.discovery.candidates import effect_candidates, first_free
+    from pneubayes.discovery.verification import StepFit
+    from pneubayes.physics.valve import valve_preset
+
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
+    fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    effect = CATALOGUE[name]()
+    for term in (None, *effect.library_terms(effect.library_strengths)):
+        evidence = {"best_term_start": None if term is None else term.start}
+        cands = effect_candidates(fit, name, evidence, rig, 3)
+        assert cands, name
+        for model, start in cands:
+            assert model.effect_names == (name,)
+            assert set(start) == set(model.parameter_names)
+            assert not model.out_of_bounds(start), (name, start)
+            free = first_free(model, name)
+            assert free is None or set(free) <= set(model.parameter_names)
+
+
+@pytest.mark.parametrize("name", sorted(n for n, c in CATALOGUE.items() if c.forms))
+def test_a_cards_form_follows_from_its_parameter_names(name):
+    """A model card without the ``form`` option: each effect reads its form from the
+    card's parameter names."""
+    cls = CATALOGUE[name]
+    base = Model().parameter_names
+    for form in cls.forms:
+        names = (*base, *cls(form=form).parameter_names())
+        assert cls.form_from_parameters(names) == form

@@ -555,7 +555,8 @@ def test_discovery_offers_a_compliant_chamber_only_forms_it_can_simulate():
                   1.0, 1.0, np.zeros(1), np.zeros(1), 1.0, 0.0)
     rig = _rig(c)
     assert effect_candidates(fit, "heat_transfer", {}, rig) == []
-    tubes = effect_candidates(fit, "tube_delay", {"best_term": "delay 4 ms"}, rig)
+    tubes = effect_candidates(fit, "tube_delay", {"best_term_start": {"tube_delay_s": 0.004}},
+                              rig)
     assert [mm.effect("tube_delay").form for mm, _ in tubes] == ["transport"]
     fixed = Model(rig_card=card())
     fit2 = StepFit(fixed, {"valve_open_area_m2": 1e-6, "dead_volume_m3": 1e-4},

@@ -3,66 +3,86 @@
 Rows are blocks of one-step prediction errors (:mod:`one_step`, Pa). A candidate term
 is the change of the one-step predictions when one mechanism is switched on at a trial
 strength -- through the *same effect objects* the bench plants and a model adds -- so
-a group holds one catalogue effect over a grid of strengths:
-
-- ``tube_delay``: the port flows delayed by a grid of lags (with the tube's friction);
-- ``spool_lag``: the command through first-order lags of a grid of time constants;
-- ``valve_deadzone``: dead bands of a grid of half-widths;
-- ``supply_fluctuation``: the inlet at the measured instead of the nominal supply (the
-  supply deviation times the inlet flow's sensitivity, to all orders);
-- ``cylinder_leak``: the laminar leak law ``k (p^2 - P_atm^2)`` (one column: a second,
-  for the leak's change along the stroke, split the group's evidence and lost a planted
-  leak on SMC; the loop fits the graded form once the leak is named). The paper's orifice
-  leak (eq. 9) has the exhaust port's own law, so a model with a free exhaust offset
-  already contains it (eq. 10 sees only their sum): it can never be *missing*;
-- ``heat_transfer``: wall heat exchange. A one-step prediction starts at the wall
-  temperature, so it cannot show heat transfer; its terms are ``-(p - LP_r[p]) dt``
-  for a grid of rates r instead: after a fill or a vent the air relaxes to the wall
-  temperature and, to first order, the pressure error is a high-passed pressure.
+a group holds one catalogue effect over a grid of strengths. Each effect declares its
+own terms in its file (:meth:`~pneubayes.effects.Effect.library_terms`; the tube's
+delays, the spool's lags, the dead bands, the measured supply, the laminar leak, the
+heat exchange's relaxation rates); this module computes the four kinds of term
+(:mod:`pneubayes.effects.discovery`) for every catalogue effect the model lacks.
 
 The fitted parameters' own sensitivities (d prediction / d theta) form the *absorber*
 block: a residual that a small change of the fitted parameters explains is not a
 missing effect. Effects already in the model are not offered again.
+
+Columns come in the order of their kind -- the trials of every effect (simulated in one
+batch per recording), then other forms, lagged inputs and relaxations -- and within a
+kind in catalogue order.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from pneubayes.discovery.one_step import OneStepData, first_order_lag
-from pneubayes.effects import make_effect
+from pneubayes.effects import CATALOGUE, make_effect
+from pneubayes.effects.discovery import (
+    FormTrialTerm,
+    InputLagTerm,
+    LibraryTerm,
+    RelaxationTerm,
+    TrialTerm,
+)
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
-EFFECT_GROUPS = ("tube_delay", "spool_lag", "valve_deadzone", "supply_fluctuation",
-                 "cylinder_leak", "heat_transfer")
-
-#: The parameter of each effect that the grid varies (the laminar leak is added apart).
-_GRID_PARAMETER = {"tube_delay": "tube_delay_s", "valve_deadzone": "deadzone_halfwidth_V",
-                   "supply_fluctuation": "supply_gain"}
+#: The order of the kinds of term among the library's columns.
+_KIND_ORDER = (TrialTerm, FormTrialTerm, InputLagTerm, RelaxationTerm)
 
 
 @dataclass(frozen=True)
 class LibraryGrid:
-    """Trial strengths of the candidate terms (SI units)."""
+    """Trial strengths of the candidate terms: effect name -> strengths, replacing that
+    effect's own :attr:`~pneubayes.effects.Effect.library_strengths` (the unit of the
+    parameter its terms vary: the tube's delay in s, the dead band's half-width in V,
+    ...). Effects not named keep their own."""
 
-    delays_s: tuple[float, ...] = (0.001, 0.002, 0.004, 0.007, 0.012, 0.02)
-    lags_s: tuple[float, ...] = (0.001, 0.002, 0.004, 0.007, 0.012, 0.02)
-    deadbands_V: tuple[float, ...] = (0.05, 0.1, 0.2, 0.35, 0.6, 1.0)
-    supply_gains: tuple[float, ...] = (1.0,)
-    leak_conductance_kg_per_s_Pa2: float = 1e-16
-    heat_rates_per_s: tuple[float, ...] = (1.0, 3.0, 10.0, 30.0, 100.0)
+    strengths: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not isinstance(self.strengths, dict):
+            raise ValueError(f"LibraryGrid.strengths must be a dict effect name -> "
+                             f"strengths, got {self.strengths!r}")
+        clean = {}
+        for name, values in self.strengths.items():
+            if name not in CATALOGUE:
+                raise ValueError(f"LibraryGrid.strengths: unknown effect {name!r}; the "
+                                 f"catalogue has {sorted(CATALOGUE)}")
+            vals = tuple(values) if isinstance(values, (list, tuple)) else None
+            if not vals or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                   and math.isfinite(v) for v in vals):
+                raise ValueError(f"LibraryGrid.strengths[{name!r}] must be a non-empty list "
+                                 f"of finite numbers, got {values!r}")
+            clean[name] = tuple(float(v) for v in vals)
+        object.__setattr__(self, "strengths", clean)
+
+    def for_effect(self, name: str) -> tuple[float, ...]:
+        """The trial strengths of the named effect's terms."""
+        return self.strengths.get(name, CATALOGUE[name].library_strengths)
 
     def to_dict(self) -> dict:
-        return dict(self.__dict__)
+        """Every catalogue effect's strengths, as used."""
+        return {name: list(self.for_effect(name)) for name in CATALOGUE}
 
 
 @dataclass
 class CandidateLibrary:
-    """Rows = blocks of all recordings; columns = named candidate terms and absorbers."""
+    """Rows = blocks of all recordings; columns = named candidate terms and absorbers.
+
+    ``starts`` holds, per column, the parameter values its term stands for (a named
+    effect's candidate starts there; empty for a library built by hand)."""
 
     target: np.ndarray            # (n,) block sums of one-step errors, Pa
     columns: np.ndarray           # (n, m) candidate terms, Pa
@@ -73,6 +93,7 @@ class CandidateLibrary:
     row_recording: np.ndarray     # recording index per row
     row_sample: np.ndarray        # first sample of each row's block
     meta: dict = field(default_factory=dict)
+    starts: list[dict] = field(default_factory=list)
 
     @property
     def group_names(self) -> list[str]:
@@ -101,6 +122,34 @@ def _augmented(model: Model, params: dict, effects: Sequence):
     return aug, base
 
 
+def _terms(model: Model, groups: Sequence[str], grid: LibraryGrid):
+    """``[(effect, term), ...]`` of the named groups, in the columns' order."""
+    effects = [make_effect(g, **model.effect_options(g)) for g in groups]
+    terms = [(e, t) for e in effects for t in e.library_terms(grid.for_effect(e.name))]
+    for _, t in terms:
+        if type(t) not in _KIND_ORDER:
+            raise TypeError(f"library term {t!r}: unknown kind {type(t).__name__}")
+    return sorted(terms, key=lambda et: _KIND_ORDER.index(type(et[1])))
+
+
+def _column(term: LibraryTerm, d: OneStepData, model: Model, params: dict,
+            aug: Model, base: dict, base_pred: np.ndarray, p: np.ndarray,
+            solver: SolverConfig) -> np.ndarray:
+    """The block sums of one term that is not a batched trial (Pa)."""
+    if isinstance(term, FormTrialTerm):
+        alone, alone_base = _augmented(model, params, [term.effect])
+        pred = d.predict(alone, np.array([alone.vector({**alone_base, **term.values})]),
+                         solver)[0]
+        return d.rows(pred - base_pred)
+    if isinstance(term, InputLagTerm):
+        pred = d.predict(aug, np.array([aug.vector(base)]), solver,
+                         inputs=d.lagged_inputs(term.lag_s))[0]
+        return d.rows(pred - base_pred)
+    dt = float(np.median(np.diff(d.recording.time_s)))
+    hp = p - first_order_lag(p, dt, 1.0 / term.rate_per_s)
+    return d.rows(-0.5 * (hp[1:] + hp[:-1]) * dt)
+
+
 def build_library(model: Model, params: dict, data: Sequence[OneStepData],
                   grid: LibraryGrid, solver: SolverConfig,
                   groups: Sequence[str] | None = None) -> CandidateLibrary:
@@ -109,58 +158,24 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
     ``groups`` defaults to every catalogue effect the model does not already have.
     """
     if groups is None:
-        groups = [g for g in EFFECT_GROUPS if not model.has(g)]
+        groups = [g for g in CATALOGUE if not model.has(g)]
     theta = model.vector(params)
     sens_points, widths, steps = _sensitivity_points(model, theta)
-    aug, base = _augmented(model, params, [g for g in groups if g in _GRID_PARAMETER])
-    trials, trial_labels = [aug.vector(base)], []
-    for g in groups:
-        if g not in _GRID_PARAMETER:
-            continue
-        name = _GRID_PARAMETER[g]
-        values = {"tube_delay": grid.delays_s, "valve_deadzone": grid.deadbands_V,
-                  "supply_fluctuation": grid.supply_gains}[g]
-        for v in values:
-            trials.append(aug.vector({**base, name: v}))
-            unit = {"tube_delay": ("delay", 1e3, "ms"), "valve_deadzone": ("dead band", 1, "V"),
-                    "supply_fluctuation": ("measured supply x", 1, "")}[g]
-            trial_labels.append((g, f"{unit[0]} {v * unit[1]:g} {unit[2]}".strip()))
-    lam = None
-    if "cylinder_leak" in groups:
-        lam, lam_base = _augmented(model, params, [make_effect("cylinder_leak",
-                                                                form="laminar")])
+    terms = _terms(model, groups, grid)
+    trials = [(e, t) for e, t in terms if isinstance(t, TrialTerm)]
+    others = [t for _, t in terms if not isinstance(t, TrialTerm)]
+    aug, base = _augmented(model, params, list(dict.fromkeys(e for e, _ in trials)))
+    vectors = np.array([aug.vector(base)] + [aug.vector({**base, **t.values})
+                                              for _, t in trials])
     targets, cols, absorbers, rec_idx, first, keep = [], [], [], [], [], []
-    labels, group_of = [], []
     for i, d in enumerate(data):
-        pred = d.predict(aug, np.array(trials), solver)
+        pred = d.predict(aug, vectors, solver)
         base_pred = pred[0]
         p = np.asarray(d.recording.pressure_Pa, dtype=np.float64)
         targets.append(d.rows(p[1:] - base_pred))
-        rec_cols, rec_labels = [], []
-        for (g, lab), row in zip(trial_labels, pred[1:]):
-            rec_cols.append(d.rows(row - base_pred))
-            rec_labels.append((g, lab))
-        if lam is not None:
-            pl = d.predict(lam, np.array([lam.vector({**lam_base,
-                           "leak_conductance_kg_per_s_Pa2": grid.leak_conductance_kg_per_s_Pa2})]),
-                           solver)[0]
-            rec_cols.append(d.rows(pl - base_pred))
-            rec_labels.append(("cylinder_leak", "laminar leak"))
-        if "spool_lag" in groups:
-            for tau in grid.lags_s:
-                pl = d.predict(aug, np.array([aug.vector(base)]), solver,
-                               inputs=d.lagged_inputs(tau))[0]
-                rec_cols.append(d.rows(pl - base_pred))
-                rec_labels.append(("spool_lag", f"lag {1e3 * tau:g} ms"))
-        if "heat_transfer" in groups:
-            dt = float(np.median(np.diff(d.recording.time_s)))
-            for r in grid.heat_rates_per_s:
-                hp = p - first_order_lag(p, dt, 1.0 / r)
-                rec_cols.append(d.rows(-0.5 * (hp[1:] + hp[:-1]) * dt))
-                rec_labels.append(("heat_transfer", f"heat {r:g}/s"))
-        if i == 0:
-            labels = [lab for _, lab in rec_labels]
-            group_of = [g for g, _ in rec_labels]
+        rec_cols = [d.rows(row - base_pred) for row in pred[1:]]
+        rec_cols += [_column(t, d, model, params, aug, base, base_pred, p, solver)
+                     for t in others]
         cols.append(np.column_stack(rec_cols) if rec_cols else np.zeros((d.n_rows, 0)))
         sp = d.predict(model, sens_points, solver)
         sens = (sp[0::2] - sp[1::2]) / widths[:, None] * steps[:, None]
@@ -171,7 +186,9 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
     k = np.concatenate(keep)  # rows touching a masked sample are left out
     return CandidateLibrary(
         target=np.concatenate(targets)[k], columns=np.concatenate(cols)[k],
-        labels=labels, groups=group_of, absorbers=np.concatenate(absorbers)[k],
+        labels=[t.label for _, t in terms], groups=[e.name for e, _ in terms],
+        absorbers=np.concatenate(absorbers)[k],
         absorber_labels=[f"d/d {n}" for n in model.parameter_names],
         row_recording=np.concatenate(rec_idx)[k], row_sample=np.concatenate(first)[k],
-        meta={"grid": grid.to_dict(), "groups": list(groups)})
+        meta={"grid": grid.to_dict(), "groups": list(groups)},
+        starts=[dict(t.start) for _, t in terms])

@@ -130,7 +130,8 @@ class GroupedSINDy:
             self.coef_ = np.zeros(0)
             self.inclusion_probability_ = {g: 0.0 for g in names}
             self.evidence_ = {g: {"inclusion_probability": 0.0, "t_max": 0.0,
-                                  "best_term": None, "explained_fraction": 0.0}
+                                  "best_term": None, "best_term_start": None,
+                                  "explained_fraction": 0.0}
                               for g in names}
             self.ranking_ = []
             return self
@@ -151,7 +152,7 @@ class GroupedSINDy:
             xg = x[:, cols]
             xo = xg / (se[cols] if cols.any() else 1.0)  # back to orthonormal
             explained = float(np.sum((xo.T @ y_p) ** 2)) / rss0 if cols.any() else 0.0
-            t_best, term = 0.0, None
+            t_best, term, term_start = 0.0, None, None
             for j, (gg, lab) in enumerate(zip(lib.groups, lib.labels)):
                 nj = np.linalg.norm(raw[:, j])
                 if gg != g or nj <= 1e-6 * max(raw_norm[j], 1e-300):
@@ -161,9 +162,11 @@ class GroupedSINDy:
                 t = abs(c) / float(cluster_se(xj, y_p - c * xj[:, 0], chunk_of)[0])
                 if t > t_best:
                     t_best, term = t, lab
+                    term_start = dict(lib.starts[j]) if lib.starts else None
             self.inclusion_probability_[g] = p_inc
             self.evidence_[g] = {"inclusion_probability": p_inc, "t_max": t_best,
-                                 "best_term": term, "explained_fraction": explained,
+                                 "best_term": term, "best_term_start": term_start,
+                                 "explained_fraction": explained,
                                  "selected_in_full_fit": bool(np.any(self.coef_[cols] != 0))}
         self.ranking_ = sorted(names, key=lambda g: (self.evidence_[g]["inclusion_probability"],
                                                      self.evidence_[g]["t_max"]), reverse=True)

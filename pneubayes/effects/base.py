@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from pneubayes.effects.discovery import CandidateContext, LibraryTerm
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.rig import Rig
 
@@ -109,11 +110,61 @@ class Effect(Component):
     Besides the component interface, an effect carries realistic default strengths for
     the virtual bench (:meth:`bench_defaults`) and may perturb the drive signals the
     bench generates (:meth:`perturb_inputs`), so the same object plants the effect in
-    synthetic data and fits it in a model.
+    synthetic data and fits it in a model. It also tells the discovery loop how to look
+    for it (:meth:`library_terms`) and how to fit it once named
+    (:meth:`candidate_forms`, :meth:`refine_first`); see :mod:`pneubayes.effects.discovery`.
     """
 
     #: The forms of an effect with a ``form`` option (empty: one form only).
     forms: ClassVar[tuple[str, ...]] = ()
+    #: Default trial strengths of the effect's library terms (the unit of the
+    #: parameter its terms vary; a :class:`~pneubayes.discovery.library.LibraryGrid`
+    #: may replace them).
+    library_strengths: ClassVar[tuple[float, ...]] = ()
+    #: Where a named effect's candidate starts when no library term of it explained the
+    #: residual (parameter -> value; missing parameters start neutral).
+    discovery_fallback: ClassVar[dict[str, float]] = {}
+
+    @classmethod
+    def form_from_parameters(cls, names) -> str | None:
+        """The form a card with these parameter names describes: of the forms whose
+        parameters are all among ``names``, the one with the most parameters (the
+        first form if none is; None for an effect with one form)."""
+        if not cls.forms:
+            return None
+        names = set(names)
+        best, best_n = cls.forms[0], -1
+        for form in cls.forms:
+            own = cls(form=form).parameter_names()
+            if set(own) <= names and len(own) > best_n:
+                best, best_n = form, len(own)
+        return best
+
+    def library_terms(self, strengths: tuple[float, ...]) -> tuple[LibraryTerm, ...]:
+        """The terms this effect offers the discovery library at these trial strengths
+        (none: the effect is never searched for)."""
+        return ()
+
+    def candidate_start(self, term_start: dict | None) -> dict[str, float]:
+        """Start values of a named effect's candidate: the best term's, or
+        :attr:`discovery_fallback` without one (parameters not given start neutral)."""
+        return dict(term_start) if term_start else dict(self.discovery_fallback)
+
+    def candidate_forms(self, ctx: CandidateContext) -> list[tuple["Effect", dict]]:
+        """``[(effect, start values), ...]``: the form(s) the loop fits once this effect
+        is named beside ``ctx.model`` (empty: none fits there). Start values name only
+        the parameters not started neutral; the loop moves them inside the bounds."""
+        return [(self, self.candidate_start(ctx.term_start))]
+
+    def refine_first(self) -> tuple[str, ...] | None:
+        """Parameters (of this effect and the model) a refinement fits on their own
+        before all of them, or None."""
+        return None
+
+    def adds_state(self) -> bool:
+        """Whether the effect makes the simulator carry a state besides the chamber
+        pressure (a temperature, an acoustic line's cells)."""
+        return False
 
     def neutral_values(self) -> dict[str, float]:
         """Parameter values at which the effect vanishes (zero strength)."""

@@ -26,6 +26,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.discovery import FormTrialTerm
 from pneubayes.rig import Rig
 
 _FORMS = ("orifice", "laminar", "graded")
@@ -80,6 +81,30 @@ class CylinderLeak(Effect):
     def start_values(self):
         """A fifth of the bench's realistic leak (the generic fit's start)."""
         return {k: 0.2 * v for k, v in self.bench_defaults().items()}
+
+    # ------------------------------------------------------------------ discovery
+    library_strengths = (1e-16,)
+
+    def library_terms(self, strengths):
+        """The laminar law ``k (p^2 - P_atm^2)`` at each trial k (kg/(s Pa^2)); one
+        column by default: a second, for the leak's change along the stroke, split the
+        group's evidence and lost a planted leak on SMC (the graded form is fitted once
+        the leak is named). The paper's orifice leak (eq. 9) has the exhaust port's own
+        law, so a model with a free exhaust offset already contains it (eq. 10 sees only
+        their sum): it can never be *missing*, and is not offered."""
+        laminar = CylinderLeak(form="laminar")
+        name = "leak_conductance_kg_per_s_Pa2"
+        return tuple(FormTrialTerm("laminar leak" if len(strengths) == 1
+                                   else f"laminar leak {k:g} kg/(s Pa^2)", {name: k},
+                                   effect=laminar, values={name: k}) for k in strengths)
+
+    def candidate_forms(self, ctx):
+        """The laminar law graded along the stroke (a clearance whose seal engagement
+        varies; gradient 0 is the uniform gap), started at 0.3 x the bench's leak
+        whatever the term: the term's strength is a probe, not an estimate."""
+        graded = CylinderLeak(form="graded")
+        name = "leak_conductance_kg_per_s_Pa2"
+        return [(graded, {name: 0.3 * graded.bench_defaults()[name]})]
 
     def bench_defaults(self):
         # Paper VI-B-3: equivalent diameter 1.9665e-4 m for the AIRPELs -> 3.04e-8 m^2.

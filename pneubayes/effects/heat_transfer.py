@@ -40,6 +40,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.discovery import CandidateContext, RelaxationTerm
+from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.rig import Rig
 
 _FORMS = ("rate", "convective")
@@ -79,6 +81,41 @@ class HeatTransfer(Effect):
                                                   dtype=np.float64)}
         return {"heat_coefficient_W_per_m2_K": np.asarray(
             values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64)}
+
+    # ------------------------------------------------------------------ discovery
+    library_strengths = (1.0, 3.0, 10.0, 30.0, 100.0)
+    discovery_fallback = {"heat_transfer_rate_per_s": 5.0}
+
+    def library_terms(self, strengths):
+        """A one-step prediction starts at the wall temperature, so it cannot show heat
+        transfer: after a fill or a vent the air relaxes to the wall temperature and, to
+        first order, the pressure error is a high-passed pressure at each trial rate
+        (1/s)."""
+        return tuple(RelaxationTerm(f"heat {r:g}/s", {"heat_transfer_rate_per_s": r},
+                                    rate_per_s=r) for r in strengths)
+
+    def candidate_forms(self, ctx: CandidateContext):
+        """Both forms, the rate at the best term's and the convective coefficient giving
+        that rate, ``(kappa - 1) h (A_w / V) T / p = rate``, at mid-stroke and mid-range
+        pressure, so neither starts handicapped. None where the model has no room for
+        the temperature state (an acoustic line is isothermal)."""
+        if not ctx.second_state_free:
+            return []
+        rate_form = HeatTransfer(**{**self.options(), "form": "rate"})
+        rate = ctx.inside(rate_form, "heat_transfer_rate_per_s",
+                          self.candidate_start(ctx.term_start)["heat_transfer_rate_per_s"])
+        rig = ctx.rig
+        vol = ctx.dead_volume_m3 + rig.bore_area_m2 * 0.5 * (rig.stroke_m or 0.0)
+        wall = float(wall_area_m2(vol, rig.bore_area_m2))
+        p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
+        gas = rig.gas
+        h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
+        conv = HeatTransfer(**{**self.options(), "form": "convective"})
+        return [(rate_form, {"heat_transfer_rate_per_s": rate}),
+                (conv, {"heat_transfer_coefficient_W_per_m2_K": h})]
+
+    def adds_state(self):
+        return True
 
     def bench_defaults(self):
         if self.form == "rate":

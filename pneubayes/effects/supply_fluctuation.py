@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from pneubayes.effects.base import DirectEffect, Parameter
+from pneubayes.effects.discovery import TrialTerm
 from pneubayes.rig import Rig
 
 
@@ -48,6 +49,21 @@ class SupplyFluctuation(DirectEffect):
                 "load_step_Pa": self.load_step_Pa,
                 "recovery_time_s": self.recovery_time_s,
                 "line_time_constant_s": self.line_time_constant_s}
+
+    library_strengths = (1.0,)
+    discovery_fallback = {"supply_gain": 1.0}
+
+    def library_terms(self, strengths):
+        """The inlet at the measured instead of the nominal supply, weighted by each
+        trial gain: the supply deviation times the inlet flow's sensitivity, to all
+        orders."""
+        return tuple(TrialTerm(f"measured supply x {v:g}", {"supply_gain": v},
+                               values={"supply_gain": v}) for v in strengths)
+
+    def candidate_start(self, term_start):
+        """Gain 1 whatever the term: the inlet sees the measured supply, as the
+        physics says; the fit moves the gain from there."""
+        return dict(self.discovery_fallback)
 
     def perturb_inputs(self, time_s, supply_pressure_Pa, rig: Rig, rng: np.random.Generator):
         """True supply at the valve inlet (Pa): nominal + OU wander + decaying load dips,

@@ -36,6 +36,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.discovery import CandidateContext, TrialTerm
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
 from pneubayes.rig import Rig
 
@@ -111,6 +112,45 @@ class TubeDelay(Effect):
         return (math.pi / 4.0 * np.asarray(d, dtype=np.float64) ** 2
                 * rig.gas.speed_of_sound_m_per_s
                 * np.asarray(values["tube_delay_s"], dtype=np.float64))
+
+    # ------------------------------------------------------------------ discovery
+    library_strengths = (0.001, 0.002, 0.004, 0.007, 0.012, 0.02)
+    discovery_fallback = {"tube_delay_s": 0.003}
+
+    def library_terms(self, strengths):
+        """The port flows delayed by each trial delay (s), with the tube's friction."""
+        return tuple(TrialTerm(f"delay {v * 1e3:g} ms", {"tube_delay_s": v},
+                               values={"tube_delay_s": v}) for v in strengths)
+
+    def candidate_forms(self, ctx: CandidateContext):
+        """This form (the paper's transport delay) and an acoustic line of
+        ``ctx.line_segments`` cells (outside tubes are lines, which lag and ring; none
+        where the model has no room for the line's states), both at the best term's
+        delay. The line's volume comes out of the fitted dead volume: its start delay
+        keeps it to half of that."""
+        start = self.candidate_start(ctx.term_start)
+        out = [(self, start)]
+        if self.form == "line" or ctx.line_segments == 0 or not ctx.second_state_free:
+            return out
+        line = TubeDelay(**{**self.options(), "form": "line", "segments": ctx.line_segments})
+        delay = ctx.inside(line, "tube_delay_s", start["tube_delay_s"])
+        vol = float(line.tube_volume_m3({**line.neutral_values(), "tube_delay_s": delay},
+                                        ctx.rig))
+        if vol > 0.5 * ctx.dead_volume_m3:
+            delay = delay * 0.5 * ctx.dead_volume_m3 / vol
+        out.append((line, {"tube_delay_s": delay}))
+        return out
+
+    def refine_first(self):
+        """An acoustic line's step costs tens of times a plain one, and a refinement's
+        Jacobian one simulation per free parameter: the line's two parameters and the
+        dead volume it shares are fitted first (four simulations per Jacobian instead of
+        a dozen), then everything from there."""
+        return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") if self.form == "line" \
+            else None
+
+    def adds_state(self):
+        return self.form == "line"
 
     def bench_defaults(self):
         # A 1 m tube: 2.9 ms at 343 m/s, 3.1e-6 m^3 of 2 mm tube.

@@ -7,6 +7,7 @@ volts) and half-width w: no change of area for |s| < w, continuous outside it.
 from __future__ import annotations
 
 from pneubayes.effects.base import DirectEffect, Parameter
+from pneubayes.effects.discovery import TrialTerm
 
 
 class ValveDeadzone(DirectEffect):
@@ -17,3 +18,11 @@ class ValveDeadzone(DirectEffect):
     parameter = Parameter("deadzone_halfwidth_V", "V", 0.0, 1.5, "uniform",
                           "half-width of the spool dead band", neutral=0.0)
     bench_value = 0.3
+
+    library_strengths = (0.05, 0.1, 0.2, 0.35, 0.6, 1.0)
+    discovery_fallback = {"deadzone_halfwidth_V": 0.2}
+
+    def library_terms(self, strengths):
+        """Dead bands of each trial half-width (V)."""
+        return tuple(TrialTerm(f"dead band {v:g} V", {"deadzone_halfwidth_V": v},
+                               values={"deadzone_halfwidth_V": v}) for v in strengths)
