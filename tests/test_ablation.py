@@ -8,24 +8,32 @@ import json
 import math
 import subprocess
 import sys
-from dataclasses import fields
 from pathlib import Path
 
 import pytest
 
 from pneubayes.ablation.executor import DaskExecutor, LocalExecutor
 from pneubayes.ablation.runner import run_study
-from pneubayes.ablation.study import SETTINGS, Settings, StudyError, load_study, parse_study
+from pneubayes.ablation.study import StudyError, load_study, parse_study
 from pneubayes.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _table(name: str, values: dict) -> list[str]:
+    """A TOML table (JSON scalars and arrays are valid TOML values), sub-tables after."""
+    lines = ["", f"[{name}]"]
+    lines += [f"{k} = {json.dumps(v)}" for k, v in values.items() if not isinstance(v, dict)]
+    for k, v in values.items():
+        if isinstance(v, dict):
+            lines += _table(f"{name}.{k}", v)
+    return lines
+
+
 def toml(grid: dict, settings: dict | None = None, name: str = "t") -> str:
-    """A study file from dicts (JSON scalars and arrays are valid TOML values)."""
-    lines = [f"name = {json.dumps(name)}", "", "[grid]"]
-    lines += [f"{k} = {json.dumps(v)}" for k, v in grid.items()]
-    lines += ["", "[settings]"] + [f"{k} = {json.dumps(v)}" for k, v in (settings or {}).items()]
+    """A study file from dicts; a dict value in ``settings`` is a nested table."""
+    lines = [f"name = {json.dumps(name)}"] + _table("grid", grid)
+    lines += _table("settings", settings or {})
     return "\n".join(lines) + "\n"
 
 
@@ -65,10 +73,30 @@ def calls(out: Path) -> list[str]:
 
 
 # ---------------------------------------------------------------- study files
-def test_example_study_parses_and_every_setting_is_declared():
+def test_example_studies_parse():
     study = load_study(ROOT / "experiments" / "studies" / "smoke.toml")
     assert study.name == "smoke" and study.n_cells == len(study.cells()) == 4
-    assert set(SETTINGS) == {f.name for f in fields(Settings)}
+    for path in sorted((ROOT / "experiments" / "studies").glob("*.toml")):
+        assert load_study(path).n_cells >= 1
+    table3 = load_study(ROOT / "experiments" / "studies" / "table3.toml")
+    assert table3.settings.discovery.n_bags == 40
+
+
+def test_nested_tables_are_the_librarys_own_settings_over_the_studys_defaults():
+    """``[settings.fit.sampler]`` changes the sampler's keys it names and keeps the
+    study's other defaults (4000 emcee steps); ``[settings.discovery]`` is the loop's
+    own DiscoverySettings; both are validated by those dataclasses."""
+    from pneubayes.discovery.settings import DiscoverySettings
+
+    study = parse_study(toml(GRID, {"fit": {"sampler": {"n_walkers": 48},
+                                            "refine_max_nfev": 30},
+                                    "discovery": {"n_bags": 12, "max_effects": 2}}), "n.toml")
+    s = study.settings
+    assert s.fit.sampler.n_walkers == 48 and s.fit.sampler.max_steps == 4000
+    assert s.fit.refine_max_nfev == 30
+    assert s.discovery == DiscoverySettings(n_bags=12, max_effects=2)
+    default = parse_study(toml(GRID), "d.toml").settings
+    assert default.fit.sampler.max_steps == 4000 and default.discovery == DiscoverySettings()
 
 
 @pytest.mark.parametrize("grid, settings, key, why", [
@@ -97,6 +125,19 @@ def test_example_study_parses_and_every_setting_is_declared():
     (GRID, {"fit_positions": [0.5, 1.5]}, "settings.fit_positions[1]", "<= 1"),
     (GRID, {"fit_command_ranges_V": []}, "settings.fit_command_ranges_V", "empty"),
     (GRID, {"duration_s": 1.5}, "settings.horizon_s", "do not fit"),
+    (GRID, {"fit": {"sampler": {"max_steps": 2.5}}}, "settings.fit.sampler.max_steps",
+     "expected an integer"),
+    (GRID, {"fit": {"sampler": {"max_step": 10}}}, "settings.fit.sampler.max_step",
+     "unknown key; SamplerSettings has"),
+    (GRID, {"fit": {"sampler": {"max_steps": 0}}}, "settings.fit.sampler",
+     "SamplerSettings.max_steps must be >= 1"),
+    (GRID, {"discovery": {"min_inclusion": 2.0}}, "settings.discovery",
+     "min_inclusion must be in (0, 1]"),
+    (GRID, {"discovery": {"grid": {"strengths": {"tube": [0.001]}}}},
+     "settings.discovery.grid", "unknown effect 'tube'"),
+    (GRID, {"discovery": {"seed": 3}}, "settings.discovery.seed", "set by each cell"),
+    (GRID, {"fit": {"horizon_s": 1.0}}, "settings.fit.horizon_s", "settings.horizon_s"),
+    (GRID, {"fit": "fast"}, "settings.fit", "expected a table of FitSettings"),
     ({**GRID, "model_effects": ["discover"]}, {"duration_s": 7.0}, "settings.duration_s",
      "needs at least 7"),
 ])
@@ -156,14 +197,17 @@ def test_hash_follows_the_settings_that_matter():
     longer = parse_study(toml(GRID, {"duration_s": 30.0}), "a.toml").cells()[0]
     assert longer.id != base.id and longer.id.rsplit(".", 1)[0] == base.id.rsplit(".", 1)[0]
     # emcee and discovery settings cannot change a refine fit of a fixed model
-    same = parse_study(toml(GRID, {"mcmc_max_steps": 10, "discovery_n_bags": 5,
+    same = parse_study(toml(GRID, {"fit": {"sampler": {"max_steps": 10}},
+                                   "discovery": {"n_bags": 5},
                                    "smoke_duration_s": 9.0, "eval_positions": [0.2],
                                    "leak_form": "laminar"}), "a.toml").cells()[0]
     assert same.id == base.id
     mcmc = parse_study(toml(GRID, {"method": "mcmc"}), "a.toml").cells()[0]
-    mcmc2 = parse_study(toml(GRID, {"method": "mcmc", "mcmc_max_steps": 10}),
+    mcmc2 = parse_study(toml(GRID, {"method": "mcmc", "fit": {"sampler": {"max_steps": 10}}}),
                         "a.toml").cells()[0]
-    assert len({base.id, mcmc.id, mcmc2.id}) == 3
+    cutoff = parse_study(toml(GRID, {"fit": {"position_cutoff_Hz": 30.0}}),
+                         "a.toml").cells()[0]
+    assert len({base.id, mcmc.id, mcmc2.id, cutoff.id}) == 4
 
 
 def test_smoke_keeps_one_cell_with_short_recordings():

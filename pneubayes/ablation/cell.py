@@ -39,7 +39,6 @@ from pneubayes.effects import effects_from_names
 from pneubayes.evaluation import predict_windows
 from pneubayes.inference.fit import FitSettings, identify, write_fit
 from pneubayes.inference.predictive import estimate_noise_std
-from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording, smooth_position
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
@@ -98,11 +97,10 @@ def with_supply(recording, supply: str):
 
 
 def _fit_settings(cell: Cell) -> FitSettings:
+    """The study's fit settings with the study's windows and the cell's seed."""
     s = cell.settings
-    return FitSettings(horizon_s=s.horizon_s, stride_s=s.horizon_s,
-                       position_cutoff_Hz=s.position_cutoff_Hz,
-                       sampler=SamplerSettings(n_walkers=s.mcmc_walkers,
-                                               max_steps=s.mcmc_max_steps, seed=cell.seed))
+    return replace(s.fit, horizon_s=s.horizon_s, stride_s=s.horizon_s,
+                   sampler=replace(s.fit.sampler, seed=cell.seed))
 
 
 def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
@@ -127,11 +125,9 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
     if cell.discover:
         from pneubayes.discovery.loop import Discovery
         from pneubayes.discovery.report import final_estimate, write_discovery
-        from pneubayes.discovery.settings import DiscoverySettings
 
-        ds = DiscoverySettings(max_effects=s.discovery_max_effects,
-                               n_bags=s.discovery_n_bags, posterior=s.method == "mcmc",
-                               seed=cell.seed, fit=_fit_settings(cell))
+        ds = replace(s.discovery, posterior=s.method == "mcmc", seed=cell.seed,
+                     fit=_fit_settings(cell))
         disc = Discovery(ds, out, log).fit(recordings)
         doc = write_discovery(disc, recordings, out, figures=False)
         model, params = disc.final_.model, final_estimate(disc)[0]
@@ -195,7 +191,7 @@ def evaluate(model, params, recordings, settings: Settings,
     predict = _predictor(model, params, settings, solver)
     for rec in recordings:
         # scored with the position low-passed as in fitting (pneubayes predict does too)
-        wp = predict(smooth_position(rec, settings.position_cutoff_Hz))
+        wp = predict(smooth_position(rec, settings.fit.position_cutoff_Hz))
         r = wp.residual_Pa[0, :, 1:]
         idx = wp.starts[:, None] + np.arange(1, wp.length)[None, :]
         u = np.abs(np.asarray(rec.command_V)[idx - 1])

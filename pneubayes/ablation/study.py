@@ -20,6 +20,12 @@ A study file has a ``[grid]`` table, whose axes are crossed (cartesian product),
     method = "refine"
     eval_command_bands_V = [0.1, 3.0]
 
+    [settings.fit.sampler]                         # FitSettings -> SamplerSettings
+    max_steps = 4000
+
+    [settings.discovery]                           # DiscoverySettings
+    max_effects = 4
+
 ``data_forms``: ``"catalogue"`` plants the catalogue's effect objects in the bench's
 model; ``"realistic"`` plants :func:`pneubayes.bench.forms.forms_from_names` (acoustic
 tube, rounded dead zone, ...) simulated by the independent plant. ``model_effects``
@@ -27,7 +33,13 @@ entries are lists of catalogue names, ``"discover"`` (the discovery loop from th
 model) or ``"tassa"`` (the Tassa et al. 2013 peer baseline). Every cell is fitted on a
 fixed design (``fit_*`` settings) and scored on held-out recordings of its own protocol
 and command range (:mod:`pneubayes.ablation.cell`).
-``[settings]`` keys and defaults are :data:`SETTINGS`; unknown keys are errors.
+``[settings]`` keys and defaults are :class:`Settings`'s; its nested tables
+``[settings.fit]`` (``[settings.fit.sampler]``) and ``[settings.discovery]`` are the
+library's own :class:`~pneubayes.inference.fit.FitSettings` and
+:class:`~pneubayes.discovery.settings.DiscoverySettings`, with the same keys. Every
+table is checked by the dataclasses themselves (:mod:`pneubayes.settings_tree`):
+unknown keys, values of the wrong kind and values out of range are errors naming the
+file and the key.
 
 Each cell has a stable, human-readable id ending in a short hash of everything that
 defines its result (:meth:`Cell.content`), so a changed setting gives a new id and the
@@ -41,18 +53,22 @@ import itertools
 import json
 import math
 import tomllib
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.effects import CATALOGUE
 from pneubayes.errors import PneubayesError
 from pneubayes.evaluation import PAPER_HORIZON_S
+from pneubayes.inference.fit import FitSettings
+from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.physics.cylinder import CYLINDERS
 from pneubayes.physics.valve import VALVES
+from pneubayes.settings_tree import FieldError, SettingsError, override
 
 #: Bump when :func:`pneubayes.ablation.cell.run_cell` changes what a cell computes: every
 #: cell id changes with it, so no stale cached result is reused.
-CELL_VERSION = 2
+CELL_VERSION = 3
 
 DATA_FORMS = ("catalogue", "realistic")
 PROTOCOLS = ("fixed", "moving")
@@ -74,14 +90,48 @@ class StudyError(PneubayesError, ValueError):
     """A study file is not valid; the message names the file and the key."""
 
 
+def _study_fit() -> FitSettings:
+    """The study's fit settings: the library's, with a shorter emcee run (4000 steps)."""
+    return FitSettings(sampler=SamplerSettings(max_steps=4000))
+
+
+#: Keys of the nested tables the cell sets itself (the windows are the study's, the
+#: seeds the cell's, the discovery loop fits with ``[settings.fit]`` and samples with
+#: ``method = "mcmc"``): naming them is an error, not an ignored setting.
+CELL_OWNED = {"fit": ("horizon_s", "stride_s"), "fit.sampler": ("seed",),
+              "discovery": ("fit", "posterior", "seed")}
+
+
+def _check_number(key, v, lo=None, hi=None, closed_lo=False):
+    if lo is not None and (v < lo if closed_lo else v <= lo):
+        raise FieldError(key, f"must be {'>=' if closed_lo else '>'} {lo:g}, got {v:g}")
+    if hi is not None and v > hi:
+        raise FieldError(key, f"must be <= {hi:g}, got {v:g}")
+
+
+def _check_list(key, values, lo, hi, closed_lo=False, allow_empty=False):
+    if not values and not allow_empty:
+        raise FieldError(key, "the list is empty; give at least one value")
+    for i, v in enumerate(values):
+        _check_number(f"{key}[{i}]", v, lo, hi, closed_lo)
+        if v in values[:i]:
+            raise FieldError(f"{key}[{i}]", f"duplicate value {v!r}")
+
+
+def _check_choice(key, v, choices):
+    if v not in choices:
+        raise FieldError(key, f"unknown value {v!r}; choose from {', '.join(choices)}")
+
+
 @dataclass(frozen=True)
 class Settings:
-    """Scalar settings shared by every cell of a study (SI units in the names).
+    """Settings shared by every cell of a study (SI units in the names).
 
     duration_s: length of every bench recording, s. method: ``"lsq"`` (the paper's
     eq.-10 least squares), ``"refine"`` (then 2-s multiple shooting; default) or
     ``"mcmc"`` (then the emcee posterior, scored at its median). horizon_s, stride_s:
-    prediction windows, s (stride defaults to the horizon: non-overlapping).
+    prediction windows, s (stride defaults to the horizon: non-overlapping); the fits
+    use the same horizon, as windows that do not overlap.
     eval_command_bands_V: besides the overall RMSE, the RMSE over predicted samples whose
     command (held over the preceding interval) satisfies ``|u| <= band``, V.
     supply: ``"measured"`` gives the fitted model the recorded supply column,
@@ -96,11 +146,14 @@ class Settings:
     default; ``laminar``, or ``graded`` along the stroke); data_leak_form: law of a
     planted catalogue leak (laminar by default: an orifice leak is the exhaust port's
     own law and is absorbed by the exhaust offset).
-    mcmc_walkers (0: automatic), mcmc_max_steps: the emcee run of ``method = "mcmc"``.
-    discovery_max_effects, discovery_n_bags: the discovery loop of ``"discover"`` cells.
     smoke_duration_s: recording length of ``--smoke`` runs, s.
-    position_cutoff_Hz: low-pass of the measured position before it drives any model
-    (fitting and scoring; :func:`pneubayes.io.smooth_position`), Hz.
+    fit: the library's :class:`~pneubayes.inference.fit.FitSettings` (a
+    ``[settings.fit]`` table, its sampler ``[settings.fit.sampler]``), except its
+    windows (``horizon_s`` above) and seed (the cell's); its ``position_cutoff_Hz``
+    low-passes the position for scoring too. discovery: the library's
+    :class:`~pneubayes.discovery.settings.DiscoverySettings` of ``"discover"`` cells
+    (``[settings.discovery]``), except its fit (``fit`` above), posterior (``method``)
+    and seed (the cell's).
     """
 
     duration_s: float = 20.0
@@ -118,12 +171,32 @@ class Settings:
     heldout_seed_offset: int = 1000
     leak_form: str = "orifice"
     data_leak_form: str = "laminar"
-    mcmc_walkers: int = 0
-    mcmc_max_steps: int = 4000
-    discovery_max_effects: int = 4
-    discovery_n_bags: int = 40
     smoke_duration_s: float = 14.0
-    position_cutoff_Hz: float = 50.0
+    fit: FitSettings = field(default_factory=_study_fit)
+    discovery: DiscoverySettings = field(default_factory=DiscoverySettings)
+
+    def __post_init__(self):
+        for key in ("duration_s", "horizon_s", "smoke_duration_s"):
+            _check_number(key, getattr(self, key), 0.0)
+        if self.stride_s is not None:
+            _check_number("stride_s", self.stride_s, 0.0)
+        _check_number("fit_moving_range_V", self.fit_moving_range_V, 0.0, MAX_COMMAND_V)
+        _check_choice("method", self.method, METHODS)
+        _check_choice("supply", self.supply, SUPPLIES)
+        _check_choice("leak_form", self.leak_form, LEAK_FORMS)
+        _check_choice("data_leak_form", self.data_leak_form, LEAK_FORMS)
+        _check_list("eval_command_bands_V", self.eval_command_bands_V, 0.0, MAX_COMMAND_V,
+                    allow_empty=True)
+        _check_list("fit_command_ranges_V", self.fit_command_ranges_V, 0.0, MAX_COMMAND_V)
+        _check_list("fit_positions", self.fit_positions, 0.0, 1.0, closed_lo=True)
+        _check_list("eval_positions", self.eval_positions, 0.0, 1.0, closed_lo=True)
+        for key, lo in (("fit_moving_count", 0), ("eval_moving_count", 1),
+                        ("heldout_seed_offset", 1)):
+            if getattr(self, key) < lo:
+                raise FieldError(key, f"must be >= {lo}, got {getattr(self, key)}")
+        if self.fit.position_cutoff_Hz is None:
+            raise FieldError("fit.position_cutoff_Hz", "a study scores with the position "
+                             "low-passed as it fits: give a cutoff, Hz")
 
     @property
     def effective_stride_s(self) -> float:
@@ -132,31 +205,6 @@ class Settings:
     def to_dict(self) -> dict:
         return asdict(self)
 
-
-#: ``[settings]`` keys: kind, and for numbers the open/closed range allowed.
-SETTINGS: dict[str, tuple] = {
-    "duration_s": ("float", 0.0, None),
-    "method": ("choice", METHODS),
-    "horizon_s": ("float", 0.0, None),
-    "stride_s": ("float", 0.0, None),
-    "eval_command_bands_V": ("floats", 0.0, MAX_COMMAND_V),
-    "supply": ("choice", SUPPLIES),
-    "fit_positions": ("fractions",),
-    "fit_command_ranges_V": ("floats", 0.0, MAX_COMMAND_V),
-    "fit_moving_count": ("int", 0),
-    "fit_moving_range_V": ("float", 0.0, MAX_COMMAND_V),
-    "eval_positions": ("fractions",),
-    "eval_moving_count": ("int", 1),
-    "heldout_seed_offset": ("int", 1),
-    "leak_form": ("choice", LEAK_FORMS),
-    "data_leak_form": ("choice", LEAK_FORMS),
-    "mcmc_walkers": ("int", 0),
-    "mcmc_max_steps": ("int", 1),
-    "discovery_max_effects": ("int", 1),
-    "discovery_n_bags": ("int", 2),
-    "smoke_duration_s": ("float", 0.0, None),
-    "position_cutoff_Hz": ("float", 0.0, None),
-}
 
 GRID_KEYS = ("rigs", "data_effects", "data_forms", "model_effects", "command_ranges_V",
              "protocols", "seeds")
@@ -239,17 +287,23 @@ class Cell:
     def content(self) -> dict:
         """Everything that defines the cell's result (the hash covers exactly this).
 
-        Settings that cannot change this cell (e.g. the emcee ones without ``method =
-        "mcmc"``, the discovery ones without ``"discover"``, the held-out design of the
+        Settings that cannot change this cell (e.g. the sampler's without ``method =
+        "mcmc"``, the discovery loop's without ``"discover"``, the held-out design of the
         other protocol, ``smoke_duration_s``) are left out, so changing them does not
         invalidate its cached result.
         """
         s = self.settings.to_dict()
         s.pop("smoke_duration_s")
+        for table, keys in CELL_OWNED.items():  # the cell sets these (axes, horizon_s)
+            sub = s
+            for part in table.split("."):
+                sub = sub[part]
+            for key in keys:
+                sub.pop(key)
         if self.settings.method != "mcmc":
-            s = {k: v for k, v in s.items() if not k.startswith("mcmc_")}
+            s["fit"].pop("sampler")
         if not self.discover:
-            s = {k: v for k, v in s.items() if not k.startswith("discovery_")}
+            s.pop("discovery")
         if "cylinder_leak" not in self.model_effects:
             s.pop("leak_form")  # the discovery loop picks its own leak law (graded laminar)
         if not ("cylinder_leak" in self.data_effects and self.data_form == "catalogue"):
@@ -499,28 +553,28 @@ def _rig(source, key, v) -> tuple[str, str]:
 
 
 def _settings(source, doc) -> Settings:
-    _unknown(source, "settings.", doc, tuple(SETTINGS))
-    values = {}
-    for key, v in doc.items():
-        full = f"settings.{key}"
-        kind, *spec = SETTINGS[key]
-        if kind == "float":
-            values[key] = _number(source, full, v, spec[0], spec[1])
-        elif kind == "int":
-            values[key] = _integer(source, full, v, spec[0])
-        elif kind == "choice":
-            values[key] = _string(source, full, v, spec[0])
-        elif kind == "floats":
-            items = _list(source, full, v, allow_empty=key == "eval_command_bands_V")
-            values[key] = _no_duplicates(source, full, [
-                _number(source, f"{full}[{i}]", x, spec[0], spec[1])
-                for i, x in enumerate(items)])
-        elif kind == "fractions":
-            items = _list(source, full, v)
-            values[key] = _no_duplicates(source, full, [
-                _number(source, f"{full}[{i}]", x, 0.0, 1.0, closed_lo=True)
-                for i, x in enumerate(items)])
-    return Settings(**values)
+    """The ``[settings]`` table over the defaults, checked by the settings dataclasses
+    themselves (:func:`pneubayes.settings_tree.override`)."""
+    for table, keys in CELL_OWNED.items():
+        sub = doc
+        for part in table.split("."):
+            sub = sub.get(part) if isinstance(sub, dict) else None
+        for key in keys if isinstance(sub, dict) else ():
+            if key in sub:
+                raise StudyError(f"{source}: settings.{table}.{key}: set by each cell, not "
+                                 f"the study ({_OWNER[table, key]})")
+    try:
+        return override(Settings(), doc, "settings")
+    except SettingsError as exc:
+        raise StudyError(f"{source}: {exc}") from None
+
+
+_OWNER = {("fit", "horizon_s"): "the study's settings.horizon_s",
+          ("fit", "stride_s"): "fits use non-overlapping windows of settings.horizon_s",
+          ("fit.sampler", "seed"): "the cell's seed",
+          ("discovery", "fit"): "discover cells fit with [settings.fit]",
+          ("discovery", "posterior"): "settings.method = \"mcmc\" samples the posterior",
+          ("discovery", "seed"): "the cell's seed"}
 
 
 def _check_consistency(source, grid: Grid, s: Settings) -> None:
@@ -543,9 +597,7 @@ def _check_consistency(source, grid: Grid, s: Settings) -> None:
 def _check_discovery_data(source, s: Settings) -> None:
     """The discovery loop holds out the last third of every fitting recording and needs
     enough whole windows there for its signed-rank test (as ``Discovery.fit`` checks)."""
-    from pneubayes.discovery.settings import DiscoverySettings
-
-    d = DiscoverySettings()
+    d = s.discovery
     n = int(round(s.duration_s * SAMPLE_RATE_HZ)) + 1
     cut = int(round(n * (1.0 - d.holdout_fraction)))
     need = int(round(s.horizon_s * SAMPLE_RATE_HZ)) + 1

@@ -1,0 +1,51 @@
+"""Settings dataclasses from nested tables: one tree, checked by the dataclasses."""
+
+import pytest
+
+from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.inference.fit import FitSettings
+from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.physics.sensor_filter import PressureFilter
+from pneubayes.settings_tree import SettingsError, build, override
+from pneubayes.simulation import SolverConfig
+
+
+def test_a_nested_table_changes_only_the_keys_it_names():
+    base = FitSettings(sampler=SamplerSettings(max_steps=4000))
+    out = override(base, {"sampler": {"n_walkers": 48}, "refine_solver": {"rtol": 1e-7}})
+    assert out.sampler == SamplerSettings(max_steps=4000, n_walkers=48)
+    assert out.refine_solver.rtol == 1e-7
+    assert out.refine_solver.atol_Pa == SolverConfig.refinement().atol_Pa
+    assert out.sample_solver == base.sample_solver and base.sampler.n_walkers == 0
+
+
+def test_values_are_checked_against_the_type_hints_without_guessing():
+    cases = [({"horizon_s": "2"}, "f.horizon_s: expected a number"),
+             ({"sg_polyorder": 3.0}, "f.sg_polyorder: expected an integer"),
+             ({"sg_polyorder": True}, "f.sg_polyorder: expected an integer"),
+             ({"sampler": {"seed": 1.5}}, "f.sampler.seed: expected an integer"),
+             ({"horizon_s": float("inf")}, "f.horizon_s: expected a finite number"),
+             ({"sampler": 3}, "f.sampler: expected a table of SamplerSettings"),
+             ({"sampler": {"walkers": 3}}, "f.sampler.walkers: unknown key; SamplerSettings"),
+             ({"sampler": {"max_steps": 0}}, "f.sampler: SamplerSettings.max_steps must be")]
+    for table, why in cases:
+        with pytest.raises(SettingsError) as err:
+            override(FitSettings(), table, "f")
+        assert why in str(err.value), (table, str(err.value))
+
+
+def test_lists_become_tuples_and_optional_fields_take_a_table_or_stay_none():
+    d = override(DiscoverySettings(), {"regimes": {}, "bounds": {"dead_volume_m3": [1e-7, 1e-5]}})
+    assert d.bounds == {"dead_volume_m3": [1e-7, 1e-5]}
+    f = override(FitSettings(), {"pressure_filter": {"order": 2, "cutoff_Hz": 1000}})
+    assert f.pressure_filter == PressureFilter(2, 1000.0)
+    with pytest.raises(SettingsError, match="f.pressure_filter: .*cutoff_Hz"):
+        override(FitSettings(), {"pressure_filter": {"order": 2}}, "f")
+    assert build(PressureFilter, {"order": 1, "cutoff_Hz": 50.0}).order == 1
+    from pneubayes.ablation.study import Settings
+
+    assert override(Settings(), {"fit_positions": [0.2, 0.4]}).fit_positions == (0.2, 0.4)
+    with pytest.raises(SettingsError, match=r"s.fit_positions\[1\]: expected a number"):
+        override(Settings(), {"fit_positions": [0.2, "x"]}, "s")
+    with pytest.raises(SettingsError, match=r"s.fit_positions\[1\]: must be <= 1"):
+        override(Settings(), {"fit_positions": [0.2, 1.4]}, "s")
