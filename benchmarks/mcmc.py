@@ -28,7 +28,9 @@ import numpy as np
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import identification_sets
 from pneubayes.effects import effects_from_names
-from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
+from pneubayes.inference.fit import FitSettings, identify
+from pneubayes.inference.fit_folder import write_fit
+from pneubayes.inference.pipeline import run_predict
 from pneubayes.inference.predictive import PressurePredictor
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -54,9 +56,11 @@ def main(argv=None) -> int:
     settings = FitSettings(sampler=SamplerSettings(
         n_walkers=32, max_steps=300 if args.quick else args.max_steps, seed=args.seed))
     t0 = time.perf_counter()
-    summary = run_fit(recs, Model(leak), settings, work / "run", progress=False,
-                      log=lambda m: print(m, file=sys.stderr), figures=False)
+    fit = identify(recs, Model(leak), settings, checkpoint_dir=work / "run",
+                   log=lambda m: print(m, file=sys.stderr))
+    write_fit(fit, work / "run", figures=False)  # `pneubayes predict` reads it below
     wall = time.perf_counter() - t0
+    summary = fit.summary
     params = summary["parameters"]
     rhat = max(p["rhat"] for p in params.values())
     ess = min(p["ess"] for p in params.values())
@@ -66,7 +70,7 @@ def main(argv=None) -> int:
                        work / "pred.csv", 200, args.seed, SolverConfig.standard())
     # controller API
     rng = np.random.default_rng(args.seed)
-    model, draws, _ = load_posterior(work / "run", 64, rng)
+    model, (draws, _) = fit.model, fit.draws(64, rng)
     rig = recs[0].rig()
     api = PressurePredictor(model, draws, rig, SolverConfig.standard())
     levels = rng.uniform(-5, 5, 20)  # 2 s of 100-ms holds

@@ -34,7 +34,9 @@ import numpy as np
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.bench.bench import identification_sets
 from pneubayes.effects import effects_from_names
-from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit, run_predict
+from pneubayes.inference.fit import Fit, FitSettings, identify
+from pneubayes.inference.fit_folder import write_fit
+from pneubayes.inference.pipeline import run_predict
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -45,7 +47,7 @@ NOT_IDENTIFIABLE = ("inlet_b", "inlet_d_V", "exhaust_b", "exhaust_d_V", "exhaust
                     "leak_area_m2")
 
 
-def truth_checks(work: Path) -> tuple[float, dict]:
+def truth_checks(fit: Fit, truth: dict) -> tuple[float, dict]:
     """The joint checks of one case: ``(truth HPD level, truth Mahalanobis distance)``.
 
     *HPD level*: the fraction of posterior draws denser than the truth, the truth's
@@ -64,26 +66,19 @@ def truth_checks(work: Path) -> tuple[float, dict]:
     """
     from scipy import stats
 
-    from pneubayes.inference.chain_store import read_chain
     from pneubayes.inference.likelihood import WindowLikelihood
-    from pneubayes.inference.pipeline import run_preparation
     from pneubayes.inference.windows import WindowSet
-    from pneubayes.io import prepare_recording
 
-    summary = json.loads((work / "run" / "summary.json").read_text())
-    model, truth = Model.load_card(work / "bench" / "train" / "truth.json")
-    cutoffs = run_preparation(work / "run")  # the recordings exactly as fitted
-    recs = [prepare_recording(read_recording(p), cutoffs)
-            for p in sorted((work / "bench" / "train").glob("*.csv"))]
-    settings = FitSettings()
-    like = WindowLikelihood(model, WindowSet(recs, settings.horizon_s, settings.stride_s),
-                            settings.sample_solver)
-    backend = read_chain(work / "run" / "chain.h5")
-    burn = int(summary["burn"])
+    model, settings = fit.model, FitSettings()
+    # the recordings exactly as fitted (the fit keeps them prepared)
+    like = WindowLikelihood(model, WindowSet(list(fit.recordings), settings.horizon_s,
+                                             settings.stride_s), settings.sample_solver)
+    post = fit.posterior
     z_true = like.to_sampling(model.vector(truth)[None])
-    lp = backend.get_log_prob(discard=burn).ravel()
+    lp = np.asarray(post.sample_stats["lp"]).ravel()
     hpd = float(np.mean(lp > like.log_prob_sampling(z_true)[0]))
-    z = backend.get_chain(discard=burn, flat=True)
+    z = like.to_sampling(np.column_stack([np.asarray(post.posterior[n]).ravel()
+                                          for n in model.parameter_names]))
     cols = [j for j in range(z.shape[1]) if j not in like.nuisance()]
     dev = z_true[0, cols] - z[:, cols].mean(axis=0)
     m2 = float(dev @ np.linalg.solve(np.cov(z[:, cols].T), dev))
@@ -98,22 +93,24 @@ def run_case(cyl: str, valve: str, seed: int, args, root: Path) -> dict:
     settings = FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=args.max_steps,
                                                    seed=seed))
     t0 = time.perf_counter()
-    summary = run_fit([read_recording(p) for p in train.recordings],
-                      Model(effects_from_names(["cylinder_leak"])), settings, work / "run",
-                      progress=False, log=lambda m: None, figures=False)
+    fit = identify([read_recording(p) for p in train.recordings],
+                   Model(effects_from_names(["cylinder_leak"])), settings,
+                   checkpoint_dir=work / "run")
+    write_fit(fit, work / "run", figures=False)  # for run_predict, as the CLI's predict
     wall = time.perf_counter() - t0
+    summary = fit.summary
     params = summary["parameters"]
     cover = {n: bool(p["q05"] <= truth[n] <= p["q95"]) for n, p in params.items()
              if n in truth and n not in NOT_IDENTIFIABLE}
     # the identified sum: exhaust offset + leak area, from the joint draws
     rng = np.random.default_rng(seed)
-    model, draws, _ = load_posterior(work / "run", 4000, rng)
+    model, (draws, _) = fit.model, fit.draws(4000, rng)
     names = list(model.parameter_names)
     s = draws[:, names.index("exhaust_offset_m2")] + draws[:, names.index("leak_area_m2")]
     q05, q95 = np.quantile(s, [0.05, 0.95])
     cover["exhaust_offset_m2 + leak_area_m2"] = bool(
         q05 <= truth["exhaust_offset_m2"] + truth["leak_area_m2"] <= q95)
-    hpd, mahalanobis = truth_checks(work)
+    hpd, mahalanobis = truth_checks(fit, truth)
     preds = [run_predict(work / "run", read_recording(p), 2.0, work / f"pred_{p.stem}.csv",
                          200, seed, SolverConfig.standard()) for p in held.recordings]
     return {"cylinder": cyl, "valve": valve, "seed": seed, "fit_wall_time_s": wall,

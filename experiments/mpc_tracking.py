@@ -53,7 +53,8 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.effects import effects_from_names
-from pneubayes.inference.pipeline import FitSettings, load_posterior, run_fit
+from pneubayes.inference.fit import FitSettings, identify
+from pneubayes.inference.fit_folder import read_fit, write_fit
 from pneubayes.inference.predictive import PressurePredictor, ar1_noise
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -196,19 +197,22 @@ def run_seed(seed: int, out: Path, quick: bool, log) -> dict:
     rig = recs[0].rig()
     position = float(recs[0].metadata.position_m)
     fit_dir = work / "fit"
-    if not (fit_dir / "posterior.nc").exists():
+    if (fit_dir / "posterior.nc").exists():  # a finished fit of an earlier run: reuse it
+        fit = read_fit(fit_dir)
+    else:
         settings = FitSettings(pressure_filter=SensorChain().declared_filter(),
                                sampler=SamplerSettings(n_walkers=32, seed=seed,
                                                        max_steps=600 if quick else 4000))
         log(f"seed {seed}: fitting the paper's model (no delay) ...")
-        run_fit(recs, Model(effects_from_names(["cylinder_leak"])), settings, fit_dir,
-                progress=False, log=lambda m: None, figures=False)
-    fit_summary = json.loads((fit_dir / "summary.json").read_text())
+        fit = identify(recs, Model(effects_from_names(["cylinder_leak"])), settings,
+                       checkpoint_dir=fit_dir)
+        write_fit(fit, fit_dir, figures=False)
+    fit_summary = fit.summary
     # the draws, the reference, the sensor noise and the predictive noise factors: the
     # same streams for every controller
     seqs = np.random.SeedSequence(seed).spawn(4)
     draw_rng, ref_rng = np.random.default_rng(seqs[0]), np.random.default_rng(seqs[1])
-    model, draws, noise = load_posterior(fit_dir, N_DRAWS, draw_rng)
+    model, (draws, noise) = fit.model, fit.draws(N_DRAWS, draw_rng)
     fit_median = {n: v["median"] for n, v in fit_summary["parameters"].items()
                   if n in model.parameter_names}
     n = round(RUN_S * RATE_HZ)

@@ -37,12 +37,16 @@ _PUBLIC = {
     "make_effect": "pneubayes.effects",
     "identify": "pneubayes.inference.fit",
     "Fit": "pneubayes.inference.fit",
-    "write_fit": "pneubayes.inference.fit",
+    "write_fit": "pneubayes.inference.fit_folder",
+    "read_fit": "pneubayes.inference.fit_folder",
     "FitSettings": "pneubayes.inference.fit",
     "SamplerSettings": "pneubayes.inference.sampler",
     "PressurePredictor": "pneubayes.inference.predictive",
     "Discovery": "pneubayes.discovery.loop",
+    "discover": "pneubayes.discovery.loop",
+    "DiscoveryResult": "pneubayes.discovery.result",
     "DiscoverySettings": "pneubayes.discovery.settings",
+    "write_discovery": "pneubayes.discovery.report",
 }
 
 __all__ = [

@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from pneubayes.bench.bench import BenchConfig, run_bench
@@ -76,7 +77,7 @@ def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
     paths, _ = _bench(tmp_path / "bench", [], seed=12)
     d = Discovery(_settings(), tmp_path / "run",
                   log=lambda m: None).fit([read_recording(p) for p in paths])
-    doc = d.result()
+    doc = d.result_.to_dict()
     assert doc["effects"] == []
     assert doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
     assert doc["rmse_base_Pa"] < 1.2 * doc["noise_floor_Pa"]
@@ -84,10 +85,10 @@ def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
     from pneubayes.discovery.report import _report
 
     doc["recordings"] = [str(p) for p in paths]  # as run_discover adds them
-    text = _report(doc, d, {})
+    text = _report(doc, d.result_, {})
     assert "within 1.5 x the noise floor" in text and "% of the measured span" in text
     worse = dict(doc, rmse_final_Pa=3.0 * doc["noise_floor_Pa"])
-    text = _report(worse, d, {})
+    text = _report(worse, d.result_, {})
     assert "the model still misses" in text and "3.0 x the noise floor" in text
     assert "explains" not in text
 
@@ -116,13 +117,13 @@ def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
     monkeypatch.setattr(loop, "GroupedSINDy", Halved)
     recs = _leak_recordings(tmp_path)
     found = Discovery(_settings(), None, log=lambda m: None).fit(recs)
-    doc = found.result()
+    doc = found.result_.to_dict()
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     assert doc["rmse_base_Pa"] > 2.0 * doc["noise_floor_Pa"]
     assert doc["ledger"][1]["supported"] == [] and "cylinder_leak" in doc["ledger"][1]["tentative"]
     off = Discovery(_settings(gap_fallback_ratio=0.0), None,
                     log=lambda m: None).fit(recs)
-    assert off.result()["effects"] == []
+    assert off.result_.to_dict()["effects"] == []
 
 
 @pytest.mark.slow
@@ -141,12 +142,12 @@ def test_a_large_gap_also_tries_weak_groups_beside_supported_ones(tmp_path, monk
     monkeypatch.setattr(loop, "GroupedSINDy", Misled)
     recs = _leak_recordings(tmp_path)
     settings = _settings(max_effects=1)
-    doc = Discovery(settings, None, log=lambda m: None).fit(recs).result()
+    doc = Discovery(settings, None, log=lambda m: None).fit(recs).result_.to_dict()
     assert doc["ledger"][1]["supported"] == ["spool_lag"]
     assert "cylinder_leak" in doc["ledger"][1]["tentative"]
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     off = Discovery(_settings(max_effects=1, gap_fallback_ratio=0.0),
-                    None, log=lambda m: None).fit(recs).result()
+                    None, log=lambda m: None).fit(recs).result_.to_dict()
     assert "cylinder_leak" not in [e["name"] for e in off["effects"]]
 
 
@@ -164,7 +165,7 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
 
     monkeypatch.setattr(loop, "GroupedSINDy", Blind)
     recs = _leak_recordings(tmp_path)
-    doc = Discovery(_settings(max_effects=1), None, log=lambda m: None).fit(recs).result()
+    doc = Discovery(_settings(max_effects=1), None, log=lambda m: None).fit(recs).result_.to_dict()
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     actions = [step["action"] for step in doc["ledger"]]
     assert "last resort" in actions
@@ -174,7 +175,7 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
     assert [step["effect"] for step in added] == ["cylinder_leak"]
     assert added[0]["gap_closed"] >= 0.25
     off = Discovery(_settings(max_effects=1, try_all_on_gap=False), None,
-                    log=lambda m: None).fit(recs).result()
+                    log=lambda m: None).fit(recs).result_.to_dict()
     assert off["effects"] == []
 
 
@@ -186,11 +187,15 @@ def test_whole_recordings_can_be_held_out(tmp_path):
     d = Discovery(_settings(holdout_recordings=2, bounds=bounds), tmp_path / "run",
                   log=lambda m: None).fit(recs)
     # the bounds apply to every model fitted (the tube's waits until a tube is added)
-    assert d.final_.model.bound_overrides == {"dead_volume_m3": (1e-7, 1e-3)}
-    assert [r.source for r in d.held_] == [r.source for r in recs[-2:]]
-    assert [r.source for r in d.train_] == [r.source for r in recs[:-2]]
-    assert d.held_[0].n_samples == recs[-2].n_samples  # whole, not a tail
-    doc = d.result()
+    r = d.result_
+    assert r.model.bound_overrides == {"dead_volume_m3": (1e-7, 1e-3)}
+    assert [x.source for x in r.held] == [x.source for x in recs[-2:]]
+    assert [x.source for x in r.train] == [x.source for x in recs[:-2]]
+    assert r.held[0].n_samples == recs[-2].n_samples  # whole, not a tail
+    assert r.params == r.final.params and r.estimate.startswith("refined")
+    with pytest.raises(ValueError, match="no posterior"):
+        r.draws(4, np.random.default_rng(0))
+    doc = d.result_.to_dict()
     assert doc["effects"] == [] and doc["settings"]["holdout_recordings"] == 2
     assert doc["rmse_final_Pa"] < 1.2 * doc["noise_floor_Pa"]
     with pytest.raises(ValueError, match="leave none of the 6 to fit on"):

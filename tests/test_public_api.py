@@ -16,7 +16,8 @@ def test_every_public_name_resolves_and_unknown_names_are_refused():
         assert getattr(pb, name) is not None, name
     assert {"Model", "Rig", "read_recording", "simulate", "identify", "Discovery",
             "PressurePredictor", "FitSettings", "SamplerSettings", "SolverConfig",
-            "DiscoverySettings", "effects_from_names"} <= set(pb.__all__)
+            "DiscoverySettings", "effects_from_names", "discover", "DiscoveryResult",
+            "write_discovery"} <= set(pb.__all__)
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         pb.nope  # noqa: B018
 
@@ -74,3 +75,16 @@ def test_posterior_in_memory_gives_draws_and_a_predictor(small_bench, tmp_path):
                         np.random.default_rng(0))
     q = api.predict(3e5, np.array([np.full(40, 3.0), np.full(40, -3.0)]), 0.01, 0.005)
     assert q.shape == (2, 3, 41) and q[0, 1, -1] > q[1, 1, -1]
+    # written and read back, the fit gives the same draws for the same seed
+    pb.write_fit(fit, tmp_path / "run", figures=False)
+    back = pb.read_fit(tmp_path / "run")
+    assert back.method == "mcmc" and back.model == model and back.recordings == ()
+    assert back.params == pytest.approx(fit.params, rel=1e-12)
+    assert back.preparation == fit.preparation
+    again, noise_again = back.draws(16, np.random.default_rng(0))
+    assert np.array_equal(again, draws) and np.array_equal(noise_again, noise)
+    # a posterior of another fit beside this card is refused
+    other = dict(fit.params, dead_volume_m3=1.01 * fit.params["dead_volume_m3"])
+    model.save_card(other, tmp_path / "run" / "model.json")
+    with pytest.raises(ValueError, match="another model card"):
+        pb.read_fit(tmp_path / "run")

@@ -21,7 +21,7 @@ def _python_blocks():
 def test_the_readme_has_its_python_example():
     blocks = _python_blocks()
     assert len(blocks) == 1
-    for call in ("pb.simulate(", "pb.identify(", "fit.predictor(", "pb.Discovery("):
+    for call in ("pb.simulate(", "pb.identify(", "fit.predictor(", "pb.discover("):
         assert call in blocks[0]
 
 
@@ -39,4 +39,5 @@ def test_the_readme_python_example_runs(tmp_path):
     assert ns["traj"].pressure_Pa.shape[1] == ns["rec"].n_samples
     assert ns["fit"].posterior is not None and (tmp_path / "my_fit" / "posterior.nc").exists()
     assert ns["q"].shape == (2, 3, 401)
-    assert "tube_delay" in [e["name"] for e in ns["disc"].result()["effects"]]
+    assert "tube_delay" in ns["found"].effect_names
+    assert ns["found"].final.heldout_rmse_Pa < ns["found"].base.heldout_rmse_Pa

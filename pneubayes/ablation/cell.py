@@ -37,7 +37,8 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import forms_from_names
 from pneubayes.effects import effects_from_names
 from pneubayes.evaluation import predict_windows
-from pneubayes.inference.fit import FitSettings, identify, write_fit
+from pneubayes.inference.fit import FitSettings, identify
+from pneubayes.inference.fit_folder import write_fit
 from pneubayes.inference.predictive import estimate_noise_std
 from pneubayes.io import read_recording, smooth_position
 from pneubayes.model import Model
@@ -116,7 +117,7 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
         from pneubayes.baselines.tassa import PARAMETER_NAMES, TassaModel
 
         est = TassaModel(horizon_s=s.horizon_s, stride_s=s.effective_stride_s,
-                         seed=cell.seed).fit([smooth_position(r, s.position_cutoff_Hz)
+                         seed=cell.seed).fit([smooth_position(r, s.fit.position_cutoff_Hz)
                                               for r in recordings])
         info = {"method": "tassa", "estimate": "least squares (one-step, then 2-s windows)",
                 "train_rmse_Pa": est.rmse_Pa_, "train_start_rmse_Pa": est.start_rmse_Pa_,
@@ -124,13 +125,13 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
         return est, dict(zip(PARAMETER_NAMES, map(float, est.params_))), info
     if cell.discover:
         from pneubayes.discovery.loop import Discovery
-        from pneubayes.discovery.report import final_estimate, write_discovery
+        from pneubayes.discovery.report import write_discovery
 
         ds = replace(s.discovery, posterior=s.method == "mcmc", seed=cell.seed,
                      fit=_fit_settings(cell))
-        disc = Discovery(ds, out, log).fit(recordings)
-        doc = write_discovery(disc, recordings, out, figures=False)
-        model, params = disc.final_.model, final_estimate(disc)[0]
+        result = Discovery(ds, out, log).fit(recordings).result_
+        doc = write_discovery(result, recordings, out, figures=False)
+        model, params = result.model, result.params
         info = {"method": "discover",
                 "estimate": "posterior median" if ds.posterior else "refined",
                 "discovered": [e["name"] for e in doc["effects"]],

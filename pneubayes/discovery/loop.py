@@ -61,6 +61,7 @@ from pneubayes.discovery.candidates import effect_candidates, first_free
 from pneubayes.discovery.disagreement import disagreement_map, flagged_bins
 from pneubayes.discovery.library import build_library
 from pneubayes.discovery.one_step import one_step_data
+from pneubayes.discovery.result import DiscoveryResult
 from pneubayes.discovery.rounds import fit_round_forms
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.sindy import GroupedSINDy
@@ -81,8 +82,6 @@ from pneubayes.inference.windows import WindowSet
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 
-FORMAT = "pneubayes-discovery/1"
-
 
 def _form(model: Model, group: str) -> str:
     """The form of a model's effect (``"-"`` for an effect with one form)."""
@@ -101,7 +100,8 @@ def _silent(message: str) -> None:
 
 
 class Discovery:
-    """The loop (scikit-learn-style: configure, then :meth:`fit`; results as attributes).
+    """The loop (scikit-learn-style: configure, then :meth:`fit`, which returns the
+    estimator with its answer in ``result_``, a :class:`DiscoveryResult`).
 
     Parameters
     ----------
@@ -205,10 +205,8 @@ class Discovery:
         data_key = _fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
                                  for r in recs], split)
         noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
-        self.noise_floor_Pa_ = noise
-        self.range_Pa_ = float(recs[0].rig().working_range_Pa)
         lo, hi = np.percentile(np.concatenate([r.pressure_Pa for r in recs]), [1, 99])
-        self.span_Pa_ = float(hi - lo)  # measured, not the nominal supply's range
+        span = float(hi - lo)  # measured, not the nominal supply's range
         card = recs[0].rig_card
         if any(r.rig_card != card for r in recs):
             raise ValueError("discover: the recordings describe different rigs (rig cards); "
@@ -291,17 +289,27 @@ class Discovery:
             if not added:
                 self.log("discover: no supported effect passed verification; stop")
                 break
-        self.base_ = base
-        self.final_ = current
-        self.accepted_ = accepted
-        self.ledger_ = ledger
-        self.maps_ = maps
-        self.searches_ = searches
-        self.train_, self.held_ = train, held
-        self.posterior_ = None
+        params, estimate = dict(current.params), "refined (multiple shooting)"
+        post = {}
         if s.posterior:
-            self.posterior_ = self._posterior(current, train_ws)
-        self.wall_time_s_ = time.perf_counter() - t_start
+            bi = self._posterior(current, train_ws)
+            params, estimate = bi.median_params(), "posterior median"
+            post = {"posterior": bi.inference_data({
+                        "seed": s.seed, "pneubayes_version": pneubayes.__version__,
+                        "model_card": json.dumps(current.model.to_card(params))}),
+                    "posterior_summary": bi.summary(),
+                    "posterior_info": {"converged": bi.converged_,
+                                       "steps": bi.diagnostics_["steps"],
+                                       "sampling_solver": bi.diagnostics_["solver"],
+                                       "solver_roughness_nats":
+                                           bi.diagnostics_["solver_jitter_nats"]}}
+        self.result_ = DiscoveryResult(
+            settings=s, base=base, final=current, accepted=tuple(accepted),
+            ledger=tuple(ledger), maps=tuple(maps), searches=tuple(searches),
+            params=params, estimate=estimate, noise_floor_Pa=noise,
+            range_Pa=float(recs[0].rig().working_range_Pa), span_Pa=span,
+            train=tuple(train), held=tuple(held),
+            wall_time_s=time.perf_counter() - t_start, **post)
         return self
 
     def _trials(self, candidates, current: StepFit, ctx, min_gap_closed: float = 0.0):
@@ -462,34 +470,10 @@ class Discovery:
                  f"log-density roughness {bi.diagnostics_['solver_jitter_nats']:.2f} nat)")
         return bi
 
-    # ------------------------------------------------------------------ results
-    def result(self) -> dict:
-        """The ``pneubayes-discovery/1`` document."""
-        post = self.posterior_.summary() if self.posterior_ is not None else None
-        effects = []
-        for a in self.accepted_:
-            eff = self.final_.model.effect(a["name"])
-            params = {}
-            for n in eff.parameter_names():
-                if post is not None:
-                    params[n] = {k: post[n][k] for k in ("median", "q05", "q95")}
-                else:
-                    params[n] = {"estimate": self.final_.params[n]}
-            effects.append({"name": a["name"], "options": eff.options(), "parameters": params,
-                            "evidence": {"inclusion_probability":
-                                         a["evidence"]["inclusion_probability"],
-                                         "t_max": a["evidence"]["t_max"],
-                                         "best_term": a["evidence"]["best_term"],
-                                         "score_gain": a["score_gain"],
-                                         "score_p_value": a["score_p_value"]},
-                            "rmse_before_Pa": a["rmse_before_Pa"],
-                            "rmse_after_Pa": a["rmse_after_Pa"]})
-        return {"format": FORMAT, "effects": effects,
-                "rmse_base_Pa": self.base_.heldout_rmse_Pa,
-                "rmse_final_Pa": self.final_.heldout_rmse_Pa,
-                "noise_floor_Pa": self.noise_floor_Pa_, "range_Pa": self.range_Pa_,
-                "span_Pa": self.span_Pa_, "horizon_s": self.settings.fit.horizon_s,
-                "model": "model.json", "ledger": self.ledger_,
-                "settings": self.settings.to_dict(), "seed": self.settings.seed,
-                "wall_time_s": getattr(self, "wall_time_s_", None),
-                "pneubayes_version": pneubayes.__version__}
+
+def discover(recordings, settings: DiscoverySettings, checkpoint_dir=None,
+             log=None) -> DiscoveryResult:
+    """Run the discovery loop on ``recordings`` in memory; returns its
+    :class:`DiscoveryResult` (``checkpoint_dir``: a folder for the step cache, so an
+    interrupted run resumes; ``log``: progress lines, None for silent)."""
+    return Discovery(settings, checkpoint_dir, log).fit(recordings).result_

@@ -10,14 +10,15 @@ atomically.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.discovery.disagreement import flagged_bins
 from pneubayes.discovery.loop import Discovery
+from pneubayes.discovery.result import DiscoveryResult
 from pneubayes.discovery.settings import DiscoverySettings
-from pneubayes.inference.fit import MISFIT_RATIO, write_posterior
+from pneubayes.inference.fit import MISFIT_RATIO
+from pneubayes.inference.fit_folder import write_posterior
 from pneubayes.io.plausibility import recorded_findings
 
 
@@ -27,60 +28,41 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     recs = list(recordings)
-    disc = Discovery(settings, out, log).fit(recs)
-    return write_discovery(disc, recs, out, figures)
+    result = Discovery(settings, out, log).fit(recs).result_
+    return write_discovery(result, recs, out, figures)
 
 
-def final_estimate(disc: Discovery) -> tuple[dict, str]:
-    """The final model's parameters and what they are: the posterior median when the
-    loop sampled one, else the refined point."""
-    if disc.posterior_ is not None:
-        return disc.posterior_.median_params(), "posterior median"
-    return dict(disc.final_.params), "refined (multiple shooting)"
-
-
-def write_discovery(disc: Discovery, recordings, out_dir, figures: bool = True) -> dict:
-    """Write a fitted :class:`Discovery` as a run folder; return discovery.json's doc."""
+def write_discovery(result: DiscoveryResult, recordings, out_dir,
+                    figures: bool = True) -> dict:
+    """Write a :class:`DiscoveryResult` as a run folder; return discovery.json's doc."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    settings = disc.settings
     recs = list(recordings)
-    doc = disc.result()
+    doc = result.to_dict()
     doc["recordings"] = [str(r.source) for r in recs]
     doc["input_findings"] = recorded_findings(recs)
-    final = disc.final_
-    params, estimate = final_estimate(disc)
-    if disc.posterior_ is not None:
-        doc["posterior"] = {"converged": disc.posterior_.converged_,
-                            "steps": disc.posterior_.diagnostics_["steps"],
-                            "sampling_solver": disc.posterior_.diagnostics_["solver"],
-                            "solver_roughness_nats":
-                                disc.posterior_.diagnostics_["solver_jitter_nats"],
-                            "summary": disc.posterior_.summary()}
-    final.model.save_card(params, out / "model.json",
-                          extra={"fit": {"estimate": estimate, "by": "pneubayes discover",
-                                         **settings.fit.preparation()}})
-    if disc.posterior_ is not None:  # beside the card, as pneubayes fit writes it
-        idata = disc.posterior_.inference_data({
-            "seed": settings.seed, "pneubayes_version": doc["pneubayes_version"],
-            "model_card": json.dumps(final.model.to_card(params))})
-        write_posterior(idata, out / "posterior.nc")
+    result.model.save_card(result.params, out / "model.json",
+                           extra={"fit": {"estimate": result.estimate,
+                                          "by": "pneubayes discover",
+                                          **result.settings.fit.preparation()}})
+    if result.posterior is not None:  # beside the card, as pneubayes fit writes it
+        write_posterior(result.posterior, out / "posterior.nc")
         doc["posterior"]["file"] = "posterior.nc"
-    write_json_atomic(out / "disagreement.json", {"rounds": disc.maps_})
+    write_json_atomic(out / "disagreement.json", {"rounds": list(result.maps)})
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
     if figures:
         from pneubayes.plotting import plot_disagreement, plot_evidence
 
         figs["disagreement"] = plot_disagreement(
-            disc.maps_[0], out / "figures" / "disagreement.png",
+            result.maps[0], out / "figures" / "disagreement.png",
             "base model: residual RMS by regime (red: flagged; dashed: noise)").name
-        if len(disc.maps_) > 1:
+        if len(result.maps) > 1:
             figs["disagreement_final"] = plot_disagreement(
-                disc.maps_[-1], out / "figures" / "disagreement_final.png",
+                result.maps[-1], out / "figures" / "disagreement_final.png",
                 "final model: residual RMS by regime").name
-        figs["evidence"] = plot_evidence(disc.searches_, out / "figures" / "evidence.png").name
-    write_text_atomic(out / "report.md", _report(doc, disc, figs))
+        figs["evidence"] = plot_evidence(result.searches, out / "figures" / "evidence.png").name
+    write_text_atomic(out / "report.md", _report(doc, result, figs))
     return doc
 
 
@@ -93,15 +75,15 @@ def _fmt(v, spec=".4g"):
     return "-" if v is None else format(v, spec)
 
 
-def _report(doc: dict, disc: Discovery, figs: dict) -> str:
-    horizon = disc.settings.fit.horizon_s
+def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
+    horizon = result.settings.fit.horizon_s
     noise = doc["noise_floor_Pa"]
     base, final = doc["rmse_base_Pa"], doc["rmse_final_Pa"]
     gap0, gap1 = max(base - noise, 0.0), max(final - noise, 0.0)
     lines = ["# What the model misses: discovery report", ""]
-    k = disc.settings.holdout_recordings
+    k = result.settings.holdout_recordings
     how = (f"the last {k} held out whole to verify, the others to fit and search" if k else
-           f"each split in time: the first {1 - disc.settings.holdout_fraction:.0%} to fit "
+           f"each split in time: the first {1 - result.settings.holdout_fraction:.0%} to fit "
            "and search, the rest to verify")
     lines += [f"Recordings: {len(doc['recordings'])} ({how}). Noise floor (sensor) "
               f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa.", ""]
@@ -138,7 +120,7 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
               f"{final:.0f} Pa{of_span}; gap above the noise floor {gap0:.0f} -> "
               f"{gap1:.0f} Pa{shrink}.", ""]
     lines += ["## Where the base model disagrees", ""]
-    flags = flagged_bins(disc.maps_[0], "prediction")
+    flags = flagged_bins(result.maps[0], "prediction")
     if flags:
         lines += ["| regime | bin | samples | RMS (Pa) | excess over noise (Pa) | bias z |",
                   "|---|---|---|---|---|---|"]
@@ -150,7 +132,7 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
     if "disagreement" in figs:
         lines += ["", f"![disagreement](figures/{figs['disagreement']})"]
     lines += ["", "## Evidence (grouped SINDy on the one-step residual, block-bagged)", ""]
-    for s in disc.searches_:
+    for s in result.searches:
         lines += [f"Round {s['round']} (model: thin port"
                   + "".join(f" + {m}" for m in s["model"]) + ")", "",
                   "| effect | inclusion probability | best term | t | explained |",
@@ -190,11 +172,11 @@ def _report(doc: dict, disc: Discovery, figs: dict) -> str:
                          f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")
     if "disagreement_final" in figs:
         lines += ["", "## Final model", "", f"![final](figures/{figs['disagreement_final']})"]
-    if disc.posterior_ is not None:
-        sm = disc.settings.fit.sampler
+    if result.posterior_info is not None:
+        sm = result.settings.fit.sampler
         chains = (f"{sm.rhat_groups} walker groups" if sm.rhat_groups else "walkers")
-        lines += ["", f"Posterior: emcee, {disc.posterior_.diagnostics_['steps']} steps, "
-                  f"converged {disc.posterior_.converged_} (R-hat <= "
+        lines += ["", f"Posterior: emcee, {result.posterior_info['steps']} steps, "
+                  f"converged {result.posterior_info['converged']} (R-hat <= "
                   f"{sm.max_rhat} over {chains} as chains, bulk "
                   f"and tail ESS >= {sm.target_ess:g}, {sm.tau_factor:g} autocorrelation "
                   "times)."]

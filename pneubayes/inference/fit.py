@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -249,8 +248,25 @@ def posterior_draws(model: Model, idata, n_draws: int, rng: np.random.Generator,
     return draws[:, : model.n_parameters], draws[:, model.n_parameters:]
 
 
+class PosteriorDraws:
+    """Draws and the controller API for a result with ``model``, ``posterior`` (arviz
+    InferenceData or None) and a ``method`` that names it in errors."""
+
+    def draws(self, n_draws: int, rng: np.random.Generator):
+        """``(model draws (N, P), noise draws (N, 2))`` from the posterior."""
+        if self.posterior is None:
+            raise ValueError(f"a {self.method!r} result has no posterior; sample one "
+                             "(fit: method 'mcmc'; discovery: posterior=True) for draws")
+        return posterior_draws(self.model, self.posterior, n_draws, rng)
+
+    def predictor(self, rig, solver: SolverConfig, n_draws: int,
+                  rng: np.random.Generator) -> PressurePredictor:
+        """The controller API over ``n_draws`` posterior draws."""
+        return PressurePredictor(self.model, self.draws(n_draws, rng)[0], rig, solver)
+
+
 @dataclass(frozen=True, eq=False)
-class Fit:
+class Fit(PosteriorDraws):
     """What a fit found, in memory.
 
     Attributes
@@ -285,18 +301,6 @@ class Fit:
             return {"fit": {"estimate": "posterior median", "posterior": "posterior.nc",
                             "summary": "summary.json", **self.preparation}}
         return {"fit": {"estimate": self.method, **self.preparation}}
-
-    def draws(self, n_draws: int, rng: np.random.Generator):
-        """``(model draws (N, P), noise draws (N, 2))`` from the posterior."""
-        if self.posterior is None:
-            raise ValueError(f"a {self.method!r} fit has no posterior; fit with method "
-                             "'mcmc' for draws")
-        return posterior_draws(self.model, self.posterior, n_draws, rng)
-
-    def predictor(self, rig, solver: SolverConfig, n_draws: int,
-                  rng: np.random.Generator) -> PressurePredictor:
-        """The controller API over ``n_draws`` posterior draws."""
-        return PressurePredictor(self.model, self.draws(n_draws, rng)[0], rig, solver)
 
 
 def identify(recordings, model: Model, settings: FitSettings, method: str = "mcmc",
@@ -392,32 +396,3 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
         "pneubayes_version": pneubayes.__version__,
     }
     return Fit(model, method, median, summary, inputs_card, idata, tuple(recs))
-
-
-def write_posterior(idata, path) -> None:
-    """Write arviz InferenceData to ``path`` (netCDF) atomically: a temporary file
-    beside it, then a rename."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    idata.to_netcdf(str(tmp))
-    os.replace(tmp, path)
-
-
-def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
-    """Write ``fit`` as a run folder: ``model.json`` (the point estimate's card),
-    ``posterior.nc`` (arviz; "mcmc"), ``summary.json`` and, with ``figures``,
-    ``figures/`` (every file atomically)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    fit.model.save_card(fit.params, out / "model.json", extra=fit.card_extra())
-    if fit.posterior is not None:
-        write_posterior(fit.posterior, out / "posterior.nc")
-    write_json_atomic(out / "summary.json", fit.summary)
-    if figures and fit.posterior is not None:
-        from pneubayes.plotting import plot_fit_figures
-
-        post = fit.posterior.posterior
-        samples = np.column_stack([np.asarray(post[n]).T.reshape(-1)  # step-major
-                                   for n in fit.model.parameter_names])
-        plot_fit_figures(fit.model, samples, list(fit.recordings), out / "figures",
-                         idata=fit.posterior)

@@ -8,14 +8,11 @@ chain.h5 (resumable), figures/.
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
 
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
-from pneubayes.errors import ModelCardError
 
 # settings, start and reports live with the in-memory fit; these names stay importable
 from pneubayes.inference.fit import (  # noqa: E402,F401
@@ -31,14 +28,18 @@ from pneubayes.inference.fit import (  # noqa: E402,F401
     misfit_report,
     posterior_draws,
     starting_point,
+)
+from pneubayes.inference.fit_folder import (  # noqa: F401
+    load_posterior,
+    read_fit,
+    run_preparation,
     write_fit,
+    write_posterior,
 )
 from pneubayes.inference.predictive import PosteriorPredictive
-from pneubayes.inference.sampler import arviz
 from pneubayes.io.plausibility import recorded_findings
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
-from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.simulation import SolverConfig
 
 
@@ -51,7 +52,7 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior.
     The fit itself is :func:`pneubayes.inference.fit.identify` (in memory), with the run
     folder as its checkpoint (the chain and the refined start), so a killed fit resumes;
-    :func:`pneubayes.inference.fit.write_fit` writes what it found.
+    :func:`pneubayes.inference.fit_folder.write_fit` writes what it found.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -59,62 +60,6 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
                    progress=progress, log=log)
     write_fit(fit, out, figures=figures)
     return fit.summary
-
-
-def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
-    """(model, model draws (N, P), noise draws (N, 2)) from a run folder."""
-    run = Path(run_dir)
-    model, params = Model.load_card(run / "model.json")
-    try:
-        idata = arviz().from_netcdf(str(run / "posterior.nc"))
-        post = idata.posterior
-    except (OSError, ValueError, AttributeError, KeyError) as exc:
-        raise ValueError(f"{run / 'posterior.nc'}: not a readable posterior ({exc})") from None
-    recorded = (getattr(idata, "attrs", None) or {}).get("model_card",
-                                                         post.attrs.get("model_card"))
-    if recorded is not None:  # the card the posterior was sampled for: never mix runs
-        try:
-            card = json.loads(recorded)
-        except ValueError:
-            card = None
-        if not isinstance(card, dict) or card.get("effects") != list(model.effect_names) \
-                or card.get("parameters") != {k: float(v) for k, v in params.items()}:
-            raise ValueError(f"{run}: posterior.nc was sampled for another model card than "
-                             "model.json (files of different runs); fit again into an empty "
-                             "folder")
-    draws, noise = posterior_draws(model, idata, n_draws, rng, str(run / "posterior.nc"))
-    return model, draws, noise
-
-
-def run_preparation(run_dir) -> dict:
-    """How a run prepared its recordings (its model card): the input low-passes, Hz (None
-    or absent, as in a card written before the supply's: raw), and the declared pressure
-    filter (None or absent: none)."""
-    path = Path(run_dir) / "model.json"
-    try:
-        card = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ModelCardError(f"{path}: cannot read the model card ({exc})") from None
-    fit = card.get("fit") if isinstance(card, dict) else None
-    if fit is None:
-        fit = {}
-    if not isinstance(fit, dict):
-        raise ModelCardError(f"{path}: key 'fit' must be an object, got {fit!r}")
-    out = {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz",
-                                    "pressure_filter")}
-    for key in ("position_cutoff_Hz", "supply_cutoff_Hz"):
-        v = out[key]
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
-                              or not math.isfinite(v) or v < 0):
-            raise ModelCardError(f"{path}: key 'fit' -> {key!r} must be a number >= 0 (Hz) "
-                                 f"or null, got {v!r}")
-    if out["pressure_filter"] is not None:
-        try:
-            PressureFilter.from_dict(out["pressure_filter"],
-                                     source=f"{path} key 'fit' -> 'pressure_filter'")
-        except ValueError as exc:
-            raise ModelCardError(str(exc)) from None
-    return out
 
 
 def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, seed: int,

@@ -1,0 +1,111 @@
+"""What the discovery loop found, in memory: :class:`DiscoveryResult`.
+
+:meth:`Discovery.fit <pneubayes.discovery.loop.Discovery.fit>` leaves one in
+``result_``; :func:`pneubayes.discovery.discover` returns it. The run folder
+(:mod:`pneubayes.discovery.report`) writes it; nothing reads it back from there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pneubayes
+from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.verification import StepFit
+from pneubayes.inference.fit import PosteriorDraws
+
+FORMAT = "pneubayes-discovery/1"
+
+
+@dataclass(frozen=True, eq=False)
+class DiscoveryResult(PosteriorDraws):
+    """The loop's answer and its record.
+
+    Attributes
+    ----------
+    settings : the loop's settings
+    base, final : the starting and the final model's fits (model, refined parameters,
+        training and held-out RMSE in Pa, held-out scores)
+    accepted : the effects added, in order: name, library evidence, held-out score gain
+        and p-value, held-out RMSE before and after (Pa)
+    ledger : every step of the loop (fits, searches, trials, additions, prunings)
+    maps : each round's disagreement map (:mod:`pneubayes.discovery.disagreement`)
+    searches : each round's library evidence (inclusion probabilities, best terms)
+    params : the final model's estimate -- the posterior median when one was sampled,
+        else the refined point; ``estimate`` says which
+    posterior : arviz InferenceData of the final model's emcee chain (None without one)
+    posterior_summary : per parameter median, 5 % and 95 % quantiles, R-hat, ESS
+    posterior_info : converged, steps, the sampling solver and its log-density
+        roughness (nats)
+    noise_floor_Pa : the recordings' white-noise floor (median), Pa
+    range_Pa : the rig's working range (supply - atmosphere), Pa
+    span_Pa : the measured pressures' 1-99 % span, Pa
+    train, held : the prepared recordings (or their parts) fitted on and held out
+    wall_time_s : the loop's wall time, s
+    """
+
+    settings: DiscoverySettings
+    base: StepFit
+    final: StepFit
+    accepted: tuple
+    ledger: tuple
+    maps: tuple
+    searches: tuple
+    params: dict
+    estimate: str
+    noise_floor_Pa: float
+    range_Pa: float
+    span_Pa: float
+    posterior: object | None = None
+    posterior_summary: dict | None = None
+    posterior_info: dict | None = None
+    train: tuple = field(default=(), repr=False)
+    held: tuple = field(default=(), repr=False)
+    wall_time_s: float | None = None
+
+    #: What :class:`~pneubayes.inference.fit.PosteriorDraws` calls the result in errors.
+    method = "discovery"
+
+    @property
+    def model(self):
+        """The final model."""
+        return self.final.model
+
+    @property
+    def effect_names(self) -> list[str]:
+        """The effects the loop added, in order."""
+        return [a["name"] for a in self.accepted]
+
+    def to_dict(self) -> dict:
+        """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
+        post = self.posterior_summary
+        effects = []
+        for a in self.accepted:
+            eff = self.final.model.effect(a["name"])
+            params = {}
+            for n in eff.parameter_names():
+                if post is not None:
+                    params[n] = {k: post[n][k] for k in ("median", "q05", "q95")}
+                else:
+                    params[n] = {"estimate": self.final.params[n]}
+            effects.append({"name": a["name"], "options": eff.options(), "parameters": params,
+                            "evidence": {"inclusion_probability":
+                                         a["evidence"]["inclusion_probability"],
+                                         "t_max": a["evidence"]["t_max"],
+                                         "best_term": a["evidence"]["best_term"],
+                                         "score_gain": a["score_gain"],
+                                         "score_p_value": a["score_p_value"]},
+                            "rmse_before_Pa": a["rmse_before_Pa"],
+                            "rmse_after_Pa": a["rmse_after_Pa"]})
+        doc = {"format": FORMAT, "effects": effects,
+               "rmse_base_Pa": self.base.heldout_rmse_Pa,
+               "rmse_final_Pa": self.final.heldout_rmse_Pa,
+               "noise_floor_Pa": self.noise_floor_Pa, "range_Pa": self.range_Pa,
+               "span_Pa": self.span_Pa, "horizon_s": self.settings.fit.horizon_s,
+               "model": "model.json", "ledger": list(self.ledger),
+               "settings": self.settings.to_dict(), "seed": self.settings.seed,
+               "wall_time_s": self.wall_time_s,
+               "pneubayes_version": pneubayes.__version__}
+        if self.posterior_info is not None:
+            doc["posterior"] = {**self.posterior_info, "summary": post}
+        return doc
