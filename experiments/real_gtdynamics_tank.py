@@ -37,7 +37,7 @@ from real_gtdynamics import DATA, HELD_OUT, HORIZON_S, SEED, fill_phase
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.pipeline import FitSettings, run_fit
-from pneubayes.inference.predictive import estimate_noise_std
+from pneubayes.inference.predictive import noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.inference.windows import WindowSet
@@ -104,7 +104,7 @@ def main(argv=None) -> int:
             print(f"{key:22s} train {ref.rmse_Pa_:7.0f} Pa  held-out "
                   f"{rows[key]['held_out_rmse_Pa']:7.0f} Pa  {ref.params_}", file=sys.stderr)
     train, held = recs_by["measured"]
-    noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in train + held]))
+    noise = noise_floor_Pa(train + held)
     span = float(max(np.ptp(r.pressure_Pa) for r in held))
     # the tank and the delay, sampled
     card = card_with(SUPPLIES["tank"])

@@ -41,7 +41,7 @@ from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.pipeline import FitSettings
-from pneubayes.inference.predictive import estimate_noise_std
+from pneubayes.inference.predictive import noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
@@ -113,7 +113,7 @@ def run_form(kind: str, name: str, log) -> dict:
                 local, fit.params_, SolverConfig.standard()))
             cal_err_shared.append(WindowSet([rests[-1]], HORIZON_S, HORIZON_S).residuals(
                 model, shared.params_, SolverConfig.standard()))
-    noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+    noise = noise_floor_Pa(recs)
     span = float(max(np.ptp(r.pressure_Pa) for r in rests))
     shared_rest = float(np.sqrt(np.mean(np.concatenate(cal_err_shared) ** 2)))
     calibrated = float(np.sqrt(np.mean(np.concatenate(cal_err) ** 2)))

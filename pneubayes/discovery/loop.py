@@ -75,7 +75,7 @@ from pneubayes.discovery.verification import (
 from pneubayes.errors import SimulationError
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import starting_point
-from pneubayes.inference.predictive import estimate_noise_std
+from pneubayes.inference.predictive import noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.windows import WindowSet
@@ -204,7 +204,7 @@ class Discovery:
                 f"{math.ceil(math.log(s.max_p_value) / math.log(0.5))}: give {more}")
         data_key = _fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
                                  for r in recs], split)
-        noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+        noise = noise_floor_Pa(recs)
         lo, hi = np.percentile(np.concatenate([r.pressure_Pa for r in recs]), [1, 99])
         span = float(hi - lo)  # measured, not the nominal supply's range
         card = recs[0].rig_card

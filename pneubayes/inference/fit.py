@@ -24,7 +24,7 @@ from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
 from pneubayes.inference.lsq import PaperLeastSquares
-from pneubayes.inference.predictive import PressurePredictor, estimate_noise_std
+from pneubayes.inference.predictive import PressurePredictor, noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
 from pneubayes.inference.windows import WindowSet
@@ -322,7 +322,7 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
     inputs_card = settings.preparation()
     recs = [prepare_recording(r, inputs_card) for r in recordings]
     t0 = time.perf_counter()
-    noise = float(np.median([estimate_noise_std(r.pressure_Pa) for r in recs]))
+    noise = noise_floor_Pa(recs)
     stages = (_StageCache(ckpt / "refined.json", model, recs, settings)
               if ckpt is not None else None)
     saved = stages.load() if stages is not None and method == "mcmc" else None

@@ -37,6 +37,13 @@ def estimate_noise_std(pressure_Pa) -> float:
     return float(1.4826 * mad / np.sqrt(6.0))
 
 
+def noise_floor_Pa(recordings) -> float:
+    """The recordings' noise floor: the median over recordings of
+    :func:`estimate_noise_std` of their pressure, Pa (fits and discovery report errors
+    against it)."""
+    return float(np.median([estimate_noise_std(r.pressure_Pa) for r in recordings]))
+
+
 def ar1_noise(rng: np.random.Generator, sigma, rho, shape,
               stationary: bool = False) -> np.ndarray:
     """AR(1) sequences ``shape = (N, W, K)`` with per-draw sigma and rho ``(N,)``.
