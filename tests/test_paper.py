@@ -119,31 +119,47 @@ def test_only_the_real_section_is_rewritten(tmp_path):
 
 
 def _mpc_results(out: Path):
-    """A summary as experiments/mpc_tracking.py writes it, from two made-up seeds."""
+    """A summary as experiments/mpc_tracking.py writes it, from two made-up seeds whose
+    pressure sits ``rmse`` above a reference capped at the limit (so both RMSEs are
+    ``rmse``)."""
     import mpc_tracking
+
+    reference = [5.0e5] * 11  # above the limit: capped at p_max
+    p_max = mpc_tracking.P_MAX_PA
 
     def seed(s, rmse, ticks):
         return {"seed": s, "fit": {"converged": True}, "posterior_noise_scale_Pa": 800.0,
+                "fit_delay": {"converged": True, "tube_delay_s": {
+                    "median": 0.015, "q05": 0.0149, "q95": 0.0151}},
+                "reference_Pa": reference,
                 "controllers": {k: {"tracking_rmse_Pa": r, "ticks_above_limit": t,
                                     "largest_excess_Pa": 1000.0 * t,
-                                    "compute_ms_per_tick_median": 2.0}
+                                    "pressure_Pa": [p_max + r] * 11,
+                                    "compute_ms_per_tick_median":
+                                        8.0 if k == "delay_chance" else 2.0}
                                 for k, r, t in zip(mpc_tracking.CONTROLLERS, rmse, ticks)}}
 
-    results = [seed(0, (40e3, 45e3, 38e3, 39e3), (30, 40, 12, 0)),
-               seed(1, (42e3, 44e3, 41e3, 43e3), (20, 30, 25, 2))]
+    results = [seed(0, (40e3, 45e3, 38e3, 39e3, 39.5e3, 37e3, 37.5e3), (30, 40, 12, 0, 0, 1, 0)),
+               seed(1, (42e3, 44e3, 41e3, 43e3, 42e3, 40e3, 40e3), (20, 30, 25, 2, 1, 0, 0))]
     folder = out / "mpc_tracking"
     folder.mkdir(parents=True)
     (folder / "summary.json").write_text(json.dumps({
         "seeds": [0, 1], "quick": False, "rate_Hz": 200.0, "horizon_s": 0.15,
         "candidates": 15, "draws": 64, "hidden_delay_s": 0.015, "p_max_Pa": 4.8e5,
         "run_s": 6.0, "controllers": mpc_tracking.summarise(results),
-        "fits": [r["fit"] for r in results], "provenance": {"git_revision": "abc"}}))
+        "fits": [r["fit"] for r in results], "fits_delay": [r["fit_delay"] for r in results],
+        "provenance": {"git_revision": "abc"}}))
 
 
 def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
     _mpc_results(tmp_path / "out")
     text = "\n".join(make_paper.mpc_section(tmp_path / "out", tmp_path / "paper", False))
-    assert "| nominal | 41.0 [40.0, 42.0] | 30, 20 | 30.0 | 2.00 |" in text
+    assert "| nominal | 41.0 [40.0, 42.0] | 41.0 [40.0, 42.0] | 30, 20 | 30.0 | 2.00 |" in text
+    # the same-model comparison, the fitted delays and a controller slower than its tick
+    assert ("`delay_chance` had 0 ticks above the limit against `delay_nominal`'s 1 (fewer "
+            "on 1 of 2 seeds)") in text
+    assert "15.0 [14.9, 15.1] ms" in text
+    assert "`delay_chance` needed more than the 5-ms tick" in text
     assert ("`predictive` had 2 ticks above the limit against `nominal`'s 50 (fewer on 2 of "
             "2 seeds), at a median RMSE of 41.0 against 41.0 kPa (not worse on 1 of 2 "
             "seeds)") in text
