@@ -3,11 +3,15 @@
 Layers: :mod:`~pneubayes.simulation.rates` (the model's dp/dt at the measured state,
 shared with the simulation layer), :mod:`~pneubayes.discovery.one_step` (dp/dt residuals
 as one-step prediction errors),
-:mod:`~pneubayes.discovery.library` (physically named candidate terms),
+:mod:`~pneubayes.discovery.library` (physically named candidate terms, each effect's
+own: :mod:`~pneubayes.effects.discovery`),
+:mod:`~pneubayes.discovery.candidates` (a named effect's forms beside the current fit),
 :mod:`~pneubayes.discovery.sindy` (grouped sparse regression with block bagging),
 :mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime),
 :mod:`~pneubayes.discovery.verification` (held-out scores and the acceptance test),
 :mod:`~pneubayes.discovery.rounds` (one round's candidate forms, cheapest first),
 :mod:`~pneubayes.discovery.settings` (every setting, saved with the result) and
-:mod:`~pneubayes.discovery.loop` (fit, map, search, name, add, verify, repeat).
+:mod:`~pneubayes.discovery.loop` (fit, map, search, name, add, verify, repeat;
+:func:`~pneubayes.discovery.loop.discover`), :mod:`~pneubayes.discovery.result` (what it
+found, in memory) and :mod:`~pneubayes.discovery.report` (its run folder).
 """
