@@ -95,11 +95,21 @@ def _study_fit() -> FitSettings:
     return FitSettings(sampler=SamplerSettings(max_steps=4000))
 
 
-#: Keys of the nested tables the cell sets itself (the windows are the study's, the
-#: seeds the cell's, the discovery loop fits with ``[settings.fit]`` and samples with
-#: ``method = "mcmc"``): naming them is an error, not an ignored setting.
-CELL_OWNED = {"fit": ("horizon_s", "stride_s"), "fit.sampler": ("seed",),
-              "discovery": ("fit", "posterior", "seed")}
+#: Keys of the nested tables the cell sets itself, and what sets them: naming them in a
+#: study is an error, not an ignored setting.
+CELL_OWNED = {("fit", "horizon_s"): "the study's settings.horizon_s",
+              ("fit", "stride_s"): "fits use non-overlapping windows of settings.horizon_s",
+              ("fit.sampler", "seed"): "the cell's seed",
+              ("discovery", "fit"): "discover cells fit with [settings.fit]",
+              ("discovery", "posterior"): "settings.method = \"mcmc\" samples the posterior",
+              ("discovery", "seed"): "the cell's seed"}
+
+
+def _table_at(doc, table: str):
+    """The nested table at the dotted path ``table`` of ``doc``, or None."""
+    for part in table.split("."):
+        doc = doc.get(part) if isinstance(doc, dict) else None
+    return doc if isinstance(doc, dict) else None
 
 
 def _check_number(key, v, lo=None, hi=None, closed_lo=False):
@@ -294,12 +304,8 @@ class Cell:
         """
         s = self.settings.to_dict()
         s.pop("smoke_duration_s")
-        for table, keys in CELL_OWNED.items():  # the cell sets these (axes, horizon_s)
-            sub = s
-            for part in table.split("."):
-                sub = sub[part]
-            for key in keys:
-                sub.pop(key)
+        for table, key in CELL_OWNED:  # the cell sets these (axes, horizon_s)
+            _table_at(s, table).pop(key)
         if self.settings.method != "mcmc":
             s["fit"].pop("sampler")
         if not self.discover:
@@ -555,26 +561,14 @@ def _rig(source, key, v) -> tuple[str, str]:
 def _settings(source, doc) -> Settings:
     """The ``[settings]`` table over the defaults, checked by the settings dataclasses
     themselves (:func:`pneubayes.settings_tree.override`)."""
-    for table, keys in CELL_OWNED.items():
-        sub = doc
-        for part in table.split("."):
-            sub = sub.get(part) if isinstance(sub, dict) else None
-        for key in keys if isinstance(sub, dict) else ():
-            if key in sub:
-                raise StudyError(f"{source}: settings.{table}.{key}: set by each cell, not "
-                                 f"the study ({_OWNER[table, key]})")
+    for (table, key), owner in CELL_OWNED.items():
+        if key in (_table_at(doc, table) or {}):
+            raise StudyError(f"{source}: settings.{table}.{key}: set by each cell, not the "
+                             f"study ({owner})")
     try:
         return override(Settings(), doc, "settings")
     except SettingsError as exc:
         raise StudyError(f"{source}: {exc}") from None
-
-
-_OWNER = {("fit", "horizon_s"): "the study's settings.horizon_s",
-          ("fit", "stride_s"): "fits use non-overlapping windows of settings.horizon_s",
-          ("fit.sampler", "seed"): "the cell's seed",
-          ("discovery", "fit"): "discover cells fit with [settings.fit]",
-          ("discovery", "posterior"): "settings.method = \"mcmc\" samples the posterior",
-          ("discovery", "seed"): "the cell's seed"}
 
 
 def _check_consistency(source, grid: Grid, s: Settings) -> None:
