@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pneubayes.discovery.verification import StepFit
 from pneubayes.effects import make_effect
-from pneubayes.effects.discovery import CandidateContext
+from pneubayes.effects.discovery import CandidateContext, inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.rig import Rig
 
@@ -47,7 +47,7 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
         model = fit.model.with_effect(form)
         start = dict(fit.params)
         start.update(form.neutral_values())
-        start.update({k: ctx.inside(form, k, v) for k, v in values.items()})
+        start.update({k: inside_bounds(model, k, v) for k, v in values.items()})
         out.append((model, start))
     return out
 

@@ -92,6 +92,12 @@ class CandidateContext:
     def inside(self, effect, name: str, value: float) -> float:
         """``value`` moved just inside the bounds parameter ``name`` has in the model
         with ``effect`` added (a refiner's start)."""
-        p = self.model.with_effect(effect).parameter(name)
-        margin = 1e-6 * (p.upper - p.lower)
-        return float(min(max(value, p.lower + margin), p.upper - margin))
+        return inside_bounds(self.model.with_effect(effect), name, value)
+
+
+def inside_bounds(model, name: str, value: float) -> float:
+    """``value`` moved just inside ``model``'s bounds of parameter ``name`` (its bound
+    overrides included): a refiner's start."""
+    p = model.parameter(name)
+    margin = 1e-6 * (p.upper - p.lower)
+    return float(min(max(value, p.lower + margin), p.upper - margin))
