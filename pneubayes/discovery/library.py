@@ -132,18 +132,25 @@ def _terms(model: Model, groups: Sequence[str], grid: LibraryGrid):
     return sorted(terms, key=lambda et: _KIND_ORDER.index(type(et[1])))
 
 
-def _column(term: LibraryTerm, d: OneStepData, model: Model, params: dict,
-            aug: Model, base: dict, base_pred: np.ndarray, p: np.ndarray,
-            solver: SolverConfig) -> np.ndarray:
-    """The block sums of one term that is not a batched trial (Pa)."""
+def _simulated(term: LibraryTerm, model: Model, params: dict, aug: Model, base: dict):
+    """``(model, parameter row (1, P))`` a term that is not a batched trial simulates
+    (None for a term from the measured pressure alone); once per library, not per
+    recording."""
     if isinstance(term, FormTrialTerm):
         alone, alone_base = _augmented(model, params, [term.effect])
-        pred = d.predict(alone, np.array([alone.vector({**alone_base, **term.values})]),
-                         solver)[0]
-        return d.rows(pred - base_pred)
+        return alone, np.array([alone.vector({**alone_base, **term.values})])
     if isinstance(term, InputLagTerm):
-        pred = d.predict(aug, np.array([aug.vector(base)]), solver,
-                         inputs=d.lagged_inputs(term.lag_s))[0]
+        return aug, np.array([aug.vector(base)])
+    return None
+
+
+def _column(term: LibraryTerm, sim, d: OneStepData, base_pred: np.ndarray, p: np.ndarray,
+            solver: SolverConfig) -> np.ndarray:
+    """The block sums of one term that is not a batched trial (Pa); ``sim`` is its
+    :func:`_simulated`."""
+    if isinstance(term, (FormTrialTerm, InputLagTerm)):
+        inputs = d.lagged_inputs(term.lag_s) if isinstance(term, InputLagTerm) else None
+        pred = d.predict(*sim, solver, inputs=inputs)[0]
         return d.rows(pred - base_pred)
     dt = float(np.median(np.diff(d.recording.time_s)))
     hp = p - first_order_lag(p, dt, 1.0 / term.rate_per_s)
@@ -167,6 +174,7 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
     aug, base = _augmented(model, params, list(dict.fromkeys(e for e, _ in trials)))
     vectors = np.array([aug.vector(base)] + [aug.vector({**base, **t.values})
                                               for _, t in trials])
+    sims = [_simulated(t, model, params, aug, base) for t in others]
     targets, cols, absorbers, rec_idx, first, keep = [], [], [], [], [], []
     for i, d in enumerate(data):
         pred = d.predict(aug, vectors, solver)
@@ -174,8 +182,8 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
         p = np.asarray(d.recording.pressure_Pa, dtype=np.float64)
         targets.append(d.rows(p[1:] - base_pred))
         rec_cols = [d.rows(row - base_pred) for row in pred[1:]]
-        rec_cols += [_column(t, d, model, params, aug, base, base_pred, p, solver)
-                     for t in others]
+        rec_cols += [_column(t, sim, d, base_pred, p, solver)
+                     for t, sim in zip(others, sims)]
         cols.append(np.column_stack(rec_cols) if rec_cols else np.zeros((d.n_rows, 0)))
         sp = d.predict(model, sens_points, solver)
         sens = (sp[0::2] - sp[1::2]) / widths[:, None] * steps[:, None]
