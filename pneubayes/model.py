@@ -355,16 +355,20 @@ class Model:
         """Write the card atomically (temp file + rename)."""
         write_json_atomic(path, self.to_card(values, extra))
 
-    @classmethod
-    def load_card(cls, path) -> tuple["Model", dict]:
+    @staticmethod
+    def read_card(path) -> dict:
+        """A model card file's JSON (errors name the file), not yet checked."""
         path = Path(path)
         try:
             text = path.read_text()
         except OSError as exc:
             raise ModelCardError(f"{path}: cannot read ({exc.strerror})") from None
         try:
-            card = json.loads(text)
+            return json.loads(text)
         except json.JSONDecodeError as exc:
             raise ModelCardError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") \
                 from None
-        return cls.from_card(card, source=str(path))
+
+    @classmethod
+    def load_card(cls, path) -> tuple["Model", dict]:
+        return cls.from_card(cls.read_card(path), source=str(path))

@@ -60,7 +60,8 @@ def read_fit(run_dir) -> Fit:
     checked to belong to the card) and its ``summary.json`` (``{}`` without one). The
     recordings are not kept in a run folder: ``recordings`` is empty."""
     run = Path(run_dir)
-    model, params = Model.load_card(run / "model.json")
+    card = Model.read_card(run / "model.json")  # read once: the model and its preparation
+    model, params = Model.from_card(card, str(run / "model.json"))
     idata = _read_posterior(run, model, params) if (run / "posterior.nc").exists() else None
     summary = {}
     if (run / "summary.json").exists():
@@ -71,7 +72,8 @@ def read_fit(run_dir) -> Fit:
     method = summary.get("method") if isinstance(summary, dict) else None
     if method is None:
         method = "mcmc" if idata is not None else "refine"
-    return Fit(model, method, params, summary, run_preparation(run), idata)
+    return Fit(model, method, params, summary,
+               card_preparation(card, run / "model.json"), idata)
 
 
 def _read_posterior(run: Path, model: Model, params: dict):
@@ -97,13 +99,16 @@ def _read_posterior(run: Path, model: Model, params: dict):
 
 def load_posterior(run_dir, n_draws: int, rng: np.random.Generator):
     """(model, model draws (N, P), noise draws (N, 2)) from a run folder."""
-    run = Path(run_dir)
-    fit = read_fit(run)
+    return folder_draws(read_fit(run_dir), run_dir, n_draws, rng)
+
+
+def folder_draws(fit: Fit, run_dir, n_draws: int, rng: np.random.Generator):
+    """:func:`load_posterior` of a fit already read from ``run_dir``."""
+    path = Path(run_dir) / "posterior.nc"
     if fit.posterior is None:
-        raise ValueError(f"{run / 'posterior.nc'}: not a readable posterior (the run has "
-                         "none: fit with method 'mcmc')")
-    draws, noise = posterior_draws(fit.model, fit.posterior, n_draws, rng,
-                                   str(run / "posterior.nc"))
+        raise ValueError(f"{path}: not a readable posterior (the run has none: fit with "
+                         "method 'mcmc')")
+    draws, noise = posterior_draws(fit.model, fit.posterior, n_draws, rng, str(path))
     return fit.model, draws, noise
 
 
@@ -112,10 +117,11 @@ def run_preparation(run_dir) -> dict:
     or absent, as in a card written before the supply's: raw), and the declared pressure
     filter (None or absent: none)."""
     path = Path(run_dir) / "model.json"
-    try:
-        card = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ModelCardError(f"{path}: cannot read the model card ({exc})") from None
+    return card_preparation(Model.read_card(path), path)
+
+
+def card_preparation(card, path) -> dict:
+    """:func:`run_preparation` from a model card already read from ``path``."""
     fit = card.get("fit") if isinstance(card, dict) else None
     if fit is None:
         fit = {}

@@ -30,6 +30,7 @@ from pneubayes.inference.fit import (  # noqa: E402,F401
     starting_point,
 )
 from pneubayes.inference.fit_folder import (  # noqa: F401
+    folder_draws,
     load_posterior,
     read_fit,
     run_preparation,
@@ -70,14 +71,15 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     With ``figure_path``, the same bands are also drawn there (Figs. 7-10 style).
     """
     rng = np.random.default_rng(seed)
-    model, draws, noise = load_posterior(run_dir, n_draws, rng)
+    fit = read_fit(run_dir)  # the run folder read once: card, posterior, preparation
+    model, draws, noise = folder_draws(fit, run_dir, n_draws, rng)
     if model.rig_card != recording.rig_card:
         def rig(c):
             return "the paper's cylinders" if c is None else f"the rig card {c.name!r}"
         raise ValueError(f"{recording.source} describes {rig(recording.rig_card)}, the run "
                          f"{run_dir} {rig(model.rig_card)}: predict on the rig it was "
                          "fitted to (give --rig CARD if the sidecar names none)")
-    recording = prepare_recording(recording, run_preparation(run_dir))
+    recording = prepare_recording(recording, fit.preparation)
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
     w, n = bands.mean.shape
