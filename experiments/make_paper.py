@@ -676,6 +676,19 @@ def _forms_paragraph(path: Path) -> list[str]:
             "noise.", ""]
 
 
+def _versus_text(kind: str, other: str, vs: dict, n: int) -> str:
+    """One controller against another over ``n`` seeds (``mpc_tracking._versus``)."""
+    return (f"`{kind}` had {vs['total_ticks_above_limit'][0]} ticks above the limit against "
+            f"`{other}`'s {vs['total_ticks_above_limit'][1]} (fewer on "
+            f"{vs['seeds_fewer_violations']} of {n} seeds), at a median RMSE of "
+            f"{vs['median_tracking_rmse_Pa'][0] / 1e3:.1f} against "
+            f"{vs['median_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
+            f"{vs['seeds_rmse_not_worse']} of {n} seeds); against the capped reference "
+            f"{vs['median_feasible_tracking_rmse_Pa'][0] / 1e3:.1f} against "
+            f"{vs['median_feasible_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
+            f"{vs['seeds_feasible_rmse_not_worse']} of {n} seeds)")
+
+
 def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     """The "Closed loop" section from ``experiments/mpc_tracking.py``'s summary."""
     folder = out / ("mpc_tracking-smoke" if smoke else "mpc_tracking")
@@ -717,39 +730,17 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                  f"{max(v['largest_excess_Pa']) / 1e3:.1f} | "
                  f"{np.median(v['compute_ms_per_tick_median']):.2f} |")
     L.append("")
-    found = []
-    for kind in [k for k in ("nominal_mean", "posterior", "predictive", "chance",
-                             "delay_nominal", "delay_chance") if k in c]:
-        vs = c[kind]["versus_nominal"]
-        n = len(s["seeds"])
-        found.append(f"`{kind}` had {vs['total_ticks_above_limit'][0]} ticks above the "
-                     f"limit against `nominal`'s {vs['total_ticks_above_limit'][1]} (fewer on "
-                     f"{vs['seeds_fewer_violations']} of {n} seeds), at a median RMSE of "
-                     f"{vs['median_tracking_rmse_Pa'][0] / 1e3:.1f} against "
-                     f"{vs['median_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
-                     f"{vs['seeds_rmse_not_worse']} of {n} seeds); against the capped "
-                     f"reference {vs['median_feasible_tracking_rmse_Pa'][0] / 1e3:.1f} against "
-                     f"{vs['median_feasible_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
-                     f"{vs['seeds_feasible_rmse_not_worse']} of {n} seeds)")
+    n = len(s["seeds"])
+    found = [_versus_text(kind, "nominal", c[kind]["versus_nominal"], n)
+             for kind in mpc_tracking.CONTROLLERS[1:] if kind in c]
     diffs = {k: (np.asarray(c[k]["tracking_rmse_Pa"])
                  - np.asarray(c["nominal"]["tracking_rmse_Pa"])) / 1e3
-             for k in ("posterior", "predictive", "chance", "delay_nominal", "delay_chance")
-             if k in c}
+             for k in mpc_tracking.CONTROLLERS[2:] if k in c}
     found.append("per seed, the RMSE minus `nominal`'s is " + "; ".join(
         f"{d.min():+.1f} to {d.max():+.1f} kPa for `{k}`" for k, d in diffs.items()))
     if "delay_chance" in c and "versus_delay_nominal" in c["delay_chance"]:
-        vs = c["delay_chance"]["versus_delay_nominal"]
-        n = len(s["seeds"])
-        found.append(f"on the model with the delay, `delay_chance` had "
-                     f"{vs['total_ticks_above_limit'][0]} ticks above the limit against "
-                     f"`delay_nominal`'s {vs['total_ticks_above_limit'][1]} (fewer on "
-                     f"{vs['seeds_fewer_violations']} of {n} seeds), at a median RMSE of "
-                     f"{vs['median_tracking_rmse_Pa'][0] / 1e3:.1f} against "
-                     f"{vs['median_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
-                     f"{vs['seeds_rmse_not_worse']} of {n} seeds; capped: "
-                     f"{vs['median_feasible_tracking_rmse_Pa'][0] / 1e3:.1f} against "
-                     f"{vs['median_feasible_tracking_rmse_Pa'][1] / 1e3:.1f} kPa, not worse "
-                     f"on {vs['seeds_feasible_rmse_not_worse']})")
+        found.append("on the model with the delay, " + _versus_text(
+            "delay_chance", "delay_nominal", c["delay_chance"]["versus_delay_nominal"], n))
         fits = [f.get("tube_delay_s") for f in s.get("fits_delay", [])]
         if fits and all(fits):
             found.append("the fitted delays (posterior median [5 %, 95 %]) were " + "; ".join(

@@ -97,15 +97,16 @@ def _convert(hint, value, current, where: str):
     return value
 
 
-def _fields(cls) -> tuple[dict, dict]:
+def _fields(cls) -> dict:
+    """The type hint of each of ``cls``'s constructor fields."""
     hints = typing.get_type_hints(cls)
-    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.init}, hints
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.init}
 
 
 def _values(cls, table, where: str, current=None) -> dict:
     if not isinstance(table, Mapping):
         raise SettingsError(f"{where}: expected a table, got {_type_name(table)} {table!r}")
-    known, _ = _fields(cls)
+    known = _fields(cls)
     out = {}
     for key, value in table.items():
         path = f"{where}.{key}" if where else str(key)
