@@ -42,7 +42,7 @@ def test_lists_become_tuples_and_optional_fields_take_a_table_or_stay_none():
     with pytest.raises(SettingsError, match="f.pressure_filter: .*cutoff_Hz"):
         override(FitSettings(), {"pressure_filter": {"order": 2}}, "f")
     assert build(PressureFilter, {"order": 1, "cutoff_Hz": 50.0}).order == 1
-    from pneubayes.ablation.study import Settings
+    from pneubayes.ablation.settings import Settings
 
     assert override(Settings(), {"fit_positions": [0.2, 0.4]}).fit_positions == (0.2, 0.4)
     with pytest.raises(SettingsError, match=r"s.fit_positions\[1\]: expected a number"):

@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pneubayes.ablation.study import TASSA, Cell, Settings
+from pneubayes.ablation.settings import Settings
+from pneubayes.ablation.study import TASSA, Cell
 from pneubayes.atomic import json_safe
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import forms_from_names
