@@ -182,6 +182,19 @@ def make_inputs():
     return make
 
 
+@pytest.fixture
+def closable_params():
+    """Base parameters whose valve shuts completely at command 0 (inside the bounds).
+
+    Offsets 0; the inlet opens only for u > ~3 V and the exhaust only for u < ~-3 V
+    (d = -3 / +3 V, steep c): at u = 0 both Gompertz terms underflow to exactly 0.
+    """
+    return {"inlet_offset_m2": 0.0, "inlet_a_m2": 5.5e-7, "inlet_b": 3.5, "inlet_c_per_V": 20.0,
+            "inlet_d_V": -3.0, "exhaust_offset_m2": 0.0, "exhaust_a_m2": 6e-7,
+            "exhaust_b": 3.5, "exhaust_c_per_V": -20.0, "exhaust_d_V": 3.0,
+            "dead_volume_m3": 2.4e-6}
+
+
 @pytest.fixture(scope="session")
 def hand():
     """The independent plain-math physics of this file."""

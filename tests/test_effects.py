@@ -31,9 +31,9 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
             ("tube_delay", {}), ("tube_delay", {"form": "line", "segments": 3}),
             ("valve_deadzone", {}), ("supply_fluctuation", {}),
             ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
-            ("spool_lag", {})]
+            ("spool_lag", {}), ("sensor_lag", {})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "valve_deadzone",
-       "supply_fluctuation", "heat_rate", "heat_convective", "spool_lag"]
+       "supply_fluctuation", "heat_rate", "heat_convective", "spool_lag", "sensor_lag"]
 
 
 def _tight():
@@ -56,19 +56,6 @@ def valve_params():
 
 
 @pytest.fixture
-def closable_params():
-    """Base parameters whose valve shuts completely at command 0 (inside the bounds).
-
-    Offsets 0; the inlet opens only for u > ~3 V and the exhaust only for u < ~-3 V
-    (d = -3 / +3 V, steep c): at u = 0 both Gompertz terms underflow to exactly 0.
-    """
-    return {"inlet_offset_m2": 0.0, "inlet_a_m2": 5.5e-7, "inlet_b": 3.5, "inlet_c_per_V": 20.0,
-            "inlet_d_V": -3.0, "exhaust_offset_m2": 0.0, "exhaust_a_m2": 6e-7,
-            "exhaust_b": 3.5, "exhaust_c_per_V": -20.0, "exhaust_d_V": 3.0,
-            "dead_volume_m3": 2.4e-6}
-
-
-@pytest.fixture
 def rich_inputs(hand):
     """Random steps, a moving piston and a fluctuating supply column: 0.8 s at 1 kHz."""
     n = 801
@@ -85,7 +72,7 @@ def _sim(model, params, inputs, rig, p0=2e5, solver=None):
 # ---------------------------------------------------------------- the contract
 def test_catalogue_names():
     assert list(CATALOGUE) == ["cylinder_leak", "tube_delay", "valve_deadzone",
-                               "supply_fluctuation", "heat_transfer", "spool_lag"]
+                               "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):

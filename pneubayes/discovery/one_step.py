@@ -72,10 +72,35 @@ class OneStepData:
 
     def predict(self, model: Model, params, solver: SolverConfig,
                 inputs: Inputs | None = None) -> np.ndarray:
-        """One-step predictions ``(B, N - 1)`` of ``p[k+1]`` from the measured ``p[k]``."""
+        """One-step predictions ``(B, N - 1)`` of ``p[k+1]`` from the measured ``p[k]``.
+
+        A lagged reading (effect ``sensor_lag``, time constant tau) is predicted from
+        the chamber ahead of the reading by tau times the reading's rate: the chamber's
+        rate without the lag (its one-step increments from the measured readings, held
+        over each interval) through the lag, ``q[k] = m[k-1] + (q[k-1] - m[k-1])
+        exp(-h / tau)`` (h the median sample interval), from the model and not from differences of noisy readings. A
+        chamber started at the reading itself would move the reading by only a fraction
+        of its increment in one step."""
         p = np.asarray(self.recording.pressure_Pa, dtype=np.float64)
-        out = simulate_windows(model, params, inputs or self.inputs, self.rig,
-                               np.arange(p.size - 1), 2, p[:-1], solver, check_bounds=False)
+        inputs = inputs or self.inputs
+        theta = model.as_matrix(params)
+        starts = np.arange(p.size - 1)
+        rate = None
+        lag = (theta[:, model.parameter_names.index("sensor_time_constant_s")]
+               if "sensor_time_constant_s" in model.parameter_names else np.zeros(0))
+        if np.any(lag > 0):
+            plain = theta.copy()
+            plain[:, model.parameter_names.index("sensor_time_constant_s")] = 0.0
+            step = simulate_windows(model, plain, inputs, self.rig, starts, 2, p[:-1], solver,
+                                    check_bounds=False)[:, :, 1]
+            dt = float(np.median(np.diff(self.recording.time_s)))
+            rate = np.zeros(step.shape)
+            for b in np.nonzero(lag > 0)[0]:
+                a = np.exp(-dt / lag[b])
+                m = (step[b] - p[:-1]) / dt  # the chamber's rate over interval k, Pa/s
+                rate[b] = lfilter([0.0, 1.0 - a], [1.0, -a], m)
+        out = simulate_windows(model, theta, inputs, self.rig, starts, 2, p[:-1], solver,
+                               check_bounds=False, initial_rate_Pa_per_s=rate)
         return out[:, :, 1]
 
     def errors(self, model: Model, params, solver: SolverConfig) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The effect catalogue: each physical effect is one small object behind one interface.
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
-``supply_fluctuation``, ``heat_transfer``, ``spool_lag``.
+``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import numbers
 from pneubayes.effects.base import Component, Effect, Parameter
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
+from pneubayes.effects.sensor_lag import SensorLag
 from pneubayes.effects.spool_lag import SpoolLag
 from pneubayes.effects.supply_fluctuation import SupplyFluctuation
 from pneubayes.effects.thin_port import ThinPort
@@ -22,7 +23,7 @@ from pneubayes.effects.valve_deadzone import ValveDeadzone
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
-                SpoolLag)
+                SpoolLag, SensorLag)
 }
 
 

@@ -89,6 +89,12 @@ SLOTS += (
     (f"volume_table_volume_m3_{k}", f"tabulated V(p): volume change at point {k} (m^3)")
     for k in range(TABLE_MAX_POINTS))
 
+SLOTS += (
+    ("sensor_time_constant_s", "a first-order lag of the pressure reading behind the "
+     "chamber pressure (an undeclared causal anti-alias filter, a sensor on a stub), "
+     "dr/dt = (p - r) / tau; > 0 makes the reading a state (s)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 

@@ -113,6 +113,7 @@ _TAB_C = SLOT_INDEX["table_command_0"]
 _TAB_I = SLOT_INDEX["table_inlet_m2_0"]
 _TAB_E = SLOT_INDEX["table_exhaust_m2_0"]
 _TAB_MAX = TABLE_MAX_POINTS
+_SENSOR = SLOT_INDEX["sensor_time_constant_s"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -198,9 +199,26 @@ def _area_rates(spool, spool_rate, dead, sl):
     return r_in * spool_rate, r_ex * spool_rate
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _lag_weights(z):
+    """``(a, c)`` of the exact first-order lag over a step of ``z`` time constants of a
+    signal linear on the step: r_new = a r + (1 - a) p + c (p_new - p), a = e^-z,
+    c = 1 - (1 - a) / z (its series for small z, where the difference cancels)."""
+    a = math.exp(-z)
+    if z < 1e-3:
+        return a, z * (0.5 - z * (1.0 / 6.0 - z / 24.0))
+    return a, 1.0 + math.expm1(-z) / z
+
+
 @njit(cache=True, error_model="numpy")
-def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general):
+def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry, general):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
+
+    With a sensor lag (slot ``sensor_time_constant_s`` tau > 0) the output is the
+    reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step with p
+    linear on the step; r starts at ``p0`` (the measured reading) and the chamber at
+    ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
+    tau dr/dt.
 
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
@@ -250,11 +268,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, gener
         p_lung = p0
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0):
         return NEEDS_GENERAL
+    lag_r = sl[_SENSOR]
+    reading = lag_r > 0.0
+    r = p0
     p = p0
+    if reading and p0 + lag_r * rate0 > 0.0:
+        p = p0 + lag_r * rate0
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
-    out[0] = p
+    out[0] = p0
     want_sens = sens.shape[0] > 0
     s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0 (T: or the tank's or second compartment's p)
+    s_r = 1.0  # d(reading)/dp0
     if lung_from_p0:
         s_t0 = 1.0
     prop_t = (1.0, 0.0, 0.0, 1.0)  # a thermal step's propagator (row-major)
@@ -396,6 +420,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, gener
                             err = 10.0
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
+                    p_prev, s_prev = p, s_p0
                     p_tank = p_tank_new
                     p_lung = p_lung_new
                     p, temp = pn, tn
@@ -407,6 +432,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, gener
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
                         s_p0 *= math.exp(zp)
+                    if reading:
+                        a_r, c_r = _lag_weights(hh / lag_r)
+                        r = a_r * r + (1.0 - a_r) * p_prev + c_r * (p - p_prev)
+                        s_r = a_r * s_r + (1.0 - a_r) * s_prev + c_r * (s_p0 - s_prev)
                     # grow the step only when it was not cut short by a break point;
                     # shrink it when the error asks (0.9 / cbrt(err) < 1 iff err > 0.729)
                     if hh >= h or err > 0.729:
@@ -425,9 +454,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, gener
                 spool = cmd + (spool_a - cmd) * math.exp(-(t_end - t_sub) / tau_s)
             else:
                 spool = cmd
-        out[k + 1 - i0] = p
+        out[k + 1 - i0] = r if reading else p
         if want_sens:
-            sens[k + 1 - i0] = s_p0
+            sens[k + 1 - i0] = s_r if reading else s_p0
     carry[0] = temp
     if general is not None and line:
         line_finish(y, carry)
@@ -439,8 +468,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, gener
 
 
 @njit(cache=True, error_model="numpy")
-def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out,
-          sens, status, general):
+def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
+          out, sens, status, general):
     """One task: parameter set ``task // (W / per_task)``, its windows from
     ``(task % (W / per_task)) * per_task`` on, carrying the unmeasured states."""
     tasks_per_set = starts.shape[0] // per_task
@@ -449,30 +478,31 @@ def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length
     carry = _fresh_carry(consts)
     for w in range(w0, w0 + per_task):
         status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, starts[w], length,
-                               p0[w], out[b, w], sens[b, w], carry, general)
+                               p0[w], rate0[b, w], out[b, w], sens[b, w], carry, general)
         if status[b, w] != OK:
             carry = _fresh_carry(consts)
 
 
 @njit(cache=True, error_model="numpy")
-def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out, sens,
-                     status, general, per_task):
+def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, out,
+                     sens, status, general, per_task):
     """Every (parameter set, window) pair on the calling thread."""
     for task in range(slots.shape[0] * (starts.shape[0] // per_task)):
         _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-              out, sens, status, general)
+              rate0, out, sens, status, general)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out,
-                       sens, status, general, per_task):
+def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
+                       out, sens, status, general, per_task):
     """Every (parameter set, window) pair, tasks spread over numba's threads."""
     for task in prange(slots.shape[0] * (starts.shape[0] // per_task)):
         _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-              out, sens, status, general)
+              rate0, out, sens, status, general)
 
 
-def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, with_sensitivity):
+def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
+              with_sensitivity):
     """Every (parameter set, window) pair; see :func:`simulate_windows`.
 
     Compiled variants are chosen here and built on first use: the pressure-only kernel
@@ -491,7 +521,9 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, with_s
     run = _simulate_serial
     if nb * nw > 1 and numba.get_num_threads() > 1:
         run = _simulate_parallel
-    run(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, out, sens, status,
+    if rate0 is None:
+        rate0 = np.zeros((nb, nw))
+    run(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, out, sens, status,
         True if hidden else None, per_task)
     return out, sens, status
 
@@ -514,7 +546,7 @@ def _fresh_carry(consts):
     return carry
 
 
-def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0):
+def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0=None):
     """Simulate every (parameter set, window) pair.
 
     The chamber temperature (a state only with heat transfer) starts at the supply's in
@@ -530,17 +562,20 @@ def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0)
     ue : (N,) float64                 a separate exhaust valve's command (its unit)
     starts : (W,) int64               first sample of each window
     length : int                      samples per window (output includes the start)
-    p0 : (W,) float64                 initial pressure of each window (Pa)
+    p0 : (W,) float64                 initial pressure (the reading) of each window (Pa)
+    rate0 : (B, W) float64 or None    the reading's rate at each start (Pa/s; None: 0),
+                                      read only with a sensor lag
 
     Returns
     -------
     out : (B, W, length) float64 pressures (Pa); status : (B, W) int64
     """
     out, _, status = _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-                               False)
+                               rate0, False)
     return out, status
 
 
-def simulate_windows_sensitivity(slots, consts, solver, t, u, ue, x, ps, starts, length, p0):
+def simulate_windows_sensitivity(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
+                                 rate0=None):
     """:func:`simulate_windows` plus dp(t)/dp0 per sample: ``(out, sens, status)``."""
-    return _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, True)
+    return _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, True)

@@ -9,7 +9,8 @@ switch, at the simulated pressure there), ``D * K(t - tau)`` to the samples with
 filter's reach -- :class:`PressureFilter`'s kink response ``K``.
 
 A spool lag or an acoustic line makes the ports' flow into the chamber continuous (no
-jump to round), so those parameter sets are read unchanged. With heat transfer the jump
+jump to round), so those parameter sets are read unchanged; so is a reading that
+already lags the chamber (effect ``sensor_lag``), which rounds every corner itself. With heat transfer the jump
 is taken at the supply temperature (the chamber's is not tracked here).
 
 A window starts from a measured reading. A corner within the filter's reach of the start
@@ -51,7 +52,8 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     switch = np.nonzero(u[1:] != u[:-1])[0] + 1  # sample j: u[j - 1] -> u[j]
     finite = np.all(np.isfinite(pressure_Pa), axis=(1, 2))
     rows = np.nonzero((slots[:, S["spool_time_constant_s"]] <= 0.0)
-                      & (slots[:, S["line_length_m"]] <= 0.0) & finite)[0]
+                      & (slots[:, S["line_length_m"]] <= 0.0)
+                      & (slots[:, S["sensor_time_constant_s"]] <= 0.0) & finite)[0]
     if switch.size == 0 or rows.size == 0 or length < 2:
         return pressure_Pa
     s_tab, k_tab = filt.kink_response

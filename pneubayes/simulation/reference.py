@@ -2,8 +2,9 @@
 
 Used by the tests (accuracy, step halving) and the benchmark (speed baseline). It shares
 only the lowered slots and the vectorised physics functions with the compiled
-integrator; the integration, input handling and the spool (an ODE state here, closed
-form there) are written separately. Slow: thousands of Python calls per second.
+integrator; the integration, input handling, the spool (an ODE state here, closed
+form there) and a sensor lag's reading (an ODE state here, stepped exactly for a
+linear pressure there) are written separately. Slow: thousands of Python calls per second.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     exs = [sl[S[k]] for k in ("exhaust_offset_m2", "exhaust_a_m2", "exhaust_b",
                               "exhaust_c_per_V", "exhaust_d_V")]
     tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
+    lag = sl[S["sensor_time_constant_s"]]  # the reading: the last state
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
     thermal = heat > 0 or h_wall > 0
@@ -45,6 +47,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     own_ex = sl[S["exhaust_own_command"]] != 0
     tank_v = sl[S["tank_volume_m3"]]
     lung_v = sl[S["lung_volume_m3"]]
+    i_lung = 3 + 2 * nseg + (1 if tank_v > 0 else 0)  # a second compartment's pressure
     n_vt = int(sl[S["volume_table_points"]])
     vt_p = sl[S["volume_table_pressure_Pa_0"]:S["volume_table_pressure_Pa_0"] + n_vt]
     vt_v = sl[S["volume_table_volume_m3_0"]:S["volume_table_volume_m3_0"] + n_vt]
@@ -109,7 +112,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
                         -k_lam * (p * p - p_atm * p_atm)]
         m_lung = 0.0
         if lung_v > 0:  # laminar flow into the second compartment (its pressure: last)
-            m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[-1] ** 2)
+            m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[i_lung] ** 2)
             flows.append(-m_lung)
         mdot = float(sum(flows))
         # enthalpy: inflow at the supply temperature, outflow at the chamber's (T = T_s
@@ -136,24 +139,28 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         if tank_v > 0:  # the tank loses what the inlet draws (polytropic, air at T_s)
             d_tank = [-kappa * rs * t_s * float(a_in * f_in_raw) / tank_v]
         if lung_v > 0:  # eq. 5 in the second, compliant compartment
-            pl, cl = y[-1], sl[S["lung_compliance_m3_per_Pa"]]
+            pl, cl = y[i_lung], sl[S["lung_compliance_m3_per_Pa"]]
             d_tank = [kappa * rs * t_s * m_lung / (lung_v + cl * (pl - p_atm) + kappa * pl * cl)]
+        d_reading = [float(p - y[-1]) / lag] if lag > 0 else []
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
-                + d_tank)
+                + d_tank + d_reading)
 
     return rhs
 
 
 def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                        initial_pressure_Pa: float, method: str = "Radau", rtol: float = 1e-10,
-                       atol: float = 1e-6, return_stats: bool = False):
+                       atol: float = 1e-6, return_stats: bool = False,
+                       initial_rate_Pa_per_s: float = 0.0):
     """Simulate one parameter set with ``solve_ivp`` on every hold interval separately.
 
     Break points are the sample times and the delayed-command switch times; on each
     interval the command is constant and position and supply are linear, as in the
     compiled integrator. A supply tank is one more state, integrated with the chamber
-    (the compiled integrator couples it by splitting). Returns pressures ``(N,)`` in Pa
-    (and the rhs count if asked).
+    (the compiled integrator couples it by splitting). A sensor lag's reading is the
+    last state: it starts at ``initial_pressure_Pa`` and the chamber at it plus the
+    lag times ``initial_rate_Pa_per_s``. Returns the pressures (the reading, with a
+    sensor lag) ``(N,)`` in Pa (and the rhs count if asked).
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
@@ -173,6 +180,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     if sl[S["lung_volume_m3"]] > 0:  # a second compartment starts with no flow into it
         y = np.append(y, initial_pressure_Pa)
         atols.append(atol)
+    lag = sl[S["sensor_time_constant_s"]]
+    if lag > 0:  # the reading starts at the given pressure, the chamber ahead of it
+        y[0] = initial_pressure_Pa + lag * initial_rate_Pa_per_s
+        y = np.append(y, initial_pressure_Pa)
+        atols.append(atol)
     ue = inputs.exhaust_command if inputs.exhaust_command is not None else np.zeros(t.size)
     before = inputs.command_before_start
 
@@ -183,7 +195,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     j = int(np.searchsorted(t + delay, t[0], side="right") - 1)
     y[2] = held(j)
     out = np.empty(t.size)
-    out[0] = y[0]
+    read = -1 if lag > 0 else 0
+    out[0] = y[read]
     nfev = 0
     for k in range(t.size - 1):
         ta, tb = t[k], t[k + 1]
@@ -202,5 +215,5 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                 raise RuntimeError(f"reference solver failed at t={a:.6f}: {sol.message}")
             nfev += sol.nfev
             y = sol.y[:, -1]
-        out[k + 1] = y[0]
+        out[k + 1] = y[read]
     return (out, nfev) if return_stats else out

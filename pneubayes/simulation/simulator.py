@@ -154,7 +154,7 @@ def _kernel_arrays(*arrays):
 
 
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
-                 check_bounds, on_failure, kernel_fn):
+                 check_bounds, on_failure, kernel_fn, initial_rate_Pa_per_s=None):
     if on_failure not in ("raise", "nan"):
         raise ValueError(f"on_failure must be 'raise' or 'nan', got {on_failure!r}")
     solver = _check_solver(solver)
@@ -172,6 +172,15 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                          f"{starts.max()}], length {length}, {inputs.n_samples} samples")
     if not np.all(np.isfinite(p0) & (p0 > 0)):
         raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
+    shape = (theta.shape[0], starts.size)
+    try:
+        rate0 = np.zeros(shape) if initial_rate_Pa_per_s is None else np.ascontiguousarray(
+            np.broadcast_to(np.asarray(initial_rate_Pa_per_s, np.float64), shape))
+    except ValueError:
+        raise ValueError(f"initial_rate_Pa_per_s must broadcast to (parameter sets, windows) "
+                         f"= {shape}, got shape {np.shape(initial_rate_Pa_per_s)}") from None
+    if not np.all(np.isfinite(rate0)):
+        raise ValueError("initial_rate_Pa_per_s must be finite")
     slots = model.lower(theta, rig)
     line = slots[:, SLOT_INDEX["line_length_m"]] > 0
     hot = (slots[:, SLOT_INDEX["heat_rate_per_s"]] > 0) | (
@@ -200,9 +209,11 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                              "acoustic line (tube_delay form 'line') or another second state "
                              "(a supply tank, a second compartment) in one model")
     t, u, ue, x, ps, offset = inputs.kernel_arrays()
-    slots, consts, sv, t, u, ue, x, ps, kstarts, p0 = _kernel_arrays(
-        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, starts + offset, p0)
-    *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0)
+    slots, consts, sv, t, u, ue, x, ps, kstarts, p0, rate0 = _kernel_arrays(
+        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, starts + offset, p0,
+        rate0)
+    *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
+                                rate0)
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
         for a in arrays:
@@ -225,7 +236,8 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
 
 def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,
                      initial_pressure_Pa, solver: SolverConfig,
-                     check_bounds: bool = True, on_failure: str = "raise") -> np.ndarray:
+                     check_bounds: bool = True, on_failure: str = "raise",
+                     initial_rate_Pa_per_s=None) -> np.ndarray:
     """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
 
     Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
@@ -238,14 +250,22 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     rows are NaN (samplers turn them into zero likelihood). With a pressure filter
     declared on ``rig``, the result is the sensor's reading of the chamber pressure
     (:mod:`pneubayes.simulation.measurement`).
+
+    With a sensor lag (effect ``sensor_lag``) the result is the lagged reading, which
+    starts at ``initial_pressure_Pa`` while the chamber starts at it plus the lag's
+    time constant times ``initial_rate_Pa_per_s`` (the reading's rate at the start,
+    Pa/s, per window or per (parameter set, window); None: 0, the chamber at the
+    reading).
     """
     return _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
-                        solver, check_bounds, on_failure, kernel.simulate_windows)[0]
+                        solver, check_bounds, on_failure, kernel.simulate_windows,
+                        initial_rate_Pa_per_s)[0]
 
 
 def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig, starts,
                                  length: int, initial_pressure_Pa, solver: SolverConfig,
-                                 check_bounds: bool = True, on_failure: str = "raise"):
+                                 check_bounds: bool = True, on_failure: str = "raise",
+                                 initial_rate_Pa_per_s=None):
     """:func:`simulate_windows` and the start sensitivity dp(t)/dp(t_start) (``-``).
 
     Returns ``(pressure_Pa, sensitivity)``, both ``(B, W, length)``. The sensitivity is 1
@@ -254,7 +274,7 @@ def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig,
     """
     out, sens = _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
                              solver, check_bounds, on_failure,
-                             kernel.simulate_windows_sensitivity)
+                             kernel.simulate_windows_sensitivity, initial_rate_Pa_per_s)
     return out, sens
 
 
