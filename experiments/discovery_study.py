@@ -8,7 +8,8 @@ shrink and posterior coverage over rigs, seeds and effect forms (issue 4 floors)
 Each case: the virtual bench with the effect(s) hidden -- either the catalogue's own
 form or a *realistic* form from :mod:`pneubayes.bench.forms` (acoustic tube, rounded
 dead zone, clearance leak, regulator droop, second-order spool, wall heat transfer),
-simulated by the independent plant -- six 20-s recordings (fixed at 50 % and 90 % of
+simulated by the independent plant, or for the sensor lag the DAQ's undeclared causal
+2nd-order anti-alias filter at 250 Hz -- six 20-s recordings (fixed at 50 % and 90 % of
 the stroke with command ranges +-5 and +-0.5 V, and two moving-piston recordings),
 then ``pneubayes discover`` from the plain model. A case is *correct* when the named
 set equals the planted set. Leaks are planted at the AIRPEL magnitude on every rig and
@@ -46,38 +47,50 @@ from pneubayes.model import Model
 from pneubayes.provenance import provenance
 
 EFFECTS = ("tube_delay", "spool_lag", "valve_deadzone", "supply_fluctuation", "cylinder_leak",
-           "heat_transfer")
+           "heat_transfer", "sensor_lag")
+#: The realistic form of a sensor lag: the DAQ's anti-alias filter is an analogue
+#: (causal) 2nd-order Butterworth at 250 Hz, group delay 0.90 ms, which the user does
+#: not declare; the catalogue's form is a first-order lag.
+REALISTIC_SENSOR = SensorChain(phase="causal", cutoff_Hz=250.0)
 #: The planted strength of a laminar leak: the AIRPEL's (CylinderLeak bench default).
 LEAK_OVERRIDE = {"leak_conductance_kg_per_s_Pa2": 1.9e-16}
 
 
 def bench_case(rig: str, valve: str, hidden: tuple[str, ...], forms: str, seed: int,
                duration_s: float, out: Path):
-    """Write the case's recordings; return (recording paths, truth card dict)."""
+    """Write the case's recordings; return (recording paths, truth card dict, the
+    bench's sensor chain)."""
+    sensor = SensorChain()
     if forms == "realistic":
         effects: tuple = ()
-        plant = forms_from_names(hidden, "AIR37" if "cylinder_leak" in hidden else rig)
+        if "sensor_lag" in hidden:
+            sensor = REALISTIC_SENSOR
+        plant = forms_from_names([h for h in hidden if h != "sensor_lag"],
+                                 "AIR37" if "cylinder_leak" in hidden else rig)
         overrides: dict = {}
     else:
         effects = effects_from_names(hidden, leak_form="laminar")
         plant = ()
         overrides = LEAK_OVERRIDE if "cylinder_leak" in hidden else {}
-    common = dict(effects=effects, forms=plant, duration_s=duration_s, overrides=overrides)
+    common = dict(effects=effects, forms=plant, duration_s=duration_s, overrides=overrides,
+                  sensor=sensor)
     fixed = run_bench(BenchConfig(rig, valve, protocol="fixed", seed=seed,
                                   positions=(0.5, 0.9), ranges_V=(5.0, 0.5), **common),
                       out / "fixed", overwrite=True)
     moving = run_bench(BenchConfig(rig, valve, protocol="moving", seed=seed + 500, count=2,
                                    **common), out / "moving", overwrite=True)
-    return list(fixed.recordings) + list(moving.recordings), fixed.truth
+    return list(fixed.recordings) + list(moving.recordings), fixed.truth, sensor
 
 
 def run_case(name: str, rig: str, valve: str, hidden, forms: str, seed: int, args, root: Path):
     work = root / "work" / name
-    paths, truth = bench_case(rig, valve, tuple(hidden), forms, seed, args.duration, work)
+    paths, truth, sensor = bench_case(rig, valve, tuple(hidden), forms, seed, args.duration,
+                                      work)
     recs = [read_recording(p) for p in paths]
     steps = 400 if args.smoke else args.max_steps
-    # the bench DAQ's anti-alias filter, declared as a user declares their DAQ's
-    declared = SensorChain().declared_filter() if args.pressure_filter == "bench" else None
+    # the bench DAQ's anti-alias filter, declared as a user declares their DAQ's (a
+    # causal one has no declaration: its lag is the hidden effect)
+    declared = sensor.declared_filter() if args.pressure_filter == "bench" else None
     settings = DiscoverySettings(
         posterior=args.posterior, seed=seed, n_bags=20 if args.smoke else 40,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed),

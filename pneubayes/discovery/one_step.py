@@ -78,9 +78,9 @@ class OneStepData:
         the chamber ahead of the reading by tau times the reading's rate: the chamber's
         rate without the lag (its one-step increments from the measured readings, held
         over each interval) through the lag, ``q[k] = m[k-1] + (q[k-1] - m[k-1])
-        exp(-h / tau)`` (h the median sample interval), from the model and not from differences of noisy readings. A
-        chamber started at the reading itself would move the reading by only a fraction
-        of its increment in one step."""
+        exp(-h / tau)`` (h the median sample interval), from the model and not from
+        differences of noisy readings. A chamber started at the reading itself would
+        move the reading by only a fraction of its increment in one step."""
         p = np.asarray(self.recording.pressure_Pa, dtype=np.float64)
         inputs = inputs or self.inputs
         theta = model.as_matrix(params)

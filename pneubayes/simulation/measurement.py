@@ -10,8 +10,9 @@ filter's reach -- :class:`PressureFilter`'s kink response ``K``.
 
 A spool lag or an acoustic line makes the ports' flow into the chamber continuous (no
 jump to round), so those parameter sets are read unchanged; so is a reading that
-already lags the chamber (effect ``sensor_lag``), which rounds every corner itself. With heat transfer the jump
-is taken at the supply temperature (the chamber's is not tracked here).
+already lags the chamber (effect ``sensor_lag``), which rounds every corner itself.
+With heat transfer the jump is taken at the supply temperature (the chamber's is not
+tracked here).
 
 A window starts from a measured reading. A corner within the filter's reach of the start
 (±2.7 ms at 1 kHz) is already in that reading and is counted again near the start: in
