@@ -218,7 +218,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step with p
     linear on the step; r starts at ``p0`` (the measured reading) and the chamber at
     ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
-    tau dr/dt.
+    tau dr/dt. With ``rate0`` NaN the window instead warms up over the 5 time constants
+    before its start (from the reading and the chamber at p0, under the command
+    history) and keeps the chamber's lead on the reading it reached: the model's own
+    rate through the lag, where the recording gives only the reading.
 
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
@@ -272,8 +275,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     reading = lag_r > 0.0
     r = p0
     p = p0
-    if reading and p0 + lag_r * rate0 > 0.0:
+    # a lagged reading with no rate given: warm up over 5 time constants of the command
+    # history before the start, then keep the chamber's lead on the reading
+    k0 = i0
+    if reading and math.isnan(rate0):
+        while k0 > 0 and t[i0] - t[k0] < 5.0 * lag_r:
+            k0 -= 1
+    elif reading and p0 + lag_r * rate0 > 0.0:
         p = p0 + lag_r * rate0
+    max_steps += i0 - k0
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0
     want_sens = sens.shape[0] > 0
@@ -297,13 +307,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
         if not v0 > 0.0:
             return LINE_VOLUME
         line_start(y, s_vec, p0, carry, nseg)
+        y[0] = p
     # Delayed-command pointer: index j of the sample held at time t - delay.
     j = 0
-    t_start = t[i0]
+    t_start = t[k0]
     while j + 1 < n and t[j + 1] + delay <= t_start:
         j += 1
     spool = u[j]  # steady spool at the start of the recording
-    if tau_s > 0.0 and i0 > 0:
+    if tau_s > 0.0 and k0 > 0:
         # mid-recording: the spool state follows from the command history (the lag in
         # closed form over the held samples of up to 20 time constants before t_start)
         jj = j
@@ -319,7 +330,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     steps = 0
     s_cached = math.nan
     a_in_c, a_ex_c = 0.0, 0.0
-    for k in range(i0, i0 + length - 1):
+    for k in range(k0, i0 + length - 1):
+        if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0
+            lead = p - r
+            r = p0
+            p = p0 + lead if p0 + lead > 0.0 else p0
+            if general is not None and line:
+                y[0] = p
+            s_p0, s_r = 1.0, 1.0
         ta, tb = t[k], t[k + 1]
         seg = tb - ta
         inv_seg = 1.0 / seg
@@ -454,9 +472,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
                 spool = cmd + (spool_a - cmd) * math.exp(-(t_end - t_sub) / tau_s)
             else:
                 spool = cmd
-        out[k + 1 - i0] = r if reading else p
-        if want_sens:
-            sens[k + 1 - i0] = s_r if reading else s_p0
+        if k >= i0:
+            out[k + 1 - i0] = r if reading else p
+            if want_sens:
+                sens[k + 1 - i0] = s_r if reading else s_p0
     carry[0] = temp
     if general is not None and line:
         line_finish(y, carry)
@@ -522,7 +541,7 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
     if nb * nw > 1 and numba.get_num_threads() > 1:
         run = _simulate_parallel
     if rate0 is None:
-        rate0 = np.zeros((nb, nw))
+        rate0 = np.full((nb, nw), np.nan)
     run(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, out, sens, status,
         True if hidden else None, per_task)
     return out, sens, status
@@ -563,8 +582,9 @@ def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
     starts : (W,) int64               first sample of each window
     length : int                      samples per window (output includes the start)
     p0 : (W,) float64                 initial pressure (the reading) of each window (Pa)
-    rate0 : (B, W) float64 or None    the reading's rate at each start (Pa/s; None: 0),
-                                      read only with a sensor lag
+    rate0 : (B, W) float64 or None    the reading's rate at each start (Pa/s; NaN or
+                                      None: warm up over the command history), read
+                                      only with a sensor lag
 
     Returns
     -------

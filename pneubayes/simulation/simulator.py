@@ -174,12 +174,13 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
     shape = (theta.shape[0], starts.size)
     try:
-        rate0 = np.zeros(shape) if initial_rate_Pa_per_s is None else np.ascontiguousarray(
-            np.broadcast_to(np.asarray(initial_rate_Pa_per_s, np.float64), shape))
+        rate0 = np.full(shape, np.nan) if initial_rate_Pa_per_s is None else \
+            np.ascontiguousarray(np.broadcast_to(np.asarray(initial_rate_Pa_per_s,
+                                                            np.float64), shape))
     except ValueError:
         raise ValueError(f"initial_rate_Pa_per_s must broadcast to (parameter sets, windows) "
                          f"= {shape}, got shape {np.shape(initial_rate_Pa_per_s)}") from None
-    if not np.all(np.isfinite(rate0)):
+    if initial_rate_Pa_per_s is not None and not np.all(np.isfinite(rate0)):
         raise ValueError("initial_rate_Pa_per_s must be finite")
     slots = model.lower(theta, rig)
     line = slots[:, SLOT_INDEX["line_length_m"]] > 0
@@ -252,10 +253,11 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     (:mod:`pneubayes.simulation.measurement`).
 
     With a sensor lag (effect ``sensor_lag``) the result is the lagged reading, which
-    starts at ``initial_pressure_Pa`` while the chamber starts at it plus the lag's
+    starts at ``initial_pressure_Pa`` while the chamber starts ahead of it: by the lag's
     time constant times ``initial_rate_Pa_per_s`` (the reading's rate at the start,
-    Pa/s, per window or per (parameter set, window); None: 0, the chamber at the
-    reading).
+    Pa/s, per window or per (parameter set, window)), or with None by the lead the
+    model builds over the 5 time constants of command history before the start
+    (:func:`pneubayes.simulation.kernel.simulate_windows`).
     """
     return _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
                         solver, check_bounds, on_failure, kernel.simulate_windows,
