@@ -300,9 +300,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fraction of every recording (its end) held out to verify (1/3)")
     d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=4,
                    help="stop after adding this many")
-    d.add_argument("--tube-line-segments", type=NON_NEGATIVE_INT, default=3,
-                   help="cells of the acoustic-line form tried for a named tube; 0 tries the "
-                        "transport delay only (the line is tens of times slower to simulate) (3)")
+    d.add_argument("--tube-line-segments", type=NON_NEGATIVE_INT, default=8,
+                   help="the most cells of the acoustic-line form tried for a named tube "
+                        "(the cells follow the tube's transit time, at least 3); 0 tries "
+                        "the transport delay only (the line is tens of times slower to "
+                        "simulate) (8)")
     d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "

@@ -379,3 +379,35 @@ def test_library_grid_replaces_an_effects_strengths_and_names_bad_ones():
         LibraryGrid({"spool_lag": []})
     with pytest.raises(ValueError, match="finite"):
         LibraryGrid({"spool_lag": [float("nan")]})
+
+
+def test_an_acoustic_lines_cells_follow_the_tubes_transit_time():
+    """The fewest cells whose lumped cut-off n / (pi T) reaches the cut-off, between 3
+    and the most allowed: the 1-m bench tube keeps its 3, a 3-m tube gets the most."""
+    from pneubayes.effects.tube_delay import TubeDelay
+
+    cells = TubeDelay.line_cells
+    assert cells(0.0029, 300.0, 8) == 3  # 1 m: pi * 2.9 ms * 300 Hz = 2.7
+    assert cells(0.001, 300.0, 8) == 3  # never fewer than 3 ...
+    assert cells(0.001, 300.0, 2) == 2  # ... unless fewer are allowed
+    assert cells(0.005, 300.0, 8) == 5  # 4.7
+    assert cells(0.0087, 300.0, 8) == 8  # 3 m: 8.2, capped
+    assert cells(0.0087, 100.0, 8) == 3
+
+
+def test_a_named_tubes_line_candidate_gets_the_cells_its_start_delay_needs(rig):
+    from pneubayes.effects import make_effect
+    from pneubayes.effects.discovery import CandidateContext
+
+    def line_cells(delay_s, most=8):
+        ctx = CandidateContext(model=Model(), params={}, rig=rig,
+                               term_start={"tube_delay_s": delay_s}, second_state_free=True,
+                               line_segments=most, dead_volume_m3=1e-4)
+        forms = make_effect("tube_delay").candidate_forms(ctx)
+        assert [f.form for f, _ in forms] == ["transport", "line"]
+        return forms[1][0].segments
+
+    assert line_cells(0.002) == 3
+    assert line_cells(0.007) == 7
+    assert line_cells(0.02) == 8
+    assert line_cells(0.02, most=3) == 3

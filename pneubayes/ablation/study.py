@@ -71,7 +71,7 @@ from pneubayes.settings_tree import FieldError, SettingsError, override
 
 #: Bump when :func:`pneubayes.ablation.cell.run_cell` changes what a cell computes: every
 #: cell id changes with it, so no stale cached result is reused.
-CELL_VERSION = 3
+CELL_VERSION = 4  # 4: sensor_lag in the catalogue, line cells follow the tube
 
 DATA_FORMS = ("catalogue", "realistic")
 PROTOCOLS = ("fixed", "moving")

@@ -24,7 +24,8 @@ _STATE_SLOTS = ("compliance_m3_per_Pa", "tank_volume_m3", "lung_volume_m3",
 
 
 def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
-                      line_segments: int = 3) -> CandidateContext:
+                      line_segments: int = 8, line_cutoff_Hz: float = 300.0
+                      ) -> CandidateContext:
     """What the named group's effect needs to propose its candidates beside ``fit``."""
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
     taken = (any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
@@ -32,15 +33,16 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
                             term_start=evidence.get("best_term_start"),
                             second_state_free=not taken, line_segments=line_segments,
-                            dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]))
+                            dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]),
+                            line_cutoff_Hz=line_cutoff_Hz)
 
 
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
-                      line_segments: int = 3):
+                      line_segments: int = 8, line_cutoff_Hz: float = 300.0):
     """``[(model, start), ...]``: the group's effect form(s) beside ``fit.model``, each
     with start values (the fit's, the effect's neutral values, then the effect's own
     starts moved just inside the bounds)."""
-    ctx = candidate_context(fit, group, evidence, rig, line_segments)
+    ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz)
     effect = make_effect(group, **fit.model.effect_options(group))
     out = []
     for form, values in effect.candidate_forms(ctx):

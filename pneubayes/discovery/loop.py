@@ -323,7 +323,8 @@ class Discovery:
         sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
         trials = []
         options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
-                                        s.tube_line_segments) for g in candidates}
+                                        s.tube_line_segments, s.tube_line_cutoff_Hz)
+                   for g in candidates}
         round_forms, settled, failed = fit_round_forms(
             options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
                                                first_free(m, g)),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 from pneubayes.discovery.disagreement import RegimeSettings
@@ -47,9 +48,15 @@ class DiscoverySettings:
     such a group must also close this fraction of the held-out RMSE's gap above the
     noise floor (the last resort is there to explain a large gap; on that case a tube
     delay passed the signed-rank test while closing 1 % of it).
-    tube_line_segments: cells of the acoustic-line form tried for a named tube (three
-    cells come within 1.2 x the noise of an 8-cell line; one cell within 3.4 x); 0 tries
-    the transport delay only. A line step costs tens of times a plain one.
+    tube_line_segments: the most cells of the acoustic-line form tried for a named tube;
+    0 tries the transport delay only. A line step costs tens of times a plain one, and
+    more with more cells. tube_line_cutoff_Hz: the line gets the fewest cells, at least
+    3 and at most ``tube_line_segments``, whose lumped cut-off n / (pi T) reaches this
+    frequency for the tube's transit time T (the start delay): the cells follow the
+    tube's length. 300 Hz gives the 1-m bench tube (2.9 ms) its 3 cells, which come
+    within 1.2 x the noise of an 8-cell line there; a 3-m tube of 4 mm bore (8.7 ms,
+    behind an undeclared causal DAQ filter) ended at 1.68 x the noise floor with 3
+    cells and at 1.40 x with 8 (held-out RMSE 860 -> 718 Pa).
     form_settled_ratio: an effect with several forms (heat, tube) has its first form
     fitted, and its later ones only while no trial of the round (of any effect) has a
     training RMSE at most this x the noise floor (at the noise floor the training fit,
@@ -75,7 +82,8 @@ class DiscoverySettings:
     fallback_min_inclusion: float = 0.25
     try_all_on_gap: bool = True
     last_resort_min_gap_closed: float = 0.25
-    tube_line_segments: int = 3
+    tube_line_segments: int = 8
+    tube_line_cutoff_Hz: float = 300.0
     form_settled_ratio: float = 1.05
     fit: FitSettings = field(default_factory=FitSettings)
     posterior: bool = True
@@ -112,6 +120,9 @@ class DiscoverySettings:
         if not (self.form_settled_ratio == 0.0 or self.form_settled_ratio >= 1.0):
             raise ValueError(f"form_settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.form_settled_ratio}")
+        if not (math.isfinite(self.tube_line_cutoff_Hz) and self.tube_line_cutoff_Hz > 0):
+            raise ValueError(f"tube_line_cutoff_Hz must be finite and > 0, got "
+                             f"{self.tube_line_cutoff_Hz}")
         if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
             raise ValueError(f"tube_line_segments must be in 0..{LINE_MAX_SEGMENTS} "
                              f"(0: no line form), got {self.tube_line_segments}")

@@ -77,8 +77,9 @@ class CandidateContext:
     of the effect's library term that explained the residual best (None: no term);
     second_state_free: whether the model leaves room for a state besides the chamber
     pressure (no temperature, no acoustic line, no compliant chamber, supply tank or
-    second compartment already); line_segments: cells of an acoustic line form (0:
-    none); dead_volume_m3: the fitted chamber volume at position 0.
+    second compartment already); line_segments: the most cells of an acoustic line form
+    (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells should reach;
+    dead_volume_m3: the fitted chamber volume at position 0.
     """
 
     model: Any
@@ -88,6 +89,7 @@ class CandidateContext:
     second_state_free: bool
     line_segments: int
     dead_volume_m3: float
+    line_cutoff_Hz: float = 300.0
 
     def inside(self, effect, name: str, value: float) -> float:
         """``value`` moved just inside the bounds parameter ``name`` has in the model

@@ -122,17 +122,29 @@ class TubeDelay(Effect):
         return tuple(TrialTerm(f"delay {v * 1e3:g} ms", {"tube_delay_s": v},
                                values={"tube_delay_s": v}) for v in strengths)
 
+    @staticmethod
+    def line_cells(transit_s: float, cutoff_Hz: float, most: int) -> int:
+        """Cells of an acoustic line of transit time ``transit_s``: the fewest whose
+        lumped cut-off n / (pi T) reaches ``cutoff_Hz``, at least 3 (or ``most`` if
+        lower) and at most ``most``."""
+        need = math.ceil(math.pi * transit_s * cutoff_Hz - 1e-9)
+        return int(min(most, max(3, need)))
+
     def candidate_forms(self, ctx: CandidateContext):
-        """This form (the paper's transport delay) and an acoustic line of
-        ``ctx.line_segments`` cells (outside tubes are lines, which lag and ring; none
-        where the model has no room for the line's states), both at the best term's
-        delay. The line's volume comes out of the fitted dead volume: its start delay
-        keeps it to half of that."""
+        """This form (the paper's transport delay) and an acoustic line (outside tubes
+        are lines, which lag and ring; none where the model has no room for the line's
+        states), both at the best term's delay. The line's cells follow its length
+        (:meth:`line_cells`: ``ctx.line_cutoff_Hz``, at most ``ctx.line_segments``).
+        The line's volume comes out of the fitted dead volume: its start delay keeps it
+        to half of that."""
         start = self.candidate_start(ctx.term_start)
         out = [(self, start)]
         if self.form == "line" or ctx.line_segments == 0 or not ctx.second_state_free:
             return out
-        line = TubeDelay(**{**self.options(), "form": "line", "segments": ctx.line_segments})
+        probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
+        cells = self.line_cells(ctx.inside(probe, "tube_delay_s", start["tube_delay_s"]),
+                                ctx.line_cutoff_Hz, ctx.line_segments)
+        line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})
         delay = ctx.inside(line, "tube_delay_s", start["tube_delay_s"])
         vol = float(line.tube_volume_m3({**line.neutral_values(), "tube_delay_s": delay},
                                         ctx.rig))
