@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pneubayes.discovery.one_step import one_step_data
+from pneubayes.effects import make_effect
 from pneubayes.io import Recording, RecordingMetadata
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
@@ -26,9 +27,12 @@ TIGHT = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=1e-6, max_step_s=1e-3,
                      min_step_s=1e-14, max_steps_per_s=5e6)
 
 
-def _params(tau, volume=2.4e-6, valve="valve1"):
+def _params(tau=None, volume=2.4e-6, valve="valve1"):
+    """Valve-1 base parameters, and a first-order lag of ``tau`` s unless None."""
     params = valve_preset(valve).parameters()
-    params.update(dead_volume_m3=volume, sensor_time_constant_s=tau)
+    params["dead_volume_m3"] = volume
+    if tau is not None:
+        params["sensor_time_constant_s"] = tau
     return params
 
 
@@ -59,13 +63,55 @@ def test_a_closed_chamber_is_read_as_an_exact_exponential(rig, closable_params, 
     assert np.all(still == p0)
 
 
-@pytest.mark.parametrize("tau,volume", [(2.3e-4, 2.4e-6), (3e-3, 1e-7), (1e-3, 2e-5)])
-def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, tau, volume):
+def test_a_closed_chamber_is_read_through_a_second_order_lag_in_closed_form(
+        rig, closable_params, make_inputs):
+    """Both ports shut: the chamber holds p0 + D rate, the reading starts at p0 with
+    rate ``rate`` and rings towards it as the damped oscillator's free response."""
+    delay, z, p0, rate = 2e-3, 0.4, 2.0e5, 4.0e6
+    w = 2 * z / delay
+    n = 81
+    t = np.arange(n) * 2.5e-4
+    model = Model([make_effect("sensor_lag", form="second_order")])
+    params = dict(closable_params, sensor_delay_s=delay, sensor_damping=z)
+    got = simulate_windows(model, params, make_inputs(t, np.zeros(n)), rig, np.array([0]),
+                           n, np.array([p0]), SolverConfig.standard(),
+                           initial_rate_Pa_per_s=rate)[0, 0]
+    p_c = p0 + delay * rate
+    e0, de0 = p0 - p_c, rate
+    wd = w * np.sqrt(1 - z * z)
+    want = p_c + np.exp(-z * w * t) * (e0 * np.cos(wd * t)
+                                       + (de0 + z * w * e0) / wd * np.sin(wd * t))
+    assert np.max(np.abs(got - want)) < 1e-6 * p_c
+    assert got.max() > p_c  # underdamped: it overshoots
+
+
+def test_a_heavily_damped_second_order_lag_is_the_first_order_lag(rig, hand):
+    inputs = _steps(hand, 7, 401, 1e-3, hold_s=(0.01, 0.05))
+    first = simulate(Model(["sensor_lag"]), _params(1e-3), inputs, rig, 2e5,
+                     TIGHT).pressure_Pa[0]
+    model = Model([make_effect("sensor_lag", form="second_order")])
+    params = dict(_params(), sensor_delay_s=1e-3, sensor_damping=5.0)
+    second = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    plain = simulate(Model(), _params(), inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    # the fast pole (1 / (2 z w) = 0.01 ms) is all that differs
+    assert np.max(np.abs(second - first)) < 0.03 * np.max(np.abs(first - plain))
+
+
+@pytest.mark.parametrize("form,lag,volume", [
+    ("first_order", {"sensor_time_constant_s": 2.3e-4}, 2.4e-6),
+    ("first_order", {"sensor_time_constant_s": 3e-3}, 1e-7),
+    ("first_order", {"sensor_time_constant_s": 1e-3}, 2e-5),
+    ("second_order", {"sensor_delay_s": 9e-4, "sensor_damping": 0.7071}, 2.4e-6),
+    ("second_order", {"sensor_delay_s": 3e-3, "sensor_damping": 2.5}, 1e-7),
+    ("second_order", {"sensor_delay_s": 5e-4, "sensor_damping": 0.3}, 2e-5)])
+def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, form, lag,
+                                                                 volume):
     """The compiled integrator steps the reading exactly for a pressure linear on each
-    step; the reference integrates dr/dt = (p - r) / tau as one more state."""
+    step; the reference integrates dr/dt = (p - r) / tau (or the second-order lag's
+    reading and rate) as more states."""
     inputs = _steps(hand, 5, 301, 1e-3, hold_s=(0.01, 0.05))
-    model = Model(["tube_delay", "sensor_lag"])
-    params = dict(_params(tau, volume), tube_delay_s=0.0013)
+    model = Model([make_effect("tube_delay"), make_effect("sensor_lag", form=form)])
+    params = dict(_params(None, volume), tube_delay_s=0.0013, **lag)
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10,
                              initial_rate_Pa_per_s=-3e5)
     got = simulate_windows(model, params, inputs, rig, np.array([0]), inputs.n_samples,
@@ -73,8 +119,8 @@ def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, tau,
                            initial_rate_Pa_per_s=-3e5)[0, 0]
     assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
     # and the lag matters here: the unlagged chamber differs by far more
-    plain = simulate(model, dict(params, sensor_time_constant_s=0.0), inputs, rig, 2e5,
-                     SolverConfig.standard()).pressure_Pa[0]
+    plain = simulate(Model(["tube_delay"]), dict(_params(None, volume), tube_delay_s=0.0013),
+                     inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
     assert np.max(np.abs(plain - ref)) > 10 * np.max(np.abs(got - ref))
 
 

@@ -25,8 +25,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.signal import lfilter
 
+from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+
+
+def reading_lead_s(model: Model, theta: np.ndarray, rig) -> np.ndarray:
+    """Per parameter set, the group delay at DC of the model's reading lag (s; 0 without
+    one): a first-order lag's time constant, a second-order lag's 2 z / w."""
+    if not model.has("sensor_lag"):
+        return np.zeros(theta.shape[0])
+    sl = model.lower(theta, rig)
+    w, z = sl[:, SLOT_INDEX["sensor_natural_frequency_rad_per_s"]], \
+        sl[:, SLOT_INDEX["sensor_damping"]]
+    second = 2.0 * z / np.where(w > 0, w, 1.0)
+    return np.where(w > 0, second, sl[:, SLOT_INDEX["sensor_time_constant_s"]])
 
 
 def first_order_lag(values: np.ndarray, dt_s: float, time_constant_s: float) -> np.ndarray:
@@ -74,10 +87,11 @@ class OneStepData:
                 inputs: Inputs | None = None) -> np.ndarray:
         """One-step predictions ``(B, N - 1)`` of ``p[k+1]`` from the measured ``p[k]``.
 
-        A lagged reading (effect ``sensor_lag``, time constant tau) is predicted from
-        the chamber ahead of the reading by tau times the reading's rate: the chamber's
-        rate without the lag (its one-step increments from the measured readings, held
-        over each interval) through the lag, ``q[k] = m[k-1] + (q[k-1] - m[k-1])
+        A lagged reading (effect ``sensor_lag``, group delay tau: its time constant, or
+        a second-order lag's 2 z / w) is predicted from the chamber ahead of the reading
+        by tau times the reading's rate: the chamber's rate without the lag (its
+        one-step increments from the measured readings, held over each interval)
+        through a first-order lag of tau, ``q[k] = m[k-1] + (q[k-1] - m[k-1])
         exp(-h / tau)`` (h the median sample interval), from the model and not from
         differences of noisy readings. A chamber started at the reading itself would
         move the reading by only a fraction of its increment in one step."""
@@ -86,17 +100,17 @@ class OneStepData:
         theta = model.as_matrix(params)
         starts = np.arange(p.size - 1)
         rate = None
-        lag = (theta[:, model.parameter_names.index("sensor_time_constant_s")]
-               if "sensor_time_constant_s" in model.parameter_names else np.zeros(0))
-        if np.any(lag > 0):
+        lead = reading_lead_s(model, theta, self.rig)
+        if np.any(lead > 0):
             plain = theta.copy()
-            plain[:, model.parameter_names.index("sensor_time_constant_s")] = 0.0
+            for k, v in model.effect("sensor_lag").neutral_values().items():
+                plain[:, model.parameter_names.index(k)] = v
             step = simulate_windows(model, plain, inputs, self.rig, starts, 2, p[:-1], solver,
                                     check_bounds=False)[:, :, 1]
             dt = float(np.median(np.diff(self.recording.time_s)))
             rate = np.zeros(step.shape)
-            for b in np.nonzero(lag > 0)[0]:
-                a = np.exp(-dt / lag[b])
+            for b in np.nonzero(lead > 0)[0]:
+                a = np.exp(-dt / lead[b])
                 m = (step[b] - p[:-1]) / dt  # the chamber's rate over interval k, Pa/s
                 rate[b] = lfilter([0.0, 1.0 - a], [1.0, -a], m)
         out = simulate_windows(model, theta, inputs, self.rig, starts, 2, p[:-1], solver,

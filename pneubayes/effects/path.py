@@ -93,6 +93,11 @@ SLOTS += (
     ("sensor_time_constant_s", "a first-order lag of the pressure reading behind the "
      "chamber pressure (an undeclared causal anti-alias filter, a sensor on a stub), "
      "dr/dt = (p - r) / tau; > 0 makes the reading a state (s)"),
+    ("sensor_natural_frequency_rad_per_s", "a second-order lag of the pressure reading, "
+     "r'' = w^2 (p - r) - 2 z w r' (an analogue anti-alias filter): its natural frequency "
+     "w; > 0 makes the reading and its rate states, and overrides the first-order lag "
+     "(rad/s)"),
+    ("sensor_damping", "the second-order reading lag's damping ratio z (-)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

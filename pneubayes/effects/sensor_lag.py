@@ -1,47 +1,115 @@
 """A lag of the pressure reading behind the chamber pressure (issue 22).
 
 An undeclared causal anti-alias filter (an analogue RC or Butterworth stage before the
-ADC), a sensor on a short stub or a slow transducer: the DAQ records ``r`` with
+ADC), a sensor on a short stub or a slow transducer: the DAQ records a reading ``r``
+that lags the chamber pressure p. Two forms:
 
-    dr/dt = (p - r) / tau,
+- ``form="first_order"`` (default): ``dr/dt = (p - r) / tau``, an RC stage;
+- ``form="second_order"``: ``r'' = w^2 (p - r) - 2 z w r'``, an analogue 2-pole filter
+  (Butterworth z = 0.71, Bessel z = 0.87), parametrised by its group delay at DC
+  ``D = 2 z / w`` (the lag a slow signal sees; 0 is no filter) and its damping z. A
+  large z is the first-order lag of time constant D.
 
-a first-order lag of the chamber pressure p; a second-order Butterworth of cut-off f_c
-is, below f_c, a lag of its group delay sqrt(2) / (2 pi f_c) (0.23 ms at 1 kHz). The
-lag sits at the sensor point of the signal path, after the chamber: the valve, the
+The lag sits at the sensor point of the signal path, after the chamber: the valve, the
 tube and the chamber's physics are unchanged, and the reading is what the model
-predicts (:mod:`pneubayes.simulation.kernel` steps r with the chamber, exactly for p
+predicts (:mod:`pneubayes.simulation.kernel` steps it with the chamber, exactly for p
 linear over each step). A declared zero-phase filter
 (:class:`~pneubayes.physics.sensor_filter.PressureFilter`) is a separate, known
 property of the rig and is not this effect.
 
-A window starts at a measured reading; the chamber then starts at the reading plus
-tau times the reading's rate (``initial_rate_Pa_per_s`` of the simulator), since
-p = r + tau dr/dt. The one-step predictions of the discovery library pass the
-reading's backward difference; the 2-s windows of a fit start the chamber at the
-reading, an error of tau dr/dt that the chamber's own time constant then decays.
+A window starts at a measured reading; the chamber then starts ahead of it by the lag
+times the reading's rate (p = r + tau dr/dt at steady tracking). The one-step
+predictions of the discovery library pass the model's chamber rate through a
+first-order lag of the same group delay; the 2-s windows of a fit warm the lead up
+over the command history before their start.
 """
 
 from __future__ import annotations
 
-from pneubayes.effects.base import DirectEffect, Parameter
-from pneubayes.effects.discovery import TrialTerm
+from collections.abc import Mapping
+
+import numpy as np
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.discovery import CandidateContext, TrialTerm
+from pneubayes.rig import Rig
+
+_FORMS = ("first_order", "second_order")
 
 
-class SensorLag(DirectEffect):
-    """First-order lag of the pressure reading, time constant ``sensor_time_constant_s``."""
+class SensorLag(Effect):
+    """Lag of the pressure reading: first order (``sensor_time_constant_s``) or second
+    order (``sensor_delay_s``, ``sensor_damping``)."""
 
     name = "sensor_lag"
-    slot = "sensor_time_constant_s"
-    parameter = Parameter("sensor_time_constant_s", "s", 0.0, 0.01, "uniform",
-                          "first-order lag of the pressure reading", neutral=0.0)
-    #: A 300-Hz first-order anti-alias stage (0.53 ms).
-    bench_value = 5.3e-4
+    forms = _FORMS
+    acts_on = ("sensor_time_constant_s", "sensor_natural_frequency_rad_per_s",
+               "sensor_damping")
 
+    def __init__(self, form: str = "first_order"):
+        self.form = form
+
+    def _check(self):
+        if self.form not in _FORMS:
+            raise ValueError(f"sensor_lag: form must be one of {_FORMS}, got {self.form!r}")
+
+    def options(self):
+        return {"form": self.form}
+
+    def parameters(self):
+        self._check()
+        if self.form == "first_order":
+            return (Parameter("sensor_time_constant_s", "s", 0.0, 0.01, "uniform",
+                              "first-order lag of the pressure reading", neutral=0.0),)
+        return (Parameter("sensor_delay_s", "s", 0.0, 0.01, "uniform",
+                          "group delay 2 z / w at DC of the reading's second-order lag",
+                          neutral=0.0),
+                Parameter("sensor_damping", "-", 0.2, 5.0, "uniform",
+                          "damping ratio z of the reading's second-order lag",
+                          neutral=1.0))  # any damping is neutral at zero delay
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        self._check()
+        if self.form == "first_order":
+            return {"sensor_time_constant_s": values["sensor_time_constant_s"]}
+        delay = np.asarray(values["sensor_delay_s"], dtype=np.float64)
+        damping = np.asarray(values["sensor_damping"], dtype=np.float64)
+        on = delay > 0.0
+        w = np.where(on, 2.0 * damping / np.where(on, delay, 1.0), 0.0)
+        return {"sensor_natural_frequency_rad_per_s": w,
+                "sensor_damping": np.where(on, damping, 0.0)}
+
+    def bench_defaults(self):
+        if self.form == "first_order":  # a 300-Hz RC stage
+            return {"sensor_time_constant_s": 5.3e-4}
+        # a 2-pole Butterworth at 250 Hz: w = 1571 rad/s, D = 0.90 ms
+        return {"sensor_delay_s": 9.0e-4, "sensor_damping": 0.7071}
+
+    # ------------------------------------------------------------------ discovery
     library_strengths = (0.0002, 0.0005, 0.001, 0.002, 0.004)
     discovery_fallback = {"sensor_time_constant_s": 0.0005}
 
     def library_terms(self, strengths):
-        """The model's reading through a first-order lag of each trial time constant (s)."""
+        """The model's reading through a lag of each trial group delay (s): first order,
+        or second order at its neutral (critical) damping."""
+        if self.form != "first_order":
+            return tuple(TrialTerm(f"reading lag (2nd order) {1e3 * d:g} ms",
+                                   {"sensor_delay_s": d}, values={"sensor_delay_s": d})
+                         for d in strengths)
         return tuple(TrialTerm(f"reading lag {1e3 * tau:g} ms",
                                {"sensor_time_constant_s": tau},
                                values={"sensor_time_constant_s": tau}) for tau in strengths)
+
+    def candidate_forms(self, ctx: CandidateContext):
+        """The first-order lag at the best term's time constant, and the second-order
+        lag (Butterworth damping) at the same group delay: an analogue anti-alias filter
+        is usually of order two or more."""
+        start = self.candidate_start(ctx.term_start)
+        out = [(self, start)]
+        if self.form != "first_order":
+            return out
+        second = SensorLag(form="second_order")
+        delay = start.get("sensor_time_constant_s",
+                          self.discovery_fallback["sensor_time_constant_s"])
+        out.append((second, {"sensor_delay_s": delay, "sensor_damping": 0.7071}))
+        return out

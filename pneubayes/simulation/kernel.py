@@ -114,6 +114,8 @@ _TAB_I = SLOT_INDEX["table_inlet_m2_0"]
 _TAB_E = SLOT_INDEX["table_exhaust_m2_0"]
 _TAB_MAX = TABLE_MAX_POINTS
 _SENSOR = SLOT_INDEX["sensor_time_constant_s"]
+_SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
+_SENSOR_Z = SLOT_INDEX["sensor_damping"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -211,6 +213,34 @@ def _lag_weights(z):
 
 
 @njit(cache=True, error_model="numpy")
+def _second_order_step(r, v, pa, pb, h, w, z):
+    """``(r, v)`` of the reading r'' = w^2 (p - r) - 2 z w r' after a step of ``h`` s on
+    which p goes linearly from ``pa`` to ``pb``: exact. The ramp's tracking solution
+    r = p - m D (D = 2 z / w, the filter's group delay at DC), v = m, plus the
+    homogeneous deviation from it, propagated by exp(A h) = (c + z w s) I + s A."""
+    m = (pb - pa) / h
+    lead = 2.0 * z / w
+    er, ev = r - (pa - m * lead), v - m
+    mu = -z * w
+    q2 = (z * z - 1.0) * w * w
+    if abs(q2) * h * h < 1e-8:  # near critical damping: the series
+        e = math.exp(mu * h)
+        c, s = e * (1.0 + 0.5 * q2 * h * h), e * h * (1.0 + q2 * h * h / 6.0)
+    elif q2 > 0.0:  # overdamped: two real poles (the slow one without cancellation)
+        q = math.sqrt(q2)
+        slow = -w / (z + math.sqrt(z * z - 1.0))
+        e1, e2 = math.exp(slow * h), math.exp((mu - q) * h)
+        c, s = 0.5 * (e1 + e2), 0.5 * (e1 - e2) / q
+    else:
+        wd = math.sqrt(-q2)
+        e = math.exp(mu * h)
+        c, s = e * math.cos(wd * h), e * math.sin(wd * h) / wd
+    er2 = (c + z * w * s) * er + s * ev
+    ev2 = -w * w * s * er + (c - z * w * s) * ev
+    return pb - m * lead + er2, m + ev2
+
+
+@njit(cache=True, error_model="numpy")
 def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry, general):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
@@ -218,7 +248,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step with p
     linear on the step; r starts at ``p0`` (the measured reading) and the chamber at
     ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
-    tau dr/dt. With ``rate0`` NaN the window instead warms up over the 5 time constants
+    tau dr/dt. A second-order lag (slot ``sensor_natural_frequency_rad_per_s`` w > 0,
+    damping z) is stepped exactly in the same way (:func:`_second_order_step`), with
+    the lead D = 2 z / w in place of tau and the reading's rate starting at ``rate0``.
+    With ``rate0`` NaN the window instead warms up over 5 settling times
+    (tau; or max(D, 1 / (z w)))
     before its start (from the reading and the chamber at p0, under the command
     history) and keeps the chamber's lead on the reading it reached: the model's own
     rate through the lag, where the recording gives only the reading.
@@ -272,23 +306,31 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0):
         return NEEDS_GENERAL
     lag_r = sl[_SENSOR]
-    reading = lag_r > 0.0
+    w_r, z_r = sl[_SENSOR_W], sl[_SENSOR_Z]
+    second = w_r > 0.0
+    reading = lag_r > 0.0 or second
+    # the reading's lead at DC (its group delay) and the time its transient takes
+    lead_s = 2.0 * z_r / w_r if second else lag_r
+    settle_s = max(lead_s, 1.0 / (z_r * w_r)) if second else lag_r
     r = p0
+    v_r = 0.0  # the reading's rate (second order)
     p = p0
     # a lagged reading with no rate given: warm up over 5 time constants of the command
     # history before the start, then keep the chamber's lead on the reading
     k0 = i0
     if reading and math.isnan(rate0):
-        while k0 > 0 and t[i0] - t[k0] < 5.0 * lag_r:
+        while k0 > 0 and t[i0] - t[k0] < 5.0 * settle_s:
             k0 -= 1
-    elif reading and p0 + lag_r * rate0 > 0.0:
-        p = p0 + lag_r * rate0
+    elif reading:
+        v_r = rate0
+        if p0 + lead_s * rate0 > 0.0:
+            p = p0 + lead_s * rate0
     max_steps += i0 - k0
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0
     want_sens = sens.shape[0] > 0
     s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0 (T: or the tank's or second compartment's p)
-    s_r = 1.0  # d(reading)/dp0
+    s_r, s_v = 1.0, 0.0  # d(reading, its rate)/dp0
     if lung_from_p0:
         s_t0 = 1.0
     prop_t = (1.0, 0.0, 0.0, 1.0)  # a thermal step's propagator (row-major)
@@ -337,7 +379,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
             p = p0 + lead if p0 + lead > 0.0 else p0
             if general is not None and line:
                 y[0] = p
-            s_p0, s_r = 1.0, 1.0
+            s_p0, s_r, s_v = 1.0, 1.0, 0.0
         ta, tb = t[k], t[k + 1]
         seg = tb - ta
         inv_seg = 1.0 / seg
@@ -450,7 +492,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
                         s_p0 *= math.exp(zp)
-                    if reading:
+                    if second:
+                        r, v_r = _second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
+                        if want_sens:
+                            s_r, s_v = _second_order_step(s_r, s_v, s_prev, s_p0, hh, w_r,
+                                                          z_r)
+                    elif reading:
                         a_r, c_r = _lag_weights(hh / lag_r)
                         r = a_r * r + (1.0 - a_r) * p_prev + c_r * (p - p_prev)
                         s_r = a_r * s_r + (1.0 - a_r) * s_prev + c_r * (s_p0 - s_prev)

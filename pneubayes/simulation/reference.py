@@ -3,7 +3,7 @@
 Used by the tests (accuracy, step halving) and the benchmark (speed baseline). It shares
 only the lowered slots and the vectorised physics functions with the compiled
 integrator; the integration, input handling, the spool (an ODE state here, closed
-form there) and a sensor lag's reading (an ODE state here, stepped exactly for a
+form there) and a sensor lag's reading (ODE states here, stepped exactly for a
 linear pressure there) are written separately. Slow: thousands of Python calls per second.
 """
 
@@ -32,6 +32,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
                               "exhaust_c_per_V", "exhaust_d_V")]
     tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
     lag = sl[S["sensor_time_constant_s"]]  # the reading: the last state
+    w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
     thermal = heat > 0 or h_wall > 0
@@ -141,7 +142,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         if lung_v > 0:  # eq. 5 in the second, compliant compartment
             pl, cl = y[i_lung], sl[S["lung_compliance_m3_per_Pa"]]
             d_tank = [kappa * rs * t_s * m_lung / (lung_v + cl * (pl - p_atm) + kappa * pl * cl)]
-        d_reading = [float(p - y[-1]) / lag] if lag > 0 else []
+        if w_r > 0:  # the reading and its rate: the last two states
+            d_reading = [float(y[-1]), float(w_r**2 * (p - y[-2]) - 2 * z_r * w_r * y[-1])]
+        else:
+            d_reading = [float(p - y[-1]) / lag] if lag > 0 else []
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
                 + d_tank + d_reading)
 
@@ -158,9 +162,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     interval the command is constant and position and supply are linear, as in the
     compiled integrator. A supply tank is one more state, integrated with the chamber
     (the compiled integrator couples it by splitting). A sensor lag's reading is the
-    last state: it starts at ``initial_pressure_Pa`` and the chamber at it plus the
-    lag times ``initial_rate_Pa_per_s``. Returns the pressures (the reading, with a
-    sensor lag) ``(N,)`` in Pa (and the rhs count if asked).
+    last state (a second-order lag's: the last two, the reading and its rate): it
+    starts at ``initial_pressure_Pa`` (its rate at ``initial_rate_Pa_per_s``) and the
+    chamber at it plus the lag's group delay times ``initial_rate_Pa_per_s``. Returns
+    the pressures (the reading, with a sensor lag) ``(N,)`` in Pa (and the rhs count if
+    asked).
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
@@ -181,7 +187,12 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         y = np.append(y, initial_pressure_Pa)
         atols.append(atol)
     lag = sl[S["sensor_time_constant_s"]]
-    if lag > 0:  # the reading starts at the given pressure, the chamber ahead of it
+    w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
+    if w_r > 0:  # the reading and its rate start at the given ones, the chamber ahead
+        y[0] = initial_pressure_Pa + 2 * z_r / w_r * initial_rate_Pa_per_s
+        y = np.append(y, [initial_pressure_Pa, initial_rate_Pa_per_s])
+        atols += [atol, atol * w_r]
+    elif lag > 0:  # the reading starts at the given pressure, the chamber ahead of it
         y[0] = initial_pressure_Pa + lag * initial_rate_Pa_per_s
         y = np.append(y, initial_pressure_Pa)
         atols.append(atol)
@@ -195,7 +206,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     j = int(np.searchsorted(t + delay, t[0], side="right") - 1)
     y[2] = held(j)
     out = np.empty(t.size)
-    read = -1 if lag > 0 else 0
+    read = -2 if w_r > 0 else (-1 if lag > 0 else 0)
     out[0] = y[read]
     nfev = 0
     for k in range(t.size - 1):
