@@ -54,7 +54,9 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     finite = np.all(np.isfinite(pressure_Pa), axis=(1, 2))
     rows = np.nonzero((slots[:, S["spool_time_constant_s"]] <= 0.0)
                       & (slots[:, S["line_length_m"]] <= 0.0)
-                      & (slots[:, S["sensor_time_constant_s"]] <= 0.0) & finite)[0]
+                      & (slots[:, S["sensor_time_constant_s"]] <= 0.0)
+                      & (slots[:, S["sensor_natural_frequency_rad_per_s"]] <= 0.0)
+                      & finite)[0]
     if switch.size == 0 or rows.size == 0 or length < 2:
         return pressure_Pa
     s_tab, k_tab = filt.kink_response
