@@ -411,3 +411,34 @@ def test_a_named_tubes_line_candidate_gets_the_cells_its_start_delay_needs(rig):
     assert line_cells(0.007) == 7
     assert line_cells(0.02) == 8
     assert line_cells(0.02, most=3) == 3
+
+
+def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(rig):
+    """The line's start delay comes from a transport-delay term; when its fit finds a
+    transit time that needs more cells, the round fits the line again with them, from
+    the fit, and stops there (the cells only grow)."""
+    from pneubayes.discovery.candidates import effect_candidates, follow_up
+    from pneubayes.discovery.rounds import fit_round_forms
+    from pneubayes.discovery.verification import StepFit
+    from pneubayes.physics.valve import valve_preset
+
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-5)
+    current = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    evidence = {"best_term_start": {"tube_delay_s": 0.004}}
+    options = {"tube_delay": effect_candidates(current, "tube_delay", evidence, rig)}
+    fitted_delay = {"transport": 0.004, "line": 0.0087}
+    calls = []
+
+    def fit(g, model, start):
+        eff = model.effect(g)
+        calls.append((eff.form, getattr(eff, "segments", None), start["tube_delay_s"]))
+        p = dict(start, tube_delay_s=fitted_delay[eff.form])
+        return StepFit(model, p, 900.0, 900.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+
+    forms, settled, _ = fit_round_forms(
+        options, fit, 0.0,
+        follow=lambda g, m, f: follow_up(current, g, evidence, rig, m, f.params))
+    assert calls[0][0] == "transport" and calls[1][:2] == ("line", 4)
+    assert calls[2] == ("line", 8, pytest.approx(0.0087))
+    assert len(calls) == 3 and settled is None
+    assert [m.effect("tube_delay").segments for _, m, _ in forms["tube_delay"][1:]] == [4, 8]

@@ -54,6 +54,22 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
     return out
 
 
+def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params: dict,
+              line_segments: int = 8, line_cutoff_Hz: float = 300.0):
+    """``(model, start)`` of the form the named group's effect asks to fit next from
+    ``model`` fitted at ``params`` beside ``fit`` (:meth:`~pneubayes.effects.Effect.
+    form_after_fit`), started at ``params``; None when it asks for none."""
+    ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz)
+    nxt = model.effect(group).form_after_fit(params, ctx)
+    if nxt is None:
+        return None
+    effect, values = nxt
+    model2 = fit.model.with_effect(effect)
+    start = {k: params[k] for k in model2.parameter_names if k in params}
+    start.update({k: inside_bounds(model2, k, v) for k, v in values.items()})
+    return model2, start
+
+
 def first_free(model, group: str):
     """Parameters of ``model`` to refine on their own before all of them, or None (the
     named effect's :meth:`~pneubayes.effects.Effect.refine_first`)."""

@@ -57,7 +57,7 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import json_safe, write_json_atomic
-from pneubayes.discovery.candidates import effect_candidates, first_free
+from pneubayes.discovery.candidates import effect_candidates, first_free, follow_up
 from pneubayes.discovery.disagreement import disagreement_map, flagged_bins
 from pneubayes.discovery.library import build_library
 from pneubayes.discovery.one_step import one_step_data
@@ -84,8 +84,10 @@ from pneubayes.model import Model
 
 
 def _form(model: Model, group: str) -> str:
-    """The form of a model's effect (``"-"`` for an effect with one form)."""
-    return str(model.effect(group).options().get("form", "-"))
+    """The form of a model's effect (``"-"`` for an effect with one form; an acoustic
+    line's with its cells, ``"line/8"``)."""
+    opts = model.effect(group).options()
+    return str(opts.get("form", "-")) + (f"/{opts['segments']}" if "segments" in opts else "")
 
 
 def _fingerprint(*parts) -> str:
@@ -328,7 +330,10 @@ class Discovery:
         round_forms, settled, failed = fit_round_forms(
             options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
                                                first_free(m, g)),
-            s.form_settled_ratio * noise)
+            s.form_settled_ratio * noise,
+            follow=lambda g, m, f: follow_up(current, g, sindy.evidence_[g],
+                                             train[0].rig(), m, f.params,
+                                             s.tube_line_segments, s.tube_line_cutoff_Hz))
         for g in candidates:
             forms = round_forms[g]
             tried = {id(m) for _, m, _ in forms} | {id(m) for m, _ in failed[g]}

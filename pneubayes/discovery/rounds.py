@@ -7,9 +7,12 @@ from __future__ import annotations
 from pneubayes.errors import SimulationError
 
 
-def fit_round_forms(options: dict, fit, settled_Pa: float):
+def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None):
     """Fit a round's candidate forms: ``options`` maps each effect to its forms
     ``[(model, start), ...]`` in order; ``fit(effect, model, start)`` fits one.
+    ``follow(effect, model, fit)`` (optional) gives a form to fit next from a fitted
+    one, ``(model, start)``, or None (an acoustic line's cells re-chosen from its
+    fitted transit time); it is fitted at once, under the same settling rule.
 
     Every effect's first form is fitted; the later (costlier) forms only while no fit of
     the round has a training RMSE at most ``settled_Pa`` (0: fit every form). At the
@@ -36,6 +39,9 @@ def fit_round_forms(options: dict, fit, settled_Pa: float):
         fitted[g].append((f, model, start))
         if settled is None and f.train_rmse_Pa <= settled_Pa:
             settled = (g, model, f)
+        nxt = None if follow is None or settled is not None else follow(g, model, f)
+        if nxt is not None:
+            run(g, *nxt)
 
     for g, forms in options.items():
         if forms:

@@ -156,6 +156,13 @@ class Effect(Component):
         the parameters not started neutral; the loop moves them inside the bounds."""
         return [(self, self.candidate_start(ctx.term_start))]
 
+    def form_after_fit(self, params: dict, ctx: CandidateContext
+                       ) -> tuple["Effect", dict] | None:
+        """A form to fit next once this one is fitted at ``params`` (the model's and
+        the effect's fitted values), with start values for its own parameters; None
+        (the default) for none."""
+        return None
+
     def refine_first(self) -> tuple[str, ...] | None:
         """Parameters (of this effect and the model) a refinement fits on their own
         before all of them, or None."""

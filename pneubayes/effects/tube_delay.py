@@ -153,6 +153,18 @@ class TubeDelay(Effect):
         out.append((line, {"tube_delay_s": delay}))
         return out
 
+    def form_after_fit(self, params, ctx: CandidateContext):
+        """An acoustic line whose fitted transit time needs more cells than it has
+        (:meth:`line_cells`; its start delay came from a transport-delay term, which
+        sees a line's transit short) is fitted again with them, from its fit."""
+        if self.form != "line" or ctx.line_segments == 0:
+            return None
+        cells = self.line_cells(params["tube_delay_s"], ctx.line_cutoff_Hz, ctx.line_segments)
+        if cells <= self.segments:
+            return None
+        more = TubeDelay(**{**self.options(), "segments": cells})
+        return more, {k: params[k] for k in more.parameter_names()}
+
     def refine_first(self):
         """An acoustic line's step costs tens of times a plain one, and a refinement's
         Jacobian one simulation per free parameter: the line's two parameters and the
