@@ -97,12 +97,17 @@ def test_a_heavily_damped_second_order_lag_is_the_first_order_lag(rig, hand):
     assert np.max(np.abs(second - first)) < 0.03 * np.max(np.abs(first - plain))
 
 
+SLOW = pytest.mark.slow  # Radau at rtol 1e-10: 5-20 s a case; one per form in the fast tier
+
+
 @pytest.mark.parametrize("form,lag,volume", [
-    ("first_order", {"sensor_time_constant_s": 2.3e-4}, 2.4e-6),
-    ("first_order", {"sensor_time_constant_s": 3e-3}, 1e-7),
+    pytest.param("first_order", {"sensor_time_constant_s": 2.3e-4}, 2.4e-6, marks=SLOW),
+    pytest.param("first_order", {"sensor_time_constant_s": 3e-3}, 1e-7, marks=SLOW),
     ("first_order", {"sensor_time_constant_s": 1e-3}, 2e-5),
-    ("second_order", {"sensor_delay_s": 9e-4, "sensor_damping": 0.7071}, 2.4e-6),
-    ("second_order", {"sensor_delay_s": 3e-3, "sensor_damping": 2.5}, 1e-7),
+    pytest.param("second_order", {"sensor_delay_s": 9e-4, "sensor_damping": 0.7071}, 2.4e-6,
+                 marks=SLOW),
+    pytest.param("second_order", {"sensor_delay_s": 3e-3, "sensor_damping": 2.5}, 1e-7,
+                 marks=SLOW),
     ("second_order", {"sensor_delay_s": 5e-4, "sensor_damping": 0.3}, 2e-5)])
 def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, form, lag,
                                                                  volume):
