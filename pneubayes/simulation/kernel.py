@@ -241,7 +241,8 @@ def _second_order_step(r, v, pa, pb, h, w, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry, general):
+def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, carry,
+            general):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
     With a sensor lag (slot ``sensor_time_constant_s`` tau > 0) the output is the
@@ -252,10 +253,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     damping z) is stepped exactly in the same way (:func:`_second_order_step`), with
     the lead D = 2 z / w in place of tau and the reading's rate starting at ``rate0``.
     With ``rate0`` NaN the window instead warms up over 5 settling times
-    (tau; or max(D, 1 / (z w)))
-    before its start (from the reading and the chamber at p0, under the command
-    history) and keeps the chamber's lead on the reading it reached: the model's own
-    rate through the lag, where the recording gives only the reading.
+    (tau; or max(D, 1 / (z w))) before its start (from the recorded reading ``pm``
+    there, or from p0 where it is NaN, under the command history) and keeps the
+    chamber's lead on the reading it reached: the model's own rate through the lag,
+    where the recording gives only the reading.
 
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
@@ -321,6 +322,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
     if reading and math.isnan(rate0):
         while k0 > 0 and t[i0] - t[k0] < 5.0 * settle_s:
             k0 -= 1
+        if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
+            r = pm[k0]
+            p = pm[k0]
     elif reading:
         v_r = rate0
         if p0 + lead_s * rate0 > 0.0:
@@ -534,8 +538,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, rate0, out, sens, carry
 
 
 @njit(cache=True, error_model="numpy")
-def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
-          out, sens, status, general):
+def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
+          rate0, out, sens, status, general):
     """One task: parameter set ``task // (W / per_task)``, its windows from
     ``(task % (W / per_task)) * per_task`` on, carrying the unmeasured states."""
     tasks_per_set = starts.shape[0] // per_task
@@ -543,31 +547,31 @@ def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length
     w0 = (task % tasks_per_set) * per_task
     carry = _fresh_carry(consts)
     for w in range(w0, w0 + per_task):
-        status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, starts[w], length,
+        status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, pm, starts[w], length,
                                p0[w], rate0[b, w], out[b, w], sens[b, w], carry, general)
         if status[b, w] != OK:
             carry = _fresh_carry(consts)
 
 
 @njit(cache=True, error_model="numpy")
-def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, out,
-                     sens, status, general, per_task):
+def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0,
+                     out, sens, status, general, per_task):
     """Every (parameter set, window) pair on the calling thread."""
     for task in range(slots.shape[0] * (starts.shape[0] // per_task)):
-        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
+        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
               rate0, out, sens, status, general)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
-                       out, sens, status, general, per_task):
+def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
+                       rate0, out, sens, status, general, per_task):
     """Every (parameter set, window) pair, tasks spread over numba's threads."""
     for task in prange(slots.shape[0] * (starts.shape[0] // per_task)):
-        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
+        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
               rate0, out, sens, status, general)
 
 
-def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
+def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, pm,
               with_sensitivity):
     """Every (parameter set, window) pair; see :func:`simulate_windows`.
 
@@ -589,8 +593,10 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
         run = _simulate_parallel
     if rate0 is None:
         rate0 = np.full((nb, nw), np.nan)
-    run(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, out, sens, status,
-        True if hidden else None, per_task)
+    if pm is None:
+        pm = np.full(t.shape, np.nan)
+    run(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0, out, sens,
+        status, True if hidden else None, per_task)
     return out, sens, status
 
 
@@ -612,7 +618,8 @@ def _fresh_carry(consts):
     return carry
 
 
-def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0=None):
+def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0=None,
+                     pm=None):
     """Simulate every (parameter set, window) pair.
 
     The chamber temperature (a state only with heat transfer) starts at the supply's in
@@ -632,17 +639,20 @@ def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
     rate0 : (B, W) float64 or None    the reading's rate at each start (Pa/s; NaN or
                                       None: warm up over the command history), read
                                       only with a sensor lag
+    pm : (N,) float64 or None         the recorded reading (Pa; NaN or None: unknown),
+                                      where a lagged reading's warm-up starts
 
     Returns
     -------
     out : (B, W, length) float64 pressures (Pa); status : (B, W) int64
     """
     out, _, status = _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-                               rate0, False)
+                               rate0, pm, False)
     return out, status
 
 
 def simulate_windows_sensitivity(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-                                 rate0=None):
+                                 rate0=None, pm=None):
     """:func:`simulate_windows` plus dp(t)/dp0 per sample: ``(out, sens, status)``."""
-    return _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, True)
+    return _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, pm,
+                     True)

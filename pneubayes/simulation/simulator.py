@@ -41,6 +41,11 @@ class Inputs:
         A separately commanded exhaust valve's command (in its own unit, held between
         samples; the recording's ``exhaust_command`` column); None when the exhaust is a
         port of the one valve.
+    reading_Pa : (N,) or None
+        The recorded pressure reading, Pa; read only where a lagged reading's window
+        warms up (effect ``sensor_lag``: from the reading 5 settling times before the
+        window's start). None: unknown (the warm-up starts from the window's own
+        initial pressure).
     """
 
     time_s: np.ndarray
@@ -49,6 +54,7 @@ class Inputs:
     supply_pressure_Pa: np.ndarray
     command_before_start: float | None = None
     exhaust_command: np.ndarray | None = None
+    reading_Pa: np.ndarray | None = None
 
     def __post_init__(self):
         before = self.command_before_start
@@ -60,13 +66,15 @@ class Inputs:
         names = ("time_s", "command_V", "position_m", "supply_pressure_Pa")
         if self.exhaust_command is not None:
             names += ("exhaust_command",)
+        if self.reading_Pa is not None:
+            names += ("reading_Pa",)
         arrs = {k: np.ascontiguousarray(getattr(self, k), dtype=np.float64) for k in names}
         n = arrs["time_s"].shape
         for k, a in arrs.items():
             if a.ndim != 1 or a.shape != n:
                 raise ValueError(f"Inputs.{k} has shape {a.shape}; all inputs must be 1-D of "
                                  f"the same length as time_s {n}")
-            if not np.all(np.isfinite(a)):
+            if k != "reading_Pa" and not np.all(np.isfinite(a)):  # (a gap: NaN)
                 raise ValueError(f"Inputs.{k} contains NaN or infinite values")
             object.__setattr__(self, k, a)
         if n[0] < 2:
@@ -90,26 +98,29 @@ class Inputs:
         """Inputs of a :class:`pneubayes.io.Recording` (nominal supply/fixed position if absent)."""
         return cls(recording.time_s, recording.command_V, recording.position_or_fixed(),
                    recording.supply_or_nominal(), recording.command_before_start,
-                   recording.exhaust_command())
+                   recording.exhaust_command(), recording.pressure_Pa)
 
     def with_command(self, command_V) -> "Inputs":
         """The same inputs with another (e.g. delayed or filtered) valve command."""
         return Inputs(self.time_s, command_V, self.position_m, self.supply_pressure_Pa,
-                      self.command_before_start, self.exhaust_command)
+                      self.command_before_start, self.exhaust_command, self.reading_Pa)
 
     def kernel_arrays(self):
-        """``(t, u, ue, x, ps, offset)``: the drive arrays the compiled kernel reads (``ue``
-        the exhaust command, zeros without one), with a declared pre-trigger command as
-        one extra sample held from 10 s before the start (``offset`` 1: window starts
-        shift by one), else the arrays as they are."""
+        """``(t, u, ue, x, ps, pm, offset)``: the drive arrays the compiled kernel reads
+        (``ue`` the exhaust command, zeros without one; ``pm`` the recorded reading, NaN
+        without one), with a declared pre-trigger command as one extra sample held from
+        10 s before the start (``offset`` 1: window starts shift by one), else the
+        arrays as they are."""
         t, u, x, ps = self.time_s, self.command_V, self.position_m, self.supply_pressure_Pa
         ue = self.exhaust_command if self.exhaust_command is not None else np.zeros_like(t)
+        pm = self.reading_Pa if self.reading_Pa is not None else np.full(t.shape, np.nan)
         if self.command_before_start is None:
-            return t, u, ue, x, ps, 0
+            return t, u, ue, x, ps, pm, 0
         return (np.concatenate(([t[0] - 10.0], t)),
                 np.concatenate(([float(self.command_before_start)], u)),
                 np.concatenate((ue[:1], ue)),
-                np.concatenate((x[:1], x)), np.concatenate((ps[:1], ps)), 1)
+                np.concatenate((x[:1], x)), np.concatenate((ps[:1], ps)),
+                np.concatenate(([np.nan], pm)), 1)
 
 
 @dataclass(frozen=True)
@@ -209,12 +220,12 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
             raise ValueError(f"{what}: it cannot be combined with heat_transfer, the tube's "
                              "acoustic line (tube_delay form 'line') or another second state "
                              "(a supply tank, a second compartment) in one model")
-    t, u, ue, x, ps, offset = inputs.kernel_arrays()
-    slots, consts, sv, t, u, ue, x, ps, kstarts, p0, rate0 = _kernel_arrays(
-        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, starts + offset, p0,
-        rate0)
+    t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
+    slots, consts, sv, t, u, ue, x, ps, pm, kstarts, p0, rate0 = _kernel_arrays(
+        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, pm, starts + offset,
+        p0, rate0)
     *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
-                                rate0)
+                                rate0, pm)
     failed = np.nonzero(status.any(axis=1))[0]
     if failed.size and on_failure == "nan":
         for a in arrays:
