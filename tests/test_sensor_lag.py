@@ -210,3 +210,27 @@ def test_windows_warm_up_the_chambers_lead_from_the_command_history(rig, hand):
     assert rms["cold"] > 1e-3 * RANGE
     assert rms["warm"] < 0.3 * rms["cold"]
     assert rms["best"] < 0.06 * rms["cold"]
+
+
+@pytest.mark.parametrize("form,lag", [("first_order", {"sensor_time_constant_s": 5e-4}),
+                                      ("second_order", {"sensor_delay_s": 5e-4,
+                                                        "sensor_damping": 0.7})])
+def test_a_lagged_reading_gets_no_declared_filter_corner_term(rig, hand, form, lag):
+    """The declared zero-phase filter's corner term is for a chamber read directly; a
+    lagged reading rounds its corners itself, so the declared filter leaves it as is."""
+    from dataclasses import replace
+
+    from pneubayes.physics.sensor_filter import PressureFilter
+
+    inputs = _steps(hand, 3, 301, 1e-3, hold_s=(0.01, 0.05))
+    model = Model([make_effect("sensor_lag", form=form)])
+    params = dict(_params(), **lag)
+    bare = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa
+    declared = replace(rig, pressure_filter=PressureFilter(2, 1000.0))
+    read = simulate(model, params, inputs, declared, 2e5, SolverConfig.standard()).pressure_Pa
+    assert np.array_equal(bare, read)
+    unlagged = simulate(Model(), _params(), inputs, declared, 2e5,
+                        SolverConfig.standard()).pressure_Pa
+    assert not np.array_equal(unlagged, simulate(Model(), _params(), inputs, rig, 2e5,
+                                                 SolverConfig.standard()).pressure_Pa)
+

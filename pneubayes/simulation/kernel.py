@@ -26,13 +26,16 @@ heat transfer on (either form), the chamber temperature is a second state, stepp
 the same method with the full 2 x 2 Jacobian (a diagonal one leaves the method first
 order in the p-T coupling). With the tube as an acoustic line, the state is the
 chamber's pressure and the line's cells and flows, stepped by the same method with the
-full Jacobian (:mod:`pneubayes.simulation.line`).
+full Jacobian (:mod:`pneubayes.simulation.line`). A lagged sensor reading is stepped in
+closed form after each accepted step (:mod:`pneubayes.simulation.reading`).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 3 non-finite state, 4 an acoustic line not smaller than the dead volume. This module,
 :mod:`~pneubayes.simulation.chamber` (the right-hand side),
-:mod:`~pneubayes.simulation.thermal` (the (p, T) step) and
-:mod:`~pneubayes.simulation.line` are the only compiled code of the simulator.
+:mod:`~pneubayes.simulation.thermal` (the (p, T) step),
+:mod:`~pneubayes.simulation.line`, :mod:`~pneubayes.simulation.tank`,
+:mod:`~pneubayes.simulation.lung` and :mod:`~pneubayes.simulation.reading` are the only
+compiled code of the simulator.
 """
 
 from __future__ import annotations
@@ -73,6 +76,7 @@ from pneubayes.simulation.line import (
     line_volume,
 )
 from pneubayes.simulation.lung import lung_step
+from pneubayes.simulation.reading import first_order_step, second_order_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 
@@ -201,45 +205,6 @@ def _area_rates(spool, spool_rate, dead, sl):
     return r_in * spool_rate, r_ex * spool_rate
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _lag_weights(z):
-    """``(a, c)`` of the exact first-order lag over a step of ``z`` time constants of a
-    signal linear on the step: r_new = a r + (1 - a) p + c (p_new - p), a = e^-z,
-    c = 1 - (1 - a) / z (its series for small z, where the difference cancels)."""
-    a = math.exp(-z)
-    if z < 1e-3:
-        return a, z * (0.5 - z * (1.0 / 6.0 - z / 24.0))
-    return a, 1.0 + math.expm1(-z) / z
-
-
-@njit(cache=True, error_model="numpy")
-def _second_order_step(r, v, pa, pb, h, w, z):
-    """``(r, v)`` of the reading r'' = w^2 (p - r) - 2 z w r' after a step of ``h`` s on
-    which p goes linearly from ``pa`` to ``pb``: exact. The ramp's tracking solution
-    r = p - m D (D = 2 z / w, the filter's group delay at DC), v = m, plus the
-    homogeneous deviation from it, propagated by exp(A h) = (c + z w s) I + s A."""
-    m = (pb - pa) / h
-    lead = 2.0 * z / w
-    er, ev = r - (pa - m * lead), v - m
-    mu = -z * w
-    q2 = (z * z - 1.0) * w * w
-    if abs(q2) * h * h < 1e-8:  # near critical damping: the series
-        e = math.exp(mu * h)
-        c, s = e * (1.0 + 0.5 * q2 * h * h), e * h * (1.0 + q2 * h * h / 6.0)
-    elif q2 > 0.0:  # overdamped: two real poles (the slow one without cancellation)
-        q = math.sqrt(q2)
-        slow = -w / (z + math.sqrt(z * z - 1.0))
-        e1, e2 = math.exp(slow * h), math.exp((mu - q) * h)
-        c, s = 0.5 * (e1 + e2), 0.5 * (e1 - e2) / q
-    else:
-        wd = math.sqrt(-q2)
-        e = math.exp(mu * h)
-        c, s = e * math.cos(wd * h), e * math.sin(wd * h) / wd
-    er2 = (c + z * w * s) * er + s * ev
-    ev2 = -w * w * s * er + (c - z * w * s) * ev
-    return pb - m * lead + er2, m + ev2
-
-
 @njit(cache=True, error_model="numpy")
 def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, carry,
             general):
@@ -250,7 +215,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     linear on the step; r starts at ``p0`` (the measured reading) and the chamber at
     ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
     tau dr/dt. A second-order lag (slot ``sensor_natural_frequency_rad_per_s`` w > 0,
-    damping z) is stepped exactly in the same way (:func:`_second_order_step`), with
+    damping z) is stepped exactly in the same way (:mod:`pneubayes.simulation.reading`), with
     the lead D = 2 z / w in place of tau and the reading's rate starting at ``rate0``.
     With ``rate0`` NaN the window instead warms up over 5 settling times
     (tau; or max(D, 1 / (z w))) before its start (from the recorded reading ``pm``
@@ -497,14 +462,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     elif want_sens:
                         s_p0 *= math.exp(zp)
                     if second:
-                        r, v_r = _second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
+                        r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
                         if want_sens:
-                            s_r, s_v = _second_order_step(s_r, s_v, s_prev, s_p0, hh, w_r,
-                                                          z_r)
+                            s_r, s_v = second_order_step(s_r, s_v, s_prev, s_p0, hh, w_r, z_r)
                     elif reading:
-                        a_r, c_r = _lag_weights(hh / lag_r)
-                        r = a_r * r + (1.0 - a_r) * p_prev + c_r * (p - p_prev)
-                        s_r = a_r * s_r + (1.0 - a_r) * s_prev + c_r * (s_p0 - s_prev)
+                        r = first_order_step(r, p_prev, p, hh, lag_r)
+                        if want_sens:
+                            s_r = first_order_step(s_r, s_prev, s_p0, hh, lag_r)
                     # grow the step only when it was not cut short by a break point;
                     # shrink it when the error asks (0.9 / cbrt(err) < 1 iff err > 0.729)
                     if hh >= h or err > 0.729:
