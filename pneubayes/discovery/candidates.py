@@ -44,14 +44,17 @@ def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
     starts moved just inside the bounds)."""
     ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz)
     effect = make_effect(group, **fit.model.effect_options(group))
-    out = []
-    for form, values in effect.candidate_forms(ctx):
-        model = fit.model.with_effect(form)
-        start = dict(fit.params)
-        start.update(form.neutral_values())
-        start.update({k: inside_bounds(model, k, v) for k, v in values.items()})
-        out.append((model, start))
-    return out
+    return [_started(fit, form, {**fit.params, **form.neutral_values()}, values)
+            for form, values in effect.candidate_forms(ctx)]
+
+
+def _started(fit: StepFit, effect, base: dict, values: dict):
+    """``(model, start)``: ``fit.model`` with ``effect``, started at ``base`` (its
+    parameters' values) with ``values`` moved just inside the bounds."""
+    model = fit.model.with_effect(effect)
+    start = {k: base[k] for k in model.parameter_names if k in base}
+    start.update({k: inside_bounds(model, k, v) for k, v in values.items()})
+    return model, start
 
 
 def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params: dict,
@@ -64,10 +67,7 @@ def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params:
     if nxt is None:
         return None
     effect, values = nxt
-    model2 = fit.model.with_effect(effect)
-    start = {k: params[k] for k in model2.parameter_names if k in params}
-    start.update({k: inside_bounds(model2, k, v) for k, v in values.items()})
-    return model2, start
+    return _started(fit, effect, params, values)
 
 
 def first_free(model, group: str):

@@ -25,21 +25,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.signal import lfilter
 
-from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
-
-
-def reading_lead_s(model: Model, theta: np.ndarray, rig) -> np.ndarray:
-    """Per parameter set, the group delay at DC of the model's reading lag (s; 0 without
-    one): a first-order lag's time constant, a second-order lag's 2 z / w."""
-    if not model.has("sensor_lag"):
-        return np.zeros(theta.shape[0])
-    sl = model.lower(theta, rig)
-    w, z = sl[:, SLOT_INDEX["sensor_natural_frequency_rad_per_s"]], \
-        sl[:, SLOT_INDEX["sensor_damping"]]
-    second = 2.0 * z / np.where(w > 0, w, 1.0)
-    return np.where(w > 0, second, sl[:, SLOT_INDEX["sensor_time_constant_s"]])
 
 
 def first_order_lag(values: np.ndarray, dt_s: float, time_constant_s: float) -> np.ndarray:
@@ -100,7 +87,9 @@ class OneStepData:
         theta = model.as_matrix(params)
         starts = np.arange(p.size - 1)
         rate = None
-        lead = reading_lead_s(model, theta, self.rig)
+        lead = (theta[:, model.parameter_names.index(
+            model.effect("sensor_lag").lead_parameter())] if model.has("sensor_lag")
+            else np.zeros(theta.shape[0]))  # the reading's group delay, s
         if np.any(lead > 0):
             plain = theta.copy()
             for k, v in model.effect("sensor_lag").neutral_values().items():

@@ -68,6 +68,12 @@ class SensorLag(Effect):
                           "damping ratio z of the reading's second-order lag",
                           neutral=1.0))  # any damping is neutral at zero delay
 
+    def lead_parameter(self) -> str:
+        """The parameter that is the reading's group delay at DC, s (the chamber's lead
+        on a reading that tracks a ramp)."""
+        self._check()
+        return "sensor_time_constant_s" if self.form == "first_order" else "sensor_delay_s"
+
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
         if self.form == "first_order":

@@ -141,11 +141,11 @@ class TubeDelay(Effect):
         out = [(self, start)]
         if self.form == "line" or ctx.line_segments == 0 or not ctx.second_state_free:
             return out
+        # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
-        cells = self.line_cells(ctx.inside(probe, "tube_delay_s", start["tube_delay_s"]),
-                                ctx.line_cutoff_Hz, ctx.line_segments)
+        delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
+        cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
         line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})
-        delay = ctx.inside(line, "tube_delay_s", start["tube_delay_s"])
         vol = float(line.tube_volume_m3({**line.neutral_values(), "tube_delay_s": delay},
                                         ctx.rig))
         if vol > 0.5 * ctx.dead_volume_m3:
