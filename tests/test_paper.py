@@ -39,6 +39,27 @@ def test_table3_smoke_then_report_carries_numbers_and_provenance(tmp_path):
     assert again["counts"]["cached"] == 1 and again["counts"]["run_now"] == 0
 
 
+def test_table3_discovery_summary_over_seeds():
+    planted = ["tube_delay", "valve_deadzone", "supply_fluctuation", "cylinder_leak"]
+    base = {"cylinder": "PRN", "paper_name": "PRN", "planted": planted,
+            "noise_floor_Pa": 500.0}
+    table = [dict(base, seed=0, discovered=["tube_delay", "spool_lag"],
+                  ours_plain_rmse_Pa=4500.0, ours_discovery_rmse_Pa=1500.0),
+             dict(base, seed=1, discovered=["tube_delay", "valve_deadzone",
+                                            "cylinder_leak"],
+                  ours_plain_rmse_Pa=2500.0, ours_discovery_rmse_Pa=900.0),
+             # a seed whose plain model is already at the noise floor: no gap to shrink
+             dict(base, seed=2, discovered=[], ours_plain_rmse_Pa=450.0,
+                  ours_discovery_rmse_Pa=450.0)]
+    (row,) = table3.discovery_summary(table)
+    assert row["planted_named"] == [1, 3, 0] and row["planted_named_mean"] == 4 / 3
+    assert row["not_planted_named"] == ["spool_lag"]
+    assert row["gap_shrink"] == {"median": 0.775, "min": 0.75, "max": 0.8}
+    assert row["final_over_noise"] == {"median": 1.8, "min": 0.9, "max": 3.0}
+    md = table3.summary_markdown([row])
+    assert "| PRN | 3 | 1.33 |" in md and "78 [75, 80] %" in md and "1.80 [0.90, 3.00]" in md
+
+
 def _real_results(out: Path, rw_final: float, setpoint: float):
     g = {"window": {"after_close_s": 0.03, "horizon_s": 0.044},
          "held_out_recordings": ["a"] * 8, "noise_floor_Pa": 1000.0, "span_Pa": 300000.0,
