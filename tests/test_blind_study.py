@@ -1,0 +1,68 @@
+"""The blind discovery study's draw and report (issue 22, item 5); the study itself
+runs in experiments/, not here."""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import blind_study  # noqa: E402
+
+
+def _public(cases):
+    return [{k: v for k, v in c.items() if not k.startswith("_")} for c in cases]
+
+
+def test_the_draw_is_fixed_by_its_seed_and_covers_every_kind():
+    a, b = blind_study.draw_cases(123), blind_study.draw_cases(123)
+    assert _public(a) == _public(b)
+    assert _public(a) != _public(blind_study.draw_cases(124))
+    sizes = [len(c["hidden"]) for c in a]
+    assert sizes.count(0) == blind_study.N_CONTROLS
+    assert sizes.count(1) == len(blind_study.SINGLES)
+    assert sizes.count(2) == blind_study.N_PAIRS and sizes.count(4) == blind_study.N_FOUR
+    for c in a:
+        assert set(c["forms"]) == set(c["hidden"])
+        assert f"{c['cylinder']}:{c['valve']}" in blind_study.RIGS
+
+
+def test_drawn_forms_stay_in_their_physical_ranges():
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        tube = blind_study.draw_form("tube_delay", "SMC", rng)
+        assert 0.4 <= tube.length_m <= 3.0 and 8 <= tube.segments <= 24
+        dz = blind_study.draw_form("valve_deadzone", "SMC", rng)
+        assert dz.rounding_V <= dz.halfwidth_V <= 0.5
+        lag = blind_study.draw_form("sensor_lag", "SMC", rng)
+        assert lag.phase == "causal" and 120 <= lag.cutoff_Hz <= 600
+    with pytest.raises(ValueError, match="unknown effect 'nope'"):
+        blind_study.draw_form("nope", "SMC", rng)
+
+
+def test_the_report_checks_the_floors_per_kind():
+    def res(hidden, named, base, final, noise=500.0):
+        gap0 = base - noise
+        return {"name": "x", "cylinder": "SMC", "valve": "valve1", "hidden": hidden,
+                "named": named, "correct": sorted(named) == sorted(hidden),
+                "planted_named": len(set(named) & set(hidden)), "rmse_base_Pa": base,
+                "rmse_final_Pa": final, "noise_floor_Pa": noise,
+                "gap_shrink": None if gap0 <= 0 else 1 - (final - noise) / gap0,
+                "final_over_noise": final / noise}
+
+    results = [res([], [], 520.0, 520.0), res([], ["spool_lag"], 530.0, 510.0),
+               res(["tube_delay"], ["tube_delay"], 2500.0, 700.0),
+               res(["valve_deadzone", "cylinder_leak"], ["valve_deadzone"], 1500.0, 900.0),
+               res(list(blind_study.FOUR), ["tube_delay", "valve_deadzone",
+                                            "supply_fluctuation"], 4500.0, 1300.0)]
+    table, md = blind_study.summarise(results)
+    assert table["control"]["nothing_named_fraction"] == 0.5
+    sp = table["single/pair"]
+    assert sp["all_planted_named_fraction"] == 0.5 and sp["planted_named_mean"] == 1.0
+    assert sp["gap_shrink_median"] == pytest.approx((0.9 + 0.6) / 2)
+    assert table["four-effect"]["planted_named_mean"] == 3.0
+    assert "nothing named in 50 % (floor 90 %)" in md
