@@ -47,6 +47,13 @@ def _fraction(text: str) -> float:
     return v
 
 
+def _share(text: str) -> float:
+    v = NON_NEGATIVE(text)
+    if v > 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
+    return v
+
+
 def _bound(text: str) -> tuple[str, tuple[float, float]]:
     """NAME=LOWER:UPPER, two finite numbers with lower < upper."""
     name, sep, rest = text.partition("=")
@@ -309,6 +316,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "
                         "noise floor; 0 fits every form (1.05)")
+    d.add_argument("--later-forms-min-share", type=_share, default=0.25,
+                   help="an effect's later forms are fitted only if its first form gains at "
+                        "least this share of the round's best first-form gain in training; "
+                        "0 always (0.25)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     _add_identification(d, "seed of bagging and sampler (recorded)")

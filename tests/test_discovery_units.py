@@ -303,7 +303,7 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
             "convective": 700.0}
     fitted = []
 
-    def fit(g, model, start):
+    def fit(g, model, start, beat=None):
         fitted.append(model)
         return SimpleNamespace(train_rmse_Pa=rmse[model])
 
@@ -311,31 +311,69 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
     heat = [("rate", {}), ("convective", {})]
     floor = 1.05 * 503.0
     # the tube's own transport form settles the round: its line is not fitted
-    forms, settled, _ = fit_round_forms({"tube_delay": tube}, fit, floor)
+    forms, settled, *_ = fit_round_forms({"tube_delay": tube}, fit, floor)
     assert fitted == ["transport"] and [m for _, m, _ in forms["tube_delay"]] == ["transport"]
     assert settled[0] == "tube_delay" and settled[1] == "transport"
     # above the floor every form is fitted, first forms first
     fitted.clear()
-    forms, settled, _ = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit,
+    forms, settled, *_ = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit,
                                      1.05 * 400.0)
     assert fitted == ["transport", "rate", "line", "convective"] and settled is None
     # another effect at the floor (a spool lag taken for a tube): no line, no convective
     rmse["transport"] = 1500.0
     fitted.clear()
-    forms, settled, _ = fit_round_forms({"tube_delay": tube, "spool_lag": [("spool", {})],
+    forms, settled, *_ = fit_round_forms({"tube_delay": tube, "spool_lag": [("spool", {})],
                                       "heat_transfer": heat}, fit, floor)
     assert fitted == ["transport", "spool", "rate"]
     assert settled[0] == "spool_lag" and [len(v) for v in forms.values()] == [1, 1, 1]
     # a later form that settles stops the later forms of the effects after it
     rmse["line"] = 500.0
     fitted.clear()
-    forms, settled, _ = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit, floor)
+    forms, settled, *_ = fit_round_forms({"tube_delay": tube, "heat_transfer": heat}, fit, floor)
     assert fitted == ["transport", "rate", "line"] and settled[1] == "line"
     fitted.clear()
     fit_round_forms({"tube_delay": tube, "heat_transfer": heat, "none": []}, fit, 0.0)
     assert fitted == ["transport", "rate", "line", "convective"]  # 0: every form
     with pytest.raises(ValueError, match="form_settled_ratio"):
         DiscoverySettings(form_settled_ratio=0.5)
+
+
+def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_best():
+    """An effect's later (costly) forms are fitted only when its first form's training
+    gain is at least ``min_share`` of the round's best first-form gain; a later form is
+    told the first form's training RMSE to screen against."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.rounds import fit_round_forms
+
+    rmse = {"transport": 1862.0, "line": 827.0, "spool": 1846.0, "sensor": 1837.0,
+            "rate": 4599.0, "convective": 5613.0}
+    calls = []
+
+    def fit(g, model, start, beat=None):
+        calls.append((model, beat))
+        return SimpleNamespace(train_rmse_Pa=rmse[model])
+
+    options = {"tube_delay": [("transport", {}), ("line", {})],
+               "spool_lag": [("spool", {})], "sensor_lag": [("sensor", {})],
+               "heat_transfer": [("rate", {}), ("convective", {})]}
+    # the 3-m tube case: the transport form gains 74 Pa, the best first form 99 Pa
+    forms, settled, failed, outpaced = fit_round_forms(options, fit, 0.0, current_Pa=1936.0,
+                                                       min_share=0.25)
+    assert calls == [("transport", None), ("spool", None), ("sensor", None), ("rate", None),
+                     ("line", 1862.0)]
+    assert outpaced == {"heat_transfer": (1936.0 - 4599.0, 99.0)}
+    # a stricter share drops the line too
+    calls.clear()
+    *_, outpaced = fit_round_forms(options, fit, 0.0, current_Pa=1936.0, min_share=0.8)
+    assert ("line", 1862.0) not in calls and set(outpaced) == {"tube_delay", "heat_transfer"}
+    assert outpaced["tube_delay"] == (74.0, 99.0)
+    # no share (or no current RMSE): every form, as before
+    calls.clear()
+    *_, outpaced = fit_round_forms(options, fit, 0.0)
+    assert len(calls) == 6 and outpaced == {}
+    with pytest.raises(ValueError, match="min_share"):
+        fit_round_forms(options, fit, 0.0, current_Pa=1936.0, min_share=1.5)
 
 
 def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():
@@ -346,7 +384,7 @@ def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():
     from pneubayes.discovery.rounds import fit_round_forms
     from pneubayes.errors import SimulationError
 
-    def fit(g, model, start):
+    def fit(g, model, start, beat=None):
         if model == "line":
             raise FloatingPointError("refinement: the simulation fails at the start "
                                      "parameters {...}\nmore")
@@ -356,7 +394,7 @@ def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():
             raise KeyError("a programming error is not a failed trial")
         return SimpleNamespace(train_rmse_Pa={"transport": 900.0, "rate": 800.0}[model])
 
-    forms, settled, failed = fit_round_forms(
+    forms, settled, failed, _ = fit_round_forms(
         {"tube_delay": [("transport", {}), ("line", {})],
          "heat_transfer": [("rate", {}), ("convective", {})]}, fit, 500.0)
     assert settled is None
@@ -429,16 +467,68 @@ def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(
     fitted_delay = {"transport": 0.004, "line": 0.0087}
     calls = []
 
-    def fit(g, model, start):
+    def fit(g, model, start, beat=None):
         eff = model.effect(g)
         calls.append((eff.form, getattr(eff, "segments", None), start["tube_delay_s"]))
         p = dict(start, tube_delay_s=fitted_delay[eff.form])
         return StepFit(model, p, 900.0, 900.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
 
-    forms, settled, _ = fit_round_forms(
+    forms, settled, *_ = fit_round_forms(
         options, fit, 0.0,
         follow=lambda g, m, f: follow_up(current, g, evidence, rig, m, f.params))
     assert calls[0][0] == "transport" and calls[1][:2] == ("line", 4)
     assert calls[2] == ("line", 8, pytest.approx(0.0087))
     assert len(calls) == 3 and settled is None
     assert [m.effect("tube_delay").segments for _, m, _ in forms["tube_delay"][1:]] == [4, 8]
+
+
+def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screened_out(
+        monkeypatch):
+    """With parameters to fit first and a first form's training RMSE to beat, a form
+    whose first stage does not beat it is not refined further (no full refinement, no
+    restarts); one that beats it is refined as before."""
+    from types import SimpleNamespace
+
+    import pneubayes.discovery.loop as loop
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.effects.tube_delay import TubeDelay
+    from pneubayes.physics.valve import valve_preset
+
+    stages = []
+
+    class Refiner:
+        def __init__(self, model, solver, free=None, max_nfev=None):
+            self.free = free
+
+        def fit(self, data, params):
+            stages.append("first" if self.free else "all")
+            return SimpleNamespace(params_=dict(params), success_=True,
+                                   rmse_Pa_=data.stage_rmse if self.free else 800.0)
+
+    class Windows:
+        def __init__(self, stage_rmse):
+            self.stage_rmse = stage_rmse
+
+        def residuals(self, model, theta, solver):
+            return np.full((1, 4, 10), 900.0)
+
+    monkeypatch.setattr(loop, "TrajectoryRefiner", Refiner)
+    monkeypatch.setattr(loop, "ar1_noise_mode", lambda *a: (1.0, 0.0))
+    monkeypatch.setattr(loop, "ar1_sums", lambda r: [None])
+    monkeypatch.setattr(loop, "crossfit_window_lpd", lambda r: 0.0)
+    disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3), log=lambda m: None)
+    model = Model(effects=(TubeDelay(form="line", segments=3),))
+    start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
+             "dead_volume_m3": 2e-5}
+    first = ("tube_delay_s", "tube_diameter_m", "dead_volume_m3")
+    # the line's own parameters fit to 1900 Pa, the transport form to 1862 Pa: screened
+    disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first, beat_Pa=1862.0)
+    assert stages == ["first"]
+    # they fit to 900 Pa: the full refinement runs
+    stages.clear()
+    disc._fit(model, start, Windows(900.0), Windows(900.0), "k", first, beat_Pa=1862.0)
+    assert stages == ["first", "all"]
+    # nothing to beat (a first form, or a follow-up): as before
+    stages.clear()
+    disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first)
+    assert stages == ["first", "all"]

@@ -13,7 +13,11 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    exchange in both its forms (one rate, or a convective coefficient on the wall area),
    a named tube in both of its (transport delay, acoustic line), and the form with the
    lower *training* error goes on to verification; once any trial of the round fits at
-   the noise floor, no later form is fitted (``form_settled_ratio``). While the held-out
+   the noise floor, no later form is fitted (``form_settled_ratio``); an effect whose
+   first form gains under a quarter of the round's best first-form gain in training gets
+   no later form (``later_forms_min_share``), and a later form whose own parameters,
+   fitted first, do not beat its effect's first form is not refined further (a line
+   for a tube that is not there costs tens of minutes). While the held-out
    error is far above the noise, weakly supported groups are tried too (see
    ``gap_fallback_ratio``), and if none of those passes either, every other group, as
    a last resort that must close a quarter of the gap (``try_all_on_gap``).
@@ -90,6 +94,12 @@ def _form(model: Model, group: str) -> str:
     return str(opts.get("form", "-")) + (f"/{opts['segments']}" if "segments" in opts else "")
 
 
+def _effects_label(model: Model) -> str:
+    """E.g. ``"valve_deadzone + tube_delay line/8"``."""
+    return " + ".join(g + ("" if _form(model, g) == "-" else f" {_form(model, g)}")
+                      for g in model.effect_names) or "plain"
+
+
 def _fingerprint(*parts) -> str:
     h = hashlib.sha256()
     for p in parts:
@@ -124,16 +134,19 @@ class Discovery:
         return None if self.out_dir is None else self.out_dir / "steps" / f"{key}.json"
 
     def _fit(self, model: Model, start: dict, train_ws: WindowSet, held_ws: WindowSet,
-             data_key: str, first=None) -> StepFit:
+             data_key: str, first=None, beat_Pa: float | None = None) -> StepFit:
         """Refine ``model`` from ``start`` (``first``: parameters refined on their own
         before all of them) and score it on the training and held-out windows. The
         settings' bound overrides apply to every model fitted here (the refiner starts
-        inside them)."""
+        inside them). With ``first`` and ``beat_Pa``, a first stage whose training RMSE
+        is not below ``beat_Pa`` ends the fit there (a screened-out form: its own
+        parameters do not beat the form it refines)."""
         s = self.settings
         if s.bounds:
             model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
         key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key,
-                           *([list(first)] if first else []))
+                           *([list(first)] if first else []),
+                           *([beat_Pa] if first and beat_Pa is not None else []))
         path = self._cache_path(key)
         t0 = time.perf_counter()
         if path is not None and path.exists():
@@ -142,12 +155,18 @@ class Discovery:
         else:
             # refine to convergence: a base model stopped early would make any extended
             # model's extra refinement look like a gain of the effect
-            params = start
+            params, screened = start, False
             if first:
-                params = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
-                                           max_nfev=s.fit.refine_max_nfev
-                                           ).fit(train_ws, params).params_
-            for _ in range(s.max_refine_restarts + 1):
+                stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
+                                          max_nfev=s.fit.refine_max_nfev
+                                          ).fit(train_ws, params)
+                params = stage.params_
+                screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
+                if screened:
+                    self.log(f"discover: {_effects_label(model)}: screened out, its own "
+                             f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
+                             f"below its effect's first form ({beat_Pa:.0f} Pa)")
+            for _ in range(0 if screened else s.max_refine_restarts + 1):
                 ref = TrajectoryRefiner(model, s.fit.refine_solver,
                                         max_nfev=s.fit.refine_max_nfev).fit(train_ws, params)
                 params = ref.params_
@@ -327,13 +346,14 @@ class Discovery:
         options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
                                         s.tube_line_segments, s.tube_line_cutoff_Hz)
                    for g in candidates}
-        round_forms, settled, failed = fit_round_forms(
-            options, lambda g, m, x: self._fit(m, x, train_ws, held_ws, data_key,
-                                               first_free(m, g)),
+        round_forms, settled, failed, outpaced = fit_round_forms(
+            options, lambda g, m, x, beat: self._fit(m, x, train_ws, held_ws, data_key,
+                                                     first_free(m, g), beat),
             s.form_settled_ratio * noise,
             follow=lambda g, m, f: follow_up(current, g, sindy.evidence_[g],
                                              train[0].rig(), m, f.params,
-                                             s.tube_line_segments, s.tube_line_cutoff_Hz))
+                                             s.tube_line_segments, s.tube_line_cutoff_Hz),
+            current_Pa=current.train_rmse_Pa, min_share=s.later_forms_min_share)
         for g in candidates:
             forms = round_forms[g]
             tried = {id(m) for _, m, _ in forms} | {id(m) for m, _ in failed[g]}
@@ -345,7 +365,16 @@ class Discovery:
             for m, why in failed[g]:
                 self.log(f"discover: {g}: form {m.effect(g).options()} failed ({why}); "
                          "a failed trial")
-            if forms_info["not_fitted"]:
+            if forms_info["not_fitted"] and g in outpaced:
+                mine, best = outpaced[g]
+                forms_info["not_fitted_why"] = (
+                    f"first-form gain {mine:.0f} Pa < {s.later_forms_min_share:g} x the "
+                    f"round's best {best:.0f} Pa")
+                self.log(f"discover: {g}: {len(forms_info['not_fitted'])} later form(s) "
+                         f"not fitted: its first form gains {mine:.0f} Pa in training, "
+                         f"under {s.later_forms_min_share:g} x the round's best "
+                         f"({best:.0f} Pa)")
+            elif forms_info["not_fitted"]:
                 sg, sm, sf = settled
                 self.log(f"discover: {g}: {len(forms_info['not_fitted'])} later form(s) "
                          f"not fitted: {sg} form {sm.effect(sg).options()} fits at the "

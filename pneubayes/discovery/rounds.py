@@ -1,15 +1,19 @@
 """One round's trials: the candidate effects' forms, fitted cheapest first, stopping
 once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.DiscoverySettings`
-``form_settled_ratio``)."""
+``form_settled_ratio``); an effect's later forms only while its first form keeps up with
+the round's best (``later_forms_min_share``)."""
 
 from __future__ import annotations
 
 from pneubayes.errors import SimulationError
 
 
-def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None):
+def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
+                    current_Pa: float | None = None, min_share: float = 0.0):
     """Fit a round's candidate forms: ``options`` maps each effect to its forms
-    ``[(model, start), ...]`` in order; ``fit(effect, model, start)`` fits one.
+    ``[(model, start), ...]`` in order; ``fit(effect, model, start, beat_Pa)`` fits one;
+    for a later form ``beat_Pa`` is its effect's first form's training RMSE, which a
+    fit may use to stop early (screening), else None.
     ``follow(effect, model, fit)`` (optional) gives a form to fit next from a fitted
     one, ``(model, start)``, or None (an acoustic line's cells re-chosen from its
     fitted transit time); it is fitted at once, under the same settling rule.
@@ -17,22 +21,31 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None):
     Every effect's first form is fitted; the later (costlier) forms only while no fit of
     the round has a training RMSE at most ``settled_Pa`` (0: fit every form). At the
     noise floor the training fit, which picks among the trials, cannot tell them apart,
-    and an acoustic-line form costs minutes. A form that cannot be simulated from its
+    and an acoustic-line form costs minutes. With ``current_Pa`` (the current model's
+    training RMSE) and ``min_share`` > 0, an effect's later forms are fitted only if its
+    first form's gain ``current_Pa - training RMSE`` is at least ``min_share`` x the
+    largest first-form gain of the round: a later form refines the shape of an effect,
+    and one whose plainest form explains a small share of what another explains is not
+    where the round's misfit is (on a dead zone and a drooping supply, an acoustic line
+    for a tube that is not there cost 40 minutes). A form that cannot be simulated from its
     start or at its fitted point (``FloatingPointError`` from the refinement,
     :class:`~pneubayes.errors.SimulationError`) is a failed trial, not a failed loop.
 
     Returns ``({effect: [(fit, model, start), ...]}`` in form order, the ``(effect,
     model, fit)`` that settled the round or None, ``{effect: [(model, why), ...]}`` of
-    the failed forms).
+    the failed forms, ``{effect: (its first-form gain, the round's largest), Pa}`` of the
+    effects whose later forms were skipped for a small share).
     """
+    if not 0.0 <= min_share <= 1.0:
+        raise ValueError(f"min_share must be in [0, 1], got {min_share}")
     fitted: dict = {g: [] for g in options}
     failed: dict = {g: [] for g in options}
     settled = None
 
-    def run(g, model, start):
+    def run(g, model, start, beat_Pa=None):
         nonlocal settled
         try:
-            f = fit(g, model, start)
+            f = fit(g, model, start, beat_Pa)
         except (FloatingPointError, SimulationError) as exc:
             failed[g].append((model, f"{type(exc).__name__}: {str(exc).splitlines()[0]}"))
             return
@@ -46,9 +59,19 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None):
     for g, forms in options.items():
         if forms:
             run(g, *forms[0])
+    outpaced: dict = {}
+    if current_Pa is not None and min_share > 0:
+        gain = {g: (current_Pa - fitted[g][0][0].train_rmse_Pa if fitted[g] else 0.0)
+                for g in options}
+        best = max(gain.values(), default=0.0)
+        if best > 0:
+            outpaced = {g: (gain[g], best) for g, forms in options.items()
+                        if len(forms) > 1 and gain[g] < min_share * best}
     for g, forms in options.items():
+        if g in outpaced:
+            continue
         for model, start in forms[1:]:
             if settled is not None:
                 break
-            run(g, model, start)
-    return fitted, settled, failed
+            run(g, model, start, fitted[g][0][0].train_rmse_Pa if fitted[g] else None)
+    return fitted, settled, failed, outpaced
