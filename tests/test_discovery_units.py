@@ -532,3 +532,46 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     stages.clear()
     disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first)
     assert stages == ["first", "all"]
+
+
+def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatch):
+    """A trial at zero strength (a 0.16-us sensor lag beside a realistic dead zone and
+    droop) passed on held-out data because its refit moved the other parameters to a
+    basin that predicts better at no better training error; the current model refitted
+    from the trial's point (its control) predicts as well, so the gain is the basin's."""
+    import pneubayes.discovery.loop as loop
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.verification import StepFit
+
+    rng = np.random.default_rng(0)
+    base_mse = 746.0**2 * (1 + 0.1 * rng.random(18))
+
+    names = Model(effects=effects_from_names(["sensor_lag"])).parameter_names
+
+    def fit(model, held_mse, train):
+        return StepFit(model, dict.fromkeys(names, 1.0), train,
+                       float(np.sqrt(held_mse.mean())),
+                       -held_mse / 1e4, held_mse, 500.0, 0.0)
+
+    current = fit(Model(), base_mse, 710.0)
+    better = base_mse * 0.8  # 668 Pa against 746 Pa, every window
+    lagged = Model(effects=effects_from_names(["sensor_lag"]))
+    trial = fit(lagged, better, 709.5)
+    # the control predicts as the trial does, window by window up to noise
+    controls = {"basin": fit(Model(), better * (1 + 0.01 * rng.standard_normal(18)), 710.0),
+                "effect": fit(Model(), base_mse, 710.0)}  # the effect's own gain
+    monkeypatch.setattr(loop, "effect_candidates", lambda *a, **k: [(lagged, {})])
+    monkeypatch.setattr(loop, "fit_round_forms", lambda options, *a, **k: (
+        {g: [(trial, lagged, dict.fromkeys(names, 1.0))] for g in options}, None,
+        {g: [] for g in options}, {}))
+    sindy = type("S", (), {"evidence_": {"sensor_lag": {"inclusion_probability": 1.0}}})()
+    train = [type("R", (), {"rig": lambda self: None})()]
+    for which, passes in (("basin", False), ("effect", True)):
+        disc = loop.Discovery(DiscoverySettings(), log=lambda m: None)
+        monkeypatch.setattr(disc, "_fit", lambda *a, which=which, **k: controls[which])
+        ledger = []
+        _, passing = disc._trials(["sensor_lag"], current,
+                                  (sindy, train, None, None, "k", 500.0, ledger))
+        assert bool(passing) is passes, which
+        (entry,) = [e for e in ledger if e["action"] in ("pass", "reject")]
+        assert entry["not_better_than_control"] is (not passes)

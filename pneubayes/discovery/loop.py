@@ -412,12 +412,24 @@ class Discovery:
                                "heldout_rmse_Pa": control.heldout_rmse_Pa,
                                "heldout_lpd": control.heldout_lpd})
                 current = control
-            trials.append((g, model2, start2, trial, forms_info))
-        # every trial against the final current fit; the best that passes is added
+            trials.append((g, model2, start2, trial, forms_info, control))
+        # every trial against the final current fit, and against its own control (the
+        # current model in the trial's basin, which may predict the held-out part better
+        # than the current fit at no better training error: that gain is the basin's,
+        # not the effect's); the best that passes both is added
         passing = []
         gap_Pa = max(current.heldout_rmse_Pa - noise, 1e-9)
-        for g, model2, start2, trial, forms_info in trials:
+        for g, model2, start2, trial, forms_info, control in trials:
             ok, gain, pval, diff = self._better(trial, current)
+            basin = False
+            if ok and control is not current:
+                basin = not self._better(trial, control)[0]
+                if basin:
+                    self.log(f"discover: {g}: its held-out gain is its basin's: the current "
+                             f"model refitted from the trial's point predicts "
+                             f"{control.heldout_rmse_Pa:.0f} Pa against the trial's "
+                             f"{trial.heldout_rmse_Pa:.0f} Pa")
+            ok = ok and not basin
             closed = (current.heldout_rmse_Pa - trial.heldout_rmse_Pa) / gap_Pa
             small = ok and closed < min_gap_closed
             ok = ok and not small
@@ -431,6 +443,8 @@ class Discovery:
                 "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
                 "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
                 "score_gain": gain, "score_p_value": pval,
+                "control_heldout_rmse_Pa": control.heldout_rmse_Pa,
+                "not_better_than_control": basin,
                 "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
                 "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s})
             self.log(f"discover: {'passes' if ok else 'reject'} {g}: held-out RMSE "
