@@ -26,8 +26,11 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    mean squared error (2-s windows are the independent units) must pass a one-sided
    Wilcoxon signed-rank test at ``max_p_value``, a rank test because the reductions
    are heavy-tailed -- *and* the held-out log predictive density must rise. Otherwise
-   the effect is rejected. Of those that pass, the one with the lowest held-out RMSE
-   is added.
+   the effect is rejected. The trial must also beat its *control*, the current model
+   refitted from the trial's other parameters, the same way: refinement finds local
+   optima, and a trial whose refit only moved the other parameters to a basin that
+   predicts better (an effect fitted to zero strength) carries no gain of its own. Of
+   those that pass, the one with the lowest held-out RMSE is added.
 6. **Prune**: once an effect is added, each earlier one is refitted away; if the model
    without it is not significantly worse (the same test), it only stood in for the
    newcomer and is removed.
