@@ -37,9 +37,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from discovery_study import cached_cases, six_recordings
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
-from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     AcousticTube,
     ClearanceLeak,
@@ -127,20 +127,20 @@ def draw_cases(seed: int) -> list[dict]:
     return cases
 
 
+def _public(case: dict) -> dict:
+    """The case's JSON-ready record (without its form objects)."""
+    return {k: v for k, v in case.items() if not k.startswith("_")}
+
+
 def run_case(case: dict, args, root: Path) -> dict:
     work = root / "work" / case["name"]
     objs = case["_objects"]
     sensor = objs.get("sensor_lag", SensorChain())
     plant = check_forms([f for h, f in objs.items() if h != "sensor_lag"])
-    common = dict(effects=(), forms=plant, duration_s=args.duration, sensor=sensor)
     seed = case["bench_seed"]
-    fixed = run_bench(BenchConfig(case["cylinder"], case["valve"], protocol="fixed",
-                                  seed=seed, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
-                                  **common), work / "fixed", overwrite=True)
-    moving = run_bench(BenchConfig(case["cylinder"], case["valve"], protocol="moving",
-                                   seed=seed + 500, count=2, **common),
-                       work / "moving", overwrite=True)
-    recs = [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
+    paths, _ = six_recordings(case["cylinder"], case["valve"], seed, work, effects=(),
+                              forms=plant, duration_s=args.duration, sensor=sensor)
+    recs = [read_recording(p) for p in paths]
     settings = DiscoverySettings(
         posterior=False, seed=seed, n_bags=40,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed),
@@ -151,7 +151,7 @@ def run_case(case: dict, args, root: Path) -> dict:
     noise = doc["noise_floor_Pa"]
     gap0 = max(doc["rmse_base_Pa"] - noise, 0.0)
     gap1 = max(doc["rmse_final_Pa"] - noise, 0.0)
-    return {k: v for k, v in case.items() if not k.startswith("_")} | {
+    return _public(case) | {
         "named": named, "correct": sorted(named) == sorted(case["hidden"]),
         "planted_named": len(set(named) & set(case["hidden"])),
         "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
@@ -227,26 +227,17 @@ def main(argv=None) -> int:
         cases = [c for c in cases if c["hidden"] == ["tube_delay"]]
     if args.list:
         for c in cases:
-            print(json.dumps({k: v for k, v in c.items() if not k.startswith("_")}))
+            print(json.dumps(_public(c)))
         return 0
     if not args.out:
         ap.error("--out is required unless --list")
     root = Path(args.out)
-    results, t_all = [], time.perf_counter()
-    for i, case in enumerate(cases):
-        path = root / "cases" / f"{case['name']}.json"
-        if path.exists():
-            results.append(json.loads(path.read_text()))
-            print(f"[{i + 1}/{len(cases)}] {case['name']}: cached", flush=True)
-            continue
-        try:
-            res = run_case(case, args, root)
-        except Exception as exc:  # a failed case is recorded and the study goes on
-            res = {k: v for k, v in case.items() if not k.startswith("_")} | {
-                "error": f"{type(exc).__name__}: {exc}", "named": []}
-        write_json_atomic(path, res)
-        results.append(res)
-        print(f"[{i + 1}/{len(cases)}] {case['name']}: done", flush=True)
+    t_all = time.perf_counter()
+    # one word per case: the blind results are read once, in the summary
+    results = cached_cases(
+        [(c["name"], c) for c in cases], root, lambda name, c: run_case(c, args, root),
+        lambda name, c, error: _public(c) | {"error": error, "named": []},
+        lambda res: "done")
     table, md = summarise(results)
     write_json_atomic(root / "summary.json", {
         "seed": args.seed, "duration_s": args.duration, "smoke": args.smoke,

@@ -72,14 +72,43 @@ def bench_case(rig: str, valve: str, hidden: tuple[str, ...], forms: str, seed: 
         effects = effects_from_names(hidden, leak_form="laminar")
         plant = ()
         overrides = LEAK_OVERRIDE if "cylinder_leak" in hidden else {}
-    common = dict(effects=effects, forms=plant, duration_s=duration_s, overrides=overrides,
-                  sensor=sensor)
+    paths, truth = six_recordings(rig, valve, seed, out, effects=effects, forms=plant,
+                                  duration_s=duration_s, overrides=overrides, sensor=sensor)
+    return paths, truth, sensor
+
+
+def six_recordings(rig: str, valve: str, seed: int, out: Path, **bench):
+    """The study's recordings of one case: fixed piston at 50 % and 90 % of the stroke
+    with command ranges +-5 and +-0.5 V (seed), and two moving-piston recordings (seed +
+    500); ``bench``: the other BenchConfig fields. Returns (paths, truth card dict)."""
     fixed = run_bench(BenchConfig(rig, valve, protocol="fixed", seed=seed,
-                                  positions=(0.5, 0.9), ranges_V=(5.0, 0.5), **common),
+                                  positions=(0.5, 0.9), ranges_V=(5.0, 0.5), **bench),
                       out / "fixed", overwrite=True)
     moving = run_bench(BenchConfig(rig, valve, protocol="moving", seed=seed + 500, count=2,
-                                   **common), out / "moving", overwrite=True)
-    return list(fixed.recordings) + list(moving.recordings), fixed.truth, sensor
+                                   **bench), out / "moving", overwrite=True)
+    return list(fixed.recordings) + list(moving.recordings), fixed.truth
+
+
+def cached_cases(cases, root: Path, run, failed, describe) -> list[dict]:
+    """Each ``(name, case)``'s result: read from ROOT/cases/NAME.json when there (an
+    interrupted study resumes), else ``run(name, case)``, or ``failed(name, case,
+    error text)`` when it raises (the study goes on), written atomically; a line per
+    case with ``describe(result)``."""
+    results = []
+    for i, (name, case) in enumerate(cases):
+        path = root / "cases" / f"{name}.json"
+        if path.exists():
+            results.append(json.loads(path.read_text()))
+            print(f"[{i + 1}/{len(cases)}] {name}: cached", flush=True)
+            continue
+        try:
+            res = run(name, case)
+        except Exception as exc:  # a failed case is recorded and the study goes on
+            res = failed(name, case, f"{type(exc).__name__}: {exc}")
+        write_json_atomic(path, res)
+        results.append(res)
+        print(f"[{i + 1}/{len(cases)}] {name}: {describe(res)}", flush=True)
+    return results
 
 
 def run_case(name: str, rig: str, valve: str, hidden, forms: str, seed: int, args, root: Path):
@@ -185,30 +214,28 @@ def main(argv=None) -> int:
     seeds = [int(s) for s in args.seeds.split(",")]
     forms = ("catalogue", "realistic") if args.forms == "both" else (args.forms,)
     cases = list(itertools.product(forms, rigs, conds, seeds))
-    results = []
     t_all = time.perf_counter()
-    for i, (form, (rig, valve), hidden, seed) in enumerate(cases):
-        name = f"{rig}_{valve}_{'+'.join(hidden) or 'none'}_{form}_s{seed}"
-        path = root / "cases" / f"{name}.json"
-        if path.exists():
-            results.append(json.loads(path.read_text()))
-            print(f"[{i + 1}/{len(cases)}] {name}: cached", flush=True)
-            continue
-        try:
-            res = run_case(name, rig, valve, hidden, form, seed, args, root)
-        except Exception as exc:  # a failed case is recorded and the study goes on
-            res = {"case": name, "rig": rig, "valve": valve, "hidden": list(hidden),
-                   "forms": form, "seed": seed, "error": f"{type(exc).__name__}: {exc}",
-                   "named": [], "correct": False, "gap_shrink": None,
-                   "interval_covers_truth": {}}
-        write_json_atomic(path, res)
-        results.append(res)
-        print(f"[{i + 1}/{len(cases)}] {name}: named {res['named'] or 'nothing'} "
-              f"({'correct' if res['correct'] else 'WRONG'}"
-              + (f", gap shrink {100 * res['gap_shrink']:.0f} %" if res.get("gap_shrink")
-                 is not None else "") + (f", {res['error']}" if "error" in res else "")
-              + (f", {res['wall_time_s']:.0f} s" if "wall_time_s" in res else "") + ")",
-              flush=True)
+
+    def failed(name, case, error):
+        form, (rig, valve), hidden, seed = case
+        return {"case": name, "rig": rig, "valve": valve, "hidden": list(hidden),
+                "forms": form, "seed": seed, "error": error, "named": [], "correct": False,
+                "gap_shrink": None, "interval_covers_truth": {}}
+
+    def describe(res):
+        return (f"named {res['named'] or 'nothing'} "
+                f"({'correct' if res['correct'] else 'WRONG'}"
+                + (f", gap shrink {100 * res['gap_shrink']:.0f} %" if res.get("gap_shrink")
+                   is not None else "") + (f", {res['error']}" if "error" in res else "")
+                + (f", {res['wall_time_s']:.0f} s" if "wall_time_s" in res else "") + ")")
+
+    named_cases = [(f"{rig}_{valve}_{'+'.join(hidden) or 'none'}_{form}_s{seed}",
+                    (form, (rig, valve), hidden, seed))
+                   for form, (rig, valve), hidden, seed in cases]
+    results = cached_cases(
+        named_cases, root,
+        lambda name, c: run_case(name, c[1][0], c[1][1], c[2], c[0], c[3], args, root),
+        failed, describe)
     table, md = summarise(results)
     config = {"argv": list(argv if argv is not None else sys.argv[1:]), "rigs": args.rigs,
               "conditions": args.conditions, "forms": args.forms, "seeds": seeds,

@@ -59,10 +59,11 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     for g, forms in options.items():
         if forms:
             run(g, *forms[0])
+    # each effect's first form's training RMSE (None: it failed)
+    first_Pa = {g: fitted[g][0][0].train_rmse_Pa if fitted[g] else None for g in options}
     outpaced: dict = {}
     if current_Pa is not None and min_share > 0:
-        gain = {g: (current_Pa - fitted[g][0][0].train_rmse_Pa if fitted[g] else 0.0)
-                for g in options}
+        gain = {g: 0.0 if v is None else current_Pa - v for g, v in first_Pa.items()}
         best = max(gain.values(), default=0.0)
         if best > 0:
             outpaced = {g: (gain[g], best) for g, forms in options.items()
@@ -73,5 +74,5 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         for model, start in forms[1:]:
             if settled is not None:
                 break
-            run(g, model, start, fitted[g][0][0].train_rmse_Pa if fitted[g] else None)
+            run(g, model, start, first_Pa[g])
     return fitted, settled, failed, outpaced

@@ -68,7 +68,8 @@ class DiscoverySettings:
     an acoustic line for a tube that was not planted (a dead zone and a drooping supply
     on SMC/valve2) ran 40 minutes on one core without finishing. On a 3-m tube the
     transport form's gain was 0.75 and 0.84 of the round's best (a sensor or spool lag
-    standing in) while the line closed 60 % of the error, so the default is low (0.25).
+    standing in) while the line cut the training RMSE from 1936 to 827 Pa, so the
+    default is low (0.25).
     A later form with parameters to fit first (the line's own) is also screened: if
     that first stage does not beat its effect's first form in training, it is not
     refined further.
