@@ -451,6 +451,21 @@ def test_a_named_tubes_line_candidate_gets_the_cells_its_start_delay_needs(rig):
     assert line_cells(0.02, most=3) == 3
 
 
+def test_a_named_sensor_lag_is_fitted_in_both_orders_on_the_pressure_and_on_every_channel(
+        rig):
+    from pneubayes.effects import make_effect
+    from pneubayes.effects.discovery import CandidateContext
+    ctx = CandidateContext(model=Model(), params={}, rig=rig,
+                           term_start={"sensor_time_constant_s": 8e-4},
+                           second_state_free=True, line_segments=8, dead_volume_m3=1e-4)
+    forms = make_effect("sensor_lag").candidate_forms(ctx)
+    assert [(f.form, f.channels) for f, _ in forms] == [
+        ("first_order", "pressure"), ("second_order", "pressure"), ("first_order", "all"),
+        ("second_order", "all")]
+    # every form starts at the best term's group delay
+    assert [s[f.lead_parameter()] for f, s in forms] == [8e-4] * 4
+
+
 def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(rig):
     """The line's start delay comes from a transport-delay term; when its fit finds a
     transit time that needs more cells, the round fits the line again with them, from

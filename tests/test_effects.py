@@ -31,10 +31,11 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
             ("tube_delay", {}), ("tube_delay", {"form": "line", "segments": 3}),
             ("valve_deadzone", {}), ("supply_fluctuation", {}),
             ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
-            ("spool_lag", {}), ("sensor_lag", {}), ("sensor_lag", {"form": "second_order"})]
+            ("spool_lag", {}), ("sensor_lag", {}), ("sensor_lag", {"form": "second_order"}),
+            ("sensor_lag", {"form": "second_order", "channels": "all"})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "valve_deadzone",
        "supply_fluctuation", "heat_rate", "heat_convective", "spool_lag", "sensor_lag",
-       "sensor_lag_2"]
+       "sensor_lag_2", "sensor_lag_2_all"]
 
 
 def _tight():

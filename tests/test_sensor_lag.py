@@ -129,6 +129,54 @@ def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, form
     assert np.max(np.abs(plain - ref)) > 10 * np.max(np.abs(got - ref))
 
 
+@pytest.mark.parametrize("form,lag,samples", [
+    ("first_order", {"sensor_time_constant_s": 2e-3}, 2),
+    ("second_order", {"sensor_delay_s": 3e-3, "sensor_damping": 0.7071}, 3)])
+def test_a_lag_on_every_channel_reads_position_and_supply_ahead_by_its_group_delay(
+        rig, hand, form, lag, samples):
+    """``channels="all"``: the chamber sees the measured position and supply at t + D
+    (D the group delay). With D a whole number of sample intervals that is the
+    pressure-only lag on inputs shifted by as many samples (the last one held), which
+    the integrator steps with the same break points: the two agree to its tolerance."""
+    n = 601
+    inputs = _steps(hand, 12, n, 1e-3, hold_s=(0.01, 0.05))
+    ahead = np.minimum(np.arange(n) + samples, n - 1)
+    shifted = Inputs(inputs.time_s, inputs.command_V, inputs.position_m[ahead],
+                     inputs.supply_pressure_Pa[ahead])
+    params = dict(_params(None, 2e-7), **lag)
+    every = Model([make_effect("sensor_lag", form=form, channels="all")])
+    pressure = Model([make_effect("sensor_lag", form=form)])
+    got = simulate(every, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    want = simulate(pressure, params, shifted, rig, 2e5, TIGHT).pressure_Pa[0]
+    assert np.max(np.abs(got - want)) <= 1e-6 * RANGE
+    # and the advance matters: the reading with unshifted inputs differs by far more
+    late = simulate(pressure, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    assert np.max(np.abs(late - want)) > 1e-3 * RANGE
+
+
+def test_a_lag_on_every_channel_agrees_with_the_reference_solver(rig, hand):
+    """A group delay that is not a whole sample (0.37 ms): the reference solver cuts its
+    intervals at the shifted sample times and reads position and supply there."""
+    inputs = _steps(hand, 13, 301, 1e-3, hold_s=(0.01, 0.05))
+    model = Model([make_effect("sensor_lag", channels="all")])
+    params = _params(3.7e-4, 2e-7)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    got = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
+    pressure = simulate(Model(["sensor_lag"]), params, inputs, rig, 2e5,
+                        SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(pressure - ref)) > 10 * np.max(np.abs(got - ref))
+
+
+def test_a_sensor_lag_names_its_channels_or_refuses():
+    assert make_effect("sensor_lag").options() == {"form": "first_order"}
+    every = make_effect("sensor_lag", form="second_order", channels="all")
+    assert every.options() == {"form": "second_order", "channels": "all"}
+    assert every != make_effect("sensor_lag", form="second_order")
+    with pytest.raises(ValueError, match="channels must be one of"):
+        make_effect("sensor_lag", channels="both").parameters()
+
+
 def test_halving_the_sample_interval_gives_the_same_reading(rig, hand):
     n = 401
     coarse = _steps(hand, 9, n, 1e-3, hold_s=(0.01, 0.05))

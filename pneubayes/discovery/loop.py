@@ -92,9 +92,11 @@ from pneubayes.model import Model
 
 def _form(model: Model, group: str) -> str:
     """The form of a model's effect (``"-"`` for an effect with one form; an acoustic
-    line's with its cells, ``"line/8"``)."""
+    line's with its cells, ``"line/8"``; a sensor lag on every channel
+    ``"first_order/all"``)."""
     opts = model.effect(group).options()
-    return str(opts.get("form", "-")) + (f"/{opts['segments']}" if "segments" in opts else "")
+    return (str(opts.get("form", "-")) + (f"/{opts['segments']}" if "segments" in opts else "")
+            + (f"/{opts['channels']}" if "channels" in opts else ""))
 
 
 def _effects_label(model: Model) -> str:
@@ -391,7 +393,7 @@ class Discovery:
             if len(forms) > 1:
                 self.log(f"discover: {g}: form {model2.effect(g).options()} fits best "
                          "(training RMSE " + ", ".join(
-                             f"{m.effect(g).options().get('form')} {f.train_rmse_Pa:.0f} Pa"
+                             f"{_form(m, g)} {f.train_rmse_Pa:.0f} Pa"
                              for f, m, _ in forms) + ")")
             # control: the current model refined from the trial's other parameters.
             # Refinement finds local optima; if the trial's gain came from moving the

@@ -98,6 +98,10 @@ SLOTS += (
      "w; > 0 makes the reading and its rate states, and overrides the first-order lag "
      "(rad/s)"),
     ("sensor_damping", "the second-order reading lag's damping ratio z (-)"),
+    ("inputs_advance_s", "the measured position and supply passed the reading's lag too "
+     "(an undeclared filter on every channel of the DAQ): the chamber at time t sees them "
+     "as measured at t + this advance, the lag's group delay; beyond the last sample they "
+     "hold its value (s)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

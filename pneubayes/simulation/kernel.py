@@ -120,6 +120,7 @@ _TAB_MAX = TABLE_MAX_POINTS
 _SENSOR = SLOT_INDEX["sensor_time_constant_s"]
 _SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
 _SENSOR_Z = SLOT_INDEX["sensor_damping"]
+_ADVANCE = SLOT_INDEX["inputs_advance_s"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -223,6 +224,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     chamber's lead on the reading it reached: the model's own rate through the lag,
     where the recording gives only the reading.
 
+    With slot ``inputs_advance_s`` a > 0 (a sensor lag on every channel of the DAQ) the
+    position ``x`` and supply ``ps`` are read at t + a: linear between their samples,
+    whose times shifted by -a are break points of the steps, and held after the last.
+
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
 
@@ -254,6 +259,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     max_steps = (length - 1) + int(sv[S_MAX_STEPS_PER_S] * (t[i0 + length - 1] - t[i0]))
     delay, tau_s, dead = sl[_DELAY], sl[_SPOOL], sl[_DEAD]
     gain = sl[_SUPG]
+    # position and supply are read at t + adv (linear between their samples, held after
+    # the last): their sample times, shifted by -adv, are break points of the steps
+    adv = sl[_ADVANCE]
     p_nom = cs[C_P_NOM]
     v0, bore = sl[_VOL], cs[C_BORE_AREA]
     thermal = sl[_HEAT] > 0.0 or sl[_HCONV] > 0.0
@@ -325,6 +333,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     while j + 1 < n and t[j + 1] + delay <= t_start:
         j += 1
     spool = u[j]  # steady spool at the start of the recording
+    # Input pointer: index m of the position/supply segment that holds time t + adv.
+    m = 0
+    while m + 1 < n and t[m + 1] - adv <= t_start:
+        m += 1
     if tau_s > 0.0 and k0 > 0:
         # mid-recording: the spool state follows from the command history (the lag in
         # closed form over the held samples of up to 20 time constants before t_start)
@@ -349,15 +361,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             if general is not None and line:
                 y[0] = p
             s_p0, s_r, s_v = 1.0, 1.0, 0.0
-        ta, tb = t[k], t[k + 1]
-        seg = tb - ta
-        inv_seg = 1.0 / seg
-        xa, xb = x[k], x[k + 1]
-        vdot = bore * (xb - xa) * inv_seg
-        sa, sb = ps[k], ps[k + 1]
-        dsup = gain * (sb - sa) * inv_seg
+        tb = t[k + 1]
         a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
-        tau = ta
+        tau = t[k]
         while tau < tb:
             # Sub-interval [tau, t_end) on which the delayed command is constant.
             while j + 1 < n and t[j + 1] + delay <= tau:
@@ -366,6 +372,20 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             t_end = tb
             if j + 1 < n and t[j + 1] + delay < tb:
                 t_end = t[j + 1] + delay
+            # position and supply: linear from (ta, xa / sa) on the sub-interval
+            while m + 1 < n and t[m + 1] - adv <= tau:
+                m += 1
+            if m + 1 < n:
+                ta = t[m] - adv
+                inv_seg = 1.0 / (t[m + 1] - t[m])
+                xa, xb, sa, sb = x[m], x[m + 1], ps[m], ps[m + 1]
+                if t[m + 1] - adv < t_end:
+                    t_end = t[m + 1] - adv
+            else:  # read past the last sample: its values, held
+                ta, inv_seg = tau, 0.0
+                xa, xb, sa, sb = x[m], x[m], ps[m], ps[m]
+            vdot = bore * (xb - xa) * inv_seg
+            dsup = gain * (sb - sa) * inv_seg
             spool_a, t_sub = spool, tau
             # Port areas are constant on the sub-interval unless the spool moves; the
             # command is held for many samples, so reuse them while it is unchanged.

@@ -160,7 +160,9 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
 
     Break points are the sample times and the delayed-command switch times; on each
     interval the command is constant and position and supply are linear, as in the
-    compiled integrator. A supply tank is one more state, integrated with the chamber
+    compiled integrator (with a sensor lag on every channel, position and supply read
+    ahead by its group delay, whose shifted sample times are break points too). A
+    supply tank is one more state, integrated with the chamber
     (the compiled integrator couples it by splitting). A sensor lag's reading is the
     last state (a second-order lag's: the last two, the reading and its rate): it
     starts at ``initial_pressure_Pa`` (its rate at ``initial_rate_Pa_per_s``) and the
@@ -209,17 +211,30 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     read = -2 if w_r > 0 else (-1 if lag > 0 else 0)
     out[0] = y[read]
     nfev = 0
+    # position and supply are read at t + adv (a filter on every channel, effect
+    # sensor_lag), linear between their samples, held after the last
+    adv = sl[S["inputs_advance_s"]]
+    early = t - adv
+
+    def measured(a):
+        """(x, dx/dt * bore area, segment start, its length, supply at both ends) of the
+        input segment holding time ``a + adv``."""
+        m = int(np.searchsorted(early, a, side="right") - 1)
+        if m + 1 >= t.size:
+            return x[-1], 0.0, a, 1.0, ps[-1], ps[-1]
+        seg = t[m + 1] - t[m]
+        return (x[m], rig.bore_area_m2 * (x[m + 1] - x[m]) / seg, early[m], seg, ps[m],
+                ps[m + 1])
     for k in range(t.size - 1):
         ta, tb = t[k], t[k + 1]
-        seg = tb - ta
-        vdot = rig.bore_area_m2 * (x[k + 1] - x[k]) / seg
         shifted = t + delay
-        cuts = shifted[(shifted > ta) & (shifted < tb)]
+        cuts = np.union1d(shifted[(shifted > ta) & (shifted < tb)],
+                          early[(early > ta) & (early < tb)])
         edges = np.concatenate([[ta], cuts, [tb]])
         for a, b in zip(edges[:-1], edges[1:]):
             jj = int(np.searchsorted(shifted, a, side="right") - 1)
             cmd = held(jj)
-            rhs = _rhs_factory(sl, rig, cmd, x[k], vdot, ta, seg, ps[k], ps[k + 1], ue[k])
+            rhs = _rhs_factory(sl, rig, cmd, *measured(a), ue[k])
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
                             atol=atols)
             if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
