@@ -590,3 +590,25 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
         assert bool(passing) is passes, which
         (entry,) = [e for e in ledger if e["action"] in ("pass", "reject")]
         assert entry["not_better_than_control"] is (not passes)
+
+
+def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_passed():
+    """A four-effect AIR37 rig: the round's saturated candidates closed at most 14 % of
+    the held-out gap (9125 -> 7878 Pa, noise 521 Pa) while the dead zone, never
+    supported by the one-step search, closed 58 %: the rest of the library is tried
+    when the best that passed closes under ``last_resort_best_gap_closed``."""
+    from pneubayes.discovery.loop import last_resort_reason
+    from pneubayes.discovery.settings import DiscoverySettings
+
+    s = DiscoverySettings()
+    why, closed = last_resort_reason([], 9125.0, 521.0, s)
+    assert why == "no candidate passed" and closed == 0.0
+    why, closed = last_resort_reason([8928.0, 7878.0], 9125.0, 521.0, s)
+    assert why == "the best candidate closes 14% of its gap"
+    assert closed == pytest.approx((9125 - 7878) / (9125 - 521))
+    why, closed = last_resort_reason([7878.0, 4000.0], 9125.0, 521.0, s)
+    assert why is None and closed > 0.5
+    off = DiscoverySettings(last_resort_best_gap_closed=0.0)
+    assert last_resort_reason([8928.0], 9125.0, 521.0, off)[0] is None
+    with pytest.raises(ValueError, match="last_resort_best_gap_closed"):
+        DiscoverySettings(last_resort_best_gap_closed=1.5)

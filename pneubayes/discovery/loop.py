@@ -19,8 +19,9 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    fitted first, do not beat its effect's first form is not refined further (a line
    for a tube that is not there costs tens of minutes). While the held-out
    error is far above the noise, weakly supported groups are tried too (see
-   ``gap_fallback_ratio``), and if none of those passes either, every other group, as
-   a last resort that must close a quarter of the gap (``try_all_on_gap``).
+   ``gap_fallback_ratio``), and if none of those passes either, or the best that passes
+   closes under a quarter of the gap (``last_resort_best_gap_closed``), every other
+   group, as a last resort that must close a quarter of the gap (``try_all_on_gap``).
 5. **Verify** on the held-out part (the last ``holdout_fraction`` of every recording):
    the 2-s prediction RMSE must drop, significantly -- the per-window reductions of the
    mean squared error (2-s windows are the independent units) must pass a one-sided
@@ -88,6 +89,20 @@ from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
+
+
+def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
+                       settings: DiscoverySettings) -> tuple[str | None, float]:
+    """Why a round with a large gap should try the rest of the library (None: it need
+    not), and the share of the held-out gap above the noise floor the best trial that
+    passed (held-out RMSEs ``passed_rmse_Pa``, Pa) closes: none passed, or the best
+    closes less than ``settings.last_resort_best_gap_closed``."""
+    if not len(passed_rmse_Pa):
+        return "no candidate passed", 0.0
+    closed = (heldout_rmse_Pa - min(passed_rmse_Pa)) / max(heldout_rmse_Pa - noise_Pa, 1e-12)
+    if closed < settings.last_resort_best_gap_closed:
+        return f"the best candidate closes {closed:.0%} of its gap", closed
+    return None, closed
 
 
 def _form(model: Model, group: str) -> str:
@@ -291,14 +306,18 @@ class Discovery:
             current, passing = self._trials(candidates, current, ctx)
             rest = [g for g in sindy.ranking_ if g not in candidates]
             gap = gap and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise
-            if not passing and gap and s.try_all_on_gap and rest:
+            why, closed = last_resort_reason([t[0] for t in passing],
+                                             current.heldout_rmse_Pa, noise, s)
+            if why and gap and s.try_all_on_gap and rest:
                 self.log(f"discover: the held-out error is still "
-                         f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor and no "
-                         f"candidate passed: trying the rest ({', '.join(rest)})")
+                         f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor and {why}: "
+                         f"trying the rest ({', '.join(rest)})")
                 ledger.append({"step": len(ledger), "action": "last resort",
-                               "round": round_, "groups": rest})
-                current, passing = self._trials(rest, current, ctx,
-                                                s.last_resort_min_gap_closed)
+                               "round": round_, "groups": rest,
+                               "best_gap_closed_before": closed})
+                current, more = self._trials(rest, current, ctx,
+                                             s.last_resort_min_gap_closed)
+                passing = passing + more
             added = bool(passing)
             if passing:
                 _, g, trial, gain, pval = min(passing, key=lambda t: t[0])

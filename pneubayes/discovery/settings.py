@@ -48,6 +48,12 @@ class DiscoverySettings:
     such a group must also close this fraction of the held-out RMSE's gap above the
     noise floor (the last resort is there to explain a large gap; on that case a tube
     delay passed the signed-rank test while closing 1 % of it).
+    last_resort_best_gap_closed: the last resort also runs when candidates passed but
+    the best of them closes less than this share of the gap (0: only when none passed);
+    the best of all that passed is added. A dead zone's one-step inclusion can be 0
+    beside faster effects: on a four-effect AIR37 rig (tube, dead zone, droop, leak) the
+    round's three saturated candidates closed at most 14 % of the gap, the leak was
+    added, and the dead zone (58 %) waited for a round in which nothing passed.
     tube_line_segments: the most cells of the acoustic-line form tried for a named tube;
     0 tries the transport delay only. A line step costs tens of times a plain one, and
     more with more cells. tube_line_cutoff_Hz: the line gets the fewest cells, at least
@@ -93,6 +99,7 @@ class DiscoverySettings:
     fallback_min_inclusion: float = 0.25
     try_all_on_gap: bool = True
     last_resort_min_gap_closed: float = 0.25
+    last_resort_best_gap_closed: float = 0.25
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
     form_settled_ratio: float = 1.05
@@ -124,6 +131,9 @@ class DiscoverySettings:
         if not (self.gap_fallback_ratio == 0.0 or self.gap_fallback_ratio >= 1.0):
             raise ValueError(f"gap_fallback_ratio must be 0 (off) or >= 1, got "
                              f"{self.gap_fallback_ratio}")
+        if not 0.0 <= self.last_resort_best_gap_closed <= 1.0:
+            raise ValueError("last_resort_best_gap_closed must be in [0, 1], got "
+                             f"{self.last_resort_best_gap_closed}")
         if not 0.0 <= self.last_resort_min_gap_closed <= 1.0:
             raise ValueError("last_resort_min_gap_closed must be in [0, 1], got "
                              f"{self.last_resort_min_gap_closed}")
