@@ -429,7 +429,10 @@ class Discovery:
                 control = current
             if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
                 self.log(f"discover: a better optimum of the current model: train RMSE "
-                         f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")
+                         f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa "
+                         f"({current.train_rmse_Pa - control.train_rmse_Pa:.2g} Pa lower; "
+                         f"held-out {current.heldout_rmse_Pa:.0f} -> "
+                         f"{control.heldout_rmse_Pa:.0f} Pa)")
                 ledger.append({"step": len(ledger), "action": "refit current",
                                "model": list(current.model.effect_names),
                                "train_rmse_Pa": control.train_rmse_Pa,
