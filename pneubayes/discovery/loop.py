@@ -42,8 +42,9 @@ The final model gets an emcee posterior on the training data. A ledger records e
 step; finished fits are cached in ``RUNDIR/steps`` so an interrupted run resumes.
 
 The held-out score is a plug-in log predictive density: the refined parameters, each
-held-out sample scored by a Gaussian whose scale is the RMS error of the *other* held-out
-windows (:func:`~pneubayes.discovery.verification.crossfit_window_lpd`). With thousands
+held-out sample scored by a Student-t (``score_dof``) whose standard deviation is the RMS
+error of the *other* held-out windows
+(:func:`~pneubayes.discovery.verification.crossfit_window_lpd`). With thousands
 of residuals per window set the parameter uncertainty is far below the noise, so the
 plug-in is close to the full posterior predictive, at a fraction of the cost. Two
 earlier forms failed on real cases: the noise taken from the *training* residuals (a
@@ -199,7 +200,8 @@ class Discovery:
         sig, rho = ar1_noise_mode(ar1_sums(r_tr)[0], r_tr[0].size)
         r_ho = held_ws.residuals(model, theta, s.fit.refine_solver)[0]
         return StepFit(model, params, float(np.sqrt(np.mean(r_tr**2))),
-                       float(np.sqrt(np.mean(r_ho**2))), crossfit_window_lpd(r_ho),
+                       float(np.sqrt(np.mean(r_ho**2))),
+                       crossfit_window_lpd(r_ho, s.score_dof),
                        np.mean(r_ho**2, axis=1), sig, rho,
                        wall_time_s=time.perf_counter() - t0)
 

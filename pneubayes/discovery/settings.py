@@ -48,6 +48,10 @@ class DiscoverySettings:
     such a group must also close this fraction of the held-out RMSE's gap above the
     noise floor (the last resort is there to explain a large gap; on that case a tube
     delay passed the signed-rank test while closing 1 % of it).
+    score_dof: degrees of freedom of the Student-t that scores each held-out sample in
+    the cross-fitted log predictive density (verification's second test; see
+    :func:`~pneubayes.discovery.verification.crossfit_window_lpd`). Its tails keep one
+    window that no model explains from outweighing the others.
     last_resort_best_gap_closed: the last resort also runs when candidates passed but
     the best of them closes less than this share of the gap (0: only when none passed);
     the best of all that passed is added. A dead zone's one-step inclusion can be 0
@@ -100,6 +104,7 @@ class DiscoverySettings:
     try_all_on_gap: bool = True
     last_resort_min_gap_closed: float = 0.25
     last_resort_best_gap_closed: float = 0.25
+    score_dof: float = 4.0
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
     form_settled_ratio: float = 1.05
@@ -131,6 +136,9 @@ class DiscoverySettings:
         if not (self.gap_fallback_ratio == 0.0 or self.gap_fallback_ratio >= 1.0):
             raise ValueError(f"gap_fallback_ratio must be 0 (off) or >= 1, got "
                              f"{self.gap_fallback_ratio}")
+        if not self.score_dof > 2.0:
+            raise ValueError(f"score_dof must be > 2 (a finite variance), got "
+                             f"{self.score_dof}")
         if not 0.0 <= self.last_resort_best_gap_closed <= 1.0:
             raise ValueError("last_resort_best_gap_closed must be in [0, 1], got "
                              f"{self.last_resort_best_gap_closed}")

@@ -77,14 +77,37 @@ def window_lpd(res: np.ndarray, sigma) -> np.ndarray:
             - 0.5 * k * math.log(2.0 * math.pi))
 
 
-def crossfit_window_lpd(res: np.ndarray) -> np.ndarray:
+def window_lpd_t(res: np.ndarray, sigma, dof: float) -> np.ndarray:
+    """Student-t log-density of each window's residuals ``(W, K)`` -> ``(W,)``, each
+    sample scored by a t of ``dof`` degrees of freedom (> 2) whose standard deviation is
+    ``sigma`` (Pa; a scalar or one per window)."""
+    if not dof > 2.0:
+        raise ValueError(f"dof must be > 2 (a finite variance), got {dof}")
+    r = np.asarray(res, dtype=np.float64)
+    sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (r.shape[0],))
+    k = r.shape[1]
+    scale = sig * math.sqrt((dof - 2.0) / dof)
+    norm = (math.lgamma(0.5 * (dof + 1.0)) - math.lgamma(0.5 * dof)
+            - 0.5 * math.log(dof * math.pi))
+    z2 = (r / scale[:, None]) ** 2
+    return (k * (norm - np.log(scale))
+            - 0.5 * (dof + 1.0) * np.sum(np.log1p(z2 / dof), axis=1))
+
+
+def crossfit_window_lpd(res: np.ndarray, dof: float) -> np.ndarray:
     """Leave-one-window-out log predictive density of residuals ``(W, K)`` (Pa).
 
-    Window ``w`` is scored by :func:`window_lpd` with the scale of all *other* windows'
-    residuals (their RMS), so the score is out of sample for the scale as well as the
-    model. Samples are scored by their marginal density, not jointly under AR(1): a
-    fitted AR(1) describes a large but smooth error as a cheap random walk and scored a
-    model with 2.4x the held-out RMSE above the better one.
+    Window ``w`` is scored by :func:`window_lpd_t` with the standard deviation of all
+    *other* windows' residuals (their RMS), so the score is out of sample for the scale
+    as well as the model. Samples are scored by their marginal density, not jointly
+    under AR(1): a fitted AR(1) describes a large but smooth error as a cheap random
+    walk and scored a model with 2.4x the held-out RMSE above the better one. The
+    density is a Student-t of ``dof`` degrees of freedom, not a Gaussian: misfit is
+    uneven across windows, and under one Gaussian scale a window no model explains
+    costs quadratically, and the more the better the model is elsewhere. On a
+    four-effect AIR200 rig an acoustic line cut the held-out RMSE from 2905 to 2427 Pa,
+    better in 17 of 18 windows (p = 8e-6), and lost 17957 nats to one window that every
+    model missed by about 9 kPa.
     """
     r = np.asarray(res, dtype=np.float64)
     w, k = r.shape
@@ -92,7 +115,7 @@ def crossfit_window_lpd(res: np.ndarray) -> np.ndarray:
         raise ValueError(f"cross-fitted held-out score needs >= 2 windows, got {w}")
     ss = np.sum(r * r, axis=1)
     sigma = np.sqrt((ss.sum() - ss) / ((w - 1) * k))
-    return window_lpd(r, sigma)
+    return window_lpd_t(r, sigma, dof)
 
 
 def signed_rank_p(diff: np.ndarray) -> float:
