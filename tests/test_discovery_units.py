@@ -250,17 +250,29 @@ def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():
         crossfit_window_lpd(res, 2.0)
 
 
+def _gaussian_window_lpd(res, sigma):
+    """Each window's residuals ``(W, K)`` under N(0, sigma^2), ``sigma`` one per window
+    or a scalar: the Gaussian scores the loop used before its Student-t."""
+    from scipy.stats import norm
+
+    sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (res.shape[0],))
+    return np.sum(norm.logpdf(res, 0.0, sig[:, None]), axis=1)
+
+
+def _heldout_fit(res, lpd, train_sigma=1.0):
+    """A StepFit that carries only held-out residuals ``res`` and their scores ``lpd``."""
+    from pneubayes.discovery.verification import StepFit
+
+    return StepFit(Model(), {}, train_sigma, float(np.sqrt(np.mean(res**2))), lpd,
+                   np.mean(res**2, axis=1), train_sigma, 0.0)
+
+
 def test_a_window_no_model_explains_does_not_outweigh_the_windows_a_trial_improves():
     """An AIR200 rig's acoustic line: better in 17 of 18 held-out windows, and one
     window every model misses by ~9 kPa. Scored under one Gaussian scale the shared miss
     costs the trial more than its gains elsewhere (its other windows, now smaller, set a
     smaller scale); under the Student-t score the trial passes."""
-    from pneubayes.discovery.verification import (
-        StepFit,
-        compare_heldout,
-        crossfit_window_lpd,
-        window_lpd,
-    )
+    from pneubayes.discovery.verification import compare_heldout, crossfit_window_lpd
 
     rng = np.random.default_rng(6)
     miss = rng.normal(0.0, 8800.0, (1, 2000))
@@ -269,17 +281,15 @@ def test_a_window_no_model_explains_does_not_outweigh_the_windows_a_trial_improv
 
     def gaussian(r):
         ss = np.sum(r * r, axis=1)
-        return window_lpd(r, np.sqrt((ss.sum() - ss) / ((r.shape[0] - 1) * r.shape[1])))
+        return _gaussian_window_lpd(r, np.sqrt((ss.sum() - ss)
+                                               / ((r.shape[0] - 1) * r.shape[1])))
 
-    def step(res, lpd):
-        return StepFit(Model(), {}, 1.0, float(np.sqrt(np.mean(res**2))), lpd,
-                       np.mean(res**2, axis=1), 1.0, 0.0)
-
-    ok, gain, p, _ = compare_heldout(step(trial, gaussian(trial)),
-                                     step(current, gaussian(current)), 0.01)
+    ok, gain, p, _ = compare_heldout(_heldout_fit(trial, gaussian(trial)),
+                                     _heldout_fit(current, gaussian(current)), 0.01)
     assert not ok and gain < 0 and p < 1e-3  # the defect
-    ok, gain, p, _ = compare_heldout(step(trial, crossfit_window_lpd(trial, 4.0)),
-                                     step(current, crossfit_window_lpd(current, 4.0)), 0.01)
+    ok, gain, p, _ = compare_heldout(_heldout_fit(trial, crossfit_window_lpd(trial, 4.0)),
+                                     _heldout_fit(current, crossfit_window_lpd(current, 4.0)),
+                                     0.01)
     assert ok and gain > 0
 
 
@@ -288,24 +298,18 @@ def test_heldout_score_favours_the_better_predictor_whatever_its_training_fit():
     tube shows more on held-out data) and its held-out errors were 2.7x smaller than the
     reduced model's, yet a density using each model's training noise preferred the
     reduced model. The cross-fitted score must not."""
-    from pneubayes.discovery.verification import (
-        StepFit,
-        compare_heldout,
-        crossfit_window_lpd,
-        window_lpd,
-    )
+    from pneubayes.discovery.verification import compare_heldout, crossfit_window_lpd
 
     rng = np.random.default_rng(4)
     full = rng.normal(0.0, 2200.0, (12, 2000))
     reduced = rng.normal(0.0, 5900.0, (12, 2000))
 
     def step(res, train_sigma, lpd):
-        return StepFit(Model(), {}, train_sigma, float(np.sqrt(np.mean(res**2))), lpd,
-                       np.mean(res**2, axis=1), train_sigma, 0.0)
+        return _heldout_fit(res, lpd, train_sigma)
 
     # the old plug-in: each model's own training noise (520 vs 2500 Pa)
-    old_full = step(full, 520.0, window_lpd(full, 520.0))
-    old_reduced = step(reduced, 2500.0, window_lpd(reduced, 2500.0))
+    old_full = step(full, 520.0, _gaussian_window_lpd(full, 520.0))
+    old_reduced = step(reduced, 2500.0, _gaussian_window_lpd(reduced, 2500.0))
     assert not compare_heldout(old_full, old_reduced, 0.05)[0]  # the defect
     # a joint AR(1) density with its noise fitted prefers a large smooth error (a
     # random walk) to a small rough one
@@ -635,7 +639,7 @@ def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_pass
     the held-out gap (9125 -> 7878 Pa, noise 521 Pa) while the dead zone, never
     supported by the one-step search, closed 58 %: the rest of the library is tried
     when the best that passed closes under ``last_resort_best_gap_closed``."""
-    from pneubayes.discovery.loop import last_resort_reason
+    from pneubayes.discovery.rounds import last_resort_reason
     from pneubayes.discovery.settings import DiscoverySettings
 
     s = DiscoverySettings()

@@ -71,7 +71,7 @@ from pneubayes.discovery.disagreement import disagreement_map, flagged_bins
 from pneubayes.discovery.library import build_library
 from pneubayes.discovery.one_step import one_step_data
 from pneubayes.discovery.result import DiscoveryResult
-from pneubayes.discovery.rounds import fit_round_forms
+from pneubayes.discovery.rounds import fit_round_forms, last_resort_reason
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.sindy import GroupedSINDy
 from pneubayes.discovery.verification import (
@@ -90,20 +90,6 @@ from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
-
-
-def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
-                       settings: DiscoverySettings) -> tuple[str | None, float]:
-    """Why a round with a large gap should try the rest of the library (None: it need
-    not), and the share of the held-out gap above the noise floor the best trial that
-    passed (held-out RMSEs ``passed_rmse_Pa``, Pa) closes: none passed, or the best
-    closes less than ``settings.last_resort_best_gap_closed``."""
-    if not len(passed_rmse_Pa):
-        return "no candidate passed", 0.0
-    closed = (heldout_rmse_Pa - min(passed_rmse_Pa)) / max(heldout_rmse_Pa - noise_Pa, 1e-12)
-    if closed < settings.last_resort_best_gap_closed:
-        return f"the best candidate closes {closed:.0%} of its gap", closed
-    return None, closed
 
 
 def _form(model: Model, group: str) -> str:

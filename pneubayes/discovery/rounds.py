@@ -1,10 +1,12 @@
 """One round's trials: the candidate effects' forms, fitted cheapest first, stopping
 once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.DiscoverySettings`
 ``form_settled_ratio``); an effect's later forms only while its first form keeps up with
-the round's best (``later_forms_min_share``)."""
+the round's best (``later_forms_min_share``); and whether a round's results call for the
+last resort (:func:`last_resort_reason`)."""
 
 from __future__ import annotations
 
+from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.errors import SimulationError
 
 
@@ -76,3 +78,17 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
                 break
             run(g, model, start, first_Pa[g])
     return fitted, settled, failed, outpaced
+
+
+def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
+                       settings: DiscoverySettings) -> tuple[str | None, float]:
+    """Why a round with a large gap should try the rest of the library (None: it need
+    not), and the share of the held-out gap above the noise floor the best trial that
+    passed (held-out RMSEs ``passed_rmse_Pa``, Pa) closes: none passed, or the best
+    closes less than ``settings.last_resort_best_gap_closed``."""
+    if not len(passed_rmse_Pa):
+        return "no candidate passed", 0.0
+    closed = (heldout_rmse_Pa - min(passed_rmse_Pa)) / max(heldout_rmse_Pa - noise_Pa, 1e-12)
+    if closed < settings.last_resort_best_gap_closed:
+        return f"the best candidate closes {closed:.0%} of its gap", closed
+    return None, closed

@@ -66,32 +66,18 @@ def ar1_noise_mode(sums: np.ndarray, n: int) -> tuple[float, float]:
     return math.sqrt(ss / n), rho
 
 
-def window_lpd(res: np.ndarray, sigma) -> np.ndarray:
-    """Gaussian log-density of each window's residuals ``(W, K)`` -> ``(W,)``, each
-    sample scored by its marginal predictive density ``N(0, sigma^2)``; ``sigma`` (Pa)
-    a scalar or one per window."""
-    r = np.asarray(res, dtype=np.float64)
-    sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (r.shape[0],))
-    k = r.shape[1]
-    return (-0.5 * np.sum(r * r, axis=1) / sig**2 - k * np.log(sig)
-            - 0.5 * k * math.log(2.0 * math.pi))
-
-
 def window_lpd_t(res: np.ndarray, sigma, dof: float) -> np.ndarray:
     """Student-t log-density of each window's residuals ``(W, K)`` -> ``(W,)``, each
     sample scored by a t of ``dof`` degrees of freedom (> 2) whose standard deviation is
     ``sigma`` (Pa; a scalar or one per window)."""
+    from scipy.stats import t as student
+
     if not dof > 2.0:
         raise ValueError(f"dof must be > 2 (a finite variance), got {dof}")
     r = np.asarray(res, dtype=np.float64)
     sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (r.shape[0],))
-    k = r.shape[1]
     scale = sig * math.sqrt((dof - 2.0) / dof)
-    norm = (math.lgamma(0.5 * (dof + 1.0)) - math.lgamma(0.5 * dof)
-            - 0.5 * math.log(dof * math.pi))
-    z2 = (r / scale[:, None]) ** 2
-    return (k * (norm - np.log(scale))
-            - 0.5 * (dof + 1.0) * np.sum(np.log1p(z2 / dof), axis=1))
+    return np.sum(student.logpdf(r, dof, scale=scale[:, None]), axis=1)
 
 
 def crossfit_window_lpd(res: np.ndarray, dof: float) -> np.ndarray:

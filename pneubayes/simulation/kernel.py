@@ -333,8 +333,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     while j + 1 < n and t[j + 1] + delay <= t_start:
         j += 1
     spool = u[j]  # steady spool at the start of the recording
-    # Input pointer: index m of the position/supply segment that holds time t + adv.
-    m = 0
+    # Input pointer: index m of the position/supply segment that holds time t + adv
+    # (from the window's start: an advance >= 0 reads no earlier sample)
+    m = k0 if adv >= 0.0 else 0
     while m + 1 < n and t[m + 1] - adv <= t_start:
         m += 1
     if tau_s > 0.0 and k0 > 0:
