@@ -1,7 +1,7 @@
 """Points on the signal path where the model's components act.
 
-command -> [delay] -> spool [lag] -> [dead band] -> port areas (Gompertz, eq. 11, and
-a switching valve's area proportional to its opening)
+command -> [delay] -> spool [lag, first or second order] -> [dead band] -> port areas
+(Gompertz, eq. 11, and a switching valve's area proportional to its opening)
 -> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
 + extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor
 (the rig's declared anti-alias filter, :mod:`pneubayes.simulation.measurement`).
@@ -102,6 +102,14 @@ SLOTS += (
      "(an undeclared filter on every channel of the DAQ): the chamber at time t sees them "
      "as measured at t + this advance, the lag's group delay; beyond the last sample they "
      "hold its value (s)"),
+)
+
+SLOTS += (
+    ("spool_natural_frequency_rad_per_s", "second-order spool dynamics, s'' = w^2 (u - s) "
+     "- 2 z w s' (a proportional valve's spool with its position loop): the natural "
+     "frequency w; > 0 makes the spool's position and velocity states and overrides the "
+     "first-order spool lag (rad/s)"),
+    ("spool_damping", "the second-order spool's damping ratio z (-)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

@@ -1,31 +1,122 @@
-"""First-order spool dynamics (paper VI-A: 125 Hz bandwidth at full stroke).
+"""Spool dynamics: the area maps see the spool position s instead of the command u
+(paper VI-A: 125 Hz bandwidth at full stroke). Two forms:
 
-``ds/dt = (u - s) / tau``; the area maps see the spool position s instead of the
-command u. Within a sample interval the command is held, so s is integrated exactly.
+- ``form="first_order"`` (default): ``ds/dt = (u - s) / tau``;
+- ``form="second_order"``: ``s'' = w^2 (u - s) - 2 z w s'``, a proportional valve's
+  spool under its position loop (a mass on the solenoid's spring, damped), parametrised
+  like the sensor lag's second order by its group delay at DC ``D = 2 z / w`` (the lag a
+  slow command sees; 0 is no lag) and its damping z. A large z is the first-order lag
+  of time constant D; a small z overshoots the commanded opening.
+
+Within a sample interval the command is held, so both are integrated exactly
+(:mod:`pneubayes.simulation.kernel`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
-from pneubayes.effects.base import DirectEffect, Parameter
-from pneubayes.effects.discovery import InputLagTerm
+import numpy as np
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.discovery import CandidateContext, InputLagTerm
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.rig import Rig
+
+_FORMS = ("first_order", "second_order")
+#: Damping a second-order candidate starts at (a well-tuned position loop).
+START_DAMPING = 0.7
 
 
-class SpoolLag(DirectEffect):
-    """Spool lag with time constant ``spool_time_constant_s``."""
+class SpoolLag(Effect):
+    """Spool lag: first order (``spool_time_constant_s``) or second order
+    (``spool_delay_s``, ``spool_damping``)."""
 
     name = "spool_lag"
-    slot = "spool_time_constant_s"
-    parameter = Parameter("spool_time_constant_s", "s", 0.0, 0.02, "uniform",
-                          "first-order spool time constant", neutral=0.0)
+    forms = _FORMS
+    acts_on = ("spool_time_constant_s", "spool_natural_frequency_rad_per_s",
+               "spool_damping")
     #: 125 Hz bandwidth at full spool stroke (paper VI-A).
     bench_value = 1.0 / (2.0 * math.pi * 125.0)
 
+    def __init__(self, form: str = "first_order"):
+        self.form = form
+
+    def _check(self):
+        if self.form not in _FORMS:
+            raise ValueError(f"spool_lag: form must be one of {_FORMS}, got {self.form!r}")
+
+    def options(self):
+        return {"form": self.form}
+
+    def parameters(self):
+        self._check()
+        if self.form == "first_order":
+            return (Parameter("spool_time_constant_s", "s", 0.0, 0.02, "uniform",
+                              "first-order spool time constant", neutral=0.0),)
+        return (Parameter("spool_delay_s", "s", 0.0, 0.02, "uniform",
+                          "group delay 2 z / w at DC of the second-order spool",
+                          neutral=0.0),
+                Parameter("spool_damping", "-", 0.2, 5.0, "uniform",
+                          "damping ratio z of the second-order spool",
+                          neutral=1.0))  # any damping is neutral at zero delay
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        self._check()
+        if self.form == "first_order":
+            return {"spool_time_constant_s": values["spool_time_constant_s"]}
+        delay = np.asarray(values["spool_delay_s"], dtype=np.float64)
+        damping = np.asarray(values["spool_damping"], dtype=np.float64)
+        on = delay > 0.0
+        w = np.where(on, 2.0 * damping / np.where(on, delay, 1.0), 0.0)
+        return {"spool_natural_frequency_rad_per_s": w,
+                "spool_damping": np.where(on, damping, 0.0)}
+
+    def bench_defaults(self):
+        if self.form == "first_order":
+            return {"spool_time_constant_s": float(self.bench_value)}
+        # 125 Hz natural frequency, damping 0.7: D = 2 z / w = 1.78 ms
+        w = 2.0 * math.pi * 125.0
+        return {"spool_delay_s": 2.0 * START_DAMPING / w, "spool_damping": START_DAMPING}
+
+    # ------------------------------------------------------------------ discovery
     library_strengths = (0.001, 0.002, 0.004, 0.007, 0.012, 0.02)
     discovery_fallback = {"spool_time_constant_s": 0.003}
 
     def library_terms(self, strengths):
-        """The command through a first-order lag of each trial time constant (s)."""
-        return tuple(InputLagTerm(f"lag {1e3 * tau:g} ms", {"spool_time_constant_s": tau},
-                                  lag_s=tau) for tau in strengths)
+        """The command through a first-order lag of each trial time constant (s); for
+        the second order, of each trial group delay (a first-order stand-in: the
+        one-step library does not resolve the spool's damping)."""
+        key = "spool_time_constant_s" if self.form == "first_order" else "spool_delay_s"
+        return tuple(InputLagTerm(f"lag {1e3 * tau:g} ms", {key: tau}, lag_s=tau)
+                     for tau in strengths)
+
+    def candidate_forms(self, ctx: CandidateContext):
+        """The first-order lag at the best term's time constant and the second-order
+        spool (damping 0.7) at the same group delay: a proportional valve's spool is a
+        damped mass on a spring, and where the data resolve its overshoot a first-order
+        lag leaves a misfit that a lag elsewhere (the reading's, the tube's) fills."""
+        start = self.candidate_start(ctx.term_start)
+        out = [(self, start)]
+        if self.form != "first_order":
+            return out
+        delay = start.get("spool_time_constant_s",
+                          self.discovery_fallback["spool_time_constant_s"])
+        out.append((SpoolLag(form="second_order"),
+                    {"spool_delay_s": delay, "spool_damping": START_DAMPING}))
+        return out
+
+
+def spool_settle_s(slots: np.ndarray) -> np.ndarray:
+    """Time constant (s) of the slowest spool mode for lowered slot rows ``(B, N_SLOTS)``:
+    the first-order lag's tau, or 1 / (z w) for a second-order spool at z <= 1 and
+    (z + sqrt(z^2 - 1)) / w above; 0 without a spool lag."""
+    slots = np.atleast_2d(slots)
+    w = slots[:, SLOT_INDEX["spool_natural_frequency_rad_per_s"]]
+    z = slots[:, SLOT_INDEX["spool_damping"]]
+    on = w > 0.0
+    ws, zs = np.where(on, w, 1.0), np.where(on, z, 1.0)
+    second = np.where(zs <= 1.0, 1.0 / (zs * ws), (zs + np.sqrt(np.maximum(zs * zs - 1.0, 0.0)))
+                      / ws)
+    return np.where(on, second, slots[:, SLOT_INDEX["spool_time_constant_s"]])

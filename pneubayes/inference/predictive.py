@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.spool_lag import spool_settle_s
 from pneubayes.evaluation import window_starts
 from pneubayes.model import Model
 from pneubayes.simulation import (
@@ -176,9 +177,10 @@ class PressurePredictor:
         self.quantiles = tuple(quantiles)
         slots = model.lower(self.draws, rig)
         #: how far back (s) the valve still sees the command: the longest transport delay
-        #: plus 20 spool time constants over the draws
+        #: plus 20 spool time constants (or settling times of a second-order spool)
+        #: over the draws
         self.lookback_s = float(np.max(slots[:, SLOT_INDEX["command_delay_s"]]
-                                       + 20.0 * slots[:, SLOT_INDEX["spool_time_constant_s"]]))
+                                       + 20.0 * spool_settle_s(slots)))
 
     def predict_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                       supply_pressure_Pa=None, command_history_V=None) -> np.ndarray:

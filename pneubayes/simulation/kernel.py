@@ -21,7 +21,8 @@ step behaves like a damped Newton step instead of chattering.
 Inputs follow the recording: the command is held between samples (zero-order hold),
 position and supply are linear between samples. A transport delay shifts the held
 command, which adds one break point inside some sample intervals; the integrator
-stops exactly on every break point. The spool lag is integrated in closed form. With
+stops exactly on every break point. The spool lag (first or second order) is integrated
+in closed form under the held command. With
 heat transfer on (either form), the chamber temperature is a second state, stepped by
 the same method with the full 2 x 2 Jacobian (a diagonal one leaves the method first
 order in the p-T coupling). With the tube as an acoustic line, the state is the
@@ -101,6 +102,8 @@ _EX = SLOT_INDEX["exhaust_offset_m2"]
 _VOL = SLOT_INDEX["volume_m3"]
 _DELAY = SLOT_INDEX["command_delay_s"]
 _SPOOL = SLOT_INDEX["spool_time_constant_s"]
+_SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
+_SPOOL_Z = SLOT_INDEX["spool_damping"]
 _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
 _SUPG = SLOT_INDEX["supply_gain"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
@@ -207,6 +210,23 @@ def _area_rates(spool, spool_rate, dead, sl):
 
 
 @njit(cache=True, error_model="numpy")
+def _spool_step(s, v, cmd, h, w, z):
+    """Second-order spool ``s'' = w^2 (cmd - s) - 2 z w s'`` after ``h`` s under the held
+    command ``cmd`` V: exact (position V, velocity V/s)."""
+    if not h > 0.0:
+        return s, v
+    return second_order_step(s, v, cmd, cmd, h, w, z)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _spool_settle_s(w, z):
+    """Time constant of the second-order spool's slowest mode (s)."""
+    if z <= 1.0:
+        return 1.0 / (z * w)
+    return (z + math.sqrt(z * z - 1.0)) / w
+
+
+@njit(cache=True, error_model="numpy")
 def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, carry,
             general):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
@@ -227,6 +247,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     With slot ``inputs_advance_s`` a > 0 (a sensor lag on every channel of the DAQ) the
     position ``x`` and supply ``ps`` are read at t + a: linear between their samples,
     whose times shifted by -a are break points of the steps, and held after the last.
+
+    A second-order spool (slot ``spool_natural_frequency_rad_per_s`` w > 0, damping z;
+    it overrides the first-order lag) carries its position and velocity, stepped exactly
+    under the held command; its velocity moves the port areas within a step as the
+    first-order spool's does. Mid-recording both spools start from the command history
+    of up to 20 settling times before the window.
 
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
@@ -258,6 +284,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # sample interval takes at least
     max_steps = (length - 1) + int(sv[S_MAX_STEPS_PER_S] * (t[i0 + length - 1] - t[i0]))
     delay, tau_s, dead = sl[_DELAY], sl[_SPOOL], sl[_DEAD]
+    w_s, z_s = sl[_SPOOL_W], sl[_SPOOL_Z]
+    spool2 = w_s > 0.0  # a second-order spool (overrides the first-order lag)
+    if spool2:
+        tau_s = 0.0
+    lagged = tau_s > 0.0 or spool2
     gain = sl[_SUPG]
     # position and supply are read at t + adv (linear between their samples, held after
     # the last): their sample times, shifted by -adv, are break points of the steps
@@ -333,6 +364,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     while j + 1 < n and t[j + 1] + delay <= t_start:
         j += 1
     spool = u[j]  # steady spool at the start of the recording
+    v_s = 0.0  # its velocity (second order), V/s
     # Input pointer: index m of the position/supply segment that holds time t + adv
     # (from the window's start: an advance >= 0 reads no earlier sample)
     m = k0 if adv >= 0.0 else 0
@@ -350,6 +382,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         span = t_start - (t[j] + delay)
         if span > 0.0:
             spool = u[j] + (spool - u[j]) * math.exp(-span / tau_s)
+    elif spool2 and k0 > 0:  # the same for the second-order spool, exactly
+        jj = j
+        settle = _spool_settle_s(w_s, z_s)
+        while jj > 0 and t_start - (t[jj] + delay) < 20.0 * settle:
+            jj -= 1
+        spool = u[jj]
+        for k in range(jj, j):
+            spool, v_s = _spool_step(spool, v_s, u[k], t[k + 1] - t[k], w_s, z_s)
+        spool, v_s = _spool_step(spool, v_s, u[j], t_start - (t[j] + delay), w_s, z_s)
     h = hmax
     steps = 0
     s_cached = math.nan
@@ -390,8 +431,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             spool_a, t_sub = spool, tau
             # Port areas are constant on the sub-interval unless the spool moves; the
             # command is held for many samples, so reuse them while it is unchanged.
-            moving = tau_s > 0.0 and spool_a != cmd
-            s_eff = spool_a if tau_s > 0.0 else cmd
+            moving = lagged and (spool_a != cmd or v_s != 0.0)
+            s_eff = spool_a if lagged else cmd
+            s_cur, v_cur = spool_a, v_s  # the second-order spool at tau
             if s_eff != s_cached:
                 a_in_c, a_ex_c = _areas(s_eff, dead, sl)
                 s_cached = s_eff
@@ -413,7 +455,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
                 da_in = 0.0
                 da_ex = 0.0
-                if moving:
+                if moving and spool2:
+                    a_in, a_ex = _areas(s_cur, dead, sl)
+                    a_ex += a_own
+                    da_in, da_ex = _area_rates(s_cur, v_cur, dead, sl)
+                elif moving:
                     s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
                     a_in, a_ex = _areas(s_now, dead, sl)
                     a_ex += a_own
@@ -423,7 +469,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 vol2 = v0 + bore * (xa + fr2 * (xb - xa))
                 psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
                 if moving:
-                    s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
+                    if spool2:
+                        s2, v2 = _spool_step(s_cur, v_cur, cmd, hh, w_s, z_s)
+                    else:
+                        s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
                     a_in2, a_ex2 = _areas(s2, dead, sl)
                     a_ex2 += a_own
                 else:
@@ -470,6 +519,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             err = 10.0
                 if err <= 1.0:
                     tau = tau + hh if hh < t_end - tau else t_end
+                    if moving and spool2:
+                        s_cur, v_cur = s2, v2
                     p_prev, s_prev = p, s_p0
                     p_tank = p_tank_new
                     p_lung = p_lung_new
@@ -504,7 +555,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             return NONFINITE
                         return STEP_UNDERFLOW
             # spool position at the end of the sub-interval (closed form)
-            if tau_s > 0.0:
+            if spool2:
+                spool, v_s = s_cur, v_cur
+                # settled to rounding: the areas stay cached until the command moves
+                if (abs(spool - cmd) <= 1e-12 * (1.0 + abs(cmd))
+                        and abs(v_s) <= 1e-12 * w_s * (1.0 + abs(cmd))):
+                    spool, v_s = cmd, 0.0
+            elif tau_s > 0.0:
                 spool = cmd + (spool_a - cmd) * math.exp(-(t_end - t_sub) / tau_s)
             else:
                 spool = cmd

@@ -48,7 +48,12 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     own_ex = sl[S["exhaust_own_command"]] != 0
     tank_v = sl[S["tank_volume_m3"]]
     lung_v = sl[S["lung_volume_m3"]]
-    i_lung = 3 + 2 * nseg + (1 if tank_v > 0 else 0)  # a second compartment's pressure
+    i_tank = 3 + 2 * nseg  # a supply tank's pressure
+    i_lung = i_tank + (1 if tank_v > 0 else 0)  # a second compartment's pressure
+    i_read = i_lung + (1 if lung_v > 0 else 0)  # a lagged reading (and its rate)
+    w_s, z_s = sl[S["spool_natural_frequency_rad_per_s"]], sl[S["spool_damping"]]
+    if w_s > 0:  # a second-order spool overrides the first-order lag
+        tau_s = 0.0
     n_vt = int(sl[S["volume_table_points"]])
     vt_p = sl[S["volume_table_pressure_Pa_0"]:S["volume_table_pressure_Pa_0"] + n_vt]
     vt_v = sl[S["volume_table_volume_m3_0"]:S["volume_table_volume_m3_0"] + n_vt]
@@ -58,9 +63,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
 
     def rhs(t, y):
         p, temp, spool = y[:3]
+        v_spool = y[-1] if w_s > 0 else 0.0  # a second-order spool's velocity: last
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
-        s = spool if tau_s > 0 else cmd
+        s = spool if tau_s > 0 or w_s > 0 else cmd
         ueff = np.sign(s) * max(abs(s) - dead, 0.0)
         a_in = gompertz_area(ueff, *ins)
         if own_ex:  # a separate exhaust valve, on its own (undelayed) command
@@ -81,7 +87,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         psup = rig.supply_pressure_Pa + sl[S["supply_gain"]] * (
             sa + fr * (sb - sa) - rig.supply_pressure_Pa)
         if tank_v > 0:  # a supply tank: its pressure is the last state
-            psup = y[-1]
+            psup = y[i_tank]
         att = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
         k_lam = max(sl[S["leak_laminar_kg_per_s_Pa2"]]
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
@@ -136,6 +142,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
+        d_spool_v = []
+        if w_s > 0:
+            dspool = v_spool
+            d_spool_v = [float(w_s**2 * (cmd - spool) - 2 * z_s * w_s * v_spool)]
         d_tank = []
         if tank_v > 0:  # the tank loses what the inlet draws (polytropic, air at T_s)
             d_tank = [-kappa * rs * t_s * float(a_in * f_in_raw) / tank_v]
@@ -143,11 +153,12 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
             pl, cl = y[i_lung], sl[S["lung_compliance_m3_per_Pa"]]
             d_tank = [kappa * rs * t_s * m_lung / (lung_v + cl * (pl - p_atm) + kappa * pl * cl)]
         if w_r > 0:  # the reading and its rate: the last two states
-            d_reading = [float(y[-1]), float(w_r**2 * (p - y[-2]) - 2 * z_r * w_r * y[-1])]
+            r, dr = y[i_read], y[i_read + 1]
+            d_reading = [float(dr), float(w_r**2 * (p - r) - 2 * z_r * w_r * dr)]
         else:
-            d_reading = [float(p - y[-1]) / lag] if lag > 0 else []
+            d_reading = [float(p - y[i_read]) / lag] if lag > 0 else []
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
-                + d_tank + d_reading)
+                + d_tank + d_reading + d_spool_v)
 
     return rhs
 
@@ -208,7 +219,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     j = int(np.searchsorted(t + delay, t[0], side="right") - 1)
     y[2] = held(j)
     out = np.empty(t.size)
-    read = -2 if w_r > 0 else (-1 if lag > 0 else 0)
+    read = (y.size - 2 if w_r > 0 else y.size - 1) if (w_r > 0 or lag > 0) else 0
+    w_s = sl[S["spool_natural_frequency_rad_per_s"]]
+    if w_s > 0:  # a second-order spool's velocity: the last state, at rest at the start
+        y = np.append(y, 0.0)
+        atols.append(1e-9 * w_s)
     out[0] = y[read]
     nfev = 0
     # position and supply are read at t + adv (a filter on every channel, effect
