@@ -358,11 +358,18 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             return LINE_VOLUME
         line_start(y, s_vec, p0, carry, nseg)
         y[0] = p
-    # Delayed-command pointer: index j of the sample held at time t - delay.
-    j = 0
+    # Delayed-command pointer: index j of the sample held at time t - delay, the last
+    # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
+    # every sample would otherwise scan the recording from its start each time
     t_start = t[k0]
-    while j + 1 < n and t[j + 1] + delay <= t_start:
-        j += 1
+    lo, hi = 0, n
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if t[mid] + delay <= t_start:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = lo - 1 if lo > 1 else 0
     spool = u[j]  # steady spool at the start of the recording
     v_s = 0.0  # its velocity (second order), V/s
     # Input pointer: index m of the position/supply segment that holds time t + adv
