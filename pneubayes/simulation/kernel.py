@@ -401,6 +401,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     h = hmax
     steps = 0
     s_cached = math.nan
+    cmd_cached = math.nan
     a_in_c, a_ex_c = 0.0, 0.0
     for k in range(k0, i0 + length - 1):
         if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0
@@ -446,8 +447,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 s_cached = s_eff
                 # the valve switched: restart small (the error estimate of a long first
                 # step from a port's balance, where the flow has a square-root kink,
-                # misses most of its error) and let the controller grow it 5x a step
-                h = min(h, 1e-3 * hmax)
+                # misses most of its error) and let the controller grow it 5x a step.
+                # Behind a lagged spool the areas are continuous: restart where the
+                # command steps, not at every sample while the spool glides
+                if not lagged or cmd != cmd_cached:
+                    h = min(h, 1e-3 * hmax)
+            cmd_cached = cmd
             a_in, a_ex = a_in_c, a_ex_c + a_own
             while tau < t_end:
                 hh = h if h < t_end - tau else t_end - tau
