@@ -71,6 +71,19 @@ CASES = (
 )
 FIXED_CASE = "fixed_2.4e-6"
 MOVING_CASE = "moving_2e-7"
+#: Section 4: each effect form beside the paper's model, at its bench defaults.
+EFFECT_FORMS = (
+    # label, catalogue name (None: the paper's model alone), options
+    ("paper's model", None, {}),
+    ("spool_lag", "spool_lag", {}),
+    ("spool_lag 2nd order", "spool_lag", {"form": "second_order"}),
+    ("sensor_lag", "sensor_lag", {}),
+    ("sensor_lag 2nd order", "sensor_lag", {"form": "second_order"}),
+    ("tube_delay", "tube_delay", {}),
+    ("tube line, 3 cells", "tube_delay", {"form": "line", "segments": 3}),
+    ("valve_deadzone", "valve_deadzone", {}),
+    ("heat_transfer", "heat_transfer", {}),
+)
 
 
 def _parse(argv):
@@ -370,6 +383,7 @@ def main(argv=None):
     import numba
     import scipy
 
+    from pneubayes.effects import make_effect
     from pneubayes.errors import SimulationError
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
@@ -596,6 +610,33 @@ def main(argv=None):
             throughput.append(row)
     numba.set_num_threads(1)
 
+    # ---------------------------------------------------------------- 4. effect forms
+    # (run before the cold start of section 3, which starts a new process)
+    # batch 1, one thread, the fixed case: each form's cost against the paper's model
+    # in the same run (a regression in one form's stepping shows here)
+    effect_costs = []
+    c = cases[FIXED_CASE]
+    for label, name, options in EFFECT_FORMS:
+        print(f"[effects] {label} ...", file=sys.stderr, flush=True)
+        row = {"form": label, "effect": name, "options": options}
+        m = model if name is None else Model([*model.effects, make_effect(name, **options)])
+        theta = dict(c["params"], **({} if name is None else m.effects[-1].bench_defaults()))
+        row["parameters"] = {k: theta[k] for k in m.parameter_names if k not in c["params"]}
+        try:
+            m.vector(theta)
+            simulate(m, theta, c["inputs"], rig, P_ATM, solver)  # compiles a new form
+            timing = time_calls(lambda m=m, theta=theta: simulate(
+                m, theta, c["inputs"], rig, P_ATM, solver), min_total, min_reps)
+            row.update(timing)
+            row["sim_seconds_per_second"] = sim_s / timing["median_s"]
+        except SimulationError as exc:
+            row["error"] = str(exc)[:500]
+        effect_costs.append(row)
+    base_speed = effect_costs[0].get("sim_seconds_per_second")
+    for row in effect_costs:
+        if base_speed and row.get("sim_seconds_per_second"):
+            row["relative_to_paper_model"] = row["sim_seconds_per_second"] / base_speed
+
     # ---------------------------------------------------------------- 3. cold start
     print("[cold start] a fresh process with an empty numba cache ...", file=sys.stderr,
           flush=True)
@@ -703,6 +744,7 @@ def main(argv=None):
         "accuracy_check": accuracy_check,
         "cases": per_case,
         "throughput": throughput,
+        "effect_forms": effect_costs,
         "setup": {
             "duration_s": sim_s, "sample_rate_Hz": SAMPLE_RATE_HZ, "samples": n,
             "initial_pressure_Pa": P_ATM, "supply_pressure_Pa": P_SUPPLY,
@@ -852,6 +894,16 @@ def format_table(r):
                        ("first_general_form_s", "then first heat-transfer model")):
         if cold.get(key) is not None:
             L.append(f"  {label:<50}{cold[key]:>8.1f} s")
+    L.append("")
+    L.append(f"4) each effect form beside the paper's model, {FIXED_CASE}, batch 1, "
+             "1 thread, bench defaults")
+    L.append(f"{'form':<24}{'sim-s/s':>10}{'x paper model':>15}")
+    for row in r.get("effect_forms", []):
+        if "error" in row:
+            L.append(f"{row['form']:<24}  FAILED: {row['error'][:60]}")
+            continue
+        L.append(f"{row['form']:<24}{_f(row.get('sim_seconds_per_second'), '.0f', 10)}"
+                 f"{_f(row.get('relative_to_paper_model'), '.2f', 15)}")
     L.append("")
     L.append("headline")
 
