@@ -189,8 +189,13 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
     rate = (gas.heat_capacity_ratio - 1.0) * h * wall_per_vol * gas.temperature_K / p_mid
     assert rate == pytest.approx(10.0, rel=1e-9)
-    # other effects keep a single candidate (the spool: first and second order)
-    assert len(effect_candidates(fit, "valve_deadzone", {}, rig)) == 1
+    # other effects keep a single candidate (the spool: first and second order; the
+    # dead zone: hard and rounded corners)
+    bands = effect_candidates(fit, "valve_deadzone",
+                              {"best_term_start": {"deadzone_halfwidth_V": 0.35}}, rig)
+    assert [(m.effects[0].form, x["deadzone_halfwidth_V"]) for m, x in bands] == [
+        ("hard", 0.35), ("rounded", 0.35)]
+    assert len(effect_candidates(fit, "cylinder_leak", {}, rig)) == 1
     lag_4ms = {"best_term_start": {"spool_time_constant_s": 0.004}}
     spools = effect_candidates(fit, "spool_lag", lag_4ms, rig)
     assert [m.effects[0].form for m, _ in spools] == ["first_order", "second_order"]

@@ -29,13 +29,15 @@ RANGE = P_SUP - P_ATM
 VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "laminar"}),
             ("cylinder_leak", {"form": "graded"}),
             ("tube_delay", {}), ("tube_delay", {"form": "line", "segments": 3}),
-            ("valve_deadzone", {}), ("supply_fluctuation", {}),
+            ("valve_deadzone", {}), ("valve_deadzone", {"form": "rounded"}),
+            ("supply_fluctuation", {}),
             ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
-            ("spool_lag", {}), ("sensor_lag", {}), ("sensor_lag", {"form": "second_order"}),
+            ("spool_lag", {}), ("spool_lag", {"form": "second_order"}), ("sensor_lag", {}),
+            ("sensor_lag", {"form": "second_order"}),
             ("sensor_lag", {"form": "second_order", "channels": "all"})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "valve_deadzone",
-       "supply_fluctuation", "heat_rate", "heat_convective", "spool_lag", "sensor_lag",
-       "sensor_lag_2", "sensor_lag_2_all"]
+       "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
+       "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all"]
 
 
 def _tight():
@@ -298,6 +300,71 @@ def test_valve_deadzone_maps_commands_inside_the_band_to_zero(rig, valve_params,
                        rig, 3e5)
         np.testing.assert_allclose(run[c], shifted, rtol=1e-9)
     assert not np.array_equal(run[0.8], run[0.0])
+
+
+def test_rounded_dead_band_is_c2_zero_inside_and_hard_outside_its_corners():
+    """phi(|s| - w): 0 for |s| <= w - r, |s| - w beyond w + r, odd in s; value, slope and
+    curvature continuous at both corners (finite differences), slope in [0, 1]; r = 0
+    is the hard band, bit for bit."""
+    from pneubayes.simulation.rates import dead_band
+
+    w, r = 0.4, 0.15
+    s = np.linspace(-1.2, 1.2, 24001)
+    hard = dead_band(s, w, 0.0)
+    assert np.array_equal(hard, np.sign(s) * np.maximum(np.abs(s) - w, 0.0))
+    got = dead_band(s, w, r)
+    far = np.abs(np.abs(s) - w) >= r
+    assert np.array_equal(got[far], hard[far])
+    assert np.all(got[np.abs(s) <= w - r] == 0.0)
+    assert np.array_equal(dead_band(-s, w, r), -got)
+    h = 1e-6
+    for corner in (w - r, w + r):
+        x = np.array([corner - 2 * h, corner - h, corner, corner + h, corner + 2 * h])
+        y = dead_band(x, w, r)
+        slope_l, slope_r = (y[2] - y[1]) / h, (y[3] - y[2]) / h
+        assert abs(slope_l - slope_r) < 1e-4
+        curv_l, curv_r = (y[2] - 2 * y[1] + y[0]) / h**2, (y[4] - 2 * y[3] + y[2]) / h**2
+        assert abs(curv_l - curv_r) < 1e-2 * (1 / r)
+    slope = np.diff(got) / np.diff(s)
+    assert slope.min() >= -1e-9 and slope.max() <= 1 + 1e-9
+    # convex: across the corner it opens before the hard band and stays ahead of it
+    corner = np.abs(np.abs(s) - w) < r
+    assert np.all(np.abs(got[corner]) >= np.abs(hard[corner]))
+    assert dead_band(w, w, r) > 0.0 and dead_band(w + 0.5 * r, w, r) > 0.5 * r
+
+
+def test_rounded_deadzone_at_zero_rounding_is_the_hard_band(rig, valve_params):
+    t = np.arange(401) * 1e-3
+    u = np.repeat(np.random.default_rng(4).uniform(-0.7, 0.7, 9), 45)[:t.size]
+    inputs = Inputs.constant(t, u, 0.01, P_SUP)
+    hard = _sim(Model(["valve_deadzone"]), dict(valve_params, deadzone_halfwidth_V=0.4),
+                inputs, rig, 3e5)
+    rounded = Model([make_effect("valve_deadzone", form="rounded")])
+    zero = _sim(rounded, dict(valve_params, deadzone_halfwidth_V=0.4,
+                              deadzone_rounding_fraction=0.0), inputs, rig, 3e5)
+    assert np.array_equal(hard, zero)
+    half = _sim(rounded, dict(valve_params, deadzone_halfwidth_V=0.4,
+                              deadzone_rounding_fraction=0.5), inputs, rig, 3e5)
+    assert np.max(np.abs(half - hard)) > 1e3  # commands near the band feel the corners
+    assert make_effect("valve_deadzone").options() == {}  # cards before the form alike
+    assert make_effect("valve_deadzone", form="rounded").options() == {"form": "rounded"}
+    with pytest.raises(ValueError, match="form must be one of"):
+        make_effect("valve_deadzone", form="soft").parameters()
+
+
+@pytest.mark.parametrize("name,options,form", [
+    ("valve_deadzone", {"form": "rounded"}, "RoundedDeadzone"),
+    ("spool_lag", {"form": "second_order"}, "SecondOrderSpool")])
+def test_the_plant_refuses_catalogue_forms_it_does_not_simulate(rig, valve_params, name,
+                                                               options, form):
+    from pneubayes.bench.plant import PlantConfig, simulate_plant
+
+    effect = make_effect(name, **options)
+    t = np.arange(11) * 1e-3
+    with pytest.raises(ValueError, match=form):
+        simulate_plant(dict(valve_params, **effect.bench_defaults()), (),
+                       Inputs.constant(t, np.ones(t.size), 0.01, P_SUP), rig, P_ATM,
+                       PlantConfig.reference(), effects=(effect,))
 
 
 # ---------------------------------------------------------------- cylinder leak

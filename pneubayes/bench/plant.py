@@ -338,6 +338,12 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]] != 0.0:
         raise ValueError("plant: a catalogue leak graded along the stroke is not simulated "
                          "here; plant a ClearanceLeak form with a seal_length_slope instead")
+    if sl[SLOT_INDEX["deadband_rounding_V"]] != 0.0:
+        raise ValueError("plant: the catalogue's rounded valve_deadzone is not simulated "
+                         "here; plant a RoundedDeadzone form instead")
+    if sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]] != 0.0:
+        raise ValueError("plant: the catalogue's second-order spool_lag is not simulated "
+                         "here; plant a SecondOrderSpool form instead")
     if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
         raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
                          "here; plant a WallHeatTransfer form instead")

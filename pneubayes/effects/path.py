@@ -110,6 +110,9 @@ SLOTS += (
      "frequency w; > 0 makes the spool's position and velocity states and overrides the "
      "first-order spool lag (rad/s)"),
     ("spool_damping", "the second-order spool's damping ratio z (-)"),
+    ("deadband_rounding_V", "the dead band's corners rounded over ||s| - w| < r: the slope "
+     "of the opening rises as a smoothstep from 0 to 1 across the corner (C2; gradual "
+     "opening of real spool edges); 0 is the hard dead band (V)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

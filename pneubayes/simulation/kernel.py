@@ -105,6 +105,7 @@ _SPOOL = SLOT_INDEX["spool_time_constant_s"]
 _SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
 _SPOOL_Z = SLOT_INDEX["spool_damping"]
 _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
+_ROUND = SLOT_INDEX["deadband_rounding_V"]
 _SUPG = SLOT_INDEX["supply_gain"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
@@ -151,12 +152,27 @@ def _gompertz_rate(u, a, b, c, d):
     return a * math.exp(-b * inner) * b * c * inner
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _dead_band(spool, dead, rounding):
+    """The opening past the dead band and its slope d/d(spool) (see
+    :func:`pneubayes.simulation.rates.dead_band`; corners rounded over ``rounding`` V)."""
+    z = abs(spool) - dead
+    if rounding > 0.0 and abs(z) < rounding:
+        t = (z + rounding) / (2.0 * rounding)
+        mag = 2.0 * rounding * t * t * t * (1.0 - 0.5 * t)
+        slope = t * t * (3.0 - 2.0 * t)
+    elif z > 0.0:
+        mag, slope = z, 1.0
+    else:
+        return 0.0, 0.0
+    return (mag if spool > 0.0 else -mag), slope
+
+
 @njit(cache=True, error_model="numpy")
 def _areas(spool, dead, sl):
     """Port areas (eq. 11) for spool position ``spool`` behind a dead band of half-width
     dead; the exhaust's is 0 when it is a separate valve (:func:`_own_exhaust_area`)."""
-    mag = abs(spool) - dead
-    u = 0.0 if mag <= 0.0 else (mag if spool > 0.0 else -mag)
+    u = _dead_band(spool, dead, sl[_ROUND])[0]
     own = sl[_OWN_EX] != 0.0
     a_in = gompertz_scalar(u, sl[_IN], sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
     a_ex = 0.0
@@ -189,10 +205,10 @@ def _own_exhaust_area(ue, sl):
 @njit(cache=True, error_model="numpy")
 def _area_rates(spool, spool_rate, dead, sl):
     """Time derivatives of the two port areas for a spool moving at ``spool_rate`` V/s."""
-    mag = abs(spool) - dead
-    if mag <= 0.0:
+    u, slope = _dead_band(spool, dead, sl[_ROUND])
+    if slope == 0.0:
         return 0.0, 0.0
-    u = mag if spool > 0.0 else -mag
+    spool_rate = spool_rate * slope
     own = sl[_OWN_EX] != 0.0  # a separate exhaust valve does not move with the spool
     r_in = _gompertz_rate(u, sl[_IN + 1], sl[_IN + 2], sl[_IN + 3], sl[_IN + 4])
     r_ex = 0.0 if own else _gompertz_rate(u, sl[_EX + 1], sl[_EX + 2], sl[_EX + 3],

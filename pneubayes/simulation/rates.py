@@ -25,10 +25,20 @@ from pneubayes.rig import Rig
 _PORT = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
 
 
-def dead_band(spool_V, halfwidth_V):
-    """``sign(s) max(|s| - w, 0)`` (paper Fig. 4), V."""
+def dead_band(spool_V, halfwidth_V, rounding_V):
+    """``sign(s) phi(|s| - w)`` (paper Fig. 4), V: phi(z) = max(z, 0) for the hard dead
+    band (``rounding_V`` r = 0); with r > 0 the corner ``|z| < r`` is rounded so that the
+    slope phi' rises as the smoothstep ``3 t^2 - 2 t^3``, t = (z + r) / (2 r), and
+    ``phi(z) = 2 r (t^3 - t^4 / 2)``: C2, equal to the hard band for ``|z| >= r``."""
     s = np.asarray(spool_V, dtype=np.float64)
-    return np.sign(s) * np.maximum(np.abs(s) - halfwidth_V, 0.0)
+    r = np.asarray(rounding_V, dtype=np.float64)
+    z = np.abs(s) - halfwidth_V
+    mag = np.maximum(z, 0.0)
+    if np.any(r > 0.0):  # (broadcasts over slot rows: r may be an array)
+        rr = np.where(r > 0.0, r, 1.0)
+        t = np.clip((z + rr) / (2.0 * rr), 0.0, 1.0)
+        mag = np.where((r > 0.0) & (np.abs(z) < r), 2.0 * rr * t**3 * (1.0 - 0.5 * t), mag)
+    return np.sign(s) * mag
 
 
 @dataclass(frozen=True)
@@ -59,7 +69,7 @@ def port_areas(slots: np.ndarray, spool_V, exhaust_command=None
     valve's opening, as the compiled simulator computes them. A separately commanded
     exhaust valve (slot ``exhaust_own_command``) reads ``exhaust_command`` instead."""
     sl = np.asarray(slots, dtype=np.float64)
-    u = dead_band(spool_V, sl[S["deadband_halfwidth_V"]])
+    u = dead_band(spool_V, sl[S["deadband_halfwidth_V"]], sl[S["deadband_rounding_V"]])
     a_in = gompertz_area(u, *(sl[S[f"inlet_{k}"]] for k in _PORT))
     own = np.asarray(sl[S["exhaust_own_command"]]) != 0
     if np.any(own) and exhaust_command is None:

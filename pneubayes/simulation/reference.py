@@ -19,6 +19,7 @@ from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.tube import churchill_fre
 from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
+from pneubayes.simulation.rates import dead_band
 from pneubayes.simulation.simulator import Inputs
 
 
@@ -31,6 +32,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     exs = [sl[S[k]] for k in ("exhaust_offset_m2", "exhaust_a_m2", "exhaust_b",
                               "exhaust_c_per_V", "exhaust_d_V")]
     tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
+    rounding = sl[S["deadband_rounding_V"]]
     lag = sl[S["sensor_time_constant_s"]]  # the reading: the last state
     w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
     heat = sl[S["heat_rate_per_s"]]
@@ -67,7 +69,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
         s = spool if tau_s > 0 or w_s > 0 else cmd
-        ueff = np.sign(s) * max(abs(s) - dead, 0.0)
+        ueff = float(dead_band(s, dead, rounding))
         a_in = gompertz_area(ueff, *ins)
         if own_ex:  # a separate exhaust valve, on its own (undelayed) command
             a_ex = (gompertz_area(cmd_ex, *exs)
