@@ -35,6 +35,7 @@ Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 :mod:`~pneubayes.simulation.chamber` (the right-hand side),
 :mod:`~pneubayes.simulation.thermal` (the (p, T) step),
 :mod:`~pneubayes.simulation.line`, :mod:`~pneubayes.simulation.tank`,
+:mod:`~pneubayes.simulation.spool`,
 :mod:`~pneubayes.simulation.lung` and :mod:`~pneubayes.simulation.reading` are the only
 compiled code of the simulator.
 """
@@ -78,6 +79,7 @@ from pneubayes.simulation.line import (
 )
 from pneubayes.simulation.lung import lung_step
 from pneubayes.simulation.reading import first_order_step, second_order_step
+from pneubayes.simulation.spool import spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 
@@ -223,23 +225,6 @@ def _area_rates(spool, spool_rate, dead, sl):
         r_in += table_scalar(u, cmds, sl[_TAB_I:_TAB_I + _TAB_MAX], n)[1]
         r_ex += table_scalar(u, cmds, sl[_TAB_E:_TAB_E + _TAB_MAX], n)[1]
     return r_in * spool_rate, r_ex * spool_rate
-
-
-@njit(cache=True, error_model="numpy")
-def _spool_step(s, v, cmd, h, w, z):
-    """Second-order spool ``s'' = w^2 (cmd - s) - 2 z w s'`` after ``h`` s under the held
-    command ``cmd`` V: exact (position V, velocity V/s)."""
-    if not h > 0.0:
-        return s, v
-    return second_order_step(s, v, cmd, cmd, h, w, z)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _spool_settle_s(w, z):
-    """Time constant of the second-order spool's slowest mode (s)."""
-    if z <= 1.0:
-        return 1.0 / (z * w)
-    return (z + math.sqrt(z * z - 1.0)) / w
 
 
 @njit(cache=True, error_model="numpy")
@@ -393,27 +378,18 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     m = k0 if adv >= 0.0 else 0
     while m + 1 < n and t[m + 1] - adv <= t_start:
         m += 1
-    if tau_s > 0.0 and k0 > 0:
-        # mid-recording: the spool state follows from the command history (the lag in
-        # closed form over the held samples of up to 20 time constants before t_start)
+    if lagged and k0 > 0:
+        # mid-recording: the spool state follows from the command history (in closed
+        # form over the held samples of up to 20 settling times before t_start)
         jj = j
-        while jj > 0 and t_start - (t[jj] + delay) < 20.0 * tau_s:
-            jj -= 1
-        spool = u[jj]
-        for k in range(jj, j):
-            spool = u[k] + (spool - u[k]) * math.exp(-(t[k + 1] - t[k]) / tau_s)
-        span = t_start - (t[j] + delay)
-        if span > 0.0:
-            spool = u[j] + (spool - u[j]) * math.exp(-span / tau_s)
-    elif spool2 and k0 > 0:  # the same for the second-order spool, exactly
-        jj = j
-        settle = _spool_settle_s(w_s, z_s)
+        settle = spool_settle_s(tau_s, w_s, z_s)
         while jj > 0 and t_start - (t[jj] + delay) < 20.0 * settle:
             jj -= 1
         spool = u[jj]
         for k in range(jj, j):
-            spool, v_s = _spool_step(spool, v_s, u[k], t[k + 1] - t[k], w_s, z_s)
-        spool, v_s = _spool_step(spool, v_s, u[j], t_start - (t[j] + delay), w_s, z_s)
+            spool, v_s = spool_step(spool, v_s, u[k], t[k + 1] - t[k], tau_s, w_s, z_s)
+        spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
+                                z_s)
     h = hmax
     steps = 0
     s_cached = math.nan
@@ -498,7 +474,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
                 if moving:
                     if spool2:
-                        s2, v2 = _spool_step(s_cur, v_cur, cmd, hh, w_s, z_s)
+                        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s)
                     else:
                         s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
                     a_in2, a_ex2 = _areas(s2, dead, sl)
@@ -590,7 +566,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         and abs(v_s) <= 1e-12 * w_s * (1.0 + abs(cmd))):
                     spool, v_s = cmd, 0.0
             elif tau_s > 0.0:
-                spool = cmd + (spool_a - cmd) * math.exp(-(t_end - t_sub) / tau_s)
+                spool = spool_step(spool_a, 0.0, cmd, t_end - t_sub, tau_s, 0.0, 0.0)[0]
             else:
                 spool = cmd
         if k >= i0:
