@@ -41,6 +41,7 @@ import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
 from pneubayes.effects.discovery import CandidateContext, TrialTerm
+from pneubayes.effects.second_order import delay_and_damping, natural_frequency
 from pneubayes.rig import Rig
 
 _FORMS = ("first_order", "second_order")
@@ -77,12 +78,7 @@ class SensorLag(Effect):
         if self.form == "first_order":
             return (Parameter("sensor_time_constant_s", "s", 0.0, 0.01, "uniform",
                               "first-order lag of the pressure reading", neutral=0.0),)
-        return (Parameter("sensor_delay_s", "s", 0.0, 0.01, "uniform",
-                          "group delay 2 z / w at DC of the reading's second-order lag",
-                          neutral=0.0),
-                Parameter("sensor_damping", "-", 0.2, 5.0, "uniform",
-                          "damping ratio z of the reading's second-order lag",
-                          neutral=1.0))  # any damping is neutral at zero delay
+        return delay_and_damping("sensor", "the reading's second-order lag", 0.01)
 
     def lead_parameter(self) -> str:
         """The parameter that is the reading's group delay at DC, s (the chamber's lead
@@ -96,11 +92,8 @@ class SensorLag(Effect):
         out = {"inputs_advance_s": lead} if self.channels == "all" else {}
         if self.form == "first_order":
             return {"sensor_time_constant_s": lead, **out}
-        damping = np.asarray(values["sensor_damping"], dtype=np.float64)
-        on = lead > 0.0
-        w = np.where(on, 2.0 * damping / np.where(on, lead, 1.0), 0.0)
-        return {"sensor_natural_frequency_rad_per_s": w,
-                "sensor_damping": np.where(on, damping, 0.0), **out}
+        w, z = natural_frequency(lead, values["sensor_damping"])
+        return {"sensor_natural_frequency_rad_per_s": w, "sensor_damping": z, **out}
 
     def bench_defaults(self):
         if self.form == "first_order":  # a 300-Hz RC stage

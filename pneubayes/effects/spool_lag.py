@@ -22,6 +22,7 @@ import numpy as np
 from pneubayes.effects.base import Effect, Parameter
 from pneubayes.effects.discovery import CandidateContext, InputLagTerm
 from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.second_order import delay_and_damping, natural_frequency
 from pneubayes.rig import Rig
 
 _FORMS = ("first_order", "second_order")
@@ -55,23 +56,14 @@ class SpoolLag(Effect):
         if self.form == "first_order":
             return (Parameter("spool_time_constant_s", "s", 0.0, 0.02, "uniform",
                               "first-order spool time constant", neutral=0.0),)
-        return (Parameter("spool_delay_s", "s", 0.0, 0.02, "uniform",
-                          "group delay 2 z / w at DC of the second-order spool",
-                          neutral=0.0),
-                Parameter("spool_damping", "-", 0.2, 5.0, "uniform",
-                          "damping ratio z of the second-order spool",
-                          neutral=1.0))  # any damping is neutral at zero delay
+        return delay_and_damping("spool", "the second-order spool", 0.02)
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
         if self.form == "first_order":
             return {"spool_time_constant_s": values["spool_time_constant_s"]}
-        delay = np.asarray(values["spool_delay_s"], dtype=np.float64)
-        damping = np.asarray(values["spool_damping"], dtype=np.float64)
-        on = delay > 0.0
-        w = np.where(on, 2.0 * damping / np.where(on, delay, 1.0), 0.0)
-        return {"spool_natural_frequency_rad_per_s": w,
-                "spool_damping": np.where(on, damping, 0.0)}
+        w, z = natural_frequency(values["spool_delay_s"], values["spool_damping"])
+        return {"spool_natural_frequency_rad_per_s": w, "spool_damping": z}
 
     def bench_defaults(self):
         if self.form == "first_order":
