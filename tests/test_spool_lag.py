@@ -116,6 +116,10 @@ def test_the_model_agrees_with_the_plants_second_order_spool(rig):
                      SolverConfig.reference()).pressure_Pa[0]
     assert err < 50.0, f"plant vs compiled second-order spool: {err:.1f} Pa"
     assert np.max(np.abs(plant - first)) > 20 * err  # the first-order lag is not it
+    # the plant also reads the catalogue's form from its lowered slots: the same spool
+    planted = simulate_plant(params, (), inputs, rig, P_ATM, PlantConfig.reference(),
+                             effects=(SECOND,)).pressure_Pa
+    assert np.max(np.abs(planted - plant)) < 1e-6 * RANGE
 
 
 def test_a_window_mid_recording_starts_from_the_spools_history(rig, hand):

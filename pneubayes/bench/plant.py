@@ -341,9 +341,6 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["deadband_rounding_V"]] != 0.0:
         raise ValueError("plant: the catalogue's rounded valve_deadzone is not simulated "
                          "here; plant a RoundedDeadzone form instead")
-    if sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]] != 0.0:
-        raise ValueError("plant: the catalogue's second-order spool_lag is not simulated "
-                         "here; plant a SecondOrderSpool form instead")
     if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
         raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
                          "here; plant a WallHeatTransfer form instead")
@@ -367,6 +364,10 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     L = np.full(N_L, -1, dtype=np.int64)
     L[[L_SPOOL, L_DZ_ROUND, L_HEAT, L_DROOP, L_CLEAR, L_NSEG]] = 0
     L[L_SPOOL] = 1 if P[K_TAU] > 0 else 0
+    if sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]] > 0:  # the catalogue's 2nd order
+        P[K_WN], P[K_ZETA] = (sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]],
+                              sl[SLOT_INDEX["spool_damping"]])
+        L[L_SPOOL] = 2
     L[L_HEAT] = 1 if P[K_HEAT] > 0 else 0
     by = {type(f): f for f in forms}
     if RoundedDeadzone in by:
