@@ -76,6 +76,7 @@ from pneubayes.simulation.line import (
     line_start,
     line_step,
     line_volume,
+    line_workspace,
 )
 from pneubayes.simulation.lung import lung_step
 from pneubayes.simulation.reading import first_order_step, second_order_step
@@ -353,6 +354,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     y_new = np.empty(ny)
     s_vec = np.zeros(ny)
     prop = np.empty((ny, ny))
+    line_work = line_workspace(ny)
     if general is not None and line:
         v0 = v0 - line_volume(sl)
         if not v0 > 0.0:
@@ -487,9 +489,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 p_lung_new = p_lung
                 zp = 0.0
                 if general is not None and line:
-                    err, prop = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup,
-                                          da_in, da_ex, a_in2, a_ex2, vol2, psup2, sl, cs,
-                                          atol_p, rtol, y_new)
+                    err = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in,
+                                    da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p, rtol,
+                                    y_new, prop, line_work)
                     pn = y_new[0]
                 elif general is not None and tank:
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
@@ -530,7 +532,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     p_lung = p_lung_new
                     p, temp = pn, tn
                     if general is not None and line:
-                        s_p0 = line_accept(y, y_new, prop, s_vec, want_sens)
+                        s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
                     elif thermal or tank or lung:
                         if want_sens:  # (dp, dT or the second p)/dp0 through the propagator
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,

@@ -57,28 +57,36 @@ _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
 
 
 @njit(cache=True, error_model="numpy")
-def _matmul(a, b):
-    """``a @ b`` for small matrices (plain loops: no BLAS to compile or call)."""
+def _matmul_into(a, b, c):
+    """``c = a @ b`` for small matrices (plain loops: no BLAS to compile or call); ``c``
+    must not share memory with ``a`` or ``b``."""
     n, k = a.shape
     m = b.shape[1]
-    c = np.zeros((n, m))
     for i in range(n):
+        for j in range(m):
+            c[i, j] = 0.0
         for p in range(k):
             aip = a[i, p]
             if aip != 0.0:
                 for j in range(m):
                     c[i, j] += aip * b[p, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _matmul(a, b):
+    """``a @ b`` for small matrices, into a new array (:func:`_matmul_into`)."""
+    c = np.empty((a.shape[0], b.shape[1]))
+    _matmul_into(a, b, c)
     return c
 
 
 @njit(cache=True, error_model="numpy")
-def _solve(a, b):
-    """``a^-1 b`` by Gaussian elimination with partial pivoting (small, well-conditioned
-    ``a``: the Pade denominator at norm <= 0.5); a singular ``a`` gives NaN."""
-    n = a.shape[0]
-    m = b.shape[1]
-    lu = a.copy()
-    x = b.copy()
+def _solve_in_place(lu, x):
+    """``x <- lu^-1 x`` by Gaussian elimination with partial pivoting, overwriting ``lu``
+    (small, well-conditioned: the Pade denominator at norm <= 0.5); a singular ``lu``
+    gives NaN."""
+    n = lu.shape[0]
+    m = x.shape[1]
     for k in range(n):
         piv = k
         big = abs(lu[k, k])
@@ -87,7 +95,8 @@ def _solve(a, b):
                 big = abs(lu[i, k])
                 piv = i
         if big == 0.0:
-            return np.full((n, m), np.nan)
+            x[:, :] = np.nan
+            return
         if piv != k:
             for j in range(n):
                 lu[k, j], lu[piv, j] = lu[piv, j], lu[k, j]
@@ -106,12 +115,21 @@ def _solve(a, b):
             for i in range(k + 1, n):
                 acc -= lu[k, i] * x[i, j]
             x[k, j] = acc / lu[k, k]
+
+
+@njit(cache=True, error_model="numpy")
+def _solve(a, b):
+    """``a^-1 b`` into a new array (:func:`_solve_in_place`); a singular ``a`` gives NaN."""
+    x = b.copy()
+    _solve_in_place(a.copy(), x)
     return x
 
 
 @njit(cache=True, error_model="numpy")
-def expm_small(a):
-    """Matrix exponential of a small square matrix: [6/6] Pade, scaling and squaring.
+def expm_into(a, work):
+    """Matrix exponential of a small square ``(n, n)`` matrix: [6/6] Pade, scaling and
+    squaring, in the scratch ``work`` ``(6, n, n)``; returns the index k of the slice
+    ``work[k]`` that holds the result (no allocation: the line's step calls this once).
 
     The matrix is scaled by 2^-s until its 1-norm is <= 1, where the approximant's
     relative error is below 2e-13, and the result squared s times. A matrix with a
@@ -126,39 +144,63 @@ def expm_small(a):
         for i in range(n):
             col += abs(a[i, j])
         if not math.isfinite(col):  # (max() would drop a NaN)
-            return np.full((n, n), np.nan)
+            work[0, :, :] = np.nan
+            return 0
         norm = max(norm, col)
     s = 0
     if norm > 1.0:
         s = int(math.ceil(math.log2(norm)))
-    x = a * (0.5 ** s)
+    x, x2, x4, x6, even, odd = work[0], work[1], work[2], work[3], work[4], work[5]
+    c = 0.5 ** s
+    for i in range(n):
+        for j in range(n):
+            x[i, j] = a[i, j] * c
+    _matmul_into(x, x, x2)
+    _matmul_into(x2, x2, x4)
+    _matmul_into(x4, x2, x6)
     # even and odd parts: num = V + U, den = V - U (four products instead of six)
-    x2 = _matmul(x, x)
-    x4 = _matmul(x2, x2)
-    x6 = _matmul(x4, x2)
-    even = _PADE6[2] * x2 + _PADE6[4] * x4 + _PADE6[6] * x6
-    odd = _PADE6[1] * np.eye(n) + _PADE6[3] * x2 + _PADE6[5] * x4
+    for i in range(n):
+        for j in range(n):
+            even[i, j] = (_PADE6[2] * x2[i, j] + _PADE6[4] * x4[i, j]) + _PADE6[6] * x6[i, j]
+            eye = 1.0 if i == j else 0.0
+            odd[i, j] = (_PADE6[1] * eye + _PADE6[3] * x2[i, j]) + _PADE6[5] * x4[i, j]
     for i in range(n):
         even[i, i] += _PADE6[0]
-    odd = _matmul(x, odd)
-    e = _solve(even - odd, even + odd)
+    _matmul_into(x, odd, x2)  # x2 <- x @ odd (the odd part)
+    for i in range(n):
+        for j in range(n):
+            x4[i, j] = even[i, j] - x2[i, j]
+            x6[i, j] = even[i, j] + x2[i, j]
+    _solve_in_place(x4, x6)
+    cur, other = 3, 0
     for _ in range(s):
-        e = _matmul(e, e)
-    return e
+        _matmul_into(work[cur], work[cur], work[other])
+        cur, other = other, cur
+    return cur
 
 
 @njit(cache=True, error_model="numpy")
-def phi_combination(hj, vectors, scale):
-    """``sum_k phi_k(hJ) b_k`` for the columns ``vectors = [b_1, ..., b_m]`` ``(n, m)``,
-    and ``exp(hJ)``: the top rows of the exponential of ``[[hJ, W], [0, K]]`` with
-    ``W = [b_m, ..., b_1]`` and K the m x m shift (Al-Mohy and Higham 2011, Thm. 2.1).
+def expm_small(a):
+    """Matrix exponential of a small square matrix into a new array (:func:`expm_into`)."""
+    n = a.shape[0]
+    work = np.empty((6, n, n))
+    return work[expm_into(a, work)].copy()
+
+
+@njit(cache=True, error_model="numpy")
+def phi_combination_into(hj, vectors, scale, out, prop, work):
+    """``out = sum_k phi_k(hJ) b_k`` for the columns ``vectors = [b_1, ..., b_m]``
+    ``(n, m)``, and ``prop = exp(hJ)``: the top rows of the exponential of
+    ``[[hJ, W], [0, K]]`` with ``W = [b_m, ..., b_1]`` and K the m x m shift (Al-Mohy and
+    Higham 2011, Thm. 2.1). ``work`` ``(7, n + m, n + m)`` is scratch.
 
     ``scale`` (n,) are the states' natural sizes: the exponential is taken of the
     balanced ``S^-1 hJ S`` (S = diag(scale)), whose norm -- and so the number of
     squarings -- does not depend on the units of the states.
     """
     n, m = vectors.shape
-    big = np.zeros((n + m, n + m))
+    big = work[6]
+    big[:, :] = 0.0
     for i in range(n):
         for j in range(n):
             big[i, j] = hj[i, j] * scale[j] / scale[i]
@@ -174,19 +216,26 @@ def phi_combination(hj, vectors, scale):
             big[i, n + k] = vectors[i, m - 1 - k] / (scale[i] * size)
     for k in range(m - 1):
         big[n + k, n + k + 1] = 1.0
-    e = expm_small(big)
-    out = np.empty(n)
-    prop = np.empty((n, n))
+    e = work[expm_into(big, work)]
     for i in range(n):
         out[i] = e[i, n + m - 1] * size * scale[i]
         for j in range(n):
             prop[i, j] = e[i, j] * scale[i] / scale[j]
+
+
+@njit(cache=True, error_model="numpy")
+def phi_combination(hj, vectors, scale):
+    """:func:`phi_combination_into` into new arrays: returns ``(out, prop)``."""
+    n, m = vectors.shape
+    out = np.empty(n)
+    prop = np.empty((n, n))
+    phi_combination_into(hj, vectors, scale, out, prop, np.empty((7, n + m, n + m)))
     return out, prop
 
 
 @njit(cache=True, error_model="numpy")
-def phi3_correction(hj, b, scale):
-    """The correction ``phi_3(hJ) b`` of exprb32's second stage, with
+def phi3_correction_into(hj, b, scale, out, a, rhs):
+    """The correction ``out = phi_3(hJ) b`` of exprb32's second stage, with
     ``phi_3(Z) ~ (6 I - 2 Z)^-1``: exact at Z = 0 and as Z -> -inf (-1 / (2 Z)), within
     20 % of phi_3 on the whole closed left half-plane (waves on the imaginary axis
     included). The correction is both the step's third-order term and its error
@@ -194,24 +243,31 @@ def phi3_correction(hj, b, scale):
     kept (the approximant is phi_3 + O(Z)). One solve instead of a second exponential
     of the augmented matrix. The approximant has a pole at Z = 3: a step whose chamber
     grows on its own (a piston compressing a small chamber, ``hJ[0, 0]`` > 0.5) takes
-    the exact combination (:func:`phi_combination`)."""
+    the exact combination (:func:`phi_combination`). ``a`` ``(n, n)`` and ``rhs``
+    ``(n, 1)`` are scratch."""
     n = b.shape[0]
     if hj[0, 0] > 0.5:
         cols = np.zeros((n, 3))
         cols[:, 2] = b
-        return phi_combination(hj, cols, scale)[0]
+        out[:] = phi_combination(hj, cols, scale)[0]
+        return
     # balanced as in phi_combination: (6 I - 2 S^-1 hJ S) (S^-1 x) = S^-1 b
-    a = np.empty((n, n))
-    rhs = np.empty((n, 1))
     for i in range(n):
         for j in range(n):
             a[i, j] = -2.0 * hj[i, j] * scale[j] / scale[i]
         a[i, i] += 6.0
         rhs[i, 0] = b[i] / scale[i]
-    x = _solve(a, rhs)
-    out = np.empty(n)
+    _solve_in_place(a, rhs)
     for i in range(n):
-        out[i] = x[i, 0] * scale[i]
+        out[i] = rhs[i, 0] * scale[i]
+
+
+@njit(cache=True, error_model="numpy")
+def phi3_correction(hj, b, scale):
+    """:func:`phi3_correction_into` into a new array."""
+    n = b.shape[0]
+    out = np.empty(n)
+    phi3_correction_into(hj, b, scale, out, np.empty((n, n)), np.empty((n, 1)))
     return out
 
 
@@ -293,45 +349,61 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
 
 
 @njit(cache=True, error_model="numpy")
+def line_workspace(ny):
+    """Scratch for one trajectory's line steps (:func:`line_step`, :func:`line_accept`)
+    with ``ny`` states: allocated once per window, not per step."""
+    return (np.empty((8, ny)), np.empty((3, ny, ny)), np.empty((ny, 2)), np.empty((ny, 1)),
+            np.empty((7, ny + 2, ny + 2)))
+
+
+@njit(cache=True, error_model="numpy")
 def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
-              a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, rtol, y_new):
+              a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, rtol, y_new, prop, work):
     """One exprb32 step of length ``hh`` from ``y`` (inputs at both ends of the step).
 
-    Writes the new state to ``y_new``; returns ``(err, propagator)``: the error norm
-    (<= 1 accepts) and ``exp(hh J)``, which carries sensitivities to the initial state.
+    Writes the new state to ``y_new`` and ``exp(hh J)``, which carries sensitivities to
+    the initial state, to ``prop``; returns the error norm (<= 1 accepts). ``work``:
+    :func:`line_workspace`.
     """
     n = y.shape[0]
-    f = np.empty(n)
-    jac = np.empty((n, n))
-    vt = np.empty(n)
+    vecs, mats, b, rhs, ework = work
+    f, vt, scale, incr, u, f2, d, corr = (vecs[0], vecs[1], vecs[2], vecs[3], vecs[4],
+                                          vecs[5], vecs[6], vecs[7])
+    jac, hj, a3 = mats[0], mats[1], mats[2]
     line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, hh, True, dsup, da_in, da_ex,
              f, jac, vt)
-    hj = hh * jac
-    b = np.empty((n, 2))
-    b[:, 0] = hh * f
-    b[:, 1] = hh * hh * vt
+    hh2 = hh * hh
+    for i in range(n):
+        for k in range(n):
+            hj[i, k] = hh * jac[i, k]
+        b[i, 0] = hh * f[i]
+        b[i, 1] = hh2 * vt[i]
     # a flow's natural size: that of an acoustic wave of 1 Pa, A / c (kg/s)
     area = 0.25 * math.pi * sl[_DIA] ** 2
     wave = area / math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
-    scale = np.ones(n)
-    scale[1 + nseg:] = wave
-    incr, prop = phi_combination(hj, b, scale)
-    u = y + incr
+    for i in range(n):
+        scale[i] = 1.0 if i <= nseg else wave
+    phi_combination_into(hj, b, scale, incr, prop, ework)
+    for i in range(n):
+        u[i] = y[i] + incr[i]
     for i in range(1 + nseg):
         if not (u[i] > 0.0 and math.isfinite(u[i])):
-            return 10.0, prop
+            return 10.0
     for i in range(1 + nseg, n):
         if not math.isfinite(u[i]):
-            return 10.0, prop
-    f2 = np.empty(n)
+            return 10.0
     # need_j False: jac and vt keep the values at y
     line_rhs(u, nseg, a_in2, a_ex2, vol2, vdot, p_sup2, sl, cs, hh, False, 0.0, 0.0, 0.0,
              f2, jac, vt)
-    d = f2 - f - hh * vt
+    for i in range(n):
+        d[i] = f2[i] - f[i] - hh * vt[i]
     for i in range(n):
         for k in range(n):
             d[i] -= jac[i, k] * (u[k] - y[k])
-    corr = phi3_correction(hj, 2.0 * hh * d, scale)
+    c2 = 2.0 * hh
+    for i in range(n):
+        d[i] = c2 * d[i]
+    phi3_correction_into(hj, d, scale, corr, a3, rhs)
     # flows are weighed by the flow of an acoustic wave of atol_p
     atol_q = atol_p * wave
     err = 0.0
@@ -342,7 +414,7 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
         if not math.isfinite(y_new[i]) or (i <= nseg and y_new[i] <= 0.0):
             e = 10.0
         err = max(err, e)
-    return err, prop
+    return err
 
 
 @njit(cache=True, error_model="numpy")
@@ -372,16 +444,23 @@ def line_start(y, s_vec, p0, carry, nseg):
 
 
 @njit(cache=True, error_model="numpy")
-def line_accept(y, y_new, prop, s_vec, want_sens):
+def line_accept(y, y_new, prop, s_vec, want_sens, work):
     """An accepted step: ``y <- y_new`` and, when ``want_sens``, ``s_vec <- prop s_vec``;
-    returns dp/dp0 (``s_vec[0]``)."""
+    returns dp/dp0 (``s_vec[0]``). ``work``: :func:`line_workspace`."""
     ny = y.shape[0]
     for i in range(ny):
         y[i] = y_new[i]
     if want_sens:
-        s_next = _matmul(prop, s_vec.reshape((ny, 1)))
+        s_next = work[0][3]
         for i in range(ny):
-            s_vec[i] = s_next[i, 0]
+            acc = 0.0
+            for k in range(ny):
+                pik = prop[i, k]
+                if pik != 0.0:
+                    acc += pik * s_vec[k]
+            s_next[i] = acc
+        for i in range(ny):
+            s_vec[i] = s_next[i]
     return s_vec[0]
 
 
