@@ -105,7 +105,7 @@ def test_the_line_form_of_tube_delay_agrees_with_the_plants_acoustic_tube(
     err = np.max(np.abs(plant - _compiled(model, params, inputs, rig)))
     assert err < 20.0, f"plant vs compiled line: {err:.1f} Pa"
     bare = _compiled(Model(), dict(base, dead_volume_m3=params["dead_volume_m3"]), inputs, rig)
-    assert np.max(np.abs(plant - bare)) > 5e3  # and the line matters
+    assert np.max(np.abs(plant - bare)) > 2e3  # and the line matters (100x the agreement)
 
 
 @pytest.mark.parametrize("leak", ["orifice", "laminar"])

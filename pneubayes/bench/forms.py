@@ -66,14 +66,17 @@ class AcousticTube(PlantForm):
     temperature) and, towards the next cell (the last one: the chamber), a mass-flow
     (momentum) state ``q``::
 
-        dq/dt = A / dx (p_i - p_{i+1}) - (f Re) mu q / (2 rho D^2)
+        dq/dt = A / l (p_i - p_{i+1}) - (f Re) mu q / (2 rho D^2)
 
-    with rho the mean density of the two cells and the Darcy friction factor times the
-    Reynolds number ``f Re`` from Churchill (1977) for a smooth tube: 64 (Poiseuille,
-    ``32 mu / D^2`` per unit density) in laminar flow, Blasius-like in turbulent flow,
-    smooth in between. Convective momentum is neglected (Mach < 0.2). Waves travel at
-    ``c = sqrt(kappa Rs T)`` and reflect at the chamber. The valve's port flows enter the
-    first cell; the tube's volume ``A L`` adds to the compressed volume.
+    with the link ``l = dx`` between cells and ``l = dx / 2`` from the last cell's
+    centre to the chamber (a staggered grid, second order in dx, as the model's line:
+    :mod:`pneubayes.simulation.line`), rho the mean density of the two cells and the
+    Darcy friction factor times the Reynolds number ``f Re`` from Churchill (1977) for a
+    smooth tube: 64 (Poiseuille, ``32 mu / D^2`` per unit density) in laminar flow,
+    Blasius-like in turbulent flow, smooth in between. Convective momentum is neglected
+    (Mach < 0.2). Waves travel at ``c = sqrt(kappa Rs T)`` and reflect at the chamber.
+    The valve's port flows enter the first cell; the tube's volume ``A L`` adds to the
+    compressed volume.
     """
 
     catalogue_name: ClassVar[str] = "tube_delay"

@@ -162,7 +162,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             dy[itp + i] = c_cell * (q_prev - q)
             rho = 0.5 * (p_i + p_next) / (rs * ts)
             re = abs(q) * dia / (area * mu)
-            dy[itq + i] = (area / dx * (p_i - p_next)
+            link = dx if i < nseg - 1 else 0.5 * dx  # staggered: cell centre to chamber
+            dy[itq + i] = (area / link * (p_i - p_next)
                            - churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
             q_prev = q
         inflow = q_prev

@@ -21,8 +21,10 @@ time, sets the tube length L.
 inner diameter ``tube_diameter_m`` a second parameter. Each cell (volume A L / n) has a
 pressure obeying eq. 5 at the supply temperature, and each junction towards the next
 cell (the last: the chamber) a mass flow q with inertia and smooth-pipe friction,
-``dq/dt = A n / L (p_i - p_{i+1}) - f Re mu q / (2 rho D^2)``
-(:mod:`pneubayes.physics.tube`). The valve's port flows enter the first cell and see
+``dq/dt = A / l (p_i - p_{i+1}) - f Re mu q / (2 rho D^2)``
+(:mod:`pneubayes.physics.tube`), on a staggered grid: the link l is L / n between cell
+centres and L / (2 n) from the last cell's centre to the chamber (the centred lumping;
+:mod:`pneubayes.simulation.line`). The valve's port flows enter the first cell and see
 its pressure, not the chamber's; waves travel and reflect. The line's volume is part of
 ``dead_volume_m3`` (as above) and is taken out of the chamber's. An outside tube is an
 acoustic line; a pure delay cannot lag and ring as one does.

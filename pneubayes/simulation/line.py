@@ -7,12 +7,23 @@ temperature T (the line is isothermal, as eq. 5 is)::
 
     dp_1/dt = kappa Rs T / (A dx) (m_valve(p_1) - q_1)
     dp_i/dt = kappa Rs T / (A dx) (q_{i-1} - q_i)
-    dq_i/dt = A / dx (p_i - p_{i+1}) - f Re mu q_i / (2 rho_i D^2),  p_{n+1} = p
+    dq_i/dt = A / l_i (p_i - p_{i+1}) - f Re mu q_i / (2 rho_i D^2),  p_{n+1} = p
     dp/dt   = kappa / V (Rs T (q_n - m_leak(p)) - p dV/dt)                    (eq. 5)
 
 with ``rho_i`` the mean density of the two cells and ``f Re`` the smooth-pipe
 correlation of :mod:`pneubayes.physics.tube`. The valve's port flows (eqs. 1-3) see the
 first cell's pressure.
+
+The grid is staggered: each cell's pressure is that of its centre, so a flow's link is
+``l_i = dx`` long between two cells and ``l_n = dx / 2`` from the last cell's centre to
+the chamber. This is the second-order (centred) lumping of the continuous line: with 3
+cells its response up to 100 Hz reads the tube's transit time within about 1 %, where
+cells lumped at their upstream end (every link dx long) read it 12-15 % short and still
+6-8 % short with 6 cells (``tests/test_simulator.py``, the line's resonance against the
+continuous tube's closed form). The half link from the valve to the first cell's centre
+is left out: a choked port's flow does not depend on the pressure downstream, so it
+changes nothing there; for a subsonic port its inertia is small next to the port's
+resistance.
 
 Waves make this system oscillatory and the orifice into a small cell makes it stiff, so
 the step is the kernel's exponential Rosenbrock method (exprb32) with the *full*
@@ -308,14 +319,16 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
         rho = 0.5 * (p_i + p_next) / rs_t
         re = abs(q) * dia / (area * mu)
         k_f = churchill_fre(re) * mu / (2.0 * rho * dia * dia)
-        f[iq + i] = inert * (p_i - p_next) - k_f * q
+        # (staggered grid: the last link, cell centre to chamber, is dx / 2 long)
+        inert_i = inert if i < nseg - 1 else 2.0 * inert
+        f[iq + i] = inert_i * (p_i - p_next) - k_f * q
         if need_j:
             jac[1 + i, iq + i] = -c_cell
             if i > 0:
                 jac[1 + i, iq + i - 1] = c_cell
             dfric_dp = k_f * q / (p_i + p_next)  # d(-k_f q)/dp through rho
-            jac[iq + i, 1 + i] = inert + dfric_dp
-            jac[iq + i, inext] += -inert + dfric_dp
+            jac[iq + i, 1 + i] = inert_i + dfric_dp
+            jac[iq + i, inext] += -inert_i + dfric_dp
             jac[iq + i, iq + i] = -k_f * (1.0 + churchill_fre_slope(re))
         q_prev = q
     # chamber: the last line flow in, leaks out (laminar k graded along the stroke)

@@ -112,7 +112,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
                 dcells.append(c_cell * (q_prev - flows_q[i]))
                 rho = 0.5 * (cells[i] + p_next) / (rs * t_s)
                 re = abs(flows_q[i]) * dia / (area * mu)
-                dq.append(area / dx * (cells[i] - p_next)
+                link = dx if i < nseg - 1 else 0.5 * dx  # staggered: cell centre to chamber
+                dq.append(area / link * (cells[i] - p_next)
                           - churchill_fre(re) * mu * flows_q[i] / (2 * rho * dia**2))
                 q_prev = flows_q[i]
             port = [q_prev]
