@@ -179,6 +179,31 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
     assert off["effects"] == []
 
 
+@pytest.mark.slow
+def test_a_round_tries_its_other_supported_groups_before_it_stops(tmp_path, monkeypatch):
+    """When the round's first max_trials_per_round supported groups all fail, the other
+    supported ones are tried before the loop stops (a small clearance leak ranked 4th
+    beside a dead zone was never tried on a blind case). The search here ranks three
+    effects the data do not have above the hidden leak; the gap fallback and the last
+    resort are off, so only this rule reaches the leak. Switched off, nothing is named."""
+    import pneubayes.discovery.loop as loop
+
+    class Misranked(loop.GroupedSINDy):
+        def supported(self, min_inclusion):
+            return ["sensor_lag", "spool_lag", "heat_transfer", "cylinder_leak"]
+
+    monkeypatch.setattr(loop, "GroupedSINDy", Misranked)
+    recs = _leak_recordings(tmp_path)
+    kw = dict(max_effects=1, max_trials_per_round=3, gap_fallback_ratio=0.0)
+    doc = Discovery(_settings(**kw), None, log=lambda m: None).fit(recs).result_.to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
+    more = [step for step in doc["ledger"] if step["action"] == "more supported"]
+    assert more and more[0]["groups"] == ["cylinder_leak"]
+    off = Discovery(_settings(try_all_supported=False, **kw), None,
+                    log=lambda m: None).fit(recs).result_.to_dict()
+    assert off["effects"] == []
+
+
 def test_whole_recordings_can_be_held_out(tmp_path):
     """Triggered trials hold no valve event at their ends: hold whole recordings out."""
     paths, _ = _bench(tmp_path / "bench", [], seed=21)

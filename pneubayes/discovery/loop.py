@@ -36,7 +36,9 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    without it is not significantly worse (the same test), it only stood in for the
    newcomer and is removed.
 7. **Repeat** with the extended model until no group is supported, or none of the
-   groups tried in a round passes verification.
+   groups tried in a round passes verification; a round whose first
+   ``max_trials_per_round`` supported groups all fail tries its other supported groups
+   before it stops (``try_all_supported``).
 
 The final model gets an emcee posterior on the training data. A ledger records every
 step; finished fits are cached in ``RUNDIR/steps`` so an interrupted run resumes.
@@ -292,6 +294,14 @@ class Discovery:
                 break
             ctx = (sindy, train, train_ws, held_ws, data_key, noise, ledger)
             current, passing = self._trials(candidates, current, ctx)
+            overflow = [g for g in supported if g not in candidates]
+            if not passing and overflow and s.try_all_supported:
+                self.log(f"discover: none of the round's first trials passed: trying the "
+                         f"other supported groups ({', '.join(overflow)})")
+                ledger.append({"step": len(ledger), "action": "more supported",
+                               "round": round_, "groups": overflow})
+                current, passing = self._trials(overflow, current, ctx)
+                candidates = candidates + overflow
             rest = [g for g in sindy.ranking_ if g not in candidates]
             gap = gap and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise
             why, closed = last_resort_reason([t[0] for t in passing],

@@ -40,6 +40,12 @@ class DiscoverySettings:
     (at most ``max_trials_per_round``) are refitted as tentative candidates beside the
     supported ones; held-out verification decides, as for any candidate, and the best
     that passes is added. ``gap_fallback_ratio = 0`` disables it.
+    try_all_supported: when none of the round's first ``max_trials_per_round`` supported
+    groups passes verification, the round's other supported groups are tried before the
+    loop stops (ledger action ``more supported``): the ranking orders the search's
+    evidence, not the 2-s gain, and a supported effect that was never tried is not an
+    effect the data rule out (a small clearance leak beside a dead zone ranked 4th with
+    inclusion 0.75 and the loop stopped at 1.6 x the noise floor without trying it).
     try_all_on_gap: when the fallback applies and no candidate of the round passes
     verification, every other group of the library is refitted and verified as well
     (ledger action ``last resort``). A slow effect's one-step inclusion can be near 0
@@ -101,6 +107,7 @@ class DiscoverySettings:
     max_p_value: float = 0.01
     gap_fallback_ratio: float = 2.0
     fallback_min_inclusion: float = 0.25
+    try_all_supported: bool = True
     try_all_on_gap: bool = True
     last_resort_min_gap_closed: float = 0.25
     last_resort_best_gap_closed: float = 0.25
