@@ -543,7 +543,17 @@ def test_the_line_small_matrix_algebra_matches_numpy_and_scipy():
     singular system is NaN, and expm matches scipy at a norm needing squarings."""
     from scipy.linalg import expm
 
-    from pneubayes.simulation.line import _matmul, _solve, expm_small
+    from pneubayes.simulation.line import _matmul_into, _solve_in_place, expm_small
+
+    def _matmul(a, b):
+        c = np.empty((a.shape[0], b.shape[1]))
+        _matmul_into(a, b, c)
+        return c
+
+    def _solve(a, b):
+        x = b.copy()
+        _solve_in_place(a.copy(), x)
+        return x
 
     rng = np.random.default_rng(8)
     for n in (1, 3, 9, 17):

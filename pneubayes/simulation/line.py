@@ -17,10 +17,10 @@ first cell's pressure.
 The grid is staggered: each cell's pressure is that of its centre, so a flow's link is
 ``l_i = dx`` long between two cells and ``l_n = dx / 2`` from the last cell's centre to
 the chamber. This is the second-order (centred) lumping of the continuous line: with 3
-cells its response up to 100 Hz reads the tube's transit time within about 1 %, where
-cells lumped at their upstream end (every link dx long) read it 12-15 % short and still
-6-8 % short with 6 cells (``tests/test_simulator.py``, the line's resonance against the
-continuous tube's closed form). The half link from the valve to the first cell's centre
+cells its first resonance is within about 1 % of the continuous tube's closed form,
+where cells lumped at their upstream end (every link dx long) put it 8-14 % low, and
+still 4-7 % low with 6 cells (``tests/test_simulator.py``), so a fitted transit time read
+short by as much. The half link from the valve to the first cell's centre
 is left out: a choked port's flow does not depend on the pressure downstream, so it
 changes nothing there; for a subsonic port its inertia is small next to the port's
 resistance.
@@ -84,14 +84,6 @@ def _matmul_into(a, b, c):
 
 
 @njit(cache=True, error_model="numpy")
-def _matmul(a, b):
-    """``a @ b`` for small matrices, into a new array (:func:`_matmul_into`)."""
-    c = np.empty((a.shape[0], b.shape[1]))
-    _matmul_into(a, b, c)
-    return c
-
-
-@njit(cache=True, error_model="numpy")
 def _solve_in_place(lu, x):
     """``x <- lu^-1 x`` by Gaussian elimination with partial pivoting, overwriting ``lu``
     (small, well-conditioned: the Pade denominator at norm <= 0.5); a singular ``lu``
@@ -126,14 +118,6 @@ def _solve_in_place(lu, x):
             for i in range(k + 1, n):
                 acc -= lu[k, i] * x[i, j]
             x[k, j] = acc / lu[k, k]
-
-
-@njit(cache=True, error_model="numpy")
-def _solve(a, b):
-    """``a^-1 b`` into a new array (:func:`_solve_in_place`); a singular ``a`` gives NaN."""
-    x = b.copy()
-    _solve_in_place(a.copy(), x)
-    return x
 
 
 @njit(cache=True, error_model="numpy")
