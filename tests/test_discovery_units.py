@@ -204,8 +204,9 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
 
 def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig):
     """Both forms start at the delay of the best term; the line's volume, which comes
-    out of the dead volume, is kept to half of it; a line is never tried beside a heat
-    model (it is isothermal) and heat never beside a line."""
+    out of the dead volume, is kept to half of it; a line is tried beside a heat model
+    and heat beside a line (the temperature joins the line's state), neither beside a
+    rig card's compliant chamber (its pressure law is the only state)."""
     from pneubayes.discovery.candidates import effect_candidates, first_free
     from pneubayes.discovery.verification import StepFit
     from pneubayes.effects import make_effect
@@ -232,10 +233,11 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
                   1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     assert [m.effect("tube_delay").form for m, _ in
             effect_candidates(hot, "tube_delay", tube_4ms, rig, 3)] == [
-        "transport"]
+        "transport", "line"]
     lined = StepFit(line_model, dict(line_start), 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
-    assert effect_candidates(lined, "heat_transfer", heat_10, rig, 3) == []
+    assert [m.effect("heat_transfer").form for m, _ in
+            effect_candidates(lined, "heat_transfer", heat_10, rig, 3)] == ["rate", "convective"]
 
 
 def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():

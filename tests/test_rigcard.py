@@ -371,6 +371,24 @@ def test_compliance_cannot_join_a_heat_or_line_model():
                  _inputs(t, 0 * t), _rig(c), P_ATM, TIGHT)
 
 
+def test_discovery_proposes_no_heat_or_line_beside_a_compliant_chamber():
+    """The simulator steps a compliant chamber with its pressure alone, so discovery
+    offers neither heat transfer nor the tube's acoustic line there (the tube's
+    transport delay has no state and stays)."""
+    from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.verification import StepFit
+
+    c = card(chamber={"kind": "compliant", "volume_m3": 1e-3,
+                      "compliance_m3_per_Pa": 2e-7})
+    fit = StepFit(Model(rig_card=c), {"valve_open_area_m2": 1e-7}, 1.0, 1.0, np.zeros(1),
+                  np.zeros(1), 500.0, 0.0)
+    heat = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
+    assert effect_candidates(fit, "heat_transfer", heat, _rig(c), 3) == []
+    tube = {"best_term_start": {"tube_delay_s": 0.004}}
+    assert [m.effect("tube_delay").form
+            for m, _ in effect_candidates(fit, "tube_delay", tube, _rig(c), 3)] == ["transport"]
+
+
 RW = ROOT / "data" / "real" / "respiraworks"
 
 

@@ -28,8 +28,9 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       ) -> CandidateContext:
     """What the named group's effect needs to propose its candidates beside ``fit``."""
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
-    taken = (any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
-             or any(e.adds_state() for e in fit.model.effects))
+    # (heat transfer and an acoustic line share one state vector: each has room beside
+    # the other)
+    taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
                             term_start=evidence.get("best_term_start"),
                             second_state_free=not taken, line_segments=line_segments,

@@ -75,10 +75,10 @@ class CandidateContext:
 
     model, params: the current fit; rig: the recordings' rig; term_start: the ``start``
     of the effect's library term that explained the residual best (None: no term);
-    second_state_free: whether the model leaves room for a state besides the chamber
-    pressure (no temperature, no acoustic line, no compliant chamber, supply tank or
-    second compartment already); line_segments: the most cells of an acoustic line form
-    (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells should reach;
+    second_state_free: whether the model leaves room for the temperature and line
+    states (no rig card's compliant chamber, supply tank or second compartment: the
+    simulator steps those with the pressure alone); line_segments: the most cells of an
+    acoustic line form (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells should reach;
     dead_volume_m3: the fitted chamber volume at position 0.
     """
 

@@ -98,7 +98,8 @@ class HeatTransfer(Effect):
         """Both forms, the rate at the best term's and the convective coefficient giving
         that rate, ``(kappa - 1) h (A_w / V) T / p = rate``, at mid-stroke and mid-range
         pressure, so neither starts handicapped. None where the model has no room for
-        the temperature state (an acoustic line is isothermal)."""
+        the temperature state (a rig card's compliant chamber, tank or second
+        compartment); beside an acoustic line the temperature joins the line's state."""
         if not ctx.second_state_free:
             return []
         rate_form = HeatTransfer(**{**self.options(), "form": "rate"})

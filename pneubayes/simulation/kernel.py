@@ -26,9 +26,10 @@ in closed form under the held command. With
 heat transfer on (either form), the chamber temperature is a second state, stepped by
 the same method with the full 2 x 2 Jacobian (a diagonal one leaves the method first
 order in the p-T coupling). With the tube as an acoustic line, the state is the
-chamber's pressure and the line's cells and flows, stepped by the same method with the
-full Jacobian (:mod:`pneubayes.simulation.line`). A lagged sensor reading is stepped in
-closed form after each accepted step (:mod:`pneubayes.simulation.reading`).
+chamber's pressure and the line's cells and flows (with heat transfer, and the chamber's
+temperature: the line's gas is at the supply's temperature), stepped by the same method
+with the full Jacobian (:mod:`pneubayes.simulation.line`). A lagged sensor reading is
+stepped in closed form after each accepted step (:mod:`pneubayes.simulation.reading`).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 3 non-finite state, 4 an acoustic line not smaller than the dead volume. This module,
@@ -346,10 +347,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     prop_t = (1.0, 0.0, 0.0, 1.0)  # a thermal step's propagator (row-major)
     if want_sens:
         sens[0] = 1.0
-    # acoustic line: state [p, cell pressures, flows]; its volume leaves the chamber's
+    # acoustic line: state [p, cell pressures, flows] (and T with heat transfer); its
+    # volume leaves the chamber's
     nseg = int(sl[_LSEG]) if sl[_LLEN] > 0.0 else 0
     line = nseg > 0
-    ny = 1 + 2 * nseg
+    ny = 1 + 2 * nseg + (1 if line and thermal else 0)
     y = np.empty(ny)
     y_new = np.empty(ny)
     s_vec = np.zeros(ny)
@@ -359,7 +361,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         v0 = v0 - line_volume(sl)
         if not v0 > 0.0:
             return LINE_VOLUME
-        line_start(y, s_vec, p0, carry, nseg)
+        line_start(y, s_vec, p0, carry, nseg, temp)
         y[0] = p
     # Delayed-command pointer: index j of the sample held at time t - delay, the last
     # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
@@ -490,9 +492,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 zp = 0.0
                 if general is not None and line:
                     err = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in,
-                                    da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p, rtol,
-                                    y_new, prop, line_work)
+                                    da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p,
+                                    atol_t, rtol, y_new, prop, line_work)
                     pn = y_new[0]
+                    if thermal:
+                        tn = y_new[ny - 1]
                 elif general is not None and tank:
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
                                                             vdot, da_in, da_ex, a_in2, a_ex2,
@@ -577,7 +581,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 sens[k + 1 - i0] = s_r if reading else s_p0
     carry[0] = temp
     if general is not None and line:
-        line_finish(y, carry)
+        line_finish(y, carry, nseg)
     if tank:
         carry[CARRY_TANK] = p_tank
     if lung:

@@ -2,8 +2,12 @@
 
 The state is ``y = [p, p_1 .. p_n, q_1 .. q_n]``: the chamber pressure, the line's
 cell pressures (cell 1 at the valve) and the mass flows from each cell into the next
-(the last into the chamber). With ``A = pi D^2 / 4``, ``dx = L / n`` and the supply
-temperature T (the line is isothermal, as eq. 5 is)::
+(the last into the chamber); with heat transfer the chamber temperature follows
+(:func:`_thermal_chamber`). With ``A = pi D^2 / 4``, ``dx = L / n`` and the supply
+temperature T (the line's gas stays at it; its cells change pressure by kappa Rs T per
+kg, as eq. 5's chamber does and as the line's waves, at the speed sqrt(kappa Rs T),
+need: the slow limit of a narrow tube, whose gas exchanges heat with its wall within
+r^2 / alpha ~ 0.05 s at 1-mm radius, is isothermal instead)::
 
     dp_1/dt = kappa Rs T / (A dx) (m_valve(p_1) - q_1)
     dp_i/dt = kappa Rs T / (A dx) (q_{i-1} - q_i)
@@ -61,6 +65,8 @@ _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _LEN = SLOT_INDEX["line_length_m"]
 _DIA = SLOT_INDEX["line_diameter_m"]
 _MU = SLOT_INDEX["line_viscosity_Pa_s"]
+_HEAT = SLOT_INDEX["heat_rate_per_s"]
+_HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 
 _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
                / (math.factorial(12) * math.factorial(k) * math.factorial(6 - k))
@@ -325,8 +331,22 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
     if leak_o > 0.0:
         f_l, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     lam = p * p - p_atm * p_atm
-    mdot = q_prev - leak_o * f_l - leak_l * lam
-    f[0] = kappa / vol * (rs_t * mdot - p * vdot)
+    if y.shape[0] > iq + nseg:  # a temperature state: heat transfer beside the line
+        _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q_prev, f_l, sg_l, dg_l,
+                         r_l, rev_l, leak_o, leak_l, leak_g, lam, f, jac, vt)
+    else:
+        mdot = q_prev - leak_o * f_l - leak_l * lam
+        f[0] = kappa / vol * (rs_t * mdot - p * vdot)
+        if need_j:
+            dleak = 2.0 * leak_l * p
+            if leak_o > 0.0:
+                dfl_dp, _ = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                                        abs(f[0]) * h)
+                dleak += leak_o * dfl_dp
+            jac[0, 0] += kappa / vol * (-rs_t * dleak - vdot)
+            jac[0, iq + nseg - 1] += kappa / vol * rs_t
+            vt[0] = (-f[0] / vol * vdot
+                     - kappa / vol * rs_t * leak_g * vdot / cs[C_BORE_AREA] * lam)
     if not need_j:
         return
     dfloor = abs(f[1]) * h
@@ -334,15 +354,90 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
                                       dfloor)
     dfex_dp1, _ = flow_slopes(p1, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     jac[1, 1] += c_cell * (a_in * dfin_dp1 - a_ex * dfex_dp1)
-    dleak = 2.0 * leak_l * p
+    vt[1] = c_cell * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+
+
+@njit(cache=True, error_model="numpy")
+def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, r_l, rev_l,
+                     leak_o, leak_l, leak_g, lam, f, jac, vt):
+    """The chamber's pressure and temperature rows of :func:`line_rhs` with heat transfer:
+    the last state ``y[-1]`` is the chamber temperature T (K).
+
+    The line's gas is at the supply (wall) temperature T_w, so air enters the chamber
+    at T_w and leaves it, into the line or through a leak, at T (the energy equation;
+    eq. 5 is its case T = T_w)::
+
+        dp/dt = kappa / V (Rs T_w mdot + Rs (T_w - T) m_out - p dV/dt) + Q_wall
+        dT/dt = T (dp/dt / p + dV/dt / V - Rs T mdot / (p V))
+
+    with ``mdot = q_n - m_leak``, ``m_out`` the mass leaving, and the wall term of either
+    heat form, as :func:`pneubayes.simulation.chamber.chamber_rhs` has them (the
+    convective form's leak orifice passes gas at T: its flow scales by sqrt(T_w / T)).
+    Writes rows 0 and -1 of ``f``, ``jac`` and ``vt``.
+    """
+    kappa, p_atm, rs, t_w = cs[C_KAPPA], cs[C_P_ATM], cs[C_RS], cs[C_T_SUPPLY]
+    alpha, beta = cs[C_ALPHA], cs[C_BETA]
+    bore = cs[C_BORE_AREA]
+    rs_t = rs * t_w
+    it = y.shape[0] - 1
+    iqn = 2 * nseg
+    p, temp = y[0], y[it]
+    heat, hconv = sl[_HEAT], sl[_HCONV]
+    sq = 1.0
+    if hconv > 0.0 and f_l > 0.0:
+        sq = math.sqrt(t_w / temp)
+    leak_out = leak_o * f_l * sq + leak_l * lam
+    mdot = q - leak_out
+    m_out = max(-q, 0.0) + max(leak_out, 0.0)
+    n_v = kappa / vol
+    fp_eq5 = n_v * (rs_t * mdot + rs * (t_w - temp) * m_out - p * vdot)
+    fp = fp_eq5
+    # wall heat flow (kappa - 1) Q / V: Q = h A_w (T_w - T), A_w / V = 2 A / V + pi D / A
+    c_wall = 0.0
+    if hconv > 0.0:
+        c_wall = (kappa - 1.0) * hconv * (2.0 * bore / vol + 2.0 * math.sqrt(math.pi / bore))
+        fp += c_wall * (t_w - temp)
+    if heat > 0.0:
+        fp += p * heat * (t_w - temp) / temp
+    g = rs * temp / (p * vol)
+    ft = temp * (fp / p + vdot / vol - g * mdot)
+    f[0] = fp
+    f[it] = ft
+    if not need_j:
+        return
+    dleak_dp = 2.0 * leak_l * p
+    dleak_dt = 0.0  # d(leak)/dT through the convective form's sqrt(T_w / T)
     if leak_o > 0.0:
         dfl_dp, _ = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
-                                abs(f[0]) * h)
-        dleak += leak_o * dfl_dp
-    jac[0, 0] += kappa / vol * (-rs_t * dleak - vdot)
-    jac[0, iq + nseg - 1] += kappa / vol * rs_t
-    vt[0] = -f[0] / vol * vdot - kappa / vol * rs_t * leak_g * vdot / cs[C_BORE_AREA] * lam
-    vt[1] = c_cell * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+                                abs(fp) * h)
+        dleak_dp += leak_o * sq * dfl_dp
+        if sq != 1.0:
+            dleak_dt = -0.5 * leak_o * f_l * sq / temp
+    dmout_dp, dmout_dt, dmout_dq = 0.0, 0.0, 0.0
+    if leak_out > 0.0:
+        dmout_dp, dmout_dt = dleak_dp, dleak_dt
+    if q < 0.0:
+        dmout_dq = -1.0
+    jpp = n_v * (rs_t * (-dleak_dp) + rs * (t_w - temp) * dmout_dp - vdot)
+    jpq = n_v * (rs_t + rs * (t_w - temp) * dmout_dq)
+    jpt = n_v * (-rs_t * dleak_dt - rs * m_out + rs * (t_w - temp) * dmout_dt) - c_wall
+    if heat > 0.0:
+        jpp += heat * (t_w - temp) / temp
+        jpt -= p * heat * t_w / (temp * temp)
+    jac[0, 0] += jpp
+    jac[0, iqn] += jpq
+    jac[0, it] += jpt
+    jac[it, 0] += temp * (jpp / p - fp / (p * p) + g * dleak_dp + g * mdot / p)
+    jac[it, iqn] += temp * (jpq / p - g)
+    jac[it, it] += ft / temp + temp * (jpt / p - rs * mdot / (p * vol) + g * dleak_dt)
+    # explicit time dependence: the volume (eq. 5's V, the wall's area, the graded leak)
+    dleak_dtime = leak_g * vdot / bore * lam
+    dmout_dtime = dleak_dtime if leak_out > 0.0 else 0.0
+    vp = (-fp_eq5 / vol * vdot + n_v * (-rs_t * dleak_dtime + rs * (t_w - temp) * dmout_dtime))
+    if hconv > 0.0:
+        vp -= (kappa - 1.0) * hconv * (t_w - temp) * 2.0 * bore * vdot / (vol * vol)
+    vt[0] = vp
+    vt[it] = temp * (vp / p - (vdot / vol) ** 2 + g * dleak_dtime + g * mdot * vdot / vol)
 
 
 @njit(cache=True, error_model="numpy")
@@ -355,8 +450,10 @@ def line_workspace(ny):
 
 @njit(cache=True, error_model="numpy")
 def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
-              a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, rtol, y_new, prop, work):
-    """One exprb32 step of length ``hh`` from ``y`` (inputs at both ends of the step).
+              a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, atol_t, rtol, y_new, prop, work):
+    """One exprb32 step of length ``hh`` from ``y`` (inputs at both ends of the step);
+    with heat transfer the last state is the chamber temperature (tolerance ``atol_t``
+    K), else ``atol_t`` is unused.
 
     Writes the new state to ``y_new`` and ``exp(hh J)``, which carries sensitivities to
     the initial state, to ``prop``; returns the error norm (<= 1 accepts). ``work``:
@@ -378,8 +475,11 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     # a flow's natural size: that of an acoustic wave of 1 Pa, A / c (kg/s)
     area = 0.25 * math.pi * sl[_DIA] ** 2
     wave = area / math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
+    # a temperature's: the isentropic change of 1 Pa about atmospheric pressure (K)
+    it = 1 + 2 * nseg  # (== n with no temperature state)
+    temp_scale = ((cs[C_KAPPA] - 1.0) / cs[C_KAPPA] * cs[C_T_SUPPLY] / cs[C_P_ATM])
     for i in range(n):
-        scale[i] = 1.0 if i <= nseg else wave
+        scale[i] = 1.0 if i <= nseg else (wave if i < it else temp_scale)
     phi_combination_into(hj, b, scale, incr, prop, ework)
     for i in range(n):
         u[i] = y[i] + incr[i]
@@ -387,7 +487,7 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
         if not (u[i] > 0.0 and math.isfinite(u[i])):
             return 10.0
     for i in range(1 + nseg, n):
-        if not math.isfinite(u[i]):
+        if not math.isfinite(u[i]) or (i == it and not u[i] > 0.0):
             return 10.0
     # need_j False: jac and vt keep the values at y
     line_rhs(u, nseg, a_in2, a_ex2, vol2, vdot, p_sup2, sl, cs, hh, False, 0.0, 0.0, 0.0,
@@ -406,9 +506,9 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     err = 0.0
     for i in range(n):
         y_new[i] = u[i] + corr[i]
-        tol = atol_p if i <= nseg else atol_q
+        tol = atol_p if i <= nseg else (atol_q if i < it else atol_t)
         e = abs(corr[i]) / (tol + rtol * max(abs(y[i]), abs(y_new[i])))
-        if not math.isfinite(y_new[i]) or (i <= nseg and y_new[i] <= 0.0):
+        if not math.isfinite(y_new[i]) or ((i <= nseg or i == it) and y_new[i] <= 0.0):
             e = 10.0
         err = max(err, e)
     return err
@@ -421,10 +521,14 @@ def line_volume(sl):
 
 
 @njit(cache=True, error_model="numpy")
-def line_start(y, s_vec, p0, carry, nseg):
-    """A window's start: ``y`` = [p0, cells, flows] from ``carry`` (NaN: at rest at p0)
-    and ``s_vec`` = dy/dp0 (1 for p and cells at rest, 0 otherwise)."""
+def line_start(y, s_vec, p0, carry, nseg, temp):
+    """A window's start: ``y`` = [p0, cells, flows] from ``carry`` (NaN: at rest at p0),
+    then the chamber temperature ``temp`` (K) when ``y`` has room for it, and ``s_vec`` =
+    dy/dp0 (1 for p and cells at rest, 0 otherwise)."""
     ny = 1 + 2 * nseg
+    if y.shape[0] > ny:
+        y[ny] = temp
+        s_vec[ny] = 0.0
     y[0] = p0
     for i in range(ny):
         s_vec[i] = 0.0
@@ -462,7 +566,8 @@ def line_accept(y, y_new, prop, s_vec, want_sens, work):
 
 
 @njit(cache=True, error_model="numpy")
-def line_finish(y, carry):
-    """A window's end: the cells and flows into ``carry[1:]``."""
-    for i in range(1, y.shape[0]):
+def line_finish(y, carry, nseg):
+    """A window's end: the cells and flows into ``carry[1:]`` (the kernel carries the
+    temperature)."""
+    for i in range(1, 1 + 2 * nseg):
         carry[i] = y[i]

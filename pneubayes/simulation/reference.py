@@ -98,9 +98,11 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         f_in = f_in_raw = float(flow_function(psup, p_valve, g))
         f_out = float(flow_function(p_valve, p_atm, g))
         f_leak = float(flow_function(p, p_atm, g))
-        if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1)
-            f_in = f_in * (np.sqrt(t_s / temp) if f_in < 0 else 1.0)
-            f_out = f_out * (np.sqrt(t_s / temp) if f_out > 0 else 1.0)
+        if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1); an
+            # acoustic line's gas is at the supply's temperature, and so its ports' gas
+            if not nseg:
+                f_in = f_in * (np.sqrt(t_s / temp) if f_in < 0 else 1.0)
+                f_out = f_out * (np.sqrt(t_s / temp) if f_out > 0 else 1.0)
             f_leak = f_leak * (np.sqrt(t_s / temp) if f_leak > 0 else 1.0)
         port = [att * a_in * f_in, -att * a_ex * f_out]
         d_line = []

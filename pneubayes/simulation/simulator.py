@@ -197,9 +197,6 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     line = slots[:, SLOT_INDEX["line_length_m"]] > 0
     hot = (slots[:, SLOT_INDEX["heat_rate_per_s"]] > 0) | (
         slots[:, SLOT_INDEX["heat_coefficient_W_per_m2_K"]] > 0)
-    if np.any(line & hot):
-        raise ValueError("the tube's acoustic line (tube_delay form 'line') is isothermal: "
-                         "it cannot be combined with heat_transfer in one model")
     if inputs.exhaust_command is None and np.any(slots[:, SLOT_INDEX["exhaust_own_command"]]):
         raise ValueError("the model's exhaust is a separate valve with its own command, but "
                          "the inputs have no exhaust command (a recording's "
