@@ -78,8 +78,8 @@ class CandidateContext:
     second_state_free: whether the model leaves room for the temperature and line
     states (no rig card's compliant chamber, supply tank or second compartment: the
     simulator steps those with the pressure alone); line_segments: the most cells of an
-    acoustic line form (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells should reach;
-    dead_volume_m3: the fitted chamber volume at position 0.
+    acoustic line form (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells
+    should reach; dead_volume_m3: the fitted chamber volume at position 0.
     """
 
     model: Any
