@@ -1,5 +1,7 @@
 """Discovery building blocks: one-step errors, grouped SINDy, the disagreement map."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -204,9 +206,10 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
 
 def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig):
     """Both forms start at the delay of the best term; the line's volume, which comes
-    out of the dead volume, is kept to half of it; a line is tried beside a heat model
-    and heat beside a line (the temperature joins the line's state), neither beside a
-    rig card's compliant chamber (its pressure law is the only state)."""
+    out of the dead volume, is kept to half of it by a narrower bore; a line is tried
+    beside a heat model and heat beside a line (the temperature joins the line's
+    state), neither beside a rig card's compliant chamber (its pressure law is the only
+    state)."""
     from pneubayes.discovery.candidates import effect_candidates, first_free
     from pneubayes.discovery.verification import StepFit
     from pneubayes.effects import make_effect
@@ -223,8 +226,10 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     line_model, line_start = cands[1]
     assert line_model.effect("tube_delay").segments == 3
     vol = float(line_model.effect("tube_delay").tube_volume_m3(line_start, rig))
-    assert vol == pytest.approx(1e-6, rel=1e-3)  # 4 ms of 2-mm tube is 4.3e-6 m^3: halved
-    assert line_start["tube_diameter_m"] == 0.002
+    assert vol == pytest.approx(1e-6, rel=1e-3)  # 4 ms of 2-mm tube is 4.3e-6 m^3
+    assert line_start["tube_delay_s"] == pytest.approx(0.004)
+    assert line_start["tube_diameter_m"] == pytest.approx(0.002 * math.sqrt(1e-6 / 4.31e-6),
+                                                          rel=2e-3)
     # the line (a costly step) is refined first in its own parameters and the dead volume
     assert first_free(line_model, "tube_delay") == ("tube_delay_s", "tube_diameter_m",
                                                     "dead_volume_m3")

@@ -346,6 +346,67 @@ def test_walker_ball_is_the_laplace_image_with_nuisance_spread_over_its_range(be
     assert np.all(np.abs(u.std(axis=0) - np.sqrt(1 / 12)) < 0.06)  # uniform: 0.289
 
 
+def _line_recording(rig, hand, model, truth, seed):
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.simulation import Inputs, simulate
+
+    n = 1501
+    t = np.arange(n) * 1e-3
+    u = hand.random_steps(np.random.default_rng(seed), n, 1e-3, hold_s=(0.02, 0.1))
+    x = np.full(n, 0.005)
+    p = simulate(model, truth, Inputs(t, u, x, np.full(n, rig.supply_pressure_Pa)), rig,
+                 rig.atmospheric_pressure_Pa, TIGHT).pressure_Pa[0]
+    p = p + np.random.default_rng(seed + 1).normal(0.0, 200.0, n)
+    meta = RecordingMetadata("test", "valve1", 2 * np.sqrt(rig.bore_area_m2 / np.pi),
+                             rig.stroke_m, rig.atmospheric_pressure_Pa,
+                             rig.supply_pressure_Pa, rig.gas.temperature_K)
+    return Recording(meta, t, u, p, None, x)
+
+
+def test_refinement_follows_an_acoustic_line_that_holds_most_of_the_dead_volume(rig, hand):
+    """A long narrow tube into a small chamber: the line holds 95 % of the dead volume
+    (which includes it), so dead volume > line volume binds across three parameters.
+    The refiner moves the chamber's own volume instead of the dead volume: from a start
+    with the line at half the dead volume (as discovery starts it) and the dead volume
+    10 % low, the fit reaches the planted geometry (here it does moving the dead volume
+    too: this checks the map back, not a stall), and its information is in the model's
+    own parameters: along the bore (at a fixed dead volume, not a fixed chamber) and the
+    dead volume it matches the objective's curvature (central second difference of the
+    squared residuals)."""
+    from pneubayes.effects import make_effect
+    from pneubayes.physics.valve import valve_preset
+
+    tube = make_effect("tube_delay", form="line", segments=3)
+    model = Model([tube])
+    truth = dict(valve_preset("valve1").parameters(), tube_delay_s=0.004,
+                 tube_diameter_m=0.0016)
+    v_line = float(tube.tube_volume_m3(truth, rig))
+    truth["dead_volume_m3"] = v_line / 0.95
+    rec = _line_recording(rig, hand, model, truth, 31)
+    dead0 = 0.9 * truth["dead_volume_m3"]
+    start = dict(truth, dead_volume_m3=dead0,
+                 tube_diameter_m=truth["tube_diameter_m"] * np.sqrt(0.5 * dead0 / v_line))
+    free = ("tube_delay_s", "tube_diameter_m", "dead_volume_m3")
+    ref = TrajectoryRefiner(model, TIGHT, horizon_s=0.5, stride_s=0.5, free=free,
+                            max_nfev=40).fit([rec], start)
+    assert ref.start_rmse_Pa_ > 2000.0
+    assert ref.rmse_Pa_ < 230.0  # the 200-Pa noise
+    for k in free:
+        assert ref.params_[k] == pytest.approx(truth[k], rel=0.02), k
+    theta = model.vector(ref.params_)
+    for name in ("tube_diameter_m", "dead_volume_m3"):
+        j = free.index(name)
+        step = 1.0 / np.sqrt(ref.information_[j, j])
+        rows = np.tile(theta, (3, 1))
+        jd = list(model.parameter_names).index(name)
+        rows[1, jd] += step
+        rows[2, jd] -= step
+        r = WindowSet([rec], 0.5, 0.5).residuals(model, rows, TIGHT).reshape(3, -1)
+        ssr = np.sum(r * r, axis=1)
+        sigma2 = ssr[0] / (r.shape[1] - len(free))
+        assert (ssr[1] + ssr[2] - 2 * ssr[0]) / (2 * sigma2) == pytest.approx(1.0, rel=0.2), name
+
+
 def test_refinement_starts_where_asked_with_a_parameter_of_order_1e_16(tmp_path):
     """A laminar leak conductance is ~1e-16 kg/(s Pa^2). scipy's trust region keeps its
     start 1e-10 (absolute) inside the bounds, which moved such a start to the middle of

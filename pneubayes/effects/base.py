@@ -168,10 +168,11 @@ class Effect(Component):
         before all of them, or None."""
         return None
 
-    def adds_state(self) -> bool:
-        """Whether the effect makes the simulator carry a state besides the chamber
-        pressure (a temperature, an acoustic line's cells)."""
-        return False
+    def volume_taken_m3(self, values: Mapping[str, np.ndarray], rig: Rig):
+        """The part of ``dead_volume_m3`` this effect takes out of the chamber at the
+        parameter ``values``, m^3 (an acoustic line's: the chamber behind it is the rest,
+        which must stay positive); None (the default) for none."""
+        return None
 
     def neutral_values(self) -> dict[str, float]:
         """Parameter values at which the effect vanishes (zero strength)."""

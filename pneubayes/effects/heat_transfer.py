@@ -115,9 +115,6 @@ class HeatTransfer(Effect):
         return [(rate_form, {"heat_transfer_rate_per_s": rate}),
                 (conv, {"heat_transfer_coefficient_W_per_m2_K": h})]
 
-    def adds_state(self):
-        return True
-
     def bench_defaults(self):
         if self.form == "rate":
             # a wall time constant of 0.2 s, typical of small cylinders

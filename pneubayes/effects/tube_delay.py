@@ -137,8 +137,10 @@ class TubeDelay(Effect):
         are lines, which lag and ring; none where the model has no room for the line's
         states), both at the best term's delay. The line's cells follow its length
         (:meth:`line_cells`: ``ctx.line_cutoff_Hz``, at most ``ctx.line_segments``).
-        The line's volume comes out of the fitted dead volume: its start delay keeps it
-        to half of that."""
+        The line's volume comes out of the fitted dead volume: where the effect's bore
+        would make it more than half of that, the line starts narrower, at half (the
+        transit time is what the residual shows; the bore is a guess either way, and a
+        long tube into a small chamber holds most of the dead volume)."""
         start = self.candidate_start(ctx.term_start)
         out = [(self, start)]
         if self.form == "line" or ctx.line_segments == 0 or not ctx.second_state_free:
@@ -148,11 +150,14 @@ class TubeDelay(Effect):
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
         cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
         line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})
-        vol = float(line.tube_volume_m3({**line.neutral_values(), "tube_delay_s": delay},
+        dia = line.neutral_values()["tube_diameter_m"]
+        vol = float(line.tube_volume_m3({"tube_delay_s": delay, "tube_diameter_m": dia},
                                         ctx.rig))
+        start = {"tube_delay_s": delay}
         if vol > 0.5 * ctx.dead_volume_m3:
-            delay = delay * 0.5 * ctx.dead_volume_m3 / vol
-        out.append((line, {"tube_delay_s": delay}))
+            start["tube_diameter_m"] = ctx.inside(line, "tube_diameter_m", dia * math.sqrt(
+                0.5 * ctx.dead_volume_m3 / vol))
+        out.append((line, start))
         return out
 
     def form_after_fit(self, params, ctx: CandidateContext):
@@ -175,8 +180,10 @@ class TubeDelay(Effect):
         return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") if self.form == "line" \
             else None
 
-    def adds_state(self):
-        return self.form == "line"
+    def volume_taken_m3(self, values, rig):
+        """An acoustic line's volume leaves the chamber's (the dead volume includes it);
+        the transport form takes none."""
+        return self.tube_volume_m3(values, rig) if self.form == "line" else None
 
     def bench_defaults(self):
         # A 1 m tube: 2.9 ms at 343 m/s, 3.1e-6 m^3 of 2 mm tube.
