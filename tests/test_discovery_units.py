@@ -398,7 +398,8 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
 def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_best():
     """An effect's later (costly) forms are fitted only when its first form's training
     gain is at least ``min_share`` of the round's best first-form gain; a later form is
-    told the first form's training RMSE to screen against."""
+    told the training RMSE to screen against: the current model's less ``screen_share``
+    of its first form's gain (1: the first form's own)."""
     from types import SimpleNamespace
 
     from pneubayes.discovery.rounds import fit_round_forms
@@ -418,7 +419,13 @@ def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_
     forms, settled, failed, outpaced = fit_round_forms(options, fit, 0.0, current_Pa=1936.0,
                                                        min_share=0.25)
     assert calls == [("transport", None), ("spool", None), ("sensor", None), ("rate", None),
-                     ("line", 1862.0)]
+                     ("line", 1862.0)]  # (screen_share 1: the first form's RMSE)
+    calls.clear()
+    fit_round_forms(options, fit, 0.0, current_Pa=1936.0, min_share=0.25, screen_share=0.5)
+    assert calls[-1] == ("line", 1936.0 - 0.5 * 74.0)
+    calls.clear()  # a first form that gains nothing: the line must beat the current model
+    fit_round_forms(options, fit, 0.0, current_Pa=1800.0, screen_share=0.5)
+    assert ("line", 1800.0) in calls and ("convective", 1800.0) in calls
     assert outpaced == {"heat_transfer": (1936.0 - 4599.0, 99.0)}
     # a stricter share drops the line too
     calls.clear()

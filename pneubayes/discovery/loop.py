@@ -174,7 +174,7 @@ class Discovery:
                 if screened:
                     self.log(f"discover: {_effects_label(model)}: screened out, its own "
                              f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
-                             f"below its effect's first form ({beat_Pa:.0f} Pa)")
+                             f"below the screen ({beat_Pa:.0f} Pa)")
             for _ in range(0 if screened else s.max_refine_restarts + 1):
                 ref = TrajectoryRefiner(model, s.fit.refine_solver,
                                         max_nfev=s.fit.refine_max_nfev).fit(train_ws, params)
@@ -375,7 +375,8 @@ class Discovery:
             follow=lambda g, m, f: follow_up(current, g, sindy.evidence_[g],
                                              train[0].rig(), m, f.params,
                                              s.tube_line_segments, s.tube_line_cutoff_Hz),
-            current_Pa=current.train_rmse_Pa, min_share=s.later_forms_min_share)
+            current_Pa=current.train_rmse_Pa, min_share=s.later_forms_min_share,
+            screen_share=s.later_form_screen_share)
         for g in candidates:
             forms = round_forms[g]
             tried = {id(m) for _, m, _ in forms} | {id(m) for m, _ in failed[g]}

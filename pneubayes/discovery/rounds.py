@@ -11,11 +11,14 @@ from pneubayes.errors import SimulationError
 
 
 def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
-                    current_Pa: float | None = None, min_share: float = 0.0):
+                    current_Pa: float | None = None, min_share: float = 0.0,
+                    screen_share: float = 1.0):
     """Fit a round's candidate forms: ``options`` maps each effect to its forms
     ``[(model, start), ...]`` in order; ``fit(effect, model, start, beat_Pa)`` fits one;
-    for a later form ``beat_Pa`` is its effect's first form's training RMSE, which a
-    fit may use to stop early (screening), else None.
+    for a later form ``beat_Pa`` is the training RMSE a fit may stop early above
+    (screening), else None: with ``current_Pa``, the current model's less
+    ``screen_share`` x its effect's first form's gain (when positive; 1: the first
+    form's own RMSE), without it the first form's RMSE.
     ``follow(effect, model, fit)`` (optional) gives a form to fit next from a fitted
     one, ``(model, start)``, or None (an acoustic line's cells re-chosen from its
     fitted transit time); it is fitted at once, under the same settling rule.
@@ -40,6 +43,8 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     """
     if not 0.0 <= min_share <= 1.0:
         raise ValueError(f"min_share must be in [0, 1], got {min_share}")
+    if not 0.0 <= screen_share <= 1.0:
+        raise ValueError(f"screen_share must be in [0, 1], got {screen_share}")
     fitted: dict = {g: [] for g in options}
     failed: dict = {g: [] for g in options}
     settled = None
@@ -70,13 +75,17 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         if best > 0:
             outpaced = {g: (gain[g], best) for g, forms in options.items()
                         if len(forms) > 1 and gain[g] < min_share * best}
+    def screen(g):
+        if first_Pa[g] is None or current_Pa is None:
+            return first_Pa[g]
+        return current_Pa - screen_share * max(current_Pa - first_Pa[g], 0.0)
     for g, forms in options.items():
         if g in outpaced:
             continue
         for model, start in forms[1:]:
             if settled is not None:
                 break
-            run(g, model, start, first_Pa[g])
+            run(g, model, start, screen(g))
     return fitted, settled, failed, outpaced
 
 
