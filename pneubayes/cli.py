@@ -358,6 +358,7 @@ def cmd_discover(args) -> int:
         tube_line_segments=args.tube_line_segments,
         form_settled_ratio=args.form_settled_ratio,
         later_forms_min_share=args.later_forms_min_share,
+        later_form_screen_share=args.later_form_screen_share,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed),
                         **_cutoffs(args), **_windows(args)))

@@ -320,6 +320,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="an effect's later forms are fitted only if its first form gains at "
                         "least this share of the round's best first-form gain in training; "
                         "0 always (0.25)")
+    d.add_argument("--later-form-screen-share", type=_share, default=0.5,
+                   help="a later form whose own parameters, fitted first, gain under this "
+                        "share of its first form's gain over the current model is not "
+                        "refined further; 1: it must beat the first form (0.5)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     _add_identification(d, "seed of bagging and sampler (recorded)")

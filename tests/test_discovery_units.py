@@ -426,6 +426,10 @@ def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_
     calls.clear()  # a first form that gains nothing: the line must beat the current model
     fit_round_forms(options, fit, 0.0, current_Pa=1800.0, screen_share=0.5)
     assert ("line", 1800.0) in calls and ("convective", 1800.0) in calls
+    from pneubayes.discovery.settings import DiscoverySettings
+
+    with pytest.raises(ValueError, match="later_form_screen_share"):
+        DiscoverySettings(later_form_screen_share=1.5)
     assert outpaced == {"heat_transfer": (1936.0 - 4599.0, 99.0)}
     # a stricter share drops the line too
     calls.clear()

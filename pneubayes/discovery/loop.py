@@ -16,8 +16,9 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    the noise floor, no later form is fitted (``form_settled_ratio``); an effect whose
    first form gains under a quarter of the round's best first-form gain in training gets
    no later form (``later_forms_min_share``), and a later form whose own parameters,
-   fitted first, do not beat its effect's first form is not refined further (a line
-   for a tube that is not there costs tens of minutes). While the held-out
+   fitted first, gain under half its effect's first form's gain over the current model
+   is not refined further (``later_form_screen_share``; a line for a tube that is not
+   there costs tens of minutes). While the held-out
    error is far above the noise, weakly supported groups are tried too (see
    ``gap_fallback_ratio``), and if none of those passes either, or the best that passes
    closes under a quarter of the gap (``last_resort_best_gap_closed``), every other
