@@ -10,7 +10,7 @@ result is the point that starts the sampler.
 An effect that takes part of the dead volume out of the chamber (an acoustic line,
 :meth:`~pneubayes.effects.Effect.volume_taken_m3`) makes ``chamber = dead volume - taken
 > 0`` a constraint across parameters, which a trust region confined to bounds cannot
-follow: a step across it fails to simulate, is rejected, and the fit stalls at the wall.
+follow: a step across it fails to simulate and is rejected, so a fit can stall there.
 The refiner therefore moves the chamber's own volume in place of the dead volume (a box
 bound: the dead volume's), and maps back, so a fit slides along the wall instead. On a
 spent blind case (a 2.9-m, 1.8-mm tube holding 94 % of the dead volume, 508-Pa noise)

@@ -58,6 +58,16 @@ def compliant_volume(p, vol, sl, p_atm):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def wall_exchange(kappa, hconv, bore_a, vol):
+    """The convective heat form's wall term per kelvin, ``(kappa - 1) h A_w / V`` (Pa/(s K);
+    dp/dt gains it times T_w - T), with ``A_w / V = 2 A / V + pi D / A`` (end caps and
+    barrel, D = 2 sqrt(A / pi)), and its slope in the volume, Pa/(s K m^3)."""
+    c = kappa - 1.0
+    return (c * hconv * (2.0 * bore_a / vol + 2.0 * math.sqrt(math.pi / bore_a)),
+            -c * hconv * 2.0 * bore_a / (vol * vol))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex):
     """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
 
@@ -122,12 +132,10 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
     fp = fp_eq5
     ft = 0.0
-    # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T) with
-    # A_w / V = 2 A / V + pi D / A (end caps and barrel; D = 2 sqrt(A / pi))
-    c_wall = 0.0
+    # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
+    c_wall, dc_wall_dv = 0.0, 0.0
     if hconv > 0.0:
-        bore_a = cs[C_BORE_AREA]
-        c_wall = (kappa - 1.0) * hconv * (2.0 * bore_a / vol + 2.0 * math.sqrt(math.pi / bore_a))
+        c_wall, dc_wall_dv = wall_exchange(kappa, hconv, cs[C_BORE_AREA], vol)
         fp += c_wall * (t_wall - temp)
     if heat > 0.0:
         fp += p * heat * (t_wall - temp) / temp
@@ -154,7 +162,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
                 - leak_g * vdot / cs[C_BORE_AREA] * lam)
     vp = -fp_eq5 / denom * vdot + n_over_v * rs_t * dmdot_dt
     if hconv > 0.0:
-        vp -= (kappa - 1.0) * hconv * (t_wall - temp) * 2.0 * cs[C_BORE_AREA] * vdot / (vol * vol)
+        vp += dc_wall_dv * vdot * (t_wall - temp)
     if not thermal:
         return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
     # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).

@@ -47,6 +47,7 @@ from numba import njit
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.physics.tube import churchill_fre, churchill_fre_slope
+from pneubayes.simulation.chamber import wall_exchange
 from pneubayes.simulation.layout import (
     C_ALPHA,
     C_BETA,
@@ -392,10 +393,10 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     n_v = kappa / vol
     fp_eq5 = n_v * (rs_t * mdot + rs * (t_w - temp) * m_out - p * vdot)
     fp = fp_eq5
-    # wall heat flow (kappa - 1) Q / V: Q = h A_w (T_w - T), A_w / V = 2 A / V + pi D / A
-    c_wall = 0.0
+    # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
+    c_wall, dc_wall_dv = 0.0, 0.0
     if hconv > 0.0:
-        c_wall = (kappa - 1.0) * hconv * (2.0 * bore / vol + 2.0 * math.sqrt(math.pi / bore))
+        c_wall, dc_wall_dv = wall_exchange(kappa, hconv, bore, vol)
         fp += c_wall * (t_w - temp)
     if heat > 0.0:
         fp += p * heat * (t_w - temp) / temp
@@ -434,8 +435,7 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     dleak_dtime = leak_g * vdot / bore * lam
     dmout_dtime = dleak_dtime if leak_out > 0.0 else 0.0
     vp = (-fp_eq5 / vol * vdot + n_v * (-rs_t * dleak_dtime + rs * (t_w - temp) * dmout_dtime))
-    if hconv > 0.0:
-        vp -= (kappa - 1.0) * hconv * (t_w - temp) * 2.0 * bore * vdot / (vol * vol)
+    vp += dc_wall_dv * vdot * (t_w - temp)
     vt[0] = vp
     vt[it] = temp * (vp / p - (vdot / vol) ** 2 + g * dleak_dtime + g * mdot * vdot / vol)
 
