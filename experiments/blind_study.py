@@ -4,6 +4,12 @@ once and reported once, never looked at while the loop is tuned.
     python experiments/blind_study.py --list                 # the cases, no runs
     python experiments/blind_study.py --out results/blind    # run (resumes) and report
     python experiments/blind_study.py --out /tmp/b --smoke   # a short check on tuning data
+    python experiments/blind_study.py --out results/blind --case b16   # one case only
+
+``--case NAME`` (repeatable; a case's full name or its ``bNN`` prefix) runs only those
+cases into the same cache and writes no summary: start a second process on the last
+cases to use a second core, then rerun without ``--case`` to report (finished cases
+are read from the cache).
 
 Each case is drawn from ``--seed`` (default 22022, recorded): a rig (cylinder and
 valve) and, for each planted effect, a realistic plant form
@@ -217,6 +223,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=BLIND_SEED, help="the draw's seed")
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
     ap.add_argument("--list", action="store_true", help="print the cases and stop")
+    ap.add_argument("--case", action="append", default=[], metavar="NAME",
+                    help="run only this case (full name or bNN prefix; repeatable) into "
+                         "the cache, without a summary")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
     args = ap.parse_args(argv)
@@ -232,6 +241,19 @@ def main(argv=None) -> int:
     if not args.out:
         ap.error("--out is required unless --list")
     root = Path(args.out)
+    if args.case:
+        chosen = [c for c in cases
+                  if any(c["name"] == k or c["name"].split("_")[0] == k for k in args.case)]
+        missing = [k for k in args.case
+                   if not any(c["name"] == k or c["name"].split("_")[0] == k for c in cases)]
+        if missing:
+            ap.error(f"--case: no case {missing} in the draw of seed {args.seed} "
+                     f"(--list shows them)")
+        cached_cases([(c["name"], c) for c in chosen], root,
+                     lambda name, c: run_case(c, args, root),
+                     lambda name, c, error: _public(c) | {"error": error, "named": []},
+                     lambda res: "done")
+        return 0
     t_all = time.perf_counter()
     # one word per case: the blind results are read once, in the summary
     results = cached_cases(

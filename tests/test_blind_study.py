@@ -66,3 +66,29 @@ def test_the_report_checks_the_floors_per_kind():
     assert sp["gap_shrink_median"] == pytest.approx((0.9 + 0.6) / 2)
     assert table["four-effect"]["planted_named_mean"] == 3.0
     assert "nothing named in 50 % (floor 90 %)" in md
+
+
+def test_case_option_runs_only_the_named_cases_and_writes_no_summary(tmp_path, monkeypatch):
+    ran = []
+
+    def fake_run(case, args, root):
+        ran.append(case["name"])
+        return {"name": case["name"], "named": []}
+
+    monkeypatch.setattr(blind_study, "run_case", fake_run)
+    names = [c["name"] for c in blind_study.draw_cases(123)]
+    prefix = names[-1].split("_")[0]
+    assert blind_study.main(["--out", str(tmp_path), "--seed", "123", "--case", prefix,
+                             "--case", names[0]]) == 0
+    assert ran == [names[0], names[-1]]  # in the draw's order
+    assert sorted(p.stem for p in (tmp_path / "cases").glob("*.json")) == sorted(ran)
+    assert not (tmp_path / "summary.json").exists()
+    # a second call reads them from the cache
+    blind_study.main(["--out", str(tmp_path), "--seed", "123", "--case", prefix])
+    assert ran == [names[0], names[-1]]
+
+
+def test_case_option_names_an_unknown_case(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        blind_study.main(["--out", str(tmp_path), "--seed", "123", "--case", "b99"])
+    assert "b99" in capsys.readouterr().err
