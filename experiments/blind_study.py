@@ -217,6 +217,20 @@ def summarise(results: list[dict]) -> tuple[dict, str]:
     return out, "\n".join(lines) + "\n"
 
 
+def _is_case(case: dict, key: str) -> bool:
+    """Whether ``key`` names ``case``: its full name or its ``bNN`` prefix."""
+    return case["name"] == key or case["name"].split("_")[0] == key
+
+
+def _run_cached(cases, args, root: Path) -> list[dict]:
+    """Each case's result from ROOT/cases (run and cached when missing), one word per
+    case: the blind results are read once, in the summary."""
+    return cached_cases(
+        [(c["name"], c) for c in cases], root, lambda name, c: run_case(c, args, root),
+        lambda name, c, error: _public(c) | {"error": error, "named": []},
+        lambda res: "done")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="results folder (cases cached there)")
@@ -242,24 +256,14 @@ def main(argv=None) -> int:
         ap.error("--out is required unless --list")
     root = Path(args.out)
     if args.case:
-        chosen = [c for c in cases
-                  if any(c["name"] == k or c["name"].split("_")[0] == k for k in args.case)]
-        missing = [k for k in args.case
-                   if not any(c["name"] == k or c["name"].split("_")[0] == k for c in cases)]
+        missing = [k for k in args.case if not any(_is_case(c, k) for c in cases)]
         if missing:
             ap.error(f"--case: no case {missing} in the draw of seed {args.seed} "
                      f"(--list shows them)")
-        cached_cases([(c["name"], c) for c in chosen], root,
-                     lambda name, c: run_case(c, args, root),
-                     lambda name, c, error: _public(c) | {"error": error, "named": []},
-                     lambda res: "done")
+        _run_cached([c for c in cases if any(_is_case(c, k) for k in args.case)], args, root)
         return 0
     t_all = time.perf_counter()
-    # one word per case: the blind results are read once, in the summary
-    results = cached_cases(
-        [(c["name"], c) for c in cases], root, lambda name, c: run_case(c, args, root),
-        lambda name, c, error: _public(c) | {"error": error, "named": []},
-        lambda res: "done")
+    results = _run_cached(cases, args, root)
     table, md = summarise(results)
     write_json_atomic(root / "summary.json", {
         "seed": args.seed, "duration_s": args.duration, "smoke": args.smoke,
