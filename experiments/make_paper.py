@@ -720,7 +720,11 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "a path of its fitted AR(1) noise (the posterior predictive); `chance` keeps "
           "`predictive`'s constraint but scores tracking on the draws' median without the "
           "noise paths (added after the first runs: the noisy median made `predictive`'s "
-          "choices among candidates noisy); `delay_nominal` and `delay_chance` are "
+          "choices among candidates noisy); `chance_window` is `chance` with the noise "
+          "the likelihood itself has for a prediction started at the reading "
+          "(`r_k = n_k - S_k n_0`: the start's noise is not counted twice, so its margin "
+          "is the posterior's own predictive, narrower than `chance`'s); "
+          "`delay_nominal` and `delay_chance` are "
           "`nominal` and `chance` on a second emcee fit of the same recordings whose model "
           "has the tube the bench hides (`tube_delay`, the effect the discovery loop names "
           "on such data; its delay fitted, not given).", "",

@@ -35,6 +35,11 @@ Per seed:
      ``predictive``) stays under ``P_MAX``, tracking scored on the median of the
      parameter draws without the noise paths (the noise is the risk, not the expected
      path; scoring the noisy median makes the choice among candidates noisy);
+   * ``chance_window``: as ``chance``, but its noise is the likelihood's own for a
+     prediction started at the measured pressure (``r_k = n_k - S_k n_0``,
+     :meth:`PressurePredictor.predictive_draws`): ``predictive`` and ``chance`` add
+     stationary noise to a prediction that starts at the reading, so they count the start's
+     noise twice and their margin is wider than the posterior's own predictive;
    * ``delay_nominal``, ``delay_chance``: ``nominal`` and ``chance`` on a second fit of
      the same recordings whose model has the bench's tube (``tube_delay``, the effect
      the discovery loop names on such data; its delay fitted, not given).
@@ -84,7 +89,7 @@ SECOND_LEVELS_V = (-0.3, 0.3)
 N_DRAWS = 64
 QUANTILE = 0.95
 CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
-               "delay_nominal", "delay_chance")
+               "chance_window", "delay_nominal", "delay_chance")
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
 #: bench hides (what the discovery loop names on such data) for the ``delay_`` ones.
 FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
@@ -126,27 +131,38 @@ class Controller:
         # per recording sample), read at the control ticks; the start's own noise is
         # forgotten within the first tick (the chamber's time constant is a few ms)
         self.noise = None
+        per_tick = round(RECORDING_RATE_HZ * DT_S)
         if self.kind in ("predictive", "chance"):
-            per_tick = round(RECORDING_RATE_HZ * DT_S)
             path = ar1_noise(rng, noise[:, 0], noise[:, 1],
                              (draws.shape[0], 1, HORIZON_TICKS * per_tick), stationary=True)
             self.noise = path[:, :, per_tick - 1::per_tick]
+        elif self.kind == "chance_window":
+            # the likelihood's own noise for a prediction started at the measured pressure
+            # (r_k = n_k - S_k n_0; PressurePredictor.predictive_draws subtracts the start)
+            path = ar1_noise(rng, noise[:, 0], noise[:, 1],
+                             (draws.shape[0], 1, HORIZON_TICKS * per_tick + 1),
+                             stationary=True)
+            self.noise = path[:, 0, ::per_tick]
         self.plan = np.zeros(HORIZON_TICKS)
 
     def step(self, measured_Pa, reference_Pa, history_V, position_m):
         cands = candidates(self.plan)
-        sims = self.predictor.predict_draws(measured_Pa, cands, position_m, DT_S,
-                                            command_history_V=history_V)[:, :, 1:]
+        if self.kind == "chance_window":
+            sims, noisy = self.predictor.predictive_draws(
+                measured_Pa, cands, position_m, DT_S, self.noise, command_history_V=history_V)
+            sims, noisy = sims[:, :, 1:], noisy[:, :, 1:]
+        else:
+            sims = self.predictor.predict_draws(measured_Pa, cands, position_m, DT_S,
+                                                command_history_V=history_V)[:, :, 1:]
+            noisy = sims if self.noise is None else sims + self.noise
         if self.kind.startswith("nominal"):
             pred = limit = sims[0]
-        elif self.kind == "chance":  # expected tracking, the predictive's risk
+        elif self.kind.startswith("chance"):  # expected tracking, the predictive's risk
             pred = np.median(sims, axis=0)
-            limit = np.quantile(sims + self.noise, QUANTILE, axis=0)
+            limit = np.quantile(noisy, QUANTILE, axis=0)
         else:
-            if self.noise is not None:
-                sims = sims + self.noise
-            pred = np.median(sims, axis=0)
-            limit = np.quantile(sims, QUANTILE, axis=0)
+            pred = np.median(noisy, axis=0)
+            limit = np.quantile(noisy, QUANTILE, axis=0)
         best = choose(pred, reference_Pa, limit)
         self.plan = cands[best]
         return float(self.plan[0])
@@ -351,7 +367,7 @@ def figure(results: list[dict], path: Path) -> None:
                  label="reference")
     axes[0].axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
     for kind, colour in zip(CONTROLLERS, ("tab:orange", "tab:red", "tab:blue", "tab:green",
-                                          "tab:purple", "tab:brown", "tab:olive")):
+                                          "tab:purple", "tab:pink", "tab:brown", "tab:olive")):
         c = r["controllers"][kind]
         axes[0].plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
                      label=f"{kind}: RMSE {c['tracking_rmse_Pa'] / 1e3:.1f} kPa, "

@@ -101,3 +101,32 @@ def test_bad_arguments_are_named(lagging, bad, what):
     kw.update(bad)
     with pytest.raises(ValueError, match=what):
         api.predict(**kw)
+
+
+def test_predictive_reading_carries_the_start_noise_as_the_likelihood_does(lagging):
+    """r_k = n_k - S_k n_0: nothing is added at the start; a constant noise path cancels
+    while the start is remembered (one tick on, S ~ 1) and is added in full once the
+    chamber has forgotten it (full exhaust pulls it to the atmosphere, S -> 0); in
+    between it grows as the start is forgotten, faster when venting."""
+    model, draws, rig = lagging
+    api = PressurePredictor(model, draws, rig, SolverConfig.standard())
+    n_l = 60  # 300 ms
+    cands = np.array([np.full(n_l, 0.0), np.full(n_l, -5.0)])
+    const = np.full((draws.shape[0], n_l + 1), 5e3)
+    p, reading = api.predictive_draws(3e5, cands, 0.0, DT, const,
+                                      command_history_V=np.zeros(5))
+    np.testing.assert_array_equal(p, api.predict_draws(3e5, cands, 0.0, DT,
+                                                       command_history_V=np.zeros(5)))
+    np.testing.assert_array_equal(reading[:, :, 0], p[:, :, 0])
+    added = reading - p
+    assert np.all(added[:, 0, 1] < 0.1 * 5e3)                  # one tick: remembered
+    np.testing.assert_allclose(added[:, 1, -1], 5e3, rtol=0.01)  # vented: forgotten
+    assert np.all(np.diff(added, axis=2) >= -1e-6) and np.all(added <= 5e3 * (1 + 1e-9))
+    # the delay: both candidates see the same history for 12 ms, then venting forgets
+    assert np.all(added[:, 1] >= added[:, 0] - 1e-6)
+    assert np.all(added[:, 1, -1] > added[:, 0, -1] + 500.0)
+    # a zero path adds nothing
+    _, quiet = api.predictive_draws(3e5, cands, 0.0, DT, np.zeros_like(const))
+    np.testing.assert_array_equal(quiet, api.predict_draws(3e5, cands, 0.0, DT))
+    with pytest.raises(ValueError, match="noise_Pa"):
+        api.predictive_draws(3e5, cands, 0.0, DT, const[:, :-1])

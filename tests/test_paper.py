@@ -160,8 +160,12 @@ def _mpc_results(out: Path):
                                         8.0 if k == "delay_chance" else 2.0}
                                 for k, r, t in zip(mpc_tracking.CONTROLLERS, rmse, ticks)}}
 
-    results = [seed(0, (40e3, 45e3, 38e3, 39e3, 39.5e3, 37e3, 37.5e3), (30, 40, 12, 0, 0, 1, 0)),
-               seed(1, (42e3, 44e3, 41e3, 43e3, 42e3, 40e3, 40e3), (20, 30, 25, 2, 1, 0, 0))]
+    # per controller, in mpc_tracking.CONTROLLERS's order
+    results = [seed(0, (40e3, 45e3, 38e3, 39e3, 39.5e3, 39e3, 37e3, 37.5e3),
+                    (30, 40, 12, 0, 0, 9, 1, 0)),
+               seed(1, (42e3, 44e3, 41e3, 43e3, 42e3, 41e3, 40e3, 40e3),
+                    (20, 30, 25, 2, 1, 14, 0, 0))]
+    assert all(len(r["controllers"]) == len(mpc_tracking.CONTROLLERS) for r in results)
     folder = out / "mpc_tracking"
     folder.mkdir(parents=True)
     (folder / "summary.json").write_text(json.dumps({
@@ -185,6 +189,7 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
             "2 seeds), at a median RMSE of 41.0 against 41.0 kPa (not worse on 1 of 2 "
             "seeds)") in text
     assert "`posterior` had 37 ticks" in text and "(fewer on 1 of 2 seeds)" in text
+    assert "`chance_window` had 23 ticks above the limit against `nominal`'s 50" in text
     paper = tmp_path / "paper"
     paper.mkdir(exist_ok=True)
     (paper / "report.md").write_text("# R\n\n## The paper's claims, checked on our data\n")

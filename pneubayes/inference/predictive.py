@@ -193,6 +193,41 @@ class PressurePredictor:
         or lagging valve still sees); default: the candidate's first command, held. A
         history shorter than :attr:`lookback_s` is extended back by its oldest command.
         """
+        args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
+                             command_history_V)
+        return simulate_windows(self.model, self.draws, *args, self.solver,
+                                check_bounds=False)
+
+    def predictive_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
+                         noise_Pa, supply_pressure_Pa=None,
+                         command_history_V=None) -> tuple[np.ndarray, np.ndarray]:
+        """The posterior predictive of the *reading* under every candidate: returns
+        ``(pressure_Pa, reading_Pa)``, both ``(N, C, L + 1)``: :meth:`predict_draws`'s
+        pressure, and the same plus each draw's noise as the
+        likelihood models it for a prediction started at the measured pressure,
+        ``r_k = n_k - S_k n_0`` (:mod:`pneubayes.inference.likelihood`): ``n`` is the
+        stationary AR(1) noise and ``S_k`` the start sensitivity, so the start's own
+        noise is not counted twice (a reading one tick ahead is close to the one now).
+
+        ``noise_Pa`` is ``(N, L + 1)``: one noise path per draw on the candidates' grid
+        (e.g. :func:`ar1_noise` with ``stationary=True`` at the recording rate, read every
+        ``dt_s``); every candidate sees the same path (common random numbers). The other
+        arguments are :meth:`predict_draws`'.
+        """
+        args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
+                             command_history_V)
+        n_l = args[3] - 1
+        noise = np.asarray(noise_Pa, dtype=np.float64)
+        if noise.shape != (self.draws.shape[0], n_l + 1):
+            raise ValueError(f"noise_Pa must be (draws, L + 1) = "
+                             f"{(self.draws.shape[0], n_l + 1)}, got {noise.shape}")
+        sim, sens = simulate_windows_sensitivity(self.model, self.draws, *args, self.solver,
+                                                 check_bounds=False)
+        return sim, sim + (noise[:, None, :] - sens * noise[:, None, :1])
+
+    def _windows(self, pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
+                 command_history_V):
+        """(inputs, rig, starts, length, start pressures): one window per candidate."""
         dt = float(dt_s)
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt_s must be finite and > 0, got {dt_s!r}")
@@ -227,9 +262,7 @@ class PressurePredictor:
         sp = np.concatenate([np.full(n_h, sup[0]), sup])
         inputs = Inputs(t, cmd, np.tile(pos, n_c), np.tile(sp, n_c))
         starts = np.arange(n_c) * block + n_h
-        return simulate_windows(self.model, self.draws, inputs, self.rig, starts, n_l + 1,
-                                np.full(n_c, float(pressure_Pa)), self.solver,
-                                check_bounds=False)
+        return inputs, self.rig, starts, n_l + 1, np.full(n_c, float(pressure_Pa))
 
     def predict(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                 supply_pressure_Pa=None, command_history_V=None) -> np.ndarray:
