@@ -231,3 +231,78 @@ def test_whole_recordings_can_be_held_out(tmp_path):
         _settings(bounds={"volume": (0.0, 1.0)})
     with pytest.raises(ValueError, match="lower < upper"):
         _settings(bounds={"tube_delay_s": (0.1, 0.0)})
+
+
+def test_runner_ups_are_the_significant_trials_never_added_nor_failed_since():
+    """Which groups the loop revisits before it stops: a trial that beat its round's
+    model significantly (p, log predictive gain, RMSE, control), not added, not failed
+    since, not in the model and not tried this round."""
+    def trial(step, g, p=0.001, gain=10.0, before=2000.0, after=1900.0, basin=False,
+              action="reject"):
+        return {"step": step, "action": action, "effect": g, "score_p_value": p,
+                "score_gain": gain, "heldout_rmse_before_Pa": before,
+                "heldout_rmse_after_Pa": after, "not_better_than_control": basin}
+
+    ledger = [{"step": 0, "action": "fit base"},
+              {"step": 1, "action": "search", "round": 1},
+              trial(2, "cylinder_leak"),                     # small gap share: a runner-up
+              trial(3, "valve_deadzone", action="pass"),
+              trial(4, "spool_lag", action="pass"),          # passed, another gained more
+              trial(5, "sensor_lag", p=0.2),                 # not significant
+              trial(6, "heat_transfer", basin=True),         # its control's gain
+              trial(7, "tube_delay", gain=-1.0),             # the density fell
+              {"step": 8, "action": "add", "effect": "valve_deadzone"},
+              {"step": 9, "action": "search", "round": 2},
+              trial(10, "supply_fluctuation", action="pass"),
+              trial(11, "spool_lag", p=0.3),                 # failed beside the dead zone
+              {"step": 12, "action": "add", "effect": "supply_fluctuation"},
+              {"step": 13, "action": "remove", "effect": "supply_fluctuation"},
+              {"step": 14, "action": "search", "round": 3},
+              trial(15, "sensor_lag", p=0.5)]
+
+    class Current:
+        class model:
+            effect_names = ("valve_deadzone",)
+
+    d = Discovery(_settings(), None, log=lambda m: None)
+    assert d._runner_ups(ledger, Current, round_step=14) == ["cylinder_leak"]
+    # tried in this round: not again
+    assert d._runner_ups(ledger + [trial(16, "cylinder_leak", p=0.5)], Current, 14) == []
+    # a later significant trial keeps it; a stricter test level drops the p = 0.001 ones
+    strict = Discovery(_settings(max_p_value=1e-4), None, log=lambda m: None)
+    assert strict._runner_ups(ledger, Current, 14) == []
+
+
+@pytest.mark.slow
+def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch):
+    """A leak that passes beside a missing tube in round 1, where the tube gains more and
+    is added, and that the search no longer supports afterwards, is tried again before
+    the loop stops, and added; switched off, the loop stops at the tube."""
+    import pneubayes.discovery.loop as loop
+
+    calls = []
+
+    class FirstRoundOnly(loop.GroupedSINDy):
+        def supported(self, min_inclusion):
+            calls.append(1)
+            return (["tube_delay", "cylinder_leak"] if len(calls) == 1
+                    else ["spool_lag"])
+
+    monkeypatch.setattr(loop, "GroupedSINDy", FirstRoundOnly)
+    eff = effects_from_names(["tube_delay", "cylinder_leak"], "laminar")
+    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
+                                  seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
+                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
+                      tmp_path / "fixed")
+    recs = [read_recording(p) for p in fixed.recordings]
+    kw = dict(max_effects=2, gap_fallback_ratio=0.0)
+    doc = Discovery(_settings(**kw), None, log=lambda m: None).fit(recs).result_.to_dict()
+    round1 = [e for e in doc["ledger"] if e.get("effect") == "cylinder_leak"][0]
+    assert round1["score_p_value"] <= 0.01  # it beat the plain model in round 1
+    assert [e["name"] for e in doc["effects"]] == ["tube_delay", "cylinder_leak"]
+    revisit = [e for e in doc["ledger"] if e["action"] == "revisit"]
+    assert revisit and revisit[0]["groups"] == ["cylinder_leak"]
+    calls.clear()
+    off = Discovery(_settings(revisit_runner_ups=False, **kw), None,
+                    log=lambda m: None).fit(recs).result_.to_dict()
+    assert [e["name"] for e in off["effects"]] == ["tube_delay"]

@@ -39,7 +39,8 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
 7. **Repeat** with the extended model until no group is supported, or none of the
    groups tried in a round passes verification; a round whose first
    ``max_trials_per_round`` supported groups all fail tries its other supported groups
-   before it stops (``try_all_supported``).
+   before it stops (``try_all_supported``), and then the *runner-ups*: groups that beat
+   an earlier round's model significantly but were not added (``revisit_runner_ups``).
 
 The final model gets an emcee posterior on the training data. A ledger records every
 step; finished fits are cached in ``RUNDIR/steps`` so an interrupted run resumes.
@@ -285,6 +286,7 @@ class Discovery:
                              f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor: also "
                              f"trying {', '.join(tentative)} (inclusion below "
                              f"{s.min_inclusion:g})")
+            round_step = len(ledger)
             ledger.append({"step": len(ledger), "action": "search", "round": round_,
                            "supported": supported, "tentative": tentative,
                            "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
@@ -317,22 +319,29 @@ class Discovery:
                 current, more = self._trials(rest, current, ctx,
                                              s.last_resort_min_gap_closed)
                 passing = passing + more
-            added = bool(passing)
-            if passing:
-                _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
-                self.log(f"discover: ADD {g} (the largest held-out improvement)")
-                ledger.append({"step": len(ledger), "action": "add", "effect": g,
-                               "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
-                               "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
-                               "score_gain": gain, "score_p_value": pval})
-                accepted.append({"name": g, "evidence": sindy.evidence_[g],
-                                 "score_gain": gain, "score_p_value": pval,
-                                 "rmse_before_Pa": current.heldout_rmse_Pa,
-                                 "rmse_after_Pa": trial.heldout_rmse_Pa})
-                current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key)
-            if not added:
+            retry = (self._runner_ups(ledger, current, round_step)
+                     if not passing and s.revisit_runner_ups else [])
+            if retry:
+                self.log(f"discover: nothing passed this round; revisiting "
+                         f"{', '.join(retry)}, which beat an earlier model significantly "
+                         "but were not added")
+                ledger.append({"step": len(ledger), "action": "revisit", "round": round_,
+                               "groups": retry})
+                current, passing = self._trials(retry, current, ctx)
+            if not passing:
                 self.log("discover: no supported effect passed verification; stop")
                 break
+            _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
+            self.log(f"discover: ADD {g} (the largest held-out improvement)")
+            ledger.append({"step": len(ledger), "action": "add", "effect": g,
+                           "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                           "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                           "score_gain": gain, "score_p_value": pval})
+            accepted.append({"name": g, "evidence": sindy.evidence_[g],
+                             "score_gain": gain, "score_p_value": pval,
+                             "rmse_before_Pa": current.heldout_rmse_Pa,
+                             "rmse_after_Pa": trial.heldout_rmse_Pa})
+            current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key)
         params, estimate = dict(current.params), "refined (multiple shooting)"
         post = {}
         if s.posterior:
@@ -483,6 +492,31 @@ class Discovery:
             if ok:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing
+
+    def _runner_ups(self, ledger: list, current: StepFit, round_step: int) -> list[str]:
+        """Groups to try again before the loop stops: each had a trial that beat the model
+        of its round significantly (the verification test, beyond its control), whether
+        it was not added because another gained more or because the last resort's gap
+        share turned it away, and no later trial of it failed; never added, not in the
+        current model and not tried since ``round_step`` (this round). In the order they
+        first qualified."""
+        latest: dict[str, bool] = {}
+        tried_now, ever_added = set(), set()
+        for e in ledger:
+            if e["action"] == "add":
+                ever_added.add(e["effect"])
+            if e["action"] not in ("pass", "reject"):
+                continue
+            g = e["effect"]
+            latest[g] = (e["score_p_value"] <= self.settings.max_p_value
+                         and e["score_gain"] > 0
+                         and e["heldout_rmse_after_Pa"] < e["heldout_rmse_before_Pa"]
+                         and not e["not_better_than_control"])
+            if e["step"] >= round_step:
+                tried_now.add(g)
+        have = set(current.model.effect_names)
+        return [g for g, ok in latest.items()
+                if ok and g not in have | ever_added | tried_now]
 
     def _better(self, new: StepFit, old: StepFit):
         return compare_heldout(new, old, self.settings.max_p_value)

@@ -64,6 +64,16 @@ class DiscoverySettings:
     beside faster effects: on a four-effect AIR37 rig (tube, dead zone, droop, leak) the
     round's three saturated candidates closed at most 14 % of the gap, the leak was
     added, and the dead zone (58 %) waited for a round in which nothing passed.
+    revisit_runner_ups: before the loop stops (a round in which nothing passed), the
+    groups whose trial in an earlier round beat that round's model significantly (the
+    verification test, beyond its control) but that were not added -- another gained
+    more, or the last resort's gap share turned them away -- and that no later trial
+    failed are tried again beside the current model (ledger action ``revisit``). The
+    one-step search ranks what the *current* residual shows: on a four-effect SMC rig
+    (tube, dead zone, droop, clearance leak) the leak passed the signed-rank test in
+    round 1 (p = 0.006) beside the dead zone's larger gain, its inclusion fell to 0 once
+    the other three were added, and the loop stopped at 1.7 x the noise floor without
+    trying it again.
     tube_line_segments: the most cells of the acoustic-line form tried for a named tube;
     0 tries the transport delay only. A line step costs tens of times a plain one, and
     more with more cells. tube_line_cutoff_Hz: the line gets the fewest cells, at least
@@ -116,6 +126,7 @@ class DiscoverySettings:
     try_all_on_gap: bool = True
     last_resort_min_gap_closed: float = 0.25
     last_resort_best_gap_closed: float = 0.25
+    revisit_runner_ups: bool = True
     score_dof: float = 4.0
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
