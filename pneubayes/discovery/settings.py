@@ -68,7 +68,10 @@ class DiscoverySettings:
     groups whose trial in an earlier round beat that round's model significantly (the
     verification test, beyond its control) but that were not added -- another gained
     more, or the last resort's gap share turned them away -- and that no later trial
-    failed are tried again beside the current model (ledger action ``revisit``). The
+    failed are tried again beside the current model (ledger action ``revisit``); as the
+    search no longer supports them, they must also close ``last_resort_min_gap_closed``
+    of the gap (a clearance leak revisited beside the tube that explained a case gained
+    0.2 Pa of held-out RMSE at p = 0.012, near the test's level). The
     one-step search ranks what the *current* residual shows: on a four-effect SMC rig
     (tube, dead zone, droop, clearance leak) the leak passed the signed-rank test in
     round 1 (p = 0.006) beside the dead zone's larger gain, its inclusion fell to 0 once
