@@ -296,12 +296,17 @@ def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch)
                       tmp_path / "fixed")
     recs = [read_recording(p) for p in fixed.recordings]
     kw = dict(max_effects=2, gap_fallback_ratio=0.0)
-    doc = Discovery(_settings(**kw), None, log=lambda m: None).fit(recs).result_.to_dict()
+    result = Discovery(_settings(**kw), None, log=lambda m: None).fit(recs).result_
+    doc = result.to_dict()
     round1 = [e for e in doc["ledger"] if e.get("effect") == "cylinder_leak"][0]
     assert round1["score_p_value"] <= 0.01  # it beat the plain model in round 1
     assert [e["name"] for e in doc["effects"]] == ["tube_delay", "cylinder_leak"]
     revisit = [e for e in doc["ledger"] if e["action"] == "revisit"]
     assert revisit and revisit[0]["groups"] == ["cylinder_leak"]
+    from pneubayes.discovery.report import _report
+
+    text = _report(dict(doc, recordings=[str(r.source) for r in recs]), result, {})
+    assert f"| {revisit[0]['step']} | revisit | cylinder_leak tried again" in text
     calls.clear()
     off = Discovery(_settings(revisit_runner_ups=False, **kw), None,
                     log=lambda m: None).fit(recs).result_.to_dict()

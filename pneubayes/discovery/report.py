@@ -167,6 +167,13 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
         elif e["action"] == "last resort":
             lines.append(f"| {e['step']} | last resort | {', '.join(e['groups'])} tried "
                          "(the gap stayed large) | | | |")
+        elif e["action"] == "more supported":
+            lines.append(f"| {e['step']} | more supported | {', '.join(e['groups'])} tried "
+                         "(the round's first supported effects all failed) | | | |")
+        elif e["action"] == "revisit":
+            lines.append(f"| {e['step']} | revisit | {', '.join(e['groups'])} tried again "
+                         "(significant in an earlier round, not added; nothing else "
+                         "passed) | | | |")
         else:
             lines.append(f"| {e['step']} | {e['action']} | | | "
                          f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")
