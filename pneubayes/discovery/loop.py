@@ -504,7 +504,7 @@ class Discovery:
         it was not added because another gained more or because the last resort's gap
         share turned it away, and no later trial of it failed; never added, not in the
         current model and not tried since ``round_step`` (this round). In the order they
-        first qualified."""
+        were first tried."""
         latest: dict[str, bool] = {}
         tried_now, ever_added = set(), set()
         for e in ledger:
