@@ -61,7 +61,10 @@ def rows(doc: dict) -> list[dict]:
                 row.update(ours_discovery_rmse_Pa=disc["metrics"]["rmse_Pa"],
                            ours_discovery_percent=disc["metrics"]["rmse_percent_of_range"],
                            discovered=disc["fit"].get("discovered", []),
-                           discovery_cell=disc["id"])
+                           discovery_cell=disc["id"],
+                           discovery_revision=str((disc.get("provenance") or {})
+                                                  .get("git_revision") or "")[:7],
+                           discovery_rekeyed=disc.get("rekeyed"))
             out.append(row)
     return out
 
@@ -116,6 +119,28 @@ def summary_markdown(summary: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def revision_markdown(table: list[dict]) -> str:
+    """Which revision computed each discovery cell, and the cells carried over from an
+    earlier cell id (``rekeyed``: computed before a settings change that provably does
+    not alter them), with the reason each gives."""
+    by_rev: dict[str, list[str]] = {}
+    for r in table:
+        if r.get("ours_discovery_rmse_Pa") is None:
+            continue
+        by_rev.setdefault(r.get("discovery_revision") or "unknown", []).append(
+            f"{r['paper_name']} seed {r['seed']}")
+    if not by_rev:
+        return ""
+    text = "Discovery cells by the git revision that computed them: " + "; ".join(
+        f"`{rev}`: {', '.join(cells)}" for rev, cells in by_rev.items()) + "."
+    moved = [r for r in table if r.get("discovery_rekeyed")]
+    if moved:
+        text += " Carried over from an earlier cell id: " + "; ".join(
+            f"{r['paper_name']} seed {r['seed']} ({r['discovery_rekeyed']['why']})"
+            for r in moved) + "."
+    return text + "\n"
+
+
 def markdown(table: list[dict]) -> str:
     def f(row, key, fmt):
         v = row.get(key)
@@ -142,6 +167,9 @@ def main(argv=None) -> int:
     summary = discovery_summary(table)
     md = markdown(table)
     md_summary = summary_markdown(summary)
+    revisions = revision_markdown(table)
+    if revisions:
+        md_summary += "\n" + revisions
     save(args, "table3", {"rows": table, "markdown": md, "discovery_summary": summary,
                           "discovery_markdown": md_summary}, {"table3": doc})
     from pathlib import Path

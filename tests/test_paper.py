@@ -58,6 +58,14 @@ def test_table3_discovery_summary_over_seeds():
     assert row["final_over_noise"] == {"median": 1.8, "min": 0.9, "max": 3.0}
     md = table3.summary_markdown([row])
     assert "| PRN | 3 | 1.33 |" in md and "78 [75, 80] %" in md and "1.80 [0.90, 3.00]" in md
+    # which revision computed each cell, and a cell carried over from an earlier id
+    table[0].update(discovery_revision="1bd7fbd",
+                    discovery_rekeyed={"from": "old-id", "why": "no round reached it"})
+    table[1].update(discovery_revision="1a34be1")
+    text = table3.revision_markdown(table)
+    assert "`1bd7fbd`: PRN seed 0; `1a34be1`: PRN seed 1; `unknown`: PRN seed 2" in text
+    assert "Carried over from an earlier cell id: PRN seed 0 (no round reached it)." in text
+    assert table3.revision_markdown([dict(base, seed=0)]) == ""
 
 
 def _real_results(out: Path, rw_final: float, setpoint: float):
