@@ -75,6 +75,15 @@ def _fmt(v, spec=".4g"):
     return "-" if v is None else format(v, spec)
 
 
+#: ledger actions that try a list of groups, and why the loop tried them
+_GROUP_ACTIONS = {
+    "last resort": "tried (the gap stayed large)",
+    "more supported": "tried (the round's first supported effects all failed)",
+    "revisit": "tried again (significant in an earlier round, not added; nothing else "
+               "passed)",
+}
+
+
 def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     horizon = result.settings.fit.horizon_s
     noise = doc["noise_floor_Pa"]
@@ -164,16 +173,9 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
         elif e["action"] == "search":
             lines.append(f"| {e['step']} | search | {', '.join(e['supported']) or 'none'} "
                          "supported | | | |")
-        elif e["action"] == "last resort":
-            lines.append(f"| {e['step']} | last resort | {', '.join(e['groups'])} tried "
-                         "(the gap stayed large) | | | |")
-        elif e["action"] == "more supported":
-            lines.append(f"| {e['step']} | more supported | {', '.join(e['groups'])} tried "
-                         "(the round's first supported effects all failed) | | | |")
-        elif e["action"] == "revisit":
-            lines.append(f"| {e['step']} | revisit | {', '.join(e['groups'])} tried again "
-                         "(significant in an earlier round, not added; nothing else "
-                         "passed) | | | |")
+        elif e["action"] in _GROUP_ACTIONS:
+            lines.append(f"| {e['step']} | {e['action']} | {', '.join(e['groups'])} "
+                         f"{_GROUP_ACTIONS[e['action']]} | | | |")
         else:
             lines.append(f"| {e['step']} | {e['action']} | | | "
                          f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")

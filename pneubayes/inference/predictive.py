@@ -69,6 +69,16 @@ def ar1_noise(rng: np.random.Generator, sigma, rho, shape,
     return out
 
 
+def window_noise(noise_Pa, sensitivity) -> np.ndarray:
+    """The likelihood's residual for a prediction started at the measured pressure,
+    ``r_k = n_k - S_k n_0`` (:mod:`pneubayes.inference.likelihood`): ``noise_Pa`` holds
+    stationary AR(1) paths ``n`` (last axis the samples, broadcast against
+    ``sensitivity``), ``sensitivity`` the start sensitivities ``S`` (1 at the start, so
+    nothing is added there)."""
+    n = np.asarray(noise_Pa, dtype=np.float64)
+    return n - np.asarray(sensitivity) * n[..., :1]
+
+
 @dataclass(frozen=True)
 class PredictionBands:
     """Rolling-window predictions of one recording.
@@ -140,7 +150,7 @@ class PosteriorPredictive:
         if self.noise is not None:
             n = ar1_noise(rng, self.noise[:, 0], self.noise[:, 1], sim.shape,
                           stationary=True)
-            noisy[:, :, 1:] += n[:, :, 1:] - sens[:, :, 1:] * n[:, :, :1]
+            noisy += window_noise(n, sens)
         q = np.quantile(noisy, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
         t = np.asarray(recording.time_s)[starts[:, None] + np.arange(length)[None, :]]
         return PredictionBands(t, starts, meas, sim.mean(axis=0), *q,
@@ -216,14 +226,13 @@ class PressurePredictor:
         """
         args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
                              command_history_V)
-        n_l = args[3] - 1
         noise = np.asarray(noise_Pa, dtype=np.float64)
-        if noise.shape != (self.draws.shape[0], n_l + 1):
+        if noise.shape != (self.draws.shape[0], args[3]):
             raise ValueError(f"noise_Pa must be (draws, L + 1) = "
-                             f"{(self.draws.shape[0], n_l + 1)}, got {noise.shape}")
+                             f"{(self.draws.shape[0], args[3])}, got {noise.shape}")
         sim, sens = simulate_windows_sensitivity(self.model, self.draws, *args, self.solver,
                                                  check_bounds=False)
-        return sim, sim + (noise[:, None, :] - sens * noise[:, None, :1])
+        return sim, sim + window_noise(noise[:, None, :], sens)
 
     def _windows(self, pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
                  command_history_V):
