@@ -8,6 +8,7 @@ import pytest
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.cli import main as cli_main
 from pneubayes.discovery.loop import Discovery
+from pneubayes.discovery.rounds import runner_ups
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.effects import effects_from_names
 from pneubayes.io import read_recording
@@ -260,17 +261,14 @@ def test_runner_ups_are_the_significant_trials_never_added_nor_failed_since():
               {"step": 14, "action": "search", "round": 3},
               trial(15, "sensor_lag", p=0.5)]
 
-    class Current:
-        class model:
-            effect_names = ("valve_deadzone",)
-
-    d = Discovery(_settings(), None, log=lambda m: None)
-    assert d._runner_ups(ledger, Current, round_step=14) == ["cylinder_leak"]
+    have = ("valve_deadzone",)
+    assert runner_ups(ledger, have, round_step=14, max_p_value=0.01) == ["cylinder_leak"]
     # tried in this round: not again
-    assert d._runner_ups(ledger + [trial(16, "cylinder_leak", p=0.5)], Current, 14) == []
-    # a later significant trial keeps it; a stricter test level drops the p = 0.001 ones
-    strict = Discovery(_settings(max_p_value=1e-4), None, log=lambda m: None)
-    assert strict._runner_ups(ledger, Current, 14) == []
+    assert runner_ups(ledger + [trial(16, "cylinder_leak", p=0.5)], have, 14, 0.01) == []
+    # in the current model: not again
+    assert runner_ups(ledger, have + ("cylinder_leak",), 14, 0.01) == []
+    # a stricter test level drops the p = 0.001 ones
+    assert runner_ups(ledger, have, 14, 1e-4) == []
 
 
 @pytest.mark.slow

@@ -76,7 +76,7 @@ from pneubayes.discovery.disagreement import disagreement_map, flagged_bins
 from pneubayes.discovery.library import build_library
 from pneubayes.discovery.one_step import one_step_data
 from pneubayes.discovery.result import DiscoveryResult
-from pneubayes.discovery.rounds import fit_round_forms, last_resort_reason
+from pneubayes.discovery.rounds import fit_round_forms, last_resort_reason, runner_ups
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.sindy import GroupedSINDy
 from pneubayes.discovery.verification import (
@@ -320,7 +320,8 @@ class Discovery:
                 current, more = self._trials(rest, current, ctx,
                                              s.last_resort_min_gap_closed)
                 passing = passing + more
-            retry = (self._runner_ups(ledger, current, round_step)
+            retry = (runner_ups(ledger, current.model.effect_names, round_step,
+                                s.max_p_value)
                      if not passing and s.revisit_runner_ups else [])
             if retry:
                 self.log(f"discover: nothing passed this round; revisiting "
@@ -497,31 +498,6 @@ class Discovery:
             if ok:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing
-
-    def _runner_ups(self, ledger: list, current: StepFit, round_step: int) -> list[str]:
-        """Groups to try again before the loop stops: each had a trial that beat the model
-        of its round significantly (the verification test, beyond its control), whether
-        it was not added because another gained more or because the last resort's gap
-        share turned it away, and no later trial of it failed; never added, not in the
-        current model and not tried since ``round_step`` (this round). In the order they
-        were first tried."""
-        latest: dict[str, bool] = {}
-        tried_now, ever_added = set(), set()
-        for e in ledger:
-            if e["action"] == "add":
-                ever_added.add(e["effect"])
-            if e["action"] not in ("pass", "reject"):
-                continue
-            g = e["effect"]
-            latest[g] = (e["score_p_value"] <= self.settings.max_p_value
-                         and e["score_gain"] > 0
-                         and e["heldout_rmse_after_Pa"] < e["heldout_rmse_before_Pa"]
-                         and not e["not_better_than_control"])
-            if e["step"] >= round_step:
-                tried_now.add(g)
-        have = set(current.model.effect_names)
-        return [g for g, ok in latest.items()
-                if ok and g not in have | ever_added | tried_now]
 
     def _better(self, new: StepFit, old: StepFit):
         return compare_heldout(new, old, self.settings.max_p_value)

@@ -1,8 +1,9 @@
 """One round's trials: the candidate effects' forms, fitted cheapest first, stopping
 once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.DiscoverySettings`
 ``form_settled_ratio``); an effect's later forms only while its first form keeps up with
-the round's best (``later_forms_min_share``); and whether a round's results call for the
-last resort (:func:`last_resort_reason`)."""
+the round's best (``later_forms_min_share``); whether a round's results call for the
+last resort (:func:`last_resort_reason`); and which earlier trials to revisit before the
+loop stops (:func:`runner_ups`)."""
 
 from __future__ import annotations
 
@@ -101,3 +102,29 @@ def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
     if closed < settings.last_resort_best_gap_closed:
         return f"the best candidate closes {closed:.0%} of its gap", closed
     return None, closed
+
+
+def runner_ups(ledger: list, current_effects, round_step: int,
+               max_p_value: float) -> list[str]:
+    """Groups to try again before the loop stops, from its ``ledger``: each had a trial
+    that beat the model of its round significantly (p <= ``max_p_value``, log predictive
+    gain > 0, lower held-out RMSE, beyond its control), whether it was not added because
+    another gained more or because the last resort's gap share turned it away, and no
+    later trial of it failed; never added, not in ``current_effects`` and not tried since
+    ``round_step`` (this round). In the order they were first tried."""
+    latest: dict[str, bool] = {}
+    tried_now, ever_added = set(), set()
+    for e in ledger:
+        if e["action"] == "add":
+            ever_added.add(e["effect"])
+        if e["action"] not in ("pass", "reject"):
+            continue
+        g = e["effect"]
+        latest[g] = (e["score_p_value"] <= max_p_value
+                     and e["score_gain"] > 0
+                     and e["heldout_rmse_after_Pa"] < e["heldout_rmse_before_Pa"]
+                     and not e["not_better_than_control"])
+        if e["step"] >= round_step:
+            tried_now.add(g)
+    return [g for g, ok in latest.items()
+            if ok and g not in set(current_effects) | ever_added | tried_now]
