@@ -81,6 +81,8 @@ EFFECT_FORMS = (
     ("sensor_lag 2nd order", "sensor_lag", {"form": "second_order"}),
     ("tube_delay", "tube_delay", {}),
     ("tube line, 3 cells", "tube_delay", {"form": "line", "segments": 3}),
+    ("tube line, 8 cells", "tube_delay", {"form": "line", "segments": 8}),
+    ("tube wave, 8 elements", "tube_delay", {"form": "wave"}),
     ("valve_deadzone", "valve_deadzone", {}),
     ("heat_transfer", "heat_transfer", {}),
 )

@@ -29,13 +29,15 @@ RANGE = P_SUP - P_ATM
 VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "laminar"}),
             ("cylinder_leak", {"form": "graded"}),
             ("tube_delay", {}), ("tube_delay", {"form": "line", "segments": 3}),
+            ("tube_delay", {"form": "wave"}),
             ("valve_deadzone", {}), ("valve_deadzone", {"form": "rounded"}),
             ("supply_fluctuation", {}),
             ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
             ("spool_lag", {}), ("spool_lag", {"form": "second_order"}), ("sensor_lag", {}),
             ("sensor_lag", {"form": "second_order"}),
             ("sensor_lag", {"form": "second_order", "channels": "all"})]
-IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "valve_deadzone",
+IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
+       "valve_deadzone",
        "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
        "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all"]
 
@@ -164,6 +166,10 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
     inputs = Inputs(t, u, hand.moving_position(t, freq=3.0), hand.fluctuating_supply(t))
     model = Model([effect])
     params = dict(valve_params, **effect.bench_defaults())
+    if getattr(effect, "form", None) == "wave":  # a delay system: no ODE reference
+        with pytest.raises(ValueError, match="plant's finely lumped acoustic tube"):
+            reference_simulate(model, params, inputs, rig, 2e5)
+        return  # its independent reference: tests/test_wave.py
     method = "DOP853" if getattr(effect, "form", None) == "line" else "Radau"
     ref = reference_simulate(model, params, inputs, rig, 2e5, method=method, rtol=1e-10)
     got = _sim(model, params, inputs, rig)
@@ -751,6 +757,11 @@ def test_a_cards_form_follows_from_its_parameter_names(name):
     card's parameter names."""
     cls = CATALOGUE[name]
     base = Model().parameter_names
+    seen = {}
     for form in cls.forms:
-        names = (*base, *cls(form=form).parameter_names())
-        assert cls.form_from_parameters(names) == form
+        own = cls(form=form).parameter_names()
+        names = (*base, *own)
+        # a form with the same parameters as an earlier one (tube_delay's wave and line)
+        # is told apart only by the card's form option: without it, the earlier form
+        assert cls.form_from_parameters(names) == seen.get(tuple(sorted(own)), form)
+        seen.setdefault(tuple(sorted(own)), form)

@@ -115,8 +115,24 @@ SLOTS += (
      "opening of real spool edges); 0 is the hard dead band (V)"),
 )
 
+SLOTS += (
+    ("wave_length_m", "valve-chamber tube as a transmission line of this length (waves "
+     "delayed by its transit time, friction lumped at its ends); > 0 makes its waves' "
+     "history a state, its volume leaves the chamber's (m)"),
+    ("wave_diameter_m", "inner diameter of the transmission-line tube (m)"),
+    ("wave_viscosity_Pa_s", "dynamic viscosity of the air in the transmission-line tube "
+     "(Pa s)"),
+    ("wave_segments", "line elements of the transmission-line tube, its friction lumped "
+     "at their junctions (count)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
+#: Most line elements of a transmission-line tube.
+WAVE_MAX_SEGMENTS = 16
+#: Points per wave over one element's transit time that a transmission-line tube's
+#: state is resampled on when it is carried from one window to the next.
+WAVE_CARRY_POINTS = 32
 
 SLOT_NAMES: tuple[str, ...] = tuple(name for name, _ in SLOTS)
 SLOT_INDEX: dict[str, int] = {name: i for i, name in enumerate(SLOT_NAMES)}

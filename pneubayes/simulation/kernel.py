@@ -84,19 +84,38 @@ from pneubayes.simulation.reading import first_order_step, second_order_step
 from pneubayes.simulation.spool import spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
+from pneubayes.simulation.wave import (
+    WAVE_CAPACITY,
+    WAVE_CARRY,
+    WAVE_MAX_SEGMENTS,
+    wave_constants,
+    wave_ends,
+    wave_finish,
+    wave_gain,
+    wave_grid_step,
+    wave_read,
+    wave_resistance,
+    wave_start,
+    wave_volume,
+    wave_workspace,
+)
 
 OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME, NEEDS_GENERAL = 0, 1, 2, 3, 4, 5
+WAVE_HISTORY = 6
 STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
                LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume",
                NEEDS_GENERAL: "a form with a second state reached the pressure-only kernel "
-                              "(an internal error)"}
+                              "(an internal error)",
+               WAVE_HISTORY: f"more than {WAVE_CAPACITY} entries within one transit time "
+                             "of the transmission-line tube (an internal error)"}
 #: Length of the state carried from one window to the next: the chamber temperature,
-#: an acoustic line's cell pressures and flows (NaN: start the line at rest) and a
+#: an acoustic line's cell pressures and flows (NaN: start the line at rest) or a
+#: transmission-line tube's waves (:func:`~pneubayes.simulation.wave.wave_finish`), a
 #: supply tank's pressure (NaN: start at the window's supply) and a second
 #: compartment's pressure (NaN: start at the window's initial pressure).
-N_CARRY = 3 + 2 * LINE_MAX_SEGMENTS
+N_CARRY = 3 + max(2 * LINE_MAX_SEGMENTS, WAVE_CARRY)
 CARRY_TANK = N_CARRY - 2
 CARRY_LUNG = N_CARRY - 1
 
@@ -115,6 +134,8 @@ _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _LLEN = SLOT_INDEX["line_length_m"]
 _LSEG = SLOT_INDEX["line_segments"]
+_WLEN = SLOT_INDEX["wave_length_m"]
+_WSEG = SLOT_INDEX["wave_segments"]
 _OPEN_IN = SLOT_INDEX["inlet_open_area_m2"]
 _OPEN_EX = SLOT_INDEX["exhaust_open_area_m2"]
 _OWN_EX = SLOT_INDEX["exhaust_own_command"]
@@ -311,7 +332,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lung_from_p0 = lung and math.isnan(p_lung)
     if lung_from_p0:
         p_lung = p0
-    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0):
+    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
         return NEEDS_GENERAL
     lag_r = sl[_SENSOR]
     w_r, z_r = sl[_SENSOR_W], sl[_SENSOR_Z]
@@ -363,6 +384,23 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             return LINE_VOLUME
         line_start(y, s_vec, p0, carry, nseg, temp)
         y[0] = p
+    # transmission-line tube: the history of its waves (wave.py); its volume leaves the
+    # chamber's and a step never exceeds an element's transit time
+    wave = general is not None and sl[_WLEN] > 0.0
+    hist, ring, w_rd, w_row = wave_workspace(wave)
+    w_state = np.zeros(3 + int(sl[_WSEG]))  # [q_a, p_v, q_c, junction flows]
+    w_t, w_z, w_area, w_len, w_dia, w_mu, w_k = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1
+    if general is not None and wave:
+        w_t, w_z, w_area, w_len, w_dia, w_mu, w_k = wave_constants(sl, cs)
+        v0 = v0 - wave_volume(sl)
+        if not v0 > 0.0:
+            return LINE_VOLUME
+        wave_start(hist, ring, carry, t[k0], p, w_t, w_k, w_state, w_row)
+    # the junctions and ends update on a grid that divides an element's transit time,
+    # anchored at the recording's first sample (every window of it shares the grid)
+    w_dt = wave_grid_step(w_t)
+    w_grid = t[0] + w_dt * (math.floor((t[k0] - t[0]) / w_dt + 1e-9) + 1.0)
+    a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
     # Delayed-command pointer: index j of the sample held at time t - delay, the last
     # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
     # every sample would otherwise scan the recording from its start each time
@@ -430,6 +468,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             else:  # read past the last sample: its values, held
                 ta, inv_seg = tau, 0.0
                 xa, xb, sa, sb = x[m], x[m], ps[m], ps[m]
+            if general is not None and wave and w_grid < t_end:
+                t_end = w_grid  # the tube's ends update on their grid
             vdot = bore * (xb - xa) * inv_seg
             dsup = gain * (sb - sa) * inv_seg
             spool_a, t_sub = spool, tau
@@ -507,6 +547,35 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                                             vdot, psup, dsup, da_in, da_ex,
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
                                                             atol_p, rtol)
+                elif general is not None and wave:
+                    # the chamber end: the valve's wave arriving, A_K(t - tau), exactly
+                    # linear over the step (the step lies within one grid interval),
+                    # drives the inflow (A_K - p) / (Z + r/2) of eq. 5
+                    wave_read(hist, ring, tau + hh - w_t, w_rd, 4 * WAVE_MAX_SEGMENTS)
+                    wb1, swb1 = w_rd[w_k], w_rd[2 * WAVE_MAX_SEGMENTS + w_k]
+                    wave_read(hist, ring, tau - w_t, w_rd, 4 * WAVE_MAX_SEGMENTS)
+                    wb0, swb0 = w_rd[w_k], w_rd[2 * WAVE_MAX_SEGMENTS + w_k]
+                    zc = w_z + 0.5 * wave_resistance(w_state[2], p, cs, w_area, w_len,
+                                                     w_dia, w_mu)
+                    fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot,
+                                                            psup, sl, cs, hh, True, 0.0, 0.0,
+                                                            0.0)
+                    gw = wave_gain(p, vol, sl, cs) / zc
+                    fp += gw * (wb0 - p)
+                    jp -= gw
+                    vp += gw * (wb1 - wb0) / hh
+                    zp = hh * jp
+                    phi1p, phi2p, phi3p = _phi123(zp)
+                    up = p + hh * (phi1p * fp + hh * phi2p * vp)
+                    if up > 0.0 and math.isfinite(up):
+                        fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh,
+                                           False, 0.0, 0.0, 0.0)[0]
+                               + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
+                        ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
+                        pn = up + ep
+                        err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                        if not (pn > 0.0 and math.isfinite(pn)):
+                            err = 10.0
                 elif general is not None and thermal:
                     err, pn, tn, prop_t = thermal_step(p, temp, hh, a_in, a_ex, vol, vdot,
                                                        psup, dsup, da_in, da_ex, a_in2, a_ex2,
@@ -537,6 +606,16 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     p, temp = pn, tn
                     if general is not None and line:
                         s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
+                    elif general is not None and wave:
+                        # dp/dp0 through the chamber and the arriving wave's dA/dp0
+                        s_p0 = (math.exp(zp) * s_p0
+                                + hh * phi1p * gw * 0.5 * (swb0 + swb1))
+                        if tau >= w_grid:  # a grid point: the ends send their waves
+                            if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0,
+                                             psup2, a_in2, a_ex2, cs, w_area, w_len, w_dia,
+                                             w_mu, w_state, w_rd, w_row):
+                                return WAVE_HISTORY
+                            w_grid = tau + w_dt
                     elif thermal or tank or lung:
                         if want_sens:  # (dp, dT or the second p)/dp0 through the propagator
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
@@ -582,6 +661,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     carry[0] = temp
     if general is not None and line:
         line_finish(y, carry, nseg)
+    if general is not None and wave:
+        # the state at the window's end (off the grid in general): the ends' waves
+        # there, then the last transit time of every wave
+        t_last = t[i0 + length - 1]
+        if w_grid - w_dt < t_last:
+            if not wave_ends(hist, ring, t_last, w_t, w_z, w_k, p, s_p0, psup2, a_in2, a_ex2,
+                             cs, w_area, w_len, w_dia, w_mu, w_state, w_rd, w_row):
+                return WAVE_HISTORY
+        wave_finish(hist, ring, carry, t_last, w_t, w_k, w_state, w_rd)
     if tank:
         carry[CARRY_TANK] = p_tank
     if lung:
@@ -654,11 +742,12 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
 
 def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state: heat transfer, an
-    acoustic line, a supply tank or a second compartment."""
+    acoustic line, a transmission-line tube's waves, a supply tank or a second
+    compartment."""
     slots = np.asarray(slots)
     return bool(np.any((slots[:, _HEAT] > 0.0) | (slots[:, _HCONV] > 0.0)
-                       | (slots[:, _LLEN] > 0.0) | (slots[:, _TANK] > 0.0)
-                       | (slots[:, _LUNG] > 0.0)))
+                       | (slots[:, _LLEN] > 0.0) | (slots[:, _WLEN] > 0.0)
+                       | (slots[:, _TANK] > 0.0) | (slots[:, _LUNG] > 0.0)))
 
 
 @njit(cache=True, error_model="numpy")

@@ -187,6 +187,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     asked).
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
+    if sl[S["wave_length_m"]] > 0:
+        raise ValueError("reference_simulate: the transmission-line tube (tube_delay form "
+                         "'wave') is a delay system this ODE reference does not solve; its "
+                         "independent reference is the plant's finely lumped acoustic tube "
+                         "(pneubayes.bench.plant, tests/test_wave.py)")
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0

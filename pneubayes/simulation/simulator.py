@@ -194,7 +194,8 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if initial_rate_Pa_per_s is not None and not np.all(np.isfinite(rate0)):
         raise ValueError("initial_rate_Pa_per_s must be finite")
     slots = model.lower(theta, rig)
-    line = slots[:, SLOT_INDEX["line_length_m"]] > 0
+    wave = slots[:, SLOT_INDEX["wave_length_m"]] > 0
+    line = (slots[:, SLOT_INDEX["line_length_m"]] > 0) | wave
     hot = (slots[:, SLOT_INDEX["heat_rate_per_s"]] > 0) | (
         slots[:, SLOT_INDEX["heat_coefficient_W_per_m2_K"]] > 0)
     if inputs.exhaust_command is None and np.any(slots[:, SLOT_INDEX["exhaust_own_command"]]):
@@ -212,10 +213,15 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         (slots[:, SLOT_INDEX["lung_volume_m3"]] > 0, line | hot | tank,
          "a two-compartment chamber is simulated with the two pressures as the states"),
     )
+    if np.any(wave & (hot | (slots[:, SLOT_INDEX["line_length_m"]] > 0))):
+        raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
+                         "with the chamber's pressure as its only state: it cannot be "
+                         "combined with heat_transfer or an acoustic line in one model")
     for present, others, what in exclusive:
         if np.any(present & others):
             raise ValueError(f"{what}: it cannot be combined with heat_transfer, the tube's "
-                             "acoustic line (tube_delay form 'line') or another second state "
+                             "acoustic line or wave line (tube_delay forms 'line', 'wave') "
+                             "or another second state "
                              "(a supply tank, a second compartment) in one model")
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, t, u, ue, x, ps, pm, kstarts, p0, rate0 = _kernel_arrays(

@@ -1,0 +1,111 @@
+"""The tube's model forms against a finely lumped tube: accuracy and cost per form.
+
+    python benchmarks/tube_forms.py [--json OUT.json] [--cells 64] [--seed 1]
+
+For three tubes (0.34 m x 2.5 mm, 1 m x 2 mm, 2.9 m x 1.83 mm) into a 1.5e-7 m^3 dead
+volume at half stroke (fixed, and a piston moving at 3 Hz), random 5-V steps held 30-300
+ms on a 1-ms clock, 1 s at 10 kHz: the plant's acoustic tube in ``--cells`` cells
+(:mod:`pneubayes.bench.plant`, LSODA, written apart from the model) is the reference, a
+near-continuous line. Each model form (the wave tube with 4, 8 and 16 elements, the
+lumped line with 8 cells, and the bare chamber with the tube's volume) is simulated with
+the standard preset on one thread; reported: RMSE and largest error against the
+reference (Pa), and milliseconds per simulated second (the median of 3 calls after a
+compiling one). Seeded; nothing is asserted here (``tests/test_wave.py`` holds the
+floors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from pneubayes.atomic import write_json_atomic
+from pneubayes.bench.forms import AcousticTube
+from pneubayes.bench.plant import PlantConfig, simulate_plant
+from pneubayes.effects import make_effect
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.provenance import provenance
+from pneubayes.rig import Rig
+from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+P_ATM, P_SUP, BORE, STROKE = 101_325.0, 551_325.0, 0.009, 0.0375
+TUBES = ((0.34, 0.0025), (1.0, 0.002), (2.9, 0.00183))  # length, bore (m)
+FORMS = (("wave, 4 elements", {"form": "wave", "segments": 4}),
+         ("wave, 8 elements", {"form": "wave", "segments": 8}),
+         ("wave, 16 elements", {"form": "wave", "segments": 16}),
+         ("line, 8 cells", {"form": "line", "segments": 8}))
+DT_S = 1e-4
+
+
+def _inputs(seed: int, moving: bool) -> Inputs:
+    t = np.arange(int(round(1.0 / DT_S)) + 1) * DT_S
+    rng = np.random.default_rng(seed)
+    u, i = np.empty(t.size), 0
+    while i < t.size:
+        hold = 10 * int(rng.integers(30, 301))
+        u[i:i + hold] = rng.uniform(-5.0, 5.0)
+        i += hold
+    x = (0.5 * STROKE + 0.4 * STROKE * np.sin(2 * np.pi * 3.0 * t)) if moving \
+        else np.full(t.size, 0.5 * STROKE)
+    return Inputs(t, u, x, np.full(t.size, P_SUP))
+
+
+def _timed(fn):
+    fn()  # compiles
+    times = []
+    for _ in range(3):
+        a = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - a)
+    return out, float(np.median(times))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", default=None, help="results (JSON, written atomically)")
+    ap.add_argument("--cells", type=int, default=64, help="the reference tube's cells")
+    ap.add_argument("--seed", type=int, default=1)
+    args = ap.parse_args(argv)
+    numba.set_num_threads(1)
+    rig = Rig(BORE, P_ATM, P_SUP)
+    base = dict(valve_preset("valve1").parameters(), dead_volume_m3=1.5e-7)
+    rows = []
+    for length, dia in TUBES:
+        for moving in (False, True):
+            inputs = _inputs(args.seed, moving)
+            ref = simulate_plant(base, (AcousticTube(length, dia, segments=args.cells),),
+                                 inputs, rig, P_ATM, PlantConfig.reference()).pressure_Pa
+            tube = AcousticTube(length, dia)
+            params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas),
+                          tube_diameter_m=dia,
+                          dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
+            models = [(label, Model([make_effect("tube_delay", **opts)]), params)
+                      for label, opts in FORMS]
+            models.append(("bare chamber (the tube's volume)", Model(),
+                           {k: v for k, v in params.items() if not k.startswith("tube_")}))
+            for label, model, theta in models:
+                y, sec = _timed(lambda model=model, theta=theta, inputs=inputs: simulate(
+                    model, theta, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0])
+                err = y - ref
+                row = {"length_m": length, "diameter_m": dia, "moving": moving,
+                       "form": label, "rmse_Pa": float(np.sqrt(np.mean(err ** 2))),
+                       "max_error_Pa": float(np.max(np.abs(err))),
+                       "ms_per_simulated_s": 1e3 * sec / float(inputs.time_s[-1])}
+                rows.append(row)
+                print(f"{length:4.2f} m x {dia * 1e3:4.2f} mm {'moving' if moving else 'fixed '}"
+                      f" {label:34s} RMSE {row['rmse_Pa']:6.0f} Pa, max {row['max_error_Pa']:6.0f}"
+                      f" Pa, {row['ms_per_simulated_s']:7.1f} ms per simulated s", flush=True)
+    if args.json:
+        write_json_atomic(Path(args.json), {"reference_cells": args.cells, "seed": args.seed,
+                                            "rows": rows, "provenance": provenance()})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,302 @@
+"""Compiled parts of the wave tube (``tube_delay`` form ``"wave"``): transmission-line
+modelling of the valve-chamber tube (TLM; Krus, Jansson and Palmberg 1990, as in Hopsan).
+
+The tube is ``K`` lossless line elements in a row, each of transit time ``tau = T / K``
+(``T = L / c``, c = sqrt(kappa Rs T_s): the line's gas at the supply temperature, as in
+:mod:`pneubayes.simulation.line`) and characteristic impedance ``Z = c / A`` (Pa s/kg,
+A = pi D^2 / 4). The tube's friction is lumped between them: a resistance ``r`` at each
+junction and ``r / 2`` at either end, ``r = f Re mu (L / K) / (2 rho A D^2)`` (Poiseuille's
+``32 mu (L / K) / (rho A D^2)`` in laminar flow, Churchill's smooth-pipe ``f Re`` beyond:
+:mod:`pneubayes.physics.tube`) at the local density and the flow of the last accepted
+step there. At steady flow the drop from valve to chamber is ``R q`` (R = K r).
+
+In element i two waves cross unchanged in ``tau``: ``A_i = p + Z q`` leaves its valve
+side, ``B_i = p - Z q`` its chamber side (q: the mass flow towards the chamber). At time
+t, with every wave read at t - tau:
+
+* valve end: ``q_a = m_valve(p_v)``, ``p_v = B_1 + (Z + r/2) q_a`` (eqs. 1-3; a monotone
+  scalar equation, :func:`valve_end`); it sends ``A_1 = B_1 + 2 Z q_a``;
+* junction j: ``q_j = (A_j - B_{j+1}) / (2 Z + r)``; it sends ``B_j = A_j - 2 Z q_j`` and
+  ``A_{j+1} = B_{j+1} + 2 Z q_j``;
+* chamber end: ``q_c = (A_K - p) / (Z + r/2)`` enters eq. 5 as the port flow; it sends
+  ``B_K = p + (r/2 - Z) q_c``.
+
+With no friction a valve step reaches the chamber after exactly T, undispersed: there
+are no cells, only junctions where friction acts. The tube's volume ``A L`` is in the
+waves and leaves the chamber's dead volume, as the lumped line's does.
+
+The waves are kept at every accepted step in a ring buffer (time, the 2K waves and
+their derivatives in the window's initial pressure) and read linearly interpolated; a
+step never exceeds ``tau`` (:func:`wave_max_step`), so every read is of the past and the
+coupling is explicit. Before a window's first step the tube is at rest at its initial
+pressure, or, for a window that continues the previous one, in the state that one
+ended with (:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from pneubayes.effects.path import SLOT_INDEX, WAVE_CARRY_POINTS, WAVE_MAX_SEGMENTS
+from pneubayes.physics.orifice import flow_slopes, flow_terms
+from pneubayes.physics.tube import churchill_fre
+from pneubayes.simulation.chamber import compliant_volume
+from pneubayes.simulation.layout import (
+    C_ALPHA,
+    C_BETA,
+    C_KAPPA,
+    C_P_ATM,
+    C_RS,
+    C_T_SUPPLY,
+    C_THETA,
+)
+
+_WLEN = SLOT_INDEX["wave_length_m"]
+_WDIA = SLOT_INDEX["wave_diameter_m"]
+_WMU = SLOT_INDEX["wave_viscosity_Pa_s"]
+_WSEG = SLOT_INDEX["wave_segments"]
+
+#: Longest grid step of the junctions and ends (s).
+WAVE_GRID_S = 1e-4
+#: Entries of the wave history (a transit time of the longest element on the grid).
+WAVE_CAPACITY = 1024
+#: Shortest element transit time the step is limited to (s): below it a read past the
+#: newest entry takes that entry (an element this short is a resistance and a volume).
+WAVE_MIN_TRANSIT_S = 5e-5
+#: Width of a history row: time, then A_1..A_K, B_1..B_K, their derivatives in p0.
+WAVE_WIDTH = 1 + 4 * WAVE_MAX_SEGMENTS
+#: Carried state: [span, q_a, p_v, q_c, q_1..q_{K-1}, waves resampled].
+WAVE_CARRY_HEAD = 4 + WAVE_MAX_SEGMENTS
+WAVE_CARRY = WAVE_CARRY_HEAD + 2 * WAVE_MAX_SEGMENTS * WAVE_CARRY_POINTS
+
+
+@njit(cache=True, error_model="numpy")
+def wave_constants(sl, cs):
+    """``(tau, Z, area, element length, diameter, viscosity, K)``: an element's transit
+    time (s), the characteristic impedance (Pa s/kg), the section (m^2), L / K (m), the
+    bore (m), the viscosity (Pa s) and the number of elements."""
+    k = int(sl[_WSEG])
+    length, dia, mu = sl[_WLEN], sl[_WDIA], sl[_WMU]
+    c = math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
+    area = 0.25 * math.pi * dia * dia
+    return length / (c * k), c / area, area, length / k, dia, mu, k
+
+
+@njit(cache=True, error_model="numpy")
+def wave_volume(sl):
+    """The tube's volume A L, m^3 (it leaves the chamber's dead volume)."""
+    return 0.25 * math.pi * sl[_WDIA] ** 2 * sl[_WLEN]
+
+
+@njit(cache=True, error_model="numpy")
+def wave_resistance(q, p, cs, area, length, dia, mu):
+    """Steady resistance (Pa s/kg) of ``length`` of tube at mass flow ``q`` and pressure
+    ``p`` (the density's)."""
+    rho = p / (cs[C_RS] * cs[C_T_SUPPLY])
+    re = abs(q) * dia / (area * mu)
+    return churchill_fre(re) * mu * length / (2.0 * rho * area * dia * dia)
+
+
+@njit(cache=True, error_model="numpy")
+def wave_grid_step(tau_s):
+    """The grid step (s) the junctions and ends update on: ``tau / n`` with the fewest n
+    that make it at most ``WAVE_GRID_S``, so a read at ``t - tau`` from a grid time is a
+    grid time (the waves move exactly) and a valve switch moves the valve's wave by at
+    most a grid step; at least ``WAVE_MIN_TRANSIT_S``."""
+    if tau_s <= WAVE_MIN_TRANSIT_S:
+        return WAVE_MIN_TRANSIT_S
+    return tau_s / math.ceil(tau_s / WAVE_GRID_S - 1e-9)
+
+
+@njit(cache=True, error_model="numpy")
+def wave_workspace(active):
+    """The history ring buffer ``(WAVE_CAPACITY, WAVE_WIDTH)`` (one row if not
+    ``active``), its state ``[first, count, read]`` (oldest entry, entries, the read
+    cursor's offset from the oldest), a row to read into and one to build the next in."""
+    return (np.empty((WAVE_CAPACITY if active else 1, WAVE_WIDTH)),
+            np.zeros(3, dtype=np.int64), np.empty(WAVE_WIDTH), np.empty(WAVE_WIDTH))
+
+
+@njit(cache=True, error_model="numpy")
+def wave_push(hist, ring, row):
+    """Append ``row`` (its time after every stored one); when full, drops the entries
+    older than the read cursor's. Returns False if every entry is still needed."""
+    first, count, read = ring[0], ring[1], ring[2]
+    if count == WAVE_CAPACITY:
+        if read == 0:
+            return False
+        first = (first + read) % WAVE_CAPACITY
+        count -= read
+        read = 0
+    k = (first + count) % WAVE_CAPACITY
+    for c in range(row.shape[0]):
+        hist[k, c] = row[c]
+    ring[0], ring[1], ring[2] = first, count + 1, read
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def wave_read(hist, ring, tq, out, n):
+    """The history's columns 1..n at time ``tq`` into ``out[1..n]``: linear between the
+    entries around ``tq``; the oldest entry's before it, the newest's after it."""
+    first, count, read = ring[0], ring[1], ring[2]
+    while read + 1 < count and hist[(first + read + 1) % WAVE_CAPACITY, 0] <= tq:
+        read += 1
+    while read > 0 and hist[(first + read) % WAVE_CAPACITY, 0] > tq:
+        read -= 1
+    ring[2] = read
+    k0 = (first + read) % WAVE_CAPACITY
+    out[0] = tq
+    if read + 1 >= count or hist[k0, 0] >= tq:
+        for c in range(1, n + 1):
+            out[c] = hist[k0, c]
+        return
+    k1 = (first + read + 1) % WAVE_CAPACITY
+    w = (tq - hist[k0, 0]) / (hist[k1, 0] - hist[k0, 0])
+    for c in range(1, n + 1):
+        out[c] = hist[k0, c] + w * (hist[k1, c] - hist[k0, c])
+
+
+@njit(cache=True, error_model="numpy")
+def valve_end(w_a, z_v, a_in, a_ex, p_sup, cs, p_guess):
+    """Solve the valve end: the pressure ``p_v`` (Pa) at which the ports' net mass flow
+    into the tube, ``m(p_v) = a_in f(p_sup, p_v) - a_ex f(p_v, P_atm)`` (eqs. 1-3), equals
+    ``(p_v - w_a) / z_v``. Returns ``(p_v, q_a, dq_a/dw_a)``.
+
+    ``(p_v - w_a) / z_v - m(p_v)`` rises strictly with p_v, and changes sign on
+    [min(P_atm, w_a), max(p_sup, w_a)]; Newton steps from ``p_guess`` that leave the
+    shrinking bracket are replaced by bisection. Converged when the residual flow times
+    ``z_v`` is below 1e-9 of the pressure."""
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    p_atm = cs[C_P_ATM]
+    if a_in == 0.0 and a_ex == 0.0:  # closed: the wave reflects whole
+        return w_a, 0.0, 0.0
+    lo = min(p_atm, w_a)
+    hi = max(p_sup, w_a)
+    pv = min(max(p_guess, lo), hi)
+    dm = 0.0
+    for _ in range(100):
+        f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, pv, alpha, beta, theta, kappa)
+        f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(pv, p_atm, alpha, beta, theta, kappa)
+        m = a_in * f_in - a_ex * f_ex
+        g = (pv - w_a) / z_v - m
+        # the slopes as secants over 1 Pa (finite at a port's pressure balance)
+        _, din = flow_slopes(p_sup, pv, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa, 1.0)
+        dex, _ = flow_slopes(pv, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, 1.0)
+        dm = a_in * din - a_ex * dex
+        if abs(g) * z_v <= 1e-9 * pv:
+            break
+        if g > 0.0:
+            hi = pv
+        else:
+            lo = pv
+        if hi - lo <= 1e-12 * pv:
+            break
+        nxt = pv - g / (1.0 / z_v - dm)
+        if not (lo < nxt < hi):
+            nxt = 0.5 * (lo + hi)
+        pv = nxt
+    q = (pv - w_a) / z_v
+    # dq/dw_a from q = m(w_a + z_v q): dq = m' (dw + z_v dq)
+    dq = dm / (1.0 - dm * z_v)
+    return pv, q, dq
+
+
+@njit(cache=True, error_model="numpy")
+def wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area, seg_len,
+              dia, mu, state, rd, row):
+    """An accepted step ending at ``t_now`` with chamber pressure ``p`` (dp/dp0 ``s_p``):
+    the valve end, the junctions and the chamber end send their waves (the module's
+    equations), appended to the history. ``state`` = [q_a, p_v, q_c, q_1..q_{K-1}] (the
+    last flows, for the friction; updated). Returns False if the history is full."""
+    m = WAVE_MAX_SEGMENTS
+    wave_read(hist, ring, t_now - tau, rd, 4 * m)
+    row[0] = t_now
+    # valve end: B_1 arrives
+    zv = z + 0.5 * wave_resistance(state[0], state[1], cs, area, seg_len, dia, mu)
+    p_v, q_a, dq = valve_end(rd[m + 1], zv, a_in, a_ex, p_sup, cs, state[1])
+    row[1] = rd[m + 1] + 2.0 * z * q_a
+    row[2 * m + 1] = rd[3 * m + 1] * (1.0 + 2.0 * z * dq)
+    state[0], state[1] = q_a, p_v
+    # junctions: A_j and B_{j+1} arrive (columns: A_i at i, B_i at m + i, their
+    # derivatives at 2m + i and 3m + i)
+    for j in range(1, k):
+        a_j, b_n = rd[j], rd[m + j + 1]
+        sa_j, sb_n = rd[2 * m + j], rd[3 * m + j + 1]
+        r = wave_resistance(state[2 + j], 0.5 * (a_j + b_n), cs, area, seg_len, dia, mu)
+        q = (a_j - b_n) / (2.0 * z + r)
+        sq = (sa_j - sb_n) / (2.0 * z + r)
+        row[m + j] = a_j - 2.0 * z * q
+        row[j + 1] = b_n + 2.0 * z * q
+        row[3 * m + j] = sa_j - 2.0 * z * sq
+        row[2 * m + j + 1] = sb_n + 2.0 * z * sq
+        state[2 + j] = q
+    # chamber end: A_K arrives
+    a_k, sa_k = rd[k], rd[2 * m + k]
+    zc = z + 0.5 * wave_resistance(state[2], p, cs, area, seg_len, dia, mu)
+    q_c = (a_k - p) / zc
+    row[m + k] = p + (zc - 2.0 * z) * q_c
+    row[3 * m + k] = s_p + (zc - 2.0 * z) * (sa_k - s_p) / zc
+    state[2] = q_c
+    return wave_push(hist, ring, row)
+
+
+@njit(cache=True, error_model="numpy")
+def wave_start(hist, ring, carry, t0, p0, tau, k, state, row):
+    """A window's start at ``t0``: the history at rest at ``p0`` (every wave p0, of
+    derivative 1 in p0; no flow), or from ``carry`` (:func:`wave_finish`; derivatives 0:
+    the state the previous window left does not depend on this window's p0)."""
+    m = WAVE_MAX_SEGMENTS
+    ring[0], ring[1], ring[2] = 0, 0, 0
+    for c in range(row.shape[0]):
+        row[c] = 0.0
+    if math.isnan(carry[1]):
+        for c in range(1, 1 + 2 * m):
+            row[c] = p0
+            row[2 * m + c] = 1.0
+        for i in range(state.shape[0]):
+            state[i] = 0.0
+        state[1] = p0
+        for tt in (t0 - tau, t0):
+            row[0] = tt
+            wave_push(hist, ring, row)
+        return
+    n = WAVE_CARRY_POINTS
+    span = carry[1]
+    for i in range(state.shape[0]):
+        state[i] = carry[2 + i]
+    for i in range(n):
+        row[0] = t0 - span + span * i / (n - 1)
+        for c in range(2 * k):
+            col = 1 + c if c < k else 1 + m + (c - k)
+            row[col] = carry[1 + WAVE_CARRY_HEAD + c * n + i]
+        wave_push(hist, ring, row)
+
+
+@njit(cache=True, error_model="numpy")
+def wave_finish(hist, ring, carry, t_end, tau, k, state, rd):
+    """A window's end: the last ``tau`` of every wave, resampled on
+    ``WAVE_CARRY_POINTS``, and ``state`` (the last flows), into ``carry``."""
+    m = WAVE_MAX_SEGMENTS
+    n = WAVE_CARRY_POINTS
+    span = max(tau, WAVE_MIN_TRANSIT_S)
+    ring[2] = 0
+    for i in range(n):
+        wave_read(hist, ring, t_end - span + span * i / (n - 1), rd, 2 * m)
+        for c in range(2 * k):
+            col = 1 + c if c < k else 1 + m + (c - k)
+            carry[1 + WAVE_CARRY_HEAD + c * n + i] = rd[col]
+    carry[1] = span
+    for i in range(state.shape[0]):
+        carry[2 + i] = state[i]
+
+
+@njit(cache=True, error_model="numpy")
+def wave_gain(p, vol, sl, cs):
+    """d(dp/dt)/d(mass inflow) of eq. 5 at pressure ``p`` and volume ``vol`` (before
+    compliance): ``kappa Rs T_s / (V + kappa p C)``, Pa/kg."""
+    v, compl = compliant_volume(p, vol, sl, cs[C_P_ATM])
+    return cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY] / (v + cs[C_KAPPA] * p * compl)

@@ -1,0 +1,203 @@
+"""The transmission-line tube (``tube_delay`` form ``"wave"``, pneubayes.simulation.wave).
+
+Against an independent reference (the plant's finely lumped acoustic tube, LSODA), the
+lossless front's arrival time, the limits (full inlet, full exhaust), conservation with
+the valve shut, step halving, the carried state of contiguous windows, the start
+sensitivity and the errors for what it cannot be combined with.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pneubayes.bench.forms import AcousticTube
+from pneubayes.bench.plant import PlantConfig, simulate_plant
+from pneubayes.effects import make_effect
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    simulate,
+    simulate_windows,
+    simulate_windows_sensitivity,
+)
+
+P_ATM, P_SUP = 101_325.0, 551_325.0
+
+
+def _wave(segments=8, **kw):
+    return Model([make_effect("tube_delay", form="wave", segments=segments, **kw)])
+
+
+def _params(rig, length_m, dia_m, dead_m3=1.5e-7, valve=None):
+    """Valve 1 (or ``valve``) and a tube of ``length_m`` x ``dia_m``; the dead volume
+    includes the tube's, as the recording format defines it."""
+    tube = AcousticTube(length_m=length_m, diameter_m=dia_m)
+    params = dict(valve or valve_preset("valve1").parameters(),
+                  tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia_m)
+    params["dead_volume_m3"] = dead_m3 + tube.volume_m3
+    return params, tube
+
+
+def _steps(seed, n, dt):
+    rng = np.random.default_rng(seed)
+    u, i = np.empty(n), 0
+    while i < n:
+        hold = int(round(rng.integers(30, 151) * 1e-3 / dt))
+        u[i:i + hold] = rng.uniform(-5.0, 5.0)
+        i += hold
+    return u
+
+
+@pytest.mark.parametrize("length_m, dia_m, most_Pa", [(1.0, 0.002, 250.0),
+                                                      (2.9, 0.00183, 400.0)])
+def test_the_wave_tube_agrees_with_the_plants_finely_lumped_tube(rig, length_m, dia_m,
+                                                                 most_Pa):
+    """The plant's acoustic tube in 48 cells (LSODA, written apart) approaches the
+    continuous line; the wave form's 8 elements carry its waves exactly and lump its
+    friction at their junctions. A 1-m and a 2.9-m tube under random 5-V steps agree to
+    a few hundred Pa RMS, against 3-12 kPa without the tube (with its volume)."""
+    dt = 1e-4
+    t = np.arange(6001) * dt
+    x = 0.01875 + 0.01 * np.sin(2 * np.pi * 3.0 * t)
+    inputs = Inputs(t, _steps(1, t.size, dt), x, np.full(t.size, P_SUP))
+    base = dict(valve_preset("valve1").parameters(), dead_volume_m3=1.5e-7)
+    params, _ = _params(rig, length_m, dia_m)
+    ref = simulate_plant(base, (AcousticTube(length_m, dia_m, segments=48),), inputs, rig,
+                         P_ATM, PlantConfig.reference()).pressure_Pa
+    wave = simulate(_wave(), params, inputs, rig, P_ATM,
+                    SolverConfig.reference()).pressure_Pa[0]
+    bare = simulate(Model(), dict(base, dead_volume_m3=params["dead_volume_m3"]), inputs,
+                    rig, P_ATM, SolverConfig.reference()).pressure_Pa[0]
+    rms = float(np.sqrt(np.mean((wave - ref) ** 2)))
+    rms_bare = float(np.sqrt(np.mean((bare - ref) ** 2)))
+    assert rms < most_Pa, f"wave vs plant: {rms:.0f} Pa RMS"
+    assert rms_bare > 10.0 * rms, (rms_bare, rms)
+    # one element lumps the friction at the two ends only: worse
+    one = simulate(_wave(1), params, inputs, rig, P_ATM, SolverConfig.reference()).pressure_Pa[0]
+    assert float(np.sqrt(np.mean((one - ref) ** 2))) > 2.0 * rms
+
+
+def test_a_valve_step_reaches_the_chamber_after_the_transit_time(rig, make_inputs,
+                                                                 closable_params):
+    """The shut valve opened at 10 ms on a 2-m tube (5.8 ms): the chamber does not move
+    before 10 + 5.8 ms, less the valve end's grid step (0.1 ms at most; no cells smear
+    the front ahead of it), and rises right after."""
+    params, tube = _params(rig, 2.0, 0.002, valve=closable_params)
+    dt = 1e-5
+    t = np.arange(3001) * dt
+    u = np.where(t >= 0.01, 5.0, 0.0)
+    p = simulate(_wave(), params, make_inputs(t, u), rig, 3e5,
+                 SolverConfig.reference()).pressure_Pa[0]
+    arrive = 0.01 + tube.transit_time_s(rig.gas)
+    assert np.max(np.abs(p[t < arrive - 1e-4] - 3e5)) < 1.0
+    assert p[np.searchsorted(t, arrive + 3e-4)] - 3e5 > 1e3
+
+
+@pytest.mark.parametrize("command, p0, supply_side", [(5.0, P_ATM, True),
+                                                      (-5.0, P_SUP, False)])
+def test_through_the_wave_tube_the_chamber_settles_at_the_bare_chambers_balance(
+        rig, make_inputs, hand, command, p0, supply_side):
+    """Held full inlet or full exhaust for 3 s: without a leak the settled tube passes
+    no flow and drops no pressure, so the chamber ends at the bare chamber's flow
+    balance (eqs. 4/9; the valve's offsets leak from inlet to exhaust)."""
+    params, _ = _params(rig, 2.0, 0.002)
+    bare = {k: v for k, v in params.items() if not k.startswith("tube_")}
+    t = np.arange(3001) * 1e-3
+    p = simulate(_wave(), params, make_inputs(t, np.full(t.size, command)), rig, p0,
+                 SolverConfig.standard()).pressure_Pa[0]
+    assert p[-1] == pytest.approx(hand.equilibrium(bare, u=command), abs=5.0)
+    assert (p[-1] > 0.95 * P_SUP) if supply_side else (p[-1] < 1.05 * P_ATM)
+
+
+def test_a_shut_valve_and_no_leak_keep_the_pressure(rig, make_inputs, closable_params):
+    """Both ports shut (command 0 on the closable valve), no leak, tube at rest: nothing
+    moves, to rounding."""
+    params, _ = _params(rig, 1.0, 0.002, valve=closable_params)
+    t = np.arange(2001) * 1e-3
+    p = simulate(_wave(), params, make_inputs(t, np.zeros(t.size)), rig, 3.3e5,
+                 SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(p - 3.3e5)) < 1e-6
+
+
+def test_the_wave_tube_converges_under_step_halving(rig, make_inputs):
+    """The standard preset is within 0.1 % of the range of a far tighter tolerance. (The
+    waves move exactly on their grid, and between grid points the chamber's forcing is
+    linear, which the exponential step integrates exactly: the tolerance has little
+    left to control.)"""
+    params, _ = _params(rig, 1.5, 0.002)
+    dt = 1e-3
+    t = np.arange(1501) * dt
+    inputs = make_inputs(t, _steps(3, t.size, dt), position=0.015)
+
+    def run(rtol):
+        cfg = SolverConfig(rtol=rtol, atol_Pa=rtol * 3e5, atol_K=0.01, max_step_s=0.02,
+                           min_step_s=1e-12, max_steps_per_s=1e7)
+        return simulate(_wave(), params, inputs, rig, P_ATM, cfg).pressure_Pa[0]
+
+    tight = run(1e-9)
+    errs = [float(np.max(np.abs(run(r) - tight))) for r in (3e-5, 1e-7)]
+    assert errs[0] < 1e-3 * (P_SUP - P_ATM), errs
+    assert errs[1] <= errs[0] + 1e-6, errs
+    assert np.ptp(tight) > 0.5 * (P_SUP - P_ATM)  # the range is exercised
+
+
+def test_contiguous_windows_carry_the_waves(rig, make_inputs):
+    """The tube's waves are a state no recording measures: contiguous windows restarted
+    from the full run's own pressures reproduce it (to the carried state's resampling)
+    only because each starts from the waves the previous one left; apart, each starts
+    with the tube at rest and misses by kPa."""
+    params, _ = _params(rig, 2.0, 0.002)
+    n = 1201
+    t = np.arange(n) * 1e-3
+    inputs = make_inputs(t, _steps(5, n, 1e-3), position=0.015)
+    cfg = SolverConfig.reference()
+    full = simulate(_wave(), params, inputs, rig, 2e5, cfg).pressure_Pa[0]
+    length = 301
+    starts = np.arange(0, n - length + 1, length - 1)
+    win = simulate_windows(_wave(), params, inputs, rig, starts, length, full[starts], cfg)[0]
+    apart = np.array([simulate_windows(_wave(), params, inputs, rig, starts[w:w + 1], length,
+                                       full[starts[w:w + 1]], cfg)[0, 0]
+                      for w in range(starts.size)])
+    err = max(float(np.max(np.abs(win[w] - full[s:s + length])))
+              for w, s in enumerate(starts))
+    err_apart = max(float(np.max(np.abs(apart[w] - full[s:s + length])))
+                    for w, s in enumerate(starts) if w > 0)
+    assert err < 300.0, err
+    assert err_apart > 5.0 * err, (err, err_apart)
+
+
+def test_start_sensitivity_through_the_wave_tube_matches_finite_differences(rig, hand):
+    params, _ = _params(rig, 1.0, 0.002, dead_m3=5e-7)
+    n = 801
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(np.random.default_rng(4), n, 1e-3,
+                                         levels=(-1.0, 1.0)),
+                    np.full(n, 0.01), np.full(n, 6.0e5))
+    starts = np.array([0, 400])
+    p0 = np.array([2.0e5, 4.0e5])
+    cfg = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=0.01, max_step_s=0.02,
+                       min_step_s=1e-12, max_steps_per_s=1e7)
+    out, sens = simulate_windows_sensitivity(_wave(), params, inputs, rig, starts, 400, p0,
+                                             cfg)
+    d = 20.0
+    up = simulate_windows(_wave(), params, inputs, rig, starts, 400, p0 + d, cfg)
+    dn = simulate_windows(_wave(), params, inputs, rig, starts, 400, p0 - d, cfg)
+    fd = (up - dn) / (2 * d)
+    assert np.all(sens[..., 0] == 1.0)
+    assert np.max(np.abs(sens - fd)) < 0.03
+    assert np.max(np.abs(fd)) > 0.5  # the start matters over the window's first part
+
+
+def test_what_the_wave_tube_cannot_be_combined_with_is_an_error(rig, make_inputs):
+    params, _ = _params(rig, 1.0, 0.002)
+    model = _wave().with_effect(make_effect("heat_transfer"))
+    params["heat_transfer_rate_per_s"] = 20.0
+    t = np.arange(11) * 1e-3
+    with pytest.raises(ValueError, match="tube_delay form 'wave'.*heat_transfer"):
+        simulate(model, params, make_inputs(t, np.zeros(t.size)), rig, P_ATM,
+                 SolverConfig.standard())
+    with pytest.raises(ValueError, match="segments must be an integer in 1..16"):
+        make_effect("tube_delay", form="wave", segments=17).parameters()
