@@ -148,7 +148,7 @@ def run_case(case: dict, args, root: Path) -> dict:
                               forms=plant, duration_s=args.duration, sensor=sensor)
     recs = [read_recording(p) for p in paths]
     settings = DiscoverySettings(
-        posterior=False, seed=seed, n_bags=40,
+        posterior=False, seed=seed, n_bags=40, tube_line_form=args.tube_line_form,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed),
                         pressure_filter=sensor.declared_filter()))
     t0 = time.perf_counter()
@@ -240,6 +240,9 @@ def main(argv=None) -> int:
     ap.add_argument("--case", action="append", default=[], metavar="NAME",
                     help="run only this case (full name or bNN prefix; repeatable) into "
                          "the cache, without a summary")
+    ap.add_argument("--tube-line-form", choices=("line", "wave"), default="line",
+                    help="the outside tube's form the loop tries (DiscoverySettings."
+                         "tube_line_form; line)")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
     args = ap.parse_args(argv)
@@ -267,6 +270,7 @@ def main(argv=None) -> int:
     table, md = summarise(results)
     write_json_atomic(root / "summary.json", {
         "seed": args.seed, "duration_s": args.duration, "smoke": args.smoke,
+        "tube_line_form": args.tube_line_form,
         "floors": table, "cases": results, "wall_time_s": time.perf_counter() - t_all,
         "provenance": provenance()})
     write_text_atomic(root / "summary.md", md)

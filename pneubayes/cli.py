@@ -356,6 +356,7 @@ def cmd_discover(args) -> int:
         max_effects=args.max_effects,
         posterior=not args.no_posterior, seed=args.seed,
         tube_line_segments=args.tube_line_segments,
+        tube_line_form=args.tube_line_form,
         form_settled_ratio=args.form_settled_ratio,
         later_forms_min_share=args.later_forms_min_share,
         later_form_screen_share=args.later_form_screen_share,

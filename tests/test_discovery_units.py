@@ -519,6 +519,28 @@ def test_a_named_tubes_line_candidate_gets_the_cells_its_start_delay_needs(rig):
     assert line_cells(0.02, most=3) == 3
 
 
+def test_with_the_wave_line_form_a_named_tube_is_tried_as_a_transmission_line(rig):
+    """``tube_line_form="wave"``: the outside tube is the wave form (8 elements, no cells
+    to choose), started at the term's delay; it is not fitted again with more cells, and
+    the settings refuse a form they do not know."""
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.effects import make_effect
+    from pneubayes.effects.discovery import CandidateContext
+
+    ctx = CandidateContext(model=Model(), params={}, rig=rig,
+                           term_start={"tube_delay_s": 0.007}, second_state_free=True,
+                           line_segments=8, dead_volume_m3=1e-4, line_form="wave")
+    forms = make_effect("tube_delay").candidate_forms(ctx)
+    assert [(f.form, f.segments) for f, _ in forms] == [("transport", 3), ("wave", 8)]
+    wave, start = forms[1]
+    assert start["tube_delay_s"] == pytest.approx(0.007)
+    assert wave.form_after_fit({"tube_delay_s": 0.02, "tube_diameter_m": 0.002}, ctx) is None
+    # a wave candidate proposes no further line
+    assert [f.form for f, _ in wave.candidate_forms(ctx)] == ["wave"]
+    with pytest.raises(ValueError, match="tube_line_form must be 'line' or 'wave'"):
+        DiscoverySettings(tube_line_form="cells")
+
+
 def test_a_named_sensor_lag_is_fitted_in_both_orders_on_the_pressure_and_on_every_channel(
         rig):
     from pneubayes.effects import make_effect

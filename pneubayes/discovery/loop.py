@@ -382,7 +382,8 @@ class Discovery:
         sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
         trials = []
         options = {g: effect_candidates(current, g, sindy.evidence_[g], train[0].rig(),
-                                        s.tube_line_segments, s.tube_line_cutoff_Hz)
+                                        s.tube_line_segments, s.tube_line_cutoff_Hz,
+                                        s.tube_line_form)
                    for g in candidates}
         round_forms, settled, failed, outpaced = fit_round_forms(
             options, lambda g, m, x, beat: self._fit(m, x, train_ws, held_ws, data_key,
@@ -390,7 +391,8 @@ class Discovery:
             s.form_settled_ratio * noise,
             follow=lambda g, m, f: follow_up(current, g, sindy.evidence_[g],
                                              train[0].rig(), m, f.params,
-                                             s.tube_line_segments, s.tube_line_cutoff_Hz),
+                                             s.tube_line_segments, s.tube_line_cutoff_Hz,
+                                             s.tube_line_form),
             current_Pa=current.train_rmse_Pa, min_share=s.later_forms_min_share,
             screen_share=s.later_form_screen_share)
         for g in candidates:

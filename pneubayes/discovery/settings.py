@@ -86,6 +86,11 @@ class DiscoverySettings:
     within 1.2 x the noise of an 8-cell line there; a 3-m tube of 4 mm bore (8.7 ms,
     behind an undeclared causal DAQ filter) ended at 1.68 x the noise floor with 3
     cells and at 1.40 x with 8 (held-out RMSE 860 -> 718 Pa).
+    tube_line_form: the outside-tube form tried for a named tube: ``"line"`` (the lumped
+    acoustic line, its cells as above) or ``"wave"`` (the transmission-line tube,
+    ``tube_delay`` form ``"wave"`` with 8 elements: no cells, about 10 x cheaper to
+    simulate and closer to a continuous tube than an 8-cell line,
+    ``benchmarks/tube_forms.py``); ``tube_line_segments`` 0 tries neither.
     form_settled_ratio: an effect with several forms (heat, tube) has its first form
     fitted, and its later ones only while no trial of the round (of any effect) has a
     training RMSE at most this x the noise floor (at the noise floor the training fit,
@@ -133,6 +138,7 @@ class DiscoverySettings:
     score_dof: float = 4.0
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
+    tube_line_form: str = "line"
     form_settled_ratio: float = 1.05
     later_forms_min_share: float = 0.25
     later_form_screen_share: float = 0.5
@@ -186,6 +192,9 @@ class DiscoverySettings:
         if not (math.isfinite(self.tube_line_cutoff_Hz) and self.tube_line_cutoff_Hz > 0):
             raise ValueError(f"tube_line_cutoff_Hz must be finite and > 0, got "
                              f"{self.tube_line_cutoff_Hz}")
+        if self.tube_line_form not in ("line", "wave"):
+            raise ValueError(f"tube_line_form must be 'line' or 'wave', got "
+                             f"{self.tube_line_form!r}")
         if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
             raise ValueError(f"tube_line_segments must be in 0..{LINE_MAX_SEGMENTS} "
                              f"(0: no line form), got {self.tube_line_segments}")

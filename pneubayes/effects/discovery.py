@@ -79,7 +79,9 @@ class CandidateContext:
     states (no rig card's compliant chamber, supply tank or second compartment: the
     simulator steps those with the pressure alone); line_segments: the most cells of an
     acoustic line form (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells
-    should reach; dead_volume_m3: the fitted chamber volume at position 0.
+    should reach; dead_volume_m3: the fitted chamber volume at position 0; line_form:
+    the outside tube's form, ``"line"`` (lumped cells) or ``"wave"`` (a transmission
+    line).
     """
 
     model: Any
@@ -90,6 +92,7 @@ class CandidateContext:
     line_segments: int
     dead_volume_m3: float
     line_cutoff_Hz: float = 300.0
+    line_form: str = "line"
 
     def inside(self, effect, name: str, value: float) -> float:
         """``value`` moved just inside the bounds parameter ``name`` has in the model

@@ -159,7 +159,8 @@ class TubeDelay(Effect):
         """This form (the paper's transport delay) and an acoustic line (outside tubes
         are lines, which lag and ring; none where the model has no room for the line's
         states), both at the best term's delay. The line's cells follow its length
-        (:meth:`line_cells`: ``ctx.line_cutoff_Hz``, at most ``ctx.line_segments``).
+        (:meth:`line_cells`: ``ctx.line_cutoff_Hz``, at most ``ctx.line_segments``); with
+        ``ctx.line_form`` "wave" it is the transmission-line tube (8 elements) instead.
         The line's volume comes out of the fitted dead volume: where the effect's bore
         would make it more than half of that, the line starts narrower, at half (the
         transit time is what the residual shows; the bore is a guess either way, and a
@@ -171,8 +172,11 @@ class TubeDelay(Effect):
         # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
-        cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
-        line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})
+        if ctx.line_form == "wave":  # the transmission line: no cells to choose
+            line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8})
+        else:
+            cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
+            line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})
         dia = line.neutral_values()["tube_diameter_m"]
         vol = float(line.tube_volume_m3({"tube_delay_s": delay, "tube_diameter_m": dia},
                                         ctx.rig))
