@@ -67,12 +67,12 @@ class TubeDelay(Effect):
                "wave_viscosity_Pa_s", "wave_segments")
 
     def __init__(self, tube_diameter_m: float = 0.002, air_viscosity_Pa_s: float = 1.81e-5,
-                 form: str = "transport", segments: int | None = None):
+                 form: str = "transport", segments: int = 0):
         self.tube_diameter_m = tube_diameter_m
         self.air_viscosity_Pa_s = air_viscosity_Pa_s
         self.form = form
-        # the line's cells (3) or the wave tube's elements (8) unless given
-        self.segments = segments if segments is not None else (8 if form == "wave" else 3)
+        # 0: the form's own count, the line's 3 cells or the wave tube's 8 elements
+        self.segments = segments if segments != 0 else (8 if form == "wave" else 3)
 
     def _check(self):
         if self.form not in _FORMS:
