@@ -10,8 +10,11 @@ near-continuous line. Each model form (the wave tube with 4, 8 and 16 elements, 
 lumped line with 8 cells, and the bare chamber with the tube's volume) is simulated with
 the standard preset on one thread; reported: RMSE and largest error against the
 reference (Pa), and milliseconds per simulated second (the median of 3 calls after a
-compiling one). Seeded; nothing is asserted here (``tests/test_wave.py`` holds the
-floors).
+compiling one). At 10 kHz every model steps at least every 0.1 ms, so the costs there
+are a simulator's on fine inputs; the second table is the cost on what recordings are,
+1-kHz inputs (5 s, the same kind of command, fixed volume): the plain chamber takes a
+step per sample there, the wave tube one per grid step (0.1 ms at most). Seeded;
+nothing is asserted here (``tests/test_wave.py`` holds the floors).
 """
 
 from __future__ import annotations
@@ -36,6 +39,10 @@ from pneubayes.simulation import Inputs, SolverConfig, simulate
 
 P_ATM, P_SUP, BORE, STROKE = 101_325.0, 551_325.0, 0.009, 0.0375
 TUBES = ((0.34, 0.0025), (1.0, 0.002), (2.9, 0.00183))  # length, bore (m)
+COST_FORMS = (("line, 3 cells", {"form": "line", "segments": 3}),) + (
+    ("line, 8 cells", {"form": "line", "segments": 8}),
+    ("wave, 4 elements", {"form": "wave", "segments": 4}),
+    ("wave, 8 elements", {"form": "wave", "segments": 8}))
 FORMS = (("wave, 4 elements", {"form": "wave", "segments": 4}),
          ("wave, 8 elements", {"form": "wave", "segments": 8}),
          ("wave, 16 elements", {"form": "wave", "segments": 16}),
@@ -43,12 +50,12 @@ FORMS = (("wave, 4 elements", {"form": "wave", "segments": 4}),
 DT_S = 1e-4
 
 
-def _inputs(seed: int, moving: bool) -> Inputs:
-    t = np.arange(int(round(1.0 / DT_S)) + 1) * DT_S
+def _inputs(seed: int, moving: bool, dt_s: float = DT_S, duration_s: float = 1.0) -> Inputs:
+    t = np.arange(int(round(duration_s / dt_s)) + 1) * dt_s
     rng = np.random.default_rng(seed)
     u, i = np.empty(t.size), 0
     while i < t.size:
-        hold = 10 * int(rng.integers(30, 301))
+        hold = int(round(1e-3 / dt_s)) * int(rng.integers(30, 301))
         u[i:i + hold] = rng.uniform(-5.0, 5.0)
         i += hold
     x = (0.5 * STROKE + 0.4 * STROKE * np.sin(2 * np.pi * 3.0 * t)) if moving \
@@ -101,9 +108,27 @@ def main(argv=None) -> int:
                 print(f"{length:4.2f} m x {dia * 1e3:4.2f} mm {'moving' if moving else 'fixed '}"
                       f" {label:34s} RMSE {row['rmse_Pa']:6.0f} Pa, max {row['max_error_Pa']:6.0f}"
                       f" Pa, {row['ms_per_simulated_s']:7.1f} ms per simulated s", flush=True)
+    costs = []
+    slow = _inputs(args.seed, False, dt_s=1e-3, duration_s=5.0)
+    for length, dia in TUBES:
+        tube = AcousticTube(length, dia)
+        params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia,
+                      dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
+        plain = {k: v for k, v in params.items() if not k.startswith("tube_")}
+        for label, model, theta in ([("bare chamber", Model(), plain)]
+                                    + [(lab, Model([make_effect("tube_delay", **o)]), params)
+                                       for lab, o in COST_FORMS]):
+            _, sec = _timed(lambda model=model, theta=theta: simulate(
+                model, theta, slow, rig, P_ATM, SolverConfig.standard()))
+            row = {"length_m": length, "diameter_m": dia, "form": label,
+                   "ms_per_simulated_s_1kHz": 1e3 * sec / float(slow.time_s[-1])}
+            costs.append(row)
+            print(f"1-kHz inputs: {length:4.2f} m x {dia * 1e3:4.2f} mm {label:18s} "
+                  f"{row['ms_per_simulated_s_1kHz']:7.2f} ms per simulated s", flush=True)
     if args.json:
         write_json_atomic(Path(args.json), {"reference_cells": args.cells, "seed": args.seed,
-                                            "rows": rows, "provenance": provenance()})
+                                            "rows": rows, "costs_1kHz": costs,
+                                            "provenance": provenance()})
     return 0
 
 

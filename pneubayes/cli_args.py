@@ -315,7 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--tube-line-form", choices=("line", "wave"), default="line",
                    help="the outside tube's form tried for a named tube: the lumped "
                         "acoustic line, or the transmission-line tube (wave: no cells, "
-                        "about 10 x cheaper) (line)")
+                        "closer to a continuous tube) (line)")
     d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "

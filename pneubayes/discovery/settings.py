@@ -88,8 +88,8 @@ class DiscoverySettings:
     cells and at 1.40 x with 8 (held-out RMSE 860 -> 718 Pa).
     tube_line_form: the outside-tube form tried for a named tube: ``"line"`` (the lumped
     acoustic line, its cells as above) or ``"wave"`` (the transmission-line tube,
-    ``tube_delay`` form ``"wave"`` with 8 elements: no cells, about 10 x cheaper to
-    simulate and closer to a continuous tube than an 8-cell line,
+    ``tube_delay`` form ``"wave"`` with 8 elements: no cells, closer to a continuous
+    tube than an 8-cell line, at 1-2.4 x a 3-cell line's cost on 1-kHz recordings,
     ``benchmarks/tube_forms.py``); ``tube_line_segments`` 0 tries neither.
     form_settled_ratio: an effect with several forms (heat, tube) has its first form
     fitted, and its later ones only while no trial of the round (of any effect) has a

@@ -35,8 +35,9 @@ a row whose waves cross each unchanged in its share of the transit time and refl
 the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
 hold the waves, so they do not disperse however long the tube, and the cost does not
 grow with the tube's length: on 0.34-2.9 m tubes under random steps, 115-286 Pa RMS
-from a 64-cell line, where the 8-cell line is 106-1283 Pa off and 7-25 x slower
-(``benchmarks/tube_forms.py``; floors in ``tests/test_wave.py``). Its volume leaves the chamber's,
+from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on 1-kHz inputs it costs
+1-2.4 x a 3-cell line's time (``benchmarks/tube_forms.py``; floors in
+``tests/test_wave.py``). Its volume leaves the chamber's,
 as the line's does.
 """
 

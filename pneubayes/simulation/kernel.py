@@ -87,13 +87,12 @@ from pneubayes.simulation.thermal import thermal_step
 from pneubayes.simulation.wave import (
     WAVE_CAPACITY,
     WAVE_CARRY,
-    WAVE_MAX_SEGMENTS,
+    wave_arriving,
     wave_constants,
     wave_ends,
     wave_finish,
     wave_gain,
     wave_grid_step,
-    wave_read,
     wave_resistance,
     wave_start,
     wave_volume,
@@ -551,10 +550,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     # the chamber end: the valve's wave arriving, A_K(t - tau), exactly
                     # linear over the step (the step lies within one grid interval),
                     # drives the inflow (A_K - p) / (Z + r/2) of eq. 5
-                    wave_read(hist, ring, tau + hh - w_t, w_rd, 4 * WAVE_MAX_SEGMENTS)
-                    wb1, swb1 = w_rd[w_k], w_rd[2 * WAVE_MAX_SEGMENTS + w_k]
-                    wave_read(hist, ring, tau - w_t, w_rd, 4 * WAVE_MAX_SEGMENTS)
-                    wb0, swb0 = w_rd[w_k], w_rd[2 * WAVE_MAX_SEGMENTS + w_k]
+                    wb1, swb1 = wave_arriving(hist, ring, tau + hh - w_t, w_k)
+                    wb0, swb0 = wave_arriving(hist, ring, tau - w_t, w_k)
                     zc = w_z + 0.5 * wave_resistance(w_state[2], p, cs, w_area, w_len,
                                                      w_dia, w_mu)
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot,

@@ -121,9 +121,10 @@ def wave_workspace(active):
 
 
 @njit(cache=True, error_model="numpy")
-def wave_push(hist, ring, row):
-    """Append ``row`` (its time after every stored one); when full, drops the entries
-    older than the read cursor's. Returns False if every entry is still needed."""
+def wave_push(hist, ring, row, k):
+    """Append ``row`` (its time after every stored one; the first ``k`` columns of each
+    block); when full, drops the entries older than the read cursor's. Returns False if
+    every entry is still needed."""
     first, count, read = ring[0], ring[1], ring[2]
     if count == WAVE_CAPACITY:
         if read == 0:
@@ -131,11 +132,55 @@ def wave_push(hist, ring, row):
         first = (first + read) % WAVE_CAPACITY
         count -= read
         read = 0
-    k = (first + count) % WAVE_CAPACITY
-    for c in range(row.shape[0]):
-        hist[k, c] = row[c]
+    e = (first + count) % WAVE_CAPACITY
+    hist[e, 0] = row[0]
+    m = WAVE_MAX_SEGMENTS
+    for b in range(4):
+        for i in range(1, k + 1):
+            hist[e, b * m + i] = row[b * m + i]
     ring[0], ring[1], ring[2] = first, count + 1, read
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def _cursor(hist, ring, tq):
+    """Move the read cursor to the last entry at or before ``tq`` (never past the
+    newest); returns ``(k0, k1, w)``: the entries around ``tq`` and the weight of k1
+    (k1 = k0, w = 0 before the oldest or after the newest)."""
+    first, count, read = ring[0], ring[1], ring[2]
+    while read + 1 < count and hist[(first + read + 1) % WAVE_CAPACITY, 0] <= tq:
+        read += 1
+    while read > 0 and hist[(first + read) % WAVE_CAPACITY, 0] > tq:
+        read -= 1
+    ring[2] = read
+    k0 = (first + read) % WAVE_CAPACITY
+    if read + 1 >= count or hist[k0, 0] >= tq:
+        return k0, k0, 0.0
+    k1 = (first + read + 1) % WAVE_CAPACITY
+    return k0, k1, (tq - hist[k0, 0]) / (hist[k1, 0] - hist[k0, 0])
+
+
+@njit(cache=True, error_model="numpy")
+def wave_arriving(hist, ring, tq, k):
+    """The valve's wave arriving at the chamber, A_K at ``tq``, and its derivative in
+    p0 (the chamber's step reads only these two columns)."""
+    k0, k1, w = _cursor(hist, ring, tq)
+    ca, cs_ = k, 2 * WAVE_MAX_SEGMENTS + k
+    return (hist[k0, ca] + w * (hist[k1, ca] - hist[k0, ca]),
+            hist[k0, cs_] + w * (hist[k1, cs_] - hist[k0, cs_]))
+
+
+@njit(cache=True, error_model="numpy")
+def wave_read_k(hist, ring, tq, out, k, blocks):
+    """The first ``blocks`` of the history's column blocks (A, B, dA/dp0, dB/dp0), their
+    first ``k`` columns each, at time ``tq`` into ``out``: linear between the entries
+    around ``tq``."""
+    m = WAVE_MAX_SEGMENTS
+    k0, k1, w = _cursor(hist, ring, tq)
+    for b in range(blocks):
+        for i in range(1, k + 1):
+            c = b * m + i
+            out[c] = hist[k0, c] + w * (hist[k1, c] - hist[k0, c])
 
 
 @njit(cache=True, error_model="numpy")
@@ -213,7 +258,7 @@ def wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
     equations), appended to the history. ``state`` = [q_a, p_v, q_c, q_1..q_{K-1}] (the
     last flows, for the friction; updated). Returns False if the history is full."""
     m = WAVE_MAX_SEGMENTS
-    wave_read(hist, ring, t_now - tau, rd, 4 * m)
+    wave_read_k(hist, ring, t_now - tau, rd, k, 4)
     row[0] = t_now
     # valve end: B_1 arrives
     zv = z + 0.5 * wave_resistance(state[0], state[1], cs, area, seg_len, dia, mu)
@@ -241,7 +286,7 @@ def wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
     row[m + k] = p + (zc - 2.0 * z) * q_c
     row[3 * m + k] = s_p + (zc - 2.0 * z) * (sa_k - s_p) / zc
     state[2] = q_c
-    return wave_push(hist, ring, row)
+    return wave_push(hist, ring, row, k)
 
 
 @njit(cache=True, error_model="numpy")
@@ -262,7 +307,7 @@ def wave_start(hist, ring, carry, t0, p0, tau, k, state, row):
         state[1] = p0
         for tt in (t0 - tau, t0):
             row[0] = tt
-            wave_push(hist, ring, row)
+            wave_push(hist, ring, row, k)
         return
     n = WAVE_CARRY_POINTS
     span = carry[1]
@@ -273,7 +318,7 @@ def wave_start(hist, ring, carry, t0, p0, tau, k, state, row):
         for c in range(2 * k):
             col = 1 + c if c < k else 1 + m + (c - k)
             row[col] = carry[1 + WAVE_CARRY_HEAD + c * n + i]
-        wave_push(hist, ring, row)
+        wave_push(hist, ring, row, k)
 
 
 @njit(cache=True, error_model="numpy")
