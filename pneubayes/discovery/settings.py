@@ -90,7 +90,9 @@ class DiscoverySettings:
     acoustic line, its cells as above) or ``"wave"`` (the transmission-line tube,
     ``tube_delay`` form ``"wave"`` with 8 elements: no cells, closer to a continuous
     tube than an 8-cell line, at 1-2.4 x a 3-cell line's cost on 1-kHz recordings,
-    ``benchmarks/tube_forms.py``); ``tube_line_segments`` 0 tries neither.
+    ``benchmarks/tube_forms.py``; its output is not yet smooth in the transit time, and
+    on a 0.61-m bench tube the loop named a sensor lag in its place);
+    ``tube_line_segments`` 0 tries neither.
     form_settled_ratio: an effect with several forms (heat, tube) has its first form
     fitted, and its later ones only while no trial of the round (of any effect) has a
     training RMSE at most this x the noise floor (at the noise floor the training fit,

@@ -37,7 +37,9 @@ hold the waves, so they do not disperse however long the tube, and the cost does
 grow with the tube's length: on 0.34-2.9 m tubes under random steps, 115-286 Pa RMS
 from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on 1-kHz inputs it costs
 1-2.4 x a 3-cell line's time (``benchmarks/tube_forms.py``; floors in
-``tests/test_wave.py``). Its volume leaves the chamber's,
+``tests/test_wave.py``). Not yet for fitting: its output is not smooth in the transit
+time (its update grid, and where a valve switch lands on it, move with it), which
+stalls least squares (README, "tube_delay has three forms"). Its volume leaves the chamber's,
 as the line's does.
 """
 
