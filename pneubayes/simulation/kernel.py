@@ -387,7 +387,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # chamber's and a step never exceeds an element's transit time
     wave = general is not None and sl[_WLEN] > 0.0
     hist, ring, w_rd, w_row = wave_workspace(wave)
-    w_state = np.zeros(3 + int(sl[_WSEG]))  # [q_a, p_v, q_c, junction flows]
+    w_state = np.zeros(2 + max(int(sl[_WSEG]), 1))  # [q_a, p_v, q_c, junction flows]
     w_t, w_z, w_area, w_len, w_dia, w_mu, w_k = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1
     if general is not None and wave:
         w_t, w_z, w_area, w_len, w_dia, w_mu, w_k = wave_constants(sl, cs)

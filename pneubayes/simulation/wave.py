@@ -25,10 +25,13 @@ With no friction a valve step reaches the chamber after exactly T, undispersed: 
 are no cells, only junctions where friction acts. The tube's volume ``A L`` is in the
 waves and leaves the chamber's dead volume, as the lumped line's does.
 
-The waves are kept at every accepted step in a ring buffer (time, the 2K waves and
-their derivatives in the window's initial pressure) and read linearly interpolated; a
-step never exceeds ``tau`` (:func:`wave_max_step`), so every read is of the past and the
-coupling is explicit. Before a window's first step the tube is at rest at its initial
+The junctions and ends update on a grid whose step divides ``tau`` (at most
+``WAVE_GRID_S``, :func:`wave_grid_step`; anchored at the recording's first sample), and
+the waves are kept at its points in a ring buffer (time, the 2K waves and their
+derivatives in the window's initial pressure). A read at ``t - tau`` from a grid point
+is a grid point, so the waves move exactly and every read is of the past; between grid
+points the chamber's forcing, A_K read linearly, is linear. Before a window's first
+step the tube is at rest at its initial
 pressure, or, for a window that continues the previous one, in the state that one
 ended with (:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
 """
@@ -184,28 +187,6 @@ def wave_read_k(hist, ring, tq, out, k, blocks):
 
 
 @njit(cache=True, error_model="numpy")
-def wave_read(hist, ring, tq, out, n):
-    """The history's columns 1..n at time ``tq`` into ``out[1..n]``: linear between the
-    entries around ``tq``; the oldest entry's before it, the newest's after it."""
-    first, count, read = ring[0], ring[1], ring[2]
-    while read + 1 < count and hist[(first + read + 1) % WAVE_CAPACITY, 0] <= tq:
-        read += 1
-    while read > 0 and hist[(first + read) % WAVE_CAPACITY, 0] > tq:
-        read -= 1
-    ring[2] = read
-    k0 = (first + read) % WAVE_CAPACITY
-    out[0] = tq
-    if read + 1 >= count or hist[k0, 0] >= tq:
-        for c in range(1, n + 1):
-            out[c] = hist[k0, c]
-        return
-    k1 = (first + read + 1) % WAVE_CAPACITY
-    w = (tq - hist[k0, 0]) / (hist[k1, 0] - hist[k0, 0])
-    for c in range(1, n + 1):
-        out[c] = hist[k0, c] + w * (hist[k1, c] - hist[k0, c])
-
-
-@njit(cache=True, error_model="numpy")
 def valve_end(w_a, z_v, a_in, a_ex, p_sup, cs, p_guess):
     """Solve the valve end: the pressure ``p_v`` (Pa) at which the ports' net mass flow
     into the tube, ``m(p_v) = a_in f(p_sup, p_v) - a_ex f(p_v, P_atm)`` (eqs. 1-3), equals
@@ -330,7 +311,7 @@ def wave_finish(hist, ring, carry, t_end, tau, k, state, rd):
     span = max(tau, WAVE_MIN_TRANSIT_S)
     ring[2] = 0
     for i in range(n):
-        wave_read(hist, ring, t_end - span + span * i / (n - 1), rd, 2 * m)
+        wave_read_k(hist, ring, t_end - span + span * i / (n - 1), rd, k, 2)
         for c in range(2 * k):
             col = 1 + c if c < k else 1 + m + (c - k)
             carry[1 + WAVE_CARRY_HEAD + c * n + i] = rd[col]
