@@ -93,6 +93,8 @@ from pneubayes.simulation.wave import (
     wave_finish,
     wave_gain,
     wave_grid_step,
+    wave_newest_time,
+    wave_ramped,
     wave_resistance,
     wave_start,
     wave_volume,
@@ -395,10 +397,24 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         if not v0 > 0.0:
             return LINE_VOLUME
         wave_start(hist, ring, carry, t[k0], p, w_t, w_k, w_state, w_row)
-    # the junctions and ends update on a grid that divides an element's transit time,
-    # anchored at the recording's first sample (every window of it shares the grid)
+    # the junctions and ends update on a grid anchored at the recording's first sample
+    # (every window of it shares the grid; grid point w_n is w_grid); a time within
+    # w_near of a grid point is on it
     w_dt = wave_grid_step(w_t)
-    w_grid = t[0] + w_dt * (math.floor((t[k0] - t[0]) / w_dt + 1e-9) + 1.0)
+    w_near = 1e-6 * w_dt
+    w_n = math.floor((t[k0] - t[0]) / w_dt + 1e-6) + 1.0
+    w_grid = t[0] + w_dt * w_n
+    # the chamber's forcing, the valve's wave arriving A_K(t - tau) (and its dA/dp0),
+    # linear between its reads at the ends of the grid interval [w_ta, w_grid]
+    w_ta, w_a0, w_s0, w_a1, w_s1 = t[k0], 0.0, 0.0, 0.0, 0.0
+    if general is not None and wave:
+        w_a0, w_s0 = wave_arriving(hist, ring, t[k0] - w_t, w_k)
+        w_a1, w_s1 = wave_arriving(hist, ring, w_grid - w_t, w_k)
+    # a switch of the port areas reaches the valve end as a ramp over one grid step
+    # from the areas (w_oin, w_oex) at w_sw; (w_lin, w_lex): the areas at the last step's
+    # end (NaN before the first)
+    w_sw, w_oin, w_oex = -math.inf, 0.0, 0.0
+    w_lin, w_lex = math.nan, math.nan
     a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
     # Delayed-command pointer: index j of the sample held at time t - delay, the last
     # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
@@ -467,8 +483,23 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             else:  # read past the last sample: its values, held
                 ta, inv_seg = tau, 0.0
                 xa, xb, sa, sb = x[m], x[m], ps[m], ps[m]
-            if general is not None and wave and w_grid < t_end:
-                t_end = w_grid  # the tube's ends update on their grid
+            if general is not None and wave:
+                if w_grid < t_end - w_near:
+                    t_end = w_grid  # the tube's ends update on their grid
+                if (not math.isnan(w_lin) and abs(a_in_c - w_lin) + abs(a_ex_c + a_own - w_lex)
+                        > 1e-9 * (a_in_c + a_ex_c + a_own + w_lin + w_lex)):
+                    # the ports switch at tau: the valve end's entry there with the areas
+                    # before, then a ramp to the new ones over a grid step
+                    o_in, o_ex = wave_ramped(tau, w_lin, w_lex, w_sw, w_dt, w_oin, w_oex)
+                    if wave_newest_time(hist, ring) < tau - w_near:
+                        if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0, psup2,
+                                         o_in, o_ex, cs, w_area, w_len, w_dia, w_mu,
+                                         w_state, w_rd, w_row):
+                            return WAVE_HISTORY
+                    w_sw, w_oin, w_oex = tau, o_in, o_ex
+                    w_lin, w_lex = a_in_c, a_ex_c + a_own
+                if tau < w_sw + w_dt - w_near and w_sw + w_dt < t_end - w_near:
+                    t_end = w_sw + w_dt  # the ramp's end: an entry there
             vdot = bore * (xb - xa) * inv_seg
             dsup = gain * (sb - sa) * inv_seg
             spool_a, t_sub = spool, tau
@@ -547,11 +578,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
                                                             atol_p, rtol)
                 elif general is not None and wave:
-                    # the chamber end: the valve's wave arriving, A_K(t - tau), exactly
-                    # linear over the step (the step lies within one grid interval),
-                    # drives the inflow (A_K - p) / (Z + r/2) of eq. 5
-                    wb1, swb1 = wave_arriving(hist, ring, tau + hh - w_t, w_k)
-                    wb0, swb0 = wave_arriving(hist, ring, tau - w_t, w_k)
+                    # the chamber end: the valve's wave arriving, A_K(t - tau), linear
+                    # over the grid interval the step lies in, drives the inflow
+                    # (A_K - p) / (Z + r/2) of eq. 5
+                    w_inv = 1.0 / (w_grid - w_ta)
+                    wb0 = w_a0 + (w_a1 - w_a0) * (tau - w_ta) * w_inv
+                    wb1 = w_a0 + (w_a1 - w_a0) * (tau + hh - w_ta) * w_inv
+                    swb0 = w_s0 + (w_s1 - w_s0) * (tau - w_ta) * w_inv
+                    swb1 = w_s0 + (w_s1 - w_s0) * (tau + hh - w_ta) * w_inv
                     zc = w_z + 0.5 * wave_resistance(w_state[2], p, cs, w_area, w_len,
                                                      w_dia, w_mu)
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot,
@@ -607,12 +641,21 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         # dp/dp0 through the chamber and the arriving wave's dA/dp0
                         s_p0 = (math.exp(zp) * s_p0
                                 + hh * phi1p * gw * 0.5 * (swb0 + swb1))
-                        if tau >= w_grid:  # a grid point: the ends send their waves
+                        w_lin, w_lex = a_in2, a_ex2
+                        on_grid = tau >= w_grid - w_near
+                        if on_grid or abs(tau - w_sw - w_dt) <= w_near:
+                            # a grid point or a ramp's end: the ends send their waves
+                            v_in, v_ex = wave_ramped(tau, a_in2, a_ex2, w_sw, w_dt, w_oin,
+                                                     w_oex)
                             if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0,
-                                             psup2, a_in2, a_ex2, cs, w_area, w_len, w_dia,
+                                             psup2, v_in, v_ex, cs, w_area, w_len, w_dia,
                                              w_mu, w_state, w_rd, w_row):
                                 return WAVE_HISTORY
-                            w_grid = tau + w_dt
+                        if on_grid:
+                            w_n += 1.0
+                            w_ta, w_grid = tau, t[0] + w_dt * w_n
+                            w_a0, w_s0 = wave_arriving(hist, ring, tau - w_t, w_k)
+                            w_a1, w_s1 = wave_arriving(hist, ring, w_grid - w_t, w_k)
                     elif thermal or tank or lung:
                         if want_sens:  # (dp, dT or the second p)/dp0 through the propagator
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
@@ -662,8 +705,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         # the state at the window's end (off the grid in general): the ends' waves
         # there, then the last transit time of every wave
         t_last = t[i0 + length - 1]
-        if w_grid - w_dt < t_last:
-            if not wave_ends(hist, ring, t_last, w_t, w_z, w_k, p, s_p0, psup2, a_in2, a_ex2,
+        if wave_newest_time(hist, ring) < t_last - w_near:
+            v_in, v_ex = wave_ramped(t_last, a_in2, a_ex2, w_sw, w_dt, w_oin, w_oex)
+            if not wave_ends(hist, ring, t_last, w_t, w_z, w_k, p, s_p0, psup2, v_in, v_ex,
                              cs, w_area, w_len, w_dia, w_mu, w_state, w_rd, w_row):
                 return WAVE_HISTORY
         wave_finish(hist, ring, carry, t_last, w_t, w_k, w_state, w_rd)

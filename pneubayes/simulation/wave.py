@@ -25,15 +25,20 @@ With no friction a valve step reaches the chamber after exactly T, undispersed: 
 are no cells, only junctions where friction acts. The tube's volume ``A L`` is in the
 waves and leaves the chamber's dead volume, as the lumped line's does.
 
-The junctions and ends update on a grid whose step divides ``tau`` (at most
-``WAVE_GRID_S``, :func:`wave_grid_step`; anchored at the recording's first sample), and
-the waves are kept at its points in a ring buffer (time, the 2K waves and their
-derivatives in the window's initial pressure). A read at ``t - tau`` from a grid point
-is a grid point, so the waves move exactly and every read is of the past; between grid
-points the chamber's forcing, A_K read linearly, is linear. Before a window's first
-step the tube is at rest at its initial
-pressure, or, for a window that continues the previous one, in the state that one
-ended with (:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
+The junctions and ends update on a fixed grid (step ``WAVE_GRID_S``, or ``tau`` if
+shorter: :func:`wave_grid_step`; anchored at the recording's first sample, so every
+window of a recording shares it), and the waves are kept at its points in a ring buffer
+(time, the 2K waves and their derivatives in the window's initial pressure). A read at
+``t - tau`` falls between entries and is linear there: the step does not depend on the
+transit time, so the output moves continuously with it (a fit moves T), at the price of
+spreading a front by about a grid step. A switch of the port areas (a held command
+stepping) reaches the valve end as a linear ramp over one grid step from the switch's
+own time (:func:`wave_ramped`), with entries at both ends of the ramp, so the valve's
+wave moves continuously with the switch's time too. The chamber's forcing, A_K read at
+``t - tau``, is linear between its reads at the grid points, where its steps break.
+Before a window's first step the tube is at rest at its initial pressure, or, for a
+window that continues the previous one, in the state that one ended with
+(:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
 """
 
 from __future__ import annotations
@@ -105,13 +110,32 @@ def wave_resistance(q, p, cs, area, length, dia, mu):
 
 @njit(cache=True, error_model="numpy")
 def wave_grid_step(tau_s):
-    """The grid step (s) the junctions and ends update on: ``tau / n`` with the fewest n
-    that make it at most ``WAVE_GRID_S``, so a read at ``t - tau`` from a grid time is a
-    grid time (the waves move exactly) and a valve switch moves the valve's wave by at
-    most a grid step; at least ``WAVE_MIN_TRANSIT_S``."""
-    if tau_s <= WAVE_MIN_TRANSIT_S:
-        return WAVE_MIN_TRANSIT_S
-    return tau_s / math.ceil(tau_s / WAVE_GRID_S - 1e-9)
+    """The grid step (s) the junctions and ends update on: ``WAVE_GRID_S``, or an
+    element's transit time ``tau`` if shorter (every read at ``t - tau`` is then of the
+    past), at least ``WAVE_MIN_TRANSIT_S``. It does not otherwise depend on ``tau``: the
+    reads fall between grid points and are linear there, so the output moves
+    continuously with the transit time."""
+    return min(WAVE_GRID_S, max(tau_s, WAVE_MIN_TRANSIT_S))
+
+
+@njit(cache=True, error_model="numpy")
+def wave_newest_time(hist, ring):
+    """Time (s) of the history's newest entry."""
+    return hist[(ring[0] + ring[1] - 1) % WAVE_CAPACITY, 0]
+
+
+@njit(cache=True, error_model="numpy")
+def wave_ramped(t_s, a_in, a_ex, sw_t, ramp_s, old_in, old_ex):
+    """The port areas (m^2) the valve end sees at ``t_s``: a switch at ``sw_t`` from
+    ``(old_in, old_ex)`` to ``(a_in, a_ex)`` ramps linearly over ``ramp_s`` (one grid
+    step), so the valve's wave is continuous in time and a read of it moves continuously
+    with the switch's time and the transit time."""
+    fr = (t_s - sw_t) / ramp_s
+    if fr >= 1.0:
+        return a_in, a_ex
+    if fr <= 0.0:
+        return old_in, old_ex
+    return old_in + fr * (a_in - old_in), old_ex + fr * (a_ex - old_ex)
 
 
 @njit(cache=True, error_model="numpy")
