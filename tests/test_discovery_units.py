@@ -541,6 +541,43 @@ def test_with_the_wave_line_form_a_named_tube_is_tried_as_a_transmission_line(ri
         DiscoverySettings(tube_line_form="cells")
 
 
+def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_params):
+    """The transmission-line tube is simulated with the chamber's pressure as its only
+    state: beside a wave tube heat transfer proposes no form, and beside heat transfer a
+    named tube is tried as the lumped line (which shares its state with the temperature)
+    even with ``line_form="wave"``. (A four-effect loop stopped with the simulator's
+    error when it tried heat transfer beside the wave tube it had added.)"""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.candidates import candidate_context
+    from pneubayes.effects import make_effect
+
+    def context(model, term=None):
+        params = {k: v for k, v in base_params.items() if k in model.parameter_names}
+        for name in model.effect_names:
+            params.update(model.effect(name).bench_defaults())
+        fit = SimpleNamespace(model=model, params=params)
+        term = term or {"tube_delay_s": 0.004}
+        return candidate_context(fit, "x", {"best_term_start": term}, rig,
+                                 line_segments=8, line_form="wave")
+
+    ctx = context(Model([make_effect("tube_delay", form="wave", segments=8)]),
+                  {"heat_transfer_rate_per_s": 5.0})
+    assert ctx.wave_tube and not ctx.heated
+    assert make_effect("heat_transfer").candidate_forms(ctx) == []
+    ctx = context(Model([make_effect("heat_transfer")]))
+    assert ctx.heated and not ctx.wave_tube
+    forms = make_effect("tube_delay").candidate_forms(ctx)
+    assert [f.form for f, _ in forms] == ["transport", "line"]
+    # with nothing in the way, line_form "wave" proposes the wave tube
+    plain = context(Model())
+    assert [f.form for f, _ in make_effect("tube_delay").candidate_forms(plain)] == [
+        "transport", "wave"]
+    plain = context(Model(), {"heat_transfer_rate_per_s": 5.0})
+    assert [f.form for f, _ in make_effect("heat_transfer").candidate_forms(plain)] == [
+        "rate", "convective"]
+
+
 def test_a_named_sensor_lag_is_fitted_in_both_orders_on_the_pressure_and_on_every_channel(
         rig):
     from pneubayes.effects import make_effect

@@ -31,11 +31,15 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
     # (heat transfer and an acoustic line share one state vector: each has room beside
     # the other)
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
+    heated = any(slots[SLOT_INDEX[s]] > 0 for s in ("heat_rate_per_s",
+                                                      "heat_coefficient_W_per_m2_K"))
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
                             term_start=evidence.get("best_term_start"),
                             second_state_free=not taken, line_segments=line_segments,
                             dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]),
-                            line_cutoff_Hz=line_cutoff_Hz, line_form=line_form)
+                            line_cutoff_Hz=line_cutoff_Hz, line_form=line_form,
+                            wave_tube=bool(slots[SLOT_INDEX["wave_length_m"]] > 0),
+                            heated=heated)
 
 
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,

@@ -81,7 +81,9 @@ class CandidateContext:
     acoustic line form (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells
     should reach; dead_volume_m3: the fitted chamber volume at position 0; line_form:
     the outside tube's form, ``"line"`` (lumped cells) or ``"wave"`` (a transmission
-    line).
+    line); wave_tube: the model holds a transmission-line tube, simulated with the
+    chamber's pressure as its only state (no temperature state beside it); heated: the
+    model holds heat transfer (a temperature state: no transmission-line tube beside it).
     """
 
     model: Any
@@ -93,6 +95,8 @@ class CandidateContext:
     dead_volume_m3: float
     line_cutoff_Hz: float = 300.0
     line_form: str = "line"
+    wave_tube: bool = False
+    heated: bool = False
 
     def inside(self, effect, name: str, value: float) -> float:
         """``value`` moved just inside the bounds parameter ``name`` has in the model

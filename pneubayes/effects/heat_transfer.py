@@ -99,8 +99,9 @@ class HeatTransfer(Effect):
         that rate, ``(kappa - 1) h (A_w / V) T / p = rate``, at mid-stroke and mid-range
         pressure, so neither starts handicapped. None where the model has no room for
         the temperature state (a rig card's compliant chamber, tank or second
-        compartment); beside an acoustic line the temperature joins the line's state."""
-        if not ctx.second_state_free:
+        compartment, or a transmission-line tube); beside an acoustic line the
+        temperature joins the line's state."""
+        if not ctx.second_state_free or ctx.wave_tube:
             return []
         rate_form = HeatTransfer(**{**self.options(), "form": "rate"})
         rate = ctx.inside(rate_form, "heat_transfer_rate_per_s",

@@ -163,7 +163,8 @@ class TubeDelay(Effect):
         are lines, which lag and ring; none where the model has no room for the line's
         states), both at the best term's delay. The line's cells follow its length
         (:meth:`line_cells`: ``ctx.line_cutoff_Hz``, at most ``ctx.line_segments``); with
-        ``ctx.line_form`` "wave" it is the transmission-line tube (8 elements) instead.
+        ``ctx.line_form`` "wave" it is the transmission-line tube (8 elements) instead,
+        except beside heat transfer (the wave tube has no temperature state; the line does).
         The line's volume comes out of the fitted dead volume: where the effect's bore
         would make it more than half of that, the line starts narrower, at half (the
         transit time is what the residual shows; the bore is a guess either way, and a
@@ -175,7 +176,7 @@ class TubeDelay(Effect):
         # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
-        if ctx.line_form == "wave":  # the transmission line: no cells to choose
+        if ctx.line_form == "wave" and not ctx.heated:  # the transmission line: no cells
             line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8})
         else:
             cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
