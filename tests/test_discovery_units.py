@@ -719,6 +719,28 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
         assert entry["not_better_than_control"] is (not passes)
 
 
+def test_a_passing_trial_must_gain_a_share_of_the_noise_floor_and_of_any_gap_asked():
+    """A spent bench case (an 8-cell plant tube fitted by the transmission-line tube to
+    515.6 Pa held-out, noise floor 531.7 Pa): a spool lag then gained 1.8 Pa at
+    p < 1e-4, under 1 % of the noise floor, and is not added; with no gap left a share of
+    it cannot be closed; a gain well above the floor's share, or a share of the gap as
+    asked, is kept."""
+    from pneubayes.discovery.rounds import gain_shortfall
+    from pneubayes.discovery.settings import DiscoverySettings
+
+    floor = DiscoverySettings().min_gain_noise_share * 531.7
+    closed, short, under = gain_shortfall(515.6 - 513.8, 515.6 - 531.7, 0.0, floor)
+    assert closed is None and not short and under
+    closed, short, under = gain_shortfall(1.8, -16.1, 0.25, floor)
+    assert short and under  # a revisit asks a share of a gap that is not there
+    closed, short, under = gain_shortfall(2832.0 - 2687.0, 2832.0 - 508.0, 0.25, 5.08)
+    assert closed == pytest.approx(145.0 / 2324.0) and short and not under
+    closed, short, under = gain_shortfall(864.0 - 553.0, 864.0 - 508.0, 0.25, 5.08)
+    assert closed > 0.8 and not short and not under
+    with pytest.raises(ValueError, match="min_gain_noise_share"):
+        DiscoverySettings(min_gain_noise_share=-0.1)
+
+
 def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_passed():
     """A four-effect AIR37 rig: the round's saturated candidates closed at most 14 % of
     the held-out gap (9125 -> 7878 Pa, noise 521 Pa) while the dead zone, never

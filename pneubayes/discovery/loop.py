@@ -76,7 +76,12 @@ from pneubayes.discovery.disagreement import disagreement_map, flagged_bins
 from pneubayes.discovery.library import build_library
 from pneubayes.discovery.one_step import one_step_data
 from pneubayes.discovery.result import DiscoveryResult
-from pneubayes.discovery.rounds import fit_round_forms, last_resort_reason, runner_ups
+from pneubayes.discovery.rounds import (
+    fit_round_forms,
+    gain_shortfall,
+    last_resort_reason,
+    runner_ups,
+)
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.sindy import GroupedSINDy
 from pneubayes.discovery.verification import (
@@ -376,8 +381,9 @@ class Discovery:
         from each trial's other parameters (a better basin is not the effect's gain),
         and verify every trial on the held-out windows against the final current fit;
         a trial that passes must also close ``min_gap_closed`` of the held-out RMSE's
-        gap above the noise floor. Appends to the ledger; returns (current, passing
-        trials)."""
+        gap above the noise floor (with no gap left, none can), and lower the held-out
+        RMSE by ``min_gain_noise_share`` of the noise floor. Appends to the ledger;
+        returns (current, passing trials)."""
         s = self.settings
         sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
         trials = []
@@ -462,7 +468,7 @@ class Discovery:
         # than the current fit at no better training error: that gain is the basin's,
         # not the effect's); the best that passes both is added
         passing = []
-        gap_Pa = max(current.heldout_rmse_Pa - noise, 1e-9)
+        gap_Pa = current.heldout_rmse_Pa - noise
         for g, model2, start2, trial, forms_info, control in trials:
             ok, gain, pval, diff = self._better(trial, current)
             basin = False
@@ -474,13 +480,15 @@ class Discovery:
                              f"{control.heldout_rmse_Pa:.0f} Pa against the trial's "
                              f"{trial.heldout_rmse_Pa:.0f} Pa")
             ok = ok and not basin
-            closed = (current.heldout_rmse_Pa - trial.heldout_rmse_Pa) / gap_Pa
-            small = ok and closed < min_gap_closed
-            ok = ok and not small
+            drop_Pa = current.heldout_rmse_Pa - trial.heldout_rmse_Pa
+            closed, short, under = gain_shortfall(drop_Pa, gap_Pa, min_gap_closed,
+                                                  s.min_gain_noise_share * noise)
+            small, tiny = ok and short, ok and under
+            ok = ok and not small and not tiny
             names = model2.effect(g).parameter_names()
             ledger.append({
                 "step": len(ledger), "action": "pass" if ok else "reject", "effect": g,
-                "gap_closed": closed,
+                "gap_closed": closed, "gain_under_noise_share": bool(tiny),
                 "effect_options": model2.effect(g).options(), "forms": forms_info,
                 "start": {k: start2[k] for k in names},
                 "fitted": {k: trial.params[k] for k in names},
@@ -495,8 +503,10 @@ class Discovery:
                      f"{current.heldout_rmse_Pa:.0f} -> {trial.heldout_rmse_Pa:.0f} Pa, "
                      f"better in {int(np.sum(diff > 0))}/{diff.size} windows "
                      f"(p = {pval:.2g}), log predictive gain {gain:.1f}"
-                     + (f"; it closes {100 * closed:.0f} % of the gap, under "
-                        f"{100 * min_gap_closed:.0f} %" if small else ""))
+                     + (f"; it closes {100 * (closed or 0.0):.0f} % of the gap, under "
+                        f"{100 * min_gap_closed:.0f} %" if small else "")
+                     + (f"; it gains {drop_Pa:.1f} Pa, under "
+                        f"{s.min_gain_noise_share:g} x the noise floor" if tiny else ""))
             if ok:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing

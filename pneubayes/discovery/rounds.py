@@ -90,6 +90,19 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     return fitted, settled, failed, outpaced
 
 
+def gain_shortfall(drop_Pa: float, gap_Pa: float, min_gap_closed: float,
+                   min_gain_Pa: float):
+    """Whether a trial that passed verification gains too little to be added:
+    ``(closed, short_of_gap, under_floor)``. ``closed`` is the share of the held-out
+    RMSE's gap above the noise floor (``gap_Pa``) its drop ``drop_Pa`` closes, None with
+    no gap left; ``short_of_gap``: it closes under ``min_gap_closed`` (with no gap left,
+    any positive share is out of reach); ``under_floor``: the drop is under
+    ``min_gain_Pa``."""
+    closed = drop_Pa / gap_Pa if gap_Pa > 0 else None
+    short = (min_gap_closed > 0) if closed is None else closed < min_gap_closed
+    return closed, short, drop_Pa < min_gain_Pa
+
+
 def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
                        settings: DiscoverySettings) -> tuple[str | None, float]:
     """Why a round with a large gap should try the rest of the library (None: it need

@@ -77,6 +77,13 @@ class DiscoverySettings:
     round 1 (p = 0.006) beside the dead zone's larger gain, its inclusion fell to 0 once
     the other three were added, and the loop stopped at 1.7 x the noise floor without
     trying it again.
+    min_gain_noise_share: every trial that passes verification must also lower the
+    held-out 2-s RMSE by at least this share of the noise floor (0: any significant
+    gain). The signed-rank test finds a gain consistent across windows however small,
+    and a gain of a few Pa on a 500-Pa floor is not an effect a 2-s prediction can show:
+    beside a transmission-line tube at 0.97 x the noise floor (a spent bench case, an
+    8-cell plant tube) a spool lag gained 1.8 Pa at p < 1e-4, standing in for the tube
+    form's own small error. Default 0.01.
     tube_line_segments: the most cells of the acoustic-line form tried for a named tube;
     0 tries the transport delay only. A line step costs tens of times a plain one, and
     more with more cells. tube_line_cutoff_Hz: the line gets the fewest cells, at least
@@ -136,6 +143,7 @@ class DiscoverySettings:
     try_all_on_gap: bool = True
     last_resort_min_gap_closed: float = 0.25
     last_resort_best_gap_closed: float = 0.25
+    min_gain_noise_share: float = 0.01
     revisit_runner_ups: bool = True
     score_dof: float = 4.0
     tube_line_segments: int = 8
@@ -180,6 +188,9 @@ class DiscoverySettings:
         if not 0.0 <= self.last_resort_min_gap_closed <= 1.0:
             raise ValueError("last_resort_min_gap_closed must be in [0, 1], got "
                              f"{self.last_resort_min_gap_closed}")
+        if not 0.0 <= self.min_gain_noise_share <= 1.0:
+            raise ValueError("min_gain_noise_share must be in [0, 1], got "
+                             f"{self.min_gain_noise_share}")
         if self.block < 1:
             raise ValueError(f"block must be >= 1, got {self.block}")
         if not (self.form_settled_ratio == 0.0 or self.form_settled_ratio >= 1.0):

@@ -33,14 +33,13 @@ acoustic line; a pure delay cannot lag and ring as one does.
 with the same two parameters as the line: ``segments`` (default 8) lossless elements in
 a row whose waves cross each unchanged in its share of the transit time and reflect at
 the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
-hold the waves, so they do not disperse however long the tube, and the cost does not
-grow with the tube's length: on 0.34-2.9 m tubes under random steps, 115-286 Pa RMS
-from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on 1-kHz inputs it costs
-1-2.4 x a 3-cell line's time (``benchmarks/tube_forms.py``; floors in
-``tests/test_wave.py``). Not yet for fitting: its output is not smooth in the transit
-time (its update grid, and where a valve switch lands on it, move with it), which
-stalls least squares (README, "tube_delay has three forms"). Its volume leaves the chamber's,
-as the line's does.
+hold the waves, so the cost does not grow with the tube's length, and a front is spread
+by about the 0.1-ms update grid, however long the tube: on 0.34-2.9 m tubes under random
+steps, 164-272 Pa RMS from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on
+1-kHz inputs it costs 1.3-1.6 x a 3-cell line's time (``benchmarks/tube_forms.py``;
+floors in ``tests/test_wave.py``). Its output moves continuously with the transit time
+(a fit's need). Not beside heat transfer (it has no temperature state). Its volume
+leaves the chamber's, as the line's does.
 """
 
 from __future__ import annotations
