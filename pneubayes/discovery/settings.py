@@ -96,10 +96,11 @@ class DiscoverySettings:
     tube_line_form: the outside-tube form tried for a named tube: ``"line"`` (the lumped
     acoustic line, its cells as above) or ``"wave"`` (the transmission-line tube,
     ``tube_delay`` form ``"wave"`` with 8 elements: no cells, closer to a continuous
-    tube than an 8-cell line, at 1-2.4 x a 3-cell line's cost on 1-kHz recordings,
-    ``benchmarks/tube_forms.py``; its output is not yet smooth in the transit time, and
-    on a 0.61-m bench tube the loop named a sensor lag in its place);
-    ``tube_line_segments`` 0 tries neither.
+    tube than an 8-cell line, at 1.3-1.6 x a 3-cell line's cost on 1-kHz recordings,
+    ``benchmarks/tube_forms.py``; never beside heat transfer: the line is tried there).
+    On a spent bench case (a 0.61-m tube in the bench's 8 cells) the loop named the tube
+    with either and ended at 0.97 x the noise floor with the wave, 1.02 x with the line,
+    in about twice the line's time; ``tube_line_segments`` 0 tries neither.
     form_settled_ratio: an effect with several forms (heat, tube) has its first form
     fitted, and its later ones only while no trial of the round (of any effect) has a
     training RMSE at most this x the noise floor (at the noise floor the training fit,
