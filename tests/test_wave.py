@@ -101,6 +101,27 @@ def test_a_valve_step_reaches_the_chamber_after_the_transit_time(rig, make_input
     assert p[np.searchsorted(t, arrive + 3e-4)] - 3e5 > 1e3
 
 
+def test_a_valve_switch_between_grid_points_moves_the_front_by_as_much(
+        rig, make_inputs, closable_params):
+    """A switch 33 us after a grid point (an irregular time base) reaches the valve end
+    as a ramp from its own time: the front's half-rise comes 33 us later, not at the
+    next grid point (100 us later) as a switch read only on the grid would."""
+    params, tube = _params(rig, 2.0, 0.002, valve=closable_params)
+    t = np.arange(3001) * 1e-5
+
+    def half_rise(t_switch):
+        tt = np.unique(np.append(t, t_switch))
+        u = np.where(tt >= t_switch, 5.0, 0.0)
+        p = simulate(_wave(), params, make_inputs(tt, u), rig, 3e5,
+                     SolverConfig.reference()).pressure_Pa[0] - 3e5
+        level = 0.5 * p[np.searchsorted(tt, t_switch + tube.transit_time_s(rig.gas) + 1e-3)]
+        i = int(np.argmax(p > level))
+        return tt[i - 1] + (level - p[i - 1]) / (p[i] - p[i - 1]) * (tt[i] - tt[i - 1])
+
+    shift = half_rise(0.010033) - half_rise(0.01)
+    assert shift == pytest.approx(33e-6, abs=8e-6), shift * 1e6
+
+
 @pytest.mark.parametrize("command, p0, supply_side", [(5.0, P_ATM, True),
                                                       (-5.0, P_SUP, False)])
 def test_through_the_wave_tube_the_chamber_settles_at_the_bare_chambers_balance(

@@ -483,23 +483,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             else:  # read past the last sample: its values, held
                 ta, inv_seg = tau, 0.0
                 xa, xb, sa, sb = x[m], x[m], ps[m], ps[m]
-            if general is not None and wave:
-                if w_grid < t_end - w_near:
-                    t_end = w_grid  # the tube's ends update on their grid
-                if (not math.isnan(w_lin) and abs(a_in_c - w_lin) + abs(a_ex_c + a_own - w_lex)
-                        > 1e-9 * (a_in_c + a_ex_c + a_own + w_lin + w_lex)):
-                    # the ports switch at tau: the valve end's entry there with the areas
-                    # before, then a ramp to the new ones over a grid step
-                    o_in, o_ex = wave_ramped(tau, w_lin, w_lex, w_sw, w_dt, w_oin, w_oex)
-                    if wave_newest_time(hist, ring) < tau - w_near:
-                        if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0, psup2,
-                                         o_in, o_ex, cs, w_area, w_len, w_dia, w_mu,
-                                         w_state, w_rd, w_row):
-                            return WAVE_HISTORY
-                    w_sw, w_oin, w_oex = tau, o_in, o_ex
-                    w_lin, w_lex = a_in_c, a_ex_c + a_own
-                if tau < w_sw + w_dt - w_near and w_sw + w_dt < t_end - w_near:
-                    t_end = w_sw + w_dt  # the ramp's end: an entry there
+            if general is not None and wave and w_grid < t_end - w_near:
+                t_end = w_grid  # the tube's ends update on their grid
             vdot = bore * (xb - xa) * inv_seg
             dsup = gain * (sb - sa) * inv_seg
             spool_a, t_sub = spool, tau
@@ -520,6 +505,21 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     h = min(h, 1e-3 * hmax)
             cmd_cached = cmd
             a_in, a_ex = a_in_c, a_ex_c + a_own
+            if general is not None and wave:
+                if (not math.isnan(w_lin) and abs(a_in - w_lin) + abs(a_ex - w_lex)
+                        > 1e-9 * (a_in + a_ex + w_lin + w_lex)):
+                    # the ports switch at tau: the valve end's entry there with the areas
+                    # before, then a ramp to the new ones over a grid step
+                    o_in, o_ex = wave_ramped(tau, w_lin, w_lex, w_sw, w_dt, w_oin, w_oex)
+                    if wave_newest_time(hist, ring) < tau - w_near:
+                        if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0, psup2,
+                                         o_in, o_ex, cs, w_area, w_len, w_dia, w_mu,
+                                         w_state, w_rd, w_row):
+                            return WAVE_HISTORY
+                    w_sw, w_oin, w_oex = tau, o_in, o_ex
+                    w_lin, w_lex = a_in, a_ex
+                if tau < w_sw + w_dt - w_near and w_sw + w_dt < t_end - w_near:
+                    t_end = w_sw + w_dt  # the ramp's end: an entry there
             while tau < t_end:
                 hh = h if h < t_end - tau else t_end - tau
                 if t_end - tau - hh < 1e-3 * hh:
