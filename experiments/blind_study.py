@@ -240,9 +240,9 @@ def main(argv=None) -> int:
     ap.add_argument("--case", action="append", default=[], metavar="NAME",
                     help="run only this case (full name or bNN prefix; repeatable) into "
                          "the cache, without a summary")
-    ap.add_argument("--tube-line-form", choices=("line", "wave"), default="line",
+    ap.add_argument("--tube-line-form", choices=("line", "wave"), default="wave",
                     help="the outside tube's form the loop tries (DiscoverySettings."
-                         "tube_line_form; line)")
+                         "tube_line_form; wave)")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
     args = ap.parse_args(argv)

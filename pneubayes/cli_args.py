@@ -312,10 +312,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "(the cells follow the tube's transit time, at least 3); 0 tries "
                         "the transport delay only (the line is tens of times slower to "
                         "simulate) (8)")
-    d.add_argument("--tube-line-form", choices=("line", "wave"), default="line",
-                   help="the outside tube's form tried for a named tube: the lumped "
-                        "acoustic line, or the transmission-line tube (wave: no cells, "
-                        "closer to a continuous tube) (line)")
+    d.add_argument("--tube-line-form", choices=("line", "wave"), default="wave",
+                   help="the outside tube's form tried for a named tube: the "
+                        "transmission-line tube (wave: no cells, closer to a continuous "
+                        "tube; the line beside heat transfer), or the lumped acoustic "
+                        "line (wave)")
     d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "

@@ -43,8 +43,8 @@ def test_demo_runs_on_shipped_data(tmp_path):
     assert [e["name"] for e in doc["effects"]] == ["tube_delay"]
     tube = [e for e in doc["ledger"] if e.get("effect") == "tube_delay" and "forms" in e][0]
     assert list(tube["forms"]["train_rmse_Pa"]) == ["transport"]
-    # (the line's name carries its cells, which follow the tube's start delay: line/4)
-    assert [f.split("/")[0] for f in tube["forms"]["not_fitted"]] == ["line"]
+    # (the outside tube's form, the loop's default: the transmission-line tube, wave/8)
+    assert [f.split("/")[0] for f in tube["forms"]["not_fitted"]] == ["wave"]
     # the other trials with several forms (the sensor lag's two orders; heat's two laws)
     # were fitted in their first form only
     multi = [e for e in doc["ledger"] if "forms" in e

@@ -98,9 +98,14 @@ class DiscoverySettings:
     ``tube_delay`` form ``"wave"`` with 8 elements: no cells, closer to a continuous
     tube than an 8-cell line, at 1.3-1.6 x a 3-cell line's cost on 1-kHz recordings,
     ``benchmarks/tube_forms.py``; never beside heat transfer: the line is tried there).
-    On a spent bench case (a 0.61-m tube in the bench's 8 cells) the loop named the tube
-    with either and ended at 0.97 x the noise floor with the wave, 1.02 x with the line,
-    in about twice the line's time; ``tube_line_segments`` 0 tries neither.
+    Default ``"wave"``: on a near-continuous tube (2.5 m x 3.64 mm in 32 plant cells into
+    a 0.15-cm^3 chamber, ``experiments/tube_form_study.py``) the loop with the line
+    fitted a 3-cell line into a 1.5-ms basin (the tube's transit time is 7.3 ms), named a
+    sensor lag in its place and ended at 3.62 x the noise floor; with the wave, from the
+    same 2-ms start, it fitted 7.16 ms and the bore to 0.1 %, named the tube and ended at
+    1.38 x. On two spent bench cases (the bench's 8-cell tubes) it did as well as the
+    line (0.97 and 1.05 x against 1.02 and 1.04 x), in 1-2.3 x the line's time.
+    ``tube_line_segments`` 0 tries neither.
     form_settled_ratio: an effect with several forms (heat, tube) has its first form
     fitted, and its later ones only while no trial of the round (of any effect) has a
     training RMSE at most this x the noise floor (at the noise floor the training fit,
@@ -149,7 +154,7 @@ class DiscoverySettings:
     score_dof: float = 4.0
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
-    tube_line_form: str = "line"
+    tube_line_form: str = "wave"
     form_settled_ratio: float = 1.05
     later_forms_min_share: float = 0.25
     later_form_screen_share: float = 0.5
