@@ -1,9 +1,10 @@
 """One round's trials: the candidate effects' forms, fitted cheapest first, stopping
 once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.DiscoverySettings`
 ``form_settled_ratio``); an effect's later forms only while its first form keeps up with
-the round's best (``later_forms_min_share``); whether a round's results call for the
-last resort (:func:`last_resort_reason`); and which earlier trials to revisit before the
-loop stops (:func:`runner_ups`)."""
+the round's best (``later_forms_min_share``); whether a trial that passed gains enough
+to be added (:func:`gain_shortfall`); whether a round's results call for the last resort
+(:func:`last_resort_reason`); and which earlier trials to revisit before the loop stops
+(:func:`runner_ups`)."""
 
 from __future__ import annotations
 
