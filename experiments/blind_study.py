@@ -15,12 +15,14 @@ Each case is drawn from ``--seed`` (default 22022, recorded): a rig (cylinder an
 valve) and, for each planted effect, a realistic plant form
 (:mod:`pneubayes.bench.forms`) whose parameters are drawn from wide physical ranges
 instead of the bench defaults the loop was tuned on -- a tube of 0.4-3 m and 1.5-4 mm
-bore, a rounded dead zone of 0.1-0.5 V, a regulator drooping 15-70 kPa per g/s with a
-15-120 ms time constant, a clearance leak 0.5-3 x the bench's, a 2nd-order spool at
-70-220 Hz, wall convection of 10-80 W/(m^2 K) and an undeclared causal Butterworth
-anti-alias filter at 120-600 Hz for a sensor lag. The set: no-effect controls, every
-single effect, pairs and four-effect rigs. Every case runs the bench (six 20-s
-recordings, as ``discovery_study.py``) and ``pneubayes discover`` from the plain model.
+bore (in 8-24 cells as the bench's, or ``--min-tube-cells 32`` for a near-continuous
+tube unlike the bench's), a rounded dead zone of 0.1-0.5 V, a regulator drooping
+15-70 kPa per g/s with a 15-120 ms time constant, a clearance leak 0.5-3 x the
+bench's, a 2nd-order spool at 70-220 Hz, wall convection of 10-80 W/(m^2 K) and an
+undeclared causal Butterworth anti-alias filter at 120-600 Hz for a sensor lag. The
+set: no-effect controls, every single effect, pairs and four-effect rigs. Every case
+runs the bench (six 20-s recordings, as ``discovery_study.py``) and ``pneubayes
+discover`` from the plain model.
 
 Reported: per case the named set against the planted one, the held-out RMSE before and
 after (Pa), the noise floor, the gap shrink and final / noise; and the issue's floors
@@ -79,13 +81,15 @@ def _log_uniform(rng, lo, hi) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def draw_form(name: str, cylinder: str, rng):
+def draw_form(name: str, cylinder: str, rng, min_tube_cells: int = 8):
     """A realistic plant form of catalogue effect ``name`` with drawn parameters (the
-    sensor lag is a SensorChain, not a plant form)."""
+    sensor lag is a SensorChain, not a plant form). A tube has 8 cells per metre,
+    8-24 of them (the bench's rule), or ``min_tube_cells`` if that is more."""
     if name == "tube_delay":
         length = _log_uniform(rng, 0.4, 3.0)
+        cells = max(int(min_tube_cells), int(min(24, max(8, math.ceil(8 * length)))))
         return AcousticTube(length_m=length, diameter_m=_log_uniform(rng, 0.0015, 0.004),
-                            segments=int(min(24, max(8, math.ceil(8 * length)))))
+                            segments=cells)
     if name == "valve_deadzone":
         w = rng.uniform(0.1, 0.5)
         return RoundedDeadzone(halfwidth_V=w, rounding_V=w * rng.uniform(0.1, 0.6))
@@ -109,9 +113,10 @@ def draw_form(name: str, cylinder: str, rng):
     raise ValueError(f"draw_form: unknown effect {name!r}")
 
 
-def draw_cases(seed: int) -> list[dict]:
+def draw_cases(seed: int, min_tube_cells: int = 8) -> list[dict]:
     """The blind set: controls, every single effect, pairs and four-effect rigs, each
-    with a drawn rig, forms and bench seed (a JSON-ready list)."""
+    with a drawn rig, forms and bench seed (a JSON-ready list). ``min_tube_cells`` sets
+    the plant tube's fewest cells (:func:`draw_form`); the draws do not depend on it."""
     rng = np.random.default_rng(seed)
     sets: list[tuple[str, ...]] = [()] * N_CONTROLS + [(s,) for s in SINGLES]
     pairs = [(a, b) for i, a in enumerate(SINGLES) for b in SINGLES[i + 1:]]
@@ -122,7 +127,7 @@ def draw_cases(seed: int) -> list[dict]:
     for i, hidden in enumerate(sets):
         rig = RIGS[int(rng.integers(len(RIGS)))]
         cylinder, valve = rig.split(":")
-        forms = {h: draw_form(h, cylinder, rng) for h in hidden}
+        forms = {h: draw_form(h, cylinder, rng, min_tube_cells) for h in hidden}
         cases.append({"name": f"b{i:02d}_{cylinder}_{valve}_{'+'.join(hidden) or 'none'}",
                       "cylinder": cylinder, "valve": valve, "hidden": list(hidden),
                       "bench_seed": int(rng.integers(1000, 100000)),
@@ -243,12 +248,18 @@ def main(argv=None) -> int:
     ap.add_argument("--tube-line-form", choices=("line", "wave"), default="wave",
                     help="the outside tube's form the loop tries (DiscoverySettings."
                          "tube_line_form; wave)")
+    ap.add_argument("--min-tube-cells", type=int, default=8, metavar="N",
+                    help="the plant tube's fewest cells (default 8: the bench's rule of 8 "
+                         "per metre, 8-24; 32 makes a near-continuous tube, unlike the "
+                         "bench's; the plant costs about 4x more)")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
     args = ap.parse_args(argv)
     if args.smoke:
         args.seed, args.duration = SMOKE_SEED, 16.0
-    cases = draw_cases(args.seed)
+    if args.min_tube_cells < 1:
+        ap.error(f"--min-tube-cells: must be at least 1, got {args.min_tube_cells}")
+    cases = draw_cases(args.seed, args.min_tube_cells)
     if args.smoke:
         cases = [c for c in cases if c["hidden"] == ["tube_delay"]]
     if args.list:
@@ -270,7 +281,7 @@ def main(argv=None) -> int:
     table, md = summarise(results)
     write_json_atomic(root / "summary.json", {
         "seed": args.seed, "duration_s": args.duration, "smoke": args.smoke,
-        "tube_line_form": args.tube_line_form,
+        "tube_line_form": args.tube_line_form, "min_tube_cells": args.min_tube_cells,
         "floors": table, "cases": results, "wall_time_s": time.perf_counter() - t_all,
         "provenance": provenance()})
     write_text_atomic(root / "summary.md", md)

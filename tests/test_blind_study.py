@@ -29,6 +29,21 @@ def test_the_draw_is_fixed_by_its_seed_and_covers_every_kind():
         assert f"{c['cylinder']}:{c['valve']}" in blind_study.RIGS
 
 
+def test_a_finer_plant_tube_changes_only_the_tubes_cell_count():
+    bench, fine = blind_study.draw_cases(123), blind_study.draw_cases(123, min_tube_cells=32)
+    assert [c["name"] for c in bench] == [c["name"] for c in fine]
+    tubes = 0
+    for a, b in zip(bench, fine):
+        assert a["bench_seed"] == b["bench_seed"]
+        for h in a["hidden"]:
+            fa, fb = dict(a["forms"][h]), dict(b["forms"][h])
+            if h == "tube_delay":
+                tubes += 1
+                assert 8 <= fa.pop("segments") <= 24 and fb.pop("segments") == 32
+            assert fa == fb
+    assert tubes >= 1
+
+
 def test_drawn_forms_stay_in_their_physical_ranges():
     import numpy as np
 
