@@ -56,6 +56,24 @@ def test_grouped_sindy_names_the_planted_group_and_nothing_in_noise():
         assert s0.supported(0.6) == []
 
 
+def test_a_term_seen_in_one_chunk_only_is_no_evidence_and_no_crash():
+    """A column that is non-zero inside one bootstrap chunk has no cluster-robust
+    standard error (its score sums to zero there); on short real recordings the loop
+    crashed dividing by it. Such a term carries no evidence (t = 0), whatever its size."""
+    rng = np.random.default_rng(4)
+    lib = _synthetic_library(rng, n=600, signal=lambda x: 12.0 * x[:, 4])
+    one_chunk = np.zeros(600)
+    one_chunk[10:30] = rng.normal(size=20)
+    lib.columns[:, 6] = one_chunk  # heat_transfer's first term
+    lib.columns[:, 7] = lib.columns[:, 8] = 0.0  # its other terms: the group is that term
+    lib.target[10:30] += 500.0 * one_chunk[10:30]  # a strong signal, in one chunk only
+    s = GroupedSINDy(threshold_t=5.0, n_models=30, chunk_rows=100, seed=1).fit(lib)
+    assert s.evidence_["heat_transfer"]["t_max"] == 0.0
+    assert s.evidence_["heat_transfer"]["inclusion_probability"] == 0.0
+    assert s.ranking_[0] == "valve_deadzone"
+    assert np.isfinite(s.coef_).all()
+
+
 def test_cluster_se_matches_ols_se_for_white_noise():
     rng = np.random.default_rng(3)
     n = 20000

@@ -21,6 +21,12 @@ Steps (:class:`GroupedSINDy`):
 
 Each group's evidence also has its single-term t statistic (the best raw column, same
 robust standard error) and the fraction of the residual sum of squares it explains.
+
+A column whose energy lies in fewer than ``min_chunks`` effective chunks (``(sum_c
+E_c)^2 / sum_c E_c^2`` over its per-chunk energies ``E_c``) has no cluster-robust
+standard error worth the name: within one chunk its score sums to (nearly) zero. It
+carries no evidence (t = 0) and takes no part in the selection. Short recordings (real
+fills of 30-120 ms) make such columns.
 """
 
 from __future__ import annotations
@@ -58,6 +64,18 @@ def cluster_se(x: np.ndarray, e: np.ndarray, cluster: np.ndarray) -> np.ndarray:
     return np.sqrt(np.sum(score**2, axis=0)) / np.where(norm2 > 0, norm2, 1.0)
 
 
+def effective_chunks(x: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+    """Per column of ``x``, how many clusters its energy is spread over: ``(sum_c
+    E_c)^2 / sum_c E_c^2`` with ``E_c`` the column's sum of squares in cluster ``c`` (1
+    for a column inside one cluster, the cluster count for an even spread; 0 for a
+    zero column)."""
+    n_c = int(cluster.max()) + 1 if cluster.size else 0
+    energy = np.zeros((n_c, x.shape[1]))
+    np.add.at(energy, cluster, x * x)
+    total, sq = energy.sum(axis=0), np.sum(energy ** 2, axis=0)
+    return np.where(sq > 0, total ** 2 / np.where(sq > 0, sq, 1.0), 0.0)
+
+
 class GroupedSINDy:
     """Which candidate group explains the residual (scikit-learn contract).
 
@@ -73,15 +91,20 @@ class GroupedSINDy:
         Ridge weight of STLSQ (on unit columns).
     seed : int
         Bagging seed.
+    min_chunks : float
+        Fewest effective chunks a column's energy must spread over for its t statistic
+        to count (:func:`effective_chunks`); below, the column is no evidence.
     """
 
     def __init__(self, threshold_t: float = 5.0, n_models: int = 40,
-                 chunk_rows: int = 200, alpha: float = 1e-8, seed: int = 0):
+                 chunk_rows: int = 200, alpha: float = 1e-8, seed: int = 0,
+                 min_chunks: float = 2.0):
         self.threshold_t = threshold_t
         self.n_models = n_models
         self.chunk_rows = chunk_rows
         self.alpha = alpha
         self.seed = seed
+        self.min_chunks = min_chunks
 
     def _stlsq(self, x: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
         import pysindy as ps
@@ -121,7 +144,10 @@ class GroupedSINDy:
         # strong term does not inflate its own (and every other term's) error
         e_full = y_p - x @ np.linalg.lstsq(x, y_p, rcond=None)[0] if x.shape[1] else y_p
         se = cluster_se(x, e_full, chunk_of)
-        se = np.where(se > 0, se, np.inf)
+        # a column inside (nearly) one chunk has no usable standard error: no evidence
+        usable = (se > 0) & (effective_chunks(x, chunk_of) >= self.min_chunks)
+        se = np.where(usable, se, 1.0)
+        x = np.where(usable, x, 0.0)
         x = x * se  # y = c x = (c / se)(se x): coefficients on se x are t statistics
         thr = self.threshold_t
         self.residual_std_ = float(np.std(y_p))
@@ -158,8 +184,11 @@ class GroupedSINDy:
                 if gg != g or nj <= 1e-6 * max(raw_norm[j], 1e-300):
                     continue
                 xj = raw[:, j:j + 1] / nj
+                if effective_chunks(xj, chunk_of)[0] < self.min_chunks:
+                    continue
                 c = float(xj[:, 0] @ y_p)
-                t = abs(c) / float(cluster_se(xj, y_p - c * xj[:, 0], chunk_of)[0])
+                se_j = float(cluster_se(xj, y_p - c * xj[:, 0], chunk_of)[0])
+                t = abs(c) / se_j if se_j > 0 else 0.0
                 if t > t_best:
                     t_best, term = t, lab
                     term_start = dict(lib.starts[j]) if lib.starts else None
