@@ -1,7 +1,12 @@
 """Closed-loop pressure tracking at 200 Hz with a sampling-based MPC that uses the posterior.
 
     python experiments/mpc_tracking.py [--out results/mpc] [--seeds 0,1,2,3,4] [--quick]
+                                       [--scenario hidden_delay|weak_data]
                                        [--json OUT.json] [--figure OUT.png]
+
+``--scenario weak_data`` fits only the delay model on one short recording of small
+commands, so the posterior is wide where the controller works (``SCENARIOS``); the
+default is the design below.
 
 Per seed:
 
@@ -101,6 +106,24 @@ CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
 #: bench hides (what the discovery loop names on such data) for the ``delay_`` ones.
 FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
+#: What the posterior is fitted on and which controllers run (``--scenario``):
+#:
+#: * ``hidden_delay`` (the default, the design above): two 10-s recordings at +-5 and
+#:   +-1.5 V; the paper's model and the delay model; every controller;
+#: * ``weak_data``: one 3-s recording of small commands (+-1 V) only, the delay model
+#:   only (the model class holds the plant): the posterior is narrow where the data
+#:   were and wide where the controller works (large openings, high pressures), so a
+#:   point estimate can be wrong there in a way the draws know.
+SCENARIOS = {
+    "hidden_delay": {"duration_s": 10.0, "quick_duration_s": 4.0, "ranges_V": (5.0, 1.5),
+                     "fitted": ("paper", "delay"), "controllers": CONTROLLERS,
+                     "baseline": "nominal"},
+    "weak_data": {"duration_s": 3.0, "quick_duration_s": 2.0, "ranges_V": (1.0,),
+                  "fitted": ("delay",),
+                  "controllers": ("delay_nominal", "delay_nominal_mean", "delay_posterior",
+                                  "delay_chance", "delay_chance_window"),
+                  "baseline": "delay_nominal"},
+}
 
 
 def candidates(previous: np.ndarray) -> np.ndarray:
@@ -229,12 +252,17 @@ def fit_model(recs, names, fit_dir: Path, seed: int, quick: bool, log):
     return fit
 
 
-def run_seed(seed: int, out: Path, quick: bool, log) -> dict:
-    """Bench, fit and the three closed loops of one seed (skipped if already written)."""
+def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_delay") -> dict:
+    """Bench, fit and the closed loops of one seed (skipped if already written)."""
+    sc = SCENARIOS[scenario]
+    controllers = sc["controllers"]
     done = out / f"seed{seed}.json"
     if done.exists():
         saved = json.loads(done.read_text())
-        if (set(CONTROLLERS) <= set(saved["controllers"])
+        if saved.get("scenario", "hidden_delay") != scenario:
+            raise SystemExit(f"{done}: a seed of scenario {saved.get('scenario')!r}, not "
+                             f"{scenario!r}: give each scenario its own --out")
+        if (set(controllers) <= set(saved["controllers"])
                 and saved.get("candidates") == CANDIDATES):
             return saved
         log(f"seed {seed}: {done} lacks controllers or candidates of this version; running "
@@ -242,8 +270,9 @@ def run_seed(seed: int, out: Path, quick: bool, log) -> dict:
     work = out / f"seed{seed}"
     eff = effects_from_names(["cylinder_leak", "tube_delay"])
     cfg = BenchConfig("AIR37", "valve1", eff, protocol="fixed",
-                      duration_s=4.0 if quick else 10.0, seed=seed, positions=(0.5,),
-                      ranges_V=(5.0, 1.5), overrides={"tube_delay_s": HIDDEN_DELAY_S})
+                      duration_s=sc["quick_duration_s"] if quick else sc["duration_s"],
+                      seed=seed, positions=(0.5,), ranges_V=sc["ranges_V"],
+                      overrides={"tube_delay_s": HIDDEN_DELAY_S})
     bench_dir = work / "bench"
     if (bench_dir / "truth.json").exists():  # in the bench's order, as the first run had
         listed = json.loads((bench_dir / "truth.json").read_text())["bench"]["recordings"]
@@ -254,39 +283,47 @@ def run_seed(seed: int, out: Path, quick: bool, log) -> dict:
     recs = [read_recording(p) for p in recordings]
     rig = recs[0].rig()
     position = float(recs[0].metadata.position_m)
-    fits = {name: fit_model(recs, names, work / ("fit" if name == "paper" else "fit_delay"),
-                            seed, quick, log) for name, names in FITTED.items()}
-    fit_summary = fits["paper"].summary
+    fits = {name: fit_model(recs, FITTED[name],
+                            work / ("fit" if name == "paper" else "fit_delay"), seed, quick,
+                            log) for name in sc["fitted"]}
     # the draws, the reference, the sensor noise and the predictive noise factors: the
     # same streams for every controller (children 0-3 as before the delay model's 4-5)
     seqs = np.random.SeedSequence(seed).spawn(6)
-    draw_rng, ref_rng = np.random.default_rng(seqs[0]), np.random.default_rng(seqs[1])
-    model, (draws, noise) = fits["paper"].model, fits["paper"].draws(N_DRAWS, draw_rng)
-    fit_median = {n: v["median"] for n, v in fit_summary["parameters"].items()
-                  if n in model.parameter_names}
-    d_fit = fits["delay"]
-    d_model, (d_draws, d_noise) = d_fit.model, d_fit.draws(N_DRAWS,
-                                                             np.random.default_rng(seqs[4]))
-    d_median = {n: v["median"] for n, v in d_fit.summary["parameters"].items()
-                if n in d_model.parameter_names}
+    ref_rng = np.random.default_rng(seqs[1])
+    # per fitted model: (model, draws, noise, posterior median vector, controller stream)
+    fitted = {}
+    for name, fit in fits.items():
+        draws, noise = fit.draws(N_DRAWS, np.random.default_rng(seqs[0 if name == "paper"
+                                                                     else 4]))
+        median = {k: v["median"] for k, v in fit.summary["parameters"].items()
+                  if k in fit.model.parameter_names}
+        fitted[name] = (fit.model, draws, noise, fit.model.vector(median)[None],
+                        seqs[3 if name == "paper" else 5])
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
-    result = {"seed": seed, "hidden_delay_s": HIDDEN_DELAY_S, "p_max_Pa": P_MAX_PA,
-              "candidates": CANDIDATES,
-              "fit": {k: fit_summary.get(k) for k in ("converged", "steps", "tau_max")},
-              "fit_delay": {**{k: d_fit.summary.get(k) for k in ("converged", "steps",
-                                                                 "tau_max")},
-                            "tube_delay_s": d_fit.summary["parameters"]["tube_delay_s"]},
-              "posterior_noise_scale_Pa": float(np.median(noise[:, 0])),
+    result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
+              "p_max_Pa": P_MAX_PA, "candidates": CANDIDATES,
+              "bench": {"duration_s": cfg.duration_s, "ranges_V": list(cfg.ranges_V)},
+              "posterior_noise_scale_Pa": float(np.median(
+                  fitted[sc["fitted"][0]][2][:, 0])),
               "reference_Pa": reference[: n + 1].tolist(), "controllers": {}}
-    for kind in CONTROLLERS:
-        delay = kind.startswith("delay_")
-        use = {"nominal": model.vector(fit_median)[None],
-               "nominal_mean": draws.mean(axis=0, keepdims=True),
-               "delay_nominal": d_model.vector(d_median)[None]}.get(
-                   kind, d_draws if delay else draws)
-        ctrl = Controller(kind, d_model if delay else model, use, d_noise if delay else noise,
-                          rig, np.random.default_rng(seqs[5] if delay else seqs[3]))
+    if "paper" in fits:
+        result["fit"] = {k: fits["paper"].summary.get(k)
+                         for k in ("converged", "steps", "tau_max")}
+    if "delay" in fits:
+        d_sum = fits["delay"].summary
+        result["fit_delay"] = {**{k: d_sum.get(k) for k in ("converged", "steps", "tau_max")},
+                               "tube_delay_s": d_sum["parameters"]["tube_delay_s"]}
+        # how wide the posterior is: each parameter's 90 % interval over its median
+        result["fit_delay"]["relative_width_90"] = {
+            k: (v["q95"] - v["q05"]) / abs(v["median"]) if v.get("median") else None
+            for k, v in d_sum["parameters"].items() if "q95" in v and "q05" in v}
+    for kind in controllers:
+        model, draws, noise, median, stream = fitted["delay" if kind.startswith("delay_")
+                                                     else "paper"]
+        use = {"nominal": median, "nominal_mean": draws.mean(axis=0, keepdims=True)}.get(
+            kind.removeprefix("delay_"), draws)
+        ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream))
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
         run = closed_loop(ctrl, plant_model, truth, rig, position, reference,
@@ -355,11 +392,13 @@ def _versus(k: dict, nom: dict) -> dict:
     return out
 
 
-def summarise(results: list[dict]) -> dict:
+def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
     """Per controller: the seeds' RMSE and violations, and the comparison the issue's
     floor asks for (fewer violations at equal or better tracking, over the seeds)."""
     out = {}
-    for kind in CONTROLLERS:
+    controllers = SCENARIOS[scenario]["controllers"]
+    baseline = SCENARIOS[scenario]["baseline"]
+    for kind in controllers:
         rows = [r["controllers"][kind] for r in results]
         out[kind] = {
             "tracking_rmse_Pa": [c["tracking_rmse_Pa"] for c in rows],
@@ -372,11 +411,13 @@ def summarise(results: list[dict]) -> dict:
             "largest_excess_Pa": [c["largest_excess_Pa"] for c in rows],
             "compute_ms_per_tick_median": [c["compute_ms_per_tick_median"] for c in rows],
         }
-    for kind in CONTROLLERS[1:]:
-        out[kind]["versus_nominal"] = _versus(out[kind], out["nominal"])
-    # the same-model comparison: posterior-aware against nominal, both with the delay
-    for kind in ("delay_chance", "delay_chance_window"):
-        out[kind]["versus_delay_nominal"] = _versus(out[kind], out["delay_nominal"])
+    for kind in controllers:
+        if kind != baseline:
+            out[kind][f"versus_{baseline}"] = _versus(out[kind], out[baseline])
+    if baseline == "nominal":
+        # the same-model comparison: posterior-aware against nominal, both with the delay
+        for kind in ("delay_chance", "delay_chance_window"):
+            out[kind]["versus_delay_nominal"] = _versus(out[kind], out["delay_nominal"])
     return out
 
 
@@ -395,9 +436,9 @@ def figure(results: list[dict], path: Path) -> None:
     axes[0].step(t, np.asarray(r["reference_Pa"]) / 1e5, where="post", color="k", lw=1,
                  label="reference")
     axes[0].axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
-    for kind, colour in zip(CONTROLLERS, ("tab:orange", "tab:red", "tab:blue", "tab:green",
-                                          "tab:purple", "tab:pink", "tab:brown", "tab:olive",
-                                          "tab:cyan")):
+    colours = ("tab:orange", "tab:red", "tab:blue", "tab:green", "tab:purple", "tab:pink",
+               "tab:brown", "tab:olive", "tab:cyan")
+    for kind, colour in zip(list(r["controllers"]), colours):
         c = r["controllers"][kind]
         axes[0].plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
                      label=f"{kind}: RMSE {c['tracking_rmse_Pa'] / 1e3:.1f} kPa, "
@@ -408,7 +449,7 @@ def figure(results: list[dict], path: Path) -> None:
     axes[1].set_ylabel("command, V")
     axes[1].set_xlabel("time, s")
     axes[0].set_title(f"200-Hz MPC on the bench with a hidden {HIDDEN_DELAY_S * 1e3:g}-ms "
-                      f"delay (seed {r['seed']})")
+                      f"delay (seed {r['seed']}, {r.get('scenario', 'hidden_delay')})")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -420,6 +461,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="results/mpc")
     ap.add_argument("--seeds", default="0,1,2,3,4")
     ap.add_argument("--quick", action="store_true", help="short recordings and chains")
+    ap.add_argument("--scenario", choices=tuple(SCENARIOS), default="hidden_delay",
+                    help="what the posterior is fitted on (SCENARIOS; default hidden_delay)")
     ap.add_argument("--json", default=None, help="summary (default OUT/summary.json)")
     ap.add_argument("--figure", default=None, help="figure (default OUT/mpc_tracking.png)")
     args = ap.parse_args(argv)
@@ -430,12 +473,13 @@ def main(argv=None) -> int:
     def log(m):
         print(m, file=sys.stderr, flush=True)
 
-    results = [run_seed(s, out, args.quick, log) for s in seeds]
-    summary = {"seeds": seeds, "quick": args.quick, "rate_Hz": RATE_HZ,
+    results = [run_seed(s, out, args.quick, log, args.scenario) for s in seeds]
+    summary = {"seeds": seeds, "quick": args.quick, "scenario": args.scenario,
+               "rate_Hz": RATE_HZ,
                "horizon_s": HORIZON_TICKS * DT_S, "candidates": CANDIDATES,
                "draws": N_DRAWS, "hidden_delay_s": HIDDEN_DELAY_S, "p_max_Pa": P_MAX_PA,
-               "run_s": RUN_S, "controllers": summarise(results),
-               "fits": [r["fit"] for r in results],
+               "run_s": RUN_S, "controllers": summarise(results, args.scenario),
+               "fits": [r.get("fit") for r in results],
                "fits_delay": [r.get("fit_delay") for r in results],
                "posterior_noise_scale_Pa": [r["posterior_noise_scale_Pa"] for r in results],
                "provenance": provenance()}
