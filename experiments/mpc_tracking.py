@@ -4,7 +4,7 @@
                                        [--scenario hidden_delay|weak_data]
                                        [--json OUT.json] [--figure OUT.png]
 
-``--scenario weak_data`` fits only the delay model on one short recording of small
+``--scenario weak_data`` fits only the delay model on one 2-s recording of small
 commands, so the posterior is wide where the controller works (``SCENARIOS``); the
 default is the design below.
 
@@ -110,7 +110,7 @@ FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
 #:
 #: * ``hidden_delay`` (the default, the design above): two 10-s recordings at +-5 and
 #:   +-1.5 V; the paper's model and the delay model; every controller;
-#: * ``weak_data``: one 3-s recording of small commands (+-1 V) only, the delay model
+#: * ``weak_data``: one 2-s recording of small commands (+-1 V) only, the delay model
 #:   only (the model class holds the plant): the posterior is narrow where the data
 #:   were and wide where the controller works (large openings, high pressures), so a
 #:   point estimate can be wrong there in a way the draws know.
@@ -118,7 +118,7 @@ SCENARIOS = {
     "hidden_delay": {"duration_s": 10.0, "quick_duration_s": 4.0, "ranges_V": (5.0, 1.5),
                      "fitted": ("paper", "delay"), "controllers": CONTROLLERS,
                      "baseline": "nominal"},
-    "weak_data": {"duration_s": 3.0, "quick_duration_s": 2.0, "ranges_V": (1.0,),
+    "weak_data": {"duration_s": 2.0, "quick_duration_s": 2.0, "ranges_V": (1.0,),
                   "fitted": ("delay",),
                   "controllers": ("delay_nominal", "delay_nominal_mean", "delay_posterior",
                                   "delay_chance", "delay_chance_window"),
