@@ -74,6 +74,24 @@ def test_a_term_seen_in_one_chunk_only_is_no_evidence_and_no_crash():
     assert np.isfinite(s.coef_).all()
 
 
+def test_short_recordings_are_each_a_chunk_so_their_evidence_counts():
+    """Twelve recordings of 30 rows (real fills of tens of ms) make one chunk of 200
+    rows, in which no standard error exists; each recording is a chunk instead, and the
+    planted group is named while pure noise names nothing."""
+    rng = np.random.default_rng(5)
+    lib = _synthetic_library(rng, n=360, signal=lambda x: 40.0 * x[:, 4])
+    lib.row_recording = np.repeat(np.arange(12), 30)
+    s = GroupedSINDy(threshold_t=5.0, n_models=30, chunk_rows=200, seed=1).fit(lib)
+    assert s.ranking_[0] == "valve_deadzone"
+    assert s.evidence_["valve_deadzone"]["inclusion_probability"] >= 0.9
+    assert s.evidence_["valve_deadzone"]["t_max"] > 5.0
+    for seed in range(3):
+        lib0 = _synthetic_library(np.random.default_rng(20 + seed), n=360)
+        lib0.row_recording = np.repeat(np.arange(12), 30)
+        s0 = GroupedSINDy(threshold_t=5.0, n_models=30, chunk_rows=200, seed=seed).fit(lib0)
+        assert s0.supported(0.6) == []
+
+
 def test_cluster_se_matches_ols_se_for_white_noise():
     rng = np.random.default_rng(3)
     n = 20000

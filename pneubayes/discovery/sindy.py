@@ -9,11 +9,12 @@ Steps (:class:`GroupedSINDy`):
    trial strengths are strongly collinear; orthonormal columns keep their coefficients
    from inflating each other.
 3. Scale each orthonormal column by its cluster-robust standard error (clusters =
-   chunks of ``chunk_rows`` rows): residuals are larger right after command steps,
-   exactly where the delay and dead-band terms live, and correlated over a few rows,
-   so one global noise level would overstate significance there. A coefficient on a
-   scaled column is then its t statistic, and pysindy's STLSQ with threshold
-   ``threshold_t`` keeps only terms significant at that level.
+   chunks of ``chunk_rows`` rows, or the recordings where they are more): residuals
+   are larger right after command steps, exactly where the delay and dead-band terms
+   live, and correlated over a few rows, so one global noise level would overstate
+   significance there. A coefficient on a scaled column is then its t statistic, and
+   pysindy's STLSQ with threshold ``threshold_t`` keeps only terms significant at that
+   level.
 4. Bagging over *blocks of rows* (``chunk_s`` of recording each), not single rows:
    residuals are autocorrelated, and a row bootstrap would be overconfident. The
    inclusion probability of a group is the fraction of bags in which any of its columns
@@ -140,6 +141,14 @@ class GroupedSINDy:
         n = y.size
         n_chunks = max(1, n // self.chunk_rows)
         chunk_of = np.minimum(np.arange(n) // self.chunk_rows, n_chunks - 1)
+        rec = np.asarray(lib.row_recording)
+        if rec.size == n:
+            # short recordings (real fills of tens of ms): fewer chunks than recordings,
+            # so each recording is a chunk (recordings are independent; a chunk that
+            # spans several mixes them and leaves too few for a standard error)
+            ids, rec_chunk = np.unique(rec, return_inverse=True)
+            if ids.size > n_chunks:
+                n_chunks, chunk_of = int(ids.size), rec_chunk.astype(np.int64)
         # standard errors from the residual of the full least-squares fit, so that a
         # strong term does not inflate its own (and every other term's) error
         e_full = y_p - x @ np.linalg.lstsq(x, y_p, rcond=None)[0] if x.shape[1] else y_p
