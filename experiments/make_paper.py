@@ -489,11 +489,17 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                       "does not state; the effect is named for what it does (the command "
                       "reaches the chamber late), not for where the delay arises.")
             if "tube_diameter_m" in post:
-                L[-1] += (f" Its acoustic-line form fits best (a line of bore "
-                          f"{_interval(post['tube_diameter_m'], 1e3)} mm whose length is the "
-                          "dead time x c, not the tube's 1.88 m): the line's friction and "
-                          "inertia shape the flow, as in the data authors' own model class "
-                          "(tank + tube with Darcy-Weisbach friction)")
+                form = next((e.get("options", {}).get("form") for e in g["effects"]
+                             if e["name"] == "tube_delay"), "line")
+                kind = ("transmission-line form (waves that cross it in the transit time "
+                        "and reflect at its ends, friction at its junctions)" if form == "wave"
+                        else "acoustic-line form (lumped cells)")
+                L[-1] += (f" Its {kind} fits best, a tube of bore "
+                          f"{_interval(post['tube_diameter_m'], 1e3)} mm (the documented "
+                          "4.0 mm) whose length is the dead time x c, not the tube's "
+                          "1.88 m: the tube's friction and inertia shape the flow, as in "
+                          "the data authors' own model class (tank + tube with "
+                          "Darcy-Weisbach friction)")
                 if "valve_open_area_m2" in post:
                     L[-1] += (f"; the valve's open area goes to "
                               f"{_interval(post['valve_open_area_m2'], 1e6)} mm^2 against "
