@@ -777,6 +777,27 @@ def test_a_passing_trial_must_gain_a_share_of_the_noise_floor_and_of_any_gap_ask
         DiscoverySettings(min_gain_noise_share=-0.1)
 
 
+def test_an_added_effect_must_close_a_share_of_a_gap_far_above_the_noise_floor():
+    """RespiraWorks' OXY runs: 428 Pa held-out against a 7-Pa noise floor; a leak
+    gained 1 Pa at p = 1e-6. Its gain is over 1 % of the noise floor (0.07 Pa) but
+    0.2 % of the gap: not added. Under the noise floor only the noise share counts (the
+    b03 numbers); a large gain passes both."""
+    from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
+    from pneubayes.discovery.settings import DiscoverySettings
+
+    s = DiscoverySettings()
+    least = min_gain_Pa(7.0, 428.0 - 7.0, s)
+    assert least == pytest.approx(4.21)
+    assert gain_shortfall(1.0, 421.0, 0.0, least)[2]
+    assert not gain_shortfall(30.0, 421.0, 0.0, least)[2]
+    assert min_gain_Pa(531.7, 515.6 - 531.7, s) == pytest.approx(5.317)
+    assert min_gain_Pa(508.0, 864.0 - 508.0, s) == pytest.approx(5.08)  # the noise share
+    off = DiscoverySettings(min_gain_gap_share=0.0)
+    assert min_gain_Pa(7.0, 421.0, off) == pytest.approx(0.07)
+    with pytest.raises(ValueError, match="min_gain_gap_share"):
+        DiscoverySettings(min_gain_gap_share=1.5)
+
+
 def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_passed():
     """A four-effect AIR37 rig: the round's saturated candidates closed at most 14 % of
     the held-out gap (9125 -> 7878 Pa, noise 521 Pa) while the dead zone, never

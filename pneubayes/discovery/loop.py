@@ -80,6 +80,7 @@ from pneubayes.discovery.rounds import (
     fit_round_forms,
     gain_shortfall,
     last_resort_reason,
+    min_gain_Pa,
     runner_ups,
 )
 from pneubayes.discovery.settings import DiscoverySettings
@@ -382,7 +383,8 @@ class Discovery:
         and verify every trial on the held-out windows against the final current fit;
         a trial that passes must also close ``min_gap_closed`` of the held-out RMSE's
         gap above the noise floor (with no gap left, none can), and lower the held-out
-        RMSE by ``min_gain_noise_share`` of the noise floor. Appends to the ledger;
+        RMSE by ``min_gain_noise_share`` of the noise floor and ``min_gain_gap_share``
+        of the gap (:func:`~pneubayes.discovery.rounds.min_gain_Pa`). Appends to the ledger;
         returns (current, passing trials)."""
         s = self.settings
         sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
@@ -481,14 +483,14 @@ class Discovery:
                              f"{trial.heldout_rmse_Pa:.0f} Pa")
             ok = ok and not basin
             drop_Pa = current.heldout_rmse_Pa - trial.heldout_rmse_Pa
-            closed, short, under = gain_shortfall(drop_Pa, gap_Pa, min_gap_closed,
-                                                  s.min_gain_noise_share * noise)
+            least = min_gain_Pa(noise, gap_Pa, s)
+            closed, short, under = gain_shortfall(drop_Pa, gap_Pa, min_gap_closed, least)
             small, tiny = ok and short, ok and under
             ok = ok and not small and not tiny
             names = model2.effect(g).parameter_names()
             ledger.append({
                 "step": len(ledger), "action": "pass" if ok else "reject", "effect": g,
-                "gap_closed": closed, "gain_under_noise_share": bool(tiny),
+                "gap_closed": closed, "gain_under_floor": bool(tiny), "min_gain_Pa": least,
                 "effect_options": model2.effect(g).options(), "forms": forms_info,
                 "start": {k: start2[k] for k in names},
                 "fitted": {k: trial.params[k] for k in names},
@@ -505,8 +507,9 @@ class Discovery:
                      f"(p = {pval:.2g}), log predictive gain {gain:.1f}"
                      + (f"; it closes {100 * (closed or 0.0):.0f} % of the gap, under "
                         f"{100 * min_gap_closed:.0f} %" if small else "")
-                     + (f"; it gains {drop_Pa:.1f} Pa, under "
-                        f"{s.min_gain_noise_share:g} x the noise floor" if tiny else ""))
+                     + (f"; it gains {drop_Pa:.1f} Pa, under {least:.1f} Pa (the larger of "
+                        f"{s.min_gain_noise_share:g} x the noise floor and "
+                        f"{s.min_gain_gap_share:g} x the gap)" if tiny else ""))
             if ok:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing

@@ -104,6 +104,14 @@ def gain_shortfall(drop_Pa: float, gap_Pa: float, min_gap_closed: float,
     return closed, short, drop_Pa < min_gain_Pa
 
 
+def min_gain_Pa(noise_Pa: float, gap_Pa: float, settings: DiscoverySettings) -> float:
+    """The least held-out gain (Pa) an added effect must bring: ``min_gain_noise_share``
+    of the noise floor ``noise_Pa``, or ``min_gain_gap_share`` of the gap above it
+    (``gap_Pa``; none when negative), whichever is larger."""
+    return max(settings.min_gain_noise_share * noise_Pa,
+               settings.min_gain_gap_share * max(gap_Pa, 0.0))
+
+
 def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
                        settings: DiscoverySettings) -> tuple[str | None, float]:
     """Why a round with a large gap should try the rest of the library (None: it need
