@@ -779,8 +779,8 @@ def test_a_passing_trial_must_gain_a_share_of_the_noise_floor_and_of_any_gap_ask
 
 def test_an_added_effect_must_close_a_share_of_a_gap_far_above_the_noise_floor():
     """RespiraWorks' OXY runs: 428 Pa held-out against a 7-Pa noise floor; a leak
-    gained 1 Pa at p = 1e-6. Its gain is over 1 % of the noise floor (0.07 Pa) but
-    0.2 % of the gap: not added. Under the noise floor only the noise share counts (the
+    gained 0.3 Pa at p = 1e-6. Its gain is over 1 % of the noise floor (0.07 Pa) but
+    0.07 % of the gap: not added. Under the noise floor only the noise share counts (the
     b03 numbers); a large gain passes both."""
     from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
     from pneubayes.discovery.settings import DiscoverySettings
@@ -788,7 +788,7 @@ def test_an_added_effect_must_close_a_share_of_a_gap_far_above_the_noise_floor()
     s = DiscoverySettings()
     least = min_gain_Pa(7.0, 428.0 - 7.0, s)
     assert least == pytest.approx(4.21)
-    assert gain_shortfall(1.0, 421.0, 0.0, least)[2]
+    assert gain_shortfall(0.3, 421.0, 0.0, least)[2]
     assert not gain_shortfall(30.0, 421.0, 0.0, least)[2]
     assert min_gain_Pa(531.7, 515.6 - 531.7, s) == pytest.approx(5.317)
     assert min_gain_Pa(508.0, 864.0 - 508.0, s) == pytest.approx(5.08)  # the noise share

@@ -86,8 +86,8 @@ class DiscoverySettings:
     form's own small error. Default 0.01.
     min_gain_gap_share: and, where the held-out RMSE is above the noise floor, by at
     least this share of that gap (0: no such floor). Where a structural misfit far above
-    the noise remains, a consistent gain of 0.2 % of it is no effect either: on
-    RespiraWorks' OXY runs (428 Pa held-out, a 7-Pa noise floor) a leak gained 1 Pa at
+    the noise remains, a consistent gain of under 0.1 % of it is no effect either: on
+    RespiraWorks' OXY runs (428 Pa held-out, a 7-Pa noise floor) a leak gained 0.3 Pa at
     p = 1e-6 over 20 of 22 windows. Default 0.01.
     tube_line_segments: the most cells of the acoustic-line form tried for a named tube;
     0 tries the transport delay only. A line step costs tens of times a plain one, and
