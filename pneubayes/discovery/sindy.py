@@ -179,6 +179,7 @@ class GroupedSINDy:
             rows = np.concatenate([members[c] for c in pick])
             hits[m] = self._stlsq(x[rows], y_p[rows], thr) != 0
         rss0 = float(y_p @ y_p)
+        raw_spread = effective_chunks(raw, chunk_of)  # per raw column, for its own t
         self.inclusion_probability_ = {}
         self.evidence_ = {}
         for g in names:
@@ -192,9 +193,9 @@ class GroupedSINDy:
                 nj = np.linalg.norm(raw[:, j])
                 if gg != g or nj <= 1e-6 * max(raw_norm[j], 1e-300):
                     continue
-                xj = raw[:, j:j + 1] / nj
-                if effective_chunks(xj, chunk_of)[0] < self.min_chunks:
+                if raw_spread[j] < self.min_chunks:
                     continue
+                xj = raw[:, j:j + 1] / nj
                 c = float(xj[:, 0] @ y_p)
                 se_j = float(cluster_se(xj, y_p - c * xj[:, 0], chunk_of)[0])
                 t = abs(c) / se_j if se_j > 0 else 0.0
