@@ -348,11 +348,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # a lagged reading with no rate given: warm up over 5 time constants of the command
     # history before the start, then keep the chamber's lead on the reading
     k0 = i0
-    t_w = t[i0]  # the integration's start: the window's, or its warm-up's
+    t_start = t[i0]  # the integration's start: the window's, or its warm-up's
     if reading and math.isnan(rate0):
         while k0 > 0 and t[i0] - t[k0] < 5.0 * settle_s:
             k0 -= 1
-        t_w = t[k0]
+        t_start = t[k0]
         if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
             r = pm[k0]
             p = pm[k0]
@@ -361,7 +361,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         # before the window, not at the gap's start (a tube's wave grid would step
         # through all of it)
         if k0 < i0 and t[k0 + 1] - t[k0] > 5.0 * settle_s:
-            t_w = t[i0] - 5.0 * settle_s
+            t_start = t[i0] - 5.0 * settle_s
     elif reading:
         v_r = rate0
         if p0 + lead_s * rate0 > 0.0:
@@ -404,19 +404,19 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         v0 = v0 - wave_volume(sl)
         if not v0 > 0.0:
             return LINE_VOLUME
-        wave_start(hist, ring, carry, t_w, p, w_t, w_k, w_state, w_row)
+        wave_start(hist, ring, carry, t_start, p, w_t, w_k, w_state, w_row)
     # the junctions and ends update on a grid anchored at the recording's first sample
     # (every window of it shares the grid; grid point w_n is w_grid); a time within
     # w_near of a grid point is on it
     w_dt = wave_grid_step(w_t)
     w_near = 1e-6 * w_dt
-    w_n = math.floor((t_w - t[0]) / w_dt + 1e-6) + 1.0
+    w_n = math.floor((t_start - t[0]) / w_dt + 1e-6) + 1.0
     w_grid = t[0] + w_dt * w_n
     # the chamber's forcing, the valve's wave arriving A_K(t - tau) (and its dA/dp0),
     # linear between its reads at the ends of the grid interval [w_ta, w_grid]
-    w_ta, w_a0, w_s0, w_a1, w_s1 = t_w, 0.0, 0.0, 0.0, 0.0
+    w_ta, w_a0, w_s0, w_a1, w_s1 = t_start, 0.0, 0.0, 0.0, 0.0
     if general is not None and wave:
-        w_a0, w_s0 = wave_arriving(hist, ring, t_w - w_t, w_k)
+        w_a0, w_s0 = wave_arriving(hist, ring, t_start - w_t, w_k)
         w_a1, w_s1 = wave_arriving(hist, ring, w_grid - w_t, w_k)
     # a switch of the port areas reaches the valve end as a ramp over one grid step
     # from the areas (w_oin, w_oex) at w_sw; (w_lin, w_lex): the areas at the last step's
@@ -427,7 +427,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # Delayed-command pointer: index j of the sample held at time t - delay, the last
     # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
     # every sample would otherwise scan the recording from its start each time
-    t_start = t_w
     lo, hi = 0, n
     while lo < hi:
         mid = (lo + hi) // 2
@@ -470,7 +469,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             s_p0, s_r, s_v = 1.0, 1.0, 0.0
         tb = t[k + 1]
         a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
-        tau = t[k] if k > k0 else t_w
+        tau = t[k] if k > k0 else t_start
         while tau < tb:
             # Sub-interval [tau, t_end) on which the delayed command is constant.
             while j + 1 < n and t[j + 1] + delay <= tau:
