@@ -602,6 +602,39 @@ def test_emcee_smoke_and_resume(bench, tmp_path):
     assert path.read_bytes() == before
 
 
+def test_a_chain_of_another_posterior_is_set_aside_not_lost(bench, tmp_path):
+    """The discovery loop owns its run folder's chain.h5: when a rerun ends with another
+    final model, the old chain is moved beside it (named by its fingerprint), never
+    overwritten; a chain of the run's own posterior stays where it is."""
+    import emcee
+
+    from pneubayes.inference.chain_store import (
+        open_chain,
+        posterior_fingerprint,
+        set_aside_other_chain,
+    )
+
+    recs, model, _ = bench
+    data_a, data_b = WindowSet(recs[:1], 2.0, 2.0), WindowSet(recs[1:2], 2.0, 2.0)
+    path = tmp_path / "chain.h5"
+    assert set_aside_other_chain(path, model, data_a) is None  # nothing there
+    ndim = len(model.parameter_names)
+    nw = 2 * ndim + 2
+    backend, resumed = open_chain(path, model, data_a, nw, ndim)
+    assert not resumed
+    sampler = emcee.EnsembleSampler(nw, ndim, lambda x: -0.5 * float(x @ x), backend=backend)
+    sampler.run_mcmc(np.random.default_rng(0).standard_normal((nw, ndim)), 3)
+    before = path.read_bytes()
+    assert set_aside_other_chain(path, model, data_a) is None  # its own posterior
+    assert path.read_bytes() == before
+    moved = set_aside_other_chain(path, model, data_b)
+    key = posterior_fingerprint(model, data_a)
+    assert moved == tmp_path / f"chain.{key}.h5" and not path.exists()
+    assert moved.read_bytes() == before
+    _, resumed = open_chain(path, model, data_b, nw, ndim)  # the new run starts clean
+    assert not resumed
+
+
 def test_a_rough_solver_is_tightened_until_the_log_density_is_smooth(bench):
     """A coarse adaptive solver makes the log-density jitter by nats between nearby
     points; the check measures it against a 10x tighter solver and tightens until the

@@ -93,6 +93,7 @@ from pneubayes.discovery.verification import (
     split_recordings,
 )
 from pneubayes.errors import SimulationError
+from pneubayes.inference.chain_store import set_aside_other_chain
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import starting_point
 from pneubayes.inference.predictive import noise_floor_Pa
@@ -570,6 +571,11 @@ class Discovery:
             info = None
         self.log(f"discover: emcee posterior of {list(fit.model.effect_names) or 'the base'}"
                  " model")
+        if backend is not None:
+            moved = set_aside_other_chain(backend, fit.model, train_ws)
+            if moved is not None:
+                self.log(f"discover: {backend.name} held the chain of another posterior (an "
+                         f"earlier run's final model); kept as {moved.name}")
         bi.fit(train_ws, start, information=info)
         self.log(f"discover: emcee {bi.diagnostics_['steps']} steps, converged "
                  f"{bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol {bi.solver_.rtol:.0e}, "

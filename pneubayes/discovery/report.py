@@ -3,7 +3,8 @@
 ``RUNDIR/discovery.json`` (format ``pneubayes-discovery/1``), ``RUNDIR/model.json`` (the
 final model card: posterior median, or the refined point without a posterior),
 ``RUNDIR/posterior.nc`` with ``RUNDIR/chain.h5`` (the final model's emcee posterior, so
-``pneubayes predict RUNDIR`` works), ``RUNDIR/disagreement.json`` (the regime maps of
+``pneubayes predict RUNDIR`` works; a rerun whose final model differs keeps the older
+chain as ``chain.<fingerprint>.h5``), ``RUNDIR/disagreement.json`` (the regime maps of
 every round), ``RUNDIR/report.md`` and ``RUNDIR/figures/``. Files are written
 atomically.
 """

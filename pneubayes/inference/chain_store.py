@@ -96,6 +96,31 @@ def open_chain(path, model: Model, data: WindowSet, n_walkers: int, ndim: int):
     return backend, False
 
 
+def set_aside_other_chain(path, model: Model, data: WindowSet) -> Path | None:
+    """Move a chain of another posterior at ``path`` to ``<stem>.<its fingerprint>.h5``
+    beside it, so a run that owns ``path`` (the discovery loop's run folder, whose
+    final model changes when the loop's answer changes) can start its own chain there
+    without losing the old one. Returns where the old chain went, or None when ``path``
+    holds no chain or a chain of this posterior. An unreadable file is left alone (the
+    sampler then reports it)."""
+    import emcee
+
+    path = Path(path)
+    if not path.exists():
+        return None
+    try:
+        backend = emcee.backends.HDFBackend(str(path), name=GROUP, read_only=True)
+        steps = backend.iteration
+    except (OSError, KeyError, AttributeError):
+        return None
+    stored = stored_attr(backend, "pneubayes_fingerprint")
+    if steps == 0 or stored == posterior_fingerprint(model, data):
+        return None
+    target = path.with_name(f"{path.stem}.{stored or 'unstamped'}{path.suffix}")
+    path.replace(target)
+    return target
+
+
 def read_chain(path):
     """A stored chain, read only: the emcee backend of ``path`` (``get_chain``,
     ``get_log_prob``; the chain is in the sampler's coordinates)."""
