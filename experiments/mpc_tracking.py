@@ -48,7 +48,10 @@ Per seed:
    * ``delay_nominal``, ``delay_chance``, ``delay_chance_window``: ``nominal``,
      ``chance`` and ``chance_window`` on a second fit of
      the same recordings whose model has the bench's tube (``tube_delay``, the effect
-     the discovery loop names on such data; its delay fitted, not given).
+     the discovery loop names on such data; its delay fitted, not given);
+   * ``nominal_backoff5k`` ... ``_backoff40k``: ``nominal`` with the limit lowered by a
+     fixed 5, 10, 20, 30 or 40 kPa (``BACKOFF_PA``), the margin an engineer adds without
+     a posterior; each posterior-aware controller is also compared with these.
 
 Reported per controller and seed: tracking RMSE (true pressure against the reference,
 Pa; against the reference capped at ``P_MAX``; and over the settled part of each hold,
@@ -103,6 +106,15 @@ N_DRAWS = 64
 QUANTILE = 0.95
 CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
                "chance_window", "delay_nominal", "delay_chance", "delay_chance_window")
+#: Nominal MPC as an engineer runs it without a posterior: the point estimate with a
+#: fixed back-off from the limit (Pa). Five sizes trace its trade-off between
+#: violations and tracking, so a posterior-aware controller is compared with the
+#: nominal at every margin, not only at none (added after the second design's runs).
+BACKOFF_PA = {"nominal_backoff5k": 5e3, "nominal_backoff10k": 10e3,
+              "nominal_backoff20k": 20e3, "nominal_backoff30k": 30e3,
+              "nominal_backoff40k": 40e3}
+#: The posterior-aware controllers compared with each back-off.
+POSTERIOR_AWARE = ("posterior", "predictive", "chance", "chance_window")
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
 #: bench hides (what the discovery loop names on such data) for the ``delay_`` ones.
 FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
@@ -118,7 +130,8 @@ FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
 #:   posterior started from (the point a user identifies without the posterior).
 SCENARIOS = {
     "hidden_delay": {"duration_s": 10.0, "quick_duration_s": 4.0, "ranges_V": (5.0, 1.5),
-                     "fitted": ("paper", "delay"), "controllers": CONTROLLERS,
+                     "fitted": ("paper", "delay"),
+                     "controllers": CONTROLLERS + tuple(BACKOFF_PA),
                      "baseline": "nominal"},
     "weak_data": {"duration_s": 2.0, "quick_duration_s": 2.0, "ranges_V": (1.0,),
                   "fitted": ("delay",),
@@ -160,6 +173,7 @@ class Controller:
 
     def __init__(self, kind, model, draws, noise, rig, rng):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
+        self.backoff_Pa = BACKOFF_PA.get(self.kind, 0.0)
         self.predictor = PressurePredictor(model, draws, rig, SolverConfig.standard())
         # predictive only: one fixed path per draw of its stationary AR(1) noise (fitted
         # per recording sample), read at the control ticks; the start's own noise is
@@ -190,7 +204,7 @@ class Controller:
                                                 command_history_V=history_V)[:, :, 1:]
             noisy = sims if self.noise is None else sims + self.noise
         if self.kind.startswith("nominal"):
-            pred = limit = sims[0]
+            pred, limit = sims[0], sims[0] + self.backoff_Pa
         elif self.kind.startswith("chance"):  # expected tracking, the predictive's risk
             pred = np.median(sims, axis=0)
             limit = np.quantile(noisy, QUANTILE, axis=0)
@@ -338,7 +352,8 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
         model, draws, noise, median, lsq, stream = fitted["delay" if kind.startswith("delay_")
                                                           else "paper"]
         use = {"nominal": median, "nominal_mean": draws.mean(axis=0, keepdims=True),
-               "nominal_lsq": lsq}.get(kind.removeprefix("delay_"), draws)
+               "nominal_lsq": lsq, **dict.fromkeys(BACKOFF_PA, median)}.get(
+                   kind.removeprefix("delay_"), draws)
         if use is None:
             raise SystemExit(f"seed {seed}: {kind} needs the fit's refined point estimate, "
                              "which its summary lacks")
@@ -437,6 +452,11 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
         # the same-model comparison: posterior-aware against nominal, both with the delay
         for kind in ("delay_chance", "delay_chance_window"):
             out[kind]["versus_delay_nominal"] = _versus(out[kind], out["delay_nominal"])
+        # the posterior-aware controllers against the nominal at each fixed back-off
+        for kind in POSTERIOR_AWARE:
+            for b in BACKOFF_PA:
+                if kind in out and b in out:
+                    out[kind][f"versus_{b}"] = _versus(out[kind], out[b])
     return out
 
 
@@ -457,7 +477,7 @@ def figure(results: list[dict], path: Path) -> None:
     axes[0].axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
     colours = ("tab:orange", "tab:red", "tab:blue", "tab:green", "tab:purple", "tab:pink",
                "tab:brown", "tab:olive", "tab:cyan")
-    for kind, colour in zip(list(r["controllers"]), colours):
+    for kind, colour in zip([k for k in r["controllers"] if k not in BACKOFF_PA], colours):
         c = r["controllers"][kind]
         axes[0].plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
                      label=f"{kind}: RMSE {c['tracking_rmse_Pa'] / 1e3:.1f} kPa, "

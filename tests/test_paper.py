@@ -166,14 +166,18 @@ def _mpc_results(out: Path):
                                     "pressure_Pa": [p_max + r] * 201,
                                     "compute_ms_per_tick_median":
                                         8.0 if k == "delay_chance" else 2.0}
-                                for k, r, t in zip(mpc_tracking.CONTROLLERS, rmse, ticks)}}
+                                for k, r, t in zip(names, rmse, ticks)}}
 
-    # per controller, in mpc_tracking.CONTROLLERS's order
-    results = [seed(0, (40e3, 45e3, 38e3, 39e3, 39.5e3, 39e3, 37e3, 37.5e3, 37.2e3),
-                    (30, 40, 12, 0, 0, 9, 1, 0, 3)),
-               seed(1, (42e3, 44e3, 41e3, 43e3, 42e3, 41e3, 40e3, 40e3, 39e3),
-                    (20, 30, 25, 2, 1, 14, 0, 0, 0))]
-    assert all(len(r["controllers"]) == len(mpc_tracking.CONTROLLERS) for r in results)
+    # per controller, in mpc_tracking.CONTROLLERS's order, then the back-offs (5-40 kPa:
+    # fewer violations as the margin grows, at a growing RMSE)
+    names = mpc_tracking.CONTROLLERS + tuple(mpc_tracking.BACKOFF_PA)
+    results = [seed(0, (40e3, 45e3, 38e3, 39e3, 39.5e3, 39e3, 37e3, 37.5e3, 37.2e3,
+                        40.2e3, 40.4e3, 40.8e3, 41.2e3, 41.6e3),
+                    (30, 40, 12, 0, 0, 9, 1, 0, 3, 20, 10, 4, 0, 0)),
+               seed(1, (42e3, 44e3, 41e3, 43e3, 42e3, 41e3, 40e3, 40e3, 39e3,
+                        42.2e3, 42.4e3, 42.8e3, 43.2e3, 43.6e3),
+                    (20, 30, 25, 2, 1, 14, 0, 0, 0, 15, 8, 3, 1, 0))]
+    assert all(len(r["controllers"]) == len(names) for r in results)
     folder = out / "mpc_tracking"
     folder.mkdir(parents=True)
     (folder / "summary.json").write_text(json.dumps({
@@ -202,6 +206,15 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
             "seeds)") in text
     assert "`posterior` had 37 ticks" in text and "(fewer on 1 of 2 seeds)" in text
     assert "`chance_window` had 23 ticks above the limit against `nominal`'s 50" in text
+    # against the fixed margins: chance's 1 tick lies between the 20-kPa back-off's 7 and
+    # the 30-kPa one's 1, whose median capped RMSE (42.2 kPa) is above chance's (40.8)
+    assert "20 kPa: 7 ticks, capped RMSE 41.8 kPa" in text
+    assert ("`chance` had 1 ticks above the limit against `nominal_backoff30k`'s 1 (fewer "
+            "on 0 of 2 seeds)") in text
+    assert ("`chance` (1 ticks, capped RMSE 40.8 kPa) has fewer violations than the 20-kPa "
+            "back-off (7 ticks, capped RMSE 41.8 kPa) and as many or more than the 30-kPa "
+            "back-off (1 ticks, capped RMSE 42.2 kPa), and tracks better") in text
+    assert "Scenario `weak_data` not run" in text
     paper = tmp_path / "paper"
     paper.mkdir(exist_ok=True)
     (paper / "report.md").write_text("# R\n\n## The paper's claims, checked on our data\n")
@@ -209,3 +222,37 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
                             "--assemble-only", "--only", "mpc"]) == 0
     text = (paper / "report.md").read_text()
     assert text.index(make_paper.MPC_HEAD) < text.index("claims")
+
+
+def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
+    """The weak_data runs get their own table and the comparisons against the median,
+    the mean and the least-squares point."""
+    import mpc_tracking
+
+    _mpc_results(tmp_path / "out")
+    names = mpc_tracking.SCENARIOS["weak_data"]["controllers"]
+    p_max = mpc_tracking.P_MAX_PA
+    ticks = {"delay_nominal": (2, 0), "delay_nominal_mean": (40, 44),
+             "delay_nominal_lsq": (0, 0), "delay_posterior": (0, 0), "delay_chance": (0, 0),
+             "delay_chance_window": (0, 1)}
+    results = [{"seed": s, "reference_Pa": [5.0e5] * 201,
+                "controllers": {k: {"tracking_rmse_Pa": 40e3 + 1e3 * i,
+                                    "ticks_above_limit": ticks[k][s],
+                                    "largest_excess_Pa": 500.0 * ticks[k][s],
+                                    "pressure_Pa": [p_max + 40e3 + 1e3 * i] * 201,
+                                    "compute_ms_per_tick_median": 2.0}
+                                for i, k in enumerate(names)}} for s in (0, 1)]
+    folder = tmp_path / "out" / "mpc_weak"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text(json.dumps({
+        "seeds": [0, 1], "quick": False, "scenario": "weak_data",
+        "controllers": mpc_tracking.summarise(results, "weak_data"),
+        "fits_delay": [{"converged": False}, {"converged": True}],
+        "provenance": {"git_revision": "abc"}}))
+    text = "\n".join(make_paper.mpc_section(tmp_path / "out", tmp_path / "paper", False))
+    assert "| delay_nominal_mean | 40, 44 | 41.0 [41.0, 41.0] |" in text
+    assert ("`delay_chance` had 0 ticks above the limit against `delay_nominal`'s 2 (fewer "
+            "on 1 of 2 seeds)") in text
+    assert ("`delay_posterior` had 0 ticks above the limit against `delay_nominal_mean`'s "
+            "84 (fewer on 2 of 2 seeds)") in text
+    assert "against `delay_nominal_lsq`'s 0" in text and "[False, True]" in text
