@@ -770,11 +770,11 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
         if kind in c and "versus_delay_nominal" in c[kind]:
             found.append("on the model with the delay, " + _versus_text(
                 kind, "delay_nominal", c[kind]["versus_delay_nominal"], n))
-        fits = [f.get("tube_delay_s") for f in s.get("fits_delay", [])]
-        if fits and all(fits):
-            found.append("the fitted delays (posterior median [5 %, 95 %]) were " + "; ".join(
-                f"{f['median'] * 1e3:.1f} [{f['q05'] * 1e3:.1f}, {f['q95'] * 1e3:.1f}] ms"
-                for f in fits) + f" against the planted {s['hidden_delay_s'] * 1e3:g} ms")
+    fits = [f.get("tube_delay_s") for f in s.get("fits_delay", [])]
+    if fits and all(fits):
+        found.append("the fitted delays (posterior median [5 %, 95 %]) were " + "; ".join(
+            f"{f['median'] * 1e3:.1f} [{f['q05'] * 1e3:.1f}, {f['q95'] * 1e3:.1f}] ms"
+            for f in fits) + f" against the planted {s['hidden_delay_s'] * 1e3:g} ms")
     budget = 1e3 / s["rate_Hz"]
     slow = [k for k, v in c.items() if np.median(v["compute_ms_per_tick_median"]) > budget]
     if slow:
@@ -811,17 +811,24 @@ def _backoff_text(c: dict, n: int) -> list[str]:
         f"capped RMSE {np.median(c[b]['feasible_tracking_rmse_Pa']) / 1e3:.1f} kPa, settled "
         f"{np.median(c[b]['settled_tracking_rmse_Pa']) / 1e3:.1f} kPa"
         for b in backoffs)
-    found = [_versus_text(kind, b, c[kind][f"versus_{b}"], n)
-             for kind in ("chance", "predictive") if kind in c
-             for b in backoffs if f"versus_{b}" in c[kind]]
+    found = [_versus_text("chance", b, c["chance"][f"versus_{b}"], n)
+             for b in backoffs if f"versus_{b}" in c.get("chance", {})]
     return ["**Against a nominal MPC with a fixed margin.** A nominal MPC as it is run "
             "without a posterior keeps a fixed back-off from the limit; "
             "`nominal_backoff5k` ... `_backoff40k` are `nominal` with the limit lowered by "
             "that much (added after the runs above, on the same fits, sensor noise and "
             "set-points). Their trade-off (total ticks over the seeds, medians): " + curve +
-            ". Against them: " + "; ".join(found) + ". " + _on_curve(c, backoffs) +
+            f" ({_revisions(c, backoffs)}). Against them: " + "; ".join(found) + ". " +
+            _on_curve(c, backoffs) +
             " What the posterior gives is a margin chosen from the identification data; a "
             "fixed back-off is chosen by running the loop and counting its violations.", ""]
+
+
+def _revisions(c: dict, kinds) -> str:
+    """The git revisions the loops of ``kinds`` were run at, as their summary records."""
+    revs = sorted({str(r)[:12] for k in kinds for r in c[k].get("git_revisions", [None])
+                   if r is not None})
+    return ("run at revision " + ", ".join(revs)) if revs else "revision not recorded"
 
 
 def _on_curve(c: dict, backoffs: list[str]) -> str:

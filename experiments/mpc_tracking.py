@@ -328,6 +328,8 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
                         seqs[3 if name == "paper" else 5])
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
+    prov = provenance()
+    revision = (prov.get("git_revision") or "unknown") + ("-dirty" if prov.get("git_dirty") else "")
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
               "p_max_Pa": P_MAX_PA, "candidates": CANDIDATES,
               "bench": {"duration_s": cfg.duration_s, "ranges_V": list(cfg.ranges_V)},
@@ -373,6 +375,9 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
             "compute_ms_per_tick_median": 1e3 * float(np.median(run["compute_s"])),
             "compute_ms_per_tick_p95": 1e3 * float(np.quantile(run["compute_s"], 0.95)),
             "wall_s": time.perf_counter() - a,
+            # loops of one seed may be run at different revisions (a resumed seed runs
+            # only the controllers it lacks): each records its own
+            "git_revision": revision,
             "pressure_Pa": run["pressure_Pa"].tolist(),
             "command_V": run["command_V"].tolist()}
         c = result["controllers"][kind]
@@ -444,6 +449,8 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
             "ticks_above_limit": [c["ticks_above_limit"] for c in rows],
             "largest_excess_Pa": [c["largest_excess_Pa"] for c in rows],
             "compute_ms_per_tick_median": [c["compute_ms_per_tick_median"] for c in rows],
+            # None: a loop run before the loops recorded their revision
+            "git_revisions": [c.get("git_revision") for c in rows],
         }
     for kind in controllers:
         if kind != baseline:
