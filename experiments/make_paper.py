@@ -425,6 +425,10 @@ def _copy_fig(paper: Path, src) -> str:
     return f"![{src.stem}](figures/{src.name})"
 
 
+#: GTDynamics' documented supply tube bore, m (``robot_config.yaml``: 1.88 m x 4 mm)
+GTD_TUBE_BORE_M = 4.0e-3
+
+
 def _interval(s: dict, scale: float = 1.0, fmt: str = ".3g") -> str:
     return (f"{s['median'] * scale:{fmt}} [{s['q05'] * scale:{fmt}}, "
             f"{s['q95'] * scale:{fmt}}]")
@@ -494,9 +498,12 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                 kind = ("transmission-line form (waves that cross it in the transit time "
                         "and reflect at its ends, friction at its junctions)" if form == "wave"
                         else "acoustic-line form (lumped cells)")
+                bore = post["tube_diameter_m"]
+                inside = bore["q05"] <= GTD_TUBE_BORE_M <= bore["q95"]
                 L[-1] += (f" Its {kind} fits best, a tube of bore "
-                          f"{_interval(post['tube_diameter_m'], 1e3)} mm (the documented "
-                          "4.0 mm) whose length is the dead time x c, not the tube's "
+                          f"{_interval(bore, 1e3)} mm (the documented "
+                          f"{GTD_TUBE_BORE_M * 1e3:g} mm is {'inside' if inside else 'outside'}"
+                          " the interval) whose length is the dead time x c, not the tube's "
                           "1.88 m: the tube's friction and inertia shape the flow, as in "
                           "the data authors' own model class (tank + tube with "
                           "Darcy-Weisbach friction)")
