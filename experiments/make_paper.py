@@ -803,11 +803,11 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           f"convergence: {[f.get('converged') for f in s['fits']]}.", "",
           _copy_fig(paper, folder / "mpc_tracking.png"), "",
           f"*Source: `{path}`; git revision {str(prov.get('git_revision'))[:12]}.*", ""]
-    L += _backoff_text(c, n)
+    L += _backoff_text(c, n, folder, paper)
     return L + _weak_data_text(out / ("mpc_weak-smoke" if smoke else "mpc_weak"))
 
 
-def _backoff_text(c: dict, n: int) -> list[str]:
+def _backoff_text(c: dict, n: int, folder: Path, paper: Path) -> list[str]:
     """The posterior-aware controllers against the nominal with a fixed back-off
     (``mpc_tracking.BACKOFF_PA``), if the summary has them."""
     backoffs = [b for b in mpc_tracking.BACKOFF_PA if b in c]
@@ -828,7 +828,8 @@ def _backoff_text(c: dict, n: int) -> list[str]:
             f" ({_revisions(c, backoffs)}). Against them: " + "; ".join(found) + ". " +
             _on_curve(c, backoffs) +
             " What the posterior gives is a margin chosen from the identification data; a "
-            "fixed back-off is chosen by running the loop and counting its violations.", ""]
+            "fixed back-off is chosen by running the loop and counting its violations.", "",
+            _copy_fig(paper, folder / "mpc_tradeoff.png"), ""]
 
 
 def _revisions(c: dict, kinds) -> str:

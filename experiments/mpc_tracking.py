@@ -4,6 +4,9 @@
                                        [--scenario hidden_delay|weak_data]
                                        [--json OUT.json] [--figure OUT.png]
 
+Figures: OUT/mpc_tracking.png (seed 0's loops) and OUT/mpc_tradeoff.png (violations
+against tracking over the seeds, the fixed back-offs as a curve).
+
 ``--scenario weak_data`` fits only the delay model on one 2-s recording of small
 commands, so the posterior is wide where the controller works (``SCENARIOS``); the
 default is the design below.
@@ -50,8 +53,8 @@ Per seed:
      the same recordings whose model has the bench's tube (``tube_delay``, the effect
      the discovery loop names on such data; its delay fitted, not given);
    * ``nominal_backoff5k`` ... ``_backoff40k``: ``nominal`` with the limit lowered by a
-     fixed 5, 10, 20, 30 or 40 kPa (``BACKOFF_PA``), the margin an engineer adds without
-     a posterior; each posterior-aware controller is also compared with these.
+     fixed 5-40 kPa (``BACKOFF_PA``), the margin an engineer adds without a posterior;
+     each posterior-aware controller is also compared with these.
 
 Reported per controller and seed: tracking RMSE (true pressure against the reference,
 Pa; against the reference capped at ``P_MAX``; and over the settled part of each hold,
@@ -107,12 +110,10 @@ QUANTILE = 0.95
 CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
                "chance_window", "delay_nominal", "delay_chance", "delay_chance_window")
 #: Nominal MPC as an engineer runs it without a posterior: the point estimate with a
-#: fixed back-off from the limit (Pa). Five sizes trace its trade-off between
+#: fixed back-off from the limit (Pa). Seven sizes trace its trade-off between
 #: violations and tracking, so a posterior-aware controller is compared with the
 #: nominal at every margin, not only at none (added after the second design's runs).
-BACKOFF_PA = {"nominal_backoff5k": 5e3, "nominal_backoff10k": 10e3,
-              "nominal_backoff20k": 20e3, "nominal_backoff30k": 30e3,
-              "nominal_backoff40k": 40e3}
+BACKOFF_PA = {f"nominal_backoff{k}k": k * 1e3 for k in (5, 10, 15, 20, 25, 30, 40)}
 #: The posterior-aware controllers compared with each back-off.
 POSTERIOR_AWARE = ("posterior", "predictive", "chance", "chance_window")
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
@@ -502,6 +503,43 @@ def figure(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def tradeoff_figure(controllers: dict, path: Path) -> None:
+    """Total ticks over the limit (over the seeds) against the median capped RMSE: the
+    nominal and its fixed back-offs as one curve, every other controller a point."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def point(k):
+        v = controllers[k]
+        return sum(v["ticks_above_limit"]), np.median(v["feasible_tracking_rmse_Pa"]) / 1e3
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    curve = [k for k in ("nominal", *BACKOFF_PA) if k in controllers]
+    if len(curve) > 1:
+        xy = np.array([point(k) for k in curve])
+        ax.plot(xy[:, 0], xy[:, 1], "o-", color="tab:orange", label="nominal, back-off "
+                + ", ".join(["0", *(f"{BACKOFF_PA[k] / 1e3:g}" for k in curve[1:])]) + " kPa")
+        for k, (x, y) in zip(curve, xy):
+            ax.annotate(f"{BACKOFF_PA.get(k, 0.0) / 1e3:g}", (x, y), fontsize=7,
+                        textcoords="offset points", xytext=(4, 4))
+    for k in controllers:
+        if k in curve:
+            continue
+        x, y = point(k)
+        ax.plot([x], [y], "s" if k.startswith("delay_") else "^", label=k)
+    ax.set_xlabel("ticks above the limit, total over the seeds")
+    ax.set_ylabel("capped tracking RMSE, kPa (median over seeds)")
+    ax.set_xscale("symlog", linthresh=1.0)
+    ax.legend(fontsize=7)
+    ax.set_title("violations against tracking: fixed margins and the posterior")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/mpc")
@@ -531,6 +569,7 @@ def main(argv=None) -> int:
                "provenance": provenance()}
     write_json_atomic(args.json or out / "summary.json", summary)
     figure(results, Path(args.figure) if args.figure else out / "mpc_tracking.png")
+    tradeoff_figure(summary["controllers"], out / "mpc_tradeoff.png")
     for kind, s in summary["controllers"].items():
         print(f"{kind:10s} RMSE {np.median(s['tracking_rmse_Pa']):7.0f} Pa (median), ticks "
               f"above the limit {s['ticks_above_limit']}, compute "
