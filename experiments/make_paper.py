@@ -415,14 +415,17 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
     return path
 
 
-def _copy_fig(paper: Path, src) -> str:
+def _copy_fig(paper: Path, src, name: str | None = None) -> str:
+    """Copy figure ``src`` into PAPER/figures (as ``name``, default its own) and return
+    its markdown link, or "" when there is no such figure."""
     src = Path(src)
     if not src.exists():
         return ""
-    dst = paper / "figures" / src.name
+    name = name or src.name
+    dst = paper / "figures" / name
     dst.parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(src, dst)
-    return f"![{src.stem}](figures/{src.name})"
+    return f"![{Path(name).stem}](figures/{name})"
 
 
 #: GTDynamics' documented supply tube bore, m (``robot_config.yaml``: 1.88 m x 4 mm)
@@ -804,32 +807,39 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           _copy_fig(paper, folder / "mpc_tracking.png"), "",
           f"*Source: `{path}`; git revision {str(prov.get('git_revision'))[:12]}.*", ""]
     L += _backoff_text(c, n, folder, paper)
-    return L + _weak_data_text(out / ("mpc_weak-smoke" if smoke else "mpc_weak"))
+    return L + _weak_data_text(out / ("mpc_weak-smoke" if smoke else "mpc_weak"), paper, c)
 
 
-def _backoff_text(c: dict, n: int, folder: Path, paper: Path) -> list[str]:
+def _backoff_text(c: dict, n: int, folder: Path, paper: Path, prefix: str = "") -> list[str]:
     """The posterior-aware controllers against the nominal with a fixed back-off
-    (``mpc_tracking.BACKOFF_PA``), if the summary has them."""
-    backoffs = [b for b in mpc_tracking.BACKOFF_PA if b in c]
+    (``mpc_tracking.BACKOFF_PA``; ``prefix`` "delay_" for the model with the delay), if
+    the summary has them."""
+    backoffs = [prefix + b for b in mpc_tracking.BACKOFF_PA if prefix + b in c]
+    chance = prefix + "chance"
     if not backoffs:
         return []
     curve = "; ".join(
-        f"{mpc_tracking.BACKOFF_PA[b] / 1e3:g} kPa: {sum(c[b]['ticks_above_limit'])} ticks, "
+        f"{_margin(b):g} kPa: {sum(c[b]['ticks_above_limit'])} ticks, "
         f"capped RMSE {np.median(c[b]['feasible_tracking_rmse_Pa']) / 1e3:.1f} kPa, settled "
         f"{np.median(c[b]['settled_tracking_rmse_Pa']) / 1e3:.1f} kPa"
         for b in backoffs)
-    found = [_versus_text("chance", b, c["chance"][f"versus_{b}"], n)
-             for b in backoffs if f"versus_{b}" in c.get("chance", {})]
+    found = [_versus_text(chance, b, c[chance][f"versus_{b}"], n)
+             for b in backoffs if f"versus_{b}" in c.get(chance, {})]
     return ["**Against a nominal MPC with a fixed margin.** A nominal MPC as it is run "
             "without a posterior keeps a fixed back-off from the limit; "
-            "`nominal_backoff5k` ... `_backoff40k` are `nominal` with the limit lowered by "
-            "that much (added after the runs above, on the same fits, sensor noise and "
-            "set-points). Their trade-off (total ticks over the seeds, medians): " + curve +
-            f" ({_revisions(c, backoffs)}). Against them: " + "; ".join(found) + ". " +
-            _on_curve(c, backoffs) +
+            f"`{prefix}nominal_backoff5k` ... `_backoff40k` are `{prefix}nominal` with the "
+            "limit lowered by that much (added after the runs above, on the same fits, "
+            "sensor noise and set-points). Their trade-off (total ticks over the seeds, "
+            f"medians): {curve} ({_revisions(c, backoffs)}). Against them: "
+            + "; ".join(found) + ". " + _on_curve(c, backoffs, chance) +
             " What the posterior gives is a margin chosen from the identification data; a "
             "fixed back-off is chosen by running the loop and counting its violations.", "",
-            _copy_fig(paper, folder / "mpc_tradeoff.png"), ""]
+            _copy_fig(paper, folder / "mpc_tradeoff.png", f"{folder.name}_tradeoff.png"), ""]
+
+
+def _margin(kind: str) -> float:
+    """A back-off controller's margin, kPa."""
+    return mpc_tracking.BACKOFF_PA[kind.removeprefix("delay_")] / 1e3
 
 
 def _revisions(c: dict, kinds) -> str:
@@ -839,21 +849,21 @@ def _revisions(c: dict, kinds) -> str:
     return ("run at revision " + ", ".join(revs)) if revs else "revision not recorded"
 
 
-def _on_curve(c: dict, backoffs: list[str]) -> str:
+def _on_curve(c: dict, backoffs: list[str], chance: str = "chance") -> str:
     """Where ``chance`` lies on the back-offs' trade-off: the largest back-off with more
     violations than it, and the smallest with no more, with their median capped RMSEs."""
-    if "chance" not in c:
+    if chance not in c:
         return ""
-    ticks = sum(c["chance"]["ticks_above_limit"])
-    rmse = float(np.median(c["chance"]["feasible_tracking_rmse_Pa"]))
+    ticks = sum(c[chance]["ticks_above_limit"])
+    rmse = float(np.median(c[chance]["feasible_tracking_rmse_Pa"]))
     more = [b for b in backoffs if sum(c[b]["ticks_above_limit"]) > ticks]
     as_few = [b for b in backoffs if sum(c[b]["ticks_above_limit"]) <= ticks]
 
     def at(b):
-        return (f"the {mpc_tracking.BACKOFF_PA[b] / 1e3:g}-kPa back-off "
+        return (f"the {_margin(b):g}-kPa back-off "
                 f"({sum(c[b]['ticks_above_limit'])} ticks, capped RMSE "
                 f"{np.median(c[b]['feasible_tracking_rmse_Pa']) / 1e3:.1f} kPa)")
-    text = f"`chance` ({ticks} ticks, capped RMSE {rmse / 1e3:.1f} kPa) has"
+    text = f"`{chance}` ({ticks} ticks, capped RMSE {rmse / 1e3:.1f} kPa) has"
     if more:
         text += f" fewer violations than {at(more[-1])}"
     if as_few:
@@ -865,8 +875,10 @@ def _on_curve(c: dict, backoffs: list[str]) -> str:
     return text + "."
 
 
-def _weak_data_text(folder: Path) -> list[str]:
-    """The ``--scenario weak_data`` runs of ``mpc_tracking.py``, if there are any."""
+def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
+    """The ``--scenario weak_data`` runs of ``mpc_tracking.py``, if there are any, and
+    the fixed back-offs of both scenarios side by side (``hidden``: the default
+    scenario's controllers)."""
     path = folder / "summary.json"
     if not path.exists():
         return [f"(Scenario `weak_data` not run: `python experiments/mpc_tracking.py "
@@ -878,6 +890,8 @@ def _weak_data_text(folder: Path) -> list[str]:
             "[min, max]) | settled holds, kPa | largest excess, kPa (max) |",
             "|---|---|---|---|---|"]
     for kind, v in c.items():
+        if "backoff" in kind:  # (the curve, below)
+            continue
         cap = np.asarray(v["feasible_tracking_rmse_Pa"]) / 1e3
         st = np.asarray(v["settled_tracking_rmse_Pa"]) / 1e3
         rows.append(f"| {kind} | {', '.join(str(x) for x in v['ticks_above_limit'])} | "
@@ -900,13 +914,49 @@ def _weak_data_text(folder: Path) -> list[str]:
             f"{' (quick)' if s['quick'] else ''}. `delay_nominal` is the posterior median, "
             "`delay_nominal_mean` the posterior mean, `delay_nominal_lsq` the trajectory "
             "least-squares point the posterior started from.", "", *rows, "",
-            "Measured: " + "; ".join(found) + f". The chains' convergence: {conv}. Only "
-            "the posterior mean, which is no parameter set the data support, crosses the "
-            "limit often; the median and the least-squares point barely do, so on this "
-            "scenario the posterior-aware controllers have almost nothing to cut against "
-            "them.", "",
+            "Measured: " + "; ".join(found) + f". The chains' convergence: {conv}.", "",
+            *_backoff_text(c, n, folder, paper, "delay_"),
+            *_one_margin_for_both(hidden, c),
             f"*Source: `{path}`; git revision "
             f"{str(s['provenance'].get('git_revision'))[:12]}.*", ""]
+
+
+def _one_margin_for_both(hidden: dict, weak: dict) -> list[str]:
+    """Each fixed back-off in both scenarios beside ``chance``: a margin is chosen once
+    for a rig, so the question is whether one margin does what the posterior does in
+    both."""
+    pairs = [(b, "delay_" + b) for b in mpc_tracking.BACKOFF_PA
+             if b in hidden and "delay_" + b in weak]
+    if not pairs or "chance" not in hidden or "delay_chance" not in weak:
+        return []
+
+    def cell(v):
+        return (f"{sum(v['ticks_above_limit'])} | "
+                f"{np.median(v['feasible_tracking_rmse_Pa']) / 1e3:.2f}")
+
+    rows = ["| controller | hidden delay: ticks | capped RMSE, kPa | weak data: ticks | "
+            "capped RMSE, kPa |", "|---|---|---|---|---|",
+            f"| chance (posterior-aware) | {cell(hidden['chance'])} | "
+            f"{cell(weak['delay_chance'])} |",
+            f"| nominal, no margin | {cell(hidden['nominal'])} | "
+            f"{cell(weak['delay_nominal'])} |"]
+    as_good = []
+    for h, w in pairs:
+        rows.append(f"| nominal, {_margin(h):g}-kPa back-off | {cell(hidden[h])} | "
+                    f"{cell(weak[w])} |")
+        if all(sum(v[b]["ticks_above_limit"]) <= sum(v[k]["ticks_above_limit"])
+               and np.median(v[b]["feasible_tracking_rmse_Pa"])
+               <= np.median(v[k]["feasible_tracking_rmse_Pa"])
+               for v, b, k in ((hidden, h, "chance"), (weak, w, "delay_chance"))):
+            as_good.append(f"{_margin(h):g} kPa")
+    verdict = (f"A fixed margin at least as good as `chance` on both (no more ticks, no "
+               f"higher median capped RMSE) in both scenarios: {', '.join(as_good)}."
+               if as_good else
+               "No fixed margin is at least as good as `chance` on both measures (no more "
+               "ticks, no higher median capped RMSE) in both scenarios.")
+    return ["**One margin for both scenarios.** A fixed back-off is chosen once for a rig; "
+            "the posterior's margin follows the data. Totals over each scenario's seeds and "
+            "median capped RMSE:", "", *rows, "", verdict, ""]
 
 
 MPC_HEAD = "## Closed loop: a 200-Hz MPC that uses the posterior"

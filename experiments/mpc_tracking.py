@@ -138,7 +138,8 @@ SCENARIOS = {
                   "fitted": ("delay",),
                   "controllers": ("delay_nominal", "delay_nominal_mean",
                                   "delay_nominal_lsq", "delay_posterior", "delay_chance",
-                                  "delay_chance_window"),
+                                  "delay_chance_window",
+                                  *(f"delay_{b}" for b in BACKOFF_PA)),
                   "baseline": "delay_nominal"},
 }
 
@@ -456,15 +457,17 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
     for kind in controllers:
         if kind != baseline:
             out[kind][f"versus_{baseline}"] = _versus(out[kind], out[baseline])
+    # the posterior-aware controllers against the nominal at each fixed back-off
+    prefix = baseline.removesuffix("nominal")
+    for kind in POSTERIOR_AWARE:
+        for b in BACKOFF_PA:
+            if prefix + kind in out and prefix + b in out:
+                out[prefix + kind][f"versus_{prefix}{b}"] = _versus(out[prefix + kind],
+                                                                   out[prefix + b])
     if baseline == "nominal":
         # the same-model comparison: posterior-aware against nominal, both with the delay
         for kind in ("delay_chance", "delay_chance_window"):
             out[kind]["versus_delay_nominal"] = _versus(out[kind], out["delay_nominal"])
-        # the posterior-aware controllers against the nominal at each fixed back-off
-        for kind in POSTERIOR_AWARE:
-            for b in BACKOFF_PA:
-                if kind in out and b in out:
-                    out[kind][f"versus_{b}"] = _versus(out[kind], out[b])
     return out
 
 
@@ -503,9 +506,10 @@ def figure(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def tradeoff_figure(controllers: dict, path: Path) -> None:
+def tradeoff_figure(controllers: dict, path: Path, baseline: str = "nominal") -> None:
     """Total ticks over the limit (over the seeds) against the median capped RMSE: the
-    nominal and its fixed back-offs as one curve, every other controller a point."""
+    ``baseline`` nominal and its fixed back-offs as one curve, every other controller a
+    point."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -516,19 +520,22 @@ def tradeoff_figure(controllers: dict, path: Path) -> None:
         return sum(v["ticks_above_limit"]), np.median(v["feasible_tracking_rmse_Pa"]) / 1e3
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    curve = [k for k in ("nominal", *BACKOFF_PA) if k in controllers]
+    prefix = baseline.removesuffix("nominal")
+    curve = [k for k in (baseline, *(prefix + b for b in BACKOFF_PA)) if k in controllers]
     if len(curve) > 1:
         xy = np.array([point(k) for k in curve])
         ax.plot(xy[:, 0], xy[:, 1], "o-", color="tab:orange", label="nominal, back-off "
-                + ", ".join(["0", *(f"{BACKOFF_PA[k] / 1e3:g}" for k in curve[1:])]) + " kPa")
+                + ", ".join(["0", *(f"{BACKOFF_PA[k.removeprefix(prefix)] / 1e3:g}"
+                                    for k in curve[1:])]) + " kPa")
         for k, (x, y) in zip(curve, xy):
-            ax.annotate(f"{BACKOFF_PA.get(k, 0.0) / 1e3:g}", (x, y), fontsize=7,
+            ax.annotate(f"{BACKOFF_PA.get(k.removeprefix(prefix), 0.0) / 1e3:g}", (x, y),
+                        fontsize=7,
                         textcoords="offset points", xytext=(4, 4))
     for k in controllers:
         if k in curve:
             continue
         x, y = point(k)
-        ax.plot([x], [y], "s" if k.startswith("delay_") else "^", label=k)
+        ax.plot([x], [y], "s" if k.startswith("delay_") and not prefix else "^", label=k)
     ax.set_xlabel("ticks above the limit, total over the seeds")
     ax.set_ylabel("capped tracking RMSE, kPa (median over seeds)")
     ax.set_xscale("symlog", linthresh=1.0)
@@ -569,7 +576,8 @@ def main(argv=None) -> int:
                "provenance": provenance()}
     write_json_atomic(args.json or out / "summary.json", summary)
     figure(results, Path(args.figure) if args.figure else out / "mpc_tracking.png")
-    tradeoff_figure(summary["controllers"], out / "mpc_tradeoff.png")
+    tradeoff_figure(summary["controllers"], out / "mpc_tradeoff.png",
+                    SCENARIOS[args.scenario]["baseline"])
     for kind, s in summary["controllers"].items():
         print(f"{kind:10s} RMSE {np.median(s['tracking_rmse_Pa']):7.0f} Pa (median), ticks "
               f"above the limit {s['ticks_above_limit']}, compute "
