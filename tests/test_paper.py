@@ -236,7 +236,8 @@ def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
     p_max = mpc_tracking.P_MAX_PA
     ticks = {"delay_nominal": (2, 0), "delay_nominal_mean": (40, 44),
              "delay_nominal_lsq": (0, 0), "delay_posterior": (0, 0), "delay_chance": (0, 0),
-             "delay_chance_window": (0, 1)}
+             "delay_chance_window": (0, 1),
+             **{f"delay_{b}": (0, 0) for b in mpc_tracking.BACKOFF_PA}}
     results = [{"seed": s, "reference_Pa": [5.0e5] * 201,
                 "controllers": {k: {"tracking_rmse_Pa": 40e3 + 1e3 * i,
                                     "ticks_above_limit": ticks[k][s],
@@ -258,3 +259,9 @@ def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
     assert ("`delay_posterior` had 0 ticks above the limit against `delay_nominal_mean`'s "
             "84 (fewer on 2 of 2 seeds)") in text
     assert "against `delay_nominal_lsq`'s 0" in text and "[False, True]" in text
+    # each margin in both scenarios: the back-offs' 0 ticks cost RMSE in this one (their
+    # 46-52 kPa against chance's 44), and in the other only 30 and 40 kPa keep to its 1
+    # tick, at 42.2 and 42.6 against 40.75 kPa: no margin is as good in both
+    assert "| nominal, 30-kPa back-off | 1 | 42.20 | 0 | 51.00 |" in text
+    assert "| chance (posterior-aware) | 1 | 40.75 | 0 | 44.00 |" in text
+    assert "No fixed margin is at least as good as `chance`" in text
