@@ -214,7 +214,7 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
     assert ("`chance` had 1 ticks above the limit against `nominal_backoff30k`'s 1 (fewer "
             "on 0 of 2 seeds)") in text
     assert ("`chance` (1 ticks, capped RMSE 40.8 kPa) has fewer violations than the 25-kPa "
-            "back-off (4 ticks, capped RMSE 42.0 kPa) and as many or more than the 30-kPa "
+            "back-off (4 ticks, capped RMSE 42.0 kPa) and no fewer than the 30-kPa "
             "back-off (1 ticks, capped RMSE 42.2 kPa), and tracks better") in text
     assert "Scenario `weak_data` not run" in text
     paper = tmp_path / "paper"
