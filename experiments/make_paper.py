@@ -869,9 +869,9 @@ def _on_curve(c: dict, backoffs: list[str], chance: str = "chance") -> str:
     if as_few:
         b = as_few[0]
         better = rmse < float(np.median(c[b]["feasible_tracking_rmse_Pa"]))
-        text += (f"{' and no fewer than' if more else ' no fewer violations than'} {at(b)}, and tracks "
-                 f"{'better' if better else 'no better'} than that smallest back-off that "
-                 "keeps to its violations")
+        joint = " and no fewer than" if more else " no fewer violations than"
+        text += (f"{joint} {at(b)}, and tracks {'better' if better else 'no better'} than "
+                 "that smallest back-off that keeps to its violations")
     return text + "."
 
 
