@@ -839,7 +839,7 @@ def _backoff_text(c: dict, n: int, folder: Path, paper: Path, prefix: str = "") 
 
 def _margin(kind: str) -> float:
     """A back-off controller's margin, kPa."""
-    return mpc_tracking.BACKOFF_PA[kind.removeprefix("delay_")] / 1e3
+    return mpc_tracking.backoff_Pa(kind) / 1e3
 
 
 def _revisions(c: dict, kinds) -> str:
@@ -890,7 +890,7 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
             "[min, max]) | settled holds, kPa | largest excess, kPa (max) |",
             "|---|---|---|---|---|"]
     for kind, v in c.items():
-        if "backoff" in kind:  # (the curve, below)
+        if mpc_tracking.backoff_Pa(kind) is not None:  # (the curve, below)
             continue
         cap = np.asarray(v["feasible_tracking_rmse_Pa"]) / 1e3
         st = np.asarray(v["settled_tracking_rmse_Pa"]) / 1e3
@@ -898,9 +898,9 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
                     f"{np.median(cap):.1f} [{cap.min():.1f}, {cap.max():.1f}] | "
                     f"{np.median(st):.1f} [{st.min():.1f}, {st.max():.1f}] | "
                     f"{max(v['largest_excess_Pa']) / 1e3:.1f} |")
-    found = [_versus_text(kind, other, c[kind][f"versus_{other}"], n)
-             for kind in ("delay_posterior", "delay_chance") if kind in c
-             for other in ("delay_nominal",) if f"versus_{other}" in c[kind]]
+    found = [_versus_text(kind, "delay_nominal", c[kind]["versus_delay_nominal"], n)
+             for kind in ("delay_posterior", "delay_chance")
+             if "versus_delay_nominal" in c.get(kind, {})]
     for kind in ("delay_posterior", "delay_chance"):
         for other in ("delay_nominal_mean", "delay_nominal_lsq"):
             if kind in c and other in c:

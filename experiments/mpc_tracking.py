@@ -114,6 +114,14 @@ CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
 #: violations and tracking, so a posterior-aware controller is compared with the
 #: nominal at every margin, not only at none (added after the second design's runs).
 BACKOFF_PA = {f"nominal_backoff{k}k": k * 1e3 for k in (5, 10, 15, 20, 25, 30, 40)}
+
+
+def backoff_Pa(kind: str) -> float | None:
+    """A back-off controller's fixed margin below the limit (Pa), on either fitted model
+    (``nominal_backoff20k``, ``delay_nominal_backoff20k``); None for any other kind."""
+    return BACKOFF_PA.get(kind.removeprefix("delay_"))
+
+
 #: The posterior-aware controllers compared with each back-off.
 POSTERIOR_AWARE = ("posterior", "predictive", "chance", "chance_window")
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
@@ -175,7 +183,7 @@ class Controller:
 
     def __init__(self, kind, model, draws, noise, rig, rng):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
-        self.backoff_Pa = BACKOFF_PA.get(self.kind, 0.0)
+        self.backoff_Pa = backoff_Pa(kind) or 0.0
         self.predictor = PressurePredictor(model, draws, rig, SolverConfig.standard())
         # predictive only: one fixed path per draw of its stationary AR(1) noise (fitted
         # per recording sample), read at the control ticks; the start's own noise is
@@ -488,7 +496,7 @@ def figure(results: list[dict], path: Path) -> None:
     axes[0].axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
     colours = ("tab:orange", "tab:red", "tab:blue", "tab:green", "tab:purple", "tab:pink",
                "tab:brown", "tab:olive", "tab:cyan")
-    for kind, colour in zip([k for k in r["controllers"] if k not in BACKOFF_PA], colours):
+    for kind, colour in zip([k for k in r["controllers"] if backoff_Pa(k) is None], colours):
         c = r["controllers"][kind]
         axes[0].plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
                      label=f"{kind}: RMSE {c['tracking_rmse_Pa'] / 1e3:.1f} kPa, "
@@ -524,13 +532,12 @@ def tradeoff_figure(controllers: dict, path: Path, baseline: str = "nominal") ->
     curve = [k for k in (baseline, *(prefix + b for b in BACKOFF_PA)) if k in controllers]
     if len(curve) > 1:
         xy = np.array([point(k) for k in curve])
+        margins_kPa = [(backoff_Pa(k) or 0.0) / 1e3 for k in curve]
         ax.plot(xy[:, 0], xy[:, 1], "o-", color="tab:orange", label="nominal, back-off "
-                + ", ".join(["0", *(f"{BACKOFF_PA[k.removeprefix(prefix)] / 1e3:g}"
-                                    for k in curve[1:])]) + " kPa")
-        for k, (x, y) in zip(curve, xy):
-            ax.annotate(f"{BACKOFF_PA.get(k.removeprefix(prefix), 0.0) / 1e3:g}", (x, y),
-                        fontsize=7,
-                        textcoords="offset points", xytext=(4, 4))
+                + ", ".join(f"{m:g}" for m in margins_kPa) + " kPa")
+        for m, (x, y) in zip(margins_kPa, xy):
+            ax.annotate(f"{m:g}", (x, y), fontsize=7, textcoords="offset points",
+                        xytext=(4, 4))
     for k in controllers:
         if k in curve:
             continue
