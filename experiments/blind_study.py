@@ -212,14 +212,40 @@ def summarise(results: list[dict]) -> tuple[dict, str]:
         if k == "control":
             check = f"nothing named in {100 * d['nothing_named_fraction']:.0f} % (floor 90 %)"
         else:
-            med = d["gap_shrink_median"]
-            check = (f"all planted named in {100 * d['all_planted_named_fraction']:.0f} %, "
-                     f"{d['planted_named_mean']:.2f} planted named on average, exactly the "
+            med, low = d["gap_shrink_median"], d["gap_shrink_min"]
+            pair = k == "single/pair"
+            check = (f"all planted named in {100 * d['all_planted_named_fraction']:.0f} %"
+                     + (" (floor 90 %)" if pair else "") + ", "
+                     f"{d['planted_named_mean']:.2f} planted named on average"
+                     + ("" if pair else " (floor 3 of 4)") + ", exactly the "
                      f"planted set in {100 * d['exactly_planted_fraction']:.0f} %, median "
-                     f"gap shrink {'n/a' if med is None else f'{100 * med:.0f} %'}")
-        check += f"; median final / noise {d['final_over_noise_median']:.2f}"
+                     f"gap shrink {'n/a' if med is None else f'{100 * med:.0f} %'}"
+                     + (" (floor 80 %)" if pair else
+                        f", least {'n/a' if low is None else f'{100 * low:.0f} %'} "
+                        "(floor 70 % on every rig)"))
+        check += (f"; median final / noise {d['final_over_noise_median']:.2f}"
+                  + (" (floor 1.5)" if k == "single/pair" else ""))
         lines.append(f"| {k} | {d['cases']} | {check} |")
     return out, "\n".join(lines) + "\n"
+
+
+def addition_gains(result: dict, noise_share: float, gap_share: float) -> list[dict]:
+    """Each effect the loop added in ``result`` (a case's record with its ledger), with
+    its held-out gain (Pa) and the least gain the loop's gain floor asks
+    (``DiscoverySettings.min_gain_noise_share`` x the noise floor or ``min_gain_gap_share``
+    x the gap above it, whichever is larger; :func:`pneubayes.discovery.rounds.min_gain_Pa`):
+    a check for sets run before that floor existed."""
+    noise = result["noise_floor_Pa"]
+    out = []
+    for e in result.get("ledger", []):
+        if e.get("action") != "add":
+            continue
+        before, after = e["heldout_rmse_before_Pa"], e["heldout_rmse_after_Pa"]
+        least = max(noise_share * noise, gap_share * max(before - noise, 0.0))
+        out.append({"case": result["name"], "effect": e["effect"],
+                    "heldout_before_Pa": before, "gain_Pa": before - after,
+                    "least_gain_Pa": least, "meets": before - after >= least})
+    return out
 
 
 def _is_case(case: dict, key: str) -> bool:

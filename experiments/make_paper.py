@@ -3,14 +3,16 @@ saved results (``make paper``).
 
     python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
     python experiments/make_paper.py --assemble-only     # only re-assemble saved results
-    python experiments/make_paper.py --assemble-only --only real   # one section (or mpc)
+    python experiments/make_paper.py --assemble-only --only real   # one section (mpc, blind)
     python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
 
 Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
 (one shared study), ``fig12b_deadzone.py``, ``supply_study.py`` and
 ``identification.py`` (the emcee posterior and prediction bands: skipped when its
 ``report.json`` exists), the real-data experiments and ``mpc_tracking.py`` (skipped
-when their results exist). Every study cell is cached, so a second run only assembles.
+when their results exist). The blind discovery set (``blind_study.py``) is run once by
+hand into ``OUT/blind`` and only reported here. Every study cell is cached, so a second
+run only assembles.
 The report is ``PAPER/report.md`` with figures copied to ``PAPER/figures``; every
 table and figure names the result file, study, seeds, git revision(s) and package
 versions that made it. Nothing is computed during assembly.
@@ -30,6 +32,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+import blind_study  # noqa: E402
 import fig11_volume  # noqa: E402
 import fig12a_leak  # noqa: E402
 import fig12b_deadzone  # noqa: E402
@@ -380,6 +383,8 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
                          f"{'n/a' if pm is None else f'{pm:.0f}'} | "
                          f"{r['ours_discovery_rmse_Pa']:.0f} |")
         L.append("")
+    # ---------------- blind set
+    L += blind_section(out, paper, smoke)
     # ---------------- real recordings
     L += real_section(out, paper, smoke)
     # ---------------- closed loop
@@ -959,27 +964,97 @@ def _one_margin_for_both(hidden: dict, weak: dict) -> list[str]:
             "median capped RMSE:", "", *rows, "", verdict, ""]
 
 
+BLIND_HEAD = "## A blind set: realistic cases never used in tuning (issue 22)"
+
+
+def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """The blind discovery set (``experiments/blind_study.py``, run once by hand: it is
+    not rerun by ``make paper``) from ``OUT/blind/summary.json``: its floors, every case,
+    the gain floor checked on each added effect and the loop's wall time."""
+    path = out / ("blind-smoke" if smoke else "blind") / "summary.json"
+    L = [BLIND_HEAD, ""]
+    if not path.exists():
+        return L + [f"*Missing: `{path}` (run `python experiments/blind_study.py --out "
+                    f"{path.parent}` once, with a fresh seed, and read it once).*", ""]
+    doc = json.loads(path.read_text())
+    cases = doc["cases"]
+    prov = doc["provenance"]
+    rev = str(prov.get("git_revision"))[:7]
+    kinds = {"control": 0, "single/pair": 0, "four-effect": 0}
+    for c in cases:
+        n = len(c["hidden"])
+        kinds["control" if n == 0 else ("single/pair" if n <= 2 else "four-effect")] += 1
+    cells = doc.get("min_tube_cells", 8)
+    tube = (f"at least {cells} cells, unlike the bench's 8-24" if cells > 8
+            else "8-24 cells, as the bench's")
+    L += [f"{len(cases)} cases drawn at random from seed {doc['seed']}: "
+          f"{kinds['control']} no-effect controls, {kinds['single/pair']} single effects "
+          f"and pairs, {kinds['four-effect']} four-effect rigs. Every planted effect's "
+          "form and size is drawn from wide physical ranges, not the bench's defaults "
+          f"the loop was tuned on; each plant tube is in {tube}. Each case has six "
+          f"{doc['duration_s']:g}-s recordings and runs `pneubayes discover` from the "
+          f"plain model (tube form `{doc['tube_line_form']}`). The set was run once at "
+          f"git revision `{rev}` and read once; the loop was not tuned on it, and it is "
+          "spent: later tuning may use it.", "",
+          _summary_table(cases), ""]
+    gains = [g for c in cases if "error" not in c
+             for g in blind_study.addition_gains(c, 0.01, 0.01)]
+    if gains:
+        low = min(gains, key=lambda g: g["gain_Pa"])
+        held = sum(g["meets"] for g in gains)
+        L += [f"Every addition is checked against the gain floor the loop has now "
+              "(an added effect must lower the held-out RMSE by 1 % of the noise floor "
+              "or of the gap, whichever is larger): "
+              f"{held} of {len(gains)} additions meet it. The smallest gain is "
+              f"{low['case'].split('_')[0]}'s `{low['effect']}`, {low['gain_Pa']:.0f} Pa "
+              f"against the {low['least_gain_Pa']:.0f} Pa asked.", ""]
+    walls = [c["wall_time_s"] / 60 for c in cases if c.get("wall_time_s")]
+    four = [c["wall_time_s"] / 60 for c in cases if len(c["hidden"]) == 4
+            and c.get("wall_time_s")]
+    if walls:
+        L += [f"The loop's wall time per case (one thread, other jobs on the machine, "
+              "without the final posterior): median "
+              f"{float(np.median(walls)):.0f} min, longest {max(walls):.0f} min"
+              + (f"; the four-effect rigs {', '.join(f'{w:.0f}' for w in four)} min"
+                 if four else "") + ".", ""]
+    versions = ", ".join(f"{k} {prov[k]}" for k in ("python", "numpy", "scipy", "numba")
+                         if k in prov)
+    L += [f"*Source: `{path}` (`experiments/blind_study.py --seed {doc['seed']} "
+          f"--min-tube-cells {doc.get('min_tube_cells', 8)}`); git revision {rev}; "
+          f"{versions}.*", ""]
+    return L
+
+
+def _summary_table(cases: list[dict]) -> str:
+    """The blind study's own tables (per case, then the floors per kind)."""
+    return blind_study.summarise(cases)[1].rstrip("\n")
+
+
 MPC_HEAD = "## Closed loop: a 200-Hz MPC that uses the posterior"
 
 
 def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
     """Rewrite only one section of an existing ``PAPER/report.md`` (``--only real``: the
-    real recordings; ``--only mpc``: the closed loop) from its saved results, leaving
-    every other section as its studies made it; inserted before the claims' section when
-    absent."""
+    real recordings; ``--only mpc``: the closed loop; ``--only blind``: the blind set)
+    from its saved results, leaving every other section as its studies made it; when
+    absent it is inserted where :func:`assemble` puts it."""
     path = paper / "report.md"
     if not path.exists():
         raise SystemExit(f"{path}: no report to update; run make_paper.py without --only")
     lines = path.read_text().split("\n")
-    new = (real_section if which == "real" else mpc_section)(out, paper, smoke)
-    head = "## Real recordings" if which == "real" else MPC_HEAD
+    build, head = {"real": (real_section, "## Real recordings"),
+                 "mpc": (mpc_section, MPC_HEAD),
+                 "blind": (blind_section, BLIND_HEAD)}[which]
+    new = build(out, paper, smoke)
     if head in lines:
         i = lines.index(head)
         j = next((k for k in range(i + 1, len(lines)) if lines[k].startswith("## ")),
                  len(lines))
-    else:
+    else:  # a new section goes where assemble() puts it: before the next one present
         claims_head = "## The paper's claims, checked on our data"
-        i = j = lines.index(claims_head) if claims_head in lines else len(lines)
+        after = (["## Real recordings"] if which == "blind" else []) + [claims_head]
+        before = next((h for h in after if h in lines), None)
+        i = j = lines.index(before) if before else len(lines)
     write_text_atomic(path, "\n".join(lines[:i] + new + lines[j:]))
     return path
 
@@ -991,9 +1066,10 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
-    ap.add_argument("--only", choices=["real", "mpc"], default=None,
+    ap.add_argument("--only", choices=["real", "mpc", "blind"], default=None,
                     help="with --assemble-only: rewrite only this section of an existing "
-                         "report (real: the real recordings; mpc: the closed loop)")
+                         "report (real: the real recordings; mpc: the closed loop; blind: "
+                         "the blind discovery set)")
     args = ap.parse_args(argv)
     if args.only:
         if not args.assemble_only:

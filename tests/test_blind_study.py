@@ -107,3 +107,20 @@ def test_case_option_names_an_unknown_case(tmp_path, capsys):
     with pytest.raises(SystemExit):
         blind_study.main(["--out", str(tmp_path), "--seed", "123", "--case", "b99"])
     assert "b99" in capsys.readouterr().err
+
+
+def test_addition_gains_check_each_added_effect_against_the_gain_floor():
+    ledger = [{"step": 0, "action": "fit base", "heldout_rmse_Pa": 1500.0},
+              {"step": 1, "action": "pass", "effect": "tube_delay", "gap_closed": 0.9},
+              {"step": 2, "action": "add", "effect": "tube_delay",
+               "heldout_rmse_before_Pa": 1500.0, "heldout_rmse_after_Pa": 600.0},
+              {"step": 3, "action": "add", "effect": "spool_lag",
+               "heldout_rmse_before_Pa": 600.0, "heldout_rmse_after_Pa": 597.0}]
+    gains = blind_study.addition_gains({"name": "c", "noise_floor_Pa": 500.0,
+                                        "ledger": ledger}, 0.01, 0.01)
+    assert [g["effect"] for g in gains] == ["tube_delay", "spool_lag"]
+    # the tube: gap 1000 Pa, so 1 % of it (10 Pa) is the larger floor; gain 900 Pa
+    assert gains[0]["least_gain_Pa"] == pytest.approx(10.0) and gains[0]["meets"]
+    # the spool: gap 100 Pa; 1 % of the noise (5 Pa) is the larger floor; gain 3 Pa
+    assert gains[1]["gain_Pa"] == pytest.approx(3.0)
+    assert gains[1]["least_gain_Pa"] == pytest.approx(5.0) and not gains[1]["meets"]

@@ -265,3 +265,43 @@ def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
     assert "| nominal, 30-kPa back-off | 1 | 42.20 | 0 | 51.00 |" in text
     assert "| chance (posterior-aware) | 1 | 40.75 | 0 | 44.00 |" in text
     assert "No fixed margin is at least as good as `chance`" in text
+
+
+def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    (paper / "report.md").write_text("# R\n\n## Table III\n\nkept\n\n## Real recordings\n\n"
+                                     "r\n\n## The paper's claims, checked on our data\n\nc\n")
+    out = tmp_path / "out"
+    missing = make_paper.blind_section(out, paper, smoke=False)
+    assert any("*Missing: `" in line for line in missing)
+
+    def case(name, hidden, named, base, final, adds, wall_s, noise=500.0):
+        ledger = [{"step": i, "action": "add", "effect": e, "heldout_rmse_before_Pa": b,
+                   "heldout_rmse_after_Pa": a} for i, (e, b, a) in enumerate(adds)]
+        return {"name": name, "cylinder": "SMC", "valve": "valve1", "hidden": hidden,
+                "named": named, "correct": sorted(named) == sorted(hidden),
+                "planted_named": len(set(named) & set(hidden)), "rmse_base_Pa": base,
+                "rmse_final_Pa": final, "noise_floor_Pa": noise,
+                "gap_shrink": None if base <= noise else 1 - (final - noise) / (base - noise),
+                "final_over_noise": final / noise, "wall_time_s": wall_s, "ledger": ledger}
+
+    cases = [case("b00_SMC_valve1_none", [], [], 505.0, 505.0, [], 60.0),
+             case("b01_SMC_valve1_tube_delay", ["tube_delay"], ["tube_delay", "spool_lag"],
+                  2500.0, 597.0, [("tube_delay", 2500.0, 600.0), ("spool_lag", 600.0, 597.0)],
+                  600.0)]
+    folder = out / "blind"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text(json.dumps({
+        "seed": 4242, "duration_s": 20.0, "smoke": False, "tube_line_form": "wave",
+        "min_tube_cells": 32, "floors": {}, "cases": cases,
+        "provenance": {"git_revision": "abcdef0123", "python": "3.11"}}))
+    assert make_paper.main(["--out", str(out), "--paper", str(paper), "--assemble-only",
+                            "--only", "blind"]) == 0
+    text = (paper / "report.md").read_text()
+    assert text.index("kept") < text.index(make_paper.BLIND_HEAD) < text.index("## Real")
+    assert "seed 4242" in text and "at least 32 cells" in text and "`abcdef0`" in text
+    # the spool's 3-Pa gain is under the 5 Pa (1 % of the noise) the gain floor asks
+    assert "1 of 2 additions meet it" in text
+    assert "b01's `spool_lag`, 3 Pa against the 5 Pa asked" in text
+    assert "median 6 min, longest 10 min" in text
