@@ -273,3 +273,21 @@ def test_chamber_pressure_rate_and_net_flow_by_hand(hand):
     vol, vdot = 3e-6, -2e-6
     rate = pressure_rate(p, vol, vdot, mdot, GAS)
     assert float(rate) == pytest.approx(1.4 / vol * (g.rs * g.T * want - p * vdot), rel=1e-12)
+
+
+def test_the_tabulated_friction_law_matches_churchills_formula():
+    from pneubayes.physics.tube import (
+        CHURCHILL_TABLE_RE,
+        churchill_fre,
+        churchill_fre_table,
+    )
+
+    # laminar (64), the transition, the turbulent branch and beyond the table's end
+    re = np.exp(np.linspace(math.log(500.0), math.log(3.0 * CHURCHILL_TABLE_RE[1]), 20001))
+    exact = np.array([churchill_fre(r) for r in re])
+    table = np.array([churchill_fre_table(r) for r in re])
+    assert np.max(np.abs(table / exact - 1.0)) < 1e-8
+    assert churchill_fre_table(999.0) == 64.0 and churchill_fre(999.0) == 64.0
+    # Poiseuille's 64 joins the turbulent branch continuously at the table's start
+    assert churchill_fre_table(1000.0) == pytest.approx(64.0, rel=1e-12)
+    assert churchill_fre_table(3e4) > 100.0  # turbulent: f Re grows with Re

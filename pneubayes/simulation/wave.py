@@ -6,9 +6,10 @@ The tube is ``K`` lossless line elements in a row, each of transit time ``tau = 
 :mod:`pneubayes.simulation.line`) and characteristic impedance ``Z = c / A`` (Pa s/kg,
 A = pi D^2 / 4). The tube's friction is lumped between them: a resistance ``r`` at each
 junction and ``r / 2`` at either end, ``r = f Re mu (L / K) / (2 rho A D^2)`` (Poiseuille's
-``32 mu (L / K) / (rho A D^2)`` in laminar flow, Churchill's smooth-pipe ``f Re`` beyond:
-:mod:`pneubayes.physics.tube`) at the local density and the flow of the last accepted
-step there. At steady flow the drop from valve to chamber is ``R q`` (R = K r).
+``32 mu (L / K) / (rho A D^2)`` in laminar flow, Churchill's smooth-pipe ``f Re`` beyond,
+tabulated: :func:`pneubayes.physics.tube.churchill_fre_table`) at the local density and
+the flow of the last accepted step there. At steady flow the drop from valve to chamber
+is ``R q`` (R = K r).
 
 In element i two waves cross unchanged in ``tau``: ``A_i = p + Z q`` leaves its valve
 side, ``B_i = p - Z q`` its chamber side (q: the mass flow towards the chamber). At time
@@ -50,7 +51,7 @@ from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX, WAVE_CARRY_POINTS, WAVE_MAX_SEGMENTS
 from pneubayes.physics.orifice import flow_slopes, flow_terms
-from pneubayes.physics.tube import churchill_fre
+from pneubayes.physics.tube import churchill_fre_table
 from pneubayes.simulation.chamber import compliant_volume
 from pneubayes.simulation.layout import (
     C_ALPHA,
@@ -105,7 +106,7 @@ def wave_resistance(q, p, cs, area, length, dia, mu):
     ``p`` (the density's)."""
     rho = p / (cs[C_RS] * cs[C_T_SUPPLY])
     re = abs(q) * dia / (area * mu)
-    return churchill_fre(re) * mu * length / (2.0 * rho * area * dia * dia)
+    return churchill_fre_table(re) * mu * length / (2.0 * rho * area * dia * dia)
 
 
 @njit(cache=True, error_model="numpy")
