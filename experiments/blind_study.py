@@ -171,12 +171,16 @@ def run_case(case: dict, args, root: Path) -> dict:
         "wall_time_s": time.perf_counter() - t0, "ledger": doc["ledger"]}
 
 
+def case_kind(case: dict) -> str:
+    """The floor a case counts towards: ``"control"`` (nothing planted),
+    ``"single/pair"`` or ``"four-effect"``."""
+    n = len(case["hidden"])
+    return "control" if n == 0 else ("single/pair" if n <= 2 else "four-effect")
+
+
 def summarise(results: list[dict]) -> tuple[dict, str]:
     """The issue's floors over the blind set, and a per-case table."""
-    def kind(r):
-        n = len(r["hidden"])
-        return "control" if n == 0 else ("single/pair" if n <= 2 else "four-effect")
-
+    kind = case_kind
     out = {}
     for k in ("control", "single/pair", "four-effect"):
         rs = [r for r in results if kind(r) == k and "error" not in r]

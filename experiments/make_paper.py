@@ -47,6 +47,7 @@ import supply_study  # noqa: E402
 import table3  # noqa: E402
 
 from pneubayes.atomic import write_text_atomic  # noqa: E402
+from pneubayes.discovery.settings import DiscoverySettings  # noqa: E402
 
 STUDY_SCRIPTS = (("table3", table3), ("fig11_volume", fig11_volume),
                  ("fig12a_leak", fig12a_leak), ("peer_baseline", peer_baseline),
@@ -982,8 +983,7 @@ def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     rev = str(prov.get("git_revision"))[:7]
     kinds = {"control": 0, "single/pair": 0, "four-effect": 0}
     for c in cases:
-        n = len(c["hidden"])
-        kinds["control" if n == 0 else ("single/pair" if n <= 2 else "four-effect")] += 1
+        kinds[blind_study.case_kind(c)] += 1
     cells = doc.get("min_tube_cells", 8)
     tube = (f"at least {cells} cells, unlike the bench's 8-24" if cells > 8
             else "8-24 cells, as the bench's")
@@ -997,14 +997,17 @@ def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           f"git revision `{rev}` and read once; the loop was not tuned on it, and it is "
           "spent: later tuning may use it.", "",
           _summary_table(cases), ""]
+    now = DiscoverySettings()  # the loop's gain floor at this revision
     gains = [g for c in cases if "error" not in c
-             for g in blind_study.addition_gains(c, 0.01, 0.01)]
+             for g in blind_study.addition_gains(c, now.min_gain_noise_share,
+                                                 now.min_gain_gap_share)]
     if gains:
         low = min(gains, key=lambda g: g["gain_Pa"])
         held = sum(g["meets"] for g in gains)
         L += [f"Every addition is checked against the gain floor the loop has now "
-              "(an added effect must lower the held-out RMSE by 1 % of the noise floor "
-              "or of the gap, whichever is larger): "
+              "(an added effect must lower the held-out RMSE by "
+              f"{100 * now.min_gain_noise_share:g} % of the noise floor or "
+              f"{100 * now.min_gain_gap_share:g} % of the gap, whichever is larger): "
               f"{held} of {len(gains)} additions meet it. The smallest gain is "
               f"{low['case'].split('_')[0]}'s `{low['effect']}`, {low['gain_Pa']:.0f} Pa "
               f"against the {low['least_gain_Pa']:.0f} Pa asked.", ""]
