@@ -22,8 +22,8 @@ def churchill_fre(re):
     ``f = 8 ((8/Re)^12 + (A + B)^-1.5)^(1/12)``, A = (2.457 ln(1 / (7/Re)^0.9))^16,
     B = (37530 / Re)^16; returned as ``f Re`` (64 in laminar flow), smooth in Re.
     Below Re = 1000 the turbulent correction is below 2e-14 of 64, and 64 is returned
-    (the transmission-line tube evaluates :func:`churchill_fre_table` instead, at every
-    junction every 0.1 ms).
+    (the transmission-line tube, at every junction every 0.1 ms, and the lumped line
+    evaluate :func:`churchill_fre_table` instead).
     """
     if re < 1000.0:
         return 64.0
