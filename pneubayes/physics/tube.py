@@ -64,6 +64,23 @@ _FRE_SLOPE = (_churchill_fre_array(np.exp(_LN_RE + 1e-6))
               - _churchill_fre_array(np.exp(_LN_RE - 1e-6))) / 2e-6 * _LN_STEP
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _table_cell(re):
+    """The table interval of ``re`` (>= 1000): its first point and the position in it."""
+    x = (math.log(re) - _LN_RE0) / _LN_STEP
+    i = int(x)
+    return i, x - i
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _table_value(i, t):
+    """The cubic Hermite of the table at position ``t`` in interval ``i``."""
+    t2 = t * t
+    t3 = t2 * t
+    return ((2.0 * t3 - 3.0 * t2 + 1.0) * _FRE_TABLE[i] + (t3 - 2.0 * t2 + t) * _FRE_SLOPE[i]
+            + (3.0 * t2 - 2.0 * t3) * _FRE_TABLE[i + 1] + (t3 - t2) * _FRE_SLOPE[i + 1])
+
+
 @njit(cache=True, error_model="numpy")
 def churchill_fre_table(re):
     """:func:`churchill_fre` interpolated from a table of ``CHURCHILL_TABLE_POINTS``
@@ -73,34 +90,24 @@ def churchill_fre_table(re):
     turbulent. 64 in laminar flow (Re < 1000), as the formula."""
     if re < 1000.0:
         return 64.0
-    x = (math.log(re) - _LN_RE0) / _LN_STEP
-    i = int(x)
+    i, t = _table_cell(re)
     if i >= CHURCHILL_TABLE_POINTS - 1:
         return churchill_fre(re)
-    t = x - i
-    t2 = t * t
-    t3 = t2 * t
-    return ((2.0 * t3 - 3.0 * t2 + 1.0) * _FRE_TABLE[i] + (t3 - 2.0 * t2 + t) * _FRE_SLOPE[i]
-            + (3.0 * t2 - 2.0 * t3) * _FRE_TABLE[i + 1] + (t3 - t2) * _FRE_SLOPE[i + 1])
+    return _table_value(i, t)
 
 
 @njit(cache=True, error_model="numpy")
-def churchill_fre_slope_table(re):
-    """:func:`churchill_fre_slope` from the table of :func:`churchill_fre_table`: the
-    derivative of its cubic over the value, ``d ln(f Re) / d ln Re`` (0 laminar), with
-    no logarithm of the formula's; within 1e-5 of the finite difference
-    (``tests/test_physics.py``)."""
+def churchill_fre_and_slope_table(re):
+    """``(f Re, d ln(f Re) / d ln Re)`` from the table of :func:`churchill_fre_table`:
+    the value and the cubic's derivative over it (:func:`churchill_fre_slope` within
+    1e-5; the formulas themselves beyond the table; ``(64, 0)`` in laminar flow)."""
     if re < 1000.0:
-        return 0.0
-    x = (math.log(re) - _LN_RE0) / _LN_STEP
-    i = int(x)
+        return 64.0, 0.0
+    i, t = _table_cell(re)
     if i >= CHURCHILL_TABLE_POINTS - 1:
-        return churchill_fre_slope(re)
-    t = x - i
-    t2 = t * t
-    value = ((2.0 * t2 * t - 3.0 * t2 + 1.0) * _FRE_TABLE[i]
-             + (t2 * t - 2.0 * t2 + t) * _FRE_SLOPE[i]
-             + (3.0 * t2 - 2.0 * t2 * t) * _FRE_TABLE[i + 1] + (t2 * t - t2) * _FRE_SLOPE[i + 1])
-    d_dt = ((6.0 * t2 - 6.0 * t) * (_FRE_TABLE[i] - _FRE_TABLE[i + 1])
-            + (3.0 * t2 - 4.0 * t + 1.0) * _FRE_SLOPE[i] + (3.0 * t2 - 2.0 * t) * _FRE_SLOPE[i + 1])
-    return d_dt / (_LN_STEP * value)
+        return churchill_fre(re), churchill_fre_slope(re)
+    value = _table_value(i, t)
+    d_dt = ((6.0 * t * t - 6.0 * t) * (_FRE_TABLE[i] - _FRE_TABLE[i + 1])
+            + (3.0 * t * t - 4.0 * t + 1.0) * _FRE_SLOPE[i]
+            + (3.0 * t * t - 2.0 * t) * _FRE_SLOPE[i + 1])
+    return value, d_dt / (_LN_STEP * value)

@@ -46,7 +46,7 @@ from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.physics.orifice import flow_slopes, flow_terms
-from pneubayes.physics.tube import churchill_fre_slope_table, churchill_fre_table
+from pneubayes.physics.tube import churchill_fre_and_slope_table
 from pneubayes.simulation.chamber import wall_exchange
 from pneubayes.simulation.layout import (
     C_ALPHA,
@@ -309,7 +309,8 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
         f[1 + i] = c_cell * (q_prev - q)
         rho = 0.5 * (p_i + p_next) / rs_t
         re = abs(q) * dia / (area * mu)
-        k_f = churchill_fre_table(re) * mu / (2.0 * rho * dia * dia)
+        fre, fre_slope = churchill_fre_and_slope_table(re)
+        k_f = fre * mu / (2.0 * rho * dia * dia)
         # (staggered grid: the last link, cell centre to chamber, is dx / 2 long)
         inert_i = inert if i < nseg - 1 else 2.0 * inert
         f[iq + i] = inert_i * (p_i - p_next) - k_f * q
@@ -320,7 +321,7 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
             dfric_dp = k_f * q / (p_i + p_next)  # d(-k_f q)/dp through rho
             jac[iq + i, 1 + i] = inert_i + dfric_dp
             jac[iq + i, inext] += -inert_i + dfric_dp
-            jac[iq + i, iq + i] = -k_f * (1.0 + churchill_fre_slope_table(re))
+            jac[iq + i, iq + i] = -k_f * (1.0 + fre_slope)
         q_prev = q
     # chamber: the last line flow in, leaks out (laminar k graded along the stroke)
     leak_o, leak_g = sl[_LEAK_O], sl[_LEAK_LG]
