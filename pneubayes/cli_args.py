@@ -80,6 +80,20 @@ def _setting(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
 
 
+def _library_entry(text: str) -> tuple[str, tuple[float, ...]]:
+    """``EFFECT=S1,S2,...`` for ``discover --library`` (the effect's trial strengths, in
+    the unit of the parameter its terms vary)."""
+    name, sep, values = text.partition("=")
+    try:
+        strengths = tuple(float(v) for v in values.split(",") if v.strip())
+        if not sep or not name.strip() or not strengths:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--library expects EFFECT=S1,S2,... (numbers), "
+                                         f"got {text!r}") from None
+    return name.strip(), strengths
+
+
 def _names(text: str) -> tuple[str, ...]:
     names = tuple(v.strip() for v in text.split(",") if v.strip())
     if not names:
@@ -206,7 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--valve", required=True, help="valve1 or valve2 (Table II)")
     b.add_argument("--effects", default="", help="comma-separated effects to plant, e.g. "
                    "tube_delay,spool_lag (catalogue: cylinder_leak, tube_delay, "
-                   "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag, sensor_lag)")
+                   "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag, sensor_lag, "
+                   "sensor_calibration)")
     b.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"),
                    help="law of a planted cylinder_leak (default orifice, the paper's)")
     b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",
@@ -329,6 +344,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a later form whose own parameters, fitted first, gain under this "
                         "share of its first form's gain over the current model is not "
                         "refined further; 1: it must beat the first form (0.5)")
+    d.add_argument("--library", action="append", type=_library_entry, default=[],
+                   metavar="EFFECT=S1,S2", help="the trial strengths of an effect's library "
+                   "terms (its parameter's unit), replacing its own; the only way to search "
+                   "for sensor_calibration, whose terms are off by default, e.g. "
+                   "sensor_calibration=2000,5000,10000 (Pa)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final emcee posterior (refined point estimates only)")
     _add_identification(d, "seed of bagging and sampler (recorded)")

@@ -95,3 +95,24 @@ def test_fit_and_discover_reject_a_bad_pressure_filter(bench_dir, tmp_path, caps
         err = capsys.readouterr().err
         assert "--pressure-filter" in err and why in err
         assert not (tmp_path / cmd).exists()
+
+
+@pytest.mark.parametrize("entries, why", [
+    (["sensor_calibration=a"], "EFFECT=S1,S2"), (["=5"], "EFFECT=S1,S2"),
+    (["nothing=1"], "unknown effect 'nothing'"),
+    (["sensor_calibration=1,2", "sensor_calibration=3"], "given more than once")])
+def test_discover_rejects_a_bad_library_entry_before_reading(bench_dir, tmp_path, capsys,
+                                                             entries, why):
+    """``--library EFFECT=S1,S2`` (how the loop is asked to search for
+    sensor_calibration): a bad entry is an error naming it, before any work."""
+    args = ["discover", str(bench_dir / "fixed_u5_x10.csv"), "--out", str(tmp_path / "d")]
+    for e in entries:
+        args += ["--library", e]
+    try:
+        rc = main(args)
+    except SystemExit as exc:  # argparse's own usage error
+        rc = exc.code
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "--library" in err and why in err
+    assert not (tmp_path / "d").exists()

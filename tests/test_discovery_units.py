@@ -7,7 +7,7 @@ import pytest
 
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.discovery.disagreement import RegimeSettings, _bins, flagged_bins
-from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, build_library
+from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, _terms, build_library
 from pneubayes.discovery.one_step import first_order_lag, one_step_data
 from pneubayes.discovery.sindy import GroupedSINDy, cluster_se
 from pneubayes.effects import CATALOGUE, effects_from_names
@@ -181,8 +181,12 @@ def test_library_finds_the_planted_delay_and_absorbs_parameter_errors(delay_benc
     params = {k: truth[k] for k in plain.parameter_names}
     d = one_step_data(rec, 5)
     lib = build_library(plain, params, [d], LibraryGrid(), TIGHT)
-    # every catalogue effect offers its terms, each column with the values it stands for
-    assert set(lib.groups) == set(CATALOGUE)
+    # every catalogue effect offers its terms, each column with the values it stands for;
+    # an effect searched only when asked (sensor_calibration) offers them when a grid asks
+    assert set(lib.groups) == {n for n, c in CATALOGUE.items() if c.library_strengths}
+    assert "sensor_calibration" not in lib.groups
+    asked = _terms(plain, list(CATALOGUE), LibraryGrid({"sensor_calibration": (5000.0,)}))
+    assert {e.name for e, _ in asked} == set(CATALOGUE)
     assert len(lib.starts) == len(lib.labels) == lib.columns.shape[1]
     s = GroupedSINDy(n_models=20, chunk_rows=100).fit(lib)
     assert s.ranking_[0] == "tube_delay"

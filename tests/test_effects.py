@@ -78,7 +78,8 @@ def _sim(model, params, inputs, rig, p0=2e5, solver=None):
 # ---------------------------------------------------------------- the contract
 def test_catalogue_names():
     assert list(CATALOGUE) == ["cylinder_leak", "tube_delay", "valve_deadzone",
-                               "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag"]
+                               "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
+                               "sensor_calibration"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -700,7 +701,11 @@ def test_every_effect_declares_its_library_terms_in_its_own_parameters(name):
     from pneubayes.effects.discovery import FormTrialTerm, InputLagTerm, RelaxationTerm, TrialTerm
 
     for effect in _every_form(CATALOGUE[name]):
-        strengths = effect.library_strengths
+        # an effect searched only when asked offers its terms at the strengths it
+        # documents, and none by default
+        strengths = effect.library_strengths or effect.opt_in_strengths
+        assert not (effect.library_strengths and effect.opt_in_strengths), name
+        assert effect.library_terms(()) == ()
         terms = effect.library_terms(strengths)
         assert len(terms) == len(strengths) >= 1, (name, effect)
         assert len({t.label for t in terms}) == len(terms)
@@ -722,7 +727,7 @@ def test_every_effect_declares_its_library_terms_in_its_own_parameters(name):
                 assert t.rate_per_s > 0
     # labels are unique over the whole catalogue: a term names its effect on its own
     labels = [t.label for cls in CATALOGUE.values()
-              for t in cls().library_terms(cls.library_strengths)]
+              for t in cls().library_terms(cls.library_strengths or cls.opt_in_strengths)]
     assert len(labels) == len(set(labels))
 
 
@@ -739,7 +744,8 @@ def test_every_effect_proposes_candidates_that_start_inside_their_bounds(name, r
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
     fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     effect = CATALOGUE[name]()
-    for term in (None, *effect.library_terms(effect.library_strengths)):
+    for term in (None, *effect.library_terms(effect.library_strengths
+                                             or effect.opt_in_strengths)):
         evidence = {"best_term_start": None if term is None else term.start}
         cands = effect_candidates(fit, name, evidence, rig, 3)
         assert cands, name

@@ -174,6 +174,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     t_out = np.arange(n_out) / fs_out
     t_fine = np.arange((n_out - 1) * step + 1) / cfg.fine_rate_Hz
     plans = _plans(cfg, cyl.stroke_m)
+    calibration = model.effect("sensor_calibration") if model.has("sensor_calibration") \
+        else None
+    calibration_neutral = calibration.neutral_values() if calibration is not None else {}
     seeds = np.random.SeedSequence(cfg.seed).spawn(len(plans))
     written, entries = [], []
     for plan, ss in zip(plans, seeds):
@@ -190,13 +193,17 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for e in model.effects:
             supply_fine = e.perturb_inputs(t_fine, supply_fine, rig, rng)
         inputs = Inputs(t_fine, u_fine, x_fine, supply_fine)
+        # the chamber starts at rest at atmospheric pressure; a miscalibrated sensor
+        # (sensor_calibration) reads it, as everything else, through its calibration
         if cfg.forms:
             traj = simulate_plant(plant_truth, cfg.forms, inputs, rig, ATMOSPHERE_PA,
                                   cfg.plant_solver, effects=model.effects)
             p_true, supply_fine = traj.pressure_Pa, traj.supply_at_valve_Pa
         else:
-            p_true = simulate(model, truth, inputs, rig, ATMOSPHERE_PA,
-                              cfg.solver).pressure_Pa[0]
+            p_true = simulate(model, {**truth, **calibration_neutral}, inputs, rig,
+                              ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
+        if calibration is not None:
+            p_true = calibration.read(p_true, truth, ATMOSPHERE_PA)
         s = cfg.sensor
         p_meas = s.measure(t_fine, p_true, t_out, s.pressure_noise_Pa, rng,
                            s.pressure_quantum_Pa)

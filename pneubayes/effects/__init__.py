@@ -1,7 +1,8 @@
 """The effect catalogue: each physical effect is one small object behind one interface.
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
-``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``.
+``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
+``sensor_calibration``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numbers
 from pneubayes.effects.base import Component, Effect, Parameter
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
+from pneubayes.effects.sensor_calibration import SensorCalibration
 from pneubayes.effects.sensor_lag import SensorLag
 from pneubayes.effects.spool_lag import SpoolLag
 from pneubayes.effects.supply_fluctuation import SupplyFluctuation
@@ -23,7 +25,7 @@ from pneubayes.effects.valve_deadzone import ValveDeadzone
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
-                SpoolLag, SensorLag)
+                SpoolLag, SensorLag, SensorCalibration)
 }
 
 
@@ -83,5 +85,5 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 
 
 __all__ = ["CATALOGUE", "Component", "CylinderLeak", "Effect", "HeatTransfer", "Parameter",
-           "SpoolLag", "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone",
-           "catalogue_parameter_names", "make_effect"]
+           "SensorCalibration", "SensorLag", "SpoolLag", "SupplyFluctuation", "ThinPort",
+           "TubeDelay", "ValveDeadzone", "catalogue_parameter_names", "make_effect"]

@@ -4,7 +4,8 @@ command -> [delay] -> spool [lag, first or second order] -> [dead band] -> port 
 (Gompertz, eq. 11, and a switching valve's area proportional to its opening)
 -> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
 + extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor
-(the rig's declared anti-alias filter, :mod:`pneubayes.simulation.measurement`).
+[lag, first or second order] [calibration: zero offset and gain] (the rig's declared
+anti-alias filter, :mod:`pneubayes.simulation.measurement`).
 
 Each slot is one number per parameter set that the compiled simulator reads. Components
 (the thin-port base and every effect) *lower* their named parameters onto slots; the
@@ -124,6 +125,13 @@ SLOTS += (
      "(Pa s)"),
     ("wave_segments", "line elements of the transmission-line tube, its friction lumped "
      "at their junctions (count)"),
+)
+
+SLOTS += (
+    ("reading_offset_Pa", "a miscalibrated pressure sensor's zero offset o: the reading is "
+     "P_atm + g (p - P_atm) + o (its value at atmospheric pressure less P_atm; Pa)"),
+    ("reading_gain_error", "the miscalibrated sensor's gain error: g - 1 in the reading "
+     "P_atm + g (p - P_atm) + o (-)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

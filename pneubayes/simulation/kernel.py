@@ -103,6 +103,7 @@ from pneubayes.simulation.wave import (
 
 OK, STEP_UNDERFLOW, STEP_BUDGET, NONFINITE, LINE_VOLUME, NEEDS_GENERAL = 0, 1, 2, 3, 4, 5
 WAVE_HISTORY = 6
+CALIBRATION = 7
 STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
@@ -110,7 +111,9 @@ STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                NEEDS_GENERAL: "a form with a second state reached the pressure-only kernel "
                               "(an internal error)",
                WAVE_HISTORY: f"more than {WAVE_CAPACITY} entries within one transit time "
-                             "of the transmission-line tube (an internal error)"}
+                             "of the transmission-line tube (an internal error)",
+               CALIBRATION: "the sensor's calibration reads the measured start as a "
+                            "pressure <= 0 absolute"}
 #: Length of the state carried from one window to the next: the chamber temperature,
 #: an acoustic line's cell pressures and flows (NaN: start the line at rest) or a
 #: transmission-line tube's waves (:func:`~pneubayes.simulation.wave.wave_finish`), a
@@ -151,6 +154,8 @@ _SENSOR = SLOT_INDEX["sensor_time_constant_s"]
 _SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
 _SENSOR_Z = SLOT_INDEX["sensor_damping"]
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
+_CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
+_CAL_GAIN = SLOT_INDEX["reading_gain_error"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -269,6 +274,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     chamber's lead on the reading it reached: the model's own rate through the lag,
     where the recording gives only the reading.
 
+    A miscalibrated sensor (slots ``reading_offset_Pa`` o, ``reading_gain_error`` g - 1)
+    reads P_atm + g (p - P_atm) + o: the window starts at the pressure the measured
+    ``p0`` (and the warm-up's ``pm``) reads, ``rate0`` is divided by g, and every output
+    is read through it. dp/dp0 is unchanged (g times 1 / g); carried states stay
+    pressures.
+
     With slot ``inputs_advance_s`` a > 0 (a sensor lag on every channel of the DAQ) the
     position ``x`` and supply ``ps`` are read at t + a: linear between their samples,
     whose times shifted by -a are break points of the steps, and held after the last.
@@ -305,6 +316,16 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
     n = t.shape[0]
+    # the sensor's calibration: reading = P_atm + cal_g (p - P_atm) + cal_o
+    p_atm = cs[C_P_ATM]
+    cal_o, cal_g = sl[_CAL_OFFSET], 1.0 + sl[_CAL_GAIN]
+    calibrated = cal_o != 0.0 or cal_g != 1.0
+    p0_read = p0
+    if calibrated:
+        p0 = p_atm + (p0 - p_atm - cal_o) / cal_g
+        rate0 = rate0 / cal_g
+        if not p0 > 0.0:
+            return CALIBRATION
     # step budget: max_steps_per_s per simulated second, beyond the one step each
     # sample interval takes at least
     max_steps = (length - 1) + int(sv[S_MAX_STEPS_PER_S] * (t[i0 + length - 1] - t[i0]))
@@ -354,8 +375,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             k0 -= 1
         t_start = t[k0]
         if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
-            r = pm[k0]
-            p = pm[k0]
+            r = p_atm + (pm[k0] - p_atm - cal_o) / cal_g if calibrated else pm[k0]
+            p = r
         # a gap before the warm-up's first sample longer than the warm-up (a triggered
         # recording's pre-trigger command, held from 10 s back): start 5 settling times
         # before the window, not at the gap's start (a tube's wave grid would step
@@ -368,7 +389,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             p = p0 + lead_s * rate0
     max_steps += i0 - k0
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
-    out[0] = p0
+    out[0] = p0_read
     want_sens = sens.shape[0] > 0
     s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0 (T: or the tank's or second compartment's p)
     s_r, s_v = 1.0, 0.0  # d(reading, its rate)/dp0
@@ -702,7 +723,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             else:
                 spool = cmd
         if k >= i0:
-            out[k + 1 - i0] = r if reading else p
+            value = r if reading else p
+            out[k + 1 - i0] = p_atm + cal_g * (value - p_atm) + cal_o if calibrated else value
             if want_sens:
                 sens[k + 1 - i0] = s_r if reading else s_p0
     carry[0] = temp

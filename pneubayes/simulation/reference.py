@@ -184,9 +184,17 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     starts at ``initial_pressure_Pa`` (its rate at ``initial_rate_Pa_per_s``) and the
     chamber at it plus the lag's group delay times ``initial_rate_Pa_per_s``. Returns
     the pressures (the reading, with a sensor lag) ``(N,)`` in Pa (and the rhs count if
-    asked).
+    asked). A miscalibrated sensor (effect ``sensor_calibration``) reads P_atm + g (p -
+    P_atm) + o: ``initial_pressure_Pa`` and ``initial_rate_Pa_per_s`` are such readings,
+    and so is every output.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
+    cal_o, cal_g = sl[S["reading_offset_Pa"]], 1.0 + sl[S["reading_gain_error"]]
+    calibrated = cal_o != 0.0 or cal_g != 1.0
+    p_atm = rig.atmospheric_pressure_Pa
+    if calibrated:  # the reading's start -> the chamber's
+        initial_pressure_Pa = p_atm + (initial_pressure_Pa - p_atm - cal_o) / cal_g
+        initial_rate_Pa_per_s = initial_rate_Pa_per_s / cal_g
     if sl[S["wave_length_m"]] > 0:
         raise ValueError("reference_simulate: the transmission-line tube (tube_delay form "
                          "'wave') is a delay system this ODE reference does not solve; its "
@@ -267,4 +275,6 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             nfev += sol.nfev
             y = sol.y[:, -1]
         out[k + 1] = y[read]
+    if calibrated:
+        out = p_atm + cal_g * (out - p_atm) + cal_o
     return (out, nfev) if return_stats else out

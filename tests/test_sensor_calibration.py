@@ -1,0 +1,143 @@
+"""A miscalibrated sensor (effect ``sensor_calibration``): the reading P_atm + g (p -
+P_atm) + o, against its limits (full exhaust reads P_atm + o, full inlet the supply
+through the sensor), conservation, the reference solver, finite differences and the
+bench that plants it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pneubayes.bench import BenchConfig, run_bench
+from pneubayes.effects import SensorCalibration, make_effect
+from pneubayes.errors import SimulationError
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    simulate,
+    simulate_windows,
+    simulate_windows_sensitivity,
+)
+from pneubayes.simulation.reference import reference_simulate
+
+P_ATM, P_SUP = 101325.0, 551325.0
+RANGE = P_SUP - P_ATM
+CAL = {"reading_offset_Pa": 7000.0, "reading_gain_error": -0.04}
+BOTH = Model([make_effect("sensor_calibration", form="offset_gain")])
+
+
+def _params(volume=2.4e-6, **extra):
+    params = valve_preset("valve1").parameters()
+    params["dead_volume_m3"] = volume
+    params.update(extra)
+    return params
+
+
+def _steps(hand, seed, n, dt, **kw):
+    t = np.arange(n) * dt
+    u = hand.random_steps(np.random.default_rng(seed), n, dt, **kw)
+    return Inputs(t, u, hand.moving_position(t, freq=3.0), hand.fluctuating_supply(t))
+
+
+def test_a_neutral_calibration_is_exactly_no_calibration(rig, hand):
+    inputs = _steps(hand, 3, 301, 1e-3, hold_s=(0.01, 0.05))
+    solver = SolverConfig.standard()
+    plain = simulate(Model(), _params(), inputs, rig, 2e5, solver).pressure_Pa
+    neutral = simulate(BOTH, _params(reading_offset_Pa=0.0, reading_gain_error=0.0), inputs,
+                       rig, 2e5, solver).pressure_Pa
+    assert np.array_equal(plain, neutral)
+
+
+def test_full_exhaust_reads_atmosphere_plus_the_offset_and_full_inlet_the_supply(
+        rig, make_inputs):
+    """The limits read through the sensor (valve maps without leakage offsets): a full
+    vent settles at P_atm + o, a full fill at P_atm + g (P_s - P_atm) + o; all the way
+    the reading is the uncalibrated chamber's, read."""
+    n = 2001
+    t = np.arange(n) * 1e-3
+    solver = SolverConfig.standard()
+    params = _params(inlet_offset_m2=0.0, exhaust_offset_m2=0.0)
+    g, o = 1 + CAL["reading_gain_error"], CAL["reading_offset_Pa"]
+    for command, end in ((-5.0, P_ATM + o), (5.0, P_ATM + g * RANGE + o)):
+        inputs = make_inputs(t, np.full(n, command))
+        true = simulate(Model(), params, inputs, rig, 3e5, solver).pressure_Pa[0]
+        start = float(SensorCalibration.read(3e5, CAL, P_ATM))  # the same chamber, read
+        got = simulate(BOTH, {**params, **CAL}, inputs, rig, start, solver).pressure_Pa[0]
+        assert got[0] == start
+        np.testing.assert_allclose(got, SensorCalibration.read(true, CAL, P_ATM), rtol=0,
+                                   atol=1e-6 * RANGE)
+        assert abs(got[-1] - end) < 1e-4 * RANGE
+
+
+def test_a_closed_chamber_keeps_its_reading(rig, closable_params, make_inputs):
+    """Both ports shut, no leak: whatever the calibration, the reading stays at the
+    measured start (the chamber holds the pressure it stands for)."""
+    n = 201
+    inputs = make_inputs(np.arange(n) * 1e-3, np.zeros(n))
+    got = simulate(BOTH, dict(closable_params, **CAL), inputs, rig, 2.5e5,
+                   SolverConfig.standard()).pressure_Pa[0]
+    assert np.all(got == got[0])
+    assert abs(got[0] - 2.5e5) < 1e-9 * 2.5e5
+
+
+@pytest.mark.parametrize("volume", [2.4e-6, 1e-7])
+def test_the_calibrated_reading_agrees_with_the_reference_solver(rig, hand, volume):
+    inputs = _steps(hand, 5, 301, 1e-3, hold_s=(0.01, 0.05))
+    model = Model([make_effect("sensor_lag"),
+                   make_effect("sensor_calibration", form="offset_gain")])
+    params = _params(volume, sensor_time_constant_s=1e-3, **CAL)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10,
+                             initial_rate_Pa_per_s=-3e5)
+    got = simulate_windows(model, params, inputs, rig, np.array([0]), inputs.n_samples,
+                           np.array([2e5]), SolverConfig.standard(),
+                           initial_rate_Pa_per_s=-3e5)[0, 0]
+    assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
+    # the calibration matters here: without it the reading differs by far more
+    plain = simulate_windows(Model(["sensor_lag"]), _params(volume, sensor_time_constant_s=1e-3),
+                             inputs, rig, np.array([0]), inputs.n_samples, np.array([2e5]),
+                             SolverConfig.standard(), initial_rate_Pa_per_s=-3e5)[0, 0]
+    assert np.max(np.abs(plain - ref)) > 10 * np.max(np.abs(got - ref))
+
+
+def test_the_start_sensitivity_is_the_readings(rig, hand):
+    """d(reading)/d(measured start), from the kernel, against central differences."""
+    inputs = _steps(hand, 9, 201, 1e-3, hold_s=(0.01, 0.05))
+    params = _params(**CAL)
+    starts, p0 = np.array([0, 50]), np.array([2e5, 3e5])
+    tight = SolverConfig(rtol=1e-10, atol_Pa=1e-5, atol_K=1e-7, max_step_s=1e-3,
+                         min_step_s=1e-14, max_steps_per_s=5e6)
+    _, sens = simulate_windows_sensitivity(BOTH, params, inputs, rig, starts, 100, p0, tight)
+    h = 10.0
+    up = simulate_windows(BOTH, params, inputs, rig, starts, 100, p0 + h, tight)
+    down = simulate_windows(BOTH, params, inputs, rig, starts, 100, p0 - h, tight)
+    np.testing.assert_allclose(sens[0], (up - down)[0] / (2 * h), atol=2e-3)
+
+
+def test_a_start_the_calibration_reads_below_vacuum_fails_clearly(rig, make_inputs):
+    n = 11
+    inputs = make_inputs(np.arange(n) * 1e-3, np.zeros(n))
+    with pytest.raises(SimulationError, match="calibration"):
+        simulate(BOTH, _params(reading_offset_Pa=40_000.0, reading_gain_error=0.0), inputs,
+                 rig, 30_000.0, SolverConfig.standard())
+
+
+def test_the_bench_plants_the_calibration_in_the_reading(tmp_path):
+    """A chamber at rest reads P_atm + o; the recording is the uncalibrated one read
+    through the sensor (the same seed draws the same noise and commands)."""
+    kw = dict(protocol="fixed", duration_s=0.3, seed=4, ranges_V=(3.0,), positions=(0.5,))
+    truth = {"reading_offset_Pa": 6000.0, "reading_gain_error": 0.05}
+    cal = BenchConfig("AIR37", "valve1", (make_effect("sensor_calibration",
+                                                      form="offset_gain"),),
+                      overrides=truth, **kw)
+    res = run_bench(cal, tmp_path / "cal")
+    plain = run_bench(BenchConfig("AIR37", "valve1", (), **kw), tmp_path / "plain")
+    got = read_recording(res.recordings[0])
+    want = read_recording(plain.recordings[0])
+    # noise is added after the sensor, so the difference is the calibration alone
+    read = SensorCalibration.read(want.pressure_Pa, truth, P_ATM)
+    assert np.max(np.abs(got.pressure_Pa - read)) < 0.1 + 0.05 * 500.0 * 6
+    assert abs(got.pressure_Pa[0] - (P_ATM + 6000.0)) < 4 * 500.0
+    assert res.truth["parameters"]["reading_offset_Pa"] == 6000.0
