@@ -141,3 +141,18 @@ def test_the_bench_plants_the_calibration_in_the_reading(tmp_path):
     assert np.max(np.abs(got.pressure_Pa - read)) < 0.1 + 0.05 * 500.0 * 6
     assert abs(got.pressure_Pa[0] - (P_ATM + 6000.0)) < 4 * 500.0
     assert res.truth["parameters"]["reading_offset_Pa"] == 6000.0
+
+
+def test_the_bench_reads_a_realistic_plant_through_the_calibration(tmp_path):
+    """With a realistic form the truth comes from the independent plant, which knows no
+    calibration: the bench reads its pressure through the sensor all the same."""
+    from pneubayes.bench.forms import forms_from_names
+
+    kw = dict(protocol="fixed", duration_s=0.3, seed=4, ranges_V=(3.0,), positions=(0.5,),
+              forms=forms_from_names(["valve_deadzone"], "AIR37"))
+    cal = run_bench(BenchConfig("AIR37", "valve1", (make_effect("sensor_calibration"),), **kw),
+                    tmp_path / "cal")
+    plain = run_bench(BenchConfig("AIR37", "valve1", (), **kw), tmp_path / "plain")
+    diff = (read_recording(cal.recordings[0]).pressure_Pa
+            - read_recording(plain.recordings[0]).pressure_Pa)
+    assert np.allclose(diff, 5000.0, atol=0.11)  # the bench default offset, 0.1-Pa logging
