@@ -3,16 +3,17 @@ saved results (``make paper``).
 
     python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
     python experiments/make_paper.py --assemble-only     # only re-assemble saved results
-    python experiments/make_paper.py --assemble-only --only real   # one section (mpc, blind)
+    python experiments/make_paper.py --assemble-only --only real   # one section (mpc, blind,
+                                                                   # calibration)
     python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
 
 Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
 (one shared study), ``fig12b_deadzone.py``, ``supply_study.py`` and
 ``identification.py`` (the emcee posterior and prediction bands: skipped when its
-``report.json`` exists), the real-data experiments and ``mpc_tracking.py`` (skipped
-when their results exist). The blind discovery set (``blind_study.py``) is run once by
-hand into ``OUT/blind`` and only reported here. Every study cell is cached, so a second
-run only assembles.
+``report.json`` exists), the real-data experiments, ``calibration_study.py`` and
+``mpc_tracking.py`` (skipped when their results exist). The blind discovery set
+(``blind_study.py``) is run once by hand into ``OUT/blind`` and only reported here.
+Every study cell is cached, so a second run only assembles.
 The report is ``PAPER/report.md`` with figures copied to ``PAPER/figures``; every
 table and figure names the result file, study, seeds, git revision(s) and package
 versions that made it. Nothing is computed during assembly.
@@ -33,6 +34,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import blind_study  # noqa: E402
+import calibration_study  # noqa: E402
 import fig11_volume  # noqa: E402
 import fig12a_leak  # noqa: E402
 import fig12b_deadzone  # noqa: E402
@@ -86,6 +88,19 @@ def run_all(args) -> dict[str, float]:
             print(f"make_paper: {name} (real recordings) ...", flush=True)
             mod.main(["--out", str(folder)] + (["--smoke"] if args.smoke and smokes else []))
             times[name] = time.perf_counter() - t0
+    calib = Path(args.out) / ("calibration-smoke" if args.smoke else "calibration")
+    if not (calib / "summary.json").exists():
+        t0 = time.perf_counter()
+        print("make_paper: calibration_study (sensor calibration searched) ...", flush=True)
+        calibration_study.main(["--out", str(calib)] + (
+            ["--rigs", "AIR37:valve1", "--cases", "offset,none"] if args.smoke else []))
+        times["calibration_study"] = time.perf_counter() - t0
+    folder = Path(args.out) / "real_gtdynamics_calibration"
+    if not args.smoke and not (folder / "real_gtdynamics.json").exists():
+        t0 = time.perf_counter()
+        print("make_paper: real_gtdynamics --calibration ...", flush=True)
+        real_gtdynamics.main(["--out", str(folder), "--calibration"])
+        times["real_gtdynamics_calibration"] = time.perf_counter() - t0
     mpc = Path(args.out) / ("mpc_tracking-smoke" if args.smoke else "mpc_tracking")
     if not (mpc / "summary.json").exists():
         t0 = time.perf_counter()
@@ -386,6 +401,7 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
         L.append("")
     # ---------------- blind set
     L += blind_section(out, paper, smoke)
+    L += calibration_section(out, paper, smoke)
     # ---------------- real recordings
     L += real_section(out, paper, smoke)
     # ---------------- closed loop
@@ -1028,6 +1044,106 @@ def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     return L
 
 
+CALIBRATION_HEAD = "## A sensor's calibration: named where planted, and its stand-ins"
+
+
+def _verifications(path: Path, effect: str) -> list[dict]:
+    """The loop's ledger entries that verified ``effect`` in a discovery.json, each with
+    ``model``: the effects the model held then (from the ledger's adds and removes)."""
+    if not path.exists():
+        return []
+    held, out = [], []
+    for e in json.loads(path.read_text())["ledger"]:
+        if e["action"] == "add":
+            held.append(e["effect"])
+        elif e["action"] == "remove" and e["effect"] in held:
+            held.remove(e["effect"])
+        elif e.get("effect") == effect and e["action"] in ("pass", "reject"):
+            out.append({**e, "model": list(held)})
+    return out
+
+
+def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """``sensor_calibration`` with its library terms switched on
+    (``experiments/calibration_study.py`` into ``OUT/calibration``): every case, the
+    named set against the planted one, and on GTDynamics' recordings
+    (``real_gtdynamics.py --calibration`` into ``OUT/real_gtdynamics_calibration``) what
+    the loop did with it."""
+    path = out / ("calibration-smoke" if smoke else "calibration") / "summary.json"
+    L = [CALIBRATION_HEAD, ""]
+    if not path.exists():
+        return L + [f"*Missing: `{path}` (run `python experiments/calibration_study.py "
+                    f"--out {path.parent}`).*", ""]
+    doc = json.loads(path.read_text())
+    rows = [r for r in doc["results"] if "failed" not in r]
+    failed = [r for r in doc["results"] if "failed" in r]
+    planted = [r for r in rows if "sensor_calibration" in r["hidden"]]
+    controls = [r for r in rows if "sensor_calibration" not in r["hidden"]]
+    L += ["`sensor_calibration` is a pressure sensor's zero offset o and gain error g - 1 "
+          "(the reading P_atm + g (p - P_atm) + o; the chamber's physics sees p). Its "
+          "library terms are off by default: an offset reads like a leak into a closed "
+          "chamber, a gain like the supply's. Here the loop searches for it "
+          "(`--library sensor_calibration=...`) on the bench's catalogue forms: the "
+          "offset alone (5 kPa), with a 3 % gain error, and beside a laminar leak; and "
+          "on controls with no calibration planted: no effect, a laminar leak and the "
+          "supply fluctuation. Six 20-s recordings per case, from the plain model, "
+          "without the final posterior.", "",
+          "| case | rig | planted | named | held-out RMSE (Pa) | x noise | gap shrink "
+          "| offset (Pa) | gain error |",
+          "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        est = r["estimates"].get("sensor_calibration", {})
+
+        def value(name, fmt, est=est):
+            q = est.get(name)
+            if not q:
+                return "-"
+            v = q.get("median", q.get("estimate"))
+            return format(v, fmt) if v is not None else "-"
+        shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
+        L.append(f"| {r['case'].split('@')[0]} | {r['rig']} | "
+                 f"{', '.join(r['hidden']) or 'none'} | {', '.join(r['named']) or 'none'} | "
+                 f"{r['rmse_final_Pa']:.0f} | {r['rmse_final_Pa'] / r['noise_floor_Pa']:.2f} "
+                 f"| {shrink} | {value('reading_offset_Pa', '.0f')} | "
+                 f"{value('reading_gain_error', '.3f')} |")
+    right = sum(r["correct"] for r in planted)
+    clean = sum("sensor_calibration" not in r["named"] for r in controls)
+    exact = sum(r["correct"] for r in controls)
+    L += ["", f"Measured: the planted set named exactly in {right} of {len(planted)} cases "
+          f"with a calibration; in {clean} of {len(controls)} controls the calibration is "
+          f"not named ({exact} of {len(controls)} named exactly)"
+          + (f"; {len(failed)} case(s) failed: " + "; ".join(
+              f"{r['case']} ({r['failed']})" for r in failed) if failed else "") + ".", ""]
+    real = out / "real_gtdynamics_calibration" / "discovery" / "discovery.json"
+    seen = _verifications(real, "sensor_calibration")
+    if seen:
+        parts = []
+        for e in seen:
+            fit = e.get("fitted", {})
+            gain = fit.get("reading_gain_error")
+            parts.append(
+                f"beside {', '.join(e.get('model', [])) or 'the model'} it was fitted at "
+                f"an offset of {fit.get('reading_offset_Pa', float('nan')) / 1e3:.1f} kPa"
+                + (f" and a gain error of {gain:+.3f}" if gain is not None else "")
+                + f" and **{'passed' if e['action'] == 'pass' else 'was rejected'}** on the "
+                f"held-out trials ({e['heldout_rmse_before_Pa']:.0f} -> "
+                f"{e['heldout_rmse_after_Pa']:.0f} Pa, better in {e.get('windows_improved')} "
+                f"of {e.get('windows')} windows)")
+        L += ["**On GTDynamics' recordings** (the muscles read 18-24 kPa gauge at rest: an "
+              "offset or a residual pressure, undocumented), with the calibration searched: "
+              + "; ".join(parts) + ". A sensor offset would be positive there; a fitted "
+              "negative one stands in for something else, and a single offset is shared "
+              "by four muscles' sensors that need not share one.", ""]
+    prov = doc["provenance"]
+    seeds = sorted({r["seed"] for r in doc["results"] if "seed" in r})
+    L += [f"*Source: `{path}` (`experiments/calibration_study.py`, seeds "
+          f"{', '.join(map(str, seeds))}); git revision "
+          f"`{str(prov.get('git_revision'))[:7]}`"
+          + (f"; `{real}` (`experiments/real_gtdynamics.py --calibration`)" if seen else "")
+          + ".*", ""]
+    return L
+
+
 def _summary_table(cases: list[dict]) -> str:
     """The blind study's own tables (per case, then the floors per kind)."""
     return blind_study.summarise(cases)[1].rstrip("\n")
@@ -1047,7 +1163,8 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
     lines = path.read_text().split("\n")
     build, head = {"real": (real_section, "## Real recordings"),
                  "mpc": (mpc_section, MPC_HEAD),
-                 "blind": (blind_section, BLIND_HEAD)}[which]
+                 "blind": (blind_section, BLIND_HEAD),
+                 "calibration": (calibration_section, CALIBRATION_HEAD)}[which]
     new = build(out, paper, smoke)
     if head in lines:
         i = lines.index(head)
@@ -1055,7 +1172,8 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
                  len(lines))
     else:  # a new section goes where assemble() puts it: before the next one present
         claims_head = "## The paper's claims, checked on our data"
-        after = (["## Real recordings"] if which == "blind" else []) + [claims_head]
+        after = (["## Real recordings"] if which in ("blind", "calibration") else []) \
+            + [claims_head]
         before = next((h for h in after if h in lines), None)
         i = j = lines.index(before) if before else len(lines)
     write_text_atomic(path, "\n".join(lines[:i] + new + lines[j:]))
@@ -1069,10 +1187,10 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
-    ap.add_argument("--only", choices=["real", "mpc", "blind"], default=None,
+    ap.add_argument("--only", choices=["real", "mpc", "blind", "calibration"], default=None,
                     help="with --assemble-only: rewrite only this section of an existing "
                          "report (real: the real recordings; mpc: the closed loop; blind: "
-                         "the blind discovery set)")
+                         "the blind discovery set; calibration: the sensor calibration)")
     args = ap.parse_args(argv)
     if args.only:
         if not args.assemble_only:

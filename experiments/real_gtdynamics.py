@@ -1,6 +1,7 @@
 """Real recordings: the GTDynamics jumping robot's muscle fills, plain model -> discovery.
 
     python experiments/real_gtdynamics.py --out results/real_gtdynamics [--smoke]
+        [--calibration]
 
 Data: ``data/real/gtdynamics/`` (``pneubayes import gtdynamics`` of the five shared
 trials; four muscles each, 500 Hz, raw psi gauge; licence file beside them). The rig
@@ -34,8 +35,10 @@ import numpy as np
 from real_common import plain_fit, prediction_figure
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.discovery.library import LibraryGrid
 from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.effects import SensorCalibration
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -75,13 +78,18 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True)
     ap.add_argument("--data", default=str(DATA))
     ap.add_argument("--smoke", action="store_true", help="short sampler (a check it runs)")
+    ap.add_argument("--calibration", action="store_true",
+                    help="let the loop search for sensor_calibration too (its terms are off "
+                         "by default; the muscles read 18-24 kPa gauge at rest)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     train, held = load(Path(args.data))
     sampler = (SamplerSettings(n_walkers=16, max_steps=300, seed=SEED) if args.smoke
                else SamplerSettings(seed=SEED, max_steps=MAX_STEPS))
+    grid = LibraryGrid({"sensor_calibration": SensorCalibration.opt_in_strengths}
+                       if args.calibration else {})
     settings = DiscoverySettings(
-        holdout_recordings=len(held), seed=SEED,
+        holdout_recordings=len(held), seed=SEED, grid=grid,
         fit=FitSettings(horizon_s=HORIZON_S, stride_s=HORIZON_S, sampler=sampler,
                         supply_cutoff_Hz=None))
     doc = run_discover(train + held, settings, out / "discovery",
@@ -116,7 +124,7 @@ def main(argv=None) -> int:
                                 - ATMOSPHERE_PA)],
         "posterior_predictive": predictive,
         "figures": figs,
-        "seed": SEED, "smoke": args.smoke,
+        "seed": SEED, "smoke": args.smoke, "calibration_searched": args.calibration,
         "provenance": provenance(),
     }
     write_json_atomic(out / "real_gtdynamics.json", result)

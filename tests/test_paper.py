@@ -305,3 +305,53 @@ def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
     assert "1 of 2 additions meet it" in text
     assert "b01's `spool_lag`, 3 Pa against the 5 Pa asked" in text
     assert "median 6 min, longest 10 min" in text
+
+
+def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledger(tmp_path):
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    (paper / "report.md").write_text("# R\n\n## Table III\n\nkept\n\n## Real recordings\n\n"
+                                     "r\n\n## The paper's claims, checked on our data\n\nc\n")
+    out = tmp_path / "out"
+    assert any("*Missing: `" in line
+               for line in make_paper.calibration_section(out, paper, smoke=False))
+
+    def result(case, hidden, named, final, offset=None):
+        est = {} if offset is None else {
+            "sensor_calibration": {"reading_offset_Pa": {"estimate": offset}}}
+        return {"case": f"{case}@AIR37-valve1-s0", "rig": "AIR37", "valve": "valve1",
+                "seed": 0, "hidden": hidden, "named": named,
+                "correct": sorted(named) == sorted(hidden), "rmse_base_Pa": 3000.0,
+                "rmse_final_Pa": final, "noise_floor_Pa": 500.0, "gap_shrink": 0.9,
+                "estimates": est, "wall_time_s": 100.0}
+
+    results = [result("offset", ["sensor_calibration"], ["sensor_calibration"], 510.0, 4987.0),
+               result("leak", ["cylinder_leak"], ["sensor_calibration"], 700.0, -2000.0),
+               result("none", [], [], 505.0),
+               {"case": "supply@AIR37-valve1-s0", "failed": "ValueError: boom"}]
+    (out / "calibration").mkdir(parents=True)
+    (out / "calibration" / "summary.json").write_text(json.dumps({
+        "results": results, "provenance": {"git_revision": "abcdef0123"}}))
+    real = out / "real_gtdynamics_calibration" / "discovery"
+    real.mkdir(parents=True)
+    (real / "discovery.json").write_text(json.dumps({"ledger": [
+        {"action": "search"}, {"action": "add", "effect": "spool_lag"},
+        {"action": "add", "effect": "tube_delay"}, {"action": "remove", "effect": "spool_lag"},
+        {"action": "reject", "effect": "sensor_calibration",
+         "fitted": {"reading_offset_Pa": -22269.0, "reading_gain_error": -0.107},
+         "heldout_rmse_before_Pa": 7874.2, "heldout_rmse_after_Pa": 8160.4,
+         "windows_improved": 4, "windows": 16}]}))
+    assert make_paper.main(["--out", str(out), "--paper", str(paper), "--assemble-only",
+                            "--only", "calibration"]) == 0
+    text = (paper / "report.md").read_text()
+    assert text.index("kept") < text.index(make_paper.CALIBRATION_HEAD) < text.index("## Real")
+    assert "| offset | AIR37 | sensor_calibration | sensor_calibration | 510 | 1.02 |" in text
+    assert "| 4987 |" in text
+    # one planted case named; the leak control names the calibration (a stand-in)
+    assert "named exactly in 1 of 1 cases" in text
+    assert "in 1 of 2 controls the calibration is not named (1 of 2 named exactly)" in text
+    assert "supply@AIR37-valve1-s0 (ValueError: boom)" in text
+    assert ("beside tube_delay it was fitted at an offset of -22.3 kPa and a gain error of "
+            "-0.107 and **was rejected** on the held-out trials (7874 -> 8160 Pa, better "
+            "in 4 of 16 windows)") in text
+    assert "`abcdef0`" in text
