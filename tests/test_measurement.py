@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from pneubayes.effects import make_effect
 from pneubayes.io import prepare_recording, read_recording
 from pneubayes.model import Model
 from pneubayes.physics.sensor_filter import PressureFilter
@@ -68,12 +69,16 @@ def _oversampled_reading(model, params, inputs, rig, starts, length, p0, solver,
     return signal.sosfiltfilt(sos, out, axis=-1, padtype="odd")[..., ::m]
 
 
+@pytest.mark.parametrize("calibration", [{}, {"reading_offset_Pa": 20_000.0,
+                                               "reading_gain_error": -0.15}])
 def test_reading_matches_an_oversampled_filtered_reference(rig, base_params, step_command,
-                                                           make_inputs):
+                                                           make_inputs, calibration):
     """A delayed random-step command on a 2.4e-6 m^3 chamber: the corners are rounded as
-    the filter run on a 16 kHz simulation rounds them, to a tenth of the effect."""
-    model = Model(["tube_delay"])
-    params = {**base_params, "tube_delay_s": 0.0031}
+    the filter run on a 16 kHz simulation rounds them, to a tenth of the effect; read
+    through a miscalibrated sensor too (its corners' jumps through its gain)."""
+    model = Model(["tube_delay"] + (
+        [make_effect("sensor_calibration", form="offset_gain")] if calibration else []))
+    params = {**base_params, "tube_delay_s": 0.0031, **calibration}
     params = {k: v for k, v in params.items() if k in model.parameter_names}
     t = np.arange(4001) * 1e-3
     inputs = make_inputs(t, step_command(3, t.size, 1e-3, hold_s=(0.01, 0.08)),

@@ -12,7 +12,8 @@ A spool lag or an acoustic line makes the ports' flow into the chamber continuou
 jump to round), so those parameter sets are read unchanged; so is a reading that
 already lags the chamber (effect ``sensor_lag``), which rounds every corner itself.
 With heat transfer the jump is taken at the supply temperature (the chamber's is not
-tracked here).
+tracked here). A miscalibrated sensor (effect ``sensor_calibration``) reads the jump
+through its gain, at the chamber pressure behind the reading.
 
 A window starts from a measured reading. A corner within the filter's reach of the start
 (±2.7 ms at 1 kHz) is already in that reading and is counted again near the start: in
@@ -85,14 +86,20 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     b_idx = np.arange(rows.size)[:, None]
     p = ((1.0 - frac) * out[rows[b_idx], w, g - 1 - s0]
          + frac * out[rows[b_idx], w, g - s0])
+    # a miscalibrated sensor (effect sensor_calibration): the chamber's pressure behind
+    # the reading, and the jump read through the sensor's gain
+    p_atm = rig.atmospheric_pressure_Pa
+    cal_o = slots[rows, S["reading_offset_Pa"]][:, None]
+    cal_g = 1.0 + slots[rows, S["reading_gain_error"]][:, None]
+    p = p_atm + (p - p_atm - cal_o) / cal_g
     x = np.interp(tau, t, inputs.position_m)
     ps = np.interp(tau, t, inputs.supply_pressure_Pa)
     sl = slots[rows].T[:, :, None]  # (N_SLOTS, b, 1): broadcasts over the corners
     # the valve command's corners (a separate exhaust valve's command held as at j)
     ue = inputs.exhaust_command
     ue_j = None if ue is None else np.broadcast_to(ue[j], p.shape)
-    jump = (_port_rate(sl, rig, p, u[j], x, ps, ue_j)
-            - _port_rate(sl, rig, p, u[j - 1], x, ps, ue_j))  # (b, P), Pa/s
+    jump = cal_g * (_port_rate(sl, rig, p, u[j], x, ps, ue_j)
+                    - _port_rate(sl, rig, p, u[j - 1], x, ps, ue_j))  # (b, P), Pa/s
     # the samples within the filter's reach of each corner
     dt_min = float(np.min(np.diff(t)))
     span = int(np.ceil((reach_hi - reach_lo) / dt_min)) + 2
