@@ -14,7 +14,9 @@ loop from the plain model on the discovery study's six 20-s recordings per case
 - controls, no calibration planted: no effect, a laminar leak (the offset's stand-in
   risk) and the supply fluctuation (the gain's).
 
-A case is correct when the named set is the planted set. Every case is cached in
+No pressure filter is declared (the bench's zero-phase 1-kHz DAQ filter rounds the
+corners by tens of Pa; the same in every case). A case is correct when the named set is
+the planted set. Every case is cached in
 OUT/cases/NAME.json (an interrupted study resumes); OUT/summary.json holds the table
 with the seeds, the revision and the versions.
 """

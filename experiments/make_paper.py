@@ -1087,7 +1087,8 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "offset alone (5 kPa), with a 3 % gain error, and beside a laminar leak; and "
           "on controls with no calibration planted: no effect, a laminar leak and the "
           "supply fluctuation. Six 20-s recordings per case, from the plain model, "
-          "without the final posterior.", "",
+          "without the final posterior; the bench's zero-phase DAQ filter is not "
+          "declared.", "",
           "| case | rig | planted | named | held-out RMSE (Pa) | x noise | gap shrink "
           "| offset (Pa) | gain error |",
           "|---|---|---|---|---|---|---|---|---|"]
