@@ -1077,8 +1077,10 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     doc = json.loads(path.read_text())
     rows = [r for r in doc["results"] if "failed" not in r]
     failed = [r for r in doc["results"] if "failed" in r]
-    planted = [r for r in rows if "sensor_calibration" in r["hidden"]]
-    controls = [r for r in rows if "sensor_calibration" not in r["hidden"]]
+    searched = [r for r in rows if r.get("searched", True)]
+    planted = [r for r in searched if "sensor_calibration" in r["hidden"]]
+    controls = [r for r in searched if "sensor_calibration" not in r["hidden"]]
+    unsearched = [r for r in rows if not r.get("searched", True)]
     L += ["`sensor_calibration` is a pressure sensor's zero offset o and gain error g - 1 "
           "(the reading P_atm + g (p - P_atm) + o; the chamber's physics sees p). Its "
           "library terms are off by default: an offset reads like a leak into a closed "
@@ -1089,9 +1091,9 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "supply fluctuation. Six 20-s recordings per case, from the plain model, "
           "without the final posterior; the bench's zero-phase DAQ filter is not "
           "declared.", "",
-          "| case | rig | planted | named | held-out RMSE (Pa) | x noise | gap shrink "
-          "| offset (Pa) | gain error |",
-          "|---|---|---|---|---|---|---|---|---|"]
+          "| case | rig | searched | planted | named | held-out RMSE (Pa) | x noise "
+          "| gap shrink | offset (Pa) | gain error |",
+          "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         est = r["estimates"].get("sensor_calibration", {})
 
@@ -1103,6 +1105,7 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
             return format(v, fmt) if v is not None else "-"
         shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
         L.append(f"| {r['case'].split('@')[0]} | {r['rig']} | "
+                 f"{'yes' if r.get('searched', True) else 'no'} | "
                  f"{', '.join(r['hidden']) or 'none'} | {', '.join(r['named']) or 'none'} | "
                  f"{r['rmse_final_Pa']:.0f} | {r['rmse_final_Pa'] / r['noise_floor_Pa']:.2f} "
                  f"| {shrink} | {value('reading_offset_Pa', '.0f')} | "
@@ -1115,6 +1118,12 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           f"not named ({exact} of {len(controls)} named exactly)"
           + (f"; {len(failed)} case(s) failed: " + "; ".join(
               f"{r['case']} ({r['failed']})" for r in failed) if failed else "") + ".", ""]
+    if unsearched:
+        L += ["Not searched (the loop's defaults), where a calibration is planted: "
+              + "; ".join(f"{r['case'].split('@')[0]} on {r['rig']} named "
+                          f"{', '.join(r['named']) or 'nothing'}, ending at "
+                          f"{r['rmse_final_Pa'] / r['noise_floor_Pa']:.2f} x the noise floor"
+                          for r in unsearched) + ".", ""]
     real = out / "real_gtdynamics_calibration" / "discovery" / "discovery.json"
     seen = _verifications(real, "sensor_calibration")
     if seen:

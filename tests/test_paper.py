@@ -328,6 +328,8 @@ def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledge
     results = [result("offset", ["sensor_calibration"], ["sensor_calibration"], 510.0, 4987.0),
                result("leak", ["cylinder_leak"], ["sensor_calibration"], 700.0, -2000.0),
                result("none", [], [], 505.0),
+               {**result("offset", ["sensor_calibration"], ["cylinder_leak"], 1500.0),
+                "case": "offset@AIR37-valve1-s0~off", "searched": False},
                {"case": "supply@AIR37-valve1-s0", "failed": "ValueError: boom"}]
     (out / "calibration").mkdir(parents=True)
     (out / "calibration" / "summary.json").write_text(json.dumps({
@@ -345,7 +347,10 @@ def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledge
                             "--only", "calibration"]) == 0
     text = (paper / "report.md").read_text()
     assert text.index("kept") < text.index(make_paper.CALIBRATION_HEAD) < text.index("## Real")
-    assert "| offset | AIR37 | sensor_calibration | sensor_calibration | 510 | 1.02 |" in text
+    assert ("| offset | AIR37 | yes | sensor_calibration | sensor_calibration | 510 | 1.02 |"
+            in text)
+    assert ("Not searched (the loop's defaults), where a calibration is planted: offset on "
+            "AIR37 named cylinder_leak, ending at 3.00 x the noise floor.") in text
     assert "| 4987 |" in text
     # one planted case named; the leak control names the calibration (a stand-in)
     assert "named exactly in 1 of 1 cases" in text
