@@ -2,6 +2,7 @@
 where another effect is (the stand-ins it risks), with its terms switched on.
 
     python experiments/calibration_study.py --out results/calibration_study [--seeds 0]
+    python experiments/calibration_study.py --out results/calibration_study --collect
 
 ``sensor_calibration``'s library terms are off by default (its module says why: an
 offset reads like a leak into a closed chamber, a gain like the supply's). This study
@@ -27,6 +28,7 @@ with the seeds, the revision and the versions.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -93,8 +95,18 @@ def main(argv=None) -> int:
     ap.add_argument("--search", choices=("on", "off"), default="on",
                     help="off: the loop's defaults, the calibration not searched (what it "
                          "names instead where one is planted); case names end in ~off")
+    ap.add_argument("--collect", action="store_true",
+                    help="run nothing: write OUT/summary.json from every case in OUT/cases "
+                         "(cases run by several calls, e.g. other rigs or seeds)")
     args = ap.parse_args(argv)
     root = Path(args.out)
+    if args.collect:
+        paths = sorted((root / "cases").glob("*.json"))
+        if not paths:
+            ap.error(f"--collect: no cases in {root / 'cases'}")
+        results = [json.loads(p.read_text()) for p in paths]
+        _write_summary(root, results, args)
+        return 0
     cases = []
     for seed in (int(s) for s in args.seeds.split(",")):
         for rv in args.rigs.split(","):
@@ -118,12 +130,16 @@ def main(argv=None) -> int:
 
     results = cached_cases(cases, root, lambda n, c: run_case(n, *c, args, root), failed,
                            describe)
+    _write_summary(root, results, args)
+    return 0
+
+
+def _write_summary(root: Path, results: list[dict], args) -> None:
     ok = [r for r in results if "failed" not in r]
     write_json_atomic(root / "summary.json", {
         "correct": sum(r["correct"] for r in ok), "cases": len(results),
         "results": results, "config": vars(args), "provenance": provenance()})
     print(f"{sum(r['correct'] for r in ok)} of {len(results)} cases named exactly")
-    return 0
 
 
 if __name__ == "__main__":
