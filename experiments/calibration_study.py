@@ -82,7 +82,8 @@ def run_case(name, rig, valve, seed, search, args, root):
             "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
             "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1 - gap1 / gap0,
             "estimates": {e["name"]: e["parameters"] for e in doc["effects"]},
-            "wall_time_s": time.perf_counter() - t0}
+            "wall_time_s": time.perf_counter() - t0,
+            "git_revision": provenance().get("git_revision")}
 
 
 def main(argv=None) -> int:

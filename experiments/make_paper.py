@@ -1103,7 +1103,8 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                 return "-"
             v = q.get("median", q.get("estimate"))
             return format(v, fmt) if v is not None else "-"
-        shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
+        shrink = ("-" if r["gap_shrink"] is None or not r["hidden"]
+                  else f"{100 * r['gap_shrink']:.0f} %")
         L.append(f"| {r['case'].split('@')[0]} | {r['rig']} | "
                  f"{'yes' if r.get('searched', True) else 'no'} | "
                  f"{', '.join(r['hidden']) or 'none'} | {', '.join(r['named']) or 'none'} | "
@@ -1141,13 +1142,17 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                 f"of {e.get('windows')} windows)")
         L += ["**On GTDynamics' recordings** (the muscles read 18-24 kPa gauge at rest: an "
               "offset or a residual pressure, undocumented), with the calibration searched: "
-              + "; ".join(parts) + ". A sensor offset would be positive there; a fitted "
-              "negative one stands in for something else, and a single offset is shared "
-              "by four muscles' sensors that need not share one.", ""]
+              + "; ".join(parts) + ". "
+              + ("A sensor offset would be positive there (the rest reading is above "
+                 "atmospheric); a fitted negative one stands in for something else. "
+                 if any(e.get("fitted", {}).get("reading_offset_Pa", 0.0) < 0 for e in seen)
+                 else "")
+              + "One offset is shared by the four muscles' sensors, which need not share "
+              "one.", ""]
     prov = doc["provenance"]
     seeds = sorted({r["seed"] for r in doc["results"] if "seed" in r})
     L += [f"*Source: `{path}` (`experiments/calibration_study.py`, seeds "
-          f"{', '.join(map(str, seeds))}); git revision "
+          f"{', '.join(map(str, seeds))}); collected at git revision "
           f"`{str(prov.get('git_revision'))[:7]}`"
           + (f"; `{real}` (`experiments/real_gtdynamics.py --calibration`)" if seen else "")
           + ".*", ""]
