@@ -1063,6 +1063,11 @@ def _verifications(path: Path, effect: str) -> list[dict]:
     return out
 
 
+def _unsigned_zero(text: str) -> str:
+    """A formatted number that rounds to zero, without its sign ("-0.000" -> "0.000")."""
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
 def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     """``sensor_calibration`` with its library terms switched on
     (``experiments/calibration_study.py`` into ``OUT/calibration``): every case, the
@@ -1091,9 +1096,9 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "supply fluctuation. Six 20-s recordings per case, from the plain model, "
           "without the final posterior; the bench's zero-phase DAQ filter is not "
           "declared.", "",
-          "| case | rig | searched | planted | named | held-out RMSE (Pa) | x noise "
+          "| case | rig | seed | searched | planted | named | held-out RMSE (Pa) | x noise "
           "| gap shrink | offset (Pa) | gain error |",
-          "|---|---|---|---|---|---|---|---|---|---|"]
+          "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         est = r["estimates"].get("sensor_calibration", {})
 
@@ -1102,10 +1107,10 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
             if not q:
                 return "-"
             v = q.get("median", q.get("estimate"))
-            return format(v, fmt) if v is not None else "-"
+            return "-" if v is None else _unsigned_zero(format(v, fmt))
         shrink = ("-" if r["gap_shrink"] is None or not r["hidden"]
-                  else f"{100 * r['gap_shrink']:.0f} %")
-        L.append(f"| {r['case'].split('@')[0]} | {r['rig']} | "
+                  else _unsigned_zero(f"{100 * r['gap_shrink']:.0f}") + " %")
+        L.append(f"| {r['case'].split('@')[0]} | {r['rig']}/{r['valve']} | {r['seed']} | "
                  f"{'yes' if r.get('searched', True) else 'no'} | "
                  f"{', '.join(r['hidden']) or 'none'} | {', '.join(r['named']) or 'none'} | "
                  f"{r['rmse_final_Pa']:.0f} | {r['rmse_final_Pa'] / r['noise_floor_Pa']:.2f} "

@@ -347,8 +347,10 @@ def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledge
                             "--only", "calibration"]) == 0
     text = (paper / "report.md").read_text()
     assert text.index("kept") < text.index(make_paper.CALIBRATION_HEAD) < text.index("## Real")
-    assert ("| offset | AIR37 | yes | sensor_calibration | sensor_calibration | 510 | 1.02 |"
-            in text)
+    assert ("| offset | AIR37/valve1 | 0 | yes | sensor_calibration | sensor_calibration | 510 "
+            "| 1.02 |") in text
+    assert make_paper._unsigned_zero("-0.000") == "0.000"
+    assert make_paper._unsigned_zero("-0.001") == "-0.001"
     assert ("Not searched (the loop's defaults), where a calibration is planted: offset on "
             "AIR37 named cylinder_leak, ending at 3.00 x the noise floor.") in text
     assert "| 4987 |" in text
