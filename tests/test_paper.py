@@ -362,3 +362,26 @@ def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledge
             "-0.107 and **was rejected** on the held-out trials (7874 -> 8160 Pa, better "
             "in 4 of 16 windows)") in text
     assert "`abcdef0`" in text
+
+
+def test_calibration_study_collects_the_cases_of_several_calls_and_names_bad_cases(tmp_path):
+    """``--collect`` writes one summary from every cached case (other rigs, seeds, the
+    search off) and runs nothing; an unknown case is a usage error naming it."""
+    import calibration_study
+
+    cases = tmp_path / "cases"
+    cases.mkdir()
+    for name, correct in (("offset@AIR37-valve1-s0", True), ("none@PRN-valve1-s1", True),
+                          ("offset@AIR37-valve1-s0~off", False)):
+        (cases / f"{name}.json").write_text(json.dumps({"case": name, "correct": correct}))
+    (cases / "leak@SMC-valve2-s0.json").write_text(json.dumps(
+        {"case": "leak@SMC-valve2-s0", "failed": "ValueError: boom"}))
+    assert calibration_study.main(["--out", str(tmp_path), "--collect"]) == 0
+    doc = json.loads((tmp_path / "summary.json").read_text())
+    assert doc["cases"] == 4 and doc["correct"] == 2
+    assert {r["case"] for r in doc["results"]} >= {"leak@SMC-valve2-s0", "none@PRN-valve1-s1"}
+    with pytest.raises(SystemExit):
+        calibration_study.main(["--out", str(tmp_path / "empty"), "--collect"])
+    with pytest.raises(SystemExit):
+        calibration_study.main(["--out", str(tmp_path / "x"), "--cases", "offset,nothing"])
+    assert not (tmp_path / "x").exists()
