@@ -50,6 +50,10 @@ import numpy as np
 from numba import njit, prange
 
 from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX, TABLE_MAX_POINTS
+from pneubayes.physics.calibration import (
+    pressure_behind_reading_scalar,
+    sensor_reading_scalar,
+)
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
 from pneubayes.simulation.chamber import chamber_rhs
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
@@ -322,7 +326,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     calibrated = cal_o != 0.0 or cal_g != 1.0
     p0_read = p0
     if calibrated:
-        p0 = p_atm + (p0 - p_atm - cal_o) / cal_g
+        p0 = pressure_behind_reading_scalar(p0, p_atm, cal_o, cal_g)
         rate0 = rate0 / cal_g
         if not p0 > 0.0:
             return CALIBRATION
@@ -375,7 +379,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             k0 -= 1
         t_start = t[k0]
         if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
-            r = p_atm + (pm[k0] - p_atm - cal_o) / cal_g if calibrated else pm[k0]
+            r = (pressure_behind_reading_scalar(pm[k0], p_atm, cal_o, cal_g) if calibrated
+                 else pm[k0])
             p = r
         # a gap before the warm-up's first sample longer than the warm-up (a triggered
         # recording's pre-trigger command, held from 10 s back): start 5 settling times
@@ -724,7 +729,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 spool = cmd
         if k >= i0:
             value = r if reading else p
-            out[k + 1 - i0] = p_atm + cal_g * (value - p_atm) + cal_o if calibrated else value
+            out[k + 1 - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g) if calibrated
+                               else value)
             if want_sens:
                 sens[k + 1 - i0] = s_r if reading else s_p0
     carry[0] = temp

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
+from pneubayes.physics.calibration import pressure_behind_reading_Pa
 from pneubayes.rig import Rig
 from pneubayes.simulation.rates import rate_terms
 
@@ -88,10 +89,9 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
          + frac * out[rows[b_idx], w, g - s0])
     # a miscalibrated sensor (effect sensor_calibration): the chamber's pressure behind
     # the reading, and the jump read through the sensor's gain
-    p_atm = rig.atmospheric_pressure_Pa
     cal_o = slots[rows, S["reading_offset_Pa"]][:, None]
     cal_g = 1.0 + slots[rows, S["reading_gain_error"]][:, None]
-    p = p_atm + (p - p_atm - cal_o) / cal_g
+    p = pressure_behind_reading_Pa(p, rig.atmospheric_pressure_Pa, cal_o, cal_g)
     x = np.interp(tau, t, inputs.position_m)
     ps = np.interp(tau, t, inputs.supply_pressure_Pa)
     sl = slots[rows].T[:, :, None]  # (N_SLOTS, b, 1): broadcasts over the corners

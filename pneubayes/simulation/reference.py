@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
+from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.tube import churchill_fre
@@ -193,7 +194,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     calibrated = cal_o != 0.0 or cal_g != 1.0
     p_atm = rig.atmospheric_pressure_Pa
     if calibrated:  # the reading's start -> the chamber's
-        initial_pressure_Pa = p_atm + (initial_pressure_Pa - p_atm - cal_o) / cal_g
+        initial_pressure_Pa = pressure_behind_reading_Pa(initial_pressure_Pa, p_atm, cal_o,
+                                                         cal_g)
         initial_rate_Pa_per_s = initial_rate_Pa_per_s / cal_g
     if sl[S["wave_length_m"]] > 0:
         raise ValueError("reference_simulate: the transmission-line tube (tube_delay form "
@@ -276,5 +278,5 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             y = sol.y[:, -1]
         out[k + 1] = y[read]
     if calibrated:
-        out = p_atm + cal_g * (out - p_atm) + cal_o
+        out = sensor_reading_Pa(out, p_atm, cal_o, cal_g)
     return (out, nfev) if return_stats else out
