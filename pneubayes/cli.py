@@ -343,27 +343,28 @@ def cmd_predict(args) -> int:
     return 0
 
 
-def _library_grid(grid_cls, entries):
+def _library_grid(entries):
     """``--library`` entries as a LibraryGrid; an unknown effect or a repeated one is an
     error naming it."""
+    from pneubayes.discovery.library import LibraryGrid
+
     names = [n for n, _ in entries]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise ValueError(f"--library: {', '.join(twice)} given more than once")
     try:
-        return grid_cls(dict(entries))
+        return LibraryGrid(dict(entries))
     except ValueError as exc:
         raise ValueError(f"--library: {exc}") from None
 
 
 def cmd_discover(args) -> int:
-    from pneubayes.discovery.library import LibraryGrid
     from pneubayes.discovery.report import run_discover
     from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 
-    grid = _library_grid(LibraryGrid, args.library)
+    grid = _library_grid(args.library)
     recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover", args.rig)
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),

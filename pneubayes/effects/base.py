@@ -122,8 +122,8 @@ class Effect(Component):
     #: may replace them).
     library_strengths: ClassVar[tuple[float, ...]] = ()
     #: For an effect the library leaves out unless asked (``library_strengths`` empty):
-    #: the strengths a :class:`~pneubayes.discovery.library.LibraryGrid` would give it
-    #: (documentation and the contract's tests; never used on their own).
+    #: the strengths to give it in a :class:`~pneubayes.discovery.library.LibraryGrid`
+    #: (the library never uses them on its own).
     opt_in_strengths: ClassVar[tuple[float, ...]] = ()
     #: Where a named effect's candidate starts when no library term of it explained the
     #: residual (parameter -> value; missing parameters start neutral).
