@@ -139,6 +139,19 @@ def fluctuating_supply(t, nominal=P_SUP, amp=15_000.0):
     return nominal + amp * (0.7 * np.sin(2 * np.pi * 1.3 * t) + 0.3 * np.sin(2 * np.pi * 7.1 * t))
 
 
+def moving_step_inputs(seed, n, dt, **kw):
+    """``n`` samples every ``dt`` s: random steps (``random_steps``'s options) on a piston
+    moving at 3 Hz with a fluctuating supply."""
+    t = np.arange(n) * dt
+    u = random_steps(np.random.default_rng(seed), n, dt, **kw)
+    return Inputs(t, u, moving_position(t, freq=3.0), fluctuating_supply(t))
+
+
+def valve1_params(volume=2.4e-6, **extra):
+    """Valve 1 of Table II with a dead volume of ``volume`` m^3 and ``extra`` values."""
+    return {**valve_preset("valve1").parameters(), "dead_volume_m3": volume, **extra}
+
+
 # ---------------------------------------------------------------- fixtures
 @pytest.fixture(scope="session")
 def rig():

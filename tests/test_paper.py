@@ -267,11 +267,18 @@ def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
     assert "No fixed margin is at least as good as `chance`" in text
 
 
-def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
+def _report_with_real_section(tmp_path):
+    """A report folder whose report.md has Table III, the real recordings and the
+    claims (a section inserted by ``--only`` goes before the real recordings)."""
     paper = tmp_path / "paper"
     paper.mkdir()
     (paper / "report.md").write_text("# R\n\n## Table III\n\nkept\n\n## Real recordings\n\n"
                                      "r\n\n## The paper's claims, checked on our data\n\nc\n")
+    return paper
+
+
+def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
+    paper = _report_with_real_section(tmp_path)
     out = tmp_path / "out"
     missing = make_paper.blind_section(out, paper, smoke=False)
     assert any("*Missing: `" in line for line in missing)
@@ -308,10 +315,7 @@ def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
 
 
 def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledger(tmp_path):
-    paper = tmp_path / "paper"
-    paper.mkdir()
-    (paper / "report.md").write_text("# R\n\n## Table III\n\nkept\n\n## Real recordings\n\n"
-                                     "r\n\n## The paper's claims, checked on our data\n\nc\n")
+    paper = _report_with_real_section(tmp_path)
     out = tmp_path / "out"
     assert any("*Missing: `" in line
                for line in make_paper.calibration_section(out, paper, smoke=False))

@@ -7,15 +7,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import moving_step_inputs, valve1_params
 
 from pneubayes.bench import BenchConfig, run_bench
 from pneubayes.effects import SensorCalibration, make_effect
 from pneubayes.errors import SimulationError
 from pneubayes.io import read_recording
 from pneubayes.model import Model
-from pneubayes.physics.valve import valve_preset
+from pneubayes.physics.calibration import (
+    pressure_behind_reading_Pa,
+    pressure_behind_reading_scalar,
+    sensor_reading_Pa,
+    sensor_reading_scalar,
+)
 from pneubayes.simulation import (
-    Inputs,
     SolverConfig,
     simulate,
     simulate_windows,
@@ -29,24 +34,35 @@ CAL = {"reading_offset_Pa": 7000.0, "reading_gain_error": -0.04}
 BOTH = Model([make_effect("sensor_calibration", form="offset_gain")])
 
 
-def _params(volume=2.4e-6, **extra):
-    params = valve_preset("valve1").parameters()
-    params["dead_volume_m3"] = volume
-    params.update(extra)
-    return params
+def _read(pressure_Pa, cal):
+    """The reading by hand: P_atm + g (p - P_atm) + o."""
+    g = 1.0 + cal.get("reading_gain_error", 0.0)
+    return P_ATM + g * (np.asarray(pressure_Pa, dtype=np.float64) - P_ATM) \
+        + cal["reading_offset_Pa"]
 
 
-def _steps(hand, seed, n, dt, **kw):
-    t = np.arange(n) * dt
-    u = hand.random_steps(np.random.default_rng(seed), n, dt, **kw)
-    return Inputs(t, u, hand.moving_position(t, freq=3.0), hand.fluctuating_supply(t))
+def test_the_calibration_maps_read_and_invert():
+    """The effect's reading and the physics maps the simulator uses, against the hand
+    formula; the pressure behind a reading is its inverse, scalar and array alike."""
+    p = np.array([P_ATM, 2e5, P_SUP])
+    g = 1.0 + CAL["reading_gain_error"]
+    r = sensor_reading_Pa(p, P_ATM, CAL["reading_offset_Pa"], g)
+    np.testing.assert_allclose(r, _read(p, CAL), rtol=1e-15)
+    np.testing.assert_allclose(SensorCalibration.read(p, CAL, P_ATM), _read(p, CAL),
+                               rtol=1e-15)
+    assert r[0] == P_ATM + CAL["reading_offset_Pa"]  # atmosphere reads P_atm + o
+    np.testing.assert_allclose(pressure_behind_reading_Pa(r, P_ATM, CAL["reading_offset_Pa"],
+                                                          g), p, rtol=1e-14)
+    assert pressure_behind_reading_scalar(float(r[1]), P_ATM, CAL["reading_offset_Pa"],
+                                          g) == pytest.approx(2e5, rel=1e-14)
+    assert sensor_reading_scalar(2e5, P_ATM, 0.0, 1.0) == 2e5
 
 
-def test_a_neutral_calibration_is_exactly_no_calibration(rig, hand):
-    inputs = _steps(hand, 3, 301, 1e-3, hold_s=(0.01, 0.05))
+def test_a_neutral_calibration_is_exactly_no_calibration(rig):
+    inputs = moving_step_inputs(3, 301, 1e-3, hold_s=(0.01, 0.05))
     solver = SolverConfig.standard()
-    plain = simulate(Model(), _params(), inputs, rig, 2e5, solver).pressure_Pa
-    neutral = simulate(BOTH, _params(reading_offset_Pa=0.0, reading_gain_error=0.0), inputs,
+    plain = simulate(Model(), valve1_params(), inputs, rig, 2e5, solver).pressure_Pa
+    neutral = simulate(BOTH, valve1_params(reading_offset_Pa=0.0, reading_gain_error=0.0), inputs,
                        rig, 2e5, solver).pressure_Pa
     assert np.array_equal(plain, neutral)
 
@@ -59,15 +75,15 @@ def test_full_exhaust_reads_atmosphere_plus_the_offset_and_full_inlet_the_supply
     n = 2001
     t = np.arange(n) * 1e-3
     solver = SolverConfig.standard()
-    params = _params(inlet_offset_m2=0.0, exhaust_offset_m2=0.0)
+    params = valve1_params(inlet_offset_m2=0.0, exhaust_offset_m2=0.0)
     g, o = 1 + CAL["reading_gain_error"], CAL["reading_offset_Pa"]
     for command, end in ((-5.0, P_ATM + o), (5.0, P_ATM + g * RANGE + o)):
         inputs = make_inputs(t, np.full(n, command))
         true = simulate(Model(), params, inputs, rig, 3e5, solver).pressure_Pa[0]
-        start = float(SensorCalibration.read(3e5, CAL, P_ATM))  # the same chamber, read
+        start = float(_read(3e5, CAL))  # the same chamber, read
         got = simulate(BOTH, {**params, **CAL}, inputs, rig, start, solver).pressure_Pa[0]
         assert got[0] == start
-        np.testing.assert_allclose(got, SensorCalibration.read(true, CAL, P_ATM), rtol=0,
+        np.testing.assert_allclose(got, _read(true, CAL), rtol=0,
                                    atol=1e-6 * RANGE)
         assert abs(got[-1] - end) < 1e-4 * RANGE
 
@@ -84,11 +100,11 @@ def test_a_closed_chamber_keeps_its_reading(rig, closable_params, make_inputs):
 
 
 @pytest.mark.parametrize("volume", [2.4e-6, 1e-7])
-def test_the_calibrated_reading_agrees_with_the_reference_solver(rig, hand, volume):
-    inputs = _steps(hand, 5, 301, 1e-3, hold_s=(0.01, 0.05))
+def test_the_calibrated_reading_agrees_with_the_reference_solver(rig, volume):
+    inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("sensor_lag"),
                    make_effect("sensor_calibration", form="offset_gain")])
-    params = _params(volume, sensor_time_constant_s=1e-3, **CAL)
+    params = valve1_params(volume, sensor_time_constant_s=1e-3, **CAL)
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10,
                              initial_rate_Pa_per_s=-3e5)
     got = simulate_windows(model, params, inputs, rig, np.array([0]), inputs.n_samples,
@@ -96,16 +112,17 @@ def test_the_calibrated_reading_agrees_with_the_reference_solver(rig, hand, volu
                            initial_rate_Pa_per_s=-3e5)[0, 0]
     assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
     # the calibration matters here: without it the reading differs by far more
-    plain = simulate_windows(Model(["sensor_lag"]), _params(volume, sensor_time_constant_s=1e-3),
-                             inputs, rig, np.array([0]), inputs.n_samples, np.array([2e5]),
+    plain = simulate_windows(Model(["sensor_lag"]),
+                             valve1_params(volume, sensor_time_constant_s=1e-3), inputs, rig,
+                             np.array([0]), inputs.n_samples, np.array([2e5]),
                              SolverConfig.standard(), initial_rate_Pa_per_s=-3e5)[0, 0]
     assert np.max(np.abs(plain - ref)) > 10 * np.max(np.abs(got - ref))
 
 
-def test_the_start_sensitivity_is_the_readings(rig, hand):
+def test_the_start_sensitivity_is_the_readings(rig):
     """d(reading)/d(measured start), from the kernel, against central differences."""
-    inputs = _steps(hand, 9, 201, 1e-3, hold_s=(0.01, 0.05))
-    params = _params(**CAL)
+    inputs = moving_step_inputs(9, 201, 1e-3, hold_s=(0.01, 0.05))
+    params = valve1_params(**CAL)
     starts, p0 = np.array([0, 50]), np.array([2e5, 3e5])
     tight = SolverConfig(rtol=1e-10, atol_Pa=1e-5, atol_K=1e-7, max_step_s=1e-3,
                          min_step_s=1e-14, max_steps_per_s=5e6)
@@ -120,7 +137,7 @@ def test_a_start_the_calibration_reads_below_vacuum_fails_clearly(rig, make_inpu
     n = 11
     inputs = make_inputs(np.arange(n) * 1e-3, np.zeros(n))
     with pytest.raises(SimulationError, match="calibration"):
-        simulate(BOTH, _params(reading_offset_Pa=40_000.0, reading_gain_error=0.0), inputs,
+        simulate(BOTH, valve1_params(reading_offset_Pa=40_000.0, reading_gain_error=0.0), inputs,
                  rig, 30_000.0, SolverConfig.standard())
 
 
@@ -137,7 +154,7 @@ def test_the_bench_plants_the_calibration_in_the_reading(tmp_path):
     got = read_recording(res.recordings[0])
     want = read_recording(plain.recordings[0])
     # noise is added after the sensor, so the difference is the calibration alone
-    read = SensorCalibration.read(want.pressure_Pa, truth, P_ATM)
+    read = _read(want.pressure_Pa, truth)
     assert np.max(np.abs(got.pressure_Pa - read)) < 0.1 + 0.05 * 500.0 * 6
     assert abs(got.pressure_Pa[0] - (P_ATM + 6000.0)) < 4 * 500.0
     assert res.truth["parameters"]["reading_offset_Pa"] == 6000.0

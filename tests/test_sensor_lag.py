@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import moving_step_inputs
 
 from pneubayes.discovery.one_step import one_step_data
 from pneubayes.effects import make_effect
@@ -34,12 +35,6 @@ def _params(tau=None, volume=2.4e-6, valve="valve1"):
     if tau is not None:
         params["sensor_time_constant_s"] = tau
     return params
-
-
-def _steps(hand, seed, n, dt, **kw):
-    t = np.arange(n) * dt
-    u = hand.random_steps(np.random.default_rng(seed), n, dt, **kw)
-    return Inputs(t, u, hand.moving_position(t, freq=3.0), hand.fluctuating_supply(t))
 
 
 def test_a_closed_chamber_is_read_as_an_exact_exponential(rig, closable_params, make_inputs):
@@ -85,8 +80,8 @@ def test_a_closed_chamber_is_read_through_a_second_order_lag_in_closed_form(
     assert got.max() > p_c  # underdamped: it overshoots
 
 
-def test_a_heavily_damped_second_order_lag_is_the_first_order_lag(rig, hand):
-    inputs = _steps(hand, 7, 401, 1e-3, hold_s=(0.01, 0.05))
+def test_a_heavily_damped_second_order_lag_is_the_first_order_lag(rig):
+    inputs = moving_step_inputs(7, 401, 1e-3, hold_s=(0.01, 0.05))
     first = simulate(Model(["sensor_lag"]), _params(1e-3), inputs, rig, 2e5,
                      TIGHT).pressure_Pa[0]
     model = Model([make_effect("sensor_lag", form="second_order")])
@@ -109,12 +104,12 @@ SLOW = pytest.mark.slow  # Radau at rtol 1e-10: 5-20 s a case; one per form in t
     pytest.param("second_order", {"sensor_delay_s": 3e-3, "sensor_damping": 2.5}, 1e-7,
                  marks=SLOW),
     ("second_order", {"sensor_delay_s": 5e-4, "sensor_damping": 0.3}, 2e-5)])
-def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, form, lag,
+def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, form, lag,
                                                                  volume):
     """The compiled integrator steps the reading exactly for a pressure linear on each
     step; the reference integrates dr/dt = (p - r) / tau (or the second-order lag's
     reading and rate) as more states."""
-    inputs = _steps(hand, 5, 301, 1e-3, hold_s=(0.01, 0.05))
+    inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("tube_delay"), make_effect("sensor_lag", form=form)])
     params = dict(_params(None, volume), tube_delay_s=0.0013, **lag)
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10,
@@ -133,13 +128,13 @@ def test_the_reading_agrees_with_the_reference_solvers_ode_state(rig, hand, form
     ("first_order", {"sensor_time_constant_s": 2e-3}, 2),
     ("second_order", {"sensor_delay_s": 3e-3, "sensor_damping": 0.7071}, 3)])
 def test_a_lag_on_every_channel_reads_position_and_supply_ahead_by_its_group_delay(
-        rig, hand, form, lag, samples):
+        rig, form, lag, samples):
     """``channels="all"``: the chamber sees the measured position and supply at t + D
     (D the group delay). With D a whole number of sample intervals that is the
     pressure-only lag on inputs shifted by as many samples (the last one held), which
     the integrator steps with the same break points: the two agree to its tolerance."""
     n = 601
-    inputs = _steps(hand, 12, n, 1e-3, hold_s=(0.01, 0.05))
+    inputs = moving_step_inputs(12, n, 1e-3, hold_s=(0.01, 0.05))
     ahead = np.minimum(np.arange(n) + samples, n - 1)
     shifted = Inputs(inputs.time_s, inputs.command_V, inputs.position_m[ahead],
                      inputs.supply_pressure_Pa[ahead])
@@ -154,10 +149,10 @@ def test_a_lag_on_every_channel_reads_position_and_supply_ahead_by_its_group_del
     assert np.max(np.abs(late - want)) > 1e-3 * RANGE
 
 
-def test_a_lag_on_every_channel_agrees_with_the_reference_solver(rig, hand):
+def test_a_lag_on_every_channel_agrees_with_the_reference_solver(rig):
     """A group delay that is not a whole sample (0.37 ms): the reference solver cuts its
     intervals at the shifted sample times and reads position and supply there."""
-    inputs = _steps(hand, 13, 301, 1e-3, hold_s=(0.01, 0.05))
+    inputs = moving_step_inputs(13, 301, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("sensor_lag", channels="all")])
     params = _params(3.7e-4, 2e-7)
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
@@ -177,9 +172,9 @@ def test_a_sensor_lag_names_its_channels_or_refuses():
         make_effect("sensor_lag", channels="both").parameters()
 
 
-def test_halving_the_sample_interval_gives_the_same_reading(rig, hand):
+def test_halving_the_sample_interval_gives_the_same_reading(rig):
     n = 401
-    coarse = _steps(hand, 9, n, 1e-3, hold_s=(0.01, 0.05))
+    coarse = moving_step_inputs(9, n, 1e-3, hold_s=(0.01, 0.05))
     t2 = np.arange(2 * n - 1) * 5e-4
     fine = Inputs(t2, np.repeat(coarse.command_V, 2)[:-1],
                   np.interp(t2, coarse.time_s, coarse.position_m),
@@ -191,10 +186,10 @@ def test_halving_the_sample_interval_gives_the_same_reading(rig, hand):
     assert np.max(np.abs(a - b)) < 1e-5 * RANGE
 
 
-def test_start_sensitivity_of_the_reading_matches_finite_differences(rig, hand):
+def test_start_sensitivity_of_the_reading_matches_finite_differences(rig):
     model = Model(["sensor_lag"])
     params = _params(1e-3)
-    inputs = _steps(hand, 4, 601, 1e-3, levels=(-1.0, 1.0))
+    inputs = moving_step_inputs(4, 601, 1e-3, levels=(-1.0, 1.0))
     starts, p0 = np.array([0, 200, 300]), np.array([2.0e5, 3.0e5, 4.0e5])
     rate = np.array([0.0, 1e6, -5e5])
     out, sens = simulate_windows_sensitivity(model, params, inputs, rig, starts, 300, p0,
@@ -208,13 +203,13 @@ def test_start_sensitivity_of_the_reading_matches_finite_differences(rig, hand):
     assert np.max(np.abs(sens - (up - dn) / (2 * d))) < 0.03
 
 
-def test_one_step_predictions_of_a_lagged_reading_carry_the_lag(rig, hand, tmp_path):
+def test_one_step_predictions_of_a_lagged_reading_carry_the_lag(rig, tmp_path):
     """On noise-free readings lagged by tau, the one-step predictions of the model with
     the lag (the chamber started ahead of the reading by tau times the lagged chamber
     rate) miss by far less than those of the model without it: 0.10 of it, measured
     (the reading's backward difference instead of the model's rate left 0.30)."""
     tau = 5e-4
-    inputs = _steps(hand, 12, 1501, 1e-3, hold_s=(0.02, 0.08))
+    inputs = moving_step_inputs(12, 1501, 1e-3, hold_s=(0.02, 0.08))
     model = Model(["sensor_lag"])
     params = _params(tau)
     md = RecordingMetadata("test", "valve1", rig.bore_m, rig.stroke_m, P_ATM, P_SUP, 293.15)
@@ -233,7 +228,7 @@ def test_one_step_predictions_of_a_lagged_reading_carry_the_lag(rig, hand, tmp_p
     assert rms(with_lag) < 0.15 * rms(without)
 
 
-def test_windows_warm_up_the_chambers_lead_from_the_command_history(rig, hand):
+def test_windows_warm_up_the_chambers_lead_from_the_command_history(rig):
     """Windows started mid-recording from the reading of one long simulation: warmed up
     over the command history (no rate given), they follow it far more closely than
     windows whose chamber starts at the reading; from the recorded reading before the
@@ -243,7 +238,7 @@ def test_windows_warm_up_the_chambers_lead_from_the_command_history(rig, hand):
     chamber's own lead there)."""
     model = Model(["sensor_lag"])
     params = _params(1e-3, volume=1e-6)
-    inputs = _steps(hand, 21, 1201, 1e-3, hold_s=(0.005, 0.03))
+    inputs = moving_step_inputs(21, 1201, 1e-3, hold_s=(0.005, 0.03))
     whole = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
     recorded = Inputs(inputs.time_s, inputs.command_V, inputs.position_m,
                       inputs.supply_pressure_Pa, reading_Pa=whole)
@@ -263,14 +258,14 @@ def test_windows_warm_up_the_chambers_lead_from_the_command_history(rig, hand):
 @pytest.mark.parametrize("form,lag", [("first_order", {"sensor_time_constant_s": 5e-4}),
                                       ("second_order", {"sensor_delay_s": 5e-4,
                                                         "sensor_damping": 0.7})])
-def test_a_lagged_reading_gets_no_declared_filter_corner_term(rig, hand, form, lag):
+def test_a_lagged_reading_gets_no_declared_filter_corner_term(rig, form, lag):
     """The declared zero-phase filter's corner term is for a chamber read directly; a
     lagged reading rounds its corners itself, so the declared filter leaves it as is."""
     from dataclasses import replace
 
     from pneubayes.physics.sensor_filter import PressureFilter
 
-    inputs = _steps(hand, 3, 301, 1e-3, hold_s=(0.01, 0.05))
+    inputs = moving_step_inputs(3, 301, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("sensor_lag", form=form)])
     params = dict(_params(), **lag)
     bare = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import moving_step_inputs, valve1_params
 
 from pneubayes.bench.forms import SecondOrderSpool
 from pneubayes.bench.plant import PlantConfig, simulate_plant
@@ -14,7 +15,6 @@ from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext
 from pneubayes.effects.spool_lag import spool_settle_s
 from pneubayes.model import Model
-from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import Inputs, SolverConfig, simulate, simulate_windows
 from pneubayes.simulation.reference import reference_simulate
 
@@ -25,41 +25,28 @@ TIGHT = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=1e-6, max_step_s=1e-3,
 SECOND = make_effect("spool_lag", form="second_order")
 
 
-def _params(volume=2.4e-6, **extra):
-    params = valve_preset("valve1").parameters()
-    params["dead_volume_m3"] = volume
-    params.update(extra)
-    return params
-
-
-def _steps(hand, seed, n, dt, **kw):
-    t = np.arange(n) * dt
-    u = hand.random_steps(np.random.default_rng(seed), n, dt, **kw)
-    return Inputs(t, u, hand.moving_position(t, freq=3.0), hand.fluctuating_supply(t))
-
-
 def test_lowering_and_neutral_delay():
     """w = 2 z / D; a zero group delay is no spool lag at all (bit-identical)."""
     model = Model([SECOND])
     assert model.parameter_names[-2:] == ("spool_delay_s", "spool_damping")
-    slots = model.lower(model.as_matrix(dict(_params(), spool_delay_s=2e-3,
+    slots = model.lower(model.as_matrix(dict(valve1_params(), spool_delay_s=2e-3,
                                              spool_damping=0.5)), None)
     from pneubayes.effects.path import SLOT_INDEX as S
 
     assert slots[0, S["spool_natural_frequency_rad_per_s"]] == pytest.approx(500.0)
     assert slots[0, S["spool_damping"]] == 0.5 and slots[0, S["spool_time_constant_s"]] == 0
     assert spool_settle_s(slots)[0] == pytest.approx(1 / (0.5 * 500.0))
-    off = model.lower(model.as_matrix(dict(_params(), spool_delay_s=0.0,
+    off = model.lower(model.as_matrix(dict(valve1_params(), spool_delay_s=0.0,
                                            spool_damping=0.5)), None)
-    assert np.array_equal(off, Model().lower(Model().as_matrix(_params()), None))
+    assert np.array_equal(off, Model().lower(Model().as_matrix(valve1_params()), None))
     with pytest.raises(ValueError, match="form must be one of"):
         make_effect("spool_lag", form="third_order").parameters()
 
 
-def test_a_zero_delay_simulates_as_the_plain_model(rig, hand):
-    inputs = _steps(hand, 3, 201, 1e-3, hold_s=(0.01, 0.05))
-    plain = simulate(Model(), _params(), inputs, rig, 2e5, SolverConfig.standard())
-    off = simulate(Model([SECOND]), _params(spool_delay_s=0.0, spool_damping=0.4), inputs,
+def test_a_zero_delay_simulates_as_the_plain_model(rig):
+    inputs = moving_step_inputs(3, 201, 1e-3, hold_s=(0.01, 0.05))
+    plain = simulate(Model(), valve1_params(), inputs, rig, 2e5, SolverConfig.standard())
+    off = simulate(Model([SECOND]), valve1_params(spool_delay_s=0.0, spool_damping=0.4), inputs,
                    rig, 2e5, SolverConfig.standard())
     assert np.array_equal(plain.pressure_Pa, off.pressure_Pa)
 
@@ -67,29 +54,29 @@ def test_a_zero_delay_simulates_as_the_plain_model(rig, hand):
 @pytest.mark.parametrize("delay,damping,volume", [
     (2.5e-3, 0.3, 2e-5),  # underdamped: the spool overshoots the commanded opening
     pytest.param(3e-3, 2.5, 1e-7, marks=pytest.mark.slow)])  # overdamped, a tiny chamber
-def test_the_spool_agrees_with_the_reference_solvers_ode_states(rig, hand, delay, damping,
+def test_the_spool_agrees_with_the_reference_solvers_ode_states(rig, delay, damping,
                                                                 volume):
     """The compiled integrator steps the spool exactly under the held command; the
     reference integrates its position and velocity as two more states."""
-    inputs = _steps(hand, 5, 301, 1e-3, hold_s=(0.01, 0.05))
+    inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("tube_delay"), SECOND])
-    params = _params(volume, tube_delay_s=0.0013, spool_delay_s=delay, spool_damping=damping)
+    params = valve1_params(volume, tube_delay_s=0.0013, spool_delay_s=delay, spool_damping=damping)
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
     got = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
     assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
     # and the spool matters here: without it the chamber differs by far more
-    plain = simulate(Model(["tube_delay"]), _params(volume, tube_delay_s=0.0013), inputs,
+    plain = simulate(Model(["tube_delay"]), valve1_params(volume, tube_delay_s=0.0013), inputs,
                      rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
     assert np.max(np.abs(plain - ref)) > 10 * np.max(np.abs(got - ref))
 
 
-def test_a_heavily_damped_spool_is_the_first_order_lag(rig, hand):
-    inputs = _steps(hand, 7, 401, 1e-3, hold_s=(0.01, 0.05))
-    first = simulate(Model(["spool_lag"]), _params(spool_time_constant_s=2e-3), inputs, rig,
+def test_a_heavily_damped_spool_is_the_first_order_lag(rig):
+    inputs = moving_step_inputs(7, 401, 1e-3, hold_s=(0.01, 0.05))
+    first = simulate(Model(["spool_lag"]), valve1_params(spool_time_constant_s=2e-3), inputs, rig,
                      2e5, TIGHT).pressure_Pa[0]
-    second = simulate(Model([SECOND]), _params(spool_delay_s=2e-3, spool_damping=5.0),
+    second = simulate(Model([SECOND]), valve1_params(spool_delay_s=2e-3, spool_damping=5.0),
                       inputs, rig, 2e5, TIGHT).pressure_Pa[0]
-    plain = simulate(Model(), _params(), inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    plain = simulate(Model(), valve1_params(), inputs, rig, 2e5, TIGHT).pressure_Pa[0]
     # the fast pole (1 / (2 z w) = 0.02 ms) is all that differs
     assert np.max(np.abs(second - first)) < 0.03 * np.max(np.abs(first - plain))
 
@@ -102,7 +89,7 @@ def test_the_model_agrees_with_the_plants_second_order_spool(rig):
     rng = np.random.default_rng(11)
     u = np.repeat(rng.uniform(-5.0, 5.0, 51), 100)[:t.size]
     inputs = Inputs.constant(t, u, 0.01, P_SUP)
-    base = _params(1.5e-7)
+    base = valve1_params(1.5e-7)
     form = SecondOrderSpool(125.0, 0.45)
     plant = simulate_plant(base, (form,), inputs, rig, P_ATM,
                            PlantConfig.reference()).pressure_Pa
@@ -122,12 +109,12 @@ def test_the_model_agrees_with_the_plants_second_order_spool(rig):
     assert np.max(np.abs(planted - plant)) < 1e-6 * RANGE
 
 
-def test_a_window_mid_recording_starts_from_the_spools_history(rig, hand):
+def test_a_window_mid_recording_starts_from_the_spools_history(rig):
     """A window that starts at sample i from the full run's pressure continues the full
     run: the spool's position and velocity follow from the commands before it."""
-    inputs = _steps(hand, 9, 801, 1e-3, hold_s=(0.003, 0.02))
+    inputs = moving_step_inputs(9, 801, 1e-3, hold_s=(0.003, 0.02))
     model = Model([SECOND])
-    params = _params(spool_delay_s=4e-3, spool_damping=0.35)
+    params = valve1_params(spool_delay_s=4e-3, spool_damping=0.35)
     full = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
     starts = np.array([0, 137, 402, 651])
     length = 120
@@ -135,14 +122,14 @@ def test_a_window_mid_recording_starts_from_the_spools_history(rig, hand):
     for w, i in enumerate(starts):
         assert np.max(np.abs(got[w] - full[i:i + length])) < 1e-5 * RANGE, i
     # a spool started at rest at the held command instead differs
-    first = simulate_windows(Model(["spool_lag"]), dict(_params(), spool_time_constant_s=0.0),
+    first = simulate_windows(Model(["spool_lag"]), dict(valve1_params(), spool_time_constant_s=0.0),
                              inputs, rig, starts, length, full[starts], TIGHT)[0]
     assert np.max(np.abs(first[1:] - np.stack([full[i:i + length] for i in starts[1:]]))) \
         > 1e-3 * RANGE
 
 
 def test_the_first_order_candidate_also_offers_the_second_order(rig):
-    ctx = CandidateContext(model=Model(), params=_params(), rig=rig,
+    ctx = CandidateContext(model=Model(), params=valve1_params(), rig=rig,
                            term_start={"spool_time_constant_s": 0.004},
                            second_state_free=True, line_segments=0, line_cutoff_Hz=0.0,
                            dead_volume_m3=2.4e-6)
