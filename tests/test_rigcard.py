@@ -306,6 +306,33 @@ def test_a_fixed_chamber_refuses_a_moving_position(tmp_path):
         read_recording(tmp_path / "m.csv")
 
 
+def test_a_muscles_contraction_is_checked_against_its_range_not_the_equivalent_stroke(
+        tmp_path):
+    """A polynomial chamber whose volume curve bends (c2 < 0) has an equivalent stroke
+    shorter than its coordinate range: a 7-cm contraction inside a 0-12-cm range reads
+    (the reader's stroke rule reads piston positions only), one past the range fails with
+    the card's message, naming the row."""
+    muscle = dict(CARD, chamber={"kind": "polynomial", "dead_volume_m3": 6.6e-5,
+                                 "coefficients_m3_per_m": [3.141e-3, -3.251e-2, 0.128],
+                                 "coordinate_range_m": [0.0, 0.12]})
+    (tmp_path / "rig.json").write_text(json.dumps(muscle))
+    stroke = load_rig_card(tmp_path / "rig.json").chamber.metadata_defaults()["stroke_m"]
+    assert 1.5 * stroke + 5e-3 < 0.07  # the rule on the raw column would refuse 7 cm
+    for name, top in (("in", 0.07), ("out", 0.14)):
+        (tmp_path / f"{name}.csv").write_text("time_s,command_V,pressure_Pa,position_m\n"
+                                              + "".join(f"{0.001 * i},0,{P_ATM},"
+                                                        f"{top * i / 19}\n"
+                                                        for i in range(20)))
+        (tmp_path / f"{name}.json").write_text(json.dumps({"rig": "rig.json"}))
+    rec = read_recording(tmp_path / "in.csv")
+    np.testing.assert_allclose(rec.position_m,
+                               rec.rig_card.chamber.equivalent_position_m(
+                                   0.07 * np.arange(20) / 19), rtol=1e-12)
+    with pytest.raises(RecordingError, match=r"row 19: coordinate 0.1326.* outside the rig "
+                                             r"card's coordinate range \[0, 0.12\]"):
+        read_recording(tmp_path / "out.csv")
+
+
 def test_a_bound_recording_is_not_written_back(tmp_path):
     from pneubayes.io import write_recording
 

@@ -37,7 +37,8 @@ rule                      finding
 ``bore``                  bore above 0.5 m (error), above 0.35 m or below 0.5 mm
                           (warning)
 ``stroke``                stroke above 5 m (error), above 2 m (warning)
-``position``              the position column beyond 1.5 x stroke + 5 mm (error)
+``position``              the position column beyond 1.5 x stroke + 5 mm (error; not for
+                          a rig card chamber that maps a coordinate: its own range)
 ========================  =============================================================
 """
 
@@ -283,14 +284,20 @@ def _time_findings(t: np.ndarray, p: np.ndarray, csv_name: str, accept) -> list[
 
 
 def recording_findings(rec, csv_name: str, json_name: str,
-                       accept: Iterable[str] = ()) -> list[Finding]:
+                       accept: Iterable[str] = (), position_is_coordinate: bool = False
+                       ) -> list[Finding]:
     """Every plausibility finding of a structurally valid
-    :class:`~pneubayes.io.recording.Recording` (SI, absolute), errors and warnings."""
+    :class:`~pneubayes.io.recording.Recording` (SI, absolute), errors and warnings.
+    ``position_is_coordinate``: the ``position_m`` column is a rig card chamber's
+    coordinate (a muscle's contraction), not a piston position, so the ``position`` rule
+    (against the stroke) is not applied; the card checks the coordinate's range."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _recording_findings(rec, csv_name, json_name, set(accept))
+        return _recording_findings(rec, csv_name, json_name, set(accept),
+                                   position_is_coordinate)
 
 
-def _recording_findings(rec, csv_name: str, json_name: str, accept: set) -> list[Finding]:
+def _recording_findings(rec, csv_name: str, json_name: str, accept: set,
+                        position_is_coordinate: bool = False) -> list[Finding]:
     md = rec.metadata
     out = rig_findings({k: getattr(md, k) for k in ("atmospheric_pressure_Pa",
                         "supply_pressure_Pa", "temperature_K", "bore_m", "stroke_m")},
@@ -321,7 +328,7 @@ def _recording_findings(rec, csv_name: str, json_name: str, accept: set) -> list
                                 "percentile)", accept))
     if rec.n_samples >= 3:
         out += _time_findings(rec.time_s, p, csv_name, accept)
-    if rec.position_m is not None:
+    if rec.position_m is not None and not position_is_coordinate:
         limit = 1.5 * md.stroke_m + 5e-3
         far = float(np.max(np.abs(rec.position_m)))
         if far > limit:

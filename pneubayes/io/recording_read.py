@@ -307,7 +307,9 @@ def _problems_and_recording(path, accept=(), rig_card=None) -> tuple[list, Recor
     rec = Recording(metadata=metadata, extra_columns=extra, source=str(csv_path),
                     conversions=tuple(conversions + column_conversions), **known)
     findings = recording_findings(rec, str(csv_path), str(json_path),
-                                  set(accept) | set(metadata.accept_unusual))
+                                  set(accept) | set(metadata.accept_unusual),
+                                  position_is_coordinate=card is not None
+                                  and card.chamber.maps_position)
     errors = [(f.location, f.text()) for f in findings
               if f.severity == "error" and not f.accepted]
     if errors:

@@ -29,6 +29,7 @@ class PolynomialChamber(RigComponent):
     quantities = (("dead_volume_m3", "m^3", "volume at coordinate 0, tube included",
                    "positive"),)
     slots_written = ("volume_m3",)
+    maps_position = True
 
     @classmethod
     def option_keys(cls):

@@ -61,6 +61,10 @@ class RigComponent(Component):
     #: card key -> the value (a number or an Unknown prior) of a quantity the card may
     #: leave out; a quantity not named here is required
     defaults: ClassVar[dict] = {}
+    #: the recording's ``position_m`` column is a coordinate this component maps to the
+    #: equivalent piston's position and checks against its own range (``bind_columns``),
+    #: so the reader's stroke rule, which reads a piston position, does not apply to it
+    maps_position: ClassVar[bool] = False
 
     def parameter_name(self, key: str) -> str:
         return self.parameter_names_by_key.get(key, key)
