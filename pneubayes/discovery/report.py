@@ -52,7 +52,7 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
     write_json_atomic(out / "disagreement.json", {"rounds": list(result.maps)})
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
-    if figures:
+    if figures and result.maps:  # (no search round, no map: max_effects 0)
         from pneubayes.plotting import plot_disagreement, plot_evidence
 
         figs["disagreement"] = plot_disagreement(
@@ -130,8 +130,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
               f"{final:.0f} Pa{of_span}; gap above the noise floor {gap0:.0f} -> "
               f"{gap1:.0f} Pa{shrink}.", ""]
     lines += ["## Where the base model disagrees", ""]
-    flags = flagged_bins(result.maps[0], "prediction")
-    if flags:
+    # no map without a search round (max_effects 0: the base model and its posterior)
+    flags = flagged_bins(result.maps[0], "prediction") if result.maps else None
+    if flags is None:
+        lines.append("Not mapped: the loop ran no search round (max_effects 0).")
+    elif flags:
         lines += ["| regime | bin | samples | RMS (Pa) | excess over noise (Pa) | bias z |",
                   "|---|---|---|---|---|---|"]
         for fam, b in flags[:12]:
@@ -182,7 +185,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")
     if "disagreement_final" in figs:
         lines += ["", "## Final model", "", f"![final](figures/{figs['disagreement_final']})"]
-    if result.posterior_info is not None:
+    if result.posterior_info is not None and result.settings.posterior_method == "laplace":
+        lines += ["", f"Posterior: Laplace approximation at the posterior's mode, "
+                  f"{result.settings.laplace_draws} draws; negative definite there: "
+                  f"{result.posterior_info['converged']} (a Gaussian: no skew, one mode)."]
+    elif result.posterior_info is not None:
         sm = result.settings.fit.sampler
         chains = (f"{sm.rhat_groups} walker groups" if sm.rhat_groups else "walkers")
         lines += ["", f"Posterior: emcee, {result.posterior_info['steps']} steps, "
