@@ -370,7 +370,7 @@ def cmd_discover(args) -> int:
         holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
         bounds=dict(args.bounds),
         max_effects=args.max_effects, grid=grid,
-        posterior=not args.no_posterior, seed=args.seed,
+        posterior=not args.no_posterior, posterior_method=args.posterior, seed=args.seed,
         tube_line_segments=args.tube_line_segments,
         tube_line_form=args.tube_line_form,
         form_settled_ratio=args.form_settled_ratio,

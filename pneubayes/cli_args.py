@@ -350,7 +350,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "for sensor_calibration, whose terms are off by default, e.g. "
                    "sensor_calibration=2000,5000,10000 (Pa)")
     d.add_argument("--no-posterior", action="store_true",
-                   help="skip the final emcee posterior (refined point estimates only)")
+                   help="skip the final posterior (refined point estimates only)")
+    d.add_argument("--posterior", choices=["emcee", "laplace"], default="emcee",
+                   help="the final model's posterior: emcee (default) or laplace, a "
+                        "Gaussian at the posterior's mode from a few hundred posterior "
+                        "evaluations (minutes where emcee on a model with a tube takes "
+                        "hours; it sees no skew and one mode)")
     _add_identification(d, "seed of bagging and sampler (recorded)")
 
     im = sub.add_parser(

@@ -94,6 +94,7 @@ from pneubayes.discovery.verification import (
 )
 from pneubayes.errors import SimulationError
 from pneubayes.inference.chain_store import set_aside_other_chain
+from pneubayes.inference.laplace import LaplaceIdentification
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import starting_point
 from pneubayes.inference.predictive import noise_floor_Pa
@@ -364,7 +365,8 @@ class Discovery:
                         "seed": s.seed, "pneubayes_version": pneubayes.__version__,
                         "model_card": json.dumps(current.model.to_card(params))}),
                     "posterior_summary": bi.summary(),
-                    "posterior_info": {"converged": bi.converged_,
+                    "posterior_info": {"method": s.posterior_method,
+                                       "converged": bi.converged_,
                                        "steps": bi.diagnostics_["steps"],
                                        "sampling_solver": bi.diagnostics_["solver"],
                                        "solver_roughness_nats":
@@ -559,9 +561,6 @@ class Discovery:
 
     def _posterior(self, fit: StepFit, train_ws: WindowSet):
         s = self.settings
-        backend = None if self.out_dir is None else self.out_dir / "chain.h5"
-        bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
-                                    backend_path=backend, progress=False, log=self.log)
         ref = TrajectoryRefiner(fit.model, s.fit.refine_solver, max_nfev=1)
         start = fit.params
         info = None
@@ -569,6 +568,20 @@ class Discovery:
             info = ref.fit(train_ws, start).information_
         except FloatingPointError:
             info = None
+        if s.posterior_method == "laplace":
+            if info is None:
+                raise FloatingPointError("discover: the Laplace posterior needs the refined "
+                                         "point's information, and it cannot be taken")
+            sm = s.fit.sampler
+            self.log(f"discover: Laplace posterior of "
+                     f"{list(fit.model.effect_names) or 'the base'} model")
+            return LaplaceIdentification(
+                fit.model, s.fit.sample_solver, s.laplace_draws, sm.centre_iterations,
+                s.seed, sm.max_solver_jitter_nats, sm.max_solver_tightenings,
+                log=self.log).fit(train_ws, start, info)
+        backend = None if self.out_dir is None else self.out_dir / "chain.h5"
+        bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
+                                    backend_path=backend, progress=False, log=self.log)
         self.log(f"discover: emcee posterior of {list(fit.model.effect_names) or 'the base'}"
                  " model")
         if backend is not None:

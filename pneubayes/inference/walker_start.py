@@ -134,6 +134,43 @@ def walker_ball(like: WindowLikelihood, start: np.ndarray, information,
     return z
 
 
+def whitened_basis(cz: np.ndarray):
+    """``basis`` with ``z_ident = z0_ident + basis @ y`` and ``y ~ N(0, I)`` under the
+    covariance ``cz`` (its near-null directions dropped), or None when a variance is not
+    positive."""
+    sd = np.sqrt(np.maximum(np.diag(cz), 0.0))
+    if not np.all(sd > 0):
+        return None
+    w, v = np.linalg.eigh(cz / np.outer(sd, sd))
+    keep = w > 1e-10 * w.max()
+    return sd[:, None] * (v[:, keep] * np.sqrt(w[keep]))
+
+
+def whitened_curvature(like: WindowLikelihood, z: np.ndarray, ident: np.ndarray,
+                       basis: np.ndarray, f0: float, h: float = 2.0):
+    """Slope and Hessian of the log-posterior at ``z`` (sampling coordinates, log-density
+    ``f0``) in the whitened coordinates ``y`` (``z[ident] += basis @ y``), in one batched
+    call: the points at +-h along every axis and at +h along every pair of axes (2 k +
+    k (k - 1) / 2 evaluations for k axes). Returns ``(grad, hess)``, or None when a
+    point has no finite density."""
+    k = basis.shape[1]
+    eye = np.eye(k)
+    pairs = [(a, b) for a in range(k) for b in range(a + 1, k)]
+    y = np.concatenate([h * eye, -h * eye]
+                       + [h * (eye[[a for a, _ in pairs]] + eye[[b for _, b in pairs]])])
+    rows = np.tile(z, (y.shape[0], 1))
+    rows[:, ident] += y @ basis.T
+    f = like.log_prob_sampling(rows)
+    if not np.all(np.isfinite(f)):
+        return None
+    fp, fm, fpair = f[:k], f[k:2 * k], f[2 * k:]
+    grad = (fp - fm) / (2.0 * h)
+    hess = np.diag((fp - 2.0 * f0 + fm) / h**2)
+    for (a, b), fab in zip(pairs, fpair):
+        hess[a, b] = hess[b, a] = (fab - fp[a] - fp[b] + f0) / h**2
+    return grad, hess
+
+
 def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
                      iterations: int) -> np.ndarray:
     """Newton steps on the log-posterior from ``start`` in the identified sampling
@@ -143,39 +180,24 @@ def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
     Each iteration evaluates, in one batched call, the points at +-2 (whitened) along
     every axis and at +2 along every pair of axes: central slopes, and the Hessian by
     second differences (2 Laplace SDs keep the solver's log-density roughness small
-    against the differences). The Newton step uses the absolute values of the Hessian's
-    eigenvalues (an ascent direction even where it is not negative definite) and at most
-    5 SDs an axis; it is scaled by the best of :data:`LINE_SEARCH` (a second batched
-    call) and kept only if the log-posterior rises. A point outside the prior stops the
-    centring there.
+    against the differences; :func:`whitened_curvature`). The Newton step uses the
+    absolute values of the Hessian's eigenvalues (an ascent direction even where it is
+    not negative definite) and at most 5 SDs an axis; it is scaled by the best of
+    :data:`LINE_SEARCH` (a second batched call) and kept only if the log-posterior
+    rises. A point outside the prior stops the centring there.
     """
     x0, z, ident, cz = laplace_in_sampling(like, start, information)
-    sd = np.sqrt(np.maximum(np.diag(cz), 0.0))
-    if not np.all(sd > 0):
+    basis = whitened_basis(cz)
+    if basis is None:
         return x0
-    w, v = np.linalg.eigh(cz / np.outer(sd, sd))
-    keep = w > 1e-10 * w.max()
-    basis = sd[:, None] * (v[:, keep] * np.sqrt(w[keep]))  # z = z0 + basis @ y
-    k = basis.shape[1]
-    h = 2.0
-    eye = np.eye(k)
-    pairs = [(a, b) for a in range(k) for b in range(a + 1, k)]
-    y = np.concatenate([h * eye, -h * eye]
-                       + [h * (eye[[a for a, _ in pairs]] + eye[[b for _, b in pairs]])])
     f0 = float(like.log_prob_sampling(z[None])[0])
     if not np.isfinite(f0):
         return x0
     for _ in range(iterations):
-        rows = np.tile(z, (y.shape[0], 1))
-        rows[:, ident] += y @ basis.T
-        f = like.log_prob_sampling(rows)
-        if not np.all(np.isfinite(f)):
+        curv = whitened_curvature(like, z, ident, basis, f0)
+        if curv is None:
             break
-        fp, fm, fpair = f[:k], f[k:2 * k], f[2 * k:]
-        grad = (fp - fm) / (2.0 * h)
-        hess = np.diag((fp - 2.0 * f0 + fm) / h**2)
-        for (a, b), fab in zip(pairs, fpair):
-            hess[a, b] = hess[b, a] = (fab - fp[a] - fp[b] + f0) / h**2
+        grad, hess = curv
         lam, q = np.linalg.eigh(hess)
         step = np.clip(q @ ((q.T @ grad) / np.maximum(np.abs(lam), 1e-3)), -5.0, 5.0)
         cand = np.tile(z, (LINE_SEARCH.size, 1))

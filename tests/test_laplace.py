@@ -1,0 +1,143 @@
+"""The Laplace approximation of the window posterior (pneubayes.inference.laplace)."""
+
+import numpy as np
+import pytest
+from test_inference import _GaussianTarget
+
+from pneubayes.bench.bench import BenchConfig, run_bench
+from pneubayes.effects import effects_from_names
+from pneubayes.inference.laplace import (
+    LaplaceIdentification,
+    laplace_approximation,
+    truncated_draws,
+)
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.windows import WindowSet
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+from pneubayes.simulation import SolverConfig
+
+
+class _Target(_GaussianTarget):
+    """The Gaussian target with the rest of the interface the approximation reads."""
+
+    def emcee_target(self, z):
+        z = np.atleast_2d(z)
+        return np.column_stack([self.log_prob_sampling(z), np.zeros((z.shape[0], 5))])
+
+    def nuisance_ranges(self, z):
+        n = np.atleast_2d(z).shape[0]
+        return np.full((n, 1), -100.0), np.full((n, 1), 100.0)
+
+
+def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
+    """On an exactly Gaussian target 1.5x wider than the information given, and rotated
+    from it, the centre is the mean and the covariance the target's (second differences
+    are exact on a quadratic); 20,000 draws have its mean and covariance to sampling
+    error, the nuisance coordinate is uniform over its range, and a bound that cuts the
+    Gaussian truncates the draws instead of clipping them."""
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(4, 4))
+    laplace = a @ a.T + 4 * np.eye(4)
+    ident = [0, 1, 3, 4]
+    info = np.zeros((5, 5))
+    info[np.ix_(ident, ident)] = np.linalg.inv(laplace)
+    info[2, 2] = 1.0
+    q = np.linalg.qr(np.eye(4) + 0.2 * rng.normal(size=(4, 4)))[0]
+    true_cov = 1.5 * q @ laplace @ q.T
+    mean = np.array([1.0, -2.0, 0.0, 0.5, 3.0])
+    target = _Target(mean, np.linalg.inv(true_cov))
+    start = mean.copy()
+    start[ident] += np.array([2.0, -1.0, 1.5, -2.0]) * np.sqrt(np.diag(true_cov))
+    xc, zc, idc, cov, lam, lp, sums = laplace_approximation(target, start, info, 3)
+    assert list(idc) == ident
+    np.testing.assert_allclose(xc[ident], mean[ident], atol=1e-6)
+    np.testing.assert_allclose(cov, true_cov, rtol=1e-6, atol=1e-9)
+    assert np.all(lam > 0) and lp[0] == pytest.approx(0.0, abs=1e-9)
+    z = truncated_draws(target, zc, idc, cov, np.random.default_rng(0), 20_000)
+    assert z.shape == (20_000, 5)
+    np.testing.assert_allclose(np.mean(z[:, ident], axis=0), mean[ident],
+                               atol=4 * np.sqrt(np.diag(true_cov) / 20_000).max())
+    d = np.diag(true_cov)
+    se = np.sqrt((np.outer(d, d) + true_cov**2) / 20_000)  # a sample covariance's SE
+    assert np.all(np.abs(np.cov(z[:, ident].T) - true_cov) < 4 * se)
+    assert abs(np.mean(z[:, 2])) < 2.0 and np.ptp(z[:, 2]) > 190.0  # U(-100, 100)
+    # a bound at the mean of coordinate 0: half the Gaussian, none of it piled on the bound
+    target.bounds = (np.array([mean[0], -100, -100, -100, -100.0]), np.full(5, 100.0))
+    z = truncated_draws(target, zc, idc, cov, np.random.default_rng(1), 4000)
+    assert np.all(z[:, 0] >= mean[0]) and np.mean(z[:, 0] - mean[0] < 1e-3) < 0.01
+
+
+@pytest.fixture(scope="module")
+def leak_bench(tmp_path_factory):
+    out = tmp_path_factory.mktemp("laplace")
+    cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
+                      duration_s=6.0, seed=3, positions=(0.5, 0.9), ranges_V=(5.0,))
+    res = run_bench(cfg, out)
+    model, truth = Model.load_card(res.truth_path)
+    return [read_recording(p) for p in res.recordings], model, truth
+
+
+def test_laplace_posterior_on_the_bench_covers_the_planted_leak(leak_bench):
+    """From the refined point of two bench recordings with a planted orifice leak: every
+    draw inside the priors, the summary's keys and the 4 chains of the InferenceData;
+    the 90 % intervals cover the planted leak area and dead volume and at least 10 of
+    the 12 parameters; and the window likelihood's curvature at its centre, whitened by
+    the least squares' Fisher information, has eigenvalues within a factor of 2 of 1
+    (two independent computations of one curvature: white noise here)."""
+    recs, model, truth = leak_bench
+    solver = SolverConfig.standard()
+    data = WindowSet(recs[:2], 2.0, 2.0)
+    ref = TrajectoryRefiner(model, solver).fit(data, truth)
+    lap = LaplaceIdentification(model, solver, n_draws=2000, centre_iterations=2, seed=4,
+                                max_solver_jitter_nats=0.3, max_solver_tightenings=2
+                                ).fit(data, ref.params_, ref.information_)
+    lo, hi = model.bounds
+    ms = lap.model_samples()
+    assert ms.shape == (2000, model.n_parameters)
+    assert np.all((ms >= lo) & (ms <= hi))
+    s = lap.summary()
+    assert set(s) == set(model.parameter_names) | {"noise_scale_Pa", "noise_ar1"}
+    covered = {n for n in model.parameter_names
+               if s[n]["q05"] <= truth[n] <= s[n]["q95"]}
+    assert {"leak_area_m2", "dead_volume_m3"} <= covered and len(covered) >= 10
+    lam = np.array(lap.diagnostics_["hessian_eigenvalues"])
+    assert np.all((lam > 0.5) & (lam < 2.0)) and lap.converged_
+    idata = lap.inference_data({"seed": 4})
+    assert idata.posterior["leak_area_m2"].shape == (4, 500)
+    assert lap.diagnostics_["method"] == "laplace" and lap.diagnostics_["draws"] == 2000
+
+
+def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, capsys):
+    """``pneubayes discover --posterior laplace --max-effects 0`` (the base model and its
+    posterior; no search round, so no disagreement map to draw or tabulate):
+    discovery.json records the method, posterior.nc holds 4 chains of its draws, the
+    report names the approximation, and ``pneubayes predict`` reads the run folder's
+    posterior as it reads emcee's; an unknown method is a usage error."""
+    import json
+
+    from pneubayes.cli import main as cli_main
+
+    cfg = BenchConfig("AIR37", "valve1", (), protocol="fixed", duration_s=14.0, seed=2,
+                      positions=(0.5, 0.9), ranges_V=(5.0, 0.5))
+    paths = [str(p) for p in run_bench(cfg, tmp_path / "bench").recordings]
+    run = tmp_path / "run"
+    assert cli_main(["discover", *paths, "--out", str(run), "--posterior", "laplace",
+                     "--max-effects", "0", "-q"]) == 0
+    doc = json.loads((run / "discovery.json").read_text())
+    assert doc["posterior"]["method"] == "laplace" and doc["posterior"]["steps"] == 0
+    assert doc["settings"]["posterior_method"] == "laplace"
+    assert "Laplace approximation" in (run / "report.md").read_text()
+    from pneubayes.inference.sampler import arviz
+
+    idata = arviz().from_netcdf(run / "posterior.nc")
+    assert idata.posterior["dead_volume_m3"].shape == (4, 1000)
+    out = tmp_path / "pred.csv"
+    assert cli_main(["predict", str(run), paths[0], "--out", str(out), "--draws", "20",
+                     "--no-figure"]) == 0
+    assert out.is_file()
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        cli_main(["discover", *paths, "--out", str(tmp_path / "bad"), "--posterior",
+                  "gibbs"])
+    assert "invalid choice: 'gibbs'" in capsys.readouterr().err
