@@ -282,7 +282,7 @@ def cmd_fit(args) -> int:
     summary = run_fit(recs, model, settings, args.out, progress=not args.quiet, log=log,
                       figures=not args.no_figures, method=args.method)
     folder.record(*(n for n in FIT_OUTPUTS if n != "figures"))
-    if args.method != "mcmc":
+    if args.method not in ("mcmc", "laplace"):
         est = summary["start"] if args.method == "lsq" else summary["refined"]
         print(f"{args.out}/model.json  ({args.method} estimate, "
               f"{summary['wall_time_s']:.1f} s)")
@@ -291,8 +291,11 @@ def cmd_fit(args) -> int:
         for note in summary["start"]["notes"]:
             print(f"  note: {note}")
         return 0
-    print(f"{args.out}/model.json  (posterior median; converged={summary['converged']}, "
-          f"{summary['steps']} steps, {summary['wall_time_s']:.0f} s)")
+    how = (f"Laplace, {summary['draws']} draws, concave at the mode "
+           f"{summary['converged']}" if args.method == "laplace" else
+           f"converged={summary['converged']}, {summary['steps']} steps")
+    print(f"{args.out}/model.json  (posterior median; {how}, "
+          f"{summary['wall_time_s']:.0f} s)")
     for name, s in summary["parameters"].items():
         print(f"  {name:32s} {s['median']:12.5g}  90% [{s['q05']:.5g}, {s['q95']:.5g}]"
               f"  R-hat {s['rhat']:.3f}  ESS {s['ess']:.0f}")

@@ -283,9 +283,11 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--refit", type=_names, default=(), metavar="NAME[,NAME]",
                    help="with --known-from: the card quantities (parameter names) fitted "
                         "again")
-    f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc"),
+    f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc", "laplace"),
                    help="lsq: the paper's eq.-10 least squares only; refine: then multiple "
-                        "shooting on the windows; mcmc (default): then the emcee posterior")
+                        "shooting on the windows; mcmc (default): then the emcee posterior; "
+                        "laplace: then a Gaussian at the posterior's mode (minutes where "
+                        "emcee takes hours; no skew, one mode)")
     _add_identification(f, "sampler seed (recorded)")
 
     r = sub.add_parser(

@@ -141,3 +141,36 @@ def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, ca
         cli_main(["discover", *paths, "--out", str(tmp_path / "bad"), "--posterior",
                   "gibbs"])
     assert "invalid choice: 'gibbs'" in capsys.readouterr().err
+
+
+def test_fit_method_laplace_writes_a_run_folder_predict_reads(leak_bench, tmp_path, capsys):
+    """``pneubayes fit --method laplace``: model.json is the draws' median and says so,
+    summary.json records the method's own diagnostics (no chain: 0 steps; the negative
+    Hessian's eigenvalues; concave at the mode), posterior.nc holds the draws, and
+    ``pneubayes predict`` reads the run folder."""
+    import json
+
+    from pneubayes.cli import main as cli_main
+
+    recs, model, truth = leak_bench
+    paths = [str(r.source) for r in recs]
+    run = tmp_path / "run"
+    assert cli_main(["fit", *paths[:2], "--method", "laplace",
+                     "--out", str(run), "--seed", "3", "-q", "--no-figures"]) == 0
+    assert "Laplace, 4000 draws, concave at the mode True" in capsys.readouterr().out
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["method"] == "laplace" and summary["steps"] == 0
+    assert summary["converged"] and summary["non_concave_directions"] == 0
+    assert all(v > 0 for v in summary["hessian_eigenvalues"])
+    fitted, median = Model.load_card(run / "model.json")
+    card = json.loads((run / "model.json").read_text())
+    assert card["fit"]["estimate"] == "posterior median"
+    assert card["fit"]["posterior_method"] == "laplace"
+    assert median["dead_volume_m3"] == pytest.approx(
+        summary["parameters"]["dead_volume_m3"]["median"])
+    s = summary["parameters"]["leak_area_m2"]
+    assert s["q05"] <= truth["leak_area_m2"] <= s["q95"]
+    out = tmp_path / "pred.csv"
+    assert cli_main(["predict", str(run), paths[1], "--out", str(out), "--draws", "20",
+                     "--no-figure"]) == 0
+    assert out.is_file()

@@ -9,6 +9,7 @@ from pneubayes.discovery.disagreement import RegimeSettings
 from pneubayes.discovery.library import LibraryGrid
 from pneubayes.effects import catalogue_parameter_names
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
+from pneubayes.inference.laplace import LAPLACE_DRAWS
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.model import Model, check_bound_overrides
 from pneubayes.simulation import SolverConfig
@@ -174,7 +175,7 @@ class DiscoverySettings:
     fit: FitSettings = field(default_factory=FitSettings)
     posterior: bool = True
     posterior_method: str = "emcee"
-    laplace_draws: int = 4000
+    laplace_draws: int = LAPLACE_DRAWS
     library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
     seed: int = 0
 

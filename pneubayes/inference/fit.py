@@ -23,6 +23,7 @@ from pneubayes.atomic import json_safe, write_json_atomic
 from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
+from pneubayes.inference.laplace import LAPLACE_DRAWS, LaplaceIdentification
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.inference.predictive import PressurePredictor, noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
@@ -117,7 +118,24 @@ def starting_point(model: Model, recordings, settings: FitSettings, noise_Pa: fl
     return start, notes, "generic"
 
 
-METHODS = ("lsq", "refine", "mcmc")
+METHODS = ("lsq", "refine", "mcmc", "laplace")
+
+
+def _emcee_summary(bi: BayesianIdentification) -> dict:
+    return {"steps": bi.diagnostics_["steps"], "burn": bi.burn_,
+            "n_walkers": int(bi.chain_.shape[1]), "tau_max": bi.diagnostics_["tau_max"],
+            "acceptance_fraction": bi.acceptance_fraction_, "resumed": bi.resumed_}
+
+
+def _laplace_summary(lap: LaplaceIdentification) -> dict:
+    """A Laplace posterior's record in the summary: no chain (0 steps, no walkers); its
+    draws, the negative Hessian's eigenvalues in the whitened coordinates and the centre.
+    ``converged`` (beside it) says whether the log-posterior is concave there."""
+    d = lap.diagnostics_
+    return {"steps": 0, "draws": d["draws"], "n_walkers": None, "tau_max": None,
+            "hessian_eigenvalues": d["hessian_eigenvalues"],
+            "non_concave_directions": d["non_concave_directions"],
+            "centre": lap.centre_, "resumed": False}
 
 #: A fit or held-out error above this x the noise floor is reported as misfit, never as
 #: explained (fit, predict, the discovery report); an AR(1) noise coefficient above the
@@ -297,18 +315,23 @@ class Fit(PosteriorDraws):
 
     def card_extra(self) -> dict:
         """The model card's ``fit`` entry: what the estimate is and the preparation."""
-        if self.method == "mcmc":
+        if self.method in ("mcmc", "laplace"):
             return {"fit": {"estimate": "posterior median", "posterior": "posterior.nc",
+                            "posterior_method": "emcee" if self.method == "mcmc"
+                            else "laplace",
                             "summary": "summary.json", **self.preparation}}
         return {"fit": {"estimate": self.method, **self.preparation}}
 
 
 def identify(recordings, model: Model, settings: FitSettings, method: str = "mcmc",
-             checkpoint_dir=None, progress: bool = False, log=None) -> Fit:
+             checkpoint_dir=None, progress: bool = False, log=None,
+             laplace_draws: int = LAPLACE_DRAWS) -> Fit:
     """Fit ``model`` to ``recordings`` in memory; returns a :class:`Fit`.
 
     ``method``: ``"lsq"`` stops after the paper's least squares (section VI-B),
-    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior.
+    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior,
+    ``"laplace"`` approximates it by a Gaussian at its mode
+    (:mod:`pneubayes.inference.laplace`; ``laplace_draws`` draws in place of a chain).
     ``checkpoint_dir`` (a folder or None) keeps the chain (``chain.h5``) and the refined
     start (``refined.json``) as they are made, and resumes from them. ``log`` receives
     progress lines (None: silent).
@@ -325,7 +348,8 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
     noise = noise_floor_Pa(recs)
     stages = (_StageCache(ckpt / "refined.json", model, recs, settings)
               if ckpt is not None else None)
-    saved = stages.load() if stages is not None and method == "mcmc" else None
+    saved = (stages.load() if stages is not None and method in ("mcmc", "laplace")
+             else None)
     if saved is not None:
         start, notes, how = saved["start"], saved["notes"], saved["how"]
         log("fit: least squares and refinement skipped: their result is saved in "
@@ -353,19 +377,26 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
         log(f"fit: refined {settings.horizon_s:g}-s RMSE {ref.start_rmse_Pa_:.0f} -> "
             f"{ref.rmse_Pa_:.0f} Pa "
             f"({ref.n_evaluations_} evaluations)")
-        if method == "mcmc" and stages is not None:
+        if method in ("mcmc", "laplace") and stages is not None:
             stages.save(start, notes, how, ref)
     if method == "refine":
         return point(ref.params_, {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
                                    "start_rmse_Pa": ref.start_rmse_Pa_})
-    bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
-                                backend_path=None if ckpt is None else ckpt / "chain.h5",
-                                progress=progress, log=log)
-    bi.fit(data, ref.params_, information=ref.information_)
-    log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
-        f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol "
-        f"{bi.solver_.rtol:.0e}, log-density roughness "
-        f"{bi.diagnostics_['solver_jitter_nats']:.2f} nat)")
+    sm = settings.sampler
+    if method == "laplace":
+        bi = LaplaceIdentification(model, settings.sample_solver, laplace_draws,
+                                   sm.centre_iterations, sm.seed, sm.max_solver_jitter_nats,
+                                   sm.max_solver_tightenings, log=log)
+        bi.fit(data, ref.params_, ref.information_)
+    else:
+        bi = BayesianIdentification(model, settings.sample_solver, sm,
+                                    backend_path=None if ckpt is None else ckpt / "chain.h5",
+                                    progress=progress, log=log)
+        bi.fit(data, ref.params_, information=ref.information_)
+        log(f"fit: emcee {bi.diagnostics_['steps']} steps x {bi.chain_.shape[1]} walkers, "
+            f"converged={bi.converged_}, {bi.wall_time_s_:.0f} s (solver rtol "
+            f"{bi.solver_.rtol:.0e}, log-density roughness "
+            f"{bi.diagnostics_['solver_jitter_nats']:.2f} nat)")
     median = bi.median_params()
     idata = bi.inference_data({"seed": settings.sampler.seed,
                                "pneubayes_version": pneubayes.__version__,
@@ -378,10 +409,7 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
         "input_findings": recorded_findings(recs),
         "parameters": posterior,
         "converged": bi.converged_,
-        "steps": bi.diagnostics_["steps"], "burn": bi.burn_,
-        "n_walkers": int(bi.chain_.shape[1]), "tau_max": bi.diagnostics_["tau_max"],
-        "acceptance_fraction": bi.acceptance_fraction_,
-        "resumed": bi.resumed_,
+        **(_laplace_summary(bi) if method == "laplace" else _emcee_summary(bi)),
         "sampling_solver": bi.diagnostics_["solver"],
         "solver_roughness_nats": bi.diagnostics_["solver_jitter_nats"],
         "start": {"method": how, "notes": notes, "parameters": start},

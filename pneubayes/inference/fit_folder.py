@@ -4,8 +4,8 @@ comes back to yesterday's fit. (A fit never reads back its own folder: it resume
 the checkpoints :func:`~pneubayes.inference.fit.identify` keeps.)
 
 ``model.json`` (the point estimate's model card, with how the recordings were
-prepared), ``posterior.nc`` (arviz, "mcmc" fits), ``summary.json`` (diagnostics) and
-``figures/``; every file is written atomically.
+prepared), ``posterior.nc`` (arviz, "mcmc" and "laplace" fits), ``summary.json``
+(diagnostics) and ``figures/``; every file is written atomically.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def write_posterior(idata, path) -> None:
 
 def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
     """Write ``fit`` as a run folder: ``model.json`` (the point estimate's card),
-    ``posterior.nc`` (arviz; "mcmc"), ``summary.json`` and, with ``figures``,
+    ``posterior.nc`` (arviz; "mcmc", "laplace"), ``summary.json`` and, with ``figures``,
     ``figures/`` (every file atomically)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -52,6 +52,10 @@ from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
+#: Draws of a Laplace posterior unless asked otherwise (``pneubayes fit --method laplace``,
+#: :attr:`DiscoverySettings.laplace_draws <pneubayes.discovery.settings.DiscoverySettings>`).
+LAPLACE_DRAWS = 4000
+
 #: Chains the draws are split into in :meth:`LaplaceIdentification.inference_data`
 #: (independent draws: any split is a set of chains with R-hat 1).
 CHAINS = 4

@@ -50,7 +50,8 @@ def run_fit(recordings, model: Model, settings: FitSettings, out_dir,
     """Fit ``model`` to ``recordings``; write the run folder; return the summary.
 
     ``method``: ``"lsq"`` stops after the paper's least squares (section VI-B),
-    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior.
+    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior,
+    ``"laplace"`` approximates it (:mod:`pneubayes.inference.laplace`).
     The fit itself is :func:`pneubayes.inference.fit.identify` (in memory), with the run
     folder as its checkpoint (the chain and the refined start), so a killed fit resumes;
     :func:`pneubayes.inference.fit_folder.write_fit` writes what it found.
