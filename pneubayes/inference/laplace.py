@@ -56,6 +56,12 @@ from pneubayes.simulation import SolverConfig
 #: :attr:`DiscoverySettings.laplace_draws <pneubayes.discovery.settings.DiscoverySettings>`).
 LAPLACE_DRAWS = 4000
 
+#: Steps (whitened SDs) of the Hessian's differences, tried in turn until every point has
+#: a finite density: 2 keeps the solver's roughness small against the differences; the
+#: shorter ones serve a centre near a prior bound (a valve area at its upper bound on
+#: GTDynamics' recordings, the bound 0.6 refined SDs away).
+DIFFERENCE_STEPS = (2.0, 1.0, 0.5, 0.25)
+
 #: Chains the draws are split into in :meth:`LaplaceIdentification.inference_data`
 #: (independent draws: any split is a set of chains with R-hat 1).
 CHAINS = 4
@@ -116,7 +122,7 @@ class LaplaceIdentification:
         like, solver, jitter = settle_solver(self.model, data, self.solver, ball,
                                              self.max_solver_jitter_nats,
                                              self.max_solver_tightenings)
-        xc, zc, ident, cov_z, lam, lp_c, sums_c = laplace_approximation(
+        xc, zc, ident, cov_z, lam, lp_c, sums_c, h = laplace_approximation(
             like, x0, information, self.centre_iterations)
         z = truncated_draws(like, zc, ident, cov_z, rng, self.n_draws)
         concave = lam > 0
@@ -135,7 +141,8 @@ class LaplaceIdentification:
             "solver": solver.to_dict(), "solver_jitter_nats": jitter,
             "centre_log_posterior": float(lp_c[0]),
             "hessian_eigenvalues": [float(v) for v in lam],
-            "non_concave_directions": int(np.sum(~concave))}
+            "non_concave_directions": int(np.sum(~concave)),
+            "difference_step_sd": h}
         if self.log is not None:
             self.log(f"laplace: {self.n_draws} draws, {np.sum(~concave)} non-concave "
                      f"direction(s) of {lam.size}, {self.wall_time_s_:.0f} s")
@@ -180,11 +187,13 @@ def laplace_approximation(like, start: np.ndarray, information, iterations: int)
     sampling interface); ``start``: natural parameters; ``information``: their Fisher
     information there (whitens the search and the differences).
 
-    Returns ``(xc, zc, ident, cov_z, lam, lp_c, sums_c)``: the centre in natural and
+    Returns ``(xc, zc, ident, cov_z, lam, lp_c, sums_c, h)``: the centre in natural and
     sampling coordinates, the identified columns, their covariance, the eigenvalues of
     the negative Hessian in the whitened coordinates (a non-positive one: a direction
     that keeps the whitening's unit variance), the log-density and noise summary at the
-    centre (``(1,)``, ``(1, 5)``)."""
+    centre (``(1,)``, ``(1, 5)``), and the differences' step in whitened SDs: the first
+    of :data:`DIFFERENCE_STEPS` whose points all have a density (a centre near a prior
+    bound: a shorter step stays inside it)."""
     xc = posterior_centre(like, start, information, iterations)
     _, zc, ident, cz = laplace_in_sampling(like, xc, information)
     basis = whitened_basis(cz)
@@ -193,13 +202,18 @@ def laplace_approximation(like, start: np.ndarray, information, iterations: int)
     if basis is None or not np.isfinite(lp_c[0]):
         raise FloatingPointError("laplace: the information has a non-positive variance, "
                                  "or the centre has no finite posterior density")
-    curv = whitened_curvature(like, zc, ident, basis, float(lp_c[0]))
-    if curv is None:
-        raise FloatingPointError("laplace: a point 2 SDs from the centre has no finite "
-                                 "posterior density; the Hessian cannot be taken")
+    for h in DIFFERENCE_STEPS:
+        curv = whitened_curvature(like, zc, ident, basis, float(lp_c[0]), h)
+        if curv is not None:
+            break
+    else:
+        raise FloatingPointError(
+            f"laplace: points {DIFFERENCE_STEPS[-1]:g} SDs from the centre have no finite "
+            "posterior density (the centre is at a prior bound); the Hessian cannot be "
+            "taken: use emcee")
     lam, q = np.linalg.eigh(-curv[1])
     cov_y = (q / np.where(lam > 0, lam, 1.0)) @ q.T
-    return xc, zc, ident, basis @ cov_y @ basis.T, lam, lp_c, sums_c
+    return xc, zc, ident, basis @ cov_y @ basis.T, lam, lp_c, sums_c, h
 
 
 def truncated_draws(like, zc: np.ndarray, ident: np.ndarray, cov_z: np.ndarray,
