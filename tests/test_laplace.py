@@ -56,8 +56,9 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     target = _Target(mean, np.linalg.inv(true_cov))
     start = mean.copy()
     start[ident] += np.array([2.0, -1.0, 1.5, -2.0]) * np.sqrt(np.diag(true_cov))
-    xc, zc, idc, cov, lam, lp, sums, h = laplace_approximation(target, start, info, 3)
-    assert h == 2.0
+    xc, zc, idc, cov, lam, lp, sums, h, rounds = laplace_approximation(target, start,
+                                                                       info, 3)
+    assert h == 2.0 and rounds == 0  # the information is within 4x of the curvature
     assert list(idc) == ident
     np.testing.assert_allclose(xc[ident], mean[ident], atol=1e-6)
     np.testing.assert_allclose(cov, true_cov, rtol=1e-6, atol=1e-9)
@@ -70,12 +71,19 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     se = np.sqrt((np.outer(d, d) + true_cov**2) / 20_000)  # a sample covariance's SE
     assert np.all(np.abs(np.cov(z[:, ident].T) - true_cov) < 4 * se)
     assert abs(np.mean(z[:, 2])) < 2.0 and np.ptp(z[:, 2]) > 190.0  # U(-100, 100)
+    # an information 10^4 x too large (least squares on correlated misfit): the steps of 2
+    # of its SDs see a curvature 10^-4 of theirs, and the Hessian is taken again in
+    # coordinates whitened by the first: exact again (one round more)
+    *_, cov_far, lam_far, _, _, _, rounds_far = laplace_approximation(target, mean,
+                                                                     1e4 * info, 0)
+    assert rounds_far == 1 and np.all(np.abs(lam_far - 1.0) < 1e-6)
+    np.testing.assert_allclose(cov_far, true_cov, rtol=1e-6, atol=1e-9)
     # a bound 0.6 SDs of the information's from the mean of coordinate 4 leaves points 2
     # and 1 SDs out there: the differences take 0.5-SD steps, exact on the quadratic
     near = _Target(mean, np.linalg.inv(true_cov))
     near.bounds = (np.full(5, -100.0),
                    np.r_[np.full(4, 100.0), mean[4] + 0.6 * np.sqrt(laplace[3, 3])])
-    *_, cov_near, lam_near, _, _, h_near = laplace_approximation(near, start, info, 3)
+    *_, cov_near, lam_near, _, _, h_near, _ = laplace_approximation(near, start, info, 3)
     assert h_near == 0.5 and np.all(lam_near > 0)
     np.testing.assert_allclose(cov_near, true_cov, rtol=1e-6, atol=1e-9)
     # a bound at the mean of coordinate 0: half the Gaussian, none of it piled on the bound

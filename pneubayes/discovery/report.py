@@ -188,7 +188,10 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     if result.posterior_info is not None and result.settings.posterior_method == "laplace":
         lines += ["", f"Posterior: Laplace approximation at the posterior's mode, "
                   f"{result.settings.laplace_draws} draws; negative definite there: "
-                  f"{result.posterior_info['converged']} (a Gaussian: no skew, one mode)."]
+                  f"{result.posterior_info['converged']} (a Gaussian: no skew, one mode)."
+                  + ("" if result.posterior_info["converged"] else
+                     " **Not concave at the mode: its widths there are not the "
+                     "posterior's; sample it with emcee.**")]
     elif result.posterior_info is not None:
         sm = result.settings.fit.sampler
         chains = (f"{sm.rhat_groups} walker groups" if sm.rhat_groups else "walkers")

@@ -62,6 +62,13 @@ LAPLACE_DRAWS = 4000
 #: GTDynamics' recordings, the bound 0.6 refined SDs away).
 DIFFERENCE_STEPS = (2.0, 1.0, 0.5, 0.25)
 
+#: Rounds of whitening again, the stretch of a flat direction per round and the factor
+#: within which the whitened Hessian's eigenvalues must be of 1
+#: (:func:`laplace_approximation`).
+RESCALE_ROUNDS = 6
+EXPAND = 10.0
+SELF_CONSISTENT = 4.0
+
 #: Chains the draws are split into in :meth:`LaplaceIdentification.inference_data`
 #: (independent draws: any split is a set of chains with R-hat 1).
 CHAINS = 4
@@ -122,7 +129,7 @@ class LaplaceIdentification:
         like, solver, jitter = settle_solver(self.model, data, self.solver, ball,
                                              self.max_solver_jitter_nats,
                                              self.max_solver_tightenings)
-        xc, zc, ident, cov_z, lam, lp_c, sums_c, h = laplace_approximation(
+        xc, zc, ident, cov_z, lam, lp_c, sums_c, h, rounds = laplace_approximation(
             like, x0, information, self.centre_iterations)
         z = truncated_draws(like, zc, ident, cov_z, rng, self.n_draws)
         concave = lam > 0
@@ -142,10 +149,15 @@ class LaplaceIdentification:
             "centre_log_posterior": float(lp_c[0]),
             "hessian_eigenvalues": [float(v) for v in lam],
             "non_concave_directions": int(np.sum(~concave)),
-            "difference_step_sd": h}
+            "difference_step_sd": h, "rewhitening_rounds": rounds}
         if self.log is not None:
             self.log(f"laplace: {self.n_draws} draws, {np.sum(~concave)} non-concave "
                      f"direction(s) of {lam.size}, {self.wall_time_s_:.0f} s")
+            if not self.converged_:
+                self.log("laplace: WARNING the log-posterior is not concave at its mode in "
+                         f"{np.sum(~concave)} direction(s): their widths are the least "
+                         "squares' information's, not the posterior's (on GTDynamics' "
+                         "recordings 1000 x too narrow): sample it with emcee")
         return self
 
     # ------------------------------------------------------------------ results
@@ -187,13 +199,23 @@ def laplace_approximation(like, start: np.ndarray, information, iterations: int)
     sampling interface); ``start``: natural parameters; ``information``: their Fisher
     information there (whitens the search and the differences).
 
-    Returns ``(xc, zc, ident, cov_z, lam, lp_c, sums_c, h)``: the centre in natural and
+    Returns ``(xc, zc, ident, cov_z, lam, lp_c, sums_c, h, rounds)``: the centre in natural and
     sampling coordinates, the identified columns, their covariance, the eigenvalues of
     the negative Hessian in the whitened coordinates (a non-positive one: a direction
     that keeps the whitening's unit variance), the log-density and noise summary at the
-    centre (``(1,)``, ``(1, 5)``), and the differences' step in whitened SDs: the first
-    of :data:`DIFFERENCE_STEPS` whose points all have a density (a centre near a prior
-    bound: a shorter step stays inside it)."""
+    centre (``(1,)``, ``(1, 5)``), the differences' step in whitened SDs: the first of
+    :data:`DIFFERENCE_STEPS` whose points all have a density (a centre near a prior
+    bound: a shorter step stays inside it), and the rounds of whitening again.
+
+    The information whitens the differences; where it is far from the posterior's own
+    curvature (least squares' information takes 2-s prediction errors for independent
+    samples, and on a misfitting model with AR(1) noise of 0.9 it is hundreds of times
+    too large), the steps resolve only the solver's roughness. So the Hessian is taken
+    again in coordinates whitened by the one before (its non-concave directions
+    stretched ``EXPAND`` x), until its eigenvalues are within a factor
+    ``SELF_CONSISTENT`` of 1 (the steps were near 2 posterior SDs), at most
+    ``RESCALE_ROUNDS`` times, or until the stretched steps leave the prior (the round
+    before stands)."""
     xc = posterior_centre(like, start, information, iterations)
     _, zc, ident, cz = laplace_in_sampling(like, xc, information)
     basis = whitened_basis(cz)
@@ -202,18 +224,31 @@ def laplace_approximation(like, start: np.ndarray, information, iterations: int)
     if basis is None or not np.isfinite(lp_c[0]):
         raise FloatingPointError("laplace: the information has a non-positive variance, "
                                  "or the centre has no finite posterior density")
-    for h in DIFFERENCE_STEPS:
-        curv = whitened_curvature(like, zc, ident, basis, float(lp_c[0]), h)
-        if curv is not None:
+    done = None  # (basis, lam, q, h) of the last round whose Hessian could be taken
+    for rounds in range(RESCALE_ROUNDS + 1):
+        for h in DIFFERENCE_STEPS:
+            curv = whitened_curvature(like, zc, ident, basis, float(lp_c[0]), h)
+            if curv is not None:
+                break
+        else:
+            if done is None:
+                raise FloatingPointError(
+                    f"laplace: points {DIFFERENCE_STEPS[-1]:g} SDs from the centre have no "
+                    "finite posterior density (the centre is at a prior bound); the "
+                    "Hessian cannot be taken: use emcee")
+            rounds -= 1  # the stretched steps leave the prior: the round before stands
             break
-    else:
-        raise FloatingPointError(
-            f"laplace: points {DIFFERENCE_STEPS[-1]:g} SDs from the centre have no finite "
-            "posterior density (the centre is at a prior bound); the Hessian cannot be "
-            "taken: use emcee")
-    lam, q = np.linalg.eigh(-curv[1])
+        lam, q = np.linalg.eigh(-curv[1])
+        done = (basis, lam, q, h)
+        if (np.all((lam > 1.0 / SELF_CONSISTENT) & (lam < SELF_CONSISTENT))
+                or rounds == RESCALE_ROUNDS):
+            break
+        # whiten again: each concave direction by its own curvature, a flat or convex
+        # one (the differences saw only the solver's roughness) stretched EXPAND x
+        basis = basis @ (q * np.where(lam > 0, 1.0 / np.sqrt(np.abs(lam)), EXPAND))
+    basis, lam, q, h = done
     cov_y = (q / np.where(lam > 0, lam, 1.0)) @ q.T
-    return xc, zc, ident, basis @ cov_y @ basis.T, lam, lp_c, sums_c, h
+    return xc, zc, ident, basis @ cov_y @ basis.T, lam, lp_c, sums_c, h, rounds
 
 
 def truncated_draws(like, zc: np.ndarray, ident: np.ndarray, cov_z: np.ndarray,
