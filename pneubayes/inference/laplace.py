@@ -26,9 +26,9 @@ Its cost is a few hundred posterior evaluations in a handful of batched calls, a
 emcee's tens of thousands (``benchmarks/mcmc.py``: 4.1 s against 219 s, medians within
 0.03 emcee SDs, interval widths 0.96-1.08 x emcee's). What it does not see: skew, several
 modes, a posterior cut by a bound (a leak near 0), a log-density rough at the scale of
-its differences. The result records the Hessian's eigenvalues and whether it is concave
-(on GTDynamics' recordings it is not, and its delay interval is 1000 x narrower than
-emcee's); emcee stays the default.
+its differences, a mode on a prior bound (there the Hessian cannot be taken: an error
+that names emcee; GTDynamics' valve area). The result records the Hessian's eigenvalues
+and whether it is concave; emcee stays the default.
 
 Results follow :class:`~pneubayes.inference.sampler.BayesianIdentification`'s
 (``samples``, ``model_samples``, ``median_params``, ``summary``, ``inference_data``).
@@ -159,9 +159,8 @@ class LaplaceIdentification:
                      f"direction(s) of {lam.size}, {self.wall_time_s_:.0f} s")
             if not self.converged_:
                 self.log("laplace: WARNING the log-posterior is not concave at its mode in "
-                         f"{np.sum(~concave)} direction(s): their widths are the least "
-                         "squares' information's, not the posterior's (on GTDynamics' "
-                         "recordings 1000 x too narrow): sample it with emcee")
+                         f"{np.sum(~concave)} direction(s): their widths are not the "
+                         "posterior's: sample it with emcee")
         return self
 
     # ------------------------------------------------------------------ results
