@@ -129,16 +129,15 @@ def friction_flow(d, z_lin, q0, p, share, cs, area, length, dia, mu):
     for _ in range(30):
         fre, slope = churchill_fre_and_slope_table(abs(q) * re_per_q)
         r = k_r * fre
-        g = q * (z_lin + r) - d
         gp = z_lin + r * (1.0 + slope)
-        q_next = q - g / gp
-        if abs(q_next - q) <= 1e-12 * abs(q_next) + 1e-30:
-            q = q_next
-            break
+        q_next = q - (q * (z_lin + r) - d) / gp
+        if slope == 0.0 and abs(q_next) * re_per_q < 1000.0:
+            return q_next, r, gp  # laminar here and there: r is constant, the step exact
+        done = abs(q_next - q) <= 1e-9 * abs(q_next) + 1e-30
         q = q_next
-    fre, slope = churchill_fre_and_slope_table(abs(q) * re_per_q)
-    r = k_r * fre
-    return q, r, z_lin + r * (1.0 + slope)
+        if done:  # (r and the slope of the last iterate: within 1e-9 relative of q's)
+            break
+    return q, r, gp
 
 
 @njit(cache=True, error_model="numpy")
