@@ -102,7 +102,7 @@ class DiscoverySettings:
     tube_line_form: the outside-tube form tried for a named tube: ``"line"`` (the lumped
     acoustic line, its cells as above) or ``"wave"`` (the transmission-line tube,
     ``tube_delay`` form ``"wave"`` with 8 elements: no cells, closer to a continuous
-    tube than an 8-cell line, at 1.0-1.4 x a 3-cell line's cost on 1-kHz recordings,
+    tube than an 8-cell line, at 1.0-1.7 x a 3-cell line's cost on 1-kHz recordings,
     ``benchmarks/tube_forms.py``; never beside heat transfer: the line is tried there).
     Default ``"wave"``: on a near-continuous tube (2.5 m x 3.64 mm in 32 plant cells into
     a 0.15-cm^3 chamber, ``experiments/tube_form_study.py``) the loop with the line

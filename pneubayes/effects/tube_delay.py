@@ -35,11 +35,12 @@ a row whose waves cross each unchanged in its share of the transit time and refl
 the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
 hold the waves, so the cost does not grow with the tube's length, and a front is spread
 by about the 0.1-ms update grid, however long the tube: on 0.34-2.9 m tubes under random
-steps, 164-272 Pa RMS from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on
-1-kHz inputs it costs 1.0-1.4 x a 3-cell line's time (``benchmarks/tube_forms.py``;
-floors in ``tests/test_wave.py``). Its output moves continuously with the transit time
-(a fit's need). Not beside heat transfer (it has no temperature state). Its volume
-leaves the chamber's, as the line's does.
+steps, 165-259 Pa RMS from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on
+1-kHz inputs it costs 1.0-1.7 x a 3-cell line's time (``benchmarks/tube_forms.py``, one
+run on a loaded machine; its friction solved at each step costs 9-31 % more than when it
+lagged a step, which rang; floors in ``tests/test_wave.py``). Its output moves
+continuously with the transit time (a fit's need). Not beside heat transfer (it has no
+temperature state). Its volume leaves the chamber's, as the line's does.
 """
 
 from __future__ import annotations
