@@ -572,13 +572,11 @@ class Discovery:
             if info is None:
                 raise FloatingPointError("discover: the Laplace posterior needs the refined "
                                          "point's information, and it cannot be taken")
-            sm = s.fit.sampler
             self.log(f"discover: Laplace posterior of "
                      f"{list(fit.model.effect_names) or 'the base'} model")
-            return LaplaceIdentification(
-                fit.model, s.fit.sample_solver, s.laplace_draws, sm.centre_iterations,
-                s.seed, sm.max_solver_jitter_nats, sm.max_solver_tightenings,
-                log=self.log).fit(train_ws, start, info)
+            return LaplaceIdentification.from_sampler(
+                fit.model, s.fit.sample_solver, s.fit.sampler, s.laplace_draws,
+                self.log).fit(train_ws, start, info)
         backend = None if self.out_dir is None else self.out_dir / "chain.h5"
         bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
                                     backend_path=backend, progress=False, log=self.log)

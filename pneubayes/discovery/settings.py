@@ -136,7 +136,8 @@ class DiscoverySettings:
     posterior: the final model gets a posterior on the training windows (False: the
     refined point only). posterior_method: ``"emcee"`` (the sampler, ``fit.sampler``'s
     settings; the default) or ``"laplace"`` (:mod:`pneubayes.inference.laplace`: a
-    Gaussian at the posterior's mode, ``laplace_draws`` draws, in a few hundred posterior
+    Gaussian at the posterior's mode, ``laplace_draws`` draws, seeded and with the solver
+    settings of ``fit.sampler`` as emcee's would be, in a few hundred posterior
     evaluations; it does not see skew or several modes). An emcee chain on a model with
     a transmission-line tube and 80 s of windows takes hours; its Laplace posterior takes
     minutes.

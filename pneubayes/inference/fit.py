@@ -382,14 +382,12 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
     if method == "refine":
         return point(ref.params_, {"parameters": ref.params_, "rmse_Pa": ref.rmse_Pa_,
                                    "start_rmse_Pa": ref.start_rmse_Pa_})
-    sm = settings.sampler
     if method == "laplace":
-        bi = LaplaceIdentification(model, settings.sample_solver, laplace_draws,
-                                   sm.centre_iterations, sm.seed, sm.max_solver_jitter_nats,
-                                   sm.max_solver_tightenings, log=log)
+        bi = LaplaceIdentification.from_sampler(model, settings.sample_solver,
+                                                settings.sampler, laplace_draws, log)
         bi.fit(data, ref.params_, ref.information_)
     else:
-        bi = BayesianIdentification(model, settings.sample_solver, sm,
+        bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,
                                     backend_path=None if ckpt is None else ckpt / "chain.h5",
                                     progress=progress, log=log)
         bi.fit(data, ref.params_, information=ref.information_)

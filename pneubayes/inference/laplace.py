@@ -31,7 +31,8 @@ that names emcee; GTDynamics' valve area). The result records the Hessian's eige
 and whether it is concave; emcee stays the default.
 
 Results follow :class:`~pneubayes.inference.sampler.BayesianIdentification`'s
-(``samples``, ``model_samples``, ``median_params``, ``summary``, ``inference_data``).
+(:class:`~pneubayes.inference.sampler.ChainDraws`' ``samples``, ``model_samples``,
+``median_params``; ``summary``, ``inference_data``).
 """
 
 from __future__ import annotations
@@ -42,11 +43,12 @@ import warnings
 import numpy as np
 
 from pneubayes.inference.likelihood import WindowLikelihood
-from pneubayes.inference.sampler import arviz, settle_solver
+from pneubayes.inference.sampler import ChainDraws, SamplerSettings, arviz, settle_solver
 from pneubayes.inference.walker_start import (
     gaussian_draws,
     laplace_in_sampling,
     posterior_centre,
+    spread_nuisance,
     walker_ball,
     whitened_basis,
     whitened_curvature,
@@ -77,7 +79,7 @@ SELF_CONSISTENT = 4.0
 CHAINS = 4
 
 
-class LaplaceIdentification:
+class LaplaceIdentification(ChainDraws):
     """Laplace approximation of the posterior over a model's parameters.
 
     Parameters
@@ -113,6 +115,14 @@ class LaplaceIdentification:
         self.max_solver_jitter_nats = max_solver_jitter_nats
         self.max_solver_tightenings = max_solver_tightenings
         self.log = log
+
+    @classmethod
+    def from_sampler(cls, model: Model, solver: SolverConfig, sampler: SamplerSettings,
+                     n_draws: int, log=None) -> "LaplaceIdentification":
+        """The approximation with the settings emcee would use (``sampler``: its seed,
+        centring iterations and solver roughness), in place of the chain."""
+        return cls(model, solver, n_draws, sampler.centre_iterations, sampler.seed,
+                   sampler.max_solver_jitter_nats, sampler.max_solver_tightenings, log)
 
     def fit(self, data: WindowSet, start: dict, information) -> "LaplaceIdentification":
         """Approximate the posterior on ``data`` from the refined point ``start`` (a full
@@ -164,17 +174,6 @@ class LaplaceIdentification:
         return self
 
     # ------------------------------------------------------------------ results
-    def samples(self) -> np.ndarray:
-        """Draws, flattened ``(S, D)``: model parameters, then the noise's."""
-        return self.chain_.reshape(-1, self.chain_.shape[-1])
-
-    def model_samples(self) -> np.ndarray:
-        """Draws of the model parameters only ``(S, P)``."""
-        return self.samples()[:, : self.model.n_parameters]
-
-    def median_params(self) -> dict:
-        return self.model.as_dict(np.median(self.model_samples(), axis=0))
-
     def summary(self) -> dict:
         """Per parameter: median, 5 % and 95 % quantiles; R-hat and tau are not defined
         for independent draws (NaN), the ESS is the number of draws."""
@@ -260,16 +259,12 @@ def truncated_draws(like, zc: np.ndarray, ident: np.ndarray, cov_z: np.ndarray,
     columns from N(zc, cov_z), each nuisance one uniform over the range the others
     allow; draws outside the priors' bounds are drawn again."""
     lo, hi = like.bounds
-    nuis = sorted(like.nuisance())
     out, have = [], 0
     for _ in range(100):
         m = 2 * (n - have) + 16
         z = np.tile(zc, (m, 1))
         z[:, ident] = gaussian_draws(zc[ident], cov_z, rng, m)
-        if nuis:
-            rlo, rhi = like.nuisance_ranges(z)
-            u = rng.random(size=rlo.shape)
-            z[:, nuis] = np.where(rhi > rlo, rlo + (rhi - rlo) * u, z[:, nuis])
+        spread_nuisance(like, z, rng)
         x = like.from_sampling(z)
         ok = np.all(np.isfinite(x), axis=1) & np.all((x >= lo) & (x <= hi), axis=1)
         out.append(z[ok])

@@ -179,7 +179,25 @@ def _walkers(settings: SamplerSettings, ndim: int) -> int:
     return -(-n // step) * step
 
 
-class BayesianIdentification:
+class ChainDraws:
+    """The draws a fitted posterior holds in ``chain_`` ``(steps or draws, chains, D)``:
+    the model's parameters, then the noise's (emcee's post-burn chain, the Laplace
+    approximation's draws)."""
+
+    def samples(self) -> np.ndarray:
+        """The draws, flattened ``(S, D)``."""
+        c = self.chain_
+        return c.reshape(-1, c.shape[-1])
+
+    def model_samples(self) -> np.ndarray:
+        """Draws of the model parameters only ``(S, P)``."""
+        return self.samples()[:, : self.model.n_parameters]
+
+    def median_params(self) -> dict:
+        return self.model.as_dict(np.median(self.model_samples(), axis=0))
+
+
+class BayesianIdentification(ChainDraws):
     """emcee posterior of a model's parameters from recordings (scikit-learn contract).
 
     The noise scale and AR(1) coefficient are integrated out of the likelihood
@@ -447,18 +465,6 @@ class BayesianIdentification:
                 {n: float(et[n]) for n in names})
 
     # ------------------------------------------------------------------ results
-    def samples(self) -> np.ndarray:
-        """Posterior draws after burn-in, flattened ``(S, D)``."""
-        c = self.chain_
-        return c.reshape(-1, c.shape[-1])
-
-    def model_samples(self) -> np.ndarray:
-        """Draws of the model parameters only ``(S, P)``."""
-        return self.samples()[:, : self.model.n_parameters]
-
-    def median_params(self) -> dict:
-        return self.model.as_dict(np.median(self.model_samples(), axis=0))
-
     def summary(self) -> dict:
         """Per parameter: median, 5 % and 95 % quantiles, R-hat, bulk ESS, tau."""
         x = self.samples()

@@ -94,6 +94,17 @@ def gaussian_draws(mean: np.ndarray, cov: np.ndarray, rng: np.random.Generator,
     return mean + y * sd
 
 
+def spread_nuisance(like: WindowLikelihood, z: np.ndarray, rng: np.random.Generator):
+    """Draw each nuisance coordinate of the rows ``z`` (sampling coordinates, changed in
+    place) uniformly over the range the other coordinates allow
+    (:meth:`WindowLikelihood.nuisance_ranges`): the posterior is flat there."""
+    nuis = sorted(like.nuisance())
+    if nuis:
+        rlo, rhi = like.nuisance_ranges(z)
+        u = rng.random(size=rlo.shape)
+        z[:, nuis] = np.where(rhi > rlo, rlo + (rhi - rlo) * u, z[:, nuis])
+
+
 def walker_ball(like: WindowLikelihood, start: np.ndarray, information,
                 rng: np.random.Generator, n: int, init_scale: float) -> np.ndarray:
     """``n`` starting walkers in sampling coordinates.
@@ -119,11 +130,7 @@ def walker_ball(like: WindowLikelihood, start: np.ndarray, information,
         # the nuisance coordinates first (their ranges depend on the identified ones
         # only), then the bounds: clipping first would pull an orifice leak's area into
         # its bounds by moving the identified offset + leak sum (~1,000 nats a walker)
-        nuis = sorted(like.nuisance())
-        if nuis:
-            rlo, rhi = like.nuisance_ranges(z)
-            u = rng.random(size=rlo.shape)
-            z[:, nuis] = np.where(rhi > rlo, rlo + (rhi - rlo) * u, z[:, nuis])
+        spread_nuisance(like, z, rng)
         z = like.to_sampling(np.clip(like.from_sampling(z), lo + eps, hi - eps))
     lp = like.log_prob_sampling(z)
     bad = ~np.isfinite(lp)
