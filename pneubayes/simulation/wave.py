@@ -103,12 +103,19 @@ def wave_volume(sl):
 
 
 @njit(cache=True, error_model="numpy")
+def _resistance_per_fre(p, cs, area, length, dia, mu):
+    """``mu L / (2 rho A D^2)`` (Pa s/kg): the steady resistance of ``length`` of tube
+    at pressure ``p`` (the density's) is this times Churchill's ``f Re``."""
+    rho = p / (cs[C_RS] * cs[C_T_SUPPLY])
+    return mu * length / (2.0 * rho * area * dia * dia)
+
+
+@njit(cache=True, error_model="numpy")
 def wave_resistance(q, p, cs, area, length, dia, mu):
     """Steady resistance (Pa s/kg) of ``length`` of tube at mass flow ``q`` and pressure
     ``p`` (the density's)."""
-    rho = p / (cs[C_RS] * cs[C_T_SUPPLY])
     re = abs(q) * dia / (area * mu)
-    return churchill_fre_table(re) * mu * length / (2.0 * rho * area * dia * dia)
+    return churchill_fre_table(re) * _resistance_per_fre(p, cs, area, length, dia, mu)
 
 
 @njit(cache=True, error_model="numpy")
@@ -122,8 +129,7 @@ def friction_flow(d, z_lin, q0, p, share, cs, area, length, dia, mu):
     GTDynamics' recordings: pressures of 1.2 MPa on a 0.56-MPa supply for a transit 10 us
     longer). Returns ``(q, share r(q), z_lin + share r (1 + dln(f Re)/dln Re))``: the flow,
     the resistance it sees and the slope of the equation (dd/dq)."""
-    rho = p / (cs[C_RS] * cs[C_T_SUPPLY])
-    k_r = share * mu * length / (2.0 * rho * area * dia * dia)  # r = k_r f Re
+    k_r = share * _resistance_per_fre(p, cs, area, length, dia, mu)  # r = k_r f Re
     re_per_q = dia / (area * mu)
     q = q0
     for _ in range(30):
