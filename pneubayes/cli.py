@@ -297,8 +297,9 @@ def cmd_fit(args) -> int:
     print(f"{args.out}/model.json  (posterior median; {how}, "
           f"{summary['wall_time_s']:.0f} s)")
     for name, s in summary["parameters"].items():
-        print(f"  {name:32s} {s['median']:12.5g}  90% [{s['q05']:.5g}, {s['q95']:.5g}]"
-              f"  R-hat {s['rhat']:.3f}  ESS {s['ess']:.0f}")
+        # independent draws (laplace) have no R-hat to show
+        chain = "" if args.method == "laplace" else f"  R-hat {s['rhat']:.3f}  ESS {s['ess']:.0f}"
+        print(f"  {name:32s} {s['median']:12.5g}  90% [{s['q05']:.5g}, {s['q95']:.5g}]{chain}")
     if summary["misfit"]["note"]:
         print(f"  misfit: {summary['misfit']['note']}")
     for b in summary["at_bounds"]:

@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-from test_inference import _GaussianTarget
+from gaussian_target import GaussianTarget
 
 from pneubayes.bench.bench import BenchConfig, run_bench
-from pneubayes.effects import effects_from_names
 from pneubayes.inference.laplace import (
     LaplaceIdentification,
     laplace_approximation,
@@ -13,28 +12,8 @@ from pneubayes.inference.laplace import (
 )
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.windows import WindowSet
-from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
-
-
-class _Target(_GaussianTarget):
-    """The Gaussian target with the rest of the interface the approximation reads; no
-    density outside its bounds."""
-
-    def log_prob_sampling(self, z):
-        z = np.atleast_2d(z)
-        lo, hi = self.bounds
-        inside = np.all((z >= lo) & (z <= hi), axis=1)
-        return np.where(inside, super().log_prob_sampling(z), -np.inf)
-
-    def emcee_target(self, z):
-        z = np.atleast_2d(z)
-        return np.column_stack([self.log_prob_sampling(z), np.zeros((z.shape[0], 5))])
-
-    def nuisance_ranges(self, z):
-        n = np.atleast_2d(z).shape[0]
-        return np.full((n, 1), -100.0), np.full((n, 1), 100.0)
 
 
 def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
@@ -53,7 +32,7 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     q = np.linalg.qr(np.eye(4) + 0.2 * rng.normal(size=(4, 4)))[0]
     true_cov = 1.5 * q @ laplace @ q.T
     mean = np.array([1.0, -2.0, 0.0, 0.5, 3.0])
-    target = _Target(mean, np.linalg.inv(true_cov))
+    target = GaussianTarget(mean, np.linalg.inv(true_cov))
     start = mean.copy()
     start[ident] += np.array([2.0, -1.0, 1.5, -2.0]) * np.sqrt(np.diag(true_cov))
     xc, zc, idc, cov, lam, lp, sums, h, rounds = laplace_approximation(target, start,
@@ -80,7 +59,7 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     np.testing.assert_allclose(cov_far, true_cov, rtol=1e-6, atol=1e-9)
     # a bound 0.6 SDs of the information's from the mean of coordinate 4 leaves points 2
     # and 1 SDs out there: the differences take 0.5-SD steps, exact on the quadratic
-    near = _Target(mean, np.linalg.inv(true_cov))
+    near = GaussianTarget(mean, np.linalg.inv(true_cov))
     near.bounds = (np.full(5, -100.0),
                    np.r_[np.full(4, 100.0), mean[4] + 0.6 * np.sqrt(laplace[3, 3])])
     *_, cov_near, lam_near, _, _, h_near, _ = laplace_approximation(near, start, info, 3)
@@ -92,24 +71,14 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     assert np.all(z[:, 0] >= mean[0]) and np.mean(z[:, 0] - mean[0] < 1e-3) < 0.01
 
 
-@pytest.fixture(scope="module")
-def leak_bench(tmp_path_factory):
-    out = tmp_path_factory.mktemp("laplace")
-    cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
-                      duration_s=6.0, seed=3, positions=(0.5, 0.9), ranges_V=(5.0,))
-    res = run_bench(cfg, out)
-    model, truth = Model.load_card(res.truth_path)
-    return [read_recording(p) for p in res.recordings], model, truth
-
-
-def test_laplace_posterior_on_the_bench_covers_the_planted_leak(leak_bench):
+def test_laplace_posterior_on_the_bench_covers_the_planted_leak(prn_leak_bench):
     """From the refined point of two bench recordings with a planted orifice leak: every
     draw inside the priors, the summary's keys and the 4 chains of the InferenceData;
     the 90 % intervals cover the planted leak area and dead volume and at least 10 of
     the 12 parameters; and the window likelihood's curvature at its centre, whitened by
     the least squares' Fisher information, has eigenvalues within a factor of 2 of 1
     (two independent computations of one curvature: white noise here)."""
-    recs, model, truth = leak_bench
+    recs, model, truth = prn_leak_bench
     solver = SolverConfig.standard()
     data = WindowSet(recs[:2], 2.0, 2.0)
     ref = TrajectoryRefiner(model, solver).fit(data, truth)
@@ -167,7 +136,7 @@ def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, ca
     assert "invalid choice: 'gibbs'" in capsys.readouterr().err
 
 
-def test_fit_method_laplace_writes_a_run_folder_predict_reads(leak_bench, tmp_path, capsys):
+def test_fit_method_laplace_writes_a_run_folder_predict_reads(prn_leak_bench, tmp_path, capsys):
     """``pneubayes fit --method laplace``: model.json is the draws' median and says so,
     summary.json records the method's own diagnostics (no chain: 0 steps; the negative
     Hessian's eigenvalues; concave at the mode), posterior.nc holds the draws, and
@@ -176,12 +145,13 @@ def test_fit_method_laplace_writes_a_run_folder_predict_reads(leak_bench, tmp_pa
 
     from pneubayes.cli import main as cli_main
 
-    recs, model, truth = leak_bench
+    recs, model, truth = prn_leak_bench
     paths = [str(r.source) for r in recs]
     run = tmp_path / "run"
     assert cli_main(["fit", *paths[:2], "--method", "laplace",
                      "--out", str(run), "--seed", "3", "-q", "--no-figures"]) == 0
-    assert "Laplace, 4000 draws, concave at the mode True" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "Laplace, 4000 draws, concave at the mode True" in out and "R-hat" not in out
     summary = json.loads((run / "summary.json").read_text())
     assert summary["method"] == "laplace" and summary["steps"] == 0
     assert summary["converged"] and summary["non_concave_directions"] == 0
