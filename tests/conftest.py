@@ -172,6 +172,22 @@ def base_params():
 
 
 @pytest.fixture(scope="session")
+def prn_leak_bench(tmp_path_factory):
+    """Two 6-s fixed-volume PRN/valve1 bench recordings with the catalogue's orifice leak
+    (seed 3): ``(recordings, model, truth)``."""
+    from pneubayes.bench.bench import BenchConfig, run_bench
+    from pneubayes.effects import effects_from_names
+    from pneubayes.io import read_recording
+
+    out = tmp_path_factory.mktemp("prn_leak_bench")
+    cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
+                      duration_s=6.0, seed=3, positions=(0.5, 0.9), ranges_V=(5.0,))
+    res = run_bench(cfg, out)
+    model, truth = Model.load_card(res.truth_path)
+    return [read_recording(p) for p in res.recordings], model, truth
+
+
+@pytest.fixture(scope="session")
 def standard():
     return SolverConfig.standard()
 

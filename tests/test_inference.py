@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from gaussian_target import GaussianTarget
 from scipy import integrate, special
 
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.effects import effects_from_names
-from pneubayes.effects.base import Parameter
 from pneubayes.inference.likelihood import (
     WindowLikelihood,
     ar1_loglike,
@@ -34,13 +34,8 @@ TIGHT = SolverConfig(rtol=1e-6, atol_Pa=1.0, atol_K=0.01, max_step_s=0.02,
 
 
 @pytest.fixture(scope="module")
-def bench(tmp_path_factory):
-    out = tmp_path_factory.mktemp("inference")
-    cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
-                      duration_s=6.0, seed=3, positions=(0.5, 0.9), ranges_V=(5.0,))
-    res = run_bench(cfg, out)
-    model, truth = Model.load_card(res.truth_path)
-    return [read_recording(p) for p in res.recordings], model, truth
+def bench(prn_leak_bench):
+    return prn_leak_bench
 
 
 def test_ar1_loglike_matches_a_direct_density():
@@ -435,31 +430,6 @@ def test_refinement_starts_where_asked_with_a_parameter_of_order_1e_16(tmp_path)
     assert (ssr[1] + ssr[2] - 2 * ssr[0]) / (2 * sigma2) == pytest.approx(1.0, rel=0.2)
 
 
-class _GaussianTarget:
-    """A log-density that is exactly Gaussian in identity sampling coordinates, with
-    coordinate 2 a flat nuisance (the interface the sampler's start needs)."""
-
-    def __init__(self, mean, precision):
-        self.mean, self.precision = mean, precision
-        self.bounds = (np.full(mean.size, -100.0), np.full(mean.size, 100.0))
-        self.parameters = [Parameter(f"p{j}", "-", -100.0, 100.0, "uniform", "test")
-                           for j in range(mean.size)]
-        self.calls = 0
-
-    def nuisance(self):
-        return {2: (-100.0, 100.0)}
-
-    def to_sampling(self, x):
-        return np.array(np.atleast_2d(x), dtype=np.float64)
-
-    from_sampling = to_sampling
-
-    def log_prob_sampling(self, z):
-        self.calls += 1
-        r = np.delete(np.atleast_2d(z) - self.mean, 2, axis=1)
-        return -0.5 * np.einsum("bi,ij,bj->b", r, self.precision, r)
-
-
 def test_posterior_centre_moves_the_start_to_the_mode_of_a_gaussian():
     """The Newton centring of the start, on an exactly Gaussian target 1.5x wider than
     the Laplace covariance, with its axes aligned with the Laplace ones or rotated away
@@ -476,7 +446,7 @@ def test_posterior_centre_moves_the_start_to_the_mode_of_a_gaussian():
     cov[2, 2] = 1.0
     q = np.linalg.qr(np.eye(4) + 0.2 * rng.normal(size=(4, 4)))[0]
     for true_cov in (1.5 * laplace, 1.5 * q @ laplace @ q.T):
-        target = _GaussianTarget(mean, np.linalg.inv(true_cov))
+        target = GaussianTarget(mean, np.linalg.inv(true_cov))
         offset = np.array([3.0, -4.0, 3.5, -3.0]) * np.sqrt(np.diag(true_cov))
         start = mean.copy()
         start[ident] += offset

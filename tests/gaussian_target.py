@@ -1,0 +1,44 @@
+"""An exactly Gaussian log-density with the sampling interface of
+:class:`~pneubayes.inference.likelihood.WindowLikelihood` (tests of the walkers' start,
+the posterior's centre and the Laplace approximation)."""
+
+import numpy as np
+
+from pneubayes.effects.base import Parameter
+
+
+class GaussianTarget:
+    """A log-density exactly Gaussian in identity sampling coordinates, with coordinate 2
+    a flat nuisance over [-100, 100]; no density outside ``bounds`` (+-100 unless
+    replaced). ``calls`` counts the batched evaluations."""
+
+    def __init__(self, mean, precision):
+        self.mean, self.precision = mean, precision
+        self.bounds = (np.full(mean.size, -100.0), np.full(mean.size, 100.0))
+        self.parameters = [Parameter(f"p{j}", "-", -100.0, 100.0, "uniform", "test")
+                           for j in range(mean.size)]
+        self.calls = 0
+
+    def nuisance(self):
+        return {2: (-100.0, 100.0)}
+
+    def nuisance_ranges(self, z):
+        n = np.atleast_2d(z).shape[0]
+        return np.full((n, 1), -100.0), np.full((n, 1), 100.0)
+
+    def to_sampling(self, x):
+        return np.array(np.atleast_2d(x), dtype=np.float64)
+
+    from_sampling = to_sampling
+
+    def log_prob_sampling(self, z):
+        self.calls += 1
+        z = np.atleast_2d(z)
+        lo, hi = self.bounds
+        r = np.delete(z - self.mean, 2, axis=1)
+        lp = -0.5 * np.einsum("bi,ij,bj->b", r, self.precision, r)
+        return np.where(np.all((z >= lo) & (z <= hi), axis=1), lp, -np.inf)
+
+    def emcee_target(self, z):
+        z = np.atleast_2d(z)
+        return np.column_stack([self.log_prob_sampling(z), np.zeros((z.shape[0], 5))])
