@@ -127,7 +127,8 @@ def main(argv=None) -> int:
         "coverage_90_fraction": float(np.mean(list(cover.values()))),
         "heldout": pred, "controller_ms_64_draws_2s_200Hz": ctrl_ms,
         "controller_ms_64_draws_2s_1kHz": ctrl_ms_1khz,
-        "laplace": {"wall_time_s": lap_wall, "concave_at_mode": lap.summary["converged"],
+        "laplace": {"wall_time_s": lap_wall, "reliable": lap.summary["converged"],
+                    "importance_check": lap.summary["importance_check"],
                     "hessian_eigenvalues": lap.summary["hessian_eigenvalues"],
                     "by_parameter": lap_cmp, "heldout": lap_pred},
         "floors": {"rhat_le_1.01": rhat <= 1.01, "ess_ge_400": ess >= 400,
@@ -151,7 +152,9 @@ def main(argv=None) -> int:
     print(f"Laplace from the same refined point: {lap_wall:.1f} s (emcee {wall:.0f} s with "
           f"the refinement); 90 % intervals covering the truth: "
           f"{sum(lap_cmp[n]['covers_truth'] for n in model_names)}/{len(model_names)}; "
-          f"held-out coverage 90 % {lap_pred['coverage_90']:.3f}")
+          f"held-out coverage 90 % {lap_pred['coverage_90']:.3f}; importance check Pareto "
+          f"k {lap.summary['importance_check']['pareto_k']} (reliable <= "
+          f"{lap.summary['importance_check']['khat_threshold']:.2f})")
     for n, c in lap_cmp.items():
         shift, ratio = c["median_shift_emcee_sd"], c["width_ratio"]
         print(f"  {n:28s} median shift {shift if shift is None else round(shift, 2)} "

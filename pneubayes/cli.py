@@ -291,8 +291,8 @@ def cmd_fit(args) -> int:
         for note in summary["start"]["notes"]:
             print(f"  note: {note}")
         return 0
-    how = (f"Laplace, {summary['draws']} draws, concave at the mode "
-           f"{summary['converged']}" if args.method == "laplace" else
+    how = (f"Laplace, {summary['draws']} draws, concave at the mode and its draws "
+           f"reliable {summary['converged']}" if args.method == "laplace" else
            f"converged={summary['converged']}, {summary['steps']} steps")
     print(f"{args.out}/model.json  (posterior median; {how}, "
           f"{summary['wall_time_s']:.0f} s)")

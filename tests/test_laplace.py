@@ -7,6 +7,7 @@ from gaussian_target import GaussianTarget
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.inference.laplace import (
     LaplaceIdentification,
+    importance_check,
     laplace_approximation,
     truncated_draws,
 )
@@ -35,13 +36,17 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     target = GaussianTarget(mean, np.linalg.inv(true_cov))
     start = mean.copy()
     start[ident] += np.array([2.0, -1.0, 1.5, -2.0]) * np.sqrt(np.diag(true_cov))
-    xc, zc, idc, cov, lam, lp, sums, h, rounds = laplace_approximation(target, start,
-                                                                       info, 3)
-    assert h == 2.0 and rounds == 0  # the information is within 4x of the curvature
+    fit = laplace_approximation(target, start, info, 3)
+    assert fit.step_sd == 2.0 and fit.rounds == 0  # the information within 4x of it
+    assert fit.shift_sd == 0.0 and fit.bounded == ()
+    idc, cov = fit.ident, fit.cov_z
     assert list(idc) == ident
-    np.testing.assert_allclose(xc[ident], mean[ident], atol=1e-6)
+    np.testing.assert_allclose(fit.x_centre[ident], mean[ident], atol=1e-6)
+    np.testing.assert_array_equal(fit.mean_z, fit.z_centre)
     np.testing.assert_allclose(cov, true_cov, rtol=1e-6, atol=1e-9)
-    assert np.all(lam > 0) and lp[0] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(fit.eigenvalues > 0)
+    assert fit.log_posterior[0] == pytest.approx(0.0, abs=1e-9)
+    zc = fit.z_centre
     z = truncated_draws(target, zc, idc, cov, np.random.default_rng(0), 20_000)
     assert z.shape == (20_000, 5)
     np.testing.assert_allclose(np.mean(z[:, ident], axis=0), mean[ident],
@@ -53,22 +58,81 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     # an information 10^4 x too large (least squares on correlated misfit): the steps of 2
     # of its SDs see a curvature 10^-4 of theirs, and the Hessian is taken again in
     # coordinates whitened by the first: exact again (one round more)
-    *_, cov_far, lam_far, _, _, _, rounds_far = laplace_approximation(target, mean,
-                                                                     1e4 * info, 0)
-    assert rounds_far == 1 and np.all(np.abs(lam_far - 1.0) < 1e-6)
-    np.testing.assert_allclose(cov_far, true_cov, rtol=1e-6, atol=1e-9)
+    far = laplace_approximation(target, mean, 1e4 * info, 0)
+    assert far.rounds == 1 and np.all(np.abs(far.eigenvalues - 1.0) < 1e-6)
+    np.testing.assert_allclose(far.cov_z, true_cov, rtol=1e-6, atol=1e-9)
     # a bound 0.6 SDs of the information's from the mean of coordinate 4 leaves points 2
     # and 1 SDs out there: the differences take 0.5-SD steps, exact on the quadratic
     near = GaussianTarget(mean, np.linalg.inv(true_cov))
     near.bounds = (np.full(5, -100.0),
                    np.r_[np.full(4, 100.0), mean[4] + 0.6 * np.sqrt(laplace[3, 3])])
-    *_, cov_near, lam_near, _, _, h_near, _ = laplace_approximation(near, start, info, 3)
-    assert h_near == 0.5 and np.all(lam_near > 0)
-    np.testing.assert_allclose(cov_near, true_cov, rtol=1e-6, atol=1e-9)
+    near_fit = laplace_approximation(near, start, info, 3)
+    assert near_fit.step_sd == 0.5 and np.all(near_fit.eigenvalues > 0)
+    assert near_fit.bounded == ()
+    np.testing.assert_allclose(near_fit.cov_z, true_cov, rtol=1e-6, atol=1e-9)
+    # the importance check: the draws' density is the target's (constant ratios), one
+    # with a tenth of the variance misses mass (Pareto k past the threshold), one 1.5 x
+    # too wide passes with a smaller effective sample
+    exact = importance_check(target, fit, z[:200])
+    assert exact["pareto_k"] is None and exact["ess_fraction"] == 1.0
+    for scale, reliable in ((0.1, False), (1.5, True)):
+        f = fit._replace(cov_z=scale * cov)
+        zs = truncated_draws(target, zc, idc, f.cov_z, np.random.default_rng(2), 400)
+        check = importance_check(target, f, zs)
+        assert (check["pareto_k"] <= check["khat_threshold"]) == reliable
+        assert check["ess_fraction"] < 0.9
     # a bound at the mean of coordinate 0: half the Gaussian, none of it piled on the bound
     target.bounds = (np.array([mean[0], -100, -100, -100, -100.0]), np.full(5, 100.0))
     z = truncated_draws(target, zc, idc, cov, np.random.default_rng(1), 4000)
     assert np.all(z[:, 0] >= mean[0]) and np.mean(z[:, 0] - mean[0] < 1e-3) < 0.01
+
+
+def test_laplace_with_its_mode_on_a_prior_bound_is_the_cut_gaussian():
+    """A Gaussian whose mean is 1 SD beyond the upper bound of coordinate 4 and 0.5 SD
+    beyond the lower bound of coordinate 0: the posterior's mode is on both bounds, no
+    step of the differences fits inside at it, so the Hessian and slope are taken at a
+    point moved inside; on a quadratic that is exact: the covariance is the target's and
+    the Gaussian's mean its mean, beyond the bounds. The draws are the Gaussian cut at
+    the bounds: coordinate 0's marginal is the truncated normal (mean to 4 SEs, no draw
+    outside), and a mean 5 SDs beyond a bound (1 in 3.5 million inside) is an error that
+    names emcee. Before the bound-aware design the Hessian could not be taken here."""
+    from scipy.stats import truncnorm
+
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(4, 4))
+    cov4 = a @ a.T + 2 * np.eye(4)
+    ident = [0, 1, 3, 4]
+    info = np.zeros((5, 5))
+    info[np.ix_(ident, ident)] = np.linalg.inv(cov4)
+    info[2, 2] = 1.0
+    mean = np.array([1.0, -2.0, 0.0, 0.5, 3.0])
+    sd = np.sqrt(np.diag(cov4))
+    target = GaussianTarget(mean, np.linalg.inv(cov4))
+    lo0, hi4 = mean[0] + 0.5 * sd[0], mean[4] - 1.0 * sd[3]
+    target.bounds = (np.r_[lo0, np.full(4, -100.0)], np.r_[np.full(4, 100.0), hi4])
+    start = np.r_[lo0, mean[1:4], hi4]  # on both bounds (clipped just inside)
+    fit = laplace_approximation(target, start, info, 3)
+    assert fit.bounded == ("p0", "p4") and fit.shift_sd > 0 and fit.step_sd == 2.0
+    assert np.all(fit.eigenvalues > 0)
+    np.testing.assert_allclose(fit.cov_z, cov4, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(fit.mean_z[ident], mean[ident], atol=1e-6)
+    assert fit.x_centre[0] >= lo0 and fit.x_centre[4] <= hi4
+    n = 20_000
+    z = truncated_draws(target, fit.mean_z, fit.ident, fit.cov_z,
+                        np.random.default_rng(3), n)
+    assert np.all(z[:, 0] >= lo0) and np.all(z[:, 4] <= hi4)
+    # the marginal of coordinate 0 given the other cut (a 2-D cut): check the
+    # 1-D cut alone, by a target cut only there
+    one = GaussianTarget(mean, np.linalg.inv(cov4))
+    one.bounds = (np.r_[lo0, np.full(4, -100.0)], np.full(5, 100.0))
+    z1 = truncated_draws(one, fit.mean_z, fit.ident, fit.cov_z, np.random.default_rng(4), n)
+    cut = truncnorm(0.5, np.inf, loc=mean[0], scale=sd[0])
+    assert abs(np.mean(z1[:, 0]) - cut.mean()) < 4 * cut.std() / np.sqrt(n)
+    assert abs(np.std(z1[:, 0]) - cut.std()) < 4 * cut.std() / np.sqrt(2 * n)
+    beyond = fit.mean_z.copy()
+    beyond[0] = lo0 - 5.0 * sd[0]
+    with pytest.raises(FloatingPointError, match="use emcee"):
+        truncated_draws(one, beyond, fit.ident, fit.cov_z, np.random.default_rng(5), 1000)
 
 
 def test_laplace_posterior_on_the_bench_covers_the_planted_leak(prn_leak_bench):
@@ -82,7 +146,8 @@ def test_laplace_posterior_on_the_bench_covers_the_planted_leak(prn_leak_bench):
     solver = SolverConfig.standard()
     data = WindowSet(recs[:2], 2.0, 2.0)
     ref = TrajectoryRefiner(model, solver).fit(data, truth)
-    lap = LaplaceIdentification(model, solver, n_draws=2000, centre_iterations=2, seed=4,
+    lap = LaplaceIdentification(model, solver, n_draws=2000, check_draws=200,
+                                centre_iterations=2, seed=4,
                                 max_solver_jitter_nats=0.3, max_solver_tightenings=2
                                 ).fit(data, ref.params_, ref.information_)
     lo, hi = model.bounds
@@ -99,6 +164,8 @@ def test_laplace_posterior_on_the_bench_covers_the_planted_leak(prn_leak_bench):
     idata = lap.inference_data({"seed": 4})
     assert idata.posterior["leak_area_m2"].shape == (4, 500)
     assert lap.diagnostics_["method"] == "laplace" and lap.diagnostics_["draws"] == 2000
+    check = lap.diagnostics_["importance_check"]
+    assert check["draws"] == 200 and check["pareto_k"] <= check["khat_threshold"]
 
 
 def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, capsys):
@@ -151,10 +218,12 @@ def test_fit_method_laplace_writes_a_run_folder_predict_reads(prn_leak_bench, tm
     assert cli_main(["fit", *paths[:2], "--method", "laplace",
                      "--out", str(run), "--seed", "3", "-q", "--no-figures"]) == 0
     out = capsys.readouterr().out
-    assert "Laplace, 4000 draws, concave at the mode True" in out and "R-hat" not in out
+    assert ("Laplace, 4000 draws, concave at the mode and its draws reliable True" in out
+            and "R-hat" not in out)
     summary = json.loads((run / "summary.json").read_text())
     assert summary["method"] == "laplace" and summary["steps"] == 0
     assert summary["converged"] and summary["non_concave_directions"] == 0
+    assert summary["importance_check"]["draws"] == 200
     assert all(v > 0 for v in summary["hessian_eigenvalues"])
     fitted, median = Model.load_card(run / "model.json")
     card = json.loads((run / "model.json").read_text())

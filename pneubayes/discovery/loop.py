@@ -370,7 +370,11 @@ class Discovery:
                                        "steps": bi.diagnostics_["steps"],
                                        "sampling_solver": bi.diagnostics_["solver"],
                                        "solver_roughness_nats":
-                                           bi.diagnostics_["solver_jitter_nats"]}}
+                                           bi.diagnostics_["solver_jitter_nats"],
+                                       "importance_check":
+                                           bi.diagnostics_.get("importance_check"),
+                                       "mode_on_prior_bound":
+                                           bi.diagnostics_.get("mode_on_prior_bound", [])}}
         self.result_ = DiscoveryResult(
             settings=s, base=base, final=current, accepted=tuple(accepted),
             ledger=tuple(ledger), maps=tuple(maps), searches=tuple(searches),
@@ -576,7 +580,7 @@ class Discovery:
                      f"{list(fit.model.effect_names) or 'the base'} model")
             return LaplaceIdentification.from_sampler(
                 fit.model, s.fit.sample_solver, s.fit.sampler, s.laplace_draws,
-                self.log).fit(train_ws, start, info)
+                s.laplace_check_draws, self.log).fit(train_ws, start, info)
         backend = None if self.out_dir is None else self.out_dir / "chain.h5"
         bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
                                     backend_path=backend, progress=False, log=self.log)

@@ -186,12 +186,22 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     if "disagreement_final" in figs:
         lines += ["", "## Final model", "", f"![final](figures/{figs['disagreement_final']})"]
     if result.posterior_info is not None and result.settings.posterior_method == "laplace":
+        info = result.posterior_info
+        check = info.get("importance_check")
+        bounded = info.get("mode_on_prior_bound") or []
         lines += ["", f"Posterior: Laplace approximation at the posterior's mode, "
-                  f"{result.settings.laplace_draws} draws; negative definite there: "
-                  f"{result.posterior_info['converged']} (a Gaussian: no skew, one mode)."
-                  + ("" if result.posterior_info["converged"] else
-                     " **Not concave at the mode: its widths there are not the "
-                     "posterior's; sample it with emcee.**")]
+                  f"{result.settings.laplace_draws} draws (a Gaussian: no skew, one mode)"
+                  + (f"; the mode on the prior bound of {', '.join(bounded)}: the "
+                     "Gaussian fitted inside, cut at the bound" if bounded else "")
+                  + ("" if check is None else
+                     f"; importance check on {check['draws']} draws: Pareto k "
+                     f"{_fmt(check['pareto_k'], '.2f')} (reliable <= "
+                     f"{check['khat_threshold']:.2f})")
+                  + f". Reliable: {info['converged']}."
+                  + ("" if info["converged"] else
+                     " **Not concave at the mode, or the posterior has mass the Gaussian "
+                     "misses: its intervals are not the posterior's; sample it with "
+                     "emcee.**")]
     elif result.posterior_info is not None:
         sm = result.settings.fit.sampler
         chains = (f"{sm.rhat_groups} walker groups" if sm.rhat_groups else "walkers")

@@ -36,8 +36,10 @@ class DiscoveryResult(PosteriorDraws):
     posterior : arviz InferenceData of the final model's emcee chain (None without one)
     posterior_summary : per parameter median, 5 % and 95 % quantiles, R-hat, ESS
     posterior_info : method (emcee or laplace), converged (laplace: the log-posterior
-        is concave at its mode), steps (laplace: 0), the sampling solver and its
-        log-density roughness (nats)
+        is concave at its mode and the importance check finds its draws reliable), steps
+        (laplace: 0), the sampling solver and its log-density roughness (nats); laplace:
+        the importance check (Pareto k, its threshold, ESS fraction; None unchecked) and
+        the parameters whose prior bound the mode is on
     noise_floor_Pa : the recordings' white-noise floor (median), Pa
     range_Pa : the rig's working range (supply - atmosphere), Pa
     span_Pa : the measured pressures' 1-99 % span, Pa

@@ -9,7 +9,7 @@ from pneubayes.discovery.disagreement import RegimeSettings
 from pneubayes.discovery.library import LibraryGrid
 from pneubayes.effects import catalogue_parameter_names
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
-from pneubayes.inference.laplace import LAPLACE_DRAWS
+from pneubayes.inference.laplace import IMPORTANCE_CHECK_DRAWS, LAPLACE_DRAWS
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.model import Model, check_bound_overrides
 from pneubayes.simulation import SolverConfig
@@ -136,7 +136,8 @@ class DiscoverySettings:
     posterior: the final model gets a posterior on the training windows (False: the
     refined point only). posterior_method: ``"emcee"`` (the sampler, ``fit.sampler``'s
     settings; the default) or ``"laplace"`` (:mod:`pneubayes.inference.laplace`: a
-    Gaussian at the posterior's mode, ``laplace_draws`` draws, seeded and with the solver
+    Gaussian at the posterior's mode, ``laplace_draws`` draws, the first
+    ``laplace_check_draws`` checked against the posterior's density, seeded and with the solver
     settings of ``fit.sampler`` as emcee's would be, in a few hundred posterior
     evaluations; it does not see skew or several modes). An emcee chain on a model with
     a transmission-line tube and 80 s of windows takes hours; its Laplace posterior takes
@@ -177,6 +178,7 @@ class DiscoverySettings:
     posterior: bool = True
     posterior_method: str = "emcee"
     laplace_draws: int = LAPLACE_DRAWS
+    laplace_check_draws: int = IMPORTANCE_CHECK_DRAWS
     library_solver: SolverConfig = field(default_factory=SolverConfig.standard)
     seed: int = 0
 
@@ -238,6 +240,12 @@ class DiscoverySettings:
                 and self.laplace_draws % 4 == 0):
             raise ValueError(f"laplace_draws must be a positive multiple of 4, got "
                              f"{self.laplace_draws!r}")
+        if not (isinstance(self.laplace_check_draws, int)
+                and (self.laplace_check_draws == 0
+                     or 100 <= self.laplace_check_draws <= self.laplace_draws)):
+            raise ValueError(f"laplace_check_draws must be 0 or an integer from 100 to "
+                             f"laplace_draws ({self.laplace_draws}), got "
+                             f"{self.laplace_check_draws!r}")
         if self.tube_line_form not in ("line", "wave"):
             raise ValueError(f"tube_line_form must be 'line' or 'wave', got "
                              f"{self.tube_line_form!r}")

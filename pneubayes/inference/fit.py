@@ -23,7 +23,11 @@ from pneubayes.atomic import json_safe, write_json_atomic
 from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
-from pneubayes.inference.laplace import LAPLACE_DRAWS, LaplaceIdentification
+from pneubayes.inference.laplace import (
+    IMPORTANCE_CHECK_DRAWS,
+    LAPLACE_DRAWS,
+    LaplaceIdentification,
+)
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.inference.predictive import PressurePredictor, noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
@@ -130,11 +134,14 @@ def _emcee_summary(bi: BayesianIdentification) -> dict:
 def _laplace_summary(lap: LaplaceIdentification) -> dict:
     """A Laplace posterior's record in the summary: no chain (0 steps, no walkers); its
     draws, the negative Hessian's eigenvalues in the whitened coordinates and the centre.
-    ``converged`` (beside it) says whether the log-posterior is concave there."""
+    ``converged`` (beside it) says whether the log-posterior is concave there and the
+    importance check finds the draws reliable."""
     d = lap.diagnostics_
     return {"steps": 0, "draws": d["draws"], "n_walkers": None, "tau_max": None,
             "hessian_eigenvalues": d["hessian_eigenvalues"],
             "non_concave_directions": d["non_concave_directions"],
+            "mode_on_prior_bound": d["mode_on_prior_bound"],
+            "importance_check": d["importance_check"],
             "centre": lap.centre_, "resumed": False}
 
 #: A fit or held-out error above this x the noise floor is reported as misfit, never as
@@ -325,13 +332,15 @@ class Fit(PosteriorDraws):
 
 def identify(recordings, model: Model, settings: FitSettings, method: str = "mcmc",
              checkpoint_dir=None, progress: bool = False, log=None,
-             laplace_draws: int = LAPLACE_DRAWS) -> Fit:
+             laplace_draws: int = LAPLACE_DRAWS,
+             laplace_check_draws: int = IMPORTANCE_CHECK_DRAWS) -> Fit:
     """Fit ``model`` to ``recordings`` in memory; returns a :class:`Fit`.
 
     ``method``: ``"lsq"`` stops after the paper's least squares (section VI-B),
     ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior,
     ``"laplace"`` approximates it by a Gaussian at its mode
-    (:mod:`pneubayes.inference.laplace`; ``laplace_draws`` draws in place of a chain).
+    (:mod:`pneubayes.inference.laplace`; ``laplace_draws`` draws in place of a chain, the
+    first ``laplace_check_draws`` of them checked against the posterior's density).
     ``checkpoint_dir`` (a folder or None) keeps the chain (``chain.h5``) and the refined
     start (``refined.json``) as they are made, and resumes from them. ``log`` receives
     progress lines (None: silent).
@@ -384,7 +393,8 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
                                    "start_rmse_Pa": ref.start_rmse_Pa_})
     if method == "laplace":
         bi = LaplaceIdentification.from_sampler(model, settings.sample_solver,
-                                                settings.sampler, laplace_draws, log)
+                                                settings.sampler, laplace_draws,
+                                                laplace_check_draws, log)
         bi.fit(data, ref.params_, ref.information_)
     else:
         bi = BayesianIdentification(model, settings.sample_solver, settings.sampler,

@@ -15,20 +15,31 @@ mode:
    inverse the covariance; taken again in coordinates whitened by the one before where
    the information is far from it (:func:`laplace_approximation`). Directions in which
    it is not negative definite keep the whitening's variance and are reported (a
-   warning: their widths are not the posterior's);
+   warning: their widths are not the posterior's). Where the mode is on a prior bound
+   (the likelihood wants a value the prior does not allow) the Hessian and slope are
+   taken at a point moved inside and the Gaussian is the quadratic they define, its
+   mean beyond the bound (:func:`inward_point`);
 3. draws: the identified coordinates from that Gaussian, each nuisance coordinate (one
    only the prior informs) uniformly over the range the others allow, as emcee's walkers
    start (:func:`~pneubayes.inference.walker_start.walker_ball`); draws outside the
    priors' bounds are drawn again (a truncated Gaussian); the noise's scale and AR(1)
-   coefficient from their conditional posterior at the centre.
+   coefficient from their conditional posterior at the centre;
+4. a check (:func:`importance_check`): the posterior's density at the first 200 draws
+   against theirs, Pareto-smoothed importance sampling's k (Vehtari et al. 2024). Past
+   its threshold the posterior has mass the Gaussian misses: a warning, and the result
+   is not ``converged_``.
 
 Its cost is a few hundred posterior evaluations in a handful of batched calls, against
 emcee's tens of thousands (``benchmarks/mcmc.py``: 4.1 s against 219 s, medians within
 0.03 emcee SDs, interval widths 0.96-1.08 x emcee's). What it does not see: skew, several
-modes, a posterior cut by a bound (a leak near 0), a log-density rough at the scale of
-its differences, a mode on a prior bound (there the Hessian cannot be taken: an error
-that names emcee; GTDynamics' valve area). The result records the Hessian's eigenvalues
-and whether it is concave; emcee stays the default.
+modes, a posterior cut by a bound far from the mode (a leak near 0), a log-density rough
+at the scale of its differences; the check catches a Gaussian clearly too narrow (a
+tenth of the variance: always in the tests) and often not one moderately narrow (a
+third: half the time at 400 draws), and passes one too wide (importance sampling from
+it is reliable; its ESS falls). On GTDynamics' recordings (the mode on the valve area's
+upper bound, the posterior flat over two e-folds of it) the Gaussian's valve-area
+interval is half emcee's and the check flags it (k 0.85). The result records the
+Hessian's eigenvalues, the check, and whether both pass; emcee stays the default.
 
 Results follow :class:`~pneubayes.inference.sampler.BayesianIdentification`'s
 (:class:`~pneubayes.inference.sampler.ChainDraws`' ``samples``, ``model_samples``,
@@ -39,12 +50,15 @@ from __future__ import annotations
 
 import time
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
 from pneubayes.inference.likelihood import WindowLikelihood
 from pneubayes.inference.sampler import ChainDraws, SamplerSettings, arviz, settle_solver
 from pneubayes.inference.walker_start import (
+    correlation_form,
+    curvature_stencil,
     gaussian_draws,
     laplace_in_sampling,
     posterior_centre,
@@ -61,11 +75,24 @@ from pneubayes.simulation import SolverConfig
 #: :attr:`DiscoverySettings.laplace_draws <pneubayes.discovery.settings.DiscoverySettings>`).
 LAPLACE_DRAWS = 4000
 
+#: Draws whose posterior density checks the approximation (:func:`importance_check`):
+#: 200 puts 42 in the Pareto tail fit (``min(0.2 S, 3 sqrt S)``).
+IMPORTANCE_CHECK_DRAWS = 200
+
 #: Steps (whitened SDs) of the Hessian's differences, tried in turn until every point has
 #: a finite density: 2 keeps the solver's roughness small against the differences; the
 #: shorter ones serve a centre near a prior bound (a valve area at its upper bound on
 #: GTDynamics' recordings, the bound 0.6 refined SDs away).
 DIFFERENCE_STEPS = (2.0, 1.0, 0.5, 0.25)
+
+#: Moves of :func:`inward_point` (the parameters are not linear in the sampling
+#: coordinates: a Gompertz ``b`` is ``exp(z_b + c d)``).
+INWARD_ITERATIONS = 10
+
+#: Fewest of the Gaussian's draws that must fall inside the priors' bounds, and the most
+#: drawn at once (:func:`truncated_draws`).
+MIN_ACCEPTED = 1e-4
+MAX_ROUND = 1_000_000
 
 #: Rounds of whitening again, the stretch of a flat direction per round and the factor
 #: within which the whitened Hessian's eigenvalues must be of 1
@@ -92,6 +119,9 @@ class LaplaceIdentification(ChainDraws):
         as emcee's (:func:`~pneubayes.inference.sampler.settle_solver`).
     n_draws : int
         Draws of the approximation (a multiple of 4).
+    check_draws : int
+        Of them, how many the posterior's density checks (:func:`importance_check`; 0:
+        none, >= 100 otherwise).
     centre_iterations : int
         Newton steps from the refined point to the posterior's centre.
     seed : int
@@ -104,12 +134,13 @@ class LaplaceIdentification(ChainDraws):
 
     method = "laplace"
 
-    def __init__(self, model: Model, solver: SolverConfig, n_draws: int,
+    def __init__(self, model: Model, solver: SolverConfig, n_draws: int, check_draws: int,
                  centre_iterations: int, seed: int, max_solver_jitter_nats: float,
                  max_solver_tightenings: int, log=None):
         self.model = model
         self.solver = solver
         self.n_draws = n_draws
+        self.check_draws = check_draws
         self.centre_iterations = centre_iterations
         self.seed = seed
         self.max_solver_jitter_nats = max_solver_jitter_nats
@@ -118,10 +149,11 @@ class LaplaceIdentification(ChainDraws):
 
     @classmethod
     def from_sampler(cls, model: Model, solver: SolverConfig, sampler: SamplerSettings,
-                     n_draws: int, log=None) -> "LaplaceIdentification":
+                     n_draws: int, check_draws: int, log=None) -> "LaplaceIdentification":
         """The approximation with the settings emcee would use (``sampler``: its seed,
         centring iterations and solver roughness), in place of the chain."""
-        return cls(model, solver, n_draws, sampler.centre_iterations, sampler.seed,
+        return cls(model, solver, n_draws, check_draws, sampler.centre_iterations,
+                   sampler.seed,
                    sampler.max_solver_jitter_nats, sampler.max_solver_tightenings, log)
 
     def fit(self, data: WindowSet, start: dict, information) -> "LaplaceIdentification":
@@ -132,6 +164,10 @@ class LaplaceIdentification(ChainDraws):
                 and self.n_draws % CHAINS == 0):
             raise ValueError(f"n_draws must be a positive multiple of {CHAINS}, got "
                              f"{self.n_draws!r}")
+        if not (isinstance(self.check_draws, int)
+                and (self.check_draws == 0 or 100 <= self.check_draws <= self.n_draws)):
+            raise ValueError(f"check_draws must be 0 or an integer from 100 to n_draws "
+                             f"({self.n_draws}), got {self.check_draws!r}")
         if not (isinstance(self.centre_iterations, int) and self.centre_iterations >= 0):
             raise ValueError(f"centre_iterations must be an integer >= 0, got "
                              f"{self.centre_iterations!r}")
@@ -143,33 +179,51 @@ class LaplaceIdentification(ChainDraws):
         like, solver, jitter = settle_solver(self.model, data, self.solver, ball,
                                              self.max_solver_jitter_nats,
                                              self.max_solver_tightenings)
-        xc, zc, ident, cov_z, lam, lp_c, sums_c, h, rounds = laplace_approximation(
-            like, x0, information, self.centre_iterations)
-        z = truncated_draws(like, zc, ident, cov_z, rng, self.n_draws)
+        fit = laplace_approximation(like, x0, information, self.centre_iterations)
+        z = truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z, rng, self.n_draws)
+        lam = fit.eigenvalues
         concave = lam > 0
+        check = (importance_check(like, fit, z[:self.check_draws]) if self.check_draws
+                 else None)
+        fits_draws = (check is None or check["pareto_k"] is None
+                      or check["pareto_k"] <= check["khat_threshold"])
         x = like.from_sampling(z)
-        noise = like.draw_noise(np.repeat(sums_c, x.shape[0], axis=0), rng)
+        noise = like.draw_noise(np.repeat(fit.noise_sums, x.shape[0], axis=0), rng)
         self.names_ = like.names + like.noise_names
         self.chain_ = np.concatenate([x, noise], axis=1).reshape(
             self.n_draws // CHAINS, CHAINS, -1)
-        self.centre_ = self.model.as_dict(xc)
+        self.centre_ = self.model.as_dict(fit.x_centre)
         self.likelihood_ = like
         self.solver_ = solver
-        self.converged_ = bool(np.all(concave))
+        self.converged_ = bool(np.all(concave)) and fits_draws
         self.wall_time_s_ = time.perf_counter() - t0
         self.diagnostics_ = {
             "method": self.method, "steps": 0, "draws": self.n_draws,
             "solver": solver.to_dict(), "solver_jitter_nats": jitter,
-            "centre_log_posterior": float(lp_c[0]),
+            "centre_log_posterior": float(fit.log_posterior[0]),
             "hessian_eigenvalues": [float(v) for v in lam],
             "non_concave_directions": int(np.sum(~concave)),
-            "difference_step_sd": h, "rewhitening_rounds": rounds}
+            "difference_step_sd": fit.step_sd, "rewhitening_rounds": fit.rounds,
+            "mode_on_prior_bound": list(fit.bounded), "inside_shift_sd": fit.shift_sd,
+            "importance_check": check}
         if self.log is not None:
             self.log(f"laplace: {self.n_draws} draws, {np.sum(~concave)} non-concave "
                      f"direction(s) of {lam.size}, {self.wall_time_s_:.0f} s")
-            if not self.converged_:
+            if fit.bounded:
+                self.log(f"laplace: the mode is on the prior bound of "
+                         f"{', '.join(fit.bounded)}: the Hessian taken {fit.shift_sd:.2g} "
+                         "SDs inside, the Gaussian cut at the bound")
+            if check is not None:
+                self.log(f"laplace: importance check on {check['draws']} draws: Pareto k "
+                         f"{_fmt_k(check['pareto_k'])} (reliable <= "
+                         f"{check['khat_threshold']:.2f}), ESS {check['ess_fraction']:.0%}")
+            if not np.all(concave):
                 self.log("laplace: WARNING the log-posterior is not concave at its mode in "
                          f"{np.sum(~concave)} direction(s): their widths are not the "
+                         "posterior's: sample it with emcee")
+            if not fits_draws:
+                self.log("laplace: WARNING the posterior has mass the Gaussian misses "
+                         f"(Pareto k {_fmt_k(check['pareto_k'])}): its intervals are not the "
                          "posterior's: sample it with emcee")
         return self
 
@@ -195,19 +249,97 @@ class LaplaceIdentification(ChainDraws):
                 attrs={**(attrs or {}), "sampler": "laplace", "draws": int(self.n_draws)})
 
 
-def laplace_approximation(like, start: np.ndarray, information, iterations: int):
+class LaplaceFit(NamedTuple):
+    """A Laplace approximation in sampling coordinates (:func:`laplace_approximation`).
+
+    ``x_centre``, ``z_centre``: the log-posterior's mode found (natural and sampling
+    coordinates); ``ident``: the identified columns; ``cov_z``: their covariance;
+    ``mean_z``: the Gaussian's mean (all columns): the mode, or where the mode is on a
+    prior bound the mean of the Gaussian fitted inside, which may lie beyond the bound
+    (its draws are truncated there); ``eigenvalues``: the negative Hessian's in the
+    whitened coordinates (a non-positive one: a direction that keeps the whitening's unit
+    variance); ``log_posterior``, ``noise_sums``: at the mode (``(1,)``, ``(1, 5)``);
+    ``step_sd``: the differences' step in whitened SDs; ``rounds``: rounds of whitening
+    again; ``shift_sd``: how far inside (whitened SDs) the Hessian was taken from a mode on
+    a bound (0: at the mode); ``bounded``: the parameters whose bounds moved it there."""
+
+    x_centre: np.ndarray
+    z_centre: np.ndarray
+    ident: np.ndarray
+    cov_z: np.ndarray
+    mean_z: np.ndarray
+    eigenvalues: np.ndarray
+    log_posterior: np.ndarray
+    noise_sums: np.ndarray
+    step_sd: float
+    rounds: int
+    shift_sd: float
+    bounded: tuple
+
+
+def inward_point(like, z: np.ndarray, ident: np.ndarray, basis: np.ndarray, h: float):
+    """A point near ``z`` (sampling coordinates) whose :func:`curvature_stencil` of step
+    ``h`` lies inside the priors' bounds, or None: each bound a stencil point crosses moves
+    the point inward, by the stencil's reach past the bound plus a quarter, along the
+    whitened direction in which that parameter changes fastest (the shortest move in
+    posterior SDs); repeated, as the parameters are not linear in the sampling
+    coordinates, at most :data:`INWARD_ITERATIONS` times. Returns ``(point, names)``: the
+    point and the parameters whose bounds moved it."""
+    lo, hi = like.bounds
+    y = curvature_stencil(basis.shape[1], h)
+    names = []
+    for _ in range(INWARD_ITERATIONS):
+        rows = np.tile(z, (y.shape[0], 1))
+        rows[:, ident] += y @ basis.T
+        x = like.from_sampling(rows)
+        out = [(j, s) for j in range(lo.size) for s, past in
+               ((1.0, x[:, j] > hi[j]), (-1.0, x[:, j] < lo[j])) if np.any(past)]
+        if not out:
+            return z, tuple(names)
+        x0 = like.from_sampling(z[None])[0]
+        if np.any((x0 < lo) | (x0 > hi)):
+            return None
+        jac = _natural_jacobian(like, z, ident) @ basis  # dx / dy
+        move = np.zeros(basis.shape[1])
+        for j, s in out:
+            c = s * jac[j]  # outward change of x_j per whitened unit
+            if not np.any(c != 0):
+                return None
+            room = s * ((hi[j] if s > 0 else lo[j]) - x0[j])
+            reach = np.max(y @ c)
+            move -= 1.25 * max(reach - room, 0.0) * c / (c @ c)
+            names.append(like.parameters[j].name)
+        z = z.copy()
+        z[ident] += basis @ move
+    return None
+
+
+def _natural_jacobian(like, z: np.ndarray, ident: np.ndarray) -> np.ndarray:
+    """``dx/dz`` on the identified columns at sampling coordinates ``z`` (central
+    differences of the elementary map :meth:`WindowLikelihood.from_sampling`)."""
+    step = 1e-6 * np.maximum(np.abs(z[ident]), 1.0)
+    rows = np.tile(z, (2 * ident.size, 1))
+    rows[np.arange(ident.size), ident] += step
+    rows[ident.size + np.arange(ident.size), ident] -= step
+    x = like.from_sampling(rows)
+    return ((x[:ident.size] - x[ident.size:]) / (2.0 * step)[:, None]).T
+
+
+def laplace_approximation(like, start: np.ndarray, information,
+                          iterations: int) -> LaplaceFit:
     """The Gaussian at the log-posterior's mode in sampling coordinates (module docstring,
     steps 1-2). ``like``: the posterior (:class:`WindowLikelihood` or anything with its
     sampling interface); ``start``: natural parameters; ``information``: their Fisher
     information there (whitens the search and the differences).
 
-    Returns ``(xc, zc, ident, cov_z, lam, lp_c, sums_c, h, rounds)``: the centre in natural and
-    sampling coordinates, the identified columns, their covariance, the eigenvalues of
-    the negative Hessian in the whitened coordinates (a non-positive one: a direction
-    that keeps the whitening's unit variance), the log-density and noise summary at the
-    centre (``(1,)``, ``(1, 5)``), the differences' step in whitened SDs: the first of
-    :data:`DIFFERENCE_STEPS` whose points all have a density (a centre near a prior
-    bound: a shorter step stays inside it), and the rounds of whitening again.
+    The differences' step is the first of :data:`DIFFERENCE_STEPS` whose points all have
+    a density (a centre near a prior bound: a shorter step stays inside it). Where none
+    has, and the points cross a prior bound (the mode is on it: the likelihood wants a
+    value the prior does not allow), the Hessian and slope are taken at a point moved
+    inside (:func:`inward_point`, first with the longest step) and the Gaussian is the
+    quadratic they define: mean ``y + H^-1 g``, beyond the bound, and the posterior
+    there that Gaussian cut at the bound (:func:`truncated_draws`). Exact on a Gaussian
+    cut by a bound; a log-density that is not quadratic over the shift is extrapolated.
 
     The information whitens the differences; where it is far from the posterior's own
     curvature (least squares' information takes 2-s prediction errors for independent
@@ -226,50 +358,131 @@ def laplace_approximation(like, start: np.ndarray, information, iterations: int)
     if basis is None or not np.isfinite(lp_c[0]):
         raise FloatingPointError("laplace: the information has a non-positive variance, "
                                  "or the centre has no finite posterior density")
-    done = None  # (basis, lam, q, h) of the last round whose Hessian could be taken
+    done = None  # (basis, lam, q, h, point, slope, names) of the last round taken
     for rounds in range(RESCALE_ROUNDS + 1):
-        for h in DIFFERENCE_STEPS:
-            curv = whitened_curvature(like, zc, ident, basis, float(lp_c[0]), h)
-            if curv is not None:
-                break
-        else:
+        taken = _curvature_inside(like, zc, ident, basis, float(lp_c[0]))
+        if taken is None:
             if done is None:
                 raise FloatingPointError(
                     f"laplace: points {DIFFERENCE_STEPS[-1]:g} SDs from the centre have no "
-                    "finite posterior density (the centre is at a prior bound); the "
-                    "Hessian cannot be taken: use emcee")
+                    "finite posterior density, and not for a prior bound a point moved "
+                    "inside avoids; the Hessian cannot be taken: use emcee")
             rounds -= 1  # the stretched steps leave the prior: the round before stands
             break
-        lam, q = np.linalg.eigh(-curv[1])
-        done = (basis, lam, q, h)
+        h, point, names, (grad, hess) = taken
+        lam, q = np.linalg.eigh(-hess)
+        done = (basis, lam, q, h, point, grad, names)
         if (np.all((lam > 1.0 / SELF_CONSISTENT) & (lam < SELF_CONSISTENT))
                 or rounds == RESCALE_ROUNDS):
             break
         # whiten again: each concave direction by its own curvature, a flat or convex
         # one (the differences saw only the solver's roughness) stretched EXPAND x
         basis = basis @ (q * np.where(lam > 0, 1.0 / np.sqrt(np.abs(lam)), EXPAND))
-    basis, lam, q, h = done
-    cov_y = (q / np.where(lam > 0, lam, 1.0)) @ q.T
-    return xc, zc, ident, basis @ cov_y @ basis.T, lam, lp_c, sums_c, h, rounds
+    basis, lam, q, h, point, grad, names = done
+    inv_lam = np.where(lam > 0, 1.0 / np.where(lam > 0, lam, 1.0), 0.0)
+    cov_y = (q * np.where(lam > 0, inv_lam, 1.0)) @ q.T
+    mean_z = zc.copy()
+    shift = 0.0
+    if names:  # the Newton step of the quadratic at the inside point (concave directions)
+        shift = float(np.linalg.norm(np.linalg.lstsq(basis, point[ident] - zc[ident],
+                                                     rcond=None)[0]))
+        mean_z = point.copy()
+        mean_z[ident] += basis @ ((q * inv_lam) @ (q.T @ grad))
+    return LaplaceFit(xc, zc, ident, basis @ cov_y @ basis.T, mean_z, lam, lp_c, sums_c,
+                      h, rounds, shift, tuple(sorted(set(names))))
 
 
-def truncated_draws(like, zc: np.ndarray, ident: np.ndarray, cov_z: np.ndarray,
+def _curvature_inside(like, zc, ident, basis, f0):
+    """``(h, point, bounded names, (grad, hess))``: the curvature at the centre with the
+    first of :data:`DIFFERENCE_STEPS` whose points have a density, else at a point moved
+    inside the priors' bounds (:func:`inward_point`), else None."""
+    for h in DIFFERENCE_STEPS:
+        curv = whitened_curvature(like, zc, ident, basis, f0, h)
+        if curv is not None:
+            return h, zc, (), curv
+    for h in DIFFERENCE_STEPS:
+        moved = inward_point(like, zc, ident, basis, h)
+        if moved is None or not moved[1]:
+            continue
+        point, names = moved
+        f = like.log_prob_sampling(point[None])[0]
+        if not np.isfinite(f):
+            continue
+        curv = whitened_curvature(like, point, ident, basis, float(f), h)
+        if curv is not None:
+            return h, point, names, curv
+    return None
+
+
+def truncated_draws(like, mean_z: np.ndarray, ident: np.ndarray, cov_z: np.ndarray,
                     rng: np.random.Generator, n: int) -> np.ndarray:
     """``n`` draws in sampling coordinates (module docstring, step 3): the identified
-    columns from N(zc, cov_z), each nuisance one uniform over the range the others
-    allow; draws outside the priors' bounds are drawn again."""
+    columns from N(mean_z, cov_z), each nuisance one uniform over the range the others
+    allow; draws outside the priors' bounds are drawn again (each round sized by the
+    rate accepted so far: a mean beyond a bound accepts few). Fails where fewer than
+    1 in 10^4 fall inside."""
     lo, hi = like.bounds
-    out, have = [], 0
-    for _ in range(100):
-        m = 2 * (n - have) + 16
-        z = np.tile(zc, (m, 1))
-        z[:, ident] = gaussian_draws(zc[ident], cov_z, rng, m)
+    out, have, tried = [], 0, 0
+    while have < n:
+        rate = (have + 1.0) / (tried + 1.0)
+        if tried >= 10_000 and rate < MIN_ACCEPTED:
+            raise FloatingPointError(
+                f"laplace: {have} of {tried} of the Gaussian's draws fall inside the "
+                "priors' bounds (its mean is far beyond one): use emcee")
+        m = int(min(1.25 * (n - have) / min(rate, 1.0), MAX_ROUND)) + 16
+        z = np.tile(mean_z, (m, 1))
+        z[:, ident] = gaussian_draws(mean_z[ident], cov_z, rng, m)
         spread_nuisance(like, z, rng)
         x = like.from_sampling(z)
         ok = np.all(np.isfinite(x), axis=1) & np.all((x >= lo) & (x <= hi), axis=1)
         out.append(z[ok])
         have += int(ok.sum())
-        if have >= n:
-            return np.concatenate(out)[:n]
-    raise FloatingPointError(f"laplace: fewer than {n} of the Gaussian's draws fall inside "
-                             "the priors' bounds in 100 rounds")
+        tried += m
+    return np.concatenate(out)[:n]
+
+
+def importance_check(like, fit: LaplaceFit, z: np.ndarray) -> dict:
+    """How well the approximation's draws ``z`` (sampling coordinates, from
+    :func:`truncated_draws`) stand for the posterior: the Pareto-smoothed importance
+    sampling diagnostic of Vehtari et al. (2024, JMLR 25(72)) on the log-ratios of the
+    posterior to the draws' density (the Gaussian on the identified coordinates, each
+    nuisance one uniform over its allowed range; constants drop out). ``pareto_k``
+    (None where the ratios are constant: the draws' density is the posterior's) above
+    ``khat_threshold`` (``min(1 - 1/log10 S, 0.7)`` for S draws): the posterior has mass
+    the Gaussian misses (skew, a heavy tail, a mode on a bound that is not a cut
+    Gaussian) and its intervals are not the posterior's; a Gaussian wider than the
+    posterior passes (importance sampling from it is reliable) but its intervals are too
+    wide: ``ess_fraction`` (the smoothed weights' effective sample size over S) falls.
+    Costs S posterior evaluations (one call)."""
+    n = z.shape[0]
+    lp = like.log_prob_sampling(z)
+    sd, _, r = correlation_form(fit.cov_z)
+    u = (z[:, fit.ident] - fit.mean_z[fit.ident]) / sd
+    chol = np.linalg.cholesky(r)
+    white = np.linalg.solve(chol, u.T)
+    log_q = -0.5 * np.sum(white**2, axis=0)
+    if like.nuisance():
+        rlo, rhi = like.nuisance_ranges(z)
+        log_q -= np.sum(np.log(np.maximum(rhi - rlo, 1e-300)), axis=1)
+    log_w = lp - log_q
+    out = {"draws": int(n), "khat_threshold": _khat_threshold(n)}
+    if not np.all(np.isfinite(log_w)):  # a draw without a density: nothing to weigh
+        return {**out, "pareto_k": float("inf"), "ess_fraction": 0.0}
+    if np.ptp(log_w) < 1e-9:  # the draws' density is the posterior's: no tail to fit
+        return {**out, "pareto_k": None, "ess_fraction": 1.0}
+    with np.errstate(all="ignore"):
+        lw, k = arviz().psislw(log_w - log_w.max())
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    return {**out, "pareto_k": float(k), "ess_fraction": float(1.0 / (n * w @ w))}
+
+
+def _khat_threshold(n: int) -> float:
+    """The largest Pareto k at which ``n`` importance draws are reliable (Vehtari et al.
+    2024: ``min(1 - 1/log10 n, 0.7)``)."""
+    return float(min(1.0 - 1.0 / np.log10(n), 0.7))
+
+
+def _fmt_k(k) -> str:
+    """A Pareto k for a log line (None: the ratios were constant)."""
+    return "none (constant ratios)" if k is None else f"{k:.2f}"

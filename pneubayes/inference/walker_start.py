@@ -38,7 +38,7 @@ def sampling_jacobian(like: WindowLikelihood, x: np.ndarray) -> np.ndarray:
     return ((z[:d] - z[d:]) / (2.0 * h)[:, None]).T
 
 
-def _correlation_form(m: np.ndarray):
+def correlation_form(m: np.ndarray):
     """``(sd, s, m / outer(s, s))`` of the symmetric ``m``: its diagonal's square roots,
     and the same with 1 for a zero diagonal (so the division is safe). The coordinates
     differ by many orders of magnitude (areas ~1e-8 m^2, slopes ~1 /V), and an unscaled
@@ -51,8 +51,8 @@ def _correlation_form(m: np.ndarray):
 
 def standardised_inverse(m: np.ndarray) -> np.ndarray:
     """Pseudo-inverse of the symmetric ``m`` taken on its correlation form
-    (:func:`_correlation_form`). A coordinate with a zero diagonal gets zero variance."""
-    sd, s, r = _correlation_form(m)
+    (:func:`correlation_form`). A coordinate with a zero diagonal gets zero variance."""
+    sd, s, r = correlation_form(m)
     inv = np.linalg.pinv(r, rcond=1e-12, hermitian=True) / np.outer(s, s)
     inv[sd == 0, :] = 0.0
     inv[:, sd == 0] = 0.0
@@ -88,8 +88,8 @@ def laplace_in_sampling(like: WindowLikelihood, start: np.ndarray, information):
 def gaussian_draws(mean: np.ndarray, cov: np.ndarray, rng: np.random.Generator,
                    n: int) -> np.ndarray:
     """``n`` draws of N(mean, cov), taken on the correlation form
-    (:func:`_correlation_form`: numpy's own draw decomposes ``cov`` unscaled)."""
-    sd, _, r = _correlation_form(cov)
+    (:func:`correlation_form`: numpy's own draw decomposes ``cov`` unscaled)."""
+    sd, _, r = correlation_form(cov)
     y = rng.multivariate_normal(np.zeros(sd.size), r, size=n, method="eigh")
     return mean + y * sd
 
@@ -153,6 +153,15 @@ def whitened_basis(cz: np.ndarray):
     return sd[:, None] * (v[:, keep] * np.sqrt(w[keep]))
 
 
+def curvature_stencil(k: int, h: float) -> np.ndarray:
+    """The points of :func:`whitened_curvature` in whitened coordinates: ``+-h`` along
+    every one of ``k`` axes, then ``+h`` along every pair (``(2 k + k (k - 1) / 2, k)``)."""
+    eye = np.eye(k)
+    pairs = [(a, b) for a in range(k) for b in range(a + 1, k)]
+    return np.concatenate([h * eye, -h * eye]
+                          + [h * (eye[[a for a, _ in pairs]] + eye[[b for _, b in pairs]])])
+
+
 def whitened_curvature(like: WindowLikelihood, z: np.ndarray, ident: np.ndarray,
                        basis: np.ndarray, f0: float, h: float = 2.0):
     """Slope and Hessian of the log-posterior at ``z`` (sampling coordinates, log-density
@@ -161,10 +170,8 @@ def whitened_curvature(like: WindowLikelihood, z: np.ndarray, ident: np.ndarray,
     k (k - 1) / 2 evaluations for k axes). Returns ``(grad, hess)``, or None when a
     point has no finite density."""
     k = basis.shape[1]
-    eye = np.eye(k)
     pairs = [(a, b) for a in range(k) for b in range(a + 1, k)]
-    y = np.concatenate([h * eye, -h * eye]
-                       + [h * (eye[[a for a, _ in pairs]] + eye[[b for _, b in pairs]])])
+    y = curvature_stencil(k, h)
     rows = np.tile(z, (y.shape[0], 1))
     rows[:, ident] += y @ basis.T
     f = like.log_prob_sampling(rows)
