@@ -63,6 +63,17 @@ class StudentTProposal:
         chol = np.linalg.cholesky(cov + np.diag(jitter))
         return cls(cols, nuis, x.mean(axis=0), chol, float(df))
 
+    @classmethod
+    def from_gaussian(cls, mean: np.ndarray, cov: np.ndarray, columns: np.ndarray,
+                      nuisance, df: float, scale: float):
+        """The proposal over ``columns`` with location ``mean`` and scale matrix ``cov``
+        x ``scale**2`` (a Laplace approximation's Gaussian)."""
+        nuis = np.array(sorted(nuisance), dtype=np.int64)
+        sd = np.sqrt(np.diag(cov))
+        chol = sd[:, None] * np.linalg.cholesky(cov / np.outer(sd, sd)) * scale
+        return cls(np.asarray(columns, dtype=np.int64), nuis, np.asarray(mean, float),
+                   chol, float(df))
+
     def log_density(self, x: np.ndarray, ranges=None) -> np.ndarray:
         """Log-density of rows ``x (B, D)`` up to a constant; ``ranges = (lo, hi)`` of
         the nuisance coordinates given the others (uniform factors)."""

@@ -7,10 +7,11 @@ killed run resume where it stopped.
 
 With thousands of residuals the posterior is close to Gaussian in the sampling
 coordinates, and a random-walk ensemble mixes slowly there (tau ~ 100 steps in 12
-dimensions). So the run adapts: differential-evolution moves first, then an
-independence Metropolis-Hastings move whose Student-t proposal is refitted to the
-previous round, and production with that proposal frozen (a fixed proposal keeps the
-chain Markov and the posterior invariant). Differential evolution and a Gibbs move for
+dimensions). So the run adapts: an independence Metropolis-Hastings move whose
+Student-t proposal is the posterior's Laplace approximation in the first round (which
+also places the walkers) and is refitted to the round before in each later one, then
+production with that proposal frozen (a fixed proposal keeps the chain Markov and the
+posterior invariant). Differential evolution and a Gibbs move for
 the coordinates only the prior informs stay in the mixture for robustness.
 The run ends when the production chain is longer than ``tau_factor`` integrated
 autocorrelation times and every parameter has split R-hat <= ``max_rhat`` (over groups
@@ -65,7 +66,8 @@ class SamplerSettings:
         was set: R-hat then tests that the groups and the halves of the run agree.
     adapt_rounds, adapt_steps: adaptation (all discarded as burn-in), at most
         ``adapt_rounds`` rounds of ``adapt_steps``. Round 0 runs differential-evolution
-        moves from the walker ball; each later round adds an independence proposal
+        moves from the walker ball (with ``laplace_start``: from the Laplace draws, with
+        the Laplace proposal too); each later round adds an independence proposal
         fitted to the round before; production freezes the proposal fitted to the last
         round.
     adapt_acceptance: adaptation ends early after the first round with a proposal whose
@@ -83,6 +85,12 @@ class SamplerSettings:
         before the check (as after a round) and production restarts there (everything before is
         discarded, so the kept chain always has one fixed kernel); at most this often.
     init_scale: walker ball size relative to the Laplace approximation's SDs.
+    laplace_start: with the refined information, start from the posterior's own Laplace
+        approximation (:func:`~pneubayes.inference.laplace.laplace_approximation`: a
+        few hundred posterior evaluations): the walkers are its draws and the first
+        adaptation round already proposes from it (a Student-t of ``proposal_df`` and
+        ``proposal_scale``), so adaptation can end after one round. Where it cannot be
+        taken, the walker ball (``init_scale``) and differential evolution first.
     centre_iterations: with the refined information, Newton iterations that move the ball's
         centre from the refined (least-squares) point towards the posterior's own
         centre before sampling (0: start at the refined point).
@@ -112,6 +120,7 @@ class SamplerSettings:
     readapt_below_acceptance: float = 0.35
     max_readapts: int = 3
     init_scale: float = 1.0
+    laplace_start: bool = True
     centre_iterations: int = 3
     max_solver_jitter_nats: float = 0.3
     max_solver_tightenings: int = 3
@@ -283,6 +292,36 @@ class BayesianIdentification(ChainDraws):
         w = self.settings.independence_weight
         return [(proposal.move(like), w)] + [(m, (1 - w) * p) for m, p in rest]
 
+    def _laplace_start(self, like: WindowLikelihood, x0: np.ndarray, information,
+                       rng: np.random.Generator, nw: int):
+        """``(proposal, walkers)`` from the posterior's Laplace approximation
+        (``SamplerSettings.laplace_start``), or ``(None, None)`` where it cannot be taken."""
+        # laplace builds on this module (the draws' container): imported where used
+        from pneubayes.inference.laplace import laplace_approximation, truncated_draws
+
+        s = self.settings
+        try:
+            fit = laplace_approximation(like, x0, information, s.centre_iterations)
+            z = truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z, rng, nw)
+        except FloatingPointError as exc:
+            if self.log is not None:
+                self.log(f"emcee: no Laplace start ({exc}); the walker ball instead")
+            return None, None
+        lp = like.log_prob_sampling(z)
+        ok = np.isfinite(lp)
+        if not ok.any():
+            return None, None
+        z[~ok] = z[ok][rng.integers(0, ok.sum(), (~ok).sum())]
+        proposal = StudentTProposal.from_gaussian(fit.mean_z[fit.ident], fit.cov_z,
+                                                  fit.ident, like.nuisance(),
+                                                  s.proposal_df, s.proposal_scale)
+        if self.log is not None:
+            self.log(f"emcee: walkers from the posterior's Laplace approximation "
+                     f"({fit.eigenvalues.size} identified directions"
+                     + (f", mode on the bound of {', '.join(fit.bounded)}" if fit.bounded
+                        else "") + ")")
+        return proposal, z
+
     def _proposal(self, chain: np.ndarray, like: WindowLikelihood, end: int):
         """The independence proposal fitted to the last ``proposal_fit_fraction`` of the
         ``adapt_steps`` steps before ``end``."""
@@ -316,9 +355,13 @@ class BayesianIdentification(ChainDraws):
         like, solver, jitter = settle_solver(self.model, data, self.solver, state,
                                              s.max_solver_jitter_nats,
                                              s.max_solver_tightenings)
+        first = None  # the first round's proposal (None: differential evolution only)
         if resume:
             state = None
-        elif information is not None and s.centre_iterations > 0:
+        elif information is not None and s.laplace_start:
+            first, state = self._laplace_start(like, x0, information, rng, nw)
+        if (not resume and first is None and information is not None
+                and s.centre_iterations > 0):
             # the refined point is a least-squares optimum, not the posterior's centre:
             # move the ball to the posterior's own Newton centre (few batched calls)
             x0 = posterior_centre(like, x0, information, s.centre_iterations)
@@ -345,14 +388,15 @@ class BayesianIdentification(ChainDraws):
         end = stored_burn(backend, s.burn) if resume else s.burn
         while backend.iteration < min(end, s.max_steps):
             r = backend.iteration // s.adapt_steps
-            proposal = (None if r == 0 else
+            proposal = (first if r == 0 else
                         self._proposal(backend.get_chain(), like, r * s.adapt_steps))
             sampler = sampler_for(proposal)
             n = min((r + 1) * s.adapt_steps, s.max_steps) - backend.iteration
             state = self._advance(sampler, state, n)
             random_state = sampler.random_state
             self._report(backend, end, None, t0, start_step)
-            if (r >= 1 and backend.iteration == (r + 1) * s.adapt_steps < end
+            if ((r >= 1 or first is not None)
+                    and backend.iteration == (r + 1) * s.adapt_steps < end
                     and moved_fraction(backend.get_chain()[-s.adapt_steps - 1:])
                     >= s.adapt_acceptance):
                 end = backend.iteration
