@@ -486,7 +486,7 @@ def test_adaptation_ends_after_the_first_round_whose_proposal_is_accepted(bench,
 def test_a_laplace_start_proposes_from_the_first_round(prn_leak_bench, tmp_path):
     """With the refined information, the walkers start from the posterior's Laplace
     draws and round 0 already proposes from that Gaussian: on bench data it is accepted
-    (>= 0.35 of walker steps move), so adaptation ends after one round, where the walker
+    (>= 0.35 of walker steps move), so adaptation ends after one round (30 steps), where the walker
     ball (``laplace_start=False``) starts with differential evolution only and needs a
     second; the production chain's 90 % intervals cover the planted leak. A resumed run
     keeps its production start."""
@@ -494,23 +494,23 @@ def test_a_laplace_start_proposes_from_the_first_round(prn_leak_bench, tmp_path)
     solver = SolverConfig.standard()
     data = WindowSet(recs[:2], 2.0, 2.0)
     ref = TrajectoryRefiner(model, solver).fit(data, truth)
-    common = dict(n_walkers=32, check_every=20, adapt_rounds=3, adapt_steps=40,
+    common = dict(n_walkers=32, check_every=20, adapt_rounds=3, adapt_steps=30,
                   readapt_below_acceptance=0.0, seed=6)
     path = tmp_path / "lap.h5"
-    lap = BayesianIdentification(model, solver, SamplerSettings(max_steps=100, **common),
+    lap = BayesianIdentification(model, solver, SamplerSettings(max_steps=70, **common),
                                  backend_path=path, progress=False
                                  ).fit(data, ref.params_, ref.information_)
-    assert lap.burn_ == 40 and lap.sampler_.iteration == 100
+    assert lap.burn_ == 30 and lap.sampler_.iteration == 70
     s = lap.summary()
     assert s["leak_area_m2"]["q05"] <= truth["leak_area_m2"] <= s["leak_area_m2"]["q95"]
-    again = BayesianIdentification(model, solver, SamplerSettings(max_steps=120, **common),
+    again = BayesianIdentification(model, solver, SamplerSettings(max_steps=80, **common),
                                    backend_path=path, progress=False
                                    ).fit(data, ref.params_, ref.information_)
-    assert again.resumed_ and again.burn_ == 40 and again.sampler_.iteration == 120
+    assert again.resumed_ and again.burn_ == 30 and again.sampler_.iteration == 80
     ball = BayesianIdentification(
-        model, solver, SamplerSettings(max_steps=100, laplace_start=False, **common),
+        model, solver, SamplerSettings(max_steps=80, laplace_start=False, **common),
         progress=False).fit(data, ref.params_, ref.information_)
-    assert ball.burn_ > 40  # round 0 is differential evolution: never the end of it
+    assert ball.burn_ > 30  # round 0 is differential evolution: never the end of it
 
 
 def _ar1_walkers(rng, steps: int, walkers: int, tau: float) -> np.ndarray:
