@@ -266,7 +266,7 @@ class BayesianIdentification(ChainDraws):
         per_step = (time.perf_counter() - t0) / done if done > 0 else float("nan")
         if not diag or n <= burn:
             left = max(burn - n, 0) + s.check_every
-            what = f"adapting (production from step {burn})"
+            what = f"adapting (production from step {burn} at the latest)"
         else:
             ess = min(min(diag["ess"].values()), min(diag["ess_tail"].values()))
             rhat = max(diag["rhat"].values())
