@@ -62,6 +62,7 @@ from pneubayes.inference.walker_start import (
     gaussian_draws,
     laplace_in_sampling,
     posterior_centre,
+    sampling_jacobian,
     spread_nuisance,
     walker_ball,
     whitened_basis,
@@ -299,7 +300,8 @@ def inward_point(like, z: np.ndarray, ident: np.ndarray, basis: np.ndarray, h: f
         x0 = like.from_sampling(z[None])[0]
         if np.any((x0 < lo) | (x0 > hi)):
             return None
-        jac = _natural_jacobian(like, z, ident) @ basis  # dx / dy
+        # dx / dy: the map's own Jacobian (dz/dx) inverted, on the identified columns
+        jac = np.linalg.inv(sampling_jacobian(like, x0))[:, ident] @ basis
         move = np.zeros(basis.shape[1])
         for j, s in out:
             c = s * jac[j]  # outward change of x_j per whitened unit
@@ -312,17 +314,6 @@ def inward_point(like, z: np.ndarray, ident: np.ndarray, basis: np.ndarray, h: f
         z = z.copy()
         z[ident] += basis @ move
     return None
-
-
-def _natural_jacobian(like, z: np.ndarray, ident: np.ndarray) -> np.ndarray:
-    """``dx/dz`` on the identified columns at sampling coordinates ``z`` (central
-    differences of the elementary map :meth:`WindowLikelihood.from_sampling`)."""
-    step = 1e-6 * np.maximum(np.abs(z[ident]), 1.0)
-    rows = np.tile(z, (2 * ident.size, 1))
-    rows[np.arange(ident.size), ident] += step
-    rows[ident.size + np.arange(ident.size), ident] -= step
-    x = like.from_sampling(rows)
-    return ((x[:ident.size] - x[ident.size:]) / (2.0 * step)[:, None]).T
 
 
 def laplace_approximation(like, start: np.ndarray, information,
