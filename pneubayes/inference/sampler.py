@@ -32,7 +32,7 @@ from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.chain_store import open_chain, store_burn, stored_burn
 from pneubayes.inference.likelihood import WindowLikelihood
 from pneubayes.inference.moves import StudentTProposal, moved_fraction, nuisance_gibbs_move
-from pneubayes.inference.walker_start import posterior_centre, walker_ball
+from pneubayes.inference.walker_start import posterior_centre, walker_ball, with_density
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
@@ -302,16 +302,12 @@ class BayesianIdentification(ChainDraws):
         s = self.settings
         try:
             fit = laplace_approximation(like, x0, information, s.centre_iterations)
-            z = truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z, rng, nw)
+            z = with_density(like, truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z,
+                                                   rng, nw), rng)
         except FloatingPointError as exc:
             if self.log is not None:
                 self.log(f"emcee: no Laplace start ({exc}); the walker ball instead")
             return None, None
-        lp = like.log_prob_sampling(z)
-        ok = np.isfinite(lp)
-        if not ok.any():
-            return None, None
-        z[~ok] = z[ok][rng.integers(0, ok.sum(), (~ok).sum())]
         proposal = StudentTProposal.from_gaussian(fit.mean_z[fit.ident], fit.cov_z,
                                                   fit.ident, like.nuisance(),
                                                   s.proposal_df, s.proposal_scale)

@@ -132,6 +132,13 @@ def walker_ball(like: WindowLikelihood, start: np.ndarray, information,
         # its bounds by moving the identified offset + leak sum (~1,000 nats a walker)
         spread_nuisance(like, z, rng)
         z = like.to_sampling(np.clip(like.from_sampling(z), lo + eps, hi - eps))
+    return with_density(like, z, rng)
+
+
+def with_density(like: WindowLikelihood, z: np.ndarray,
+                 rng: np.random.Generator) -> np.ndarray:
+    """The walkers ``z`` (sampling coordinates, changed in place), each without a finite
+    posterior density replaced by a copy of one with; FloatingPointError if none has."""
     lp = like.log_prob_sampling(z)
     bad = ~np.isfinite(lp)
     if bad.all():
