@@ -9,7 +9,8 @@ from pneubayes.discovery.disagreement import RegimeSettings
 from pneubayes.discovery.library import LibraryGrid
 from pneubayes.effects import catalogue_parameter_names
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
-from pneubayes.inference.laplace import IMPORTANCE_CHECK_DRAWS, LAPLACE_DRAWS
+from pneubayes.inference.importance import IMPORTANCE_CHECK_DRAWS
+from pneubayes.inference.laplace import LAPLACE_DRAWS
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.model import Model, check_bound_overrides
 from pneubayes.simulation import SolverConfig

@@ -23,11 +23,8 @@ from pneubayes.atomic import json_safe, write_json_atomic
 from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.derivative import SavitzkyGolay
 from pneubayes.inference.identifiability import identifiability_report
-from pneubayes.inference.laplace import (
-    IMPORTANCE_CHECK_DRAWS,
-    LAPLACE_DRAWS,
-    LaplaceIdentification,
-)
+from pneubayes.inference.importance import IMPORTANCE_CHECK_DRAWS
+from pneubayes.inference.laplace import LAPLACE_DRAWS, LaplaceIdentification
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.inference.predictive import PressurePredictor, noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner

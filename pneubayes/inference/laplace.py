@@ -24,8 +24,9 @@ mode:
    start (:func:`~pneubayes.inference.walker_start.walker_ball`); draws outside the
    priors' bounds are drawn again (a truncated Gaussian); the noise's scale and AR(1)
    coefficient from their conditional posterior at the centre;
-4. a check (:func:`importance_check`): the posterior's density at the first 200 draws
-   against theirs, Pareto-smoothed importance sampling's k (Vehtari et al. 2024). Past
+4. a check (:func:`~pneubayes.inference.importance.importance_check`): the posterior's
+   density at the first 200 draws against theirs, Pareto-smoothed importance sampling's
+   k (Vehtari et al. 2024). Past
    its threshold the posterior has mass the Gaussian misses: a warning, and the result
    is not ``converged_``.
 
@@ -54,10 +55,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from pneubayes.inference.importance import importance_check
 from pneubayes.inference.likelihood import WindowLikelihood
 from pneubayes.inference.sampler import ChainDraws, SamplerSettings, arviz, settle_solver
 from pneubayes.inference.walker_start import (
-    correlation_form,
     curvature_stencil,
     gaussian_draws,
     laplace_in_sampling,
@@ -75,10 +76,6 @@ from pneubayes.simulation import SolverConfig
 #: Draws of a Laplace posterior unless asked otherwise (``pneubayes fit --method laplace``,
 #: :attr:`DiscoverySettings.laplace_draws <pneubayes.discovery.settings.DiscoverySettings>`).
 LAPLACE_DRAWS = 4000
-
-#: Draws whose posterior density checks the approximation (:func:`importance_check`):
-#: 200 puts 42 in the Pareto tail fit (``min(0.2 S, 3 sqrt S)``).
-IMPORTANCE_CHECK_DRAWS = 200
 
 #: Steps (whitened SDs) of the Hessian's differences, tried in turn until every point has
 #: a finite density: 2 keeps the solver's roughness small against the differences; the
@@ -121,8 +118,8 @@ class LaplaceIdentification(ChainDraws):
     n_draws : int
         Draws of the approximation (a multiple of 4).
     check_draws : int
-        Of them, how many the posterior's density checks (:func:`importance_check`; 0:
-        none, >= 100 otherwise).
+        Of them, how many the posterior's density checks
+        (:mod:`~pneubayes.inference.importance`; 0: none, >= 100 otherwise).
     centre_iterations : int
         Newton steps from the refined point to the posterior's centre.
     seed : int
@@ -184,8 +181,8 @@ class LaplaceIdentification(ChainDraws):
         z = truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z, rng, self.n_draws)
         lam = fit.eigenvalues
         concave = lam > 0
-        check = (importance_check(like, fit, z[:self.check_draws]) if self.check_draws
-                 else None)
+        check = (importance_check(like, z[:self.check_draws], fit.mean_z, fit.ident,
+                                  fit.cov_z) if self.check_draws else None)
         fits_draws = (check is None or check["pareto_k"] is None
                       or check["pareto_k"] <= check["khat_threshold"])
         x = like.from_sampling(z)
@@ -430,48 +427,6 @@ def truncated_draws(like, mean_z: np.ndarray, ident: np.ndarray, cov_z: np.ndarr
         have += int(ok.sum())
         tried += m
     return np.concatenate(out)[:n]
-
-
-def importance_check(like, fit: LaplaceFit, z: np.ndarray) -> dict:
-    """How well the approximation's draws ``z`` (sampling coordinates, from
-    :func:`truncated_draws`) stand for the posterior: the Pareto-smoothed importance
-    sampling diagnostic of Vehtari et al. (2024, JMLR 25(72)) on the log-ratios of the
-    posterior to the draws' density (the Gaussian on the identified coordinates, each
-    nuisance one uniform over its allowed range; constants drop out). ``pareto_k``
-    (None where the ratios are constant: the draws' density is the posterior's) above
-    ``khat_threshold`` (``min(1 - 1/log10 S, 0.7)`` for S draws): the posterior has mass
-    the Gaussian misses (skew, a heavy tail, a mode on a bound that is not a cut
-    Gaussian) and its intervals are not the posterior's; a Gaussian wider than the
-    posterior passes (importance sampling from it is reliable) but its intervals are too
-    wide: ``ess_fraction`` (the smoothed weights' effective sample size over S) falls.
-    Costs S posterior evaluations (one call)."""
-    n = z.shape[0]
-    lp = like.log_prob_sampling(z)
-    sd, _, r = correlation_form(fit.cov_z)
-    u = (z[:, fit.ident] - fit.mean_z[fit.ident]) / sd
-    chol = np.linalg.cholesky(r)
-    white = np.linalg.solve(chol, u.T)
-    log_q = -0.5 * np.sum(white**2, axis=0)
-    if like.nuisance():
-        rlo, rhi = like.nuisance_ranges(z)
-        log_q -= np.sum(np.log(np.maximum(rhi - rlo, 1e-300)), axis=1)
-    log_w = lp - log_q
-    out = {"draws": int(n), "khat_threshold": _khat_threshold(n)}
-    if not np.all(np.isfinite(log_w)):  # a draw without a density: nothing to weigh
-        return {**out, "pareto_k": float("inf"), "ess_fraction": 0.0}
-    if np.ptp(log_w) < 1e-9:  # the draws' density is the posterior's: no tail to fit
-        return {**out, "pareto_k": None, "ess_fraction": 1.0}
-    with np.errstate(all="ignore"):
-        lw, k = arviz().psislw(log_w - log_w.max())
-    w = np.exp(lw - lw.max())
-    w /= w.sum()
-    return {**out, "pareto_k": float(k), "ess_fraction": float(1.0 / (n * w @ w))}
-
-
-def _khat_threshold(n: int) -> float:
-    """The largest Pareto k at which ``n`` importance draws are reliable (Vehtari et al.
-    2024: ``min(1 - 1/log10 n, 0.7)``)."""
-    return float(min(1.0 - 1.0 / np.log10(n), 0.7))
 
 
 def _fmt_k(k) -> str:
