@@ -42,3 +42,22 @@ class GaussianTarget:
     def emcee_target(self, z):
         z = np.atleast_2d(z)
         return np.column_stack([self.log_prob_sampling(z), np.zeros((z.shape[0], 5))])
+
+
+#: The identified coordinates of a 5-D :class:`GaussianTarget` (2 is the nuisance one).
+IDENT = [0, 1, 3, 4]
+
+
+def random_covariance(rng: np.random.Generator, ridge: float) -> np.ndarray:
+    """A random 4 x 4 covariance ``a a^T + ridge I`` (one draw of ``rng``)."""
+    a = rng.normal(size=(4, 4))
+    return a @ a.T + ridge * np.eye(4)
+
+
+def information_of(cov: np.ndarray) -> np.ndarray:
+    """The 5 x 5 Fisher information whose identified block (:data:`IDENT`) is ``cov``'s
+    inverse, and 1 on the nuisance coordinate."""
+    info = np.zeros((5, 5))
+    info[np.ix_(IDENT, IDENT)] = np.linalg.inv(cov)
+    info[2, 2] = 1.0
+    return info

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from gaussian_target import GaussianTarget
+from gaussian_target import IDENT, GaussianTarget, information_of, random_covariance
 
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.inference.importance import importance_check
@@ -24,12 +24,8 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
     error, the nuisance coordinate is uniform over its range, and a bound that cuts the
     Gaussian truncates the draws instead of clipping them."""
     rng = np.random.default_rng(5)
-    a = rng.normal(size=(4, 4))
-    laplace = a @ a.T + 4 * np.eye(4)
-    ident = [0, 1, 3, 4]
-    info = np.zeros((5, 5))
-    info[np.ix_(ident, ident)] = np.linalg.inv(laplace)
-    info[2, 2] = 1.0
+    laplace = random_covariance(rng, 4.0)
+    ident, info = IDENT, information_of(laplace)
     q = np.linalg.qr(np.eye(4) + 0.2 * rng.normal(size=(4, 4)))[0]
     true_cov = 1.5 * q @ laplace @ q.T
     mean = np.array([1.0, -2.0, 0.0, 0.5, 3.0])
@@ -97,13 +93,8 @@ def test_laplace_with_its_mode_on_a_prior_bound_is_the_cut_gaussian():
     names emcee. Before the bound-aware design the Hessian could not be taken here."""
     from scipy.stats import truncnorm
 
-    rng = np.random.default_rng(7)
-    a = rng.normal(size=(4, 4))
-    cov4 = a @ a.T + 2 * np.eye(4)
-    ident = [0, 1, 3, 4]
-    info = np.zeros((5, 5))
-    info[np.ix_(ident, ident)] = np.linalg.inv(cov4)
-    info[2, 2] = 1.0
+    cov4 = random_covariance(np.random.default_rng(7), 2.0)
+    ident, info = IDENT, information_of(cov4)
     mean = np.array([1.0, -2.0, 0.0, 0.5, 3.0])
     sd = np.sqrt(np.diag(cov4))
     target = GaussianTarget(mean, np.linalg.inv(cov4))
