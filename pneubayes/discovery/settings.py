@@ -10,7 +10,7 @@ from pneubayes.discovery.library import LibraryGrid
 from pneubayes.effects import catalogue_parameter_names
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
 from pneubayes.inference.importance import IMPORTANCE_CHECK_DRAWS
-from pneubayes.inference.laplace import LAPLACE_DRAWS
+from pneubayes.inference.laplace import LAPLACE_DRAWS, check_draw_counts
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.model import Model, check_bound_overrides
 from pneubayes.simulation import SolverConfig
@@ -237,16 +237,8 @@ class DiscoverySettings:
         if self.posterior_method not in ("emcee", "laplace"):
             raise ValueError(f"posterior_method must be 'emcee' or 'laplace', got "
                              f"{self.posterior_method!r}")
-        if not (isinstance(self.laplace_draws, int) and self.laplace_draws >= 4
-                and self.laplace_draws % 4 == 0):
-            raise ValueError(f"laplace_draws must be a positive multiple of 4, got "
-                             f"{self.laplace_draws!r}")
-        if not (isinstance(self.laplace_check_draws, int)
-                and (self.laplace_check_draws == 0
-                     or 100 <= self.laplace_check_draws <= self.laplace_draws)):
-            raise ValueError(f"laplace_check_draws must be 0 or an integer from 100 to "
-                             f"laplace_draws ({self.laplace_draws}), got "
-                             f"{self.laplace_check_draws!r}")
+        check_draw_counts(self.laplace_draws, self.laplace_check_draws,
+                          ("laplace_draws", "laplace_check_draws"))
         if self.tube_line_form not in ("line", "wave"):
             raise ValueError(f"tube_line_form must be 'line' or 'wave', got "
                              f"{self.tube_line_form!r}")

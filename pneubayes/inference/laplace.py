@@ -104,6 +104,19 @@ SELF_CONSISTENT = 4.0
 CHAINS = 4
 
 
+def check_draw_counts(n_draws, check_draws, names=("n_draws", "check_draws")) -> None:
+    """ValueError unless ``n_draws`` is a positive multiple of :data:`CHAINS` and
+    ``check_draws`` is 0 or an integer from 100 to ``n_draws``; ``names``: the two as
+    the caller spells them, for the message."""
+    if not (isinstance(n_draws, int) and n_draws >= CHAINS and n_draws % CHAINS == 0):
+        raise ValueError(f"{names[0]} must be a positive multiple of {CHAINS}, got "
+                         f"{n_draws!r}")
+    if not (isinstance(check_draws, int)
+            and (check_draws == 0 or 100 <= check_draws <= n_draws)):
+        raise ValueError(f"{names[1]} must be 0 or an integer from 100 to {names[0]} "
+                         f"({n_draws}), got {check_draws!r}")
+
+
 class LaplaceIdentification(ChainDraws):
     """Laplace approximation of the posterior over a model's parameters.
 
@@ -158,14 +171,7 @@ class LaplaceIdentification(ChainDraws):
         """Approximate the posterior on ``data`` from the refined point ``start`` (a full
         parameter dict) and its Fisher information (natural parameters,
         :attr:`TrajectoryRefiner.information_ <pneubayes.inference.refine.TrajectoryRefiner>`)."""
-        if not (isinstance(self.n_draws, int) and self.n_draws >= CHAINS
-                and self.n_draws % CHAINS == 0):
-            raise ValueError(f"n_draws must be a positive multiple of {CHAINS}, got "
-                             f"{self.n_draws!r}")
-        if not (isinstance(self.check_draws, int)
-                and (self.check_draws == 0 or 100 <= self.check_draws <= self.n_draws)):
-            raise ValueError(f"check_draws must be 0 or an integer from 100 to n_draws "
-                             f"({self.n_draws}), got {self.check_draws!r}")
+        check_draw_counts(self.n_draws, self.check_draws)
         if not (isinstance(self.centre_iterations, int) and self.centre_iterations >= 0):
             raise ValueError(f"centre_iterations must be an integer >= 0, got "
                              f"{self.centre_iterations!r}")

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneubayes.inference.likelihood import WindowLikelihood
+from pneubayes.inference.walker_start import correlation_form
 
 
 def nuisance_gibbs_move(like: WindowLikelihood):
@@ -69,8 +70,8 @@ class StudentTProposal:
         """The proposal over ``columns`` with location ``mean`` and scale matrix ``cov``
         x ``scale**2`` (a Laplace approximation's Gaussian)."""
         nuis = np.array(sorted(nuisance), dtype=np.int64)
-        sd = np.sqrt(np.diag(cov))
-        chol = sd[:, None] * np.linalg.cholesky(cov / np.outer(sd, sd)) * scale
+        sd, _, r = correlation_form(cov)
+        chol = sd[:, None] * np.linalg.cholesky(r) * scale
         return cls(np.asarray(columns, dtype=np.int64), nuis, np.asarray(mean, float),
                    chol, float(df))
 
