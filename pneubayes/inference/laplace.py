@@ -39,7 +39,7 @@ tenth of the variance: always in the tests) and often not one moderately narrow 
 third: half the time at 400 draws), and passes one too wide (importance sampling from
 it is reliable; its ESS falls). On GTDynamics' recordings (the mode on the valve area's
 upper bound, the posterior flat over two e-folds of it) the Gaussian's valve-area
-interval is half emcee's and the check flags it (k 0.85). The result records the
+interval is half emcee's and the check flags it (k 0.79-0.85). The result records the
 Hessian's eigenvalues, the check, and whether both pass; emcee stays the default.
 
 Results follow :class:`~pneubayes.inference.sampler.BayesianIdentification`'s
