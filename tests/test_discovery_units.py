@@ -703,6 +703,10 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
              "dead_volume_m3": 2e-5}
     first = ("tube_delay_s", "tube_diameter_m", "dead_volume_m3")
+    # the line and the wave tube are fitted in two stages (so screened); transport is not
+    assert TubeDelay(form="line").refine_first() == first
+    assert TubeDelay(form="wave", segments=8).refine_first() == first
+    assert TubeDelay().refine_first() is None
     # the line's own parameters fit to 1900 Pa, the transport form to 1862 Pa: screened
     disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first, beat_Pa=1862.0)
     assert stages == ["first"]
@@ -714,6 +718,72 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     stages.clear()
     disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first)
     assert stages == ["first", "all"]
+
+
+def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
+    """A refinement the evaluation budget ends is restarted from where it stopped while
+    its last half of points still lowered the RMSE; one that crawled (best RMSE flat over
+    its last half) is not, and ``refine_restart_min_gain = 0`` restarts it as before
+    (sensor-lag forms on the four-effect benchmark: three restarts, 0.0 Pa each)."""
+    from types import SimpleNamespace
+
+    import pneubayes.discovery.loop as loop
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.effects.spool_lag import SpoolLag
+    from pneubayes.inference.refine import late_gain
+    from pneubayes.physics.valve import valve_preset
+
+    # the share of the best RMSE gained over the second half of the points
+    assert late_gain([3000.0, 2400.0, 2399.9, 2399.8]) == pytest.approx(0.2 / 2400)
+    assert late_gain([3000.0, 2500.0, 2400.0, 2000.0]) == pytest.approx(0.2)
+    assert late_gain([2256.0, 2256.0, 2256.0, 2256.0]) == 0.0
+    assert late_gain([1000.0]) == float("inf")
+
+    runs = []
+
+    class Refiner:
+        traces = []
+
+        def __init__(self, model, solver, free=None, max_nfev=None):
+            pass
+
+        def fit(self, data, params):
+            trace = Refiner.traces[len(runs)]
+            runs.append(trace[-1])
+            return SimpleNamespace(params_=dict(params), success_=False,
+                                   rmse_Pa_=min(trace), rmse_trace_=np.array(trace))
+
+    class Windows:
+        def residuals(self, model, theta, solver):
+            return np.full((1, 4, 10), 900.0)
+
+    monkeypatch.setattr(loop, "TrajectoryRefiner", Refiner)
+    monkeypatch.setattr(loop, "ar1_noise_mode", lambda *a: (1.0, 0.0))
+    monkeypatch.setattr(loop, "ar1_sums", lambda r: [None])
+    monkeypatch.setattr(loop, "crossfit_window_lpd", lambda r, dof: 0.0)
+    model = Model(effects=(SpoolLag(),))
+    start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
+             "dead_volume_m3": 2e-5}
+    moving = [4600.0, 3000.0, 2500.0, 2300.0]   # its last half gains 23 %
+    flat = [2300.0, 2256.0, 2256.0, 2256.0]     # 0.0 Pa over its last half
+    logs = []
+    disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3), log=logs.append)
+    Refiner.traces = [moving, flat, flat, flat]
+    disc._fit(model, start, Windows(), Windows(), "k")
+    assert len(runs) == 2  # restarted once after a run that moved; not after the crawl
+    assert any("crawling, not restarted" in m for m in logs)
+    runs.clear()
+    Refiner.traces = [moving, moving, moving, moving]
+    disc._fit(model, start, Windows(), Windows(), "k2")
+    assert len(runs) == 4  # every restart while the runs move
+    runs.clear()
+    Refiner.traces = [moving, flat, flat, flat]
+    disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3,
+                                            refine_restart_min_gain=0.0), log=logs.append)
+    disc._fit(model, start, Windows(), Windows(), "k3")
+    assert len(runs) == 4
+    with pytest.raises(ValueError, match="refine_restart_min_gain"):
+        DiscoverySettings(refine_restart_min_gain=1.0)
 
 
 def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatch):

@@ -225,6 +225,10 @@ def test_refinement_recovers_a_perturbed_start(bench):
     ref = TrajectoryRefiner(model, TIGHT, max_nfev=40).fit(recs, start)
     assert ref.rmse_Pa_ < 0.5 * ref.start_rmse_Pa_
     assert ref.rmse_Pa_ < 600.0
+    # the trace: the start first, every point least squares simulated, the fit's best
+    assert ref.rmse_trace_[0] == pytest.approx(ref.start_rmse_Pa_, rel=1e-9)
+    assert ref.rmse_trace_.size >= ref.n_evaluations_
+    assert ref.rmse_trace_.min() == pytest.approx(ref.rmse_Pa_, rel=1e-9)
     for k in ("inlet_a_m2", "exhaust_a_m2", "dead_volume_m3", "inlet_c_per_V"):
         assert ref.params_[k] == pytest.approx(truth[k], rel=0.05), k
 

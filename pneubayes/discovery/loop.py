@@ -98,7 +98,7 @@ from pneubayes.inference.laplace import LaplaceIdentification
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.pipeline import starting_point
 from pneubayes.inference.predictive import noise_floor_Pa
-from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.refine import TrajectoryRefiner, late_gain
 from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io.preprocess import prepare_recording
@@ -191,6 +191,12 @@ class Discovery:
                                         max_nfev=s.fit.refine_max_nfev).fit(train_ws, params)
                 params = ref.params_
                 if ref.success_:
+                    break
+                crawl = late_gain(ref.rmse_trace_)
+                if crawl < s.refine_restart_min_gain:
+                    self.log(f"discover: {_effects_label(model)}: refinement ended on its "
+                             f"budget at {ref.rmse_Pa_:.0f} Pa, its best RMSE {crawl:.1e} "
+                             f"lower over its last half: crawling, not restarted")
                     break
             if path is not None:
                 write_json_atomic(path, {"model": model.to_card(params), "params": params})

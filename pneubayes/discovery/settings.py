@@ -34,6 +34,13 @@ class DiscoverySettings:
     this level. max_effects: stop after adding this many. max_trials_per_round:
     supported groups refitted per round. max_refine_restarts: refinement is restarted
     from where it stopped until it converges, at most this many times.
+    refine_restart_min_gain: a refinement that its evaluation budget ended is
+    restarted only if its best training RMSE fell by at least this share over the second
+    half of its points (:func:`~pneubayes.inference.refine.late_gain`); one that crawls
+    is not: on the four-effect benchmark (AIR37/valve1, 6 x 20 s) sensor-lag forms in
+    round 3 ended their 60 evaluations at 2256 and 2404 Pa and each of their three
+    restarts moved them by 0.0 Pa, 30-40 s apiece. 0 restarts while the budget ends the
+    fit (the loop before this setting).
     gap_fallback_ratio, fallback_min_inclusion: the one-step search has little power for
     slow effects (a small leak in a large chamber changes dp/dt by less than the noise
     per step, yet its 2-s error is many times the noise). So in any round where the
@@ -158,6 +165,7 @@ class DiscoverySettings:
     max_effects: int = 4
     max_trials_per_round: int = 3
     max_refine_restarts: int = 3
+    refine_restart_min_gain: float = 1e-4
     max_p_value: float = 0.01
     gap_fallback_ratio: float = 2.0
     fallback_min_inclusion: float = 0.25
@@ -225,6 +233,9 @@ class DiscoverySettings:
         if not (self.form_settled_ratio == 0.0 or self.form_settled_ratio >= 1.0):
             raise ValueError(f"form_settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.form_settled_ratio}")
+        if not 0.0 <= self.refine_restart_min_gain < 1.0:
+            raise ValueError(f"refine_restart_min_gain must be in [0, 1), got "
+                             f"{self.refine_restart_min_gain}")
         if not 0.0 <= self.later_form_screen_share <= 1.0:
             raise ValueError(f"later_form_screen_share must be in [0, 1], got "
                              f"{self.later_form_screen_share}")

@@ -204,12 +204,13 @@ class TubeDelay(Effect):
         return more, {k: params[k] for k in more.parameter_names()}
 
     def refine_first(self):
-        """An acoustic line's step costs tens of times a plain one, and a refinement's
-        Jacobian one simulation per free parameter: the line's two parameters and the
-        dead volume it shares are fitted first (four simulations per Jacobian instead of
-        a dozen), then everything from there."""
-        return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") if self.form == "line" \
-            else None
+        """An acoustic or wave line's step costs tens of times a plain one, and a
+        refinement's Jacobian one simulation per free parameter: the line's two
+        parameters and the dead volume it shares are fitted first (four simulations per
+        Jacobian instead of a dozen), then everything from there (the discovery loop
+        screens the form on that first stage)."""
+        return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") \
+            if self.form in _TUBE_FORMS else None
 
     def volume_taken_m3(self, values, rig):
         """An acoustic or wave line's volume leaves the chamber's (the dead volume

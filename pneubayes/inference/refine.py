@@ -51,6 +51,17 @@ def _volume_taken(model: Model, rig):
     return taken
 
 
+def late_gain(rmse_trace) -> float:
+    """The share by which the best RMSE of a fit's points (``rmse_trace_``, Pa, in the
+    order simulated) fell over their second half: ``1 - best / best of the first half``;
+    near 0 for a fit that crawls at its end. inf for fewer than 2 points."""
+    trace = np.asarray(rmse_trace, dtype=float)
+    if trace.size < 2:
+        return float("inf")
+    early = float(np.min(trace[: trace.size // 2]))
+    return 1.0 - float(np.min(trace)) / early if early > 0 else 0.0
+
+
 def _chamber_map(taken, theta, idx, dead, scale) -> np.ndarray:
     """``d x / d theta`` of the free parameters, x being theta with the dead volume
     replaced by the chamber's (dead minus ``taken``): the identity but for the chamber's
@@ -86,7 +97,10 @@ class TrajectoryRefiner:
 
     After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
     ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
-    ``covariance_``, its pseudo-inverse (the Laplace covariance); ``rmse_Pa_``.
+    ``covariance_``, its pseudo-inverse (the Laplace covariance); ``rmse_Pa_``;
+    ``rmse_trace_``, the RMSE (Pa) of every point simulated, in order (the trust
+    region's rejected trials too; points that failed to simulate left out);
+    ``success_``: False when the evaluation budget ended the fit.
     """
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
@@ -130,6 +144,7 @@ class TrajectoryRefiner:
         res_cache: dict = {}
         jac_cache: dict = {}
         failed: set = set()
+        trace: list = []  # the RMSE of each point simulated, in order (failed: none)
 
         def full(x):
             th = theta0.copy()
@@ -154,6 +169,8 @@ class TrajectoryRefiner:
                     # the trust region rejects the step and shrinks
                     r = np.full(r.size, FAILED_RESIDUAL_PA)
                     failed.add(key)
+                else:
+                    trace.append(float(np.sqrt(np.mean(r * r))))
                 if len(res_cache) > 8:
                     res_cache.clear()
                 res_cache[key] = r
@@ -211,6 +228,7 @@ class TrajectoryRefiner:
         r0 = data.residuals(model, theta0[None], self.solver)
         self.start_rmse_Pa_ = float(np.sqrt(np.mean(r0 * r0)))
         self.n_evaluations_ = int(sol.nfev)
+        self.rmse_trace_ = np.array(trace)
         self.success_ = bool(sol.success)
         self.message_ = str(sol.message)
         return self
