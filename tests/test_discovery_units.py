@@ -676,7 +676,7 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     from pneubayes.effects.tube_delay import TubeDelay
     from pneubayes.physics.valve import valve_preset
 
-    stages = []
+    stages, full_from = [], []
 
     class Refiner:
         def __init__(self, model, solver, free=None, max_nfev=None):
@@ -684,7 +684,11 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
 
         def fit(self, data, params):
             stages.append("first" if self.free else "all")
-            return SimpleNamespace(params_=dict(params), success_=True,
+            if not self.free:
+                full_from.append(params["tube_delay_s"])
+            # the stage moves the delay to 7 ms
+            return SimpleNamespace(params_={**params, "tube_delay_s": 7e-3} if self.free
+                                   else dict(params), success_=True,
                                    rmse_Pa_=data.stage_rmse if self.free else 800.0)
 
     class Windows:
@@ -714,10 +718,26 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     stages.clear()
     disc._fit(model, start, Windows(900.0), Windows(900.0), "k", first, beat_Pa=1862.0)
     assert stages == ["first", "all"]
+    assert full_from == [7e-3]  # from the stage's point
     # nothing to beat (a first form, or a follow-up): as before
     stages.clear()
     disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first)
     assert stages == ["first", "all"]
+    # a stage that only screens (the wave tube): the full refinement from the start
+    assert TubeDelay(form="wave", segments=8).refine_from_first_stage() is False
+    assert TubeDelay(form="line").refine_from_first_stage() is True
+    stages.clear()
+    full_from.clear()
+    disc._fit(model, start, Windows(900.0), Windows(900.0), "k2", first, beat_Pa=1862.0,
+              from_first=False)
+    assert stages == ["first", "all"] and full_from == [start["tube_delay_s"]]
+    stages.clear()
+    disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k2", first, beat_Pa=1862.0,
+              from_first=False)
+    assert stages == ["first"]  # screened out as before
+    stages.clear()
+    disc._fit(model, start, Windows(900.0), Windows(900.0), "k3", first, from_first=False)
+    assert stages == ["all"]  # nothing to screen against: no stage
 
 
 def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):

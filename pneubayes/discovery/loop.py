@@ -154,19 +154,23 @@ class Discovery:
         return None if self.out_dir is None else self.out_dir / "steps" / f"{key}.json"
 
     def _fit(self, model: Model, start: dict, train_ws: WindowSet, held_ws: WindowSet,
-             data_key: str, first=None, beat_Pa: float | None = None) -> StepFit:
+             data_key: str, first=None, beat_Pa: float | None = None,
+             from_first: bool = True) -> StepFit:
         """Refine ``model`` from ``start`` (``first``: parameters refined on their own
-        before all of them) and score it on the training and held-out windows. The
-        settings' bound overrides apply to every model fitted here (the refiner starts
-        inside them). With ``first`` and ``beat_Pa``, a first stage whose training RMSE
-        is not below ``beat_Pa`` ends the fit there (a screened-out form: its own
-        parameters do not beat the form it refines)."""
+        before all of them; ``from_first`` False: all of them then from ``start`` again,
+        the first stage only screening, so none without ``beat_Pa``) and score it on the
+        training and held-out windows. The settings' bound overrides apply to every
+        model fitted here (the refiner starts inside them). With ``first`` and
+        ``beat_Pa``, a first stage whose training RMSE is not below ``beat_Pa`` ends the
+        fit there (a screened-out form: its own parameters do not beat the form it
+        refines)."""
         s = self.settings
         if s.bounds:
             model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
         key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key,
                            *([list(first)] if first else []),
-                           *([beat_Pa] if first and beat_Pa is not None else []))
+                           *([beat_Pa] if first and beat_Pa is not None else []),
+                           *(["from start"] if first and not from_first else []))
         path = self._cache_path(key)
         t0 = time.perf_counter()
         if path is not None and path.exists():
@@ -176,11 +180,11 @@ class Discovery:
             # refine to convergence: a base model stopped early would make any extended
             # model's extra refinement look like a gain of the effect
             params, screened = start, False
-            if first:
+            if first and (from_first or beat_Pa is not None):
                 stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
                                           max_nfev=s.fit.refine_max_nfev
                                           ).fit(train_ws, params)
-                params = stage.params_
+                params = stage.params_ if from_first else start
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
                 if screened:
                     self.log(f"discover: {_effects_label(model)}: screened out, its own "
@@ -408,7 +412,8 @@ class Discovery:
                    for g in candidates}
         round_forms, settled, failed, outpaced = fit_round_forms(
             options, lambda g, m, x, beat: self._fit(m, x, train_ws, held_ws, data_key,
-                                                     first_free(m, g), beat),
+                                                     first_free(m, g), beat,
+                                                     m.effect(g).refine_from_first_stage()),
             s.form_settled_ratio * noise,
             follow=lambda g, m, f: follow_up(current, g, sindy.evidence_[g],
                                              train[0].rig(), m, f.params,

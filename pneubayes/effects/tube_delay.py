@@ -212,6 +212,16 @@ class TubeDelay(Effect):
         return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") \
             if self.form in _TUBE_FORMS else None
 
+    def refine_from_first_stage(self):
+        """The line continues from its first stage; the wave tube only screens on it
+        and refines everything from its start: on a 2.5-m x 3.64-mm tube (32 plant
+        cells, ``experiments/tube_form_study.py``) the stage, the valve's maps held at
+        the plain model's (which had absorbed the tube), stopped at 2020 Pa and the full
+        refinement from there stayed (2020 Pa, 15 evaluations), so the loop named a
+        sensor lag; from the start the full refinement reached 666 Pa and named the
+        tube."""
+        return self.form != "wave"
+
     def volume_taken_m3(self, values, rig):
         """An acoustic or wave line's volume leaves the chamber's (the dead volume
         includes it); the transport form takes none."""
