@@ -664,6 +664,15 @@ def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(
     assert [m.effect("tube_delay").segments for _, m, _ in forms["tube_delay"][1:]] == [4, 8]
 
 
+def _stub_refiner(monkeypatch, loop, refiner):
+    """The loop's ``_fit`` with ``refiner`` in place of the trajectory refiner and its
+    noise and score computations stubbed (the tests count refinement stages)."""
+    monkeypatch.setattr(loop, "TrajectoryRefiner", refiner)
+    monkeypatch.setattr(loop, "ar1_noise_mode", lambda *a: (1.0, 0.0))
+    monkeypatch.setattr(loop, "ar1_sums", lambda r: [None])
+    monkeypatch.setattr(loop, "crossfit_window_lpd", lambda r, dof: 0.0)
+
+
 def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screened_out(
         monkeypatch):
     """With parameters to fit first and a first form's training RMSE to beat, a form
@@ -698,10 +707,7 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
         def residuals(self, model, theta, solver):
             return np.full((1, 4, 10), 900.0)
 
-    monkeypatch.setattr(loop, "TrajectoryRefiner", Refiner)
-    monkeypatch.setattr(loop, "ar1_noise_mode", lambda *a: (1.0, 0.0))
-    monkeypatch.setattr(loop, "ar1_sums", lambda r: [None])
-    monkeypatch.setattr(loop, "crossfit_window_lpd", lambda r, dof: 0.0)
+    _stub_refiner(monkeypatch, loop, Refiner)
     disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3), log=lambda m: None)
     model = Model(effects=(TubeDelay(form="line", segments=3),))
     start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
@@ -777,10 +783,7 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
         def residuals(self, model, theta, solver):
             return np.full((1, 4, 10), 900.0)
 
-    monkeypatch.setattr(loop, "TrajectoryRefiner", Refiner)
-    monkeypatch.setattr(loop, "ar1_noise_mode", lambda *a: (1.0, 0.0))
-    monkeypatch.setattr(loop, "ar1_sums", lambda r: [None])
-    monkeypatch.setattr(loop, "crossfit_window_lpd", lambda r, dof: 0.0)
+    _stub_refiner(monkeypatch, loop, Refiner)
     model = Model(effects=(SpoolLag(),))
     start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
              "dead_volume_m3": 2e-5}
