@@ -163,7 +163,8 @@ class Discovery:
         model fitted here (the refiner starts inside them). With ``first`` and
         ``beat_Pa``, a first stage whose training RMSE is not below ``beat_Pa`` ends the
         fit there (a screened-out form: its own parameters do not beat the form it
-        refines)."""
+        refines). A screen-only stage whose point fits better in training than the full
+        refinement from ``start`` ends is kept instead (it is a point of the same model)."""
         s = self.settings
         if s.bounds:
             model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
@@ -179,7 +180,7 @@ class Discovery:
         else:
             # refine to convergence: a base model stopped early would make any extended
             # model's extra refinement look like a gain of the effect
-            params, screened = start, False
+            params, screened, stage = start, False, None
             if first and (from_first or beat_Pa is not None):
                 stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
                                           max_nfev=s.fit.refine_max_nfev
@@ -202,6 +203,14 @@ class Discovery:
                              f"budget at {ref.rmse_Pa_:.0f} Pa, its best RMSE {crawl:.1e} "
                              f"lower over its last half: crawling, not restarted")
                     break
+            if (stage is not None and not from_first and not screened
+                    and not ref.rmse_Pa_ <= stage.rmse_Pa_):
+                # the full fit from the start ended in a worse basin than the stage's
+                # point (a valid point of the same model): keep the better of the two
+                self.log(f"discover: {_effects_label(model)}: refined from its start to "
+                         f"{ref.rmse_Pa_:.0f} Pa, worse than its first stage "
+                         f"({stage.rmse_Pa_:.0f} Pa): the stage's point kept")
+                params = stage.params_
             if path is not None:
                 write_json_atomic(path, {"model": model.to_card(params), "params": params})
         theta = model.vector(params)[None]
