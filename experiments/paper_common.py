@@ -3,12 +3,13 @@
 their provenance.
 
 Every script takes ``--out`` (default ``results/paper``), ``--smoke`` (one short cell per
-study), ``--workers`` (local processes), ``--scheduler`` (a Dask cluster) and ``--seeds``
-(override the study's seeds). Studies run into ``OUT/studies/NAME`` and are cached per
-cell, so scripts sharing a study (Table III, Figs. 11 and 12a, the peer baseline) fit
-each cell once, and an interrupted run resumes. Each script writes ``OUT/NAME.json``
-(numbers, study configs, seeds, git revision and package versions) and its figures in
-``OUT/figures``; ``experiments/make_paper.py`` assembles ``paper/`` from those files.
+study), ``--workers`` (local processes), ``--scheduler`` (a Dask cluster), ``--seeds``
+(override the study's seeds) and ``--rigs`` (only some of its rigs). Studies run into
+``OUT/studies/NAME`` and are cached per cell, so scripts sharing a study (Table III,
+Figs. 11 and 12a, the peer baseline) fit each cell once, and an interrupted run
+resumes. Each script writes ``OUT/NAME.json`` (numbers, study configs, seeds, git
+revision and package versions) and its figures in ``OUT/figures``;
+``experiments/make_paper.py`` assembles ``paper/`` from those files.
 """
 
 from __future__ import annotations
@@ -39,8 +40,28 @@ def parser(description: str) -> argparse.ArgumentParser:
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address")
     ap.add_argument("--seeds", default=None, help="comma-separated seeds (default: the "
                     "study file's)")
+    ap.add_argument("--rigs", default=None, help="comma-separated cylinders or "
+                    "CYLINDER:VALVE pairs: run only the study's cells of these rigs (a "
+                    "long study split into parts; the cells are cached alike)")
     ap.add_argument("-q", "--quiet", action="store_true")
     return ap
+
+
+def select_rigs(study, rigs: str):
+    """``study`` with only the rigs named in ``rigs`` (comma-separated cylinders, e.g.
+    ``AIR37``, or ``CYLINDER:VALVE`` pairs); a name that matches none of the study's rigs
+    is an error naming the rigs it has."""
+    names = [r.strip() for r in rigs.split(",") if r.strip()]
+    have = study.grid.rigs
+    keep = []
+    for name in names:
+        hits = [r for r in have if name in (r[0], f"{r[0]}:{r[1]}")]
+        if not hits:
+            raise SystemExit(f"--rigs {rigs}: {name!r} is not a rig of study "
+                             f"{study.name!r} (it has "
+                             f"{', '.join(f'{c}:{v}' for c, v in have)})")
+        keep += [r for r in hits if r not in keep]
+    return replace(study, grid=replace(study.grid, rigs=tuple(keep)))
 
 
 def run_named_study(name: str, args) -> dict:
@@ -49,6 +70,8 @@ def run_named_study(name: str, args) -> dict:
     if args.seeds:
         seeds = tuple(int(s) for s in args.seeds.split(","))
         study = replace(study, grid=replace(study.grid, seeds=seeds))
+    if getattr(args, "rigs", None):
+        study = select_rigs(study, args.rigs)
     if args.smoke:
         study = study.smoke()
     out = Path(args.out) / "studies" / (name + ("-smoke" if args.smoke else ""))

@@ -389,3 +389,23 @@ def test_calibration_study_collects_the_cases_of_several_calls_and_names_bad_cas
     with pytest.raises(SystemExit):
         calibration_study.main(["--out", str(tmp_path / "x"), "--cases", "offset,nothing"])
     assert not (tmp_path / "x").exists()
+
+
+def test_rigs_option_keeps_only_the_named_rigs_and_rejects_an_unknown_one():
+    """``--rigs`` splits a long study (Table III) into parts: cylinders or CYLINDER:VALVE
+    pairs select the same cells (same ids, so the cache is shared); an unknown name is an
+    error naming the study's rigs."""
+    from paper_common import STUDIES, select_rigs
+
+    from pneubayes.ablation import load_study
+
+    study = load_study(STUDIES / "table3.toml")
+    part = select_rigs(study, "AIR37, PRN:valve2")
+    assert part.grid.rigs == (("AIR37", "valve1"), ("PRN", "valve2"))
+    ids = {c.id for c in study.cells()}
+    assert len(part.cells()) == len(study.cells()) // 2
+    assert all(c.id in ids for c in part.cells())
+    with pytest.raises(SystemExit, match=r"'AIR99' is not a rig .*SMC:valve1"):
+        select_rigs(study, "AIR37,AIR99")
+    with pytest.raises(SystemExit, match="'PRN:valve1' is not a rig"):
+        select_rigs(study, "PRN:valve1")
