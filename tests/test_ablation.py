@@ -390,3 +390,34 @@ def test_example_study_smoke_mode(tmp_path, capsys):
     doc = json.loads((out / "results.json").read_text())
     assert doc["counts"]["ok"] == 1 and doc["study"]["n_cells"] == 1
     assert math.isfinite(doc["cells"][0]["metrics"]["rmse_Pa"])
+
+
+def test_a_discovery_cell_keeps_the_loops_ledger(tmp_path, monkeypatch):
+    """A discovery cell's result carries the loop's ledger (every trial, its verdict and
+    held-out numbers), so why an effect was or was not named can be read after the
+    cell's work folder is gone."""
+    import types
+
+    import pneubayes.discovery.loop as loop
+    import pneubayes.discovery.report as report
+    from pneubayes.ablation.cell import fit_model
+
+    cell = next(c for c in parse_study(toml({**GRID, "model_effects": ["discover"]}),
+                                       "d.toml").cells() if c.discover)
+    ledger = [{"step": 0, "action": "reject", "effect": "tube_delay",
+               "heldout_rmse_before_Pa": 8716.0, "heldout_rmse_after_Pa": 8700.0}]
+    result = types.SimpleNamespace(model="m", params={"dead_volume_m3": 1e-6})
+
+    class FakeDiscovery:
+        def __init__(self, settings, out, log):
+            pass
+
+        def fit(self, recordings):
+            return types.SimpleNamespace(result_=result)
+
+    monkeypatch.setattr(loop, "Discovery", FakeDiscovery)
+    monkeypatch.setattr(report, "write_discovery", lambda *a, **k: {
+        "effects": [], "rmse_base_Pa": 8716.0, "rmse_final_Pa": 8716.0, "ledger": ledger})
+    model, params, info = fit_model(cell, [], tmp_path)
+    assert info["discovered"] == [] and info["discovery_ledger"] == ledger
+    assert model == "m" and params == result.params

@@ -138,7 +138,10 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
                 "discovered": [e["name"] for e in doc["effects"]],
                 "discovery_rmse_base_Pa": doc["rmse_base_Pa"],
                 "discovery_rmse_final_Pa": doc["rmse_final_Pa"],
-                "discovery_effects": doc["effects"]}
+                "discovery_effects": doc["effects"],
+                # every trial, its forms, verdict and held-out numbers: why an effect
+                # was or was not named (the work folder is removed after the cell)
+                "discovery_ledger": doc["ledger"]}
         return model, params, info
     model = Model(effects_from_names(cell.model_effects, s.leak_form))
     fit = identify(recordings, model, _fit_settings(cell), method=s.method,
