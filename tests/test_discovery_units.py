@@ -745,9 +745,11 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
                     beat_Pa=1862.0, from_first=False)
     assert stages == ["first", "all"] and fit.params["tube_delay_s"] == 7e-3
     stages.clear()
-    disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k2", first, beat_Pa=1862.0,
-              from_first=False)
+    fit = disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k5", first,
+                    beat_Pa=1862.0, from_first=False)
     assert stages == ["first"]  # screened out as before
+    # scored where its stage ended (the ledger shows the stage's fit, not the start's)
+    assert fit.params["tube_delay_s"] == 7e-3
     stages.clear()
     disc._fit(model, start, Windows(900.0), Windows(900.0), "k3", first, from_first=False)
     assert stages == ["all"]  # nothing to screen against: no stage

@@ -188,6 +188,8 @@ class Discovery:
                 params = stage.params_ if from_first else start
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
                 if screened:
+                    # scored (and recorded) where its stage ended, not at its start
+                    params = stage.params_
                     self.log(f"discover: {_effects_label(model)}: screened out, its own "
                              f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
                              f"below the screen ({beat_Pa:.0f} Pa)")
