@@ -70,7 +70,7 @@ def run_named_study(name: str, args) -> dict:
     if args.seeds:
         seeds = tuple(int(s) for s in args.seeds.split(","))
         study = replace(study, grid=replace(study.grid, seeds=seeds))
-    if getattr(args, "rigs", None):
+    if args.rigs:
         study = select_rigs(study, args.rigs)
     if args.smoke:
         study = study.smoke()

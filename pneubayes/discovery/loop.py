@@ -163,8 +163,9 @@ class Discovery:
         model fitted here (the refiner starts inside them). With ``first`` and
         ``beat_Pa``, a first stage whose training RMSE is not below ``beat_Pa`` ends the
         fit there (a screened-out form: its own parameters do not beat the form it
-        refines). A screen-only stage whose point fits better in training than the full
-        refinement from ``start`` ends is kept instead (it is a point of the same model)."""
+        refines), scored at the stage's point. A screen-only stage whose point fits better
+        in training than the full refinement from ``start`` ends is kept instead (it is a
+        point of the same model)."""
         s = self.settings
         if s.bounds:
             model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
@@ -185,11 +186,10 @@ class Discovery:
                 stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
                                           max_nfev=s.fit.refine_max_nfev
                                           ).fit(train_ws, params)
-                params = stage.params_ if from_first else start
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
+                # a screened-out form is scored where its stage ended, not at its start
+                params = stage.params_ if from_first or screened else start
                 if screened:
-                    # scored (and recorded) where its stage ended, not at its start
-                    params = stage.params_
                     self.log(f"discover: {_effects_label(model)}: screened out, its own "
                              f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
                              f"below the screen ({beat_Pa:.0f} Pa)")
