@@ -204,23 +204,18 @@ class TubeDelay(Effect):
         return more, {k: params[k] for k in more.parameter_names()}
 
     def refine_first(self):
-        """An acoustic or wave line's step costs tens of times a plain one, and a
-        refinement's Jacobian one simulation per free parameter: the line's two
-        parameters and the dead volume it shares are fitted first (four simulations per
-        Jacobian instead of a dozen), then everything from there (the discovery loop
-        screens the form on that first stage)."""
+        """An acoustic line's step costs tens of times a plain one, and a refinement's
+        Jacobian one simulation per free parameter: the line's two parameters and the
+        dead volume it shares are fitted first (four simulations per Jacobian instead of
+        a dozen), then everything from there (the discovery loop screens the form on
+        that first stage). The wave tube is refined in full from its start, unscreened:
+        with only its own parameters free and the valve maps held where the current fit
+        had put them (they had absorbed the tube), its first stage failed the screen on
+        Table III's AIR37/valve1 rig (a 1-m x 2-mm tube) and a second-order sensor lag
+        stood in for the tube (2.8-3.0 x the noise floor over seeds 0-2); refined in
+        full the wave was named there."""
         return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") \
-            if self.form in _TUBE_FORMS else None
-
-    def refine_from_first_stage(self):
-        """The line continues from its first stage; the wave tube only screens on it
-        and refines everything from its start: on a 2.5-m x 3.64-mm tube (32 plant
-        cells, ``experiments/tube_form_study.py``) the stage, the valve's maps held at
-        the plain model's (which had absorbed the tube), stopped at 2020 Pa and the full
-        refinement from there stayed (2020 Pa, 15 evaluations), so the loop named a
-        sensor lag; from the start the full refinement reached 666 Pa and named the
-        tube."""
-        return self.form != "wave"
+            if self.form == "line" else None
 
     def volume_taken_m3(self, values, rig):
         """An acoustic or wave line's volume leaves the chamber's (the dead volume
