@@ -730,30 +730,6 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     stages.clear()
     disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first)
     assert stages == ["first", "all"]
-    # a stage that only screens (an effect whose refine_from_first_stage is False): the
-    # full refinement from the start
-    assert TubeDelay(form="line").refine_from_first_stage() is True
-    stages.clear()
-    full_from.clear()
-    fit = disc._fit(model, start, Windows(900.0), Windows(900.0), "k2", first,
-                    beat_Pa=1862.0, from_first=False)
-    assert stages == ["first", "all"] and full_from == [start["tube_delay_s"]]
-    assert fit.params["tube_delay_s"] == start["tube_delay_s"]  # the full fit (800 Pa)
-    # a full fit from the start that ends worse (800 Pa) than the stage (700 Pa): the
-    # stage's point is kept, not the worse basin
-    stages.clear()
-    fit = disc._fit(model, start, Windows(700.0), Windows(700.0), "k4", first,
-                    beat_Pa=1862.0, from_first=False)
-    assert stages == ["first", "all"] and fit.params["tube_delay_s"] == 7e-3
-    stages.clear()
-    fit = disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k5", first,
-                    beat_Pa=1862.0, from_first=False)
-    assert stages == ["first"]  # screened out as before
-    # scored where its stage ended (the ledger shows the stage's fit, not the start's)
-    assert fit.params["tube_delay_s"] == 7e-3
-    stages.clear()
-    disc._fit(model, start, Windows(900.0), Windows(900.0), "k3", first, from_first=False)
-    assert stages == ["all"]  # nothing to screen against: no stage
 
 
 def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):

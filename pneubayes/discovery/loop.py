@@ -154,25 +154,20 @@ class Discovery:
         return None if self.out_dir is None else self.out_dir / "steps" / f"{key}.json"
 
     def _fit(self, model: Model, start: dict, train_ws: WindowSet, held_ws: WindowSet,
-             data_key: str, first=None, beat_Pa: float | None = None,
-             from_first: bool = True) -> StepFit:
+             data_key: str, first=None, beat_Pa: float | None = None) -> StepFit:
         """Refine ``model`` from ``start`` (``first``: parameters refined on their own
-        before all of them; ``from_first`` False: all of them then from ``start`` again,
-        the first stage only screening, so none without ``beat_Pa``) and score it on the
-        training and held-out windows. The settings' bound overrides apply to every
+        before all of them, the full refinement continuing from the stage's point) and
+        score it on the training and held-out windows. The settings' bound overrides apply to every
         model fitted here (the refiner starts inside them). With ``first`` and
         ``beat_Pa``, a first stage whose training RMSE is not below ``beat_Pa`` ends the
         fit there (a screened-out form: its own parameters do not beat the form it
-        refines), scored at the stage's point. A screen-only stage whose point fits better
-        in training than the full refinement from ``start`` ends is kept instead (it is a
-        point of the same model)."""
+        refines), scored at the stage's point."""
         s = self.settings
         if s.bounds:
             model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
         key = _fingerprint(model.to_card(start), s.fit.to_dict(), data_key,
                            *([list(first)] if first else []),
-                           *([beat_Pa] if first and beat_Pa is not None else []),
-                           *(["from start"] if first and not from_first else []))
+                           *([beat_Pa] if first and beat_Pa is not None else []))
         path = self._cache_path(key)
         t0 = time.perf_counter()
         if path is not None and path.exists():
@@ -181,14 +176,15 @@ class Discovery:
         else:
             # refine to convergence: a base model stopped early would make any extended
             # model's extra refinement look like a gain of the effect
-            params, screened, stage = start, False, None
-            if first and (from_first or beat_Pa is not None):
+            params, screened = start, False
+            if first:
                 stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
                                           max_nfev=s.fit.refine_max_nfev
                                           ).fit(train_ws, params)
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
-                # a screened-out form is scored where its stage ended, not at its start
-                params = stage.params_ if from_first or screened else start
+                # the full fit continues from the stage's point; a screened-out form is
+                # scored there, not at its start
+                params = stage.params_
                 if screened:
                     self.log(f"discover: {_effects_label(model)}: screened out, its own "
                              f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
@@ -205,14 +201,6 @@ class Discovery:
                              f"budget at {ref.rmse_Pa_:.0f} Pa, its best RMSE {crawl:.1e} "
                              f"lower over its last half: crawling, not restarted")
                     break
-            if (stage is not None and not from_first and not screened
-                    and not ref.rmse_Pa_ <= stage.rmse_Pa_):
-                # the full fit from the start ended in a worse basin than the stage's
-                # point (a valid point of the same model): keep the better of the two
-                self.log(f"discover: {_effects_label(model)}: refined from its start to "
-                         f"{ref.rmse_Pa_:.0f} Pa, worse than its first stage "
-                         f"({stage.rmse_Pa_:.0f} Pa): the stage's point kept")
-                params = stage.params_
             if path is not None:
                 write_json_atomic(path, {"model": model.to_card(params), "params": params})
         theta = model.vector(params)[None]
@@ -423,8 +411,7 @@ class Discovery:
                    for g in candidates}
         round_forms, settled, failed, outpaced = fit_round_forms(
             options, lambda g, m, x, beat: self._fit(m, x, train_ws, held_ws, data_key,
-                                                     first_free(m, g), beat,
-                                                     m.effect(g).refine_from_first_stage()),
+                                                     first_free(m, g), beat),
             s.form_settled_ratio * noise,
             follow=lambda g, m, f: follow_up(current, g, sindy.evidence_[g],
                                              train[0].rig(), m, f.params,

@@ -172,12 +172,6 @@ class Effect(Component):
         before all of them, or None."""
         return None
 
-    def refine_from_first_stage(self) -> bool:
-        """Whether the refinement of all parameters continues from the first stage's
-        point (:meth:`refine_first`; True) or starts again from the candidate's start,
-        the stage only screening the form (False)."""
-        return True
-
     def volume_taken_m3(self, values: Mapping[str, np.ndarray], rig: Rig):
         """The part of ``dead_volume_m3`` this effect takes out of the chamber at the
         parameter ``values``, m^3 (an acoustic line's: the chamber behind it is the rest,

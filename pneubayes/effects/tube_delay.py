@@ -213,7 +213,7 @@ class TubeDelay(Effect):
         had put them (they had absorbed the tube), its first stage failed the screen on
         Table III's AIR37/valve1 rig (a 1-m x 2-mm tube) and a second-order sensor lag
         stood in for the tube (2.8-3.0 x the noise floor over seeds 0-2); refined in
-        full the wave was named there."""
+        full the wave was named there on seeds 0 and 2 (seed 1 not run)."""
         return ("tube_delay_s", "tube_diameter_m", "dead_volume_m3") \
             if self.form == "line" else None
 
