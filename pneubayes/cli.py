@@ -67,6 +67,12 @@ def _windows(args) -> dict:
     return {"horizon_s": args.horizon, "stride_s": args.stride or args.horizon}
 
 
+def _refinement(args) -> dict:
+    """FitSettings' refinement options given on the command line (--jacobian-refresh)."""
+    k = args.jacobian_refresh
+    return {} if k is None else {"refine_jacobian_refresh": k}
+
+
 def cmd_check(args) -> int:
     from pneubayes.io.recording import inspect_recording
 
@@ -264,7 +270,7 @@ def cmd_fit(args) -> int:
                              f"{2 * model.n_parameters} (or 0: automatic)")
     settings = FitSettings(sampler=SamplerSettings(
         n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args),
-        **_windows(args))
+        **_windows(args), **_refinement(args))
     identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
                 "effects": list(model.effect_names),
                 "options": {e.name: e.options() for e in model.effects},
@@ -272,7 +278,7 @@ def cmd_fit(args) -> int:
                 "rig": None if card is None else card.to_dict(),
                 "known_from": None if known is None else str(known[2]),
                 "method": args.method, "walkers": args.walkers, "seed": args.seed,
-                "windows": _windows(args),
+                "windows": _windows(args), **_refinement(args),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
     folder = open_run_folder(args.out, "fit", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
@@ -382,7 +388,7 @@ def cmd_discover(args) -> int:
         later_form_screen_share=args.later_form_screen_share,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed),
-                        **_cutoffs(args), **_windows(args)))
+                        **_cutoffs(args), **_windows(args), **_refinement(args)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     identity = {"recordings": inputs_digest(_recording_files([*args.recordings,
                                                               *args.held_out])),

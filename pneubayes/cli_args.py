@@ -147,6 +147,10 @@ def _add_identification(p, seed_help: str) -> None:
     p.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help=seed_help)
     _add_cutoffs(p)
     _add_windows(p)
+    p.add_argument("--jacobian-refresh", type=POSITIVE_INT, default=None, metavar="K",
+                   help="the refinement's finite-difference Jacobian at every K-th accepted "
+                        "point, Broyden's update between (default: the settings', "
+                        "FitSettings.refine_jacobian_refresh)")
     _add_bounds(p)
     _add_run_folder(p)
     p.add_argument("--no-figures", action="store_true")

@@ -242,7 +242,7 @@ def test_mutated_options_never_raise(seeds, data, capsys):
             # one recording: --method lsq refuses it once the options have passed
             "fit": (["fit", rec, "--out", str(out / "fit"), "--method", "lsq"],
                     ["--walkers", "--max-steps", "--seed", "--supply-cutoff",
-                     "--pressure-filter"]),
+                     "--pressure-filter", "--jacobian-refresh"]),
         }
         name = data.draw(st.sampled_from(sorted(commands)))
         argv, options = commands[name]

@@ -688,7 +688,7 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     stages, full_from = [], []
 
     class Refiner:
-        def __init__(self, model, solver, free=None, max_nfev=None):
+        def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1):
             self.free = free
 
         def fit(self, data, params):
@@ -756,7 +756,7 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
     class Refiner:
         traces = []
 
-        def __init__(self, model, solver, free=None, max_nfev=None):
+        def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1):
             pass
 
         def fit(self, data, params):

@@ -233,6 +233,51 @@ def test_refinement_recovers_a_perturbed_start(bench):
         assert ref.params_[k] == pytest.approx(truth[k], rel=0.05), k
 
 
+def test_broyden_refinement_recovers_the_start_with_fewer_simulations(bench, monkeypatch):
+    """A finite-difference Jacobian every 4th accepted point, Broyden's update between:
+    the same planted recovery as every point's, from fewer simulated trajectories, and
+    the information at the end from a finite-difference Jacobian (the same as a fit that
+    ends there at once)."""
+    recs, model, truth = bench
+    start = dict(truth)
+    for k, f in (("inlet_a_m2", 1.15), ("exhaust_a_m2", 0.85), ("dead_volume_m3", 1.3),
+                 ("inlet_c_per_V", 1.2)):
+        start[k] = truth[k] * f
+    data = WindowSet(recs, 2.0, 2.0)
+    real = WindowSet.residuals
+    simulated = []
+
+    def counted(self, m, params, solver, on_failure="raise"):
+        simulated.append(len(params))
+        return real(self, m, params, solver, on_failure)
+
+    monkeypatch.setattr(WindowSet, "residuals", counted)
+    fits = {}
+    for k in (1, 4):
+        simulated.clear()
+        fits[k] = TrajectoryRefiner(model, TIGHT, max_nfev=40, jacobian_refresh=k).fit(
+            data, start)
+        fits[k].trajectories = sum(simulated)
+    fd, broyden = fits[1], fits[4]
+    assert broyden.trajectories < 0.6 * fd.trajectories
+    assert broyden.rmse_Pa_ < 600.0 and broyden.rmse_Pa_ < 0.5 * broyden.start_rmse_Pa_
+    assert broyden.rmse_Pa_ == pytest.approx(fd.rmse_Pa_, rel=2e-3)
+    for k in ("inlet_a_m2", "exhaust_a_m2", "dead_volume_m3", "inlet_c_per_V"):
+        assert broyden.params_[k] == pytest.approx(truth[k], rel=0.05), k
+    # the first Jacobian only by finite differences, then Broyden's: the information at
+    # the end is still a finite-difference Jacobian's (a fit that ends there at once;
+    # its steps follow its own start's scales, so not bit-identical)
+    lazy = TrajectoryRefiner(model, TIGHT, max_nfev=40, jacobian_refresh=10**6).fit(data,
+                                                                                     start)
+    at_end = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(data, lazy.params_)
+    np.testing.assert_allclose(lazy.information_, at_end.information_, rtol=5e-3)
+    with pytest.raises(ValueError, match="jacobian_refresh"):
+        TrajectoryRefiner(model, TIGHT, jacobian_refresh=0)
+    from pneubayes.inference.fit import FitSettings
+    with pytest.raises(ValueError, match="refine_jacobian_refresh"):
+        FitSettings(refine_jacobian_refresh=1.5)
+
+
 def test_refinement_survives_trial_steps_that_do_not_simulate(bench, monkeypatch):
     # the first trial step "cannot be simulated": least squares must back off and go on
     recs, model, truth = bench

@@ -179,7 +179,8 @@ class Discovery:
             params, screened = start, False
             if first:
                 stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
-                                          max_nfev=s.fit.refine_max_nfev
+                                          max_nfev=s.fit.refine_max_nfev,
+                                          jacobian_refresh=s.fit.refine_jacobian_refresh
                                           ).fit(train_ws, params)
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
                 # the full fit continues from the stage's point; a screened-out form is
@@ -191,7 +192,9 @@ class Discovery:
                              f"below the screen ({beat_Pa:.0f} Pa)")
             for _ in range(0 if screened else s.max_refine_restarts + 1):
                 ref = TrajectoryRefiner(model, s.fit.refine_solver,
-                                        max_nfev=s.fit.refine_max_nfev).fit(train_ws, params)
+                                        max_nfev=s.fit.refine_max_nfev,
+                                        jacobian_refresh=s.fit.refine_jacobian_refresh
+                                        ).fit(train_ws, params)
                 params = ref.params_
                 if ref.success_:
                     break

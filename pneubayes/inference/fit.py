@@ -35,6 +35,7 @@ from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.physics.valve import valve_preset
+from pneubayes.settings_tree import FieldError
 from pneubayes.simulation import SolverConfig
 
 
@@ -52,6 +53,11 @@ class FitSettings:
     sg_window_s: float = 0.011
     sg_polyorder: int = 3
     refine_max_nfev: int = 60
+    #: accepted points per finite-difference Jacobian of the refinement, Broyden's
+    #: update between (:class:`~pneubayes.inference.refine.TrajectoryRefiner`); 1: a
+    #: finite-difference Jacobian at every accepted point. 4: the discovery benchmark's
+    #: four-effect loop named the same effects at the same error (510.9 Pa) in less time
+    refine_jacobian_refresh: int = 4
     refine_solver: SolverConfig = field(default_factory=SolverConfig.refinement)
     sample_solver: SolverConfig = field(default_factory=SolverConfig.standard)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
@@ -69,6 +75,10 @@ class FitSettings:
     pressure_filter: PressureFilter | None = None
 
     def __post_init__(self):
+        if (int(self.refine_jacobian_refresh) != self.refine_jacobian_refresh
+                or self.refine_jacobian_refresh < 1):
+            raise FieldError("refine_jacobian_refresh",
+                             f"must be an integer >= 1, got {self.refine_jacobian_refresh!r}")
         if self.pressure_filter is not None and not isinstance(self.pressure_filter,
                                                                PressureFilter):
             raise TypeError("FitSettings.pressure_filter must be a PressureFilter or None, "
@@ -379,7 +389,9 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
         ref = saved["refined"]
     else:
         ref = TrajectoryRefiner(model, settings.refine_solver,
-                                max_nfev=settings.refine_max_nfev).fit(data, start)
+                                max_nfev=settings.refine_max_nfev,
+                                jacobian_refresh=settings.refine_jacobian_refresh
+                                ).fit(data, start)
         log(f"fit: refined {settings.horizon_s:g}-s RMSE {ref.start_rmse_Pa_:.0f} -> "
             f"{ref.rmse_Pa_:.0f} Pa "
             f"({ref.n_evaluations_} evaluations)")

@@ -94,6 +94,12 @@ class TrajectoryRefiner:
         Finite-difference step relative to each parameter's scale.
     max_nfev : int
         Budget of residual evaluations (each Jacobian is one more batched call).
+    jacobian_refresh : int
+        Accepted points per finite-difference Jacobian: 1 takes it at every accepted
+        point; k > 1 takes it at every k-th and updates it between by Broyden's rank-1
+        secant (in the scaled coordinates; Broyden 1965), from the residuals the trust
+        region already has, so k - 1 of k accepted points cost no extra simulation. The
+        information and covariance are always from a finite-difference Jacobian.
 
     After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
     ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
@@ -105,7 +111,10 @@ class TrajectoryRefiner:
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
                  stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
-                 max_nfev: int = 60):
+                 max_nfev: int = 60, jacobian_refresh: int = 1):
+        if int(jacobian_refresh) != jacobian_refresh or jacobian_refresh < 1:
+            raise ValueError(f"jacobian_refresh must be an integer >= 1, got "
+                             f"{jacobian_refresh!r}")
         self.model = model
         self.solver = solver
         self.horizon_s = horizon_s
@@ -113,6 +122,7 @@ class TrajectoryRefiner:
         self.free = free
         self.relative_step = relative_step
         self.max_nfev = max_nfev
+        self.jacobian_refresh = int(jacobian_refresh)
 
     def _scales(self, theta0: np.ndarray) -> np.ndarray:
         lo, hi = self.model.bounds
@@ -176,13 +186,30 @@ class TrajectoryRefiner:
                 res_cache[key] = r
             return res_cache[key]
 
-        def jacobian(x):
+        last: dict = {}  # the previous accepted point's x, residuals, Jacobian, age
+
+        def jacobian(x, fresh=False):
             key = x.tobytes()
+            if fresh and key in jac_cache and last.get("age") != 0:
+                jac_cache.clear()
             if key not in jac_cache:
                 interrupt.check()
                 r0 = residual(x)
                 if key in failed:  # never accepted; no slope to take
                     return np.zeros((r0.size, x.size))
+                if (not fresh and last and last["age"] + 1 < self.jacobian_refresh):
+                    # Broyden's update in the scaled coordinates: the secant through
+                    # the previous accepted point, the least change to its Jacobian
+                    ds = (x - last["x"]) / scale
+                    js = last["jac"] * scale
+                    den = float(ds @ ds)
+                    if den > 0.0:
+                        js = js + np.outer(r0 - last["r"] - js @ ds, ds / den)
+                    jac = js / scale
+                    jac_cache.clear()
+                    jac_cache[key] = jac
+                    last.update(x=x.copy(), r=r0, jac=jac, age=last["age"] + 1)
+                    return jac
                 steps = self.relative_step * scale
                 up = x + steps > fhi
                 steps = np.where(up, -steps, steps)  # step inward at the upper bound
@@ -198,6 +225,7 @@ class TrajectoryRefiner:
                 jac[~np.isfinite(jac)] = 0.0
                 jac_cache.clear()
                 jac_cache[key] = jac
+                last.update(x=x.copy(), r=r0, jac=jac, age=0)
             return jac_cache[key]
 
         # least squares runs on x / scale, every variable of order 1: scipy's trust region
@@ -210,7 +238,7 @@ class TrajectoryRefiner:
                                      max_nfev=self.max_nfev, xtol=1e-8, ftol=1e-10)
         x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
         theta = full(x_sol)
-        r, jac = residual(x_sol), jacobian(x_sol)
+        r, jac = residual(x_sol), jacobian(x_sol, fresh=True)
         if dead is not None:  # d r / d theta = d r / d x  d x / d theta (chamber -> dead)
             jac = jac @ _chamber_map(taken, theta, idx, dead, scale)
         n, p = r.size, idx.size
