@@ -4,8 +4,13 @@ Minimises the squared error of open-loop predictions over windows started from t
 measured pressure (the paper's metric), with ``scipy.optimize.least_squares``
 (trust-region reflective, within the model's bounds). The Jacobian is taken by forward
 differences in ONE batched call of the compiled simulator (one perturbed copy per free
-parameter), at accepted points only: a rejected trial step costs one simulation. Its
-result is the point that starts the sampler.
+parameter), at accepted points only: a rejected trial step costs one simulation. The
+trust region accepts nearly every step, so with ``jacobian_refresh`` k > 1 the
+finite-difference Jacobian is taken at every k-th accepted point and updated between by
+Broyden's secant from the residuals already simulated (on a refit beside Table III's
+AIR37 wave tube, 17 parameters: 57 of 60 evaluations had asked for a Jacobian; every
+4th took one pass from 1268 to 321 s, 1.2 Pa higher). Its result is the point that
+starts the sampler.
 
 An effect that takes part of the dead volume out of the chamber (an acoustic line,
 :meth:`~pneubayes.effects.Effect.volume_taken_m3`) makes ``chamber = dead volume - taken
