@@ -157,8 +157,8 @@ class Discovery:
              data_key: str, first=None, beat_Pa: float | None = None) -> StepFit:
         """Refine ``model`` from ``start`` (``first``: parameters refined on their own
         before all of them, the full refinement continuing from the stage's point) and
-        score it on the training and held-out windows. The settings' bound overrides apply to every
-        model fitted here (the refiner starts inside them). With ``first`` and
+        score it on the training and held-out windows. The settings' bound overrides
+        apply to every model fitted here (the refiner starts inside them). With ``first`` and
         ``beat_Pa``, a first stage whose training RMSE is not below ``beat_Pa`` ends the
         fit there (a screened-out form: its own parameters do not beat the form it
         refines), scored at the stage's point."""

@@ -157,7 +157,6 @@ class TrajectoryRefiner:
             theta_start[idx[dead]] = theta0[idx[dead]] - taken(theta0)
         x0 = np.clip(theta_start[idx], flo + 1e-9 * (fhi - flo), fhi - 1e-9 * (fhi - flo))
         res_cache: dict = {}
-        jac_cache: dict = {}
         failed: set = set()
         trace: list = []  # the RMSE of each point simulated, in order (failed: none)
 
@@ -191,30 +190,26 @@ class TrajectoryRefiner:
                 res_cache[key] = r
             return res_cache[key]
 
-        last: dict = {}  # the previous accepted point's x, residuals, Jacobian, age
+        last: dict = {}  # the last Jacobian: its point (key, x), residuals there, age
 
         def jacobian(x, fresh=False):
             key = x.tobytes()
-            if fresh and key in jac_cache and last.get("age") != 0:
-                jac_cache.clear()
-            if key not in jac_cache:
-                interrupt.check()
-                r0 = residual(x)
-                if key in failed:  # never accepted; no slope to take
-                    return np.zeros((r0.size, x.size))
-                if (not fresh and last and last["age"] + 1 < self.jacobian_refresh):
-                    # Broyden's update in the scaled coordinates: the secant through
-                    # the previous accepted point, the least change to its Jacobian
-                    ds = (x - last["x"]) / scale
-                    js = last["jac"] * scale
-                    den = float(ds @ ds)
-                    if den > 0.0:
-                        js = js + np.outer(r0 - last["r"] - js @ ds, ds / den)
-                    jac = js / scale
-                    jac_cache.clear()
-                    jac_cache[key] = jac
-                    last.update(x=x.copy(), r=r0, jac=jac, age=last["age"] + 1)
-                    return jac
+            if last and last["key"] == key and not (fresh and last["age"]):
+                return last["jac"]
+            interrupt.check()
+            r0 = residual(x)
+            if key in failed:  # never accepted; no slope to take
+                return np.zeros((r0.size, x.size))
+            if not fresh and last and last["age"] + 1 < self.jacobian_refresh:
+                # Broyden's update in the scaled coordinates: the secant through the
+                # previous accepted point, the least change to its Jacobian
+                ds = (x - last["x"]) / scale
+                js = last["jac"] * scale
+                den = float(ds @ ds)
+                if den > 0.0:
+                    js = js + np.outer(r0 - last["r"] - js @ ds, ds / den)
+                jac, age = js / scale, last["age"] + 1
+            else:
                 steps = self.relative_step * scale
                 up = x + steps > fhi
                 steps = np.where(up, -steps, steps)  # step inward at the upper bound
@@ -226,12 +221,10 @@ class TrajectoryRefiner:
                 # the perturbed copies in ONE batched call of the compiled simulator
                 r = data.residuals(model, np.array(rows), self.solver, on_failure="nan")
                 r = r.reshape(r.shape[0], -1)
-                jac = (r - r0).T / steps
+                jac, age = (r - r0).T / steps, 0
                 jac[~np.isfinite(jac)] = 0.0
-                jac_cache.clear()
-                jac_cache[key] = jac
-                last.update(x=x.copy(), r=r0, jac=jac, age=0)
-            return jac_cache[key]
+            last.update(key=key, x=x.copy(), r=r0, jac=jac, age=age)
+            return jac
 
         # least squares runs on x / scale, every variable of order 1: scipy's trust region
         # keeps its start strictly feasible with an absolute margin of 1e-10, which for a
