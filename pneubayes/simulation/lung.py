@@ -24,7 +24,7 @@ import math
 from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX
-from pneubayes.simulation.chamber import chamber_rhs_call, compliant_volume
+from pneubayes.simulation.chamber import chamber_rhs, compliant_volume
 from pneubayes.simulation.layout import C_KAPPA, C_P_ATM, C_RS, C_T_SUPPLY
 from pneubayes.simulation.thermal import exprb2_correct, exprb2_predict
 
@@ -68,7 +68,7 @@ def lung_step(p, pl, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
     Returns ``(err, p_new, p_L_new, exp(h J))``, the propagator row-major; ``err`` <= 1
     accepts the step."""
     temp = cs[C_T_SUPPLY]
-    fc, jc, _, _, vc, _, _, _ = chamber_rhs_call(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh,
+    fc, jc, _, _, vc, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh,
                                             True, dsup, da_in, da_ex)
     fa, fl, ja, jpl, jlp, jll, va = lung_terms(p, pl, vol, vdot, sl, cs, True)
     fp, jpp, vp = fc + fa, jc + ja, vc + va
@@ -76,7 +76,7 @@ def lung_step(p, pl, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
     if not (up > 0.0 and math.isfinite(up) and ul > 0.0 and math.isfinite(ul)):
         return 10.0, p, pl, prop
     fa2, fl2, _, _, _, _, _ = lung_terms(up, ul, vol2, vdot, sl, cs, False)
-    fp2 = chamber_rhs_call(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False, 0.0, 0.0,
+    fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False, 0.0, 0.0,
                       0.0)[0] + fa2
     err, pn, ln = exprb2_correct(p, pl, up, ul, hh, f3, fp, fl, fp2, fl2, jpp, jpl, jlp, jll,
                                  vp, 0.0, atol_p, atol_p, rtol)

@@ -12,7 +12,7 @@ import math
 
 from numba import njit
 
-from pneubayes.simulation.chamber import chamber_rhs_call
+from pneubayes.simulation.chamber import chamber_rhs
 
 _INV_FACT = tuple(1.0 / math.factorial(j) for j in range(17))
 
@@ -110,12 +110,12 @@ def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a
     Returns ``(err, p_new, T_new, exp(h J))``, the propagator as a row-major 4-tuple;
     ``err`` <= 1 accepts the step.
     """
-    fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs_call(p, temp, a_in, a_ex, vol, vdot, psup,
+    fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup,
                                                      sl, cs, hh, True, dsup, da_in, da_ex)
     up, ut, f3, prop = exprb2_predict(p, temp, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, temp, prop
-    fp2, _, ft2, _, _, _, _, _ = chamber_rhs_call(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
+    fp2, _, ft2, _, _, _, _, _ = chamber_rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
                                              cs, hh, False, 0.0, 0.0, 0.0)
     err, pn, tn = exprb2_correct(p, temp, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp,
                                  jtt, vp, vt, atol_p, atol_t, rtol)
