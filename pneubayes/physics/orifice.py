@@ -12,6 +12,7 @@ the simulator, so there is one implementation of the law.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -89,9 +90,16 @@ def flow_partials(p_up, p_down, alpha, beta, theta, kappa, dp_floor):
     return f, du, dd
 
 
-@vectorize(["float64(float64, float64, float64, float64, float64, float64)"], cache=True)
-def _flow_ufunc(p_up, p_down, alpha, beta, theta, kappa):
+def _flow_scalar(p_up, p_down, alpha, beta, theta, kappa):
     return flow_terms(p_up, p_down, alpha, beta, theta, kappa)[0]
+
+
+@functools.cache
+def _flow_ufunc():
+    """:func:`_flow_scalar` as a compiled ufunc, built on first use: built at import it
+    cost every import of the simulator about 1 s, even from numba's cache."""
+    return vectorize(["float64(float64, float64, float64, float64, float64, float64)"],
+                     cache=True)(_flow_scalar)
 
 
 def flow_function(p_up_Pa, p_down_Pa, gas: GasConstants):
@@ -108,7 +116,7 @@ def flow_function(p_up_Pa, p_down_Pa, gas: GasConstants):
     p_down = np.asarray(p_down_Pa, dtype=np.float64)
     if np.any(~(p_up > 0)) or np.any(~(p_down > 0)):
         raise ValueError("flow_function: absolute pressures must be finite and > 0 Pa")
-    return _flow_ufunc(p_up, p_down, gas.alpha_s_per_m, gas.beta_s_per_m, gas.theta,
+    return _flow_ufunc()(p_up, p_down, gas.alpha_s_per_m, gas.beta_s_per_m, gas.theta,
                        gas.heat_capacity_ratio)
 
 

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy import signal
 
 #: Grid of the kink response, in filter periods 1 / cutoff: step and half-width.
 _STEP_PERIODS = 1e-3
@@ -104,6 +103,8 @@ class PressureFilter:
         digital Butterworth at 1000 x the cutoff: ``K(s_i) = sum_j h_j (s_i - s_j)_+ ds
         - (s_i)_+``.
         """
+        from scipy import signal  # here: importing scipy.signal costs about 1 s
+
         ds = _STEP_PERIODS / self.cutoff_Hz
         n = int(round(_HALF_WIDTH_PERIODS / _STEP_PERIODS))
         s = ds * np.arange(-n, n + 1)
