@@ -172,8 +172,9 @@ class PressurePredictor:
     draws : (N, P) posterior draws (e.g. 64)
     rig : Rig
     solver : SolverConfig
-        :meth:`SolverConfig.standard` serves: ``benchmarks/controller.py`` measures 64
-        draws x 2 s at 200 Hz in 3.6-4.5 ms on 2 threads, within 19-98 Pa of the
+        :meth:`SolverConfig.standard` serves: ``benchmarks/controller.py`` times 64
+        draws x 2 s at 200 Hz on 2 threads (3.1-8.0 ms on this project's 2-core VM,
+        whose speed moves between days) and finds them within 19-98 Pa of the
         reference preset (1e-7 to 2.4e-6 m^3).
     quantiles : the quantiles returned (default 5/50/95 %)
     """
