@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pneubayes.inference.predictive import PressurePredictor
+from pneubayes.inference.predictive import PressurePredictor, draw_quantiles
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig
@@ -130,3 +130,22 @@ def test_predictive_reading_carries_the_start_noise_as_the_likelihood_does(laggi
     np.testing.assert_array_equal(quiet, api.predict_draws(3e5, cands, 0.0, DT))
     with pytest.raises(ValueError, match="noise_Pa"):
         api.predictive_draws(3e5, cands, 0.0, DT, const[:, :-1])
+
+
+def test_draw_quantiles_are_numpys_bit_for_bit():
+    """The controller's one-sort quantiles equal np.quantile's default (linear) method
+    exactly: ties, one draw, the extreme quantiles, and NaN slices as NaN."""
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(1, 130))
+        x = rng.normal(size=(n, int(rng.integers(1, 4)), int(rng.integers(1, 9))))
+        x *= 10.0 ** rng.uniform(-3, 6)
+        if trial % 3 == 0:
+            x = np.round(x)  # ties
+        q = np.concatenate([[0.0, 1.0, 0.5, 0.05, 0.95], rng.uniform(0, 1, 3)])
+        np.testing.assert_array_equal(draw_quantiles(x, q), np.quantile(x, q, axis=0))
+    x = rng.normal(size=(64, 2, 5))
+    x[3, 1, 2] = np.nan
+    got = draw_quantiles(x, (0.05, 0.5, 0.95))
+    np.testing.assert_array_equal(got, np.quantile(x, (0.05, 0.5, 0.95), axis=0))
+    assert np.isnan(got[:, 1, 2]).all() and np.isfinite(got[:, 0]).all()

@@ -158,6 +158,26 @@ class PosteriorPredictive:
                                noise_floor_Pa=estimate_noise_std(p))
 
 
+def draw_quantiles(draws, quantiles) -> np.ndarray:
+    """``np.quantile(draws, quantiles, axis=0)`` (its default linear method), bit for
+    bit, by one sort: np.quantile partitions the draws once per quantile, about 2 ms for
+    64 draws x 401 samples x 3 quantiles against 0.2 ms, a third of a controller's
+    budget. Draws with a NaN go to np.quantile itself (a NaN makes its slice NaN)."""
+    x = np.asarray(draws, dtype=np.float64)
+    s = np.sort(x, axis=0)  # NaN last
+    if np.isnan(s[-1]).any():
+        return np.quantile(x, quantiles, axis=0)
+    q = np.asarray(quantiles, dtype=np.float64)
+    pos = (s.shape[0] - 1) * q
+    lo = np.floor(pos).astype(np.intp)
+    hi = np.minimum(lo + 1, s.shape[0] - 1)
+    t = (pos - lo).reshape(q.shape + (1,) * (x.ndim - 1))
+    a, b = s[lo], s[hi]
+    diff = b - a
+    # numpy's interpolation: from the nearer neighbour
+    return np.where(t >= 0.5, b - diff * (1.0 - t), a + diff * t)
+
+
 class PressurePredictor:
     """Controller API: predicted pressure quantiles for candidate command sequences.
 
@@ -280,4 +300,4 @@ class PressurePredictor:
         arguments are :meth:`predict_draws`'."""
         sim = self.predict_draws(pressure_Pa, commands_V, position_m, dt_s,
                                  supply_pressure_Pa, command_history_V)
-        return np.moveaxis(np.quantile(sim, self.quantiles, axis=0), 0, 1)
+        return np.moveaxis(draw_quantiles(sim, self.quantiles), 0, 1)
