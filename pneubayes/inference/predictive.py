@@ -160,9 +160,9 @@ class PosteriorPredictive:
 
 def draw_quantiles(draws, quantiles) -> np.ndarray:
     """``np.quantile(draws, quantiles, axis=0)`` (its default linear method), bit for
-    bit, by one sort: np.quantile partitions the draws once per quantile, about 2 ms for
-    64 draws x 401 samples x 3 quantiles against 0.2 ms, a third of a controller's
-    budget. Draws with a NaN go to np.quantile itself (a NaN makes its slice NaN)."""
+    bit, by one sort: np.quantile partitions the draws once per quantile, 9 x the time
+    for 64 draws x 401 samples x 3 quantiles (2.09 against 0.24 ms on a loaded machine).
+    Draws with a NaN go to np.quantile itself (a NaN makes its slice NaN)."""
     x = np.asarray(draws, dtype=np.float64)
     s = np.sort(x, axis=0)  # NaN last
     if np.isnan(s[-1]).any():

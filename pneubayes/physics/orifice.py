@@ -117,7 +117,7 @@ def flow_function(p_up_Pa, p_down_Pa, gas: GasConstants):
     if np.any(~(p_up > 0)) or np.any(~(p_down > 0)):
         raise ValueError("flow_function: absolute pressures must be finite and > 0 Pa")
     return _flow_ufunc()(p_up, p_down, gas.alpha_s_per_m, gas.beta_s_per_m, gas.theta,
-                       gas.heat_capacity_ratio)
+                         gas.heat_capacity_ratio)
 
 
 def mass_flow(area_m2, p_up_Pa, p_down_Pa, gas: GasConstants):

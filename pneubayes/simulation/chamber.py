@@ -88,7 +88,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
 
     Compiled as a function of its own, not inlined at numba's IR level into its callers:
     inlined at the pressure-only step's two call sites it made the kernel's cold compile
-    about 1.6 x longer (numba's type inference and SSA over the copies) for 3-5 % of the
+    about 1.6 x longer (numba's type inference and SSA over the copies) for 0-5 % of the
     step's speed.
     """
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
@@ -204,4 +204,3 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     jt = ft / temp + temp * (jpt / p - rs * mdot / (p * vol) - g * dmdot_dT)
     vt = temp * (vp / p - (vdot / vol) ** 2 - g * dmdot_dt + g * mdot * vdot / vol)
     return fp, jp, ft, jt, vp, jpt, jtp, vt
-
