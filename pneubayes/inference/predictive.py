@@ -183,8 +183,8 @@ class PressurePredictor:
 
     Every (posterior draw, candidate) pair is one window of one compiled call, so the
     batch runs on numba's threads. Simulate on the controller's own grid (``dt_s`` the
-    control period, e.g. 5 ms at 200 Hz): the integrator stops at every sample, so a
-    finer grid than the command's costs steps and buys nothing.
+    control period, e.g. 5 ms at 200 Hz): without ``dense_output`` the integrator stops
+    at every sample, so a finer grid than the command's costs steps and buys nothing.
 
     Parameters
     ----------
@@ -197,11 +197,20 @@ class PressurePredictor:
         whose speed moves between days) and finds them within 19-98 Pa of the
         reference preset (1e-7 to 2.4e-6 m^3).
     quantiles : the quantiles returned (default 5/50/95 %)
+    dense_output : bool
+        Let steps cross the samples where the command holds, reading those samples from
+        the step's interpolant (:func:`pneubayes.simulation.simulate_windows`; models
+        with a spool or sensor lag or a second state step as without it).
+        ``benchmarks/controller.py --quick`` (the two alternating, one run on a loaded
+        machine): 1.1-1.8 x faster at 200 Hz, 2.4-3.6 x at 1 kHz; largest error against
+        the reference preset 19-213 Pa at 200 Hz (19-98 Pa without) and 72-293 Pa at
+        1 kHz (12-293 Pa), within 0.1 % of a 450-kPa range.
     """
 
     def __init__(self, model: Model, draws, rig, solver: SolverConfig,
-                 quantiles=(0.05, 0.5, 0.95)):
+                 quantiles=(0.05, 0.5, 0.95), dense_output: bool = False):
         self.model = model
+        self.dense_output = dense_output
         self.draws = model.as_matrix(draws)
         self.rig = rig
         self.solver = solver
@@ -227,7 +236,7 @@ class PressurePredictor:
         args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
                              command_history_V)
         return simulate_windows(self.model, self.draws, *args, self.solver,
-                                check_bounds=False)
+                                check_bounds=False, dense_output=self.dense_output)
 
     def predictive_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                          noise_Pa, supply_pressure_Pa=None,
@@ -252,7 +261,8 @@ class PressurePredictor:
             raise ValueError(f"noise_Pa must be (draws, L + 1) = "
                              f"{(self.draws.shape[0], args[3])}, got {noise.shape}")
         sim, sens = simulate_windows_sensitivity(self.model, self.draws, *args, self.solver,
-                                                 check_bounds=False)
+                                                 check_bounds=False,
+                                                 dense_output=self.dense_output)
         return sim, sim + window_noise(noise[:, None, :], sens)
 
     def _windows(self, pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,

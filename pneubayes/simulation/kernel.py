@@ -70,6 +70,7 @@ from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-
     N_SOLVER,
     S_ATOL_P,
     S_ATOL_T,
+    S_DENSE,
     S_MAX_STEP,
     S_MAX_STEPS_PER_S,
     S_MIN_STEP,
@@ -297,6 +298,16 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
 
+    With ``sv[S_DENSE] > 0`` (``sv`` seven long) and a model whose port areas change only
+    where the command does (no spool or sensor lag, no second state, no separately
+    commanded exhaust, no inputs advance), a step may cross the samples over which the
+    position and supply hold: the integrator stops only at command changes, the window's
+    end and its own step size, and each sample it crosses is read from the accepted
+    step's interpolant: the exponential step over the fraction th of it plus its error
+    correction scaled by th^3 phi3(th h J_p) / phi3(h J_p) (exact at th = 1); dp/dp0
+    there is exp(th h J_p) times its value at the step's start. Without it every sample
+    ends a step.
+
     ``general`` is None for the pressure-only kernel: numba prunes the branches of the
     forms with a second state (heat transfer, an acoustic line, a tank, a second
     compartment), so they are compiled only when a model uses them (any other value).
@@ -480,12 +491,27 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             spool, v_s = spool_step(spool, v_s, u[k], t[k + 1] - t[k], tau_s, w_s, z_s)
         spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
                                 z_s)
+    # dense output: steps cross the samples where the position and supply hold
+    dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not lagged
+             and not own_ex and adv == 0.0 and not (thermal or tank or lung)
+             and not sl[_LLEN] > 0.0 and not sl[_WLEN] > 0.0)
     h = hmax
     steps = 0
     s_cached = math.nan
     cmd_cached = math.nan
     a_in_c, a_ex_c = 0.0, 0.0
-    for k in range(k0, i0 + length - 1):
+    k_last = i0 + length - 1
+    fp, vp, ep = 0.0, 0.0, 0.0  # the last step's rate, its rate of change, its correction
+    k = k0
+    while k < k_last:
+        # the samples this pass integrates to: the next, or with dense output the last
+        # of the run over which position and supply hold
+        kn = k + 1
+        if dense:
+            while (kn < k_last and x[kn] == x[k] and ps[kn] == ps[k]
+                   and x[kn + 1] == x[k] and ps[kn + 1] == ps[k]):
+                kn += 1
+        kw = k + 1  # the next sample to read from a step's interpolant (dense output)
         if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0
             lead = p - r
             r = p0
@@ -493,7 +519,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             if general is not None and line:
                 y[0] = p
             s_p0, s_r, s_v = 1.0, 1.0, 0.0
-        tb = t[k + 1]
+        tb = t[kn]
         a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
         tau = t[k] if k > k0 else t_start
         while tau < tb:
@@ -502,8 +528,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 j += 1
             cmd = u[j]
             t_end = tb
-            if j + 1 < n and t[j + 1] + delay < tb:
-                t_end = t[j + 1] + delay
+            jn = j + 1  # the next break of the delayed command
+            if kn > k + 1:  # dense output: past the samples that repeat the command
+                while jn < n and u[jn] == cmd and t[jn] + delay < tb:
+                    jn += 1
+            if jn < n and t[jn] + delay < tb:
+                t_end = t[jn] + delay
             # position and supply: linear from (ta, xa / sa) on the sub-interval
             while m + 1 < n and t[m + 1] - adv <= tau:
                 m += 1
@@ -511,7 +541,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 ta = t[m] - adv
                 inv_seg = 1.0 / (t[m + 1] - t[m])
                 xa, xb, sa, sb = x[m], x[m + 1], ps[m], ps[m + 1]
-                if t[m + 1] - adv < t_end:
+                if t[m + 1] - adv < t_end and kn == k + 1:
                     t_end = t[m + 1] - adv
             else:  # read past the last sample: its values, held
                 ta, inv_seg = tau, 0.0
@@ -661,6 +691,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         if not (pn > 0.0 and math.isfinite(pn)):
                             err = 10.0
                 if err <= 1.0:
+                    t_prev = tau
                     tau = tau + hh if hh < t_end - tau else t_end
                     if moving and spool2:
                         s_cur, v_cur = s2, v2
@@ -695,6 +726,18 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
                         s_p0 *= math.exp(zp)
+                    if kn > k + 1:
+                        # dense output: the samples this step crossed, from its interpolant
+                        while kw < kn and t[kw] < tau:
+                            th = (t[kw] - t_prev) / hh
+                            q1, q2, q3 = _phi123(th * zp)
+                            value = (p_prev + th * hh * (q1 * fp + th * hh * q2 * vp)
+                                     + th * th * th * q3 / phi3p * ep)
+                            out[kw - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g)
+                                            if calibrated else value)
+                            if want_sens:
+                                sens[kw - i0] = s_prev * math.exp(th * zp)
+                            kw += 1
                     if second:
                         r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
                         if want_sens:
@@ -729,10 +772,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 spool = cmd
         if k >= i0:
             value = r if reading else p
-            out[k + 1 - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g) if calibrated
-                               else value)
+            out[kn - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g) if calibrated
+                            else value)
             if want_sens:
-                sens[k + 1 - i0] = s_r if reading else s_p0
+                sens[kn - i0] = s_r if reading else s_p0
+        k = kn
     carry[0] = temp
     if general is not None and line:
         line_finish(y, carry, nseg)

@@ -1,0 +1,193 @@
+"""Dense output (``dense_output=True``): steps cross the samples over which the inputs
+hold, and the samples they cross are read from the step's interpolant. Checked against
+the reference preset, against the default stepping, by conservation and by tightening;
+models it does not apply to, and inputs that move every sample, must give the default's
+numbers bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pneubayes.effects.path import N_SLOTS, SLOT_INDEX
+from pneubayes.inference.predictive import PressurePredictor
+from pneubayes.model import Model
+from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    kernel,
+    simulate_windows,
+    simulate_windows_sensitivity,
+)
+from pneubayes.simulation.simulator import rig_constants
+
+P_ATM, P_SUP = 101325.0, 551325.0
+RANGE_PA = P_SUP - P_ATM
+RIG = Rig(0.009, P_ATM, P_SUP)
+
+
+def _held_steps(rng, n, dt, hold_s=(0.03, 0.3)):
+    """Random step commands held for 30-300 ms, on a grid of period dt."""
+    out = np.empty(n)
+    i = 0
+    while i < n:
+        k = max(1, round(rng.uniform(*hold_s) / dt))
+        out[i:i + k] = rng.uniform(-5.0, 5.0)
+        i += k
+    return out
+
+
+def _inputs(u, dt, x=None, sup=None):
+    n = u.size
+    return Inputs(np.arange(n) * dt, u, np.zeros(n) if x is None else x,
+                  np.full(n, P_SUP) if sup is None else sup)
+
+
+def _closed_slots(volume):
+    """Both ports shut (offset 0 and a 0: every area exactly 0), no leak."""
+    sl = np.zeros((1, N_SLOTS))
+    for port, c in (("inlet", 1.5), ("exhaust", -1.5)):
+        sl[0, SLOT_INDEX[f"{port}_b"]] = 3.0
+        sl[0, SLOT_INDEX[f"{port}_c_per_V"]] = c
+    sl[0, SLOT_INDEX["volume_m3"]] = volume
+    return sl
+
+
+def _model(effects=("cylinder_leak",), volume=2.4e-6, **extra):
+    model = Model(list(effects))
+    p = {**model.neutral_values(), **valve_preset("valve1").parameters()}
+    p.update(dead_volume_m3=volume, leak_area_m2=3.04e-8, **extra)
+    return model, model.vector({k: v for k, v in p.items() if k in model.parameter_names})
+
+
+def _run(model, theta, inputs, solver, dense, p0=3e5, sens=False):
+    fn = simulate_windows_sensitivity if sens else simulate_windows
+    return fn(model, theta, inputs, RIG, np.array([0]), inputs.n_samples, np.array([p0]),
+              solver, dense_output=dense)
+
+
+@pytest.mark.parametrize("volume", [1e-7, 2.4e-7, 2.4e-6])
+@pytest.mark.parametrize("dt", [0.005, 0.001])
+def test_dense_output_agrees_with_the_reference_within_the_accuracy_floor(volume, dt):
+    rng = np.random.default_rng(11)
+    model, theta = _model(volume=volume)
+    inputs = _inputs(_held_steps(rng, round(2.0 / dt), dt), dt)
+    ref = _run(model, theta, inputs, SolverConfig.reference(), False)
+    stops = _run(model, theta, inputs, SolverConfig.standard(), False)
+    dense = _run(model, theta, inputs, SolverConfig.standard(), True)
+    err = np.abs(dense - ref).max()
+    assert err < 1e-3 * RANGE_PA  # the standard preset's floor, 0.1 % of the range
+    # it does change the stepping (else this test checks nothing)
+    assert np.abs(dense - stops).max() > 0.0
+
+
+def test_dense_output_converges_to_the_reference_when_tightened():
+    rng = np.random.default_rng(5)
+    model, theta = _model(volume=2.4e-6)
+    dt = 0.001
+    inputs = _inputs(_held_steps(rng, 2000, dt), dt)
+    ref = _run(model, theta, inputs, SolverConfig.reference(), False)
+    errs = [np.abs(_run(model, theta, inputs, SolverConfig.standard().tightened(f), True)
+                   - ref).max() for f in (1.0001, 10.0, 100.0)]
+    assert errs[1] < 0.5 * errs[0] and errs[2] < 0.5 * errs[1], errs
+    assert errs[2] < 5.0, errs
+
+
+def test_dense_output_sensitivity_agrees_with_the_stepped_one():
+    rng = np.random.default_rng(2)
+    model, theta = _model(volume=2.4e-7)
+    dt = 0.005
+    inputs = _inputs(_held_steps(rng, 400, dt), dt)
+    _, s_stops = _run(model, theta, inputs, SolverConfig.standard().tightened(10), False,
+                      sens=True)
+    _, s_dense = _run(model, theta, inputs, SolverConfig.standard().tightened(10), True,
+                      sens=True)
+    assert s_dense[0, 0, 0] == 1.0
+    assert np.abs(s_dense - s_stops).max() < 0.02
+
+
+def test_a_closed_valve_keeps_the_pressure_with_dense_output():
+    """Both ports shut and no leak: every sample, crossed or not, keeps p0 exactly."""
+    n, dt = 2001, 0.001
+    t = np.arange(n) * dt
+    u = np.where(t < 1.0, 3.0, -3.0)
+    solver = SolverConfig.standard()
+    sv = np.append(solver.as_array(), 1.0)
+    out, status = kernel.simulate_windows(
+        np.ascontiguousarray(_closed_slots(2.4e-6)), rig_constants(RIG), sv, t, u,
+        np.zeros(n), np.zeros(n), np.full(n, P_SUP), np.array([0], dtype=np.int64), n,
+        np.array([2.5e5]))
+    assert not status.any()
+    assert np.all(out == 2.5e5)
+
+
+@pytest.mark.parametrize("volume", [1e-7, 2.4e-6])
+def test_full_commands_settle_at_the_flow_balance_with_dense_output(leak_model, base_params,
+                                                                   rig, volume, standard,
+                                                                   make_inputs, hand):
+    base_params["dead_volume_m3"] = volume
+    theta = leak_model.vector(base_params)
+    t = np.arange(2001) * 1e-3
+    up, down = (simulate_windows(leak_model, theta, make_inputs(t, np.full(t.size, u)), rig,
+                                 np.array([0]), t.size, np.array([p0]), standard,
+                                 dense_output=True)[0, 0]
+                for u, p0 in ((5.0, P_ATM), (-5.0, P_SUP)))
+    # at the flow balance of eqs. 4/9 (independent root finding), approached monotonely
+    assert up[-1] == pytest.approx(hand.equilibrium(base_params, u=5.0), abs=1.0)
+    assert down[-1] == pytest.approx(hand.equilibrium(base_params, u=-5.0), abs=1.0)
+    assert np.all(np.diff(up) >= -1e-6 * P_SUP) and np.all(np.diff(down) <= 1e-6 * P_SUP)
+
+
+def test_dense_output_behind_a_transport_delay_agrees_with_the_reference():
+    rng = np.random.default_rng(8)
+    model, theta = _model(("cylinder_leak", "tube_delay"), volume=2.4e-7,
+                          tube_delay_s=0.0123)
+    dt = 0.005
+    inputs = _inputs(_held_steps(rng, 400, dt), dt)
+    ref = _run(model, theta, inputs, SolverConfig.reference(), False)
+    dense = _run(model, theta, inputs, SolverConfig.standard(), True)
+    assert np.abs(dense - ref).max() < 1e-3 * RANGE_PA
+
+
+@pytest.mark.parametrize("effects,extra", [
+    (("cylinder_leak", "spool_lag"), {"spool_time_constant_s": 0.009}),
+    (("cylinder_leak", "sensor_lag"), {"sensor_time_constant_s": 0.004}),
+    (("cylinder_leak", "heat_transfer"), {"heat_transfer_rate_per_s": 20.0}),
+])
+def test_models_dense_output_does_not_cover_step_as_without_it(effects, extra):
+    rng = np.random.default_rng(4)
+    model, theta = _model(effects, volume=2.4e-6, **extra)
+    dt = 0.005
+    inputs = _inputs(_held_steps(rng, 200, dt), dt)
+    a = _run(model, theta, inputs, SolverConfig.standard(), False)
+    b = _run(model, theta, inputs, SolverConfig.standard(), True)
+    assert np.array_equal(a, b)
+
+
+def test_inputs_that_move_every_sample_step_as_without_dense_output():
+    rng = np.random.default_rng(6)
+    model, theta = _model(volume=2.4e-6)
+    dt = 0.002
+    n = 1000
+    t = np.arange(n) * dt
+    inputs = _inputs(_held_steps(rng, n, dt), dt, x=0.01 + 0.005 * np.sin(9.0 * t))
+    a = _run(model, theta, inputs, SolverConfig.standard(), False)
+    b = _run(model, theta, inputs, SolverConfig.standard(), True)
+    assert np.array_equal(a, b)
+
+
+def test_the_predictor_passes_dense_output_on_and_checks_it():
+    model, theta = _model(volume=2.4e-6)
+    draws = np.tile(theta, (3, 1))
+    rng = np.random.default_rng(9)
+    cands = np.stack([_held_steps(rng, 400, 0.005) for _ in range(2)])
+    plain = PressurePredictor(model, draws, RIG, SolverConfig.standard())
+    dense = PressurePredictor(model, draws, RIG, SolverConfig.standard(), dense_output=True)
+    a = plain.predict_draws(3e5, cands, 0.0, 0.005)
+    b = dense.predict_draws(3e5, cands, 0.0, 0.005)
+    assert a.shape == b.shape
+    assert 0.0 < np.abs(a - b).max() < 1e-3 * RANGE_PA
+    with pytest.raises(TypeError, match="dense_output"):
+        _run(model, theta, _inputs(cands[0], 0.005), SolverConfig.standard(), "yes")
