@@ -200,7 +200,7 @@ class PressurePredictor:
     dense_output : bool
         Let steps cross the samples where the command holds, reading those samples from
         the step's interpolant (:func:`pneubayes.simulation.simulate_windows`; models
-        with a spool or sensor lag or a second state step as without it).
+        with a sensor lag or a second state step as without it).
         ``benchmarks/controller.py --quick`` (the two alternating, one run on a loaded
         machine): 1.1-1.8 x faster at 200 Hz, 2.4-3.6 x at 1 kHz; largest error against
         the reference preset 19-213 Pa at 200 Hz (19-98 Pa without) and 72-293 Pa at

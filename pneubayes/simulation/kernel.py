@@ -298,11 +298,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     ``ue`` is a separately commanded exhaust valve's command (read only when the slot
     ``exhaust_own_command`` is set), held between samples.
 
-    With ``sv[S_DENSE] > 0`` (``sv`` seven long) and a model whose port areas change only
-    where the command does (no spool or sensor lag, no second state, no separately
-    commanded exhaust, no inputs advance), a step may cross the samples over which the
-    position and supply hold: the integrator stops only at command changes, the window's
-    end and its own step size, and each sample it crosses is read from the accepted
+    With ``sv[S_DENSE] > 0`` (``sv`` seven long) and a model with the pressure as its only
+    state and output (no sensor lag, no second state; no separately commanded exhaust, no
+    inputs advance), a step may cross the samples over which the position and supply
+    hold: the integrator stops only where the delayed command changes, at the window's
+    end and on its own step size (a spool, first or second order, moves in closed form
+    across the samples as within one), and each sample it crosses is read from the accepted
     step's interpolant: the exponential step over the fraction th of it plus its error
     correction scaled by th^3 phi3(th h J_p) / phi3(h J_p) (exact at th = 1); dp/dp0
     there is exp(th h J_p) times its value at the step's start. Without it every sample
@@ -492,8 +493,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
                                 z_s)
     # dense output: steps cross the samples where the position and supply hold
-    dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not lagged
-             and not own_ex and adv == 0.0 and not (thermal or tank or lung)
+    dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
+             and adv == 0.0 and not (thermal or tank or lung)
              and not sl[_LLEN] > 0.0 and not sl[_WLEN] > 0.0)
     h = hmax
     steps = 0

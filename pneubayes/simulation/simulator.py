@@ -284,8 +284,8 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     (:func:`pneubayes.simulation.kernel.simulate_windows`).
 
     With ``dense_output`` a step may cross the samples over which the position and
-    supply hold, and those samples are read from the step's interpolant (for models whose
-    port areas move only with the command: no spool or sensor lag, no second state; the
+    supply hold, and those samples are read from the step's interpolant (for models with
+    the pressure as their only state and output: no sensor lag, no second state; the
     others step as without it): fewer steps where the command holds for many samples, as
     a controller's candidates do, and results that differ from the default's within the
     solver's tolerance (:class:`pneubayes.inference.predictive.PressurePredictor` states
