@@ -439,8 +439,8 @@ def main(argv=None):
     ctx = {"model": model, "rig": rig, "p0": P_ATM, "Inputs": Inputs,
            "reference_simulate": reference_simulate}
 
-    def sim(theta, inputs):
-        return simulate(model, theta, inputs, rig, P_ATM, solver)
+    def sim(theta, inputs, dense_output=False):
+        return simulate(model, theta, inputs, rig, P_ATM, solver, dense_output=dense_output)
 
     # Diagnostic: the compiled kernel alone (no Python wrapper); internal API, optional.
     try:
@@ -497,6 +497,20 @@ def main(argv=None):
                 pb["kernel_only_error"] = f"{type(exc).__name__}: {exc}"[:300]
         res["pneubayes"] = pb
 
+        # the same with dense output (steps cross the samples where the inputs hold:
+        # the fixed cases; the moving piston's position changes every sample)
+        pbd = {"threads": 1, "batch": 1, "dense_output": True}
+        traj_dense = None
+        try:
+            timing = time_calls(lambda c=c: sim(c["base"], c["inputs"], True), min_total,
+                                min_reps)
+            pbd.update(timing)
+            pbd["sim_seconds_per_second"] = sim_s / timing["median_s"]
+            traj_dense = sim(c["base"], c["inputs"], True).pressure_Pa[0]
+        except SimulationError as exc:
+            pbd["error"] = str(exc)[:500]
+        res["pneubayes_dense"] = pbd
+
         # batch 64, one thread, for the batched headline
         b64 = {"threads": 1, "batch": 64}
         try:
@@ -536,6 +550,10 @@ def main(argv=None):
             pb["max_abs_error_vs_radau_Pa"] = err
             pb["max_abs_error_vs_radau_percent_of_range"] = _pct(err, working_range)
             pb["error_horizon_s"] = (nn - 1) / SAMPLE_RATE_HZ
+        if traj_dense is not None and ref_ok:
+            err, _ = max_abs_diff(traj_dense, radau_traj)
+            pbd["max_abs_error_vs_radau_Pa"] = err
+            pbd["max_abs_error_vs_radau_percent_of_range"] = _pct(err, working_range)
         res["scipy"] = {}
         for method in ("LSODA", "RK45"):
             print(f"[{name}] scipy {method} ...", file=sys.stderr, flush=True)
@@ -684,6 +702,9 @@ def main(argv=None):
             "per_case": {k: {"value": v, "met": _met(v, FLOOR_SIM_S_PER_S_BATCH1)}
                          for k, v in by_case.items()},
             "definition": "as sim_seconds_per_second_per_core, against issue 23's floor",
+            "with_dense_output": {
+                k: _get(v, "pneubayes_dense", "sim_seconds_per_second")
+                for k, v in per_case.items()},
         },
         "batch64_over_batch1_per_trajectory": {
             "ceiling": FLOOR_BATCH64_RATIO, "value": worst_ratio,
@@ -835,6 +856,12 @@ def format_table(r):
                      f"{c['position_max_m'] * 1e3:.2f} mm, max speed "
                      f"{c['max_piston_speed_m_per_s']:.3f} m/s")
     L.append("  (kernel = compiled kernel alone, without the Python wrapper: diagnostic)")
+    for name, c in r["cases"].items():
+        d = c.get("pneubayes_dense", {})
+        if d.get("sim_seconds_per_second") is not None:
+            L.append(f"  {name}: with dense output "
+                     f"{_f(d.get('sim_seconds_per_second'), '.0f', 0).strip()} sim-s/s, "
+                     f"error {_f(d.get('max_abs_error_vs_radau_Pa'), '.2f', 0).strip()} Pa")
     for name, c in r["cases"].items():
         same = c.get("pneubayes_batch64_identical", {})
         if same.get("ratio_to_batch1") is not None:

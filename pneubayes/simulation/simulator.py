@@ -315,10 +315,12 @@ def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig,
 
 
 def simulate(model: Model, params, inputs: Inputs, rig: Rig, initial_pressure_Pa: float,
-             solver: SolverConfig, check_bounds: bool = True) -> Trajectory:
-    """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa."""
+             solver: SolverConfig, check_bounds: bool = True,
+             dense_output: bool = False) -> Trajectory:
+    """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa.
+    ``dense_output`` as in :func:`simulate_windows`."""
     theta = model.as_matrix(params)
     out = simulate_windows(model, theta, inputs, rig, np.array([0]), inputs.n_samples,
                            np.array([initial_pressure_Pa], dtype=np.float64), solver,
-                           check_bounds=check_bounds)
+                           check_bounds=check_bounds, dense_output=dense_output)
     return Trajectory(inputs.time_s, out[:, 0, :], solver, model.parameter_names, theta)
