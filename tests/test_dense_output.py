@@ -19,6 +19,7 @@ from pneubayes.simulation import (
     Inputs,
     SolverConfig,
     kernel,
+    simulate,
     simulate_windows,
     simulate_windows_sensitivity,
 )
@@ -215,3 +216,14 @@ def test_the_predictor_passes_dense_output_on_and_checks_it():
     assert 0.0 < np.abs(a - b).max() < 1e-3 * RANGE_PA
     with pytest.raises(TypeError, match="dense_output"):
         _run(model, theta, _inputs(cands[0], 0.005), SolverConfig.standard(), "yes")
+
+
+def test_simulate_passes_dense_output_on():
+    rng = np.random.default_rng(10)
+    model, theta = _model(volume=2.4e-6)
+    inputs = _inputs(_held_steps(rng, 1000, 0.001), 0.001)
+    whole = simulate(model, theta, inputs, RIG, 3e5, SolverConfig.standard(),
+                     dense_output=True).pressure_Pa
+    assert np.array_equal(whole, _run(model, theta, inputs, SolverConfig.standard(), True)[:, 0])
+    assert not np.array_equal(whole, simulate(model, theta, inputs, RIG, 3e5,
+                                              SolverConfig.standard()).pressure_Pa)
