@@ -235,8 +235,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, t, u, ue, x, ps, pm, kstarts, p0, rate0 = _kernel_arrays(
         slots, rig_constants(rig), _solver_vector(solver, dense_output), t, u, ue, x, ps, pm,
-        starts + offset,
-        p0, rate0)
+        starts + offset, p0, rate0)
     *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
                                 rate0, pm)
     failed = np.nonzero(status.any(axis=1))[0]
