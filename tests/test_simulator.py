@@ -45,9 +45,12 @@ def _closed_slots(volume):
     return sl
 
 
-def _run_kernel(slots, rig, solver, t, u, x, ps, p0):
+def _run_kernel(slots, rig, solver, t, u, x, ps, p0, dense_output=False):
+    sv = solver.as_array()
+    if dense_output:  # the kernel's optional seventh solver entry
+        sv = np.append(sv, 1.0)
     out, status = kernel.simulate_windows(
-        np.ascontiguousarray(slots), rig_constants(rig), solver.as_array(), t, u,
+        np.ascontiguousarray(slots), rig_constants(rig), sv, t, u,
         np.zeros_like(t), x, ps, np.array([0], dtype=np.int64), t.size,
         np.array([float(p0)]))
     assert not status.any(), status
@@ -63,6 +66,17 @@ def test_closed_valve_fixed_volume_keeps_pressure(rig, volume, p0, step_command)
     p = _run_kernel(_closed_slots(volume), rig, SolverConfig.standard(), t, u,
                     np.full(t.size, 0.01), np.full(t.size, P_SUP), p0)[0]
     assert np.max(np.abs(p / p0 - 1.0)) < 1e-9
+
+
+def test_closed_valve_keeps_pressure_exactly_with_dense_output(rig, step_command):
+    """Both ports shut, no leak, position and supply held: every sample, whether a step
+    ends on it or crosses it, keeps p0 exactly."""
+    t = np.arange(2001) * 1e-3
+    u = step_command(11, t.size, 1e-3)
+    p = _run_kernel(_closed_slots(2.4e-6), rig, SolverConfig.standard(), t, u,
+                    np.full(t.size, 0.01), np.full(t.size, P_SUP), 2.5e5,
+                    dense_output=True)[0]
+    assert np.all(p == 2.5e5)
 
 
 @pytest.mark.parametrize("solver", [SolverConfig.standard(), SolverConfig.reference()],

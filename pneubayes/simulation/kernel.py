@@ -494,8 +494,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                 z_s)
     # dense output: steps cross the samples where the position and supply hold
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
-             and adv == 0.0 and not (thermal or tank or lung)
-             and not sl[_LLEN] > 0.0 and not sl[_WLEN] > 0.0)
+             and adv == 0.0 and not (thermal or tank or lung or line or wave))
     h = hmax
     steps = 0
     s_cached = math.nan
