@@ -3,6 +3,7 @@
     python experiments/mpc_tracking.py [--out results/mpc] [--seeds 0,1,2,3,4] [--quick]
                                        [--scenario hidden_delay|weak_data]
                                        [--json OUT.json] [--figure OUT.png]
+                                       [--no-dense-output]
 
 Figures: OUT/mpc_tracking.png (seed 0's loops) and OUT/mpc_tradeoff.png (violations
 against tracking over the seeds, the fixed back-offs as a curve).
@@ -60,7 +61,10 @@ Reported per controller and seed: tracking RMSE (true pressure against the refer
 Pa; against the reference capped at ``P_MAX``; and over the settled part of each hold,
 ``SETTLE_S`` after a change to the horizon before the next, against the capped
 reference), ticks above ``P_MAX`` and the largest excess (Pa), and the controller's compute per
-tick (ms, wall, both threads). Seeds are recorded; each seed's result is written
+tick (ms, wall, both threads). The controllers predict with dense output (steps cross the
+ticks over which a candidate's command holds; ``PressurePredictor(..., dense_output=True)``,
+``benchmarks/controller.py`` states its error); ``--no-dense-output`` stops at every tick
+as before. Seeds are recorded; each seed's result is written
 atomically under ``--out`` and a finished seed is not run again (interrupt and rerun to
 resume).
 """
@@ -181,10 +185,11 @@ class Controller:
     """One MPC: a predictor over some draws and how its predictions are scored
     (``nominal``, ``nominal_mean``: one parameter vector)."""
 
-    def __init__(self, kind, model, draws, noise, rig, rng):
+    def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
         self.backoff_Pa = backoff_Pa(kind) or 0.0
-        self.predictor = PressurePredictor(model, draws, rig, SolverConfig.standard())
+        self.predictor = PressurePredictor(model, draws, rig, SolverConfig.standard(),
+                                           dense_output=dense_output)
         # predictive only: one fixed path per draw of its stationary AR(1) noise (fitted
         # per recording sample), read at the control ticks; the start's own noise is
         # forgotten within the first tick (the chamber's time constant is a few ms)
@@ -279,8 +284,10 @@ def fit_model(recs, names, fit_dir: Path, seed: int, quick: bool, log):
     return fit
 
 
-def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_delay") -> dict:
-    """Bench, fit and the closed loops of one seed (skipped if already written)."""
+def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_delay",
+             dense_output: bool = True) -> dict:
+    """Bench, fit and the closed loops of one seed (skipped if already written; loops run
+    with the other ``dense_output`` are run again, the fits reused)."""
     sc = SCENARIOS[scenario]
     controllers = sc["controllers"]
     done = out / f"seed{seed}.json"
@@ -290,7 +297,12 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
         if saved.get("scenario", "hidden_delay") != scenario:
             raise SystemExit(f"{done}: a seed of scenario {saved.get('scenario')!r}, not "
                              f"{scenario!r}: give each scenario its own --out")
-        if saved.get("candidates") == CANDIDATES:
+        # seeds written before the option stepped at every tick
+        if saved.get("dense_output", False) != dense_output:
+            log(f"seed {seed}: {done} was run with dense_output="
+                f"{saved.get('dense_output', False)}; running its loops again (the fits "
+                "are reused)")
+        elif saved.get("candidates") == CANDIDATES:
             reuse = {k: v for k, v in saved["controllers"].items() if k in controllers}
             if set(controllers) <= set(reuse):
                 return saved
@@ -341,7 +353,7 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
     prov = provenance()
     revision = (prov.get("git_revision") or "unknown") + ("-dirty" if prov.get("git_dirty") else "")
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
-              "p_max_Pa": P_MAX_PA, "candidates": CANDIDATES,
+              "p_max_Pa": P_MAX_PA, "candidates": CANDIDATES, "dense_output": dense_output,
               "bench": {"duration_s": cfg.duration_s, "ranges_V": list(cfg.ranges_V)},
               "posterior_noise_scale_Pa": float(np.median(
                   fitted[sc["fitted"][0]][2][:, 0])),
@@ -369,7 +381,8 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
         if use is None:
             raise SystemExit(f"seed {seed}: {kind} needs the fit's refined point estimate, "
                              "which its summary lacks")
-        ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream))
+        ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream),
+                          dense_output)
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
         run = closed_loop(ctrl, plant_model, truth, rig, position, reference,
@@ -563,6 +576,9 @@ def main(argv=None) -> int:
                     help="what the posterior is fitted on (SCENARIOS; default hidden_delay)")
     ap.add_argument("--json", default=None, help="summary (default OUT/summary.json)")
     ap.add_argument("--figure", default=None, help="figure (default OUT/mpc_tracking.png)")
+    ap.add_argument("--dense-output", action=argparse.BooleanOptionalAction, default=True,
+                    help="predict with dense output (default; --no-dense-output stops the "
+                         "integrator at every tick)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -571,8 +587,10 @@ def main(argv=None) -> int:
     def log(m):
         print(m, file=sys.stderr, flush=True)
 
-    results = [run_seed(s, out, args.quick, log, args.scenario) for s in seeds]
+    results = [run_seed(s, out, args.quick, log, args.scenario, args.dense_output)
+               for s in seeds]
     summary = {"seeds": seeds, "quick": args.quick, "scenario": args.scenario,
+               "dense_output": args.dense_output,
                "rate_Hz": RATE_HZ,
                "horizon_s": HORIZON_TICKS * DT_S, "candidates": CANDIDATES,
                "draws": N_DRAWS, "hidden_delay_s": HIDDEN_DELAY_S, "p_max_Pa": P_MAX_PA,
