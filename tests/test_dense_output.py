@@ -1,8 +1,9 @@
 """Dense output (``dense_output=True``): steps cross the samples over which the inputs
 hold, and the samples they cross are read from the step's interpolant. Checked against
 the reference preset, against the default stepping, by the flow balance and by
-tightening; models it does not apply to, and inputs that move every sample, must give the
-default's numbers bit for bit. (A shut valve keeps its pressure exactly with dense output:
+tightening; models it does not apply to, and inputs the model reads that move every
+sample, must give the default's numbers bit for bit (a measured supply the model does
+not read does not stop the steps). (A shut valve keeps its pressure exactly with dense output:
 tests/test_simulator.py, beside the other conservation tests.)"""
 
 from __future__ import annotations
@@ -200,3 +201,45 @@ def test_simulate_passes_dense_output_on():
     assert np.array_equal(whole, _run(model, theta, inputs, SolverConfig.standard(), True)[:, 0])
     assert not np.array_equal(whole, simulate(model, theta, inputs, RIG, 3e5,
                                               SolverConfig.standard()).pressure_Pa)
+
+
+def test_a_measured_supply_the_model_does_not_read_does_not_stop_the_steps():
+    """Without ``supply_fluctuation`` the model reads the nominal supply: a measured one
+    that moves every sample leaves dense output crossing samples (numbers within the
+    floor of the reference's, and those of a held supply bit for bit); with it, the
+    supply drives the model and every sample ends a step, as without dense output."""
+    rng = np.random.default_rng(12)
+    dt, n = 0.001, 2000
+    u = _held_steps(rng, n, dt)
+    sup = P_SUP - 3e3 + 1e3 * np.sin(2 * np.pi * 3.0 * np.arange(n) * dt) + rng.normal(
+        0.0, 300.0, n)
+    model, theta = _model(volume=2.4e-6)
+    moving, held = _inputs(u, dt, sup=sup), _inputs(u, dt)
+    dense = _run(model, theta, moving, SolverConfig.standard(), True)
+    assert np.array_equal(dense, _run(model, theta, held, SolverConfig.standard(), True))
+    assert not np.array_equal(dense, _run(model, theta, moving, SolverConfig.standard(),
+                                          False))
+    ref = _run(model, theta, moving, SolverConfig.reference(), False)
+    assert np.abs(dense - ref).max() < 1e-3 * RANGE_PA
+    model_s, theta_s = _model(("cylinder_leak", "supply_fluctuation"), volume=2.4e-6,
+                              supply_gain=1.0)
+    assert np.array_equal(_run(model_s, theta_s, moving, SolverConfig.standard(), True),
+                          _run(model_s, theta_s, moving, SolverConfig.standard(), False))
+
+
+def test_solver_config_carries_dense_output_and_keeps_old_identities():
+    std = SolverConfig.standard()
+    dense = std.with_dense_output()
+    assert not std.dense_output and dense.dense_output
+    assert "dense_output" not in std.to_dict()  # settings saved before it: same identity
+    assert dense.to_dict()["dense_output"] is True
+    assert SolverConfig(**dense.to_dict()) == dense and SolverConfig(**std.to_dict()) == std
+    assert std.as_array().size == 6 and dense.as_array().size == 7
+    assert dense.tightened(10.0).dense_output
+    with pytest.raises(TypeError, match="dense_output"):
+        std.with_dense_output("yes")
+    rng = np.random.default_rng(13)
+    model, theta = _model(volume=2.4e-6)
+    inputs = _inputs(_held_steps(rng, 400, 0.005), 0.005)
+    assert np.array_equal(_run(model, theta, inputs, dense, False),
+                          _run(model, theta, inputs, std, True))

@@ -36,6 +36,15 @@ class SolverConfig:
         N - 1 + max_steps_per_s * D steps). Legitimate 2-s windows take 1-10 steps per
         1-ms sample; a budget that scales with the window lets a fit fail a degenerate
         trial in a second instead of minutes.
+    dense_output : bool
+        Let a step cross the samples over which the command, the position and the
+        supply the model reads hold, and read those samples from the step's interpolant
+        (:func:`pneubayes.simulation.simulate_windows`); models with a second state or a
+        sensor lag step as without it. Fewer steps where commands hold for many samples
+        (a controller's candidates, fixed-volume recordings of a model without
+        ``supply_fluctuation``), results within the solver's tolerance of the default's.
+        Default False; recorded by :meth:`to_dict` only when True, so the identities of
+        settings saved before it existed are unchanged.
     """
 
     rtol: float
@@ -44,6 +53,7 @@ class SolverConfig:
     max_step_s: float
     min_step_s: float
     max_steps_per_s: float
+    dense_output: bool = False
 
     def __post_init__(self):
         for name in ("rtol", "atol_Pa", "atol_K", "max_step_s", "min_step_s",
@@ -53,6 +63,9 @@ class SolverConfig:
                 raise ValueError(f"SolverConfig.{name} must be finite and > 0, got {v!r}")
         if self.min_step_s >= self.max_step_s:
             raise ValueError("SolverConfig.min_step_s must be < max_step_s")
+        if not isinstance(self.dense_output, (bool, np.bool_)):
+            raise TypeError(f"SolverConfig.dense_output must be True or False, got "
+                            f"{self.dense_output!r}")
 
     @classmethod
     def standard(cls) -> "SolverConfig":
@@ -93,9 +106,21 @@ class SolverConfig:
         return replace(self, rtol=self.rtol / factor, atol_Pa=self.atol_Pa / factor,
                        atol_K=self.atol_K / factor)
 
+    def with_dense_output(self, dense_output: bool = True) -> "SolverConfig":
+        """The same settings with ``dense_output`` set."""
+        return replace(self, dense_output=dense_output)
+
     def to_dict(self) -> dict:
-        return asdict(self)
+        doc = asdict(self)
+        if not self.dense_output:  # as saved before the option existed
+            del doc["dense_output"]
+        else:
+            doc["dense_output"] = True
+        return doc
 
     def as_array(self) -> np.ndarray:
-        return np.array([self.rtol, self.atol_Pa, self.atol_K, self.max_step_s,
-                         self.min_step_s, self.max_steps_per_s])
+        """The kernel's solver vector (:mod:`pneubayes.simulation.layout`): six entries,
+        a seventh (1.0) with dense output."""
+        sv = [self.rtol, self.atol_Pa, self.atol_K, self.max_step_s, self.min_step_s,
+              self.max_steps_per_s]
+        return np.array(sv + [1.0] if self.dense_output else sv)

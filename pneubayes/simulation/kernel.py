@@ -301,7 +301,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     With ``sv[S_DENSE] > 0`` (``sv`` seven long) and a model with the pressure as its only
     state and output (no sensor lag, no second state; no separately commanded exhaust, no
     inputs advance), a step may cross the samples over which the position and supply
-    hold: the integrator stops only where the delayed command changes, at the window's
+    hold (the supply only with a supply gain: without one the model reads the nominal):
+    the integrator stops only where the delayed command changes, at the window's
     end and on its own step size (a spool, first or second order, moves in closed form
     across the samples as within one), and each sample it crosses is read from the accepted
     step's interpolant: the exponential step over the fraction th of it plus its error
@@ -505,11 +506,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     k = k0
     while k < k_last:
         # the samples this pass integrates to: the next, or with dense output the last
-        # of the run over which position and supply hold
+        # of the run over which position and supply hold (the supply only where the
+        # model reads it: a gain of zero holds it at the nominal)
         kn = k + 1
         if dense:
-            while (kn < k_last and x[kn] == x[k] and ps[kn] == ps[k]
-                   and x[kn + 1] == x[k] and ps[kn + 1] == ps[k]):
+            while (kn < k_last and x[kn] == x[k] and x[kn + 1] == x[k]
+                   and (gain == 0.0 or (ps[kn] == ps[k] and ps[kn + 1] == ps[k]))):
                 kn += 1
         kw = k + 1  # the next sample to read from a step's interpolant (dense output)
         if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0

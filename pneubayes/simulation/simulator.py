@@ -165,11 +165,11 @@ def _kernel_arrays(*arrays):
 
 
 def _solver_vector(solver: SolverConfig, dense_output: bool) -> np.ndarray:
-    """The kernel's solver vector: the config's, plus the dense-output flag when set."""
+    """The kernel's solver vector: the config's, with dense output if either the config
+    or the call asks for it."""
     if not isinstance(dense_output, (bool, np.bool_)):
         raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
-    sv = solver.as_array()
-    return np.append(sv, 1.0) if dense_output else sv
+    return (solver.with_dense_output() if dense_output else solver).as_array()
 
 
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
@@ -282,8 +282,10 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     model builds over the 5 time constants of command history before the start
     (:func:`pneubayes.simulation.kernel.simulate_windows`).
 
-    With ``dense_output`` a step may cross the samples over which the position and
-    supply hold, and those samples are read from the step's interpolant (for models with
+    With ``dense_output`` (or ``solver.dense_output``) a step may cross the samples over
+    which the position and the supply the model reads hold (a model without
+    ``supply_fluctuation`` reads the nominal supply), and those samples are read from
+    the step's interpolant (for models with
     the pressure as their only state and output: no sensor lag, no second state; the
     others step as without it): fewer steps where the command holds for many samples, as
     a controller's candidates do, and results that differ from the default's within the
