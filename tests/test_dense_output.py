@@ -236,6 +236,9 @@ def test_solver_config_carries_dense_output_and_keeps_old_identities():
     assert SolverConfig(**dense.to_dict()) == dense and SolverConfig(**std.to_dict()) == std
     assert std.as_array().size == 6 and dense.as_array().size == 7
     assert dense.tightened(10.0).dense_output
+    # the posterior's preset: the standard tolerances with dense output, the fits' default
+    from pneubayes.inference.fit import FitSettings
+    assert SolverConfig.sampling() == dense and FitSettings().sample_solver == dense
     with pytest.raises(TypeError, match="dense_output"):
         std.with_dense_output("yes")
     rng = np.random.default_rng(13)

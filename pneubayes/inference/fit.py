@@ -59,7 +59,9 @@ class FitSettings:
     #: four-effect loop named the same effects at the same error (510.9 Pa) in less time
     refine_jacobian_refresh: int = 4
     refine_solver: SolverConfig = field(default_factory=SolverConfig.refinement)
-    sample_solver: SolverConfig = field(default_factory=SolverConfig.standard)
+    #: the likelihood's solver for emcee and the Laplace posterior (dense output: a
+    #: step crosses the samples where the command holds; :meth:`SolverConfig.sampling`)
+    sample_solver: SolverConfig = field(default_factory=SolverConfig.sampling)
     sampler: SamplerSettings = field(default_factory=SamplerSettings)
     #: zero-phase low-pass of the measured position before it drives the model, Hz
     #: (None: raw); see :func:`pneubayes.io.smooth_position`. Saved in the model card,
