@@ -246,3 +246,30 @@ def test_solver_config_carries_dense_output_and_keeps_old_identities():
     inputs = _inputs(_held_steps(rng, 400, 0.005), 0.005)
     assert np.array_equal(_run(model, theta, inputs, dense, False),
                           _run(model, theta, inputs, std, True))
+
+
+def test_dense_output_worst_error_is_no_larger_than_stopping_at_every_sample():
+    """Over a sweep (16 perturbed parameter sets, three volumes, 200 Hz and 1 kHz, three
+    seeds) the largest error against the reference with dense output is no larger than
+    stopping at every sample. Where steps cross samples a step grows on the larger of its
+    own and its predecessor's error estimate; growing on its own alone (a curvature
+    changing sign gives one small estimate by cancellation) measured 121.6 Pa here
+    against 110.6 Pa stopping at samples (with the guard 91.1 Pa)."""
+    worst_dense = worst_stops = 0.0
+    for seed in (1, 3, 5):
+        for volume in (1e-7, 2.4e-7, 2.4e-6):
+            for dt in (0.005, 0.001):
+                rng = np.random.default_rng(100 + seed)
+                model, theta = _model(volume=volume)
+                theta = theta * np.random.default_rng(seed).uniform(0.95, 1.05,
+                                                                    (16, theta.size))
+                inputs = _inputs(_held_steps(rng, round(2.0 / dt), dt), dt)
+                ref = _run(model, theta, inputs, SolverConfig.reference(), False)
+                for dense in (False, True):
+                    err = np.abs(_run(model, theta, inputs, SolverConfig.standard(), dense)
+                                 - ref).max()
+                    if dense:
+                        worst_dense = max(worst_dense, err)
+                    else:
+                        worst_stops = max(worst_stops, err)
+    assert worst_dense <= worst_stops

@@ -307,8 +307,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     across the samples as within one), and each sample it crosses is read from the accepted
     step's interpolant: the exponential step over the fraction th of it plus its error
     correction scaled by th^3 phi3(th h J_p) / phi3(h J_p) (exact at th = 1); dp/dp0
-    there is exp(th h J_p) times its value at the step's start. Without it every sample
-    ends a step.
+    there is exp(th h J_p) times its value at the step's start. Where steps cross samples,
+    a step grows on the larger of its own and its predecessor's error estimate (one
+    estimate made small by cancellation would let it grow 5x into an error the next
+    estimate misses). Without it every sample ends a step.
 
     ``general`` is None for the pressure-only kernel: numba prunes the branches of the
     forms with a second state (heat transfer, an acoustic line, a tank, a second
@@ -497,6 +499,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and not (thermal or tank or lung or line or wave))
     h = hmax
+    err_last = 0.0  # the last accepted step's error estimate
     steps = 0
     s_cached = math.nan
     cmd_cached = math.nan
@@ -568,6 +571,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 # command steps, not at every sample while the spool glides
                 if not lagged or cmd != cmd_cached:
                     h = min(h, 1e-3 * hmax)
+                    err_last = 0.0
             cmd_cached = cmd
             a_in, a_ex = a_in_c, a_ex_c + a_own
             if general is not None and wave:
@@ -751,8 +755,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     # grow the step only when it was not cut short by a break point;
                     # shrink it when the error asks (0.9 / cbrt(err) < 1 iff err > 0.729)
                     if hh >= h or err > 0.729:
-                        fac = 5.0 if err < 1e-4 else min(5.0, 0.9 / np.cbrt(err))
+                        # where steps cross samples (dense output) a step grows on the
+                        # larger of its own and its predecessor's error: a curvature
+                        # changing sign gives one small estimate by cancellation, and a
+                        # step grown 5x on it is accepted with an error the estimate misses
+                        e_g = max(err, err_last) if kn > k + 1 else err
+                        fac = 5.0 if e_g < 1e-4 else min(5.0, 0.9 / np.cbrt(e_g))
                         h = min(hmax, hh * fac)
+                    err_last = err
                 else:
                     if not math.isfinite(err):
                         err = 10.0
