@@ -202,12 +202,16 @@ def test_hash_follows_the_settings_that_matter():
                                    "smoke_duration_s": 9.0, "eval_positions": [0.2],
                                    "leak_form": "laminar"}), "a.toml").cells()[0]
     assert same.id == base.id
+    # nor can the sampler's solver: nothing is sampled
+    stepping = {"fit": {"sample_solver": {"dense_output": False}}}
+    assert parse_study(toml(GRID, stepping), "a.toml").cells()[0].id == base.id
     mcmc = parse_study(toml(GRID, {"method": "mcmc"}), "a.toml").cells()[0]
     mcmc2 = parse_study(toml(GRID, {"method": "mcmc", "fit": {"sampler": {"max_steps": 10}}}),
                         "a.toml").cells()[0]
+    mcmc3 = parse_study(toml(GRID, {"method": "mcmc", **stepping}), "a.toml").cells()[0]
     cutoff = parse_study(toml(GRID, {"fit": {"position_cutoff_Hz": 30.0}}),
                          "a.toml").cells()[0]
-    assert len({base.id, mcmc.id, mcmc2.id, cutoff.id}) == 4
+    assert len({base.id, mcmc.id, mcmc2.id, mcmc3.id, cutoff.id}) == 5
 
 
 def test_smoke_keeps_one_cell_with_short_recordings():

@@ -169,8 +169,8 @@ class Cell:
     def content(self) -> dict:
         """Everything that defines the cell's result (the hash covers exactly this).
 
-        Settings that cannot change this cell (e.g. the sampler's without ``method =
-        "mcmc"``, the discovery loop's without ``"discover"``, the held-out design of the
+        Settings that cannot change this cell (e.g. the sampler's and its solver's without
+        ``method = "mcmc"``, the discovery loop's without ``"discover"``, the held-out design of the
         other protocol, ``smoke_duration_s``) are left out, so changing them does not
         invalidate its cached result.
         """
@@ -178,8 +178,9 @@ class Cell:
         s.pop("smoke_duration_s")
         for table, key in CELL_OWNED:  # the cell sets these (axes, horizon_s)
             table_at(s, table).pop(key)
-        if self.settings.method != "mcmc":
+        if self.settings.method != "mcmc":  # nothing is sampled: neither can matter
             s["fit"].pop("sampler")
+            s["fit"].pop("sample_solver")
         if not self.discover:
             s.pop("discovery")
         if "cylinder_leak" not in self.model_effects:
