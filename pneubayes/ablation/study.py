@@ -170,9 +170,9 @@ class Cell:
         """Everything that defines the cell's result (the hash covers exactly this).
 
         Settings that cannot change this cell (e.g. the sampler's and its solver's without
-        ``method = "mcmc"``, the discovery loop's without ``"discover"``, the held-out design of the
-        other protocol, ``smoke_duration_s``) are left out, so changing them does not
-        invalidate its cached result.
+        ``method = "mcmc"``, the discovery loop's without ``"discover"``, the held-out
+        design of the other protocol, ``smoke_duration_s``) are left out, so changing them
+        does not invalidate its cached result.
         """
         s = self.settings.to_dict()
         s.pop("smoke_duration_s")

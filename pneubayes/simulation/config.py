@@ -88,11 +88,11 @@ class SolverConfig:
         standard tolerances with ``dense_output``.
 
         On ``benchmarks/mcmc.py``'s data (the paper's model, 4 x 20-s fixed recordings at
-        1 kHz, 32 walkers), same run, loaded machine: emcee 158 s against 375 s with
-        :meth:`standard` (the solver-roughness check tightened it once, 0.08 nat, against
-        0.29 nat untightened), the same 400 steps, R-hat 1.004 / 1.003, ESS 1431 / 1404, the
-        same interval coverage (12 of 12) and held-out error (541 Pa); medians within
-        0.06 emcee SDs of each other.
+        1 kHz, 32 walkers; a quiet machine, one run each): the fit 68 s (114 CPU s) against
+        116 s (209 CPU s) with :meth:`standard` (the solver-roughness check tightened it
+        once, 0.08 nat, against 0.29 nat untightened), the same 400 steps, R-hat 1.004 /
+        1.003, ESS 1441 / 1404, the same interval coverage (12 of 12) and held-out error
+        (541 Pa); medians within 0.06 emcee SDs of each other (a loaded run).
         """
         return cls.standard().with_dense_output()
 
