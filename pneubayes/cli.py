@@ -73,6 +73,14 @@ def _refinement(args) -> dict:
     return {} if k is None else {"refine_jacobian_refresh": k}
 
 
+def _sampling(args) -> dict:
+    """FitSettings' likelihood solver when --no-dense-output asks for the stepping at
+    every sample (else the settings' default, ``SolverConfig.sampling()``)."""
+    from pneubayes.simulation import SolverConfig
+
+    return {"sample_solver": SolverConfig.standard()} if args.no_dense_output else {}
+
+
 def cmd_check(args) -> int:
     from pneubayes.io.recording import inspect_recording
 
@@ -270,7 +278,7 @@ def cmd_fit(args) -> int:
                              f"{2 * model.n_parameters} (or 0: automatic)")
     settings = FitSettings(sampler=SamplerSettings(
         n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args),
-        **_windows(args), **_refinement(args))
+        **_windows(args), **_refinement(args), **_sampling(args))
     identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
                 "effects": list(model.effect_names),
                 "options": {e.name: e.options() for e in model.effects},
@@ -279,6 +287,8 @@ def cmd_fit(args) -> int:
                 "known_from": None if known is None else str(known[2]),
                 "method": args.method, "walkers": args.walkers, "seed": args.seed,
                 "windows": _windows(args), **_refinement(args),
+                # a chain is never resumed with another likelihood solver
+                "sample_solver": settings.sample_solver.to_dict(),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
     folder = open_run_folder(args.out, "fit", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
@@ -388,7 +398,8 @@ def cmd_discover(args) -> int:
         later_form_screen_share=args.later_form_screen_share,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed),
-                        **_cutoffs(args), **_windows(args), **_refinement(args)))
+                        **_cutoffs(args), **_windows(args), **_refinement(args),
+                        **_sampling(args)))
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     identity = {"recordings": inputs_digest(_recording_files([*args.recordings,
                                                               *args.held_out])),

@@ -151,6 +151,10 @@ def _add_identification(p, seed_help: str) -> None:
                    help="the refinement's finite-difference Jacobian at every K-th accepted "
                         "point, Broyden's update between (default: the settings', "
                         "FitSettings.refine_jacobian_refresh)")
+    p.add_argument("--no-dense-output", action="store_true",
+                   help="the posterior's likelihood stops the integrator at every sample "
+                        "(SolverConfig.standard()) instead of crossing the samples where "
+                        "the command holds (SolverConfig.sampling(), the default)")
     _add_bounds(p)
     _add_run_folder(p)
     p.add_argument("--no-figures", action="store_true")

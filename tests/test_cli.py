@@ -116,3 +116,17 @@ def test_discover_rejects_a_bad_library_entry_before_reading(bench_dir, tmp_path
     err = capsys.readouterr().err
     assert "--library" in err and why in err
     assert not (tmp_path / "d").exists()
+
+
+@pytest.mark.parametrize("command", ["fit", "discover"])
+def test_no_dense_output_gives_the_fits_the_stepping_at_every_sample(command):
+    from pneubayes import cli
+    from pneubayes.cli_args import build_parser
+    from pneubayes.inference.fit import FitSettings
+    from pneubayes.simulation import SolverConfig
+
+    parser = build_parser()
+    plain = parser.parse_args([command, "r.csv", "--out", "o"])
+    stepped = parser.parse_args([command, "r.csv", "--out", "o", "--no-dense-output"])
+    assert FitSettings(**cli._sampling(plain)).sample_solver == SolverConfig.sampling()
+    assert FitSettings(**cli._sampling(stepped)).sample_solver == SolverConfig.standard()
