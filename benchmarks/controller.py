@@ -8,7 +8,7 @@ draws come from), 2-s horizons of random step commands (holds 50-300 ms, levels 
 from 3e5 Pa, fixed dead volumes 1e-7, 2.4e-7 and 2.4e-6 m^3. For 1 and 8 candidates, on
 the controller's 200-Hz grid and on a 1-kHz grid, with ``SolverConfig.standard()``
 stopping at every sample ("standard") and with dense output ("dense": steps cross the
-samples where the command holds; ``PressurePredictor(..., dense_output=True)``), it times
+samples where the command holds; ``SolverConfig.sampling()``), it times
 ``PressurePredictor.predict`` (quantiles out; median of repeated calls after a warm-up,
 on 1 and 2 numba threads, the two variants alternating) and measures the largest error
 of the draws' trajectories against ``SolverConfig.reference()``. Issue 23's floor: 64
@@ -86,8 +86,8 @@ def main(argv=None) -> int:
             cands = np.stack([random_steps(rng, n_l, dt) for _ in range(8)])
             ref = PressurePredictor(model, draws, rig, SolverConfig.reference())
             truth = ref.predict_draws(3e5, cands, 0.0, dt)
-            apis = {name: PressurePredictor(model, draws, rig, SolverConfig.standard(),
-                                            dense_output=dense)
+            apis = {name: PressurePredictor(model, draws, rig,
+                                            SolverConfig.standard().with_dense_output(dense))
                     for name, dense in variants.items()}
             errs = {name: float(np.abs(api.predict_draws(3e5, cands, 0.0, dt)
                                        - truth).max()) for name, api in apis.items()}

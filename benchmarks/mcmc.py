@@ -87,7 +87,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(args.seed)
     model, (draws, _) = fit.model, fit.draws(64, rng)
     rig = recs[0].rig()
-    apis = [PressurePredictor(model, draws, rig, SolverConfig.standard(), dense_output=d)
+    apis = [PressurePredictor(model, draws, rig, SolverConfig.standard().with_dense_output(d))
             for d in (False, True)]
     levels = rng.uniform(-5, 5, 20)  # 2 s of 100-ms holds
 

@@ -440,7 +440,8 @@ def main(argv=None):
            "reference_simulate": reference_simulate}
 
     def sim(theta, inputs, dense_output=False):
-        return simulate(model, theta, inputs, rig, P_ATM, solver, dense_output=dense_output)
+        return simulate(model, theta, inputs, rig, P_ATM,
+                        solver.with_dense_output(dense_output))
 
     # Diagnostic: the compiled kernel alone (no Python wrapper); internal API, optional.
     try:

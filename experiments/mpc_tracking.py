@@ -62,7 +62,7 @@ Pa; against the reference capped at ``P_MAX``; and over the settled part of each
 ``SETTLE_S`` after a change to the horizon before the next, against the capped
 reference), ticks above ``P_MAX`` and the largest excess (Pa), and the controller's compute per
 tick (ms, wall, both threads). The controllers predict with dense output (steps cross the
-ticks over which a candidate's command holds; ``PressurePredictor(..., dense_output=True)``,
+ticks over which a candidate's command holds; ``SolverConfig.sampling()``,
 ``benchmarks/controller.py`` states its error); ``--no-dense-output`` stops at every tick
 as before. Seeds are recorded; each seed's result is written
 atomically under ``--out`` and a finished seed is not run again (interrupt and rerun to
@@ -188,8 +188,8 @@ class Controller:
     def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
         self.backoff_Pa = backoff_Pa(kind) or 0.0
-        self.predictor = PressurePredictor(model, draws, rig, SolverConfig.standard(),
-                                           dense_output=dense_output)
+        solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
+        self.predictor = PressurePredictor(model, draws, rig, solver)
         # predictive only: one fixed path per draw of its stationary AR(1) noise (fitted
         # per recording sample), read at the control ticks; the start's own noise is
         # forgotten within the first tick (the chamber's time constant is a few ms)

@@ -412,9 +412,10 @@ def test_rigs_option_keeps_only_the_named_rigs_and_rejects_an_unknown_one():
 
 
 def test_mpc_controller_predicts_with_dense_output_and_chooses_as_without():
-    """The closed-loop demo's controllers pass ``dense_output`` to their predictor; on a
-    few ticks of the nominal controller both steppings pick the same commands (their
-    predictions differ by tens of Pa, far below the candidates' spread)."""
+    """The closed-loop demo's controllers give their predictor a solver with dense output
+    (``SolverConfig.sampling()``) or without (``standard()``); on a few ticks of the
+    nominal controller both steppings pick the same commands (their predictions differ
+    by tens of Pa, far below the candidates' spread)."""
     import mpc_tracking
     import numpy as np
 
@@ -431,7 +432,7 @@ def test_mpc_controller_predicts_with_dense_output_and_chooses_as_without():
     for dense in (False, True):
         ctrl = mpc_tracking.Controller("nominal", model, theta, None, rig,
                                        np.random.default_rng(0), dense)
-        assert ctrl.predictor.dense_output is dense
+        assert ctrl.predictor.solver.dense_output is dense
         history, picks = np.zeros(4), []
         for k in range(6):
             picks.append(ctrl.step(2.0e5 + 2.0e4 * k, np.full(mpc_tracking.HORIZON_TICKS,

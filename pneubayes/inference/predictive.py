@@ -183,8 +183,8 @@ class PressurePredictor:
 
     Every (posterior draw, candidate) pair is one window of one compiled call, so the
     batch runs on numba's threads. Simulate on the controller's own grid (``dt_s`` the
-    control period, e.g. 5 ms at 200 Hz): without ``dense_output`` the integrator stops
-    at every sample, so a finer grid than the command's costs steps and buys nothing.
+    control period, e.g. 5 ms at 200 Hz): without dense output the integrator stops at
+    every sample, so a finer grid than the command's costs steps and buys nothing.
 
     Parameters
     ----------
@@ -195,22 +195,22 @@ class PressurePredictor:
         :meth:`SolverConfig.standard` serves: ``benchmarks/controller.py`` times 64
         draws x 2 s at 200 Hz on 2 threads (3.1-8.0 ms on this project's 2-core VM,
         whose speed moves between days) and finds them within 19-98 Pa of the
-        reference preset (1e-7 to 2.4e-6 m^3).
+        reference preset (1e-7 to 2.4e-6 m^3). With dense output
+        (:meth:`SolverConfig.sampling`, or any config's
+        :meth:`SolverConfig.with_dense_output`) steps cross the samples where the
+        command holds, reading those samples from the step's interpolant
+        (:func:`pneubayes.simulation.simulate_windows`; models with a sensor lag or a
+        second state step as without it). ``benchmarks/controller.py --quick`` on a
+        quiet machine (64 draws x 2 s at 200 Hz, 2 threads, worst over the volumes):
+        2.60 ms against 3.95 ms; largest error against the reference preset 14-82 Pa
+        at 200 Hz (19-98 Pa stopping at every sample) and 47-119 Pa at 1 kHz (12-293
+        Pa), within 0.1 % of a 450-kPa range.
     quantiles : the quantiles returned (default 5/50/95 %)
-    dense_output : bool
-        Let steps cross the samples where the command holds, reading those samples from
-        the step's interpolant (:func:`pneubayes.simulation.simulate_windows`; models
-        with a sensor lag or a second state step as without it).
-        ``benchmarks/controller.py --quick`` (the two alternating, one run on a loaded
-        machine): 1.1-1.8 x faster at 200 Hz, 2.4-3.6 x at 1 kHz; largest error against
-        the reference preset 19-213 Pa at 200 Hz (19-98 Pa without) and 72-293 Pa at
-        1 kHz (12-293 Pa), within 0.1 % of a 450-kPa range.
     """
 
     def __init__(self, model: Model, draws, rig, solver: SolverConfig,
-                 quantiles=(0.05, 0.5, 0.95), dense_output: bool = False):
+                 quantiles=(0.05, 0.5, 0.95)):
         self.model = model
-        self.dense_output = dense_output
         self.draws = model.as_matrix(draws)
         self.rig = rig
         self.solver = solver
@@ -236,7 +236,7 @@ class PressurePredictor:
         args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
                              command_history_V)
         return simulate_windows(self.model, self.draws, *args, self.solver,
-                                check_bounds=False, dense_output=self.dense_output)
+                                check_bounds=False)
 
     def predictive_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                          noise_Pa, supply_pressure_Pa=None,
@@ -261,8 +261,7 @@ class PressurePredictor:
             raise ValueError(f"noise_Pa must be (draws, L + 1) = "
                              f"{(self.draws.shape[0], args[3])}, got {noise.shape}")
         sim, sens = simulate_windows_sensitivity(self.model, self.draws, *args, self.solver,
-                                                 check_bounds=False,
-                                                 dense_output=self.dense_output)
+                                                 check_bounds=False)
         return sim, sim + window_noise(noise[:, None, :], sens)
 
     def _windows(self, pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,

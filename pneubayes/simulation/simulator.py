@@ -164,17 +164,8 @@ def _kernel_arrays(*arrays):
     return [np.require(a, requirements=("C", "W")) for a in arrays]
 
 
-def _solver_vector(solver: SolverConfig, dense_output: bool) -> np.ndarray:
-    """The kernel's solver vector: the config's, with dense output if either the config
-    or the call asks for it."""
-    if not isinstance(dense_output, (bool, np.bool_)):
-        raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
-    return (solver.with_dense_output() if dense_output else solver).as_array()
-
-
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
-                 check_bounds, on_failure, kernel_fn, initial_rate_Pa_per_s=None,
-                 dense_output=False):
+                 check_bounds, on_failure, kernel_fn, initial_rate_Pa_per_s=None):
     if on_failure not in ("raise", "nan"):
         raise ValueError(f"on_failure must be 'raise' or 'nan', got {on_failure!r}")
     solver = _check_solver(solver)
@@ -234,7 +225,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                              "(a supply tank, a second compartment) in one model")
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, t, u, ue, x, ps, pm, kstarts, p0, rate0 = _kernel_arrays(
-        slots, rig_constants(rig), _solver_vector(solver, dense_output), t, u, ue, x, ps, pm,
+        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, pm,
         starts + offset, p0, rate0)
     *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
                                 rate0, pm)
@@ -261,7 +252,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
 def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,
                      initial_pressure_Pa, solver: SolverConfig,
                      check_bounds: bool = True, on_failure: str = "raise",
-                     initial_rate_Pa_per_s=None, dense_output: bool = False) -> np.ndarray:
+                     initial_rate_Pa_per_s=None) -> np.ndarray:
     """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
 
     Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
@@ -282,46 +273,43 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
     model builds over the 5 time constants of command history before the start
     (:func:`pneubayes.simulation.kernel.simulate_windows`).
 
-    With ``dense_output`` (or ``solver.dense_output``) a step may cross the samples over
-    which the position and the supply the model reads hold (a model without
+    With ``solver.dense_output`` (:meth:`SolverConfig.sampling`,
+    :meth:`SolverConfig.with_dense_output`) a step may cross the samples over which the
+    position and the supply the model reads hold (a model without
     ``supply_fluctuation`` reads the nominal supply), and those samples are read from
-    the step's interpolant (for models with
-    the pressure as their only state and output: no sensor lag, no second state; the
-    others step as without it): fewer steps where the command holds for many samples, as
-    a controller's candidates do, and results that differ from the default's within the
-    solver's tolerance (:class:`pneubayes.inference.predictive.PressurePredictor` states
-    the measured difference).
+    the step's interpolant (for models with the pressure as their only state and
+    output: no sensor lag, no second state; the others step as without it): fewer steps
+    where the command holds for many samples, as a controller's candidates do, and
+    results that differ from stopping at every sample within the solver's tolerance
+    (:class:`pneubayes.inference.predictive.PressurePredictor` states the measured
+    difference).
     """
     return _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
                         solver, check_bounds, on_failure, kernel.simulate_windows,
-                        initial_rate_Pa_per_s, dense_output)[0]
+                        initial_rate_Pa_per_s)[0]
 
 
 def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig, starts,
                                  length: int, initial_pressure_Pa, solver: SolverConfig,
                                  check_bounds: bool = True, on_failure: str = "raise",
-                                 initial_rate_Pa_per_s=None, dense_output: bool = False):
+                                 initial_rate_Pa_per_s=None):
     """:func:`simulate_windows` and the start sensitivity dp(t)/dp(t_start) (``-``).
 
     Returns ``(pressure_Pa, sensitivity)``, both ``(B, W, length)``. The sensitivity is 1
     at the window start and decays with the chamber's time constant; the likelihood
     uses it to carry the noise of the measured start pressure through each window.
-    ``dense_output`` as in :func:`simulate_windows`.
     """
     out, sens = _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
                              solver, check_bounds, on_failure,
-                             kernel.simulate_windows_sensitivity, initial_rate_Pa_per_s,
-                             dense_output)
+                             kernel.simulate_windows_sensitivity, initial_rate_Pa_per_s)
     return out, sens
 
 
 def simulate(model: Model, params, inputs: Inputs, rig: Rig, initial_pressure_Pa: float,
-             solver: SolverConfig, check_bounds: bool = True,
-             dense_output: bool = False) -> Trajectory:
-    """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa.
-    ``dense_output`` as in :func:`simulate_windows`."""
+             solver: SolverConfig, check_bounds: bool = True) -> Trajectory:
+    """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa."""
     theta = model.as_matrix(params)
     out = simulate_windows(model, theta, inputs, rig, np.array([0]), inputs.n_samples,
                            np.array([initial_pressure_Pa], dtype=np.float64), solver,
-                           check_bounds=check_bounds, dense_output=dense_output)
+                           check_bounds=check_bounds)
     return Trajectory(inputs.time_s, out[:, 0, :], solver, model.parameter_names, theta)
