@@ -3,8 +3,8 @@ saved results (``make paper``).
 
     python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
     python experiments/make_paper.py --assemble-only     # only re-assemble saved results
-    python experiments/make_paper.py --assemble-only --only real   # one section (mpc, blind,
-                                                                   # calibration)
+    python experiments/make_paper.py --assemble-only --only real   # one section (table3,
+                                                                   # mpc, blind, calibration)
     python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
 
 Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
@@ -257,27 +257,7 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
          "" + (" **Smoke build: one short cell per study; the numbers mean nothing.**"
                if smoke else ""), ""]
     # ---------------- Table III
-    L += ["## Table III: 2-s prediction error", ""]
-    t3 = docs.get("table3")
-    if t3:
-        rows = t3["numbers"]["rows"]
-        L += [t3["numbers"]["markdown"], _provenance_line(t3, _src(out, "table3", smoke)), ""]
-        ours = [r.get("ours_paper_model_percent") for r in rows
-                if r.get("ours_paper_model_percent") is not None]
-        disc = [r for r in rows if r.get("ours_discovery_rmse_Pa") is not None
-                and r.get("ours_paper_model_rmse_Pa")]
-        if ours:
-            L.append(f"With the paper's model our errors are {min(ours):.2f}-{max(ours):.2f} % "
-                     "of the working range, against the paper's 3.0-11.4 %.")
-        if disc:
-            red = [100 * (1 - r["ours_discovery_rmse_Pa"] / r["ours_paper_model_rmse_Pa"])
-                   for r in disc]
-            L.append(f"The discovery loop, started from the plain thin-port model, changes "
-                     f"the error by {-max(red):+.0f} to {-min(red):+.0f} % relative to the "
-                     "paper's model (negative: smaller).")
-        L.append("")
-    else:
-        L += ["*Missing: run `python experiments/table3.py`.*", ""]
+    L += table3_section(out, paper, smoke)
     # ---------------- Fig 11
     L += ["## Fig. 11: effect of volume and leakage", ""]
     f11 = docs.get("fig11_volume")
@@ -377,28 +357,6 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
         L += ["", f"*Source: `{ident_dir}/report.json`; seed {ident['config']['seed']}; git "
               f"revision {str(prov.get('git_revision'))[:12]}; numpy {prov.get('numpy')}, "
               f"emcee {prov.get('emcee')}.*", ""]
-    if t3:
-        L += ["**Discovery on the Table III rigs**: the loop starts from the plain "
-              "thin-port model, names the effects the SINDy search supports, adds the "
-              "catalogue's model of each, refits, and keeps one only if held-out 2-s "
-              "predictions improve significantly. Each rig's data carry four planted "
-              "effects in realistic forms. Scored on the evaluation recordings: the gap is "
-              "the plain model's RMSE above the noise floor.", ""]
-        summary_md = t3["numbers"].get("discovery_markdown")
-        if summary_md:
-            L.append(summary_md)
-        else:  # results written before the per-rig summary existed
-            L += ["| cylinder | effects named | paper's model (Pa) | after discovery (Pa) |",
-                  "|---|---|---|---|"]
-            for r in t3["numbers"]["rows"]:
-                if r.get("ours_discovery_rmse_Pa") is None:
-                    continue
-                pm = r.get("ours_paper_model_rmse_Pa")
-                L.append(f"| {PAPER_NAME[r['cylinder']]} | "
-                         f"{', '.join(r['discovered']) or 'none'} | "
-                         f"{'n/a' if pm is None else f'{pm:.0f}'} | "
-                         f"{r['ours_discovery_rmse_Pa']:.0f} |")
-        L.append("")
     # ---------------- blind set
     L += blind_section(out, paper, smoke)
     L += calibration_section(out, paper, smoke)
@@ -435,6 +393,61 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
     path = paper / "report.md"
     write_text_atomic(path, "\n".join(L))
     return path
+
+
+TABLE3_HEAD = "## Table III: 2-s prediction error"
+#: The discovery paragraph's first words, where reports assembled before it moved into
+#: Table III's section carried it (under "What is new"): ``--only table3`` removes it there.
+DISCOVERY_LEAD = "**Discovery on the Table III rigs**"
+
+
+def table3_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """Table III (per rig and seed) and the discovery loop's per-rig summary on the same
+    cells: planted effects named, gap shrink and final error against the noise floor,
+    with the seeds' spread."""
+    L = [TABLE3_HEAD, ""]
+    t3 = _load(out, "table3", smoke)
+    if not t3:
+        return L + ["*Missing: run `python experiments/table3.py`.*", ""]
+    t3["_cell_revisions"] = _cell_revisions(out, t3, smoke)
+    rows = t3["numbers"]["rows"]
+    L += [t3["numbers"]["markdown"], _provenance_line(t3, _src(out, "table3", smoke)), ""]
+    ours = [r.get("ours_paper_model_percent") for r in rows
+            if r.get("ours_paper_model_percent") is not None]
+    disc = [r for r in rows if r.get("ours_discovery_rmse_Pa") is not None
+            and r.get("ours_paper_model_rmse_Pa")]
+    if ours:
+        L.append(f"With the paper's model our errors are {min(ours):.2f}-{max(ours):.2f} % "
+                 "of the working range, against the paper's 3.0-11.4 %.")
+    if disc:
+        red = [100 * (1 - r["ours_discovery_rmse_Pa"] / r["ours_paper_model_rmse_Pa"])
+               for r in disc]
+        L.append(f"The discovery loop, started from the plain thin-port model, changes "
+                 f"the error by {-max(red):+.0f} to {-min(red):+.0f} % relative to the "
+                 "paper's model (negative: smaller).")
+    L.append("")
+    discovered = [r for r in rows if r.get("ours_discovery_rmse_Pa") is not None]
+    if not discovered:
+        return L
+    L += [DISCOVERY_LEAD + ": the loop starts from the plain thin-port model, names the "
+          "effects the SINDy search supports, adds the catalogue's model of each, refits, "
+          "and keeps one only if held-out 2-s predictions improve significantly. Each "
+          "rig's data carry four planted effects in realistic forms. Scored on the "
+          "evaluation recordings: the gap is the plain model's RMSE above the noise floor "
+          "(gap shrink = (plain - after discovery) / (plain - noise floor)).", ""]
+    summary_md = t3["numbers"].get("discovery_markdown")
+    if summary_md:
+        L.append(summary_md.rstrip("\n"))
+    else:  # results written before the per-rig summary existed
+        L += ["| cylinder | effects named | paper's model (Pa) | after discovery (Pa) |",
+              "|---|---|---|---|"]
+        for r in discovered:
+            pm = r.get("ours_paper_model_rmse_Pa")
+            L.append(f"| {PAPER_NAME[r['cylinder']]} | "
+                     f"{', '.join(r['discovered']) or 'none'} | "
+                     f"{'n/a' if pm is None else f'{pm:.0f}'} | "
+                     f"{r['ours_discovery_rmse_Pa']:.0f} |")
+    return L + [""]
 
 
 def _copy_fig(paper: Path, src, name: str | None = None) -> str:
@@ -1172,16 +1185,44 @@ def _summary_table(cases: list[dict]) -> str:
 MPC_HEAD = "## Closed loop: a 200-Hz MPC that uses the posterior"
 
 
+def _without_old_discovery_paragraph(lines: list[str]) -> list[str]:
+    """``lines`` without the Table III discovery paragraph and its table where reports
+    assembled before it moved into Table III's section put it (after the identification
+    figures): from its lead to the end of its table."""
+    if TABLE3_HEAD not in lines:
+        return lines
+    i0 = lines.index(TABLE3_HEAD)
+    j0 = next((k for k in range(i0 + 1, len(lines)) if lines[k].startswith("## ")),
+              len(lines))
+    starts = [k for k, line in enumerate(lines)
+              if line.startswith(DISCOVERY_LEAD) and not i0 < k < j0]
+    if not starts:
+        return lines
+    i = starts[0]
+    j = i + 1
+    while j < len(lines) and not lines[j].startswith("|"):  # to the table
+        j += 1
+    while j < len(lines) and lines[j].startswith("|"):  # through it
+        j += 1
+    while j < len(lines) and lines[j] == "":
+        j += 1
+    return lines[:i] + lines[j:]
+
+
 def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
-    """Rewrite only one section of an existing ``PAPER/report.md`` (``--only real``: the
-    real recordings; ``--only mpc``: the closed loop; ``--only blind``: the blind set)
-    from its saved results, leaving every other section as its studies made it; when
-    absent it is inserted where :func:`assemble` puts it."""
+    """Rewrite only one section of an existing ``PAPER/report.md`` (``--only table3``:
+    Table III and its discovery summary; ``real``: the real recordings; ``mpc``: the
+    closed loop; ``blind``: the blind set) from its saved results, leaving every other
+    section as its studies made it; when absent it is inserted where :func:`assemble`
+    puts it. (The paper's claims section does not read Table III.)"""
     path = paper / "report.md"
     if not path.exists():
         raise SystemExit(f"{path}: no report to update; run make_paper.py without --only")
     lines = path.read_text().split("\n")
-    build, head = {"real": (real_section, "## Real recordings"),
+    if which == "table3":
+        lines = _without_old_discovery_paragraph(lines)
+    build, head = {"table3": (table3_section, TABLE3_HEAD),
+                   "real": (real_section, "## Real recordings"),
                  "mpc": (mpc_section, MPC_HEAD),
                  "blind": (blind_section, BLIND_HEAD),
                  "calibration": (calibration_section, CALIBRATION_HEAD)}[which]
@@ -1192,7 +1233,8 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
                  len(lines))
     else:  # a new section goes where assemble() puts it: before the next one present
         claims_head = "## The paper's claims, checked on our data"
-        after = (["## Real recordings"] if which in ("blind", "calibration") else []) \
+        after = (["## Fig. 11: effect of volume and leakage"] if which == "table3" else []) \
+            + (["## Real recordings"] if which in ("blind", "calibration") else []) \
             + [claims_head]
         before = next((h for h in after if h in lines), None)
         i = j = lines.index(before) if before else len(lines)
@@ -1207,10 +1249,12 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
-    ap.add_argument("--only", choices=["real", "mpc", "blind", "calibration"], default=None,
+    ap.add_argument("--only", choices=["table3", "real", "mpc", "blind", "calibration"],
+                    default=None,
                     help="with --assemble-only: rewrite only this section of an existing "
-                         "report (real: the real recordings; mpc: the closed loop; blind: "
-                         "the blind discovery set; calibration: the sensor calibration)")
+                         "report (table3: Table III and its discovery summary; real: the "
+                         "real recordings; mpc: the closed loop; blind: the blind "
+                         "discovery set; calibration: the sensor calibration)")
     args = ap.parse_args(argv)
     if args.only:
         if not args.assemble_only:

@@ -147,6 +147,49 @@ def test_only_the_real_section_is_rewritten(tmp_path):
     assert (paper / "report.md").read_text() == first  # replaced, not added again
 
 
+def test_only_table3_is_rewritten_with_its_discovery_summary(tmp_path):
+    """``--only table3`` rewrites Table III's section, which carries the per-rig discovery
+    summary, and removes the summary's old copy elsewhere (reports assembled before it
+    moved there); the other sections are kept, and a second run changes nothing."""
+    planted = ["tube_delay", "valve_deadzone", "supply_fluctuation", "cylinder_leak"]
+    base = {"cylinder": "PRN", "paper_name": "PRN", "planted": planted,
+            "noise_floor_Pa": 500.0, "ours_paper_model_rmse_Pa": 4000.0,
+            "ours_paper_model_percent": 0.9}
+    rows = [dict(base, seed=s, discovered=planted, ours_plain_rmse_Pa=4500.0,
+                 ours_discovery_rmse_Pa=600.0 + 10 * s) for s in range(3)]
+    summary = table3.discovery_summary(rows)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "table3.json").write_text(json.dumps({
+        "numbers": {"rows": rows, "markdown": "| new Table III |",
+                    "discovery_summary": summary,
+                    "discovery_markdown": table3.summary_markdown(summary)},
+        "studies": {"table3": {"seeds": [0, 1, 2]}},
+        "provenance": {"git_revision": "abc1234def", "python": "3.11"}}))
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    (paper / "report.md").write_text(
+        "# R\n\n## Table III: 2-s prediction error\n\n| old Table III |\n\n"
+        "## Fig. 11: effect of volume and leakage\n\nkept 11\n\n"
+        "## What is new: posteriors, band coverage and discovery\n\nkept new\n\n"
+        "**Discovery on the Table III rigs**: old words.\n\n| cylinder | old |\n"
+        "|---|---|\n| PRN | old row |\n\n## A blind set\n\nkept blind\n")
+    args = ["--out", str(out), "--paper", str(paper), "--assemble-only", "--only", "table3"]
+    assert make_paper.main(args) == 0
+    text = (paper / "report.md").read_text()
+    assert "old" not in text and "| new Table III |" in text
+    for kept in ("kept 11", "kept new", "kept blind"):
+        assert kept in text
+    section = text[text.index("## Table III"):text.index("## Fig. 11")]
+    assert "**Discovery on the Table III rigs**" in section and "| PRN | 3 | 4.00 |" in section
+    assert "97 [97, 98] %" in section and "1.22 [1.20, 1.24]" in section
+    assert "seeds [0, 1, 2]" in section
+    assert text.count("**Discovery on the Table III rigs**") == 1
+    first = text
+    assert make_paper.main(args) == 0
+    assert (paper / "report.md").read_text() == first
+
+
 def _mpc_results(out: Path):
     """A summary as experiments/mpc_tracking.py writes it, from two made-up seeds whose
     pressure sits ``rmse`` above a reference capped at the limit (so both RMSEs are
