@@ -498,8 +498,8 @@ def main(argv=None):
                 pb["kernel_only_error"] = f"{type(exc).__name__}: {exc}"[:300]
         res["pneubayes"] = pb
 
-        # the same with dense output (steps cross the samples where the inputs hold:
-        # the fixed cases; the moving piston's position changes every sample)
+        # the same with dense output (steps cross the samples where the command holds;
+        # over the moving piston on the position's chord)
         pbd = {"threads": 1, "batch": 1, "dense_output": True}
         traj_dense = None
         try:

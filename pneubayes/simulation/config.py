@@ -38,11 +38,13 @@ class SolverConfig:
         1-ms sample; a budget that scales with the window lets a fit fail a degenerate
         trial in a second instead of minutes.
     dense_output : bool
-        Let a step cross the samples over which the command, the position and the
-        supply the model reads hold, and read those samples from the step's interpolant
-        (:func:`pneubayes.simulation.simulate_windows`); models with a second state or a
+        Let a step cross the samples over which the command and the supply the model
+        reads hold, and read those samples from the step's interpolant
+        (:func:`pneubayes.simulation.simulate_windows`); over a moving piston the step
+        reads the position's chord and corrects the samples it crosses and its end for
+        the difference (checked against the tolerance); models with a second state or a
         sensor lag step as without it. Fewer steps where commands hold for many samples
-        (a controller's candidates, fixed-volume recordings of a model without
+        (a controller's candidates, recordings of a model without
         ``supply_fluctuation``), results within the solver's tolerance of the default's.
         Default False; recorded by :meth:`to_dict` only when True, so the identities of
         settings saved before it existed are unchanged.

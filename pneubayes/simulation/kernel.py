@@ -55,7 +55,7 @@ from pneubayes.physics.calibration import (
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
-from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.chamber import chamber_rhs, compliant_volume
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
     C_ALPHA,
     C_BETA,
@@ -182,6 +182,74 @@ def _phi123(z):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _position_at(t, x, n, m, tq):
+    """The index of the sample segment holding time ``tq`` (s), searched forward from
+    ``m``, and the position there (m): linear between samples, held after the last."""
+    while m + 1 < n and t[m + 1] <= tq:
+        m += 1
+    if m + 1 < n:
+        return m, x[m] + (tq - t[m]) / (t[m + 1] - t[m]) * (x[m + 1] - x[m])
+    return m, x[m]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _chord_response(t, x, m0, t0, t1, x0, x1, jf):
+    """The integral over [t0, t1] of exp(jf (t1 - s)) (chord - position)(s) ds, m s: the
+    chord runs from x0 at t0 to x1 at t1, the position is linear between samples (those
+    after index ``m0``, the segment holding t0, and before t1 are its kinks), so each
+    piece integrates in closed form with phi_1 and phi_2 (one evaluation per distinct
+    sample spacing)."""
+    slope = (x1 - x0) / (t1 - t0)
+    acc, tp, dp = 0.0, t0, 0.0
+    dt_c, e_c, a_c, b_c = -1.0, 0.0, 0.0, 0.0
+    i = m0 + 1
+    while True:
+        if i < t.shape[0] and t[i] < t1:
+            tn = t[i]
+            dn = x0 + (tn - t0) * slope - x[i]
+        else:
+            tn, dn = t1, 0.0
+        dt = tn - tp
+        if dt != dt_c:
+            z = jf * dt
+            f1, f2, _ = _phi123(z)
+            dt_c, e_c, a_c, b_c = dt, 1.0 + z * f1, dt * f1, dt * f2
+        acc = e_c * acc + a_c * dp + b_c * (dn - dp)
+        if tn >= t1:
+            return acc
+        tp, dp = tn, dn
+        i += 1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _chord_coupling(p, fp, jp, vol, vdot, bore, kappa):
+    """The chord's effect on the flows: ``(J_f, c)`` with dp at a step's end moving by
+    c times the integral of exp(J_f (h - s)) (chord - position)(s) ds (Pa per m s).
+
+    With q = p V^n, dq/dt = n Rs T mdot V^(n-1) does not see the volume's path but
+    through the flows; to first order in the volume's departure dV = A_bore (chord -
+    position), d(dq)/dt = J_f dq + V^n (-n p J_f + (n - 1) F) dV / V, with F and J_f the
+    flows' part of dp/dt and its slope; dp = dq / V^n - n p dV / V."""
+    inv_v = 1.0 / vol
+    jf = jp + kappa * vdot * inv_v
+    ff = fp + kappa * p * vdot * inv_v
+    return jf, (-kappa * p * jf + (kappa - 1.0) * ff) * bore * inv_v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _off_chord(p_chord, dev_m, vol, bore, sl, cs):
+    """A sample's pressure, Pa, from the step's interpolant on the position's chord
+    (``dev_m``: the chord minus the sample's position, m), moved adiabatically to the
+    sample's volume ``vol`` (m^3, before compliance): p (1 + r)^n to second order in
+    r = A_bore dev / (V + n p C) (a step of 20 ms across an accelerating piston moves
+    the volume by ~1 %: the first order alone leaves ~50 Pa)."""
+    kappa = cs[C_KAPPA]
+    v, c = compliant_volume(p_chord, vol, sl, cs[C_P_ATM])
+    r = bore * dev_m / (v + kappa * p_chord * c)
+    return p_chord * (1.0 + kappa * r * (1.0 + 0.5 * (kappa - 1.0) * r))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _gompertz_rate(u, a, b, c, d):
     """d(area)/du of eq. 11 (without the offset), m^2/V."""
     inner = math.exp(-c * (u + d))
@@ -300,14 +368,18 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
 
     With ``sv[S_DENSE] > 0`` (``sv`` seven long) and a model with the pressure as its only
     state and output (no sensor lag, no second state; no separately commanded exhaust, no
-    inputs advance), a step may cross the samples over which the position and supply
-    hold (the supply only with a supply gain: without one the model reads the nominal):
-    the integrator stops only where the delayed command changes, at the window's
-    end and on its own step size (a spool, first or second order, moves in closed form
-    across the samples as within one), and each sample it crosses is read from the accepted
-    step's interpolant: the exponential step over the fraction th of it plus its error
+    inputs advance), a step may cross the samples over which the supply holds (only
+    with a supply gain: without one the model reads the nominal): the integrator stops
+    only where the delayed command changes, at the window's end and on its own step
+    size (a spool, first or second order, moves in closed form across the samples as
+    within one), and each sample it crosses is read from the accepted step's
+    interpolant: the exponential step over the fraction th of it plus its error
     correction scaled by th^3 phi3(th h J_p) / phi3(h J_p) (exact at th = 1); dp/dp0
-    there is exp(th h J_p) times its value at the step's start. Where steps cross samples,
+    there is exp(th h J_p) times its value at the step's start. Over a moving position
+    the step reads the position's chord (one dV/dt); each crossed sample is moved to its
+    own volume adiabatically (:func:`_off_chord`) less the flows' response to the chord
+    so far, and the step's end by that response (:func:`_chord_coupling`, first order),
+    whose size also enters the step's error estimate. Where steps cross samples,
     a step grows on the larger of its own and its predecessor's error estimate (one
     estimate made small by cancellation would let it grow 5x into an error the next
     estimate misses). Without it every sample ends a step.
@@ -465,6 +537,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     w_sw, w_oin, w_oex = -math.inf, 0.0, 0.0
     w_lin, w_lex = math.nan, math.nan
     a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
+    x0c, x1c = 0.0, 0.0  # a chord step's positions at its ends (dense output), m
+    jf_c, c_c = 0.0, 0.0  # its flows' slope (1/s) and coupling (Pa / (m s))
     # Delayed-command pointer: index j of the sample held at time t - delay, the last
     # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
     # every sample would otherwise scan the recording from its start each time
@@ -509,13 +583,19 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     k = k0
     while k < k_last:
         # the samples this pass integrates to: the next, or with dense output the last
-        # of the run over which position and supply hold (the supply only where the
-        # model reads it: a gain of zero holds it at the nominal)
+        # of the run over which the supply holds (only where the model reads it: a gain
+        # of zero holds it at the nominal); a moving position is read on chords
         kn = k + 1
+        chord = False  # the position moves over a pass that crosses samples
         if dense:
-            while (kn < k_last and x[kn] == x[k] and x[kn + 1] == x[k]
+            while (kn < k_last
                    and (gain == 0.0 or (ps[kn] == ps[k] and ps[kn + 1] == ps[k]))):
                 kn += 1
+            if kn > k + 1:
+                for i in range(k + 1, kn + 1):
+                    if x[i] != x[k]:
+                        chord = True
+                        break
         kw = k + 1  # the next sample to read from a step's interpolant (dense output)
         if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0
             lead = p - r
@@ -555,6 +635,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 t_end = w_grid  # the tube's ends update on their grid
             vdot = bore * (xb - xa) * inv_seg
             dsup = gain * (sb - sa) * inv_seg
+            m_ch = m  # the chord's pointer: the segment holding tau
             spool_a, t_sub = spool, tau
             # Port areas are constant on the sub-interval unless the spool moves; the
             # command is held for many samples, so reuse them while it is unchanged.
@@ -615,6 +696,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 fr2 = (tau + hh - ta) * inv_seg
                 vol2 = v0 + bore * (xa + fr2 * (xb - xa))
                 psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
+                if chord:
+                    # dense output over a moving position: the step reads the chord of
+                    # the position across the samples it crosses
+                    m_ch, x0c = _position_at(t, x, n, m_ch, tau)
+                    x1c = _position_at(t, x, n, m_ch, tau + hh)[1]
+                    vol = v0 + bore * x0c
+                    vol2 = v0 + bore * x1c
+                    vdot = bore * (x1c - x0c) / hh
                 if moving:
                     if spool2:
                         s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s)
@@ -694,6 +783,16 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
                         pn = up + ep
                         err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                        if chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
+                            # the chord's effect on the flows, corrected to first order
+                            # at the step's end; its size is also checked against the
+                            # tolerance, as an error estimate (conservative)
+                            jf_c, c_c = _chord_coupling(p, fp, jp, vol, vdot, bore,
+                                                        cs[C_KAPPA])
+                            dpe = c_c * _chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
+                                                        jf_c)
+                            pn -= dpe
+                            err = max(err, abs(dpe) / (atol_p + rtol * max(abs(p), abs(pn))))
                         if not (pn > 0.0 and math.isfinite(pn)):
                             err = 10.0
                 if err <= 1.0:
@@ -734,11 +833,25 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         s_p0 *= math.exp(zp)
                     if kn > k + 1:
                         # dense output: the samples this step crossed, from its interpolant
+                        w_r, t_r, d_r, dt_r = 0.0, t_prev, 0.0, -1.0
+                        e_r, a_r, b_r = 0.0, 0.0, 0.0
                         while kw < kn and t[kw] < tau:
                             th = (t[kw] - t_prev) / hh
                             q1, q2, q3 = _phi123(th * zp)
                             value = (p_prev + th * hh * (q1 * fp + th * hh * q2 * vp)
                                      + th * th * th * q3 / phi3p * ep)
+                            if chord:
+                                # the sample's position, not the chord's: adiabatically,
+                                # less the flows' response to the chord so far
+                                dev = x0c + th * (x1c - x0c) - x[kw]
+                                dt = t[kw] - t_r
+                                if dt != dt_r:
+                                    q1, q2, _ = _phi123(jf_c * dt)
+                                    dt_r, e_r, a_r, b_r = dt, 1.0 + jf_c * dt * q1, dt * q1, dt * q2
+                                w_r = e_r * w_r + a_r * d_r + b_r * (dev - d_r)
+                                t_r, d_r = t[kw], dev
+                                value = (_off_chord(value, dev, v0 + bore * x[kw], bore, sl, cs)
+                                         - c_c * w_r)
                             out[kw - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g)
                                             if calibrated else value)
                             if want_sens:
