@@ -183,9 +183,10 @@ def test_a_moving_piston_is_crossed_on_its_chord_within_the_floor(volume):
     """Over a moving piston a step reads the position's chord; the samples it crosses are
     moved to their own position adiabatically less the flows' response, and the step's
     end by that response (first order; its size is checked against the tolerance).
-    (On this motion with the command at 0 V, 2.4e-6 m^3, p0 3 bar, the error was 266 Pa
-    RMS without the corrections and 43 Pa with the adiabatic one alone, measured while
-    building them.) Within the floor of the reference, and converging on it."""
+    (On benchmarks/simulate.py's seed-0 motion with the command at 0 V, 2.4e-6 m^3, p0
+    3 bar, the error was 266 Pa RMS without the corrections and 43 Pa with the adiabatic
+    one alone, measured while building them.) Within the floor of the reference, and
+    converging on it."""
     rng = np.random.default_rng(21)
     dt = 0.001
     t = np.arange(2001) * dt

@@ -55,7 +55,14 @@ from pneubayes.physics.calibration import (
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
-from pneubayes.simulation.chamber import chamber_rhs, compliant_volume
+from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.chord import (
+    chord_coupling,
+    chord_response,
+    off_chord,
+    position_at,
+    response_weights,
+)
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
     C_ALPHA,
     C_BETA,
@@ -85,6 +92,7 @@ from pneubayes.simulation.line import (
     line_workspace,
 )
 from pneubayes.simulation.lung import lung_step
+from pneubayes.simulation.phi import phi123
 from pneubayes.simulation.reading import first_order_step, second_order_step
 from pneubayes.simulation.spool import spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
@@ -161,92 +169,6 @@ _SENSOR_Z = SLOT_INDEX["sensor_damping"]
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _phi123(z):
-    """phi_k(z) = (e^z - sum_{j<k} z^j/j!) / z^k for k = 1, 2, 3; stable for all z <= ~0."""
-    if abs(z) < 0.1:
-        phi1 = 1.0 + z * (0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0
-                                                                          + z / 720.0))))
-        phi2 = 0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (
-            1.0 / 720.0 + z / 5040.0))))
-        phi3 = 1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (1.0 / 720.0 + z * (
-            1.0 / 5040.0 + z / 40320.0))))
-        return phi1, phi2, phi3
-    em1 = math.expm1(z)
-    phi1 = em1 / z
-    phi2 = (phi1 - 1.0) / z
-    phi3 = (phi2 - 0.5) / z
-    return phi1, phi2, phi3
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _position_at(t, x, n, m, tq):
-    """The index of the sample segment holding time ``tq`` (s), searched forward from
-    ``m``, and the position there (m): linear between samples, held after the last."""
-    while m + 1 < n and t[m + 1] <= tq:
-        m += 1
-    if m + 1 < n:
-        return m, x[m] + (tq - t[m]) / (t[m + 1] - t[m]) * (x[m + 1] - x[m])
-    return m, x[m]
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _chord_response(t, x, m0, t0, t1, x0, x1, jf):
-    """The integral over [t0, t1] of exp(jf (t1 - s)) (chord - position)(s) ds, m s: the
-    chord runs from x0 at t0 to x1 at t1, the position is linear between samples (those
-    after index ``m0``, the segment holding t0, and before t1 are its kinks), so each
-    piece integrates in closed form with phi_1 and phi_2 (one evaluation per distinct
-    sample spacing)."""
-    slope = (x1 - x0) / (t1 - t0)
-    acc, tp, dp = 0.0, t0, 0.0
-    dt_c, e_c, a_c, b_c = -1.0, 0.0, 0.0, 0.0
-    i = m0 + 1
-    while True:
-        if i < t.shape[0] and t[i] < t1:
-            tn = t[i]
-            dn = x0 + (tn - t0) * slope - x[i]
-        else:
-            tn, dn = t1, 0.0
-        dt = tn - tp
-        if dt != dt_c:
-            z = jf * dt
-            f1, f2, _ = _phi123(z)
-            dt_c, e_c, a_c, b_c = dt, 1.0 + z * f1, dt * f1, dt * f2
-        acc = e_c * acc + a_c * dp + b_c * (dn - dp)
-        if tn >= t1:
-            return acc
-        tp, dp = tn, dn
-        i += 1
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _chord_coupling(p, fp, jp, vol, vdot, bore, kappa):
-    """The chord's effect on the flows: ``(J_f, c)`` with dp at a step's end moving by
-    c times the integral of exp(J_f (h - s)) (chord - position)(s) ds (Pa per m s).
-
-    With q = p V^n, dq/dt = n Rs T mdot V^(n-1) does not see the volume's path but
-    through the flows; to first order in the volume's departure dV = A_bore (chord -
-    position), d(dq)/dt = J_f dq + V^n (-n p J_f + (n - 1) F) dV / V, with F and J_f the
-    flows' part of dp/dt and its slope; dp = dq / V^n - n p dV / V."""
-    inv_v = 1.0 / vol
-    jf = jp + kappa * vdot * inv_v
-    ff = fp + kappa * p * vdot * inv_v
-    return jf, (-kappa * p * jf + (kappa - 1.0) * ff) * bore * inv_v
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _off_chord(p_chord, dev_m, vol, bore, sl, cs):
-    """A sample's pressure, Pa, from the step's interpolant on the position's chord
-    (``dev_m``: the chord minus the sample's position, m), moved adiabatically to the
-    sample's volume ``vol`` (m^3, before compliance): p (1 + r)^n to second order in
-    r = A_bore dev / (V + n p C) (a step of 20 ms across an accelerating piston moves
-    the volume by ~1 %: the first order alone leaves ~50 Pa)."""
-    kappa = cs[C_KAPPA]
-    v, c = compliant_volume(p_chord, vol, sl, cs[C_P_ATM])
-    r = bore * dev_m / (v + kappa * p_chord * c)
-    return p_chord * (1.0 + kappa * r * (1.0 + 0.5 * (kappa - 1.0) * r))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -377,8 +299,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     correction scaled by th^3 phi3(th h J_p) / phi3(h J_p) (exact at th = 1); dp/dp0
     there is exp(th h J_p) times its value at the step's start. Over a moving position
     the step reads the position's chord (one dV/dt); each crossed sample is moved to its
-    own volume adiabatically (:func:`_off_chord`) less the flows' response to the chord
-    so far, and the step's end by that response (:func:`_chord_coupling`, first order),
+    own volume adiabatically less the flows' response to the chord so far, and the
+    step's end by that response, first order (:mod:`pneubayes.simulation.chord`),
     whose size also enters the step's error estimate. Where steps cross samples,
     a step grows on the larger of its own and its predecessor's error estimate (one
     estimate made small by cancellation would let it grow 5x into an error the next
@@ -699,8 +621,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 if chord:
                     # dense output over a moving position: the step reads the chord of
                     # the position across the samples it crosses
-                    m_ch, x0c = _position_at(t, x, n, m_ch, tau)
-                    x1c = _position_at(t, x, n, m_ch, tau + hh)[1]
+                    m_ch, x0c = position_at(t, x, n, m_ch, tau)
+                    x1c = position_at(t, x, n, m_ch, tau + hh)[1]
                     vol = v0 + bore * x0c
                     vol2 = v0 + bore * x1c
                     vdot = bore * (x1c - x0c) / hh
@@ -754,7 +676,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     jp -= gw
                     vp += gw * (wb1 - wb0) / hh
                     zp = hh * jp
-                    phi1p, phi2p, phi3p = _phi123(zp)
+                    phi1p, phi2p, phi3p = phi123(zp)
                     up = p + hh * (phi1p * fp + hh * phi2p * vp)
                     if up > 0.0 and math.isfinite(up):
                         fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh,
@@ -775,7 +697,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                                             psup, sl, cs, hh, True, dsup,
                                                             da_in, da_ex)
                     zp = hh * jp
-                    phi1p, phi2p, phi3p = _phi123(zp)
+                    phi1p, phi2p, phi3p = phi123(zp)
                     up = p + hh * (phi1p * fp + hh * phi2p * vp)
                     if up > 0.0 and math.isfinite(up):
                         fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
@@ -787,10 +709,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             # the chord's effect on the flows, corrected to first order
                             # at the step's end; its size is also checked against the
                             # tolerance, as an error estimate (conservative)
-                            jf_c, c_c = _chord_coupling(p, fp, jp, vol, vdot, bore,
-                                                        cs[C_KAPPA])
-                            dpe = c_c * _chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
-                                                        jf_c)
+                            jf_c, c_c = chord_coupling(p, fp, jp, vol, vdot, bore,
+                                                       cs[C_KAPPA])
+                            dpe = c_c * chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
+                                                       jf_c)
                             pn -= dpe
                             err = max(err, abs(dpe) / (atol_p + rtol * max(abs(p), abs(pn))))
                         if not (pn > 0.0 and math.isfinite(pn)):
@@ -837,7 +759,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         e_r, a_r, b_r = 0.0, 0.0, 0.0
                         while kw < kn and t[kw] < tau:
                             th = (t[kw] - t_prev) / hh
-                            q1, q2, q3 = _phi123(th * zp)
+                            q1, q2, q3 = phi123(th * zp)
                             value = (p_prev + th * hh * (q1 * fp + th * hh * q2 * vp)
                                      + th * th * th * q3 / phi3p * ep)
                             if chord:
@@ -845,12 +767,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                 # less the flows' response to the chord so far
                                 dev = x0c + th * (x1c - x0c) - x[kw]
                                 dt = t[kw] - t_r
-                                if dt != dt_r:
-                                    q1, q2, _ = _phi123(jf_c * dt)
-                                    dt_r, e_r, a_r, b_r = dt, 1.0 + jf_c * dt * q1, dt * q1, dt * q2
+                                if dt != dt_r:  # uniform sampling: once per step
+                                    dt_r = dt
+                                    e_r, a_r, b_r = response_weights(jf_c, dt)
                                 w_r = e_r * w_r + a_r * d_r + b_r * (dev - d_r)
                                 t_r, d_r = t[kw], dev
-                                value = (_off_chord(value, dev, v0 + bore * x[kw], bore, sl, cs)
+                                value = (off_chord(value, dev, v0 + bore * x[kw], bore,
+                                                   cs[C_KAPPA], sl, p_atm)
                                          - c_c * w_r)
                             out[kw - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g)
                                             if calibrated else value)
