@@ -354,6 +354,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a later form whose own parameters, fitted first, gain under this "
                         "share of its first form's gain over the current model is not "
                         "refined further; 1: it must beat the first form (0.5)")
+    d.add_argument("--pair-members", type=NON_NEGATIVE_INT, default=3,
+                   help="when no single effect passes and the held-out error is over "
+                        "twice the noise floor, fit pairs of the round's this many largest "
+                        "training gains jointly; 0: no pairs (3)")
+    d.add_argument("--max-form-swaps", type=NON_NEGATIVE_INT, default=2,
+                   help="then, while the error is still over twice the noise floor, refit "
+                        "the named effects in their other forms and keep a form that "
+                        "predicts significantly better, at most this many times; 0: never "
+                        "(2)")
     d.add_argument("--library", action="append", type=_library_entry, default=[],
                    metavar="EFFECT=S1,S2", help="the trial strengths of an effect's library "
                    "terms (its parameter's unit), replacing its own; the only way to search "

@@ -41,7 +41,18 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    ``max_trials_per_round`` supported groups all fail tries its other supported groups
    before it stops (``try_all_supported``), and then the *runner-ups*: groups that beat
    an earlier round's model significantly but were not added (``revisit_runner_ups``;
-   like the last resort's, they must close a quarter of the gap).
+   like the last resort's, they must close a quarter of the gap). If still nothing
+   passed and the held-out error is far above the noise, the round's trials with the
+   largest training gains are fitted in **pairs** (``pair_members``), each jointly from
+   its members' fitted values: two effects can each fail alone (one fixes a regime and
+   leaves the other's misfit to drift further) and pass together. A pair must pass as a
+   single trial does and beat each member's own trial; the best adds both effects, and
+   the earlier effects are pruned against the two. If nothing passes even then, each
+   named effect is refitted in the other forms it proposes beside the rest of the model
+   (``max_form_swaps``): a form chosen beside fewer effects need not be the best beside
+   more (a tube paired with heat transfer can be a lumped line there, not the wave tube
+   it was fitted as alone); a form that passes as a trial would replaces the named one
+   and the loop searches again.
 
 The final model gets an emcee posterior on the training data. A ledger records every
 step; finished fits are cached in ``RUNDIR/steps`` so an interrupted run resumes.
@@ -66,6 +77,7 @@ import json
 import math
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -81,6 +93,7 @@ from pneubayes.discovery.rounds import (
     gain_shortfall,
     last_resort_reason,
     min_gain_Pa,
+    pairs_to_try,
     runner_ups,
 )
 from pneubayes.discovery.settings import DiscoverySettings
@@ -92,6 +105,7 @@ from pneubayes.discovery.verification import (
     crossfit_window_lpd,
     split_recordings,
 )
+from pneubayes.effects import make_effect
 from pneubayes.errors import SimulationError
 from pneubayes.inference.chain_store import set_aside_other_chain
 from pneubayes.inference.laplace import LaplaceIdentification
@@ -281,7 +295,9 @@ class Discovery:
                    "heldout_lpd": current.heldout_lpd}]
         accepted: list[dict] = []
         maps, searches = [], []
-        for round_ in range(1, s.max_effects + 1):
+        round_, adds, swaps = 0, 0, 0
+        while adds < s.max_effects:
+            round_ += 1
             lib, sindy, data = self._search(current, train)
             dmap = self._map(current, train_ws, train, data, noise)
             maps.append(dmap)
@@ -313,18 +329,26 @@ class Discovery:
                            "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
                                          for g in sindy.ranking_}})
             candidates = supported[: s.max_trials_per_round] + tentative
+            ctx = (sindy, train, train_ws, held_ws, data_key, noise, ledger)
+            far = (s.gap_fallback_ratio > 0
+                   and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise)
             if not candidates and not (gap and s.try_all_on_gap):
+                swapped = (self._other_forms(current, ctx)
+                           if swaps < s.max_form_swaps and far else None)
+                if swapped is not None:
+                    current, swaps = swapped, swaps + 1
+                    continue
                 self.log("discover: no effect is supported; stop")
                 break
-            ctx = (sindy, train, train_ws, held_ws, data_key, noise, ledger)
-            current, passing = self._trials(candidates, current, ctx)
+            tried: dict = {}  # the round's fitted forms: effect -> [(model, fit, start)]
+            current, passing = self._trials(candidates, current, ctx, round_trials=tried)
             overflow = [g for g in supported if g not in candidates]
             if not passing and overflow and s.try_all_supported:
                 self.log(f"discover: none of the round's first trials passed: trying the "
                          f"other supported groups ({', '.join(overflow)})")
                 ledger.append({"step": len(ledger), "action": "more supported",
                                "round": round_, "groups": overflow})
-                current, passing = self._trials(overflow, current, ctx)
+                current, passing = self._trials(overflow, current, ctx, round_trials=tried)
                 candidates = candidates + overflow
             rest = [g for g in sindy.ranking_ if g not in candidates]
             gap = gap and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise
@@ -338,7 +362,7 @@ class Discovery:
                                "round": round_, "groups": rest,
                                "best_gap_closed_before": closed})
                 current, more = self._trials(rest, current, ctx,
-                                             s.last_resort_min_gap_closed)
+                                             s.last_resort_min_gap_closed, tried)
                 passing = passing + more
             retry = (runner_ups(ledger, current.model.effect_names, round_step,
                                 s.max_p_value)
@@ -353,21 +377,36 @@ class Discovery:
                 # must also close a share of the gap (a runner-up beside the tube that
                 # explained it gained 0.2 Pa at p = 0.012 on a tuning case)
                 current, passing = self._trials(retry, current, ctx,
-                                                s.last_resort_min_gap_closed)
+                                                s.last_resort_min_gap_closed, tried)
+            far = far and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise
+            if not passing and s.pair_members and far:
+                current, passing = self._pairs(tried, current, ctx)
+            if not passing and swaps < s.max_form_swaps and far:
+                swapped = self._other_forms(current, ctx)
+                if swapped is not None:
+                    # a named effect in another form: search again beside it
+                    current, swaps = swapped, swaps + 1
+                    continue
             if not passing:
                 self.log("discover: no supported effect passed verification; stop")
                 break
+            adds += 1
             _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
-            self.log(f"discover: ADD {g} (the largest held-out improvement)")
-            ledger.append({"step": len(ledger), "action": "add", "effect": g,
-                           "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
-                           "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
-                           "score_gain": gain, "score_p_value": pval})
-            accepted.append({"name": g, "evidence": sindy.evidence_[g],
-                             "score_gain": gain, "score_p_value": pval,
-                             "rmse_before_Pa": current.heldout_rmse_Pa,
-                             "rmse_after_Pa": trial.heldout_rmse_Pa})
-            current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key)
+            names = g if isinstance(g, tuple) else (g,)
+            self.log(f"discover: ADD {' and '.join(names)} (the largest held-out "
+                     "improvement)")
+            for name in names:
+                ledger.append({"step": len(ledger), "action": "add", "effect": name,
+                               "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                               "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                               "score_gain": gain, "score_p_value": pval,
+                               **({"pair": list(names)} if len(names) > 1 else {})})
+                accepted.append({"name": name, "evidence": sindy.evidence_[name],
+                                 "score_gain": gain, "score_p_value": pval,
+                                 "rmse_before_Pa": current.heldout_rmse_Pa,
+                                 "rmse_after_Pa": trial.heldout_rmse_Pa})
+            current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key,
+                                  newest=len(names))
         params, estimate = dict(current.params), "refined (multiple shooting)"
         post = {}
         if s.posterior:
@@ -396,15 +435,17 @@ class Discovery:
             wall_time_s=time.perf_counter() - t_start, **post)
         return self
 
-    def _trials(self, candidates, current: StepFit, ctx, min_gap_closed: float = 0.0):
+    def _trials(self, candidates, current: StepFit, ctx, min_gap_closed: float = 0.0,
+                round_trials: dict | None = None):
         """Fit each candidate group's forms beside ``current``, refit the current model
         from each trial's other parameters (a better basin is not the effect's gain),
         and verify every trial on the held-out windows against the final current fit;
         a trial that passes must also close ``min_gap_closed`` of the held-out RMSE's
         gap above the noise floor (with no gap left, none can), and lower the held-out
         RMSE by ``min_gain_noise_share`` of the noise floor and ``min_gain_gap_share``
-        of the gap (:func:`~pneubayes.discovery.rounds.min_gain_Pa`). Appends to the ledger;
-        returns (current, passing trials)."""
+        of the gap (:func:`~pneubayes.discovery.rounds.min_gain_Pa`). Appends to the ledger
+        each effect's fitted forms to ``round_trials`` (effect -> ``[(model, fit, start),
+        ...]``, the lowest training RMSE first); returns (current, passing trials)."""
         s = self.settings
         sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
         trials = []
@@ -484,6 +525,9 @@ class Discovery:
                                "heldout_lpd": control.heldout_lpd})
                 current = control
             trials.append((g, model2, start2, trial, forms_info, control))
+            if round_trials is not None:
+                round_trials[g] = sorted(((m, f, x) for f, m, x in forms),
+                                         key=lambda mfx: mfx[1].train_rmse_Pa)
         # every trial against the final current fit, and against its own control (the
         # current model in the trial's basin, which may predict the held-out part better
         # than the current fit at no better training error: that gain is the basin's,
@@ -533,14 +577,220 @@ class Discovery:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing
 
+    def _pairs(self, tried: dict, current: StepFit, ctx):
+        """The pair stage (``pair_members``): the round's trials with the largest
+        training gains fitted jointly in pairs, each from the current fit with its
+        members' fitted values and with their trials' starts (the lower training RMSE
+        kept); a pair passes as a single trial does (against the
+        current fit and its control, closing ``last_resort_min_gap_closed`` of the gap,
+        above the gain floor) and must beat each member's own trial too. Appends to the
+        ledger; returns (current, passing pairs) with each pair's effects as a tuple."""
+        s = self.settings
+        sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
+        pairs = pairs_to_try({g: forms[0][1].train_rmse_Pa for g, forms in tried.items()
+                              if forms},
+                             current.train_rmse_Pa,
+                             min_gain_Pa(noise, current.train_rmse_Pa - noise, s),
+                             s.pair_members)
+        if not pairs:
+            return current, []
+        self.log("discover: no single effect passed; fitting pairs of the round's "
+                 "largest training gains: " + ", ".join(f"{a} + {b}" for a, b in pairs))
+        ledger.append({"step": len(ledger), "action": "pairs",
+                       "groups": [f"{a} + {b}" for a, b in pairs]})
+        fitted = []
+        for a, b in pairs:
+            chosen = self._pair_forms(a, b, tried, sindy, train[0].rig())
+            if chosen is None:
+                self.log(f"discover: pair {a} + {b}: no fitted form of each can be "
+                         "simulated beside the other's; not fitted")
+                continue
+            (ma, fa, sa), (mb, fb, sb) = chosen
+            model = current.model.with_effect(ma.effect(a)).with_effect(mb.effect(b))
+            # two starts: the members' fitted values (each fitted alone, it may have run
+            # to a bound standing in for the other) and their trials' own starts
+            starts = []
+            for values_a, values_b in ((fa.params, fb.params), (sa, sb)):
+                start = {k: current.params[k] for k in current.model.parameter_names}
+                for m, values, g in ((ma, values_a, a), (mb, values_b, b)):
+                    start.update({k: values[k] for k in m.effect(g).parameter_names()})
+                if start not in starts:
+                    starts.append(start)
+            fits = []
+            for start in starts:
+                try:
+                    fits.append((self._fit(model, start, train_ws, held_ws, data_key),
+                                 start))
+                except (FloatingPointError, SimulationError) as exc:
+                    self.log(f"discover: pair {a} + {b} from {len(fits) + 1} of "
+                             f"{len(starts)} start(s) failed ({type(exc).__name__})")
+            if not fits:
+                continue
+            fit, start = min(fits, key=lambda fx: fx[0].train_rmse_Pa)
+            if len(fits) > 1:
+                self.log(f"discover: pair {a} + {b}: training RMSE "
+                         + ", ".join(f"{f.train_rmse_Pa:.0f}" for f, _ in fits)
+                         + " Pa from the members' fitted values and their own starts")
+            try:
+                control = self._fit(current.model, {k: fit.params[k] for k in
+                                                    current.model.parameter_names},
+                                    train_ws, held_ws, data_key)
+            except (FloatingPointError, SimulationError):
+                control = current
+            if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
+                self.log(f"discover: a better optimum of the current model: train RMSE "
+                         f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")
+                ledger.append({"step": len(ledger), "action": "refit current",
+                               "model": list(current.model.effect_names),
+                               "train_rmse_Pa": control.train_rmse_Pa,
+                               "heldout_rmse_Pa": control.heldout_rmse_Pa,
+                               "heldout_lpd": control.heldout_lpd})
+                current = control
+            fitted.append((a, b, model, start, fit, control))
+        passing = []
+        gap_Pa = current.heldout_rmse_Pa - noise
+        for a, b, model, start, fit, control in fitted:
+            ok, gain, pval, diff = self._better(fit, current)
+            basin = bool(ok and control is not current
+                         and not self._better(fit, control)[0])
+            # each member must carry a gain the other's own trial does not have
+            needed = {g: bool(self._better(fit, tried[other][0][1])[0])
+                      for g, other in ((a, b), (b, a))}
+            drop_Pa = current.heldout_rmse_Pa - fit.heldout_rmse_Pa
+            least = min_gain_Pa(noise, gap_Pa, s)
+            closed, short, under = gain_shortfall(drop_Pa, gap_Pa,
+                                                  s.last_resort_min_gap_closed, least)
+            ok = ok and not basin and all(needed.values()) and not short and not under
+            names = [n for g in (a, b) for n in model.effect(g).parameter_names()]
+            ledger.append({
+                "step": len(ledger), "action": "pair", "effects": [a, b], "passed": ok,
+                "effect_options": {g: model.effect(g).options() for g in (a, b)},
+                "start": {k: start[k] for k in names},
+                "fitted": {k: fit.params[k] for k in names}, "gap_closed": closed,
+                "train_rmse_Pa": fit.train_rmse_Pa,
+                "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                "heldout_rmse_after_Pa": fit.heldout_rmse_Pa,
+                "score_gain": gain, "score_p_value": pval,
+                "control_heldout_rmse_Pa": control.heldout_rmse_Pa,
+                "not_better_than_control": basin, "members_needed": needed,
+                "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
+                "wall_time_s": fit.wall_time_s})
+            why = ([] if not basin else ["its gain is its basin's"]) + [
+                f"not better than {g2} alone" for g, g2 in ((b, a), (a, b))
+                if not needed[g]] + (
+                [f"it closes {100 * (closed or 0.0):.0f} % of the gap"] if short else []) + (
+                [f"it gains {drop_Pa:.1f} Pa, under {least:.1f} Pa"] if under else [])
+            self.log(f"discover: {'passes' if ok else 'reject'} pair {a} + {b}: held-out "
+                     f"RMSE {current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa, "
+                     f"better in {int(np.sum(diff > 0))}/{diff.size} windows "
+                     f"(p = {pval:.2g}), log predictive gain {gain:.1f}"
+                     + ("" if ok or not why else "; " + "; ".join(why)))
+            if ok:
+                passing.append((fit.heldout_rmse_Pa, (a, b), fit, gain, pval))
+        return current, passing
+
+    def _other_forms(self, current: StepFit, ctx) -> StepFit | None:
+        """The form stage (``max_form_swaps``): each named effect refitted in the other
+        forms it proposes beside the rest of the model (a tube named beside heat transfer
+        as a transport delay is an acoustic line there; alone it was a wave tube), started
+        at the current fit; a form passes as a trial does against the current fit (its
+        control is the current fit itself: the same parameters elsewhere). Appends to the
+        ledger; returns the passing refit with the lowest held-out RMSE, or None."""
+        s = self.settings
+        sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
+        rig = train[0].rig()
+        options = []
+        for g in current.model.effect_names:
+            rest = current.model.without(g)
+            effect = make_effect(g, **current.model.effect_options(g))
+            term = {k: current.params[k] for k in effect.discovery_fallback
+                    if k in current.params}
+            here = SimpleNamespace(model=rest, params={k: current.params[k]
+                                                       for k in rest.parameter_names})
+            for m, start in effect_candidates(here, g, {"best_term_start": term or None},
+                                              rig, s.tube_line_segments,
+                                              s.tube_line_cutoff_Hz, s.tube_line_form):
+                if _form(m, g) == _form(current.model, g):
+                    continue
+                # the rest of the model where it was fitted; the new form's own values
+                start = {**start, **{k: current.params[k] for k in rest.parameter_names}}
+                options.append((g, m, start))
+        if not options:
+            return None
+        self.log("discover: nothing passed; refitting the named effects in their other "
+                 "forms: " + ", ".join(f"{g} {_form(m, g)}" for g, m, _ in options))
+        ledger.append({"step": len(ledger), "action": "other forms",
+                       "groups": [f"{g} {_form(m, g)}" for g, m, _ in options]})
+        gap_Pa = current.heldout_rmse_Pa - noise
+        least = min_gain_Pa(noise, gap_Pa, s)
+        passing = []
+        for g, m, start in options:
+            try:
+                fit = self._fit(m, start, train_ws, held_ws, data_key, first_free(m, g))
+            except (FloatingPointError, SimulationError) as exc:
+                self.log(f"discover: {g} {_form(m, g)} failed ({type(exc).__name__})")
+                continue
+            ok, gain, pval, diff = self._better(fit, current)
+            drop_Pa = current.heldout_rmse_Pa - fit.heldout_rmse_Pa
+            ok = ok and drop_Pa >= least
+            names = m.effect(g).parameter_names()
+            ledger.append({
+                "step": len(ledger), "action": "form", "effect": g, "passed": ok,
+                "from": _form(current.model, g), "to": _form(m, g),
+                "effect_options": m.effect(g).options(),
+                "fitted": {k: fit.params[k] for k in names},
+                "train_rmse_Pa": fit.train_rmse_Pa,
+                "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                "heldout_rmse_after_Pa": fit.heldout_rmse_Pa,
+                "score_gain": gain, "score_p_value": pval,
+                "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
+                "wall_time_s": fit.wall_time_s})
+            self.log(f"discover: {'passes' if ok else 'reject'} {g} as {_form(m, g)} "
+                     f"(was {_form(current.model, g)}): training RMSE "
+                     f"{current.train_rmse_Pa:.0f} -> {fit.train_rmse_Pa:.0f} Pa, held-out "
+                     f"{current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa, better "
+                     f"in {int(np.sum(diff > 0))}/{diff.size} windows (p = {pval:.2g})")
+            if ok:
+                passing.append((fit.heldout_rmse_Pa, g, m, fit))
+        if not passing:
+            return None
+        _, g, m, fit = min(passing, key=lambda t: t[0])
+        self.log(f"discover: SWAP {g} to {_form(m, g)} (the largest held-out improvement)")
+        ledger.append({"step": len(ledger), "action": "swap form", "effect": g,
+                       "to": _form(m, g),
+                       "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                       "heldout_rmse_after_Pa": fit.heldout_rmse_Pa})
+        return fit
+
+    def _pair_forms(self, a: str, b: str, tried: dict, sindy, rig):
+        """The fitted forms of ``a`` and ``b`` to pair, ``((model, fit, start), (...))``:
+        of the combinations in which each form is one its effect proposes beside the
+        other's (a transmission-line tube has no temperature state beside it), the one
+        with the lowest summed training RMSE; None if there is none."""
+        s = self.settings
+
+        def proposed(g, beside):
+            forms = effect_candidates(beside, g, sindy.evidence_[g], rig,
+                                      s.tube_line_segments, s.tube_line_cutoff_Hz,
+                                      s.tube_line_form)
+            return {m.effect(g).options().get("form") for m, _ in forms}
+
+        combos = sorted(((x, y) for x in tried[a] for y in tried[b]),
+                        key=lambda xy: xy[0][1].train_rmse_Pa + xy[1][1].train_rmse_Pa)
+        for x, y in combos:
+            if (y[0].effect(b).options().get("form") in proposed(b, x[1])
+                    and x[0].effect(a).options().get("form") in proposed(a, y[1])):
+                return x, y
+        return None
+
     def _better(self, new: StepFit, old: StepFit):
         return compare_heldout(new, old, self.settings.max_p_value)
 
     def _prune(self, current: StepFit, accepted: list, ledger: list, train_ws, held_ws,
-               data_key) -> StepFit:
-        """Backward step: drop an earlier effect the newest one has made unnecessary
-        (an effect that only stood in for the newcomer)."""
-        for a in list(accepted[:-1]):
+               data_key, newest: int = 1) -> StepFit:
+        """Backward step: drop an earlier effect the ``newest`` added ones have made
+        unnecessary (an effect that only stood in for a newcomer)."""
+        for a in list(accepted[:-newest]):
             name = a["name"]
             reduced = current.model.without(name)
             fit = self._fit(reduced, {k: current.params[k] for k in reduced.parameter_names},

@@ -82,6 +82,8 @@ _GROUP_ACTIONS = {
     "more supported": "tried (the round's first supported effects all failed)",
     "revisit": "tried again (significant in an earlier round, not added; nothing else "
                "passed)",
+    "pairs": "fitted jointly (no single effect passed)",
+    "other forms": "refitted (nothing passed; the named effects' other forms)",
 }
 
 
@@ -165,7 +167,9 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | p = {e['score_p_value']:.2g} |")
         elif e["action"] == "add":
-            lines.append(f"| {e['step']} | add | {e['effect']} | | "
+            lines.append(f"| {e['step']} | add | {e['effect']}"
+                         + (f" (pair with {[g for g in e['pair'] if g != e['effect']][0]})"
+                            if "pair" in e else "") + " | | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | {e['score_gain']:.1f} (p = {e['score_p_value']:.2g}) |")
         elif e["action"] in ("pass", "reject"):
@@ -174,6 +178,24 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
                          f"p = {e['score_p_value']:.2g}) |")
+        elif e["action"] == "pair":
+            fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
+            lines.append(f"| {e['step']} | pair {'pass' if e['passed'] else 'reject'} | "
+                         f"{' + '.join(e['effects'])} | {fitted} | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
+                         f"p = {e['score_p_value']:.2g}) |")
+        elif e["action"] == "form":
+            fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
+            lines.append(f"| {e['step']} | form {'pass' if e['passed'] else 'reject'} | "
+                         f"{e['effect']} {e['from']} -> {e['to']} | {fitted} | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
+                         f"p = {e['score_p_value']:.2g}) |")
+        elif e["action"] == "swap form":
+            lines.append(f"| {e['step']} | swap form | {e['effect']} as {e['to']} | | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         " | |")
         elif e["action"] == "search":
             lines.append(f"| {e['step']} | search | {', '.join(e['supported']) or 'none'} "
                          "supported | | | |")

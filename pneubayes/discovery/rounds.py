@@ -3,10 +3,13 @@ once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.Disc
 ``form_settled_ratio``); an effect's later forms only while its first form keeps up with
 the round's best (``later_forms_min_share``); whether a trial that passed gains enough
 to be added (:func:`gain_shortfall`); whether a round's results call for the last resort
-(:func:`last_resort_reason`); and which earlier trials to revisit before the loop stops
-(:func:`runner_ups`)."""
+(:func:`last_resort_reason`); which earlier trials to revisit before the loop stops
+(:func:`runner_ups`); and which of the round's trials to fit in pairs when none passed
+alone (:func:`pairs_to_try`)."""
 
 from __future__ import annotations
+
+from itertools import combinations
 
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.errors import SimulationError
@@ -150,3 +153,16 @@ def runner_ups(ledger: list, current_effects, round_step: int,
             tried_now.add(g)
     return [g for g, ok in latest.items()
             if ok and g not in set(current_effects) | ever_added | tried_now]
+
+
+def pairs_to_try(train_rmse_Pa: dict, current_Pa: float, least_Pa: float,
+                 members: int) -> list[tuple[str, str]]:
+    """The pairs of a round's trials to fit jointly: of the effects whose trial lowered
+    the training RMSE (``train_rmse_Pa``: effect -> its trial's training RMSE, Pa) below
+    the current model's (``current_Pa``) by at least ``least_Pa``, the ``members`` with
+    the largest gains, every pair of them, the pair with the larger summed gain first
+    (ties in the members' order of gain)."""
+    gain = {g: current_Pa - v for g, v in train_rmse_Pa.items() if current_Pa - v >= least_Pa}
+    top = sorted(gain, key=lambda g: -gain[g])[:members]
+    pairs = list(combinations(top, 2))
+    return sorted(pairs, key=lambda ab: -(gain[ab[0]] + gain[ab[1]]))
