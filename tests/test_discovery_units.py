@@ -901,3 +901,51 @@ def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_pass
     assert last_resort_reason([8928.0], 9125.0, 521.0, off)[0] is None
     with pytest.raises(ValueError, match="last_resort_best_gap_closed"):
         DiscoverySettings(last_resort_best_gap_closed=1.5)
+
+
+def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_params):
+    """The pair stage pairs each member's fitted forms, the lowest summed training RMSE
+    first, but only forms each effect proposes beside the other: a wave tube (no
+    temperature state) never beside heat transfer, so the best-fitting wave tube gives
+    way to the transport delay; with no compatible form the pair is not fitted."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.effects import make_effect
+
+    def trial(effect, rmse):
+        model = Model([effect])
+        params = {k: v for k, v in base_params.items() if k in model.parameter_names}
+        params.update(effect.bench_defaults())
+        return model, SimpleNamespace(model=model, params=params, train_rmse_Pa=rmse), {}
+
+    wave = trial(make_effect("tube_delay", form="wave", segments=8), 7000.0)
+    transport = trial(make_effect("tube_delay"), 7800.0)
+    convective = trial(make_effect("heat_transfer", form="convective"), 7600.0)
+    rate = trial(make_effect("heat_transfer", form="rate"), 7900.0)
+    evidence = {"tube_delay": {"best_term_start": {"tube_delay_s": 0.004}},
+                "heat_transfer": {"best_term_start": {"heat_transfer_rate_per_s": 5.0}}}
+    sindy = SimpleNamespace(evidence_=evidence)
+    disc = Discovery(DiscoverySettings(posterior=False), log=None)
+    tried = {"tube_delay": [wave, transport], "heat_transfer": [convective, rate]}
+    (ma, _, _), (mb, _, _) = disc._pair_forms("tube_delay", "heat_transfer", tried,
+                                               sindy, rig)
+    assert ma.effect("tube_delay").form == "transport"
+    assert mb.effect("heat_transfer").form == "convective"
+    # the order of the members does not matter
+    (ma, _, _), (mb, _, _) = disc._pair_forms("heat_transfer", "tube_delay", tried,
+                                               sindy, rig)
+    assert (ma.effect("heat_transfer").form, mb.effect("tube_delay").form) == (
+        "convective", "transport")
+    # the wave tube alone cannot be paired with heat transfer
+    only_wave = {"tube_delay": [wave], "heat_transfer": [convective, rate]}
+    assert disc._pair_forms("tube_delay", "heat_transfer", only_wave, sindy, rig) is None
+    # two effects without such a constraint pair their best forms
+    lag = trial(make_effect("spool_lag", form="second_order"), 7700.0)
+    evidence["spool_lag"] = {"best_term_start": {"spool_time_constant_s": 0.003}}
+    (ma, _, _), (mb, _, _) = disc._pair_forms(
+        "tube_delay", "spool_lag", {"tube_delay": [wave, transport], "spool_lag": [lag]},
+        sindy, rig)
+    assert (ma.effect("tube_delay").form, mb.effect("spool_lag").form) == (
+        "wave", "second_order")
