@@ -1055,7 +1055,35 @@ def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     L += [f"*Source: `{path}` (`experiments/blind_study.py --seed {doc['seed']} "
           f"--min-tube-cells {doc.get('min_tube_cells', 8)}`); git revision {rev}; "
           f"{versions}.*", ""]
-    return L
+    return L + _earlier_blind_sets(out, smoke)
+
+
+def _earlier_blind_sets(out: Path, smoke: bool) -> list[str]:
+    """One row per earlier blind set kept in ``OUT/blind_earlier/*/summary.json`` (the
+    set a newer one replaced, with its own revision): what it measured when it was read."""
+    paths = [] if smoke else sorted((out / "blind_earlier").glob("*/summary.json"))
+    if not paths:
+        return []
+    L = ["Earlier blind sets, each run once at its own revision and read once (their "
+         "misses are what the loop was changed for since):", "",
+         "| seed | revision | controls clean | singles and pairs: all planted named | "
+         "median shrink | median final / noise | four-effect: planted named (mean of 4) |",
+         "|---|---|---|---|---|---|---|"]
+    for p in paths:
+        d = json.loads(p.read_text())
+        f = d["floors"]
+        c, sp, four = f.get("control", {}), f.get("single/pair", {}), f.get("four-effect", {})
+
+        def pct(d, k):
+            return "-" if k not in d else f"{100 * d[k]:.0f} %"
+
+        L.append(f"| {d['seed']} | `{str(d['provenance'].get('git_revision'))[:7]}` | "
+                 f"{pct(c, 'nothing_named_fraction')} | "
+                 f"{pct(sp, 'all_planted_named_fraction')} of {sp.get('cases', 0)} | "
+                 f"{pct(sp, 'gap_shrink_median')} | "
+                 + (f"{sp['final_over_noise_median']:.2f}" if sp else "-") + " | "
+                 + (f"{four['planted_named_mean']:.2f}" if four else "-") + " |")
+    return L + ["", f"*Source: `{out / 'blind_earlier'}/SEED/summary.json`.*", ""]
 
 
 CALIBRATION_HEAD = "## A sensor's calibration: named where planted, and its stand-ins"

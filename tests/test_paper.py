@@ -355,6 +355,18 @@ def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
     assert "1 of 2 additions meet it" in text
     assert "b01's `spool_lag`, 3 Pa against the 5 Pa asked" in text
     assert "median 6 min, longest 10 min" in text
+    assert "Earlier blind sets" not in text
+    # a set the new one replaced, kept under blind_earlier/SEED: one row of what it measured
+    early = out / "blind_earlier" / "4141"
+    early.mkdir(parents=True)
+    (early / "summary.json").write_text(json.dumps({
+        "seed": 4141, "provenance": {"git_revision": "0123456789"}, "floors": {
+            "control": {"nothing_named_fraction": 1.0},
+            "single/pair": {"cases": 12, "all_planted_named_fraction": 10 / 12,
+                            "gap_shrink_median": 0.99, "final_over_noise_median": 1.05},
+            "four-effect": {"planted_named_mean": 4.0}}}))
+    lines = make_paper.blind_section(out, paper, smoke=False)
+    assert "| 4141 | `0123456` | 100 % | 83 % of 12 | 99 % | 1.05 | 4.00 |" in lines
 
 
 def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledger(tmp_path):
