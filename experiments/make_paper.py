@@ -1041,6 +1041,16 @@ def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
               f"{held} of {len(gains)} additions meet it. The smallest gain is "
               f"{low['case'].split('_')[0]}'s `{low['effect']}`, {low['gain_Pa']:.0f} Pa "
               f"against the {low['least_gain_Pa']:.0f} Pa asked.", ""]
+    stages = {a: [c["name"].split("_")[0] for c in cases
+                  if any(e.get("action") == a for e in c.get("ledger", []))]
+              for a in ("pairs", "other forms")}
+    L += ["The stages that run only where a loop would stop over twice the noise floor "
+          "ran in " + "; ".join(
+              f"{len(v)} case{'s' if len(v) != 1 else ''}"
+              + (f" ({', '.join(v)})" if v else "") + f" ({what})"
+              for what, v in (("pairs of effects fitted jointly", stages["pairs"]),
+                              ("named effects refitted in other forms",
+                               stages["other forms"]))) + ".", ""]
     walls = [c["wall_time_s"] / 60 for c in cases if c.get("wall_time_s")]
     four = [c["wall_time_s"] / 60 for c in cases if len(c["hidden"]) == 4
             and c.get("wall_time_s")]

@@ -355,6 +355,16 @@ def test_blind_section_reports_the_set_once_and_checks_each_addition(tmp_path):
     assert "1 of 2 additions meet it" in text
     assert "b01's `spool_lag`, 3 Pa against the 5 Pa asked" in text
     assert "median 6 min, longest 10 min" in text
+    assert ("ran in 0 cases (pairs of effects fitted jointly); 0 cases (named effects "
+            "refitted in other forms)") in text
+    cases[1]["ledger"].append({"step": 9, "action": "pairs", "groups": ["a + b"]})
+    (folder / "summary.json").write_text(json.dumps({
+        "seed": 4242, "duration_s": 20.0, "smoke": False, "tube_line_form": "wave",
+        "min_tube_cells": 32, "floors": {}, "cases": cases,
+        "provenance": {"git_revision": "abcdef0123", "python": "3.11"}}))
+    lines = make_paper.blind_section(out, paper, smoke=False)
+    assert any("ran in 1 case (b01) (pairs of effects fitted jointly); 0 cases" in line
+               for line in lines)
     assert "Earlier blind sets" not in text
     # a set the new one replaced, kept under blind_earlier/SEED: one row of what it measured
     early = out / "blind_earlier" / "4141"
