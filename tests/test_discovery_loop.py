@@ -32,6 +32,19 @@ def _bench(out, hidden, seed):
     return list(fixed.recordings) + list(moving.recordings), fixed.truth_path
 
 
+def _blind_case_recordings(out, cylinder, valve, forms, seed):
+    """A blind case's six 20-s recordings, as ``experiments/blind_study.py`` makes them:
+    fixed piston at 50 % and 90 % with +-5 and +-0.5 V (seed), two moving (seed + 500),
+    the plant ``forms`` hidden."""
+    fixed = run_bench(BenchConfig(cylinder, valve, (), forms=forms, protocol="fixed",
+                                  seed=seed, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
+                                  duration_s=20.0), out / "fixed")
+    moving = run_bench(BenchConfig(cylinder, valve, (), forms=forms, protocol="moving",
+                                   seed=seed + 500, count=2, duration_s=20.0),
+                       out / "moving")
+    return [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
+
+
 def _leak_recordings(out):
     """Fixed-volume AIR37 recordings with a hidden laminar leak (a slow effect the
     one-step search sees weakly)."""
@@ -346,13 +359,7 @@ def test_two_effects_that_each_fail_alone_are_named_as_a_pair(tmp_path):
     forms = (RoundedDeadzone(halfwidth_V=0.10077, rounding_V=0.03905),
              ClearanceLeak(gap_m=3.376e-6, seal_length_m=0.004, seal_length_slope=0.01832))
     seed = 86147
-    fixed = run_bench(BenchConfig("SMC", "valve2", (), forms=forms, protocol="fixed",
-                                  seed=seed, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
-                                  duration_s=20.0), tmp_path / "fixed")
-    moving = run_bench(BenchConfig("SMC", "valve2", (), forms=forms, protocol="moving",
-                                   seed=seed + 500, count=2, duration_s=20.0),
-                       tmp_path / "moving")
-    recs = [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
+    recs = _blind_case_recordings(tmp_path, "SMC", "valve2", forms, seed)
     fit = FitSettings(pressure_filter=SensorChain().declared_filter())
     kw = dict(max_effects=1, n_bags=40, seed=seed, fit=fit)
     run = tmp_path / "run"  # shared: the switched-off run reuses the single trials
@@ -399,13 +406,7 @@ def test_a_named_tube_is_refitted_as_a_line_beside_the_heat_transfer_it_was_pair
     forms = (AcousticTube(length_m=1.8318, diameter_m=0.001989, segments=32),
              WallHeatTransfer(h_W_per_m2_K=19.55))
     seed = 81757
-    fixed = run_bench(BenchConfig("AIR200", "valve2", (), forms=forms, protocol="fixed",
-                                  seed=seed, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
-                                  duration_s=20.0), tmp_path / "fixed")
-    moving = run_bench(BenchConfig("AIR200", "valve2", (), forms=forms, protocol="moving",
-                                   seed=seed + 500, count=2, duration_s=20.0),
-                       tmp_path / "moving")
-    recs = [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
+    recs = _blind_case_recordings(tmp_path, "AIR200", "valve2", forms, seed)
     kw = dict(posterior=False, try_all_on_gap=False, n_bags=40, seed=seed,
               fit=FitSettings(pressure_filter=SensorChain().declared_filter()))
     run = tmp_path / "run"  # shared: the switched-off run reuses the fits

@@ -499,31 +499,7 @@ class Discovery:
                          "(training RMSE " + ", ".join(
                              f"{_form(m, g)} {f.train_rmse_Pa:.0f} Pa"
                              for f, m, _ in forms) + ")")
-            # control: the current model refined from the trial's other parameters.
-            # Refinement finds local optima; if the trial's gain came from moving the
-            # other parameters to a better basin, the control gets it too.
-            try:
-                control = self._fit(current.model, {k: trial.params[k] for k in
-                                                    current.model.parameter_names},
-                                    train_ws, held_ws, data_key)
-            except (FloatingPointError, SimulationError) as exc:
-                # the trial's point leaves the current model's simulable region: no
-                # better optimum of the current model there
-                self.log(f"discover: {g}: no control fit from the trial's point "
-                         f"({type(exc).__name__})")
-                control = current
-            if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
-                self.log(f"discover: a better optimum of the current model: train RMSE "
-                         f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa "
-                         f"({current.train_rmse_Pa - control.train_rmse_Pa:.2g} Pa lower; "
-                         f"held-out {current.heldout_rmse_Pa:.0f} -> "
-                         f"{control.heldout_rmse_Pa:.0f} Pa)")
-                ledger.append({"step": len(ledger), "action": "refit current",
-                               "model": list(current.model.effect_names),
-                               "train_rmse_Pa": control.train_rmse_Pa,
-                               "heldout_rmse_Pa": control.heldout_rmse_Pa,
-                               "heldout_lpd": control.heldout_lpd})
-                current = control
+            control, current = self._control(trial, current, g, ctx)
             trials.append((g, model2, start2, trial, forms_info, control))
             if round_trials is not None:
                 round_trials[g] = sorted(((m, f, x) for f, m, x in forms),
@@ -576,6 +552,37 @@ class Discovery:
             if ok:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing
+
+    def _control(self, trial: StepFit, current: StepFit, label: str, ctx):
+        """A trial's control: the current model refined from the trial's other
+        parameters. Refinement finds local optima; if the trial's gain came from moving
+        the other parameters to a better basin, the control gets it too. Where the
+        control fits the training data better than ``current`` it becomes the current
+        fit (ledger action ``refit current``). Returns (control, current)."""
+        sindy, train, train_ws, held_ws, data_key, noise, ledger = ctx
+        try:
+            control = self._fit(current.model, {k: trial.params[k] for k in
+                                                current.model.parameter_names},
+                                train_ws, held_ws, data_key)
+        except (FloatingPointError, SimulationError) as exc:
+            # the trial's point leaves the current model's simulable region: no better
+            # optimum of the current model there
+            self.log(f"discover: {label}: no control fit from the trial's point "
+                     f"({type(exc).__name__})")
+            return current, current
+        if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
+            self.log(f"discover: a better optimum of the current model: train RMSE "
+                     f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa "
+                     f"({current.train_rmse_Pa - control.train_rmse_Pa:.2g} Pa lower; "
+                     f"held-out {current.heldout_rmse_Pa:.0f} -> "
+                     f"{control.heldout_rmse_Pa:.0f} Pa)")
+            ledger.append({"step": len(ledger), "action": "refit current",
+                           "model": list(current.model.effect_names),
+                           "train_rmse_Pa": control.train_rmse_Pa,
+                           "heldout_rmse_Pa": control.heldout_rmse_Pa,
+                           "heldout_lpd": control.heldout_lpd})
+            current = control
+        return control, current
 
     def _pairs(self, tried: dict, current: StepFit, ctx):
         """The pair stage (``pair_members``): the round's trials with the largest
@@ -631,21 +638,7 @@ class Discovery:
                 self.log(f"discover: pair {a} + {b}: training RMSE "
                          + ", ".join(f"{f.train_rmse_Pa:.0f}" for f, _ in fits)
                          + " Pa from the members' fitted values and their own starts")
-            try:
-                control = self._fit(current.model, {k: fit.params[k] for k in
-                                                    current.model.parameter_names},
-                                    train_ws, held_ws, data_key)
-            except (FloatingPointError, SimulationError):
-                control = current
-            if control.train_rmse_Pa < current.train_rmse_Pa - 1e-9:
-                self.log(f"discover: a better optimum of the current model: train RMSE "
-                         f"{current.train_rmse_Pa:.1f} -> {control.train_rmse_Pa:.1f} Pa")
-                ledger.append({"step": len(ledger), "action": "refit current",
-                               "model": list(current.model.effect_names),
-                               "train_rmse_Pa": control.train_rmse_Pa,
-                               "heldout_rmse_Pa": control.heldout_rmse_Pa,
-                               "heldout_lpd": control.heldout_lpd})
-                current = control
+            control, current = self._control(fit, current, f"pair {a} + {b}", ctx)
             fitted.append((a, b, model, start, fit, control))
         passing = []
         gap_Pa = current.heldout_rmse_Pa - noise

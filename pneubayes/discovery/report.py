@@ -87,6 +87,16 @@ _GROUP_ACTIONS = {
 }
 
 
+def _trial_row(e: dict, action: str, what: str) -> str:
+    """A ledger row of a verified trial (a single effect, a pair or another form): its
+    fitted values, held-out RMSE before and after, and the test's outcome."""
+    fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
+    return (f"| {e['step']} | {action} | {what} | {fitted} | "
+            f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f} | "
+            f"{e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
+            f"p = {e['score_p_value']:.2g}) |")
+
+
 def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     horizon = result.settings.fit.horizon_s
     noise = doc["noise_floor_Pa"]
@@ -173,25 +183,13 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | {e['score_gain']:.1f} (p = {e['score_p_value']:.2g}) |")
         elif e["action"] in ("pass", "reject"):
-            fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
-            lines.append(f"| {e['step']} | {e['action']} | {e['effect']} | {fitted} | "
-                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
-                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
-                         f"p = {e['score_p_value']:.2g}) |")
+            lines.append(_trial_row(e, e["action"], e["effect"]))
         elif e["action"] == "pair":
-            fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
-            lines.append(f"| {e['step']} | pair {'pass' if e['passed'] else 'reject'} | "
-                         f"{' + '.join(e['effects'])} | {fitted} | "
-                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
-                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
-                         f"p = {e['score_p_value']:.2g}) |")
+            lines.append(_trial_row(e, f"pair {'pass' if e['passed'] else 'reject'}",
+                                    " + ".join(e["effects"])))
         elif e["action"] == "form":
-            fitted = ", ".join(f"{k}={v:.4g}" for k, v in e["fitted"].items())
-            lines.append(f"| {e['step']} | form {'pass' if e['passed'] else 'reject'} | "
-                         f"{e['effect']} {e['from']} -> {e['to']} | {fitted} | "
-                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
-                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
-                         f"p = {e['score_p_value']:.2g}) |")
+            lines.append(_trial_row(e, f"form {'pass' if e['passed'] else 'reject'}",
+                                    f"{e['effect']} {e['from']} -> {e['to']}"))
         elif e["action"] == "swap form":
             lines.append(f"| {e['step']} | swap form | {e['effect']} as {e['to']} | | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
