@@ -688,7 +688,9 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     stages, full_from = [], []
 
     class Refiner:
-        def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1):
+        def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1,
+                     uncertainty=True):
+            assert not uncertainty  # the loop never asks its fits for the covariance
             self.free = free
 
         def fit(self, data, params):
@@ -756,7 +758,9 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
     class Refiner:
         traces = []
 
-        def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1):
+        def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1,
+                     uncertainty=True):
+            assert not uncertainty  # the loop never asks its fits for the covariance
             pass
 
         def fit(self, data, params):
@@ -836,6 +840,43 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
         assert bool(passing) is passes, which
         (entry,) = [e for e in ledger if e["action"] in ("pass", "reject")]
         assert entry["not_better_than_control"] is (not passes)
+
+
+def test_only_trials_that_beat_the_current_fit_get_a_control(monkeypatch):
+    """A control costs a full refit (tens of seconds beside a wave tube) and only a
+    passing trial is asked whether its gain is its basin's: a trial that does not beat
+    the current fit gets none. A control that fits training better becomes the current
+    fit, and a trial that beats that one gets its control then."""
+    import pneubayes.discovery.loop as loop
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.verification import StepFit
+
+    rng = np.random.default_rng(1)
+    base_mse = 800.0**2 * (1 + 0.1 * rng.random(18))
+
+    def fit(held_scale, train):
+        mse = base_mse * held_scale
+        return StepFit(Model(), {}, train, float(np.sqrt(mse.mean())), -mse / 1e4, mse,
+                       500.0, 0.0)
+
+    current = fit(1.0, 700.0)
+    good, poor, later = fit(0.7, 690.0), fit(1.25, 699.0), fit(1.05, 698.0)
+    # good's control fits training better and predicts the held-out part worse: the new
+    # current fit, which `later` (worse than the first current) now beats
+    made = {id(good): fit(1.2, 695.0), id(later): fit(1.3, 697.0)}
+    asked = []
+
+    def control(trial, cur, label, ctx):
+        asked.append(label)
+        c = made[id(trial)]
+        return c, (c if c.train_rmse_Pa < cur.train_rmse_Pa else cur)
+    disc = loop.Discovery(DiscoverySettings(), log=lambda m: None)
+    monkeypatch.setattr(disc, "_control", control)
+    controls, now = disc._controls([("good", good), ("poor", poor), ("later", later)],
+                                   current, None)
+    assert asked == ["good", "later"]
+    assert controls[1] is None and controls[0] is made[id(good)]
+    assert controls[2] is made[id(later)] and now is made[id(good)]
 
 
 def test_a_passing_trial_must_gain_a_share_of_the_noise_floor_and_of_any_gap_asked():

@@ -178,6 +178,45 @@ def test_window_set_shapes_and_truth_residuals(bench):
     assert 400 < np.std(r) < 650  # the true model leaves the 500 Pa sensor noise
 
 
+def test_one_parameter_set_runs_its_recordings_at_once_with_the_same_pressures(bench):
+    """A model with a state the recording does not measure (the heat transfer's
+    temperature) simulates a recording's contiguous windows in order, one task per
+    parameter set; with one set the recordings run at once, one numba thread each, and
+    give bit for bit what one thread gives, with the sensitivity too."""
+    import threading
+
+    import numba
+
+    from pneubayes.effects import make_effect
+
+    recs, _, truth = bench
+    data = WindowSet(recs, 2.0, 2.0)
+    model = Model([make_effect("heat_transfer", form="convective")])
+    theta = model.vector({k: truth[k] for k in model.parameter_names
+                          if k in truth} | {"heat_transfer_coefficient_W_per_m2_K": 40.0})[None]
+    seen = []
+
+    def note(block):
+        seen.append((threading.get_ident(), numba.get_num_threads()))
+        return block.source
+    threads = numba.get_num_threads()
+    assert data._each_block(note, 1) == [b.source for b in data.blocks]
+    if threads > 1:  # several numba threads (2 cores): worker threads, one numba thread each
+        assert {n for _, n in seen} == {1}
+        assert threading.get_ident() not in {i for i, _ in seen}
+    both = data.residuals(model, theta, TIGHT), data.residuals_and_sensitivity(
+        model, theta, TIGHT)
+    numba.set_num_threads(1)
+    try:
+        one = data.residuals(model, theta, TIGHT), data.residuals_and_sensitivity(
+            model, theta, TIGHT)
+    finally:
+        numba.set_num_threads(threads)
+    np.testing.assert_array_equal(both[0], one[0])
+    for a, b in zip(both[1], one[1]):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_held_out_windows_are_warmed_up_on_the_recording_before_them(rig, hand):
     """``score_from_s`` scores the same windows as the sliced recording would, but a heat
     model's temperature comes in from the history: on noise-free data of that model the
@@ -271,6 +310,18 @@ def test_broyden_refinement_recovers_the_start_with_fewer_simulations(bench, mon
                                                                                      start)
     at_end = TrajectoryRefiner(model, TIGHT, max_nfev=1).fit(data, lazy.params_)
     np.testing.assert_allclose(lazy.information_, at_end.information_, rtol=5e-3)
+    # without the uncertainty the fit is the same, one Jacobian (a simulation per free
+    # parameter) cheaper where the last was Broyden's, and it has no information
+    for uncertainty in (True, False):
+        simulated.clear()
+        fits[uncertainty] = TrajectoryRefiner(model, TIGHT, max_nfev=40,
+                                              jacobian_refresh=10**6,
+                                              uncertainty=uncertainty).fit(data, start)
+        fits[uncertainty].trajectories = sum(simulated)
+    bare = fits[False]
+    assert bare.trajectories == fits[True].trajectories - len(model.parameter_names)
+    assert bare.params_ == lazy.params_ and bare.rmse_Pa_ == lazy.rmse_Pa_
+    assert bare.information_ is None and bare.covariance_ is None
     with pytest.raises(ValueError, match="jacobian_refresh"):
         TrajectoryRefiner(model, TIGHT, jacobian_refresh=0)
     from pneubayes.inference.fit import FitSettings
@@ -501,7 +552,7 @@ def test_posterior_centre_moves_the_start_to_the_mode_of_a_gaussian():
         start[ident] += offset
         start[2] = 7.0
         assert np.sqrt(offset @ target.precision @ offset) > 5.0
-        x = posterior_centre(target, start, np.linalg.inv(cov), 2)
+        x = posterior_centre(target, start, np.linalg.inv(cov), 2).x
         r = np.delete(x - mean, 2)
         assert np.sqrt(r @ target.precision @ r) < 1e-6
         assert x[2] == 7.0

@@ -31,8 +31,11 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    the effect is rejected. The trial must also beat its *control*, the current model
    refitted from the trial's other parameters, the same way: refinement finds local
    optima, and a trial whose refit only moved the other parameters to a basin that
-   predicts better (an effect fitted to zero strength) carries no gain of its own. Of
-   those that pass, the one with the lowest held-out RMSE is added.
+   predicts better (an effect fitted to zero strength) carries no gain of its own
+   (a control is fitted only for a trial that beats the current fit; one that fits
+   the training data better than the current fit replaces it, and the trials are
+   checked against it again). Of those that pass, the one with the lowest held-out
+   RMSE is added.
 6. **Prune**: once an effect is added, each earlier one is refitted away; if the model
    without it is not significantly worse (the same test), it only stood in for the
    newcomer and is removed.
@@ -194,8 +197,8 @@ class Discovery:
             if first:
                 stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
                                           max_nfev=s.fit.refine_max_nfev,
-                                          jacobian_refresh=s.fit.refine_jacobian_refresh
-                                          ).fit(train_ws, params)
+                                          jacobian_refresh=s.fit.refine_jacobian_refresh,
+                                          uncertainty=False).fit(train_ws, params)
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
                 # the full fit continues from the stage's point; a screened-out form is
                 # scored there, not at its start
@@ -207,8 +210,8 @@ class Discovery:
             for _ in range(0 if screened else s.max_refine_restarts + 1):
                 ref = TrajectoryRefiner(model, s.fit.refine_solver,
                                         max_nfev=s.fit.refine_max_nfev,
-                                        jacobian_refresh=s.fit.refine_jacobian_refresh
-                                        ).fit(train_ws, params)
+                                        jacobian_refresh=s.fit.refine_jacobian_refresh,
+                                        uncertainty=False).fit(train_ws, params)
                 params = ref.params_
                 if ref.success_:
                     break
@@ -438,8 +441,9 @@ class Discovery:
     def _trials(self, candidates, current: StepFit, ctx, min_gap_closed: float = 0.0,
                 round_trials: dict | None = None):
         """Fit each candidate group's forms beside ``current``, refit the current model
-        from each trial's other parameters (a better basin is not the effect's gain),
-        and verify every trial on the held-out windows against the final current fit;
+        from the other parameters of each trial that beats it (a better basin is not the
+        effect's gain; :meth:`_controls`), and verify every trial on the held-out
+        windows against the final current fit;
         a trial that passes must also close ``min_gap_closed`` of the held-out RMSE's
         gap above the noise floor (with no gap left, none can), and lower the held-out
         RMSE by ``min_gain_noise_share`` of the noise floor and ``min_gain_gap_share``
@@ -499,8 +503,7 @@ class Discovery:
                          "(training RMSE " + ", ".join(
                              f"{_form(m, g)} {f.train_rmse_Pa:.0f} Pa"
                              for f, m, _ in forms) + ")")
-            control, current = self._control(trial, current, g, ctx)
-            trials.append((g, model2, start2, trial, forms_info, control))
+            trials.append((g, model2, start2, trial, forms_info))
             if round_trials is not None:
                 round_trials[g] = sorted(((m, f, x) for f, m, x in forms),
                                          key=lambda mfx: mfx[1].train_rmse_Pa)
@@ -508,12 +511,13 @@ class Discovery:
         # current model in the trial's basin, which may predict the held-out part better
         # than the current fit at no better training error: that gain is the basin's,
         # not the effect's); the best that passes both is added
+        controls, current = self._controls([(t[0], t[3]) for t in trials], current, ctx)
         passing = []
         gap_Pa = current.heldout_rmse_Pa - noise
-        for g, model2, start2, trial, forms_info, control in trials:
+        for (g, model2, start2, trial, forms_info), control in zip(trials, controls):
             ok, gain, pval, diff = self._better(trial, current)
             basin = False
-            if ok and control is not current:
+            if ok and control is not None and control is not current:
                 basin = not self._better(trial, control)[0]
                 if basin:
                     self.log(f"discover: {g}: its held-out gain is its basin's: the current "
@@ -536,7 +540,8 @@ class Discovery:
                 "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
                 "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
                 "score_gain": gain, "score_p_value": pval,
-                "control_heldout_rmse_Pa": control.heldout_rmse_Pa,
+                "control_heldout_rmse_Pa": None if control is None else
+                control.heldout_rmse_Pa,
                 "not_better_than_control": basin,
                 "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
                 "evidence": sindy.evidence_[g], "wall_time_s": trial.wall_time_s})
@@ -552,6 +557,24 @@ class Discovery:
             if ok:
                 passing.append((trial.heldout_rmse_Pa, g, trial, gain, pval))
         return current, passing
+
+    def _controls(self, fits: list, current: StepFit, ctx):
+        """The controls (:meth:`_control`) of those of ``fits`` (``(label, fit)`` pairs)
+        that beat the current fit on the held-out windows; a fit that does not needs
+        none (only a fit that passes is asked whether its gain is its basin's). A control
+        that becomes the current fit makes every fit without one be checked again,
+        until each that beats the current fit has its control. Returns (controls, None
+        for a fit without one; current)."""
+        controls = [None] * len(fits)
+        changed = True
+        while changed:
+            changed = False
+            for i, (label, fit) in enumerate(fits):
+                if controls[i] is None and self._better(fit, current)[0]:
+                    before = current
+                    controls[i], current = self._control(fit, current, label, ctx)
+                    changed = changed or current is not before
+        return controls, current
 
     def _control(self, trial: StepFit, current: StepFit, label: str, ctx):
         """A trial's control: the current model refined from the trial's other
@@ -638,11 +661,12 @@ class Discovery:
                 self.log(f"discover: pair {a} + {b}: training RMSE "
                          + ", ".join(f"{f.train_rmse_Pa:.0f}" for f, _ in fits)
                          + " Pa from the members' fitted values and their own starts")
-            control, current = self._control(fit, current, f"pair {a} + {b}", ctx)
-            fitted.append((a, b, model, start, fit, control))
+            fitted.append((a, b, model, start, fit))
+        controls, current = self._controls([(f"pair {f[0]} + {f[1]}", f[4]) for f in fitted],
+                                           current, ctx)
         passing = []
         gap_Pa = current.heldout_rmse_Pa - noise
-        for a, b, model, start, fit, control in fitted:
+        for (a, b, model, start, fit), control in zip(fitted, controls):
             ok, gain, pval, diff = self._better(fit, current)
             basin = bool(ok and control is not current
                          and not self._better(fit, control)[0])
@@ -664,7 +688,8 @@ class Discovery:
                 "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
                 "heldout_rmse_after_Pa": fit.heldout_rmse_Pa,
                 "score_gain": gain, "score_p_value": pval,
-                "control_heldout_rmse_Pa": control.heldout_rmse_Pa,
+                "control_heldout_rmse_Pa": None if control is None else
+                control.heldout_rmse_Pa,
                 "not_better_than_control": basin, "members_needed": needed,
                 "windows_improved": int(np.sum(diff > 0)), "windows": int(diff.size),
                 "wall_time_s": fit.wall_time_s})

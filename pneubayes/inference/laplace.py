@@ -133,8 +133,10 @@ class LaplaceIdentification(ChainDraws):
     check_draws : int
         Of them, how many the posterior's density checks
         (:mod:`~pneubayes.inference.importance`; 0: none, >= 100 otherwise).
-    centre_iterations : int
-        Newton steps from the refined point to the posterior's centre.
+    centre_iterations, centre_tolerance_nats : int, float
+        Newton steps from the refined point to the posterior's centre, and the
+        predicted rise under which they stop
+        (:func:`~pneubayes.inference.walker_start.posterior_centre`).
     seed : int
         Seed of every draw (recorded).
     max_solver_jitter_nats, max_solver_tightenings : float, int
@@ -147,12 +149,13 @@ class LaplaceIdentification(ChainDraws):
 
     def __init__(self, model: Model, solver: SolverConfig, n_draws: int, check_draws: int,
                  centre_iterations: int, seed: int, max_solver_jitter_nats: float,
-                 max_solver_tightenings: int, log=None):
+                 max_solver_tightenings: int, log=None, centre_tolerance_nats: float = 0.0):
         self.model = model
         self.solver = solver
         self.n_draws = n_draws
         self.check_draws = check_draws
         self.centre_iterations = centre_iterations
+        self.centre_tolerance_nats = centre_tolerance_nats
         self.seed = seed
         self.max_solver_jitter_nats = max_solver_jitter_nats
         self.max_solver_tightenings = max_solver_tightenings
@@ -165,7 +168,8 @@ class LaplaceIdentification(ChainDraws):
         centring iterations and solver roughness), in place of the chain."""
         return cls(model, solver, n_draws, check_draws, sampler.centre_iterations,
                    sampler.seed,
-                   sampler.max_solver_jitter_nats, sampler.max_solver_tightenings, log)
+                   sampler.max_solver_jitter_nats, sampler.max_solver_tightenings, log,
+                   sampler.centre_tolerance_nats)
 
     def fit(self, data: WindowSet, start: dict, information) -> "LaplaceIdentification":
         """Approximate the posterior on ``data`` from the refined point ``start`` (a full
@@ -183,7 +187,8 @@ class LaplaceIdentification(ChainDraws):
         like, solver, jitter = settle_solver(self.model, data, self.solver, ball,
                                              self.max_solver_jitter_nats,
                                              self.max_solver_tightenings)
-        fit = laplace_approximation(like, x0, information, self.centre_iterations)
+        fit = laplace_approximation(like, x0, information, self.centre_iterations,
+                                    self.centre_tolerance_nats)
         z = truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z, rng, self.n_draws)
         lam = fit.eigenvalues
         concave = lam > 0
@@ -208,6 +213,7 @@ class LaplaceIdentification(ChainDraws):
             "hessian_eigenvalues": [float(v) for v in lam],
             "non_concave_directions": int(np.sum(~concave)),
             "difference_step_sd": fit.step_sd, "rewhitening_rounds": fit.rounds,
+            "centre_rises_nats": [float(v) for v in fit.centre_rises],
             "mode_on_prior_bound": list(fit.bounded), "inside_shift_sd": fit.shift_sd,
             "importance_check": check}
         if self.log is not None:
@@ -265,7 +271,8 @@ class LaplaceFit(NamedTuple):
     variance); ``log_posterior``, ``noise_sums``: at the mode (``(1,)``, ``(1, 5)``);
     ``step_sd``: the differences' step in whitened SDs; ``rounds``: rounds of whitening
     again; ``shift_sd``: how far inside (whitened SDs) the Hessian was taken from a mode on
-    a bound (0: at the mode); ``bounded``: the parameters whose bounds moved it there."""
+    a bound (0: at the mode); ``bounded``: the parameters whose bounds moved it there;
+    ``centre_rises``: the predicted rise of each centring Newton step (nats)."""
 
     x_centre: np.ndarray
     z_centre: np.ndarray
@@ -279,6 +286,7 @@ class LaplaceFit(NamedTuple):
     rounds: int
     shift_sd: float
     bounded: tuple
+    centre_rises: tuple = ()
 
 
 def inward_point(like, z: np.ndarray, ident: np.ndarray, basis: np.ndarray, h: float):
@@ -320,7 +328,7 @@ def inward_point(like, z: np.ndarray, ident: np.ndarray, basis: np.ndarray, h: f
 
 
 def laplace_approximation(like, start: np.ndarray, information,
-                          iterations: int) -> LaplaceFit:
+                          iterations: int, tolerance_nats: float = 0.0) -> LaplaceFit:
     """The Gaussian at the log-posterior's mode in sampling coordinates (module docstring,
     steps 1-2). ``like``: the posterior (:class:`WindowLikelihood` or anything with its
     sampling interface); ``start``: natural parameters; ``information``: their Fisher
@@ -343,10 +351,19 @@ def laplace_approximation(like, start: np.ndarray, information,
     stretched ``EXPAND`` x), until its eigenvalues are within a factor
     ``SELF_CONSISTENT`` of 1 (the steps were near 2 posterior SDs), at most
     ``RESCALE_ROUNDS`` times, or until the stretched steps leave the prior (the round
-    before stands)."""
-    xc = posterior_centre(like, start, information, iterations)
+    before stands).
+
+    ``iterations`` and ``tolerance_nats``: the centring's Newton steps
+    (:func:`~pneubayes.inference.walker_start.posterior_centre`); where it stopped at a
+    point whose Hessian it had just taken (its next step predicted under
+    ``tolerance_nats``, or did not rise), that Hessian is the first round's."""
+    centre = posterior_centre(like, start, information, iterations, tolerance_nats)
+    xc = centre.x
     _, zc, ident, cz = laplace_in_sampling(like, xc, information)
     basis = whitened_basis(cz)
+    reuse = centre.curvature is not None and basis is not None
+    if reuse:  # the centring's own point and whitening, where its Hessian was taken
+        zc, basis = centre.z, centre.basis
     target = like.emcee_target(zc[None])  # log-density in sampling coordinates, sums
     lp_c, sums_c = target[:, 0], target[:, 1:]
     if basis is None or not np.isfinite(lp_c[0]):
@@ -354,7 +371,10 @@ def laplace_approximation(like, start: np.ndarray, information,
                                  "or the centre has no finite posterior density")
     done = None  # (basis, lam, q, h, point, slope, names) of the last round taken
     for rounds in range(RESCALE_ROUNDS + 1):
-        taken = _curvature_inside(like, zc, ident, basis, float(lp_c[0]))
+        if rounds == 0 and reuse:
+            taken = DIFFERENCE_STEPS[0], zc, (), centre.curvature
+        else:
+            taken = _curvature_inside(like, zc, ident, basis, float(lp_c[0]))
         if taken is None:
             if done is None:
                 raise FloatingPointError(
@@ -383,7 +403,7 @@ def laplace_approximation(like, start: np.ndarray, information,
         mean_z = point.copy()
         mean_z[ident] += basis @ ((q * inv_lam) @ (q.T @ grad))
     return LaplaceFit(xc, zc, ident, basis @ cov_y @ basis.T, mean_z, lam, lp_c, sums_c,
-                      h, rounds, shift, tuple(sorted(set(names))))
+                      h, rounds, shift, tuple(sorted(set(names))), centre.rises)
 
 
 def _curvature_inside(like, zc, ident, basis, f0):

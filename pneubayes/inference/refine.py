@@ -105,10 +105,16 @@ class TrajectoryRefiner:
         secant (in the scaled coordinates; Broyden 1965), from the residuals the trust
         region already has, so k - 1 of k accepted points cost no extra simulation. The
         information and covariance are always from a finite-difference Jacobian.
+    uncertainty : bool
+        Take the information and covariance at the fitted point (a finite-difference
+        Jacobian there: one batched call of a simulation per free parameter, unless the
+        last one was taken there); False: both None, for a caller that needs only the
+        fit.
 
     After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
     ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
-    ``covariance_``, its pseudo-inverse (the Laplace covariance); ``rmse_Pa_``;
+    ``covariance_``, its pseudo-inverse (the Laplace covariance; both None without
+    ``uncertainty``); ``rmse_Pa_``;
     ``rmse_trace_``, the RMSE (Pa) of every point simulated, in order (the trust
     region's rejected trials too; points that failed to simulate left out);
     ``success_``: False when the evaluation budget ended the fit.
@@ -116,7 +122,7 @@ class TrajectoryRefiner:
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
                  stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
-                 max_nfev: int = 60, jacobian_refresh: int = 1):
+                 max_nfev: int = 60, jacobian_refresh: int = 1, uncertainty: bool = True):
         if int(jacobian_refresh) != jacobian_refresh or jacobian_refresh < 1:
             raise ValueError(f"jacobian_refresh must be an integer >= 1, got "
                              f"{jacobian_refresh!r}")
@@ -128,6 +134,7 @@ class TrajectoryRefiner:
         self.relative_step = relative_step
         self.max_nfev = max_nfev
         self.jacobian_refresh = int(jacobian_refresh)
+        self.uncertainty = uncertainty
 
     def _scales(self, theta0: np.ndarray) -> np.ndarray:
         lo, hi = self.model.bounds
@@ -236,20 +243,23 @@ class TrajectoryRefiner:
                                      max_nfev=self.max_nfev, xtol=1e-8, ftol=1e-10)
         x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
         theta = full(x_sol)
-        r, jac = residual(x_sol), jacobian(x_sol, fresh=True)
-        if dead is not None:  # d r / d theta = d r / d x  d x / d theta (chamber -> dead)
-            jac = jac @ _chamber_map(taken, theta, idx, dead, scale)
-        n, p = r.size, idx.size
-        sigma2 = float(r @ r) / max(n - p, 1)
-        # pseudo-inverse in scaled coordinates: the columns differ by many orders of
-        # magnitude (areas ~1e-6 m^2, slopes ~10 /V), and pinv's cut-off is relative to
-        # the largest singular value, so unscaled it drops informed directions too
-        js = jac * scale
-        cov = sigma2 * (scale[:, None] * np.linalg.pinv(js.T @ js) * scale[None, :])
+        r = residual(x_sol)
+        self.covariance_ = self.information_ = None
+        if self.uncertainty:
+            jac = jacobian(x_sol, fresh=True)
+            if dead is not None:  # dr/dtheta = dr/dx dx/dtheta (chamber -> dead volume)
+                jac = jac @ _chamber_map(taken, theta, idx, dead, scale)
+            n, p = r.size, idx.size
+            sigma2 = float(r @ r) / max(n - p, 1)
+            # pseudo-inverse in scaled coordinates: the columns differ by many orders of
+            # magnitude (areas ~1e-6 m^2, slopes ~10 /V), and pinv's cut-off is relative
+            # to the largest singular value, so unscaled it drops informed directions too
+            js = jac * scale
+            self.covariance_ = sigma2 * (scale[:, None] * np.linalg.pinv(js.T @ js)
+                                         * scale[None, :])
+            self.information_ = (jac.T @ jac) / sigma2
         self.params_ = model.as_dict(theta)
         self.free_ = tuple(free)
-        self.covariance_ = cov
-        self.information_ = (jac.T @ jac) / sigma2
         self.rmse_Pa_ = float(np.sqrt(np.mean(r * r)))
         r0 = data.residuals(model, theta0[None], self.solver)
         self.start_rmse_Pa_ = float(np.sqrt(np.mean(r0 * r0)))

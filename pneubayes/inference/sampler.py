@@ -94,6 +94,10 @@ class SamplerSettings:
     centre_iterations: with the refined information, Newton iterations that move the ball's
         centre from the refined (least-squares) point towards the posterior's own
         centre before sampling (0: start at the refined point).
+    centre_tolerance_nats: the centring stops once a Newton step's predicted rise of the
+        log-posterior is under this (nats; the point is then within about
+        ``sqrt(2 x this)`` SDs of the mode, and the Laplace approximation takes the
+        Hessian the centring just took there; 0: every iteration steps).
     max_solver_jitter_nats, max_solver_tightenings: the adaptive solver's numerical error
         makes the log-density a rough function of the parameters; where that roughness
         is a sizeable part of the posterior's spread, moves are rejected for it (an
@@ -122,6 +126,7 @@ class SamplerSettings:
     init_scale: float = 1.0
     laplace_start: bool = True
     centre_iterations: int = 3
+    centre_tolerance_nats: float = 0.01
     max_solver_jitter_nats: float = 0.3
     max_solver_tightenings: int = 3
     seed: int = 0
@@ -142,6 +147,9 @@ class SamplerSettings:
         if self.centre_iterations < 0:
             raise ValueError("SamplerSettings.centre_iterations must be >= 0, "
                              f"got {self.centre_iterations}")
+        if not self.centre_tolerance_nats >= 0.0:
+            raise ValueError("SamplerSettings.centre_tolerance_nats must be >= 0, "
+                             f"got {self.centre_tolerance_nats}")
         if not 0.0 < self.proposal_fit_fraction <= 1.0:
             raise ValueError("SamplerSettings.proposal_fit_fraction must be in (0, 1], "
                              f"got {self.proposal_fit_fraction}")
@@ -301,7 +309,8 @@ class BayesianIdentification(ChainDraws):
 
         s = self.settings
         try:
-            fit = laplace_approximation(like, x0, information, s.centre_iterations)
+            fit = laplace_approximation(like, x0, information, s.centre_iterations,
+                                        s.centre_tolerance_nats)
             z = with_density(like, truncated_draws(like, fit.mean_z, fit.ident, fit.cov_z,
                                                    rng, nw), rng)
         except FloatingPointError as exc:
@@ -360,7 +369,8 @@ class BayesianIdentification(ChainDraws):
                 and s.centre_iterations > 0):
             # the refined point is a least-squares optimum, not the posterior's centre:
             # move the ball to the posterior's own Newton centre (few batched calls)
-            x0 = posterior_centre(like, x0, information, s.centre_iterations)
+            x0 = posterior_centre(like, x0, information, s.centre_iterations,
+                                  s.centre_tolerance_nats).x
             state = walker_ball(like, x0, information, rng, nw, s.init_scale)
         t0 = time.perf_counter()
         start_step = backend.iteration

@@ -16,6 +16,8 @@ window likelihood) to the log-posterior's own, by Newton steps.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from pneubayes.inference.likelihood import WindowLikelihood
@@ -192,11 +194,26 @@ def whitened_curvature(like: WindowLikelihood, z: np.ndarray, ident: np.ndarray,
     return grad, hess
 
 
+class Centre(NamedTuple):
+    """Where :func:`posterior_centre` stopped: natural parameters ``x``, sampling
+    coordinates ``z`` and the log-posterior ``f`` there, the whitening ``basis`` of its
+    steps (``z[ident] += basis @ y``), the predicted rise of each Newton step taken or
+    declined (nats, ``rises``), and ``curvature``: the (slope, Hessian) in ``y`` taken at
+    ``z`` itself, or None (the last one taken is at the point before the last step)."""
+    x: np.ndarray
+    z: np.ndarray
+    f: float
+    basis: np.ndarray | None
+    curvature: tuple | None
+    rises: tuple
+
+
 def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
-                     iterations: int) -> np.ndarray:
+                     iterations: int, tolerance_nats: float = 0.0) -> Centre:
     """Newton steps on the log-posterior from ``start`` in the identified sampling
     coordinates, whitened by the Laplace covariance (``information`` as for
-    :func:`laplace_in_sampling`); returns natural parameters.
+    :func:`laplace_in_sampling`); returns the :class:`Centre` (``.x``: natural
+    parameters).
 
     Each iteration evaluates, in one batched call, the points at +-2 (whitened) along
     every axis and at +2 along every pair of axes: central slopes, and the Hessian by
@@ -205,27 +222,39 @@ def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
     absolute values of the Hessian's eigenvalues (an ascent direction even where it is
     not negative definite) and at most 5 SDs an axis; it is scaled by the best of
     :data:`LINE_SEARCH` (a second batched call) and kept only if the log-posterior
-    rises. A point outside the prior stops the centring there.
+    rises. A point outside the prior stops the centring there, and so does a Newton
+    step whose predicted rise, ``g' |H|^-1 g / 2`` (half the squared Newton decrement),
+    is under ``tolerance_nats`` (0: every iteration steps): the point is then within
+    about ``sqrt(2 tolerance_nats)`` SDs of the mode, and its Hessian, just taken, is
+    the centre's (``Centre.curvature``).
     """
+    if not tolerance_nats >= 0.0:
+        raise ValueError(f"tolerance_nats must be >= 0, got {tolerance_nats!r}")
     x0, z, ident, cz = laplace_in_sampling(like, start, information)
     basis = whitened_basis(cz)
     if basis is None:
-        return x0
+        return Centre(x0, z, float("nan"), None, None, ())
     f0 = float(like.log_prob_sampling(z[None])[0])
     if not np.isfinite(f0):
-        return x0
+        return Centre(x0, z, f0, basis, None, ())
+    here, rises = None, []
     for _ in range(iterations):
         curv = whitened_curvature(like, z, ident, basis, f0)
         if curv is None:
             break
+        here = curv
         grad, hess = curv
         lam, q = np.linalg.eigh(hess)
-        step = np.clip(q @ ((q.T @ grad) / np.maximum(np.abs(lam), 1e-3)), -5.0, 5.0)
+        newton = q @ ((q.T @ grad) / np.maximum(np.abs(lam), 1e-3))
+        rises.append(0.5 * float(grad @ newton))
+        if rises[-1] < tolerance_nats:
+            break
+        step = np.clip(newton, -5.0, 5.0)
         cand = np.tile(z, (LINE_SEARCH.size, 1))
         cand[:, ident] += np.outer(LINE_SEARCH, basis @ step)
         fc = like.log_prob_sampling(cand)
         best = int(np.argmax(np.where(np.isfinite(fc), fc, -np.inf)))
         if not fc[best] > f0:
             break
-        z, f0 = cand[best], float(fc[best])
-    return like.from_sampling(z[None])[0]
+        z, f0, here = cand[best], float(fc[best]), None
+    return Centre(like.from_sampling(z[None])[0], z, f0, basis, here, tuple(rises))

@@ -8,8 +8,10 @@ on all of them at once, and returns the residuals.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pneubayes.evaluation import window_starts
@@ -130,28 +132,43 @@ class WindowSet:
                  on_failure: str = "raise") -> np.ndarray:
         """Predictions ``(B, W_total, L)`` for a batch of parameter sets (scored windows)."""
         theta = model.as_matrix(params)
-        outs = []
-        for b in self.blocks:
+
+        def one(b):
             starts, p0, k = b.run_starts(model)
-            outs.append(simulate_windows(model, theta, b.inputs, b.rig, starts, self.length,
-                                         p0, solver, check_bounds=False,
-                                         on_failure=on_failure)[:, k:])
-        return np.concatenate(outs, axis=1)
+            return simulate_windows(model, theta, b.inputs, b.rig, starts, self.length, p0,
+                                    solver, check_bounds=False, on_failure=on_failure)[:, k:]
+        return np.concatenate(self._each_block(one, theta.shape[0]), axis=1)
 
     def residuals_and_sensitivity(self, model: Model, params, solver: SolverConfig,
                                   on_failure: str = "raise"):
         """Prediction minus measurement ``(B, W_total, L - 1)`` (window starts dropped)
         and the start sensitivity dp/dp(start) ``(B, W_total, L)`` (starts included)."""
         theta = model.as_matrix(params)
-        preds, sens = [], []
-        for b in self.blocks:
+
+        def one(b):
             starts, p0, k = b.run_starts(model)
             p, s = simulate_windows_sensitivity(model, theta, b.inputs, b.rig, starts,
                                                 self.length, p0, solver,
                                                 check_bounds=False, on_failure=on_failure)
-            preds.append(p[:, k:] - b.measured[None])
-            sens.append(s[:, k:])
+            return p[:, k:] - b.measured[None], s[:, k:]
+        preds, sens = zip(*self._each_block(one, theta.shape[0]))
         return np.concatenate(preds, axis=1)[:, :, 1:], np.concatenate(sens, axis=1)
+
+    def _each_block(self, fn, batch: int) -> list:
+        """``fn(block)`` for every block, in order. With fewer parameter sets than
+        numba's threads, the blocks run at once, one thread each: a model with a state
+        the recording does not measure (a tube's waves, the chamber temperature)
+        simulates a recording's windows in order, one task per parameter set, so a
+        single set would keep one thread busy and leave the others idle."""
+        threads = numba.get_num_threads()
+        if batch >= threads or threads < 2 or len(self.blocks) < 2:
+            return [fn(b) for b in self.blocks]
+
+        def alone(b):
+            numba.set_num_threads(1)  # this worker thread's own setting: the serial kernel
+            return fn(b)
+        with ThreadPoolExecutor(max_workers=min(threads, len(self.blocks))) as pool:
+            return list(pool.map(alone, self.blocks))
 
     def residuals(self, model: Model, params, solver: SolverConfig,
                   on_failure: str = "raise") -> np.ndarray:

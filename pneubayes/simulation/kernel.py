@@ -861,10 +861,12 @@ def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, le
             carry = _fresh_carry(consts)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0,
                      out, sens, status, general, per_task):
-    """Every (parameter set, window) pair on the calling thread."""
+    """Every (parameter set, window) pair on the calling thread (the GIL released: calls
+    from several Python threads run at once,
+    :meth:`pneubayes.inference.windows.WindowSet.simulate`)."""
     for task in range(slots.shape[0] * (starts.shape[0] // per_task)):
         _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
               rate0, out, sens, status, general)
