@@ -84,34 +84,40 @@ def test_laplace_of_a_gaussian_is_the_gaussian_and_its_draws_follow_it():
 
 
 def test_the_centring_stops_when_a_step_would_gain_little_and_its_hessian_is_reused():
-    """On a Gaussian target the first Newton step lands on the mode; the next predicts a
-    rise of ~0 nats. With a tolerance the centring stops there and the approximation
-    takes the Hessian the centring just took (2 stencils of posterior evaluations, not
-    the 4 of three steps and a fresh Hessian), with the same mean and covariance."""
+    """On a Gaussian target the first Newton step lands on the mode (the Hessian is
+    exact); later iterations take the slope alone with that Hessian (2 k points, not
+    2 k + k (k - 1) / 2) and predict a rise of ~0 nats. With a tolerance the centring
+    stops at the first such slope; started at the mode it stops at once, and the
+    approximation takes the Hessian the centring just took there: one stencil in all.
+    The mean and covariance are the same either way."""
     rng = np.random.default_rng(5)
     laplace = random_covariance(rng, 4.0)
     info = information_of(laplace)
     q = np.linalg.qr(np.eye(4) + 0.2 * rng.normal(size=(4, 4)))[0]
     true_cov = 1.5 * q @ laplace @ q.T
     mean = np.array([1.0, -2.0, 0.0, 0.5, 3.0])
-    start = mean.copy()
-    start[IDENT] += np.array([1.0, -0.5, 0.5, -1.0]) * np.sqrt(np.diag(true_cov))
-    fits, stencils = {}, {}
-    for tol in (0.0, 0.01):
+    off = mean.copy()
+    off[IDENT] += np.array([1.0, -0.5, 0.5, -1.0]) * np.sqrt(np.diag(true_cov))
+    fits, counts = {}, {}
+    for start, tol in ((off, 0.0), (off, 0.01), (mean, 0.01)):
         target = GaussianTarget(mean, np.linalg.inv(true_cov))
         calls = []
         evaluate = target.log_prob_sampling
         target.log_prob_sampling = lambda z, evaluate=evaluate, calls=calls: (
             calls.append(len(z)) or evaluate(z))
-        fits[tol] = laplace_approximation(target, start, info, 3, tol)
-        stencils[tol] = sum(n == 2 * 4 + 4 * 3 // 2 for n in calls)
-    assert stencils == {0.0: 4, 0.01: 2}
-    assert len(fits[0.01].centre_rises) == 2 and fits[0.01].centre_rises[-1] < 1e-9
-    assert fits[0.01].centre_rises[0] > 0.1  # the start was an SD from the mode
-    np.testing.assert_allclose(fits[0.01].x_centre, fits[0.0].x_centre, atol=1e-9)
-    np.testing.assert_allclose(fits[0.01].cov_z, fits[0.0].cov_z, rtol=1e-9, atol=1e-12)
+        key = ("off" if start is off else "mode", tol)
+        fits[key] = laplace_approximation(target, start, info, 3, tol)
+        # batches: a Hessian's stencil (14 points), a slope's (8)
+        counts[key] = (calls.count(2 * 4 + 4 * 3 // 2), calls.count(2 * 4))
+    assert counts == {("off", 0.0): (2, 2), ("off", 0.01): (2, 1), ("mode", 0.01): (1, 0)}
+    rises = fits["off", 0.01].centre_rises
+    assert len(rises) == 2 and rises[0] > 0.1 and rises[1] < 1e-9
+    for key in (("off", 0.01), ("mode", 0.01)):
+        np.testing.assert_allclose(fits[key].x_centre, fits["off", 0.0].x_centre, atol=1e-9)
+        np.testing.assert_allclose(fits[key].cov_z, fits["off", 0.0].cov_z, rtol=1e-9,
+                                   atol=1e-12)
     with pytest.raises(ValueError, match="tolerance_nats"):
-        laplace_approximation(target, start, info, 3, -1.0)
+        laplace_approximation(target, off, info, 3, -1.0)
 
 
 def test_laplace_with_its_mode_on_a_prior_bound_is_the_cut_gaussian():

@@ -199,13 +199,27 @@ class Centre(NamedTuple):
     coordinates ``z`` and the log-posterior ``f`` there, the whitening ``basis`` of its
     steps (``z[ident] += basis @ y``), the predicted rise of each Newton step taken or
     declined (nats, ``rises``), and ``curvature``: the (slope, Hessian) in ``y`` taken at
-    ``z`` itself, or None (the last one taken is at the point before the last step)."""
+    ``z`` itself, or None (the centring moved after taking it)."""
     x: np.ndarray
     z: np.ndarray
     f: float
     basis: np.ndarray | None
     curvature: tuple | None
     rises: tuple
+
+
+def whitened_slope(like: WindowLikelihood, z: np.ndarray, ident: np.ndarray,
+                   basis: np.ndarray, h: float = 2.0):
+    """The slope of :func:`whitened_curvature` alone (the points at +-h along every
+    axis: 2 k evaluations in one batched call), or None when a point has no finite
+    density."""
+    k = basis.shape[1]
+    rows = np.tile(z, (2 * k, 1))
+    rows[:, ident] += curvature_stencil(k, h)[:2 * k] @ basis.T
+    f = like.log_prob_sampling(rows)
+    if not np.all(np.isfinite(f)):
+        return None
+    return (f[:k] - f[k:]) / (2.0 * h)
 
 
 def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
@@ -215,18 +229,23 @@ def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
     :func:`laplace_in_sampling`); returns the :class:`Centre` (``.x``: natural
     parameters).
 
-    Each iteration evaluates, in one batched call, the points at +-2 (whitened) along
-    every axis and at +2 along every pair of axes: central slopes, and the Hessian by
-    second differences (2 Laplace SDs keep the solver's log-density roughness small
-    against the differences; :func:`whitened_curvature`). The Newton step uses the
+    The first iteration evaluates, in one batched call, the points at +-2 (whitened)
+    along every axis and at +2 along every pair of axes: central slopes, and the Hessian
+    by second differences (2 Laplace SDs keep the solver's log-density roughness small
+    against the differences; :func:`whitened_curvature`); later ones take the slopes
+    alone (2 k points, :func:`whitened_slope`) with that Hessian: the simplified Newton
+    method, on a posterior near a Gaussian nearly Newton's at a fraction of the cost
+    (k (k - 1) / 2 + 2 k points a Hessian; 152 for 16 identified coordinates beside a
+    wave tube, 37 s on two cores). The Newton step uses the
     absolute values of the Hessian's eigenvalues (an ascent direction even where it is
     not negative definite) and at most 5 SDs an axis; it is scaled by the best of
     :data:`LINE_SEARCH` (a second batched call) and kept only if the log-posterior
     rises. A point outside the prior stops the centring there, and so does a Newton
     step whose predicted rise, ``g' |H|^-1 g / 2`` (half the squared Newton decrement),
     is under ``tolerance_nats`` (0: every iteration steps): the point is then within
-    about ``sqrt(2 tolerance_nats)`` SDs of the mode, and its Hessian, just taken, is
-    the centre's (``Centre.curvature``).
+    about ``sqrt(2 tolerance_nats)`` SDs of the mode. Where the centring ends at the
+    point of its Hessian (it did not move from there), that is the centre's
+    (``Centre.curvature``).
     """
     if not tolerance_nats >= 0.0:
         raise ValueError(f"tolerance_nats must be >= 0, got {tolerance_nats!r}")
@@ -237,13 +256,17 @@ def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
     f0 = float(like.log_prob_sampling(z[None])[0])
     if not np.isfinite(f0):
         return Centre(x0, z, f0, basis, None, ())
-    here, rises = None, []
+    here, rises, hess = None, [], None
     for _ in range(iterations):
-        curv = whitened_curvature(like, z, ident, basis, f0)
-        if curv is None:
-            break
-        here = curv
-        grad, hess = curv
+        if hess is None:
+            curv = whitened_curvature(like, z, ident, basis, f0)
+            if curv is None:
+                break
+            (grad, hess), here = curv, curv
+        else:
+            grad = whitened_slope(like, z, ident, basis)
+            if grad is None:
+                break
         lam, q = np.linalg.eigh(hess)
         newton = q @ ((q.T @ grad) / np.maximum(np.abs(lam), 1e-3))
         rises.append(0.5 * float(grad @ newton))
