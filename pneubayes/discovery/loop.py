@@ -668,7 +668,7 @@ class Discovery:
         gap_Pa = current.heldout_rmse_Pa - noise
         for (a, b, model, start, fit), control in zip(fitted, controls):
             ok, gain, pval, diff = self._better(fit, current)
-            basin = bool(ok and control is not current
+            basin = bool(ok and control is not None and control is not current
                          and not self._better(fit, control)[0])
             # each member must carry a gain the other's own trial does not have
             needed = {g: bool(self._better(fit, tried[other][0][1])[0])
