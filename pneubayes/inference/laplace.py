@@ -361,7 +361,7 @@ def laplace_approximation(like, start: np.ndarray, information,
     xc = centre.x
     _, zc, ident, cz = laplace_in_sampling(like, xc, information)
     basis = whitened_basis(cz)
-    reuse = centre.curvature is not None and basis is not None
+    reuse = centre.curvature is not None
     if reuse:  # the centring's own point and whitening, where its Hessian was taken
         zc, basis = centre.z, centre.basis
     target = like.emcee_target(zc[None])  # log-density in sampling coordinates, sums

@@ -195,14 +195,13 @@ def whitened_curvature(like: WindowLikelihood, z: np.ndarray, ident: np.ndarray,
 
 
 class Centre(NamedTuple):
-    """Where :func:`posterior_centre` stopped: natural parameters ``x``, sampling
-    coordinates ``z`` and the log-posterior ``f`` there, the whitening ``basis`` of its
+    """Where :func:`posterior_centre` stopped: natural parameters ``x`` and sampling
+    coordinates ``z``, the whitening ``basis`` of its
     steps (``z[ident] += basis @ y``), the predicted rise of each Newton step taken or
     declined (nats, ``rises``), and ``curvature``: the (slope, Hessian) in ``y`` taken at
     ``z`` itself, or None (the centring moved after taking it)."""
     x: np.ndarray
     z: np.ndarray
-    f: float
     basis: np.ndarray | None
     curvature: tuple | None
     rises: tuple
@@ -252,10 +251,10 @@ def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
     x0, z, ident, cz = laplace_in_sampling(like, start, information)
     basis = whitened_basis(cz)
     if basis is None:
-        return Centre(x0, z, float("nan"), None, None, ())
+        return Centre(x0, z, None, None, ())
     f0 = float(like.log_prob_sampling(z[None])[0])
     if not np.isfinite(f0):
-        return Centre(x0, z, f0, basis, None, ())
+        return Centre(x0, z, basis, None, ())
     here, rises, hess = None, [], None
     for _ in range(iterations):
         if hess is None:
@@ -280,4 +279,4 @@ def posterior_centre(like: WindowLikelihood, start: np.ndarray, information,
         if not fc[best] > f0:
             break
         z, f0, here = cand[best], float(fc[best]), None
-    return Centre(like.from_sampling(z[None])[0], z, f0, basis, here, tuple(rises))
+    return Centre(like.from_sampling(z[None])[0], z, basis, here, tuple(rises))
