@@ -821,6 +821,18 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
         found.append("the fitted delays (posterior median [5 %, 95 %]) were " + "; ".join(
             f"{f['median'] * 1e3:.1f} [{f['q05'] * 1e3:.1f}, {f['q95'] * 1e3:.1f}] ms"
             for f in fits) + f" against the planted {s['hidden_delay_s'] * 1e3:g} ms")
+    split = [k for k in c if mpc_tracking.backoff_Pa(k) is None
+             and "settled_near_limit_rmse_Pa" in c[k]]
+    if split:
+        def med(k, key):
+            x = np.asarray(c[k][key], dtype=np.float64)
+            return f"{np.nanmedian(x) / 1e3:.1f}" if np.isfinite(x).any() else "-"
+        found.append(
+            "where the settled error is made (median over seeds, kPa, holds at the limit: "
+            f"set-point above it or within {mpc_tracking.NEAR_LIMIT_PA / 1e3:g} kPa below it "
+            "/ the other holds): " + "; ".join(
+                f"`{k}` {med(k, 'settled_near_limit_rmse_Pa')} / "
+                f"{med(k, 'settled_below_limit_rmse_Pa')}" for k in split))
     budget = 1e3 / s["rate_Hz"]
     slow = [k for k, v in c.items() if np.median(v["compute_ms_per_tick_median"]) > budget]
     if slow:

@@ -109,6 +109,9 @@ SECOND_LEVELS_V = (-0.3, 0.0, 0.3)
 #: The settled part of a hold: from SETTLE_S after its set-point change to the horizon
 #: before the next one (the rise, and the preview of the next set-point, are left out).
 SETTLE_S = 0.2
+#: A settled hold "at the limit": its set-point lies above the limit or within this much
+#: below it (Pa), where a controller's margin, not its holding, sets its error.
+NEAR_LIMIT_PA = 30e3
 N_DRAWS = 64
 QUANTILE = 0.95
 CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
@@ -420,20 +423,34 @@ def feasible_rmse(pressure_Pa, reference_Pa) -> float:
     return float(np.sqrt(np.mean((p[1:] - ref[1:]) ** 2)))
 
 
-def settled_rmse(pressure_Pa, reference_Pa) -> float:
-    """As :func:`feasible_rmse`, over the settled part of each hold only (``SETTLE_S``
-    after a set-point change until ``HORIZON_TICKS`` before the next): how well a loop
-    holds a set-point, or rides the limit, without the rise and the preview that the
-    total RMSE is mostly made of."""
-    p = np.asarray(pressure_Pa, dtype=np.float64)
-    ref = np.minimum(np.asarray(reference_Pa, dtype=np.float64)[: p.size], P_MAX_PA)
+def _settled(n_ticks: int) -> np.ndarray:
+    """The settled ticks of each hold (``SETTLE_S`` after a set-point change until
+    ``HORIZON_TICKS`` before the next), as a mask over ``n_ticks`` (tick 0 excluded)."""
     hold = round(SETPOINT_HOLD_S * RATE_HZ)
-    phase = np.arange(p.size) % hold
+    phase = np.arange(n_ticks) % hold
     keep = (phase >= round(SETTLE_S * RATE_HZ)) & (phase < hold - HORIZON_TICKS)
     keep[0] = False
     if not keep.any():
-        raise ValueError(f"settled_rmse: {p.size} ticks hold no settled part of a hold "
+        raise ValueError(f"settled_rmse: {n_ticks} ticks hold no settled part of a hold "
                          f"({hold} ticks each)")
+    return keep
+
+
+def settled_rmse(pressure_Pa, reference_Pa, near_limit: bool | None = None) -> float:
+    """As :func:`feasible_rmse`, over the settled part of each hold only (``SETTLE_S``
+    after a set-point change until ``HORIZON_TICKS`` before the next): how well a loop
+    holds a set-point, or rides the limit, without the rise and the preview that the
+    total RMSE is mostly made of. ``near_limit`` True keeps only the holds whose
+    set-point lies above the limit or within ``NEAR_LIMIT_PA`` below it, False only the
+    others (NaN where a run has none), None all."""
+    p = np.asarray(pressure_Pa, dtype=np.float64)
+    raw = np.asarray(reference_Pa, dtype=np.float64)[: p.size]
+    ref = np.minimum(raw, P_MAX_PA)
+    keep = _settled(p.size)
+    if near_limit is not None:
+        keep &= (raw >= P_MAX_PA - NEAR_LIMIT_PA) == near_limit
+        if not keep.any():
+            return float("nan")
     return float(np.sqrt(np.mean((p[keep] - ref[keep]) ** 2)))
 
 
@@ -469,6 +486,12 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
                                           for r, c in zip(results, rows)],
             "settled_tracking_rmse_Pa": [settled_rmse(c["pressure_Pa"], r["reference_Pa"])
                                          for r, c in zip(results, rows)],
+            # where the settled error is made: holds at the limit, and the others
+            "settled_near_limit_rmse_Pa": [settled_rmse(c["pressure_Pa"], r["reference_Pa"],
+                                                        True) for r, c in zip(results, rows)],
+            "settled_below_limit_rmse_Pa": [settled_rmse(c["pressure_Pa"], r["reference_Pa"],
+                                                         False)
+                                            for r, c in zip(results, rows)],
             "ticks_above_limit": [c["ticks_above_limit"] for c in rows],
             "largest_excess_Pa": [c["largest_excess_Pa"] for c in rows],
             "compute_ms_per_tick_median": [c["compute_ms_per_tick_median"] for c in rows],

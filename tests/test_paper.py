@@ -4,6 +4,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -244,6 +245,8 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
     assert ("`delay_chance_window` had 3 ticks above the limit against `delay_nominal`'s 1 "
             "(fewer on 0 of 2 seeds)") in text
     assert "settled 38.1 against 38.5 kPa (not worse on 1 of 2 seeds)" in text
+    # every made-up hold is above the limit: the other holds have no settled part
+    assert "where the settled error is made" in text and "`nominal` 41.0 / -" in text
     assert "15.0 [14.9, 15.1] ms" in text
     assert "`delay_chance` needed more than the 5-ms tick" in text
     assert ("`predictive` had 2 ticks above the limit against `nominal`'s 50 (fewer on 2 of "
@@ -267,6 +270,23 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
                             "--assemble-only", "--only", "mpc"]) == 0
     text = (paper / "report.md").read_text()
     assert text.index(make_paper.MPC_HEAD) < text.index("claims")
+
+
+def test_settled_rmse_splits_the_holds_at_the_limit_from_the_others():
+    import mpc_tracking as m
+
+    hold = round(m.SETPOINT_HOLD_S * m.RATE_HZ)
+    # three holds: above the limit, well below it, and 10 kPa under it (at the limit)
+    ref = np.concatenate([np.full(hold, 5.0e5), np.full(hold, 3.0e5),
+                          np.full(hold, m.P_MAX_PA - 10e3)])
+    p = np.minimum(ref, m.P_MAX_PA)
+    p[:hold] -= 40e3
+    p[hold:2 * hold] += 5e3
+    p[2 * hold:] -= 20e3
+    assert m.settled_rmse(p, ref, True) == pytest.approx(np.sqrt((40e3**2 + 20e3**2) / 2))
+    assert m.settled_rmse(p, ref, False) == pytest.approx(5e3)
+    assert m.settled_rmse(p, ref) == pytest.approx(np.sqrt((40e3**2 + 5e3**2 + 20e3**2) / 3))
+    assert np.isnan(m.settled_rmse(p[:hold], ref[:hold], False))
 
 
 def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
