@@ -836,8 +836,11 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     budget = 1e3 / s["rate_Hz"]
     slow = [k for k, v in c.items() if np.median(v["compute_ms_per_tick_median"]) > budget]
     if slow:
+        threads = {t for k in slow for t in c[k].get("numba_threads", [None])}
+        on = (f"{threads.pop()} numba thread(s)" if len(threads) == 1 and None not in threads
+              else "the threads not recorded for every loop")
         found.append(f"{', '.join(f'`{k}`' for k in slow)} needed more than the "
-                     f"{budget:g}-ms tick to choose (median over seeds; two threads): at "
+                     f"{budget:g}-ms tick to choose (median over seeds; {on}): at "
                      f"{s['rate_Hz']:g} Hz on this machine they would fall behind")
     L += ["Measured: " + "; ".join(found) + ". The first RMSE includes the time spent "
           "where a set-point lies above the limit, which no controller may reach: there it "

@@ -77,6 +77,7 @@ import sys
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
@@ -400,6 +401,8 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
             "largest_excess_Pa": float(max(over.max(), 0.0)),
             "compute_ms_per_tick_median": 1e3 * float(np.median(run["compute_s"])),
             "compute_ms_per_tick_p95": 1e3 * float(np.quantile(run["compute_s"], 0.95)),
+            # the threads the controller's predictions ran on (the compute depends on it)
+            "numba_threads": numba.get_num_threads(),
             "wall_s": time.perf_counter() - a,
             # loops of one seed may be run at different revisions (a resumed seed runs
             # only the controllers it lacks): each records its own
@@ -495,6 +498,8 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
             "ticks_above_limit": [c["ticks_above_limit"] for c in rows],
             "largest_excess_Pa": [c["largest_excess_Pa"] for c in rows],
             "compute_ms_per_tick_median": [c["compute_ms_per_tick_median"] for c in rows],
+            # None: a loop run before the loops recorded their threads
+            "numba_threads": [c.get("numba_threads") for c in rows],
             # None: a loop run before the loops recorded their revision
             "git_revisions": [c.get("git_revision") for c in rows],
         }
