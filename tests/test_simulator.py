@@ -993,3 +993,31 @@ def test_the_line_steps_third_order_correction_is_phi3_within_a_fifth():
     b = rng.normal(size=n)
     assert np.allclose(phi3_correction(growing, b, np.ones(n)), exact(growing, b),
                        rtol=1e-12)
+
+
+@pytest.mark.parametrize("first, second, message", [
+    ("wave_length_m", "heat_rate_per_s", "transmission-line tube"),
+    ("wave_length_m", "line_length_m", "transmission-line tube"),
+    ("compliance_m3_per_Pa", "line_length_m", "compliant chamber"),
+    ("volume_table_points", "heat_coefficient_W_per_m2_K", "compliant chamber"),
+    ("tank_volume_m3", "heat_rate_per_s", "supply tank"),
+    ("tank_volume_m3", "wave_length_m", "supply tank"),
+    ("lung_volume_m3", "tank_volume_m3", "two-compartment"),
+    ("lung_volume_m3", "line_length_m", "two-compartment"),
+])
+def test_forms_with_a_second_state_are_refused_together_in_one_parameter_set(first, second,
+                                                                             message):
+    """The kernel steps one second state at a time: a parameter set with two is refused,
+    while the two in different parameter sets of one batch, or one beside a separately
+    commanded exhaust, are not."""
+    from pneubayes.simulation.simulator import _FORM_COLUMNS, _check_exclusive_forms
+
+    col = _FORM_COLUMNS
+    both = np.zeros((2, len(col)), dtype=bool)
+    both[1, [col[first], col[second]]] = True
+    with pytest.raises(ValueError, match=message):
+        _check_exclusive_forms(both)
+    apart = np.zeros((2, len(col)), dtype=bool)
+    apart[0, col[first]] = apart[1, col[second]] = True
+    apart[:, col["exhaust_own_command"]] = True
+    _check_exclusive_forms(apart)

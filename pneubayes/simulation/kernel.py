@@ -914,10 +914,11 @@ def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state: heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
     compartment."""
-    slots = np.asarray(slots)
-    return bool(np.any((slots[:, _HEAT] > 0.0) | (slots[:, _HCONV] > 0.0)
-                       | (slots[:, _LLEN] > 0.0) | (slots[:, _WLEN] > 0.0)
-                       | (slots[:, _TANK] > 0.0) | (slots[:, _LUNG] > 0.0)))
+    return bool((np.asarray(slots)[:, _GENERAL_SLOTS] > 0.0).any())
+
+
+#: The slots of the forms with a second state (:func:`needs_general`).
+_GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG])
 
 
 @njit(cache=True, error_model="numpy")

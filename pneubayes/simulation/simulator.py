@@ -160,8 +160,50 @@ def _check_solver(solver) -> SolverConfig:
 def _kernel_arrays(*arrays):
     """The arrays as the compiled kernel's one signature wants them: C-contiguous and
     writeable. numba compiles a separate copy of the kernel for every combination of
-    read-only flags (a recording's arrays are read-only), tens of seconds each."""
-    return [np.require(a, requirements=("C", "W")) for a in arrays]
+    read-only flags (a recording's arrays are read-only), tens of seconds each. (An
+    array that already is one is passed as it is: ``np.require`` costs about 1 us a
+    call even then.)"""
+    return [a if a.flags.c_contiguous and a.flags.writeable
+            else np.require(a, requirements=("C", "W")) for a in arrays]
+
+
+#: Slot columns whose presence (> 0) ``_window_call`` checks, gathered in one pass.
+_FORM_COLUMNS = {name: i for i, name in enumerate((
+    "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
+    "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
+    "lung_volume_m3"))}
+_FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
+
+
+def _check_exclusive_forms(forms: np.ndarray) -> None:
+    """Raise where a parameter set combines forms the kernel cannot step together
+    (``forms``: ``(B, len(_FORM_COLUMNS))``, which forms each set has)."""
+    def has(name):
+        return forms[:, _FORM_COLUMNS[name]]
+
+    wave = has("wave_length_m")
+    line = has("line_length_m") | wave
+    hot = has("heat_rate_per_s") | has("heat_coefficient_W_per_m2_K")
+    # states the kernel steps with the pressure, one at a time: what each excludes
+    tank = has("tank_volume_m3")
+    exclusive = (
+        (has("compliance_m3_per_Pa") | has("volume_table_points"), line | hot,
+         "a compliant chamber is simulated with the pressure as its only state"),
+        (tank, line | hot,
+         "a supply tank is simulated with the chamber's pressure and the tank's as the states"),
+        (has("lung_volume_m3"), line | hot | tank,
+         "a two-compartment chamber is simulated with the two pressures as the states"),
+    )
+    if np.any(wave & (hot | has("line_length_m"))):
+        raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
+                         "with the chamber's pressure as its only state: it cannot be "
+                         "combined with heat_transfer or an acoustic line in one model")
+    for present, others, what in exclusive:
+        if np.any(present & others):
+            raise ValueError(f"{what}: it cannot be combined with heat_transfer, the tube's "
+                             "acoustic line or wave line (tube_delay forms 'line', 'wave') "
+                             "or another second state "
+                             "(a supply tank, a second compartment) in one model")
 
 
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
@@ -194,35 +236,13 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if initial_rate_Pa_per_s is not None and not np.all(np.isfinite(rate0)):
         raise ValueError("initial_rate_Pa_per_s must be finite")
     slots = model.lower(theta, rig)
-    wave = slots[:, SLOT_INDEX["wave_length_m"]] > 0
-    line = (slots[:, SLOT_INDEX["line_length_m"]] > 0) | wave
-    hot = (slots[:, SLOT_INDEX["heat_rate_per_s"]] > 0) | (
-        slots[:, SLOT_INDEX["heat_coefficient_W_per_m2_K"]] > 0)
-    if inputs.exhaust_command is None and np.any(slots[:, SLOT_INDEX["exhaust_own_command"]]):
+    forms = slots[:, _FORM_SLOTS] > 0  # (B, forms): which forms each parameter set has
+    if inputs.exhaust_command is None and forms[:, _FORM_COLUMNS["exhaust_own_command"]].any():
         raise ValueError("the model's exhaust is a separate valve with its own command, but "
                          "the inputs have no exhaust command (a recording's "
                          "'exhaust_command' column, or the column its rig card names)")
-    # states the kernel steps with the pressure, one at a time: what each excludes
-    tank = slots[:, SLOT_INDEX["tank_volume_m3"]] > 0
-    exclusive = (
-        ((slots[:, SLOT_INDEX["compliance_m3_per_Pa"]] > 0)
-         | (slots[:, SLOT_INDEX["volume_table_points"]] > 0), line | hot,
-         "a compliant chamber is simulated with the pressure as its only state"),
-        (tank, line | hot,
-         "a supply tank is simulated with the chamber's pressure and the tank's as the states"),
-        (slots[:, SLOT_INDEX["lung_volume_m3"]] > 0, line | hot | tank,
-         "a two-compartment chamber is simulated with the two pressures as the states"),
-    )
-    if np.any(wave & (hot | (slots[:, SLOT_INDEX["line_length_m"]] > 0))):
-        raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
-                         "with the chamber's pressure as its only state: it cannot be "
-                         "combined with heat_transfer or an acoustic line in one model")
-    for present, others, what in exclusive:
-        if np.any(present & others):
-            raise ValueError(f"{what}: it cannot be combined with heat_transfer, the tube's "
-                             "acoustic line or wave line (tube_delay forms 'line', 'wave') "
-                             "or another second state "
-                             "(a supply tank, a second compartment) in one model")
+    if forms.any():
+        _check_exclusive_forms(forms)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, t, u, ue, x, ps, pm, kstarts, p0, rate0 = _kernel_arrays(
         slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, pm,
