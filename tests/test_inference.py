@@ -329,6 +329,34 @@ def test_broyden_refinement_recovers_the_start_with_fewer_simulations(bench, mon
         FitSettings(refine_jacobian_refresh=1.5)
 
 
+def test_refinement_stopping_tolerances_are_the_estimators_own(bench, monkeypatch):
+    """xtol and ftol are parameters of the refiner (no tolerance hidden in the call):
+    they reach the trust region, a loose ftol ends the fit sooner, bad ones are refused."""
+    from pneubayes.inference import refine
+
+    recs, model, truth = bench
+    start = dict(truth)
+    start["inlet_a_m2"] = truth["inlet_a_m2"] * 1.15
+    data = WindowSet(recs, 2.0, 2.0)
+    real = refine.optimize.least_squares
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["xtol"], kwargs["ftol"]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(refine.optimize, "least_squares", spy)
+    tight = TrajectoryRefiner(model, TIGHT, max_nfev=30, free=["inlet_a_m2"],
+                              uncertainty=False).fit(data, start)
+    loose = TrajectoryRefiner(model, TIGHT, max_nfev=30, free=["inlet_a_m2"],
+                              uncertainty=False, xtol=1e-3, ftol=0.3).fit(data, start)
+    assert seen == [(1e-8, 1e-10), (1e-3, 0.3)]
+    assert loose.n_evaluations_ < tight.n_evaluations_
+    for bad in ({"xtol": 0.0}, {"ftol": 1.5}, {"ftol": "1e-9"}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            TrajectoryRefiner(model, TIGHT, **bad)
+
+
 def test_refinement_survives_trial_steps_that_do_not_simulate(bench, monkeypatch):
     # the first trial step "cannot be simulated": least squares must back off and go on
     recs, model, truth = bench

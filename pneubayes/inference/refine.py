@@ -110,6 +110,11 @@ class TrajectoryRefiner:
         Jacobian there: one batched call of a simulation per free parameter, unless the
         last one was taken there); False: both None, for a caller that needs only the
         fit.
+    xtol, ftol : float
+        The trust region's stopping tolerances (scipy's ``least_squares``, in the scaled
+        coordinates): a step under ``xtol`` relative to the point, or a predicted and an
+        actual fall of the cost both under ``ftol`` relative to it, ends the fit.
+        Defaults 1e-8 and 1e-10 (scipy's own: 1e-8 each), the values every fit has used.
 
     After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
     ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
@@ -122,10 +127,14 @@ class TrajectoryRefiner:
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
                  stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
-                 max_nfev: int = 60, jacobian_refresh: int = 1, uncertainty: bool = True):
+                 max_nfev: int = 60, jacobian_refresh: int = 1, uncertainty: bool = True,
+                 xtol: float = 1e-8, ftol: float = 1e-10):
         if int(jacobian_refresh) != jacobian_refresh or jacobian_refresh < 1:
             raise ValueError(f"jacobian_refresh must be an integer >= 1, got "
                              f"{jacobian_refresh!r}")
+        for name, tol in (("xtol", xtol), ("ftol", ftol)):
+            if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
+                raise ValueError(f"{name} must be a number in (0, 1), got {tol!r}")
         self.model = model
         self.solver = solver
         self.horizon_s = horizon_s
@@ -135,6 +144,8 @@ class TrajectoryRefiner:
         self.max_nfev = max_nfev
         self.jacobian_refresh = int(jacobian_refresh)
         self.uncertainty = uncertainty
+        self.xtol = float(xtol)
+        self.ftol = float(ftol)
 
     def _scales(self, theta0: np.ndarray) -> np.ndarray:
         lo, hi = self.model.bounds
@@ -240,7 +251,7 @@ class TrajectoryRefiner:
         sol = optimize.least_squares(lambda u: residual(u * scale), x0 / scale,
                                      jac=lambda u: jacobian(u * scale) * scale,
                                      bounds=(flo / scale, fhi / scale), method="trf",
-                                     max_nfev=self.max_nfev, xtol=1e-8, ftol=1e-10)
+                                     max_nfev=self.max_nfev, xtol=self.xtol, ftol=self.ftol)
         x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
         theta = full(x_sol)
         r = residual(x_sol)
