@@ -140,3 +140,37 @@ def test_lsq_recovery_experiment_smoke(tmp_path):
     assert mod.main(["--smoke", "--out", str(tmp_path)]) == 0
     rep = json.loads((tmp_path / "lsq_recovery.json").read_text())
     assert rep["noise_free_worst_area_error"] < 0.02 and rep["provenance"]["numpy"]
+
+
+def test_gompertz_curve_fits_stop_by_the_estimators_own_rule(monkeypatch):
+    """The Gompertz fits' tolerance and evaluation budget are PaperLeastSquares' own
+    settings (scipy's defaults, stated), they reach least_squares, and bad ones are
+    refused."""
+    from pneubayes.inference import lsq
+
+    model = Model()
+    u = np.linspace(-5.0, 5.0, 41)
+    truth = (1e-9, 1.5e-6, 3.5, 1.5, 0.2)
+    area = gompertz_area(u, *truth)
+    real = lsq.optimize.least_squares
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["ftol"], kwargs["xtol"], kwargs["gtol"], kwargs["max_nfev"]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(lsq.optimize, "least_squares", spy)
+    params, cost = lsq._fit_gompertz(u, area, 0.005 * area + 1e-12, "inlet", model,
+                                     np.random.default_rng(0))
+    assert set(seen) == {(1e-8, 1e-8, 1e-8, 2000)} and len(seen) == 9  # 9 starts
+    assert params["inlet_a_m2"] == pytest.approx(truth[1], rel=1e-3)
+    seen.clear()
+    lsq._fit_gompertz(u, area, 0.005 * area + 1e-12, "inlet", model,
+                      np.random.default_rng(0), warm=params, tolerance=1e-4, max_nfev=50)
+    assert seen == [(1e-4, 1e-4, 1e-4, 50)]
+    est = PaperLeastSquares(model, SavitzkyGolay(0.005, 3))
+    assert (est.curve_tolerance, est.curve_max_nfev) == (1e-8, 2000)
+    with pytest.raises(ValueError, match="curve_tolerance"):
+        PaperLeastSquares(model, SavitzkyGolay(0.005, 3), curve_tolerance=0.0)
+    with pytest.raises(ValueError, match="curve_max_nfev"):
+        PaperLeastSquares(model, SavitzkyGolay(0.005, 3), curve_max_nfev=0)

@@ -74,11 +74,13 @@ def _graded_leak(k, weight, position_m, stroke_m, gradient) -> dict:
 
 
 def _fit_gompertz(u, area, se, port: str, model: Model, rng: np.random.Generator,
-                  warm: dict | None = None):
+                  warm: dict | None = None, tolerance: float = 1e-8, max_nfev: int = 2000):
     """Weighted Gompertz fit (eq. 11) to area points, within model bounds.
 
-    Multi-start from typical shapes, or a single start from ``warm`` (a previous fit).
-    Returns the parameters and the weighted cost."""
+    Multi-start from typical shapes, or a single start from ``warm`` (a previous fit);
+    each start a bounded trust-region least squares stopped by ``tolerance`` (its
+    ``ftol``, ``xtol`` and ``gtol``) or ``max_nfev``. Returns the parameters and the
+    weighted cost."""
     names = [f"{port}_{g}" for g in _GOMPERTZ]
     lo = np.array([model.parameter(n).lower for n in names])
     hi = np.array([model.parameter(n).upper for n in names])
@@ -103,7 +105,8 @@ def _fit_gompertz(u, area, se, port: str, model: Model, rng: np.random.Generator
         z0 = np.clip(np.array(s), lo + 1e-12 * np.abs(lo), hi) / scale
         try:
             r = optimize.least_squares(resid, z0, bounds=(lo / scale, hi / scale),
-                                       x_scale="jac", max_nfev=2000)
+                                       x_scale="jac", max_nfev=max_nfev, ftol=tolerance,
+                                       xtol=tolerance, gtol=tolerance)
         except ValueError:
             continue
         if best is None or r.cost < best.cost:
@@ -139,12 +142,22 @@ class PaperLeastSquares:
         share one position, ``exhaust_offset_m2`` from a valve characterisation).
     seed : int
         Seed of the multi-start Gompertz fits.
+    curve_tolerance, curve_max_nfev : float, int
+        Each Gompertz start's stopping rule: scipy's ``least_squares`` with ``ftol``,
+        ``xtol`` and ``gtol`` all ``curve_tolerance`` (default 1e-8, scipy's own), at most
+        ``curve_max_nfev`` evaluations (default 2000).
     """
 
     def __init__(self, model: Model, differentiator: SavitzkyGolay, min_hold_samples: int = 8,
                  max_condition: float = 200.0, relative_area_error: float = 0.005,
                  noise_std_Pa: float | None = None,
-                 use_measured_supply: bool = False, known: dict | None = None, seed: int = 0):
+                 use_measured_supply: bool = False, known: dict | None = None, seed: int = 0,
+                 curve_tolerance: float = 1e-8, curve_max_nfev: int = 2000):
+        if not (isinstance(curve_tolerance, (int, float)) and 0.0 < curve_tolerance < 1.0):
+            raise ValueError(f"curve_tolerance must be a number in (0, 1), got "
+                             f"{curve_tolerance!r}")
+        if int(curve_max_nfev) != curve_max_nfev or curve_max_nfev < 1:
+            raise ValueError(f"curve_max_nfev must be an integer >= 1, got {curve_max_nfev!r}")
         self.model = model
         self.differentiator = differentiator
         self.min_hold_samples = min_hold_samples
@@ -154,6 +167,8 @@ class PaperLeastSquares:
         self.use_measured_supply = use_measured_supply
         self.known = known
         self.seed = seed
+        self.curve_tolerance = float(curve_tolerance)
+        self.curve_max_nfev = int(curve_max_nfev)
 
     # -------------------------------------------------------------- eq. 10 per hold
     def _design(self, recs):
@@ -300,7 +315,8 @@ class PaperLeastSquares:
             u, a_in, a_ex, se_in, se_ex = self._areas(holds, vol)
             cost = 0.0
             for port, a, se in (("inlet", a_in, se_in), ("exhaust", a_ex, se_ex)):
-                p, c = _fit_gompertz(u, a, se, port, self.model, rng, warm.get(port))
+                p, c = _fit_gompertz(u, a, se, port, self.model, rng, warm.get(port),
+                                     self.curve_tolerance, self.curve_max_nfev)
                 warm[port] = p
                 cost += c
             return cost
@@ -328,8 +344,10 @@ class PaperLeastSquares:
             self.dead_volume_identified_ = True
         volumes = v0 + bores * positions
         u, a_in, a_ex, se_in, se_ex = self._areas(holds, volumes)
-        p_in, _ = _fit_gompertz(u, a_in, se_in, "inlet", self.model, rng)
-        p_ex, _ = _fit_gompertz(u, a_ex, se_ex, "exhaust", self.model, rng)
+        p_in, _ = _fit_gompertz(u, a_in, se_in, "inlet", self.model, rng,
+                                tolerance=self.curve_tolerance, max_nfev=self.curve_max_nfev)
+        p_ex, _ = _fit_gompertz(u, a_ex, se_ex, "exhaust", self.model, rng,
+                                tolerance=self.curve_tolerance, max_nfev=self.curve_max_nfev)
         self.area_points_ = {"command_V": u, "inlet_m2": a_in, "exhaust_m2": a_ex,
                              "inlet_se_m2": se_in, "exhaust_se_m2": se_ex,
                              "recording": np.array([h.recording for h in holds])}
