@@ -183,13 +183,17 @@ class Discovery(BasinControls, LaterStages):
             params = {k: float(v) for k, v in cached["params"].items()}
         else:
             # refine to convergence: a base model stopped early would make any extended
-            # model's extra refinement look like a gain of the effect
+            # model's extra refinement look like a gain of the effect (the loop never
+            # reads a fit's covariance: no uncertainty)
+            def refiner(free=None):
+                return TrajectoryRefiner(model, s.fit.refine_solver, free=free,
+                                         max_nfev=s.fit.refine_max_nfev,
+                                         jacobian_refresh=s.fit.refine_jacobian_refresh,
+                                         uncertainty=False)
+
             params, screened = start, False
             if first:
-                stage = TrajectoryRefiner(model, s.fit.refine_solver, free=first,
-                                          max_nfev=s.fit.refine_max_nfev,
-                                          jacobian_refresh=s.fit.refine_jacobian_refresh,
-                                          uncertainty=False).fit(train_ws, params)
+                stage = refiner(free=first).fit(train_ws, params)
                 screened = beat_Pa is not None and not stage.rmse_Pa_ < beat_Pa
                 # the full fit continues from the stage's point; a screened-out form is
                 # scored there, not at its start
@@ -199,10 +203,7 @@ class Discovery(BasinControls, LaterStages):
                              f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
                              f"below the screen ({beat_Pa:.0f} Pa)")
             for _ in range(0 if screened else s.max_refine_restarts + 1):
-                ref = TrajectoryRefiner(model, s.fit.refine_solver,
-                                        max_nfev=s.fit.refine_max_nfev,
-                                        jacobian_refresh=s.fit.refine_jacobian_refresh,
-                                        uncertainty=False).fit(train_ws, params)
+                ref = refiner().fit(train_ws, params)
                 params = ref.params_
                 if ref.success_:
                     break

@@ -360,10 +360,9 @@ def laplace_approximation(like, start: np.ndarray, information,
     centre = posterior_centre(like, start, information, iterations, tolerance_nats)
     xc = centre.x
     _, zc, ident, cz = laplace_in_sampling(like, xc, information)
-    basis = whitened_basis(cz)
     reuse = centre.curvature is not None
-    if reuse:  # the centring's own point and whitening, where its Hessian was taken
-        zc, basis = centre.z, centre.basis
+    # where its Hessian was taken: the centring's own point and whitening
+    zc, basis = (centre.z, centre.basis) if reuse else (zc, whitened_basis(cz))
     target = like.emcee_target(zc[None])  # log-density in sampling coordinates, sums
     lp_c, sums_c = target[:, 0], target[:, 1:]
     if basis is None or not np.isfinite(lp_c[0]):
