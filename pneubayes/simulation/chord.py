@@ -8,8 +8,11 @@ flows; to first order in the volume's departure dV = A_bore (chord - position),
 d(dq)/dt = J_f dq + V^n (-n p J_f + (n - 1) F) dV / V (F and J_f: the flows' part of
 dp/dt and its slope), and dp = dq / V^n - n p dV / V. So a crossed sample is moved to its
 own volume adiabatically (:func:`off_chord`) less the flows' response so far, and the
-step's end by that response (:func:`chord_coupling`, :func:`chord_response`). Used by
-:func:`pneubayes.simulation.kernel` with ``SolverConfig.dense_output``.
+step's end by that response (:func:`chord_coupling`, :func:`chord_response`); a step
+taken in q itself (the kernel's rigid chamber where the compression outpaces the flows)
+reads a sample's pressure as q / V^n at the sample's own volume instead of
+:func:`off_chord`'s second-order move. Used by :func:`pneubayes.simulation.kernel` with
+``SolverConfig.dense_output``.
 """
 
 from __future__ import annotations
@@ -69,16 +72,12 @@ def chord_response(t, x, m0, t0, t1, x0, x1, jf):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def chord_coupling(p, fp, jp, vol, vdot, bore, kappa):
-    """``(J_f, c)``: the flows' slope (1/s) and the coupling c (Pa per m s) with which
-    the pressure at a step's end moves by c times :func:`chord_response` (with ``jf`` =
-    J_f), from the step's start: pressure ``p`` Pa, dp/dt ``fp`` and its slope ``jp``, volume
-    ``vol`` m^3 moving at ``vdot`` m^3/s, bore area ``bore`` m^2, polytropic index
-    ``kappa``."""
-    inv_v = 1.0 / vol
-    jf = jp + kappa * vdot * inv_v
-    ff = fp + kappa * p * vdot * inv_v
-    return jf, (-kappa * p * jf + (kappa - 1.0) * ff) * bore * inv_v
+def chord_coupling(p, ff, jf, vol, bore, kappa):
+    """The coupling c (Pa per m s) with which the pressure at a step's end moves by c
+    times :func:`chord_response` (with ``jf``), from the step's start: pressure ``p`` Pa,
+    the flows' part of dp/dt ``ff`` (Pa/s) and its slope ``jf`` (1/s), volume ``vol``
+    m^3, bore area ``bore`` m^2, polytropic index ``kappa``."""
+    return (-kappa * p * jf + (kappa - 1.0) * ff) * bore / vol
 
 
 @njit(cache=True, inline="always", error_model="numpy")

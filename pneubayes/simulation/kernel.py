@@ -137,9 +137,15 @@ CARRY_TANK = N_CARRY - 2
 CARRY_LUNG = N_CARRY - 1
 
 
+# The weight of the chord correction's size in a crossing step's error estimate (the
+# step's error is the larger of its own estimate and this times the correction, both
+# against the tolerance). Here, not in chord.py: numba's cache sees only this file.
+CHORD_ERROR_WEIGHT = 1.0
 _IN = SLOT_INDEX["inlet_offset_m2"]
 _EX = SLOT_INDEX["exhaust_offset_m2"]
 _VOL = SLOT_INDEX["volume_m3"]
+_COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
+_VT_N = SLOT_INDEX["volume_table_points"]
 _DELAY = SLOT_INDEX["command_delay_s"]
 _SPOOL = SLOT_INDEX["spool_time_constant_s"]
 _SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
@@ -301,7 +307,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     the step reads the position's chord (one dV/dt); each crossed sample is moved to its
     own volume adiabatically less the flows' response to the chord so far, and the
     step's end by that response, first order (:mod:`pneubayes.simulation.chord`),
-    whose size also enters the step's error estimate. Where steps cross samples,
+    whose size, weighted by ``CHORD_ERROR_WEIGHT``, also enters the step's error
+    estimate. In a rigid chamber (no compliance, no volume table), where the compression
+    outpaces the flows' relaxation (|J_f| < n |dV/dt| / V, J_f the flows' part of J_p),
+    such a step is taken in q = p V^n instead of p: dq/dt = V^n F_f does not see the
+    compression, so a closed chamber is exact at every sample (q over the step, read
+    at the sample's own volume) and the step is limited by the flows alone; dq/dp0 is
+    exp(h J_f), dp/dp0 = dq/dp0 (V_start / V)^n. Where steps cross samples,
     a step grows on the larger of its own and its predecessor's error estimate (one
     estimate made small by cancellation would let it grow 5x into an error the next
     estimate misses). Without it every sample ends a step.
@@ -494,6 +506,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # dense output: steps cross the samples where the position and supply hold
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and not (thermal or tank or lung or line or wave))
+    # a rigid chamber (no compliance, no volume table) may step q = p V^n over a chord
+    rigid = sl[_COMPL] == 0.0 and sl[_VT_N] == 0.0
+    kap = cs[C_KAPPA]
+    qstep = False  # the pressure step's variable is q = p V^n
+    sc0, sc1 = 1.0, 1.0  # its scale V^n (1 for p) at the step's ends
+    rv, ff, jf = 0.0, 0.0, 0.0  # dV/dt / V (1/s), the flows' dp/dt (Pa/s) and slope (1/s)
     h = hmax
     err_last = 0.0  # the last accepted step's error estimate
     steps = 0
@@ -696,25 +714,44 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot,
                                                             psup, sl, cs, hh, True, dsup,
                                                             da_in, da_ex)
-                    zp = hh * jp
+                    # the step's variable y = p sc (sc = 1), or over a chord in a rigid
+                    # chamber where the compression outpaces the flows' relaxation
+                    # (|J_f| < n |dV/dt| / V), q = p V^n (sc = V^n), which the
+                    # compression leaves alone: dq/dt = V^n F_f (F_f: the flows' part of
+                    # dp/dt, J_f its slope), so a closed chamber is exact
+                    qstep = False
+                    if chord:
+                        rv = vdot / vol
+                        ff, jf = fp + kap * p * rv, jp + kap * rv
+                        qstep = rigid and abs(jf) < kap * abs(rv)
+                    if qstep:
+                        sc0 = math.exp(kap * math.log(vol))
+                        sc1 = math.exp(kap * math.log(vol2))
+                        vp = sc0 * (vp + kap * rv * (ff - p * (rv + jf)))  # d(dq/dt)/dt
+                        fp, jy, comp = sc0 * ff, jf, kap * vdot / vol2
+                    else:
+                        sc0, sc1, jy, comp = 1.0, 1.0, jp, 0.0
+                    zp = hh * jy
                     phi1p, phi2p, phi3p = phi123(zp)
-                    up = p + hh * (phi1p * fp + hh * phi2p * vp)
+                    uy = p * sc0 + hh * (phi1p * fp + hh * phi2p * vp)
+                    up = uy / sc1
                     if up > 0.0 and math.isfinite(up):
                         fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
                                           hh, False, 0.0, 0.0, 0.0)[0]
-                        ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
-                        pn = up + ep
-                        err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                        ep = 2.0 * hh * phi3p * (sc1 * (fp2 + comp * up) - fp
+                                                 - jy * (uy - p * sc0) - hh * vp)
+                        pn = (uy + ep) / sc1
+                        err = abs(ep) / sc1 / (atol_p + rtol * max(abs(p), abs(pn)))
                         if chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
                             # the chord's effect on the flows, corrected to first order
-                            # at the step's end; its size is also checked against the
-                            # tolerance, as an error estimate (conservative)
-                            jf_c, c_c = chord_coupling(p, fp, jp, vol, vdot, bore,
-                                                       cs[C_KAPPA])
+                            # at the step's end; its size, weighted by CHORD_ERROR_WEIGHT,
+                            # also enters the error estimate
+                            jf_c, c_c = jf, chord_coupling(p, ff, jf, vol, bore, kap)
                             dpe = c_c * chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
-                                                       jf_c)
+                                                       jf_c) * sc0 / sc1
                             pn -= dpe
-                            err = max(err, abs(dpe) / (atol_p + rtol * max(abs(p), abs(pn))))
+                            err = max(err, CHORD_ERROR_WEIGHT * abs(dpe)
+                                      / (atol_p + rtol * max(abs(p), abs(pn))))
                         if not (pn > 0.0 and math.isfinite(pn)):
                             err = 10.0
                 if err <= 1.0:
@@ -752,7 +789,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
-                        s_p0 *= math.exp(zp)
+                        s_p0 *= math.exp(zp) * sc0 / sc1
                     if kn > k + 1:
                         # dense output: the samples this step crossed, from its interpolant
                         w_r, t_r, d_r, dt_r = 0.0, t_prev, 0.0, -1.0
@@ -760,8 +797,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         while kw < kn and t[kw] < tau:
                             th = (t[kw] - t_prev) / hh
                             q1, q2, q3 = phi123(th * zp)
-                            value = (p_prev + th * hh * (q1 * fp + th * hh * q2 * vp)
+                            value = (p_prev * sc0 + th * hh * (q1 * fp + th * hh * q2 * vp)
                                      + th * th * th * q3 / phi3p * ep)
+                            sc_k = 1.0
                             if chord:
                                 # the sample's position, not the chord's: adiabatically,
                                 # less the flows' response to the chord so far
@@ -772,13 +810,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                     e_r, a_r, b_r = response_weights(jf_c, dt)
                                 w_r = e_r * w_r + a_r * d_r + b_r * (dev - d_r)
                                 t_r, d_r = t[kw], dev
-                                value = (off_chord(value, dev, v0 + bore * x[kw], bore,
-                                                   cs[C_KAPPA], sl, p_atm)
-                                         - c_c * w_r)
+                                if qstep:  # q at the sample's own volume
+                                    sc_k = math.exp(kap * math.log(v0 + bore * x[kw]))
+                                    value = (value - c_c * sc0 * w_r) / sc_k
+                                else:
+                                    value = (off_chord(value, dev, v0 + bore * x[kw], bore,
+                                                       kap, sl, p_atm)
+                                             - c_c * w_r)
                             out[kw - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g)
                                             if calibrated else value)
                             if want_sens:
-                                sens[kw - i0] = s_prev * math.exp(th * zp)
+                                sens[kw - i0] = s_prev * math.exp(th * zp) * sc0 / sc_k
                             kw += 1
                     if second:
                         r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
