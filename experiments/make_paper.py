@@ -749,7 +749,17 @@ def _versus_text(kind: str, other: str, vs: dict, n: int) -> str:
           + (f"; settled {vs['median_settled_tracking_rmse_Pa'][0] / 1e3:.1f} against "
              f"{vs['median_settled_tracking_rmse_Pa'][1] / 1e3:.1f} kPa (not worse on "
              f"{vs['seeds_settled_rmse_not_worse']} of {n} seeds)"
-             if "median_settled_tracking_rmse_Pa" in vs else ""))
+             if "median_settled_tracking_rmse_Pa" in vs else "")
+          + _paired_text(vs.get("paired_feasible_rmse_difference_Pa")))
+
+
+def _paired_text(d: dict | None) -> str:
+    """The paired capped-RMSE difference over the seeds (``mpc_tracking.paired_difference``)."""
+    if not d or d.get("ci95") is None:
+        return ""
+    lo, hi = d["ci95"]
+    return (f"; the paired capped-RMSE difference {d['mean'] / 1e3:+.3f} kPa (95 % "
+            f"t-interval [{lo / 1e3:+.3f}, {hi / 1e3:+.3f}] kPa over {d['seeds']} seeds)")
 
 
 def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:

@@ -471,7 +471,26 @@ def _versus(k: dict, nom: dict) -> dict:
         out[f"median_{key}"] = [float(np.median(k[key])), float(np.median(nom[key]))]
         out[f"seeds_{measure}rmse_not_worse"] = int(sum(a <= b for a, b in zip(k[key],
                                                                                nom[key])))
+    out["paired_feasible_rmse_difference_Pa"] = paired_difference(
+        k["feasible_tracking_rmse_Pa"], nom["feasible_tracking_rmse_Pa"])
     return out
+
+
+def paired_difference(a, b) -> dict:
+    """The per-seed difference ``a - b`` (same seeds, same units): its mean, its sample
+    standard deviation and the mean's two-sided 95 % Student-t interval (None with
+    fewer than two seeds), so "equal tracking" is judged against the spread over seeds
+    rather than on one seed's sign."""
+    from scipy import stats
+
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    if d.size < 2:
+        return {"mean": float(d.mean()) if d.size else None, "sd": None, "ci95": None,
+                "seeds": int(d.size)}
+    sd = float(d.std(ddof=1))
+    half = float(stats.t.ppf(0.975, d.size - 1)) * sd / np.sqrt(d.size)
+    return {"mean": float(d.mean()), "sd": sd,
+            "ci95": [float(d.mean() - half), float(d.mean() + half)], "seeds": int(d.size)}
 
 
 def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:

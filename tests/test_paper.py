@@ -290,6 +290,20 @@ def test_settled_rmse_splits_the_holds_at_the_limit_from_the_others():
     assert np.isnan(m.settled_rmse(p[:hold], ref[:hold], False))
 
 
+def test_paired_difference_has_the_student_t_interval():
+    import mpc_tracking as m
+    from scipy import stats
+
+    d = m.paired_difference([10.0, 12.0, 9.0, 11.0], [10.5, 11.0, 9.5, 10.0])
+    diffs = np.array([-0.5, 1.0, -0.5, 1.0])
+    half = stats.t.ppf(0.975, 3) * diffs.std(ddof=1) / 2.0
+    assert d["mean"] == pytest.approx(0.25) and d["seeds"] == 4
+    assert d["sd"] == pytest.approx(diffs.std(ddof=1))
+    assert d["ci95"] == pytest.approx([0.25 - half, 0.25 + half])
+    assert m.paired_difference([1.0], [2.0]) == {"mean": -1.0, "sd": None, "ci95": None,
+                                                 "seeds": 1}
+
+
 def test_mpc_section_reports_the_wide_posterior_scenario(tmp_path):
     """The weak_data runs get their own table and the comparisons against the median,
     the mean and the least-squares point."""
