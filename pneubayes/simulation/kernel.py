@@ -714,11 +714,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot,
                                                             psup, sl, cs, hh, True, dsup,
                                                             da_in, da_ex)
-                    # the step's variable y = p sc (sc = 1), or over a chord in a rigid
-                    # chamber where the compression outpaces the flows' relaxation
-                    # (|J_f| < n |dV/dt| / V), q = p V^n (sc = V^n), which the
-                    # compression leaves alone: dq/dt = V^n F_f (F_f: the flows' part of
-                    # dp/dt, J_f its slope), so a closed chamber is exact
+                    # over a chord in a rigid chamber where the compression outpaces
+                    # the flows' relaxation (|J_f| < n |dV/dt| / V), the step is taken in
+                    # q = p V^n (scale sc = V^n at its ends), which the compression
+                    # leaves alone: dq/dt = V^n F_f (F_f: the flows' part of dp/dt, J_f
+                    # its slope), so a closed chamber is exact; elsewhere in p (sc = 1)
                     qstep = False
                     if chord:
                         rv = vdot / vol
@@ -728,32 +728,41 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         sc0 = math.exp(kap * math.log(vol))
                         sc1 = math.exp(kap * math.log(vol2))
                         vp = sc0 * (vp + kap * rv * (ff - p * (rv + jf)))  # d(dq/dt)/dt
-                        fp, jy, comp = sc0 * ff, jf, kap * vdot / vol2
-                    else:
-                        sc0, sc1, jy, comp = 1.0, 1.0, jp, 0.0
-                    zp = hh * jy
-                    phi1p, phi2p, phi3p = phi123(zp)
-                    uy = p * sc0 + hh * (phi1p * fp + hh * phi2p * vp)
-                    up = uy / sc1
-                    if up > 0.0 and math.isfinite(up):
-                        fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs,
-                                          hh, False, 0.0, 0.0, 0.0)[0]
-                        ep = 2.0 * hh * phi3p * (sc1 * (fp2 + comp * up) - fp
-                                                 - jy * (uy - p * sc0) - hh * vp)
-                        pn = (uy + ep) / sc1
-                        err = abs(ep) / sc1 / (atol_p + rtol * max(abs(p), abs(pn)))
-                        if chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
-                            # the chord's effect on the flows, corrected to first order
-                            # at the step's end; its size, weighted by CHORD_ERROR_WEIGHT,
-                            # also enters the error estimate
-                            jf_c, c_c = jf, chord_coupling(p, ff, jf, vol, bore, kap)
-                            dpe = c_c * chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
-                                                       jf_c) * sc0 / sc1
-                            pn -= dpe
-                            err = max(err, CHORD_ERROR_WEIGHT * abs(dpe)
-                                      / (atol_p + rtol * max(abs(p), abs(pn))))
-                        if not (pn > 0.0 and math.isfinite(pn)):
-                            err = 10.0
+                        fp = sc0 * ff  # dq/dt
+                        zp = hh * jf
+                        phi1p, phi2p, phi3p = phi123(zp)
+                        uq = p * sc0 + hh * (phi1p * fp + hh * phi2p * vp)
+                        up = uq / sc1
+                        if up > 0.0 and math.isfinite(up):
+                            fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl,
+                                              cs, hh, False, 0.0, 0.0, 0.0)[0]
+                            ep = 2.0 * hh * phi3p * (sc1 * (fp2 + kap * up * vdot / vol2)
+                                                     - fp - jf * (uq - p * sc0) - hh * vp)
+                            pn = (uq + ep) / sc1
+                            err = abs(ep) / sc1 / (atol_p + rtol * max(abs(p), abs(pn)))
+                    else:  # (written apart: the scale's arithmetic would slow every step)
+                        sc0, sc1 = 1.0, 1.0
+                        zp = hh * jp
+                        phi1p, phi2p, phi3p = phi123(zp)
+                        up = p + hh * (phi1p * fp + hh * phi2p * vp)
+                        if up > 0.0 and math.isfinite(up):
+                            fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl,
+                                              cs, hh, False, 0.0, 0.0, 0.0)[0]
+                            ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
+                            pn = up + ep
+                            err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                    if err < 10.0 and chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
+                        # the chord's effect on the flows, corrected to first order at the
+                        # step's end; its size, weighted by CHORD_ERROR_WEIGHT, also
+                        # enters the error estimate
+                        jf_c, c_c = jf, chord_coupling(p, ff, jf, vol, bore, kap)
+                        dpe = c_c * chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
+                                                   jf_c) * sc0 / sc1
+                        pn -= dpe
+                        err = max(err, CHORD_ERROR_WEIGHT * abs(dpe)
+                                  / (atol_p + rtol * max(abs(p), abs(pn))))
+                    if not (pn > 0.0 and math.isfinite(pn)):
+                        err = 10.0
                 if err <= 1.0:
                     t_prev = tau
                     tau = tau + hh if hh < t_end - tau else t_end
