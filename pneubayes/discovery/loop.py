@@ -235,10 +235,11 @@ class Discovery(BasinControls, LaterStages):
         return lib, sindy, data
 
     # ------------------------------------------------------------------ the loop
-    def fit(self, recordings) -> "Discovery":
+    def _data(self, recordings):
+        """The recordings prepared as ``pneubayes fit`` prepares them (inputs low-passed,
+        the pressure filter), split into fitting and held-out data: ``(recs, train, held,
+        train_ws, held_ws, data_key)``."""
         s = self.settings
-        t_start = time.perf_counter()
-        # prepared as pneubayes fit does (FitSettings): inputs low-passed, pressure filter
         recs = [prepare_recording(r, s.fit.preparation()) for r in recordings]
         if not recs:
             raise ValueError("discover: no recordings")
@@ -267,6 +268,12 @@ class Discovery(BasinControls, LaterStages):
                 f"{math.ceil(math.log(s.max_p_value) / math.log(0.5))}: give {more}")
         data_key = _fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
                                  for r in recs], split)
+        return recs, train, held, train_ws, held_ws, data_key
+
+    def fit(self, recordings) -> "Discovery":
+        s = self.settings
+        t_start = time.perf_counter()
+        recs, train, held, train_ws, held_ws, data_key = self._data(recordings)
         noise = noise_floor_Pa(recs)
         lo, hi = np.percentile(np.concatenate([r.pressure_Pa for r in recs]), [1, 99])
         span = float(hi - lo)  # measured, not the nominal supply's range
@@ -402,25 +409,7 @@ class Discovery(BasinControls, LaterStages):
                                  "rmse_after_Pa": trial.heldout_rmse_Pa})
             current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key,
                                   newest=len(names))
-        params, estimate = dict(current.params), "refined (multiple shooting)"
-        post = {}
-        if s.posterior:
-            bi = self._posterior(current, train_ws)
-            params, estimate = bi.median_params(), "posterior median"
-            post = {"posterior": bi.inference_data({
-                        "seed": s.seed, "pneubayes_version": pneubayes.__version__,
-                        "model_card": json.dumps(current.model.to_card(params))}),
-                    "posterior_summary": bi.summary(),
-                    "posterior_info": {"method": s.posterior_method,
-                                       "converged": bi.converged_,
-                                       "steps": bi.diagnostics_["steps"],
-                                       "sampling_solver": bi.diagnostics_["solver"],
-                                       "solver_roughness_nats":
-                                           bi.diagnostics_["solver_jitter_nats"],
-                                       "importance_check":
-                                           bi.diagnostics_.get("importance_check"),
-                                       "mode_on_prior_bound":
-                                           bi.diagnostics_.get("mode_on_prior_bound", [])}}
+        params, estimate, post = self._estimate(current, train_ws)
         self.result_ = DiscoveryResult(
             settings=s, base=base, final=current, accepted=tuple(accepted),
             ledger=tuple(ledger), maps=tuple(maps), searches=tuple(searches),
@@ -429,6 +418,31 @@ class Discovery(BasinControls, LaterStages):
             train=tuple(train), held=tuple(held),
             wall_time_s=time.perf_counter() - t_start, **post)
         return self
+
+    def _estimate(self, current: StepFit, train_ws: WindowSet):
+        """The final model's parameters: ``(params, how they were estimated, the posterior
+        fields of the result)``: the refined point, or with ``posterior`` the posterior
+        median and the posterior itself."""
+        s = self.settings
+        if not s.posterior:
+            return dict(current.params), "refined (multiple shooting)", {}
+        bi = self._posterior(current, train_ws)
+        params = bi.median_params()
+        post = {"posterior": bi.inference_data({
+                    "seed": s.seed, "pneubayes_version": pneubayes.__version__,
+                    "model_card": json.dumps(current.model.to_card(params))}),
+                "posterior_summary": bi.summary(),
+                "posterior_info": {"method": s.posterior_method,
+                                   "converged": bi.converged_,
+                                   "steps": bi.diagnostics_["steps"],
+                                   "sampling_solver": bi.diagnostics_["solver"],
+                                   "solver_roughness_nats":
+                                       bi.diagnostics_["solver_jitter_nats"],
+                                   "importance_check":
+                                       bi.diagnostics_.get("importance_check"),
+                                   "mode_on_prior_bound":
+                                       bi.diagnostics_.get("mode_on_prior_bound", [])}}
+        return params, "posterior median", post
 
     def _trials(self, candidates, current: StepFit, ctx, min_gap_closed: float = 0.0,
                 round_trials: dict | None = None):
