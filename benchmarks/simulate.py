@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import gc
+import math
 import os
 import platform
 import subprocess
@@ -155,6 +156,31 @@ def _loadavg():
         return [round(x, 2) for x in os.getloadavg()]
     except (OSError, AttributeError):
         return None
+
+
+def machine_reference_ns(repeats=5, iterations=2_000_000):
+    """The machine's speed on the kernel's kind of arithmetic: ns per iteration (median
+    of ``repeats``) of one compiled dependent chain of a power (exp of a log), a square
+    root and a division, as a step's orifice flows have. The simulator's absolute
+    numbers move with the machine (the same code read 10-20 % apart on one day's
+    runs); dividing two runs' sim-s/s by the inverse ratio of this number compares them
+    across machines and days. Not a floor: a diagnostic beside the timings."""
+    import numba
+
+    @numba.njit(cache=False)
+    def chain(n):
+        x = 0.7
+        for _ in range(n):
+            x = math.exp(math.log(x) / 1.4) * 0.5 + math.sqrt(x) / (1.0 + x) * 0.25 + 0.1
+        return x
+
+    chain(10)
+    out = []
+    for _ in range(repeats):
+        a = time.perf_counter()
+        chain(iterations)
+        out.append((time.perf_counter() - a) / iterations * 1e9)
+    return float(np.median(out))
 
 
 def time_calls(fn, min_total_s, min_reps):
@@ -381,6 +407,7 @@ def main(argv=None):
     run_start = time.perf_counter()
     started = _dt.datetime.now(_dt.UTC)
     load_start = _loadavg()
+    reference_start = machine_reference_ns()
 
     import numba
     import scipy
@@ -749,6 +776,7 @@ def main(argv=None):
         affinity = None
     total_s = time.perf_counter() - run_start
     load_end = _loadavg()
+    reference_end = machine_reference_ns()
     if load_start is not None and load_start[0] > LOAD_WARN:
         notes.append(f"the 1-min load average was {load_start[0]:.2f} when the run started: "
                      "other processes were using the CPUs, so timings (especially the "
@@ -810,6 +838,7 @@ def main(argv=None):
             "first_call_s": first_call_s,
             "timestamp_utc": started.isoformat(timespec="seconds"),
             "loadavg_at_start": load_start, "loadavg_at_end": load_end,
+            "reference_loop_ns": [reference_start, reference_end],
             "total_runtime_s": total_s,
         },
         "notes": notes,
@@ -835,7 +864,10 @@ def format_table(r):
     L.append(f"python {m['python']}  numpy {m['numpy']}  scipy {m['scipy']}  numba "
              f"{m['numba']}  cpus {m['cpu_count']}  numba threads {m['numba_num_threads']}"
              f" ({m['numba_threading_layer']})  load at start "
-             f"{(m['loadavg_at_start'] or ['?'])[0]}")
+             f"{(m['loadavg_at_start'] or ['?'])[0]}"
+             + (f"  reference loop {m['reference_loop_ns'][0]:.1f} / "
+                f"{m['reference_loop_ns'][1]:.1f} ns (start / end)"
+                if m.get("reference_loop_ns") else ""))
     L.append(f"{s['duration_s']:g}-s trajectories at {s['sample_rate_Hz']:g} Hz, random steps; "
              f"error = max |p - Radau(rtol 1e-10)| over {s['scipy']['horizon_s']:g} s; "
              f"range {s['working_range_Pa']:g} Pa")
