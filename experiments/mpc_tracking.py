@@ -288,10 +288,21 @@ def fit_model(recs, names, fit_dir: Path, seed: int, quick: bool, log):
     return fit
 
 
+def code_revision() -> str:
+    """The git revision of the running code (``-dirty`` with uncommitted changes): read
+    once at the start of a run, so loops record the code that ran, not a commit made
+    while they ran."""
+    prov = provenance()
+    return (prov.get("git_revision") or "unknown") + ("-dirty" if prov.get("git_dirty")
+                                                      else "")
+
+
 def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_delay",
-             dense_output: bool = True) -> dict:
+             dense_output: bool = True, revision: str | None = None) -> dict:
     """Bench, fit and the closed loops of one seed (skipped if already written; loops run
-    with the other ``dense_output`` are run again, the fits reused)."""
+    with the other ``dense_output`` are run again, the fits reused). ``revision``: the
+    running code's (:func:`code_revision`, read here when not given)."""
+    revision = revision or code_revision()
     sc = SCENARIOS[scenario]
     controllers = sc["controllers"]
     done = out / f"seed{seed}.json"
@@ -354,8 +365,6 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
                         seqs[3 if name == "paper" else 5])
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
-    prov = provenance()
-    revision = (prov.get("git_revision") or "unknown") + ("-dirty" if prov.get("git_dirty") else "")
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
               "p_max_Pa": P_MAX_PA, "candidates": CANDIDATES, "dense_output": dense_output,
               "bench": {"duration_s": cfg.duration_s, "ranges_V": list(cfg.ranges_V)},
@@ -634,7 +643,8 @@ def main(argv=None) -> int:
     def log(m):
         print(m, file=sys.stderr, flush=True)
 
-    results = [run_seed(s, out, args.quick, log, args.scenario, args.dense_output)
+    revision = code_revision()  # before the seeds: the code that runs them
+    results = [run_seed(s, out, args.quick, log, args.scenario, args.dense_output, revision)
                for s in seeds]
     summary = {"seeds": seeds, "quick": args.quick, "scenario": args.scenario,
                "dense_output": args.dense_output,
