@@ -300,36 +300,8 @@ class Discovery(BasinControls, LaterStages):
         round_, adds, swaps = 0, 0, 0
         while adds < s.max_effects:
             round_ += 1
-            lib, sindy, data = self._search(current, train)
-            dmap = self._map(current, train_ws, train, data, noise)
-            maps.append(dmap)
-            searches.append({"round": round_, "model": list(current.model.effect_names),
-                             "evidence": sindy.evidence_, "ranking": sindy.ranking_,
-                             "labels": lib.labels, "groups": lib.groups})
-            flags = flagged_bins(dmap, "prediction")[:3]
-            self.log(f"discover: round {round_}: disagreement in "
-                     + (", ".join(f"{f} = {b['bin']} (RMS {b['rms']:.0f} Pa)" for f, b in flags)
-                        or "no regime"))
-            self.log("discover: evidence " + ", ".join(
-                f"{g} {sindy.evidence_[g]['inclusion_probability']:.2f}"
-                for g in sindy.ranking_))
-            supported = sindy.supported(s.min_inclusion)
-            tentative = []
-            gap = (s.gap_fallback_ratio > 0
-                   and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise)
-            if gap:
-                tentative = [g for g in sindy.supported(s.fallback_min_inclusion)
-                             if g not in supported][: s.max_trials_per_round]
-                if tentative:
-                    self.log(f"discover: the held-out error is "
-                             f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor: also "
-                             f"trying {', '.join(tentative)} (inclusion below "
-                             f"{s.min_inclusion:g})")
-            round_step = len(ledger)
-            ledger.append({"step": len(ledger), "action": "search", "round": round_,
-                           "supported": supported, "tentative": tentative,
-                           "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
-                                         for g in sindy.ranking_}})
+            sindy, supported, tentative, gap, round_step = self._round_search(
+                current, round_, train, train_ws, noise, ledger, maps, searches)
             candidates = supported[: s.max_trials_per_round] + tentative
             ctx = (sindy, train, train_ws, held_ws, data_key, noise, ledger)
             far = (s.gap_fallback_ratio > 0
@@ -393,22 +365,8 @@ class Discovery(BasinControls, LaterStages):
                 self.log("discover: no supported effect passed verification; stop")
                 break
             adds += 1
-            _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
-            names = g if isinstance(g, tuple) else (g,)
-            self.log(f"discover: ADD {' and '.join(names)} (the largest held-out "
-                     "improvement)")
-            for name in names:
-                ledger.append({"step": len(ledger), "action": "add", "effect": name,
-                               "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
-                               "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
-                               "score_gain": gain, "score_p_value": pval,
-                               **({"pair": list(names)} if len(names) > 1 else {})})
-                accepted.append({"name": name, "evidence": sindy.evidence_[name],
-                                 "score_gain": gain, "score_p_value": pval,
-                                 "rmse_before_Pa": current.heldout_rmse_Pa,
-                                 "rmse_after_Pa": trial.heldout_rmse_Pa})
-            current = self._prune(trial, accepted, ledger, train_ws, held_ws, data_key,
-                                  newest=len(names))
+            current = self._add(passing, current, sindy, accepted, ledger, train_ws,
+                                held_ws, data_key)
         params, estimate, post = self._estimate(current, train_ws)
         self.result_ = DiscoveryResult(
             settings=s, base=base, final=current, accepted=tuple(accepted),
@@ -418,6 +376,67 @@ class Discovery(BasinControls, LaterStages):
             train=tuple(train), held=tuple(held),
             wall_time_s=time.perf_counter() - t_start, **post)
         return self
+
+    def _round_search(self, current: StepFit, round_: int, train, train_ws: WindowSet,
+                      noise: float, ledger: list, maps: list, searches: list):
+        """A round's search: the disagreement map and the sparse regression on the
+        current model's residual (appended to ``maps``, ``searches`` and ``ledger``), and
+        what it supports: ``(sindy, supported, tentative, gap, round_step)`` (tentative:
+        the groups below the inclusion threshold tried when the held-out error is
+        ``gap_fallback_ratio`` x the noise floor or more, ``gap``)."""
+        s = self.settings
+        lib, sindy, data = self._search(current, train)
+        dmap = self._map(current, train_ws, train, data, noise)
+        maps.append(dmap)
+        searches.append({"round": round_, "model": list(current.model.effect_names),
+                         "evidence": sindy.evidence_, "ranking": sindy.ranking_,
+                         "labels": lib.labels, "groups": lib.groups})
+        flags = flagged_bins(dmap, "prediction")[:3]
+        self.log(f"discover: round {round_}: disagreement in "
+                 + (", ".join(f"{f} = {b['bin']} (RMS {b['rms']:.0f} Pa)" for f, b in flags)
+                    or "no regime"))
+        self.log("discover: evidence " + ", ".join(
+            f"{g} {sindy.evidence_[g]['inclusion_probability']:.2f}"
+            for g in sindy.ranking_))
+        supported = sindy.supported(s.min_inclusion)
+        tentative = []
+        gap = (s.gap_fallback_ratio > 0
+               and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise)
+        if gap:
+            tentative = [g for g in sindy.supported(s.fallback_min_inclusion)
+                         if g not in supported][: s.max_trials_per_round]
+            if tentative:
+                self.log(f"discover: the held-out error is "
+                         f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor: also "
+                         f"trying {', '.join(tentative)} (inclusion below "
+                         f"{s.min_inclusion:g})")
+        round_step = len(ledger)
+        ledger.append({"step": len(ledger), "action": "search", "round": round_,
+                       "supported": supported, "tentative": tentative,
+                       "inclusion": {g: sindy.evidence_[g]["inclusion_probability"]
+                                     for g in sindy.ranking_}})
+        return sindy, supported, tentative, gap, round_step
+
+    def _add(self, passing, current: StepFit, sindy, accepted: list, ledger: list,
+             train_ws: WindowSet, held_ws: WindowSet, data_key) -> StepFit:
+        """Add the passing trial with the largest held-out gain (an effect, or a pair),
+        record it in ``ledger`` and ``accepted``, and prune what it made redundant."""
+        _, g, trial, gain, pval = min(passing, key=lambda t: t[0])
+        names = g if isinstance(g, tuple) else (g,)
+        self.log(f"discover: ADD {' and '.join(names)} (the largest held-out "
+                 "improvement)")
+        for name in names:
+            ledger.append({"step": len(ledger), "action": "add", "effect": name,
+                           "heldout_rmse_before_Pa": current.heldout_rmse_Pa,
+                           "heldout_rmse_after_Pa": trial.heldout_rmse_Pa,
+                           "score_gain": gain, "score_p_value": pval,
+                           **({"pair": list(names)} if len(names) > 1 else {})})
+            accepted.append({"name": name, "evidence": sindy.evidence_[name],
+                             "score_gain": gain, "score_p_value": pval,
+                             "rmse_before_Pa": current.heldout_rmse_Pa,
+                             "rmse_after_Pa": trial.heldout_rmse_Pa})
+        return self._prune(trial, accepted, ledger, train_ws, held_ws, data_key,
+                           newest=len(names))
 
     def _estimate(self, current: StepFit, train_ws: WindowSet):
         """The final model's parameters: ``(params, how they were estimated, the posterior
