@@ -79,6 +79,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from scipy import stats
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import BenchConfig, run_bench
@@ -490,8 +491,6 @@ def paired_difference(a, b) -> dict:
     standard deviation and the mean's two-sided 95 % Student-t interval (None with
     fewer than two seeds), so "equal tracking" is judged against the spread over seeds
     rather than on one seed's sign."""
-    from scipy import stats
-
     d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
     if d.size < 2:
         return {"mean": float(d.mean()) if d.size else None, "sd": None, "ci95": None,

@@ -203,20 +203,14 @@ def test_a_moving_piston_is_crossed_on_its_chord_within_the_floor(volume):
     assert not np.array_equal(_run(model, theta, inputs, SolverConfig.standard(), True), stops)
 
 
-CLOSABLE = {  # inside the model's bounds; both Gompertz terms underflow to 0 at u = 0
-    "inlet_offset_m2": 0.0, "inlet_a_m2": 5.5e-7, "inlet_b": 3.5, "inlet_c_per_V": 20.0,
-    "inlet_d_V": -3.0, "exhaust_offset_m2": 0.0, "exhaust_a_m2": 6e-7, "exhaust_b": 3.5,
-    "exhaust_c_per_V": -20.0, "exhaust_d_V": 3.0}
-
-
 @pytest.mark.parametrize("volume", [2e-7, 2.4e-6])
-def test_a_closed_rigid_chamber_over_an_aggressive_piston_is_exact(volume):
+def test_a_closed_rigid_chamber_over_an_aggressive_piston_is_exact(volume, closable_params):
     """Both ports shut, no leak: p V^1.4 is constant. A crossing step in a rigid chamber
     whose compression outpaces the flows is taken in q = p V^n, so every sample is exact
     to rounding, and dp/dp0 = (V0 / V)^n (moving p alone to each sample's volume, second
     order, left 436 Pa at 2e-7 m^3 on this motion, 0.87-18.7 bar, when measured)."""
     model = Model([])
-    theta = model.vector(dict(CLOSABLE, dead_volume_m3=volume))
+    theta = model.vector(dict(closable_params, dead_volume_m3=volume))
     dt = 0.001
     t = np.arange(2001) * dt
     x = _aggressive_motion(t, 1)
@@ -231,7 +225,8 @@ def test_a_closed_rigid_chamber_over_an_aggressive_piston_is_exact(volume):
 
 
 @pytest.mark.parametrize("leak_m2", [1e-9, 3e-8])
-def test_dense_sensitivity_over_a_moving_piston_agrees_with_the_stepped_one(leak_m2):
+def test_dense_sensitivity_over_a_moving_piston_agrees_with_the_stepped_one(leak_m2,
+                                                                           closable_params):
     """dp/dp0 across chords against the stepped sensitivity: a shut valve and a leak whose
     relaxation (about 20 / s and 700 / s at 2e-7 m^3) is slower than the compression on
     part of the motion and faster on the rest, and a valve cycling open and shut, so steps
@@ -240,7 +235,7 @@ def test_dense_sensitivity_over_a_moving_piston_agrees_with_the_stepped_one(leak
     dt = 0.001
     t = np.arange(1001) * dt
     model = Model(["cylinder_leak"])
-    theta = model.vector(dict(CLOSABLE, dead_volume_m3=2e-7, leak_area_m2=leak_m2))
+    theta = model.vector(dict(closable_params, dead_volume_m3=2e-7, leak_area_m2=leak_m2))
     u = np.where((t % 0.4) < 0.1, 4.0, 0.0)  # open 100 ms of every 400
     inputs = _inputs(u, dt, x=_aggressive_motion(t, 2))
     solver = SolverConfig.standard().tightened(10)

@@ -58,6 +58,13 @@ def compliant_volume(p, vol, sl, p_atm):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def rigid_chamber(sl):
+    """Whether the chamber's volume is independent of its pressure (no compliance, no
+    volume table): :func:`compliant_volume` returns ``vol`` unchanged."""
+    return sl[_COMPL] == 0.0 and sl[_VT_N] == 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def wall_exchange(kappa, hconv, bore_a, vol):
     """The convective heat form's wall term per kelvin, ``(kappa - 1) h A_w / V`` (Pa/(s K);
     dp/dt gains it times T_w - T), with ``A_w / V = 2 A / V + pi D / A`` (end caps and

@@ -55,7 +55,7 @@ from pneubayes.physics.calibration import (
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
-from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.chamber import chamber_rhs, rigid_chamber
 from pneubayes.simulation.chord import (
     chord_coupling,
     chord_response,
@@ -145,8 +145,6 @@ CHORD_ERROR_WEIGHT = 1.0
 _IN = SLOT_INDEX["inlet_offset_m2"]
 _EX = SLOT_INDEX["exhaust_offset_m2"]
 _VOL = SLOT_INDEX["volume_m3"]
-_COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
-_VT_N = SLOT_INDEX["volume_table_points"]
 _DELAY = SLOT_INDEX["command_delay_s"]
 _SPOOL = SLOT_INDEX["spool_time_constant_s"]
 _SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
@@ -473,7 +471,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     w_lin, w_lex = math.nan, math.nan
     a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
     x0c, x1c = 0.0, 0.0  # a chord step's positions at its ends (dense output), m
-    jf_c, c_c = 0.0, 0.0  # its flows' slope (1/s) and coupling (Pa / (m s))
+    c_c = 0.0  # its coupling (Pa / (m s)); the flows' slope is jf
     # Delayed-command pointer: index j of the sample held at time t - delay, the last
     # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
     # every sample would otherwise scan the recording from its start each time
@@ -508,7 +506,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and not (thermal or tank or lung or line or wave))
     # a rigid chamber (no compliance, no volume table) may step q = p V^n over a chord
-    rigid = sl[_COMPL] == 0.0 and sl[_VT_N] == 0.0
+    rigid = rigid_chamber(sl)
     kap = cs[C_KAPPA]
     qstep = False  # the pressure step's variable is q = p V^n
     sc0, sc1 = 1.0, 1.0  # its scale V^n (1 for p) at the step's ends
@@ -756,9 +754,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         # the chord's effect on the flows, corrected to first order at the
                         # step's end; its size, weighted by CHORD_ERROR_WEIGHT, also
                         # enters the error estimate
-                        jf_c, c_c = jf, chord_coupling(p, ff, jf, vol, bore, kap)
+                        c_c = chord_coupling(p, ff, jf, vol, bore, kap)
                         dpe = c_c * chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
-                                                   jf_c) * sc0 / sc1
+                                                   jf) * sc0 / sc1
                         pn -= dpe
                         err = max(err, CHORD_ERROR_WEIGHT * abs(dpe)
                                   / (atol_p + rtol * max(abs(p), abs(pn))))
@@ -817,7 +815,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                 dt = t[kw] - t_r
                                 if dt != dt_r:  # uniform sampling: once per step
                                     dt_r = dt
-                                    e_r, a_r, b_r = response_weights(jf_c, dt)
+                                    e_r, a_r, b_r = response_weights(jf, dt)
                                 w_r = e_r * w_r + a_r * d_r + b_r * (dev - d_r)
                                 t_r, d_r = t[kw], dev
                                 if qstep:  # q at the sample's own volume
