@@ -85,6 +85,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.effects import effects_from_names
+from pneubayes.inference.error_band import PredictionErrorBand, recording_errors
 from pneubayes.inference.fit import FitSettings, identify
 from pneubayes.inference.fit_folder import read_fit, write_fit
 from pneubayes.inference.predictive import PressurePredictor, ar1_noise
@@ -117,7 +118,12 @@ NEAR_LIMIT_PA = 30e3
 N_DRAWS = 64
 QUANTILE = 0.95
 CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
-               "chance_window", "delay_nominal", "delay_chance", "delay_chance_window")
+               "chance_window", "calibrated", "calibrated_near", "delay_nominal",
+               "delay_chance", "delay_chance_window")
+#: ``calibrated_near``'s band covers the first steps only (20 ms: the first level's hold
+#: and two more ticks), where a decision made now shows in the pressure before the next
+#: ones can correct it; beyond, the draws' quantile alone (a design choice, stated).
+BAND_TICKS = 4
 #: Nominal MPC as an engineer runs it without a posterior: the point estimate with a
 #: fixed back-off from the limit (Pa). Seven sizes trace its trade-off between
 #: violations and tracking, so a posterior-aware controller is compared with the
@@ -132,7 +138,8 @@ def backoff_Pa(kind: str) -> float | None:
 
 
 #: The posterior-aware controllers compared with each back-off.
-POSTERIOR_AWARE = ("posterior", "predictive", "chance", "chance_window")
+POSTERIOR_AWARE = ("posterior", "predictive", "chance", "chance_window", "calibrated",
+                   "calibrated_near")
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
 #: bench hides (what the discovery loop names on such data) for the ``delay_`` ones.
 FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
@@ -156,7 +163,8 @@ SCENARIOS = {
                   "controllers": ("delay_nominal", "delay_nominal_mean",
                                   "delay_nominal_lsq", "delay_posterior", "delay_chance",
                                   "delay_chance_window",
-                                  *(f"delay_{b}" for b in BACKOFF_PA)),
+                                  *(f"delay_{b}" for b in BACKOFF_PA),
+                                  "delay_calibrated", "delay_calibrated_near"),
                   "baseline": "delay_nominal"},
 }
 
@@ -190,8 +198,12 @@ class Controller:
     """One MPC: a predictor over some draws and how its predictions are scored
     (``nominal``, ``nominal_mean``: one parameter vector)."""
 
-    def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool):
+    def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool,
+                 band: PredictionErrorBand | None = None):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
+        self.band = band
+        if self.kind.startswith("calibrated") and band is None:
+            raise ValueError(f"{kind} needs the fitted model's PredictionErrorBand")
         self.backoff_Pa = backoff_Pa(kind) or 0.0
         solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
         self.predictor = PressurePredictor(model, draws, rig, solver)
@@ -220,14 +232,23 @@ class Controller:
                 measured_Pa, cands, position_m, DT_S, self.noise, command_history_V=history_V)
             sims, noisy = sims[:, :, 1:], noisy[:, :, 1:]
         else:
-            sims = self.predictor.predict_draws(measured_Pa, cands, position_m, DT_S,
-                                                command_history_V=history_V)[:, :, 1:]
+            full = self.predictor.predict_draws(measured_Pa, cands, position_m, DT_S,
+                                                command_history_V=history_V)
+            sims = full[:, :, 1:]
             noisy = sims if self.noise is None else sims + self.noise
         if self.kind.startswith("nominal"):
             pred, limit = sims[0], sims[0] + self.backoff_Pa
         elif self.kind.startswith("chance"):  # expected tracking, the predictive's risk
             pred = np.median(sims, axis=0)
             limit = np.quantile(noisy, QUANTILE, axis=0)
+        elif self.kind.startswith("calibrated"):
+            # the draws' quantile plus the calibrated k-step error of the median's path
+            median = np.median(full, axis=0)
+            margin = self.band.margin(median)[:, 1:]
+            if self.kind == "calibrated_near":
+                margin[:, BAND_TICKS:] = 0.0
+            pred = median[:, 1:]
+            limit = np.quantile(sims, QUANTILE, axis=0) + margin
         else:
             pred = np.median(noisy, axis=0)
             limit = np.quantile(noisy, QUANTILE, axis=0)
@@ -364,6 +385,14 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
         lsq = fit.model.vector(refined)[None] if refined else None
         fitted[name] = (fit.model, draws, noise, fit.model.vector(median)[None], lsq,
                         seqs[3 if name == "paper" else 5])
+    # per fitted model: the calibrated k-step error of its point estimate on the
+    # identification recordings (in sample), for the calibrated controllers
+    solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
+    bands = {}
+    for name, (model, _, _, median, _, _) in fitted.items():
+        pred, meas = recording_errors(model, median[0], recs, HORIZON_TICKS, DT_S, DT_S,
+                                      solver)
+        bands[name] = PredictionErrorBand(QUANTILE).fit(pred, meas, DT_S)
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
@@ -371,7 +400,8 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
               "bench": {"duration_s": cfg.duration_s, "ranges_V": list(cfg.ranges_V)},
               "posterior_noise_scale_Pa": float(np.median(
                   fitted[sc["fitted"][0]][2][:, 0])),
-              "reference_Pa": reference[: n + 1].tolist(), "controllers": {}}
+              "reference_Pa": reference[: n + 1].tolist(), "controllers": {},
+              "error_band": {name: b.summary() for name, b in bands.items()}}
     if "paper" in fits:
         result["fit"] = {k: fits["paper"].summary.get(k)
                          for k in ("converged", "steps", "tau_max")}
@@ -396,7 +426,7 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
             raise SystemExit(f"seed {seed}: {kind} needs the fit's refined point estimate, "
                              "which its summary lacks")
         ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream),
-                          dense_output)
+                          dense_output, bands["delay" if kind.startswith("delay_") else "paper"])
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
         run = closed_loop(ctrl, plant_model, truth, rig, position, reference,
