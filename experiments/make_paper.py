@@ -789,7 +789,16 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "choices among candidates noisy); `chance_window` is `chance` with the noise "
           "the likelihood itself has for a prediction started at the reading "
           "(`r_k = n_k - S_k n_0`: the start's noise is not counted twice, so its margin "
-          "is the posterior's own predictive, narrower than `chance`'s); "
+          "is the posterior's own predictive, narrower than `chance`'s); `calibrated` "
+          "tests the draws' 95 % quantile plus a calibrated band of the point estimate's "
+          "prediction error against the limit: the 95 % quantile of measured minus "
+          "predicted pressure on the identification recordings (in sample), for "
+          "predictions started at the reading, by horizon step and by how fast the "
+          "prediction has moved since its start "
+          "(`pneubayes.inference.error_band.PredictionErrorBand`), so the margin is wide "
+          "on an approach and narrow in a hold; `calibrated_near` applies the band over "
+          f"the first {mpc_tracking.BAND_TICKS / s['rate_Hz'] * 1e3:g} ms only (both added "
+          "after the other controllers' designs); "
           "`delay_nominal`, `delay_chance` and `delay_chance_window` are "
           "`nominal`, `chance` and `chance_window` on a second emcee fit of the same "
           "recordings whose model "
@@ -876,7 +885,8 @@ def _backoff_text(c: dict, n: int, folder: Path, paper: Path, prefix: str = "") 
     (``mpc_tracking.BACKOFF_PA``; ``prefix`` "delay_" for the model with the delay), if
     the summary has them."""
     backoffs = [prefix + b for b in mpc_tracking.BACKOFF_PA if prefix + b in c]
-    chance = prefix + "chance"
+    aware = [prefix + k for k in ("chance", "calibrated", "calibrated_near")
+             if prefix + k in c]
     if not backoffs:
         return []
     curve = "; ".join(
@@ -884,15 +894,15 @@ def _backoff_text(c: dict, n: int, folder: Path, paper: Path, prefix: str = "") 
         f"capped RMSE {np.median(c[b]['feasible_tracking_rmse_Pa']) / 1e3:.1f} kPa, settled "
         f"{np.median(c[b]['settled_tracking_rmse_Pa']) / 1e3:.1f} kPa"
         for b in backoffs)
-    found = [_versus_text(chance, b, c[chance][f"versus_{b}"], n)
-             for b in backoffs if f"versus_{b}" in c.get(chance, {})]
+    found = [_versus_text(k, b, c[k][f"versus_{b}"], n)
+             for k in aware for b in backoffs if f"versus_{b}" in c[k]]
     return ["**Against a nominal MPC with a fixed margin.** A nominal MPC as it is run "
             "without a posterior keeps a fixed back-off from the limit; "
             f"`{prefix}nominal_backoff5k` ... `_backoff40k` are `{prefix}nominal` with the "
             "limit lowered by that much (added after the runs above, on the same fits, "
             "sensor noise and set-points). Their trade-off (total ticks over the seeds, "
             f"medians): {curve} ({_revisions(c, backoffs)}). Against them: "
-            + "; ".join(found) + ". " + _on_curve(c, backoffs, chance) +
+            + "; ".join(found) + ". " + " ".join(_on_curve(c, backoffs, k) for k in aware) +
             " What the posterior gives is a margin chosen from the identification data; a "
             "fixed back-off is chosen by running the loop and counting its violations.", "",
             _copy_fig(paper, folder / "mpc_tradeoff.png", f"{folder.name}_tradeoff.png"), ""]
@@ -960,7 +970,8 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
                     f"{np.median(st):.1f} [{st.min():.1f}, {st.max():.1f}] | "
                     f"{max(v['largest_excess_Pa']) / 1e3:.1f} |")
     found = [_versus_text(kind, "delay_nominal", c[kind]["versus_delay_nominal"], n)
-             for kind in ("delay_posterior", "delay_chance")
+             for kind in ("delay_posterior", "delay_chance", "delay_calibrated",
+                          "delay_calibrated_near")
              if "versus_delay_nominal" in c.get(kind, {})]
     for kind in ("delay_posterior", "delay_chance"):
         for other in ("delay_nominal_mean", "delay_nominal_lsq"):
