@@ -118,12 +118,18 @@ NEAR_LIMIT_PA = 30e3
 N_DRAWS = 64
 QUANTILE = 0.95
 CONTROLLERS = ("nominal", "nominal_mean", "posterior", "predictive", "chance",
-               "chance_window", "calibrated", "calibrated_near", "delay_nominal",
-               "delay_chance", "delay_chance_window")
+               "chance_window", "calibrated", "calibrated_near", "calibrated_online",
+               "delay_nominal", "delay_chance", "delay_chance_window")
 #: ``calibrated_near``'s band covers the first steps only (20 ms: the first level's hold
 #: and two more ticks), where a decision made now shows in the pressure before the next
 #: ones can correct it; beyond, the draws' quantile alone (a design choice, stated).
 BAND_TICKS = 4
+#: ``calibrated_online`` refits its band every this many ticks (100 ms) on the
+#: identification recordings' errors and the loop's own: each tick, the point estimate's
+#: prediction from the reading HORIZON_TICKS ago under the commands since applied,
+#: against the readings since (the loop may go where the recordings did not, e.g. ride
+#: the limit with small openings)
+BAND_REFIT_TICKS = 20
 #: Nominal MPC as an engineer runs it without a posterior: the point estimate with a
 #: fixed back-off from the limit (Pa). Seven sizes trace its trade-off between
 #: violations and tracking, so a posterior-aware controller is compared with the
@@ -139,7 +145,7 @@ def backoff_Pa(kind: str) -> float | None:
 
 #: The posterior-aware controllers compared with each back-off.
 POSTERIOR_AWARE = ("posterior", "predictive", "chance", "chance_window", "calibrated",
-                   "calibrated_near")
+                   "calibrated_near", "calibrated_online")
 #: The effects of the fitted models: the paper's, and the paper's with the tube the
 #: bench hides (what the discovery loop names on such data) for the ``delay_`` ones.
 FITTED = {"paper": ["cylinder_leak"], "delay": ["cylinder_leak", "tube_delay"]}
@@ -164,7 +170,8 @@ SCENARIOS = {
                                   "delay_nominal_lsq", "delay_posterior", "delay_chance",
                                   "delay_chance_window",
                                   *(f"delay_{b}" for b in BACKOFF_PA),
-                                  "delay_calibrated", "delay_calibrated_near"),
+                                  "delay_calibrated", "delay_calibrated_near",
+                                  "delay_calibrated_online"),
                   "baseline": "delay_nominal"},
 }
 
@@ -199,11 +206,22 @@ class Controller:
     (``nominal``, ``nominal_mean``: one parameter vector)."""
 
     def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool,
-                 band: PredictionErrorBand | None = None):
+                 band: PredictionErrorBand | None = None, calibration=None, point=None):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
         self.band = band
         if self.kind.startswith("calibrated") and band is None:
             raise ValueError(f"{kind} needs the fitted model's PredictionErrorBand")
+        if self.kind == "calibrated_online":
+            # the band's own errors (predicted, measured), and the point estimate that
+            # predicts the loop's windows afterwards
+            if calibration is None or point is None:
+                raise ValueError(f"{kind} needs the band's calibration errors and the "
+                                 "point estimate")
+            self.calibration = tuple(np.asarray(a, dtype=np.float64) for a in calibration)
+            self.point = PressurePredictor(model, point, rig, SolverConfig.sampling()
+                                           if dense_output else SolverConfig.standard())
+            self.readings: list[float] = []
+            self.online: list[tuple[np.ndarray, np.ndarray]] = []
         self.backoff_Pa = backoff_Pa(kind) or 0.0
         solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
         self.predictor = PressurePredictor(model, draws, rig, solver)
@@ -226,6 +244,8 @@ class Controller:
         self.plan = np.zeros(HORIZON_TICKS)
 
     def step(self, measured_Pa, reference_Pa, history_V, position_m):
+        if self.kind == "calibrated_online":
+            self._learn(measured_Pa, history_V, position_m)
         cands = candidates(self.plan)
         if self.kind == "chance_window":
             sims, noisy = self.predictor.predictive_draws(
@@ -255,6 +275,27 @@ class Controller:
         best = choose(pred, reference_Pa, limit)
         self.plan = cands[best]
         return float(self.plan[0])
+
+
+    def _learn(self, measured_Pa, history_V, position_m):
+        """The point estimate's prediction from the reading HORIZON_TICKS ago under the
+        commands applied since, against the readings since; the band refitted every
+        BAND_REFIT_TICKS on the calibration's errors and these."""
+        self.readings.append(float(measured_Pa))
+        k = len(self.readings) - 1  # this tick
+        start = k - HORIZON_TICKS
+        if start < 0:
+            return
+        applied = np.asarray(history_V, dtype=np.float64)
+        pred = self.point.predict_draws(self.readings[start], applied[start:k], position_m,
+                                        DT_S, command_history_V=applied[:start] if start
+                                        else None)[0, 0]
+        self.online.append((pred, np.asarray(self.readings[start:k + 1])))
+        if len(self.online) % BAND_REFIT_TICKS == 0:
+            pred_o, meas_o = (np.stack(a) for a in zip(*self.online))
+            self.band = PredictionErrorBand(self.band.quantile).fit(
+                np.concatenate([self.calibration[0], pred_o]),
+                np.concatenate([self.calibration[1], meas_o]), DT_S)
 
 
 def setpoints(rng, n_ticks):
@@ -388,11 +429,12 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
     # per fitted model: the calibrated k-step error of its point estimate on the
     # identification recordings (in sample), for the calibrated controllers
     solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
-    bands = {}
+    bands, calibration = {}, {}
     for name, (model, _, _, median, _, _) in fitted.items():
         pred, meas = recording_errors(model, median[0], recs, HORIZON_TICKS, DT_S, DT_S,
                                       solver)
         bands[name] = PredictionErrorBand(QUANTILE).fit(pred, meas, DT_S)
+        calibration[name] = (pred, meas)
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
@@ -425,8 +467,9 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
         if use is None:
             raise SystemExit(f"seed {seed}: {kind} needs the fit's refined point estimate, "
                              "which its summary lacks")
+        which = "delay" if kind.startswith("delay_") else "paper"
         ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream),
-                          dense_output, bands["delay" if kind.startswith("delay_") else "paper"])
+                          dense_output, bands[which], calibration[which], median)
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
         run = closed_loop(ctrl, plant_model, truth, rig, position, reference,
