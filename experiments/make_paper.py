@@ -797,8 +797,14 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "prediction has moved since its start "
           "(`pneubayes.inference.error_band.PredictionErrorBand`), so the margin is wide "
           "on an approach and narrow in a hold; `calibrated_near` applies the band over "
-          f"the first {mpc_tracking.BAND_TICKS / s['rate_Hz'] * 1e3:g} ms only (both added "
-          "after the other controllers' designs); "
+          f"the first {mpc_tracking.BAND_TICKS / s['rate_Hz'] * 1e3:g} ms only; "
+          "`calibrated_online` refits the band every "
+          f"{mpc_tracking.BAND_REFIT_TICKS / s['rate_Hz'] * 1e3:g} ms on the recordings' "
+          "errors and the loop's own (each tick, the point estimate's prediction from the "
+          f"reading {s['horizon_s'] * 1e3:g} ms ago under the commands applied since, "
+          "against the readings since), since the loop goes where the recordings did not "
+          "(riding the limit with small openings; the three added after the other "
+          "controllers' designs); "
           "`delay_nominal`, `delay_chance` and `delay_chance_window` are "
           "`nominal`, `chance` and `chance_window` on a second emcee fit of the same "
           "recordings whose model "
@@ -885,8 +891,8 @@ def _backoff_text(c: dict, n: int, folder: Path, paper: Path, prefix: str = "") 
     (``mpc_tracking.BACKOFF_PA``; ``prefix`` "delay_" for the model with the delay), if
     the summary has them."""
     backoffs = [prefix + b for b in mpc_tracking.BACKOFF_PA if prefix + b in c]
-    aware = [prefix + k for k in ("chance", "calibrated", "calibrated_near")
-             if prefix + k in c]
+    aware = [prefix + k for k in ("chance", "calibrated", "calibrated_near",
+                                  "calibrated_online") if prefix + k in c]
     if not backoffs:
         return []
     curve = "; ".join(
@@ -971,7 +977,7 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
                     f"{max(v['largest_excess_Pa']) / 1e3:.1f} |")
     found = [_versus_text(kind, "delay_nominal", c[kind]["versus_delay_nominal"], n)
              for kind in ("delay_posterior", "delay_chance", "delay_calibrated",
-                          "delay_calibrated_near")
+                          "delay_calibrated_near", "delay_calibrated_online")
              if "versus_delay_nominal" in c.get(kind, {})]
     for kind in ("delay_posterior", "delay_chance"):
         for other in ("delay_nominal_mean", "delay_nominal_lsq"):
