@@ -201,6 +201,12 @@ def choose(pred_Pa: np.ndarray, reference_Pa: np.ndarray, limit_Pa: np.ndarray) 
     return int(np.argmin(cost))
 
 
+def controller_solver(dense_output: bool) -> SolverConfig:
+    """The controllers' solver (and their band's): the standard tolerances, with dense
+    output or stopping at every tick."""
+    return SolverConfig.sampling() if dense_output else SolverConfig.standard()
+
+
 class Controller:
     """One MPC: a predictor over some draws and how its predictions are scored
     (``nominal``, ``nominal_mean``: one parameter vector)."""
@@ -208,6 +214,7 @@ class Controller:
     def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool,
                  band: PredictionErrorBand | None = None, calibration=None, point=None):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
+        solver = controller_solver(dense_output)
         self.band = band
         if self.kind.startswith("calibrated") and band is None:
             raise ValueError(f"{kind} needs the fitted model's PredictionErrorBand")
@@ -218,12 +225,10 @@ class Controller:
                 raise ValueError(f"{kind} needs the band's calibration errors and the "
                                  "point estimate")
             self.calibration = tuple(np.asarray(a, dtype=np.float64) for a in calibration)
-            self.point = PressurePredictor(model, point, rig, SolverConfig.sampling()
-                                           if dense_output else SolverConfig.standard())
+            self.point = PressurePredictor(model, point, rig, solver)
             self.readings: list[float] = []
             self.online: list[tuple[np.ndarray, np.ndarray]] = []
         self.backoff_Pa = backoff_Pa(kind) or 0.0
-        solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
         self.predictor = PressurePredictor(model, draws, rig, solver)
         # predictive only: one fixed path per draw of its stationary AR(1) noise (fitted
         # per recording sample), read at the control ticks; the start's own noise is
@@ -428,7 +433,7 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
                         seqs[3 if name == "paper" else 5])
     # per fitted model: the calibrated k-step error of its point estimate on the
     # identification recordings (in sample), for the calibrated controllers
-    solver = SolverConfig.sampling() if dense_output else SolverConfig.standard()
+    solver = controller_solver(dense_output)
     bands, calibration = {}, {}
     for name, (model, _, _, median, _, _) in fitted.items():
         pred, meas = recording_errors(model, median[0], recs, HORIZON_TICKS, DT_S, DT_S,
