@@ -72,6 +72,7 @@ resume).
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 import time
@@ -212,19 +213,18 @@ class Controller:
     (``nominal``, ``nominal_mean``: one parameter vector)."""
 
     def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool,
-                 band: PredictionErrorBand | None = None, calibration=None, point=None):
+                 band: PredictionErrorBand | None = None, point=None):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
         solver = controller_solver(dense_output)
         self.band = band
         if self.kind.startswith("calibrated") and band is None:
             raise ValueError(f"{kind} needs the fitted model's PredictionErrorBand")
         if self.kind == "calibrated_online":
-            # the band's own errors (predicted, measured), and the point estimate that
-            # predicts the loop's windows afterwards
-            if calibration is None or point is None:
-                raise ValueError(f"{kind} needs the band's calibration errors and the "
-                                 "point estimate")
-            self.calibration = tuple(np.asarray(a, dtype=np.float64) for a in calibration)
+            # the point estimate predicts the loop's windows afterwards; the band
+            # (a copy: every loop starts from the recordings' band) learns from them
+            if point is None:
+                raise ValueError(f"{kind} needs the point estimate")
+            self.band = copy.deepcopy(band)
             self.point = PressurePredictor(model, point, rig, solver)
             self.readings: list[float] = []
             self.online: list[tuple[np.ndarray, np.ndarray]] = []
@@ -285,7 +285,7 @@ class Controller:
     def _learn(self, measured_Pa, history_V, position_m):
         """The point estimate's prediction from the reading HORIZON_TICKS ago under the
         commands applied since, against the readings since; the band refitted every
-        BAND_REFIT_TICKS on the calibration's errors and these."""
+        BAND_REFIT_TICKS on the recordings' errors and these."""
         self.readings.append(float(measured_Pa))
         k = len(self.readings) - 1  # this tick
         start = k - HORIZON_TICKS
@@ -297,10 +297,9 @@ class Controller:
                                         else None)[0, 0]
         self.online.append((pred, np.asarray(self.readings[start:k + 1])))
         if len(self.online) % BAND_REFIT_TICKS == 0:
-            pred_o, meas_o = (np.stack(a) for a in zip(*self.online))
-            self.band = PredictionErrorBand(self.band.quantile).fit(
-                np.concatenate([self.calibration[0], pred_o]),
-                np.concatenate([self.calibration[1], meas_o]), DT_S)
+            new = self.online[-BAND_REFIT_TICKS:]
+            self.band.partial_fit(np.stack([a for a, _ in new]),
+                                  np.stack([b for _, b in new]), DT_S)
 
 
 def setpoints(rng, n_ticks):
@@ -434,12 +433,11 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
     # per fitted model: the calibrated k-step error of its point estimate on the
     # identification recordings (in sample), for the calibrated controllers
     solver = controller_solver(dense_output)
-    bands, calibration = {}, {}
+    bands = {}
     for name, (model, _, _, median, _, _) in fitted.items():
         pred, meas = recording_errors(model, median[0], recs, HORIZON_TICKS, DT_S, DT_S,
                                       solver)
         bands[name] = PredictionErrorBand(QUANTILE).fit(pred, meas, DT_S)
-        calibration[name] = (pred, meas)
     n = round(RUN_S * RATE_HZ)
     reference = setpoints(ref_rng, n)
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
@@ -474,7 +472,7 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
                              "which its summary lacks")
         which = "delay" if kind.startswith("delay_") else "paper"
         ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream),
-                          dense_output, bands[which], calibration[which], median)
+                          dense_output, bands[which], median)
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
         run = closed_loop(ctrl, plant_model, truth, rig, position, reference,

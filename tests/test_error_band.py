@@ -115,3 +115,20 @@ def test_recording_errors_band_is_noise_level_for_the_true_model(prn_leak_bench)
     assert wrong_band.margin_Pa_[-1].max() > 2 * true_band.margin_Pa_[-1].max()
     with pytest.raises(ValueError, match="whole number"):
         recording_errors(model, model.vector(truth), recs, 20, 0.0055, DT, solver)
+
+
+def test_partial_fit_refits_on_the_old_and_the_new_windows():
+    pred, meas = _planted()
+    whole = PredictionErrorBand(0.95, rate_bins=2).fit(pred, meas, DT)
+    part = PredictionErrorBand(0.95, rate_bins=2).fit(pred[:3000], meas[:3000], DT)
+    part.partial_fit(pred[3000:], meas[3000:])
+    assert np.array_equal(part.margin_Pa_, whole.margin_Pa_)
+    assert part.predicted_Pa_.shape == pred.shape
+    fresh = PredictionErrorBand(0.95, rate_bins=2).partial_fit(pred, meas, DT)
+    assert np.array_equal(fresh.margin_Pa_, whole.margin_Pa_)
+    with pytest.raises(ValueError, match="needs dt_s"):
+        PredictionErrorBand().partial_fit(pred, meas)
+    with pytest.raises(ValueError, match="differs"):
+        part.partial_fit(pred[:10], meas[:10], 2 * DT)
+    with pytest.raises(ValueError, match=r"\(W, 11\)"):
+        part.partial_fit(pred[:10, :5], meas[:10, :5])

@@ -608,10 +608,10 @@ def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors():
     meas = pred + rng.normal(0, 500.0, pred.shape)
     meas[:, 0] = pred[:, 0]
     band = PredictionErrorBand(0.95).fit(pred, meas, mpc_tracking.DT_S)
-    with pytest.raises(ValueError, match="calibration"):
+    with pytest.raises(ValueError, match="point estimate"):
         mpc_tracking.Controller("calibrated_online", model, theta, None, rig, rng, True, band)
     ctrl = mpc_tracking.Controller("calibrated_online", model, theta, None, rig, rng, True,
-                                   band, (pred, meas), theta)
+                                   band, theta)
     applied, p_now = [], 3e5
     n = h + mpc_tracking.BAND_REFIT_TICKS
     for k in range(n):
@@ -619,5 +619,6 @@ def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors():
                       else None, 0.05)
         applied.append(u)
     assert len(ctrl.online) == n - h
-    assert ctrl.band is not band  # refitted once
+    assert ctrl.band.predicted_Pa_.shape[0] == 60 + mpc_tracking.BAND_REFIT_TICKS
+    assert band.predicted_Pa_.shape[0] == 60  # the loop's copy learnt, not the original
     assert ctrl.band.margin_Pa_[h].max() > band.margin_Pa_[h].max() + 10e3

@@ -25,7 +25,9 @@ class PredictionErrorBand:
     """Upper ``quantile`` of ``measured - predicted`` pressure by horizon step and rate.
 
     Follows the scikit-learn contract: the constructor stores settings, :meth:`fit`
-    learns ``margin_Pa_`` and ``rate_edges_Pa_s_``, :meth:`margin` applies them.
+    learns ``margin_Pa_`` and ``rate_edges_Pa_s_``, :meth:`margin` applies them, and
+    :meth:`partial_fit` adds errors met later (a controller's own, in closed loop) and
+    refits on all of them.
 
     Parameters
     ----------
@@ -105,9 +107,30 @@ class PredictionErrorBand:
         margin = np.maximum.accumulate(np.maximum.accumulate(margin, axis=0), axis=1)
         self.margin_Pa_ = margin
         self.count_ = count
+        self.predicted_Pa_, self.measured_Pa_ = pred, meas
         self.rate_edges_Pa_s_ = edges
         self.dt_s_ = float(dt_s)
         return self
+
+    def partial_fit(self, predicted_Pa, measured_Pa, dt_s: float | None = None
+                    ) -> "PredictionErrorBand":
+        """Add windows ``(W', L)`` to those the band was fitted on and refit on all of
+        them (``dt_s``, if given, must be the fitted one); unfitted, the same as
+        :meth:`fit`."""
+        if not hasattr(self, "margin_Pa_"):
+            if dt_s is None:
+                raise ValueError("partial_fit on an unfitted band needs dt_s")
+            return self.fit(predicted_Pa, measured_Pa, dt_s)
+        if dt_s is not None and abs(dt_s - self.dt_s_) > 1e-12 * self.dt_s_:
+            raise ValueError(f"dt_s={dt_s} differs from the fitted {self.dt_s_}")
+        pred = np.asarray(predicted_Pa, dtype=np.float64)
+        meas = np.asarray(measured_Pa, dtype=np.float64)
+        n_l = self.predicted_Pa_.shape[1]
+        if pred.ndim != 2 or pred.shape != meas.shape or pred.shape[1] != n_l:
+            raise ValueError(f"predicted_Pa and measured_Pa must both be (W, {n_l}), got "
+                             f"{pred.shape} and {meas.shape}")
+        return self.fit(np.concatenate([self.predicted_Pa_, pred]),
+                        np.concatenate([self.measured_Pa_, meas]), self.dt_s_)
 
     def margin(self, predicted_Pa) -> np.ndarray:
         """The margin ``(..., L')`` (Pa) for predictions ``(..., L')`` on the fitted grid,
