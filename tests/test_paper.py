@@ -260,8 +260,8 @@ def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
     # against the fixed margins: chance's 1 tick lies between the 25-kPa back-off's 4 and
     # the 30-kPa one's 1, whose median capped RMSE (42.2 kPa) is above chance's (40.8)
     assert "20 kPa: 7 ticks, capped RMSE 41.8 kPa" in text
-    assert ("`chance` had 1 ticks above the limit against `nominal_backoff30k`'s 1 (fewer "
-            "on 0 of 2 seeds)") in text
+    assert "| `chance` | `nominal_backoff30k` | 1 / 1 (0 of 2 seeds) | 40.8 / 42.2 (2 of 2" \
+        " seeds) | -1.4" in text
     assert ("`chance` (1 ticks, capped RMSE 40.8 kPa) has fewer violations than the 25-kPa "
             "back-off (4 ticks, capped RMSE 42.0 kPa) and no fewer than the 30-kPa "
             "back-off (1 ticks, capped RMSE 42.2 kPa), and tracks better") in text
