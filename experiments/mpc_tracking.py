@@ -281,7 +281,6 @@ class Controller:
         self.plan = cands[best]
         return float(self.plan[0])
 
-
     def _learn(self, measured_Pa, history_V, position_m):
         """The point estimate's prediction from the reading HORIZON_TICKS ago under the
         commands applied since, against the readings since; the band refitted every
