@@ -831,7 +831,8 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "| controller | tracking RMSE, kPa (median [min, max] over seeds) | against the "
           "reference capped at the limit, kPa | settled holds, capped, kPa | ticks above "
           "the limit (per seed) | largest excess, kPa (max) | compute per tick, ms "
-          "(median) |", "|---|---|---|---|---|---|---|"]
+          "(median) | excess over the limit integrated over the run, Pa s (total over "
+          "seeds) |", "|---|---|---|---|---|---|---|---|"]
 
     def spread(v, key):
         if key not in v:
@@ -845,7 +846,9 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                  f"{spread(v, 'settled_tracking_rmse_Pa')} | "
                  f"{', '.join(str(x) for x in v['ticks_above_limit'])} | "
                  f"{max(v['largest_excess_Pa']) / 1e3:.1f} | "
-                 f"{np.median(v['compute_ms_per_tick_median']):.2f} |")
+                 f"{np.median(v['compute_ms_per_tick_median']):.2f} | "
+                 + (f"{sum(v['excess_integral_Pa_s']):.0f} |" if "excess_integral_Pa_s" in v
+                    else "- |"))
     L.append("")
     n = len(s["seeds"])
     found = [_versus_text(kind, "nominal", c[kind]["versus_nominal"], n)

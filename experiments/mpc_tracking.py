@@ -502,6 +502,12 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
     return result
 
 
+def excess_integral_Pa_s(pressure_Pa) -> float:
+    """The pressure's excess over P_MAX_PA integrated over the run, Pa s (ticks of DT_S)."""
+    p = np.asarray(pressure_Pa, dtype=np.float64)
+    return float(np.sum(np.maximum(p - P_MAX_PA, 0.0)) * DT_S)
+
+
 def feasible_rmse(pressure_Pa, reference_Pa) -> float:
     """RMSE (Pa) of the true pressure against the reference capped at ``P_MAX``: the
     tracking a loop that respects the limit can reach (against the raw reference, a set
@@ -599,6 +605,9 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
                                             for r, c in zip(results, rows)],
             "ticks_above_limit": [c["ticks_above_limit"] for c in rows],
             "largest_excess_Pa": [c["largest_excess_Pa"] for c in rows],
+            # how much and how long: the true pressure's excess over the limit, integrated
+            # over the run (Pa s; from the saved trajectories)
+            "excess_integral_Pa_s": [excess_integral_Pa_s(c["pressure_Pa"]) for c in rows],
             "compute_ms_per_tick_median": [c["compute_ms_per_tick_median"] for c in rows],
             # None: a loop run before the loops recorded their threads
             "numba_threads": [c.get("numba_threads") for c in rows],

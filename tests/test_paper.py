@@ -239,8 +239,9 @@ def _mpc_results(out: Path):
 def test_mpc_section_states_violations_and_tracking_per_seed(tmp_path):
     _mpc_results(tmp_path / "out")
     text = "\n".join(make_paper.mpc_section(tmp_path / "out", tmp_path / "paper", False))
+    # the excess integrated over 201 ticks of 5 ms, 40 and 42 kPa over the limit: 82410 Pa s
     assert ("| nominal | 41.0 [40.0, 42.0] | 41.0 [40.0, 42.0] | 41.0 [40.0, 42.0] | 30, 20 "
-            "| 30.0 | 2.00 |") in text
+            "| 30.0 | 2.00 | 82410 |") in text
     # the same-model comparison, the fitted delays and a controller slower than its tick
     assert ("`delay_chance` had 0 ticks above the limit against `delay_nominal`'s 1 (fewer "
             "on 1 of 2 seeds)") in text
