@@ -771,6 +771,35 @@ def _versus_table(pairs: list[tuple[str, str, dict]], n: int) -> list[str]:
     return rows
 
 
+def _floor_text(c: dict, baseline: str, n: int) -> str:
+    """Issue 23's floor read from a summary: which posterior-aware controllers (on the
+    baseline's model) had fewer violations than ``baseline`` in total, and whether their
+    paired capped-RMSE interval lies below 0 (better), straddles it (equal within the
+    seeds' spread) or lies above (worse)."""
+    rows = []
+    prefix = baseline.removesuffix("nominal")
+    for kind, v in c.items():
+        vs = v.get(f"versus_{baseline}")
+        if vs is None or not (kind.startswith(prefix) and kind.removeprefix(prefix)
+                              in mpc_tracking.POSTERIOR_AWARE):
+            continue
+        mine, theirs = vs["total_ticks_above_limit"]
+        d = vs.get("paired_feasible_rmse_difference_Pa") or {}
+        if mine >= theirs or not d.get("ci95"):
+            continue
+        lo, hi = d["ci95"]
+        verdict = ("better" if hi < 0 else "worse" if lo > 0 else
+                   "equal within the seeds' spread")
+        rows.append(f"`{kind}` {mine} against {theirs} ticks (fewer on "
+                    f"{vs['seeds_fewer_violations']} of {n} seeds), tracking {verdict} "
+                    f"({d['mean'] / 1e3:+.2f} kPa [{lo / 1e3:+.2f}, {hi / 1e3:+.2f}])")
+    return ("**The floor, read from these runs** (the posterior-aware controllers with "
+            f"fewer violations than `{baseline}` in total over the seeds, and the paired "
+            "capped-RMSE difference's 95 % interval: "
+            "below 0 better, across 0 equal within the seeds' spread, above 0 worse): "
+            + ("; ".join(rows) if rows else "no controller had fewer violations") + ".")
+
+
 def _paired_text(d: dict | None) -> str:
     """The paired capped-RMSE difference over the seeds (``mpc_tracking.paired_difference``)."""
     if not d or d.get("ci95") is None:
@@ -851,6 +880,7 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                     else "- |"))
     L.append("")
     n = len(s["seeds"])
+    L += [_floor_text(c, "nominal", n), ""]
     found = [_versus_text(kind, "nominal", c[kind]["versus_nominal"], n)
              for kind in mpc_tracking.CONTROLLERS[1:] if kind in c]
     diffs = {k: (np.asarray(c[k]["tracking_rmse_Pa"])
@@ -1015,6 +1045,7 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
             f"{' (quick)' if s['quick'] else ''}. `delay_nominal` is the posterior median, "
             "`delay_nominal_mean` the posterior mean, `delay_nominal_lsq` the trajectory "
             "least-squares point the posterior started from.", "", *rows, "",
+            _floor_text(c, "delay_nominal", n), "",
             "Measured: " + "; ".join(found) + f". The chains' convergence: {conv}.", "",
             *_backoff_text(c, n, folder, paper, "delay_"),
             *_one_margin_for_both(hidden, c),

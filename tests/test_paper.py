@@ -623,3 +623,18 @@ def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors():
     assert ctrl.band.predicted_Pa_.shape[0] == 60 + mpc_tracking.BAND_REFIT_TICKS
     assert band.predicted_Pa_.shape[0] == 60  # the loop's copy learnt, not the original
     assert ctrl.band.margin_Pa_[h].max() > band.margin_Pa_[h].max() + 10e3
+
+
+def test_mpc_section_reads_the_floor_for_the_posterior_aware_controllers(tmp_path):
+    """The floor's sentence lists the posterior-aware controllers with fewer violations
+    than the nominal in total, each with the verdict of its paired interval; not the
+    nominal on the other model or the back-offs."""
+    _mpc_results(tmp_path / "out")
+    text = "\n".join(make_paper.mpc_section(tmp_path / "out", tmp_path / "paper", False))
+    floor = next(line for line in text.splitlines()
+                 if line.startswith("**The floor, read from these runs**"))
+    # made-up ticks: nominal 30 + 20; calibrated_online 4 + 2; chance 1 + 0
+    assert "`calibrated_online` 6 against 50 ticks (fewer on 2 of 2 seeds), tracking" in floor
+    assert "`chance` 1 against 50 ticks" in floor
+    assert "delay_nominal" not in floor and "backoff" not in floor
+    assert "`posterior` 37 against 50" in floor  # fewer in total, if not on every seed
