@@ -631,8 +631,14 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
     return out
 
 
+#: The loops the figure shows (those the seed has, on either fitted model): more than a
+#: handful of traces on one axis cannot be read.
+FIGURE_KINDS = ("nominal", "chance", "calibrated_online", "delay_nominal")
+
+
 def figure(results: list[dict], path: Path) -> None:
-    """Seed 0's three closed loops against the reference and the limit."""
+    """Seed 0's closed loops of ``FIGURE_KINDS`` (and their ``delay_`` twins) against the
+    reference and the limit."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -648,7 +654,10 @@ def figure(results: list[dict], path: Path) -> None:
     axes[0].axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
     colours = ("tab:orange", "tab:red", "tab:blue", "tab:green", "tab:purple", "tab:pink",
                "tab:brown", "tab:olive", "tab:cyan")
-    for kind, colour in zip([k for k in r["controllers"] if backoff_Pa(k) is None], colours):
+    kinds = [k for k in dict.fromkeys(FIGURE_KINDS + tuple(f"delay_{k}" for k in
+                                                           FIGURE_KINDS))
+             if k in r["controllers"]]
+    for kind, colour in zip(kinds, colours):
         c = r["controllers"][kind]
         axes[0].plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
                      label=f"{kind}: RMSE {c['tracking_rmse_Pa'] / 1e3:.1f} kPa, "
