@@ -89,7 +89,7 @@ from pneubayes.effects import effects_from_names
 from pneubayes.inference.error_band import PredictionErrorBand, recording_errors
 from pneubayes.inference.fit import FitSettings, identify
 from pneubayes.inference.fit_folder import read_fit, write_fit
-from pneubayes.inference.predictive import PressurePredictor, ar1_noise
+from pneubayes.inference.predictive import PressurePredictor, ar1_noise, draw_quantiles
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -227,7 +227,8 @@ class Controller:
             self.band = copy.deepcopy(band)
             self.point = PressurePredictor(model, point, rig, solver)
             self.readings: list[float] = []
-            self.online: list[tuple[np.ndarray, np.ndarray]] = []
+            # the loop's windows since the band's last refit (it keeps the earlier ones)
+            self.pending: list[tuple[np.ndarray, np.ndarray]] = []
         self.backoff_Pa = backoff_Pa(kind) or 0.0
         self.predictor = PressurePredictor(model, draws, rig, solver)
         # predictive only: one fixed path per draw of its stationary AR(1) noise (fitted
@@ -265,7 +266,7 @@ class Controller:
             pred, limit = sims[0], sims[0] + self.backoff_Pa
         elif self.kind.startswith("chance"):  # expected tracking, the predictive's risk
             pred = np.median(sims, axis=0)
-            limit = np.quantile(noisy, QUANTILE, axis=0)
+            limit = draw_quantiles(noisy, (QUANTILE,))[0]
         elif self.kind.startswith("calibrated"):
             # the draws' quantile plus the calibrated k-step error of the median's path
             median = np.median(full, axis=0)
@@ -273,10 +274,10 @@ class Controller:
             if self.kind == "calibrated_near":
                 margin[:, BAND_TICKS:] = 0.0
             pred = median[:, 1:]
-            limit = np.quantile(sims, QUANTILE, axis=0) + margin
+            limit = draw_quantiles(sims, (QUANTILE,))[0] + margin
         else:
             pred = np.median(noisy, axis=0)
-            limit = np.quantile(noisy, QUANTILE, axis=0)
+            limit = draw_quantiles(noisy, (QUANTILE,))[0]
         best = choose(pred, reference_Pa, limit)
         self.plan = cands[best]
         return float(self.plan[0])
@@ -294,11 +295,11 @@ class Controller:
         pred = self.point.predict_draws(self.readings[start], applied[start:k], position_m,
                                         DT_S, command_history_V=applied[:start] if start
                                         else None)[0, 0]
-        self.online.append((pred, np.asarray(self.readings[start:k + 1])))
-        if len(self.online) % BAND_REFIT_TICKS == 0:
-            new = self.online[-BAND_REFIT_TICKS:]
-            self.band.partial_fit(np.stack([a for a, _ in new]),
-                                  np.stack([b for _, b in new]), DT_S)
+        self.pending.append((pred, np.asarray(self.readings[start:k + 1])))
+        if len(self.pending) == BAND_REFIT_TICKS:
+            self.band.partial_fit(np.stack([a for a, _ in self.pending]),
+                                  np.stack([b for _, b in self.pending]), DT_S)
+            self.pending = []
 
 
 def setpoints(rng, n_ticks):
