@@ -515,7 +515,16 @@ def test_rigs_option_keeps_only_the_named_rigs_and_rejects_an_unknown_one():
         select_rigs(study, "PRN:valve1")
 
 
-def test_mpc_controller_predicts_with_dense_output_and_chooses_as_without():
+@pytest.fixture
+def leak_controller(leak_model, base_params):
+    """What the controller tests predict with: conftest's leak model and valve-1 vector
+    (one draw), and a rig without a stroke (their piston sits at 0.05 m)."""
+    from pneubayes.rig import Rig
+
+    return leak_model, leak_model.vector(base_params)[None], Rig(0.009, 101325.0, 551325.0)
+
+
+def test_mpc_controller_predicts_with_dense_output_and_chooses_as_without(leak_controller):
     """The closed-loop demo's controllers give their predictor a solver with dense output
     (``SolverConfig.sampling()``) or without (``standard()``); on a few ticks of the
     nominal controller both steppings pick the same commands (their predictions differ
@@ -523,15 +532,7 @@ def test_mpc_controller_predicts_with_dense_output_and_chooses_as_without():
     import mpc_tracking
     import numpy as np
 
-    from pneubayes.model import Model
-    from pneubayes.physics.valve import valve_preset
-    from pneubayes.rig import Rig
-
-    model = Model(["cylinder_leak"])
-    p = valve_preset("valve1").parameters()
-    p.update(dead_volume_m3=2.4e-6, leak_area_m2=3.04e-8)
-    theta = model.vector(p)[None]
-    rig = Rig(0.009, 101325.0, 551325.0)
+    model, theta, rig = leak_controller
     chosen = {}
     for dense in (False, True):
         ctrl = mpc_tracking.Controller("nominal", model, theta, None, rig,
@@ -547,7 +548,7 @@ def test_mpc_controller_predicts_with_dense_output_and_chooses_as_without():
     assert len(set(chosen[True])) > 1  # the loop does move the command
 
 
-def test_calibrated_mpc_adds_its_error_band_under_the_limit():
+def test_calibrated_mpc_adds_its_error_band_under_the_limit(leak_controller):
     """``calibrated`` tests the draws' quantile plus the fitted k-step error band against
     the limit: with a band of about 30 kPa, just under the limit with the reference above
     it, it does not fill as the nominal one does; without a band it refuses to start;
@@ -556,15 +557,7 @@ def test_calibrated_mpc_adds_its_error_band_under_the_limit():
     import numpy as np
 
     from pneubayes.inference.error_band import PredictionErrorBand
-    from pneubayes.model import Model
-    from pneubayes.physics.valve import valve_preset
-    from pneubayes.rig import Rig
-
-    model = Model(["cylinder_leak"])
-    p = valve_preset("valve1").parameters()
-    p.update(dead_volume_m3=2.4e-6, leak_area_m2=3.04e-8)
-    theta = model.vector(p)[None]
-    rig = Rig(0.009, 101325.0, 551325.0)
+    model, theta, rig = leak_controller
     h = mpc_tracking.HORIZON_TICKS
     rng = np.random.default_rng(0)
     pred = np.full((200, h + 1), 3e5)
@@ -584,7 +577,7 @@ def test_calibrated_mpc_adds_its_error_band_under_the_limit():
     assert picks["calibrated_near"] < picks["nominal"]
 
 
-def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors():
+def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors(leak_controller):
     """``calibrated_online`` predicts, each tick, the window that ended now from the
     reading HORIZON_TICKS ago under the commands applied since (with its point
     estimate), and refits its band every BAND_REFIT_TICKS on those errors and the
@@ -594,15 +587,7 @@ def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors():
     import numpy as np
 
     from pneubayes.inference.error_band import PredictionErrorBand
-    from pneubayes.model import Model
-    from pneubayes.physics.valve import valve_preset
-    from pneubayes.rig import Rig
-
-    model = Model(["cylinder_leak"])
-    p = valve_preset("valve1").parameters()
-    p.update(dead_volume_m3=2.4e-6, leak_area_m2=3.04e-8)
-    theta = model.vector(p)[None]
-    rig = Rig(0.009, 101325.0, 551325.0)
+    model, theta, rig = leak_controller
     h = mpc_tracking.HORIZON_TICKS
     rng = np.random.default_rng(0)
     pred = np.full((60, h + 1), 3e5)
@@ -619,7 +604,7 @@ def test_calibrated_online_mpc_learns_the_loops_own_prediction_errors():
         u = ctrl.step(p_now + 1e3 * k, np.full(h, 3e5), np.array(applied) if applied
                       else None, 0.05)
         applied.append(u)
-    assert len(ctrl.online) == n - h
+    assert ctrl.pending == []  # its n - h windows went into the one refit:
     assert ctrl.band.predicted_Pa_.shape[0] == 60 + mpc_tracking.BAND_REFIT_TICKS
     assert band.predicted_Pa_.shape[0] == 60  # the loop's copy learnt, not the original
     assert ctrl.band.margin_Pa_[h].max() > band.margin_Pa_[h].max() + 10e3
