@@ -317,6 +317,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     estimate made small by cancellation would let it grow 5x into an error the next
     estimate misses). Without it every sample ends a step.
 
+    The pressure step reuses its second stage (first same as last): the rate, its slope
+    and its time derivative at the stage's point, moved to the corrected end to first
+    order (the slope times the correction), are the next step's start while the port
+    areas hold and the chamber reads no chord; over a moving position (linear between
+    samples) a new sample's dV/dt shifts the rate's -n p dV/dt / V term and the slope's
+    -n dV/dt / V, in a rigid chamber without a supply gain (elsewhere a new sample
+    evaluates afresh). One right-hand side a step instead of two: about 1.35-1.45 x the
+    speed on the benchmark's cases, the errors against Radau unchanged or smaller.
+
     ``general`` is None for the pressure-only kernel: numba prunes the branches of the
     forms with a second state (heat transfer, an acoustic line, a tank, a second
     compartment), so they are compiled only when a model uses them (any other value).
@@ -519,6 +528,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     a_in_c, a_ex_c = 0.0, 0.0
     k_last = i0 + length - 1
     fp, vp, ep = 0.0, 0.0, 0.0  # the last step's rate, its rate of change, its correction
+    # first same as last: the rate, slope and time derivative at the last accepted step's
+    # end (from its second stage, moved to its corrected end to first order), reused as
+    # the next step's start while the inputs they depend on hold
+    fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = False, 0.0, 0.0, 0.0, 0.0, -1
+    fs_ain, fs_aex = 0.0, 0.0  # the port areas it was evaluated with, m^2
+    c_ok, c_fp, c_jp, c_vp = False, 0.0, 0.0, 0.0
     k = k0
     while k < k_last:
         # the samples this pass integrates to: the next, or with dense output the last
@@ -543,6 +558,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             if general is not None and line:
                 y[0] = p
             s_p0, s_r, s_v = 1.0, 1.0, 0.0
+            fs_ok = False
         tb = t[kn]
         a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
         tau = t[k] if k > k0 else t_start
@@ -584,6 +600,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             if s_eff != s_cached:
                 a_in_c, a_ex_c = _areas(s_eff, dead, sl)
                 s_cached = s_eff
+                fs_ok = False
                 # the valve switched: restart small (the error estimate of a long first
                 # step from a port's balance, where the flow has a square-root kink,
                 # misses most of its error) and let the controller grow it 5x a step.
@@ -710,9 +727,25 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                                        vol2, psup2, sl, cs, atol_p, atol_t,
                                                        rtol)
                 else:
-                    fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot,
-                                                            psup, sl, cs, hh, True, dsup,
-                                                            da_in, da_ex)
+                    c_ok = False
+                    if (fs_ok and not moving and not chord and a_in == fs_ain
+                            and a_ex == fs_aex and (fs_m == m or (rigid and gain == 0.0))):
+                        fp, jp, vp = fs_fp, fs_jp, fs_vp
+                        if vdot != fs_vdot:  # a new chord of the position (rigid)
+                            nv = kap / vol
+                            xv = vp + fp * fs_vdot / vol
+                            fp -= nv * p * (vdot - fs_vdot)
+                            jp -= nv * (vdot - fs_vdot)
+                            vp = xv - fp * vdot / vol
+                    else:
+                        fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol,
+                                                                vdot, psup, sl, cs, hh, True,
+                                                                dsup, da_in, da_ex)
+                    if not moving and not chord:
+                        fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = True, fp, jp, vp, vdot, m
+                        fs_ain, fs_aex = a_in, a_ex
+                    else:
+                        fs_ok = False
                     # over a chord in a rigid chamber where the compression outpaces
                     # the flows' relaxation (|J_f| < n |dV/dt| / V), the step is taken in
                     # q = p V^n (scale sc = V^n at its ends), which the compression
@@ -745,11 +778,19 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         phi1p, phi2p, phi3p = phi123(zp)
                         up = p + hh * (phi1p * fp + hh * phi2p * vp)
                         if up > 0.0 and math.isfinite(up):
-                            fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl,
-                                              cs, hh, False, 0.0, 0.0, 0.0)[0]
+                            if fs_ok:
+                                fp2, jp2, _, _, vp2, _, _, _ = chamber_rhs(
+                                    up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh,
+                                    True, dsup, 0.0, 0.0)
+                            else:
+                                fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2,
+                                                  sl, cs, hh, False, 0.0, 0.0, 0.0)[0]
                             ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
                             pn = up + ep
                             err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+                            if fs_ok:
+                                c_ok, c_fp, c_jp = True, fp2 + jp2 * ep, jp2
+                                c_vp = vp2 - jp2 * ep * vdot / vol2
                     if err < 10.0 and chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
                         # the chord's effect on the flows, corrected to first order at the
                         # step's end; its size, weighted by CHORD_ERROR_WEIGHT, also
@@ -763,6 +804,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     if not (pn > 0.0 and math.isfinite(pn)):
                         err = 10.0
                 if err <= 1.0:
+                    if c_ok:
+                        fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = c_fp, c_jp, c_vp, vdot, m
+                    else:
+                        fs_ok = False
                     t_prev = tau
                     tau = tau + hh if hh < t_end - tau else t_end
                     if moving and spool2:
