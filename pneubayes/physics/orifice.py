@@ -34,10 +34,11 @@ def z_terms(p_up, p_down, alpha, beta, theta, kappa):
     if p_up > theta * p_down:  # choked
         return beta * p_up, -1.0, 0.0, 0.0
     r = p_down / p_up
-    q = math.exp(math.log(r) / kappa)  # r^(1/k)
+    ik = 1.0 / kappa
+    q = math.exp(math.log(r) * ik)  # r^(1/k)
     g = q * q - r * q  # r^(2/k) - r^((k+1)/k)
     sg = math.sqrt(g) if g > 0.0 else 0.0
-    dg_dr = (2.0 / kappa) * q * q / r - ((kappa + 1.0) / kappa) * q
+    dg_dr = (2.0 * ik) * q * q / r - (1.0 + ik) * q
     return alpha * p_up * sg, sg, dg_dr, r
 
 

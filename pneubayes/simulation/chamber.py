@@ -119,7 +119,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     phi = math.exp(-att / p) if att > 0.0 else 1.0
     leak_o, leak_g = sl[_LEAK_O], sl[_LEAK_LG]
     # laminar k at the piston's position x = (V - V_0) / A (never negative)
-    leak_l = sl[_LEAK_L] + leak_g * (vol - sl[_VOL]) / cs[C_BORE_AREA]
+    leak_l = sl[_LEAK_L]
+    if leak_g != 0.0:
+        leak_l += leak_g * (vol - sl[_VOL]) / cs[C_BORE_AREA]
     if leak_l < 0.0:
         leak_l, leak_g = 0.0, 0.0
     lam = p * p - p_atm * p_atm
@@ -130,7 +132,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     # gives dp/dt = n (Rs T mdot - p vdot) / (V + n p C)
     vol, compl = compliant_volume(p, vol, sl, p_atm)
     denom = vol + kappa * p * compl
-    n_over_v = kappa / denom
+    inv_denom = 1.0 / denom
+    n_over_v = kappa * inv_denom
     heat = sl[_HEAT]
     thermal = heat > 0.0 or hconv > 0.0
     # With a temperature state, air leaving the chamber carries the chamber's enthalpy
@@ -163,16 +166,19 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dfin_dsup *= sq_in
     dfex_dp *= sq_ex
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
-    dmdot = phi * dvalve + phi * att / (p * p) * valve - leak_o * dfex_dp - 2.0 * leak_l * p
+    dmdot = phi * dvalve - leak_o * dfex_dp - 2.0 * leak_l * p
+    if att > 0.0:
+        dmdot += phi * att / (p * p) * valve
     jp = n_over_v * (rs_t * dmdot - vdot)
     if compl > 0.0:  # d(denominator)/dp = C (1 + n)
         jp -= fp_eq5 * compl * (1.0 + kappa) / denom
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
-    dmdot_dt = (phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
-                - leak_g * vdot / cs[C_BORE_AREA] * lam)
-    vp = -fp_eq5 / denom * vdot + n_over_v * rs_t * dmdot_dt
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+    if leak_g != 0.0:
+        dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
+    vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
     if hconv > 0.0:
         vp += dc_wall_dv * vdot * (t_wall - temp)
     if not thermal:

@@ -19,8 +19,8 @@ def phi123(z):
         phi3 = 1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (1.0 / 720.0 + z * (
             1.0 / 5040.0 + z / 40320.0))))
         return phi1, phi2, phi3
-    em1 = math.expm1(z)
-    phi1 = em1 / z
-    phi2 = (phi1 - 1.0) / z
-    phi3 = (phi2 - 0.5) / z
+    inv = 1.0 / z  # one division, three products
+    phi1 = math.expm1(z) * inv
+    phi2 = (phi1 - 1.0) * inv
+    phi3 = (phi2 - 0.5) * inv
     return phi1, phi2, phi3
