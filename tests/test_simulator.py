@@ -938,7 +938,7 @@ def test_the_thermal_phi_functions_match_scipys_augmented_exponential(m):
     phi_3] (Sidje 1998)."""
     from scipy.linalg import expm
 
-    from pneubayes.simulation.thermal import phi0123_2x2
+    from pneubayes.simulation.phi import phi0123_2x2
 
     m = np.array(m)
     big = np.zeros((8, 8))

@@ -93,7 +93,14 @@ from pneubayes.simulation.line import (
 )
 from pneubayes.simulation.lung import lung_step
 from pneubayes.simulation.phi import phi123
-from pneubayes.simulation.reading import first_order_step, second_order_step
+from pneubayes.simulation.reading import (
+    first_order_exponential_sensitivity,
+    first_order_exponential_step,
+    first_order_step,
+    second_order_curvature,
+    second_order_exponential_deviation,
+    second_order_step,
+)
 from pneubayes.simulation.spool import spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
@@ -262,8 +269,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
     With a sensor lag (slot ``sensor_time_constant_s`` tau > 0) the output is the
-    reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step with p
-    linear on the step; r starts at ``p0`` (the measured reading) and the chamber at
+    reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step along
+    the pressure step's own exponential solution (with a second state, along the chord
+    between the step's ends); r starts at ``p0`` (the measured reading) and the chamber at
     ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
     tau dr/dt. A second-order lag (slot ``sensor_natural_frequency_rad_per_s`` w > 0,
     damping z) is stepped exactly in the same way (:mod:`pneubayes.simulation.reading`), with
@@ -512,8 +520,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
                                 z_s)
     # dense output: steps cross the samples where the position and supply hold
+    # the pressure is the only state (its step's rate, slope and correction describe it)
+    plain = not (thermal or tank or lung or line or wave)
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
-             and adv == 0.0 and not (thermal or tank or lung or line or wave))
+             and adv == 0.0 and plain)
     # a rigid chamber (no compliance, no volume table) may step q = p V^n over a chord
     rigid = rigid_chamber(sl)
     kap = cs[C_KAPPA]
@@ -875,10 +885,24 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             if want_sens:
                                 sens[kw - i0] = s_prev * math.exp(th * zp) * sc0 / sc_k
                             kw += 1
+                    # the reading over the step: over the pressure step's own solution
+                    # (exponential, not linear; dp/dp0 = e^{sJ} times its start's), for
+                    # the other steps over the chord between its ends
                     if second:
                         r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
+                        if plain:
+                            d_r, d_v = second_order_curvature(zp, fp, vp, hh, w_r, z_r)
+                            r, v_r = r + d_r, v_r + d_v
                         if want_sens:
                             s_r, s_v = second_order_step(s_r, s_v, s_prev, s_p0, hh, w_r, z_r)
+                            if plain:
+                                d_r, d_v = second_order_exponential_deviation(s_prev, zp, hh,
+                                                                              w_r, z_r)
+                                s_r, s_v = s_r + d_r, s_v + d_v
+                    elif reading and plain:
+                        r = first_order_exponential_step(r, p_prev, hh, lag_r, zp, fp, vp, ep)
+                        if want_sens:
+                            s_r = first_order_exponential_sensitivity(s_r, s_prev, hh, lag_r, zp)
                     elif reading:
                         r = first_order_step(r, p_prev, p, hh, lag_r)
                         if want_sens:

@@ -1,17 +1,26 @@
 """A lagged pressure reading, stepped exactly beside the chamber (effect ``sensor_lag``).
 
-Over an accepted step of ``h`` s the integrator knows the chamber pressure at both ends
-and takes it as linear in between; both lags below are then integrated in closed form,
-so the reading adds no error and no step-size limit of its own. The compiled kernel
-(:mod:`pneubayes.simulation.kernel`) calls these once per accepted step (and again for
-the start sensitivity, which obeys the same linear filter).
+Over an accepted step of ``h`` s the integrator knows the chamber pressure at both ends;
+:func:`first_order_step` and :func:`second_order_step` integrate both lags in closed form
+for a pressure linear in between. Within a pressure step the chamber follows the
+exponential step's own solution, p(s) = p_a + s phi_1(s J) f + s^2 phi_2(s J) v (its
+correction taken as a ramp), which is far from linear where the step is much longer
+than the chamber's time constant (a 1e-7 m^3 chamber: the reading erred 0.5-0.6 kPa
+on a 1-s random-step trajectory, at any tolerance, with the linear form):
+:func:`first_order_exponential_step` integrates the first-order lag over that solution
+exactly (the phi functions of the triangular 2 x 2 system of chamber and reading), and
+:func:`second_order_curvature` adds the second-order lag's response to the solution's
+departure from linear. The compiled kernel (:mod:`pneubayes.simulation.kernel`) calls
+these once per accepted step (and again for the start sensitivity, which obeys the
+same linear filter, with dp/dp0 = e^{sJ} times its value at the step's start).
 """
-
 from __future__ import annotations
 
 import math
 
 from numba import njit
+
+from pneubayes.simulation.phi import phi0123_2x2, phi123
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -54,3 +63,81 @@ def second_order_step(r, v, pa, pb, h, w, z):
     er2 = (c + z * w * s) * er + s * ev
     ev2 = -w * w * s * er + (c - z * w * s) * ev
     return pb - m * lead + er2, m + ev2
+
+
+@njit(cache=True, error_model="numpy")
+def phi12_divided(z, w):
+    """The divided differences ``phi_k[z, w] = (phi_k(z) - phi_k(w)) / (z - w)``, k = 1, 2:
+    directly where |z - w| >= 1, else as the lower-left entries of the phi functions of
+    the triangular 2 x 2 matrix ``[[z, 0], [1, w]]`` (no cancellation)."""
+    if abs(z - w) >= 1.0:
+        a1, a2, _ = phi123(z)
+        b1, b2, _ = phi123(w)
+        d = 1.0 / (z - w)
+        return (a1 - b1) * d, (a2 - b2) * d
+    _, f1, f2, _ = phi0123_2x2((z, 0.0, 1.0, w))
+    return f1[2], f2[2]
+
+
+@njit(cache=True, error_model="numpy")
+def first_order_exponential_step(r, pa, h, tau, z, f, v, e):
+    """The reading dr/dt = (p - r) / tau after an exponential step of ``h`` s from p =
+    ``pa`` (Pa) with rate ``f`` (Pa/s), slope J = z / h (1/s) and explicit time
+    derivative ``v`` (Pa/s^2): p(s) = pa + s phi_1(s J) f + s^2 phi_2(s J) v, plus the
+    correction ``e`` (Pa) as a ramp. With x = h / tau and a = e^-x, exactly
+    ``a r + (1 - a) pa + h x (phi_1[z, -x] f + h phi_2[z, -x] v) + c e``, c the ramp's
+    weight of :func:`first_order_step` (the step of the system (p, r), whose matrix h [[J,
+    0], [1 / tau, -1 / tau]] has these divided differences below its diagonal)."""
+    x = h / tau
+    one_minus_a = -math.expm1(-x)
+    if x < 1e-3:
+        c = x * (0.5 - x * (1.0 / 6.0 - x / 24.0))
+    else:
+        c = 1.0 - one_minus_a / x
+    d1, d2 = phi12_divided(z, -x)
+    return ((1.0 - one_minus_a) * r + one_minus_a * pa + h * x * (d1 * f + h * d2 * v)
+            + c * e)
+
+
+@njit(cache=True, error_model="numpy")
+def first_order_exponential_sensitivity(s_r, s_a, h, tau, z):
+    """The first-order reading's start sensitivity after a step of ``h`` s over which the
+    chamber's is ``s_a e^{s J}`` (J = z / h): ``e^-x s_r + s_a x (e^z - e^-x) / (z + x)``,
+    x = h / tau, the divided difference as e^max phi_1(min - max)."""
+    x = h / tau
+    hi, lo = (z, -x) if z >= -x else (-x, z)
+    return math.exp(-x) * s_r + s_a * x * math.exp(hi) * phi123(lo - hi)[0]
+
+
+@njit(cache=True, error_model="numpy")
+def second_order_exponential_deviation(c2, z, h, w, zeta):
+    """``(dr, dv)``: the second-order reading's response, from rest, over ``h`` s to
+    ``c2 (e^{s J} - 1 - s (e^{h J} - 1) / h)`` (J = z / h; an exponential less its
+    chord): the particular solution c2 H e^{s J}, H = w^2 / (J^2 + 2 zeta w J + w^2),
+    with its start's homogeneous part and the ramp by :func:`second_order_step`. Zero
+    where H is singular (J at a pole of an overdamped lag), the chord's answer."""
+    jj = z / h
+    den = jj * jj + 2.0 * zeta * w * jj + w * w
+    if abs(den) < 1e-9 * w * w:
+        return 0.0, 0.0
+    big = w * w / den * c2
+    ez = math.exp(z)
+    r, v = second_order_step(-big, -jj * big, -c2, -c2 * ez, h, w, zeta)
+    return r + big * ez, v + jj * big * ez
+
+
+@njit(cache=True, error_model="numpy")
+def second_order_curvature(z, f, v, h, w, zeta):
+    """``(dr, dv)`` to add to :func:`second_order_step`'s reading after an exponential
+    step (``z``, ``f``, ``v`` as in :func:`first_order_exponential_step`): the lag's
+    response to the step's solution less its chord, c2 (e^{sJ} - 1 - s (e^{hJ} - 1) / h)
+    with c2 = (f + v / J) / J; for |z| < 1e-4, where c2 cancels, its quadratic part
+    b s (s - h), b = (J f + v) / 2 (the cubic's share is below 1e-4 of it)."""
+    if abs(z) >= 1e-4:
+        jj = z / h
+        return second_order_exponential_deviation((f + v / jj) / jj, z, h, w, zeta)
+    b = 0.5 * (z / h * f + v)
+    r, vv = second_order_step(b * (2.0 - 8.0 * zeta * zeta) / (w * w), b * 4.0 * zeta / w,
+                              0.0, -b * h * h, h, w, zeta)
+    return (r + b * (h * h - 4.0 * zeta * h / w + (8.0 * zeta * zeta - 2.0) / (w * w)),
+            vv + b * (2.0 * h - 4.0 * zeta / w))
