@@ -1,7 +1,6 @@
 """The exponential integrator's phi functions: scalar (:mod:`pneubayes.simulation.kernel`'s
 pressure step and its dense output; :mod:`pneubayes.simulation.chord`) and of a 2 x 2
-matrix (the (p, T) step of :mod:`pneubayes.simulation.thermal`; the lagged reading of
-:mod:`pneubayes.simulation.reading`)."""
+matrix (the (p, T) step of :mod:`pneubayes.simulation.thermal`)."""
 
 from __future__ import annotations
 

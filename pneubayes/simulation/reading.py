@@ -8,7 +8,8 @@ correction taken as a ramp), which is far from linear where the step is much lon
 than the chamber's time constant (a 1e-7 m^3 chamber: the reading erred 0.5-0.6 kPa
 on a 1-s random-step trajectory, at any tolerance, with the linear form):
 :func:`first_order_exponential_step` integrates the first-order lag over that solution
-exactly (the phi functions of the triangular 2 x 2 system of chamber and reading), and
+exactly (the phi functions of the triangular 2 x 2 system of chamber and reading, whose
+lower-left entries are divided differences of the scalar ones), and
 :func:`second_order_curvature` adds the second-order lag's response to the solution's
 departure from linear. The compiled kernel (:mod:`pneubayes.simulation.kernel`) calls
 these once per accepted step (and again for the start sensitivity, which obeys the
@@ -20,7 +21,7 @@ import math
 
 from numba import njit
 
-from pneubayes.simulation.phi import phi0123_2x2, phi123
+from pneubayes.simulation.phi import phi123
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -68,15 +69,18 @@ def second_order_step(r, v, pa, pb, h, w, z):
 @njit(cache=True, error_model="numpy")
 def phi12_divided(z, w):
     """The divided differences ``phi_k[z, w] = (phi_k(z) - phi_k(w)) / (z - w)``, k = 1, 2:
-    directly where |z - w| >= 1, else as the lower-left entries of the phi functions of
-    the triangular 2 x 2 matrix ``[[z, 0], [1, w]]`` (no cancellation)."""
-    if abs(z - w) >= 1.0:
+    directly where |z - w| >= 1e-5 (the difference's rounding, about 2e-16 |phi_k| / |z -
+    w|, stays below 1e-10 of a term whose size is the step's pressure change), else the
+    derivatives at the midpoint, phi_1' = phi_1 - phi_2 and phi_2' = phi_2 - 2 phi_3
+    (from phi_k(z) = int_0^1 e^{(1-s) z} s^{k-1} / (k-1)! ds; error O((z - w)^2))."""
+    d = z - w
+    if abs(d) >= 1e-5:
         a1, a2, _ = phi123(z)
         b1, b2, _ = phi123(w)
-        d = 1.0 / (z - w)
-        return (a1 - b1) * d, (a2 - b2) * d
-    _, f1, f2, _ = phi0123_2x2((z, 0.0, 1.0, w))
-    return f1[2], f2[2]
+        inv = 1.0 / d
+        return (a1 - b1) * inv, (a2 - b2) * inv
+    q1, q2, q3 = phi123(0.5 * (z + w))
+    return q1 - q2, q2 - 2.0 * q3
 
 
 @njit(cache=True, error_model="numpy")
