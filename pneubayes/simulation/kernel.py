@@ -742,11 +742,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             and a_ex == fs_aex and (fs_m == m or (rigid and gain == 0.0))):
                         fp, jp, vp = fs_fp, fs_jp, fs_vp
                         if vdot != fs_vdot:  # a new chord of the position (rigid)
-                            nv = kap / vol
-                            xv = vp + fp * fs_vdot / vol
-                            fp -= nv * p * (vdot - fs_vdot)
-                            jp -= nv * (vdot - fs_vdot)
-                            vp = xv - fp * vdot / vol
+                            iv = 1.0 / vol
+                            xv = vp + fp * fs_vdot * iv
+                            fp -= kap * iv * p * (vdot - fs_vdot)
+                            jp -= kap * iv * (vdot - fs_vdot)
+                            vp = xv - fp * vdot * iv
                     else:
                         fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol,
                                                                 vdot, psup, sl, cs, hh, True,
@@ -800,7 +800,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
                             if fs_ok:
                                 c_ok, c_fp, c_jp = True, fp2 + jp2 * ep, jp2
-                                c_vp = vp2 - jp2 * ep * vdot / vol2
+                                c_vp = vp2
+                                if vdot != 0.0:
+                                    c_vp -= jp2 * ep * vdot / vol2
                     if err < 10.0 and chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
                         # the chord's effect on the flows, corrected to first order at the
                         # step's end; its size, weighted by CHORD_ERROR_WEIGHT, also
