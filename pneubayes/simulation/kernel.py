@@ -270,8 +270,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
 
     With a sensor lag (slot ``sensor_time_constant_s`` tau > 0) the output is the
     reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step along
-    the pressure step's own exponential solution (with a second state, along the chord
-    between the step's ends); r starts at ``p0`` (the measured reading) and the chamber at
+    the pressure step's own exponential solution (for the (p, T) step along the
+    pressure's own exponential part, the rest of its change a ramp; with another second
+    state, along the chord between the step's ends); r starts at ``p0`` (the measured reading) and the chamber at
     ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
     tau dr/dt. A second-order lag (slot ``sensor_natural_frequency_rad_per_s`` w > 0,
     damping z) is stepped exactly in the same way (:mod:`pneubayes.simulation.reading`), with
@@ -732,10 +733,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         if not (pn > 0.0 and math.isfinite(pn)):
                             err = 10.0
                 elif general is not None and thermal:
-                    err, pn, tn, prop_t = thermal_step(p, temp, hh, a_in, a_ex, vol, vdot,
-                                                       psup, dsup, da_in, da_ex, a_in2, a_ex2,
-                                                       vol2, psup2, sl, cs, atol_p, atol_t,
-                                                       rtol)
+                    err, pn, tn, prop_t, fp, jp, vp = thermal_step(
+                        p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
+                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol)
+                    zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
                 else:
                     c_ok = False
                     if (fs_ok and not moving and not chord and a_in == fs_ain
@@ -888,11 +889,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                 sens[kw - i0] = s_prev * math.exp(th * zp) * sc0 / sc_k
                             kw += 1
                     # the reading over the step: over the pressure step's own solution
-                    # (exponential, not linear; dp/dp0 = e^{sJ} times its start's), for
-                    # the other steps over the chord between its ends
+                    # (exponential, not linear; dp/dp0 = e^{sJ} times its start's); for
+                    # the (p, T) step over the pressure's own exponential part (rate,
+                    # slope J_pp, time derivative) with the rest of its change as a ramp,
+                    # its sensitivity over the chord; for the other steps over the chord
+                    shaped = plain or thermal
                     if second:
                         r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
-                        if plain:
+                        if shaped:
                             d_r, d_v = second_order_curvature(zp, fp, vp, hh, w_r, z_r)
                             r, v_r = r + d_r, v_r + d_v
                         if want_sens:
@@ -905,6 +909,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         r = first_order_exponential_step(r, p_prev, hh, lag_r, zp, fp, vp, ep)
                         if want_sens:
                             s_r = first_order_exponential_sensitivity(s_r, s_prev, hh, lag_r, zp)
+                    elif reading and shaped:
+                        q1, q2, _ = phi123(zp)
+                        rest = p - (p_prev + hh * (q1 * fp + hh * q2 * vp))
+                        r = first_order_exponential_step(r, p_prev, hh, lag_r, zp, fp, vp, rest)
+                        if want_sens:
+                            s_r = first_order_step(s_r, s_prev, s_p0, hh, lag_r)
                     elif reading:
                         r = first_order_step(r, p_prev, p, hh, lag_r)
                         if want_sens:
