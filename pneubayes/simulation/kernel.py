@@ -272,11 +272,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step along
     the pressure step's own exponential solution (for the (p, T) step along the
     pressure's own exponential part, the rest of its change a ramp; with another second
-    state, along the chord between the step's ends); r starts at ``p0`` (the measured reading) and the chamber at
-    ``p0 + tau * rate0`` (``rate0``: the reading's rate there, Pa/s), since p = r +
-    tau dr/dt. A second-order lag (slot ``sensor_natural_frequency_rad_per_s`` w > 0,
-    damping z) is stepped exactly in the same way (:mod:`pneubayes.simulation.reading`), with
-    the lead D = 2 z / w in place of tau and the reading's rate starting at ``rate0``.
+    state, along the chord between the step's ends); r starts at ``p0`` (the measured
+    reading) and the chamber at ``p0 + tau * rate0`` (``rate0``: the reading's rate
+    there, Pa/s), since p = r + tau dr/dt. A second-order lag (slot
+    ``sensor_natural_frequency_rad_per_s`` w > 0, damping z) is stepped exactly in the
+    same way (:mod:`pneubayes.simulation.reading`), with the lead D = 2 z / w in place of
+    tau and the reading's rate starting at ``rate0``.
     With ``rate0`` NaN the window instead warms up over 5 settling times
     (tau; or max(D, 1 / (z w))) before its start (from the recorded reading ``pm``
     there, or from p0 where it is NaN, under the command history) and keeps the
@@ -523,6 +524,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # dense output: steps cross the samples where the position and supply hold
     # the pressure is the only state (its step's rate, slope and correction describe it)
     plain = not (thermal or tank or lung or line or wave)
+    # a lagged reading follows the pressure's own exponential over a step (the (p, T)
+    # step's pressure part), elsewhere the chord between the step's ends
+    shaped = plain or thermal
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and plain)
     # a rigid chamber (no compliance, no volume table) may step q = p V^n over a chord
@@ -611,7 +615,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             if s_eff != s_cached:
                 a_in_c, a_ex_c = _areas(s_eff, dead, sl)
                 s_cached = s_eff
-                fs_ok = False
                 # the valve switched: restart small (the error estimate of a long first
                 # step from a port's balance, where the flow has a square-root kink,
                 # misses most of its error) and let the controller grow it 5x a step.
@@ -893,7 +896,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     # the (p, T) step over the pressure's own exponential part (rate,
                     # slope J_pp, time derivative) with the rest of its change as a ramp,
                     # its sensitivity over the chord; for the other steps over the chord
-                    shaped = plain or thermal
                     if second:
                         r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
                         if shaped:
