@@ -2,7 +2,8 @@
 
 For each case (valve2 from Table II; dead volume 1e-7, 2.4e-6 and 2e-5 m^3; the piston
 fixed or moving sinusoidally at 3 Hz over +-10 mm; a supply wandering +-15 kPa; a 1-s
-random-step command, holds 30-300 ms, levels -5..5 V; the paper's model and each
+random-step command (`pneubayes.bench.protocols.step_commands`: holds 30-300 ms, levels
+-5..5 V); the paper's model and each
 catalogue effect alone at its bench defaults) the largest absolute pressure error of
 each preset, in Pa and in % of the 450-kPa working range. The claims of
 ``SolverConfig``'s docstrings are measured here.
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.bench.protocols import step_commands
 from pneubayes.effects import CATALOGUE
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
@@ -40,22 +42,11 @@ VOLUMES_M3 = (1e-7, 2.4e-6, 2e-5)
 PRESETS = {"standard": SolverConfig.standard, "sampling": SolverConfig.sampling}
 
 
-def random_steps(rng, n, dt_s, hold_s=(0.03, 0.3), levels_V=(-5.0, 5.0)):
-    """A random-step command, V: holds uniform in ``hold_s``, levels uniform."""
-    u = np.empty(n)
-    i = 0
-    while i < n:
-        hold = max(1, int(round(rng.uniform(*hold_s) / dt_s)))
-        u[i:i + hold] = rng.uniform(*levels_V)
-        i += hold
-    return u
-
-
 def cases(seed: int, duration_s: float):
     """``(name, model, parameters, inputs)`` for every case, in a fixed order."""
     n = int(round(duration_s * 1000)) + 1
     t = np.arange(n) * 1e-3
-    u = random_steps(np.random.default_rng(seed), n, 1e-3)
+    u = step_commands(t, np.random.default_rng(seed), 5.0)
     supply = P_SUPPLY_PA + 15_000.0 * (0.7 * np.sin(2 * np.pi * 1.3 * t)
                                        + 0.3 * np.sin(2 * np.pi * 7.1 * t))
     for effect in [None, *CATALOGUE]:

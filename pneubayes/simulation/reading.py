@@ -93,14 +93,8 @@ def first_order_exponential_step(r, pa, h, tau, z, f, v, e):
     weight of :func:`first_order_step` (the step of the system (p, r), whose matrix h [[J,
     0], [1 / tau, -1 / tau]] has these divided differences below its diagonal)."""
     x = h / tau
-    one_minus_a = -math.expm1(-x)
-    if x < 1e-3:
-        c = x * (0.5 - x * (1.0 / 6.0 - x / 24.0))
-    else:
-        c = 1.0 - one_minus_a / x
     d1, d2 = phi12_divided(z, -x)
-    return ((1.0 - one_minus_a) * r + one_minus_a * pa + h * x * (d1 * f + h * d2 * v)
-            + c * e)
+    return first_order_step(r, pa, pa + e, h, tau) + h * x * (d1 * f + h * d2 * v)
 
 
 @njit(cache=True, error_model="numpy")
