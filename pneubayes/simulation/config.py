@@ -77,8 +77,8 @@ class SolverConfig:
         Measured against Radau (rtol 1e-10) by ``benchmarks/solver_accuracy.py`` (1-s
         random-step trajectories, valve2, fixed and moving chambers of 1e-7, 2.4e-6 and
         2e-5 m^3, the paper's model and each of the eight effects alone; seeds 0 and 1):
-        at most 34.7 Pa (0.008 % of a 450 kPa range), a thirteenfold margin on the 0.1 %
-        floor (:meth:`sampling`: the same, at most 34.7 Pa). With wall
+        at most 33.7 Pa (0.007 % of a 450 kPa range), a thirteenfold margin on the 0.1 %
+        floor (:meth:`sampling`: the same cases, at most 43.3 Pa). With wall
         heat exchange (rate 5 and 50 /s, h = 300 W/(m^2 K), 2.4e-7 and 2.4e-6 m^3, moving,
         two seeds): 22-42 Pa; the (p, T) state is stepped with its full Jacobian, so
         tightening converges as fast as for pressure alone.
