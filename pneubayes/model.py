@@ -130,9 +130,17 @@ class Model:
         return tuple(p.name for p in self.parameters)
 
     @cached_property
-    def _component_columns(self) -> tuple[tuple[str, ...], ...]:
-        """Per component, its parameter names (a cache for :meth:`lower`)."""
-        return tuple(c.parameter_names() for c in self.components)
+    def _component_indices(self) -> tuple[tuple[tuple[str, int], ...], ...]:
+        """Per component, its parameters' (name, column) pairs (a cache for :meth:`lower`)."""
+        index = {n: j for j, n in enumerate(self.parameter_names)}
+        return tuple(tuple((n, index[n]) for n in c.parameter_names())
+                     for c in self.components)
+
+    @cached_property
+    def _checked_lowering(self) -> dict[int, tuple[str, ...]]:
+        """Per component, the slots its lowering last wrote, checked against the slots it
+        declares (:meth:`Component.check_lowering`): checked again when they change."""
+        return {}
 
     @property
     def n_parameters(self) -> int:
@@ -152,6 +160,11 @@ class Model:
         lo.flags.writeable = False
         hi.flags.writeable = False
         return lo, hi
+
+    @cached_property
+    def _bounds_finite(self) -> bool:
+        lo, hi = self.bounds
+        return bool(np.isfinite(lo).all() and np.isfinite(hi).all())
 
     def has(self, name: str) -> bool:
         return name in self.effect_names
@@ -242,7 +255,15 @@ class Model:
         return [n for n, b in zip(self.parameter_names, bad.any(axis=0)) if b]
 
     def check_bounds(self, params) -> None:
-        bad = self.out_of_bounds(params)
+        """Raise :class:`ParameterError` naming every parameter outside its bounds (or
+        not finite) in any row."""
+        m = self.as_matrix(params)
+        lo, hi = self.bounds
+        # the common case in one pass (a comparison with NaN is False; an infinite value
+        # passes only an infinite bound, hence the second test)
+        if ((m >= lo) & (m <= hi)).all() and (self._bounds_finite or np.isfinite(m).all()):
+            return
+        bad = self.out_of_bounds(m)
         if bad:
             m = self.as_matrix(params)
             details = []
@@ -268,15 +289,26 @@ class Model:
     # ------------------------------------------------------------------ lowering
     def lower(self, params, rig: Rig) -> np.ndarray:
         """Parameter batch -> slot matrix ``(B, N_SLOTS)`` for the compiled simulator."""
-        m = self.as_matrix(params)
-        values = {n: m[:, j] for j, n in enumerate(self.parameter_names)}
-        slots = np.zeros((m.shape[0], N_SLOTS))
-        for comp, names in zip(self.components, self._component_columns):
-            contrib = comp.lower({n: values[n] for n in names}, rig)
-            comp.check_lowering(contrib)
+        columns = self.as_matrix(params).T  # (P, B): a parameter's values are a row
+        # built slot by slot as rows of the transpose: a row written once is assigned,
+        # one several components write is summed (a numpy in-place add costs five
+        # assignments; this runs on every simulation call)
+        slots_t = np.zeros((N_SLOTS, columns.shape[1]))
+        written = set()
+        for i, (comp, names) in enumerate(zip(self.components, self._component_indices)):
+            contrib = comp.lower({n: columns[j] for n, j in names}, rig)
+            keys = tuple(contrib)
+            if self._checked_lowering.get(i) != keys:
+                comp.check_lowering(contrib)
+                self._checked_lowering[i] = keys
             for slot, v in contrib.items():
-                slots[:, SLOT_INDEX[slot]] += v  # (B,) or scalar, broadcast
-        return slots
+                k = SLOT_INDEX[slot]
+                if k in written:
+                    slots_t[k] += v
+                else:
+                    slots_t[k] = v  # (B,) or scalar, broadcast
+                    written.add(k)
+        return np.ascontiguousarray(slots_t.T)
 
     # ------------------------------------------------------------------ model card
     def to_card(self, values: Mapping[str, float], extra: Mapping | None = None) -> dict:

@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from pneubayes.effects import make_effect
+from pneubayes.effects import Parameter, make_effect
+from pneubayes.effects.base import Component
 from pneubayes.effects.path import N_SLOTS, SLOT_INDEX, SLOT_NAMES
 from pneubayes.errors import ModelCardError, ParameterError
 from pneubayes.model import CARD_FORMAT, Model
@@ -273,6 +274,40 @@ def test_lowering_is_row_wise(rig):
         assert np.array_equal(together[b], model.lower(draws[b], rig)[0])
     j = model.parameter_names.index("spool_time_constant_s")
     assert np.array_equal(together[:, SLOT_INDEX["spool_time_constant_s"]], draws[:, j])
+
+
+class _ExtraVolume(Component):
+    """A test component adding a volume to the chamber's (a slot another one writes)."""
+
+    name = "extra_volume"
+    acts_on = ("volume_m3",)
+    writes = ("volume_m3",)
+
+    def parameters(self):
+        return (Parameter("extra_volume_m3", "m^3", 0.0, 1e-5, "uniform", "added"),)
+
+    def lower(self, values, rig):
+        return {slot: values["extra_volume_m3"] for slot in self.writes}
+
+
+def test_lowering_sums_a_slot_two_components_write_and_checks_new_slots(rig):
+    extra = _ExtraVolume()
+    model = Model(["cylinder_leak"])
+    model.base = model.base + (extra,)  # a second writer of volume_m3
+    rng = np.random.default_rng(4)
+    draws = np.array([[p.sample_prior(rng) for p in model.parameters] for _ in range(3)])
+    slots = model.lower(draws, rig)
+    dead = draws[:, model.parameter_names.index("dead_volume_m3")]
+    added = draws[:, model.parameter_names.index("extra_volume_m3")]
+    assert np.array_equal(slots[:, SLOT_INDEX["volume_m3"]], dead + added)
+    leak = draws[:, model.parameter_names.index("leak_area_m2")]
+    assert np.array_equal(slots[:, SLOT_INDEX["leak_orifice_area_m2"]], leak)
+    assert slots.flags.c_contiguous and slots.shape == (3, N_SLOTS)
+    # a lowering that starts writing an undeclared slot is caught though earlier calls
+    # with the declared ones passed
+    extra.writes = ("volume_m3", "compliance_m3_per_Pa")
+    with pytest.raises(RuntimeError, match="extra_volume wrote slots it does not declare"):
+        model.lower(draws, rig)
 
 
 # ---------------------------------------------------------------- design meta-test

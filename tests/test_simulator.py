@@ -1021,3 +1021,17 @@ def test_forms_with_a_second_state_are_refused_together_in_one_parameter_set(fir
     apart[0, col[first]] = apart[1, col[second]] = True
     apart[:, col["exhaust_own_command"]] = True
     _check_exclusive_forms(apart)
+
+
+def test_the_wrapper_sees_every_second_state_the_kernel_steps():
+    """``_window_call`` tells the kernel whether a parameter set has a second state from
+    the form columns it checks; each of the kernel's second-state slots must be one."""
+    from pneubayes.simulation import kernel
+    from pneubayes.simulation import simulator as sim
+
+    assert sorted(sim._FORM_SLOTS[sim._GENERAL_COLUMNS]) == sorted(kernel.GENERAL_SLOTS)
+    for k in kernel.GENERAL_SLOTS:
+        slots = np.zeros((2, N_SLOTS))
+        slots[1, k] = 1.0
+        forms = slots[:, sim._FORM_SLOTS] > 0
+        assert forms[:, sim._GENERAL_COLUMNS].any() == kernel.needs_general(slots)

@@ -1015,7 +1015,7 @@ def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, pm, starts, lengt
 
 
 def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, pm,
-              with_sensitivity):
+              with_sensitivity, general):
     """Every (parameter set, window) pair; see :func:`simulate_windows`.
 
     Compiled variants are chosen here and built on first use: the pressure-only kernel
@@ -1026,7 +1026,8 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
     out = np.empty((nb, nw, length))
     sens = np.empty((nb, nw, length if with_sensitivity else 0))
     status = np.zeros((nb, nw), dtype=np.int64)
-    hidden = needs_general(slots)  # a state the recording does not measure
+    # a state the recording does not measure
+    hidden = needs_general(slots) if general is None else bool(general)
     # contiguous windows (each starts on the previous one's last sample) with a hidden
     # state run in order in one task per parameter set, carrying it; else a task each
     chained = nw > 1 and bool(np.all(np.diff(starts) == length - 1))
@@ -1047,11 +1048,11 @@ def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state: heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
     compartment."""
-    return bool((np.asarray(slots)[:, _GENERAL_SLOTS] > 0.0).any())
+    return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
 #: The slots of the forms with a second state (:func:`needs_general`).
-_GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG])
+GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG])
 
 
 @njit(cache=True, error_model="numpy")
@@ -1064,7 +1065,7 @@ def _fresh_carry(consts):
 
 
 def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0=None,
-                     pm=None):
+                     pm=None, general=None):
     """Simulate every (parameter set, window) pair.
 
     The chamber temperature (a state only with heat transfer) starts at the supply's in
@@ -1086,18 +1087,20 @@ def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
                                       only with a sensor lag
     pm : (N,) float64 or None         the recorded reading (Pa; NaN or None: unknown),
                                       where a lagged reading's warm-up starts
+    general : bool or None            whether a parameter set has a second state
+                                      (None: :func:`needs_general` of ``slots``)
 
     Returns
     -------
     out : (B, W, length) float64 pressures (Pa); status : (B, W) int64
     """
     out, _, status = _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-                               rate0, pm, False)
+                               rate0, pm, False, general)
     return out, status
 
 
 def simulate_windows_sensitivity(slots, consts, solver, t, u, ue, x, ps, starts, length, p0,
-                                 rate0=None, pm=None):
+                                 rate0=None, pm=None, general=None):
     """:func:`simulate_windows` plus dp(t)/dp0 per sample: ``(out, sens, status)``."""
     return _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, pm,
-                     True)
+                     True, general)

@@ -9,7 +9,9 @@ pressure) are simulated in one compiled call with :func:`simulate_windows`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -110,12 +112,18 @@ class Inputs:
         (``ue`` the exhaust command, zeros without one; ``pm`` the recorded reading, NaN
         without one), with a declared pre-trigger command as one extra sample held from
         10 s before the start (``offset`` 1: window starts shift by one), else the
-        arrays as they are."""
+        arrays as they are (writeable copies of read-only ones, as a recording's are:
+        :func:`_kernel_arrays`). Built on the first call and kept: the inputs are not
+        to be modified after construction."""
+        return self._kernel_ready
+
+    @cached_property
+    def _kernel_ready(self):
         t, u, x, ps = self.time_s, self.command_V, self.position_m, self.supply_pressure_Pa
         ue = self.exhaust_command if self.exhaust_command is not None else np.zeros_like(t)
         pm = self.reading_Pa if self.reading_Pa is not None else np.full(t.shape, np.nan)
         if self.command_before_start is None:
-            return t, u, ue, x, ps, pm, 0
+            return (*_kernel_arrays(t, u, ue, x, ps, pm), 0)
         return (np.concatenate(([t[0] - 10.0], t)),
                 np.concatenate(([float(self.command_before_start)], u)),
                 np.concatenate((ue[:1], ue)),
@@ -173,6 +181,8 @@ _FORM_COLUMNS = {name: i for i, name in enumerate((
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
     "lung_volume_m3"))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
+#: The form columns of the states besides the pressure (:func:`kernel.needs_general`).
+_GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
 
 
 def _check_exclusive_forms(forms: np.ndarray) -> None:
@@ -216,14 +226,23 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         model.check_bounds(theta)
     starts = np.ascontiguousarray(starts, dtype=np.int64).reshape(-1)
     length = int(length)
-    p0 = np.ascontiguousarray(np.broadcast_to(np.asarray(initial_pressure_Pa, np.float64),
-                                              starts.shape))
+    if isinstance(initial_pressure_Pa, (float, int, np.floating, np.integer)):  # every window
+        p0_Pa = float(initial_pressure_Pa)
+        finite_positive = math.isfinite(p0_Pa) and p0_Pa > 0
+        p0 = np.full(starts.shape, p0_Pa)
+    else:
+        p0 = np.ascontiguousarray(np.broadcast_to(
+            np.asarray(initial_pressure_Pa, np.float64), starts.shape))
+        finite_positive = bool(np.all(np.isfinite(p0) & (p0 > 0)))
     if length < 1:
         raise ValueError(f"length must be >= 1, got {length}")
-    if starts.size and (starts.min() < 0 or starts.max() + length > inputs.n_samples):
-        raise ValueError(f"windows run past the inputs: starts in [{starts.min()}, "
-                         f"{starts.max()}], length {length}, {inputs.n_samples} samples")
-    if not np.all(np.isfinite(p0) & (p0 > 0)):
+    if starts.size:
+        first, last = ((int(starts[0]),) * 2 if starts.size == 1
+                       else (int(starts.min()), int(starts.max())))
+        if first < 0 or last + length > inputs.n_samples:
+            raise ValueError(f"windows run past the inputs: starts in [{first}, {last}], "
+                             f"length {length}, {inputs.n_samples} samples")
+    if not finite_positive:
         raise ValueError("initial_pressure_Pa must be finite and > 0 (absolute)")
     shape = (theta.shape[0], starts.size)
     try:
@@ -237,23 +256,25 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         raise ValueError("initial_rate_Pa_per_s must be finite")
     slots = model.lower(theta, rig)
     forms = slots[:, _FORM_SLOTS] > 0  # (B, forms): which forms each parameter set has
-    if inputs.exhaust_command is None and forms[:, _FORM_COLUMNS["exhaust_own_command"]].any():
-        raise ValueError("the model's exhaust is a separate valve with its own command, but "
-                         "the inputs have no exhaust command (a recording's "
-                         "'exhaust_command' column, or the column its rig card names)")
+    general = False  # a state the recording does not measure (kernel.needs_general)
     if forms.any():
+        if inputs.exhaust_command is None and forms[:, _FORM_COLUMNS[
+                "exhaust_own_command"]].any():
+            raise ValueError("the model's exhaust is a separate valve with its own command, "
+                             "but the inputs have no exhaust command (a recording's "
+                             "'exhaust_command' column, or the column its rig card names)")
         _check_exclusive_forms(forms)
+        general = bool(forms[:, _GENERAL_COLUMNS].any())
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
-    slots, consts, sv, t, u, ue, x, ps, pm, kstarts, p0, rate0 = _kernel_arrays(
-        slots, rig_constants(rig), solver.as_array(), t, u, ue, x, ps, pm,
-        starts + offset, p0, rate0)
+    slots, consts, sv, kstarts, p0, rate0 = _kernel_arrays(
+        slots, rig_constants(rig), solver.as_array(), starts + offset, p0, rate0)
     *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
-                                rate0, pm)
-    failed = np.nonzero(status.any(axis=1))[0]
-    if failed.size and on_failure == "nan":
+                                rate0, pm, general)
+    failed = np.nonzero(status.any(axis=1))[0] if status.any() else ()
+    if len(failed) and on_failure == "nan":
         for a in arrays:
             a[failed] = np.nan
-    elif failed.size:
+    elif len(failed):
         lines = []
         for b in failed[:5]:
             w = int(np.nonzero(status[b])[0][0])
@@ -329,7 +350,6 @@ def simulate(model: Model, params, inputs: Inputs, rig: Rig, initial_pressure_Pa
              solver: SolverConfig, check_bounds: bool = True) -> Trajectory:
     """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa."""
     theta = model.as_matrix(params)
-    out = simulate_windows(model, theta, inputs, rig, np.array([0]), inputs.n_samples,
-                           np.array([initial_pressure_Pa], dtype=np.float64), solver,
-                           check_bounds=check_bounds)
+    out = simulate_windows(model, theta, inputs, rig, np.zeros(1, np.int64), inputs.n_samples,
+                           initial_pressure_Pa, solver, check_bounds=check_bounds)
     return Trajectory(inputs.time_s, out[:, 0, :], solver, model.parameter_names, theta)
