@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import moving_step_inputs
+from conftest import fluctuating_supply, moving_position, moving_step_inputs, random_steps
 
 from pneubayes.discovery.one_step import one_step_data
 from pneubayes.effects import make_effect
@@ -170,6 +170,30 @@ def test_a_fast_lag_on_a_tiny_chamber_agrees_with_the_reference_solver(rig, form
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
     got = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
     assert np.max(np.abs(got - ref)) <= 1e-4 * RANGE
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("heat", [False, True])
+def test_a_lag_read_over_the_acoustic_lines_steps_keeps_to_the_accuracy_floor(rig, heat):
+    """The tube's acoustic line (form 'line') with the bench's 0.53-ms lag on 2.4e-6 m^3
+    against DOP853 at rtol 1e-10 (Radau's finite-difference Jacobian of the line is slow).
+    A known weakness, measured in session 52 and guarded here at the 0.1 % floor: over
+    the line's steps the reading follows the chord between a step's ends while the
+    chamber rings with the line within a step: 354 Pa (430 with heat transfer; 15 / 18.5
+    without the lag; the reference preset 7.9 Pa). The fix: the reading as a state of
+    the line's step."""
+    n = 301
+    t = np.arange(n) * 1e-3
+    u = random_steps(np.random.default_rng(32), n, 1e-3, hold_s=(0.02, 0.08))
+    inputs = Inputs(t, u, moving_position(t, freq=3.0), fluctuating_supply(t))
+    effects = [make_effect("tube_delay", form="line"), make_effect("sensor_lag")]
+    model = Model(effects + [make_effect("heat_transfer")] if heat else effects)
+    params = _params(None, 2.4e-6)
+    for e in model.effects:
+        params.update(e.bench_defaults())
+    ref = reference_simulate(model, params, inputs, rig, 2e5, method="DOP853", rtol=1e-10)
+    got = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
 
 
 SLOW = pytest.mark.slow  # Radau at rtol 1e-10: 5-20 s a case; one per form in the fast tier
