@@ -96,6 +96,7 @@ from pneubayes.simulation.phi import phi123
 from pneubayes.simulation.reading import (
     first_order_exponential_sensitivity,
     first_order_exponential_step,
+    first_order_hermite_deviation,
     first_order_step,
     second_order_curvature,
     second_order_exponential_deviation,
@@ -525,7 +526,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # the pressure is the only state (its step's rate, slope and correction describe it)
     plain = not (thermal or tank or lung or line or wave)
     # a lagged reading follows the pressure's own exponential over a step (the (p, T)
-    # step's pressure part), elsewhere the chord between the step's ends
+    # step's pressure part), over the acoustic line's steps the cubic through the
+    # step's ends and rates (first order; its departure from the chord bounds the
+    # step), elsewhere the chord between the step's ends
     shaped = plain or thermal
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and plain)
@@ -688,6 +691,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 p_tank_new = p_tank
                 p_lung_new = p_lung
                 zp = 0.0
+                dev_r = 0.0  # a first-order reading's departure from the chord's
                 if general is not None and line:
                     err = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in,
                                     da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p,
@@ -695,6 +699,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     pn = y_new[0]
                     if thermal:
                         tn = y_new[ny - 1]
+                    if reading and err < 10.0:
+                        # the chamber rings with the line within a step: a first-order
+                        # reading over the cubic through the step's ends and their rates
+                        # (the end's at the uncorrected stage); its departure from the
+                        # chord's reading enters the error estimate (for the second-order
+                        # lag that of a first-order lag of its group delay, which its
+                        # chord reading does not correct)
+                        dev_r = first_order_hermite_deviation(
+                            p, pn, hh * line_work[0][0, 0], hh * line_work[0][5, 0], hh,
+                            2.0 * z_r / w_r if second else lag_r)
+                        err = max(err, abs(dev_r) / (atol_p + rtol * max(abs(p), abs(pn))))
                 elif general is not None and tank:
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
                                                             vdot, da_in, da_ex, a_in2, a_ex2,
@@ -918,7 +933,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         if want_sens:
                             s_r = first_order_step(s_r, s_prev, s_p0, hh, lag_r)
                     elif reading:
-                        r = first_order_step(r, p_prev, p, hh, lag_r)
+                        r = first_order_step(r, p_prev, p, hh, lag_r) + dev_r
                         if want_sens:
                             s_r = first_order_step(s_r, s_prev, s_p0, hh, lag_r)
                     # grow the step only when it was not cut short by a break point;

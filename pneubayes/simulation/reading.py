@@ -11,7 +11,10 @@ on a 1-s random-step trajectory, at any tolerance, with the linear form):
 exactly (the phi functions of the triangular 2 x 2 system of chamber and reading, whose
 lower-left entries are divided differences of the scalar ones), and
 :func:`second_order_curvature` adds the second-order lag's response to the solution's
-departure from linear. The compiled kernel (:mod:`pneubayes.simulation.kernel`) calls
+departure from linear. Over the acoustic line's steps, where the chamber rings with
+the line within a step, :func:`first_order_hermite_deviation` corrects the first-order
+reading for the cubic through the step's ends and their rates, and its size enters the
+step's error estimate. The compiled kernel (:mod:`pneubayes.simulation.kernel`) calls
 these once per accepted step (and again for the start sensitivity, which obeys the
 same linear filter, with dp/dp0 = e^{sJ} times its value at the step's start).
 """
@@ -36,6 +39,35 @@ def first_order_step(r, pa, pb, h, tau):
     else:
         c = 1.0 + math.expm1(-z) / z
     return a * r + (1.0 - a) * pa + c * (pb - pa)
+
+
+#: 4-point Gauss-Legendre nodes and weights on [0, 1]
+_GL_S = (0.0694318442029737, 0.3300094782075719, 0.6699905217924281, 0.9305681557970263)
+_GL_W = (0.1739274225687269, 0.3260725774312731, 0.3260725774312731, 0.1739274225687269)
+
+
+@njit(cache=True, error_model="numpy")
+def first_order_hermite_deviation(pa, pb, da, db, h, tau):
+    """The first-order reading's change over a step of ``h`` s when p follows the cubic
+    Hermite path through ``pa``, ``pb`` with end slopes ``da / h``, ``db / h`` (Pa/s;
+    ``da``, ``db`` in Pa) instead of the chord (:func:`first_order_step`): the lag's
+    response to c(s) = s (1 - s) (A (1 - s) + B s), A = da - (pb - pa), B = (pb - pa) -
+    db. With l = tau / h: c - l c' + l^2 c'' - l^3 c''' at s = 1 less its value at 0
+    times e^(-1/l) (closed form, l < 2), else 4-point Gauss-Legendre quadrature of
+    the integral of e^(-(1 - s) / l) c(s) / l over s (where the closed form cancels)."""
+    chord = pb - pa
+    ca, cb = da - chord, chord - db
+    lam = tau / h
+    if lam < 2.0:
+        end = lam * cb + lam * lam * (2.0 * ca - 4.0 * cb) - 6.0 * lam ** 3 * (ca - cb)
+        start = -lam * ca + 2.0 * lam * lam * (cb - 2.0 * ca) - 6.0 * lam ** 3 * (ca - cb)
+        return end - start * math.exp(-1.0 / lam)
+    out = 0.0
+    for i in range(4):
+        si = _GL_S[i]
+        out += _GL_W[i] * math.exp(-(1.0 - si) / lam) * si * (1.0 - si) * (
+            ca * (1.0 - si) + cb * si)
+    return out / lam
 
 
 @njit(cache=True, error_model="numpy")
