@@ -265,7 +265,6 @@ class Model:
             return
         bad = self.out_of_bounds(m)
         if bad:
-            m = self.as_matrix(params)
             details = []
             for n in bad:
                 j = self.parameter_names.index(n)

@@ -85,6 +85,7 @@ from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-
 )
 from pneubayes.simulation.line import (
     line_accept,
+    line_chamber_rates,
     line_finish,
     line_start,
     line_step,
@@ -272,8 +273,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     With a sensor lag (slot ``sensor_time_constant_s`` tau > 0) the output is the
     reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step along
     the pressure step's own exponential solution (for the (p, T) step along the
-    pressure's own exponential part, the rest of its change a ramp; with another second
-    state, along the chord between the step's ends); r starts at ``p0`` (the measured
+    pressure's own exponential part, the rest of its change a ramp; over an acoustic
+    line's steps along the cubic through the ends and their rates, its departure from
+    the chord in the step's error estimate; with another second state, along the chord
+    between the step's ends); r starts at ``p0`` (the measured
     reading) and the chamber at ``p0 + tau * rate0`` (``rate0``: the reading's rate
     there, Pa/s), since p = r + tau dr/dt. A second-order lag (slot
     ``sensor_natural_frequency_rad_per_s`` w > 0, damping z) is stepped exactly in the
@@ -526,9 +529,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # the pressure is the only state (its step's rate, slope and correction describe it)
     plain = not (thermal or tank or lung or line or wave)
     # a lagged reading follows the pressure's own exponential over a step (the (p, T)
-    # step's pressure part), over the acoustic line's steps the cubic through the
-    # step's ends and rates (first order; its departure from the chord bounds the
-    # step), elsewhere the chord between the step's ends
+    # step's pressure part); the other steps start from the chord between their ends
     shaped = plain or thermal
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and plain)
@@ -706,8 +707,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         # chord's reading enters the error estimate (for the second-order
                         # lag that of a first-order lag of its group delay, which its
                         # chord reading does not correct)
+                        rate_a, rate_b = line_chamber_rates(line_work)
                         dev_r = first_order_hermite_deviation(
-                            p, pn, hh * line_work[0][0, 0], hh * line_work[0][5, 0], hh,
+                            p, pn, hh * rate_a, hh * rate_b, hh,
                             2.0 * z_r / w_r if second else lag_r)
                         err = max(err, abs(dev_r) / (atol_p + rtol * max(abs(p), abs(pn))))
                 elif general is not None and tank:

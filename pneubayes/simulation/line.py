@@ -449,6 +449,13 @@ def line_workspace(ny):
             np.empty((7, ny + 2, ny + 2)))
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def line_chamber_rates(work):
+    """The chamber pressure's rate (Pa/s) at the last :func:`line_step`'s start and at
+    its uncorrected end (its stage), from that step's workspace."""
+    return work[0][0, 0], work[0][5, 0]
+
+
 @njit(cache=True, error_model="numpy")
 def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
               a_in2, a_ex2, vol2, p_sup2, sl, cs, atol_p, atol_t, rtol, y_new, prop, work):

@@ -237,8 +237,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if length < 1:
         raise ValueError(f"length must be >= 1, got {length}")
     if starts.size:
-        first, last = ((int(starts[0]),) * 2 if starts.size == 1
-                       else (int(starts.min()), int(starts.max())))
+        first, last = int(starts.min()), int(starts.max())
         if first < 0 or last + length > inputs.n_samples:
             raise ValueError(f"windows run past the inputs: starts in [{first}, {last}], "
                              f"length {length}, {inputs.n_samples} samples")
