@@ -1,0 +1,171 @@
+"""The open-form closure's feature catalogue: physically typed signals on the chamber's
+signal path that a found term is built from.
+
+A *closure term* is an extra mass flow into the chamber (kg/s; mass is conserved, so it
+enters eq. 5 exactly as a port flow does)::
+
+    mdot_k = c_k * F_a(state) * F_b(state)
+
+with ``F_b = one`` for a single feature (a pair's product otherwise). ``c_k`` carries
+the unit ``kg/s / (unit_a unit_b)``. The hinge features carry a threshold ``theta``
+(their own unit) that is fitted as a parameter too.
+
+The same table is evaluated in two places that must agree to rounding: in numpy by
+:func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
+in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Scale of the area features: areas enter in mm^2 so coefficients are O(flow).
+AREA_SCALE_M2 = 1e-6
+#: Scale of the volume feature: volumes enter in cm^3.
+VOLUME_SCALE_M3 = 1e-6
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One base feature of the closure library.
+
+    ``code`` is its index in the compiled simulator's switch; ``unit`` the unit of its
+    value; ``hinge`` whether it has a fitted threshold (in ``unit``)."""
+
+    name: str
+    code: int
+    unit: str
+    description: str
+    hinge: bool = False
+
+
+FEATURES: tuple[Feature, ...] = (
+    Feature("one", 0, "1", "a constant"),
+    Feature("pressure_ratio", 1, "-", "chamber pressure over atmospheric, p / P_atm"),
+    Feature("supply_ratio", 2, "-", "supply pressure the valve sees over atmospheric, "
+            "p_s / P_atm"),
+    Feature("spool", 3, "command unit", "spool position s: the command after the model's "
+            "delay and lag, before the dead band"),
+    Feature("inlet_area", 4, "mm^2", "inlet port area a_in / 1e-6 m^2"),
+    Feature("exhaust_area", 5, "mm^2", "exhaust port area a_ex / 1e-6 m^2"),
+    Feature("inlet_flow", 6, "kg/s", "inlet port mass flow a_in f(p_s, p) (eqs. 1-3, "
+            "before any attenuation; negative when the chamber blows back)"),
+    Feature("exhaust_flow", 7, "kg/s", "exhaust port mass flow a_ex f(p, P_atm) out of "
+            "the chamber"),
+    Feature("volume", 8, "cm^3", "chamber volume V / 1e-6 m^3"),
+    Feature("volume_rate", 9, "1/s", "relative volume rate dV/dt / V"),
+    Feature("pressure_hinge", 10, "-", "max(0, p / P_atm - theta)", hinge=True),
+    Feature("spool_hinge_up", 11, "command unit", "max(0, s - theta)", hinge=True),
+    Feature("spool_hinge_down", 12, "command unit", "max(0, theta - s)", hinge=True),
+)
+
+FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
+#: Most terms one closure holds (the compiled simulator's slots).
+CLOSURE_MAX_TERMS = 4
+
+#: Names of the signals :func:`evaluate_features` reads (arrays of one shape): absolute
+#: pressures in Pa, the spool in the command's unit, areas in m^2, port mass flows in
+#: kg/s, the volume in m^3 and its rate in m^3/s.
+SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spool",
+           "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
+           "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s")
+
+
+def feature(name: str) -> Feature:
+    """The feature called ``name``; ValueError naming the known ones otherwise."""
+    try:
+        return FEATURE_BY_NAME[name]
+    except KeyError:
+        raise ValueError(f"unknown closure feature {name!r}; the features are "
+                         f"{[f.name for f in FEATURES]}") from None
+
+
+def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.ndarray:
+    """The value of base feature ``name`` on ``signals`` (see :data:`SIGNALS`);
+    ``threshold`` is a hinge feature's theta (ignored otherwise)."""
+    f = feature(name)
+    s = signals
+    p_atm = np.asarray(s["atmospheric_pressure_Pa"], dtype=np.float64)
+    p = np.asarray(s["pressure_Pa"], dtype=np.float64)
+    if f.code == 0:
+        return np.ones_like(p)
+    if f.code == 1:
+        return p / p_atm
+    if f.code == 2:
+        return np.asarray(s["supply_pressure_Pa"], dtype=np.float64) / p_atm + 0.0 * p
+    spool = np.asarray(s["spool"], dtype=np.float64) + 0.0 * p
+    if f.code == 3:
+        return spool
+    if f.code == 4:
+        return np.asarray(s["inlet_area_m2"], dtype=np.float64) / AREA_SCALE_M2 + 0.0 * p
+    if f.code == 5:
+        return np.asarray(s["exhaust_area_m2"], dtype=np.float64) / AREA_SCALE_M2 + 0.0 * p
+    if f.code == 6:
+        return np.asarray(s["inlet_flow_kg_per_s"], dtype=np.float64) + 0.0 * p
+    if f.code == 7:
+        return np.asarray(s["exhaust_flow_kg_per_s"], dtype=np.float64) + 0.0 * p
+    vol = np.asarray(s["volume_m3"], dtype=np.float64) + 0.0 * p
+    if f.code == 8:
+        return vol / VOLUME_SCALE_M3
+    if f.code == 9:
+        return np.asarray(s["volume_rate_m3_per_s"], dtype=np.float64) / vol
+    if f.code == 10:
+        return np.maximum(p / p_atm - threshold, 0.0)
+    if f.code == 11:
+        return np.maximum(spool - threshold, 0.0)
+    return np.maximum(threshold - spool, 0.0)
+
+
+@dataclass(frozen=True)
+class Term:
+    """One closure term's shape: a base feature, or the product of two.
+
+    Written ``"a"`` or ``"a*b"`` (feature names), e.g. ``"inlet_flow*pressure_hinge"``;
+    a closure's terms are joined by ``"; "``. Its value is ``c * F_a * F_b``."""
+
+    a: str
+    b: str = "one"
+
+    def __post_init__(self):
+        feature(self.a)
+        feature(self.b)
+
+    @classmethod
+    def parse(cls, text: str) -> "Term":
+        parts = [p.strip() for p in str(text).split("*")]
+        if len(parts) > 2 or not all(parts):
+            raise ValueError(f"closure term {text!r}: write one feature or two joined by "
+                             "'*' (e.g. 'inlet_flow*pressure_hinge')")
+        return cls(*parts)
+
+    def __str__(self) -> str:
+        return self.a if self.b == "one" else f"{self.a}*{self.b}"
+
+    @property
+    def unit(self) -> str:
+        """The unit of the term's coefficient, kg/s over the features' units."""
+        units = [feature(n).unit for n in (self.a, self.b) if feature(n).unit != "1"]
+        units = [u for u in units if u != "-"]
+        return "kg/s" if not units else "kg/s / (" + " ".join(units) + ")"
+
+    def hinges(self) -> tuple[str, ...]:
+        """Which of ``"a"``, ``"b"`` are hinge features (each has a threshold)."""
+        return tuple(k for k, n in (("a", self.a), ("b", self.b)) if feature(n).hinge)
+
+    def evaluate(self, signals: dict, threshold_a: float = 0.0,
+                 threshold_b: float = 0.0) -> np.ndarray:
+        """``F_a * F_b`` on ``signals`` (the coefficient not applied)."""
+        return (evaluate_feature(self.a, signals, threshold_a)
+                * evaluate_feature(self.b, signals, threshold_b))
+
+
+def parse_terms(text: str) -> tuple[Term, ...]:
+    """A closure's terms from ``"a*b; c"``; ValueError for none or more than
+    :data:`CLOSURE_MAX_TERMS`."""
+    terms = tuple(Term.parse(t) for t in str(text).split(";") if t.strip())
+    if not 1 <= len(terms) <= CLOSURE_MAX_TERMS:
+        raise ValueError(f"a closure holds 1 to {CLOSURE_MAX_TERMS} terms, got "
+                         f"{len(terms)} in {text!r}")
+    return terms
