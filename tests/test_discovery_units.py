@@ -664,13 +664,32 @@ def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(
     assert [m.effect("tube_delay").segments for _, m, _ in forms["tube_delay"][1:]] == [4, 8]
 
 
-def _stub_refiner(monkeypatch, loop, refiner):
-    """The loop's ``_fit`` with ``refiner`` in place of the trajectory refiner and its
-    noise and score computations stubbed (the tests count refinement stages)."""
-    monkeypatch.setattr(loop, "TrajectoryRefiner", refiner)
-    monkeypatch.setattr(loop, "ar1_noise_mode", lambda *a: (1.0, 0.0))
-    monkeypatch.setattr(loop, "ar1_sums", lambda r: [None])
-    monkeypatch.setattr(loop, "crossfit_window_lpd", lambda r, dof: 0.0)
+def _stub_refiner(monkeypatch, trials, refiner):
+    """The trial runner's ``fit`` with ``refiner`` in place of the trajectory refiner and
+    its noise and score computations stubbed (the tests count refinement stages)."""
+    monkeypatch.setattr(trials, "TrajectoryRefiner", refiner)
+    monkeypatch.setattr(trials, "ar1_noise_mode", lambda *a: (1.0, 0.0))
+    monkeypatch.setattr(trials, "ar1_sums", lambda r: [None])
+    monkeypatch.setattr(trials, "crossfit_window_lpd", lambda r, dof: 0.0)
+
+
+def _runner(settings, train_ws=None, held_ws=None, key="k", log=lambda m: None, train=(),
+            noise_Pa=500.0):
+    """A trial runner on stand-in windows (no run folder)."""
+    from pneubayes.discovery.state import Ledger, LoopData
+    from pneubayes.discovery.trials import TrialRunner
+
+    return TrialRunner(settings, LoopData(tuple(train), (), train_ws, held_ws, key, noise_Pa),
+                       Ledger(), None, log)
+
+
+def _round(current, search, noise_Pa=500.0):
+    """A round's state for unit tests of the trial runner."""
+    from pneubayes.discovery.state import RoundState
+
+    return RoundState(number=1, current=current, search=search, supported=[], tentative=[],
+                      started_far=False, gap_ratio=2.0, noise_Pa=noise_Pa, search_step=0,
+                      counts={})
 
 
 def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screened_out(
@@ -680,7 +699,7 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     restarts); one that beats it is refined as before."""
     from types import SimpleNamespace
 
-    import pneubayes.discovery.loop as loop
+    import pneubayes.discovery.trials as trials
     from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.effects.tube_delay import TubeDelay
     from pneubayes.physics.valve import valve_preset
@@ -709,8 +728,8 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
         def residuals(self, model, theta, solver):
             return np.full((1, 4, 10), 900.0)
 
-    _stub_refiner(monkeypatch, loop, Refiner)
-    disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3), log=lambda m: None)
+    _stub_refiner(monkeypatch, trials, Refiner)
+    settings = DiscoverySettings(max_refine_restarts=3)
     model = Model(effects=(TubeDelay(form="line", segments=3),))
     start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
              "dead_volume_m3": 2e-5}
@@ -721,16 +740,17 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     assert TubeDelay(form="wave", segments=8).refine_first() is None
     assert TubeDelay().refine_first() is None
     # the line's own parameters fit to 1900 Pa, the transport form to 1862 Pa: screened
-    disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first, beat_Pa=1862.0)
+    _runner(settings, Windows(1900.0), Windows(1900.0)).fit(model, start, first,
+                                                            beat_Pa=1862.0)
     assert stages == ["first"]
     # they fit to 900 Pa: the full refinement runs
     stages.clear()
-    disc._fit(model, start, Windows(900.0), Windows(900.0), "k", first, beat_Pa=1862.0)
+    _runner(settings, Windows(900.0), Windows(900.0)).fit(model, start, first, beat_Pa=1862.0)
     assert stages == ["first", "all"]
     assert full_from == [7e-3]  # from the stage's point
     # nothing to beat (a first form, or a follow-up): as before
     stages.clear()
-    disc._fit(model, start, Windows(1900.0), Windows(1900.0), "k", first)
+    _runner(settings, Windows(1900.0), Windows(1900.0)).fit(model, start, first)
     assert stages == ["first", "all"]
 
 
@@ -741,7 +761,7 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
     (sensor-lag forms on the four-effect benchmark: three restarts, 0.0 Pa each)."""
     from types import SimpleNamespace
 
-    import pneubayes.discovery.loop as loop
+    import pneubayes.discovery.trials as trials
     from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.effects.spool_lag import SpoolLag
     from pneubayes.inference.refine import late_gain
@@ -773,27 +793,26 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
         def residuals(self, model, theta, solver):
             return np.full((1, 4, 10), 900.0)
 
-    _stub_refiner(monkeypatch, loop, Refiner)
+    _stub_refiner(monkeypatch, trials, Refiner)
     model = Model(effects=(SpoolLag(),))
     start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
              "dead_volume_m3": 2e-5}
     moving = [4600.0, 3000.0, 2500.0, 2300.0]   # its last half gains 23 %
     flat = [2300.0, 2256.0, 2256.0, 2256.0]     # 0.0 Pa over its last half
     logs = []
-    disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3), log=logs.append)
+    settings = DiscoverySettings(max_refine_restarts=3)
     Refiner.traces = [moving, flat, flat, flat]
-    disc._fit(model, start, Windows(), Windows(), "k")
+    _runner(settings, Windows(), Windows(), "k", logs.append).fit(model, start)
     assert len(runs) == 2  # restarted once after a run that moved; not after the crawl
     assert any("crawling, not restarted" in m for m in logs)
     runs.clear()
     Refiner.traces = [moving, moving, moving, moving]
-    disc._fit(model, start, Windows(), Windows(), "k2")
+    _runner(settings, Windows(), Windows(), "k2", logs.append).fit(model, start)
     assert len(runs) == 4  # every restart while the runs move
     runs.clear()
     Refiner.traces = [moving, flat, flat, flat]
-    disc = loop.Discovery(DiscoverySettings(max_refine_restarts=3,
-                                            refine_restart_min_gain=0.0), log=logs.append)
-    disc._fit(model, start, Windows(), Windows(), "k3")
+    settings = DiscoverySettings(max_refine_restarts=3, refine_restart_min_gain=0.0)
+    _runner(settings, Windows(), Windows(), "k3", logs.append).fit(model, start)
     assert len(runs) == 4
     with pytest.raises(ValueError, match="refine_restart_min_gain"):
         DiscoverySettings(refine_restart_min_gain=1.0)
@@ -804,7 +823,7 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
     droop) passed on held-out data because its refit moved the other parameters to a
     basin that predicts better at no better training error; the current model refitted
     from the trial's point (its control) predicts as well, so the gain is the basin's."""
-    import pneubayes.discovery.loop as loop
+    import pneubayes.discovery.trials as trials
     from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.discovery.verification import StepFit
 
@@ -825,20 +844,18 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
     # the control predicts as the trial does, window by window up to noise
     controls = {"basin": fit(Model(), better * (1 + 0.01 * rng.standard_normal(18)), 710.0),
                 "effect": fit(Model(), base_mse, 710.0)}  # the effect's own gain
-    monkeypatch.setattr(loop, "effect_candidates", lambda *a, **k: [(lagged, {})])
-    monkeypatch.setattr(loop, "fit_round_forms", lambda options, *a, **k: (
+    monkeypatch.setattr(trials, "effect_candidates", lambda *a, **k: [(lagged, {})])
+    monkeypatch.setattr(trials, "fit_round_forms", lambda options, *a, **k: (
         {g: [(trial, lagged, dict.fromkeys(names, 1.0))] for g in options}, None,
         {g: [] for g in options}, {}))
     sindy = type("S", (), {"evidence_": {"sensor_lag": {"inclusion_probability": 1.0}}})()
     train = [type("R", (), {"rig": lambda self: None})()]
     for which, passes in (("basin", False), ("effect", True)):
-        disc = loop.Discovery(DiscoverySettings(), log=lambda m: None)
-        monkeypatch.setattr(disc, "_fit", lambda *a, which=which, **k: controls[which])
-        ledger = []
-        _, passing = disc._trials(["sensor_lag"], current,
-                                  (sindy, train, None, None, "k", 500.0, ledger))
+        runner = _runner(DiscoverySettings(), train=train)
+        monkeypatch.setattr(runner, "fit", lambda *a, which=which, **k: controls[which])
+        passing = runner.trials(["sensor_lag"], _round(current, sindy))
         assert bool(passing) is passes, which
-        (entry,) = [e for e in ledger if e["action"] in ("pass", "reject")]
+        (entry,) = [e for e in runner.ledger if e["action"] in ("pass", "reject")]
         assert entry["not_better_than_control"] is (not passes)
 
 
@@ -847,7 +864,6 @@ def test_only_trials_that_beat_the_current_fit_get_a_control(monkeypatch):
     passing trial is asked whether its gain is its basin's: a trial that does not beat
     the current fit gets none. A control that fits training better becomes the current
     fit, and a trial that beats that one gets its control then."""
-    import pneubayes.discovery.loop as loop
     from pneubayes.discovery.settings import DiscoverySettings
     from pneubayes.discovery.verification import StepFit
 
@@ -866,14 +882,15 @@ def test_only_trials_that_beat_the_current_fit_get_a_control(monkeypatch):
     made = {id(good): fit(1.2, 695.0), id(later): fit(1.3, 697.0)}
     asked = []
 
-    def control(trial, cur, label, ctx):
+    def control(trial, cur, label):
         asked.append(label)
         c = made[id(trial)]
         return c, (c if c.train_rmse_Pa < cur.train_rmse_Pa else cur)
-    disc = loop.Discovery(DiscoverySettings(), log=lambda m: None)
-    monkeypatch.setattr(disc, "_control", control)
-    controls, now = disc._controls([("good", good), ("poor", poor), ("later", later)],
-                                   current, None)
+    runner = _runner(DiscoverySettings())
+    monkeypatch.setattr(runner, "control", control)
+    state = _round(current, None)
+    controls = runner.controls([("good", good), ("poor", poor), ("later", later)], state)
+    now = state.current
     assert asked == ["good", "later"]
     assert controls[1] is None and controls[0] is made[id(good)]
     assert controls[2] is made[id(later)] and now is made[id(good)]
@@ -931,15 +948,18 @@ def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_pass
     from pneubayes.discovery.settings import DiscoverySettings
 
     s = DiscoverySettings()
-    why, closed = last_resort_reason([], 9125.0, 521.0, s)
+    why, closed = last_resort_reason([], 9125.0, 521.0, s.last_resort_best_gap_closed)
     assert why == "no candidate passed" and closed == 0.0
-    why, closed = last_resort_reason([8928.0, 7878.0], 9125.0, 521.0, s)
+    why, closed = last_resort_reason([8928.0, 7878.0], 9125.0, 521.0,
+                                      s.last_resort_best_gap_closed)
     assert why == "the best candidate closes 14% of its gap"
     assert closed == pytest.approx((9125 - 7878) / (9125 - 521))
-    why, closed = last_resort_reason([7878.0, 4000.0], 9125.0, 521.0, s)
+    why, closed = last_resort_reason([7878.0, 4000.0], 9125.0, 521.0,
+                                      s.last_resort_best_gap_closed)
     assert why is None and closed > 0.5
     off = DiscoverySettings(last_resort_best_gap_closed=0.0)
-    assert last_resort_reason([8928.0], 9125.0, 521.0, off)[0] is None
+    assert last_resort_reason([8928.0], 9125.0, 521.0,
+                              off.last_resort_best_gap_closed)[0] is None
     with pytest.raises(ValueError, match="last_resort_best_gap_closed"):
         DiscoverySettings(last_resort_best_gap_closed=1.5)
 
@@ -951,8 +971,8 @@ def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_pa
     way to the transport delay; with no compatible form the pair is not fitted."""
     from types import SimpleNamespace
 
-    from pneubayes.discovery.loop import Discovery
     from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.stages import Pairs
     from pneubayes.effects import make_effect
 
     def trial(effect, rmse):
@@ -968,25 +988,26 @@ def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_pa
     evidence = {"tube_delay": {"best_term_start": {"tube_delay_s": 0.004}},
                 "heat_transfer": {"best_term_start": {"heat_transfer_rate_per_s": 5.0}}}
     sindy = SimpleNamespace(evidence_=evidence)
-    disc = Discovery(DiscoverySettings(posterior=False), log=None)
+    runner = _runner(DiscoverySettings(posterior=False),
+                     train=[SimpleNamespace(rig=lambda: rig)])
     tried = {"tube_delay": [wave, transport], "heat_transfer": [convective, rate]}
-    (ma, _, _), (mb, _, _) = disc._pair_forms("tube_delay", "heat_transfer", tried,
-                                               sindy, rig)
+    (ma, _, _), (mb, _, _) = Pairs.forms("tube_delay", "heat_transfer", tried,
+                                       sindy, runner)
     assert ma.effect("tube_delay").form == "transport"
     assert mb.effect("heat_transfer").form == "convective"
     # the order of the members does not matter
-    (ma, _, _), (mb, _, _) = disc._pair_forms("heat_transfer", "tube_delay", tried,
-                                               sindy, rig)
+    (ma, _, _), (mb, _, _) = Pairs.forms("heat_transfer", "tube_delay", tried,
+                                       sindy, runner)
     assert (ma.effect("heat_transfer").form, mb.effect("tube_delay").form) == (
         "convective", "transport")
     # the wave tube alone cannot be paired with heat transfer
     only_wave = {"tube_delay": [wave], "heat_transfer": [convective, rate]}
-    assert disc._pair_forms("tube_delay", "heat_transfer", only_wave, sindy, rig) is None
+    assert Pairs.forms("tube_delay", "heat_transfer", only_wave, sindy, runner) is None
     # two effects without such a constraint pair their best forms
     lag = trial(make_effect("spool_lag", form="second_order"), 7700.0)
     evidence["spool_lag"] = {"best_term_start": {"spool_time_constant_s": 0.003}}
-    (ma, _, _), (mb, _, _) = disc._pair_forms(
+    (ma, _, _), (mb, _, _) = Pairs.forms(
         "tube_delay", "spool_lag", {"tube_delay": [wave, transport], "spool_lag": [lag]},
-        sindy, rig)
+        sindy, runner)
     assert (ma.effect("tube_delay").form, mb.effect("spool_lag").form) == (
         "wave", "second_order")

@@ -10,8 +10,10 @@ own: :mod:`~pneubayes.effects.discovery`),
 :mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime),
 :mod:`~pneubayes.discovery.verification` (held-out scores and the acceptance test),
 :mod:`~pneubayes.discovery.rounds` (one round's candidate forms, cheapest first),
-:mod:`~pneubayes.discovery.controls` (is a trial's gain its effect's or its basin's),
-:mod:`~pneubayes.discovery.stages` (pairs of effects, the named effects' other forms),
+:mod:`~pneubayes.discovery.trials` (fitting and verifying trials, their basin controls),
+:mod:`~pneubayes.discovery.state` (the data, the ledger and a round's state),
+:mod:`~pneubayes.discovery.stages` (the pipeline after a round's trials: the other
+supported groups, the last resort, runner-ups, pairs, the named effects' other forms),
 :mod:`~pneubayes.discovery.settings` (every setting, saved with the result) and
 :mod:`~pneubayes.discovery.loop` (fit, map, search, name, add, verify, repeat;
 :func:`~pneubayes.discovery.loop.discover`), :mod:`~pneubayes.discovery.result` (what it

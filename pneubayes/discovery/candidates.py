@@ -14,6 +14,7 @@ from pneubayes.discovery.verification import StepFit
 from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext, inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.model import Model
 from pneubayes.rig import Rig
 
 #: Slots whose non-zero value gives the chamber a state besides its pressure, or a
@@ -77,6 +78,15 @@ def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params:
         return None
     effect, values = nxt
     return _started(fit, effect, params, values)
+
+
+def form_label(model: Model, group: str) -> str:
+    """The form of a model's effect (``"-"`` for an effect with one form; an acoustic
+    line's with its cells, ``"line/8"``; a sensor lag on every channel
+    ``"first_order/all"``)."""
+    opts = model.effect(group).options()
+    return (str(opts.get("form", "-")) + (f"/{opts['segments']}" if "segments" in opts else "")
+            + (f"/{opts['channels']}" if "channels" in opts else ""))
 
 
 def first_free(model, group: str):

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import pneubayes
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.verification import StepFit
+from pneubayes.effects.closure_features import term_formula
 from pneubayes.inference.fit import PosteriorDraws
 
 FORMAT = "pneubayes-discovery/1"
@@ -45,6 +46,7 @@ class DiscoveryResult(PosteriorDraws):
     span_Pa : the measured pressures' 1-99 % span, Pa
     train, held : the prepared recordings (or their parts) fitted on and held out
     wall_time_s : the loop's wall time, s
+    stages : the pipeline's stages in order, each ``{"stage": name, **its options}``
     """
 
     settings: DiscoverySettings
@@ -65,6 +67,7 @@ class DiscoveryResult(PosteriorDraws):
     train: tuple = field(default=(), repr=False)
     held: tuple = field(default=(), repr=False)
     wall_time_s: float | None = None
+    stages: tuple = ()
 
     #: What :class:`~pneubayes.inference.fit.PosteriorDraws` calls the result in errors.
     method = "discovery"
@@ -79,11 +82,38 @@ class DiscoveryResult(PosteriorDraws):
         """The effects the loop added, in order."""
         return [a["name"] for a in self.accepted]
 
+    def found_terms(self) -> list[dict]:
+        """The final model's open-form closure terms (empty without one): each term's
+        text, its formula in SI units, its coefficient and thresholds (the posterior's
+        median and 90 % interval when one was sampled, else the estimate), and where it
+        acts."""
+        model = self.final.model
+        if not model.has("closure"):
+            return []
+        post = self.posterior_summary
+        out = []
+        for k, term in enumerate(model.effect("closure").term_list()):
+            names = [f"closure_coefficient_{k}"] + [f"closure_threshold_{k}_{side}"
+                                                    for side in term.hinges()]
+            values = {}
+            for n in names:
+                p = model.parameter(n)
+                if post is not None and n in post:
+                    values[n] = {"unit": p.unit, **{q: post[n][q]
+                                                    for q in ("median", "q05", "q95")}}
+                else:
+                    values[n] = {"unit": p.unit, "estimate": self.final.params[n]}
+            out.append({"term": str(term), "acts_on": "mass flow into the chamber (kg/s)",
+                        "formula": term_formula(term, k), "parameters": values})
+        return out
+
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
         post = self.posterior_summary
         effects = []
         for a in self.accepted:
+            if a["name"] == "closure":  # open-form terms: listed apart, as found_terms
+                continue
             eff = self.final.model.effect(a["name"])
             params = {}
             for n in eff.parameter_names():
@@ -100,13 +130,14 @@ class DiscoveryResult(PosteriorDraws):
                                          "score_p_value": a["score_p_value"]},
                             "rmse_before_Pa": a["rmse_before_Pa"],
                             "rmse_after_Pa": a["rmse_after_Pa"]})
-        doc = {"format": FORMAT, "effects": effects,
+        doc = {"format": FORMAT, "effects": effects, "found_terms": self.found_terms(),
                "rmse_base_Pa": self.base.heldout_rmse_Pa,
                "rmse_final_Pa": self.final.heldout_rmse_Pa,
                "noise_floor_Pa": self.noise_floor_Pa, "range_Pa": self.range_Pa,
                "span_Pa": self.span_Pa, "horizon_s": self.settings.fit.horizon_s,
                "model": "model.json", "ledger": list(self.ledger),
-               "settings": self.settings.to_dict(), "seed": self.settings.seed,
+               "settings": self.settings.to_dict(), "stages": list(self.stages),
+               "seed": self.settings.seed,
                "wall_time_s": self.wall_time_s,
                "pneubayes_version": pneubayes.__version__}
         if self.posterior_info is not None:

@@ -116,15 +116,15 @@ def min_gain_Pa(noise_Pa: float, gap_Pa: float, settings: DiscoverySettings) -> 
 
 
 def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,
-                       settings: DiscoverySettings) -> tuple[str | None, float]:
+                       best_gap_closed: float) -> tuple[str | None, float]:
     """Why a round with a large gap should try the rest of the library (None: it need
     not), and the share of the held-out gap above the noise floor the best trial that
     passed (held-out RMSEs ``passed_rmse_Pa``, Pa) closes: none passed, or the best
-    closes less than ``settings.last_resort_best_gap_closed``."""
+    closes less than ``best_gap_closed``."""
     if not len(passed_rmse_Pa):
         return "no candidate passed", 0.0
     closed = (heldout_rmse_Pa - min(passed_rmse_Pa)) / max(heldout_rmse_Pa - noise_Pa, 1e-12)
-    if closed < settings.last_resort_best_gap_closed:
+    if closed < best_gap_closed:
         return f"the best candidate closes {closed:.0%} of its gap", closed
     return None, closed
 

@@ -169,3 +169,23 @@ def parse_terms(text: str) -> tuple[Term, ...]:
         raise ValueError(f"a closure holds 1 to {CLOSURE_MAX_TERMS} terms, got "
                          f"{len(terms)} in {text!r}")
     return terms
+
+
+#: Each feature as written in a term's formula (``{theta}``: the hinge's threshold).
+SYMBOLS: dict[str, str] = {
+    "one": "1", "pressure_ratio": "(p / P_atm)", "supply_ratio": "(p_s / P_atm)",
+    "spool": "s", "inlet_area": "(a_in / 1 mm^2)", "exhaust_area": "(a_ex / 1 mm^2)",
+    "inlet_flow": "m_in", "exhaust_flow": "m_ex", "volume": "(V / 1 cm^3)",
+    "volume_rate": "(dV/dt / V)", "pressure_hinge": "max(0, p / P_atm - {theta})",
+    "spool_hinge_up": "max(0, s - {theta})", "spool_hinge_down": "max(0, {theta} - s)",
+}
+
+
+def term_formula(term: Term, k: int) -> str:
+    """Term ``k`` of a closure as a formula of its parameters' names, e.g.
+    ``"c_0 m_in max(0, p / P_atm - theta_0_b)"`` (kg/s into the chamber)."""
+    parts = [f"c_{k}"]
+    for side, name in (("a", term.a), ("b", term.b)):
+        if name != "one":
+            parts.append(SYMBOLS[name].format(theta=f"theta_{k}_{side}"))
+    return " ".join(parts)

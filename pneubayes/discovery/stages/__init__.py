@@ -1,0 +1,42 @@
+"""The discovery loop's stages: what a round tries after its search's own trials.
+
+Each stage is one object behind :class:`Stage` (one file each); a loop's pipeline is a
+list of them, run in order (:class:`~pneubayes.discovery.loop.Discovery` ``stages``).
+:func:`default_stages` is the pipeline the settings describe; ``stages=[]`` is the
+plain name -> add -> refit -> verify loop. A stage of your own subclasses :class:`Stage`.
+"""
+
+from __future__ import annotations
+
+from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.stages.last_resort import LastResort
+from pneubayes.discovery.stages.more_supported import MoreSupported
+from pneubayes.discovery.stages.other_forms import OtherForms
+from pneubayes.discovery.stages.pairs import Pairs
+from pneubayes.discovery.stages.runner_ups import RunnerUps
+
+
+def default_stages(settings: DiscoverySettings) -> list[Stage]:
+    """The pipeline ``settings`` describe, in the loop's order: the other supported
+    groups (``try_all_supported``), the last resort (``try_all_on_gap``,
+    ``last_resort_min_gap_closed``, ``last_resort_best_gap_closed``), the runner-ups
+    (``revisit_runner_ups``), pairs (``pair_members``) and the named effects' other
+    forms (``max_form_swaps``)."""
+    s = settings
+    stages: list[Stage] = []
+    if s.try_all_supported:
+        stages.append(MoreSupported())
+    if s.try_all_on_gap:
+        stages.append(LastResort(s.last_resort_min_gap_closed, s.last_resort_best_gap_closed))
+    if s.revisit_runner_ups:
+        stages.append(RunnerUps(s.last_resort_min_gap_closed))
+    if s.pair_members:
+        stages.append(Pairs(s.pair_members, s.last_resort_min_gap_closed))
+    if s.max_form_swaps:
+        stages.append(OtherForms(s.max_form_swaps))
+    return stages
+
+
+__all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
+           "default_stages"]
