@@ -37,6 +37,9 @@ autodoc_typehints = "none"
 autodoc_member_order = "bysource"
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
+# A class's "Attributes" section as a field list: its dataclass fields are documented
+# as members already.
+napoleon_use_ivar = True
 
 # Docstrings name modules and functions in :mod:/:func: roles with short names that
 # Sphinx cannot always resolve; those are links that fall back to plain text.
