@@ -3,8 +3,9 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+DOCS_STAMP := $(VENV)/.installed-docs
 
-.PHONY: demo test test-all bench paper clean setup
+.PHONY: demo test test-all bench paper docs clean setup
 
 setup: $(STAMP)
 
@@ -29,6 +30,15 @@ test-all: $(STAMP)
 # assembles paper/report.md from their saved results.
 paper: $(STAMP)
 	$(PY) experiments/make_paper.py --out results/paper --paper paper --workers 2
+
+# The documentation site (docs/, Sphinx) into results/docs; a warning fails the build.
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e ".[docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(PY) -m sphinx -b html -W --keep-going -q docs results/docs
+	@echo "results/docs/index.html"
 
 bench: $(STAMP)
 	$(PY) benchmarks/simulate.py --json results/bench_simulate.json
