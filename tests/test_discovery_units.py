@@ -1011,3 +1011,44 @@ def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_pa
         sindy, runner)
     assert (ma.effect("tube_delay").form, mb.effect("spool_lag").form) == (
         "wave", "second_order")
+
+
+def test_a_trial_that_ends_worse_than_the_model_it_contains_is_refitted_from_it(monkeypatch):
+    """A trial contains the current model (its effect at zero strength), so its training
+    fit must not end worse: one that does is refitted from the current fit with the
+    effect neutral and the better kept; worse from both starts is a failed fit (the
+    round records it as failed), not a rejection of the effect."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.rounds import TrialFitFailed
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.effects.spool_lag import SpoolLag
+
+    model = Model(effects=(SpoolLag(),))
+    current = SimpleNamespace(params={k: 1.0 for k in Model().parameter_names},
+                              train_rmse_Pa=5600.0)
+    starts = []
+
+    def fake_fit(m, start, first=None, beat_Pa=None):
+        starts.append(dict(start))
+        return SimpleNamespace(train_rmse_Pa=results[len(starts) - 1])
+
+    runner = _runner(DiscoverySettings())
+    monkeypatch.setattr(runner, "fit", fake_fit)
+    own = {**current.params, "spool_time_constant_s": 0.01}
+    results = [8905.0, 5400.0]
+    fit = runner.fit_trial("spool_lag", model, own, current)
+    assert fit.train_rmse_Pa == 5400.0 and len(starts) == 2
+    # the second start is the current fit, the effect at (just inside) zero strength
+    assert starts[1]["spool_time_constant_s"] < 1e-6
+    assert all(starts[1][k] == v for k, v in current.params.items())
+    # a trial that fits better from its own start is not refitted
+    starts.clear()
+    results = [5000.0]
+    assert runner.fit_trial("spool_lag", model, own, current).train_rmse_Pa == 5000.0
+    assert len(starts) == 1
+    # worse from both starts: a failed fit
+    starts.clear()
+    results = [8905.0, 5700.0]
+    with pytest.raises(TrialFitFailed, match="5700"):
+        runner.fit_trial("spool_lag", model, own, current)

@@ -15,6 +15,12 @@ from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.errors import SimulationError
 
 
+class TrialFitFailed(Exception):
+    """A trial's refinement ended worse in training than the model it contains (the
+    current model, its effect at zero strength), from every start: a failed fit, not
+    evidence against the effect."""
+
+
 def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
                     current_Pa: float | None = None, min_share: float = 0.0,
                     screen_share: float = 1.0):
@@ -58,7 +64,7 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         nonlocal settled
         try:
             f = fit(g, model, start, beat_Pa)
-        except (FloatingPointError, SimulationError) as exc:
+        except (FloatingPointError, SimulationError, TrialFitFailed) as exc:
             failed[g].append((model, f"{type(exc).__name__}: {str(exc).splitlines()[0]}"))
             return
         fitted[g].append((f, model, start))

@@ -23,7 +23,12 @@ import numpy as np
 
 from pneubayes.atomic import json_safe, write_json_atomic
 from pneubayes.discovery.candidates import effect_candidates, first_free, follow_up, form_label
-from pneubayes.discovery.rounds import fit_round_forms, gain_shortfall, min_gain_Pa
+from pneubayes.discovery.rounds import (
+    TrialFitFailed,
+    fit_round_forms,
+    gain_shortfall,
+    min_gain_Pa,
+)
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.state import Ledger, LoopData, RoundState
 from pneubayes.discovery.verification import (
@@ -32,6 +37,7 @@ from pneubayes.discovery.verification import (
     compare_heldout,
     crossfit_window_lpd,
 )
+from pneubayes.effects.discovery import inside_bounds
 from pneubayes.errors import SimulationError
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.refine import TrajectoryRefiner, late_gain
@@ -167,6 +173,41 @@ class TrialRunner:
                 break
         return params
 
+    def fit_trial(self, group: str, model: Model, start: dict, current: StepFit,
+                  beat_Pa: float | None = None) -> StepFit:
+        """A trial that cannot lose: ``model`` (``current``'s model with ``group``'s
+        effect) refined from ``start``; if it ends worse in training than ``current``
+        (which it contains, the effect at zero strength), refined again from the current
+        fit with the effect neutral, the lower training RMSE kept. Still worse: a failed
+        fit (:class:`~pneubayes.discovery.rounds.TrialFitFailed`), not a rejection. A
+        screened form (``beat_Pa``) is scored where its screen stopped it.
+
+        Returns
+        -------
+        StepFit
+        """
+        fit = self.fit(model, start, first_free(model, group), beat_Pa)
+        worse = fit.train_rmse_Pa > current.train_rmse_Pa + 1e-9
+        if beat_Pa is not None or not worse:
+            return fit
+        nested = {k: (current.params[k] if k in current.params
+                      else inside_bounds(model, k, v))
+                  for k, v in model.effect(group).neutral_values().items()}
+        nested.update({k: current.params[k] for k in model.parameter_names
+                       if k in current.params})
+        nested = {k: nested[k] for k in model.parameter_names}
+        label = f"{group} {form_label(model, group)}"
+        self.log(f"discover: {label}: training RMSE {fit.train_rmse_Pa:.0f} Pa, above the "
+                 f"current model's {current.train_rmse_Pa:.0f} Pa it contains: refitted from "
+                 "the current fit with the effect at zero strength")
+        again = self.fit(model, nested)
+        if again.train_rmse_Pa < fit.train_rmse_Pa:
+            fit = again
+        if fit.train_rmse_Pa > current.train_rmse_Pa + 1e-9:
+            raise TrialFitFailed(f"its best training RMSE {fit.train_rmse_Pa:.0f} Pa stays "
+                                 f"above the current model's {current.train_rmse_Pa:.0f} Pa")
+        return fit
+
     def better(self, new: StepFit, old: StepFit):
         """The verification test of ``new`` against ``old`` on the held-out windows:
         ``(passes, score gain, p-value, per-window squared-error reductions)``."""
@@ -197,7 +238,7 @@ class TrialRunner:
                                         s.tube_line_cutoff_Hz, s.tube_line_form)
                    for g in groups}
         round_forms, settled, failed, outpaced = fit_round_forms(
-            options, lambda g, m, x, beat: self.fit(m, x, first_free(m, g), beat),
+            options, lambda g, m, x, beat: self.fit_trial(g, m, x, current, beat),
             s.form_settled_ratio * d.noise_Pa,
             follow=lambda g, m, f: follow_up(current, g, evidence[g], rig, m, f.params,
                                              s.tube_line_segments, s.tube_line_cutoff_Hz,
