@@ -14,7 +14,8 @@ column then records the supply at the valve inlet (a RegulatorDroop shows there)
 card's model is the catalogue part (effects and base; with an AcousticTube its
 ``dead_volume_m3`` includes the tube's volume, as the format defines it, unless
 overridden, when the override is the total); ``bench.planted_forms`` records the forms
-and ``bench.planted_effects`` names the catalogue effects of both.
+and ``bench.planted_effects`` names the catalogue effects of both; out-of-catalogue
+forms (no catalogue effect) are listed in ``bench.out_of_catalogue_forms``.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.forms import AcousticTube, PlantForm, check_forms
+from pneubayes.bench.forms import AcousticTube, PlantForm, catalogue_names_of, check_forms
 from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.bench.protocols import piston_motion, step_commands
 from pneubayes.bench.sensors import SensorChain
@@ -228,13 +229,17 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         written.append(out / f"{plan['name']}.csv")
         entries.append({"file": f"{plan['name']}.csv", "range_V": plan["range_V"],
                         "position_m": plan["position_m"]})
-    planted = set(model.effect_names) | {f.catalogue_name for f in cfg.forms}
+    # an out-of-catalogue form (catalogue_name None) plants no catalogue effect: a
+    # discovery run should name none for it
+    planted = set(model.effect_names) | set(catalogue_names_of(cfg.forms))
     forms_extra = {"plant_solver": cfg.plant_solver.to_dict(),
                    "plant_dead_volume_m3": plant_truth["dead_volume_m3"]} if cfg.forms else {}
     card = model.to_card(truth, extra={"bench": {
         "cylinder": cfg.cylinder, "valve": cfg.valve, "protocol": cfg.protocol,
         "planted_effects": [n for n in CATALOGUE if n in planted],
-        "planted_forms": [f.to_dict() for f in cfg.forms], **forms_extra,
+        "planted_forms": [f.to_dict() for f in cfg.forms],
+        "out_of_catalogue_forms": [type(f).__name__ for f in cfg.forms
+                                   if f.catalogue_name is None], **forms_extra,
         "duration_s": cfg.duration_s,
         "seed": cfg.seed, "overrides": dict(cfg.overrides),
         "fine_rate_Hz": cfg.fine_rate_Hz, "sensor": cfg.sensor.to_dict(),

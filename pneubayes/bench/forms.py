@@ -7,6 +7,12 @@ physically different, more detailed form of one catalogue effect, simulated by t
 independent plant of :mod:`pneubayes.bench.plant`; ``catalogue_name`` names the effect
 a discovery run should report for it.
 
+The *out-of-catalogue* forms (:class:`BladderVolume`, :class:`SpoolHysteresis`,
+:class:`ReliefValve`, :class:`InletFlowForce`, :class:`LipSealLeak`) are effects no
+catalogue effect expresses: their ``catalogue_name`` is None, meaning a discovery run
+should name *no* catalogue effect for them (an open-form closure term may describe
+them). They test the open-form stage blind.
+
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
 the record written to ``truth.json``. :func:`forms_from_names` builds realistic
@@ -48,8 +54,9 @@ def _non_negative(obj, *names):
 class PlantForm:
     """Base of the realistic forms: a frozen dataclass naming its catalogue effect."""
 
-    #: The catalogue effect this form is a realistic version of.
-    catalogue_name: ClassVar[str]
+    #: The catalogue effect this form is a realistic version of; None for an effect
+    #: outside the catalogue (discovery should name no catalogue effect for it).
+    catalogue_name: ClassVar[str | None]
 
     def to_dict(self) -> dict:
         """``{"form": class name, "catalogue_name": ..., **fields}`` (JSON-ready)."""
@@ -243,10 +250,113 @@ class WallHeatTransfer(PlantForm):
             _positive(self, "wall_temperature_K")
 
 
+# ------------------------------------------------------------ out-of-catalogue forms
+@dataclass(frozen=True)
+class BladderVolume(PlantForm):
+    """A compliant chamber (bellows, muscle, soft hose) whose volume grows with gauge pressure.
+
+    ``V = V_dead + A x + dV(p)`` with, for gauge pressure ``g = p - P_atm``,
+    ``dV = dV_max (1 - exp(-g / p_scale))`` for g >= 0 and its C1 continuation
+    ``dV_max g / p_scale`` below atmosphere. Eq. 5 then reads
+    ``dp/dt (1 + kappa p dV'(p) / V) = kappa / V (Rs T mdot - p A dx/dt)``: the chamber
+    is stiffer at high pressure. ``dV_max_m3 = 0`` is the rigid chamber.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    dV_max_m3: float
+    pressure_scale_Pa: float = 150_000.0
+
+    def __post_init__(self):
+        _non_negative(self, "dV_max_m3")
+        _positive(self, "pressure_scale_Pa")
+
+
+@dataclass(frozen=True)
+class SpoolHysteresis(PlantForm):
+    """Backlash (play) between the command and the spool, with memory of direction.
+
+    The effective spool s_h follows the spool s only once s leaves the band
+    ``[s_h - b, s_h + b]``, ``b = half_band_V``; smoothed as a fast first-order play::
+
+        ds_h/dt = (s - b - s_h) / tau  if s > s_h + b
+                  (s + b - s_h) / tau  if s < s_h - b,  else 0
+
+    with ``tau = time_constant_s`` (much faster than the spool). The area maps see s_h.
+    ``half_band_V = 0`` is no play (the state is omitted). s_h starts at the first
+    command.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    half_band_V: float
+    time_constant_s: float = 2e-4
+
+    def __post_init__(self):
+        _non_negative(self, "half_band_V")
+        _positive(self, "time_constant_s")
+
+
+@dataclass(frozen=True)
+class ReliefValve(PlantForm):
+    """A spring-loaded relief valve on the chamber venting to atmosphere.
+
+    ``mdot_out = k (p - p_crack)^1.5`` for ``p > p_crack`` (absolute), else 0: a poppet
+    whose opening grows with the overpressure and whose flow grows with the opening
+    and the root of the drop. ``k = flow_coefficient_kg_per_s_Pa1p5``; 0 is no valve.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    crack_pressure_Pa: float
+    flow_coefficient_kg_per_s_Pa1p5: float
+
+    def __post_init__(self):
+        _positive(self, "crack_pressure_Pa")
+        _non_negative(self, "flow_coefficient_kg_per_s_Pa1p5")
+
+
+@dataclass(frozen=True)
+class InletFlowForce(PlantForm):
+    """Flow forces on the spool shrink the inlet's opening with the pressure drop.
+
+    ``a_in_eff = a_in / (1 + k_ff max(p_s - p, 0) / P_atm)``, ``k_ff =
+    flow_force_coefficient`` (per atmosphere of drop across the inlet, p_s the supply
+    at the valve inlet, p the chamber). The exhaust is unaffected; 0 is no flow force.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    flow_force_coefficient: float
+
+    def __post_init__(self):
+        _non_negative(self, "flow_force_coefficient")
+
+
+@dataclass(frozen=True)
+class LipSealLeak(PlantForm):
+    """A lip seal that lifts above a pressure and then leaks to atmosphere.
+
+    ``mdot = k (p - p_seal)^2`` for ``p > p_seal`` (absolute), else 0: the lip is held
+    shut by its preload up to ``p_seal = seal_pressure_Pa``, then the gap and the drop
+    across it grow together. ``k = conductance_kg_per_s_Pa2``; 0 is a tight seal.
+    Unlike the catalogue's leaks (orifice, laminar ``p^2 - P_atm^2``), nothing leaks
+    below p_seal.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    seal_pressure_Pa: float
+    conductance_kg_per_s_Pa2: float
+
+    def __post_init__(self):
+        _positive(self, "seal_pressure_Pa")
+        _non_negative(self, "conductance_kg_per_s_Pa2")
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
-                                  SecondOrderSpool, WallHeatTransfer)
+                                  SecondOrderSpool, WallHeatTransfer, BladderVolume,
+                                  SpoolHysteresis, ReliefValve, InletFlowForce, LipSealLeak)
 }
+#: The out-of-catalogue forms (``catalogue_name`` None), by class name.
+OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
+                                          if c.catalogue_name is None)
 
 
 def form_from_dict(record: Mapping) -> PlantForm:
@@ -271,13 +381,20 @@ def form_from_dict(record: Mapping) -> PlantForm:
 
 def check_forms(forms: Sequence[PlantForm], effect_names: Sequence[str] = ()) -> tuple:
     """Validate a forms tuple: PlantForm objects, each catalogue effect at most once
-    among the forms and the catalogue ``effect_names`` planted beside them."""
+    among the forms and the catalogue ``effect_names`` planted beside them, each
+    out-of-catalogue form at most once."""
     forms = tuple(forms)
     for f in forms:
         if not isinstance(f, PlantForm):
             raise TypeError(f"forms: {f!r} is not a plant form (one of {sorted(FORMS)})")
     seen = list(effect_names)
+    kinds = [type(f).__name__ for f in forms]
+    for k in set(kinds):
+        if kinds.count(k) > 1:
+            raise ValueError(f"forms: {k} planted {kinds.count(k)} times; plant each form once")
     for f in forms:
+        if f.catalogue_name is None:
+            continue
         if f.catalogue_name in seen:
             raise ValueError(f"forms: {type(f).__name__} is a form of {f.catalogue_name!r}, "
                              f"which is already planted (as an effect or another form); "
@@ -333,3 +450,41 @@ def forms_from_names(names: Sequence[str], cylinder: str = "AIR37",
             raise ValueError(f"forms_from_names: unknown effect {n!r}; the catalogue has "
                              f"{sorted(CATALOGUE)}")
     return check_forms(out)
+
+
+def catalogue_names_of(forms: Sequence[PlantForm]) -> list[str]:
+    """The catalogue effects the forms are versions of (out-of-catalogue forms: none),
+    i.e. what a discovery run should name for them."""
+    return [f.catalogue_name for f in forms if f.catalogue_name is not None]
+
+
+def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
+                              atmospheric_pressure_Pa: float = 101_325.0) -> PlantForm:
+    """Realistic default of out-of-catalogue form ``name`` (a class name) on ``cylinder``.
+
+    - ``BladderVolume``: dV_max = 10 % of the swept volume (2.4e-7 m^3 on AIR37, 2.0e-6
+      on SMC), pressure scale 150 kPa;
+    - ``SpoolHysteresis``: half-band 0.15 V, smoothing 0.2 ms;
+    - ``ReliefValve``: cracks at 3.5 bar gauge, k = 3.2e-11 kg/(s Pa^1.5) (1 g/s at
+      1 bar overpressure, above the Table II valves' full inlet flow);
+    - ``InletFlowForce``: k_ff = 0.1 per atm (the inlet 31 % smaller at the full 4.5 bar
+      drop);
+    - ``LipSealLeak``: lifts at 2 bar gauge, k = 4.8e-16 kg/(s Pa^2) (0.03 g/s at the
+      5.5 bar supply, the AIRPEL's laminar leak at 3 bar).
+    """
+    cyl = cylinder_preset(cylinder)
+    if name == "BladderVolume":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return BladderVolume(dV_max_m3=0.1 * swept, pressure_scale_Pa=150_000.0)
+    if name == "SpoolHysteresis":
+        return SpoolHysteresis(half_band_V=0.15, time_constant_s=2e-4)
+    if name == "ReliefValve":
+        return ReliefValve(crack_pressure_Pa=atmospheric_pressure_Pa + 350_000.0,
+                           flow_coefficient_kg_per_s_Pa1p5=3.2e-11)
+    if name == "InletFlowForce":
+        return InletFlowForce(flow_force_coefficient=0.1)
+    if name == "LipSealLeak":
+        return LipSealLeak(seal_pressure_Pa=atmospheric_pressure_Pa + 200_000.0,
+                           conductance_kg_per_s_Pa2=4.8e-16)
+    raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
+                     f"{list(OUT_OF_CATALOGUE)}")

@@ -8,8 +8,11 @@ integrated by scipy's ``solve_ivp`` (Radau or LSODA) with explicit tolerances.
 
 State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
 as the forms and effects require: chamber temperature, spool position and velocity,
-regulator droop, and the acoustic tube's cell pressures and mass flows
-(:mod:`pneubayes.bench.forms` documents each form's equations).
+regulator droop, the acoustic tube's cell pressures and mass flows, and a spool's play
+(:mod:`pneubayes.bench.forms` documents each form's equations). The out-of-catalogue
+forms (a compliant bladder volume, spool play, a relief valve, inlet flow forces, a
+lip-seal leak) act in the same right-hand side; at zero strength each leaves it as it
+was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
 signal-path slots (:mod:`pneubayes.effects.path`) with the meanings the model gives
@@ -44,11 +47,16 @@ from scipy.interpolate import CubicSpline
 
 from pneubayes.bench.forms import (
     AcousticTube,
+    BladderVolume,
     ClearanceLeak,
+    InletFlowForce,
+    LipSealLeak,
     PlantForm,
     RegulatorDroop,
+    ReliefValve,
     RoundedDeadzone,
     SecondOrderSpool,
+    SpoolHysteresis,
     WallHeatTransfer,
     check_forms,
 )
@@ -70,11 +78,17 @@ K_CL_C, K_CL_L0, K_CL_SLOPE = 31, 32, 33
 K_DROOP, K_DROOP_TAU = 34, 35
 K_TUBE_A, K_TUBE_DX, K_TUBE_D, K_TUBE_MU = 36, 37, 38, 39
 K_H, K_TWALL = 40, 41
-N_K = 42
+# out-of-catalogue forms (all 0: absent)
+K_BL_DV, K_BL_PS = 42, 43
+K_HY_B, K_HY_TAU = 44, 45
+K_RV_P, K_RV_K = 46, 47
+K_FF = 48
+K_LS_P, K_LS_K = 49, 50
+N_K = 51
 # Integer layout: modes and state indices (-1 = absent).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N) = range(13)
-N_L = 13
+ L_ITQ, L_N, L_IH) = range(14)
+N_L = 14
 
 
 @njit(cache=True)
@@ -124,6 +138,14 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         wn = P[K_WN]
         dy[L[L_IS]] = v
         dy[L[L_ISV]] = wn * wn * (u - s) - 2.0 * P[K_ZETA] * wn * v
+    if L[L_IH] >= 0:  # spool play (SpoolHysteresis): held inside the band
+        sh = y[L[L_IH]]
+        band = P[K_HY_B]
+        if s > sh + band:
+            dy[L[L_IH]] = (s - band - sh) / P[K_HY_TAU]
+        elif s < sh - band:
+            dy[L[L_IH]] = (s + band - sh) / P[K_HY_TAU]
+        s = sh
     ue = rounded_deadband(s, P[K_DEAD], P[K_ROUND] if L[L_DZ_ROUND] == 1 else 0.0)
     a_in = gompertz_scalar(ue, P[K_IN], P[K_IN + 1], P[K_IN + 2], P[K_IN + 3], P[K_IN + 4])
     a_ex = gompertz_scalar(ue, P[K_EX], P[K_EX + 1], P[K_EX + 2], P[K_EX + 3], P[K_EX + 4])
@@ -136,6 +158,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     temp = y[L[L_IT]] if heat > 0 else ts
     nseg = L[L_NSEG]
     pv = y[L[L_ITP]] if nseg > 0 else p
+    if P[K_FF] > 0.0:  # flow forces close the inlet with the drop across it
+        a_in = a_in / (1.0 + P[K_FF] * max(p_up - pv, 0.0) / p_atm)
     # port flows (eqs. 1-3); a hot or cold chamber gas scales them by sqrt(T_s / T)
     f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
     f_ex = flow_terms(pv, p_atm, alpha, beta, theta, kappa)[0]
@@ -179,10 +203,24 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     if L[L_CLEAR] == 1:
         k_lam += P[K_CL_C] / (P[K_CL_L0] + P[K_CL_SLOPE] * x)
     leak = P[K_LEAKO] * f_l + k_lam * (p * p - p_atm * p_atm)
+    if p > P[K_RV_P] and P[K_RV_K] > 0.0:  # relief valve
+        leak += P[K_RV_K] * (p - P[K_RV_P]) ** 1.5
+    if p > P[K_LS_P] and P[K_LS_K] > 0.0:  # lip seal lifted
+        leak += P[K_LS_K] * (p - P[K_LS_P]) ** 2
     mdot = inflow - leak
     # chamber (eq. 5, or the energy equation)
     vol = P[K_VDEAD] + P[K_ABORE] * x
     vdot = P[K_ABORE] * xdot
+    dvdp = 0.0
+    if P[K_BL_DV] > 0.0:  # compliant bladder: V grows with gauge pressure
+        g = (p - p_atm) / P[K_BL_PS]
+        if g >= 0.0:
+            e = math.exp(-g)
+            vol += P[K_BL_DV] * (1.0 - e)
+            dvdp = P[K_BL_DV] * e / P[K_BL_PS]
+        else:
+            vol += P[K_BL_DV] * g
+            dvdp = P[K_BL_DV] / P[K_BL_PS]
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
@@ -194,6 +232,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         dp = kappa / vol * (rs * enth - p * vdot)
         if heat == 1:
             dp += p * P[K_HEAT] * (ts - temp) / temp
+    if dvdp > 0.0:  # dV/dt = A dx/dt + dV/dp dp/dt, solved for dp/dt
+        dp = dp / (1.0 + kappa * p * dvdp / vol)
+        vdot += dvdp * dp
     dy[0] = dp
     if heat > 0:
         dy[L[L_IT]] = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
@@ -396,11 +437,26 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         f = by[RegulatorDroop]
         P[K_DROOP], P[K_DROOP_TAU] = 1000.0 * f.droop_Pa_per_g_per_s, f.time_constant_s
         L[L_DROOP] = 1
+    if BladderVolume in by:
+        f = by[BladderVolume]
+        P[K_BL_DV], P[K_BL_PS] = f.dV_max_m3, f.pressure_scale_Pa
+    if ReliefValve in by:
+        f = by[ReliefValve]
+        P[K_RV_P], P[K_RV_K] = f.crack_pressure_Pa, f.flow_coefficient_kg_per_s_Pa1p5
+    if InletFlowForce in by:
+        P[K_FF] = by[InletFlowForce].flow_force_coefficient
+    if LipSealLeak in by:
+        f = by[LipSealLeak]
+        P[K_LS_P], P[K_LS_K] = f.seal_pressure_Pa, f.conductance_kg_per_s_Pa2
+    hyst = by.get(SpoolHysteresis)
+    if hyst is not None and hyst.half_band_V > 0:
+        P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
     tube = by.get(AcousticTube)
     if tube is not None:
         P[K_TUBE_A], P[K_TUBE_DX] = tube.area_m2, tube.length_m / tube.segments
         P[K_TUBE_D], P[K_TUBE_MU] = tube.diameter_m, tube.air_viscosity_Pa_s
         L[L_NSEG] = tube.segments
+    # (a bladder's volume at atmosphere is 0; it only grows above)
     vmin = P[K_VDEAD] + P[K_ABORE] * float(inputs.position_m.min())
     if not vmin > 0:
         raise ValueError(f"chamber volume {vmin} m^3 at the smallest position is not > 0 "
@@ -438,6 +494,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 2 * tube.segments
         atol += [cfg.atol_Pa] * tube.segments + [cfg.atol_Pa * tube.area_m2 / c] * tube.segments
         scale += [1e5] * tube.segments + [1e5 * tube.area_m2 / c] * tube.segments
+    if P[K_HY_B] > 0:
+        L[L_IH] = n
+        n += 1
+        atol.append(cfg.atol_V)
+        scale.append(1.0)
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]))
@@ -461,6 +522,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[idx]] = v
     if L[L_SPOOL] > 0:
         y[L[L_IS]] = u0  # at rest at the first (delayed) command
+    if L[L_IH] >= 0:
+        y[L[L_IH]] = u0  # the play's output starts at the first command
     if L[L_NSEG] > 0:
         y[L[L_ITP]:L[L_ITP] + L[L_NSEG]] = p0  # tube at rest at the chamber's pressure
     return y

@@ -1,0 +1,235 @@
+"""Out-of-catalogue plant forms (pneubayes.bench.forms): effects no catalogue effect
+expresses, for the open-form blind set. Zero strength is the plain plant; each has a
+visible, physically right-signed effect; closed-chamber mass balance where cheap."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pneubayes.bench.bench import BenchConfig, run_bench
+from pneubayes.bench.forms import (
+    OUT_OF_CATALOGUE,
+    BladderVolume,
+    InletFlowForce,
+    LipSealLeak,
+    ReliefValve,
+    SpoolHysteresis,
+    catalogue_names_of,
+    check_forms,
+    form_from_dict,
+    forms_from_names,
+    out_of_catalogue_defaults,
+)
+from pneubayes.bench.plant import PlantConfig, simulate_plant
+from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
+from pneubayes.simulation import Inputs
+
+P_ATM, P_SUP, BORE, STROKE = 101_325.0, 551_325.0, 0.009, 0.0375
+REF = PlantConfig.reference()
+DT = 1e-4
+#: Valve shut at commands within +-1.5 V (as tests/test_plant.py): closed chamber at 0 V,
+#: the inlet exactly shut at -5 V.
+CLOSABLE = {
+    "inlet_offset_m2": 0.0, "inlet_a_m2": 5.5e-7, "inlet_b": 3.5, "inlet_c_per_V": 20.0,
+    "inlet_d_V": -3.0, "exhaust_offset_m2": 0.0, "exhaust_a_m2": 6e-7, "exhaust_b": 3.5,
+    "exhaust_c_per_V": -20.0, "exhaust_d_V": 3.0}
+VOLUME = 1.5e-7 + np.pi / 4 * BORE**2 * 0.5 * STROKE  # chamber at half stroke, m^3
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return Rig(BORE, P_ATM, P_SUP)
+
+
+@pytest.fixture(scope="module")
+def base():
+    return dict(valve_preset("valve1").parameters(), dead_volume_m3=1.5e-7)
+
+
+def _held(duration_s, levels, at=(0.0,)):
+    """Fixed piston at half stroke; command ``levels[i]`` from time ``at[i]``."""
+    t = np.arange(int(round(duration_s / DT)) + 1) * DT
+    u = np.empty(t.size)
+    for level, start in zip(levels, at):
+        u[t >= start - 1e-12] = level
+    return Inputs(t, u, np.full(t.size, 0.5 * STROKE), np.full(t.size, P_SUP))
+
+
+def _run(params, forms, inputs, rig, p0=P_ATM):
+    return simulate_plant(params, forms, inputs, rig, p0, REF).pressure_Pa
+
+
+def _moving(duration_s=0.6, seed=4):
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(duration_s / DT)) + 1) * DT
+    u = np.repeat(rng.uniform(-5, 5, int(np.ceil(t.size / 500))), 500)[:t.size]
+    x = 0.5 * STROKE + 0.4 * STROKE * np.sin(2 * np.pi * 3.0 * t)
+    return Inputs(t, u, x, np.full(t.size, P_SUP))
+
+
+# ---------------------------------------------------------------- the forms themselves
+def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
+    assert set(OUT_OF_CATALOGUE) == {"BladderVolume", "SpoolHysteresis", "ReliefValve",
+                                     "InletFlowForce", "LipSealLeak"}
+    for cyl in ("AIR37", "SMC"):
+        forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
+        assert check_forms(forms) == tuple(forms)  # all five together: no clash
+        assert catalogue_names_of(forms) == []
+        for f in forms:
+            d = json.loads(json.dumps(f.to_dict()))
+            assert d["catalogue_name"] is None and form_from_dict(d) == f
+    mixed = forms_from_names(["tube_delay"]) + (ReliefValve(5e5, 1e-11),)
+    assert catalogue_names_of(mixed) == ["tube_delay"]
+    with pytest.raises(ValueError, match="ReliefValve planted 2 times"):
+        check_forms([ReliefValve(5e5, 1e-11), ReliefValve(4e5, 1e-11)])
+    with pytest.raises(ValueError, match="catalogue_name 'cylinder_leak' should be None"):
+        form_from_dict(dict(LipSealLeak(3e5, 1e-16).to_dict(), catalogue_name="cylinder_leak"))
+    with pytest.raises(ValueError, match="unknown form 'Nope'"):
+        out_of_catalogue_defaults("Nope")
+
+
+@pytest.mark.parametrize("cls, kwargs, field", [
+    (BladderVolume, {"dV_max_m3": -1e-7}, "dV_max_m3"),
+    (BladderVolume, {"dV_max_m3": 1e-7, "pressure_scale_Pa": 0.0}, "pressure_scale_Pa"),
+    (SpoolHysteresis, {"half_band_V": float("nan")}, "half_band_V"),
+    (SpoolHysteresis, {"half_band_V": 0.1, "time_constant_s": -1.0}, "time_constant_s"),
+    (ReliefValve, {"crack_pressure_Pa": 0.0, "flow_coefficient_kg_per_s_Pa1p5": 1e-11},
+     "crack_pressure_Pa"),
+    (ReliefValve, {"crack_pressure_Pa": 4e5, "flow_coefficient_kg_per_s_Pa1p5": -1.0},
+     "flow_coefficient_kg_per_s_Pa1p5"),
+    (InletFlowForce, {"flow_force_coefficient": True}, "flow_force_coefficient"),
+    (LipSealLeak, {"seal_pressure_Pa": "3e5", "conductance_kg_per_s_Pa2": 1e-16},
+     "seal_pressure_Pa"),
+    (LipSealLeak, {"seal_pressure_Pa": 3e5, "conductance_kg_per_s_Pa2": float("inf")},
+     "conductance_kg_per_s_Pa2"),
+])
+def test_forms_validate_their_fields_by_name(cls, kwargs, field):
+    with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
+        cls(**kwargs)
+
+
+def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path):
+    relief = out_of_catalogue_defaults("ReliefValve")
+    forms = (forms_from_names(["tube_delay"])[0], relief)
+    res = run_bench(BenchConfig("AIR37", "valve1", protocol="fixed", duration_s=0.3,
+                                positions=(0.5,), ranges_V=(5.0,), forms=forms), tmp_path)
+    bench = json.loads(res.truth_path.read_text())["bench"]
+    assert bench["planted_effects"] == ["tube_delay"]
+    assert bench["out_of_catalogue_forms"] == ["ReliefValve"]
+    assert form_from_dict(bench["planted_forms"][1]) == relief
+
+
+# ---------------------------------------------------------------- zero strength
+@pytest.mark.parametrize("form", [
+    BladderVolume(dV_max_m3=0.0), SpoolHysteresis(half_band_V=0.0),
+    ReliefValve(crack_pressure_Pa=2e5, flow_coefficient_kg_per_s_Pa1p5=0.0),
+    InletFlowForce(flow_force_coefficient=0.0),
+    LipSealLeak(seal_pressure_Pa=2e5, conductance_kg_per_s_Pa2=0.0)],
+    ids=lambda f: type(f).__name__)
+def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
+    inputs = _moving()
+    plain = _run(base, (), inputs, rig)
+    np.testing.assert_array_equal(_run(base, (form,), inputs, rig), plain)
+    default = out_of_catalogue_defaults(type(form).__name__)
+    assert np.max(np.abs(_run(base, (default,), inputs, rig) - plain)) > 2e3  # it matters
+
+
+# ---------------------------------------------------------------- physical behaviour
+def _time_to(p, level):
+    return int(np.argmax(p >= level)) * DT
+
+
+def test_relief_valve_caps_a_full_inlet_fill_near_its_cracking_pressure(rig, base):
+    relief = out_of_catalogue_defaults("ReliefValve")
+    inputs = _held(1.0, (5.0,))
+    plain, capped = _run(base, (), inputs, rig), _run(base, (relief,), inputs, rig)
+    assert plain[-1] > P_SUP - 5e3  # without: the chamber reaches the supply
+    pc = relief.crack_pressure_Pa
+    assert pc < capped[-1] < pc + 60e3  # with: held a little above the cracking pressure
+    below = plain < pc - 1e3
+    # shut below cracking (to the solver's tolerance: a step may straddle the crossing)
+    np.testing.assert_allclose(capped[below], plain[below], rtol=0, atol=0.01)
+
+
+@pytest.mark.parametrize("name", ["ReliefValve", "LipSealLeak"])
+def test_a_closed_chamber_vents_to_the_threshold_at_the_forms_mass_flow(rig, name):
+    """Valve shut: the pressure falls only above the threshold, never below it, at
+    dp/dt = -kappa Rs T mdot(p) / V (eq. 5, adiabatic, fixed volume)."""
+    form = out_of_catalogue_defaults(name)
+    threshold = getattr(form, "crack_pressure_Pa", None) or form.seal_pressure_Pa
+    inputs = _held(0.5, (0.0,))
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    below = _run(params, (form,), inputs, rig, p0=threshold - 20e3)
+    np.testing.assert_allclose(below, threshold - 20e3, rtol=0, atol=1e-6)
+    p = _run(params, (form,), inputs, rig, p0=threshold + 80e3)
+    assert np.all(np.diff(p) <= 1e-6) and threshold < p[-1] < threshold + 40e3
+    gas = rig.gas
+    over = 0.5 * (p[0] + p[1]) - threshold  # the first step's midpoint
+    mdot = (form.flow_coefficient_kg_per_s_Pa1p5 * over**1.5 if name == "ReliefValve"
+            else form.conductance_kg_per_s_Pa2 * over**2)
+    want = -gas.heat_capacity_ratio * gas.specific_gas_constant_J_per_kg_K \
+        * gas.temperature_K * mdot / VOLUME
+    got = (p[1] - p[0]) / DT
+    assert got == pytest.approx(want, rel=0.01)
+
+
+def test_lip_seal_leaks_only_above_its_lift_pressure_on_a_fill(rig, base):
+    inputs = _held(1.0, (5.0,))
+    plain = _run(base, (), inputs, rig)
+    tight = LipSealLeak(seal_pressure_Pa=P_SUP + 1e4, conductance_kg_per_s_Pa2=1e-14)
+    np.testing.assert_array_equal(_run(base, (tight,), inputs, rig), plain)
+    leaky = _run(base, (out_of_catalogue_defaults("LipSealLeak"),), inputs, rig)
+    # the leak (0.03 g/s) holds the filled chamber below the supply, by more than the
+    # bench's 500 Pa noise even against the full inlet
+    assert plain[-1] - leaky[-1] > 500.0
+
+
+def test_bladder_slows_the_fill_and_keeps_its_end_and_its_mass(rig, base):
+    inputs = _held(1.0, (5.0,))
+    bladder = out_of_catalogue_defaults("BladderVolume")
+    plain, soft = _run(base, (), inputs, rig), _run(base, (bladder,), inputs, rig)
+    half = P_ATM + 0.5 * (P_SUP - P_ATM)
+    assert _time_to(soft, half) > 1.2 * _time_to(plain, half)
+    assert soft[-1] == pytest.approx(plain[-1], abs=2e3)  # same steady state: the supply
+    # closed chamber at fixed piston: p V(p)^kappa is conserved (adiabatic, no flow)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    t = np.arange(2001) * DT
+    x = 0.5 * STROKE + 0.3 * STROKE * np.sin(2 * np.pi * 5.0 * t)
+    moving = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    p = _run(params, (bladder,), moving, rig, p0=3e5)
+    dv = bladder.dV_max_m3 * (1 - np.exp(-(p - P_ATM) / bladder.pressure_scale_Pa))
+    inv = p * (1.5e-7 + np.pi / 4 * BORE**2 * x + dv) ** rig.gas.heat_capacity_ratio
+    assert np.ptp(p) > 5e4 and np.ptp(inv) / inv[0] < 1e-5
+
+
+def test_inlet_flow_force_slows_the_fill_and_leaves_the_exhaust(rig):
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    ff = out_of_catalogue_defaults("InletFlowForce")
+    fill = _held(0.5, (5.0,))
+    plain, forced = _run(params, (), fill, rig), _run(params, (ff,), fill, rig)
+    half = P_ATM + 0.5 * (P_SUP - P_ATM)
+    assert _time_to(forced, half) > 1.15 * _time_to(plain, half)
+    # at -5 V the inlet is exactly shut: the flow force has nothing to act on
+    vent = _held(0.5, (-5.0,))
+    np.testing.assert_array_equal(_run(params, (ff,), vent, rig, p0=5e5),
+                                  _run(params, (), vent, rig, p0=5e5))
+
+
+def test_spool_play_holds_inside_its_band_and_remembers_the_direction(rig, base):
+    play = out_of_catalogue_defaults("SpoolHysteresis")  # half-band 0.15 V
+    # a command step smaller than the band moves nothing
+    small = _held(0.6, (0.5, 0.6), at=(0.0, 0.2))
+    steady = _held(0.6, (0.5,))
+    np.testing.assert_allclose(_run(base, (play,), small, rig),
+                               _run(base, (play,), steady, rig), rtol=0, atol=1.0)
+    assert np.max(np.abs(_run(base, (), small, rig) - _run(base, (), steady, rig))) > 1e3
+    # the same final command approached from below and from above: without play the
+    # same end, with play the spool stays b short of it on the side it came from
+    up, down = _held(1.5, (-2.0, 0.3), at=(0.0, 0.5)), _held(1.5, (2.0, 0.3), at=(0.0, 0.5))
+    assert _run(base, (), up, rig)[-1] == pytest.approx(_run(base, (), down, rig)[-1], abs=500)
+    from_below, from_above = _run(base, (play,), up, rig)[-1], _run(base, (play,), down, rig)[-1]
+    assert from_above - from_below > 1e4  # more inlet opening when it came from above
