@@ -1,0 +1,351 @@
+"""The open-form blind set: hidden effects that no catalogue effect expresses, drawn at
+random, run once and reported once, never looked at while the open-form stage is tuned.
+
+    python experiments/openform_blind.py --list                  # the cases, no runs
+    python experiments/openform_blind.py --out results/openform  # run (resumes), report
+    python experiments/openform_blind.py --out /tmp/of --smoke   # a short tuning-draw check
+    python experiments/openform_blind.py --out results/openform --case o03   # one case
+
+The hidden effects are the out-of-catalogue plant forms of
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None): a compliant bladder volume,
+spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak. Each is
+planted on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from
+wide physical ranges (:func:`draw_openform`) from ``--seed`` (default 69069, recorded);
+two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
+recordings, or the first ``--recordings`` of them, ``--duration`` s each; the bench's
+declared zero-phase DAQ filter, so the sensor chain has no real lag to find) and
+``pneubayes discover`` from the plain model. ``--setting KEY=VALUE`` (repeatable; the
+value read as JSON, else as text) sets a :class:`DiscoverySettings` field, e.g. to
+switch the open-form stage on once it exists; the settings are recorded.
+
+Reported per case: the catalogue effects named, the open-form terms found (the
+discovery document's ``found_terms``, from an effect named ``closure``; none when the
+loop has no open-form stage), the held-out RMSE before and after (Pa), the noise floor,
+the gap shrink and final / noise. The issue's floors: out-of-catalogue cases name no
+catalogue stand-in in >= 8 of 10, median gap shrink >= 70 %, median final <= 2 x the
+noise floor; null controls find no open-form term and name nothing beyond the sensor
+chain's real lags (none here). Cases are cached in OUT/cases/NAME.json (an interrupted
+run resumes); OUT/summary.json and OUT/summary.md hold the report with the seed, git
+revision and versions. ``--case NAME`` runs only those cases into the cache (a second
+process can take a second core); rerun without it to report.
+
+``--smoke`` runs one short case (a relief valve, 13-s recordings, four of them) drawn
+from a different seed -- a tuning draw, not the blind set -- to check the plumbing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from discovery_study import cached_cases, six_recordings
+
+from pneubayes.atomic import write_json_atomic, write_text_atomic
+from pneubayes.bench.bench import ATMOSPHERE_PA, SUPPLY_PA
+from pneubayes.bench.forms import (
+    OUT_OF_CATALOGUE,
+    BladderVolume,
+    InletFlowForce,
+    LipSealLeak,
+    ReliefValve,
+    SpoolHysteresis,
+    check_forms,
+)
+from pneubayes.bench.sensors import SensorChain
+from pneubayes.discovery.report import run_discover
+from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.inference.pipeline import FitSettings
+from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.io import read_recording
+from pneubayes.physics.cylinder import cylinder_preset
+from pneubayes.provenance import provenance
+
+OPENFORM_SEED = 69069
+SMOKE_SEED = 11
+#: Each out-of-catalogue form is planted on both rigs.
+RIGS = ("AIR37:valve1", "SMC:valve2")
+N_CONTROLS = 2
+#: The sensor chain's real lags a control may name: none (the bench's DAQ filter is
+#: zero-phase and declared to the fits).
+CONTROL_ALLOWED: tuple[str, ...] = ()
+#: The six recordings' preference when fewer are asked for: fixed +-5 V at 50 %, the
+#: first moving one, fixed +-0.5 V at 90 %, the second moving one, then the rest
+#: (indices into ``discovery_study.six_recordings``'s list).
+RECORDING_ORDER = (0, 4, 3, 5, 1, 2)
+#: The issue's floors.
+FLOORS = {"no_stand_in_cases": 8, "gap_shrink_median": 0.70, "final_over_noise_median": 2.0}
+
+
+def _log_uniform(rng, lo, hi) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def draw_openform(name: str, cylinder: str, rng):
+    """An out-of-catalogue plant form (class name ``name``) with parameters drawn from
+    wide physical ranges for ``cylinder``.
+
+    - BladderVolume: dV_max 5-30 % of the swept volume, pressure scale 80-300 kPa;
+    - SpoolHysteresis: half-band 0.08-0.3 V, smoothing 0.1-0.5 ms;
+    - ReliefValve: cracking at 2.5-3.8 bar gauge (the supply is 4.5 bar gauge),
+      1-10 x 1e-11 kg/(s Pa^1.5) (0.3-3 g/s at 1 bar overpressure);
+    - InletFlowForce: 0.05-0.3 per atm of drop across the inlet;
+    - LipSealLeak: lifting at 1-3 bar gauge, leaking 0.02-0.1 g/s at the supply.
+    """
+    if name == "BladderVolume":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return BladderVolume(dV_max_m3=swept * _log_uniform(rng, 0.05, 0.3),
+                             pressure_scale_Pa=_log_uniform(rng, 80e3, 300e3))
+    if name == "SpoolHysteresis":
+        return SpoolHysteresis(half_band_V=rng.uniform(0.08, 0.3),
+                               time_constant_s=_log_uniform(rng, 1e-4, 5e-4))
+    if name == "ReliefValve":
+        return ReliefValve(crack_pressure_Pa=ATMOSPHERE_PA + rng.uniform(2.5e5, 3.8e5),
+                           flow_coefficient_kg_per_s_Pa1p5=_log_uniform(rng, 1e-11, 1e-10))
+    if name == "InletFlowForce":
+        return InletFlowForce(flow_force_coefficient=_log_uniform(rng, 0.05, 0.3))
+    if name == "LipSealLeak":
+        seal = ATMOSPHERE_PA + rng.uniform(1e5, 3e5)
+        at_supply = _log_uniform(rng, 2e-5, 1e-4)  # kg/s at the supply pressure
+        return LipSealLeak(seal_pressure_Pa=seal,
+                           conductance_kg_per_s_Pa2=at_supply / (SUPPLY_PA - seal) ** 2)
+    raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
+                     f"{list(OUT_OF_CATALOGUE)}")
+
+
+def draw_cases(seed: int) -> list[dict]:
+    """The set: each out-of-catalogue form on each of :data:`RIGS`, then
+    :data:`N_CONTROLS` null controls (alternating rigs), each with drawn form
+    parameters and bench seed (JSON-ready but for ``_objects``)."""
+    rng = np.random.default_rng(seed)
+    plan = [(form, rig) for form in OUT_OF_CATALOGUE for rig in RIGS]
+    plan += [(None, RIGS[i % len(RIGS)]) for i in range(N_CONTROLS)]
+    cases = []
+    for i, (form, rig) in enumerate(plan):
+        cylinder, valve = rig.split(":")
+        obj = draw_openform(form, cylinder, rng) if form else None
+        cases.append({"name": f"o{i:02d}_{cylinder}_{valve}_{form or 'none'}",
+                      "seed": seed, "cylinder": cylinder, "valve": valve,
+                      "hidden": [form] if form else [],
+                      "bench_seed": int(rng.integers(1000, 100000)),
+                      "forms": {form: obj.to_dict()} if form else {},
+                      "_objects": (obj,) if obj else ()})
+    return cases
+
+
+def _public(case: dict) -> dict:
+    """The case's JSON-ready record (without its form objects)."""
+    return {k: v for k, v in case.items() if not k.startswith("_")}
+
+
+def _is_case(case: dict, key: str) -> bool:
+    """Whether ``key`` names ``case``: its full name or its ``oNN`` prefix."""
+    return case["name"] == key or case["name"].split("_")[0] == key
+
+
+def parse_settings(pairs) -> dict:
+    """``KEY=VALUE`` strings as DiscoverySettings overrides (VALUE as JSON, else text);
+    an unknown KEY is an error naming it."""
+    known = {f.name for f in dataclasses.fields(DiscoverySettings)}
+    out = {}
+    for item in pairs:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--setting {item!r}: expected KEY=VALUE")
+        if key not in known:
+            raise ValueError(f"--setting {key}: not a DiscoverySettings field ({sorted(known)})")
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
+
+
+def settings_for(case: dict, args, sensor: SensorChain) -> DiscoverySettings:
+    """The discovery settings of a case (as ``blind_study.py``'s), with ``--setting``."""
+    seed = case["bench_seed"]
+    settings = DiscoverySettings(
+        posterior=False, seed=seed, n_bags=40,
+        fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed),
+                        pressure_filter=sensor.declared_filter()))
+    return dataclasses.replace(settings, **args.settings) if args.settings else settings
+
+
+def classify(named: list[str], found_terms: list, hidden: list[str]) -> dict:
+    """What a case's discovery named, against what it should: catalogue effects (an
+    effect named ``closure`` is the open-form stage's and counts as found terms), the
+    stand-ins among them (for an out-of-catalogue case, every catalogue effect but the
+    sensor chain's real lags; for a control the same), and the open-form terms."""
+    catalogue = [n for n in named if n != "closure"]
+    stand_ins = [n for n in catalogue if n not in CONTROL_ALLOWED]
+    terms = [t.get("term", str(t)) if isinstance(t, dict) else str(t)
+             for t in (found_terms or [])]
+    return {"named_catalogue": catalogue, "stand_ins": stand_ins, "found_terms": terms,
+            "no_stand_in": not stand_ins,
+            "clean_control": None if hidden else (not stand_ins and not terms)}
+
+
+def run_case(case: dict, args, root: Path) -> dict:
+    work = root / "work" / case["name"]
+    sensor = SensorChain()
+    plant = check_forms(case["_objects"])
+    paths, _ = six_recordings(case["cylinder"], case["valve"], case["bench_seed"], work,
+                              effects=(), forms=plant, duration_s=args.duration,
+                              sensor=sensor)
+    keep = sorted(RECORDING_ORDER[:args.recordings])
+    recs = [read_recording(paths[i]) for i in keep]
+    settings = settings_for(case, args, sensor)
+    t0 = time.perf_counter()
+    doc = run_discover(recs, settings, work / "run", log=lambda m: None, figures=False)
+    named = [e["name"] for e in doc["effects"]]
+    noise = doc["noise_floor_Pa"]
+    gap0 = max(doc["rmse_base_Pa"] - noise, 0.0)
+    gap1 = max(doc["rmse_final_Pa"] - noise, 0.0)
+    return _public(case) | {
+        "recordings": [paths[i].name for i in keep], "named": named,
+        **classify(named, doc.get("found_terms", []), case["hidden"]),
+        "found_terms_detail": doc.get("found_terms", []),
+        "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
+        "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1.0 - gap1 / gap0,
+        "final_over_noise": doc["rmse_final_Pa"] / noise,
+        "wall_time_s": time.perf_counter() - t0, "ledger": doc["ledger"]}
+
+
+def summarise(results: list[dict]) -> tuple[dict, str]:
+    """The issue's floors over the set, and a per-case table."""
+    ooc = [r for r in results if r["hidden"] and "error" not in r]
+    ctl = [r for r in results if not r["hidden"] and "error" not in r]
+    floors: dict = {}
+    if ooc:
+        shrink = [r["gap_shrink"] for r in ooc if r["gap_shrink"] is not None]
+        clean = sum(r["no_stand_in"] for r in ooc)
+        need = math.ceil(FLOORS["no_stand_in_cases"] / 10 * len(ooc))
+        med = float(np.median(shrink)) if shrink else None
+        fon = float(np.median([r["final_over_noise"] for r in ooc]))
+        floors["out_of_catalogue"] = {
+            "cases": len(ooc), "errors": sum(bool(r["hidden"]) and "error" in r
+                                             for r in results),
+            "no_stand_in_cases": clean, "no_stand_in_needed": need,
+            "with_found_terms": sum(bool(r["found_terms"]) for r in ooc),
+            "gap_shrink_median": med, "final_over_noise_median": fon,
+            "meets": {"no_stand_in": clean >= need,
+                      "gap_shrink": med is not None and med >= FLOORS["gap_shrink_median"],
+                      "final_over_noise": fon <= FLOORS["final_over_noise_median"]}}
+    if ctl:
+        floors["control"] = {
+            "cases": len(ctl), "errors": sum(not r["hidden"] and "error" in r
+                                             for r in results),
+            "clean": sum(r["clean_control"] for r in ctl),
+            "meets": all(r["clean_control"] for r in ctl)}
+    lines = ["| case | rig | hidden | catalogue named | open-form terms | held-out RMSE base "
+             "-> final (Pa) | noise (Pa) | gap shrink | final / noise |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        rig = f"{r['cylinder']}/{r['valve']}"
+        hidden = ", ".join(r["hidden"]) or "-"
+        if "error" in r:
+            lines.append(f"| {r['name']} | {rig} | {hidden} | error: {r['error']} "
+                         f"| | | | | |")
+            continue
+        sh = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
+        lines.append(f"| {r['name']} | {rig} | {hidden} | "
+                     f"{', '.join(r['named_catalogue']) or '-'} | "
+                     f"{'; '.join(r['found_terms']) or '-'} | "
+                     f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
+                     f"{r['noise_floor_Pa']:.0f} | {sh} | {r['final_over_noise']:.2f} |")
+    lines += ["", "| kind | cases | floor check |", "|---|---|---|"]
+    if "out_of_catalogue" in floors:
+        d = floors["out_of_catalogue"]
+        med = d["gap_shrink_median"]
+        lines.append(
+            f"| out of catalogue | {d['cases']} | no catalogue stand-in in "
+            f"{d['no_stand_in_cases']} of {d['cases']} (floor {d['no_stand_in_needed']}), "
+            f"open-form terms found in {d['with_found_terms']}, median gap shrink "
+            f"{'n/a' if med is None else f'{100 * med:.0f} %'} (floor 70 %), median final "
+            f"/ noise {d['final_over_noise_median']:.2f} (floor 2) |")
+    if "control" in floors:
+        d = floors["control"]
+        lines.append(f"| null control | {d['cases']} | no open-form term and nothing named "
+                     f"beyond the sensor chain's real lags in {d['clean']} of {d['cases']} "
+                     f"(floor: all) |")
+    return floors, "\n".join(lines) + "\n"
+
+
+def _run_cached(cases, args, root: Path) -> list[dict]:
+    """Each case's result from ROOT/cases (run and cached when missing)."""
+    return cached_cases(
+        [(c["name"], c) for c in cases], root, lambda name, c: run_case(c, args, root),
+        lambda name, c, error: _public(c) | {"error": error, "named": []},
+        lambda res: "done" if "error" not in res else f"error: {res['error']}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", help="results folder (cases cached there)")
+    ap.add_argument("--seed", type=int, default=OPENFORM_SEED, help="the draw's seed")
+    ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
+    ap.add_argument("--recordings", type=int, default=6, metavar="N",
+                    help="recordings per case, 1-6 (default 6: discovery_study's set); the "
+                         "loop needs at least 7 held-out 2-s windows in all (a third of "
+                         "each recording is held out)")
+    ap.add_argument("--list", action="store_true", help="print the cases and stop")
+    ap.add_argument("--case", action="append", default=[], metavar="NAME",
+                    help="run only this case (full name or oNN prefix; repeatable) into "
+                         "the cache, without a summary")
+    ap.add_argument("--setting", action="append", default=[], metavar="KEY=VALUE",
+                    help="a DiscoverySettings field (VALUE as JSON; repeatable)")
+    ap.add_argument("--smoke", action="store_true",
+                    help="one short case from a tuning draw (not the blind set)")
+    args = ap.parse_args(argv)
+    if args.smoke:
+        args.seed, args.duration, args.recordings = SMOKE_SEED, 13.0, 4
+    if not 1 <= args.recordings <= len(RECORDING_ORDER):
+        ap.error(f"--recordings: must be 1-{len(RECORDING_ORDER)}, got {args.recordings}")
+    if not args.duration > 0:
+        ap.error(f"--duration: must be > 0 s, got {args.duration}")
+    try:
+        args.settings = parse_settings(args.setting)
+    except ValueError as exc:
+        ap.error(str(exc))
+    cases = draw_cases(args.seed)
+    if args.smoke:
+        cases = [c for c in cases if c["hidden"] == ["ReliefValve"]][:1]
+    if args.list:
+        for c in cases:
+            print(json.dumps(_public(c)))
+        return 0
+    if not args.out:
+        ap.error("--out is required unless --list")
+    root = Path(args.out)
+    if args.case:
+        missing = [k for k in args.case if not any(_is_case(c, k) for c in cases)]
+        if missing:
+            ap.error(f"--case: no case {missing} in the draw of seed {args.seed} "
+                     f"(--list shows them)")
+        _run_cached([c for c in cases if any(_is_case(c, k) for k in args.case)], args, root)
+        return 0
+    t_all = time.perf_counter()
+    results = _run_cached(cases, args, root)
+    floors, md = summarise(results)
+    write_json_atomic(root / "summary.json", {
+        "seed": args.seed, "duration_s": args.duration, "recordings": args.recordings,
+        "smoke": args.smoke, "settings_overrides": args.settings, "floors": floors,
+        "cases": results, "wall_time_s": time.perf_counter() - t_all,
+        "provenance": provenance()})
+    write_text_atomic(root / "summary.md",
+                      f"Open-form blind set, seed {args.seed}"
+                      f"{' (smoke: a tuning draw)' if args.smoke else ''}, "
+                      f"{args.recordings} recordings of {args.duration:g} s per case.\n\n"
+                      + md)
+    print(md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,78 @@
+"""The open-form blind set's draw and report (experiments/openform_blind.py); the set
+itself runs in experiments/, not here."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import openform_blind  # noqa: E402
+
+from pneubayes.bench.forms import OUT_OF_CATALOGUE, form_from_dict  # noqa: E402
+
+
+def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed():
+    out = subprocess.run([sys.executable, str(ROOT / "experiments" / "openform_blind.py"),
+                          "--list"], capture_output=True, text=True, check=True,
+                         cwd=ROOT / "experiments").stdout
+    cases = [json.loads(line) for line in out.splitlines()]
+    assert {c["seed"] for c in cases} == {openform_blind.OPENFORM_SEED}
+    forms = {}
+    for c in cases:
+        for name, rec in c["forms"].items():
+            f = form_from_dict(rec)
+            assert f.catalogue_name is None and type(f).__name__ == name
+            forms.setdefault(name, set()).add(f"{c['cylinder']}:{c['valve']}")
+    assert len(forms) >= 5 and set(forms) == set(OUT_OF_CATALOGUE)
+    assert all(len(rigs) >= 2 for rigs in forms.values())
+    assert sum(not c["hidden"] for c in cases) >= 2
+    assert len({c["name"] for c in cases}) == len(cases)
+
+
+def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
+    pub = openform_blind._public
+    a, b = openform_blind.draw_cases(5), openform_blind.draw_cases(5)
+    assert [pub(c) for c in a] == [pub(c) for c in b]
+    assert [pub(c) for c in a] != [pub(c) for c in openform_blind.draw_cases(6)]
+    import numpy as np
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        r = openform_blind.draw_openform("ReliefValve", "AIR37", rng)
+        assert 101_325 + 2.5e5 <= r.crack_pressure_Pa <= 101_325 + 3.8e5
+        h = openform_blind.draw_openform("SpoolHysteresis", "SMC", rng)
+        assert 0.08 <= h.half_band_V <= 0.3
+    with pytest.raises(ValueError, match="unknown out-of-catalogue form 'Nope'"):
+        openform_blind.draw_openform("Nope", "SMC", rng)
+
+
+def test_classify_and_floors():
+    c = openform_blind.classify(["closure"], [{"term": "max(0, p/Patm - 3.9)"}],
+                                ["ReliefValve"])
+    assert c["no_stand_in"] and c["found_terms"] == ["max(0, p/Patm - 3.9)"]
+    c = openform_blind.classify(["cylinder_leak"], [], ["LipSealLeak"])
+    assert not c["no_stand_in"] and c["stand_ins"] == ["cylinder_leak"]
+    assert openform_blind.classify([], [], [])["clean_control"] is True
+    assert openform_blind.classify([], [{"term": "x"}], [])["clean_control"] is False
+
+    def res(hidden, named, terms, shrink, fon):
+        return {"name": "x", "cylinder": "AIR37", "valve": "valve1", "hidden": hidden,
+                **openform_blind.classify(named, terms, hidden), "rmse_base_Pa": 3000.0,
+                "rmse_final_Pa": 500.0 * fon, "noise_floor_Pa": 500.0,
+                "gap_shrink": shrink, "final_over_noise": fon}
+    results = ([res(["ReliefValve"], [], [{"term": "t"}], 0.9, 1.2)] * 8
+               + [res(["LipSealLeak"], ["cylinder_leak"], [], 0.5, 3.0)] * 2
+               + [res([], [], [], None, 1.0), res([], ["sensor_lag"], [], None, 1.0)])
+    floors, md = openform_blind.summarise(results)
+    o = floors["out_of_catalogue"]
+    assert o["no_stand_in_cases"] == 8 and o["meets"] == {
+        "no_stand_in": True, "gap_shrink": True, "final_over_noise": True}
+    assert floors["control"] == {"cases": 2, "errors": 0, "clean": 1, "meets": False}
+    assert "no catalogue stand-in in 8 of 10 (floor 8)" in md
+    with pytest.raises(ValueError, match="--setting nope"):
+        openform_blind.parse_settings(["nope=1"])
+    assert openform_blind.parse_settings(["max_effects=2"]) == {"max_effects": 2}
