@@ -76,3 +76,34 @@ def test_classify_and_floors():
     with pytest.raises(ValueError, match="--setting nope"):
         openform_blind.parse_settings(["nope=1"])
     assert openform_blind.parse_settings(["max_effects=2"]) == {"max_effects": 2}
+
+
+def test_main_runs_caches_and_reports_with_the_loop_stubbed(tmp_path, monkeypatch):
+    """The plumbing around the (hours-long) loop: bench, discovery and reading stubbed;
+    a document without ``found_terms`` (no open-form stage yet) reports none."""
+    calls = []
+
+    def fake_six(cylinder, valve, seed, work, **bench):
+        assert bench["duration_s"] == 13.0 and bench["forms"]
+        return [Path(f"r{i}.csv") for i in range(6)], {}
+
+    def fake_discover(recs, settings, out, log, figures):
+        calls.append((recs, settings))
+        return {"effects": [{"name": "cylinder_leak"}], "rmse_base_Pa": 5000.0,
+                "rmse_final_Pa": 800.0, "noise_floor_Pa": 500.0, "ledger": []}
+
+    monkeypatch.setattr(openform_blind, "six_recordings", fake_six)
+    monkeypatch.setattr(openform_blind, "read_recording", lambda p: p.name)
+    monkeypatch.setattr(openform_blind, "run_discover", fake_discover)
+    argv = ["--out", str(tmp_path), "--smoke", "--setting", "max_effects=2"]
+    assert openform_blind.main(argv) == 0
+    (recs, settings), = calls
+    assert recs == ["r0.csv", "r3.csv", "r4.csv", "r5.csv"] and settings.max_effects == 2
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["seed"] == openform_blind.SMOKE_SEED and summary["smoke"]
+    assert "git" in json.dumps(summary["provenance"]).lower()
+    (case,) = summary["cases"]
+    assert case["hidden"] == ["ReliefValve"] and case["stand_ins"] == ["cylinder_leak"]
+    assert case["found_terms"] == [] and case["gap_shrink"] == pytest.approx(1 - 300 / 4500)
+    assert "tuning draw" in (tmp_path / "summary.md").read_text()
+    assert openform_blind.main(argv) == 0 and len(calls) == 1  # read from the cache
