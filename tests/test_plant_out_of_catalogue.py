@@ -233,3 +233,22 @@ def test_spool_play_holds_inside_its_band_and_remembers_the_direction(rig, base)
     assert _run(base, (), up, rig)[-1] == pytest.approx(_run(base, (), down, rig)[-1], abs=500)
     from_below, from_above = _run(base, (play,), up, rig)[-1], _run(base, (play,), down, rig)[-1]
     assert from_above - from_below > 1e4  # more inlet opening when it came from above
+
+
+def test_bladder_below_atmosphere_collapses_stiffer_and_bounded(rig):
+    """Valve shut while the piston draws the chamber open from atmosphere: the pressure
+    falls below it, less deep with the bladder (it gives volume back, at most a quarter
+    of dV_max), and p V^kappa still holds."""
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    t = np.arange(3001) * DT
+    x = 0.3 * STROKE + 0.3 * STROKE * np.sin(np.pi * t / 0.6) ** 2
+    inputs = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    bladder = BladderVolume(dV_max_m3=7e-7, pressure_scale_Pa=80e3)  # the drawn extremes
+    plain, soft = _run(params, (), inputs, rig), _run(params, (bladder,), inputs, rig)
+    assert plain.min() < 0.6 * P_ATM
+    assert plain.min() + 5e3 < soft.min() < P_ATM
+    y = (soft - P_ATM) / bladder.pressure_scale_Pa
+    dv = bladder.dV_max_m3 * y / (1 - 4 * y)
+    assert np.all(dv > -bladder.dV_max_m3 / 4)
+    inv = soft * (1.5e-7 + np.pi / 4 * BORE**2 * x + dv) ** rig.gas.heat_capacity_ratio
+    assert np.ptp(inv) / inv[0] < 1e-5

@@ -255,9 +255,10 @@ class WallHeatTransfer(PlantForm):
 class BladderVolume(PlantForm):
     """A compliant chamber (bellows, muscle, soft hose) whose volume grows with gauge pressure.
 
-    ``V = V_dead + A x + dV(p)`` with, for gauge pressure ``g = p - P_atm``,
-    ``dV = dV_max (1 - exp(-g / p_scale))`` for g >= 0 and its C1 continuation
-    ``dV_max g / p_scale`` below atmosphere. Eq. 5 then reads
+    ``V = V_dead + A x + dV(p)`` with, for ``y = (p - P_atm) / p_scale``,
+    ``dV = dV_max (1 - exp(-y))`` for y >= 0 and, below atmosphere, a stiffer collapse
+    onto the seat ``dV = dV_max y / (1 - 4 y)`` (C1 at y = 0, never below
+    -dV_max / 4). Eq. 5 then reads
     ``dp/dt (1 + kappa p dV'(p) / V) = kappa / V (Rs T mdot - p A dx/dt)``: the chamber
     is stiffer at high pressure. ``dV_max_m3 = 0`` is the rigid chamber.
     """

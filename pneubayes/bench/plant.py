@@ -218,9 +218,10 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             e = math.exp(-g)
             vol += P[K_BL_DV] * (1.0 - e)
             dvdp = P[K_BL_DV] * e / P[K_BL_PS]
-        else:
-            vol += P[K_BL_DV] * g
-            dvdp = P[K_BL_DV] / P[K_BL_PS]
+        else:  # below atmosphere it collapses onto its seat: 4x stiffer, C1 at 0
+            den = 1.0 - 4.0 * g
+            vol += P[K_BL_DV] * g / den
+            dvdp = P[K_BL_DV] / (P[K_BL_PS] * den * den)
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
