@@ -150,16 +150,18 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
 @pytest.mark.parametrize("terms", [f.name for f in cf.FEATURES]
                          + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate"])
 @pytest.mark.parametrize("hconv", [0.0, 30.0])
-def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, rig):
-    """J_pp (and with a temperature state J_Tp) of chamber_rhs against central
-    differences, at a state where every feature is nonzero and smooth."""
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig):
+    """J_pp (and with a temperature state J_Tp, J_pT, J_TT) of chamber_rhs against central
+    differences, at a state where every feature is nonzero and smooth; an inflow and an
+    outflow."""
     from pneubayes.simulation.chamber import chamber_rhs
     from pneubayes.simulation.simulator import rig_constants
 
     # thresholds where each hinge is open at p = 2.6e5 Pa, spool 3
     theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5}
     term = cf.Term.parse(terms)
-    e, values = _closure(terms, thresholds={f"closure_threshold_0_{side}":
+    e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
                                             for side in term.hinges()})
     sl = np.zeros(N_SLOTS)
@@ -177,6 +179,12 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, rig):
     assert out[1] == pytest.approx((up[0] - dn[0]) / (2 * d), rel=1e-5, abs=1e-6)
     if hconv:
         assert out[6] == pytest.approx((up[2] - dn[2]) / (2 * d), rel=1e-5, abs=1e-8)
+        # and the slopes in T (a negative closure's outflow leaves at T)
+        dt = 1e-3
+        hot = chamber_rhs(p, temp + dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
+        cold = chamber_rhs(p, temp - dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
+        assert out[5] == pytest.approx((hot[0] - cold[0]) / (2 * dt), rel=1e-5, abs=1e-3)
+        assert out[3] == pytest.approx((hot[2] - cold[2]) / (2 * dt), rel=1e-5, abs=1e-6)
     # and the closure moves the rate at all here
     bare = sl.copy()
     bare[SLOT_INDEX["closure_terms"]] = 0.0
