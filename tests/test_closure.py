@@ -288,6 +288,23 @@ def test_the_closure_is_refused_beside_the_tubes_line(rig, valve_params, inputs)
         simulate(model, params, inputs, rig, 2e5, _tight())
 
 
+def test_discovery_proposes_no_tube_line_beside_a_closure(rig, valve_params):
+    """A named tube delay's candidates beside a closure keep to the plain delay (the
+    simulator refuses a closure beside the tube's line); without one the line comes too."""
+    from pneubayes.discovery.candidates import candidate_context
+    from pneubayes.discovery.verification import StepFit
+
+    forms = {}
+    for model, params in ((Model([make_effect("closure", terms="one")]),
+                           dict(valve_params, closure_coefficient_0=1e-6)),
+                          (Model([]), valve_params)):
+        fit = StepFit(model, params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+        ctx = candidate_context(fit, "tube_delay", {"best_term_start": None}, rig)
+        forms[model.has("closure")] = [c.form for c, _ in
+                                       make_effect("tube_delay").candidate_forms(ctx)]
+    assert len(forms[False]) > 1 and forms[True] == forms[False][:1]
+
+
 # ---------------------------------------------------------------- rate_terms
 @pytest.mark.parametrize("terms", ["inlet_flow*pressure_hinge; spool_hinge_down; volume",
                                    "exhaust_flow*volume_rate; supply_ratio*inlet_area",

@@ -4,7 +4,9 @@ Used by the tests (accuracy, step halving) and the benchmark (speed baseline). I
 only the lowered slots and the vectorised physics functions with the compiled
 integrator; the integration, input handling, the spool (an ODE state here, closed
 form there) and a sensor lag's reading (ODE states here, stepped exactly for a
-linear pressure there) are written separately. Slow: thousands of Python calls per second.
+linear pressure there) are written separately. An open-form closure (effect
+``closure``) is evaluated by :func:`pneubayes.effects.closure_features.evaluate_feature`,
+not by the compiled features. Slow: thousands of Python calls per second.
 """
 
 from __future__ import annotations
