@@ -244,6 +244,26 @@ def test_the_closure_beside_a_temperature_state_or_a_moving_spool(others, extra,
     assert np.max(np.abs(got - ref)) < 0.1  # Pa
 
 
+def test_a_spool_term_follows_commands_inside_the_dead_band(rig, valve_params, make_inputs):
+    """Commands that move only inside the dead band leave the port areas as they are; a
+    spool term reads the spool before the dead band, so it still changes with them, as
+    in the reference. (The error control alone keeps a step-end reuse at a stale spool
+    within 0.05 Pa here: this test does not isolate the kernel's same-spool check.)"""
+    t = np.arange(201) * 1e-3
+    u = np.select([t < 0.05, t < 0.1, t < 0.15], [0.2, -1.2, 1.1], -0.4)
+    inputs = make_inputs(t, u)
+    e = make_effect("closure", terms="spool; spool_hinge_up")
+    model = Model(["valve_deadzone"]).with_effect(e)
+    params = dict(valve_params, deadzone_halfwidth_V=1.5, closure_coefficient_0=2e-6,
+                  closure_coefficient_1=-3e-6, closure_threshold_1_a=0.5)
+    got = simulate(model, params, inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    flat = simulate(Model(["valve_deadzone"]), dict(valve_params, deadzone_halfwidth_V=1.5),
+                    inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    assert np.max(np.abs(got - flat)) > 300.0
+    assert np.max(np.abs(got - ref)) < 0.05  # Pa
+
+
 def test_the_error_falls_with_the_tolerance(rig, valve_params, inputs):
     """Convergence: tightening the tolerance 10x at a time (the steps shrink) brings the
     compiled closure to the reference; the standard preset within its floor."""
