@@ -264,6 +264,27 @@ def test_a_spool_term_follows_commands_inside_the_dead_band(rig, valve_params, m
     assert np.max(np.abs(got - ref)) < 0.05  # Pa
 
 
+def test_the_closure_beside_a_supply_tank_and_a_separate_exhaust():
+    """A rig card's finite supply tank (the supply a state: the closure's supply feature
+    reads it, its slope in the tank's pressure through the ramp) and a separately
+    commanded exhaust, against the reference; the closure does not draw from the tank."""
+    from test_rig_exhaust_tank import RIG, TIGHT, card, inputs
+
+    t = np.arange(251) * 2e-3
+    u = (np.sin(2 * np.pi * 4 * t) > 0) * 0.8
+    inp = inputs(t, u, 1.0 - u / 0.8)
+    e = make_effect("closure", terms="supply_ratio*inlet_flow; spool*exhaust_area")
+    model = Model([e], rig_card=card())
+    params = {"closure_coefficient_0": -0.05, "closure_coefficient_1": 1e-6}
+    got = simulate(model, params, inp, RIG, P_ATM, TIGHT).pressure_Pa[0]
+    ref = reference_simulate(model, params, inp, RIG, P_ATM, method="DOP853", rtol=1e-10,
+                             atol=1e-5)
+    plain = simulate(Model(rig_card=card()), np.zeros((1, 0)), inp, RIG, P_ATM,
+                     TIGHT).pressure_Pa[0]
+    assert np.max(np.abs(got - plain)) > 1e3
+    assert np.max(np.abs(got - ref)) < 0.05  # Pa
+
+
 def test_the_error_falls_with_the_tolerance(rig, valve_params, inputs):
     """Convergence: tightening the tolerance 10x at a time (the steps shrink) brings the
     compiled closure to the reference; the standard preset within its floor."""
