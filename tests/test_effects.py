@@ -35,11 +35,14 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
             ("heat_transfer", {"form": "rate"}), ("heat_transfer", {"form": "convective"}),
             ("spool_lag", {}), ("spool_lag", {"form": "second_order"}), ("sensor_lag", {}),
             ("sensor_lag", {"form": "second_order"}),
-            ("sensor_lag", {"form": "second_order", "channels": "all"})]
+            ("sensor_lag", {"form": "second_order", "channels": "all"}),
+            ("closure", {}), ("closure", {"terms": "inlet_flow*pressure_hinge; "
+                                                   "spool_hinge_down; one"})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
        "valve_deadzone",
        "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
-       "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all"]
+       "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all",
+       "closure", "closure_hinges"]
 
 
 def _tight():
@@ -79,7 +82,7 @@ def _sim(model, params, inputs, rig, p0=2e5, solver=None):
 def test_catalogue_names():
     assert list(CATALOGUE) == ["cylinder_leak", "tube_delay", "valve_deadzone",
                                "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
-                               "sensor_calibration"]
+                               "sensor_calibration", "closure"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -700,6 +703,11 @@ def test_every_effect_declares_its_library_terms_in_its_own_parameters(name):
     start names the effect's own parameters inside their bounds."""
     from pneubayes.effects.discovery import FormTrialTerm, InputLagTerm, RelaxationTerm, TrialTerm
 
+    if not CATALOGUE[name].library_searched:  # never searched: no terms at any strength
+        for effect in _every_form(CATALOGUE[name]):
+            assert not effect.library_strengths and not effect.opt_in_strengths
+            assert effect.library_terms((1.0, 2.0)) == ()
+        return
     for effect in _every_form(CATALOGUE[name]):
         # an effect searched only when asked offers its terms at the strengths it
         # documents, and none by default

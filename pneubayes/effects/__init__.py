@@ -2,7 +2,8 @@
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
 ``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
-``sensor_calibration``.
+``sensor_calibration``, ``closure`` (an open-form extra mass flow, never searched
+for by the discovery library).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import math
 import numbers
 
 from pneubayes.effects.base import Component, Effect, Parameter
+from pneubayes.effects.closure import Closure
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.sensor_calibration import SensorCalibration
@@ -25,7 +27,7 @@ from pneubayes.effects.valve_deadzone import ValveDeadzone
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
-                SpoolLag, SensorLag, SensorCalibration)
+                SpoolLag, SensorLag, SensorCalibration, Closure)
 }
 
 
@@ -84,6 +86,7 @@ def _check_options(cls: type[Effect], options: dict) -> None:
                              f"{value!r}")
 
 
-__all__ = ["CATALOGUE", "Component", "CylinderLeak", "Effect", "HeatTransfer", "Parameter",
-           "SensorCalibration", "SensorLag", "SpoolLag", "SupplyFluctuation", "ThinPort",
-           "TubeDelay", "ValveDeadzone", "catalogue_parameter_names", "make_effect"]
+__all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "HeatTransfer",
+           "Parameter", "SensorCalibration", "SensorLag", "SpoolLag", "SupplyFluctuation",
+           "ThinPort", "TubeDelay", "ValveDeadzone", "catalogue_parameter_names",
+           "make_effect"]

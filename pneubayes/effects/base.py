@@ -125,6 +125,10 @@ class Effect(Component):
     #: the strengths to give it in a :class:`~pneubayes.discovery.library.LibraryGrid`
     #: (the library never uses them on its own).
     opt_in_strengths: ClassVar[tuple[float, ...]] = ()
+    #: False for an effect the discovery library never searches for, whatever the
+    #: strengths asked (the open-form closure, whose terms another search proposes): it
+    #: offers no library terms.
+    library_searched: ClassVar[bool] = True
     #: Where a named effect's candidate starts when no library term of it explained the
     #: residual (parameter -> value; missing parameters start neutral).
     discovery_fallback: ClassVar[dict[str, float]] = {}

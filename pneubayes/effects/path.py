@@ -134,6 +134,27 @@ SLOTS += (
      "P_atm + g (p - P_atm) + o (-)"),
 )
 
+#: Most terms of an open-form closure (:mod:`pneubayes.effects.closure`); the same as
+#: :data:`pneubayes.effects.closure_features.CLOSURE_MAX_TERMS`.
+CLOSURE_MAX_TERMS = 4
+
+SLOTS += (
+    ("closure_terms", "an open-form closure: the number of its terms (0: none); term k "
+     "adds the mass flow c_k F_a F_b into the chamber, the features F of "
+     ":mod:`pneubayes.effects.closure_features` (count)"),
+) + tuple((f"closure_feature_a_{k}", f"closure term {k}: code of its first feature "
+           "(a float holding the integer code; -)") for k in range(CLOSURE_MAX_TERMS)) + tuple(
+    (f"closure_feature_b_{k}", f"closure term {k}: code of its second feature (0, the "
+     "feature 'one', for a single feature; -)") for k in range(CLOSURE_MAX_TERMS)) + tuple(
+    (f"closure_threshold_a_{k}", f"closure term {k}: the first feature's hinge threshold "
+     "(the feature's unit; read only for a hinge feature)")
+    for k in range(CLOSURE_MAX_TERMS)) + tuple(
+    (f"closure_threshold_b_{k}", f"closure term {k}: the second feature's hinge threshold "
+     "(the feature's unit; read only for a hinge feature)")
+    for k in range(CLOSURE_MAX_TERMS)) + tuple(
+    (f"closure_coefficient_{k}", f"closure term {k}: its coefficient c_k (kg/s per the "
+     "features' units)") for k in range(CLOSURE_MAX_TERMS))
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

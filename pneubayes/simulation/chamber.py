@@ -34,6 +34,16 @@ _COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
 _VT_N = SLOT_INDEX["volume_table_points"]
 _VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
 _VT_V = SLOT_INDEX["volume_table_volume_m3_0"]
+_CL_N = SLOT_INDEX["closure_terms"]
+_CL_FA = SLOT_INDEX["closure_feature_a_0"]
+_CL_FB = SLOT_INDEX["closure_feature_b_0"]
+_CL_TA = SLOT_INDEX["closure_threshold_a_0"]
+_CL_TB = SLOT_INDEX["closure_threshold_b_0"]
+_CL_C = SLOT_INDEX["closure_coefficient_0"]
+#: The closure's area and volume features' scales (m^2 and m^3 per feature unit; the
+#: values of :mod:`pneubayes.effects.closure_features`, which a test checks).
+_AREA_SCALE = 1e-6
+_VOLUME_SCALE = 1e-6
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -75,7 +85,76 @@ def wall_exchange(kappa, hconv, bore_a, vol):
 
 
 @njit(cache=True, error_model="numpy")
-def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex):
+def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
+                    vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt):
+    """One closure feature (:data:`pneubayes.effects.closure_features.FEATURES`, by its
+    ``code``) as ``(F, dF/dp, dF/dt)``: its value, its slope in the chamber pressure and
+    its explicit time derivative at fixed pressure.
+
+    ``q_in``, ``q_ex`` are the port mass flows ``a f`` (kg/s) before the attenuation and
+    the convective form's temperature scaling, ``dq_*_dp`` their slopes in p and
+    ``dq_*_dt`` their explicit rates; ``vol`` is the chamber's volume after compliance
+    (``compl`` = dV/dp), ``vdot`` the piston's dV/dt (m^3/s), ``dsup``, ``dspool``,
+    ``da_in``, ``da_ex`` the rates of the supply, spool and port areas. ``theta`` is a
+    hinge's threshold. The volume rate's explicit derivative holds ``vdot`` fixed (the
+    position is linear between samples)."""
+    if code == 0:
+        return 1.0, 0.0, 0.0
+    if code == 1:
+        return p / p_atm, 1.0 / p_atm, 0.0
+    if code == 2:
+        return p_sup / p_atm, 0.0, dsup / p_atm
+    if code == 3:
+        return spool, 0.0, dspool
+    if code == 4:
+        return a_in / _AREA_SCALE, 0.0, da_in / _AREA_SCALE
+    if code == 5:
+        return a_ex / _AREA_SCALE, 0.0, da_ex / _AREA_SCALE
+    if code == 6:
+        return q_in, dq_in_dp, dq_in_dt
+    if code == 7:
+        return q_ex, dq_ex_dp, dq_ex_dt
+    if code == 8:
+        return vol / _VOLUME_SCALE, compl / _VOLUME_SCALE, vdot / _VOLUME_SCALE
+    if code == 9:
+        r = vdot / vol
+        return r, -r * compl / vol, -r * r
+    if code == 10:
+        z = p / p_atm - theta
+        return (z, 1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 11:
+        z = spool - theta
+        return (z, 0.0, dspool) if z > 0.0 else (0.0, 0.0, 0.0)
+    z = theta - spool
+    return (z, 0.0, -dspool) if z > 0.0 else (0.0, 0.0, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl, vdot,
+                 dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt):
+    """The closure's mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s; slots
+    ``closure_*``), with its slope in p (kg/(s Pa)) and its explicit time derivative
+    (kg/s^2); the arguments as :func:`closure_feature` takes them."""
+    m, dm_dp, dm_dt = 0.0, 0.0, 0.0
+    for k in range(int(sl[_CL_N])):
+        c = sl[_CL_C + k]
+        fa, da_p, da_t = closure_feature(int(sl[_CL_FA + k]), sl[_CL_TA + k], p, p_atm,
+                                         p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
+                                         vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
+                                         da_ex, dq_in_dt, dq_ex_dt)
+        fb, db_p, db_t = closure_feature(int(sl[_CL_FB + k]), sl[_CL_TB + k], p, p_atm,
+                                         p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
+                                         vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
+                                         da_ex, dq_in_dt, dq_ex_dt)
+        m += c * (fa * fb)
+        dm_dp += c * (da_p * fb + fa * db_p)
+        dm_dt += c * (da_t * fb + fa * db_t)
+    return m, dm_dp, dm_dt
+
+
+@njit(cache=True, error_model="numpy")
+def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
+                spool, dspool):
     """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
 
     ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
@@ -93,6 +172,14 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     frozen by an infinite slope (a W-method Jacobian; the error control checks it).
     Jacobians are only computed when ``need_j``.
 
+    An open-form closure (slot ``closure_terms`` > 0; :func:`closure_flow`) adds its mass
+    flow to the chamber's, entering at the supply's temperature when positive and
+    leaving at the chamber's when negative. Its features read the port flows ``a f``
+    before the attenuation and the convective form's sqrt(T_w / T) (so they do not
+    depend on T), the volume after compliance, and ``spool`` (the command after the
+    delay and the spool's lag, before the dead band; moving at ``dspool`` per second,
+    which enters ``v_p``). With ``closure_terms`` 0 none of it is evaluated.
+
     Compiled as a function of its own, not inlined at numba's IR level into its callers:
     inlined at the pressure-only step's two call sites it made the kernel's cold compile
     about 1.6 x longer (numba's type inference and SSA over the copies) for 0-5 % of the
@@ -102,6 +189,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     p_atm = cs[C_P_ATM]
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    f_in0, f_ex0 = f_in, f_ex  # (before the convective scaling: the closure's features)
     t_wall = cs[C_T_SUPPLY]
     hconv = sl[_HCONV]
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
@@ -131,6 +219,13 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     # a compliant chamber, V = vol + C (p - P_atm): eq. 5 with dV/dt = vdot + C dp/dt
     # gives dp/dt = n (Rs T mdot - p vdot) / (V + n p C)
     vol, compl = compliant_volume(p, vol, sl, p_atm)
+    closure = sl[_CL_N] > 0.0
+    m_cl = 0.0
+    if closure:
+        m_cl = closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, a_in * f_in0,
+                            a_ex * f_ex0, vol, compl, vdot, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                            0.0, 0.0)[0]
+        mdot += m_cl
     denom = vol + kappa * p * compl
     inv_denom = 1.0 / denom
     n_over_v = kappa * inv_denom
@@ -144,6 +239,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if thermal:
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
+        if m_cl < 0.0:  # a closure's outflow leaves at the chamber's temperature
+            m_out -= m_cl
     fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
     fp = fp_eq5
     ft = 0.0
@@ -162,6 +259,12 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dcl_dp, dcl_dt = 0.0, 0.0
+    if closure:  # (the port flows' slopes before the convective scaling)
+        _, dcl_dp, dcl_dt = closure_flow(
+            sl, p, p_atm, p_sup, spool, a_in, a_ex, a_in * f_in0, a_ex * f_ex0, vol, compl,
+            vdot, a_in * dfin_dp, a_ex * dfex_dp, dsup, dspool, da_in, da_ex,
+            a_in * dfin_dsup * dsup + f_in0 * da_in, f_ex0 * da_ex)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
     dfex_dp *= sq_ex
@@ -169,6 +272,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dmdot = phi * dvalve - leak_o * dfex_dp - 2.0 * leak_l * p
     if att > 0.0:
         dmdot += phi * att / (p * p) * valve
+    if closure:
+        dmdot += dcl_dp
     jp = n_over_v * (rs_t * dmdot - vdot)
     if compl > 0.0:  # d(denominator)/dp = C (1 + n)
         jp -= fp_eq5 * compl * (1.0 + kappa) / denom
@@ -178,6 +283,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
+    if closure:
+        dmdot_dt += dcl_dt
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
     if hconv > 0.0:
         vp += dc_wall_dv * vdot * (t_wall - temp)
@@ -196,6 +303,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if leak_out > 0.0:
         dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
+    if m_cl < 0.0:
+        dmout_dp -= dcl_dp
+        dmout_dt -= dcl_dt
     # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
     if hconv > 0.0:

@@ -183,6 +183,9 @@ _SENSOR_Z = SLOT_INDEX["sensor_damping"]
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
+_CL_N = SLOT_INDEX["closure_terms"]
+_CL_FA = SLOT_INDEX["closure_feature_a_0"]
+_CL_FB = SLOT_INDEX["closure_feature_b_0"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -359,6 +362,14 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     chamber's (:mod:`pneubayes.simulation.tank`), and so is a second compartment (slot
     ``lung_volume_m3`` > 0; :mod:`pneubayes.simulation.lung`); neither beside heat
     transfer, a line or the other.
+
+    An open-form closure (slot ``closure_terms`` > 0) is part of the chamber's
+    right-hand side (:func:`~pneubayes.simulation.chamber.chamber_rhs`), which every step
+    is given the spool's position (after the delay and lag, before the dead band) and
+    its rate. The first-same-as-last reuse then also asks for the same spool where a
+    term reads it, and does not shift a reused rate to a new dV/dt where a term reads
+    the volume rate. (An acoustic line's step does not evaluate the closure: the
+    simulator refuses the two together.)
     """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
@@ -399,6 +410,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lung = sl[_LUNG] > 0.0
     p_lung = carry[CARRY_LUNG]
     lung_from_p0 = lung and math.isnan(p_lung)
+    # an open-form closure: whether a term reads the spool (codes 3, 11, 12) or the
+    # volume rate (code 9), which the reuse of a step's end below must respect
+    cl_spool, cl_vdot = False, False
+    for kc in range(int(sl[_CL_N])):
+        for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
+            if code == 3.0 or code == 11.0 or code == 12.0:
+                cl_spool = True
+            if code == 9.0:
+                cl_vdot = True
     if lung_from_p0:
         p_lung = p0
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
@@ -552,6 +572,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # the next step's start while the inputs they depend on hold
     fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = False, 0.0, 0.0, 0.0, 0.0, -1
     fs_ain, fs_aex = 0.0, 0.0  # the port areas it was evaluated with, m^2
+    fs_s = 0.0  # and the spool (read with a closure's spool term)
     c_ok, c_fp, c_jp, c_vp = False, 0.0, 0.0, 0.0
     k = k0
     while k < k_last:
@@ -657,15 +678,19 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
                 da_in = 0.0
                 da_ex = 0.0
+                # the spool (before the dead band) and its rate at tau, and at tau + hh
+                s_at, ds_at = s_eff, 0.0
                 if moving and spool2:
                     a_in, a_ex = _areas(s_cur, dead, sl)
                     a_ex += a_own
                     da_in, da_ex = _area_rates(s_cur, v_cur, dead, sl)
+                    s_at, ds_at = s_cur, v_cur
                 elif moving:
                     s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
                     a_in, a_ex = _areas(s_now, dead, sl)
                     a_ex += a_own
                     da_in, da_ex = _area_rates(s_now, (cmd - s_now) / tau_s, dead, sl)
+                    s_at, ds_at = s_now, (cmd - s_now) / tau_s
                 # inputs at tau + hh (stage 2)
                 fr2 = (tau + hh - ta) * inv_seg
                 vol2 = v0 + bore * (xa + fr2 * (xb - xa))
@@ -685,8 +710,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
                     a_in2, a_ex2 = _areas(s2, dead, sl)
                     a_ex2 += a_own
+                    s_at2 = s2
                 else:
                     a_in2, a_ex2 = a_in, a_ex
+                    s_at2 = s_at
                 err = 10.0
                 pn, tn = p, temp
                 p_tank_new = p_tank
@@ -716,12 +743,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
                                                             vdot, da_in, da_ex, a_in2, a_ex2,
                                                             vol2, sl, cs, c_tank, atol_p,
-                                                            rtol)
+                                                            rtol, s_at, ds_at, s_at2)
                 elif general is not None and lung:
                     err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
                                                             vdot, psup, dsup, da_in, da_ex,
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
-                                                            atol_p, rtol)
+                                                            atol_p, rtol, s_at, ds_at, s_at2)
                 elif general is not None and wave:
                     # the chamber end: the valve's wave arriving, A_K(t - tau), linear
                     # over the grid interval the step lies in, drives the inflow
@@ -735,7 +762,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                                      w_dia, w_mu)
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot,
                                                             psup, sl, cs, hh, True, 0.0, 0.0,
-                                                            0.0)
+                                                            0.0, s_at, ds_at)
                     gw = wave_gain(p, vol, sl, cs) / zc
                     fp += gw * (wb0 - p)
                     jp -= gw
@@ -745,7 +772,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     up = p + hh * (phi1p * fp + hh * phi2p * vp)
                     if up > 0.0 and math.isfinite(up):
                         fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh,
-                                           False, 0.0, 0.0, 0.0)[0]
+                                           False, 0.0, 0.0, 0.0, s_at2, 0.0)[0]
                                + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
                         ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
                         pn = up + ep
@@ -755,12 +782,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 elif general is not None and thermal:
                     err, pn, tn, prop_t, fp, jp, vp = thermal_step(
                         p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
-                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol)
+                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2)
                     zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
                 else:
                     c_ok = False
                     if (fs_ok and not moving and not chord and a_in == fs_ain
-                            and a_ex == fs_aex and (fs_m == m or (rigid and gain == 0.0))):
+                            and a_ex == fs_aex and (not cl_spool or s_at == fs_s)
+                            and (fs_m == m or (rigid and gain == 0.0 and not cl_vdot))):
                         fp, jp, vp = fs_fp, fs_jp, fs_vp
                         if vdot != fs_vdot:  # a new chord of the position (rigid)
                             iv = 1.0 / vol
@@ -771,10 +799,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     else:
                         fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol,
                                                                 vdot, psup, sl, cs, hh, True,
-                                                                dsup, da_in, da_ex)
+                                                                dsup, da_in, da_ex, s_at,
+                                                                ds_at)
                     if not moving and not chord:
                         fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = True, fp, jp, vp, vdot, m
-                        fs_ain, fs_aex = a_in, a_ex
+                        fs_ain, fs_aex, fs_s = a_in, a_ex, s_at
                     else:
                         fs_ok = False
                     # over a chord in a rigid chamber where the compression outpaces
@@ -798,7 +827,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         up = uq / sc1
                         if up > 0.0 and math.isfinite(up):
                             fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl,
-                                              cs, hh, False, 0.0, 0.0, 0.0)[0]
+                                              cs, hh, False, 0.0, 0.0, 0.0, s_at2, 0.0)[0]
                             ep = 2.0 * hh * phi3p * (sc1 * (fp2 + kap * up * vdot / vol2)
                                                      - fp - jf * (uq - p * sc0) - hh * vp)
                             pn = (uq + ep) / sc1
@@ -812,10 +841,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             if fs_ok:
                                 fp2, jp2, _, _, vp2, _, _, _ = chamber_rhs(
                                     up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh,
-                                    True, dsup, 0.0, 0.0)
+                                    True, dsup, 0.0, 0.0, s_at2, 0.0)
                             else:
                                 fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2,
-                                                  sl, cs, hh, False, 0.0, 0.0, 0.0)[0]
+                                                  sl, cs, hh, False, 0.0, 0.0, 0.0, s_at2,
+                                                  0.0)[0]
                             ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
                             pn = up + ep
                             err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))

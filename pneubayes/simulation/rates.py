@@ -16,8 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pneubayes.effects.closure_features import FEATURES, evaluate_feature
+from pneubayes.effects.path import CLOSURE_MAX_TERMS, TABLE_MAX_POINTS
 from pneubayes.effects.path import SLOT_INDEX as S
-from pneubayes.effects.path import TABLE_MAX_POINTS
 from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
@@ -46,7 +47,8 @@ class RateTerms:
     """dp/dt contributions, Pa/s, at each sample (arrays of one shape).
 
     ``inlet`` and ``exhaust`` are the valve ports' terms (attenuation included),
-    ``leak`` the cylinder leak's, ``volume`` the -n p dV/dt / V term; ``total`` their sum.
+    ``leak`` the cylinder leak's, ``volume`` the -n p dV/dt / V term, ``closure`` an
+    open-form closure's (effect ``closure``; zeros without one); ``total`` their sum.
     ``inlet_choked`` / ``exhaust_choked`` flag choked ports (eq. 2).
     """
 
@@ -54,12 +56,44 @@ class RateTerms:
     exhaust: np.ndarray
     leak: np.ndarray
     volume: np.ndarray
+    closure: np.ndarray
     inlet_choked: np.ndarray
     exhaust_choked: np.ndarray
 
     @property
     def total(self) -> np.ndarray:
-        return self.inlet + self.exhaust + self.leak + self.volume
+        return self.inlet + self.exhaust + self.leak + self.volume + self.closure
+
+
+def _closure_feature_values(code, threshold, signals: dict) -> np.ndarray:
+    """Feature values for feature codes ``code`` (slot values, which may differ per slot
+    row) with hinge thresholds ``threshold`` on ``signals``."""
+    code = np.asarray(code, dtype=np.float64)
+    out = 0.0
+    for c in np.unique(code):
+        value = evaluate_feature(FEATURES[int(c)].name, signals, threshold)
+        out = np.where(code == c, value, out)
+    return out
+
+
+def closure_mass_flow(slots: np.ndarray, signals: dict) -> np.ndarray:
+    """An open-form closure's mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s),
+    from the lowered ``slots`` (slots ``closure_*``; ``slots`` may carry trailing
+    dimensions that broadcast against the signals) on ``signals``
+    (:data:`pneubayes.effects.closure_features.SIGNALS`); zeros without a closure."""
+    sl = np.asarray(slots, dtype=np.float64)
+    n = sl[S["closure_terms"]]
+    total = np.zeros(np.broadcast_shapes(np.shape(signals["pressure_Pa"]), np.shape(n)))
+    for k in range(CLOSURE_MAX_TERMS):
+        live = k < n
+        if not np.any(live):
+            break
+        fa = _closure_feature_values(sl[S[f"closure_feature_a_{k}"]],
+                                     sl[S[f"closure_threshold_a_{k}"]], signals)
+        fb = _closure_feature_values(sl[S[f"closure_feature_b_{k}"]],
+                                     sl[S[f"closure_threshold_b_{k}"]], signals)
+        total = total + np.where(live, sl[S[f"closure_coefficient_{k}"]] * (fa * fb), 0.0)
+    return total
 
 
 def port_areas(slots: np.ndarray, spool_V, exhaust_command=None
@@ -141,7 +175,10 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     ``spool_V`` is the command after any delay and lag (the caller shifts or filters
     it); the dead band, Gompertz maps (eq. 11), supply weighting, attenuation and leaks
     come from ``slots``. Pressures absolute, Pa; position m; velocity m/s.
-    ``exhaust_command`` drives a separately commanded exhaust valve. A supply tank
+    ``exhaust_command`` drives a separately commanded exhaust valve. An open-form
+    closure's features read the spool ``spool_V``, the port flows ``a f`` before the
+    attenuation, the volume after compliance and ``velocity_m_per_s`` times the bore's
+    area as the volume rate (:func:`closure_mass_flow`). A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
     does a second compartment's pressure (slot ``lung_volume_m3``): its flow is left out
     here (the simulator carries it).
@@ -163,14 +200,24 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     vol = vol + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol  # a compliant chamber
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
-    inlet = scale * atten * a_in * flow_function(p_sup, p, g)
-    exhaust = -scale * atten * a_ex * flow_function(p, p_atm, g)
+    q_in = a_in * flow_function(p_sup, p, g)
+    q_ex = a_ex * flow_function(p, p_atm, g)
+    inlet = scale * atten * q_in
+    exhaust = -scale * atten * q_ex
     leak = -scale * (sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
                      + np.maximum(sl[S["leak_laminar_kg_per_s_Pa2"]]
                                   + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                                   * np.asarray(position_m, dtype=np.float64), 0.0)
                      * (p * p - p_atm * p_atm))
     volume = -kappa * p * vdot / denom
+    closure = np.zeros(np.broadcast_shapes(np.shape(p), np.shape(sl[S["closure_terms"]])))
+    if np.any(sl[S["closure_terms"]] > 0):
+        signals = {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
+                   "atmospheric_pressure_Pa": p_atm, "spool": np.asarray(spool_V, float),
+                   "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
+                   "inlet_flow_kg_per_s": q_in, "exhaust_flow_kg_per_s": q_ex,
+                   "volume_m3": vol, "volume_rate_m3_per_s": vdot}
+        closure = scale * closure_mass_flow(sl, signals)
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
-    return RateTerms(inlet, exhaust, leak, volume,
+    return RateTerms(inlet, exhaust, leak, volume, closure,
                      inlet_choked=p < crit * p_sup, exhaust_choked=p_atm < crit * p)

@@ -4,7 +4,9 @@ Used by the tests (accuracy, step halving) and the benchmark (speed baseline). I
 only the lowered slots and the vectorised physics functions with the compiled
 integrator; the integration, input handling, the spool (an ODE state here, closed
 form there) and a sensor lag's reading (ODE states here, stepped exactly for a
-linear pressure there) are written separately. Slow: thousands of Python calls per second.
+linear pressure there) are written separately. An open-form closure (effect
+``closure``) is evaluated by :func:`pneubayes.effects.closure_features.evaluate_feature`,
+not by the compiled features. Slow: thousands of Python calls per second.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from pneubayes.effects.closure_features import FEATURES, evaluate_feature
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
 from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa
@@ -63,6 +66,13 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
     n_tab = int(sl[S["table_points"]])
     tab_c, tab_i, tab_e = (sl[S[f"table_{k}_0"]:S[f"table_{k}_0"] + n_tab]
                            for k in ("command", "inlet_m2", "exhaust_m2"))
+    # an open-form closure's terms: (coefficient, feature a, theta a, feature b, theta b)
+    closure = [(sl[S[f"closure_coefficient_{k}"]],
+                FEATURES[int(sl[S[f"closure_feature_a_{k}"]])].name,
+                sl[S[f"closure_threshold_a_{k}"]],
+                FEATURES[int(sl[S[f"closure_feature_b_{k}"]])].name,
+                sl[S[f"closure_threshold_b_{k}"]])
+               for k in range(int(sl[S["closure_terms"]]))]
 
     def rhs(t, y):
         p, temp, spool = y[:3]
@@ -97,7 +107,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
                     * (vol + v_line - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
         # each mass flow into the chamber (kg/s, negative = out)
         f_in = f_in_raw = float(flow_function(psup, p_valve, g))
-        f_out = float(flow_function(p_valve, p_atm, g))
+        f_out = f_out_raw = float(flow_function(p_valve, p_atm, g))
         f_leak = float(flow_function(p, p_atm, g))
         if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1); an
             # acoustic line's gas is at the supply's temperature, and so its ports' gas
@@ -123,6 +133,22 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
             d_line = dcells + dq
         flows = port + [-sl[S["leak_orifice_area_m2"]] * f_leak,
                         -k_lam * (p * p - p_atm * p_atm)]
+        compl = sl[S["compliance_m3_per_Pa"]]  # V grows by C (p - P_atm) + dV(p)
+        v_c = vol + compl * (p - p_atm)
+        if n_vt:  # a tabulated V(p): np.interp inside, the end segments extended
+            k = min(max(int(np.searchsorted(vt_p, p)) - 1, 0), n_vt - 2)
+            slope = (vt_v[k + 1] - vt_v[k]) / (vt_p[k + 1] - vt_p[k])
+            v_c, compl = v_c + vt_v[k] + slope * (p - vt_p[k]), compl + slope
+        if closure:  # its features: the port flows before attenuation and temperature
+            signals = {"pressure_Pa": p, "supply_pressure_Pa": psup,
+                       "atmospheric_pressure_Pa": p_atm, "spool": s,
+                       "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
+                       "inlet_flow_kg_per_s": a_in * f_in_raw,
+                       "exhaust_flow_kg_per_s": a_ex * f_out_raw, "volume_m3": v_c,
+                       "volume_rate_m3_per_s": vdot}
+            flows.append(sum(float(c * evaluate_feature(fa, signals, ta)
+                                   * evaluate_feature(fb, signals, tb))
+                             for c, fa, ta, fb, tb in closure))
         m_lung = 0.0
         if lung_v > 0:  # laminar flow into the second compartment (its pressure: last)
             m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[i_lung] ** 2)
@@ -132,12 +158,6 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
         # without heat exchange, where this is eq. 5)
         t_chamber = temp if thermal else t_s
         enthalpy = sum(rs * (t_s if q > 0 else t_chamber) * q for q in map(float, flows))
-        compl = sl[S["compliance_m3_per_Pa"]]  # V grows by C (p - P_atm) + dV(p)
-        v_c = vol + compl * (p - p_atm)
-        if n_vt:  # a tabulated V(p): np.interp inside, the end segments extended
-            k = min(max(int(np.searchsorted(vt_p, p)) - 1, 0), n_vt - 2)
-            slope = (vt_v[k + 1] - vt_v[k]) / (vt_p[k + 1] - vt_p[k])
-            v_c, compl = v_c + vt_v[k] + slope * (p - vt_p[k]), compl + slope
         dp = kappa * (enthalpy - p * vdot) / (v_c + kappa * p * compl)
         dtemp = 0.0
         if heat > 0:
@@ -197,6 +217,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         initial_pressure_Pa = pressure_behind_reading_Pa(initial_pressure_Pa, p_atm, cal_o,
                                                          cal_g)
         initial_rate_Pa_per_s = initial_rate_Pa_per_s / cal_g
+    if sl[S["closure_terms"]] > 0 and (sl[S["wave_length_m"]] > 0
+                                        or sl[S["line_length_m"]] > 0):
+        raise ValueError("reference_simulate: an open-form closure beside the tube's "
+                         "acoustic line or wave line is not simulated (the compiled "
+                         "simulator refuses it too)")
     if sl[S["wave_length_m"]] > 0:
         raise ValueError("reference_simulate: the transmission-line tube (tube_delay form "
                          "'wave') is a delay system this ODE reference does not solve; its "

@@ -179,7 +179,7 @@ def _kernel_arrays(*arrays):
 _FORM_COLUMNS = {name: i for i, name in enumerate((
     "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
-    "lung_volume_m3"))}
+    "lung_volume_m3", "closure_terms"))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
 #: The form columns of the states besides the pressure (:func:`kernel.needs_general`).
 _GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
@@ -204,6 +204,11 @@ def _check_exclusive_forms(forms: np.ndarray) -> None:
         (has("lung_volume_m3"), line | hot | tank,
          "a two-compartment chamber is simulated with the two pressures as the states"),
     )
+    if np.any(has("closure_terms") & line):
+        raise ValueError("an open-form closure (effect 'closure') is part of the chamber's "
+                         "right-hand side, which the tube's acoustic line or wave line "
+                         "(tube_delay forms 'line', 'wave') replaces: it cannot be combined "
+                         "with them in one model")
     if np.any(wave & (hot | has("line_length_m"))):
         raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
                          "with the chamber's pressure as its only state: it cannot be "
