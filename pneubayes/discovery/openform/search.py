@@ -124,6 +124,10 @@ class OpenFormSearch:
         products, products before hinges) column exceeds ``1 - duplicate_tolerance`` is
         dropped: these data cannot tell the two apart (e.g. ``inlet_flow * volume`` where
         the volume moves by a few %), and the simpler term stands for both.
+    swap_min_gain : float
+        FROLS only: a bag's selected column is exchanged for another when that explains
+        more than this fraction of the bag's target sum of squares beyond it
+        (:meth:`_swap`).
     refine_thresholds : bool
         Refine the kept hinges' thresholds between their grid neighbours.
     seed : int
@@ -151,8 +155,8 @@ class OpenFormSearch:
                  n_models: int = 40, chunk_rows: int = 25, min_inclusion: float = 0.6,
                  min_explained_fraction: float = 0.02,
                  quantiles: Sequence[float] = DEFAULT_QUANTILES,
-                 duplicate_tolerance: float = 2e-3, refine_thresholds: bool = True,
-                 seed: int = 0):
+                 duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.005,
+                 refine_thresholds: bool = True, seed: int = 0):
         self.max_terms = max_terms
         self.block = block
         self.optimizer = optimizer
@@ -164,6 +168,7 @@ class OpenFormSearch:
         self.min_explained_fraction = min_explained_fraction
         self.quantiles = quantiles
         self.duplicate_tolerance = duplicate_tolerance
+        self.swap_min_gain = swap_min_gain
         self.refine_thresholds = refine_thresholds
         self.seed = seed
 
@@ -229,12 +234,14 @@ class OpenFormSearch:
             opt.fit(xn, yn)
             err = opt.ERR_global[:, 0]
             k = 0
-            while k < self.max_terms and err[k] >= self.min_explained_fraction:
+            most = min(self.max_terms, len(opt.history_) - 1)
+            while k < most and err[k] >= self.min_explained_fraction:
                 k += 1
             if k == 0:
                 return np.zeros(x.shape[1])
             # history_[k] holds the first k selected terms; refit them unregularised
-            sel = np.nonzero(np.asarray(opt.history_[k]).ravel() != 0)[0]
+            sel = self._swap(xn, yn, list(np.nonzero(np.asarray(opt.history_[k]).ravel()
+                                                     != 0)[0]))
             coef = np.zeros(x.shape[1])
             coef[sel] = np.linalg.lstsq(xn[:, sel], yn, rcond=None)[0]
             return coef
@@ -259,6 +266,36 @@ class OpenFormSearch:
         if self.optimizer == "sbr":  # posterior means: keep those above the threshold
             coef = np.where(np.abs(coef) >= self.threshold, coef, 0.0)
         return coef
+
+    def _swap(self, x: np.ndarray, y: np.ndarray, sel: list[int]) -> list[int]:
+        """Exchange selected columns for better ones (unit-norm ``x`` and ``y``): each
+        selected column in turn is replaced by the column that, with the others held,
+        explains most, when that gains more than ``swap_min_gain`` (of ``y . y`` = 1);
+        passes repeat until none gains (at most ``len(sel) + 1`` passes). A greedy
+        forward pick can take a column that stands in for two true terms at first
+        (a spool offset for a constant beside a flow term) and keep it."""
+        sel = list(sel)
+        for _ in range(len(sel) + 1):
+            changed = False
+            for i in range(len(sel)):
+                others = sel[:i] + sel[i + 1:]
+                if others:
+                    q, _ = np.linalg.qr(x[:, others])
+                    r = y - q @ (q.T @ y)
+                    xp = x - q @ (q.T @ x)
+                else:
+                    r, xp = y, x
+                norm2 = np.sum(xp * xp, axis=0)
+                gain = np.where(norm2 > 1e-12, (xp.T @ r) ** 2 / np.where(
+                    norm2 > 1e-12, norm2, 1.0), 0.0)
+                gain[others] = 0.0
+                best = int(np.argmax(gain))
+                if best != sel[i] and gain[best] > gain[sel[i]] + self.swap_min_gain:
+                    sel[i] = best
+                    changed = True
+            if not changed:
+                break
+        return sel
 
     # ------------------------------------------------------------------ refit
     @staticmethod
