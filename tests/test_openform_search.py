@@ -29,7 +29,7 @@ COEF_TOL, HINGE_COEF_TOL = 0.05, 0.15
 PRESSURE_THRESHOLD_TOL, SPOOL_THRESHOLD_TOL = 0.3, 0.3
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _signals(seed: int) -> dict:
     return synthetic_signals(seed)
 

@@ -209,11 +209,11 @@ class OpenFormSearch:
                                  f"of one length, got target {n}")
 
     # ------------------------------------------------------------------ rows
-    def _rows(self, candidate: Candidate, signals_list) -> np.ndarray:
-        """One candidate's rows over all recordings (finite rows only)."""
+    def _rows(self, candidate: Candidate, signals_list, finite: np.ndarray) -> np.ndarray:
+        """One candidate's rows over all recordings (the ``finite`` ones only)."""
         col = np.concatenate([_block_sums(candidate.evaluate(s), self.block)
                               for s in signals_list])
-        return col[self._finite]
+        return col[finite]
 
     def _sparse(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Coefficients of one bag on unit-RMS columns (zeros: not selected); columns
@@ -309,7 +309,7 @@ class OpenFormSearch:
         return c, float(r @ r)
 
     def _refine(self, sel: list[Candidate], cols: list[np.ndarray], y, signals_list,
-                grid: dict, ranges: dict) -> None:
+                finite, grid: dict, ranges: dict) -> None:
         """Refine each hinge threshold of ``sel`` in place (one pass, others held)."""
         for j, cand in enumerate(sel):
             for side in cand.term.hinges():
@@ -327,14 +327,15 @@ class OpenFormSearch:
                                      v if side == "b" else cand.threshold_b)
 
                 def rss(v, j=j, with_threshold=with_threshold):
-                    trial = cols[:j] + [self._rows(with_threshold(v), signals_list)] + cols[j + 1:]
+                    col = self._rows(with_threshold(v), signals_list, finite)
+                    trial = cols[:j] + [col] + cols[j + 1:]
                     return self._refit(trial, y)[1]
 
                 best = minimize_scalar(rss, bounds=(lo, hi), method="bounded",
                                        options={"xatol": 1e-4 * (hi - lo)})
                 if best.fun < rss(th):
                     sel[j] = with_threshold(float(best.x))
-                    cols[j] = self._rows(sel[j], signals_list)
+                    cols[j] = self._rows(sel[j], signals_list, finite)
 
     # ------------------------------------------------------------------ fit
     def fit(self, signals_list: Sequence[dict], target_list: Sequence[np.ndarray]
@@ -367,8 +368,8 @@ class OpenFormSearch:
                             for t in target_list])
         x = np.concatenate([_block_sums(design_matrix(cands, s), self.block)
                             for s in signals_list])
-        self._finite = np.isfinite(y) & np.all(np.isfinite(x), axis=1)
-        y, x = y[self._finite], x[self._finite]
+        finite = np.isfinite(y) & np.all(np.isfinite(x), axis=1)
+        y, x = y[finite], x[finite]
         keep = distinct_columns(x, self.duplicate_tolerance)
         cands = [c for c, k in zip(cands, keep) if k]
         x = x[:, keep]
@@ -416,7 +417,7 @@ class OpenFormSearch:
         tss = float(y @ y)
         while sel:
             if self.refine_thresholds:
-                self._refine(sel, cols, y, signals_list, grid, ranges)
+                self._refine(sel, cols, y, signals_list, finite, grid, ranges)
             coef, rss = self._refit(cols, y)
             drop = np.array([(self._refit(cols[:j] + cols[j + 1:], y)[1] if len(cols) > 1
                               else tss) - rss for j in range(len(cols))]) / tss
