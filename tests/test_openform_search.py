@@ -105,6 +105,21 @@ def test_noise_alone_gives_no_term(seed):
     assert s.explained_fraction_ == 0.0
 
 
+def test_intervals_marked_invalid_are_left_out():
+    term, _, _, c = CASES["inlet_flow (10 % more inlet flow)"]
+    sig, tgt = planted([CASES["inlet_flow (10 % more inlet flow)"]])
+    bad = slice(1000, 1200)
+    tgt[0] = tgt[0].copy()
+    tgt[0][bad] += 1e-3  # a glitch 30x the noise
+    spoiled = OpenFormSearch(seed=0).fit(sig, tgt)
+    sig[0] = {**sig[0], "valid": np.ones(tgt[0].size, dtype=bool)}
+    sig[0]["valid"][bad] = False
+    s = OpenFormSearch(seed=0).fit(sig, tgt)
+    assert s.n_rows_ == spoiled.n_rows_ - 200 // s.block
+    assert [str(f.term) for f in s.terms_] == [str(term)]
+    assert abs(s.terms_[0].coefficient / c - 1.0) < COEF_TOL
+
+
 def test_the_library_is_typed_and_bounded():
     sig = [_signals(0)]
     cands = candidate_terms(sig)
@@ -174,7 +189,7 @@ def test_path_signals_and_the_missing_flow_of_a_laminar_leak(laminar_leak_record
     d = one_step_data(rec, 5)
     e = d.errors(plain, plain.vector(params)[None], SolverConfig.standard())[0]
     sig = path_signals(plain, params, rec, d)
-    assert set(SIGNALS) <= set(sig)
+    assert set(SIGNALS) <= set(sig) and sig["valid"].all()
     assert all(np.shape(sig[k]) == (rec.n_samples - 1,) for k in SIGNALS)
     assert np.all((sig["inlet_area_m2"] >= 0) & (sig["inlet_area_m2"] < 1e-6))
     y = missing_mass_flow(sig, e, d.rig)

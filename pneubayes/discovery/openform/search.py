@@ -348,7 +348,10 @@ class OpenFormSearch:
             Per recording, the signals (:data:`~pneubayes.effects.closure_features.SIGNALS`;
             :func:`~pneubayes.discovery.openform.signals.path_signals`), arrays ``(M,)``.
         target_list : sequence of (M,) arrays
-            Per recording, the missing mass flow into the chamber, kg/s.
+            Per recording, the missing mass flow into the chamber, kg/s
+            (:func:`~pneubayes.discovery.openform.signals.missing_mass_flow`). A row
+            holding a non-finite value, or an interval a signal dict's optional
+            ``"valid"`` array marks False, is left out.
 
         Returns
         -------
@@ -364,8 +367,11 @@ class OpenFormSearch:
 
     def _fit(self, signals_list, target_list) -> "OpenFormSearch":
         cands = candidate_terms(signals_list, self.quantiles)
-        y = np.concatenate([_block_sums(np.asarray(t, dtype=np.float64), self.block)
-                            for t in target_list])
+        # an interval a signal dict marks invalid ("valid" False) leaves out its row
+        y = np.concatenate([_block_sums(np.where(np.asarray(s.get("valid", True), bool),
+                                                 np.asarray(t, dtype=np.float64), np.nan),
+                                        self.block)
+                            for s, t in zip(signals_list, target_list)])
         x = np.concatenate([_block_sums(design_matrix(cands, s), self.block)
                             for s in signals_list])
         finite = np.isfinite(y) & np.all(np.isfinite(x), axis=1)

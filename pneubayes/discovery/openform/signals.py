@@ -121,7 +121,9 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
         kg/s, volume m^3, volume rate m^3/s), plus ``"time_s"`` (the midpoints, s),
         ``"interval_s"`` (each interval's length, s), ``"compliance_m3_per_Pa"`` (dV/dp
         of a compliant chamber, 0 if rigid) and ``"jacobian_per_s"`` (the model's
-        d(dp/dt)/dp there, 1/s), which :func:`missing_mass_flow` reads.
+        d(dp/dt)/dp there, 1/s), which :func:`missing_mass_flow` reads, and ``"valid"``
+        (both ends of the interval valid: the recording's ``valid`` column), which
+        :class:`~pneubayes.discovery.openform.search.OpenFormSearch` reads.
     """
     inputs, data_rig = _as_inputs(data)
     rig = rig or data_rig or recording.rig()
@@ -133,6 +135,7 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     p_meas = np.asarray(recording.pressure_Pa, dtype=np.float64)
     if p_meas.shape != t.shape:
         raise ValueError("path_signals: the recording and the inputs differ in length")
+    valid = np.asarray(recording.valid_mask(), dtype=bool)
     mid = 0.5 * (t[1:] + t[:-1])
     h = np.diff(t)
     p = 0.5 * (p_meas[1:] + p_meas[:-1])
@@ -162,7 +165,8 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
             "inlet_area_m2": a_in, "exhaust_area_m2": a_ex, "inlet_flow_kg_per_s": inlet,
             "exhaust_flow_kg_per_s": exhaust, "volume_m3": vol,
             "volume_rate_m3_per_s": vdot, "time_s": mid, "interval_s": h,
-            "compliance_m3_per_Pa": compliance + 0.0 * p, "jacobian_per_s": jac}
+            "compliance_m3_per_Pa": compliance + 0.0 * p, "jacobian_per_s": jac,
+            "valid": valid[1:] & valid[:-1]}
 
 
 def missing_mass_flow(signals: dict, errors_Pa, rig) -> np.ndarray:
