@@ -210,3 +210,25 @@ def test_path_signals_and_the_missing_flow_of_a_laminar_leak(laminar_leak_record
     hi = sig["pressure_Pa"] > 4e5
     assert np.mean(flow[hi]) < 0.0
     assert np.mean(flow[hi]) == pytest.approx(np.mean(leak[hi]), rel=0.15)
+
+
+def test_the_spool_is_the_command_delayed_and_lagged(rig):
+    """A step of the command reaches the spool after the tube's delay, then as the
+    first-order lag's exponential (closed form), and not at all before."""
+    from pneubayes.discovery.openform.signals import spool_at
+    from pneubayes.model import Model
+    from pneubayes.simulation import Inputs
+
+    model = Model(["tube_delay", "spool_lag"])
+    from pneubayes.physics.valve import valve_preset
+
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+              "tube_delay_s": 0.003, "spool_time_constant_s": 0.002}
+    slots = model.lower(model.as_matrix(params), rig)[0]
+    t = np.arange(200) * 1e-3
+    u = np.where(t >= 0.1 - 1e-12, 5.0, 1.0)
+    mid = 0.5 * (t[1:] + t[:-1])
+    s = spool_at(mid, Inputs.constant(t, u, 0.0, 5e5), slots)
+    after = mid - 0.103
+    expect = np.where(after > 0, 5.0 - 4.0 * np.exp(-np.maximum(after, 0) / 0.002), 1.0)
+    np.testing.assert_allclose(s, expect, rtol=0, atol=1e-9)
