@@ -7,6 +7,8 @@ as one-step prediction errors),
 own: :mod:`~pneubayes.effects.discovery`),
 :mod:`~pneubayes.discovery.candidates` (a named effect's forms beside the current fit),
 :mod:`~pneubayes.discovery.sindy` (grouped sparse regression with block bagging),
+:mod:`~pneubayes.discovery.openform` (the second resort: closure terms, extra mass flows
+into the chamber, searched over a generic typed library),
 :mod:`~pneubayes.discovery.disagreement` (residuals binned by operating regime),
 :mod:`~pneubayes.discovery.verification` (held-out scores and the acceptance test),
 :mod:`~pneubayes.discovery.rounds` (one round's candidate forms, cheapest first),

@@ -1,0 +1,157 @@
+"""The open-form search's candidate library: closure terms with their thresholds.
+
+A candidate is a :class:`~pneubayes.effects.closure_features.Term` with the thresholds
+of its hinge features. The library (:func:`candidate_terms`) holds
+
+- every base feature that is not a hinge (``one`` included);
+- every hinge feature at each threshold of a grid: ``pressure_hinge`` at quantiles of
+  the measured ``p / P_atm``, the two spool hinges at quantiles of the spool;
+- the products of every pair of non-constant, non-hinge base features (squares
+  included: a laminar leak is ``p^2``);
+- each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
+  ``exhaust_flow``.
+
+The count stays manageable because hinges enter only at a grid of quantiles
+(``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
+with the three partners above: with the nine non-hinge base features that is
+1 + 9 + 45 + 57 + 171 = 283 candidates at most (a grid of 9 quantiles: 163; with 9 a
+hinge planted between grid points was taken for a product with a hinge at a grid
+point).
+Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
+is ``one`` again) are dropped by :func:`design_matrix`.
+
+A candidate's *family* is its term without thresholds (``"inlet_flow*pressure_hinge"``):
+the search keeps at most one threshold per family.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
+
+#: Hinge features and the signal their thresholds are quantiles of.
+HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
+                 "spool_hinge_down": "spool"}
+#: The partners each hinge is multiplied with.
+HINGE_PARTNERS = ("pressure_ratio", "inlet_flow", "exhaust_flow")
+#: The default quantiles of the hinge thresholds.
+DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One column of the library: a term and its hinge thresholds (0 where none)."""
+
+    term: Term
+    threshold_a: float = 0.0
+    threshold_b: float = 0.0
+
+    @property
+    def family(self) -> str:
+        """The term without its thresholds, e.g. ``"inlet_flow*pressure_hinge"``."""
+        return str(self.term)
+
+    @property
+    def label(self) -> str:
+        """The term with its thresholds, e.g. ``"inlet_flow*pressure_hinge[3.2]"``."""
+        marks = {"a": self.threshold_a, "b": self.threshold_b}
+        parts = []
+        for k, n in (("a", self.term.a), ("b", self.term.b)):
+            if k == "b" and n == "one":
+                continue
+            parts.append(f"{n}[{marks[k]:.4g}]" if k in self.term.hinges() else n)
+        return "*".join(parts)
+
+    def evaluate(self, signals: dict) -> np.ndarray:
+        """The term's value on ``signals`` (coefficient 1)."""
+        return self.term.evaluate(signals, self.threshold_a, self.threshold_b)
+
+
+def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
+                     ) -> dict[str, np.ndarray]:
+    """Per hinge feature, its grid of thresholds: the ``quantiles`` of its source
+    signal (:data:`HINGE_SOURCES`) pooled over the recordings, repeated values merged.
+
+    Parameters
+    ----------
+    signals_list : sequence of dict
+        Signals of each recording (:data:`~pneubayes.effects.closure_features.SIGNALS`).
+    quantiles : sequence of float
+        In (0, 1).
+
+    Returns
+    -------
+    dict
+        Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit).
+    """
+    q = np.asarray(quantiles, dtype=np.float64)
+    if q.size == 0 or np.any(~((q > 0) & (q < 1))):
+        raise ValueError(f"hinge quantiles must lie in (0, 1), got {list(quantiles)}")
+    out = {}
+    for hinge, source in HINGE_SOURCES.items():
+        vals = np.concatenate([evaluate_feature(source, s) for s in signals_list])
+        out[hinge] = np.unique(np.quantile(vals[np.isfinite(vals)], q))
+    return out
+
+
+def candidate_terms(signals_list: Sequence[dict],
+                    quantiles: Sequence[float] = DEFAULT_QUANTILES) -> list[Candidate]:
+    """The library's candidates (module doc), in a fixed order.
+
+    Parameters
+    ----------
+    signals_list : sequence of dict
+        Signals of each recording; the hinges' thresholds come from them.
+    quantiles : sequence of float
+        Quantiles of the hinge thresholds (:func:`hinge_thresholds`).
+
+    Returns
+    -------
+    list of Candidate
+    """
+    plain = [f.name for f in FEATURES if not f.hinge]
+    varying = [n for n in plain if n != "one"]
+    out = [Candidate(Term(n)) for n in plain]
+    out += [Candidate(Term(a, b)) for i, a in enumerate(varying) for b in varying[i:]]
+    grid = hinge_thresholds(signals_list, quantiles)
+    for hinge, thresholds in grid.items():
+        out += [Candidate(Term(hinge), float(th)) for th in thresholds]
+    for hinge, thresholds in grid.items():
+        out += [Candidate(Term(partner, hinge), 0.0, float(th))
+                for partner in HINGE_PARTNERS for th in thresholds]
+    return out
+
+
+def design_matrix(candidates: Sequence[Candidate], signals: dict) -> np.ndarray:
+    """The candidates' values on one recording's signals, ``(M, n_candidates)``."""
+    return np.column_stack([c.evaluate(signals) for c in candidates])
+
+
+def distinct_columns(x: np.ndarray, duplicate_tolerance: float) -> np.ndarray:
+    """Which columns of ``x`` to keep: not zero, and not a multiple of an earlier kept
+    column (``|cos| > 1 - duplicate_tolerance`` between the uncentred columns).
+
+    Parameters
+    ----------
+    x : (n, m) array
+    duplicate_tolerance : float
+        How close to 1 the cosine of two columns counts as the same column.
+
+    Returns
+    -------
+    (m,) bool array
+    """
+    norms = np.linalg.norm(x, axis=0)
+    keep = (norms > 0) & np.all(np.isfinite(x), axis=0)
+    unit = np.where(keep, x / np.where(norms > 0, norms, 1.0), 0.0)
+    kept: list[int] = []
+    for j in np.nonzero(keep)[0]:
+        if kept and np.max(np.abs(unit[:, kept].T @ unit[:, j])) > 1.0 - duplicate_tolerance:
+            keep[j] = False
+        else:
+            kept.append(j)
+    return keep

@@ -1,0 +1,445 @@
+"""Open-form search: which closure terms explain the missing mass flow.
+
+:class:`OpenFormSearch` regresses the missing mass flow (kg/s,
+:func:`~pneubayes.discovery.openform.signals.missing_mass_flow`) on the candidate terms
+of :mod:`~pneubayes.discovery.openform.features`:
+
+1. Rows are block sums of ``block`` consecutive intervals of each recording (as
+   :mod:`~pneubayes.discovery.one_step`'s rows); columns that are zero or repeat an
+   earlier one are dropped; every column and the target are scaled to unit RMS.
+2. Bagging: ``n_models`` bootstrap draws of chunks of ``chunk_rows`` consecutive rows
+   (residuals are autocorrelated; single-row draws would be overconfident), each fitted
+   by a pysindy sparse optimizer (``optimizer``). A *family* (a term without its
+   thresholds) is included in a bag when any of its columns is; its inclusion
+   probability is the fraction of bags, and its threshold the column selected most often.
+3. The families with inclusion probability >= ``min_inclusion`` enter a least-squares
+   refit on the physical columns (hinge thresholds then refined, with the others held,
+   between the neighbouring grid thresholds); while more than ``max_terms`` remain, or
+   the weakest explains less than ``min_explained_fraction`` of the target's
+   (uncentred) sum of squares on its own (its drop-one loss), the weakest is dropped
+   and the rest refitted. A term is thus kept only if it is supported across bags and
+   explains a meaningful share of the target: on noise nothing passes both.
+
+The optimizer is FROLS (forward orthogonal least squares, stopped where the next term's
+error reduction falls below ``min_explained_fraction``): on the planted-term tests it
+recovered every family, where thresholded regressions on the ~160 strongly collinear
+columns (STLSQ, SR3) spread a term over its collinear neighbours and lost it or picked
+a neighbour (the measurement: ``benchmarks/openform_optimizers.py``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from pneubayes.discovery.openform.features import (
+    DEFAULT_QUANTILES,
+    HINGE_SOURCES,
+    Candidate,
+    candidate_terms,
+    design_matrix,
+    distinct_columns,
+    hinge_thresholds,
+)
+from pneubayes.effects.closure_features import (
+    CLOSURE_MAX_TERMS,
+    SIGNALS,
+    Term,
+    evaluate_feature,
+)
+
+#: The pysindy optimizers the search can use.
+OPTIMIZERS = ("frols", "stlsq", "sr3", "sbr")
+
+
+@dataclass(frozen=True)
+class FoundTerm:
+    """One term of the search's answer (also a tuple, in this order).
+
+    ``coefficient`` is in the term's unit (``term.unit``: kg/s over the features'
+    units); ``inclusion_probability`` the fraction of bags that selected its family;
+    ``share`` its share of the explained target (``c_j x_j . y / (yhat . y)``, the
+    shares sum to 1); ``explained_fraction`` the fraction of the target's uncentred sum
+    of squares lost when it alone is dropped from the refit.
+    """
+
+    term: Term
+    threshold_a: float
+    threshold_b: float
+    coefficient: float
+    inclusion_probability: float
+    share: float
+    explained_fraction: float
+
+    def __iter__(self):
+        return iter((self.term, self.threshold_a, self.threshold_b, self.coefficient,
+                     self.inclusion_probability, self.share))
+
+
+def closure_spec(terms: Sequence[FoundTerm]) -> str:
+    """The ``Closure(terms=...)`` text of found terms, e.g. ``"inlet_flow; one"``."""
+    return "; ".join(str(t.term) for t in terms)
+
+
+def _block_sums(values: np.ndarray, block: int) -> np.ndarray:
+    """Sum ``(M, ...)`` per-interval values over consecutive blocks of ``block``."""
+    n = (values.shape[0] // block) * block
+    return values[:n].reshape(n // block, block, *values.shape[1:]).sum(axis=1)
+
+
+class OpenFormSearch:
+    """Sparse search of closure terms for the missing mass flow (scikit-learn contract).
+
+    Parameters
+    ----------
+    max_terms : int
+        Most terms returned (1..4, a closure's slots).
+    block : int
+        Sample intervals summed into one regression row.
+    optimizer : str
+        ``"frols"``, ``"stlsq"``, ``"sr3"`` or ``"sbr"`` (pysindy; SBR needs numpyro).
+    threshold : float
+        STLSQ's threshold and SR3's hard threshold, on coefficients of unit-norm columns
+        for a unit-norm target (a term's share of the target's RMS); unused by FROLS.
+    ridge : float
+        Ridge weight on the unit-norm columns (STLSQ, FROLS).
+    n_models : int
+        Bagged fits.
+    chunk_rows : int
+        Consecutive rows per bootstrap chunk.
+    min_inclusion : float
+        Least inclusion probability of a family to enter the refit.
+    min_explained_fraction : float
+        Least fraction of the target's uncentred sum of squares a kept term explains
+        on its own (drop-one); FROLS also stops adding terms below it.
+    quantiles : sequence of float
+        Quantiles of the hinge thresholds' grid.
+    duplicate_tolerance : float
+        A column whose |cosine| with an earlier (simpler: singles come before
+        products, products before hinges) column exceeds ``1 - duplicate_tolerance`` is
+        dropped: these data cannot tell the two apart (e.g. ``inlet_flow * volume`` where
+        the volume moves by a few %), and the simpler term stands for both.
+    swap_min_gain : float
+        FROLS only: a bag's selected column is exchanged for another when that explains
+        more than this fraction of the bag's target sum of squares beyond it
+        (:meth:`_swap`).
+    refine_thresholds : bool
+        Refine the kept hinges' thresholds between their grid neighbours.
+    seed : int
+        Seed of the bagging.
+
+    Attributes
+    ----------
+    terms_ : list of FoundTerm
+        The kept terms, strongest first; each unpacks as ``(Term, threshold_a,
+        threshold_b, coefficient, inclusion_probability, share)``.
+    inclusion_probability_ : dict
+        Family -> fraction of bags that selected it.
+    evidence_ : dict
+        Family -> ``{"inclusion_probability", "best_label", "selections"}``.
+    explained_fraction_ : float
+        Fraction of the target's uncentred sum of squares the kept terms explain.
+    n_candidates_ : int
+        Distinct candidate columns searched.
+    n_rows_ : int
+        Regression rows.
+    """
+
+    def __init__(self, max_terms: int = CLOSURE_MAX_TERMS, block: int = 5,
+                 optimizer: str = "frols", threshold: float = 0.05, ridge: float = 1e-6,
+                 n_models: int = 40, chunk_rows: int = 25, min_inclusion: float = 0.6,
+                 min_explained_fraction: float = 0.02,
+                 quantiles: Sequence[float] = DEFAULT_QUANTILES,
+                 duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.005,
+                 refine_thresholds: bool = True, seed: int = 0):
+        self.max_terms = max_terms
+        self.block = block
+        self.optimizer = optimizer
+        self.threshold = threshold
+        self.ridge = ridge
+        self.n_models = n_models
+        self.chunk_rows = chunk_rows
+        self.min_inclusion = min_inclusion
+        self.min_explained_fraction = min_explained_fraction
+        self.quantiles = quantiles
+        self.duplicate_tolerance = duplicate_tolerance
+        self.swap_min_gain = swap_min_gain
+        self.refine_thresholds = refine_thresholds
+        self.seed = seed
+
+    # ------------------------------------------------------------------ validation
+    def _validate(self, signals_list, target_list):
+        if not isinstance(self.max_terms, int) or not 1 <= self.max_terms <= CLOSURE_MAX_TERMS:
+            raise ValueError(f"max_terms must be an integer in 1..{CLOSURE_MAX_TERMS}, "
+                             f"got {self.max_terms!r}")
+        if not isinstance(self.block, int) or self.block < 1:
+            raise ValueError(f"block must be an integer >= 1, got {self.block!r}")
+        if self.optimizer not in OPTIMIZERS:
+            raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
+        for name in ("threshold", "min_explained_fraction"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
+                raise ValueError(f"{name} must lie in (0, 1), got {v!r}")
+        if not 0.0 < self.min_inclusion <= 1.0:
+            raise ValueError(f"min_inclusion must lie in (0, 1], got {self.min_inclusion!r}")
+        if not self.ridge >= 0.0:
+            raise ValueError(f"ridge must be >= 0, got {self.ridge!r}")
+        if not isinstance(self.n_models, int) or self.n_models < 1:
+            raise ValueError(f"n_models must be an integer >= 1, got {self.n_models!r}")
+        if not isinstance(self.chunk_rows, int) or self.chunk_rows < 1:
+            raise ValueError(f"chunk_rows must be an integer >= 1, got {self.chunk_rows!r}")
+        if isinstance(signals_list, dict) or isinstance(target_list, np.ndarray):
+            raise ValueError("fit takes a list of signal dicts and a list of targets "
+                             "(one per recording)")
+        if len(signals_list) != len(target_list) or not signals_list:
+            raise ValueError(f"fit: {len(signals_list)} signal dicts for {len(target_list)} "
+                             "targets; give one of each per recording (at least one)")
+        for i, (s, y) in enumerate(zip(signals_list, target_list)):
+            missing = [k for k in SIGNALS if k not in s]
+            if missing:
+                raise ValueError(f"recording {i}: signals lack {missing}")
+            n = np.asarray(y).shape
+            if len(n) != 1 or np.broadcast_shapes(*(np.shape(s[k]) for k in SIGNALS), n) != n:
+                raise ValueError(f"recording {i}: the target and the signals must be 1-D "
+                                 f"of one length, got target {n}")
+
+    # ------------------------------------------------------------------ rows
+    def _rows(self, candidate: Candidate, signals_list, finite: np.ndarray) -> np.ndarray:
+        """One candidate's rows over all recordings (the ``finite`` ones only)."""
+        col = np.concatenate([_block_sums(candidate.evaluate(s), self.block)
+                              for s in signals_list])
+        return col[finite]
+
+    def _sparse(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Coefficients of one bag on unit-RMS columns (zeros: not selected); columns
+        that vanish in the bag (a hinge no drawn row reaches) take no part."""
+        live = np.linalg.norm(x, axis=0) > 1e-9 * math.sqrt(y.size)
+        coef = np.zeros(x.shape[1])
+        if live.any():
+            coef[live] = self._sparse_live(x[:, live], y)
+        return coef
+
+    def _sparse_live(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        import pysindy as ps
+
+        n = y.size
+        xn, yn = x / math.sqrt(n), y / math.sqrt(n)  # unit-norm columns and target
+        if self.optimizer == "frols":
+            opt = ps.FROLS(max_iter=self.max_terms, alpha=self.ridge, unbias=False)
+            opt.fit(xn, yn)
+            err = opt.ERR_global[:, 0]
+            k = 0
+            most = min(self.max_terms, len(opt.history_) - 1)
+            while k < most and err[k] >= self.min_explained_fraction:
+                k += 1
+            if k == 0:
+                return np.zeros(x.shape[1])
+            # history_[k] holds the first k selected terms; refit them unregularised
+            sel = self._swap(xn, yn, list(np.nonzero(np.asarray(opt.history_[k]).ravel()
+                                                     != 0)[0]))
+            coef = np.zeros(x.shape[1])
+            coef[sel] = np.linalg.lstsq(xn[:, sel], yn, rcond=None)[0]
+            return coef
+        if self.optimizer == "stlsq":
+            opt = ps.STLSQ(threshold=self.threshold, alpha=self.ridge, max_iter=20,
+                           unbias=True)
+        elif self.optimizer == "sr3":
+            # L0 prox with relax_coeff_nu 1 thresholds at sqrt(2 lam): lam = thr^2 / 2
+            opt = ps.SR3(reg_weight_lam=0.5 * self.threshold**2, regularizer="L0",
+                         relax_coeff_nu=1.0, max_iter=100, unbias=True)
+        else:
+            try:
+                import numpyro  # noqa: F401
+            except ImportError:
+                raise ValueError("optimizer 'sbr' needs numpyro, which is not installed"
+                                 ) from None
+            opt = ps.SBR(num_warmup=200, num_samples=500)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "eliminated all coefficients": an answer
+            opt.fit(xn, yn)
+        coef = np.asarray(opt.coef_, dtype=np.float64).ravel()
+        if self.optimizer == "sbr":  # posterior means: keep those above the threshold
+            coef = np.where(np.abs(coef) >= self.threshold, coef, 0.0)
+        return coef
+
+    def _swap(self, x: np.ndarray, y: np.ndarray, sel: list[int]) -> list[int]:
+        """Exchange selected columns for better ones (unit-norm ``x`` and ``y``): each
+        selected column in turn is replaced by the column that, with the others held,
+        explains most, when that gains more than ``swap_min_gain`` (of ``y . y`` = 1);
+        passes repeat until none gains (at most ``len(sel) + 1`` passes). A greedy
+        forward pick can take a column that stands in for two true terms at first
+        (a spool offset for a constant beside a flow term) and keep it."""
+        sel = list(sel)
+        for _ in range(len(sel) + 1):
+            changed = False
+            for i in range(len(sel)):
+                others = sel[:i] + sel[i + 1:]
+                if others:
+                    q, _ = np.linalg.qr(x[:, others])
+                    r = y - q @ (q.T @ y)
+                    xp = x - q @ (q.T @ x)
+                else:
+                    r, xp = y, x
+                norm2 = np.sum(xp * xp, axis=0)
+                gain = np.where(norm2 > 1e-12, (xp.T @ r) ** 2 / np.where(
+                    norm2 > 1e-12, norm2, 1.0), 0.0)
+                gain[others] = 0.0
+                best = int(np.argmax(gain))
+                if best != sel[i] and gain[best] > gain[sel[i]] + self.swap_min_gain:
+                    sel[i] = best
+                    changed = True
+            if not changed:
+                break
+        return sel
+
+    # ------------------------------------------------------------------ refit
+    @staticmethod
+    def _refit(cols: list[np.ndarray], y: np.ndarray):
+        """``(coef, rss)`` of least squares on the given columns (scaled internally)."""
+        x = np.column_stack(cols)
+        s = np.sqrt(np.mean(x * x, axis=0))
+        s = np.where(s > 0, s, 1.0)
+        c = np.linalg.lstsq(x / s, y, rcond=None)[0] / s
+        r = y - x @ c
+        return c, float(r @ r)
+
+    def _refine(self, sel: list[Candidate], cols: list[np.ndarray], y, signals_list,
+                finite, grid: dict, ranges: dict) -> None:
+        """Refine each hinge threshold of ``sel`` in place (one pass, others held)."""
+        for j, cand in enumerate(sel):
+            for side in cand.term.hinges():
+                name = getattr(cand.term, side)
+                th = cand.threshold_a if side == "a" else cand.threshold_b
+                g = grid[name]
+                i = int(np.argmin(np.abs(g - th)))
+                lo = g[i - 1] if i > 0 else ranges[name][0]
+                hi = g[i + 1] if i + 1 < g.size else ranges[name][1]
+                if not hi > lo:
+                    continue
+
+                def with_threshold(v, cand=cand, side=side):
+                    return Candidate(cand.term, v if side == "a" else cand.threshold_a,
+                                     v if side == "b" else cand.threshold_b)
+
+                def rss(v, j=j, with_threshold=with_threshold):
+                    col = self._rows(with_threshold(v), signals_list, finite)
+                    trial = cols[:j] + [col] + cols[j + 1:]
+                    return self._refit(trial, y)[1]
+
+                best = minimize_scalar(rss, bounds=(lo, hi), method="bounded",
+                                       options={"xatol": 1e-4 * (hi - lo)})
+                if best.fun < rss(th):
+                    sel[j] = with_threshold(float(best.x))
+                    cols[j] = self._rows(sel[j], signals_list, finite)
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, signals_list: Sequence[dict], target_list: Sequence[np.ndarray]
+            ) -> "OpenFormSearch":
+        """Search the terms of the missing mass flow.
+
+        Parameters
+        ----------
+        signals_list : sequence of dict
+            Per recording, the signals (:data:`~pneubayes.effects.closure_features.SIGNALS`;
+            :func:`~pneubayes.discovery.openform.signals.path_signals`), arrays ``(M,)``.
+        target_list : sequence of (M,) arrays
+            Per recording, the missing mass flow into the chamber, kg/s
+            (:func:`~pneubayes.discovery.openform.signals.missing_mass_flow`). A row
+            holding a non-finite value, or an interval a signal dict's optional
+            ``"valid"`` array marks False, is left out.
+
+        Returns
+        -------
+        OpenFormSearch
+            self, with the attributes of the class doc.
+        """
+        self._validate(signals_list, target_list)
+        from threadpoolctl import threadpool_limits
+
+        # the regressions are small (~1e3 x 1e2): BLAS threads only contend for cores
+        with threadpool_limits(limits=1):
+            return self._fit(signals_list, target_list)
+
+    def _fit(self, signals_list, target_list) -> "OpenFormSearch":
+        cands = candidate_terms(signals_list, self.quantiles)
+        # an interval a signal dict marks invalid ("valid" False) leaves out its row
+        y = np.concatenate([_block_sums(np.where(np.asarray(s.get("valid", True), bool),
+                                                 np.asarray(t, dtype=np.float64), np.nan),
+                                        self.block)
+                            for s, t in zip(signals_list, target_list)])
+        x = np.concatenate([_block_sums(design_matrix(cands, s), self.block)
+                            for s in signals_list])
+        finite = np.isfinite(y) & np.all(np.isfinite(x), axis=1)
+        y, x = y[finite], x[finite]
+        keep = distinct_columns(x, self.duplicate_tolerance)
+        cands = [c for c, k in zip(cands, keep) if k]
+        x = x[:, keep]
+        self.n_candidates_, self.n_rows_ = len(cands), int(y.size)
+        self.terms_, self.inclusion_probability_, self.evidence_ = [], {}, {}
+        self.explained_fraction_ = 0.0
+        y_rms = float(np.sqrt(np.mean(y * y))) if y.size else 0.0
+        if y.size < 2 or y_rms == 0.0 or not cands:
+            return self
+        xs = x / np.sqrt(np.mean(x * x, axis=0))
+        ys = y / y_rms
+        n = y.size
+        n_chunks = max(1, n // self.chunk_rows)
+        chunk_of = np.minimum(np.arange(n) // self.chunk_rows, n_chunks - 1)
+        members = [np.nonzero(chunk_of == c)[0] for c in range(n_chunks)]
+        rng = np.random.default_rng(self.seed)
+        coefs = np.zeros((self.n_models, len(cands)))
+        for m in range(self.n_models):
+            rows = np.concatenate([members[c] for c in rng.integers(0, n_chunks, n_chunks)])
+            coefs[m] = self._sparse(xs[rows], ys[rows])
+        hits = coefs != 0
+        counts = hits.sum(axis=0)
+        fam_of = np.array([c.family for c in cands])
+        best: dict[str, int] = {}
+        for f in dict.fromkeys(fam_of.tolist()):
+            cols = np.nonzero(fam_of == f)[0]
+            p_inc = float(np.mean(hits[:, cols].any(axis=1)))
+            mean_abs = np.abs(coefs[:, cols]).mean(axis=0)
+            j = int(cols[np.lexsort((-mean_abs, -counts[cols]))[0]])
+            self.inclusion_probability_[f] = p_inc
+            self.evidence_[f] = {"inclusion_probability": p_inc,
+                                 "best_label": cands[j].label,
+                                 "selections": int(counts[j])}
+            best[f] = j
+        supported = sorted((f for f, p in self.inclusion_probability_.items()
+                            if p >= self.min_inclusion),
+                           key=lambda f: (-self.inclusion_probability_[f], -counts[best[f]]))
+        sel = [cands[best[f]] for f in supported]
+        cols = [x[:, best[f]] for f in supported]
+        grid = hinge_thresholds(signals_list, self.quantiles)
+        ranges = {}
+        for h, src in HINGE_SOURCES.items():
+            v = np.concatenate([evaluate_feature(src, s) for s in signals_list])
+            ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
+        tss = float(y @ y)
+        while sel:
+            if self.refine_thresholds:
+                self._refine(sel, cols, y, signals_list, finite, grid, ranges)
+            coef, rss = self._refit(cols, y)
+            drop = np.array([(self._refit(cols[:j] + cols[j + 1:], y)[1] if len(cols) > 1
+                              else tss) - rss for j in range(len(cols))]) / tss
+            worst = int(np.argmin(drop))
+            if len(sel) > self.max_terms or drop[worst] < self.min_explained_fraction:
+                del sel[worst], cols[worst]
+                continue
+            break
+        if not sel:
+            return self
+        fitted = np.column_stack(cols) @ coef
+        explained = float(fitted @ y)
+        self.explained_fraction_ = 1.0 - rss / tss
+        found = [FoundTerm(c.term, c.threshold_a, c.threshold_b, float(k),
+                           self.inclusion_probability_[c.family],
+                           float(k * (col @ y) / explained), float(d))
+                 for c, k, col, d in zip(sel, coef, cols, drop)]
+        self.terms_ = sorted(found, key=lambda t: -t.explained_fraction)
+        return self

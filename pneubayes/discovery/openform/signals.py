@@ -1,0 +1,205 @@
+"""The closure features' signals along a recording, and the missing mass flow.
+
+:func:`path_signals` evaluates the :data:`~pneubayes.effects.closure_features.SIGNALS`
+of a fitted model along the *measured* pressure, at the midpoint of each sample
+interval (one value per interval, aligned with the one-step errors ``e[k]`` over
+``[t_k, t_k+1]``): the measured pressure's chord mean, the supply the valve sees, the
+spool (the command after the model's delay and lag), the port areas and flows
+(:func:`~pneubayes.simulation.rates.port_areas`, eqs. 1-3), the volume and its rate.
+
+:func:`missing_mass_flow` turns the one-step errors into the target of the open-form
+search: the mass flow into the chamber that the model lacks, kg/s. By eq. 5 a mass flow
+``m`` moves the pressure at ``kappa Rs T m / (V + kappa p C)`` (C the chamber's
+compliance dV/dp; T the supply temperature, as in :mod:`~pneubayes.simulation.rates`).
+Over one interval of length h the chamber relaxes the extra rate ``d`` with its own
+pressure slope ``J = d(dp/dt)/dp``, so the error it leaves is ``e = d (exp(J h) - 1) /
+J`` (``d h`` for J = 0); inverted, ``d = e J / (exp(J h) - 1)``. Approximations: ``d``
+is taken constant over the interval (its value at the midpoint), ``J`` is the model's
+slope there (central difference of :func:`~pneubayes.simulation.rates.rate_terms` in
+p), and the states the rates module leaves out (a heat-transfer temperature, a tank,
+a second compartment, an acoustic line's cells) are not modelled here either.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pneubayes.effects.path import SLOT_INDEX as S
+from pneubayes.physics.orifice import flow_function
+from pneubayes.simulation import Inputs
+from pneubayes.simulation.rates import port_areas, rate_terms, tabulated_volume
+from pneubayes.simulation.spool import spool_step
+
+#: Relative pressure step of the central difference that gives the chamber's slope J.
+JACOBIAN_STEP = 1e-4
+
+
+def _held_before(inputs: Inputs) -> float:
+    u = inputs.command_V
+    return float(u[0] if inputs.command_before_start is None else inputs.command_before_start)
+
+
+def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarray:
+    """The spool position at ``times_s`` (increasing, inside the record), command unit.
+
+    The command is held between samples, delayed by slot ``command_delay_s`` (before the
+    first sample: the pre-trigger command, else the first sample's, held since long
+    before) and passed through the spool's lag (slots ``spool_time_constant_s`` or
+    ``spool_natural_frequency_rad_per_s`` / ``spool_damping``), stepped exactly with
+    :func:`~pneubayes.simulation.spool.spool_step` between the delayed command's
+    changes, from rest at the command held at the start.
+
+    Parameters
+    ----------
+    times_s : (M,) array
+        Evaluation times, s, non-decreasing.
+    inputs : Inputs
+        The recording's drive signals.
+    slots : (N_SLOTS,) array
+        One lowered slot row of the model.
+
+    Returns
+    -------
+    (M,) array
+    """
+    t, u = inputs.time_s, inputs.command_V
+    before = _held_before(inputs)
+    delay = float(slots[S["command_delay_s"]])
+    tau = float(slots[S["spool_time_constant_s"]])
+    w, z = float(slots[S["spool_natural_frequency_rad_per_s"]]), float(slots[S["spool_damping"]])
+    times = np.asarray(times_s, dtype=np.float64)
+    shifted = t + delay
+
+    def held(at):
+        j = np.searchsorted(shifted, at, side="right") - 1
+        return np.where(j < 0, before, u[np.maximum(j, 0)])
+
+    if not (tau > 0.0 or w > 0.0):
+        return held(times)
+    # step through the delayed command's changes and the evaluation times in order
+    cuts = shifted[(shifted > t[0]) & (shifted < times[-1])]
+    grid = np.union1d(np.concatenate(([t[0]], cuts)), times)
+    cmd = held(grid)  # the command in force from each grid point on
+    s, v = float(cmd[0]), 0.0
+    out_grid = np.empty(grid.size)
+    out_grid[0] = s
+    for i in range(1, grid.size):
+        s, v = spool_step(s, v, float(cmd[i - 1]), float(grid[i] - grid[i - 1]), tau, w, z)
+        out_grid[i] = s
+    return out_grid[np.searchsorted(grid, times)]
+
+
+def _as_inputs(data) -> tuple[Inputs, object]:
+    """``(inputs, rig or None)`` of a OneStepData or an Inputs."""
+    if isinstance(data, Inputs):
+        return data, None
+    return data.inputs, getattr(data, "rig", None)
+
+
+def path_signals(model, params, recording, data, rig=None) -> dict:
+    """The closure features' signals at the midpoints of a recording's sample intervals.
+
+    Parameters
+    ----------
+    model : Model
+        The fitted model.
+    params : dict or (P,) array
+        Its parameter values (one set).
+    recording : Recording
+        Supplies the measured pressure (absolute, Pa).
+    data : OneStepData or Inputs
+        The drive signals (command, position, supply, exhaust command), e.g.
+        ``one_step_data(recording, block)``.
+    rig : Rig or None
+        None: the OneStepData's rig, else the recording's.
+
+    Returns
+    -------
+    dict
+        Every name of :data:`~pneubayes.effects.closure_features.SIGNALS` -> ``(N - 1,)``
+        array (absolute pressures Pa, spool in the command's unit, areas m^2, port flows
+        kg/s, volume m^3, volume rate m^3/s), plus ``"time_s"`` (the midpoints, s),
+        ``"interval_s"`` (each interval's length, s), ``"compliance_m3_per_Pa"`` (dV/dp
+        of a compliant chamber, 0 if rigid) and ``"jacobian_per_s"`` (the model's
+        d(dp/dt)/dp there, 1/s), which :func:`missing_mass_flow` reads, and ``"valid"``
+        (both ends of the interval valid: the recording's ``valid`` column), which
+        :class:`~pneubayes.discovery.openform.search.OpenFormSearch` reads.
+    """
+    inputs, data_rig = _as_inputs(data)
+    rig = rig or data_rig or recording.rig()
+    theta = model.as_matrix(params)
+    if theta.shape[0] != 1:
+        raise ValueError(f"path_signals: give one parameter set, got {theta.shape[0]}")
+    sl = model.lower(theta, rig)[0]
+    t = inputs.time_s
+    p_meas = np.asarray(recording.pressure_Pa, dtype=np.float64)
+    if p_meas.shape != t.shape:
+        raise ValueError("path_signals: the recording and the inputs differ in length")
+    valid = np.asarray(recording.valid_mask(), dtype=bool)
+    mid = 0.5 * (t[1:] + t[:-1])
+    h = np.diff(t)
+    p = 0.5 * (p_meas[1:] + p_meas[:-1])
+    g = rig.gas
+    p_atm = rig.atmospheric_pressure_Pa
+    p_nom = rig.supply_pressure_Pa
+    ps_meas = 0.5 * (inputs.supply_pressure_Pa[1:] + inputs.supply_pressure_Pa[:-1])
+    p_sup = p_nom + sl[S["supply_gain"]] * (ps_meas - p_nom)
+    x = 0.5 * (inputs.position_m[1:] + inputs.position_m[:-1])
+    xdot = np.diff(inputs.position_m) / h  # the position is linear between samples
+    spool = spool_at(mid, inputs, sl)
+    ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
+    a_in, a_ex = port_areas(sl, spool, ue)
+    inlet = a_in * flow_function(p_sup, p, g)
+    exhaust = a_ex * flow_function(p, p_atm, g)
+    dvol, slope = tabulated_volume(sl, p)
+    compliance = sl[S["compliance_m3_per_Pa"]] + slope
+    vol = (sl[S["volume_m3"]] + rig.bore_area_m2 * x
+           + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol)
+    vdot = rig.bore_area_m2 * xdot
+    dp = JACOBIAN_STEP * p
+    rates = [rate_terms(sl, rig, p + s * dp, spool, x, xdot, ps_meas, ue).total
+             for s in (1.0, -1.0)]
+    jac = (rates[0] - rates[1]) / (2.0 * dp)
+    return {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
+            "atmospheric_pressure_Pa": np.full(p.shape, p_atm), "spool": spool,
+            "inlet_area_m2": a_in, "exhaust_area_m2": a_ex, "inlet_flow_kg_per_s": inlet,
+            "exhaust_flow_kg_per_s": exhaust, "volume_m3": vol,
+            "volume_rate_m3_per_s": vdot, "time_s": mid, "interval_s": h,
+            "compliance_m3_per_Pa": compliance + 0.0 * p, "jacobian_per_s": jac,
+            "valid": valid[1:] & valid[:-1]}
+
+
+def missing_mass_flow(signals: dict, errors_Pa, rig) -> np.ndarray:
+    """The mass flow into the chamber the model lacks over each interval, kg/s.
+
+    ``d = e J / (exp(J h) - 1)`` (``e / h`` where J h is 0) is the missing pressure
+    rate, Pa/s, and ``d (V + kappa p C) / (kappa Rs T)`` its mass flow (module doc).
+
+    Parameters
+    ----------
+    signals : dict
+        :func:`path_signals`' output for the recording.
+    errors_Pa : (N - 1,) array
+        One-step errors (measured minus predicted), Pa, e.g.
+        ``one_step_data(rec, block).errors(model, params, solver)[0]``.
+    rig : Rig
+        Gas constants (kappa, Rs, the supply temperature T).
+
+    Returns
+    -------
+    (N - 1,) array
+    """
+    e = np.asarray(errors_Pa, dtype=np.float64)
+    h = np.asarray(signals["interval_s"], dtype=np.float64)
+    if e.shape != h.shape:
+        raise ValueError(f"missing_mass_flow: {e.shape[0]} errors for {h.shape[0]} intervals")
+    jh = np.asarray(signals["jacobian_per_s"], dtype=np.float64) * h
+    small = np.abs(jh) < 1e-8
+    # (exp(J h) - 1) / (J h), 1 at J h = 0
+    phi1 = np.where(small, 1.0, np.expm1(jh) / np.where(small, 1.0, jh))
+    rate = e / (h * phi1)
+    g = rig.gas
+    kappa = g.heat_capacity_ratio
+    denom = (np.asarray(signals["volume_m3"]) + kappa * np.asarray(signals["pressure_Pa"])
+             * np.asarray(signals["compliance_m3_per_Pa"]))
+    return rate * denom / (kappa * g.specific_gas_constant_J_per_kg_K * g.temperature_K)

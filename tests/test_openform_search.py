@@ -1,0 +1,234 @@
+"""The open-form search: planted closure terms recovered from synthetic signals, a null
+control, and the signals and missing mass flow of a real model on a simulated leak."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from openform_synthetic import synthetic_signals
+
+from pneubayes.discovery.openform import (
+    OpenFormSearch,
+    candidate_terms,
+    closure_spec,
+    missing_mass_flow,
+    path_signals,
+)
+from pneubayes.discovery.openform.features import distinct_columns
+from pneubayes.effects.closure_features import SIGNALS, Term, parse_terms
+
+#: White noise on the per-interval target, kg/s (a 500-Pa sensor's one-step error in a
+#: 10-cm^3 chamber at 1 kHz is ~6e-5 kg/s; per 5-interval block this is ~1.3e-5 kg/s).
+NOISE_KG_PER_S = 3e-5
+#: Relative coefficient tolerance of a planted term without a hinge, and with one (its
+#: threshold is fitted too and trades with the coefficient).
+COEF_TOL, HINGE_COEF_TOL = 0.05, 0.15
+#: Threshold tolerance: p / P_atm, and V for the spool.
+PRESSURE_THRESHOLD_TOL, SPOOL_THRESHOLD_TOL = 0.3, 0.3
+
+
+@functools.cache
+def _signals(seed: int) -> dict:
+    return synthetic_signals(seed)
+
+
+def planted(terms, seed=0, recordings=(0, 1)):
+    """Signals of two synthetic recordings and targets: the planted ``(Term,
+    threshold_a, threshold_b, coefficient)`` terms plus white noise."""
+    sig, tgt = [], []
+    for r in recordings:
+        s = _signals(r)
+        y = np.random.default_rng(100 * seed + r).normal(0.0, NOISE_KG_PER_S,
+                                                          s["pressure_Pa"].size)
+        for term, ta, tb, c in terms:
+            y = y + c * term.evaluate(s, ta, tb)
+        sig.append(s)
+        tgt.append(y)
+    return sig, tgt
+
+
+def same_term(a: Term, b: Term) -> bool:
+    return {a.a, a.b} == {b.a, b.b}
+
+
+CASES = {
+    "constant": (Term("one"), 0.0, 0.0, 2e-5),
+    "pressure_ratio": (Term("pressure_ratio"), 0.0, 0.0, -4e-6),
+    "inlet_flow (10 % more inlet flow)": (Term("inlet_flow"), 0.0, 0.0, 0.1),
+    "pressure_hinge": (Term("pressure_hinge"), 4.0, 0.0, 1.2e-5),
+    "spool_hinge_up": (Term("spool_hinge_up"), 7.0, 0.0, 1e-5),
+    "inlet_flow*pressure_ratio": (Term("inlet_flow", "pressure_ratio"), 0.0, 0.0, 0.03),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_a_planted_term_is_recovered_with_its_coefficient(case):
+    term, ta, tb, c = CASES[case]
+    sig, tgt = planted([CASES[case]])
+    s = OpenFormSearch(seed=0).fit(sig, tgt)
+    assert len(s.terms_) == 1, [str(f.term) for f in s.terms_]
+    found = s.terms_[0]
+    assert same_term(found.term, term), str(found.term)
+    tol = HINGE_COEF_TOL if term.hinges() else COEF_TOL
+    assert abs(found.coefficient / c - 1.0) < tol, (found.coefficient, c)
+    assert found.inclusion_probability >= s.min_inclusion
+    assert found.share == pytest.approx(1.0)
+    if term.a == "pressure_hinge":
+        assert abs(found.threshold_a - ta) < PRESSURE_THRESHOLD_TOL
+    if term.a.startswith("spool_hinge"):
+        assert abs(found.threshold_a - ta) < SPOOL_THRESHOLD_TOL
+    # the answer unpacks as a closure's start values
+    term_, th_a, th_b, coef, p_inc, share = found
+    assert closure_spec(s.terms_) == str(term_)
+    assert parse_terms(closure_spec(s.terms_))[0] == term_
+
+
+def test_two_planted_families_at_once():
+    plant = [CASES["constant"], CASES["inlet_flow*pressure_ratio"]]
+    sig, tgt = planted(plant, seed=1)
+    s = OpenFormSearch(seed=1).fit(sig, tgt)
+    assert len(s.terms_) == 2, [str(f.term) for f in s.terms_]
+    for term, _, _, c in plant:
+        match = [f for f in s.terms_ if same_term(f.term, term)]
+        assert len(match) == 1, (str(term), [str(f.term) for f in s.terms_])
+        assert abs(match[0].coefficient / c - 1.0) < COEF_TOL
+    assert sum(f.share for f in s.terms_) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_noise_alone_gives_no_term(seed):
+    sig, tgt = planted([], seed=seed)
+    s = OpenFormSearch(seed=seed).fit(sig, tgt)
+    assert s.terms_ == []
+    assert s.explained_fraction_ == 0.0
+
+
+def test_intervals_marked_invalid_are_left_out():
+    term, _, _, c = CASES["inlet_flow (10 % more inlet flow)"]
+    sig, tgt = planted([CASES["inlet_flow (10 % more inlet flow)"]])
+    bad = slice(1000, 1200)
+    tgt[0] = tgt[0].copy()
+    tgt[0][bad] += 1e-3  # a glitch 30x the noise
+    spoiled = OpenFormSearch(seed=0).fit(sig, tgt)
+    sig[0] = {**sig[0], "valid": np.ones(tgt[0].size, dtype=bool)}
+    sig[0]["valid"][bad] = False
+    s = OpenFormSearch(seed=0).fit(sig, tgt)
+    assert s.n_rows_ == spoiled.n_rows_ - 200 // s.block
+    assert [str(f.term) for f in s.terms_] == [str(term)]
+    assert abs(s.terms_[0].coefficient / c - 1.0) < COEF_TOL
+
+
+def test_the_library_is_typed_and_bounded():
+    sig = [_signals(0)]
+    cands = candidate_terms(sig)
+    assert 100 < len(cands) <= 300
+    families = {c.family for c in cands}
+    assert {"one", "pressure_ratio", "pressure_ratio*pressure_ratio", "pressure_hinge",
+            "inlet_flow*spool_hinge_up", "spool_hinge_down"} <= families
+    # every hinge carries a threshold inside its signal's range
+    p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
+    ph = [c.threshold_a for c in cands if c.term.a == "pressure_hinge"]
+    assert min(ph) > p.min() and max(ph) < p.max()
+    # a constant supply ratio is the constant again: one column stands for both
+    x = np.column_stack([np.ones(10), 3.0 * np.ones(10), np.arange(10.0)])
+    assert distinct_columns(x, 1e-9).tolist() == [True, False, True]
+
+
+def test_fit_validates_its_settings_and_inputs():
+    sig, tgt = planted([CASES["constant"]])
+    with pytest.raises(ValueError, match="max_terms"):
+        OpenFormSearch(max_terms=5).fit(sig, tgt)
+    with pytest.raises(ValueError, match="optimizer"):
+        OpenFormSearch(optimizer="lasso").fit(sig, tgt)
+    with pytest.raises(ValueError, match="one of each"):
+        OpenFormSearch().fit(sig, tgt[:1])
+    bad = dict(sig[0])
+    del bad["spool"]
+    with pytest.raises(ValueError, match="spool"):
+        OpenFormSearch().fit([bad], tgt[:1])
+
+
+# ---------------------------------------------------------------- a real model
+LEAK_K = 4e-16  # kg/(s Pa^2): ~1e-4 kg/s at 5 bar, the ports' order
+
+
+@pytest.fixture(scope="module")
+def laminar_leak_recording():
+    """A valve1 chamber with the catalogue's laminar leak, simulated (3 s at 1 kHz,
+    200 Pa noise): ``(recording, plain model, its parameters)``."""
+    from conftest import BORE, P_ATM, P_SUP, STROKE, random_steps
+
+    from pneubayes.effects.cylinder_leak import CylinderLeak
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.model import Model
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    rng = np.random.default_rng(0)
+    n, dt = 3000, 1e-3
+    t = np.arange(n) * dt
+    u = random_steps(rng, n, dt, hold_s=(0.05, 0.3))
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    blank = Recording(md, t, u, np.full(n, P_ATM))
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    truth = Model([CylinderLeak(form="laminar")])
+    p = simulate(truth, {**params, "leak_conductance_kg_per_s_Pa2": LEAK_K},
+                 Inputs.from_recording(blank), blank.rig(), P_ATM,
+                 SolverConfig.standard()).pressure_Pa[0]
+    return Recording(md, t, u, p + rng.normal(0.0, 200.0, n)), Model(), params
+
+
+def test_path_signals_and_the_missing_flow_of_a_laminar_leak(laminar_leak_recording):
+    from pneubayes.discovery.one_step import one_step_data
+    from pneubayes.simulation import SolverConfig
+
+    rec, plain, params = laminar_leak_recording
+    d = one_step_data(rec, 5)
+    e = d.errors(plain, plain.vector(params)[None], SolverConfig.standard())[0]
+    sig = path_signals(plain, params, rec, d)
+    assert set(SIGNALS) <= set(sig) and sig["valid"].all()
+    assert all(np.shape(sig[k]) == (rec.n_samples - 1,) for k in SIGNALS)
+    assert np.all((sig["inlet_area_m2"] >= 0) & (sig["inlet_area_m2"] < 1e-6))
+    y = missing_mass_flow(sig, e, d.rig)
+    p_atm = sig["atmospheric_pressure_Pa"]
+    leak = -LEAK_K * (sig["pressure_Pa"] ** 2 - p_atm ** 2)  # the planted flow, kg/s
+    # the converted one-step errors measure the leak's flow: slope 1 within 10 %
+    slope = float(np.polyfit(leak, y, 1)[0])
+    assert 0.9 < slope < 1.1, slope
+    s = OpenFormSearch(seed=0).fit([sig], [y])
+    assert s.terms_, "no term found"
+    assert all(f.term.a in ("one", "pressure_ratio", "pressure_hinge")
+               and f.term.b in ("one", "pressure_ratio", "pressure_hinge")
+               for f in s.terms_), closure_spec(s.terms_)
+    # the found closure is a flow out of the chamber growing with the pressure
+    flow = sum(f.coefficient * f.term.evaluate(sig, f.threshold_a, f.threshold_b)
+               for f in s.terms_)
+    assert np.corrcoef(flow, leak)[0, 1] > 0.95
+    hi = sig["pressure_Pa"] > 4e5
+    assert np.mean(flow[hi]) < 0.0
+    assert np.mean(flow[hi]) == pytest.approx(np.mean(leak[hi]), rel=0.15)
+
+
+def test_the_spool_is_the_command_delayed_and_lagged(rig):
+    """A step of the command reaches the spool after the tube's delay, then as the
+    first-order lag's exponential (closed form), and not at all before."""
+    from pneubayes.discovery.openform.signals import spool_at
+    from pneubayes.model import Model
+    from pneubayes.simulation import Inputs
+
+    model = Model(["tube_delay", "spool_lag"])
+    from pneubayes.physics.valve import valve_preset
+
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+              "tube_delay_s": 0.003, "spool_time_constant_s": 0.002}
+    slots = model.lower(model.as_matrix(params), rig)[0]
+    t = np.arange(200) * 1e-3
+    u = np.where(t >= 0.1 - 1e-12, 5.0, 1.0)
+    mid = 0.5 * (t[1:] + t[:-1])
+    s = spool_at(mid, Inputs.constant(t, u, 0.0, 5e5), slots)
+    after = mid - 0.103
+    expect = np.where(after > 0, 5.0 - 4.0 * np.exp(-np.maximum(after, 0) / 0.002), 1.0)
+    np.testing.assert_allclose(s, expect, rtol=0, atol=1e-9)
