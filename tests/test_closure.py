@@ -101,6 +101,45 @@ def test_the_compiled_constants_are_the_feature_tables():
     assert [f.code for f in cf.FEATURES] == list(range(len(cf.FEATURES)))
 
 
+@pytest.mark.parametrize("extra", [{}, {"heat_rate_per_s": 5.0},
+                                   {"heat_coefficient_W_per_m2_K": 30.0},
+                                   {"compliance_m3_per_Pa": 1e-12},
+                                   {"flow_attenuation_Pa": 2000.0, "leak_orifice_area_m2": 3e-8},
+                                   {"leak_laminar_kg_per_s_Pa2": 1e-16,
+                                    "leak_laminar_gradient_kg_per_s_Pa2_m": 2e-15}],
+                         ids=["plain", "heat_rate", "convective", "compliant", "leaks",
+                              "laminar"])
+def test_the_closures_copy_of_the_right_hand_side_is_the_plain_one(extra, rig):
+    """chamber_rhs steps a closure by a copy of its body (the plain model's code stays as
+    it was): with the closure's coefficients 0 the copy must return what the plain body
+    does, every output, at random states and inputs."""
+    from pneubayes.simulation.chamber import _chamber_rhs_closure, chamber_rhs
+    from pneubayes.simulation.simulator import rig_constants
+
+    sl = np.zeros(N_SLOTS)
+    sl[SLOT_INDEX["volume_m3"]] = 2.4e-6
+    for k, v in extra.items():
+        sl[SLOT_INDEX[k]] = v
+    zero = sl.copy()
+    zero[SLOT_INDEX["closure_terms"]] = 2.0
+    zero[SLOT_INDEX["closure_feature_a_0"]] = cf.feature("inlet_flow").code
+    zero[SLOT_INDEX["closure_feature_b_0"]] = cf.feature("pressure_hinge").code
+    zero[SLOT_INDEX["closure_threshold_b_0"]] = 1.5
+    zero[SLOT_INDEX["closure_feature_a_1"]] = cf.feature("volume_rate").code
+    cs = rig_constants(rig)
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        args = (rng.uniform(1.1e5, 5.4e5), rng.uniform(260.0, 330.0),
+                rng.uniform(0.0, 5e-7), rng.uniform(0.0, 5e-7), rng.uniform(1e-6, 1e-5),
+                rng.uniform(-1e-4, 1e-4), rng.uniform(5.3e5, 5.7e5))
+        rest = (rng.uniform(1e-6, 1e-3), bool(rng.integers(2)), rng.uniform(-1e6, 1e6),
+                rng.uniform(-1e-4, 1e-4), rng.uniform(-1e-4, 1e-4), rng.uniform(-5, 5),
+                rng.uniform(-100, 100))
+        want = chamber_rhs(*args, sl, cs, *rest)
+        assert np.array_equal(_chamber_rhs_closure(*args, zero, cs, *rest), want)
+        assert np.array_equal(chamber_rhs(*args, zero, cs, *rest), want)
+
+
 # ---------------------------------------------------------------- closed forms
 def test_a_constant_inflow_into_a_shut_chamber_raises_the_pressure_linearly(
         rig, closable_params, make_inputs):

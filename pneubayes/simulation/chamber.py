@@ -153,38 +153,12 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
 
 
 @njit(cache=True, error_model="numpy")
-def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
-                spool, dspool):
-    """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
-
-    ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
-    state, from the volume changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and
-    the port areas moving at ``da_in``, ``da_ex`` m^2/s (the non-autonomous terms of the
-    exponential method). ``J_xy`` is d(dx/dt)/dy; the temperature's entries and ``v_T``
-    are 0 without heat transfer.
-
-    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
-    (a rate, or a convective coefficient on the wall area with orifice outflows at the
-    chamber's temperature; see :mod:`pneubayes.effects.heat_transfer`).
-    ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
-    a port at pressure balance is replaced by the secant over the step's expected
-    movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
-    frozen by an infinite slope (a W-method Jacobian; the error control checks it).
-    Jacobians are only computed when ``need_j``.
-
-    An open-form closure (slot ``closure_terms`` > 0; :func:`closure_flow`) adds its mass
-    flow to the chamber's, entering at the supply's temperature when positive and
-    leaving at the chamber's when negative. Its features read the port flows ``a f``
-    before the attenuation and the convective form's sqrt(T_w / T) (so they do not
-    depend on T), the volume after compliance, and ``spool`` (the command after the
-    delay and the spool's lag, before the dead band; moving at ``dspool`` per second,
-    which enters ``v_p``). With ``closure_terms`` 0 none of it is evaluated.
-
-    Compiled as a function of its own, not inlined at numba's IR level into its callers:
-    inlined at the pressure-only step's two call sites it made the kernel's cold compile
-    about 1.6 x longer (numba's type inference and SSA over the copies) for 0-5 % of the
-    step's speed.
-    """
+def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in,
+                         da_ex, spool, dspool):
+    """:func:`chamber_rhs` with an open-form closure (slot ``closure_terms`` > 0): the
+    same body plus the closure's terms, written apart so that the plain model's code is
+    unchanged (inside one body the closure's live values slowed the plain model's steps
+    by about 4 %). ``tests/test_closure.py`` checks that the two bodies agree."""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
@@ -306,6 +280,164 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if m_cl < 0.0:
         dmout_dp -= dcl_dp
         dmout_dt -= dcl_dt
+    # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
+    dmdot_dT, dmout_dT = 0.0, 0.0
+    if hconv > 0.0:
+        half = -0.5 / temp
+        if f_in < 0.0:
+            dmdot_dT += phi * a_in * f_in * half
+            dmout_dT -= phi * a_in * f_in * half
+        if f_ex > 0.0:
+            dmdot_dT -= (phi * a_ex + leak_o) * f_ex * half
+            dmout_dT += (phi * a_ex + leak_o) * f_ex * half
+    jp += n_over_v * rs * (t_wall - temp) * dmout_dp
+    vp += n_over_v * rs * (t_wall - temp) * dmout_dt
+    jpt = n_over_v * (rs_t * dmdot_dT - rs * m_out + rs * (t_wall - temp) * dmout_dT) - c_wall
+    if heat > 0.0:
+        jpt -= p * heat * t_wall / (temp * temp)
+    # ft = T (fp / p + vdot / V - Rs T mdot / (p V))
+    g = rs * temp / (p * vol)
+    jtp = temp * (jp / p - fp / (p * p) - g * dmdot + g * mdot / p)
+    jt = ft / temp + temp * (jpt / p - rs * mdot / (p * vol) - g * dmdot_dT)
+    vt = temp * (vp / p - (vdot / vol) ** 2 - g * dmdot_dt + g * mdot * vdot / vol)
+    return fp, jp, ft, jt, vp, jpt, jtp, vt
+
+
+@njit(cache=True, error_model="numpy")
+def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
+                spool, dspool):
+    """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
+
+    ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
+    state, from the volume changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and
+    the port areas moving at ``da_in``, ``da_ex`` m^2/s (the non-autonomous terms of the
+    exponential method). ``J_xy`` is d(dx/dt)/dy; the temperature's entries and ``v_T``
+    are 0 without heat transfer.
+
+    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
+    (a rate, or a convective coefficient on the wall area with orifice outflows at the
+    chamber's temperature; see :mod:`pneubayes.effects.heat_transfer`).
+    ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
+    a port at pressure balance is replaced by the secant over the step's expected
+    movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
+    frozen by an infinite slope (a W-method Jacobian; the error control checks it).
+    Jacobians are only computed when ``need_j``.
+
+    An open-form closure (slot ``closure_terms`` > 0; :func:`closure_flow`) adds its mass
+    flow to the chamber's, entering at the supply's temperature when positive and
+    leaving at the chamber's when negative. Its features read the port flows ``a f``
+    before the attenuation and the convective form's sqrt(T_w / T) (so they do not
+    depend on T), the volume after compliance, and ``spool`` (the command after the
+    delay and the spool's lag, before the dead band; moving at ``dspool`` per second,
+    which enters ``v_p``). With ``closure_terms`` 0 none of it is evaluated: the closure
+    is stepped by a copy of this body, :func:`_chamber_rhs_closure`.
+
+    Compiled as a function of its own, not inlined at numba's IR level into its callers:
+    inlined at the pressure-only step's two call sites it made the kernel's cold compile
+    about 1.6 x longer (numba's type inference and SSA over the copies) for 0-5 % of the
+    step's speed.
+    """
+    if sl[_CL_N] > 0.0:
+        return _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j,
+                                    dsup, da_in, da_ex, spool, dspool)
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    p_atm = cs[C_P_ATM]
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    t_wall = cs[C_T_SUPPLY]
+    hconv = sl[_HCONV]
+    # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
+    sq_in, sq_ex = 1.0, 1.0
+    if hconv > 0.0:
+        sq = math.sqrt(t_wall / temp)
+        if f_in < 0.0:
+            sq_in = sq
+        if f_ex > 0.0:
+            sq_ex = sq
+        f_in *= sq_in
+        f_ex *= sq_ex
+    valve = a_in * f_in - a_ex * f_ex
+    att = sl[_ATT]
+    phi = math.exp(-att / p) if att > 0.0 else 1.0
+    leak_o, leak_g = sl[_LEAK_O], sl[_LEAK_LG]
+    # laminar k at the piston's position x = (V - V_0) / A (never negative)
+    leak_l = sl[_LEAK_L]
+    if leak_g != 0.0:
+        leak_l += leak_g * (vol - sl[_VOL]) / cs[C_BORE_AREA]
+    if leak_l < 0.0:
+        leak_l, leak_g = 0.0, 0.0
+    lam = p * p - p_atm * p_atm
+    mdot = phi * valve - leak_o * f_ex - leak_l * lam
+    rs = cs[C_RS]
+    rs_t = rs * t_wall
+    # a compliant chamber, V = vol + C (p - P_atm): eq. 5 with dV/dt = vdot + C dp/dt
+    # gives dp/dt = n (Rs T mdot - p vdot) / (V + n p C)
+    vol, compl = compliant_volume(p, vol, sl, p_atm)
+    denom = vol + kappa * p * compl
+    inv_denom = 1.0 / denom
+    n_over_v = kappa * inv_denom
+    heat = sl[_HEAT]
+    thermal = heat > 0.0 or hconv > 0.0
+    # With a temperature state, air leaving the chamber carries the chamber's enthalpy
+    # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
+    # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
+    m_out = 0.0
+    leak_out = leak_o * f_ex + leak_l * lam
+    if thermal:
+        m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
+                 + max(leak_out, 0.0))
+    fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
+    fp = fp_eq5
+    ft = 0.0
+    # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
+    c_wall, dc_wall_dv = 0.0, 0.0
+    if hconv > 0.0:
+        c_wall, dc_wall_dv = wall_exchange(kappa, hconv, cs[C_BORE_AREA], vol)
+        fp += c_wall * (t_wall - temp)
+    if heat > 0.0:
+        fp += p * heat * (t_wall - temp) / temp
+    if thermal:
+        ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
+    if not need_j:
+        return fp, 0.0, ft, 0.0, 0.0, 0.0, 0.0, 0.0
+    dfloor = abs(fp) * h
+    dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+                                     dfloor)
+    dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dfin_dp *= sq_in
+    dfin_dsup *= sq_in
+    dfex_dp *= sq_ex
+    dvalve = a_in * dfin_dp - a_ex * dfex_dp
+    dmdot = phi * dvalve - leak_o * dfex_dp - 2.0 * leak_l * p
+    if att > 0.0:
+        dmdot += phi * att / (p * p) * valve
+    jp = n_over_v * (rs_t * dmdot - vdot)
+    if compl > 0.0:  # d(denominator)/dp = C (1 + n)
+        jp -= fp_eq5 * compl * (1.0 + kappa) / denom
+    if heat > 0.0:
+        jp += heat * (t_wall - temp) / temp
+    # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+    if leak_g != 0.0:
+        dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
+    vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
+    if hconv > 0.0:
+        vp += dc_wall_dv * vdot * (t_wall - temp)
+    if not thermal:
+        return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
+    # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).
+    # Outflow m_out (air leaving at T) and its slopes in p, T and t:
+    dmout_dp = phi * att / (p * p) * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
+    dmout_dt = 0.0
+    if f_ex > 0.0:
+        dmout_dp += phi * a_ex * dfex_dp
+        dmout_dt += phi * f_ex * da_ex
+    if f_in < 0.0:
+        dmout_dp -= phi * a_in * dfin_dp
+        dmout_dt -= phi * (f_in * da_in + a_in * dfin_dsup * dsup)
+    if leak_out > 0.0:
+        dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
+        dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
     # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
     if hconv > 0.0:
