@@ -86,6 +86,15 @@ def closure_spec(terms: Sequence[FoundTerm]) -> str:
     return "; ".join(str(t.term) for t in terms)
 
 
+def _rank(candidate: Candidate) -> int:
+    """A candidate's complexity: 0 the constant, 1 another base feature, 2 a hinge,
+    3 a product, 4 a product with a hinge."""
+    term = candidate.term
+    if term.b == "one":
+        return 0 if term.a == "one" else (2 if term.hinges() else 1)
+    return 4 if term.hinges() else 3
+
+
 def _block_sums(values: np.ndarray, block: int) -> np.ndarray:
     """Sum ``(M, ...)`` per-interval values over consecutive blocks of ``block``."""
     n = (values.shape[0] // block) * block
@@ -126,8 +135,8 @@ class OpenFormSearch:
         the volume moves by a few %), and the simpler term stands for both.
     swap_min_gain : float
         FROLS only: a bag's selected column is exchanged for another when that explains
-        more than this fraction of the bag's target sum of squares beyond it
-        (:meth:`_swap`).
+        more than this fraction of the bag's target sum of squares beyond it, and for a
+        simpler one when that explains less by no more than it (:meth:`_swap`).
     refine_thresholds : bool
         Refine the kept hinges' thresholds between their grid neighbours.
     seed : int
@@ -215,16 +224,16 @@ class OpenFormSearch:
                               for s in signals_list])
         return col[finite]
 
-    def _sparse(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def _sparse(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
         """Coefficients of one bag on unit-RMS columns (zeros: not selected); columns
         that vanish in the bag (a hinge no drawn row reaches) take no part."""
         live = np.linalg.norm(x, axis=0) > 1e-9 * math.sqrt(y.size)
         coef = np.zeros(x.shape[1])
         if live.any():
-            coef[live] = self._sparse_live(x[:, live], y)
+            coef[live] = self._sparse_live(x[:, live], y, rank[live])
         return coef
 
-    def _sparse_live(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def _sparse_live(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
         import pysindy as ps
 
         n = y.size
@@ -240,7 +249,7 @@ class OpenFormSearch:
             if k == 0:
                 return np.zeros(x.shape[1])
             # history_[k] holds the first k selected terms; refit them unregularised
-            sel = self._swap(xn, yn, list(np.nonzero(np.asarray(opt.history_[k]).ravel()
+            sel = self._swap(xn, yn, rank, list(np.nonzero(np.asarray(opt.history_[k]).ravel()
                                                      != 0)[0]))
             coef = np.zeros(x.shape[1])
             coef[sel] = np.linalg.lstsq(xn[:, sel], yn, rcond=None)[0]
@@ -267,13 +276,17 @@ class OpenFormSearch:
             coef = np.where(np.abs(coef) >= self.threshold, coef, 0.0)
         return coef
 
-    def _swap(self, x: np.ndarray, y: np.ndarray, sel: list[int]) -> list[int]:
-        """Exchange selected columns for better ones (unit-norm ``x`` and ``y``): each
-        selected column in turn is replaced by the column that, with the others held,
-        explains most, when that gains more than ``swap_min_gain`` (of ``y . y`` = 1);
-        passes repeat until none gains (at most ``len(sel) + 1`` passes). A greedy
-        forward pick can take a column that stands in for two true terms at first
-        (a spool offset for a constant beside a flow term) and keep it."""
+    def _swap(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray, sel: list[int]
+              ) -> list[int]:
+        """Exchange selected columns for better or simpler ones (unit-norm ``x`` and
+        ``y``): each selected column in turn is replaced by the column that, with the
+        others held, explains most, when that gains more than ``swap_min_gain`` (of ``y
+        . y`` = 1), else by the best simpler column (lower ``rank``, :func:`_rank`) when
+        that loses less than ``swap_min_gain``; passes repeat until nothing changes (at
+        most ``len(sel) + 1`` passes). A greedy forward pick can take a column that
+        stands in for two true terms at first (a spool offset for a constant beside a
+        flow term) and keep it; and the data cannot prefer a nearly constant product
+        (``volume * volume``) over the constant by less than that."""
         sel = list(sel)
         for _ in range(len(sel) + 1):
             changed = False
@@ -293,6 +306,14 @@ class OpenFormSearch:
                 if best != sel[i] and gain[best] > gain[sel[i]] + self.swap_min_gain:
                     sel[i] = best
                     changed = True
+                    continue
+                simpler = np.nonzero(rank < rank[sel[i]])[0]
+                simpler = simpler[~np.isin(simpler, others)]
+                if simpler.size:
+                    b = int(simpler[np.argmax(gain[simpler])])
+                    if gain[b] > gain[sel[i]] - self.swap_min_gain:
+                        sel[i] = b
+                        changed = True
             if not changed:
                 break
         return sel
@@ -386,6 +407,7 @@ class OpenFormSearch:
         if y.size < 2 or y_rms == 0.0 or not cands:
             return self
         xs = x / np.sqrt(np.mean(x * x, axis=0))
+        rank = np.array([_rank(c) for c in cands])
         ys = y / y_rms
         n = y.size
         n_chunks = max(1, n // self.chunk_rows)
@@ -395,7 +417,7 @@ class OpenFormSearch:
         coefs = np.zeros((self.n_models, len(cands)))
         for m in range(self.n_models):
             rows = np.concatenate([members[c] for c in rng.integers(0, n_chunks, n_chunks)])
-            coefs[m] = self._sparse(xs[rows], ys[rows])
+            coefs[m] = self._sparse(xs[rows], ys[rows], rank)
         hits = coefs != 0
         counts = hits.sum(axis=0)
         fam_of = np.array([c.family for c in cands])
