@@ -139,8 +139,8 @@ class OpenFormSearch:
         the volume moves by a few %), and the simpler term stands for both.
     swap_min_gain : float
         FROLS only: a bag's selected column is exchanged for another when that explains
-        more than this fraction of the bag's target sum of squares beyond it, and for a
-        simpler one when that explains less by no more than it (:meth:`_swap`).
+        more than this fraction of the fit's residual sum of squares beyond it, and for
+        a simpler one when that explains less by no more than it (:meth:`_swap`).
     refine_thresholds : bool
         Refine the kept hinges' thresholds between their grid neighbours.
     seed : int
@@ -168,7 +168,7 @@ class OpenFormSearch:
                  n_models: int = 40, chunk_rows: int = 25, min_inclusion: float = 0.6,
                  min_explained_fraction: float = 0.02,
                  quantiles: Sequence[float] = DEFAULT_QUANTILES,
-                 duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.005,
+                 duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.02,
                  refine_thresholds: bool = True, seed: int = 0):
         self.max_terms = max_terms
         self.block = block
@@ -284,13 +284,15 @@ class OpenFormSearch:
               ) -> list[int]:
         """Exchange selected columns for better or simpler ones (unit-norm ``x`` and
         ``y``): each selected column in turn is replaced by the column that, with the
-        others held, explains most, when that gains more than ``swap_min_gain`` (of ``y
-        . y`` = 1), else by the best simpler column (lower ``rank``, :func:`_rank`) when
-        that loses less than ``swap_min_gain``; passes repeat until nothing changes (at
-        most ``len(sel) + 1`` passes). A greedy forward pick can take a column that
-        stands in for two true terms at first (a spool offset for a constant beside a
-        flow term) and keep it; and the data cannot prefer a nearly constant product
-        (``volume * volume``) over the constant by less than that."""
+        others held, explains most, when that gains more than ``swap_min_gain`` times
+        the fit's residual sum of squares, else by the best simpler column (lower
+        ``rank``, :func:`_rank`) when that loses less; passes repeat until nothing
+        changes (at most ``len(sel) + 1`` passes). A greedy forward pick can take a
+        column that stands in for two true terms at first (a spool offset for a constant
+        beside a flow term) and keep it; and a nearly constant product (``volume *
+        volume``) is not to be preferred to the constant on less evidence than that. The
+        margin is the residual's, not the target's: a strong term (a laminar leak's
+        ``p^2``) is not given up for a simpler one that fits it a little worse."""
         sel = list(sel)
         for _ in range(len(sel) + 1):
             changed = False
@@ -307,7 +309,9 @@ class OpenFormSearch:
                     norm2 > 1e-12, norm2, 1.0), 0.0)
                 gain[others] = 0.0
                 best = int(np.argmax(gain))
-                if best != sel[i] and gain[best] > gain[sel[i]] + self.swap_min_gain:
+                # the residual sum of squares of the bag's fit as it stands
+                margin = self.swap_min_gain * max(float(r @ r) - gain[sel[i]], 0.0)
+                if best != sel[i] and gain[best] > gain[sel[i]] + margin:
                     sel[i] = best
                     changed = True
                     continue
@@ -315,7 +319,7 @@ class OpenFormSearch:
                 simpler = simpler[~np.isin(simpler, others)]
                 if simpler.size:
                     b = int(simpler[np.argmax(gain[simpler])])
-                    if gain[b] > gain[sel[i]] - self.swap_min_gain:
+                    if gain[b] > gain[sel[i]] - margin:
                         sel[i] = b
                         changed = True
             if not changed:
