@@ -14,9 +14,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
 with the three partners above: with the nine non-hinge base features that is
-1 + 9 + 45 + 57 + 171 = 283 candidates at most (a grid of 9 quantiles: 163; with 9 a
-hinge planted between grid points was taken for a product with a hinge at a grid
-point).
+1 + 9 + 45 + 57 + 171 = 283 candidates at most. (A coarser grid saves columns but a
+hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.
 
