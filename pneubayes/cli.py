@@ -397,6 +397,7 @@ def cmd_discover(args) -> int:
         later_forms_min_share=args.later_forms_min_share,
         later_form_screen_share=args.later_form_screen_share,
         pair_members=args.pair_members, max_form_swaps=args.max_form_swaps,
+        open_form_min_noise_ratio=args.open_form_min_noise_ratio,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
                                                 max_steps=args.max_steps, seed=args.seed),
                         **_cutoffs(args), **_windows(args), **_refinement(args),

@@ -363,6 +363,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "the named effects in their other forms and keep a form that "
                         "predicts significantly better, at most this many times; 0: never "
                         "(2)")
+    d.add_argument("--open-form-min-noise-ratio", type=float, default=1.5,
+                   help="the open-form stage (a closure term found in the residual) runs "
+                        "while the held-out error is above this x the noise floor; 0: "
+                        "never (1.5)")
     d.add_argument("--library", action="append", type=_library_entry, default=[],
                    metavar="EFFECT=S1,S2", help="the trial strengths of an effect's library "
                    "terms (its parameter's unit), replacing its own; the only way to search "

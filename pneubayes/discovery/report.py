@@ -123,16 +123,32 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                              f"{ev['inclusion_probability']:.2f} | "
                              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} | "
                              f"{ev['score_gain']:.1f} ({ev['score_p_value']:.2g}) |")
+    if doc.get("found_terms"):
+        lines += ["", "Open-form terms found (an extra mass flow into the chamber, kg/s, "
+                  "in no catalogue form; each term's parameters with their units):", "",
+                  "| term | formula (kg/s into the chamber) | parameter | unit | estimate | "
+                  "90 % interval |", "|---|---|---|---|---|---|"]
+        for t in doc["found_terms"]:
+            for n, p in t["parameters"].items():
+                est = p.get("median", p.get("estimate"))
+                iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
+                lines.append(f"| {_md(t['term'])} | {_md(t['formula'])} | {n} | "
+                             f"{_md(p['unit'])} | {est:.4g} | {iv} |")
+    if doc["effects"] or doc.get("found_terms"):
+        found = True
     elif final <= MISFIT_RATIO * noise:
+        found = False
         lines.append(f"No missing effect is supported, and the plain thin-port model's "
                      f"held-out error ({final:.0f} Pa) is within {MISFIT_RATIO:g} x the "
                      f"noise floor ({noise:.0f} Pa).")
     else:
+        found = False
         lines.append(f"No candidate effect is supported, but the model still misses: its "
                      f"held-out error ({final:.0f} Pa) is {final / noise:.1f} x the noise "
                      f"floor ({noise:.0f} Pa). What is missing is not among the "
-                     "catalogue's candidates, or the data cannot show it.")
-    if doc["effects"] and final > MISFIT_RATIO * noise:
+                     "catalogue's candidates, no open-form term passed verification, or "
+                     "the data cannot show it.")
+    if found and final > MISFIT_RATIO * noise:
         lines.append(f"\nThe final model still misses by {final / noise:.1f} x the noise "
                      "floor: the named effects do not explain everything.")
     shrink = "" if gap0 <= 0 else f" ({100 * (1 - gap1 / gap0):.0f} % of the gap closed)"
@@ -192,6 +208,21 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                                     f"{e['effect']} {e['from']} -> {e['to']}"))
         elif e["action"] == "swap form":
             lines.append(f"| {e['step']} | swap form | {e['effect']} as {e['to']} | | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         " | |")
+        elif e["action"] in ("open form pass", "open form reject"):
+            fitted = ", ".join(f"{t['term']}: " + ", ".join(
+                f"{k}={v:.4g}" for k, v in t.items() if k != "term") for t in e["terms"])
+            lines.append(f"| {e['step']} | {e['action']} | closure | {_md(fitted)} | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
+                         f"p = {e['score_p_value']:.2g}) |")
+        elif e["action"] == "open form search":
+            lines.append(f"| {e['step']} | open form search | "
+                         + (", ".join(_md(t["term"]) for t in e["terms"]) or "no term")
+                         + " proposed | | | |")
+        elif e["action"] == "open form prune":
+            lines.append(f"| {e['step']} | open form prune | {_md(e['term'])} | | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          " | |")
         elif e["action"] == "search":

@@ -110,6 +110,10 @@ class DiscoverySettings:
     beside fewer effects need not be the one beside more: a tube named with heat
     transfer in one pair is a transport delay or a lumped line (the wave tube has no
     temperature state), and only its transport delay had been fitted alone.
+    open_form_min_noise_ratio: the open-form stage
+    (:class:`~pneubayes.discovery.stages.OpenForm`) runs while the held-out error is
+    above this x the noise floor and no catalogue trial closes half the gap; 0: no
+    open-form stage.
     min_gain_noise_share: every trial that passes verification must also lower the
     held-out 2-s RMSE by at least this share of the noise floor (0: any significant
     gain). The signed-rank test finds a gain consistent across windows however small,
@@ -202,6 +206,7 @@ class DiscoverySettings:
     revisit_runner_ups: bool = True
     pair_members: int = 3
     max_form_swaps: int = 2
+    open_form_min_noise_ratio: float = 1.5
     score_dof: float = 4.0
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
@@ -239,6 +244,10 @@ class DiscoverySettings:
                 or self.max_form_swaps < 0):
             raise ValueError("max_form_swaps must be an integer >= 0, got "
                              f"{self.max_form_swaps!r}")
+        if not (self.open_form_min_noise_ratio == 0.0
+                or self.open_form_min_noise_ratio >= 1.0):
+            raise ValueError("open_form_min_noise_ratio must be 0 (off) or >= 1, got "
+                             f"{self.open_form_min_noise_ratio}")
         if not 0.0 < self.min_inclusion <= 1.0:
             raise ValueError(f"min_inclusion must be in (0, 1], got {self.min_inclusion}")
         if not 0.0 < self.fallback_min_inclusion <= 1.0:

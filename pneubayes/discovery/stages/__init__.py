@@ -12,6 +12,7 @@ from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.stages.last_resort import LastResort
 from pneubayes.discovery.stages.more_supported import MoreSupported
+from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
 from pneubayes.discovery.stages.runner_ups import RunnerUps
@@ -22,7 +23,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     groups (``try_all_supported``), the last resort (``try_all_on_gap``,
     ``last_resort_min_gap_closed``, ``last_resort_best_gap_closed``), the runner-ups
     (``revisit_runner_ups``), pairs (``pair_members``) and the named effects' other
-    forms (``max_form_swaps``)."""
+    forms (``max_form_swaps``), then the open-form closure (``open_form_min_noise_ratio``).
+    """
     s = settings
     stages: list[Stage] = []
     if s.try_all_supported:
@@ -35,8 +37,10 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(Pairs(s.pair_members, s.last_resort_min_gap_closed))
     if s.max_form_swaps:
         stages.append(OtherForms(s.max_form_swaps))
+    if s.open_form_min_noise_ratio:
+        stages.append(OpenForm(s.open_form_min_noise_ratio))
     return stages
 
 
 __all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
-           "default_stages"]
+           "OpenForm", "default_stages"]

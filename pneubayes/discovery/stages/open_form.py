@@ -1,0 +1,298 @@
+"""Stage: an open-form closure term, when no catalogue effect closes the gap.
+
+The second resort after the named catalogue (:mod:`pneubayes.discovery.openform`): the
+current model's one-step residual, as the mass flow into the chamber it lacks, is
+regressed on physically typed features of the model's own signal path; the terms the
+search keeps enter the model as one :class:`~pneubayes.effects.closure.Closure`
+component, are refitted through the simulator on the training trajectories, pruned term
+by term, and verified on the held-out windows with the test a named effect passes.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from pneubayes.discovery.one_step import one_step_data
+from pneubayes.discovery.openform.search import OpenFormSearch
+from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
+from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
+from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.state import RoundState
+from pneubayes.effects.closure import Closure
+from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS
+from pneubayes.errors import SimulationError
+
+#: The name of the closure component in a model and in the ledger.
+CLOSURE = "closure"
+
+
+class OpenForm(Stage):
+    """Search the residual for open-form terms and add them as a closure.
+
+    Runs when the held-out error is above ``min_noise_ratio`` x the noise floor and no
+    catalogue trial of the round passed, or the best that passed closes under
+    ``compete_below_gap_closed`` of the gap (it may be a stand-in: the closure then
+    replaces it only if it beats it on the held-out windows by the verification test).
+
+    Parameters
+    ----------
+    min_noise_ratio : float
+        The stage runs only while the held-out RMSE exceeds this x the noise floor.
+    compete_below_gap_closed : float
+        With a passing catalogue trial, the stage runs only if the best closes less than
+        this share of the held-out gap above the noise floor (0: never then).
+    search : OpenFormSearch or None
+        The residual search (its settings); None: ``OpenFormSearch()`` with the loop's
+        seed and block.
+    prune : bool
+        Drop each term whose removal the held-out test cannot tell apart.
+    """
+
+    name = "open_form"
+
+    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
+                 search: OpenFormSearch | None = None, prune: bool = True):
+        if min_noise_ratio < 1.0:
+            raise ValueError(f"OpenForm: min_noise_ratio must be >= 1, got {min_noise_ratio}")
+        if not 0.0 <= compete_below_gap_closed <= 1.0:
+            raise ValueError("OpenForm: compete_below_gap_closed must be in [0, 1], got "
+                             f"{compete_below_gap_closed}")
+        self.min_noise_ratio = min_noise_ratio
+        self.compete_below_gap_closed = compete_below_gap_closed
+        self.search = search
+        self.prune = prune
+
+    def options(self):
+        search = None if self.search is None else {
+            k: getattr(self.search, k)
+            for k in inspect.signature(type(self.search).__init__).parameters if k != "self"}
+        return {"min_noise_ratio": self.min_noise_ratio,
+                "compete_below_gap_closed": self.compete_below_gap_closed,
+                "search": search, "prune": self.prune}
+
+    # ------------------------------------------------------------------ when
+    def _applies(self, state: RoundState, noise: float):
+        """``(runs, the best passing catalogue trial or None)``."""
+        current = state.current
+        if current.heldout_rmse_Pa <= self.min_noise_ratio * noise:
+            return False, None
+        if len(_existing_terms(current.model)) >= CLOSURE_MAX_TERMS:
+            return False, None
+        if not state.passing:
+            return True, None
+        best = min(state.passing, key=lambda t: t[0])
+        gap = current.heldout_rmse_Pa - noise
+        closed = (current.heldout_rmse_Pa - best[0]) / gap
+        return closed < self.compete_below_gap_closed, best
+
+    def run(self, state: RoundState, runner) -> None:
+        noise = runner.data.noise_Pa
+        runs, best = self._applies(state, noise)
+        if not runs:
+            return
+        terms, search = self._search(state, runner)
+        runner.ledger.record("open form search", round=state.number,
+                             terms=[_term_record(t) for t in terms],
+                             explained_fraction=getattr(search, "explained_fraction_", None),
+                             candidates=getattr(search, "n_candidates_", None))
+        if not terms:
+            runner.log("discover: open form: no term of the residual's search is supported")
+            return
+        runner.log("discover: open form: the search proposes "
+                   + ", ".join(f"{t.term} ({t.share:.0%} of the explained residual)"
+                               for t in terms))
+        fit = self._fit(state, runner, terms)
+        if fit is None:
+            return
+        if self.prune:
+            fit = self._prune(fit, state, runner)
+        self._verify(fit, state, runner, best, search)
+
+    # ------------------------------------------------------------------ search
+    def _search(self, state: RoundState, runner):
+        s = runner.settings
+        current = state.current
+        search = self.search if self.search is not None else OpenFormSearch(
+            block=s.block, seed=s.seed)
+        signals, targets = [], []
+        for rec in runner.data.train:
+            d = one_step_data(rec, search.block)
+            e = d.errors(current.model, current.params, s.library_solver)[0]
+            sig = path_signals(current.model, current.params, rec, d)
+            signals.append(sig)  # (its "valid" leaves out intervals touching a bad sample)
+            targets.append(missing_mass_flow(sig, e, d.rig))
+        search.fit(signals, targets)
+        free = CLOSURE_MAX_TERMS - len(_existing_terms(current.model))
+        return list(search.terms_)[:max(free, 0)], search
+
+    # ------------------------------------------------------------------ fit
+    def _fit(self, state: RoundState, runner, terms):
+        """The current model with the closure extended by ``terms``, refitted from the
+        search's values and from zero strength (the current fit: the trial contains the
+        current model), the lower training RMSE kept."""
+        current = state.current
+        old = _existing_terms(current.model)
+        spec = "; ".join([*(str(t) for t, _ in old), *(str(t.term) for t in terms)])
+        closure = Closure(terms=spec)
+        base = current.model.without(CLOSURE) if current.model.has(CLOSURE) else current.model
+        model = base.with_effect(closure)
+        searched = dict(current.params)
+        searched.update({k: v for k, v in closure.neutral_values().items()
+                         if k not in searched})
+        for j, t in enumerate(terms):
+            k = len(old) + j
+            searched[f"closure_coefficient_{k}"] = _inside(model, f"closure_coefficient_{k}",
+                                                           t.coefficient)
+            for side in t.term.hinges():
+                name = f"closure_threshold_{k}_{side}"
+                searched[name] = _inside(model, name, getattr(t, f"threshold_{side}"))
+        zero = dict(searched)
+        for j in range(len(terms)):
+            zero[f"closure_coefficient_{len(old) + j}"] = 0.0
+        fits = []
+        for label, start in (("the search's values", searched), ("zero strength", zero)):
+            start = {k: start[k] for k in model.parameter_names}
+            try:
+                fits.append(runner.fit(model, start))
+            except (FloatingPointError, SimulationError) as exc:
+                runner.log(f"discover: open form from {label} failed "
+                           f"({type(exc).__name__})")
+        if not fits:
+            return None
+        fit = min(fits, key=lambda f: f.train_rmse_Pa)
+        runner.log(f"discover: open form: closure '{spec}' fitted, training RMSE "
+                   f"{current.train_rmse_Pa:.0f} -> {fit.train_rmse_Pa:.0f} Pa, held-out "
+                   f"{current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa")
+        return fit
+
+    def _prune(self, fit, state: RoundState, runner):
+        """Drop, one at a time, each term the held-out test cannot tell apart from the
+        closure without it (the last term is weighed against the current model)."""
+        while True:
+            terms = _existing_terms(fit.model)
+            if len(terms) <= 1:
+                return fit
+            dropped = False
+            for k in range(len(terms)):
+                reduced, start = _without_term(fit, k)
+                try:
+                    smaller = runner.fit(reduced, start)
+                except (FloatingPointError, SimulationError):
+                    continue
+                needed = runner.better(fit, smaller)[0]
+                if needed:
+                    continue
+                runner.log(f"discover: open form: term {terms[k][0]} pruned (held-out "
+                           f"{fit.heldout_rmse_Pa:.0f} -> {smaller.heldout_rmse_Pa:.0f} Pa "
+                           "without it)")
+                runner.ledger.record("open form prune", term=str(terms[k][0]),
+                                     heldout_rmse_before_Pa=fit.heldout_rmse_Pa,
+                                     heldout_rmse_after_Pa=smaller.heldout_rmse_Pa)
+                fit, dropped = smaller, True
+                break
+            if not dropped:
+                return fit
+
+    # ------------------------------------------------------------------ verify
+    def _verify(self, fit, state: RoundState, runner, best, search) -> None:
+        s, noise = runner.settings, runner.data.noise_Pa
+        controls = runner.controls([(CLOSURE, fit)], state)
+        current = state.current
+        control = controls[0]
+        ok, gain, pval, diff = runner.better(fit, current)
+        basin = bool(ok and control is not None and control is not current
+                     and not runner.better(fit, control)[0])
+        gap_Pa = current.heldout_rmse_Pa - noise
+        drop_Pa = current.heldout_rmse_Pa - fit.heldout_rmse_Pa
+        least = min_gain_Pa(noise, gap_Pa, s)
+        closed, _, under = gain_shortfall(drop_Pa, gap_Pa, 0.0, least)
+        ok = ok and not basin and not under
+        beats = None
+        if ok and best is not None:
+            beats = bool(runner.better(fit, best[2])[0])
+            ok = beats
+        terms = _existing_terms(fit.model)
+        runner.ledger.record(
+            "open form pass" if ok else "open form reject", effect=CLOSURE,
+            terms=[{"term": str(t), **{n: fit.params[n] for n in names}}
+                   for t, names in terms],
+            gap_closed=closed, gain_under_floor=bool(under), min_gain_Pa=least,
+            train_rmse_Pa=fit.train_rmse_Pa,
+            heldout_rmse_before_Pa=current.heldout_rmse_Pa,
+            heldout_rmse_after_Pa=fit.heldout_rmse_Pa,
+            score_gain=gain, score_p_value=pval,
+            control_heldout_rmse_Pa=None if control is None else control.heldout_rmse_Pa,
+            not_better_than_control=basin,
+            catalogue_best=None if best is None else {
+                "effect": best[1], "heldout_rmse_Pa": best[0], "closure_better": beats},
+            windows_improved=int(np.sum(diff > 0)), windows=int(diff.size),
+            wall_time_s=fit.wall_time_s)
+        why = ([] if not basin else ["its gain is its basin's"]) + (
+            [f"it gains {drop_Pa:.1f} Pa, under {least:.1f} Pa"] if under else []) + (
+            [f"not better than {best[1]}"] if beats is False else [])
+        runner.log(f"discover: {'passes' if ok else 'reject'} open form: held-out RMSE "
+                   f"{current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa, better "
+                   f"in {int(np.sum(diff > 0))}/{diff.size} windows (p = {pval:.2g})"
+                   + ("" if ok or not why else "; " + "; ".join(why)))
+        if not ok:
+            return
+        if best is not None:
+            runner.log(f"discover: open form: the closure explains the residual better "
+                       f"than {best[1]}, which it replaces as the round's candidate")
+        state.evidence[CLOSURE] = {
+            "inclusion_probability": float(min(t.inclusion_probability
+                                               for t in search.terms_)) if search.terms_
+            else 0.0,
+            "t_max": None, "best_term": "; ".join(str(t) for t, _ in terms),
+            "best_term_start": None}
+        state.passing = [(fit.heldout_rmse_Pa, CLOSURE, fit, gain, pval)]
+
+
+def _inside(model, name: str, value: float) -> float:
+    """``value`` moved just inside the parameter's bounds."""
+    lo, hi = model.parameter(name).lower, model.parameter(name).upper
+    span = hi - lo
+    return float(np.clip(value, lo + 1e-6 * span, hi - 1e-6 * span))
+
+
+def _existing_terms(model) -> list:
+    """The model's closure terms, ``[(Term, {its parameter names: None}), ...]`` (empty
+    without a closure)."""
+    if not model.has(CLOSURE):
+        return []
+    eff = model.effect(CLOSURE)
+    out = []
+    for k, t in enumerate(eff.term_list()):
+        names = [f"closure_coefficient_{k}"] + [f"closure_threshold_{k}_{side}"
+                                                for side in t.hinges()]
+        out.append((t, dict.fromkeys(names)))
+    return out
+
+
+def _term_record(t) -> dict:
+    """A found term for the ledger."""
+    return {"term": str(t.term), "coefficient": t.coefficient, "unit": t.term.unit,
+            "threshold_a": t.threshold_a, "threshold_b": t.threshold_b,
+            "inclusion_probability": t.inclusion_probability, "share": t.share}
+
+
+def _without_term(fit, k: int):
+    """``(model, start)``: ``fit``'s model with closure term ``k`` removed (the closure
+    removed with its last term), started at the fit's values renumbered."""
+    model = fit.model
+    terms = model.effect(CLOSURE).term_list()
+    keep = [j for j in range(len(terms)) if j != k]
+    base = model.without(CLOSURE)
+    start = {n: fit.params[n] for n in base.parameter_names}
+    if not keep:
+        return base, start
+    closure = Closure(terms="; ".join(str(terms[j]) for j in keep))
+    reduced = base.with_effect(closure)
+    for new, old in enumerate(keep):
+        start[f"closure_coefficient_{new}"] = fit.params[f"closure_coefficient_{old}"]
+        for side in terms[old].hinges():
+            start[f"closure_threshold_{new}_{side}"] = fit.params[
+                f"closure_threshold_{old}_{side}"]
+    return reduced, start

@@ -1,0 +1,147 @@
+"""The discovery loop's open-form stage: a closure term found in the residual, refitted
+through the simulator, pruned and verified like a named effect."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.stages import OpenForm, default_stages
+from pneubayes.discovery.stages.open_form import _existing_terms, _without_term
+from pneubayes.discovery.state import RoundState
+from pneubayes.effects.closure import Closure
+from pneubayes.model import Model
+
+
+def _state(current, passing=()):
+    return RoundState(number=1, current=current, search=None, supported=[], tentative=[],
+                      started_far=True, gap_ratio=2.0, noise_Pa=500.0, search_step=0,
+                      counts={}, passing=list(passing))
+
+
+def test_a_closure_term_dropped_renumbers_the_others_and_keeps_their_values():
+    model = Model().with_effect(Closure(terms="pressure_hinge; one; inlet_flow*spool"))
+    params = {k: float(i) for i, k in enumerate(model.parameter_names)}
+    fit = SimpleNamespace(model=model, params=params)
+    reduced, start = _without_term(fit, 0)
+    assert reduced.effect("closure").options()["terms"] == "one; inlet_flow*spool"
+    assert start["closure_coefficient_0"] == params["closure_coefficient_1"]
+    assert start["closure_coefficient_1"] == params["closure_coefficient_2"]
+    assert "closure_threshold_0_a" not in start
+    assert set(start) == set(reduced.parameter_names)
+    # the hinge's threshold moves with its term
+    reduced, start = _without_term(fit, 1)
+    assert start["closure_threshold_0_a"] == params["closure_threshold_0_a"]
+    # the last term gone: the model without a closure
+    one = SimpleNamespace(model=Model().with_effect(Closure(terms="one")),
+                          params={**{k: 1.0 for k in Model().parameter_names},
+                                  "closure_coefficient_0": 1e-6})
+    reduced, start = _without_term(one, 0)
+    assert not reduced.has("closure") and set(start) == set(Model().parameter_names)
+    assert [str(t) for t, _ in _existing_terms(model)] == [
+        "pressure_hinge", "one", "inlet_flow*spool"]
+    assert _existing_terms(Model()) == []
+
+
+def test_the_stage_runs_only_above_its_noise_ratio_and_beside_a_weak_catalogue_trial():
+    stage = OpenForm(min_noise_ratio=1.5, compete_below_gap_closed=0.5)
+    near = SimpleNamespace(heldout_rmse_Pa=700.0, model=Model())
+    assert stage._applies(_state(near), 500.0) == (False, None)  # 1.4 x the noise
+    far = SimpleNamespace(heldout_rmse_Pa=2500.0, model=Model())
+    assert stage._applies(_state(far), 500.0) == (True, None)
+    # a catalogue trial closing 75 % of the 2000-Pa gap: the catalogue's round
+    strong = (1000.0, "cylinder_leak", None, 1.0, 0.001)
+    assert stage._applies(_state(far, [strong]), 500.0)[0] is False
+    # one closing 25 %: a possible stand-in, the closure competes with it
+    weak = (2000.0, "heat_transfer", None, 1.0, 0.001)
+    runs, best = stage._applies(_state(far, [weak, (2200.0, "x", None, 0.5, 0.01)]), 500.0)
+    assert runs and best is weak
+    # a closure already holding every term it can: nothing more to add
+    full = SimpleNamespace(heldout_rmse_Pa=2500.0, model=Model().with_effect(
+        Closure(terms="one; pressure_ratio; spool; volume")))
+    assert stage._applies(_state(full), 500.0)[0] is False
+
+
+def test_the_stage_checks_its_knobs_and_the_settings_switch_it():
+    with pytest.raises(ValueError, match="min_noise_ratio"):
+        OpenForm(min_noise_ratio=0.5)
+    with pytest.raises(ValueError, match="compete_below_gap_closed"):
+        OpenForm(compete_below_gap_closed=1.5)
+    assert isinstance(default_stages(DiscoverySettings())[-1], OpenForm)
+    off = default_stages(DiscoverySettings(open_form_min_noise_ratio=0.0))
+    assert not any(isinstance(s, OpenForm) for s in off)
+    with pytest.raises(ValueError, match="open_form_min_noise_ratio"):
+        DiscoverySettings(open_form_min_noise_ratio=0.5)
+    assert OpenForm().options()["min_noise_ratio"] == 1.5
+
+
+def test_found_terms_are_listed_apart_with_formula_units_and_values():
+    from pneubayes.discovery.result import DiscoveryResult
+
+    model = Model().with_effect(Closure(terms="inlet_flow*pressure_hinge; one"))
+    params = {**{k: 1.0 for k in Model().parameter_names}, "closure_coefficient_0": -0.2,
+              "closure_threshold_0_b": 3.1, "closure_coefficient_1": 2e-6}
+    final = SimpleNamespace(model=model, params=params, heldout_rmse_Pa=600.0)
+    result = DiscoveryResult(settings=DiscoverySettings(), base=final, final=final,
+                             accepted=(), ledger=(), maps=(), searches=(), params=params,
+                             estimate="refined", noise_floor_Pa=500.0, range_Pa=4.5e5,
+                             span_Pa=4e5)
+    terms = result.found_terms()
+    assert [t["term"] for t in terms] == ["inlet_flow*pressure_hinge", "one"]
+    assert terms[0]["formula"] == "c_0 m_in max(0, p / P_atm - theta_0_b)"
+    assert terms[0]["parameters"]["closure_threshold_0_b"] == {"unit": "-", "estimate": 3.1}
+    assert terms[1]["parameters"]["closure_coefficient_1"]["unit"] == "kg/s"
+    assert terms[0]["acts_on"].startswith("mass flow into the chamber")
+    doc = result.to_dict()
+    assert doc["effects"] == [] and len(doc["found_terms"]) == 2
+
+
+@pytest.fixture(scope="module")
+def relief_recordings():
+    """Four 10-s valve1 recordings (1 kHz, 200 Pa noise) of a chamber venting above
+    3.5 bar absolute through a relief path, ``c max(0, p / P_atm - 3.5)`` kg/s with c
+    = -4e-5: the plain model's truth and the closure's planted values."""
+    from conftest import BORE, P_ATM, P_SUP, STROKE, random_steps
+
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    truth_model = Model().with_effect(Closure(terms="pressure_hinge"))
+    base = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    truth = {**base, "closure_coefficient_0": -4e-5, "closure_threshold_0_a": 3.5}
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    recs = []
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        n, dt = 10001, 1e-3
+        t = np.arange(n) * dt
+        u = random_steps(rng, n, dt, hold_s=(0.05, 0.3))
+        blank = Recording(md, t, u, np.full(n, P_ATM))
+        p = simulate(truth_model, truth, Inputs.from_recording(blank), blank.rig(), P_ATM,
+                     SolverConfig.standard()).pressure_Pa[0]
+        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
+                              source=f"relief_{seed}.csv"))
+    return recs, base, truth
+
+
+@pytest.mark.slow
+def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recordings):
+    """The plain loop with the open-form stage alone (no catalogue fallbacks): the
+    relief path is found as a pressure hinge with its threshold, verified on held-out
+    windows, and the held-out error falls to about the noise floor."""
+    from pneubayes.discovery.loop import Discovery
+
+    recs, _, truth = relief_recordings
+    settings = DiscoverySettings(posterior=False, tube_line_segments=0, holdout_recordings=2,
+                                 max_effects=2)
+    result = Discovery(settings, None, log=None, stages=[OpenForm()]).fit(recs).result_
+    doc = result.to_dict()
+    terms = [t["term"] for t in doc["found_terms"]]
+    assert any("pressure_hinge" in t for t in terms), doc["ledger"]
+    assert doc["effects"] == []  # no catalogue stand-in
+    assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
