@@ -145,3 +145,46 @@ def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recor
     assert any("pressure_hinge" in t for t in terms), doc["ledger"]
     assert doc["effects"] == []  # no catalogue stand-in
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+
+
+def test_a_tube_simulated_as_a_line_goes_to_its_plainest_form_beside_a_closure(rig):
+    """The simulator refuses a closure beside a line state (the wave tube's): the trial
+    has the tube's transport delay, its fitted bore kept as the option."""
+    from pneubayes.discovery.stages.open_form import _beside_closure
+    from pneubayes.effects import make_effect
+    from pneubayes.physics.valve import valve_preset
+
+    wave = Model([make_effect("tube_delay", form="wave", segments=8)])
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2e-5,
+              "tube_delay_s": 0.018, "tube_diameter_m": 0.004}
+    plain, names = _beside_closure(wave, params, rig)
+    assert names == ["tube_delay"]
+    tube = plain.effect("tube_delay")
+    assert tube.options()["form"] == "transport" and tube.options()["tube_diameter_m"] == 0.004
+    with_closure = plain.with_effect(Closure(terms="one"))
+    start = {k: params.get(k, 1e-6) for k in with_closure.parameter_names}
+    with_closure.lower(with_closure.vector(start)[None, :], rig)  # simulable slots
+    # a transport delay, or no tube, is left as it is
+    transport = Model([make_effect("tube_delay")])
+    assert _beside_closure(transport, {k: params[k] for k in transport.parameter_names},
+                           rig) == (transport, [])
+
+
+def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
+    """A closure fitted with a coefficient or a threshold at its bound, or a base
+    parameter newly at one, stands in for what it cannot express: flagged (and rejected
+    by the stage); a base parameter already at its bound in the current fit is not."""
+    from pneubayes.discovery.stages.open_form import _newly_at_bounds
+
+    model = Model().with_effect(Closure(terms="pressure_hinge"))
+    lo_v = model.parameter("dead_volume_m3").lower
+    hi_t = model.parameter("closure_threshold_0_a").upper
+    base = {k: 0.5 * (model.parameter(k).lower + model.parameter(k).upper)
+            for k in model.parameter_names}
+    current = SimpleNamespace(params={k: base[k] for k in Model().parameter_names})
+    fit = SimpleNamespace(model=model, params={**base, "closure_threshold_0_a": hi_t})
+    assert _newly_at_bounds(fit, current) == ["closure_threshold_0_a"]
+    fit.params.update({"closure_threshold_0_a": 3.0, "dead_volume_m3": lo_v})
+    assert _newly_at_bounds(fit, current) == ["dead_volume_m3"]
+    current.params["dead_volume_m3"] = lo_v
+    assert _newly_at_bounds(fit, current) == []

@@ -43,6 +43,7 @@ from pneubayes.discovery.stages import Stage, default_stages
 from pneubayes.discovery.state import Ledger, LoopData, RoundState
 from pneubayes.discovery.trials import TrialRunner, fingerprint
 from pneubayes.discovery.verification import StepFit, split_recordings
+from pneubayes.errors import SimulationError
 from pneubayes.inference.chain_store import set_aside_other_chain
 from pneubayes.inference.laplace import LaplaceIdentification
 from pneubayes.inference.pipeline import starting_point
@@ -162,7 +163,17 @@ class Discovery:
         round_, adds = 0, 0
         while adds < s.max_effects:
             round_ += 1
-            state = self._round_search(current, round_, runner, maps, searches, counts)
+            try:
+                state = self._round_search(current, round_, runner, maps, searches, counts)
+            except SimulationError as exc:
+                # the search's trial terms or sensitivities cannot be simulated beside
+                # the current model: nothing more can be searched for
+                self.log(f"discover: round {round_}: the search cannot simulate its "
+                         f"candidates beside the current model ({str(exc).splitlines()[0]});"
+                         " stop")
+                ledger.record("search failed", round=round_,
+                              error=str(exc).splitlines()[0])
+                break
             current = self._run_round(state, stages, runner)
             if state.replacement is not None:
                 continue  # a stage reshaped the model: search again beside it

@@ -20,8 +20,10 @@ from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
+from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS
+from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 
 #: The name of the closure component in a model and in the ledger.
@@ -137,8 +139,12 @@ class OpenForm(Stage):
         spec = "; ".join([*(str(t) for t, _ in old), *(str(t.term) for t in terms)])
         closure = Closure(terms=spec)
         base = current.model.without(CLOSURE) if current.model.has(CLOSURE) else current.model
+        base, plainer = _beside_closure(base, current.params, runner.data.rig())
+        if plainer:
+            runner.log("discover: open form: a closure cannot sit beside the line state of "
+                       f"{', '.join(plainer)}; the trial has its plainest form")
         model = base.with_effect(closure)
-        searched = dict(current.params)
+        searched = {k: v for k, v in current.params.items() if k in model.parameter_names}
         searched.update({k: v for k, v in closure.neutral_values().items()
                          if k not in searched})
         for j, t in enumerate(terms):
@@ -208,7 +214,8 @@ class OpenForm(Stage):
         drop_Pa = current.heldout_rmse_Pa - fit.heldout_rmse_Pa
         least = min_gain_Pa(noise, gap_Pa, s)
         closed, _, under = gain_shortfall(drop_Pa, gap_Pa, 0.0, least)
-        ok = ok and not basin and not under
+        bounded = _newly_at_bounds(fit, current)
+        ok = ok and not basin and not under and not bounded
         beats = None
         if ok and best is not None:
             beats = bool(runner.better(fit, best[2])[0])
@@ -224,12 +231,13 @@ class OpenForm(Stage):
             heldout_rmse_after_Pa=fit.heldout_rmse_Pa,
             score_gain=gain, score_p_value=pval,
             control_heldout_rmse_Pa=None if control is None else control.heldout_rmse_Pa,
-            not_better_than_control=basin,
+            not_better_than_control=basin, at_bounds=bounded,
             catalogue_best=None if best is None else {
                 "effect": best[1], "heldout_rmse_Pa": best[0], "closure_better": beats},
             windows_improved=int(np.sum(diff > 0)), windows=int(diff.size),
             wall_time_s=fit.wall_time_s)
         why = ([] if not basin else ["its gain is its basin's"]) + (
+            [f"{', '.join(bounded)} at a bound"] if bounded else []) + (
             [f"it gains {drop_Pa:.1f} Pa, under {least:.1f} Pa"] if under else []) + (
             [f"not better than {best[1]}"] if beats is False else [])
         runner.log(f"discover: {'passes' if ok else 'reject'} open form: held-out RMSE "
@@ -248,6 +256,52 @@ class OpenForm(Stage):
             "t_max": None, "best_term": "; ".join(str(t) for t, _ in terms),
             "best_term_start": None}
         state.passing = [(fit.heldout_rmse_Pa, CLOSURE, fit, gain, pval)]
+
+
+def _newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
+    """Parameters of ``fit`` within ``share`` of their bounds' span of a bound that were
+    not there in ``current`` (the closure's own always count): a closure that only fits
+    by driving parameters to their limits stands in for what it cannot express."""
+    out = []
+    for name in fit.model.parameter_names:
+        p = fit.model.parameter(name)
+        tol = share * (p.upper - p.lower)
+
+        def at(v, p=p, tol=tol):
+            return v - p.lower <= tol or p.upper - v <= tol
+
+        if at(fit.params[name]) and not (name in current.params and at(current.params[name])):
+            out.append(name)
+    return out
+
+
+#: Slots of a tube simulated as a line (its own states in place of the chamber's
+#: right-hand side), beside which the compiled simulator refuses a closure.
+_LINE_SLOTS = ("line_length_m", "wave_length_m")
+
+
+def _beside_closure(model, params: dict, rig):
+    """``(model, names)``: ``model`` with each effect that lowers onto a line slot at
+    ``params`` in its plainest form (its first; options it shares with it kept, a
+    same-named fitted parameter as the option's value), and the names of those
+    effects."""
+    slots = model.lower(model.vector(params)[None, :], rig)[0]
+    if not any(slots[SLOT_INDEX[s]] > 0 for s in _LINE_SLOTS):
+        return model, []
+    names = []
+    for name in model.effect_names:
+        eff = model.effect(name)
+        if not type(eff).forms or eff.options().get("form") == type(eff).forms[0]:
+            continue
+        wrote = eff.lower({k: np.atleast_1d(params[k]) for k in eff.parameter_names()}, rig)
+        if not any(np.any(np.asarray(wrote.get(s, 0.0)) > 0) for s in _LINE_SLOTS):
+            continue
+        first = type(eff)(form=type(eff).forms[0])
+        opts = {k: (float(params[k]) if k in params else eff.options().get(k, v))
+                for k, v in first.options().items() if k != "form"}
+        model = model.without(name).with_effect(make_effect(name, form=first.form, **opts))
+        names.append(name)
+    return model, names
 
 
 def _inside(model, name: str, value: float) -> float:
