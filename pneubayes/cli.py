@@ -19,7 +19,7 @@ import numpy as np
 from pneubayes import interrupt
 from pneubayes.cli_args import build_parser, check_single_values
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import check_file, inputs_digest, open_run_folder
+from pneubayes.run_folder import check_file, inputs_digest, open_run_folder, release_locks
 
 #: What each folder-writing command may write (removed by --overwrite when the folder
 #: has no stamp listing the earlier run's files).
@@ -114,6 +114,17 @@ def cmd_bench(args) -> int:
     if unknown:
         raise PneubayesError(f"--effects: unknown effect(s) {unknown}; "
                              f"the catalogue has {sorted(CATALOGUE)}")
+    out = Path(args.out)
+    if (out.exists() or out.is_symlink()) and not out.is_dir():
+        raise PneubayesError(f"--out {out}: is a file, not a folder (bench writes a folder "
+                             "of recordings and truth.json)")
+    from pneubayes.run_folder import read_stamp
+
+    stamp = read_stamp(out) if out.is_dir() else None
+    if stamp is not None:
+        raise PneubayesError(f"--out {out}: is the run folder of a 'pneubayes "
+                             f"{stamp.get('command')}' ({out / 'run.json'}); bench writes "
+                             "its recordings into a folder of their own")
     sensor = SensorChain(sample_rate_Hz=args.rate, pressure_noise_Pa=args.pressure_noise,
                          supply_noise_Pa=args.pressure_noise)
     cfg = BenchConfig(cylinder=args.cylinder, valve=args.valve,
@@ -142,6 +153,7 @@ def cmd_simulate(args) -> int:
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
     out = _output_file(args.out, ".csv", args.overwrite)
+    _not_an_input([out], [*_recording_files([args.recording]), args.model])
     rec = read_recording(args.recording, args.accept, args.rig)
     model, params = Model.load_card(args.model)
     _print_findings("simulate", [rec])
@@ -179,6 +191,27 @@ def _output_file(path: str, suffix: str, overwrite: bool, *companions: str) -> P
         if p.exists() and not overwrite:
             raise PneubayesError(f"--out {out}: {p} exists (use --overwrite to replace it)")
     return out
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file (resolved: links, ``..`` and relative paths)."""
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()
+
+
+def _not_an_input(outputs, inputs, option: str = "--out") -> None:
+    """Refuse, before any work, an output that is one of the command's inputs (a
+    recording's CSV or JSON, a model card, a run's files): no command writes over what
+    it reads, not even with --overwrite."""
+    for o in outputs:
+        for i in inputs:
+            if _same_file(Path(o), Path(i)):
+                raise PneubayesError(f"{option} {o}: is the input {i}; a command never "
+                                     "writes over its own inputs (choose another output)")
 
 
 def _recording_files(paths) -> list[Path]:
@@ -335,6 +368,10 @@ def cmd_predict(args) -> int:
     companions = (".metrics.json",) + (() if args.no_figure else (".png",))
     out = _output_file(args.out, ".csv", args.overwrite, *companions)
     run = Path(args.run)
+    _not_an_input([out, *(out.with_suffix(c) for c in companions)],
+                  [*_recording_files([args.recording]),
+                   *(p for p in run.iterdir() if p.is_file())] if run.is_dir() else
+                  _recording_files([args.recording]))
     for name in ("model.json", "posterior.nc"):
         if not (run / name).is_file():
             raise PneubayesError(f"{run}: no {name} (a run folder of 'pneubayes fit' with "
@@ -536,6 +573,8 @@ def main(argv=None) -> int:
         return fail(f"internal error ({type(exc).__name__}: {exc}); this is a bug in "
                     "pneubayes, please report it with the command line (set "
                     "PNEUBAYES_TRACEBACK=1 to see where it happened)", 70)
+    finally:
+        release_locks()
 
 
 if __name__ == "__main__":
