@@ -62,6 +62,91 @@ def _run_horizon(run: Path) -> float:
     return 2.0
 
 
+def _effect_names(text: str, option: str = "--effects") -> list[str]:
+    """Effect names of a comma-separated option; an empty name between commas or a name
+    given twice is an error naming the option ('' is no effect)."""
+    if not text.strip():
+        return []
+    names = [n.strip() for n in text.split(",")]
+    if not all(names):
+        raise PneubayesError(f"{option} {text!r}: an empty name between commas (give "
+                             "effect names, e.g. cylinder_leak,tube_delay, or '' for none)")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise PneubayesError(f"{option}: {', '.join(twice)} given more than once")
+    return names
+
+
+def _no_bound_twice(bounds) -> None:
+    names = [n for n, _ in bounds]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise PneubayesError(f"--bounds: {', '.join(twice)} given more than once (which "
+                             "one did you mean?)")
+
+
+def _check_windows(recs, horizon: float, stride: float | None, force: bool) -> None:
+    """Before any work: a window holds at least a few samples of every recording
+    (--horizon), no --pressure-filter above a recording's Nyquist frequency is done by
+    the callers, and the windows number no more than the limit (--stride) unless
+    --force."""
+    from pneubayes.limits import MAX_WINDOW_SAMPLES, MAX_WINDOWS, check_work
+
+    stride = stride or horizon
+    total = samples = 0
+    for r in recs:
+        t = np.asarray(r.time_s, dtype=np.float64)
+        if t.size < 2:
+            raise PneubayesError(f"{r.source}: {t.size} sample(s); a fit needs a recording "
+                                 "of many samples")
+        dt = float(np.median(np.diff(t)))
+        if horizon < MIN_WINDOW_SAMPLES * dt:
+            raise PneubayesError(
+                f"--horizon {horizon:g}: shorter than {MIN_WINDOW_SAMPLES} sample intervals "
+                f"of {r.source} (sampled every {dt:.3g} s); a window needs several samples "
+                f"(at least {MIN_WINDOW_SAMPLES * dt:.3g} s)")
+        length = int(round(horizon / dt)) + 1
+        step = max(1, int(round(stride / dt)))
+        if length > t.size:
+            continue  # the fit says so, naming the recording
+        n = (t.size - length) // step + 1
+        valid = r.valid_mask()
+        if not valid.all() and n <= 10 * MAX_WINDOWS:  # windows on valid samples only
+            starts = np.arange(0, t.size - length + 1, step)
+            bad = np.concatenate([[0], np.cumsum(~valid)])
+            n = int(np.count_nonzero(bad[starts + length] - bad[starts] == 0))
+            if n == 0:
+                raise PneubayesError(f"{r.source}: no {horizon:g}-s window (--horizon) lies "
+                                     "within the samples its 'valid' column marks valid")
+        total += n
+        samples += n * length
+    what = f"--horizon {horizon:g} --stride {stride:g}"
+    override = "raise --stride, or pass --force to run it anyway"
+    check_work(total, MAX_WINDOWS, what,
+               f"{total:,} prediction windows (each simulated at every evaluation)",
+               override, force)
+    check_work(samples, MAX_WINDOW_SAMPLES, what,
+               f"windows overlapping into {samples:,} simulated samples per evaluation",
+               override, force)
+
+
+def _check_filter(recs, pressure_filter) -> None:
+    """A --pressure-filter cutoff at or above a recording's Nyquist frequency is an
+    error naming both."""
+    if pressure_filter is None:
+        return
+    for r in recs:
+        t = np.asarray(r.time_s, dtype=np.float64)
+        if t.size < 2:
+            continue
+        nyquist = 0.5 / float(np.median(np.diff(t)))
+        if pressure_filter.cutoff_Hz >= nyquist:
+            raise PneubayesError(
+                f"--pressure-filter {pressure_filter.order}:{pressure_filter.cutoff_Hz:g}: "
+                f"the cutoff is at or above the Nyquist frequency of {r.source} "
+                f"({nyquist:g} Hz); an anti-alias filter lies below it")
+
+
 def _windows(args) -> dict:
     """FitSettings' windows from --horizon and --stride (default: the horizon)."""
     return {"horizon_s": args.horizon, "stride_s": args.stride or args.horizon}
@@ -79,6 +164,10 @@ def _sampling(args) -> dict:
     from pneubayes.simulation import SolverConfig
 
     return {"sample_solver": SolverConfig.standard()} if args.no_dense_output else {}
+
+
+#: The fewest sample intervals a prediction window spans (--horizon).
+MIN_WINDOW_SAMPLES = 4
 
 
 def cmd_check(args) -> int:
@@ -108,8 +197,33 @@ def cmd_bench(args) -> int:
     from pneubayes.bench.bench import BenchConfig, run_bench
     from pneubayes.bench.sensors import SensorChain
     from pneubayes.effects import CATALOGUE, effects_from_names
+    from pneubayes.limits import MAX_BENCH_SAMPLES, check_work
 
-    names = [n.strip() for n in args.effects.split(",") if n.strip()] if args.effects else []
+    names = _effect_names(args.effects or "")
+    if args.leak_form is not None and "cylinder_leak" not in names:
+        raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
+                             "--effects (no leak is planted)")
+    if args.protocol == "moving":
+        given = [o for o, v in (("--positions", args.positions), ("--ranges", args.ranges))
+                 if v is not None]
+        if given:
+            raise PneubayesError(f"{' and '.join(given)}: only with --protocol fixed (the "
+                                 "moving protocol moves the piston; --count sets its "
+                                 "recordings)")
+        n_rec = args.count or 2
+    else:
+        if args.count is not None:
+            raise PneubayesError("--count: only with --protocol moving (the fixed "
+                                 "protocol writes one recording per --positions x --ranges)")
+        n_rec = len(args.positions or (0.1, 0.5, 0.9)) * len(args.ranges or (5.0, 3.0, 0.5))
+        if n_rec == 0:
+            raise PneubayesError("--positions/--ranges: no recording planned (give at "
+                                 "least one value of each)")
+    samples = float(n_rec) * args.duration * args.fine_rate
+    check_work(samples, MAX_BENCH_SAMPLES, "--count/--duration/--fine-rate",
+               f"{n_rec:,} recording(s) of {args.duration:g} s on a {args.fine_rate:g}-Hz "
+               f"grid, {samples:.3g} simulated samples", "plan fewer or shorter recordings, "
+               "or pass --force to run it anyway", args.force)
     unknown = [n for n in names if n not in CATALOGUE]
     if unknown:
         raise PneubayesError(f"--effects: unknown effect(s) {unknown}; "
@@ -128,10 +242,11 @@ def cmd_bench(args) -> int:
     sensor = SensorChain(sample_rate_Hz=args.rate, pressure_noise_Pa=args.pressure_noise,
                          supply_noise_Pa=args.pressure_noise)
     cfg = BenchConfig(cylinder=args.cylinder, valve=args.valve,
-                      effects=effects_from_names(names, args.leak_form),
+                      effects=effects_from_names(names, args.leak_form or "orifice"),
                       protocol=args.protocol, duration_s=args.duration, seed=args.seed,
-                      overrides=dict(args.set or []), ranges_V=args.ranges,
-                      positions=args.positions, count=args.count,
+                      overrides=dict(args.set or []),
+                      ranges_V=args.ranges or (5.0, 3.0, 0.5),
+                      positions=args.positions or (0.1, 0.5, 0.9), count=args.count or 2,
                       fine_rate_Hz=args.fine_rate, sensor=sensor)
     try:
         res = run_bench(cfg, args.out, overwrite=args.overwrite,
@@ -165,6 +280,9 @@ def cmd_simulate(args) -> int:
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
                     float(rec.pressure_Pa[0]), solver)
     p = traj.pressure_Pa[0]
+    if not np.all(np.isfinite(p)):
+        raise PneubayesError(f"--model {args.model} on {rec.source}: the simulated pressure "
+                             "is not finite; nothing written")
     write_text_atomic(out, "time_s,pressure_Pa\n" + "".join(
         f"{t:.9g},{v:.6f}\n" for t, v in zip(rec.time_s, p)))
     rmse = float(np.sqrt(np.mean((p - rec.pressure_Pa) ** 2)))
@@ -284,8 +402,20 @@ def cmd_fit(args) -> int:
     from pneubayes.inference.sampler import SamplerSettings
     from pneubayes.model import Model
 
+    if args.model and (args.effects is not None or args.leak_form is not None):
+        given = [o for o, v in (("--effects", args.effects), ("--leak-form", args.leak_form))
+                 if v is not None]
+        raise PneubayesError(f"--model {args.model} fixes the effects and their forms; "
+                             f"{' and '.join(given)} contradict it (give one or the other)")
+    names = _effect_names("cylinder_leak" if args.effects is None else args.effects)
+    if args.leak_form is not None and "cylinder_leak" not in names:
+        raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
+                             "--effects (the fitted model has no leak)")
+    _no_bound_twice(args.bounds)
     known = _known_from(args) if args.known_from or args.refit else None
     recs = _read_all(args.recordings, args.accept, "fit", args.rig)
+    _check_filter(recs, args.pressure_filter)
+    _check_windows(recs, args.horizon, args.stride, args.force)
     card = _rig_card_of(recs)
     if known is not None:  # the card's quantities known at another fit's values
         card = _card_known_at(card, known, args)
@@ -299,8 +429,7 @@ def cmd_fit(args) -> int:
                                  + ", the recordings " + (f"the rig {card.name!r}" if card
                                                           else "the paper's cylinders"))
     else:
-        names = [n.strip() for n in args.effects.split(",") if n.strip()]
-        model = Model(effects_from_names(names, args.leak_form), rig_card=card)
+        model = Model(effects_from_names(names, args.leak_form or "orifice"), rig_card=card)
     if args.bounds:
         model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)},
                       model.rig_card)
@@ -309,6 +438,17 @@ def cmd_fit(args) -> int:
         raise PneubayesError(f"--walkers {args.walkers}: emcee needs at least twice the "
                              f"{model.n_parameters} sampled dimensions of this model, >= "
                              f"{2 * model.n_parameters} (or 0: automatic)")
+    if args.method == "mcmc":
+        from pneubayes.limits import MAX_CHAIN_MB, check_work
+
+        walkers = args.walkers or max(32, 4 * n_dims)
+        walkers += walkers % 2
+        mb = walkers * float(args.max_steps) * (n_dims + 1) * 8 / 1e6
+        check_work(mb, MAX_CHAIN_MB, f"--walkers {args.walkers} --max-steps {args.max_steps}",
+                   f"a chain of {walkers:,} walkers x {args.max_steps:,} steps x "
+                   f"{n_dims + 1} values, up to {mb:,.0f} MB on disk in chain.h5 (and as "
+                   "much in memory)", "use fewer walkers or steps, or pass --force to run it "
+                   "anyway", args.force)
     settings = FitSettings(sampler=SamplerSettings(
         n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args),
         **_windows(args), **_refinement(args), **_sampling(args))
@@ -381,6 +521,7 @@ def cmd_predict(args) -> int:
     _print_findings("predict", [rec])
     figure = None if args.no_figure else out.with_suffix(".png")
     horizon = args.horizon or _run_horizon(run)
+    _check_windows([rec], horizon, args.stride, args.force)
     m = run_predict(args.run, rec, horizon, out, args.draws, args.seed,
                     SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
     span = m["rmse_percent_of_span"]
@@ -421,13 +562,19 @@ def cmd_discover(args) -> int:
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 
+    if args.no_posterior and args.posterior is not None:
+        raise PneubayesError(f"--posterior {args.posterior}: contradicts --no-posterior "
+                             "(give one or the other)")
+    _no_bound_twice(args.bounds)
     grid = _library_grid(args.library)
     recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover", args.rig)
+    _check_filter(recs, args.pressure_filter)
+    _check_windows(recs, args.horizon, args.stride, args.force)
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
         bounds=dict(args.bounds),
         max_effects=args.max_effects, grid=grid,
-        posterior=not args.no_posterior, posterior_method=args.posterior, seed=args.seed,
+        posterior=not args.no_posterior, posterior_method=args.posterior or "emcee", seed=args.seed,
         tube_line_segments=args.tube_line_segments,
         tube_line_form=args.tube_line_form,
         form_settled_ratio=args.form_settled_ratio,
@@ -449,6 +596,12 @@ def cmd_discover(args) -> int:
     if folder.resumed:
         log(f"discover: resuming the run in {args.out} (finished fits are reused)")
     doc = run_discover(recs, settings, args.out, log=log, figures=not args.no_figures)
+    from pneubayes.inference.fit_folder import _non_finite_rmse
+
+    bad = _non_finite_rmse(doc)
+    if bad:
+        raise FloatingPointError(f"{args.out}/discovery.json: {bad[0][0]} is {bad[0][1]}; "
+                                 "not a result (a simulation failed on the data)")
     folder.record("discovery.json", "model.json", "posterior.nc", "disagreement.json",
                   "report.md")
     print(f"{args.out}/discovery.json: base held-out {args.horizon:g}-s RMSE "
@@ -546,6 +699,9 @@ def main(argv=None) -> int:
                  "fit": cmd_fit, "predict": cmd_predict, "discover": cmd_discover,
                  "ablate": cmd_ablate, "import": cmd_import}[args.command]
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
+    from pneubayes import limits
+
+    limits.set_max_file_mb(getattr(args, "max_file_mb", None))
 
     def fail(message: str, code: int = 2) -> int:
         print(f"pneubayes {args.command}: error: {message}", file=sys.stderr)

@@ -91,6 +91,10 @@ def _library_entry(text: str) -> tuple[str, tuple[float, ...]]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"--library expects EFFECT=S1,S2,... (numbers), "
                                          f"got {text!r}") from None
+    bad = [v for v in strengths if not (math.isfinite(v) and v > 0)]
+    if bad:
+        raise argparse.ArgumentTypeError(f"--library {name.strip()}: trial strengths must be "
+                                         f"finite and > 0, got {', '.join(map(repr, bad))}")
     return name.strip(), strengths
 
 
@@ -120,7 +124,23 @@ def _rig(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _add_limits(p, force: bool = True) -> None:
+    """--max-file-mb (every command reading files) and --force (commands that size
+    their work first); :mod:`pneubayes.limits` has the limits."""
+    p.add_argument("--max-file-mb", type=POSITIVE, default=None, metavar="MB",
+                   help="largest input file read, MB (default 512, or the environment's "
+                        "PNEUBAYES_MAX_FILE_MB); only regular files are read (no pipes, "
+                        "devices or folders)")
+    if force:
+        p.add_argument("--force", action="store_true",
+                       help="start work sized over its limit (over 20,000 prediction "
+                            "windows, an emcee chain over 4 GB on disk, a bench plan over "
+                            "2e8 simulated samples); without it such a command is refused, "
+                            "saying what it would cost")
+
+
 def _add_accept(p) -> None:
+    _add_limits(p, force=False)
     p.add_argument("--rig", type=_rig, default=None, metavar="CARD",
                    help="a rig card (pneubayes-rig/1, .json or .toml) describing the rig of "
                         "every recording (instead of the one a sidecar's 'rig' key names)")
@@ -157,6 +177,10 @@ def _add_identification(p, seed_help: str) -> None:
                         "the command holds (SolverConfig.sampling(), the default)")
     _add_bounds(p)
     _add_run_folder(p)
+    p.add_argument("--force", action="store_true",
+                   help="start work sized over its limit (over 20,000 prediction windows, "
+                        "an emcee chain over 4 GB on disk); without it such a fit is "
+                        "refused before any work, saying what it would cost")
     p.add_argument("--no-figures", action="store_true")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     _add_accept(p)
@@ -230,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "tube_delay,spool_lag (catalogue: cylinder_leak, tube_delay, "
                    "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag, sensor_lag, "
                    "sensor_calibration)")
-    b.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"),
+    b.add_argument("--leak-form", default=None, choices=("orifice", "laminar"),
                    help="law of a planted cylinder_leak (default orifice, the paper's)")
     b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",
                    help="override a true parameter, e.g. --set tube_delay_s=0.005")
@@ -240,12 +264,13 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--duration", type=POSITIVE, default=20.0, help="seconds per recording")
     b.add_argument("--seed", type=NON_NEGATIVE_INT, required=True,
                    help="random seed (recorded in truth)")
-    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=(5.0, 3.0, 0.5),
+    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=None,
                    help="fixed protocol: command ranges in V (default 5,3,0.5)")
     b.add_argument("--positions", type=lambda s: _floats(s, "--positions"),
-                   default=(0.1, 0.5, 0.9),
+                   default=None,
                    help="fixed protocol: positions as fractions of stroke (default 0.1,0.5,0.9)")
-    b.add_argument("--count", type=POSITIVE_INT, default=2, help="moving protocol: recordings")
+    b.add_argument("--count", type=POSITIVE_INT, default=None,
+                   help="moving protocol: recordings (default 2)")
     b.add_argument("--rate", type=POSITIVE, default=1000.0, help="output sample rate, Hz")
     b.add_argument("--fine-rate", type=POSITIVE, default=10_000.0,
                    help="truth simulation grid, Hz (a multiple of --rate)")
@@ -253,6 +278,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pressure sensor noise std, Pa")
     b.add_argument("--out", required=True, help="output directory")
     b.add_argument("--overwrite", action="store_true", help="replace existing files")
+    b.add_argument("--force", action="store_true",
+                   help="run a plan over the limit (2e8 samples on the fine grid, 1000 "
+                        "recordings); without it such a plan is refused, saying its size")
     b.add_argument("-q", "--quiet", action="store_true")
 
     s = sub.add_parser(
@@ -279,10 +307,12 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
     f.add_argument("--out", required=True, help="run folder")
     f.add_argument("--model", help="model card whose effects (and options) to fit")
-    f.add_argument("--effects", default="cylinder_leak",
+    f.add_argument("--effects", default=None,
                    help="effects of the fitted model when no --model (default: the paper's "
-                        "cylinder_leak)")
-    f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
+                        "cylinder_leak; '' for the plain thin-port model)")
+    f.add_argument("--leak-form", default=None, choices=("orifice", "laminar"),
+                   help="law of the fitted cylinder_leak (default orifice, the paper's); "
+                        "only with cylinder_leak among --effects")
     f.add_argument("--known-from", default=None, metavar="RUN|MODEL.json",
                    help="a fit of the same rig card (its run folder or model.json): the "
                         "card's fitted quantities are known at that fit's values, except "
@@ -313,6 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output CSV")
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
+    r.add_argument("--force", action="store_true",
+                   help="predict over 20,000 windows (refused without it, saying the cost)")
     _add_accept(r)
 
     d = sub.add_parser(
@@ -370,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "sensor_calibration=2000,5000,10000 (Pa)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final posterior (refined point estimates only)")
-    d.add_argument("--posterior", choices=["emcee", "laplace"], default="emcee",
+    d.add_argument("--posterior", choices=["emcee", "laplace"], default=None,
                    help="the final model's posterior: emcee (default) or laplace, a "
                         "Gaussian at the posterior's mode from a few hundred posterior "
                         "evaluations (minutes where emcee on a model with a tube takes "
@@ -390,6 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "muscles are vented by something not in the command)")
     im.add_argument("--overwrite", action="store_true",
                     help="write into a non-empty --out folder")
+    _add_limits(im, force=False)
 
     a = sub.add_parser(
         "ablate", help="run a declarative ablation study (a grid of fits) with caching",

@@ -182,7 +182,8 @@ def _acquire_lock(out: Path, command: str, argv, log) -> Path:
             if holder and _alive(holder):
                 raise RunFolderError(
                     f"--out {out}: in use by {_describe_holder(holder)}; wait for it to "
-                    f"finish or use another folder (if that process is gone, remove {lock})")
+                    f"finish or use another folder (if that process is gone, remove {lock})"
+                ) from None
             log(f"note: --out {out}: taking over the lock of "
                 + (_describe_holder(holder) if holder else "an unreadable lock file")
                 + ", which is no longer running")
