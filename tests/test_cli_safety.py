@@ -124,8 +124,8 @@ def test_a_busy_run_folder_names_its_holder_and_a_stale_lock_is_taken_over(
         (out / LOCK).write_text(json.dumps({
             "pid": sleeper.pid, "host": socket.gethostname(), "command": "fit",
             "argv": ["fit", "x.csv", "--out", str(out)], "started": "2026-01-01T00:00:00Z"}))
-        assert main(["fit", str(rec), "--method", "refine", "--out", str(out), "-q",
-                     "--horizon", "1e-9"]) == 2
+        assert main(["fit", str(rec), "--method", "lsq", "--out", str(out), "-q",
+                     "--horizon", "0.2"]) == 2
         err = capsys.readouterr().err
         assert f"pid {sleeper.pid}" in err and "pneubayes fit x.csv" in err
     finally:
@@ -138,3 +138,167 @@ def test_a_busy_run_folder_names_its_holder_and_a_stale_lock_is_taken_over(
     assert holder["pid"] == os.getpid()
     folder.release()
     assert not (out / LOCK).exists()
+
+
+# ------------------------------------------------------------------ 2. the machine
+def _sidecar_beside(rec: Path, stem: Path) -> None:
+    stem.with_suffix(".json").write_text(rec.with_suffix(".json").read_text())
+
+
+def test_only_regular_files_of_bounded_size_are_read(rec, tmp_path, capsys, monkeypatch):
+    import time
+
+    zero = tmp_path / "z.csv"
+    zero.symlink_to("/dev/zero")
+    _sidecar_beside(rec, zero)
+    fifo = tmp_path / "f.csv"
+    os.mkfifo(fifo)
+    _sidecar_beside(rec, fifo)
+    sparse = tmp_path / "s.csv"
+    with open(sparse, "wb") as fh:
+        fh.truncate(3_000_000)
+    _sidecar_beside(rec, sparse)
+    t0 = time.monotonic()
+    monkeypatch.setenv("PNEUBAYES_MAX_FILE_MB", "2")
+    assert main(["check", str(zero), str(fifo), str(sparse), str(tmp_path)]) == 1
+    out = capsys.readouterr().out
+    assert time.monotonic() - t0 < 10
+    assert f"{zero}: is a device" in out and f"{fifo}: is a named pipe" in out
+    assert f"{sparse}: is 3 MB, over the input limit of 2 MB" in out and "--max-file-mb" in out
+    assert f"{tmp_path}: is a folder" in out
+    # the option overrides the environment
+    assert main(["check", str(rec), "--max-file-mb", "0.001"]) == 1
+    assert "over the input limit of 0.001 MB" in capsys.readouterr().out
+    monkeypatch.delenv("PNEUBAYES_MAX_FILE_MB")
+    assert main(["check", str(rec)]) == 0
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["fit", "REC", "--method", "refine", "--horizon", "0.01", "--stride", "1e-6"],
+     "prediction windows"),
+    (["predict", "RUN", "REC", "--horizon", "0.4", "--stride", "1e-5", "--out", "P"],
+     "simulated samples"),
+    (["fit", "REC", "--walkers", "1000000000"], "MB on disk in chain.h5"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--protocol",
+      "moving", "--count", "1000000000"], "simulated samples"),
+])
+def test_work_is_sized_before_it_starts(argv, says, rec, tmp_path, capsys, monkeypatch):
+    import pneubayes.limits as limits
+
+    monkeypatch.setattr(limits, "MAX_WINDOWS", 200)  # the tiny recording's scale
+    monkeypatch.setattr(limits, "MAX_WINDOW_SAMPLES", 20_000)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.json").write_text("{}")
+    (run / "posterior.nc").write_bytes(b"")
+    argv = [{"REC": str(rec), "RUN": str(run), "P": str(tmp_path / "p.csv")}.get(a, a)
+            for a in argv]
+    out = tmp_path / "out"
+    if "--out" not in argv:
+        argv += ["--out", str(out)]
+    assert main([*argv, "-q"] if argv[0] != "predict" else argv) == 2
+    err = capsys.readouterr().err
+    assert says in err and "--force" in err
+    assert not out.exists() and not (tmp_path / "p.csv").exists()
+
+
+# ------------------------------------------------------------------ 3. nonsense
+def _edited(rec: Path, name: str, column: str, edit) -> Path:
+    lines = rec.read_text().splitlines()
+    j = lines[0].split(",").index(column)
+    rows = [r.split(",") for r in lines[1:]]
+    for i, r in enumerate(rows):
+        r[j] = edit(i, r[j])
+    out = rec.with_name(name + ".csv")
+    out.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    _sidecar_beside(rec, out)
+    return out
+
+
+def test_impossible_samples_and_settings_are_errors_naming_where(rec, tmp_path, capsys):
+    big = _edited(rec, "big", "pressure_Pa", lambda i, v: "1e300" if i == 100 else v)
+    ns = _edited(rec, "ns", "time_s", lambda i, v: repr(float(v) * 1e-6))
+    assert main(["check", str(big), str(ns)]) == 1
+    out = capsys.readouterr().out
+    assert f"{big} row 102: column 'pressure_Pa': 1e+300 Pa" in out
+    assert f"{ns} row 3: column 'time_s'" in out and "under 1 us" in out
+    assert main(["fit", str(big), "--method", "refine", "--out", str(tmp_path / "o")]) == 2
+    assert not (tmp_path / "o").exists()
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.json").write_text("{}")
+    (run / "posterior.nc").write_bytes(b"")
+    capsys.readouterr()
+    for argv, says in (
+            (["predict", str(run), str(rec), "--horizon", "1e-9", "--out",
+              str(tmp_path / "p.csv")], "--horizon 1e-09: shorter than 4 sample"),
+            (["predict", str(run),
+              str(_edited(rec, "inval", "command_V", lambda i, v: v)), "--out",
+              str(tmp_path / "p.csv")], None),
+            (["fit", str(rec), "--method", "refine", "--horizon", "1e-9"], "--horizon 1e-09"),
+            (["fit", str(rec), "--method", "refine", "--pressure-filter", "2:1e9"],
+             "Nyquist frequency of"),
+    ):
+        if says is None:  # predict honours the valid column, as fit does
+            stem = Path(argv[2]).with_suffix("")
+            lines = Path(argv[2]).read_text().splitlines()
+            Path(argv[2]).write_text("\n".join([lines[0] + ",valid",
+                                                *(r + ",0" for r in lines[1:])]) + "\n")
+            argv[2] = str(stem) + ".csv"
+            says = "no 0.4-s window (--horizon) lies within the samples its 'valid'"
+            argv += ["--horizon", "0.4"]
+        if argv[0] == "fit":
+            argv += ["--out", str(tmp_path / "o")]
+        assert main(argv) == 2, argv
+        assert says in capsys.readouterr().err
+    assert not (tmp_path / "p.csv").exists() and not (tmp_path / "o").exists()
+    with pytest.raises(SystemExit):
+        main(["discover", str(rec), "--library", "tube_delay=-1,-2", "--out", str(tmp_path)])
+    assert "trial strengths must be finite and > 0" in capsys.readouterr().err
+    # a rig card's [bounds] naming no parameter
+    card = json.loads((ROOT / "data" / "rigs" / "AIR37-valve2.rig.json").read_text())
+    card["bounds"] = {"no_such_param": [0, 1]}
+    (tmp_path / "bad.rig.json").write_text(json.dumps(card))
+    with pytest.raises(SystemExit):
+        main(["check", str(rec), "--rig", str(tmp_path / "bad.rig.json")])
+    assert "key 'bounds': ['no_such_param']" in capsys.readouterr().err
+    # an empty RespiraWorks file: a message, not a crash
+    (tmp_path / "OXY").mkdir()
+    (tmp_path / "OXY" / "empty.dat").write_text("")
+    assert main(["import", "respiraworks", str(tmp_path / "OXY" / "empty.dat"), "--out",
+                 str(tmp_path / "imp")]) == 2
+    assert "empty.dat: empty" in capsys.readouterr().err
+
+
+def test_a_non_finite_rmse_is_never_a_result(tmp_path):
+    from pneubayes.inference.fit_folder import _non_finite_rmse
+
+    assert _non_finite_rmse({"refined": {"rmse_Pa": float("nan"), "x": 1.0},
+                             "start": {"rmse_Pa": 3.0}}) == [("refined.rmse_Pa",
+                                                              pytest.approx(float("nan"),
+                                                                            nan_ok=True))]
+    assert _non_finite_rmse({"a": [{"rmse_Pa": 1.0}], "rmse_final_Pa": 2.0}) == []
+
+
+# ------------------------------------------------------------------ 4. contradictions
+@pytest.mark.parametrize("argv, says", [
+    (["fit", "REC", "--model", "CARD", "--effects", "heat_transfer"], "contradict"),
+    (["fit", "REC", "--effects", "heat_transfer", "--leak-form", "laminar"],
+     "--leak-form laminar: only with cylinder_leak"),
+    (["fit", "REC", "--effects", ",,"], "an empty name between commas"),
+    (["fit", "REC", "--bounds", "dead_volume_m3=1e-5:1e-3", "--bounds",
+      "dead_volume_m3=1e-5:1e-2"], "given more than once"),
+    (["discover", "REC", "--no-posterior", "--posterior", "laplace"],
+     "contradicts --no-posterior"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--protocol",
+      "moving", "--positions", "0.5"], "--positions: only with --protocol fixed"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--count", "3"],
+     "--count: only with --protocol moving"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--leak-form",
+      "laminar"], "no leak is planted"),
+])
+def test_contradictory_options_are_errors(argv, says, rec, tmp_path, capsys):
+    argv = [{"REC": str(rec), "CARD": TRUTH}.get(a, a) for a in argv]
+    assert main([*argv, "--out", str(tmp_path / "out"), "-q"]) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
