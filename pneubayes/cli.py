@@ -463,6 +463,10 @@ def cmd_fit(args) -> int:
                 # a chain is never resumed with another likelihood solver
                 "sample_solver": settings.sample_solver.to_dict(),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
+    _not_an_input([Path(args.out) / n for n in FIT_OUTPUTS],
+                  [*_recording_files(args.recordings),
+                   *([args.model] if args.model else []),
+                   *([known[2]] if known is not None else [])])
     folder = open_run_folder(args.out, "fit", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
@@ -590,6 +594,8 @@ def cmd_discover(args) -> int:
                                                               *args.held_out])),
                 "settings": settings.to_dict(), "accept": list(args.accept),
                 "rig": None if recs[0].rig_card is None else recs[0].rig_card.to_dict()}
+    _not_an_input([Path(args.out) / n for n in DISCOVER_OUTPUTS],
+                  _recording_files([*args.recordings, *args.held_out]))
     folder = open_run_folder(args.out, "discover", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=DISCOVER_OUTPUTS,
                              argv=args.argv)
@@ -667,6 +673,9 @@ def cmd_ablate(args) -> int:
                     else LocalExecutor(args.workers or 1))
     except (ImportError, OSError) as exc:
         raise PneubayesError(f"--scheduler {args.scheduler}: {exc}") from None
+    except (MemoryError, ValueError, RuntimeError) as exc:  # a scheduler that does not answer
+        raise PneubayesError(f"--scheduler {args.scheduler}: no Dask scheduler answers "
+                             f"there ({type(exc).__name__}: {exc})") from None
     # SIGINT or SIGTERM (a batch system's stop) ends the study between cells: running
     # cells are cancelled (local worker processes ended), finished ones are on disk
     with executor:
@@ -721,7 +730,10 @@ def main(argv=None) -> int:
         where = exc.filename or ""
         what = exc.strerror or str(exc)
         return fail(f"{where}: {what}" if where else what)
-    except (ArithmeticError, MemoryError) as exc:
+    except MemoryError as exc:
+        return fail(f"out of memory ({exc or 'MemoryError'}); the work is larger than this "
+                    "machine holds: fewer recordings, windows, walkers or draws")
+    except ArithmeticError as exc:
         return fail(f"numerical failure ({type(exc).__name__}: {exc})")
     except Exception as exc:  # a bug: say so, in one message
         if os.environ.get("PNEUBAYES_TRACEBACK"):

@@ -231,6 +231,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="pneubayes",
         description="Thin-port pneumatic actuator models: simulate, check recordings, run "
                     "the virtual test bench.")
+    from pneubayes import __version__
+
+    p.add_argument("--version", action="version", version=f"pneubayes {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     c = sub.add_parser("check", help="validate recordings against docs/recording-format.md",
@@ -373,7 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the outside tube's form tried for a named tube: the "
                         "transmission-line tube (wave: no cells, closer to a continuous "
                         "tube; the line beside heat transfer), or the lumped acoustic "
-                        "line (wave)")
+                        "line (line)")
     d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "

@@ -245,10 +245,32 @@ def read_stamp(folder) -> dict | None:
     return doc
 
 
-def _describe(doc: dict | None) -> str:
+def _describe(doc: dict | None, identity: Mapping | None = None) -> str:
     if doc is None:
         return "files that no pneubayes run stamped"
-    return f"a '{doc.get('command')}' run of other inputs or settings"
+    differ = _differences(doc.get("identity"), identity) if identity is not None else []
+    return (f"a '{doc.get('command')}' run of other inputs or settings"
+            + (f" (differing: {', '.join(differ)})" if differ else ""))
+
+
+def _differences(old, new, where: str = "", limit: int = 6) -> list[str]:
+    """The keys (dotted) where two identities differ, inputs by their content."""
+    new = json_safe(new)
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for k in sorted(set(old) | set(new)):
+            path = f"{where}.{k}" if where else str(k)
+            if k not in old or k not in new:
+                out.append(path)
+            else:
+                out += _differences(old[k], new[k], path, limit)
+        return out[:limit]
+    if isinstance(old, list) and isinstance(new, list) and len(old) == len(new) and \
+            all(isinstance(x, dict) and "sha256" in x for x in old + new):
+        return [f"{where}: {y.get('path')} (its content)" if x.get("sha256") != y.get("sha256")
+                else f"{where}: {x.get('path')} -> {y.get('path')} (the path only)"
+                for x, y in zip(old, new) if x != y][:limit]
+    return [] if old == new else [where or "identity"]
 
 
 def _remove_stamped_run(out: Path, stamp: dict, outputs) -> None:
@@ -319,7 +341,8 @@ def _open_locked(out: Path, command, identity, overwrite, resume, outputs, argv)
     same = (stamp is not None and stamp.get("command") == command
             and stamp.get("identity_digest") == digest)
     if resume and not same:
-        raise RunFolderError(f"--out {out}: nothing to resume (it holds {_describe(stamp)})"
+        raise RunFolderError(f"--out {out}: nothing to resume (it holds "
+                             f"{_describe(stamp, identity)})"
                              if busy else f"--out {out}: nothing to resume (no run there)")
     if busy and stamp is None:
         raise RunFolderError(
@@ -329,7 +352,7 @@ def _open_locked(out: Path, command, identity, overwrite, resume, outputs, argv)
     if busy and not same:
         if not overwrite:
             raise RunFolderError(
-                f"--out {out}: holds {_describe(stamp)}; refusing to mix runs. Use "
+                f"--out {out}: holds {_describe(stamp, identity)}; refusing to mix runs. Use "
                 f"--overwrite to replace that run's files, or another folder (--resume "
                 f"continues only the same '{command}' on the same inputs and settings)")
         _remove_stamped_run(out, stamp, outputs)
