@@ -91,7 +91,7 @@ def input_file_problem(path) -> str | None:
         return f"is {_kind(st.st_mode)}{link}, not a file; only regular files are read"
     limit = max_file_bytes()
     if st.st_size > limit:
-        return (f"is {st.st_size / 1e6:.0f} MB, over the input limit of {limit / 1e6:g} MB "
+        return (f"is {st.st_size / 1e6:.3g} MB, over the input limit of {limit / 1e6:g} MB "
                 f"(raise it with --max-file-mb or {ENV_MAX_FILE_MB} if the file is real)")
     return None
 

@@ -302,3 +302,187 @@ def test_contradictory_options_are_errors(argv, says, rec, tmp_path, capsys):
     assert main([*argv, "--out", str(tmp_path / "out"), "-q"]) == 2
     assert says in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------ 5. property-based
+# Generated recordings, option sets and --out folders, every command: exit 0, 1 or 2
+# (never 70), no traceback, no input changed, no file of the user's in --out removed, and
+# each example in bounded time and memory. The work itself (a fit, a simulation, a bench
+# session) is stubbed: what is tested is everything a command does before it starts.
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from pneubayes.errors import PneubayesError  # noqa: E402
+
+
+class _Reached(PneubayesError):
+    """Every check passed: the command would start its work now."""
+
+
+@pytest.fixture
+def stubbed(monkeypatch):
+    import pneubayes.ablation.runner as runner
+    import pneubayes.bench.bench as bench
+    import pneubayes.discovery.report as report
+    import pneubayes.inference.pipeline as pipeline
+    import pneubayes.simulation as simulation
+
+    def reached(*args, **kwargs):
+        raise _Reached("reached the work")
+    for module, name in ((pipeline, "run_fit"), (pipeline, "run_predict"),
+                         (report, "run_discover"), (bench, "run_bench"),
+                         (simulation, "simulate"), (runner, "run_study")):
+        monkeypatch.setattr(module, name, reached)
+
+
+_PRESSURES = ["1e300", "-1", "0", "nan", "inf", "2e7", "1e7", "5e4", "abc", ""]
+_HORIZONS = ["1e-9", "0.001", "0.004", "0.05", "0.3", "100"]
+_OPTIONS = {
+    "fit": [("--method", ["lsq", "refine", "mcmc", "laplace"]), ("--horizon", _HORIZONS),
+            ("--stride", ["1e-9", "1e-6", "0.001", "0.1"]),
+            ("--walkers", ["0", "1", "64", "1000000000"]), ("--max-steps", ["10", "1000000"]),
+            ("--pressure-filter", ["2:1e9", "2:100", "1:499"]),
+            ("--effects", ["", ",,", "tube_delay", "cylinder_leak,cylinder_leak",
+                           "heat_transfer", "no_such"]),
+            ("--leak-form", ["orifice", "laminar"]), ("--model", ["CARD"]),
+            ("--bounds", ["dead_volume_m3=1e-5:1e-3", "no_such=1:2"]),
+            ("--overwrite", None), ("--resume", None), ("--force", None),
+            ("--max-file-mb", ["0.0001", "100"])],
+    "predict": [("--horizon", _HORIZONS), ("--stride", ["1e-9", "1e-5", "0.01"]),
+                ("--draws", ["1", "200"]), ("--force", None), ("--overwrite", None)],
+    "discover": [("--no-posterior", None), ("--posterior", ["laplace", "emcee"]),
+                 ("--library", ["tube_delay=-1,-2", "tube_delay=0.001", "no_such=1"]),
+                 ("--horizon", _HORIZONS), ("--stride", ["1e-6", "0.1"]),
+                 ("--overwrite", None), ("--resume", None)],
+    "simulate": [("--overwrite", None), ("--max-step", ["1e-12", "0.02"])],
+    "check": [("--max-file-mb", ["0.0001", "100"]), ("--accept", ["pressure-span"])],
+    "bench": [("--protocol", ["fixed", "moving"]), ("--count", ["1", "1000000000"]),
+              ("--positions", ["0.5", "0.1,0.9"]), ("--ranges", ["5", "0.5"]),
+              ("--duration", ["0.1", "1e6"]), ("--leak-form", ["laminar"]),
+              ("--effects", ["cylinder_leak", ",,", "tube_delay"]), ("--overwrite", None),
+              ("--force", None)],
+}
+
+
+def _recording_text(data, base: Path) -> str:
+    n = data.draw(st.integers(0, 60))
+    dt = data.draw(st.sampled_from([1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 1.0]))
+    t0 = data.draw(st.sampled_from([0.0, 1.7e9, -5.0]))
+    rng = data.draw(st.randoms(use_true_random=False))
+    head = base.read_text().splitlines()[0].split(",")
+    valid = data.draw(st.sampled_from([None, "0", "1", "mixed"]))
+    rows = []
+    for i in range(n):
+        row = {"time_s": repr(t0 + i * dt), "command_V": repr(rng.choice([-5.0, 0.0, 5.0])),
+               "pressure_Pa": repr(rng.uniform(1.0e5, 6.0e5)),
+               "supply_pressure_Pa": repr(6.0e5), "position_m": repr(0.01)}
+        rows.append([row.get(c, "0") for c in head]
+                    + ([] if valid is None else
+                       [str(rng.randint(0, 1)) if valid == "mixed" else valid]))
+    if rows and data.draw(st.booleans()):
+        i = data.draw(st.integers(0, len(rows) - 1))
+        rows[i][head.index("pressure_Pa")] = data.draw(st.sampled_from(_PRESSURES))
+    header = head + ([] if valid is None else ["valid"])
+    return "\n".join([",".join(header), *(",".join(r) for r in rows)]) + "\n"
+
+
+def _property(data, seeds_dir: Path):
+    import resource
+    import tempfile
+    import time
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        inputs = tmp / "inputs"
+        inputs.mkdir()
+        rec = inputs / "rec.csv"
+        # hypothesis favours the first of a list; a drawn Random picks every one alike
+        rnd = data.draw(st.randoms(use_true_random=False))
+        kind = rnd.choice(["text", "text", "text", "text", "fifo", "zero", "dir"])
+        sidecar = json.loads((seeds_dir / "rec.json").read_text())
+        if data.draw(st.integers(0, 5)) == 0:
+            sidecar["format"] = 42
+        (inputs / "rec.json").write_text(json.dumps(sidecar))
+        if kind == "text":
+            rec.write_text(_recording_text(data, seeds_dir / "rec.csv"))
+        elif kind == "fifo":
+            os.mkfifo(rec)
+        elif kind == "zero":
+            rec.symlink_to("/dev/zero")
+        else:
+            rec.mkdir()
+        (inputs / "card.json").write_text((seeds_dir / "card.json").read_text())
+        run = inputs / "run"
+        run.mkdir()
+        (run / "model.json").write_text("{}")
+        (run / "posterior.nc").write_bytes(b"")
+        # --out: absent, a folder of the user's, or a stamped run with a file of the user's
+        out = tmp / "out"
+        state = rnd.choice(["absent", "user", "stamped"])
+        if state == "stamped":
+            open_run_folder(out, "fit", {"earlier": 1}, outputs=("model.json",)).release()
+            (out / "model.json").write_text("{}")
+        if state != "absent":
+            out.mkdir(exist_ok=True)
+            (out / "mine.txt").write_text("the user's")
+        command = rnd.choice(sorted(_OPTIONS))
+        target = rnd.choice(["fresh", "fresh", "input", "sidecar"])
+        out_file = {"fresh": str(out / "p.csv"), "input": str(rec),
+                    "sidecar": str(inputs / "rec.metrics.csv")}[target]
+        argv = {"check": ["check", str(rec)],
+                "simulate": ["simulate", str(rec), "--model", "CARD", "--out", out_file],
+                "fit": ["fit", str(rec), "--out", str(out)],
+                "predict": ["predict", str(run), str(rec), "--out", out_file],
+                "discover": ["discover", str(rec), "--out", str(out)],
+                "bench": ["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1",
+                          "--out", str(out)]}[command]
+        pool = _OPTIONS[command]
+        for option, values in rnd.sample(pool, rnd.randint(0, min(4, len(pool)))):
+            argv += [option] if values is None else [option, rnd.choice(values)]
+        argv = [str(inputs / "card.json") if a == "CARD" else a for a in argv]
+        before = _tree(inputs) if kind != "zero" else None
+        mine = _tree(out) if out.is_dir() else {}
+        t0 = time.monotonic()
+        try:
+            rc = main(argv)
+        except SystemExit as exc:  # argparse's usage errors
+            rc = exc.code
+        assert time.monotonic() - t0 < 30, argv
+        assert rc in (0, 1, 2), argv
+        if kind != "zero":
+            assert _tree(inputs) == before, argv
+        for name, content in mine.items():
+            if name == "mine.txt":
+                assert (out / name).read_bytes() == content, argv
+        assert not (out / LOCK).exists(), argv
+        # the peak resident memory of this process stays far from the 2-GB floor
+        assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss < 2_000_000, argv
+
+
+_PROPERTY = dict(derandomize=True, deadline=None, database=None,
+                 suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                        HealthCheck.too_slow])
+
+
+@settings(max_examples=40, **_PROPERTY)
+@given(data=st.data())
+def test_any_command_on_any_input_is_safe(stubbed, rec, data, capsys):
+    _property(data, _seeds(rec))
+    assert "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@settings(max_examples=10_000, **_PROPERTY)
+@given(data=st.data())
+def test_any_command_on_any_input_is_safe_at_length(stubbed, rec, data, capsys):
+    _property(data, _seeds(rec))
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def _seeds(rec: Path) -> Path:
+    card = rec.parent / "card.json"
+    if not card.exists():
+        doc = json.loads(Path(TRUTH).read_text())
+        doc.pop("bench", None)
+        card.write_text(json.dumps(doc))
+    return rec.parent
