@@ -130,21 +130,29 @@ def _check_windows(recs, horizon: float, stride: float | None, force: bool) -> N
                override, force)
 
 
+#: A declared pressure filter's cutoff may lie at most this many times above a
+#: recording's sample rate (an oversampling DAQ filters before it decimates, so a cutoff
+#: at the sample rate is real, e.g. the bench's 2:1000 at 1 kHz; far above, the filter
+#: changes no sample and the value is a slip).
+FILTER_MAX_OVER_RATE = 10.0
+
+
 def _check_filter(recs, pressure_filter) -> None:
-    """A --pressure-filter cutoff at or above a recording's Nyquist frequency is an
-    error naming both."""
+    """A --pressure-filter cutoff far above a recording's sample rate (more than
+    :data:`FILTER_MAX_OVER_RATE` x) is an error naming both."""
     if pressure_filter is None:
         return
     for r in recs:
         t = np.asarray(r.time_s, dtype=np.float64)
         if t.size < 2:
             continue
-        nyquist = 0.5 / float(np.median(np.diff(t)))
-        if pressure_filter.cutoff_Hz >= nyquist:
+        rate = 1.0 / float(np.median(np.diff(t)))
+        if pressure_filter.cutoff_Hz > FILTER_MAX_OVER_RATE * rate:
             raise PneubayesError(
                 f"--pressure-filter {pressure_filter.order}:{pressure_filter.cutoff_Hz:g}: "
-                f"the cutoff is at or above the Nyquist frequency of {r.source} "
-                f"({nyquist:g} Hz); an anti-alias filter lies below it")
+                f"the cutoff is over {FILTER_MAX_OVER_RATE:g} x the sample rate of "
+                f"{r.source} ({rate:g} Hz), where the filter changes no sample; a DAQ's "
+                "anti-alias filter lies near or below its sample rate")
 
 
 def _windows(args) -> dict:
@@ -168,6 +176,8 @@ def _sampling(args) -> dict:
 
 #: The fewest sample intervals a prediction window spans (--horizon).
 MIN_WINDOW_SAMPLES = 4
+#: The fewest posterior draws a prediction's bands are drawn from (--draws).
+MIN_DRAWS = 20
 
 
 def cmd_check(args) -> int:
@@ -219,6 +229,11 @@ def cmd_bench(args) -> int:
         if n_rec == 0:
             raise PneubayesError("--positions/--ranges: no recording planned (give at "
                                  "least one value of each)")
+    ratio = args.fine_rate / args.rate
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise PneubayesError(f"--fine-rate {args.fine_rate:g}: must be a whole multiple of "
+                             f"--rate {args.rate:g} (the truth is simulated on the fine grid "
+                             "and sampled at the rate; default 10000 Hz)")
     samples = float(n_rec) * args.duration * args.fine_rate
     check_work(samples, MAX_BENCH_SAMPLES, "--count/--duration/--fine-rate",
                f"{n_rec:,} recording(s) of {args.duration:g} s on a {args.fine_rate:g}-Hz "
@@ -275,6 +290,9 @@ def cmd_simulate(args) -> int:
     if model.rig_card != rec.rig_card:
         raise PneubayesError(f"--model {args.model} and {rec.source} describe different "
                              "rigs (rig cards)")
+    if args.max_step <= 1e-12:
+        raise PneubayesError(f"--max-step {args.max_step:g}: must be above 1e-12 s, the "
+                             "integrator's smallest step")
     solver = SolverConfig(rtol=args.rtol, atol_Pa=args.atol, atol_K=0.01,
                           max_step_s=args.max_step, min_step_s=1e-12, max_steps_per_s=2.5e7)
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
@@ -509,6 +527,9 @@ def cmd_predict(args) -> int:
     from pneubayes.io.recording import read_recording
     from pneubayes.simulation import SolverConfig
 
+    if args.draws < MIN_DRAWS:
+        raise PneubayesError(f"--draws {args.draws}: the 5-95 % bands and their coverage "
+                             f"need at least {MIN_DRAWS} posterior draws (default 200)")
     companions = (".metrics.json",) + (() if args.no_figure else (".png",))
     out = _output_file(args.out, ".csv", args.overwrite, *companions)
     run = Path(args.run)

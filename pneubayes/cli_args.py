@@ -223,7 +223,8 @@ def _add_cutoffs(p) -> None:
                    metavar="ORDER:HZ",
                    help="the pressure channel's zero-phase (delay-compensated) Butterworth "
                         "anti-alias filter, e.g. 2:1000 for the virtual bench's DAQ; the "
-                        "model then predicts the reading (default: none declared)")
+                        "model then predicts the reading (default: none declared; a "
+                        "cutoff over 10 x the sample rate is refused as a slip)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -341,7 +342,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--horizon", type=POSITIVE, default=None,
                    help="window length, s (default: the run's, 2 s for older runs)")
     r.add_argument("--stride", type=POSITIVE, default=None, help="window spacing (= horizon)")
-    r.add_argument("--draws", type=POSITIVE_INT, default=200, help="posterior draws")
+    r.add_argument("--draws", type=POSITIVE_INT, default=200,
+                   help="posterior draws (200; at least 20 for the 5-95 %% bands)")
     r.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
     r.add_argument("--out", required=True, help="output CSV")
     r.add_argument("--no-figure", action="store_true")

@@ -236,8 +236,10 @@ def test_impossible_samples_and_settings_are_errors_naming_where(rec, tmp_path, 
               str(_edited(rec, "inval", "command_V", lambda i, v: v)), "--out",
               str(tmp_path / "p.csv")], None),
             (["fit", str(rec), "--method", "refine", "--horizon", "1e-9"], "--horizon 1e-09"),
+            (["predict", str(run), str(rec), "--draws", "1", "--out",
+              str(tmp_path / "p.csv")], "--draws 1: the 5-95 % bands"),
             (["fit", str(rec), "--method", "refine", "--pressure-filter", "2:1e9"],
-             "Nyquist frequency of"),
+             "x the sample rate of"),
     ):
         if says is None:  # predict honours the valid column, as fit does
             stem = Path(argv[2]).with_suffix("")
