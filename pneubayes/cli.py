@@ -85,12 +85,18 @@ def _no_bound_twice(bounds) -> None:
                              "one did you mean?)")
 
 
-def _check_windows(recs, horizon: float, stride: float | None, force: bool) -> None:
+def _check_windows(recs, horizon: float, stride: float | None, force: bool,
+                   draws: int | None = None) -> None:
     """Before any work: a window holds at least a few samples of every recording
     (--horizon), no --pressure-filter above a recording's Nyquist frequency is done by
     the callers, and the windows number no more than the limit (--stride) unless
     --force."""
-    from pneubayes.limits import MAX_WINDOW_SAMPLES, MAX_WINDOWS, check_work
+    from pneubayes.limits import (
+        MAX_PREDICTED_SAMPLES,
+        MAX_WINDOW_SAMPLES,
+        MAX_WINDOWS,
+        check_work,
+    )
 
     stride = stride or horizon
     total = samples = 0
@@ -128,6 +134,11 @@ def _check_windows(recs, horizon: float, stride: float | None, force: bool) -> N
     check_work(samples, MAX_WINDOW_SAMPLES, what,
                f"windows overlapping into {samples:,} simulated samples per evaluation",
                override, force)
+    if draws is not None:
+        check_work(samples * draws, MAX_PREDICTED_SAMPLES, f"{what} --draws {draws}",
+                   f"{samples:,} window samples x {draws} draws, "
+                   f"{samples * draws:,.0f} simulated samples", override + " (or fewer "
+                   "--draws)", force)
 
 
 #: A declared pressure filter's cutoff may lie at most this many times above a
@@ -546,7 +557,7 @@ def cmd_predict(args) -> int:
     _print_findings("predict", [rec])
     figure = None if args.no_figure else out.with_suffix(".png")
     horizon = args.horizon or _run_horizon(run)
-    _check_windows([rec], horizon, args.stride, args.force)
+    _check_windows([rec], horizon, args.stride, args.force, args.draws)
     m = run_predict(args.run, rec, horizon, out, args.draws, args.seed,
                     SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
     span = m["rmse_percent_of_span"]

@@ -124,23 +124,16 @@ def _rig(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _add_limits(p, force: bool = True) -> None:
-    """--max-file-mb (every command reading files) and --force (commands that size
-    their work first); :mod:`pneubayes.limits` has the limits."""
+def _add_limits(p) -> None:
+    """--max-file-mb, on every command reading files (:mod:`pneubayes.limits`)."""
     p.add_argument("--max-file-mb", type=POSITIVE, default=None, metavar="MB",
                    help="largest input file read, MB (default 512, or the environment's "
                         "PNEUBAYES_MAX_FILE_MB); only regular files are read (no pipes, "
                         "devices or folders)")
-    if force:
-        p.add_argument("--force", action="store_true",
-                       help="start work sized over its limit (over 20,000 prediction "
-                            "windows, an emcee chain over 4 GB on disk, a bench plan over "
-                            "2e8 simulated samples); without it such a command is refused, "
-                            "saying what it would cost")
 
 
 def _add_accept(p) -> None:
-    _add_limits(p, force=False)
+    _add_limits(p)
     p.add_argument("--rig", type=_rig, default=None, metavar="CARD",
                    help="a rig card (pneubayes-rig/1, .json or .toml) describing the rig of "
                         "every recording (instead of the one a sidecar's 'rig' key names)")
@@ -349,7 +342,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
     r.add_argument("--force", action="store_true",
-                   help="predict over 20,000 windows (refused without it, saying the cost)")
+                   help="predict over 20,000 windows or 4e8 simulated samples (windows x "
+                        "draws; refused without it, saying the cost)")
     _add_accept(r)
 
     d = sub.add_parser(
@@ -427,7 +421,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "muscles are vented by something not in the command)")
     im.add_argument("--overwrite", action="store_true",
                     help="write into a non-empty --out folder")
-    _add_limits(im, force=False)
+    _add_limits(im)
 
     a = sub.add_parser(
         "ablate", help="run a declarative ablation study (a grid of fits) with caching",

@@ -14,7 +14,8 @@ limit                      what                                                 
 ``MAX_FILE_MB``            size of any input file (recording, card, study)       512 MB
                            (``--max-file-mb`` or ``PNEUBAYES_MAX_FILE_MB``)
 ``MAX_WINDOWS``            prediction windows of a fit or a prediction           20 000
-``MAX_WINDOW_SAMPLES``     samples those windows span together (overlap)         5e7
+``MAX_WINDOW_SAMPLES``     samples those windows span together (overlap)         1e7
+``MAX_PREDICTED_SAMPLES``  a prediction's samples x posterior draws              4e8
 ``MAX_CHAIN_MB``           an emcee chain on disk (walkers x steps x (dims+1)    4096 MB
                            x 8 bytes)
 ``MAX_BENCH_SAMPLES``      samples the bench simulates on its fine grid          2e8
@@ -33,7 +34,8 @@ from pneubayes.errors import PneubayesError
 MAX_FILE_MB = 512.0
 ENV_MAX_FILE_MB = "PNEUBAYES_MAX_FILE_MB"
 MAX_WINDOWS = 20_000
-MAX_WINDOW_SAMPLES = 5e7
+MAX_WINDOW_SAMPLES = 1e7
+MAX_PREDICTED_SAMPLES = 4e8
 MAX_CHAIN_MB = 4096.0
 MAX_BENCH_SAMPLES = 2e8
 

@@ -218,8 +218,12 @@ def _edited(rec: Path, name: str, column: str, edit) -> Path:
 def test_impossible_samples_and_settings_are_errors_naming_where(rec, tmp_path, capsys):
     big = _edited(rec, "big", "pressure_Pa", lambda i, v: "1e300" if i == 100 else v)
     ns = _edited(rec, "ns", "time_s", lambda i, v: repr(float(v) * 1e-6))
-    assert main(["check", str(big), str(ns)]) == 1
+    odd = _edited(rec, "odd", "time_s", lambda i, v: v)
+    odd.with_suffix(".json").write_text(json.dumps(
+        {**json.loads(rec.with_suffix(".json").read_text()), "format": 42}))
+    assert main(["check", str(big), str(ns), str(odd)]) == 1
     out = capsys.readouterr().out
+    assert "odd.json key 'format': unknown format 42" in out
     assert f"{big} row 102: column 'pressure_Pa': 1e+300 Pa" in out
     assert f"{ns} row 3: column 'time_s'" in out and "under 1 us" in out
     assert main(["fit", str(big), "--method", "refine", "--out", str(tmp_path / "o")]) == 2

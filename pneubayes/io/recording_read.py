@@ -127,9 +127,10 @@ def _format_version(data: dict, name: str, problems: list) -> int:
     fmt = data.get(FORMAT_KEY)
     if fmt == FORMAT_2:
         return 2
-    if isinstance(fmt, str) and fmt.startswith("pneubayes-recording/") and fmt != FORMAT_1:
-        problems.append((f"{name} key {FORMAT_KEY!r}", (f"unknown format {fmt!r}; this "
-                         f"version reads {FORMAT_1!r} and {FORMAT_2!r}")))
+    if fmt is not None and fmt != FORMAT_1:
+        problems.append((f"{name} key {FORMAT_KEY!r}", (f"unknown format {show_value(fmt)}; "
+                         f"this version reads {FORMAT_1!r} and {FORMAT_2!r} (or no "
+                         "'format' key: format 1)")))
     return 1
 
 
