@@ -253,6 +253,17 @@ def _describe(doc: dict | None, identity: Mapping | None = None) -> str:
             + (f" (differing: {', '.join(differ)})" if differ else ""))
 
 
+def _without_paths(identity):
+    """An identity with its inputs by content only (their paths dropped)."""
+    doc = json_safe(identity)
+    if isinstance(doc, dict):
+        return {k: _without_paths(v) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [{"sha256": x["sha256"]} if isinstance(x, dict) and "sha256" in x
+                else _without_paths(x) for x in doc]
+    return doc
+
+
 def _differences(old, new, where: str = "", limit: int = 6) -> list[str]:
     """The keys (dotted) where two identities differ, inputs by their content."""
     new = json_safe(new)
@@ -339,7 +350,9 @@ def _open_locked(out: Path, command, identity, overwrite, resume, outputs, argv)
     # a stamp alone (a run that failed before writing anything) holds nothing to protect
     busy = any(p.name not in _OWN for p in out.iterdir())
     same = (stamp is not None and stamp.get("command") == command
-            and stamp.get("identity_digest") == digest)
+            and (stamp.get("identity_digest") == digest
+                 # the same inputs by another path (absolute, relative): the same run
+                 or _without_paths(stamp.get("identity")) == _without_paths(identity)))
     if resume and not same:
         raise RunFolderError(f"--out {out}: nothing to resume (it holds "
                              f"{_describe(stamp, identity)})"
