@@ -512,6 +512,7 @@ def cmd_fit(args) -> int:
             print(f"  {name:32s} {v:12.5g}")
         for note in summary["start"]["notes"]:
             print(f"  note: {note}")
+        _point_warnings(model, est, summary)
         return 0
     how = (f"Laplace, {summary['draws']} draws, concave at the mode and its draws "
            f"reliable {summary['converged']}" if args.method == "laplace" else
@@ -531,6 +532,23 @@ def cmd_fit(args) -> int:
         why = g.get("reason") or f"correlation {g.get('correlation', 0.0):.2f}"
         print(f"  confounded: {' ~ '.join(g['parameters'])}: {why}")
     return 0
+
+
+def _point_warnings(model, est: dict, summary: dict) -> None:
+    """A point estimate's misfit and parameters at their bounds, said as mcmc says them."""
+    from pneubayes.inference.fit import MISFIT_RATIO, at_bounds
+
+    rmse, noise = est.get("rmse_Pa"), summary.get("noise_floor_Pa")
+    if isinstance(rmse, (int, float)) and isinstance(noise, (int, float)) and noise > 0 \
+            and rmse > MISFIT_RATIO * noise:
+        print(f"  misfit: the model misses by {rmse / noise:.1f} x the noise floor "
+              f"({rmse:.0f} Pa against {noise:.0f} Pa)")
+    values = {k: {"q05": v, "q95": v} for k, v in est["parameters"].items()
+              if isinstance(v, (int, float))}
+    for b in at_bounds(model, values):
+        print(f"  at its {b['bound']} bound: {b['parameter']} = {b['q05']:.4g} (bound "
+              f"{b['value']:.4g}): the data push it there, or the bound is sized for "
+              "another rig (--bounds)")
 
 
 def cmd_predict(args) -> int:
