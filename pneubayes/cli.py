@@ -274,6 +274,7 @@ def cmd_bench(args) -> int:
                       ranges_V=args.ranges or (5.0, 3.0, 0.5),
                       positions=args.positions or (0.1, 0.5, 0.9), count=args.count or 2,
                       fine_rate_Hz=args.fine_rate, sensor=sensor)
+    made = not out.exists()
     try:
         res = run_bench(cfg, args.out, overwrite=args.overwrite,
                         progress=None if args.quiet else
@@ -281,6 +282,10 @@ def cmd_bench(args) -> int:
     except FileExistsError as exc:
         raise PneubayesError(f"--out {args.out}: {exc.filename or exc} exists (use "
                              "--overwrite to replace the recordings)") from None
+    except BaseException:
+        if made and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # nothing written: leave no empty folder behind
+        raise
     for p in res.recordings:
         print(p)
     print(res.truth_path)
