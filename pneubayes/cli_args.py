@@ -127,9 +127,10 @@ def _rig(text: str):
 def _add_limits(p) -> None:
     """--max-file-mb, on every command reading files (:mod:`pneubayes.limits`)."""
     p.add_argument("--max-file-mb", type=POSITIVE, default=None, metavar="MB",
-                   help="largest input file read, MB (default 512, or the environment's "
-                        "PNEUBAYES_MAX_FILE_MB); only regular files are read (no pipes, "
-                        "devices or folders)")
+                   help="largest input file read, MB (default 64, or the environment's "
+                        "PNEUBAYES_MAX_FILE_MB; reading a recording takes about 20 x its "
+                        "size in memory); only regular files are read (no pipes, devices "
+                        "or folders)")
 
 
 def _add_accept(p) -> None:

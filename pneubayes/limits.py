@@ -11,8 +11,10 @@ it would cost and how to go on anyway (``--force``).
 =========================  ===================================================  ==========
 limit                      what                                                 default
 =========================  ===================================================  ==========
-``MAX_FILE_MB``            size of any input file (recording, card, study)       512 MB
+``MAX_FILE_MB``            size of any input file (recording, card, study)       64 MB
                            (``--max-file-mb`` or ``PNEUBAYES_MAX_FILE_MB``)
+                           (a CSV recording takes about 20 x its size in memory
+                           while it is read and checked: 64 MB, about 1.3 GB)
 ``MAX_WINDOWS``            prediction windows of a fit or a prediction           20 000
 ``MAX_WINDOW_SAMPLES``     samples those windows span together (overlap)         1e7
 ``MAX_PREDICTED_SAMPLES``  a prediction's samples x posterior draws              4e8
@@ -31,7 +33,7 @@ from pathlib import Path
 
 from pneubayes.errors import PneubayesError
 
-MAX_FILE_MB = 512.0
+MAX_FILE_MB = 64.0
 ENV_MAX_FILE_MB = "PNEUBAYES_MAX_FILE_MB"
 MAX_WINDOWS = 20_000
 MAX_WINDOW_SAMPLES = 1e7
@@ -51,7 +53,7 @@ def set_max_file_mb(mb: float | None) -> None:
 
 def max_file_bytes() -> float:
     """The largest input file read, bytes (``--max-file-mb``, else
-    ``PNEUBAYES_MAX_FILE_MB``, else 512 MB)."""
+    ``PNEUBAYES_MAX_FILE_MB``, else 64 MB)."""
     if _max_file_mb is not None:
         return _max_file_mb * 1e6
     text = os.environ.get(ENV_MAX_FILE_MB)
