@@ -205,8 +205,9 @@ def _member(out: Path, name) -> Path | None:
     if not isinstance(name, str) or not name or "\x00" in name:
         return None
     rel = Path(name)
-    if rel.is_absolute() or rel.drive or any(part in ("..", "") for part in rel.parts) \
-            or name.startswith(("/", "\\")):
+    # the raw parts: Path drops "." ("." itself would name the folder)
+    if rel.is_absolute() or rel.drive or not rel.parts or any(
+            part in ("..", ".", "") for part in name.replace("\\", "/").split("/")):
         return None
     p = out
     for part in rel.parts[:-1]:

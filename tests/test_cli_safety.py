@@ -64,10 +64,11 @@ def test_no_file_of_the_user_is_ever_lost(rec, tmp_path, capsys):
     open_run_folder(run, "fit", {"other": 1}).release()
     (run / "model.json").write_text("{}")
     stamp = json.loads((run / "run.json").read_text())
-    for bad in ("../victim", str(tmp_path / "outside.txt"), "link/data.txt"):
+    for bad in ("../victim", str(tmp_path / "outside.txt"), "link/data.txt", ".", "./"):
         (run / "link").unlink(missing_ok=True)
         (run / "link").symlink_to(victim)
         stamp["files"] = {"model.json": "x", bad: "x"}
+        stamp["created"] = [bad]
         (run / "run.json").write_text(json.dumps(stamp))
         capsys.readouterr()
         assert main(["fit", str(rec), "--method", "refine", "--out", str(run),
