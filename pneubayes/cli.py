@@ -505,6 +505,9 @@ def cmd_fit(args) -> int:
                              resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     if folder.resumed:
+        # a saved stage the stamp records must be the file the run wrote (not edited)
+        if "refined.json" in folder.stamp()["files"] and (folder.path / "refined.json").exists():
+            check_file(folder.path, "refined.json")
         log(f"fit: resuming the run in {args.out}")
     summary = run_fit(recs, model, settings, args.out, progress=not args.quiet, log=log,
                       figures=not args.no_figures, method=args.method)
