@@ -172,9 +172,10 @@ def _add_identification(p, seed_help: str) -> None:
     _add_bounds(p)
     _add_run_folder(p)
     p.add_argument("--force", action="store_true",
-                   help="start work sized over its limit (over 20,000 prediction windows, "
-                        "an emcee chain over 4 GB on disk); without it such a fit is "
-                        "refused before any work, saying what it would cost")
+                   help="start work sized over its limit (over 20,000 prediction windows "
+                        "or 1e7 window samples together, an emcee chain over 4 GB on "
+                        "disk); without it such a run is refused before any work, saying "
+                        "what it would cost")
     p.add_argument("--no-figures", action="store_true")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     _add_accept(p)
