@@ -19,7 +19,7 @@ import numpy as np
 from pneubayes import interrupt
 from pneubayes.cli_args import build_parser, check_single_values
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import check_file, inputs_digest, open_run_folder
+from pneubayes.run_folder import check_file, inputs_digest, open_run_folder, release_locks
 
 #: What each folder-writing command may write (removed by --overwrite when the folder
 #: has no stamp listing the earlier run's files).
@@ -62,6 +62,110 @@ def _run_horizon(run: Path) -> float:
     return 2.0
 
 
+def _effect_names(text: str, option: str = "--effects") -> list[str]:
+    """Effect names of a comma-separated option; an empty name between commas or a name
+    given twice is an error naming the option ('' is no effect)."""
+    if not text.strip():
+        return []
+    names = [n.strip() for n in text.split(",")]
+    if not all(names):
+        raise PneubayesError(f"{option} {text!r}: an empty name between commas (give "
+                             "effect names, e.g. cylinder_leak,tube_delay, or '' for none)")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise PneubayesError(f"{option}: {', '.join(twice)} given more than once")
+    return names
+
+
+def _no_bound_twice(bounds) -> None:
+    names = [n for n, _ in bounds]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise PneubayesError(f"--bounds: {', '.join(twice)} given more than once (which "
+                             "one did you mean?)")
+
+
+def _check_windows(recs, horizon: float, stride: float | None, force: bool,
+                   draws: int | None = None) -> None:
+    """Before any work: a window holds at least a few samples of every recording
+    (--horizon), no --pressure-filter above a recording's Nyquist frequency is done by
+    the callers, and the windows number no more than the limit (--stride) unless
+    --force."""
+    from pneubayes.limits import (
+        MAX_PREDICTED_SAMPLES,
+        MAX_WINDOW_SAMPLES,
+        MAX_WINDOWS,
+        check_work,
+    )
+
+    stride = stride or horizon
+    total = samples = 0
+    for r in recs:
+        t = np.asarray(r.time_s, dtype=np.float64)
+        if t.size < 2:
+            raise PneubayesError(f"{r.source}: {t.size} sample(s); a fit needs a recording "
+                                 "of many samples")
+        dt = float(np.median(np.diff(t)))
+        if horizon < MIN_WINDOW_SAMPLES * dt:
+            raise PneubayesError(
+                f"--horizon {horizon:g}: shorter than {MIN_WINDOW_SAMPLES} sample intervals "
+                f"of {r.source} (sampled every {dt:.3g} s); a window needs several samples "
+                f"(at least {MIN_WINDOW_SAMPLES * dt:.3g} s)")
+        length = int(round(horizon / dt)) + 1
+        step = max(1, int(round(stride / dt)))
+        if length > t.size:
+            continue  # the fit says so, naming the recording
+        n = (t.size - length) // step + 1
+        valid = r.valid_mask()
+        if not valid.all() and n <= 10 * MAX_WINDOWS:  # windows on valid samples only
+            starts = np.arange(0, t.size - length + 1, step)
+            bad = np.concatenate([[0], np.cumsum(~valid)])
+            n = int(np.count_nonzero(bad[starts + length] - bad[starts] == 0))
+            if n == 0:
+                raise PneubayesError(f"{r.source}: no {horizon:g}-s window (--horizon) lies "
+                                     "within the samples its 'valid' column marks valid")
+        total += n
+        samples += n * length
+    what = f"--horizon {horizon:g} --stride {stride:g}"
+    override = "raise --stride, or pass --force to run it anyway"
+    check_work(total, MAX_WINDOWS, what,
+               f"{total:,} prediction windows (each simulated at every evaluation)",
+               override, force)
+    check_work(samples, MAX_WINDOW_SAMPLES, what,
+               f"windows overlapping into {samples:,} simulated samples per evaluation",
+               override, force)
+    if draws is not None:
+        check_work(samples * draws, MAX_PREDICTED_SAMPLES, f"{what} --draws {draws}",
+                   f"{samples:,} window samples x {draws} draws, "
+                   f"{samples * draws:,.0f} simulated samples", override + " (or fewer "
+                   "--draws)", force)
+
+
+#: A declared pressure filter's cutoff may lie at most this many times above a
+#: recording's sample rate (an oversampling DAQ filters before it decimates, so a cutoff
+#: at the sample rate is real, e.g. the bench's 2:1000 at 1 kHz; far above, the filter
+#: changes no sample and the value is a slip).
+FILTER_MAX_OVER_RATE = 10.0
+
+
+def _check_filter(recs, pressure_filter) -> None:
+    """A --pressure-filter cutoff far above a recording's sample rate (more than
+    :data:`FILTER_MAX_OVER_RATE` x) is an error naming both."""
+    if pressure_filter is None:
+        return
+    for r in recs:
+        t = np.asarray(r.time_s, dtype=np.float64)
+        if t.size < 2:
+            continue
+        rate = 1.0 / float(np.median(np.diff(t)))
+        if pressure_filter.cutoff_Hz > FILTER_MAX_OVER_RATE * rate:
+            raise PneubayesError(
+                f"--pressure-filter {pressure_filter.order}:{pressure_filter.cutoff_Hz:g}: "
+                f"the cutoff is over {FILTER_MAX_OVER_RATE:g} x the sample rate of "
+                f"{r.source} ({rate:g} Hz), where the filter changes no sample; a DAQ's "
+                "anti-alias filter lies near or below its sample rate")
+
+
 def _windows(args) -> dict:
     """FitSettings' windows from --horizon and --stride (default: the horizon)."""
     return {"horizon_s": args.horizon, "stride_s": args.stride or args.horizon}
@@ -79,6 +183,12 @@ def _sampling(args) -> dict:
     from pneubayes.simulation import SolverConfig
 
     return {"sample_solver": SolverConfig.standard()} if args.no_dense_output else {}
+
+
+#: The fewest sample intervals a prediction window spans (--horizon).
+MIN_WINDOW_SAMPLES = 4
+#: The fewest posterior draws a prediction's bands are drawn from (--draws).
+MIN_DRAWS = 20
 
 
 def cmd_check(args) -> int:
@@ -108,20 +218,63 @@ def cmd_bench(args) -> int:
     from pneubayes.bench.bench import BenchConfig, run_bench
     from pneubayes.bench.sensors import SensorChain
     from pneubayes.effects import CATALOGUE, effects_from_names
+    from pneubayes.limits import MAX_BENCH_SAMPLES, check_work
 
-    names = [n.strip() for n in args.effects.split(",") if n.strip()] if args.effects else []
+    names = _effect_names(args.effects or "")
+    if args.leak_form is not None and "cylinder_leak" not in names:
+        raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
+                             "--effects (no leak is planted)")
+    if args.protocol == "moving":
+        given = [o for o, v in (("--positions", args.positions), ("--ranges", args.ranges))
+                 if v is not None]
+        if given:
+            raise PneubayesError(f"{' and '.join(given)}: only with --protocol fixed (the "
+                                 "moving protocol moves the piston; --count sets its "
+                                 "recordings)")
+        n_rec = args.count or 2
+    else:
+        if args.count is not None:
+            raise PneubayesError("--count: only with --protocol moving (the fixed "
+                                 "protocol writes one recording per --positions x --ranges)")
+        n_rec = len(args.positions or (0.1, 0.5, 0.9)) * len(args.ranges or (5.0, 3.0, 0.5))
+        if n_rec == 0:
+            raise PneubayesError("--positions/--ranges: no recording planned (give at "
+                                 "least one value of each)")
+    ratio = args.fine_rate / args.rate
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise PneubayesError(f"--fine-rate {args.fine_rate:g}: must be a whole multiple of "
+                             f"--rate {args.rate:g} (the truth is simulated on the fine grid "
+                             "and sampled at the rate; default 10000 Hz)")
+    samples = float(n_rec) * args.duration * args.fine_rate
+    check_work(samples, MAX_BENCH_SAMPLES, "--count/--duration/--fine-rate",
+               f"{n_rec:,} recording(s) of {args.duration:g} s on a {args.fine_rate:g}-Hz "
+               f"grid, {samples:.3g} simulated samples", "plan fewer or shorter recordings, "
+               "or pass --force to run it anyway", args.force)
     unknown = [n for n in names if n not in CATALOGUE]
     if unknown:
         raise PneubayesError(f"--effects: unknown effect(s) {unknown}; "
                              f"the catalogue has {sorted(CATALOGUE)}")
+    out = Path(args.out)
+    if (out.exists() or out.is_symlink()) and not out.is_dir():
+        raise PneubayesError(f"--out {out}: is a file, not a folder (bench writes a folder "
+                             "of recordings and truth.json)")
+    from pneubayes.run_folder import read_stamp
+
+    stamp = read_stamp(out) if out.is_dir() else None
+    if stamp is not None:
+        raise PneubayesError(f"--out {out}: is the run folder of a 'pneubayes "
+                             f"{stamp.get('command')}' ({out / 'run.json'}); bench writes "
+                             "its recordings into a folder of their own")
     sensor = SensorChain(sample_rate_Hz=args.rate, pressure_noise_Pa=args.pressure_noise,
                          supply_noise_Pa=args.pressure_noise)
     cfg = BenchConfig(cylinder=args.cylinder, valve=args.valve,
-                      effects=effects_from_names(names, args.leak_form),
+                      effects=effects_from_names(names, args.leak_form or "orifice"),
                       protocol=args.protocol, duration_s=args.duration, seed=args.seed,
-                      overrides=dict(args.set or []), ranges_V=args.ranges,
-                      positions=args.positions, count=args.count,
+                      overrides=dict(args.set or []),
+                      ranges_V=args.ranges or (5.0, 3.0, 0.5),
+                      positions=args.positions or (0.1, 0.5, 0.9), count=args.count or 2,
                       fine_rate_Hz=args.fine_rate, sensor=sensor)
+    made = not out.exists()
     try:
         res = run_bench(cfg, args.out, overwrite=args.overwrite,
                         progress=None if args.quiet else
@@ -129,6 +282,10 @@ def cmd_bench(args) -> int:
     except FileExistsError as exc:
         raise PneubayesError(f"--out {args.out}: {exc.filename or exc} exists (use "
                              "--overwrite to replace the recordings)") from None
+    except BaseException:
+        if made and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # nothing written: leave no empty folder behind
+        raise
     for p in res.recordings:
         print(p)
     print(res.truth_path)
@@ -142,17 +299,24 @@ def cmd_simulate(args) -> int:
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
     out = _output_file(args.out, ".csv", args.overwrite)
+    _not_an_input([out], [*_recording_files([args.recording]), args.model])
     rec = read_recording(args.recording, args.accept, args.rig)
     model, params = Model.load_card(args.model)
     _print_findings("simulate", [rec])
     if model.rig_card != rec.rig_card:
         raise PneubayesError(f"--model {args.model} and {rec.source} describe different "
                              "rigs (rig cards)")
+    if args.max_step <= 1e-12:
+        raise PneubayesError(f"--max-step {args.max_step:g}: must be above 1e-12 s, the "
+                             "integrator's smallest step")
     solver = SolverConfig(rtol=args.rtol, atol_Pa=args.atol, atol_K=0.01,
                           max_step_s=args.max_step, min_step_s=1e-12, max_steps_per_s=2.5e7)
     traj = simulate(model, params, Inputs.from_recording(rec), rec.rig(),
                     float(rec.pressure_Pa[0]), solver)
     p = traj.pressure_Pa[0]
+    if not np.all(np.isfinite(p)):
+        raise PneubayesError(f"--model {args.model} on {rec.source}: the simulated pressure "
+                             "is not finite; nothing written")
     write_text_atomic(out, "time_s,pressure_Pa\n" + "".join(
         f"{t:.9g},{v:.6f}\n" for t, v in zip(rec.time_s, p)))
     rmse = float(np.sqrt(np.mean((p - rec.pressure_Pa) ** 2)))
@@ -179,6 +343,27 @@ def _output_file(path: str, suffix: str, overwrite: bool, *companions: str) -> P
         if p.exists() and not overwrite:
             raise PneubayesError(f"--out {out}: {p} exists (use --overwrite to replace it)")
     return out
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file (resolved: links, ``..`` and relative paths)."""
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()
+
+
+def _not_an_input(outputs, inputs, option: str = "--out") -> None:
+    """Refuse, before any work, an output that is one of the command's inputs (a
+    recording's CSV or JSON, a model card, a run's files): no command writes over what
+    it reads, not even with --overwrite."""
+    for o in outputs:
+        for i in inputs:
+            if _same_file(Path(o), Path(i)):
+                raise PneubayesError(f"{option} {o}: is the input {i}; a command never "
+                                     "writes over its own inputs (choose another output)")
 
 
 def _recording_files(paths) -> list[Path]:
@@ -251,8 +436,20 @@ def cmd_fit(args) -> int:
     from pneubayes.inference.sampler import SamplerSettings
     from pneubayes.model import Model
 
+    if args.model and (args.effects is not None or args.leak_form is not None):
+        given = [o for o, v in (("--effects", args.effects), ("--leak-form", args.leak_form))
+                 if v is not None]
+        raise PneubayesError(f"--model {args.model} fixes the effects and their forms; "
+                             f"{' and '.join(given)} contradict it (give one or the other)")
+    names = _effect_names("cylinder_leak" if args.effects is None else args.effects)
+    if args.leak_form is not None and "cylinder_leak" not in names:
+        raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
+                             "--effects (the fitted model has no leak)")
+    _no_bound_twice(args.bounds)
     known = _known_from(args) if args.known_from or args.refit else None
     recs = _read_all(args.recordings, args.accept, "fit", args.rig)
+    _check_filter(recs, args.pressure_filter)
+    _check_windows(recs, args.horizon, args.stride, args.force)
     card = _rig_card_of(recs)
     if known is not None:  # the card's quantities known at another fit's values
         card = _card_known_at(card, known, args)
@@ -266,8 +463,7 @@ def cmd_fit(args) -> int:
                                  + ", the recordings " + (f"the rig {card.name!r}" if card
                                                           else "the paper's cylinders"))
     else:
-        names = [n.strip() for n in args.effects.split(",") if n.strip()]
-        model = Model(effects_from_names(names, args.leak_form), rig_card=card)
+        model = Model(effects_from_names(names, args.leak_form or "orifice"), rig_card=card)
     if args.bounds:
         model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)},
                       model.rig_card)
@@ -276,6 +472,17 @@ def cmd_fit(args) -> int:
         raise PneubayesError(f"--walkers {args.walkers}: emcee needs at least twice the "
                              f"{model.n_parameters} sampled dimensions of this model, >= "
                              f"{2 * model.n_parameters} (or 0: automatic)")
+    if args.method == "mcmc":
+        from pneubayes.limits import MAX_CHAIN_MB, check_work
+
+        walkers = args.walkers or max(32, 4 * n_dims)
+        walkers += walkers % 2
+        mb = walkers * float(args.max_steps) * (n_dims + 1) * 8 / 1e6
+        check_work(mb, MAX_CHAIN_MB, f"--walkers {args.walkers} --max-steps {args.max_steps}",
+                   f"a chain of {walkers:,} walkers x {args.max_steps:,} steps x "
+                   f"{n_dims + 1} values, up to {mb:,.0f} MB on disk in chain.h5 (and as "
+                   "much in memory)", "use fewer walkers or steps, or pass --force to run it "
+                   "anyway", args.force)
     settings = FitSettings(sampler=SamplerSettings(
         n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args),
         **_windows(args), **_refinement(args), **_sampling(args))
@@ -290,10 +497,17 @@ def cmd_fit(args) -> int:
                 # a chain is never resumed with another likelihood solver
                 "sample_solver": settings.sample_solver.to_dict(),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
+    _not_an_input([Path(args.out) / n for n in FIT_OUTPUTS],
+                  [*_recording_files(args.recordings),
+                   *([args.model] if args.model else []),
+                   *([known[2]] if known is not None else [])])
     folder = open_run_folder(args.out, "fit", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=FIT_OUTPUTS, argv=args.argv)
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     if folder.resumed:
+        # a saved stage the stamp records must be the file the run wrote (not edited)
+        if "refined.json" in folder.stamp()["files"] and (folder.path / "refined.json").exists():
+            check_file(folder.path, "refined.json")
         log(f"fit: resuming the run in {args.out}")
     summary = run_fit(recs, model, settings, args.out, progress=not args.quiet, log=log,
                       figures=not args.no_figures, method=args.method)
@@ -306,6 +520,7 @@ def cmd_fit(args) -> int:
             print(f"  {name:32s} {v:12.5g}")
         for note in summary["start"]["notes"]:
             print(f"  note: {note}")
+        _point_warnings(model, est, summary)
         return 0
     how = (f"Laplace, {summary['draws']} draws, concave at the mode and its draws "
            f"reliable {summary['converged']}" if args.method == "laplace" else
@@ -327,14 +542,38 @@ def cmd_fit(args) -> int:
     return 0
 
 
+def _point_warnings(model, est: dict, summary: dict) -> None:
+    """A point estimate's misfit and parameters at their bounds, said as mcmc says them."""
+    from pneubayes.inference.fit import MISFIT_RATIO, at_bounds
+
+    rmse, noise = est.get("rmse_Pa"), summary.get("noise_floor_Pa")
+    if isinstance(rmse, (int, float)) and isinstance(noise, (int, float)) and noise > 0 \
+            and rmse > MISFIT_RATIO * noise:
+        print(f"  misfit: the model misses by {rmse / noise:.1f} x the noise floor "
+              f"({rmse:.0f} Pa against {noise:.0f} Pa)")
+    values = {k: {"q05": v, "q95": v} for k, v in est["parameters"].items()
+              if isinstance(v, (int, float))}
+    for b in at_bounds(model, values):
+        print(f"  at its {b['bound']} bound: {b['parameter']} = {b['q05']:.4g} (bound "
+              f"{b['value']:.4g}): the data push it there, or the bound is sized for "
+              "another rig (--bounds)")
+
+
 def cmd_predict(args) -> int:
     from pneubayes.inference.pipeline import MISFIT_RATIO, run_predict
     from pneubayes.io.recording import read_recording
     from pneubayes.simulation import SolverConfig
 
+    if args.draws < MIN_DRAWS:
+        raise PneubayesError(f"--draws {args.draws}: the 5-95 % bands and their coverage "
+                             f"need at least {MIN_DRAWS} posterior draws (default 200)")
     companions = (".metrics.json",) + (() if args.no_figure else (".png",))
     out = _output_file(args.out, ".csv", args.overwrite, *companions)
     run = Path(args.run)
+    _not_an_input([out, *(out.with_suffix(c) for c in companions)],
+                  [*_recording_files([args.recording]),
+                   *(p for p in run.iterdir() if p.is_file())] if run.is_dir() else
+                  _recording_files([args.recording]))
     for name in ("model.json", "posterior.nc"):
         if not (run / name).is_file():
             raise PneubayesError(f"{run}: no {name} (a run folder of 'pneubayes fit' with "
@@ -344,6 +583,7 @@ def cmd_predict(args) -> int:
     _print_findings("predict", [rec])
     figure = None if args.no_figure else out.with_suffix(".png")
     horizon = args.horizon or _run_horizon(run)
+    _check_windows([rec], horizon, args.stride, args.force, args.draws)
     m = run_predict(args.run, rec, horizon, out, args.draws, args.seed,
                     SolverConfig.standard(), stride_s=args.stride, figure_path=figure)
     span = m["rmse_percent_of_span"]
@@ -384,13 +624,19 @@ def cmd_discover(args) -> int:
     from pneubayes.inference.pipeline import FitSettings
     from pneubayes.inference.sampler import SamplerSettings
 
+    if args.no_posterior and args.posterior is not None:
+        raise PneubayesError(f"--posterior {args.posterior}: contradicts --no-posterior "
+                             "(give one or the other)")
+    _no_bound_twice(args.bounds)
     grid = _library_grid(args.library)
     recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover", args.rig)
+    _check_filter(recs, args.pressure_filter)
+    _check_windows(recs, args.horizon, args.stride, args.force)
     settings = DiscoverySettings(
         holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
         bounds=dict(args.bounds),
         max_effects=args.max_effects, grid=grid,
-        posterior=not args.no_posterior, posterior_method=args.posterior, seed=args.seed,
+        posterior=not args.no_posterior, posterior_method=args.posterior or "emcee", seed=args.seed,
         tube_line_segments=args.tube_line_segments,
         tube_line_form=args.tube_line_form,
         form_settled_ratio=args.form_settled_ratio,
@@ -407,12 +653,20 @@ def cmd_discover(args) -> int:
                                                               *args.held_out])),
                 "settings": settings.to_dict(), "accept": list(args.accept),
                 "rig": None if recs[0].rig_card is None else recs[0].rig_card.to_dict()}
+    _not_an_input([Path(args.out) / n for n in DISCOVER_OUTPUTS],
+                  _recording_files([*args.recordings, *args.held_out]))
     folder = open_run_folder(args.out, "discover", identity, overwrite=args.overwrite,
                              resume=args.resume, outputs=DISCOVER_OUTPUTS,
                              argv=args.argv)
     if folder.resumed:
         log(f"discover: resuming the run in {args.out} (finished fits are reused)")
     doc = run_discover(recs, settings, args.out, log=log, figures=not args.no_figures)
+    from pneubayes.inference.fit_folder import _non_finite_rmse
+
+    bad = _non_finite_rmse(doc)
+    if bad:
+        raise FloatingPointError(f"{args.out}/discovery.json: {bad[0][0]} is {bad[0][1]}; "
+                                 "not a result (a simulation failed on the data)")
     folder.record("discovery.json", "model.json", "posterior.nc", "disagreement.json",
                   "report.md")
     print(f"{args.out}/discovery.json: base held-out {args.horizon:g}-s RMSE "
@@ -478,6 +732,9 @@ def cmd_ablate(args) -> int:
                     else LocalExecutor(args.workers or 1))
     except (ImportError, OSError) as exc:
         raise PneubayesError(f"--scheduler {args.scheduler}: {exc}") from None
+    except (MemoryError, ValueError, RuntimeError) as exc:  # a scheduler that does not answer
+        raise PneubayesError(f"--scheduler {args.scheduler}: no Dask scheduler answers "
+                             f"there ({type(exc).__name__}: {exc})") from None
     # SIGINT or SIGTERM (a batch system's stop) ends the study between cells: running
     # cells are cancelled (local worker processes ended), finished ones are on disk
     with executor:
@@ -510,6 +767,9 @@ def main(argv=None) -> int:
                  "fit": cmd_fit, "predict": cmd_predict, "discover": cmd_discover,
                  "ablate": cmd_ablate, "import": cmd_import}[args.command]
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
+    from pneubayes import limits
+
+    limits.set_max_file_mb(getattr(args, "max_file_mb", None))
 
     def fail(message: str, code: int = 2) -> int:
         print(f"pneubayes {args.command}: error: {message}", file=sys.stderr)
@@ -529,7 +789,10 @@ def main(argv=None) -> int:
         where = exc.filename or ""
         what = exc.strerror or str(exc)
         return fail(f"{where}: {what}" if where else what)
-    except (ArithmeticError, MemoryError) as exc:
+    except MemoryError as exc:
+        return fail(f"out of memory ({exc or 'MemoryError'}); the work is larger than this "
+                    "machine holds: fewer recordings, windows, walkers or draws")
+    except ArithmeticError as exc:
         return fail(f"numerical failure ({type(exc).__name__}: {exc})")
     except Exception as exc:  # a bug: say so, in one message
         if os.environ.get("PNEUBAYES_TRACEBACK"):
@@ -537,6 +800,8 @@ def main(argv=None) -> int:
         return fail(f"internal error ({type(exc).__name__}: {exc}); this is a bug in "
                     "pneubayes, please report it with the command line (set "
                     "PNEUBAYES_TRACEBACK=1 to see where it happened)", 70)
+    finally:
+        release_locks()
 
 
 if __name__ == "__main__":

@@ -91,6 +91,10 @@ def _library_entry(text: str) -> tuple[str, tuple[float, ...]]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"--library expects EFFECT=S1,S2,... (numbers), "
                                          f"got {text!r}") from None
+    bad = [v for v in strengths if not (math.isfinite(v) and v > 0)]
+    if bad:
+        raise argparse.ArgumentTypeError(f"--library {name.strip()}: trial strengths must be "
+                                         f"finite and > 0, got {', '.join(map(repr, bad))}")
     return name.strip(), strengths
 
 
@@ -120,7 +124,17 @@ def _rig(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _add_limits(p) -> None:
+    """--max-file-mb, on every command reading files (:mod:`pneubayes.limits`)."""
+    p.add_argument("--max-file-mb", type=POSITIVE, default=None, metavar="MB",
+                   help="largest input file read, MB (default 64, or the environment's "
+                        "PNEUBAYES_MAX_FILE_MB; reading a recording takes about 20 x its "
+                        "size in memory); only regular files are read (no pipes, devices "
+                        "or folders)")
+
+
 def _add_accept(p) -> None:
+    _add_limits(p)
     p.add_argument("--rig", type=_rig, default=None, metavar="CARD",
                    help="a rig card (pneubayes-rig/1, .json or .toml) describing the rig of "
                         "every recording (instead of the one a sidecar's 'rig' key names)")
@@ -157,6 +171,11 @@ def _add_identification(p, seed_help: str) -> None:
                         "the command holds (SolverConfig.sampling(), the default)")
     _add_bounds(p)
     _add_run_folder(p)
+    p.add_argument("--force", action="store_true",
+                   help="start work sized over its limit (over 20,000 prediction windows "
+                        "or 1e7 window samples together, an emcee chain over 4 GB on "
+                        "disk); without it such a run is refused before any work, saying "
+                        "what it would cost")
     p.add_argument("--no-figures", action="store_true")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     _add_accept(p)
@@ -199,7 +218,8 @@ def _add_cutoffs(p) -> None:
                    metavar="ORDER:HZ",
                    help="the pressure channel's zero-phase (delay-compensated) Butterworth "
                         "anti-alias filter, e.g. 2:1000 for the virtual bench's DAQ; the "
-                        "model then predicts the reading (default: none declared)")
+                        "model then predicts the reading (default: none declared; a "
+                        "cutoff over 10 x the sample rate is refused as a slip)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -207,6 +227,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="pneubayes",
         description="Thin-port pneumatic actuator models: simulate, check recordings, run "
                     "the virtual test bench.")
+    from pneubayes import __version__
+
+    p.add_argument("--version", action="version", version=f"pneubayes {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     c = sub.add_parser("check", help="validate recordings against docs/recording-format.md",
@@ -230,7 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "tube_delay,spool_lag (catalogue: cylinder_leak, tube_delay, "
                    "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag, sensor_lag, "
                    "sensor_calibration)")
-    b.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"),
+    b.add_argument("--leak-form", default=None, choices=("orifice", "laminar"),
                    help="law of a planted cylinder_leak (default orifice, the paper's)")
     b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",
                    help="override a true parameter, e.g. --set tube_delay_s=0.005")
@@ -240,12 +263,13 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--duration", type=POSITIVE, default=20.0, help="seconds per recording")
     b.add_argument("--seed", type=NON_NEGATIVE_INT, required=True,
                    help="random seed (recorded in truth)")
-    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=(5.0, 3.0, 0.5),
+    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=None,
                    help="fixed protocol: command ranges in V (default 5,3,0.5)")
     b.add_argument("--positions", type=lambda s: _floats(s, "--positions"),
-                   default=(0.1, 0.5, 0.9),
+                   default=None,
                    help="fixed protocol: positions as fractions of stroke (default 0.1,0.5,0.9)")
-    b.add_argument("--count", type=POSITIVE_INT, default=2, help="moving protocol: recordings")
+    b.add_argument("--count", type=POSITIVE_INT, default=None,
+                   help="moving protocol: recordings (default 2)")
     b.add_argument("--rate", type=POSITIVE, default=1000.0, help="output sample rate, Hz")
     b.add_argument("--fine-rate", type=POSITIVE, default=10_000.0,
                    help="truth simulation grid, Hz (a multiple of --rate)")
@@ -253,6 +277,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pressure sensor noise std, Pa")
     b.add_argument("--out", required=True, help="output directory")
     b.add_argument("--overwrite", action="store_true", help="replace existing files")
+    b.add_argument("--force", action="store_true",
+                   help="run a plan over the limit (2e8 samples on the fine grid, 1000 "
+                        "recordings); without it such a plan is refused, saying its size")
     b.add_argument("-q", "--quiet", action="store_true")
 
     s = sub.add_parser(
@@ -279,10 +306,12 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("recordings", nargs="+", help="recording .csv/.json paths or stems")
     f.add_argument("--out", required=True, help="run folder")
     f.add_argument("--model", help="model card whose effects (and options) to fit")
-    f.add_argument("--effects", default="cylinder_leak",
+    f.add_argument("--effects", default=None,
                    help="effects of the fitted model when no --model (default: the paper's "
-                        "cylinder_leak)")
-    f.add_argument("--leak-form", default="orifice", choices=("orifice", "laminar"))
+                        "cylinder_leak; '' for the plain thin-port model)")
+    f.add_argument("--leak-form", default=None, choices=("orifice", "laminar"),
+                   help="law of the fitted cylinder_leak (default orifice, the paper's); "
+                        "only with cylinder_leak among --effects")
     f.add_argument("--known-from", default=None, metavar="RUN|MODEL.json",
                    help="a fit of the same rig card (its run folder or model.json): the "
                         "card's fitted quantities are known at that fit's values, except "
@@ -308,11 +337,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--horizon", type=POSITIVE, default=None,
                    help="window length, s (default: the run's, 2 s for older runs)")
     r.add_argument("--stride", type=POSITIVE, default=None, help="window spacing (= horizon)")
-    r.add_argument("--draws", type=POSITIVE_INT, default=200, help="posterior draws")
+    r.add_argument("--draws", type=POSITIVE_INT, default=200,
+                   help="posterior draws (200; at least 20 for the 5-95 %% bands)")
     r.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
     r.add_argument("--out", required=True, help="output CSV")
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
+    r.add_argument("--force", action="store_true",
+                   help="predict over 20,000 windows or 4e8 simulated samples (windows x "
+                        "draws; refused without it, saying the cost)")
     _add_accept(r)
 
     d = sub.add_parser(
@@ -341,7 +374,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the outside tube's form tried for a named tube: the "
                         "transmission-line tube (wave: no cells, closer to a continuous "
                         "tube; the line beside heat transfer), or the lumped acoustic "
-                        "line (wave)")
+                        "line (line)")
     d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
                    help="later forms (the acoustic line, convective heat) are not fitted "
                         "once a trial of the round has a training RMSE within this x the "
@@ -374,7 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "sensor_calibration=2000,5000,10000 (Pa)")
     d.add_argument("--no-posterior", action="store_true",
                    help="skip the final posterior (refined point estimates only)")
-    d.add_argument("--posterior", choices=["emcee", "laplace"], default="emcee",
+    d.add_argument("--posterior", choices=["emcee", "laplace"], default=None,
                    help="the final model's posterior: emcee (default) or laplace, a "
                         "Gaussian at the posterior's mode from a few hundred posterior "
                         "evaluations (minutes where emcee on a model with a tube takes "
@@ -394,6 +427,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "muscles are vented by something not in the command)")
     im.add_argument("--overwrite", action="store_true",
                     help="write into a non-empty --out folder")
+    _add_limits(im)
 
     a = sub.add_parser(
         "ablate", help="run a declarative ablation study (a grid of fits) with caching",

@@ -26,6 +26,9 @@ def window_starts(time_s, horizon_s: float, stride_s: float) -> tuple[np.ndarray
     dt = float(np.median(np.diff(t)))
     length = int(round(horizon_s / dt)) + 1
     stride = max(1, int(round(stride_s / dt)))
+    if not length >= 3:
+        raise ValueError(f"horizon {horizon_s:g} s is shorter than two sample intervals "
+                         f"({dt:.3g} s): a window needs several samples")
     if length > t.size:
         raise ValueError(f"horizon {horizon_s} s is longer than the recording "
                          f"({t[-1] - t[0]:.3f} s)")

@@ -389,11 +389,18 @@ class Model:
     @staticmethod
     def read_card(path) -> dict:
         """A model card file's JSON (errors name the file), not yet checked."""
+        from pneubayes.limits import input_file_problem
+
         path = Path(path)
+        why = input_file_problem(path)
+        if why is not None:
+            raise ModelCardError(f"{path}: {why}")
         try:
             text = path.read_text()
         except OSError as exc:
             raise ModelCardError(f"{path}: cannot read ({exc.strerror})") from None
+        except UnicodeDecodeError:
+            raise ModelCardError(f"{path}: not a model card (not UTF-8 text)") from None
         try:
             return json.loads(text)
         except json.JSONDecodeError as exc:

@@ -50,15 +50,15 @@ def test_another_run_is_refused_and_overwrite_removes_only_its_files(tmp_path):
     g = open_run_folder(out, "fit", {"x": 2}, overwrite=True)
     assert not g.resumed and not (out / "model.json").exists()
     assert (out / "mine.txt").read_text() == "keep me"
-    # a folder of files no run stamped: refused; overwrite removes the command's outputs
+    # a folder of files no run stamped: refused, even with overwrite (issue 70)
     plain = tmp_path / "plain"
     plain.mkdir()
     (plain / "summary.json").write_text("{}")
     (plain / "notes.md").write_text("mine")
-    with pytest.raises(RunFolderError, match="no pneubayes run stamped"):
-        open_run_folder(plain, "fit", {})
-    open_run_folder(plain, "fit", {}, overwrite=True, outputs=("summary.json",))
-    assert not (plain / "summary.json").exists() and (plain / "notes.md").exists()
+    for overwrite in (False, True):
+        with pytest.raises(RunFolderError, match="no pneubayes run stamped.*notes.md"):
+            open_run_folder(plain, "fit", {}, overwrite=overwrite, outputs=("summary.json",))
+    assert (plain / "summary.json").exists() and (plain / "notes.md").exists()
     (tmp_path / "a_file").write_text("x")
     with pytest.raises(RunFolderError, match="is a file"):
         open_run_folder(tmp_path / "a_file", "fit", {})

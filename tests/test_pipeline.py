@@ -329,3 +329,19 @@ def test_parameters_pushed_to_a_bound_are_named():
     summary["dead_volume_m3"] = {"q05": 0.5 * hi[k], "q95": hi[k]}
     assert {(f["parameter"], f["bound"]) for f in at_bounds(model, summary)} == {
         ("dead_volume_m3", "upper"), ("leak_area_m2", "lower")}
+
+
+def test_an_edited_saved_stage_is_not_resumed(fitted, tmp_path, capsys):
+    """Issue 70: a finished fit's refined.json edited, then the same fit run again: the
+    edited values are refused, not used."""
+    import shutil
+
+    run, train, _ = fitted
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    doc = json.loads((copy / "refined.json").read_text())
+    (copy / "refined.json").write_text(json.dumps(doc) + "\n ")
+    capsys.readouterr()
+    assert main(["fit", *map(str, train.recordings), "--out", str(copy), "--walkers", "32",
+                 "--max-steps", "150", "--seed", "3", "-q"]) == 2
+    assert "refined.json: not the file its run produced" in capsys.readouterr().err

@@ -7,7 +7,7 @@ import os
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from pneubayes.errors import RecordingError
@@ -394,12 +394,15 @@ def test_write_validates_first(tmp_path):
 
 finite = st.floats(allow_nan=False, allow_infinity=False)
 positive = st.floats(min_value=0.0, exclude_min=True, allow_infinity=False)
+#: a sample's pressure: absolute, at most 10 MPa (a hard limit, not a plausibility rule)
+pressure = st.floats(min_value=0.0, exclude_min=True, max_value=10e6)
 
 
 @st.composite
 def recordings(draw):
     n = draw(st.integers(1, 30))
     t = sorted(draw(st.lists(finite, min_size=n, max_size=n, unique=True)))
+    assume(all(b - a >= 1e-6 for a, b in zip(t, t[1:])))  # 1 us apart: a hard limit
     col = st.lists(finite, min_size=n, max_size=n)
     atm, sup = sorted(draw(st.lists(positive, min_size=2, max_size=2, unique=True)))
     stroke = draw(positive)
@@ -417,8 +420,8 @@ def recordings(draw):
     return Recording(
         metadata=meta, time_s=t,
         command_V=draw(st.lists(st.floats(-5.0, 5.0), min_size=n, max_size=n)),
-        pressure_Pa=draw(st.lists(positive, min_size=n, max_size=n)),
-        supply_pressure_Pa=draw(st.none() | st.lists(positive, min_size=n, max_size=n)),
+        pressure_Pa=draw(st.lists(pressure, min_size=n, max_size=n)),
+        supply_pressure_Pa=draw(st.none() | st.lists(pressure, min_size=n, max_size=n)),
         position_m=draw(st.none() | col),
         extra_columns=draw(st.dictionaries(extra_name, st.lists(
             st.floats(), min_size=n, max_size=n), max_size=2)))

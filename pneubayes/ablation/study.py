@@ -257,7 +257,12 @@ class Study:
 # ---------------------------------------------------------------- reading and checking
 def load_study(path) -> Study:
     """Read and validate a study TOML file (errors name the file and the key)."""
+    from pneubayes.limits import input_file_problem
+
     p = Path(path)
+    why = input_file_problem(p)
+    if why is not None:
+        raise StudyError(f"{p}: {why}")
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:

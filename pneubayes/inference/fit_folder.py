@@ -34,10 +34,28 @@ def write_posterior(idata, path) -> None:
     os.replace(tmp, path)
 
 
+def _non_finite_rmse(doc, where: str = "") -> list:
+    """``[(key path, value)]`` of every RMSE in ``doc`` that is not a finite number."""
+    out = []
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            path = f"{where}.{k}" if where else str(k)
+            if "rmse" in str(k).lower() and isinstance(v, (int, float, np.floating)) \
+                    and not isinstance(v, bool) and not np.isfinite(v):
+                out.append((path, v))
+            else:
+                out += _non_finite_rmse(v, path)
+    return out
+
+
 def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
     """Write ``fit`` as a run folder: ``model.json`` (the point estimate's card),
     ``posterior.nc`` (arviz; "mcmc", "laplace"), ``summary.json`` and, with ``figures``,
     ``figures/`` (every file atomically)."""
+    bad = _non_finite_rmse(fit.summary)
+    if bad:
+        raise FloatingPointError(f"the fit's {bad[0][0]} is {bad[0][1]}: not a result (the "
+                                 "model's simulation failed on the data); nothing written")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     fit.model.save_card(fit.params, out / "model.json", extra=fit.card_extra())

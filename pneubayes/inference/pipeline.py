@@ -83,6 +83,11 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     recording = prepare_recording(recording, fit.preparation)
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
+    metrics = bands.metrics()
+    if not np.isfinite(metrics["rmse_Pa"]):
+        raise FloatingPointError(f"{recording.source}: the prediction's RMSE is "
+                                 f"{metrics['rmse_Pa']} (the model's simulation failed on "
+                                 "it); no prediction written")
     w, n = bands.mean.shape
     cols = [np.repeat(np.arange(w), n), bands.time_s.ravel(),
             (bands.time_s - bands.time_s[:, :1]).ravel(), bands.measured.ravel(),
@@ -91,7 +96,6 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
     lines = [header] + [",".join(f"{v:.10g}" for v in row) for row in zip(*cols)]
     out = Path(out_csv)
     write_text_atomic(out, "\n".join(lines) + "\n")
-    metrics = bands.metrics()
     metrics.update({"recording": str(recording.source), "run": str(run_dir),
                     "input_findings": recorded_findings([recording]),
                     "horizon_s": horizon_s, "n_draws": int(draws.shape[0]), "seed": seed})

@@ -141,6 +141,13 @@ class PosteriorPredictive:
               rng: np.random.Generator) -> PredictionBands:
         """Predict ``horizon_s`` windows every ``stride_s`` from the measured pressure."""
         starts, length = window_starts(recording.time_s, horizon_s, stride_s)
+        valid = recording.valid_mask() if hasattr(recording, "valid_mask") else None
+        if valid is not None and not valid.all():  # as a fit: no window on a masked sample
+            bad = np.concatenate([[0], np.cumsum(~valid)])
+            starts = starts[bad[starts + length] - bad[starts] == 0]
+            if starts.size == 0:
+                raise ValueError(f"{recording.source}: no {horizon_s:g}-s window lies within "
+                                 "the samples its 'valid' column marks valid")
         p = np.asarray(recording.pressure_Pa, dtype=np.float64)
         sim, sens = simulate_windows_sensitivity(
             self.model, self.draws, Inputs.from_recording(recording), recording.rig(),

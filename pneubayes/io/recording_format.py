@@ -305,9 +305,29 @@ def check_metadata(data: dict, name: str, problems: list) -> RecordingMetadata |
     return RecordingMetadata(**values, extra=extra)
 
 
+#: Hard limits on every sample (not plausibility rules: never accepted): no absolute
+#: pressure above this, Pa, and no two time stamps closer than this, s (time stamps in
+#: nanoseconds or microseconds written as seconds).
+SAMPLE_PRESSURE_MAX_Pa = 10e6
+MIN_TIME_STEP_s = 1e-6
+#: Rows named per hard-limit problem; the rest are counted.
+_ROWS_NAMED = 3
+
+
+def _first_rows(found: list, total: int) -> list:
+    """The problems of the first offending rows (``found``) and a count of the rest."""
+    out = list(found[:_ROWS_NAMED])
+    if total > len(out):
+        loc, text = out[-1]
+        out[-1] = (loc, f"{text} (and {total - len(out)} more row(s) like it)")
+    return out
+
+
 def check_columns(cols: dict, bad: dict, lines, name: str, labels=None) -> list:
     """Value rules of the known columns. ``bad`` masks cells already reported as unparsable;
-    ``labels`` names a column converted from a declared unit as the file has it."""
+    ``labels`` names a column converted from a declared unit as the file has it.
+    Every sample is checked: finite, pressures absolute and at most 10 MPa, time strictly
+    increasing in steps of at least 1 us."""
     problems = []
 
     def at(i):
@@ -323,6 +343,11 @@ def check_columns(cols: dict, bad: dict, lines, name: str, labels=None) -> list:
                 problems.append((at(i), (f"column {col!r}: absolute pressure must be > 0 Pa, "
                                         f"got {show_value(x[i])} (a gauge pressure? format 2 "
                                         "declares one with a _gauge column)")))
+            high = np.flatnonzero(finite & (x > SAMPLE_PRESSURE_MAX_Pa))
+            problems += _first_rows([(at(i), (
+                f"column {col!r}: {show_value(x[i])} Pa is above any pneumatic pressure "
+                "(10 MPa absolute); another unit, or a corrupt value?"))
+                for i in high[:_ROWS_NAMED]], high.size)
         if si_col == "command_V":
             for i in np.flatnonzero(finite & (np.abs(x) > COMMAND_LIMIT_V + COMMAND_TOLERANCE_V)):
                 problems.append((at(i), (f"column 'command_V': {show_value(x[i])} V is outside "
@@ -337,6 +362,15 @@ def check_columns(cols: dict, bad: dict, lines, name: str, labels=None) -> list:
                 problems.append((at(i), (f"column {col!r}: {kind} time {show_value(x[i])} s (row "
                                         f"{lines[j]} has {show_value(x[j])} s); time must be "
                                         f"strictly increasing")))
+            with np.errstate(over="ignore", invalid="ignore"):
+                step = t[1:] - t[:-1]
+            # (a relative 1e-3 below: 1 us steps summed in binary fall a little short)
+            close = np.flatnonzero((t[1:] > t[:-1]) & (step < MIN_TIME_STEP_s * (1 - 1e-3)))
+            problems += _first_rows([(at(idx[k + 1]), (
+                f"column {col!r}: {show_value(t[k + 1])} s is only {step[k]:.3g} s after "
+                f"row {lines[idx[k]]}; samples under 1 us apart are time stamps in another "
+                "unit (nanoseconds or microseconds as seconds?)"))
+                for k in close[:_ROWS_NAMED]], close.size)
     return problems
 
 

@@ -43,6 +43,16 @@ from pneubayes.io.units import parse_declared
 
 
 def _read_text(path: Path, problems: list) -> str | None:
+    from pneubayes.errors import PneubayesError
+    from pneubayes.limits import input_file_problem
+
+    try:
+        why = input_file_problem(path)  # never opened: a named pipe cannot block
+    except PneubayesError as exc:
+        why = str(exc)
+    if why is not None:
+        problems.append((str(path), why))
+        return None
     try:
         with open(path, encoding="utf-8-sig", newline="") as f:  # read-only, always
             return f.read()
@@ -117,9 +127,10 @@ def _format_version(data: dict, name: str, problems: list) -> int:
     fmt = data.get(FORMAT_KEY)
     if fmt == FORMAT_2:
         return 2
-    if isinstance(fmt, str) and fmt.startswith("pneubayes-recording/") and fmt != FORMAT_1:
-        problems.append((f"{name} key {FORMAT_KEY!r}", (f"unknown format {fmt!r}; this "
-                         f"version reads {FORMAT_1!r} and {FORMAT_2!r}")))
+    if fmt is not None and fmt != FORMAT_1:
+        problems.append((f"{name} key {FORMAT_KEY!r}", (f"unknown format {show_value(fmt)}; "
+                         f"this version reads {FORMAT_1!r} and {FORMAT_2!r} (or no "
+                         "'format' key: format 1)")))
     return 1
 
 
@@ -277,6 +288,9 @@ def _parse_csv(text: str, name: str, problems: list, version: int = 1,
 def _problems_and_recording(path, accept=(), rig_card=None) -> tuple[list, Recording | None]:
     from pneubayes.errors import RigCardError
 
+    if Path(path).is_dir():
+        return [(str(path), "is a folder, not a recording (a .csv and a .json file with "
+                 "the same stem)")], None
     csv_path, json_path = recording_paths(path)
     accept = check_accept(accept, "accept")
     problems: list = []

@@ -191,9 +191,19 @@ class RigCard:
         notes = card.get("notes", "")
         if not isinstance(notes, str):
             raise RigCardError(f"{source} key 'notes': must be a string")
-        return cls(name, atm, temp, read_command(card.get("command"), f"{source} key 'command'"),
+        made = cls(name, atm, temp, read_command(card.get("command"), f"{source} key 'command'"),
                    parts["chamber"], parts["valve"], parts["supply"], tube, bounds, notes,
                    source, exhaust)
+        if bounds:
+            from pneubayes.effects import catalogue_parameter_names
+
+            own = sorted(p.name for c in made.components for p in c.parameters())
+            unknown = sorted(set(bounds) - set(catalogue_parameter_names()) - set(own))
+            if unknown:
+                raise RigCardError(
+                    f"{source} key 'bounds': {unknown} name no parameter of this rig card "
+                    f"or of any effect; its are {own} and the effects' (e.g. tube_delay_s)")
+        return made
 
     # ------------------------------------------------------------------ recordings
     def metadata_defaults(self) -> dict:
@@ -237,11 +247,19 @@ def _component(card: Mapping, role: str, source: str) -> RigComponent:
 
 def load_rig_card(path) -> RigCard:
     """Read a rig card from a .json or .toml file; errors name the file and key."""
+    from pneubayes.limits import input_file_problem
+
     path = Path(path)
+    why = input_file_problem(path)
+    if why is not None:
+        raise RigCardError(f"{path}: {why}")
     try:
         text = path.read_text()
     except OSError as exc:
         raise RigCardError(f"{path}: cannot read the rig card ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise RigCardError(f"{path}: not a rig card (not UTF-8 text: {exc.reason} at byte "
+                           f"{exc.start})") from None
     if path.suffix == ".toml":
         try:
             data = tomllib.loads(text)

@@ -76,6 +76,9 @@ def rig_card() -> dict:
 
 
 def _read_matrix(path: Path, ncols: int) -> np.ndarray:
+    from pneubayes.limits import check_input_file
+
+    check_input_file(path)
     rows = []
     with path.open(newline="") as fh:
         for i, row in enumerate(csv.reader(fh), start=1):

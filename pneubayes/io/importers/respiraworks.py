@@ -104,8 +104,21 @@ def rig_card(kind: str) -> dict:
 
 
 def _read(path: Path) -> np.ndarray:
-    lines = path.read_text().splitlines()
-    header = [ln for ln in lines if ln.strip() and not ln.startswith("#")][0].split()
+    from pneubayes.limits import check_input_file
+
+    if not path.exists():
+        raise ValueError(f"{path}: file not found")
+    check_input_file(path)
+    try:
+        lines = path.read_text().splitlines()
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a RespiraWorks .dat text file (not UTF-8 text: "
+                         f"{exc.reason} at byte {exc.start})") from None
+    content = [ln for ln in lines if ln.strip() and not ln.startswith("#")]
+    if not content:
+        raise ValueError(f"{path}: empty; a RespiraWorks .dat file starts with the header "
+                         f"{' '.join(COLUMNS)}")
+    header = content[0].split()
     if tuple(header) != COLUMNS:
         raise ValueError(f"{path}: expected the columns {' '.join(COLUMNS)}, got "
                          f"{' '.join(header)}")
@@ -121,6 +134,8 @@ def _read(path: Path) -> np.ndarray:
             raise ValueError(f"{path} line {i}: expected {len(COLUMNS)} values, got "
                              f"{len(vals)}")
         rows.append(vals)
+    if not rows:
+        raise ValueError(f"{path}: no data rows after the header (a run needs samples)")
     return np.array(rows)
 
 
@@ -128,6 +143,8 @@ def import_run(path, out_dir) -> Path:
     """Write one run file as ``out_dir/<SET>/<file stem>``; returns the CSV path."""
     path = Path(path)
     kind = path.parent.name.upper()
+    if not path.exists():
+        raise ValueError(f"{path}: file not found")
     if kind not in SUPPLY_PA:
         raise ValueError(f"{path}: the run's folder must be AIR or OXY (it names the gas "
                          f"path), got {path.parent.name!r}")
@@ -170,6 +187,12 @@ def import_respiraworks(files, out_dir) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [Path(f) for f in files]
+    seen: dict = {}
+    for f in files:
+        key = (f.parent.name.upper(), f.stem)
+        if key in seen:
+            raise ValueError(f"{f}: given twice (as {seen[key]}); each run is imported once")
+        seen[key] = f
     written = [import_run(f, out) for f in files]
     for kind in sorted({f.parent.name.upper() for f in files}):
         write_json_atomic(out / f"respiraworks-{kind.lower()}.rig.json", rig_card(kind))
