@@ -623,9 +623,9 @@ def test_the_documented_examples_are_valid_cards():
 
     from pneubayes.rigcard import card as card_module
 
-    readme = (ROOT / "README.md").read_text()
-    block = readme[readme.index("## Your own rig"):].split("```toml\n", 1)[1].split("```")[0]
-    assert RigCard.from_dict(tomllib.loads(block), "README").valve.kind == "switching"
+    guide = (ROOT / "docs" / "rig.md").read_text()
+    block = guide[guide.index("## Rig cards"):].split("```toml\n", 1)[1].split("```")[0]
+    assert RigCard.from_dict(tomllib.loads(block), "docs/rig.md").valve.kind == "switching"
     doc = card_module.__doc__.split("::\n\n", 1)[1].split("\n\n")[0]
     text = "\n".join(line[4:] for line in doc.splitlines())
     assert RigCard.from_dict(tomllib.loads(text), "card.py").chamber.kind == "polynomial"
