@@ -206,6 +206,7 @@ def test_bladder_slows_the_fill_and_keeps_its_end_and_its_mass(rig, base):
     assert np.ptp(p) > 5e4 and np.ptp(inv) / inv[0] < 1e-5
 
 
+@pytest.mark.slow
 def test_inlet_flow_force_slows_the_fill_and_leaves_the_exhaust(rig):
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
     ff = out_of_catalogue_defaults("InletFlowForce")
