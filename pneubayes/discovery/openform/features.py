@@ -70,10 +70,15 @@ class Candidate:
         return self.term.evaluate(signals, self.threshold_a, self.threshold_b)
 
 
+#: A hinge's threshold lies at least this share of its signal's range inside it.
+INTERIOR_MARGIN = 1e-3
+
+
 def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
                      ) -> dict[str, np.ndarray]:
     """Per hinge feature, its grid of thresholds: the ``quantiles`` of its source
-    signal (:data:`HINGE_SOURCES`) pooled over the recordings, repeated values merged.
+    signal (:data:`HINGE_SOURCES`) pooled over the recordings, repeated values merged,
+    those not inside the signal's range by :data:`INTERIOR_MARGIN` of it left out.
 
     Parameters
     ----------
@@ -93,7 +98,13 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     out = {}
     for hinge, source in HINGE_SOURCES.items():
         vals = np.concatenate([evaluate_feature(source, s) for s in signals_list])
-        out[hinge] = np.unique(np.quantile(vals[np.isfinite(vals)], q))
+        vals = vals[np.isfinite(vals)]
+        grid = np.unique(np.quantile(vals, q)) if vals.size else np.zeros(0)
+        # only thresholds inside the signal's range: at its ends a hinge is the signal
+        # itself or (nearly) zero (a switching valve's 0/1 spool has no inside)
+        lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 0.0)
+        margin = INTERIOR_MARGIN * (hi - lo)
+        out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
     return out
 
 

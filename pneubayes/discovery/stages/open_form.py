@@ -108,7 +108,9 @@ class OpenForm(Stage):
         fit = self._fit(state, runner, terms)
         if fit is None:
             return
-        if self.prune:
+        if self.prune and runner.better(fit, state.current)[0]:
+            # (pruning weighs each term against the closure without it, which means
+            # something only for a closure that beats the current model)
             fit = self._prune(fit, state, runner)
         self._verify(fit, state, runner, best, search)
 
