@@ -94,6 +94,16 @@ class OpenForm(Stage):
         runs, best = self._applies(state, noise)
         if not runs:
             return
+        try:
+            self._run(state, runner, best)
+        except (ValueError, FloatingPointError, SimulationError) as exc:
+            # a rig this stage cannot express (a state the closure's signals or the
+            # simulator do not carry): the loop goes on without it, and says so
+            why = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
+            runner.log(f"discover: open form: not possible beside this model ({why})")
+            runner.ledger.record("open form failed", round=state.number, error=why)
+
+    def _run(self, state: RoundState, runner, best) -> None:
         terms, search = self._search(state, runner)
         runner.ledger.record("open form search", round=state.number,
                              terms=[_term_record(t) for t in terms],
