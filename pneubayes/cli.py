@@ -26,7 +26,7 @@ from pneubayes.run_folder import check_file, inputs_digest, open_run_folder, rel
 FIT_OUTPUTS = ("model.json", "summary.json", "posterior.nc", "chain.h5", "refined.json",
                "figures")
 DISCOVER_OUTPUTS = ("discovery.json", "model.json", "posterior.nc", "chain.h5",
-                    "disagreement.json", "report.md", "figures", "steps")
+                    "disagreement.json", "report.md", "figures", "steps", "found_effect.py")
 
 
 def _print_findings(command: str, recordings) -> None:

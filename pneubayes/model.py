@@ -78,9 +78,12 @@ class Model:
         for e in built:
             if not isinstance(e, Effect):
                 raise TypeError(f"Model: {e!r} is not an Effect")
-        # Canonical order: catalogue order, so equal models have equal parameter order.
+        # Canonical order: catalogue order, so equal models have equal parameter order
+        # (an effect of the user's not registered in the catalogue after it, by name)
         order = list(CATALOGUE)
-        self.effects: tuple[Effect, ...] = tuple(sorted(built, key=lambda e: order.index(e.name)))
+        self.effects: tuple[Effect, ...] = tuple(sorted(
+            built, key=lambda e: (order.index(e.name) if e.name in order else len(order),
+                                  e.name)))
         self.base: tuple = (ThinPort(),) if rig_card is None else rig_card.components
         card_bounds = {} if rig_card is None else {
             k: v for k, v in rig_card.bounds.items()

@@ -188,3 +188,29 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
     assert _newly_at_bounds(fit, current) == ["dead_volume_m3"]
     current.params["dead_volume_m3"] = lo_v
     assert _newly_at_bounds(fit, current) == []
+
+
+def test_a_found_closure_becomes_an_effect_plug_in_a_user_can_name(rig):
+    """The skeleton is Python that defines an effect lowering exactly as the closure
+    it came from, with the user's parameter names and the fitted values as defaults."""
+    from pneubayes.discovery.openform.skeleton import effect_skeleton
+
+    model = Model().with_effect(Closure(terms="inlet_flow*pressure_hinge; one"))
+    params = {**{k: 1.0 for k in Model().parameter_names}, "dead_volume_m3": 2e-5,
+              "closure_coefficient_0": -0.2, "closure_threshold_0_b": 3.1,
+              "closure_coefficient_1": 2e-6}
+    text = effect_skeleton(model, params, "ReliefPath", "relief_path")
+    assert "c_0 m_in max(0, p / P_atm - theta_0_b)" in text
+    ns: dict = {}
+    exec(compile(text, "found_effect.py", "exec"), ns)  # noqa: S102
+    eff = ns["ReliefPath"]()
+    assert eff.name == "relief_path"
+    assert eff.bench_defaults() == {"term0_coefficient": -0.2, "term0_threshold_b": 3.1,
+                                    "term1_coefficient": 2e-6}
+    mine = Model([eff])
+    theirs = model.lower(model.as_matrix(params), rig)
+    ours = mine.lower(mine.as_matrix({**{k: params[k] for k in Model().parameter_names},
+                                      **eff.bench_defaults()}), rig)
+    np.testing.assert_array_equal(ours, theirs)
+    with pytest.raises(ValueError, match="no closure"):
+        effect_skeleton(Model(), {})

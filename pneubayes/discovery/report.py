@@ -50,6 +50,11 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_posterior(result.posterior, out / "posterior.nc")
         doc["posterior"]["file"] = "posterior.nc"
     write_json_atomic(out / "disagreement.json", {"rounds": list(result.maps)})
+    if doc.get("found_terms"):  # the found terms as an effect plug-in to name and edit
+        from pneubayes.discovery.openform.skeleton import effect_skeleton
+
+        write_text_atomic(out / "found_effect.py", effect_skeleton(result.model, result.params))
+        doc["found_effect"] = "found_effect.py"
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
     if figures and result.maps:  # (no search round, no map: max_effects 0)
