@@ -32,9 +32,12 @@ def test_a_closure_term_dropped_renumbers_the_others_and_keeps_their_values():
     assert start["closure_coefficient_1"] == params["closure_coefficient_2"]
     assert "closure_threshold_0_a" not in start
     assert set(start) == set(reduced.parameter_names)
-    # the hinge's threshold moves with its term
-    reduced, start = _without_term(fit, 1)
+    # the hinge's threshold moves with its term, and so do a coefficient's widened bounds
+    wide = SimpleNamespace(model=model.with_bounds({"closure_coefficient_2": (-5.0, 5.0)}),
+                           params=params)
+    reduced, start = _without_term(wide, 1)
     assert start["closure_threshold_0_a"] == params["closure_threshold_0_a"]
+    assert reduced.bound_overrides == {"closure_coefficient_1": (-5.0, 5.0)}
     # the last term gone: the model without a closure
     one = SimpleNamespace(model=Model().with_effect(Closure(terms="one")),
                           params={**{k: 1.0 for k in Model().parameter_names},

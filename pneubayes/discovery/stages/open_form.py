@@ -50,12 +50,17 @@ class OpenForm(Stage):
         seed and block.
     prune : bool
         Drop each term whose removal the held-out test cannot tell apart.
+    coefficient_reach : float
+        A term whose searched coefficient times this exceeds the closure's default
+        bound gets its bounds widened to +- this x the searched coefficient (the
+        defaults are sized for typical flows; a relief path can carry ten times more).
     """
 
     name = "open_form"
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
-                 search: OpenFormSearch | None = None, prune: bool = True):
+                 search: OpenFormSearch | None = None, prune: bool = True,
+                 coefficient_reach: float = 10.0):
         if min_noise_ratio < 1.0:
             raise ValueError(f"OpenForm: min_noise_ratio must be >= 1, got {min_noise_ratio}")
         if not 0.0 <= compete_below_gap_closed <= 1.0:
@@ -65,6 +70,10 @@ class OpenForm(Stage):
         self.compete_below_gap_closed = compete_below_gap_closed
         self.search = search
         self.prune = prune
+        if not coefficient_reach >= 1.0:
+            raise ValueError(f"OpenForm: coefficient_reach must be >= 1, got "
+                             f"{coefficient_reach}")
+        self.coefficient_reach = coefficient_reach
 
     def options(self):
         search = None if self.search is None else {
@@ -72,7 +81,8 @@ class OpenForm(Stage):
             for k in inspect.signature(type(self.search).__init__).parameters if k != "self"}
         return {"min_noise_ratio": self.min_noise_ratio,
                 "compete_below_gap_closed": self.compete_below_gap_closed,
-                "search": search, "prune": self.prune}
+                "search": search, "prune": self.prune,
+                "coefficient_reach": self.coefficient_reach}
 
     # ------------------------------------------------------------------ when
     def _applies(self, state: RoundState, noise: float):
@@ -156,6 +166,20 @@ class OpenForm(Stage):
             runner.log("discover: open form: a closure cannot sit beside the line state of "
                        f"{', '.join(plainer)}; the trial has its plainest form")
         model = base.with_effect(closure)
+        earlier = {k: v for k, v in current.model.bound_overrides.items()
+                   if k.startswith("closure_")}  # an earlier term's widened bounds
+        wide = dict(earlier)
+        for j, t in enumerate(terms):
+            name = f"closure_coefficient_{len(old) + j}"
+            reach = self.coefficient_reach * abs(t.coefficient)
+            if reach > model.parameter(name).upper:
+                wide[name] = (-reach, reach)
+        if len(wide) > len(earlier):
+            runner.log("discover: open form: bounds widened to reach the searched values: "
+                       + ", ".join(f"{k} +-{v[1]:.3g}" for k, v in wide.items()
+                                   if k not in earlier))
+        if wide:
+            model = model.with_bounds(wide)
         searched = {k: v for k, v in current.params.items() if k in model.parameter_names}
         searched.update({k: v for k, v in closure.neutral_values().items()
                          if k not in searched})
@@ -356,6 +380,11 @@ def _without_term(fit, k: int):
         return base, start
     closure = Closure(terms="; ".join(str(terms[j]) for j in keep))
     reduced = base.with_effect(closure)
+    kept = {f"closure_coefficient_{new}": model.bound_overrides[f"closure_coefficient_{old}"]
+            for new, old in enumerate(keep)
+            if f"closure_coefficient_{old}" in model.bound_overrides}
+    if kept:  # a widened coefficient's bounds go with its term
+        reduced = reduced.with_bounds(kept)
     for new, old in enumerate(keep):
         start[f"closure_coefficient_{new}"] = fit.params[f"closure_coefficient_{old}"]
         for side in terms[old].hinges():
