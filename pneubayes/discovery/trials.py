@@ -379,8 +379,10 @@ class TrialRunner:
             The control and the current fit.
         """
         try:
-            control = self.fit(current.model, {k: trial.params[k] for k in
-                                               current.model.parameter_names})
+            # (a parameter the trial's model lacks, e.g. an effect's other form's,
+            # keeps its current value)
+            control = self.fit(current.model, {k: trial.params.get(k, current.params[k])
+                                               for k in current.model.parameter_names})
         except (FloatingPointError, SimulationError) as exc:
             # the trial's point leaves the current model's simulable region: no better
             # optimum of the current model there
