@@ -1048,6 +1048,10 @@ def test_a_trial_that_ends_worse_than_the_model_it_contains_is_refitted_from_it(
     results = [5000.0]
     assert runner.fit_trial("spool_lag", model, own, current).train_rmse_Pa == 5000.0
     assert len(starts) == 1
+    # within the refinement's spread of the current fit: not refitted
+    starts.clear()
+    results = [5620.0]
+    assert runner.fit_trial("spool_lag", model, own, current).train_rmse_Pa == 5620.0
     # worse from both starts: a failed fit
     starts.clear()
     results = [8905.0, 5700.0]
