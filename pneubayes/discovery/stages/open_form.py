@@ -19,6 +19,7 @@ from pneubayes.discovery.openform.search import OpenFormSearch
 from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.discovery.state import RoundState
 from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
@@ -207,6 +208,15 @@ class OpenForm(Stage):
         runner.log(f"discover: open form: closure '{spec}' fitted, training RMSE "
                    f"{current.train_rmse_Pa:.0f} -> {fit.train_rmse_Pa:.0f} Pa, held-out "
                    f"{current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa")
+        if fit.train_rmse_Pa > current.train_rmse_Pa * (1.0 + NESTED_TOLERANCE):
+            # it contains the current model: a fit that ends worse failed, and says
+            # nothing of the terms
+            runner.log("discover: open form: the closure's fit ended worse in training "
+                       "than the model it contains; a failed fit")
+            runner.ledger.record("open form failed", round=state.number,
+                                 error=f"training RMSE {fit.train_rmse_Pa:.0f} Pa above the "
+                                       f"current model's {current.train_rmse_Pa:.0f} Pa")
+            return None
         return fit
 
     def _prune(self, fit, state: RoundState, runner):
