@@ -19,8 +19,8 @@ from pneubayes.discovery.openform.search import OpenFormSearch
 from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
-from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.discovery.state import RoundState
+from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS
