@@ -217,3 +217,36 @@ def test_a_found_closure_becomes_an_effect_plug_in_a_user_can_name(rig):
     np.testing.assert_array_equal(ours, theirs)
     with pytest.raises(ValueError, match="no closure"):
         effect_skeleton(Model(), {})
+
+
+def test_a_second_round_extends_the_closure_the_model_already_has(rig):
+    """Beside a model that already has a closure (a later round), the new terms join
+    its terms, its fitted values start the old ones, and the rest of the model is
+    started at the current fit (a blind case crashed here: the current values, the
+    closure's included, were given to the model without it)."""
+    from pneubayes.discovery.openform.search import FoundTerm
+    from pneubayes.discovery.state import Ledger
+    from pneubayes.effects.closure_features import Term
+    from pneubayes.physics.valve import valve_preset
+
+    model = Model().with_effect(Closure(terms="pressure_hinge"))
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2e-5,
+              "closure_coefficient_0": -5e-5, "closure_threshold_0_a": 3.5}
+    current = SimpleNamespace(model=model, params=params, train_rmse_Pa=900.0,
+                              heldout_rmse_Pa=1000.0)
+    starts = []
+
+    def fit(m, start, first=None, beat_Pa=None):
+        starts.append((m, dict(start)))
+        return SimpleNamespace(model=m, params=dict(start), train_rmse_Pa=800.0,
+                               heldout_rmse_Pa=700.0)
+
+    runner = SimpleNamespace(fit=fit, log=lambda m: None, ledger=Ledger(),
+                             data=SimpleNamespace(rig=lambda: rig))
+    found = [FoundTerm(Term("inlet_flow"), 0.0, 0.0, 0.05, 1.0, 1.0, 0.5)]
+    got = OpenForm()._fit(_state(current), runner, found)
+    assert got.model.effect("closure").options()["terms"] == "pressure_hinge; inlet_flow"
+    (m, searched), (_, zero) = starts
+    assert searched["closure_coefficient_0"] == -5e-5
+    assert searched["closure_coefficient_1"] == pytest.approx(0.05)
+    assert zero["closure_coefficient_1"] == 0.0 and zero["closure_coefficient_0"] == -5e-5

@@ -162,7 +162,8 @@ class OpenForm(Stage):
         spec = "; ".join([*(str(t) for t, _ in old), *(str(t.term) for t in terms)])
         closure = Closure(terms=spec)
         base = current.model.without(CLOSURE) if current.model.has(CLOSURE) else current.model
-        base, plainer = _beside_closure(base, current.params, runner.data.rig())
+        base, plainer = _beside_closure(
+            base, {k: current.params[k] for k in base.parameter_names}, runner.data.rig())
         if plainer:
             runner.log("discover: open form: a closure cannot sit beside the line state of "
                        f"{', '.join(plainer)}; the trial has its plainest form")
