@@ -65,9 +65,6 @@ class Ledger:
     def __iter__(self) -> Iterator[dict]:
         return iter(self._events)
 
-    def __getitem__(self, i):
-        return self._events[i]
-
     def events(self) -> tuple:
         """Every event so far, in order."""
         return tuple(self._events)

@@ -24,6 +24,7 @@ from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS
+from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 
@@ -187,11 +188,11 @@ class OpenForm(Stage):
                          if k not in searched})
         for j, t in enumerate(terms):
             k = len(old) + j
-            searched[f"closure_coefficient_{k}"] = _inside(model, f"closure_coefficient_{k}",
-                                                           t.coefficient)
+            name = f"closure_coefficient_{k}"
+            searched[name] = inside_bounds(model, name, t.coefficient)
             for side in t.term.hinges():
                 name = f"closure_threshold_{k}_{side}"
-                searched[name] = _inside(model, name, getattr(t, f"threshold_{side}"))
+                searched[name] = inside_bounds(model, name, getattr(t, f"threshold_{side}"))
         zero = dict(searched)
         for j in range(len(terms)):
             zero[f"closure_coefficient_{len(old) + j}"] = 0.0
@@ -351,16 +352,9 @@ def _beside_closure(model, params: dict, rig):
     return model, names
 
 
-def _inside(model, name: str, value: float) -> float:
-    """``value`` moved just inside the parameter's bounds."""
-    lo, hi = model.parameter(name).lower, model.parameter(name).upper
-    span = hi - lo
-    return float(np.clip(value, lo + 1e-6 * span, hi - 1e-6 * span))
-
-
 def _existing_terms(model) -> list:
-    """The model's closure terms, ``[(Term, {its parameter names: None}), ...]`` (empty
-    without a closure)."""
+    """The model's closure terms, ``[(Term, its parameter names), ...]`` (empty without
+    a closure)."""
     if not model.has(CLOSURE):
         return []
     eff = model.effect(CLOSURE)
@@ -368,7 +362,7 @@ def _existing_terms(model) -> list:
     for k, t in enumerate(eff.term_list()):
         names = [f"closure_coefficient_{k}"] + [f"closure_threshold_{k}_{side}"
                                                 for side in t.hinges()]
-        out.append((t, dict.fromkeys(names)))
+        out.append((t, tuple(names)))
     return out
 
 
