@@ -19,12 +19,16 @@ demo: $(STAMP)
 	$(PY) -m pneubayes.demo --data data --out results/demo
 
 # The fast tier (what CI runs): every test but the statistical and end-to-end ones
-# marked slow. `make test-all` runs both tiers.
+# marked slow. `make test-all` runs both tiers. The kernels are compiled first, once
+# (`pneubayes compile`), so the two test processes (pytest-xdist) load them from numba's
+# cache instead of each compiling its own copy.
 test: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(VENV)/bin/pneubayes compile --jobs 2
+	$(PY) -m pytest -q -m "not slow" -n 2
 
 test-all: $(STAMP)
-	$(PY) -m pytest -q
+	$(VENV)/bin/pneubayes compile --jobs 2
+	$(PY) -m pytest -q -n 2
 
 # Runs the paper's studies (cached per cell; about 30 min on 2 cores from scratch) and
 # assembles paper/report.md from their saved results.

@@ -1,5 +1,5 @@
 """The ``pneubayes`` command: ``check``, ``bench``, ``simulate``, ``fit``, ``predict``,
-``discover``, ``ablate``.
+``discover``, ``ablate``, ``import``, ``compile``.
 
 Each subcommand is a thin layer over the library; errors are printed as one clear
 message naming the file, row, key or argument (exit 2 for usage or input errors,
@@ -704,6 +704,14 @@ def cmd_import(args) -> int:
     return 0
 
 
+def cmd_compile(args) -> int:
+    from pneubayes.simulation.precompile import compile_kernels
+
+    for state, seconds in compile_kernels(args.jobs).items():
+        print(f"kernel ({state} state): {seconds:.1f} s")
+    return 0
+
+
 def cmd_ablate(args) -> int:
     from pneubayes.ablation.executor import DaskExecutor, LocalExecutor
     from pneubayes.ablation.runner import run_study
@@ -765,7 +773,8 @@ def main(argv=None) -> int:
     check_single_values(parser, args)
     args.func = {"check": cmd_check, "bench": cmd_bench, "simulate": cmd_simulate,
                  "fit": cmd_fit, "predict": cmd_predict, "discover": cmd_discover,
-                 "ablate": cmd_ablate, "import": cmd_import}[args.command]
+                 "ablate": cmd_ablate, "import": cmd_import,
+                 "compile": cmd_compile}[args.command]
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
     from pneubayes import limits
 

@@ -453,6 +453,16 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--keep-work", action="store_true",
                    help="keep each cell's bench recordings and fit folder in RUNDIR/work")
     a.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+
+    k = sub.add_parser(
+        "compile", help="compile the simulator's kernels now, so the first fit does not "
+                        "wait for the compiler",
+        description="Compile every variant of the simulation kernel into numba's cache "
+                    "beside the package (once per install or upgrade; about a minute and a "
+                    "half on one core), the variants in parallel processes. Later "
+                    "processes load the cache instead of compiling.")
+    k.add_argument("--jobs", type=POSITIVE_INT, default=2,
+                   help="processes compiling at once (default 2)")
     return p
 
 

@@ -1,0 +1,72 @@
+"""Compile the simulator's kernels ahead of their first use (``pneubayes compile``).
+
+numba compiles the simulation kernel the first time it runs and keeps the machine code
+in its on-disk cache beside the package (:mod:`pneubayes.compile_cache`). On a fresh
+install the first simulation therefore waits for the compiler: about a minute and a half
+on one core for all four variants below. Compiling them once after installing, the
+variants in separate processes at once, moves that wait out of the first fit and lets
+several later processes (test workers, ablation workers) load the same cache instead of
+each compiling its own copy.
+
+The kernel has four compiled variants, one per combination of
+
+- the state it steps: the chamber's pressure alone, or the *general* kernel with a
+  second state (heat transfer, an acoustic or wave line, a supply tank, a second
+  compartment; :func:`pneubayes.simulation.kernel.needs_general`);
+- the loop: on the calling thread, or spread over numba's threads (more than one
+  parameter set or window, and more than one thread).
+
+:func:`compile_variant` builds one state's two loops by running a tiny simulation of it;
+:func:`compile_kernels` runs the states in parallel processes.
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+
+import numpy as np
+
+#: The kernel's states: which model compiles each (its effects) and a parameter set.
+STATES = ("pressure", "general")
+
+
+def compile_variant(state: str) -> float:
+    """Compile (or load from the cache) the kernel stepping ``state`` (one of
+    :data:`STATES`), on one thread and on numba's threads; returns the seconds it took."""
+    from pneubayes.model import Model
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.rig import Rig
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    if state not in STATES:
+        raise ValueError(f"state must be one of {STATES}, got {state!r}")
+    start = time.perf_counter()
+    supply_Pa, atmosphere_Pa = 551325.0, 101325.0
+    rig = Rig(0.009, atmosphere_Pa, supply_Pa, stroke_m=0.03)
+    t = np.arange(21) * 1e-3
+    inputs = Inputs(t, np.where(t < 0.01, 3.0, -3.0), np.zeros_like(t),
+                    np.full_like(t, supply_Pa))
+    values = dict(valve_preset("valve1").parameters(), dead_volume_m3=2.4e-6,
+                  heat_transfer_rate_per_s=20.0)
+    model = Model(["heat_transfer"] if state == "general" else [])
+    row = [values[name] for name in model.parameter_names]
+    for sets in (1, 2):  # one set: the serial loop; two: the threaded one
+        simulate(model, np.array([row] * sets), inputs, rig, 2e5, SolverConfig.standard())
+    return time.perf_counter() - start
+
+
+def compile_kernels(jobs: int = 2) -> dict[str, float]:
+    """Compile every variant of the kernel, the states in up to ``jobs`` processes at
+    once; returns the seconds each state took (its process's own wall time)."""
+    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
+        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+    if jobs == 1:
+        return {state: compile_variant(state) for state in STATES}
+    # fresh interpreters: a forked child would inherit this process's numba state
+    with ProcessPoolExecutor(max_workers=min(jobs, len(STATES)),
+                             mp_context=get_context("spawn")) as pool:
+        # the largest variant first, so it never waits for a free process
+        futures = {state: pool.submit(compile_variant, state) for state in reversed(STATES)}
+        return {state: futures[state].result() for state in STATES}
