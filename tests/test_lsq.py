@@ -81,7 +81,7 @@ def test_lsq_recovers_table_ii_areas_on_noise_free_bench_data(tmp_path, cylinder
 def test_lsq_separates_a_laminar_leak(tmp_path):
     sensor = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
     cfg = BenchConfig("AIR37", "valve1", effects_from_names(["cylinder_leak"], "laminar"),
-                      protocol="fixed", duration_s=10.0, seed=5, positions=(0.5, 0.9),
+                      protocol="fixed", duration_s=4.0, seed=5, positions=(0.5, 0.9),
                       sensor=sensor)
     res = run_bench(cfg, tmp_path)
     model, truth = Model.load_card(res.truth_path)
