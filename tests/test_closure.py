@@ -187,7 +187,8 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
 
 # ---------------------------------------------------------------- the Jacobian
 @pytest.mark.parametrize("terms", [f.name for f in cf.FEATURES]
-                         + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate"])
+                         + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate",
+                            "net_flow*pressure_hinge_down"])
 @pytest.mark.parametrize("hconv", [0.0, 30.0])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig):
@@ -198,7 +199,8 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     from pneubayes.simulation.simulator import rig_constants
 
     # thresholds where each hinge is open at p = 2.6e5 Pa, spool 3
-    theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5}
+    theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5,
+             "pressure_hinge_down": 3.5}
     term = cf.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
@@ -237,6 +239,7 @@ CASES = [(f.name, {}) for f in cf.FEATURES] + [
     ("spool_hinge_up*pressure_ratio; spool_hinge_down",
      {"closure_threshold_0_a": -1.0, "closure_threshold_1_a": 0.0}),
     ("exhaust_flow*spool; volume_rate*volume; one", {}),
+    ("net_flow*pressure_hinge_down", {"closure_threshold_0_b": 3.0}),
 ]
 
 

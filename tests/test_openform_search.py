@@ -60,11 +60,14 @@ CASES = {
     "pressure_hinge": (Term("pressure_hinge"), 4.0, 0.0, 1.2e-5),
     "spool_hinge_up": (Term("spool_hinge_up"), 7.0, 0.0, 1e-5),
     "inlet_flow*pressure_ratio": (Term("inlet_flow", "pressure_ratio"), 0.0, 0.0, 0.03),
+    "pressure_hinge_down": (Term("pressure_hinge_down"), 4.0, 0.0, 1.2e-5),
+    # a volume that follows the pressure scales the net port flow (module doc)
+    "net_flow*pressure_ratio": (Term("net_flow", "pressure_ratio"), 0.0, 0.0, -0.02),
 }
 
 
 #: The fast tier's cases (a hinge with its threshold, a product); the rest are slow.
-_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio")
+_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio", "net_flow*pressure_ratio")
 
 
 @pytest.mark.parametrize("case", [
@@ -131,14 +134,16 @@ def test_intervals_marked_invalid_are_left_out():
 def test_the_library_is_typed_and_bounded():
     sig = [_signals(0)]
     cands = candidate_terms(sig)
-    assert 100 < len(cands) <= 300
+    assert 100 < len(cands) <= 370  # features.py's count at most
     families = {c.family for c in cands}
     assert {"one", "pressure_ratio", "pressure_ratio*pressure_ratio", "pressure_hinge",
-            "inlet_flow*spool_hinge_up", "spool_hinge_down"} <= families
+            "inlet_flow*spool_hinge_up", "spool_hinge_down", "pressure_hinge_down",
+            "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down"} <= families
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
-    ph = [c.threshold_a for c in cands if c.term.a == "pressure_hinge"]
-    assert min(ph) > p.min() and max(ph) < p.max()
+    for hinge in ("pressure_hinge", "pressure_hinge_down"):
+        ph = [c.threshold_a for c in cands if c.term.a == hinge]
+        assert ph and min(ph) > p.min() and max(ph) < p.max()
     # a constant supply ratio is the constant again: one column stands for both
     x = np.column_stack([np.ones(10), 3.0 * np.ones(10), np.arange(10.0)])
     assert distinct_columns(x, 1e-9).tolist() == [True, False, True]

@@ -40,7 +40,7 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "one": 1.0, "pressure_ratio": 10.0, "supply_ratio": 10.0, "spool": 10.0,
     "inlet_area": 5.0, "exhaust_area": 5.0, "inlet_flow": 1e-3, "exhaust_flow": 1e-3,
     "volume": 100.0, "volume_rate": 100.0, "pressure_hinge": 10.0, "spool_hinge_up": 20.0,
-    "spool_hinge_down": 20.0,
+    "spool_hinge_down": 20.0, "net_flow": 1e-3, "pressure_hinge_down": 10.0,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
@@ -52,6 +52,7 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "pressure_hinge": (1.0, 10.0, 5.5, 3.0),
     "spool_hinge_up": (-10.0, 10.0, 0.0, 2.0),
     "spool_hinge_down": (-10.0, 10.0, 0.0, -2.0),
+    "pressure_hinge_down": (1.0, 10.0, 5.5, 3.0),
 }
 
 

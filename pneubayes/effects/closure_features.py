@@ -59,6 +59,9 @@ FEATURES: tuple[Feature, ...] = (
     Feature("pressure_hinge", 10, "-", "max(0, p / P_atm - theta)", hinge=True),
     Feature("spool_hinge_up", 11, "command unit", "max(0, s - theta)", hinge=True),
     Feature("spool_hinge_down", 12, "command unit", "max(0, theta - s)", hinge=True),
+    Feature("net_flow", 13, "kg/s", "net port mass flow into the chamber, inlet minus "
+            "exhaust (what a compliance or a volume that follows the pressure scales)"),
+    Feature("pressure_hinge_down", 14, "-", "max(0, theta - p / P_atm)", hinge=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -115,7 +118,12 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return np.maximum(p / p_atm - threshold, 0.0)
     if f.code == 11:
         return np.maximum(spool - threshold, 0.0)
-    return np.maximum(threshold - spool, 0.0)
+    if f.code == 12:
+        return np.maximum(threshold - spool, 0.0)
+    if f.code == 13:
+        return (np.asarray(s["inlet_flow_kg_per_s"], dtype=np.float64)
+                - np.asarray(s["exhaust_flow_kg_per_s"], dtype=np.float64) + 0.0 * p)
+    return np.maximum(threshold - p / p_atm, 0.0)
 
 
 @dataclass(frozen=True)
@@ -178,6 +186,7 @@ SYMBOLS: dict[str, str] = {
     "inlet_flow": "m_in", "exhaust_flow": "m_ex", "volume": "(V / 1 cm^3)",
     "volume_rate": "(dV/dt / V)", "pressure_hinge": "max(0, p / P_atm - {theta})",
     "spool_hinge_up": "max(0, s - {theta})", "spool_hinge_down": "max(0, {theta} - s)",
+    "net_flow": "(m_in - m_ex)", "pressure_hinge_down": "max(0, {theta} - p / P_atm)",
 }
 
 

@@ -125,8 +125,13 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     if code == 11:
         z = spool - theta
         return (z, 0.0, dspool) if z > 0.0 else (0.0, 0.0, 0.0)
-    z = theta - spool
-    return (z, 0.0, -dspool) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 12:
+        z = theta - spool
+        return (z, 0.0, -dspool) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 13:
+        return q_in - q_ex, dq_in_dp - dq_ex_dp, dq_in_dt - dq_ex_dt
+    z = theta - p / p_atm
+    return (z, -1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
 
 
 @njit(cache=True, error_model="numpy")

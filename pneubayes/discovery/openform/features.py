@@ -4,8 +4,8 @@ A candidate is a :class:`~pneubayes.effects.closure_features.Term` with the thre
 of its hinge features. The library (:func:`candidate_terms`) holds
 
 - every base feature that is not a hinge (``one`` included);
-- every hinge feature at each threshold of a grid: ``pressure_hinge`` at quantiles of
-  the measured ``p / P_atm``, the two spool hinges at quantiles of the spool;
+- every hinge feature at each threshold of a grid: the two pressure hinges at quantiles
+  of the measured ``p / P_atm``, the two spool hinges at quantiles of the spool;
 - the products of every pair of non-constant, non-hinge base features (squares
   included: a laminar leak is ``p^2``);
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
@@ -13,8 +13,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the three partners above: with the nine non-hinge base features that is
-1 + 9 + 45 + 57 + 171 = 283 candidates at most. (A coarser grid saves columns but a
+with the three partners above: with the ten non-hinge base features that is
+1 + 10 + 55 + 76 + 228 = 370 candidates at most. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.
@@ -34,7 +34,7 @@ from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
 
 #: Hinge features and the signal their thresholds are quantiles of.
 HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
-                 "spool_hinge_down": "spool"}
+                 "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio"}
 #: The partners each hinge is multiplied with.
 HINGE_PARTNERS = ("pressure_ratio", "inlet_flow", "exhaust_flow")
 #: The default quantiles of the hinge thresholds.
