@@ -253,3 +253,30 @@ def plot_evidence(searches, path) -> Path:
         ax.set_title(f"round {s['round']}: model + {', '.join(s['model']) or 'nothing'}",
                      fontsize=7)
     return _save(fig, path)
+
+
+def plot_found_terms(views, path) -> Path:
+    """Each open-form term's mass flow against its main variable, beside the mass flow
+    the model misses without it (binned means with standard errors;
+    :func:`pneubayes.discovery.openform.term_view.term_views`)."""
+    plt = _pyplot()
+    n = len(views)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(3.4 * max(n, 1), 3.0), squeeze=False)
+    for k, v in enumerate(views):
+        ax = axes[0, k]
+        x = np.asarray(v["bin_centre"])
+        scale = 1e6  # kg/s -> mg/s
+        ax.errorbar(x, np.asarray(v["missing_kg_per_s"]) * scale,
+                    yerr=np.asarray(v["missing_sem_kg_per_s"]) * scale, fmt="o", ms=3,
+                    color="tab:gray", label="missing without the term")
+        ax.plot(x, np.asarray(v["term_kg_per_s"]) * scale, "-", color="tab:red",
+                label="the term")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel(f"{v['variable']} ({v['unit']})", fontsize=7)
+        ax.set_ylabel("mass flow into the chamber (mg/s)", fontsize=7)
+        ax.set_title(f"{v['formula']}\nexplains {100 * v['explained_fraction']:.0f} % of "
+                     "the missing flow's sum of squares", fontsize=7)
+        ax.tick_params(labelsize=6)
+        if k == 0:
+            ax.legend(fontsize=6)
+    return _save(fig, path)

@@ -133,7 +133,8 @@ def relief_recordings():
 
 
 @pytest.mark.slow
-def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recordings):
+def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recordings,
+                                                                    tmp_path):
     """The plain loop with the open-form stage alone (no catalogue fallbacks): the
     relief path is found as a pressure hinge with its threshold, verified on held-out
     windows, and the held-out error falls to about the noise floor."""
@@ -148,6 +149,13 @@ def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recor
     assert any("pressure_hinge" in t for t in terms), doc["ledger"]
     assert doc["effects"] == []  # no catalogue stand-in
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+    # the run folder: the terms' figure in the report, the plug-in skeleton beside it
+    from pneubayes.discovery.report import write_discovery
+
+    write_discovery(result, recs, tmp_path)
+    assert (tmp_path / "figures" / "found_terms.png").stat().st_size > 0
+    assert "![found terms](figures/found_terms.png)" in (tmp_path / "report.md").read_text()
+    assert (tmp_path / "found_effect.py").exists()
 
 
 def test_a_tube_simulated_as_a_line_goes_to_its_plainest_form_beside_a_closure(rig):
@@ -250,3 +258,30 @@ def test_a_second_round_extends_the_closure_the_model_already_has(rig):
     assert searched["closure_coefficient_0"] == -5e-5
     assert searched["closure_coefficient_1"] == pytest.approx(0.05)
     assert zero["closure_coefficient_1"] == 0.0 and zero["closure_coefficient_0"] == -5e-5
+
+
+def test_a_true_term_follows_the_flow_the_model_misses_without_it(relief_recordings, tmp_path):
+    """term_views on the planted relief: the true term explains most of the mass flow
+    the model misses without it, and is zero below its threshold, where the missing flow
+    is too; a term at a third of its strength explains less. The figure is written."""
+    from pneubayes.discovery.openform.term_view import main_variable, term_views
+    from pneubayes.plotting import plot_found_terms
+    from pneubayes.simulation import SolverConfig
+
+    recs, base, truth = relief_recordings
+    model = Model().with_effect(Closure(terms="pressure_hinge"))
+    views = term_views(model, truth, recs[:2], 5, SolverConfig.standard())
+    (v,) = views
+    assert v["variable"] == main_variable(Closure(terms="pressure_hinge").term_list()[0])
+    assert v["variable"] == "pressure_ratio" and v["unit"] == "-"
+    assert v["explained_fraction"] > 0.8
+    x, term, miss = (np.asarray(v[k]) for k in ("bin_centre", "term_kg_per_s",
+                                                "missing_kg_per_s"))
+    below = x < 3.3
+    assert np.all(term[below] == 0.0) and np.all(np.abs(miss[below]) < 0.1 * np.abs(term).max())
+    weak = term_views(model, {**truth, "closure_coefficient_0": -4e-5 / 3}, recs[:2], 5,
+                      SolverConfig.standard())[0]
+    assert weak["explained_fraction"] < v["explained_fraction"] - 0.2
+    assert plot_found_terms(views, tmp_path / "terms.png").stat().st_size > 0
+    with pytest.raises(ValueError, match="no closure"):
+        term_views(Model(), base, recs[:1], 5, SolverConfig.standard())
