@@ -1057,3 +1057,39 @@ def test_a_trial_that_ends_worse_than_the_model_it_contains_is_refitted_from_it(
     results = [8905.0, 5700.0]
     with pytest.raises(TrialFitFailed, match="5700"):
         runner.fit_trial("spool_lag", model, own, current)
+
+
+def test_the_report_says_why_each_catalogue_effect_tried_was_not_enough():
+    """tried_effects reads each effect's last verdict: named, removed, passed but beaten,
+    its basin's gain, too small a gain, too little of the gap, or not better."""
+    from pneubayes.discovery.report import tried_effects
+
+    def verdict(effect, action="reject", **kw):
+        e = {"action": action, "effect": effect, "heldout_rmse_before_Pa": 2000.0,
+             "heldout_rmse_after_Pa": 1900.0, "windows_improved": 9, "windows": 12,
+             "score_p_value": 0.01, "not_better_than_control": False,
+             "gain_under_floor": False, "short_of_gap": False, "gap_closed": 0.07,
+             "min_gain_Pa": 150.0, "control_heldout_rmse_Pa": 1890.0}
+        return {**e, **kw}
+
+    ledger = [verdict("tube_delay", "pass"), {"action": "add", "effect": "tube_delay"},
+              verdict("spool_lag", "pass"),
+              verdict("heat_transfer", not_better_than_control=True),
+              verdict("cylinder_leak", gain_under_floor=True),
+              verdict("sensor_lag", short_of_gap=True),
+              verdict("valve_deadzone", heldout_rmse_after_Pa=2100.0, score_p_value=0.9),
+              verdict("supply_fluctuation", "pass"),
+              {"action": "add", "effect": "supply_fluctuation"},
+              {"action": "remove", "effect": "supply_fluctuation"}]
+    why = dict(tried_effects(ledger))
+    assert list(why) == ["tube_delay", "spool_lag", "heat_transfer", "cylinder_leak",
+                         "sensor_lag", "valve_deadzone", "supply_fluctuation"]
+    assert why["tube_delay"].startswith("named: held-out 2000 -> 1900 Pa, better in 9/12")
+    assert why["spool_lag"].startswith("passed") and "another effect" in why["spool_lag"]
+    assert "basin" in why["heat_transfer"] and "1890 Pa" in why["heat_transfer"]
+    assert why["cylinder_leak"].startswith("too small a gain (under 150 Pa)")
+    assert why["sensor_lag"].startswith("closed only 7 % of the gap")
+    assert why["valve_deadzone"].startswith("not better on held-out data: held-out 2000 -> "
+                                            "2100 Pa")
+    assert why["supply_fluctuation"].startswith("named, then removed")
+    assert tried_effects([{"action": "fit base"}]) == []

@@ -68,6 +68,14 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
                 result.maps[-1], out / "figures" / "disagreement_final.png",
                 "final model: residual RMS by regime").name
         figs["evidence"] = plot_evidence(result.searches, out / "figures" / "evidence.png").name
+    if figures and doc.get("found_terms"):
+        from pneubayes.discovery.openform.term_view import term_views
+        from pneubayes.plotting import plot_found_terms
+
+        views = term_views(result.model, result.params, result.train, result.settings.block,
+                           result.settings.library_solver)
+        figs["found_terms"] = plot_found_terms(views,
+                                               out / "figures" / "found_terms.png").name
     write_text_atomic(out / "report.md", _report(doc, result, figs))
     return doc
 
@@ -100,6 +108,46 @@ def _trial_row(e: dict, action: str, what: str) -> str:
             f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f} | "
             f"{e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
             f"p = {e['score_p_value']:.2g}) |")
+
+
+def tried_effects(ledger) -> list[tuple[str, str]]:
+    """Each catalogue effect the loop verified, with why it was named or not: its last
+    verdict in the ledger (``pass`` / ``reject`` entries) and whether it was added.
+
+    Returns
+    -------
+    list of (str, str)
+        ``(effect, reason)`` in the order the effects were first tried.
+    """
+    last: dict[str, dict] = {}
+    added = {e["effect"] for e in ledger if e.get("action") == "add"}
+    removed = {e["effect"] for e in ledger if e.get("action") == "remove"}
+    for e in ledger:
+        if e.get("action") in ("pass", "reject") and "effect" in e:
+            last[e["effect"]] = e
+    out = []
+    for g, e in last.items():
+        moves = (f"held-out {e['heldout_rmse_before_Pa']:.0f} -> "
+                 f"{e['heldout_rmse_after_Pa']:.0f} Pa, better in "
+                 f"{e['windows_improved']}/{e['windows']} windows (p = "
+                 f"{e['score_p_value']:.2g})")
+        if g in added and g not in removed:
+            why = f"named: {moves}"
+        elif g in removed:
+            why = f"named, then removed (the model did as well without it); {moves}"
+        elif e["action"] == "pass":
+            why = f"passed ({moves}) but another effect gained more and went in first"
+        elif e.get("not_better_than_control"):
+            why = (f"its gain was its basin's: the current model refitted from the trial's "
+                   f"point predicted {e['control_heldout_rmse_Pa']:.0f} Pa; {moves}")
+        elif e.get("gain_under_floor"):
+            why = f"too small a gain (under {e['min_gain_Pa']:.0f} Pa): {moves}"
+        elif e.get("short_of_gap"):
+            why = f"closed only {100 * (e['gap_closed'] or 0.0):.0f} % of the gap: {moves}"
+        else:
+            why = f"not better on held-out data: {moves}"
+        out.append((g, why))
+    return out
 
 
 def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
@@ -139,6 +187,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                 iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
                 lines.append(f"| {_md(t['term'])} | {_md(t['formula'])} | {n} | "
                              f"{_md(p['unit'])} | {est:.4g} | {iv} |")
+        if "found_terms" in figs:
+            lines += ["", "Each term against its main variable (red), beside the mass flow "
+                      "the final model misses without it on the training recordings (grey: "
+                      "binned means and standard errors):", "",
+                      f"![found terms](figures/{figs['found_terms']})"]
     if doc["effects"] or doc.get("found_terms"):
         found = True
     elif final <= MISFIT_RATIO * noise:
@@ -190,6 +243,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
         lines.append("")
     if "evidence" in figs:
         lines += [f"![evidence](figures/{figs['evidence']})", ""]
+    tried = tried_effects(doc["ledger"])
+    if tried:
+        lines += ["## Catalogue effects tried", "", "| effect | outcome |", "|---|---|"]
+        lines += [f"| {g} | {_md(why)} |" for g, why in tried]
+        lines.append("")
     lines += ["## Ledger", "", "| step | action | effect | fitted | held-out RMSE (Pa) | "
               "log predictive gain (windows better, p) |", "|---|---|---|---|---|---|"]
     for e in doc["ledger"]:

@@ -331,7 +331,8 @@ class TrialRunner:
         names = model2.effect(g).parameter_names()
         self.ledger.record(
             "pass" if ok else "reject", effect=g,
-            gap_closed=closed, gain_under_floor=bool(tiny), min_gain_Pa=least,
+            gap_closed=closed, short_of_gap=bool(small), gain_under_floor=bool(tiny),
+            min_gain_Pa=least,
             effect_options=model2.effect(g).options(), forms=forms_info,
             start={k: start2[k] for k in names},
             fitted={k: trial.params[k] for k in names},
