@@ -42,7 +42,7 @@ class DiscoverySettings:
     max_refine_restarts, refine_restart_min_gain : int, float
         Restarts of a refinement its budget ended, while its second half gains this share.
     gap_fallback_ratio, fallback_min_inclusion, try_all_supported, try_all_on_gap
-        Tentative groups when far; the MoreSupported and LastResort stages.
+        When far, groups of this inclusion are tried too; MoreSupported; LastResort.
     last_resort_min_gap_closed, last_resort_best_gap_closed : float
         The gap share a last resort, runner-up or pair must close; LastResort also runs
         when the best passing trial closes less than the second (0: only if none passed).
@@ -54,7 +54,7 @@ class DiscoverySettings:
         segments) whose cut-off n / (pi T) reaches this; 0 segments: transport only.
     form_settled_ratio, later_forms_min_share, later_form_screen_share : float
         Later forms are fitted while no trial is within this x the noise floor, if the
-        first form gains this share of the round's best; a line's first stage this share.
+        first form gains this share of the round's best; the line's screen share.
     fit, posterior, posterior_method, laplace_draws, laplace_check_draws
         Every fit's settings; the final model's posterior, ``"emcee"`` or ``"laplace"``.
     """
