@@ -2,14 +2,28 @@
 
 
 class PneubayesError(Exception):
-    """Base class of all errors raised deliberately by pneubayes."""
+    """Base class of all errors raised deliberately by pneubayes.
+
+    Parameters
+    ----------
+    message : str
+        What went wrong, naming the file, row, key or argument at fault.
+    """
 
 
 class RecordingError(PneubayesError, ValueError):
     """A recording (CSV + JSON pair) breaks the interchange contract.
 
-    ``problems`` holds every problem found, each a ``(location, reason)`` pair where
-    location names the file and the row or key.
+    Parameters
+    ----------
+    problems : iterable of (str, str)
+        Every problem found, each a ``(location, reason)`` pair where location names the
+        file and the row or key; the message lists the first :attr:`MAX_LISTED`.
+
+    Attributes
+    ----------
+    problems : list of (str, str)
+        Every problem found, as given.
     """
 
     #: At most this many problems are spelled out in the message (all stay in .problems).
@@ -25,15 +39,33 @@ class RecordingError(PneubayesError, ValueError):
 
 
 class ParameterError(PneubayesError, ValueError):
-    """A parameter value or name is missing, unknown or outside its bounds."""
+    """A parameter value or name is missing, unknown or outside its bounds.
+
+    Parameters
+    ----------
+    message : str
+        The parameter's name, its value and the bounds or names allowed.
+    """
 
 
 class ModelCardError(PneubayesError, ValueError):
-    """A model card (MODEL.json) cannot be read or does not describe a valid model."""
+    """A model card (MODEL.json) cannot be read or does not describe a valid model.
+
+    Parameters
+    ----------
+    message : str
+        The card's file and the key at fault.
+    """
 
 
 class SimulationError(PneubayesError, RuntimeError):
-    """The integrator failed; the message names the parameter sets that caused it."""
+    """The integrator failed.
+
+    Parameters
+    ----------
+    message : str
+        What failed: the parameter sets, or the span of time, and why.
+    """
 
 
 class RigCardError(PneubayesError, ValueError):

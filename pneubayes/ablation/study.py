@@ -26,24 +26,16 @@ A study file has a ``[grid]`` table, whose axes are crossed (cartesian product),
     [settings.discovery]                           # DiscoverySettings
     max_effects = 4
 
-``data_forms``: ``"catalogue"`` plants the catalogue's effect objects in the bench's
-model; ``"realistic"`` plants :func:`pneubayes.bench.forms.forms_from_names` (acoustic
-tube, rounded dead zone, ...) simulated by the independent plant. ``model_effects``
-entries are lists of catalogue names, ``"discover"`` (the discovery loop from the plain
-model) or ``"tassa"`` (the Tassa et al. 2013 peer baseline). Every cell is fitted on a
-fixed design (``fit_*`` settings) and scored on held-out recordings of its own protocol
-and command range (:mod:`pneubayes.ablation.cell`).
-``[settings]`` keys and defaults are :class:`Settings`'s; its nested tables
-``[settings.fit]`` (``[settings.fit.sampler]``) and ``[settings.discovery]`` are the
-library's own :class:`~pneubayes.inference.fit.FitSettings` and
-:class:`~pneubayes.discovery.settings.DiscoverySettings`, with the same keys. Every
-table is checked by the dataclasses themselves (:mod:`pneubayes.settings_tree`):
-unknown keys, values of the wrong kind and values out of range are errors naming the
-file and the key.
-
-Each cell has a stable, human-readable id ending in a short hash of everything that
-defines its result (:meth:`Cell.content`), so a changed setting gives a new id and the
-cached result of the old one is not reused.
+``data_forms``: ``"catalogue"`` plants the catalogue's effects in the bench's model,
+``"realistic"`` the independent plant's forms (:func:`pneubayes.bench.forms.forms_from_names`).
+``model_effects`` entries are lists of catalogue names, ``"discover"`` (the loop from the
+plain model) or ``"tassa"`` (the Tassa et al. 2013 baseline). Each cell is fitted on a
+fixed design and scored on held-out recordings of its own protocol and command range
+(:mod:`pneubayes.ablation.cell`). ``[settings]`` holds the keys of :class:`Settings`,
+``[settings.fit]`` and ``[settings.discovery]`` those of the library's ``FitSettings``
+and ``DiscoverySettings``; unknown keys and bad values are errors naming the file and
+the key (:mod:`pneubayes.settings_tree`). A cell's id ends in a hash of everything that
+defines its result (:meth:`Cell.content`): a changed setting reuses no cached result.
 """
 
 from __future__ import annotations

@@ -110,46 +110,24 @@ def _positive(name: str, value, integer: bool = False, minimum: float = 0.0) -> 
 class TassaModel:
     """The Tassa et al. (2013) baseline, fitted on the paper's 2-s window metric.
 
-    scikit-learn contract: ``__init__`` only stores, ``fit`` validates and returns
-    self, and learned attributes end in ``_``. Fitting has two stages, both
-    ``scipy.optimize.least_squares`` (trust-region reflective, within
-    :data:`LOWER_BOUNDS`/:data:`UPPER_BOUNDS`):
-
-    1. One-step errors ``p[k+1] - zoh_step(p[k])`` from the *measured* ``p[k]``: the
-       dp/dt residual in exact integral form (as :mod:`pneubayes.discovery.one_step`),
-       with no derivative of the noisy pressure; fully vectorised. (a) One factor on
-       the rates c5, c7, c9 first adapts the initial set's time scale. The published
-       rates are about 100 times too slow for our small chambers. Without this step the
-       fit on a 6-s AIR37 bench recording stopped in a local minimum with 4 times the
-       window error. (b) Then all free parameters are fitted from there and from
-       ``n_restarts`` seeded log-normal jitters of it.
-    2. Trajectory errors over windows of ``horizon_s`` every ``stride_s``, each started
-       from the measured pressure, with the start not scored (:func:`simulate_windows`).
-       This is the metric the thin-port model is refined and scored on
-       (:mod:`pneubayes.inference.refine`, :mod:`pneubayes.evaluation`). The stage
-       starts from the stage-1 candidate with the lowest window error. Its Jacobian is
-       forward differences (relative step 1e-6) in one batched, exact simulation.
+    A scikit-learn estimator (``fit`` returns self; learned attributes end in ``_``);
+    :meth:`fit` describes its two least-squares stages.
 
     Parameters
     ----------
     horizon_s, stride_s : float
         Prediction windows, s (2 s, non-overlapping, as in the paper).
-    max_nfev : int
-        Residual evaluations allowed in the trajectory stage.
-    seed : int
-        Seed of the restart jitter (``numpy.random.default_rng``).
+    max_nfev, seed : int
+        Residual evaluations allowed in the trajectory stage; the restarts' seed.
     initial_params : array_like (10,) or mapping, optional
         Start of both stages; default :data:`PUBLISHED_PARAMETERS`.
-    n_restarts : int
-        Extra one-step starts around ``initial_params``.
-    one_step_max_nfev : int
-        Residual evaluations allowed per one-step start.
+    n_restarts, one_step_max_nfev : int
+        Extra one-step starts around ``initial_params``; evaluations allowed per start.
     tol : float
         ``ftol = xtol = gtol`` of both least-squares stages.
     tr_solver : {"exact", "lsmr"}
-        scipy's trust-region solver. "exact" (an SVD per iteration) needs a few times
-        fewer iterations along the narrow c0, c1, c3, c4 valley. "lsmr" avoids the SVD,
-        which multithreaded BLAS slows down on a busy machine.
+        scipy's trust-region solver: "exact" (an SVD per iteration; fewer iterations in
+        the narrow c0, c1, c3, c4 valley) or "lsmr" (no SVD, for a busy machine).
     softabs_eps : float
         Smoothing of softabs (:data:`SOFTABS_EPS`).
 
@@ -157,18 +135,14 @@ class TassaModel:
     ----------
     params_ : ndarray (10,)
         Fitted c0..c9.
-    rmse_Pa_ : float
-        Window RMSE on the training recordings, Pa (all windows pooled).
-    start_rmse_Pa_ : float
-        The same at ``initial_params``.
+    rmse_Pa_, start_rmse_Pa_ : float
+        Window RMSE on the training recordings, Pa (windows pooled); at the start.
     one_step_params_ : ndarray (10,)
         The stage-1 candidate that started stage 2.
     frozen_ : tuple of str
-        Parameters the data cannot inform, held at ``initial_params``: c5 without any
-        motion, c6 when every sample is at one position.
+        Held at ``initial_params``: c5 without motion, c6 at a single position.
     n_evaluations_ : int
-        Residual evaluations of both stages. As scipy counts them, Jacobians are not
-        included.
+        Residual evaluations of both stages (Jacobians not included, as scipy counts).
     success_, message_ : bool, str
         Convergence of the trajectory stage, as scipy reports it.
     """
@@ -229,7 +203,28 @@ class TassaModel:
 
     # ------------------------------------------------------------ fitting
     def fit(self, recordings) -> TassaModel:
-        """Fit c0..c9 to one or more recordings (:class:`~pneubayes.io.Recording`)."""
+        """Fit c0..c9 to one or more recordings (:class:`~pneubayes.io.Recording`).
+
+        Two ``scipy.optimize.least_squares`` stages (trust-region reflective, within
+        :data:`LOWER_BOUNDS` / :data:`UPPER_BOUNDS`):
+
+        1. One-step errors ``p[k+1] - zoh_step(p[k])`` from the *measured* ``p[k]``: the
+           dp/dt residual in exact integral form (as :mod:`pneubayes.discovery.one_step`),
+           with no derivative of the noisy pressure. (a) One factor on the rates c5, c7,
+           c9 first adapts the initial set's time scale (the published rates are about
+           100 times too slow for small chambers); (b) then every free parameter is
+           fitted from there and from ``n_restarts`` seeded log-normal jitters of it.
+        2. Errors over windows of ``horizon_s`` every ``stride_s``, each started from the
+           measured pressure, its start not scored (:func:`simulate_windows`): the metric
+           the thin-port model is refined and scored on. It starts from the stage-1
+           candidate with the lowest window error; its Jacobian is forward differences
+           (relative step 1e-6) in one batched, exact simulation.
+
+        Returns
+        -------
+        TassaModel
+            ``self``, fitted.
+        """
         init = self._check_settings()
         blocks = [self._block(r) for r in _recordings(recordings)]
         eps, tol = float(self.softabs_eps), float(self.tol)

@@ -12,20 +12,17 @@ the form published with the group's MuJoCo-era code)::
 
 Units and conventions (our recordings are SI: Pa absolute, V, m, s):
 
-- ``p`` is the **absolute** pressure in MPa (``pressure_Pa / 1e6``), not gauge. The
-  published target spans c0..c1 = 0.094..0.513 MPa, and the group's rig has an
-  atmosphere of about 92 kPa and a supply of about 521 kPa absolute (NOTES.md). In
-  gauge, the fully exhausted target would sit 94 kPa above atmosphere, which an open
-  exhaust cannot hold. The velocity term ``-c5 v p / (1 + c6 x)`` is also eq. 5's
-  compression ``-n p dV/dt / V``, which is proportional to the absolute pressure.
+- ``p`` is the **absolute** pressure in MPa (``pressure_Pa / 1e6``), not gauge: the
+  published target spans c0..c1 = 0.094..0.513 MPa on a rig with about 92 kPa of
+  atmosphere and a 521-kPa supply (NOTES.md); in gauge an open exhaust would hold 94 kPa.
+  The velocity term ``-c5 v p / (1 + c6 x)`` is eq. 5's compression ``-n p dV/dt / V``.
 - ``u = command_V / 5 V``, in -1..+1 (+ opens the inlet). With c3 = 1.24 and c4 = 8.4
   the published sigma saturates near |u'| = 1, which fits a normalised command.
 - ``x = position_m / stroke_m`` (0 = fully retracted = smallest chamber, as in
   :mod:`pneubayes.physics.cylinder`); ``v = dx/dt`` in strokes per second. Then
   ``1 + c6 x`` is the chamber volume over the dead volume, the same for any cylinder.
-- Rescaling u, x or v only reparametrises c, so the fitted model is unchanged. Only
-  the *published* set's predictions depend on these choices. That set comes from
-  another rig, so it is a starting point, not a prediction.
+- Rescaling u, x or v only reparametrises c; only the *published* set (from another
+  rig: a start, not a prediction) depends on these choices.
 - softabs uses ``eps`` = :data:`SOFTABS_EPS` = 0.01 (1 % of full command, 50 mV); the
   published form does not give it. It rounds the corner of ``|u'|`` for least squares
   and adds ``c7 eps`` to the rate at ``u' = 0``, which c9 absorbs.
@@ -35,10 +32,9 @@ hold), the position at the midpoint, and the velocity as the mean ``(x[k+1] - x[
 dt`` (the thin-port simulator's linear position). The model is then linear in p with
 constant coefficients, and :func:`zoh_step` integrates it exactly:
 ``p[k+1] = a + (p[k] - a) exp(-r dt) = p[k] exp(-r dt) + r0 b dt phi1(-r dt)``, with
-``phi1(z) = (exp(z) - 1)/z``. The second form never divides by r. It is exact and
-finite at ``r = 0`` (``p + r0 b dt``), and also for ``r < 0``, when compression outruns
-the valve and the pressure grows. No clipping is done. A window whose rate stays very
-negative overflows to inf, and least squares then rejects the trial step.
+``phi1(z) = (exp(z) - 1)/z``, which never divides by r: exact and finite at ``r = 0``
+and for ``r < 0`` (compression outruns the valve). Nothing is clipped: a window whose
+rate stays very negative overflows to inf, and least squares rejects the step.
 
 The estimator that fits c0..c9 is :class:`pneubayes.baselines.tassa.TassaModel`.
 """

@@ -355,7 +355,21 @@ class Discovery:
 
 def discover(recordings, settings: DiscoverySettings, checkpoint_dir=None,
              log=None) -> DiscoveryResult:
-    """Run the discovery loop on ``recordings`` in memory; returns its
-    :class:`DiscoveryResult` (``checkpoint_dir``: a folder for the step cache, so an
-    interrupted run resumes; ``log``: progress lines, None for silent)."""
+    """Run the discovery loop on ``recordings`` in memory.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        Every recording; the settings say which parts are held out.
+    settings : DiscoverySettings
+        Every setting of the loop.
+    checkpoint_dir : path or None
+        A folder for the step cache, so an interrupted run resumes.
+    log : callable or None
+        Receives progress lines (None: silent).
+
+    Returns
+    -------
+    DiscoveryResult
+    """
     return Discovery(settings, checkpoint_dir, log).fit(recordings).result_

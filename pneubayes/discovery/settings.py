@@ -20,164 +20,43 @@ from pneubayes.simulation import SolverConfig
 class DiscoverySettings:
     """Every setting of ``pneubayes discover`` (saved in discovery.json).
 
-    holdout_fraction: the last fraction of every recording is held out for verification.
-    bounds: parameter name -> [lower, upper] replacing the default bounds in every model
-    the loop fits (a rig unlike the paper's); names of effects a model does not have wait
-    until the loop adds them.
-    holdout_recordings: when > 0, the last this many recordings given are held out whole
-    instead (triggered trials: the end of a trial holds no valve event to verify on), and
-    holdout_fraction is not used.
-    block: one-step errors summed per regression row. threshold_t, n_bags, chunk_rows:
-    the grouped SINDy (:class:`GroupedSINDy`). min_inclusion: a group is *supported*
-    when its bagged inclusion probability reaches this. max_p_value: the one-sided
-    Wilcoxon signed-rank test of the per-window squared-error reductions must reach
-    this level. max_effects: stop after this many rounds that add (a pair is one).
-    max_trials_per_round: supported groups refitted per round. max_refine_restarts:
-    refinement is restarted from where it stopped until it converges, at most this many
-    times.
-    refine_restart_min_gain: a refinement that its evaluation budget ended is
-    restarted only if its best training RMSE fell by at least this share over the second
-    half of its points (:func:`~pneubayes.inference.refine.late_gain`); one that crawls
-    is not: on the four-effect benchmark (AIR37/valve1, 6 x 20 s) sensor-lag forms in
-    round 3 ended their 60 evaluations at 2256 and 2404 Pa and each of their three
-    restarts moved them by 0.0 Pa, 30-40 s apiece. 0 restarts while the budget ends the
-    fit (the loop before this setting).
-    gap_fallback_ratio, fallback_min_inclusion: the one-step search has little power for
-    slow effects (a small leak in a large chamber changes dp/dt by less than the noise
-    per step, yet its 2-s error is many times the noise). So in any round where the
-    current model's held-out 2-s RMSE exceeds ``gap_fallback_ratio`` x the noise floor,
-    the best-ranked unsupported groups with inclusion at least ``fallback_min_inclusion``
-    (at most ``max_trials_per_round``) are refitted as tentative candidates beside the
-    supported ones; held-out verification decides, as for any candidate, and the best
-    that passes is added. ``gap_fallback_ratio = 0`` disables it.
-    try_all_supported: when none of the round's first ``max_trials_per_round`` supported
-    groups passes verification, the round's other supported groups are tried before the
-    loop stops (ledger action ``more supported``): the ranking orders the search's
-    evidence, not the 2-s gain, and a supported effect that was never tried is not an
-    effect the data rule out (a small clearance leak beside a dead zone ranked 4th with
-    inclusion 0.75 and the loop stopped at 1.6 x the noise floor without trying it).
-    try_all_on_gap: when the fallback applies and no candidate of the round passes
-    verification, every other group of the library is refitted and verified as well
-    (ledger action ``last resort``). A slow effect's one-step inclusion can be near 0
-    while its 2-s error is large: a laminar leak planted in AIR37 on seed 1 had 0.07
-    with the plain model's 2-s RMSE at 3.1 x the noise floor. last_resort_min_gap_closed:
-    such a group must also close this fraction of the held-out RMSE's gap above the
-    noise floor (the last resort is there to explain a large gap; on that case a tube
-    delay passed the signed-rank test while closing 1 % of it).
-    score_dof: degrees of freedom of the Student-t that scores each held-out sample in
-    the cross-fitted log predictive density (verification's second test; see
-    :func:`~pneubayes.discovery.verification.crossfit_window_lpd`). Its tails keep one
-    window that no model explains from outweighing the others.
-    last_resort_best_gap_closed: the last resort also runs when candidates passed but
-    the best of them closes less than this share of the gap (0: only when none passed);
-    the best of all that passed is added. A dead zone's one-step inclusion can be 0
-    beside faster effects: on a four-effect AIR37 rig (tube, dead zone, droop, leak) the
-    round's three saturated candidates closed at most 14 % of the gap, the leak was
-    added, and the dead zone (58 %) waited for a round in which nothing passed.
-    revisit_runner_ups: before the loop stops (a round in which nothing passed), the
-    groups whose trial in an earlier round beat that round's model significantly (the
-    verification test, beyond its control) but that were not added -- another gained
-    more, or the last resort's gap share turned them away -- and that no later trial
-    failed are tried again beside the current model (ledger action ``revisit``); as the
-    search no longer supports them, they must also close ``last_resort_min_gap_closed``
-    of the gap (a clearance leak revisited beside the tube that explained a case gained
-    0.2 Pa of held-out RMSE at p = 0.012, near the test's level). The
-    one-step search ranks what the *current* residual shows: on a four-effect SMC rig
-    (tube, dead zone, droop, clearance leak) the leak passed the signed-rank test in
-    round 1 (p = 0.006) beside the dead zone's larger gain, its inclusion fell to 0 once
-    the other three were added, and the loop stopped at 1.7 x the noise floor without
-    trying it again.
-    pair_members: before the loop stops (a round in which nothing passed, revisits
-    included) while the held-out error is above ``gap_fallback_ratio`` x the noise
-    floor, the round's trials with the largest training gains (at most this many, each
-    gaining at least the ``min_gain_*`` floor in training) are fitted in pairs, each pair
-    jointly from its members' fitted values (ledger action ``pair``). A pair passes as a
-    single trial does, beyond its control and closing ``last_resort_min_gap_closed`` of
-    the gap, and it must also beat each member's own trial (each member carries a gain
-    the other cannot); the passing pair with the lowest held-out RMSE adds both. Two
-    effects can each fail alone where together they pass: on a blind case with a rounded
-    dead zone and a clearance leak (SMC, valve 2) the dead zone alone improved 17 of 18
-    held-out windows but left the wrong leak to drift (pooled RMSE 20.0 -> 21.5 kPa), the
-    leak alone closed 86 % of the gap at p = 0.11, and the pair fitted jointly took the
-    held-out RMSE to 1.0 kPa, better in 18 of 18 windows. 0 switches the stage off; 1 is
-    refused (no pair).
-    max_form_swaps: then, while the held-out error is still above ``gap_fallback_ratio``
-    x the noise floor, each named effect is refitted in the other forms it proposes
-    beside the rest of the model (ledger action ``form``); the form that beats the
-    current fit as a trial must (the signed-rank test, the log predictive density, the
-    gain floors) with the lowest held-out RMSE replaces it (``swap form``) and the loop
-    searches again; at most this many swaps (0: none). A form chosen on training error
-    beside fewer effects need not be the one beside more: a tube named with heat
-    transfer in one pair is a transport delay or a lumped line (the wave tube has no
-    temperature state), and only its transport delay had been fitted alone.
-    open_form_min_noise_ratio: the open-form stage
-    (:class:`~pneubayes.discovery.stages.OpenForm`) runs while the held-out error is
-    above this x the noise floor and no catalogue trial closes half the gap; 0: no
-    open-form stage.
-    min_gain_noise_share: every trial that passes verification must also lower the
-    held-out 2-s RMSE by at least this share of the noise floor (0: any significant
-    gain). The signed-rank test finds a gain consistent across windows however small,
-    and a gain of a few Pa on a 500-Pa floor is not an effect a 2-s prediction can show:
-    beside a transmission-line tube at 0.97 x the noise floor (a spent bench case, an
-    8-cell plant tube) a spool lag gained 1.8 Pa at p < 1e-4, standing in for the tube
-    form's own small error. Default 0.01.
-    min_gain_gap_share: and, where the held-out RMSE is above the noise floor, by at
-    least this share of that gap (0: no such floor). Where a structural misfit far above
-    the noise remains, a consistent gain of under 0.1 % of it is no effect either: on
-    RespiraWorks' OXY runs (428 Pa held-out, a 7-Pa noise floor) a leak gained 0.3 Pa at
-    p = 1e-6 over 20 of 22 windows. Default 0.01.
-    tube_line_segments: the most cells of the acoustic-line form tried for a named tube;
-    0 tries the transport delay only. A line step costs tens of times a plain one, and
-    more with more cells. tube_line_cutoff_Hz: the line gets the fewest cells, at least
-    3 and at most ``tube_line_segments``, whose lumped cut-off n / (pi T) reaches this
-    frequency for the tube's transit time T (the start delay): the cells follow the
-    tube's length. 300 Hz gives the 1-m bench tube (2.9 ms) its 3 cells, which come
-    within 1.2 x the noise of an 8-cell line there; a 3-m tube of 4 mm bore (8.7 ms,
-    behind an undeclared causal DAQ filter) ended at 1.68 x the noise floor with 3
-    cells and at 1.40 x with 8 (held-out RMSE 860 -> 718 Pa).
-    tube_line_form: the outside-tube form tried for a named tube: ``"line"`` (the lumped
-    acoustic line, its cells as above) or ``"wave"`` (the transmission-line tube,
-    ``tube_delay`` form ``"wave"`` with 8 elements: no cells, closer to a continuous
-    tube than an 8-cell line, at 1.0-1.7 x a 3-cell line's cost on 1-kHz recordings,
-    ``benchmarks/tube_forms.py``; never beside heat transfer: the line is tried there).
-    Default ``"wave"``: on a near-continuous tube (2.5 m x 3.64 mm in 32 plant cells into
-    a 0.15-cm^3 chamber, ``experiments/tube_form_study.py``) the loop with the line
-    fitted a 3-cell line into a 1.5-ms basin (the tube's transit time is 7.3 ms), named a
-    sensor lag in its place and ended at 3.62 x the noise floor; with the wave, from the
-    same 2-ms start, it fitted 7.16 ms and the bore to 0.1 %, named the tube and ended at
-    1.38 x. On two spent bench cases (the bench's 8-cell tubes) it did as well as the
-    line (0.97 and 1.05 x against 1.02 and 1.04 x), in 1-2.3 x the line's time.
-    ``tube_line_segments`` 0 tries neither.
-    form_settled_ratio: an effect with several forms (heat, tube) has its first form
-    fitted, and its later ones only while no trial of the round (of any effect) has a
-    training RMSE at most this x the noise floor (at the noise floor the training fit,
-    which picks the form, cannot tell trials apart, and a line fit costs minutes). 0
-    fits every form.
-    later_forms_min_share: an effect's later forms are fitted only if its first form's
-    training gain over the current model is at least this share of the largest
-    first-form gain of the round (0: always). A later form refines an effect's shape;
-    an acoustic line for a tube that was not planted (a dead zone and a drooping supply
-    on SMC/valve2) ran 40 minutes on one core without finishing. On a 3-m tube the
-    transport form's gain was 0.75 and 0.84 of the round's best (a sensor or spool lag
-    standing in) while the line cut the training RMSE from 1936 to 827 Pa, so the
-    default is low (0.25).
-    later_form_screen_share: a later form with parameters to fit first (the line's own
-    and the dead volume) is screened: if that first stage does not gain, over the
-    current model in training, at least this share of its effect's first form's gain,
-    it is not refined further (1: it must beat the first form). The first stage moves
-    three parameters where the first form was refitted in all of them: on a spent
-    blind case (a 2.9-m, 1.8-mm tube) the line's first stage reached 4191-4279 Pa
-    against the transport form's 4178 and was screened out at share 1, while its full
-    refit reached 1919-2074 Pa. Default 0.5.
-    posterior: the final model gets a posterior on the training windows (False: the
-    refined point only). posterior_method: ``"emcee"`` (the sampler, ``fit.sampler``'s
-    settings; the default) or ``"laplace"`` (:mod:`pneubayes.inference.laplace`: a
-    Gaussian at the posterior's mode, ``laplace_draws`` draws, the first
-    ``laplace_check_draws`` checked against the posterior's density, seeded and with the solver
-    settings of ``fit.sampler`` as emcee's would be, in a few hundred posterior
-    evaluations; it does not see skew or several modes). An emcee chain on a model with
-    a transmission-line tube and 80 s of windows takes hours; its Laplace posterior takes
-    minutes.
+    ``docs/discovery.md`` explains each stage these steer; ``docs/history.md`` the cases
+    behind the defaults. Errors are held-out 2-s RMSEs, the *gap* the error above the
+    noise floor; a model is *far* above ``gap_fallback_ratio`` x the floor (0: never).
+
+    Attributes
+    ----------
+    holdout_fraction, holdout_recordings, bounds
+        The last fraction of each recording is held out, or (> 0) the last recordings
+        whole; parameter name -> [lower, upper] in every model the loop fits.
+    block, threshold_t, n_bags, chunk_rows, min_inclusion, grid, regimes, seed
+        The search (:class:`GroupedSINDy`: rows of ``block`` one-step errors, bagged); a
+        group is supported at ``min_inclusion``; the candidates' strengths; regime bins.
+    library_solver : SolverConfig
+        The solver of the search's one-step errors.
+    max_p_value, score_dof, min_gain_noise_share, min_gain_gap_share : float
+        A trial passes the signed-rank test at this level, raises the Student-t log
+        predictive density, and gains these shares of the noise floor and of the gap.
+    max_effects, max_trials_per_round : int
+        Rounds that add (a pair is one); supported groups refitted per round.
+    max_refine_restarts, refine_restart_min_gain : int, float
+        Restarts of a refinement its budget ended, while its second half gains this share.
+    gap_fallback_ratio, fallback_min_inclusion, try_all_supported, try_all_on_gap
+        When far, groups of this inclusion are tried too; MoreSupported; LastResort.
+    last_resort_min_gap_closed, last_resort_best_gap_closed : float
+        The gap share a last resort, runner-up or pair must close; LastResort also runs
+        when the best passing trial closes less than the second (0: only if none passed).
+    revisit_runner_ups, pair_members, max_form_swaps, open_form_min_noise_ratio
+        RunnerUps; Pairs of at most this many trials (0: off); OtherForms' swaps at most;
+        OpenForm while above this x the noise floor (0: off).
+    tube_line_segments, tube_line_cutoff_Hz, tube_line_form : int, float, str
+        A tube's outside form: ``"wave"``, or ``"line"`` with the fewest cells (3 to the
+        segments) whose cut-off n / (pi T) reaches this; 0 segments: transport only.
+    form_settled_ratio, later_forms_min_share, later_form_screen_share : float
+        Later forms are fitted while no trial is within this x the noise floor, if the
+        first form gains this share of the round's best; the line's screen share.
+    fit, posterior, posterior_method, laplace_draws, laplace_check_draws
+        Every fit's settings; the final model's posterior, ``"emcee"`` or ``"laplace"``.
     """
 
     holdout_fraction: float = 1.0 / 3.0

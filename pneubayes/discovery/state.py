@@ -79,8 +79,7 @@ class RoundState:
     number : int
         The round, from 1.
     current : StepFit
-        The current fit (a trial's control that fits the training data better replaces
-        it during the round).
+        The current fit (a trial's control that fits better in training replaces it).
     search : GroupedSINDy
         The round's fitted search: ``evidence_`` per group and ``ranking_``.
     supported, tentative : list of str
@@ -108,8 +107,7 @@ class RoundState:
         Set by a stage that reshapes the model (another form of a named effect): the
         round ends and the next starts from it.
     exhausted : bool
-        The search supported nothing and no stage opened the round: only the stages
-        that reshape the model run.
+        Nothing supported and no stage opened the round: only reshaping stages run.
     evidence : dict
         Evidence of candidates a stage proposed that the search's groups do not hold
         (group -> ``{"inclusion_probability", "t_max", "best_term", ...}``).

@@ -32,7 +32,24 @@ CATALOGUE: dict[str, type[Effect]] = {
 
 
 def make_effect(name: str, **options) -> Effect:
-    """Build a catalogue effect by name, e.g. ``make_effect("cylinder_leak", form="laminar")``."""
+    """Build a catalogue effect by name, e.g. ``make_effect("cylinder_leak", form="laminar")``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`CATALOGUE`.
+    **options
+        Constructor arguments of the effect (e.g. ``form``), each of its default's kind.
+
+    Returns
+    -------
+    Effect
+
+    Raises
+    ------
+    ValueError
+        An unknown name or option, or an option of the wrong kind.
+    """
     try:
         cls = CATALOGUE[name]
     except KeyError:
@@ -46,8 +63,20 @@ def make_effect(name: str, **options) -> Effect:
 
 
 def effects_from_names(names, leak_form: str = "orifice") -> tuple[Effect, ...]:
-    """Effect objects for catalogue names (``cylinder_leak`` takes ``leak_form``), e.g.
-    ``Model(effects_from_names(["cylinder_leak", "tube_delay"]))``."""
+    """Effect objects for catalogue names, e.g.
+    ``Model(effects_from_names(["cylinder_leak", "tube_delay"]))``.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Keys of :data:`CATALOGUE`, each effect in its default form.
+    leak_form : str
+        The form of ``cylinder_leak`` (default ``"orifice"``).
+
+    Returns
+    -------
+    tuple of Effect
+    """
     return tuple(make_effect(n, form=leak_form) if n == "cylinder_leak" else make_effect(n)
                  for n in names)
 

@@ -10,12 +10,10 @@ time, sets the tube length L.
   instantaneous, so the model stays stable however small the chamber;
 - the attenuation of Richer & Hurmuzlu, ``phi = exp(-R_t Rs T L / (2 p c))`` with the
   laminar tube resistance ``R_t = 32 mu / D^2``, evaluated at the chamber pressure p;
-- the tube's own volume ``pi D^2 / 4 L`` (:meth:`TubeDelay.tube_volume_m3`). The
-  recording format defines the dead volume as the chamber volume at position 0 *tube
-  included*, so the tube's volume is part of ``dead_volume_m3`` and not added again
-  here: a model with and without this effect then share one volume map, and the tube
-  volume is not confounded with the dead volume. The bench adds it to the true dead
-  volume when it plants a tube.
+- the tube's own volume ``pi D^2 / 4 L`` (:meth:`TubeDelay.tube_volume_m3`) is part of
+  ``dead_volume_m3`` (the recording format's dead volume includes the tube) and is not
+  added again: models with and without the tube share one volume map. The bench adds
+  it to the true dead volume when it plants a tube.
 
 ``form="line"``: the tube as a lumped acoustic line of ``segments`` cells, with its
 inner diameter ``tube_diameter_m`` a second parameter. Each cell (volume A L / n) has a
@@ -34,13 +32,11 @@ with the same two parameters as the line: ``segments`` (default 8) lossless elem
 a row whose waves cross each unchanged in its share of the transit time and reflect at
 the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
 hold the waves, so the cost does not grow with the tube's length, and a front is spread
-by about the 0.1-ms update grid, however long the tube: on 0.34-2.9 m tubes under random
-steps, 165-259 Pa RMS from a 64-cell line, where the 8-cell line is 106-1283 Pa off; on
-1-kHz inputs it costs 1.0-1.7 x a 3-cell line's time (``benchmarks/tube_forms.py``, one
-run on a loaded machine; its friction solved at each step costs 9-31 % more than when it
-lagged a step, which rang; floors in ``tests/test_wave.py``). Its output moves
-continuously with the transit time (a fit's need). Not beside heat transfer (it has no
-temperature state). Its volume leaves the chamber's, as the line's does.
+by about the 0.1-ms update grid, however long the tube (accuracy and cost against the
+lines: ``benchmarks/tube_forms.py``, floors in ``tests/test_wave.py``, measurements in
+``docs/history.md``). Its output moves continuously with the transit time (a fit's
+need). Not beside heat transfer (it has no temperature state). Its volume leaves the
+chamber's, as the line's does.
 """
 
 from __future__ import annotations

@@ -46,7 +46,28 @@ def _tight() -> SolverConfig:
 
 @dataclass(frozen=True)
 class FitSettings:
-    """Every setting of ``pneubayes fit`` (saved in summary.json)."""
+    """Every setting of ``pneubayes fit`` (saved in summary.json).
+
+    Attributes
+    ----------
+    horizon_s, stride_s : float
+        Prediction windows of the refinement and the posterior, s (2 s, non-overlapping,
+        as in the paper).
+    sg_window_s, sg_polyorder : float, int
+        Savitzky-Golay derivative of the paper's least squares (eq. 10): window, s;
+        polynomial order.
+    refine_max_nfev, refine_jacobian_refresh : int
+        Residual evaluations of the refinement (multiple shooting); accepted points per
+        finite-difference Jacobian, Broyden's update between (1: every point).
+    refine_solver, sample_solver : SolverConfig
+        The refinement's solver; the likelihood's for emcee and the Laplace posterior.
+    sampler : SamplerSettings
+        The emcee run.
+    position_cutoff_Hz, supply_cutoff_Hz : float or None
+        Zero-phase low-passes of the measured position and supply, Hz (None: raw).
+    pressure_filter : PressureFilter or None
+        The pressure channel's declared anti-alias filter (None: none).
+    """
 
     horizon_s: float = PAPER_HORIZON_S
     stride_s: float = PAPER_HORIZON_S
@@ -55,8 +76,7 @@ class FitSettings:
     refine_max_nfev: int = 60
     #: accepted points per finite-difference Jacobian of the refinement, Broyden's
     #: update between (:class:`~pneubayes.inference.refine.TrajectoryRefiner`); 1: a
-    #: finite-difference Jacobian at every accepted point. 4: the discovery benchmark's
-    #: four-effect loop named the same effects at the same error (510.9 Pa) in less time
+    #: finite-difference Jacobian at every accepted point (4: docs/history.md, 2026-11-28)
     refine_jacobian_refresh: int = 4
     refine_solver: SolverConfig = field(default_factory=SolverConfig.refinement)
     #: the likelihood's solver for emcee and the Laplace posterior (dense output: a
@@ -343,16 +363,35 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
              checkpoint_dir=None, progress: bool = False, log=None,
              laplace_draws: int = LAPLACE_DRAWS,
              laplace_check_draws: int = IMPORTANCE_CHECK_DRAWS) -> Fit:
-    """Fit ``model`` to ``recordings`` in memory; returns a :class:`Fit`.
+    """Fit ``model`` to ``recordings`` in memory.
 
-    ``method``: ``"lsq"`` stops after the paper's least squares (section VI-B),
-    ``"refine"`` after multiple shooting, ``"mcmc"`` (default) samples the posterior,
-    ``"laplace"`` approximates it by a Gaussian at its mode
-    (:mod:`pneubayes.inference.laplace`; ``laplace_draws`` draws in place of a chain, the
-    first ``laplace_check_draws`` of them checked against the posterior's density).
-    ``checkpoint_dir`` (a folder or None) keeps the chain (``chain.h5``) and the refined
-    start (``refined.json``) as they are made, and resumes from them. ``log`` receives
-    progress lines (None: silent).
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        The training recordings.
+    model : Model
+        The model to fit.
+    settings : FitSettings
+        Every setting of the fit.
+    method : {"lsq", "refine", "mcmc", "laplace"}
+        ``"lsq"`` stops after the paper's least squares (section VI-B), ``"refine"``
+        after multiple shooting, ``"mcmc"`` (default) samples the posterior with emcee,
+        ``"laplace"`` approximates it by a Gaussian at its mode
+        (:mod:`pneubayes.inference.laplace`).
+    checkpoint_dir : path or None
+        A folder that keeps the chain (``chain.h5``) and the refined start
+        (``refined.json``) as they are made, and resumes from them.
+    progress : bool
+        Show emcee's progress bar (``"mcmc"``).
+    log : callable or None
+        Receives progress lines (None: silent).
+    laplace_draws, laplace_check_draws : int
+        With ``"laplace"``: draws in place of a chain, and how many of the first are
+        checked against the posterior's density.
+
+    Returns
+    -------
+    Fit
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")

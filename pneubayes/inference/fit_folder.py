@@ -49,9 +49,23 @@ def _non_finite_rmse(doc, where: str = "") -> list:
 
 
 def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
-    """Write ``fit`` as a run folder: ``model.json`` (the point estimate's card),
-    ``posterior.nc`` (arviz; "mcmc", "laplace"), ``summary.json`` and, with ``figures``,
-    ``figures/`` (every file atomically)."""
+    """Write ``fit`` as a run folder, every file atomically.
+
+    Parameters
+    ----------
+    fit : Fit
+        What :func:`~pneubayes.inference.fit.identify` returned.
+    out_dir : path
+        The run folder (created if missing): ``model.json`` (the point estimate's card),
+        ``posterior.nc`` (arviz; "mcmc", "laplace") and ``summary.json``.
+    figures : bool
+        Also draw the posterior's figures into ``figures/`` (needs matplotlib).
+
+    Raises
+    ------
+    FloatingPointError
+        A non-finite RMSE in the summary (the model's simulation failed); nothing written.
+    """
     bad = _non_finite_rmse(fit.summary)
     if bad:
         raise FloatingPointError(f"the fit's {bad[0][0]} is {bad[0][1]}: not a result (the "
@@ -73,10 +87,20 @@ def write_fit(fit: Fit, out_dir, figures: bool = True) -> None:
 
 
 def read_fit(run_dir) -> Fit:
-    """The :class:`~pneubayes.inference.fit.Fit` a run folder holds: its model card's
-    point estimate and preparation, its posterior (when it has ``posterior.nc``,
-    checked to belong to the card) and its ``summary.json`` (``{}`` without one). The
-    recordings are not kept in a run folder: ``recordings`` is empty."""
+    """The :class:`~pneubayes.inference.fit.Fit` a run folder holds.
+
+    Parameters
+    ----------
+    run_dir : path
+        A run folder of :func:`write_fit` or ``pneubayes fit``.
+
+    Returns
+    -------
+    Fit
+        Its model card's point estimate and preparation, its posterior (when it has
+        ``posterior.nc``, checked to belong to the card) and its ``summary.json`` (``{}``
+        without one). A run folder keeps no recordings: ``recordings`` is empty.
+    """
     run = Path(run_dir)
     card = Model.read_card(run / "model.json")  # read once: the model and its preparation
     model, params = Model.from_card(card, str(run / "model.json"))

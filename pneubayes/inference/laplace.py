@@ -8,17 +8,13 @@ mode:
 1. the centre: Newton steps on the log-posterior from the refined point
    (:func:`~pneubayes.inference.walker_start.posterior_centre`, whitened by the refined
    point's Fisher information);
-2. the curvature there: the Hessian of the log-posterior by second differences in the
-   same whitened coordinates, at +-2 SDs
-   (:func:`~pneubayes.inference.walker_start.whitened_curvature`: 2 k + k (k - 1) / 2
-   posterior evaluations for k identified coordinates, in one batched call), its
-   inverse the covariance; taken again in coordinates whitened by the one before where
-   the information is far from it (:func:`laplace_approximation`). Directions in which
-   it is not negative definite keep the whitening's variance and are reported (a
-   warning: their widths are not the posterior's). Where the mode is on a prior bound
-   (the likelihood wants a value the prior does not allow) the Hessian and slope are
-   taken at a point moved inside and the Gaussian is the quadratic they define, its
-   mean beyond the bound (:func:`inward_point`);
+2. the curvature there: the Hessian of the log-posterior by second differences at +-2
+   SDs in the same coordinates (:func:`~pneubayes.inference.walker_start.whitened_curvature`:
+   2 k + k (k - 1) / 2 evaluations for k identified coordinates, one batched call), its
+   inverse the covariance; taken again, whitened by the first, where the information is
+   far from it. Directions where it is not negative definite keep the whitening's
+   variance and are reported. With the mode on a prior bound the Hessian and slope are
+   taken at a point moved inside, the Gaussian's mean beyond the bound (:func:`inward_point`);
 3. draws: the identified coordinates from that Gaussian, each nuisance coordinate (one
    only the prior informs) uniformly over the range the others allow, as emcee's walkers
    start (:func:`~pneubayes.inference.walker_start.walker_ball`); draws outside the
@@ -26,20 +22,15 @@ mode:
    coefficient from their conditional posterior at the centre;
 4. a check (:func:`~pneubayes.inference.importance.importance_check`): the posterior's
    density at the first 200 draws against theirs, Pareto-smoothed importance sampling's
-   k (Vehtari et al. 2024). Past
-   its threshold the posterior has mass the Gaussian misses: a warning, and the result
-   is not ``converged_``.
+   k (Vehtari et al. 2024); past its threshold the posterior has mass the Gaussian
+   misses: a warning, and the result is not ``converged_``.
 
 Its cost is a few hundred posterior evaluations in a handful of batched calls, against
-emcee's tens of thousands (``benchmarks/mcmc.py``: 4.1 s against 219 s, medians within
-0.03 emcee SDs, interval widths 0.96-1.08 x emcee's). What it does not see: skew, several
-modes, a posterior cut by a bound far from the mode (a leak near 0), a log-density rough
-at the scale of its differences; the check catches a Gaussian clearly too narrow (a
-tenth of the variance: always in the tests) and often not one moderately narrow (a
-third: half the time at 400 draws), and passes one too wide (importance sampling from
-it is reliable; its ESS falls). On GTDynamics' recordings (the mode on the valve area's
-upper bound, the posterior flat over two e-folds of it) the Gaussian's valve-area
-interval is half emcee's and the check flags it (k 0.79-0.85). The result records the
+emcee's tens of thousands (``benchmarks/mcmc.py``; measurements in ``docs/history.md``).
+What it does not see: skew, several modes, a posterior cut by a bound far from the mode
+(a leak near 0), a log-density rough at the scale of its differences. The check catches
+a Gaussian clearly too narrow, often not one moderately narrow, and passes one too wide
+(importance sampling from it is reliable; its ESS falls). The result records the
 Hessian's eigenvalues, the check, and whether both pass; emcee stays the default.
 
 Results follow :class:`~pneubayes.inference.sampler.BayesianIdentification`'s

@@ -50,61 +50,41 @@ def arviz():
 class SamplerSettings:
     """Every setting of an emcee run (saved with its results).
 
-    n_walkers: ensemble size (0 = max(32, 4 x dimensions)), rounded up to a multiple of 2
-        and of ``rhat_groups``.
-    max_steps: hard limit on steps per walker, adaptation included.
-    check_every: production steps between convergence checks (a check costs well under
-        a second; the run stops on average half this past convergence).
-    tau_factor: the production chain must be this many autocorrelation times long.
-    target_ess, max_rhat: convergence floors for every parameter (bulk and tail ESS).
-    rhat_groups: R-hat treats the walkers as this many chains, each group of walkers
-        pooled step by step (0: every walker its own chain). At stationarity split R-hat
-        is about sqrt(1 + m / ESS) for m split chains (Vats & Knudson 2021), so with
-        every walker a chain (m = 64 for 32 walkers) R-hat <= 1.01 is an ESS demand of
-        about 3,200, eight times ``target_ess``, growing with the ensemble. Four groups
-        split in time are the m = 8 of Vehtari et al.'s four chains, for which the 1.01
-        was set: R-hat then tests that the groups and the halves of the run agree.
-    adapt_rounds, adapt_steps: adaptation (all discarded as burn-in), at most
-        ``adapt_rounds`` rounds of ``adapt_steps``. Round 0 runs differential-evolution
-        moves from the walker ball (with ``laplace_start``: from the Laplace draws, with
-        the Laplace proposal too); each later round adds an independence proposal
-        fitted to the round before; production freezes the proposal fitted to the last
-        round.
-    adapt_acceptance: adaptation ends early after the first round with a proposal whose
-        acceptance (walker steps that moved) reaches this fraction: the proposal it
-        was fitted to already describes the posterior (> 1: always ``adapt_rounds``).
-    proposal_df, proposal_scale: the independence proposal is a multivariate Student-t
-        with these degrees of freedom and this inflation of the fitted covariance.
-    proposal_fit_fraction: the proposal is fitted to this last fraction of the round
-        before (the round's first steps carry the walkers from where they started: the
-        refined point is not the posterior mean, measured up to 4 posterior SDs off).
-    independence_weight: probability of the independence move in a step once fitted.
-    readapt_below_acceptance, max_readapts: if a convergence check finds the production
-        chain unconverged and its recent acceptance below this fraction, the proposal was
-        fitted before the walkers reached the posterior: it is refitted to the steps
-        before the check (as after a round) and production restarts there (everything before is
-        discarded, so the kept chain always has one fixed kernel); at most this often.
-    init_scale: walker ball size relative to the Laplace approximation's SDs.
-    laplace_start: with the refined information, start from the posterior's own Laplace
-        approximation (:func:`~pneubayes.inference.laplace.laplace_approximation`: a
-        few hundred posterior evaluations): the walkers are its draws and the first
-        adaptation round already proposes from it (a Student-t of ``proposal_df`` and
-        ``proposal_scale``), so adaptation can end after one round. Where it cannot be
-        taken, the walker ball (``init_scale``) and differential evolution first.
-    centre_iterations: with the refined information, Newton iterations that move the ball's
-        centre from the refined (least-squares) point towards the posterior's own
-        centre before sampling (0: start at the refined point).
-    centre_tolerance_nats: the centring stops once a Newton step's predicted rise of the
-        log-posterior is under this (nats; the point is then within about
-        ``sqrt(2 x this)`` SDs of the mode, and the Laplace approximation takes the
-        Hessian the centring just took there; 0: every iteration steps).
-    max_solver_jitter_nats, max_solver_tightenings: the adaptive solver's numerical error
-        makes the log-density a rough function of the parameters; where that roughness
-        is a sizeable part of the posterior's spread, moves are rejected for it (an
-        independence proposal most). Before sampling, the log-density of the starting
-        walkers is evaluated with the solver and with one 10x tighter; while the SD of
-        the difference across walkers exceeds ``max_solver_jitter_nats``, the solver is
-        tightened 10x, at most ``max_solver_tightenings`` times.
+    Attributes
+    ----------
+    n_walkers, max_steps, seed : int
+        Ensemble size (0: max(32, 4 x dimensions); rounded up to a multiple of 2 and of
+        ``rhat_groups``); steps per walker at most, adaptation included; the run's seed.
+    check_every, tau_factor : int, float
+        Production steps between convergence checks; the production chain must be this
+        many autocorrelation times long.
+    target_ess, max_rhat, rhat_groups : float, float, int
+        Convergence floors for every parameter (bulk and tail ESS; split R-hat over this
+        many groups of walkers, pooled step by step; 0: every walker a chain).
+    adapt_rounds, adapt_steps, adapt_acceptance : int, int, float
+        Adaptation (discarded as burn-in): at most this many rounds of this many steps,
+        ending after the first round with a proposal whose acceptance reaches the
+        fraction (> 1: never early). Round 0 runs differential-evolution moves; each
+        later round adds an independence proposal fitted to the round before.
+    proposal_df, proposal_scale, proposal_fit_fraction : float
+        The independence proposal: a multivariate Student-t with these degrees of
+        freedom and this inflation of the covariance fitted to this last fraction of
+        the round before.
+    independence_weight : float
+        Probability of the independence move in a step once fitted.
+    readapt_below_acceptance, max_readapts : float, int
+        An unconverged check with acceptance below this refits the proposal and
+        restarts production there (everything before discarded), at most this often.
+    init_scale, laplace_start : float, bool
+        Walker ball size in the Laplace approximation's SDs; or start from the
+        posterior's own Laplace draws (:func:`~pneubayes.inference.laplace.laplace_approximation`).
+    centre_iterations, centre_tolerance_nats : int, float
+        Newton steps moving the start from the refined point towards the posterior's
+        mode (0: none), stopping once a step's predicted rise is under this, nats.
+    max_solver_jitter_nats, max_solver_tightenings : float, int
+        While the SD across the starting walkers of the log-density's change under a
+        10x tighter solver exceeds this, nats, the solver is tightened 10x, at most this
+        many times.
     """
 
     n_walkers: int = 0

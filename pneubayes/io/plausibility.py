@@ -1,16 +1,13 @@
 """Plausibility rules: values that are well-formed but physically impossible or unusual.
 
-A recording can satisfy the format and still be wrong: every pressure in bar, time
-stamps in milliseconds written as seconds, a temperature in degrees Celsius, a bore in
-millimetres. These rules catch such slips before they cost a fit. Each rule has an id;
-a finding is an *error* when the value is clearly impossible (its message says which
-unit was probably meant) and a *warning* when it is only unusual. Warnings never stop a
-command: ``pneubayes check`` prints them and every run records them.
-
-An unusual but real rig (a 100-Hz ventilator with a few kPa of swing, a muscle at
-600 kPa, a slow logger) is accepted rule by rule, either in the recording's JSON
-(``"accept_unusual": ["sample-interval", "pressure-span"]``) or for one command with
-``--accept RULE[,RULE]``; an accepted finding is still recorded, marked accepted.
+These rules catch a recording that satisfies the format and is still wrong (pressures in
+bar, milliseconds written as seconds, degrees Celsius, a bore in millimetres) before it
+costs a fit. A finding is an *error* when the value is clearly impossible (its message
+says which unit was probably meant) and a *warning* when it is only unusual; warnings
+never stop a command (``pneubayes check`` prints them, every run records them). An
+unusual but real rig (a 100-Hz ventilator, a muscle at 600 kPa, a slow logger) accepts
+rules by id in the recording's JSON (``"accept_unusual": ["sample-interval"]``) or for
+one command (``--accept RULE[,RULE]``); an accepted finding is recorded as accepted.
 
 The rules (:data:`RULES`), with their limits (module constants, SI):
 

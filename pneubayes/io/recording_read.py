@@ -377,15 +377,26 @@ def check_recording(path: str | os.PathLike, accept=()) -> list[tuple[str, str]]
 
 
 def read_recording(path: str | os.PathLike, accept=(), rig_card=None) -> Recording:
-    """Read and validate a recording given its .csv, its .json or its stem.
+    """Read and validate a recording.
 
     The rules are listed in the module docstring; then the plausibility rules of
-    :mod:`pneubayes.io.plausibility` run, except those in ``accept`` or the recording's
-    ``accept_unusual``: an error is a problem, warnings are kept in
-    ``Recording.findings``. With a rig card (``rig_card``, a
-    :class:`~pneubayes.rigcard.RigCard`, or the one the sidecar's ``rig`` key names) the
-    card supplies the keys the sidecar leaves out and binds the recording
-    (:meth:`~pneubayes.rigcard.RigCard.bind`).
+    :mod:`pneubayes.io.plausibility` run: an error is a problem, warnings are kept in
+    ``Recording.findings``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The recording's .csv, its .json or its stem.
+    accept : iterable of str
+        Plausibility rules accepted beyond the recording's own ``accept_unusual``.
+    rig_card : RigCard or None
+        A :class:`~pneubayes.rigcard.RigCard` (None: the one the sidecar's ``rig`` key
+        names, if any) that supplies the keys the sidecar leaves out and binds the
+        recording (:meth:`~pneubayes.rigcard.RigCard.bind`).
+
+    Returns
+    -------
+    Recording
 
     Raises
     ------

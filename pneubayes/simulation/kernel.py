@@ -7,16 +7,13 @@ Jacobian ``J = dF/dp`` is known analytically. One step of length h is
     D      = F(t + h, U) - F(t, p) - J (U - p) - h v   (nonlinear remainder)
     p_next = U + 2 h phi3(hJ) D                        (exprb32, order 3)
 
-with ``v = dF/dt`` at fixed p, the explicit time dependence through the moving volume,
-the supply ramp and a moving spool; without it the method drops to first order
-whenever the inputs change within a step.
-
-and ``|2 h phi3(hJ) D|`` estimates the local error for step-size control. Where the
-valve switches, the step restarts at ``max_step_s / 1000``: a long first step from a
-port's pressure balance is accepted on an estimate that misses most of its error.
-Exponential integrators are exact for linear problems, so stiffness (tiny volumes, J ~ -1e8 /s)
-costs nothing; near pressure equilibrium, where F has a square-root singularity, the
-step behaves like a damped Newton step instead of chattering.
+with ``v = dF/dt`` at fixed p (the moving volume, the supply ramp, a moving spool;
+without it the method is first order where the inputs change within a step), and
+``|2 h phi3(hJ) D|`` the local error estimate. Where the valve switches, the step
+restarts at ``max_step_s / 1000`` (a long first step from a port's pressure balance is
+accepted on an estimate that misses most of its error). The method is exact for linear
+problems, so stiffness (tiny volumes, J ~ -1e8 /s) costs nothing; near equilibrium,
+where F has a square-root singularity, a step acts as a damped Newton step.
 
 Inputs follow the recording: the command is held between samples (zero-order hold),
 position and supply are linear between samples. A transport delay shifts the held
@@ -273,103 +270,42 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             general):
     """Integrate one window of ``length`` samples from ``t[i0]`` with p(t[i0]) = p0.
 
-    With a sensor lag (slot ``sensor_time_constant_s`` tau > 0) the output is the
-    reading r, dr/dt = (p - r) / tau, integrated exactly over each accepted step along
-    the pressure step's own exponential solution (for the (p, T) step along the
-    pressure's own exponential part, the rest of its change a ramp; over an acoustic
-    line's steps along the cubic through the ends and their rates, its departure from
-    the chord in the step's error estimate; with another second state, along the chord
-    between the step's ends); r starts at ``p0`` (the measured
-    reading) and the chamber at ``p0 + tau * rate0`` (``rate0``: the reading's rate
-    there, Pa/s), since p = r + tau dr/dt. A second-order lag (slot
-    ``sensor_natural_frequency_rad_per_s`` w > 0, damping z) is stepped exactly in the
-    same way (:mod:`pneubayes.simulation.reading`), with the lead D = 2 z / w in place of
-    tau and the reading's rate starting at ``rate0``.
-    With ``rate0`` NaN the window instead warms up over 5 settling times
-    (tau; or max(D, 1 / (z w))) before its start (from the recorded reading ``pm``
-    there, or from p0 where it is NaN, under the command history) and keeps the
-    chamber's lead on the reading it reached: the model's own rate through the lag,
-    where the recording gives only the reading.
+    How each form is stepped (sensor lag and calibration, inputs advance, second-order
+    spool, dense output and the q = p V^n step, first same as last, second states, the
+    closure) is in ``docs/architecture.md``, "One window (kernel._window)".
 
-    A miscalibrated sensor (slots ``reading_offset_Pa`` o, ``reading_gain_error`` g - 1)
-    reads P_atm + g (p - P_atm) + o: the window starts at the pressure the measured
-    ``p0`` (and the warm-up's ``pm``) reads, ``rate0`` is divided by g, and every output
-    is read through it. dp/dp0 is unchanged (g times 1 / g); carried states stay
-    pressures.
+    Parameters
+    ----------
+    sl, cs, sv : float64 vectors
+        One parameter set's lowered slots; the rig's and gas's constants; the solver
+        settings (``sv[S_DENSE] > 0``: dense output); layouts in ``simulation/layout.py``.
+    t, u, ue, x, ps : (N,) float64
+        Time (s), command (V, held), a separate exhaust valve's command (held; read with
+        slot ``exhaust_own_command``), position (m) and supply (Pa), linear between.
+    pm : (N,) float64
+        The recorded reading (Pa; NaN: unknown), where a lagged reading's warm-up starts.
+    i0, length : int
+        The window's first sample and its samples, the start included.
+    p0, rate0 : float
+        The reading at the start (Pa) and its rate (Pa/s), which starts a lagged sensor's
+        chamber at ``p0 + tau * rate0``; ``rate0`` NaN: warm up over 5 settling times of
+        command history before the start.
+    out, sens : float64 (length,)
+        Receive the reading (Pa) and dp(t)/dp0 (``sens`` empty: skipped), the product of
+        the accepted steps' ``exp(h J)``.
+    carry : float64 (N_CARRY,)
+        The unmeasured states at the start, replaced by those at the end: ``carry[0]`` the
+        chamber temperature (K), ``carry[1:1 + 2 * LINE_MAX_SEGMENTS]`` a line's cell
+        pressures and flows (NaN: at rest at p0), ``carry[CARRY_TANK]`` a supply tank's
+        (NaN: the supply) and ``carry[CARRY_LUNG]`` a second compartment's (NaN: p0).
+    general : None or True
+        None compiles the pressure-only kernel (numba prunes the second-state forms).
 
-    With slot ``inputs_advance_s`` a > 0 (a sensor lag on every channel of the DAQ) the
-    position ``x`` and supply ``ps`` are read at t + a: linear between their samples,
-    whose times shifted by -a are break points of the steps, and held after the last.
-
-    A second-order spool (slot ``spool_natural_frequency_rad_per_s`` w > 0, damping z;
-    it overrides the first-order lag) carries its position and velocity, stepped exactly
-    under the held command; its velocity moves the port areas within a step as the
-    first-order spool's does. Mid-recording both spools start from the command history
-    of up to 20 settling times before the window.
-
-    ``ue`` is a separately commanded exhaust valve's command (read only when the slot
-    ``exhaust_own_command`` is set), held between samples.
-
-    With ``sv[S_DENSE] > 0`` (``sv`` seven long) and a model with the pressure as its only
-    state and output (no sensor lag, no second state; no separately commanded exhaust, no
-    inputs advance), a step may cross the samples over which the supply holds (only
-    with a supply gain: without one the model reads the nominal): the integrator stops
-    only where the delayed command changes, at the window's end and on its own step
-    size (a spool, first or second order, moves in closed form across the samples as
-    within one), and each sample it crosses is read from the accepted step's
-    interpolant: the exponential step over the fraction th of it plus its error
-    correction scaled by th^3 phi3(th h J_p) / phi3(h J_p) (exact at th = 1); dp/dp0
-    there is exp(th h J_p) times its value at the step's start. Over a moving position
-    the step reads the position's chord (one dV/dt); each crossed sample is moved to its
-    own volume adiabatically less the flows' response to the chord so far, and the
-    step's end by that response, first order (:mod:`pneubayes.simulation.chord`),
-    whose size, weighted by ``CHORD_ERROR_WEIGHT``, also enters the step's error
-    estimate. In a rigid chamber (no compliance, no volume table), where the compression
-    outpaces the flows' relaxation (|J_f| < n |dV/dt| / V, J_f the flows' part of J_p),
-    such a step is taken in q = p V^n instead of p: dq/dt = V^n F_f does not see the
-    compression, so a closed chamber is exact at every sample (q over the step, read
-    at the sample's own volume) and the step is limited by the flows alone; dq/dp0 is
-    exp(h J_f), dp/dp0 = dq/dp0 (V_start / V)^n. Where steps cross samples,
-    a step grows on the larger of its own and its predecessor's error estimate (one
-    estimate made small by cancellation would let it grow 5x into an error the next
-    estimate misses). Without it every sample ends a step.
-
-    The pressure step reuses its second stage (first same as last): the rate, its slope
-    and its time derivative at the stage's point, moved to the corrected end to first
-    order (the slope times the correction), are the next step's start while the port
-    areas hold and the chamber reads no chord; over a moving position (linear between
-    samples) a new sample's dV/dt shifts the rate's -n p dV/dt / V term and the slope's
-    -n dV/dt / V, in a rigid chamber without a supply gain (elsewhere a new sample
-    evaluates afresh). One right-hand side a step instead of two: about 1.35-1.45 x the
-    speed on the benchmark's cases, the errors against Radau unchanged or smaller.
-
-    ``general`` is None for the pressure-only kernel: numba prunes the branches of the
-    forms with a second state (heat transfer, an acoustic line, a tank, a second
-    compartment), so they are compiled only when a model uses them (any other value).
-
-    ``sens`` (``length`` long, or empty to skip) receives dp(t)/dp0, the sensitivity of
-    the pressure to the initial pressure: the product of the accepted steps'
-    ``exp(h J_p)`` (first order in h; with heat transfer or an acoustic line the
-    propagators ``exp(h J)`` of the whole state).
-    ``carry`` (``N_CARRY``) holds the unmeasured states at the start and receives them
-    at the end: ``carry[0]`` the chamber temperature (K; used with heat transfer),
-    ``carry[1:1 + 2 * LINE_MAX_SEGMENTS]`` an acoustic line's cell pressures and flows
-    (NaN: at rest at p0),
-    ``carry[CARRY_TANK]`` a supply tank's pressure (NaN: the window's supply at its
-    start), ``carry[CARRY_LUNG]`` a second compartment's (NaN: p0, no flow between them).
-
-    A supply tank (slot ``tank_volume_m3`` > 0) is a second state stepped with the
-    chamber's (:mod:`pneubayes.simulation.tank`), and so is a second compartment (slot
-    ``lung_volume_m3`` > 0; :mod:`pneubayes.simulation.lung`); neither beside heat
-    transfer, a line or the other.
-
-    An open-form closure (slot ``closure_terms`` > 0) is part of the chamber's
-    right-hand side (:func:`~pneubayes.simulation.chamber.chamber_rhs`), which every step
-    is given the spool's position (after the delay and lag, before the dead band) and
-    its rate. The first-same-as-last reuse then also asks for the same spool where a
-    term reads it, and does not shift a reused rate to a new dV/dt where a term reads
-    the volume rate. (An acoustic line's step does not evaluate the closure: the
-    simulator refuses the two together.)
+    Returns
+    -------
+    int
+        ``OK`` (0), or a failure: ``STEP_UNDERFLOW``, ``STEP_BUDGET``, ``NONFINITE``,
+        ``LINE_VOLUME``, ``NEEDS_GENERAL``, ``WAVE_HISTORY`` or ``CALIBRATION``.
     """
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]

@@ -300,34 +300,40 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
                      initial_rate_Pa_per_s=None) -> np.ndarray:
     """Simulate windows of ``length`` samples from ``starts``; returns ``(B, W, length)`` Pa.
 
-    Each window w starts at sample ``starts[w]`` from ``initial_pressure_Pa[w]`` (e.g. the
-    measured pressure there). With heat transfer, the chamber temperature (not measured)
-    starts at the supply's, and an acoustic line starts at rest at the chamber's pressure;
-    contiguous windows (each starting on the previous one's last sample, as 2-s windows
-    with a 2-s stride do) carry these states from window to window, so only the measured
-    pressure is reset. With ``on_failure="raise"`` a failure raises
-    :class:`SimulationError` naming the parameter sets that failed; with ``"nan"`` their
-    rows are NaN (samplers turn them into zero likelihood). With a pressure filter
-    declared on ``rig``, the result is the sensor's reading of the chamber pressure
-    (:mod:`pneubayes.simulation.measurement`).
+    With heat transfer the chamber temperature starts at the supply's, an acoustic line
+    at rest at the chamber's pressure; contiguous windows (each starting on the previous
+    one's last sample) carry these unmeasured states, so only the pressure is reset. With
+    a pressure filter declared on ``rig`` the result is the sensor's reading
+    (:mod:`pneubayes.simulation.measurement`); with ``sensor_lag``, the lagged reading.
 
-    With a sensor lag (effect ``sensor_lag``) the result is the lagged reading, which
-    starts at ``initial_pressure_Pa`` while the chamber starts ahead of it: by the lag's
-    time constant times ``initial_rate_Pa_per_s`` (the reading's rate at the start,
-    Pa/s, per window or per (parameter set, window)), or with None by the lead the
-    model builds over the 5 time constants of command history before the start
-    (:func:`pneubayes.simulation.kernel.simulate_windows`).
-
-    With ``solver.dense_output`` (:meth:`SolverConfig.sampling`,
-    :meth:`SolverConfig.with_dense_output`) a step may cross the samples over which the
-    position and the supply the model reads hold (a model without
-    ``supply_fluctuation`` reads the nominal supply), and those samples are read from
-    the step's interpolant (for models with the pressure as their only state and
-    output: no sensor lag, no second state; the others step as without it): fewer steps
-    where the command holds for many samples, as a controller's candidates do, and
-    results that differ from stopping at every sample within the solver's tolerance
-    (:class:`pneubayes.inference.predictive.PressurePredictor` states the measured
-    difference).
+    Parameters
+    ----------
+    model : Model
+    params : mapping, (P,) or (B, P) array
+        Parameter values by name, one set, or a batch of B sets.
+    inputs : Inputs
+        The recording's inputs (command, position, supply).
+    rig : Rig
+    starts : (W,) int array
+        First sample of each window.
+    length : int
+        Samples per window, the start included.
+    initial_pressure_Pa : float or (W,) array
+        Each window's starting pressure, Pa absolute (e.g. the measured one there).
+    solver : SolverConfig
+        With ``dense_output`` (:meth:`SolverConfig.sampling`) a step may cross the samples
+        over which the command holds, reading them from its interpolant (models with the
+        pressure as their only state), within the solver's tolerance of stopping at each.
+    check_bounds : bool
+        Refuse parameters outside their bounds (:class:`~pneubayes.errors.ParameterError`).
+    on_failure : {"raise", "nan"}
+        A failed parameter set raises :class:`SimulationError` naming it, or gives NaN rows
+        (samplers turn them into zero likelihood).
+    initial_rate_Pa_per_s : (W,) or (B, W) array, optional
+        With a sensor lag: the reading's rate at each start, Pa/s, where the chamber leads
+        the reading by the lag's time constant times it; None: the lead the model builds
+        over 5 time constants of command history
+        (:func:`pneubayes.simulation.kernel.simulate_windows`).
     """
     return _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa,
                         solver, check_bounds, on_failure, kernel.simulate_windows,
@@ -352,7 +358,28 @@ def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig,
 
 def simulate(model: Model, params, inputs: Inputs, rig: Rig, initial_pressure_Pa: float,
              solver: SolverConfig, check_bounds: bool = True) -> Trajectory:
-    """Simulate the whole input record from ``initial_pressure_Pa``; pressure ``(B, N)`` Pa."""
+    """Simulate the whole input record from ``initial_pressure_Pa``.
+
+    Parameters
+    ----------
+    model : Model
+    params : mapping, (P,) or (B, P) array
+        Parameter values by name, one set, or a batch of B sets.
+    inputs : Inputs
+        The recording's inputs (:meth:`Inputs.from_recording`).
+    rig : Rig
+        The rig's constants (e.g. ``recording.rig()``).
+    initial_pressure_Pa : float
+        The chamber pressure at the first sample, Pa absolute.
+    solver : SolverConfig
+    check_bounds : bool
+        Refuse parameters outside their bounds.
+
+    Returns
+    -------
+    Trajectory
+        ``pressure_Pa`` is ``(B, N)``, Pa absolute.
+    """
     theta = model.as_matrix(params)
     out = simulate_windows(model, theta, inputs, rig, np.zeros(1, np.int64), inputs.n_samples,
                            initial_pressure_Pa, solver, check_bounds=check_bounds)

@@ -24,24 +24,19 @@ t, with every wave read at t - tau:
 * chamber end: ``q_c (Z + r(q_c)/2) = A_K - p`` enters eq. 5 as the port flow; it sends
   ``B_K = p + (r/2 - Z) q_c``.
 
-With no friction a valve step reaches the chamber after exactly T, undispersed: there
-are no cells, only junctions where friction acts. The tube's volume ``A L`` is in the
-waves and leaves the chamber's dead volume, as the lumped line's does.
+Without friction a valve step reaches the chamber after exactly T, undispersed (no
+cells). The tube's volume ``A L`` leaves the chamber's dead volume, as the line's does.
 
-The junctions and ends update on a fixed grid (step ``WAVE_GRID_S``, or ``tau`` if
-shorter: :func:`wave_grid_step`; anchored at the recording's first sample, so every
-window of a recording shares it), and the waves are kept at its points in a ring buffer
-(time, the 2K waves and their derivatives in the window's initial pressure). A read at
-``t - tau`` falls between entries and is linear there: the step does not depend on the
-transit time, so the output moves continuously with it (a fit moves T), at the price of
-spreading a front by about a grid step. A switch of the port areas (a held command
-stepping) reaches the valve end as a linear ramp over one grid step from the switch's
-own time (:func:`wave_ramped`), with entries at both ends of the ramp, so the valve's
-wave moves continuously with the switch's time too. The chamber's forcing, A_K read at
-``t - tau``, is linear between its reads at the grid points, where its steps break.
-Before a window's first step the tube is at rest at its initial pressure, or, for a
-window that continues the previous one, in the state that one ended with
-(:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
+The junctions and ends update on a fixed grid (``WAVE_GRID_S``, or ``tau`` if shorter:
+:func:`wave_grid_step`; anchored at the recording's first sample), the waves kept at
+its points in a ring buffer (time, the 2K waves and their derivatives in the window's
+initial pressure). A read at ``t - tau`` is linear between entries, so the output moves
+continuously with the transit time (a fit moves T), a front spread by about a grid
+step. A port-area switch reaches the valve end as a ramp over one grid step from its
+own time (:func:`wave_ramped`), continuous in the switch's time too; the chamber's
+forcing A_K is linear between the grid points, where its steps break. A window starts
+with the tube at rest at its initial pressure, or where the previous contiguous window
+ended (:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
 """
 
 from __future__ import annotations

@@ -110,41 +110,26 @@ class OpenFormSearch:
 
     Parameters
     ----------
-    max_terms : int
-        Most terms returned (1..4, a closure's slots).
-    block : int
-        Sample intervals summed into one regression row.
-    optimizer : str
-        ``"frols"``, ``"stlsq"``, ``"sr3"`` or ``"sbr"`` (pysindy; SBR needs numpyro).
-    threshold : float
-        STLSQ's threshold and SR3's hard threshold, on coefficients of unit-norm columns
-        for a unit-norm target (a term's share of the target's RMS); unused by FROLS.
-    ridge : float
-        Ridge weight on the unit-norm columns (STLSQ, FROLS).
-    n_models : int
-        Bagged fits.
-    chunk_rows : int
-        Consecutive rows per bootstrap chunk.
-    min_inclusion : float
-        Least inclusion probability of a family to enter the refit.
-    min_explained_fraction : float
-        Least fraction of the target's uncentred sum of squares a kept term explains
-        on its own (drop-one); FROLS also stops adding terms below it.
-    quantiles : sequence of float
-        Quantiles of the hinge thresholds' grid.
-    duplicate_tolerance : float
-        A column whose |cosine| with an earlier (simpler: singles come before
-        products, products before hinges) column exceeds ``1 - duplicate_tolerance`` is
-        dropped: these data cannot tell the two apart (e.g. ``inlet_flow * volume`` where
-        the volume moves by a few %), and the simpler term stands for both.
+    max_terms, block : int
+        Most terms returned (1..4, a closure's slots); sample intervals per row.
+    optimizer : {"frols", "stlsq", "sr3", "sbr"}
+        The sparse regression (pysindy's; SBR needs numpyro).
+    threshold, ridge : float
+        STLSQ's and SR3's threshold on coefficients of unit-norm columns for a unit-norm
+        target (a term's share of the target's RMS); ridge weight (STLSQ, FROLS).
+    n_models, chunk_rows, seed : int
+        Bagged fits; consecutive rows per bootstrap chunk; the bagging's seed.
+    min_inclusion, min_explained_fraction : float
+        A family's least inclusion probability to be refitted; a kept term's least share
+        of the target's uncentred sum of squares on its own (FROLS stops below it too).
+    quantiles, duplicate_tolerance : sequence of float, float
+        Quantiles of the hinge thresholds' grid. A column within this of |cosine| 1 with
+        an earlier, simpler one (singles, products, hinges) is dropped for it.
     swap_min_gain : float
-        FROLS only: a bag's selected column is exchanged for another when that explains
-        more than this fraction of the fit's residual sum of squares beyond it, and for
-        a simpler one when that explains less by no more than it (:meth:`_swap`).
+        FROLS: a bag's column is swapped for one explaining this share of the residual
+        sum of squares more, or a simpler one explaining at most this less (:meth:`_swap`).
     refine_thresholds : bool
         Refine the kept hinges' thresholds between their grid neighbours.
-    seed : int
-        Seed of the bagging.
 
     Attributes
     ----------
@@ -157,10 +142,8 @@ class OpenFormSearch:
         Family -> ``{"inclusion_probability", "best_label", "selections"}``.
     explained_fraction_ : float
         Fraction of the target's uncentred sum of squares the kept terms explain.
-    n_candidates_ : int
-        Distinct candidate columns searched.
-    n_rows_ : int
-        Regression rows.
+    n_candidates_, n_rows_ : int
+        Distinct candidate columns searched; regression rows.
     """
 
     def __init__(self, max_terms: int = CLOSURE_MAX_TERMS, block: int = 5,
