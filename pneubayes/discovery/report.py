@@ -35,7 +35,26 @@ def run_discover(recordings, settings: DiscoverySettings, out_dir, log=print,
 
 def write_discovery(result: DiscoveryResult, recordings, out_dir,
                     figures: bool = True) -> dict:
-    """Write a :class:`DiscoveryResult` as a run folder; return discovery.json's doc."""
+    """Write a :class:`DiscoveryResult` as a run folder; return discovery.json's doc.
+
+    Parameters
+    ----------
+    result : DiscoveryResult
+        A finished discovery (``Discovery(...).fit(recordings).result_``).
+    recordings : sequence of Recording
+        The recordings it ran on (their sources are listed in the document).
+    out_dir : path
+        The run folder: ``discovery.json``, ``model.json``, ``disagreement.json``,
+        ``report.md``, ``posterior.nc`` (with a posterior), ``found_effect.py`` (with
+        open-form terms) and ``figures/``.
+    figures : bool
+        Draw the figures (matplotlib).
+
+    Returns
+    -------
+    dict
+        The ``discovery.json`` document.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     recs = list(recordings)
