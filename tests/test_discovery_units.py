@@ -154,6 +154,13 @@ def test_disagreement_bins_flag_a_planted_bias_only_where_it_is():
     assert ("direction", "exhausting") not in flagged
     clean = _bins(rng.normal(size=n) * 500.0, lab, cluster, 500.0, RegimeSettings())
     assert flagged_bins({"prediction": clean}) == []
+    # a model that misses everywhere by 10 x the noise, and twice that while filling:
+    # only the filling bin stands out
+    wide = rng.normal(size=n) * 5000.0
+    wide[lab["direction"] == "filling"] *= 2.0
+    bins = _bins(wide, lab, cluster, 500.0, RegimeSettings())
+    assert [(f, b["bin"]) for f, b in flagged_bins({"prediction": bins})] == [
+        ("direction", "filling")]
 
 
 @pytest.fixture(scope="module")

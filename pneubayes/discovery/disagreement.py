@@ -5,9 +5,11 @@ one-step error (the dp/dt residual in integral form, reported in Pa/s). Every sa
 gets a label in each regime family; per bin we report the count, the mean (bias), the
 RMS, the RMS in excess of the noise floor, and a z score of the bias with a
 cluster-robust standard error (clusters = 2-s windows or 1-s chunks), so that
-autocorrelated residuals do not look significant. A bin is *flagged* when its bias is
-significant (|z| > ``z_flag``) or its RMS exceeds ``excess_factor`` x the noise level
-of that residual.
+autocorrelated residuals do not look significant. A bin is *flagged* when it stands out
+from the rest of the residual, not merely from the noise (a model that misses
+everywhere would otherwise flag every bin): its bias is significant (|z| > ``z_flag``)
+and at least ``bias_share`` x the residual's overall RMS, or its RMS exceeds both
+``excess_factor`` x the noise level and ``relative_factor`` x the overall RMS.
 
 Regime families (issue 4): command band (inside/outside +-``band_V``); the dominant
 port choked or subsonic; filling or exhausting; time since the last command step;
@@ -38,6 +40,8 @@ class RegimeSettings:
     speed_edges_m_per_s: tuple[float, ...] = (0.001, 0.02)
     z_flag: float = 3.0
     excess_factor: float = 1.5
+    relative_factor: float = 1.2
+    bias_share: float = 0.5
 
 
 def regime_labels(model: Model, params: dict, recording, settings: RegimeSettings) -> dict:
@@ -93,6 +97,7 @@ def regime_labels(model: Model, params: dict, recording, settings: RegimeSetting
 def _bins(residual: np.ndarray, labels: dict, cluster: np.ndarray, noise: float,
           settings: RegimeSettings) -> dict:
     out = {}
+    overall = float(np.sqrt(np.mean(residual * residual))) if residual.size else 0.0
     for fam in FAMILIES:
         lab = labels[fam]
         rows = []
@@ -110,8 +115,11 @@ def _bins(residual: np.ndarray, labels: dict, cluster: np.ndarray, noise: float,
             excess = float(np.sqrt(max(rms**2 - noise**2, 0.0)))
             rows.append({"bin": name, "n": n, "mean": mean, "rms": rms, "excess_rms": excess,
                          "z_bias": z, "clusters": int(uniq.size),
-                         "flagged": bool(abs(z) > settings.z_flag
-                                         or rms > settings.excess_factor * noise)})
+                         "flagged": bool(
+                             (abs(z) > settings.z_flag
+                              and abs(mean) >= settings.bias_share * overall)
+                             or (rms > settings.excess_factor * noise
+                                 and rms > settings.relative_factor * overall))})
         out[fam] = sorted(rows, key=lambda d: _physical_order(d["bin"]))
     return out
 
