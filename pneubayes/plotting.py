@@ -206,10 +206,12 @@ def plot_prediction_bands(bands, path, max_windows: int = 3, title: str = "") ->
 
 
 def plot_disagreement(dmap: Mapping, path, title: str = "") -> Path:
-    """Residual RMS per operating-regime bin (2-s prediction and dp/dt), flagged bins
+    """Residual RMS per operating-regime bin (window prediction and dp/dt), flagged bins
     highlighted, the noise level as a line."""
     plt = _pyplot()
     fams = list(dmap["prediction"])
+    horizon = dmap.get("horizon_s")
+    window = "prediction" if horizon is None else f"{horizon:.3g}-s prediction"
     fig, axes = plt.subplots(2, len(fams), figsize=(2.1 * len(fams), 5.2), squeeze=False)
     for row, (kind, noise, unit, scale) in enumerate(
             (("prediction", dmap["noise_floor_Pa"], "kPa", 1e-3),
@@ -228,7 +230,7 @@ def plot_disagreement(dmap: Mapping, path, title: str = "") -> Path:
             if row == 0:
                 ax.set_title(fam, fontsize=7)
             if col == 0:
-                ax.set_ylabel(f"{'2-s prediction' if kind == 'prediction' else 'dp/dt'} "
+                ax.set_ylabel(f"{window if kind == 'prediction' else 'dp/dt'} "
                               f"RMS ({unit})", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=8)

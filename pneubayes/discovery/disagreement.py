@@ -148,10 +148,11 @@ def disagreement_map(model: Model, params: dict, recordings, prediction_residual
                      noise_floor_Pa: float, settings: RegimeSettings) -> dict:
     """Bin both residuals of ``recordings`` by regime.
 
-    ``prediction_residuals[i]`` ``(W_i, L)`` are the 2-s prediction errors of recording i
-    for windows starting at ``window_starts[i]``; ``one_step_errors[i]`` ``(N_i - 1,)``
-    its one-step errors (Pa). Returns ``{"prediction": {...}, "rate": {...}}``
-    (families -> bins) plus the noise levels used.
+    ``prediction_residuals[i]`` ``(W_i, L)`` are the window prediction errors of
+    recording i for windows starting at ``window_starts[i]``; ``one_step_errors[i]``
+    ``(N_i - 1,)`` its one-step errors (Pa). Returns ``{"prediction": {...}, "rate":
+    {...}}`` (families -> bins) plus the noise levels used and ``horizon_s`` (the
+    windows' length, s).
     """
     pr, pl, pc, rr, rl, rc = [], [], [], [], [], []
     dt_all = []
@@ -182,6 +183,7 @@ def disagreement_map(model: Model, params: dict, recordings, prediction_residual
     rate_noise = float(np.sqrt(2.0) * noise_floor_Pa / dt)
     return {
         "noise_floor_Pa": noise_floor_Pa, "rate_noise_Pa_per_s": rate_noise,
+        "horizon_s": (horizon_samples - 1) * dt,
         "prediction": _bins(np.concatenate(pr), cat(pl), np.concatenate(pc), noise_floor_Pa,
                             settings),
         "rate": _bins(rate, cat(rl), np.concatenate(rc), rate_noise, settings),
