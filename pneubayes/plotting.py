@@ -104,16 +104,60 @@ def plot_volume_map(model, samples, bore_m: float, stroke_m: float, path) -> Pat
     return _save(fig, path)
 
 
-def plot_corner(names, samples, path, max_points: int = 2000, title: str = "") -> Path:
-    """Pairwise scatter and marginal histograms of posterior draws; few ticks per axis and
-    rotated labels, so nothing overlaps."""
+def _display_scale(values) -> int:
+    """The power of 1000 that brings the values' median magnitude to 0.1-1000."""
+    m = float(np.nanmedian(np.abs(values)))
+    if not np.isfinite(m) or m == 0.0:
+        return 0
+    return int(3 * np.floor(np.log10(m) / 3))
+
+
+def plot_corner(names, samples, path, max_points: int = 2000, title: str = "",
+                units=None, reference=None) -> Path:
+    """Pairwise scatter and marginal histograms of posterior draws.
+
+    Each parameter is shown in a power of 1000 of its unit (written in its label), few
+    ticks per axis and rotated labels, so nothing overlaps; the posterior median is a
+    dashed line in every panel, and ``reference`` values (e.g. a planted truth or a
+    point estimate; NaN for none) a red line.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Parameter names, one per column of ``samples``.
+    samples : (S, D) array
+        Posterior draws.
+    path : path
+        Where the PNG goes.
+    max_points : int
+        Draws thinned to at most this many.
+    title : str
+        Figure title.
+    units : sequence of str or None
+        Each parameter's unit (None: none written).
+    reference : sequence of float or None
+        Values to mark (NaN: none for that parameter).
+
+    Returns
+    -------
+    Path
+    """
     from matplotlib.ticker import MaxNLocator
 
     plt = _pyplot()
-    x = np.asarray(samples)
+    x = np.asarray(samples, dtype=np.float64)
     x = x[:: max(1, len(x) // max_points)]
     d = len(names)
-    size = max(1.9 * d, 4.0)
+    exps = [_display_scale(x[:, i]) for i in range(d)]
+    scale = np.array([10.0 ** -e for e in exps])
+    x = x * scale
+    med = np.median(x, axis=0)
+    ref = (np.full(d, np.nan) if reference is None
+           else np.asarray(reference, dtype=np.float64) * scale)
+    units = [""] * d if units is None else list(units)
+    labels = [f"{n}\n({'' if e == 0 else f'x 1e{e} '}{u})".replace("()", "")
+              for n, e, u in zip(names, exps, units)]
+    size = max(1.9 * d if d <= 6 else 1.25 * d + 4.0, 4.0)
     fig, axes = plt.subplots(d, d, figsize=(size, size), squeeze=False)
     for i in range(d):
         for j in range(d):
@@ -125,19 +169,26 @@ def plot_corner(names, samples, path, max_points: int = 2000, title: str = "") -
             ax.yaxis.set_major_locator(MaxNLocator(3))
             if i == j:
                 ax.hist(x[:, i], bins=30, color="0.4")
+                ax.axvline(med[i], color="tab:blue", lw=0.8, ls="--")
+                if np.isfinite(ref[i]):
+                    ax.axvline(ref[i], color="tab:red", lw=0.8)
                 ax.set_yticks([])
             else:
                 ax.plot(x[:, j], x[:, i], ",", alpha=0.4, color="k")
+                ax.axvline(med[j], color="tab:blue", lw=0.6, ls="--")
+                ax.axhline(med[i], color="tab:blue", lw=0.6, ls="--")
+                if np.isfinite(ref[j]) and np.isfinite(ref[i]):
+                    ax.plot(ref[j], ref[i], "s", color="tab:red", ms=3)
             ax.tick_params(labelsize=5)
             ax.xaxis.get_offset_text().set_fontsize(5)
             ax.yaxis.get_offset_text().set_fontsize(5)
             if i == d - 1:
-                ax.set_xlabel(names[j], fontsize=6, rotation=20, ha="right")
+                ax.set_xlabel(labels[j], fontsize=6, rotation=20, ha="right")
                 ax.tick_params(axis="x", labelrotation=45)
             else:
                 ax.set_xticklabels([])
             if j == 0 and i > 0:
-                ax.set_ylabel(names[i], fontsize=6, rotation=70, ha="right")
+                ax.set_ylabel(labels[i], fontsize=6, rotation=70, ha="right")
             elif i != j:
                 ax.set_yticklabels([])
     if title:
@@ -146,9 +197,16 @@ def plot_corner(names, samples, path, max_points: int = 2000, title: str = "") -
     return _save(fig, path)
 
 
+#: A model with at most this many parameters has them all in its corner plot.
+CORNER_ALL_MAX = 16
+
+
 def corner_names(model) -> list[str]:
-    """The parameters a fit's corner plot shows: the Gompertz scales and slopes, the dead
-    volume and every effect's parameters (the fitted additions)."""
+    """The parameters a fit's corner plot shows: all of them up to
+    :data:`CORNER_ALL_MAX`, else the Gompertz scales and slopes, the dead volume and
+    every effect's parameters (the fitted additions)."""
+    if len(model.parameter_names) <= CORNER_ALL_MAX:
+        return list(model.parameter_names)
     base = ("inlet_a_m2", "inlet_c_per_V", "exhaust_a_m2", "exhaust_c_per_V",
             "dead_volume_m3")
     if model.rig_card is not None:  # a rig card's unknowns are few: show them all
@@ -170,7 +228,9 @@ def plot_fit_figures(model, samples, recordings, folder, idata=None) -> list[Pat
     base = ("the thin-port model" if model.rig_card is None
             else f"the rig card {model.rig_card.name!r}")
     out.append(plot_corner(names, np.asarray(samples)[:, cols], folder / "corner.png",
-                           title="posterior of " + (" + ".join(model.effect_names) or base)))
+                           title="posterior of " + (" + ".join(model.effect_names) or base)
+                           + " (dashed: medians)",
+                           units=[model.parameter(n).unit for n in names]))
     return out
 
 
