@@ -63,6 +63,9 @@ CASES = {
     "pressure_hinge_down": (Term("pressure_hinge_down"), 4.0, 0.0, 1.2e-5),
     # a volume that follows the pressure scales the net port flow (module doc)
     "net_flow*pressure_ratio": (Term("net_flow", "pressure_ratio"), 0.0, 0.0, -0.02),
+    # a valve with hysteresis: 10 % more inlet flow after a rise, 10 % less after a fall
+    "command_direction*inlet_flow": (Term("command_direction", "inlet_flow"), 0.0, 0.0,
+                                     0.1),
 }
 
 
