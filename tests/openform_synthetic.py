@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneubayes.effects.closure_features import command_direction
 from pneubayes.physics.gas import GasConstants
 from pneubayes.physics.orifice import flow_function
 
@@ -59,4 +60,5 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3) -> dict:
             "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
             "inlet_flow_kg_per_s": a_in * flow_function(p_sup, p, gas),
             "exhaust_flow_kg_per_s": a_ex * flow_function(p, P_ATM, gas),
-            "volume_m3": vol, "volume_rate_m3_per_s": vdot}
+            "volume_m3": vol, "volume_rate_m3_per_s": vdot,
+            "command_direction": command_direction(u)}

@@ -126,6 +126,7 @@ def test_the_closures_copy_of_the_right_hand_side_is_the_plain_one(extra, rig):
     zero[SLOT_INDEX["closure_feature_b_0"]] = cf.feature("pressure_hinge").code
     zero[SLOT_INDEX["closure_threshold_b_0"]] = 1.5
     zero[SLOT_INDEX["closure_feature_a_1"]] = cf.feature("volume_rate").code
+    zero[SLOT_INDEX["closure_feature_b_1"]] = cf.feature("command_direction").code
     cs = rig_constants(rig)
     rng = np.random.default_rng(9)
     for _ in range(200):
@@ -134,7 +135,7 @@ def test_the_closures_copy_of_the_right_hand_side_is_the_plain_one(extra, rig):
                 rng.uniform(-1e-4, 1e-4), rng.uniform(5.3e5, 5.7e5))
         rest = (rng.uniform(1e-6, 1e-3), bool(rng.integers(2)), rng.uniform(-1e6, 1e6),
                 rng.uniform(-1e-4, 1e-4), rng.uniform(-1e-4, 1e-4), rng.uniform(-5, 5),
-                rng.uniform(-100, 100))
+                rng.uniform(-100, 100), float(rng.integers(-1, 2)))
         want = chamber_rhs(*args, sl, cs, *rest)
         assert np.array_equal(_chamber_rhs_closure(*args, zero, cs, *rest), want)
         assert np.array_equal(chamber_rhs(*args, zero, cs, *rest), want)
@@ -180,7 +181,7 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
     for p, temp in ((2e5, 320.0), (4e5, 270.0)):
         vol = 2.4e-6
         fp, _, ft, *_ = chamber_rhs(p, temp, 0.0, 0.0, vol, 0.0, P_SUP, sl, cs, 1e-4, True,
-                                    0.0, 0.0, 0.0, 0.0, 0.0)
+                                    0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         dm = vol / (rs * temp) * (fp - p * ft / temp)
         assert dm == pytest.approx(c, rel=1e-12)
 
@@ -214,23 +215,23 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     cs = rig_constants(rig)
     args = (3e-7, 2e-7, 2.5e-6, 1e-5, P_SUP)  # a_in, a_ex, vol, vdot, p_sup
     p, temp, d = 2.6e5, 300.0, 1.0
-    out = chamber_rhs(p, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
-    up = chamber_rhs(p + d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
-    dn = chamber_rhs(p - d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
+    out = chamber_rhs(p, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
+    up = chamber_rhs(p + d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
+    dn = chamber_rhs(p - d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
     assert out[1] == pytest.approx((up[0] - dn[0]) / (2 * d), rel=1e-5, abs=1e-6)
     if hconv:
         assert out[6] == pytest.approx((up[2] - dn[2]) / (2 * d), rel=1e-5, abs=1e-8)
         # and the slopes in T (a negative closure's outflow leaves at T)
         dt = 1e-3
-        hot = chamber_rhs(p, temp + dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
-        cold = chamber_rhs(p, temp - dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0)
+        hot = chamber_rhs(p, temp + dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
+        cold = chamber_rhs(p, temp - dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
         assert out[5] == pytest.approx((hot[0] - cold[0]) / (2 * dt), rel=1e-5, abs=1e-3)
         assert out[3] == pytest.approx((hot[2] - cold[2]) / (2 * dt), rel=1e-5, abs=1e-6)
     # and the closure moves the rate at all here
     bare = sl.copy()
     bare[SLOT_INDEX["closure_terms"]] = 0.0
     assert abs(out[0] - chamber_rhs(p, temp, *args, bare, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0,
-                                    0.0)[0]) > 1.0
+                                    0.0, 1.0)[0]) > 1.0
 
 
 # ---------------------------------------------------------------- against the reference
@@ -240,6 +241,7 @@ CASES = [(f.name, {}) for f in cf.FEATURES] + [
      {"closure_threshold_0_a": -1.0, "closure_threshold_1_a": 0.0}),
     ("exhaust_flow*spool; volume_rate*volume; one", {}),
     ("net_flow*pressure_hinge_down", {"closure_threshold_0_b": 3.0}),
+    ("command_direction*inlet_flow", {}),
 ]
 
 
@@ -394,6 +396,107 @@ def test_discovery_proposes_no_tube_line_beside_a_closure(rig, valve_params):
     assert len(forms[False]) > 1 and forms[True] == forms[False][:1]
 
 
+# ---------------------------------------------------------------- the command's direction
+#: A hand-made command: 0 V, a rise to 1 V at 50 ms, a fall to 0.4 V at 150 ms (inside
+#: [-1, 1] V: the closable valve stays shut), read through a 10-ms delay.
+DELAY_S = 0.01
+PROBES_S = np.array([0.005, 0.03, 0.0595, 0.0605, 0.1, 0.1595, 0.1605, 0.25])
+
+
+def _rise_hold_fall(before=None):
+    t = np.arange(301) * 1e-3
+    u = np.select([t < 0.05 - 1e-9, t < 0.15 - 1e-9], [0.0, 1.0], 0.4)
+    x, ps = np.zeros_like(t), np.full_like(t, P_SUP)
+    return Inputs(t, u, x, ps, command_before_start=before)
+
+
+def _expected_direction(times, before=None):
+    """+1 from 60 ms, -1 from 160 ms, 0 before; a pre-trigger command above the first
+    sample's is a fall the delayed command shows from 10 ms on."""
+    times = np.asarray(times)
+    first = 0.0 if before is None else float(np.sign(0.0 - before))
+    return np.select([times < DELAY_S, times < 0.06, times < 0.16], [0.0, first, 1.0], -1.0)
+
+
+@pytest.mark.parametrize("before", [None, 0.7])
+def test_the_direction_signal_follows_the_delayed_commands_last_change(before, rig,
+                                                                         closable_params):
+    """cf.held_direction, path_signals (at the interval midpoints), rate_terms (which
+    refuses a closure reading the direction without it) and the compiled simulator
+    (valve shut, rigid chamber: term ``command_direction`` of c kg/s moves the pressure
+    at exactly n Rs T c dir / V, a piecewise straight line, vs the reference)."""
+    from conftest import BORE, STROKE
+
+    from pneubayes.discovery.openform.signals import path_signals
+    from pneubayes.io.recording import Recording, RecordingMetadata
+
+    inputs = _rise_hold_fall(before)
+    t = inputs.time_s
+    want = _expected_direction(PROBES_S, before)
+    got = cf.held_direction(PROBES_S, t, inputs.command_V, DELAY_S, before)
+    np.testing.assert_array_equal(got, want)
+    c = 2e-6
+    e = make_effect("closure", terms="command_direction")
+    model = Model(["tube_delay", e])
+    params = dict(closable_params, tube_delay_s=DELAY_S, closure_coefficient_0=c)
+    # path_signals: the midpoints of the intervals
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.0, command_before_start=before)
+    rec = Recording(md, t, inputs.command_V, np.full(t.size, 2e5))
+    sig = path_signals(model, params, rec, inputs, rig)
+    np.testing.assert_array_equal(sig["command_direction"],
+                                  _expected_direction(sig["time_s"], before))
+    # rate_terms: the closure's rate is the term's, and it needs the direction
+    sl = model.lower(model.vector(params)[None], rig)[0]
+    p = np.full(PROBES_S.size, 2e5)
+    zeros = np.zeros(PROBES_S.size)
+    r = rate_terms(sl, rig, p, zeros, zeros, zeros, np.full(PROBES_S.size, P_SUP), None, want)
+    g = rig.gas
+    rate = g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K * c \
+        / closable_params["dead_volume_m3"]
+    np.testing.assert_allclose(r.closure, rate * want, rtol=1e-12)
+    with pytest.raises(ValueError, match="command_direction"):
+        rate_terms(sl, rig, p, zeros, zeros, zeros, np.full(PROBES_S.size, P_SUP))
+    # the compiled simulator: the integral of rate * direction, and the reference
+    got = simulate(model, params, inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    fine = np.linspace(0.0, t[-1], 300001)
+    path = 2e5 + rate * np.concatenate(([0.0], np.cumsum(
+        _expected_direction(0.5 * (fine[1:] + fine[:-1]), before) * np.diff(fine))))
+    np.testing.assert_allclose(got, np.interp(t, fine, path), rtol=0, atol=0.5)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    assert np.max(np.abs(got - ref)) < 0.05  # Pa
+    assert np.ptp(got) > 1e3
+
+
+def test_the_direction_is_tracked_across_windows_and_inside_a_dead_band(rig, valve_params):
+    """Windows that start mid-recording find the direction by scanning the command back
+    (each window's prediction is the full run's from its start), and commands that move
+    only inside a dead band (the port areas unchanged) still flip the term, as in the
+    reference. (As for the spool, the error control alone keeps a step-end reuse at a
+    stale direction within 0.05 Pa here: this does not isolate the kernel's check.)"""
+    from pneubayes.simulation import simulate_windows
+
+    t = np.arange(301) * 1e-3
+    u = np.select([t < 0.04, t < 0.1, t < 0.17, t < 0.23], [0.2, -1.2, 1.1, 0.5], -0.4)
+    inputs = Inputs(t, u, np.zeros_like(t), np.full_like(t, P_SUP))
+    e = make_effect("closure", terms="command_direction*pressure_ratio; inlet_flow")
+    model = Model(["valve_deadzone", "tube_delay"]).with_effect(e)
+    params = dict(valve_params, deadzone_halfwidth_V=1.5, tube_delay_s=0.004,
+                  closure_coefficient_0=1e-6, closure_coefficient_1=0.02)
+    full = simulate(model, params, inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    flat = simulate(Model(["valve_deadzone", "tube_delay"]),
+                    dict(valve_params, deadzone_halfwidth_V=1.5, tube_delay_s=0.004),
+                    inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    assert np.max(np.abs(full - flat)) > 300.0
+    assert np.max(np.abs(full - ref)) < 0.05  # Pa
+    starts = np.array([0, 60, 120, 180, 240])
+    win = simulate_windows(model, params, inputs, rig, starts, 61, full[starts],
+                           _tight())[0]
+    for w, s0 in enumerate(starts):
+        np.testing.assert_allclose(win[w], full[s0:s0 + 61], rtol=0, atol=0.05)
+
+
 # ---------------------------------------------------------------- rate_terms
 @pytest.mark.parametrize("terms", ["inlet_flow*pressure_hinge; spool_hinge_down; volume",
                                    "exhaust_flow*volume_rate; supply_ratio*inlet_area",
@@ -455,7 +558,7 @@ def test_rate_terms_match_the_compiled_right_hand_side(rig, valve_params):
         fp = chamber_rhs(p, rig.gas.temperature_K, float(a_in[0]), float(a_ex[0]),
                          valve_params["dead_volume_m3"] + rig.bore_area_m2 * x,
                          rig.bore_area_m2 * v, P_SUP, sl, cs, 0.0, False, 0.0, 0.0, 0.0, s,
-                         0.0)[0]
+                         0.0, 0.0)[0]
         assert fp == pytest.approx(float(r.total[0]), rel=1e-9, abs=1e-3)
 
 

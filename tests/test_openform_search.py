@@ -63,6 +63,9 @@ CASES = {
     "pressure_hinge_down": (Term("pressure_hinge_down"), 4.0, 0.0, 1.2e-5),
     # a volume that follows the pressure scales the net port flow (module doc)
     "net_flow*pressure_ratio": (Term("net_flow", "pressure_ratio"), 0.0, 0.0, -0.02),
+    # a valve with hysteresis: 10 % more inlet flow after a rise, 10 % less after a fall
+    "command_direction*inlet_flow": (Term("command_direction", "inlet_flow"), 0.0, 0.0,
+                                     0.1),
 }
 
 
@@ -134,11 +137,12 @@ def test_intervals_marked_invalid_are_left_out():
 def test_the_library_is_typed_and_bounded():
     sig = [_signals(0)]
     cands = candidate_terms(sig)
-    assert 100 < len(cands) <= 370  # features.py's count at most
+    assert 100 < len(cands) <= 382  # features.py's count at most
     families = {c.family for c in cands}
     assert {"one", "pressure_ratio", "pressure_ratio*pressure_ratio", "pressure_hinge",
             "inlet_flow*spool_hinge_up", "spool_hinge_down", "pressure_hinge_down",
-            "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down"} <= families
+            "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down",
+            "inlet_flow*command_direction", "command_direction"} <= families
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
     for hinge in ("pressure_hinge", "pressure_hinge_down"):

@@ -13,6 +13,8 @@ the unit ``kg/s / (unit_a unit_b)``. The hinge features carry a threshold ``thet
 The same table is evaluated in two places that must agree to rounding: in numpy by
 :func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
 in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
+One feature has memory: ``command_direction``, the sign of the delayed command's last
+change (:func:`held_direction`; the kernel tracks it as it walks the command).
 """
 
 from __future__ import annotations
@@ -62,6 +64,9 @@ FEATURES: tuple[Feature, ...] = (
     Feature("net_flow", 13, "kg/s", "net port mass flow into the chamber, inlet minus "
             "exhaust (what a compliance or a volume that follows the pressure scales)"),
     Feature("pressure_hinge_down", 14, "-", "max(0, theta - p / P_atm)", hinge=True),
+    Feature("command_direction", 15, "-", "the sign of the delayed command's last change: "
+            "+1 after a rise, -1 after a fall, 0 before its first (a valve's memory of "
+            "its direction: hysteresis, play)"),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -70,10 +75,12 @@ CLOSURE_MAX_TERMS = 4
 
 #: Names of the signals :func:`evaluate_features` reads (arrays of one shape): absolute
 #: pressures in Pa, the spool in the command's unit, areas in m^2, port mass flows in
-#: kg/s, the volume in m^3 and its rate in m^3/s.
+#: kg/s, the volume in m^3 and its rate in m^3/s, the command's direction (+1, -1 or 0;
+#: :func:`command_direction`).
 SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spool",
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
-           "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s")
+           "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s",
+           "command_direction")
 
 
 def feature(name: str) -> Feature:
@@ -123,7 +130,45 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
     if f.code == 13:
         return (np.asarray(s["inlet_flow_kg_per_s"], dtype=np.float64)
                 - np.asarray(s["exhaust_flow_kg_per_s"], dtype=np.float64) + 0.0 * p)
-    return np.maximum(threshold - p / p_atm, 0.0)
+    if f.code == 14:
+        return np.maximum(threshold - p / p_atm, 0.0)
+    return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
+
+
+def command_direction(command, before=None) -> np.ndarray:
+    """The held command's direction once each sample is in force: the sign of its last
+    change up to and including sample k (+1 a rise, -1 a fall, 0 none yet).
+
+    Parameters
+    ----------
+    command : (N,) array
+        The command samples (held between them).
+    before : float or None
+        The command held before the first sample (``Inputs.command_before_start``; its
+        change to sample 0 counts); None: none.
+
+    Returns
+    -------
+    (N,) array of -1.0, 0.0 or 1.0
+    """
+    u = np.asarray(command, dtype=np.float64)
+    prev = np.concatenate(([u[0] if before is None else float(before)], u[:-1]))
+    step = np.sign(u - prev)
+    changed = np.nonzero(step)[0]
+    if not changed.size:
+        return np.zeros(u.size)
+    last = np.searchsorted(changed, np.arange(u.size), side="right") - 1
+    return np.where(last >= 0, step[changed[np.maximum(last, 0)]], 0.0)
+
+
+def held_direction(times_s, time_s, command, delay_s=0.0, before=None) -> np.ndarray:
+    """:func:`command_direction` of the command delayed by ``delay_s`` at ``times_s``:
+    the direction of the sample in force, the last j with ``time_s[j] + delay_s <= t``
+    (0 before the first sample takes over, as the pre-trigger command is held)."""
+    d = command_direction(command, before)
+    j = np.searchsorted(np.asarray(time_s, dtype=np.float64) + delay_s,
+                        np.asarray(times_s, dtype=np.float64), side="right") - 1
+    return np.where(j >= 0, d[np.maximum(j, 0)], 0.0)
 
 
 @dataclass(frozen=True)
@@ -187,6 +232,7 @@ SYMBOLS: dict[str, str] = {
     "volume_rate": "(dV/dt / V)", "pressure_hinge": "max(0, p / P_atm - {theta})",
     "spool_hinge_up": "max(0, s - {theta})", "spool_hinge_down": "max(0, {theta} - s)",
     "net_flow": "(m_in - m_ex)", "pressure_hinge_down": "max(0, {theta} - p / P_atm)",
+    "command_direction": "sgn(du)",
 }
 
 

@@ -86,7 +86,8 @@ def wall_exchange(kappa, hconv, bore_a, vol):
 
 @njit(cache=True, error_model="numpy")
 def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
-                    vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt):
+                    vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt,
+                    cdir):
     """One closure feature (:data:`pneubayes.effects.closure_features.FEATURES`, by its
     ``code``) as ``(F, dF/dp, dF/dt)``: its value, its slope in the chamber pressure and
     its explicit time derivative at fixed pressure.
@@ -97,7 +98,8 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     (``compl`` = dV/dp), ``vdot`` the piston's dV/dt (m^3/s), ``dsup``, ``dspool``,
     ``da_in``, ``da_ex`` the rates of the supply, spool and port areas. ``theta`` is a
     hinge's threshold. The volume rate's explicit derivative holds ``vdot`` fixed (the
-    position is linear between samples)."""
+    position is linear between samples). ``cdir`` is the delayed command's direction
+    (+1, -1 or 0), constant between the command's changes."""
     if code == 0:
         return 1.0, 0.0, 0.0
     if code == 1:
@@ -130,13 +132,15 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         return (z, 0.0, -dspool) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 13:
         return q_in - q_ex, dq_in_dp - dq_ex_dp, dq_in_dt - dq_ex_dt
-    z = theta - p / p_atm
-    return (z, -1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 14:
+        z = theta - p / p_atm
+        return (z, -1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
+    return cdir, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
 def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl, vdot,
-                 dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt):
+                 dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt, cdir):
     """The closure's mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s; slots
     ``closure_*``), with its slope in p (kg/(s Pa)) and its explicit time derivative
     (kg/s^2); the arguments as :func:`closure_feature` takes them."""
@@ -146,11 +150,11 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
         fa, da_p, da_t = closure_feature(int(sl[_CL_FA + k]), sl[_CL_TA + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
-                                         da_ex, dq_in_dt, dq_ex_dt)
+                                         da_ex, dq_in_dt, dq_ex_dt, cdir)
         fb, db_p, db_t = closure_feature(int(sl[_CL_FB + k]), sl[_CL_TB + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
-                                         da_ex, dq_in_dt, dq_ex_dt)
+                                         da_ex, dq_in_dt, dq_ex_dt, cdir)
         m += c * (fa * fb)
         dm_dp += c * (da_p * fb + fa * db_p)
         dm_dt += c * (da_t * fb + fa * db_t)
@@ -159,7 +163,7 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
 
 @njit(cache=True, error_model="numpy")
 def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in,
-                         da_ex, spool, dspool):
+                         da_ex, spool, dspool, cdir):
     """:func:`chamber_rhs` with an open-form closure (slot ``closure_terms`` > 0): the
     same body plus the closure's terms, written apart so that the plain model's code is
     unchanged (inside one body the closure's live values slowed the plain model's steps
@@ -203,7 +207,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if closure:
         m_cl = closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, a_in * f_in0,
                             a_ex * f_ex0, vol, compl, vdot, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                            0.0, 0.0)[0]
+                            0.0, 0.0, cdir)[0]
         mdot += m_cl
     denom = vol + kappa * p * compl
     inv_denom = 1.0 / denom
@@ -243,7 +247,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         _, dcl_dp, dcl_dt = closure_flow(
             sl, p, p_atm, p_sup, spool, a_in, a_ex, a_in * f_in0, a_ex * f_ex0, vol, compl,
             vdot, a_in * dfin_dp, a_ex * dfex_dp, dsup, dspool, da_in, da_ex,
-            a_in * dfin_dsup * dsup + f_in0 * da_in, f_ex0 * da_ex)
+            a_in * dfin_dsup * dsup + f_in0 * da_in, f_ex0 * da_ex, cdir)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
     dfex_dp *= sq_ex
@@ -310,7 +314,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
 
 @njit(cache=True, error_model="numpy")
 def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
-                spool, dspool):
+                spool, dspool, cdir):
     """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
 
     ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
@@ -334,8 +338,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     before the attenuation and the convective form's sqrt(T_w / T) (so they do not
     depend on T), the volume after compliance, and ``spool`` (the command after the
     delay and the spool's lag, before the dead band; moving at ``dspool`` per second,
-    which enters ``v_p``). With ``closure_terms`` 0 none of it is evaluated: the closure
-    is stepped by a copy of this body, :func:`_chamber_rhs_closure`.
+    which enters ``v_p``) and ``cdir`` (the delayed command's direction, +1, -1 or 0,
+    constant between its changes). With ``closure_terms`` 0 none of it is evaluated: the
+    closure is stepped by a copy of this body, :func:`_chamber_rhs_closure`.
 
     Compiled as a function of its own, not inlined at numba's IR level into its callers:
     inlined at the pressure-only step's two call sites it made the kernel's cold compile
@@ -344,7 +349,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     """
     if sl[_CL_N] > 0.0:
         return _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j,
-                                    dsup, da_in, da_ex, spool, dspool)
+                                    dsup, da_in, da_ex, spool, dspool, cdir)
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)

@@ -347,12 +347,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     p_lung = carry[CARRY_LUNG]
     lung_from_p0 = lung and math.isnan(p_lung)
     # an open-form closure: whether a term reads the spool (codes 3, 11, 12) or the
-    # volume rate (code 9), which the reuse of a step's end below must respect
-    cl_spool, cl_vdot = False, False
+    # command's direction (code 15; both change only with the command), or the volume
+    # rate (code 9), which the reuse of a step's end below must respect
+    cl_spool, cl_vdot, cl_dir = False, False, False
     for kc in range(int(sl[_CL_N])):
         for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
             if code == 3.0 or code == 11.0 or code == 12.0:
                 cl_spool = True
+            if code == 15.0:
+                cl_spool, cl_dir = True, True
             if code == 9.0:
                 cl_vdot = True
     if lung_from_p0:
@@ -462,6 +465,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         else:
             hi = mid
     j = lo - 1 if lo > 1 else 0
+    # the delayed command's direction (a closure's code 15): the sign of its last change
+    # up to j, found by scanning back, then tracked as j moves on
+    cdir = 0.0
+    if cl_dir:
+        jj = j
+        while jj > 0 and u[jj] == u[jj - 1]:
+            jj -= 1
+        if jj > 0:
+            cdir = 1.0 if u[jj] > u[jj - 1] else -1.0
     spool = u[j]  # steady spool at the start of the recording
     v_s = 0.0  # its velocity (second order), V/s
     # Input pointer: index m of the position/supply segment that holds time t + adv
@@ -542,6 +554,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             # Sub-interval [tau, t_end) on which the delayed command is constant.
             while j + 1 < n and t[j + 1] + delay <= tau:
                 j += 1
+                if cl_dir and u[j] != u[j - 1]:
+                    cdir = 1.0 if u[j] > u[j - 1] else -1.0
             cmd = u[j]
             t_end = tb
             jn = j + 1  # the next break of the delayed command
@@ -679,12 +693,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
                                                             vdot, da_in, da_ex, a_in2, a_ex2,
                                                             vol2, sl, cs, c_tank, atol_p,
-                                                            rtol, s_at, ds_at, s_at2)
+                                                            rtol, s_at, ds_at, s_at2, cdir)
                 elif general is not None and lung:
                     err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
                                                             vdot, psup, dsup, da_in, da_ex,
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
-                                                            atol_p, rtol, s_at, ds_at, s_at2)
+                                                            atol_p, rtol, s_at, ds_at, s_at2,
+                                                            cdir)
                 elif general is not None and wave:
                     # the chamber end: the valve's wave arriving, A_K(t - tau), linear
                     # over the grid interval the step lies in, drives the inflow
@@ -698,7 +713,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                                      w_dia, w_mu)
                     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot,
                                                             psup, sl, cs, hh, True, 0.0, 0.0,
-                                                            0.0, s_at, ds_at)
+                                                            0.0, s_at, ds_at, cdir)
                     gw = wave_gain(p, vol, sl, cs) / zc
                     fp += gw * (wb0 - p)
                     jp -= gw
@@ -708,7 +723,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     up = p + hh * (phi1p * fp + hh * phi2p * vp)
                     if up > 0.0 and math.isfinite(up):
                         fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh,
-                                           False, 0.0, 0.0, 0.0, s_at2, 0.0)[0]
+                                           False, 0.0, 0.0, 0.0, s_at2, 0.0, cdir)[0]
                                + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
                         ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
                         pn = up + ep
@@ -718,7 +733,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 elif general is not None and thermal:
                     err, pn, tn, prop_t, fp, jp, vp = thermal_step(
                         p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
-                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2)
+                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2,
+                        cdir)
                     zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
                 else:
                     c_ok = False
@@ -736,7 +752,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol,
                                                                 vdot, psup, sl, cs, hh, True,
                                                                 dsup, da_in, da_ex, s_at,
-                                                                ds_at)
+                                                                ds_at, cdir)
                     if not moving and not chord:
                         fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = True, fp, jp, vp, vdot, m
                         fs_ain, fs_aex, fs_s = a_in, a_ex, s_at
@@ -763,7 +779,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         up = uq / sc1
                         if up > 0.0 and math.isfinite(up):
                             fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl,
-                                              cs, hh, False, 0.0, 0.0, 0.0, s_at2, 0.0)[0]
+                                              cs, hh, False, 0.0, 0.0, 0.0, s_at2, 0.0,
+                                              cdir)[0]
                             ep = 2.0 * hh * phi3p * (sc1 * (fp2 + kap * up * vdot / vol2)
                                                      - fp - jf * (uq - p * sc0) - hh * vp)
                             pn = (uq + ep) / sc1
@@ -777,11 +794,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                             if fs_ok:
                                 fp2, jp2, _, _, vp2, _, _, _ = chamber_rhs(
                                     up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh,
-                                    True, dsup, 0.0, 0.0, s_at2, 0.0)
+                                    True, dsup, 0.0, 0.0, s_at2, 0.0, cdir)
                             else:
                                 fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2,
                                                   sl, cs, hh, False, 0.0, 0.0, 0.0, s_at2,
-                                                  0.0)[0]
+                                                  0.0, cdir)[0]
                             ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
                             pn = up + ep
                             err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.effects.closure_features import FEATURES, evaluate_feature
+from pneubayes.effects.closure_features import FEATURE_BY_NAME, FEATURES, evaluate_feature
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, TABLE_MAX_POINTS
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
@@ -74,6 +74,15 @@ def _closure_feature_values(code, threshold, signals: dict) -> np.ndarray:
         value = evaluate_feature(FEATURES[int(c)].name, signals, threshold)
         out = np.where(code == c, value, out)
     return out
+
+
+def _reads_direction(slots: np.ndarray) -> bool:
+    """Whether a live closure term reads feature ``command_direction``."""
+    code = float(FEATURE_BY_NAME["command_direction"].code)
+    n = np.asarray(slots[S["closure_terms"]])
+    return any(bool(np.any((k < n) & (np.asarray(slots[S[f"closure_feature_{s}_{k}"]])
+                                      == code)))
+               for k in range(CLOSURE_MAX_TERMS) for s in "ab")
 
 
 def closure_mass_flow(slots: np.ndarray, signals: dict) -> np.ndarray:
@@ -169,7 +178,8 @@ def tabulated_volume(slots: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.nda
 
 
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
-               velocity_m_per_s, supply_measured_Pa, exhaust_command=None) -> RateTerms:
+               velocity_m_per_s, supply_measured_Pa, exhaust_command=None,
+               command_direction=None) -> RateTerms:
     """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
 
     ``spool_V`` is the command after any delay and lag (the caller shifts or filters
@@ -178,7 +188,10 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     ``exhaust_command`` drives a separately commanded exhaust valve. An open-form
     closure's features read the spool ``spool_V``, the port flows ``a f`` before the
     attenuation, the volume after compliance and ``velocity_m_per_s`` times the bore's
-    area as the volume rate (:func:`closure_mass_flow`). A supply tank
+    area as the volume rate (:func:`closure_mass_flow`), and ``command_direction``
+    (+1, -1 or 0: the delayed command's last change,
+    :func:`~pneubayes.effects.closure_features.held_direction`), which must be given
+    when a term reads it. A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
     does a second compartment's pressure (slot ``lung_volume_m3``): its flow is left out
     here (the simulator carries it).
@@ -212,11 +225,17 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     volume = -kappa * p * vdot / denom
     closure = np.zeros(np.broadcast_shapes(np.shape(p), np.shape(sl[S["closure_terms"]])))
     if np.any(sl[S["closure_terms"]] > 0):
+        if command_direction is None and _reads_direction(sl):
+            raise ValueError("rate_terms: the closure reads the command's direction; give "
+                             "command_direction (closure_features.held_direction of the "
+                             "command at the evaluation times)")
         signals = {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
                    "atmospheric_pressure_Pa": p_atm, "spool": np.asarray(spool_V, float),
                    "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
                    "inlet_flow_kg_per_s": q_in, "exhaust_flow_kg_per_s": q_ex,
-                   "volume_m3": vol, "volume_rate_m3_per_s": vdot}
+                   "volume_m3": vol, "volume_rate_m3_per_s": vdot,
+                   "command_direction": (0.0 if command_direction is None
+                                         else np.asarray(command_direction, float))}
         closure = scale * closure_mass_flow(sl, signals)
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
     return RateTerms(inlet, exhaust, leak, volume, closure,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from pneubayes.effects.closure_features import FEATURES, evaluate_feature
+from pneubayes.effects.closure_features import FEATURES, command_direction, evaluate_feature
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
 from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa
@@ -27,7 +27,7 @@ from pneubayes.simulation.rates import dead_band
 from pneubayes.simulation.simulator import Inputs
 
 
-def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
+def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=0.0):
     g = rig.gas
     kappa, rs, t_s = g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K, g.temperature_K
     p_atm = rig.atmospheric_pressure_Pa
@@ -145,7 +145,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0):
                        "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
                        "inlet_flow_kg_per_s": a_in * f_in_raw,
                        "exhaust_flow_kg_per_s": a_ex * f_out_raw, "volume_m3": v_c,
-                       "volume_rate_m3_per_s": vdot}
+                       "volume_rate_m3_per_s": vdot, "command_direction": cdir}
             flows.append(sum(float(c * evaluate_feature(fa, signals, ta)
                                    * evaluate_feature(fb, signals, tb))
                              for c, fa, ta, fb, tb in closure))
@@ -261,6 +261,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         """The command held at delayed index jj (before the first sample: the declared
         pre-trigger command, else the first sample's)."""
         return u[0] if jj < 0 and before is None else (before if jj < 0 else u[jj])
+    directions = command_direction(u, before)  # (a closure's direction feature)
     j = int(np.searchsorted(t + delay, t[0], side="right") - 1)
     y[2] = held(j)
     out = np.empty(t.size)
@@ -294,7 +295,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         for a, b in zip(edges[:-1], edges[1:]):
             jj = int(np.searchsorted(shifted, a, side="right") - 1)
             cmd = held(jj)
-            rhs = _rhs_factory(sl, rig, cmd, *measured(a), ue[k])
+            rhs = _rhs_factory(sl, rig, cmd, *measured(a), ue[k],
+                               directions[jj] if jj >= 0 else 0.0)
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
                             atol=atols)
             if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):

@@ -13,8 +13,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the three partners above: with the ten non-hinge base features that is
-1 + 10 + 55 + 76 + 228 = 370 candidates at most. (A coarser grid saves columns but a
+with the three partners above: with the eleven non-hinge base features besides ``one``
+that is 1 + 11 + 66 + 76 + 228 = 382 candidates at most. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.

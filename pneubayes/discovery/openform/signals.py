@@ -5,7 +5,8 @@ of a fitted model along the *measured* pressure, at the midpoint of each sample
 interval (one value per interval, aligned with the one-step errors ``e[k]`` over
 ``[t_k, t_k+1]``): the measured pressure's chord mean, the supply the valve sees, the
 spool (the command after the model's delay and lag), the port areas and flows
-(:func:`~pneubayes.simulation.rates.port_areas`, eqs. 1-3), the volume and its rate.
+(:func:`~pneubayes.simulation.rates.port_areas`, eqs. 1-3), the volume and its rate,
+and the delayed command's direction.
 
 :func:`missing_mass_flow` turns the one-step errors into the target of the open-form
 search: the mass flow into the chamber that the model lacks, kg/s. By eq. 5 a mass flow
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneubayes.effects.closure_features import held_direction
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs
@@ -118,10 +120,11 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     dict
         Every name of :data:`~pneubayes.effects.closure_features.SIGNALS` -> ``(N - 1,)``
         array (absolute pressures Pa, spool in the command's unit, areas m^2, port flows
-        kg/s, volume m^3, volume rate m^3/s), plus ``"time_s"`` (the midpoints, s),
-        ``"interval_s"`` (each interval's length, s), ``"compliance_m3_per_Pa"`` (dV/dp
-        of a compliant chamber, 0 if rigid) and ``"jacobian_per_s"`` (the model's
-        d(dp/dt)/dp there, 1/s), which :func:`missing_mass_flow` reads, and ``"valid"``
+        kg/s, volume m^3, volume rate m^3/s, the command's direction), plus
+        ``"time_s"`` (the midpoints, s), ``"interval_s"`` (each interval's length, s),
+        ``"compliance_m3_per_Pa"`` (dV/dp of a compliant chamber, 0 if rigid) and
+        ``"jacobian_per_s"`` (the model's d(dp/dt)/dp there, 1/s), which
+        :func:`missing_mass_flow` reads, and ``"valid"``
         (both ends of the interval valid: the recording's ``valid`` column), which
         :class:`~pneubayes.discovery.openform.search.OpenFormSearch` reads.
     """
@@ -147,6 +150,9 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     x = 0.5 * (inputs.position_m[1:] + inputs.position_m[:-1])
     xdot = np.diff(inputs.position_m) / h  # the position is linear between samples
     spool = spool_at(mid, inputs, sl)
+    # the delayed command's direction (its last change's sign) at the midpoints
+    direction = held_direction(mid, t, inputs.command_V, float(sl[S["command_delay_s"]]),
+                               inputs.command_before_start)
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
     inlet = a_in * flow_function(p_sup, p, g)
@@ -157,14 +163,15 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
            + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol)
     vdot = rig.bore_area_m2 * xdot
     dp = JACOBIAN_STEP * p
-    rates = [rate_terms(sl, rig, p + s * dp, spool, x, xdot, ps_meas, ue).total
+    rates = [rate_terms(sl, rig, p + s * dp, spool, x, xdot, ps_meas, ue, direction).total
              for s in (1.0, -1.0)]
     jac = (rates[0] - rates[1]) / (2.0 * dp)
     return {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
             "atmospheric_pressure_Pa": np.full(p.shape, p_atm), "spool": spool,
             "inlet_area_m2": a_in, "exhaust_area_m2": a_ex, "inlet_flow_kg_per_s": inlet,
             "exhaust_flow_kg_per_s": exhaust, "volume_m3": vol,
-            "volume_rate_m3_per_s": vdot, "time_s": mid, "interval_s": h,
+            "volume_rate_m3_per_s": vdot, "command_direction": direction, "time_s": mid,
+            "interval_s": h,
             "compliance_m3_per_Pa": compliance + 0.0 * p, "jacobian_per_s": jac,
             "valid": valid[1:] & valid[:-1]}
 

@@ -34,12 +34,13 @@ from pneubayes.effects.closure_features import (
 
 def main_variable(term) -> str:
     """The feature a term is plotted against: a hinge's source, else its first
-    non-constant feature (``pressure_ratio`` for the constant)."""
+    non-constant feature other than the command's direction (a sign, which only splits
+    the points; ``pressure_ratio`` for the constant and the direction alone)."""
     for name in (term.a, term.b):
         if feature(name).hinge:
             return HINGE_SOURCES[name]
     for name in (term.a, term.b):
-        if name != "one":
+        if name not in ("one", "command_direction"):
             return name
     return "pressure_ratio"
 
