@@ -11,7 +11,13 @@ log-parameter space, by resample-move (Gilks & Berzuini 2001) with a sliding lik
    (:class:`LogNormalPrior`, e.g. :meth:`LogNormalPrior.from_point_fits` of per-run
    point fits, widened by a stated floor), or log-uniform over the card's bounds
    (:class:`LogUniformPrior`).
-2. *Reweight* at every tick (a block of new samples): each particle's model is
+2. *Drift* (optional): before a tick is scored, each particle takes a Gaussian step in
+   log space of ``drift_log_per_sqrt_s`` times the square root of the time since the
+   last tick, reflected at the bounds: the state-space model of a quantity that drifts
+   or steps (a lung set anew, a tank draining). With none, the filter assumes the
+   quantities constant over the run and its weights keep all the evidence so far, so
+   it follows a plant that steps only as fast as the moves of step 5 walk.
+3. *Reweight* at every tick (a block of new samples): each particle's model is
    simulated from the measured pressure ``lookback_s`` before the tick's last sample
    (optionally after warm-up windows of the same length that bring the states the
    recording does not measure, such as a second compartment's pressure, to that
@@ -22,16 +28,17 @@ log-parameter space, by resample-move (Gilks & Berzuini 2001) with a sliding lik
    would make the posterior collapse at once; a power likelihood is the stated
    remedy). Each sample is scored once, at the tick it arrives: the product over ticks
    is a prediction-error likelihood of ``lookback_s``-ahead predictions.
-3. *Resample* (systematic) when the effective sample size falls below
+4. *Resample* (systematic) when the effective sample size falls below
    ``ess_threshold`` times the particles.
-4. *Rejuvenate* after resampling: ``n_moves`` Gaussian random-walk Metropolis moves in
+5. *Rejuvenate* after resampling: ``n_moves`` Gaussian random-walk Metropolis moves in
    log space (covariance ``move_scale^2`` times the particles' weighted covariance before
    resampling, plus ``move_floor_log^2`` on the diagonal) whose target is the prior times
    the tempered likelihood of the last ``memory_s`` seconds (scored on the same window).
    Duplicates of resampling are so moved apart, and the accept keeps them where the
-   recent data put them. The target forgets what is older than ``memory_s``: exact
-   resample-move would score the whole run so far at every move (cost growing with the
-   run) and could not follow a plant that changes; this tracker is built for that.
+   recent data put them. This is an approximation: the weights carry the evidence of
+   the whole run, the moves' target only the recent samples (exact resample-move would
+   score the whole run so far at every move, a cost growing with the run), so the
+   particles stand for a posterior that leans on recent data, not the exact one.
 
 Why this method: the varying quantities are few (2-4), the model is a simulator (no
 gradients, no conjugacy), and a controller needs the predictive distribution at every
