@@ -15,8 +15,10 @@ For each plant, lookback (the seconds each update simulates from the measured
 pressure: 0.05, 0.2, 1 s), warm-up windows (0, 1; the ventilator's second compartment)
 and numba threads (1, 2): the median and 95th percentile of ``OnlineTracker.update``'s
 wall time over a stream of ticks after 0.5 s of warm-up (ticks that resample and move
-included: those are the 95th percentile's), and the share of ticks that resampled.
-Times are reported, never asserted; the machine is shared.
+included), and the share of ticks that resampled; and, at a 0.2-s lookback, a stream
+that resamples and moves at every tick (the worst tick's cost); the best setting per plant on 1 and
+on 2 threads against the floor. Times are reported, never asserted; the machine is
+shared (on a loaded one the parallel loop's second thread may wait for a time slice).
 """
 
 from __future__ import annotations
@@ -73,11 +75,12 @@ def ventilator_stream(seconds):
     return model, params, prior, rec.rig(), (t, *cols), 150.0
 
 
-def time_stream(setup, lookback_s, warm, rng_seed, seconds):
+def time_stream(setup, lookback_s, warm, rng_seed, seconds, ess_threshold=0.5):
     model, params, prior, rig, (t, u, p, ue), sigma = setup
     tr = OnlineTracker(model, params, prior, rig, SolverConfig.standard(), sigma,
                        n_particles=N_PARTICLES, lookback_s=lookback_s, memory_s=lookback_s,
-                       warm_up_windows=warm, temper=0.1).reset(np.random.default_rng(rng_seed))
+                       warm_up_windows=warm, temper=0.1, ess_threshold=ess_threshold
+                       ).reset(np.random.default_rng(rng_seed))
     ms, resampled = [], 0
     skip = int(0.5 * RATE_HZ) + int(lookback_s * (1 + warm) * RATE_HZ)
     for k in range(min(t.size, int(seconds * RATE_HZ))):
@@ -92,6 +95,13 @@ def time_stream(setup, lookback_s, warm, rng_seed, seconds):
     return {"median_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95)),
             "mean_ms": float(ms.mean()), "ticks": int(ms.size),
             "resampled_share": resampled / ms.size}
+
+
+def say(row) -> None:
+    print(f"{row['plant']:<10} lookback {row['lookback_s']:4.2f} s  warm "
+          f"{row['warm_up_windows']}  {row['threads']} thr  median {row['median_ms']:7.2f} ms"
+          f"  p95 {row['p95_ms']:7.2f} ms  resampled {row['resampled_share']:.2f}",
+          file=sys.stderr, flush=True)
 
 
 def main(argv=None) -> int:
@@ -117,23 +127,38 @@ def main(argv=None) -> int:
                            "threads": threads, "particles": N_PARTICLES, "rate_Hz": RATE_HZ,
                            **time_stream(setup, lookback, warm, args.seed, span)}
                     rows.append(row)
-                    print(f"{plant:<10} lookback {lookback:4.2f} s  warm {warm}  {threads} thr"
-                          f"  median {row['median_ms']:7.2f} ms  p95 {row['p95_ms']:7.2f} ms"
-                          f"  resampled {row['resampled_share']:.2f}", file=sys.stderr,
-                          flush=True)
-    best = {plant: min((r for r in rows if r["plant"] == plant and r["threads"] == 2),
-                       key=lambda r: r["median_ms"], default=None) for plant in plants}
-    floor = {plant: None if r is None else {
-        "ceiling_ms": FLOOR_MS, "best_median_ms": r["median_ms"], "at": {
-            k: r[k] for k in ("lookback_s", "warm_up_windows")},
-        "met": bool(r["median_ms"] <= FLOOR_MS)} for plant, r in best.items()}
+                    say(row)
+        for threads in (1, 2):  # every tick resampled and moved (2 moves): the worst tick
+            if threads > numba.config.NUMBA_NUM_THREADS:
+                continue
+            numba.set_num_threads(threads)
+            row = {"plant": plant, "lookback_s": 0.2, "warm_up_windows": 0,
+                   "threads": threads, "particles": N_PARTICLES, "rate_Hz": RATE_HZ,
+                   "every_tick_resampled": True,
+                   **time_stream(setup, 0.2, 0, args.seed, seconds + 0.7, ess_threshold=1.0)}
+            rows.append(row)
+            say(row)
+    # the best setting per plant and thread count: on a shared machine the parallel
+    # loop's second thread can wait for a time slice, so both are reported
+    floor = {}
+    for plant in plants:
+        for threads in (1, 2):
+            cands = [r for r in rows if r["plant"] == plant and r["threads"] == threads
+                     and not r.get("every_tick_resampled")]
+            if not cands:
+                continue
+            r = min(cands, key=lambda row: row["median_ms"])
+            floor[f"{plant}, {threads} thread(s)"] = {
+                "ceiling_ms": FLOOR_MS, "best_median_ms": r["median_ms"],
+                "p95_ms": r["p95_ms"],
+                "at": {k: r[k] for k in ("lookback_s", "warm_up_windows")},
+                "met": bool(r["median_ms"] <= FLOOR_MS)}
     write_json_atomic(args.json, {"format": "pneubayes-bench-online/1", "seed": args.seed,
                                   "quick": args.quick, "rows": rows, "floor": floor})
-    for plant, f in floor.items():
-        if f is not None:
-            print(f"{plant}: best median {f['best_median_ms']:.2f} ms per 200-Hz tick at "
-                  f"{f['at']} on 2 threads (ceiling {FLOOR_MS:g} ms) "
-                  f"{'MET' if f['met'] else 'NOT MET'}")
+    for what, f in floor.items():
+        print(f"{what}: best median {f['best_median_ms']:.2f} ms (p95 {f['p95_ms']:.2f} ms) "
+              f"per 200-Hz tick at {f['at']} (ceiling {FLOOR_MS:g} ms) "
+              f"{'MET' if f['met'] else 'NOT MET'}")
     return 0
 
 

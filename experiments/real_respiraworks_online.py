@@ -66,6 +66,8 @@ TRACKER = {"lookback_s": 2.0, "warm_up_windows": 1, "temper": 0.1, "ess_threshol
            "n_moves": 2, "move_scale": 0.5, "move_floor_log": 1e-3, "memory_s": 2.0,
            "drift_log_per_sqrt_s": 0.0}
 CMH2O_PA = 98.0665
+#: the knobs --select chooses among on the training runs (leave one out)
+SELECT_GRID = {"temper": (0.03, 0.1, 0.3), "move_floor_log": (1e-3, 0.02, 0.1)}
 #: warm-up windows (of the 2-s horizon) before every prediction, as many as the run holds
 FORECAST_WARM = 3
 
@@ -97,7 +99,82 @@ def rmse(e) -> float:
     return float(np.sqrt(np.mean(np.square(np.concatenate([np.ravel(x) for x in e])))))
 
 
-def run_set(kind: str, out: Path, quick: bool, smoke: bool, log) -> dict:
+def ticks_of(r, m: int, h: int) -> tuple[int, list[int], list[int]]:
+    """(n_cal, the protocol's window starts, every tick's start): ticks end on samples
+    0, m, 2m, ...; a start is a tick from ``CAL_S`` on whose next ``h`` samples lie in
+    the run."""
+    n = r.n_samples
+    n_cal = int(np.searchsorted(r.time_s, r.time_s[0] + CAL_S))
+    every = [k for k in range(0, n, m) if k >= n_cal and k + h < n]
+    return n_cal, list(range(n_cal, n - h, h)), every
+
+
+def track_online(model, shared, prior, sigma, band_sigma, knobs, r, seed, every_tick):
+    """Stream the run ``r`` through a tracker; its predictions at the protocol's window
+    starts (and with ``every_tick`` at every tick's) and their bands."""
+    rng = np.random.default_rng(seed)
+    std = SolverConfig.standard()
+    p = np.asarray(r.pressure_Pa, dtype=np.float64)
+    t = np.asarray(r.time_s, dtype=np.float64)
+    dt = float(np.median(np.diff(t)))
+    h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
+    _, protocol, every = ticks_of(r, m, h)
+    wanted = set(every if every_tick else protocol)
+    inputs, ue = Inputs.from_recording(r), r.exhaust_command()
+    tracker = OnlineTracker(model, shared, prior, r.rig(), std, sigma,
+                            n_particles=N_PARTICLES, **knobs).reset(rng)
+    out = {"errors": {}, "inside": {}, "width": {}, "tick_ms": [], "trace": []}
+    for k0, k1 in zip([0, *range(1, p.size, m)], [*range(1, p.size, m), p.size]):
+        c0 = time.perf_counter()
+        tracker.update(t[k0:k1], r.command_V[k0:k1], p[k0:k1], ue[k0:k1])
+        out["tick_ms"].append(1e3 * (time.perf_counter() - c0))
+        k = k1 - 1
+        if k % (5 * m) == 0:
+            out["trace"].append({"time_s": float(t[k]), "ess": tracker.ess_,
+                                 **tracker.quantiles()})
+        if k not in wanted:
+            continue
+        y = p[k + 1:k + h + 1]
+        sims = forecast(model, tracker.draws(N_DRAWS, rng), inputs, r.rig(), k, h + 1, p,
+                        std, FORECAST_WARM)[:, 1:]
+        sims = sims[np.all(np.isfinite(sims), axis=1)]
+        noisy = sims + rng.normal(0.0, band_sigma, size=sims.shape)
+        lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
+        out["errors"][k] = y - sims.mean(axis=0)
+        out["inside"][k] = (y >= lo) & (y <= hi)
+        out["width"][k] = hi - lo
+    out["final_quantiles"] = tracker.quantiles()
+    out["n_resamples"] = tracker.n_resamples_
+    return out, protocol, every
+
+
+def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) -> dict:
+    """Leave one training run out: the population and error scale from the other three,
+    the tracker through the left-out run; every setting of ``SELECT_GRID`` pooled over
+    the four runs (the protocol's windows). The held-out runs are not read."""
+    lung = LUNG["two_compartment"]
+    table = []
+    for temper in SELECT_GRID["temper"]:
+        for floor in SELECT_GRID["move_floor_log"]:
+            knobs = {**TRACKER, "temper": temper, "move_floor_log": floor}
+            errs = []
+            for j, r in enumerate(train):
+                others = [f for i, f in enumerate(fits) if i != j]
+                prior = LogNormalPrior.from_point_fits(model, lung, others, FLOOR_LOG_SD)
+                sigma = float(np.median([x for i, x in enumerate(fit_rmse) if i != j]))
+                res, protocol, _ = track_online(model, shared, prior, sigma, band_sigma,
+                                                knobs, r, [SEED, 100 + j], False)
+                errs += [res["errors"][k] for k in protocol]
+            table.append({"temper": temper, "move_floor_log": floor, "rmse_Pa": rmse(errs)})
+            log(f"[{kind}] select (training runs, leave one out): temper {temper:g}, "
+                f"move floor {floor:g}: {table[-1]['rmse_Pa']:.0f} Pa")
+    best = min(table, key=lambda row: row["rmse_Pa"])
+    return {"grid": table, "chosen": {"temper": best["temper"],
+                                      "move_floor_log": best["move_floor_log"]}}
+
+
+def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
+            log) -> dict:
     card = form_card(kind, "two_compartment", "separate")
     lung = LUNG["two_compartment"]
     recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
@@ -141,117 +218,108 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, log) -> dict:
         f"protocol's error on the training runs (the band's scale) {band_sigma:.0f} Pa")
     res = {"population": prior.describe(), "per_run_lung_fits": fits,
            "per_run_lung_fit_rmse_Pa": fit_rmse, "noise_std_Pa": sigma,
-           "band_std_Pa": band_sigma,
-           "shared_parameters": shared, "runs": {}}
-    pooled = {k: [] for k in ("setpoint", "frozen", "calibrated", "online", "refit")}
-    pooled_all = {k: [] for k in ("setpoint", "frozen", "calibrated", "online")}
-    cover, width, cover_all, cover_frozen, cover_cal = [], [], [], [], []
-    forms_shared, forms_cal, tick_ms, rests = [], [], [], []
-    for i, r in enumerate(held):
+           "band_std_Pa": band_sigma, "shared_parameters": shared, "runs": {}}
+    knobs = dict(TRACKER)
+    if select:
+        res["selection"] = select_knobs(model, shared, fits, fit_rmse, band_sigma, train,
+                                        log, kind)
+        knobs.update(res["selection"]["chosen"])
+    res["tracker"] = knobs
+    # the baselines on the same windows (no random numbers)
+    base = {k: [] for k in ("setpoint", "frozen", "calibrated", "refit")}
+    base_all = {k: [] for k in ("setpoint", "frozen", "calibrated")}
+    z90 = 1.6448536269514722 * band_sigma  # a point prediction's band with the same errors
+    cover_point = {"frozen": [], "calibrated": []}
+    forms_shared, forms_cal, rests = [], [], []
+    for r in held:
         stem = Path(r.source).stem
-        rng = np.random.default_rng([SEED, i, ord(kind[0])])
         p = np.asarray(r.pressure_Pa, dtype=np.float64)
-        t = np.asarray(r.time_s, dtype=np.float64)
-        dt = float(np.median(np.diff(t)))
-        h = int(round(HORIZON_S / dt))  # samples after a window's start
-        n_cal = int(np.searchsorted(t, t[0] + CAL_S))
+        dt = float(np.median(np.diff(r.time_s)))
+        h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
+        n_cal, protocol, every = ticks_of(r, m, h)
         bound = read_recording(r.source, rig_card=local_card)
         cal = refit_lung(local, [bound.slice(0, n_cal + 1)], start_lung, solver, nfev)
-        cal_theta = model.vector({**shared, **{k: cal.params_[k] for k in lung}})
+        cal_theta = model.vector({**shared, **cal.params_})
         # the forms script's numbers: windows chained through the rest of the run
-        rest = r.slice(n_cal, None)
-        rests.append(rest)
-        forms_shared.append(WindowSet([rest], HORIZON_S, HORIZON_S).residuals(
+        rests.append(r.slice(n_cal, None))
+        forms_shared.append(WindowSet([rests[-1]], HORIZON_S, HORIZON_S).residuals(
             model, shared, std))
         forms_cal.append(WindowSet([bound.slice(n_cal, None)], HORIZON_S, HORIZON_S)
                          .residuals(local, cal.params_, std))
         inputs = Inputs.from_recording(r)
-        ue = r.exhaust_command()
         sp = r.extra_columns["pc_setpoint_cmH2O"].astype(float) * CMH2O_PA \
             + r.metadata.atmospheric_pressure_Pa
-        tracker = OnlineTracker(model, shared, prior, r.rig(), std, sigma,
-                                n_particles=N_PARTICLES, **TRACKER).reset(rng)
-        m = int(round(TICK_S / dt))
-        protocol = set(range(n_cal, p.size - h, h))
         refit_start = dict(cal.params_)
-        trace = []
-        # ticks end on samples 0, m, 2m, ...: the protocol's window starts among them
-        for k0, k1 in zip([0, *range(1, p.size, m)], [*range(1, p.size, m), p.size]):
-            c0 = time.perf_counter()
-            tracker.update(t[k0:k1], r.command_V[k0:k1], p[k0:k1], ue[k0:k1])
-            tick_ms.append(1e3 * (time.perf_counter() - c0))
-            k = k1 - 1  # the last sample seen
-            q = tracker.quantiles()
-            trace.append({"time_s": float(t[k]), "ess": tracker.ess_, **{
-                n: q[n] for n in lung}})
-            if k < n_cal or k + h >= p.size:
-                continue
+        for k in every:
             y = p[k + 1:k + h + 1]
-            draws = tracker.draws(N_DRAWS, rng)
-            sims = forecast(model, draws, inputs, r.rig(), k, h + 1, p, std,
-                            FORECAST_WARM)[:, 1:]
-            ok = np.all(np.isfinite(sims), axis=1)
-            sims = sims[ok]
-            pred = sims.mean(axis=0)
             fro, cali = forecast(model, np.stack([model.vector(shared), cal_theta]), inputs,
                                  r.rig(), k, h + 1, p, std, FORECAST_WARM)[:, 1:]
-            noisy = sims + rng.normal(0.0, band_sigma, size=sims.shape)
-            lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
-            inside = (y >= lo) & (y <= hi)
-            z = 1.6448536269514722 * band_sigma  # a point prediction's band with the same errors
             errs = {"setpoint": y - sp[k + 1:k + h + 1], "frozen": y - fro,
-                    "calibrated": y - cali, "online": y - pred}
+                    "calibrated": y - cali}
             for key, e in errs.items():
-                pooled_all[key].append(e)
-            cover_all.append(inside)
+                base_all[key].append(e)
             if k in protocol:
                 for key, e in errs.items():
-                    pooled[key].append(e)
-                cover.append(inside)
-                width.append(hi - lo)
-                cover_frozen.append(np.abs(y - fro) <= z)
-                cover_cal.append(np.abs(y - cali) <= z)
+                    base[key].append(e)
+                cover_point["frozen"].append(np.abs(y - fro) <= z90)
+                cover_point["calibrated"].append(np.abs(y - cali) <= z90)
                 if not quick:
                     so_far = refit_lung(local, [bound.slice(0, k + 1)], refit_start, solver,
                                         nfev)
                     refit_start = dict(so_far.params_)
                     th = model.vector({**shared, **so_far.params_})
-                    pooled["refit"].append(y - forecast(model, th[None], inputs, r.rig(), k,
-                                                        h + 1, p, std, FORECAST_WARM)[0, 1:])
-        res["runs"][stem] = {"calibrated_lung": {k: cal.params_[k] for k in lung},
-                             "trace": trace[::5], "final_quantiles": tracker.quantiles(),
-                             "n_resamples": tracker.n_resamples_}
-        log(f"[{kind}] {stem}: {len(trace)} ticks, {tracker.n_resamples_} resamples; lung "
-            f"calibrated {res['runs'][stem]['calibrated_lung']}, tracked at the end "
-            f"{tracker.quantiles()}")
-    ms = np.array(tick_ms)
-    res.update({
-        "protocol_windows": {k: rmse(v) for k, v in pooled.items() if v},
-        "protocol_n_windows": len(pooled["online"]),
-        "every_tick_windows": {k: rmse(v) for k, v in pooled_all.items()},
-        "every_tick_n_windows": len(pooled_all["online"]),
-        "online_coverage_90_protocol": float(np.mean(np.concatenate(cover))),
-        "online_coverage_90_every_tick": float(np.mean(np.concatenate(cover_all))),
-        "online_band_90_median_width_Pa": float(np.median(np.concatenate(width))),
-        "frozen_coverage_90_same_error_band": float(np.mean(np.concatenate(cover_frozen))),
-        "calibrated_coverage_90_same_error_band": float(np.mean(np.concatenate(cover_cal))),
-        "forms_script_after_cal_shared_Pa": rmse([e[:, :, :] for e in forms_shared]),
-        "forms_script_after_cal_calibrated_Pa": rmse(forms_cal),
-        "forms_script_setpoint_after_cal_Pa": setpoint_rmse_Pa(rests, HORIZON_S),
-        "noise_floor_Pa": noise_floor_Pa(recs),
-        "tick_ms": {"median": float(np.median(ms)), "mean": float(ms.mean()),
-                    "p95": float(np.percentile(ms, 95)), "max": float(ms.max()),
-                    "ticks": int(ms.size)},
-    })
+                    base["refit"].append(y - forecast(model, th[None], inputs, r.rig(), k,
+                                                      h + 1, p, std, FORECAST_WARM)[0, 1:])
+        res["runs"][stem] = {"calibrated_lung": {k: cal.params_[k] for k in lung}}
+    res["protocol_windows"] = {k: rmse(v) for k, v in base.items() if v}
+    res["every_tick_windows"] = {k: rmse(v) for k, v in base_all.items()}
+    res["protocol_n_windows"] = len(base["frozen"])
+    res["every_tick_n_windows"] = len(base_all["frozen"])
+    res["point_coverage_90_same_error_band"] = {
+        k: float(np.mean(np.concatenate(v))) for k, v in cover_point.items()}
+    res["forms_script_after_cal_Pa"] = {"shared": rmse(forms_shared),
+                                        "calibrated": rmse(forms_cal),
+                                        "setpoint": setpoint_rmse_Pa(rests, HORIZON_S)}
+    res["noise_floor_Pa"] = noise_floor_Pa(recs)
+    # the tracker, per seed
+    res["online"] = {}
+    for seed in seeds:
+        errs_p, errs_a, in_p, in_a, width, ms = [], [], [], [], [], []
+        for i, r in enumerate(held):
+            o, protocol, every = track_online(model, shared, prior, sigma, band_sigma,
+                                              knobs, r, [seed, i, ord(kind[0])], True)
+            errs_p += [o["errors"][k] for k in protocol]
+            in_p += [o["inside"][k] for k in protocol]
+            width += [o["width"][k] for k in protocol]
+            errs_a += [o["errors"][k] for k in every]
+            in_a += [o["inside"][k] for k in every]
+            ms += o["tick_ms"]
+            if seed == seeds[0]:
+                stem = Path(r.source).stem
+                res["runs"][stem].update({"trace": o["trace"], "n_resamples": o["n_resamples"],
+                                          "final_quantiles": o["final_quantiles"]})
+                log(f"[{kind}] {stem}: lung calibrated {res['runs'][stem]['calibrated_lung']}"
+                    f", tracked at the end {o['final_quantiles']}")
+        ms = np.array(ms)
+        res["online"][str(seed)] = {
+            "protocol_rmse_Pa": rmse(errs_p), "every_tick_rmse_Pa": rmse(errs_a),
+            "coverage_90_protocol": float(np.mean(np.concatenate(in_p))),
+            "coverage_90_every_tick": float(np.mean(np.concatenate(in_a))),
+            "band_90_median_width_Pa": float(np.median(np.concatenate(width))),
+            "tick_ms": {"median": float(np.median(ms)), "mean": float(ms.mean()),
+                        "p95": float(np.percentile(ms, 95)), "max": float(ms.max()),
+                        "ticks": int(ms.size)}}
+        o = res["online"][str(seed)]
+        log(f"[{kind}] seed {seed}: online {o['protocol_rmse_Pa']:.0f} Pa on the protocol's "
+            f"windows, {o['every_tick_rmse_Pa']:.0f} Pa every tick; 90 % coverage "
+            f"{o['coverage_90_protocol']:.2f} (band {o['band_90_median_width_Pa']:.0f} Pa); "
+            f"tick {o['tick_ms']['median']:.1f} ms median")
     pw = res["protocol_windows"]
     log(f"[{kind}] protocol windows ({res['protocol_n_windows']}): set-point "
-        f"{pw['setpoint']:.0f}, frozen {pw['frozen']:.0f}, calibrated {pw['calibrated']:.0f}, "
-        f"online {pw['online']:.0f}" + (f", refit so far {pw['refit']:.0f}" if 'refit' in pw
-                                        else "")
-        + f" Pa; 90 % coverage {res['online_coverage_90_protocol']:.2f} (band "
-        f"{res['online_band_90_median_width_Pa']:.0f} Pa); every tick: "
-        + ", ".join(f"{k} {v:.0f}" for k, v in res["every_tick_windows"].items())
-        + f" Pa; tick {res['tick_ms']['median']:.1f} ms median")
+        f"{pw['setpoint']:.0f}, frozen {pw['frozen']:.0f}, calibrated {pw['calibrated']:.0f}"
+        + (f", refit so far {pw['refit']:.0f}" if "refit" in pw else "") + " Pa; online "
+        + ", ".join(f"{v['protocol_rmse_Pa']:.0f}" for v in res["online"].values())
+        + f" Pa (seeds {list(seeds)})")
     return res
 
 
@@ -263,6 +331,11 @@ def main(argv=None) -> int:
                     help="skip the refit-so-far comparison (the slow part)")
     ap.add_argument("--smoke", action="store_true",
                     help="one held-out run, 10-evaluation refinements (a check it runs)")
+    ap.add_argument("--select", action="store_true",
+                    help="choose temper and the move floor on the training runs (leave one "
+                         "out, SELECT_GRID) before the held-out runs")
+    ap.add_argument("--seeds", default=str(SEED),
+                    help="comma-separated tracker seeds (the first one's traces are kept)")
     ap.add_argument("--set", action="append", default=[], metavar="KNOB=VALUE",
                     help="override a tracker knob of TRACKER (recorded in the result)")
     args = ap.parse_args(argv)
@@ -272,16 +345,19 @@ def main(argv=None) -> int:
             ap.error(f"--set {item}: not a knob of {sorted(TRACKER)}")
         TRACKER[key] = type(TRACKER[key])(float(value) if isinstance(TRACKER[key], float)
                                           else int(value))
+    seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
     out = Path(args.out)
     path = out / "real_respiraworks_online.json"
     result = {"horizon_s": HORIZON_S, "held_out": list(HELD_OUT), "calibration_s": CAL_S,
               "tick_s": TICK_S, "n_particles": N_PARTICLES, "n_draws": N_DRAWS,
               "floor_log_sd": FLOOR_LOG_SD, "tracker": TRACKER,
               "forecast_warm_up_windows": FORECAST_WARM, "seed": SEED,
-              "max_nfev": MAX_NFEV, "quick": args.quick, "smoke": args.smoke, "sets": {},
+              "max_nfev": MAX_NFEV, "quick": args.quick, "smoke": args.smoke,
+              "select": args.select, "select_grid": SELECT_GRID if args.select else None,
+              "seeds": seeds, "sets": {},
               "provenance": provenance()}
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
-        result["sets"][kind] = run_set(kind, out, args.quick, args.smoke,
+        result["sets"][kind] = run_set(kind, out, args.quick, args.smoke, args.select, seeds,
                                        lambda msg: print(msg, file=sys.stderr))
         write_json_atomic(path, result)
     return 0

@@ -241,3 +241,22 @@ def test_track_never_writes_over_an_input(bench_run, capsys):
                  str(run / "model.json"), "--overwrite", "--noise-std", "2000"]) == 2
     assert "input" in capsys.readouterr().err
     assert (run / "model.json").read_text() == before
+
+
+@pytest.mark.slow
+def test_respiraworks_online_experiment_smoke(tmp_path):
+    import sys
+    from pathlib import Path
+
+    from conftest import load_experiment
+
+    experiments = str(Path(__file__).resolve().parents[1] / "experiments")
+    if experiments not in sys.path:  # its siblings (real_respiraworks, ..._forms)
+        sys.path.insert(0, experiments)
+    mod = load_experiment("real_respiraworks_online")
+    assert mod.main(["--out", str(tmp_path), "--sets", "OXY", "--smoke", "--quick"]) == 0
+    doc = json.loads((tmp_path / "real_respiraworks_online.json").read_text())
+    res = doc["sets"]["OXY"]
+    assert set(res["protocol_windows"]) >= {"setpoint", "frozen", "calibrated", "online"}
+    assert all(np.isfinite(v) for v in res["protocol_windows"].values())
+    assert 0.0 <= res["online_coverage_90_protocol"] <= 1.0

@@ -171,7 +171,18 @@ class LogNormalPrior(LogUniformPrior):
 
 
 def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
-    """Indices of a systematic resample of normalised ``weights`` (one uniform draw)."""
+    """Systematic resampling (one uniform draw for all the particles).
+
+    Parameters
+    ----------
+    weights : (N,) normalised weights
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    (N,) int ndarray
+        Indices of the particles kept, in order.
+    """
     w = np.asarray(weights, dtype=np.float64)
     n = w.size
     positions = (rng.uniform() + np.arange(n)) / n
@@ -481,13 +492,35 @@ class OnlineTracker:
 
 def forecast(model: Model, theta, inputs: Inputs, rig, start: int, length: int,
              pressure_Pa, solver: SolverConfig, warm_up_windows: int = 1) -> np.ndarray:
-    """Predict ``length`` samples from sample ``start`` (from the measured pressure
-    there) for parameter sets ``theta`` ``(B, P)``, with the states the recording does
-    not measure (a second compartment's pressure, a tube's waves) brought to the start
-    by up to ``warm_up_windows`` contiguous warm-up windows of the same length before it
-    (as many as the inputs hold; each restarted from the measured pressure, the kernel
-    carrying the other states across them). Returns ``(B, length)`` Pa (NaN where a
-    set fails)."""
+    """Predict ``length`` samples from sample ``start``, from the measured pressure there.
+
+    The states the recording does not measure (a second compartment's pressure, a
+    tube's waves) are brought to the start by up to ``warm_up_windows`` contiguous
+    warm-up windows of the same length before it (as many as the inputs hold; each
+    restarted from the measured pressure, the kernel carrying the other states across
+    them).
+
+    Parameters
+    ----------
+    model : Model
+    theta : (B, P) parameter sets
+    inputs : Inputs
+        The drive signals, reaching back over the warm-up and on over the window.
+    rig : Rig
+    start : int
+        The window's first sample.
+    length : int
+        Samples of the window, its start included.
+    pressure_Pa : (N,) measured pressure, Pa absolute (the windows' starts)
+    solver : SolverConfig
+    warm_up_windows : int
+
+    Returns
+    -------
+    (B, length) ndarray
+        Predicted pressure, Pa (column 0 the measured start; NaN rows where a set
+        fails to simulate).
+    """
     p = np.asarray(pressure_Pa, dtype=np.float64)
     n_warm = min(int(warm_up_windows), start // (length - 1)) if length > 1 else 0
     s = start - (length - 1) * np.arange(n_warm, -1, -1)

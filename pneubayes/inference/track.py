@@ -30,14 +30,36 @@ Z90 = 1.6448536269514722
 def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
            n_draws: int, rng: np.random.Generator, predict_every: int = 1,
            frozen=None) -> list[dict]:
-    """Feed ``recording`` to ``tracker`` (already :meth:`~OnlineTracker.reset`) one tick
-    of ``tick_s`` at a time; returns one record per tick: ``time_s``, ``ess``, the
-    varying quantities' 5/50/95 % quantiles, ``update_ms`` (the update's wall time) and,
-    every ``predict_every`` ticks while ``horizon_s`` more samples follow, the RMSE (Pa)
-    of the mean of ``n_draws`` resampled particles' predictions from the measured
-    pressure (:func:`~pneubayes.inference.online.forecast`), the 90 % band's coverage
-    (the particles' predictions plus the tracker's Gaussian errors) and, with
-    ``frozen`` (a parameter vector), the frozen model's RMSE on the same samples."""
+    """Feed ``recording`` to ``tracker`` one tick of ``tick_s`` at a time.
+
+    Parameters
+    ----------
+    tracker : OnlineTracker
+        Already :meth:`~OnlineTracker.reset`.
+    recording : Recording
+    horizon_s : float
+        Length of the predictions, s.
+    tick_s : float
+        Seconds of samples per update; ticks end on samples 0, m, 2m, ...
+    n_draws : int
+        Resampled particles per prediction.
+    rng : numpy.random.Generator
+        For the draws and the band's errors.
+    predict_every : int
+        Predict every this many ticks (while ``horizon_s`` more samples follow).
+    frozen : (P,) ndarray or None
+        A parameter vector whose prediction error on the same samples is recorded.
+
+    Returns
+    -------
+    list of dict
+        One record per tick: ``time_s``, ``update_ms`` (the update's wall time),
+        ``ess``, ``quantiles`` (each varying quantity's 5/50/95 %) and, where predicted,
+        ``prediction_rmse_Pa`` (of the mean of the draws' predictions from the measured
+        pressure, :func:`~pneubayes.inference.online.forecast`), ``coverage_90`` and
+        ``band_90_width_Pa`` (the draws' predictions plus the tracker's Gaussian
+        errors), and ``frozen_rmse_Pa``.
+    """
     import time
 
     t = np.asarray(recording.time_s, dtype=np.float64)
