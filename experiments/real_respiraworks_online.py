@@ -1,7 +1,7 @@
 """Real recordings: the RespiraWorks ventilator's lung tracked online (issue 67 items 1-2).
 
     python experiments/real_respiraworks_online.py --out results/real_respiraworks_online
-        [--sets OXY,AIR] [--quick] [--smoke]
+        [--sets OXY,AIR] [--select] [--seeds 0,1,2] [--quick] [--smoke]
 
 The shipped card (two compartments, the exhale valve on its own command), the split of
 ``real_respiraworks.py`` (runs 1-4 train, 5-6 held out) and its 2-s windows. Per set:
@@ -19,6 +19,13 @@ The shipped card (two compartments, the exhale valve on its own command), the sp
    measured pressure (``forecast``: the lung's pressure brought to the start by a
    warm-up window) with 64 resampled particles; the 90 % band adds Gaussian errors of
    ``noise_std_Pa`` to the particles' predictions.
+
+With ``--select`` the likelihood's power (``temper``) and the moves' floor are first
+chosen on the training runs (``SELECT_GRID``; leave one run out: the population and
+error scale from the other three, the tracker through the fourth; the valves' shared
+fit has seen all four, so this is optimistic) and the held-out runs never choose
+anything. ``--seeds`` repeats the tracker with several seeds (its result moves with
+them: read the spread).
 
 Compared on the same windows: the set-point baseline, the *frozen* shared fit, the
 *calibrated* protocol (the lung refitted on the run's first ``CAL_S`` s, then fixed), and
@@ -64,7 +71,7 @@ FLOOR_LOG_SD = 0.25
 #: error the protocol measures (1 s, tried first on OXY: 233 -> 206 Pa with 2 warm-ups)
 TRACKER = {"lookback_s": 2.0, "warm_up_windows": 1, "temper": 0.1, "ess_threshold": 0.5,
            "n_moves": 2, "move_scale": 0.5, "move_floor_log": 1e-3, "memory_s": 2.0,
-           "drift_log_per_sqrt_s": 0.0}
+           "drift_log_per_sqrt_s": 0.0, "adapt_noise_s": 0.0}
 CMH2O_PA = 98.0665
 #: the knobs --select chooses among on the training runs (leave one out)
 SELECT_GRID = {"temper": (0.03, 0.1, 0.3), "move_floor_log": (1e-3, 0.02, 0.1)}

@@ -102,6 +102,21 @@ def test_rejuvenation_keeps_the_particles_apart():
     assert stream(bare, t, u, p)[-1][3] < trace[-1][3]
 
 
+def test_an_adapted_noise_scale_follows_the_errors_the_run_shows():
+    t, u, p = plant([TRUE_VOLUME], seconds_each=2.0, seed=2)
+    p = p + np.random.default_rng(9).normal(0.0, 900.0, p.size)  # ~950 Pa in all
+    fixed, adapted = tracker(), tracker(adapt_noise_s=0.5)
+    stream(fixed, t, u, p)
+    stream(adapted, t, u, p)
+    assert fixed.noise_scale_Pa_ == NOISE_PA
+    assert adapted.noise_scale_Pa_ == pytest.approx(np.hypot(NOISE_PA, 900.0), rel=0.3)
+    # never below the stated scale, on data that fit it
+    t, u, p = plant([TRUE_VOLUME], seconds_each=1.0)
+    low = tracker(adapt_noise_s=0.5)
+    stream(low, t, u, p)
+    assert low.noise_scale_Pa_ >= NOISE_PA
+
+
 def test_a_seed_gives_the_same_particles_and_another_seed_others():
     t, u, p = plant([TRUE_VOLUME], seconds_each=1.0)
     a, b, c = tracker(seed=3), tracker(seed=3), tracker(seed=4)
@@ -156,6 +171,7 @@ def test_systematic_resample_keeps_proportions():
     ({"n_moves": -1}, "n_moves"),
     ({"warm_up_windows": 1.5}, "warm_up_windows"),
     ({"drift_log_per_sqrt_s": -0.1}, "drift_log_per_sqrt_s"),
+    ({"adapt_noise_s": float("nan")}, "adapt_noise_s"),
 ])
 def test_bad_arguments_are_errors_naming_them(kw, says):
     start = {**valve_preset("valve1").parameters(), "dead_volume_m3": 1e-5}

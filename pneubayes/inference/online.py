@@ -22,7 +22,12 @@ log-parameter space, by resample-move (Gilks & Berzuini 2001) with a sliding lik
    (optionally after warm-up windows of the same length that bring the states the
    recording does not measure, such as a second compartment's pressure, to that
    start: the kernel carries them across contiguous windows), and the tick's new
-   samples score it with Gaussian errors of ``noise_std_Pa``, the log-likelihood
+   samples score it with Gaussian errors of ``noise_std_Pa`` (or, with
+   ``adapt_noise_s`` > 0, of the scale the run's own prediction errors show: the
+   root-mean-square error of the particles' weighted mean on each tick's new samples,
+   an exponential average over ``adapt_noise_s`` seconds, never below
+   ``noise_std_Pa``: a model that misses a new run by more than it missed the fitted
+   ones then concentrates more slowly), the log-likelihood
    multiplied by ``temper`` (in (0, 1]: residuals of a model that misses by more than
    the sensor noise are correlated over many samples, and counting each as independent
    would make the posterior collapse at once; a power likelihood is the stated
@@ -232,12 +237,17 @@ class OnlineTracker:
         move by a Gaussian step of this standard deviation times the square root of the
         tick's seconds before the tick reweighs them (0: quantities constant over the
         run; > 0: a plant that drifts or steps, which the tracker then follows).
+    adapt_noise_s : float
+        0: the errors' scale is ``noise_std_Pa``; > 0: it follows the run's own
+        prediction errors (an exponential average over this many seconds), never below
+        ``noise_std_Pa`` (the module's text, step 3).
     history_s : float
         Samples kept before the windows (a delayed or lagging valve's command history).
 
     Attributes after :meth:`reset` and :meth:`update`: ``particles_`` (N, k) log values,
     ``log_weights_`` (N,), ``ess_``, ``n_resamples_``, ``acceptance_`` (the last moves'
-    accept rate, None before any), ``time_s_`` (the last sample's time).
+    accept rate, None before any), ``time_s_`` (the last sample's time),
+    ``noise_scale_Pa_`` (the errors' scale in use).
     """
 
     def __init__(self, model: Model, params: Mapping[str, float], prior, rig,
@@ -245,7 +255,8 @@ class OnlineTracker:
                  lookback_s: float = 1.0, warm_up_windows: int = 1, temper: float = 1.0,
                  ess_threshold: float = 0.5, n_moves: int = 1, move_scale: float = 0.5,
                  move_floor_log: float = 1e-3, memory_s: float = 1.0,
-                 drift_log_per_sqrt_s: float = 0.0, history_s: float = 0.0):
+                 drift_log_per_sqrt_s: float = 0.0, adapt_noise_s: float = 0.0,
+                 history_s: float = 0.0):
         self.model = model
         self.params = dict(params)
         self.prior = prior
@@ -262,6 +273,7 @@ class OnlineTracker:
         self.move_floor_log = move_floor_log
         self.memory_s = memory_s
         self.drift_log_per_sqrt_s = drift_log_per_sqrt_s
+        self.adapt_noise_s = adapt_noise_s
         self.history_s = history_s
 
     # ------------------------------------------------------------------ checks
@@ -288,7 +300,7 @@ class OnlineTracker:
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0):
                 raise ValueError(f"OnlineTracker: {name} must be an integer >= 0, got {v!r}")
-        for name in ("history_s", "drift_log_per_sqrt_s"):
+        for name in ("history_s", "drift_log_per_sqrt_s", "adapt_noise_s"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool)
                     and np.isfinite(v) and v >= 0):
@@ -328,6 +340,8 @@ class OnlineTracker:
         self._buf = None
         self._dt = None
         self._last_time = None
+        self.noise_scale_Pa_ = float(self.noise_std_Pa)
+        self._noise_ms = float(self.noise_std_Pa) ** 2
         return self
 
     def theta(self, z) -> np.ndarray:
@@ -391,8 +405,17 @@ class OnlineTracker:
             lo, hi = self.prior.log_lower, self.prior.log_upper
             moved = np.where(moved < lo, 2 * lo - moved, moved)  # reflected at the bounds
             self.particles_ = np.clip(np.where(moved > hi, 2 * hi - moved, moved), lo, hi)
+        gap = None if self._last_time is None else self._buf[0][-1] - self._last_time
         self._last_time = float(self._buf[0][-1])
-        ll = self._loglik(self.particles_, min(m, n_buf - 1))
+        ll, r = self._loglik(self.particles_, min(m, n_buf - 1), residuals=True)
+        if self.adapt_noise_s > 0 and gap is not None:
+            ok = np.isfinite(ll)
+            w = self.weights_[ok]
+            mean_r = (w / w.sum()) @ r[ok] if ok.any() else np.zeros(0)
+            if mean_r.size:
+                a = 1.0 - np.exp(-gap / self.adapt_noise_s)
+                self._noise_ms = (1.0 - a) * self._noise_ms + a * float(np.mean(mean_r**2))
+                self.noise_scale_Pa_ = max(float(self.noise_std_Pa), np.sqrt(self._noise_ms))
         self.log_weights_ = self.log_weights_ + ll
         self.log_weights_ -= np.logaddexp.reduce(self.log_weights_)
         if not np.isfinite(self.log_weights_).any():  # every particle failed: start over
@@ -445,8 +468,9 @@ class OnlineTracker:
     def _window_samples(self) -> int:
         return max(2, int(round(self.lookback_s / self._dt)))
 
-    def _loglik(self, z, n_scored: int) -> np.ndarray:
-        """Tempered log-likelihood of the last ``n_scored`` samples for log values ``z``."""
+    def _loglik(self, z, n_scored: int, residuals: bool = False):
+        """Tempered log-likelihood of the last ``n_scored`` samples for log values ``z``
+        (and with ``residuals`` the prediction errors ``(n, n_scored)``, Pa)."""
         t, u, p, ue, x, ps = self._buf
         n = t.size
         length = min(self._window_samples(), n - 1) + 1
@@ -454,8 +478,9 @@ class OnlineTracker:
         sim = forecast(self.model, self.theta(z), inputs, self.rig, n - length, length, p,
                        self.solver, int(self.warm_up_windows))
         r = sim[:, -n_scored:] - p[-n_scored:]
-        ll = -0.5 * self.temper * np.sum(r**2, axis=1) / self.noise_std_Pa**2
-        return np.where(np.isfinite(ll), ll, -np.inf)
+        ll = -0.5 * self.temper * np.sum(r**2, axis=1) / self.noise_scale_Pa_**2
+        ll = np.where(np.isfinite(ll), ll, -np.inf)
+        return (ll, r) if residuals else ll
 
     def _resample_move(self, w: np.ndarray) -> None:
         z = self.particles_
