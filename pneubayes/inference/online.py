@@ -244,10 +244,22 @@ class OnlineTracker:
     history_s : float
         Samples kept before the windows (a delayed or lagging valve's command history).
 
-    Attributes after :meth:`reset` and :meth:`update`: ``particles_`` (N, k) log values,
-    ``log_weights_`` (N,), ``ess_``, ``n_resamples_``, ``acceptance_`` (the last moves'
-    accept rate, None before any), ``time_s_`` (the last sample's time),
-    ``noise_scale_Pa_`` (the errors' scale in use).
+    Attributes
+    ----------
+    particles_ : (N, k) ndarray
+        The particles' log values (after :meth:`reset`, updated by :meth:`update`).
+    log_weights_ : (N,) ndarray
+        Their normalised log weights.
+    ess_ : float
+        The effective sample size after the last update.
+    n_resamples_ : int
+        Resamples so far.
+    acceptance_ : float or None
+        The last moves' accept rate (None before any).
+    time_s_ : float or None
+        The last sample's time, s.
+    noise_scale_Pa_ : float
+        The errors' scale in use, Pa.
     """
 
     def __init__(self, model: Model, params: Mapping[str, float], prior, rig,
