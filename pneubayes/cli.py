@@ -1,5 +1,5 @@
 """The ``pneubayes`` command: ``check``, ``bench``, ``simulate``, ``fit``, ``predict``,
-``discover``, ``ablate``, ``import``, ``compile``.
+``discover``, ``ablate``, ``import``, ``compile``, ``track``.
 
 Each subcommand is a thin layer over the library; errors are printed as one clear
 message naming the file, row, key or argument (exit 2 for usage or input errors,
@@ -603,6 +603,53 @@ def cmd_predict(args) -> int:
     return 0
 
 
+def cmd_track(args) -> int:
+    from pneubayes.inference.track import run_track
+    from pneubayes.io.recording import read_recording
+    from pneubayes.simulation import SolverConfig
+
+    if args.temper <= 0.0:
+        raise PneubayesError(f"--temper {args.temper:g}: must be in (0, 1]")
+    twice = sorted({n for n in args.vary if args.vary.count(n) > 1})
+    if twice:
+        raise PneubayesError(f"--vary: {', '.join(twice)} given more than once")
+    out = _output_file(args.out, ".json", args.overwrite)
+    run = Path(args.run)
+    if not (run / "model.json").is_file():
+        raise PneubayesError(f"{run}: no model.json (a run folder of 'pneubayes fit' or "
+                             "'pneubayes discover')")
+    check_file(run, "model.json")
+    _not_an_input([out], [*_recording_files([args.recording]),
+                          *(p for p in run.iterdir() if p.is_file())])
+    rec = read_recording(args.recording, args.accept, args.rig)
+    _print_findings("track", [rec])
+    horizon = args.horizon or _run_horizon(run)
+    t = np.asarray(rec.time_s)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if args.tick < dt:
+        raise PneubayesError(f"--tick {args.tick:g}: shorter than the sample interval "
+                             f"{dt:.3g} s of {rec.source}")
+    if t[-1] - t[0] <= horizon:
+        raise PneubayesError(f"--horizon {horizon:g}: as long as {rec.source} "
+                             f"({t[-1] - t[0]:.3g} s); nothing to predict")
+    s = run_track(run, rec, args.vary, out, tick_s=args.tick, horizon_s=horizon,
+                  n_particles=args.particles, n_draws=args.draws, seed=args.seed,
+                  noise_std_Pa=args.noise_std, prior=args.prior,
+                  prior_log_sd=args.prior_log_sd, solver=SolverConfig.standard(),
+                  predict_every=args.predict_every,
+                  tracker_options={"lookback_s": args.lookback, "temper": args.temper,
+                                   "memory_s": args.lookback})
+    def fmt(v):
+        return "n/a" if v is None else f"{v:.0f} Pa"
+    cov = s["coverage_90"]
+    print(f"{out}: {s['ticks']} ticks; {horizon:g}-s predictions from {s['predicted_ticks']} "
+          f"of them: online RMSE {fmt(s['online_rmse_Pa'])} (frozen fit "
+          f"{fmt(s['frozen_rmse_Pa'])}), 90 % band coverage "
+          + ("n/a" if cov is None else f"{cov:.2f}")
+          + f"; update {s['update_ms_median']:.1f} ms median per tick")
+    return 0
+
+
 def _library_grid(entries):
     """``--library`` entries as a LibraryGrid; an unknown effect or a repeated one is an
     error naming it."""
@@ -774,7 +821,7 @@ def main(argv=None) -> int:
     args.func = {"check": cmd_check, "bench": cmd_bench, "simulate": cmd_simulate,
                  "fit": cmd_fit, "predict": cmd_predict, "discover": cmd_discover,
                  "ablate": cmd_ablate, "import": cmd_import,
-                 "compile": cmd_compile}[args.command]
+                 "compile": cmd_compile, "track": cmd_track}[args.command]
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
     from pneubayes import limits
 

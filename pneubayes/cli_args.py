@@ -454,6 +454,46 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep each cell's bench recordings and fit folder in RUNDIR/work")
     a.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
+    t = sub.add_parser(
+        "track", help="replay a recording as a stream: the varying quantities' posterior "
+                      "tick by tick and its predictions",
+        description="A particle filter (pneubayes.inference.online) over the quantities "
+                    "--vary names, the model's others at the run's values, takes the "
+                    "recording one --tick at a time; per tick OUT.json records their "
+                    "5/50/95 %% quantiles and the error of the --horizon prediction from "
+                    "the measured pressure (online and the frozen fit's) with the 90 %% "
+                    "band's coverage. Nothing is written over an input.")
+    t.add_argument("run", help="run folder with a model.json ('pneubayes fit' or 'discover')")
+    t.add_argument("recording", help="recording .csv/.json path or stem")
+    t.add_argument("--vary", type=_names, required=True, metavar="NAME[,NAME]",
+                   help="the quantities tracked (model parameter names with a lower bound "
+                        "> 0, e.g. lung_compliance_m3_per_Pa,resistance_Pa_s_per_m3)")
+    t.add_argument("--out", required=True, help="output JSON")
+    t.add_argument("--tick", type=POSITIVE, default=0.1,
+                   help="seconds of samples per update (0.1)")
+    t.add_argument("--horizon", type=POSITIVE, default=None,
+                   help="prediction length, s (default: the run's, 2 s for older runs)")
+    t.add_argument("--particles", type=POSITIVE_INT, default=64, help="particles (64)")
+    t.add_argument("--draws", type=POSITIVE_INT, default=64,
+                   help="resampled particles per prediction (64)")
+    t.add_argument("--predict-every", type=POSITIVE_INT, default=1, metavar="TICKS",
+                   help="predict every this many ticks (1)")
+    t.add_argument("--noise-std", type=POSITIVE, default=None, metavar="PA",
+                   help="the model's prediction error, Pa, the likelihood's Gaussian scale "
+                        "(default: the run's refined RMSE)")
+    t.add_argument("--prior", choices=("fit", "bounds"), default="fit",
+                   help="fit (default): log-normal at the run's values, spread "
+                        "--prior-log-sd; bounds: log-uniform over the model's bounds")
+    t.add_argument("--prior-log-sd", type=POSITIVE, default=0.5,
+                   help="the fit prior's standard deviation of the log (0.5)")
+    t.add_argument("--lookback", type=POSITIVE, default=1.0,
+                   help="each tick's predictions start this many seconds back (1.0)")
+    t.add_argument("--temper", type=_share, default=0.1,
+                   help="the likelihood's power in (0, 1] (0.1: correlated model errors)")
+    t.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
+    t.add_argument("--overwrite", action="store_true")
+    _add_accept(t)
+
     k = sub.add_parser(
         "compile", help="compile the simulator's kernels now, so the first fit does not "
                         "wait for the compiler",

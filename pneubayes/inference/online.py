@@ -1,0 +1,565 @@
+"""An online posterior for the quantities of a plant that change between or within runs.
+
+A fitted model's fixed quantities (the valves, the circuit) stay at their fitted values;
+the *varying* ones (a test lung's compliance and resistance, a chamber's volume) are
+tracked while the samples arrive, so a controller's predictions follow the plant.
+
+Method: a sequential Monte Carlo (particle) filter over the varying quantities in
+log-parameter space, by resample-move (Gilks & Berzuini 2001) with a sliding likelihood:
+
+1. *Prior*: a population distribution, the log-normal of what other runs taught
+   (:class:`LogNormalPrior`, e.g. :meth:`LogNormalPrior.from_point_fits` of per-run
+   point fits, widened by a stated floor), or log-uniform over the card's bounds
+   (:class:`LogUniformPrior`).
+2. *Drift* (optional): before a tick is scored, each particle takes a Gaussian step in
+   log space of ``drift_log_per_sqrt_s`` times the square root of the time since the
+   last tick, reflected at the bounds: the state-space model of a quantity that drifts
+   or steps (a lung set anew, a tank draining). With none, the filter assumes the
+   quantities constant over the run and its weights keep all the evidence so far, so
+   it follows a plant that steps only as fast as the moves of step 5 walk.
+3. *Reweight* at every tick (a block of new samples): each particle's model is
+   simulated from the measured pressure ``lookback_s`` before the tick's last sample
+   (optionally after warm-up windows of the same length that bring the states the
+   recording does not measure, such as a second compartment's pressure, to that
+   start: the kernel carries them across contiguous windows), and the tick's new
+   samples score it with Gaussian errors of ``noise_std_Pa`` (or, with
+   ``adapt_noise_s`` > 0, of the scale the run's own prediction errors show: the
+   root-mean-square error of the particles' weighted mean on each tick's new samples,
+   an exponential average over ``adapt_noise_s`` seconds, never below
+   ``noise_std_Pa``: a model that misses a new run by more than it missed the fitted
+   ones then concentrates more slowly), the log-likelihood
+   multiplied by ``temper`` (in (0, 1]: residuals of a model that misses by more than
+   the sensor noise are correlated over many samples, and counting each as independent
+   would make the posterior collapse at once; a power likelihood is the stated
+   remedy). Each sample is scored once, at the tick it arrives: the product over ticks
+   is a prediction-error likelihood of ``lookback_s``-ahead predictions.
+4. *Resample* (systematic) when the effective sample size falls below
+   ``ess_threshold`` times the particles.
+5. *Rejuvenate* after resampling: ``n_moves`` Gaussian random-walk Metropolis moves in
+   log space (covariance ``move_scale^2`` times the particles' weighted covariance before
+   resampling, plus ``move_floor_log^2`` on the diagonal) whose target is the prior times
+   the tempered likelihood of the last ``memory_s`` seconds (scored on the same window).
+   Duplicates of resampling are so moved apart, and the accept keeps them where the
+   recent data put them. This is an approximation: the weights carry the evidence of
+   the whole run, the moves' target only the recent samples (exact resample-move would
+   score the whole run so far at every move, a cost growing with the run), so the
+   particles stand for a posterior that leans on recent data, not the exact one.
+
+Why this method: the varying quantities are few (2-4), the model is a simulator (no
+gradients, no conjugacy), and a controller needs the predictive distribution at every
+tick with a bounded cost. A particle filter gives the whole posterior (skewed, bounded)
+at a fixed cost per tick, and its particles are the draws a
+:class:`~pneubayes.inference.predictive.PressurePredictor` simulates. Refitting the run
+so far by least squares (the experiments' *calibrated* protocol) gives a point and no
+uncertainty, at a cost that grows with the data; Liu-West shrinkage alone keeps
+diversity without looking at the data, so it widens a posterior the data had narrowed.
+
+Every knob is an argument of :class:`OnlineTracker`; randomness comes only from the
+generator passed to :meth:`OnlineTracker.reset`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from pneubayes.inference.predictive import PressurePredictor
+from pneubayes.model import Model
+from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+
+
+def _log_bounds(model: Model, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Log of the named parameters' bounds; each must have a lower bound > 0."""
+    lo, hi = [], []
+    for n in names:
+        p = model.parameter(n)
+        if not p.lower > 0:
+            raise ValueError(f"vary: {n!r} has lower bound {p.lower:g}; the tracker works in "
+                             "log space and needs quantities with a lower bound > 0")
+        lo.append(np.log(p.lower))
+        hi.append(np.log(p.upper))
+    return np.array(lo), np.array(hi)
+
+
+class LogUniformPrior:
+    """Log-uniform over the model's bounds of the varying quantities (no population).
+
+    Parameters
+    ----------
+    model : Model
+    names : sequence of str
+        The varying quantities (model parameter names, lower bounds > 0).
+    """
+
+    def __init__(self, model: Model, names: Sequence[str]):
+        self.names = tuple(names)
+        self.log_lower, self.log_upper = _log_bounds(model, self.names)
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``(n, k)`` draws of the log values."""
+        return rng.uniform(self.log_lower, self.log_upper, size=(n, len(self.names)))
+
+    def logpdf(self, z) -> np.ndarray:
+        """Log density of log values ``z`` ``(n, k)`` (up to a constant); -inf outside."""
+        z = np.atleast_2d(z)
+        inside = np.all((z >= self.log_lower) & (z <= self.log_upper), axis=1)
+        return np.where(inside, 0.0, -np.inf)
+
+    def describe(self) -> dict:
+        return {"kind": "log-uniform", "names": list(self.names),
+                "lower": np.exp(self.log_lower).tolist(),
+                "upper": np.exp(self.log_upper).tolist()}
+
+
+class LogNormalPrior(LogUniformPrior):
+    """A log-normal population (independent quantities), cut at the model's bounds.
+
+    Parameters
+    ----------
+    model : Model
+    names : sequence of str
+    median : mapping of str to float
+        Each quantity's population median, in its unit.
+    log_sd : mapping of str to float
+        Each quantity's population spread, the standard deviation of its natural log.
+    """
+
+    def __init__(self, model: Model, names: Sequence[str], median: Mapping[str, float],
+                 log_sd: Mapping[str, float]):
+        super().__init__(model, names)
+        for what, m in (("median", median), ("log_sd", log_sd)):
+            missing = [n for n in self.names if n not in m]
+            if missing:
+                raise ValueError(f"LogNormalPrior: {what} has no value for {missing}")
+        self.log_median = np.log([float(median[n]) for n in self.names])
+        self.log_sd = np.array([float(log_sd[n]) for n in self.names])
+        if not (np.all(np.isfinite(self.log_median)) and np.all(self.log_sd > 0)):
+            raise ValueError(f"LogNormalPrior: medians must be > 0 and log_sd > 0, got "
+                             f"{dict(median)}, {dict(log_sd)}")
+
+    @classmethod
+    def from_point_fits(cls, model: Model, names: Sequence[str],
+                        fits: Sequence[Mapping[str, float]], floor_log_sd: float
+                        ) -> "LogNormalPrior":
+        """The population of per-run point fits: the median and standard deviation of
+        each quantity's log over the fits, the spread widened to
+        ``sqrt(sd^2 + floor_log_sd^2)`` (a few runs understate a population's spread)."""
+        if len(fits) < 2:
+            raise ValueError(f"from_point_fits: needs at least 2 fits, got {len(fits)}")
+        if not floor_log_sd > 0:
+            raise ValueError(f"floor_log_sd must be > 0, got {floor_log_sd!r}")
+        logs = np.log([[float(f[n]) for n in names] for f in fits])
+        sd = np.sqrt(np.var(logs, axis=0, ddof=1) + floor_log_sd**2)
+        med = np.exp(np.median(logs, axis=0))
+        return cls(model, names, dict(zip(names, med)), dict(zip(names, sd)))
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        out = rng.normal(self.log_median, self.log_sd, size=(n, len(self.names)))
+        bad = np.any((out < self.log_lower) | (out > self.log_upper), axis=1)
+        for _ in range(100):  # cut at the bounds: draw again where outside
+            if not bad.any():
+                break
+            out[bad] = rng.normal(self.log_median, self.log_sd, size=(int(bad.sum()),
+                                                                      len(self.names)))
+            bad = np.any((out < self.log_lower) | (out > self.log_upper), axis=1)
+        return np.clip(out, self.log_lower, self.log_upper)
+
+    def logpdf(self, z) -> np.ndarray:
+        z = np.atleast_2d(z)
+        lp = -0.5 * np.sum(((z - self.log_median) / self.log_sd) ** 2, axis=1)
+        return lp + super().logpdf(z)
+
+    def describe(self) -> dict:
+        return {"kind": "log-normal", "names": list(self.names),
+                "median": np.exp(self.log_median).tolist(), "log_sd": self.log_sd.tolist()}
+
+
+def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
+    """Systematic resampling (one uniform draw for all the particles).
+
+    Parameters
+    ----------
+    weights : (N,) normalised weights
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    (N,) int ndarray
+        Indices of the particles kept, in order.
+    """
+    w = np.asarray(weights, dtype=np.float64)
+    n = w.size
+    positions = (rng.uniform() + np.arange(n)) / n
+    cum = np.cumsum(w)
+    cum[-1] = 1.0
+    return np.searchsorted(cum, positions)
+
+
+class OnlineTracker:
+    """Sequential Monte Carlo over a model's varying quantities (see the module's text).
+
+    Parameters
+    ----------
+    model : Model
+    params : mapping of str to float
+        Every model parameter's value; the varying ones are the prior's, the others stay
+        here (e.g. a shared fit's point).
+    prior : LogNormalPrior or LogUniformPrior
+        Over the varying quantities (its ``names``).
+    rig : Rig
+        The rig of the samples (a recording's ``rig()``).
+    solver : SolverConfig
+    noise_std_Pa : float
+        Standard deviation of the Gaussian errors of a prediction, Pa: the model's error
+        with the right varying quantities, not only the sensor's noise.
+    n_particles : int
+    lookback_s : float
+        Each tick's predictions start from the measured pressure this long before its
+        last sample (the buffer's start while the run is shorter).
+    warm_up_windows : int
+        Warm-up windows of ``lookback_s`` before that start (0: none), so the states the
+        recording does not measure reach it from the model (each costs as much again).
+    temper : float
+        The likelihood's power, in (0, 1].
+    ess_threshold : float
+        Resample when the effective sample size falls below this share of the particles.
+    n_moves : int
+        Metropolis moves after each resample (0: none; duplicates then stay).
+    move_scale : float
+        The random walk's scale relative to the particles' spread.
+    move_floor_log : float
+        The random walk's least standard deviation in log space.
+    memory_s : float
+        The seconds of recent samples the moves' target scores (at most ``lookback_s``).
+    drift_log_per_sqrt_s : float
+        The varying quantities' random walk between ticks: each particle's log values
+        move by a Gaussian step of this standard deviation times the square root of the
+        tick's seconds before the tick reweighs them (0: quantities constant over the
+        run; > 0: a plant that drifts or steps, which the tracker then follows).
+    adapt_noise_s : float
+        0: the errors' scale is ``noise_std_Pa``; > 0: it follows the run's own
+        prediction errors (an exponential average over this many seconds), never below
+        ``noise_std_Pa`` (the module's text, step 3).
+    history_s : float
+        Samples kept before the windows (a delayed or lagging valve's command history).
+
+    Attributes
+    ----------
+    particles_ : (N, k) ndarray
+        The particles' log values (after :meth:`reset`, updated by :meth:`update`).
+    log_weights_ : (N,) ndarray
+        Their normalised log weights.
+    ess_ : float
+        The effective sample size after the last update.
+    n_resamples_ : int
+        Resamples so far.
+    acceptance_ : float or None
+        The last moves' accept rate (None before any).
+    time_s_ : float or None
+        The last sample's time, s.
+    noise_scale_Pa_ : float
+        The errors' scale in use, Pa.
+    """
+
+    def __init__(self, model: Model, params: Mapping[str, float], prior, rig,
+                 solver: SolverConfig, noise_std_Pa: float, n_particles: int = 64,
+                 lookback_s: float = 1.0, warm_up_windows: int = 1, temper: float = 1.0,
+                 ess_threshold: float = 0.5, n_moves: int = 1, move_scale: float = 0.5,
+                 move_floor_log: float = 1e-3, memory_s: float = 1.0,
+                 drift_log_per_sqrt_s: float = 0.0, adapt_noise_s: float = 0.0,
+                 history_s: float = 0.0):
+        self.model = model
+        self.params = dict(params)
+        self.prior = prior
+        self.rig = rig
+        self.solver = solver
+        self.noise_std_Pa = noise_std_Pa
+        self.n_particles = n_particles
+        self.lookback_s = lookback_s
+        self.warm_up_windows = warm_up_windows
+        self.temper = temper
+        self.ess_threshold = ess_threshold
+        self.n_moves = n_moves
+        self.move_scale = move_scale
+        self.move_floor_log = move_floor_log
+        self.memory_s = memory_s
+        self.drift_log_per_sqrt_s = drift_log_per_sqrt_s
+        self.adapt_noise_s = adapt_noise_s
+        self.history_s = history_s
+
+    # ------------------------------------------------------------------ checks
+    def _check(self) -> None:
+        def positive(name, low=0.0, high=None, integer=False):
+            v = getattr(self, name)
+            ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+            ok = ok and np.isfinite(v) and v > low and (high is None or v <= high)
+            if integer:
+                ok = ok and int(v) == v
+            if not ok:
+                rng = f"in ({low:g}, {high:g}]" if high is not None else f"> {low:g}"
+                raise ValueError(f"OnlineTracker: {name} must be {'an integer ' if integer else ''}"
+                                 f"{rng}, got {v!r}")
+        positive("noise_std_Pa")
+        positive("n_particles", 1, integer=True)
+        positive("lookback_s")
+        positive("temper", high=1.0)
+        positive("ess_threshold", high=1.0)
+        positive("move_scale")
+        positive("move_floor_log")
+        positive("memory_s", high=float(self.lookback_s))
+        for name in ("n_moves", "warm_up_windows"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0):
+                raise ValueError(f"OnlineTracker: {name} must be an integer >= 0, got {v!r}")
+        for name in ("history_s", "drift_log_per_sqrt_s", "adapt_noise_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool)
+                    and np.isfinite(v) and v >= 0):
+                raise ValueError(f"OnlineTracker: {name} must be a number >= 0, got {v!r}")
+        if not isinstance(self.solver, SolverConfig):
+            raise TypeError("OnlineTracker: solver must be a SolverConfig")
+        names = tuple(getattr(self.prior, "names", ()))
+        if not names:
+            raise ValueError("OnlineTracker: the prior names no varying quantity")
+        unknown = [n for n in names if n not in self.model.parameter_names]
+        if unknown:
+            raise ValueError(f"OnlineTracker: varying {unknown} are not parameters of the "
+                             f"model; it has {self.model.parameter_names}")
+        missing = [n for n in self.model.parameter_names if n not in self.params]
+        if missing:
+            raise ValueError(f"OnlineTracker: params has no value for {missing}")
+
+    # ------------------------------------------------------------------ state
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.prior.names)
+
+    def reset(self, rng: np.random.Generator) -> "OnlineTracker":
+        """Check the arguments, draw the particles from the prior, empty the buffer."""
+        self._check()
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError("rng must be a numpy.random.Generator (np.random.default_rng(seed))")
+        self.rng_ = rng
+        self.particles_ = self.prior.sample(int(self.n_particles), rng)
+        self.log_weights_ = np.full(int(self.n_particles), -np.log(self.n_particles))
+        self.ess_ = float(self.n_particles)
+        self.n_resamples_ = 0
+        self.acceptance_ = None
+        self.time_s_ = None
+        self._columns = [self.model.parameter_names.index(n) for n in self.names]
+        self._base = self.model.vector(self.params)
+        self._buf = None
+        self._dt = None
+        self._last_time = None
+        self.noise_scale_Pa_ = float(self.noise_std_Pa)
+        self._noise_ms = float(self.noise_std_Pa) ** 2
+        return self
+
+    def theta(self, z) -> np.ndarray:
+        """Full parameter matrix ``(n, P)`` for log values ``z`` ``(n, k)``."""
+        z = np.atleast_2d(z)
+        out = np.repeat(self._base[None, :], z.shape[0], axis=0)
+        out[:, self._columns] = np.exp(z)
+        return out
+
+    @property
+    def weights_(self) -> np.ndarray:
+        w = np.exp(self.log_weights_ - self.log_weights_.max())
+        return w / w.sum()
+
+    def quantiles(self, q=(0.05, 0.5, 0.95)) -> dict[str, list[float]]:
+        """Weighted quantiles of each varying quantity (its unit), ``{name: [...]}``."""
+        w = self.weights_
+        out = {}
+        for j, n in enumerate(self.names):
+            order = np.argsort(self.particles_[:, j])
+            cw = np.cumsum(w[order]) - 0.5 * w[order]
+            out[n] = np.exp(np.interp(q, cw, self.particles_[order, j])).tolist()
+        return out
+
+    def draws(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``(n, P)`` parameter draws: a systematic resample of the particles."""
+        if n == self.n_particles:
+            idx = systematic_resample(self.weights_, rng)
+        else:
+            idx = rng.choice(self.n_particles, size=n, p=self.weights_)
+        return self.theta(self.particles_[idx])
+
+    def predictor(self, n_draws: int, rng: np.random.Generator,
+                  quantiles=(0.05, 0.5, 0.95)) -> PressurePredictor:
+        """A :class:`PressurePredictor` of ``n_draws`` resampled particles: the updated
+        quantiles for a controller's candidate commands. Its windows start with every
+        state the recording does not measure at the measured pressure (as the
+        predictor's always do); :meth:`forecast` carries them from the recent samples."""
+        return PressurePredictor(self.model, self.draws(n_draws, rng), self.rig,
+                                 self.solver, quantiles)
+
+    # ------------------------------------------------------------------ streaming
+    def update(self, time_s, command_V, pressure_Pa, exhaust_command=None,
+               position_m=None, supply_pressure_Pa=None) -> "OnlineTracker":
+        """Take a block of new samples (1-D arrays of equal length; ``position_m``
+        default: the rig's fixed position 0, ``supply_pressure_Pa`` the rig's supply),
+        reweight, and resample and move when the effective sample size is low."""
+        if not hasattr(self, "particles_"):
+            raise RuntimeError("OnlineTracker: call reset(rng) before update")
+        block = self._block(time_s, command_V, pressure_Pa, exhaust_command, position_m,
+                            supply_pressure_Pa)
+        m = block[0].size
+        self._append(block)
+        n_buf = self._buf[0].size
+        if n_buf < 3:
+            self.time_s_ = float(self._buf[0][-1])
+            return self
+        if self.drift_log_per_sqrt_s > 0 and self._last_time is not None:
+            step = self.drift_log_per_sqrt_s * np.sqrt(self._buf[0][-1] - self._last_time)
+            moved = self.particles_ + step * self.rng_.normal(size=self.particles_.shape)
+            lo, hi = self.prior.log_lower, self.prior.log_upper
+            moved = np.where(moved < lo, 2 * lo - moved, moved)  # reflected at the bounds
+            self.particles_ = np.clip(np.where(moved > hi, 2 * hi - moved, moved), lo, hi)
+        gap = None if self._last_time is None else self._buf[0][-1] - self._last_time
+        self._last_time = float(self._buf[0][-1])
+        ll, r = self._loglik(self.particles_, min(m, n_buf - 1), residuals=True)
+        if self.adapt_noise_s > 0 and gap is not None:
+            ok = np.isfinite(ll)
+            w = self.weights_[ok]
+            mean_r = (w / w.sum()) @ r[ok] if ok.any() else np.zeros(0)
+            if mean_r.size:
+                a = 1.0 - np.exp(-gap / self.adapt_noise_s)
+                self._noise_ms = (1.0 - a) * self._noise_ms + a * float(np.mean(mean_r**2))
+                self.noise_scale_Pa_ = max(float(self.noise_std_Pa), np.sqrt(self._noise_ms))
+        self.log_weights_ = self.log_weights_ + ll
+        self.log_weights_ -= np.logaddexp.reduce(self.log_weights_)
+        if not np.isfinite(self.log_weights_).any():  # every particle failed: start over
+            raise FloatingPointError("OnlineTracker: no particle simulates the samples at "
+                                     f"t = {self._buf[0][-1]:g} s")
+        w = self.weights_
+        self.ess_ = float(1.0 / np.sum(w**2))
+        if self.ess_ < self.ess_threshold * self.n_particles:
+            self._resample_move(w)
+        self.time_s_ = float(self._buf[0][-1])
+        return self
+
+    def _block(self, t, u, p, ue, x, ps):
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        n = t.size
+        cols = [t, u, p]
+        for _name, v, default in (("exhaust_command", ue, 0.0), ("position_m", x, 0.0),
+                                  ("supply_pressure_Pa", ps, self.rig.supply_pressure_Pa)):
+            cols.append(np.full(n, default) if v is None else v)
+        out = []
+        for name, c in zip(("time_s", "command_V", "pressure_Pa", "exhaust_command",
+                            "position_m", "supply_pressure_Pa"), cols):
+            a = np.atleast_1d(np.asarray(c, dtype=np.float64))
+            if a.shape != (n,) or not np.all(np.isfinite(a)):
+                raise ValueError(f"update: {name} must be finite and of time_s's shape {(n,)}, "
+                                 f"got shape {a.shape}")
+            out.append(a)
+        if n == 0:
+            raise ValueError("update: an empty block")
+        self._own_exhaust = ue is not None
+        return out
+
+    def _append(self, block) -> None:
+        if self._buf is None:
+            self._buf = block
+        else:
+            if block[0][0] <= self._buf[0][-1]:
+                raise ValueError(f"update: time_s must increase (block starts at "
+                                 f"{block[0][0]:g} s, the last sample was at "
+                                 f"{self._buf[0][-1]:g} s)")
+            self._buf = [np.concatenate([a, b]) for a, b in zip(self._buf, block)]
+        t = self._buf[0]
+        if t.size > 1:
+            self._dt = float(np.median(np.diff(t[-min(t.size, 50):])))
+            keep = self._window_samples() * (1 + int(self.warm_up_windows)) + 1 + int(
+                np.ceil(self.history_s / self._dt))
+            if t.size > keep:
+                self._buf = [a[-keep:] for a in self._buf]
+
+    def _window_samples(self) -> int:
+        return max(2, int(round(self.lookback_s / self._dt)))
+
+    def _loglik(self, z, n_scored: int, residuals: bool = False):
+        """Tempered log-likelihood of the last ``n_scored`` samples for log values ``z``
+        (and with ``residuals`` the prediction errors ``(n, n_scored)``, Pa)."""
+        t, u, p, ue, x, ps = self._buf
+        n = t.size
+        length = min(self._window_samples(), n - 1) + 1
+        inputs = Inputs(t, u, x, ps, None, ue if self._own_exhaust else None, p)
+        sim = forecast(self.model, self.theta(z), inputs, self.rig, n - length, length, p,
+                       self.solver, int(self.warm_up_windows))
+        r = sim[:, -n_scored:] - p[-n_scored:]
+        ll = -0.5 * self.temper * np.sum(r**2, axis=1) / self.noise_scale_Pa_**2
+        ll = np.where(np.isfinite(ll), ll, -np.inf)
+        return (ll, r) if residuals else ll
+
+    def _resample_move(self, w: np.ndarray) -> None:
+        z = self.particles_
+        mean = w @ z
+        cov = ((z - mean).T * w) @ (z - mean)
+        cov = self.move_scale**2 * cov + self.move_floor_log**2 * np.eye(z.shape[1])
+        chol = np.linalg.cholesky(cov)
+        idx = systematic_resample(w, self.rng_)
+        z = z[idx]
+        self.n_resamples_ += 1
+        n = z.shape[0]
+        self.log_weights_ = np.full(n, -np.log(n))
+        self.ess_ = float(n)
+        if self.n_moves == 0:
+            self.particles_ = z
+            return
+        n_mem = min(max(1, int(round(self.memory_s / self._dt))), self._buf[0].size - 1)
+        accepted = 0
+        cur = self._loglik(z, n_mem) + self.prior.logpdf(z)
+        for _ in range(int(self.n_moves)):
+            prop = z + self.rng_.normal(size=z.shape) @ chol.T
+            lp = self.prior.logpdf(prop)
+            ok = np.isfinite(lp)
+            new = np.full(n, -np.inf)
+            if ok.any():
+                new[ok] = self._loglik(prop[ok], n_mem) + lp[ok]
+            accept = np.log(self.rng_.uniform(size=n)) < new - cur
+            z = np.where(accept[:, None], prop, z)
+            cur = np.where(accept, new, cur)
+            accepted += int(accept.sum())
+        self.acceptance_ = accepted / (n * int(self.n_moves))
+        self.particles_ = z
+
+
+def forecast(model: Model, theta, inputs: Inputs, rig, start: int, length: int,
+             pressure_Pa, solver: SolverConfig, warm_up_windows: int = 1) -> np.ndarray:
+    """Predict ``length`` samples from sample ``start``, from the measured pressure there.
+
+    The states the recording does not measure (a second compartment's pressure, a
+    tube's waves) are brought to the start by up to ``warm_up_windows`` contiguous
+    warm-up windows of the same length before it (as many as the inputs hold; each
+    restarted from the measured pressure, the kernel carrying the other states across
+    them).
+
+    Parameters
+    ----------
+    model : Model
+    theta : (B, P) parameter sets
+    inputs : Inputs
+        The drive signals, reaching back over the warm-up and on over the window.
+    rig : Rig
+    start : int
+        The window's first sample.
+    length : int
+        Samples of the window, its start included.
+    pressure_Pa : (N,) measured pressure, Pa absolute (the windows' starts)
+    solver : SolverConfig
+    warm_up_windows : int
+
+    Returns
+    -------
+    (B, length) ndarray
+        Predicted pressure, Pa (column 0 the measured start; NaN rows where a set
+        fails to simulate).
+    """
+    p = np.asarray(pressure_Pa, dtype=np.float64)
+    n_warm = min(int(warm_up_windows), start // (length - 1)) if length > 1 else 0
+    s = start - (length - 1) * np.arange(n_warm, -1, -1)
+    return simulate_windows(model, theta, inputs, rig, s, length, p[s], solver,
+                            check_bounds=False, on_failure="nan")[:, -1, :]
