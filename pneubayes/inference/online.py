@@ -4,56 +4,29 @@ A fitted model's fixed quantities (the valves, the circuit) stay at their fitted
 the *varying* ones (a test lung's compliance and resistance, a chamber's volume) are
 tracked while the samples arrive, so a controller's predictions follow the plant.
 
-Method: a sequential Monte Carlo (particle) filter over the varying quantities in
-log-parameter space, by resample-move (Gilks & Berzuini 2001) with a sliding likelihood:
+Method: a particle filter over the varying quantities in log space, by resample-move
+(Gilks & Berzuini 2001) with a sliding likelihood (docs/architecture.md, "The online
+tracker", has each step in full):
 
-1. *Prior*: a population distribution, the log-normal of what other runs taught
-   (:class:`LogNormalPrior`, e.g. :meth:`LogNormalPrior.from_point_fits` of per-run
-   point fits, widened by a stated floor), or log-uniform over the card's bounds
-   (:class:`LogUniformPrior`).
-2. *Drift* (optional): before a tick is scored, each particle takes a Gaussian step in
-   log space of ``drift_log_per_sqrt_s`` times the square root of the time since the
-   last tick, reflected at the bounds: the state-space model of a quantity that drifts
-   or steps (a lung set anew, a tank draining). With none, the filter assumes the
-   quantities constant over the run and its weights keep all the evidence so far, so
-   it follows a plant that steps only as fast as the moves of step 5 walk.
-3. *Reweight* at every tick (a block of new samples): each particle's model is
-   simulated from the measured pressure ``lookback_s`` before the tick's last sample
-   (optionally after warm-up windows of the same length that bring the states the
-   recording does not measure, such as a second compartment's pressure, to that
-   start: the kernel carries them across contiguous windows), and the tick's new
-   samples score it with Gaussian errors of ``noise_std_Pa`` (or, with
-   ``adapt_noise_s`` > 0, of the scale the run's own prediction errors show: the
-   root-mean-square error of the particles' weighted mean on each tick's new samples,
-   an exponential average over ``adapt_noise_s`` seconds, never below
-   ``noise_std_Pa``: a model that misses a new run by more than it missed the fitted
-   ones then concentrates more slowly), the log-likelihood
-   multiplied by ``temper`` (in (0, 1]: residuals of a model that misses by more than
-   the sensor noise are correlated over many samples, and counting each as independent
-   would make the posterior collapse at once; a power likelihood is the stated
-   remedy). Each sample is scored once, at the tick it arrives: the product over ticks
-   is a prediction-error likelihood of ``lookback_s``-ahead predictions.
-4. *Resample* (systematic) when the effective sample size falls below
-   ``ess_threshold`` times the particles.
-5. *Rejuvenate* after resampling: ``n_moves`` Gaussian random-walk Metropolis moves in
-   log space (covariance ``move_scale^2`` times the particles' weighted covariance before
-   resampling, plus ``move_floor_log^2`` on the diagonal) whose target is the prior times
-   the tempered likelihood of the last ``memory_s`` seconds (scored on the same window).
-   Duplicates of resampling are so moved apart, and the accept keeps them where the
-   recent data put them. This is an approximation: the weights carry the evidence of
-   the whole run, the moves' target only the recent samples (exact resample-move would
-   score the whole run so far at every move, a cost growing with the run), so the
-   particles stand for a posterior that leans on recent data, not the exact one.
+1. *Prior*: a population, the log-normal of other runs' point fits widened by a floor
+   (:class:`LogNormalPrior`), or log-uniform over the bounds (:class:`LogUniformPrior`).
+2. *Drift* (optional): a Gaussian step in log space between ticks,
+   ``drift_log_per_sqrt_s`` per root second, reflected at the bounds.
+3. *Reweight* at every tick: each particle is simulated from the measured pressure
+   ``lookback_s`` before the tick's last sample (after warm-up windows that bring the
+   unmeasured states there) and the new samples score it with Gaussian errors of
+   ``noise_std_Pa`` (or a scale that follows the run's errors, ``adapt_noise_s``), the
+   log-likelihood times ``temper`` in (0, 1] (correlated residuals would otherwise
+   collapse the posterior at once).
+4. *Resample* (systematic) below ``ess_threshold`` x the particles as ESS.
+5. *Rejuvenate*: ``n_moves`` random-walk Metropolis moves in log space whose target is
+   the prior times the tempered likelihood of the last ``memory_s`` seconds. An
+   approximation: the weights carry the whole run, the moves only the recent samples.
 
-Why this method: the varying quantities are few (2-4), the model is a simulator (no
-gradients, no conjugacy), and a controller needs the predictive distribution at every
-tick with a bounded cost. A particle filter gives the whole posterior (skewed, bounded)
-at a fixed cost per tick, and its particles are the draws a
-:class:`~pneubayes.inference.predictive.PressurePredictor` simulates. Refitting the run
-so far by least squares (the experiments' *calibrated* protocol) gives a point and no
-uncertainty, at a cost that grows with the data; Liu-West shrinkage alone keeps
-diversity without looking at the data, so it widens a posterior the data had narrowed.
-
+Why: the varying quantities are few, the model is a simulator (no gradients), and a
+controller needs the predictive distribution at every tick at a bounded cost; the
+particles are the draws a :class:`~pneubayes.inference.predictive.PressurePredictor`
+simulates. Refitting the run so far gives a point, no uncertainty, at a growing cost.
 Every knob is an argument of :class:`OnlineTracker`; randomness comes only from the
 generator passed to :meth:`OnlineTracker.reset`.
 """
@@ -201,65 +174,40 @@ class OnlineTracker:
 
     Parameters
     ----------
-    model : Model
+    model, rig, solver : Model, Rig, SolverConfig
     params : mapping of str to float
-        Every model parameter's value; the varying ones are the prior's, the others stay
-        here (e.g. a shared fit's point).
+        Every parameter's value; the varying ones (the prior's) are tracked.
     prior : LogNormalPrior or LogUniformPrior
         Over the varying quantities (its ``names``).
-    rig : Rig
-        The rig of the samples (a recording's ``rig()``).
-    solver : SolverConfig
     noise_std_Pa : float
-        Standard deviation of the Gaussian errors of a prediction, Pa: the model's error
-        with the right varying quantities, not only the sensor's noise.
-    n_particles : int
-    lookback_s : float
-        Each tick's predictions start from the measured pressure this long before its
-        last sample (the buffer's start while the run is shorter).
+        Scale of a prediction's Gaussian errors, Pa (the model's error, not the sensor's).
+    n_particles, n_moves : int
+        Particles; Metropolis moves after each resample (0: none).
+    lookback_s, memory_s : float
+        A tick's predictions start from the measured pressure ``lookback_s`` before its
+        last sample; the moves' target scores the last ``memory_s`` (<= ``lookback_s``).
     warm_up_windows : int
-        Warm-up windows of ``lookback_s`` before that start (0: none), so the states the
-        recording does not measure reach it from the model (each costs as much again).
-    temper : float
-        The likelihood's power, in (0, 1].
-    ess_threshold : float
-        Resample when the effective sample size falls below this share of the particles.
-    n_moves : int
-        Metropolis moves after each resample (0: none; duplicates then stay).
-    move_scale : float
-        The random walk's scale relative to the particles' spread.
-    move_floor_log : float
-        The random walk's least standard deviation in log space.
-    memory_s : float
-        The seconds of recent samples the moves' target scores (at most ``lookback_s``).
+        Windows of ``lookback_s`` before that start that bring unmeasured states to it.
+    temper, ess_threshold : float
+        The likelihood's power in (0, 1]; resample below this share of particles as ESS.
+    move_scale, move_floor_log : float
+        The random walk's scale relative to the particles' spread; its least log SD.
     drift_log_per_sqrt_s : float
-        The varying quantities' random walk between ticks: each particle's log values
-        move by a Gaussian step of this standard deviation times the square root of the
-        tick's seconds before the tick reweighs them (0: quantities constant over the
-        run; > 0: a plant that drifts or steps, which the tracker then follows).
+        Log SD per root second of the quantities' walk between ticks (0: constant).
     adapt_noise_s : float
-        0: the errors' scale is ``noise_std_Pa``; > 0: it follows the run's own
-        prediction errors (an exponential average over this many seconds), never below
-        ``noise_std_Pa`` (the module's text, step 3).
+        > 0: the error scale follows the run's own errors (an exponential average over
+        this many seconds, never below ``noise_std_Pa``); 0: fixed.
     history_s : float
         Samples kept before the windows (a delayed or lagging valve's command history).
 
     Attributes
     ----------
-    particles_ : (N, k) ndarray
-        The particles' log values (after :meth:`reset`, updated by :meth:`update`).
-    log_weights_ : (N,) ndarray
-        Their normalised log weights.
-    ess_ : float
-        The effective sample size after the last update.
+    particles_, log_weights_ : ndarray
+        ``(N, k)`` log values and ``(N,)`` normalised log weights.
+    ess_, acceptance_, noise_scale_Pa_ : float
+        Effective sample size; the last moves' accept rate; the error scale in use, Pa.
     n_resamples_ : int
-        Resamples so far.
-    acceptance_ : float or None
-        The last moves' accept rate (None before any).
     time_s_ : float or None
-        The last sample's time, s.
-    noise_scale_Pa_ : float
-        The errors' scale in use, Pa.
     """
 
     def __init__(self, model: Model, params: Mapping[str, float], prior, rig,
