@@ -23,14 +23,18 @@ demo: $(STAMP)
 # The fast tier (what CI runs): every test but the statistical and end-to-end ones
 # marked slow. `make test-all` runs both tiers. The kernels are compiled first, once
 # (`pneubayes compile`), so the two test processes (pytest-xdist) load them from numba's
-# cache instead of each compiling its own copy.
+# cache instead of each compiling its own copy. OMP_WAIT_POLICY=PASSIVE: numba's OpenMP
+# threads sleep instead of spinning while they wait, which two processes sharing two
+# cores otherwise pay for (the fast tier 215 -> 204 s, CPU time 8.3 -> 6.5 min).
+TEST_ENV := OMP_WAIT_POLICY=PASSIVE
+
 test: $(STAMP)
 	$(VENV)/bin/pneubayes compile --jobs 2
-	$(PY) -m pytest -q -m "not slow" -n 2
+	$(TEST_ENV) $(PY) -m pytest -q -m "not slow" -n 2
 
 test-all: $(STAMP)
 	$(VENV)/bin/pneubayes compile --jobs 2
-	$(PY) -m pytest -q -n 2
+	$(TEST_ENV) $(PY) -m pytest -q -n 2
 
 # Runs the paper's studies (cached per cell; about 30 min on 2 cores from scratch) and
 # assembles paper/report.md from their saved results.

@@ -22,13 +22,14 @@ def _settings(**kw):
     return DiscoverySettings(posterior=False, tube_line_segments=0, **kw)
 
 
-def _bench(out, hidden, seed):
+def _bench(out, hidden, seed, duration_s=14.0):
     eff = effects_from_names(hidden)
-    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
-                                  seed=seed, positions=(0.5, 0.9), ranges_V=(5.0, 0.5)),
-                      out / "fixed")
-    moving = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="moving", duration_s=14.0,
-                                   seed=seed + 500, count=2), out / "moving")
+    fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed",
+                                  duration_s=duration_s, seed=seed, positions=(0.5, 0.9),
+                                  ranges_V=(5.0, 0.5)), out / "fixed")
+    moving = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="moving",
+                                   duration_s=duration_s, seed=seed + 500, count=2),
+                       out / "moving")
     return list(fixed.recordings) + list(moving.recordings), fixed.truth_path
 
 
@@ -219,8 +220,9 @@ def test_a_round_tries_its_other_supported_groups_before_it_stops(tmp_path, monk
 
 
 def test_whole_recordings_can_be_held_out(tmp_path):
-    """Triggered trials hold no valve event at their ends: hold whole recordings out."""
-    paths, _ = _bench(tmp_path / "bench", [], seed=21)
+    """Triggered trials hold no valve event at their ends: hold whole recordings out.
+    (8-s recordings: the two held out give the 8 windows the signed-rank test needs.)"""
+    paths, _ = _bench(tmp_path / "bench", [], seed=21, duration_s=8.0)
     recs = [read_recording(p) for p in paths]
     bounds = {"dead_volume_m3": (1e-7, 1e-3), "tube_delay_s": (0.0, 0.1)}
     d = Discovery(_settings(holdout_recordings=2, bounds=bounds), tmp_path / "run",

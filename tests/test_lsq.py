@@ -94,6 +94,7 @@ def test_lsq_separates_a_laminar_leak(tmp_path):
     assert est.notes_ == []
 
 
+@pytest.mark.slow  # a planted-recovery study on six 10-s bench recordings
 def test_lsq_grades_a_leak_along_the_stroke(tmp_path):
     sensor = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
     cfg = BenchConfig("AIR37", "valve1", effects_from_names(["cylinder_leak"], "graded"),
