@@ -19,7 +19,13 @@ import numpy as np
 from pneubayes import interrupt
 from pneubayes.cli_args import build_parser, check_single_values
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import check_file, inputs_digest, open_run_folder, release_locks
+from pneubayes.run_folder import (
+    check_file,
+    inputs_digest,
+    open_run_folder,
+    recorded_number,
+    release_locks,
+)
 
 #: What each folder-writing command may write (removed by --overwrite when the folder
 #: has no stamp listing the earlier run's files).
@@ -47,19 +53,9 @@ def _cutoffs(args) -> dict:
 def _run_horizon(run: Path) -> float:
     """The window length a run was fitted on (its summary or discovery document), s;
     2 s for runs that do not record it."""
-    import json
-
-    for name, keys in (("summary.json", ("settings", "horizon_s")),
-                       ("discovery.json", ("horizon_s",))):
-        try:
-            doc = json.loads((run / name).read_text())
-            for k in keys:
-                doc = doc[k]
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
-        if isinstance(doc, (int, float)) and not isinstance(doc, bool) and doc > 0:
-            return float(doc)
-    return 2.0
+    horizon = recorded_number(run, (("summary.json", ("settings", "horizon_s")),
+                                    ("discovery.json", ("horizon_s",))))
+    return 2.0 if horizon is None else horizon
 
 
 def _effect_names(text: str, option: str = "--effects") -> list[str]:

@@ -396,3 +396,20 @@ def check_file(folder, name: str) -> None:
     if file_digest(path) != stamp["files"][name]:
         raise RunFolderError(f"{path}: not the file its run produced ({Path(folder) / STAMP} "
                              "records another); files of different runs are never combined")
+
+
+def recorded_number(run, sources) -> float | None:
+    """The first positive number a run folder records at one of ``sources``: ``(file
+    name, (key, key, ...))`` pairs, e.g. ``("summary.json", ("settings", "horizon_s"))``,
+    tried in order; None when none holds one (a missing or unreadable file counts as
+    none)."""
+    for name, keys in sources:
+        try:
+            doc = json.loads((Path(run) / name).read_text())
+            for k in keys:
+                doc = doc[k]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if isinstance(doc, (int, float)) and not isinstance(doc, bool) and doc > 0:
+            return float(doc)
+    return None

@@ -5,7 +5,6 @@ prediction ``horizon_s`` ahead from the measured pressure, next to the frozen fi
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from pneubayes.inference.online import (
 from pneubayes.io.plausibility import recorded_findings
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
+from pneubayes.run_folder import recorded_number
 from pneubayes.simulation import Inputs, SolverConfig
 
 #: z of the 5 and 95 % quantiles of a normal
@@ -168,15 +168,9 @@ def run_track(run_dir, recording, vary, out_json, *, tick_s: float, horizon_s: f
 def run_rmse_Pa(run: Path) -> float:
     """A run folder's refined window RMSE, Pa (``summary.json``'s or the discovery's final
     one); ValueError when it records none."""
-    for name, keys in (("summary.json", ("refined", "rmse_Pa")),
-                       ("discovery.json", ("rmse_final_Pa",))):
-        try:
-            doc = json.loads((run / name).read_text())
-            for k in keys:
-                doc = doc[k]
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
-        if isinstance(doc, (int, float)) and not isinstance(doc, bool) and doc > 0:
-            return float(doc)
+    rmse = recorded_number(run, (("summary.json", ("refined", "rmse_Pa")),
+                                 ("discovery.json", ("rmse_final_Pa",))))
+    if rmse is not None:
+        return rmse
     raise ValueError(f"{run}: records no refined RMSE (summary.json or discovery.json); "
                      "give --noise-std, the model's prediction error in Pa")
