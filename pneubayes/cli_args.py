@@ -454,6 +454,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep each cell's bench recordings and fit folder in RUNDIR/work")
     a.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
+    _add_track(sub)
+    _add_compile(sub)
+    return p
+
+
+def _add_track(sub) -> None:
+    """The ``track`` subcommand's parser."""
     t = sub.add_parser(
         "track", help="replay a recording as a stream: the varying quantities' posterior "
                       "tick by tick and its predictions",
@@ -494,6 +501,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--overwrite", action="store_true")
     _add_accept(t)
 
+
+def _add_compile(sub) -> None:
+    """The ``compile`` subcommand's parser."""
     k = sub.add_parser(
         "compile", help="compile the simulator's kernels now, so the first fit does not "
                         "wait for the compiler",
@@ -503,7 +513,6 @@ def build_parser() -> argparse.ArgumentParser:
                     "processes load the cache instead of compiling.")
     k.add_argument("--jobs", type=POSITIVE_INT, default=2,
                    help="processes compiling at once (default 2)")
-    return p
 
 
 def check_single_values(parser, args) -> None:
