@@ -32,7 +32,8 @@ import numba
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.inference.online import LogNormalPrior, OnlineTracker
+from pneubayes.inference.online import OnlineTracker
+from pneubayes.inference.population import LogNormalPrior
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset

@@ -51,8 +51,9 @@ from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa
 from real_respiraworks_forms import CAL_S, LUNG, MAX_NFEV, form_card
 
 from pneubayes.atomic import write_json_atomic
-from pneubayes.inference.online import LogNormalPrior, OnlineTracker, forecast
+from pneubayes.inference.online import OnlineTracker, forecast
 from pneubayes.inference.pipeline import FitSettings
+from pneubayes.inference.population import LogNormalPrior
 from pneubayes.inference.predictive import noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.windows import WindowSet

@@ -7,13 +7,8 @@ import numpy as np
 import pytest
 
 from pneubayes.cli import main
-from pneubayes.inference.online import (
-    LogNormalPrior,
-    LogUniformPrior,
-    OnlineTracker,
-    forecast,
-    systematic_resample,
-)
+from pneubayes.inference.online import OnlineTracker, forecast, systematic_resample
+from pneubayes.inference.population import LogNormalPrior, LogUniformPrior
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig

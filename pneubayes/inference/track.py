@@ -11,12 +11,8 @@ import numpy as np
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.fit_folder import card_preparation
-from pneubayes.inference.online import (
-    LogNormalPrior,
-    LogUniformPrior,
-    OnlineTracker,
-    forecast,
-)
+from pneubayes.inference.online import OnlineTracker, forecast
+from pneubayes.inference.population import LogNormalPrior, LogUniformPrior
 from pneubayes.io.plausibility import recorded_findings
 from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
