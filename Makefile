@@ -25,7 +25,7 @@ demo: $(STAMP)
 # (`pneubayes compile`), so the two test processes (pytest-xdist) load them from numba's
 # cache instead of each compiling its own copy. OMP_WAIT_POLICY=PASSIVE: numba's OpenMP
 # threads sleep instead of spinning while they wait, which two processes sharing two
-# cores otherwise pay for (the fast tier 215 -> 204 s, CPU time 8.3 -> 6.5 min).
+# cores otherwise pay for.
 TEST_ENV := OMP_WAIT_POLICY=PASSIVE
 
 test: $(STAMP)
