@@ -25,7 +25,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings
 from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
@@ -58,8 +58,9 @@ def main(argv=None) -> int:
     for label, posterior in (("loop without posterior (baseline)", False),
                              ("whole loop with posterior", True)):
         # the bench DAQ's zero-phase anti-alias filter, declared as a user declares theirs
-        settings = DiscoverySettings(posterior=posterior, seed=args.seed,
-                                     posterior_method=args.posterior,
+        settings = DiscoverySettings(posterior=PosteriorSettings(
+                                         method=args.posterior if posterior else "none"),
+                                     seed=args.seed,
                                      fit=FitSettings(sampler=SamplerSettings(
                                          n_walkers=32, seed=args.seed),
                                          pressure_filter=SensorChain().declared_filter()))

@@ -26,7 +26,7 @@ from pneubayes.bench.bench import ATMOSPHERE_PA, BenchConfig, run_bench
 from pneubayes.bench.forms import ReliefValve
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings, StageSettings
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -53,11 +53,12 @@ def main(argv=None) -> int:
                        work / "moving")
     recs = [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
     out = {}
-    default_ratio = DiscoverySettings().open_form_min_noise_ratio
+    default_ratio = DiscoverySettings().stages.open_form_min_noise_ratio
     for label, ratio in (("catalogue stages only (baseline)", 0.0),
                          ("with the open-form stage", default_ratio)):
-        settings = DiscoverySettings(posterior=False, seed=args.seed,
-                                     open_form_min_noise_ratio=ratio,
+        settings = DiscoverySettings(posterior=PosteriorSettings(method="none"),
+                                     seed=args.seed,
+                                     stages=StageSettings(open_form_min_noise_ratio=ratio),
                                      fit=FitSettings(sampler=SamplerSettings(
                                          n_walkers=32, seed=args.seed),
                                          pressure_filter=SensorChain().declared_filter()))

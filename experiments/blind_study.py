@@ -60,7 +60,12 @@ from pneubayes.bench.forms import (
 )
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import (
+    DiscoverySettings,
+    FormSettings,
+    PosteriorSettings,
+    SearchSettings,
+)
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -153,9 +158,10 @@ def run_case(case: dict, args, root: Path) -> dict:
                               forms=plant, duration_s=args.duration, sensor=sensor)
     recs = [read_recording(p) for p in paths]
     settings = DiscoverySettings(
-        posterior=args.posterior != "off",
-        posterior_method="emcee" if args.posterior == "off" else args.posterior,
-        seed=seed, n_bags=40, tube_line_form=args.tube_line_form,
+        posterior=PosteriorSettings(method="none" if args.posterior == "off"
+                                    else args.posterior),
+        seed=seed, search=SearchSettings(n_bags=40),
+        forms=FormSettings(tube_line_form=args.tube_line_form),
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed),
                         pressure_filter=sensor.declared_filter()))
     t0 = time.perf_counter()
@@ -240,7 +246,7 @@ def summarise(results: list[dict]) -> tuple[dict, str]:
 def addition_gains(result: dict, noise_share: float, gap_share: float) -> list[dict]:
     """Each effect the loop added in ``result`` (a case's record with its ledger), with
     its held-out gain (Pa) and the least gain the loop's gain floor asks
-    (``DiscoverySettings.min_gain_noise_share`` x the noise floor or ``min_gain_gap_share``
+    (``VerifySettings.min_gain_noise_share`` x the noise floor or ``min_gain_gap_share``
     x the gap above it, whichever is larger; :func:`pneubayes.discovery.rounds.min_gain_Pa`):
     a check for sets run before that floor existed."""
     noise = result["noise_floor_Pa"]
@@ -280,7 +286,7 @@ def main(argv=None) -> int:
                     help="run only this case (full name or bNN prefix; repeatable) into "
                          "the cache, without a summary")
     ap.add_argument("--tube-line-form", choices=("line", "wave"), default="wave",
-                    help="the outside tube's form the loop tries (DiscoverySettings."
+                    help="the outside tube's form the loop tries (FormSettings."
                          "tube_line_form; wave)")
     ap.add_argument("--min-tube-cells", type=int, default=8, metavar="N",
                     help="the plant tube's fewest cells (default 8: the bench's rule of 8 "

@@ -38,7 +38,7 @@ from discovery_study import LEAK_OVERRIDE, cached_cases, six_recordings
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.library import LibraryGrid
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings, SearchSettings
 from pneubayes.effects import SensorCalibration, make_effect
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
@@ -67,7 +67,8 @@ def run_case(name, rig, valve, seed, search, args, root):
     grid = LibraryGrid({"sensor_calibration": SensorCalibration.opt_in_strengths}
                        if search else {})
     settings = DiscoverySettings(
-        posterior=False, seed=seed, grid=grid,
+        posterior=PosteriorSettings(method="none"), seed=seed,
+        search=SearchSettings(grid=grid),
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed)))
     t0 = time.perf_counter()
     doc = run_discover(recs, settings, work / "run", log=lambda m: None, figures=False)

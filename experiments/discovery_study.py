@@ -38,7 +38,7 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import forms_from_names
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings, SearchSettings
 from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
@@ -121,7 +121,8 @@ def run_case(name: str, rig: str, valve: str, hidden, forms: str, seed: int, arg
     # causal one has no declaration: its lag is the hidden effect)
     declared = sensor.declared_filter() if args.pressure_filter == "bench" else None
     settings = DiscoverySettings(
-        posterior=args.posterior, seed=seed, n_bags=20 if args.smoke else 40,
+        posterior=PosteriorSettings(method="emcee" if args.posterior else "none"), seed=seed,
+        search=SearchSettings(n_bags=20 if args.smoke else 40),
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed),
                         pressure_filter=declared))
     t0 = time.perf_counter()

@@ -1125,15 +1125,15 @@ def blind_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           _summary_table(cases), ""]
     now = DiscoverySettings()  # the loop's gain floor at this revision
     gains = [g for c in cases if "error" not in c
-             for g in blind_study.addition_gains(c, now.min_gain_noise_share,
-                                                 now.min_gain_gap_share)]
+             for g in blind_study.addition_gains(c, now.verify.min_gain_noise_share,
+                                                 now.verify.min_gain_gap_share)]
     if gains:
         low = min(gains, key=lambda g: g["gain_Pa"])
         held = sum(g["meets"] for g in gains)
         L += [f"Every addition is checked against the gain floor the loop has now "
               "(an added effect must lower the held-out RMSE by "
-              f"{100 * now.min_gain_noise_share:g} % of the noise floor or "
-              f"{100 * now.min_gain_gap_share:g} % of the gap, whichever is larger): "
+              f"{100 * now.verify.min_gain_noise_share:g} % of the noise floor or "
+              f"{100 * now.verify.min_gain_gap_share:g} % of the gap, whichever is larger): "
               f"{held} of {len(gains)} additions meet it. The smallest gain is "
               f"{low['case'].split('_')[0]}'s `{low['effect']}`, {low['gain_Pa']:.0f} Pa "
               f"against the {low['least_gain_Pa']:.0f} Pa asked.", ""]
@@ -1238,8 +1238,9 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
           "(the reading P_atm + g (p - P_atm) + o; the chamber's physics sees p). Its "
           "library terms are off by default: an offset reads like a leak into a closed "
           "chamber, a gain like the supply's. Here the loop searches for it "
-          "(`--library sensor_calibration=...`) on the bench's catalogue forms: the "
-          "offset alone (5 kPa), with a 3 % gain error, and beside a laminar leak; and "
+          "(`--set search.grid.strengths.sensor_calibration=...`) on the bench's "
+          "catalogue forms: the offset alone (5 kPa), with a 3 % gain error, and beside "
+          "a laminar leak; and "
           "on controls with no calibration planted: no effect, a laminar leak and the "
           "supply fluctuation. Six 20-s recordings per case, from the plain model, "
           "without the final posterior; the bench's zero-phase DAQ filter is not "

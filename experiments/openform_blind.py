@@ -14,9 +14,10 @@ wide physical ranges (:func:`draw_openform`) from ``--seed`` (default 69069, rec
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
 recordings, or the first ``--recordings`` of them, ``--duration`` s each; the bench's
 declared zero-phase DAQ filter, so the sensor chain has no real lag to find) and
-``pneubayes discover`` from the plain model. ``--setting KEY=VALUE`` (repeatable; the
-value read as JSON, else as text) sets a :class:`DiscoverySettings` field, e.g. to
-switch the open-form stage on once it exists; the settings are recorded.
+``pneubayes discover`` from the plain model. ``--setting KEY.PATH=VALUE`` (repeatable;
+the value read as TOML, else as text) sets one :class:`DiscoverySettings` key, e.g.
+``stages.open_form_min_noise_ratio=0`` to switch the open-form stage off; the settings
+are recorded.
 
 Reported per case: the catalogue effects named, the open-form terms found (the
 discovery document's ``found_terms``, from an effect named ``closure``; none when the
@@ -36,7 +37,6 @@ from a different seed -- a tuning draw, not the blind set -- to check the plumbi
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import sys
@@ -59,12 +59,13 @@ from pneubayes.bench.forms import (
 )
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings, SearchSettings
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.physics.cylinder import cylinder_preset
 from pneubayes.provenance import provenance
+from pneubayes.settings_tree import assignment, override, table_of
 
 OPENFORM_SEED = 69069
 SMOKE_SEED = 11
@@ -150,31 +151,20 @@ def _is_case(case: dict, key: str) -> bool:
 
 
 def parse_settings(pairs) -> dict:
-    """``KEY=VALUE`` strings as DiscoverySettings overrides (VALUE as JSON, else text);
-    an unknown KEY is an error naming it."""
-    known = {f.name for f in dataclasses.fields(DiscoverySettings)}
-    out = {}
-    for item in pairs:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"--setting {item!r}: expected KEY=VALUE")
-        if key not in known:
-            raise ValueError(f"--setting {key}: not a DiscoverySettings field ({sorted(known)})")
-        try:
-            out[key] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key] = value
-    return out
+    """``KEY.PATH=VALUE`` strings as a table of DiscoverySettings overrides (VALUE as a
+    TOML value, else text; :func:`pneubayes.settings_tree.assignment`)."""
+    return table_of([assignment(item) for item in pairs])
 
 
 def settings_for(case: dict, args, sensor: SensorChain) -> DiscoverySettings:
     """The discovery settings of a case (as ``blind_study.py``'s), with ``--setting``."""
     seed = case["bench_seed"]
     settings = DiscoverySettings(
-        posterior=False, seed=seed, n_bags=40,
+        posterior=PosteriorSettings(method="none"), seed=seed,
+        search=SearchSettings(n_bags=40),
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed),
                         pressure_filter=sensor.declared_filter()))
-    return dataclasses.replace(settings, **args.settings) if args.settings else settings
+    return override(settings, args.settings, "--setting") if args.settings else settings
 
 
 def classify(named: list[str], found_terms: list, hidden: list[str]) -> dict:

@@ -37,7 +37,7 @@ from real_common import plain_fit, prediction_figure
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.library import LibraryGrid
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DataSettings, DiscoverySettings, SearchSettings
 from pneubayes.effects import SensorCalibration
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler import SamplerSettings
@@ -89,7 +89,8 @@ def main(argv=None) -> int:
     grid = LibraryGrid({"sensor_calibration": SensorCalibration.opt_in_strengths}
                        if args.calibration else {})
     settings = DiscoverySettings(
-        holdout_recordings=len(held), seed=SEED, grid=grid,
+        data=DataSettings(holdout_recordings=len(held)), seed=SEED,
+        search=SearchSettings(grid=grid),
         fit=FitSettings(horizon_s=HORIZON_S, stride_s=HORIZON_S, sampler=sampler,
                         supply_cutoff_Hz=None))
     doc = run_discover(train + held, settings, out / "discovery",

@@ -29,7 +29,7 @@ from real_common import plain_fit, prediction_figure
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DataSettings, DiscoverySettings, RoundSettings
 from pneubayes.inference.pipeline import FitSettings, at_bounds
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -71,7 +71,8 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
     sampler = (SamplerSettings(n_walkers=32, max_steps=200, seed=SEED) if smoke
                else SamplerSettings(seed=SEED, max_steps=MAX_STEPS))
     settings = DiscoverySettings(
-        holdout_recordings=len(held), seed=SEED, max_effects=2 if smoke else 4,
+        data=DataSettings(holdout_recordings=len(held)), seed=SEED,
+        rounds=RoundSettings(max_effects=2 if smoke else 4),
         fit=FitSettings(horizon_s=HORIZON_S, stride_s=HORIZON_S, sampler=sampler,
                         supply_cutoff_Hz=None, position_cutoff_Hz=None))
     doc = run_discover(train + held, settings, out / kind,

@@ -11,7 +11,7 @@ recordings in a session) on AIR37 / valve 1, six recordings as ``blind_study.py`
 ``run_case``; 16 s is the shortest that leaves the signed-rank test 7 held-out
 windows), and runs
 ``pneubayes discover`` once per outside-tube form the loop may try
-(``DiscoverySettings.tube_line_form``: the lumped line with cells following the tube,
+(``FormSettings.tube_line_form``: the lumped line with cells following the tube,
 or the transmission-line tube). The bore is drawn (1.5-4 mm, log-uniform) from
 ``--seed``, recorded with every case's bench seed.
 

@@ -46,6 +46,13 @@ _PUBLIC = {
     "discover": "pneubayes.discovery.loop",
     "DiscoveryResult": "pneubayes.discovery.result",
     "DiscoverySettings": "pneubayes.discovery.settings",
+    "DataSettings": "pneubayes.discovery.settings",
+    "SearchSettings": "pneubayes.discovery.settings",
+    "VerifySettings": "pneubayes.discovery.settings",
+    "RoundSettings": "pneubayes.discovery.settings",
+    "FormSettings": "pneubayes.discovery.settings",
+    "StageSettings": "pneubayes.discovery.settings",
+    "PosteriorSettings": "pneubayes.discovery.settings",
     "write_discovery": "pneubayes.discovery.report",
 }
 

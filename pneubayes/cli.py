@@ -42,12 +42,85 @@ def _print_findings(command: str, recordings) -> None:
             print(f"pneubayes {command}: warning: {f.location}: {f.text()}", file=sys.stderr)
 
 
-def _cutoffs(args) -> dict:
-    """FitSettings' preparation from --position-cutoff/--supply-cutoff (0: raw) and
-    --pressure-filter."""
-    return {"position_cutoff_Hz": args.position_cutoff or None,
-            "supply_cutoff_Hz": args.supply_cutoff or None,
-            "pressure_filter": args.pressure_filter}
+def _settings_tree(default, path, assignments=()):
+    """``default`` with the settings file ``path``'s table (None: none) and then the
+    ``--set`` assignments applied (:mod:`pneubayes.settings_tree`); errors name the file
+    or the assignment and the key."""
+    from pneubayes.settings_tree import SettingsError, override, read_table, table_of
+
+    tree = default
+    if path is not None:
+        try:
+            tree = override(tree, read_table(path))
+        except SettingsError as exc:
+            text = str(exc)
+            raise PneubayesError(text if text.startswith(str(path)) else
+                                 f"--settings {path}: {text}") from None
+    if assignments:
+        try:
+            tree = override(tree, table_of(assignments))
+        except SettingsError as exc:
+            raise PneubayesError(f"--set {exc}") from None
+    return tree
+
+
+def _fit_flags(args, prefix: str = "") -> list:
+    """The settings tree's keys that fit's or discover's own options set (those given),
+    as ``--set`` assignments under ``prefix`` (``"fit."`` for discover)."""
+    out = []
+
+    def put(key, value):
+        out.append((tuple(f"{prefix}{key}".split(".")), value))
+    if getattr(args, "horizon", None) is not None:
+        put("horizon_s", args.horizon)
+        if getattr(args, "stride", None) is None:
+            put("stride_s", args.horizon)
+    if getattr(args, "stride", None) is not None:
+        put("stride_s", args.stride)
+    for opt, key in (("position_cutoff", "position_cutoff_Hz"),
+                     ("supply_cutoff", "supply_cutoff_Hz")):
+        v = getattr(args, opt, None)
+        if v is not None:
+            put(key, v or None)  # 0: raw
+    if getattr(args, "walkers", None) is not None:
+        put("sampler.n_walkers", args.walkers)
+    if getattr(args, "max_steps", None) is not None:
+        put("sampler.max_steps", args.max_steps)
+    if args.seed is not None:
+        put("sampler.seed", args.seed)
+    if getattr(args, "jacobian_refresh", None) is not None:
+        put("refine_jacobian_refresh", args.jacobian_refresh)
+    return out
+
+
+def _apply(tree, pairs):
+    """``tree`` with already-parsed values set at their key paths (the options')."""
+    for path, value in pairs:
+        tree = _set_at(tree, path, value)
+    return tree
+
+
+def _set_at(node, path, value):
+    import dataclasses
+
+    if len(path) == 1:
+        return dataclasses.replace(node, **{path[0]: value})
+    return dataclasses.replace(node, **{path[0]: _set_at(getattr(node, path[0]), path[1:],
+                                                           value)})
+
+
+def _fit_settings(args):
+    """fit's FitSettings: the defaults, the --settings file, then the options given."""
+    from pneubayes.inference.pipeline import FitSettings
+    from pneubayes.simulation import SolverConfig
+
+    tree = _settings_tree(FitSettings(), args.settings)
+    pairs = _fit_flags(args)
+    if args.pressure_filter is not None:
+        pairs.append((("pressure_filter",), args.pressure_filter))
+    if args.no_dense_output:
+        pairs.append((("sample_solver",), SolverConfig.standard()))
+    return _apply(tree, pairs)
 
 
 def _run_horizon(run: Path) -> float:
@@ -428,8 +501,7 @@ def _card_known_at(card, known, args):
 
 def cmd_fit(args) -> int:
     from pneubayes.effects import effects_from_names
-    from pneubayes.inference.pipeline import FitSettings, run_fit
-    from pneubayes.inference.sampler import SamplerSettings
+    from pneubayes.inference.pipeline import run_fit
     from pneubayes.model import Model
 
     if args.model and (args.effects is not None or args.leak_form is not None):
@@ -442,10 +514,12 @@ def cmd_fit(args) -> int:
         raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
                              "--effects (the fitted model has no leak)")
     _no_bound_twice(args.bounds)
+    settings = _fit_settings(args)
+    sampler = settings.sampler
     known = _known_from(args) if args.known_from or args.refit else None
     recs = _read_all(args.recordings, args.accept, "fit", args.rig)
-    _check_filter(recs, args.pressure_filter)
-    _check_windows(recs, args.horizon, args.stride, args.force)
+    _check_filter(recs, settings.pressure_filter)
+    _check_windows(recs, settings.horizon_s, settings.stride_s, args.force)
     card = _rig_card_of(recs)
     if known is not None:  # the card's quantities known at another fit's values
         card = _card_known_at(card, known, args)
@@ -464,32 +538,33 @@ def cmd_fit(args) -> int:
         model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)},
                       model.rig_card)
     n_dims = model.n_parameters  # a bound for a parameter the model lacks fails here
-    if args.walkers and args.walkers < 2 * n_dims:
-        raise PneubayesError(f"--walkers {args.walkers}: emcee needs at least twice the "
+    walkers_opt = (f"--walkers {sampler.n_walkers}" if args.walkers is not None
+                   else f"sampler.n_walkers = {sampler.n_walkers} (--settings)")
+    if sampler.n_walkers and sampler.n_walkers < 2 * n_dims:
+        raise PneubayesError(f"{walkers_opt}: emcee needs at least twice the "
                              f"{model.n_parameters} sampled dimensions of this model, >= "
                              f"{2 * model.n_parameters} (or 0: automatic)")
     if args.method == "mcmc":
         from pneubayes.limits import MAX_CHAIN_MB, check_work
 
-        walkers = args.walkers or max(32, 4 * n_dims)
+        walkers = sampler.n_walkers or max(32, 4 * n_dims)
         walkers += walkers % 2
-        mb = walkers * float(args.max_steps) * (n_dims + 1) * 8 / 1e6
-        check_work(mb, MAX_CHAIN_MB, f"--walkers {args.walkers} --max-steps {args.max_steps}",
-                   f"a chain of {walkers:,} walkers x {args.max_steps:,} steps x "
+        mb = walkers * float(sampler.max_steps) * (n_dims + 1) * 8 / 1e6
+        check_work(mb, MAX_CHAIN_MB, f"--walkers {sampler.n_walkers} --max-steps "
+                   f"{sampler.max_steps}",
+                   f"a chain of {walkers:,} walkers x {sampler.max_steps:,} steps x "
                    f"{n_dims + 1} values, up to {mb:,.0f} MB on disk in chain.h5 (and as "
                    "much in memory)", "use fewer walkers or steps, or pass --force to run it "
                    "anyway", args.force)
-    settings = FitSettings(sampler=SamplerSettings(
-        n_walkers=args.walkers, max_steps=args.max_steps, seed=args.seed), **_cutoffs(args),
-        **_windows(args), **_refinement(args), **_sampling(args))
     identity = {"recordings": inputs_digest(_recording_files(args.recordings)),
                 "effects": list(model.effect_names),
                 "options": {e.name: e.options() for e in model.effects},
                 "bounds": model.bound_overrides,
                 "rig": None if card is None else card.to_dict(),
                 "known_from": None if known is None else str(known[2]),
-                "method": args.method, "walkers": args.walkers, "seed": args.seed,
-                "windows": _windows(args), **_refinement(args),
+                "method": args.method, "walkers": sampler.n_walkers, "seed": sampler.seed,
+                "windows": {"horizon_s": settings.horizon_s, "stride_s": settings.stride_s},
+                "refine_jacobian_refresh": settings.refine_jacobian_refresh,
                 # a chain is never resumed with another likelihood solver
                 "sample_solver": settings.sample_solver.to_dict(),
                 "preparation": settings.preparation(), "accept": list(args.accept)}
@@ -646,51 +721,42 @@ def cmd_track(args) -> int:
     return 0
 
 
-def _library_grid(entries):
-    """``--library`` entries as a LibraryGrid; an unknown effect or a repeated one is an
-    error naming it."""
-    from pneubayes.discovery.library import LibraryGrid
+def _discovery_settings(args):
+    """discover's DiscoverySettings: the defaults, the --settings file, the options given,
+    then every --set."""
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.settings_tree import SettingsError
 
-    names = [n for n, _ in entries]
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise ValueError(f"--library: {', '.join(twice)} given more than once")
-    try:
-        return LibraryGrid(dict(entries))
-    except ValueError as exc:
-        raise ValueError(f"--library: {exc}") from None
+    tree = _settings_tree(DiscoverySettings(), args.settings)
+    pairs = _fit_flags(args, "fit.")
+    if args.held_out:
+        pairs.append((("data", "holdout_recordings"), len(args.held_out)))
+    if args.max_effects is not None:
+        pairs.append((("rounds", "max_effects"), args.max_effects))
+    if args.posterior is not None:
+        pairs.append((("posterior", "method"), args.posterior))
+    if args.seed is not None:
+        pairs.append((("seed",), args.seed))
+    if args.pressure_filter is not None:
+        pairs.append((("fit", "pressure_filter"), args.pressure_filter))
+    tree = _apply(tree, pairs)
+    tree = _settings_tree(tree, None, args.set)
+    if args.held_out and tree.data.holdout_recordings != len(args.held_out):
+        raise PneubayesError(f"--held-out: {len(args.held_out)} recordings, but "
+                             f"data.holdout_recordings = {tree.data.holdout_recordings}")
+    if not args.held_out and tree.data.holdout_recordings:
+        raise SettingsError(f"data.holdout_recordings = {tree.data.holdout_recordings}: the "
+                            "recordings held out whole are named with --held-out")
+    return tree
 
 
 def cmd_discover(args) -> int:
     from pneubayes.discovery.report import run_discover
-    from pneubayes.discovery.settings import DiscoverySettings
-    from pneubayes.inference.pipeline import FitSettings
-    from pneubayes.inference.sampler import SamplerSettings
 
-    if args.no_posterior and args.posterior is not None:
-        raise PneubayesError(f"--posterior {args.posterior}: contradicts --no-posterior "
-                             "(give one or the other)")
-    _no_bound_twice(args.bounds)
-    grid = _library_grid(args.library)
+    settings = _discovery_settings(args)
     recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover", args.rig)
-    _check_filter(recs, args.pressure_filter)
-    _check_windows(recs, args.horizon, args.stride, args.force)
-    settings = DiscoverySettings(
-        holdout_fraction=args.holdout, holdout_recordings=len(args.held_out),
-        bounds=dict(args.bounds),
-        max_effects=args.max_effects, grid=grid,
-        posterior=not args.no_posterior, posterior_method=args.posterior or "emcee", seed=args.seed,
-        tube_line_segments=args.tube_line_segments,
-        tube_line_form=args.tube_line_form,
-        form_settled_ratio=args.form_settled_ratio,
-        later_forms_min_share=args.later_forms_min_share,
-        later_form_screen_share=args.later_form_screen_share,
-        pair_members=args.pair_members, max_form_swaps=args.max_form_swaps,
-        open_form_min_noise_ratio=args.open_form_min_noise_ratio,
-        fit=FitSettings(sampler=SamplerSettings(n_walkers=args.walkers,
-                                                max_steps=args.max_steps, seed=args.seed),
-                        **_cutoffs(args), **_windows(args), **_refinement(args),
-                        **_sampling(args)))
+    _check_filter(recs, settings.fit.pressure_filter)
+    _check_windows(recs, settings.fit.horizon_s, settings.fit.stride_s, args.force)
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     identity = {"recordings": inputs_digest(_recording_files([*args.recordings,
                                                               *args.held_out])),
@@ -712,7 +778,7 @@ def cmd_discover(args) -> int:
                                  "not a result (a simulation failed on the data)")
     folder.record("discovery.json", "model.json", "posterior.nc", "disagreement.json",
                   "report.md")
-    print(f"{args.out}/discovery.json: base held-out {args.horizon:g}-s RMSE "
+    print(f"{args.out}/discovery.json: base held-out {settings.fit.horizon_s:g}-s RMSE "
           f"{doc['rmse_base_Pa']:.0f} Pa, "
           f"final {doc['rmse_final_Pa']:.0f} Pa (noise floor {doc['noise_floor_Pa']:.0f} Pa)")
     if not doc["effects"]:

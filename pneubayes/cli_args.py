@@ -40,13 +40,6 @@ POSITIVE_INT = _number("integer", 0, strict=True)
 NON_NEGATIVE_INT = _number("integer", 0, strict=False)
 
 
-def _fraction(text: str) -> float:
-    v = POSITIVE(text)
-    if v >= 1.0:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
-    return v
-
-
 def _share(text: str) -> float:
     v = NON_NEGATIVE(text)
     if v > 1.0:
@@ -80,22 +73,13 @@ def _setting(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
 
 
-def _library_entry(text: str) -> tuple[str, tuple[float, ...]]:
-    """``EFFECT=S1,S2,...`` for ``discover --library`` (the effect's trial strengths, in
-    the unit of the parameter its terms vary)."""
-    name, sep, values = text.partition("=")
+def _assignment(text: str):
+    from pneubayes.settings_tree import SettingsError, assignment
+
     try:
-        strengths = tuple(float(v) for v in values.split(",") if v.strip())
-        if not sep or not name.strip() or not strengths:
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--library expects EFFECT=S1,S2,... (numbers), "
-                                         f"got {text!r}") from None
-    bad = [v for v in strengths if not (math.isfinite(v) and v > 0)]
-    if bad:
-        raise argparse.ArgumentTypeError(f"--library {name.strip()}: trial strengths must be "
-                                         f"finite and > 0, got {', '.join(map(repr, bad))}")
-    return name.strip(), strengths
+        return assignment(text)
+    except SettingsError as exc:
+        raise argparse.ArgumentTypeError(f"--set {exc}") from None
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -152,24 +136,36 @@ def _add_run_folder(p) -> None:
                         "the same command on the same inputs and settings resumes anyway")
 
 
-def _add_identification(p, seed_help: str) -> None:
-    """The options fit and discover share: the sampler, the inputs' preparation, the
-    windows, the bounds, the run folder, output and plausibility."""
-    p.add_argument("--walkers", type=NON_NEGATIVE_INT, default=0,
-                   help="emcee walkers (0: automatic)")
-    p.add_argument("--max-steps", type=POSITIVE_INT, default=20000, help="emcee step limit")
-    p.add_argument("--seed", type=NON_NEGATIVE_INT, default=0, help=seed_help)
+def _add_settings_file(p, tree: str) -> None:
+    p.add_argument("--settings", default=None, metavar="FILE.toml",
+                   help=f"the settings tree ({tree}) as a TOML file, the same tables a "
+                        "study's [settings] uses; the options below override it")
+
+
+def _add_fit_settings(p) -> None:
+    """fit's options that set its FitSettings (None: the settings file's, else the
+    default)."""
+    _add_settings_file(p, "FitSettings: horizon_s, stride_s, [sampler], ...")
+    p.add_argument("--walkers", type=NON_NEGATIVE_INT, default=None,
+                   help="sampler.n_walkers: emcee walkers (0: automatic)")
+    p.add_argument("--max-steps", type=POSITIVE_INT, default=None,
+                   help="sampler.max_steps: emcee step limit (20000)")
+    p.add_argument("--seed", type=NON_NEGATIVE_INT, default=None,
+                   help="sampler.seed (0; recorded)")
     _add_cutoffs(p)
     _add_windows(p)
     p.add_argument("--jacobian-refresh", type=POSITIVE_INT, default=None, metavar="K",
-                   help="the refinement's finite-difference Jacobian at every K-th accepted "
-                        "point, Broyden's update between (default: the settings', "
-                        "FitSettings.refine_jacobian_refresh)")
+                   help="refine_jacobian_refresh: the refinement's finite-difference "
+                        "Jacobian at every K-th accepted point, Broyden's update between (4)")
     p.add_argument("--no-dense-output", action="store_true",
-                   help="the posterior's likelihood stops the integrator at every sample "
-                        "(SolverConfig.standard()) instead of crossing the samples where "
-                        "the command holds (SolverConfig.sampling(), the default)")
+                   help="sample_solver = SolverConfig.standard(): the posterior's "
+                        "likelihood stops the integrator at every sample instead of "
+                        "crossing the samples where the command holds")
     _add_bounds(p)
+
+
+def _add_run_options(p) -> None:
+    """The run folder, sized work, output and plausibility options of fit and discover."""
     _add_run_folder(p)
     p.add_argument("--force", action="store_true",
                    help="start work sized over its limit (over 20,000 prediction windows "
@@ -189,13 +185,18 @@ def _add_bounds(p) -> None:
                         "repeatable; recorded in the model card")
 
 
+def _add_horizon(p) -> None:
+    p.add_argument("--horizon", type=POSITIVE, default=None, metavar="S",
+                   help="horizon_s (and stride_s unless given): length of the open-loop "
+                        "prediction windows the model is fitted and judged on, s (2, the "
+                        "paper's; shorter for short triggered trials)")
+
+
 def _add_windows(p) -> None:
-    p.add_argument("--horizon", type=POSITIVE, default=2.0, metavar="S",
-                   help="length of the open-loop prediction windows the model is fitted "
-                        "and judged on, s (2, the paper's; shorter for short triggered "
-                        "trials)")
+    _add_horizon(p)
     p.add_argument("--stride", type=POSITIVE, default=None, metavar="S",
-                   help="spacing of the windows, s (default: the horizon, no overlap)")
+                   help="stride_s: spacing of the windows, s (default: the horizon, no "
+                        "overlap)")
 
 
 def _pressure_filter(text: str):
@@ -208,18 +209,23 @@ def _pressure_filter(text: str):
 
 
 def _add_cutoffs(p) -> None:
-    p.add_argument("--position-cutoff", type=NON_NEGATIVE, default=50.0, metavar="HZ",
-                   help="zero-phase low-pass of the measured position before it drives "
-                        "the model, Hz; 0: raw (50)")
-    p.add_argument("--supply-cutoff", type=NON_NEGATIVE, default=100.0, metavar="HZ",
-                   help="the same for the measured supply (its sensor noise biases the "
-                        "supply gain); 0: raw (100)")
+    p.add_argument("--position-cutoff", type=NON_NEGATIVE, default=None, metavar="HZ",
+                   help="position_cutoff_Hz: zero-phase low-pass of the measured position "
+                        "before it drives the model, Hz; 0: raw (50)")
+    p.add_argument("--supply-cutoff", type=NON_NEGATIVE, default=None, metavar="HZ",
+                   help="supply_cutoff_Hz: the same for the measured supply (its sensor "
+                        "noise biases the supply gain); 0: raw (100)")
+    _add_pressure_filter(p)
+
+
+def _add_pressure_filter(p) -> None:
     p.add_argument("--pressure-filter", type=_pressure_filter, default=None,
                    metavar="ORDER:HZ",
-                   help="the pressure channel's zero-phase (delay-compensated) Butterworth "
-                        "anti-alias filter, e.g. 2:1000 for the virtual bench's DAQ; the "
-                        "model then predicts the reading (default: none declared; a "
-                        "cutoff over 10 x the sample rate is refused as a slip)")
+                   help="pressure_filter: the pressure channel's zero-phase "
+                        "(delay-compensated) Butterworth anti-alias filter, e.g. 2:1000 "
+                        "for the virtual bench's DAQ; the model then predicts the reading "
+                        "(default: none declared; a cutoff over 10 x the sample rate is "
+                        "refused as a slip)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -325,7 +331,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "shooting on the windows; mcmc (default): then the emcee posterior; "
                         "laplace: then a Gaussian at the posterior's mode (minutes where "
                         "emcee takes hours; no skew, one mode)")
-    _add_identification(f, "sampler seed (recorded)")
+    _add_fit_settings(f)
+    _add_run_options(f)
 
     r = sub.add_parser(
         "predict", help="posterior-predictive pressure bands (--horizon windows) for a recording",
@@ -360,59 +367,31 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", required=True, help="run folder (an interrupted run resumes)")
     d.add_argument("--held-out", nargs="+", default=[], metavar="REC",
                    help="recordings held out whole to verify (triggered trials, whose ends "
-                        "hold no valve event); then --holdout is not used")
-    d.add_argument("--holdout", type=_fraction, default=1.0 / 3.0,
-                   help="fraction of every recording (its end) held out to verify (1/3)")
-    d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=4,
-                   help="stop after adding this many")
-    d.add_argument("--tube-line-segments", type=NON_NEGATIVE_INT, default=8,
-                   help="the most cells of the acoustic-line form tried for a named tube "
-                        "(the cells follow the tube's transit time, at least 3); 0 tries "
-                        "the transport delay only (the line is tens of times slower to "
-                        "simulate) (8)")
-    d.add_argument("--tube-line-form", choices=("line", "wave"), default="wave",
-                   help="the outside tube's form tried for a named tube: the "
-                        "transmission-line tube (wave: no cells, closer to a continuous "
-                        "tube; the line beside heat transfer), or the lumped acoustic "
-                        "line (line)")
-    d.add_argument("--form-settled-ratio", type=NON_NEGATIVE, default=1.05,
-                   help="later forms (the acoustic line, convective heat) are not fitted "
-                        "once a trial of the round has a training RMSE within this x the "
-                        "noise floor; 0 fits every form (1.05)")
-    d.add_argument("--later-forms-min-share", type=_share, default=0.25,
-                   help="an effect's later forms are fitted only if its first form gains at "
-                        "least this share of the round's best first-form gain in training; "
-                        "0 always (0.25)")
-    d.add_argument("--later-form-screen-share", type=_share, default=0.5,
-                   help="a later form whose own parameters, fitted first, gain under this "
-                        "share of its first form's gain over the current model is not "
-                        "refined further; 1: it must beat the first form (0.5)")
-    d.add_argument("--pair-members", type=NON_NEGATIVE_INT, default=3,
-                   help="when no single effect passes and the held-out error is over "
-                        "twice the noise floor, fit pairs of the round's this many largest "
-                        "training gains jointly; 0: no pairs (3)")
-    d.add_argument("--max-form-swaps", type=NON_NEGATIVE_INT, default=2,
-                   help="then, while the error is still over twice the noise floor, refit "
-                        "the named effects in their other forms and keep a form that "
-                        "predicts significantly better, at most this many times; 0: never "
-                        "(2)")
-    d.add_argument("--open-form-min-noise-ratio", type=float, default=1.5,
-                   help="the open-form stage (a closure term found in the residual) runs "
-                        "while the held-out error is above this x the noise floor; 0: "
-                        "never (1.5)")
-    d.add_argument("--library", action="append", type=_library_entry, default=[],
-                   metavar="EFFECT=S1,S2", help="the trial strengths of an effect's library "
-                   "terms (its parameter's unit), replacing its own; the only way to search "
-                   "for sensor_calibration, whose terms are off by default, e.g. "
-                   "sensor_calibration=2000,5000,10000 (Pa)")
-    d.add_argument("--no-posterior", action="store_true",
-                   help="skip the final posterior (refined point estimates only)")
-    d.add_argument("--posterior", choices=["emcee", "laplace"], default=None,
-                   help="the final model's posterior: emcee (default) or laplace, a "
-                        "Gaussian at the posterior's mode from a few hundred posterior "
-                        "evaluations (minutes where emcee on a model with a tube takes "
-                        "hours; it sees no skew and one mode)")
-    _add_identification(d, "seed of bagging and sampler (recorded)")
+                        "hold no valve event); else the end of every recording is "
+                        "(data.holdout_fraction, 1/3)")
+    _add_settings_file(d, "DiscoverySettings: [data], [search], [verify], [rounds], "
+                          "[forms], [stages], [fit], [posterior], seed; docs/discovery.md")
+    d.add_argument("--set", action="append", type=_assignment, default=[],
+                   metavar="KEY=VALUE",
+                   help="one setting of the tree by its dotted name, applied last; "
+                        "repeatable; e.g. rounds.max_effects=2, stages.pair_members=0, "
+                        "fit.sampler.n_walkers=64, data.bounds.dead_volume_m3=[1e-5,5e-3], "
+                        "search.grid.strengths.sensor_calibration=[2000,5000,10000] (the "
+                        "only way to search for sensor_calibration, whose terms are off by "
+                        "default)")
+    d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=None,
+                   help="rounds.max_effects: stop after adding this many (4)")
+    d.add_argument("--posterior", choices=["emcee", "laplace", "none"], default=None,
+                   help="posterior.method: the final model's posterior: emcee (default), "
+                        "laplace (a Gaussian at the posterior's mode from a few hundred "
+                        "evaluations: minutes where emcee on a model with a tube takes "
+                        "hours; no skew, one mode) or none (refined point estimates)")
+    d.add_argument("--seed", type=NON_NEGATIVE_INT, default=None,
+                   help="seed and fit.sampler.seed: the search's bags and the sampler (0; "
+                        "recorded)")
+    _add_horizon(d)
+    _add_pressure_filter(d)
+    _add_run_options(d)
 
     im = sub.add_parser(
         "import", help="convert third-party recordings to the recording format plus a rig "

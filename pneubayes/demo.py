@@ -162,7 +162,7 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int,
     """Run the discovery loop on a shipped set and tell its story."""
     from pneubayes.discovery.disagreement import flagged_bins
     from pneubayes.discovery.report import run_discover
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import DataSettings, DiscoverySettings
     from pneubayes.inference.pipeline import FitSettings, run_predict
     from pneubayes.inference.sampler import SamplerSettings
 
@@ -171,9 +171,9 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int,
     print(f"\ndiscovery on {folder} ({len(recs)} recordings; first half of each to fit and "
           "search, second half held out to verify)")
     # the shipped sets hide the bench's own (transport) tube: its transport form fits at
-    # the noise floor, so the loop skips the acoustic-line form (form_settled_ratio)
+    # the noise floor, so the loop skips the acoustic-line form (forms.settled_ratio)
     settings = DiscoverySettings(
-        holdout_fraction=0.5, seed=seed,
+        data=DataSettings(holdout_fraction=0.5), seed=seed,
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=steps, seed=seed),
                         pressure_filter=pressure_filter))
     if pressure_filter is not None:

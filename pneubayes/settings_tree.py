@@ -141,3 +141,56 @@ def build(cls, table: Mapping, where: str = ""):
     """A new ``cls`` from ``table`` (fields not named take their defaults)."""
     values = _values(cls, table, where)
     return _construct(lambda: cls(**values), cls, where)
+
+
+def assignment(text: str) -> tuple[tuple[str, ...], object]:
+    """``KEY.PATH=VALUE`` (a command line's ``--set``) as ``(key path, value)``: the value
+    is read as a TOML value (``2``, ``1e-3``, ``true``, ``[1, 2]``, ``{order = 2,
+    cutoff_Hz = 1000}``, ``"wave"``), a bare word that is not one as that text. The
+    settings' type checks then refuse a value of the wrong kind."""
+    import tomllib
+
+    key, sep, raw = text.partition("=")
+    path = tuple(k.strip() for k in key.split("."))
+    if not sep or not all(path):
+        raise SettingsError(f"{text!r}: expected KEY=VALUE with a dotted KEY, e.g. "
+                            "rounds.max_effects=2")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return path, value
+
+
+def table_of(assignments) -> dict:
+    """The nested table that ``(key path, value)`` pairs describe; a key given twice,
+    or both as a value and as a table, is an error naming it."""
+    out: dict = {}
+    for path, value in assignments:
+        node = out
+        for i, key in enumerate(path[:-1]):
+            node = node.setdefault(key, {})
+            if not isinstance(node, dict):
+                raise SettingsError(f"{'.'.join(path[:i + 1])}: given as a value and as a "
+                                    "table")
+        if path[-1] in node:
+            raise SettingsError(f"{'.'.join(path)}: given more than once")
+        node[path[-1]] = value
+    return out
+
+
+def read_table(path) -> dict:
+    """A settings file's table (TOML); errors name the file."""
+    import tomllib
+    from pathlib import Path
+
+    from pneubayes.limits import check_input_file
+
+    p = Path(path)
+    if not p.exists():
+        raise SettingsError(f"{p}: no such settings file")
+    check_input_file(p, "--settings")
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SettingsError(f"{p}: not a TOML settings file ({exc})") from None

@@ -275,3 +275,16 @@ def ventilator_like(seed=0) -> Recording:
     rec = chamber_recording(rate_Hz=100.0, duration_s=20.0, seed=seed, supply=ATM + 5e3,
                             tau_s=0.15, noise_Pa=20.0, position=False)
     return replace(rec, pressure_Pa=ATM + 0.7 * (rec.pressure_Pa - ATM))
+
+
+def discovery_settings(*tables, **groups):
+    """A DiscoverySettings with nested tables applied in turn
+    (:func:`pneubayes.settings_tree.override`), e.g.
+    ``discovery_settings({"rounds": {"max_effects": 1}}, posterior={"method": "none"})``."""
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.settings_tree import override
+
+    s = DiscoverySettings()
+    for table in (*tables, groups):
+        s = override(s, table)
+    return s

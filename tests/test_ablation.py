@@ -79,22 +79,24 @@ def test_example_studies_parse():
     for path in sorted((ROOT / "experiments" / "studies").glob("*.toml")):
         assert load_study(path).n_cells >= 1
     table3 = load_study(ROOT / "experiments" / "studies" / "table3.toml")
-    assert table3.settings.discovery.n_bags == 40
+    assert table3.settings.discovery.search.n_bags == 40
 
 
 def test_nested_tables_are_the_librarys_own_settings_over_the_studys_defaults():
     """``[settings.fit.sampler]`` changes the sampler's keys it names and keeps the
     study's other defaults (4000 emcee steps); ``[settings.discovery]`` is the loop's
     own DiscoverySettings; both are validated by those dataclasses."""
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import DiscoverySettings, RoundSettings, SearchSettings
 
     study = parse_study(toml(GRID, {"fit": {"sampler": {"n_walkers": 48},
                                             "refine_max_nfev": 30},
-                                    "discovery": {"n_bags": 12, "max_effects": 2}}), "n.toml")
+                                    "discovery": {"search": {"n_bags": 12},
+                                                  "rounds": {"max_effects": 2}}}), "n.toml")
     s = study.settings
     assert s.fit.sampler.n_walkers == 48 and s.fit.sampler.max_steps == 4000
     assert s.fit.refine_max_nfev == 30
-    assert s.discovery == DiscoverySettings(n_bags=12, max_effects=2)
+    assert s.discovery == DiscoverySettings(search=SearchSettings(n_bags=12),
+                                            rounds=RoundSettings(max_effects=2))
     default = parse_study(toml(GRID), "d.toml").settings
     assert default.fit.sampler.max_steps == 4000 and default.discovery == DiscoverySettings()
 
@@ -131,10 +133,10 @@ def test_nested_tables_are_the_librarys_own_settings_over_the_studys_defaults():
      "unknown key; SamplerSettings has"),
     (GRID, {"fit": {"sampler": {"max_steps": 0}}}, "settings.fit.sampler",
      "SamplerSettings.max_steps must be >= 1"),
-    (GRID, {"discovery": {"min_inclusion": 2.0}}, "settings.discovery",
+    (GRID, {"discovery": {"search": {"min_inclusion": 2.0}}}, "settings.discovery.search",
      "min_inclusion must be in (0, 1]"),
-    (GRID, {"discovery": {"grid": {"strengths": {"tube": [0.001]}}}},
-     "settings.discovery.grid", "unknown effect 'tube'"),
+    (GRID, {"discovery": {"search": {"grid": {"strengths": {"tube": [0.001]}}}}},
+     "settings.discovery.search.grid", "unknown effect 'tube'"),
     (GRID, {"discovery": {"seed": 3}}, "settings.discovery.seed", "set by each cell"),
     (GRID, {"fit": {"horizon_s": 1.0}}, "settings.fit.horizon_s", "settings.horizon_s"),
     (GRID, {"fit": "fast"}, "settings.fit", "expected a table of FitSettings"),
@@ -198,7 +200,7 @@ def test_hash_follows_the_settings_that_matter():
     assert longer.id != base.id and longer.id.rsplit(".", 1)[0] == base.id.rsplit(".", 1)[0]
     # emcee and discovery settings cannot change a refine fit of a fixed model
     same = parse_study(toml(GRID, {"fit": {"sampler": {"max_steps": 10}},
-                                   "discovery": {"n_bags": 5},
+                                   "discovery": {"search": {"n_bags": 5}},
                                    "smoke_duration_s": 9.0, "eval_positions": [0.2],
                                    "leak_form": "laminar"}), "a.toml").cells()[0]
     assert same.id == base.id

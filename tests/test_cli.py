@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pneubayes.cli import main
+from pneubayes.errors import PneubayesError
 from pneubayes.io import read_recording
 
 
@@ -97,36 +98,89 @@ def test_fit_and_discover_reject_a_bad_pressure_filter(bench_dir, tmp_path, caps
         assert not (tmp_path / cmd).exists()
 
 
+G = "search.grid.strengths."
+
+
 @pytest.mark.parametrize("entries, why", [
-    (["sensor_calibration=a"], "EFFECT=S1,S2"), (["=5"], "EFFECT=S1,S2"),
-    (["nothing=1"], "unknown effect 'nothing'"),
-    (["sensor_calibration=1,2", "sensor_calibration=3"], "given more than once")])
-def test_discover_rejects_a_bad_library_entry_before_reading(bench_dir, tmp_path, capsys,
-                                                             entries, why):
-    """``--library EFFECT=S1,S2`` (how the loop is asked to search for
-    sensor_calibration): a bad entry is an error naming it, before any work."""
+    ([G + "sensor_calibration=a"], "non-empty list of finite numbers > 0, got 'a'"),
+    (["=5"], "expected KEY=VALUE"), ([G + "nothing=[1]"], "unknown effect 'nothing'"),
+    ([G + "sensor_calibration=[1,2]", G + "sensor_calibration=[3]"], "given more than once"),
+    ([G + "tube_delay=[-1,-2]"], "finite numbers > 0"),
+    (["rounds.max_effects=two"], "rounds.max_effects: expected an integer, got str 'two'"),
+    (["rounds.max_efects=2"], "rounds.max_efects: unknown key; RoundSettings has"),
+    (["seed.x=1"], "seed: expected an integer")])
+def test_discover_rejects_a_bad_setting_before_reading(bench_dir, tmp_path, capsys, entries,
+                                                       why):
+    """``--set KEY=VALUE`` (how the loop is asked to search for sensor_calibration, among
+    every other setting of the tree): a bad entry is an error naming it, before any work."""
     args = ["discover", str(bench_dir / "fixed_u5_x10.csv"), "--out", str(tmp_path / "d")]
     for e in entries:
-        args += ["--library", e]
+        args += ["--set", e]
     try:
         rc = main(args)
     except SystemExit as exc:  # argparse's own usage error
         rc = exc.code
     assert rc == 2
     err = capsys.readouterr().err
-    assert "--library" in err and why in err
+    assert "--set" in err and why in err, err
     assert not (tmp_path / "d").exists()
 
 
-@pytest.mark.parametrize("command", ["fit", "discover"])
-def test_no_dense_output_gives_the_fits_the_stepping_at_every_sample(command):
+def test_discover_reads_one_tree_from_file_options_and_set_in_that_order(tmp_path):
+    """The settings file, then the options, then ``--set``; the same names all the way
+    down (a study's ``[settings.discovery]`` table is the same tree)."""
     from pneubayes import cli
     from pneubayes.cli_args import build_parser
-    from pneubayes.inference.fit import FitSettings
+
+    f = tmp_path / "s.toml"
+    f.write_text('seed = 5\n[rounds]\nmax_effects = 2\n[stages]\npair_members = 0\n'
+                 '[fit]\nhorizon_s = 0.5\n[fit.sampler]\nn_walkers = 48\n')
+    args = build_parser().parse_args(["discover", "r.csv", "--out", "o", "--settings", str(f),
+                                      "--max-effects", "3", "--posterior", "none",
+                                      "--set", "rounds.max_effects=1",
+                                      "--set", "forms.tube_line_form=line"])
+    s = cli._discovery_settings(args)
+    assert s.rounds.max_effects == 1 and s.stages.pair_members == 0 and s.seed == 5
+    assert s.fit.horizon_s == 0.5 and s.fit.sampler.n_walkers == 48
+    assert s.posterior.method == "none" and s.forms.tube_line_form == "line"
+    args = build_parser().parse_args(["discover", "r.csv", "--out", "o", "--horizon", "0.2",
+                                      "--seed", "7"])
+    s = cli._discovery_settings(args)
+    assert (s.fit.horizon_s, s.fit.stride_s, s.seed, s.fit.sampler.seed) == (0.2, 0.2, 7, 7)
+    with pytest.raises(PneubayesError, match="s.toml: .*rounds.nope: unknown key"):
+        f.write_text("[rounds]\nnope = 1\n")
+        cli._discovery_settings(build_parser().parse_args(
+            ["discover", "r.csv", "--out", "o", "--settings", str(f)]))
+    with pytest.raises(PneubayesError, match="no such settings file"):
+        cli._discovery_settings(build_parser().parse_args(
+            ["discover", "r.csv", "--out", "o", "--settings", str(tmp_path / "none.toml")]))
+
+
+def test_no_dense_output_gives_the_fits_the_stepping_at_every_sample():
+    from pneubayes import cli
+    from pneubayes.cli_args import build_parser
     from pneubayes.simulation import SolverConfig
 
     parser = build_parser()
-    plain = parser.parse_args([command, "r.csv", "--out", "o"])
-    stepped = parser.parse_args([command, "r.csv", "--out", "o", "--no-dense-output"])
-    assert FitSettings(**cli._sampling(plain)).sample_solver == SolverConfig.sampling()
-    assert FitSettings(**cli._sampling(stepped)).sample_solver == SolverConfig.standard()
+    plain = parser.parse_args(["fit", "r.csv", "--out", "o"])
+    stepped = parser.parse_args(["fit", "r.csv", "--out", "o", "--no-dense-output"])
+    assert cli._fit_settings(plain).sample_solver == SolverConfig.sampling()
+    assert cli._fit_settings(stepped).sample_solver == SolverConfig.standard()
+
+
+def test_fit_reads_its_settings_file_and_its_options_override_it(tmp_path):
+    from pneubayes import cli
+    from pneubayes.cli_args import build_parser
+
+    f = tmp_path / "fit.toml"
+    f.write_text("horizon_s = 0.5\nposition_cutoff_Hz = 20.0\n[sampler]\nmax_steps = 300\n")
+    parser = build_parser()
+    s = cli._fit_settings(parser.parse_args(["fit", "r.csv", "--out", "o", "--settings",
+                                             str(f)]))
+    assert (s.horizon_s, s.stride_s, s.position_cutoff_Hz) == (0.5, 2.0, 20.0)
+    assert s.sampler.max_steps == 300
+    s = cli._fit_settings(parser.parse_args(["fit", "r.csv", "--out", "o", "--settings",
+                                             str(f), "--horizon", "0.3", "--max-steps",
+                                             "50", "--position-cutoff", "0"]))
+    assert (s.horizon_s, s.stride_s, s.position_cutoff_Hz) == (0.3, 0.3, None)
+    assert s.sampler.max_steps == 50

@@ -259,9 +259,9 @@ def test_impossible_samples_and_settings_are_errors_naming_where(rec, tmp_path, 
         assert main(argv) == 2, argv
         assert says in capsys.readouterr().err
     assert not (tmp_path / "p.csv").exists() and not (tmp_path / "o").exists()
-    with pytest.raises(SystemExit):
-        main(["discover", str(rec), "--library", "tube_delay=-1,-2", "--out", str(tmp_path)])
-    assert "trial strengths must be finite and > 0" in capsys.readouterr().err
+    assert main(["discover", str(rec), "--set", "search.grid.strengths.tube_delay=[-1,-2]",
+                 "--out", str(tmp_path)]) == 2
+    assert "finite numbers > 0" in capsys.readouterr().err
     # a rig card's [bounds] naming no parameter
     card = json.loads((ROOT / "data" / "rigs" / "AIR37-valve2.rig.json").read_text())
     card["bounds"] = {"no_such_param": [0, 1]}
@@ -295,8 +295,7 @@ def test_a_non_finite_rmse_is_never_a_result(tmp_path):
     (["fit", "REC", "--effects", ",,"], "an empty name between commas"),
     (["fit", "REC", "--bounds", "dead_volume_m3=1e-5:1e-3", "--bounds",
       "dead_volume_m3=1e-5:1e-2"], "given more than once"),
-    (["discover", "REC", "--no-posterior", "--posterior", "laplace"],
-     "contradicts --no-posterior"),
+    (["discover", "REC", "--set", "data.holdout_recordings=2"], "named with --held-out"),
     (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--protocol",
       "moving", "--positions", "0.5"], "--positions: only with --protocol fixed"),
     (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--count", "3"],
@@ -357,9 +356,12 @@ _OPTIONS = {
             ("--max-file-mb", ["0.0001", "100"])],
     "predict": [("--horizon", _HORIZONS), ("--stride", ["1e-9", "1e-5", "0.01"]),
                 ("--draws", ["1", "200"]), ("--force", None), ("--overwrite", None)],
-    "discover": [("--no-posterior", None), ("--posterior", ["laplace", "emcee"]),
-                 ("--library", ["tube_delay=-1,-2", "tube_delay=0.001", "no_such=1"]),
-                 ("--horizon", _HORIZONS), ("--stride", ["1e-6", "0.1"]),
+    "discover": [("--posterior", ["laplace", "emcee", "none"]),
+                 ("--set", ["search.grid.strengths.tube_delay=[-1,-2]",
+                            "search.grid.strengths.tube_delay=[0.001]",
+                            "search.grid.strengths.no_such=[1]", "rounds.max_effects=abc",
+                            "fit.stride_s=1e-6", "fit.stride_s=0.1", "nope=1"]),
+                 ("--horizon", _HORIZONS),
                  ("--overwrite", None), ("--resume", None)],
     "simulate": [("--overwrite", None), ("--max-step", ["1e-12", "0.02"])],
     "check": [("--max-file-mb", ["0.0001", "100"]), ("--accept", ["pressure-span"])],

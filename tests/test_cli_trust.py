@@ -124,8 +124,8 @@ def rec(tmp_path):
 @pytest.mark.parametrize("argv", [
     ["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--rate", "0"],
     ["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--duration", "-2"],
-    ["discover", "REC", "--walkers", "-4"],
-    ["discover", "REC", "--holdout", "1.5"],
+    ["discover", "REC", "--max-effects", "-4"],
+    ["discover", "REC", "--set", "=1.5"],
     ["fit", "REC", "--max-steps", "0"],
     ["simulate", "REC", "--model", "CARD", "--rtol", "nan"],
     ["ablate", "STUDY", "--workers", "0"],

@@ -1,25 +1,27 @@
 """The whole discovery loop on bench data with a hidden effect, and with none."""
 
 import json
+from dataclasses import asdict
 
 import numpy as np
 import pytest
+from conftest import discovery_settings
 
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.cli import main as cli_main
 from pneubayes.discovery.loop import Discovery
 from pneubayes.discovery.rounds import pairs_to_try, runner_ups
-from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.effects import effects_from_names
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 
 
-def _settings(**kw):
+def _settings(*tables, **groups):
     """No posterior, and the tube's transport form only: these tests are about the loop
     on catalogue effects, and fitting the line form costs minutes (the demo test runs
-    the loop with both forms)."""
-    return DiscoverySettings(posterior=False, tube_line_segments=0, **kw)
+    the loop with both forms). ``tables``/``groups``: nested settings applied after."""
+    return discovery_settings({"posterior": {"method": "none"},
+                               "forms": {"tube_line_segments": 0}}, *tables, **groups)
 
 
 def _bench(out, hidden, seed, duration_s=14.0):
@@ -63,8 +65,10 @@ def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
     run = tmp_path / "run"
     # the transport form only: the bench planted one, and fitting the line form too
     # costs minutes (the demo test runs the loop with both forms)
-    rc = cli_main(["discover", *map(str, paths), "--out", str(run), "--no-posterior",
-                   "--no-figures", "-q", "--tube-line-segments", "0"])
+    settings = tmp_path / "settings.toml"
+    settings.write_text('[posterior]\nmethod = "none"\n[forms]\ntube_line_segments = 0\n')
+    rc = cli_main(["discover", *map(str, paths), "--out", str(run), "--settings",
+                   str(settings), "--no-figures", "-q"])
     assert rc == 0
     doc = json.loads((run / "discovery.json").read_text())
     assert doc["format"] == "pneubayes-discovery/1"
@@ -79,9 +83,10 @@ def test_discover_names_a_hidden_tube_and_closes_the_gap(tmp_path, capsys):
     assert "tube_delay" in (run / "report.md").read_text()
     out = capsys.readouterr().out
     assert "+ tube_delay" in out
-    # a second run resumes from the cached fits and reaches the same answer
-    again = cli_main(["discover", *map(str, paths), "--out", str(run), "--no-posterior",
-                      "--no-figures", "-q", "--tube-line-segments", "0"])
+    # a second run with the same settings given as options resumes from the cached fits
+    # and reaches the same answer
+    again = cli_main(["discover", *map(str, paths), "--out", str(run), "--posterior",
+                      "none", "--set", "forms.tube_line_segments=0", "--no-figures", "-q"])
     assert again == 0
     doc2 = json.loads((run / "discovery.json").read_text())
     assert doc2["effects"][0]["parameters"] == doc["effects"][0]["parameters"]
@@ -136,7 +141,7 @@ def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     assert doc["rmse_base_Pa"] > 2.0 * doc["noise_floor_Pa"]
     assert doc["ledger"][1]["supported"] == [] and "cylinder_leak" in doc["ledger"][1]["tentative"]
-    off = Discovery(_settings(gap_fallback_ratio=0.0), None,
+    off = Discovery(_settings(rounds={"gap_fallback_ratio": 0.0}), None,
                     log=lambda m: None).fit(recs)
     assert off.result_.to_dict()["effects"] == []
 
@@ -156,12 +161,12 @@ def test_a_large_gap_also_tries_weak_groups_beside_supported_ones(tmp_path, monk
 
     monkeypatch.setattr(loop, "GroupedSINDy", Misled)
     recs = _leak_recordings(tmp_path)
-    settings = _settings(max_effects=1)
+    settings = _settings(rounds={"max_effects": 1})
     doc = Discovery(settings, None, log=lambda m: None).fit(recs).result_.to_dict()
     assert doc["ledger"][1]["supported"] == ["spool_lag"]
     assert "cylinder_leak" in doc["ledger"][1]["tentative"]
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
-    off = Discovery(_settings(max_effects=1, gap_fallback_ratio=0.0),
+    off = Discovery(_settings(rounds={"max_effects": 1, "gap_fallback_ratio": 0.0}),
                     None, log=lambda m: None).fit(recs).result_.to_dict()
     assert "cylinder_leak" not in [e["name"] for e in off["effects"]]
 
@@ -180,7 +185,8 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
 
     monkeypatch.setattr(loop, "GroupedSINDy", Blind)
     recs = _leak_recordings(tmp_path)
-    doc = Discovery(_settings(max_effects=1), None, log=lambda m: None).fit(recs).result_.to_dict()
+    doc = Discovery(_settings(rounds={"max_effects": 1}), None,
+                    log=lambda m: None).fit(recs).result_.to_dict()
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     actions = [step["action"] for step in doc["ledger"]]
     assert "last resort" in actions
@@ -189,7 +195,7 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
     added = [step for step in doc["ledger"] if step["action"] == "pass"]
     assert [step["effect"] for step in added] == ["cylinder_leak"]
     assert added[0]["gap_closed"] >= 0.25
-    off = Discovery(_settings(max_effects=1, try_all_on_gap=False), None,
+    off = Discovery(_settings(rounds={"max_effects": 1}, stages={"last_resort": False}), None,
                     log=lambda m: None).fit(recs).result_.to_dict()
     assert off["effects"] == []
 
@@ -209,12 +215,12 @@ def test_a_round_tries_its_other_supported_groups_before_it_stops(tmp_path, monk
 
     monkeypatch.setattr(loop, "GroupedSINDy", Misranked)
     recs = _leak_recordings(tmp_path)
-    kw = dict(max_effects=1, max_trials_per_round=3, gap_fallback_ratio=0.0)
-    doc = Discovery(_settings(**kw), None, log=lambda m: None).fit(recs).result_.to_dict()
+    kw = {"rounds": {"max_effects": 1, "max_trials_per_round": 3, "gap_fallback_ratio": 0.0}}
+    doc = Discovery(_settings(kw), None, log=lambda m: None).fit(recs).result_.to_dict()
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
     more = [step for step in doc["ledger"] if step["action"] == "more supported"]
     assert more and more[0]["groups"] == ["cylinder_leak"]
-    off = Discovery(_settings(try_all_supported=False, **kw), None,
+    off = Discovery(_settings(kw, stages={"more_supported": False}), None,
                     log=lambda m: None).fit(recs).result_.to_dict()
     assert off["effects"] == []
 
@@ -225,8 +231,8 @@ def test_whole_recordings_can_be_held_out(tmp_path):
     paths, _ = _bench(tmp_path / "bench", [], seed=21, duration_s=8.0)
     recs = [read_recording(p) for p in paths]
     bounds = {"dead_volume_m3": (1e-7, 1e-3), "tube_delay_s": (0.0, 0.1)}
-    d = Discovery(_settings(holdout_recordings=2, bounds=bounds), tmp_path / "run",
-                  log=lambda m: None).fit(recs)
+    d = Discovery(_settings(data={"holdout_recordings": 2, "bounds": bounds}),
+                  tmp_path / "run", log=lambda m: None).fit(recs)
     # the bounds apply to every model fitted (the tube's waits until a tube is added)
     r = d.result_
     assert r.model.bound_overrides == {"dead_volume_m3": (1e-7, 1e-3)}
@@ -237,16 +243,16 @@ def test_whole_recordings_can_be_held_out(tmp_path):
     with pytest.raises(ValueError, match="no posterior"):
         r.draws(4, np.random.default_rng(0))
     doc = d.result_.to_dict()
-    assert doc["effects"] == [] and doc["settings"]["holdout_recordings"] == 2
+    assert doc["effects"] == [] and doc["settings"]["data"]["holdout_recordings"] == 2
     assert doc["rmse_final_Pa"] < 1.2 * doc["noise_floor_Pa"]
     with pytest.raises(ValueError, match="leave none of the 6 to fit on"):
-        Discovery(_settings(holdout_recordings=6), None, log=lambda m: None).fit(recs)
+        Discovery(_settings(data={"holdout_recordings": 6}), None, log=lambda m: None).fit(recs)
     with pytest.raises(ValueError, match="holdout_recordings must be an integer >= 0"):
-        _settings(holdout_recordings=-1)
+        _settings(data={"holdout_recordings": -1})
     with pytest.raises(ValueError, match=r"\['volume'\] name no parameter"):
-        _settings(bounds={"volume": (0.0, 1.0)})
+        _settings(data={"bounds": {"volume": [0.0, 1.0]}})
     with pytest.raises(ValueError, match="lower < upper"):
-        _settings(bounds={"tube_delay_s": (0.1, 0.0)})
+        _settings(data={"bounds": {"tube_delay_s": [0.1, 0.0]}})
 
 
 def test_runner_ups_are_the_significant_trials_never_added_nor_failed_since():
@@ -302,9 +308,9 @@ def test_pairs_are_the_round_trials_with_the_largest_training_gains():
     assert pairs_to_try(train, 2117.0, 100.0, 3) == []
     assert all("heat_transfer" not in p for p in pairs_to_try(train, 2117.0, 0.0, 6))
     with pytest.raises(ValueError, match="pair_members must be 0"):
-        _settings(pair_members=1)
-    with pytest.raises(ValueError, match="pair_members must be 0"):
-        _settings(pair_members=True)
+        _settings(stages={"pair_members": 1})
+    with pytest.raises(ValueError, match="pair_members: expected an integer, got bool"):
+        _settings(stages={"pair_members": True})
 
 
 @pytest.mark.slow
@@ -329,8 +335,8 @@ def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch)
                                   overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
                       tmp_path / "fixed")
     recs = [read_recording(p) for p in fixed.recordings]
-    kw = dict(max_effects=2, gap_fallback_ratio=0.0)
-    result = Discovery(_settings(**kw), None, log=lambda m: None).fit(recs).result_
+    kw = {"rounds": {"max_effects": 2, "gap_fallback_ratio": 0.0}}
+    result = Discovery(_settings(kw), None, log=lambda m: None).fit(recs).result_
     doc = result.to_dict()
     round1 = [e for e in doc["ledger"] if e.get("effect") == "cylinder_leak"][0]
     assert round1["score_p_value"] <= 0.01  # it beat the plain model in round 1
@@ -342,7 +348,7 @@ def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch)
     text = _report(dict(doc, recordings=[str(r.source) for r in recs]), result, {})
     assert f"| {revisit[0]['step']} | revisit | cylinder_leak tried again" in text
     calls.clear()
-    off = Discovery(_settings(revisit_runner_ups=False, **kw), None,
+    off = Discovery(_settings(kw, stages={"runner_ups": False}), None,
                     log=lambda m: None).fit(recs).result_.to_dict()
     assert [e["name"] for e in off["effects"]] == ["tube_delay"]
 
@@ -356,16 +362,15 @@ def test_two_effects_that_each_fail_alone_are_named_as_a_pair(tmp_path):
     jointly and names both, near the noise floor; switched off, nothing is named."""
     from pneubayes.bench.forms import ClearanceLeak, RoundedDeadzone
     from pneubayes.bench.sensors import SensorChain
-    from pneubayes.inference.pipeline import FitSettings
-
     forms = (RoundedDeadzone(halfwidth_V=0.10077, rounding_V=0.03905),
              ClearanceLeak(gap_m=3.376e-6, seal_length_m=0.004, seal_length_slope=0.01832))
     seed = 86147
     recs = _blind_case_recordings(tmp_path, "SMC", "valve2", forms, seed)
-    fit = FitSettings(pressure_filter=SensorChain().declared_filter())
-    kw = dict(max_effects=1, n_bags=40, seed=seed, fit=fit)
+    declared = asdict(SensorChain().declared_filter())
+    kw = {"rounds": {"max_effects": 1}, "search": {"n_bags": 40}, "seed": seed,
+          "fit": {"pressure_filter": declared}}
     run = tmp_path / "run"  # shared: the switched-off run reuses the single trials
-    result = Discovery(_settings(**kw), run, log=lambda m: None).fit(recs).result_
+    result = Discovery(_settings(kw), run, log=lambda m: None).fit(recs).result_
     doc = result.to_dict()
     assert sorted(result.effect_names) == ["cylinder_leak", "valve_deadzone"]
     singles = {e["effect"]: e for e in doc["ledger"] if e["action"] == "reject"}
@@ -376,7 +381,7 @@ def test_two_effects_that_each_fail_alone_are_named_as_a_pair(tmp_path):
     assert doc["rmse_final_Pa"] < 3.0 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"] / 5
     # the planted dead zone's half-width, within 10 %
     assert abs(pair["fitted"]["deadzone_halfwidth_V"] - 0.10077) < 0.01
-    off = Discovery(_settings(pair_members=0, **kw), run,
+    off = Discovery(_settings(kw, stages={"pair_members": 0}), run,
                     log=lambda m: None).fit(recs).result_
     assert off.effect_names == []
 
@@ -395,8 +400,6 @@ def test_a_named_tube_is_refitted_as_a_line_beside_the_heat_transfer_it_was_pair
     import pneubayes.discovery.loop as loop
     from pneubayes.bench.forms import AcousticTube, WallHeatTransfer
     from pneubayes.bench.sensors import SensorChain
-    from pneubayes.inference.pipeline import FitSettings
-
     calls = []
 
     class Pinned(loop.GroupedSINDy):
@@ -409,10 +412,11 @@ def test_a_named_tube_is_refitted_as_a_line_beside_the_heat_transfer_it_was_pair
              WallHeatTransfer(h_W_per_m2_K=19.55))
     seed = 81757
     recs = _blind_case_recordings(tmp_path, "AIR200", "valve2", forms, seed)
-    kw = dict(posterior=False, try_all_on_gap=False, n_bags=40, seed=seed,
-              fit=FitSettings(pressure_filter=SensorChain().declared_filter()))
+    kw = {"posterior": {"method": "none"}, "stages": {"last_resort": False},
+          "search": {"n_bags": 40}, "seed": seed,
+          "fit": {"pressure_filter": asdict(SensorChain().declared_filter())}}
     run = tmp_path / "run"  # shared: the switched-off run reuses the fits
-    result = Discovery(DiscoverySettings(**kw), run, log=lambda m: None).fit(recs).result_
+    result = Discovery(discovery_settings(kw), run, log=lambda m: None).fit(recs).result_
     doc = result.to_dict()
     assert sorted(result.effect_names) == ["heat_transfer", "tube_delay"]
     (pair,) = [e for e in doc["ledger"] if e["action"] == "pair"]
@@ -423,7 +427,7 @@ def test_a_named_tube_is_refitted_as_a_line_beside_the_heat_transfer_it_was_pair
     noise = doc["noise_floor_Pa"]
     assert doc["rmse_final_Pa"] < 2.0 * noise < pair["heldout_rmse_after_Pa"] / 2.0
     calls.clear()
-    off = Discovery(DiscoverySettings(max_form_swaps=0, **kw), run,
+    off = Discovery(discovery_settings(kw, stages={"max_form_swaps": 0}), run,
                     log=lambda m: None).fit(recs).result_
     assert off.model.effect("tube_delay").options()["form"] == "transport"
     assert off.final.heldout_rmse_Pa > 2.0 * result.final.heldout_rmse_Pa

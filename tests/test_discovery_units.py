@@ -402,7 +402,9 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
     from types import SimpleNamespace
 
     from pneubayes.discovery.rounds import fit_round_forms
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        FormSettings,
+    )
 
     rmse = {"transport": 508.0, "line": 2153.0, "spool": 505.0, "rate": 900.0,
             "convective": 700.0}
@@ -439,8 +441,8 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
     fitted.clear()
     fit_round_forms({"tube_delay": tube, "heat_transfer": heat, "none": []}, fit, 0.0)
     assert fitted == ["transport", "rate", "line", "convective"]  # 0: every form
-    with pytest.raises(ValueError, match="form_settled_ratio"):
-        DiscoverySettings(form_settled_ratio=0.5)
+    with pytest.raises(ValueError, match="settled_ratio must be 0"):
+        FormSettings(settled_ratio=0.5)
 
 
 def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_best():
@@ -474,10 +476,12 @@ def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_
     calls.clear()  # a first form that gains nothing: the line must beat the current model
     fit_round_forms(options, fit, 0.0, current_Pa=1800.0, screen_share=0.5)
     assert ("line", 1800.0) in calls and ("convective", 1800.0) in calls
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        FormSettings,
+    )
 
-    with pytest.raises(ValueError, match="later_form_screen_share"):
-        DiscoverySettings(later_form_screen_share=1.5)
+    with pytest.raises(ValueError, match="later_screen_share must be in"):
+        FormSettings(later_screen_share=1.5)
     assert outpaced == {"heat_transfer": (1936.0 - 4599.0, 99.0)}
     # a stricter share drops the line too
     calls.clear()
@@ -571,7 +575,9 @@ def test_with_the_wave_line_form_a_named_tube_is_tried_as_a_transmission_line(ri
     """``tube_line_form="wave"``: the outside tube is the wave form (8 elements, no cells
     to choose), started at the term's delay; it is not fitted again with more cells, and
     the settings refuse a form they do not know."""
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        FormSettings,
+    )
     from pneubayes.effects import make_effect
     from pneubayes.effects.discovery import CandidateContext
 
@@ -586,7 +592,7 @@ def test_with_the_wave_line_form_a_named_tube_is_tried_as_a_transmission_line(ri
     # a wave candidate proposes no further line
     assert [f.form for f, _ in wave.candidate_forms(ctx)] == ["wave"]
     with pytest.raises(ValueError, match="tube_line_form must be 'line' or 'wave'"):
-        DiscoverySettings(tube_line_form="cells")
+        FormSettings(tube_line_form="cells")
 
 
 def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_params):
@@ -708,7 +714,10 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
     from types import SimpleNamespace
 
     import pneubayes.discovery.trials as trials
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+        RoundSettings,
+    )
     from pneubayes.effects.tube_delay import TubeDelay
     from pneubayes.physics.valve import valve_preset
 
@@ -737,7 +746,7 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
             return np.full((1, 4, 10), 900.0)
 
     _stub_refiner(monkeypatch, trials, Refiner)
-    settings = DiscoverySettings(max_refine_restarts=3)
+    settings = DiscoverySettings(rounds=RoundSettings(max_refine_restarts=3))
     model = Model(effects=(TubeDelay(form="line", segments=3),))
     start = {**valve_preset("valve1").parameters(), **model.neutral_values(),
              "dead_volume_m3": 2e-5}
@@ -770,7 +779,10 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
     from types import SimpleNamespace
 
     import pneubayes.discovery.trials as trials
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+        RoundSettings,
+    )
     from pneubayes.effects.spool_lag import SpoolLag
     from pneubayes.inference.refine import late_gain
     from pneubayes.physics.valve import valve_preset
@@ -808,7 +820,7 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
     moving = [4600.0, 3000.0, 2500.0, 2300.0]   # its last half gains 23 %
     flat = [2300.0, 2256.0, 2256.0, 2256.0]     # 0.0 Pa over its last half
     logs = []
-    settings = DiscoverySettings(max_refine_restarts=3)
+    settings = DiscoverySettings(rounds=RoundSettings(max_refine_restarts=3))
     Refiner.traces = [moving, flat, flat, flat]
     _runner(settings, Windows(), Windows(), "k", logs.append).fit(model, start)
     assert len(runs) == 2  # restarted once after a run that moved; not after the crawl
@@ -819,11 +831,12 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
     assert len(runs) == 4  # every restart while the runs move
     runs.clear()
     Refiner.traces = [moving, flat, flat, flat]
-    settings = DiscoverySettings(max_refine_restarts=3, refine_restart_min_gain=0.0)
+    settings = DiscoverySettings(rounds=RoundSettings(max_refine_restarts=3,
+                                                      refine_restart_min_gain=0.0))
     _runner(settings, Windows(), Windows(), "k3", logs.append).fit(model, start)
     assert len(runs) == 4
     with pytest.raises(ValueError, match="refine_restart_min_gain"):
-        DiscoverySettings(refine_restart_min_gain=1.0)
+        RoundSettings(refine_restart_min_gain=1.0)
 
 
 def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatch):
@@ -832,7 +845,9 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
     basin that predicts better at no better training error; the current model refitted
     from the trial's point (its control) predicts as well, so the gain is the basin's."""
     import pneubayes.discovery.trials as trials
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+    )
     from pneubayes.discovery.verification import StepFit
 
     rng = np.random.default_rng(0)
@@ -872,7 +887,9 @@ def test_only_trials_that_beat_the_current_fit_get_a_control(monkeypatch):
     passing trial is asked whether its gain is its basin's: a trial that does not beat
     the current fit gets none. A control that fits training better becomes the current
     fit, and a trial that beats that one gets its control then."""
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+    )
     from pneubayes.discovery.verification import StepFit
 
     rng = np.random.default_rng(1)
@@ -911,9 +928,12 @@ def test_a_passing_trial_must_gain_a_share_of_the_noise_floor_and_of_any_gap_ask
     it cannot be closed; a gain well above the floor's share, or a share of the gap as
     asked, is kept."""
     from pneubayes.discovery.rounds import gain_shortfall
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+        VerifySettings,
+    )
 
-    floor = DiscoverySettings().min_gain_noise_share * 531.7
+    floor = DiscoverySettings().verify.min_gain_noise_share * 531.7
     closed, short, under = gain_shortfall(515.6 - 513.8, 515.6 - 531.7, 0.0, floor)
     assert closed is None and not short and under
     closed, short, under = gain_shortfall(1.8, -16.1, 0.25, floor)
@@ -923,7 +943,7 @@ def test_a_passing_trial_must_gain_a_share_of_the_noise_floor_and_of_any_gap_ask
     closed, short, under = gain_shortfall(864.0 - 553.0, 864.0 - 508.0, 0.25, 5.08)
     assert closed > 0.8 and not short and not under
     with pytest.raises(ValueError, match="min_gain_noise_share"):
-        DiscoverySettings(min_gain_noise_share=-0.1)
+        VerifySettings(min_gain_noise_share=-0.1)
 
 
 def test_an_added_effect_must_close_a_share_of_a_gap_far_above_the_noise_floor():
@@ -932,7 +952,10 @@ def test_an_added_effect_must_close_a_share_of_a_gap_far_above_the_noise_floor()
     0.07 % of the gap: not added. Under the noise floor only the noise share counts (the
     b03 numbers); a large gain passes both."""
     from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+        VerifySettings,
+    )
 
     s = DiscoverySettings()
     least = min_gain_Pa(7.0, 428.0 - 7.0, s)
@@ -941,10 +964,10 @@ def test_an_added_effect_must_close_a_share_of_a_gap_far_above_the_noise_floor()
     assert not gain_shortfall(30.0, 421.0, 0.0, least)[2]
     assert min_gain_Pa(531.7, 515.6 - 531.7, s) == pytest.approx(5.317)
     assert min_gain_Pa(508.0, 864.0 - 508.0, s) == pytest.approx(5.08)  # the noise share
-    off = DiscoverySettings(min_gain_gap_share=0.0)
+    off = DiscoverySettings(verify=VerifySettings(min_gain_gap_share=0.0))
     assert min_gain_Pa(7.0, 421.0, off) == pytest.approx(0.07)
     with pytest.raises(ValueError, match="min_gain_gap_share"):
-        DiscoverySettings(min_gain_gap_share=1.5)
+        VerifySettings(min_gain_gap_share=1.5)
 
 
 def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_passed():
@@ -953,23 +976,26 @@ def test_the_last_resort_runs_when_nothing_or_only_a_small_share_of_the_gap_pass
     supported by the one-step search, closed 58 %: the rest of the library is tried
     when the best that passed closes under ``last_resort_best_gap_closed``."""
     from pneubayes.discovery.rounds import last_resort_reason
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+        StageSettings,
+    )
 
     s = DiscoverySettings()
-    why, closed = last_resort_reason([], 9125.0, 521.0, s.last_resort_best_gap_closed)
+    why, closed = last_resort_reason([], 9125.0, 521.0, s.stages.last_resort_best_gap_closed)
     assert why == "no candidate passed" and closed == 0.0
     why, closed = last_resort_reason([8928.0, 7878.0], 9125.0, 521.0,
-                                      s.last_resort_best_gap_closed)
+                                      s.stages.last_resort_best_gap_closed)
     assert why == "the best candidate closes 14% of its gap"
     assert closed == pytest.approx((9125 - 7878) / (9125 - 521))
     why, closed = last_resort_reason([7878.0, 4000.0], 9125.0, 521.0,
-                                      s.last_resort_best_gap_closed)
+                                      s.stages.last_resort_best_gap_closed)
     assert why is None and closed > 0.5
-    off = DiscoverySettings(last_resort_best_gap_closed=0.0)
+    off = DiscoverySettings(stages=StageSettings(last_resort_best_gap_closed=0.0))
     assert last_resort_reason([8928.0], 9125.0, 521.0,
-                              off.last_resort_best_gap_closed)[0] is None
+                              off.stages.last_resort_best_gap_closed)[0] is None
     with pytest.raises(ValueError, match="last_resort_best_gap_closed"):
-        DiscoverySettings(last_resort_best_gap_closed=1.5)
+        StageSettings(last_resort_best_gap_closed=1.5)
 
 
 def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_params):
@@ -979,7 +1005,10 @@ def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_pa
     way to the transport delay; with no compatible form the pair is not fitted."""
     from types import SimpleNamespace
 
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+        PosteriorSettings,
+    )
     from pneubayes.discovery.stages import Pairs
     from pneubayes.effects import make_effect
 
@@ -996,7 +1025,7 @@ def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_pa
     evidence = {"tube_delay": {"best_term_start": {"tube_delay_s": 0.004}},
                 "heat_transfer": {"best_term_start": {"heat_transfer_rate_per_s": 5.0}}}
     sindy = SimpleNamespace(evidence_=evidence)
-    runner = _runner(DiscoverySettings(posterior=False),
+    runner = _runner(DiscoverySettings(posterior=PosteriorSettings(method="none")),
                      train=[SimpleNamespace(rig=lambda: rig)])
     tried = {"tube_delay": [wave, transport], "heat_transfer": [convective, rate]}
     (ma, _, _), (mb, _, _) = Pairs.forms("tube_delay", "heat_transfer", tried,
@@ -1029,7 +1058,9 @@ def test_a_trial_that_ends_worse_than_the_model_it_contains_is_refitted_from_it(
     from types import SimpleNamespace
 
     from pneubayes.discovery.rounds import TrialFitFailed
-    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.settings import (
+        DiscoverySettings,
+    )
     from pneubayes.effects.spool_lag import SpoolLag
 
     model = Model(effects=(SpoolLag(),))

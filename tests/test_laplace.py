@@ -214,7 +214,7 @@ def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, ca
                      "--max-effects", "0", "-q"]) == 0
     doc = json.loads((run / "discovery.json").read_text())
     assert doc["posterior"]["method"] == "laplace" and doc["posterior"]["steps"] == 0
-    assert doc["settings"]["posterior_method"] == "laplace"
+    assert doc["settings"]["posterior"]["method"] == "laplace"
     assert "Laplace approximation" in (run / "report.md").read_text()
     from pneubayes.inference.sampler import arviz
 

@@ -7,8 +7,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import discovery_settings
 
-from pneubayes.discovery.settings import DiscoverySettings
+from pneubayes.discovery.settings import DiscoverySettings, StageSettings
 from pneubayes.discovery.stages import OpenForm, default_stages
 from pneubayes.discovery.stages.open_form import _existing_terms, _without_term
 from pneubayes.discovery.state import RoundState
@@ -74,10 +75,10 @@ def test_the_stage_checks_its_knobs_and_the_settings_switch_it():
     with pytest.raises(ValueError, match="compete_below_gap_closed"):
         OpenForm(compete_below_gap_closed=1.5)
     assert isinstance(default_stages(DiscoverySettings())[-1], OpenForm)
-    off = default_stages(DiscoverySettings(open_form_min_noise_ratio=0.0))
+    off = default_stages(DiscoverySettings(stages=StageSettings(open_form_min_noise_ratio=0.0)))
     assert not any(isinstance(s, OpenForm) for s in off)
     with pytest.raises(ValueError, match="open_form_min_noise_ratio"):
-        DiscoverySettings(open_form_min_noise_ratio=0.5)
+        StageSettings(open_form_min_noise_ratio=0.5)
     assert OpenForm().options()["min_noise_ratio"] == 1.5
 
 
@@ -141,8 +142,9 @@ def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recor
     from pneubayes.discovery.loop import Discovery
 
     recs, _, truth = relief_recordings
-    settings = DiscoverySettings(posterior=False, tube_line_segments=0, holdout_recordings=2,
-                                 max_effects=2)
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
     result = Discovery(settings, None, log=None, stages=[OpenForm()]).fit(recs).result_
     doc = result.to_dict()
     terms = [t["term"] for t in doc["found_terms"]]

@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -14,6 +15,7 @@ sys.path.insert(0, str(ROOT / "experiments"))
 import openform_blind  # noqa: E402
 
 from pneubayes.bench.forms import OUT_OF_CATALOGUE, form_from_dict  # noqa: E402
+from pneubayes.bench.sensors import SensorChain  # noqa: E402
 
 
 def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed():
@@ -73,9 +75,11 @@ def test_classify_and_floors():
         "no_stand_in": True, "gap_shrink": True, "final_over_noise": True}
     assert floors["control"] == {"cases": 2, "errors": 0, "clean": 1, "meets": False}
     assert "no catalogue stand-in in 8 of 10 (floor 8)" in md
-    with pytest.raises(ValueError, match="--setting nope"):
-        openform_blind.parse_settings(["nope=1"])
-    assert openform_blind.parse_settings(["max_effects=2"]) == {"max_effects": 2}
+    assert openform_blind.parse_settings(["rounds.max_effects=2"]) == {
+        "rounds": {"max_effects": 2}}
+    with pytest.raises(ValueError, match="--setting.nope: unknown key"):
+        openform_blind.settings_for({"bench_seed": 1}, SimpleNamespace(
+            settings=openform_blind.parse_settings(["nope=1"])), SensorChain())
 
 
 def test_main_runs_caches_and_reports_with_the_loop_stubbed(tmp_path, monkeypatch):
@@ -95,10 +99,10 @@ def test_main_runs_caches_and_reports_with_the_loop_stubbed(tmp_path, monkeypatc
     monkeypatch.setattr(openform_blind, "six_recordings", fake_six)
     monkeypatch.setattr(openform_blind, "read_recording", lambda p: p.name)
     monkeypatch.setattr(openform_blind, "run_discover", fake_discover)
-    argv = ["--out", str(tmp_path), "--smoke", "--setting", "max_effects=2"]
+    argv = ["--out", str(tmp_path), "--smoke", "--setting", "rounds.max_effects=2"]
     assert openform_blind.main(argv) == 0
     (recs, settings), = calls
-    assert recs == ["r0.csv", "r3.csv", "r4.csv", "r5.csv"] and settings.max_effects == 2
+    assert recs == ["r0.csv", "r3.csv", "r4.csv", "r5.csv"] and settings.rounds.max_effects == 2
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["seed"] == openform_blind.SMOKE_SEED and summary["smoke"]
     assert "git" in json.dumps(summary["provenance"]).lower()

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import BORE, P_ATM, P_SUP, STROKE, random_steps
+from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
 
 from pneubayes.effects import CATALOGUE
 from pneubayes.effects.base import Effect, Parameter
@@ -103,10 +103,9 @@ def test_discovery_names_and_fits_a_plug_in_effect(registered):
     catalogue's, names it, and recovers its strength; the held-out error falls to about
     the noise."""
     from pneubayes.discovery.loop import Discovery
-    from pneubayes.discovery.settings import DiscoverySettings
-
-    settings = DiscoverySettings(posterior=False, tube_line_segments=0,
-                                 holdout_recordings=2, max_effects=1)
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 1})
     result = Discovery(settings, None, log=None, stages=[]).fit(_recordings()).result_
     doc = result.to_dict()
     assert [e["name"] for e in doc["effects"]] == ["constant_bleed"], doc["ledger"]

@@ -128,13 +128,15 @@ def fit_model(cell: Cell, recordings, out_dir, log=lambda message: None):
         from pneubayes.discovery.loop import Discovery
         from pneubayes.discovery.report import write_discovery
 
-        ds = replace(s.discovery, posterior=s.method == "mcmc", seed=cell.seed,
+        ds = replace(s.discovery, seed=cell.seed,
+                     posterior=replace(s.discovery.posterior,
+                                       method="emcee" if s.method == "mcmc" else "none"),
                      fit=_fit_settings(cell))
         result = Discovery(ds, out, log).fit(recordings).result_
         doc = write_discovery(result, recordings, out, figures=False)
         model, params = result.model, result.params
         info = {"method": "discover",
-                "estimate": "posterior median" if ds.posterior else "refined",
+                "estimate": "posterior median" if ds.posterior.sampled else "refined",
                 "discovered": [e["name"] for e in doc["effects"]],
                 "discovery_rmse_base_Pa": doc["rmse_base_Pa"],
                 "discovery_rmse_final_Pa": doc["rmse_final_Pa"],

@@ -23,7 +23,7 @@ A study file has a ``[grid]`` table, whose axes are crossed (cartesian product),
     [settings.fit.sampler]                         # FitSettings -> SamplerSettings
     max_steps = 4000
 
-    [settings.discovery]                           # DiscoverySettings
+    [settings.discovery.rounds]                    # DiscoverySettings -> RoundSettings
     max_effects = 4
 
 ``data_forms``: ``"catalogue"`` plants the catalogue's effects in the bench's model,
@@ -462,16 +462,16 @@ def _check_discovery_data(source, s: Settings) -> None:
     enough whole windows there for its signed-rank test (as ``Discovery.fit`` checks)."""
     d = s.discovery
     n = int(round(s.duration_s * SAMPLE_RATE_HZ)) + 1
-    cut = int(round(n * (1.0 - d.holdout_fraction)))
+    cut = int(round(n * (1.0 - d.data.holdout_fraction)))
     need = int(round(s.horizon_s * SAMPLE_RATE_HZ)) + 1
     per_recording = 0 if n - cut < need else (n - cut - need) // (need - 1) + 1
     recordings = len(s.fit_positions) * len(s.fit_command_ranges_V) + s.fit_moving_count
     windows = per_recording * recordings
-    if 0.5 ** windows > d.max_p_value:
-        minimum = math.ceil(math.log(d.max_p_value) / math.log(0.5))
+    if 0.5 ** windows > d.verify.max_p_value:
+        minimum = math.ceil(math.log(d.verify.max_p_value) / math.log(0.5))
         raise StudyError(
             f"{source}: settings.duration_s: \"discover\" cells hold out the last "
-            f"{d.holdout_fraction:.2g} of each of the {recordings} fitting recordings, which "
+            f"{d.data.holdout_fraction:.2g} of each of the {recordings} fitting recordings, which "
             f"gives {windows} whole {s.horizon_s:g}-s windows; its significance test needs "
-            f"at least {minimum} (p <= {d.max_p_value:g}): give longer recordings "
+            f"at least {minimum} (p <= {d.verify.max_p_value:g}): give longer recordings "
             f"(duration_s = {s.duration_s:g} s) or more fitting recordings")

@@ -62,9 +62,9 @@ class LibraryGrid:
                                  f"catalogue has {sorted(CATALOGUE)}")
             vals = tuple(values) if isinstance(values, (list, tuple)) else None
             if not vals or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                   and math.isfinite(v) for v in vals):
+                                   and math.isfinite(v) and v > 0 for v in vals):
                 raise ValueError(f"LibraryGrid.strengths[{name!r}] must be a non-empty list "
-                                 f"of finite numbers, got {values!r}")
+                                 f"of finite numbers > 0, got {values!r}")
             clean[name] = tuple(float(v) for v in vals)
         object.__setattr__(self, "strengths", clean)
 

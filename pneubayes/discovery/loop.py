@@ -3,11 +3,11 @@
 Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
 
 1. **Fit** on the training part of every recording (the first ``1 - holdout_fraction``
-   of its samples, or all but the last ``holdout_recordings``): the paper's least
+   of its samples, or all but the last ``data.holdout_recordings``): the paper's least
    squares where possible, then 2-s multiple shooting (:mod:`pneubayes.inference`).
 2. **Map** the disagreement (:mod:`~pneubayes.discovery.disagreement`).
 3. **Search**: grouped SINDy on the one-step residual (:mod:`~pneubayes.discovery.library`,
-   :mod:`~pneubayes.discovery.sindy`); while the held-out error is ``gap_fallback_ratio``
+   :mod:`~pneubayes.discovery.sindy`); while the held-out error is ``rounds.gap_fallback_ratio``
    x the noise floor or more, weakly supported groups are tried too.
 4. **Trials**: the ``max_trials_per_round`` best-supported effects are each added in
    the forms they propose, refitted, and verified on the held-out windows against the
@@ -87,10 +87,10 @@ class Discovery:
     # ------------------------------------------------------------------ search
     def _search(self, fit: StepFit, train):
         s = self.settings
-        data = [one_step_data(r, s.block) for r in train]
-        lib = build_library(fit.model, fit.params, data, s.grid, s.library_solver)
-        sindy = GroupedSINDy(threshold_t=s.threshold_t, n_models=s.n_bags,
-                             chunk_rows=s.chunk_rows, seed=s.seed).fit(lib)
+        data = [one_step_data(r, s.search.block) for r in train]
+        lib = build_library(fit.model, fit.params, data, s.search.grid, s.search.solver)
+        sindy = GroupedSINDy(threshold_t=s.search.threshold_t, n_models=s.search.n_bags,
+                             chunk_rows=s.search.chunk_rows, seed=s.seed).fit(lib)
         return lib, sindy, data
 
     # ------------------------------------------------------------------ the loop
@@ -102,8 +102,8 @@ class Discovery:
         recs = [prepare_recording(r, s.fit.preparation()) for r in recordings]
         if not recs:
             raise ValueError("discover: no recordings")
-        if s.holdout_recordings:
-            n_held = s.holdout_recordings
+        if s.data.holdout_recordings:
+            n_held = s.data.holdout_recordings
             if n_held >= len(recs):
                 raise ValueError(f"discover: {n_held} recording(s) held out whole leave none "
                                  f"of the {len(recs)} to fit on")
@@ -112,19 +112,19 @@ class Discovery:
             more = "more held-out recordings, or shorter windows (--horizon)"
             split = ("recordings", n_held)
         else:
-            train, held = split_recordings(recs, s.holdout_fraction, s.fit.horizon_s)
+            train, held = split_recordings(recs, s.data.holdout_fraction, s.fit.horizon_s)
             # the held-out windows are scored on the held-out stretch only; the recording
             # before it is history (warm-up windows carry a heat model's temperature in)
             held_ws = WindowSet(recs, s.fit.horizon_s, s.fit.stride_s,
                                 score_from_s=[h.time_s[0] for h in held])
             more = "longer recordings or a larger holdout fraction"
-            split = s.holdout_fraction
+            split = s.data.holdout_fraction
         train_ws = WindowSet(train, s.fit.horizon_s, s.fit.stride_s)
-        if 0.5 ** held_ws.n_windows > s.max_p_value:
+        if 0.5 ** held_ws.n_windows > s.verify.max_p_value:
             raise ValueError(
                 f"discover: only {held_ws.n_windows} held-out {s.fit.horizon_s:g}-s windows; "
-                f"the signed-rank test cannot reach p <= {s.max_p_value:g} with fewer than "
-                f"{math.ceil(math.log(s.max_p_value) / math.log(0.5))}: give {more}")
+                f"the signed-rank test cannot reach p <= {s.verify.max_p_value:g} with fewer than "
+                f"{math.ceil(math.log(s.verify.max_p_value) / math.log(0.5))}: give {more}")
         data_key = fingerprint([r.pressure_Pa.tobytes().hex()[:64] + str(r.n_samples)
                                 for r in recs], split)
         return recs, train, held, train_ws, held_ws, data_key
@@ -161,7 +161,7 @@ class Discovery:
         accepted: list[dict] = []
         maps, searches, counts = [], [], {}
         round_, adds = 0, 0
-        while adds < s.max_effects:
+        while adds < s.rounds.max_effects:
             round_ += 1
             try:
                 state = self._round_search(current, round_, runner, maps, searches, counts)
@@ -200,7 +200,7 @@ class Discovery:
         model). A round whose search supported nothing goes on only if a stage opens it
         (the last resort, far above the noise floor); otherwise only the stages that
         reshape the model run. Returns the round's current fit, or the replacement."""
-        candidates = state.supported[: self.settings.max_trials_per_round] + state.tentative
+        candidates = state.supported[: self.settings.rounds.max_trials_per_round] + state.tentative
         state.candidates = list(candidates)
         empty = not candidates and not any(st.opens_empty_round(state) for st in stages)
         state.exhausted = empty
@@ -219,7 +219,7 @@ class Discovery:
         """A round's search: the disagreement map and the sparse regression on the
         current model's residual (appended to ``maps``, ``searches`` and the ledger),
         and what it supports: the round's state (tentative: the groups below the
-        inclusion threshold tried when the held-out error is ``gap_fallback_ratio`` x
+        inclusion threshold tried when the held-out error is ``rounds.gap_fallback_ratio`` x
         the noise floor or more)."""
         s, d = self.settings, runner.data
         noise = d.noise_Pa
@@ -236,25 +236,25 @@ class Discovery:
         self.log("discover: evidence " + ", ".join(
             f"{g} {sindy.evidence_[g]['inclusion_probability']:.2f}"
             for g in sindy.ranking_))
-        supported = sindy.supported(s.min_inclusion)
+        supported = sindy.supported(s.search.min_inclusion)
         tentative = []
-        far = (s.gap_fallback_ratio > 0
-               and current.heldout_rmse_Pa > s.gap_fallback_ratio * noise)
+        far = (s.rounds.gap_fallback_ratio > 0
+               and current.heldout_rmse_Pa > s.rounds.gap_fallback_ratio * noise)
         if far:
-            tentative = [g for g in sindy.supported(s.fallback_min_inclusion)
-                         if g not in supported][: s.max_trials_per_round]
+            tentative = [g for g in sindy.supported(s.search.fallback_min_inclusion)
+                         if g not in supported][: s.rounds.max_trials_per_round]
             if tentative:
                 self.log(f"discover: the held-out error is "
                          f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor: also "
                          f"trying {', '.join(tentative)} (inclusion below "
-                         f"{s.min_inclusion:g})")
+                         f"{s.search.min_inclusion:g})")
         search_step = len(runner.ledger)
         runner.ledger.record("search", round=round_, supported=supported, tentative=tentative,
                              inclusion={g: sindy.evidence_[g]["inclusion_probability"]
                                         for g in sindy.ranking_})
         return RoundState(number=round_, current=current, search=sindy, supported=supported,
                           tentative=tentative, started_far=far,
-                          gap_ratio=s.gap_fallback_ratio, noise_Pa=noise,
+                          gap_ratio=s.rounds.gap_fallback_ratio, noise_Pa=noise,
                           search_step=search_step, counts=counts)
 
     def _add(self, state: RoundState, accepted: list, runner: TrialRunner) -> StepFit:
@@ -282,7 +282,7 @@ class Discovery:
         fields of the result)``: the refined point, or with ``posterior`` the posterior
         median and the posterior itself."""
         s = self.settings
-        if not s.posterior:
+        if not s.posterior.sampled:
             return dict(current.params), "refined (multiple shooting)", {}
         bi = self._posterior(current, train_ws)
         params = bi.median_params()
@@ -290,7 +290,7 @@ class Discovery:
                     "seed": s.seed, "pneubayes_version": pneubayes.__version__,
                     "model_card": json.dumps(current.model.to_card(params))}),
                 "posterior_summary": bi.summary(),
-                "posterior_info": {"method": s.posterior_method,
+                "posterior_info": {"method": s.posterior.method,
                                    "converged": bi.converged_,
                                    "steps": bi.diagnostics_["steps"],
                                    "sampling_solver": bi.diagnostics_["solver"],
@@ -314,9 +314,9 @@ class Discovery:
             starts.append(b.starts)
             k += w
             p = np.asarray(d.recording.pressure_Pa, dtype=np.float64)
-            one.append(p[1:] - d.predict(fit.model, theta, s.library_solver)[0])
+            one.append(p[1:] - d.predict(fit.model, theta, s.search.solver)[0])
         return disagreement_map(fit.model, fit.params, train, per_rec, starts,
-                                train_ws.length, one, noise, s.regimes)
+                                train_ws.length, one, noise, s.search.regimes)
 
     def _posterior(self, fit: StepFit, train_ws: WindowSet):
         s = self.settings
@@ -327,15 +327,15 @@ class Discovery:
             info = ref.fit(train_ws, start).information_
         except FloatingPointError:
             info = None
-        if s.posterior_method == "laplace":
+        if s.posterior.method == "laplace":
             if info is None:
                 raise FloatingPointError("discover: the Laplace posterior needs the refined "
                                          "point's information, and it cannot be taken")
             self.log(f"discover: Laplace posterior of "
                      f"{list(fit.model.effect_names) or 'the base'} model")
             return LaplaceIdentification.from_sampler(
-                fit.model, s.fit.sample_solver, s.fit.sampler, s.laplace_draws,
-                s.laplace_check_draws, self.log).fit(train_ws, start, info)
+                fit.model, s.fit.sample_solver, s.fit.sampler, s.posterior.laplace_draws,
+                s.posterior.laplace_check_draws, self.log).fit(train_ws, start, info)
         backend = None if self.out_dir is None else self.out_dir / "chain.h5"
         bi = BayesianIdentification(fit.model, s.fit.sample_solver, s.fit.sampler,
                                     backend_path=backend, progress=False, log=self.log)

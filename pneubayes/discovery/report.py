@@ -91,8 +91,8 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         from pneubayes.discovery.openform.term_view import term_views
         from pneubayes.plotting import plot_found_terms
 
-        views = term_views(result.model, result.params, result.train, result.settings.block,
-                           result.settings.library_solver)
+        views = term_views(result.model, result.params, result.train, result.settings.search.block,
+                           result.settings.search.solver)
         figs["found_terms"] = plot_found_terms(views,
                                                out / "figures" / "found_terms.png").name
     write_text_atomic(out / "report.md", _report(doc, result, figs))
@@ -175,9 +175,9 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     base, final = doc["rmse_base_Pa"], doc["rmse_final_Pa"]
     gap0, gap1 = max(base - noise, 0.0), max(final - noise, 0.0)
     lines = ["# What the model misses: discovery report", ""]
-    k = result.settings.holdout_recordings
+    k = result.settings.data.holdout_recordings
     how = (f"the last {k} held out whole to verify, the others to fit and search" if k else
-           f"each split in time: the first {1 - result.settings.holdout_fraction:.0%} to fit "
+           f"each split in time: the first {1 - result.settings.data.holdout_fraction:.0%} to fit "
            "and search, the rest to verify")
     lines += [f"Recordings: {len(doc['recordings'])} ({how}). Noise floor (sensor) "
               f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa.", ""]
@@ -318,12 +318,12 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"{_fmt(e.get('heldout_rmse_Pa'), '.0f')} | |")
     if "disagreement_final" in figs:
         lines += ["", "## Final model", "", f"![final](figures/{figs['disagreement_final']})"]
-    if result.posterior_info is not None and result.settings.posterior_method == "laplace":
+    if result.posterior_info is not None and result.settings.posterior.method == "laplace":
         info = result.posterior_info
         check = info.get("importance_check")
         bounded = info.get("mode_on_prior_bound") or []
         lines += ["", f"Posterior: Laplace approximation at the posterior's mode, "
-                  f"{result.settings.laplace_draws} draws (a Gaussian: no skew, one mode)"
+                  f"{result.settings.posterior.laplace_draws} draws (a Gaussian: no skew, one mode)"
                   + (f"; the mode on the prior bound of {', '.join(bounded)}: the "
                      "Gaussian fitted inside, cut at the bound" if bounded else "")
                   + ("" if check is None else

@@ -1,7 +1,7 @@
 """One round's trials: the candidate effects' forms, fitted cheapest first, stopping
-once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.DiscoverySettings`
-``form_settled_ratio``); an effect's later forms only while its first form keeps up with
-the round's best (``later_forms_min_share``); whether a trial that passed gains enough
+once a trial fits at the noise floor (:class:`~pneubayes.discovery.settings.FormSettings`
+``settled_ratio``); an effect's later forms only while its first form keeps up with
+the round's best (``later_min_share``); whether a trial that passed gains enough
 to be added (:func:`gain_shortfall`); whether a round's results call for the last resort
 (:func:`last_resort_reason`); which earlier trials to revisit before the loop stops
 (:func:`runner_ups`); and which of the round's trials to fit in pairs when none passed
@@ -117,8 +117,8 @@ def min_gain_Pa(noise_Pa: float, gap_Pa: float, settings: DiscoverySettings) -> 
     """The least held-out gain (Pa) an added effect must bring: ``min_gain_noise_share``
     of the noise floor ``noise_Pa``, or ``min_gain_gap_share`` of the gap above it
     (``gap_Pa``; none when negative), whichever is larger."""
-    return max(settings.min_gain_noise_share * noise_Pa,
-               settings.min_gain_gap_share * max(gap_Pa, 0.0))
+    return max(settings.verify.min_gain_noise_share * noise_Pa,
+               settings.verify.min_gain_gap_share * max(gap_Pa, 0.0))
 
 
 def last_resort_reason(passed_rmse_Pa, heldout_rmse_Pa: float, noise_Pa: float,

@@ -117,8 +117,8 @@ class TrialRunner:
         StepFit
         """
         s, d = self.settings, self.data
-        if s.bounds:
-            model = model.with_bounds({k: tuple(v) for k, v in s.bounds.items()})
+        if s.data.bounds:
+            model = model.with_bounds({k: tuple(v) for k, v in s.data.bounds.items()})
         key = fingerprint(model.to_card(start), s.fit.to_dict(), d.data_key,
                           *([list(first)] if first else []),
                           *([beat_Pa] if first and beat_Pa is not None else []))
@@ -137,7 +137,7 @@ class TrialRunner:
         r_ho = d.held_ws.residuals(model, theta, s.fit.refine_solver)[0]
         return StepFit(model, params, float(np.sqrt(np.mean(r_tr**2))),
                        float(np.sqrt(np.mean(r_ho**2))),
-                       crossfit_window_lpd(r_ho, s.score_dof),
+                       crossfit_window_lpd(r_ho, s.verify.score_dof),
                        np.mean(r_ho**2, axis=1), sig, rho,
                        wall_time_s=time.perf_counter() - t0)
 
@@ -166,13 +166,13 @@ class TrialRunner:
                 self.log(f"discover: {effects_label(model)}: screened out, its own "
                          f"parameters fit to {stage.rmse_Pa_:.0f} Pa in training, not "
                          f"below the screen ({beat_Pa:.0f} Pa)")
-        for _ in range(0 if screened else s.max_refine_restarts + 1):
+        for _ in range(0 if screened else s.rounds.max_refine_restarts + 1):
             ref = refiner().fit(train_ws, params)
             params = ref.params_
             if ref.success_:
                 break
             crawl = late_gain(ref.rmse_trace_)
-            if crawl < s.refine_restart_min_gain:
+            if crawl < s.rounds.refine_restart_min_gain:
                 self.log(f"discover: {effects_label(model)}: refinement ended on its "
                          f"budget at {ref.rmse_Pa_:.0f} Pa, its best RMSE {crawl:.1e} "
                          f"lower over its last half: crawling, not restarted")
@@ -220,7 +220,7 @@ class TrialRunner:
     def better(self, new: StepFit, old: StepFit):
         """The verification test of ``new`` against ``old`` on the held-out windows:
         ``(passes, score gain, p-value, per-window squared-error reductions)``."""
-        return compare_heldout(new, old, self.settings.max_p_value)
+        return compare_heldout(new, old, self.settings.verify.max_p_value)
 
     # ------------------------------------------------------------------ trials
     def trials(self, groups, state: RoundState, min_gap_closed: float = 0.0) -> list:
@@ -243,17 +243,18 @@ class TrialRunner:
         current = state.current
         rig = d.rig()
         trials = []
-        options = {g: effect_candidates(current, g, evidence[g], rig, s.tube_line_segments,
-                                        s.tube_line_cutoff_Hz, s.tube_line_form)
+        options = {g: effect_candidates(current, g, evidence[g], rig, s.forms.tube_line_segments,
+                                        s.forms.tube_line_cutoff_Hz, s.forms.tube_line_form)
                    for g in groups}
         round_forms, settled, failed, outpaced = fit_round_forms(
             options, lambda g, m, x, beat: self.fit_trial(g, m, x, current, beat),
-            s.form_settled_ratio * d.noise_Pa,
+            s.forms.settled_ratio * d.noise_Pa,
             follow=lambda g, m, f: follow_up(current, g, evidence[g], rig, m, f.params,
-                                             s.tube_line_segments, s.tube_line_cutoff_Hz,
-                                             s.tube_line_form),
-            current_Pa=current.train_rmse_Pa, min_share=s.later_forms_min_share,
-            screen_share=s.later_form_screen_share)
+                                             s.forms.tube_line_segments,
+                                             s.forms.tube_line_cutoff_Hz,
+                                             s.forms.tube_line_form),
+            current_Pa=current.train_rmse_Pa, min_share=s.forms.later_min_share,
+            screen_share=s.forms.later_screen_share)
         for g in groups:
             forms = round_forms[g]
             forms_info = self._forms_info(g, forms, options[g], failed[g], outpaced, settled)
@@ -293,11 +294,11 @@ class TrialRunner:
         if info["not_fitted"] and g in outpaced:
             mine, best = outpaced[g]
             info["not_fitted_why"] = (f"first-form gain {mine:.0f} Pa < "
-                                      f"{s.later_forms_min_share:g} x the round's best "
+                                      f"{s.forms.later_min_share:g} x the round's best "
                                       f"{best:.0f} Pa")
             self.log(f"discover: {g}: {len(info['not_fitted'])} later form(s) "
                      f"not fitted: its first form gains {mine:.0f} Pa in training, "
-                     f"under {s.later_forms_min_share:g} x the round's best "
+                     f"under {s.forms.later_min_share:g} x the round's best "
                      f"({best:.0f} Pa)")
         elif info["not_fitted"]:
             sg, sm, sf = settled
@@ -350,8 +351,8 @@ class TrialRunner:
                  + (f"; it closes {100 * (closed or 0.0):.0f} % of the gap, under "
                     f"{100 * min_gap_closed:.0f} %" if small else "")
                  + (f"; it gains {drop_Pa:.1f} Pa, under {least:.1f} Pa (the larger of "
-                    f"{s.min_gain_noise_share:g} x the noise floor and "
-                    f"{s.min_gain_gap_share:g} x the gap)" if tiny else ""))
+                    f"{s.verify.min_gain_noise_share:g} x the noise floor and "
+                    f"{s.verify.min_gain_gap_share:g} x the gap)" if tiny else ""))
         return (trial.heldout_rmse_Pa, g, trial, gain, pval) if ok else None
 
     # ------------------------------------------------------------------ controls

@@ -65,7 +65,7 @@ from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
 #: Draws of a Laplace posterior unless asked otherwise (``pneubayes fit --method laplace``,
-#: :attr:`DiscoverySettings.laplace_draws <pneubayes.discovery.settings.DiscoverySettings>`).
+#: :attr:`PosteriorSettings.laplace_draws <pneubayes.discovery.settings.PosteriorSettings>`).
 LAPLACE_DRAWS = 4000
 
 #: Steps (whitened SDs) of the Hessian's differences, tried in turn until every point has

@@ -19,19 +19,17 @@ from pneubayes.discovery.stages.runner_ups import RunnerUps
 
 
 def default_stages(settings: DiscoverySettings) -> list[Stage]:
-    """The pipeline ``settings`` describe, in the loop's order: the other supported
-    groups (``try_all_supported``), the last resort (``try_all_on_gap``,
-    ``last_resort_min_gap_closed``, ``last_resort_best_gap_closed``), the runner-ups
-    (``revisit_runner_ups``), pairs (``pair_members``) and the named effects' other
-    forms (``max_form_swaps``), then the open-form closure (``open_form_min_noise_ratio``).
-    """
-    s = settings
+    """The pipeline ``settings.stages``
+    (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
+    the other supported groups, the last resort, the runner-ups, pairs and the named
+    effects' other forms, then the open-form closure."""
+    s = settings.stages
     stages: list[Stage] = []
-    if s.try_all_supported:
+    if s.more_supported:
         stages.append(MoreSupported())
-    if s.try_all_on_gap:
+    if s.last_resort:
         stages.append(LastResort(s.last_resort_min_gap_closed, s.last_resort_best_gap_closed))
-    if s.revisit_runner_ups:
+    if s.runner_ups:
         stages.append(RunnerUps(s.last_resort_min_gap_closed))
     if s.pair_members:
         stages.append(Pairs(s.pair_members, s.last_resort_min_gap_closed))

@@ -141,11 +141,11 @@ class OpenForm(Stage):
         s = runner.settings
         current = state.current
         search = self.search if self.search is not None else OpenFormSearch(
-            block=s.block, seed=s.seed)
+            block=s.search.block, seed=s.seed)
         signals, targets = [], []
         for rec in runner.data.train:
             d = one_step_data(rec, search.block)
-            e = d.errors(current.model, current.params, s.library_solver)[0]
+            e = d.errors(current.model, current.params, s.search.solver)[0]
             sig = path_signals(current.model, current.params, rec, d)
             signals.append(sig)  # (its "valid" leaves out intervals touching a bad sample)
             targets.append(missing_mass_flow(sig, e, d.rig))

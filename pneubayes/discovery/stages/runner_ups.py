@@ -33,7 +33,7 @@ class RunnerUps(Stage):
         if state.passing:
             return
         retry = runner_ups(runner.ledger, state.current.model.effect_names,
-                           state.search_step, runner.settings.max_p_value)
+                           state.search_step, runner.settings.verify.max_p_value)
         if not retry:
             return
         runner.log(f"discover: nothing passed this round; revisiting "
