@@ -779,3 +779,15 @@ def test_a_cards_form_follows_from_its_parameter_names(name):
         # is told apart only by the card's form option: without it, the earlier form
         assert cls.form_from_parameters(names) == seen.get(tuple(sorted(own)), form)
         seen.setdefault(tuple(sorted(own)), form)
+
+
+def test_what_the_fits_and_the_loop_ask_of_an_effect_is_on_the_effect():
+    """Warm-up windows, the line's company and a lagged reading's lead are the effect's
+    own declarations: no code outside ``effects/`` names the effect to ask."""
+    assert {n for n, c in CATALOGUE.items() if c.needs_warmup} == {"heat_transfer"}
+    assert {n for n, c in CATALOGUE.items() if not c.beside_line} == {"closure"}
+    for form in ("first_order", "second_order"):
+        lag = make_effect("sensor_lag", form=form)
+        assert lag.reading_lead_parameter() in lag.parameter_names()
+    assert all(make_effect(n).reading_lead_parameter() is None for n in CATALOGUE
+               if n != "sensor_lag")

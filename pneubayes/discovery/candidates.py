@@ -34,8 +34,8 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
     heated = any(slots[SLOT_INDEX[s]] > 0 for s in ("heat_rate_per_s",
                                                       "heat_coefficient_W_per_m2_K"))
-    if fit.model.has("closure"):  # the simulator refuses a closure beside a tube's line
-        line_segments = 0
+    if not all(e.beside_line for e in fit.model.effects):
+        line_segments = 0  # the simulator cannot carry a line beside one of them
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
                             term_start=evidence.get("best_term_start"),
                             second_state_free=not taken, line_segments=line_segments,

@@ -74,26 +74,30 @@ class OneStepData:
                 inputs: Inputs | None = None) -> np.ndarray:
         """One-step predictions ``(B, N - 1)`` of ``p[k+1]`` from the measured ``p[k]``.
 
-        A lagged reading (effect ``sensor_lag``, group delay tau: its time constant, or
-        a second-order lag's 2 z / w) is predicted from the chamber ahead of the reading
-        by tau times the reading's rate: the chamber's rate without the lag (its
-        one-step increments from the measured readings, held over each interval)
-        through a first-order lag of tau, ``q[k] = m[k-1] + (q[k-1] - m[k-1])
-        exp(-h / tau)`` (h the median sample interval), from the model and not from
-        differences of noisy readings. A chamber started at the reading itself would
+        A lagged reading (an effect with a
+        :meth:`~pneubayes.effects.Effect.reading_lead_parameter`, the group delay tau:
+        a first-order lag's time constant, a second-order lag's 2 z / w) is predicted
+        from the chamber ahead of the reading by tau times the reading's rate: the
+        chamber's rate without the lag (its one-step increments from the measured
+        readings, held over each interval) through a first-order lag of tau, ``q[k] =
+        m[k-1] + (q[k-1] - m[k-1]) exp(-h / tau)`` (h the median sample interval), from
+        the model and not from differences of noisy readings. A chamber started at the
+        reading itself would
         move the reading by only a fraction of its increment in one step."""
         p = np.asarray(self.recording.pressure_Pa, dtype=np.float64)
         inputs = inputs or self.inputs
         theta = model.as_matrix(params)
         starts = np.arange(p.size - 1)
         rate = None
-        lead = (theta[:, model.parameter_names.index(
-            model.effect("sensor_lag").lead_parameter())] if model.has("sensor_lag")
-            else np.zeros(theta.shape[0]))  # the reading's group delay, s
+        lags = [e for e in model.effects if e.reading_lead_parameter() is not None]
+        lead = np.zeros(theta.shape[0])  # the reading's group delay, s
+        for e in lags:
+            lead = lead + theta[:, model.parameter_names.index(e.reading_lead_parameter())]
         if np.any(lead > 0):
             plain = theta.copy()
-            for k, v in model.effect("sensor_lag").neutral_values().items():
-                plain[:, model.parameter_names.index(k)] = v
+            for e in lags:
+                for k, v in e.neutral_values().items():
+                    plain[:, model.parameter_names.index(k)] = v
             step = simulate_windows(model, plain, inputs, self.rig, starts, 2, p[:-1], solver,
                                     check_bounds=False)[:, :, 1]
             dt = float(np.median(np.diff(self.recording.time_s)))

@@ -132,6 +132,19 @@ class Effect(Component):
     #: Where a named effect's candidate starts when no library term of it explained the
     #: residual (parameter -> value; missing parameters start neutral).
     discovery_fallback: ClassVar[dict[str, float]] = {}
+    #: True for an effect with a state the recordings do not measure and a window does
+    #: not know at its start (the chamber temperature): fits simulate warm-up windows
+    #: before the scored ones to settle it.
+    needs_warmup: ClassVar[bool] = False
+    #: False for an effect the simulator cannot carry beside a tube's acoustic line
+    #: (the loop then proposes no line form beside it).
+    beside_line: ClassVar[bool] = True
+
+    def reading_lead_parameter(self) -> str | None:
+        """The parameter that is a lagged reading's group delay at DC, s (how far the
+        chamber leads the reading), for an effect that lags the reading; None (the
+        default) for others."""
+        return None
 
     @classmethod
     def form_from_parameters(cls, names) -> str | None:

@@ -71,6 +71,8 @@ class Closure(Effect):
                                                    "threshold_b", "coefficient")
                 for k in range(CLOSURE_MAX_TERMS)))
     library_searched = False
+    #: the simulator refuses a closure beside a tube's acoustic line
+    beside_line = False
 
     def __init__(self, terms: str = "one"):
         if not isinstance(terms, str):

@@ -54,6 +54,8 @@ class HeatTransfer(Effect):
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
     acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K")
+    #: the chamber temperature: a state no recording measures
+    needs_warmup = True
 
     def __init__(self, form: str = "rate"):
         self.form = form

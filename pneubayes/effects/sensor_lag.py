@@ -86,6 +86,9 @@ class SensorLag(Effect):
         self._check()
         return "sensor_time_constant_s" if self.form == "first_order" else "sensor_delay_s"
 
+    def reading_lead_parameter(self) -> str:
+        return self.lead_parameter()
+
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
         lead = np.asarray(values[self.lead_parameter()], dtype=np.float64)

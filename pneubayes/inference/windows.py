@@ -38,9 +38,10 @@ class _Block:
         """(every start to simulate, its start pressure, number of warm-up windows).
 
         Warm-up windows only matter to a model with a state the recording does not
-        measure (the chamber temperature of ``heat_transfer``); others skip them.
+        measure (an effect whose ``needs_warmup`` is set, e.g. the chamber temperature);
+        others skip them.
         """
-        if "heat_transfer" not in model.effect_names or not self.warmup_starts.size:
+        if not any(e.needs_warmup for e in model.effects) or not self.warmup_starts.size:
             return self.starts, self.measured[:, 0], 0
         k = self.warmup_starts.size
         return (np.concatenate([self.warmup_starts, self.starts]),
