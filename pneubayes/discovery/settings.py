@@ -79,7 +79,8 @@ class SearchSettings:
     regimes : RegimeSettings
         The disagreement map's bins and flags.
     threshold_t, n_bags, chunk_rows : float, int, int
-        The sequential threshold (|t|), bags and rows per resampled chunk.
+        The sequential threshold (on the coefficients' t statistics), bags and rows
+        per resampled chunk.
     min_inclusion : float
         A group is supported at this inclusion probability.
     fallback_min_inclusion : float
