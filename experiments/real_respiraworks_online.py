@@ -18,7 +18,10 @@ The shipped card (two compartments, the exhale valve on its own command), the sp
    every tick from ``CAL_S`` on whose next 2 s lie in the run, it predicts them from the
    measured pressure (``forecast``: the lung's pressure brought to the start by a
    warm-up window) with 64 resampled particles; the 90 % band adds Gaussian errors of
-   ``noise_std_Pa`` to the particles' predictions.
+   the band's scale to the particles' predictions. Beside it, the *online conformal*
+   band (:class:`~pneubayes.inference.conformal.OnlineConformalBand`): the same band's
+   shape rescaled by the run's own completed predictions (made every tick from
+   ``BAND_FROM_S``; only outcomes measured before a prediction enter its band).
 
 With ``--select`` the likelihood's power (``temper``) and the moves' floor are first
 chosen on the training runs (``SELECT_GRID``; leave one run out: the population and
@@ -51,6 +54,7 @@ from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa
 from real_respiraworks_forms import CAL_S, LUNG, MAX_NFEV, form_card
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.inference.conformal import OnlineConformalBand
 from pneubayes.inference.online import OnlineTracker, forecast
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.population import LogNormalPrior
@@ -74,6 +78,10 @@ TRACKER = {"lookback_s": 2.0, "warm_up_windows": 1, "temper": 0.1, "ess_threshol
            "n_moves": 2, "move_scale": 0.5, "move_floor_log": 1e-3, "memory_s": 2.0,
            "drift_log_per_sqrt_s": 0.0, "adapt_noise_s": 0.0}
 CMH2O_PA = 98.0665
+#: The online conformal band (:class:`OnlineConformalBand`) is fed predictions at every
+#: tick from this time on (before the scored ones, which start at ``CAL_S``): the run's
+#: own completed predictions rescale the band.
+BAND_FROM_S = 1.0
 #: the knobs --select chooses among on the training runs (leave one out)
 SELECT_GRID = {"temper": (0.03, 0.1, 0.3), "move_floor_log": (1e-3, 0.02, 0.1)}
 #: warm-up windows (of the 2-s horizon) before every prediction, as many as the run holds
@@ -131,7 +139,10 @@ def track_online(model, shared, prior, sigma, band_sigma, knobs, r, seed, every_
     inputs, ue = Inputs.from_recording(r), r.exhaust_command()
     tracker = OnlineTracker(model, shared, prior, r.rig(), std, sigma,
                             n_particles=N_PARTICLES, **knobs).reset(rng)
-    out = {"errors": {}, "inside": {}, "width": {}, "tick_ms": [], "trace": []}
+    out = {"errors": {}, "inside": {}, "width": {}, "inside_conformal": {},
+           "width_conformal": {}, "tick_ms": [], "trace": []}
+    band = OnlineConformalBand(coverage=0.9)
+    k_band = int(np.searchsorted(t, t[0] + BAND_FROM_S))
     for k0, k1 in zip([0, *range(1, p.size, m)], [*range(1, p.size, m), p.size]):
         c0 = time.perf_counter()
         tracker.update(t[k0:k1], r.command_V[k0:k1], p[k0:k1], ue[k0:k1])
@@ -140,17 +151,23 @@ def track_online(model, shared, prior, sigma, band_sigma, knobs, r, seed, every_
         if k % (5 * m) == 0:
             out["trace"].append({"time_s": float(t[k]), "ess": tracker.ess_,
                                  **tracker.quantiles()})
-        if k not in wanted:
+        band.observe(k, p[:k + 1])  # the predictions whose outcomes are measured by now
+        if k not in wanted and not (k >= k_band and k % m == 0 and k + h < p.size):
             continue
         y = p[k + 1:k + h + 1]
         sims = forecast(model, tracker.draws(N_DRAWS, rng), inputs, r.rig(), k, h + 1, p,
                         std, FORECAST_WARM)[:, 1:]
         sims = sims[np.all(np.isfinite(sims), axis=1)]
+        c_lo, c_hi = band.predict(k, *band.centre_and_scale(sims, band_sigma))
+        if k not in wanted:
+            continue
         noisy = sims + rng.normal(0.0, band_sigma, size=sims.shape)
         lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
         out["errors"][k] = y - sims.mean(axis=0)
         out["inside"][k] = (y >= lo) & (y <= hi)
         out["width"][k] = hi - lo
+        out["inside_conformal"][k] = (y >= c_lo) & (y <= c_hi)
+        out["width_conformal"][k] = c_hi - c_lo
     out["final_quantiles"] = tracker.quantiles()
     out["n_resamples"] = tracker.n_resamples_
     return out, protocol, every
@@ -293,12 +310,16 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
     res["online"] = {}
     for seed in seeds:
         errs_p, errs_a, in_p, in_a, width, ms = [], [], [], [], [], []
+        cin_p, cin_a, cwidth = [], [], []
         for i, r in enumerate(held):
             o, protocol, every = track_online(model, shared, prior, sigma, band_sigma,
                                               knobs, r, [seed, i, ord(kind[0])], True)
             errs_p += [o["errors"][k] for k in protocol]
             in_p += [o["inside"][k] for k in protocol]
             width += [o["width"][k] for k in protocol]
+            cin_p += [o["inside_conformal"][k] for k in protocol]
+            cin_a += [o["inside_conformal"][k] for k in every]
+            cwidth += [o["width_conformal"][k] for k in protocol]
             errs_a += [o["errors"][k] for k in every]
             in_a += [o["inside"][k] for k in every]
             ms += o["tick_ms"]
@@ -314,13 +335,18 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
             "coverage_90_protocol": float(np.mean(np.concatenate(in_p))),
             "coverage_90_every_tick": float(np.mean(np.concatenate(in_a))),
             "band_90_median_width_Pa": float(np.median(np.concatenate(width))),
+            "conformal_coverage_90_protocol": float(np.mean(np.concatenate(cin_p))),
+            "conformal_coverage_90_every_tick": float(np.mean(np.concatenate(cin_a))),
+            "conformal_band_90_median_width_Pa": float(np.median(np.concatenate(cwidth))),
             "tick_ms": {"median": float(np.median(ms)), "mean": float(ms.mean()),
                         "p95": float(np.percentile(ms, 95)), "max": float(ms.max()),
                         "ticks": int(ms.size)}}
         o = res["online"][str(seed)]
         log(f"[{kind}] seed {seed}: online {o['protocol_rmse_Pa']:.0f} Pa on the protocol's "
             f"windows, {o['every_tick_rmse_Pa']:.0f} Pa every tick; 90 % coverage "
-            f"{o['coverage_90_protocol']:.2f} (band {o['band_90_median_width_Pa']:.0f} Pa); "
+            f"{o['coverage_90_protocol']:.2f} (band {o['band_90_median_width_Pa']:.0f} Pa), "
+            f"online conformal {o['conformal_coverage_90_protocol']:.2f} (band "
+            f"{o['conformal_band_90_median_width_Pa']:.0f} Pa); "
             f"tick {o['tick_ms']['median']:.1f} ms median")
     pw = res["protocol_windows"]
     log(f"[{kind}] protocol windows ({res['protocol_n_windows']}): set-point "

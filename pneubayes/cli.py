@@ -712,11 +712,13 @@ def cmd_track(args) -> int:
                                    "memory_s": args.lookback})
     def fmt(v):
         return "n/a" if v is None else f"{v:.0f} Pa"
-    cov = s["coverage_90"]
+    cov, ccov = s["coverage_90"], s["conformal_coverage_90"]
     print(f"{out}: {s['ticks']} ticks; {horizon:g}-s predictions from {s['predicted_ticks']} "
           f"of them: online RMSE {fmt(s['online_rmse_Pa'])} (frozen fit "
           f"{fmt(s['frozen_rmse_Pa'])}), 90 % band coverage "
           + ("n/a" if cov is None else f"{cov:.2f}")
+          + " (rescaled by the run's own errors "
+          + ("n/a" if ccov is None else f"{ccov:.2f}") + ")"
           + f"; update {s['update_ms_median']:.1f} ms median per tick")
     return 0
 

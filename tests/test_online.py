@@ -224,6 +224,10 @@ def test_track_command_writes_ticks_and_refuses_to_overwrite(bench_run, tmp_path
     assert q[0] <= truth * 1.2 and q[2] >= truth / 1.2  # the truth's neighbourhood
     s = doc["summary"]
     assert s["predicted_ticks"] > 0 and np.isfinite(s["online_rmse_Pa"])
+    assert 0.0 <= s["conformal_coverage_90"] <= 1.0
+    # the rescaled band: the model's own until predictions complete, then the run's
+    first = next(r for r in doc["ticks"] if "conformal_band_90_width_Pa" in r)
+    assert first["conformal_band_90_width_Pa"] > 0.0
     assert "track.json" in capsys.readouterr().out
     before = out.read_text()
     assert main(argv) == 2  # exists: refused, untouched

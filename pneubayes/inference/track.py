@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.inference.conformal import OnlineConformalBand
 from pneubayes.inference.fit_folder import card_preparation
 from pneubayes.inference.online import OnlineTracker, forecast
 from pneubayes.inference.population import LogNormalPrior, LogUniformPrior
@@ -54,7 +55,10 @@ def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
         ``prediction_rmse_Pa`` (of the mean of the draws' predictions from the measured
         pressure, :func:`~pneubayes.inference.online.forecast`), ``coverage_90`` and
         ``band_90_width_Pa`` (the draws' predictions plus the tracker's Gaussian
-        errors), and ``frozen_rmse_Pa``.
+        errors), ``conformal_coverage_90`` and ``conformal_band_90_width_Pa`` (that band
+        rescaled by the run's completed predictions,
+        :class:`~pneubayes.inference.conformal.OnlineConformalBand`) and
+        ``frozen_rmse_Pa``.
     """
     import time
 
@@ -68,6 +72,7 @@ def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
     x, ps = recording.position_or_fixed(), recording.supply_or_nominal()
     rig = recording.rig()
     sigma = float(tracker.noise_std_Pa)
+    band = OnlineConformalBand(coverage=0.9)
     out = []
     # ticks end on samples 0, m, 2m, ... (the first tick: the first sample alone)
     bounds = [0, *range(1, t.size, m), t.size]
@@ -78,6 +83,7 @@ def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
         rec = {"time_s": float(t[k1 - 1]), "update_ms": 1e3 * (time.perf_counter() - c0),
                "ess": tracker.ess_, "quantiles": tracker.quantiles()}
         k = k1 - 1
+        band.observe(k, p[:k + 1])
         if j % predict_every == 0 and k + h < t.size and k >= 1:
             y = p[k + 1:k + h + 1]
             sims = forecast(tracker.model, tracker.draws(n_draws, rng), inputs, rig, k,
@@ -89,6 +95,9 @@ def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
                 rec["prediction_rmse_Pa"] = float(np.sqrt(np.mean((sims.mean(0) - y) ** 2)))
                 rec["coverage_90"] = float(np.mean((y >= lo) & (y <= hi)))
                 rec["band_90_width_Pa"] = float(np.median(hi - lo))
+                c_lo, c_hi = band.predict(k, *band.centre_and_scale(sims, sigma))
+                rec["conformal_coverage_90"] = float(np.mean((y >= c_lo) & (y <= c_hi)))
+                rec["conformal_band_90_width_Pa"] = float(np.median(c_hi - c_lo))
             if frozen is not None:
                 f = forecast(tracker.model, frozen[None], inputs, rig, k, h + 1, p,
                              tracker.solver)[0, 1:]
@@ -102,11 +111,13 @@ def _summary(ticks: list[dict]) -> dict:
         v = [r[key] for r in ticks if key in r]
         return float(np.sqrt(np.mean(np.square(v)))) if v else None
     cov = [r["coverage_90"] for r in ticks if "coverage_90" in r]
+    ccov = [r["conformal_coverage_90"] for r in ticks if "conformal_coverage_90" in r]
     ms = np.array([r["update_ms"] for r in ticks])
     return {"ticks": len(ticks), "predicted_ticks": len(cov),
             "online_rmse_Pa": pooled("prediction_rmse_Pa"),
             "frozen_rmse_Pa": pooled("frozen_rmse_Pa"),
             "coverage_90": float(np.mean(cov)) if cov else None,
+            "conformal_coverage_90": float(np.mean(ccov)) if ccov else None,
             "update_ms_median": float(np.median(ms)) if ms.size else None,
             "update_ms_p95": float(np.percentile(ms, 95)) if ms.size else None}
 
