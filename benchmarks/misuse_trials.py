@@ -1128,7 +1128,7 @@ def run_trial(tr: dict, base: Path, work: Path, timeout: float, max_rss_mb: floa
               "timed_out": r["timed_out"], "wall_s": r["wall_s"], "rss_mb": r["rss_mb"],
               "first_line": first[:400], "stderr": r["stderr"][-2000:],
               "stdout": r["stdout"][-1000:], "problems": problems,
-              "ok": not problems}
+              "ok": not problems, "revision": REVISION}
     _rmtree(T)
     return result
 
@@ -1199,6 +1199,9 @@ def _write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+REVISION = "unknown"  # the git revision the trials run at (set by main)
+
+
 def _revision() -> str:
     try:
         rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
@@ -1226,7 +1229,8 @@ def summarize(results: list[dict], out: Path, elapsed: float) -> dict:
                 key = "refusal does not name the input"
             kinds[key] = kinds.get(key, 0) + 1
     failures = [r for r in results if not r["ok"]]
-    doc = {"revision": _revision(), "total": len(results),
+    revisions = sorted({r.get("revision", "unrecorded") for r in results})
+    doc = {"revision": _revision(), "trial_revisions": revisions, "total": len(results),
            "ok": len(results) - len(failures), "failed": len(failures),
            "per_class": counts, "per_problem": kinds,
            "max_wall_s": max((r["wall_s"] for r in results), default=0),
@@ -1236,7 +1240,8 @@ def summarize(results: list[dict], out: Path, elapsed: float) -> dict:
                                             "rss_mb", "first_line", "problems")}
                         for r in failures]}
     _write_atomic(out / "summary.json", json.dumps(doc, indent=2) + "\n")
-    lines = ["# Misuse trials (issue 70)\n", f"revision {doc['revision']}; "
+    lines = ["# Misuse trials (issue 70)\n", f"revision {doc['revision']} (trials run at "
+             f"{', '.join(revisions)}); "
              f"{doc['total']} trials, {doc['ok']} ok, {doc['failed']} failed; slowest "
              f"{doc['max_wall_s']} s, largest peak RSS {doc['max_rss_mb']} MB; this run "
              f"{doc['run_wall_s']} s (cached trials not re-run)\n",
@@ -1272,6 +1277,8 @@ def main(argv=None) -> int:
     p.add_argument("--rerun-failed", action="store_true",
                    help="run again the trials whose cached result failed")
     args = p.parse_args(argv)
+    global REVISION
+    REVISION = _revision()
     trials = all_trials()
     if args.only:
         wanted = args.only.split(",")
