@@ -9,7 +9,9 @@ message naming the file, row, key or argument (exit 2 for usage or input errors,
 
 from __future__ import annotations
 
+import math
 import os
+import shutil
 import sys
 import traceback
 from pathlib import Path
@@ -18,7 +20,7 @@ import numpy as np
 
 from pneubayes import interrupt
 from pneubayes.cli_args import build_parser, check_single_values
-from pneubayes.errors import PneubayesError
+from pneubayes.errors import ParameterError, PneubayesError
 from pneubayes.run_folder import (
     check_file,
     inputs_digest,
@@ -143,6 +145,12 @@ def _effect_names(text: str, option: str = "--effects") -> list[str]:
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise PneubayesError(f"{option}: {', '.join(twice)} given more than once")
+    from pneubayes.effects import CATALOGUE
+
+    unknown = [n for n in names if n not in CATALOGUE]
+    if unknown:
+        raise PneubayesError(f"{option}: unknown effect(s) {', '.join(unknown)}; the "
+                             f"catalogue has {', '.join(sorted(CATALOGUE))}")
     return names
 
 
@@ -155,7 +163,7 @@ def _no_bound_twice(bounds) -> None:
 
 
 def _check_windows(recs, horizon: float, stride: float | None, force: bool,
-                   draws: int | None = None) -> None:
+                   draws: int | None = None, windows: bool = True) -> None:
     """Before any work: a window holds at least a few samples of every recording
     (--horizon), no --pressure-filter above a recording's Nyquist frequency is done by
     the callers, and the windows number no more than the limit (--stride) unless
@@ -180,10 +188,18 @@ def _check_windows(recs, horizon: float, stride: float | None, force: bool,
                 f"--horizon {horizon:g}: shorter than {MIN_WINDOW_SAMPLES} sample intervals "
                 f"of {r.source} (sampled every {dt:.3g} s); a window needs several samples "
                 f"(at least {MIN_WINDOW_SAMPLES * dt:.3g} s)")
+        if stride < 0.5 * dt:
+            raise PneubayesError(
+                f"--stride {stride:g}: under half a sample interval of {r.source} (sampled "
+                f"every {dt:.3g} s); windows start on samples, at most one per sample")
         length = int(round(horizon / dt)) + 1
         step = max(1, int(round(stride / dt)))
         if length > t.size:
-            continue  # the fit says so, naming the recording
+            if not windows:  # fit --method lsq: no prediction windows
+                continue
+            raise PneubayesError(
+                f"--horizon {horizon:g}: longer than {r.source} ({t[-1] - t[0]:.3g} s); "
+                "every recording must hold at least one window")
         n = (t.size - length) // step + 1
         valid = r.valid_mask()
         if not valid.all() and n <= 10 * MAX_WINDOWS:  # windows on valid samples only
@@ -288,11 +304,26 @@ def cmd_bench(args) -> int:
     from pneubayes.bench.sensors import SensorChain
     from pneubayes.effects import CATALOGUE, effects_from_names
     from pneubayes.limits import MAX_BENCH_SAMPLES, check_work
+    from pneubayes.physics.cylinder import CYLINDERS
+    from pneubayes.physics.valve import VALVES
 
+    for option, name, known in (("--cylinder", args.cylinder, CYLINDERS),
+                                ("--valve", args.valve, VALVES)):
+        if name not in known:
+            raise PneubayesError(f"{option} {name}: unknown; the bench knows "
+                                 f"{', '.join(sorted(known))}")
     names = _effect_names(args.effects or "")
     if args.leak_form is not None and "cylinder_leak" not in names:
         raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
                              "--effects (no leak is planted)")
+    for option, values, ok, what in (
+            ("--ranges", args.ranges, lambda v: 0 < v <= 5, "in (0, 5] V"),
+            ("--positions", args.positions, lambda v: 0 <= v <= 1,
+             "fractions of the stroke in [0, 1]")):
+        bad = [v for v in values or () if not (math.isfinite(v) and ok(v))]
+        if bad:
+            raise PneubayesError(f"{option} {','.join(f'{v:g}' for v in bad)}: must be "
+                                 f"{what}")
     if args.protocol == "moving":
         given = [o for o, v in (("--positions", args.positions), ("--ranges", args.ranges))
                  if v is not None]
@@ -361,12 +392,22 @@ def cmd_bench(args) -> int:
     return 0
 
 
+#: simulate --atol must be under this, Pa (an error of an atmosphere is no accuracy).
+ATOL_MAX_PA = 1e5
+
+
 def cmd_simulate(args) -> int:
     from pneubayes.atomic import write_text_atomic
     from pneubayes.io.recording import read_recording
     from pneubayes.model import Model
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
+    if args.rtol >= 1.0:
+        raise PneubayesError(f"--rtol {args.rtol:g}: a relative tolerance must be under 1 "
+                             "(3e-5 by default; 1 or more asks for no accuracy at all)")
+    if args.atol >= ATOL_MAX_PA:
+        raise PneubayesError(f"--atol {args.atol:g}: an absolute tolerance must be under "
+                             f"{ATOL_MAX_PA:g} Pa, an atmosphere (10 Pa by default)")
     out = _output_file(args.out, ".csv", args.overwrite)
     _not_an_input([out], [*_recording_files([args.recording]), args.model])
     rec = read_recording(args.recording, args.accept, args.rig)
@@ -519,7 +560,8 @@ def cmd_fit(args) -> int:
     known = _known_from(args) if args.known_from or args.refit else None
     recs = _read_all(args.recordings, args.accept, "fit", args.rig)
     _check_filter(recs, settings.pressure_filter)
-    _check_windows(recs, settings.horizon_s, settings.stride_s, args.force)
+    _check_windows(recs, settings.horizon_s, settings.stride_s, args.force,
+                   windows=args.method != "lsq")
     card = _rig_card_of(recs)
     if known is not None:  # the card's quantities known at another fit's values
         card = _card_known_at(card, known, args)
@@ -537,7 +579,12 @@ def cmd_fit(args) -> int:
     if args.bounds:
         model = Model(model.effects, {**model.bound_overrides, **dict(args.bounds)},
                       model.rig_card)
-    n_dims = model.n_parameters  # a bound for a parameter the model lacks fails here
+    try:
+        n_dims = model.n_parameters  # a bound for a parameter the model lacks fails here
+    except ParameterError as exc:
+        if not args.bounds:
+            raise
+        raise PneubayesError(f"--bounds: {str(exc).removeprefix('bounds: ')}") from None
     walkers_opt = (f"--walkers {sampler.n_walkers}" if args.walkers is not None
                    else f"sampler.n_walkers = {sampler.n_walkers} (--settings)")
     if sampler.n_walkers and sampler.n_walkers < 2 * n_dims:
@@ -694,15 +741,36 @@ def cmd_track(args) -> int:
                           *(p for p in run.iterdir() if p.is_file())])
     rec = read_recording(args.recording, args.accept, args.rig)
     _print_findings("track", [rec])
+    if not rec.valid_mask().all():
+        first = int(np.nonzero(~rec.valid_mask())[0][0])
+        raise PneubayesError(f"{rec.source} row {first + 2}: its 'valid' column marks "
+                             "samples invalid, and track replays every sample (it does not "
+                             "skip invalid stretches): track the valid stretches as "
+                             "recordings of their own")
     horizon = args.horizon or _run_horizon(run)
     t = np.asarray(rec.time_s)
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     if args.tick < dt:
         raise PneubayesError(f"--tick {args.tick:g}: shorter than the sample interval "
                              f"{dt:.3g} s of {rec.source}")
+    if horizon < MIN_WINDOW_SAMPLES * dt:
+        raise PneubayesError(f"--horizon {horizon:g}: shorter than {MIN_WINDOW_SAMPLES} "
+                             f"sample intervals of {rec.source} (sampled every {dt:.3g} s)")
     if t[-1] - t[0] <= horizon:
         raise PneubayesError(f"--horizon {horizon:g}: as long as {rec.source} "
                              f"({t[-1] - t[0]:.3g} s); nothing to predict")
+    if args.tick > (t[-1] - t[0]) / 2:
+        raise PneubayesError(f"--tick {args.tick:g}: over half of {rec.source} "
+                             f"({t[-1] - t[0]:.3g} s); a stream of one or two updates "
+                             "tracks nothing")
+    from pneubayes.model import Model
+
+    model, _ = Model.load_card(run / "model.json")
+    for name in args.vary:
+        if name in model.parameter_names and not model.parameter(name).lower > 0:
+            raise PneubayesError(f"--vary {name}: its lower bound is "
+                                 f"{model.parameter(name).lower:g}; the tracker works in log "
+                                 "space and needs quantities with a lower bound > 0")
     s = run_track(run, rec, args.vary, out, tick_s=args.tick, horizon_s=horizon,
                   n_particles=args.particles, n_draws=args.draws, seed=args.seed,
                   noise_std_Pa=args.noise_std, prior=args.prior,
@@ -806,8 +874,21 @@ def cmd_import(args) -> int:
                              "write into it)")
     if args.end and args.source != "gtdynamics":
         raise PneubayesError("--end: only the gtdynamics importer cuts its trials")
-    written = IMPORTERS[args.source](args.inputs, out, **({"end_s": args.end}
-                                                         if args.end else {}))
+    from pneubayes.run_folder import read_stamp
+
+    stamp = read_stamp(out) if out.is_dir() else None
+    if stamp is not None:
+        raise PneubayesError(f"--out {out}: is the run folder of a 'pneubayes "
+                             f"{stamp.get('command')}' ({out / 'run.json'}); import writes "
+                             "its recordings into a folder of their own")
+    made = not (out.exists() or out.is_symlink())
+    try:
+        written = IMPORTERS[args.source](args.inputs, out, **({"end_s": args.end}
+                                                             if args.end else {}))
+    except BaseException:
+        if made:  # refused: the folder it made goes (nothing of the user's was in it)
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     for p in written:
         print(p)
     print(f"{len(written)} recording(s) and their rig card in {out}; check them with "
@@ -887,6 +968,11 @@ def main(argv=None) -> int:
                  "ablate": cmd_ablate, "import": cmd_import,
                  "compile": cmd_compile, "track": cmd_track}[args.command]
     args.argv = list(sys.argv[1:] if argv is None else argv)  # stamped in run folders
+    if getattr(args, "accept", None) == () and any(
+            a == "--accept" or a.startswith("--accept=") for a in args.argv):
+        print(f"pneubayes {args.command}: error: --accept: names no rule (give "
+              "RULE[,RULE], e.g. sample-interval)", file=sys.stderr)
+        return 2
     from pneubayes import limits
 
     limits.set_max_file_mb(getattr(args, "max_file_mb", None))

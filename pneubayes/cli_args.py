@@ -351,7 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-figure", action="store_true")
     r.add_argument("--overwrite", action="store_true")
     r.add_argument("--force", action="store_true",
-                   help="predict over 20,000 windows or 4e8 simulated samples (windows x "
+                   help="predict over 20,000 windows or 2e7 simulated samples (window samples x "
                         "draws; refused without it, saying the cost)")
     _add_accept(r)
 
@@ -446,8 +446,8 @@ def _add_track(sub) -> None:
         description="A particle filter (pneubayes.inference.online) over the quantities "
                     "--vary names, the model's others at the run's values, takes the "
                     "recording one --tick at a time; per tick OUT.json records their "
-                    "5/50/95 %% quantiles and the error of the --horizon prediction from "
-                    "the measured pressure (online and the frozen fit's) with the 90 %% "
+                    "5/50/95 % quantiles and the error of the --horizon prediction from "
+                    "the measured pressure (online and the frozen fit's) with the 90 % "
                     "band's coverage. Nothing is written over an input.")
     t.add_argument("run", help="run folder with a model.json ('pneubayes fit' or 'discover')")
     t.add_argument("recording", help="recording .csv/.json path or stem")

@@ -17,7 +17,8 @@ limit                      what                                                 
                            while it is read and checked: 64 MB, about 1.3 GB)
 ``MAX_WINDOWS``            prediction windows of a fit or a prediction           20 000
 ``MAX_WINDOW_SAMPLES``     samples those windows span together (overlap)         1e7
-``MAX_PREDICTED_SAMPLES``  a prediction's samples x posterior draws              4e8
+``MAX_PREDICTED_SAMPLES``  a prediction's samples x posterior draws (about   2e7
+                           50 bytes each in memory: 2e7, about 1 GB)
 ``MAX_CHAIN_MB``           an emcee chain on disk (walkers x steps x (dims+1)    4096 MB
                            x 8 bytes)
 ``MAX_BENCH_SAMPLES``      samples the bench simulates on its fine grid          2e8
@@ -37,7 +38,7 @@ MAX_FILE_MB = 64.0
 ENV_MAX_FILE_MB = "PNEUBAYES_MAX_FILE_MB"
 MAX_WINDOWS = 20_000
 MAX_WINDOW_SAMPLES = 1e7
-MAX_PREDICTED_SAMPLES = 4e8
+MAX_PREDICTED_SAMPLES = 2e7
 MAX_CHAIN_MB = 4096.0
 MAX_BENCH_SAMPLES = 2e8
 

@@ -41,8 +41,8 @@ def test_no_file_of_the_user_is_ever_lost(rec, tmp_path, capsys):
     (user / "model.json").write_text('{"mine": 1}')
     (user / "summary.json").write_text('{"mine": 2}')
     before = _tree(user)
-    assert main(["fit", str(rec), "--method", "refine", "--out", str(user),
-                 "--overwrite", "-q"]) == 2
+    assert main(["fit", str(rec), "--method", "refine", "--horizon", "0.2", "--out",
+                 str(user), "--overwrite", "-q"]) == 2
     err = capsys.readouterr().err
     assert str(user) in err and "figures/" in err and "model.json" in err
     assert _tree(user) == before and not (user / LOCK).exists()
@@ -71,8 +71,8 @@ def test_no_file_of_the_user_is_ever_lost(rec, tmp_path, capsys):
         stamp["created"] = [bad]
         (run / "run.json").write_text(json.dumps(stamp))
         capsys.readouterr()
-        assert main(["fit", str(rec), "--method", "refine", "--out", str(run),
-                     "--overwrite", "-q"]) == 2
+        assert main(["fit", str(rec), "--method", "refine", "--horizon", "0.2", "--out",
+                     str(run), "--overwrite", "-q"]) == 2
         assert "not a path inside" in capsys.readouterr().err
         assert (victim / "data.txt").read_text() == "precious"
         assert (tmp_path / "outside.txt").read_text() == "precious"
@@ -175,11 +175,11 @@ def test_only_regular_files_of_bounded_size_are_read(rec, tmp_path, capsys, monk
 
 
 @pytest.mark.parametrize("argv, says", [
-    (["fit", "REC", "--method", "refine", "--horizon", "0.01", "--stride", "1e-6"],
+    (["fit", "REC", "--method", "refine", "--horizon", "0.01", "--stride", "0.001"],
      "prediction windows"),
-    (["predict", "RUN", "REC", "--horizon", "0.4", "--stride", "1e-5", "--out", "P"],
+    (["predict", "RUN", "REC", "--horizon", "0.4", "--stride", "0.001", "--out", "P"],
      "simulated samples"),
-    (["fit", "REC", "--walkers", "1000000000"], "MB on disk in chain.h5"),
+    (["fit", "REC", "--walkers", "1000000000", "--horizon", "0.2"], "MB on disk in chain.h5"),
     (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--protocol",
       "moving", "--count", "1000000000"], "simulated samples"),
 ])
@@ -201,6 +201,131 @@ def test_work_is_sized_before_it_starts(argv, says, rec, tmp_path, capsys, monke
     err = capsys.readouterr().err
     assert says in err and "--force" in err
     assert not out.exists() and not (tmp_path / "p.csv").exists()
+
+
+# ------------------------------------------------------------------ misuse trials
+# What benchmarks/misuse_trials.py (the floor, re-run on the real CLI) found.
+@pytest.mark.parametrize("argv, says", [
+    # a stride under half a sample was rounded up to one sample, silently
+    (["fit", "REC", "--method", "refine", "--horizon", "0.4", "--stride", "1e-6", "-q",
+      "--out", "O"], "--stride 1e-06: under half a sample interval of"),
+    (["predict", "RUN", "REC", "--horizon", "0.4", "--stride", "1e-5", "--out", "P"],
+     "--stride 1e-05: under half a sample interval of"),
+    # a prediction of 4e7 samples (2 GB) was under the old 4e8 limit
+    (["predict", "RUN", "REC", "--horizon", "0.4", "--stride", "0.001", "--draws", "1000",
+      "--out", "P"], "simulated samples"),
+    # a setting out of range names the key the user gave
+    (["discover", "REC", "--set", "forms.tube_line_segments=1000000", "-q", "--out", "O"],
+     "tube_line_segments must be in 0..8"),
+    (["track", "RUN", "REC", "--vary", "x", "--tick", "1e30", "--horizon", "0.1", "--out",
+      "J"], "--tick 1e+30: over half of"),
+    (["track", "RUN", "REC", "--vary", "x", "--horizon", "1e-9", "--out", "J"],
+     "--horizon 1e-09: shorter than 4 sample intervals"),
+    (["discover", "REC", "--set", "stages.open_form_min_noise_ratio=inf", "-q", "--out",
+      "O"], "--set stages.open_form_min_noise_ratio: expected a finite number"),
+    (["discover", "REC", "--set", "stages.open_form_min_noise_ratio=-1", "-q", "--out", "O"],
+     "open_form_min_noise_ratio must be 0 (off) or >= 1"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--ranges", "6",
+      "--out", "O"], "--ranges 6: must be in (0, 5] V"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve1", "--seed", "1", "--positions",
+      "0.5,1e30", "--out", "O"], "--positions 1e+30: must be fractions"),
+    (["ablate", "HUGE", "--dry-run", "--out", "O"], "settings.duration_s: 1e+12 s"),
+    (["bench", "--cylinder", "AIR999", "--valve", "valve1", "--seed", "1", "--out", "O"],
+     "--cylinder AIR999: unknown"),
+    (["bench", "--cylinder", "AIR37", "--valve", "valve9", "--seed", "1", "--out", "O"],
+     "--valve valve9: unknown"),
+    # a horizon longer than the recording: the fit's message named no option
+    (["fit", "REC", "--method", "refine", "--horizon", "1e30", "-q", "--out", "O"],
+     "--horizon 1e+30: longer than"),
+    # tolerances that ask for no accuracy were accepted
+    (["simulate", "REC", "--model", "TRUTH", "--rtol", "1e30", "--out", "P"], "--rtol 1e+30"),
+    (["simulate", "REC", "--model", "TRUTH", "--atol", "1e30", "--out", "P"], "--atol 1e+30"),
+    (["check", "REC", "--accept", ","], "--accept: names no rule"),
+    (["fit", "REC", "--method", "refine", "--horizon", "0.2", "--bounds",
+      "dead_volume_m3=-1:1e-5", "-q", "--out", "O"], "--bounds: Parameter dead_volume_m3"),
+    (["fit", "REC", "--method", "refine", "--effects", "no_such_effect", "-q", "--out", "O"],
+     "--effects: unknown effect(s) no_such_effect"),
+])
+def test_misuse_trial_findings_are_refused_naming_the_option(argv, says, rec, tmp_path,
+                                                             capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.json").write_text("{}")
+    (run / "posterior.nc").write_bytes(b"")
+    huge = tmp_path / "huge.toml"
+    huge.write_text(Path(SMOKE).read_text().replace("duration_s = 6.0", "duration_s = 1e12"))
+    argv = [{"REC": str(rec), "RUN": str(run), "P": str(tmp_path / "p.csv"), "HUGE": str(huge),
+             "O": str(tmp_path / "o"), "TRUTH": TRUTH, "J": str(tmp_path / "o.json")}.get(a, a)
+            for a in argv]
+    assert main(argv) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "p.csv").exists()
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_a_recording_with_no_valid_sample_is_refused_and_track_never_scores_one(
+        rec, tmp_path, capsys):
+    lines = rec.read_text().splitlines()
+    for name, mark in (("none", lambda i: "0"), ("some", lambda i: "0" if i == 7 else "1")):
+        p = tmp_path / f"{name}.csv"
+        p.write_text("\n".join([lines[0] + ",valid",
+                                *(r + "," + mark(i) for i, r in enumerate(lines[1:]))]) + "\n")
+        _sidecar_beside(rec, p)
+    assert main(["check", str(tmp_path / "none.csv")]) == 1
+    assert "column 'valid': every sample is marked invalid" in capsys.readouterr().out
+    assert main(["check", str(tmp_path / "some.csv")]) == 0
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.json").write_text("{}")
+    assert main(["track", str(run), str(tmp_path / "some.csv"), "--vary", "x",
+                 "--out", str(tmp_path / "t.json")]) == 2
+    assert f"{tmp_path / 'some.csv'} row 9: its 'valid' column" in capsys.readouterr().err
+    assert not (tmp_path / "t.json").exists()
+
+
+def test_import_never_writes_into_a_run_folder(tmp_path, capsys):
+    run = tmp_path / "run"
+    open_run_folder(run, "fit", {"x": 1}).release()
+    (tmp_path / "OXY").mkdir()
+    (tmp_path / "OXY" / "covent_pc_1.dat").write_text("")
+    assert main(["import", "respiraworks", str(tmp_path / "OXY" / "covent_pc_1.dat"),
+                 "--out", str(run), "--overwrite"]) == 2
+    assert "is the run folder of a 'pneubayes fit'" in capsys.readouterr().err
+    assert sorted(p.name for p in run.iterdir()) == ["run.json"]
+
+
+def test_a_refused_import_leaves_nothing_and_a_non_finite_sample_is_refused(tmp_path,
+                                                                            capsys):
+    from pneubayes.io.importers.respiraworks import COLUMNS
+
+    (tmp_path / "OXY").mkdir()
+    dat = tmp_path / "OXY" / "n.dat"
+    dat.write_text(" ".join(COLUMNS) + "\n" + "".join(
+        f"{i * 0.01} 10 {'nan' if i == 5 else 1.0} 0 0 0.5 0.5 0.5\n" for i in range(50)))
+    assert main(["import", "respiraworks", str(dat), "--out", str(tmp_path / "o")]) == 2
+    assert f"{dat} line 7: not finite numbers" in capsys.readouterr().err
+    assert main(["import", "gtdynamics", str(dat), "--out", str(tmp_path / "o")]) == 2
+    assert "not a GTDynamics trial folder" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # not even the rig card it wrote first
+
+
+def test_track_names_its_vary_option(rec, tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.json").write_text(Path(TRUTH).read_text())
+    assert main(["track", str(run), str(rec), "--vary", "leak_area_m2", "--horizon", "0.1",
+                 "--out", str(tmp_path / "t.json")]) == 2
+    assert "--vary leak_area_m2: its lower bound is 0" in capsys.readouterr().err
+
+
+def test_a_recording_of_one_sample_is_refused_naming_it(rec, tmp_path, capsys):
+    one = tmp_path / "one.csv"
+    one.write_text("\n".join(rec.read_text().splitlines()[:2]) + "\n")
+    _sidecar_beside(rec, one)
+    assert main(["check", str(one)]) == 1
+    assert f"{one} row 2: one data row" in capsys.readouterr().out
+    assert main(["simulate", str(one), "--model", TRUTH, "--out", str(tmp_path / "s.csv")]) == 2
+    assert f"{one} row 2: one data row" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ 3. nonsense
@@ -249,8 +374,8 @@ def test_impossible_samples_and_settings_are_errors_naming_where(rec, tmp_path, 
         if says is None:  # predict honours the valid column, as fit does
             stem = Path(argv[2]).with_suffix("")
             lines = Path(argv[2]).read_text().splitlines()
-            Path(argv[2]).write_text("\n".join([lines[0] + ",valid",
-                                                *(r + ",0" for r in lines[1:])]) + "\n")
+            Path(argv[2]).write_text("\n".join([lines[0] + ",valid", *(
+                r + (",1" if i < 100 else ",0") for i, r in enumerate(lines[1:]))]) + "\n")
             argv[2] = str(stem) + ".csv"
             says = "no 0.4-s window (--horizon) lies within the samples its 'valid'"
             argv += ["--horizon", "0.4"]
@@ -275,6 +400,7 @@ def test_impossible_samples_and_settings_are_errors_naming_where(rec, tmp_path, 
     assert main(["import", "respiraworks", str(tmp_path / "OXY" / "empty.dat"), "--out",
                  str(tmp_path / "imp")]) == 2
     assert "empty.dat: empty" in capsys.readouterr().err
+    assert not (tmp_path / "imp").exists()  # a refused import leaves no empty folder
 
 
 def test_a_non_finite_rmse_is_never_a_result(tmp_path):
@@ -495,3 +621,12 @@ def _seeds(rec: Path) -> Path:
         doc.pop("bench", None)
         card.write_text(json.dumps(doc))
     return rec.parent
+
+
+@pytest.mark.parametrize("command", ["check", "bench", "simulate", "fit", "predict",
+                                     "discover", "import", "ablate", "track", "compile"])
+def test_help_shows_no_literal_double_percent(command, capsys):
+    # argparse %-formats an option's help, but a description only when it holds %(prog)
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    assert "%%" not in capsys.readouterr().out

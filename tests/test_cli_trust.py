@@ -193,7 +193,7 @@ def test_short_triggered_trials_fit_on_shorter_windows(tmp_path, capsys):
     recs = [str(p) for p in sorted(data.glob("fixed_*.csv"))]
     capsys.readouterr()
     assert main(["fit", *recs, "--out", str(tmp_path / "a"), "--method", "refine", "-q"]) == 2
-    assert "longer than the recording" in capsys.readouterr().err
+    assert "--horizon 2: longer than" in capsys.readouterr().err  # names the option
     out = tmp_path / "b"
     assert main(["fit", *recs, "--out", str(out), "--method", "refine", "--horizon", "0.2",
                  "--no-figures"]) == 0
@@ -211,6 +211,7 @@ def test_short_triggered_trials_fit_on_shorter_windows(tmp_path, capsys):
     card = json.loads((wide / "model.json").read_text())
     assert card["bounds"] == {"dead_volume_m3": [1e-7, 5e-3]}
     capsys.readouterr()
-    assert main(["fit", *recs, "--out", str(tmp_path / "c"), "--bounds", "volume=1:2"]) == 2
+    assert main(["fit", *recs, "--out", str(tmp_path / "c"), "--horizon", "0.2", "--bounds",
+                 "volume=1:2"]) == 2
     assert "bounds for ['volume']" in capsys.readouterr().err
     assert not (tmp_path / "c").exists()

@@ -400,7 +400,7 @@ pressure = st.floats(min_value=0.0, exclude_min=True, max_value=10e6)
 
 @st.composite
 def recordings(draw):
-    n = draw(st.integers(1, 30))
+    n = draw(st.integers(2, 30))  # a recording holds one sampling interval at least
     t = sorted(draw(st.lists(finite, min_size=n, max_size=n, unique=True)))
     assume(all(b - a >= 1e-6 for a, b in zip(t, t[1:])))  # 1 us apart: a hard limit
     col = st.lists(finite, min_size=n, max_size=n)

@@ -443,6 +443,17 @@ def _settings(source, doc) -> Settings:
 def _check_consistency(source, grid: Grid, s: Settings) -> None:
     """Checks across keys: windows fit the recordings, seeds differ, the fit method and
     the discovery loop have the data they need."""
+    from pneubayes.bench.bench import BenchConfig
+    from pneubayes.limits import MAX_BENCH_SAMPLES
+
+    fine = BenchConfig.fine_rate_Hz  # the bench's truth grid, Hz
+    recordings = (len(s.fit_positions) * len(s.fit_command_ranges_V) + s.fit_moving_count
+                  + max(s.eval_moving_count, 1))
+    if recordings * s.duration_s * fine > MAX_BENCH_SAMPLES:
+        raise StudyError(f"{source}: settings.duration_s: {s.duration_s:g} s recordings, "
+                         f"{recordings} per cell on the bench's {fine:g}-Hz grid, are "
+                         f"{recordings * s.duration_s * fine:.3g} simulated samples per "
+                         f"cell, over the bench's limit of {MAX_BENCH_SAMPLES:.3g}")
     if s.horizon_s + 1.0 / SAMPLE_RATE_HZ > s.duration_s:
         raise StudyError(f"{source}: settings.horizon_s: {s.horizon_s:g} s windows do not fit "
                          f"in settings.duration_s = {s.duration_s:g} s recordings")

@@ -116,6 +116,10 @@ class SamplerSettings:
             if getattr(self, name) < 1:
                 raise ValueError(f"SamplerSettings.{name} must be >= 1, "
                                  f"got {getattr(self, name)}")
+        for name in ("n_walkers", "seed"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"SamplerSettings.{name} must be >= 0 (n_walkers 0: "
+                                 f"automatic), got {getattr(self, name)}")
         if self.adapt_rounds < 1:
             raise ValueError(f"SamplerSettings.adapt_rounds must be >= 1, "
                              f"got {self.adapt_rounds}")

@@ -261,7 +261,11 @@ def _parse_csv(text: str, name: str, problems: list, version: int = 1,
                 f"has {len(row)} field(s), the header has {len(header)}"
             problems.append((f"{name} row {line}", reason))
     if not rows:
-        problems.append((f"{name} row 2", "no data rows: a recording needs at least one sample"))
+        problems.append((f"{name} row 2", "no data rows: a recording needs at least two "
+                         "samples (one sampling interval)"))
+    elif len(rows) == 1:
+        problems.append((f"{name} row 2", "one data row: a recording needs at least two "
+                         "samples (one sampling interval)"))
     known, extra, bad, labels, conversions = {}, {}, {}, {}, []
     for col, j in columns.items():
         cells = [row[j] for row in good_rows]
@@ -310,6 +314,10 @@ def _problems_and_recording(path, accept=(), rig_card=None) -> tuple[list, Recor
         if bad.size:
             return [(f"{csv_path} row {int(bad[0]) + 2} column {VALID_COLUMN!r}",
                      f"must be 1 (valid) or 0 (invalid), got {show_value(v[bad[0]])}")], None
+        if not np.any(np.asarray(v).astype(float) == 1.0):
+            return [(f"{csv_path} column {VALID_COLUMN!r}",
+                     "every sample is marked invalid (0): nothing in the recording can be "
+                     "fitted, simulated from or scored")], None
     if EXHAUST_COMMAND_COLUMN in extra:  # a separate exhaust valve's command
         v = np.asarray(extra[EXHAUST_COMMAND_COLUMN])
         ok = np.isfinite(v) if v.dtype.kind == "f" else np.zeros(v.shape, bool)

@@ -48,9 +48,10 @@ def _recording_problems(rec: Recording, csv_name: str, json_name: str) -> list:
         if not isinstance(col, str) or not col or col != col.strip() or col in KNOWN_COLUMNS:
             problems.append((f"{csv_name} column {col!r}", ("extra column name must be a "
                              "non-empty string without surrounding spaces, not a standard name")))
-    if n == 0:
-        problems.append((f"{csv_name} row 2",
-                         "no data rows: a recording needs at least one sample"))
+    if n < 2:
+        problems.append((f"{csv_name} row 2", ("no data rows" if n == 0 else "one data row")
+                         + ": a recording needs at least two samples (one sampling "
+                         "interval)"))
     return problems + check_columns(cols, {}, range(2, n + 2), csv_name)
 
 

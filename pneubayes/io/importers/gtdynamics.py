@@ -160,10 +160,10 @@ def import_gtdynamics(trial_dirs, out_dir, end_s: float = 0.33) -> list[Path]:
     shared rig card ``out_dir/gtdynamics-muscle.rig.json``; returns the CSV paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(out / RIG_CARD_NAME, rig_card())
     written = []
     for d in trial_dirs:
         written += import_trial(d, out, end_s)
+    write_json_atomic(out / RIG_CARD_NAME, rig_card())
     (out / "import.json").write_text(json.dumps(
         {"importer": "gtdynamics", **SOURCE, "trials": [Path(d).name for d in trial_dirs],
          "end_s": end_s}, indent=2) + "\n")

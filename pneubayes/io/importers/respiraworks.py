@@ -133,6 +133,8 @@ def _read(path: Path) -> np.ndarray:
         if len(vals) != len(COLUMNS):
             raise ValueError(f"{path} line {i}: expected {len(COLUMNS)} values, got "
                              f"{len(vals)}")
+        if not all(np.isfinite(vals)):
+            raise ValueError(f"{path} line {i}: not finite numbers: {ln!r}")
         rows.append(vals)
     if not rows:
         raise ValueError(f"{path}: no data rows after the header (a run needs samples)")
