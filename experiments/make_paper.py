@@ -1037,12 +1037,15 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
     tracked = c.get("delay_online", {}).get("tracked")
     if tracked:
         per = "; ".join(
-            f"seed {seed}: {t['final_ratio']:.2f} x, within 10 % "
-            + (f"{t['settle_s']:.2f} s after the change" if t["settle_s"] is not None
-               else "never for good")
+            f"seed {seed}: {t['change_seen']:.2f} x against {t['change_planted']:.2f} x, "
+            + (f"within 10 % {t['settle_s']:.2f} s after the change" if t["settle_s"]
+               is not None else "never for good within 10 %")
+            + f" (its volume before the change {t['before_over_plant']:.2f} x the plant's)"
             for seed, t in zip(s["seeds"], tracked) if t)
-        L += [f"The tracker's median of `{ch['parameter']}` over the plant's at the run's "
-              f"end, and when it came to stay within 10 % of it: {per}.", ""]
+        L += [f"The change the tracker's median of `{ch['parameter']}` saw by the run's end "
+              "(its value over its value just before the change) against the plant's, and "
+              "when it came to stay within 10 % of it (the fitted volume need not be the "
+              "plant's: the other parameters trade off with it): " + per + ".", ""]
     L += [_copy_fig(paper, folder / "mpc_changing.png", f"{folder.name}_changing.png"), "",
           f"*Source: `{path}`; git revision "
           f"{str(s['provenance'].get('git_revision'))[:12]}"

@@ -63,8 +63,9 @@ def test_changing_plant_runs_and_the_online_tracker_follows_the_volume(tmp_path,
     summary = m.summarise([result], "changing_plant")
     vs = summary["delay_online"]["versus_delay_frozen"]
     assert "paired_excess_integral_difference_Pa_s" in vs
-    assert summary["delay_online"]["tracked"][0]["final_ratio"] == pytest.approx(
-        q[-1, 1] / true[-1])
+    t = summary["delay_online"]["tracked"][0]
+    assert t["change_seen"] == pytest.approx(q[-1, 1] / q[19, 1])
+    assert t["change_planted"] == pytest.approx(true[-1] / true[0])
     assert json.loads((tmp_path / "seed0.json").read_text())["scenario"] == "changing_plant"
 
 
