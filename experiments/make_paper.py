@@ -1037,15 +1037,22 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
     tracked = c.get("delay_online", {}).get("tracked")
     if tracked:
         per = "; ".join(
-            f"seed {seed}: {t['change_seen']:.2f} x against {t['change_planted']:.2f} x, "
-            + (f"within 10 % {t['settle_s']:.2f} s after the change" if t["settle_s"]
-               is not None else "never for good within 10 %")
-            + f" (its volume before the change {t['before_over_plant']:.2f} x the plant's)"
+            f"seed {seed}: {t['change_seen']:.2f} x against {t['change_planted']:.2f} x; "
+            + (f"within 20 % first {t['first_within_20pc_s']:.2f} s after the change, "
+               if t["first_within_20pc_s"] is not None else "never within 20 %, ")
+            + (f"for good from {t['stays_within_20pc_s']:.2f} s"
+               if t["stays_within_20pc_s"] is not None else "not for good")
+            + (f"; from 1 s after it {t['ratio_after_1s'][0]:.2f} x the plant's change "
+               f"({t['ratio_after_1s'][1]:.2f}-{t['ratio_after_1s'][2]:.2f})"
+               if t.get("ratio_after_1s") else "")
+            + f"; its volume before the change {t['before_over_plant']:.2f} x the plant's"
             for seed, t in zip(s["seeds"], tracked) if t)
         L += [f"The change the tracker's median of `{ch['parameter']}` saw by the run's end "
-              "(its value over its value just before the change) against the plant's, and "
-              "when it came to stay within 10 % of it (the fitted volume need not be the "
-              "plant's: the other parameters trade off with it): " + per + ".", ""]
+              "(over its median in the 0.5 s before the change) against the plant's, how "
+              "soon it came within 20 % of the plant's change, and how closely it followed "
+              "it from 1 s after the change on (median and 5-95 % of the ratio; the fitted "
+              "volume need not be the plant's: the other parameters trade off with it): "
+              + per + ".", ""]
     L += [_copy_fig(paper, folder / "mpc_changing.png", f"{folder.name}_changing.png"), "",
           f"*Source: `{path}`; git revision "
           f"{str(s['provenance'].get('git_revision'))[:12]}"

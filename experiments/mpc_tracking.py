@@ -716,11 +716,13 @@ def _versus(k: dict, nom: dict) -> dict:
 
 def tracked_summary(result: dict, kind: str) -> dict | None:
     """How the online controller's tracker followed the change on one seed
-    (``changing_plant``), in ratios to the values just before the change (the fitted
-    model's volume need not be the plant's: the other parameters trade off with it):
-    the change its median saw by the last tick against the plant's, and the time after
-    the change until its median's ratio stays within 10 % of the plant's (None if it
-    never does); None without a change or a tracker."""
+    (``changing_plant``), in ratios to the values before the change (the fitted model's
+    volume need not be the plant's: the other parameters trade off with it; the
+    tracker's, its median over the 0.5 s before): the change its median saw by the last
+    tick against the plant's; after the change, the first time its ratio came within
+    20 % of the plant's and the time from which it stayed there (None: it left again
+    by the last tick); and its ratio over the plant's from 1 s after the change on
+    (median, 5 and 95 %). None without a change or a tracker."""
     change = result.get("change")
     tracked = result["controllers"][kind].get("tracked")
     if not change or not tracked or change["parameter"] not in tracked:
@@ -728,14 +730,21 @@ def tracked_summary(result: dict, kind: str) -> dict | None:
     med = np.asarray(tracked[change["parameter"]], dtype=np.float64)[:, 1]
     true = np.asarray(change["true_per_tick"], dtype=np.float64)[: med.size]
     start = round(change["at_s"] * RATE_HZ)
-    seen, planted = med / med[start - 1], true / true[start - 1]
-    off = np.abs(seen / planted - 1.0) > 0.10
-    late = np.nonzero(off[start:])[0]
-    settle = (None if late.size and late[-1] == off.size - start - 1
-              else (0.0 if not late.size else float((late[-1] + 1) * DT_S)))
-    return {"change_seen": float(seen[-1]), "change_planted": float(planted[-1]),
-            "before_over_plant": float(med[start - 1] / true[start - 1]),
-            "settle_s": settle}
+    base = float(np.median(med[max(start - round(0.5 * RATE_HZ), 0):start]))
+    rel = (med / base) / (true / true[start - 1])
+    off = np.abs(rel[start:] - 1.0) > 0.20
+    late = np.nonzero(off)[0]
+    stays = (None if late.size and late[-1] == off.size - 1
+             else (0.0 if not late.size else float((late[-1] + 1) * DT_S)))
+    first = np.nonzero(~off)[0]
+    later = rel[start + round(RATE_HZ):]
+    return {"change_seen": float(med[-1] / base),
+            "change_planted": float(true[-1] / true[start - 1]),
+            "before_over_plant": float(base / true[start - 1]),
+            "first_within_20pc_s": float(first[0] * DT_S) if first.size else None,
+            "stays_within_20pc_s": stays,
+            "ratio_after_1s": (np.quantile(later, (0.5, 0.05, 0.95)).tolist()
+                               if later.size else None)}
 
 
 def paired_difference(a, b) -> dict:
