@@ -1053,8 +1053,18 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
               "it from 1 s after the change on (median and 5-95 % of the ratio; the fitted "
               "volume need not be the plant's: the other parameters trade off with it): "
               + per + ".", ""]
-    L += [_copy_fig(paper, folder / "mpc_changing.png", f"{folder.name}_changing.png"), "",
-          f"*Source: `{path}`; git revision "
+    fits = s.get("fits_delay") or []
+    tick_ms = 1e3 / s.get("rate_Hz", mpc_tracking.RATE_HZ)
+    slow = [k for k, v in c.items() if np.median(v["compute_ms_per_tick_median"]) > tick_ms]
+    L += ["The delay model's chains: "
+          + ", ".join(f"seed {seed} {f.get('steps')} steps (converged: {f.get('converged')})"
+                      for seed, f in zip(s["seeds"], fits) if f)
+          + ". " + (f"{', '.join(f'`{k}`' for k in slow)} needed more than the "
+                    f"{tick_ms:g}-ms tick to choose (median over seeds; the loop is "
+                    "simulated, not run against the clock; the times move with the machine's "
+                    "load)." if slow else ""), "",
+          _copy_fig(paper, folder / "mpc_changing.png", f"{folder.name}.png"), "",
+          f"*Source: `{path}`; loops {_revisions(c, list(c))}; assembled at git revision "
           f"{str(s['provenance'].get('git_revision'))[:12]}"
           f"{' (uncommitted changes)' if s['provenance'].get('git_dirty') else ''}.*", ""]
     return L
