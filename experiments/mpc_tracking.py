@@ -1,7 +1,7 @@
 """Closed-loop pressure tracking at 200 Hz with a sampling-based MPC that uses the posterior.
 
     python experiments/mpc_tracking.py [--out results/mpc] [--seeds 0,1,2,3,4] [--quick]
-                                       [--scenario hidden_delay|weak_data]
+                                       [--scenario hidden_delay|weak_data|changing_plant]
                                        [--json OUT.json] [--figure OUT.png]
                                        [--no-dense-output]
 
@@ -10,7 +10,11 @@ against tracking over the seeds, the fixed back-offs as a curve).
 
 ``--scenario weak_data`` fits only the delay model on one 2-s recording of small
 commands, so the posterior is wide where the controller works (``SCENARIOS``); the
-default is the design below.
+default is the design below. ``--scenario changing_plant`` (issue 67) fits the delay
+model as here, then changes the plant during the loop (its volume steps down and
+drifts) and compares the frozen posterior, an online one (``OnlineTracker``) and the
+point estimate; its figure is OUT/mpc_changing.png (seed 0's loops, the tracked
+volume, the seeds' violations and tracking).
 
 Per seed:
 
@@ -89,6 +93,8 @@ from pneubayes.effects import effects_from_names
 from pneubayes.inference.error_band import PredictionErrorBand, recording_errors
 from pneubayes.inference.fit import FitSettings, identify
 from pneubayes.inference.fit_folder import read_fit, write_fit
+from pneubayes.inference.online import OnlineTracker
+from pneubayes.inference.population import LogNormalPrior
 from pneubayes.inference.predictive import PressurePredictor, ar1_noise, draw_quantiles
 from pneubayes.inference.sampler import SamplerSettings
 from pneubayes.io import read_recording
@@ -174,19 +180,73 @@ SCENARIOS = {
                                   "delay_calibrated", "delay_calibrated_near",
                                   "delay_calibrated_online"),
                   "baseline": "delay_nominal"},
+    "changing_plant": {"duration_s": 10.0, "quick_duration_s": 4.0, "ranges_V": (5.0, 1.5),
+                       "fitted": ("delay",),
+                       "controllers": ("delay_nominal", "delay_frozen", "delay_chance",
+                                       "delay_online"),
+                       "baseline": "delay_frozen",
+                       "change": {"parameter": "dead_volume_m3", "at_s": 2.0,
+                                  "factor": 0.4, "drift_log_per_s": -0.05},
+                       "varying": {"dead_volume_m3": 0.3},
+                       "setpoint_range_Pa": (3.5e5, 5.0e5),
+                       "second_levels_V": (-0.3, 0.0, 0.1, 0.2, 0.3)},
 }
+#: ``changing_plant`` (issue 67): the bench and the delay model's fit of ``hidden_delay``,
+#: but the plant changes during the closed loop: at ``at_s`` the volume the valve fills
+#: (the model's dead volume, 1.6e-5 m^3 on this bench: the tube's and the port's) falls
+#: to ``factor`` times the value the recordings had (a reservoir sharing the chamber's
+#: port is valved off; the tube's delay is unchanged) and then drifts by
+#: ``drift_log_per_s`` in log per second. A smaller volume fills faster: a prediction
+#: made with the recordings' volume is slow, and the loop overshoots the limit. The
+#: set-points are drawn from ``setpoint_range_Pa`` (3.5-5.0 bar), near the limit, where
+#: the constraint is active (a first probe with the default 1.6-5.0 bar and a 0.6 x
+#: volume had no violation from any controller). The second level of every candidate
+#: is one of ``second_levels_V`` (-0.3, 0, 0.1, 0.2, 0.3 V: the default grid's 0 and
+#: +-0.3 V cannot hold a pressure near the limit in a plant 2.5 x as fast, and a
+#: controller that knows the plant then stays low: on seed 0 with that grid the online
+#: controller had no violation but a capped RMSE 3.4 kPa above the frozen one's; the
+#: same grid for every controller). The controllers:
+#:
+#: * ``delay_nominal``: the posterior median (the point estimate);
+#: * ``delay_frozen``: the offline posterior's draws, feasible if their 95 % quantile
+#:   stays under the limit, tracking on their median (``posterior``'s rule);
+#: * ``delay_chance``: the offline posterior predictive's margin (``chance``'s rule);
+#: * ``delay_online``: ``delay_frozen``'s rule on the particles of an
+#:   :class:`~pneubayes.inference.online.OnlineTracker` over the quantities the scenario
+#:   declares as varying (``varying``: each one's log-normal prior is the offline
+#:   posterior's, its spread widened to at least the stated log SD; the other parameters
+#:   at their posterior medians), updated from the measured pressure at every tick after
+#:   the tick's command is chosen (``ONLINE``). The scenario declares which quantity may
+#:   vary, never the truth's value or time of change.
+#:
+#: The baseline the floor is read against is ``delay_frozen``.
+#: The tracker's settings for ``delay_online`` (every argument of :class:`OnlineTracker`
+#: not given keeps its default; a design choice, stated): 64 particles; each tick scores
+#: its new sample by a prediction from the reading ``lookback_s`` before, with errors of
+#: sqrt(2) x the sensor noise (the start's reading and the sample's each carry it); a
+#: drift of the declared quantities of ``drift_log_per_sqrt_s`` (the state-space model of
+#: a quantity that steps or drifts); resample-move with a floor on the moves' scale.
+ONLINE = {"n_particles": N_DRAWS, "lookback_s": 0.1, "memory_s": 0.1,
+          "warm_up_windows": 0, "temper": 0.5, "n_moves": 1, "move_floor_log": 0.03,
+          "drift_log_per_sqrt_s": 0.1, "history_s": 0.05}
 
 
-def candidates(previous: np.ndarray) -> np.ndarray:
+def candidates(previous: np.ndarray, second_levels=SECOND_LEVELS_V) -> np.ndarray:
     """The candidate command sequences (K, HORIZON_TICKS): every (first, second) level
     pair, plus the previous best plan shifted by one tick."""
     rows = [np.concatenate([np.full(FIRST_TICKS, a), np.full(HORIZON_TICKS - FIRST_TICKS, b)])
-            for a in FIRST_LEVELS_V for b in SECOND_LEVELS_V]
+            for a in FIRST_LEVELS_V for b in second_levels]
     rows.append(np.append(previous[1:], previous[-1]))
     return np.asarray(rows)
 
 
 CANDIDATES = len(FIRST_LEVELS_V) * len(SECOND_LEVELS_V) + 1
+
+
+def scenario_candidates(scenario: str) -> int:
+    """The number of candidate sequences of a scenario's controllers."""
+    second = SCENARIOS[scenario].get("second_levels_V", SECOND_LEVELS_V)
+    return len(FIRST_LEVELS_V) * len(second) + 1
 
 
 def choose(pred_Pa: np.ndarray, reference_Pa: np.ndarray, limit_Pa: np.ndarray) -> int:
@@ -213,10 +273,21 @@ class Controller:
     (``nominal``, ``nominal_mean``: one parameter vector)."""
 
     def __init__(self, kind, model, draws, noise, rig, rng, dense_output: bool,
-                 band: PredictionErrorBand | None = None, point=None):
+                 band: PredictionErrorBand | None = None, point=None,
+                 varying: dict | None = None, second_levels_V=SECOND_LEVELS_V):
         self.kind = kind.removeprefix("delay_")  # the same controllers on the delay model
         solver = controller_solver(dense_output)
         self.band = band
+        self.second_levels_V = tuple(second_levels_V)
+        if self.kind == "online":
+            # the offline draws are its prior (and the other parameters' medians)
+            if not varying:
+                raise ValueError(f"{kind} needs the scenario's varying quantities")
+            self.tracker = online_tracker(model, draws, rig, solver, varying, rng)
+            self.rng = rng
+            self.tick = 0
+            #: the tracker's 5/50/95 % of each varying quantity after each tick's update
+            self.tracked: dict[str, list] = {n: [] for n in varying}
         if self.kind.startswith("calibrated") and band is None:
             raise ValueError(f"{kind} needs the fitted model's PredictionErrorBand")
         if self.kind == "calibrated_online":
@@ -252,7 +323,9 @@ class Controller:
     def step(self, measured_Pa, reference_Pa, history_V, position_m):
         if self.kind == "calibrated_online":
             self._learn(measured_Pa, history_V, position_m)
-        cands = candidates(self.plan)
+        cands = candidates(self.plan, self.second_levels_V)
+        if self.kind == "online":  # the tracker's particles, as the samples so far left them
+            self.predictor = self.tracker.predictor(self.tracker.n_particles, self.rng)
         if self.kind == "chance_window":
             sims, noisy = self.predictor.predictive_draws(
                 measured_Pa, cands, position_m, DT_S, self.noise, command_history_V=history_V)
@@ -280,7 +353,18 @@ class Controller:
             limit = draw_quantiles(noisy, (QUANTILE,))[0]
         best = choose(pred, reference_Pa, limit)
         self.plan = cands[best]
+        if self.kind == "online":
+            self._track(measured_Pa, float(self.plan[0]), position_m)
         return float(self.plan[0])
+
+    def _track(self, measured_Pa, command_V, position_m):
+        """The tick's sample into the tracker, with the command just chosen (held from
+        this tick on: it scores the sample with the commands before it)."""
+        self.tracker.update([self.tick * DT_S], [command_V], [measured_Pa],
+                            position_m=[position_m])
+        self.tick += 1
+        for name, q in self.tracker.quantiles((0.05, 0.5, 0.95)).items():
+            self.tracked[name].append(q)
 
     def _learn(self, measured_Pa, history_V, position_m):
         """The point estimate's prediction from the reading HORIZON_TICKS ago under the
@@ -302,18 +386,49 @@ class Controller:
             self.pending = []
 
 
-def setpoints(rng, n_ticks):
-    """A seeded staircase of set-points, SETPOINT_HOLD_S each, with HORIZON_TICKS more at
-    the end for the last prediction."""
+def online_tracker(model, draws, rig, solver, varying: dict, rng) -> OnlineTracker:
+    """``delay_online``'s tracker (``ONLINE``): over the ``varying`` quantities (name: the
+    least log SD of its prior), whose log-normal prior has the offline ``draws``' median
+    and log SD (at least the stated one), the other parameters at the draws' medians."""
+    names = tuple(varying)
+    logs = np.log(draws[:, [model.parameter_names.index(n) for n in names]])
+    prior = LogNormalPrior(model, names, dict(zip(names, np.exp(np.median(logs, axis=0)))),
+                           {n: max(float(np.std(logs[:, i], ddof=1)), float(varying[n]))
+                            for i, n in enumerate(names)})
+    params = dict(zip(model.parameter_names, np.median(draws, axis=0).tolist()))
+    return OnlineTracker(model, params, prior, rig, solver,
+                         noise_std_Pa=np.sqrt(2.0) * SensorChain().pressure_noise_Pa,
+                         **ONLINE).reset(rng)
+
+
+def plant_schedule(model, truth, change: dict, n_ticks: int) -> np.ndarray:
+    """The plant's parameter vector at each tick, ``(n_ticks, P)``: ``truth`` until
+    ``change["at_s"]``, then ``change["parameter"]`` times ``change["factor"]``, drifting
+    on by ``change["drift_log_per_s"]`` in log per second."""
+    theta = np.repeat(model.vector(truth)[None, :], n_ticks, axis=0)
+    t = np.arange(n_ticks) * DT_S
+    after = t >= change["at_s"]
+    scale = np.where(after, change["factor"] * np.exp(change.get("drift_log_per_s", 0.0)
+                                                       * (t - change["at_s"])), 1.0)
+    theta[:, model.parameter_names.index(change["parameter"])] *= scale
+    return theta
+
+
+def setpoints(rng, n_ticks, range_Pa=SETPOINT_RANGE_PA):
+    """A seeded staircase of set-points, SETPOINT_HOLD_S each, uniform over ``range_Pa``,
+    with HORIZON_TICKS more at the end for the last prediction."""
     hold = round(SETPOINT_HOLD_S * RATE_HZ)
-    levels = rng.uniform(*SETPOINT_RANGE_PA, size=(n_ticks + HORIZON_TICKS) // hold + 1)
+    levels = rng.uniform(*range_Pa, size=(n_ticks + HORIZON_TICKS) // hold + 1)
     return np.repeat(levels, hold)[: n_ticks + HORIZON_TICKS]
 
 
-def closed_loop(controller, plant_model, truth, rig, position_m, reference, noise_rng):
+def closed_loop(controller, plant_model, truth, rig, position_m, reference, noise_rng,
+                plant_theta=None, n_ticks: int | None = None):
     """Run one controller against the plant; returns the true pressure, the measured one,
-    the commands and the compute per tick (s)."""
-    n = round(RUN_S * RATE_HZ)
+    the commands and the compute per tick (s). ``plant_theta`` ``(n, P)``: the plant's
+    parameters at each tick (a plant that changes; default ``truth`` throughout);
+    ``n_ticks``: the run's ticks (default ``RUN_S``'s)."""
+    n = round(RUN_S * RATE_HZ) if n_ticks is None else int(n_ticks)
     t = np.arange(n + 1) * DT_S
     p_true = np.empty(n + 1)
     p_true[0] = rig.atmospheric_pressure_Pa
@@ -334,6 +449,8 @@ def closed_loop(controller, plant_model, truth, rig, position_m, reference, nois
         u[k + 1] = u[k]
         inputs = Inputs(t[:k + 2], u[:k + 2], x[:k + 2], sup[:k + 2],
                         command_before_start=0.0)
+        if plant_theta is not None:
+            theta = plant_theta[k]
         p_true[k + 1] = simulate_windows(plant_model, theta, inputs, rig, np.array([k]), 2,
                                          np.array([p_true[k]]), ref_solver)[0, 0, -1]
     measured[n] = p_true[n] + noise_rng.normal(0.0, noise_Pa)
@@ -384,7 +501,7 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
             log(f"seed {seed}: {done} was run with dense_output="
                 f"{saved.get('dense_output', False)}; running its loops again (the fits "
                 "are reused)")
-        elif saved.get("candidates") == CANDIDATES:
+        elif saved.get("candidates") == scenario_candidates(scenario):
             reuse = {k: v for k, v in saved["controllers"].items() if k in controllers}
             if set(controllers) <= set(reuse):
                 return saved
@@ -439,14 +556,29 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
                                       solver)
         bands[name] = PredictionErrorBand(QUANTILE).fit(pred, meas, DT_S)
     n = round(RUN_S * RATE_HZ)
-    reference = setpoints(ref_rng, n)
+    reference = setpoints(ref_rng, n, sc.get("setpoint_range_Pa", SETPOINT_RANGE_PA))
     result = {"seed": seed, "scenario": scenario, "hidden_delay_s": HIDDEN_DELAY_S,
-              "p_max_Pa": P_MAX_PA, "candidates": CANDIDATES, "dense_output": dense_output,
+              "p_max_Pa": P_MAX_PA, "candidates": scenario_candidates(scenario),
+              "dense_output": dense_output,
               "bench": {"duration_s": cfg.duration_s, "ranges_V": list(cfg.ranges_V)},
               "posterior_noise_scale_Pa": float(np.median(
                   fitted[sc["fitted"][0]][2][:, 0])),
               "reference_Pa": reference[: n + 1].tolist(), "controllers": {},
               "error_band": {name: b.summary() for name, b in bands.items()}}
+    plant_theta = None
+    if "change" in sc:  # the plant changes during the loop (the same for every controller)
+        change = sc["change"]
+        plant_theta = plant_schedule(plant_model, truth, change, n)
+        j = plant_model.parameter_names.index(change["parameter"])
+        result["change"] = {**change, "varying": sc["varying"],
+                            # the offline posterior's median of the changed quantity
+                            "offline_median": float(np.median(fitted["delay"][1][
+                                :, fitted["delay"][0].parameter_names.index(
+                                    change["parameter"])])),
+                            "true_before": float(plant_theta[0, j]),
+                            "true_at_end": float(plant_theta[-1, j]),
+                            # the plant's value at every tick (the figure's)
+                            "true_per_tick": plant_theta[:, j].tolist()}
     if "paper" in fits:
         result["fit"] = {k: fits["paper"].summary.get(k)
                          for k in ("converged", "steps", "tau_max")}
@@ -472,11 +604,12 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
                              "which its summary lacks")
         which = "delay" if kind.startswith("delay_") else "paper"
         ctrl = Controller(kind, model, use, noise, rig, np.random.default_rng(stream),
-                          dense_output, bands[which], median)
+                          dense_output, bands[which], median, sc.get("varying"),
+                          sc.get("second_levels_V", SECOND_LEVELS_V))
         log(f"seed {seed}: closed loop, {kind} MPC ...")
         a = time.perf_counter()
         run = closed_loop(ctrl, plant_model, truth, rig, position, reference,
-                          np.random.default_rng(seqs[2]))
+                          np.random.default_rng(seqs[2]), plant_theta)
         err = run["pressure_Pa"][1:] - reference[1:n + 1]
         over = run["pressure_Pa"] - P_MAX_PA
         result["controllers"][kind] = {
@@ -495,6 +628,12 @@ def run_seed(seed: int, out: Path, quick: bool, log, scenario: str = "hidden_del
             "git_revision": revision,
             "pressure_Pa": run["pressure_Pa"].tolist(),
             "command_V": run["command_V"].tolist()}
+        if plant_theta is not None:  # after the change only
+            after = slice(round(sc["change"]["at_s"] * RATE_HZ), None)
+            result["controllers"][kind]["ticks_above_limit_after_change"] = int(
+                np.count_nonzero(over[after] > 0))
+        if hasattr(ctrl, "tracked"):  # the tracker's 5/50/95 % after each tick
+            result["controllers"][kind]["tracked"] = ctrl.tracked
         c = result["controllers"][kind]
         log(f"  {kind:10s} RMSE {c['tracking_rmse_Pa']:7.0f} Pa, {c['ticks_above_limit']:3d} "
             f"ticks above the limit (largest {c['largest_excess_Pa']:6.0f} Pa), "
@@ -565,7 +704,47 @@ def _versus(k: dict, nom: dict) -> dict:
                                                                                nom[key])))
     out["paired_feasible_rmse_difference_Pa"] = paired_difference(
         k["feasible_tracking_rmse_Pa"], nom["feasible_tracking_rmse_Pa"])
+    out["paired_rmse_difference_Pa"] = paired_difference(k["tracking_rmse_Pa"],
+                                                         nom["tracking_rmse_Pa"])
+    out["paired_ticks_above_limit_difference"] = paired_difference(
+        k["ticks_above_limit"], nom["ticks_above_limit"])
+    if "excess_integral_Pa_s" in k and "excess_integral_Pa_s" in nom:
+        out["paired_excess_integral_difference_Pa_s"] = paired_difference(
+            k["excess_integral_Pa_s"], nom["excess_integral_Pa_s"])
     return out
+
+
+def tracked_summary(result: dict, kind: str) -> dict | None:
+    """How the online controller's tracker followed the change on one seed
+    (``changing_plant``), in ratios to the values before the change (the fitted model's
+    volume need not be the plant's: the other parameters trade off with it; the
+    tracker's, its median over the 0.5 s before): the change its median saw by the last
+    tick against the plant's; after the change, the first time its ratio came within
+    20 % of the plant's and the time from which it stayed there (None: it left again
+    by the last tick); and its ratio over the plant's from 1 s after the change on
+    (median, 5 and 95 %). None without a change or a tracker."""
+    change = result.get("change")
+    tracked = result["controllers"][kind].get("tracked")
+    if not change or not tracked or change["parameter"] not in tracked:
+        return None
+    med = np.asarray(tracked[change["parameter"]], dtype=np.float64)[:, 1]
+    true = np.asarray(change["true_per_tick"], dtype=np.float64)[: med.size]
+    start = round(change["at_s"] * RATE_HZ)
+    base = float(np.median(med[max(start - round(0.5 * RATE_HZ), 0):start]))
+    rel = (med / base) / (true / true[start - 1])
+    off = np.abs(rel[start:] - 1.0) > 0.20
+    late = np.nonzero(off)[0]
+    stays = (None if late.size and late[-1] == off.size - 1
+             else (0.0 if not late.size else float((late[-1] + 1) * DT_S)))
+    first = np.nonzero(~off)[0]
+    later = rel[start + round(RATE_HZ):]
+    return {"change_seen": float(med[-1] / base),
+            "change_planted": float(true[-1] / true[start - 1]),
+            "before_over_plant": float(base / true[start - 1]),
+            "first_within_20pc_s": float(first[0] * DT_S) if first.size else None,
+            "stays_within_20pc_s": stays,
+            "ratio_after_1s": (np.quantile(later, (0.5, 0.05, 0.95)).tolist()
+                               if later.size else None)}
 
 
 def paired_difference(a, b) -> dict:
@@ -615,6 +794,12 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
             # None: a loop run before the loops recorded their revision
             "git_revisions": [c.get("git_revision") for c in rows],
         }
+        if all("ticks_above_limit_after_change" in c for c in rows):
+            out[kind]["ticks_above_limit_after_change"] = [
+                c["ticks_above_limit_after_change"] for c in rows]
+        tracked = [tracked_summary(r, kind) for r in results]
+        if any(t is not None for t in tracked):
+            out[kind]["tracked"] = tracked
     for kind in controllers:
         if kind != baseline:
             out[kind][f"versus_{baseline}"] = _versus(out[kind], out[baseline])
@@ -625,6 +810,9 @@ def summarise(results: list[dict], scenario: str = "hidden_delay") -> dict:
             if prefix + kind in out and prefix + b in out:
                 out[prefix + kind][f"versus_{prefix}{b}"] = _versus(out[prefix + kind],
                                                                    out[prefix + b])
+    if scenario == "changing_plant":  # the online posterior against the point estimate too
+        for kind in ("delay_online", "delay_chance"):
+            out[kind]["versus_delay_nominal"] = _versus(out[kind], out["delay_nominal"])
     if baseline == "nominal":
         # the same-model comparison: posterior-aware against nominal, both with the delay
         for kind in ("delay_chance", "delay_chance_window"):
@@ -670,6 +858,89 @@ def figure(results: list[dict], path: Path) -> None:
     axes[1].set_xlabel("time, s")
     axes[0].set_title(f"200-Hz MPC on the bench with a hidden {HIDDEN_DELAY_S * 1e3:g}-ms "
                       f"delay (seed {r['seed']}, {r.get('scenario', 'hidden_delay')})")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+#: ``changing_figure``'s loops and their colours.
+CHANGING_KINDS = {"delay_nominal": "tab:orange", "delay_frozen": "tab:red",
+                  "delay_online": "tab:blue"}
+
+
+def changing_figure(results: list[dict], controllers: dict, path: Path) -> None:
+    """``changing_plant``: seed 0's loops of ``CHANGING_KINDS`` against the reference and
+    the limit, the online tracker's volume against the plant's, and per seed the ticks
+    above the limit and the capped tracking RMSE of every controller."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    r = results[0]
+    change = r["change"]
+    n = len(r["reference_Pa"])
+    t = np.arange(n) * DT_S
+    fig = plt.figure(figsize=(10, 10))
+    grid = fig.add_gridspec(3, 2, height_ratios=[3, 1.6, 1.8])
+    ax = fig.add_subplot(grid[0, :])
+    ax.step(t, np.asarray(r["reference_Pa"]) / 1e5, where="post", color="k", lw=1,
+            label="reference")
+    ax.axhline(P_MAX_PA / 1e5, color="r", ls="--", lw=1, label="limit")
+    for kind, colour in CHANGING_KINDS.items():
+        c = r["controllers"].get(kind)
+        if c is None:
+            continue
+        ax.plot(t, np.asarray(c["pressure_Pa"]) / 1e5, color=colour, lw=1,
+                label=f"{kind.removeprefix('delay_')}: capped RMSE "
+                      f"{feasible_rmse(c['pressure_Pa'], r['reference_Pa']) / 1e3:.1f} kPa, "
+                      f"{c['ticks_above_limit']} ticks over")
+    ax.axvline(change["at_s"], color="grey", lw=0.8, ls=":")
+    ax.set_ylabel("pressure, bar (abs)")
+    ax.set_ylim(max(ax.get_ylim()[0], 2.0), None)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(f"{change['parameter']} x {change['factor']:g} at {change['at_s']:g} s, "
+                 f"then {change.get('drift_log_per_s', 0.0):+g} log/s (seed {r['seed']})")
+    ax = fig.add_subplot(grid[1, :], sharex=fig.axes[0])
+    true = np.asarray(change["true_per_tick"])
+    ax.plot(t[: true.size], true, color="k", lw=1, label="plant")
+    online = r["controllers"].get("delay_online", {}).get("tracked", {}).get(
+        change["parameter"])
+    if online:
+        q = np.asarray(online)
+        ax.fill_between(t[: len(q)], q[:, 0], q[:, 2], color="tab:blue", alpha=0.3, lw=0,
+                        label="online 5-95 %")
+        ax.plot(t[: len(q)], q[:, 1], color="tab:blue", lw=1, label="online median")
+    if change.get("offline_median") is not None:
+        ax.axhline(change["offline_median"], color="tab:red", lw=1,
+                   label="offline posterior median (frozen)")
+    ax.axvline(change["at_s"], color="grey", lw=0.8, ls=":")
+    ax.set_ylabel(f"{change['parameter']}")
+    ax.set_xlabel("time, s")
+    ax.legend(fontsize=8, loc="upper right")
+    seeds = [x["seed"] for x in results]
+    kinds = [k for k in controllers if k in CHANGING_KINDS] + [
+        k for k in controllers if k not in CHANGING_KINDS]
+    width = 0.8 / max(len(kinds), 1)
+    for col, (key, label) in enumerate((("ticks_above_limit", "ticks above the limit"),
+                                        ("feasible_tracking_rmse_Pa",
+                                         "capped tracking RMSE, kPa"))):
+        ax = fig.add_subplot(grid[2, col])
+        for i, kind in enumerate(kinds):
+            v = np.asarray(controllers[kind][key], dtype=np.float64)
+            v = v / 1e3 if key.endswith("_Pa") else v
+            ax.bar(np.arange(len(seeds)) + (i - (len(kinds) - 1) / 2) * width, v, width,
+                   color=CHANGING_KINDS.get(kind, "tab:grey" if i % 2 else "tab:olive"),
+                   label=kind.removeprefix("delay_"))
+        ax.set_xticks(np.arange(len(seeds)), [str(x) for x in seeds])
+        ax.set_xlabel("seed")
+        ax.set_ylabel(label)
+        if key.endswith("_Pa"):
+            lo = min(np.min(controllers[k][key]) for k in kinds) / 1e3
+            ax.set_ylim(0.95 * lo, None)
+        if col == 0:
+            ax.legend(fontsize=7)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -742,15 +1013,25 @@ def main(argv=None) -> int:
     summary = {"seeds": seeds, "quick": args.quick, "scenario": args.scenario,
                "dense_output": args.dense_output,
                "rate_Hz": RATE_HZ,
-               "horizon_s": HORIZON_TICKS * DT_S, "candidates": CANDIDATES,
+               "horizon_s": HORIZON_TICKS * DT_S,
+               "candidates": scenario_candidates(args.scenario),
                "draws": N_DRAWS, "hidden_delay_s": HIDDEN_DELAY_S, "p_max_Pa": P_MAX_PA,
                "run_s": RUN_S, "controllers": summarise(results, args.scenario),
                "fits": [r.get("fit") for r in results],
                "fits_delay": [r.get("fit_delay") for r in results],
                "posterior_noise_scale_Pa": [r["posterior_noise_scale_Pa"] for r in results],
                "provenance": provenance()}
+    if args.scenario == "changing_plant":
+        sc = SCENARIOS["changing_plant"]
+        summary.update(change=sc["change"], varying=sc["varying"], online=ONLINE,
+                       setpoint_range_Pa=list(sc["setpoint_range_Pa"]),
+                       second_levels_V=list(sc["second_levels_V"]))
     write_json_atomic(args.json or out / "summary.json", summary)
-    figure(results, Path(args.figure) if args.figure else out / "mpc_tracking.png")
+    if args.scenario == "changing_plant":
+        changing_figure(results, summary["controllers"],
+                        Path(args.figure) if args.figure else out / "mpc_changing.png")
+    else:
+        figure(results, Path(args.figure) if args.figure else out / "mpc_tracking.png")
     tradeoff_figure(summary["controllers"], out / "mpc_tradeoff.png",
                     SCENARIOS[args.scenario]["baseline"])
     for kind, s in summary["controllers"].items():

@@ -623,3 +623,51 @@ def test_mpc_section_reads_the_floor_for_the_posterior_aware_controllers(tmp_pat
     assert "`chance` 1 against 50 ticks" in floor
     assert "delay_nominal" not in floor and "backoff" not in floor
     assert "`posterior` 37 against 50" in floor  # fewer in total, if not on every seed
+
+
+def test_mpc_section_reports_the_changing_plant_and_its_floor(tmp_path):
+    """The changing_plant runs: their table, the paired differences and the floor read
+    from them (fewer violations online than frozen, tracking equal within the seeds)."""
+    import mpc_tracking
+
+    sc = mpc_tracking.SCENARIOS["changing_plant"]
+    p_max = mpc_tracking.P_MAX_PA
+    ticks = {"delay_nominal": (30, 20, 25, 10, 40), "delay_frozen": (20, 15, 20, 8, 30),
+             "delay_chance": (10, 5, 8, 2, 9), "delay_online": (0, 1, 0, 0, 2)}
+    rmse = {"delay_nominal": 40e3, "delay_frozen": 40.2e3, "delay_chance": 41e3,
+            "delay_online": 40.1e3}
+    change = {**sc["change"], "true_per_tick": [1e-5] * 400 + [4e-6] * 801}
+
+    def seed(s):
+        controllers = {}
+        for k in sc["controllers"]:
+            e = rmse[k] + 100.0 * s * (1 if k == "delay_online" else -1)
+            controllers[k] = {"tracking_rmse_Pa": e, "ticks_above_limit": ticks[k][s],
+                              "ticks_above_limit_after_change": ticks[k][s],
+                              "largest_excess_Pa": 500.0 * ticks[k][s],
+                              "pressure_Pa": [p_max - e] * 1201,
+                              "compute_ms_per_tick_median": 9.0}
+        controllers["delay_online"]["tracked"] = {
+            "dead_volume_m3": [[0.9e-5, 1e-5, 1.1e-5]] * 500 + [[3.8e-6, 4.2e-6, 4.4e-6]] * 701}
+        return {"seed": s, "reference_Pa": [p_max] * 1201, "change": change,
+                "controllers": controllers}
+
+    results = [seed(s) for s in range(5)]
+    folder = tmp_path / "out" / "mpc_changing"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text(json.dumps({
+        "seeds": list(range(5)), "quick": False, "scenario": "changing_plant",
+        "change": sc["change"], "varying": sc["varying"], "online": mpc_tracking.ONLINE,
+        "setpoint_range_Pa": list(sc["setpoint_range_Pa"]),
+        "controllers": mpc_tracking.summarise(results, "changing_plant"),
+        "provenance": {"git_revision": "abc"}}))
+    text = "\n".join(make_paper._changing_plant_text(folder, tmp_path / "paper"))
+    assert "| delay_online | 0, 1, 0, 0, 2 | 3 |" in text
+    assert "| `delay_online` | `delay_frozen` | 3 / 93 (5 of 5) |" in text
+    assert "3 against 93 ticks above the limit over 5 seeds (fewer on 5 of 5)" in text
+    # online 40.1 + 0.1 s kPa against frozen 40.2 - 0.1 s: the difference runs from -0.1
+    # to +0.7 kPa, its interval across 0: equal within the seeds' spread
+    assert "capped tracking equal within the seeds' spread" in text and ": met." in text
+    assert ("seed 0: 0.42 x against 0.40 x; within 20 % first 0.50 s after the change, for "
+            "good from 0.50 s; from 1 s after it 1.05 x the plant's change (1.05-1.05); its "
+            "volume before the change 1.00 x the plant's") in text
