@@ -939,7 +939,7 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                                    paper))
 
 
-def _interval(d: dict | None, scale: float = 1.0, fmt: str = "+.1f") -> str:
+def _paired_interval(d: dict | None, scale: float = 1.0, fmt: str = "+.1f") -> str:
     """A paired difference (``mpc_tracking.paired_difference``) as "mean [lo, hi]"."""
     if not d or d.get("ci95") is None:
         return "-"
@@ -988,10 +988,10 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
         paired.append(
             f"| `{k}` | `{o}` | {vs['total_ticks_above_limit'][0]} / "
             f"{vs['total_ticks_above_limit'][1]} ({vs['seeds_fewer_violations']} of {n}) | "
-            f"{_interval(vs.get('paired_ticks_above_limit_difference'))} | "
-            f"{_interval(vs.get('paired_excess_integral_difference_Pa_s'), 1.0, '+.0f')} | "
-            f"{_interval(vs.get('paired_feasible_rmse_difference_Pa'), 1e3, '+.2f')} | "
-            f"{_interval(vs.get('paired_rmse_difference_Pa'), 1e3, '+.2f')} |")
+            f"{_paired_interval(vs.get('paired_ticks_above_limit_difference'))} | "
+            f"{_paired_interval(vs.get('paired_excess_integral_difference_Pa_s'), 1.0, '+.0f')} | "
+            f"{_paired_interval(vs.get('paired_feasible_rmse_difference_Pa'), 1e3, '+.2f')} | "
+            f"{_paired_interval(vs.get('paired_rmse_difference_Pa'), 1e3, '+.2f')} |")
     L = ["**A plant that changes (`--scenario changing_plant`, issue 67).** The bench and "
          "the delay model's emcee fit as above; during each 6-s loop the plant changes: at "
          f"{ch['at_s']:g} s its `{ch['parameter']}` (the volume the valve fills) falls to "
@@ -1031,7 +1031,7 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
               f"one at equal or better tracking over at least 5 seeds): {mine} against "
               f"{theirs} ticks above the limit over {n} seeds (fewer on "
               f"{vs['seeds_fewer_violations']} of {n}), capped tracking {verdict} "
-              f"({_interval(d, 1e3, '+.2f')} kPa): "
+              f"({_paired_interval(d, 1e3, '+.2f')} kPa): "
               f"{'met' if met and n >= 5 else 'not met'}"
               + ("" if n >= 5 else f" (only {n} seeds)") + ".", ""]
     tracked = c.get("delay_online", {}).get("tracked")
