@@ -16,22 +16,31 @@ import openform_blind  # noqa: E402
 from pneubayes.bench.forms import OUT_OF_CATALOGUE, form_from_dict  # noqa: E402
 
 
-def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed():
+@pytest.mark.parametrize("blind_set", [1, 2])
+def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed(blind_set):
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "openform_blind.py"),
-                          "--list"], capture_output=True, text=True, check=True,
-                         cwd=ROOT / "experiments").stdout
+                          "--list", "--set", str(blind_set)], capture_output=True, text=True,
+                         check=True, cwd=ROOT / "experiments").stdout
     cases = [json.loads(line) for line in out.splitlines()]
-    assert {c["seed"] for c in cases} == {openform_blind.OPENFORM_SEED}
+    assert {c["seed"] for c in cases} == {openform_blind.SET_SEEDS[blind_set]}
+    assert {c["blind_set"] for c in cases} == {blind_set}
     forms = {}
     for c in cases:
         for name, rec in c["forms"].items():
             f = form_from_dict(rec)
             assert f.catalogue_name is None and type(f).__name__ == name
             forms.setdefault(name, set()).add(f"{c['cylinder']}:{c['valve']}")
-    assert len(forms) >= 5 and set(forms) == set(OUT_OF_CATALOGUE)
+    assert len(forms) >= 4 and set(forms) == set(openform_blind.SET_FORMS[blind_set])
     assert all(len(rigs) >= 2 for rigs in forms.values())
     assert sum(not c["hidden"] for c in cases) >= 2
     assert len({c["name"] for c in cases}) == len(cases)
+    assert {c["name"][0] for c in cases} == {openform_blind.SET_PREFIX[blind_set]}
+
+
+def test_the_sets_are_disjoint_and_cover_the_out_of_catalogue_forms():
+    one, two = (set(openform_blind.SET_FORMS[k]) for k in (1, 2))
+    assert not one & two and one | two == set(OUT_OF_CATALOGUE)
+    assert openform_blind.OPENFORM_SEED == 69069  # set 1's record stays as it ran
 
 
 def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
@@ -46,6 +55,14 @@ def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
         assert 101_325 + 2.5e5 <= r.crack_pressure_Pa <= 101_325 + 3.8e5
         h = openform_blind.draw_openform("SpoolHysteresis", "SMC", rng)
         assert 0.08 <= h.half_band_V <= 0.3
+        s = openform_blind.draw_openform("ExhaustSilencer", "AIR37", rng)
+        assert 30e3 <= s.back_pressure_Pa <= 300e3 and 0.5e-6 <= s.volume_m3 <= 5e-6
+        b = openform_blind.draw_openform("ScoredBarrelLeak", "SMC", rng)
+        assert 0.0 < b.start_m < b.end_m <= 0.025 and 2e-8 <= b.area_m2 <= 2e-7
+        w = openform_blind.draw_openform("CreepingWall", "AIR37", rng)
+        assert 0.05 <= w.time_constant_s <= 1.0
+        p = openform_blind.draw_openform("PilotInletValve", "SMC", rng)
+        assert 20e3 <= p.min_pressure_difference_Pa <= 100e3
     with pytest.raises(ValueError, match="unknown out-of-catalogue form 'Nope'"):
         openform_blind.draw_openform("Nope", "SMC", rng)
 
