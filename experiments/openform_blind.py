@@ -34,7 +34,9 @@ noise floor; null controls find no open-form term and name nothing beyond the se
 chain's real lags (none here). Cases are cached in OUT/cases/NAME.json (an interrupted
 run resumes); OUT/summary.json and OUT/summary.md hold the report with the seed, git
 revision and versions. ``--case NAME`` runs only those cases into the cache (a second
-process can take a second core); rerun without it to report.
+process can take a second core); rerun without it to report. ``--report`` reports from
+the cache alone, runs nothing and lists the cases without a result as not finished (a
+set stopped at its deadline).
 
 ``--smoke`` runs one short case (a relief valve, 13-s recordings, four of them) drawn
 from a different seed -- a tuning draw, not the blind set -- to check the plumbing.
@@ -353,6 +355,9 @@ def main(argv=None) -> int:
                          "the cache, without a summary")
     ap.add_argument("--setting", action="append", default=[], metavar="KEY=VALUE",
                     help="a DiscoverySettings field (VALUE as JSON; repeatable)")
+    ap.add_argument("--report", action="store_true",
+                    help="report from the cached cases only (run nothing; cases without a "
+                         "result are listed as not finished)")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
     args = ap.parse_args(argv)
@@ -387,12 +392,21 @@ def main(argv=None) -> int:
         _run_cached([c for c in cases if any(_is_case(c, k) for k in args.case)], args, root)
         return 0
     t_all = time.perf_counter()
-    results = _run_cached(cases, args, root)
+    if args.report:
+        cached = {c["name"]: root / "cases" / f"{c['name']}.json" for c in cases}
+        results = [json.loads(cached[c["name"]].read_text()) for c in cases
+                   if cached[c["name"]].exists()]
+        unfinished = [c["name"] for c in cases if not cached[c["name"]].exists()]
+    else:
+        results, unfinished = _run_cached(cases, args, root), []
     floors, md = summarise(results)
+    if unfinished:
+        md += f"\nNot finished (no result when the set was reported): {', '.join(unfinished)}.\n"
     write_json_atomic(root / "summary.json", {
         "blind_set": args.blind_set, "seed": args.seed, "duration_s": args.duration,
         "recordings": args.recordings,
         "smoke": args.smoke, "settings_overrides": args.settings, "floors": floors,
+        "not_finished": unfinished,
         "cases": results, "wall_time_s": time.perf_counter() - t_all,
         "provenance": provenance()})
     write_text_atomic(root / "summary.md",

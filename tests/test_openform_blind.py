@@ -124,3 +124,22 @@ def test_main_runs_caches_and_reports_with_the_loop_stubbed(tmp_path, monkeypatc
     assert case["found_terms"] == [] and case["gap_shrink"] == pytest.approx(1 - 300 / 4500)
     assert "tuning draw" in (tmp_path / "summary.md").read_text()
     assert openform_blind.main(argv) == 0 and len(calls) == 1  # read from the cache
+
+
+def test_report_reads_the_cache_runs_nothing_and_names_the_unfinished(tmp_path, monkeypatch):
+    cases = openform_blind.draw_cases(openform_blind.OPENFORM_SEED_2, 2)
+    (tmp_path / "cases").mkdir()
+    done = cases[0]
+    res = openform_blind._public(done) | {
+        **openform_blind.classify([], [], done["hidden"]), "named": [],
+        "rmse_base_Pa": 900.0, "rmse_final_Pa": 600.0, "noise_floor_Pa": 500.0,
+        "gap_shrink": 0.75, "final_over_noise": 1.2}
+    (tmp_path / "cases" / f"{done['name']}.json").write_text(json.dumps(res))
+    monkeypatch.setattr(openform_blind, "run_case", lambda *a: pytest.fail("ran a case"))
+    assert openform_blind.main(["--set", "2", "--out", str(tmp_path), "--report"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["blind_set"] == 2 and summary["seed"] == openform_blind.OPENFORM_SEED_2
+    assert [c["name"] for c in summary["cases"]] == [done["name"]]
+    assert summary["not_finished"] == [c["name"] for c in cases[1:]]
+    md = (tmp_path / "summary.md").read_text()
+    assert md.startswith("Open-form blind set 2, seed 1796182831") and "Not finished" in md
