@@ -1,16 +1,23 @@
-"""The open-form blind set: hidden effects that no catalogue effect expresses, drawn at
+"""The open-form blind sets: hidden effects that no catalogue effect expresses, drawn at
 random, run once and reported once, never looked at while the open-form stage is tuned.
 
     python experiments/openform_blind.py --list                  # the cases, no runs
     python experiments/openform_blind.py --out results/openform  # run (resumes), report
     python experiments/openform_blind.py --out /tmp/of --smoke   # a short tuning-draw check
     python experiments/openform_blind.py --out results/openform --case o03   # one case
+    python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None): a compliant bladder volume,
-spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak. Each is
-planted on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from
-wide physical ranges (:func:`draw_openform`) from ``--seed`` (default 69069, recorded);
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in two sets (``--set``, each
+drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
+on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
+spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
+``o00``-``o11``. Set 2 (seed 1796182831, drawn from the clock on 2026-12-02 and recorded
+before any run): a porous exhaust silencer with its own volume, a leak over a scored
+section of the barrel, a creeping (viscoelastic) chamber wall and a pilot-operated inlet
+that needs a minimum pressure difference, cases ``n00``-``n09``. Each form is planted
+on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
+physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
 recordings, or the first ``--recordings`` of them, ``--duration`` s each; the bench's
 declared zero-phase DAQ filter, so the sensor chain has no real lag to find) and
@@ -28,7 +35,9 @@ noise floor; null controls find no open-form term and name nothing beyond the se
 chain's real lags (none here). Cases are cached in OUT/cases/NAME.json (an interrupted
 run resumes); OUT/summary.json and OUT/summary.md hold the report with the seed, git
 revision and versions. ``--case NAME`` runs only those cases into the cache (a second
-process can take a second core); rerun without it to report.
+process can take a second core); rerun without it to report. ``--report`` reports from
+the cache alone, runs nothing and lists the cases without a result as not finished (a
+set stopped at its deadline).
 
 ``--smoke`` runs one short case (a relief valve, 13-s recordings, four of them) drawn
 from a different seed -- a tuning draw, not the blind set -- to check the plumbing.
@@ -51,9 +60,13 @@ from pneubayes.bench.bench import ATMOSPHERE_PA, SUPPLY_PA
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    CreepingWall,
+    ExhaustSilencer,
     InletFlowForce,
     LipSealLeak,
+    PilotInletValve,
     ReliefValve,
+    ScoredBarrelLeak,
     SpoolHysteresis,
     check_forms,
 )
@@ -68,7 +81,15 @@ from pneubayes.provenance import provenance
 from pneubayes.settings_tree import assignment, override, table_of
 
 OPENFORM_SEED = 69069
+#: Set 2's seed: ``date +%s`` at 2026-12-02 03:40:31 UTC, fixed before any case ran.
+OPENFORM_SEED_2 = 1796182831
 SMOKE_SEED = 11
+#: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
+SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
+                 "LipSealLeak"),
+             2: ("ExhaustSilencer", "ScoredBarrelLeak", "CreepingWall", "PilotInletValve")}
+SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2}
+SET_PREFIX = {1: "o", 2: "n"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -96,7 +117,17 @@ def draw_openform(name: str, cylinder: str, rng):
     - ReliefValve: cracking at 2.5-3.8 bar gauge (the supply is 4.5 bar gauge),
       1-10 x 1e-11 kg/(s Pa^1.5) (0.3-3 g/s at 1 bar overpressure);
     - InletFlowForce: 0.05-0.3 per atm of drop across the inlet;
-    - LipSealLeak: lifting at 1-3 bar gauge, leaking 0.02-0.1 g/s at the supply.
+    - LipSealLeak: lifting at 1-3 bar gauge, leaking 0.02-0.1 g/s at the supply;
+    - ExhaustSilencer (set 2): back-pressure 30-300 kPa at 1 g/s (log-uniform: a
+      miniature or partly clogged sintered element of about 1-3 x the exhaust port's
+      area), its viscous share 0.2-0.8, a body of 0.5-5 cm^3 (log-uniform);
+    - ScoredBarrelLeak (set 2): the score starting at 10-70 % of the stroke, 10-30 % of
+      it long, edges 2-5 % of it, an orifice of 2e-8-2e-7 m^2 (log-uniform; about
+      0.02-0.2 g/s at 4 bar);
+    - CreepingWall (set 2): the wall gives 2-15 % of the swept volume at 4.5 bar gauge
+      (log-uniform), with a time constant of 0.05-1 s (log-uniform);
+    - PilotInletValve (set 2): a minimum pressure difference of 20-100 kPa
+      (log-uniform), the transition 0.3-1 x it.
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -116,23 +147,43 @@ def draw_openform(name: str, cylinder: str, rng):
         at_supply = _log_uniform(rng, 2e-5, 1e-4)  # kg/s at the supply pressure
         return LipSealLeak(seal_pressure_Pa=seal,
                            conductance_kg_per_s_Pa2=at_supply / (SUPPLY_PA - seal) ** 2)
+    if name == "ExhaustSilencer":
+        return ExhaustSilencer(back_pressure_Pa=_log_uniform(rng, 30e3, 300e3),
+                               laminar_fraction=rng.uniform(0.2, 0.8),
+                               volume_m3=_log_uniform(rng, 0.5e-6, 5e-6))
+    if name == "ScoredBarrelLeak":
+        stroke = cylinder_preset(cylinder).stroke_m
+        start = rng.uniform(0.1, 0.7) * stroke
+        return ScoredBarrelLeak(start_m=start, end_m=start + rng.uniform(0.1, 0.3) * stroke,
+                                edge_m=rng.uniform(0.02, 0.05) * stroke,
+                                area_m2=_log_uniform(rng, 2e-8, 2e-7))
+    if name == "CreepingWall":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return CreepingWall(
+            compliance_m3_per_Pa=swept * _log_uniform(rng, 0.02, 0.15) / 450e3,
+            time_constant_s=_log_uniform(rng, 0.05, 1.0))
+    if name == "PilotInletValve":
+        return PilotInletValve(min_pressure_difference_Pa=_log_uniform(rng, 20e3, 100e3),
+                               transition_fraction=rng.uniform(0.3, 1.0))
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 
 
-def draw_cases(seed: int) -> list[dict]:
-    """The set: each out-of-catalogue form on each of :data:`RIGS`, then
-    :data:`N_CONTROLS` null controls (alternating rigs), each with drawn form
-    parameters and bench seed (JSON-ready but for ``_objects``)."""
+def draw_cases(seed: int, blind_set: int = 1) -> list[dict]:
+    """Blind set ``blind_set``: each of its out-of-catalogue forms (:data:`SET_FORMS`)
+    on each of :data:`RIGS`, then :data:`N_CONTROLS` null controls (alternating rigs),
+    each with drawn form parameters and bench seed (JSON-ready but for ``_objects``)."""
     rng = np.random.default_rng(seed)
-    plan = [(form, rig) for form in OUT_OF_CATALOGUE for rig in RIGS]
+    plan = [(form, rig) for form in SET_FORMS[blind_set] for rig in RIGS]
     plan += [(None, RIGS[i % len(RIGS)]) for i in range(N_CONTROLS)]
     cases = []
     for i, (form, rig) in enumerate(plan):
         cylinder, valve = rig.split(":")
         obj = draw_openform(form, cylinder, rng) if form else None
-        cases.append({"name": f"o{i:02d}_{cylinder}_{valve}_{form or 'none'}",
-                      "seed": seed, "cylinder": cylinder, "valve": valve,
+        cases.append({"name": f"{SET_PREFIX[blind_set]}{i:02d}_{cylinder}_{valve}_"
+                              f"{form or 'none'}",
+                      "seed": seed, "blind_set": blind_set, "cylinder": cylinder, "valve": valve,
                       "hidden": [form] if form else [],
                       "bench_seed": int(rng.integers(1000, 100000)),
                       "forms": {form: obj.to_dict()} if form else {},
@@ -146,7 +197,7 @@ def _public(case: dict) -> dict:
 
 
 def _is_case(case: dict, key: str) -> bool:
-    """Whether ``key`` names ``case``: its full name or its ``oNN`` prefix."""
+    """Whether ``key`` names ``case``: its full name or its ``oNN`` / ``nNN`` prefix."""
     return case["name"] == key or case["name"].split("_")[0] == key
 
 
@@ -278,7 +329,11 @@ def _run_cached(cases, args, root: Path) -> list[dict]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="results folder (cases cached there)")
-    ap.add_argument("--seed", type=int, default=OPENFORM_SEED, help="the draw's seed")
+    ap.add_argument("--set", type=int, choices=sorted(SET_FORMS), default=1, dest="blind_set",
+                    help="the blind set: 1 (seed 69069, run 2026-12-01) or 2 (seed "
+                         f"{OPENFORM_SEED_2}, fresh forms); default 1")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="the draw's seed (default: the set's, SET_SEEDS)")
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
     ap.add_argument("--recordings", type=int, default=6, metavar="N",
                     help="recordings per case, 1-6 (default 6: discovery_study's set); the "
@@ -290,11 +345,17 @@ def main(argv=None) -> int:
                          "the cache, without a summary")
     ap.add_argument("--setting", action="append", default=[], metavar="KEY=VALUE",
                     help="a DiscoverySettings field (VALUE as JSON; repeatable)")
+    ap.add_argument("--report", action="store_true",
+                    help="report from the cached cases only (run nothing; cases without a "
+                         "result are listed as not finished)")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
     args = ap.parse_args(argv)
-    if args.smoke:
+    if args.smoke:  # a tuning draw of set 1's forms
         args.seed, args.duration, args.recordings = SMOKE_SEED, 13.0, 4
+        args.blind_set = 1
+    if args.seed is None:
+        args.seed = SET_SEEDS[args.blind_set]
     if not 1 <= args.recordings <= len(RECORDING_ORDER):
         ap.error(f"--recordings: must be 1-{len(RECORDING_ORDER)}, got {args.recordings}")
     if not args.duration > 0:
@@ -303,7 +364,7 @@ def main(argv=None) -> int:
         args.settings = parse_settings(args.setting)
     except ValueError as exc:
         ap.error(str(exc))
-    cases = draw_cases(args.seed)
+    cases = draw_cases(args.seed, args.blind_set)
     if args.smoke:
         cases = [c for c in cases if c["hidden"] == ["ReliefValve"]][:1]
     if args.list:
@@ -321,15 +382,25 @@ def main(argv=None) -> int:
         _run_cached([c for c in cases if any(_is_case(c, k) for k in args.case)], args, root)
         return 0
     t_all = time.perf_counter()
-    results = _run_cached(cases, args, root)
+    if args.report:
+        cached = {c["name"]: root / "cases" / f"{c['name']}.json" for c in cases}
+        results = [json.loads(cached[c["name"]].read_text()) for c in cases
+                   if cached[c["name"]].exists()]
+        unfinished = [c["name"] for c in cases if not cached[c["name"]].exists()]
+    else:
+        results, unfinished = _run_cached(cases, args, root), []
     floors, md = summarise(results)
+    if unfinished:
+        md += f"\nNot finished (no result when the set was reported): {', '.join(unfinished)}.\n"
     write_json_atomic(root / "summary.json", {
-        "seed": args.seed, "duration_s": args.duration, "recordings": args.recordings,
+        "blind_set": args.blind_set, "seed": args.seed, "duration_s": args.duration,
+        "recordings": args.recordings,
         "smoke": args.smoke, "settings_overrides": args.settings, "floors": floors,
+        "not_finished": unfinished,
         "cases": results, "wall_time_s": time.perf_counter() - t_all,
         "provenance": provenance()})
     write_text_atomic(root / "summary.md",
-                      f"Open-form blind set, seed {args.seed}"
+                      f"Open-form blind set {args.blind_set}, seed {args.seed}"
                       f"{' (smoke: a tuning draw)' if args.smoke else ''}, "
                       f"{args.recordings} recordings of {args.duration:g} s per case.\n\n"
                       + md)

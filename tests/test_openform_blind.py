@@ -18,22 +18,31 @@ from pneubayes.bench.forms import OUT_OF_CATALOGUE, form_from_dict  # noqa: E402
 from pneubayes.bench.sensors import SensorChain  # noqa: E402
 
 
-def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed():
+@pytest.mark.parametrize("blind_set", [1, 2])
+def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed(blind_set):
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "openform_blind.py"),
-                          "--list"], capture_output=True, text=True, check=True,
-                         cwd=ROOT / "experiments").stdout
+                          "--list", "--set", str(blind_set)], capture_output=True, text=True,
+                         check=True, cwd=ROOT / "experiments").stdout
     cases = [json.loads(line) for line in out.splitlines()]
-    assert {c["seed"] for c in cases} == {openform_blind.OPENFORM_SEED}
+    assert {c["seed"] for c in cases} == {openform_blind.SET_SEEDS[blind_set]}
+    assert {c["blind_set"] for c in cases} == {blind_set}
     forms = {}
     for c in cases:
         for name, rec in c["forms"].items():
             f = form_from_dict(rec)
             assert f.catalogue_name is None and type(f).__name__ == name
             forms.setdefault(name, set()).add(f"{c['cylinder']}:{c['valve']}")
-    assert len(forms) >= 5 and set(forms) == set(OUT_OF_CATALOGUE)
+    assert len(forms) >= 4 and set(forms) == set(openform_blind.SET_FORMS[blind_set])
     assert all(len(rigs) >= 2 for rigs in forms.values())
     assert sum(not c["hidden"] for c in cases) >= 2
     assert len({c["name"] for c in cases}) == len(cases)
+    assert {c["name"][0] for c in cases} == {openform_blind.SET_PREFIX[blind_set]}
+
+
+def test_the_sets_are_disjoint_and_cover_the_out_of_catalogue_forms():
+    one, two = (set(openform_blind.SET_FORMS[k]) for k in (1, 2))
+    assert not one & two and one | two == set(OUT_OF_CATALOGUE)
+    assert openform_blind.OPENFORM_SEED == 69069  # set 1's record stays as it ran
 
 
 def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
@@ -48,6 +57,14 @@ def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
         assert 101_325 + 2.5e5 <= r.crack_pressure_Pa <= 101_325 + 3.8e5
         h = openform_blind.draw_openform("SpoolHysteresis", "SMC", rng)
         assert 0.08 <= h.half_band_V <= 0.3
+        s = openform_blind.draw_openform("ExhaustSilencer", "AIR37", rng)
+        assert 30e3 <= s.back_pressure_Pa <= 300e3 and 0.5e-6 <= s.volume_m3 <= 5e-6
+        b = openform_blind.draw_openform("ScoredBarrelLeak", "SMC", rng)
+        assert 0.0 < b.start_m < b.end_m <= 0.025 and 2e-8 <= b.area_m2 <= 2e-7
+        w = openform_blind.draw_openform("CreepingWall", "AIR37", rng)
+        assert 0.05 <= w.time_constant_s <= 1.0
+        p = openform_blind.draw_openform("PilotInletValve", "SMC", rng)
+        assert 20e3 <= p.min_pressure_difference_Pa <= 100e3
     with pytest.raises(ValueError, match="unknown out-of-catalogue form 'Nope'"):
         openform_blind.draw_openform("Nope", "SMC", rng)
 
@@ -111,3 +128,22 @@ def test_main_runs_caches_and_reports_with_the_loop_stubbed(tmp_path, monkeypatc
     assert case["found_terms"] == [] and case["gap_shrink"] == pytest.approx(1 - 300 / 4500)
     assert "tuning draw" in (tmp_path / "summary.md").read_text()
     assert openform_blind.main(argv) == 0 and len(calls) == 1  # read from the cache
+
+
+def test_report_reads_the_cache_runs_nothing_and_names_the_unfinished(tmp_path, monkeypatch):
+    cases = openform_blind.draw_cases(openform_blind.OPENFORM_SEED_2, 2)
+    (tmp_path / "cases").mkdir()
+    done = cases[0]
+    res = openform_blind._public(done) | {
+        **openform_blind.classify([], [], done["hidden"]), "named": [],
+        "rmse_base_Pa": 900.0, "rmse_final_Pa": 600.0, "noise_floor_Pa": 500.0,
+        "gap_shrink": 0.75, "final_over_noise": 1.2}
+    (tmp_path / "cases" / f"{done['name']}.json").write_text(json.dumps(res))
+    monkeypatch.setattr(openform_blind, "run_case", lambda *a: pytest.fail("ran a case"))
+    assert openform_blind.main(["--set", "2", "--out", str(tmp_path), "--report"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["blind_set"] == 2 and summary["seed"] == openform_blind.OPENFORM_SEED_2
+    assert [c["name"] for c in summary["cases"]] == [done["name"]]
+    assert summary["not_finished"] == [c["name"] for c in cases[1:]]
+    md = (tmp_path / "summary.md").read_text()
+    assert md.startswith("Open-form blind set 2, seed 1796182831") and "Not finished" in md

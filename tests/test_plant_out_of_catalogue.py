@@ -1,5 +1,5 @@
 """Out-of-catalogue plant forms (pneubayes.bench.forms): effects no catalogue effect
-expresses, for the open-form blind set. Zero strength is the plain plant; each has a
+expresses, for the open-form blind sets. Zero strength is the plain plant; each has a
 visible, physically right-signed effect; closed-chamber mass balance where cheap."""
 
 from __future__ import annotations
@@ -13,9 +13,13 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    CreepingWall,
+    ExhaustSilencer,
     InletFlowForce,
     LipSealLeak,
+    PilotInletValve,
     ReliefValve,
+    ScoredBarrelLeak,
     SpoolHysteresis,
     catalogue_names_of,
     check_forms,
@@ -24,6 +28,7 @@ from pneubayes.bench.forms import (
     out_of_catalogue_defaults,
 )
 from pneubayes.bench.plant import PlantConfig, simulate_plant
+from pneubayes.physics.orifice import flow_terms
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig
 from pneubayes.simulation import Inputs
@@ -74,10 +79,11 @@ def _moving(duration_s=0.6, seed=4):
 # ---------------------------------------------------------------- the forms themselves
 def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     assert set(OUT_OF_CATALOGUE) == {"BladderVolume", "SpoolHysteresis", "ReliefValve",
-                                     "InletFlowForce", "LipSealLeak"}
+                                     "InletFlowForce", "LipSealLeak", "ExhaustSilencer",
+                                     "ScoredBarrelLeak", "CreepingWall", "PilotInletValve"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
-        assert check_forms(forms) == tuple(forms)  # all five together: no clash
+        assert check_forms(forms) == tuple(forms)  # all nine together: no clash
         assert catalogue_names_of(forms) == []
         for f in forms:
             d = json.loads(json.dumps(f.to_dict()))
@@ -106,6 +112,17 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
      "seal_pressure_Pa"),
     (LipSealLeak, {"seal_pressure_Pa": 3e5, "conductance_kg_per_s_Pa2": float("inf")},
      "conductance_kg_per_s_Pa2"),
+    (ExhaustSilencer, {"back_pressure_Pa": -1.0}, "back_pressure_Pa"),
+    (ExhaustSilencer, {"back_pressure_Pa": 5e4, "laminar_fraction": 1.5},
+     "laminar_fraction"),
+    (ExhaustSilencer, {"back_pressure_Pa": 5e4, "volume_m3": 0.0}, "volume_m3"),
+    (ScoredBarrelLeak, {"start_m": 0.01, "end_m": 0.02, "area_m2": -1e-8}, "area_m2"),
+    (CreepingWall, {"compliance_m3_per_Pa": float("nan")}, "compliance_m3_per_Pa"),
+    (CreepingWall, {"compliance_m3_per_Pa": 1e-12, "time_constant_s": 0.0},
+     "time_constant_s"),
+    (PilotInletValve, {"min_pressure_difference_Pa": -5.0}, "min_pressure_difference_Pa"),
+    (PilotInletValve, {"min_pressure_difference_Pa": 4e4, "transition_fraction": 2.5},
+     "transition_fraction"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -128,7 +145,10 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     BladderVolume(dV_max_m3=0.0), SpoolHysteresis(half_band_V=0.0),
     ReliefValve(crack_pressure_Pa=2e5, flow_coefficient_kg_per_s_Pa1p5=0.0),
     InletFlowForce(flow_force_coefficient=0.0),
-    LipSealLeak(seal_pressure_Pa=2e5, conductance_kg_per_s_Pa2=0.0)],
+    LipSealLeak(seal_pressure_Pa=2e5, conductance_kg_per_s_Pa2=0.0),
+    ExhaustSilencer(back_pressure_Pa=0.0),
+    ScoredBarrelLeak(start_m=0.3 * STROKE, end_m=0.6 * STROKE, area_m2=0.0),
+    CreepingWall(compliance_m3_per_Pa=0.0), PilotInletValve(min_pressure_difference_Pa=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -253,3 +273,98 @@ def test_bladder_below_atmosphere_collapses_stiffer_and_bounded(rig):
     assert np.all(dv > -bladder.dV_max_m3 / 4)
     inv = soft * (1.5e-7 + np.pi / 4 * BORE**2 * x + dv) ** rig.gas.heat_capacity_ratio
     assert np.ptp(inv) / inv[0] < 1e-5
+
+
+# ---------------------------------------------------------------- the second blind set
+def test_silencer_slows_the_exhaust_and_its_element_law_inverts():
+    sil = out_of_catalogue_defaults("ExhaustSilencer")
+    r_l, r_t = sil.resistances
+    for m in (-2e-3, -1e-4, 0.0, 3e-5, 1e-3, 5e-3):
+        assert sil.outflow_kg_per_s(r_l * m + r_t * m * abs(m)) == pytest.approx(m, abs=1e-15)
+    assert r_l * 1e-3 + r_t * 1e-6 == pytest.approx(sil.back_pressure_Pa)
+
+
+@pytest.mark.slow  # the bench's fine plant over seconds: ~30-50 s
+def test_silencer_back_pressure_slows_a_vent_to_the_same_end_and_spares_the_fill(rig):
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    sil = ExhaustSilencer(back_pressure_Pa=150e3, laminar_fraction=0.5, volume_m3=2e-6)
+    vent = _held(1.0, (-5.0,))
+    plain, muffled = _run(params, (), vent, rig, p0=5e5), _run(params, (sil,), vent, rig, p0=5e5)
+    # the port is choked down to about twice the body's pressure: the back-pressure
+    # tells at the vent's end, which it slows
+    level = P_ATM + 0.01 * (5e5 - P_ATM)
+    assert _time_to(-muffled, -level) > 1.05 * _time_to(-plain, -level)
+    assert np.all(muffled >= plain - 1.0)  # never below the plain vent: back-pressure
+    assert np.max(muffled - plain) > 2e3
+    assert muffled[-1] == pytest.approx(P_ATM, abs=300.0)  # and still to the atmosphere
+    # at +5 V the exhaust is shut: the silencer has nothing to act on
+    fill = _held(0.3, (5.0,))
+    np.testing.assert_allclose(_run(params, (sil,), fill, rig), _run(params, (), fill, rig),
+                               rtol=0, atol=0.05)
+
+
+def test_scored_barrel_leaks_on_the_score_only_at_the_orifice_law(rig):
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    score = ScoredBarrelLeak(start_m=0.4 * STROKE, end_m=0.6 * STROKE, area_m2=1e-7,
+                             edge_m=0.02 * STROKE)
+    assert score.window(0.5 * STROKE) == 1.0 and score.window(0.2 * STROKE) == 0.0
+    assert 0.0 < score.window(0.4 * STROKE) < 1.0
+    with pytest.raises(ValueError, match=r"ScoredBarrelLeak.end_m \(0.0105\) must exceed"):
+        ScoredBarrelLeak(start_m=0.01, end_m=0.0105, area_m2=1e-8)
+    # valve shut at 0 V, piston on the score (half stroke): the chamber vents at
+    # dp/dt = -kappa Rs T a f(p, P_atm) / V
+    inputs = _held(0.3, (0.0,))
+    p = _run(params, (score,), inputs, rig, p0=4e5)
+    assert np.all(np.diff(p) <= 0.01) and p[-1] < 4e5 - 5e4
+    g = rig.gas
+    mid = 0.5 * (p[0] + p[1])
+    f = flow_terms(mid, P_ATM, g.alpha_s_per_m, g.beta_s_per_m, g.theta,
+                   g.heat_capacity_ratio)[0]
+    want = -g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K \
+        * score.area_m2 * f / VOLUME
+    assert (p[1] - p[0]) / DT == pytest.approx(want, rel=0.01)
+    # off the score the barrel is sound: the chamber holds its pressure exactly
+    t = inputs.time_s
+    off = Inputs(t, inputs.command_V, np.full(t.size, 0.2 * STROKE), inputs.supply_pressure_Pa)
+    np.testing.assert_array_equal(_run(params, (score,), off, rig, p0=4e5),
+                                  _run(params, (), off, rig, p0=4e5))
+
+
+def test_creeping_wall_sags_after_a_fill_recovers_after_a_vent_and_rests_in_equilibrium(rig):
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    wall = CreepingWall(compliance_m3_per_Pa=0.1 * np.pi / 4 * BORE**2 * STROKE / 4.5e5,
+                        time_constant_s=0.1)
+    # closed from the start, in equilibrium with its pressure: nothing moves
+    rest = _run(params, (wall,), _held(0.3, (0.0,)), rig, p0=4e5)
+    np.testing.assert_allclose(rest, 4e5, rtol=0, atol=1e-3)
+    # filled for 0.15 s, then shut: the plain chamber holds, the wall gives and the
+    # pressure sags monotonically towards a new equilibrium
+    fill = _held(1.0, (5.0, 0.0), at=(0.0, 0.15))
+    plain, soft = _run(params, (), fill, rig), _run(params, (wall,), fill, rig)
+    shut = int(round(0.16 / DT))
+    assert np.ptp(plain[shut:]) < 10.0
+    assert np.all(np.diff(soft[shut:]) <= 1e-6) and soft[shut] - soft[-1] > 5e3
+    assert abs(soft[-1] - soft[-200]) < 0.05 * (soft[shut] - soft[-1])  # settled
+    # vented from 4 bar, then shut: the wall springs back and the pressure rises
+    vent = _held(1.0, (-5.0, 0.0), at=(0.0, 0.02))
+    p = _run(params, (wall,), vent, rig, p0=4e5)
+    shut = int(round(0.03 / DT))
+    assert np.all(np.diff(p[shut:]) >= -1e-6) and p[-1] - p[shut] > 2e3
+
+
+@pytest.mark.slow  # the bench's fine plant over seconds: ~30-50 s
+def test_pilot_inlet_stalls_a_fill_short_of_the_supply_and_spares_the_exhaust(rig):
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    pilot = PilotInletValve(min_pressure_difference_Pa=50e3, transition_fraction=0.5)
+    assert pilot.opening(0.0) == 0.0 and pilot.opening(80e3) == 1.0
+    assert pilot.opening(-80e3) == 1.0 and 0.0 < pilot.opening(50e3) < 1.0
+    fill = _held(1.0, (5.0,))
+    plain, piloted = _run(params, (), fill, rig), _run(params, (pilot,), fill, rig)
+    assert plain[-1] > P_SUP - 2e3
+    # stalled inside the transition band below the supply
+    assert P_SUP - 50e3 - 12.5e3 < piloted[-1] < P_SUP - 50e3 + 12.5e3
+    assert np.all(piloted <= plain + 1.0)
+    # at -5 V the inlet is exactly shut: the pilot stage has nothing to act on
+    vent = _held(0.5, (-5.0,))
+    np.testing.assert_array_equal(_run(params, (pilot,), vent, rig, p0=5e5),
+                                  _run(params, (), vent, rig, p0=5e5))

@@ -7,11 +7,14 @@ physically different, more detailed form of one catalogue effect, simulated by t
 independent plant of :mod:`pneubayes.bench.plant`; ``catalogue_name`` names the effect
 a discovery run should report for it.
 
-The *out-of-catalogue* forms (:class:`BladderVolume`, :class:`SpoolHysteresis`,
-:class:`ReliefValve`, :class:`InletFlowForce`, :class:`LipSealLeak`) are effects no
-catalogue effect expresses: their ``catalogue_name`` is None, meaning a discovery run
-should name *no* catalogue effect for them (an open-form closure term may describe
-them). They test the open-form stage blind.
+The *out-of-catalogue* forms are effects no catalogue effect expresses: their
+``catalogue_name`` is None, meaning a discovery run should name *no* catalogue effect
+for them (an open-form closure term may describe them). They test the open-form stage
+blind, in two sets drawn once each: the first (:class:`BladderVolume`,
+:class:`SpoolHysteresis`, :class:`ReliefValve`, :class:`InletFlowForce`,
+:class:`LipSealLeak`) and, built after the open-form stage had been developed against
+the first, the second (:class:`ExhaustSilencer`, :class:`ScoredBarrelLeak`,
+:class:`CreepingWall`, :class:`PilotInletValve`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -350,10 +353,171 @@ class LipSealLeak(PlantForm):
         _non_negative(self, "conductance_kg_per_s_Pa2")
 
 
+# ------------------------------------------- out-of-catalogue forms, the second blind set
+def _smoothstep(z: float) -> float:
+    """C1 ramp: 0 for z <= 0, 3 z^2 - 2 z^3 on (0, 1), 1 for z >= 1 (the plant's own
+    copy is compiled in :mod:`pneubayes.bench.plant`)."""
+    z = min(max(z, 0.0), 1.0)
+    return z * z * (3.0 - 2.0 * z)
+
+
+@dataclass(frozen=True)
+class ExhaustSilencer(PlantForm):
+    """A porous (sintered) silencer on the valve's exhaust port, with its own volume.
+
+    The valve's exhaust port discharges into the silencer body (pressure ``p_m``, volume
+    ``V_m = volume_m3``) instead of the atmosphere; the body vents through the porous
+    element with a Forchheimer law (Darcy's viscous drop plus an inertial drop)::
+
+        p_m - P_atm = R_l m_out + R_t m_out |m_out|
+        dp_m/dt = kappa Rs T_s / V_m (m_ex - m_out),   m_ex = a_ex f(p, p_m)
+
+    with ``R_l = laminar_fraction dp_ref / m_ref`` and ``R_t = (1 - laminar_fraction)
+    dp_ref / m_ref^2`` for the back-pressure ``dp_ref = back_pressure_Pa`` the element
+    makes at a steady ``m_ref = 1 g/s``. The chamber's exhaust then sees a back-pressure
+    that grows with its own flow (a clogged silencer slows the exhaust most when it is
+    fastest) and the gas in the body blows back for a moment when the valve switches.
+    The leaks still vent to the atmosphere. ``back_pressure_Pa = 0`` is no silencer (the
+    state is omitted). ``p_m`` starts at the atmosphere.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    back_pressure_Pa: float
+    laminar_fraction: float = 0.5
+    volume_m3: float = 2e-6
+
+    #: The reference flow at which ``back_pressure_Pa`` is stated, kg/s (1 g/s).
+    REFERENCE_FLOW_KG_PER_S: ClassVar[float] = 1e-3
+
+    def __post_init__(self):
+        _non_negative(self, "back_pressure_Pa")
+        _positive(self, "volume_m3")
+        f = self.laminar_fraction
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not 0.0 <= f <= 1.0:
+            raise ValueError(f"ExhaustSilencer.laminar_fraction must be a number in [0, 1], "
+                             f"got {f!r}")
+
+    @property
+    def resistances(self) -> tuple[float, float]:
+        """``(R_l Pa/(kg/s), R_t Pa/(kg/s)^2)`` of the Forchheimer law."""
+        m = self.REFERENCE_FLOW_KG_PER_S
+        return (self.laminar_fraction * self.back_pressure_Pa / m,
+                (1.0 - self.laminar_fraction) * self.back_pressure_Pa / (m * m))
+
+    def outflow_kg_per_s(self, drop_Pa: float) -> float:
+        """The element's steady mass flow at a drop ``p_m - P_atm``, kg/s (signed)."""
+        r_l, r_t = self.resistances
+        d = abs(drop_Pa)
+        if d == 0.0:
+            return 0.0
+        m = 2.0 * d / (r_l + math.sqrt(r_l * r_l + 4.0 * r_t * d))
+        return m if drop_Pa > 0 else -m
+
+
+@dataclass(frozen=True)
+class ScoredBarrelLeak(PlantForm):
+    """A scored (scratched) section of the barrel: the piston seal leaks only over it.
+
+    Where the seal rides over the score the chamber leaks to the vented side of the
+    piston (the atmosphere) through an orifice of area ``a(x) = area_m2 w(x)`` with the
+    thin-port law of eqs. 1-3, ``mdot = a(x) f(p, P_atm)``; the window::
+
+        w(x) = S((x - start_m) / edge_m + 1/2) S((end_m - x) / edge_m + 1/2)
+
+    with S the C1 smoothstep (0 below 0, ``3 z^2 - 2 z^3``, 1 above 1) is 1 on the score
+    and 0 more than ``edge_m / 2`` outside it. x is the piston position (m, 0 = fully
+    retracted). Unlike the catalogue's leaks (uniform, or graded linearly along the
+    stroke) nothing leaks off the score. ``area_m2 = 0`` is a sound barrel.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    start_m: float
+    end_m: float
+    area_m2: float
+    edge_m: float = 0.001
+
+    def __post_init__(self):
+        _non_negative(self, "start_m", "area_m2")
+        _positive(self, "end_m", "edge_m")
+        if self.end_m - self.start_m < self.edge_m:
+            raise ValueError(f"ScoredBarrelLeak.end_m ({self.end_m}) must exceed start_m "
+                             f"({self.start_m}) by at least edge_m ({self.edge_m})")
+
+    def window(self, position_m: float) -> float:
+        """w(x): 1 on the score, 0 off it, C1 edges."""
+        return (_smoothstep((position_m - self.start_m) / self.edge_m + 0.5)
+                * _smoothstep((self.end_m - position_m) / self.edge_m + 0.5))
+
+
+@dataclass(frozen=True)
+class CreepingWall(PlantForm):
+    """A viscoelastic wall (an elastomer liner, a soft hose, a porous wall) that creeps.
+
+    The chamber's volume has a part ``v_c`` that creeps towards ``C (p - P_atm)`` with a
+    slow time constant (a standard linear solid's creep, at constant pressure)::
+
+        V = V_dead + A x + v_c,    dv_c/dt = (C (p - P_atm) - v_c) / tau
+
+    ``C = compliance_m3_per_Pa``, ``tau = time_constant_s``. Eq. 5 sees
+    ``dV/dt = A dx/dt + dv_c/dt``: after a fill the pressure sags as the wall gives, after
+    a vent it recovers. Unlike :class:`BladderVolume` (an instantaneous law) the volume
+    lags the pressure. ``C = 0`` is a rigid wall (the state is omitted); v_c starts in
+    equilibrium with the initial pressure.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    compliance_m3_per_Pa: float
+    time_constant_s: float = 0.2
+
+    def __post_init__(self):
+        _non_negative(self, "compliance_m3_per_Pa")
+        _positive(self, "time_constant_s")
+
+
+@dataclass(frozen=True)
+class PilotInletValve(PlantForm):
+    """A pilot-operated inlet stage that needs a minimum pressure difference to stay open.
+
+    The inlet's main stage (a diaphragm or poppet) is held open by the pressure
+    difference across it against its spring; it closes when the difference
+    ``|p_s - p|`` (supply at the valve inlet against the chamber) falls below
+    ``dp_min = min_pressure_difference_Pa``. The inlet area is scaled by
+
+        phi = S((|p_s - p| - dp_min) / w + 1/2),   w = transition_fraction dp_min,
+
+    S the C1 smoothstep: fully open above ``dp_min + w / 2``, shut below
+    ``dp_min - w / 2`` (so shut at no difference, as ``transition_fraction <= 2``). A
+    full fill stalls about ``dp_min`` below the supply; a chamber the piston compresses
+    above the supply blows back through the inlet once the difference lifts the
+    diaphragm. The exhaust is unaffected; ``min_pressure_difference_Pa = 0`` is a
+    direct-acting valve (no pilot stage).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    min_pressure_difference_Pa: float
+    transition_fraction: float = 0.5
+
+    def __post_init__(self):
+        _non_negative(self, "min_pressure_difference_Pa")
+        _positive(self, "transition_fraction")
+        if self.transition_fraction > 2.0:
+            raise ValueError(f"PilotInletValve.transition_fraction must be in (0, 2], got "
+                             f"{self.transition_fraction!r}")
+
+    def opening(self, drop_Pa: float) -> float:
+        """phi at a drop ``p_s - p`` across the inlet (1 without a pilot stage)."""
+        if self.min_pressure_difference_Pa == 0.0:
+            return 1.0
+        w = self.transition_fraction * self.min_pressure_difference_Pa
+        return _smoothstep((abs(drop_Pa) - self.min_pressure_difference_Pa) / w + 0.5)
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
-                                  SpoolHysteresis, ReliefValve, InletFlowForce, LipSealLeak)
+                                  SpoolHysteresis, ReliefValve, InletFlowForce, LipSealLeak,
+                                  ExhaustSilencer, ScoredBarrelLeak, CreepingWall,
+                                  PilotInletValve)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -471,7 +635,14 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``InletFlowForce``: k_ff = 0.1 per atm (the inlet 31 % smaller at the full 4.5 bar
       drop);
     - ``LipSealLeak``: lifts at 2 bar gauge, k = 4.8e-16 kg/(s Pa^2) (0.03 g/s at the
-      5.5 bar supply, the AIRPEL's laminar leak at 3 bar).
+      5.5 bar supply, the AIRPEL's laminar leak at 3 bar);
+    - ``ExhaustSilencer``: 100 kPa back-pressure at 1 g/s, half of it viscous, a 2 cm^3
+      body;
+    - ``ScoredBarrelLeak``: a score over 30-55 % of the stroke with edges of 5 % of it,
+      8e-8 m^2 (about 0.1 g/s at 5 bar);
+    - ``CreepingWall``: the wall gives 8 % of the swept volume at 4.5 bar gauge, with a
+      0.2 s time constant;
+    - ``PilotInletValve``: needs 40 kPa across the inlet, the transition half of it.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -487,5 +658,17 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     if name == "LipSealLeak":
         return LipSealLeak(seal_pressure_Pa=atmospheric_pressure_Pa + 200_000.0,
                            conductance_kg_per_s_Pa2=4.8e-16)
+    if name == "ExhaustSilencer":
+        return ExhaustSilencer(back_pressure_Pa=100_000.0, laminar_fraction=0.5,
+                               volume_m3=2e-6)
+    if name == "ScoredBarrelLeak":
+        return ScoredBarrelLeak(start_m=0.30 * cyl.stroke_m, end_m=0.55 * cyl.stroke_m,
+                                area_m2=8e-8, edge_m=0.05 * cyl.stroke_m)
+    if name == "CreepingWall":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return CreepingWall(compliance_m3_per_Pa=0.08 * swept / 450_000.0,
+                            time_constant_s=0.2)
+    if name == "PilotInletValve":
+        return PilotInletValve(min_pressure_difference_Pa=40_000.0, transition_fraction=0.5)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

@@ -8,10 +8,12 @@ integrated by scipy's ``solve_ivp`` (Radau or LSODA) with explicit tolerances.
 
 State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
 as the forms and effects require: chamber temperature, spool position and velocity,
-regulator droop, the acoustic tube's cell pressures and mass flows, and a spool's play
-(:mod:`pneubayes.bench.forms` documents each form's equations). The out-of-catalogue
+regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
+silencer body's pressure and a creeping wall's volume (:mod:`pneubayes.bench.forms`
+documents each form's equations). The out-of-catalogue
 forms (a compliant bladder volume, spool play, a relief valve, inlet flow forces, a
-lip-seal leak) act in the same right-hand side; at zero strength each leaves it as it
+lip-seal leak; an exhaust silencer, a scored barrel, a creeping wall, a pilot-operated
+inlet) act in the same right-hand side; at zero strength each leaves it as it
 was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
@@ -49,12 +51,16 @@ from pneubayes.bench.forms import (
     AcousticTube,
     BladderVolume,
     ClearanceLeak,
+    CreepingWall,
+    ExhaustSilencer,
     InletFlowForce,
     LipSealLeak,
+    PilotInletValve,
     PlantForm,
     RegulatorDroop,
     ReliefValve,
     RoundedDeadzone,
+    ScoredBarrelLeak,
     SecondOrderSpool,
     SpoolHysteresis,
     WallHeatTransfer,
@@ -84,11 +90,36 @@ K_HY_B, K_HY_TAU = 44, 45
 K_RV_P, K_RV_K = 46, 47
 K_FF = 48
 K_LS_P, K_LS_K = 49, 50
-N_K = 51
+# the second blind set's forms (all 0: absent)
+K_SI_V, K_SI_RL, K_SI_RT = 51, 52, 53
+K_SB_A, K_SB_X1, K_SB_X2, K_SB_E = 54, 55, 56, 57
+K_CW_C, K_CW_TAU = 58, 59
+K_PI_D, K_PI_W = 60, 61
+N_K = 62
 # Integer layout: modes and state indices (-1 = absent).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH) = range(14)
-N_L = 14
+ L_ITQ, L_N, L_IH, L_IM, L_IC) = range(16)
+N_L = 16
+
+
+@njit(cache=True)
+def smoothstep(z):
+    """C1 ramp: 0 for z <= 0, 3 z^2 - 2 z^3 on (0, 1), 1 for z >= 1."""
+    if z <= 0.0:
+        return 0.0
+    if z >= 1.0:
+        return 1.0
+    return z * z * (3.0 - 2.0 * z)
+
+
+@njit(cache=True)
+def forchheimer_flow(drop, r_lin, r_quad):
+    """Signed m solving ``drop = r_lin m + r_quad m |m|`` (kg/s), the stable root."""
+    d = abs(drop)
+    if d == 0.0:
+        return 0.0
+    m = 2.0 * d / (r_lin + math.sqrt(r_lin * r_lin + 4.0 * r_quad * d))
+    return m if drop > 0.0 else -m
 
 
 @njit(cache=True)
@@ -160,9 +191,13 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     pv = y[L[L_ITP]] if nseg > 0 else p
     if P[K_FF] > 0.0:  # flow forces close the inlet with the drop across it
         a_in = a_in / (1.0 + P[K_FF] * max(p_up - pv, 0.0) / p_atm)
+    if P[K_PI_D] > 0.0:  # a pilot-operated inlet shuts below its minimum drop
+        a_in = a_in * smoothstep((abs(p_up - pv) - P[K_PI_D]) / P[K_PI_W] + 0.5)
+    # the exhaust port discharges into a silencer's body, else to the atmosphere
+    p_exd = y[L[L_IM]] if L[L_IM] >= 0 else p_atm
     # port flows (eqs. 1-3); a hot or cold chamber gas scales them by sqrt(T_s / T)
     f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
-    f_ex = flow_terms(pv, p_atm, alpha, beta, theta, kappa)[0]
+    f_ex = flow_terms(pv, p_exd, alpha, beta, theta, kappa)[0]
     hot = heat == 2 and nseg == 0
     if hot and f_in < 0.0:
         f_in *= math.sqrt(ts / temp)
@@ -172,6 +207,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     m_ex = a_ex * f_ex
     if L[L_DROOP] == 1:
         dy[L[L_ID]] = (P[K_DROOP] * m_in - y[L[L_ID]]) / P[K_DROOP_TAU]
+    if L[L_IM] >= 0:  # silencer body: the port's flow in, the porous element's out
+        m_out = forchheimer_flow(p_exd - p_atm, P[K_SI_RL], P[K_SI_RT])
+        dy[L[L_IM]] = kappa * rs * ts / P[K_SI_V] * (m_ex - m_out)
     att = math.exp(-P[K_ATT] / p) if P[K_ATT] > 0.0 else 1.0
     # enthalpy bookkeeping for the energy equation: sum(T_src * mdot_into_chamber)
     if nseg > 0:
@@ -207,11 +245,25 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         leak += P[K_RV_K] * (p - P[K_RV_P]) ** 1.5
     if p > P[K_LS_P] and P[K_LS_K] > 0.0:  # lip seal lifted
         leak += P[K_LS_K] * (p - P[K_LS_P]) ** 2
+    if P[K_SB_A] > 0.0:  # the seal over a scored section of the barrel
+        win = (smoothstep((x - P[K_SB_X1]) / P[K_SB_E] + 0.5)
+               * smoothstep((P[K_SB_X2] - x) / P[K_SB_E] + 0.5))
+        if win > 0.0:
+            f_s = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
+            if heat == 2 and f_s > 0.0:
+                f_s *= math.sqrt(ts / temp)
+            leak += P[K_SB_A] * win * f_s
     mdot = inflow - leak
     # chamber (eq. 5, or the energy equation)
     vol = P[K_VDEAD] + P[K_ABORE] * x
     vdot = P[K_ABORE] * xdot
     dvdp = 0.0
+    if L[L_IC] >= 0:  # a creeping wall: its volume lags the pressure
+        v_c = y[L[L_IC]]
+        dvc = (P[K_CW_C] * (p - p_atm) - v_c) / P[K_CW_TAU]
+        dy[L[L_IC]] = dvc
+        vol += v_c
+        vdot += dvc
     if P[K_BL_DV] > 0.0:  # compliant bladder: V grows with gauge pressure
         g = (p - p_atm) / P[K_BL_PS]
         if g >= 0.0:
@@ -449,6 +501,22 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if LipSealLeak in by:
         f = by[LipSealLeak]
         P[K_LS_P], P[K_LS_K] = f.seal_pressure_Pa, f.conductance_kg_per_s_Pa2
+    silencer = by.get(ExhaustSilencer)
+    if silencer is not None and silencer.back_pressure_Pa > 0:
+        P[K_SI_V] = silencer.volume_m3
+        P[K_SI_RL], P[K_SI_RT] = silencer.resistances
+    if ScoredBarrelLeak in by:
+        f = by[ScoredBarrelLeak]
+        P[K_SB_A], P[K_SB_X1], P[K_SB_X2], P[K_SB_E] = (f.area_m2, f.start_m, f.end_m,
+                                                          f.edge_m)
+    creep = by.get(CreepingWall)
+    if creep is not None and creep.compliance_m3_per_Pa > 0:
+        P[K_CW_C], P[K_CW_TAU] = creep.compliance_m3_per_Pa, creep.time_constant_s
+    if PilotInletValve in by:
+        f = by[PilotInletValve]
+        if f.min_pressure_difference_Pa > 0:
+            P[K_PI_D] = f.min_pressure_difference_Pa
+            P[K_PI_W] = f.transition_fraction * f.min_pressure_difference_Pa
     hyst = by.get(SpoolHysteresis)
     if hyst is not None and hyst.half_band_V > 0:
         P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
@@ -500,6 +568,17 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 1
         atol.append(cfg.atol_V)
         scale.append(1.0)
+    if P[K_SI_V] > 0:  # the silencer body's pressure, from the atmosphere
+        L[L_IM] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
+        extra[L_IM] = rig.atmospheric_pressure_Pa
+    if P[K_CW_C] > 0:  # the creeping wall's volume, m^3: atol_Pa's share of the chamber
+        L[L_IC] = n
+        n += 1
+        atol.append(cfg.atol_Pa * vmin / 1e6)
+        scale.append(vmin)
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]))
@@ -525,6 +604,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[L_IS]] = u0  # at rest at the first (delayed) command
     if L[L_IH] >= 0:
         y[L[L_IH]] = u0  # the play's output starts at the first command
+    if L[L_IC] >= 0:  # the creeping wall in equilibrium with the initial pressure
+        y[L[L_IC]] = su.P[K_CW_C] * (p0 - su.P[K_PATM])
     if L[L_NSEG] > 0:
         y[L[L_ITP]:L[L_ITP] + L[L_NSEG]] = p0  # tube at rest at the chamber's pressure
     return y
