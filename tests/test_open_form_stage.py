@@ -287,3 +287,29 @@ def test_a_true_term_follows_the_flow_the_model_misses_without_it(relief_recordi
     assert plot_found_terms(views, tmp_path / "terms.png").stat().st_size > 0
     with pytest.raises(ValueError, match="no closure"):
         term_views(Model(), base, recs[:1], 5, SolverConfig.standard())
+
+
+def test_a_closure_whose_fit_fails_from_every_start_is_in_the_ledger(rig):
+    """A closure whose simulation fails (a step size under the solver's least, from both
+    of its starts) is recorded as a failed open form with why, not only logged: a blind
+    case's four fitted closures vanished from its ledger this way."""
+    from pneubayes.discovery.openform.search import FoundTerm
+    from pneubayes.discovery.state import Ledger
+    from pneubayes.effects.closure_features import Term
+    from pneubayes.errors import SimulationError
+    from pneubayes.physics.valve import valve_preset
+
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2e-5}
+    current = SimpleNamespace(model=Model(), params=params, train_rmse_Pa=900.0,
+                              heldout_rmse_Pa=1000.0)
+
+    def fit(m, start, first=None, beat_Pa=None):
+        raise SimulationError("step size fell below min_step_s on a held-out window")
+
+    runner = SimpleNamespace(fit=fit, log=lambda m: None, ledger=Ledger(),
+                             data=SimpleNamespace(rig=lambda: rig))
+    found = [FoundTerm(Term("inlet_flow"), 0.0, 0.0, 0.05, 1.0, 1.0, 0.5)]
+    assert OpenForm()._fit(_state(current), runner, found) is None
+    (entry,) = [e for e in runner.ledger if e["action"] == "open form failed"]
+    assert entry["terms"] == "inlet_flow" and "min_step_s" in entry["error"]
+    assert "the search's values" in entry["error"] and "zero strength" in entry["error"]

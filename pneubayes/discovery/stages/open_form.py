@@ -196,15 +196,20 @@ class OpenForm(Stage):
         zero = dict(searched)
         for j in range(len(terms)):
             zero[f"closure_coefficient_{len(old) + j}"] = 0.0
-        fits = []
+        fits, failures = [], []
         for label, start in (("the search's values", searched), ("zero strength", zero)):
             start = {k: start[k] for k in model.parameter_names}
             try:
                 fits.append(runner.fit(model, start))
             except (FloatingPointError, SimulationError) as exc:
-                runner.log(f"discover: open form from {label} failed "
-                           f"({type(exc).__name__})")
+                why = f"from {label}: {type(exc).__name__}: {str(exc).splitlines()[0]}"
+                failures.append(why)
+                runner.log(f"discover: open form {why}")
         if not fits:
+            # (a closure whose fit or held-out simulation failed from every start: the
+            # ledger says so, not only the log, which a quiet run does not keep)
+            runner.ledger.record("open form failed", round=state.number, terms=spec,
+                                 error="; ".join(failures))
             return None
         fit = min(fits, key=lambda f: f.train_rmse_Pa)
         runner.log(f"discover: open form: closure '{spec}' fitted, training RMSE "
