@@ -68,7 +68,9 @@ def _settings_tree(default, path, assignments=()):
 
 def _fit_flags(args, prefix: str = "") -> list:
     """The settings tree's keys that fit's or discover's own options set (those given),
-    as ``--set`` assignments under ``prefix`` (``"fit."`` for discover)."""
+    as ``(key path, value)`` pairs under ``prefix`` (``"fit."`` for discover)."""
+    from pneubayes.simulation import SolverConfig
+
     out = []
 
     def put(key, value):
@@ -92,37 +94,31 @@ def _fit_flags(args, prefix: str = "") -> list:
         put("sampler.seed", args.seed)
     if getattr(args, "jacobian_refresh", None) is not None:
         put("refine_jacobian_refresh", args.jacobian_refresh)
+    if getattr(args, "pressure_filter", None) is not None:
+        put("pressure_filter", args.pressure_filter)
+    if getattr(args, "no_dense_output", False):
+        put("sample_solver", SolverConfig.standard())
     return out
 
 
-def _apply(tree, pairs):
-    """``tree`` with already-parsed values set at their key paths (the options')."""
-    for path, value in pairs:
-        tree = _set_at(tree, path, value)
-    return tree
-
-
-def _set_at(node, path, value):
+def _with_options(tree, pairs):
+    """``tree`` with the options' values at their key paths, applied as a settings
+    file's table is (:func:`pneubayes.settings_tree.override`; a settings object such as
+    a PressureFilter as its table)."""
     import dataclasses
 
-    if len(path) == 1:
-        return dataclasses.replace(node, **{path[0]: value})
-    return dataclasses.replace(node, **{path[0]: _set_at(getattr(node, path[0]), path[1:],
-                                                           value)})
+    from pneubayes.settings_tree import override, table_of
+
+    return override(tree, table_of(
+        (path, dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v)
+        for path, v in pairs))
 
 
 def _fit_settings(args):
     """fit's FitSettings: the defaults, the --settings file, then the options given."""
     from pneubayes.inference.pipeline import FitSettings
-    from pneubayes.simulation import SolverConfig
 
-    tree = _settings_tree(FitSettings(), args.settings)
-    pairs = _fit_flags(args)
-    if args.pressure_filter is not None:
-        pairs.append((("pressure_filter",), args.pressure_filter))
-    if args.no_dense_output:
-        pairs.append((("sample_solver",), SolverConfig.standard()))
-    return _apply(tree, pairs)
+    return _with_options(_settings_tree(FitSettings(), args.settings), _fit_flags(args))
 
 
 def _run_horizon(run: Path) -> float:
@@ -807,9 +803,7 @@ def _discovery_settings(args):
         pairs.append((("posterior", "method"), args.posterior))
     if args.seed is not None:
         pairs.append((("seed",), args.seed))
-    if args.pressure_filter is not None:
-        pairs.append((("fit", "pressure_filter"), args.pressure_filter))
-    tree = _apply(tree, pairs)
+    tree = _with_options(tree, pairs)
     tree = _settings_tree(tree, None, args.set)
     if args.held_out and tree.data.holdout_recordings != len(args.held_out):
         raise PneubayesError(f"--held-out: {len(args.held_out)} recordings, but "
