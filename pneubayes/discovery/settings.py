@@ -28,8 +28,12 @@ def _int_at_least(value, low: int) -> bool:
     return not isinstance(value, bool) and isinstance(value, int) and value >= low
 
 
-def _in(value: float, low: float, high: float) -> bool:
-    return low <= value <= high
+def _check_shares(settings, *names: str) -> None:
+    """ValueError naming the first of ``names`` whose value on ``settings`` is not a
+    share in [0, 1]."""
+    for name in names:
+        if not 0.0 <= getattr(settings, name) <= 1.0:
+            raise ValueError(f"{name} must be in [0, 1], got {getattr(settings, name)}")
 
 
 @dataclass(frozen=True)
@@ -136,9 +140,7 @@ class VerifySettings:
         if not self.score_dof > 2.0:
             raise ValueError(f"score_dof must be > 2 (a finite variance), got "
                              f"{self.score_dof}")
-        for name in ("min_gain_noise_share", "min_gain_gap_share"):
-            if not _in(getattr(self, name), 0.0, 1.0):
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        _check_shares(self, "min_gain_noise_share", "min_gain_gap_share")
 
 
 @dataclass(frozen=True)
@@ -218,9 +220,7 @@ class FormSettings:
         if not (self.settled_ratio == 0.0 or self.settled_ratio >= 1.0):
             raise ValueError(f"settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.settled_ratio}")
-        for name in ("later_min_share", "later_screen_share"):
-            if not _in(getattr(self, name), 0.0, 1.0):
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        _check_shares(self, "later_min_share", "later_screen_share")
 
 
 @dataclass(frozen=True)
@@ -257,9 +257,7 @@ class StageSettings:
     open_form_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
-        for name in ("last_resort_min_gap_closed", "last_resort_best_gap_closed"):
-            if not _in(getattr(self, name), 0.0, 1.0):
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
         if not _int_at_least(self.pair_members, 0) or self.pair_members == 1:
             raise ValueError("pair_members must be 0 (off) or an integer >= 2, got "
                              f"{self.pair_members!r}")
