@@ -21,9 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-#: z of the 5 and 95 % quantiles of a normal
-_Z90 = 1.6448536269514722
+from scipy.stats import norm
 
 
 class OnlineConformalBand:
@@ -72,6 +70,7 @@ class OnlineConformalBand:
         self.level_ = coverage
         self.n_completed_ = 0
         self._scores: list[np.ndarray] = []
+        self._pool: np.ndarray | None = None  # the scores kept, joined once per change
         self._pending: list[tuple[int, np.ndarray, np.ndarray]] = []
 
     @staticmethod
@@ -88,12 +87,11 @@ class OnlineConformalBand:
         model's own (mean +- z s) until :attr:`min_predictions` have completed, then
         mean +- q s with q the current quantile of the completed scores."""
         mean, scale = np.asarray(mean, float), np.asarray(scale, float)
-        if self.n_completed_ < self.min_predictions or not self._scores:
-            half = self._z(self.coverage) * scale
+        if self.n_completed_ < self.min_predictions or self._pool is None:
+            half = float(norm.ppf(0.5 + self.coverage / 2.0)) * scale
         else:
-            scores = np.concatenate(self._scores)
             level = min(max(self.level_, 0.0), 1.0)
-            q = float(np.quantile(scores, level)) if level < 1.0 else math.inf
+            q = float(np.quantile(self._pool, level)) if level < 1.0 else math.inf
             half = q * scale
         return mean - half, mean + half
 
@@ -124,15 +122,10 @@ class OnlineConformalBand:
             self._scores.append(np.abs(outcome - mean) / scale)
             if self.memory is not None and len(self._scores) > self.memory:
                 self._scores.pop(0)
+            self._pool = np.concatenate(self._scores)
             self.n_completed_ += 1
             if self.n_completed_ > self.min_predictions:
                 self.level_ += self.step * (miss - (1.0 - self.coverage))
             done += 1
         self._pending = keep
         return done
-
-    @staticmethod
-    def _z(coverage: float) -> float:
-        from scipy.stats import norm
-
-        return float(norm.ppf(0.5 + coverage / 2.0)) if coverage != 0.9 else _Z90
