@@ -644,7 +644,7 @@ def test_a_named_sensor_lag_is_fitted_in_both_orders_on_the_pressure_and_on_ever
         ("first_order", "pressure"), ("second_order", "pressure"), ("first_order", "all"),
         ("second_order", "all")]
     # every form starts at the best term's group delay
-    assert [s[f.lead_parameter()] for f, s in forms] == [8e-4] * 4
+    assert [s[f.reading_lead_parameter()] for f, s in forms] == [8e-4] * 4
 
 
 def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(rig):

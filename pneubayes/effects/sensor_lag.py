@@ -80,18 +80,15 @@ class SensorLag(Effect):
                               "first-order lag of the pressure reading", neutral=0.0),)
         return delay_and_damping("sensor", "the reading's second-order lag", 0.01)
 
-    def lead_parameter(self) -> str:
+    def reading_lead_parameter(self) -> str:
         """The parameter that is the reading's group delay at DC, s (the chamber's lead
         on a reading that tracks a ramp)."""
         self._check()
         return "sensor_time_constant_s" if self.form == "first_order" else "sensor_delay_s"
 
-    def reading_lead_parameter(self) -> str:
-        return self.lead_parameter()
-
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
-        lead = np.asarray(values[self.lead_parameter()], dtype=np.float64)
+        lead = np.asarray(values[self.reading_lead_parameter()], dtype=np.float64)
         out = {"inputs_advance_s": lead} if self.channels == "all" else {}
         if self.form == "first_order":
             return {"sensor_time_constant_s": lead, **out}
