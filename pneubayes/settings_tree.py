@@ -21,11 +21,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
 import types
 import typing
 from collections.abc import Mapping
+from pathlib import Path
 
 from pneubayes.errors import PneubayesError
+from pneubayes.limits import check_input_file
 
 
 class SettingsError(PneubayesError, ValueError):
@@ -148,8 +151,6 @@ def assignment(text: str) -> tuple[tuple[str, ...], object]:
     is read as a TOML value (``2``, ``1e-3``, ``true``, ``[1, 2]``, ``{order = 2,
     cutoff_Hz = 1000}``, ``"wave"``), a bare word that is not one as that text. The
     settings' type checks then refuse a value of the wrong kind."""
-    import tomllib
-
     key, sep, raw = text.partition("=")
     path = tuple(k.strip() for k in key.split("."))
     if not sep or not all(path):
@@ -181,11 +182,6 @@ def table_of(assignments) -> dict:
 
 def read_table(path) -> dict:
     """A settings file's table (TOML); errors name the file."""
-    import tomllib
-    from pathlib import Path
-
-    from pneubayes.limits import check_input_file
-
     p = Path(path)
     if not p.exists():
         raise SettingsError(f"{p}: no such settings file")
