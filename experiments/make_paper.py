@@ -939,6 +939,17 @@ def mpc_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                                    paper))
 
 
+def _scenario_summary(folder: Path) -> dict | None:
+    """An ``mpc_tracking.py --scenario`` run's ``summary.json`` (None: not run)."""
+    path = folder / "summary.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def _scenario_not_run(folder: Path, scenario: str) -> list[str]:
+    return [f"(Scenario `{scenario}` not run: `python experiments/mpc_tracking.py "
+            f"--scenario {scenario} --out {folder}`.)", ""]
+
+
 def _paired_interval(d: dict | None, scale: float = 1.0, fmt: str = "+.1f") -> str:
     """A paired difference (``mpc_tracking.paired_difference``) as "mean [lo, hi]"."""
     if not d or d.get("ci95") is None:
@@ -952,11 +963,9 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
     posterior, the online one and the point estimate on a plant that changes, with the
     floor (the online posterior has fewer violations than the frozen one at equal or
     better tracking) read from the paired differences over the seeds."""
-    path = folder / "summary.json"
-    if not path.exists():
-        return [f"(Scenario `changing_plant` not run: `python experiments/mpc_tracking.py "
-                f"--scenario changing_plant --out {folder}`.)", ""]
-    s = json.loads(path.read_text())
+    s = _scenario_summary(folder)
+    if s is None:
+        return _scenario_not_run(folder, "changing_plant")
     c = s["controllers"]
     n = len(s["seeds"])
     ch, on = s["change"], s["online"]
@@ -1064,7 +1073,8 @@ def _changing_plant_text(folder: Path, paper: Path) -> list[str]:
                     "simulated, not run against the clock; the times move with the machine's "
                     "load)." if slow else ""), "",
           _copy_fig(paper, folder / "mpc_changing.png", f"{folder.name}.png"), "",
-          f"*Source: `{path}`; loops {_revisions(c, list(c))}; assembled at git revision "
+          f"*Source: `{folder / 'summary.json'}`; loops {_revisions(c, list(c))}; "
+          "assembled at git revision "
           f"{str(s['provenance'].get('git_revision'))[:12]}"
           f"{' (uncommitted changes)' if s['provenance'].get('git_dirty') else ''}.*", ""]
     return L
@@ -1142,11 +1152,9 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
     """The ``--scenario weak_data`` runs of ``mpc_tracking.py``, if there are any, and
     the fixed back-offs of both scenarios side by side (``hidden``: the default
     scenario's controllers)."""
-    path = folder / "summary.json"
-    if not path.exists():
-        return [f"(Scenario `weak_data` not run: `python experiments/mpc_tracking.py "
-                f"--scenario weak_data --out {folder}`.)", ""]
-    s = json.loads(path.read_text())
+    s = _scenario_summary(folder)
+    if s is None:
+        return _scenario_not_run(folder, "weak_data")
     c = s["controllers"]
     n = len(s["seeds"])
     rows = ["| controller | ticks above the limit (per seed) | capped RMSE, kPa (median "
@@ -1182,7 +1190,7 @@ def _weak_data_text(folder: Path, paper: Path, hidden: dict) -> list[str]:
             "Measured: " + "; ".join(found) + f". The chains' convergence: {conv}.", "",
             *_backoff_text(c, n, folder, paper, "delay_"),
             *_one_margin_for_both(hidden, c),
-            f"*Source: `{path}`; git revision "
+            f"*Source: `{folder / 'summary.json'}`; git revision "
             f"{str(s['provenance'].get('git_revision'))[:12]}.*", ""]
 
 
