@@ -20,6 +20,7 @@ import numpy as np
 
 from pneubayes import interrupt
 from pneubayes.cli_args import build_parser, check_single_values
+from pneubayes.cli_settings import discovery_settings, fit_settings
 from pneubayes.errors import ParameterError, PneubayesError
 from pneubayes.run_folder import (
     check_file,
@@ -42,83 +43,6 @@ def _print_findings(command: str, recordings) -> None:
     for rec in recordings:
         for f in rec.findings:
             print(f"pneubayes {command}: warning: {f.location}: {f.text()}", file=sys.stderr)
-
-
-def _settings_tree(default, path, assignments=()):
-    """``default`` with the settings file ``path``'s table (None: none) and then the
-    ``--set`` assignments applied (:mod:`pneubayes.settings_tree`); errors name the file
-    or the assignment and the key."""
-    from pneubayes.settings_tree import SettingsError, override, read_table, table_of
-
-    tree = default
-    if path is not None:
-        try:
-            tree = override(tree, read_table(path))
-        except SettingsError as exc:
-            text = str(exc)
-            raise PneubayesError(text if text.startswith(str(path)) else
-                                 f"--settings {path}: {text}") from None
-    if assignments:
-        try:
-            tree = override(tree, table_of(assignments))
-        except SettingsError as exc:
-            raise PneubayesError(f"--set {exc}") from None
-    return tree
-
-
-def _fit_flags(args, prefix: str = "") -> list:
-    """The settings tree's keys that fit's or discover's own options set (those given),
-    as ``(key path, value)`` pairs under ``prefix`` (``"fit."`` for discover)."""
-    from pneubayes.simulation import SolverConfig
-
-    out = []
-
-    def put(key, value):
-        out.append((tuple(f"{prefix}{key}".split(".")), value))
-    if getattr(args, "horizon", None) is not None:
-        put("horizon_s", args.horizon)
-        if getattr(args, "stride", None) is None:
-            put("stride_s", args.horizon)
-    if getattr(args, "stride", None) is not None:
-        put("stride_s", args.stride)
-    for opt, key in (("position_cutoff", "position_cutoff_Hz"),
-                     ("supply_cutoff", "supply_cutoff_Hz")):
-        v = getattr(args, opt, None)
-        if v is not None:
-            put(key, v or None)  # 0: raw
-    if getattr(args, "walkers", None) is not None:
-        put("sampler.n_walkers", args.walkers)
-    if getattr(args, "max_steps", None) is not None:
-        put("sampler.max_steps", args.max_steps)
-    if args.seed is not None:
-        put("sampler.seed", args.seed)
-    if getattr(args, "jacobian_refresh", None) is not None:
-        put("refine_jacobian_refresh", args.jacobian_refresh)
-    if getattr(args, "pressure_filter", None) is not None:
-        put("pressure_filter", args.pressure_filter)
-    if getattr(args, "no_dense_output", False):
-        put("sample_solver", SolverConfig.standard())
-    return out
-
-
-def _with_options(tree, pairs):
-    """``tree`` with the options' values at their key paths, applied as a settings
-    file's table is (:func:`pneubayes.settings_tree.override`; a settings object such as
-    a PressureFilter as its table)."""
-    import dataclasses
-
-    from pneubayes.settings_tree import override, table_of
-
-    return override(tree, table_of(
-        (path, dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v)
-        for path, v in pairs))
-
-
-def _fit_settings(args):
-    """fit's FitSettings: the defaults, the --settings file, then the options given."""
-    from pneubayes.inference.pipeline import FitSettings
-
-    return _with_options(_settings_tree(FitSettings(), args.settings), _fit_flags(args))
 
 
 def _run_horizon(run: Path) -> float:
@@ -245,25 +169,6 @@ def _check_filter(recs, pressure_filter) -> None:
                 f"the cutoff is over {FILTER_MAX_OVER_RATE:g} x the sample rate of "
                 f"{r.source} ({rate:g} Hz), where the filter changes no sample; a DAQ's "
                 "anti-alias filter lies near or below its sample rate")
-
-
-def _windows(args) -> dict:
-    """FitSettings' windows from --horizon and --stride (default: the horizon)."""
-    return {"horizon_s": args.horizon, "stride_s": args.stride or args.horizon}
-
-
-def _refinement(args) -> dict:
-    """FitSettings' refinement options given on the command line (--jacobian-refresh)."""
-    k = args.jacobian_refresh
-    return {} if k is None else {"refine_jacobian_refresh": k}
-
-
-def _sampling(args) -> dict:
-    """FitSettings' likelihood solver when --no-dense-output asks for the stepping at
-    every sample (else the settings' default, ``SolverConfig.sampling()``)."""
-    from pneubayes.simulation import SolverConfig
-
-    return {"sample_solver": SolverConfig.standard()} if args.no_dense_output else {}
 
 
 #: The fewest sample intervals a prediction window spans (--horizon).
@@ -551,7 +456,7 @@ def cmd_fit(args) -> int:
         raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
                              "--effects (the fitted model has no leak)")
     _no_bound_twice(args.bounds)
-    settings = _fit_settings(args)
+    settings = fit_settings(args)
     sampler = settings.sampler
     known = _known_from(args) if args.known_from or args.refit else None
     recs = _read_all(args.recordings, args.accept, "fit", args.rig)
@@ -787,37 +692,10 @@ def cmd_track(args) -> int:
     return 0
 
 
-def _discovery_settings(args):
-    """discover's DiscoverySettings: the defaults, the --settings file, the options given,
-    then every --set."""
-    from pneubayes.discovery.settings import DiscoverySettings
-    from pneubayes.settings_tree import SettingsError
-
-    tree = _settings_tree(DiscoverySettings(), args.settings)
-    pairs = _fit_flags(args, "fit.")
-    if args.held_out:
-        pairs.append((("data", "holdout_recordings"), len(args.held_out)))
-    if args.max_effects is not None:
-        pairs.append((("rounds", "max_effects"), args.max_effects))
-    if args.posterior is not None:
-        pairs.append((("posterior", "method"), args.posterior))
-    if args.seed is not None:
-        pairs.append((("seed",), args.seed))
-    tree = _with_options(tree, pairs)
-    tree = _settings_tree(tree, None, args.set)
-    if args.held_out and tree.data.holdout_recordings != len(args.held_out):
-        raise PneubayesError(f"--held-out: {len(args.held_out)} recordings, but "
-                             f"data.holdout_recordings = {tree.data.holdout_recordings}")
-    if not args.held_out and tree.data.holdout_recordings:
-        raise SettingsError(f"data.holdout_recordings = {tree.data.holdout_recordings}: the "
-                            "recordings held out whole are named with --held-out")
-    return tree
-
-
 def cmd_discover(args) -> int:
     from pneubayes.discovery.report import run_discover
 
-    settings = _discovery_settings(args)
+    settings = discovery_settings(args)
     recs = _read_all([*args.recordings, *args.held_out], args.accept, "discover", args.rig)
     _check_filter(recs, settings.fit.pressure_filter)
     _check_windows(recs, settings.fit.horizon_s, settings.fit.stride_s, args.force)

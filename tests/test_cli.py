@@ -129,7 +129,7 @@ def test_discover_rejects_a_bad_setting_before_reading(bench_dir, tmp_path, caps
 def test_discover_reads_one_tree_from_file_options_and_set_in_that_order(tmp_path):
     """The settings file, then the options, then ``--set``; the same names all the way
     down (a study's ``[settings.discovery]`` table is the same tree)."""
-    from pneubayes import cli
+    from pneubayes import cli_settings
     from pneubayes.cli_args import build_parser
 
     f = tmp_path / "s.toml"
@@ -139,47 +139,47 @@ def test_discover_reads_one_tree_from_file_options_and_set_in_that_order(tmp_pat
                                       "--max-effects", "3", "--posterior", "none",
                                       "--set", "rounds.max_effects=1",
                                       "--set", "forms.tube_line_form=line"])
-    s = cli._discovery_settings(args)
+    s = cli_settings.discovery_settings(args)
     assert s.rounds.max_effects == 1 and s.stages.pair_members == 0 and s.seed == 5
     assert s.fit.horizon_s == 0.5 and s.fit.sampler.n_walkers == 48
     assert s.posterior.method == "none" and s.forms.tube_line_form == "line"
     args = build_parser().parse_args(["discover", "r.csv", "--out", "o", "--horizon", "0.2",
                                       "--seed", "7"])
-    s = cli._discovery_settings(args)
+    s = cli_settings.discovery_settings(args)
     assert (s.fit.horizon_s, s.fit.stride_s, s.seed, s.fit.sampler.seed) == (0.2, 0.2, 7, 7)
     with pytest.raises(PneubayesError, match="s.toml: .*rounds.nope: unknown key"):
         f.write_text("[rounds]\nnope = 1\n")
-        cli._discovery_settings(build_parser().parse_args(
+        cli_settings.discovery_settings(build_parser().parse_args(
             ["discover", "r.csv", "--out", "o", "--settings", str(f)]))
     with pytest.raises(PneubayesError, match="no such settings file"):
-        cli._discovery_settings(build_parser().parse_args(
+        cli_settings.discovery_settings(build_parser().parse_args(
             ["discover", "r.csv", "--out", "o", "--settings", str(tmp_path / "none.toml")]))
 
 
 def test_no_dense_output_gives_the_fits_the_stepping_at_every_sample():
-    from pneubayes import cli
+    from pneubayes import cli_settings
     from pneubayes.cli_args import build_parser
     from pneubayes.simulation import SolverConfig
 
     parser = build_parser()
     plain = parser.parse_args(["fit", "r.csv", "--out", "o"])
     stepped = parser.parse_args(["fit", "r.csv", "--out", "o", "--no-dense-output"])
-    assert cli._fit_settings(plain).sample_solver == SolverConfig.sampling()
-    assert cli._fit_settings(stepped).sample_solver == SolverConfig.standard()
+    assert cli_settings.fit_settings(plain).sample_solver == SolverConfig.sampling()
+    assert cli_settings.fit_settings(stepped).sample_solver == SolverConfig.standard()
 
 
 def test_fit_reads_its_settings_file_and_its_options_override_it(tmp_path):
-    from pneubayes import cli
+    from pneubayes import cli_settings
     from pneubayes.cli_args import build_parser
 
     f = tmp_path / "fit.toml"
     f.write_text("horizon_s = 0.5\nposition_cutoff_Hz = 20.0\n[sampler]\nmax_steps = 300\n")
     parser = build_parser()
-    s = cli._fit_settings(parser.parse_args(["fit", "r.csv", "--out", "o", "--settings",
+    s = cli_settings.fit_settings(parser.parse_args(["fit", "r.csv", "--out", "o", "--settings",
                                              str(f)]))
     assert (s.horizon_s, s.stride_s, s.position_cutoff_Hz) == (0.5, 2.0, 20.0)
     assert s.sampler.max_steps == 300
-    s = cli._fit_settings(parser.parse_args(["fit", "r.csv", "--out", "o", "--settings",
+    s = cli_settings.fit_settings(parser.parse_args(["fit", "r.csv", "--out", "o", "--settings",
                                              str(f), "--horizon", "0.3", "--max-steps",
                                              "50", "--position-cutoff", "0"]))
     assert (s.horizon_s, s.stride_s, s.position_cutoff_Hz) == (0.3, 0.3, None)
