@@ -20,9 +20,6 @@ from pneubayes.model import Model
 from pneubayes.run_folder import recorded_number
 from pneubayes.simulation import Inputs, SolverConfig
 
-#: z of the 5 and 95 % quantiles of a normal
-Z90 = 1.6448536269514722
-
 
 def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
            n_draws: int, rng: np.random.Generator, predict_every: int = 1,
