@@ -27,7 +27,7 @@ from pneubayes.bench.forms import (
     forms_from_names,
     out_of_catalogue_defaults,
 )
-from pneubayes.bench.plant import PlantConfig, simulate_plant
+from pneubayes.bench.plant import PlantConfig, forchheimer_flow, simulate_plant
 from pneubayes.physics.orifice import flow_terms
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig
@@ -280,7 +280,7 @@ def test_silencer_slows_the_exhaust_and_its_element_law_inverts():
     sil = out_of_catalogue_defaults("ExhaustSilencer")
     r_l, r_t = sil.resistances
     for m in (-2e-3, -1e-4, 0.0, 3e-5, 1e-3, 5e-3):
-        assert sil.outflow_kg_per_s(r_l * m + r_t * m * abs(m)) == pytest.approx(m, abs=1e-15)
+        assert forchheimer_flow(r_l * m + r_t * m * abs(m), r_l, r_t) == pytest.approx(m, abs=1e-15)
     assert r_l * 1e-3 + r_t * 1e-6 == pytest.approx(sil.back_pressure_Pa)
 
 

@@ -404,15 +404,6 @@ class ExhaustSilencer(PlantForm):
         return (self.laminar_fraction * self.back_pressure_Pa / m,
                 (1.0 - self.laminar_fraction) * self.back_pressure_Pa / (m * m))
 
-    def outflow_kg_per_s(self, drop_Pa: float) -> float:
-        """The element's steady mass flow at a drop ``p_m - P_atm``, kg/s (signed)."""
-        r_l, r_t = self.resistances
-        d = abs(drop_Pa)
-        if d == 0.0:
-            return 0.0
-        m = 2.0 * d / (r_l + math.sqrt(r_l * r_l + 4.0 * r_t * d))
-        return m if drop_Pa > 0 else -m
-
 
 @dataclass(frozen=True)
 class ScoredBarrelLeak(PlantForm):
