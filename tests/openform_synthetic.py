@@ -61,4 +61,5 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3) -> dict:
             "inlet_flow_kg_per_s": a_in * flow_function(p_sup, p, gas),
             "exhaust_flow_kg_per_s": a_ex * flow_function(p, P_ATM, gas),
             "volume_m3": vol, "volume_rate_m3_per_s": vdot,
-            "command_direction": command_direction(u)}
+            "command_direction": command_direction(u), "time_s": t,
+            "interval_s": np.full(n, dt_s)}

@@ -66,11 +66,20 @@ CASES = {
     # a valve with hysteresis: 10 % more inlet flow after a rise, 10 % less after a fall
     "command_direction*inlet_flow": (Term("command_direction", "inlet_flow"), 0.0, 0.0,
                                      0.1),
+    # a side volume behind a passage: m = -k (p - p_bar), p_bar the pressure's 50-ms
+    # low-pass
+    "pressure_relaxation": (Term("pressure_relaxation"), 0.05, 0.0, -2e-5),
+    # a wall that creeps (0.2 s) after the pressure, its volume's rate scaled by p
+    "pressure_relaxation*pressure_ratio": (Term("pressure_relaxation", "pressure_ratio"),
+                                           0.2, 0.0, -5e-6),
 }
+#: A relaxation's time constant within this factor of the planted one.
+TIME_CONSTANT_FACTOR = 1.3
 
 
 #: The fast tier's cases (a hinge with its threshold, a product); the rest are slow.
-_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio", "net_flow*pressure_ratio")
+_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio", "net_flow*pressure_ratio",
+         "pressure_relaxation*pressure_ratio")
 
 
 @pytest.mark.parametrize("case", [
@@ -90,6 +99,9 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
         assert abs(found.threshold_a - ta) < PRESSURE_THRESHOLD_TOL
     if term.a.startswith("spool_hinge"):
         assert abs(found.threshold_a - ta) < SPOOL_THRESHOLD_TOL
+    if term.a == "pressure_relaxation":  # (a product may hold it on either side)
+        tau = found.threshold_a if found.term.a == term.a else found.threshold_b
+        assert 1 / TIME_CONSTANT_FACTOR < tau / ta < TIME_CONSTANT_FACTOR
     # the answer unpacks as a closure's start values
     term_, th_a, th_b, coef, p_inc, share = found
     assert closure_spec(s.terms_) == str(term_)
@@ -137,12 +149,17 @@ def test_intervals_marked_invalid_are_left_out():
 def test_the_library_is_typed_and_bounded():
     sig = [_signals(0)]
     cands = candidate_terms(sig)
-    assert 100 < len(cands) <= 382  # features.py's count at most
+    # features.py's count at most, and the relaxation's grid (3 ms to 1 s here) four
+    # times over
+    assert 100 < len(cands) <= 382 + 4 * 8
+    taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
+    assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
     families = {c.family for c in cands}
     assert {"one", "pressure_ratio", "pressure_ratio*pressure_ratio", "pressure_hinge",
             "inlet_flow*spool_hinge_up", "spool_hinge_down", "pressure_hinge_down",
             "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down",
-            "inlet_flow*command_direction", "command_direction"} <= families
+            "inlet_flow*command_direction", "command_direction", "pressure_relaxation",
+            "pressure_ratio*pressure_relaxation"} <= families
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
     for hinge in ("pressure_hinge", "pressure_hinge_down"):

@@ -3,7 +3,8 @@
 Each term is ``c_k F_a F_b`` (kg/s) of the features of
 :mod:`pneubayes.effects.closure_features` (``F_b = one`` for a single feature); its
 coefficient ``closure_coefficient_{k}`` carries ``kg/s`` over the features' units and each
-hinge feature's threshold is a parameter ``closure_threshold_{k}_{a|b}``. The terms are
+hinge feature's threshold (a relaxation's time constant, s) is a parameter
+``closure_threshold_{k}_{a|b}``. The terms are
 the ``terms`` option, e.g. ``"inlet_flow*pressure_hinge; one"``, so a model card stores
 them (they cannot be read off the parameter names).
 
@@ -41,19 +42,21 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "inlet_area": 5.0, "exhaust_area": 5.0, "inlet_flow": 1e-3, "exhaust_flow": 1e-3,
     "volume": 100.0, "volume_rate": 100.0, "pressure_hinge": 10.0, "spool_hinge_up": 20.0,
     "spool_hinge_down": 20.0, "net_flow": 1e-3, "pressure_hinge_down": 10.0,
-    "command_direction": 1.0,
+    "command_direction": 1.0, "pressure_relaxation": 1.0,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
 FLOW_BOUND_KG_PER_S = 1e-3
 #: The bench's coefficient as a fraction of its bound (1e-5 kg/s for ``one``).
 BENCH_FRACTION = 0.01
-#: A hinge threshold's bounds, neutral (start) and bench value, by feature (its unit).
+#: A hinge threshold's bounds, neutral (start) and bench value, by feature (its unit;
+#: a relaxation's time constant in s, log-uniform between its bounds).
 THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "pressure_hinge": (1.0, 10.0, 5.5, 3.0),
     "spool_hinge_up": (-10.0, 10.0, 0.0, 2.0),
     "spool_hinge_down": (-10.0, 10.0, 0.0, -2.0),
     "pressure_hinge_down": (1.0, 10.0, 5.5, 3.0),
+    "pressure_relaxation": (1e-3, 10.0, 0.1, 0.2),
 }
 
 
@@ -101,10 +104,12 @@ class Closure(Effect):
             for side in t.hinges():
                 f = feature(getattr(t, side))
                 lo, hi, mid, _ = THRESHOLDS[f.name]
-                out.append(Parameter(f"closure_threshold_{k}_{side}", f.unit, lo, hi,
-                                     "uniform", f"closure term {k} ({t}): the threshold "
-                                     f"of its {f.name} feature (the term vanishes with its "
-                                     "coefficient whatever the threshold)", neutral=mid))
+                what = "time constant" if f.time_constant else "threshold"
+                out.append(Parameter(f"closure_threshold_{k}_{side}", f.parameter_unit, lo,
+                                     hi, "log-uniform" if f.time_constant else "uniform",
+                                     f"closure term {k} ({t}): the {what} of its {f.name} "
+                                     "feature (the term vanishes with its coefficient "
+                                     f"whatever the {what})", neutral=mid))
         return tuple(out)
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):

@@ -13,8 +13,14 @@ the unit ``kg/s / (unit_a unit_b)``. The hinge features carry a threshold ``thet
 The same table is evaluated in two places that must agree to rounding: in numpy by
 :func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
 in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
-One feature has memory: ``command_direction``, the sign of the delayed command's last
-change (:func:`held_direction`; the kernel tracks it as it walks the command).
+Two features have memory: ``command_direction``, the sign of the delayed command's last
+change (:func:`held_direction`; the kernel tracks it as it walks the command), and
+``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
+with a fitted time constant (:func:`relaxed_pressure`; the kernel carries ``p_bar`` as a
+state). The relaxation is what a chamber shows when something behind it follows the
+pressure with a lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
+exactly, to first order in the passage's law), a wall that creeps after a pressure
+step, gas that trades heat with the wall.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import lfilter
 
 #: Scale of the area features: areas enter in mm^2 so coefficients are O(flow).
 AREA_SCALE_M2 = 1e-6
@@ -34,13 +41,21 @@ class Feature:
     """One base feature of the closure library.
 
     ``code`` is its index in the compiled simulator's switch; ``unit`` the unit of its
-    value; ``hinge`` whether it has a fitted threshold (in ``unit``)."""
+    value; ``hinge`` whether it has a fitted parameter in the closure's threshold slot:
+    a hinge's threshold (in ``unit``) or, with ``time_constant``, a relaxation's time
+    constant (s)."""
 
     name: str
     code: int
     unit: str
     description: str
     hinge: bool = False
+    time_constant: bool = False
+
+    @property
+    def parameter_unit(self) -> str:
+        """The unit of its fitted parameter (a threshold's or a time constant's)."""
+        return "s" if self.time_constant else self.unit
 
 
 FEATURES: tuple[Feature, ...] = (
@@ -67,6 +82,10 @@ FEATURES: tuple[Feature, ...] = (
     Feature("command_direction", 15, "-", "the sign of the delayed command's last change: "
             "+1 after a rise, -1 after a fall, 0 before its first (a valve's memory of "
             "its direction: hysteresis, play)"),
+    Feature("pressure_relaxation", 16, "-", "(p - p_bar) / P_atm, p_bar the chamber "
+            "pressure low-passed with time constant theta (s): what follows the pressure "
+            "with a lag (a side volume behind a passage, a creeping wall, heat exchange)",
+            hinge=True, time_constant=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -81,6 +100,97 @@ SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spoo
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
            "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s",
            "command_direction")
+#: Read by ``pressure_relaxation`` only: the signals' times ``"time_s"`` (s, increasing)
+#: to low-pass ``pressure_Pa`` along, or a ``"pressure_history"`` object whose
+#: ``relaxed(tau_s)`` gives ``p_bar`` at the signals' points (:class:`PressureHistory`).
+RELAXATION_SIGNALS = ("time_s", "pressure_history")
+
+
+def relaxed_pressure(time_s, pressure_Pa, tau_s: float, start_Pa=None) -> np.ndarray:
+    """The first-order low-pass ``p_bar`` of a pressure series, Pa:
+    ``tau dp_bar/dt = p - p_bar`` stepped exactly for ``p`` linear between its samples,
+    from ``p_bar = start_Pa`` (None: the first finite sample, at rest). A non-finite
+    sample holds ``p_bar`` (the interval is skipped and the next finite sample starts a
+    new segment).
+
+    Parameters
+    ----------
+    time_s, pressure_Pa : (N,) arrays
+        Sample times (s, increasing) and pressures (Pa).
+    tau_s : float
+        The time constant, s (> 0).
+    start_Pa : float or None
+
+    Returns
+    -------
+    (N,) array
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    p = np.asarray(pressure_Pa, dtype=np.float64)
+    if t.shape != p.shape or t.ndim != 1:
+        raise ValueError(f"relaxed_pressure: time_s and pressure_Pa must be 1-D of one "
+                         f"length, got {t.shape} and {p.shape}")
+    if not (np.isfinite(tau_s) and tau_s > 0):
+        raise ValueError(f"relaxed_pressure: tau_s must be > 0, got {tau_s!r}")
+    out = np.empty_like(p)
+    if p.size == 0:
+        return out
+    finite = np.isfinite(p)
+    if start_Pa is None:
+        start_Pa = p[np.argmax(finite)] if finite.any() else np.nan
+    h = np.diff(t)
+    ok = finite[1:] & finite[:-1]
+    a = np.exp(-h / tau_s)
+    # p linear over [t_k, t_k+1] at slope s: p_bar' = p' - s tau + (p_bar - p + s tau) a
+    s = np.where(ok, (p[1:] - p[:-1]) / np.where(h > 0, h, 1.0), 0.0)
+    b = np.where(ok, p[1:] - s * tau_s - a * (p[:-1] - s * tau_s), 0.0)
+    a = np.where(ok, a, 1.0)  # a skipped interval holds p_bar
+    out[0] = float(start_Pa)
+    if h.size and np.all(a == a[0]):  # uniform sampling, no gap: one linear filter
+        out[1:] = lfilter([1.0], [1.0, -a[0]], b, zi=[a[0] * out[0]])[0]
+        return out
+    y = out[0]
+    for k in range(h.size):  # (a first-order recursion)
+        y = a[k] * y + b[k]
+        out[k + 1] = y
+    return out
+
+
+class PressureHistory:
+    """A pressure series whose relaxed values :func:`relaxed_pressure` gives per time
+    constant (cached: a search evaluates one time constant many times).
+
+    Parameters
+    ----------
+    time_s, pressure_Pa : (N,) arrays
+        The series (s, Pa), e.g. the measured chamber pressure at a recording's interval
+        midpoints.
+    """
+
+    def __init__(self, time_s, pressure_Pa):
+        self.time_s = np.asarray(time_s, dtype=np.float64)
+        self.pressure_Pa = np.asarray(pressure_Pa, dtype=np.float64)
+        self._cache: dict[float, np.ndarray] = {}
+
+    def relaxed(self, tau_s: float) -> np.ndarray:
+        """``p_bar`` at the series' points for time constant ``tau_s`` (s), Pa."""
+        key = float(tau_s)
+        if key not in self._cache:
+            if len(self._cache) > 64:
+                self._cache.clear()
+            self._cache[key] = relaxed_pressure(self.time_s, self.pressure_Pa, key)
+        return self._cache[key]
+
+
+def _relaxed(signals: dict, tau_s: float) -> np.ndarray:
+    history = signals.get("pressure_history")
+    if history is None:
+        if "time_s" not in signals:
+            raise ValueError("closure feature 'pressure_relaxation' needs the pressure's "
+                             "history: give signals 'time_s' (the points' times, s) or "
+                             "'pressure_history' (a PressureHistory)")
+        history = PressureHistory(signals["time_s"], signals["pressure_Pa"])
+    return history.relaxed(tau_s)
 
 
 def feature(name: str) -> Feature:
@@ -94,7 +204,8 @@ def feature(name: str) -> Feature:
 
 def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.ndarray:
     """The value of base feature ``name`` on ``signals`` (see :data:`SIGNALS`);
-    ``threshold`` is a hinge feature's theta (ignored otherwise)."""
+    ``threshold`` is a hinge feature's theta or a relaxation's time constant in s
+    (ignored otherwise)."""
     f = feature(name)
     s = signals
     p_atm = np.asarray(s["atmospheric_pressure_Pa"], dtype=np.float64)
@@ -132,6 +243,8 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
                 - np.asarray(s["exhaust_flow_kg_per_s"], dtype=np.float64) + 0.0 * p)
     if f.code == 14:
         return np.maximum(threshold - p / p_atm, 0.0)
+    if f.code == 16:
+        return (p - _relaxed(s, threshold)) / p_atm
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
@@ -233,6 +346,7 @@ SYMBOLS: dict[str, str] = {
     "spool_hinge_up": "max(0, s - {theta})", "spool_hinge_down": "max(0, {theta} - s)",
     "net_flow": "(m_in - m_ex)", "pressure_hinge_down": "max(0, {theta} - p / P_atm)",
     "command_direction": "sgn(du)",
+    "pressure_relaxation": "((p - p_bar[{theta}]) / P_atm)",
 }
 
 

@@ -153,7 +153,12 @@ SLOTS += (
      "(the feature's unit; read only for a hinge feature)")
     for k in range(CLOSURE_MAX_TERMS)) + tuple(
     (f"closure_coefficient_{k}", f"closure term {k}: its coefficient c_k (kg/s per the "
-     "features' units)") for k in range(CLOSURE_MAX_TERMS))
+     "features' units)") for k in range(CLOSURE_MAX_TERMS)) + tuple(
+    (f"closure_relaxed_{s}_{k}", f"closure term {k}: the simulator's working value of its "
+     f"{'first' if s == 'a' else 'second'} feature's relaxed pressure p_bar (feature "
+     "pressure_relaxation; Pa), written by the compiled simulator on its own copy of the "
+     "slots as it steps; lowered as 0")
+    for s in "ab" for k in range(CLOSURE_MAX_TERMS))
 
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8

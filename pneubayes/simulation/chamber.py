@@ -40,6 +40,8 @@ _CL_FB = SLOT_INDEX["closure_feature_b_0"]
 _CL_TA = SLOT_INDEX["closure_threshold_a_0"]
 _CL_TB = SLOT_INDEX["closure_threshold_b_0"]
 _CL_C = SLOT_INDEX["closure_coefficient_0"]
+_CL_RA = SLOT_INDEX["closure_relaxed_a_0"]
+_CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
 #: The closure's area and volume features' scales (m^2 and m^3 per feature unit; the
 #: values of :mod:`pneubayes.effects.closure_features`, which a test checks).
 _AREA_SCALE = 1e-6
@@ -87,7 +89,7 @@ def wall_exchange(kappa, hconv, bore_a, vol):
 @njit(cache=True, error_model="numpy")
 def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                     vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt,
-                    cdir):
+                    cdir, pbar):
     """One closure feature (:data:`pneubayes.effects.closure_features.FEATURES`, by its
     ``code``) as ``(F, dF/dp, dF/dt)``: its value, its slope in the chamber pressure and
     its explicit time derivative at fixed pressure.
@@ -99,7 +101,9 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     ``da_in``, ``da_ex`` the rates of the supply, spool and port areas. ``theta`` is a
     hinge's threshold. The volume rate's explicit derivative holds ``vdot`` fixed (the
     position is linear between samples). ``cdir`` is the delayed command's direction
-    (+1, -1 or 0), constant between the command's changes."""
+    (+1, -1 or 0), constant between the command's changes; ``pbar`` a relaxation's
+    relaxed pressure (Pa), which the kernel holds over a step at its value half-way
+    through (so the feature's explicit time derivative is taken as 0)."""
     if code == 0:
         return 1.0, 0.0, 0.0
     if code == 1:
@@ -135,6 +139,8 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     if code == 14:
         z = theta - p / p_atm
         return (z, -1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 16:
+        return (p - pbar) / p_atm, 1.0 / p_atm, 0.0
     return cdir, 0.0, 0.0
 
 
@@ -150,11 +156,11 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
         fa, da_p, da_t = closure_feature(int(sl[_CL_FA + k]), sl[_CL_TA + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
-                                         da_ex, dq_in_dt, dq_ex_dt, cdir)
+                                         da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RA + k])
         fb, db_p, db_t = closure_feature(int(sl[_CL_FB + k]), sl[_CL_TB + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
-                                         da_ex, dq_in_dt, dq_ex_dt, cdir)
+                                         da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RB + k])
         m += c * (fa * fb)
         dm_dp += c * (da_p * fb + fa * db_p)
         dm_dt += c * (da_t * fb + fa * db_t)

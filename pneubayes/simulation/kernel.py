@@ -46,7 +46,12 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX, TABLE_MAX_POINTS
+from pneubayes.effects.path import (
+    CLOSURE_MAX_TERMS,
+    LINE_MAX_SEGMENTS,
+    SLOT_INDEX,
+    TABLE_MAX_POINTS,
+)
 from pneubayes.physics.calibration import (
     pressure_behind_reading_scalar,
     sensor_reading_scalar,
@@ -99,6 +104,11 @@ from pneubayes.simulation.reading import (
     second_order_curvature,
     second_order_exponential_deviation,
     second_order_step,
+)
+from pneubayes.simulation.relaxation import (
+    relaxation_mid,
+    relaxation_start,
+    relaxation_step,
 )
 from pneubayes.simulation.spool import spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
@@ -183,6 +193,11 @@ _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
 _CL_N = SLOT_INDEX["closure_terms"]
 _CL_FA = SLOT_INDEX["closure_feature_a_0"]
 _CL_FB = SLOT_INDEX["closure_feature_b_0"]
+_CL_TA = SLOT_INDEX["closure_threshold_a_0"]
+_CL_TB = SLOT_INDEX["closure_threshold_b_0"]
+_CL_RA = SLOT_INDEX["closure_relaxed_a_0"]
+_CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
+_CL_MAX = CLOSURE_MAX_TERMS
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -350,6 +365,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # command's direction (code 15; both change only with the command), or the volume
     # rate (code 9), which the reuse of a step's end below must respect
     cl_spool, cl_vdot, cl_dir = False, False, False
+    # and its relaxations (code 16): each one's relaxed-pressure slot, time constant and
+    # value, which the kernel steps (relaxation.py) on its own copy of the slots
+    rx_n = 0
+    rx_idx = np.zeros(2 * _CL_MAX, dtype=np.int64)
+    rx_tau = np.zeros(2 * _CL_MAX)
+    rx_val = np.zeros(2 * _CL_MAX)
     for kc in range(int(sl[_CL_N])):
         for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
             if code == 3.0 or code == 11.0 or code == 12.0:
@@ -358,6 +379,19 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 cl_spool, cl_dir = True, True
             if code == 9.0:
                 cl_vdot = True
+        if sl[_CL_FA + kc] == 16.0:
+            rx_idx[rx_n], rx_tau[rx_n] = _CL_RA + kc, sl[_CL_TA + kc]
+            rx_n += 1
+        if sl[_CL_FB + kc] == 16.0:
+            rx_idx[rx_n], rx_tau[rx_n] = _CL_RB + kc, sl[_CL_TB + kc]
+            rx_n += 1
+    cl_relax = rx_n > 0
+    rx_rate = 0.0  # the last accepted step's mean dp/dt (Pa/s): p over the next, linear
+    if cl_relax:
+        sl = sl.copy()
+        for q in range(rx_n):
+            if not rx_tau[q] > 0.0:
+                return NONFINITE
     if lung_from_p0:
         p_lung = p0
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
@@ -395,6 +429,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         if p0 + lead_s * rate0 > 0.0:
             p = p0 + lead_s * rate0
     max_steps += i0 - k0
+    for q in range(rx_n):  # a relaxation's p_bar from the reading's history
+        rx_val[q] = relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, cal_o,
+                                     cal_g)
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0_read
     want_sens = sens.shape[0] > 0
@@ -622,6 +659,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 steps += 1
                 if steps > max_steps:
                     return STEP_BUDGET
+                for q in range(rx_n):  # p_bar held over the step at its midpoint value
+                    sl[rx_idx[q]] = relaxation_mid(rx_val[q], p, rx_rate, hh, rx_tau[q])
                 # state and inputs at tau
                 fr = (tau - ta) * inv_seg
                 vol = v0 + bore * (xa + fr * (xb - xa))
@@ -738,8 +777,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
                 else:
                     c_ok = False
-                    if (fs_ok and not moving and not chord and a_in == fs_ain
-                            and a_ex == fs_aex and (not cl_spool or s_at == fs_s)
+                    if (fs_ok and not cl_relax and not moving and not chord
+                            and a_in == fs_ain and a_ex == fs_aex
+                            and (not cl_spool or s_at == fs_s)
                             and (fs_m == m or (rigid and gain == 0.0 and not cl_vdot))):
                         fp, jp, vp = fs_fp, fs_jp, fs_vp
                         if vdot != fs_vdot:  # a new chord of the position (rigid)
@@ -832,6 +872,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     p_tank = p_tank_new
                     p_lung = p_lung_new
                     p, temp = pn, tn
+                    if cl_relax:
+                        for q in range(rx_n):
+                            rx_val[q] = relaxation_step(rx_val[q], p_prev, p, tau - t_prev,
+                                                        rx_tau[q])
+                        rx_rate = (p - p_prev) / (tau - t_prev)
                     if general is not None and line:
                         s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
                     elif general is not None and wave:

@@ -33,9 +33,9 @@ from pneubayes.simulation.rates import rate_terms
 
 
 def _port_rate(sl, rig, p, spool_V, position_m, supply_Pa, exhaust_command):
-    # (the ports' terms only: a closure's, which may read the command's direction, not)
+    # (the ports' terms only)
     r = rate_terms(sl, rig, p, spool_V, position_m, np.zeros_like(p), supply_Pa,
-                   exhaust_command, np.zeros_like(p))
+                   exhaust_command, include_closure=False)
     return r.inlet + r.exhaust
 
 

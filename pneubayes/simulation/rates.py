@@ -76,9 +76,9 @@ def _closure_feature_values(code, threshold, signals: dict) -> np.ndarray:
     return out
 
 
-def _reads_direction(slots: np.ndarray) -> bool:
-    """Whether a live closure term reads feature ``command_direction``."""
-    code = float(FEATURE_BY_NAME["command_direction"].code)
+def _reads_feature(slots: np.ndarray, name: str) -> bool:
+    """Whether a live closure term reads feature ``name``."""
+    code = float(FEATURE_BY_NAME[name].code)
     n = np.asarray(slots[S["closure_terms"]])
     return any(bool(np.any((k < n) & (np.asarray(slots[S[f"closure_feature_{s}_{k}"]])
                                       == code)))
@@ -179,7 +179,8 @@ def tabulated_volume(slots: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.nda
 
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                velocity_m_per_s, supply_measured_Pa, exhaust_command=None,
-               command_direction=None) -> RateTerms:
+               command_direction=None, pressure_history=None,
+               include_closure: bool = True) -> RateTerms:
     """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
 
     ``spool_V`` is the command after any delay and lag (the caller shifts or filters
@@ -191,7 +192,12 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     area as the volume rate (:func:`closure_mass_flow`), and ``command_direction``
     (+1, -1 or 0: the delayed command's last change,
     :func:`~pneubayes.effects.closure_features.held_direction`), which must be given
-    when a term reads it. A supply tank
+    when a term reads it, and ``pressure_history`` (a
+    :class:`~pneubayes.effects.closure_features.PressureHistory` whose ``relaxed``
+    gives ``p_bar`` at the evaluation points), which a ``pressure_relaxation`` term
+    reads (``p_bar`` is held as given: the slope in ``pressure_Pa`` is the instant's).
+    ``include_closure=False`` leaves a closure's term at zero (for callers that read
+    only the ports' terms). A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
     does a second compartment's pressure (slot ``lung_volume_m3``): its flow is left out
     here (the simulator carries it).
@@ -224,18 +230,23 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                      * (p * p - p_atm * p_atm))
     volume = -kappa * p * vdot / denom
     closure = np.zeros(np.broadcast_shapes(np.shape(p), np.shape(sl[S["closure_terms"]])))
-    if np.any(sl[S["closure_terms"]] > 0):
-        if command_direction is None and _reads_direction(sl):
+    if include_closure and np.any(sl[S["closure_terms"]] > 0):
+        if command_direction is None and _reads_feature(sl, "command_direction"):
             raise ValueError("rate_terms: the closure reads the command's direction; give "
                              "command_direction (closure_features.held_direction of the "
                              "command at the evaluation times)")
+        if pressure_history is None and _reads_feature(sl, "pressure_relaxation"):
+            raise ValueError("rate_terms: the closure reads the relaxed pressure; give "
+                             "pressure_history (closure_features.PressureHistory of the "
+                             "pressure along the evaluation points)")
         signals = {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
                    "atmospheric_pressure_Pa": p_atm, "spool": np.asarray(spool_V, float),
                    "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
                    "inlet_flow_kg_per_s": q_in, "exhaust_flow_kg_per_s": q_ex,
                    "volume_m3": vol, "volume_rate_m3_per_s": vdot,
                    "command_direction": (0.0 if command_direction is None
-                                         else np.asarray(command_direction, float))}
+                                         else np.asarray(command_direction, float)),
+                   "pressure_history": pressure_history}
         closure = scale * closure_mass_flow(sl, signals)
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
     return RateTerms(inlet, exhaust, leak, volume, closure,

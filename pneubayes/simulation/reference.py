@@ -6,7 +6,9 @@ integrator; the integration, input handling, the spool (an ODE state here, close
 form there) and a sensor lag's reading (ODE states here, stepped exactly for a
 linear pressure there) are written separately. An open-form closure (effect
 ``closure``) is evaluated by :func:`pneubayes.effects.closure_features.evaluate_feature`,
-not by the compiled features. Slow: thousands of Python calls per second.
+not by the compiled features; a relaxation's ``p_bar`` is an ODE state here (starting at
+rest at the chamber's pressure), stepped by splitting there.
+Slow: thousands of Python calls per second.
 """
 
 from __future__ import annotations
@@ -14,7 +16,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from pneubayes.effects.closure_features import FEATURES, command_direction, evaluate_feature
+from pneubayes.effects.closure_features import (
+    FEATURE_BY_NAME,
+    FEATURES,
+    command_direction,
+    evaluate_feature,
+)
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
 from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa
@@ -25,6 +32,19 @@ from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
 from pneubayes.simulation.rates import dead_band
 from pneubayes.simulation.simulator import Inputs
+
+
+def relaxation_times(sl) -> list[float]:
+    """The distinct time constants (s) of a slot row's live ``pressure_relaxation``
+    features, in order of appearance."""
+    code = float(FEATURE_BY_NAME["pressure_relaxation"].code)
+    out: list[float] = []
+    for k in range(int(sl[S["closure_terms"]])):
+        for side in "ab":
+            tau = float(sl[S[f"closure_threshold_{side}_{k}"]])
+            if sl[S[f"closure_feature_{side}_{k}"]] == code and tau not in out:
+                out.append(tau)
+    return out
 
 
 def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=0.0):
@@ -73,10 +93,23 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                 FEATURES[int(sl[S[f"closure_feature_b_{k}"]])].name,
                 sl[S[f"closure_threshold_b_{k}"]])
                for k in range(int(sl[S["closure_terms"]]))]
+    # a relaxation's p_bar (feature pressure_relaxation): one state per time constant,
+    # after every other state
+    taus = relaxation_times(sl)
+    n_read = (2 if w_r > 0 else 1) if (w_r > 0 or lag > 0) else 0
+    i_relax = i_read + n_read + (1 if w_s > 0 else 0)
+
+    class _Held:  # p_bar from the states, for evaluate_feature
+        def __init__(self, y):
+            self.y = y
+
+        def relaxed(self, tau_s):
+            return self.y[i_relax + taus.index(float(tau_s))]
 
     def rhs(t, y):
         p, temp, spool = y[:3]
-        v_spool = y[-1] if w_s > 0 else 0.0  # a second-order spool's velocity: last
+        # a second-order spool's velocity: after the reading
+        v_spool = y[i_read + n_read] if w_s > 0 else 0.0
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
         s = spool if tau_s > 0 or w_s > 0 else cmd
@@ -145,7 +178,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
                        "inlet_flow_kg_per_s": a_in * f_in_raw,
                        "exhaust_flow_kg_per_s": a_ex * f_out_raw, "volume_m3": v_c,
-                       "volume_rate_m3_per_s": vdot, "command_direction": cdir}
+                       "volume_rate_m3_per_s": vdot, "command_direction": cdir,
+                       "pressure_history": _Held(y)}
             flows.append(sum(float(c * evaluate_feature(fa, signals, ta)
                                    * evaluate_feature(fb, signals, tb))
                              for c, fa, ta, fb, tb in closure))
@@ -183,8 +217,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             d_reading = [float(dr), float(w_r**2 * (p - r) - 2 * z_r * w_r * dr)]
         else:
             d_reading = [float(p - y[i_read]) / lag] if lag > 0 else []
+        d_relax = [float(p - y[i_relax + q]) / tau for q, tau in enumerate(taus)]
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
-                + d_tank + d_reading + d_spool_v)
+                + d_tank + d_reading + d_spool_v + d_relax)
 
     return rhs
 
@@ -267,9 +302,12 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     out = np.empty(t.size)
     read = (y.size - 2 if w_r > 0 else y.size - 1) if (w_r > 0 or lag > 0) else 0
     w_s = sl[S["spool_natural_frequency_rad_per_s"]]
-    if w_s > 0:  # a second-order spool's velocity: the last state, at rest at the start
+    if w_s > 0:  # a second-order spool's velocity: at rest at the start
         y = np.append(y, 0.0)
         atols.append(1e-9 * w_s)
+    for _ in relaxation_times(sl):  # a relaxation's p_bar: at rest at the chamber's
+        y = np.append(y, y[0])
+        atols.append(atol)
     out[0] = y[read]
     nfev = 0
     # position and supply are read at t + adv (a filter on every channel, effect

@@ -9,7 +9,10 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 - the products of every pair of non-constant, non-hinge base features (squares
   included: a laminar leak is ``p^2``);
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
-  ``exhaust_flow``.
+  ``exhaust_flow``;
+- the relaxation ``pressure_relaxation`` at each time constant of a fixed grid
+  (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times the same
+  three partners (its time constant is its "threshold": a family keeps one).
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
@@ -35,6 +38,13 @@ from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
 #: Hinge features and the signal their thresholds are quantiles of.
 HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
                  "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio"}
+#: The time constants (s) a relaxation (``pressure_relaxation``) is tried at, those
+#: that the recordings resolve (:func:`relaxation_times`).
+RELAXATION_TIMES_S = (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+#: A relaxation's time constant is tried from this many sample intervals ...
+RELAXATION_MIN_INTERVALS = 3.0
+#: ... to this share of the shortest recording (a slower one is a constant offset there).
+RELAXATION_MAX_SHARE = 0.25
 #: The partners each hinge is multiplied with.
 HINGE_PARTNERS = ("pressure_ratio", "inlet_flow", "exhaust_flow")
 #: The default quantiles of the hinge thresholds.
@@ -74,6 +84,32 @@ class Candidate:
 INTERIOR_MARGIN = 1e-3
 
 
+def relaxation_range(signals_list: Sequence[dict]) -> tuple[float, float]:
+    """The time constants (s) the recordings resolve: from
+    :data:`RELAXATION_MIN_INTERVALS` median sample intervals to
+    :data:`RELAXATION_MAX_SHARE` of the shortest recording; ``(0, 0)`` (none) when a
+    recording's signals carry no ``"interval_s"`` or ``"time_s"``."""
+    dts, spans = [], []
+    for s in signals_list:
+        h = (np.asarray(s["interval_s"], dtype=np.float64) if "interval_s" in s
+             else np.diff(np.asarray(s["time_s"], dtype=np.float64)) if "time_s" in s
+             else np.zeros(0))
+        if not h.size:
+            return (0.0, 0.0)
+        dts.append(float(np.median(h)))
+        spans.append(float(np.sum(h)))
+    if not dts:
+        return (0.0, 0.0)
+    return RELAXATION_MIN_INTERVALS * max(dts), RELAXATION_MAX_SHARE * min(spans)
+
+
+def relaxation_times(signals_list: Sequence[dict]) -> np.ndarray:
+    """The grid of :data:`RELAXATION_TIMES_S` inside :func:`relaxation_range`, s."""
+    lo, hi = relaxation_range(signals_list)
+    g = np.asarray(RELAXATION_TIMES_S, dtype=np.float64)
+    return g[(g >= lo) & (g <= hi)]
+
+
 def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
                      ) -> dict[str, np.ndarray]:
     """Per hinge feature, its grid of thresholds: the ``quantiles`` of its source
@@ -90,7 +126,8 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     Returns
     -------
     dict
-        Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit).
+        Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit), and
+        ``"pressure_relaxation"`` -> its time constants (s, :func:`relaxation_times`).
     """
     q = np.asarray(quantiles, dtype=np.float64)
     if q.size == 0 or np.any(~((q > 0) & (q < 1))):
@@ -105,6 +142,7 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
         lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 0.0)
         margin = INTERIOR_MARGIN * (hi - lo)
         out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
+    out["pressure_relaxation"] = relaxation_times(signals_list)
     return out
 
 

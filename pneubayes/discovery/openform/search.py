@@ -49,6 +49,7 @@ from pneubayes.discovery.openform.features import (
     design_matrix,
     distinct_columns,
     hinge_thresholds,
+    relaxation_range,
 )
 from pneubayes.effects.closure_features import (
     CLOSURE_MAX_TERMS,
@@ -433,6 +434,7 @@ class OpenFormSearch:
         for h, src in HINGE_SOURCES.items():
             v = np.concatenate([evaluate_feature(src, s) for s in signals_list])
             ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
+        ranges["pressure_relaxation"] = relaxation_range(signals_list)
         tss = float(y @ y)
         while sel:
             if self.refine_thresholds:

@@ -33,12 +33,13 @@ from pneubayes.effects.closure_features import (
 
 
 def main_variable(term) -> str:
-    """The feature a term is plotted against: a hinge's source, else its first
-    non-constant feature other than the command's direction (a sign, which only splits
-    the points; ``pressure_ratio`` for the constant and the direction alone)."""
+    """The feature a term is plotted against: a hinge's source (a relaxation: itself, at
+    its time constant), else its first non-constant feature other than the command's
+    direction (a sign, which only splits the points; ``pressure_ratio`` for the constant
+    and the direction alone)."""
     for name in (term.a, term.b):
         if feature(name).hinge:
-            return HINGE_SOURCES[name]
+            return HINGE_SOURCES.get(name, name)
     for name in (term.a, term.b):
         if name not in ("one", "command_direction"):
             return name
@@ -88,13 +89,16 @@ def term_views(model, params: dict, recordings: Sequence, block: int, solver,
     for k, term in enumerate(model.effect("closure").term_list()):
         without = dict(params, **{f"closure_coefficient_{k}": 0.0})
         variable = main_variable(term)
+        # (the variable's own time constant when it is the term's relaxation)
+        side = "a" if variable == term.a else ("b" if variable == term.b else None)
+        theta = _threshold(params, k, side) if side else 0.0
         xs, flows, missing = [], [], []
         for rec in recordings:
             d = one_step_data(rec, block)
             err = d.errors(model, without, solver)[0]
             sig = path_signals(model, without, rec, d)
             keep = np.asarray(sig["valid"], dtype=bool) & np.isfinite(err)
-            xs.append(evaluate_feature(variable, sig)[keep])
+            xs.append(evaluate_feature(variable, sig, theta)[keep])
             flows.append((params[f"closure_coefficient_{k}"]
                           * term.evaluate(sig, _threshold(params, k, "a"),
                                           _threshold(params, k, "b")))[keep])
