@@ -202,7 +202,8 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     # thresholds where each hinge is open at p = 2.6e5 Pa, spool 3
     # (a relaxation's time constant 0.2 s, its relaxed pressure held at 2.3e5 Pa)
     theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5,
-             "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2}
+             "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2,
+             "volume_hinge_up": 2.0, "volume_hinge_down": 3.0}
     term = cf.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]

@@ -72,6 +72,9 @@ CASES = {
     # a wall that creeps (0.2 s) after the pressure, its volume's rate scaled by p
     "pressure_relaxation*pressure_ratio": (Term("pressure_relaxation", "pressure_ratio"),
                                            0.2, 0.0, -5e-6),
+    # a leak the piston uncovers past 11 cm^3 (a scored barrel, a port)
+    "pressure_ratio*volume_hinge_up": (Term("pressure_ratio", "volume_hinge_up"), 0.0,
+                                       11.0, -1e-5),
 }
 #: A relaxation's time constant within this factor of the planted one.
 TIME_CONSTANT_FACTOR = 1.3
@@ -99,6 +102,9 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
         assert abs(found.threshold_a - ta) < PRESSURE_THRESHOLD_TOL
     if term.a.startswith("spool_hinge"):
         assert abs(found.threshold_a - ta) < SPOOL_THRESHOLD_TOL
+    if term.b == "volume_hinge_up":
+        th = found.threshold_b if found.term.b == term.b else found.threshold_a
+        assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
     if term.a == "pressure_relaxation":  # (a product may hold it on either side)
         tau = found.threshold_a if found.term.a == term.a else found.threshold_b
         assert 1 / TIME_CONSTANT_FACTOR < tau / ta < TIME_CONSTANT_FACTOR
@@ -151,7 +157,7 @@ def test_the_library_is_typed_and_bounded():
     cands = candidate_terms(sig)
     # features.py's count at most, and the relaxation's grid (3 ms to 1 s here) four
     # times over
-    assert 100 < len(cands) <= 382 + 4 * 8
+    assert 100 < len(cands) <= 534 + 4 * 8
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
     families = {c.family for c in cands}
@@ -165,6 +171,10 @@ def test_the_library_is_typed_and_bounded():
     for hinge in ("pressure_hinge", "pressure_hinge_down"):
         ph = [c.threshold_a for c in cands if c.term.a == hinge]
         assert ph and min(ph) > p.min() and max(ph) < p.max()
+    v = sig[0]["volume_m3"] / 1e-6  # cm^3, the piston moving
+    for hinge in ("volume_hinge_up", "volume_hinge_down"):
+        vh = [c.threshold_a for c in cands if c.term.a == hinge]
+        assert vh and min(vh) > v.min() and max(vh) < v.max()
     # a constant supply ratio is the constant again: one column stands for both
     x = np.column_stack([np.ones(10), 3.0 * np.ones(10), np.arange(10.0)])
     assert distinct_columns(x, 1e-9).tolist() == [True, False, True]

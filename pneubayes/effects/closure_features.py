@@ -86,6 +86,10 @@ FEATURES: tuple[Feature, ...] = (
             "pressure low-passed with time constant theta (s): what follows the pressure "
             "with a lag (a side volume behind a passage, a creeping wall, heat exchange)",
             hinge=True, time_constant=True),
+    Feature("volume_hinge_up", 17, "cm^3", "max(0, V / 1e-6 m^3 - theta): what starts as "
+            "the piston passes a place (a port it uncovers, a scored barrel)", hinge=True),
+    Feature("volume_hinge_down", 18, "cm^3", "max(0, theta - V / 1e-6 m^3): what acts near "
+            "the end of the stroke (a cushion throttling the exhaust)", hinge=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -245,6 +249,10 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return np.maximum(threshold - p / p_atm, 0.0)
     if f.code == 16:
         return (p - _relaxed(s, threshold)) / p_atm
+    if f.code == 17:
+        return np.maximum(vol / VOLUME_SCALE_M3 - threshold, 0.0)
+    if f.code == 18:
+        return np.maximum(threshold - vol / VOLUME_SCALE_M3, 0.0)
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
@@ -347,6 +355,8 @@ SYMBOLS: dict[str, str] = {
     "net_flow": "(m_in - m_ex)", "pressure_hinge_down": "max(0, {theta} - p / P_atm)",
     "command_direction": "sgn(du)",
     "pressure_relaxation": "((p - p_bar[{theta}]) / P_atm)",
+    "volume_hinge_up": "max(0, V / 1 cm^3 - {theta})",
+    "volume_hinge_down": "max(0, {theta} - V / 1 cm^3)",
 }
 
 

@@ -141,6 +141,14 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         return (z, -1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 16:
         return (p - pbar) / p_atm, 1.0 / p_atm, 0.0
+    if code == 17:
+        z = vol / _VOLUME_SCALE - theta
+        return ((z, compl / _VOLUME_SCALE, vdot / _VOLUME_SCALE) if z > 0.0
+                else (0.0, 0.0, 0.0))
+    if code == 18:
+        z = theta - vol / _VOLUME_SCALE
+        return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0
+                else (0.0, 0.0, 0.0))
     return cdir, 0.0, 0.0
 
 

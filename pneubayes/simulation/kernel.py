@@ -363,7 +363,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lung_from_p0 = lung and math.isnan(p_lung)
     # an open-form closure: whether a term reads the spool (codes 3, 11, 12) or the
     # command's direction (code 15; both change only with the command), or the volume
-    # rate (code 9), which the reuse of a step's end below must respect
+    # rate (code 9; a volume hinge's rate, codes 17 and 18), which the reuse of a step's
+    # end below must respect
     cl_spool, cl_vdot, cl_dir = False, False, False
     # and its relaxations (code 16): each one's relaxed-pressure slot, time constant and
     # value, which the kernel steps (relaxation.py) on its own copy of the slots
@@ -377,7 +378,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 cl_spool = True
             if code == 15.0:
                 cl_spool, cl_dir = True, True
-            if code == 9.0:
+            if code == 9.0 or code == 17.0 or code == 18.0:
                 cl_vdot = True
         if sl[_CL_FA + kc] == 16.0:
             rx_idx[rx_n], rx_tau[rx_n] = _CL_RA + kc, sl[_CL_TA + kc]

@@ -5,7 +5,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 - every base feature that is not a hinge (``one`` included);
 - every hinge feature at each threshold of a grid: the two pressure hinges at quantiles
-  of the measured ``p / P_atm``, the two spool hinges at quantiles of the spool;
+  of the measured ``p / P_atm``, the two spool hinges at quantiles of the spool, the two
+  volume hinges at quantiles of the volume (none where it is fixed);
 - the products of every pair of non-constant, non-hinge base features (squares
   included: a laminar leak is ``p^2``);
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
@@ -17,7 +18,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
 with the three partners above: with the eleven non-hinge base features besides ``one``
-that is 1 + 11 + 66 + 76 + 228 = 382 candidates at most. (A coarser grid saves columns but a
+and six hinges that is 1 + 11 + 66 + 114 + 342 = 534 candidates at most, and four per
+relaxation time constant. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.
@@ -37,7 +39,8 @@ from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
 
 #: Hinge features and the signal their thresholds are quantiles of.
 HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
-                 "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio"}
+                 "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio",
+                 "volume_hinge_up": "volume", "volume_hinge_down": "volume"}
 #: The time constants (s) a relaxation (``pressure_relaxation``) is tried at, those
 #: that the recordings resolve (:func:`relaxation_times`).
 RELAXATION_TIMES_S = (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
