@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.effects.closure_features import PressureHistory, command_direction
+from pneubayes.effects.closure_features import command_direction
 from pneubayes.model import Model
 from pneubayes.simulation.rates import rate_terms
 
@@ -57,8 +57,7 @@ def regime_labels(model: Model, params: dict, recording, settings: RegimeSetting
     slots = model.lower(model.vector(params)[None], rig)[0]
     terms = rate_terms(slots, rig, np.maximum(p, 1.0), u, x, v, ps,
                        recording.exhaust_command(),
-                       command_direction(u, recording.command_before_start),
-                       PressureHistory(t, p))
+                       command_direction(u, recording.command_before_start), time_s=t)
     inlet_dominant = np.abs(terms.inlet) >= np.abs(terms.exhaust)
     choked = np.where(inlet_dominant, terms.inlet_choked, terms.exhaust_choked)
     net = terms.inlet + terms.exhaust + terms.leak

@@ -13,12 +13,13 @@ the unit ``kg/s / (unit_a unit_b)``. The hinge features carry a threshold ``thet
 The same table is evaluated in two places that must agree to rounding: in numpy by
 :func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
 in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
-Two features have memory: ``command_direction``, the sign of the delayed command's last
-change (:func:`held_direction`; the kernel tracks it as it walks the command), and
+Three features have memory: ``command_direction``, the sign of the delayed command's
+last change (:func:`held_direction`; the kernel tracks it as it walks the command);
 ``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
 with a fitted time constant (:func:`relaxed_pressure`; the kernel carries ``p_bar`` as a
-state). The relaxation is what a chamber shows when something behind it follows the
-pressure with a lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
+state); and ``net_flow_lag``, the net port flow's low-pass less the flow itself. The
+relaxation is what a chamber shows when something behind it follows the pressure with a
+lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
 exactly, to first order in the passage's law), a wall that creeps after a pressure
 step, gas that trades heat with the wall.
 """
@@ -90,6 +91,11 @@ FEATURES: tuple[Feature, ...] = (
             "the piston passes a place (a port it uncovers, a scored barrel)", hinge=True),
     Feature("volume_hinge_down", 18, "cm^3", "max(0, theta - V / 1e-6 m^3): what acts near "
             "the end of the stroke (a cushion throttling the exhaust)", hinge=True),
+    Feature("net_flow_lag", 19, "kg/s", "q_bar - (m_in - m_ex), q_bar the net port flow "
+            "low-passed with time constant theta (s): with c = 1 the ports' flow reaches "
+            "the chamber through a lag (a volume or a soft tube between valve and "
+            "chamber; gas still arriving after the valve shuts)", hinge=True,
+            time_constant=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -104,16 +110,18 @@ SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spoo
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
            "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s",
            "command_direction")
-#: Read by ``pressure_relaxation`` only: the signals' times ``"time_s"`` (s, increasing)
-#: to low-pass ``pressure_Pa`` along, or a ``"pressure_history"`` object whose
-#: ``relaxed(tau_s)`` gives ``p_bar`` at the signals' points (:class:`PressureHistory`).
-RELAXATION_SIGNALS = ("time_s", "pressure_history")
+#: Read by the low-pass features only: ``"pressure_history"`` (``pressure_relaxation``)
+#: and ``"net_flow_history"`` (``net_flow_lag``), :class:`SignalHistory` objects whose
+#: ``relaxed(tau_s)`` gives the low-passed signal at the signals' points; without them,
+#: the signals' times ``"time_s"`` (s, increasing) to low-pass the signal along.
+HISTORY_SIGNALS = ("pressure_history", "net_flow_history", "time_s")
 
 
 def relaxed_pressure(time_s, pressure_Pa, tau_s: float, start_Pa=None) -> np.ndarray:
-    """The first-order low-pass ``p_bar`` of a pressure series, Pa:
-    ``tau dp_bar/dt = p - p_bar`` stepped exactly for ``p`` linear between its samples,
-    from ``p_bar = start_Pa`` (None: the first finite sample, at rest). A non-finite
+    """The first-order low-pass ``p_bar`` of a pressure series, Pa (or of any signal, in
+    its unit): ``tau dp_bar/dt = p - p_bar`` stepped exactly for ``p`` linear between its
+    samples, from ``p_bar = start_Pa`` (None: the first finite sample, at rest). A
+    non-finite
     sample holds ``p_bar`` (the interval is skipped and the next finite sample starts a
     new segment).
 
@@ -160,40 +168,40 @@ def relaxed_pressure(time_s, pressure_Pa, tau_s: float, start_Pa=None) -> np.nda
     return out
 
 
-class PressureHistory:
-    """A pressure series whose relaxed values :func:`relaxed_pressure` gives per time
-    constant (cached: a search evaluates one time constant many times).
+class SignalHistory:
+    """A signal's series whose first-order low-passes :func:`relaxed_pressure` gives per
+    time constant (cached: a search evaluates one time constant many times).
 
     Parameters
     ----------
-    time_s, pressure_Pa : (N,) arrays
-        The series (s, Pa), e.g. the measured chamber pressure at a recording's interval
-        midpoints.
+    time_s, values : (N,) arrays
+        The series (s; the signal's unit), e.g. the measured chamber pressure at a
+        recording's interval midpoints.
     """
 
-    def __init__(self, time_s, pressure_Pa):
+    def __init__(self, time_s, values):
         self.time_s = np.asarray(time_s, dtype=np.float64)
-        self.pressure_Pa = np.asarray(pressure_Pa, dtype=np.float64)
+        self.values = np.asarray(values, dtype=np.float64)
         self._cache: dict[float, np.ndarray] = {}
 
     def relaxed(self, tau_s: float) -> np.ndarray:
-        """``p_bar`` at the series' points for time constant ``tau_s`` (s), Pa."""
+        """The low-pass at the series' points for time constant ``tau_s`` (s)."""
         key = float(tau_s)
         if key not in self._cache:
             if len(self._cache) > 64:
                 self._cache.clear()
-            self._cache[key] = relaxed_pressure(self.time_s, self.pressure_Pa, key)
+            self._cache[key] = relaxed_pressure(self.time_s, self.values, key)
         return self._cache[key]
 
 
-def _relaxed(signals: dict, tau_s: float) -> np.ndarray:
-    history = signals.get("pressure_history")
+def _relaxed(signals: dict, tau_s: float, key: str, values) -> np.ndarray:
+    history = signals.get(key)
     if history is None:
         if "time_s" not in signals:
-            raise ValueError("closure feature 'pressure_relaxation' needs the pressure's "
-                             "history: give signals 'time_s' (the points' times, s) or "
-                             "'pressure_history' (a PressureHistory)")
-        history = PressureHistory(signals["time_s"], signals["pressure_Pa"])
+            raise ValueError(f"a low-pass closure feature needs its signal's history: give "
+                             f"signals 'time_s' (the points' times, s) or {key!r} (a "
+                             "SignalHistory)")
+        history = SignalHistory(signals["time_s"], values)
     return history.relaxed(tau_s)
 
 
@@ -248,7 +256,11 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
     if f.code == 14:
         return np.maximum(threshold - p / p_atm, 0.0)
     if f.code == 16:
-        return (p - _relaxed(s, threshold)) / p_atm
+        return (p - _relaxed(s, threshold, "pressure_history", p)) / p_atm
+    if f.code == 19:
+        net = (np.asarray(s["inlet_flow_kg_per_s"], dtype=np.float64)
+               - np.asarray(s["exhaust_flow_kg_per_s"], dtype=np.float64) + 0.0 * p)
+        return _relaxed(s, threshold, "net_flow_history", net) - net
     if f.code == 17:
         return np.maximum(vol / VOLUME_SCALE_M3 - threshold, 0.0)
     if f.code == 18:
@@ -355,6 +367,7 @@ SYMBOLS: dict[str, str] = {
     "net_flow": "(m_in - m_ex)", "pressure_hinge_down": "max(0, {theta} - p / P_atm)",
     "command_direction": "sgn(du)",
     "pressure_relaxation": "((p - p_bar[{theta}]) / P_atm)",
+    "net_flow_lag": "(q_bar[{theta}] - (m_in - m_ex))",
     "volume_hinge_up": "max(0, V / 1 cm^3 - {theta})",
     "volume_hinge_down": "max(0, {theta} - V / 1 cm^3)",
 }

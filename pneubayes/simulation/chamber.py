@@ -87,6 +87,16 @@ def wall_exchange(kappa, hconv, bore_a, vol):
 
 
 @njit(cache=True, error_model="numpy")
+def net_port_flow(p, a_in, a_ex, p_sup, cs):
+    """The ports' net mass flow into the chamber ``a_in f(p_s, p) - a_ex f(p, P_atm)``
+    (kg/s; eqs. 1-3, before the attenuation and the convective form's temperature
+    scaling), as a closure's flow features read it."""
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    return (a_in * flow_terms(p_sup, p, alpha, beta, theta, kappa)[0]
+            - a_ex * flow_terms(p, cs[C_P_ATM], alpha, beta, theta, kappa)[0])
+
+
+@njit(cache=True, error_model="numpy")
 def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                     vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt,
                     cdir, pbar):
@@ -101,9 +111,10 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     ``da_in``, ``da_ex`` the rates of the supply, spool and port areas. ``theta`` is a
     hinge's threshold. The volume rate's explicit derivative holds ``vdot`` fixed (the
     position is linear between samples). ``cdir`` is the delayed command's direction
-    (+1, -1 or 0), constant between the command's changes; ``pbar`` a relaxation's
-    relaxed pressure (Pa), which the kernel holds over a step at its value half-way
-    through (so the feature's explicit time derivative is taken as 0)."""
+    (+1, -1 or 0), constant between the command's changes; ``pbar`` a low-pass feature's
+    low-passed value (a relaxation's pressure, Pa; a flow lag's net flow, kg/s), which
+    the kernel holds over a step at its value half-way through (so its explicit time
+    derivative is taken as 0)."""
     if code == 0:
         return 1.0, 0.0, 0.0
     if code == 1:
@@ -141,6 +152,8 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         return (z, -1.0 / p_atm, 0.0) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 16:
         return (p - pbar) / p_atm, 1.0 / p_atm, 0.0
+    if code == 19:
+        return pbar - (q_in - q_ex), -(dq_in_dp - dq_ex_dp), -(dq_in_dt - dq_ex_dt)
     if code == 17:
         z = vol / _VOLUME_SCALE - theta
         return ((z, compl / _VOLUME_SCALE, vdot / _VOLUME_SCALE) if z > 0.0

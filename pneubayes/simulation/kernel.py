@@ -57,7 +57,7 @@ from pneubayes.physics.calibration import (
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
-from pneubayes.simulation.chamber import chamber_rhs, rigid_chamber
+from pneubayes.simulation.chamber import chamber_rhs, net_port_flow, rigid_chamber
 from pneubayes.simulation.chord import (
     chord_coupling,
     chord_response,
@@ -366,10 +366,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # rate (code 9; a volume hinge's rate, codes 17 and 18), which the reuse of a step's
     # end below must respect
     cl_spool, cl_vdot, cl_dir = False, False, False
-    # and its relaxations (code 16): each one's relaxed-pressure slot, time constant and
-    # value, which the kernel steps (relaxation.py) on its own copy of the slots
+    # and its low-passes (code 16 the pressure's, 19 the net port flow's): each one's
+    # slot, signal (its code), time constant and value, which the kernel steps
+    # (relaxation.py) on its own copy of the slots
     rx_n = 0
     rx_idx = np.zeros(2 * _CL_MAX, dtype=np.int64)
+    rx_kind = np.zeros(2 * _CL_MAX)
     rx_tau = np.zeros(2 * _CL_MAX)
     rx_val = np.zeros(2 * _CL_MAX)
     for kc in range(int(sl[_CL_N])):
@@ -380,14 +382,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 cl_spool, cl_dir = True, True
             if code == 9.0 or code == 17.0 or code == 18.0:
                 cl_vdot = True
-        if sl[_CL_FA + kc] == 16.0:
-            rx_idx[rx_n], rx_tau[rx_n] = _CL_RA + kc, sl[_CL_TA + kc]
-            rx_n += 1
-        if sl[_CL_FB + kc] == 16.0:
-            rx_idx[rx_n], rx_tau[rx_n] = _CL_RB + kc, sl[_CL_TB + kc]
-            rx_n += 1
+        for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
+                               (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):
+            if code == 16.0 or code == 19.0:
+                rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
+                rx_n += 1
     cl_relax = rx_n > 0
-    rx_rate = 0.0  # the last accepted step's mean dp/dt (Pa/s): p over the next, linear
+    # the last accepted step's mean rates of p (Pa/s) and of the net port flow (kg/s^2),
+    # at which a step's midpoint value takes them on; the net flow at a step's start
+    rx_rate, rx_qrate, rx_q0 = 0.0, 0.0, 0.0
     if cl_relax:
         sl = sl.copy()
         for q in range(rx_n):
@@ -430,9 +433,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         if p0 + lead_s * rate0 > 0.0:
             p = p0 + lead_s * rate0
     max_steps += i0 - k0
-    for q in range(rx_n):  # a relaxation's p_bar from the reading's history
-        rx_val[q] = relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, cal_o,
-                                     cal_g)
+    for q in range(rx_n):  # a relaxation's p_bar from the reading's history; a flow's
+        # low-pass at its first step's flow (at rest)
+        rx_val[q] = (relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, cal_o,
+                                      cal_g) if rx_kind[q] == 16.0 else math.nan)
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0_read
     want_sens = sens.shape[0] > 0
@@ -660,8 +664,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 steps += 1
                 if steps > max_steps:
                     return STEP_BUDGET
-                for q in range(rx_n):  # p_bar held over the step at its midpoint value
-                    sl[rx_idx[q]] = relaxation_mid(rx_val[q], p, rx_rate, hh, rx_tau[q])
                 # state and inputs at tau
                 fr = (tau - ta) * inv_seg
                 vol = v0 + bore * (xa + fr * (xb - xa))
@@ -704,6 +706,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 else:
                     a_in2, a_ex2 = a_in, a_ex
                     s_at2 = s_at
+                if cl_relax:  # each low-pass held over the step at its midpoint value
+                    rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
+                    for q in range(rx_n):
+                        if rx_kind[q] == 16.0:
+                            sl[rx_idx[q]] = relaxation_mid(rx_val[q], p, rx_rate, hh,
+                                                           rx_tau[q])
+                        else:
+                            if math.isnan(rx_val[q]):
+                                rx_val[q] = rx_q0
+                            sl[rx_idx[q]] = relaxation_mid(rx_val[q], rx_q0, rx_qrate, hh,
+                                                           rx_tau[q])
                 err = 10.0
                 pn, tn = p, temp
                 p_tank_new = p_tank
@@ -874,10 +887,16 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     p_lung = p_lung_new
                     p, temp = pn, tn
                     if cl_relax:
+                        q1 = net_port_flow(p, a_in2, a_ex2, psup2, cs)
                         for q in range(rx_n):
-                            rx_val[q] = relaxation_step(rx_val[q], p_prev, p, tau - t_prev,
-                                                        rx_tau[q])
+                            if rx_kind[q] == 16.0:
+                                rx_val[q] = relaxation_step(rx_val[q], p_prev, p,
+                                                            tau - t_prev, rx_tau[q])
+                            else:
+                                rx_val[q] = relaxation_step(rx_val[q], rx_q0, q1,
+                                                            tau - t_prev, rx_tau[q])
                         rx_rate = (p - p_prev) / (tau - t_prev)
+                        rx_qrate = (q1 - rx_q0) / (tau - t_prev)
                     if general is not None and line:
                         s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
                     elif general is not None and wave:

@@ -179,7 +179,7 @@ def tabulated_volume(slots: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.nda
 
 def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                velocity_m_per_s, supply_measured_Pa, exhaust_command=None,
-               command_direction=None, pressure_history=None,
+               command_direction=None, histories=None, time_s=None,
                include_closure: bool = True) -> RateTerms:
     """Eq. 5 at the given state for one slot row ``(N_SLOTS,)``.
 
@@ -192,10 +192,13 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     area as the volume rate (:func:`closure_mass_flow`), and ``command_direction``
     (+1, -1 or 0: the delayed command's last change,
     :func:`~pneubayes.effects.closure_features.held_direction`), which must be given
-    when a term reads it, and ``pressure_history`` (a
-    :class:`~pneubayes.effects.closure_features.PressureHistory` whose ``relaxed``
-    gives ``p_bar`` at the evaluation points), which a ``pressure_relaxation`` term
-    reads (``p_bar`` is held as given: the slope in ``pressure_Pa`` is the instant's).
+    when a term reads it. A low-pass feature (``pressure_relaxation``,
+    ``net_flow_lag``) reads its signal's history: ``histories`` maps
+    ``"pressure_history"`` / ``"net_flow_history"`` to
+    :class:`~pneubayes.effects.closure_features.SignalHistory` objects along the
+    evaluation points (held as given: the slope in ``pressure_Pa`` is the instant's);
+    without one, ``time_s`` (the points' times, s) low-passes the given pressure and
+    the flows computed here along them.
     ``include_closure=False`` leaves a closure's term at zero (for callers that read
     only the ports' terms). A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
@@ -235,10 +238,13 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
             raise ValueError("rate_terms: the closure reads the command's direction; give "
                              "command_direction (closure_features.held_direction of the "
                              "command at the evaluation times)")
-        if pressure_history is None and _reads_feature(sl, "pressure_relaxation"):
-            raise ValueError("rate_terms: the closure reads the relaxed pressure; give "
-                             "pressure_history (closure_features.PressureHistory of the "
-                             "pressure along the evaluation points)")
+        histories = dict(histories or {})
+        for name, key in (("pressure_relaxation", "pressure_history"),
+                          ("net_flow_lag", "net_flow_history")):
+            if key not in histories and time_s is None and _reads_feature(sl, name):
+                raise ValueError(f"rate_terms: the closure reads feature {name!r}, a "
+                                 f"low-pass; give histories[{key!r}] (a SignalHistory "
+                                 "along the evaluation points) or time_s")
         signals = {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
                    "atmospheric_pressure_Pa": p_atm, "spool": np.asarray(spool_V, float),
                    "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
@@ -246,7 +252,9 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                    "volume_m3": vol, "volume_rate_m3_per_s": vdot,
                    "command_direction": (0.0 if command_direction is None
                                          else np.asarray(command_direction, float)),
-                   "pressure_history": pressure_history}
+                   **histories}
+        if time_s is not None:
+            signals["time_s"] = np.asarray(time_s, dtype=np.float64)
         closure = scale * closure_mass_flow(sl, signals)
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
     return RateTerms(inlet, exhaust, leak, volume, closure,

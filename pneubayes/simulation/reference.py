@@ -6,8 +6,8 @@ integrator; the integration, input handling, the spool (an ODE state here, close
 form there) and a sensor lag's reading (ODE states here, stepped exactly for a
 linear pressure there) are written separately. An open-form closure (effect
 ``closure``) is evaluated by :func:`pneubayes.effects.closure_features.evaluate_feature`,
-not by the compiled features; a relaxation's ``p_bar`` is an ODE state here (starting at
-rest at the chamber's pressure), stepped by splitting there.
+not by the compiled features; a low-pass feature's state (``p_bar``, ``q_bar``) is an ODE
+state here (at rest at the start), stepped by splitting there.
 Slow: thousands of Python calls per second.
 """
 
@@ -34,16 +34,18 @@ from pneubayes.simulation.rates import dead_band
 from pneubayes.simulation.simulator import Inputs
 
 
-def relaxation_times(sl) -> list[float]:
-    """The distinct time constants (s) of a slot row's live ``pressure_relaxation``
-    features, in order of appearance."""
-    code = float(FEATURE_BY_NAME["pressure_relaxation"].code)
-    out: list[float] = []
+def low_passes(sl) -> list[tuple[float, float]]:
+    """The distinct ``(feature code, time constant s)`` of a slot row's live low-pass
+    features (``pressure_relaxation``, ``net_flow_lag``), in order of appearance."""
+    codes = (float(FEATURE_BY_NAME["pressure_relaxation"].code),
+             float(FEATURE_BY_NAME["net_flow_lag"].code))
+    out: list[tuple[float, float]] = []
     for k in range(int(sl[S["closure_terms"]])):
         for side in "ab":
-            tau = float(sl[S[f"closure_threshold_{side}_{k}"]])
-            if sl[S[f"closure_feature_{side}_{k}"]] == code and tau not in out:
-                out.append(tau)
+            code = float(sl[S[f"closure_feature_{side}_{k}"]])
+            entry = (code, float(sl[S[f"closure_threshold_{side}_{k}"]]))
+            if code in codes and entry not in out:
+                out.append(entry)
     return out
 
 
@@ -93,20 +95,21 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                 FEATURES[int(sl[S[f"closure_feature_b_{k}"]])].name,
                 sl[S[f"closure_threshold_b_{k}"]])
                for k in range(int(sl[S["closure_terms"]]))]
-    # a relaxation's p_bar (feature pressure_relaxation): one state per time constant,
+    # the low-pass features' states (p_bar, q_bar): one per (signal, time constant),
     # after every other state
-    taus = relaxation_times(sl)
+    passes = low_passes(sl)
     n_read = (2 if w_r > 0 else 1) if (w_r > 0 or lag > 0) else 0
     i_relax = i_read + n_read + (1 if w_s > 0 else 0)
+    code_p = float(FEATURE_BY_NAME["pressure_relaxation"].code)
 
-    class _Held:  # p_bar from the states, for evaluate_feature
-        def __init__(self, y):
-            self.y = y
+    class _Held:  # a low-pass from the states, for evaluate_feature
+        def __init__(self, y, code):
+            self.y, self.code = y, code
 
         def relaxed(self, tau_s):
-            return self.y[i_relax + taus.index(float(tau_s))]
+            return self.y[i_relax + passes.index((self.code, float(tau_s)))]
 
-    def rhs(t, y):
+    def rhs(t, y, net_flow_only=False):
         p, temp, spool = y[:3]
         # a second-order spool's velocity: after the reading
         v_spool = y[i_read + n_read] if w_s > 0 else 0.0
@@ -141,6 +144,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         # each mass flow into the chamber (kg/s, negative = out)
         f_in = f_in_raw = float(flow_function(psup, p_valve, g))
         f_out = f_out_raw = float(flow_function(p_valve, p_atm, g))
+        net_raw = float(a_in * f_in_raw - a_ex * f_out_raw)  # (a flow lag's signal)
+        if net_flow_only:
+            return net_raw
         f_leak = float(flow_function(p, p_atm, g))
         if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1); an
             # acoustic line's gas is at the supply's temperature, and so its ports' gas
@@ -179,7 +185,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "inlet_flow_kg_per_s": a_in * f_in_raw,
                        "exhaust_flow_kg_per_s": a_ex * f_out_raw, "volume_m3": v_c,
                        "volume_rate_m3_per_s": vdot, "command_direction": cdir,
-                       "pressure_history": _Held(y)}
+                       "pressure_history": _Held(y, code_p),
+                       "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]
+                                                          .code))}
             flows.append(sum(float(c * evaluate_feature(fa, signals, ta)
                                    * evaluate_feature(fb, signals, tb))
                              for c, fa, ta, fb, tb in closure))
@@ -217,7 +225,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             d_reading = [float(dr), float(w_r**2 * (p - r) - 2 * z_r * w_r * dr)]
         else:
             d_reading = [float(p - y[i_read]) / lag] if lag > 0 else []
-        d_relax = [float(p - y[i_relax + q]) / tau for q, tau in enumerate(taus)]
+        d_relax = [float((p if code == code_p else net_raw) - y[i_relax + q]) / tau
+                   for q, (code, tau) in enumerate(passes)]
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
                 + d_tank + d_reading + d_spool_v + d_relax)
 
@@ -305,9 +314,13 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     if w_s > 0:  # a second-order spool's velocity: at rest at the start
         y = np.append(y, 0.0)
         atols.append(1e-9 * w_s)
-    for _ in relaxation_times(sl):  # a relaxation's p_bar: at rest at the chamber's
+    passes = low_passes(sl)  # a low-pass: at rest (p_bar at the chamber's pressure, a
+    for _ in passes:  # flow's at the first flow, set below)
         y = np.append(y, y[0])
         atols.append(atol)
+    i_pass = y.size - len(passes)
+    flows_pending = any(code != FEATURE_BY_NAME["pressure_relaxation"].code
+                        for code, _ in passes)
     out[0] = y[read]
     nfev = 0
     # position and supply are read at t + adv (a filter on every channel, effect
@@ -335,6 +348,12 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             cmd = held(jj)
             rhs = _rhs_factory(sl, rig, cmd, *measured(a), ue[k],
                                directions[jj] if jj >= 0 else 0.0)
+            if flows_pending:  # a flow lag starts at rest at the first flow
+                for q, (code, _) in enumerate(passes):
+                    if code != FEATURE_BY_NAME["pressure_relaxation"].code:
+                        y[i_pass + q] = rhs(a, y, net_flow_only=True)
+                        atols[i_pass + q] = 1e-12
+                flows_pending = False
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
                             atol=atols)
             if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):

@@ -11,15 +11,16 @@ of its hinge features. The library (:func:`candidate_terms`) holds
   included: a laminar leak is ``p^2``);
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
   ``exhaust_flow``;
-- the relaxation ``pressure_relaxation`` at each time constant of a fixed grid
-  (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times the same
-  three partners (its time constant is its "threshold": a family keeps one).
+- the low-passes ``pressure_relaxation`` and ``net_flow_lag`` at each time constant of a
+  fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
+  the same three partners (a time constant is its feature's "threshold": a family keeps
+  one).
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
 with the three partners above: with the eleven non-hinge base features besides ``one``
-and six hinges that is 1 + 11 + 66 + 114 + 342 = 534 candidates at most, and four per
-relaxation time constant. (A coarser grid saves columns but a
+and six hinges that is 1 + 11 + 66 + 114 + 342 = 534 candidates at most, and eight per
+low-pass time constant. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.
@@ -130,7 +131,8 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     -------
     dict
         Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit), and
-        ``"pressure_relaxation"`` -> its time constants (s, :func:`relaxation_times`).
+        ``"pressure_relaxation"`` and ``"net_flow_lag"`` -> their time constants (s,
+        :func:`relaxation_times`).
     """
     q = np.asarray(quantiles, dtype=np.float64)
     if q.size == 0 or np.any(~((q > 0) & (q < 1))):
@@ -145,7 +147,7 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
         lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 0.0)
         margin = INTERIOR_MARGIN * (hi - lo)
         out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
-    out["pressure_relaxation"] = relaxation_times(signals_list)
+    out["pressure_relaxation"] = out["net_flow_lag"] = relaxation_times(signals_list)
     return out
 
 

@@ -434,7 +434,8 @@ class OpenFormSearch:
         for h, src in HINGE_SOURCES.items():
             v = np.concatenate([evaluate_feature(src, s) for s in signals_list])
             ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
-        ranges["pressure_relaxation"] = relaxation_range(signals_list)
+        ranges["pressure_relaxation"] = ranges["net_flow_lag"] = relaxation_range(
+            signals_list)
         tss = float(y @ y)
         while sel:
             if self.refine_thresholds:

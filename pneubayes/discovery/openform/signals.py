@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pneubayes.effects.closure_features import PressureHistory, held_direction
+from pneubayes.effects.closure_features import SignalHistory, held_direction
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs
@@ -121,7 +121,7 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
         Every name of :data:`~pneubayes.effects.closure_features.SIGNALS` -> ``(N - 1,)``
         array (absolute pressures Pa, spool in the command's unit, areas m^2, port flows
         kg/s, volume m^3, volume rate m^3/s, the command's direction, the measured
-        pressure's history for a relaxation's ``p_bar``), plus
+        pressure's and the net port flow's histories for the low-pass features), plus
         ``"time_s"`` (the midpoints, s), ``"interval_s"`` (each interval's length, s),
         ``"compliance_m3_per_Pa"`` (dV/dp of a compliant chamber, 0 if rigid) and
         ``"jacobian_per_s"`` (the model's d(dp/dt)/dp there, 1/s), which
@@ -163,12 +163,13 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     vol = (sl[S["volume_m3"]] + rig.bore_area_m2 * x
            + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol)
     vdot = rig.bore_area_m2 * xdot
-    # the relaxed pressure of a relaxation term: the measured pressure's low-pass (held
-    # at it in the slope below, as the simulator holds it over a step)
-    history = PressureHistory(mid, p)
+    # the low-pass features' histories: the measured pressure's and the net port flow
+    # along it (held in the slope below, as the simulator holds them over a step)
+    histories = {"pressure_history": SignalHistory(mid, p),
+                 "net_flow_history": SignalHistory(mid, inlet - exhaust)}
     dp = JACOBIAN_STEP * p
     rates = [rate_terms(sl, rig, p + s * dp, spool, x, xdot, ps_meas, ue, direction,
-                        history).total
+                        histories).total
              for s in (1.0, -1.0)]
     jac = (rates[0] - rates[1]) / (2.0 * dp)
     return {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
@@ -176,7 +177,7 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
             "inlet_area_m2": a_in, "exhaust_area_m2": a_ex, "inlet_flow_kg_per_s": inlet,
             "exhaust_flow_kg_per_s": exhaust, "volume_m3": vol,
             "volume_rate_m3_per_s": vdot, "command_direction": direction,
-            "pressure_history": history, "time_s": mid,
+            **histories, "time_s": mid,
             "interval_s": h,
             "compliance_m3_per_Pa": compliance + 0.0 * p, "jacobian_per_s": jac,
             "valid": valid[1:] & valid[:-1]}
