@@ -54,8 +54,8 @@ READERS = {
     "predict": ["predict", "{B}/M", "{rec}", "--horizon", "0.5", "--draws", "20",
                 "--no-figure", "--out", "{T}/out.csv"],
     "discover": ["discover", "{rec}", "--held-out", "{B}/" + OTHER + ".csv", "--horizon",
-                 "0.1", "--max-effects", "0", "--posterior", "none", "--no-figures", "-q",
-                 "--out", "{T}/out"],
+                 "0.1", "--set", "rounds.max_effects=0", "--posterior", "none",
+                 "--no-figures", "-q", "--out", "{T}/out"],
     "track": ["track", "{B}/R", "{rec}", "--vary", "dead_volume_m3", "--horizon", "0.5",
               "--particles", "16", "--draws", "8", "--out", "{T}/out.json"],
 }
@@ -670,11 +670,12 @@ def option_trials() -> list[dict]:
         ("predict", "--stride", (NAN, INF, NEG, ZERO, TEXT, "1e-5")),
         ("predict", "--draws", ALL + ("1",)),
         ("predict", "--seed", (NAN, NEG, TEXT)),
-        ("discover", "--max-effects", (NAN, NEG, HUGE, TEXT)),
+        ("discover", "--max-effects", ("0",)),  # gone: the message names its --set
         ("discover", "--horizon", (NAN, INF, NEG, ZERO, HUGE, TEXT, "1e-9")),
         ("discover", "--seed", (NAN, NEG, TEXT)),
         ("discover", "--posterior", ("gibbs",)),
         *((("discover", "--set", tuple(f"{key}={v}" for v in values))) for key, values in (
+            ("rounds.max_effects", (NAN, NEG, HUGE, TEXT)),
             ("data.holdout_fraction", ALL + ("1",)),
             ("forms.tube_line_segments", (NAN, NEG, HUGE, TEXT, "1000000")),
             ("forms.settled_ratio", (NAN, INF, NEG, TEXT)),

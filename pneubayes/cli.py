@@ -23,6 +23,7 @@ from pneubayes.cli_args import build_parser, check_single_values
 from pneubayes.cli_settings import discovery_settings, fit_settings
 from pneubayes.errors import ParameterError, PneubayesError
 from pneubayes.run_folder import (
+    RunFolderError,
     check_file,
     inputs_digest,
     open_run_folder,
@@ -827,6 +828,32 @@ def _stopped_message(args, exc) -> str:
             "resume")
 
 
+def _resumed(parser, run):
+    """``pneubayes resume RUN``: the command line recorded in RUN's stamp and its parsed
+    arguments, set to insist on a resume (:func:`pneubayes.run_folder.open_run_folder`'s
+    ``resume``)."""
+    from pneubayes.run_folder import STAMP, read_stamp
+
+    stamp = read_stamp(run)
+    if stamp is None:
+        raise RunFolderError(f"{run}: nothing to resume (no {STAMP} there)")
+    argv = stamp.get("argv")
+    if (not isinstance(argv, list) or not argv or not all(isinstance(a, str) for a in argv)
+            or argv[0] not in ("fit", "discover", "ablate")
+            or argv[0] != stamp.get("command")):
+        raise RunFolderError(f"{Path(run) / STAMP}: records no fit, discover or ablate "
+                             "command line to resume")
+    argv = [a for a in argv if a != "--resume"]  # stamped before it went
+    args = parser.parse_args(argv)
+    check_single_values(parser, args)
+    if Path(args.out).resolve() != Path(run).resolve():
+        raise RunFolderError(f"{run}: its command writes to --out {args.out}, which is "
+                             "another folder from here; run 'pneubayes resume' from the "
+                             "folder the command was started in")
+    args.resume = True
+    return argv, args
+
+
 def main(argv=None) -> int:
     """Run one command. Errors are one message naming the file, option or key (exit 2;
     ``check`` exits 1 when a file has problems); a stop by SIGINT or SIGTERM keeps the
@@ -835,6 +862,12 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     check_single_values(parser, args)
+    if args.command == "resume":
+        try:
+            argv, args = _resumed(parser, args.run)
+        except PneubayesError as exc:
+            print(f"pneubayes resume: error: {exc}", file=sys.stderr)
+            return 2
     args.func = {"check": cmd_check, "bench": cmd_bench, "simulate": cmd_simulate,
                  "fit": cmd_fit, "predict": cmd_predict, "discover": cmd_discover,
                  "ablate": cmd_ablate, "import": cmd_import,

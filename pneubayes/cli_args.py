@@ -128,12 +128,30 @@ def _add_accept(p) -> None:
                         "JSON can list them in accept_unusual")
 
 
+class _Retired(argparse.Action):
+    """An option that was removed: using it is a usage error saying what replaces it.
+    Hidden from ``--help``; it takes an optional value so that ``--opt VALUE`` and
+    ``--opt=VALUE`` both reach the message."""
+
+    def __init__(self, option_strings, dest, replacement: str = "", **kwargs):
+        super().__init__(option_strings, argparse.SUPPRESS, nargs="?",
+                         default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+        self.replacement = replacement
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser.error(f"{option_string} {self.replacement}")
+
+
+RESUME_RETIRED = ("is gone: the same command resumes the run in --out on its own; "
+                  "'pneubayes resume RUN' insists on a resume (an error when there is "
+                  "nothing to resume)")
+
+
 def _add_run_folder(p) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the run already in --out (its files only; yours stay)")
-    p.add_argument("--resume", action="store_true",
-                   help="insist on resuming the run in --out (an error if there is none); "
-                        "the same command on the same inputs and settings resumes anyway")
+    p.add_argument("--resume", action=_Retired, replacement=RESUME_RETIRED)
+    p.set_defaults(resume=False)  # True under 'pneubayes resume RUN'
 
 
 def _add_settings_file(p, tree: str) -> None:
@@ -172,7 +190,8 @@ def _add_run_options(p) -> None:
                         "or 1e7 window samples together, an emcee chain over 4 GB on "
                         "disk); without it such a run is refused before any work, saying "
                         "what it would cost")
-    p.add_argument("--no-figures", action="store_true")
+    p.add_argument("--no-figures", action="store_true",
+                   help="write no figures/ (saves the plotting time)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     _add_accept(p)
 
@@ -379,8 +398,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "search.grid.strengths.sensor_calibration=[2000,5000,10000] (the "
                         "only way to search for sensor_calibration, whose terms are off by "
                         "default)")
-    d.add_argument("--max-effects", type=NON_NEGATIVE_INT, default=None,
-                   help="rounds.max_effects: stop after adding this many (4)")
+    d.add_argument("--max-effects", action=_Retired,
+                   replacement="is now --set rounds.max_effects=N")
     d.add_argument("--posterior", choices=["emcee", "laplace", "none"], default=None,
                    help="posterior.method: the final model's posterior: emcee (default), "
                         "laplace (a Gaussian at the posterior's mode from a few hundred "
@@ -433,9 +452,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep each cell's bench recordings and fit folder in RUNDIR/work")
     a.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
+    _add_resume(sub)
     _add_track(sub)
     _add_compile(sub)
     return p
+
+
+def _add_resume(sub) -> None:
+    """The ``resume`` subcommand's parser."""
+    r = sub.add_parser(
+        "resume", help="continue a stopped fit, discover or ablate run (an error if its "
+                       "folder holds none)",
+        description="Run again the command that started RUN (the command line recorded in "
+                    "RUN/run.json), insisting on a resume: an error when RUN holds no run, "
+                    "or when that command's inputs or settings no longer match the run's "
+                    "(a recording changed, say), instead of starting anew. Run it from the "
+                    "folder the command was started in if its paths were relative. The "
+                    "same command run again resumes as well; this one never starts over.")
+    r.add_argument("run", help="the run folder (the --out of fit, discover or ablate)")
 
 
 def _add_track(sub) -> None:

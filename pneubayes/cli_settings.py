@@ -90,8 +90,6 @@ def discovery_settings(args):
     pairs = _fit_flags(args, "fit.")
     if args.held_out:
         pairs.append((("data", "holdout_recordings"), len(args.held_out)))
-    if args.max_effects is not None:
-        pairs.append((("rounds", "max_effects"), args.max_effects))
     if args.posterior is not None:
         pairs.append((("posterior", "method"), args.posterior))
     if args.seed is not None:

@@ -367,8 +367,8 @@ def _open_locked(out: Path, command, identity, overwrite, resume, outputs, argv)
         if not overwrite:
             raise RunFolderError(
                 f"--out {out}: holds {_describe(stamp, identity)}; refusing to mix runs. Use "
-                f"--overwrite to replace that run's files, or another folder (--resume "
-                f"continues only the same '{command}' on the same inputs and settings)")
+                f"--overwrite to replace that run's files, or another folder (a run resumes "
+                f"only as the same '{command}' on the same inputs and settings)")
         _remove_stamped_run(out, stamp, outputs)
     if same:
         return RunFolder(out, command, digest, resumed=True)

@@ -136,7 +136,7 @@ def test_discover_reads_one_tree_from_file_options_and_set_in_that_order(tmp_pat
     f.write_text('seed = 5\n[rounds]\nmax_effects = 2\n[stages]\npair_members = 0\n'
                  '[fit]\nhorizon_s = 0.5\n[fit.sampler]\nn_walkers = 48\n')
     args = build_parser().parse_args(["discover", "r.csv", "--out", "o", "--settings", str(f),
-                                      "--max-effects", "3", "--posterior", "none",
+                                      "--posterior", "none",
                                       "--set", "rounds.max_effects=1",
                                       "--set", "forms.tube_line_form=line"])
     s = cli_settings.discovery_settings(args)
@@ -184,3 +184,79 @@ def test_fit_reads_its_settings_file_and_its_options_override_it(tmp_path):
                                              "50", "--position-cutoff", "0"]))
     assert (s.horizon_s, s.stride_s, s.position_cutoff_Hz) == (0.3, 0.3, None)
     assert s.sampler.max_steps == 50
+
+
+DISCOVER_OPTIONS_FLOOR = 15  # issue 66: discover keeps about twelve flags
+
+
+def _visible_options(command: str) -> list[str]:
+    import argparse
+
+    from pneubayes.cli_args import build_parser
+
+    sub = next(a for a in build_parser()._actions
+               if isinstance(a, argparse._SubParsersAction)).choices[command]
+    return [a.option_strings[-1] for a in sub._actions
+            if a.option_strings and a.help is not argparse.SUPPRESS
+            and not isinstance(a, argparse._HelpAction)]
+
+
+def test_discover_help_keeps_to_the_floor_of_options(capsys):
+    """``pneubayes discover --help`` lists at most 15 options besides -h; everything
+    else is a key of the settings tree (``--settings``, ``--set``)."""
+    options = _visible_options("discover")
+    assert len(options) <= DISCOVER_OPTIONS_FLOOR, options
+    with pytest.raises(SystemExit):
+        main(["discover", "--help"])
+    out = capsys.readouterr().out
+    assert all(o in out for o in options) and "--max-effects" not in out
+    assert "--resume" not in out
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["discover", "r.csv", "--max-effects", "2"], "--max-effects is now --set "
+                                                   "rounds.max_effects=N"),
+    (["discover", "r.csv", "--max-effects=2"], "--set rounds.max_effects=N"),
+    (["discover", "r.csv", "--resume"], "pneubayes resume RUN"),
+    (["fit", "r.csv", "--resume"], "pneubayes resume RUN"),
+    (["ablate", "s.toml", "--resume"], "pneubayes resume RUN"),
+])
+def test_a_removed_option_says_what_replaces_it(argv, says, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--out", str(tmp_path / "o")])
+    assert exc.value.code == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_resume_reruns_the_stamped_command_and_never_starts_anew(tmp_path, monkeypatch,
+                                                                  capsys):
+    """``pneubayes resume RUN``: the command in RUN/run.json again, insisting on a resume
+    (what ``--resume`` guaranteed)."""
+    import shutil
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "--cylinder", "AIR37", "--valve", "valve1", "--protocol",
+                 "fixed", "--duration", "2", "--seed", "7", "--positions", "0.25,0.75",
+                 "--ranges", "5", "--out", "b", "-q"]) == 0
+    recs = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "b").glob("*.csv"))
+    assert main(["fit", *recs, "--method", "lsq", "--no-figures", "--out", "F"]) == 0
+    capsys.readouterr()
+    assert main(["resume", "F"]) == 0
+    assert "fit: resuming the run in F" in capsys.readouterr().err
+    # nothing there: an error, nothing started
+    assert main(["resume", "G"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err and not (tmp_path / "G").exists()
+    # relative paths from another folder: said, not run elsewhere
+    monkeypatch.chdir(tmp_path / "b")
+    assert main(["resume", "../F"]) == 2
+    assert "started in" in capsys.readouterr().err
+    monkeypatch.chdir(tmp_path)
+    # a recording changed since: the run is not that command's any more
+    shutil.copy(tmp_path / recs[1], tmp_path / recs[0])
+    shutil.copy((tmp_path / recs[1]).with_suffix(".json"),
+                (tmp_path / recs[0]).with_suffix(".json"))
+    before = sorted(p.name for p in (tmp_path / "F").iterdir())
+    assert main(["resume", "F"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "F").iterdir()) == before

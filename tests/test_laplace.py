@@ -197,8 +197,8 @@ def test_laplace_posterior_on_the_bench_covers_the_planted_leak(prn_leak_bench):
 
 
 def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, capsys):
-    """``pneubayes discover --posterior laplace --max-effects 0`` (the base model and its
-    posterior; no search round, so no disagreement map to draw or tabulate):
+    """``pneubayes discover --posterior laplace --set rounds.max_effects=0`` (the base
+    model and its posterior; no search round, so no disagreement map to draw or tabulate):
     discovery.json records the method, posterior.nc holds 4 chains of its draws, the
     report names the approximation, and ``pneubayes predict`` reads the run folder's
     posterior as it reads emcee's; an unknown method is a usage error."""
@@ -211,7 +211,7 @@ def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, ca
     paths = [str(p) for p in run_bench(cfg, tmp_path / "bench").recordings]
     run = tmp_path / "run"
     assert cli_main(["discover", *paths, "--out", str(run), "--posterior", "laplace",
-                     "--max-effects", "0", "-q"]) == 0
+                     "--set", "rounds.max_effects=0", "-q"]) == 0
     doc = json.loads((run / "discovery.json").read_text())
     assert doc["posterior"]["method"] == "laplace" and doc["posterior"]["steps"] == 0
     assert doc["settings"]["posterior"]["method"] == "laplace"

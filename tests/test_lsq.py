@@ -175,3 +175,62 @@ def test_gompertz_curve_fits_stop_by_the_estimators_own_rule(monkeypatch):
         PaperLeastSquares(model, SavitzkyGolay(0.005, 3), curve_tolerance=0.0)
     with pytest.raises(ValueError, match="curve_max_nfev"):
         PaperLeastSquares(model, SavitzkyGolay(0.005, 3), curve_max_nfev=0)
+
+
+def _toy_bleed_class():
+    """Defined here alone: a laminar bleed to atmosphere that supplies its own eq.-10
+    column and estimate (the least squares names no particular effect)."""
+    from pneubayes.effects import Effect, Parameter
+
+    class ToyBleed(Effect):
+        name = "toy_bleed"
+        acts_on = ("leak_laminar_kg_per_s_Pa2",)
+
+        def parameters(self):
+            return (Parameter("toy_bleed_k", "kg/(s Pa^2)", 0.0, 2e-15, "uniform",
+                              "a laminar bleed", neutral=0.0),)
+
+        def lower(self, values, rig):
+            return {"leak_laminar_kg_per_s_Pa2": values["toy_bleed_k"]}
+
+        def bench_defaults(self):
+            return {"toy_bleed_k": 1.9e-16}
+
+        def eq10_column(self, pressure_Pa, atmospheric_Pa, gas):
+            rs_t = gas.specific_gas_constant_J_per_kg_K * gas.temperature_K
+            return -(gas.heat_capacity_ratio * rs_t * (pressure_Pa**2 - atmospheric_Pa**2)
+                     / rs_t)
+
+        def eq10_estimate(self, fit):
+            self.seen = fit
+            k = [c * fit.volumes_m3[j] / (fit.recordings[j].rig().gas
+                                          .specific_gas_constant_J_per_kg_K
+                                          * fit.recordings[j].rig().gas.temperature_K)
+                 for j, (c, _) in sorted(fit.column.items())]
+            return {"toy_bleed_k": float(np.mean(k))}, ["toy bleed: mean of the recordings"]
+
+    return ToyBleed
+
+
+def test_an_effect_defined_elsewhere_supplies_its_eq10_column_and_estimate(tmp_path):
+    """The least squares asks each effect of the model for its column and its estimate:
+    a toy bleed with the laminar leak's law, defined in this file, gets the same column
+    coefficients as the catalogue's laminar leak and recovers the planted leak."""
+    sensor = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    cfg = BenchConfig("AIR37", "valve1", effects_from_names(["cylinder_leak"], "laminar"),
+                      protocol="fixed", duration_s=2.0, seed=5, positions=(0.5, 0.9),
+                      ranges_V=(5.0, 0.5), sensor=sensor)
+    res = run_bench(cfg, tmp_path)
+    leak_model, truth = Model.load_card(res.truth_path)
+    recs = [read_recording(p) for p in res.recordings]
+    toy = _toy_bleed_class()()
+    est = PaperLeastSquares(Model([toy]), SavitzkyGolay(0.005, 3), noise_std_Pa=1.0,
+                            known={"dead_volume_m3": truth["dead_volume_m3"]}).fit(recs)
+    assert set(toy.seen.column) == {0, 1, 2, 3}
+    assert est.params_["toy_bleed_k"] == pytest.approx(
+        truth["leak_conductance_kg_per_s_Pa2"], rel=0.1, abs=0)
+    assert est.notes_ == ["toy bleed: mean of the recordings"]
+    # the catalogue's laminar leak: the same column, the same coefficients
+    _, leak_columns, _ = PaperLeastSquares(leak_model, SavitzkyGolay(0.005, 3),
+                                           noise_std_Pa=1.0)._solve_holds(recs)
+    assert leak_columns == {0: toy.seen.column}

@@ -275,9 +275,9 @@ def test_fit_refuses_to_mix_runs_and_overwrites_only_its_own_files(fitted, tmp_p
     assert main(["predict", str(copy), str(held.recordings[0]), "--out",
                  str(tmp_path / "p.csv")]) == 2
     assert "no posterior.nc" in capsys.readouterr().err
-    # the same command again is its own run: allowed; --resume on an empty folder is not
+    # the same command again is its own run: allowed; resuming an empty folder is not
     assert main(["fit", *recs, "--out", str(copy), "--method", "lsq", "-q"]) == 0
-    assert main(["fit", *recs, "--out", str(tmp_path / "new"), "--resume", "-q"]) == 2
+    assert main(["resume", str(tmp_path / "new")]) == 2
     assert "nothing to resume" in capsys.readouterr().err
     # emcee needs twice as many walkers as dimensions: said before any work
     assert main(["fit", *recs, "--out", str(tmp_path / "w"), "--walkers", "1", "-q"]) == 2

@@ -12,7 +12,7 @@ import inspect
 import math
 import numbers
 
-from pneubayes.effects.base import Component, Effect, Parameter
+from pneubayes.effects.base import Component, Effect, Eq10Fit, Parameter
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
@@ -115,7 +115,7 @@ def _check_options(cls: type[Effect], options: dict) -> None:
                              f"{value!r}")
 
 
-__all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "HeatTransfer",
-           "Parameter", "SensorCalibration", "SensorLag", "SpoolLag", "SupplyFluctuation",
-           "ThinPort", "TubeDelay", "ValveDeadzone", "catalogue_parameter_names",
-           "make_effect"]
+__all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10Fit",
+           "HeatTransfer", "Parameter", "SensorCalibration", "SensorLag", "SpoolLag",
+           "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone",
+           "catalogue_parameter_names", "make_effect"]

@@ -58,6 +58,42 @@ class Parameter:
         return np.exp(rng.uniform(math.log(self.lower), math.log(self.upper), size))
 
 
+@dataclass(frozen=True)
+class Eq10Fit:
+    """What the paper's least squares on dp/dt (eq. 10, :mod:`pneubayes.inference.lsq`)
+    found, as an effect reads it to estimate its own parameters
+    (:meth:`Effect.eq10_estimate`).
+
+    Attributes
+    ----------
+    model : Model
+        The model fitted (its parameters' bounds, with any overrides).
+    recordings : sequence of Recording
+        The fixed-volume recordings, in the order the indices below use.
+    volumes_m3 : ndarray
+        Each recording's chamber volume at its fixed position, dead volume included, m^3.
+    positions_m : ndarray
+        Each recording's fixed position, m.
+    column : dict
+        Recording index -> (coefficient, standard error) of the effect's own column
+        (:meth:`Effect.eq10_column`), for the recordings with usable holds; empty for an
+        effect without one.
+    ports : dict
+        The fitted Gompertz parameters of both ports (``inlet_*``, ``exhaust_*``); an
+        effect with a port's law is lumped with that port's offset.
+    known : dict
+        Parameters given as known (from a valve characterisation, say).
+    """
+
+    model: Any
+    recordings: Any
+    volumes_m3: np.ndarray
+    positions_m: np.ndarray
+    column: Mapping[int, tuple[float, float]]
+    ports: Mapping[str, float]
+    known: Mapping[str, float]
+
+
 class Component(ABC):
     """Base of the thin-port core and of every effect.
 
@@ -145,6 +181,49 @@ class Effect(Component):
         chamber leads the reading), for an effect that lags the reading; None (the
         default) for others."""
         return None
+
+    def eq10_column(self, pressure_Pa: np.ndarray, atmospheric_Pa: float, gas):
+        """This effect's column in the paper's least squares on dp/dt (eq. 10,
+        :mod:`pneubayes.inference.lsq`): on a fixed-volume recording's smoothed
+        ``pressure_Pa``, dp/dt per unit of one coefficient the recording's holds share
+        (the effect's flow over the chamber volume); None (the default) for an effect
+        that adds no column.
+
+        Parameters
+        ----------
+        pressure_Pa : ndarray
+            The smoothed chamber pressure, Pa absolute.
+        atmospheric_Pa : float
+            The recording's atmospheric pressure, Pa.
+        gas : Gas
+            The rig's gas (specific gas constant, temperature, heat capacity ratio).
+
+        Returns
+        -------
+        ndarray or None
+            The column, shaped as ``pressure_Pa``.
+        """
+        return None
+
+    def eq10_estimate(self, fit: Eq10Fit) -> tuple[dict[str, float], list[str]]:
+        """The effect's parameter values from the paper's least squares.
+
+        Parameters
+        ----------
+        fit : Eq10Fit
+            What the least squares found (the effect's column coefficients, the ports'
+            curves, the volumes).
+
+        Returns
+        -------
+        values : dict
+            Parameter values; they may include a base parameter the effect's law is
+            lumped with (a port's offset). Empty (the default): the effect starts at
+            its neutral values.
+        notes : list of str
+            What the user should know about the estimate.
+        """
+        return {}, []
 
     @classmethod
     def form_from_parameters(cls, names) -> str | None:

@@ -25,11 +25,29 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.base import Effect, Eq10Fit, Parameter
 from pneubayes.effects.discovery import FormTrialTerm
 from pneubayes.rig import Rig
 
 _FORMS = ("orifice", "laminar", "graded")
+
+
+def _graded_leak(k, weight, position_m, stroke_m, gradient) -> dict:
+    """k (1 + g (x/S - 1/2)) through per-recording conductances at fixed positions.
+
+    A weighted straight line through (x/S, k) gives k at mid-stroke and its relative
+    change g over the stroke (clipped to g's bounds); one position alone leaves g = 0.
+    """
+    xi = np.asarray(position_m) / np.asarray(stroke_m)
+    mean = float(np.sum(weight * k) / np.sum(weight))
+    if np.unique(np.round(xi[weight > 0], 9)).size < 2:
+        return {"leak_conductance_kg_per_s_Pa2": mean, "leak_conductance_gradient": 0.0}
+    slope, at_zero = np.polyfit(xi, k, 1, w=np.sqrt(weight))
+    mid = at_zero + 0.5 * slope
+    if not mid > 0:
+        return {"leak_conductance_kg_per_s_Pa2": mean, "leak_conductance_gradient": 0.0}
+    g = float(np.clip(slope / mid, gradient.lower, gradient.upper))
+    return {"leak_conductance_kg_per_s_Pa2": float(mid), "leak_conductance_gradient": g}
 
 
 class CylinderLeak(Effect):
@@ -81,6 +99,56 @@ class CylinderLeak(Effect):
     def start_values(self):
         """A fifth of the bench's realistic leak (the generic fit's start)."""
         return {k: 0.2 * v for k, v in self.bench_defaults().items()}
+
+    # ------------------------------------------------------ the paper's least squares
+    def eq10_column(self, pressure_Pa, atmospheric_Pa, gas):
+        """The laminar and graded forms: ``-kappa (p^2 - P_atm^2)``, whose coefficient
+        per recording is ``Rs T k / V`` (dp/dt = -kappa Rs T k (p^2 - P_atm^2) / V). The
+        orifice form has the exhaust port's law, so eq. 10 sees it inside the exhaust
+        column (the paper's ``a_a + a_l``): no column of its own."""
+        if self.form == "orifice":
+            return None
+        rs_t = gas.specific_gas_constant_J_per_kg_K * gas.temperature_K
+        k = gas.heat_capacity_ratio * rs_t
+        return -(k * (pressure_Pa**2 - atmospheric_Pa**2) / rs_t)
+
+    def eq10_estimate(self, fit: Eq10Fit):
+        """Laminar and graded: k per recording from its column's coefficient, combined
+        by inverse variance (a recording of large commands hides the leak behind the
+        port flows); graded, a line through them along the stroke. Orifice: the fitted
+        exhaust offset is the sum of the valve's offset and the leak area; a known one
+        separates them, else the sum is split in half and a note says so."""
+        if self.form in ("laminar", "graded"):
+            recs = fit.recordings
+            js = sorted(fit.column)
+            rs_t = [recs[j].rig().gas.specific_gas_constant_J_per_kg_K
+                    * recs[j].rig().gas.temperature_K for j in js]
+            vol = fit.volumes_m3
+            ks = np.array([fit.column[j][0] * vol[j] / rs_t[i] for i, j in enumerate(js)])
+            se = np.array([fit.column[j][1] * vol[j] / rs_t[i] for i, j in enumerate(js)])
+            w = np.where(np.isfinite(se) & (se > 0), 1.0 / np.maximum(se, 1e-300)**2, 0.0)
+            w = w if w.sum() > 0 else np.ones_like(ks)
+            values = {"leak_conductance_kg_per_s_Pa2": float(np.sum(w * ks) / np.sum(w))}
+            if self.form == "graded":
+                values.update(_graded_leak(
+                    ks, w, fit.positions_m[js], np.array([recs[j].metadata.stroke_m
+                                                          for j in js]),
+                    fit.model.parameter("leak_conductance_gradient")))
+            return values, []
+        lumped = fit.ports["exhaust_offset_m2"]
+        notes = []
+        if "exhaust_offset_m2" in fit.known:
+            off = float(fit.known["exhaust_offset_m2"])
+        elif "leak_area_m2" in fit.known:
+            off = lumped - float(fit.known["leak_area_m2"])
+        else:
+            off = 0.5 * lumped
+            notes.append(
+                f"orifice leak: eq. 10 identifies only exhaust_offset_m2 + leak_area_m2 "
+                f"= {lumped:.4g} m^2; split in half. Characterise the valve (flow "
+                "meter, or a recording with the cylinder port blocked) to separate.")
+        off = float(np.clip(off, 0.0, lumped))
+        return {"exhaust_offset_m2": off, "leak_area_m2": lumped - off}, notes
 
     # ------------------------------------------------------------------ discovery
     library_strengths = (1e-16,)

@@ -5,16 +5,18 @@
 2. Eq. 10 at each command level: on every hold of a fixed-volume recording,
    ``dp/dt = n Rs T / V (a_c f(P_c, p) - (a_a + a_l) f(p, P_r))`` is linear in the two
    areas over V; a non-negative least-squares fit gives them (with standard errors).
-   A laminar leak adds one column per recording, shared by its holds.
+   An effect of the model may add a column of its own per recording, shared by its
+   holds (:meth:`~pneubayes.effects.Effect.eq10_column`; a laminar leak does).
 3. The volume map: area points from recordings at different fixed positions must lie on
    one curve, which fixes the dead volume V0 (profiled). With a single position, V0 is
    confounded with the area scale and must be given.
 4. Gompertz curves (eq. 11) fitted to the area-vs-command points, as in Table II.
 
-An orifice leak has the exhaust port's law, so eq. 10 lumps it with the exhaust area
-(the paper's ``a_a + a_l``); only the sum of the exhaust offset and the leak area is
-identified. Give ``known={"exhaust_offset_m2": ...}`` from a valve characterisation to
-separate them; otherwise the sum is split in half and the split is reported.
+Each effect of the model then estimates its own parameters from what was found
+(:meth:`~pneubayes.effects.Effect.eq10_estimate`): its column's coefficients, or the
+port curve its law is lumped with (the paper's orifice leak has the exhaust port's law,
+so eq. 10 sees ``a_a + a_l``; ``known={"exhaust_offset_m2": ...}`` from a valve
+characterisation separates them). This module names no particular effect.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, sparse
 
+from pneubayes.effects.base import Eq10Fit
 from pneubayes.inference.derivative import SavitzkyGolay, consistency_mask, switch_mask
 from pneubayes.model import Model
 from pneubayes.physics.orifice import flow_function
@@ -53,24 +56,6 @@ def _fixed_position(rec) -> float:
                              "recordings; this one's position moves")
         return float(np.mean(rec.position_m))
     return float(rec.position_or_fixed()[0])
-
-
-def _graded_leak(k, weight, position_m, stroke_m, gradient) -> dict:
-    """k (1 + g (x/S - 1/2)) through per-recording conductances at fixed positions.
-
-    A weighted straight line through (x/S, k) gives k at mid-stroke and its relative
-    change g over the stroke (clipped to g's bounds); one position alone leaves g = 0.
-    """
-    xi = np.asarray(position_m) / np.asarray(stroke_m)
-    mean = float(np.sum(weight * k) / np.sum(weight))
-    if np.unique(np.round(xi[weight > 0], 9)).size < 2:
-        return {"leak_conductance_kg_per_s_Pa2": mean, "leak_conductance_gradient": 0.0}
-    slope, at_zero = np.polyfit(xi, k, 1, w=np.sqrt(weight))
-    mid = at_zero + 0.5 * slope
-    if not mid > 0:
-        return {"leak_conductance_kg_per_s_Pa2": mean, "leak_conductance_gradient": 0.0}
-    g = float(np.clip(slope / mid, gradient.lower, gradient.upper))
-    return {"leak_conductance_kg_per_s_Pa2": float(mid), "leak_conductance_gradient": g}
 
 
 def _fit_gompertz(u, area, se, port: str, model: Model, rng: np.random.Generator,
@@ -120,8 +105,10 @@ class PaperLeastSquares:
     Parameters
     ----------
     model : Model
-        The model whose parameters to estimate. Its base parameters and a cylinder leak
-        are estimated; other effects are left at their neutral values.
+        The model whose parameters to estimate. Its base parameters are estimated, and
+        each effect's that it estimates from eq. 10
+        (:meth:`~pneubayes.effects.Effect.eq10_estimate`); others are left at their
+        neutral values.
     differentiator : SavitzkyGolay
         dp/dt estimator.
     min_hold_samples : int
@@ -174,13 +161,13 @@ class PaperLeastSquares:
     def _design(self, recs):
         """Stack eq. 10 over holds: sparse design, target dp/dt, hold bookkeeping.
 
-        Columns: two per hold (a_c / V and (a_a + a_l) / V); with a laminar leak, one
-        more per recording (k / V), shared by that recording's holds.
+        Columns: two per hold (a_c / V and (a_a + a_l) / V), then one per recording for
+        each effect with a column (:meth:`~pneubayes.effects.Effect.eq10_column`), shared
+        by that recording's holds; ``effect_cols`` maps (effect index, recording) to it.
         """
-        laminar = (self.model.has("cylinder_leak")
-                   and self.model.effect("cylinder_leak").form in ("laminar", "graded"))
+        effects = self.model.effects
         rows, cols, vals, target, holds = [], [], [], [], []
-        leak_rows: dict[int, list] = {}
+        effect_rows: dict[tuple[int, int], list] = {}
         n_col = row0 = 0
         for j, rec in enumerate(recs):
             g = rec.rig().gas
@@ -196,7 +183,8 @@ class PaperLeastSquares:
                 p.size, rec.metadata.supply_pressure_Pa)
             f_in = k * flow_function(supply, ps, g)
             f_out = k * flow_function(ps, p_atm, g)
-            lam = k * (ps**2 - p_atm**2) / rs_t
+            own = {e: c for e, c in ((e, eff.eq10_column(ps, p_atm, g))
+                                     for e, eff in enumerate(effects)) if c is not None}
             ok = switch_mask(u, half)
             if self.noise_std_Pa is not None:
                 coarse = SavitzkyGolay(2.0 * self.differentiator.window_s,
@@ -211,8 +199,8 @@ class PaperLeastSquares:
                 rows += [r, r]
                 cols += [np.full(idx.size, n_col), np.full(idx.size, n_col + 1)]
                 vals += [f_in[idx], -f_out[idx]]
-                if laminar:
-                    leak_rows.setdefault(j, []).append((r, -lam[idx]))
+                for e, column in own.items():
+                    effect_rows.setdefault((e, j), []).append((r, column[idx]))
                 target.append(dpdt[idx])
                 holds.append((j, float(u[a]), n_col, idx.size))
                 n_col += 2
@@ -220,9 +208,9 @@ class PaperLeastSquares:
         if not holds:
             raise ValueError("no usable command holds: recordings too short or switches too "
                              "frequent for the differentiator window")
-        leak_cols = {}
-        for j, pieces in leak_rows.items():
-            leak_cols[j] = n_col
+        effect_cols = {}
+        for key, pieces in effect_rows.items():
+            effect_cols[key] = n_col
             for r, v in pieces:
                 rows.append(r)
                 cols.append(np.full(r.size, n_col))
@@ -231,15 +219,17 @@ class PaperLeastSquares:
         A = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
                                                       np.concatenate(cols))),
                               shape=(row0, n_col))
-        return A, np.concatenate(target), holds, leak_cols
+        return A, np.concatenate(target), holds, effect_cols
 
     def _solve_holds(self, recs):
-        A, y, holds, leak_cols = self._design(recs)
+        """The holds' area points, each effect's column coefficients as ``{effect index:
+        {recording: (coefficient, standard error)}}``, and the equation error's RMS."""
+        A, y, holds, effect_cols = self._design(recs)
         # column scaling for conditioning, non-negative areas
         norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0))).ravel()
         norms[norms == 0] = 1.0
         As = (A @ sparse.diags(1.0 / norms)).tocsc()
-        if leak_cols:
+        if effect_cols:
             sol = optimize.lsq_linear(As, y, bounds=(0.0, np.inf), method="trf",
                                       lsmr_tol="auto", tol=1e-12, max_iter=5000)
             x = sol.x / norms
@@ -253,17 +243,19 @@ class PaperLeastSquares:
         resid = y - A @ x
         out = []
         row = 0
-        leak_info = dict.fromkeys(leak_cols, 0.0)
+        info = dict.fromkeys(effect_cols, 0.0)
         for j, u, c, n in holds:
             blk = As[row:row + n, c:c + 2].toarray()
             rr = resid[row:row + n]
-            if j in leak_cols:
-                # the leak column's information in this hold, after the hold's own two
-                # area columns: |lam - proj(lam)|^2 / s^2
-                lam = A[row:row + n, leak_cols[j]].toarray().ravel()
+            for (e, jj), col in effect_cols.items():
+                if jj != j:
+                    continue
+                # the effect column's information in this hold, after the hold's own
+                # two area columns: |lam - proj(lam)|^2 / s^2
+                lam = A[row:row + n, col].toarray().ravel()
                 coef = np.linalg.lstsq(blk, lam, rcond=None)[0]
                 free = lam - blk @ coef
-                leak_info[j] += float(free @ free) / max(float(rr @ rr) / max(n - 3, 1), 1e-300)
+                info[e, j] += float(free @ free) / max(float(rr @ rr) / max(n - 3, 1), 1e-300)
             row += n
             sv = np.linalg.svd(blk, compute_uv=False)
             if sv[-1] <= self.max_condition ** -1 * sv[0]:
@@ -276,9 +268,11 @@ class PaperLeastSquares:
             out.append(HoldArea(j, u, x[c], x[c + 1], se[0], se[1], n))
         if not out:
             raise ValueError("no command hold moved the pressure enough to identify areas")
-        leak_per_volume = {j: (x[c], 1.0 / np.sqrt(leak_info[j]) if leak_info[j] > 0 else np.inf)
-                           for j, c in leak_cols.items()}
-        return out, leak_per_volume, float(np.sqrt(np.mean(resid**2)))
+        per_effect: dict[int, dict] = {}
+        for (e, j), c in effect_cols.items():
+            per_effect.setdefault(e, {})[j] = (
+                x[c], 1.0 / np.sqrt(info[e, j]) if info[e, j] > 0 else np.inf)
+        return out, per_effect, float(np.sqrt(np.mean(resid**2)))
 
     # -------------------------------------------------------------- volume + Gompertz
     def _areas(self, holds, volumes):
@@ -304,7 +298,7 @@ class PaperLeastSquares:
         rng = np.random.default_rng(self.seed)
         positions = np.array([_fixed_position(r) for r in recs])
         bores = np.array([r.rig().bore_area_m2 for r in recs])
-        holds, leak_pv, rms = self._solve_holds(recs)
+        holds, columns, rms = self._solve_holds(recs)
         self.holds_ = holds
         self.equation_error_rms_Pa_per_s_ = rms
 
@@ -356,40 +350,12 @@ class PaperLeastSquares:
         params.update(p_ex)
         params["dead_volume_m3"] = v0
         notes = []
-        if self.model.has("cylinder_leak"):
-            leak = self.model.effect("cylinder_leak")
-            if leak.form in ("laminar", "graded"):
-                # per recording the leak column's coefficient is Rs T k / V (dp/dt =
-                # kappa Rs T k (p^2 - P_atm^2) / V), with its standard error; k is
-                # combined by inverse variance, because a recording of large commands
-                # hides the leak behind the port flows
-                js = sorted(leak_pv)
-                rs_t = [recs[j].rig().gas.specific_gas_constant_J_per_kg_K
-                        * recs[j].rig().gas.temperature_K for j in js]
-                ks = np.array([leak_pv[j][0] * volumes[j] / rs_t[i] for i, j in enumerate(js)])
-                se = np.array([leak_pv[j][1] * volumes[j] / rs_t[i] for i, j in enumerate(js)])
-                w = np.where(np.isfinite(se) & (se > 0), 1.0 / np.maximum(se, 1e-300)**2, 0.0)
-                w = w if w.sum() > 0 else np.ones_like(ks)
-                params["leak_conductance_kg_per_s_Pa2"] = float(np.sum(w * ks) / np.sum(w))
-                if leak.form == "graded":
-                    params.update(_graded_leak(ks, w, positions[js],
-                                               np.array([recs[j].metadata.stroke_m for j in js]),
-                                               self.model.parameter("leak_conductance_gradient")))
-            else:
-                lumped = p_ex["exhaust_offset_m2"]
-                if "exhaust_offset_m2" in known:
-                    off = float(known["exhaust_offset_m2"])
-                elif "leak_area_m2" in known:
-                    off = lumped - float(known["leak_area_m2"])
-                else:
-                    off = 0.5 * lumped
-                    notes.append(
-                        f"orifice leak: eq. 10 identifies only exhaust_offset_m2 + leak_area_m2 "
-                        f"= {lumped:.4g} m^2; split in half. Characterise the valve (flow "
-                        "meter, or a recording with the cylinder port blocked) to separate.")
-                off = float(np.clip(off, 0.0, lumped))
-                params["exhaust_offset_m2"] = off
-                params["leak_area_m2"] = lumped - off
+        for e, effect in enumerate(self.model.effects):
+            values, said = effect.eq10_estimate(Eq10Fit(
+                self.model, recs, volumes, positions, columns.get(e, {}), {**p_in, **p_ex},
+                known))
+            params.update(values)
+            notes += said
         params.update(known)
         lo, hi = self.model.bounds
         vec = np.clip(self.model.vector(params), lo, hi)
