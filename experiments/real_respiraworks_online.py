@@ -2,6 +2,7 @@
 
     python experiments/real_respiraworks_online.py --out results/real_respiraworks_online
         [--sets OXY,AIR] [--select] [--seeds 0,1,2] [--quick] [--smoke]
+        [--population point|hierarchical]
 
 The shipped card (two compartments, the exhale valve on its own command), the split of
 ``real_respiraworks.py`` (runs 1-4 train, 5-6 held out) and its 2-s windows. Per set:
@@ -10,9 +11,11 @@ The shipped card (two compartments, the exhale valve on its own command), the sp
    (``real_respiraworks_forms.py``'s refinement, ``MAX_NFEV`` evaluations).
 2. *Population*: the lung's quantities (``LUNG``) refitted on each whole training run,
    the card's others known at the shared fit; a log-normal over the four fits, its
-   spread widened by ``FLOOR_LOG_SD`` (:meth:`LogNormalPrior.from_point_fits`). The
-   tracker's error scale ``noise_std_Pa`` is the median of those fits' window RMSE (the
-   model's error with the run's own lung), not the sensor noise.
+   spread widened by ``FLOOR_LOG_SD`` (:meth:`LogNormalPrior.from_point_fits`); with
+   ``--population hierarchical`` instead the posterior predictive of the hierarchical
+   fit (``real_respiraworks_population.py``). The tracker's error scale ``noise_std_Pa``
+   is the median of those fits' window RMSE (the model's error with the run's own lung),
+   not the sensor noise.
 3. *Online*: on each held-out run an :class:`~pneubayes.inference.online.OnlineTracker`
    over the lung's quantities takes the run as a stream, one tick every ``TICK_S``; at
    every tick from ``CAL_S`` on whose next 2 s lie in the run, it predicts them from the
@@ -199,7 +202,7 @@ def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) ->
 
 
 def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
-            log) -> dict:
+            log, population: str = "point") -> dict:
     card = form_card(kind, "two_compartment", "separate")
     lung = LUNG["two_compartment"]
     recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
@@ -223,6 +226,10 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
         fits.append({k: f.params_[k] for k in lung})
         fit_rmse.append(f.rmse_Pa_)
     prior = LogNormalPrior.from_point_fits(model, lung, fits, FLOOR_LOG_SD)
+    hierarchical = None
+    if population == "hierarchical":  # the population script imports this one: import here
+        from real_respiraworks_population import hierarchical_prior
+        prior, hierarchical = hierarchical_prior(kind, card, shared, train, nfev, log)
     sigma = float(np.median(fit_rmse))
     # the band's error scale: the calibrated protocol's error on the training runs
     band_err = []
@@ -241,7 +248,8 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
     log(f"[{kind}] population {prior.describe()}; per-run lung fits' RMSE "
         f"{[round(x) for x in fit_rmse]} Pa -> noise_std_Pa {sigma:.0f}; the calibrated "
         f"protocol's error on the training runs (the band's scale) {band_sigma:.0f} Pa")
-    res = {"population": prior.describe(), "per_run_lung_fits": fits,
+    res = {"population": prior.describe(), "hierarchical_population": hierarchical,
+           "per_run_lung_fits": fits,
            "per_run_lung_fit_rmse_Pa": fit_rmse, "noise_std_Pa": sigma,
            "band_std_Pa": band_sigma, "shared_parameters": shared, "runs": {}}
     knobs = dict(TRACKER)
@@ -370,6 +378,9 @@ def main(argv=None) -> int:
                          "out, SELECT_GRID) before the held-out runs")
     ap.add_argument("--seeds", default=str(SEED),
                     help="comma-separated tracker seeds (the first one's traces are kept)")
+    ap.add_argument("--population", choices=("point", "hierarchical"), default="point",
+                    help="the tracker's prior: the point fits' log-normal, or the posterior "
+                         "predictive of real_respiraworks_population.py's hierarchical fit")
     ap.add_argument("--set", action="append", default=[], metavar="KNOB=VALUE",
                     help="override a tracker knob of TRACKER (recorded in the result)")
     args = ap.parse_args(argv)
@@ -387,12 +398,14 @@ def main(argv=None) -> int:
               "floor_log_sd": FLOOR_LOG_SD, "tracker": TRACKER,
               "forecast_warm_up_windows": FORECAST_WARM, "seed": SEED,
               "max_nfev": MAX_NFEV, "quick": args.quick, "smoke": args.smoke,
-              "select": args.select, "select_grid": SELECT_GRID if args.select else None,
+              "select": args.select, "population": args.population,
+              "select_grid": SELECT_GRID if args.select else None,
               "seeds": seeds, "sets": {},
               "provenance": provenance()}
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
         result["sets"][kind] = run_set(kind, out, args.quick, args.smoke, args.select, seeds,
-                                       lambda msg: print(msg, file=sys.stderr))
+                                       lambda msg: print(msg, file=sys.stderr),
+                                       args.population)
         write_json_atomic(path, result)
     return 0
 
