@@ -229,6 +229,28 @@ def test_a_found_closure_becomes_an_effect_plug_in_a_user_can_name(rig):
         effect_skeleton(Model(), {})
 
 
+def test_a_found_time_constant_keeps_its_unit_and_prior_in_the_plug_in():
+    """A low-pass term's time constant is a parameter in s with a log-uniform prior, in
+    the closure and in the skeleton made from it."""
+    from pneubayes.discovery.openform.skeleton import effect_skeleton
+
+    closure = Closure(terms="pressure_relaxation*pressure_ratio; net_flow_lag")
+    model = Model().with_effect(closure)
+    taus = {p.name: p for p in closure.parameters() if "threshold" in p.name}
+    assert set(taus) == {"closure_threshold_0_a", "closure_threshold_1_a"}
+    assert all(p.unit == "s" and p.prior == "log-uniform" for p in taus.values())
+    params = {**{k: 1.0 for k in Model().parameter_names}, "dead_volume_m3": 2e-5,
+              "closure_coefficient_0": -3e-6, "closure_threshold_0_a": 0.2,
+              "closure_coefficient_1": 0.5, "closure_threshold_1_a": 0.02}
+    text = effect_skeleton(model, params, "CreepAndLag", "creep_and_lag")
+    assert "p_bar[theta_0_a]" in text and "q_bar[theta_1_a]" in text
+    ns: dict = {}
+    exec(compile(text, "found_effect.py", "exec"), ns)  # noqa: S102
+    mine = {p.name: p for p in ns["CreepAndLag"]().parameters()}
+    assert mine["term0_threshold_a"].prior == "log-uniform"
+    assert mine["term0_threshold_a"].unit == "s"
+
+
 def test_a_second_round_extends_the_closure_the_model_already_has(rig):
     """Beside a model that already has a closure (a later round), the new terms join
     its terms, its fitted values start the old ones, and the rest of the model is

@@ -71,7 +71,7 @@ class {class_name}(Effect):
     def parameters(self):
         closure = {{p.name: p for p in Closure(terms=self.TERMS).parameters()}}
         return tuple(Parameter(mine, closure[theirs].unit, closure[theirs].lower,
-                               closure[theirs].upper, "uniform",
+                               closure[theirs].upper, closure[theirs].prior,
                                f"found: {{theirs}} (edit)", neutral=closure[theirs].neutral)
                      for mine, theirs in self.NAMES.items())
 
