@@ -676,3 +676,21 @@ def test_coefficient_bounds_follow_the_features_magnitudes():
     assert units["closure_coefficient_0"] == "kg/s"
     assert units["closure_coefficient_3"] == "kg/s / (command unit cm^3)"
     assert math.isclose(e.bench_defaults()["closure_coefficient_0"], 1e-5)
+
+
+def test_a_long_history_is_read_strided_and_agrees_with_the_full_low_pass():
+    """relaxation_start reads at most HISTORY_POINTS samples of the reading's history;
+    for a slow low-pass the strided result is the full one to a small fraction of the
+    signal's swing (here 1 s of a 2-Hz sine at 1 kHz under a 0.5-s time constant)."""
+    from pneubayes.simulation.relaxation import HISTORY_POINTS, relaxation_start
+
+    t = np.arange(4001) * 1e-3
+    pm = 3e5 + 1e5 * np.sin(2 * np.pi * 2.0 * t)
+    full = cf.relaxed_pressure(t[1500:], pm[1500:], 0.5)[-1]  # 2.5 s = 5 tau of it
+    got = relaxation_start(t, pm, 4000, 0.5, np.nan, False, P_ATM, 0.0, 1.0)
+    assert 2500 // HISTORY_POINTS > 1  # (strided here)
+    assert abs(got - full) < 1e-3 * 2e5
+    # and a short one is read whole: the same as the low-pass of the record
+    short = relaxation_start(t, pm, 100, 0.01, np.nan, False, P_ATM, 0.0, 1.0)
+    assert short == pytest.approx(cf.relaxed_pressure(t[50:101], pm[50:101], 0.01)[-1],
+                                  rel=1e-12)

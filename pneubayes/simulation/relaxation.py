@@ -20,6 +20,8 @@ from pneubayes.physics.calibration import pressure_behind_reading_scalar
 #: How far back, in time constants, the reading's history starts ``p_bar`` (its weight
 #: there is e^-5, under 1 %).
 RELAXATION_HISTORY = 5.0
+#: Most samples of that history read (evenly strided when it holds more).
+HISTORY_POINTS = 256
 
 
 @njit(cache=True, error_model="numpy")
@@ -43,15 +45,21 @@ def relaxation_mid(pbar, p, rate, h, tau):
 def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, cal_o, cal_g):
     """``p_bar`` at sample ``k`` (Pa): the recorded reading ``pm`` (chamber pressures
     behind a miscalibrated sensor's readings when ``calibrated``) low-passed from
-    :data:`RELAXATION_HISTORY` time constants before ``t[k]`` (or the record's start),
-    non-finite samples skipped; ``p_start`` where no sample there is finite."""
+    :data:`RELAXATION_HISTORY` time constants before ``t[k]`` (or the record's start;
+    at most :data:`HISTORY_POINTS` samples of it, strided), non-finite samples skipped;
+    ``p_start`` where no sample there is finite."""
     j = k
     while j > 0 and t[k] - t[j - 1] <= RELAXATION_HISTORY * tau:
         j -= 1
+    # at most HISTORY_POINTS samples of it, evenly strided (the reading linear between
+    # them: a slow low-pass barely sees the difference), so that a one-step prediction
+    # at every sample does not walk seconds of history each
+    stride = max(1, (k - j) // HISTORY_POINTS)
+    j = k - ((k - j) // stride) * stride
     pbar = math.nan
     p_prev = math.nan
     t_prev = 0.0
-    for i in range(j, k + 1):
+    for i in range(j, k + 1, stride):
         v = pm[i]
         if not math.isfinite(v):
             continue
