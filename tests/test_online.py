@@ -269,7 +269,8 @@ def test_respiraworks_online_experiment_smoke(tmp_path):
     if experiments not in sys.path:  # its siblings (real_respiraworks, ..._forms)
         sys.path.insert(0, experiments)
     mod = load_experiment("real_respiraworks_online")
-    assert mod.main(["--out", str(tmp_path), "--sets", "OXY", "--smoke", "--quick"]) == 0
+    assert mod.main(["--out", str(tmp_path), "--sets", "OXY", "--smoke", "--quick",
+                     "--modes", "lookback,carried", "--set", "pressure_gain=0.5"]) == 0
     doc = json.loads((tmp_path / "real_respiraworks_online.json").read_text())
     res = doc["sets"]["OXY"]
     assert set(res["protocol_windows"]) == {"setpoint", "frozen", "calibrated"}  # --quick
@@ -277,3 +278,7 @@ def test_respiraworks_online_experiment_smoke(tmp_path):
     online = res["online"]["0"]
     assert np.isfinite(online["protocol_rmse_Pa"]) and np.isfinite(online["every_tick_rmse_Pa"])
     assert 0.0 <= online["coverage_90_protocol"] <= 1.0
+    assert set(res["online_modes"]) == {"lookback", "carried"}
+    assert res["online_modes"]["lookback"] == res["online"]
+    assert np.isfinite(res["online_modes"]["carried"]["0"]["protocol_rmse_Pa"])
+    assert doc["tracker"]["pressure_gain"] == 0.5

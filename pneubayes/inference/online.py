@@ -480,7 +480,9 @@ class OnlineTracker:
         n_mem = min(max(1, int(round(self.memory_s / self._dt))), self._buf[0].size - 1)
         accepted = 0
         if self._carried:  # the moves' target and the proposals' states: a replay
-            cur = self._replay(z)[0] + self.prior.logpdf(z)
+            # (once per distinct particle: resampling left duplicates)
+            uz, inv = np.unique(z, axis=0, return_inverse=True)
+            cur = self._replay(uz)[0][inv.reshape(-1)] + self.prior.logpdf(z)
         else:
             cur = self._loglik(z, n_mem) + self.prior.logpdf(z)
         for _ in range(int(self.n_moves)):
