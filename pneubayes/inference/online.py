@@ -23,23 +23,12 @@ tracker", has each step in full):
    the prior times the tempered likelihood of the last ``memory_s`` seconds. An
    approximation: the weights carry the whole run, the moves only the recent samples.
 
-*Carried states* (``update_mode="carried"``): instead of step 3's re-simulation over
-``lookback_s`` at every tick, each particle carries its model state from tick to tick
-(the pressure it predicted and the states the recording does not measure: a second
-compartment's pressure, a temperature, a tank's, a line's cells;
-:func:`~pneubayes.simulation.simulate_carried`) and a tick simulates only its new
-samples, from the particle's own pressure moved by ``pressure_gain`` of its last error
-against the measured one (1: restart at the measured pressure, a one-tick-ahead
-likelihood; 0: the particle's own, an open-loop simulation of the whole stream): a
-tick's cost does not grow with any window. Resampling copies the states with the
-particles. A move changes a particle's quantities, so its state is recomputed: the
-proposal (and the current particle, for the ratio) is replayed through the same
-recursion from a fresh state at the measured pressure ``(1 + warm_up_windows) x
-memory_s`` back (at a past tick's end; the tick boundaries are kept), the target being
-the prior times the tempered likelihood of the replay's last ``memory_s``; an accepted
-proposal takes the replay's state at the tick's end, a rejected particle keeps its
-own. The buffer keeps that replay's span (plus ``history_s``), so memory, not a tick,
-scales with ``memory_s``; a tick that resamples and moves costs the replays.
+*Carried states* (``update_mode="carried"``): each particle carries its model state
+(:func:`~pneubayes.simulation.simulate_carried`) and a tick simulates only its new
+samples, from its pressure moved by ``pressure_gain`` of its error towards the measured
+one; ``lookback_s`` is not read. Resampling copies the states; a move's proposal is
+scored on, and takes the state of, a replay from a fresh state ``(1 + warm_up_windows)
+x memory_s`` back (docs/architecture.md, "Carried states").
 
 Why: the varying quantities are few, the model is a simulator (no gradients), and a
 controller needs the predictive distribution at every tick at a bounded cost; the
@@ -95,9 +84,8 @@ class OnlineTracker:
 
     Parameters
     ----------
-    model, rig, solver : Model, Rig, SolverConfig
-    params : mapping of str to float
-        Every parameter's value; the varying ones (the prior's) are tracked.
+    model, rig, solver, params : Model, Rig, SolverConfig, mapping of str to float
+        Every parameter's value in ``params``; the varying ones (the prior's) are tracked.
     prior : LogNormalPrior or LogUniformPrior
         Over the varying quantities (its ``names``).
     noise_std_Pa : float
@@ -107,29 +95,20 @@ class OnlineTracker:
     lookback_s, memory_s : float
         A tick's predictions start from the measured pressure ``lookback_s`` before its
         last sample; the moves' target scores the last ``memory_s`` (<= ``lookback_s``).
-        With ``update_mode="carried"`` ``lookback_s`` is not read.
     warm_up_windows : int
-        Windows of ``lookback_s`` before that start that bring unmeasured states to it
-        (carried: the moves' replay starts ``(1 + warm_up_windows) x memory_s`` back).
+        Windows of ``lookback_s`` before that start that bring unmeasured states to it.
     temper, ess_threshold : float
         The likelihood's power in (0, 1]; resample below this share of particles as ESS.
-    move_scale, move_floor_log : float
-        The random walk's scale relative to the particles' spread; its least log SD.
-    drift_log_per_sqrt_s : float
-        Log SD per root second of the quantities' walk between ticks (0: constant).
-    adapt_noise_s : float
+    move_scale, move_floor_log, drift_log_per_sqrt_s : float
+        The random walk's scale relative to the particles' spread; its least log SD; the
+        log SD per root second of the quantities' walk between ticks (0: constant).
+    adapt_noise_s, history_s : float
         > 0: the error scale follows the run's own errors (an exponential average over
-        this many seconds, never below ``noise_std_Pa``); 0: fixed.
-    history_s : float
-        Samples kept before the windows (a delayed or lagging valve's command history).
-    update_mode : {"lookback", "carried"}
-        ``"lookback"``: every tick re-simulates each particle over ``lookback_s`` (after
-        its warm-up windows); ``"carried"``: each particle carries its model state and a
-        tick simulates only the new samples (the module's text).
-    pressure_gain : float in [0, 1]
-        Carried mode: the share of a particle's last error by which its pressure moves to
-        the measured one before the next tick (1: the measured pressure; 0: its own, an
-        open-loop simulation). Not read in lookback mode.
+        this many seconds, never below ``noise_std_Pa``); 0: fixed. Samples kept before
+        the windows (a delayed or lagging valve's command history).
+    update_mode, pressure_gain : {"lookback", "carried"}, float in [0, 1]
+        ``"carried"``: each particle carries its state, a tick simulates its new samples
+        from its pressure moved by ``pressure_gain`` of its error (module's text).
 
     Attributes
     ----------
@@ -137,11 +116,9 @@ class OnlineTracker:
         ``(N, k)`` log values and ``(N,)`` normalised log weights.
     ess_, acceptance_, noise_scale_Pa_ : float
         Effective sample size; the last moves' accept rate; the error scale in use, Pa.
-    n_resamples_ : int
-    time_s_ : float or None
-    pressure_Pa_, carry_ : ndarray
-        Carried mode: each particle's last predicted pressure ``(N,)``, Pa, and its
-        unmeasured states ``(N, N_CARRY)`` (:func:`~pneubayes.simulation.simulate_carried`).
+    n_resamples_, time_s_ : int, float or None
+    pressure_Pa_, carry_ : ndarray or None
+        Carried: the last predicted pressures ``(N,)``, Pa; the other states, ``(N, ·)``.
     """
 
     def __init__(self, model: Model, params: Mapping[str, float], prior, rig,

@@ -364,20 +364,13 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
     the set's own pressure (the chunks are one open-loop simulation of the whole span),
     1 the measured pressure (contiguous windows of :func:`simulate_windows`).
 
-    A stream's online update (:class:`~pneubayes.inference.online.OnlineTracker` with
-    ``update_mode="carried"``) calls this with one chunk per tick and keeps ``carry`` and
-    the last prediction between ticks. What a window rebuilds from the recorded history
-    rather than carries: a spool's position (exact: it follows the command), a lagged
-    reading's state and an open-form low-pass (from the recorded reading). A declared
-    anti-alias filter (``rig.pressure_filter``) is refused: its reading is computed
-    over a whole window, not stepped.
+    The online tracker's carried mode calls this once per tick. Rebuilt per chunk from
+    the recorded history, not carried: a spool's position (exactly), a lagged reading
+    and an open-form low-pass. A declared ``rig.pressure_filter`` is refused.
 
     Parameters
     ----------
-    model : Model
-    params : mapping, (P,) or (B, P) array
-    inputs : Inputs
-    rig : Rig
+    model, params, inputs, rig : as :func:`simulate_windows`'s
     bounds : (K + 1,) int array
         Increasing sample indices: the chunks' ends (``K >= 1``).
     initial_pressure_Pa : (B,) array or float
@@ -388,8 +381,7 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
     measured_Pa : (N,) array
         The measured pressure on the inputs' samples (read at the chunks' starts).
     gain : float in [0, 1]
-    solver : SolverConfig
-    check_bounds : bool
+    solver, check_bounds : SolverConfig, bool
 
     Returns
     -------
