@@ -1,6 +1,7 @@
 """Benchmark of the online tracker's update: 64 particles, one new sample per 200-Hz tick.
 
     .venv/bin/python benchmarks/online_tracker.py --json OUT.json [--seed 0] [--quick]
+        [--modes lookback,carried]
 
 Two plants, each streamed at 200 Hz, one sample per update (issue 67's floor: at most
 2 ms per tick with 64 particles on 2 cores):
@@ -17,8 +18,17 @@ and numba threads (1, 2): the median and 95th percentile of ``OnlineTracker.upda
 wall time over a stream of ticks after 0.5 s of warm-up (ticks that resample and move
 included), and the share of ticks that resampled; and, at a 0.2-s lookback, a stream
 that resamples and moves at every tick (the worst tick's cost); the best setting per plant on 1 and
-on 2 threads against the floor. Times are reported, never asserted; the machine is
-shared (on a loaded one the parallel loop's second thread may wait for a time slice).
+on 2 threads against the floor.
+
+The carried-state update (``update_mode="carried"``, ``pressure_gain`` 1: each particle
+carries its state and a tick simulates its new sample only) in the same run: the moves'
+memory (0.05, 0.2, 1 s, the span a move's replay scores; it replays (1 + warm-up) x
+that) at warm-up 1, pressure gains 1 and 0 (the latter at 0.2 s), and a stream that
+resamples and moves at every tick at 0.2 s. Its tick does not read ``lookback_s``; the
+rows' ``lookback_s`` is the moves' ``memory_s``. The floor is judged per mode (the
+carried chain runs on one thread: its 2-thread rows are its 1-thread loop). Times are
+reported, never asserted; the machine is shared (on a loaded one the parallel loop's
+second thread may wait for a time slice).
 """
 
 from __future__ import annotations
@@ -76,11 +86,13 @@ def ventilator_stream(seconds):
     return model, params, prior, rec.rig(), (t, *cols), 150.0
 
 
-def time_stream(setup, lookback_s, warm, rng_seed, seconds, ess_threshold=0.5):
+def time_stream(setup, lookback_s, warm, rng_seed, seconds, ess_threshold=0.5,
+                update_mode="lookback", pressure_gain=1.0):
     model, params, prior, rig, (t, u, p, ue), sigma = setup
     tr = OnlineTracker(model, params, prior, rig, SolverConfig.standard(), sigma,
                        n_particles=N_PARTICLES, lookback_s=lookback_s, memory_s=lookback_s,
-                       warm_up_windows=warm, temper=0.1, ess_threshold=ess_threshold
+                       warm_up_windows=warm, temper=0.1, ess_threshold=ess_threshold,
+                       update_mode=update_mode, pressure_gain=pressure_gain
                        ).reset(np.random.default_rng(rng_seed))
     ms, resampled = [], 0
     skip = int(0.5 * RATE_HZ) + int(lookback_s * (1 + warm) * RATE_HZ)
@@ -99,7 +111,9 @@ def time_stream(setup, lookback_s, warm, rng_seed, seconds, ess_threshold=0.5):
 
 
 def say(row) -> None:
-    print(f"{row['plant']:<10} lookback {row['lookback_s']:4.2f} s  warm "
+    mode = row["update_mode"] + (f" g{row['pressure_gain']:g}"
+                                 if row["update_mode"] == "carried" else "")
+    print(f"{row['plant']:<10} {mode:<11} lookback {row['lookback_s']:4.2f} s  warm "
           f"{row['warm_up_windows']}  {row['threads']} thr  median {row['median_ms']:7.2f} ms"
           f"  p95 {row['p95_ms']:7.2f} ms  resampled {row['resampled_share']:.2f}",
           file=sys.stderr, flush=True)
@@ -110,52 +124,63 @@ def main(argv=None) -> int:
     ap.add_argument("--json", required=True)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="1.5-s streams instead of 4 s")
+    ap.add_argument("--modes", default="lookback,carried",
+                    help="comma-separated update modes to time (lookback, carried)")
     args = ap.parse_args(argv)
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    if not modes or any(m not in ("lookback", "carried") for m in modes):
+        ap.error(f"--modes {args.modes}: lookback and/or carried")
     seconds = 1.5 if args.quick else 4.0
     rng = np.random.default_rng(args.seed)
     rows = []
     plants = {"chamber": chamber_stream(rng, seconds + 3.0),
               "ventilator": ventilator_stream(seconds + 3.0)}
+    grid = []  # (mode, gain, lookback or memory, warm, every tick resampled)
+    if "lookback" in modes:
+        grid += [("lookback", 1.0, lb, w, False) for lb in (0.05, 0.2, 1.0) for w in (0, 1)]
+        grid += [("lookback", 1.0, 0.2, 0, True)]
+    if "carried" in modes:
+        grid += [("carried", 1.0, mem, 1, False) for mem in (0.05, 0.2, 1.0)]
+        grid += [("carried", 0.0, 0.2, 1, False), ("carried", 1.0, 0.2, 1, True)]
     for plant, setup in plants.items():
-        for lookback in (0.05, 0.2, 1.0):
-            for warm in (0, 1):
-                for threads in (1, 2):
-                    if threads > numba.config.NUMBA_NUM_THREADS:
-                        continue
-                    numba.set_num_threads(threads)
+        for mode, gain, lookback, warm, every in grid:
+            for threads in (1, 2):
+                if threads > numba.config.NUMBA_NUM_THREADS:
+                    continue
+                numba.set_num_threads(threads)
+                if every:  # every tick resampled and moved (2 moves): the worst tick
+                    span = seconds + 0.7 if mode == "lookback" else seconds + 0.5 + 2 * lookback
+                else:
                     span = seconds + 0.5 + lookback * (1 + warm)
-                    row = {"plant": plant, "lookback_s": lookback, "warm_up_windows": warm,
-                           "threads": threads, "particles": N_PARTICLES, "rate_Hz": RATE_HZ,
-                           **time_stream(setup, lookback, warm, args.seed, span)}
-                    rows.append(row)
-                    say(row)
-        for threads in (1, 2):  # every tick resampled and moved (2 moves): the worst tick
-            if threads > numba.config.NUMBA_NUM_THREADS:
-                continue
-            numba.set_num_threads(threads)
-            row = {"plant": plant, "lookback_s": 0.2, "warm_up_windows": 0,
-                   "threads": threads, "particles": N_PARTICLES, "rate_Hz": RATE_HZ,
-                   "every_tick_resampled": True,
-                   **time_stream(setup, 0.2, 0, args.seed, seconds + 0.7, ess_threshold=1.0)}
-            rows.append(row)
-            say(row)
+                row = {"plant": plant, "update_mode": mode, "pressure_gain": gain,
+                       "lookback_s": lookback, "warm_up_windows": warm,
+                       "threads": threads, "particles": N_PARTICLES, "rate_Hz": RATE_HZ,
+                       **({"every_tick_resampled": True} if every else {}),
+                       **time_stream(setup, lookback, warm, args.seed, span,
+                                     ess_threshold=1.0 if every else 0.5,
+                                     update_mode=mode, pressure_gain=gain)}
+                rows.append(row)
+                say(row)
     # the best setting per plant and thread count: on a shared machine the parallel
     # loop's second thread can wait for a time slice, so both are reported
     floor = {}
     for plant in plants:
-        for threads in (1, 2):
-            cands = [r for r in rows if r["plant"] == plant and r["threads"] == threads
-                     and not r.get("every_tick_resampled")]
-            if not cands:
-                continue
-            r = min(cands, key=lambda row: row["median_ms"])
-            floor[f"{plant}, {threads} thread(s)"] = {
-                "ceiling_ms": FLOOR_MS, "best_median_ms": r["median_ms"],
-                "p95_ms": r["p95_ms"],
-                "at": {k: r[k] for k in ("lookback_s", "warm_up_windows")},
-                "met": bool(r["median_ms"] <= FLOOR_MS)}
+        for mode in modes:
+            for threads in (1, 2):
+                cands = [r for r in rows if r["plant"] == plant and r["threads"] == threads
+                         and r["update_mode"] == mode and not r.get("every_tick_resampled")]
+                if not cands:
+                    continue
+                r = min(cands, key=lambda row: row["median_ms"])
+                floor[f"{plant}, {mode}, {threads} thread(s)"] = {
+                    "ceiling_ms": FLOOR_MS, "best_median_ms": r["median_ms"],
+                    "p95_ms": r["p95_ms"],
+                    "at": {k: r[k] for k in ("lookback_s", "warm_up_windows",
+                                             "pressure_gain")},
+                    "met": bool(r["median_ms"] <= FLOOR_MS)}
     write_json_atomic(args.json, {"format": "pneubayes-bench-online/1", "seed": args.seed,
-                                  "quick": args.quick, "rows": rows, "floor": floor})
+                                  "quick": args.quick, "modes": modes, "rows": rows,
+                                  "floor": floor})
     for what, f in floor.items():
         print(f"{what}: best median {f['best_median_ms']:.2f} ms (p95 {f['p95_ms']:.2f} ms) "
               f"per 200-Hz tick at {f['at']} (ceiling {FLOOR_MS:g} ms) "

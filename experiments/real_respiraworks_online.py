@@ -2,7 +2,7 @@
 
     python experiments/real_respiraworks_online.py --out results/real_respiraworks_online
         [--sets OXY,AIR] [--select] [--seeds 0,1,2] [--quick] [--smoke]
-        [--population point|hierarchical]
+        [--population point|hierarchical] [--modes lookback,carried]
 
 The shipped card (two compartments, the exhale valve on its own command), the split of
 ``real_respiraworks.py`` (runs 1-4 train, 5-6 held out) and its 2-s windows. Per set:
@@ -40,8 +40,12 @@ start (the refitting the issue asks the online update to be compared with). Two 
 sets: the protocol's (2-s windows every 2 s from ``CAL_S``: the samples of the forms
 script's "after cal" numbers) and every tick's. The forms script's own numbers (windows
 chained through the rest of the run) are recomputed for the shared and calibrated fits
-as a check. Tracker cost per tick is the wall time of ``update`` (this machine: 2 cores
-shared with other work). Seeds recorded. Writes OUT/real_respiraworks_online.json.
+as a check. ``--modes`` runs the tracker in each update mode (``lookback``: every tick
+re-simulates ``lookback_s``; ``carried``: each particle carries its state, a tick
+simulates its new samples) on the same baselines: ``online`` holds the first mode's,
+``online_modes`` each one's. Tracker cost per tick is the wall time of ``update``
+(this machine: 2 cores shared with other work). Seeds recorded. Writes
+OUT/real_respiraworks_online.json.
 """
 
 from __future__ import annotations
@@ -79,7 +83,8 @@ FLOOR_LOG_SD = 0.25
 #: error the protocol measures (1 s, tried first on OXY: 233 -> 206 Pa with 2 warm-ups)
 TRACKER = {"lookback_s": 2.0, "warm_up_windows": 1, "temper": 0.1, "ess_threshold": 0.5,
            "n_moves": 2, "move_scale": 0.5, "move_floor_log": 1e-3, "memory_s": 2.0,
-           "drift_log_per_sqrt_s": 0.0, "adapt_noise_s": 0.0}
+           "drift_log_per_sqrt_s": 0.0, "adapt_noise_s": 0.0,
+           "update_mode": "lookback", "pressure_gain": 1.0}
 CMH2O_PA = 98.0665
 #: The online conformal band (:class:`OnlineConformalBand`) is fed predictions at every
 #: tick from this time on (before the scored ones, which start at ``CAL_S``): the run's
@@ -202,7 +207,7 @@ def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) ->
 
 
 def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
-            log, population: str = "point") -> dict:
+            log, population: str = "point", modes=None) -> dict:
     card = form_card(kind, "two_compartment", "separate")
     lung = LUNG["two_compartment"]
     recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
@@ -314,9 +319,12 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
                                         "calibrated": rmse(forms_cal),
                                         "setpoint": setpoint_rmse_Pa(rests, HORIZON_S)}
     res["noise_floor_Pa"] = noise_floor_Pa(recs)
-    # the tracker, per seed
-    res["online"] = {}
-    for seed in seeds:
+    # the tracker, per update mode and seed
+    res["online_modes"] = {}
+    modes = modes or [knobs["update_mode"]]
+    for mode, seed in [(mode, seed) for mode in modes for seed in seeds]:
+        res["online"] = res["online_modes"].setdefault(mode, {})
+        knobs = {**res["tracker"], "update_mode": mode}
         errs_p, errs_a, in_p, in_a, width, ms = [], [], [], [], [], []
         cin_p, cin_a, cwidth = [], [], []
         for i, r in enumerate(held):
@@ -331,7 +339,7 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
             errs_a += [o["errors"][k] for k in every]
             in_a += [o["inside"][k] for k in every]
             ms += o["tick_ms"]
-            if seed == seeds[0]:
+            if seed == seeds[0] and mode == modes[0]:
                 stem = Path(r.source).stem
                 res["runs"][stem].update({"trace": o["trace"], "n_resamples": o["n_resamples"],
                                           "final_quantiles": o["final_quantiles"]})
@@ -350,12 +358,13 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
                         "p95": float(np.percentile(ms, 95)), "max": float(ms.max()),
                         "ticks": int(ms.size)}}
         o = res["online"][str(seed)]
-        log(f"[{kind}] seed {seed}: online {o['protocol_rmse_Pa']:.0f} Pa on the protocol's "
-            f"windows, {o['every_tick_rmse_Pa']:.0f} Pa every tick; 90 % coverage "
+        log(f"[{kind}] {mode}, seed {seed}: online {o['protocol_rmse_Pa']:.0f} Pa on the "
+            f"protocol's windows, {o['every_tick_rmse_Pa']:.0f} Pa every tick; 90 % coverage "
             f"{o['coverage_90_protocol']:.2f} (band {o['band_90_median_width_Pa']:.0f} Pa), "
             f"online conformal {o['conformal_coverage_90_protocol']:.2f} (band "
             f"{o['conformal_band_90_median_width_Pa']:.0f} Pa); "
             f"tick {o['tick_ms']['median']:.1f} ms median")
+    res["online"] = res["online_modes"][modes[0]]
     pw = res["protocol_windows"]
     log(f"[{kind}] protocol windows ({res['protocol_n_windows']}): set-point "
         f"{pw['setpoint']:.0f}, frozen {pw['frozen']:.0f}, calibrated {pw['calibrated']:.0f}"
@@ -383,13 +392,20 @@ def main(argv=None) -> int:
                          "predictive of real_respiraworks_population.py's hierarchical fit")
     ap.add_argument("--set", action="append", default=[], metavar="KNOB=VALUE",
                     help="override a tracker knob of TRACKER (recorded in the result)")
+    ap.add_argument("--modes", default=None,
+                    help="comma-separated update modes to run the tracker in (lookback, "
+                         "carried; default: TRACKER's update_mode)")
     args = ap.parse_args(argv)
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()] if args.modes else None
+    if modes and any(m not in ("lookback", "carried") for m in modes):
+        ap.error(f"--modes {args.modes}: lookback and/or carried")
     for item in args.set:
         key, _, value = item.partition("=")
         if key not in TRACKER:
             ap.error(f"--set {item}: not a knob of {sorted(TRACKER)}")
-        TRACKER[key] = type(TRACKER[key])(float(value) if isinstance(TRACKER[key], float)
-                                          else int(value))
+        kind = type(TRACKER[key])
+        TRACKER[key] = value if kind is str else kind(
+            float(value) if kind is float else int(value))
     seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
     out = Path(args.out)
     path = out / "real_respiraworks_online.json"
@@ -400,12 +416,12 @@ def main(argv=None) -> int:
               "max_nfev": MAX_NFEV, "quick": args.quick, "smoke": args.smoke,
               "select": args.select, "population": args.population,
               "select_grid": SELECT_GRID if args.select else None,
-              "seeds": seeds, "sets": {},
+              "seeds": seeds, "modes": modes, "sets": {},
               "provenance": provenance()}
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
         result["sets"][kind] = run_set(kind, out, args.quick, args.smoke, args.select, seeds,
                                        lambda msg: print(msg, file=sys.stderr),
-                                       args.population)
+                                       args.population, modes)
         write_json_atomic(path, result)
     return 0
 

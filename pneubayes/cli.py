@@ -679,7 +679,9 @@ def cmd_track(args) -> int:
                   prior_log_sd=args.prior_log_sd, solver=SolverConfig.standard(),
                   predict_every=args.predict_every,
                   tracker_options={"lookback_s": args.lookback, "temper": args.temper,
-                                   "memory_s": args.lookback})
+                                   "memory_s": args.lookback,
+                                   "update_mode": args.update_mode,
+                                   "pressure_gain": args.pressure_gain})
     def fmt(v):
         return "n/a" if v is None else f"{v:.0f} Pa"
     cov, ccov = s["coverage_90"], s["conformal_coverage_90"]

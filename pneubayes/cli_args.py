@@ -510,6 +510,15 @@ def _add_track(sub) -> None:
                    help="each tick's predictions start this many seconds back (1.0)")
     t.add_argument("--temper", type=_share, default=0.1,
                    help="the likelihood's power in (0, 1] (0.1: correlated model errors)")
+    t.add_argument("--update-mode", choices=("lookback", "carried"), default="lookback",
+                   help="lookback (default): every tick re-simulates --lookback seconds; "
+                        "carried: each particle carries its model state and a tick "
+                        "simulates only its new samples (a cost that does not grow with "
+                        "--lookback, which then sets the moves' memory)")
+    t.add_argument("--pressure-gain", type=_share, default=1.0,
+                   help="carried mode: the share of a particle's error by which its "
+                        "pressure moves to the measured one at each tick (1: the measured; "
+                        "0: its own, open loop)")
     t.add_argument("--seed", type=NON_NEGATIVE_INT, default=0)
     t.add_argument("--overwrite", action="store_true")
     _add_accept(t)

@@ -232,6 +232,15 @@ def test_track_command_writes_ticks_and_refuses_to_overwrite(bench_run, tmp_path
     before = out.read_text()
     assert main(argv) == 2  # exists: refused, untouched
     assert "--overwrite" in capsys.readouterr().err and out.read_text() == before
+    # the carried-state update: the same neighbourhood, its knobs recorded
+    carried = tmp_path / "carried.json"
+    argv[argv.index(str(out))] = str(carried)
+    assert main([*argv, "--update-mode", "carried", "--pressure-gain", "0.5"]) == 0
+    doc = json.loads(carried.read_text())
+    assert doc["settings"]["tracker"]["update_mode"] == "carried"
+    assert doc["settings"]["tracker"]["pressure_gain"] == 0.5
+    q = doc["final_quantiles"]["dead_volume_m3"]
+    assert q[0] <= truth * 1.2 and q[2] >= truth / 1.2
 
 
 @pytest.mark.parametrize("extra, says", [
@@ -246,6 +255,20 @@ def test_track_bad_arguments_name_the_argument(bench_run, tmp_path, capsys, extr
     out = tmp_path / "t.json"
     assert main(["track", str(run), str(rec), "--out", str(out), "--noise-std", "2000",
                  *extra]) == 2
+    assert says in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("extra, says", [
+    (["--pressure-gain", "2"], "--pressure-gain"),
+    (["--update-mode", "replay"], "--update-mode"),
+])
+def test_track_carried_mode_options_are_checked(bench_run, tmp_path, capsys, extra, says):
+    rec, run = bench_run
+    out = tmp_path / "t.json"
+    with pytest.raises(SystemExit) as exc:
+        main(["track", str(run), str(rec), "--out", str(out), "--noise-std", "2000",
+              "--vary", "dead_volume_m3", *extra])
+    assert exc.value.code == 2
     assert says in capsys.readouterr().err and not out.exists()
 
 
@@ -269,7 +292,8 @@ def test_respiraworks_online_experiment_smoke(tmp_path):
     if experiments not in sys.path:  # its siblings (real_respiraworks, ..._forms)
         sys.path.insert(0, experiments)
     mod = load_experiment("real_respiraworks_online")
-    assert mod.main(["--out", str(tmp_path), "--sets", "OXY", "--smoke", "--quick"]) == 0
+    assert mod.main(["--out", str(tmp_path), "--sets", "OXY", "--smoke", "--quick",
+                     "--modes", "lookback,carried", "--set", "pressure_gain=0.5"]) == 0
     doc = json.loads((tmp_path / "real_respiraworks_online.json").read_text())
     res = doc["sets"]["OXY"]
     assert set(res["protocol_windows"]) == {"setpoint", "frozen", "calibrated"}  # --quick
@@ -277,3 +301,7 @@ def test_respiraworks_online_experiment_smoke(tmp_path):
     online = res["online"]["0"]
     assert np.isfinite(online["protocol_rmse_Pa"]) and np.isfinite(online["every_tick_rmse_Pa"])
     assert 0.0 <= online["coverage_90_protocol"] <= 1.0
+    assert set(res["online_modes"]) == {"lookback", "carried"}
+    assert res["online_modes"]["lookback"] == res["online"]
+    assert np.isfinite(res["online_modes"]["carried"]["0"]["protocol_rmse_Pa"])
+    assert doc["tracker"]["pressure_gain"] == 0.5

@@ -23,6 +23,13 @@ tracker", has each step in full):
    the prior times the tempered likelihood of the last ``memory_s`` seconds. An
    approximation: the weights carry the whole run, the moves only the recent samples.
 
+*Carried states* (``update_mode="carried"``): each particle carries its model state
+(:func:`~pneubayes.simulation.simulate_carried`) and a tick simulates only its new
+samples, from its pressure moved by ``pressure_gain`` of its error towards the measured
+one; ``lookback_s`` is not read. Resampling copies the states; a move's proposal is
+scored on, and takes the state of, a replay from a fresh state ``(1 + warm_up_windows)
+x memory_s`` back (docs/architecture.md, "Carried states").
+
 Why: the varying quantities are few, the model is a simulator (no gradients), and a
 controller needs the predictive distribution at every tick at a bounded cost; the
 particles are the draws a :class:`~pneubayes.inference.predictive.PressurePredictor`
@@ -39,7 +46,16 @@ import numpy as np
 
 from pneubayes.inference.predictive import PressurePredictor
 from pneubayes.model import Model
-from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+from pneubayes.simulation import (
+    Inputs,
+    SolverConfig,
+    fresh_carry,
+    simulate_carried,
+    simulate_windows,
+)
+
+#: The tracker's update modes (:class:`OnlineTracker`'s ``update_mode``).
+UPDATE_MODES = ("lookback", "carried")
 
 
 def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
@@ -68,9 +84,8 @@ class OnlineTracker:
 
     Parameters
     ----------
-    model, rig, solver : Model, Rig, SolverConfig
-    params : mapping of str to float
-        Every parameter's value; the varying ones (the prior's) are tracked.
+    model, rig, solver, params : Model, Rig, SolverConfig, mapping of str to float
+        Every parameter's value in ``params``; the varying ones (the prior's) are tracked.
     prior : LogNormalPrior or LogUniformPrior
         Over the varying quantities (its ``names``).
     noise_std_Pa : float
@@ -84,15 +99,16 @@ class OnlineTracker:
         Windows of ``lookback_s`` before that start that bring unmeasured states to it.
     temper, ess_threshold : float
         The likelihood's power in (0, 1]; resample below this share of particles as ESS.
-    move_scale, move_floor_log : float
-        The random walk's scale relative to the particles' spread; its least log SD.
-    drift_log_per_sqrt_s : float
-        Log SD per root second of the quantities' walk between ticks (0: constant).
-    adapt_noise_s : float
+    move_scale, move_floor_log, drift_log_per_sqrt_s : float
+        The random walk's scale relative to the particles' spread; its least log SD; the
+        log SD per root second of the quantities' walk between ticks (0: constant).
+    adapt_noise_s, history_s : float
         > 0: the error scale follows the run's own errors (an exponential average over
-        this many seconds, never below ``noise_std_Pa``); 0: fixed.
-    history_s : float
-        Samples kept before the windows (a delayed or lagging valve's command history).
+        this many seconds, never below ``noise_std_Pa``); 0: fixed. Samples kept before
+        the windows (a delayed or lagging valve's command history).
+    update_mode, pressure_gain : {"lookback", "carried"}, float in [0, 1]
+        ``"carried"``: each particle carries its state, a tick simulates its new samples
+        from its pressure moved by ``pressure_gain`` of its error (module's text).
 
     Attributes
     ----------
@@ -100,8 +116,9 @@ class OnlineTracker:
         ``(N, k)`` log values and ``(N,)`` normalised log weights.
     ess_, acceptance_, noise_scale_Pa_ : float
         Effective sample size; the last moves' accept rate; the error scale in use, Pa.
-    n_resamples_ : int
-    time_s_ : float or None
+    n_resamples_, time_s_ : int, float or None
+    pressure_Pa_, carry_ : ndarray or None
+        Carried: the last predicted pressures ``(N,)``, Pa; the other states, ``(N, ·)``.
     """
 
     def __init__(self, model: Model, params: Mapping[str, float], prior, rig,
@@ -110,7 +127,8 @@ class OnlineTracker:
                  ess_threshold: float = 0.5, n_moves: int = 1, move_scale: float = 0.5,
                  move_floor_log: float = 1e-3, memory_s: float = 1.0,
                  drift_log_per_sqrt_s: float = 0.0, adapt_noise_s: float = 0.0,
-                 history_s: float = 0.0):
+                 history_s: float = 0.0, update_mode: str = "lookback",
+                 pressure_gain: float = 1.0):
         self.model = model
         self.params = dict(params)
         self.prior = prior
@@ -129,6 +147,8 @@ class OnlineTracker:
         self.drift_log_per_sqrt_s = drift_log_per_sqrt_s
         self.adapt_noise_s = adapt_noise_s
         self.history_s = history_s
+        self.update_mode = update_mode
+        self.pressure_gain = pressure_gain
 
     # ------------------------------------------------------------------ checks
     def _check(self) -> None:
@@ -149,7 +169,20 @@ class OnlineTracker:
         positive("ess_threshold", high=1.0)
         positive("move_scale")
         positive("move_floor_log")
-        positive("memory_s", high=float(self.lookback_s))
+        if self.update_mode not in UPDATE_MODES:
+            raise ValueError(f"OnlineTracker: update_mode must be one of {UPDATE_MODES}, "
+                             f"got {self.update_mode!r}")
+        positive("memory_s", high=float(self.lookback_s) if self.update_mode == "lookback"
+                 else None)
+        g = self.pressure_gain
+        if not (isinstance(g, (int, float, np.integer, np.floating)) and not isinstance(g, bool)
+                and 0.0 <= g <= 1.0):
+            raise ValueError(f"OnlineTracker: pressure_gain must be a number in [0, 1], "
+                             f"got {g!r}")
+        if self.update_mode == "carried" and self.rig.pressure_filter is not None:
+            raise ValueError("OnlineTracker: update_mode 'carried' cannot carry a declared "
+                             "pressure filter's reading (computed over whole windows); use "
+                             "'lookback'")
         for name in ("n_moves", "warm_up_windows"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0):
@@ -196,6 +229,11 @@ class OnlineTracker:
         self._last_time = None
         self.noise_scale_Pa_ = float(self.noise_std_Pa)
         self._noise_ms = float(self.noise_std_Pa) ** 2
+        self._carried = self.update_mode == "carried"
+        self._first = 0  # the buffer's first sample's index in the stream
+        self._ends = []  # carried: the stream indices of the ticks' last samples
+        self.pressure_Pa_ = None
+        self.carry_ = None
         return self
 
     def theta(self, z) -> np.ndarray:
@@ -250,7 +288,12 @@ class OnlineTracker:
         m = block[0].size
         self._append(block)
         n_buf = self._buf[0].size
-        if n_buf < 3:
+        if self._carried and self.pressure_Pa_ is None:  # the stream's first sample
+            n = int(self.n_particles)
+            self.pressure_Pa_ = np.full(n, self._buf[2][0])
+            self.carry_ = fresh_carry(n, self.rig)
+            self._ends = [self._first]
+        if self._carried and n_buf < 2 or not self._carried and n_buf < 3:
             self.time_s_ = float(self._buf[0][-1])
             return self
         if self.drift_log_per_sqrt_s > 0 and self._last_time is not None:
@@ -261,7 +304,10 @@ class OnlineTracker:
             self.particles_ = np.clip(np.where(moved > hi, 2 * hi - moved, moved), lo, hi)
         gap = None if self._last_time is None else self._buf[0][-1] - self._last_time
         self._last_time = float(self._buf[0][-1])
-        ll, r = self._loglik(self.particles_, min(m, n_buf - 1), residuals=True)
+        if self._carried:
+            ll, r = self._tick_carried()
+        else:
+            ll, r = self._loglik(self.particles_, min(m, n_buf - 1), residuals=True)
         if self.adapt_noise_s > 0 and gap is not None:
             ok = np.isfinite(ll)
             w = self.weights_[ok]
@@ -314,13 +360,67 @@ class OnlineTracker:
         t = self._buf[0]
         if t.size > 1:
             self._dt = float(np.median(np.diff(t[-min(t.size, 50):])))
-            keep = self._window_samples() * (1 + int(self.warm_up_windows)) + 1 + int(
+            span = (self._memory_samples() if self.update_mode == "carried"
+                    else self._window_samples())
+            keep = span * (1 + int(self.warm_up_windows)) + 1 + int(
                 np.ceil(self.history_s / self._dt))
+            if self._carried and self._ends:  # never past the last tick's end
+                keep = max(keep, self._first + t.size - self._ends[-1])
             if t.size > keep:
+                self._first += t.size - keep
                 self._buf = [a[-keep:] for a in self._buf]
 
     def _window_samples(self) -> int:
         return max(2, int(round(self.lookback_s / self._dt)))
+
+    def _memory_samples(self) -> int:
+        return max(1, int(round(self.memory_s / self._dt)))
+
+    def _inputs(self) -> Inputs:
+        t, u, p, ue, x, ps = self._buf
+        return Inputs(t, u, x, ps, None, ue if self._own_exhaust else None, p)
+
+    def _tempered(self, r) -> np.ndarray:
+        ll = -0.5 * self.temper * np.sum(r**2, axis=1) / self.noise_scale_Pa_**2
+        return np.where(np.isfinite(ll), ll, -np.inf)
+
+    def _tick_carried(self):
+        """Carried mode: advance every particle's state over the samples since the last
+        tick; their tempered log-likelihood and prediction errors."""
+        p = self._buf[2]
+        last = self._first + p.size - 1
+        done = self._ends[-1]
+        g = float(self.pressure_gain)
+        p0 = self.pressure_Pa_ + g * (p[done - self._first] - self.pressure_Pa_)
+        p0 = np.where(np.isfinite(p0), p0, p[done - self._first])  # (failed: weight 0)
+        sim, self.pressure_Pa_ = simulate_carried(
+            self.model, self.theta(self.particles_), self._inputs(), self.rig,
+            [done - self._first, last - self._first], p0, self.carry_, p, g, self.solver)
+        self._ends.append(last)
+        while self._ends[0] < self._first:
+            self._ends.pop(0)
+        r = sim[:, 1:] - p[done - self._first + 1:]
+        return self._tempered(r), r
+
+    def _replay(self, z):
+        """Carried mode: the particles ``z`` replayed from a fresh state at the measured
+        pressure through the kept ticks of the last ``(1 + warm_up_windows) x memory_s``;
+        the tempered log-likelihood of the last ``memory_s`` and the states at the end
+        (pressure ``(n,)``, carry ``(n, N_CARRY)``)."""
+        p = self._buf[2]
+        last = self._first + p.size - 1
+        span = self._memory_samples() * (1 + int(self.warm_up_windows))
+        bounds = [e for e in self._ends if e >= max(self._first, last - span)]
+        if bounds[0] == last:  # (a tick longer than the span: from the tick before)
+            bounds = self._ends[-2:]
+        bounds = np.asarray(bounds) - self._first
+        n = z.shape[0]
+        carry = fresh_carry(n, self.rig)
+        sim, p_end = simulate_carried(self.model, self.theta(z), self._inputs(), self.rig,
+                                      bounds, p[bounds[0]], carry, p,
+                                      float(self.pressure_gain), self.solver)
+        n_mem = min(self._memory_samples(), sim.shape[1] - 1)
+        return self._tempered(sim[:, -n_mem:] - p[-n_mem:]), p_end, carry
 
     def _loglik(self, z, n_scored: int, residuals: bool = False):
         """Tempered log-likelihood of the last ``n_scored`` samples for log values ``z``
@@ -344,6 +444,9 @@ class OnlineTracker:
         chol = np.linalg.cholesky(cov)
         idx = systematic_resample(w, self.rng_)
         z = z[idx]
+        if self._carried:
+            self.pressure_Pa_ = self.pressure_Pa_[idx]
+            self.carry_ = np.ascontiguousarray(self.carry_[idx])
         self.n_resamples_ += 1
         n = z.shape[0]
         self.log_weights_ = np.full(n, -np.log(n))
@@ -353,15 +456,29 @@ class OnlineTracker:
             return
         n_mem = min(max(1, int(round(self.memory_s / self._dt))), self._buf[0].size - 1)
         accepted = 0
-        cur = self._loglik(z, n_mem) + self.prior.logpdf(z)
+        if self._carried:  # the moves' target and the proposals' states: a replay
+            # (once per distinct particle: resampling left duplicates)
+            uz, inv = np.unique(z, axis=0, return_inverse=True)
+            cur = self._replay(uz)[0][inv.reshape(-1)] + self.prior.logpdf(z)
+        else:
+            cur = self._loglik(z, n_mem) + self.prior.logpdf(z)
         for _ in range(int(self.n_moves)):
             prop = z + self.rng_.normal(size=z.shape) @ chol.T
             lp = self.prior.logpdf(prop)
             ok = np.isfinite(lp)
             new = np.full(n, -np.inf)
-            if ok.any():
+            if ok.any() and self._carried:
+                ll, p_end, carry = self._replay(prop[ok])
+                new[ok] = ll + lp[ok]
+            elif ok.any():
                 new[ok] = self._loglik(prop[ok], n_mem) + lp[ok]
             accept = np.log(self.rng_.uniform(size=n)) < new - cur
+            if self._carried and accept.any():
+                # an accepted proposal's state: its replay's (rows of the ok ones)
+                row = np.cumsum(ok) - 1
+                self.pressure_Pa_ = np.where(accept, p_end[row], self.pressure_Pa_)
+                self.carry_ = np.ascontiguousarray(
+                    np.where(accept[:, None], carry[row], self.carry_))
             z = np.where(accept[:, None], prop, z)
             cur = np.where(accept, new, cur)
             accepted += int(accept.sum())

@@ -161,7 +161,8 @@ def run_track(run_dir, recording, vary, out_json, *, tick_s: float, horizon_s: f
                 "predict_every": predict_every,
                 "tracker": {k: getattr(tracker, k) for k in (
                     "lookback_s", "warm_up_windows", "temper", "ess_threshold", "n_moves",
-                    "move_scale", "move_floor_log", "memory_s", "history_s")}}
+                    "move_scale", "move_floor_log", "memory_s", "history_s",
+                    "update_mode", "pressure_gain")}}
     write_json_atomic(out_json, {"run": str(run), "recording": str(recording.source),
                                  "input_findings": recorded_findings([recording]),
                                  "settings": settings, "summary": summary,

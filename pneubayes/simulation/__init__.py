@@ -4,12 +4,13 @@ from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.simulator import (
     Inputs,
     Trajectory,
+    fresh_carry,
     rig_constants,
     simulate,
+    simulate_carried,
     simulate_windows,
     simulate_windows_sensitivity,
 )
 
-__all__ = ["Inputs", "SolverConfig", "Trajectory", "rig_constants", "simulate",
-           "simulate_windows",
-           "simulate_windows_sensitivity"]
+__all__ = ["Inputs", "SolverConfig", "Trajectory", "fresh_carry", "rig_constants", "simulate",
+           "simulate_carried", "simulate_windows", "simulate_windows_sensitivity"]

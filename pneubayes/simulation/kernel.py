@@ -1079,6 +1079,68 @@ def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, pm, starts, lengt
               rate0, out, sens, status, general)
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chain_carried(slots, consts, solver, t, u, ue, x, ps, pm, bounds, measured, gain,
+                   p_start, carry, out, p_end, status, general):
+    """Every parameter set through the chunks ``bounds[c]..bounds[c + 1]`` in order, each
+    chunk one window started from the set's own state (:func:`simulate_carried`)."""
+    n_out = bounds[-1] - bounds[0] + 1
+    longest = 1
+    for c in range(bounds.shape[0] - 1):
+        longest = max(longest, bounds[c + 1] - bounds[c] + 1)
+    tmp = np.empty(longest)
+    sens = np.empty(0)
+    for b in range(slots.shape[0]):
+        p = p_start[b]
+        out[b, 0] = p
+        for c in range(bounds.shape[0] - 1):
+            i0, length = bounds[c], bounds[c + 1] - bounds[c] + 1
+            st = _window(slots[b], consts, solver, t, u, ue, x, ps, pm, i0, length, p,
+                         math.nan, tmp[:length], sens, carry[b], general)
+            if st != OK:
+                status[b] = st
+                break
+            j0 = i0 - bounds[0]
+            out[b, j0 + 1:j0 + length] = tmp[1:length]
+            p_pred = tmp[length - 1]
+            # the next chunk starts from the prediction moved by ``gain`` of its error
+            p = p_pred + gain * (measured[bounds[c + 1]] - p_pred)
+        if status[b] != OK:
+            out[b, :n_out] = math.nan
+            p_end[b] = math.nan
+        else:
+            p_end[b] = out[b, n_out - 1]
+
+
+def simulate_carried(slots, consts, solver, t, u, ue, x, ps, bounds, measured, gain,
+                     p_start, carry, pm=None, general=None):
+    """Simulate every parameter set through contiguous chunks, carrying its whole state.
+
+    Chunk ``c`` runs from sample ``bounds[c]`` to ``bounds[c + 1]`` as one window; the
+    unmeasured states (``carry``, row per parameter set, updated in place) pass from
+    chunk to chunk as contiguous windows pass them, and the pressure each chunk starts
+    from is the previous chunk's last prediction moved by ``gain`` of its error against
+    ``measured`` there (0: the set's own pressure, an open-loop simulation; 1: the
+    measured one, as contiguous windows restart).
+
+    Returns ``(out, p_end, status)``: ``(B, bounds[-1] - bounds[0] + 1)`` predictions
+    (column 0 ``p_start``; NaN rows where a set fails), ``(B,)`` the last prediction
+    (before any correction) and ``(B,)`` status codes.
+    """
+    nb = slots.shape[0]
+    bounds = np.ascontiguousarray(bounds, dtype=np.int64)
+    out = np.empty((nb, int(bounds[-1] - bounds[0]) + 1))
+    p_end = np.empty(nb)
+    status = np.zeros(nb, dtype=np.int64)
+    hidden = needs_general(slots) if general is None else bool(general)
+    if pm is None:
+        pm = np.full(t.shape, np.nan)
+    _chain_carried(slots, consts, solver, t, u, ue, x, ps, pm, bounds, measured,
+                   float(gain), p_start, carry, out, p_end, status,
+                   True if hidden else None)
+    return out, p_end, status
+
+
 def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0, pm,
               with_sensitivity, general):
     """Every (parameter set, window) pair; see :func:`simulate_windows`.

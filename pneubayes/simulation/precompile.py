@@ -14,7 +14,10 @@ The kernel has four compiled variants, one per combination of
   second state (heat transfer, an acoustic or wave line, a supply tank, a second
   compartment; :func:`pneubayes.simulation.kernel.needs_general`);
 - the loop: on the calling thread, or spread over numba's threads (more than one
-  parameter set or window, and more than one thread).
+  parameter set or window, and more than one thread);
+
+and per state the carried chain (:func:`pneubayes.simulation.simulate_carried`, the
+online tracker's carried mode; on the calling thread).
 
 :func:`compile_variant` builds one state's two loops by running a tiny simulation of it;
 :func:`compile_kernels` runs the states in parallel processes.
@@ -38,7 +41,13 @@ def compile_variant(state: str) -> float:
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
     from pneubayes.rig import Rig
-    from pneubayes.simulation import Inputs, SolverConfig, simulate
+    from pneubayes.simulation import (
+        Inputs,
+        SolverConfig,
+        fresh_carry,
+        simulate,
+        simulate_carried,
+    )
 
     if state not in STATES:
         raise ValueError(f"state must be one of {STATES}, got {state!r}")
@@ -54,6 +63,8 @@ def compile_variant(state: str) -> float:
     row = [values[name] for name in model.parameter_names]
     for sets in (1, 2):  # one set: the serial loop; two: the threaded one
         simulate(model, np.array([row] * sets), inputs, rig, 2e5, SolverConfig.standard())
+    simulate_carried(model, np.array([row]), inputs, rig, [0, 10, 20], 2e5, fresh_carry(1, rig),
+                     np.full(t.shape, 2e5), 1.0, SolverConfig.standard())
     return time.perf_counter() - start
 
 

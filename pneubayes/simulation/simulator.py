@@ -340,6 +340,102 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
                         initial_rate_Pa_per_s)[0]
 
 
+def fresh_carry(n: int, rig: Rig) -> np.ndarray:
+    """``(n, N_CARRY)`` unmeasured states at a stream's start, as a recording's first
+    window starts them (the chamber at the supply's temperature, a line at rest, a tank
+    at the supply, a second compartment at the start's pressure): the ``carry`` of
+    :func:`simulate_carried`."""
+    carry = np.full((int(n), kernel.N_CARRY), np.nan)
+    carry[:, 0] = rig.gas.temperature_K
+    return carry
+
+
+def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
+                     initial_pressure_Pa, carry: np.ndarray, measured_Pa, gain: float,
+                     solver: SolverConfig, check_bounds: bool = False):
+    """Simulate each parameter set through contiguous chunks, carrying its whole state.
+
+    Chunk ``c`` runs from sample ``bounds[c]`` to ``bounds[c + 1]`` (one window, as
+    :func:`simulate_windows` runs one). The states the recording does not measure (a
+    chamber temperature, a line's cells, a tank's or a second compartment's pressure:
+    ``carry``, one row per parameter set, **updated in place**) pass from chunk to chunk
+    as contiguous windows pass them. Each chunk starts from the previous chunk's last
+    predicted pressure moved by ``gain`` of its error against ``measured_Pa`` there: 0
+    the set's own pressure (the chunks are one open-loop simulation of the whole span),
+    1 the measured pressure (contiguous windows of :func:`simulate_windows`).
+
+    The online tracker's carried mode calls this once per tick. Rebuilt per chunk from
+    the recorded history, not carried: a spool's position (exactly), a lagged reading
+    and an open-form low-pass. A declared ``rig.pressure_filter`` is refused.
+
+    Parameters
+    ----------
+    model, params, inputs, rig : as :func:`simulate_windows`'s
+    bounds : (K + 1,) int array
+        Increasing sample indices: the chunks' ends (``K >= 1``).
+    initial_pressure_Pa : (B,) array or float
+        The pressure (reading) at ``bounds[0]``, Pa absolute.
+    carry : (B, N_CARRY) float64 array
+        The unmeasured states at ``bounds[0]`` (:func:`fresh_carry` at a stream's start);
+        replaced by those at ``bounds[-1]``.
+    measured_Pa : (N,) array
+        The measured pressure on the inputs' samples (read at the chunks' starts).
+    gain : float in [0, 1]
+    solver, check_bounds : SolverConfig, bool
+
+    Returns
+    -------
+    out : (B, bounds[-1] - bounds[0] + 1) ndarray
+        Predicted pressure, Pa (column 0 the start; NaN rows where a set fails).
+    p_end : (B,) ndarray
+        The last prediction, before any correction (NaN where a set fails).
+    """
+    solver = _check_solver(solver)
+    if rig.pressure_filter is not None:
+        raise ValueError("simulate_carried: a declared pressure filter's reading is "
+                         "computed over whole windows and cannot be carried")
+    if not (isinstance(gain, (int, float)) and not isinstance(gain, bool)
+            and 0.0 <= gain <= 1.0):
+        raise ValueError(f"simulate_carried: gain must be a number in [0, 1], got {gain!r}")
+    theta = model.as_matrix(params)
+    if check_bounds:
+        model.check_bounds(theta)
+    nb = theta.shape[0]
+    bounds = np.ascontiguousarray(bounds, dtype=np.int64).reshape(-1)
+    if bounds.size < 2 or np.any(np.diff(bounds) < 1) or bounds[0] < 0 \
+            or bounds[-1] >= inputs.n_samples:
+        raise ValueError(f"simulate_carried: bounds must be >= 2 increasing sample indices "
+                         f"within the inputs' {inputs.n_samples}, got {bounds.tolist()}")
+    if not (isinstance(carry, np.ndarray) and carry.dtype == np.float64
+            and carry.shape == (nb, kernel.N_CARRY) and carry.flags.c_contiguous):
+        raise ValueError(f"simulate_carried: carry must be a C-contiguous float64 array of "
+                         f"shape {(nb, kernel.N_CARRY)}")
+    p0 = np.ascontiguousarray(np.broadcast_to(np.asarray(initial_pressure_Pa, np.float64),
+                                              (nb,)))
+    measured = np.asarray(measured_Pa, dtype=np.float64)
+    if measured.shape != (inputs.n_samples,):
+        raise ValueError(f"simulate_carried: measured_Pa must have shape "
+                         f"{(inputs.n_samples,)}, got {measured.shape}")
+    slots = model.lower(theta, rig)
+    forms = slots[:, _FORM_SLOTS] > 0
+    if forms.any():
+        if inputs.exhaust_command is None and forms[:, _FORM_COLUMNS[
+                "exhaust_own_command"]].any():
+            raise ValueError("the model's exhaust is a separate valve with its own command, "
+                             "but the inputs have no exhaust command")
+        _check_exclusive_forms(forms)
+    t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
+    if offset:
+        measured = np.concatenate(([np.nan], measured))
+    slots, consts, sv, kb, measured = _kernel_arrays(
+        slots, rig_constants(rig), solver.as_array(), bounds + offset,
+        np.ascontiguousarray(measured))
+    out, p_end, _status = kernel.simulate_carried(
+        slots, consts, sv, t, u, ue, x, ps, kb, measured, float(gain), p0, carry, pm,
+        bool(forms[:, _GENERAL_COLUMNS].any()) if forms.any() else None)
+    return out, p_end
+
+
 def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig, starts,
                                  length: int, initial_pressure_Pa, solver: SolverConfig,
                                  check_bounds: bool = True, on_failure: str = "raise",
