@@ -148,6 +148,7 @@ def test_the_tracker_carries_each_particle_s_state_through_resampling(vent, gain
     assert np.array_equal(tr.carry_, carry, equal_nan=True)
 
 
+@pytest.mark.slow  # (13 s: a resample and move at each of 70 ticks)
 def test_an_accepted_move_takes_its_replayed_state(vent):
     # resample and move at every tick: every particle's state is its own (kept) or its
     # replay's (accepted), never its ancestor's under other quantities; the replay's

@@ -84,8 +84,7 @@ TIME_CONSTANT_FACTOR = 1.3
 
 
 #: The fast tier's cases (a hinge with its threshold, a product); the rest are slow.
-_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio", "net_flow*pressure_ratio",
-         "pressure_relaxation*pressure_ratio")
+_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio", "net_flow*pressure_ratio")
 
 
 @pytest.mark.parametrize("case", [
