@@ -84,7 +84,9 @@ TIME_CONSTANT_FACTOR = 1.3
 
 
 #: The fast tier's cases (a hinge with its threshold, a product); the rest are slow.
-_FAST = ("pressure_hinge", "inlet_flow*pressure_ratio", "net_flow*pressure_ratio")
+#: (The library grew by the low-pass features and the volume hinges to ~600 columns; a
+#: fit here takes ~9 s, so two cases stay fast.)
+_FAST = ("pressure_hinge", "net_flow*pressure_ratio")
 
 
 @pytest.mark.parametrize("case", [
