@@ -425,15 +425,13 @@ class OnlineTracker:
     def _loglik(self, z, n_scored: int, residuals: bool = False):
         """Tempered log-likelihood of the last ``n_scored`` samples for log values ``z``
         (and with ``residuals`` the prediction errors ``(n, n_scored)``, Pa)."""
-        t, u, p, ue, x, ps = self._buf
-        n = t.size
+        p = self._buf[2]
+        n = p.size
         length = min(self._window_samples(), n - 1) + 1
-        inputs = Inputs(t, u, x, ps, None, ue if self._own_exhaust else None, p)
-        sim = forecast(self.model, self.theta(z), inputs, self.rig, n - length, length, p,
-                       self.solver, int(self.warm_up_windows))
+        sim = forecast(self.model, self.theta(z), self._inputs(), self.rig, n - length,
+                       length, p, self.solver, int(self.warm_up_windows))
         r = sim[:, -n_scored:] - p[-n_scored:]
-        ll = -0.5 * self.temper * np.sum(r**2, axis=1) / self.noise_scale_Pa_**2
-        ll = np.where(np.isfinite(ll), ll, -np.inf)
+        ll = self._tempered(r)
         return (ll, r) if residuals else ll
 
     def _resample_move(self, w: np.ndarray) -> None:
@@ -454,7 +452,7 @@ class OnlineTracker:
         if self.n_moves == 0:
             self.particles_ = z
             return
-        n_mem = min(max(1, int(round(self.memory_s / self._dt))), self._buf[0].size - 1)
+        n_mem = min(self._memory_samples(), self._buf[0].size - 1)
         accepted = 0
         if self._carried:  # the moves' target and the proposals' states: a replay
             # (once per distinct particle: resampling left duplicates)
