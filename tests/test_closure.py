@@ -387,7 +387,7 @@ def test_a_low_pass_converges_to_the_reference(terms, coefficient, tau_s, rig,
 
 def test_a_relaxation_starts_from_the_readings_history(rig, valve_params, inputs):
     """A window that starts mid-record starts p_bar from the recorded reading's
-    low-pass (relaxed_pressure), not at rest: with a reading that sat 50 kPa lower
+    low-pass (first_order_low_pass), not at rest: with a reading that sat 50 kPa lower
     before the window, the closure's first rate is what (p - p_bar) says."""
     from pneubayes.simulation import simulate_windows
 
@@ -403,7 +403,7 @@ def test_a_relaxation_starts_from_the_readings_history(rig, valve_params, inputs
         return simulate_windows(model, params, inp, rig, np.array([100]), 3, 2.0e5,
                                 _tight())[0, 0]
     got, at_rest = run(reading), run(np.full(n, 2.0e5))
-    pbar = cf.relaxed_pressure(inputs.time_s[:101], reading[:101], 0.05)[-1]
+    pbar = cf.first_order_low_pass(inputs.time_s[:101], reading[:101], 0.05)[-1]
     assert pbar < 2.0e5 - 1e4  # the history is remembered
     # p > p_bar: the relaxation draws mass out, so the pressure falls faster than at rest
     assert got[1] < at_rest[1] - 1.0
@@ -686,11 +686,11 @@ def test_a_long_history_is_read_strided_and_agrees_with_the_full_low_pass():
 
     t = np.arange(4001) * 1e-3
     pm = 3e5 + 1e5 * np.sin(2 * np.pi * 2.0 * t)
-    full = cf.relaxed_pressure(t[1500:], pm[1500:], 0.5)[-1]  # 2.5 s = 5 tau of it
+    full = cf.first_order_low_pass(t[1500:], pm[1500:], 0.5)[-1]  # 2.5 s = 5 tau of it
     got = relaxation_start(t, pm, 4000, 0.5, np.nan, False, P_ATM, 0.0, 1.0)
     assert 2500 // HISTORY_POINTS > 1  # (strided here)
     assert abs(got - full) < 1e-3 * 2e5
     # and a short one is read whole: the same as the low-pass of the record
     short = relaxation_start(t, pm, 100, 0.01, np.nan, False, P_ATM, 0.0, 1.0)
-    assert short == pytest.approx(cf.relaxed_pressure(t[50:101], pm[50:101], 0.01)[-1],
+    assert short == pytest.approx(cf.first_order_low_pass(t[50:101], pm[50:101], 0.01)[-1],
                                   rel=1e-12)

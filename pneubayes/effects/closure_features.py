@@ -16,7 +16,7 @@ in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamb
 Three features have memory: ``command_direction``, the sign of the delayed command's
 last change (:func:`held_direction`; the kernel tracks it as it walks the command);
 ``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
-with a fitted time constant (:func:`relaxed_pressure`; the kernel carries ``p_bar`` as a
+with a fitted time constant (:func:`first_order_low_pass`; the kernel carries ``p_bar`` as a
 state); and ``net_flow_lag``, the net port flow's low-pass less the flow itself. The
 relaxation is what a chamber shows when something behind it follows the pressure with a
 lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
@@ -110,46 +110,44 @@ SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spoo
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
            "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s",
            "command_direction")
-#: Read by the low-pass features only: ``"pressure_history"`` (``pressure_relaxation``)
-#: and ``"net_flow_history"`` (``net_flow_lag``), :class:`SignalHistory` objects whose
-#: ``relaxed(tau_s)`` gives the low-passed signal at the signals' points; without them,
-#: the signals' times ``"time_s"`` (s, increasing) to low-pass the signal along.
-HISTORY_SIGNALS = ("pressure_history", "net_flow_history", "time_s")
+#: The low-pass features (``pressure_relaxation``, ``net_flow_lag``) read their signal's
+#: history too: ``"pressure_history"`` / ``"net_flow_history"``, :class:`SignalHistory`
+#: objects along the signals' points, or else the points' times ``"time_s"`` (s) to
+#: low-pass the signal along.
 
 
-def relaxed_pressure(time_s, pressure_Pa, tau_s: float, start_Pa=None) -> np.ndarray:
-    """The first-order low-pass ``p_bar`` of a pressure series, Pa (or of any signal, in
-    its unit): ``tau dp_bar/dt = p - p_bar`` stepped exactly for ``p`` linear between its
-    samples, from ``p_bar = start_Pa`` (None: the first finite sample, at rest). A
-    non-finite
-    sample holds ``p_bar`` (the interval is skipped and the next finite sample starts a
-    new segment).
+def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray:
+    """The first-order low-pass ``y`` of a series (a pressure's ``p_bar``, a flow's
+    ``q_bar``; the series' unit): ``tau dy/dt = v - y`` stepped exactly for ``v`` linear
+    between its samples, from ``y = start`` (None: the first finite sample, at rest). A
+    non-finite sample holds ``y`` (the interval is skipped and the next finite sample
+    starts a new segment).
 
     Parameters
     ----------
-    time_s, pressure_Pa : (N,) arrays
-        Sample times (s, increasing) and pressures (Pa).
+    time_s, values : (N,) arrays
+        Sample times (s, increasing) and the series.
     tau_s : float
         The time constant, s (> 0).
-    start_Pa : float or None
+    start : float or None
 
     Returns
     -------
     (N,) array
     """
     t = np.asarray(time_s, dtype=np.float64)
-    p = np.asarray(pressure_Pa, dtype=np.float64)
+    p = np.asarray(values, dtype=np.float64)
     if t.shape != p.shape or t.ndim != 1:
-        raise ValueError(f"relaxed_pressure: time_s and pressure_Pa must be 1-D of one "
+        raise ValueError(f"first_order_low_pass: time_s and values must be 1-D of one "
                          f"length, got {t.shape} and {p.shape}")
     if not (np.isfinite(tau_s) and tau_s > 0):
-        raise ValueError(f"relaxed_pressure: tau_s must be > 0, got {tau_s!r}")
+        raise ValueError(f"first_order_low_pass: tau_s must be > 0, got {tau_s!r}")
     out = np.empty_like(p)
     if p.size == 0:
         return out
     finite = np.isfinite(p)
-    if start_Pa is None:
-        start_Pa = p[np.argmax(finite)] if finite.any() else np.nan
+    if start is None:
+        start = p[np.argmax(finite)] if finite.any() else np.nan
     h = np.diff(t)
     ok = finite[1:] & finite[:-1]
     a = np.exp(-h / tau_s)
@@ -157,7 +155,7 @@ def relaxed_pressure(time_s, pressure_Pa, tau_s: float, start_Pa=None) -> np.nda
     s = np.where(ok, (p[1:] - p[:-1]) / np.where(h > 0, h, 1.0), 0.0)
     b = np.where(ok, p[1:] - s * tau_s - a * (p[:-1] - s * tau_s), 0.0)
     a = np.where(ok, a, 1.0)  # a skipped interval holds p_bar
-    out[0] = float(start_Pa)
+    out[0] = float(start)
     if h.size and np.all(a == a[0]):  # uniform sampling, no gap: one linear filter
         out[1:] = lfilter([1.0], [1.0, -a[0]], b, zi=[a[0] * out[0]])[0]
         return out
@@ -169,7 +167,7 @@ def relaxed_pressure(time_s, pressure_Pa, tau_s: float, start_Pa=None) -> np.nda
 
 
 class SignalHistory:
-    """A signal's series whose first-order low-passes :func:`relaxed_pressure` gives per
+    """A signal's series whose first-order low-passes :func:`first_order_low_pass` gives per
     time constant (cached: a search evaluates one time constant many times).
 
     Parameters
@@ -190,7 +188,7 @@ class SignalHistory:
         if key not in self._cache:
             if len(self._cache) > 64:
                 self._cache.clear()
-            self._cache[key] = relaxed_pressure(self.time_s, self.values, key)
+            self._cache[key] = first_order_low_pass(self.time_s, self.values, key)
         return self._cache[key]
 
 

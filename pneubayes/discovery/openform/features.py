@@ -91,20 +91,14 @@ INTERIOR_MARGIN = 1e-3
 def relaxation_range(signals_list: Sequence[dict]) -> tuple[float, float]:
     """The time constants (s) the recordings resolve: from
     :data:`RELAXATION_MIN_INTERVALS` median sample intervals to
-    :data:`RELAXATION_MAX_SHARE` of the shortest recording; ``(0, 0)`` (none) when a
-    recording's signals carry no ``"interval_s"`` or ``"time_s"``."""
-    dts, spans = [], []
-    for s in signals_list:
-        h = (np.asarray(s["interval_s"], dtype=np.float64) if "interval_s" in s
-             else np.diff(np.asarray(s["time_s"], dtype=np.float64)) if "time_s" in s
-             else np.zeros(0))
-        if not h.size:
-            return (0.0, 0.0)
-        dts.append(float(np.median(h)))
-        spans.append(float(np.sum(h)))
-    if not dts:
+    :data:`RELAXATION_MAX_SHARE` of the shortest recording (their signals'
+    ``"interval_s"``, as :func:`~pneubayes.discovery.openform.signals.path_signals`
+    gives them); ``(0, 0)``, none, when a recording's signals carry no intervals."""
+    h = [np.asarray(s.get("interval_s", ()), dtype=np.float64) for s in signals_list]
+    if not h or not all(x.size for x in h):
         return (0.0, 0.0)
-    return RELAXATION_MIN_INTERVALS * max(dts), RELAXATION_MAX_SHARE * min(spans)
+    return (RELAXATION_MIN_INTERVALS * max(float(np.median(x)) for x in h),
+            RELAXATION_MAX_SHARE * min(float(np.sum(x)) for x in h))
 
 
 def relaxation_times(signals_list: Sequence[dict]) -> np.ndarray:
