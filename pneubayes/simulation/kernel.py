@@ -46,7 +46,12 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from pneubayes.effects.path import LINE_MAX_SEGMENTS, SLOT_INDEX, TABLE_MAX_POINTS
+from pneubayes.effects.path import (
+    CLOSURE_MAX_TERMS,
+    LINE_MAX_SEGMENTS,
+    SLOT_INDEX,
+    TABLE_MAX_POINTS,
+)
 from pneubayes.physics.calibration import (
     pressure_behind_reading_scalar,
     sensor_reading_scalar,
@@ -192,6 +197,7 @@ _CL_TA = SLOT_INDEX["closure_threshold_a_0"]
 _CL_TB = SLOT_INDEX["closure_threshold_b_0"]
 _CL_RA = SLOT_INDEX["closure_relaxed_a_0"]
 _CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
+_CL_MAX = CLOSURE_MAX_TERMS
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -359,16 +365,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # command's direction (code 15; both change only with the command), or the volume
     # rate (code 9; a volume hinge's rate, codes 17 and 18), which the reuse of a step's
     # end below must respect
-    cl_spool, cl_vdot, cl_dir, rx_flow = False, False, False, False
-    # and its low-passes (code 16 the pressure's, 19 the net port flow's; rx_flow: any
-    # of the latter): each one's slot, signal (its code), time constant and value, which
-    # the kernel steps (relaxation.py) on its own copy of the slots
+    cl_spool, cl_vdot, cl_dir = False, False, False
+    # and its low-passes (code 16 the pressure's, 19 the net port flow's): each one's
+    # slot, signal (its code), time constant and value, which the kernel steps
+    # (relaxation.py) on its own copy of the slots
     rx_n = 0
-    n_cl = int(sl[_CL_N])  # (a model without a closure allocates nothing here)
-    rx_idx = np.zeros(2 * n_cl, dtype=np.int64)
-    rx_kind = np.zeros(2 * n_cl)
-    rx_tau = np.zeros(2 * n_cl)
-    rx_val = np.zeros(2 * n_cl)
+    rx_idx = np.zeros(2 * _CL_MAX, dtype=np.int64)
+    rx_kind = np.zeros(2 * _CL_MAX)
+    rx_tau = np.zeros(2 * _CL_MAX)
+    rx_val = np.zeros(2 * _CL_MAX)
     for kc in range(int(sl[_CL_N])):
         for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
             if code == 3.0 or code == 11.0 or code == 12.0:
@@ -382,8 +387,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             if code == 16.0 or code == 19.0:
                 rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
                 rx_n += 1
-                if code == 19.0:
-                    rx_flow = True
     cl_relax = rx_n > 0
     # the last accepted step's mean rates of p (Pa/s) and of the net port flow (kg/s^2),
     # at which a step's midpoint value takes them on; the net flow at a step's start
@@ -704,8 +707,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     a_in2, a_ex2 = a_in, a_ex
                     s_at2 = s_at
                 if cl_relax:  # each low-pass held over the step at its midpoint value
-                    if rx_flow:
-                        rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
+                    rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
                     for q in range(rx_n):
                         if rx_kind[q] == 16.0:
                             sl[rx_idx[q]] = relaxation_mid(rx_val[q], p, rx_rate, hh,
@@ -885,7 +887,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     p_lung = p_lung_new
                     p, temp = pn, tn
                     if cl_relax:
-                        q1 = net_port_flow(p, a_in2, a_ex2, psup2, cs) if rx_flow else 0.0
+                        q1 = net_port_flow(p, a_in2, a_ex2, psup2, cs)
                         for q in range(rx_n):
                             if rx_kind[q] == 16.0:
                                 rx_val[q] = relaxation_step(rx_val[q], p_prev, p,
