@@ -163,6 +163,45 @@ def test_a_constant_inflow_into_a_shut_chamber_raises_the_pressure_linearly(
     np.testing.assert_allclose(down, 2e5 - slope * t, rtol=1e-10)
 
 
+@pytest.mark.parametrize("start_Pa", [4.0e5, 5.6e5])
+def test_a_port_cut_off_holds_the_pressure_and_never_reverses_the_port(
+        start_Pa, rig, closable_params, make_inputs):
+    """Inlet open, exhaust shut exactly, rigid chamber; ``inlet_flow*pressure_hinge`` with
+    c = -2 shuts the inlet above p / P_atm = theta + 0.5 = 3.5. Above it the port's factor
+    is clipped at -1: the inlet's flow and the term's cancel exactly, so the pressure
+    holds, both in the compiled simulator and in the reference; above the supply too,
+    where an unclipped term would turn the inlet's blow-back into an inflow that runs
+    away (the step size underflows)."""
+    e = make_effect("closure", terms="inlet_flow*pressure_hinge")
+    model = Model([e]).with_bounds({"closure_coefficient_0": (-5.0, 5.0)})
+    params = dict(closable_params, closure_coefficient_0=-2.0, closure_threshold_0_b=3.0)
+    t = np.arange(101) * 1e-3
+    inputs = make_inputs(t, np.full_like(t, 10.0), position=0.0)
+    got = simulate(model, params, inputs, rig, start_Pa, _tight()).pressure_Pa[0]
+    np.testing.assert_allclose(got, start_Pa, rtol=1e-12)
+    ref = reference_simulate(model, params, inputs, rig, start_Pa)
+    np.testing.assert_allclose(ref, start_Pa, rtol=1e-9)
+    # below the cut-off the inlet fills, and stops at it (the term's equilibrium)
+    low = simulate(model, params, inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    assert low[0] == 2e5 and low[-1] == pytest.approx(3.5 * P_ATM, rel=1e-4)
+
+
+def test_an_exhaust_cut_off_holds_the_pressure_below_it(rig, closable_params, make_inputs):
+    """Exhaust open, inlet shut: ``exhaust_flow*pressure_hinge_down`` with c = 2 shuts the
+    exhaust below p / P_atm = 2.5: started below, the pressure holds (the exhaust's
+    factor clipped at 1); started above, it falls to 2.5 P_atm and stays."""
+    e = make_effect("closure", terms="exhaust_flow*pressure_hinge_down")
+    model = Model([e]).with_bounds({"closure_coefficient_0": (-5.0, 5.0)})
+    params = dict(closable_params, closure_coefficient_0=2.0, closure_threshold_0_b=3.0)
+    t = np.arange(201) * 1e-3
+    inputs = make_inputs(t, np.full_like(t, -10.0), position=0.0)
+    held = simulate(model, params, inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    np.testing.assert_allclose(held, 2e5, rtol=1e-12)
+    fall = simulate(model, params, inputs, rig, 4e5, _tight()).pressure_Pa[0]
+    assert fall[-1] == pytest.approx(2.5 * P_ATM, rel=1e-4)
+    assert np.all(np.diff(fall) <= 1e-6)
+
+
 @pytest.mark.parametrize("c", [3e-6, -3e-6])
 def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
     """With the convective heat form the chamber's mass p V / (Rs T) changes at exactly
@@ -597,9 +636,11 @@ def test_rate_terms_closure_is_the_terms_on_hand_built_signals(terms, rig, valve
     assert np.array_equal(r0.closure, np.zeros(n))
 
 
-def test_rate_terms_match_the_compiled_right_hand_side(rig, valve_params):
+@pytest.mark.parametrize("strong", [False, True])
+def test_rate_terms_match_the_compiled_right_hand_side(strong, rig, valve_params):
     """The numpy rate and chamber_rhs at the same state agree to rounding (the features'
-    two implementations)."""
+    two implementations); ``strong``: port factors beyond their limits, clipped in both
+    (the inlet's at -1, the exhaust's at 1)."""
     from pneubayes.simulation.chamber import chamber_rhs
     from pneubayes.simulation.simulator import rig_constants
 
@@ -607,6 +648,10 @@ def test_rate_terms_match_the_compiled_right_hand_side(rig, valve_params):
                          " spool_hinge_up", thresholds={"closure_threshold_0_b": 1.5,
                                                         "closure_threshold_3_a": -1.0})
     model = Model([e])
+    if strong:
+        model = model.with_bounds({"closure_coefficient_0": (-5.0, 5.0),
+                                   "closure_coefficient_1": (-5.0, 5.0)})
+        values.update(closure_coefficient_0=-3.0, closure_coefficient_1=3.0)
     sl = model.lower(model.vector(dict(valve_params, **values))[None], rig)[0]
     cs = rig_constants(rig)
     for p, s, x, v in ((2.5e5, 1.5, 0.01, 0.2), (4.2e5, -0.7, 0.02, -0.1)):
@@ -618,6 +663,36 @@ def test_rate_terms_match_the_compiled_right_hand_side(rig, valve_params):
                          rig.bore_area_m2 * v, P_SUP, sl, cs, 0.0, False, 0.0, 0.0, 0.0, s,
                          0.0, 0.0)[0]
         assert fp == pytest.approx(float(r.total[0]), rel=1e-9, abs=1e-3)
+        if strong:  # the inlet's term cancels its flow, the exhaust's its outflow
+            q_in = float(a_in[0] * flow_function(P_SUP, p, rig.gas))
+            q_ex = float(a_ex[0] * flow_function(p, P_ATM, rig.gas))
+            n_rt = rig.gas.heat_capacity_ratio * rig.gas.specific_gas_constant_J_per_kg_K \
+                * rig.gas.temperature_K / (valve_params["dead_volume_m3"] + rig.bore_area_m2 * x)
+            clipped = (-q_in if p / P_ATM > 1.5 + 1 / 3 else 0.0) + (q_ex if s > 1 / 3 else
+                                                                   3.0 * s * q_ex)
+            assert float(r.closure[0]) == pytest.approx(
+                n_rt * (clipped + values["closure_coefficient_2"] * rig.bore_area_m2 * v
+                        / (valve_params["dead_volume_m3"] + rig.bore_area_m2 * x)
+                        * (valve_params["dead_volume_m3"] + rig.bore_area_m2 * x) / 1e-6
+                        + values["closure_coefficient_3"] * max(s + 1.0, 0.0)), rel=1e-9)
+
+
+def test_port_terms_add_to_their_ports_factor_which_is_clipped():
+    """``combine_terms``: the inlet's terms share one factor clipped at -1 (wherever in
+    the product the flow stands), the exhaust's at +1; a term reading no port flow adds
+    ``c F_a F_b`` unclipped."""
+    q_in, q_ex, h = np.array([2e-4, 2e-4]), np.array([1e-4, 1e-4]), np.array([0.5, 3.0])
+    terms = [(-0.4, "inlet_flow", q_in, "pressure_hinge", h),
+             (-0.2, "pressure_hinge", h, "inlet_flow", q_in),
+             (0.5, "exhaust_flow", q_ex, "pressure_hinge", h),
+             (-1e-4, "pressure_hinge", h, "one", 1.0)]
+    got = cf.combine_terms(terms)
+    s_in = np.maximum(-0.6 * h, -1.0)  # [-0.3, -1]
+    s_ex = np.minimum(0.5 * h, 1.0)  # [0.25, 1]
+    np.testing.assert_allclose(got, q_in * s_in + q_ex * s_ex - 1e-4 * h, rtol=1e-14)
+    assert [cf.modulated_port(t) for t in cf.parse_terms(
+        "pressure_hinge*exhaust_flow; net_flow*inlet_flow; spool")] == [
+        "exhaust_flow", "net_flow", None]
 
 
 # ---------------------------------------------------------------- cards and options

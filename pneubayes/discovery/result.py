@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import pneubayes
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.verification import StepFit
-from pneubayes.effects.closure_features import term_formula
+from pneubayes.effects.closure_features import modulated_port, term_formula
 from pneubayes.inference.fit import PosteriorDraws
 
 FORMAT = "pneubayes-discovery/1"
@@ -103,7 +103,12 @@ class DiscoveryResult(PosteriorDraws):
                                                     for q in ("median", "q05", "q95")}}
                 else:
                     values[n] = {"unit": p.unit, "estimate": self.final.params[n]}
-            out.append({"term": str(term), "acts_on": "mass flow into the chamber (kg/s)",
+            port = modulated_port(term)
+            acts = ("mass flow into the chamber (kg/s)" if port is None else
+                    f"mass flow into the chamber (kg/s), as a change of the {port}'s "
+                    "effective area (its port's factor clipped where the flow would "
+                    "reverse)")
+            out.append({"term": str(term), "acts_on": acts,
                         "formula": term_formula(term, k), "parameters": values})
         return out
 

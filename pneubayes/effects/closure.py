@@ -10,7 +10,10 @@ them (they cannot be read off the parameter names).
 
 The flow enters eq. 5 as a port flow does (mass is conserved): at the supply's
 temperature when positive, leaving at the chamber's when negative (with a temperature
-state). The compiled simulator evaluates it in
+state). A term that reads a port's flow modulates that port, its factor clipped where
+the port's flow would reverse
+(:data:`~pneubayes.effects.closure_features.PORT_FACTOR_LIMITS`). The compiled
+simulator evaluates it in
 :func:`pneubayes.simulation.chamber.chamber_rhs`; :func:`pneubayes.simulation.rates.rate_terms`
 gives its dp/dt at a given state and :mod:`pneubayes.simulation.reference` integrates it
 independently. It cannot be combined with the tube's acoustic or wave line.

@@ -266,6 +266,64 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
+#: The port flows a closure term can modulate, and the bounds of the port's factor ``s``:
+#: a term that reads a port's flow (its first such feature) adds ``c q F_other`` to that
+#: port's ``q s``, and ``s`` is clipped so the port's flow does not reverse (the inlet's
+#: and the net flow ``q (1 + s)``: ``s >= -1``; the exhaust's outflow ``-q (1 - s)``:
+#: ``s <= 1``). A term is then a change of the port's effective area, which cannot turn
+#: negative: a cut-off found below the supply stays shut above it instead of blowing the
+#: chamber up through a reversed inlet.
+PORT_FACTOR_LIMITS: dict[str, tuple[float, float]] = {
+    "inlet_flow": (-1.0, np.inf), "exhaust_flow": (-np.inf, 1.0),
+    "net_flow": (-1.0, np.inf)}
+
+
+def combine_terms(terms) -> np.ndarray:
+    """A closure's mass flow into the chamber (kg/s) from its evaluated terms.
+
+    ``terms``: ``(c, name_a, F_a, name_b, F_b)`` per term, with ``c`` its coefficient and
+    the names either feature names or arrays of feature codes (one per row, broadcasting
+    against the values). A term that reads no port flow adds ``c F_a F_b``; the terms of
+    a port flow add ``q clip(s)`` (:data:`PORT_FACTOR_LIMITS`)."""
+    free = 0.0
+    factor = {name: 0.0 for name in PORT_FACTOR_LIMITS}
+    flow = {name: 0.0 for name in PORT_FACTOR_LIMITS}
+    for c, name_a, fa, name_b, fb in terms:
+        code_a, code_b = _codes(name_a), _codes(name_b)
+        a_port = np.zeros(np.shape(code_a), dtype=bool)
+        for name in PORT_FACTOR_LIMITS:
+            a_port = a_port | (code_a == FEATURE_BY_NAME[name].code)
+        b_port = np.zeros(np.shape(code_b), dtype=bool)
+        for name in PORT_FACTOR_LIMITS:
+            code = FEATURE_BY_NAME[name].code
+            on_a = code_a == code
+            on_b = ~a_port & (code_b == code)
+            b_port = b_port | on_b
+            factor[name] = factor[name] + np.where(on_a, c * fb, np.where(on_b, c * fa, 0.0))
+            flow[name] = np.where(on_a, fa, np.where(on_b, fb, flow[name]))
+        free = free + np.where(a_port | b_port, 0.0, c * (fa * fb))
+    total = free
+    for name, (lo, hi) in PORT_FACTOR_LIMITS.items():
+        total = total + flow[name] * np.clip(factor[name], lo, hi)
+    return np.asarray(total, dtype=np.float64)
+
+
+def modulated_port(term: "Term") -> str | None:
+    """The port flow feature ``term`` modulates (its first of
+    :data:`PORT_FACTOR_LIMITS`), or None for a term that reads no port's flow."""
+    for name in (term.a, term.b):
+        if name in PORT_FACTOR_LIMITS:
+            return name
+    return None
+
+
+def _codes(name) -> np.ndarray:
+    """Feature codes of a feature name or of an array of codes."""
+    if isinstance(name, str):
+        return np.asarray(FEATURE_BY_NAME[name].code)
+    return np.asarray(name)
+
+
 def command_direction(command, before=None) -> np.ndarray:
     """The held command's direction once each sample is in force: the sign of its last
     change up to and including sample k (+1 a rise, -1 a fall, 0 none yet).

@@ -170,22 +170,62 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                  dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt, cdir):
     """The closure's mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s; slots
     ``closure_*``), with its slope in p (kg/(s Pa)) and its explicit time derivative
-    (kg/s^2); the arguments as :func:`closure_feature` takes them."""
+    (kg/s^2); the arguments as :func:`closure_feature` takes them.
+
+    A term that reads a port's flow (``inlet_flow``, ``exhaust_flow``, ``net_flow``; its
+    first such feature) modulates that port: the port's terms add to ``q s`` and the
+    factor ``s`` is clipped so the port's flow never reverses
+    (:data:`pneubayes.effects.closure_features.PORT_FACTOR_LIMITS`)."""
     m, dm_dp, dm_dt = 0.0, 0.0, 0.0
+    # each modulated port's factor s with its slopes in p and t, and its flow q likewise
+    s_i, si_p, si_t, q_i, qi_p, qi_t = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    s_e, se_p, se_t, q_e, qe_p, qe_t = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    s_n, sn_p, sn_t, q_n, qn_p, qn_t = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for k in range(int(sl[_CL_N])):
         c = sl[_CL_C + k]
-        fa, da_p, da_t = closure_feature(int(sl[_CL_FA + k]), sl[_CL_TA + k], p, p_atm,
+        ca, cb = int(sl[_CL_FA + k]), int(sl[_CL_FB + k])
+        fa, da_p, da_t = closure_feature(ca, sl[_CL_TA + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
                                          da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RA + k])
-        fb, db_p, db_t = closure_feature(int(sl[_CL_FB + k]), sl[_CL_TB + k], p, p_atm,
+        fb, db_p, db_t = closure_feature(cb, sl[_CL_TB + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
                                          da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RB + k])
-        m += c * (fa * fb)
-        dm_dp += c * (da_p * fb + fa * db_p)
-        dm_dt += c * (da_t * fb + fa * db_t)
+        if not _is_port_flow(ca) and _is_port_flow(cb):  # the port flow first
+            ca, fa, da_p, da_t, fb, db_p, db_t = cb, fb, db_p, db_t, fa, da_p, da_t
+        if ca == 6:
+            s_i, si_p, si_t = s_i + c * fb, si_p + c * db_p, si_t + c * db_t
+            q_i, qi_p, qi_t = fa, da_p, da_t
+        elif ca == 7:
+            s_e, se_p, se_t = s_e + c * fb, se_p + c * db_p, se_t + c * db_t
+            q_e, qe_p, qe_t = fa, da_p, da_t
+        elif ca == 13:
+            s_n, sn_p, sn_t = s_n + c * fb, sn_p + c * db_p, sn_t + c * db_t
+            q_n, qn_p, qn_t = fa, da_p, da_t
+        else:
+            m += c * (fa * fb)
+            dm_dp += c * (da_p * fb + fa * db_p)
+            dm_dt += c * (da_t * fb + fa * db_t)
+    # the inlet's and the net flow q (1 + s) never reverse (s >= -1), nor the exhaust's
+    # outflow -q (1 - s) (s <= 1); a clipped factor is constant
+    if s_i < -1.0:
+        s_i, si_p, si_t = -1.0, 0.0, 0.0
+    if s_e > 1.0:
+        s_e, se_p, se_t = 1.0, 0.0, 0.0
+    if s_n < -1.0:
+        s_n, sn_p, sn_t = -1.0, 0.0, 0.0
+    m += q_i * s_i + q_e * s_e + q_n * s_n
+    dm_dp += qi_p * s_i + q_i * si_p + qe_p * s_e + q_e * se_p + qn_p * s_n + q_n * sn_p
+    dm_dt += qi_t * s_i + q_i * si_t + qe_t * s_e + q_e * se_t + qn_t * s_n + q_n * sn_t
     return m, dm_dp, dm_dt
+
+
+@njit(cache=True, inline="always")
+def _is_port_flow(code):
+    """Whether feature ``code`` is a port's flow: ``inlet_flow`` (6), ``exhaust_flow``
+    (7) or ``net_flow`` (13)."""
+    return code == 6 or code == 7 or code == 13
 
 
 @njit(cache=True, error_model="numpy")

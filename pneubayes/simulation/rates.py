@@ -16,7 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.effects.closure_features import FEATURE_BY_NAME, FEATURES, evaluate_feature
+from pneubayes.effects.closure_features import (
+    FEATURE_BY_NAME,
+    FEATURES,
+    combine_terms,
+    evaluate_feature,
+)
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, TABLE_MAX_POINTS
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
@@ -92,17 +97,19 @@ def closure_mass_flow(slots: np.ndarray, signals: dict) -> np.ndarray:
     (:data:`pneubayes.effects.closure_features.SIGNALS`); zeros without a closure."""
     sl = np.asarray(slots, dtype=np.float64)
     n = sl[S["closure_terms"]]
-    total = np.zeros(np.broadcast_shapes(np.shape(signals["pressure_Pa"]), np.shape(n)))
+    terms = []
     for k in range(CLOSURE_MAX_TERMS):
         live = k < n
         if not np.any(live):
             break
-        fa = _closure_feature_values(sl[S[f"closure_feature_a_{k}"]],
-                                     sl[S[f"closure_threshold_a_{k}"]], signals)
-        fb = _closure_feature_values(sl[S[f"closure_feature_b_{k}"]],
-                                     sl[S[f"closure_threshold_b_{k}"]], signals)
-        total = total + np.where(live, sl[S[f"closure_coefficient_{k}"]] * (fa * fb), 0.0)
-    return total
+        code_a = sl[S[f"closure_feature_a_{k}"]]
+        code_b = sl[S[f"closure_feature_b_{k}"]]
+        fa = _closure_feature_values(code_a, sl[S[f"closure_threshold_a_{k}"]], signals)
+        fb = _closure_feature_values(code_b, sl[S[f"closure_threshold_b_{k}"]], signals)
+        terms.append((np.where(live, sl[S[f"closure_coefficient_{k}"]], 0.0), code_a, fa,
+                      code_b, fb))
+    shape = np.broadcast_shapes(np.shape(signals["pressure_Pa"]), np.shape(n))
+    return np.broadcast_to(combine_terms(terms), shape).copy() if terms else np.zeros(shape)
 
 
 def port_areas(slots: np.ndarray, spool_V, exhaust_command=None

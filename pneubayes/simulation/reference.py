@@ -19,6 +19,7 @@ from scipy.integrate import solve_ivp
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
+    combine_terms,
     command_direction,
     evaluate_feature,
 )
@@ -188,9 +189,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "pressure_history": _Held(y, code_p),
                        "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]
                                                           .code))}
-            flows.append(sum(float(c * evaluate_feature(fa, signals, ta)
-                                   * evaluate_feature(fb, signals, tb))
-                             for c, fa, ta, fb, tb in closure))
+            flows.append(float(combine_terms(
+                [(c, fa, evaluate_feature(fa, signals, ta), fb,
+                  evaluate_feature(fb, signals, tb)) for c, fa, ta, fb, tb in closure])))
         m_lung = 0.0
         if lung_v > 0:  # laminar flow into the second compartment (its pressure: last)
             m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[i_lung] ** 2)
