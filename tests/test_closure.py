@@ -242,7 +242,8 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     # (a relaxation's time constant 0.2 s, its relaxed pressure held at 2.3e5 Pa)
     theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5,
              "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2,
-             "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05}
+             "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05,
+             "inlet_drop_hinge": 3.5}
     term = cf.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
@@ -277,7 +278,10 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
 
 
 # ---------------------------------------------------------------- against the reference
-CASES = [(f.name, {}) for f in cf.FEATURES] + [
+#: (a threshold where the inlet's drop hinge opens on these inputs: p_s - p < 3 P_atm)
+CASES = [(f.name, {"closure_threshold_0_a": 3.0} if f.name == "inlet_drop_hinge" else {})
+         for f in cf.FEATURES] + [
+    ("inlet_flow*inlet_drop_hinge", {"closure_threshold_0_b": 2.5}),
     ("inlet_flow*pressure_hinge", {"closure_threshold_0_b": 1.8}),
     ("spool_hinge_up*pressure_ratio; spool_hinge_down",
      {"closure_threshold_0_a": -1.0, "closure_threshold_1_a": 0.0}),

@@ -78,6 +78,9 @@ CASES = {
     # a leak the piston uncovers past 11 cm^3 (a scored barrel, a port)
     "pressure_ratio*volume_hinge_up": (Term("pressure_ratio", "volume_hinge_up"), 0.0,
                                        11.0, -1e-5),
+    # a pilot inlet that shuts as the difference across it falls under 0.5 P_atm
+    "inlet_flow*inlet_drop_hinge": (Term("inlet_flow", "inlet_drop_hinge"), 0.0, 0.5,
+                                    -0.8),
 }
 #: A relaxation's time constant within this factor of the planted one.
 TIME_CONSTANT_FACTOR = 1.3
@@ -106,6 +109,9 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
         assert abs(found.threshold_a - ta) < PRESSURE_THRESHOLD_TOL
     if term.a.startswith("spool_hinge"):
         assert abs(found.threshold_a - ta) < SPOOL_THRESHOLD_TOL
+    if term.b == "inlet_drop_hinge":
+        th = found.threshold_b if found.term.b == term.b else found.threshold_a
+        assert abs(th - tb) < PRESSURE_THRESHOLD_TOL
     if term.b == "volume_hinge_up":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
@@ -161,7 +167,7 @@ def test_the_library_is_typed_and_bounded():
     cands = candidate_terms(sig)
     # features.py's count at most, and the relaxation's grid (3 ms to 1 s here) four
     # times over
-    assert 100 < len(cands) <= 534 + 8 * 8
+    assert 100 < len(cands) <= 623 + 8 * 8
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
     families = {c.family for c in cands}
@@ -169,7 +175,8 @@ def test_the_library_is_typed_and_bounded():
             "inlet_flow*spool_hinge_up", "spool_hinge_down", "pressure_hinge_down",
             "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down",
             "inlet_flow*command_direction", "command_direction", "pressure_relaxation",
-            "pressure_ratio*pressure_relaxation"} <= families
+            "pressure_ratio*pressure_relaxation", "inlet_drop", "inlet_flow*inlet_drop_hinge"
+            } <= families
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
     for hinge in ("pressure_hinge", "pressure_hinge_down"):

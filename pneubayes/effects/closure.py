@@ -46,7 +46,8 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "volume": 100.0, "volume_rate": 100.0, "pressure_hinge": 10.0, "spool_hinge_up": 20.0,
     "spool_hinge_down": 20.0, "net_flow": 1e-3, "pressure_hinge_down": 10.0,
     "command_direction": 1.0, "pressure_relaxation": 1.0, "volume_hinge_up": 100.0,
-    "volume_hinge_down": 100.0, "net_flow_lag": 1e-3,
+    "volume_hinge_down": 100.0, "net_flow_lag": 1e-3, "inlet_drop": 10.0,
+    "inlet_drop_hinge": 3.0,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
@@ -64,6 +65,7 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "volume_hinge_up": (0.0, 1000.0, 10.0, 3.0),
     "volume_hinge_down": (0.0, 1000.0, 10.0, 30.0),
     "net_flow_lag": (1e-3, 10.0, 0.1, 0.05),
+    "inlet_drop_hinge": (0.0, 10.0, 0.5, 0.3),
 }
 
 

@@ -96,6 +96,12 @@ FEATURES: tuple[Feature, ...] = (
             "the chamber through a lag (a volume or a soft tube between valve and "
             "chamber; gas still arriving after the valve shuts)", hinge=True,
             time_constant=True),
+    Feature("inlet_drop", 20, "-", "the pressure difference across the inlet over "
+            "atmospheric, |p_s - p| / P_atm (a bypass or leak across the valve body "
+            "scales with it)"),
+    Feature("inlet_drop_hinge", 21, "-", "max(0, theta - |p_s - p| / P_atm): what acts "
+            "when the difference across the inlet is small (a pilot stage or a check "
+            "valve that needs a minimum difference to stay open)", hinge=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -263,6 +269,9 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return np.maximum(vol / VOLUME_SCALE_M3 - threshold, 0.0)
     if f.code == 18:
         return np.maximum(threshold - vol / VOLUME_SCALE_M3, 0.0)
+    if f.code in (20, 21):
+        drop = np.abs(np.asarray(s["supply_pressure_Pa"], dtype=np.float64) - p) / p_atm
+        return drop if f.code == 20 else np.maximum(threshold - drop, 0.0)
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
@@ -426,6 +435,7 @@ SYMBOLS: dict[str, str] = {
     "net_flow_lag": "(q_bar[{theta}] - (m_in - m_ex))",
     "volume_hinge_up": "max(0, V / 1 cm^3 - {theta})",
     "volume_hinge_down": "max(0, {theta} - V / 1 cm^3)",
+    "inlet_drop": "(|p_s - p| / P_atm)", "inlet_drop_hinge": "max(0, {theta} - |p_s - p| / P_atm)",
 }
 
 

@@ -158,6 +158,13 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         z = vol / _VOLUME_SCALE - theta
         return ((z, compl / _VOLUME_SCALE, vdot / _VOLUME_SCALE) if z > 0.0
                 else (0.0, 0.0, 0.0))
+    if code == 20 or code == 21:  # |p_s - p| / P_atm and its hinge
+        sg = 1.0 if p_sup >= p else -1.0
+        drop = sg * (p_sup - p) / p_atm
+        if code == 20:
+            return drop, -sg / p_atm, sg * dsup / p_atm
+        z = theta - drop
+        return (z, sg / p_atm, -sg * dsup / p_atm) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 18:
         z = theta - vol / _VOLUME_SCALE
         return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0

@@ -6,7 +6,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 - every base feature that is not a hinge (``one`` included);
 - every hinge feature at each threshold of a grid: the two pressure hinges at quantiles
   of the measured ``p / P_atm``, the two spool hinges at quantiles of the spool, the two
-  volume hinges at quantiles of the volume (none where it is fixed);
+  volume hinges at quantiles of the volume (none where it is fixed), the inlet's drop
+  hinge at quantiles of ``|p_s - p| / P_atm``;
 - the products of every pair of non-constant, non-hinge base features (squares
   included: a laminar leak is ``p^2``);
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
@@ -18,8 +19,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the three partners above: with the eleven non-hinge base features besides ``one``
-and six hinges that is 1 + 11 + 66 + 114 + 342 = 534 candidates at most, and eight per
+with the three partners above: with the twelve non-hinge base features besides ``one``
+and seven hinges that is 1 + 12 + 78 + 133 + 399 = 623 candidates at most, and eight per
 low-pass time constant. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
@@ -41,7 +42,8 @@ from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
 #: Hinge features and the signal their thresholds are quantiles of.
 HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
                  "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio",
-                 "volume_hinge_up": "volume", "volume_hinge_down": "volume"}
+                 "volume_hinge_up": "volume", "volume_hinge_down": "volume",
+                 "inlet_drop_hinge": "inlet_drop"}
 #: The time constants (s) a relaxation (``pressure_relaxation``) is tried at, those
 #: that the recordings resolve (:func:`relaxation_times`).
 RELAXATION_TIMES_S = (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
