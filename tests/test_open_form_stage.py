@@ -203,6 +203,34 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
     assert _newly_at_bounds(fit, current) == []
 
 
+def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
+    """The retry after a closure rejected at a bound searches without the families
+    whose parameters hit it (all of the new ones when a base parameter did), and a
+    search's clone keeps its settings."""
+    from pneubayes.discovery.openform import OpenFormSearch
+    from pneubayes.discovery.openform.search import FoundTerm
+    from pneubayes.discovery.stages.open_form import _clone, _families_at_bounds
+    from pneubayes.effects.closure_features import Term
+
+    model = Model().with_effect(Closure(terms="one; inlet_flow*pressure_relaxation; "
+                                              "pressure_ratio*net_flow"))
+    fit = SimpleNamespace(model=model)
+    terms = [FoundTerm(Term.parse(t), 0.0, 0.01, 1.0, 1.0, 0.5, 0.3)
+             for t in ("inlet_flow*pressure_relaxation", "pressure_ratio*net_flow")]
+    assert _families_at_bounds(fit, ["closure_threshold_1_b"], terms) == (
+        "inlet_flow*pressure_relaxation",)
+    assert _families_at_bounds(fit, ["dead_volume_m3"], terms) == (
+        "inlet_flow*pressure_relaxation", "pressure_ratio*net_flow")
+    search = OpenFormSearch(n_models=7, seed=3)
+    again = _clone(search, exclude=("inlet_flow*pressure_relaxation",))
+    assert (again.n_models, again.seed, again.exclude) == (
+        7, 3, ("inlet_flow*pressure_relaxation",))
+    assert search.exclude == ()
+    assert OpenForm(retries=0).retries == 0
+    with pytest.raises(ValueError, match="retries"):
+        OpenForm(retries=-1)
+
+
 def test_a_found_closure_becomes_an_effect_plug_in_a_user_can_name(rig):
     """The skeleton is Python that defines an effect lowering exactly as the closure
     it came from, with the user's parameter names and the fitted values as defaults."""

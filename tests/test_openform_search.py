@@ -191,6 +191,18 @@ def test_the_library_is_typed_and_bounded():
     assert distinct_columns(x, 1e-9).tolist() == [True, False, True]
 
 
+def test_an_excluded_family_is_left_out_of_the_library():
+    """``exclude``: the planted hinge's family is not searched (its columns gone, not
+    found), the rest of the library unchanged."""
+    sig, tgt = planted([CASES["pressure_hinge"]])
+    full = candidate_terms(sig)
+    s = OpenFormSearch(seed=0, n_models=4, exclude=("pressure_hinge",)).fit(sig, tgt)
+    assert all(str(f.term) != "pressure_hinge" for f in s.terms_)
+    assert "pressure_hinge" not in s.inclusion_probability_
+    n_hinge = sum(c.family == "pressure_hinge" for c in full)
+    assert n_hinge > 5 and s.n_candidates_ <= len(full) - n_hinge
+
+
 def test_fit_validates_its_settings_and_inputs():
     sig, tgt = planted([CASES["constant"]])
     with pytest.raises(ValueError, match="max_terms"):
@@ -199,6 +211,10 @@ def test_fit_validates_its_settings_and_inputs():
         OpenFormSearch(optimizer="lasso").fit(sig, tgt)
     with pytest.raises(ValueError, match="one of each"):
         OpenFormSearch().fit(sig, tgt[:1])
+    with pytest.raises(ValueError, match="exclude"):
+        OpenFormSearch(exclude="pressure_hinge").fit(sig, tgt)
+    with pytest.raises(ValueError, match="pressure_hing"):
+        OpenFormSearch(exclude=("pressure_hing",)).fit(sig, tgt)
     bad = dict(sig[0])
     del bad["spool"]
     with pytest.raises(ValueError, match="spool"):

@@ -131,6 +131,9 @@ class OpenFormSearch:
         sum of squares more, or a simpler one explaining at most this less (:meth:`_swap`).
     refine_thresholds : bool
         Refine the kept hinges' thresholds between their grid neighbours.
+    exclude : sequence of str
+        Families left out of the library (e.g. ``"inlet_flow*pressure_relaxation"``):
+        a search again after a closure of them failed.
 
     Attributes
     ----------
@@ -153,7 +156,8 @@ class OpenFormSearch:
                  min_explained_fraction: float = 0.02,
                  quantiles: Sequence[float] = DEFAULT_QUANTILES,
                  duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.02,
-                 refine_thresholds: bool = True, seed: int = 0):
+                 refine_thresholds: bool = True, seed: int = 0,
+                 exclude: Sequence[str] = ()):
         self.max_terms = max_terms
         self.block = block
         self.optimizer = optimizer
@@ -168,6 +172,7 @@ class OpenFormSearch:
         self.swap_min_gain = swap_min_gain
         self.refine_thresholds = refine_thresholds
         self.seed = seed
+        self.exclude = exclude
 
     # ------------------------------------------------------------------ validation
     def _validate(self, signals_list, target_list):
@@ -190,6 +195,12 @@ class OpenFormSearch:
             raise ValueError(f"n_models must be an integer >= 1, got {self.n_models!r}")
         if not isinstance(self.chunk_rows, int) or self.chunk_rows < 1:
             raise ValueError(f"chunk_rows must be an integer >= 1, got {self.chunk_rows!r}")
+        if isinstance(self.exclude, str) or not all(isinstance(f, str)
+                                                    for f in self.exclude):
+            raise ValueError("exclude must be a sequence of families such as "
+                             f"'inlet_flow*pressure_hinge', got {self.exclude!r}")
+        for f in self.exclude:
+            Term.parse(f)  # (a misspelt family raises, naming it)
         if isinstance(signals_list, dict) or isinstance(target_list, np.ndarray):
             raise ValueError("fit takes a list of signal dicts and a list of targets "
                              "(one per recording)")
@@ -379,7 +390,8 @@ class OpenFormSearch:
             return self._fit(signals_list, target_list)
 
     def _fit(self, signals_list, target_list) -> "OpenFormSearch":
-        cands = candidate_terms(signals_list, self.quantiles)
+        cands = [c for c in candidate_terms(signals_list, self.quantiles)
+                 if c.family not in set(self.exclude)]
         # an interval a signal dict marks invalid ("valid" False) leaves out its row
         y = np.concatenate([_block_sums(np.where(np.asarray(s.get("valid", True), bool),
                                                  np.asarray(t, dtype=np.float64), np.nan),

@@ -56,13 +56,17 @@ class OpenForm(Stage):
         A term whose searched coefficient times this exceeds the closure's default
         bound gets its bounds widened to +- this x the searched coefficient (the
         defaults are sized for typical flows; a relief path can carry ten times more).
+    retries : int
+        Searches again, each without the families of the last closure, when that
+        closure was rejected with its parameters at a bound (a closure that fits only
+        at its limits stands in for what its terms cannot express).
     """
 
     name = "open_form"
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
                  search: OpenFormSearch | None = None, prune: bool = True,
-                 coefficient_reach: float = 10.0):
+                 coefficient_reach: float = 10.0, retries: int = 1):
         if min_noise_ratio < 1.0:
             raise ValueError(f"OpenForm: min_noise_ratio must be >= 1, got {min_noise_ratio}")
         if not 0.0 <= compete_below_gap_closed <= 1.0:
@@ -76,6 +80,9 @@ class OpenForm(Stage):
             raise ValueError(f"OpenForm: coefficient_reach must be >= 1, got "
                              f"{coefficient_reach}")
         self.coefficient_reach = coefficient_reach
+        if not (isinstance(retries, int) and retries >= 0):
+            raise ValueError(f"OpenForm: retries must be an integer >= 0, got {retries!r}")
+        self.retries = retries
 
     def options(self):
         search = None if self.search is None else {
@@ -84,7 +91,7 @@ class OpenForm(Stage):
         return {"min_noise_ratio": self.min_noise_ratio,
                 "compete_below_gap_closed": self.compete_below_gap_closed,
                 "search": search, "prune": self.prune,
-                "coefficient_reach": self.coefficient_reach}
+                "coefficient_reach": self.coefficient_reach, "retries": self.retries}
 
     # ------------------------------------------------------------------ when
     def _applies(self, state: RoundState, noise: float):
@@ -116,39 +123,61 @@ class OpenForm(Stage):
             runner.ledger.record("open form failed", round=state.number, error=why)
 
     def _run(self, state: RoundState, runner, best) -> None:
-        terms, search = self._search(state, runner)
-        runner.ledger.record("open form search", round=state.number,
-                             terms=[_term_record(t) for t in terms],
-                             explained_fraction=getattr(search, "explained_fraction_", None),
-                             candidates=getattr(search, "n_candidates_", None))
-        if not terms:
-            runner.log("discover: open form: no term of the residual's search is supported")
-            return
-        runner.log("discover: open form: the search proposes "
-                   + ", ".join(f"{t.term} ({t.share:.0%} of the explained residual)"
-                               for t in terms))
-        fit = self._fit(state, runner, terms)
-        if fit is None:
-            return
-        if self.prune and runner.better(fit, state.current)[0]:
-            # (pruning weighs each term against the closure without it, which means
-            # something only for a closure that beats the current model)
-            fit = self._prune(fit, state, runner)
-        self._verify(fit, state, runner, best, search)
+        search = self.search if self.search is not None else OpenFormSearch(
+            block=runner.settings.search.block, seed=runner.settings.seed)
+        signals, targets = self._residual(state, runner, search.block)
+        excluded: tuple[str, ...] = ()
+        for _ in range(1 + self.retries):
+            if excluded:
+                search = _clone(search, exclude=tuple(search.exclude) + excluded)
+                runner.log("discover: open form: searching again without "
+                           + ", ".join(excluded))
+            terms, search = self._search(search, signals, targets, state.current)
+            runner.ledger.record("open form search", round=state.number,
+                                 terms=[_term_record(t) for t in terms],
+                                 explained_fraction=getattr(search, "explained_fraction_",
+                                                            None),
+                                 candidates=getattr(search, "n_candidates_", None),
+                                 excluded=list(search.exclude))
+            if not terms:
+                runner.log("discover: open form: no term of the residual's search is "
+                           "supported")
+                return
+            runner.log("discover: open form: the search proposes "
+                       + ", ".join(f"{t.term} ({t.share:.0%} of the explained residual)"
+                                   for t in terms))
+            fit = self._fit(state, runner, terms)
+            if fit is None:
+                return
+            if self.prune and runner.better(fit, state.current)[0]:
+                # (pruning weighs each term against the closure without it, which means
+                # something only for a closure that beats the current model)
+                fit = self._prune(fit, state, runner)
+            passed, bounded = self._verify(fit, state, runner, best, search)
+            if passed or not bounded:
+                return
+            # a closure that fits only at its bounds stands in for what its terms cannot
+            # express: the search's next terms may (the families at a bound left out)
+            excluded = _families_at_bounds(fit, bounded, terms)
 
     # ------------------------------------------------------------------ search
-    def _search(self, state: RoundState, runner):
+    def _residual(self, state: RoundState, runner, block: int):
+        """Per training recording, the current model's signals along its path and the
+        mass flow into the chamber it misses (kg/s), over ``block``-interval rows."""
         s = runner.settings
         current = state.current
-        search = self.search if self.search is not None else OpenFormSearch(
-            block=s.search.block, seed=s.seed)
         signals, targets = [], []
         for rec in runner.data.train:
-            d = one_step_data(rec, search.block)
+            d = one_step_data(rec, block)
             e = d.errors(current.model, current.params, s.search.solver)[0]
             sig = path_signals(current.model, current.params, rec, d)
             signals.append(sig)  # (its "valid" leaves out intervals touching a bad sample)
             targets.append(missing_mass_flow(sig, e, d.rig))
+        return signals, targets
+
+    def _search(self, search, signals, targets, current):
+        """``(terms, search)``: the search fitted, its terms as many as the closure has
+        room for beside ``current``'s."""
         search.fit(signals, targets)
         free = CLOSURE_MAX_TERMS - len(_existing_terms(current.model))
         return list(search.terms_)[:max(free, 0)], search
@@ -255,7 +284,9 @@ class OpenForm(Stage):
                 return fit
 
     # ------------------------------------------------------------------ verify
-    def _verify(self, fit, state: RoundState, runner, best, search) -> None:
+    def _verify(self, fit, state: RoundState, runner, best, search):
+        """Weigh the closure's fit against the current model (and the round's best
+        passing catalogue trial); ``(passed, parameters newly at a bound)``."""
         s, noise = runner.settings, runner.data.noise_Pa
         controls = runner.controls([(CLOSURE, fit)], state)
         current = state.current
@@ -298,7 +329,7 @@ class OpenForm(Stage):
                    f"in {int(np.sum(diff > 0))}/{diff.size} windows (p = {pval:.2g})"
                    + ("" if ok or not why else "; " + "; ".join(why)))
         if not ok:
-            return
+            return False, bounded
         if best is not None:
             runner.log(f"discover: open form: the closure explains the residual better "
                        f"than {best[1]}, which it replaces as the round's candidate")
@@ -309,6 +340,7 @@ class OpenForm(Stage):
             "t_max": None, "best_term": "; ".join(str(t) for t, _ in terms),
             "best_term_start": None}
         state.passing = [(fit.heldout_rmse_Pa, CLOSURE, fit, gain, pval)]
+        return True, bounded
 
 
 def _newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
@@ -355,6 +387,22 @@ def _beside_closure(model, params: dict, rig):
         model = model.without(name).with_effect(make_effect(name, form=first.form, **opts))
         names.append(name)
     return model, names
+
+
+def _families_at_bounds(fit, bounded: list[str], terms) -> tuple[str, ...]:
+    """The families of the searched ``terms`` whose closure parameters are among
+    ``bounded``; all of them when none is (another parameter went to its bound)."""
+    new = {str(t.term) for t in terms}
+    hit = tuple(str(t) for t, names in _existing_terms(fit.model)
+                if str(t) in new and any(n in bounded for n in names))
+    return hit or tuple(sorted(new))
+
+
+def _clone(search, **changes):
+    """A new, unfitted search with ``search``'s settings and ``changes``."""
+    params = {k: getattr(search, k)
+              for k in inspect.signature(type(search).__init__).parameters if k != "self"}
+    return type(search)(**{**params, **changes})
 
 
 def _existing_terms(model) -> list:
