@@ -29,11 +29,7 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       line_form: str = "line") -> CandidateContext:
     """What the named group's effect needs to propose its candidates beside ``fit``."""
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
-    # (heat transfer and an acoustic line share one state vector: each has room beside
-    # the other)
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
-    heated = any(slots[SLOT_INDEX[s]] > 0 for s in ("heat_rate_per_s",
-                                                      "heat_coefficient_W_per_m2_K"))
     if not all(e.beside_line for e in fit.model.effects):
         line_segments = 0  # the simulator cannot carry a line beside one of them
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
@@ -41,8 +37,7 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                             second_state_free=not taken, line_segments=line_segments,
                             dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]),
                             line_cutoff_Hz=line_cutoff_Hz, line_form=line_form,
-                            wave_tube=bool(slots[SLOT_INDEX["wave_length_m"]] > 0),
-                            heated=heated)
+                            slots=slots)
 
 
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,

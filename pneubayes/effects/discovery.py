@@ -28,6 +28,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from pneubayes.effects.path import SLOT_INDEX
+
 
 @dataclass(frozen=True)
 class LibraryTerm:
@@ -81,9 +83,8 @@ class CandidateContext:
     acoustic line form (0: none); line_cutoff_Hz: the lumped cut-off frequency its cells
     should reach; dead_volume_m3: the fitted chamber volume at position 0; line_form:
     the outside tube's form, ``"line"`` (lumped cells) or ``"wave"`` (a transmission
-    line); wave_tube: the model holds a transmission-line tube, simulated with the
-    chamber's pressure as its only state (no temperature state beside it); heated: the
-    model holds heat transfer (a temperature state: no transmission-line tube beside it).
+    line); slots: the current fit's lowered slot row (:data:`~pneubayes.effects.path.
+    SLOT_INDEX`), which an effect reads (:meth:`slot`) for what else the model holds.
     """
 
     model: Any
@@ -95,8 +96,13 @@ class CandidateContext:
     dead_volume_m3: float
     line_cutoff_Hz: float = 300.0
     line_form: str = "line"
-    wave_tube: bool = False
-    heated: bool = False
+    slots: Any = None
+
+    def slot(self, name: str) -> float:
+        """The current fit's value of slot ``name`` (0 without ``slots``)."""
+        if self.slots is None:
+            return 0.0
+        return float(self.slots[SLOT_INDEX[name]])
 
     def inside(self, effect, name: str, value: float) -> float:
         """``value`` moved just inside the bounds parameter ``name`` has in the model

@@ -103,7 +103,7 @@ class HeatTransfer(Effect):
         the temperature state (a rig card's compliant chamber, tank or second
         compartment, or a transmission-line tube); beside an acoustic line the
         temperature joins the line's state."""
-        if not ctx.second_state_free or ctx.wave_tube:
+        if not ctx.second_state_free or ctx.slot("wave_length_m") > 0:
             return []
         rate_form = HeatTransfer(**{**self.options(), "form": "rate"})
         rate = ctx.inside(rate_form, "heat_transfer_rate_per_s",

@@ -172,7 +172,9 @@ class TubeDelay(Effect):
         # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
-        if ctx.line_form == "wave" and not ctx.heated:  # the transmission line: no cells
+        # (the transmission line carries no temperature state: not beside heat transfer)
+        heated = ctx.slot("heat_rate_per_s") > 0 or ctx.slot("heat_coefficient_W_per_m2_K") > 0
+        if ctx.line_form == "wave" and not heated:  # the transmission line: no cells
             line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8})
         else:
             cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
