@@ -129,11 +129,9 @@ class OpenFormSearch:
     swap_min_gain : float
         FROLS: a bag's column is swapped for one explaining this share of the residual
         sum of squares more, or a simpler one explaining at most this less (:meth:`_swap`).
-    refine_thresholds : bool
-        Refine the kept hinges' thresholds between their grid neighbours.
-    exclude : sequence of str
-        Families left out of the library (e.g. ``"inlet_flow*pressure_relaxation"``):
-        a search again after a closure of them failed.
+    refine_thresholds, exclude : bool, sequence of str
+        Refine the kept hinges' thresholds between their grid neighbours; families left
+        out of the library (e.g. ``"inlet_flow*pressure_hinge"``: a search again).
 
     Attributes
     ----------
