@@ -40,8 +40,9 @@ def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed(blind_
 
 
 def test_the_sets_are_disjoint_and_cover_the_out_of_catalogue_forms():
+    # (Iso6358Ports came after set 2 and is in no set yet)
     one, two = (set(openform_blind.SET_FORMS[k]) for k in (1, 2))
-    assert not one & two and one | two == set(OUT_OF_CATALOGUE)
+    assert not one & two and one | two == set(OUT_OF_CATALOGUE) - {"Iso6358Ports"}
     assert openform_blind.OPENFORM_SEED == 69069  # set 1's record stays as it ran
 
 

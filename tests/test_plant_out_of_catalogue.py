@@ -16,6 +16,7 @@ from pneubayes.bench.forms import (
     CreepingWall,
     ExhaustSilencer,
     InletFlowForce,
+    Iso6358Ports,
     LipSealLeak,
     PilotInletValve,
     ReliefValve,
@@ -27,7 +28,7 @@ from pneubayes.bench.forms import (
     forms_from_names,
     out_of_catalogue_defaults,
 )
-from pneubayes.bench.plant import PlantConfig, forchheimer_flow, simulate_plant
+from pneubayes.bench.plant import PlantConfig, forchheimer_flow, iso6358_flow, simulate_plant
 from pneubayes.physics.orifice import flow_terms
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig
@@ -80,10 +81,11 @@ def _moving(duration_s=0.6, seed=4):
 def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     assert set(OUT_OF_CATALOGUE) == {"BladderVolume", "SpoolHysteresis", "ReliefValve",
                                      "InletFlowForce", "LipSealLeak", "ExhaustSilencer",
-                                     "ScoredBarrelLeak", "CreepingWall", "PilotInletValve"}
+                                     "ScoredBarrelLeak", "CreepingWall", "PilotInletValve",
+                                     "Iso6358Ports"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
-        assert check_forms(forms) == tuple(forms)  # all nine together: no clash
+        assert check_forms(forms) == tuple(forms)  # all of them together: no clash
         assert catalogue_names_of(forms) == []
         for f in forms:
             d = json.loads(json.dumps(f.to_dict()))
@@ -368,3 +370,27 @@ def test_pilot_inlet_stalls_a_fill_short_of_the_supply_and_spares_the_exhaust(ri
     vent = _held(0.5, (-5.0,))
     np.testing.assert_array_equal(_run(params, (pilot,), vent, rig, p0=5e5),
                                   _run(params, (), vent, rig, p0=5e5))
+
+
+def test_iso6358_ports_choke_at_their_critical_ratio_and_fill_slower_near_the_supply(rig):
+    """The ISO 6358 law: beta p_up at ratios <= b, its ellipse above (0 at ratio 1),
+    reversed flow swapping the ends; b = 0.528, m = 0.5 within 6 % of the isentropic
+    eqs. 1-3 over the subsonic range; with b = 0.3 a fill approaches the supply later."""
+    g = rig.gas
+    beta = g.beta_s_per_m
+    assert iso6358_flow(5e5, 1e5, beta, 0.3, 0.5) == pytest.approx(beta * 5e5, rel=1e-12)
+    assert iso6358_flow(5e5, 5e5, beta, 0.3, 0.5) == 0.0
+    assert iso6358_flow(3e5, 4e5, beta, 0.3, 0.5) == -iso6358_flow(4e5, 3e5, beta, 0.3, 0.5)
+    r = 0.3 + 0.7 * np.array([0.25, 0.5, 0.75])
+    z = (r - 0.3) / 0.7
+    np.testing.assert_allclose([iso6358_flow(5e5, 5e5 * q, beta, 0.3, 0.5) for q in r],
+                               beta * 5e5 * np.sqrt(1 - z * z), rtol=1e-12)
+    for q in np.linspace(0.53, 0.98, 10):
+        thin = flow_terms(5e5, 5e5 * q, g.alpha_s_per_m, beta, g.theta, g.heat_capacity_ratio)[0]
+        assert iso6358_flow(5e5, 5e5 * q, beta, 0.528, 0.5) == pytest.approx(thin, rel=0.06,
+                                                                            abs=0.02 * beta * 5e5)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    fill = _held(0.3, (5.0,))
+    plain = _run(params, (), fill, rig)
+    iso = _run(params, (Iso6358Ports(critical_pressure_ratio=0.3),), fill, rig)
+    assert _time_to(iso, P_SUP - 20e3) > 1.08 * _time_to(plain, P_SUP - 20e3)  # (1.10 x)

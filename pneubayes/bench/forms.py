@@ -503,12 +503,40 @@ class PilotInletValve(PlantForm):
         return _smoothstep((abs(drop_Pa) - self.min_pressure_difference_Pa) / w + 0.5)
 
 
+@dataclass(frozen=True)
+class Iso6358Ports(PlantForm):
+    """Both ports follow the ISO 6358 flow law instead of eqs. 1-3's isentropic shape.
+
+    Real valves are rated by a sonic conductance C, a critical pressure ratio ``b`` and a
+    subsonic index ``m`` (ISO 6358-1): at a ratio ``r = p_down / p_up``
+
+        f = beta p_up                                   r <= b (choked),
+        f = beta p_up (1 - ((r - b) / (1 - b))^2)^m     r > b,
+
+    and reversed flow swaps the ends. The choked flow is the thin port's ``beta p_up``
+    (the Gompertz area is the sonic conductance), so only the subsonic shape differs:
+    with ``b`` 0.2-0.4, as catalogued valves have, the flow starts to fall at a lower
+    ratio than the isentropic 0.528 and falls more gradually. ``b = 0.528``, ``m = 0.5``
+    is close to eqs. 1-3.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    critical_pressure_ratio: float
+    subsonic_index: float = 0.5
+
+    def __post_init__(self):
+        if not 0.0 < self.critical_pressure_ratio < 1.0:
+            raise ValueError("Iso6358Ports.critical_pressure_ratio must be in (0, 1), got "
+                             f"{self.critical_pressure_ratio!r}")
+        _positive(self, "subsonic_index")
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
                                   SpoolHysteresis, ReliefValve, InletFlowForce, LipSealLeak,
                                   ExhaustSilencer, ScoredBarrelLeak, CreepingWall,
-                                  PilotInletValve)
+                                  PilotInletValve, Iso6358Ports)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -633,7 +661,8 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
       8e-8 m^2 (about 0.1 g/s at 5 bar);
     - ``CreepingWall``: the wall gives 8 % of the swept volume at 4.5 bar gauge, with a
       0.2 s time constant;
-    - ``PilotInletValve``: needs 40 kPa across the inlet, the transition half of it.
+    - ``PilotInletValve``: needs 40 kPa across the inlet, the transition half of it;
+    - ``Iso6358Ports``: critical pressure ratio 0.3, subsonic index 0.5.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -661,5 +690,7 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
                             time_constant_s=0.2)
     if name == "PilotInletValve":
         return PilotInletValve(min_pressure_difference_Pa=40_000.0, transition_fraction=0.5)
+    if name == "Iso6358Ports":
+        return Iso6358Ports(critical_pressure_ratio=0.3, subsonic_index=0.5)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

@@ -54,6 +54,7 @@ from pneubayes.bench.forms import (
     CreepingWall,
     ExhaustSilencer,
     InletFlowForce,
+    Iso6358Ports,
     LipSealLeak,
     PilotInletValve,
     PlantForm,
@@ -95,7 +96,8 @@ K_SI_V, K_SI_RL, K_SI_RT = 51, 52, 53
 K_SB_A, K_SB_X1, K_SB_X2, K_SB_E = 54, 55, 56, 57
 K_CW_C, K_CW_TAU = 58, 59
 K_PI_D, K_PI_W = 60, 61
-N_K = 62
+K_ISO_B, K_ISO_M = 62, 63  # (Iso6358Ports: b 0 is the thin port's law)
+N_K = 64
 # Integer layout: modes and state indices (-1 = absent).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
  L_ITQ, L_N, L_IH, L_IM, L_IC) = range(16)
@@ -135,6 +137,21 @@ def rounded_deadband(s, halfwidth, rounding):
     else:
         mag = z if z > 0.0 else 0.0
     return mag if s >= 0.0 else -mag
+
+
+@njit(cache=True)
+def iso6358_flow(p_up, p_down, beta, b, m):
+    """ISO 6358 flow per unit sonic area (kg/(s m^2)): ``beta p_up`` choked (ratio <= b),
+    times ``(1 - ((r - b) / (1 - b))^2)^m`` above; reversed flow swaps the ends
+    (:class:`~pneubayes.bench.forms.Iso6358Ports`)."""
+    sign = 1.0
+    if p_down > p_up:
+        p_up, p_down, sign = p_down, p_up, -1.0
+    r = p_down / p_up
+    if r <= b:
+        return sign * beta * p_up
+    z = (r - b) / (1.0 - b)
+    return sign * beta * p_up * max(1.0 - z * z, 0.0) ** m
 
 
 @njit(cache=True)
@@ -196,8 +213,12 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     # the exhaust port discharges into a silencer's body, else to the atmosphere
     p_exd = y[L[L_IM]] if L[L_IM] >= 0 else p_atm
     # port flows (eqs. 1-3); a hot or cold chamber gas scales them by sqrt(T_s / T)
-    f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
-    f_ex = flow_terms(pv, p_exd, alpha, beta, theta, kappa)[0]
+    if P[K_ISO_B] > 0.0:
+        f_in = iso6358_flow(p_up, pv, beta, P[K_ISO_B], P[K_ISO_M])
+        f_ex = iso6358_flow(pv, p_exd, beta, P[K_ISO_B], P[K_ISO_M])
+    else:
+        f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
+        f_ex = flow_terms(pv, p_exd, alpha, beta, theta, kappa)[0]
     hot = heat == 2 and nseg == 0
     if hot and f_in < 0.0:
         f_in *= math.sqrt(ts / temp)
@@ -517,6 +538,9 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         if f.min_pressure_difference_Pa > 0:
             P[K_PI_D] = f.min_pressure_difference_Pa
             P[K_PI_W] = f.transition_fraction * f.min_pressure_difference_Pa
+    if Iso6358Ports in by:
+        P[K_ISO_B], P[K_ISO_M] = (by[Iso6358Ports].critical_pressure_ratio,
+                                  by[Iso6358Ports].subsonic_index)
     hyst = by.get(SpoolHysteresis)
     if hyst is not None and hyst.half_band_V > 0:
         P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
