@@ -229,6 +229,10 @@ def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
     assert OpenForm(retries=0).retries == 0
     with pytest.raises(ValueError, match="retries"):
         OpenForm(retries=-1)
+    assert OpenForm(long_block=0).options()["long_block"] == 0
+    with pytest.raises(ValueError, match="long_block"):
+        OpenForm(long_block=2.5)
+    assert _clone(search, block=25).block == 25
 
 
 def test_a_found_closure_becomes_an_effect_plug_in_a_user_can_name(rig):

@@ -60,13 +60,16 @@ class OpenForm(Stage):
         Searches again, each without the families of the last closure, when that
         closure was rejected with its parameters at a bound (a closure that fits only
         at its limits stands in for what its terms cannot express).
+    long_block : int
+        Sample intervals per row of a second search when the first (the search's
+        block) keeps no term; 0 or not above the block: none.
     """
 
     name = "open_form"
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
                  search: OpenFormSearch | None = None, prune: bool = True,
-                 coefficient_reach: float = 10.0, retries: int = 1):
+                 coefficient_reach: float = 10.0, retries: int = 1, long_block: int = 25):
         if min_noise_ratio < 1.0:
             raise ValueError(f"OpenForm: min_noise_ratio must be >= 1, got {min_noise_ratio}")
         if not 0.0 <= compete_below_gap_closed <= 1.0:
@@ -83,6 +86,10 @@ class OpenForm(Stage):
         if not (isinstance(retries, int) and retries >= 0):
             raise ValueError(f"OpenForm: retries must be an integer >= 0, got {retries!r}")
         self.retries = retries
+        if not (isinstance(long_block, int) and long_block >= 0):
+            raise ValueError(f"OpenForm: long_block must be an integer >= 0, got "
+                             f"{long_block!r}")
+        self.long_block = long_block
 
     def options(self):
         search = None if self.search is None else {
@@ -91,7 +98,8 @@ class OpenForm(Stage):
         return {"min_noise_ratio": self.min_noise_ratio,
                 "compete_below_gap_closed": self.compete_below_gap_closed,
                 "search": search, "prune": self.prune,
-                "coefficient_reach": self.coefficient_reach, "retries": self.retries}
+                "coefficient_reach": self.coefficient_reach, "retries": self.retries,
+                "long_block": self.long_block}
 
     # ------------------------------------------------------------------ when
     def _applies(self, state: RoundState, noise: float):
@@ -125,20 +133,30 @@ class OpenForm(Stage):
     def _run(self, state: RoundState, runner, best) -> None:
         search = self.search if self.search is not None else OpenFormSearch(
             block=runner.settings.search.block, seed=runner.settings.seed)
-        signals, targets = self._residual(state, runner, search.block)
+        residuals: dict[int, tuple] = {}  # block -> (signals, targets)
+        blocks = [search.block] + ([self.long_block] if self.long_block > search.block
+                                   else [])
         excluded: tuple[str, ...] = ()
         for _ in range(1 + self.retries):
             if excluded:
                 search = _clone(search, exclude=tuple(search.exclude) + excluded)
                 runner.log("discover: open form: searching again without "
                            + ", ".join(excluded))
-            terms, search = self._search(search, signals, targets, state.current)
-            runner.ledger.record("open form search", round=state.number,
-                                 terms=[_term_record(t) for t in terms],
-                                 explained_fraction=getattr(search, "explained_fraction_",
-                                                            None),
-                                 candidates=getattr(search, "n_candidates_", None),
-                                 excluded=list(search.exclude))
+            for block in blocks:
+                # a longer block when the first finds nothing: the one-step residual of a
+                # small chamber is mostly noise, which sums away over more intervals
+                search = _clone(search, block=block) if block != search.block else search
+                if block not in residuals:
+                    residuals[block] = self._residual(state, runner, block)
+                terms, search = self._search(search, *residuals[block], state.current)
+                runner.ledger.record("open form search", round=state.number,
+                                     terms=[_term_record(t) for t in terms],
+                                     explained_fraction=getattr(
+                                         search, "explained_fraction_", None),
+                                     candidates=getattr(search, "n_candidates_", None),
+                                     excluded=list(search.exclude), block=block)
+                if terms:
+                    break
             if not terms:
                 runner.log("discover: open form: no term of the residual's search is "
                            "supported")
