@@ -294,20 +294,16 @@ def combine_terms(terms) -> np.ndarray:
     the names either feature names or arrays of feature codes (one per row, broadcasting
     against the values). A term that reads no port flow adds ``c F_a F_b``; the terms of
     a port flow add ``q clip(s)`` (:data:`PORT_FACTOR_LIMITS`)."""
+    codes = {name: FEATURE_BY_NAME[name].code for name in PORT_FACTOR_LIMITS}
     free = 0.0
-    factor = {name: 0.0 for name in PORT_FACTOR_LIMITS}
-    flow = {name: 0.0 for name in PORT_FACTOR_LIMITS}
+    factor = dict.fromkeys(codes, 0.0)
+    flow = dict.fromkeys(codes, 0.0)
     for c, name_a, fa, name_b, fb in terms:
         code_a, code_b = _codes(name_a), _codes(name_b)
-        a_port = np.zeros(np.shape(code_a), dtype=bool)
-        for name in PORT_FACTOR_LIMITS:
-            a_port = a_port | (code_a == FEATURE_BY_NAME[name].code)
-        b_port = np.zeros(np.shape(code_b), dtype=bool)
-        for name in PORT_FACTOR_LIMITS:
-            code = FEATURE_BY_NAME[name].code
-            on_a = code_a == code
-            on_b = ~a_port & (code_b == code)
-            b_port = b_port | on_b
+        a_port = np.isin(code_a, list(codes.values()))
+        b_port = ~a_port & np.isin(code_b, list(codes.values()))
+        for name, code in codes.items():  # a term belongs to its first port flow
+            on_a, on_b = code_a == code, b_port & (code_b == code)
             factor[name] = factor[name] + np.where(on_a, c * fb, np.where(on_b, c * fa, 0.0))
             flow[name] = np.where(on_a, fa, np.where(on_b, fb, flow[name]))
         free = free + np.where(a_port | b_port, 0.0, c * (fa * fb))

@@ -92,9 +92,7 @@ class OpenForm(Stage):
         self.long_block = long_block
 
     def options(self):
-        search = None if self.search is None else {
-            k: getattr(self.search, k)
-            for k in inspect.signature(type(self.search).__init__).parameters if k != "self"}
+        search = None if self.search is None else _settings_of(self.search)
         return {"min_noise_ratio": self.min_noise_ratio,
                 "compete_below_gap_closed": self.compete_below_gap_closed,
                 "search": search, "prune": self.prune,
@@ -416,11 +414,15 @@ def _families_at_bounds(fit, bounded: list[str], terms) -> tuple[str, ...]:
     return hit or tuple(sorted(new))
 
 
+def _settings_of(search) -> dict:
+    """A search's constructor arguments, by name (its settings, not its fitted state)."""
+    return {k: getattr(search, k)
+            for k in inspect.signature(type(search).__init__).parameters if k != "self"}
+
+
 def _clone(search, **changes):
     """A new, unfitted search with ``search``'s settings and ``changes``."""
-    params = {k: getattr(search, k)
-              for k in inspect.signature(type(search).__init__).parameters if k != "self"}
-    return type(search)(**{**params, **changes})
+    return type(search)(**{**_settings_of(search), **changes})
 
 
 def _existing_terms(model) -> list:
