@@ -132,8 +132,9 @@ class OpenForm(Stage):
         search = self.search if self.search is not None else OpenFormSearch(
             block=runner.settings.search.block, seed=runner.settings.seed)
         residuals: dict[int, tuple] = {}  # block -> (signals, targets)
-        blocks = [search.block] + ([self.long_block] if self.long_block > search.block
-                                   else [])
+        shortest = min(rec.n_samples for rec in runner.data.train)
+        blocks = [search.block] + ([self.long_block] if search.block < self.long_block
+                                   < shortest else [])  # (a row within each recording)
         excluded: tuple[str, ...] = ()
         for _ in range(1 + self.retries):
             if excluded:
