@@ -18,10 +18,13 @@ from pneubayes.bench.forms import (
     InletFlowForce,
     Iso6358Ports,
     LipSealLeak,
+    MeterOutThrottle,
     PilotInletValve,
     ReliefValve,
     ScoredBarrelLeak,
     SpoolHysteresis,
+    SpoolSlewLimit,
+    SpoolUnderlap,
     catalogue_names_of,
     check_forms,
     form_from_dict,
@@ -82,7 +85,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     assert set(OUT_OF_CATALOGUE) == {"BladderVolume", "SpoolHysteresis", "ReliefValve",
                                      "InletFlowForce", "LipSealLeak", "ExhaustSilencer",
                                      "ScoredBarrelLeak", "CreepingWall", "PilotInletValve",
-                                     "Iso6358Ports"}
+                                     "Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap",
+                                     "MeterOutThrottle"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -150,7 +154,9 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     LipSealLeak(seal_pressure_Pa=2e5, conductance_kg_per_s_Pa2=0.0),
     ExhaustSilencer(back_pressure_Pa=0.0),
     ScoredBarrelLeak(start_m=0.3 * STROKE, end_m=0.6 * STROKE, area_m2=0.0),
-    CreepingWall(compliance_m3_per_Pa=0.0), PilotInletValve(min_pressure_difference_Pa=0.0)],
+    CreepingWall(compliance_m3_per_Pa=0.0), PilotInletValve(min_pressure_difference_Pa=0.0),
+    SpoolSlewLimit(slew_rate_V_per_s=0.0), SpoolUnderlap(area_m2=0.0),
+    MeterOutThrottle(needle_area_m2=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -394,3 +400,68 @@ def test_iso6358_ports_choke_at_their_critical_ratio_and_fill_slower_near_the_su
     plain = _run(params, (), fill, rig)
     iso = _run(params, (Iso6358Ports(critical_pressure_ratio=0.3),), fill, rig)
     assert _time_to(iso, P_SUP - 20e3) > 1.08 * _time_to(plain, P_SUP - 20e3)  # (1.10 x)
+
+
+def test_slew_limited_spool_is_the_plain_valve_under_a_ramped_command(rig):
+    """A large step through a spool that slews at r (with a negligible small-step lag)
+    is the plain valve under the command ramped at r."""
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    r = 100.0
+    slew = SpoolSlewLimit(slew_rate_V_per_s=r, time_constant_s=2e-5)
+    step = _held(0.15, (-5.0, 5.0), at=(0.0, 0.02))
+    t = step.time_s
+    ramp = np.clip(-5.0 + r * (t - 0.02), -5.0, 5.0)
+    ramped = Inputs(t, np.where(t < 0.02, -5.0, ramp), step.position_m,
+                    step.supply_pressure_Pa)
+    limited, plain_ramp = _run(params, (slew,), step, rig), _run(params, (), ramped, rig)
+    plain_step = _run(params, (), step, rig)
+    span = np.ptp(plain_step)
+    assert np.max(np.abs(limited - plain_ramp)) < 0.02 * span
+    assert np.max(np.abs(limited - plain_step)) > 0.3 * span  # the ramp matters
+    with pytest.raises(ValueError, match="SpoolSlewLimit is the spool's stage"):
+        _run(params, (slew, forms_from_names(["spool_lag"])[0]), step, rig)
+
+
+def test_underlapped_spool_holds_a_chamber_between_supply_and_atmosphere(rig):
+    """At the null both ports leak equally: the chamber settles where the inflow from
+    the supply equals the outflow to the atmosphere (closed form by root finding); away
+    from the null the underlap is gone and the plain valve is exact."""
+    from scipy.optimize import brentq
+
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    under = SpoolUnderlap(area_m2=5e-8, width_V=0.5)
+    assert under.opening(0.0) == 5e-8 and under.opening(0.6) == 0.0
+    g = rig.gas
+    args = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, g.heat_capacity_ratio)
+    p_star = brentq(lambda q: flow_terms(P_SUP, q, *args)[0] - flow_terms(q, P_ATM, *args)[0],
+                    P_ATM + 1.0, P_SUP - 1.0)
+    for p0 in (P_ATM, P_SUP - 1e3):
+        p = _run(params, (under,), _held(1.5, (0.0,)), rig, p0=p0)
+        assert p[-1] == pytest.approx(p_star, abs=50.0)
+    away = _held(0.2, (2.0,))  # beyond the underlap's width, the ports still shut
+    np.testing.assert_array_equal(_run(params, (under,), away, rig, p0=3e5),
+                                  _run(params, (), away, rig, p0=3e5))
+
+
+def test_meter_out_throttle_slows_the_vent_not_the_fill_and_keeps_the_mass(rig):
+    """The vent leaves through the needle (much slower), the fill through the open check
+    (a little slower); both end where the plain valve does; a closed chamber and
+    fitting at rest stay at rest."""
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    mo = MeterOutThrottle(needle_area_m2=1e-7, check_area_m2=2e-6, crack_pressure_Pa=10e3,
+                          volume_m3=5e-7)
+    assert mo.check_opening(0.0) == 0.0 and mo.check_opening(20e3) == 1.0
+    fill = _held(0.05, (5.0,))  # (short: a chamber at the supply makes the solver crawl)
+    plain, thr = _run(params, (), fill, rig), _run(params, (mo,), fill, rig)
+    level = P_SUP - 30e3
+    assert _time_to(plain, level) <= _time_to(thr, level) < 1.5 * _time_to(plain, level)
+    assert abs(thr[-1] - plain[-1]) < 15e3  # the check's cracking pressure short at most
+    vent = _held(0.1, (-5.0,))
+    plain_v, thr_v = _run(params, (), vent, rig, p0=5e5), _run(params, (mo,), vent, rig,
+                                                                 p0=5e5)
+    down = lambda p: int(np.argmax(p <= 2e5)) * DT  # noqa: E731
+    assert thr_v[-1] < 2e5 and down(thr_v) > 3.0 * down(plain_v)  # (6 x)
+    rest = _run(params, (mo,), _held(0.2, (0.0,)), rig, p0=3e5)
+    np.testing.assert_allclose(rest, 3e5, rtol=0, atol=1e-3)
+    with pytest.raises(ValueError, match="beside an AcousticTube"):
+        _run(params, (mo, forms_from_names(["tube_delay"])[0]), fill, rig)

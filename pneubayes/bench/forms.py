@@ -14,7 +14,9 @@ blind, in two sets drawn once each: the first (:class:`BladderVolume`,
 :class:`SpoolHysteresis`, :class:`ReliefValve`, :class:`InletFlowForce`,
 :class:`LipSealLeak`) and, built after the open-form stage had been developed against
 the first, the second (:class:`ExhaustSilencer`, :class:`ScoredBarrelLeak`,
-:class:`CreepingWall`, :class:`PilotInletValve`).
+:class:`CreepingWall`, :class:`PilotInletValve`), and, built after the stage had been
+developed against the second, the third (:class:`Iso6358Ports`, :class:`SpoolSlewLimit`,
+:class:`SpoolUnderlap`, :class:`MeterOutThrottle`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -531,12 +533,98 @@ class Iso6358Ports(PlantForm):
         _positive(self, "subsonic_index")
 
 
+@dataclass(frozen=True)
+class SpoolSlewLimit(PlantForm):
+    """A spool whose speed saturates: a proportional valve's current-limited driver.
+
+    The spool position s (V of command) follows the command u with a smooth rate limit::
+
+        ds/dt = r tanh((u - s) / (tau r)),   r = slew_rate_V_per_s, tau = time_constant_s
+
+    A small step is a first-order lag of ``tau``; a large one is a ramp at ``r`` (a full
+    10-V swing takes ``10 / r`` s). Unlike the catalogue's linear spool lags, the delay
+    grows with the step. ``slew_rate_V_per_s = 0`` is no limit (the state is omitted);
+    it replaces the catalogue's spool stages and cannot be planted beside them.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    slew_rate_V_per_s: float
+    time_constant_s: float = 5e-4
+
+    def __post_init__(self):
+        _non_negative(self, "slew_rate_V_per_s")
+        _positive(self, "time_constant_s")
+
+
+@dataclass(frozen=True)
+class SpoolUnderlap(PlantForm):
+    """An underlapped spool: both ports stay a little open around the null.
+
+    Where the lands are narrower than the ports, supply and exhaust both connect to the
+    chamber near the null (a crossport leak through the valve). Each port's area gains::
+
+        a_u(s) = area_m2 (1 - S(|s| / width_V)),   S the C1 smoothstep,
+
+    at the spool position s (V): ``area_m2`` at the null, nothing beyond ``width_V``. A
+    chamber held at the null settles between the supply and the atmosphere instead of
+    holding its pressure. Unlike the Gompertz maps' constant offsets the extra opening is
+    confined to the null. ``area_m2 = 0`` is a critically lapped spool.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    area_m2: float
+    width_V: float = 0.5
+
+    def __post_init__(self):
+        _non_negative(self, "area_m2")
+        _positive(self, "width_V")
+
+    def opening(self, spool_V: float) -> float:
+        """a_u(s), m^2."""
+        return self.area_m2 * (1.0 - _smoothstep(abs(spool_V) / self.width_V))
+
+
+@dataclass(frozen=True)
+class MeterOutThrottle(PlantForm):
+    """A one-way flow control (a meter-out speed controller) at the cylinder's port.
+
+    Between the valve and the chamber sits a fitting of volume ``volume_m3`` (pressure
+    p_f, which the valve's ports see). From the fitting into the chamber the gas passes
+    a needle of area ``needle_area_m2`` and, in parallel, a check valve of area
+    ``check_area_m2`` that opens with the forward drop ``p_f - p``::
+
+        mdot_fc = (A_n + A_c S((p_f - p - dp_c) / dp_c + 1/2)) f(p_f, p),
+
+    S the C1 smoothstep, ``dp_c = crack_pressure_Pa``, f the thin-port flow of eqs. 1-3
+    (signed). A fill passes the open check; a vent leaves through the needle alone, so
+    the exhaust is throttled and the fitting's pressure lags the chamber's. Eq. 5 holds
+    in the fitting at the supply temperature. ``needle_area_m2 = 0`` is no throttle (the
+    state is omitted); it cannot be planted beside an AcousticTube.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    needle_area_m2: float
+    check_area_m2: float = 1e-6
+    crack_pressure_Pa: float = 10e3
+    volume_m3: float = 5e-7
+
+    def __post_init__(self):
+        _non_negative(self, "needle_area_m2")
+        _positive(self, "check_area_m2", "crack_pressure_Pa", "volume_m3")
+
+    def check_opening(self, forward_drop_Pa: float) -> float:
+        """The check valve's fraction open at a drop ``p_f - p`` (Pa)."""
+        c = self.crack_pressure_Pa
+        return _smoothstep((forward_drop_Pa - c) / c + 0.5)
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
                                   SpoolHysteresis, ReliefValve, InletFlowForce, LipSealLeak,
                                   ExhaustSilencer, ScoredBarrelLeak, CreepingWall,
-                                  PilotInletValve, Iso6358Ports)
+                                  PilotInletValve, Iso6358Ports, SpoolSlewLimit,
+                                  SpoolUnderlap, MeterOutThrottle)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -662,7 +750,12 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``CreepingWall``: the wall gives 8 % of the swept volume at 4.5 bar gauge, with a
       0.2 s time constant;
     - ``PilotInletValve``: needs 40 kPa across the inlet, the transition half of it;
-    - ``Iso6358Ports``: critical pressure ratio 0.3, subsonic index 0.5.
+    - ``Iso6358Ports``: critical pressure ratio 0.3, subsonic index 0.5;
+    - ``SpoolSlewLimit``: 300 V/s (a full 10-V swing in 33 ms), 0.5 ms small-step lag;
+    - ``SpoolUnderlap``: 5e-8 m^2 per port at the null (about 10 % of valve 1's full
+      port), gone beyond 0.5 V;
+    - ``MeterOutThrottle``: a needle of 2e-7 m^2 (a third of valve 1's exhaust), a
+      1e-6 m^2 check cracking at 10 kPa, a 0.5 cm^3 fitting.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -692,5 +785,12 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return PilotInletValve(min_pressure_difference_Pa=40_000.0, transition_fraction=0.5)
     if name == "Iso6358Ports":
         return Iso6358Ports(critical_pressure_ratio=0.3, subsonic_index=0.5)
+    if name == "SpoolSlewLimit":
+        return SpoolSlewLimit(slew_rate_V_per_s=300.0, time_constant_s=5e-4)
+    if name == "SpoolUnderlap":
+        return SpoolUnderlap(area_m2=5e-8, width_V=0.5)
+    if name == "MeterOutThrottle":
+        return MeterOutThrottle(needle_area_m2=2e-7, check_area_m2=1e-6,
+                                crack_pressure_Pa=10e3, volume_m3=5e-7)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

@@ -56,6 +56,7 @@ from pneubayes.bench.forms import (
     InletFlowForce,
     Iso6358Ports,
     LipSealLeak,
+    MeterOutThrottle,
     PilotInletValve,
     PlantForm,
     RegulatorDroop,
@@ -64,6 +65,8 @@ from pneubayes.bench.forms import (
     ScoredBarrelLeak,
     SecondOrderSpool,
     SpoolHysteresis,
+    SpoolSlewLimit,
+    SpoolUnderlap,
     WallHeatTransfer,
     check_forms,
 )
@@ -97,11 +100,18 @@ K_SB_A, K_SB_X1, K_SB_X2, K_SB_E = 54, 55, 56, 57
 K_CW_C, K_CW_TAU = 58, 59
 K_PI_D, K_PI_W = 60, 61
 K_ISO_B, K_ISO_M = 62, 63  # (Iso6358Ports: b 0 is the thin port's law)
-N_K = 64
-# Integer layout: modes and state indices (-1 = absent).
+# the third blind set's forms (all 0: absent)
+K_SL_R, K_SL_TAU = 64, 65
+K_UL_A, K_UL_W = 66, 67
+K_MO_N, K_MO_C, K_MO_P, K_MO_V = 68, 69, 70, 71
+N_K = 72
+#: Below this drop (Pa) a MeterOutThrottle's flow is laminar (linear in the drop).
+MO_LAMINAR_DROP_PA = 1000.0
+# Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
+# order, 2 second order, 3 slew-limited (SpoolSlewLimit).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC) = range(16)
-N_L = 16
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF) = range(17)
+N_L = 17
 
 
 @njit(cache=True)
@@ -180,12 +190,16 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     elif mode == 1:
         s = y[L[L_IS]]
         dy[L[L_IS]] = (u - s) / P[K_TAU]
-    else:
+    elif mode == 2:
         s = y[L[L_IS]]
         v = y[L[L_ISV]]
         wn = P[K_WN]
         dy[L[L_IS]] = v
         dy[L[L_ISV]] = wn * wn * (u - s) - 2.0 * P[K_ZETA] * wn * v
+    else:  # a rate-limited spool (SpoolSlewLimit)
+        s = y[L[L_IS]]
+        r = P[K_SL_R]
+        dy[L[L_IS]] = r * math.tanh((u - s) / (P[K_SL_TAU] * r))
     if L[L_IH] >= 0:  # spool play (SpoolHysteresis): held inside the band
         sh = y[L[L_IH]]
         band = P[K_HY_B]
@@ -197,6 +211,10 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     ue = rounded_deadband(s, P[K_DEAD], P[K_ROUND] if L[L_DZ_ROUND] == 1 else 0.0)
     a_in = gompertz_scalar(ue, P[K_IN], P[K_IN + 1], P[K_IN + 2], P[K_IN + 3], P[K_IN + 4])
     a_ex = gompertz_scalar(ue, P[K_EX], P[K_EX + 1], P[K_EX + 2], P[K_EX + 3], P[K_EX + 4])
+    if P[K_UL_A] > 0.0:  # an underlapped spool: both ports open a little at the null
+        a_u = P[K_UL_A] * (1.0 - smoothstep(abs(s) / P[K_UL_W]))
+        a_in += a_u
+        a_ex += a_u
     # supply at the valve inlet
     p_up = P[K_PNOM] + P[K_GAIN] * (sup_in - P[K_PNOM])
     if L[L_DROOP] == 1:
@@ -206,6 +224,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     temp = y[L[L_IT]] if heat > 0 else ts
     nseg = L[L_NSEG]
     pv = y[L[L_ITP]] if nseg > 0 else p
+    if L[L_IF] >= 0:  # a meter-out throttle's fitting between the valve and the chamber
+        pv = y[L[L_IF]]
     if P[K_FF] > 0.0:  # flow forces close the inlet with the drop across it
         a_in = a_in / (1.0 + P[K_FF] * max(p_up - pv, 0.0) / p_atm)
     if P[K_PI_D] > 0.0:  # a pilot-operated inlet shuts below its minimum drop
@@ -219,7 +239,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     else:
         f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
         f_ex = flow_terms(pv, p_exd, alpha, beta, theta, kappa)[0]
-    hot = heat == 2 and nseg == 0
+    hot = heat == 2 and nseg == 0 and L[L_IF] < 0  # (a fitting holds supply-temperature gas)
     if hot and f_in < 0.0:
         f_in *= math.sqrt(ts / temp)
     if hot and f_ex > 0.0:
@@ -250,6 +270,22 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
                            - churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
             q_prev = q
         inflow = q_prev
+        h_in = inflow * (ts if inflow > 0.0 else temp)
+    elif L[L_IF] >= 0:  # the fitting fills from the valve, the chamber from the fitting
+        drop = pv - p
+        area = P[K_MO_N] + P[K_MO_C] * smoothstep((drop - P[K_MO_P]) / P[K_MO_P] + 0.5)
+        lam = min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)  # laminar below the drop: linear
+        if drop >= 0.0:
+            f_fc = flow_terms(pv, pv - max(drop, MO_LAMINAR_DROP_PA), alpha, beta, theta,
+                              kappa)[0]
+            inflow = area * f_fc * lam
+        else:
+            f_out = flow_terms(p, p - max(-drop, MO_LAMINAR_DROP_PA), alpha, beta, theta,
+                               kappa)[0]
+            if heat == 2:
+                f_out *= math.sqrt(ts / temp)
+            inflow = -area * f_out * lam
+        dy[L[L_IF]] = kappa * rs * ts / P[K_MO_V] * (att * (m_in - m_ex) - inflow)
         h_in = inflow * (ts if inflow > 0.0 else temp)
     else:
         inflow = att * (m_in - m_ex)
@@ -541,6 +577,22 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if Iso6358Ports in by:
         P[K_ISO_B], P[K_ISO_M] = (by[Iso6358Ports].critical_pressure_ratio,
                                   by[Iso6358Ports].subsonic_index)
+    slew = by.get(SpoolSlewLimit)
+    if slew is not None and slew.slew_rate_V_per_s > 0:
+        if L[L_SPOOL] != 0:
+            raise ValueError("plant: SpoolSlewLimit is the spool's stage; it cannot be "
+                             "planted beside a spool_lag effect or a SecondOrderSpool")
+        P[K_SL_R], P[K_SL_TAU], L[L_SPOOL] = slew.slew_rate_V_per_s, slew.time_constant_s, 3
+    under = by.get(SpoolUnderlap)
+    if under is not None and under.area_m2 > 0:
+        P[K_UL_A], P[K_UL_W] = under.area_m2, under.width_V
+    throttle = by.get(MeterOutThrottle)
+    if throttle is not None and throttle.needle_area_m2 > 0:
+        if AcousticTube in by:
+            raise ValueError("plant: a MeterOutThrottle cannot be planted beside an "
+                             "AcousticTube (both sit between the valve and the chamber)")
+        P[K_MO_N], P[K_MO_C] = throttle.needle_area_m2, throttle.check_area_m2
+        P[K_MO_P], P[K_MO_V] = throttle.crack_pressure_Pa, throttle.volume_m3
     hyst = by.get(SpoolHysteresis)
     if hyst is not None and hyst.half_band_V > 0:
         P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
@@ -603,6 +655,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 1
         atol.append(cfg.atol_Pa * vmin / 1e6)
         scale.append(vmin)
+    if P[K_MO_N] > 0:  # the throttle's fitting pressure
+        L[L_IF] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]))
@@ -628,6 +685,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[L_IS]] = u0  # at rest at the first (delayed) command
     if L[L_IH] >= 0:
         y[L[L_IH]] = u0  # the play's output starts at the first command
+    if L[L_IF] >= 0:
+        y[L[L_IF]] = p0  # the throttle's fitting at the chamber's pressure
     if L[L_IC] >= 0:  # the creeping wall in equilibrium with the initial pressure
         y[L[L_IC]] = su.P[K_CW_C] * (p0 - su.P[K_PATM])
     if L[L_NSEG] > 0:
