@@ -8,14 +8,18 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in two sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in three sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
 ``o00``-``o11``. Set 2 (seed 1796182831, drawn from the clock on 2026-12-02 and recorded
 before any run): a porous exhaust silencer with its own volume, a leak over a scored
 section of the barrel, a creeping (viscoelastic) chamber wall and a pilot-operated inlet
-that needs a minimum pressure difference, cases ``n00``-``n09``. Each form is planted
+that needs a minimum pressure difference, cases ``n00``-``n09``. Set 3 (seed 1796214872,
+drawn from the clock on 2026-12-02 and recorded before any run): valve ports that follow
+the ISO 6358 flow law, a spool whose speed saturates (slew limit), an underlapped spool
+that leaks through the null, and a meter-out speed controller (needle and check valve)
+at the cylinder's port, cases ``t00``-``t09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -63,11 +67,15 @@ from pneubayes.bench.forms import (
     CreepingWall,
     ExhaustSilencer,
     InletFlowForce,
+    Iso6358Ports,
     LipSealLeak,
+    MeterOutThrottle,
     PilotInletValve,
     ReliefValve,
     ScoredBarrelLeak,
     SpoolHysteresis,
+    SpoolSlewLimit,
+    SpoolUnderlap,
     check_forms,
 )
 from pneubayes.bench.sensors import SensorChain
@@ -83,13 +91,16 @@ from pneubayes.settings_tree import assignment, override, table_of
 OPENFORM_SEED = 69069
 #: Set 2's seed: ``date +%s`` at 2026-12-02 03:40:31 UTC, fixed before any case ran.
 OPENFORM_SEED_2 = 1796182831
+#: Set 3's seed: ``date +%s`` at 2026-12-02 12:34:32 UTC, fixed before any case ran.
+OPENFORM_SEED_3 = 1796214872
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
                  "LipSealLeak"),
-             2: ("ExhaustSilencer", "ScoredBarrelLeak", "CreepingWall", "PilotInletValve")}
-SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2}
-SET_PREFIX = {1: "o", 2: "n"}
+             2: ("ExhaustSilencer", "ScoredBarrelLeak", "CreepingWall", "PilotInletValve"),
+             3: ("Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap", "MeterOutThrottle")}
+SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3}
+SET_PREFIX = {1: "o", 2: "n", 3: "t"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -127,7 +138,15 @@ def draw_openform(name: str, cylinder: str, rng):
     - CreepingWall (set 2): the wall gives 2-15 % of the swept volume at 4.5 bar gauge
       (log-uniform), with a time constant of 0.05-1 s (log-uniform);
     - PilotInletValve (set 2): a minimum pressure difference of 20-100 kPa
-      (log-uniform), the transition 0.3-1 x it.
+      (log-uniform), the transition 0.3-1 x it;
+    - Iso6358Ports (set 3): critical pressure ratio 0.15-0.45, subsonic index 0.35-0.75;
+    - SpoolSlewLimit (set 3): 100-1000 V/s (a full 10-V swing in 10-100 ms), a
+      small-step lag of 0.2-1 ms (both log-uniform);
+    - SpoolUnderlap (set 3): 2e-8-1.5e-7 m^2 per port at the null (about 2-25 % of the
+      Table II valves' full ports), gone beyond 0.2-1 V;
+    - MeterOutThrottle (set 3): a needle of 1e-7-5e-7 m^2 (about 10-80 % of the
+      exhausts' full area), a check of 1e-6-3e-6 m^2 cracking at 5-30 kPa, a fitting of
+      0.2-2 cm^3 (all log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -166,6 +185,20 @@ def draw_openform(name: str, cylinder: str, rng):
     if name == "PilotInletValve":
         return PilotInletValve(min_pressure_difference_Pa=_log_uniform(rng, 20e3, 100e3),
                                transition_fraction=rng.uniform(0.3, 1.0))
+    if name == "Iso6358Ports":
+        return Iso6358Ports(critical_pressure_ratio=rng.uniform(0.15, 0.45),
+                            subsonic_index=rng.uniform(0.35, 0.75))
+    if name == "SpoolSlewLimit":
+        return SpoolSlewLimit(slew_rate_V_per_s=_log_uniform(rng, 100.0, 1000.0),
+                              time_constant_s=_log_uniform(rng, 2e-4, 1e-3))
+    if name == "SpoolUnderlap":
+        return SpoolUnderlap(area_m2=_log_uniform(rng, 2e-8, 1.5e-7),
+                             width_V=rng.uniform(0.2, 1.0))
+    if name == "MeterOutThrottle":
+        return MeterOutThrottle(needle_area_m2=_log_uniform(rng, 1e-7, 5e-7),
+                                check_area_m2=_log_uniform(rng, 1e-6, 3e-6),
+                                crack_pressure_Pa=_log_uniform(rng, 5e3, 30e3),
+                                volume_m3=_log_uniform(rng, 2e-7, 2e-6))
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 
@@ -330,8 +363,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="results folder (cases cached there)")
     ap.add_argument("--set", type=int, choices=sorted(SET_FORMS), default=1, dest="blind_set",
-                    help="the blind set: 1 (seed 69069, run 2026-12-01) or 2 (seed "
-                         f"{OPENFORM_SEED_2}, fresh forms); default 1")
+                    help="the blind set: 1 (seed 69069, run 2026-12-01), 2 (seed "
+                         f"{OPENFORM_SEED_2}) or 3 (seed {OPENFORM_SEED_3}); default 1")
     ap.add_argument("--seed", type=int, default=None,
                     help="the draw's seed (default: the set's, SET_SEEDS)")
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
