@@ -4,7 +4,8 @@ saved results (``make paper``).
     python experiments/make_paper.py [--out results/paper] [--paper paper] [--workers 2]
     python experiments/make_paper.py --assemble-only     # only re-assemble saved results
     python experiments/make_paper.py --assemble-only --only real   # one section (table3,
-                                                                   # mpc, blind, calibration)
+                                                                   # mpc, blind,
+                                                                   # openform, calibration)
     python experiments/make_paper.py --smoke --out /tmp/p --paper /tmp/p/paper
 
 Steps: ``table3.py``, ``fig11_volume.py``, ``fig12a_leak.py`` and ``peer_baseline.py``
@@ -40,6 +41,7 @@ import fig12a_leak  # noqa: E402
 import fig12b_deadzone  # noqa: E402
 import identification  # noqa: E402
 import mpc_tracking  # noqa: E402
+import openform_blind  # noqa: E402
 import peer_baseline  # noqa: E402
 import real_gtdynamics  # noqa: E402
 import real_gtdynamics_tank  # noqa: E402
@@ -361,6 +363,7 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
               f"emcee {prov.get('emcee')}.*", ""]
     # ---------------- blind set
     L += blind_section(out, paper, smoke)
+    L += openform_section(out, paper, smoke)
     L += calibration_section(out, paper, smoke)
     # ---------------- real recordings
     L += real_section(out, paper, smoke)
@@ -1333,6 +1336,45 @@ def _earlier_blind_sets(out: Path, smoke: bool) -> list[str]:
     return L + ["", f"*Source: `{out / 'blind_earlier'}/SEED/summary.json`.*", ""]
 
 
+OPENFORM_HEAD = "## Out-of-catalogue blind sets: the open-form stage (issue 69)"
+
+
+def openform_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """The open-form blind sets (``experiments/openform_blind.py``, each run once by hand
+    into ``OUT/openform/setN``; not rerun by ``make paper``) from their ``summary.json``:
+    every case, the issue's floors and the revision each set ran at."""
+    L = [OPENFORM_HEAD, ""]
+    paths = [] if smoke else sorted((out / "openform").glob("set*/summary.json"))
+    if not paths:
+        return L + [f"*Missing: `{out / 'openform'}/setN/summary.json` (run `python "
+                    "experiments/openform_blind.py --set N --out "
+                    f"{out / 'openform'}/setN` once and read it once).*", ""]
+    L += ["Each set plants effects that no catalogue effect expresses (plant forms built "
+          "on physics, unlike any formula the library fits), each on two rigs (AIR37 with "
+          "valve 1, SMC with valve 2), plus two null controls; every form's size is drawn "
+          "log-uniform from wide physical ranges from the set's seed, recorded before any "
+          "run. Each case has six 20-s bench recordings and runs `pneubayes discover` "
+          "from the plain model with the open-form stage at its defaults. A set is run "
+          "once, read once, and then spent: the stage may be developed on it afterwards, "
+          "and a later rerun of a spent case is a development number, not a blind one.",
+          ""]
+    for path in paths:
+        doc = json.loads(path.read_text())
+        prov = doc["provenance"]
+        rev = str(prov.get("git_revision"))[:7]
+        forms = ", ".join(openform_blind.SET_FORMS.get(doc["blind_set"], ()))
+        L += [f"**Set {doc['blind_set']}** (seed {doc['seed']}; {forms}; git revision "
+              f"`{rev}`):", "", openform_blind.summarise(doc["cases"])[1].rstrip("\n"), ""]
+        if doc.get("not_finished"):
+            L += [f"Not finished when the set was reported: {', '.join(doc['not_finished'])}.",
+                  ""]
+        versions = ", ".join(f"{k} {prov[k]}" for k in ("python", "numpy", "scipy", "numba",
+                                                         "pysindy") if k in prov)
+        L += [f"*Source: `{path}` (`experiments/openform_blind.py --set {doc['blind_set']}`); "
+              f"{versions}.*", ""]
+    return L
+
+
 CALIBRATION_HEAD = "## A sensor's calibration: named where planted, and its stand-ins"
 
 
@@ -1489,7 +1531,8 @@ def _without_old_discovery_paragraph(lines: list[str]) -> list[str]:
 def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
     """Rewrite only one section of an existing ``PAPER/report.md`` (``--only table3``:
     Table III and its discovery summary; ``real``: the real recordings; ``mpc``: the
-    closed loop; ``blind``: the blind set) from its saved results, leaving every other
+    closed loop; ``blind``: the blind set; ``openform``: the open-form blind sets) from
+    its saved results, leaving every other
     section as its studies made it; when absent it is inserted where :func:`assemble`
     puts it. (The paper's claims section does not read Table III.)"""
     path = paper / "report.md"
@@ -1502,6 +1545,7 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
                    "real": (real_section, "## Real recordings"),
                  "mpc": (mpc_section, MPC_HEAD),
                  "blind": (blind_section, BLIND_HEAD),
+                 "openform": (openform_section, OPENFORM_HEAD),
                  "calibration": (calibration_section, CALIBRATION_HEAD)}[which]
     new = build(out, paper, smoke)
     if head in lines:
@@ -1511,7 +1555,9 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
     else:  # a new section goes where assemble() puts it: before the next one present
         claims_head = "## The paper's claims, checked on our data"
         after = (["## Fig. 11: effect of volume and leakage"] if which == "table3" else []) \
-            + (["## Real recordings"] if which in ("blind", "calibration") else []) \
+            + ([CALIBRATION_HEAD] if which == "openform" else []) \
+            + (["## Real recordings"] if which in ("blind", "openform", "calibration")
+               else []) \
             + [claims_head]
         before = next((h for h in after if h in lines), None)
         i = j = lines.index(before) if before else len(lines)
@@ -1526,12 +1572,14 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
-    ap.add_argument("--only", choices=["table3", "real", "mpc", "blind", "calibration"],
+    ap.add_argument("--only", choices=["table3", "real", "mpc", "blind", "openform",
+                                       "calibration"],
                     default=None,
                     help="with --assemble-only: rewrite only this section of an existing "
                          "report (table3: Table III and its discovery summary; real: the "
                          "real recordings; mpc: the closed loop; blind: the blind "
-                         "discovery set; calibration: the sensor calibration)")
+                         "discovery set; openform: the open-form blind sets; calibration: "
+                         "the sensor calibration)")
     args = ap.parse_args(argv)
     if args.only:
         if not args.assemble_only:

@@ -671,3 +671,37 @@ def test_mpc_section_reports_the_changing_plant_and_its_floor(tmp_path):
     assert ("seed 0: 0.42 x against 0.40 x; within 20 % first 0.50 s after the change, for "
             "good from 0.50 s; from 1 s after it 1.05 x the plant's change (1.05-1.05); its "
             "volume before the change 1.00 x the plant's") in text
+
+
+def test_openform_section_reports_each_set_with_its_floors_and_revision(tmp_path):
+    """Built from a set's summary.json alone: every case's row, the floor check, the seed
+    and revision; with no summary it says what to run."""
+    import openform_blind
+
+    out = tmp_path / "out"
+    missing = "\n".join(make_paper.openform_section(out, tmp_path / "p", False))
+    assert "*Missing:" in missing and "openform_blind.py --set N" in missing
+    case = {"name": "t00_AIR37_valve1_SpoolUnderlap", "cylinder": "AIR37", "valve": "valve1",
+            "hidden": ["SpoolUnderlap"], "named_catalogue": ["spool_lag"],
+            "stand_ins": ["spool_lag"], "found_terms": ["inlet_drop*spool_hinge_up"],
+            "no_stand_in": False, "clean_control": None, "rmse_base_Pa": 5000.0,
+            "rmse_final_Pa": 1500.0, "noise_floor_Pa": 500.0, "gap_shrink": 0.7778,
+            "final_over_noise": 3.0}
+    control = dict(case, name="t01_SMC_valve2_none", cylinder="SMC", valve="valve2",
+                   hidden=[], named_catalogue=[], stand_ins=[], found_terms=[],
+                   no_stand_in=True, clean_control=True, rmse_base_Pa=510.0,
+                   rmse_final_Pa=510.0, noise_floor_Pa=505.0, gap_shrink=None,
+                   final_over_noise=1.01)
+    cases = [case, control]
+    floors, _ = openform_blind.summarise(cases)
+    (out / "openform" / "set3").mkdir(parents=True)
+    (out / "openform" / "set3" / "summary.json").write_text(json.dumps({
+        "blind_set": 3, "seed": 1796214872, "floors": floors, "not_finished": ["t02"],
+        "cases": cases, "provenance": {"git_revision": "abcdef123456", "numpy": "2.4"}}))
+    text = "\n".join(make_paper.openform_section(out, tmp_path / "p", False))
+    assert "**Set 3** (seed 1796214872; Iso6358Ports, SpoolSlewLimit" in text
+    assert "`abcdef1`" in text and "numpy 2.4" in text
+    assert "| t00_AIR37_valve1_SpoolUnderlap | AIR37/valve1 | SpoolUnderlap | spool_lag |" in text
+    assert "5000 -> 1500 | 500 | 78 % | 3.00 |" in text
+    assert "no catalogue stand-in in 0 of 1" in text and "in 1 of 1 (floor: all)" in text
+    assert "Not finished when the set was reported: t02." in text
