@@ -367,3 +367,35 @@ def test_a_closure_whose_fit_fails_from_every_start_is_in_the_ledger(rig):
     (entry,) = [e for e in runner.ledger if e["action"] == "open form failed"]
     assert entry["terms"] == "inlet_flow" and "min_step_s" in entry["error"]
     assert "the search's values" in entry["error"] and "zero strength" in entry["error"]
+
+
+def test_pruning_keeps_a_term_whose_closure_would_stop_beating_the_current_model():
+    """A term the held-out test cannot tell apart from the closure without it is dropped
+    only while the smaller closure still beats the current model: a blind meter-out
+    throttle case lost a closure that took the held-out error 63 -> 50 kPa when one of
+    its two terms was pruned (68 kPa without it: worse than the current model)."""
+    from pneubayes.discovery.state import Ledger
+
+    model = Model().with_effect(Closure(terms="inlet_flow*spool_hinge_up; pressure_hinge"))
+    params = {k: 0.1 for k in model.parameter_names}
+    two = SimpleNamespace(model=model, params=params, heldout_rmse_Pa=50e3)
+    current = SimpleNamespace(model=Model(), heldout_rmse_Pa=63e3)
+    rmse = {"inlet_flow*spool_hinge_up": 61e3, "pressure_hinge": 68e3}  # what is left
+
+    def fit(m, start, first=None, beat_Pa=None):
+        (left,) = [str(t) for t, _ in _existing_terms(m)]
+        return SimpleNamespace(model=m, params=start, heldout_rmse_Pa=rmse[left])
+
+    def better(new, old):  # a test that tells nothing apart but a 30 % gain
+        return (new.heldout_rmse_Pa < 0.7 * old.heldout_rmse_Pa,)
+
+    runner = SimpleNamespace(fit=fit, better=better, log=lambda m: None, ledger=Ledger())
+    kept = OpenForm()._prune(two, _state(current), runner)
+    # neither smaller closure is told apart from the pair (the old rule dropped a term),
+    # but neither beats the current 63 kPa (68 and 61): both terms stay
+    assert kept is two and not [e for e in runner.ledger if e["action"] == "open form prune"]
+    rmse["inlet_flow*spool_hinge_up"] = 40e3  # alone it beats the current model
+    kept = OpenForm()._prune(two, _state(current), runner)
+    assert [str(t) for t, _ in _existing_terms(kept.model)] == ["inlet_flow*spool_hinge_up"]
+    (entry,) = [e for e in runner.ledger if e["action"] == "open form prune"]
+    assert entry["term"] == "pressure_hinge" and entry["heldout_rmse_after_Pa"] == 40e3

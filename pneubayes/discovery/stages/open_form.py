@@ -274,7 +274,9 @@ class OpenForm(Stage):
 
     def _prune(self, fit, state: RoundState, runner):
         """Drop, one at a time, each term the held-out test cannot tell apart from the
-        closure without it (the last term is weighed against the current model)."""
+        closure without it, as long as the closure without it still passes that test
+        against the current model (pruning never turns a closure that beats the current
+        model into one that does not; the last term is weighed in the verification)."""
         while True:
             terms = _existing_terms(fit.model)
             if len(terms) <= 1:
@@ -286,7 +288,8 @@ class OpenForm(Stage):
                     smaller = runner.fit(reduced, start)
                 except (FloatingPointError, SimulationError):
                     continue
-                needed = runner.better(fit, smaller)[0]
+                needed = (runner.better(fit, smaller)[0]
+                          or not runner.better(smaller, state.current)[0])
                 if needed:
                     continue
                 runner.log(f"discover: open form: term {terms[k][0]} pruned (held-out "
