@@ -225,6 +225,7 @@ def test_a_round_tries_its_other_supported_groups_before_it_stops(tmp_path, monk
     assert off["effects"] == []
 
 
+@pytest.mark.slow  # a whole discovery on 8-s recordings: ~25 s on 2 cores
 def test_whole_recordings_can_be_held_out(tmp_path):
     """Triggered trials hold no valve event at their ends: hold whole recordings out.
     (8-s recordings: the two held out give the 8 windows the signed-rank test needs.)"""

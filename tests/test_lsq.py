@@ -78,6 +78,7 @@ def test_lsq_recovers_table_ii_areas_on_noise_free_bench_data(tmp_path, cylinder
     assert any("only exhaust_offset_m2 + leak_area_m2" in n for n in est.notes_)
 
 
+@pytest.mark.slow  # a 4-s bench pair and a leak fit: ~25 s on 2 cores
 def test_lsq_separates_a_laminar_leak(tmp_path):
     sensor = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
     cfg = BenchConfig("AIR37", "valve1", effects_from_names(["cylinder_leak"], "laminar"),

@@ -396,7 +396,7 @@ def test_iso6358_ports_choke_at_their_critical_ratio_and_fill_slower_near_the_su
         assert iso6358_flow(5e5, 5e5 * q, beta, 0.528, 0.5) == pytest.approx(thin, rel=0.06,
                                                                             abs=0.02 * beta * 5e5)
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
-    fill = _held(0.3, (5.0,))
+    fill = _held(0.06, (5.0,))  # (short: a chamber at the supply makes the solver crawl)
     plain = _run(params, (), fill, rig)
     iso = _run(params, (Iso6358Ports(critical_pressure_ratio=0.3),), fill, rig)
     assert _time_to(iso, P_SUP - 20e3) > 1.08 * _time_to(plain, P_SUP - 20e3)  # (1.10 x)
