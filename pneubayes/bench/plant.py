@@ -274,17 +274,14 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     elif L[L_IF] >= 0:  # the fitting fills from the valve, the chamber from the fitting
         drop = pv - p
         area = P[K_MO_N] + P[K_MO_C] * smoothstep((drop - P[K_MO_P]) / P[K_MO_P] + 0.5)
-        lam = min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)  # laminar below the drop: linear
-        if drop >= 0.0:
-            f_fc = flow_terms(pv, pv - max(drop, MO_LAMINAR_DROP_PA), alpha, beta, theta,
-                              kappa)[0]
-            inflow = area * f_fc * lam
-        else:
-            f_out = flow_terms(p, p - max(-drop, MO_LAMINAR_DROP_PA), alpha, beta, theta,
-                               kappa)[0]
-            if heat == 2:
-                f_out *= math.sqrt(ts / temp)
-            inflow = -area * f_out * lam
+        # eqs. 1-3 from the higher side, linear in the drop below MO_LAMINAR_DROP_PA
+        # (laminar); chamber gas leaving at its own temperature
+        up, sign = (pv, 1.0) if drop >= 0.0 else (p, -1.0)
+        f = flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), alpha, beta, theta,
+                       kappa)[0]
+        if drop < 0.0 and heat == 2:
+            f *= math.sqrt(ts / temp)
+        inflow = sign * area * f * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
         dy[L[L_IF]] = kappa * rs * ts / P[K_MO_V] * (att * (m_in - m_ex) - inflow)
         h_in = inflow * (ts if inflow > 0.0 else temp)
     else:
