@@ -596,10 +596,12 @@ class MeterOutThrottle(PlantForm):
         mdot_fc = (A_n + A_c S((p_f - p - dp_c) / dp_c + 1/2)) f(p_f, p),
 
     S the C1 smoothstep, ``dp_c = crack_pressure_Pa``, f the thin-port flow of eqs. 1-3
-    (signed). A fill passes the open check; a vent leaves through the needle alone, so
-    the exhaust is throttled and the fitting's pressure lags the chamber's. Eq. 5 holds
-    in the fitting at the supply temperature. ``needle_area_m2 = 0`` is no throttle (the
-    state is omitted); it cannot be planted beside an AcousticTube.
+    (signed; below a 1-kPa drop linear in the drop, as laminar flow is, which keeps the
+    two restrictions in series well posed). A fill passes the open check; a vent leaves
+    through the needle alone, so the exhaust is throttled and the fitting's pressure lags
+    the chamber's. Eq. 5 holds in the fitting at the supply temperature.
+    ``needle_area_m2 = 0`` is no throttle (the state is omitted); it cannot be planted
+    beside an AcousticTube.
     """
 
     catalogue_name: ClassVar[str | None] = None
