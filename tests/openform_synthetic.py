@@ -18,8 +18,11 @@ from pneubayes.physics.orifice import flow_function
 P_ATM = 101325.0
 
 
-def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3) -> dict:
-    """The :data:`~pneubayes.effects.closure_features.SIGNALS` of ``n`` samples."""
+def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3,
+                      supply_Pa: float = 7.0e5) -> dict:
+    """The :data:`~pneubayes.effects.closure_features.SIGNALS` of ``n`` samples, from a
+    supply of ``supply_Pa`` (absolute, Pa; the chamber starts at 3 bar or half-way to
+    the supply, whichever is lower)."""
     rng = np.random.default_rng(seed)
     gas = GasConstants()
     t = np.arange(n) * dt_s
@@ -37,7 +40,7 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3) -> dict:
     amax = 0.25e-6
     a_in = amax / (1.0 + np.exp(-(s - 6.0) / 0.5))
     a_ex = amax / (1.0 + np.exp((s - 4.0) / 0.5))
-    p_sup = 7.0e5 + 1.0e4 * np.sin(2 * np.pi * 0.7 * t + rng.uniform(0, 6.3))
+    p_sup = supply_Pa + 1.0e4 * np.sin(2 * np.pi * 0.7 * t + rng.uniform(0, 6.3))
     bore = np.pi / 4 * 0.009**2
     x = 0.015 + 0.01 * np.sin(2 * np.pi * 2.0 * t)
     xdot = 0.01 * 2 * np.pi * 2.0 * np.cos(2 * np.pi * 2.0 * t)
@@ -45,7 +48,7 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3) -> dict:
     vdot = bore * xdot
     kappa, rs_t = gas.heat_capacity_ratio, gas.specific_gas_constant_J_per_kg_K * gas.temperature_K
     p = np.empty(n)
-    p[0] = 3e5
+    p[0] = min(3e5, 0.5 * (supply_Pa + P_ATM))
     sub = 10
     for k in range(n - 1):
         q = p[k]
@@ -60,6 +63,8 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3) -> dict:
             "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
             "inlet_flow_kg_per_s": a_in * flow_function(p_sup, p, gas),
             "exhaust_flow_kg_per_s": a_ex * flow_function(p, P_ATM, gas),
+            "inlet_flux_kg_per_s_m2": flow_function(p_sup, p, gas),
+            "exhaust_flux_kg_per_s_m2": flow_function(p, P_ATM, gas),
             "volume_m3": vol, "volume_rate_m3_per_s": vdot,
             "command_direction": command_direction(u), "time_s": t,
             "interval_s": np.full(n, dt_s)}

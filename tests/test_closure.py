@@ -228,7 +228,7 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
 # ---------------------------------------------------------------- the Jacobian
 @pytest.mark.parametrize("terms", [f.name for f in cf.FEATURES]
                          + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate",
-                            "net_flow*pressure_hinge_down"])
+                            "net_flow*pressure_hinge_down", "inlet_flux*spool_null_hinge"])
 @pytest.mark.parametrize("hconv", [0.0, 30.0])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig):
@@ -243,7 +243,7 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5,
              "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2,
              "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05,
-             "inlet_drop_hinge": 3.5}
+             "inlet_drop_hinge": 3.5, "spool_null_hinge": 4.5}
     term = cf.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
@@ -279,8 +279,11 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
 
 # ---------------------------------------------------------------- against the reference
 #: (a threshold where the inlet's drop hinge opens on these inputs: p_s - p < 3 P_atm)
-CASES = [(f.name, {"closure_threshold_0_a": 3.0} if f.name == "inlet_drop_hinge" else {})
-         for f in cf.FEATURES] + [
+_SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0}
+CASES = [(f.name, {"closure_threshold_0_a": _SINGLE_THRESHOLDS[f.name]}
+          if f.name in _SINGLE_THRESHOLDS else {}) for f in cf.FEATURES] + [
+    ("inlet_flux*spool_null_hinge; exhaust_flux*spool_null_hinge",
+     {"closure_threshold_0_b": 2.0, "closure_threshold_1_b": 1.0}),
     ("inlet_flow*inlet_drop_hinge", {"closure_threshold_0_b": 2.5}),
     ("inlet_flow*pressure_hinge", {"closure_threshold_0_b": 1.8}),
     ("spool_hinge_up*pressure_ratio; spool_hinge_down",
@@ -601,7 +604,8 @@ def test_the_direction_is_tracked_across_windows_and_inside_a_dead_band(rig, val
 # ---------------------------------------------------------------- rate_terms
 @pytest.mark.parametrize("terms", ["inlet_flow*pressure_hinge; spool_hinge_down; volume",
                                    "exhaust_flow*volume_rate; supply_ratio*inlet_area",
-                                   "exhaust_area*spool; pressure_ratio"])
+                                   "exhaust_area*spool; pressure_ratio",
+                                   "inlet_flux*spool_null_hinge; exhaust_flux"])
 def test_rate_terms_closure_is_the_terms_on_hand_built_signals(terms, rig, valve_params):
     e, values = _closure(terms, thresholds={"closure_threshold_0_b": 2.0,
                                             "closure_threshold_1_a": -1.0})
@@ -622,7 +626,9 @@ def test_rate_terms_closure_is_the_terms_on_hand_built_signals(terms, rig, valve
     signals = {"pressure_Pa": p, "supply_pressure_Pa": np.full(n, P_SUP),
                "atmospheric_pressure_Pa": P_ATM, "spool": spool, "inlet_area_m2": a_in,
                "exhaust_area_m2": a_ex, "inlet_flow_kg_per_s": a_in * flow_function(P_SUP, p, g),
-               "exhaust_flow_kg_per_s": a_ex * flow_function(p, P_ATM, g), "volume_m3": vol,
+               "exhaust_flow_kg_per_s": a_ex * flow_function(p, P_ATM, g),
+               "inlet_flux_kg_per_s_m2": flow_function(P_SUP, p, g),
+               "exhaust_flux_kg_per_s_m2": flow_function(p, P_ATM, g), "volume_m3": vol,
                "volume_rate_m3_per_s": rig.bore_area_m2 * v}
     mdot = 0.0
     for k, t in enumerate(e.term_list()):
@@ -651,6 +657,11 @@ def test_rate_terms_match_the_compiled_right_hand_side(strong, rig, valve_params
     e, values = _closure("inlet_flow*pressure_hinge; exhaust_flow*spool; volume_rate*volume;"
                          " spool_hinge_up", thresholds={"closure_threshold_0_b": 1.5,
                                                         "closure_threshold_3_a": -1.0})
+    if not strong:  # (the flow functions and the null hinge in place of the last term)
+        e, values = _closure("inlet_flow*pressure_hinge; exhaust_flow*spool; volume_rate*volume;"
+                             " exhaust_flux*spool_null_hinge",
+                             thresholds={"closure_threshold_0_b": 1.5,
+                                         "closure_threshold_3_b": 2.0})
     model = Model([e])
     if strong:
         model = model.with_bounds({"closure_coefficient_0": (-5.0, 5.0),

@@ -30,16 +30,20 @@ PRESSURE_THRESHOLD_TOL, SPOOL_THRESHOLD_TOL = 0.3, 0.3
 
 
 @functools.cache
-def _signals(seed: int) -> dict:
-    return synthetic_signals(seed)
+def _signals(seed: int, supply_Pa: float = 7e5) -> dict:
+    return synthetic_signals(seed, supply_Pa=supply_Pa)
 
 
-def planted(terms, seed=0, recordings=(0, 1)):
+def planted(terms, seed=0, recordings=(0, 1), centre_spool=False, supply_Pa=7e5):
     """Signals of two synthetic recordings and targets: the planted ``(Term,
-    threshold_a, threshold_b, coefficient)`` terms plus white noise."""
+    threshold_a, threshold_b, coefficient)`` terms plus white noise. ``centre_spool``:
+    the spool read 5 V lower (a valve whose null is mid-range, the spool crossing it);
+    ``supply_Pa``: the synthetic rig's supply (absolute, Pa)."""
     sig, tgt = [], []
     for r in recordings:
-        s = _signals(r)
+        s = _signals(r, supply_Pa)
+        if centre_spool:
+            s = dict(s, spool=s["spool"] - 5.0)
         y = np.random.default_rng(100 * seed + r).normal(0.0, NOISE_KG_PER_S,
                                                           s["pressure_Pa"].size)
         for term, ta, tb, c in terms:
@@ -81,7 +85,20 @@ CASES = {
     # a pilot inlet that shuts as the difference across it falls under 0.5 P_atm
     "inlet_flow*inlet_drop_hinge": (Term("inlet_flow", "inlet_drop_hinge"), 0.0, 0.5,
                                     -0.8),
+    # a spool whose lands leave the inlet open near the null: 0.03 mm^2 of area per volt
+    # inside 2 V of it (on the spool centred, :data:`CENTRED`)
+    "inlet_flux*spool_null_hinge": (Term("inlet_flux", "spool_null_hinge"), 0.0, 2.0, 0.03),
+    # a fixed extra exhaust area of 0.1 mm^2 (a bleed to atmosphere), on a 2.5-bar supply
+    # (:data:`SIGNAL_OPTIONS`)
+    "exhaust_flux": (Term("exhaust_flux"), 0.0, 0.0, -0.1),
 }
+#: The cases planted on other synthetic signals. The null hinge on a spool that crosses
+#: its null (the synthetic spool spans 0-10 V; on it the null hinge is the spool's down
+#: hinge). The exhaust's flow function on a low supply: where the exhaust is choked,
+#: above 1.9 bar, it is a flow proportional to p, and on the 7-bar rig's signals its
+#: column is ``pressure_ratio``'s to a cosine of 0.9992 (a duplicate the search drops).
+SIGNAL_OPTIONS = {"inlet_flux*spool_null_hinge": {"centre_spool": True},
+                  "exhaust_flux": {"supply_Pa": 2.5e5}}
 #: A relaxation's time constant within this factor of the planted one.
 TIME_CONSTANT_FACTOR = 1.3
 
@@ -96,7 +113,7 @@ _FAST = ("pressure_hinge",)
     pytest.param(c, marks=() if c in _FAST else pytest.mark.slow) for c in CASES])
 def test_a_planted_term_is_recovered_with_its_coefficient(case):
     term, ta, tb, c = CASES[case]
-    sig, tgt = planted([CASES[case]])
+    sig, tgt = planted([CASES[case]], **SIGNAL_OPTIONS.get(case, {}))
     s = OpenFormSearch(seed=0).fit(sig, tgt)
     assert len(s.terms_) == 1, [str(f.term) for f in s.terms_]
     found = s.terms_[0]
@@ -112,6 +129,9 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
     if term.b == "inlet_drop_hinge":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < PRESSURE_THRESHOLD_TOL
+    if term.b == "spool_null_hinge":
+        th = found.threshold_b if found.term.b == term.b else found.threshold_a
+        assert abs(th - tb) < SPOOL_THRESHOLD_TOL
     if term.b == "volume_hinge_up":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
@@ -167,7 +187,7 @@ def test_the_library_is_typed_and_bounded():
     cands = candidate_terms(sig)
     # features.py's count at most, and the relaxation's grid (3 ms to 1 s here) four
     # times over
-    assert 100 < len(cands) <= 623 + 8 * 8
+    assert 100 < len(cands) <= 815 + 8 * 8
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
     families = {c.family for c in cands}
@@ -175,8 +195,12 @@ def test_the_library_is_typed_and_bounded():
             "inlet_flow*spool_hinge_up", "spool_hinge_down", "pressure_hinge_down",
             "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down",
             "inlet_flow*command_direction", "command_direction", "pressure_relaxation",
-            "pressure_ratio*pressure_relaxation", "inlet_drop", "inlet_flow*inlet_drop_hinge"
-            } <= families
+            "pressure_ratio*pressure_relaxation", "inlet_drop", "inlet_flow*inlet_drop_hinge",
+            "inlet_flux", "exhaust_flux", "inlet_flux*spool_null_hinge",
+            "exhaust_flux*spool_hinge_down", "pressure_ratio*spool_null_hinge"} <= families
+    # the flow functions enter alone and with the spool's hinges only
+    assert not any("flux" in f and "spool" not in f for f in families
+                   if f not in ("inlet_flux", "exhaust_flux"))
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
     for hinge in ("pressure_hinge", "pressure_hinge_down"):

@@ -102,6 +102,16 @@ FEATURES: tuple[Feature, ...] = (
     Feature("inlet_drop_hinge", 21, "-", "max(0, theta - |p_s - p| / P_atm): what acts "
             "when the difference across the inlet is small (a pilot stage or a check "
             "valve that needs a minimum difference to stay open)", hinge=True),
+    Feature("inlet_flux", 22, "kg/(s mm^2)", "the flow one mm^2 of inlet area passes, "
+            "f(p_s, p) x 1e-6 m^2 (eqs. 1-3): with a coefficient in mm^2 an extra inlet "
+            "area (a bypass across the valve, a port that opens more or less than its "
+            "map says), open even where the valve's own inlet is shut"),
+    Feature("exhaust_flux", 23, "kg/(s mm^2)", "the flow one mm^2 of exhaust area passes "
+            "out of the chamber, f(p, P_atm) x 1e-6 m^2: with a (negative) coefficient "
+            "in mm^2 an extra exhaust area"),
+    Feature("spool_null_hinge", 24, "command unit", "max(0, theta - |s|): what opens "
+            "as the spool nears its null (theta >= 0; lands that do not quite close, an "
+            "underlapped spool's leak to both ports)", hinge=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -110,12 +120,13 @@ CLOSURE_MAX_TERMS = 4
 
 #: Names of the signals :func:`evaluate_features` reads (arrays of one shape): absolute
 #: pressures in Pa, the spool in the command's unit, areas in m^2, port mass flows in
-#: kg/s, the volume in m^3 and its rate in m^3/s, the command's direction (+1, -1 or 0;
-#: :func:`command_direction`).
+#: kg/s, the ports' flow functions f(p_s, p) and f(p, P_atm) (eqs. 1-3, the flow per unit
+#: area) in kg/(s m^2), the volume in m^3 and its rate in m^3/s, the command's direction
+#: (+1, -1 or 0; :func:`command_direction`).
 SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spool",
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
-           "exhaust_flow_kg_per_s", "volume_m3", "volume_rate_m3_per_s",
-           "command_direction")
+           "exhaust_flow_kg_per_s", "inlet_flux_kg_per_s_m2", "exhaust_flux_kg_per_s_m2",
+           "volume_m3", "volume_rate_m3_per_s", "command_direction")
 #: The low-pass features (``pressure_relaxation``, ``net_flow_lag``) read their signal's
 #: history too: ``"pressure_history"`` / ``"net_flow_history"``, :class:`SignalHistory`
 #: objects along the signals' points, or else the points' times ``"time_s"`` (s) to
@@ -272,6 +283,14 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
     if f.code in (20, 21):
         drop = np.abs(np.asarray(s["supply_pressure_Pa"], dtype=np.float64) - p) / p_atm
         return drop if f.code == 20 else np.maximum(threshold - drop, 0.0)
+    if f.code == 22:
+        return (np.asarray(s["inlet_flux_kg_per_s_m2"], dtype=np.float64) * AREA_SCALE_M2
+                + 0.0 * p)
+    if f.code == 23:
+        return (np.asarray(s["exhaust_flux_kg_per_s_m2"], dtype=np.float64) * AREA_SCALE_M2
+                + 0.0 * p)
+    if f.code == 24:
+        return np.maximum(threshold - np.abs(spool), 0.0)
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
@@ -432,6 +451,8 @@ SYMBOLS: dict[str, str] = {
     "volume_hinge_up": "max(0, V / 1 cm^3 - {theta})",
     "volume_hinge_down": "max(0, {theta} - V / 1 cm^3)",
     "inlet_drop": "(|p_s - p| / P_atm)", "inlet_drop_hinge": "max(0, {theta} - |p_s - p| / P_atm)",
+    "inlet_flux": "(f(p_s, p) x 1 mm^2)", "exhaust_flux": "(f(p, P_atm) x 1 mm^2)",
+    "spool_null_hinge": "max(0, {theta} - |s|)",
 }
 
 

@@ -99,7 +99,7 @@ def net_port_flow(p, a_in, a_ex, p_sup, cs):
 @njit(cache=True, error_model="numpy")
 def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                     vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt,
-                    cdir, pbar):
+                    cdir, pbar, f_in, f_ex, df_in_dp, df_ex_dp, df_in_dt):
     """One closure feature (:data:`pneubayes.effects.closure_features.FEATURES`, by its
     ``code``) as ``(F, dF/dp, dF/dt)``: its value, its slope in the chamber pressure and
     its explicit time derivative at fixed pressure.
@@ -114,7 +114,9 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     (+1, -1 or 0), constant between the command's changes; ``pbar`` a low-pass feature's
     low-passed value (a relaxation's pressure, Pa; a flow lag's net flow, kg/s), which
     the kernel holds over a step at its value half-way through (so its explicit time
-    derivative is taken as 0)."""
+    derivative is taken as 0). ``f_in``, ``f_ex`` are the ports' flow functions (kg/(s
+    m^2), the flows per unit area), ``df_*_dp`` their slopes in p and ``df_in_dt`` the
+    inlet's explicit rate (the supply's)."""
     if code == 0:
         return 1.0, 0.0, 0.0
     if code == 1:
@@ -165,6 +167,14 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
             return drop, -sg / p_atm, sg * dsup / p_atm
         z = theta - drop
         return (z, sg / p_atm, -sg * dsup / p_atm) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 22:
+        return f_in * _AREA_SCALE, df_in_dp * _AREA_SCALE, df_in_dt * _AREA_SCALE
+    if code == 23:
+        return f_ex * _AREA_SCALE, df_ex_dp * _AREA_SCALE, 0.0
+    if code == 24:  # max(0, theta - |s|)
+        sg = 1.0 if spool >= 0.0 else -1.0
+        z = theta - sg * spool
+        return (z, 0.0, -sg * dspool) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 18:
         z = theta - vol / _VOLUME_SCALE
         return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0
@@ -173,16 +183,20 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
 
 
 @njit(cache=True, error_model="numpy")
-def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl, vdot,
-                 dq_in_dp, dq_ex_dp, dsup, dspool, da_in, da_ex, dq_in_dt, dq_ex_dt, cdir):
+def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in, f_ex, vol, compl, vdot,
+                 df_in_dp, df_ex_dp, dsup, dspool, da_in, da_ex, df_in_dt, cdir):
     """The closure's mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s; slots
     ``closure_*``), with its slope in p (kg/(s Pa)) and its explicit time derivative
-    (kg/s^2); the arguments as :func:`closure_feature` takes them.
+    (kg/s^2); the arguments as :func:`closure_feature` takes them, the port flows
+    ``q = a f`` formed here from the areas and the flow functions.
 
     A term that reads a port's flow (``inlet_flow``, ``exhaust_flow``, ``net_flow``; its
     first such feature) modulates that port: the port's terms add to ``q s`` and the
     factor ``s`` is clipped so the port's flow never reverses
     (:data:`pneubayes.effects.closure_features.PORT_FACTOR_LIMITS`)."""
+    q_in, q_ex = a_in * f_in, a_ex * f_ex
+    dq_in_dp, dq_ex_dp = a_in * df_in_dp, a_ex * df_ex_dp
+    dq_in_dt, dq_ex_dt = a_in * df_in_dt + f_in * da_in, f_ex * da_ex
     m, dm_dp, dm_dt = 0.0, 0.0, 0.0
     # each modulated port's factor s with its slopes in p and t, and its flow q likewise
     s_i, si_p, si_t, q_i, qi_p, qi_t = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -194,11 +208,13 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
         fa, da_p, da_t = closure_feature(ca, sl[_CL_TA + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
-                                         da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RA + k])
+                                         da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RA + k],
+                                         f_in, f_ex, df_in_dp, df_ex_dp, df_in_dt)
         fb, db_p, db_t = closure_feature(cb, sl[_CL_TB + k], p, p_atm,
                                          p_sup, spool, a_in, a_ex, q_in, q_ex, vol, compl,
                                          vdot, dq_in_dp, dq_ex_dp, dsup, dspool, da_in,
-                                         da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RB + k])
+                                         da_ex, dq_in_dt, dq_ex_dt, cdir, sl[_CL_RB + k],
+                                         f_in, f_ex, df_in_dp, df_ex_dp, df_in_dt)
         if not _is_port_flow(ca) and _is_port_flow(cb):  # the port flow first
             ca, fa, da_p, da_t, fb, db_p, db_t = cb, fb, db_p, db_t, fa, da_p, da_t
         if ca == 6:
@@ -279,9 +295,8 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     closure = sl[_CL_N] > 0.0
     m_cl = 0.0
     if closure:
-        m_cl = closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, a_in * f_in0,
-                            a_ex * f_ex0, vol, compl, vdot, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                            0.0, 0.0, cdir)[0]
+        m_cl = closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in0, f_ex0, vol,
+                            compl, vdot, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, cdir)[0]
         mdot += m_cl
     denom = vol + kappa * p * compl
     inv_denom = 1.0 / denom
@@ -319,9 +334,8 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     dcl_dp, dcl_dt = 0.0, 0.0
     if closure:  # (the port flows' slopes before the convective scaling)
         _, dcl_dp, dcl_dt = closure_flow(
-            sl, p, p_atm, p_sup, spool, a_in, a_ex, a_in * f_in0, a_ex * f_ex0, vol, compl,
-            vdot, a_in * dfin_dp, a_ex * dfex_dp, dsup, dspool, da_in, da_ex,
-            a_in * dfin_dsup * dsup + f_in0 * da_in, f_ex0 * da_ex, cdir)
+            sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in0, f_ex0, vol, compl, vdot,
+            dfin_dp, dfex_dp, dsup, dspool, da_in, da_ex, dfin_dsup * dsup, cdir)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
     dfex_dp *= sq_ex

@@ -229,8 +229,8 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     vol = vol + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol  # a compliant chamber
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
-    q_in = a_in * flow_function(p_sup, p, g)
-    q_ex = a_ex * flow_function(p, p_atm, g)
+    f_in, f_ex = flow_function(p_sup, p, g), flow_function(p, p_atm, g)
+    q_in, q_ex = a_in * f_in, a_ex * f_ex
     inlet = scale * atten * q_in
     exhaust = -scale * atten * q_ex
     leak = -scale * (sl[S["leak_orifice_area_m2"]] * flow_function(p, p_atm, g)
@@ -256,6 +256,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                    "atmospheric_pressure_Pa": p_atm, "spool": np.asarray(spool_V, float),
                    "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
                    "inlet_flow_kg_per_s": q_in, "exhaust_flow_kg_per_s": q_ex,
+                   "inlet_flux_kg_per_s_m2": f_in, "exhaust_flux_kg_per_s_m2": f_ex,
                    "volume_m3": vol, "volume_rate_m3_per_s": vdot,
                    "command_direction": (0.0 if command_direction is None
                                          else np.asarray(command_direction, float)),

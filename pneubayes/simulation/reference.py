@@ -184,7 +184,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "atmospheric_pressure_Pa": p_atm, "spool": s,
                        "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,
                        "inlet_flow_kg_per_s": a_in * f_in_raw,
-                       "exhaust_flow_kg_per_s": a_ex * f_out_raw, "volume_m3": v_c,
+                       "exhaust_flow_kg_per_s": a_ex * f_out_raw,
+                       "inlet_flux_kg_per_s_m2": f_in_raw,
+                       "exhaust_flux_kg_per_s_m2": f_out_raw, "volume_m3": v_c,
                        "volume_rate_m3_per_s": vdot, "command_direction": cdir,
                        "pressure_history": _Held(y, code_p),
                        "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]

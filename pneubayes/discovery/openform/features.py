@@ -7,11 +7,16 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 - every hinge feature at each threshold of a grid: the two pressure hinges at quantiles
   of the measured ``p / P_atm``, the two spool hinges at quantiles of the spool, the two
   volume hinges at quantiles of the volume (none where it is fixed), the inlet's drop
-  hinge at quantiles of ``|p_s - p| / P_atm``;
+  hinge at quantiles of ``|p_s - p| / P_atm``, the spool's null hinge at quantiles of
+  ``|s|``;
 - the products of every pair of non-constant, non-hinge base features (squares
-  included: a laminar leak is ``p^2``);
+  included: a laminar leak is ``p^2``) but the ports' flow functions, which enter
+  alone (an extra port area) and with the spool's hinges only: beside the port flows
+  their products with the other signals are near copies of the flows' products, and
+  a greedy pick then settles on the copy;
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
-  ``exhaust_flow``;
+  ``exhaust_flow``, and the spool's three hinges also times the ports' flow functions
+  ``inlet_flux`` and ``exhaust_flux`` (a port area that opens with the spool);
 - the low-passes ``pressure_relaxation`` and ``net_flow_lag`` at each time constant of a
   fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
   the same three partners (a time constant is its feature's "threshold": a family keeps
@@ -19,9 +24,9 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the three partners above: with the twelve non-hinge base features besides ``one``
-and seven hinges that is 1 + 12 + 78 + 133 + 399 = 623 candidates at most, and eight per
-low-pass time constant. (A coarser grid saves columns but a
+with the partners above: with the fourteen non-hinge base features besides ``one``
+(twelve paired) and eight hinges that is 1 + 14 + 78 + 152 + 456 + 114 = 815 candidates
+at most, and eight per low-pass time constant. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.
@@ -39,11 +44,14 @@ import numpy as np
 
 from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
 
-#: Hinge features and the signal their thresholds are quantiles of.
+#: Hinge features and the signal their thresholds are quantiles of (the null hinge's:
+#: of the spool's magnitude, :func:`hinge_source_values`).
 HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
                  "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio",
                  "volume_hinge_up": "volume", "volume_hinge_down": "volume",
-                 "inlet_drop_hinge": "inlet_drop"}
+                 "inlet_drop_hinge": "inlet_drop", "spool_null_hinge": "spool"}
+#: Hinges whose threshold is compared with their source's magnitude.
+MAGNITUDE_HINGES = frozenset({"spool_null_hinge"})
 #: The time constants (s) a relaxation (``pressure_relaxation``) is tried at, those
 #: that the recordings resolve (:func:`relaxation_times`).
 RELAXATION_TIMES_S = (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
@@ -53,6 +61,10 @@ RELAXATION_MIN_INTERVALS = 3.0
 RELAXATION_MAX_SHARE = 0.25
 #: The partners each hinge is multiplied with.
 HINGE_PARTNERS = ("pressure_ratio", "inlet_flow", "exhaust_flow")
+#: The further partners of the spool's hinges: the ports' flow functions, so that a
+#: term is a port area that opens with the spool (an area map's error, an underlap).
+SPOOL_HINGE_PARTNERS = ("inlet_flux", "exhaust_flux")
+SPOOL_HINGES = frozenset({"spool_hinge_up", "spool_hinge_down", "spool_null_hinge"})
 #: The default quantiles of the hinge thresholds.
 DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
 
@@ -134,8 +146,8 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     if q.size == 0 or np.any(~((q > 0) & (q < 1))):
         raise ValueError(f"hinge quantiles must lie in (0, 1), got {list(quantiles)}")
     out = {}
-    for hinge, source in HINGE_SOURCES.items():
-        vals = np.concatenate([evaluate_feature(source, s) for s in signals_list])
+    for hinge in HINGE_SOURCES:
+        vals = np.concatenate([hinge_source_values(hinge, s) for s in signals_list])
         vals = vals[np.isfinite(vals)]
         grid = np.unique(np.quantile(vals, q)) if vals.size else np.zeros(0)
         # only thresholds inside the signal's range: at its ends a hinge is the signal
@@ -145,6 +157,13 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
         out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
     out["pressure_relaxation"] = out["net_flow_lag"] = relaxation_times(signals_list)
     return out
+
+
+def hinge_source_values(hinge: str, signals: dict) -> np.ndarray:
+    """The signal a hinge's threshold is compared with on one recording's ``signals``:
+    its :data:`HINGE_SOURCES` feature (its magnitude for :data:`MAGNITUDE_HINGES`)."""
+    values = evaluate_feature(HINGE_SOURCES[hinge], signals)
+    return np.abs(values) if hinge in MAGNITUDE_HINGES else values
 
 
 def candidate_terms(signals_list: Sequence[dict],
@@ -165,13 +184,15 @@ def candidate_terms(signals_list: Sequence[dict],
     plain = [f.name for f in FEATURES if not f.hinge]
     varying = [n for n in plain if n != "one"]
     out = [Candidate(Term(n)) for n in plain]
-    out += [Candidate(Term(a, b)) for i, a in enumerate(varying) for b in varying[i:]]
+    paired = [n for n in varying if n not in SPOOL_HINGE_PARTNERS]
+    out += [Candidate(Term(a, b)) for i, a in enumerate(paired) for b in paired[i:]]
     grid = hinge_thresholds(signals_list, quantiles)
     for hinge, thresholds in grid.items():
         out += [Candidate(Term(hinge), float(th)) for th in thresholds]
     for hinge, thresholds in grid.items():
+        partners = HINGE_PARTNERS + (SPOOL_HINGE_PARTNERS if hinge in SPOOL_HINGES else ())
         out += [Candidate(Term(partner, hinge), 0.0, float(th))
-                for partner in HINGE_PARTNERS for th in thresholds]
+                for partner in partners for th in thresholds]
     return out
 
 

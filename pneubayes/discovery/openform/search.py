@@ -48,6 +48,7 @@ from pneubayes.discovery.openform.features import (
     candidate_terms,
     design_matrix,
     distinct_columns,
+    hinge_source_values,
     hinge_thresholds,
     relaxation_range,
 )
@@ -55,7 +56,6 @@ from pneubayes.effects.closure_features import (
     CLOSURE_MAX_TERMS,
     SIGNALS,
     Term,
-    evaluate_feature,
 )
 
 #: The pysindy optimizers the search can use.
@@ -441,8 +441,8 @@ class OpenFormSearch:
         cols = [x[:, best[f]] for f in supported]
         grid = hinge_thresholds(signals_list, self.quantiles)
         ranges = {}
-        for h, src in HINGE_SOURCES.items():
-            v = np.concatenate([evaluate_feature(src, s) for s in signals_list])
+        for h in HINGE_SOURCES:
+            v = np.concatenate([hinge_source_values(h, s) for s in signals_list])
             ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
         ranges["pressure_relaxation"] = ranges["net_flow_lag"] = relaxation_range(
             signals_list)

@@ -120,8 +120,9 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     dict
         Every name of :data:`~pneubayes.effects.closure_features.SIGNALS` -> ``(N - 1,)``
         array (absolute pressures Pa, spool in the command's unit, areas m^2, port flows
-        kg/s, volume m^3, volume rate m^3/s, the command's direction, the measured
-        pressure's and the net port flow's histories for the low-pass features), plus
+        kg/s, their flow functions kg/(s m^2), volume m^3, volume rate m^3/s, the
+        command's direction, the measured pressure's and the net port flow's histories
+        for the low-pass features), plus
         ``"time_s"`` (the midpoints, s), ``"interval_s"`` (each interval's length, s),
         ``"compliance_m3_per_Pa"`` (dV/dp of a compliant chamber, 0 if rigid) and
         ``"jacobian_per_s"`` (the model's d(dp/dt)/dp there, 1/s), which
@@ -156,8 +157,8 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
                                inputs.command_before_start)
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
-    inlet = a_in * flow_function(p_sup, p, g)
-    exhaust = a_ex * flow_function(p, p_atm, g)
+    f_in, f_ex = flow_function(p_sup, p, g), flow_function(p, p_atm, g)
+    inlet, exhaust = a_in * f_in, a_ex * f_ex
     dvol, slope = tabulated_volume(sl, p)
     compliance = sl[S["compliance_m3_per_Pa"]] + slope
     vol = (sl[S["volume_m3"]] + rig.bore_area_m2 * x
@@ -175,7 +176,8 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     return {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
             "atmospheric_pressure_Pa": np.full(p.shape, p_atm), "spool": spool,
             "inlet_area_m2": a_in, "exhaust_area_m2": a_ex, "inlet_flow_kg_per_s": inlet,
-            "exhaust_flow_kg_per_s": exhaust, "volume_m3": vol,
+            "exhaust_flow_kg_per_s": exhaust, "inlet_flux_kg_per_s_m2": f_in,
+            "exhaust_flux_kg_per_s_m2": f_ex, "volume_m3": vol,
             "volume_rate_m3_per_s": vdot, "command_direction": direction,
             **histories, "time_s": mid,
             "interval_s": h,
