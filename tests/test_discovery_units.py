@@ -248,7 +248,8 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     assert len(effect_candidates(fit, "cylinder_leak", {}, rig)) == 1
     lag_4ms = {"best_term_start": {"spool_time_constant_s": 0.004}}
     spools = effect_candidates(fit, "spool_lag", lag_4ms, rig)
-    assert [m.effects[0].form for m, _ in spools] == ["first_order", "second_order"]
+    assert [m.effects[0].form for m, _ in spools] == ["first_order", "second_order",
+                                                      "rate_limited"]
     assert spools[1][1]["spool_delay_s"] == pytest.approx(0.004)
 
 

@@ -13,10 +13,11 @@ from pneubayes.bench.forms import SecondOrderSpool
 from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext
-from pneubayes.effects.spool_lag import spool_settle_s
+from pneubayes.effects.spool_lag import RATE_BOUNDS, START_RATE, spool_settle_s
 from pneubayes.model import Model
 from pneubayes.simulation import Inputs, SolverConfig, simulate, simulate_windows
 from pneubayes.simulation.reference import reference_simulate
+from pneubayes.simulation.spool import limited_lag, spool_step
 
 P_ATM, P_SUP = 101325.0, 551325.0
 RANGE = P_SUP - P_ATM
@@ -136,5 +137,85 @@ def test_the_first_order_candidate_also_offers_the_second_order(rig):
     forms = make_effect("spool_lag").candidate_forms(ctx)
     assert [(f.form, s) for f, s in forms] == [
         ("first_order", {"spool_time_constant_s": 0.004}),
-        ("second_order", {"spool_delay_s": 0.004, "spool_damping": 0.7})]
+        ("second_order", {"spool_delay_s": 0.004, "spool_damping": 0.7}),
+        ("rate_limited", {"spool_time_constant_s": 0.004,
+                          "spool_rate_limit_V_per_s": START_RATE})]
     assert SECOND.candidate_forms(ctx)[0][0] is SECOND
+
+
+# ---------------------------------------------------------------- the speed-limited spool
+LIMITED = make_effect("spool_lag", form="rate_limited")
+
+
+@pytest.mark.parametrize("s0, cmd, h", [(0.0, 5.0, 0.002), (0.0, 5.0, 0.02), (3.0, -4.0, 0.004),
+                                        (1.0, 1.5, 0.003), (2.0, 2.0, 0.01)])
+def test_the_limited_lag_is_its_ode_integrated(s0, cmd, h):
+    """limited_lag's closed form (a ramp at r, then the lag) against the ODE ds/dt =
+    clip((u - s) / tau, -r, r) stepped finely (RK4 at 1 us), position and rate."""
+    tau, r = 0.002, 800.0
+
+    def f(s):
+        return min(max((cmd - s) / tau, -r), r)
+
+    s, dt = s0, 1e-6
+    for _ in range(round(h / dt)):
+        k1 = f(s)
+        k2 = f(s + 0.5 * dt * k1)
+        k3 = f(s + 0.5 * dt * k2)
+        k4 = f(s + dt * k3)
+        s += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    got, rate = limited_lag(s0, cmd, h, tau, r)
+    assert got == pytest.approx(s, abs=1e-9)
+    assert rate == pytest.approx(f(got), abs=1e-6)
+    # a step under r tau (1.6 V) is the plain lag's
+    if abs(cmd - s0) <= r * tau:
+        assert got == pytest.approx(spool_step(s0, 0.0, cmd, h, tau, 0.0, 0.0, 0.0)[0],
+                                    abs=1e-12)
+
+
+def test_the_speed_limit_lowers_and_at_its_bound_is_the_first_order(rig):
+    """The limit lowers to its slot; at the upper bound (the neutral value) the
+    model simulates as the first-order lag bit for bit (steps of a few volts)."""
+    from pneubayes.effects.path import SLOT_INDEX as S
+
+    model = Model([LIMITED])
+    assert model.parameter_names[-2:] == ("spool_time_constant_s", "spool_rate_limit_V_per_s")
+    bounds = {p.name: (p.lower, p.upper) for p in LIMITED.parameters()}
+    assert bounds["spool_rate_limit_V_per_s"] == RATE_BOUNDS
+    slots = model.lower(model.as_matrix(valve1_params(spool_time_constant_s=0.003,
+                                                      spool_rate_limit_V_per_s=250.0)), None)
+    assert slots[0, S["spool_rate_limit_V_per_s"]] == 250.0
+    inputs = moving_step_inputs(3, 201, 1e-3, hold_s=(0.01, 0.05))
+    first = simulate(Model(["spool_lag"]), valve1_params(spool_time_constant_s=0.003), inputs,
+                     rig, 2e5, SolverConfig.standard())
+    unlimited = simulate(model, valve1_params(spool_time_constant_s=0.003,
+                                              spool_rate_limit_V_per_s=RATE_BOUNDS[1]),
+                         inputs, rig, 2e5, SolverConfig.standard())
+    assert np.array_equal(first.pressure_Pa, unlimited.pressure_Pa)
+    # the bench plant refuses it rather than drop it
+    with pytest.raises(ValueError, match="SpoolSlewLimit"):
+        simulate_plant(valve1_params(spool_time_constant_s=0.003, spool_rate_limit_V_per_s=250.0),
+                       [], inputs, rig, 2e5, PlantConfig("LSODA", 1e-6, 1.0, 1e-4, 1e-5, 0.005),
+                       effects=[LIMITED])
+
+
+def test_the_speed_limited_spool_agrees_with_the_reference_and_is_slower(rig):
+    """The compiled integrator (closed-form ramp and lag) against the reference solver's
+    spool ODE; the limit (250 V/s: a 3-V step takes 12 ms) moves the pressure by far
+    more than their difference; windows mid-recording start from the spool's history."""
+    inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.02, 0.06))
+    params = valve1_params(2e-5, spool_time_constant_s=0.002, spool_rate_limit_V_per_s=250.0)
+    model = Model([LIMITED])
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    got = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    first = simulate(Model(["spool_lag"]), valve1_params(2e-5, spool_time_constant_s=0.002),
+                     inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    err = np.max(np.abs(got - ref))
+    assert err <= 1e-4 * RANGE
+    assert np.max(np.abs(first - ref)) > 100 * err
+    # windows that start 3 ms after a command step: mid-ramp
+    changes = np.nonzero(np.diff(inputs.command_V))[0] + 1
+    starts = np.concatenate(([0], changes[changes < 240][:4] + 3))
+    length = 50
+    win = simulate_windows(model, params, inputs, rig, starts, length, got[starts], TIGHT)[0]
+    assert np.max(np.abs(win - np.stack([got[i:i + length] for i in starts]))) <= 1e-4 * RANGE

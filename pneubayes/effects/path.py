@@ -1,6 +1,6 @@
 """Points on the signal path where the model's components act.
 
-command -> [delay] -> spool [lag, first or second order] -> [dead band] -> port areas
+command -> [delay] -> spool [lag: first order, speed-limited or second] -> [dead band] -> ports
 (Gompertz, eq. 11, and a switching valve's area proportional to its opening)
 -> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
 + extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor
@@ -159,6 +159,12 @@ SLOTS += (
      "pressure_relaxation; Pa), written by the compiled simulator on its own copy of the "
      "slots as it steps; lowered as 0")
     for s in "ab" for k in range(CLOSURE_MAX_TERMS))
+
+SLOTS += (
+    ("spool_rate_limit_V_per_s", "the first-order spool's speed limit r: ds/dt = "
+     "clip((u - s) / tau, -r, r) (a proportional valve whose spool drive saturates: a large "
+     "step is a ramp at r, then the lag); 0 = none (command unit/s)"),
+)
 
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8

@@ -25,6 +25,11 @@ from pneubayes.simulation import (
     simulate_windows_sensitivity,
 )
 
+#: The command span (command units) a speed-limited spool is assumed to ramp across when
+#: the predictor sizes its command history (the kernel itself looks back over the
+#: commands' actual span).
+RAMP_SPAN = 20.0
+
 
 def estimate_noise_std(pressure_Pa) -> float:
     """White-noise std of a sampled pressure, Pa, from its second differences.
@@ -224,10 +229,13 @@ class PressurePredictor:
         self.quantiles = tuple(quantiles)
         slots = model.lower(self.draws, rig)
         #: how far back (s) the valve still sees the command: the longest transport delay
-        #: plus 20 spool time constants (or settling times of a second-order spool)
-        #: over the draws
+        #: plus 20 spool time constants (or settling times of a second-order spool),
+        #: and a speed-limited spool's ramp across :data:`RAMP_SPAN` command units, over
+        #: the draws
+        rate = slots[:, SLOT_INDEX["spool_rate_limit_V_per_s"]]
+        ramp = np.where(rate > 0.0, RAMP_SPAN / np.where(rate > 0.0, rate, 1.0), 0.0)
         self.lookback_s = float(np.max(slots[:, SLOT_INDEX["command_delay_s"]]
-                                       + 20.0 * spool_settle_s(slots)))
+                                       + 20.0 * spool_settle_s(slots) + ramp))
 
     def predict_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                       supply_pressure_Pa=None, command_history_V=None) -> np.ndarray:

@@ -110,7 +110,7 @@ from pneubayes.simulation.relaxation import (
     relaxation_start,
     relaxation_step,
 )
-from pneubayes.simulation.spool import spool_settle_s, spool_step
+from pneubayes.simulation.spool import limited_lag, spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 from pneubayes.simulation.wave import (
@@ -163,6 +163,7 @@ _EX = SLOT_INDEX["exhaust_offset_m2"]
 _VOL = SLOT_INDEX["volume_m3"]
 _DELAY = SLOT_INDEX["command_delay_s"]
 _SPOOL = SLOT_INDEX["spool_time_constant_s"]
+_SPOOL_RATE = SLOT_INDEX["spool_rate_limit_V_per_s"]
 _SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
 _SPOOL_Z = SLOT_INDEX["spool_damping"]
 _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
@@ -343,6 +344,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     spool2 = w_s > 0.0  # a second-order spool (overrides the first-order lag)
     if spool2:
         tau_s = 0.0
+    rate_s = sl[_SPOOL_RATE] if tau_s > 0.0 else 0.0  # the first-order spool's speed limit
     lagged = tau_s > 0.0 or spool2
     gain = sl[_SUPG]
     # position and supply are read at t + adv (linear between their samples, held after
@@ -526,15 +528,20 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     if lagged and k0 > 0:
         # mid-recording: the spool state follows from the command history (in closed
         # form over the held samples of up to 20 settling times before t_start)
+        # (a speed-limited spool also ramps across the commands' span there first)
         jj = j
         settle = spool_settle_s(tau_s, w_s, z_s)
-        while jj > 0 and t_start - (t[jj] + delay) < 20.0 * settle:
+        u_lo, u_hi = u[j], u[j]
+        while jj > 0 and t_start - (t[jj] + delay) < 20.0 * settle + (
+                (u_hi - u_lo) / rate_s if rate_s > 0.0 else 0.0):
             jj -= 1
+            u_lo, u_hi = min(u_lo, u[jj]), max(u_hi, u[jj])
         spool = u[jj]
         for k in range(jj, j):
-            spool, v_s = spool_step(spool, v_s, u[k], t[k + 1] - t[k], tau_s, w_s, z_s)
+            spool, v_s = spool_step(spool, v_s, u[k], t[k + 1] - t[k], tau_s, w_s, z_s,
+                                    rate_s)
         spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
-                                z_s)
+                                z_s, rate_s)
     # dense output: steps cross the samples where the position and supply hold
     # the pressure is the only state (its step's rate, slope and correction describe it)
     plain = not (thermal or tank or lung or line or wave)
@@ -678,11 +685,15 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     da_in, da_ex = _area_rates(s_cur, v_cur, dead, sl)
                     s_at, ds_at = s_cur, v_cur
                 elif moving:
-                    s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
+                    if rate_s > 0.0:
+                        s_now, ds_now = limited_lag(spool_a, cmd, tau - t_sub, tau_s, rate_s)
+                    else:
+                        s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
+                        ds_now = (cmd - s_now) / tau_s
                     a_in, a_ex = _areas(s_now, dead, sl)
                     a_ex += a_own
-                    da_in, da_ex = _area_rates(s_now, (cmd - s_now) / tau_s, dead, sl)
-                    s_at, ds_at = s_now, (cmd - s_now) / tau_s
+                    da_in, da_ex = _area_rates(s_now, ds_now, dead, sl)
+                    s_at, ds_at = s_now, ds_now
                 # inputs at tau + hh (stage 2)
                 fr2 = (tau + hh - ta) * inv_seg
                 vol2 = v0 + bore * (xa + fr2 * (xb - xa))
@@ -697,7 +708,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     vdot = bore * (x1c - x0c) / hh
                 if moving:
                     if spool2:
-                        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s)
+                        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0)
+                    elif rate_s > 0.0:
+                        s2 = limited_lag(spool_a, cmd, tau + hh - t_sub, tau_s, rate_s)[0]
                     else:
                         s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
                     a_in2, a_ex2 = _areas(s2, dead, sl)
@@ -1013,7 +1026,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         and abs(v_s) <= 1e-12 * w_s * (1.0 + abs(cmd))):
                     spool, v_s = cmd, 0.0
             elif tau_s > 0.0:
-                spool = spool_step(spool_a, 0.0, cmd, t_end - t_sub, tau_s, 0.0, 0.0)[0]
+                spool = spool_step(spool_a, 0.0, cmd, t_end - t_sub, tau_s, 0.0, 0.0,
+                                   rate_s)[0]
             else:
                 spool = cmd
         if k >= i0:

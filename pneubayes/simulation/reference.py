@@ -59,6 +59,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     exs = [sl[S[k]] for k in ("exhaust_offset_m2", "exhaust_a_m2", "exhaust_b",
                               "exhaust_c_per_V", "exhaust_d_V")]
     tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
+    rate_s = sl[S["spool_rate_limit_V_per_s"]]
     rounding = sl[S["deadband_rounding_V"]]
     lag = sl[S["sensor_time_constant_s"]]  # the reading: the last state
     w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
@@ -213,6 +214,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
+        if rate_s > 0:  # a speed-limited first-order spool
+            dspool = min(max(dspool, -rate_s), rate_s)
         d_spool_v = []
         if w_s > 0:
             dspool = v_spool

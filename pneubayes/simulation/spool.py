@@ -1,6 +1,8 @@
 """The spool's state under a held command (effect ``spool_lag``), in closed form.
 
-First order ``ds/dt = (u - s) / tau``, or second order ``s'' = w^2 (u - s) - 2 z w s'``
+First order ``ds/dt = (u - s) / tau``, with a speed limit ``ds/dt = clip((u - s) / tau,
+-r, r)`` (a ramp at r until ``|u - s| = r tau``, then the lag), or second order
+``s'' = w^2 (u - s) - 2 z w s'``
 (position and velocity; exact through :func:`pneubayes.simulation.reading.second_order_step`
 with a constant input). The compiled kernel (:mod:`pneubayes.simulation.kernel`) steps
 the spool with these and warms it up over the command history before a window.
@@ -16,17 +18,38 @@ from pneubayes.simulation.reading import second_order_step
 
 
 @njit(cache=True, error_model="numpy")
-def spool_step(s, v, cmd, h, tau, w, z):
+def spool_step(s, v, cmd, h, tau, w, z, rate):
     """``(position V, velocity V/s)`` of the spool after ``h`` s under the held command
     ``cmd`` V: second order when ``w`` > 0, else first order when ``tau`` > 0 (velocity
-    0), else unchanged; unchanged for ``h`` <= 0."""
+    0; speed-limited at ``rate`` V/s when ``rate`` > 0, :func:`limited_lag`), else
+    unchanged; unchanged for ``h`` <= 0."""
     if not h > 0.0:
         return s, v
     if w > 0.0:
         return second_order_step(s, v, cmd, cmd, h, w, z)
     if tau > 0.0:
+        if rate > 0.0:
+            return limited_lag(s, cmd, h, tau, rate)[0], 0.0
         return cmd + (s - cmd) * math.exp(-h / tau), 0.0
     return s, v
+
+
+@njit(cache=True, error_model="numpy")
+def limited_lag(s, cmd, h, tau, rate):
+    """``(position, rate)`` of the speed-limited first-order spool ``ds/dt = clip((cmd -
+    s) / tau, -rate, rate)`` after ``h`` s from ``s`` (V, V/s; ``tau`` > 0, ``rate`` > 0):
+    a ramp at ``rate`` while ``|cmd - s| > rate tau``, the exponential lag after."""
+    e = cmd - s
+    excess = abs(e) - rate * tau
+    if excess > 0.0:
+        sg = 1.0 if e > 0.0 else -1.0
+        t_ramp = excess / rate
+        if h <= t_ramp:
+            return s + sg * rate * h, sg * rate
+        e = sg * rate * tau
+        h -= t_ramp
+    e1 = e * math.exp(-h / tau)
+    return cmd - e1, e1 / tau
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -46,7 +46,8 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
 
     The command is held between samples, delayed by slot ``command_delay_s`` (before the
     first sample: the pre-trigger command, else the first sample's, held since long
-    before) and passed through the spool's lag (slots ``spool_time_constant_s`` or
+    before) and passed through the spool's lag (slots ``spool_time_constant_s`` with
+    ``spool_rate_limit_V_per_s``, or
     ``spool_natural_frequency_rad_per_s`` / ``spool_damping``), stepped exactly with
     :func:`~pneubayes.simulation.spool.spool_step` between the delayed command's
     changes, from rest at the command held at the start.
@@ -68,6 +69,7 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     before = _held_before(inputs)
     delay = float(slots[S["command_delay_s"]])
     tau = float(slots[S["spool_time_constant_s"]])
+    rate = float(slots[S["spool_rate_limit_V_per_s"]])
     w, z = float(slots[S["spool_natural_frequency_rad_per_s"]]), float(slots[S["spool_damping"]])
     times = np.asarray(times_s, dtype=np.float64)
     shifted = t + delay
@@ -86,7 +88,8 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     out_grid = np.empty(grid.size)
     out_grid[0] = s
     for i in range(1, grid.size):
-        s, v = spool_step(s, v, float(cmd[i - 1]), float(grid[i] - grid[i - 1]), tau, w, z)
+        s, v = spool_step(s, v, float(cmd[i - 1]), float(grid[i] - grid[i - 1]), tau, w, z,
+                          rate)
         out_grid[i] = s
     return out_grid[np.searchsorted(grid, times)]
 
