@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in three sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in four sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -19,7 +19,11 @@ that needs a minimum pressure difference, cases ``n00``-``n09``. Set 3 (seed 179
 drawn from the clock on 2026-12-02 and recorded before any run): valve ports that follow
 the ISO 6358 flow law, a spool whose speed saturates (slew limit), an underlapped spool
 that leaks through the null, and a meter-out speed controller (needle and check valve)
-at the cylinder's port, cases ``t00``-``t09``. Each form is planted
+at the cylinder's port, cases ``t00``-``t09``. Set 4 (seed 1796227429, drawn from the
+clock on 2026-12-02 and recorded before any run): a supply hose behind a restriction
+that starves the valve (the supply sensor at the regulator), ports whose discharge falls
+at low Reynolds numbers, a sticking spool, and a pressure sensor whose reading bows off
+its straight line, cases ``q00``-``q09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -69,13 +73,17 @@ from pneubayes.bench.forms import (
     InletFlowForce,
     Iso6358Ports,
     LipSealLeak,
+    LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
     ReliefValve,
     ScoredBarrelLeak,
+    SensorBow,
     SpoolHysteresis,
     SpoolSlewLimit,
+    SpoolStiction,
     SpoolUnderlap,
+    SupplyHose,
     check_forms,
 )
 from pneubayes.bench.sensors import SensorChain
@@ -93,14 +101,17 @@ OPENFORM_SEED = 69069
 OPENFORM_SEED_2 = 1796182831
 #: Set 3's seed: ``date +%s`` at 2026-12-02 12:34:32 UTC, fixed before any case ran.
 OPENFORM_SEED_3 = 1796214872
+#: Set 4's seed: ``date +%s`` at 2026-12-02 16:03:49 UTC, fixed before any case ran.
+OPENFORM_SEED_4 = 1796227429
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
                  "LipSealLeak"),
              2: ("ExhaustSilencer", "ScoredBarrelLeak", "CreepingWall", "PilotInletValve"),
-             3: ("Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap", "MeterOutThrottle")}
-SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3}
-SET_PREFIX = {1: "o", 2: "n", 3: "t"}
+             3: ("Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap", "MeterOutThrottle"),
+             4: ("SupplyHose", "LowReynoldsPorts", "SpoolStiction", "SensorBow")}
+SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -146,7 +157,13 @@ def draw_openform(name: str, cylinder: str, rng):
       Table II valves' full ports), gone beyond 0.2-1 V;
     - MeterOutThrottle (set 3): a needle of 1e-7-5e-7 m^2 (about 10-80 % of the
       exhausts' full area), a check of 1e-6-3e-6 m^2 cracking at 5-30 kPa, a fitting of
-      0.2-2 cm^3 (all log-uniform).
+      0.2-2 cm^3 (all log-uniform);
+    - SupplyHose (set 4): a restriction of 6e-7-3e-6 m^2 (about 0.7-5 x the Table II
+      valves' full inlet) into a hose of 10-100 cm^3 (both log-uniform);
+    - LowReynoldsPorts (set 4): a critical Reynolds number of 200-2000 (log-uniform);
+    - SpoolStiction (set 4): breaking away at 0.05-0.3 V, stopping 0-0.6 x that short;
+    - SensorBow (set 4): a 6- or 10-bar (gauge) sensor bowing by 0.1-0.5 % of its span
+      (log-uniform) at mid-range, either sign.
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -199,6 +216,18 @@ def draw_openform(name: str, cylinder: str, rng):
                                 check_area_m2=_log_uniform(rng, 1e-6, 3e-6),
                                 crack_pressure_Pa=_log_uniform(rng, 5e3, 30e3),
                                 volume_m3=_log_uniform(rng, 2e-7, 2e-6))
+    if name == "SupplyHose":
+        return SupplyHose(restriction_area_m2=_log_uniform(rng, 6e-7, 3e-6),
+                          volume_m3=_log_uniform(rng, 1e-5, 1e-4))
+    if name == "LowReynoldsPorts":
+        return LowReynoldsPorts(critical_reynolds=_log_uniform(rng, 200.0, 2000.0))
+    if name == "SpoolStiction":
+        breakaway = rng.uniform(0.05, 0.3)
+        return SpoolStiction(breakaway_V=breakaway, stop_V=breakaway * rng.uniform(0.0, 0.6))
+    if name == "SensorBow":
+        span = float(rng.choice([6e5, 1e6]))
+        sign = 1.0 if rng.uniform() < 0.5 else -1.0
+        return SensorBow(bow_Pa=sign * span * _log_uniform(rng, 1e-3, 5e-3), span_Pa=span)
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 

@@ -18,20 +18,30 @@ from pneubayes.bench.forms import (
     InletFlowForce,
     Iso6358Ports,
     LipSealLeak,
+    LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
     ReliefValve,
     ScoredBarrelLeak,
+    SensorBow,
     SpoolHysteresis,
     SpoolSlewLimit,
+    SpoolStiction,
     SpoolUnderlap,
+    SupplyHose,
     catalogue_names_of,
     check_forms,
     form_from_dict,
     forms_from_names,
     out_of_catalogue_defaults,
 )
-from pneubayes.bench.plant import PlantConfig, forchheimer_flow, iso6358_flow, simulate_plant
+from pneubayes.bench.plant import (
+    PlantConfig,
+    forchheimer_flow,
+    iso6358_flow,
+    low_reynolds_flow,
+    simulate_plant,
+)
 from pneubayes.physics.orifice import flow_terms
 from pneubayes.physics.valve import valve_preset
 from pneubayes.rig import Rig
@@ -86,7 +96,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "InletFlowForce", "LipSealLeak", "ExhaustSilencer",
                                      "ScoredBarrelLeak", "CreepingWall", "PilotInletValve",
                                      "Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap",
-                                     "MeterOutThrottle"}
+                                     "MeterOutThrottle", "SupplyHose", "LowReynoldsPorts",
+                                     "SpoolStiction", "SensorBow"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -129,6 +140,13 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (PilotInletValve, {"min_pressure_difference_Pa": -5.0}, "min_pressure_difference_Pa"),
     (PilotInletValve, {"min_pressure_difference_Pa": 4e4, "transition_fraction": 2.5},
      "transition_fraction"),
+    (SupplyHose, {"restriction_area_m2": -1e-6}, "restriction_area_m2"),
+    (SupplyHose, {"restriction_area_m2": 1e-6, "volume_m3": 0.0}, "volume_m3"),
+    (LowReynoldsPorts, {"critical_reynolds": float("nan")}, "critical_reynolds"),
+    (SpoolStiction, {"breakaway_V": -0.1}, "breakaway_V"),
+    (SpoolStiction, {"breakaway_V": 0.1, "stop_V": 0.2}, "stop_V"),
+    (SensorBow, {"bow_Pa": float("inf")}, "bow_Pa"),
+    (SensorBow, {"bow_Pa": 1e3, "span_Pa": 0.0}, "span_Pa"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -156,7 +174,8 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     ScoredBarrelLeak(start_m=0.3 * STROKE, end_m=0.6 * STROKE, area_m2=0.0),
     CreepingWall(compliance_m3_per_Pa=0.0), PilotInletValve(min_pressure_difference_Pa=0.0),
     SpoolSlewLimit(slew_rate_V_per_s=0.0), SpoolUnderlap(area_m2=0.0),
-    MeterOutThrottle(needle_area_m2=0.0)],
+    MeterOutThrottle(needle_area_m2=0.0), SupplyHose(restriction_area_m2=0.0),
+    LowReynoldsPorts(critical_reynolds=0.0), SpoolStiction(breakaway_V=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -465,3 +484,76 @@ def test_meter_out_throttle_slows_the_vent_not_the_fill_and_keeps_the_mass(rig):
     np.testing.assert_allclose(rest, 3e5, rtol=0, atol=1e-3)
     with pytest.raises(ValueError, match="beside an AcousticTube"):
         _run(params, (mo, forms_from_names(["tube_delay"])[0]), fill, rig)
+
+
+# ---------------------------------------------------------------- the fourth set's forms
+def test_a_supply_hose_starves_a_fill_unseen_by_the_supply_sensor(rig):
+    """A full-inlet fill through a hose is slower than through the regulator alone and
+    ends at the supply; the supply column stays the regulator's; a restriction 18 x the
+    valve's port is nearly no hose at all (0.05 % of the span)."""
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    fill = _held(0.04, (5.0,))
+    plain = simulate_plant(params, (), fill, rig, P_ATM, REF)
+    hose = SupplyHose(restriction_area_m2=4e-7, volume_m3=2e-6)
+    starved = simulate_plant(params, (hose,), fill, rig, P_ATM, REF)
+    level = P_SUP - 50e3
+    assert _time_to(starved.pressure_Pa, level) > 1.3 * _time_to(plain.pressure_Pa, level)
+    assert starved.pressure_Pa[-1] > P_SUP - 5e3
+    np.testing.assert_allclose(starved.supply_at_valve_Pa, P_SUP, rtol=0, atol=1e-6)
+    # (a wide restriction into a small hose is stiff enough to make the solver crawl)
+    wide = _run(params, (SupplyHose(restriction_area_m2=1e-5, volume_m3=5e-5),), fill, rig)
+    assert np.max(np.abs(wide - plain.pressure_Pa)) < 1e-3 * (P_SUP - P_ATM)
+
+
+def test_low_reynolds_ports_lose_the_small_flows_and_slow_the_approach(rig, base):
+    """The factor Re / (Re + Re_c): a half at Re = Re_c, near 1 far above; a fill's
+    choked start is barely slowed, its last approach to the supply much more (the flow
+    falls as the square of the thin port's there)."""
+    mu, area, re_c = 1.81e-5, 1e-7, 400.0
+    q_c = re_c * np.pi * mu * np.sqrt(4 * area / np.pi) / 4
+    assert low_reynolds_flow(q_c, area, re_c, mu) == pytest.approx(0.5 * q_c, rel=1e-12)
+    assert low_reynolds_flow(-q_c, area, re_c, mu) == pytest.approx(-0.5 * q_c, rel=1e-12)
+    assert low_reynolds_flow(1e3 * q_c, area, re_c, mu) == pytest.approx(1e3 * q_c, rel=2e-3)
+    assert low_reynolds_flow(0.0, area, re_c, mu) == 0.0
+    fill = _held(0.3, (5.0,))
+    plain = _run(base, (), fill, rig)
+    slow = _run(base, (LowReynoldsPorts(critical_reynolds=2000.0),), fill, rig)
+    early = P_ATM + 150e3
+    assert _time_to(slow, early) < 1.1 * _time_to(plain, early)
+    assert P_SUP - slow[-1] > 1.5 * (P_SUP - plain[-1]) > 0.0  # (520 against 260 Pa short)
+
+
+def test_a_sticking_spool_ignores_small_steps_and_stops_short_of_large_ones(rig):
+    stick = SpoolStiction(breakaway_V=0.15, stop_V=0.05)
+    got = stick.targets([0.0, 0.1, 0.2, 1.0, 0.95, -1.0, -1.0])
+    np.testing.assert_allclose(got, [0.0, 0.0, 0.15, 0.95, 0.95, -0.95, -0.95], atol=1e-12)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    # the inlet opens steeply about 3 V (1.7e-8 m^2 at 3 V, 4e-7 at 3.12): a step
+    # 3.0 -> 3.12 V stays stuck at 3 V, one to 3.3 V slides to 3.25 V
+    small = _held(0.05, (3.0, 3.12), at=(0.0, 0.01))
+    stuck = _run(params, (stick,), small, rig, p0=2e5)
+    np.testing.assert_array_equal(stuck, _run(params, (), _held(0.05, (3.0,)), rig, p0=2e5))
+    assert np.max(np.abs(_run(params, (), small, rig, p0=2e5) - stuck)) > 20e3
+    large = _held(0.05, (3.0, 3.3), at=(0.0, 0.01))
+    short = Inputs(large.time_s, np.where(large.time_s < 0.01 - 1e-12, 3.0, 3.25),
+                   large.position_m, large.supply_pressure_Pa)
+    np.testing.assert_array_equal(_run(params, (stick,), large, rig, p0=2e5),
+                                  _run(params, (), short, rig, p0=2e5))
+
+
+def test_a_bowed_sensor_reads_true_at_its_ends_and_off_at_mid_range(tmp_path):
+    bow = SensorBow(bow_Pa=-2000.0, span_Pa=6e5)
+    p = np.array([P_ATM - 1e4, P_ATM, P_ATM + 1.5e5, P_ATM + 3e5, P_ATM + 6e5, P_ATM + 7e5])
+    np.testing.assert_allclose(bow.read(p, P_ATM) - p, [0, 0, -1500, -2000, 0, 0], atol=1e-9)
+    # the bench reads its recordings through it (noise-free: the difference is the bow)
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.io import read_recording
+
+    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    kw = dict(protocol="fixed", duration_s=1.5, positions=(0.5,), ranges_V=(5.0,),
+              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
+    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
+           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(bow,))), tmp_path / "b")]
+    a, b = (read_recording(r.recordings[0]) for r in res)
+    np.testing.assert_allclose(b.pressure_Pa, bow.read(a.pressure_Pa, P_ATM), atol=5.0)
+    assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 500.0

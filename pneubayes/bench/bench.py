@@ -29,7 +29,13 @@ import numpy as np
 
 import pneubayes
 from pneubayes.atomic import write_json_atomic
-from pneubayes.bench.forms import AcousticTube, PlantForm, catalogue_names_of, check_forms
+from pneubayes.bench.forms import (
+    AcousticTube,
+    PlantForm,
+    SensorBow,
+    catalogue_names_of,
+    check_forms,
+)
 from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.bench.protocols import piston_motion, step_commands
 from pneubayes.bench.sensors import SensorChain
@@ -203,6 +209,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         else:
             p_true = simulate(model, {**truth, **calibration_neutral}, inputs, rig,
                               ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
+        for form in cfg.forms:  # a bowed sensor reads the pressure off its line
+            if isinstance(form, SensorBow):
+                p_true = form.read(p_true, ATMOSPHERE_PA)
         if calibration is not None:
             p_true = calibration.read(p_true, truth, ATMOSPHERE_PA)
         s = cfg.sensor

@@ -16,7 +16,9 @@ blind, in two sets drawn once each: the first (:class:`BladderVolume`,
 the first, the second (:class:`ExhaustSilencer`, :class:`ScoredBarrelLeak`,
 :class:`CreepingWall`, :class:`PilotInletValve`), and, built after the stage had been
 developed against the second, the third (:class:`Iso6358Ports`, :class:`SpoolSlewLimit`,
-:class:`SpoolUnderlap`, :class:`MeterOutThrottle`).
+:class:`SpoolUnderlap`, :class:`MeterOutThrottle`), and, built after the stage had been
+developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynoldsPorts`,
+:class:`SpoolStiction`, :class:`SensorBow`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -30,6 +32,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields
 from typing import ClassVar
+
+import numpy as np
 
 from pneubayes.effects import CATALOGUE
 from pneubayes.physics.cylinder import cylinder_preset
@@ -620,13 +624,132 @@ class MeterOutThrottle(PlantForm):
         return _smoothstep((forward_drop_Pa - c) / c + 0.5)
 
 
+@dataclass(frozen=True)
+class SupplyHose(PlantForm):
+    """A supply line that starves the valve: a hose of volume ``volume_m3`` fed from the
+    regulator through a restriction (a fitting, a quick coupling, the regulator's own
+    port) of sonic area ``restriction_area_m2``.
+
+    The valve's inlet sees the hose's pressure p_h, not the regulator's p_r::
+
+        dp_h/dt = kappa Rs T / V_h (A_r f(p_r, p_h) - mdot_in),
+
+    f the thin-port flow of eqs. 1-3. A fill draws the hose down and it recovers
+    through the restriction; the supply sensor sits at the regulator (the recording's
+    supply column is p_r), so the drop is not measured. ``restriction_area_m2 = 0`` is no
+    hose (the state is omitted).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    restriction_area_m2: float
+    volume_m3: float = 5e-5
+
+    def __post_init__(self):
+        _non_negative(self, "restriction_area_m2")
+        _positive(self, "volume_m3")
+
+
+@dataclass(frozen=True)
+class LowReynoldsPorts(PlantForm):
+    """Valve ports whose discharge falls at low Reynolds numbers (viscous losses in a
+    small or barely open port, at a small pressure difference).
+
+    Each port's thin-port flow m_0 = a f (eqs. 1-3) is scaled by a discharge factor that
+    rises with the port's Reynolds number Re = 4 |m_0| / (pi mu d), d = sqrt(4 a / pi)
+    the port's equivalent diameter::
+
+        mdot = m_0 Re / (Re + Re_c),   Re_c = ``critical_reynolds``,
+
+    so the flow falls off where it is small: near a port's pressure balance (the last
+    part of a fill or a vent) and through the ports' leakage at the null.
+    ``critical_reynolds = 0`` is the thin-port law.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    critical_reynolds: float
+    air_viscosity_Pa_s: float = AIR_VISCOSITY_PA_S
+
+    def __post_init__(self):
+        _non_negative(self, "critical_reynolds")
+        _positive(self, "air_viscosity_Pa_s")
+
+
+@dataclass(frozen=True)
+class SpoolStiction(PlantForm):
+    """A sticking spool (static friction without dither): it stays put until the
+    command moves ``breakaway_V`` away from where it stuck, then slides and stops short
+    of the command by ``stop_V``.
+
+    At each change of the (delayed) command u_k the spool's target s_k becomes::
+
+        s_k = s_(k-1)                          if |u_k - s_(k-1)| < breakaway_V,
+        s_k = u_k - sign(u_k - s_(k-1)) stop_V  otherwise,
+
+    from s_0 = u_0, and the valve sees s_k for as long as u_k is held. Small command
+    steps are ignored entirely; a large one is followed but for ``stop_V`` on the side
+    it came from. ``breakaway_V = 0`` (with ``stop_V = 0``) is a free spool.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    breakaway_V: float
+    stop_V: float = 0.0
+
+    def __post_init__(self):
+        _non_negative(self, "breakaway_V", "stop_V")
+        if self.stop_V > self.breakaway_V:
+            raise ValueError(f"SpoolStiction.stop_V must be <= breakaway_V "
+                             f"({self.breakaway_V}), got {self.stop_V}")
+
+    def targets(self, command_V):
+        """The spool's held positions for a held command series (V)."""
+        u = [float(v) for v in command_V]
+        out = list(u)
+        s = u[0] if u else 0.0
+        for k, v in enumerate(u):
+            if k and abs(v - s) >= self.breakaway_V and v != s:
+                s = v - math.copysign(self.stop_V, v - s)
+            out[k] = s
+        return out
+
+
+@dataclass(frozen=True)
+class SensorBow(PlantForm):
+    """A pressure sensor whose reading bows away from its straight line (the bridge's
+    nonlinearity, a data sheet's "BFSL" error): zero at both ends of its range, largest
+    at mid-range::
+
+        r = p + bow_Pa 4 x (1 - x),   x = clip((p - P_atm) / span_Pa, 0, 1),
+
+    ``span_Pa`` its gauge full scale, ``bow_Pa`` the error at mid-range (either sign). A
+    straight-line recalibration (offset and gain) removes at most a third of it.
+    ``bow_Pa = 0`` is a linear sensor.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    bow_Pa: float
+    span_Pa: float = 1.0e6
+
+    def __post_init__(self):
+        if isinstance(self.bow_Pa, bool) or not isinstance(self.bow_Pa, (int, float)) or \
+                not math.isfinite(self.bow_Pa):
+            raise ValueError(f"SensorBow.bow_Pa must be a finite number, got {self.bow_Pa!r}")
+        _positive(self, "span_Pa")
+
+    def read(self, pressure_Pa, atmospheric_pressure_Pa: float):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa``."""
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        x = np.clip((p - atmospheric_pressure_Pa) / self.span_Pa, 0.0, 1.0)
+        return p + self.bow_Pa * 4.0 * x * (1.0 - x)
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
                                   SpoolHysteresis, ReliefValve, InletFlowForce, LipSealLeak,
                                   ExhaustSilencer, ScoredBarrelLeak, CreepingWall,
                                   PilotInletValve, Iso6358Ports, SpoolSlewLimit,
-                                  SpoolUnderlap, MeterOutThrottle)
+                                  SpoolUnderlap, MeterOutThrottle, SupplyHose,
+                                  LowReynoldsPorts, SpoolStiction, SensorBow)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -757,7 +880,12 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``SpoolUnderlap``: 5e-8 m^2 per port at the null (about 10 % of valve 1's full
       port), gone beyond 0.5 V;
     - ``MeterOutThrottle``: a needle of 2e-7 m^2 (a third of valve 1's exhaust), a
-      1e-6 m^2 check cracking at 10 kPa, a 0.5 cm^3 fitting.
+      1e-6 m^2 check cracking at 10 kPa, a 0.5 cm^3 fitting;
+    - ``SupplyHose``: a 1e-6 m^2 restriction (twice valve 1's full inlet) into a
+      50 cm^3 hose (2.5 m of 5 mm);
+    - ``LowReynoldsPorts``: critical Reynolds number 500;
+    - ``SpoolStiction``: breaks away 0.15 V from where it stuck, stops 0.05 V short;
+    - ``SensorBow``: +3 kPa at mid-range of a 10-bar (gauge) sensor.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -794,5 +922,13 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     if name == "MeterOutThrottle":
         return MeterOutThrottle(needle_area_m2=2e-7, check_area_m2=1e-6,
                                 crack_pressure_Pa=10e3, volume_m3=5e-7)
+    if name == "SupplyHose":
+        return SupplyHose(restriction_area_m2=1e-6, volume_m3=5e-5)
+    if name == "LowReynoldsPorts":
+        return LowReynoldsPorts(critical_reynolds=500.0)
+    if name == "SpoolStiction":
+        return SpoolStiction(breakaway_V=0.15, stop_V=0.05)
+    if name == "SensorBow":
+        return SensorBow(bow_Pa=3000.0, span_Pa=1.0e6)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

@@ -9,12 +9,15 @@ integrated by scipy's ``solve_ivp`` (Radau or LSODA) with explicit tolerances.
 State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
 as the forms and effects require: chamber temperature, spool position and velocity,
 regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
-silencer body's pressure and a creeping wall's volume (:mod:`pneubayes.bench.forms`
-documents each form's equations). The out-of-catalogue
-forms (a compliant bladder volume, spool play, a relief valve, inlet flow forces, a
-lip-seal leak; an exhaust silencer, a scored barrel, a creeping wall, a pilot-operated
-inlet) act in the same right-hand side; at zero strength each leaves it as it
-was.
+silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting and a
+supply hose's pressure (:mod:`pneubayes.bench.forms` documents each form's equations).
+A sticking spool (SpoolStiction) changes the command the valve sees; a bowed sensor
+(SensorBow) acts on the reading, which the bench applies to the plant's pressure.
+The out-of-catalogue forms (a compliant bladder volume, spool play, a relief valve,
+inlet flow forces, a lip-seal leak; an exhaust silencer, a scored barrel, a creeping
+wall, a pilot-operated inlet; ISO 6358 ports, a slew-limited or underlapped spool, a
+meter-out throttle; a supply hose, ports with viscous losses) act in the same
+right-hand side; at zero strength each leaves it as it was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
 signal-path slots (:mod:`pneubayes.effects.path`) with the meanings the model gives
@@ -56,6 +59,7 @@ from pneubayes.bench.forms import (
     InletFlowForce,
     Iso6358Ports,
     LipSealLeak,
+    LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
     PlantForm,
@@ -66,7 +70,9 @@ from pneubayes.bench.forms import (
     SecondOrderSpool,
     SpoolHysteresis,
     SpoolSlewLimit,
+    SpoolStiction,
     SpoolUnderlap,
+    SupplyHose,
     WallHeatTransfer,
     check_forms,
 )
@@ -104,14 +110,18 @@ K_ISO_B, K_ISO_M = 62, 63  # (Iso6358Ports: b 0 is the thin port's law)
 K_SL_R, K_SL_TAU = 64, 65
 K_UL_A, K_UL_W = 66, 67
 K_MO_N, K_MO_C, K_MO_P, K_MO_V = 68, 69, 70, 71
-N_K = 72
+# the fourth blind set's forms (all 0: absent; SpoolStiction and SensorBow act on the
+# command and on the reading, outside the right-hand side)
+K_SH_A, K_SH_V = 72, 73
+K_RE_C, K_RE_MU = 74, 75
+N_K = 76
 #: Below this drop (Pa) a MeterOutThrottle's flow is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
 # Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF) = range(17)
-N_L = 17
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS) = range(18)
+N_L = 18
 
 
 @njit(cache=True)
@@ -165,8 +175,19 @@ def iso6358_flow(p_up, p_down, beta, b, m):
 
 
 @njit(cache=True)
+def low_reynolds_flow(m0, area, re_c, mu):
+    """A port's flow ``m0 Re / (Re + Re_c)`` (kg/s) at Reynolds number ``Re = 4 |m0| /
+    (pi mu d)``, ``d = sqrt(4 area / pi)`` (:class:`~pneubayes.bench.forms.LowReynoldsPorts`)."""
+    if re_c <= 0.0 or area <= 0.0 or m0 == 0.0:
+        return m0
+    q_c = re_c * math.pi * mu * math.sqrt(4.0 * area / math.pi) / 4.0  # m0 at Re = Re_c
+    return m0 * abs(m0) / (abs(m0) + q_c)
+
+
+@njit(cache=True)
 def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
-    """Right-hand side of the plant into ``dy``; returns the valve-inlet supply, Pa.
+    """Right-hand side of the plant into ``dy``; returns the supply a sensor reads, Pa
+    (at the valve's inlet; with a SupplyHose at the regulator, upstream of it).
 
     ``u`` is the held command (V); ``xx`` and ``ss`` are the cubic-spline coefficients
     (ascending powers of t - tt[k], one row per sample interval k) of the position (m)
@@ -219,6 +240,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     p_up = P[K_PNOM] + P[K_GAIN] * (sup_in - P[K_PNOM])
     if L[L_DROOP] == 1:
         p_up -= y[L[L_ID]]
+    p_sensed = p_up
+    if L[L_IHS] >= 0:  # a supply hose: the valve sees the hose, the sensor the regulator
+        p_up = y[L[L_IHS]]
     p = y[0]
     heat = L[L_HEAT]
     temp = y[L[L_IT]] if heat > 0 else ts
@@ -246,6 +270,12 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         f_ex *= math.sqrt(ts / temp)
     m_in = a_in * f_in
     m_ex = a_ex * f_ex
+    if P[K_RE_C] > 0.0:  # viscous losses at low Reynolds numbers
+        m_in = low_reynolds_flow(m_in, a_in, P[K_RE_C], P[K_RE_MU])
+        m_ex = low_reynolds_flow(m_ex, a_ex, P[K_RE_C], P[K_RE_MU])
+    if L[L_IHS] >= 0:  # the hose refills through its restriction, the inlet draws it
+        f_r = flow_terms(p_sensed, p_up, alpha, beta, theta, kappa)[0]
+        dy[L[L_IHS]] = kappa * rs * ts / P[K_SH_V] * (P[K_SH_A] * f_r - m_in)
     if L[L_DROOP] == 1:
         dy[L[L_ID]] = (P[K_DROOP] * m_in - y[L[L_ID]]) / P[K_DROOP_TAU]
     if L[L_IM] >= 0:  # silencer body: the port's flow in, the porous element's out
@@ -345,7 +375,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     dy[0] = dp
     if heat > 0:
         dy[L[L_IT]] = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
-    return p_up
+    return p_sensed
 
 
 @njit(cache=True)
@@ -449,7 +479,8 @@ class PlantTrajectory:
     """Plant output on the input sample times.
 
     ``pressure_Pa`` (N,) chamber pressure, ``supply_at_valve_Pa`` (N,) the absolute
-    supply at the valve inlet (what a supply sensor there reads),
+    supply at the valve inlet (what a supply sensor there reads; with a SupplyHose the
+    regulator's, where its sensor sits),
     ``chamber_temperature_K`` (N,) or None without a temperature state; ``stats`` holds
     the solver's counts (``nfev``, ``njev``, ``spans``).
     """
@@ -593,6 +624,12 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
                              "AcousticTube (both sit between the valve and the chamber)")
         P[K_MO_N], P[K_MO_C] = throttle.needle_area_m2, throttle.check_area_m2
         P[K_MO_P], P[K_MO_V] = throttle.crack_pressure_Pa, throttle.volume_m3
+    hose = by.get(SupplyHose)
+    if hose is not None and hose.restriction_area_m2 > 0:
+        P[K_SH_A], P[K_SH_V] = hose.restriction_area_m2, hose.volume_m3
+    viscous = by.get(LowReynoldsPorts)
+    if viscous is not None and viscous.critical_reynolds > 0:
+        P[K_RE_C], P[K_RE_MU] = viscous.critical_reynolds, viscous.air_viscosity_Pa_s
     hyst = by.get(SpoolHysteresis)
     if hyst is not None and hyst.half_band_V > 0:
         P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
@@ -660,6 +697,12 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 1
         atol.append(cfg.atol_Pa)
         scale.append(1e5)
+    if P[K_SH_A] > 0:  # the supply hose's pressure, from the regulator's at the start
+        L[L_IHS] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
+        extra[L_IHS] = P[K_PNOM] + P[K_GAIN] * (float(inputs.supply_pressure_Pa[0]) - P[K_PNOM])
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]))
@@ -735,6 +778,9 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
     forms = check_forms(forms, [e.name for e in effects])
     su = _setup(params, effects, forms, rig, inputs, config)
     t, u = inputs.time_s, inputs.command_V
+    stiction = next((f for f in forms if isinstance(f, SpoolStiction)), None)
+    if stiction is not None and stiction.breakaway_V > 0:  # the valve sees where it sticks
+        u = np.asarray(stiction.targets(u), dtype=np.float64)
     xx, ss = _spline_rows(t, inputs.position_m), _spline_rows(t, inputs.supply_pressure_Pa)
     delay = su.delay_s
     shifted = t + delay
