@@ -483,6 +483,8 @@ def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_
 
     with pytest.raises(ValueError, match="later_screen_share must be in"):
         FormSettings(later_screen_share=1.5)
+    with pytest.raises(ValueError, match="nested_min_gain_share must be in"):
+        FormSettings(nested_min_gain_share=-0.1)
     assert outpaced == {"heat_transfer": (1936.0 - 4599.0, 99.0)}
     # a stricter share drops the line too
     calls.clear()
@@ -495,6 +497,24 @@ def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_
     assert len(calls) == 6 and outpaced == {}
     with pytest.raises(ValueError, match="min_share"):
         fit_round_forms(options, fit, 0.0, current_Pa=1936.0, min_share=1.5)
+
+
+def test_a_form_with_more_parameters_must_beat_the_simpler_by_the_margin():
+    """choose_form: the simplest form within the margin of the best training RMSE."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.rounds import choose_form
+
+    def form(rmse, n_params):
+        return (SimpleNamespace(train_rmse_Pa=rmse),
+                SimpleNamespace(parameter_names=tuple(range(n_params))), {})
+
+    first, second, limited = form(1000.0, 12), form(998.0, 13), form(999.5, 13)
+    assert choose_form([first, second, limited], 5.0) is first  # within 5 Pa: simplest
+    assert choose_form([first, second, limited], 1.0) is second  # 2 Pa is beyond 1 Pa
+    assert choose_form([first, second, limited], 0.0) is second  # the best, as before
+    big = form(700.0, 13)
+    assert choose_form([first, big], 10.0) is big  # a real gain takes the larger form
 
 
 def test_a_form_that_cannot_be_simulated_is_a_failed_trial_not_a_failed_loop():

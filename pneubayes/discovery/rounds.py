@@ -100,6 +100,19 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     return fitted, settled, failed, outpaced
 
 
+def choose_form(forms, margin_Pa: float):
+    """The form of one effect a round takes on to verification, from its fitted
+    ``(fit, model, start)`` triples: the one with the fewest parameters among those
+    whose training RMSE is within ``margin_Pa`` of the best (then the lower RMSE).
+
+    A form that nests another (a speed-limited spool lag at an unreachable limit is the
+    first-order lag) fits the training data at least as well; without the margin it
+    would always be taken, with a parameter the data do not determine."""
+    best = min(f[0].train_rmse_Pa for f in forms)
+    near = [f for f in forms if f[0].train_rmse_Pa <= best + margin_Pa]
+    return min(near, key=lambda f: (len(f[1].parameter_names), f[0].train_rmse_Pa))
+
+
 def gain_shortfall(drop_Pa: float, gap_Pa: float, min_gap_closed: float,
                    min_gain_Pa: float):
     """Whether a trial that passed verification gains too little to be added:

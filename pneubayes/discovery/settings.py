@@ -198,6 +198,10 @@ class FormSettings:
     later_min_share, later_screen_share : float
         ... if the first form gains this share of the round's best; the line's screen
         share.
+    nested_min_gain_share : float
+        A form with more parameters is taken over a simpler form of its effect only if
+        its training RMSE is lower by this x the noise floor
+        (:func:`~pneubayes.discovery.rounds.choose_form`).
     """
 
     tube_line_segments: int = 8
@@ -206,6 +210,7 @@ class FormSettings:
     settled_ratio: float = 1.05
     later_min_share: float = 0.25
     later_screen_share: float = 0.5
+    nested_min_gain_share: float = 0.02
 
     def __post_init__(self):
         if not 0 <= self.tube_line_segments <= LINE_MAX_SEGMENTS:
@@ -220,7 +225,7 @@ class FormSettings:
         if not (self.settled_ratio == 0.0 or self.settled_ratio >= 1.0):
             raise ValueError(f"settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.settled_ratio}")
-        _check_shares(self, "later_min_share", "later_screen_share")
+        _check_shares(self, "later_min_share", "later_screen_share", "nested_min_gain_share")
 
 
 @dataclass(frozen=True)

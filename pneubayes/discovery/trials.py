@@ -25,6 +25,7 @@ from pneubayes.atomic import json_safe, write_json_atomic
 from pneubayes.discovery.candidates import effect_candidates, first_free, follow_up, form_label
 from pneubayes.discovery.rounds import (
     TrialFitFailed,
+    choose_form,
     fit_round_forms,
     gain_shortfall,
     min_gain_Pa,
@@ -262,10 +263,12 @@ class TrialRunner:
                 self.log(f"discover: {g} has no form that fits beside "
                          f"{list(current.model.effect_names)}; skipped")
                 continue
-            # the effect's form that fits the training data best (never the held-out)
-            trial, model2, start2 = min(forms, key=lambda f: f[0].train_rmse_Pa)
+            # the effect's form that fits the training data best (never the held-out),
+            # the simplest within the margin
+            trial, model2, start2 = choose_form(forms, s.forms.nested_min_gain_share
+                                                * d.noise_Pa)
             if len(forms) > 1:
-                self.log(f"discover: {g}: form {model2.effect(g).options()} fits best "
+                self.log(f"discover: {g}: form {model2.effect(g).options()} chosen "
                          "(training RMSE " + ", ".join(
                              f"{form_label(m, g)} {f.train_rmse_Pa:.0f} Pa"
                              for f, m, _ in forms) + ")")
