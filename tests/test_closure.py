@@ -228,7 +228,8 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
 # ---------------------------------------------------------------- the Jacobian
 @pytest.mark.parametrize("terms", [f.name for f in cf.FEATURES]
                          + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate",
-                            "net_flow*pressure_hinge_down", "inlet_flux*spool_null_hinge"])
+                            "net_flow*pressure_hinge_down", "inlet_flux*spool_null_hinge",
+                            "net_flux*spool_null_hinge"])
 @pytest.mark.parametrize("hconv", [0.0, 30.0])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig):
@@ -282,7 +283,7 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
 _SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0}
 CASES = [(f.name, {"closure_threshold_0_a": _SINGLE_THRESHOLDS[f.name]}
           if f.name in _SINGLE_THRESHOLDS else {}) for f in cf.FEATURES] + [
-    ("inlet_flux*spool_null_hinge; exhaust_flux*spool_null_hinge",
+    ("inlet_flux*spool_null_hinge; exhaust_flux*spool_null_hinge; net_flux",
      {"closure_threshold_0_b": 2.0, "closure_threshold_1_b": 1.0}),
     ("inlet_flow*inlet_drop_hinge", {"closure_threshold_0_b": 2.5}),
     ("inlet_flow*pressure_hinge", {"closure_threshold_0_b": 1.8}),

@@ -88,6 +88,8 @@ CASES = {
     # a spool whose lands leave the inlet open near the null: 0.03 mm^2 of area per volt
     # inside 2 V of it (on the spool centred, :data:`CENTRED`)
     "inlet_flux*spool_null_hinge": (Term("inlet_flux", "spool_null_hinge"), 0.0, 2.0, 0.03),
+    # an underlapped spool: 0.04 mm^2 per volt at both ports inside 1.5 V of the null
+    "net_flux*spool_null_hinge": (Term("net_flux", "spool_null_hinge"), 0.0, 1.5, 0.04),
     # a fixed extra exhaust area of 0.1 mm^2 (a bleed to atmosphere), on a 2.5-bar supply
     # (:data:`SIGNAL_OPTIONS`)
     "exhaust_flux": (Term("exhaust_flux"), 0.0, 0.0, -0.1),
@@ -98,6 +100,7 @@ CASES = {
 #: above 1.9 bar, it is a flow proportional to p, and on the 7-bar rig's signals its
 #: column is ``pressure_ratio``'s to a cosine of 0.9992 (a duplicate the search drops).
 SIGNAL_OPTIONS = {"inlet_flux*spool_null_hinge": {"centre_spool": True},
+                  "net_flux*spool_null_hinge": {"centre_spool": True},
                   "exhaust_flux": {"supply_Pa": 2.5e5}}
 #: A relaxation's time constant within this factor of the planted one.
 TIME_CONSTANT_FACTOR = 1.3
@@ -187,7 +190,7 @@ def test_the_library_is_typed_and_bounded():
     cands = candidate_terms(sig)
     # features.py's count at most, and the relaxation's grid (3 ms to 1 s here) four
     # times over
-    assert 100 < len(cands) <= 815 + 8 * 8
+    assert 100 < len(cands) <= 873 + 8 * 8
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
     families = {c.family for c in cands}
@@ -196,11 +199,12 @@ def test_the_library_is_typed_and_bounded():
             "pressure_ratio*net_flow", "exhaust_flow*pressure_hinge_down",
             "inlet_flow*command_direction", "command_direction", "pressure_relaxation",
             "pressure_ratio*pressure_relaxation", "inlet_drop", "inlet_flow*inlet_drop_hinge",
-            "inlet_flux", "exhaust_flux", "inlet_flux*spool_null_hinge",
+            "inlet_flux", "exhaust_flux", "net_flux", "inlet_flux*spool_null_hinge",
+            "net_flux*spool_null_hinge",
             "exhaust_flux*spool_hinge_down", "pressure_ratio*spool_null_hinge"} <= families
     # the flow functions enter alone and with the spool's hinges only
     assert not any("flux" in f and "spool" not in f for f in families
-                   if f not in ("inlet_flux", "exhaust_flux"))
+                   if f not in ("inlet_flux", "exhaust_flux", "net_flux"))
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
     for hinge in ("pressure_hinge", "pressure_hinge_down"):

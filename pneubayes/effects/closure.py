@@ -48,7 +48,7 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "command_direction": 1.0, "pressure_relaxation": 1.0, "volume_hinge_up": 100.0,
     "volume_hinge_down": 100.0, "net_flow_lag": 1e-3, "inlet_drop": 10.0,
     "inlet_drop_hinge": 3.0, "inlet_flux": 1e-3, "exhaust_flux": 1e-3,
-    "spool_null_hinge": 2.0,
+    "spool_null_hinge": 2.0, "net_flux": 1e-3,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).

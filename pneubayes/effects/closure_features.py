@@ -112,6 +112,10 @@ FEATURES: tuple[Feature, ...] = (
     Feature("spool_null_hinge", 24, "command unit", "max(0, theta - |s|): what opens "
             "as the spool nears its null (theta >= 0; lands that do not quite close, an "
             "underlapped spool's leak to both ports)", hinge=True),
+    Feature("net_flux", 25, "kg/(s mm^2)", "the net flow one mm^2 at both ports passes "
+            "into the chamber, (f(p_s, p) - f(p, P_atm)) x 1e-6 m^2: with a coefficient in "
+            "mm^2 an equal extra area at the inlet and the exhaust (a crossport leak "
+            "through the valve, an underlap)"),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -291,6 +295,10 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
                 + 0.0 * p)
     if f.code == 24:
         return np.maximum(threshold - np.abs(spool), 0.0)
+    if f.code == 25:
+        return ((np.asarray(s["inlet_flux_kg_per_s_m2"], dtype=np.float64)
+                 - np.asarray(s["exhaust_flux_kg_per_s_m2"], dtype=np.float64))
+                * AREA_SCALE_M2 + 0.0 * p)
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
@@ -453,6 +461,7 @@ SYMBOLS: dict[str, str] = {
     "inlet_drop": "(|p_s - p| / P_atm)", "inlet_drop_hinge": "max(0, {theta} - |p_s - p| / P_atm)",
     "inlet_flux": "(f(p_s, p) x 1 mm^2)", "exhaust_flux": "(f(p, P_atm) x 1 mm^2)",
     "spool_null_hinge": "max(0, {theta} - |s|)",
+    "net_flux": "((f(p_s, p) - f(p, P_atm)) x 1 mm^2)",
 }
 
 

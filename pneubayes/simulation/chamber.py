@@ -171,6 +171,9 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         return f_in * _AREA_SCALE, df_in_dp * _AREA_SCALE, df_in_dt * _AREA_SCALE
     if code == 23:
         return f_ex * _AREA_SCALE, df_ex_dp * _AREA_SCALE, 0.0
+    if code == 25:
+        return ((f_in - f_ex) * _AREA_SCALE, (df_in_dp - df_ex_dp) * _AREA_SCALE,
+                df_in_dt * _AREA_SCALE)
     if code == 24:  # max(0, theta - |s|)
         sg = 1.0 if spool >= 0.0 else -1.0
         z = theta - sg * spool

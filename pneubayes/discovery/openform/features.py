@@ -16,7 +16,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
   a greedy pick then settles on the copy;
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
   ``exhaust_flow``, and the spool's three hinges also times the ports' flow functions
-  ``inlet_flux`` and ``exhaust_flux`` (a port area that opens with the spool);
+  ``inlet_flux``, ``exhaust_flux`` and ``net_flux`` (a port area, or an equal area at
+  both ports, that opens with the spool);
 - the low-passes ``pressure_relaxation`` and ``net_flow_lag`` at each time constant of a
   fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
   the same three partners (a time constant is its feature's "threshold": a family keeps
@@ -24,8 +25,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the partners above: with the fourteen non-hinge base features besides ``one``
-(twelve paired) and eight hinges that is 1 + 14 + 78 + 152 + 456 + 114 = 815 candidates
+with the partners above: with the fifteen non-hinge base features besides ``one``
+(twelve paired) and eight hinges that is 1 + 15 + 78 + 152 + 456 + 171 = 873 candidates
 at most, and eight per low-pass time constant. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
@@ -63,7 +64,7 @@ RELAXATION_MAX_SHARE = 0.25
 HINGE_PARTNERS = ("pressure_ratio", "inlet_flow", "exhaust_flow")
 #: The further partners of the spool's hinges: the ports' flow functions, so that a
 #: term is a port area that opens with the spool (an area map's error, an underlap).
-SPOOL_HINGE_PARTNERS = ("inlet_flux", "exhaust_flux")
+SPOOL_HINGE_PARTNERS = ("inlet_flux", "exhaust_flux", "net_flux")
 SPOOL_HINGES = frozenset({"spool_hinge_up", "spool_hinge_down", "spool_null_hinge"})
 #: The default quantiles of the hinge thresholds.
 DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
