@@ -18,7 +18,8 @@ from pneubayes.bench.forms import OUT_OF_CATALOGUE, form_from_dict  # noqa: E402
 from pneubayes.bench.sensors import SensorChain  # noqa: E402
 
 
-@pytest.mark.parametrize("blind_set", [1, 2, 3, 4])
+@pytest.mark.parametrize("blind_set", [pytest.param(n, marks=pytest.mark.slow) for n in (1, 2, 3)]
+                         + [4])  # (the spent sets' lists in the slow tier)
 def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed(blind_set):
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "openform_blind.py"),
                           "--list", "--set", str(blind_set)], capture_output=True, text=True,

@@ -357,6 +357,7 @@ def test_scored_barrel_leaks_on_the_score_only_at_the_orifice_law(rig):
                                   _run(params, (), off, rig, p0=4e5))
 
 
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_creeping_wall_sags_after_a_fill_recovers_after_a_vent_and_rests_in_equilibrium(rig):
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
     wall = CreepingWall(compliance_m3_per_Pa=0.1 * np.pi / 4 * BORE**2 * STROKE / 4.5e5,
@@ -421,6 +422,7 @@ def test_iso6358_ports_choke_at_their_critical_ratio_and_fill_slower_near_the_su
     assert _time_to(iso, P_SUP - 20e3) > 1.08 * _time_to(plain, P_SUP - 20e3)  # (1.10 x)
 
 
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_slew_limited_spool_is_the_plain_valve_under_a_ramped_command(rig):
     """A large step through a spool that slews at r (with a negligible small-step lag)
     is the plain valve under the command ramped at r."""
