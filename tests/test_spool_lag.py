@@ -17,7 +17,7 @@ from pneubayes.effects.spool_lag import RATE_BOUNDS, START_RATE, spool_settle_s
 from pneubayes.model import Model
 from pneubayes.simulation import Inputs, SolverConfig, simulate, simulate_windows
 from pneubayes.simulation.reference import reference_simulate
-from pneubayes.simulation.spool import limited_lag, spool_step
+from pneubayes.simulation.spool import first_order_lag, spool_step
 
 P_ATM, P_SUP = 101325.0, 551325.0
 RANGE = P_SUP - P_ATM
@@ -149,8 +149,8 @@ LIMITED = make_effect("spool_lag", form="rate_limited")
 
 @pytest.mark.parametrize("s0, cmd, h", [(0.0, 5.0, 0.002), (0.0, 5.0, 0.02), (3.0, -4.0, 0.004),
                                         (1.0, 1.5, 0.003), (2.0, 2.0, 0.01)])
-def test_the_limited_lag_is_its_ode_integrated(s0, cmd, h):
-    """limited_lag's closed form (a ramp at r, then the lag) against the ODE ds/dt =
+def test_the_speed_limited_lag_is_its_ode_integrated(s0, cmd, h):
+    """first_order_lag's closed form (a ramp at r, then the lag) against the ODE ds/dt =
     clip((u - s) / tau, -r, r) stepped finely (RK4 at 1 us), position and rate."""
     tau, r = 0.002, 800.0
 
@@ -164,7 +164,7 @@ def test_the_limited_lag_is_its_ode_integrated(s0, cmd, h):
         k3 = f(s + 0.5 * dt * k2)
         k4 = f(s + dt * k3)
         s += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    got, rate = limited_lag(s0, cmd, h, tau, r)
+    got, rate = first_order_lag(s0, cmd, h, tau, r)
     assert got == pytest.approx(s, abs=1e-9)
     assert rate == pytest.approx(f(got), abs=1e-6)
     # a step under r tau (1.6 V) is the plain lag's

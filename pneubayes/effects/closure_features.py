@@ -287,18 +287,13 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
     if f.code in (20, 21):
         drop = np.abs(np.asarray(s["supply_pressure_Pa"], dtype=np.float64) - p) / p_atm
         return drop if f.code == 20 else np.maximum(threshold - drop, 0.0)
-    if f.code == 22:
-        return (np.asarray(s["inlet_flux_kg_per_s_m2"], dtype=np.float64) * AREA_SCALE_M2
-                + 0.0 * p)
-    if f.code == 23:
-        return (np.asarray(s["exhaust_flux_kg_per_s_m2"], dtype=np.float64) * AREA_SCALE_M2
-                + 0.0 * p)
+    if f.code in (22, 23, 25):  # the flow functions per mm^2: inlet, exhaust, their difference
+        f_in = np.asarray(s["inlet_flux_kg_per_s_m2"], dtype=np.float64)
+        f_ex = np.asarray(s["exhaust_flux_kg_per_s_m2"], dtype=np.float64)
+        flux = f_in if f.code == 22 else (f_ex if f.code == 23 else f_in - f_ex)
+        return flux * AREA_SCALE_M2 + 0.0 * p
     if f.code == 24:
         return np.maximum(threshold - np.abs(spool), 0.0)
-    if f.code == 25:
-        return ((np.asarray(s["inlet_flux_kg_per_s_m2"], dtype=np.float64)
-                 - np.asarray(s["exhaust_flux_kg_per_s_m2"], dtype=np.float64))
-                * AREA_SCALE_M2 + 0.0 * p)
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 

@@ -110,7 +110,7 @@ from pneubayes.simulation.relaxation import (
     relaxation_start,
     relaxation_step,
 )
-from pneubayes.simulation.spool import limited_lag, spool_settle_s, spool_step
+from pneubayes.simulation.spool import first_order_lag, spool_settle_s, spool_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 from pneubayes.simulation.wave import (
@@ -685,11 +685,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     da_in, da_ex = _area_rates(s_cur, v_cur, dead, sl)
                     s_at, ds_at = s_cur, v_cur
                 elif moving:
-                    if rate_s > 0.0:
-                        s_now, ds_now = limited_lag(spool_a, cmd, tau - t_sub, tau_s, rate_s)
-                    else:
-                        s_now = cmd + (spool_a - cmd) * math.exp(-(tau - t_sub) / tau_s)
-                        ds_now = (cmd - s_now) / tau_s
+                    s_now, ds_now = first_order_lag(spool_a, cmd, tau - t_sub, tau_s, rate_s)
                     a_in, a_ex = _areas(s_now, dead, sl)
                     a_ex += a_own
                     da_in, da_ex = _area_rates(s_now, ds_now, dead, sl)
@@ -709,10 +705,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 if moving:
                     if spool2:
                         s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0)
-                    elif rate_s > 0.0:
-                        s2 = limited_lag(spool_a, cmd, tau + hh - t_sub, tau_s, rate_s)[0]
                     else:
-                        s2 = cmd + (spool_a - cmd) * math.exp(-(tau + hh - t_sub) / tau_s)
+                        s2 = first_order_lag(spool_a, cmd, tau + hh - t_sub, tau_s, rate_s)[0]
                     a_in2, a_ex2 = _areas(s2, dead, sl)
                     a_ex2 += a_own
                     s_at2 = s2

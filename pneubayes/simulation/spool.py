@@ -21,35 +21,35 @@ from pneubayes.simulation.reading import second_order_step
 def spool_step(s, v, cmd, h, tau, w, z, rate):
     """``(position V, velocity V/s)`` of the spool after ``h`` s under the held command
     ``cmd`` V: second order when ``w`` > 0, else first order when ``tau`` > 0 (velocity
-    0; speed-limited at ``rate`` V/s when ``rate`` > 0, :func:`limited_lag`), else
+    0; speed-limited at ``rate`` V/s when ``rate`` > 0, :func:`first_order_lag`), else
     unchanged; unchanged for ``h`` <= 0."""
     if not h > 0.0:
         return s, v
     if w > 0.0:
         return second_order_step(s, v, cmd, cmd, h, w, z)
     if tau > 0.0:
-        if rate > 0.0:
-            return limited_lag(s, cmd, h, tau, rate)[0], 0.0
-        return cmd + (s - cmd) * math.exp(-h / tau), 0.0
+        return first_order_lag(s, cmd, h, tau, rate)[0], 0.0
     return s, v
 
 
-@njit(cache=True, error_model="numpy")
-def limited_lag(s, cmd, h, tau, rate):
-    """``(position, rate)`` of the speed-limited first-order spool ``ds/dt = clip((cmd -
-    s) / tau, -rate, rate)`` after ``h`` s from ``s`` (V, V/s; ``tau`` > 0, ``rate`` > 0):
-    a ramp at ``rate`` while ``|cmd - s| > rate tau``, the exponential lag after."""
-    e = cmd - s
-    excess = abs(e) - rate * tau
-    if excess > 0.0:
-        sg = 1.0 if e > 0.0 else -1.0
-        t_ramp = excess / rate
-        if h <= t_ramp:
-            return s + sg * rate * h, sg * rate
-        e = sg * rate * tau
-        h -= t_ramp
-    e1 = e * math.exp(-h / tau)
-    return cmd - e1, e1 / tau
+@njit(cache=True, inline="always", error_model="numpy")
+def first_order_lag(s, cmd, h, tau, rate):
+    """``(position, rate)`` of the first-order spool ``ds/dt = (cmd - s) / tau`` after
+    ``h`` s from ``s`` (V, V/s; ``tau`` > 0), speed-limited at ``rate`` V/s when ``rate``
+    > 0 (``ds/dt = clip((cmd - s) / tau, -rate, rate)``: a ramp at ``rate`` while
+    ``|cmd - s| > rate tau``, the exponential lag after)."""
+    if rate > 0.0:
+        e = cmd - s
+        excess = abs(e) - rate * tau
+        if excess > 0.0:
+            sg = 1.0 if e > 0.0 else -1.0
+            t_ramp = excess / rate
+            if h <= t_ramp:
+                return s + sg * rate * h, sg * rate
+            s = cmd - sg * rate * tau
+            h -= t_ramp
+    s1 = cmd + (s - cmd) * math.exp(-h / tau)
+    return s1, (cmd - s1) / tau
 
 
 @njit(cache=True, inline="always", error_model="numpy")
