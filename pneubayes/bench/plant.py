@@ -527,6 +527,9 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["spool_rate_limit_V_per_s"]] != 0.0:
         raise ValueError("plant: the catalogue's speed-limited spool_lag is not simulated "
                          "here; plant a SpoolSlewLimit form instead")
+    if sl[SLOT_INDEX["stiction_band_V"]] != 0.0:
+        raise ValueError("plant: the catalogue's valve_stiction is not simulated here; "
+                         "plant a SpoolStiction form instead")
     g = rig.gas
     P = np.zeros(N_K)
     P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,

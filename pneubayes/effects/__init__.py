@@ -2,8 +2,8 @@
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
 ``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
-``sensor_calibration``, ``closure`` (an open-form extra mass flow, never searched
-for by the discovery library).
+``sensor_calibration``, ``valve_stiction``, ``closure`` (an open-form extra mass flow,
+never searched for by the discovery library).
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ from pneubayes.effects.supply_fluctuation import SupplyFluctuation
 from pneubayes.effects.thin_port import ThinPort
 from pneubayes.effects.tube_delay import TubeDelay
 from pneubayes.effects.valve_deadzone import ValveDeadzone
+from pneubayes.effects.valve_stiction import ValveStiction
 
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
-                SpoolLag, SensorLag, SensorCalibration, Closure)
+                SpoolLag, SensorLag, SensorCalibration, ValveStiction, Closure)
 }
 
 
@@ -117,5 +118,5 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 
 __all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10Fit",
            "HeatTransfer", "Parameter", "SensorCalibration", "SensorLag", "SpoolLag",
-           "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone",
+           "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
            "catalogue_parameter_names", "make_effect"]

@@ -1,6 +1,7 @@
 """Points on the signal path where the model's components act.
 
-command -> [delay] -> spool [lag: first order, speed-limited or second] -> [dead band] -> ports
+command -> [stiction] -> [delay] -> spool [lag: first order, speed-limited or second]
+-> [dead band] -> ports
 (Gompertz, eq. 11, and a switching valve's area proportional to its opening)
 -> port mass flows (eqs. 1-3, supply and attenuation) [-> acoustic line]
 + extra flows (leaks, eq. 9) -> chamber (eq. 5: volume, pressure, temperature) -> sensor
@@ -164,6 +165,14 @@ SLOTS += (
     ("spool_rate_limit_V_per_s", "the first-order spool's speed limit r: ds/dt = "
      "clip((u - s) / tau, -r, r) (a proportional valve whose spool drive saturates: a large "
      "step is a ramp at r, then the lag); 0 = none (command unit/s)"),
+)
+
+SLOTS += (
+    ("stiction_band_V", "a sticking valve: the command the valve sees holds until the "
+     "command moves this far from it, then jumps to within (1 - f) times it of the command "
+     "(simulation.stiction); 0 = a free valve (command unit)"),
+    ("stiction_slip_fraction", "the sticking valve's slip f in [0, 1]: 0 stops a band short "
+     "of the command (play, backlash), 1 jumps onto it (-)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

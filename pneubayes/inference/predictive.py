@@ -247,6 +247,8 @@ class PressurePredictor:
         holds the commands already applied, oldest first, one per ``dt_s`` (what a delayed
         or lagging valve still sees); default: the candidate's first command, held. A
         history shorter than :attr:`lookback_s` is extended back by its oldest command.
+        A sticking valve (``valve_stiction``) rests at the oldest command given: pass the
+        history since it last moved.
         """
         args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
                              command_history_V)

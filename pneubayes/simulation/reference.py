@@ -13,6 +13,8 @@ Slow: thousands of Python calls per second.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -239,6 +241,18 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     return rhs
 
 
+def _stuck(u, before, band, slip):
+    """The commands a sticking valve sees (written apart from
+    :func:`pneubayes.simulation.stiction.stuck_command`, which the tests check it
+    against): it moves only when the command is a band away, to (1 - slip) band short."""
+    out, s = [], float(before)
+    for c in map(float, u):
+        if c != s and abs(c - s) >= band:
+            s = c - math.copysign((1.0 - slip) * band, c - s)
+        out.append(s)
+    return np.array(out)
+
+
 def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                        initial_pressure_Pa: float, method: str = "Radau", rtol: float = 1e-10,
                        atol: float = 1e-6, return_stats: bool = False,
@@ -306,6 +320,9 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         atols.append(atol)
     ue = inputs.exhaust_command if inputs.exhaust_command is not None else np.zeros(t.size)
     before = inputs.command_before_start
+    if sl[S["stiction_band_V"]] > 0:  # a sticking valve sees where it stuck
+        u = _stuck(u, u[0] if before is None else before, sl[S["stiction_band_V"]],
+                   sl[S["stiction_slip_fraction"]])
 
     def held(jj):
         """The command held at delayed index jj (before the first sample: the declared

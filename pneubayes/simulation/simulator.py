@@ -22,6 +22,7 @@ from pneubayes.rig import Rig
 from pneubayes.simulation import kernel
 from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.measurement import sensor_reading
+from pneubayes.simulation.stiction import sticks, valve_commands
 
 
 @dataclass(frozen=True)
@@ -272,8 +273,14 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = _kernel_arrays(
         slots, rig_constants(rig), solver.as_array(), starts + offset, p0, rate0)
-    *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
-                                rate0, pm, general)
+    if sticks(slots).any():  # a sticking valve: each set's own command
+        *arrays, status = _each_valve_command(
+            slots, u, lambda rows, uu: kernel_fn(
+                np.ascontiguousarray(slots[rows]), consts, sv, t, uu, ue, x, ps, kstarts,
+                length, p0, np.ascontiguousarray(rate0[rows]), pm, general))
+    else:
+        *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
+                                    rate0, pm, general)
     failed = np.nonzero(status.any(axis=1))[0] if status.any() else ()
     if len(failed) and on_failure == "nan":
         for a in arrays:
@@ -430,10 +437,36 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
     slots, consts, sv, kb, measured = _kernel_arrays(
         slots, rig_constants(rig), solver.as_array(), bounds + offset,
         np.ascontiguousarray(measured))
-    out, p_end, _status = kernel.simulate_carried(
-        slots, consts, sv, t, u, ue, x, ps, kb, measured, float(gain), p0, carry, pm,
-        bool(forms[:, _GENERAL_COLUMNS].any()) if forms.any() else None)
+    general = bool(forms[:, _GENERAL_COLUMNS].any()) if forms.any() else None
+    if not sticks(slots).any():
+        out, p_end, _status = kernel.simulate_carried(
+            slots, consts, sv, t, u, ue, x, ps, kb, measured, float(gain), p0, carry, pm,
+            general)
+        return out, p_end
+
+    def one(rows, uu):  # a sticking valve: each set's own command
+        sub = np.ascontiguousarray(carry[rows])
+        res = kernel.simulate_carried(np.ascontiguousarray(slots[rows]), consts, sv, t, uu,
+                                      ue, x, ps, kb, measured, float(gain),
+                                      np.ascontiguousarray(p0[rows]), sub, pm, general)
+        carry[rows] = sub
+        return res
+    out, p_end, _status = _each_valve_command(slots, u, one)
     return out, p_end
+
+
+def _each_valve_command(slots, u, call):
+    """``call(rows, command)`` for each group of parameter sets whose valve sees one
+    command (:func:`pneubayes.simulation.stiction.valve_commands`), its outputs (each
+    with the parameter sets first) put back in the sets' order."""
+    merged = None
+    for rows, uu in valve_commands(slots, u, float(u[0])):
+        res = call(rows, np.ascontiguousarray(uu))
+        if merged is None:
+            merged = [np.empty((slots.shape[0],) + a.shape[1:], a.dtype) for a in res]
+        for m, a in zip(merged, res):
+            m[rows] = a
+    return merged
 
 
 def simulate_windows_sensitivity(model: Model, params, inputs: Inputs, rig: Rig, starts,

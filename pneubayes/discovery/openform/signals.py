@@ -31,6 +31,7 @@ from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs
 from pneubayes.simulation.rates import port_areas, rate_terms, tabulated_volume
 from pneubayes.simulation.spool import spool_step
+from pneubayes.simulation.stiction import valve_command_of
 
 #: Relative pressure step of the central difference that gives the chamber's slope J.
 JACOBIAN_STEP = 1e-4
@@ -67,6 +68,7 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     """
     t, u = inputs.time_s, inputs.command_V
     before = _held_before(inputs)
+    u = valve_command_of(u, before, slots)  # (a sticking valve: where it stuck)
     delay = float(slots[S["command_delay_s"]])
     tau = float(slots[S["spool_time_constant_s"]])
     rate = float(slots[S["spool_rate_limit_V_per_s"]])
@@ -156,7 +158,9 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     xdot = np.diff(inputs.position_m) / h  # the position is linear between samples
     spool = spool_at(mid, inputs, sl)
     # the delayed command's direction (its last change's sign) at the midpoints
-    direction = held_direction(mid, t, inputs.command_V, float(sl[S["command_delay_s"]]),
+    direction = held_direction(mid, t, valve_command_of(inputs.command_V,
+                                                        _held_before(inputs), sl),
+                               float(sl[S["command_delay_s"]]),
                                inputs.command_before_start)
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
