@@ -229,7 +229,8 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
 @pytest.mark.parametrize("terms", [f.name for f in cf.FEATURES]
                          + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate",
                             "net_flow*pressure_hinge_down", "inlet_flux*spool_null_hinge",
-                            "net_flux*spool_null_hinge"])
+                            "net_flux*spool_null_hinge", "inlet_flux*inlet_area_hinge",
+                            "exhaust_flux*exhaust_area_hinge"])
 @pytest.mark.parametrize("hconv", [0.0, 30.0])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig):
@@ -244,7 +245,8 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     theta = {"pressure_hinge": 1.5, "spool_hinge_up": 1.5, "spool_hinge_down": 4.5,
              "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2,
              "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05,
-             "inlet_drop_hinge": 3.5, "spool_null_hinge": 4.5}
+             "inlet_drop_hinge": 3.5, "spool_null_hinge": 4.5, "inlet_area_hinge": 0.1,
+             "exhaust_area_hinge": 0.1}
     term = cf.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
@@ -280,12 +282,15 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
 
 # ---------------------------------------------------------------- against the reference
 #: (a threshold where the inlet's drop hinge opens on these inputs: p_s - p < 3 P_atm)
-_SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0}
+_SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0,
+                      "inlet_area_hinge": 0.2, "exhaust_area_hinge": 0.2}
 CASES = [(f.name, {"closure_threshold_0_a": _SINGLE_THRESHOLDS[f.name]}
           if f.name in _SINGLE_THRESHOLDS else {}) for f in cf.FEATURES] + [
     ("inlet_flux*spool_null_hinge; exhaust_flux*spool_null_hinge; net_flux",  # _FLUX_CASE
      {"closure_threshold_0_b": 2.0, "closure_threshold_1_b": 1.0}),
     ("inlet_flow*inlet_drop_hinge", {"closure_threshold_0_b": 2.5}),
+    ("inlet_flux*inlet_area_hinge; exhaust_flux*exhaust_area_hinge",  # ports capped
+     {"closure_threshold_0_b": 0.2, "closure_threshold_1_b": 0.15}),
     ("inlet_flow*pressure_hinge", {"closure_threshold_0_b": 1.8}),
     ("spool_hinge_up*pressure_ratio; spool_hinge_down",
      {"closure_threshold_0_a": -1.0, "closure_threshold_1_a": 0.0}),

@@ -16,7 +16,12 @@ from pneubayes.discovery.openform import (
     missing_mass_flow,
     path_signals,
 )
-from pneubayes.discovery.openform.features import distinct_columns
+from pneubayes.discovery.openform.features import (
+    HINGE_SOURCES,
+    distinct_columns,
+    hinge_partners,
+)
+from pneubayes.effects import closure_features as cf
 from pneubayes.effects.closure_features import SIGNALS, Term, parse_terms
 
 #: White noise on the per-interval target, kg/s (a 500-Pa sensor's one-step error in a
@@ -93,6 +98,12 @@ CASES = {
     # a fixed extra exhaust area of 0.1 mm^2 (a bleed to atmosphere), on a 2.5-bar supply
     # (:data:`SIGNAL_OPTIONS`)
     "exhaust_flux": (Term("exhaust_flux"), 0.0, 0.0, -0.1),
+    # an exhaust capped at 0.1 mm^2 by a restriction in series (a silencer, a needle),
+    # and an inlet capped at 0.15 mm^2 (a fitting)
+    "exhaust_flux*exhaust_area_hinge": (Term("exhaust_flux", "exhaust_area_hinge"), 0.0,
+                                        0.1, 1.0),
+    "inlet_flux*inlet_area_hinge": (Term("inlet_flux", "inlet_area_hinge"), 0.0, 0.15,
+                                    -1.0),
 }
 #: The cases planted on other synthetic signals. The null hinge on a spool that crosses
 #: its null (the synthetic spool spans 0-10 V; on it the null hinge is the spool's down
@@ -135,6 +146,9 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
     if term.b == "spool_null_hinge":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < SPOOL_THRESHOLD_TOL
+    if term.b.endswith("area_hinge"):
+        th = found.threshold_b if found.term.b == term.b else found.threshold_a
+        assert abs(th - tb) < 0.02  # mm^2 (the areas span 0-0.25 mm^2)
     if term.b == "volume_hinge_up":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
@@ -200,9 +214,14 @@ def test_intervals_marked_invalid_are_left_out():
 def test_the_library_is_typed_and_bounded():
     sig = [_signals(0)]
     cands = candidate_terms(sig)
-    # features.py's count at most, and the relaxation's grid (3 ms to 1 s here) four
-    # times over
-    assert 100 < len(cands) <= 873 + 8 * 8
+    # at most: the plain features and their pairs (the flow functions unpaired), each
+    # hinge at 19 quantiles alone and times its partners, and the relaxation's grid
+    # (3 ms to 1 s here) four times over
+    plain = [f.name for f in cf.FEATURES if not f.hinge]
+    paired = [n for n in plain if n != "one" and "flux" not in n]
+    most = (len(plain) + len(paired) * (len(paired) + 1) // 2
+            + sum(19 * (1 + len(hinge_partners(h))) for h in HINGE_SOURCES) + 8 * 8)
+    assert 100 < len(cands) <= most
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
     families = {c.family for c in cands}
@@ -214,9 +233,15 @@ def test_the_library_is_typed_and_bounded():
             "inlet_flux", "exhaust_flux", "net_flux", "inlet_flux*spool_null_hinge",
             "net_flux*spool_null_hinge",
             "exhaust_flux*spool_hinge_down", "pressure_ratio*spool_null_hinge"} <= families
-    # the flow functions enter alone and with the spool's hinges only
+    # the flow functions enter alone, with the spool's hinges, and each with its own
+    # port's area hinge (a cap) only
     assert not any("flux" in f and "spool" not in f for f in families
-                   if f not in ("inlet_flux", "exhaust_flux", "net_flux"))
+                   if f not in ("inlet_flux", "exhaust_flux", "net_flux",
+                                "inlet_flux*inlet_area_hinge",
+                                "exhaust_flux*exhaust_area_hinge"))
+    assert {f for f in families if "area_hinge" in f} <= {
+        "inlet_area_hinge", "exhaust_area_hinge", "inlet_flux*inlet_area_hinge",
+        "exhaust_flux*exhaust_area_hinge"}
     # every hinge carries a threshold inside its signal's range
     p = sig[0]["pressure_Pa"] / sig[0]["atmospheric_pressure_Pa"]
     for hinge in ("pressure_hinge", "pressure_hinge_down"):

@@ -37,9 +37,11 @@ from pneubayes.rig import Rig
 
 #: The largest magnitude each feature typically takes on a rig (its unit): pressure
 #: ratios up to 10, commands within +-10 (a hinge's reach up to 20; the null hinge's up
-#: to 2), port areas up to 5 mm^2, port flows up to 1e-3 kg/s (and per mm^2 of area),
-#: volumes up to 100 cm^3, relative volume rates up to 100 1/s. A coefficient's bound is
-#: :data:`FLOW_BOUND_KG_PER_S` over the product of its features' magnitudes.
+#: to 2), port areas up to 5 mm^2 (an area beyond a cap's threshold 0.5 mm^2, so that a
+#: port's flux times it may take the coefficient +-1 that caps the port), port flows up
+#: to 1e-3 kg/s (and per mm^2 of area), volumes up to 100 cm^3, relative volume rates up
+#: to 100 1/s. A coefficient's bound is :data:`FLOW_BOUND_KG_PER_S` over the product of
+#: its features' magnitudes.
 TYPICAL_MAGNITUDE: dict[str, float] = {
     "one": 1.0, "pressure_ratio": 10.0, "supply_ratio": 10.0, "spool": 10.0,
     "inlet_area": 5.0, "exhaust_area": 5.0, "inlet_flow": 1e-3, "exhaust_flow": 1e-3,
@@ -48,7 +50,8 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "command_direction": 1.0, "pressure_relaxation": 1.0, "volume_hinge_up": 100.0,
     "volume_hinge_down": 100.0, "net_flow_lag": 1e-3, "inlet_drop": 10.0,
     "inlet_drop_hinge": 3.0, "inlet_flux": 1e-3, "exhaust_flux": 1e-3,
-    "spool_null_hinge": 2.0, "net_flux": 1e-3,
+    "spool_null_hinge": 2.0, "net_flux": 1e-3, "inlet_area_hinge": 0.5,
+    "exhaust_area_hinge": 0.5,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
@@ -68,6 +71,8 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "net_flow_lag": (1e-3, 10.0, 0.1, 0.05),
     "inlet_drop_hinge": (0.0, 10.0, 0.5, 0.3),
     "spool_null_hinge": (0.0, 10.0, 1.0, 0.5),
+    "inlet_area_hinge": (0.0, 100.0, 1.0, 0.3),
+    "exhaust_area_hinge": (0.0, 100.0, 1.0, 0.3),
 }
 
 

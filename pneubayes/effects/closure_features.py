@@ -116,6 +116,13 @@ FEATURES: tuple[Feature, ...] = (
             "into the chamber, (f(p_s, p) - f(p, P_atm)) x 1e-6 m^2: with a coefficient in "
             "mm^2 an equal extra area at the inlet and the exhaust (a crossport leak "
             "through the valve, an underlap)"),
+    Feature("inlet_area_hinge", 26, "mm^2", "max(0, a_in / 1e-6 m^2 - theta): the inlet "
+            "area beyond theta; times inlet_flux with c = -1 the inlet passes no more than "
+            "theta (a fixed restriction in series that caps it: a fitting, a needle, a "
+            "narrow tube)", hinge=True),
+    Feature("exhaust_area_hinge", 27, "mm^2", "max(0, a_ex / 1e-6 m^2 - theta): the "
+            "exhaust area beyond theta; times exhaust_flux with c = 1 the exhaust passes "
+            "no more than theta (a silencer, a meter-out needle, a fitting)", hinge=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -294,6 +301,10 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return flux * AREA_SCALE_M2 + 0.0 * p
     if f.code == 24:
         return np.maximum(threshold - np.abs(spool), 0.0)
+    if f.code in (26, 27):
+        area = np.asarray(s["inlet_area_m2" if f.code == 26 else "exhaust_area_m2"],
+                          dtype=np.float64)
+        return np.maximum(area / AREA_SCALE_M2 - threshold, 0.0) + 0.0 * p
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
 
 
@@ -456,6 +467,8 @@ SYMBOLS: dict[str, str] = {
     "inlet_drop": "(|p_s - p| / P_atm)", "inlet_drop_hinge": "max(0, {theta} - |p_s - p| / P_atm)",
     "inlet_flux": "(f(p_s, p) x 1 mm^2)", "exhaust_flux": "(f(p, P_atm) x 1 mm^2)",
     "spool_null_hinge": "max(0, {theta} - |s|)",
+    "inlet_area_hinge": "max(0, a_in / 1 mm^2 - {theta})",
+    "exhaust_area_hinge": "max(0, a_ex / 1 mm^2 - {theta})",
     "net_flux": "((f(p_s, p) - f(p, P_atm)) x 1 mm^2)",
 }
 

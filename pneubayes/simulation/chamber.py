@@ -178,6 +178,12 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         sg = 1.0 if spool >= 0.0 else -1.0
         z = theta - sg * spool
         return (z, 0.0, -sg * dspool) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 26:  # max(0, a_in / 1 mm^2 - theta)
+        z = a_in / _AREA_SCALE - theta
+        return (z, 0.0, da_in / _AREA_SCALE) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 27:
+        z = a_ex / _AREA_SCALE - theta
+        return (z, 0.0, da_ex / _AREA_SCALE) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 18:
         z = theta - vol / _VOLUME_SCALE
         return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0

@@ -8,7 +8,7 @@ of its hinge features. The library (:func:`candidate_terms`) holds
   of the measured ``p / P_atm``, the two spool hinges at quantiles of the spool, the two
   volume hinges at quantiles of the volume (none where it is fixed), the inlet's drop
   hinge at quantiles of ``|p_s - p| / P_atm``, the spool's null hinge at quantiles of
-  ``|s|``;
+  ``|s|``, the port-area hinges at quantiles of their port's area;
 - the products of every pair of non-constant, non-hinge base features (squares
   included: a laminar leak is ``p^2``) but the ports' flow functions, which enter
   alone (an extra port area) and with the spool's hinges only: beside the port flows
@@ -17,7 +17,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 - each hinge (at each of its thresholds) times ``pressure_ratio``, ``inlet_flow`` and
   ``exhaust_flow``, and the spool's three hinges also times the ports' flow functions
   ``inlet_flux``, ``exhaust_flux`` and ``net_flux`` (a port area, or an equal area at
-  both ports, that opens with the spool);
+  both ports, that opens with the spool), but the port-area hinges, which enter times
+  their own port's flow function only (a port capped by a restriction in series);
 - the low-passes ``pressure_relaxation`` and ``net_flow_lag`` at each time constant of a
   fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
   the same three partners (a time constant is its feature's "threshold": a family keeps
@@ -25,9 +26,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the partners above: with the fifteen non-hinge base features besides ``one``
-(twelve paired) and eight hinges that is 1 + 15 + 78 + 152 + 456 + 171 = 873 candidates
-at most, and eight per low-pass time constant. (A coarser grid saves columns but a
+with the partners above: about a thousand candidates at most, and eight per low-pass
+time constant. (A coarser grid saves columns but a
 hinge between its points is then better fitted by a product with a hinge.)
 Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
 is ``one`` again) are dropped by :func:`design_matrix`.
@@ -50,7 +50,8 @@ from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
 HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
                  "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio",
                  "volume_hinge_up": "volume", "volume_hinge_down": "volume",
-                 "inlet_drop_hinge": "inlet_drop", "spool_null_hinge": "spool"}
+                 "inlet_drop_hinge": "inlet_drop", "spool_null_hinge": "spool",
+                 "inlet_area_hinge": "inlet_area", "exhaust_area_hinge": "exhaust_area"}
 #: Hinges whose threshold is compared with their source's magnitude.
 MAGNITUDE_HINGES = frozenset({"spool_null_hinge"})
 #: The time constants (s) a relaxation (``pressure_relaxation``) is tried at, those
@@ -66,6 +67,18 @@ HINGE_PARTNERS = ("pressure_ratio", "inlet_flow", "exhaust_flow")
 #: term is a port area that opens with the spool (an area map's error, an underlap).
 SPOOL_HINGE_PARTNERS = ("inlet_flux", "exhaust_flux", "net_flux")
 SPOOL_HINGES = frozenset({"spool_hinge_up", "spool_hinge_down", "spool_null_hinge"})
+#: The port-area hinges' only partner: their own port's flow function (a port capped
+#: by a restriction in series; with the pressure or the flows they would copy the port
+#: flows' products).
+AREA_HINGE_PARTNERS = {"inlet_area_hinge": ("inlet_flux",),
+                       "exhaust_area_hinge": ("exhaust_flux",)}
+
+
+def hinge_partners(hinge: str) -> tuple[str, ...]:
+    """The features a hinge is multiplied with in the library."""
+    if hinge in AREA_HINGE_PARTNERS:
+        return AREA_HINGE_PARTNERS[hinge]
+    return HINGE_PARTNERS + (SPOOL_HINGE_PARTNERS if hinge in SPOOL_HINGES else ())
 #: The default quantiles of the hinge thresholds.
 DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
 
@@ -191,9 +204,8 @@ def candidate_terms(signals_list: Sequence[dict],
     for hinge, thresholds in grid.items():
         out += [Candidate(Term(hinge), float(th)) for th in thresholds]
     for hinge, thresholds in grid.items():
-        partners = HINGE_PARTNERS + (SPOOL_HINGE_PARTNERS if hinge in SPOOL_HINGES else ())
         out += [Candidate(Term(partner, hinge), 0.0, float(th))
-                for partner in partners for th in thresholds]
+                for partner in hinge_partners(hinge) for th in thresholds]
     return out
 
 

@@ -132,6 +132,11 @@ class OpenFormSearch:
     refine_thresholds, exclude : bool, sequence of str
         Refine the kept hinges' thresholds between their grid neighbours; families left
         out of the library (e.g. ``"inlet_flow*pressure_hinge"``: a search again).
+    alias_cos : float
+        Families whose best columns have a |cosine| above this stand in for each other:
+        when bags split between them, the group's inclusion is the share of bags that
+        chose any of them, and the member that explains most of the target alone stands
+        for the group (:meth:`_aliases`).
 
     Attributes
     ----------
@@ -141,7 +146,8 @@ class OpenFormSearch:
     inclusion_probability_ : dict
         Family -> fraction of bags that selected it.
     evidence_ : dict
-        Family -> ``{"inclusion_probability", "best_label", "selections"}``.
+        Family -> ``{"inclusion_probability", "best_label", "selections"}`` (and
+        ``"aliases"``, the families that stood in for it, with the group's inclusion).
     explained_fraction_ : float
         Fraction of the target's uncentred sum of squares the kept terms explain.
     n_candidates_, n_rows_ : int
@@ -155,7 +161,7 @@ class OpenFormSearch:
                  quantiles: Sequence[float] = DEFAULT_QUANTILES,
                  duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.02,
                  refine_thresholds: bool = True, seed: int = 0,
-                 exclude: Sequence[str] = ()):
+                 exclude: Sequence[str] = (), alias_cos: float = 0.95):
         self.max_terms = max_terms
         self.block = block
         self.optimizer = optimizer
@@ -171,6 +177,7 @@ class OpenFormSearch:
         self.refine_thresholds = refine_thresholds
         self.seed = seed
         self.exclude = exclude
+        self.alias_cos = alias_cos
 
     # ------------------------------------------------------------------ validation
     def _validate(self, signals_list, target_list):
@@ -187,6 +194,8 @@ class OpenFormSearch:
                 raise ValueError(f"{name} must lie in (0, 1), got {v!r}")
         if not 0.0 < self.min_inclusion <= 1.0:
             raise ValueError(f"min_inclusion must lie in (0, 1], got {self.min_inclusion!r}")
+        if not (isinstance(self.alias_cos, (int, float)) and 0.0 < self.alias_cos <= 1.0):
+            raise ValueError(f"alias_cos must lie in (0, 1], got {self.alias_cos!r}")
         if not self.ridge >= 0.0:
             raise ValueError(f"ridge must be >= 0, got {self.ridge!r}")
         if not isinstance(self.n_models, int) or self.n_models < 1:
@@ -360,6 +369,36 @@ class OpenFormSearch:
                     cols[j] = self._rows(sel[j], signals_list, finite)
 
     # ------------------------------------------------------------------ fit
+    def _aliases(self, inclusion: dict, best: dict, hits, fam_of, xs, ys) -> dict:
+        """Family -> its support: its inclusion probability, or, for the member of a
+        group of stand-ins (best columns within :attr:`alias_cos`, none of them supported
+        alone) that explains most of ``ys`` alone, the share of bags that chose any of
+        the group (the others' support 0)."""
+        out = dict(inclusion)
+        weak = [f for f, p in inclusion.items() if 0.0 < p < self.min_inclusion]
+        if len(weak) < 2:
+            return out
+        cols = xs[:, [best[f] for f in weak]]
+        unit = cols / np.linalg.norm(cols, axis=0)
+        close = np.abs(unit.T @ unit) > self.alias_cos
+        group = list(range(len(weak)))  # union-find over the weak families
+        for i, j in zip(*np.nonzero(np.triu(close, 1))):
+            gi, gj = group[i], group[j]
+            group = [gi if g == gj else g for g in group]
+        alone = (unit.T @ ys) ** 2  # each column's explained sum of squares alone
+        for g in set(group):
+            members = [k for k in range(len(weak)) if group[k] == g]
+            if len(members) < 2:
+                continue
+            fams = [weak[k] for k in members]
+            union = float(np.mean(hits[:, np.isin(fam_of, fams)].any(axis=1)))
+            lead = fams[int(np.argmax(alone[members]))]
+            for f in fams:
+                out[f] = union if f == lead else 0.0
+            self.evidence_[lead]["aliases"] = {"families": [f for f in fams if f != lead],
+                                               "group_inclusion": union}
+        return out
+
     def fit(self, signals_list: Sequence[dict], target_list: Sequence[np.ndarray]
             ) -> "OpenFormSearch":
         """Search the terms of the missing mass flow.
@@ -434,9 +473,10 @@ class OpenFormSearch:
                                  "best_label": cands[j].label,
                                  "selections": int(counts[j])}
             best[f] = j
-        supported = sorted((f for f, p in self.inclusion_probability_.items()
-                            if p >= self.min_inclusion),
-                           key=lambda f: (-self.inclusion_probability_[f], -counts[best[f]]))
+        support = self._aliases(dict(self.inclusion_probability_), best, hits, fam_of, xs,
+                                ys)
+        supported = sorted((f for f, p in support.items() if p >= self.min_inclusion),
+                           key=lambda f: (-support[f], -counts[best[f]]))
         sel = [cands[best[f]] for f in supported]
         cols = [x[:, best[f]] for f in supported]
         grid = hinge_thresholds(signals_list, self.quantiles)
@@ -464,7 +504,7 @@ class OpenFormSearch:
         explained = float(fitted @ y)
         self.explained_fraction_ = 1.0 - rss / tss
         found = [FoundTerm(c.term, c.threshold_a, c.threshold_b, float(k),
-                           self.inclusion_probability_[c.family],
+                           support[c.family],
                            float(k * (col @ y) / explained), float(d))
                  for c, k, col, d in zip(sel, coef, cols, drop)]
         self.terms_ = sorted(found, key=lambda t: -t.explained_fraction)
