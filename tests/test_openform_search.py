@@ -368,3 +368,32 @@ def test_the_spool_is_the_command_delayed_and_lagged(rig):
     after = mid - 0.103
     expect = np.where(after > 0, 5.0 - 4.0 * np.exp(-np.maximum(after, 0) / 0.002), 1.0)
     np.testing.assert_allclose(s, expect, rtol=0, atol=1e-9)
+
+
+def test_families_that_stand_in_for_each_other_are_counted_together():
+    """Bags split 55/45 between two near-copies (|cos| 0.99): the group's inclusion is
+    the share of bags that chose either (1.0), the one that explains more of the target
+    alone stands for it, the other gets 0; an unrelated weak family is untouched."""
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=400)
+    b = a + 0.1 * rng.normal(size=400)  # a near copy of a
+    c = rng.normal(size=400)            # unrelated
+    y = a + 0.05 * rng.normal(size=400)
+    xs = np.column_stack([a, b, c])
+    hits = np.zeros((40, 3), dtype=bool)
+    hits[:22, 1] = True  # the copy chosen more often
+    hits[22:, 0] = True
+    hits[:10, 2] = True
+    fam_of = np.array(["a", "b", "c"])
+    s = OpenFormSearch()
+    s.evidence_ = {f: {} for f in fam_of}
+    inclusion = {"a": 0.45, "b": 0.55, "c": 0.25}
+    out = s._aliases(inclusion, {"a": 0, "b": 1, "c": 2}, hits, fam_of, xs, y)
+    assert out == {"a": 1.0, "b": 0.0, "c": 0.25}
+    assert s.evidence_["a"]["aliases"] == {"families": ["b"], "group_inclusion": 1.0}
+    # families that are not copies stay apart
+    out = OpenFormSearch(alias_cos=0.999)._aliases(inclusion, {"a": 0, "b": 1, "c": 2}, hits,
+                                                   fam_of, xs, y)
+    assert out == inclusion
+    with pytest.raises(ValueError, match="alias_cos"):
+        OpenFormSearch(alias_cos=1.5).fit([_signals(0)], [np.zeros(10)])
