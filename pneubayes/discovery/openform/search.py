@@ -116,38 +116,33 @@ class OpenFormSearch:
     optimizer : {"frols", "stlsq", "sr3", "sbr"}
         The sparse regression (pysindy's; SBR needs numpyro).
     threshold, ridge : float
-        STLSQ's and SR3's threshold on coefficients of unit-norm columns for a unit-norm
-        target (a term's share of the target's RMS); ridge weight (STLSQ, FROLS).
+        STLSQ's and SR3's threshold on unit-norm coefficients; ridge (STLSQ, FROLS).
     n_models, chunk_rows, seed : int
         Bagged fits; consecutive rows per bootstrap chunk; the bagging's seed.
     min_inclusion, min_explained_fraction : float
         A family's least inclusion probability to be refitted; a kept term's least share
         of the target's uncentred sum of squares on its own (FROLS stops below it too).
     quantiles, duplicate_tolerance : sequence of float, float
-        Quantiles of the hinge thresholds' grid. A column within this of |cosine| 1 with
-        an earlier, simpler one (singles, products, hinges) is dropped for it.
+        The hinge thresholds' quantiles; a column within this of |cos| 1 of an earlier
+        one is dropped.
     swap_min_gain : float
-        FROLS: a bag's column is swapped for one explaining this share of the residual
-        sum of squares more, or a simpler one explaining at most this less (:meth:`_swap`).
+        FROLS: a bag's column is swapped for a better or simpler one (:meth:`_swap`).
     refine_thresholds, exclude : bool, sequence of str
         Refine the kept hinges' thresholds between their grid neighbours; families left
         out of the library (e.g. ``"inlet_flow*pressure_hinge"``: a search again).
     alias_cos : float
-        Families whose best columns have a |cosine| above this stand in for each other:
-        when bags split between them, the group's inclusion is the share of bags that
-        chose any of them, and the member that explains most of the target alone stands
-        for the group (:meth:`_aliases`).
+        Families whose best columns are within this |cosine| stand in for each other
+        (:meth:`_aliases`).
 
     Attributes
     ----------
     terms_ : list of FoundTerm
-        The kept terms, strongest first; each unpacks as ``(Term, threshold_a,
-        threshold_b, coefficient, inclusion_probability, share)``.
+        The kept terms, strongest first (:class:`FoundTerm`).
     inclusion_probability_ : dict
         Family -> fraction of bags that selected it.
     evidence_ : dict
-        Family -> ``{"inclusion_probability", "best_label", "selections"}`` (and
-        ``"aliases"``, the families that stood in for it, with the group's inclusion).
+        Family -> ``{"inclusion_probability", "best_label", "selections"}`` (and any
+        ``"aliases"``: the families that stood in for it, the group's inclusion).
     explained_fraction_ : float
         Fraction of the target's uncentred sum of squares the kept terms explain.
     n_candidates_, n_rows_ : int
