@@ -128,8 +128,7 @@ class OpenFormSearch:
     swap_min_gain : float
         FROLS: a bag's column is swapped for a better or simpler one (:meth:`_swap`).
     refine_thresholds, exclude : bool, sequence of str
-        Refine the kept hinges' thresholds between their grid neighbours; families left
-        out of the library (e.g. ``"inlet_flow*pressure_hinge"``: a search again).
+        Refine the kept hinges' thresholds; families left out (a search again).
     alias_cos : float
         Families whose best columns are within this |cosine| stand in for each other
         (:meth:`_aliases`).
