@@ -1,7 +1,7 @@
 """Valve stiction (effect ``valve_stiction``): the transform's closed forms, the bench's
 independent SpoolStiction, the simulator against the same model fed the transformed
 command and against the reference solver, mixed batches, the open-form signals, the
-plant's refusal and a planted band recovered through the simulator."""
+bench's plant and a planted band recovered through the simulator."""
 
 from __future__ import annotations
 
@@ -166,7 +166,7 @@ def test_the_open_form_signals_see_the_stuck_spool(rig):
                                   spool_at(times, inputs.with_command(uu), free))
 
 
-def test_lowering_forms_and_the_plants_refusal(rig):
+def test_lowering_forms_and_one_sticking_valve_in_the_plant(rig):
     assert PLAY.parameter_names() == ("stiction_band_V",)
     assert SLIP.parameter_names() == ("stiction_band_V", "stiction_slip_fraction")
     off = Model([SLIP]).lower(Model([SLIP]).as_matrix(valve1_params(
@@ -182,9 +182,25 @@ def test_lowering_forms_and_the_plants_refusal(rig):
         ("play", {"stiction_band_V": 0.3}),
         ("stick_slip", {"stiction_band_V": 0.3, "stiction_slip_fraction": 0.5})]
     inputs = wandering_inputs(7, 50, 1e-3)
-    with pytest.raises(ValueError, match="SpoolStiction"):
-        simulate_plant(valve1_params(stiction_band_V=0.1), [], inputs, rig, 2e5,
-                       PlantConfig.reference(), effects=[PLAY])
+    with pytest.raises(ValueError, match="plant one of them"):
+        simulate_plant(valve1_params(stiction_band_V=0.1), [SpoolStiction(0.1, 0.05)],
+                       inputs, rig, 2e5, PlantConfig.reference(), effects=[PLAY])
+
+
+def test_the_bench_plants_the_catalogue_effect_with_its_own_form(rig):
+    """The bench steps the catalogue's sticking valve with its own SpoolStiction (an
+    independent implementation): its plant agrees with the simulator's model, and a
+    free valve differs far more."""
+    inputs = wandering_inputs(8, 601, 1e-3)
+    params = valve1_params(2e-5, stiction_band_V=0.2, stiction_slip_fraction=0.7)
+    plant = simulate_plant(params, [], inputs, rig, 2e5, PlantConfig.reference(),
+                           effects=[SLIP]).pressure_Pa
+    got = simulate(Model([SLIP]), params, inputs, rig, 2e5,
+                   SolverConfig.standard()).pressure_Pa[0]
+    free = simulate(Model(), valve1_params(2e-5), inputs, rig, 2e5,
+                    SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(got - plant)) <= 2e-3 * RANGE
+    assert np.max(np.abs(free - plant)) > 10 * np.max(np.abs(got - plant))
 
 
 def _sticking_records(rig, model, truth, seed0):

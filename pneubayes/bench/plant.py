@@ -502,6 +502,8 @@ class _Setup:
     atol: np.ndarray
     scale: np.ndarray
     delay_s: float
+    #: the catalogue's sticking valve as the bench's own form (None: a free valve)
+    stiction: "SpoolStiction | None" = None
 
 
 def _lower_catalogue(params: Mapping[str, float], effects: Sequence[Effect], rig: Rig):
@@ -527,9 +529,14 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["spool_rate_limit_V_per_s"]] != 0.0:
         raise ValueError("plant: the catalogue's speed-limited spool_lag is not simulated "
                          "here; plant a SpoolSlewLimit form instead")
-    if sl[SLOT_INDEX["stiction_band_V"]] != 0.0:
-        raise ValueError("plant: the catalogue's valve_stiction is not simulated here; "
-                         "plant a SpoolStiction form instead")
+    stiction = None
+    band = float(sl[SLOT_INDEX["stiction_band_V"]])
+    if band > 0.0:  # the catalogue's sticking valve, stepped by the bench's own form
+        if any(isinstance(f, SpoolStiction) for f in forms):
+            raise ValueError("plant: valve_stiction and a SpoolStiction form both make the "
+                             "valve stick; plant one of them")
+        slip = float(sl[SLOT_INDEX["stiction_slip_fraction"]])
+        stiction = SpoolStiction(breakaway_V=band, stop_V=(1.0 - slip) * band)
     g = rig.gas
     P = np.zeros(N_K)
     P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,
@@ -708,7 +715,7 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         extra[L_IHS] = P[K_PNOM] + P[K_GAIN] * (float(inputs.supply_pressure_Pa[0]) - P[K_PNOM])
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
-                  float(sl[SLOT_INDEX["command_delay_s"]]))
+                  float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
 
 
 def _spline_rows(t: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -781,7 +788,7 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
     forms = check_forms(forms, [e.name for e in effects])
     su = _setup(params, effects, forms, rig, inputs, config)
     t, u = inputs.time_s, inputs.command_V
-    stiction = next((f for f in forms if isinstance(f, SpoolStiction)), None)
+    stiction = su.stiction or next((f for f in forms if isinstance(f, SpoolStiction)), None)
     if stiction is not None and stiction.breakaway_V > 0:  # the valve sees where it sticks
         u = np.asarray(stiction.targets(u), dtype=np.float64)
     xx, ss = _spline_rows(t, inputs.position_m), _spline_rows(t, inputs.supply_pressure_Pa)
