@@ -87,6 +87,7 @@ EFFECT_FORMS = (
     ("tube line, 8 cells", "tube_delay", {"form": "line", "segments": 8}),
     ("tube wave, 8 elements", "tube_delay", {"form": "wave"}),
     ("valve_deadzone", "valve_deadzone", {}),
+    ("valve_stiction", "valve_stiction", {}),
     ("heat_transfer", "heat_transfer", {}),
 )
 
