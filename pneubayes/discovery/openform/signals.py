@@ -45,10 +45,11 @@ def _held_before(inputs: Inputs) -> float:
 def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarray:
     """The spool position at ``times_s`` (increasing, inside the record), command unit.
 
-    The command is held between samples, delayed by slot ``command_delay_s`` (before the
-    first sample: the pre-trigger command, else the first sample's, held since long
-    before) and passed through the spool's lag (slots ``spool_time_constant_s`` with
-    ``spool_rate_limit_V_per_s``, or
+    The command is held between samples, taken as a sticking valve sees it (slots
+    ``stiction_*``, :mod:`pneubayes.simulation.stiction`), delayed by slot
+    ``command_delay_s`` (before the first sample: the pre-trigger command, else the
+    first sample's, held since long before) and passed through the spool's lag (slots
+    ``spool_time_constant_s`` with ``spool_rate_limit_V_per_s``, or
     ``spool_natural_frequency_rad_per_s`` / ``spool_damping``), stepped exactly with
     :func:`~pneubayes.simulation.spool.spool_step` between the delayed command's
     changes, from rest at the command held at the start.
