@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in four sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in five sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -23,7 +23,11 @@ at the cylinder's port, cases ``t00``-``t09``. Set 4 (seed 1796227429, drawn fro
 clock on 2026-12-02 and recorded before any run): a supply hose behind a restriction
 that starves the valve (the supply sensor at the regulator), ports whose discharge falls
 at low Reynolds numbers, a sticking spool, and a pressure sensor whose reading bows off
-its straight line, cases ``q00``-``q09``. Each form is planted
+its straight line, cases ``q00``-``q09``. Set 5 (seed 1796247339, drawn from the clock on
+2026-12-02 and recorded before its forms were written or any case ran): a spool
+returned by its spring slower than its solenoid drives it, a voltage-driven solenoid
+whose coil warms, a pressure sensor behind a capillary, and a length sensor that lags
+the piston, cases ``v00``-``v09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -68,10 +72,12 @@ from pneubayes.bench.bench import ATMOSPHERE_PA, SUPPLY_PA
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    CapillarySensorPort,
     CreepingWall,
     ExhaustSilencer,
     InletFlowForce,
     Iso6358Ports,
+    LaggingPositionSensor,
     LipSealLeak,
     LowReynoldsPorts,
     MeterOutThrottle,
@@ -83,7 +89,9 @@ from pneubayes.bench.forms import (
     SpoolSlewLimit,
     SpoolStiction,
     SpoolUnderlap,
+    SpringReturnSpool,
     SupplyHose,
+    WarmingCoil,
     check_forms,
 )
 from pneubayes.bench.sensors import SensorChain
@@ -103,15 +111,21 @@ OPENFORM_SEED_2 = 1796182831
 OPENFORM_SEED_3 = 1796214872
 #: Set 4's seed: ``date +%s`` at 2026-12-02 16:03:49 UTC, fixed before any case ran.
 OPENFORM_SEED_4 = 1796227429
+#: Set 5's seed: ``date +%s`` at 2026-12-02 21:35:39 UTC, fixed before its forms were
+#: written or any case ran.
+OPENFORM_SEED_5 = 1796247339
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
                  "LipSealLeak"),
              2: ("ExhaustSilencer", "ScoredBarrelLeak", "CreepingWall", "PilotInletValve"),
              3: ("Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap", "MeterOutThrottle"),
-             4: ("SupplyHose", "LowReynoldsPorts", "SpoolStiction", "SensorBow")}
-SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4}
-SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q"}
+             4: ("SupplyHose", "LowReynoldsPorts", "SpoolStiction", "SensorBow"),
+             5: ("SpringReturnSpool", "WarmingCoil", "CapillarySensorPort",
+                 "LaggingPositionSensor")}
+SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
+             5: OPENFORM_SEED_5}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -163,7 +177,14 @@ def draw_openform(name: str, cylinder: str, rng):
     - LowReynoldsPorts (set 4): a critical Reynolds number of 200-2000 (log-uniform);
     - SpoolStiction (set 4): breaking away at 0.05-0.3 V, stopping 0-0.6 x that short;
     - SensorBow (set 4): a 6- or 10-bar (gauge) sensor bowing by 0.1-0.5 % of its span
-      (log-uniform) at mid-range, either sign.
+      (log-uniform) at mid-range, either sign;
+    - SpringReturnSpool (set 5): rising with a 0.3-1.5 ms time constant, falling 2-6 x
+      slower (both log-uniform);
+    - WarmingCoil (set 5): the coil's resistance 3-15 % higher at the full command's
+      steady heat (about 8-40 K), a thermal time constant of 2-20 s (both log-uniform);
+    - CapillarySensorPort (set 5): a lag of 0.5-4 ms at the supply (log-uniform; about
+      5 x it at the atmosphere);
+    - LaggingPositionSensor (set 5): a lag of 2-15 ms (log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -228,6 +249,18 @@ def draw_openform(name: str, cylinder: str, rng):
         span = float(rng.choice([6e5, 1e6]))
         sign = 1.0 if rng.uniform() < 0.5 else -1.0
         return SensorBow(bow_Pa=sign * span * _log_uniform(rng, 1e-3, 5e-3), span_Pa=span)
+    if name == "SpringReturnSpool":
+        rise = _log_uniform(rng, 3e-4, 1.5e-3)
+        return SpringReturnSpool(rise_time_constant_s=rise,
+                                 fall_time_constant_s=rise * _log_uniform(rng, 2.0, 6.0))
+    if name == "WarmingCoil":
+        return WarmingCoil(resistance_rise=_log_uniform(rng, 0.03, 0.15),
+                           time_constant_s=_log_uniform(rng, 2.0, 20.0))
+    if name == "CapillarySensorPort":
+        return CapillarySensorPort(time_constant_s=_log_uniform(rng, 5e-4, 4e-3),
+                                   reference_pressure_Pa=SUPPLY_PA)
+    if name == "LaggingPositionSensor":
+        return LaggingPositionSensor(time_constant_s=_log_uniform(rng, 2e-3, 1.5e-2))
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 

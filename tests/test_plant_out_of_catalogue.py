@@ -13,10 +13,12 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    CapillarySensorPort,
     CreepingWall,
     ExhaustSilencer,
     InletFlowForce,
     Iso6358Ports,
+    LaggingPositionSensor,
     LipSealLeak,
     LowReynoldsPorts,
     MeterOutThrottle,
@@ -28,7 +30,9 @@ from pneubayes.bench.forms import (
     SpoolSlewLimit,
     SpoolStiction,
     SpoolUnderlap,
+    SpringReturnSpool,
     SupplyHose,
+    WarmingCoil,
     catalogue_names_of,
     check_forms,
     form_from_dict,
@@ -97,7 +101,9 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "ScoredBarrelLeak", "CreepingWall", "PilotInletValve",
                                      "Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap",
                                      "MeterOutThrottle", "SupplyHose", "LowReynoldsPorts",
-                                     "SpoolStiction", "SensorBow"}
+                                     "SpoolStiction", "SensorBow", "SpringReturnSpool",
+                                     "WarmingCoil", "CapillarySensorPort",
+                                     "LaggingPositionSensor"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -147,6 +153,15 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (SpoolStiction, {"breakaway_V": 0.1, "stop_V": 0.2}, "stop_V"),
     (SensorBow, {"bow_Pa": float("inf")}, "bow_Pa"),
     (SensorBow, {"bow_Pa": 1e3, "span_Pa": 0.0}, "span_Pa"),
+    (SpringReturnSpool, {"rise_time_constant_s": -1e-3}, "rise_time_constant_s"),
+    (SpringReturnSpool, {"rise_time_constant_s": 1e-3}, "fall_time_constant_s"),
+    (WarmingCoil, {"resistance_rise": float("nan")}, "resistance_rise"),
+    (WarmingCoil, {"resistance_rise": 0.1, "time_constant_s": 0.0}, "time_constant_s"),
+    (WarmingCoil, {"resistance_rise": 0.1, "command_min_V": float("inf")}, "command_min_V"),
+    (CapillarySensorPort, {"time_constant_s": -1.0}, "time_constant_s"),
+    (CapillarySensorPort, {"time_constant_s": 1e-3, "reference_pressure_Pa": 0.0},
+     "reference_pressure_Pa"),
+    (LaggingPositionSensor, {"time_constant_s": float("nan")}, "time_constant_s"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -175,7 +190,8 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     CreepingWall(compliance_m3_per_Pa=0.0), PilotInletValve(min_pressure_difference_Pa=0.0),
     SpoolSlewLimit(slew_rate_V_per_s=0.0), SpoolUnderlap(area_m2=0.0),
     MeterOutThrottle(needle_area_m2=0.0), SupplyHose(restriction_area_m2=0.0),
-    LowReynoldsPorts(critical_reynolds=0.0), SpoolStiction(breakaway_V=0.0)],
+    LowReynoldsPorts(critical_reynolds=0.0), SpoolStiction(breakaway_V=0.0),
+    SpringReturnSpool(rise_time_constant_s=0.0), WarmingCoil(resistance_rise=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -559,3 +575,95 @@ def test_a_bowed_sensor_reads_true_at_its_ends_and_off_at_mid_range(tmp_path):
     a, b = (read_recording(r.recordings[0]) for r in res)
     np.testing.assert_allclose(b.pressure_Pa, bow.read(a.pressure_Pa, P_ATM), atol=5.0)
     assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 500.0
+
+
+# ---------------------------------------------------------------- the fifth set's forms
+def test_a_spring_returned_spool_rises_and_falls_as_first_order_lags_of_its_own(rig):
+    """A rising step sees only the rise time constant, a falling one only the fall's:
+    each is the catalogue's first-order spool lag at that time constant, bit for bit."""
+    from pneubayes.effects import make_effect
+
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    spring = SpringReturnSpool(rise_time_constant_s=5e-4, fall_time_constant_s=3e-3)
+    lag = (make_effect("spool_lag"),)
+    for levels, p0, tau in (((-5.0, 5.0), P_ATM, 5e-4), ((5.0, -5.0), P_SUP - 1e3, 3e-3)):
+        step = _held(0.1, levels, at=(0.0, 0.01))
+        got = _run(params, (spring,), step, rig, p0=p0)
+        first = simulate_plant(dict(params, spool_time_constant_s=tau), (), step, rig, p0,
+                               REF, effects=lag).pressure_Pa
+        np.testing.assert_array_equal(got, first)
+    with pytest.raises(ValueError, match="SpringReturnSpool is the spool's stage"):
+        _run(params, (spring, forms_from_names(["spool_lag"])[0]), _held(0.02, (1.0,)), rig)
+
+
+def test_a_warming_coil_drifts_a_held_valve_to_its_steady_heats_command(rig, base):
+    """A held command on a coil with a short thermal time constant ends where the plain
+    valve does under the command of the coil's steady heat theta* (theta* (1 + k
+    theta*) = d^2, d the drive fraction), not where it does under the command itself."""
+    coil = WarmingCoil(resistance_rise=0.15, time_constant_s=0.02)
+    u = 0.4
+    d = (u - coil.command_min_V) / coil.command_span_V
+    k = coil.resistance_rise
+    theta = (-1.0 + np.sqrt(1.0 + 4.0 * k * d * d)) / (2.0 * k)
+    u_star = coil.command_min_V + (u - coil.command_min_V) / (1.0 + k * theta)
+    held = _held(0.6, (u,))
+    warm = _run(base, (coil,), held, rig, p0=3e5)
+    plain_star = _run(base, (), _held(0.6, (u_star,)), rig, p0=3e5)
+    plain = _run(base, (), held, rig, p0=3e5)
+    assert abs(warm[-1] - plain_star[-1]) < 100.0
+    assert abs(warm[-1] - plain[-1]) > 20 * abs(warm[-1] - plain_star[-1])
+    assert warm[0] == plain[0]  # a cold coil: the plain valve at the start
+
+
+def test_a_capillary_sensor_lags_more_at_low_pressure_and_matches_an_ode_solver():
+    from scipy.integrate import solve_ivp
+
+    cap = CapillarySensorPort(time_constant_s=2e-3, reference_pressure_Pa=P_SUP)
+    t = np.arange(4001) * 1e-5
+    p = 3e5 + 2e5 * np.sin(2 * np.pi * 40.0 * t)
+    c = 1.0 / (2.0 * P_SUP * 2e-3)
+    ref = solve_ivp(lambda tt, r: c * (np.interp(tt, t, p) ** 2 - r ** 2), (0, t[-1]),
+                    [p[0]], t_eval=t, rtol=1e-10, atol=1e-6, max_step=1e-5).y[0]
+    np.testing.assert_allclose(cap.read(t, p), ref, atol=2.0)  # of a 400-kPa swing
+    # a small step's 63 % time: tau near the supply, tau p_ref / p near the atmosphere
+    for level in (P_ATM, P_SUP):
+        t = np.arange(20001) * 1e-5
+        step = np.where(t < 1e-3, level, level * 1.01)
+        r = cap.read(t, step)
+        t63 = t[np.argmax(r - level >= 0.632 * 0.01 * level)] - 1e-3
+        assert t63 == pytest.approx(2e-3 * P_SUP / level, rel=0.03)
+    assert np.array_equal(CapillarySensorPort(0.0).read(t, step), step)
+
+
+def test_a_lagging_length_sensor_trails_a_ramp_by_its_time_constant():
+    lag = LaggingPositionSensor(time_constant_s=5e-3)
+    t = np.arange(2001) * 1e-4
+    x = 0.01 + 0.2 * t  # a ramp at 0.2 m/s from rest
+    y = lag.read(t, x)
+    exact = 0.01 + 0.2 * t - 0.2 * 5e-3 * (1.0 - np.exp(-t / 5e-3))
+    np.testing.assert_allclose(y, exact, atol=1e-12)
+    assert y[-1] == pytest.approx(x[-1] - 1e-3, abs=1e-7)  # A tau dx/dt behind
+    assert np.array_equal(LaggingPositionSensor(0.0).read(t, x), x)
+
+
+def test_the_bench_reads_through_a_capillary_and_a_lagging_length_sensor(tmp_path):
+    """Noise-free recordings with the two reading-side forms: the pressure is the plain
+    recording's read through the capillary, the position the plain one's lagged (on the
+    recordings' own 1-kHz grid, so to a tolerance); the chamber itself is unchanged."""
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.io import read_recording
+
+    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    cap, lag = CapillarySensorPort(time_constant_s=3e-3), LaggingPositionSensor(8e-3)
+    kw = dict(protocol="moving", duration_s=1.0, count=1, sensor=quiet,
+              forms=(SupplyHose(restriction_area_m2=0.0),))
+    res = [run_bench(BenchConfig("SMC", "valve2", **kw), tmp_path / "a"),
+           run_bench(BenchConfig("SMC", "valve2", **dict(kw, forms=(cap, lag))),
+                     tmp_path / "b")]
+    a, b = (read_recording(r.recordings[0]) for r in res)
+    span = np.ptp(a.pressure_Pa)
+    assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 0.05 * span
+    np.testing.assert_allclose(b.pressure_Pa, cap.read(a.time_s, a.pressure_Pa),
+                               atol=0.01 * span)
+    assert np.max(np.abs(b.position_m - a.position_m)) > 5e-4
+    np.testing.assert_allclose(b.position_m, lag.read(a.time_s, a.position_m), atol=2e-5)

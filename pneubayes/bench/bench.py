@@ -31,6 +31,8 @@ import pneubayes
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.forms import (
     AcousticTube,
+    CapillarySensorPort,
+    LaggingPositionSensor,
     PlantForm,
     SensorBow,
     catalogue_names_of,
@@ -209,6 +211,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         else:
             p_true = simulate(model, {**truth, **calibration_neutral}, inputs, rig,
                               ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
+        for form in cfg.forms:  # a sensor behind a capillary reads its cavity
+            if isinstance(form, CapillarySensorPort):
+                p_true = form.read(t_fine, p_true)
         for form in cfg.forms:  # a bowed sensor reads the pressure off its line
             if isinstance(form, SensorBow):
                 p_true = form.read(p_true, ATMOSPHERE_PA)
@@ -227,6 +232,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
                    "command_range_V": plan["range_V"]})
         pos = None
         if plan["position_m"] is None:
+            for form in cfg.forms:  # a lagging length sensor reads behind the piston
+                if isinstance(form, LaggingPositionSensor):
+                    x_fine = form.read(t_fine, x_fine)
             pos = np.clip(s.measure(t_fine, x_fine, t_out, s.position_noise_m, rng), 0.0,
                           cyl.stroke_m)
         # Logged at the ADC/DAC resolution: 0.1 Pa, 0.1 um, 0.1 mV.

@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import ClassVar
 
 import numpy as np
+from scipy import signal
 
 from pneubayes.effects import CATALOGUE
 from pneubayes.physics.cylinder import cylinder_preset
@@ -742,6 +743,151 @@ class SensorBow(PlantForm):
         return p + self.bow_Pa * 4.0 * x * (1.0 - x)
 
 
+
+@dataclass(frozen=True)
+class SpringReturnSpool(PlantForm):
+    """A single-solenoid spool returned by its spring: it moves up (towards a larger
+    command, the solenoid pulling) with one time constant and down (the spring
+    returning it against the spool's friction) with another::
+
+        ds/dt = (u - s) / tau_up    if u > s,
+        ds/dt = (u - s) / tau_down  otherwise,
+
+    s the spool position (V of command). Unlike the catalogue's linear spool lags the
+    response depends on the direction of travel: a square wave's mean position shifts
+    towards the faster side. ``rise_time_constant_s = 0`` (with the fall 0 too) is a
+    free spool (the state is omitted); it replaces the catalogue's spool stages and
+    cannot be planted beside them.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    rise_time_constant_s: float
+    fall_time_constant_s: float = 0.0
+
+    def __post_init__(self):
+        _non_negative(self, "rise_time_constant_s", "fall_time_constant_s")
+        if (self.rise_time_constant_s > 0) != (self.fall_time_constant_s > 0):
+            raise ValueError("SpringReturnSpool.fall_time_constant_s must be > 0 exactly "
+                             "when rise_time_constant_s is (both 0: a free spool), got "
+                             f"{self.fall_time_constant_s!r}")
+
+
+@dataclass(frozen=True)
+class WarmingCoil(PlantForm):
+    """A voltage-driven proportional solenoid whose coil warms as it works: its
+    resistance rises with its temperature (copper: +0.39 %/K), so the same command
+    drives less current and the spool sits nearer its zero-current end.
+
+    The command u (V) drives the coil from ``command_min_V`` (no current) over
+    ``command_span_V``; with the coil's heat theta (1: the steady heat of the full
+    command on a cold coil) the valve acts on::
+
+        u_eff = u_min + (u - u_min) / (1 + k theta),
+        dtheta/dt = (((u - u_min) / span)^2 / (1 + k theta) - theta) / tau_th,
+
+    ``k = resistance_rise`` (the resistance's fractional rise at theta = 1) and
+    ``tau_th = time_constant_s`` the coil's thermal time constant. A recording starts
+    with a cold coil; a held command drifts the spool's position over seconds (at the
+    null the coil still carries half its current). ``resistance_rise = 0`` is a coil at
+    constant resistance (the state is omitted).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    resistance_rise: float
+    time_constant_s: float = 5.0
+    command_min_V: float = -5.0
+    command_span_V: float = 10.0
+
+    def __post_init__(self):
+        _non_negative(self, "resistance_rise")
+        _positive(self, "time_constant_s", "command_span_V")
+        if isinstance(self.command_min_V, bool) or not isinstance(
+                self.command_min_V, (int, float)) or not math.isfinite(self.command_min_V):
+            raise ValueError(f"WarmingCoil.command_min_V must be a finite number, got "
+                             f"{self.command_min_V!r}")
+
+
+@dataclass(frozen=True)
+class CapillarySensorPort(PlantForm):
+    """A pressure sensor that reads the chamber through a capillary (a snubber, a thin
+    sensing line into a small cavity in front of the membrane).
+
+    Isothermal laminar (Poiseuille) flow of a gas through the capillary is
+    proportional to the difference of the squared pressures, so the cavity's
+    pressure r, which the sensor reads, follows the chamber's p as::
+
+        dr/dt = c (p^2 - r^2),   c = 1 / (2 p_ref tau_ref),
+
+    (c = pi d^4 / (256 mu L V) for a capillary of bore d and length L into a cavity
+    V): a lag of ``tau_ref = time_constant_s`` near ``p_ref = reference_pressure_Pa``
+    (the supply), ``tau_ref p_ref / p`` near a pressure p (about 5 x slower at the
+    atmosphere), and faster filling than emptying. ``time_constant_s = 0`` reads the
+    chamber directly.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    time_constant_s: float
+    reference_pressure_Pa: float = 551_325.0
+
+    def __post_init__(self):
+        _non_negative(self, "time_constant_s")
+        _positive(self, "reference_pressure_Pa")
+
+    def read(self, time_s, pressure_Pa):
+        """The cavity's pressure (Pa) on a uniform grid ``time_s`` (s), starting at rest
+        at the chamber's first pressure: exact for the pressure held at each step's mean
+        (the Riccati equation's closed form)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if self.time_constant_s == 0.0 or p.size < 2:
+            return p.copy()
+        if not np.all(p > 0):
+            raise ValueError("CapillarySensorPort.read: pressures must be > 0 (absolute)")
+        c = 1.0 / (2.0 * self.reference_pressure_Pa * self.time_constant_s)
+        mid = 0.5 * (p[1:] + p[:-1])
+        decay = np.exp(-2.0 * c * mid * np.diff(t))
+        out = np.empty_like(p)
+        r = out[0] = p[0]
+        for i in range(mid.size):
+            m = mid[i]
+            z = (r - m) / (r + m) * decay[i]
+            r = out[i + 1] = m * (1.0 + z) / (1.0 - z)
+        return out
+
+
+@dataclass(frozen=True)
+class LaggingPositionSensor(PlantForm):
+    """A length sensor whose reading lags the piston: an analog position transducer
+    behind an RC filter (or a draw-wire sensor's drum), a first-order lag::
+
+        dx_r/dt = (x - x_r) / tau,
+
+    recorded instead of the piston's position x. The chamber's volume the recording
+    implies then trails the true one by about ``A tau dx/dt``. ``time_constant_s = 0``
+    reads the piston directly.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    time_constant_s: float
+
+    def __post_init__(self):
+        _non_negative(self, "time_constant_s")
+
+    def read(self, time_s, position_m):
+        """The lagged reading (m) on a uniform grid ``time_s`` (s), at rest at the first
+        position (exact for a position linear between the grid points)."""
+        x = np.asarray(position_m, dtype=np.float64)
+        if self.time_constant_s == 0.0 or x.size < 2:
+            return x.copy()
+        dt = float(time_s[1] - time_s[0])
+        a = math.exp(-dt / self.time_constant_s)
+        # x linear over a step: y1 = a y0 + (1 - g) x1 + (g - a) x0, g = tau (1 - a) / dt
+        g = self.time_constant_s / dt * (1.0 - a)
+        b = np.array([1.0 - g, g - a])
+        zi = signal.lfiltic(b, [1.0, -a], y=[x[0]], x=[x[0]])
+        y, _ = signal.lfilter(b, [1.0, -a], x, zi=zi)
+        return y
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
@@ -749,7 +895,9 @@ FORMS: dict[str, type[PlantForm]] = {
                                   ExhaustSilencer, ScoredBarrelLeak, CreepingWall,
                                   PilotInletValve, Iso6358Ports, SpoolSlewLimit,
                                   SpoolUnderlap, MeterOutThrottle, SupplyHose,
-                                  LowReynoldsPorts, SpoolStiction, SensorBow)
+                                  LowReynoldsPorts, SpoolStiction, SensorBow,
+                                  SpringReturnSpool, WarmingCoil, CapillarySensorPort,
+                                  LaggingPositionSensor)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -885,7 +1033,12 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
       50 cm^3 hose (2.5 m of 5 mm);
     - ``LowReynoldsPorts``: critical Reynolds number 500;
     - ``SpoolStiction``: breaks away 0.15 V from where it stuck, stops 0.05 V short;
-    - ``SensorBow``: +3 kPa at mid-range of a 10-bar (gauge) sensor.
+    - ``SensorBow``: +3 kPa at mid-range of a 10-bar (gauge) sensor;
+    - ``SpringReturnSpool``: 0.6 ms up, 2.4 ms down;
+    - ``WarmingCoil``: the resistance 8 % higher at the full command's steady heat
+      (about 20 K), a 5 s thermal time constant;
+    - ``CapillarySensorPort``: 2 ms at the supply (about 11 ms at the atmosphere);
+    - ``LaggingPositionSensor``: a 5 ms lag.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -930,5 +1083,13 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return SpoolStiction(breakaway_V=0.15, stop_V=0.05)
     if name == "SensorBow":
         return SensorBow(bow_Pa=3000.0, span_Pa=1.0e6)
+    if name == "SpringReturnSpool":
+        return SpringReturnSpool(rise_time_constant_s=6e-4, fall_time_constant_s=2.4e-3)
+    if name == "WarmingCoil":
+        return WarmingCoil(resistance_rise=0.08, time_constant_s=5.0)
+    if name == "CapillarySensorPort":
+        return CapillarySensorPort(time_constant_s=2e-3)
+    if name == "LaggingPositionSensor":
+        return LaggingPositionSensor(time_constant_s=5e-3)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

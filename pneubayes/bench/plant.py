@@ -12,11 +12,14 @@ regulator droop, the acoustic tube's cell pressures and mass flows, a spool's pl
 silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting and a
 supply hose's pressure (:mod:`pneubayes.bench.forms` documents each form's equations).
 A sticking spool (SpoolStiction) changes the command the valve sees; a bowed sensor
-(SensorBow) acts on the reading, which the bench applies to the plant's pressure.
+(SensorBow) and a sensor behind a capillary (CapillarySensorPort) act on the pressure
+reading and a lagging length sensor (LaggingPositionSensor) on the position's, which
+the bench applies to the plant's pressure and the piston's position.
 The out-of-catalogue forms (a compliant bladder volume, spool play, a relief valve,
 inlet flow forces, a lip-seal leak; an exhaust silencer, a scored barrel, a creeping
 wall, a pilot-operated inlet; ISO 6358 ports, a slew-limited or underlapped spool, a
-meter-out throttle; a supply hose, ports with viscous losses) act in the same
+meter-out throttle; a supply hose, ports with viscous losses; a spring-returned spool,
+a warming solenoid coil) act in the same
 right-hand side; at zero strength each leaves it as it was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
@@ -72,8 +75,10 @@ from pneubayes.bench.forms import (
     SpoolSlewLimit,
     SpoolStiction,
     SpoolUnderlap,
+    SpringReturnSpool,
     SupplyHose,
     WallHeatTransfer,
+    WarmingCoil,
     check_forms,
 )
 from pneubayes.effects import Effect
@@ -114,14 +119,19 @@ K_MO_N, K_MO_C, K_MO_P, K_MO_V = 68, 69, 70, 71
 # command and on the reading, outside the right-hand side)
 K_SH_A, K_SH_V = 72, 73
 K_RE_C, K_RE_MU = 74, 75
-N_K = 76
+# the fifth blind set's forms (all 0: absent; CapillarySensorPort and
+# LaggingPositionSensor act on the readings, outside the right-hand side)
+K_SR_UP, K_SR_DN = 76, 77
+K_WC_K, K_WC_TAU, K_WC_MIN, K_WC_SPAN = 78, 79, 80, 81
+N_K = 82
 #: Below this drop (Pa) a MeterOutThrottle's flow is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
 # Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
-# order, 2 second order, 3 slew-limited (SpoolSlewLimit).
+# order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
+# (SpringReturnSpool).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS) = range(18)
-N_L = 18
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW) = range(19)
+N_L = 19
 
 
 @njit(cache=True)
@@ -204,6 +214,12 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     alpha, beta, theta = P[K_ALPHA], P[K_BETA], P[K_THETA]
     for i in range(y.shape[0]):
         dy[i] = 0.0
+    if L[L_IW] >= 0:  # a warming coil: less current for the same command
+        heat_w = y[L[L_IW]]
+        drive = (u - P[K_WC_MIN]) / P[K_WC_SPAN]
+        rise = 1.0 + P[K_WC_K] * heat_w
+        dy[L[L_IW]] = (drive * drive / rise - heat_w) / P[K_WC_TAU]
+        u = P[K_WC_MIN] + (u - P[K_WC_MIN]) / rise
     # command -> spool
     mode = L[L_SPOOL]
     if mode == 0:
@@ -217,10 +233,13 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         wn = P[K_WN]
         dy[L[L_IS]] = v
         dy[L[L_ISV]] = wn * wn * (u - s) - 2.0 * P[K_ZETA] * wn * v
-    else:  # a rate-limited spool (SpoolSlewLimit)
+    elif mode == 3:  # a rate-limited spool (SpoolSlewLimit)
         s = y[L[L_IS]]
         r = P[K_SL_R]
         dy[L[L_IS]] = r * math.tanh((u - s) / (P[K_SL_TAU] * r))
+    else:  # a spring-returned spool (SpringReturnSpool): up and down at their own rates
+        s = y[L[L_IS]]
+        dy[L[L_IS]] = (u - s) / (P[K_SR_UP] if u > s else P[K_SR_DN])
     if L[L_IH] >= 0:  # spool play (SpoolHysteresis): held inside the band
         sh = y[L[L_IH]]
         band = P[K_HY_B]
@@ -624,6 +643,18 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
             raise ValueError("plant: SpoolSlewLimit is the spool's stage; it cannot be "
                              "planted beside a spool_lag effect or a SecondOrderSpool")
         P[K_SL_R], P[K_SL_TAU], L[L_SPOOL] = slew.slew_rate_V_per_s, slew.time_constant_s, 3
+    spring = by.get(SpringReturnSpool)
+    if spring is not None and spring.rise_time_constant_s > 0:
+        if L[L_SPOOL] != 0:
+            raise ValueError("plant: SpringReturnSpool is the spool's stage; it cannot be "
+                             "planted beside a spool_lag effect, a SecondOrderSpool or a "
+                             "SpoolSlewLimit")
+        P[K_SR_UP], P[K_SR_DN] = spring.rise_time_constant_s, spring.fall_time_constant_s
+        L[L_SPOOL] = 4
+    coil = by.get(WarmingCoil)
+    if coil is not None and coil.resistance_rise > 0:
+        P[K_WC_K], P[K_WC_TAU] = coil.resistance_rise, coil.time_constant_s
+        P[K_WC_MIN], P[K_WC_SPAN] = coil.command_min_V, coil.command_span_V
     under = by.get(SpoolUnderlap)
     if under is not None and under.area_m2 > 0:
         P[K_UL_A], P[K_UL_W] = under.area_m2, under.width_V
@@ -713,6 +744,12 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         atol.append(cfg.atol_Pa)
         scale.append(1e5)
         extra[L_IHS] = P[K_PNOM] + P[K_GAIN] * (float(inputs.supply_pressure_Pa[0]) - P[K_PNOM])
+    if P[K_WC_K] > 0:  # the coil's heat, from cold
+        L[L_IW] = n
+        n += 1
+        atol.append(cfg.atol_V)
+        scale.append(1.0)
+        extra[L_IW] = 0.0
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
