@@ -425,8 +425,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="results folder (cases cached there)")
     ap.add_argument("--set", type=int, choices=sorted(SET_FORMS), default=1, dest="blind_set",
-                    help="the blind set: 1 (seed 69069, run 2026-12-01), 2 (seed "
-                         f"{OPENFORM_SEED_2}) or 3 (seed {OPENFORM_SEED_3}); default 1")
+                    help="the blind set, 1-5, each with its recorded seed ("
+                         + ", ".join(f"{k}: {v}" for k, v in SET_SEEDS.items())
+                         + "); default 1")
     ap.add_argument("--seed", type=int, default=None,
                     help="the draw's seed (default: the set's, SET_SEEDS)")
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per recording")
