@@ -176,6 +176,13 @@ class Effect(Component):
     #: (the loop then proposes no line form beside it).
     beside_line: ClassVar[bool] = True
 
+    def _check(self):
+        """Raise ValueError unless the effect's options are valid: its ``form`` one of
+        :attr:`forms` (an effect with more options extends this)."""
+        if self.forms and getattr(self, "form", None) not in self.forms:
+            raise ValueError(f"{self.name}: form must be one of {self.forms}, got "
+                             f"{getattr(self, 'form', None)!r}")
+
     def reading_lead_parameter(self) -> str | None:
         """The parameter that is a lagged reading's group delay at DC, s (how far the
         chamber leads the reading), for an effect that lags the reading; None (the

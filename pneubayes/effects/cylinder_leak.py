@@ -62,9 +62,6 @@ class CylinderLeak(Effect):
     def __init__(self, form: str = "orifice"):
         self.form = form
 
-    def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"cylinder_leak: form must be one of {_FORMS}, got {self.form!r}")
 
     def options(self):
         return {"form": self.form}

@@ -60,9 +60,6 @@ class HeatTransfer(Effect):
     def __init__(self, form: str = "rate"):
         self.form = form
 
-    def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"heat_transfer: form must be one of {_FORMS}, got {self.form!r}")
 
     def options(self):
         return {"form": self.form}

@@ -61,10 +61,6 @@ class SensorCalibration(Effect):
     def __init__(self, form: str = "offset"):
         self.form = form
 
-    def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"sensor_calibration: form must be one of {_FORMS}, got "
-                             f"{self.form!r}")
 
     def options(self):
         return {"form": self.form}

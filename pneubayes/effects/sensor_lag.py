@@ -62,8 +62,7 @@ class SensorLag(Effect):
         self.channels = channels
 
     def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"sensor_lag: form must be one of {_FORMS}, got {self.form!r}")
+        super()._check()
         if self.channels not in _CHANNELS:
             raise ValueError(f"sensor_lag: channels must be one of {_CHANNELS}, got "
                              f"{self.channels!r}")

@@ -52,9 +52,6 @@ class SpoolLag(Effect):
     def __init__(self, form: str = "first_order"):
         self.form = form
 
-    def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"spool_lag: form must be one of {_FORMS}, got {self.form!r}")
 
     def options(self):
         return {"form": self.form}

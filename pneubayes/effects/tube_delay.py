@@ -74,8 +74,7 @@ class TubeDelay(Effect):
         self.segments = segments if segments != 0 else (8 if form == "wave" else 3)
 
     def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"tube_delay: form must be one of {_FORMS}, got {self.form!r}")
+        super()._check()
         if not (self.tube_diameter_m > 0 and self.air_viscosity_Pa_s > 0):
             raise ValueError("tube_delay: tube_diameter_m and air_viscosity_Pa_s must be > 0")
         most = WAVE_MAX_SEGMENTS if self.form == "wave" else LINE_MAX_SEGMENTS

@@ -40,10 +40,6 @@ class ValveDeadzone(Effect):
     def __init__(self, form: str = "hard"):
         self.form = form
 
-    def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"valve_deadzone: form must be one of {_FORMS}, got "
-                             f"{self.form!r}")
 
     def options(self):
         # (the default form is left out: cards written before the option read alike)

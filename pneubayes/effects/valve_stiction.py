@@ -45,10 +45,6 @@ class ValveStiction(Effect):
     def __init__(self, form: str = "play"):
         self.form = form
 
-    def _check(self):
-        if self.form not in _FORMS:
-            raise ValueError(f"valve_stiction: form must be one of {_FORMS}, got "
-                             f"{self.form!r}")
 
     def options(self):
         self._check()
