@@ -139,7 +139,8 @@ def test_the_first_order_candidate_also_offers_the_second_order(rig):
         ("first_order", {"spool_time_constant_s": 0.004}),
         ("second_order", {"spool_delay_s": 0.004, "spool_damping": 0.7}),
         ("rate_limited", {"spool_time_constant_s": 0.004,
-                          "spool_rate_limit_V_per_s": START_RATE})]
+                          "spool_rate_limit_V_per_s": START_RATE}),
+        ("asymmetric", {"spool_time_constant_s": 0.004, "spool_fall_time_constant_s": 0.004})]
     assert SECOND.candidate_forms(ctx)[0][0] is SECOND
 
 
@@ -164,12 +165,12 @@ def test_the_speed_limited_lag_is_its_ode_integrated(s0, cmd, h):
         k3 = f(s + 0.5 * dt * k2)
         k4 = f(s + dt * k3)
         s += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    got, rate = first_order_lag(s0, cmd, h, tau, r)
+    got, rate = first_order_lag(s0, cmd, h, tau, r, 0.0)
     assert got == pytest.approx(s, abs=1e-9)
     assert rate == pytest.approx(f(got), abs=1e-6)
     # a step under r tau (1.6 V) is the plain lag's
     if abs(cmd - s0) <= r * tau:
-        assert got == pytest.approx(spool_step(s0, 0.0, cmd, h, tau, 0.0, 0.0, 0.0)[0],
+        assert got == pytest.approx(spool_step(s0, 0.0, cmd, h, tau, 0.0, 0.0, 0.0, 0.0)[0],
                                     abs=1e-12)
 
 
@@ -216,6 +217,70 @@ def test_the_speed_limited_spool_agrees_with_the_reference_and_is_slower(rig):
     # windows that start 3 ms after a command step: mid-ramp
     changes = np.nonzero(np.diff(inputs.command_V))[0] + 1
     starts = np.concatenate(([0], changes[changes < 240][:4] + 3))
+    length = 50
+    win = simulate_windows(model, params, inputs, rig, starts, length, got[starts], TIGHT)[0]
+    assert np.max(np.abs(win - np.stack([got[i:i + length] for i in starts]))) <= 1e-4 * RANGE
+
+
+# ---------------------------------------------------------------- the asymmetric spool
+ASYM = make_effect("spool_lag", form="asymmetric")
+
+
+def test_the_asymmetric_lag_rises_and_falls_with_its_own_time_constants():
+    """Closed form: a rise from s0 below the command is the first-order lag of tau, a
+    fall of tau_down; equal time constants are the first-order lag bit for bit; a time
+    constant of 0 in the spool's direction jumps onto the command."""
+    tau, tau_dn, h = 0.001, 0.004, 0.003
+    assert first_order_lag(-2.0, 3.0, h, tau, 0.0, tau_dn)[0] == pytest.approx(
+        3.0 - 5.0 * np.exp(-h / tau), abs=1e-14)
+    assert first_order_lag(3.0, -2.0, h, tau, 0.0, tau_dn)[0] == pytest.approx(
+        -2.0 + 5.0 * np.exp(-h / tau_dn), abs=1e-14)
+    for s0, cmd in ((-2.0, 3.0), (3.0, -2.0)):
+        assert first_order_lag(s0, cmd, h, tau, 0.0, tau)[0] == \
+            first_order_lag(s0, cmd, h, tau, 0.0, 0.0)[0]
+    assert first_order_lag(-2.0, 3.0, h, 0.0, 0.0, tau_dn) == (3.0, 0.0)
+    assert spool_step(3.0, 0.0, -2.0, h, 0.0, 0.0, 0.0, 0.0, tau_dn)[0] == pytest.approx(
+        -2.0 + 5.0 * np.exp(-h / tau_dn), abs=1e-14)
+
+
+def test_the_asymmetric_spool_lowers_and_equal_time_constants_are_the_first_order(rig):
+    from pneubayes.effects.path import SLOT_INDEX as S
+
+    model = Model([ASYM])
+    assert model.parameter_names[-2:] == ("spool_time_constant_s", "spool_fall_time_constant_s")
+    slots = model.lower(model.as_matrix(valve1_params(spool_time_constant_s=0.001,
+                                                      spool_fall_time_constant_s=0.004)), None)
+    assert slots[0, S["spool_fall_time_constant_s"]] == 0.004
+    inputs = moving_step_inputs(3, 201, 1e-3, hold_s=(0.01, 0.05))
+    first = simulate(Model(["spool_lag"]), valve1_params(spool_time_constant_s=0.003), inputs,
+                     rig, 2e5, SolverConfig.standard())
+    same = simulate(model, valve1_params(spool_time_constant_s=0.003,
+                                         spool_fall_time_constant_s=0.003),
+                    inputs, rig, 2e5, SolverConfig.standard())
+    assert np.array_equal(first.pressure_Pa, same.pressure_Pa)
+
+
+def test_the_asymmetric_spool_agrees_with_the_reference_and_the_plant(rig):
+    """The compiled integrator against the reference solver's spool ODE and against the
+    bench plant's own spring-returned spool (the catalogue effect planted); windows
+    mid-recording start from the spool's history; the asymmetry moves the pressure by
+    far more than the disagreements."""
+    inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.02, 0.06))
+    params = valve1_params(2e-5, spool_time_constant_s=0.001, spool_fall_time_constant_s=0.005)
+    model = Model([ASYM])
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    got = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    plant = simulate_plant(params, [], inputs, rig, 2e5,
+                           PlantConfig("LSODA", 1e-9, 0.01, 1e-6, 1e-9, 0.005),
+                           effects=[ASYM]).pressure_Pa
+    first = simulate(Model(["spool_lag"]), valve1_params(2e-5, spool_time_constant_s=0.001),
+                     inputs, rig, 2e5, TIGHT).pressure_Pa[0]
+    err, err_plant = np.max(np.abs(got - ref)), np.max(np.abs(got - plant))
+    assert err <= 1e-4 * RANGE
+    assert err_plant <= 1e-4 * RANGE
+    assert np.max(np.abs(first - ref)) > 100 * err
+    changes = np.nonzero(np.diff(inputs.command_V))[0] + 1
+    starts = np.concatenate(([0], changes[changes < 240][:4] + 2))
     length = 50
     win = simulate_windows(model, params, inputs, rig, starts, length, got[starts], TIGHT)[0]
     assert np.max(np.abs(win - np.stack([got[i:i + length] for i in starts]))) <= 1e-4 * RANGE

@@ -548,6 +548,10 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["spool_rate_limit_V_per_s"]] != 0.0:
         raise ValueError("plant: the catalogue's speed-limited spool_lag is not simulated "
                          "here; plant a SpoolSlewLimit form instead")
+    fall = float(sl[SLOT_INDEX["spool_fall_time_constant_s"]])
+    if fall > 0.0 and not sl[SLOT_INDEX["spool_time_constant_s"]] > 0.0:
+        raise ValueError("plant: the catalogue's asymmetric spool_lag needs a rise time "
+                         "constant > 0 beside its fall's")
     stiction = None
     band = float(sl[SLOT_INDEX["stiction_band_V"]])
     if band > 0.0:  # the catalogue's sticking valve, stepped by the bench's own form
@@ -580,6 +584,8 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         P[K_WN], P[K_ZETA] = (sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]],
                               sl[SLOT_INDEX["spool_damping"]])
         L[L_SPOOL] = 2
+    if fall > 0.0:  # the catalogue's asymmetric spool, stepped as the plant's own
+        P[K_SR_UP], P[K_SR_DN], L[L_SPOOL] = P[K_TAU], fall, 4
     L[L_HEAT] = 1 if P[K_HEAT] > 0 else 0
     by = {type(f): f for f in forms}
     if RoundedDeadzone in by:

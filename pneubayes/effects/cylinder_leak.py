@@ -62,7 +62,6 @@ class CylinderLeak(Effect):
     def __init__(self, form: str = "orifice"):
         self.form = form
 
-
     def options(self):
         return {"form": self.form}
 

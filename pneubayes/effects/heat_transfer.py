@@ -60,7 +60,6 @@ class HeatTransfer(Effect):
     def __init__(self, form: str = "rate"):
         self.form = form
 
-
     def options(self):
         return {"form": self.form}
 

@@ -175,6 +175,12 @@ SLOTS += (
      "of the command (play, backlash), 1 jumps onto it (-)"),
 )
 
+SLOTS += (
+    ("spool_fall_time_constant_s", "the first-order spool's time constant while the "
+     "command is below it (falling; a spring returning a single-solenoid spool); 0 = the "
+     "rise's, spool_time_constant_s (s)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -61,7 +61,6 @@ class SensorCalibration(Effect):
     def __init__(self, form: str = "offset"):
         self.form = form
 
-
     def options(self):
         return {"form": self.form}
 

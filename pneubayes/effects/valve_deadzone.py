@@ -40,7 +40,6 @@ class ValveDeadzone(Effect):
     def __init__(self, form: str = "hard"):
         self.form = form
 
-
     def options(self):
         # (the default form is left out: cards written before the option read alike)
         self._check()

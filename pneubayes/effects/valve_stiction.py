@@ -45,7 +45,6 @@ class ValveStiction(Effect):
     def __init__(self, form: str = "play"):
         self.form = form
 
-
     def options(self):
         self._check()
         return {"form": self.form}

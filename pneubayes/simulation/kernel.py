@@ -164,6 +164,7 @@ _VOL = SLOT_INDEX["volume_m3"]
 _DELAY = SLOT_INDEX["command_delay_s"]
 _SPOOL = SLOT_INDEX["spool_time_constant_s"]
 _SPOOL_RATE = SLOT_INDEX["spool_rate_limit_V_per_s"]
+_SPOOL_FALL = SLOT_INDEX["spool_fall_time_constant_s"]
 _SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
 _SPOOL_Z = SLOT_INDEX["spool_damping"]
 _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
@@ -341,11 +342,12 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     max_steps = (length - 1) + int(sv[S_MAX_STEPS_PER_S] * (t[i0 + length - 1] - t[i0]))
     delay, tau_s, dead = sl[_DELAY], sl[_SPOOL], sl[_DEAD]
     w_s, z_s = sl[_SPOOL_W], sl[_SPOOL_Z]
+    tau_dn = sl[_SPOOL_FALL]  # the first-order spool's fall, if its own
     spool2 = w_s > 0.0  # a second-order spool (overrides the first-order lag)
     if spool2:
-        tau_s = 0.0
+        tau_s = tau_dn = 0.0
     rate_s = sl[_SPOOL_RATE] if tau_s > 0.0 else 0.0  # the first-order spool's speed limit
-    lagged = tau_s > 0.0 or spool2
+    lagged = tau_s > 0.0 or tau_dn > 0.0 or spool2
     gain = sl[_SUPG]
     # position and supply are read at t + adv (linear between their samples, held after
     # the last): their sample times, shifted by -adv, are break points of the steps
@@ -530,7 +532,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         # form over the held samples of up to 20 settling times before t_start)
         # (a speed-limited spool also ramps across the commands' span there first)
         jj = j
-        settle = spool_settle_s(tau_s, w_s, z_s)
+        settle = spool_settle_s(max(tau_s, tau_dn), w_s, z_s)
         u_lo, u_hi = u[j], u[j]
         while jj > 0 and t_start - (t[jj] + delay) < 20.0 * settle + (
                 (u_hi - u_lo) / rate_s if rate_s > 0.0 else 0.0):
@@ -539,9 +541,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         spool = u[jj]
         for k in range(jj, j):
             spool, v_s = spool_step(spool, v_s, u[k], t[k + 1] - t[k], tau_s, w_s, z_s,
-                                    rate_s)
+                                    rate_s, tau_dn)
         spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
-                                z_s, rate_s)
+                                z_s, rate_s, tau_dn)
     # dense output: steps cross the samples where the position and supply hold
     # the pressure is the only state (its step's rate, slope and correction describe it)
     plain = not (thermal or tank or lung or line or wave)
@@ -685,7 +687,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     da_in, da_ex = _area_rates(s_cur, v_cur, dead, sl)
                     s_at, ds_at = s_cur, v_cur
                 elif moving:
-                    s_now, ds_now = first_order_lag(spool_a, cmd, tau - t_sub, tau_s, rate_s)
+                    s_now, ds_now = first_order_lag(spool_a, cmd, tau - t_sub, tau_s, rate_s,
+                                                     tau_dn)
                     a_in, a_ex = _areas(s_now, dead, sl)
                     a_ex += a_own
                     da_in, da_ex = _area_rates(s_now, ds_now, dead, sl)
@@ -704,9 +707,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                     vdot = bore * (x1c - x0c) / hh
                 if moving:
                     if spool2:
-                        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0)
+                        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0,
+                                            0.0)
                     else:
-                        s2 = first_order_lag(spool_a, cmd, tau + hh - t_sub, tau_s, rate_s)[0]
+                        s2 = first_order_lag(spool_a, cmd, tau + hh - t_sub, tau_s, rate_s,
+                                             tau_dn)[0]
                     a_in2, a_ex2 = _areas(s2, dead, sl)
                     a_ex2 += a_own
                     s_at2 = s2
@@ -1019,9 +1024,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 if (abs(spool - cmd) <= 1e-12 * (1.0 + abs(cmd))
                         and abs(v_s) <= 1e-12 * w_s * (1.0 + abs(cmd))):
                     spool, v_s = cmd, 0.0
-            elif tau_s > 0.0:
+            elif tau_s > 0.0 or tau_dn > 0.0:
                 spool = spool_step(spool_a, 0.0, cmd, t_end - t_sub, tau_s, 0.0, 0.0,
-                                   rate_s)[0]
+                                   rate_s, tau_dn)[0]
             else:
                 spool = cmd
         if k >= i0:

@@ -62,6 +62,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                               "exhaust_c_per_V", "exhaust_d_V")]
     tau_s, dead = sl[S["spool_time_constant_s"]], sl[S["deadband_halfwidth_V"]]
     rate_s = sl[S["spool_rate_limit_V_per_s"]]
+    tau_dn = sl[S["spool_fall_time_constant_s"]]  # the spool's fall, if its own
     rounding = sl[S["deadband_rounding_V"]]
     lag = sl[S["sensor_time_constant_s"]]  # the reading: the last state
     w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
@@ -119,7 +120,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         v_spool = y[i_read + n_read] if w_s > 0 else 0.0
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
-        s = spool if tau_s > 0 or w_s > 0 else cmd
+        s = spool if tau_s > 0 or tau_dn > 0 or w_s > 0 else cmd
         ueff = float(dead_band(s, dead, rounding))
         a_in = gompertz_area(ueff, *ins)
         if own_ex:  # a separate exhaust valve, on its own (undelayed) command
@@ -215,7 +216,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        * (t_s - temp) / vol)
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
-        dspool = (cmd - spool) / tau_s if tau_s > 0 else 0.0
+        tau_now = tau_dn if tau_dn > 0 and cmd < spool else tau_s
+        dspool = (cmd - spool) / tau_now if tau_now > 0 else 0.0
         if rate_s > 0:  # a speed-limited first-order spool
             dspool = min(max(dspool, -rate_s), rate_s)
         d_spool_v = []

@@ -49,7 +49,8 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     ``stiction_*``, :mod:`pneubayes.simulation.stiction`), delayed by slot
     ``command_delay_s`` (before the first sample: the pre-trigger command, else the
     first sample's, held since long before) and passed through the spool's lag (slots
-    ``spool_time_constant_s`` with ``spool_rate_limit_V_per_s``, or
+    ``spool_time_constant_s`` with ``spool_rate_limit_V_per_s`` or
+    ``spool_fall_time_constant_s``, or
     ``spool_natural_frequency_rad_per_s`` / ``spool_damping``), stepped exactly with
     :func:`~pneubayes.simulation.spool.spool_step` between the delayed command's
     changes, from rest at the command held at the start.
@@ -73,6 +74,7 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     delay = float(slots[S["command_delay_s"]])
     tau = float(slots[S["spool_time_constant_s"]])
     rate = float(slots[S["spool_rate_limit_V_per_s"]])
+    tau_dn = float(slots[S["spool_fall_time_constant_s"]])
     w, z = float(slots[S["spool_natural_frequency_rad_per_s"]]), float(slots[S["spool_damping"]])
     times = np.asarray(times_s, dtype=np.float64)
     shifted = t + delay
@@ -81,7 +83,7 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
         j = np.searchsorted(shifted, at, side="right") - 1
         return np.where(j < 0, before, u[np.maximum(j, 0)])
 
-    if not (tau > 0.0 or w > 0.0):
+    if not (tau > 0.0 or tau_dn > 0.0 or w > 0.0):
         return held(times)
     # step through the delayed command's changes and the evaluation times in order
     cuts = shifted[(shifted > t[0]) & (shifted < times[-1])]
@@ -92,7 +94,7 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     out_grid[0] = s
     for i in range(1, grid.size):
         s, v = spool_step(s, v, float(cmd[i - 1]), float(grid[i] - grid[i - 1]), tau, w, z,
-                          rate)
+                          rate, tau_dn)
         out_grid[i] = s
     return out_grid[np.searchsorted(grid, times)]
 
