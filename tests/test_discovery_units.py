@@ -249,7 +249,7 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     lag_4ms = {"best_term_start": {"spool_time_constant_s": 0.004}}
     spools = effect_candidates(fit, "spool_lag", lag_4ms, rig)
     assert [m.effects[0].form for m, _ in spools] == ["first_order", "second_order",
-                                                      "rate_limited"]
+                                                      "rate_limited", "asymmetric"]
     assert spools[1][1]["spool_delay_s"] == pytest.approx(0.004)
 
 

@@ -3,24 +3,19 @@
 Written independently of the compiled simulator (:mod:`pneubayes.simulation.kernel`):
 the right-hand side below is its own code (it reuses only the scalar orifice law of
 eqs. 1-3, the Gompertz map of eq. 11 and the tube's friction correlation from
-:mod:`pneubayes.physics`), and it is
-integrated by scipy's ``solve_ivp`` (Radau or LSODA) with explicit tolerances.
+:mod:`pneubayes.physics`), and it is integrated by scipy's ``solve_ivp`` (Radau or
+LSODA) with explicit tolerances.
 
 State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
 as the forms and effects require: chamber temperature, spool position and velocity,
 regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
-silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting and a
-supply hose's pressure (:mod:`pneubayes.bench.forms` documents each form's equations).
-A sticking spool (SpoolStiction) changes the command the valve sees; a bowed sensor
-(SensorBow) and a sensor behind a capillary (CapillarySensorPort) act on the pressure
-reading and a lagging length sensor (LaggingPositionSensor) on the position's, which
-the bench applies to the plant's pressure and the piston's position.
-The out-of-catalogue forms (a compliant bladder volume, spool play, a relief valve,
-inlet flow forces, a lip-seal leak; an exhaust silencer, a scored barrel, a creeping
-wall, a pilot-operated inlet; ISO 6358 ports, a slew-limited or underlapped spool, a
-meter-out throttle; a supply hose, ports with viscous losses; a spring-returned spool,
-a warming solenoid coil) act in the same
-right-hand side; at zero strength each leaves it as it was.
+silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting, a
+supply hose's pressure and a solenoid coil's heat (:mod:`pneubayes.bench.forms`
+documents each form's equations). A sticking spool (SpoolStiction) changes the command
+the valve sees; the bench applies the reading-side forms (SensorBow,
+CapillarySensorPort; LaggingPositionSensor on the position) to the plant's output. The
+other out-of-catalogue forms act in the same right-hand side; at zero strength each
+leaves it as it was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
 signal-path slots (:mod:`pneubayes.effects.path`) with the meanings the model gives
