@@ -80,6 +80,7 @@ EFFECT_FORMS = (
     ("paper's model", None, {}),
     ("spool_lag", "spool_lag", {}),
     ("spool_lag 2nd order", "spool_lag", {"form": "second_order"}),
+    ("spool_lag asymmetric", "spool_lag", {"form": "asymmetric"}),
     ("sensor_lag", "sensor_lag", {}),
     ("sensor_lag 2nd order", "sensor_lag", {"form": "second_order"}),
     ("tube_delay", "tube_delay", {}),
