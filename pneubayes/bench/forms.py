@@ -34,9 +34,9 @@ from dataclasses import asdict, dataclass, fields
 from typing import ClassVar
 
 import numpy as np
-from scipy import signal
 
 from pneubayes.effects import CATALOGUE
+from pneubayes.effects.closure_features import first_order_low_pass
 from pneubayes.physics.cylinder import cylinder_preset
 from pneubayes.physics.gas import GasConstants
 
@@ -50,6 +50,13 @@ def _positive(obj, *names):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
                 math.isfinite(v) and v > 0):
             raise ValueError(f"{type(obj).__name__}.{n} must be a finite number > 0, got {v!r}")
+
+
+def _finite(obj, *names):
+    for n in names:
+        v = getattr(obj, n)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"{type(obj).__name__}.{n} must be a finite number, got {v!r}")
 
 
 def _non_negative(obj, *names):
@@ -731,9 +738,7 @@ class SensorBow(PlantForm):
     span_Pa: float = 1.0e6
 
     def __post_init__(self):
-        if isinstance(self.bow_Pa, bool) or not isinstance(self.bow_Pa, (int, float)) or \
-                not math.isfinite(self.bow_Pa):
-            raise ValueError(f"SensorBow.bow_Pa must be a finite number, got {self.bow_Pa!r}")
+        _finite(self, "bow_Pa")
         _positive(self, "span_Pa")
 
     def read(self, pressure_Pa, atmospheric_pressure_Pa: float):
@@ -741,7 +746,6 @@ class SensorBow(PlantForm):
         p = np.asarray(pressure_Pa, dtype=np.float64)
         x = np.clip((p - atmospheric_pressure_Pa) / self.span_Pa, 0.0, 1.0)
         return p + self.bow_Pa * 4.0 * x * (1.0 - x)
-
 
 
 @dataclass(frozen=True)
@@ -801,10 +805,7 @@ class WarmingCoil(PlantForm):
     def __post_init__(self):
         _non_negative(self, "resistance_rise")
         _positive(self, "time_constant_s", "command_span_V")
-        if isinstance(self.command_min_V, bool) or not isinstance(
-                self.command_min_V, (int, float)) or not math.isfinite(self.command_min_V):
-            raise ValueError(f"WarmingCoil.command_min_V must be a finite number, got "
-                             f"{self.command_min_V!r}")
+        _finite(self, "command_min_V")
 
 
 @dataclass(frozen=True)
@@ -874,19 +875,13 @@ class LaggingPositionSensor(PlantForm):
         _non_negative(self, "time_constant_s")
 
     def read(self, time_s, position_m):
-        """The lagged reading (m) on a uniform grid ``time_s`` (s), at rest at the first
-        position (exact for a position linear between the grid points)."""
+        """The lagged reading (m) at the sample times ``time_s`` (s), at rest at the first
+        position (exact for a position linear between the samples)."""
         x = np.asarray(position_m, dtype=np.float64)
-        if self.time_constant_s == 0.0 or x.size < 2:
+        if self.time_constant_s == 0.0:
             return x.copy()
-        dt = float(time_s[1] - time_s[0])
-        a = math.exp(-dt / self.time_constant_s)
-        # x linear over a step: y1 = a y0 + (1 - g) x1 + (g - a) x0, g = tau (1 - a) / dt
-        g = self.time_constant_s / dt * (1.0 - a)
-        b = np.array([1.0 - g, g - a])
-        zi = signal.lfiltic(b, [1.0, -a], y=[x[0]], x=[x[0]])
-        y, _ = signal.lfilter(b, [1.0, -a], x, zi=zi)
-        return y
+        return first_order_low_pass(time_s, x, self.time_constant_s)
+
 
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,

@@ -114,10 +114,10 @@ class SpoolLag(Effect):
         """The command through a first-order lag of each trial time constant (s); for
         the second order, of each trial group delay (a first-order stand-in: the
         one-step library does not resolve the spool's damping)."""
-        key = "spool_delay_s" if self.form == "second_order" else "spool_time_constant_s"
-        also = ("spool_fall_time_constant_s",) if self.form == "asymmetric" else ()
-        return tuple(InputLagTerm(f"lag {1e3 * tau:g} ms", {key: tau, **dict.fromkeys(also, tau)},
-                                  lag_s=tau)
+        keys = {"second_order": ("spool_delay_s",),
+                "asymmetric": ("spool_time_constant_s", "spool_fall_time_constant_s")}.get(
+                    self.form, ("spool_time_constant_s",))
+        return tuple(InputLagTerm(f"lag {1e3 * tau:g} ms", dict.fromkeys(keys, tau), lag_s=tau)
                      for tau in strengths)
 
     def candidate_forms(self, ctx: CandidateContext):
