@@ -83,6 +83,7 @@ EFFECT_FORMS = (
     ("spool_lag asymmetric", "spool_lag", {"form": "asymmetric"}),
     ("sensor_lag", "sensor_lag", {}),
     ("sensor_lag 2nd order", "sensor_lag", {"form": "second_order"}),
+    ("sensor_lag pressure-dependent", "sensor_lag", {"form": "pressure_dependent"}),
     ("tube_delay", "tube_delay", {}),
     ("tube line, 3 cells", "tube_delay", {"form": "line", "segments": 3}),
     ("tube line, 8 cells", "tube_delay", {"form": "line", "segments": 8}),

@@ -653,7 +653,7 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
         "rate", "convective"]
 
 
-def test_a_named_sensor_lag_is_fitted_in_both_orders_on_the_pressure_and_on_every_channel(
+def test_a_named_sensor_lag_is_fitted_in_both_orders_on_every_channel_and_pressure_dependent(
         rig):
     from pneubayes.effects import make_effect
     from pneubayes.effects.discovery import CandidateContext
@@ -663,9 +663,11 @@ def test_a_named_sensor_lag_is_fitted_in_both_orders_on_the_pressure_and_on_ever
     forms = make_effect("sensor_lag").candidate_forms(ctx)
     assert [(f.form, f.channels) for f, _ in forms] == [
         ("first_order", "pressure"), ("second_order", "pressure"), ("first_order", "all"),
-        ("second_order", "all")]
-    # every form starts at the best term's group delay
-    assert [s[f.reading_lead_parameter()] for f, s in forms] == [8e-4] * 4
+        ("second_order", "all"), ("pressure_dependent", "pressure")]
+    # every form starts at the best term's group delay (the pressure-dependent lag as the
+    # first-order one, its exponent 0)
+    assert [s[f.reading_lead_parameter()] for f, s in forms] == [8e-4] * 5
+    assert forms[-1][1]["sensor_pressure_exponent"] == 0.0
 
 
 def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(rig):

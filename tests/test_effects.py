@@ -36,13 +36,14 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
             ("spool_lag", {}), ("spool_lag", {"form": "second_order"}), ("sensor_lag", {}),
             ("sensor_lag", {"form": "second_order"}),
             ("sensor_lag", {"form": "second_order", "channels": "all"}),
+            ("sensor_lag", {"form": "pressure_dependent"}),
             ("closure", {}), ("closure", {"terms": "inlet_flow*pressure_hinge; "
                                                    "spool_hinge_down; one"})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
        "valve_deadzone",
        "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
        "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all",
-       "closure", "closure_hinges"]
+       "sensor_lag_pressure", "closure", "closure_hinges"]
 
 
 def _tight():
@@ -786,7 +787,7 @@ def test_what_the_fits_and_the_loop_ask_of_an_effect_is_on_the_effect():
     own declarations: no code outside ``effects/`` names the effect to ask."""
     assert {n for n, c in CATALOGUE.items() if c.needs_warmup} == {"heat_transfer"}
     assert {n for n, c in CATALOGUE.items() if not c.beside_line} == {"closure"}
-    for form in ("first_order", "second_order"):
+    for form in ("first_order", "second_order", "pressure_dependent"):
         lag = make_effect("sensor_lag", form=form)
         assert lag.reading_lead_parameter() in lag.parameter_names()
     assert all(make_effect(n).reading_lead_parameter() is None for n in CATALOGUE

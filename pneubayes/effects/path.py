@@ -181,6 +181,12 @@ SLOTS += (
      "rise's, spool_time_constant_s (s)"),
 )
 
+SLOTS += (
+    ("sensor_pressure_exponent", "the first-order reading lag's pressure dependence n: its "
+     "time constant is sensor_time_constant_s (2 P_atm / (p + r))^n (a sensor read through "
+     "a laminar passage, n = 1); 0 = a constant time constant (-)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -8,7 +8,14 @@ that lags the chamber pressure p. Two forms:
 - ``form="second_order"``: ``r'' = w^2 (p - r) - 2 z w r'``, an analogue 2-pole filter
   (Butterworth z = 0.71, Bessel z = 0.87), parametrised by its group delay at DC
   ``D = 2 z / w`` (the lag a slow signal sees; 0 is no filter) and its damping z. A
-  large z is the first-order lag of time constant D.
+  large z is the first-order lag of time constant D;
+- ``form="pressure_dependent"``: ``dr/dt = (p - r) / tau``, ``tau = tau_a (2 P_atm /
+  (p + r))^n``: a sensor that reads a small cavity fed through a passage. Laminar flow
+  of a gas through a passage carries the mass ``k (p^2 - r^2) = k (p + r)(p - r)``, so
+  the cavity's lag is inversely proportional to the mean pressure (n = 1: a capillary,
+  a snubber, a sintered filter; 5 x slower at the atmosphere than at 5 bar); n = 0 is
+  the first-order lag. ``tau_a`` (``sensor_time_constant_s``) is the lag at the
+  atmosphere, n (``sensor_pressure_exponent``) is fitted.
 
 The lag sits at the sensor point of the signal path, after the chamber: the valve, the
 tube and the chamber's physics are unchanged, and the reading is what the model
@@ -21,10 +28,7 @@ property of the rig and is not this effect.
 slow transducer). ``channels="all"`` is a filter on every channel of the DAQ: the
 measured position and supply passed it too, so the chamber at time t sees them as
 measured at t + D, D the lag's group delay at DC (a slow signal's lag through the
-filter), while the generated command is not lagged. On a bench whose causal 250-Hz
-filter lags every channel, the pressure-only lag at the true filter predicted 2-s windows
-at 1089 Pa RMSE and this form at 578 Pa (noise 503 Pa): the chamber's volume and supply,
-read a millisecond late, are worth more than the reading's own lag.
+filter), while the generated command is not lagged.
 
 A window starts at a measured reading; the chamber then starts ahead of it by the lag
 times the reading's rate (p = r + tau dr/dt at steady tracking). The one-step
@@ -44,18 +48,20 @@ from pneubayes.effects.discovery import CandidateContext, TrialTerm
 from pneubayes.effects.second_order import delay_and_damping, natural_frequency
 from pneubayes.rig import Rig
 
-_FORMS = ("first_order", "second_order")
+_FORMS = ("first_order", "second_order", "pressure_dependent")
 _CHANNELS = ("pressure", "all")
 
 
 class SensorLag(Effect):
-    """Lag of the pressure reading: first order (``sensor_time_constant_s``) or second
-    order (``sensor_delay_s``, ``sensor_damping``)."""
+    """Lag of the pressure reading: first order (``sensor_time_constant_s``), second
+    order (``sensor_delay_s``, ``sensor_damping``) or first order with a time constant
+    that depends on the pressure (``sensor_time_constant_s`` at the atmosphere,
+    ``sensor_pressure_exponent``)."""
 
     name = "sensor_lag"
     forms = _FORMS
     acts_on = ("sensor_time_constant_s", "sensor_natural_frequency_rad_per_s",
-               "sensor_damping", "inputs_advance_s")
+               "sensor_damping", "inputs_advance_s", "sensor_pressure_exponent")
 
     def __init__(self, form: str = "first_order", channels: str = "pressure"):
         self.form = form
@@ -77,13 +83,21 @@ class SensorLag(Effect):
         if self.form == "first_order":
             return (Parameter("sensor_time_constant_s", "s", 0.0, 0.01, "uniform",
                               "first-order lag of the pressure reading", neutral=0.0),)
+        if self.form == "pressure_dependent":
+            return (Parameter("sensor_time_constant_s", "s", 0.0, 0.05, "uniform",
+                              "the reading's first-order lag at the atmosphere",
+                              neutral=0.0),
+                    Parameter("sensor_pressure_exponent", "-", -1.0, 3.0, "uniform",
+                              "the lag's pressure dependence n, tau = tau_a (2 P_atm / "
+                              "(p + r))^n (1: a laminar passage; 0: none)", neutral=0.0))
         return delay_and_damping("sensor", "the reading's second-order lag", 0.01)
 
     def reading_lead_parameter(self) -> str:
         """The parameter that is the reading's group delay at DC, s (the chamber's lead
-        on a reading that tracks a ramp)."""
+        on a reading that tracks a ramp; the pressure-dependent lag's at the
+        atmosphere)."""
         self._check()
-        return "sensor_time_constant_s" if self.form == "first_order" else "sensor_delay_s"
+        return "sensor_delay_s" if self.form == "second_order" else "sensor_time_constant_s"
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
@@ -91,12 +105,17 @@ class SensorLag(Effect):
         out = {"inputs_advance_s": lead} if self.channels == "all" else {}
         if self.form == "first_order":
             return {"sensor_time_constant_s": lead, **out}
+        if self.form == "pressure_dependent":
+            return {"sensor_time_constant_s": lead, "sensor_pressure_exponent": np.asarray(
+                values["sensor_pressure_exponent"], dtype=np.float64), **out}
         w, z = natural_frequency(lead, values["sensor_damping"])
         return {"sensor_natural_frequency_rad_per_s": w, "sensor_damping": z, **out}
 
     def bench_defaults(self):
         if self.form == "first_order":  # a 300-Hz RC stage
             return {"sensor_time_constant_s": 5.3e-4}
+        if self.form == "pressure_dependent":  # a snubber: 2 ms at 1 bar, 0.5 ms at 7 bar
+            return {"sensor_time_constant_s": 2e-3, "sensor_pressure_exponent": 1.0}
         # a 2-pole Butterworth at 250 Hz: w = 1571 rad/s, D = 0.90 ms
         return {"sensor_delay_s": 9.0e-4, "sensor_damping": 0.7071}
 
@@ -105,21 +124,25 @@ class SensorLag(Effect):
     discovery_fallback = {"sensor_time_constant_s": 0.0005}
 
     def library_terms(self, strengths):
-        """The model's reading through a lag of each trial group delay (s): first order,
-        or second order at its neutral (critical) damping."""
-        if self.form != "first_order":
+        """The model's reading through a lag of each trial group delay (s): first order
+        (the pressure-dependent lag at its neutral exponent, the first-order lag), or
+        second order at its neutral (critical) damping."""
+        if self.form == "second_order":
             return tuple(TrialTerm(f"reading lag (2nd order) {1e3 * d:g} ms",
                                    {"sensor_delay_s": d}, values={"sensor_delay_s": d})
                          for d in strengths)
+        extra = {"sensor_pressure_exponent": 0.0} if self.form == "pressure_dependent" else {}
         return tuple(TrialTerm(f"reading lag {1e3 * tau:g} ms",
                                {"sensor_time_constant_s": tau},
-                               values={"sensor_time_constant_s": tau}) for tau in strengths)
+                               values={"sensor_time_constant_s": tau, **extra})
+                     for tau in strengths)
 
     def candidate_forms(self, ctx: CandidateContext):
         """The first-order lag at the best term's time constant, the second-order lag
         (Butterworth damping) at the same group delay (an analogue anti-alias filter is
-        usually of order two or more), and both on every channel (``channels="all"``:
-        an undeclared DAQ filter lags the measured position and supply too)."""
+        usually of order two or more), both on every channel (``channels="all"``:
+        an undeclared DAQ filter lags the measured position and supply too), and the
+        pressure-dependent lag starting as the first-order one (n = 0)."""
         start = self.candidate_start(ctx.term_start)
         out = [(self, start)]
         if self.form != "first_order" or self.channels != "pressure":
@@ -130,4 +153,6 @@ class SensorLag(Effect):
         out.append((SensorLag(form="second_order"), second))
         out.append((SensorLag(channels="all"), {"sensor_time_constant_s": delay}))
         out.append((SensorLag(form="second_order", channels="all"), second))
+        out.append((SensorLag(form="pressure_dependent"),
+                    {"sensor_time_constant_s": delay, "sensor_pressure_exponent": 0.0}))
         return out

@@ -101,6 +101,8 @@ from pneubayes.simulation.reading import (
     first_order_exponential_step,
     first_order_hermite_deviation,
     first_order_step,
+    pressure_dependent_step,
+    pressure_lag,
     second_order_curvature,
     second_order_exponential_deviation,
     second_order_step,
@@ -189,6 +191,7 @@ _TAB_MAX = TABLE_MAX_POINTS
 _SENSOR = SLOT_INDEX["sensor_time_constant_s"]
 _SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
 _SENSOR_Z = SLOT_INDEX["sensor_damping"]
+_SENSOR_N = SLOT_INDEX["sensor_pressure_exponent"]
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
@@ -408,9 +411,13 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     w_r, z_r = sl[_SENSOR_W], sl[_SENSOR_Z]
     second = w_r > 0.0
     reading = lag_r > 0.0 or second
+    # a first-order lag whose time constant depends on the pressure (at the atmosphere
+    # lag_r), stepped at the step's mid state (its start's, then the midpoint's)
+    n_r = sl[_SENSOR_N] if (lag_r > 0.0 and not second) else 0.0
+    lag_0 = pressure_lag(lag_r, n_r, p0, p0, p_atm) if n_r != 0.0 else lag_r
     # the reading's lead at DC (its group delay) and the time its transient takes
-    lead_s = 2.0 * z_r / w_r if second else lag_r
-    settle_s = max(lead_s, 1.0 / (z_r * w_r)) if second else lag_r
+    lead_s = 2.0 * z_r / w_r if second else lag_0
+    settle_s = max(lead_s, 1.0 / (z_r * w_r)) if second else max(lag_r, lag_0)
     r = p0
     v_r = 0.0  # the reading's rate (second order)
     p = p0
@@ -752,7 +759,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                         rate_a, rate_b = line_chamber_rates(line_work)
                         dev_r = first_order_hermite_deviation(
                             p, pn, hh * rate_a, hh * rate_b, hh,
-                            2.0 * z_r / w_r if second else lag_r)
+                            2.0 * z_r / w_r if second else (
+                                pressure_lag(lag_r, n_r, p, r, p_atm) if n_r != 0.0
+                                else lag_r))
                         err = max(err, abs(dev_r) / (atol_p + rtol * max(abs(p), abs(pn))))
                 elif general is not None and tank:
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
@@ -984,20 +993,39 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                                 d_r, d_v = second_order_exponential_deviation(s_prev, zp, hh,
                                                                               w_r, z_r)
                                 s_r, s_v = s_r + d_r, s_v + d_v
-                    elif reading and plain:
-                        r = first_order_exponential_step(r, p_prev, hh, lag_r, zp, fp, vp, ep)
-                        if want_sens:
-                            s_r = first_order_exponential_sensitivity(s_r, s_prev, hh, lag_r, zp)
-                    elif reading and shaped:
-                        q1, q2, _ = phi123(zp)
-                        rest = p - (p_prev + hh * (q1 * fp + hh * q2 * vp))
-                        r = first_order_exponential_step(r, p_prev, hh, lag_r, zp, fp, vp, rest)
-                        if want_sens:
-                            s_r = first_order_step(s_r, s_prev, s_p0, hh, lag_r)
                     elif reading:
-                        r = first_order_step(r, p_prev, p, hh, lag_r) + dev_r
+                        r_a, s_a = r, s_r
+                        tau_r = lag_r
+                        if plain or shaped:
+                            rest = ep
+                            if not plain:  # the (p, T) step: the rest of its change a ramp
+                                q1, q2, _ = phi123(zp)
+                                rest = p - (p_prev + hh * (q1 * fp + hh * q2 * vp))
+                            if n_r != 0.0:  # a time constant that moves with the pressure
+                                r, tau_r = pressure_dependent_step(r_a, p_prev, hh, lag_r, n_r,
+                                                                   p_atm, zp, fp, vp, rest)
+                            else:
+                                r = first_order_exponential_step(r_a, p_prev, hh, lag_r, zp, fp,
+                                                                 vp, rest)
+                        elif n_r != 0.0:
+                            r, tau_r = pressure_dependent_step(r_a, p_prev, hh, lag_r, n_r,
+                                                               p_atm, 0.0, (p - p_prev) / hh,
+                                                               0.0, 0.0)
+                            r += dev_r
+                        else:
+                            r = first_order_step(r_a, p_prev, p, hh, lag_r) + dev_r
                         if want_sens:
-                            s_r = first_order_step(s_r, s_prev, s_p0, hh, lag_r)
+                            if plain:
+                                s_r = first_order_exponential_sensitivity(s_a, s_prev, hh, tau_r,
+                                                                          zp)
+                            else:
+                                s_r = first_order_step(s_a, s_prev, s_p0, hh, tau_r)
+                            if n_r != 0.0:  # the time constant moves with p and r:
+                                # + n (p - r) / (tau (p + r)) (s_p + s_r), at the middle
+                                p_m, r_m = 0.5 * (p_prev + p), 0.5 * (r_a + r)
+                                s_r += hh * n_r * (p_m - r_m) / (tau_r * max(
+                                    p_m + r_m, 1e-3 * p_atm)) * 0.5 * (s_prev + s_p0 + s_a
+                                                                      + s_r)
                     # grow the step only when it was not cut short by a break point;
                     # shrink it when the error asks (0.9 / cbrt(err) < 1 iff err > 0.729)
                     if hh >= h or err > 0.729:

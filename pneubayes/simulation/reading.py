@@ -171,3 +171,44 @@ def second_order_curvature(z, f, v, h, w, zeta):
                               0.0, -b * h * h, h, w, zeta)
     return (r + b * (h * h - 4.0 * zeta * h / w + (8.0 * zeta * zeta - 2.0) / (w * w)),
             vv + b * (2.0 * h - 4.0 * zeta / w))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def pressure_lag(tau_a, n, p, r, p_atm):
+    """The pressure-dependent lag's time constant (s), ``tau_a (2 P_atm / (p + r))^n``
+    for a chamber at ``p`` read as ``r`` (Pa): a cavity fed through a laminar passage
+    (n = 1) fills as fast as the mean pressure drives the flow. The sum is held at no
+    less than 1e-3 P_atm (a pressure that is not absolute)."""
+    return tau_a * math.exp(n * math.log(2.0 * p_atm / max(p + r, 1e-3 * p_atm)))
+
+
+@njit(cache=True, error_model="numpy")
+def pressure_dependent_step(r, pa, h, tau_a, n, p_atm, z, f, v, e):
+    """``(r, tau)``: the reading dr/dt = (p - r) / :func:`pressure_lag` after a step of
+    ``h`` s over the exponential path of :func:`first_order_exponential_step` (``z``,
+    ``f``, ``v``, ``e`` as there; a chord is z = 0, f its slope, v = e = 0), and the
+    step's effective time constant (the harmonic mean of its ends'). The step is cut into
+    substeps of at most half the lag (at most 32), each stepped over its piece of the
+    path with the harmonic mean of the time constants at its start and (predicted) end,
+    which converges as the substeps shrink."""
+    t_a = pressure_lag(tau_a, n, pa, r, p_atm)
+    pb = pa + h * phi123(z)[0] * f + h * h * phi123(z)[1] * v + e
+    t_b = pressure_lag(tau_a, n, pb, pb, p_atm)
+    m = min(32, 1 + int(max(2.0 * h / min(t_a, t_b), abs(z))))
+    hs = h / m
+    jj = z / h
+    for i in range(m):
+        s = i * hs
+        q1, q2, _ = phi123(s * jj)
+        p_i = pa + s * q1 * f + s * s * q2 * v + e * s / h
+        f_i = math.exp(s * jj) * f + s * q1 * v
+        e_i = e * hs / h
+        t0 = pressure_lag(tau_a, n, p_i, r, p_atm)
+        r1 = first_order_exponential_step(r, p_i, hs, t0, hs * jj, f_i, v, e_i)
+        k1, k2, _ = phi123(hs * jj)
+        p_e = p_i + hs * k1 * f_i + hs * hs * k2 * v + e_i
+        t1 = pressure_lag(tau_a, n, p_e, r1, p_atm)
+        r = first_order_exponential_step(r, p_i, hs, 2.0 / (1.0 / t0 + 1.0 / t1), hs * jj,
+                                         f_i, v, e_i)
+    t_end = pressure_lag(tau_a, n, pb, r, p_atm)
+    return r, 2.0 / (1.0 / t_a + 1.0 / t_end)

@@ -65,6 +65,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     tau_dn = sl[S["spool_fall_time_constant_s"]]  # the spool's fall, if its own
     rounding = sl[S["deadband_rounding_V"]]
     lag = sl[S["sensor_time_constant_s"]]  # the reading: the last state
+    n_lag = sl[S["sensor_pressure_exponent"]]
     w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
@@ -234,7 +235,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             r, dr = y[i_read], y[i_read + 1]
             d_reading = [float(dr), float(w_r**2 * (p - r) - 2 * z_r * w_r * dr)]
         else:
-            d_reading = [float(p - y[i_read]) / lag] if lag > 0 else []
+            # (a pressure-dependent lag: tau (2 P_atm / (p + r))^n, n its exponent)
+            tau_r = lag * (2 * p_atm / (p + y[i_read])) ** n_lag if lag > 0 else 0.0
+            d_reading = [float(p - y[i_read]) / tau_r] if lag > 0 else []
         d_relax = [float((p if code == code_p else net_raw) - y[i_relax + q]) / tau
                    for q, (code, tau) in enumerate(passes)]
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
@@ -317,6 +320,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         y = np.append(y, [initial_pressure_Pa, initial_rate_Pa_per_s])
         atols += [atol, atol * w_r]
     elif lag > 0:  # the reading starts at the given pressure, the chamber ahead of it
+        lag *= (rig.atmospheric_pressure_Pa / initial_pressure_Pa) ** sl[
+            S["sensor_pressure_exponent"]]
         y[0] = initial_pressure_Pa + lag * initial_rate_Pa_per_s
         y = np.append(y, initial_pressure_Pa)
         atols.append(atol)
