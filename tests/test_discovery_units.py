@@ -1154,3 +1154,42 @@ def test_the_report_says_why_each_catalogue_effect_tried_was_not_enough():
                                             "2100 Pa")
     assert why["supply_fluctuation"].startswith("named, then removed")
     assert tried_effects([{"action": "fit base"}]) == []
+
+
+def test_the_backward_step_removes_at_a_looser_level_than_an_effect_enters():
+    """Stepwise hysteresis: an earlier effect whose gain over the model without it has
+    p between ``max_p_value`` and ``remove_max_p_value`` stays (session 61's capillary
+    case lost its sensor lag at p = 0.0104 while the held-out error rose 1013 -> 1280
+    Pa); one whose gain is not significant at the looser level goes."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.settings import DiscoverySettings, VerifySettings
+    from pneubayes.discovery.trials import TrialRunner
+    from pneubayes.discovery.verification import signed_rank_p
+
+    with pytest.raises(ValueError, match="remove_max_p_value"):
+        VerifySettings(max_p_value=0.05, remove_max_p_value=0.01)
+    rng = np.random.default_rng(3)
+    full = rng.normal(0.0, 1000.0, (16, 400))
+    current = _heldout_fit(full, -np.mean(full**2, axis=1) / 2e6)
+    current = SimpleNamespace(**{k: getattr(current, k) for k in (
+        "heldout_rmse_Pa", "heldout_lpd_per_window", "heldout_mse_per_window")},
+        model=Model(["sensor_lag", "tube_delay"]),
+        params=dict.fromkeys(Model(["sensor_lag", "tube_delay"]).parameter_names, 0.0))
+
+    def reduced_by(scale):  # the model without the lag: windows worse by these shares
+        res = full * (1.0 + scale)[:, None]
+        return _heldout_fit(res, -np.mean(res**2, axis=1) / 2e6)
+
+    for scale, kept in ((np.where(np.arange(16) < 12, 0.05, -0.05), True),   # p = 0.014
+                        (np.where(np.arange(16) < 12, 0.05, -0.06), False)):  # p = 0.28
+        reduced = reduced_by(scale)
+        p = signed_rank_p(reduced.heldout_mse_per_window - current.heldout_mse_per_window)
+        assert (0.01 < p <= 0.05) if kept else p > 0.05
+        runner = TrialRunner(DiscoverySettings(), data=None, ledger=SimpleNamespace(
+            record=lambda *a, **k: None), log=lambda msg: None)
+        runner.fit = lambda model, start, r=reduced: r
+        accepted = [{"name": "sensor_lag"}, {"name": "tube_delay"}]
+        runner.prune(current, accepted)
+        assert [a["name"] for a in accepted] == (["sensor_lag", "tube_delay"] if kept
+                                                 else ["tube_delay"])

@@ -123,6 +123,11 @@ class VerifySettings:
     ----------
     max_p_value : float
         The paired signed-rank test's level against the current model.
+    remove_max_p_value : float
+        An added effect is removed again (the backward step, once a later one is added)
+        only when its gain's p-value exceeds this level (at least ``max_p_value``: a
+        stepwise search enters at a stricter level than it removes, so an effect is not
+        dropped on the noise of one refit).
     score_dof : float
         The Student-t degrees of freedom of the log predictive density it must raise.
     min_gain_noise_share, min_gain_gap_share : float
@@ -130,6 +135,7 @@ class VerifySettings:
     """
 
     max_p_value: float = 0.01
+    remove_max_p_value: float = 0.05
     score_dof: float = 4.0
     min_gain_noise_share: float = 0.01
     min_gain_gap_share: float = 0.01
@@ -137,6 +143,9 @@ class VerifySettings:
     def __post_init__(self):
         if not 0.0 < self.max_p_value < 1.0:
             raise ValueError(f"max_p_value must be in (0, 1), got {self.max_p_value}")
+        if not self.max_p_value <= self.remove_max_p_value < 1.0:
+            raise ValueError(f"remove_max_p_value must be in [max_p_value, 1) = "
+                             f"[{self.max_p_value}, 1), got {self.remove_max_p_value}")
         if not self.score_dof > 2.0:
             raise ValueError(f"score_dof must be > 2 (a finite variance), got "
                              f"{self.score_dof}")

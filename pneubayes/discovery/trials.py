@@ -218,10 +218,12 @@ class TrialRunner:
                                  f"above the current model's {current.train_rmse_Pa:.0f} Pa")
         return fit
 
-    def better(self, new: StepFit, old: StepFit):
-        """The verification test of ``new`` against ``old`` on the held-out windows:
-        ``(passes, score gain, p-value, per-window squared-error reductions)``."""
-        return compare_heldout(new, old, self.settings.verify.max_p_value)
+    def better(self, new: StepFit, old: StepFit, max_p_value: float | None = None):
+        """The verification test of ``new`` against ``old`` on the held-out windows (at
+        ``max_p_value``; None: the settings' ``verify.max_p_value``): ``(passes, score
+        gain, p-value, per-window squared-error reductions)``."""
+        return compare_heldout(new, old, self.settings.verify.max_p_value
+                               if max_p_value is None else max_p_value)
 
     # ------------------------------------------------------------------ trials
     def trials(self, groups, state: RoundState, min_gap_closed: float = 0.0) -> list:
@@ -419,13 +421,15 @@ class TrialRunner:
     # ------------------------------------------------------------------ pruning
     def prune(self, current: StepFit, accepted: list, newest: int = 1) -> StepFit:
         """Backward step: drop an earlier effect of ``accepted`` the ``newest`` added
-        ones have made unnecessary (an effect that only stood in for a newcomer).
-        Returns the current fit without them."""
+        ones have made unnecessary (an effect that only stood in for a newcomer): one
+        whose gain over the model without it is no longer significant at
+        ``verify.remove_max_p_value``. Returns the current fit without them."""
         for a in list(accepted[:-newest]):
             name = a["name"]
             reduced = current.model.without(name)
             fit = self.fit(reduced, {k: current.params[k] for k in reduced.parameter_names})
-            needed, gain, pval, _ = self.better(current, fit)
+            needed, gain, pval, _ = self.better(current, fit,
+                                                self.settings.verify.remove_max_p_value)
             if needed:
                 continue
             self.log(f"discover: REMOVE {name}: without it held-out RMSE "
