@@ -415,16 +415,16 @@ def test_a_lagged_reading_gets_no_declared_filter_corner_term(rig, form, lag):
 
 
 @pytest.mark.parametrize("volume,lag,exponent,tol", [
-    (2.4e-6, 2e-3, 1.0, 2e-4), (2e-5, 1e-3, 2.0, 2e-4), (2.4e-6, 2e-3, -0.5, 2e-4),
-    pytest.param(1e-7, 3e-3, 1.0, 1e-3, marks=SLOW)])
+    (2.4e-6, 2e-3, 1.0, 1e-4), (2e-5, 1e-3, 2.0, 1e-4), (2.4e-6, 2e-3, -0.5, 1e-4),
+    pytest.param(1e-7, 3e-3, 1.0, 3e-4, marks=SLOW)])
 def test_a_pressure_dependent_lag_agrees_with_the_reference_solvers_ode_state(
         rig, volume, lag, exponent, tol):
     """dr/dt = (p - r) / tau, tau = tau_a (2 P_atm / (p + r))^n: the compiled integrator
     steps it over substeps of the chamber's exponential path at the harmonic mean of
     their ends' time constants; the reference integrates it as a state. Measured (the
-    standard preset): 5e-5 of the range on 2.4e-6 m^3 (n = 1 and -0.5), 2e-7 on 2e-5,
-    5e-4 on 1e-7 (a chamber that settles within a fraction of a sample); the first-order
-    lag at tau_a misses by 60-250 x more."""
+    standard preset): 1.4e-5 / 8e-6 of the range on 2.4e-6 m^3 (n = 1 / -0.5), 2e-8 on
+    2e-5, 9e-5 on 1e-7 (a chamber that settles within a fraction of a sample); the
+    first-order lag at tau_a misses by 400-9000 x more."""
     inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("tube_delay"),
                    make_effect("sensor_lag", form="pressure_dependent")])

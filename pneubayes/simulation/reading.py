@@ -188,27 +188,27 @@ def pressure_dependent_step(r, pa, h, tau_a, n, p_atm, z, f, v, e):
     ``h`` s over the exponential path of :func:`first_order_exponential_step` (``z``,
     ``f``, ``v``, ``e`` as there; a chord is z = 0, f its slope, v = e = 0), and the
     step's effective time constant (the harmonic mean of its ends'). The step is cut into
-    substeps of at most half the lag (at most 32), each stepped over its piece of the
-    path with the harmonic mean of the time constants at its start and (predicted) end,
-    which converges as the substeps shrink."""
+    substeps of at most half the lag (at most 32), each stepped exactly over its piece of
+    the path at the harmonic mean of the time constants at its start and at its end (the
+    end's reading predicted as an exponential approach to the end's pressure)."""
+    q1, q2, _ = phi123(z)
+    pb = pa + h * (q1 * f + h * q2 * v) + e
     t_a = pressure_lag(tau_a, n, pa, r, p_atm)
-    pb = pa + h * phi123(z)[0] * f + h * h * phi123(z)[1] * v + e
-    t_b = pressure_lag(tau_a, n, pb, pb, p_atm)
-    m = min(32, 1 + int(max(2.0 * h / min(t_a, t_b), abs(z))))
+    m = min(32, 1 + int(2.0 * h / min(t_a, pressure_lag(tau_a, n, pb, pb, p_atm))))
     hs = h / m
     jj = z / h
-    for i in range(m):
-        s = i * hs
-        q1, q2, _ = phi123(s * jj)
-        p_i = pa + s * q1 * f + s * s * q2 * v + e * s / h
-        f_i = math.exp(s * jj) * f + s * q1 * v
-        e_i = e * hs / h
+    zs = hs * jj
+    e_i = e * hs / h
+    k1, k2, _ = phi123(zs)
+    p_i, f_i = pa, f
+    for _ in range(m):
         t0 = pressure_lag(tau_a, n, p_i, r, p_atm)
-        r1 = first_order_exponential_step(r, p_i, hs, t0, hs * jj, f_i, v, e_i)
-        k1, k2, _ = phi123(hs * jj)
-        p_e = p_i + hs * k1 * f_i + hs * hs * k2 * v + e_i
-        t1 = pressure_lag(tau_a, n, p_e, r1, p_atm)
-        r = first_order_exponential_step(r, p_i, hs, 2.0 / (1.0 / t0 + 1.0 / t1), hs * jj,
-                                         f_i, v, e_i)
+        p_e = p_i + hs * (k1 * f_i + hs * k2 * v) + e_i
+        r_e = p_e + (r - p_e) * math.exp(-hs / t0)
+        t1 = pressure_lag(tau_a, n, p_e, r_e, p_atm)
+        r = first_order_exponential_step(r, p_i, hs, 2.0 / (1.0 / t0 + 1.0 / t1), zs, f_i, v,
+                                         e_i)
+        # the path's rate at the substep's end: e^{hs J} f_i + hs phi_1(hs J) v
+        p_i, f_i = p_e, (1.0 + zs * k1) * f_i + hs * k1 * v
     t_end = pressure_lag(tau_a, n, pb, r, p_atm)
     return r, 2.0 / (1.0 / t_a + 1.0 / t_end)
