@@ -10,6 +10,11 @@ or a prior), ``coefficients_m3_per_m`` ([c_1, c_2, ...] in m^3/m^k, known) and
 The chamber is lowered as the equivalent piston of area ``c_1`` (an area: m^3 per m)
 at the equivalent position ``x = s + (c_2/c_1) s^2 + ...``, so ``V_0 + c_1 x = V(s)``
 exactly and the compiled simulator's volume and dV/dt terms of eq. 5 carry it unchanged.
+
+``compliance_m3_per_Pa`` (optional, default 0; known or a prior) adds a volume that
+grows with the pressure, ``C (p - P_atm)``, as the ``compliant`` kind's: a muscle
+whose tendon in series stretches under its force contracts by more than its joint
+moves (fitted as ``chamber_compliance_m3_per_Pa``).
 """
 
 from __future__ import annotations
@@ -27,8 +32,12 @@ from pneubayes.rigcard.values import real
 class PolynomialChamber(RigComponent):
     role, kind = "chamber", "polynomial"
     quantities = (("dead_volume_m3", "m^3", "volume at coordinate 0, tube included",
-                   "positive"),)
-    slots_written = ("volume_m3",)
+                   "positive"),
+                  ("compliance_m3_per_Pa", "m^3/Pa", "volume change per pascal above the "
+                   "atmosphere (a tendon in series that stretches)", "nonnegative"))
+    defaults = {"compliance_m3_per_Pa": 0.0}
+    parameter_names_by_key = {"compliance_m3_per_Pa": "chamber_compliance_m3_per_Pa"}
+    slots_written = ("volume_m3", "compliance_m3_per_Pa")
     maps_position = True
 
     @classmethod
@@ -79,7 +88,8 @@ class PolynomialChamber(RigComponent):
             / self.area_m2
 
     def lower_all(self, values, rig):
-        return {"volume_m3": values["dead_volume_m3"]}
+        return {"volume_m3": values["dead_volume_m3"],
+                "compliance_m3_per_Pa": values["compliance_m3_per_Pa"]}
 
     def coordinate_range(self) -> tuple[float, float]:
         """The coordinate's declared range ``(lower, upper)``, m."""
