@@ -259,6 +259,32 @@ def test_polynomial_chamber_closed_follows_the_polytropic_law():
     np.testing.assert_allclose(p * vol ** kappa, 3e5 * vol[0] ** kappa, rtol=2e-4)
 
 
+def test_polynomial_chamber_with_compliance_closed_keeps_p_v_to_the_n():
+    """The muscle's optional compliance (its tendon stretching): V = V(s) + C (p - P_atm)
+    of the moving coordinate and the pressure; closed, p V^n stays constant with V the
+    whole volume (eq. 5 with dV/dt = c1 ds/dt + C dp/dt), and C = 0 is the plain kind."""
+    coeffs = [3.141e-3, -3.251e-2, 0.128]
+    chamber = {"kind": "polynomial", "dead_volume_m3": 6.6e-5,
+               "coefficients_m3_per_m": coeffs, "coordinate_range_m": [0.0, 0.03]}
+    t = np.arange(1001) * 1e-3
+    s = 0.015 * (1 - np.cos(2 * np.pi * t))
+    out = {}
+    for compliance in (0.0, 1e-10):
+        c = card(chamber={**chamber, "compliance_m3_per_Pa": compliance})
+        m = Model(rig_card=c)
+        x = c.chamber.equivalent_position_m(s)
+        out[compliance] = simulate(m, {"valve_open_area_m2": 1e-6}, _inputs(t, 0 * t, x=x),
+                                   _rig(c), 3e5, TIGHT).pressure_Pa[0]
+    kappa = _rig(card()).gas.heat_capacity_ratio
+    p = out[1e-10]
+    vol = 6.6e-5 + np.polyval([*reversed(coeffs), 0.0], s) + 1e-10 * (p - P_ATM)
+    np.testing.assert_allclose(p * vol ** kappa, p[0] * vol[0] ** kappa, rtol=2e-4)
+    assert np.max(np.abs(p - out[0.0])) > 1e3  # the compliance matters here
+    plain = card(chamber=chamber)
+    assert Model(rig_card=plain).parameter_names == Model(
+        rig_card=card(chamber={**chamber, "compliance_m3_per_Pa": 0.0})).parameter_names
+
+
 # ---------------------------------------------------------------- recordings
 def _write(tmp_path, rows, sidecar, name="rec"):
     (tmp_path / f"{name}.csv").write_text("time_s,command_V,pressure_Pa\n" + "".join(
@@ -448,6 +474,12 @@ def _fake_trial(root: Path, name="0p00_0p05_hipknee-65source_x") -> Path:
     (d / "pressure_raw_psi.csv").write_text("\n".join(rows) + "\n")
     (d / "t_valve.csv").write_text("# knee_right, hip_right, hip_left, knee_left (seconds)\n"
                                    "0.00, 0.00, 0.00, 0.00\n0.05, 0.05, 0.05, 0.05\n")
+    # the video: 250 fps from 10.0 s, each joint's angle a ramp from its own start
+    frames = np.arange(120)
+    (d / "vid_time_s.txt").write_text("".join(f"{10.0 + 0.004 * k:.4f}\n" for k in frames))
+    (d / "angle_pre_rad.csv").write_text("".join(
+        f"{2.8 - 0.5 * tk:.6f},{-2.5 + tk:.6f},{-2.5 + 2 * tk:.6f},{2.8 - 0.25 * tk:.6f}\n"
+        for tk in 0.004 * frames))
     return d
 
 
@@ -465,6 +497,15 @@ def test_import_gtdynamics_writes_recordings_and_their_card(tmp_path, capsys):
     assert rec.time_s[-1] <= 0.33
     np.testing.assert_array_equal(rec.command_V, (rec.time_s < 0.05).astype(float))
     np.testing.assert_allclose(rec.pressure_Pa[0], 3.0 * 6894.757293168361 + 101325.0)
+    # the cam's travel: its radius (0.045 m) times the cam angle's change, which grows
+    # as a knee flexes and a hip extends (the ramps' rates 0.5, 1, 2, 0.25 rad/s)
+    rate = {"knee_right": 0.5, "hip_right": 1.0, "hip_left": 2.0, "knee_left": 0.25}
+    for p in paths:
+        table = np.genfromtxt(p, delimiter=",", names=True)
+        np.testing.assert_allclose(table["cam_travel_m"],
+                                   0.045 * rate[p.stem] * table["time_s"], rtol=1e-6,
+                                   atol=1e-12)
+    assert "cam_travel_m" in rec.extra_columns and rec.position_m is None
     # a second import into the same folder needs --overwrite
     assert main(["import", "gtdynamics", str(trial), "--out", str(tmp_path / "out")]) == 2
     assert "--overwrite" in capsys.readouterr().err

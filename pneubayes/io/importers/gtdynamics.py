@@ -12,13 +12,23 @@ out in ``realdata/gtdynamics-jumping-robot/trials/<trial>/``. Per trial and musc
   fill; it is measured, so the rig card's supply is ``measured``);
 - ``command_V``: the muscle's valve, 1 between its recorded open and close times, else
   0 (binary; the rig card declares it), with ``command_before_start`` 0;
+- ``cam_travel_m`` (an extra column the model does not read): the cam's travel (m)
+  from the video's joint angles, the cam's constant radius 0.045 m (``robot_config``:
+  ``rad0``, ``slope`` 0) times the cam angle's change since frame 0, which grows as
+  the knees flex (their cam angle is 180 deg less the joint angle) and the hips extend
+  (90 deg plus it). The authors' pre-processed angles (250 fps, frame 0 at the
+  pressure record's origin) are smoothed by a centred Savitzky-Golay filter (7 frames,
+  quadratic; their frame-to-frame noise is 2-5 mrad, 0.1-0.2 mm of travel) and
+  interpolated linearly onto the pressure's times. It is not the muscle's contraction
+  as measured: the tendon in series (8200 N/m) stretches under the muscle's force, and
+  the muscle's volume as the authors' cubic of this travel predicted the held-out fills
+  worse than a fixed volume (docs/history.md, 2026-12-03);
 - rows up to ``end_s`` only: the muscles are vented at about 0.33-0.40 s by something
   the recorded command does not contain (the data's README).
 
 The atmosphere is not recorded: 101325 Pa, as the data authors' own model uses. The
-temperature is the authors' configured 296.15 K. Video angles and marker pixels are not
-converted (the muscles' contraction is not derivable from them without the authors'
-cam geometry code; see the rig card's notes).
+temperature is the authors' configured 296.15 K. Marker pixels and poses are not
+converted.
 """
 
 from __future__ import annotations
@@ -44,6 +54,12 @@ TEMPERATURE_K = 296.15   # robot_config*.yaml 'T'
 TUBE_LENGTH_M = 74 * 0.0254      # robot_config 'l_tube_valve_musc' (in)
 TUBE_DIAMETER_M = 0.1575 * 0.0254  # robot_config 'd_tube_valve_musc' (in)
 VALVE_TIME_CONSTANT_S = 1e-3     # robot_config 'time_constant_valve'
+CAM_RADIUS_M = 0.045             # robot_config 'rad0' (knee and hip), 'slope' 0
+#: d(cam angle)/d(joint angle) per joint (robot_config 'theta_range': the knee's cam
+#: angle runs 0-180 deg as its joint angle runs 180-0, the hip's as it runs -90-90)
+CAM_SIGN = {"knee_right": -1.0, "hip_right": 1.0, "hip_left": 1.0, "knee_left": -1.0}
+#: Savitzky-Golay smoothing of the video angles: frames (odd) and polynomial order
+ANGLE_SMOOTHING = (7, 2)
 RIG_CARD_NAME = "gtdynamics-muscle.rig.json"
 
 
@@ -68,8 +84,10 @@ def rig_card() -> dict:
             "Valve: on/off, brand undocumented; time constant 1 ms and no opening delay "
             "as the authors' robot_config.yaml states. Chamber: the muscle volume at "
             f"rest is 4.24e-5 m^3 plus the tube's {tube_volume:.3g} m^3 in the authors' "
-            "model and grows with contraction during the jump; contraction is not "
-            "recorded, so the volume is a fixed unknown here (its change is misfit). "
+            "model and grows with contraction during the jump; the recordings carry "
+            "the cam's travel from the video (cam_travel_m), but the authors' volume "
+            "cubic of it predicted worse than a fixed volume, so the volume is a fixed "
+            "unknown here (its change is misfit). "
             "Supply: the source tank's measured pressure. Atmosphere not recorded "
             "(101325 Pa assumed, as the authors' model)."),
     }
@@ -100,6 +118,20 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def cam_travel_m(time_s, video_time_s, angles_rad, joint: str) -> np.ndarray:
+    """A muscle's cam travel (m) at ``time_s`` (s, the pressure record's times) from its
+    joint's video angles ``angles_rad`` (rad) at ``video_time_s`` (s, frame 0 at 0): the
+    cam radius times the cam angle's change since frame 0, the angles smoothed by
+    :data:`ANGLE_SMOOTHING` first, linear between frames and held beyond the last."""
+    from scipy.signal import savgol_filter
+
+    frames, order = ANGLE_SMOOTHING
+    a = np.asarray(angles_rad, dtype=np.float64)
+    smooth = savgol_filter(a, frames, order) if a.size >= frames else a
+    travel = CAM_RADIUS_M * CAM_SIGN[joint] * (smooth - smooth[0])
+    return np.interp(time_s, video_time_s, travel)
+
+
 def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
     """Write the four muscles' recordings of one trial under ``out_dir/<trial>/``;
     returns the written CSV paths. The rig card is written by :func:`import_gtdynamics`."""
@@ -108,8 +140,21 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
     for p in (raw_path, valve_path):
         if not p.is_file():
             raise ValueError(f"{trial}: not a GTDynamics trial folder (no {p.name})")
+    angle_path, video_path = trial / "angle_pre_rad.csv", trial / "vid_time_s.txt"
+    for p in (angle_path, video_path):
+        if not p.is_file():
+            raise ValueError(f"{trial}: no {p.name} (the video angles the muscles' "
+                             "contraction is read from)")
     raw = _read_matrix(raw_path, 6)
     valve = _read_matrix(valve_path, 4)
+    angles = _read_matrix(angle_path, 4)
+    video_t = _read_matrix(video_path, 1)[:, 0]
+    if video_t.size != angles.shape[0]:
+        raise ValueError(f"{video_path}: {video_t.size} frame times for "
+                         f"{angles.shape[0]} rows of {angle_path.name}")
+    video_t = video_t - video_t[0]
+    if not np.all(np.diff(video_t) > 0):
+        raise ValueError(f"{video_path}: frame times must increase")
     if valve.shape[0] != 2:
         raise ValueError(f"{valve_path}: expected 2 rows (open, close times), got "
                          f"{valve.shape[0]}")
@@ -126,10 +171,11 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
         # held command: the sample at t is open when the valve was open at t
         cmd = ((t >= t_open) & (t < t_close)).astype(float)
         stem = out / joint
-        lines = ["time_s,command_V,pressure_psi_gauge,supply_pressure_psi_gauge"]
-        lines += [f"{a!r},{c:g},{p!r},{s!r}"
-                  for a, c, p, s in zip(t.tolist(), cmd, raw[:, 1 + 1 + j].tolist(),
-                                        raw[:, 1].tolist())]
+        pos = cam_travel_m(t, video_t, angles[:, j], joint)
+        lines = ["time_s,command_V,pressure_psi_gauge,supply_pressure_psi_gauge,cam_travel_m"]
+        lines += [f"{a!r},{c:g},{p!r},{s!r},{x:.6e}"
+                  for a, c, p, s, x in zip(t.tolist(), cmd, raw[:, 1 + 1 + j].tolist(),
+                                           raw[:, 1].tolist(), pos.tolist())]
         sidecar = {
             "format": FORMAT_2, "rig": f"../{RIG_CARD_NAME}",
             "cylinder": f"GTDynamics {joint} muscle", "valve": f"{joint} on/off valve",
@@ -138,13 +184,16 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
             "command_before_start": 0.0,
             "import": {
                 **SOURCE, "trial": trial.name, "channel": joint,
-                "files": {raw_path.name: _sha256(raw_path), valve_path.name: _sha256(valve_path)},
+                "files": {f.name: _sha256(f) for f in (raw_path, valve_path, angle_path,
+                                                       video_path)},
                 "valve_open_s": float(t_open), "valve_close_s": float(t_close),
                 "rows": f"t <= {end_s} s of {int(keep.size)} (venting after it is not "
                         "in the recorded command)",
                 "conversion": "raw psi gauge columns kept in psi gauge (format 2); the "
                               "reader adds the stated atmosphere; nominal supply = the "
-                              "source's first reading",
+                              "source's first reading; cam_travel_m = the cam's travel "
+                              f"({CAM_RADIUS_M} m x the cam angle's change from frame 0, "
+                              f"angles Savitzky-Golay {ANGLE_SMOOTHING})",
             },
         }
         tmp = stem.with_suffix(".csv.tmp")
