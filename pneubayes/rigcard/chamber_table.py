@@ -17,6 +17,7 @@ As the ``polynomial`` kind, the chamber is lowered as an equivalent piston: the 
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -31,6 +32,11 @@ class TableChamber(PolynomialChamber):
     quantities = (("dead_volume_m3", "m^3", "volume where the table's dV is 0, tube "
                    "included", "positive"),)
     slots_written = ("volume_m3",)
+    defaults: ClassVar[dict] = {}
+    parameter_names_by_key: ClassVar[dict[str, str]] = {}
+
+    def lower_all(self, values, rig):
+        return {"volume_m3": values["dead_volume_m3"]}
 
     @classmethod
     def option_keys(cls):
