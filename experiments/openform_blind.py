@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in five sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in six sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -27,7 +27,11 @@ its straight line, cases ``q00``-``q09``. Set 5 (seed 1796247339, drawn from the
 2026-12-02 and recorded before its forms were written or any case ran): a spool
 returned by its spring slower than its solenoid drives it, a voltage-driven solenoid
 whose coil warms, a pressure sensor behind a capillary, and a length sensor that lags
-the piston, cases ``v00``-``v09``. Each form is planted
+the piston, cases ``v00``-``v09``. Set 6 (seed 1796267760, drawn from the clock on
+2026-12-03 and recorded before its forms were written or any case ran): a check valve
+in the exhaust line, a worn inlet seat that leaks at the incompressible law, a flow
+limiter at the inlet, and a solenoid that releases late, cases ``w00``-``w09``. Each
+form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -74,16 +78,20 @@ from pneubayes.bench.forms import (
     BladderVolume,
     CapillarySensorPort,
     CreepingWall,
+    ExhaustCheckValve,
     ExhaustSilencer,
     InletFlowForce,
+    InletFlowLimiter,
     Iso6358Ports,
     LaggingPositionSensor,
     LipSealLeak,
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
+    ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
+    SeatLeak,
     SensorBow,
     SpoolHysteresis,
     SpoolSlewLimit,
@@ -114,6 +122,9 @@ OPENFORM_SEED_4 = 1796227429
 #: Set 5's seed: ``date +%s`` at 2026-12-02 21:35:39 UTC, fixed before its forms were
 #: written or any case ran.
 OPENFORM_SEED_5 = 1796247339
+#: Set 6's seed: ``date +%s`` at 2026-12-03 03:16:00 UTC, fixed before its forms were
+#: written or any case ran.
+OPENFORM_SEED_6 = 1796267760
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -122,10 +133,11 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              3: ("Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap", "MeterOutThrottle"),
              4: ("SupplyHose", "LowReynoldsPorts", "SpoolStiction", "SensorBow"),
              5: ("SpringReturnSpool", "WarmingCoil", "CapillarySensorPort",
-                 "LaggingPositionSensor")}
+                 "LaggingPositionSensor"),
+             6: ("ExhaustCheckValve", "SeatLeak", "InletFlowLimiter", "ReleaseDelay")}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
-             5: OPENFORM_SEED_5}
-SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v"}
+             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -144,9 +156,24 @@ def _log_uniform(rng, lo, hi) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def draw_openform(name: str, cylinder: str, rng):
+def _full_inlet_flow(valve: str) -> float:
+    """The valve's inlet mass flow (kg/s) at its full command (+5 V) from the bench's
+    supply into the atmosphere (choked; eqs. 1-3 with the Table II map)."""
+    from pneubayes.physics.gas import GasConstants
+    from pneubayes.physics.orifice import flow_terms
+    from pneubayes.physics.valve import gompertz_scalar, valve_preset
+
+    v = valve_preset(valve).parameters()
+    area = gompertz_scalar(5.0, *(v[f"inlet_{k}"] for k in ("offset_m2", "a_m2", "b", "c_per_V",
+                                                             "d_V")))
+    g = GasConstants()
+    return float(area * flow_terms(SUPPLY_PA, ATMOSPHERE_PA, g.alpha_s_per_m, g.beta_s_per_m,
+                                   g.theta, g.heat_capacity_ratio)[0])
+
+
+def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
     """An out-of-catalogue plant form (class name ``name``) with parameters drawn from
-    wide physical ranges for ``cylinder``.
+    wide physical ranges for ``cylinder`` and ``valve``.
 
     - BladderVolume: dV_max 5-30 % of the swept volume, pressure scale 80-300 kPa;
     - SpoolHysteresis: half-band 0.08-0.3 V, smoothing 0.1-0.5 ms;
@@ -184,7 +211,13 @@ def draw_openform(name: str, cylinder: str, rng):
       steady heat (about 8-40 K), a thermal time constant of 2-20 s (both log-uniform);
     - CapillarySensorPort (set 5): a lag of 0.5-4 ms at the supply (log-uniform; about
       5 x it at the atmosphere);
-    - LaggingPositionSensor (set 5): a lag of 2-15 ms (log-uniform).
+    - LaggingPositionSensor (set 5): a lag of 2-15 ms (log-uniform);
+    - ExhaustCheckValve (set 6): cracking at 10-80 kPa (log-uniform);
+    - SeatLeak (set 6): C A of 5e-9-5e-8 m^2 (log-uniform; about 0.01-0.12 g/s at 4.5
+      bar across it);
+    - InletFlowLimiter (set 6): 0.3-1 x the valve's full choked inlet flow at the
+      supply (log-uniform);
+    - ReleaseDelay (set 6): falls acting 1-8 ms late (log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -261,6 +294,15 @@ def draw_openform(name: str, cylinder: str, rng):
                                    reference_pressure_Pa=SUPPLY_PA)
     if name == "LaggingPositionSensor":
         return LaggingPositionSensor(time_constant_s=_log_uniform(rng, 2e-3, 1.5e-2))
+    if name == "ExhaustCheckValve":
+        return ExhaustCheckValve(crack_pressure_Pa=_log_uniform(rng, 10e3, 80e3))
+    if name == "SeatLeak":
+        return SeatLeak(area_m2=_log_uniform(rng, 5e-9, 5e-8))
+    if name == "InletFlowLimiter":
+        return InletFlowLimiter(max_flow_kg_per_s=_full_inlet_flow(valve) * _log_uniform(
+            rng, 0.3, 1.0))
+    if name == "ReleaseDelay":
+        return ReleaseDelay(delay_s=_log_uniform(rng, 1e-3, 8e-3))
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 
@@ -275,7 +317,7 @@ def draw_cases(seed: int, blind_set: int = 1) -> list[dict]:
     cases = []
     for i, (form, rig) in enumerate(plan):
         cylinder, valve = rig.split(":")
-        obj = draw_openform(form, cylinder, rng) if form else None
+        obj = draw_openform(form, cylinder, rng, valve) if form else None
         cases.append({"name": f"{SET_PREFIX[blind_set]}{i:02d}_{cylinder}_{valve}_"
                               f"{form or 'none'}",
                       "seed": seed, "blind_set": blind_set, "cylinder": cylinder, "valve": valve,

@@ -67,6 +67,15 @@ def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
         assert 0.05 <= w.time_constant_s <= 1.0
         p = openform_blind.draw_openform("PilotInletValve", "SMC", rng)
         assert 20e3 <= p.min_pressure_difference_Pa <= 100e3
+        c = openform_blind.draw_openform("ExhaustCheckValve", "SMC", rng)
+        assert 10e3 <= c.crack_pressure_Pa <= 80e3
+        k = openform_blind.draw_openform("SeatLeak", "AIR37", rng)
+        assert 5e-9 <= k.area_m2 <= 5e-8
+        f = openform_blind.draw_openform("InletFlowLimiter", "SMC", rng, "valve2")
+        full = openform_blind._full_inlet_flow("valve2")
+        assert 0.3 * full <= f.max_flow_kg_per_s <= full and 5e-4 < full < 2e-3
+        d = openform_blind.draw_openform("ReleaseDelay", "AIR37", rng)
+        assert 1e-3 <= d.delay_s <= 8e-3
     with pytest.raises(ValueError, match="unknown out-of-catalogue form 'Nope'"):
         openform_blind.draw_openform("Nope", "SMC", rng)
 

@@ -15,16 +15,20 @@ from pneubayes.bench.forms import (
     BladderVolume,
     CapillarySensorPort,
     CreepingWall,
+    ExhaustCheckValve,
     ExhaustSilencer,
     InletFlowForce,
+    InletFlowLimiter,
     Iso6358Ports,
     LaggingPositionSensor,
     LipSealLeak,
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
+    ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
+    SeatLeak,
     SensorBow,
     SpoolHysteresis,
     SpoolSlewLimit,
@@ -103,7 +107,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "MeterOutThrottle", "SupplyHose", "LowReynoldsPorts",
                                      "SpoolStiction", "SensorBow", "SpringReturnSpool",
                                      "WarmingCoil", "CapillarySensorPort",
-                                     "LaggingPositionSensor"}
+                                     "LaggingPositionSensor", "ExhaustCheckValve",
+                                     "SeatLeak", "InletFlowLimiter", "ReleaseDelay"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -162,6 +167,11 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (CapillarySensorPort, {"time_constant_s": 1e-3, "reference_pressure_Pa": 0.0},
      "reference_pressure_Pa"),
     (LaggingPositionSensor, {"time_constant_s": float("nan")}, "time_constant_s"),
+    (ExhaustCheckValve, {"crack_pressure_Pa": -1.0}, "crack_pressure_Pa"),
+    (SeatLeak, {"area_m2": float("inf")}, "area_m2"),
+    (SeatLeak, {"area_m2": 1e-8, "laminar_drop_Pa": 0.0}, "laminar_drop_Pa"),
+    (InletFlowLimiter, {"max_flow_kg_per_s": -1e-4}, "max_flow_kg_per_s"),
+    (ReleaseDelay, {"delay_s": float("nan")}, "delay_s"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -191,7 +201,9 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     SpoolSlewLimit(slew_rate_V_per_s=0.0), SpoolUnderlap(area_m2=0.0),
     MeterOutThrottle(needle_area_m2=0.0), SupplyHose(restriction_area_m2=0.0),
     LowReynoldsPorts(critical_reynolds=0.0), SpoolStiction(breakaway_V=0.0),
-    SpringReturnSpool(rise_time_constant_s=0.0), WarmingCoil(resistance_rise=0.0)],
+    SpringReturnSpool(rise_time_constant_s=0.0), WarmingCoil(resistance_rise=0.0),
+    ExhaustCheckValve(crack_pressure_Pa=0.0), SeatLeak(area_m2=0.0),
+    InletFlowLimiter(max_flow_kg_per_s=0.0), ReleaseDelay(delay_s=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -667,3 +679,84 @@ def test_the_bench_reads_through_a_capillary_and_a_lagging_length_sensor(tmp_pat
                                atol=0.01 * span)
     assert np.max(np.abs(b.position_m - a.position_m)) > 5e-4
     np.testing.assert_allclose(b.position_m, lag.read(a.time_s, a.position_m), atol=2e-5)
+
+
+# ---------------------------------------------------------------- the sixth blind set
+def test_an_exhaust_check_valve_vents_only_down_to_its_cracking_pressure(rig):
+    """Inlet shut, exhaust open (-5 V): the chamber vents to the atmosphere without the
+    check, to its cracking pressure with it, at the orifice law against the raised
+    back-pressure; at 0 V (both ports shut) a chamber below the crack keeps its
+    pressure (nothing enters through the exhaust)."""
+    check = out_of_catalogue_defaults("ExhaustCheckValve")
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    inputs = _held(1.0, (-5.0,))
+    plain = _run(params, (), inputs, rig, p0=4e5)
+    held = _run(params, (check,), inputs, rig, p0=4e5)
+    assert plain[-1] < P_ATM + 500.0
+    stop = P_ATM + check.crack_pressure_Pa
+    assert stop - 1.0 < held[-1] < stop + 2e3 and np.all(held > stop - 1.0)  # (tolerance)
+    g = rig.gas
+    a_ex = CLOSABLE["exhaust_a_m2"]  # the exhaust's full area at -5 V (its offset 0)
+    mid = 0.5 * (held[0] + held[1])
+    mdot = a_ex * flow_terms(mid, stop, g.alpha_s_per_m, g.beta_s_per_m, g.theta,
+                             g.heat_capacity_ratio)[0]
+    want = -g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K \
+        * mdot / VOLUME
+    assert (held[1] - held[0]) / DT == pytest.approx(want, rel=0.01)
+    shut = _run(params, (check,), _held(0.3, (0.0,)), rig, p0=P_ATM + 10e3)
+    np.testing.assert_allclose(shut, P_ATM + 10e3, rtol=0, atol=1e-6)
+
+
+def test_a_worn_seat_fills_a_shut_chamber_at_the_incompressible_law(rig):
+    """Valve shut (0 V): the chamber rises from the atmosphere at dp/dt = kappa Rs T
+    C A sqrt(2 rho_s (p_s - p)) / V, and keeps rising to the supply."""
+    seat = out_of_catalogue_defaults("SeatLeak")
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    p = _run(params, (seat,), _held(0.5, (0.0,)), rig)
+    gas = rig.gas
+    rt = gas.specific_gas_constant_J_per_kg_K * gas.temperature_K
+    mid = 0.5 * (p[0] + p[1])
+    mdot = seat.area_m2 * np.sqrt(2.0 * P_SUP / rt * (P_SUP - mid))
+    want = gas.heat_capacity_ratio * rt * mdot / VOLUME
+    assert (p[1] - p[0]) / DT == pytest.approx(want, rel=0.01)
+    assert np.all(np.diff(p) >= -1e-3) and p[-1] > P_SUP - 1e3
+    plain = _run(params, (), _held(0.5, (0.0,)), rig)
+    np.testing.assert_allclose(plain, P_ATM, rtol=0, atol=1e-6)
+
+
+def test_a_flow_limiter_caps_a_full_fill_at_its_flow_and_spares_the_exhaust(rig, base):
+    limiter = InletFlowLimiter(max_flow_kg_per_s=2e-4)
+    fill = _held(0.3, (5.0,))
+    p = _run(base, (limiter,), fill, rig)
+    gas = rig.gas
+    rt_k = gas.heat_capacity_ratio * gas.specific_gas_constant_J_per_kg_K * gas.temperature_K
+    # far below the supply the inlet's own flow is several times the cap: dp/dt at most
+    # kappa Rs T m_max / V, and within a few per cent of it
+    rate = (p[1] - p[0]) / DT
+    assert 0.9 * rt_k * 2e-4 / VOLUME < rate <= rt_k * 2e-4 / VOLUME
+    plain = _run(base, (), fill, rig)
+    assert (plain[1] - plain[0]) / DT > 2 * rate
+    vent = _held(0.3, (-5.0,))  # (the closable valve: its inlet exactly shut at -5 V)
+    closable = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    np.testing.assert_allclose(_run(closable, (limiter,), vent, rig, p0=4e5),
+                               _run(closable, (), vent, rig, p0=4e5), rtol=0, atol=1e-6)
+
+
+def test_a_late_release_moves_falls_not_rises_and_a_quick_rise_cancels_a_fall(rig, base):
+    rel = ReleaseDelay(delay_s=3e-3)
+    t = np.arange(6) * 1e-3
+    times, values = rel.switches(t, [0.0, 2.0, 1.0, 1.0, 3.0, 3.0])
+    # the rise at 1 ms on time; the fall at 2 ms due at 5 ms, overtaken by the rise at
+    # 4 ms, so it never acts
+    np.testing.assert_allclose(times, [-np.inf, 1e-3, 4e-3])
+    np.testing.assert_array_equal(values, [0.0, 2.0, 3.0])
+    times, _ = rel.switches(t, [0.0, 2.0, 1.0, 1.0, 1.0, 1.0], shared_delay_s=1e-3)
+    np.testing.assert_allclose(times, [-np.inf, 2e-3, 6e-3])
+    # the plant: a fill then a vent; with the delay the vent is the plain plant's vent
+    # commanded 40 samples (4 ms) later
+    late = _run(base, (ReleaseDelay(delay_s=40 * DT),), _held(0.2, (5.0, -5.0), (0.0, 0.1)),
+                rig)
+    shifted = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.1 + 40 * DT)), rig)
+    np.testing.assert_allclose(late, shifted, rtol=0, atol=1.0)
+    plain = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
+    assert np.max(np.abs(late - plain)) > 10e3

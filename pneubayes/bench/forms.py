@@ -883,6 +883,97 @@ class LaggingPositionSensor(PlantForm):
         return first_order_low_pass(time_s, x, self.time_constant_s)
 
 
+# -------------------------------------------- out-of-catalogue forms, the sixth blind set
+@dataclass(frozen=True)
+class ExhaustCheckValve(PlantForm):
+    """A check valve in the exhaust line (a non-return on a shared exhaust manifold, a
+    quick-exhaust valve's lip): the exhaust port discharges against its cracking
+    pressure, so the chamber vents only down to it::
+
+        mdot_ex = a_ex f(p, P_atm + p_c)  for p > P_atm + p_c, else 0,
+
+    f the orifice law of eqs. 1-3 and ``p_c = crack_pressure_Pa`` (gauge). Nothing
+    enters through the exhaust. ``crack_pressure_Pa = 0`` is the plain exhaust.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    crack_pressure_Pa: float
+
+    def __post_init__(self):
+        _non_negative(self, "crack_pressure_Pa")
+
+
+@dataclass(frozen=True)
+class SeatLeak(PlantForm):
+    """A worn inlet seat that passes supply air into the chamber whatever the spool
+    does, through a crack short enough that its flow follows the incompressible
+    orifice law with the upstream density::
+
+        mdot = C A sign(d) sqrt(2 rho_up |d|),   d = p_s - p,   rho_up = p_up / (R T_s),
+
+    linear in d below ``laminar_drop_Pa`` (a smooth crossing). ``area_m2`` is C A;
+    0 is a tight seat. Unlike eqs. 1-3 it never chokes.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    area_m2: float
+    laminar_drop_Pa: float = 500.0
+
+    def __post_init__(self):
+        _non_negative(self, "area_m2")
+        _positive(self, "laminar_drop_Pa")
+
+
+@dataclass(frozen=True)
+class InletFlowLimiter(PlantForm):
+    """A flow limiter at the valve's inlet (a pressure-compensated flow-control valve,
+    a flow fuse): the inlet's mass flow saturates at ``max_flow_kg_per_s``::
+
+        mdot_in = m_max tanh(a_in f(p_s, p) / m_max),
+
+    so a large opening fills at a fixed rate while a small one is as the valve's map.
+    ``max_flow_kg_per_s = 0`` is no limiter.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    max_flow_kg_per_s: float
+
+    def __post_init__(self):
+        _non_negative(self, "max_flow_kg_per_s")
+
+
+@dataclass(frozen=True)
+class ReleaseDelay(PlantForm):
+    """A solenoid that releases late: the valve acts on a falling command
+    ``delay_s`` later than on a rising one (the armature's residual magnetism, the
+    driver's flyback), on top of any delay both share. A rise that comes before a
+    pending fall has acted cancels it. ``delay_s = 0`` acts on both alike.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    delay_s: float
+
+    def __post_init__(self):
+        _non_negative(self, "delay_s")
+
+    def switches(self, time_s, command, shared_delay_s: float = 0.0):
+        """``(times, values)``: when (s) the valve takes each held value of
+        ``command`` (sampled at ``time_s``), ``times[0] = -inf`` holding the first; a
+        change acts ``shared_delay_s`` after its sample, a fall ``delay_s`` later
+        still, and a change superseded before it acts is dropped."""
+        t = np.asarray(time_s, dtype=np.float64)
+        u = np.asarray(command, dtype=np.float64)
+        times, values = [-math.inf], [float(u[0])]
+        for k in np.nonzero(np.diff(u) != 0)[0] + 1:
+            at = t[k] + shared_delay_s + (self.delay_s if u[k] < u[k - 1] else 0.0)
+            while len(times) > 1 and times[-1] >= at:  # pending changes it overtakes
+                times.pop()
+                values.pop()
+            times.append(at)
+            values.append(float(u[k]))
+        return np.array(times), np.array(values)
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
@@ -892,7 +983,8 @@ FORMS: dict[str, type[PlantForm]] = {
                                   SpoolUnderlap, MeterOutThrottle, SupplyHose,
                                   LowReynoldsPorts, SpoolStiction, SensorBow,
                                   SpringReturnSpool, WarmingCoil, CapillarySensorPort,
-                                  LaggingPositionSensor)
+                                  LaggingPositionSensor, ExhaustCheckValve, SeatLeak,
+                                  InletFlowLimiter, ReleaseDelay)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -1033,7 +1125,11 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``WarmingCoil``: the resistance 8 % higher at the full command's steady heat
       (about 20 K), a 5 s thermal time constant;
     - ``CapillarySensorPort``: 2 ms at the supply (about 11 ms at the atmosphere);
-    - ``LaggingPositionSensor``: a 5 ms lag.
+    - ``LaggingPositionSensor``: a 5 ms lag;
+    - ``ExhaustCheckValve``: cracks at 30 kPa;
+    - ``SeatLeak``: C A = 3e-8 m^2 (about 0.07 g/s at 4.5 bar across it);
+    - ``InletFlowLimiter``: 0.5 g/s (about two thirds of valve 1's full choked inlet);
+    - ``ReleaseDelay``: falls act 4 ms late.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -1086,5 +1182,13 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return CapillarySensorPort(time_constant_s=2e-3)
     if name == "LaggingPositionSensor":
         return LaggingPositionSensor(time_constant_s=5e-3)
+    if name == "ExhaustCheckValve":
+        return ExhaustCheckValve(crack_pressure_Pa=30e3)
+    if name == "SeatLeak":
+        return SeatLeak(area_m2=3e-8)
+    if name == "InletFlowLimiter":
+        return InletFlowLimiter(max_flow_kg_per_s=5e-4)
+    if name == "ReleaseDelay":
+        return ReleaseDelay(delay_s=4e-3)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

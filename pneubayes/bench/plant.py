@@ -12,10 +12,10 @@ regulator droop, the acoustic tube's cell pressures and mass flows, a spool's pl
 silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting, a
 supply hose's pressure and a solenoid coil's heat (:mod:`pneubayes.bench.forms`
 documents each form's equations). A sticking spool (SpoolStiction) changes the command
-the valve sees; the bench applies the reading-side forms (SensorBow,
-CapillarySensorPort; LaggingPositionSensor on the position) to the plant's output. The
-other out-of-catalogue forms act in the same right-hand side; at zero strength each
-leaves it as it was.
+the valve sees, a late release (ReleaseDelay) when it acts; the bench applies the
+reading-side forms (SensorBow, CapillarySensorPort; LaggingPositionSensor on the
+position) to the plant's output. The other out-of-catalogue forms act in the same
+right-hand side; at zero strength each leaves it as it was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
 signal-path slots (:mod:`pneubayes.effects.path`) with the meanings the model gives
@@ -53,8 +53,10 @@ from pneubayes.bench.forms import (
     BladderVolume,
     ClearanceLeak,
     CreepingWall,
+    ExhaustCheckValve,
     ExhaustSilencer,
     InletFlowForce,
+    InletFlowLimiter,
     Iso6358Ports,
     LipSealLeak,
     LowReynoldsPorts,
@@ -62,9 +64,11 @@ from pneubayes.bench.forms import (
     PilotInletValve,
     PlantForm,
     RegulatorDroop,
+    ReleaseDelay,
     ReliefValve,
     RoundedDeadzone,
     ScoredBarrelLeak,
+    SeatLeak,
     SecondOrderSpool,
     SpoolHysteresis,
     SpoolSlewLimit,
@@ -118,7 +122,10 @@ K_RE_C, K_RE_MU = 74, 75
 # LaggingPositionSensor act on the readings, outside the right-hand side)
 K_SR_UP, K_SR_DN = 76, 77
 K_WC_K, K_WC_TAU, K_WC_MIN, K_WC_SPAN = 78, 79, 80, 81
-N_K = 82
+# the sixth blind set's forms (all 0: absent; ReleaseDelay acts on the command's
+# switching times, outside the right-hand side)
+K_XC_P, K_SE_A, K_SE_D, K_FL_M = 82, 83, 84, 85
+N_K = 86
 #: Below this drop (Pa) a MeterOutThrottle's flow is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
 # Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
@@ -268,8 +275,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         a_in = a_in / (1.0 + P[K_FF] * max(p_up - pv, 0.0) / p_atm)
     if P[K_PI_D] > 0.0:  # a pilot-operated inlet shuts below its minimum drop
         a_in = a_in * smoothstep((abs(p_up - pv) - P[K_PI_D]) / P[K_PI_W] + 0.5)
-    # the exhaust port discharges into a silencer's body, else to the atmosphere
-    p_exd = y[L[L_IM]] if L[L_IM] >= 0 else p_atm
+    # the exhaust port discharges into a silencer's body, else to the atmosphere (past
+    # an exhaust check valve: against its cracking pressure)
+    p_exd = y[L[L_IM]] if L[L_IM] >= 0 else p_atm + P[K_XC_P]
     # port flows (eqs. 1-3); a hot or cold chamber gas scales them by sqrt(T_s / T)
     if P[K_ISO_B] > 0.0:
         f_in = iso6358_flow(p_up, pv, beta, P[K_ISO_B], P[K_ISO_M])
@@ -282,11 +290,21 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         f_in *= math.sqrt(ts / temp)
     if hot and f_ex > 0.0:
         f_ex *= math.sqrt(ts / temp)
+    if P[K_XC_P] > 0.0 and f_ex < 0.0:  # the exhaust's check valve lets nothing in
+        f_ex = 0.0
     m_in = a_in * f_in
     m_ex = a_ex * f_ex
     if P[K_RE_C] > 0.0:  # viscous losses at low Reynolds numbers
         m_in = low_reynolds_flow(m_in, a_in, P[K_RE_C], P[K_RE_MU])
         m_ex = low_reynolds_flow(m_ex, a_ex, P[K_RE_C], P[K_RE_MU])
+    if P[K_FL_M] > 0.0:  # a flow limiter at the inlet
+        m_in = P[K_FL_M] * math.tanh(m_in / P[K_FL_M])
+    if P[K_SE_A] > 0.0:  # a worn seat: supply air past the inlet, incompressible law
+        drop = p_up - pv
+        rho = (p_up if drop >= 0.0 else pv) / (rs * ts)
+        d0 = P[K_SE_D]
+        mag = math.sqrt(2.0 * rho * max(abs(drop), d0))
+        m_in += P[K_SE_A] * mag * (drop / d0 if abs(drop) < d0 else math.copysign(1.0, drop))
     if L[L_IHS] >= 0:  # the hose refills through its restriction, the inlet draws it
         f_r = flow_terms(p_sensed, p_up, alpha, beta, theta, kappa)[0]
         dy[L[L_IHS]] = kappa * rs * ts / P[K_SH_V] * (P[K_SH_A] * f_r - m_in)
@@ -652,6 +670,15 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
                              "SpoolSlewLimit")
         P[K_SR_UP], P[K_SR_DN] = spring.rise_time_constant_s, spring.fall_time_constant_s
         L[L_SPOOL] = 4
+    check = by.get(ExhaustCheckValve)
+    if check is not None:
+        P[K_XC_P] = check.crack_pressure_Pa
+    seat = by.get(SeatLeak)
+    if seat is not None and seat.area_m2 > 0:
+        P[K_SE_A], P[K_SE_D] = seat.area_m2, seat.laminar_drop_Pa
+    limiter = by.get(InletFlowLimiter)
+    if limiter is not None:
+        P[K_FL_M] = limiter.max_flow_kg_per_s
     coil = by.get(WarmingCoil)
     if coil is not None and coil.resistance_rise > 0:
         P[K_WC_K], P[K_WC_TAU] = coil.resistance_rise, coil.time_constant_s
@@ -831,13 +858,22 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
         u = np.asarray(stiction.targets(u), dtype=np.float64)
     xx, ss = _spline_rows(t, inputs.position_m), _spline_rows(t, inputs.supply_pressure_Pa)
     delay = su.delay_s
-    shifted = t + delay
+    release = next((f for f in forms if isinstance(f, ReleaseDelay)), None)
+    if release is not None and release.delay_s > 0:  # falls act late, and may not at all
+        sw_t, sw_u = release.switches(t, u, delay)
 
-    def command_at(tau):
-        return float(u[max(int(np.searchsorted(shifted, tau, side="right")) - 1, 0)])
+        def command_at(tau):
+            return float(sw_u[int(np.searchsorted(sw_t, tau, side="right")) - 1])
 
-    change = np.nonzero(np.diff(u) != 0)[0] + 1
-    cuts = shifted[change]
+        cuts = sw_t[1:]
+    else:
+        shifted = t + delay
+
+        def command_at(tau):
+            return float(u[max(int(np.searchsorted(shifted, tau, side="right")) - 1, 0)])
+
+        change = np.nonzero(np.diff(u) != 0)[0] + 1
+        cuts = shifted[change]
     cuts = cuts[(cuts > t[0]) & (cuts < t[-1])]
     edges = np.unique(np.concatenate([[t[0]], cuts, [t[-1]]]))
     y = _initial_state(su, p0, command_at(t[0]))
