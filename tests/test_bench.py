@@ -135,3 +135,27 @@ def test_bench_refuses_to_overwrite_and_rejects_unknown_override(tmp_path, fixed
                       count=1, overrides={"tube_delay_s": 0.01})
     with pytest.raises(ValueError, match="tube_delay_s"):
         run_bench(bad, tmp_path / "x")
+
+
+def test_a_bench_recording_drawn_to_a_vacuum_accepts_it_and_reads(tmp_path):
+    """The bench's pressures are absolute by construction: a recording whose chamber the
+    piston draws below half an atmosphere (a sealed, expanding chamber) accepts the
+    reader's ``pressure-low`` rule, which otherwise refuses it as a gauge reading; a
+    recording above it accepts nothing."""
+    from pneubayes.bench.bench import accepted_rules
+    from pneubayes.io import Recording, RecordingMetadata, read_recording, write_recording
+
+    t = np.arange(200) * 1e-3
+    p = 101325.0 - 70e3 * np.sin(np.pi * t / t[-1])  # down to 31 kPa and back
+    assert accepted_rules(p) == ("pressure-low",)
+    assert accepted_rules(np.full(200, 101325.0)) == ()
+    meta = dict(cylinder="SMC", valve="valve2", bore_m=0.016, stroke_m=0.1,
+                atmospheric_pressure_Pa=101325.0, supply_pressure_Pa=551325.0,
+                temperature_K=293.15, position_m=0.05)
+    for accept, name in (((), "refused"), (accepted_rules(p), "accepted")):
+        rec = Recording(metadata=RecordingMetadata(**meta, accept_unusual=accept),
+                        time_s=t, command_V=np.zeros(200), pressure_Pa=p)
+        write_recording(rec, tmp_path / name)
+    with pytest.raises(ValueError, match="far below the atmosphere"):
+        read_recording(tmp_path / "refused.csv")
+    assert read_recording(tmp_path / "accepted.csv").pressure_Pa.min() < 0.5 * 101325.0

@@ -162,6 +162,15 @@ def _plans(cfg: BenchConfig, stroke: float) -> list[dict]:
             for i in range(cfg.count)]
 
 
+def accepted_rules(pressure_Pa) -> tuple[str, ...]:
+    """Plausibility rules a bench recording of ``pressure_Pa`` (absolute, Pa) accepts:
+    ``pressure-low`` where its 1st percentile is below half an atmosphere (a sealed
+    chamber the piston draws to a vacuum is real; the bench's pressures are absolute
+    by construction, never a gauge reading), else none."""
+    low = np.percentile(np.asarray(pressure_Pa, dtype=np.float64), 1) < 0.5 * ATMOSPHERE_PA
+    return ("pressure-low",) if low else ()
+
+
 def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
               progress: Callable[[str], None] | None = None) -> BenchResult:
     """Generate the recordings of ``cfg`` into ``out_dir`` and write ``truth.json``."""
@@ -229,7 +238,8 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
             atmospheric_pressure_Pa=ATMOSPHERE_PA, supply_pressure_Pa=SUPPLY_PA,
             temperature_K=TEMPERATURE_K, position_m=plan["position_m"],
             extra={"source": "pneubayes virtual bench", "protocol": cfg.protocol,
-                   "command_range_V": plan["range_V"]})
+                   "command_range_V": plan["range_V"]},
+            accept_unusual=accepted_rules(p_meas))
         pos = None
         if plan["position_m"] is None:
             for form in cfg.forms:  # a lagging length sensor reads behind the piston
