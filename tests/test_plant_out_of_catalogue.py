@@ -705,6 +705,8 @@ def test_an_exhaust_check_valve_vents_only_down_to_its_cracking_pressure(rig):
     assert (held[1] - held[0]) / DT == pytest.approx(want, rel=0.01)
     shut = _run(params, (check,), _held(0.3, (0.0,)), rig, p0=P_ATM + 10e3)
     np.testing.assert_allclose(shut, P_ATM + 10e3, rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="beside an ExhaustSilencer"):
+        _run(params, (check, out_of_catalogue_defaults("ExhaustSilencer")), inputs, rig)
 
 
 def test_a_worn_seat_fills_a_shut_chamber_at_the_incompressible_law(rig):

@@ -506,6 +506,15 @@ def test_import_gtdynamics_writes_recordings_and_their_card(tmp_path, capsys):
                                    0.045 * rate[p.stem] * table["time_s"], rtol=1e-6,
                                    atol=1e-12)
     assert "cam_travel_m" in rec.extra_columns and rec.position_m is None
+    # a trial without its video imports without the column; with half of it, refused
+    (trial / "vid_time_s.txt").rename(tmp_path / "vid_time_s.txt")
+    assert main(["import", "gtdynamics", str(trial), "--out", str(tmp_path / "half")]) == 2
+    assert "vid_time_s.txt is missing" in capsys.readouterr().err
+    (trial / "angle_pre_rad.csv").rename(tmp_path / "angle_pre_rad.csv")
+    assert main(["import", "gtdynamics", str(trial), "--out", str(tmp_path / "none")]) == 0
+    plain = read_recording(sorted((tmp_path / "none").glob("*/*.csv"))[0])
+    assert "cam_travel_m" not in plain.extra_columns
+    np.testing.assert_array_equal(plain.pressure_Pa, rec.pressure_Pa)
     # a second import into the same folder needs --overwrite
     assert main(["import", "gtdynamics", str(trial), "--out", str(tmp_path / "out")]) == 2
     assert "--overwrite" in capsys.readouterr().err

@@ -672,6 +672,9 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         L[L_SPOOL] = 4
     check = by.get(ExhaustCheckValve)
     if check is not None:
+        if silencer is not None and silencer.back_pressure_Pa > 0:
+            raise ValueError("plant: an ExhaustCheckValve cannot be planted beside an "
+                             "ExhaustSilencer (both sit on the exhaust port)")
         P[K_XC_P] = check.crack_pressure_Pa
     seat = by.get(SeatLeak)
     if seat is not None and seat.area_m2 > 0:

@@ -411,8 +411,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     w_r, z_r = sl[_SENSOR_W], sl[_SENSOR_Z]
     second = w_r > 0.0
     reading = lag_r > 0.0 or second
-    # a first-order lag whose time constant depends on the pressure (at the atmosphere
-    # lag_r), stepped at the step's mid state (its start's, then the midpoint's)
+    # a first-order lag whose time constant depends on the pressure (lag_r at the
+    # atmosphere; reading.pressure_dependent_step steps it over substeps)
     n_r = sl[_SENSOR_N] if (lag_r > 0.0 and not second) else 0.0
     lag_0 = pressure_lag(lag_r, n_r, p0, p0, p_atm) if n_r != 0.0 else lag_r
     # the reading's lead at DC (its group delay) and the time its transient takes

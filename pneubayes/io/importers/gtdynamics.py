@@ -12,7 +12,8 @@ out in ``realdata/gtdynamics-jumping-robot/trials/<trial>/``. Per trial and musc
   fill; it is measured, so the rig card's supply is ``measured``);
 - ``command_V``: the muscle's valve, 1 between its recorded open and close times, else
   0 (binary; the rig card declares it), with ``command_before_start`` 0;
-- ``cam_travel_m`` (an extra column the model does not read): the cam's travel (m)
+- ``cam_travel_m`` (an extra column the model does not read; where the trial folder
+  has its video's ``angle_pre_rad.csv`` and ``vid_time_s.txt``): the cam's travel (m)
   from the video's joint angles, the cam's constant radius 0.045 m (``robot_config``:
   ``rad0``, ``slope`` 0) times the cam angle's change since frame 0, which grows as
   the knees flex (their cam angle is 180 deg less the joint angle) and the hips extend
@@ -140,21 +141,24 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
     for p in (raw_path, valve_path):
         if not p.is_file():
             raise ValueError(f"{trial}: not a GTDynamics trial folder (no {p.name})")
-    angle_path, video_path = trial / "angle_pre_rad.csv", trial / "vid_time_s.txt"
-    for p in (angle_path, video_path):
-        if not p.is_file():
-            raise ValueError(f"{trial}: no {p.name} (the video angles the muscles' "
-                             "contraction is read from)")
     raw = _read_matrix(raw_path, 6)
     valve = _read_matrix(valve_path, 4)
-    angles = _read_matrix(angle_path, 4)
-    video_t = _read_matrix(video_path, 1)[:, 0]
-    if video_t.size != angles.shape[0]:
-        raise ValueError(f"{video_path}: {video_t.size} frame times for "
-                         f"{angles.shape[0]} rows of {angle_path.name}")
-    video_t = video_t - video_t[0]
-    if not np.all(np.diff(video_t) > 0):
-        raise ValueError(f"{video_path}: frame times must increase")
+    # the video (optional: without it the recordings carry no cam travel)
+    angle_path, video_path = trial / "angle_pre_rad.csv", trial / "vid_time_s.txt"
+    video = angle_path.is_file() or video_path.is_file()
+    if video:
+        for p in (angle_path, video_path):
+            if not p.is_file():
+                raise ValueError(f"{trial}: {p.name} is missing beside the video's other "
+                                 "file (the cam travel needs both)")
+        angles = _read_matrix(angle_path, 4)
+        video_t = _read_matrix(video_path, 1)[:, 0]
+        if video_t.size != angles.shape[0]:
+            raise ValueError(f"{video_path}: {video_t.size} frame times for "
+                             f"{angles.shape[0]} rows of {angle_path.name}")
+        video_t = video_t - video_t[0]
+        if not np.all(np.diff(video_t) > 0):
+            raise ValueError(f"{video_path}: frame times must increase")
     if valve.shape[0] != 2:
         raise ValueError(f"{valve_path}: expected 2 rows (open, close times), got "
                          f"{valve.shape[0]}")
@@ -171,11 +175,15 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
         # held command: the sample at t is open when the valve was open at t
         cmd = ((t >= t_open) & (t < t_close)).astype(float)
         stem = out / joint
-        pos = cam_travel_m(t, video_t, angles[:, j], joint)
-        lines = ["time_s,command_V,pressure_psi_gauge,supply_pressure_psi_gauge,cam_travel_m"]
-        lines += [f"{a!r},{c:g},{p!r},{s!r},{x:.6e}"
-                  for a, c, p, s, x in zip(t.tolist(), cmd, raw[:, 1 + 1 + j].tolist(),
-                                           raw[:, 1].tolist(), pos.tolist())]
+        head = "time_s,command_V,pressure_psi_gauge,supply_pressure_psi_gauge"
+        rows = [f"{a!r},{c:g},{p!r},{s!r}"
+                for a, c, p, s in zip(t.tolist(), cmd, raw[:, 1 + 1 + j].tolist(),
+                                      raw[:, 1].tolist())]
+        if video:
+            head += ",cam_travel_m"
+            travel = cam_travel_m(t, video_t, angles[:, j], joint)
+            rows = [f"{row},{x:.6e}" for row, x in zip(rows, travel.tolist())]
+        lines = [head] + rows
         sidecar = {
             "format": FORMAT_2, "rig": f"../{RIG_CARD_NAME}",
             "cylinder": f"GTDynamics {joint} muscle", "valve": f"{joint} on/off valve",
@@ -184,16 +192,18 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
             "command_before_start": 0.0,
             "import": {
                 **SOURCE, "trial": trial.name, "channel": joint,
-                "files": {f.name: _sha256(f) for f in (raw_path, valve_path, angle_path,
-                                                       video_path)},
+                "files": {f.name: _sha256(f) for f in (raw_path, valve_path)
+                          + ((angle_path, video_path) if video else ())},
                 "valve_open_s": float(t_open), "valve_close_s": float(t_close),
                 "rows": f"t <= {end_s} s of {int(keep.size)} (venting after it is not "
                         "in the recorded command)",
                 "conversion": "raw psi gauge columns kept in psi gauge (format 2); the "
                               "reader adds the stated atmosphere; nominal supply = the "
-                              "source's first reading; cam_travel_m = the cam's travel "
-                              f"({CAM_RADIUS_M} m x the cam angle's change from frame 0, "
-                              f"angles Savitzky-Golay {ANGLE_SMOOTHING})",
+                              "source's first reading" + (
+                                  "; cam_travel_m = the cam's travel "
+                                  f"({CAM_RADIUS_M} m x the cam angle's change from frame "
+                                  f"0, angles Savitzky-Golay {ANGLE_SMOOTHING})"
+                                  if video else ""),
             },
         }
         tmp = stem.with_suffix(".csv.tmp")
