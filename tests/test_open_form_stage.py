@@ -308,7 +308,7 @@ def test_a_second_round_extends_the_closure_the_model_already_has(rig):
     runner = SimpleNamespace(fit=fit, log=lambda m: None, ledger=Ledger(),
                              data=SimpleNamespace(rig=lambda: rig))
     found = [FoundTerm(Term("inlet_flow"), 0.0, 0.0, 0.05, 1.0, 1.0, 0.5)]
-    got = OpenForm()._fit(_state(current), runner, found)
+    got = OpenForm()._fit(_state(current), runner, found, ())
     assert got.model.effect("closure").options()["terms"] == "pressure_hinge; inlet_flow"
     (m, searched), (_, zero) = starts
     assert searched["closure_coefficient_0"] == -5e-5
@@ -363,7 +363,7 @@ def test_a_closure_whose_fit_fails_from_every_start_is_in_the_ledger(rig):
     runner = SimpleNamespace(fit=fit, log=lambda m: None, ledger=Ledger(),
                              data=SimpleNamespace(rig=lambda: rig))
     found = [FoundTerm(Term("inlet_flow"), 0.0, 0.0, 0.05, 1.0, 1.0, 0.5)]
-    assert OpenForm()._fit(_state(current), runner, found) is None
+    assert OpenForm()._fit(_state(current), runner, found, ()) is None
     (entry,) = [e for e in runner.ledger if e["action"] == "open form failed"]
     assert entry["terms"] == "inlet_flow" and "min_step_s" in entry["error"]
     assert "the search's values" in entry["error"] and "zero strength" in entry["error"]
@@ -399,3 +399,51 @@ def test_pruning_keeps_a_term_whose_closure_would_stop_beating_the_current_model
     assert [str(t) for t, _ in _existing_terms(kept.model)] == ["inlet_flow*spool_hinge_up"]
     (entry,) = [e for e in runner.ledger if e["action"] == "open form prune"]
     assert entry["term"] == "pressure_hinge" and entry["heldout_rmse_after_Pa"] == 40e3
+
+
+def test_a_closure_rewritten_starts_at_its_terms_values_with_bounds_that_reach_them():
+    from pneubayes.discovery.openform.linear_hinge import ValuedTerm
+    from pneubayes.effects.closure_features import Term
+
+    model = Model().with_effect(Closure(terms="inlet_flow*inlet_drop_hinge"))
+    params = {k: 0.5 * (model.parameter(k).lower + model.parameter(k).upper)
+              for k in model.parameter_names}
+    fit = SimpleNamespace(model=model, params=params)
+    terms = [ValuedTerm(Term.parse("inlet_flow*inlet_drop"), -0.3),
+             ValuedTerm(Term.parse("inlet_flow"), 3.0),
+             ValuedTerm(Term.parse("spool_hinge_up"), 1e-6, 4.0)]
+    stage = OpenForm(coefficient_reach=10.0)
+    rewritten, start = stage._closure_model(fit, terms)
+    assert rewritten.effect("closure").options()["terms"] == (
+        "inlet_flow*inlet_drop; inlet_flow; spool_hinge_up")
+    assert set(start) == set(rewritten.parameter_names)
+    assert [start[f"closure_coefficient_{k}"] for k in range(3)] == [-0.3, 3.0, 1e-6]
+    assert start["closure_threshold_2_a"] == 4.0
+    assert start["dead_volume_m3"] == params["dead_volume_m3"]
+    # a coefficient beyond its default bound gets +- 10 x its value; one inside keeps it
+    assert rewritten.parameter("closure_coefficient_1").upper == pytest.approx(30.0)
+    assert "closure_coefficient_2" not in rewritten.bound_overrides
+
+
+def test_a_hinge_threshold_bound_reaches_the_range_of_its_signal():
+    """A chamber compressed to 20 bar takes the pressure hinge's threshold past its
+    default bound of 10 atmospheres: the fit's bound follows the data; a spool hinge
+    whose signal stays inside its bounds keeps them."""
+    from openform_synthetic import synthetic_signals
+
+    from pneubayes.discovery.stages.open_form import _threshold_reach
+    from pneubayes.effects.closure_features import Term
+
+    s = synthetic_signals(4)
+    high = dict(s, pressure_Pa=s["pressure_Pa"] * 3.0)  # up to ~21 bar
+    model = Model().with_effect(Closure(terms="inlet_flow*pressure_hinge; spool_hinge_up"))
+    terms = [Term.parse("inlet_flow*pressure_hinge"), Term.parse("spool_hinge_up")]
+    reach = _threshold_reach(model, terms, [s, high])
+    ratio = [x["pressure_Pa"] / x["atmospheric_pressure_Pa"] for x in (s, high)]
+    top, low = float(np.max(ratio[1])), min(1.0, float(np.min(ratio[0])))
+    assert top > 15.0
+    assert reach == {"closure_threshold_0_b": (low, pytest.approx(top))}
+    # a spool hinge inside its bounds keeps them; a pressure hinge inside its keeps them
+    inside = dict(s, pressure_Pa=np.clip(s["pressure_Pa"], 1.2e5, 9e5))
+    assert _threshold_reach(model, terms, [inside]) == {}
+    assert _threshold_reach(model, terms, ()) == {}

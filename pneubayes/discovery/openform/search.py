@@ -174,7 +174,7 @@ class OpenFormSearch:
         self.alias_cos = alias_cos
 
     # ------------------------------------------------------------------ validation
-    def _validate(self, signals_list, target_list):
+    def _validate(self, signals_list, target_list, row_maps=None):
         if not isinstance(self.max_terms, int) or not 1 <= self.max_terms <= CLOSURE_MAX_TERMS:
             raise ValueError(f"max_terms must be an integer in 1..{CLOSURE_MAX_TERMS}, "
                              f"got {self.max_terms!r}")
@@ -208,20 +208,36 @@ class OpenFormSearch:
         if len(signals_list) != len(target_list) or not signals_list:
             raise ValueError(f"fit: {len(signals_list)} signal dicts for {len(target_list)} "
                              "targets; give one of each per recording (at least one)")
+        if row_maps is not None and len(row_maps) != len(signals_list):
+            raise ValueError(f"fit: {len(row_maps)} row maps for {len(signals_list)} "
+                             "recordings; give one per recording")
         for i, (s, y) in enumerate(zip(signals_list, target_list)):
             missing = [k for k in SIGNALS if k not in s]
             if missing:
                 raise ValueError(f"recording {i}: signals lack {missing}")
             n = np.asarray(y).shape
+            if row_maps is not None:
+                rows = getattr(row_maps[i], "n_rows", n[0] if len(n) == 1 else None)
+                if len(n) != 1 or rows != n[0]:
+                    raise ValueError(f"recording {i}: with row maps the target is the "
+                                     f"map's {rows} rows, got shape {n}")
+                continue
             if len(n) != 1 or np.broadcast_shapes(*(np.shape(s[k]) for k in SIGNALS), n) != n:
                 raise ValueError(f"recording {i}: the target and the signals must be 1-D "
                                  f"of one length, got target {n}")
 
     # ------------------------------------------------------------------ rows
+    def _to_rows(self, values: np.ndarray, i: int) -> np.ndarray:
+        """Per-interval values of recording ``i`` -> its regression rows: block sums of
+        :attr:`block` intervals, or the fit's ``row_maps[i]``."""
+        if self._row_maps is None:
+            return _block_sums(values, self.block)
+        return self._row_maps[i](values)
+
     def _rows(self, candidate: Candidate, signals_list, finite: np.ndarray) -> np.ndarray:
         """One candidate's rows over all recordings (the ``finite`` ones only)."""
-        col = np.concatenate([_block_sums(candidate.evaluate(s), self.block)
-                              for s in signals_list])
+        col = np.concatenate([self._to_rows(candidate.evaluate(s), i)
+                              for i, s in enumerate(signals_list)])
         return col[finite]
 
     def _sparse(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
@@ -393,8 +409,8 @@ class OpenFormSearch:
                                                "group_inclusion": union}
         return out
 
-    def fit(self, signals_list: Sequence[dict], target_list: Sequence[np.ndarray]
-            ) -> "OpenFormSearch":
+    def fit(self, signals_list: Sequence[dict], target_list: Sequence[np.ndarray],
+            row_maps=None) -> "OpenFormSearch":
         """Search the terms of the missing mass flow.
 
         Parameters
@@ -407,13 +423,20 @@ class OpenFormSearch:
             (:func:`~pneubayes.discovery.openform.signals.missing_mass_flow`). A row
             holding a non-finite value, or an interval a signal dict's optional
             ``"valid"`` array marks False, is left out.
+        row_maps : sequence of callables, optional
+            Per recording, the map from per-interval values ``(M, ...)`` to the
+            regression's rows ``(R, ...)`` in place of block sums (e.g.
+            :class:`~pneubayes.discovery.openform.trajectory.WindowResponse`); the
+            targets are then given as rows, ``(R,)`` each (``"valid"`` is not read:
+            the maps' rows are the caller's to choose).
 
         Returns
         -------
         OpenFormSearch
             self, with the attributes of the class doc.
         """
-        self._validate(signals_list, target_list)
+        self._validate(signals_list, target_list, row_maps)
+        self._row_maps = None if row_maps is None else list(row_maps)
         from threadpoolctl import threadpool_limits
 
         # the regressions are small (~1e3 x 1e2): BLAS threads only contend for cores
@@ -424,12 +447,15 @@ class OpenFormSearch:
         cands = [c for c in candidate_terms(signals_list, self.quantiles)
                  if c.family not in set(self.exclude)]
         # an interval a signal dict marks invalid ("valid" False) leaves out its row
-        y = np.concatenate([_block_sums(np.where(np.asarray(s.get("valid", True), bool),
-                                                 np.asarray(t, dtype=np.float64), np.nan),
-                                        self.block)
-                            for s, t in zip(signals_list, target_list)])
-        x = np.concatenate([_block_sums(design_matrix(cands, s), self.block)
-                            for s in signals_list])
+        if self._row_maps is None:
+            y = np.concatenate([_block_sums(np.where(np.asarray(s.get("valid", True), bool),
+                                                     np.asarray(t, dtype=np.float64),
+                                                     np.nan), self.block)
+                                for s, t in zip(signals_list, target_list)])
+        else:
+            y = np.concatenate([np.asarray(t, dtype=np.float64) for t in target_list])
+        x = np.concatenate([self._to_rows(design_matrix(cands, s), i)
+                            for i, s in enumerate(signals_list)])
         finite = np.isfinite(y) & np.all(np.isfinite(x), axis=1)
         y, x = y[finite], x[finite]
         keep = distinct_columns(x, self.duplicate_tolerance)

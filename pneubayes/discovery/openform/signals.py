@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneubayes.discovery.openform.trajectory import phi1, pressure_gain
 from pneubayes.effects.closure_features import SignalHistory, held_direction
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
@@ -220,12 +221,5 @@ def missing_mass_flow(signals: dict, errors_Pa, rig) -> np.ndarray:
     if e.shape != h.shape:
         raise ValueError(f"missing_mass_flow: {e.shape[0]} errors for {h.shape[0]} intervals")
     jh = np.asarray(signals["jacobian_per_s"], dtype=np.float64) * h
-    small = np.abs(jh) < 1e-8
-    # (exp(J h) - 1) / (J h), 1 at J h = 0
-    phi1 = np.where(small, 1.0, np.expm1(jh) / np.where(small, 1.0, jh))
-    rate = e / (h * phi1)
-    g = rig.gas
-    kappa = g.heat_capacity_ratio
-    denom = (np.asarray(signals["volume_m3"]) + kappa * np.asarray(signals["pressure_Pa"])
-             * np.asarray(signals["compliance_m3_per_Pa"]))
-    return rate * denom / (kappa * g.specific_gas_constant_J_per_kg_K * g.temperature_K)
+    rate = e / (h * phi1(jh))
+    return rate / pressure_gain(signals, rig)

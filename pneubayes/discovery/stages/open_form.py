@@ -6,6 +6,9 @@ regressed on physically typed features of the model's own signal path; the terms
 search keeps enter the model as one :class:`~pneubayes.effects.closure.Closure`
 component, are refitted through the simulator on the training trajectories, pruned term
 by term, and verified on the held-out windows with the test a named effect passes.
+Where the one-step searches keep nothing that passes, the same search runs on the
+training windows' residual, each candidate entering as its first-order effect on the
+predicted pressure (:mod:`~pneubayes.discovery.openform.trajectory`).
 """
 
 from __future__ import annotations
@@ -15,8 +18,11 @@ import inspect
 import numpy as np
 
 from pneubayes.discovery.one_step import one_step_data
+from pneubayes.discovery.openform.features import HINGE_SOURCES, hinge_source_values
+from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
 from pneubayes.discovery.openform.search import OpenFormSearch
 from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
+from pneubayes.discovery.openform.trajectory import WindowResponse
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
@@ -30,6 +36,8 @@ from pneubayes.errors import SimulationError
 
 #: The name of the closure component in a model and in the ledger.
 CLOSURE = "closure"
+#: The search source whose rows are the prediction windows' residual.
+WINDOWS = "windows"
 
 
 class OpenForm(Stage):
@@ -59,17 +67,25 @@ class OpenForm(Stage):
     retries : int
         Searches again, each without the families of the last closure, when that
         closure was rejected with its parameters at a bound (a closure that fits only
-        at its limits stands in for what its terms cannot express).
+        at its limits stands in for what its terms cannot express). Before that, a
+        hinge whose threshold went to a bound beyond its signal's range (active on all
+        the data, or on none) is written without it and the closure refitted and
+        verified once more (:mod:`~pneubayes.discovery.openform.linear_hinge`).
     long_block : int
         Sample intervals per row of a second search when the first (the search's
-        block) keeps no term; 0 or not above the block: none.
+        block) keeps no term or its closure is rejected; 0 or not above the block: none.
+    window_rows : int
+        Rows per training window of a last search on the prediction windows' residual
+        (:mod:`~pneubayes.discovery.openform.trajectory`), run when the one-step
+        searches keep no term or their closures are rejected; 0: none.
     """
 
     name = "open_form"
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
                  search: OpenFormSearch | None = None, prune: bool = True,
-                 coefficient_reach: float = 10.0, retries: int = 1, long_block: int = 25):
+                 coefficient_reach: float = 10.0, retries: int = 1, long_block: int = 25,
+                 window_rows: int = 40):
         if min_noise_ratio < 1.0:
             raise ValueError(f"OpenForm: min_noise_ratio must be >= 1, got {min_noise_ratio}")
         if not 0.0 <= compete_below_gap_closed <= 1.0:
@@ -90,6 +106,10 @@ class OpenForm(Stage):
             raise ValueError(f"OpenForm: long_block must be an integer >= 0, got "
                              f"{long_block!r}")
         self.long_block = long_block
+        if not (isinstance(window_rows, int) and window_rows >= 0):
+            raise ValueError(f"OpenForm: window_rows must be an integer >= 0, got "
+                             f"{window_rows!r}")
+        self.window_rows = window_rows
 
     def options(self):
         search = None if self.search is None else _settings_of(self.search)
@@ -97,7 +117,7 @@ class OpenForm(Stage):
                 "compete_below_gap_closed": self.compete_below_gap_closed,
                 "search": search, "prune": self.prune,
                 "coefficient_reach": self.coefficient_reach, "retries": self.retries,
-                "long_block": self.long_block}
+                "long_block": self.long_block, "window_rows": self.window_rows}
 
     # ------------------------------------------------------------------ when
     def _applies(self, state: RoundState, noise: float):
@@ -131,51 +151,69 @@ class OpenForm(Stage):
     def _run(self, state: RoundState, runner, best) -> None:
         search = self.search if self.search is not None else OpenFormSearch(
             block=runner.settings.search.block, seed=runner.settings.seed)
-        residuals: dict[int, tuple] = {}  # block -> (signals, targets)
+        data: dict = {}  # source -> (signals, targets, row maps or None)
         shortest = min(rec.n_samples for rec in runner.data.train)
-        blocks = [search.block] + ([self.long_block] if search.block < self.long_block
-                                   < shortest else [])  # (a row within each recording)
+        # the one-step residual in blocks; a longer block (the one-step residual of a
+        # small chamber is mostly noise, which sums away over more intervals); the
+        # prediction windows' residual, where a slow term accumulates
+        sources: list = [search.block] + (
+            [self.long_block] if search.block < self.long_block < shortest else []) + (
+            [WINDOWS] if self.window_rows else [])
+        tried: set = set()  # the closures fitted (a source that proposes one again: next)
         excluded: tuple[str, ...] = ()
-        for _ in range(1 + self.retries):
-            if excluded:
-                search = _clone(search, exclude=tuple(search.exclude) + excluded)
-                runner.log("discover: open form: searching again without "
-                           + ", ".join(excluded))
-            for block in blocks:
-                # a longer block when the first finds nothing: the one-step residual of a
-                # small chamber is mostly noise, which sums away over more intervals
-                search = _clone(search, block=block) if block != search.block else search
-                if block not in residuals:
-                    residuals[block] = self._residual(state, runner, block)
-                terms, search = self._search(search, *residuals[block], state.current)
-                runner.ledger.record("open form search", round=state.number,
-                                     terms=[_term_record(t) for t in terms],
-                                     explained_fraction=getattr(
-                                         search, "explained_fraction_", None),
-                                     candidates=getattr(search, "n_candidates_", None),
-                                     excluded=list(search.exclude), block=block)
-                if terms:
-                    break
-            if not terms:
-                runner.log("discover: open form: no term of the residual's search is "
-                           "supported")
-                return
-            runner.log("discover: open form: the search proposes "
+        retries, i = 0, 0
+        while i < len(sources):
+            source = sources[i]
+            if source not in data:
+                data[source] = (self._window_residual(state, runner) if source == WINDOWS
+                                else (*self._residual(state, runner, source), None))
+            signals, targets, maps = data[source]
+            search = _clone(search, exclude=tuple(dict.fromkeys((*search.exclude,
+                                                                 *excluded))),
+                            **({"chunk_rows": maps[0].rows_per_window} if maps else
+                               {"block": source}))
+            terms, search = self._search(search, signals, targets, maps, state.current)
+            runner.ledger.record("open form search", round=state.number,
+                                 terms=[_term_record(t) for t in terms],
+                                 explained_fraction=getattr(search, "explained_fraction_",
+                                                            None),
+                                 candidates=getattr(search, "n_candidates_", None),
+                                 excluded=list(search.exclude), block=source)
+            spec = "; ".join(sorted(str(t.term) for t in terms))
+            if not terms or spec in tried:
+                i += 1
+                continue
+            tried.add(spec)
+            runner.log(f"discover: open form: the search ({_source_label(source)}) proposes "
                        + ", ".join(f"{t.term} ({t.share:.0%} of the explained residual)"
                                    for t in terms))
-            fit = self._fit(state, runner, terms)
+            fit = self._fit(state, runner, terms, signals)
             if fit is None:
-                return
+                i += 1
+                continue
             if self.prune and runner.better(fit, state.current)[0]:
                 # (pruning weighs each term against the closure without it, which means
                 # something only for a closure that beats the current model)
                 fit = self._prune(fit, state, runner)
             passed, bounded = self._verify(fit, state, runner, best, search)
-            if passed or not bounded:
+            if passed:
                 return
-            # a closure that fits only at its bounds stands in for what its terms cannot
-            # express: the search's next terms may (the families at a bound left out)
-            excluded = _families_at_bounds(fit, bounded, terms)
+            if bounded:
+                linear = self._linearized(fit, bounded, signals, state, runner)
+                if linear is not None and self._verify(linear, state, runner, best,
+                                                       search)[0]:
+                    return
+                if retries < self.retries:
+                    # a closure that fits only at its bounds stands in for what its terms
+                    # cannot express: the search's next terms may (those families out)
+                    retries += 1
+                    excluded = excluded + _families_at_bounds(fit, bounded, terms)
+                    runner.log("discover: open form: searching again without "
+                               + ", ".join(excluded))
+                    continue
+            i += 1
+        if not tried:
+            runner.log("discover: open form: no term of the residual's search is supported")
 
     # ------------------------------------------------------------------ search
     def _residual(self, state: RoundState, runner, block: int):
@@ -192,18 +230,45 @@ class OpenForm(Stage):
             targets.append(missing_mass_flow(sig, e, d.rig))
         return signals, targets
 
-    def _search(self, search, signals, targets, current):
+    def _window_residual(self, state: RoundState, runner):
+        """``(signals, targets, row maps)`` of the training windows: per recording, the
+        current model's signals along its path, the windows' residual (measured minus
+        predicted, Pa) every few samples, and the map from a per-interval mass flow to
+        its first-order effect there (:mod:`~pneubayes.discovery.openform.trajectory`)."""
+        s = runner.settings
+        current = state.current
+        ws = runner.data.train_ws
+        theta = current.model.vector(current.params)[None]
+        missing = -ws.residuals(current.model, theta, s.fit.refine_solver)[0]
+        by_source = {str(rec.source): rec for rec in runner.data.train}
+        every = max(1, (ws.length - 1) // self.window_rows)
+        signals, targets, maps = [], [], []
+        n0 = 0
+        for b in ws.blocks:
+            w = b.starts.size
+            rec = by_source[b.source]
+            sig = path_signals(current.model, current.params, rec,
+                               one_step_data(rec, s.search.block))
+            response = WindowResponse(sig, b.starts, ws.length, b.rig, every)
+            signals.append(sig)
+            maps.append(response)
+            targets.append(response.sample(missing[n0:n0 + w]))
+            n0 += w
+        return signals, targets, maps
+
+    def _search(self, search, signals, targets, maps, current):
         """``(terms, search)``: the search fitted, its terms as many as the closure has
         room for beside ``current``'s."""
-        search.fit(signals, targets)
+        search.fit(signals, targets, row_maps=maps)
         free = CLOSURE_MAX_TERMS - len(_existing_terms(current.model))
         return list(search.terms_)[:max(free, 0)], search
 
     # ------------------------------------------------------------------ fit
-    def _fit(self, state: RoundState, runner, terms):
+    def _fit(self, state: RoundState, runner, terms, signals):
         """The current model with the closure extended by ``terms``, refitted from the
         search's values and from zero strength (the current fit: the trial contains the
-        current model), the lower training RMSE kept."""
+        current model), the lower training RMSE kept; a hinge's threshold bounds reach
+        its signal's range on ``signals`` (the training recordings')."""
         current = state.current
         old = _existing_terms(current.model)
         spec = "; ".join([*(str(t) for t, _ in old), *(str(t.term) for t in terms)])
@@ -223,9 +288,12 @@ class OpenForm(Stage):
             reach = self.coefficient_reach * abs(t.coefficient)
             if reach > model.parameter(name).upper:
                 wide[name] = (-reach, reach)
+        wide.update(_threshold_reach(model, [t for t, _ in old]
+                                     + [t.term for t in terms], signals))
         if len(wide) > len(earlier):
-            runner.log("discover: open form: bounds widened to reach the searched values: "
-                       + ", ".join(f"{k} +-{v[1]:.3g}" for k, v in wide.items()
+            runner.log("discover: open form: bounds widened to reach the searched values "
+                       "and the hinges' signals: "
+                       + ", ".join(f"{k} [{v[0]:.3g}, {v[1]:.3g}]" for k, v in wide.items()
                                    if k not in earlier))
         if wide:
             model = model.with_bounds(wide)
@@ -302,6 +370,70 @@ class OpenForm(Stage):
                 break
             if not dropped:
                 return fit
+
+    def _linearized(self, fit, bounded: list[str], signals, state: RoundState, runner):
+        """``fit`` refitted with each hinge whose threshold is in ``bounded`` written
+        without it (:func:`~pneubayes.discovery.openform.linear_hinge.linear_terms`),
+        started from the same closure re-expressed; None when no such rewrite exists or
+        its fit fails."""
+        sides = []
+        for name in bounded:
+            parts = name.split("_")
+            if name.startswith("closure_threshold_") and len(parts) == 4:
+                sides.append((int(parts[2]), parts[3]))
+        if not sides:
+            return None
+        valued = [ValuedTerm(t, fit.params[names[0]],
+                             *(fit.params.get(f"closure_threshold_{k}_{side}", 0.0)
+                               for side in ("a", "b")))
+                  for k, (t, names) in enumerate(_existing_terms(fit.model))]
+        new = linear_terms(valued, sides, signals)
+        if new is None:
+            return None
+        model, start = self._closure_model(fit, new, signals)
+        spec = "; ".join(str(t.term) for t in new)
+        thresholds = [n for n in bounded if n.startswith("closure_threshold_")]
+        runner.log(f"discover: open form: {', '.join(thresholds)} at a bound beyond the "
+                   f"hinge's signal; refitting as '{spec}'")
+        try:
+            linear = runner.fit(model, start)
+        except (FloatingPointError, SimulationError) as exc:
+            runner.log(f"discover: open form: the linear closure failed to fit "
+                       f"({type(exc).__name__})")
+            return None
+        runner.ledger.record("open form linearized", round=state.number, terms=spec,
+                             bounded=thresholds,
+                             train_rmse_before_Pa=fit.train_rmse_Pa,
+                             train_rmse_Pa=linear.train_rmse_Pa,
+                             heldout_rmse_Pa=linear.heldout_rmse_Pa)
+        if self.prune and runner.better(linear, state.current)[0]:
+            linear = self._prune(linear, state, runner)
+        return linear
+
+    def _closure_model(self, fit, terms, signals=()):
+        """``(model, start)``: ``fit``'s model with its closure replaced by ``terms``
+        (ValuedTerm), started at their values and ``fit``'s others; a coefficient's
+        bounds widened to +- ``coefficient_reach`` x its value where that exceeds them,
+        a threshold's to its signal's range on ``signals``."""
+        base = fit.model.without(CLOSURE)
+        model = base.with_effect(Closure(terms="; ".join(str(t.term) for t in terms)))
+        wide = {}
+        for k, t in enumerate(terms):
+            name = f"closure_coefficient_{k}"
+            reach = self.coefficient_reach * abs(t.coefficient)
+            if reach > model.parameter(name).upper:
+                wide[name] = (-reach, reach)
+        wide.update(_threshold_reach(model, [t.term for t in terms], signals))
+        if wide:
+            model = model.with_bounds(wide)
+        start = {n: fit.params[n] for n in base.parameter_names}
+        for k, t in enumerate(terms):
+            start[f"closure_coefficient_{k}"] = inside_bounds(
+                model, f"closure_coefficient_{k}", t.coefficient)
+            for side in t.term.hinges():
+                start[f"closure_threshold_{k}_{side}"] = inside_bounds(
+                    model, f"closure_threshold_{k}_{side}", t.threshold(side))
+        return model, start
 
     # ------------------------------------------------------------------ verify
     def _verify(self, fit, state: RoundState, runner, best, search):
@@ -416,6 +548,37 @@ def _families_at_bounds(fit, bounded: list[str], terms) -> tuple[str, ...]:
     hit = tuple(str(t) for t, names in _existing_terms(fit.model)
                 if str(t) in new and any(n in bounded for n in names))
     return hit or tuple(sorted(new))
+
+
+def _threshold_reach(model, terms, signals) -> dict:
+    """Bounds for the closure's hinge thresholds (term ``k`` of ``terms``) that reach
+    the range their signal takes on ``signals`` where their own do not (a chamber the
+    piston compresses to 20 bar takes a pressure hinge past its default 10), so that a
+    fit is not stopped inside the data; ``{}`` without signals."""
+    out = {}
+    if not len(signals):
+        return out
+    for k, term in enumerate(terms):
+        for side in term.hinges():
+            hinge = getattr(term, side)
+            if hinge not in HINGE_SOURCES:
+                continue  # (a relaxation's time constant)
+            v = np.concatenate([hinge_source_values(hinge, s) for s in signals])
+            v = v[np.isfinite(v)]
+            if not v.size:
+                continue
+            name = f"closure_threshold_{k}_{side}"
+            p = model.parameter(name)
+            lo, hi = min(p.lower, float(v.min())), max(p.upper, float(v.max()))
+            if (lo, hi) != (p.lower, p.upper):
+                out[name] = (lo, hi)
+    return out
+
+
+def _source_label(source) -> str:
+    """A search's rows, in words."""
+    return ("prediction windows" if source == WINDOWS
+            else f"one-step residual in blocks of {source}")
 
 
 def _settings_of(search) -> dict:
