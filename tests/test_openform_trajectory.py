@@ -75,6 +75,7 @@ def test_the_window_response_is_the_simulators_first_order_difference():
         response.sample(np.zeros((1, 3)))
 
 
+@pytest.mark.slow
 def test_the_window_search_finds_a_small_leak_alone_with_its_coefficient():
     """A leak of 4e-7 kg/s per atmosphere of gauge pressure under 300 Pa of noise
     (invisible in one interval, it accumulates over a window): the search on the
