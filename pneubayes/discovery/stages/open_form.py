@@ -165,7 +165,9 @@ class OpenForm(Stage):
         while i < len(sources):
             source = sources[i]
             if source not in data:
-                data[source] = (self._window_residual(state, runner) if source == WINDOWS
+                # (the path's signals do not depend on the rows: the first source's serve)
+                data[source] = (self._window_residual(state, runner, data[sources[0]][0])
+                                if source == WINDOWS
                                 else (*self._residual(state, runner, source), None))
             signals, targets, maps = data[source]
             search = _clone(search, exclude=tuple(dict.fromkeys((*search.exclude,
@@ -230,25 +232,29 @@ class OpenForm(Stage):
             targets.append(missing_mass_flow(sig, e, d.rig))
         return signals, targets
 
-    def _window_residual(self, state: RoundState, runner):
-        """``(signals, targets, row maps)`` of the training windows: per recording, the
-        current model's signals along its path, the windows' residual (measured minus
-        predicted, Pa) every few samples, and the map from a per-interval mass flow to
-        its first-order effect there (:mod:`~pneubayes.discovery.openform.trajectory`)."""
-        s = runner.settings
+    def _window_residual(self, state: RoundState, runner, path):
+        """``(signals, targets, row maps)`` of the training windows: per recording with
+        windows, the current model's signals along its path (``path``: per training
+        recording, in order), the windows' residual (measured minus predicted, Pa) every
+        few samples, and the map from a per-interval mass flow to its first-order effect
+        there (:mod:`~pneubayes.discovery.openform.trajectory`)."""
         current = state.current
         ws = runner.data.train_ws
         theta = current.model.vector(current.params)[None]
-        missing = -ws.residuals(current.model, theta, s.fit.refine_solver)[0]
-        by_source = {str(rec.source): rec for rec in runner.data.train}
+        missing = -ws.residuals(current.model, theta, runner.settings.fit.refine_solver)[0]
+        if len(ws.blocks) == len(path):  # (the window set keeps the recordings' order)
+            paths = list(path)
+        else:  # a recording without a window is left out of the window set
+            by_source = {str(rec.source): sig for rec, sig in zip(runner.data.train, path)}
+            if len(by_source) != len(path):
+                raise ValueError("the training recordings' sources repeat, so their "
+                                 "windows cannot be matched to them")
+            paths = [by_source[b.source] for b in ws.blocks]
         every = max(1, (ws.length - 1) // self.window_rows)
         signals, targets, maps = [], [], []
         n0 = 0
-        for b in ws.blocks:
+        for b, sig in zip(ws.blocks, paths):
             w = b.starts.size
-            rec = by_source[b.source]
-            sig = path_signals(current.model, current.params, rec,
-                               one_step_data(rec, s.search.block))
             response = WindowResponse(sig, b.starts, ws.length, b.rig, every)
             signals.append(sig)
             maps.append(response)
@@ -282,14 +288,9 @@ class OpenForm(Stage):
         model = base.with_effect(closure)
         earlier = {k: v for k, v in current.model.bound_overrides.items()
                    if k.startswith("closure_")}  # an earlier term's widened bounds
-        wide = dict(earlier)
-        for j, t in enumerate(terms):
-            name = f"closure_coefficient_{len(old) + j}"
-            reach = self.coefficient_reach * abs(t.coefficient)
-            if reach > model.parameter(name).upper:
-                wide[name] = (-reach, reach)
-        wide.update(_threshold_reach(model, [t for t, _ in old]
-                                     + [t.term for t in terms], signals))
+        wide = {**earlier, **self._reach(
+            model, {len(old) + j: t.coefficient for j, t in enumerate(terms)},
+            [t for t, _ in old] + [t.term for t in terms], signals)}
         if len(wide) > len(earlier):
             runner.log("discover: open form: bounds widened to reach the searched values "
                        "and the hinges' signals: "
@@ -376,23 +377,21 @@ class OpenForm(Stage):
         without it (:func:`~pneubayes.discovery.openform.linear_hinge.linear_terms`),
         started from the same closure re-expressed; None when no such rewrite exists or
         its fit fails."""
-        sides = []
-        for name in bounded:
-            parts = name.split("_")
-            if name.startswith("closure_threshold_") and len(parts) == 4:
-                sides.append((int(parts[2]), parts[3]))
+        terms = _existing_terms(fit.model)
+        sides = [(k, name[-1]) for k, (_, names) in enumerate(terms)
+                 for name in names[1:] if name in bounded]  # (closure_threshold_{k}_{a|b})
         if not sides:
             return None
         valued = [ValuedTerm(t, fit.params[names[0]],
                              *(fit.params.get(f"closure_threshold_{k}_{side}", 0.0)
                                for side in ("a", "b")))
-                  for k, (t, names) in enumerate(_existing_terms(fit.model))]
+                  for k, (t, names) in enumerate(terms)]
         new = linear_terms(valued, sides, signals)
         if new is None:
             return None
         model, start = self._closure_model(fit, new, signals)
         spec = "; ".join(str(t.term) for t in new)
-        thresholds = [n for n in bounded if n.startswith("closure_threshold_")]
+        thresholds = [f"closure_threshold_{k}_{side}" for k, side in sides]
         runner.log(f"discover: open form: {', '.join(thresholds)} at a bound beyond the "
                    f"hinge's signal; refitting as '{spec}'")
         try:
@@ -417,13 +416,8 @@ class OpenForm(Stage):
         a threshold's to its signal's range on ``signals``."""
         base = fit.model.without(CLOSURE)
         model = base.with_effect(Closure(terms="; ".join(str(t.term) for t in terms)))
-        wide = {}
-        for k, t in enumerate(terms):
-            name = f"closure_coefficient_{k}"
-            reach = self.coefficient_reach * abs(t.coefficient)
-            if reach > model.parameter(name).upper:
-                wide[name] = (-reach, reach)
-        wide.update(_threshold_reach(model, [t.term for t in terms], signals))
+        wide = self._reach(model, {k: t.coefficient for k, t in enumerate(terms)},
+                           [t.term for t in terms], signals)
         if wide:
             model = model.with_bounds(wide)
         start = {n: fit.params[n] for n in base.parameter_names}
@@ -434,6 +428,21 @@ class OpenForm(Stage):
                 start[f"closure_threshold_{k}_{side}"] = inside_bounds(
                     model, f"closure_threshold_{k}_{side}", t.threshold(side))
         return model, start
+
+    def _reach(self, model, coefficients: dict, terms, signals) -> dict:
+        """Bounds that reach the closure's values: coefficient ``k`` (``coefficients``:
+        term index -> value) widened to +- ``coefficient_reach`` x its value where that
+        exceeds its bound (the defaults are sized for typical flows), each hinge
+        threshold of ``terms`` to its signal's range on ``signals``
+        (:func:`_threshold_reach`)."""
+        wide = {}
+        for k, c in coefficients.items():
+            name = f"closure_coefficient_{k}"
+            reach = self.coefficient_reach * abs(c)
+            if reach > model.parameter(name).upper:
+                wide[name] = (-reach, reach)
+        wide.update(_threshold_reach(model, terms, signals))
+        return wide
 
     # ------------------------------------------------------------------ verify
     def _verify(self, fit, state: RoundState, runner, best, search):
