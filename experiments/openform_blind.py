@@ -30,8 +30,12 @@ whose coil warms, a pressure sensor behind a capillary, and a length sensor that
 the piston, cases ``v00``-``v09``. Set 6 (seed 1796267760, drawn from the clock on
 2026-12-03 and recorded before its forms were written or any case ran): a check valve
 in the exhaust line, a worn inlet seat that leaks at the incompressible law, a flow
-limiter at the inlet, and a solenoid that releases late, cases ``w00``-``w09``. Each
-form is planted
+limiter at the inlet, and a solenoid that releases late, cases ``w00``-``w09``. Set 7
+(seed 1796286123, drawn from the clock on 2026-12-03 and recorded before its forms were
+written or any case ran): a worn piston seal into the cylinder's other chamber behind a
+breather, a pressure-energised seal whose leak peaks at low pressure, a pressure
+sensor whose zero drifts as it warms, and an end-of-stroke cushion, cases
+``x00``-``x09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -78,6 +82,8 @@ from pneubayes.bench.forms import (
     BladderVolume,
     CapillarySensorPort,
     CreepingWall,
+    EndCushion,
+    EnergisedSealLeak,
     ExhaustCheckValve,
     ExhaustSilencer,
     InletFlowForce,
@@ -88,11 +94,13 @@ from pneubayes.bench.forms import (
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
+    PistonSealBypass,
     ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
     SeatLeak,
     SensorBow,
+    SensorZeroDrift,
     SpoolHysteresis,
     SpoolSlewLimit,
     SpoolStiction,
@@ -125,6 +133,9 @@ OPENFORM_SEED_5 = 1796247339
 #: Set 6's seed: ``date +%s`` at 2026-12-03 03:16:00 UTC, fixed before its forms were
 #: written or any case ran.
 OPENFORM_SEED_6 = 1796267760
+#: Set 7's seed: ``date +%s`` at 2026-12-03 08:22:03 UTC, fixed before its forms were
+#: written or any case ran.
+OPENFORM_SEED_7 = 1796286123
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -134,10 +145,11 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              4: ("SupplyHose", "LowReynoldsPorts", "SpoolStiction", "SensorBow"),
              5: ("SpringReturnSpool", "WarmingCoil", "CapillarySensorPort",
                  "LaggingPositionSensor"),
-             6: ("ExhaustCheckValve", "SeatLeak", "InletFlowLimiter", "ReleaseDelay")}
+             6: ("ExhaustCheckValve", "SeatLeak", "InletFlowLimiter", "ReleaseDelay"),
+             7: ("PistonSealBypass", "EnergisedSealLeak", "SensorZeroDrift", "EndCushion")}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
-             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6}
-SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w"}
+             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -217,7 +229,16 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
       bar across it);
     - InletFlowLimiter (set 6): 0.3-1 x the valve's full choked inlet flow at the
       supply (log-uniform);
-    - ReleaseDelay (set 6): falls acting 1-8 ms late (log-uniform).
+    - ReleaseDelay (set 6): falls acting 1-8 ms late (log-uniform);
+    - PistonSealBypass (set 7): k of 5e-17-4e-16 kg/(s Pa^2) (about 0.01-0.1 g/s at 4
+      bar gauge), a vent of 1e-8-1e-7 m^2 (both log-uniform), the other chamber
+      1.05-1.4 x the swept volume;
+    - EnergisedSealLeak (set 7): the gap halved at 0.8-3 bar gauge, leaking 0.02-0.1
+      g/s at half that pressure (both log-uniform);
+    - SensorZeroDrift (set 7): 2-15 kPa (log-uniform, either sign) with a 3-30 s time
+      constant (log-uniform);
+    - EndCushion (set 7): over the last 5-20 % of the stroke, a needle of 2e-8-2e-7 m^2
+      (log-uniform; about 3-30 % of the Table II exhausts), edges of 1-3 % of it.
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -303,6 +324,28 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
             rng, 0.3, 1.0))
     if name == "ReleaseDelay":
         return ReleaseDelay(delay_s=_log_uniform(rng, 1e-3, 8e-3))
+    if name == "PistonSealBypass":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return PistonSealBypass(conductance_kg_per_s_Pa2=_log_uniform(rng, 5e-17, 4e-16),
+                                vent_area_m2=_log_uniform(rng, 1e-8, 1e-7),
+                                opposite_volume_m3=swept * rng.uniform(1.05, 1.4))
+    if name == "EnergisedSealLeak":
+        p_e = _log_uniform(rng, 0.8e5, 3e5)
+        half = ATMOSPHERE_PA + 0.5 * p_e
+        at_half = _log_uniform(rng, 2e-5, 1e-4)  # kg/s at half the energising pressure
+        return EnergisedSealLeak(
+            conductance_kg_per_s_Pa2=at_half * 1.5**3 / (half**2 - ATMOSPHERE_PA**2),
+            energising_pressure_Pa=p_e)
+    if name == "SensorZeroDrift":
+        sign = 1.0 if rng.uniform() < 0.5 else -1.0
+        return SensorZeroDrift(drift_Pa=sign * _log_uniform(rng, 2e3, 15e3),
+                               time_constant_s=_log_uniform(rng, 3.0, 30.0))
+    if name == "EndCushion":
+        stroke = cylinder_preset(cylinder).stroke_m
+        return EndCushion(length_m=rng.uniform(0.05, 0.2) * stroke,
+                          needle_area_m2=_log_uniform(rng, 2e-8, 2e-7),
+                          edge_m=rng.uniform(0.01, 0.03) * stroke)
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 

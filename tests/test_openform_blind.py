@@ -18,8 +18,9 @@ from pneubayes.bench.forms import OUT_OF_CATALOGUE, form_from_dict  # noqa: E402
 from pneubayes.bench.sensors import SensorChain  # noqa: E402
 
 
-@pytest.mark.parametrize("blind_set", [pytest.param(n, marks=pytest.mark.slow) for n in (1, 2, 3)]
-                         + [4])  # (the spent sets' lists in the slow tier)
+@pytest.mark.parametrize("blind_set", [pytest.param(n, marks=pytest.mark.slow)
+                                       for n in (1, 2, 3, 4, 5, 6)]
+                         + [7])  # (the spent sets' lists in the slow tier)
 def test_list_gives_every_form_on_two_rigs_and_two_controls_with_the_seed(blind_set):
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "openform_blind.py"),
                           "--list", "--set", str(blind_set)], capture_output=True, text=True,
@@ -76,6 +77,14 @@ def test_the_draw_is_fixed_by_its_seed_and_stays_in_physical_ranges():
         assert 0.3 * full <= f.max_flow_kg_per_s <= full and 5e-4 < full < 2e-3
         d = openform_blind.draw_openform("ReleaseDelay", "AIR37", rng)
         assert 1e-3 <= d.delay_s <= 8e-3
+        b = openform_blind.draw_openform("PistonSealBypass", "SMC", rng)
+        assert 5e-17 <= b.conductance_kg_per_s_Pa2 <= 4e-16 and 1e-8 <= b.vent_area_m2 <= 1e-7
+        e = openform_blind.draw_openform("EnergisedSealLeak", "AIR37", rng)
+        assert 0.8e5 <= e.energising_pressure_Pa <= 3e5
+        z = openform_blind.draw_openform("SensorZeroDrift", "SMC", rng)
+        assert 2e3 <= abs(z.drift_Pa) <= 15e3 and 3.0 <= z.time_constant_s <= 30.0
+        c = openform_blind.draw_openform("EndCushion", "AIR37", rng)
+        assert 0.05 * 0.0375 <= c.length_m <= 0.2 * 0.0375 and 2e-8 <= c.needle_area_m2 <= 2e-7
     with pytest.raises(ValueError, match="unknown out-of-catalogue form 'Nope'"):
         openform_blind.draw_openform("Nope", "SMC", rng)
 

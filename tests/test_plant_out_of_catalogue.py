@@ -5,6 +5,7 @@ visible, physically right-signed effect; closed-chamber mass balance where cheap
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from pneubayes.bench.forms import (
     BladderVolume,
     CapillarySensorPort,
     CreepingWall,
+    EndCushion,
+    EnergisedSealLeak,
     ExhaustCheckValve,
     ExhaustSilencer,
     InletFlowForce,
@@ -25,11 +28,13 @@ from pneubayes.bench.forms import (
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
+    PistonSealBypass,
     ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
     SeatLeak,
     SensorBow,
+    SensorZeroDrift,
     SpoolHysteresis,
     SpoolSlewLimit,
     SpoolStiction,
@@ -108,7 +113,9 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "SpoolStiction", "SensorBow", "SpringReturnSpool",
                                      "WarmingCoil", "CapillarySensorPort",
                                      "LaggingPositionSensor", "ExhaustCheckValve",
-                                     "SeatLeak", "InletFlowLimiter", "ReleaseDelay"}
+                                     "SeatLeak", "InletFlowLimiter", "ReleaseDelay",
+                                     "PistonSealBypass", "EnergisedSealLeak",
+                                     "SensorZeroDrift", "EndCushion"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -172,6 +179,11 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (SeatLeak, {"area_m2": 1e-8, "laminar_drop_Pa": 0.0}, "laminar_drop_Pa"),
     (InletFlowLimiter, {"max_flow_kg_per_s": -1e-4}, "max_flow_kg_per_s"),
     (ReleaseDelay, {"delay_s": float("nan")}, "delay_s"),
+    (PistonSealBypass, {"conductance_kg_per_s_Pa2": 1e-16, "vent_area_m2": -1e-8,
+                        "opposite_volume_m3": 1e-6}, "vent_area_m2"),
+    (EnergisedSealLeak, {"conductance_kg_per_s_Pa2": 1e-15, "energising_pressure_Pa": 0.0},
+     "energising_pressure_Pa"),
+    (EndCushion, {"length_m": 0.005, "needle_area_m2": 1e-7, "edge_m": 0.0}, "edge_m"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -762,3 +774,114 @@ def test_a_late_release_moves_falls_not_rises_and_a_quick_rise_cancels_a_fall(ri
     np.testing.assert_allclose(late, shifted, rtol=0, atol=1.0)
     plain = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
     assert np.max(np.abs(late - plain)) > 10e3
+
+
+def _rate0(p, volume_m3, rig, mdot_kg_per_s):
+    """(measured initial dp/dt, eq. 5's kappa Rs T mdot / V), Pa/s."""
+    g = rig.gas
+    return ((p[1] - p[0]) / DT, g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K
+            * g.temperature_K * mdot_kg_per_s / volume_m3)
+
+
+def test_a_worn_piston_seal_fills_the_other_chamber_and_keeps_the_mass(rig):
+    """Valve shut (0 V), piston held: the chamber loses k (p^2 - P_atm^2) at first; with a
+    sealed vent the two chambers' p V (mass x kappa Rs T) is conserved and they meet at
+    one pressure; with a vent both end at the atmosphere."""
+    swept = np.pi / 4 * BORE**2 * STROKE
+    sealed = PistonSealBypass(conductance_kg_per_s_Pa2=2e-16, vent_area_m2=0.0,
+                              opposite_volume_m3=1.2 * swept)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    p0 = 4e5
+    p = _run(params, (sealed,), _held(2.0, (0.0,)), rig, p0=p0)
+    got, want = _rate0(p, VOLUME, rig, -2e-16 * ((0.5 * (p[0] + p[1])) ** 2 - P_ATM**2))
+    assert got == pytest.approx(want, rel=0.01)
+    v_b = 1.2 * swept - np.pi / 4 * BORE**2 * 0.5 * STROKE
+    meet = (p0 * VOLUME + P_ATM * v_b) / (VOLUME + v_b)
+    assert p[-1] == pytest.approx(meet, abs=50.0)  # (equal pressures: no more flow)
+    vented = _run(params, (replace(sealed, vent_area_m2=3e-8),), _held(2.0, (0.0,)),
+                  rig, p0=p0)
+    assert vented[-1] < P_ATM + 2e3 and np.all(np.diff(vented) < 1e-6)
+    with pytest.raises(ValueError, match="other chamber's volume"):
+        _run(params, (replace(sealed, opposite_volume_m3=0.4 * swept),),
+             _held(0.01, (0.0,)), rig)
+
+
+def test_an_energised_seal_leaks_most_at_low_pressure(rig):
+    """Valve shut: the initial leak follows k (p^2 - P_atm^2) / (1 + g / p_e)^3, so a
+    chamber at 0.75 bar gauge loses pressure faster than one at 4 bar."""
+    seal = out_of_catalogue_defaults("EnergisedSealLeak")
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    rates = []
+    for p0 in (P_ATM + 0.5 * seal.energising_pressure_Pa, P_ATM + 4e5):
+        p = _run(params, (seal,), _held(0.01, (0.0,)), rig, p0=p0)
+        mid = 0.5 * (p[0] + p[1])
+        mdot = seal.conductance_kg_per_s_Pa2 * (mid**2 - P_ATM**2) / (
+            1.0 + (mid - P_ATM) / seal.energising_pressure_Pa) ** 3
+        got, want = _rate0(p, VOLUME, rig, -mdot)
+        assert got == pytest.approx(want, rel=0.01)
+        rates.append(-got)
+    assert rates[0] > 1.2 * rates[1]  # (1.26 x: the gap's cube against p^2 - P_atm^2)
+    np.testing.assert_allclose(_run(params, (seal,), _held(0.1, (0.0,)), rig), P_ATM,
+                               rtol=0, atol=1e-6)
+
+
+def test_the_bench_reads_through_a_drifting_sensor(tmp_path):
+    """Noise-free fixed-piston recordings with and without a drifting zero: they differ
+    by the drift (the DAQ's zero-phase filter passes its slow rise; the log's 0.1 Pa)."""
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.io import read_recording
+
+    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    drift = SensorZeroDrift(drift_Pa=2e3, time_constant_s=0.2)
+    kw = dict(protocol="fixed", duration_s=0.5, positions=(0.5,), ranges_V=(5.0,),
+              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
+    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
+           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(drift,))),
+                     tmp_path / "b")]
+    a, b = (read_recording(r.recordings[0]) for r in res)
+    want = 2e3 * -np.expm1(-(a.time_s - a.time_s[0]) / 0.2)
+    np.testing.assert_allclose(b.pressure_Pa - a.pressure_Pa, want, atol=2.0)
+
+
+def test_a_drifting_sensor_reads_true_at_the_start_and_off_by_its_drift_later():
+    drift = SensorZeroDrift(drift_Pa=-4e3, time_constant_s=5.0)
+    t = np.linspace(2.0, 32.0, 301)  # (a recording need not start at 0 s)
+    p = np.full(t.size, 3e5)
+    r = drift.read(t, p)
+    assert r[0] == p[0]
+    np.testing.assert_allclose(r - p, -4e3 * (1 - np.exp(-(t - 2.0) / 5.0)), rtol=1e-12)
+    assert r[-1] == pytest.approx(3e5 - 4e3, abs=10.0)
+    with pytest.raises(ValueError, match="time_constant_s"):
+        SensorZeroDrift(drift_Pa=1e3, time_constant_s=0.0)
+
+
+def test_an_end_cushion_throttles_the_vent_near_the_end_only(rig, base):
+    """Venting (-5 V) with the piston inside the cushion: the exhaust's flow is that of
+    a_ex and the needle in series; at half stroke, and filling inside it, the plain
+    plant's."""
+    cushion = EndCushion(length_m=0.2 * STROKE, needle_area_m2=1e-7, edge_m=0.01 * STROKE)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+
+    def at(x, u, p0):
+        t = np.arange(301) * DT
+        inputs = Inputs(t, np.full(t.size, u), np.full(t.size, x), np.full(t.size, P_SUP))
+        return (_run(params, (cushion,), inputs, rig, p0=p0),
+                _run(params, (), inputs, rig, p0=p0))
+
+    inside, plain = at(0.05 * STROKE, -5.0, 4e5)
+    a_ex, a_n = CLOSABLE["exhaust_a_m2"], 1e-7
+    g = rig.gas
+    volume = 1.5e-7 + np.pi / 4 * BORE**2 * 0.05 * STROKE
+    for p, area in ((inside, a_ex * a_n / np.hypot(a_ex, a_n)), (plain, a_ex)):
+        mid = 0.5 * (p[0] + p[1])
+        mdot = area * flow_terms(mid, P_ATM, g.alpha_s_per_m, g.beta_s_per_m, g.theta,
+                                 g.heat_capacity_ratio)[0]
+        got, want = _rate0(p, volume, rig, -mdot)
+        assert got == pytest.approx(want, rel=0.01)
+    outside, plain = at(0.5 * STROKE, -5.0, 4e5)
+    np.testing.assert_allclose(outside, plain, rtol=0, atol=1e-6)
+    fill, plain = at(0.05 * STROKE, 5.0, P_ATM)  # (at the supply: the solvers' 0.1 Pa)
+    np.testing.assert_allclose(fill, plain, rtol=0, atol=0.5)
+    with pytest.raises(ValueError, match="EndCushion cannot be planted beside"):
+        _run(params, (cushion, out_of_catalogue_defaults("MeterOutThrottle")),
+             _held(0.01, (0.0,)), rig)

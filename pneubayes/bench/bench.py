@@ -35,6 +35,7 @@ from pneubayes.bench.forms import (
     LaggingPositionSensor,
     PlantForm,
     SensorBow,
+    SensorZeroDrift,
     catalogue_names_of,
     check_forms,
 )
@@ -226,6 +227,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for form in cfg.forms:  # a bowed sensor reads the pressure off its line
             if isinstance(form, SensorBow):
                 p_true = form.read(p_true, ATMOSPHERE_PA)
+        for form in cfg.forms:  # a warming sensor's zero drifts over the recording
+            if isinstance(form, SensorZeroDrift):
+                p_true = form.read(t_fine, p_true)
         if calibration is not None:
             p_true = calibration.read(p_true, truth, ATMOSPHERE_PA)
         s = cfg.sensor

@@ -974,6 +974,104 @@ class ReleaseDelay(PlantForm):
         return np.array(times), np.array(values)
 
 
+# ------------------------------------------ out-of-catalogue forms, the seventh blind set
+@dataclass(frozen=True)
+class PistonSealBypass(PlantForm):
+    """A worn piston seal that passes air to the cylinder's other chamber, which
+    breathes to the atmosphere through a small vent (a sintered breather)::
+
+        mdot_s = k (p^2 - p_b^2)                      (laminar, as a clearance leak)
+        dp_b/dt = kappa (Rs T_s (mdot_s - a_v f(p_b, P_atm)) + p_b A dx/dt) / V_b,
+        V_b = opposite_volume_m3 - A x,
+
+    f the orifice law of eqs. 1-3 (either direction), A the bore's area, x the piston
+    position (the other chamber shrinks as the measured one grows); p_b starts at the
+    atmosphere. The measured chamber loses ``mdot_s`` (gains it when p_b > p).
+    ``conductance_kg_per_s_Pa2 = 0`` is a tight seal.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    conductance_kg_per_s_Pa2: float
+    vent_area_m2: float
+    opposite_volume_m3: float
+
+    def __post_init__(self):
+        _non_negative(self, "conductance_kg_per_s_Pa2", "vent_area_m2")
+        _positive(self, "opposite_volume_m3")
+
+
+@dataclass(frozen=True)
+class EnergisedSealLeak(PlantForm):
+    """A pressure-energised seal (an O-ring squeezed tighter by the pressure it holds)
+    whose laminar gap closes as the gauge pressure g rises, the flow going with the
+    gap's cube::
+
+        mdot = k (p^2 - P_atm^2) / (1 + g / p_e)^3,   g = max(p - P_atm, -p_e / 2),
+
+    so the leak grows at low pressure, peaks, and falls again as the seal energises;
+    ``p_e = energising_pressure_Pa`` is the gauge pressure that halves the gap.
+    ``conductance_kg_per_s_Pa2 = 0`` is a tight seal.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    conductance_kg_per_s_Pa2: float
+    energising_pressure_Pa: float
+
+    def __post_init__(self):
+        _non_negative(self, "conductance_kg_per_s_Pa2")
+        _positive(self, "energising_pressure_Pa")
+
+
+@dataclass(frozen=True)
+class SensorZeroDrift(PlantForm):
+    """A pressure sensor whose zero drifts as it warms up after each recording starts
+    (the bridge's temperature coefficient)::
+
+        r = p + drift_Pa (1 - exp(-(t - t_0) / tau)),
+
+    t_0 the recording's first sample. ``drift_Pa = 0`` is a stable sensor.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    drift_Pa: float
+    time_constant_s: float
+
+    def __post_init__(self):
+        _finite(self, "drift_Pa")
+        _positive(self, "time_constant_s")
+
+    def read(self, time_s, pressure_Pa):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa`` at the
+        times ``time_s`` (s)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        return p + self.drift_Pa * -np.expm1(-(t - t[0]) / self.time_constant_s)
+
+
+@dataclass(frozen=True)
+class EndCushion(PlantForm):
+    """An end-of-stroke cushion at the measured chamber's end cap: over the last
+    ``length_m`` of the stroke (x -> 0) a spear closes the port's bore, so air leaving
+    the chamber passes a needle in series with the valve's port (two orifices in
+    series, the incompressible rule)::
+
+        a_eff = a a_n / sqrt(a^2 + a_n^2),   blended in by w = smoothstep((L - x) / e + 1/2),
+
+    a the port's area (the exhaust's when venting; the inlet's when the chamber blows
+    back into the supply), ``a_n = needle_area_m2``, ``e = edge_m``. Inflow passes the
+    cushion's check valve unthrottled. ``needle_area_m2 = 0`` is no cushion.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    length_m: float
+    needle_area_m2: float
+    edge_m: float
+
+    def __post_init__(self):
+        _non_negative(self, "needle_area_m2")
+        _positive(self, "length_m", "edge_m")
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
@@ -984,7 +1082,8 @@ FORMS: dict[str, type[PlantForm]] = {
                                   LowReynoldsPorts, SpoolStiction, SensorBow,
                                   SpringReturnSpool, WarmingCoil, CapillarySensorPort,
                                   LaggingPositionSensor, ExhaustCheckValve, SeatLeak,
-                                  InletFlowLimiter, ReleaseDelay)
+                                  InletFlowLimiter, ReleaseDelay, PistonSealBypass,
+                                  EnergisedSealLeak, SensorZeroDrift, EndCushion)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -1094,42 +1193,37 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
                               atmospheric_pressure_Pa: float = 101_325.0) -> PlantForm:
     """Realistic default of out-of-catalogue form ``name`` (a class name) on ``cylinder``.
 
-    - ``BladderVolume``: dV_max = 10 % of the swept volume (2.4e-7 m^3 on AIR37, 2.0e-6
-      on SMC), pressure scale 150 kPa;
+    - ``BladderVolume``: 10 % of the swept volume (2.4e-7 m^3 on AIR37), scale 150 kPa;
     - ``SpoolHysteresis``: half-band 0.15 V, smoothing 0.2 ms;
-    - ``ReliefValve``: cracks at 3.5 bar gauge, k = 3.2e-11 kg/(s Pa^1.5) (1 g/s at
-      1 bar overpressure, above the Table II valves' full inlet flow);
-    - ``InletFlowForce``: k_ff = 0.1 per atm (the inlet 31 % smaller at the full 4.5 bar
-      drop);
-    - ``LipSealLeak``: lifts at 2 bar gauge, k = 4.8e-16 kg/(s Pa^2) (0.03 g/s at the
-      5.5 bar supply, the AIRPEL's laminar leak at 3 bar);
-    - ``ExhaustSilencer``: 100 kPa back-pressure at 1 g/s, half of it viscous, a 2 cm^3
-      body;
-    - ``ScoredBarrelLeak``: a score over 30-55 % of the stroke with edges of 5 % of it,
-      8e-8 m^2 (about 0.1 g/s at 5 bar);
-    - ``CreepingWall``: the wall gives 8 % of the swept volume at 4.5 bar gauge, with a
-      0.2 s time constant;
+    - ``ReliefValve``: cracks at 3.5 bar gauge, 1 g/s at 1 bar overpressure;
+    - ``InletFlowForce``: 0.1 per atm (the inlet 31 % smaller at the full drop);
+    - ``LipSealLeak``: lifts at 2 bar gauge, 0.03 g/s at the 5.5 bar supply;
+    - ``ExhaustSilencer``: 100 kPa at 1 g/s, half of it viscous, a 2 cm^3 body;
+    - ``ScoredBarrelLeak``: 30-55 % of the stroke, edges 5 % of it, 8e-8 m^2;
+    - ``CreepingWall``: 8 % of the swept volume at 4.5 bar gauge, 0.2 s;
     - ``PilotInletValve``: needs 40 kPa across the inlet, the transition half of it;
     - ``Iso6358Ports``: critical pressure ratio 0.3, subsonic index 0.5;
-    - ``SpoolSlewLimit``: 300 V/s (a full 10-V swing in 33 ms), 0.5 ms small-step lag;
-    - ``SpoolUnderlap``: 5e-8 m^2 per port at the null (about 10 % of valve 1's full
-      port), gone beyond 0.5 V;
-    - ``MeterOutThrottle``: a needle of 2e-7 m^2 (a third of valve 1's exhaust), a
-      1e-6 m^2 check cracking at 10 kPa, a 0.5 cm^3 fitting;
-    - ``SupplyHose``: a 1e-6 m^2 restriction (twice valve 1's full inlet) into a
-      50 cm^3 hose (2.5 m of 5 mm);
+    - ``SpoolSlewLimit``: 300 V/s, 0.5 ms small-step lag;
+    - ``SpoolUnderlap``: 5e-8 m^2 per port at the null, gone beyond 0.5 V;
+    - ``MeterOutThrottle``: needle 2e-7 m^2, check 1e-6 m^2 at 10 kPa, fitting 0.5 cm^3;
+    - ``SupplyHose``: a 1e-6 m^2 restriction into 50 cm^3 (2.5 m of 5 mm);
     - ``LowReynoldsPorts``: critical Reynolds number 500;
-    - ``SpoolStiction``: breaks away 0.15 V from where it stuck, stops 0.05 V short;
+    - ``SpoolStiction``: breaks away at 0.15 V, stops 0.05 V short;
     - ``SensorBow``: +3 kPa at mid-range of a 10-bar (gauge) sensor;
     - ``SpringReturnSpool``: 0.6 ms up, 2.4 ms down;
-    - ``WarmingCoil``: the resistance 8 % higher at the full command's steady heat
-      (about 20 K), a 5 s thermal time constant;
+    - ``WarmingCoil``: 8 % more resistance at the full command's heat, 5 s;
     - ``CapillarySensorPort``: 2 ms at the supply (about 11 ms at the atmosphere);
-    - ``LaggingPositionSensor``: a 5 ms lag;
+    - ``LaggingPositionSensor``: 5 ms;
     - ``ExhaustCheckValve``: cracks at 30 kPa;
     - ``SeatLeak``: C A = 3e-8 m^2 (about 0.07 g/s at 4.5 bar across it);
-    - ``InletFlowLimiter``: 0.5 g/s (about two thirds of valve 1's full choked inlet);
-    - ``ReleaseDelay``: falls act 4 ms late.
+    - ``InletFlowLimiter``: 0.5 g/s (about two thirds of valve 1's full inlet);
+    - ``ReleaseDelay``: falls act 4 ms late;
+    - ``PistonSealBypass``: 2e-16 kg/(s Pa^2) (0.05 g/s at 4 bar gauge), a 3e-8 m^2
+      vent, the other chamber 1.2 x the swept volume;
+    - ``EnergisedSealLeak``: 8e-15 kg/(s Pa^2), the gap halved at 1.5 bar gauge (the
+      leak largest near there, about 0.05 g/s);
+    - ``SensorZeroDrift``: 5 kPa, 10 s;
+    - ``EndCushion``: the last 10 % of the stroke, a 5e-8 m^2 needle, 2 % edges.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -1190,5 +1284,16 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return InletFlowLimiter(max_flow_kg_per_s=5e-4)
     if name == "ReleaseDelay":
         return ReleaseDelay(delay_s=4e-3)
+    if name == "PistonSealBypass":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return PistonSealBypass(conductance_kg_per_s_Pa2=2e-16, vent_area_m2=3e-8,
+                                opposite_volume_m3=1.2 * swept)
+    if name == "EnergisedSealLeak":
+        return EnergisedSealLeak(conductance_kg_per_s_Pa2=8e-15, energising_pressure_Pa=1.5e5)
+    if name == "SensorZeroDrift":
+        return SensorZeroDrift(drift_Pa=5e3, time_constant_s=10.0)
+    if name == "EndCushion":
+        return EndCushion(length_m=0.1 * cyl.stroke_m, needle_area_m2=5e-8,
+                          edge_m=0.02 * cyl.stroke_m)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

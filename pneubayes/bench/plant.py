@@ -10,11 +10,12 @@ State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), 
 as the forms and effects require: chamber temperature, spool position and velocity,
 regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
 silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting, a
-supply hose's pressure and a solenoid coil's heat (:mod:`pneubayes.bench.forms`
-documents each form's equations). A sticking spool (SpoolStiction) changes the command
-the valve sees, a late release (ReleaseDelay) when it acts; the bench applies the
-reading-side forms (SensorBow, CapillarySensorPort; LaggingPositionSensor on the
-position) to the plant's output. The other out-of-catalogue forms act in the same
+supply hose's pressure, a solenoid coil's heat and the cylinder's other chamber behind a
+worn piston seal (:mod:`pneubayes.bench.forms` documents each form's equations). A
+sticking spool (SpoolStiction) changes the command the valve sees, a late release
+(ReleaseDelay) when it acts; the bench applies the reading-side forms (SensorBow,
+CapillarySensorPort, SensorZeroDrift; LaggingPositionSensor on the position) to the
+plant's output. The other out-of-catalogue forms act in the same
 right-hand side; at zero strength each leaves it as it was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
@@ -53,6 +54,8 @@ from pneubayes.bench.forms import (
     BladderVolume,
     ClearanceLeak,
     CreepingWall,
+    EndCushion,
+    EnergisedSealLeak,
     ExhaustCheckValve,
     ExhaustSilencer,
     InletFlowForce,
@@ -62,6 +65,7 @@ from pneubayes.bench.forms import (
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
+    PistonSealBypass,
     PlantForm,
     RegulatorDroop,
     ReleaseDelay,
@@ -125,15 +129,20 @@ K_WC_K, K_WC_TAU, K_WC_MIN, K_WC_SPAN = 78, 79, 80, 81
 # the sixth blind set's forms (all 0: absent; ReleaseDelay acts on the command's
 # switching times, outside the right-hand side)
 K_XC_P, K_SE_A, K_SE_D, K_FL_M = 82, 83, 84, 85
-N_K = 86
+# the seventh blind set's forms (all 0: absent; SensorZeroDrift acts on the reading,
+# outside the right-hand side)
+K_PB_K, K_PB_A, K_PB_V = 86, 87, 88
+K_ES_K, K_ES_P = 89, 90
+K_EC_L, K_EC_N, K_EC_E = 91, 92, 93
+N_K = 94
 #: Below this drop (Pa) a MeterOutThrottle's flow is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
 # Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
 # (SpringReturnSpool).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW) = range(19)
-N_L = 19
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB) = range(20)
+N_L = 20
 
 
 @njit(cache=True)
@@ -297,6 +306,14 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     if P[K_RE_C] > 0.0:  # viscous losses at low Reynolds numbers
         m_in = low_reynolds_flow(m_in, a_in, P[K_RE_C], P[K_RE_MU])
         m_ex = low_reynolds_flow(m_ex, a_ex, P[K_RE_C], P[K_RE_MU])
+    if P[K_EC_N] > 0.0:  # an end cushion throttles what leaves the chamber near x = 0
+        w = smoothstep((P[K_EC_L] - x) / P[K_EC_E] + 0.5)
+        if w > 0.0:
+            a_n = P[K_EC_N]
+            if m_ex > 0.0:
+                m_ex *= 1.0 - w + w * a_n / math.sqrt(a_ex * a_ex + a_n * a_n)
+            if m_in < 0.0:
+                m_in *= 1.0 - w + w * a_n / math.sqrt(a_in * a_in + a_n * a_n)
     if P[K_FL_M] > 0.0:  # a flow limiter at the inlet
         m_in = P[K_FL_M] * math.tanh(m_in / P[K_FL_M])
     if P[K_SE_A] > 0.0:  # a worn seat: supply air past the inlet, incompressible law
@@ -369,6 +386,17 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             if heat == 2 and f_s > 0.0:
                 f_s *= math.sqrt(ts / temp)
             leak += P[K_SB_A] * win * f_s
+    if L[L_IB] >= 0:  # a worn piston seal into the other chamber, which breathes out
+        p_b = y[L[L_IB]]
+        m_s = P[K_PB_K] * (p * p - p_b * p_b)
+        f_v = flow_terms(p_b, p_atm, alpha, beta, theta, kappa)[0]
+        v_b = P[K_PB_V] - P[K_ABORE] * x
+        dy[L[L_IB]] = kappa * (rs * ts * (m_s - P[K_PB_A] * f_v)
+                               + p_b * P[K_ABORE] * xdot) / v_b
+        leak += m_s
+    if P[K_ES_K] > 0.0:  # a pressure-energised seal: its gap closes as p rises
+        g_e = max(p - p_atm, -0.5 * P[K_ES_P])
+        leak += P[K_ES_K] * (p * p - p_atm * p_atm) / (1.0 + g_e / P[K_ES_P]) ** 3
     mdot = inflow - leak
     # chamber (eq. 5, or the energy equation)
     vol = P[K_VDEAD] + P[K_ABORE] * x
@@ -682,6 +710,27 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     limiter = by.get(InletFlowLimiter)
     if limiter is not None:
         P[K_FL_M] = limiter.max_flow_kg_per_s
+    bypass = by.get(PistonSealBypass)
+    if bypass is not None and bypass.conductance_kg_per_s_Pa2 > 0:
+        v_b = bypass.opposite_volume_m3 - rig.bore_area_m2 * float(inputs.position_m.max())
+        if not v_b > 0:
+            raise ValueError(f"PistonSealBypass: the other chamber's volume {v_b} m^3 at the "
+                             f"largest position is not > 0 (opposite_volume_m3 "
+                             f"{bypass.opposite_volume_m3})")
+        P[K_PB_K], P[K_PB_A] = bypass.conductance_kg_per_s_Pa2, bypass.vent_area_m2
+        P[K_PB_V] = bypass.opposite_volume_m3
+    energised = by.get(EnergisedSealLeak)
+    if energised is not None:
+        P[K_ES_K], P[K_ES_P] = (energised.conductance_kg_per_s_Pa2,
+                                energised.energising_pressure_Pa)
+    cushion = by.get(EndCushion)
+    if cushion is not None and cushion.needle_area_m2 > 0:
+        if AcousticTube in by or MeterOutThrottle in by:
+            raise ValueError("plant: an EndCushion cannot be planted beside an AcousticTube "
+                             "or a MeterOutThrottle (the port's flows reach the chamber "
+                             "through them)")
+        P[K_EC_L], P[K_EC_N], P[K_EC_E] = (cushion.length_m, cushion.needle_area_m2,
+                                           cushion.edge_m)
     coil = by.get(WarmingCoil)
     if coil is not None and coil.resistance_rise > 0:
         P[K_WC_K], P[K_WC_TAU] = coil.resistance_rise, coil.time_constant_s
@@ -781,6 +830,12 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         atol.append(cfg.atol_V)
         scale.append(1.0)
         extra[L_IW] = 0.0
+    if P[K_PB_K] > 0:  # the other chamber's pressure, from the atmosphere
+        L[L_IB] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
+        extra[L_IB] = rig.atmospheric_pressure_Pa
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
