@@ -611,19 +611,23 @@ def test_adaptation_ends_after_the_first_round_whose_proposal_is_accepted(bench,
     assert full.burn_ == 45
 
 
-def test_a_laplace_start_proposes_from_the_first_round(prn_leak_bench, tmp_path):
-    """With the refined information, the walkers start from the posterior's Laplace
-    draws and round 0 already proposes from that Gaussian: on bench data it is accepted
-    (>= 0.35 of walker steps move), so adaptation ends after one round (30 steps), where the walker
-    ball (``laplace_start=False``) starts with differential evolution only and needs a
-    second; the production chain's 90 % intervals cover the planted leak. A resumed run
-    keeps its production start."""
+def _laplace_start_case(prn_leak_bench):
     recs, model, truth = prn_leak_bench
     solver = SolverConfig.standard()
     data = WindowSet(recs[:2], 2.0, 2.0)
     ref = TrajectoryRefiner(model, solver).fit(data, truth)
     common = dict(n_walkers=32, check_every=20, adapt_rounds=3, adapt_steps=30,
                   readapt_below_acceptance=0.0, seed=6)
+    return model, solver, data, ref, truth, common
+
+
+def test_a_laplace_start_proposes_from_the_first_round(prn_leak_bench, tmp_path):
+    """With the refined information, the walkers start from the posterior's Laplace
+    draws and round 0 already proposes from that Gaussian: on bench data it is accepted
+    (>= 0.35 of walker steps move), so adaptation ends after one round (30 steps); the
+    production chain's 90 % intervals cover the planted leak. A resumed run keeps its
+    production start."""
+    model, solver, data, ref, truth, common = _laplace_start_case(prn_leak_bench)
     path = tmp_path / "lap.h5"
     lap = BayesianIdentification(model, solver, SamplerSettings(max_steps=70, **common),
                                  backend_path=path, progress=False
@@ -635,10 +639,17 @@ def test_a_laplace_start_proposes_from_the_first_round(prn_leak_bench, tmp_path)
                                    backend_path=path, progress=False
                                    ).fit(data, ref.params_, ref.information_)
     assert again.resumed_ and again.burn_ == 30 and again.sampler_.iteration == 80
+
+
+@pytest.mark.slow
+def test_a_walker_ball_start_needs_more_than_one_round(prn_leak_bench):
+    """The same chain from the walker ball (``laplace_start=False``) starts with
+    differential evolution only, so its adaptation never ends after round 0."""
+    model, solver, data, ref, _, common = _laplace_start_case(prn_leak_bench)
     ball = BayesianIdentification(
         model, solver, SamplerSettings(max_steps=80, laplace_start=False, **common),
         progress=False).fit(data, ref.params_, ref.information_)
-    assert ball.burn_ > 30  # round 0 is differential evolution: never the end of it
+    assert ball.burn_ > 30
 
 
 def _ar1_walkers(rng, steps: int, walkers: int, tau: float) -> np.ndarray:

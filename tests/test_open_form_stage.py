@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from conftest import discovery_settings
 
+from pneubayes.discovery.openform.closure_model import closure_model, existing_terms, without_term
 from pneubayes.discovery.settings import DiscoverySettings, StageSettings
 from pneubayes.discovery.stages import OpenForm, default_stages
-from pneubayes.discovery.stages.open_form import _existing_terms, _without_term
 from pneubayes.discovery.state import RoundState
 from pneubayes.effects.closure import Closure
 from pneubayes.model import Model
@@ -27,7 +27,7 @@ def test_a_closure_term_dropped_renumbers_the_others_and_keeps_their_values():
     model = Model().with_effect(Closure(terms="pressure_hinge; one; inlet_flow*spool"))
     params = {k: float(i) for i, k in enumerate(model.parameter_names)}
     fit = SimpleNamespace(model=model, params=params)
-    reduced, start = _without_term(fit, 0)
+    reduced, start = without_term(fit, 0)
     assert reduced.effect("closure").options()["terms"] == "one; inlet_flow*spool"
     assert start["closure_coefficient_0"] == params["closure_coefficient_1"]
     assert start["closure_coefficient_1"] == params["closure_coefficient_2"]
@@ -36,18 +36,18 @@ def test_a_closure_term_dropped_renumbers_the_others_and_keeps_their_values():
     # the hinge's threshold moves with its term, and so do a coefficient's widened bounds
     wide = SimpleNamespace(model=model.with_bounds({"closure_coefficient_2": (-5.0, 5.0)}),
                            params=params)
-    reduced, start = _without_term(wide, 1)
+    reduced, start = without_term(wide, 1)
     assert start["closure_threshold_0_a"] == params["closure_threshold_0_a"]
     assert reduced.bound_overrides == {"closure_coefficient_1": (-5.0, 5.0)}
     # the last term gone: the model without a closure
     one = SimpleNamespace(model=Model().with_effect(Closure(terms="one")),
                           params={**{k: 1.0 for k in Model().parameter_names},
                                   "closure_coefficient_0": 1e-6})
-    reduced, start = _without_term(one, 0)
+    reduced, start = without_term(one, 0)
     assert not reduced.has("closure") and set(start) == set(Model().parameter_names)
-    assert [str(t) for t, _ in _existing_terms(model)] == [
+    assert [str(t) for t, _ in existing_terms(model)] == [
         "pressure_hinge", "one", "inlet_flow*spool"]
-    assert _existing_terms(Model()) == []
+    assert existing_terms(Model()) == []
 
 
 def test_the_stage_runs_only_above_its_noise_ratio_and_beside_a_weak_catalogue_trial():
@@ -163,14 +163,14 @@ def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recor
 def test_a_tube_simulated_as_a_line_goes_to_its_plainest_form_beside_a_closure(rig):
     """The simulator refuses a closure beside a line state (the wave tube's): the trial
     has the tube's transport delay, its fitted bore kept as the option."""
-    from pneubayes.discovery.stages.open_form import _beside_closure
+    from pneubayes.discovery.openform.closure_model import beside_closure
     from pneubayes.effects import make_effect
     from pneubayes.physics.valve import valve_preset
 
     wave = Model([make_effect("tube_delay", form="wave", segments=8)])
     params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2e-5,
               "tube_delay_s": 0.018, "tube_diameter_m": 0.004}
-    plain, names = _beside_closure(wave, params, rig)
+    plain, names = beside_closure(wave, params, rig)
     assert names == ["tube_delay"]
     tube = plain.effect("tube_delay")
     assert tube.options()["form"] == "transport" and tube.options()["tube_diameter_m"] == 0.004
@@ -179,7 +179,7 @@ def test_a_tube_simulated_as_a_line_goes_to_its_plainest_form_beside_a_closure(r
     with_closure.lower(with_closure.vector(start)[None, :], rig)  # simulable slots
     # a transport delay, or no tube, is left as it is
     transport = Model([make_effect("tube_delay")])
-    assert _beside_closure(transport, {k: params[k] for k in transport.parameter_names},
+    assert beside_closure(transport, {k: params[k] for k in transport.parameter_names},
                            rig) == (transport, [])
 
 
@@ -187,7 +187,7 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
     """A closure fitted with a coefficient or a threshold at its bound, or a base
     parameter newly at one, stands in for what it cannot express: flagged (and rejected
     by the stage); a base parameter already at its bound in the current fit is not."""
-    from pneubayes.discovery.stages.open_form import _newly_at_bounds
+    from pneubayes.discovery.openform.closure_model import newly_at_bounds
 
     model = Model().with_effect(Closure(terms="pressure_hinge"))
     lo_v = model.parameter("dead_volume_m3").lower
@@ -196,11 +196,11 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
             for k in model.parameter_names}
     current = SimpleNamespace(params={k: base[k] for k in Model().parameter_names})
     fit = SimpleNamespace(model=model, params={**base, "closure_threshold_0_a": hi_t})
-    assert _newly_at_bounds(fit, current) == ["closure_threshold_0_a"]
+    assert newly_at_bounds(fit, current) == ["closure_threshold_0_a"]
     fit.params.update({"closure_threshold_0_a": 3.0, "dead_volume_m3": lo_v})
-    assert _newly_at_bounds(fit, current) == ["dead_volume_m3"]
+    assert newly_at_bounds(fit, current) == ["dead_volume_m3"]
     current.params["dead_volume_m3"] = lo_v
-    assert _newly_at_bounds(fit, current) == []
+    assert newly_at_bounds(fit, current) == []
 
 
 def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
@@ -208,8 +208,9 @@ def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
     whose parameters hit it (all of the new ones when a base parameter did), and a
     search's clone keeps its settings."""
     from pneubayes.discovery.openform import OpenFormSearch
+    from pneubayes.discovery.openform.closure_model import families_at_bounds
     from pneubayes.discovery.openform.search import FoundTerm
-    from pneubayes.discovery.stages.open_form import _clone, _families_at_bounds
+    from pneubayes.discovery.stages.open_form import _clone
     from pneubayes.effects.closure_features import Term
 
     model = Model().with_effect(Closure(terms="one; inlet_flow*pressure_relaxation; "
@@ -217,9 +218,9 @@ def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
     fit = SimpleNamespace(model=model)
     terms = [FoundTerm(Term.parse(t), 0.0, 0.01, 1.0, 1.0, 0.5, 0.3)
              for t in ("inlet_flow*pressure_relaxation", "pressure_ratio*net_flow")]
-    assert _families_at_bounds(fit, ["closure_threshold_1_b"], terms) == (
+    assert families_at_bounds(fit, ["closure_threshold_1_b"], terms) == (
         "inlet_flow*pressure_relaxation",)
-    assert _families_at_bounds(fit, ["dead_volume_m3"], terms) == (
+    assert families_at_bounds(fit, ["dead_volume_m3"], terms) == (
         "inlet_flow*pressure_relaxation", "pressure_ratio*net_flow")
     search = OpenFormSearch(n_models=7, seed=3)
     again = _clone(search, exclude=("inlet_flow*pressure_relaxation",))
@@ -383,7 +384,7 @@ def test_pruning_keeps_a_term_whose_closure_would_stop_beating_the_current_model
     rmse = {"inlet_flow*spool_hinge_up": 61e3, "pressure_hinge": 68e3}  # what is left
 
     def fit(m, start, first=None, beat_Pa=None):
-        (left,) = [str(t) for t, _ in _existing_terms(m)]
+        (left,) = [str(t) for t, _ in existing_terms(m)]
         return SimpleNamespace(model=m, params=start, heldout_rmse_Pa=rmse[left])
 
     def better(new, old):  # a test that tells nothing apart but a 30 % gain
@@ -396,7 +397,7 @@ def test_pruning_keeps_a_term_whose_closure_would_stop_beating_the_current_model
     assert kept is two and not [e for e in runner.ledger if e["action"] == "open form prune"]
     rmse["inlet_flow*spool_hinge_up"] = 40e3  # alone it beats the current model
     kept = OpenForm()._prune(two, _state(current), runner)
-    assert [str(t) for t, _ in _existing_terms(kept.model)] == ["inlet_flow*spool_hinge_up"]
+    assert [str(t) for t, _ in existing_terms(kept.model)] == ["inlet_flow*spool_hinge_up"]
     (entry,) = [e for e in runner.ledger if e["action"] == "open form prune"]
     assert entry["term"] == "pressure_hinge" and entry["heldout_rmse_after_Pa"] == 40e3
 
@@ -412,8 +413,7 @@ def test_a_closure_rewritten_starts_at_its_terms_values_with_bounds_that_reach_t
     terms = [ValuedTerm(Term.parse("inlet_flow*inlet_drop"), -0.3),
              ValuedTerm(Term.parse("inlet_flow"), 3.0),
              ValuedTerm(Term.parse("spool_hinge_up"), 1e-6, 4.0)]
-    stage = OpenForm(coefficient_reach=10.0)
-    rewritten, start = stage._closure_model(fit, terms)
+    rewritten, start = closure_model(fit, terms, coefficient_reach=10.0)
     assert rewritten.effect("closure").options()["terms"] == (
         "inlet_flow*inlet_drop; inlet_flow; spool_hinge_up")
     assert set(start) == set(rewritten.parameter_names)
@@ -431,19 +431,19 @@ def test_a_hinge_threshold_bound_reaches_the_range_of_its_signal():
     whose signal stays inside its bounds keeps them."""
     from openform_synthetic import synthetic_signals
 
-    from pneubayes.discovery.stages.open_form import _threshold_reach
+    from pneubayes.discovery.openform.closure_model import threshold_reach
     from pneubayes.effects.closure_features import Term
 
     s = synthetic_signals(4)
     high = dict(s, pressure_Pa=s["pressure_Pa"] * 3.0)  # up to ~21 bar
     model = Model().with_effect(Closure(terms="inlet_flow*pressure_hinge; spool_hinge_up"))
     terms = [Term.parse("inlet_flow*pressure_hinge"), Term.parse("spool_hinge_up")]
-    reach = _threshold_reach(model, terms, [s, high])
+    reach = threshold_reach(model, terms, [s, high])
     ratio = [x["pressure_Pa"] / x["atmospheric_pressure_Pa"] for x in (s, high)]
     top, low = float(np.max(ratio[1])), min(1.0, float(np.min(ratio[0])))
     assert top > 15.0
     assert reach == {"closure_threshold_0_b": (low, pytest.approx(top))}
     # a spool hinge inside its bounds keeps them; a pressure hinge inside its keeps them
     inside = dict(s, pressure_Pa=np.clip(s["pressure_Pa"], 1.2e5, 9e5))
-    assert _threshold_reach(model, terms, [inside]) == {}
-    assert _threshold_reach(model, terms, ()) == {}
+    assert threshold_reach(model, terms, [inside]) == {}
+    assert threshold_reach(model, terms, ()) == {}

@@ -186,11 +186,20 @@ def test_two_planted_families_at_once():
     assert sum(f.share for f in s.terms_) == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow),
-                                  pytest.param(2, marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1, 2])
 def test_noise_alone_gives_no_term(seed):
     sig, tgt = planted([], seed=seed)
     s = OpenFormSearch(seed=seed).fit(sig, tgt)
+    assert s.terms_ == []
+    assert s.explained_fraction_ == 0.0
+
+
+def test_noise_alone_gives_no_term_on_a_coarser_grid():
+    """The fast tier's null: the thresholds at every 10 % quantile."""
+    sig, tgt = planted([], seed=3)
+    s = OpenFormSearch(seed=3, quantiles=tuple(round(0.1 * k, 2) for k in range(1, 10))
+                       ).fit(sig, tgt)
     assert s.terms_ == []
     assert s.explained_fraction_ == 0.0
 

@@ -215,7 +215,11 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     LowReynoldsPorts(critical_reynolds=0.0), SpoolStiction(breakaway_V=0.0),
     SpringReturnSpool(rise_time_constant_s=0.0), WarmingCoil(resistance_rise=0.0),
     ExhaustCheckValve(crack_pressure_Pa=0.0), SeatLeak(area_m2=0.0),
-    InletFlowLimiter(max_flow_kg_per_s=0.0), ReleaseDelay(delay_s=0.0)],
+    InletFlowLimiter(max_flow_kg_per_s=0.0), ReleaseDelay(delay_s=0.0),
+    PistonSealBypass(conductance_kg_per_s_Pa2=0.0, vent_area_m2=3e-8,
+                     opposite_volume_m3=3e-6),
+    EnergisedSealLeak(conductance_kg_per_s_Pa2=0.0, energising_pressure_Pa=1.5e5),
+    EndCushion(length_m=0.1 * STROKE, needle_area_m2=0.0, edge_m=0.02 * STROKE)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -438,6 +442,7 @@ def test_pilot_inlet_stalls_a_fill_short_of_the_supply_and_spares_the_exhaust(ri
                                   _run(params, (), vent, rig, p0=5e5))
 
 
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_iso6358_ports_choke_at_their_critical_ratio_and_fill_slower_near_the_supply(rig):
     """The ISO 6358 law: beta p_up at ratios <= b, its ellipse above (0 at ratio 1),
     reversed flow swapping the ends; b = 0.528, m = 0.5 within 6 % of the isentropic
@@ -504,6 +509,7 @@ def test_underlapped_spool_holds_a_chamber_between_supply_and_atmosphere(rig):
                                   _run(params, (), away, rig, p0=3e5))
 
 
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_meter_out_throttle_slows_the_vent_not_the_fill_and_keeps_the_mass(rig):
     """The vent leaves through the needle (much slower), the fill through the open check
     (a little slower); both end where the plain valve does; a closed chamber and
@@ -529,6 +535,7 @@ def test_meter_out_throttle_slows_the_vent_not_the_fill_and_keeps_the_mass(rig):
 
 
 # ---------------------------------------------------------------- the fourth set's forms
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_a_supply_hose_starves_a_fill_unseen_by_the_supply_sensor(rig):
     """A full-inlet fill through a hose is slower than through the regulator alone and
     ends at the supply; the supply column stays the regulator's; a restriction 18 x the
@@ -565,6 +572,7 @@ def test_low_reynolds_ports_lose_the_small_flows_and_slow_the_approach(rig, base
     assert P_SUP - slow[-1] > 1.5 * (P_SUP - plain[-1]) > 0.0  # (520 against 260 Pa short)
 
 
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_a_sticking_spool_ignores_small_steps_and_stops_short_of_large_ones(rig):
     stick = SpoolStiction(breakaway_V=0.15, stop_V=0.05)
     got = stick.targets([0.0, 0.1, 0.2, 1.0, 0.95, -1.0, -1.0])
@@ -602,6 +610,7 @@ def test_a_bowed_sensor_reads_true_at_its_ends_and_off_at_mid_range(tmp_path):
 
 
 # ---------------------------------------------------------------- the fifth set's forms
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_a_spring_returned_spool_rises_and_falls_as_first_order_lags_of_its_own(rig):
     """A rising step sees only the rise time constant, a falling one only the fall's:
     each is the catalogue's first-order spool lag at that time constant, bit for bit."""
@@ -694,6 +703,7 @@ def test_the_bench_reads_through_a_capillary_and_a_lagging_length_sensor(tmp_pat
 
 
 # ---------------------------------------------------------------- the sixth blind set
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_an_exhaust_check_valve_vents_only_down_to_its_cracking_pressure(rig):
     """Inlet shut, exhaust open (-5 V): the chamber vents to the atmosphere without the
     check, to its cracking pressure with it, at the orifice law against the raised
@@ -738,6 +748,7 @@ def test_a_worn_seat_fills_a_shut_chamber_at_the_incompressible_law(rig):
     np.testing.assert_allclose(plain, P_ATM, rtol=0, atol=1e-6)
 
 
+@pytest.mark.slow  # (a spent blind set's form; the fast tier's budget)
 def test_a_flow_limiter_caps_a_full_fill_at_its_flow_and_spares_the_exhaust(rig, base):
     limiter = InletFlowLimiter(max_flow_kg_per_s=2e-4)
     fill = _held(0.3, (5.0,))

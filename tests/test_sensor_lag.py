@@ -184,8 +184,10 @@ def test_the_reading_over_a_cubic_step_is_its_ode_solution():
             pytest.approx(0.0, abs=1e-9 * abs(pb - pa))
 
 
-@pytest.mark.parametrize("form,heat", [("first_order", False), ("second_order", False),
-                                       ("first_order", True), ("second_order", True)])
+@pytest.mark.parametrize("form,heat", [
+    pytest.param("first_order", False, marks=pytest.mark.slow),  # (the heated forms step
+    pytest.param("second_order", False, marks=pytest.mark.slow),  # the same lag and more)
+    ("first_order", True), ("second_order", True)])
 def test_a_fast_lag_on_a_tiny_chamber_agrees_with_the_reference_solver(rig, form, heat):
     """The bench's lags (a 0.53-ms RC stage; a 250-Hz Butterworth) on a 1e-7 m^3
     chamber, whose pressure settles within a fraction of a 1-ms step: read along the

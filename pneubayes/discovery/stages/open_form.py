@@ -18,7 +18,16 @@ import inspect
 import numpy as np
 
 from pneubayes.discovery.one_step import one_step_data
-from pneubayes.discovery.openform.features import HINGE_SOURCES, hinge_source_values
+from pneubayes.discovery.openform.closure_model import (
+    CLOSURE,
+    beside_closure,
+    closure_model,
+    existing_terms,
+    families_at_bounds,
+    newly_at_bounds,
+    reach,
+    without_term,
+)
 from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
 from pneubayes.discovery.openform.search import OpenFormSearch
 from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
@@ -27,15 +36,11 @@ from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
-from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS
 from pneubayes.effects.discovery import inside_bounds
-from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 
-#: The name of the closure component in a model and in the ledger.
-CLOSURE = "closure"
 #: The search source whose rows are the prediction windows' residual.
 WINDOWS = "windows"
 
@@ -125,7 +130,7 @@ class OpenForm(Stage):
         current = state.current
         if current.heldout_rmse_Pa <= self.min_noise_ratio * noise:
             return False, None
-        if len(_existing_terms(current.model)) >= CLOSURE_MAX_TERMS:
+        if len(existing_terms(current.model)) >= CLOSURE_MAX_TERMS:
             return False, None
         if not state.passing:
             return True, None
@@ -209,7 +214,7 @@ class OpenForm(Stage):
                     # a closure that fits only at its bounds stands in for what its terms
                     # cannot express: the search's next terms may (those families out)
                     retries += 1
-                    excluded = excluded + _families_at_bounds(fit, bounded, terms)
+                    excluded = excluded + families_at_bounds(fit, bounded, terms)
                     runner.log("discover: open form: searching again without "
                                + ", ".join(excluded))
                     continue
@@ -266,7 +271,7 @@ class OpenForm(Stage):
         """``(terms, search)``: the search fitted, its terms as many as the closure has
         room for beside ``current``'s."""
         search.fit(signals, targets, row_maps=maps)
-        free = CLOSURE_MAX_TERMS - len(_existing_terms(current.model))
+        free = CLOSURE_MAX_TERMS - len(existing_terms(current.model))
         return list(search.terms_)[:max(free, 0)], search
 
     # ------------------------------------------------------------------ fit
@@ -276,11 +281,11 @@ class OpenForm(Stage):
         current model), the lower training RMSE kept; a hinge's threshold bounds reach
         its signal's range on ``signals`` (the training recordings')."""
         current = state.current
-        old = _existing_terms(current.model)
+        old = existing_terms(current.model)
         spec = "; ".join([*(str(t) for t, _ in old), *(str(t.term) for t in terms)])
         closure = Closure(terms=spec)
         base = current.model.without(CLOSURE) if current.model.has(CLOSURE) else current.model
-        base, plainer = _beside_closure(
+        base, plainer = beside_closure(
             base, {k: current.params[k] for k in base.parameter_names}, runner.data.rig())
         if plainer:
             runner.log("discover: open form: a closure cannot sit beside the line state of "
@@ -288,9 +293,9 @@ class OpenForm(Stage):
         model = base.with_effect(closure)
         earlier = {k: v for k, v in current.model.bound_overrides.items()
                    if k.startswith("closure_")}  # an earlier term's widened bounds
-        wide = {**earlier, **self._reach(
+        wide = {**earlier, **reach(
             model, {len(old) + j: t.coefficient for j, t in enumerate(terms)},
-            [t for t, _ in old] + [t.term for t in terms], signals)}
+            [t for t, _ in old] + [t.term for t in terms], self.coefficient_reach, signals)}
         if len(wide) > len(earlier):
             runner.log("discover: open form: bounds widened to reach the searched values "
                        "and the hinges' signals: "
@@ -347,12 +352,12 @@ class OpenForm(Stage):
         against the current model (pruning never turns a closure that beats the current
         model into one that does not; the last term is weighed in the verification)."""
         while True:
-            terms = _existing_terms(fit.model)
+            terms = existing_terms(fit.model)
             if len(terms) <= 1:
                 return fit
             dropped = False
             for k in range(len(terms)):
-                reduced, start = _without_term(fit, k)
+                reduced, start = without_term(fit, k)
                 try:
                     smaller = runner.fit(reduced, start)
                 except (FloatingPointError, SimulationError):
@@ -377,7 +382,7 @@ class OpenForm(Stage):
         without it (:func:`~pneubayes.discovery.openform.linear_hinge.linear_terms`),
         started from the same closure re-expressed; None when no such rewrite exists or
         its fit fails."""
-        terms = _existing_terms(fit.model)
+        terms = existing_terms(fit.model)
         sides = [(k, name[-1]) for k, (_, names) in enumerate(terms)
                  for name in names[1:] if name in bounded]  # (closure_threshold_{k}_{a|b})
         if not sides:
@@ -389,7 +394,7 @@ class OpenForm(Stage):
         new = linear_terms(valued, sides, signals)
         if new is None:
             return None
-        model, start = self._closure_model(fit, new, signals)
+        model, start = closure_model(fit, new, self.coefficient_reach, signals)
         spec = "; ".join(str(t.term) for t in new)
         thresholds = [f"closure_threshold_{k}_{side}" for k, side in sides]
         runner.log(f"discover: open form: {', '.join(thresholds)} at a bound beyond the "
@@ -409,41 +414,6 @@ class OpenForm(Stage):
             linear = self._prune(linear, state, runner)
         return linear
 
-    def _closure_model(self, fit, terms, signals=()):
-        """``(model, start)``: ``fit``'s model with its closure replaced by ``terms``
-        (ValuedTerm), started at their values and ``fit``'s others; a coefficient's
-        bounds widened to +- ``coefficient_reach`` x its value where that exceeds them,
-        a threshold's to its signal's range on ``signals``."""
-        base = fit.model.without(CLOSURE)
-        model = base.with_effect(Closure(terms="; ".join(str(t.term) for t in terms)))
-        wide = self._reach(model, {k: t.coefficient for k, t in enumerate(terms)},
-                           [t.term for t in terms], signals)
-        if wide:
-            model = model.with_bounds(wide)
-        start = {n: fit.params[n] for n in base.parameter_names}
-        for k, t in enumerate(terms):
-            start[f"closure_coefficient_{k}"] = inside_bounds(
-                model, f"closure_coefficient_{k}", t.coefficient)
-            for side in t.term.hinges():
-                start[f"closure_threshold_{k}_{side}"] = inside_bounds(
-                    model, f"closure_threshold_{k}_{side}", t.threshold(side))
-        return model, start
-
-    def _reach(self, model, coefficients: dict, terms, signals) -> dict:
-        """Bounds that reach the closure's values: coefficient ``k`` (``coefficients``:
-        term index -> value) widened to +- ``coefficient_reach`` x its value where that
-        exceeds its bound (the defaults are sized for typical flows), each hinge
-        threshold of ``terms`` to its signal's range on ``signals``
-        (:func:`_threshold_reach`)."""
-        wide = {}
-        for k, c in coefficients.items():
-            name = f"closure_coefficient_{k}"
-            reach = self.coefficient_reach * abs(c)
-            if reach > model.parameter(name).upper:
-                wide[name] = (-reach, reach)
-        wide.update(_threshold_reach(model, terms, signals))
-        return wide
-
     # ------------------------------------------------------------------ verify
     def _verify(self, fit, state: RoundState, runner, best, search):
         """Weigh the closure's fit against the current model (and the round's best
@@ -459,13 +429,13 @@ class OpenForm(Stage):
         drop_Pa = current.heldout_rmse_Pa - fit.heldout_rmse_Pa
         least = min_gain_Pa(noise, gap_Pa, s)
         closed, _, under = gain_shortfall(drop_Pa, gap_Pa, 0.0, least)
-        bounded = _newly_at_bounds(fit, current)
+        bounded = newly_at_bounds(fit, current)
         ok = ok and not basin and not under and not bounded
         beats = None
         if ok and best is not None:
             beats = bool(runner.better(fit, best[2])[0])
             ok = beats
-        terms = _existing_terms(fit.model)
+        terms = existing_terms(fit.model)
         runner.ledger.record(
             "open form pass" if ok else "open form reject", effect=CLOSURE,
             terms=[{"term": str(t), **{n: fit.params[n] for n in names}}
@@ -504,86 +474,6 @@ class OpenForm(Stage):
         return True, bounded
 
 
-def _newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
-    """Parameters of ``fit`` within ``share`` of their bounds' span of a bound that were
-    not there in ``current`` (the closure's own always count): a closure that only fits
-    by driving parameters to their limits stands in for what it cannot express."""
-    out = []
-    for name in fit.model.parameter_names:
-        p = fit.model.parameter(name)
-        tol = share * (p.upper - p.lower)
-
-        def at(v, p=p, tol=tol):
-            return v - p.lower <= tol or p.upper - v <= tol
-
-        if at(fit.params[name]) and not (name in current.params and at(current.params[name])):
-            out.append(name)
-    return out
-
-
-#: Slots of a tube simulated as a line (its own states in place of the chamber's
-#: right-hand side), beside which the compiled simulator refuses a closure.
-_LINE_SLOTS = ("line_length_m", "wave_length_m")
-
-
-def _beside_closure(model, params: dict, rig):
-    """``(model, names)``: ``model`` with each effect that lowers onto a line slot at
-    ``params`` in its plainest form (its first; options it shares with it kept, a
-    same-named fitted parameter as the option's value), and the names of those
-    effects."""
-    slots = model.lower(model.vector(params)[None, :], rig)[0]
-    if not any(slots[SLOT_INDEX[s]] > 0 for s in _LINE_SLOTS):
-        return model, []
-    names = []
-    for name in model.effect_names:
-        eff = model.effect(name)
-        if not type(eff).forms or eff.options().get("form") == type(eff).forms[0]:
-            continue
-        wrote = eff.lower({k: np.atleast_1d(params[k]) for k in eff.parameter_names()}, rig)
-        if not any(np.any(np.asarray(wrote.get(s, 0.0)) > 0) for s in _LINE_SLOTS):
-            continue
-        first = type(eff)(form=type(eff).forms[0])
-        opts = {k: (float(params[k]) if k in params else eff.options().get(k, v))
-                for k, v in first.options().items() if k != "form"}
-        model = model.without(name).with_effect(make_effect(name, form=first.form, **opts))
-        names.append(name)
-    return model, names
-
-
-def _families_at_bounds(fit, bounded: list[str], terms) -> tuple[str, ...]:
-    """The families of the searched ``terms`` whose closure parameters are among
-    ``bounded``; all of them when none is (another parameter went to its bound)."""
-    new = {str(t.term) for t in terms}
-    hit = tuple(str(t) for t, names in _existing_terms(fit.model)
-                if str(t) in new and any(n in bounded for n in names))
-    return hit or tuple(sorted(new))
-
-
-def _threshold_reach(model, terms, signals) -> dict:
-    """Bounds for the closure's hinge thresholds (term ``k`` of ``terms``) that reach
-    the range their signal takes on ``signals`` where their own do not (a chamber the
-    piston compresses to 20 bar takes a pressure hinge past its default 10), so that a
-    fit is not stopped inside the data; ``{}`` without signals."""
-    out = {}
-    if not len(signals):
-        return out
-    for k, term in enumerate(terms):
-        for side in term.hinges():
-            hinge = getattr(term, side)
-            if hinge not in HINGE_SOURCES:
-                continue  # (a relaxation's time constant)
-            v = np.concatenate([hinge_source_values(hinge, s) for s in signals])
-            v = v[np.isfinite(v)]
-            if not v.size:
-                continue
-            name = f"closure_threshold_{k}_{side}"
-            p = model.parameter(name)
-            lo, hi = min(p.lower, float(v.min())), max(p.upper, float(v.max()))
-            if (lo, hi) != (p.lower, p.upper):
-                out[name] = (lo, hi)
-    return out
-
-
 def _source_label(source) -> str:
     """A search's rows, in words."""
     return ("prediction windows" if source == WINDOWS
@@ -601,20 +491,6 @@ def _clone(search, **changes):
     return type(search)(**{**_settings_of(search), **changes})
 
 
-def _existing_terms(model) -> list:
-    """The model's closure terms, ``[(Term, its parameter names), ...]`` (empty without
-    a closure)."""
-    if not model.has(CLOSURE):
-        return []
-    eff = model.effect(CLOSURE)
-    out = []
-    for k, t in enumerate(eff.term_list()):
-        names = [f"closure_coefficient_{k}"] + [f"closure_threshold_{k}_{side}"
-                                                for side in t.hinges()]
-        out.append((t, tuple(names)))
-    return out
-
-
 def _term_record(t) -> dict:
     """A found term for the ledger."""
     return {"term": str(t.term), "coefficient": t.coefficient, "unit": t.term.unit,
@@ -622,26 +498,3 @@ def _term_record(t) -> dict:
             "inclusion_probability": t.inclusion_probability, "share": t.share}
 
 
-def _without_term(fit, k: int):
-    """``(model, start)``: ``fit``'s model with closure term ``k`` removed (the closure
-    removed with its last term), started at the fit's values renumbered."""
-    model = fit.model
-    terms = model.effect(CLOSURE).term_list()
-    keep = [j for j in range(len(terms)) if j != k]
-    base = model.without(CLOSURE)
-    start = {n: fit.params[n] for n in base.parameter_names}
-    if not keep:
-        return base, start
-    closure = Closure(terms="; ".join(str(terms[j]) for j in keep))
-    reduced = base.with_effect(closure)
-    kept = {f"closure_coefficient_{new}": model.bound_overrides[f"closure_coefficient_{old}"]
-            for new, old in enumerate(keep)
-            if f"closure_coefficient_{old}" in model.bound_overrides}
-    if kept:  # a widened coefficient's bounds go with its term
-        reduced = reduced.with_bounds(kept)
-    for new, old in enumerate(keep):
-        start[f"closure_coefficient_{new}"] = fit.params[f"closure_coefficient_{old}"]
-        for side in terms[old].hinges():
-            start[f"closure_threshold_{new}_{side}"] = fit.params[
-                f"closure_threshold_{old}_{side}"]
-    return reduced, start
