@@ -161,9 +161,10 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
     assert parse_terms(closure_spec(s.terms_))[0] == term_
 
 
+@pytest.mark.slow  # (the fast tier's planted hinge: beside a nuisance column, below)
 def test_a_planted_hinge_is_recovered_on_a_coarser_grid():
-    """The fast tier's planted case: a pressure hinge with its threshold and coefficient,
-    the thresholds at every 10 % quantile (half the default grid's columns)."""
+    """A pressure hinge with its threshold and coefficient, the thresholds at every
+    10 % quantile (half the default grid's columns)."""
     term, ta, _, c = CASES["pressure_hinge"]
     sig, tgt = planted([CASES["pressure_hinge"]])
     s = OpenFormSearch(seed=0, quantiles=tuple(round(0.1 * k, 2) for k in range(1, 10))
@@ -355,6 +356,57 @@ def test_path_signals_and_the_missing_flow_of_a_laminar_leak(laminar_leak_record
     hi = sig["pressure_Pa"] > 4e5
     assert np.mean(flow[hi]) < 0.0
     assert np.mean(flow[hi]) == pytest.approx(np.mean(leak[hi]), rel=0.15)
+
+
+def test_parameter_flows_are_the_missing_flows_change_with_each_parameter(
+        laminar_leak_recording):
+    """Each column of the model's own sensitivities, times a small change of its
+    parameter, is the change of the missing mass flow that the change leaves (the
+    residual falls by what the model gains), within 3 % of its size (a step five times
+    the columns' own: their first order)."""
+    from pneubayes.discovery.one_step import one_step_data
+    from pneubayes.discovery.openform.signals import parameter_flows
+    from pneubayes.simulation import SolverConfig
+
+    rec, plain, params = laminar_leak_recording
+    d = one_step_data(rec, 1)
+    solver = SolverConfig.standard()
+
+    sig = path_signals(plain, params, rec, d)
+
+    def missing(values):  # (converted along the current path, as the search's target)
+        e = d.errors(plain, plain.vector(values)[None], solver)[0]
+        return missing_mass_flow(sig, e, d.rig)
+
+    cols = parameter_flows(plain, params, d, solver, sig)
+    assert cols.shape == (rec.n_samples - 1, len(plain.parameter_names))
+    y0 = missing(params)
+    for name in ("inlet_a_m2", "exhaust_c_per_V", "dead_volume_m3"):
+        j = plain.parameter_names.index(name)
+        par = plain.parameter(name)
+        step = 5e-4 * (par.upper - par.lower)
+        moved = dict(params, **{name: params[name] + step})
+        change = y0 - missing(moved)
+        assert np.linalg.norm(change - step * cols[:, j]) < 0.03 * np.linalg.norm(change), name
+
+
+def test_a_term_the_models_own_parameters_absorb_is_not_kept():
+    """A target that is a planted hinge plus 20 % more inlet flow: alone, the search
+    keeps the inlet flow as a term too; beside the inlet flow as a nuisance column (a
+    valve map the refit scales), only the hinge, with its coefficient."""
+    quantiles = tuple(round(0.1 * k, 2) for k in range(1, 10))
+    term, ta, _, c = CASES["pressure_hinge"]
+    sig, tgt = planted([CASES["pressure_hinge"], (Term("inlet_flow"), 0.0, 0.0, 0.2)])
+    plain = OpenFormSearch(seed=0, quantiles=quantiles, n_models=20).fit(sig, tgt)
+    assert "inlet_flow" in [str(f.term) for f in plain.terms_]
+    nuisance = [s["inlet_flow_kg_per_s"][:, None] for s in sig]
+    beside = OpenFormSearch(seed=0, quantiles=quantiles, n_models=20).fit(sig, tgt,
+                                                                        nuisance=nuisance)
+    assert [str(f.term) for f in beside.terms_] == [str(term)]
+    assert abs(beside.terms_[0].threshold_a - ta) < PRESSURE_THRESHOLD_TOL
+    assert abs(beside.terms_[0].coefficient / c - 1.0) < HINGE_COEF_TOL
+    with pytest.raises(ValueError, match="nuisance must be"):
+        OpenFormSearch().fit(sig, tgt, nuisance=[n[:-1] for n in nuisance])
 
 
 def test_the_spool_is_the_command_delayed_and_lagged(rig):

@@ -100,6 +100,23 @@ def _rank(candidate: Candidate) -> int:
     return 4 if term.hinges() else 3
 
 
+#: A candidate keeps at least this share of its norm outside the nuisance columns' span,
+#: or it is dropped (what is left is the nuisance's round-off and noise).
+NUISANCE_KEEP = 0.01
+
+
+def orthonormal_basis(columns: np.ndarray, rcond: float = 1e-8) -> np.ndarray:
+    """An orthonormal basis ``(R, r)`` of the span of ``columns`` ``(R, K)``: each
+    column scaled to unit norm (zero columns dropped), then the left singular vectors
+    whose singular value exceeds ``rcond`` x the largest."""
+    norms = np.linalg.norm(columns, axis=0)
+    live = norms > 0
+    if not live.any():
+        return np.zeros((columns.shape[0], 0))
+    u, sv, _ = np.linalg.svd(columns[:, live] / norms[live], full_matrices=False)
+    return u[:, sv > rcond * sv[0]]
+
+
 def _block_sums(values: np.ndarray, block: int) -> np.ndarray:
     """Sum ``(M, ...)`` per-interval values over consecutive blocks of ``block``."""
     n = (values.shape[0] // block) * block
@@ -237,8 +254,8 @@ class OpenFormSearch:
     def _rows(self, candidate: Candidate, signals_list, finite: np.ndarray) -> np.ndarray:
         """One candidate's rows over all recordings (the ``finite`` ones only)."""
         col = np.concatenate([self._to_rows(candidate.evaluate(s), i)
-                              for i, s in enumerate(signals_list)])
-        return col[finite]
+                              for i, s in enumerate(signals_list)])[finite]
+        return col if self._basis is None else col - self._basis @ (self._basis.T @ col)
 
     def _sparse(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
         """Coefficients of one bag on unit-RMS columns (zeros: not selected); columns
@@ -410,7 +427,7 @@ class OpenFormSearch:
         return out
 
     def fit(self, signals_list: Sequence[dict], target_list: Sequence[np.ndarray],
-            row_maps=None) -> "OpenFormSearch":
+            row_maps=None, nuisance=None) -> "OpenFormSearch":
         """Search the terms of the missing mass flow.
 
         Parameters
@@ -429,6 +446,15 @@ class OpenFormSearch:
             :class:`~pneubayes.discovery.openform.trajectory.WindowResponse`); the
             targets are then given as rows, ``(R,)`` each (``"valid"`` is not read:
             the maps' rows are the caller's to choose).
+        nuisance : sequence of (M, K) arrays, optional
+            Per recording, per-interval columns the target may contain in any amount
+            (the current model's own parameter sensitivities,
+            :func:`~pneubayes.discovery.openform.signals.parameter_flows`): the rows
+            are taken through the same block sums or maps and projected out of the
+            target and of every candidate (Frisch-Waugh-Lovell: the coefficients are
+            those of the regression with them beside), so a term is kept for what
+            they cannot absorb; a candidate left with less than
+            :data:`NUISANCE_KEEP` of its norm is dropped.
 
         Returns
         -------
@@ -436,7 +462,19 @@ class OpenFormSearch:
             self, with the attributes of the class doc.
         """
         self._validate(signals_list, target_list, row_maps)
+        if nuisance is not None:
+            if len(nuisance) != len(signals_list):
+                raise ValueError(f"fit: {len(nuisance)} nuisance arrays for "
+                                 f"{len(signals_list)} recordings; give one per recording")
+            for i, (z, sig) in enumerate(zip(nuisance, signals_list)):
+                n = np.shape(sig["pressure_Pa"])[0]
+                if np.ndim(z) != 2 or np.shape(z)[0] != n:
+                    raise ValueError(f"recording {i}: the nuisance must be (M, K) with M = "
+                                     f"{n} intervals, got shape {np.shape(z)}")
         self._row_maps = None if row_maps is None else list(row_maps)
+        self._nuisance = None if nuisance is None else [np.asarray(z, dtype=np.float64)
+                                                        for z in nuisance]
+        self._basis = None
         from threadpoolctl import threadpool_limits
 
         # the regressions are small (~1e3 x 1e2): BLAS threads only contend for cores
@@ -457,7 +495,17 @@ class OpenFormSearch:
         x = np.concatenate([self._to_rows(design_matrix(cands, s), i)
                             for i, s in enumerate(signals_list)])
         finite = np.isfinite(y) & np.all(np.isfinite(x), axis=1)
+        if self._nuisance is not None:
+            z = np.concatenate([self._to_rows(n, i) for i, n in enumerate(self._nuisance)])
+            finite &= np.all(np.isfinite(z), axis=1)
         y, x = y[finite], x[finite]
+        if self._nuisance is not None:
+            self._basis = orthonormal_basis(z[finite])
+            norm0 = np.linalg.norm(x, axis=0)
+            y = y - self._basis @ (self._basis.T @ y)
+            x = x - self._basis @ (self._basis.T @ x)
+            absorbed = np.linalg.norm(x, axis=0) < NUISANCE_KEEP * norm0
+            x[:, absorbed] = 0.0  # (a zero column is a duplicate of none and never live)
         keep = distinct_columns(x, self.duplicate_tolerance)
         cands = [c for c, k in zip(cands, keep) if k]
         x = x[:, keep]

@@ -223,3 +223,52 @@ def missing_mass_flow(signals: dict, errors_Pa, rig) -> np.ndarray:
     jh = np.asarray(signals["jacobian_per_s"], dtype=np.float64) * h
     rate = e / (h * phi1(jh))
     return rate / pressure_gain(signals, rig)
+
+
+#: Step of :func:`parameter_flows`' differences, as a share of each parameter's bounds.
+PARAMETER_STEP = 1e-4
+
+
+def parameter_flows(model, params, data, solver, signals) -> np.ndarray:
+    """The model's sensitivities to its own parameters along the measured path, each as
+    the mass flow into the chamber its change adds (kg/s per unit of the parameter),
+    ``(N - 1, P)`` in ``model.parameter_names``' order.
+
+    A column is the forward difference of the one-step errors over a step of
+    :data:`PARAMETER_STEP` of the parameter's bounds' span (downwards at its upper
+    bound), all steps in one batched call, converted as :func:`missing_mass_flow`
+    converts the errors along ``signals``: what the search's target loses when the
+    parameter grows. A parameter that does not move the prediction (a noise model's)
+    gives a column of zeros. The open-form search regresses the target beside these, so
+    a term is kept for what refitting the model's own parameters cannot absorb.
+
+    Parameters
+    ----------
+    model : Model
+        The fitted model.
+    params : dict or (P,) array
+        Its parameter values (one set).
+    data : OneStepData
+        The recording prepared for one-step predictions.
+    solver : SolverConfig
+        The one-step predictions' solver.
+    signals : dict
+        :func:`path_signals` at ``params``.
+
+    Returns
+    -------
+    (N - 1, P) array
+    """
+    theta = model.as_matrix(params)[0]
+    steps = np.empty(theta.size)
+    for j, name in enumerate(model.parameter_names):
+        par = model.parameter(name)
+        span = par.upper - par.lower
+        steps[j] = PARAMETER_STEP * (span if np.isfinite(span) else max(abs(theta[j]), 1e-12))
+        if theta[j] + steps[j] > par.upper:
+            steps[j] = -steps[j]
+    batch = np.repeat(theta[None], theta.size + 1, axis=0)
+    batch[1:] += np.diag(steps)
+    e = data.errors(model, batch, solver)
+    per_Pa = missing_mass_flow(signals, np.ones(e.shape[1]), data.rig)  # kg/s per Pa
+    return ((e[0] - e[1:]) / steps[:, None]).T * per_Pa[:, None]

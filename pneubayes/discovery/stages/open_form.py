@@ -30,7 +30,11 @@ from pneubayes.discovery.openform.closure_model import (
 )
 from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
 from pneubayes.discovery.openform.search import OpenFormSearch
-from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
+from pneubayes.discovery.openform.signals import (
+    missing_mass_flow,
+    parameter_flows,
+    path_signals,
+)
 from pneubayes.discovery.openform.trajectory import WindowResponse
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
@@ -71,11 +75,9 @@ class OpenForm(Stage):
         defaults are sized for typical flows; a relief path can carry ten times more).
     retries : int
         Searches again, each without the families of the last closure, when that
-        closure was rejected with its parameters at a bound (a closure that fits only
-        at its limits stands in for what its terms cannot express). Before that, a
-        hinge whose threshold went to a bound beyond its signal's range (active on all
-        the data, or on none) is written without it and the closure refitted and
-        verified once more (:mod:`~pneubayes.discovery.openform.linear_hinge`).
+        closure was rejected with its parameters at a bound (a stand-in); before that,
+        a hinge threshold at a bound beyond its signal is written as its line, refitted
+        and verified once (:mod:`~pneubayes.discovery.openform.linear_hinge`).
     long_block : int
         Sample intervals per row of a second search when the first (the search's
         block) keeps no term or its closure is rejected; 0 or not above the block: none.
@@ -83,6 +85,10 @@ class OpenForm(Stage):
         Rows per training window of a last search on the prediction windows' residual
         (:mod:`~pneubayes.discovery.openform.trajectory`), run when the one-step
         searches keep no term or their closures are rejected; 0: none.
+    refit_base : bool
+        Search beside the current model's own parameter sensitivities
+        (:func:`~pneubayes.discovery.openform.signals.parameter_flows`): a fit that has
+        bent its valve maps towards the missing effect leaves the effect minus the bend.
     """
 
     name = "open_form"
@@ -90,7 +96,7 @@ class OpenForm(Stage):
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
                  search: OpenFormSearch | None = None, prune: bool = True,
                  coefficient_reach: float = 10.0, retries: int = 1, long_block: int = 25,
-                 window_rows: int = 40):
+                 window_rows: int = 40, refit_base: bool = True):
         if min_noise_ratio < 1.0:
             raise ValueError(f"OpenForm: min_noise_ratio must be >= 1, got {min_noise_ratio}")
         if not 0.0 <= compete_below_gap_closed <= 1.0:
@@ -115,6 +121,7 @@ class OpenForm(Stage):
             raise ValueError(f"OpenForm: window_rows must be an integer >= 0, got "
                              f"{window_rows!r}")
         self.window_rows = window_rows
+        self.refit_base = bool(refit_base)
 
     def options(self):
         search = None if self.search is None else _settings_of(self.search)
@@ -122,7 +129,8 @@ class OpenForm(Stage):
                 "compete_below_gap_closed": self.compete_below_gap_closed,
                 "search": search, "prune": self.prune,
                 "coefficient_reach": self.coefficient_reach, "retries": self.retries,
-                "long_block": self.long_block, "window_rows": self.window_rows}
+                "long_block": self.long_block, "window_rows": self.window_rows,
+                "refit_base": self.refit_base}
 
     # ------------------------------------------------------------------ when
     def _applies(self, state: RoundState, noise: float):
@@ -156,7 +164,7 @@ class OpenForm(Stage):
     def _run(self, state: RoundState, runner, best) -> None:
         search = self.search if self.search is not None else OpenFormSearch(
             block=runner.settings.search.block, seed=runner.settings.seed)
-        data: dict = {}  # source -> (signals, targets, row maps or None)
+        data: dict = {}  # source -> (signals, targets, row maps or None, nuisance)
         shortest = min(rec.n_samples for rec in runner.data.train)
         # the one-step residual in blocks; a longer block (the one-step residual of a
         # small chamber is mostly noise, which sums away over more intervals); the
@@ -171,15 +179,18 @@ class OpenForm(Stage):
             source = sources[i]
             if source not in data:
                 # (the path's signals do not depend on the rows: the first source's serve)
-                data[source] = (self._window_residual(state, runner, data[sources[0]][0])
-                                if source == WINDOWS
-                                else (*self._residual(state, runner, source), None))
-            signals, targets, maps = data[source]
+                if source == WINDOWS:
+                    first = data[sources[0]]
+                    data[source] = self._window_residual(state, runner, first[0], first[3])
+                else:
+                    data[source] = self._residual(state, runner, source)
+            signals, targets, maps, nuisance = data[source]
             search = _clone(search, exclude=tuple(dict.fromkeys((*search.exclude,
                                                                  *excluded))),
                             **({"chunk_rows": maps[0].rows_per_window} if maps else
                                {"block": source}))
-            terms, search = self._search(search, signals, targets, maps, state.current)
+            terms, search = self._search(search, signals, targets, maps, state.current,
+                                         nuisance)
             runner.ledger.record("open form search", round=state.number,
                                  terms=[_term_record(t) for t in terms],
                                  explained_fraction=getattr(search, "explained_fraction_",
@@ -224,37 +235,47 @@ class OpenForm(Stage):
 
     # ------------------------------------------------------------------ search
     def _residual(self, state: RoundState, runner, block: int):
-        """Per training recording, the current model's signals along its path and the
-        mass flow into the chamber it misses (kg/s), over ``block``-interval rows."""
+        """``(signals, targets, None, nuisance)``: per training recording, the current
+        model's signals along its path, the mass flow into the chamber it misses (kg/s,
+        per interval; the search sums ``block`` of them per row) and, with
+        ``refit_base``, its parameter sensitivities as mass flows (else None)."""
         s = runner.settings
         current = state.current
-        signals, targets = [], []
+        signals, targets, nuisance = [], [], []
         for rec in runner.data.train:
             d = one_step_data(rec, block)
             e = d.errors(current.model, current.params, s.search.solver)[0]
             sig = path_signals(current.model, current.params, rec, d)
             signals.append(sig)  # (its "valid" leaves out intervals touching a bad sample)
             targets.append(missing_mass_flow(sig, e, d.rig))
-        return signals, targets
+            if self.refit_base:
+                nuisance.append(parameter_flows(current.model, current.params, d,
+                                                s.search.solver, sig))
+        return signals, targets, None, (nuisance if self.refit_base else None)
 
-    def _window_residual(self, state: RoundState, runner, path):
-        """``(signals, targets, row maps)`` of the training windows: per recording with
-        windows, the current model's signals along its path (``path``: per training
-        recording, in order), the windows' residual (measured minus predicted, Pa) every
-        few samples, and the map from a per-interval mass flow to its first-order effect
-        there (:mod:`~pneubayes.discovery.openform.trajectory`)."""
+    def _window_residual(self, state: RoundState, runner, path, path_nuisance=None):
+        """``(signals, targets, row maps, nuisance)`` of the training windows: per
+        recording with windows, the current model's signals along its path (``path``:
+        per training recording, in order), the windows' residual (measured minus
+        predicted, Pa) every few samples, the map from a per-interval mass flow to its
+        first-order effect there (:mod:`~pneubayes.discovery.openform.trajectory`), and
+        ``path_nuisance``'s arrays (per training recording, in order; or None) matched
+        to them."""
         current = state.current
         ws = runner.data.train_ws
         theta = current.model.vector(current.params)[None]
         missing = -ws.residuals(current.model, theta, runner.settings.fit.refine_solver)[0]
+        extra = [None] * len(path) if path_nuisance is None else list(path_nuisance)
         if len(ws.blocks) == len(path):  # (the window set keeps the recordings' order)
-            paths = list(path)
+            paths, nuisance = list(path), extra
         else:  # a recording without a window is left out of the window set
-            by_source = {str(rec.source): sig for rec, sig in zip(runner.data.train, path)}
+            by_source = {str(rec.source): (sig, z)
+                         for rec, sig, z in zip(runner.data.train, path, extra)}
             if len(by_source) != len(path):
                 raise ValueError("the training recordings' sources repeat, so their "
                                  "windows cannot be matched to them")
-            paths = [by_source[b.source] for b in ws.blocks]
+            paths = [by_source[b.source][0] for b in ws.blocks]
+            nuisance = [by_source[b.source][1] for b in ws.blocks]
         every = max(1, (ws.length - 1) // self.window_rows)
         signals, targets, maps = [], [], []
         n0 = 0
@@ -265,12 +286,12 @@ class OpenForm(Stage):
             maps.append(response)
             targets.append(response.sample(missing[n0:n0 + w]))
             n0 += w
-        return signals, targets, maps
+        return signals, targets, maps, (None if path_nuisance is None else nuisance)
 
-    def _search(self, search, signals, targets, maps, current):
-        """``(terms, search)``: the search fitted, its terms as many as the closure has
-        room for beside ``current``'s."""
-        search.fit(signals, targets, row_maps=maps)
+    def _search(self, search, signals, targets, maps, current, nuisance=None):
+        """``(terms, search)``: the search fitted (beside ``nuisance``), its terms as
+        many as the closure has room for beside ``current``'s."""
+        search.fit(signals, targets, row_maps=maps, nuisance=nuisance)
         free = CLOSURE_MAX_TERMS - len(existing_terms(current.model))
         return list(search.terms_)[:max(free, 0)], search
 
