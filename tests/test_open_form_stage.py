@@ -447,3 +447,52 @@ def test_a_hinge_threshold_bound_reaches_the_range_of_its_signal():
     inside = dict(s, pressure_Pa=np.clip(s["pressure_Pa"], 1.2e5, 9e5))
     assert threshold_reach(model, terms, [inside]) == {}
     assert threshold_reach(model, terms, ()) == {}
+
+
+def test_the_sources_are_tried_in_turn_and_share_the_per_interval_residual(monkeypatch):
+    """Each source's closure rejected: the stage tries the blocks of 5, of 25 and the
+    windows in turn; the per-interval residual and nuisance are computed once (the
+    longer block's rows are the search's to make) and the windows read the first's."""
+    from pneubayes.discovery.openform.search import FoundTerm
+    from pneubayes.discovery.state import Ledger
+    from pneubayes.effects.closure_features import Term
+
+    stage = OpenForm()
+    calls = {"residual": 0, "window": [], "searched": [], "fitted": []}
+    path = (["signals"], ["targets"], None, ["nuisance"])
+
+    def residual(state, runner):
+        calls["residual"] += 1
+        return path
+
+    def window_residual(state, runner, signals, nuisance):
+        calls["window"].append((signals, nuisance))
+        return (signals, ["window targets"], [SimpleNamespace(rows_per_window=8)], nuisance)
+
+    terms = {5: "one", 25: "pressure_ratio", "windows": "inlet_flow"}
+
+    def search(srch, signals, targets, maps, current, nuisance=None):
+        source = "windows" if maps else srch.block
+        calls["searched"].append((source, nuisance))
+        return [FoundTerm(Term.parse(terms[source]), 0.0, 0.0, 1e-5, 1.0, 1.0, 1.0)], srch
+
+    def fit(state, runner, found, signals):
+        calls["fitted"].append(str(found[0].term))
+        return SimpleNamespace()
+
+    monkeypatch.setattr(stage, "_residual", residual)
+    monkeypatch.setattr(stage, "_window_residual", window_residual)
+    monkeypatch.setattr(stage, "_search", search)
+    monkeypatch.setattr(stage, "_fit", fit)
+    monkeypatch.setattr(stage, "_verify", lambda *a: (False, []))
+    runner = SimpleNamespace(
+        settings=SimpleNamespace(search=SimpleNamespace(block=5), seed=0),
+        data=SimpleNamespace(train=[SimpleNamespace(n_samples=1000)]),
+        ledger=Ledger(), log=lambda m: None,
+        better=lambda a, b: (False, 0.0, 1.0, np.zeros(1)))
+    state = _state(SimpleNamespace(model=Model(), heldout_rmse_Pa=5e3))
+    stage._run(state, runner, None)
+    assert [s for s, _ in calls["searched"]] == [5, 25, "windows"]
+    assert all(n == ["nuisance"] for _, n in calls["searched"])
+    assert calls["residual"] == 1 and calls["window"] == [(["signals"], ["nuisance"])]
+    assert calls["fitted"] == ["one", "pressure_ratio", "inlet_flow"]

@@ -178,12 +178,15 @@ class OpenForm(Stage):
         while i < len(sources):
             source = sources[i]
             if source not in data:
-                # (the path's signals do not depend on the rows: the first source's serve)
+                # (the path's signals, the per-interval target and the nuisance do not
+                # depend on the rows: the first source's serve the others)
                 if source == WINDOWS:
                     first = data[sources[0]]
                     data[source] = self._window_residual(state, runner, first[0], first[3])
+                elif data:
+                    data[source] = data[sources[0]]
                 else:
-                    data[source] = self._residual(state, runner, source)
+                    data[source] = self._residual(state, runner)
             signals, targets, maps, nuisance = data[source]
             search = _clone(search, exclude=tuple(dict.fromkeys((*search.exclude,
                                                                  *excluded))),
@@ -234,16 +237,16 @@ class OpenForm(Stage):
             runner.log("discover: open form: no term of the residual's search is supported")
 
     # ------------------------------------------------------------------ search
-    def _residual(self, state: RoundState, runner, block: int):
+    def _residual(self, state: RoundState, runner):
         """``(signals, targets, None, nuisance)``: per training recording, the current
         model's signals along its path, the mass flow into the chamber it misses (kg/s,
-        per interval; the search sums ``block`` of them per row) and, with
+        per interval; the search sums its block of them per row) and, with
         ``refit_base``, its parameter sensitivities as mass flows (else None)."""
         s = runner.settings
         current = state.current
         signals, targets, nuisance = [], [], []
         for rec in runner.data.train:
-            d = one_step_data(rec, block)
+            d = one_step_data(rec, 1)  # (per interval: the search makes the rows)
             e = d.errors(current.model, current.params, s.search.solver)[0]
             sig = path_signals(current.model, current.params, rec, d)
             signals.append(sig)  # (its "valid" leaves out intervals touching a bad sample)
