@@ -575,85 +575,10 @@ def _lower_catalogue(params: Mapping[str, float], effects: Sequence[Effect], rig
     return model.lower(vec, rig)[0]
 
 
-def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -> _Setup:
-    sl = _lower_catalogue(params, effects, rig)
-    if sl[SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]] != 0.0:
-        raise ValueError("plant: a catalogue leak graded along the stroke is not simulated "
-                         "here; plant a ClearanceLeak form with a seal_length_slope instead")
-    if sl[SLOT_INDEX["deadband_rounding_V"]] != 0.0:
-        raise ValueError("plant: the catalogue's rounded valve_deadzone is not simulated "
-                         "here; plant a RoundedDeadzone form instead")
-    if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
-        raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
-                         "here; plant a WallHeatTransfer form instead")
-    if sl[SLOT_INDEX["spool_rate_limit_V_per_s"]] != 0.0:
-        raise ValueError("plant: the catalogue's speed-limited spool_lag is not simulated "
-                         "here; plant a SpoolSlewLimit form instead")
-    fall = float(sl[SLOT_INDEX["spool_fall_time_constant_s"]])
-    if fall > 0.0 and not sl[SLOT_INDEX["spool_time_constant_s"]] > 0.0:
-        raise ValueError("plant: the catalogue's asymmetric spool_lag needs a rise time "
-                         "constant > 0 beside its fall's")
-    stiction = None
-    band = float(sl[SLOT_INDEX["stiction_band_V"]])
-    if band > 0.0:  # the catalogue's sticking valve, stepped by the bench's own form
-        if any(isinstance(f, SpoolStiction) for f in forms):
-            raise ValueError("plant: valve_stiction and a SpoolStiction form both make the "
-                             "valve stick; plant one of them")
-        slip = float(sl[SLOT_INDEX["stiction_slip_fraction"]])
-        stiction = SpoolStiction(breakaway_V=band, stop_V=(1.0 - slip) * band)
-    g = rig.gas
-    P = np.zeros(N_K)
-    P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,
-                                    g.temperature_K)
-    P[K_ALPHA], P[K_BETA], P[K_THETA] = g.alpha_s_per_m, g.beta_s_per_m, g.theta
-    P[K_PATM], P[K_PNOM] = rig.atmospheric_pressure_Pa, rig.supply_pressure_Pa
-    P[K_ABORE], P[K_BORE] = rig.bore_area_m2, rig.bore_m
-    for i, name in enumerate(("inlet_offset_m2", "inlet_a_m2", "inlet_b", "inlet_c_per_V",
-                              "inlet_d_V")):
-        P[K_IN + i] = sl[SLOT_INDEX[name]]
-        P[K_EX + i] = sl[SLOT_INDEX[name.replace("inlet", "exhaust")]]
-    P[K_VDEAD] = sl[SLOT_INDEX["volume_m3"]]
-    for k, slot in ((K_TAU, "spool_time_constant_s"), (K_DEAD, "deadband_halfwidth_V"),
-                    (K_GAIN, "supply_gain"), (K_ATT, "flow_attenuation_Pa"),
-                    (K_LEAKO, "leak_orifice_area_m2"), (K_LEAKL, "leak_laminar_kg_per_s_Pa2"),
-                    (K_HEAT, "heat_rate_per_s")):
-        P[k] = sl[SLOT_INDEX[slot]]
-    L = np.full(N_L, -1, dtype=np.int64)
-    L[[L_SPOOL, L_DZ_ROUND, L_HEAT, L_DROOP, L_CLEAR, L_NSEG]] = 0
-    L[L_SPOOL] = 1 if P[K_TAU] > 0 else 0
-    if sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]] > 0:  # the catalogue's 2nd order
-        P[K_WN], P[K_ZETA] = (sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]],
-                              sl[SLOT_INDEX["spool_damping"]])
-        L[L_SPOOL] = 2
-    if fall > 0.0:  # the catalogue's asymmetric spool, stepped as the plant's own
-        P[K_SR_UP], P[K_SR_DN], L[L_SPOOL] = P[K_TAU], fall, 4
-    L[L_HEAT] = 1 if P[K_HEAT] > 0 else 0
-    by = {type(f): f for f in forms}
-    if RoundedDeadzone in by:
-        f = by[RoundedDeadzone]
-        P[K_DEAD], P[K_ROUND], L[L_DZ_ROUND] = f.halfwidth_V, f.rounding_V, 1
-    if SecondOrderSpool in by:
-        f = by[SecondOrderSpool]
-        P[K_WN], P[K_ZETA], L[L_SPOOL] = 2 * math.pi * f.natural_frequency_Hz, f.damping, 2
-    if WallHeatTransfer in by:
-        f = by[WallHeatTransfer]
-        P[K_H], L[L_HEAT] = f.h_W_per_m2_K, 2
-        P[K_TWALL] = g.temperature_K if f.wall_temperature_K is None else f.wall_temperature_K
-    if ClearanceLeak in by:
-        f = by[ClearanceLeak]
-        lo, hi = float(inputs.position_m.min()), float(inputs.position_m.max())
-        for xpos in (lo, hi):
-            if not f.seal_length_at(xpos) > 0:
-                raise ValueError(f"ClearanceLeak: seal length {f.seal_length_at(xpos)} m at "
-                                 f"position {xpos} m is not > 0 (seal_length_slope "
-                                 f"{f.seal_length_slope})")
-        d = rig.bore_m if f.seal_diameter_m is None else f.seal_diameter_m
-        P[K_CL_C] = math.pi * d * f.gap_m**3 / (24.0 * f.air_viscosity_Pa_s * P[K_RS] * P[K_TS])
-        P[K_CL_L0], P[K_CL_SLOPE], L[L_CLEAR] = f.seal_length_m, f.seal_length_slope, 1
-    if RegulatorDroop in by:
-        f = by[RegulatorDroop]
-        P[K_DROOP], P[K_DROOP_TAU] = 1000.0 * f.droop_Pa_per_g_per_s, f.time_constant_s
-        L[L_DROOP] = 1
+def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> None:
+    """Write the out-of-catalogue forms of ``by`` (form class -> form) into the
+    constants ``P`` and the layout ``L`` (in place), refusing the pairs the plant
+    cannot hold."""
     if BladderVolume in by:
         f = by[BladderVolume]
         P[K_BL_DV], P[K_BL_PS] = f.dV_max_m3, f.pressure_scale_Pa
@@ -754,6 +679,88 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     hyst = by.get(SpoolHysteresis)
     if hyst is not None and hyst.half_band_V > 0:
         P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
+
+
+def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -> _Setup:
+    sl = _lower_catalogue(params, effects, rig)
+    if sl[SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]] != 0.0:
+        raise ValueError("plant: a catalogue leak graded along the stroke is not simulated "
+                         "here; plant a ClearanceLeak form with a seal_length_slope instead")
+    if sl[SLOT_INDEX["deadband_rounding_V"]] != 0.0:
+        raise ValueError("plant: the catalogue's rounded valve_deadzone is not simulated "
+                         "here; plant a RoundedDeadzone form instead")
+    if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
+        raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
+                         "here; plant a WallHeatTransfer form instead")
+    if sl[SLOT_INDEX["spool_rate_limit_V_per_s"]] != 0.0:
+        raise ValueError("plant: the catalogue's speed-limited spool_lag is not simulated "
+                         "here; plant a SpoolSlewLimit form instead")
+    fall = float(sl[SLOT_INDEX["spool_fall_time_constant_s"]])
+    if fall > 0.0 and not sl[SLOT_INDEX["spool_time_constant_s"]] > 0.0:
+        raise ValueError("plant: the catalogue's asymmetric spool_lag needs a rise time "
+                         "constant > 0 beside its fall's")
+    stiction = None
+    band = float(sl[SLOT_INDEX["stiction_band_V"]])
+    if band > 0.0:  # the catalogue's sticking valve, stepped by the bench's own form
+        if any(isinstance(f, SpoolStiction) for f in forms):
+            raise ValueError("plant: valve_stiction and a SpoolStiction form both make the "
+                             "valve stick; plant one of them")
+        slip = float(sl[SLOT_INDEX["stiction_slip_fraction"]])
+        stiction = SpoolStiction(breakaway_V=band, stop_V=(1.0 - slip) * band)
+    g = rig.gas
+    P = np.zeros(N_K)
+    P[K_KAPPA], P[K_RS], P[K_TS] = (g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K,
+                                    g.temperature_K)
+    P[K_ALPHA], P[K_BETA], P[K_THETA] = g.alpha_s_per_m, g.beta_s_per_m, g.theta
+    P[K_PATM], P[K_PNOM] = rig.atmospheric_pressure_Pa, rig.supply_pressure_Pa
+    P[K_ABORE], P[K_BORE] = rig.bore_area_m2, rig.bore_m
+    for i, name in enumerate(("inlet_offset_m2", "inlet_a_m2", "inlet_b", "inlet_c_per_V",
+                              "inlet_d_V")):
+        P[K_IN + i] = sl[SLOT_INDEX[name]]
+        P[K_EX + i] = sl[SLOT_INDEX[name.replace("inlet", "exhaust")]]
+    P[K_VDEAD] = sl[SLOT_INDEX["volume_m3"]]
+    for k, slot in ((K_TAU, "spool_time_constant_s"), (K_DEAD, "deadband_halfwidth_V"),
+                    (K_GAIN, "supply_gain"), (K_ATT, "flow_attenuation_Pa"),
+                    (K_LEAKO, "leak_orifice_area_m2"), (K_LEAKL, "leak_laminar_kg_per_s_Pa2"),
+                    (K_HEAT, "heat_rate_per_s")):
+        P[k] = sl[SLOT_INDEX[slot]]
+    L = np.full(N_L, -1, dtype=np.int64)
+    L[[L_SPOOL, L_DZ_ROUND, L_HEAT, L_DROOP, L_CLEAR, L_NSEG]] = 0
+    L[L_SPOOL] = 1 if P[K_TAU] > 0 else 0
+    if sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]] > 0:  # the catalogue's 2nd order
+        P[K_WN], P[K_ZETA] = (sl[SLOT_INDEX["spool_natural_frequency_rad_per_s"]],
+                              sl[SLOT_INDEX["spool_damping"]])
+        L[L_SPOOL] = 2
+    if fall > 0.0:  # the catalogue's asymmetric spool, stepped as the plant's own
+        P[K_SR_UP], P[K_SR_DN], L[L_SPOOL] = P[K_TAU], fall, 4
+    L[L_HEAT] = 1 if P[K_HEAT] > 0 else 0
+    by = {type(f): f for f in forms}
+    if RoundedDeadzone in by:
+        f = by[RoundedDeadzone]
+        P[K_DEAD], P[K_ROUND], L[L_DZ_ROUND] = f.halfwidth_V, f.rounding_V, 1
+    if SecondOrderSpool in by:
+        f = by[SecondOrderSpool]
+        P[K_WN], P[K_ZETA], L[L_SPOOL] = 2 * math.pi * f.natural_frequency_Hz, f.damping, 2
+    if WallHeatTransfer in by:
+        f = by[WallHeatTransfer]
+        P[K_H], L[L_HEAT] = f.h_W_per_m2_K, 2
+        P[K_TWALL] = g.temperature_K if f.wall_temperature_K is None else f.wall_temperature_K
+    if ClearanceLeak in by:
+        f = by[ClearanceLeak]
+        lo, hi = float(inputs.position_m.min()), float(inputs.position_m.max())
+        for xpos in (lo, hi):
+            if not f.seal_length_at(xpos) > 0:
+                raise ValueError(f"ClearanceLeak: seal length {f.seal_length_at(xpos)} m at "
+                                 f"position {xpos} m is not > 0 (seal_length_slope "
+                                 f"{f.seal_length_slope})")
+        d = rig.bore_m if f.seal_diameter_m is None else f.seal_diameter_m
+        P[K_CL_C] = math.pi * d * f.gap_m**3 / (24.0 * f.air_viscosity_Pa_s * P[K_RS] * P[K_TS])
+        P[K_CL_L0], P[K_CL_SLOPE], L[L_CLEAR] = f.seal_length_m, f.seal_length_slope, 1
+    if RegulatorDroop in by:
+        f = by[RegulatorDroop]
+        P[K_DROOP], P[K_DROOP_TAU] = 1000.0 * f.droop_Pa_per_g_per_s, f.time_constant_s
+        L[L_DROOP] = 1
+    _out_of_catalogue_constants(P, L, by, rig, inputs)
     tube = by.get(AcousticTube)
     if tube is not None:
         P[K_TUBE_A], P[K_TUBE_DX] = tube.area_m2, tube.length_m / tube.segments
