@@ -10,8 +10,9 @@ heat exchange's relaxation rates); this module computes the four kinds of term
 (:mod:`pneubayes.effects.discovery`) for every catalogue effect the model lacks.
 
 The fitted parameters' own sensitivities (d prediction / d theta) form the *absorber*
-block: a residual that a small change of the fitted parameters explains is not a
-missing effect. Effects already in the model are not offered again.
+block (:mod:`~pneubayes.discovery.absorbers`): a residual that a small change of the
+fitted parameters explains is not a missing effect. Effects already in the model are
+not offered again.
 
 Columns come in the order of their kind -- the trials of every effect (simulated in one
 batch per recording), then other forms, lagged inputs and relaxations -- and within a
@@ -26,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pneubayes.discovery.absorbers import sensitivity_points
 from pneubayes.discovery.one_step import OneStepData, first_order_lag
 from pneubayes.effects import CATALOGUE, make_effect
 from pneubayes.effects.discovery import (
@@ -100,18 +102,6 @@ class CandidateLibrary:
         return list(dict.fromkeys(self.groups))
 
 
-def _sensitivity_points(model: Model, theta: np.ndarray):
-    lo, hi = model.bounds
-    steps = np.maximum(1e-4 * np.abs(theta), 1e-6 * (hi - lo))
-    plus, minus = np.minimum(theta + steps, hi), np.maximum(theta - steps, lo)
-    rows = []
-    for j in range(theta.size):
-        a, b = theta.copy(), theta.copy()
-        a[j], b[j] = plus[j], minus[j]
-        rows += [a, b]
-    return np.array(rows), plus - minus, steps
-
-
 def _augmented(model: Model, params: dict, effects: Sequence):
     """The model plus the given candidate effects (neutral), and its base parameters."""
     aug = model
@@ -167,7 +157,7 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
     if groups is None:
         groups = [g for g in CATALOGUE if not model.has(g)]
     theta = model.vector(params)
-    sens_points, widths, steps = _sensitivity_points(model, theta)
+    sens_points, widths, steps = sensitivity_points(model, theta)
     terms = _terms(model, groups, grid)
     trials = [(e, t) for e, t in terms if isinstance(t, TrialTerm)]
     others = [t for _, t in terms if not isinstance(t, TrialTerm)]

@@ -36,23 +36,8 @@ import warnings
 
 import numpy as np
 
+from pneubayes.discovery.absorbers import orthonormal_basis, project_out
 from pneubayes.discovery.library import CandidateLibrary
-
-
-def _project_out(q: np.ndarray, a: np.ndarray) -> np.ndarray:
-    return a - q @ (q.T @ a) if q.size else a
-
-
-def _orthonormal_basis(a: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
-    """Orthonormal basis of the column space of ``a`` (rank-revealing QR)."""
-    if a.shape[1] == 0:
-        return np.zeros((a.shape[0], 0))
-    norms = np.linalg.norm(a, axis=0)
-    keep = norms > 0
-    a = a[:, keep] / norms[keep]
-    q, r = np.linalg.qr(a)
-    d = np.abs(np.diag(r))
-    return q[:, d > rel_tol * max(d.max(initial=0.0), 1e-300)]
 
 
 def cluster_se(x: np.ndarray, e: np.ndarray, cluster: np.ndarray) -> np.ndarray:
@@ -123,9 +108,9 @@ class GroupedSINDy:
         y = np.asarray(lib.target, dtype=np.float64)
         if not np.all(np.isfinite(y)) or not np.all(np.isfinite(lib.columns)):
             raise ValueError("GroupedSINDy.fit: the library holds non-finite values")
-        q_abs = _orthonormal_basis(lib.absorbers)
-        y_p = _project_out(q_abs, y)
-        raw = _project_out(q_abs, lib.columns)
+        q_abs = orthonormal_basis(lib.absorbers)
+        y_p = project_out(q_abs, y)
+        raw = project_out(q_abs, lib.columns)
         # per group: an orthonormal basis of what the absorbers leave of its columns
         names = lib.group_names
         blocks, col_group = [], []
@@ -133,7 +118,7 @@ class GroupedSINDy:
         left = np.linalg.norm(raw, axis=0) / np.where(raw_norm > 0, raw_norm, 1.0)
         for g in names:
             idx = [j for j, gg in enumerate(lib.groups) if gg == g and left[j] > 1e-6]
-            basis = _orthonormal_basis(raw[:, idx]) if idx else np.zeros((y.size, 0))
+            basis = orthonormal_basis(raw[:, idx]) if idx else np.zeros((y.size, 0))
             blocks.append(basis)
             col_group += [g] * basis.shape[1]
         x = np.concatenate(blocks, axis=1) if blocks else np.zeros((y.size, 0))

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from pneubayes.discovery.absorbers import orthonormal_basis, project_out
 from pneubayes.discovery.openform.features import (
     DEFAULT_QUANTILES,
     HINGE_SOURCES,
@@ -103,18 +104,6 @@ def _rank(candidate: Candidate) -> int:
 #: A candidate keeps at least this share of its norm outside the nuisance columns' span,
 #: or it is dropped (what is left is the nuisance's round-off and noise).
 NUISANCE_KEEP = 0.01
-
-
-def orthonormal_basis(columns: np.ndarray, rcond: float = 1e-8) -> np.ndarray:
-    """An orthonormal basis ``(R, r)`` of the span of ``columns`` ``(R, K)``: each
-    column scaled to unit norm (zero columns dropped), then the left singular vectors
-    whose singular value exceeds ``rcond`` x the largest."""
-    norms = np.linalg.norm(columns, axis=0)
-    live = norms > 0
-    if not live.any():
-        return np.zeros((columns.shape[0], 0))
-    u, sv, _ = np.linalg.svd(columns[:, live] / norms[live], full_matrices=False)
-    return u[:, sv > rcond * sv[0]]
 
 
 def _block_sums(values: np.ndarray, block: int) -> np.ndarray:
@@ -255,7 +244,7 @@ class OpenFormSearch:
         """One candidate's rows over all recordings (the ``finite`` ones only)."""
         col = np.concatenate([self._to_rows(candidate.evaluate(s), i)
                               for i, s in enumerate(signals_list)])[finite]
-        return col if self._basis is None else col - self._basis @ (self._basis.T @ col)
+        return col if self._basis is None else project_out(self._basis, col)
 
     def _sparse(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
         """Coefficients of one bag on unit-RMS columns (zeros: not selected); columns
@@ -498,12 +487,11 @@ class OpenFormSearch:
         if self._nuisance is not None:
             z = np.concatenate([self._to_rows(n, i) for i, n in enumerate(self._nuisance)])
             finite &= np.all(np.isfinite(z), axis=1)
-        y, x = y[finite], x[finite]
-        if self._nuisance is not None:
             self._basis = orthonormal_basis(z[finite])
+        y, x = y[finite], x[finite]
+        if self._basis is not None:
             norm0 = np.linalg.norm(x, axis=0)
-            y = y - self._basis @ (self._basis.T @ y)
-            x = x - self._basis @ (self._basis.T @ x)
+            y, x = project_out(self._basis, y), project_out(self._basis, x)
             absorbed = np.linalg.norm(x, axis=0) < NUISANCE_KEEP * norm0
             x[:, absorbed] = 0.0  # (a zero column is a duplicate of none and never live)
         keep = distinct_columns(x, self.duplicate_tolerance)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneubayes.discovery.absorbers import sensitivity_points
 from pneubayes.discovery.openform.trajectory import phi1, pressure_gain
 from pneubayes.effects.closure_features import SignalHistory, held_direction
 from pneubayes.effects.path import SLOT_INDEX as S
@@ -225,22 +226,14 @@ def missing_mass_flow(signals: dict, errors_Pa, rig) -> np.ndarray:
     return rate / pressure_gain(signals, rig)
 
 
-#: Step of :func:`parameter_flows`' differences, as a share of each parameter's bounds.
-PARAMETER_STEP = 1e-4
-
-
 def parameter_flows(model, params, data, solver, signals) -> np.ndarray:
     """The model's sensitivities to its own parameters along the measured path, each as
     the mass flow into the chamber its change adds (kg/s per unit of the parameter),
-    ``(N - 1, P)`` in ``model.parameter_names``' order.
-
-    A column is the forward difference of the one-step errors over a step of
-    :data:`PARAMETER_STEP` of the parameter's bounds' span (downwards at its upper
-    bound), all steps in one batched call, converted as :func:`missing_mass_flow`
-    converts the errors along ``signals``: what the search's target loses when the
-    parameter grows. A parameter that does not move the prediction (a noise model's)
-    gives a column of zeros. The open-form search regresses the target beside these, so
-    a term is kept for what refitting the model's own parameters cannot absorb.
+    ``(N - 1, P)`` in ``model.parameter_names``' order: the catalogue search's absorbers
+    (:func:`~pneubayes.discovery.absorbers.sensitivity_points`, the one-step predictions
+    stepped up and down, in one batched call) per interval, converted as
+    :func:`missing_mass_flow` converts the errors along ``signals``. A parameter that
+    does not move the prediction (a noise model's) gives a column of zeros.
 
     Parameters
     ----------
@@ -259,16 +252,7 @@ def parameter_flows(model, params, data, solver, signals) -> np.ndarray:
     -------
     (N - 1, P) array
     """
-    theta = model.as_matrix(params)[0]
-    steps = np.empty(theta.size)
-    for j, name in enumerate(model.parameter_names):
-        par = model.parameter(name)
-        span = par.upper - par.lower
-        steps[j] = PARAMETER_STEP * (span if np.isfinite(span) else max(abs(theta[j]), 1e-12))
-        if theta[j] + steps[j] > par.upper:
-            steps[j] = -steps[j]
-    batch = np.repeat(theta[None], theta.size + 1, axis=0)
-    batch[1:] += np.diag(steps)
-    e = data.errors(model, batch, solver)
-    per_Pa = missing_mass_flow(signals, np.ones(e.shape[1]), data.rig)  # kg/s per Pa
-    return ((e[0] - e[1:]) / steps[:, None]).T * per_Pa[:, None]
+    points, widths, _ = sensitivity_points(model, model.as_matrix(params)[0])
+    pred = data.predict(model, points, solver)
+    per_Pa = missing_mass_flow(signals, np.ones(pred.shape[1]), data.rig)  # kg/s per Pa
+    return ((pred[0::2] - pred[1::2]) / widths[:, None]).T * per_Pa[:, None]
