@@ -47,7 +47,6 @@ import numpy as np
 from numba import njit, prange
 
 from pneubayes.effects.path import (
-    CLOSURE_MAX_TERMS,
     LINE_MAX_SEGMENTS,
     SLOT_INDEX,
     TABLE_MAX_POINTS,
@@ -57,14 +56,11 @@ from pneubayes.physics.calibration import (
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
-from pneubayes.simulation.chamber import chamber_rhs, net_port_flow, rigid_chamber
-from pneubayes.simulation.chord import (
-    chord_coupling,
-    chord_response,
-    off_chord,
-    position_at,
-    response_weights,
-)
+from pneubayes.simulation.chamber import net_port_flow, rigid_chamber
+from pneubayes.simulation.chamber_step import chamber_step, chord_corrected, start_rates
+from pneubayes.simulation.chord import position_at
+from pneubayes.simulation.dense import dense_run, dense_samples
+from pneubayes.simulation.inputs import command_hold, delayed_command, input_segment
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
     C_ALPHA,
     C_BETA,
@@ -95,40 +91,39 @@ from pneubayes.simulation.line import (
     line_workspace,
 )
 from pneubayes.simulation.lung import lung_step
-from pneubayes.simulation.phi import phi123
 from pneubayes.simulation.reading import (
-    first_order_exponential_sensitivity,
-    first_order_exponential_step,
-    first_order_hermite_deviation,
-    first_order_step,
-    pressure_dependent_step,
-    pressure_lag,
-    second_order_curvature,
-    second_order_exponential_deviation,
-    second_order_step,
+    line_reading_deviation,
+    reading_lags,
+    reading_start,
+    reading_step,
 )
 from pneubayes.simulation.relaxation import (
-    relaxation_mid,
+    closure_plan,
     relaxation_start,
-    relaxation_step,
+    relaxations_accept,
+    relaxations_mid,
 )
-from pneubayes.simulation.spool import first_order_lag, spool_settle_s, spool_step
+from pneubayes.simulation.spool import (
+    first_order_lag,
+    spool_at_end,
+    spool_at_start,
+    spool_settings,
+    spool_step,
+)
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
 from pneubayes.simulation.wave import (
     WAVE_CAPACITY,
     WAVE_CARRY,
-    wave_arriving,
+    wave_accept,
+    wave_chamber_step,
     wave_constants,
-    wave_ends,
-    wave_finish,
-    wave_gain,
+    wave_grid,
     wave_grid_step,
-    wave_newest_time,
-    wave_ramped,
-    wave_resistance,
     wave_start,
+    wave_switch,
     wave_volume,
+    wave_window_end,
     wave_workspace,
 )
 
@@ -155,20 +150,9 @@ CARRY_TANK = N_CARRY - 2
 CARRY_LUNG = N_CARRY - 1
 
 
-# The weight of the chord correction's size in a crossing step's error estimate (the
-# step's error is the larger of its own estimate and this times the correction, both
-# against the tolerance). 0.3 ran 20-25 % faster on a moving piston at errors up to
-# 1.7 x larger (benchmarks/README.md).
-CHORD_ERROR_WEIGHT = 1.0
 _IN = SLOT_INDEX["inlet_offset_m2"]
 _EX = SLOT_INDEX["exhaust_offset_m2"]
 _VOL = SLOT_INDEX["volume_m3"]
-_DELAY = SLOT_INDEX["command_delay_s"]
-_SPOOL = SLOT_INDEX["spool_time_constant_s"]
-_SPOOL_RATE = SLOT_INDEX["spool_rate_limit_V_per_s"]
-_SPOOL_FALL = SLOT_INDEX["spool_fall_time_constant_s"]
-_SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
-_SPOOL_Z = SLOT_INDEX["spool_damping"]
 _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
 _ROUND = SLOT_INDEX["deadband_rounding_V"]
 _SUPG = SLOT_INDEX["supply_gain"]
@@ -188,21 +172,13 @@ _TAB_C = SLOT_INDEX["table_command_0"]
 _TAB_I = SLOT_INDEX["table_inlet_m2_0"]
 _TAB_E = SLOT_INDEX["table_exhaust_m2_0"]
 _TAB_MAX = TABLE_MAX_POINTS
-_SENSOR = SLOT_INDEX["sensor_time_constant_s"]
-_SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
-_SENSOR_Z = SLOT_INDEX["sensor_damping"]
-_SENSOR_N = SLOT_INDEX["sensor_pressure_exponent"]
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
-_CL_N = SLOT_INDEX["closure_terms"]
-_CL_FA = SLOT_INDEX["closure_feature_a_0"]
-_CL_FB = SLOT_INDEX["closure_feature_b_0"]
-_CL_TA = SLOT_INDEX["closure_threshold_a_0"]
-_CL_TB = SLOT_INDEX["closure_threshold_b_0"]
-_CL_RA = SLOT_INDEX["closure_relaxed_a_0"]
-_CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
-_CL_MAX = CLOSURE_MAX_TERMS
+
+
+#: The first-same-as-last cache when empty (:func:`~pneubayes.simulation.chamber_step.start_rates`).
+NO_REUSE = (False, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -285,6 +261,309 @@ def _area_rates(spool, spool_rate, dead, sl):
     return r_in * spool_rate, r_ex * spool_rate
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _spool_areas(moving, s_cur, v_cur, s_start, cmd, tau, t_sub, hh, spool_cfg, sl, a_own,
+                 a_in, a_ex, s_eff):
+    """The port areas, their rates and the spool at ``tau`` and ``tau + hh`` of a held
+    command's stretch from ``t_sub`` (a moving spool: stepped from ``(s_cur, v_cur)`` in
+    the second order, in closed form from ``s_start`` in the first; else the cached
+    areas at ``s_eff``; ``spool_cfg`` as :func:`_march` takes it). Returns ``(a_in,
+    a_ex, da_in, da_ex, s_at, ds_at, a_in2, a_ex2, s_at2, s2, v2)``, ``(s2, v2)`` the
+    second-order spool's state at ``tau + hh``."""
+    _, tau_s, tau_dn, w_s, z_s, rate_s, spool2, _, dead = spool_cfg
+    da_in, da_ex = 0.0, 0.0
+    s_at, ds_at = s_eff, 0.0
+    s2, v2 = s_eff, v_cur
+    if not moving:
+        return a_in, a_ex, da_in, da_ex, s_at, ds_at, a_in, a_ex, s_at, s2, v2
+    if spool2:
+        s_at, ds_at = s_cur, v_cur
+        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0, 0.0)
+    else:
+        s_at, ds_at = first_order_lag(s_start, cmd, tau - t_sub, tau_s, rate_s, tau_dn)
+        s2 = first_order_lag(s_start, cmd, tau + hh - t_sub, tau_s, rate_s, tau_dn)[0]
+    a_in, a_ex = _areas(s_at, dead, sl)
+    a_ex += a_own
+    da_in, da_ex = _area_rates(s_at, ds_at, dead, sl)
+    a_in2, a_ex2 = _areas(s2, dead, sl)
+    a_ex2 += a_own
+    return a_in, a_ex, da_in, da_ex, s_at, ds_at, a_in2, a_ex2, s2, s2, v2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _stretch_areas(s_eff, s_cached, a_in, a_ex, cmd, cmd_cached, lagged, h, err_last, hmax,
+                   dead, sl):
+    """``(a_in, a_ex, s_cached, h, err_last)`` at a held command's stretch: the port areas
+    at the spool ``s_eff``, cached while it holds. Where the valve switched the step
+    restarts small (a long first step from a port's balance, where the flow has a
+    square-root kink, is accepted on an estimate that misses most of its error); behind
+    a lagged spool the areas are continuous: it restarts where the command steps."""
+    if s_eff != s_cached:
+        a_in, a_ex = _areas(s_eff, dead, sl)
+        s_cached = s_eff
+        if not lagged or cmd != cmd_cached:
+            h = min(h, 1e-3 * hmax)
+            err_last = 0.0
+    return a_in, a_ex, s_cached, h, err_last
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _grown_step(h, hh, err, err_last, crossing, hmax):
+    """The next step size after an accepted step of ``hh`` s with error ``err``: grown
+    only when it was not cut short by a break point, shrunk when the error asks
+    (0.9 / cbrt(err) < 1 iff err > 0.729). Where steps cross samples (dense output) a
+    step grows on the larger of its own and its predecessor's error: a curvature
+    changing sign gives one small estimate by cancellation, and a step grown 5x on it is
+    accepted with an error the estimate misses."""
+    if hh >= h or err > 0.729:
+        e_g = max(err, err_last) if crossing else err
+        fac = 5.0 if e_g < 1e-4 else min(5.0, 0.9 / np.cbrt(e_g))
+        h = min(hmax, hh * fac)
+    return h
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general, forms,
+           calibration, spool_cfg, sensor, closure, start, line_state, wave_state, chamber):
+    """Step one window :func:`_window` prepared (the arguments as it takes them) to its
+    end, writing ``out``, ``sens`` and ``carry``; returns its status. The tuples, as
+    :func:`_window` builds them: the forms present, the reading's calibration, the
+    delayed command and spool, the sensor's lag, a closure's reads and low-passes, the
+    start state, a tube's workspaces and the chamber's constants."""
+    rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
+    hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
+    n, p_atm = t.shape[0], cs[C_P_ATM]
+    thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading, want_sens = (
+        forms)
+    calibrated, cal_o, cal_g = calibration
+    delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead = spool_cfg
+    lag_r, w_r, z_r, n_r, second = sensor
+    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val = closure
+    k0, t_start, max_steps, r, v_r, p, temp, p_tank, p_lung, s_t0, j, cdir, spool, v_s, m = (
+        start)
+    nseg, ny, y, y_new, s_vec, prop, line_work = line_state
+    w_work, tube, grid, w_near = wave_state
+    v0, bore, gain, adv, p_nom, c_tank = chamber
+    cl_relax = rx_n > 0
+    # the last accepted step's mean rates of p (Pa/s) and of the net port flow
+    # (kg/s^2), at which a relaxation's midpoint value takes them on
+    rx_rate, rx_qrate, rx_q0 = 0.0, 0.0, 0.0
+    s_p0, s_r, s_v = 1.0, 1.0, 0.0  # d(p, reading, its rate)/dp0
+    prop_t = (1.0, 0.0, 0.0, 1.0)  # a second state's step propagator (row-major)
+    w_switch = (-math.inf, 0.0, 0.0, math.nan, math.nan)  # no switch yet
+    a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
+    x0c, x1c = 0.0, 0.0  # a chord step's positions at its ends (dense output), m
+    c_c = 0.0  # its coupling (Pa / (m s)); the flows' slope is jf
+    kap = cs[C_KAPPA]
+    qstep = False  # the pressure step's variable is q = p V^n
+    sc0, sc1 = 1.0, 1.0  # its scale V^n (1 for p) at the step's ends
+    jf = 0.0  # the flows' slope (1/s) over a chord
+    h = hmax
+    err_last = 0.0  # the last accepted step's error estimate
+    steps = 0
+    s_cached, cmd_cached = math.nan, math.nan
+    a_in_c, a_ex_c = 0.0, 0.0
+    k_last = i0 + length - 1
+    fp, vp, ep = 0.0, 0.0, 0.0  # the last step's rate, its rate of change, its correction
+    zp, phi3p = 0.0, 1.0
+    fs = NO_REUSE  # first same as last (chamber_step.py)
+    c_ok, c_fp, c_jp, c_vp = False, 0.0, 0.0, 0.0
+    k = k0
+    while k < k_last:
+        # the samples this pass integrates to: the next, or with dense output the run
+        # over which the supply holds (where the model reads it)
+        kn, chord = dense_run(x, ps, k, k_last, gain != 0.0) if dense else (k + 1, False)
+        kw = k + 1  # the next sample to read from a step's interpolant (dense output)
+        if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0
+            lead = p - r
+            r = p0
+            p = p0 + lead if p0 + lead > 0.0 else p0
+            if general is not None and line:
+                y[0] = p
+            s_p0, s_r, s_v = 1.0, 1.0, 0.0
+            fs = NO_REUSE
+        tb = t[kn]
+        a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
+        tau = t[k] if k > k0 else t_start
+        while tau < tb:
+            # a stretch [tau, t_end) on which the delayed command is constant, and the
+            # position and supply linear from (ta, xa / sa)
+            j, cdir, cmd, t_end = command_hold(t, u, j, cdir, cl_dir, delay, tau, tb,
+                                               kn > k + 1)
+            m, ta, inv_seg, xa, xb, sa, sb, t_end = input_segment(t, x, ps, m, tau, adv,
+                                                                  t_end, kn == k + 1)
+            if general is not None and wave and grid[1] < t_end - w_near:
+                t_end = grid[1]  # the tube's ends update on their grid
+            vdot = bore * (xb - xa) * inv_seg
+            dsup = gain * (sb - sa) * inv_seg
+            m_ch = m  # the chord's pointer: the segment holding tau
+            spool_a, t_sub = spool, tau
+            # port areas are constant on the stretch unless the spool moves; the command
+            # is held for many samples, so reuse them while it is unchanged
+            moving = lagged and (spool_a != cmd or v_s != 0.0)
+            s_eff = spool_a if lagged else cmd
+            s_cur, v_cur = spool_a, v_s  # the second-order spool at tau
+            a_in_c, a_ex_c, s_cached, h, err_last = _stretch_areas(
+                s_eff, s_cached, a_in_c, a_ex_c, cmd, cmd_cached, lagged, h, err_last, hmax,
+                dead, sl)
+            cmd_cached = cmd
+            a_in, a_ex = a_in_c, a_ex_c + a_own
+            if general is not None and wave:
+                ok, w_switch, t_end = wave_switch(w_work, tube, w_switch, tau, t_end, p, s_p0,
+                                                  psup2, a_in, a_ex, w_near, cs)
+                if not ok:
+                    return WAVE_HISTORY
+            while tau < t_end:
+                hh = h if h < t_end - tau else t_end - tau
+                if t_end - tau - hh < 1e-3 * hh:
+                    hh = t_end - tau
+                steps += 1
+                if steps > max_steps:
+                    return STEP_BUDGET
+                # the inputs at tau and tau + hh (stage 2)
+                fr, fr2 = (tau - ta) * inv_seg, (tau + hh - ta) * inv_seg
+                vol, vol2 = v0 + bore * (xa + fr * (xb - xa)), v0 + bore * (xa + fr2 * (xb - xa))
+                psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
+                psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
+                (a_in, a_ex, da_in, da_ex, s_at, ds_at, a_in2, a_ex2, s_at2, s2,
+                 v2) = _spool_areas(moving, s_cur, v_cur, spool_a, cmd, tau, t_sub, hh,
+                                    spool_cfg, sl, a_own, a_in, a_ex, s_eff)
+                if chord:  # dense output over a moving position: the step reads its chord
+                    m_ch, x0c = position_at(t, x, n, m_ch, tau)
+                    x1c = position_at(t, x, n, m_ch, tau + hh)[1]
+                    vol, vol2 = v0 + bore * x0c, v0 + bore * x1c
+                    vdot = bore * (x1c - x0c) / hh
+                if cl_relax:
+                    rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
+                    relaxations_mid(sl, rx_n, rx_idx, rx_kind, rx_tau, rx_val, p, rx_rate,
+                                    rx_q0, rx_qrate, hh)
+                err = 10.0
+                pn, tn = p, temp
+                p_tank_new, p_lung_new = p_tank, p_lung
+                zp = 0.0
+                dev_r = 0.0  # a first-order reading's departure from the chord's
+                if general is not None and line:
+                    err = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in,
+                                    da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p,
+                                    atol_t, rtol, y_new, prop, line_work)
+                    pn = y_new[0]
+                    if thermal:
+                        tn = y_new[ny - 1]
+                    if reading and err < 10.0:
+                        dev_r, err = line_reading_deviation(
+                            err, p, pn, line_chamber_rates(line_work), hh, r, sensor, p_atm,
+                            atol_p, rtol)
+                elif general is not None and tank:
+                    err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
+                                                            vdot, da_in, da_ex, a_in2, a_ex2,
+                                                            vol2, sl, cs, c_tank, atol_p,
+                                                            rtol, s_at, ds_at, s_at2, cdir)
+                elif general is not None and lung:
+                    err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
+                                                            vdot, psup, dsup, da_in, da_ex,
+                                                            a_in2, a_ex2, vol2, psup2, sl, cs,
+                                                            atol_p, rtol, s_at, ds_at, s_at2,
+                                                            cdir)
+                elif general is not None and wave:
+                    err, pn, fp, jp, vp, ep, zp, phi3p, w_gain = wave_chamber_step(
+                        p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_at, s_at2,
+                        cdir, sl, cs, grid, tube, w_work[2][2], ep, atol_p, rtol)
+                elif general is not None and thermal:
+                    err, pn, tn, prop_t, fp, jp, vp = thermal_step(
+                        p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
+                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2,
+                        cdir)
+                    zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
+                else:
+                    fp, jp, vp, fs = start_rates(
+                        p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_at,
+                        ds_at, cdir, sl, cs, fs, m, moving or chord, cl_relax, cl_spool,
+                        rigid and gain == 0.0 and not cl_vdot)
+                    (err, pn, fp, vp, ep, zp, phi3p, qstep, sc0, sc1, ff, jf, c_ok, c_fp,
+                     c_jp, c_vp) = chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2,
+                                                a_ex2, vol2, psup2, dsup, s_at2, cdir, sl, cs,
+                                                kap, rigid, chord, fs[0], atol_p, rtol)
+                    if err < 10.0 and chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
+                        err, pn, c_c = chord_corrected(err, pn, p, t, x, m_ch, tau, hh, x0c,
+                                                       x1c, ff, jf, vol, bore, kap, sc0, sc1,
+                                                       atol_p, rtol)
+                    if not (pn > 0.0 and math.isfinite(pn)):
+                        err = 10.0
+                if err <= 1.0:
+                    fs = ((fs[0], c_fp, c_jp, c_vp, vdot, m, fs[6], fs[7], fs[8]) if c_ok
+                          else NO_REUSE)
+                    t_prev = tau
+                    tau = tau + hh if hh < t_end - tau else t_end
+                    if moving and spool2:
+                        s_cur, v_cur = s2, v2
+                    p_prev, s_prev = p, s_p0
+                    p_tank, p_lung = p_tank_new, p_lung_new
+                    p, temp = pn, tn
+                    if cl_relax:
+                        rx_rate, rx_qrate = relaxations_accept(
+                            rx_n, rx_kind, rx_tau, rx_val, p_prev, p, rx_q0,
+                            net_port_flow(p, a_in2, a_ex2, psup2, cs), tau - t_prev)
+                    # dp/dp0: through the line's propagator, the chamber and the arriving
+                    # wave, the (p, second state) propagator, or the pressure step's e^{hJ}
+                    if general is not None and line:
+                        s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
+                    elif general is not None and wave:
+                        s_p0 = math.exp(zp) * s_p0 + w_gain
+                        ok, w_switch, grid = wave_accept(w_work, tube, w_switch, grid, t[0],
+                                                         tau, p, s_p0, psup2, a_in2, a_ex2,
+                                                         w_near, cs)
+                        if not ok:
+                            return WAVE_HISTORY
+                    elif thermal or tank or lung:
+                        if want_sens:
+                            s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
+                                          prop_t[2] * s_p0 + prop_t[3] * s_t0)
+                    elif want_sens:
+                        s_p0 *= math.exp(zp) * sc0 / sc1
+                    if kn > k + 1:
+                        kw = dense_samples(
+                            out, sens, t, x, i0, kw, kn,
+                            (t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p),
+                            (chord, qstep, x0c, x1c, jf, c_c), v0, bore, kap, sl, p_atm,
+                            calibrated, cal_o, cal_g, want_sens)
+                    if reading:
+                        r, v_r, s_r, s_v = reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev,
+                                                        s_p0, hh, zp, fp, vp, ep, dev_r,
+                                                        second, w_r, z_r, lag_r, n_r, p_atm,
+                                                        plain, shaped, want_sens)
+                    h = _grown_step(h, hh, err, err_last, kn > k + 1, hmax)
+                    err_last = err
+                else:
+                    if not math.isfinite(err):
+                        err = 10.0
+                    h = hh * max(0.1, 0.9 / np.cbrt(err))
+                    if h < hmin:
+                        if not (math.isfinite(p) and math.isfinite(temp)):
+                            return NONFINITE
+                        return STEP_UNDERFLOW
+            spool, v_s = spool_at_end(spool2, s_cur, v_cur, spool_a, v_s, cmd, t_end - t_sub,
+                                      tau_s, w_s, rate_s, tau_dn)
+        if k >= i0:
+            value = r if reading else p
+            out[kn - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g) if calibrated
+                            else value)
+            if want_sens:
+                sens[kn - i0] = s_r if reading else s_p0
+        k = kn
+    carry[0] = temp
+    if general is not None and line:
+        line_finish(y, carry, nseg)
+    if general is not None and wave:
+        if not wave_window_end(w_work, tube, w_switch, carry, t[i0 + length - 1], p, s_p0,
+                               psup2, a_in2, a_ex2, w_near, cs):
+            return WAVE_HISTORY
+    if tank:
+        carry[CARRY_TANK] = p_tank
+    if lung:
+        carry[CARRY_LUNG] = p_lung
+    return OK
+
+
 @njit(cache=True, error_model="numpy")
 def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, carry,
             general):
@@ -327,8 +606,6 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         ``OK`` (0), or a failure: ``STEP_UNDERFLOW``, ``STEP_BUDGET``, ``NONFINITE``,
         ``LINE_VOLUME``, ``NEEDS_GENERAL``, ``WAVE_HISTORY`` or ``CALIBRATION``.
     """
-    rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
-    hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
     n = t.shape[0]
     # the sensor's calibration: reading = P_atm + cal_g (p - P_atm) + cal_o
     p_atm = cs[C_P_ATM]
@@ -343,15 +620,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # step budget: max_steps_per_s per simulated second, beyond the one step each
     # sample interval takes at least
     max_steps = (length - 1) + int(sv[S_MAX_STEPS_PER_S] * (t[i0 + length - 1] - t[i0]))
-    delay, tau_s, dead = sl[_DELAY], sl[_SPOOL], sl[_DEAD]
-    w_s, z_s = sl[_SPOOL_W], sl[_SPOOL_Z]
-    tau_dn = sl[_SPOOL_FALL]  # the first-order spool's fall, if its own
-    spool2 = w_s > 0.0  # a second-order spool (overrides the first-order lag)
-    if spool2:
-        tau_s = tau_dn = 0.0
-    rate_s = sl[_SPOOL_RATE] if tau_s > 0.0 else 0.0  # the first-order spool's speed limit
-    lagged = tau_s > 0.0 or tau_dn > 0.0 or spool2
-    gain = sl[_SUPG]
+    delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged = spool_settings(sl)
+    dead, gain = sl[_DEAD], sl[_SUPG]
     # position and supply are read at t + adv (linear between their samples, held after
     # the last): their sample times, shifted by -adv, are break points of the steps
     adv = sl[_ADVANCE]
@@ -368,36 +638,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lung = sl[_LUNG] > 0.0
     p_lung = carry[CARRY_LUNG]
     lung_from_p0 = lung and math.isnan(p_lung)
-    # an open-form closure: whether a term reads the spool (codes 3, 11, 12) or the
-    # command's direction (code 15; both change only with the command), or the volume
-    # rate (code 9; a volume hinge's rate, codes 17 and 18), which the reuse of a step's
-    # end below must respect
-    cl_spool, cl_vdot, cl_dir = False, False, False
-    # and its low-passes (code 16 the pressure's, 19 the net port flow's): each one's
-    # slot, signal (its code), time constant and value, which the kernel steps
-    # (relaxation.py) on its own copy of the slots
-    rx_n = 0
-    rx_idx = np.zeros(2 * _CL_MAX, dtype=np.int64)
-    rx_kind = np.zeros(2 * _CL_MAX)
-    rx_tau = np.zeros(2 * _CL_MAX)
-    rx_val = np.zeros(2 * _CL_MAX)
-    for kc in range(int(sl[_CL_N])):
-        for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
-            if code == 3.0 or code == 11.0 or code == 12.0:
-                cl_spool = True
-            if code == 15.0:
-                cl_spool, cl_dir = True, True
-            if code == 9.0 or code == 17.0 or code == 18.0:
-                cl_vdot = True
-        for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
-                               (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):
-            if code == 16.0 or code == 19.0:
-                rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
-                rx_n += 1
+    # an open-form closure's reads and low-passes, stepped on the kernel's own copy of
+    # the slots
+    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val = closure_plan(sl)
     cl_relax = rx_n > 0
-    # the last accepted step's mean rates of p (Pa/s) and of the net port flow (kg/s^2),
-    # at which a step's midpoint value takes them on; the net flow at a step's start
-    rx_rate, rx_qrate, rx_q0 = 0.0, 0.0, 0.0
     if cl_relax:
         sl = sl.copy()
         for q in range(rx_n):
@@ -407,42 +651,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         p_lung = p0
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
         return NEEDS_GENERAL
-    lag_r = sl[_SENSOR]
-    w_r, z_r = sl[_SENSOR_W], sl[_SENSOR_Z]
-    second = w_r > 0.0
-    reading = lag_r > 0.0 or second
-    # a first-order lag whose time constant depends on the pressure (lag_r at the
-    # atmosphere; reading.pressure_dependent_step steps it over substeps)
-    n_r = sl[_SENSOR_N] if (lag_r > 0.0 and not second) else 0.0
-    lag_0 = pressure_lag(lag_r, n_r, p0, p0, p_atm) if n_r != 0.0 else lag_r
-    # the reading's lead at DC (its group delay) and the time its transient takes
-    lead_s = 2.0 * z_r / w_r if second else lag_0
-    settle_s = max(lead_s, 1.0 / (z_r * w_r)) if second else max(lag_r, lag_0)
-    r = p0
-    v_r = 0.0  # the reading's rate (second order)
-    p = p0
-    # a lagged reading with no rate given: warm up over 5 time constants of the command
-    # history before the start, then keep the chamber's lead on the reading
-    k0 = i0
-    t_start = t[i0]  # the integration's start: the window's, or its warm-up's
-    if reading and math.isnan(rate0):
-        while k0 > 0 and t[i0] - t[k0] < 5.0 * settle_s:
-            k0 -= 1
-        t_start = t[k0]
-        if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
-            r = (pressure_behind_reading_scalar(pm[k0], p_atm, cal_o, cal_g) if calibrated
-                 else pm[k0])
-            p = r
-        # a gap before the warm-up's first sample longer than the warm-up (a triggered
-        # recording's pre-trigger command, held from 10 s back): start 5 settling times
-        # before the window, not at the gap's start (a tube's wave grid would step
-        # through all of it)
-        if k0 < i0 and t[k0 + 1] - t[k0] > 5.0 * settle_s:
-            t_start = t[i0] - 5.0 * settle_s
-    elif reading:
-        v_r = rate0
-        if p0 + lead_s * rate0 > 0.0:
-            p = p0 + lead_s * rate0
+    lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
+    k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
+                                           calibrated, p_atm, cal_o, cal_g)
     max_steps += i0 - k0
     for q in range(rx_n):  # a relaxation's p_bar from the reading's history; a flow's
         # low-pass at its first step's flow (at rest)
@@ -451,11 +662,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0_read
     want_sens = sens.shape[0] > 0
-    s_p0, s_t0 = 1.0, 0.0  # d(p, T)/dp0 (T: or the tank's or second compartment's p)
-    s_r, s_v = 1.0, 0.0  # d(reading, its rate)/dp0
-    if lung_from_p0:
-        s_t0 = 1.0
-    prop_t = (1.0, 0.0, 0.0, 1.0)  # a thermal step's propagator (row-major)
+    s_t0 = 1.0 if lung_from_p0 else 0.0  # d(second state)/dp0
     if want_sens:
         sens[0] = 1.0
     # acoustic line: state [p, cell pressures, flows] (and T with heat transfer); its
@@ -463,9 +670,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     nseg = int(sl[_LSEG]) if sl[_LLEN] > 0.0 else 0
     line = nseg > 0
     ny = 1 + 2 * nseg + (1 if line and thermal else 0)
-    y = np.empty(ny)
-    y_new = np.empty(ny)
-    s_vec = np.zeros(ny)
+    y, y_new, s_vec = np.empty(ny), np.empty(ny), np.zeros(ny)
     prop = np.empty((ny, ny))
     line_work = line_workspace(ny)
     if general is not None and line:
@@ -474,614 +679,53 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             return LINE_VOLUME
         line_start(y, s_vec, p0, carry, nseg, temp)
         y[0] = p
-    # transmission-line tube: the history of its waves (wave.py); its volume leaves the
-    # chamber's and a step never exceeds an element's transit time
+    # transmission-line tube (wave.py): its volume leaves the chamber's; the ends update
+    # on a grid anchored at the recording's first sample (a time within w_near of a
+    # grid point is on it)
     wave = general is not None and sl[_WLEN] > 0.0
     hist, ring, w_rd, w_row = wave_workspace(wave)
-    w_state = np.zeros(2 + max(int(sl[_WSEG]), 1))  # [q_a, p_v, q_c, junction flows]
-    w_t, w_z, w_area, w_len, w_dia, w_mu, w_k = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1
+    w_work = (hist, ring, np.zeros(2 + max(int(sl[_WSEG]), 1)), w_rd, w_row)
+    tube = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1)
+    grid = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     if general is not None and wave:
-        w_t, w_z, w_area, w_len, w_dia, w_mu, w_k = wave_constants(sl, cs)
+        tube = wave_constants(sl, cs)
         v0 = v0 - wave_volume(sl)
         if not v0 > 0.0:
             return LINE_VOLUME
-        wave_start(hist, ring, carry, t_start, p, w_t, w_k, w_state, w_row)
-    # the junctions and ends update on a grid anchored at the recording's first sample
-    # (every window of it shares the grid; grid point w_n is w_grid); a time within
-    # w_near of a grid point is on it
-    w_dt = wave_grid_step(w_t)
-    w_near = 1e-6 * w_dt
-    w_n = math.floor((t_start - t[0]) / w_dt + 1e-6) + 1.0
-    w_grid = t[0] + w_dt * w_n
-    # the chamber's forcing, the valve's wave arriving A_K(t - tau) (and its dA/dp0),
-    # linear between its reads at the ends of the grid interval [w_ta, w_grid]
-    w_ta, w_a0, w_s0, w_a1, w_s1 = t_start, 0.0, 0.0, 0.0, 0.0
-    if general is not None and wave:
-        w_a0, w_s0 = wave_arriving(hist, ring, t_start - w_t, w_k)
-        w_a1, w_s1 = wave_arriving(hist, ring, w_grid - w_t, w_k)
-    # a switch of the port areas reaches the valve end as a ramp over one grid step
-    # from the areas (w_oin, w_oex) at w_sw; (w_lin, w_lex): the areas at the last step's
-    # end (NaN before the first)
-    w_sw, w_oin, w_oex = -math.inf, 0.0, 0.0
-    w_lin, w_lex = math.nan, math.nan
-    a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
-    x0c, x1c = 0.0, 0.0  # a chord step's positions at its ends (dense output), m
-    c_c = 0.0  # its coupling (Pa / (m s)); the flows' slope is jf
-    # Delayed-command pointer: index j of the sample held at time t - delay, the last
-    # j >= 1 with t[j] + delay <= t_start (else 0), by bisection: a one-step window at
-    # every sample would otherwise scan the recording from its start each time
-    lo, hi = 0, n
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if t[mid] + delay <= t_start:
-            lo = mid + 1
-        else:
-            hi = mid
-    j = lo - 1 if lo > 1 else 0
-    # the delayed command's direction (a closure's code 15): the sign of its last change
-    # up to j, found by scanning back, then tracked as j moves on
-    cdir = 0.0
-    if cl_dir:
-        jj = j
-        while jj > 0 and u[jj] == u[jj - 1]:
-            jj -= 1
-        if jj > 0:
-            cdir = 1.0 if u[jj] > u[jj - 1] else -1.0
-    spool = u[j]  # steady spool at the start of the recording
-    v_s = 0.0  # its velocity (second order), V/s
-    # Input pointer: index m of the position/supply segment that holds time t + adv
-    # (from the window's start: an advance >= 0 reads no earlier sample)
+        wave_start(hist, ring, carry, t_start, p, tube[0], tube[6], w_work[2], w_row)
+        grid = wave_grid(w_work, tube, t[0], math.floor((t_start - t[0]) / wave_grid_step(
+            tube[0]) + 1e-6) + 1.0, t_start)
+    w_near = 1e-6 * wave_grid_step(tube[0])
+    # the delayed command's sample (and its direction, read by a closure's code 15),
+    # the spool there, and the position/supply segment holding t + adv
+    j, cdir = delayed_command(t, u, delay, t_start, cl_dir)
+    spool, v_s = u[j], 0.0
     m = k0 if adv >= 0.0 else 0
     while m + 1 < n and t[m + 1] - adv <= t_start:
         m += 1
     if lagged and k0 > 0:
-        # mid-recording: the spool state follows from the command history (in closed
-        # form over the held samples of up to 20 settling times before t_start)
-        # (a speed-limited spool also ramps across the commands' span there first)
-        jj = j
-        settle = spool_settle_s(max(tau_s, tau_dn), w_s, z_s)
-        u_lo, u_hi = u[j], u[j]
-        while jj > 0 and t_start - (t[jj] + delay) < 20.0 * settle + (
-                (u_hi - u_lo) / rate_s if rate_s > 0.0 else 0.0):
-            jj -= 1
-            u_lo, u_hi = min(u_lo, u[jj]), max(u_hi, u[jj])
-        spool = u[jj]
-        for k in range(jj, j):
-            spool, v_s = spool_step(spool, v_s, u[k], t[k + 1] - t[k], tau_s, w_s, z_s,
-                                    rate_s, tau_dn)
-        spool, v_s = spool_step(spool, v_s, u[j], t_start - (t[j] + delay), tau_s, w_s,
-                                z_s, rate_s, tau_dn)
-    # dense output: steps cross the samples where the position and supply hold
-    # the pressure is the only state (its step's rate, slope and correction describe it)
+        spool, v_s = spool_at_start(t, u, j, t_start, delay, tau_s, w_s, z_s, rate_s,
+                                    tau_dn)
+    # the pressure is the only state (a lagged reading follows its own exponential
+    # over a step, as it does the (p, T) step's pressure part; the other steps start
+    # from the chord between their ends)
     plain = not (thermal or tank or lung or line or wave)
-    # a lagged reading follows the pressure's own exponential over a step (the (p, T)
-    # step's pressure part); the other steps start from the chord between their ends
     shaped = plain or thermal
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and plain)
-    # a rigid chamber (no compliance, no volume table) may step q = p V^n over a chord
-    rigid = rigid_chamber(sl)
-    kap = cs[C_KAPPA]
-    qstep = False  # the pressure step's variable is q = p V^n
-    sc0, sc1 = 1.0, 1.0  # its scale V^n (1 for p) at the step's ends
-    rv, ff, jf = 0.0, 0.0, 0.0  # dV/dt / V (1/s), the flows' dp/dt (Pa/s) and slope (1/s)
-    h = hmax
-    err_last = 0.0  # the last accepted step's error estimate
-    steps = 0
-    s_cached = math.nan
-    cmd_cached = math.nan
-    a_in_c, a_ex_c = 0.0, 0.0
-    k_last = i0 + length - 1
-    fp, vp, ep = 0.0, 0.0, 0.0  # the last step's rate, its rate of change, its correction
-    # first same as last: the rate, slope and time derivative at the last accepted step's
-    # end (from its second stage, moved to its corrected end to first order), reused as
-    # the next step's start while the inputs they depend on hold
-    fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = False, 0.0, 0.0, 0.0, 0.0, -1
-    fs_ain, fs_aex = 0.0, 0.0  # the port areas it was evaluated with, m^2
-    fs_s = 0.0  # and the spool (read with a closure's spool term)
-    c_ok, c_fp, c_jp, c_vp = False, 0.0, 0.0, 0.0
-    k = k0
-    while k < k_last:
-        # the samples this pass integrates to: the next, or with dense output the last
-        # of the run over which the supply holds (only where the model reads it: a gain
-        # of zero holds it at the nominal); a moving position is read on chords
-        kn = k + 1
-        chord = False  # the position moves over a pass that crosses samples
-        if dense:
-            while (kn < k_last
-                   and (gain == 0.0 or (ps[kn] == ps[k] and ps[kn + 1] == ps[k]))):
-                kn += 1
-            if kn > k + 1:
-                for i in range(k + 1, kn + 1):
-                    if x[i] != x[k]:
-                        chord = True
-                        break
-        kw = k + 1  # the next sample to read from a step's interpolant (dense output)
-        if k == i0 and k0 < i0:  # end of the warm-up: the reading is the measured p0
-            lead = p - r
-            r = p0
-            p = p0 + lead if p0 + lead > 0.0 else p0
-            if general is not None and line:
-                y[0] = p
-            s_p0, s_r, s_v = 1.0, 1.0, 0.0
-            fs_ok = False
-        tb = t[kn]
-        a_own = _own_exhaust_area(ue[k], sl) if own_ex else 0.0
-        tau = t[k] if k > k0 else t_start
-        while tau < tb:
-            # Sub-interval [tau, t_end) on which the delayed command is constant.
-            while j + 1 < n and t[j + 1] + delay <= tau:
-                j += 1
-                if cl_dir and u[j] != u[j - 1]:
-                    cdir = 1.0 if u[j] > u[j - 1] else -1.0
-            cmd = u[j]
-            t_end = tb
-            jn = j + 1  # the next break of the delayed command
-            if kn > k + 1:  # dense output: past the samples that repeat the command
-                while jn < n and u[jn] == cmd and t[jn] + delay < tb:
-                    jn += 1
-            if jn < n and t[jn] + delay < tb:
-                t_end = t[jn] + delay
-            # position and supply: linear from (ta, xa / sa) on the sub-interval
-            while m + 1 < n and t[m + 1] - adv <= tau:
-                m += 1
-            if m + 1 < n:
-                ta = t[m] - adv
-                inv_seg = 1.0 / (t[m + 1] - t[m])
-                xa, xb, sa, sb = x[m], x[m + 1], ps[m], ps[m + 1]
-                if t[m + 1] - adv < t_end and kn == k + 1:
-                    t_end = t[m + 1] - adv
-            else:  # read past the last sample: its values, held
-                ta, inv_seg = tau, 0.0
-                xa, xb, sa, sb = x[m], x[m], ps[m], ps[m]
-            if general is not None and wave and w_grid < t_end - w_near:
-                t_end = w_grid  # the tube's ends update on their grid
-            vdot = bore * (xb - xa) * inv_seg
-            dsup = gain * (sb - sa) * inv_seg
-            m_ch = m  # the chord's pointer: the segment holding tau
-            spool_a, t_sub = spool, tau
-            # Port areas are constant on the sub-interval unless the spool moves; the
-            # command is held for many samples, so reuse them while it is unchanged.
-            moving = lagged and (spool_a != cmd or v_s != 0.0)
-            s_eff = spool_a if lagged else cmd
-            s_cur, v_cur = spool_a, v_s  # the second-order spool at tau
-            if s_eff != s_cached:
-                a_in_c, a_ex_c = _areas(s_eff, dead, sl)
-                s_cached = s_eff
-                # the valve switched: restart small (the error estimate of a long first
-                # step from a port's balance, where the flow has a square-root kink,
-                # misses most of its error) and let the controller grow it 5x a step.
-                # Behind a lagged spool the areas are continuous: restart where the
-                # command steps, not at every sample while the spool glides
-                if not lagged or cmd != cmd_cached:
-                    h = min(h, 1e-3 * hmax)
-                    err_last = 0.0
-            cmd_cached = cmd
-            a_in, a_ex = a_in_c, a_ex_c + a_own
-            if general is not None and wave:
-                if (not math.isnan(w_lin) and abs(a_in - w_lin) + abs(a_ex - w_lex)
-                        > 1e-9 * (a_in + a_ex + w_lin + w_lex)):
-                    # the ports switch at tau: the valve end's entry there with the areas
-                    # before, then a ramp to the new ones over a grid step
-                    o_in, o_ex = wave_ramped(tau, w_lin, w_lex, w_sw, w_dt, w_oin, w_oex)
-                    if wave_newest_time(hist, ring) < tau - w_near:
-                        if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0, psup2,
-                                         o_in, o_ex, cs, w_area, w_len, w_dia, w_mu,
-                                         w_state, w_rd, w_row):
-                            return WAVE_HISTORY
-                    w_sw, w_oin, w_oex = tau, o_in, o_ex
-                    w_lin, w_lex = a_in, a_ex
-                if tau < w_sw + w_dt - w_near and w_sw + w_dt < t_end - w_near:
-                    t_end = w_sw + w_dt  # the ramp's end: an entry there
-            while tau < t_end:
-                hh = h if h < t_end - tau else t_end - tau
-                if t_end - tau - hh < 1e-3 * hh:
-                    hh = t_end - tau
-                steps += 1
-                if steps > max_steps:
-                    return STEP_BUDGET
-                # state and inputs at tau
-                fr = (tau - ta) * inv_seg
-                vol = v0 + bore * (xa + fr * (xb - xa))
-                psup = p_nom + gain * (sa + fr * (sb - sa) - p_nom)
-                da_in = 0.0
-                da_ex = 0.0
-                # the spool (before the dead band) and its rate at tau, and at tau + hh
-                s_at, ds_at = s_eff, 0.0
-                if moving and spool2:
-                    a_in, a_ex = _areas(s_cur, dead, sl)
-                    a_ex += a_own
-                    da_in, da_ex = _area_rates(s_cur, v_cur, dead, sl)
-                    s_at, ds_at = s_cur, v_cur
-                elif moving:
-                    s_now, ds_now = first_order_lag(spool_a, cmd, tau - t_sub, tau_s, rate_s,
-                                                     tau_dn)
-                    a_in, a_ex = _areas(s_now, dead, sl)
-                    a_ex += a_own
-                    da_in, da_ex = _area_rates(s_now, ds_now, dead, sl)
-                    s_at, ds_at = s_now, ds_now
-                # inputs at tau + hh (stage 2)
-                fr2 = (tau + hh - ta) * inv_seg
-                vol2 = v0 + bore * (xa + fr2 * (xb - xa))
-                psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
-                if chord:
-                    # dense output over a moving position: the step reads the chord of
-                    # the position across the samples it crosses
-                    m_ch, x0c = position_at(t, x, n, m_ch, tau)
-                    x1c = position_at(t, x, n, m_ch, tau + hh)[1]
-                    vol = v0 + bore * x0c
-                    vol2 = v0 + bore * x1c
-                    vdot = bore * (x1c - x0c) / hh
-                if moving:
-                    if spool2:
-                        s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0,
-                                            0.0)
-                    else:
-                        s2 = first_order_lag(spool_a, cmd, tau + hh - t_sub, tau_s, rate_s,
-                                             tau_dn)[0]
-                    a_in2, a_ex2 = _areas(s2, dead, sl)
-                    a_ex2 += a_own
-                    s_at2 = s2
-                else:
-                    a_in2, a_ex2 = a_in, a_ex
-                    s_at2 = s_at
-                if cl_relax:  # each low-pass held over the step at its midpoint value
-                    rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
-                    for q in range(rx_n):
-                        if rx_kind[q] == 16.0:
-                            sl[rx_idx[q]] = relaxation_mid(rx_val[q], p, rx_rate, hh,
-                                                           rx_tau[q])
-                        else:
-                            if math.isnan(rx_val[q]):
-                                rx_val[q] = rx_q0
-                            sl[rx_idx[q]] = relaxation_mid(rx_val[q], rx_q0, rx_qrate, hh,
-                                                           rx_tau[q])
-                err = 10.0
-                pn, tn = p, temp
-                p_tank_new = p_tank
-                p_lung_new = p_lung
-                zp = 0.0
-                dev_r = 0.0  # a first-order reading's departure from the chord's
-                if general is not None and line:
-                    err = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in,
-                                    da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p,
-                                    atol_t, rtol, y_new, prop, line_work)
-                    pn = y_new[0]
-                    if thermal:
-                        tn = y_new[ny - 1]
-                    if reading and err < 10.0:
-                        # the chamber rings with the line within a step: a first-order
-                        # reading over the cubic through the step's ends and their rates
-                        # (the end's at the uncorrected stage); its departure from the
-                        # chord's reading enters the error estimate (for the second-order
-                        # lag that of a first-order lag of its group delay, which its
-                        # chord reading does not correct)
-                        rate_a, rate_b = line_chamber_rates(line_work)
-                        dev_r = first_order_hermite_deviation(
-                            p, pn, hh * rate_a, hh * rate_b, hh,
-                            2.0 * z_r / w_r if second else (
-                                pressure_lag(lag_r, n_r, p, r, p_atm) if n_r != 0.0
-                                else lag_r))
-                        err = max(err, abs(dev_r) / (atol_p + rtol * max(abs(p), abs(pn))))
-                elif general is not None and tank:
-                    err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
-                                                            vdot, da_in, da_ex, a_in2, a_ex2,
-                                                            vol2, sl, cs, c_tank, atol_p,
-                                                            rtol, s_at, ds_at, s_at2, cdir)
-                elif general is not None and lung:
-                    err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
-                                                            vdot, psup, dsup, da_in, da_ex,
-                                                            a_in2, a_ex2, vol2, psup2, sl, cs,
-                                                            atol_p, rtol, s_at, ds_at, s_at2,
-                                                            cdir)
-                elif general is not None and wave:
-                    # the chamber end: the valve's wave arriving, A_K(t - tau), linear
-                    # over the grid interval the step lies in, drives the inflow
-                    # (A_K - p) / (Z + r/2) of eq. 5
-                    w_inv = 1.0 / (w_grid - w_ta)
-                    wb0 = w_a0 + (w_a1 - w_a0) * (tau - w_ta) * w_inv
-                    wb1 = w_a0 + (w_a1 - w_a0) * (tau + hh - w_ta) * w_inv
-                    swb0 = w_s0 + (w_s1 - w_s0) * (tau - w_ta) * w_inv
-                    swb1 = w_s0 + (w_s1 - w_s0) * (tau + hh - w_ta) * w_inv
-                    zc = w_z + 0.5 * wave_resistance(w_state[2], p, cs, w_area, w_len,
-                                                     w_dia, w_mu)
-                    fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot,
-                                                            psup, sl, cs, hh, True, 0.0, 0.0,
-                                                            0.0, s_at, ds_at, cdir)
-                    gw = wave_gain(p, vol, sl, cs) / zc
-                    fp += gw * (wb0 - p)
-                    jp -= gw
-                    vp += gw * (wb1 - wb0) / hh
-                    zp = hh * jp
-                    phi1p, phi2p, phi3p = phi123(zp)
-                    up = p + hh * (phi1p * fp + hh * phi2p * vp)
-                    if up > 0.0 and math.isfinite(up):
-                        fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh,
-                                           False, 0.0, 0.0, 0.0, s_at2, 0.0, cdir)[0]
-                               + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
-                        ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
-                        pn = up + ep
-                        err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
-                        if not (pn > 0.0 and math.isfinite(pn)):
-                            err = 10.0
-                elif general is not None and thermal:
-                    err, pn, tn, prop_t, fp, jp, vp = thermal_step(
-                        p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
-                        a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2,
-                        cdir)
-                    zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
-                else:
-                    c_ok = False
-                    if (fs_ok and not cl_relax and not moving and not chord
-                            and a_in == fs_ain and a_ex == fs_aex
-                            and (not cl_spool or s_at == fs_s)
-                            and (fs_m == m or (rigid and gain == 0.0 and not cl_vdot))):
-                        fp, jp, vp = fs_fp, fs_jp, fs_vp
-                        if vdot != fs_vdot:  # a new chord of the position (rigid)
-                            iv = 1.0 / vol
-                            xv = vp + fp * fs_vdot * iv
-                            fp -= kap * iv * p * (vdot - fs_vdot)
-                            jp -= kap * iv * (vdot - fs_vdot)
-                            vp = xv - fp * vdot * iv
-                    else:
-                        fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol,
-                                                                vdot, psup, sl, cs, hh, True,
-                                                                dsup, da_in, da_ex, s_at,
-                                                                ds_at, cdir)
-                    if not moving and not chord:
-                        fs_ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = True, fp, jp, vp, vdot, m
-                        fs_ain, fs_aex, fs_s = a_in, a_ex, s_at
-                    else:
-                        fs_ok = False
-                    # over a chord in a rigid chamber where the compression outpaces
-                    # the flows' relaxation (|J_f| < n |dV/dt| / V), the step is taken in
-                    # q = p V^n (scale sc = V^n at its ends), which the compression
-                    # leaves alone: dq/dt = V^n F_f (F_f: the flows' part of dp/dt, J_f
-                    # its slope), so a closed chamber is exact; elsewhere in p (sc = 1)
-                    qstep = False
-                    if chord:
-                        rv = vdot / vol
-                        ff, jf = fp + kap * p * rv, jp + kap * rv
-                        qstep = rigid and abs(jf) < kap * abs(rv)
-                    if qstep:
-                        sc0 = math.exp(kap * math.log(vol))
-                        sc1 = math.exp(kap * math.log(vol2))
-                        vp = sc0 * (vp + kap * rv * (ff - p * (rv + jf)))  # d(dq/dt)/dt
-                        fp = sc0 * ff  # dq/dt
-                        zp = hh * jf
-                        phi1p, phi2p, phi3p = phi123(zp)
-                        uq = p * sc0 + hh * (phi1p * fp + hh * phi2p * vp)
-                        up = uq / sc1
-                        if up > 0.0 and math.isfinite(up):
-                            fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl,
-                                              cs, hh, False, 0.0, 0.0, 0.0, s_at2, 0.0,
-                                              cdir)[0]
-                            ep = 2.0 * hh * phi3p * (sc1 * (fp2 + kap * up * vdot / vol2)
-                                                     - fp - jf * (uq - p * sc0) - hh * vp)
-                            pn = (uq + ep) / sc1
-                            err = abs(ep) / sc1 / (atol_p + rtol * max(abs(p), abs(pn)))
-                    else:  # (written apart: the scale's arithmetic would slow every step)
-                        sc0, sc1 = 1.0, 1.0
-                        zp = hh * jp
-                        phi1p, phi2p, phi3p = phi123(zp)
-                        up = p + hh * (phi1p * fp + hh * phi2p * vp)
-                        if up > 0.0 and math.isfinite(up):
-                            if fs_ok:
-                                fp2, jp2, _, _, vp2, _, _, _ = chamber_rhs(
-                                    up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh,
-                                    True, dsup, 0.0, 0.0, s_at2, 0.0, cdir)
-                            else:
-                                fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2,
-                                                  sl, cs, hh, False, 0.0, 0.0, 0.0, s_at2,
-                                                  0.0, cdir)[0]
-                            ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
-                            pn = up + ep
-                            err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
-                            if fs_ok:
-                                c_ok, c_fp, c_jp = True, fp2 + jp2 * ep, jp2
-                                c_vp = vp2
-                                if vdot != 0.0:
-                                    c_vp -= jp2 * ep * vdot / vol2
-                    if err < 10.0 and chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
-                        # the chord's effect on the flows, corrected to first order at the
-                        # step's end; its size, weighted by CHORD_ERROR_WEIGHT, also
-                        # enters the error estimate
-                        c_c = chord_coupling(p, ff, jf, vol, bore, kap)
-                        dpe = c_c * chord_response(t, x, m_ch, tau, tau + hh, x0c, x1c,
-                                                   jf) * sc0 / sc1
-                        pn -= dpe
-                        err = max(err, CHORD_ERROR_WEIGHT * abs(dpe)
-                                  / (atol_p + rtol * max(abs(p), abs(pn))))
-                    if not (pn > 0.0 and math.isfinite(pn)):
-                        err = 10.0
-                if err <= 1.0:
-                    if c_ok:
-                        fs_fp, fs_jp, fs_vp, fs_vdot, fs_m = c_fp, c_jp, c_vp, vdot, m
-                    else:
-                        fs_ok = False
-                    t_prev = tau
-                    tau = tau + hh if hh < t_end - tau else t_end
-                    if moving and spool2:
-                        s_cur, v_cur = s2, v2
-                    p_prev, s_prev = p, s_p0
-                    p_tank = p_tank_new
-                    p_lung = p_lung_new
-                    p, temp = pn, tn
-                    if cl_relax:
-                        q1 = net_port_flow(p, a_in2, a_ex2, psup2, cs)
-                        for q in range(rx_n):
-                            if rx_kind[q] == 16.0:
-                                rx_val[q] = relaxation_step(rx_val[q], p_prev, p,
-                                                            tau - t_prev, rx_tau[q])
-                            else:
-                                rx_val[q] = relaxation_step(rx_val[q], rx_q0, q1,
-                                                            tau - t_prev, rx_tau[q])
-                        rx_rate = (p - p_prev) / (tau - t_prev)
-                        rx_qrate = (q1 - rx_q0) / (tau - t_prev)
-                    if general is not None and line:
-                        s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
-                    elif general is not None and wave:
-                        # dp/dp0 through the chamber and the arriving wave's dA/dp0
-                        s_p0 = (math.exp(zp) * s_p0
-                                + hh * phi1p * gw * 0.5 * (swb0 + swb1))
-                        w_lin, w_lex = a_in2, a_ex2
-                        on_grid = tau >= w_grid - w_near
-                        if on_grid or abs(tau - w_sw - w_dt) <= w_near:
-                            # a grid point or a ramp's end: the ends send their waves
-                            v_in, v_ex = wave_ramped(tau, a_in2, a_ex2, w_sw, w_dt, w_oin,
-                                                     w_oex)
-                            if not wave_ends(hist, ring, tau, w_t, w_z, w_k, p, s_p0,
-                                             psup2, v_in, v_ex, cs, w_area, w_len, w_dia,
-                                             w_mu, w_state, w_rd, w_row):
-                                return WAVE_HISTORY
-                        if on_grid:
-                            w_n += 1.0
-                            w_ta, w_grid = tau, t[0] + w_dt * w_n
-                            w_a0, w_s0 = wave_arriving(hist, ring, tau - w_t, w_k)
-                            w_a1, w_s1 = wave_arriving(hist, ring, w_grid - w_t, w_k)
-                    elif thermal or tank or lung:
-                        if want_sens:  # (dp, dT or the second p)/dp0 through the propagator
-                            s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
-                                          prop_t[2] * s_p0 + prop_t[3] * s_t0)
-                    elif want_sens:
-                        s_p0 *= math.exp(zp) * sc0 / sc1
-                    if kn > k + 1:
-                        # dense output: the samples this step crossed, from its interpolant
-                        w_r, t_r, d_r, dt_r = 0.0, t_prev, 0.0, -1.0
-                        e_r, a_r, b_r = 0.0, 0.0, 0.0
-                        while kw < kn and t[kw] < tau:
-                            th = (t[kw] - t_prev) / hh
-                            q1, q2, q3 = phi123(th * zp)
-                            value = (p_prev * sc0 + th * hh * (q1 * fp + th * hh * q2 * vp)
-                                     + th * th * th * q3 / phi3p * ep)
-                            sc_k = 1.0
-                            if chord:
-                                # the sample's position, not the chord's: adiabatically,
-                                # less the flows' response to the chord so far
-                                dev = x0c + th * (x1c - x0c) - x[kw]
-                                dt = t[kw] - t_r
-                                if dt != dt_r:  # uniform sampling: once per step
-                                    dt_r = dt
-                                    e_r, a_r, b_r = response_weights(jf, dt)
-                                w_r = e_r * w_r + a_r * d_r + b_r * (dev - d_r)
-                                t_r, d_r = t[kw], dev
-                                if qstep:  # q at the sample's own volume
-                                    sc_k = math.exp(kap * math.log(v0 + bore * x[kw]))
-                                    value = (value - c_c * sc0 * w_r) / sc_k
-                                else:
-                                    value = (off_chord(value, dev, v0 + bore * x[kw], bore,
-                                                       kap, sl, p_atm)
-                                             - c_c * w_r)
-                            out[kw - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g)
-                                            if calibrated else value)
-                            if want_sens:
-                                sens[kw - i0] = s_prev * math.exp(th * zp) * sc0 / sc_k
-                            kw += 1
-                    # the reading over the step: over the pressure step's own solution
-                    # (exponential, not linear; dp/dp0 = e^{sJ} times its start's); for
-                    # the (p, T) step over the pressure's own exponential part (rate,
-                    # slope J_pp, time derivative) with the rest of its change as a ramp,
-                    # its sensitivity over the chord; for the other steps over the chord
-                    if second:
-                        r, v_r = second_order_step(r, v_r, p_prev, p, hh, w_r, z_r)
-                        if shaped:
-                            d_r, d_v = second_order_curvature(zp, fp, vp, hh, w_r, z_r)
-                            r, v_r = r + d_r, v_r + d_v
-                        if want_sens:
-                            s_r, s_v = second_order_step(s_r, s_v, s_prev, s_p0, hh, w_r, z_r)
-                            if plain:
-                                d_r, d_v = second_order_exponential_deviation(s_prev, zp, hh,
-                                                                              w_r, z_r)
-                                s_r, s_v = s_r + d_r, s_v + d_v
-                    elif reading:
-                        r_a, s_a = r, s_r
-                        tau_r = lag_r
-                        if plain or shaped:
-                            rest = ep
-                            if not plain:  # the (p, T) step: the rest of its change a ramp
-                                q1, q2, _ = phi123(zp)
-                                rest = p - (p_prev + hh * (q1 * fp + hh * q2 * vp))
-                            if n_r != 0.0:  # a time constant that moves with the pressure
-                                r, tau_r = pressure_dependent_step(r_a, p_prev, hh, lag_r, n_r,
-                                                                   p_atm, zp, fp, vp, rest)
-                            else:
-                                r = first_order_exponential_step(r_a, p_prev, hh, lag_r, zp, fp,
-                                                                 vp, rest)
-                        elif n_r != 0.0:
-                            r, tau_r = pressure_dependent_step(r_a, p_prev, hh, lag_r, n_r,
-                                                               p_atm, 0.0, (p - p_prev) / hh,
-                                                               0.0, 0.0)
-                            r += dev_r
-                        else:
-                            r = first_order_step(r_a, p_prev, p, hh, lag_r) + dev_r
-                        if want_sens:
-                            if plain:
-                                s_r = first_order_exponential_sensitivity(s_a, s_prev, hh, tau_r,
-                                                                          zp)
-                            else:
-                                s_r = first_order_step(s_a, s_prev, s_p0, hh, tau_r)
-                            if n_r != 0.0:  # the time constant moves with p and r:
-                                # + n (p - r) / (tau (p + r)) (s_p + s_r), at the middle
-                                p_m, r_m = 0.5 * (p_prev + p), 0.5 * (r_a + r)
-                                s_r += hh * n_r * (p_m - r_m) / (tau_r * max(
-                                    p_m + r_m, 1e-3 * p_atm)) * 0.5 * (s_prev + s_p0 + s_a
-                                                                      + s_r)
-                    # grow the step only when it was not cut short by a break point;
-                    # shrink it when the error asks (0.9 / cbrt(err) < 1 iff err > 0.729)
-                    if hh >= h or err > 0.729:
-                        # where steps cross samples (dense output) a step grows on the
-                        # larger of its own and its predecessor's error: a curvature
-                        # changing sign gives one small estimate by cancellation, and a
-                        # step grown 5x on it is accepted with an error the estimate misses
-                        e_g = max(err, err_last) if kn > k + 1 else err
-                        fac = 5.0 if e_g < 1e-4 else min(5.0, 0.9 / np.cbrt(e_g))
-                        h = min(hmax, hh * fac)
-                    err_last = err
-                else:
-                    if not math.isfinite(err):
-                        err = 10.0
-                    h = hh * max(0.1, 0.9 / np.cbrt(err))
-                    if h < hmin:
-                        if not (math.isfinite(p) and math.isfinite(temp)):
-                            return NONFINITE
-                        return STEP_UNDERFLOW
-            # spool position at the end of the sub-interval (closed form)
-            if spool2:
-                spool, v_s = s_cur, v_cur
-                # settled to rounding: the areas stay cached until the command moves
-                if (abs(spool - cmd) <= 1e-12 * (1.0 + abs(cmd))
-                        and abs(v_s) <= 1e-12 * w_s * (1.0 + abs(cmd))):
-                    spool, v_s = cmd, 0.0
-            elif tau_s > 0.0 or tau_dn > 0.0:
-                spool = spool_step(spool_a, 0.0, cmd, t_end - t_sub, tau_s, 0.0, 0.0,
-                                   rate_s, tau_dn)[0]
-            else:
-                spool = cmd
-        if k >= i0:
-            value = r if reading else p
-            out[kn - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g) if calibrated
-                            else value)
-            if want_sens:
-                sens[kn - i0] = s_r if reading else s_p0
-        k = kn
-    carry[0] = temp
-    if general is not None and line:
-        line_finish(y, carry, nseg)
-    if general is not None and wave:
-        # the state at the window's end (off the grid in general): the ends' waves
-        # there, then the last transit time of every wave
-        t_last = t[i0 + length - 1]
-        if wave_newest_time(hist, ring) < t_last - w_near:
-            v_in, v_ex = wave_ramped(t_last, a_in2, a_ex2, w_sw, w_dt, w_oin, w_oex)
-            if not wave_ends(hist, ring, t_last, w_t, w_z, w_k, p, s_p0, psup2, v_in, v_ex,
-                             cs, w_area, w_len, w_dia, w_mu, w_state, w_rd, w_row):
-                return WAVE_HISTORY
-        wave_finish(hist, ring, carry, t_last, w_t, w_k, w_state, w_rd)
-    if tank:
-        carry[CARRY_TANK] = p_tank
-    if lung:
-        carry[CARRY_LUNG] = p_lung
-    return OK
+    rigid = rigid_chamber(sl)  # no compliance, no volume table: a q = p V^n step
+    return _march(
+        sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general,
+        (thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading,
+         want_sens),
+        (calibrated, cal_o, cal_g),
+        (delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead),
+        (lag_r, w_r, z_r, n_r, second),
+        (cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val),
+        (k0, t_start, max_steps, r, v_r, p, temp, p_tank, p_lung, s_t0, j, cdir, spool, v_s,
+         m),
+        (nseg, ny, y, y_new, s_vec, prop, line_work), (w_work, tube, grid, w_near),
+        (v0, bore, gain, adv, p_nom, c_tank))
 
 
 @njit(cache=True, error_model="numpy")

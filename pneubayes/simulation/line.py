@@ -236,7 +236,7 @@ def phi_combination(hj, vectors, scale):
 
 
 @njit(cache=True, error_model="numpy")
-def phi3_correction_into(hj, b, scale, out, a, rhs):
+def phi3_correction_into(hj, b, scale, out, a, rhs, cols, ework):
     """The correction ``out = phi_3(hJ) b`` of exprb32's second stage, with
     ``phi_3(Z) ~ (6 I - 2 Z)^-1``: exact at Z = 0 and as Z -> -inf (-1 / (2 Z)), within
     20 % of phi_3 on the whole closed left half-plane (waves on the imaginary axis
@@ -245,13 +245,14 @@ def phi3_correction_into(hj, b, scale, out, a, rhs):
     kept (the approximant is phi_3 + O(Z)). One solve instead of a second exponential
     of the augmented matrix. The approximant has a pole at Z = 3: a step whose chamber
     grows on its own (a piston compressing a small chamber, ``hJ[0, 0]`` > 0.5) takes
-    the exact combination (:func:`phi_combination`). ``a`` ``(n, n)`` and ``rhs``
-    ``(n, 1)`` are scratch."""
+    the exact combination (:func:`phi_combination_into`). ``a`` ``(n, n)``, ``rhs``
+    ``(n, 1)``, ``cols`` ``(n, 3)`` and ``ework`` ``(7, n + 3, n + 3)`` are scratch (no
+    allocation: the kernel steps a window without the runtime's reference counts)."""
     n = b.shape[0]
     if hj[0, 0] > 0.5:
-        cols = np.zeros((n, 3))
-        cols[:, 2] = b
-        out[:] = phi_combination(hj, cols, scale)[0]
+        for i in range(n):
+            cols[i, 0], cols[i, 1], cols[i, 2] = 0.0, 0.0, b[i]
+        phi_combination_into(hj, cols, scale, out, a, ework)
         return
     # balanced as in phi_combination: (6 I - 2 S^-1 hJ S) (S^-1 x) = S^-1 b
     for i in range(n):
@@ -269,7 +270,8 @@ def phi3_correction(hj, b, scale):
     """:func:`phi3_correction_into` into a new array."""
     n = b.shape[0]
     out = np.empty(n)
-    phi3_correction_into(hj, b, scale, out, np.empty((n, n)), np.empty((n, 1)))
+    phi3_correction_into(hj, b, scale, out, np.empty((n, n)), np.empty((n, 1)),
+                         np.empty((n, 3)), np.empty((7, n + 3, n + 3)))
     return out
 
 
@@ -446,7 +448,7 @@ def line_workspace(ny):
     """Scratch for one trajectory's line steps (:func:`line_step`, :func:`line_accept`)
     with ``ny`` states: allocated once per window, not per step."""
     return (np.empty((8, ny)), np.empty((3, ny, ny)), np.empty((ny, 2)), np.empty((ny, 1)),
-            np.empty((7, ny + 2, ny + 2)))
+            np.empty((7, ny + 2, ny + 2)), np.empty((ny, 3)), np.empty((7, ny + 3, ny + 3)))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -468,7 +470,7 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     :func:`line_workspace`.
     """
     n = y.shape[0]
-    vecs, mats, b, rhs, ework = work
+    vecs, mats, b, rhs, ework, cols, ework3 = work
     f, vt, scale, incr, u, f2, d, corr = (vecs[0], vecs[1], vecs[2], vecs[3], vecs[4],
                                           vecs[5], vecs[6], vecs[7])
     jac, hj, a3 = mats[0], mats[1], mats[2]
@@ -508,7 +510,7 @@ def line_step(y, nseg, hh, a_in, a_ex, vol, vdot, p_sup, dsup, da_in, da_ex,
     c2 = 2.0 * hh
     for i in range(n):
         d[i] = c2 * d[i]
-    phi3_correction_into(hj, d, scale, corr, a3, rhs)
+    phi3_correction_into(hj, d, scale, corr, a3, rhs, cols, ework3)
     # flows are weighed by the flow of an acoustic wave of atol_p
     atol_q = atol_p * wave
     err = 0.0

@@ -24,7 +24,14 @@ import math
 
 from numba import njit
 
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.physics.calibration import pressure_behind_reading_scalar
 from pneubayes.simulation.phi import phi123
+
+_SENSOR = SLOT_INDEX["sensor_time_constant_s"]
+_SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
+_SENSOR_Z = SLOT_INDEX["sensor_damping"]
+_SENSOR_N = SLOT_INDEX["sensor_pressure_exponent"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -212,3 +219,123 @@ def pressure_dependent_step(r, pa, h, tau_a, n, p_atm, z, f, v, e):
         p_i, f_i = p_e, (1.0 + zs * k1) * f_i + hs * k1 * v
     t_end = pressure_lag(tau_a, n, pb, r, p_atm)
     return r, 2.0 / (1.0 / t_a + 1.0 / t_end)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def reading_lags(sl, p0, p_atm):
+    """``(tau s, w rad/s, z, n, second_order, lagged, lead s, settle s)`` of the sensor
+    in one parameter set's lowered slots: a first-order lag ``tau`` (at the atmosphere;
+    its time constant moving with the pressure by exponent ``n``) or a second-order one
+    (``w`` > 0); the reading's lead at DC (its group delay) and the time its transient
+    takes, at the window's start pressure ``p0`` Pa."""
+    lag_r = sl[_SENSOR]
+    w_r, z_r = sl[_SENSOR_W], sl[_SENSOR_Z]
+    second = w_r > 0.0
+    reading = lag_r > 0.0 or second
+    n_r = sl[_SENSOR_N] if (lag_r > 0.0 and not second) else 0.0
+    lag_0 = pressure_lag(lag_r, n_r, p0, p0, p_atm) if n_r != 0.0 else lag_r
+    lead_s = 2.0 * z_r / w_r if second else lag_0
+    settle_s = max(lead_s, 1.0 / (z_r * w_r)) if second else max(lag_r, lag_0)
+    return lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s
+
+
+@njit(cache=True, error_model="numpy")
+def reading_start(t, pm, i0, p0, rate0, lagged, lead_s, settle_s, calibrated, p_atm,
+                  cal_o, cal_g):
+    """``(k0, t_start, r, v_r, p)``: where a window's integration starts and the reading,
+    its rate and the chamber pressure there.
+
+    A lagged reading with no rate given (``rate0`` NaN) warms up over 5 settling times of
+    the command history before the window (from the recorded reading ``pm`` there when
+    known; after a gap longer than the warm-up, a triggered recording's pre-trigger hold,
+    5 settling times before the window, not at the gap's start); with a rate, the chamber
+    leads the reading by ``lead_s`` times it.
+    """
+    r, v_r, p = p0, 0.0, p0
+    k0 = i0
+    t_start = t[i0]
+    if lagged and math.isnan(rate0):
+        while k0 > 0 and t[i0] - t[k0] < 5.0 * settle_s:
+            k0 -= 1
+        t_start = t[k0]
+        if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
+            r = (pressure_behind_reading_scalar(pm[k0], p_atm, cal_o, cal_g) if calibrated
+                 else pm[k0])
+            p = r
+        if k0 < i0 and t[k0 + 1] - t[k0] > 5.0 * settle_s:
+            t_start = t[i0] - 5.0 * settle_s
+    elif lagged:
+        v_r = rate0
+        if p0 + lead_s * rate0 > 0.0:
+            p = p0 + lead_s * rate0
+    return k0, t_start, r, v_r, p
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def line_reading_deviation(err, p, pn, rates, h, r, sensor, p_atm, atol_p, rtol):
+    """``(deviation Pa, err)``: over an acoustic line's step, where the chamber rings with
+    the line, a first-order reading over the cubic through the step's ends and their
+    ``rates`` (Pa/s; :func:`first_order_hermite_deviation`; the second-order lag as a
+    first-order lag of its group delay, which its chord reading does not correct), and
+    the step's error with that deviation against the tolerance. ``sensor`` is ``(tau,
+    w, z, n, second_order)`` as :func:`reading_lags` gives them."""
+    lag_r, w_r, z_r, n_r, second = sensor
+    dev_r = first_order_hermite_deviation(
+        p, pn, h * rates[0], h * rates[1], h,
+        2.0 * z_r / w_r if second else (
+            pressure_lag(lag_r, n_r, p, r, p_atm) if n_r != 0.0 else lag_r))
+    return dev_r, max(err, abs(dev_r) / (atol_p + rtol * max(abs(p), abs(pn))))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev, s_p0, h, zp, fp, vp, ep, dev_r, second,
+                 w_r, z_r, lag_r, n_r, p_atm, plain, shaped, want_sens):
+    """``(r, v_r, s_r, s_v)``: the lagged reading, its rate and their sensitivities to the
+    window's start after an accepted step of ``h`` s from ``p_prev`` to ``p`` Pa.
+
+    Over the pressure step's own solution (exponential, not linear; dp/dp0 = e^{sJ} times
+    its start's: ``plain``); for the (p, T) step over the pressure's own exponential part
+    (rate ``fp``, slope ``zp / h``, time derivative ``vp``) with the rest of its change as
+    a ramp and its sensitivity over the chord (``shaped``); for the other steps over the
+    chord, plus an acoustic line's deviation ``dev_r``.
+    """
+    if second:
+        r, v_r = second_order_step(r, v_r, p_prev, p, h, w_r, z_r)
+        if shaped:
+            d_r, d_v = second_order_curvature(zp, fp, vp, h, w_r, z_r)
+            r, v_r = r + d_r, v_r + d_v
+        if want_sens:
+            s_r, s_v = second_order_step(s_r, s_v, s_prev, s_p0, h, w_r, z_r)
+            if plain:
+                d_r, d_v = second_order_exponential_deviation(s_prev, zp, h, w_r, z_r)
+                s_r, s_v = s_r + d_r, s_v + d_v
+        return r, v_r, s_r, s_v
+    r_a, s_a = r, s_r
+    tau_r = lag_r
+    if plain or shaped:
+        rest = ep
+        if not plain:  # the (p, T) step: the rest of its change a ramp
+            q1, q2, _ = phi123(zp)
+            rest = p - (p_prev + h * (q1 * fp + h * q2 * vp))
+        if n_r != 0.0:  # a time constant that moves with the pressure
+            r, tau_r = pressure_dependent_step(r_a, p_prev, h, lag_r, n_r, p_atm, zp, fp, vp,
+                                               rest)
+        else:
+            r = first_order_exponential_step(r_a, p_prev, h, lag_r, zp, fp, vp, rest)
+    elif n_r != 0.0:
+        r, tau_r = pressure_dependent_step(r_a, p_prev, h, lag_r, n_r, p_atm, 0.0,
+                                           (p - p_prev) / h, 0.0, 0.0)
+        r += dev_r
+    else:
+        r = first_order_step(r_a, p_prev, p, h, lag_r) + dev_r
+    if want_sens:
+        if plain:
+            s_r = first_order_exponential_sensitivity(s_a, s_prev, h, tau_r, zp)
+        else:
+            s_r = first_order_step(s_a, s_prev, s_p0, h, tau_r)
+        if n_r != 0.0:  # the time constant moves with p and r:
+            # + n (p - r) / (tau (p + r)) (s_p + s_r), at the middle
+            p_m, r_m = 0.5 * (p_prev + p), 0.5 * (r_a + r)
+            s_r += h * n_r * (p_m - r_m) / (tau_r * max(
+                p_m + r_m, 1e-3 * p_atm)) * 0.5 * (s_prev + s_p0 + s_a + s_r)
+    return r, v_r, s_r, s_v

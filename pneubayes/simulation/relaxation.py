@@ -13,9 +13,19 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
+from pneubayes.effects.path import CLOSURE_MAX_TERMS, SLOT_INDEX
 from pneubayes.physics.calibration import pressure_behind_reading_scalar
+
+_CL_N = SLOT_INDEX["closure_terms"]
+_CL_FA = SLOT_INDEX["closure_feature_a_0"]
+_CL_FB = SLOT_INDEX["closure_feature_b_0"]
+_CL_TA = SLOT_INDEX["closure_threshold_a_0"]
+_CL_TB = SLOT_INDEX["closure_threshold_b_0"]
+_CL_RA = SLOT_INDEX["closure_relaxed_a_0"]
+_CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
 
 #: How far back, in time constants, the reading's history starts ``p_bar`` (its weight
 #: there is e^-5, under 1 %).
@@ -71,3 +81,63 @@ def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, cal_o, cal_g):
             pbar = relaxation_step(pbar, p_prev, v, t[i] - t_prev, tau)
         p_prev, t_prev = v, t[i]
     return p_start if math.isnan(pbar) else pbar
+
+
+@njit(cache=True, error_model="numpy")
+def closure_plan(sl):
+    """What an open-form closure in the lowered slots ``sl`` reads, which the kernel's
+    reuse of a step's end must respect, and its low-passes.
+
+    Returns ``(spool, volume_rate, direction, n, slot, kind, tau, value)``: whether a term
+    reads the spool (codes 3, 11, 12) or the command's direction (code 15; both change
+    only with the command), or the volume rate (code 9; a volume hinge's rate, codes 17
+    and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port flow's):
+    each one's slot, signal code, time constant (s) and value (NaN until started).
+    """
+    cl_spool, cl_vdot, cl_dir = False, False, False
+    rx_n = 0
+    rx_idx = np.zeros(2 * CLOSURE_MAX_TERMS, dtype=np.int64)
+    rx_kind = np.zeros(2 * CLOSURE_MAX_TERMS)
+    rx_tau = np.zeros(2 * CLOSURE_MAX_TERMS)
+    rx_val = np.zeros(2 * CLOSURE_MAX_TERMS)
+    for kc in range(int(sl[_CL_N])):
+        for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
+            if code == 3.0 or code == 11.0 or code == 12.0:
+                cl_spool = True
+            if code == 15.0:
+                cl_spool, cl_dir = True, True
+            if code == 9.0 or code == 17.0 or code == 18.0:
+                cl_vdot = True
+        for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
+                               (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):
+            if code == 16.0 or code == 19.0:
+                rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
+                rx_n += 1
+    return cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def relaxations_mid(sl, n, slot, kind, tau, value, p, rate, q0, q_rate, h):
+    """Hold each low-pass over a step of ``h`` s at its midpoint value, written into its
+    slot of ``sl``: the pressure's from ``p`` Pa at ``rate`` Pa/s, the net port flow's
+    from ``q0`` kg/s at ``q_rate`` kg/s^2 (started there when new)."""
+    for q in range(n):
+        if kind[q] == 16.0:
+            sl[slot[q]] = relaxation_mid(value[q], p, rate, h, tau[q])
+        else:
+            if math.isnan(value[q]):
+                value[q] = q0
+            sl[slot[q]] = relaxation_mid(value[q], q0, q_rate, h, tau[q])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def relaxations_accept(n, kind, tau, value, p0, p1, q0, q1, h):
+    """Move each low-pass over an accepted step of ``h`` s (the pressure from ``p0`` to
+    ``p1`` Pa, the net port flow from ``q0`` to ``q1`` kg/s, linear between); returns
+    the step's mean rates of both (Pa/s, kg/s^2)."""
+    for q in range(n):
+        if kind[q] == 16.0:
+            value[q] = relaxation_step(value[q], p0, p1, h, tau[q])
+        else:
+            value[q] = relaxation_step(value[q], q0, q1, h, tau[q])
+    return (p1 - p0) / h, (q1 - q0) / h

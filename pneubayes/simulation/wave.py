@@ -49,7 +49,7 @@ from numba import njit
 from pneubayes.effects.path import SLOT_INDEX, WAVE_CARRY_POINTS, WAVE_MAX_SEGMENTS
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.physics.tube import churchill_fre_and_slope_table, churchill_fre_table
-from pneubayes.simulation.chamber import compliant_volume
+from pneubayes.simulation.chamber import chamber_rhs, compliant_volume
 from pneubayes.simulation.layout import (
     C_ALPHA,
     C_BETA,
@@ -59,6 +59,7 @@ from pneubayes.simulation.layout import (
     C_T_SUPPLY,
     C_THETA,
 )
+from pneubayes.simulation.phi import phi123
 
 _WLEN = SLOT_INDEX["wave_length_m"]
 _WDIA = SLOT_INDEX["wave_diameter_m"]
@@ -384,3 +385,132 @@ def wave_gain(p, vol, sl, cs):
     compliance): ``kappa Rs T_s / (V + kappa p C)``, Pa/kg."""
     v, compl = compliant_volume(p, vol, sl, cs[C_P_ATM])
     return cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY] / (v + cs[C_KAPPA] * p * compl)
+
+
+# The kernel's side of the tube, window by window: ``tube`` is the tuple of
+# :func:`wave_constants` (transit time, impedance, area, element length, bore,
+# viscosity, elements), ``work`` the tuple ``(hist, ring, state, rd, row)`` of
+# :func:`wave_workspace` and the last flows, ``grid`` the tuple ``(n, t_grid, t_a, A_a,
+# dA_a, A_b, dA_b)``: the next grid point's number and time, and the chamber's forcing
+# A_K(t - tau) (with dA/dp0) read at the ends of the grid interval ``[t_a, t_grid]``;
+# ``switch`` the tuple ``(t_sw, old_in, old_ex, last_in, last_ex)``: the last port-area
+# switch's time, the areas before it and those at the last step's end (NaN before the
+# first).
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _send(work, tube, t_now, p, s_p, p_sup, a_in, a_ex, cs):
+    """:func:`wave_ends` with the kernel's tuples."""
+    hist, ring, state, rd, row = work
+    tau, z, area, seg_len, dia, mu, k = tube
+    return wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
+                     seg_len, dia, mu, state, rd, row)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def wave_grid(work, tube, t0, n, t_a):
+    """The ``grid`` tuple for grid point ``n`` (anchored at the recording's first sample
+    ``t0``, every window of it shares the grid) with its interval starting at ``t_a``."""
+    hist, ring = work[0], work[1]
+    t_grid = t0 + wave_grid_step(tube[0]) * n
+    a0, s0 = wave_arriving(hist, ring, t_a - tube[0], tube[6])
+    a1, s1 = wave_arriving(hist, ring, t_grid - tube[0], tube[6])
+    return n, t_grid, t_a, a0, s0, a1, s1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def wave_switch(work, tube, switch, tau, t_end, p, s_p, p_sup, a_in, a_ex, w_near, cs):
+    """``(ok, switch, t_end)`` at the start of a held input's stretch at ``tau``: where
+    the port areas switched, the valve end's entry there with the areas before, then a
+    ramp to the new ones over a grid step (whose end cuts ``t_end``). ``ok`` False: the
+    history is full."""
+    t_sw, o_in, o_ex, l_in, l_ex = switch
+    w_dt = wave_grid_step(tube[0])
+    if (not math.isnan(l_in) and abs(a_in - l_in) + abs(a_ex - l_ex)
+            > 1e-9 * (a_in + a_ex + l_in + l_ex)):
+        r_in, r_ex = wave_ramped(tau, l_in, l_ex, t_sw, w_dt, o_in, o_ex)
+        if wave_newest_time(work[0], work[1]) < tau - w_near:
+            if not _send(work, tube, tau, p, s_p, p_sup, r_in, r_ex, cs):
+                return False, switch, t_end
+        t_sw, o_in, o_ex = tau, r_in, r_ex
+        l_in, l_ex = a_in, a_ex
+    if tau < t_sw + w_dt - w_near and t_sw + w_dt < t_end - w_near:
+        t_end = t_sw + w_dt  # the ramp's end: an entry there
+    return True, (t_sw, o_in, o_ex, l_in, l_ex), t_end
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_at, s_at2,
+                      cdir, sl, cs, grid, tube, q_c, ep, atol_p, rtol):
+    """One exprb32 step of the chamber at the tube's end, driven by the valve's wave
+    arriving, A_K(t - tau) linear over the grid interval the step lies in, through the
+    inflow ``(A_K - p) / (Z + r/2)`` of eq. 5 (``q_c``: the chamber end's last flow,
+    for the friction ``r``).
+
+    Returns ``(err, pn, fp, jp, vp, ep, zp, phi3p, s_gain)``: the error against the
+    tolerance (10: failed; ``ep`` then unchanged), the end pressure, the start's rate,
+    slope and time derivative, the correction, ``h J``, phi_3(h J) and the arriving
+    wave's share of dp/dp0 over the step.
+    """
+    _, t_grid, t_a, a0, s0, a1, s1 = grid
+    z, area, seg_len, dia, mu = tube[1], tube[2], tube[3], tube[4], tube[5]
+    w_inv = 1.0 / (t_grid - t_a)
+    wb0 = a0 + (a1 - a0) * (tau - t_a) * w_inv
+    wb1 = a0 + (a1 - a0) * (tau + hh - t_a) * w_inv
+    swb0 = s0 + (s1 - s0) * (tau - t_a) * w_inv
+    swb1 = s0 + (s1 - s0) * (tau + hh - t_a) * w_inv
+    zc = z + 0.5 * wave_resistance(q_c, p, cs, area, seg_len, dia, mu)
+    fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot, psup, sl, cs, hh,
+                                            True, 0.0, 0.0, 0.0, s_at, ds_at, cdir)
+    gw = wave_gain(p, vol, sl, cs) / zc
+    fp += gw * (wb0 - p)
+    jp -= gw
+    vp += gw * (wb1 - wb0) / hh
+    zp = hh * jp
+    phi1p, phi2p, phi3p = phi123(zp)
+    up = p + hh * (phi1p * fp + hh * phi2p * vp)
+    err, pn = 10.0, p
+    if up > 0.0 and math.isfinite(up):
+        fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh, False, 0.0,
+                           0.0, 0.0, s_at2, 0.0, cdir)[0]
+               + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
+        ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
+        pn = up + ep
+        err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))
+        if not (pn > 0.0 and math.isfinite(pn)):
+            err = 10.0
+    return err, pn, fp, jp, vp, ep, zp, phi3p, hh * phi1p * gw * 0.5 * (swb0 + swb1)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def wave_accept(work, tube, switch, grid, t0, tau, p, s_p, p_sup, a_in, a_ex, w_near, cs):
+    """``(ok, switch, grid)`` after an accepted step ending at ``tau`` with the port areas
+    ``a_in``, ``a_ex``: at a grid point or a ramp's end the ends send their waves; at a
+    grid point the grid moves on. ``ok`` False: the history is full."""
+    t_sw, o_in, o_ex = switch[0], switch[1], switch[2]
+    switch = (t_sw, o_in, o_ex, a_in, a_ex)
+    w_dt = wave_grid_step(tube[0])
+    on_grid = tau >= grid[1] - w_near
+    if on_grid or abs(tau - t_sw - w_dt) <= w_near:
+        v_in, v_ex = wave_ramped(tau, a_in, a_ex, t_sw, w_dt, o_in, o_ex)
+        if not _send(work, tube, tau, p, s_p, p_sup, v_in, v_ex, cs):
+            return False, switch, grid
+    if on_grid:
+        grid = wave_grid(work, tube, t0, grid[0] + 1.0, tau)
+    return True, switch, grid
+
+
+@njit(cache=True, error_model="numpy")
+def wave_window_end(work, tube, switch, carry, t_last, p, s_p, p_sup, a_in, a_ex, w_near,
+                    cs):
+    """The state at the window's end ``t_last`` (off the grid in general) into
+    ``carry``: the ends' waves there, then the last transit time of every wave. False:
+    the history is full."""
+    hist, ring, state, rd, _ = work
+    if wave_newest_time(hist, ring) < t_last - w_near:
+        v_in, v_ex = wave_ramped(t_last, a_in, a_ex, switch[0], wave_grid_step(tube[0]),
+                                 switch[1], switch[2])
+        if not _send(work, tube, t_last, p, s_p, p_sup, v_in, v_ex, cs):
+            return False
+    wave_finish(hist, ring, carry, t_last, tube[0], tube[6], state, rd)
+    return True
