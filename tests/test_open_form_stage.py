@@ -161,17 +161,22 @@ def test_discovery_finds_a_planted_relief_term_in_no_catalogue_form(relief_recor
 
 
 def test_a_tube_simulated_as_a_line_goes_to_its_plainest_form_beside_a_closure(rig):
-    """The simulator refuses a closure beside a line state (the wave tube's): the trial
-    has the tube's transport delay, its fitted bore kept as the option."""
+    """The simulator refuses a closure that reads the valve's ports beside the wave
+    tube: the trial has the tube's transport delay, its fitted bore kept as the option;
+    beside a closure that reads no port the wave tube stays."""
     from pneubayes.discovery.openform.closure_model import beside_closure
     from pneubayes.effects import make_effect
+    from pneubayes.effects.closure_features import parse_terms
     from pneubayes.physics.valve import valve_preset
 
     wave = Model([make_effect("tube_delay", form="wave", segments=8)])
     params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2e-5,
               "tube_delay_s": 0.018, "tube_diameter_m": 0.004}
-    plain, names = beside_closure(wave, params, rig)
+    assert beside_closure(wave, params, rig, parse_terms("pressure_relaxation; one")) == (
+        wave, [])
+    plain, names = beside_closure(wave, params, rig, parse_terms("inlet_flow"))
     assert names == ["tube_delay"]
+    assert beside_closure(wave, params, rig)[1] == ["tube_delay"]
     tube = plain.effect("tube_delay")
     assert tube.options()["form"] == "transport" and tube.options()["tube_diameter_m"] == 0.004
     with_closure = plain.with_effect(Closure(terms="one"))
@@ -449,13 +454,14 @@ def test_a_hinge_threshold_bound_reaches_the_range_of_its_signal():
     assert threshold_reach(model, terms, ()) == {}
 
 
-def test_the_sources_are_tried_in_turn_and_share_the_per_interval_residual(monkeypatch):
+def test_the_sources_are_tried_in_turn_and_share_the_per_interval_residual(monkeypatch, rig):
     """Each source's closure rejected: the stage tries the blocks of 5, of 25 and the
     windows in turn; the per-interval residual and nuisance are computed once (the
     longer block's rows are the search's to make) and the windows read the first's."""
     from pneubayes.discovery.openform.search import FoundTerm
     from pneubayes.discovery.state import Ledger
     from pneubayes.effects.closure_features import Term
+    from pneubayes.physics.valve import valve_preset
 
     stage = OpenForm()
     calls = {"residual": 0, "window": [], "searched": [], "fitted": []}
@@ -487,10 +493,11 @@ def test_the_sources_are_tried_in_turn_and_share_the_per_interval_residual(monke
     monkeypatch.setattr(stage, "_verify", lambda *a: (False, []))
     runner = SimpleNamespace(
         settings=SimpleNamespace(search=SimpleNamespace(block=5), seed=0),
-        data=SimpleNamespace(train=[SimpleNamespace(n_samples=1000)]),
+        data=SimpleNamespace(train=[SimpleNamespace(n_samples=1000)], rig=lambda: rig),
         ledger=Ledger(), log=lambda m: None,
         better=lambda a, b: (False, 0.0, 1.0, np.zeros(1)))
-    state = _state(SimpleNamespace(model=Model(), heldout_rmse_Pa=5e3))
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-5)
+    state = _state(SimpleNamespace(model=Model(), params=params, heldout_rmse_Pa=5e3))
     stage._run(state, runner, None)
     assert [s for s, _ in calls["searched"]] == [5, 25, "windows"]
     assert all(n == ["nuisance"] for _, n in calls["searched"])

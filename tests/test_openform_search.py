@@ -278,6 +278,21 @@ def test_an_excluded_family_is_left_out_of_the_library():
     assert n_hinge > 5 and s.n_candidates_ <= len(full) - n_hinge
 
 
+def test_features_left_out_are_read_by_no_candidate():
+    """``without_features`` (beside a wave tube, the valve's ports): a planted port-flow
+    term the full library finds is not found, and no candidate reads a port."""
+    sig, tgt = planted([CASES["inlet_flow (10 % more inlet flow)"]])
+    found = OpenFormSearch(seed=0, n_models=8).fit(sig, tgt)
+    assert any("inlet_flow" in (f.term.a, f.term.b) for f in found.terms_)
+    s = OpenFormSearch(seed=0, n_models=8,
+                       without_features=tuple(cf.PORT_FEATURES)).fit(sig, tgt)
+    assert not any({f.term.a, f.term.b} & cf.PORT_FEATURES for f in s.terms_)
+    assert not any(set(fam.split("*")) & cf.PORT_FEATURES for fam in s.evidence_)
+    assert s.n_candidates_ < found.n_candidates_
+    with pytest.raises(ValueError, match="inlet_flo"):
+        OpenFormSearch(without_features=("inlet_flo",)).fit(sig, tgt)
+
+
 def test_fit_validates_its_settings_and_inputs():
     sig, tgt = planted([CASES["constant"]])
     with pytest.raises(ValueError, match="max_terms"):

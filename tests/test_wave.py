@@ -326,3 +326,28 @@ def test_friction_at_the_step_keeps_a_valve_wider_than_the_tube_from_ringing():
     assert np.ptp(worst) < 1e3, worst
     assert np.all(np.sqrt(np.mean((sim - sim[0]) ** 2, axis=(1, 2))) < 1e3)
     assert np.all(sim < 1.1 * recs[0].supply_pressure_Pa.max())
+
+
+def test_a_closure_beside_the_wave_tube_adds_its_mass_flow(rig, make_inputs, closable_params):
+    """A closure that reads no port of the valve sits beside the wave tube: a constant
+    inflow c into the shut chamber raises the pressure at n Rs T c / V once the tube's
+    waves have settled (the tube's gas, compressed adiabatically as the waves carry it,
+    adds its volume to the chamber's); one that reads a port is refused, naming it."""
+    params, _ = _params(rig, 1.0, 0.002, valve=closable_params)
+    c = 3e-6  # kg/s
+    model = Model([make_effect("tube_delay", form="wave", segments=8),
+                   make_effect("closure", terms="one")])
+    t = np.arange(1001) * 1e-3
+    p = simulate(model, dict(params, closure_coefficient_0=c), make_inputs(t, np.zeros(t.size)),
+                 rig, 3.3e5, SolverConfig.reference()).pressure_Pa[0]
+    g = rig.gas
+    rate = (g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K * c
+            / params["dead_volume_m3"])
+    late = t > 0.2
+    slope = np.polyfit(t[late], p[late], 1)[0]
+    assert abs(slope / rate - 1.0) < 0.01, (slope, rate)
+    ported = Model([make_effect("tube_delay", form="wave", segments=8),
+                    make_effect("closure", terms="inlet_flow")])
+    with pytest.raises(ValueError, match="inlet_flow"):
+        simulate(ported, dict(params, closure_coefficient_0=0.1),
+                 make_inputs(t, np.zeros(t.size)), rig, 3.3e5, SolverConfig.reference())

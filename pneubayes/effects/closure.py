@@ -16,7 +16,10 @@ the port's flow would reverse
 simulator evaluates it in
 :func:`pneubayes.simulation.chamber.chamber_rhs`; :func:`pneubayes.simulation.rates.rate_terms`
 gives its dp/dt at a given state and :mod:`pneubayes.simulation.reference` integrates it
-independently. It cannot be combined with the tube's acoustic or wave line.
+independently. It cannot be combined with the tube's acoustic line; beside the wave tube
+its terms may read every feature but the valve's ports
+(:data:`~pneubayes.effects.closure_features.PORT_FEATURES`), which the tube puts at its
+far end.
 
 Every coefficient 0 lowers to ``closure_terms`` 0 (the simulator's closure-free path), so
 the neutral closure reproduces the model without it bit for bit. The discovery library
@@ -90,7 +93,8 @@ class Closure(Effect):
                                                    "threshold_b", "coefficient")
                 for k in range(CLOSURE_MAX_TERMS)))
     library_searched = False
-    #: the simulator refuses a closure beside a tube's acoustic line
+    #: the simulator refuses a closure beside a tube's acoustic line (and the loop then
+    #: proposes the tube's plain delay beside it)
     beside_line = False
 
     def __init__(self, terms: str = "one"):

@@ -44,7 +44,9 @@ class Feature:
     ``code`` is its index in the compiled simulator's switch; ``unit`` the unit of its
     value; ``hinge`` whether it has a fitted parameter in the closure's threshold slot:
     a hinge's threshold (in ``unit``) or, with ``time_constant``, a relaxation's time
-    constant (s)."""
+    constant (s); ``port`` whether it reads the valve's ports as the chamber sees them
+    (their areas, flows or flow functions at the chamber's pressure), which a tube
+    simulated as a line puts at its far end (:data:`PORT_FEATURES`)."""
 
     name: str
     code: int
@@ -52,6 +54,7 @@ class Feature:
     description: str
     hinge: bool = False
     time_constant: bool = False
+    port: bool = False
 
     @property
     def parameter_unit(self) -> str:
@@ -66,19 +69,20 @@ FEATURES: tuple[Feature, ...] = (
             "p_s / P_atm"),
     Feature("spool", 3, "command unit", "spool position s: the command after the model's "
             "delay and lag, before the dead band"),
-    Feature("inlet_area", 4, "mm^2", "inlet port area a_in / 1e-6 m^2"),
-    Feature("exhaust_area", 5, "mm^2", "exhaust port area a_ex / 1e-6 m^2"),
+    Feature("inlet_area", 4, "mm^2", "inlet port area a_in / 1e-6 m^2", port=True),
+    Feature("exhaust_area", 5, "mm^2", "exhaust port area a_ex / 1e-6 m^2", port=True),
     Feature("inlet_flow", 6, "kg/s", "inlet port mass flow a_in f(p_s, p) (eqs. 1-3, "
-            "before any attenuation; negative when the chamber blows back)"),
+            "before any attenuation; negative when the chamber blows back)", port=True),
     Feature("exhaust_flow", 7, "kg/s", "exhaust port mass flow a_ex f(p, P_atm) out of "
-            "the chamber"),
+            "the chamber", port=True),
     Feature("volume", 8, "cm^3", "chamber volume V / 1e-6 m^3"),
     Feature("volume_rate", 9, "1/s", "relative volume rate dV/dt / V"),
     Feature("pressure_hinge", 10, "-", "max(0, p / P_atm - theta)", hinge=True),
     Feature("spool_hinge_up", 11, "command unit", "max(0, s - theta)", hinge=True),
     Feature("spool_hinge_down", 12, "command unit", "max(0, theta - s)", hinge=True),
     Feature("net_flow", 13, "kg/s", "net port mass flow into the chamber, inlet minus "
-            "exhaust (what a compliance or a volume that follows the pressure scales)"),
+            "exhaust (what a compliance or a volume that follows the pressure scales)",
+            port=True),
     Feature("pressure_hinge_down", 14, "-", "max(0, theta - p / P_atm)", hinge=True),
     Feature("command_direction", 15, "-", "the sign of the delayed command's last change: "
             "+1 after a rise, -1 after a fall, 0 before its first (a valve's memory of "
@@ -95,7 +99,7 @@ FEATURES: tuple[Feature, ...] = (
             "low-passed with time constant theta (s): with c = 1 the ports' flow reaches "
             "the chamber through a lag (a volume or a soft tube between valve and "
             "chamber; gas still arriving after the valve shuts)", hinge=True,
-            time_constant=True),
+            time_constant=True, port=True),
     Feature("inlet_drop", 20, "-", "the pressure difference across the inlet over "
             "atmospheric, |p_s - p| / P_atm (a bypass or leak across the valve body "
             "scales with it)"),
@@ -105,27 +109,32 @@ FEATURES: tuple[Feature, ...] = (
     Feature("inlet_flux", 22, "kg/(s mm^2)", "the flow one mm^2 of inlet area passes, "
             "f(p_s, p) x 1e-6 m^2 (eqs. 1-3): with a coefficient in mm^2 an extra inlet "
             "area (a bypass across the valve, a port that opens more or less than its "
-            "map says), open even where the valve's own inlet is shut"),
+            "map says), open even where the valve's own inlet is shut", port=True),
     Feature("exhaust_flux", 23, "kg/(s mm^2)", "the flow one mm^2 of exhaust area passes "
             "out of the chamber, f(p, P_atm) x 1e-6 m^2: with a (negative) coefficient "
-            "in mm^2 an extra exhaust area"),
+            "in mm^2 an extra exhaust area", port=True),
     Feature("spool_null_hinge", 24, "command unit", "max(0, theta - |s|): what opens "
             "as the spool nears its null (theta >= 0; lands that do not quite close, an "
             "underlapped spool's leak to both ports)", hinge=True),
     Feature("net_flux", 25, "kg/(s mm^2)", "the net flow one mm^2 at both ports passes "
             "into the chamber, (f(p_s, p) - f(p, P_atm)) x 1e-6 m^2: with a coefficient in "
             "mm^2 an equal extra area at the inlet and the exhaust (a crossport leak "
-            "through the valve, an underlap)"),
+            "through the valve, an underlap)", port=True),
     Feature("inlet_area_hinge", 26, "mm^2", "max(0, a_in / 1e-6 m^2 - theta): the inlet "
             "area beyond theta; times inlet_flux with c = -1 the inlet passes no more than "
             "theta (a fixed restriction in series that caps it: a fitting, a needle, a "
-            "narrow tube)", hinge=True),
+            "narrow tube)", hinge=True, port=True),
     Feature("exhaust_area_hinge", 27, "mm^2", "max(0, a_ex / 1e-6 m^2 - theta): the "
             "exhaust area beyond theta; times exhaust_flux with c = 1 the exhaust passes "
-            "no more than theta (a silencer, a meter-out needle, a fitting)", hinge=True),
+            "no more than theta (a silencer, a meter-out needle, a fitting)", hinge=True,
+            port=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
+#: The features that read the valve's ports at the chamber. Beside a tube simulated as
+#: a line (``tube_delay`` form ``"wave"``) the valve sits at the tube's far end and the
+#: chamber's port flow is the tube's: a closure there may read every other feature.
+PORT_FEATURES: frozenset[str] = frozenset(f.name for f in FEATURES if f.port)
 #: Most terms one closure holds (the compiled simulator's slots).
 CLOSURE_MAX_TERMS = 4
 

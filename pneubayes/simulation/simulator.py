@@ -15,6 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
+from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS, FEATURES
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 from pneubayes.model import Model
@@ -186,9 +187,34 @@ _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
 _GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
 
 
-def _check_exclusive_forms(forms: np.ndarray) -> None:
+#: The closure's feature codes that read the valve's ports at the chamber, and the slots
+#: of its terms' features.
+_PORT_CODES = {f.code: f.name for f in FEATURES if f.port}
+_CLOSURE_FEATURE_SLOTS = np.array([SLOT_INDEX[f"closure_feature_{side}_{k}"]
+                                   for k in range(CLOSURE_MAX_TERMS) for side in "ab"])
+
+
+def _check_closure_beside_wave(slots: np.ndarray, rows: np.ndarray) -> None:
+    """Raise where a closure beside the wave tube (parameter sets ``rows``) reads the
+    valve's ports, which the tube puts at its far end."""
+    n_terms = slots[rows, SLOT_INDEX["closure_terms"]]
+    codes = slots[np.ix_(rows, _CLOSURE_FEATURE_SLOTS)]
+    for r in range(codes.shape[0]):
+        for j in range(2 * int(n_terms[r])):
+            name = _PORT_CODES.get(int(codes[r, j]))
+            if name is not None:
+                raise ValueError(
+                    f"an open-form closure beside the wave tube (tube_delay form 'wave') "
+                    f"reads feature {name!r} (term {j // 2}): the valve's ports sit at the "
+                    "tube's far end, where the chamber does not see them; a closure there "
+                    "may read the features that are not ports "
+                    "(pneubayes.effects.closure_features.PORT_FEATURES)")
+
+
+def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
     """Raise where a parameter set combines forms the kernel cannot step together
-    (``forms``: ``(B, len(_FORM_COLUMNS))``, which forms each set has)."""
+    (``forms``: ``(B, len(_FORM_COLUMNS))``, which forms each set has; ``slots`` its
+    lowered slots)."""
     def has(name):
         return forms[:, _FORM_COLUMNS[name]]
 
@@ -205,11 +231,12 @@ def _check_exclusive_forms(forms: np.ndarray) -> None:
         (has("lung_volume_m3"), line | hot | tank,
          "a two-compartment chamber is simulated with the two pressures as the states"),
     )
-    if np.any(has("closure_terms") & line):
+    if np.any(has("closure_terms") & has("line_length_m")):
         raise ValueError("an open-form closure (effect 'closure') is part of the chamber's "
-                         "right-hand side, which the tube's acoustic line or wave line "
-                         "(tube_delay forms 'line', 'wave') replaces: it cannot be combined "
-                         "with them in one model")
+                         "right-hand side, which the tube's acoustic line (tube_delay form "
+                         "'line') replaces: it cannot be combined with it in one model")
+    if np.any(has("closure_terms") & wave):
+        _check_closure_beside_wave(slots, np.flatnonzero(has("closure_terms") & wave))
     if np.any(wave & (hot | has("line_length_m"))):
         raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
                          "with the chamber's pressure as its only state: it cannot be "
@@ -268,7 +295,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
             raise ValueError("the model's exhaust is a separate valve with its own command, "
                              "but the inputs have no exhaust command (a recording's "
                              "'exhaust_command' column, or the column its rig card names)")
-        _check_exclusive_forms(forms)
+        _check_exclusive_forms(forms, slots)
         general = bool(forms[:, _GENERAL_COLUMNS].any())
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = _kernel_arrays(
@@ -430,7 +457,7 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
                 "exhaust_own_command"]].any():
             raise ValueError("the model's exhaust is a separate valve with its own command, "
                              "but the inputs have no exhaust command")
-        _check_exclusive_forms(forms)
+        _check_exclusive_forms(forms, slots)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     if offset:
         measured = np.concatenate(([np.nan], measured))

@@ -13,6 +13,7 @@ import numpy as np
 from pneubayes.discovery.openform.features import HINGE_SOURCES, hinge_source_values
 from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
+from pneubayes.effects.closure_features import PORT_FEATURES
 from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
 
@@ -145,18 +146,29 @@ def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
     return out
 
 
-#: Slots of a tube simulated as a line (its own states in place of the chamber's
-#: right-hand side), beside which the compiled simulator refuses a closure.
+#: Slots of a tube simulated as a line: the acoustic line (its own states in place of
+#: the chamber's right-hand side, beside which the compiled simulator refuses a
+#: closure) and the wave tube (beside which a closure may read no port of the valve).
 _LINE_SLOTS = ("line_length_m", "wave_length_m")
 
 
-def beside_closure(model, params: dict, rig):
+def reads_ports(terms) -> bool:
+    """Whether any of ``terms`` (:class:`~pneubayes.effects.closure_features.Term`) reads
+    a feature of the valve's ports (:data:`PORT_FEATURES`)."""
+    return any(name in PORT_FEATURES for t in terms for name in (t.a, t.b))
+
+
+def beside_closure(model, params: dict, rig, terms=None):
     """``(model, names)``: ``model`` with each effect that lowers onto a line slot at
     ``params`` in its plainest form (its first; options it shares with it kept, a
     same-named fitted parameter as the option's value), and the names of those
-    effects."""
+    effects. Beside a closure of ``terms`` that reads no port of the valve, the wave
+    tube stays (only an acoustic line goes); ``terms`` None: every line goes."""
     slots = model.lower(model.vector(params)[None, :], rig)[0]
-    if not any(slots[SLOT_INDEX[s]] > 0 for s in _LINE_SLOTS):
+    lines = _LINE_SLOTS
+    if terms is not None and not reads_ports(terms):
+        lines = ("line_length_m",)
+    if not any(slots[SLOT_INDEX[s]] > 0 for s in lines):
         return model, []
     names = []
     for name in model.effect_names:
@@ -164,7 +176,7 @@ def beside_closure(model, params: dict, rig):
         if not type(eff).forms or eff.options().get("form") == type(eff).forms[0]:
             continue
         wrote = eff.lower({k: np.atleast_1d(params[k]) for k in eff.parameter_names()}, rig)
-        if not any(np.any(np.asarray(wrote.get(s, 0.0)) > 0) for s in _LINE_SLOTS):
+        if not any(np.any(np.asarray(wrote.get(s, 0.0)) > 0) for s in lines):
             continue
         first = type(eff)(form=type(eff).forms[0])
         opts = {k: (float(params[k]) if k in params else eff.options().get(k, v))

@@ -57,6 +57,7 @@ from pneubayes.effects.closure_features import (
     CLOSURE_MAX_TERMS,
     SIGNALS,
     Term,
+    feature,
 )
 
 #: The pysindy optimizers the search can use.
@@ -128,13 +129,13 @@ class OpenFormSearch:
     min_inclusion, min_explained_fraction : float
         A family's least inclusion probability to be refitted; a kept term's least share
         of the target's uncentred sum of squares on its own (FROLS stops below it too).
-    quantiles, duplicate_tolerance : sequence of float, float
+    quantiles, duplicate_tolerance, swap_min_gain : sequence of float, float, float
         The hinge thresholds' quantiles; a column within this of |cos| 1 of an earlier
-        one is dropped.
-    swap_min_gain : float
-        FROLS: a bag's column is swapped for a better or simpler one (:meth:`_swap`).
-    refine_thresholds, exclude : bool, sequence of str
-        Refine the kept hinges' thresholds; families left out (a search again).
+        one is dropped; FROLS swaps a bag's column for a better or simpler one
+        (:meth:`_swap`).
+    refine_thresholds, exclude, without_features : bool, sequence of str, idem
+        Refine the kept hinges' thresholds; families left out (a search again); base
+        features no candidate reads (beside a wave tube, the valve's ports).
     alias_cos : float
         Families whose best columns are within this |cosine| stand in for each other
         (:meth:`_aliases`).
@@ -161,7 +162,8 @@ class OpenFormSearch:
                  quantiles: Sequence[float] = DEFAULT_QUANTILES,
                  duplicate_tolerance: float = 2e-3, swap_min_gain: float = 0.02,
                  refine_thresholds: bool = True, seed: int = 0,
-                 exclude: Sequence[str] = (), alias_cos: float = 0.95):
+                 exclude: Sequence[str] = (), alias_cos: float = 0.95,
+                 without_features: Sequence[str] = ()):
         self.max_terms = max_terms
         self.block = block
         self.optimizer = optimizer
@@ -178,6 +180,7 @@ class OpenFormSearch:
         self.seed = seed
         self.exclude = exclude
         self.alias_cos = alias_cos
+        self.without_features = without_features
 
     # ------------------------------------------------------------------ validation
     def _validate(self, signals_list, target_list, row_maps=None):
@@ -208,6 +211,11 @@ class OpenFormSearch:
                              f"'inlet_flow*pressure_hinge', got {self.exclude!r}")
         for f in self.exclude:
             Term.parse(f)  # (a misspelt family raises, naming it)
+        if isinstance(self.without_features, str):
+            raise ValueError("without_features must be a sequence of feature names, got "
+                             f"{self.without_features!r}")
+        for name in self.without_features:
+            feature(name)  # (an unknown name raises, naming the known ones)
         if isinstance(signals_list, dict) or isinstance(target_list, np.ndarray):
             raise ValueError("fit takes a list of signal dicts and a list of targets "
                              "(one per recording)")
@@ -471,8 +479,10 @@ class OpenFormSearch:
             return self._fit(signals_list, target_list)
 
     def _fit(self, signals_list, target_list) -> "OpenFormSearch":
+        left_out = set(self.without_features)
         cands = [c for c in candidate_terms(signals_list, self.quantiles)
-                 if c.family not in set(self.exclude)]
+                 if c.family not in set(self.exclude)
+                 and not {c.term.a, c.term.b} & left_out]
         # an interval a signal dict marks invalid ("valid" False) leaves out its row
         if self._row_maps is None:
             y = np.concatenate([_block_sums(np.where(np.asarray(s.get("valid", True), bool),

@@ -41,8 +41,9 @@ from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects.closure import Closure
-from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS
+from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS, PORT_FEATURES
 from pneubayes.effects.discovery import inside_bounds
+from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 
 #: The search source whose rows are the prediction windows' residual.
@@ -164,6 +165,13 @@ class OpenForm(Stage):
     def _run(self, state: RoundState, runner, best) -> None:
         search = self.search if self.search is not None else OpenFormSearch(
             block=runner.settings.search.block, seed=runner.settings.seed)
+        if _has_wave_tube(state.current, runner.data.rig()):
+            # the valve sits at the tube's far end: a closure beside it reads no port
+            search = _clone(search, without_features=tuple(sorted(
+                {*search.without_features, *PORT_FEATURES})))
+            runner.log("discover: open form: beside the wave tube the search leaves out "
+                       "the features of the valve's ports (the tube puts them at its far "
+                       "end)")
         data: dict = {}  # source -> (signals, targets, row maps or None, nuisance)
         shortest = min(rec.n_samples for rec in runner.data.train)
         # the one-step residual in blocks; a longer block (the one-step residual of a
@@ -310,10 +318,12 @@ class OpenForm(Stage):
         closure = Closure(terms=spec)
         base = current.model.without(CLOSURE) if current.model.has(CLOSURE) else current.model
         base, plainer = beside_closure(
-            base, {k: current.params[k] for k in base.parameter_names}, runner.data.rig())
+            base, {k: current.params[k] for k in base.parameter_names}, runner.data.rig(),
+            [t for t, _ in old] + [t.term for t in terms])
         if plainer:
             runner.log("discover: open form: a closure cannot sit beside the line state of "
-                       f"{', '.join(plainer)}; the trial has its plainest form")
+                       f"{', '.join(plainer)} (an acoustic line, or a wave tube beside a "
+                       "term that reads the valve's ports); the trial has its plainest form")
         model = base.with_effect(closure)
         earlier = {k: v for k, v in current.model.bound_overrides.items()
                    if k.startswith("closure_")}  # an earlier term's widened bounds
@@ -508,6 +518,12 @@ def _settings_of(search) -> dict:
     """A search's constructor arguments, by name (its settings, not its fitted state)."""
     return {k: getattr(search, k)
             for k in inspect.signature(type(search).__init__).parameters if k != "self"}
+
+
+def _has_wave_tube(fit, rig) -> bool:
+    """Whether ``fit``'s model steps the tube as waves (``tube_delay`` form ``"wave"``)."""
+    slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
+    return bool(slots[SLOT_INDEX["wave_length_m"]] > 0)
 
 
 def _clone(search, **changes):
