@@ -1040,17 +1040,19 @@ def test_forms_with_a_second_state_are_refused_together_in_one_parameter_set(fir
     """The kernel steps one second state at a time: a parameter set with two is refused,
     while the two in different parameter sets of one batch, or one beside a separately
     commanded exhaust, are not."""
+    from pneubayes.effects.path import SLOT_INDEX
     from pneubayes.simulation.simulator import _FORM_COLUMNS, _check_exclusive_forms
 
     col = _FORM_COLUMNS
+    slots = np.zeros((2, len(SLOT_INDEX)))  # (read only beside a closure)
     both = np.zeros((2, len(col)), dtype=bool)
     both[1, [col[first], col[second]]] = True
     with pytest.raises(ValueError, match=message):
-        _check_exclusive_forms(both)
+        _check_exclusive_forms(both, slots)
     apart = np.zeros((2, len(col)), dtype=bool)
     apart[0, col[first]] = apart[1, col[second]] = True
     apart[:, col["exhaust_own_command"]] = True
-    _check_exclusive_forms(apart)
+    _check_exclusive_forms(apart, slots)
 
 
 def test_the_wrapper_sees_every_second_state_the_kernel_steps():
