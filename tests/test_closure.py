@@ -495,19 +495,26 @@ def test_the_closure_is_refused_beside_the_tubes_line(rig, valve_params, inputs)
 
 def test_discovery_proposes_no_tube_line_beside_a_closure(rig, valve_params):
     """A named tube delay's candidates beside a closure keep to the plain delay (the
-    simulator refuses a closure beside the tube's line); without one the line comes too."""
+    simulator refuses a closure beside the tube's line); without one the line comes too.
+    The wave tube comes beside a closure that reads no port of the valve, not beside one
+    that does."""
     from pneubayes.discovery.candidates import candidate_context
     from pneubayes.discovery.verification import StepFit
 
-    forms = {}
-    for model, params in ((Model([make_effect("closure", terms="one")]),
-                           dict(valve_params, closure_coefficient_0=1e-6)),
-                          (Model([]), valve_params)):
+    def proposed(terms, line_form):
+        model = Model([make_effect("closure", terms=terms)] if terms else [])
+        params = dict(valve_params, **({"closure_coefficient_0": 1e-6,
+                                         "closure_threshold_0_a": 0.05} if terms else {}))
+        params = {k: params[k] for k in model.parameter_names}
         fit = StepFit(model, params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-        ctx = candidate_context(fit, "tube_delay", {"best_term_start": None}, rig)
-        forms[model.has("closure")] = [c.form for c, _ in
-                                       make_effect("tube_delay").candidate_forms(ctx)]
-    assert len(forms[False]) > 1 and forms[True] == forms[False][:1]
+        ctx = candidate_context(fit, "tube_delay", {"best_term_start": None}, rig,
+                                line_form=line_form)
+        return [c.form for c, _ in make_effect("tube_delay").candidate_forms(ctx)]
+
+    assert proposed(None, "line") == ["transport", "line"]
+    assert proposed("one", "line") == ["transport"]
+    assert proposed("pressure_relaxation", "wave") == ["transport", "wave"]
+    assert proposed("inlet_flow", "wave") == ["transport"]
 
 
 # ---------------------------------------------------------------- the command's direction

@@ -30,8 +30,8 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
     """What the named group's effect needs to propose its candidates beside ``fit``."""
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
-    if not all(e.beside_line for e in fit.model.effects):
-        line_segments = 0  # the simulator cannot carry a line beside one of them
+    if not all(e.beside_tube(line_form) for e in fit.model.effects):
+        line_segments = 0  # the simulator cannot carry the tube's line beside one of them
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
                             term_start=evidence.get("best_term_start"),
                             second_state_free=not taken, line_segments=line_segments,

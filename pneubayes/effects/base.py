@@ -176,6 +176,12 @@ class Effect(Component):
     #: (the loop then proposes no line form beside it).
     beside_line: ClassVar[bool] = True
 
+    def beside_tube(self, form: str) -> bool:
+        """Whether the simulator carries this effect beside a tube simulated as ``form``
+        (``"line"``: an acoustic line; ``"wave"``: the transmission-line tube); by
+        default :attr:`beside_line` for both."""
+        return self.beside_line
+
     def _check(self):
         """Raise ValueError unless the effect's options are valid: its ``form`` one of
         :attr:`forms` (an effect with more options extends this)."""

@@ -34,7 +34,7 @@ from typing import ClassVar
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
-from pneubayes.effects.closure_features import Term, feature, parse_terms
+from pneubayes.effects.closure_features import Term, feature, parse_terms, reads_ports
 from pneubayes.effects.path import CLOSURE_MAX_TERMS
 from pneubayes.rig import Rig
 
@@ -96,6 +96,11 @@ class Closure(Effect):
     #: the simulator refuses a closure beside a tube's acoustic line (and the loop then
     #: proposes the tube's plain delay beside it)
     beside_line = False
+
+    def beside_tube(self, form: str) -> bool:
+        """Beside the wave tube when no term reads the valve's ports (which the tube puts
+        at its far end); never beside the acoustic line."""
+        return form == "wave" and not reads_ports(self.term_list())
 
     def __init__(self, terms: str = "one"):
         if not isinstance(terms, str):

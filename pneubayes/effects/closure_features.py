@@ -135,6 +135,12 @@ FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
 #: a line (``tube_delay`` form ``"wave"``) the valve sits at the tube's far end and the
 #: chamber's port flow is the tube's: a closure there may read every other feature.
 PORT_FEATURES: frozenset[str] = frozenset(f.name for f in FEATURES if f.port)
+
+
+def reads_ports(terms) -> bool:
+    """Whether any of ``terms`` (:class:`Term`) reads a feature of the valve's ports
+    (:data:`PORT_FEATURES`)."""
+    return any(name in PORT_FEATURES for t in terms for name in (t.a, t.b))
 #: Most terms one closure holds (the compiled simulator's slots).
 CLOSURE_MAX_TERMS = 4
 

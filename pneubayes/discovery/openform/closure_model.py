@@ -13,7 +13,7 @@ import numpy as np
 from pneubayes.discovery.openform.features import HINGE_SOURCES, hinge_source_values
 from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
-from pneubayes.effects.closure_features import PORT_FEATURES
+from pneubayes.effects.closure_features import reads_ports
 from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
 
@@ -150,12 +150,6 @@ def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
 #: the chamber's right-hand side, beside which the compiled simulator refuses a
 #: closure) and the wave tube (beside which a closure may read no port of the valve).
 _LINE_SLOTS = ("line_length_m", "wave_length_m")
-
-
-def reads_ports(terms) -> bool:
-    """Whether any of ``terms`` (:class:`~pneubayes.effects.closure_features.Term`) reads
-    a feature of the valve's ports (:data:`PORT_FEATURES`)."""
-    return any(name in PORT_FEATURES for t in terms for name in (t.a, t.b))
 
 
 def beside_closure(model, params: dict, rig, terms=None):
