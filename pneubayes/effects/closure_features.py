@@ -141,6 +141,8 @@ def reads_ports(terms) -> bool:
     """Whether any of ``terms`` (:class:`Term`) reads a feature of the valve's ports
     (:data:`PORT_FEATURES`)."""
     return any(name in PORT_FEATURES for t in terms for name in (t.a, t.b))
+
+
 #: Most terms one closure holds (the compiled simulator's slots).
 CLOSURE_MAX_TERMS = 4
 

@@ -32,6 +32,8 @@ from pneubayes.simulation.phi import phi123
 # against the tolerance). 0.3 ran 20-25 % faster on a moving piston at errors up to
 # 1.7 x larger (benchmarks/README.md).
 CHORD_ERROR_WEIGHT = 1.0
+#: The first-same-as-last cache of :func:`start_rates` when it holds nothing.
+NO_REUSE = (False, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -57,7 +57,12 @@ from pneubayes.physics.calibration import (
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
 from pneubayes.simulation.chamber import net_port_flow, rigid_chamber
-from pneubayes.simulation.chamber_step import chamber_step, chord_corrected, start_rates
+from pneubayes.simulation.chamber_step import (
+    NO_REUSE,
+    chamber_step,
+    chord_corrected,
+    start_rates,
+)
 from pneubayes.simulation.chord import position_at
 from pneubayes.simulation.dense import dense_run, dense_samples
 from pneubayes.simulation.inputs import command_hold, delayed_command, input_segment
@@ -175,10 +180,6 @@ _TAB_MAX = TABLE_MAX_POINTS
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
-
-
-#: The first-same-as-last cache when empty (:func:`~pneubayes.simulation.chamber_step.start_rates`).
-NO_REUSE = (False, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -188,7 +188,7 @@ _GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
 
 
 #: The closure's feature codes that read the valve's ports at the chamber, and the slots
-#: of its terms' features.
+#: of its terms' features (term k's at columns 2k and 2k + 1).
 _PORT_CODES = {f.code: f.name for f in FEATURES if f.port}
 _CLOSURE_FEATURE_SLOTS = np.array([SLOT_INDEX[f"closure_feature_{side}_{k}"]
                                    for k in range(CLOSURE_MAX_TERMS) for side in "ab"])
@@ -197,18 +197,18 @@ _CLOSURE_FEATURE_SLOTS = np.array([SLOT_INDEX[f"closure_feature_{side}_{k}"]
 def _check_closure_beside_wave(slots: np.ndarray, rows: np.ndarray) -> None:
     """Raise where a closure beside the wave tube (parameter sets ``rows``) reads the
     valve's ports, which the tube puts at its far end."""
-    n_terms = slots[rows, SLOT_INDEX["closure_terms"]]
     codes = slots[np.ix_(rows, _CLOSURE_FEATURE_SLOTS)]
-    for r in range(codes.shape[0]):
-        for j in range(2 * int(n_terms[r])):
-            name = _PORT_CODES.get(int(codes[r, j]))
-            if name is not None:
-                raise ValueError(
-                    f"an open-form closure beside the wave tube (tube_delay form 'wave') "
-                    f"reads feature {name!r} (term {j // 2}): the valve's ports sit at the "
-                    "tube's far end, where the chamber does not see them; a closure there "
-                    "may read the features that are not ports "
-                    "(pneubayes.effects.closure_features.PORT_FEATURES)")
+    used = (np.arange(_CLOSURE_FEATURE_SLOTS.size)[None, :] // 2
+            < slots[rows, SLOT_INDEX["closure_terms"]][:, None])
+    hit = used & np.isin(codes, list(_PORT_CODES))
+    if hit.any():
+        r, j = np.argwhere(hit)[0]
+        raise ValueError(
+            f"an open-form closure beside the wave tube (tube_delay form 'wave') reads "
+            f"feature {_PORT_CODES[int(codes[r, j])]!r} (term {j // 2}): the valve's ports "
+            "sit at the tube's far end, where the chamber does not see them; a closure "
+            "there may read the features that are not ports "
+            "(pneubayes.effects.closure_features.PORT_FEATURES)")
 
 
 def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
