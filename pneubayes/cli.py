@@ -668,7 +668,7 @@ def cmd_track(args) -> int:
     from pneubayes.model import Model
 
     model, _ = Model.load_card(run / "model.json")
-    for name in args.vary:
+    for name in args.vary if args.method == "particles" else ():
         if name in model.parameter_names and not model.parameter(name).lower > 0:
             raise PneubayesError(f"--vary {name}: its lower bound is "
                                  f"{model.parameter(name).lower:g}; the tracker works in log "
@@ -681,7 +681,10 @@ def cmd_track(args) -> int:
                   tracker_options={"lookback_s": args.lookback, "temper": args.temper,
                                    "memory_s": args.lookback,
                                    "update_mode": args.update_mode,
-                                   "pressure_gain": args.pressure_gain})
+                                   "pressure_gain": args.pressure_gain},
+                  method=args.method,
+                  refit_options={"relative_sd": args.relative_sd,
+                                 "refit_every_s": args.refit_every or horizon})
     def fmt(v):
         return "n/a" if v is None else f"{v:.0f} Pa"
     cov, ccov = s["coverage_90"], s["conformal_coverage_90"]

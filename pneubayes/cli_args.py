@@ -477,17 +477,29 @@ def _add_track(sub) -> None:
     t = sub.add_parser(
         "track", help="replay a recording as a stream: the varying quantities' posterior "
                       "tick by tick and its predictions",
-        description="A particle filter (pneubayes.inference.online) over the quantities "
-                    "--vary names, the model's others at the run's values, takes the "
-                    "recording one --tick at a time; per tick OUT.json records their "
+        description="A particle filter (pneubayes.inference.online; --method particles) "
+                    "or a refit of the run so far anchored at the run's values "
+                    "(pneubayes.inference.online_refit; --method refit) over the "
+                    "quantities --vary names, the model's others at the run's values, "
+                    "takes the recording one --tick at a time; per tick OUT.json records their "
                     "5/50/95 % quantiles and the error of the --horizon prediction from "
                     "the measured pressure (online and the frozen fit's) with the 90 % "
                     "band's coverage. Nothing is written over an input.")
     t.add_argument("run", help="run folder with a model.json ('pneubayes fit' or 'discover')")
     t.add_argument("recording", help="recording .csv/.json path or stem")
     t.add_argument("--vary", type=_names, required=True, metavar="NAME[,NAME]",
-                   help="the quantities tracked (model parameter names with a lower bound "
-                        "> 0, e.g. lung_compliance_m3_per_Pa,resistance_Pa_s_per_m3)")
+                   help="the quantities tracked (model parameter names, e.g. "
+                        "lung_compliance_m3_per_Pa,resistance_Pa_s_per_m3; particles: with "
+                        "a lower bound > 0)")
+    t.add_argument("--method", choices=("particles", "refit"), default="particles",
+                   help="particles (default): a particle filter over --vary; refit: "
+                        "--vary refitted on the run so far every --refit-every seconds, "
+                        "anchored at the run's values (a Gaussian prior of SD "
+                        "--relative-sd of each quantity's scale), its posterior Laplace")
+    t.add_argument("--relative-sd", type=POSITIVE, default=0.3,
+                   help="refit: the anchor's SD as a fraction of each quantity's scale (0.3)")
+    t.add_argument("--refit-every", type=POSITIVE, default=None, metavar="S",
+                   help="refit: seconds of new samples between refits (default: --horizon)")
     t.add_argument("--out", required=True, help="output JSON")
     t.add_argument("--tick", type=POSITIVE, default=0.1,
                    help="seconds of samples per update (0.1)")

@@ -243,6 +243,33 @@ def test_track_command_writes_ticks_and_refuses_to_overwrite(bench_run, tmp_path
     assert q[0] <= truth * 1.2 and q[2] >= truth / 1.2
 
 
+def test_track_refit_method_finds_a_moved_quantity_and_records_its_knobs(
+        bench_run, tmp_path):
+    # the run's card with the dead volume 1.6 x the recording's truth: the anchored
+    # refit (wide anchor) finds the truth within the run, the frozen fit predicts worse
+    rec, run = bench_run
+    moved = tmp_path / "run"
+    moved.mkdir()
+    card = json.loads((run / "model.json").read_text())
+    truth = card["parameters"]["dead_volume_m3"]
+    card["parameters"]["dead_volume_m3"] = 1.6 * truth
+    (moved / "model.json").write_text(json.dumps(card))
+    out = tmp_path / "refit.json"
+    assert main(["track", str(moved), str(rec), "--vary", "dead_volume_m3", "--out",
+                 str(out), "--noise-std", "2000", "--tick", "0.1", "--horizon", "0.5",
+                 "--draws", "16", "--predict-every", "5", "--method", "refit",
+                 "--relative-sd", "1", "--refit-every", "0.5"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["settings"]["method"] == "refit"
+    assert doc["settings"]["refit"]["relative_sd"] == 1.0
+    assert doc["settings"]["refit"]["refit_every_s"] == 0.5
+    q = doc["final_quantiles"]["dead_volume_m3"]
+    assert q[0] <= truth * 1.1 and q[2] >= truth / 1.1 and q[0] < q[1] < q[2]
+    s = doc["summary"]
+    assert s["online_rmse_Pa"] < 0.5 * s["frozen_rmse_Pa"], s
+    assert all(r["ess"] is None for r in doc["ticks"])
+
+
 @pytest.mark.parametrize("extra, says", [
     (["--vary", "no_such_quantity"], "--vary"),
     (["--vary", "inlet_offset_m2"], "lower bound"),

@@ -27,6 +27,9 @@ coordinates).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import optimize
 
@@ -39,6 +42,55 @@ from pneubayes.simulation import SolverConfig
 #: Residual (Pa) returned for a trial point that does not simulate: far above any real
 #: prediction error, so least squares never accepts the step.
 FAILED_RESIDUAL_PA = 1e7
+
+
+@dataclass(frozen=True)
+class GaussianAnchor:
+    """A Gaussian prior on free parameters, added to the least squares as rows.
+
+    Each named parameter gets the row ``error_Pa (theta - mean) / sd``, so the fit
+    minimises ``sum r^2 + error_Pa^2 sum ((theta - mean) / sd)^2``: the posterior mode
+    when the window residuals ``r`` (Pa) are Gaussian with the scale ``error_Pa``.
+    ``mean`` and ``sd`` map parameter names to values in the parameters' units (``sd`` >
+    0); a free parameter absent from ``sd`` has no prior row. Residuals within a window
+    are correlated, so ``error_Pa`` above their RMSE weighs the data as the fewer
+    independent samples they are. A free dead volume's row is on the chamber's own
+    volume (the coordinate the refiner moves), its mean shifted by what the effects
+    take at ``mean``.
+    """
+
+    mean: Mapping[str, float]
+    sd: Mapping[str, float]
+    error_Pa: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.error_Pa) and self.error_Pa > 0):
+            raise ValueError(f"GaussianAnchor: error_Pa must be > 0, got {self.error_Pa!r}")
+        bad = [n for n, v in self.sd.items() if not (np.isfinite(v) and v > 0)]
+        if bad:
+            raise ValueError(f"GaussianAnchor: sd must be > 0 and finite, not for {bad}")
+        missing = [n for n in self.sd if n not in self.mean]
+        if missing:
+            raise ValueError(f"GaussianAnchor: no mean for {missing}")
+
+    @classmethod
+    def relative(cls, model: Model, params: Mapping[str, float], names, relative_sd: float,
+                 error_Pa: float) -> "GaussianAnchor":
+        """Centred on ``params`` with ``sd = relative_sd x`` each parameter's scale (its
+        magnitude, or 1 % of its bounds' width where larger: the refiner's own scale)."""
+        if not (np.isfinite(relative_sd) and relative_sd > 0):
+            raise ValueError(f"relative_sd must be > 0, got {relative_sd!r}")
+        theta = model.vector(params)
+        lo, hi = model.bounds
+        scale = np.maximum(np.abs(theta), 1e-2 * (hi - lo))
+        all_names = list(model.parameter_names)
+        unknown = [n for n in names if n not in all_names]
+        if unknown:
+            raise ValueError(f"GaussianAnchor.relative: {unknown} are not parameters of "
+                             f"{model}")
+        return cls({n: float(params[n]) for n in names},
+                   {n: float(relative_sd * scale[all_names.index(n)]) for n in names},
+                   float(error_Pa))
 
 
 def _volume_taken(model: Model, rig):
@@ -106,29 +158,31 @@ class TrajectoryRefiner:
         region already has, so k - 1 of k accepted points cost no extra simulation. The
         information and covariance are always from a finite-difference Jacobian.
     uncertainty : bool
-        Take the information and covariance at the fitted point (a finite-difference
-        Jacobian there: one batched call of a simulation per free parameter, unless the
-        last one was taken there); False: both None, for a caller that needs only the
-        fit.
+        Take the information and covariance at the fitted point (one batched call of a
+        simulation per free parameter, unless the last Jacobian was taken there);
+        False: both None, for a caller that needs only the fit.
     xtol, ftol : float
-        The trust region's stopping tolerances (scipy's ``least_squares``, in the scaled
+        The trust region's stopping tolerances (scipy's ``least_squares``, scaled
         coordinates): a step under ``xtol`` relative to the point, or a predicted and an
         actual fall of the cost both under ``ftol`` relative to it, ends the fit.
-        Defaults 1e-8 and 1e-10 (scipy's own: 1e-8 each), the values every fit has used.
+    anchor : GaussianAnchor or None
+        A Gaussian prior (rows of the least squares): the fit is its posterior mode.
 
     After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
     ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
     ``covariance_``, its pseudo-inverse (the Laplace covariance; both None without
-    ``uncertainty``); ``rmse_Pa_``;
-    ``rmse_trace_``, the RMSE (Pa) of every point simulated, in order (the trust
-    region's rejected trials too; points that failed to simulate left out);
-    ``success_``: False when the evaluation budget ended the fit.
+    ``uncertainty``; with an anchor, the information at ``anchor.error_Pa`` and the
+    covariance with the anchor's precision added); ``rmse_Pa_``;
+    ``rmse_trace_``, the RMSE (Pa) of every point simulated, in order (rejected trials
+    too, failed ones left out); ``success_``: False when the budget ended the fit.
     """
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
                  stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
                  max_nfev: int = 60, jacobian_refresh: int = 1, uncertainty: bool = True,
-                 xtol: float = 1e-8, ftol: float = 1e-10):
+                 xtol: float = 1e-8, ftol: float = 1e-10, anchor: GaussianAnchor | None = None):
+        if anchor is not None and not isinstance(anchor, GaussianAnchor):
+            raise TypeError(f"anchor must be a GaussianAnchor or None, got {anchor!r}")
         if int(jacobian_refresh) != jacobian_refresh or jacobian_refresh < 1:
             raise ValueError(f"jacobian_refresh must be an integer >= 1, got "
                              f"{jacobian_refresh!r}")
@@ -146,6 +200,7 @@ class TrajectoryRefiner:
         self.uncertainty = uncertainty
         self.xtol = float(xtol)
         self.ftol = float(ftol)
+        self.anchor = anchor
 
     def _scales(self, theta0: np.ndarray) -> np.ndarray:
         lo, hi = self.model.bounds
@@ -244,12 +299,26 @@ class TrajectoryRefiner:
             last.update(key=key, x=x.copy(), r=r0, jac=jac, age=age)
             return jac
 
+        w_prior, mu_prior = self._anchor_rows(free, taken, dead, theta0)
+        anchored = np.flatnonzero(w_prior)
+
+        def fun(u):
+            r = residual(u * scale)
+            if not anchored.size:
+                return r
+            return np.concatenate([r, w_prior[anchored] * (u * scale - mu_prior)[anchored]])
+
+        def jac(u):
+            j = jacobian(u * scale) * scale
+            if not anchored.size:
+                return j
+            return np.vstack([j, np.diag(w_prior * scale)[anchored]])
+
         # least squares runs on x / scale, every variable of order 1: scipy's trust region
         # keeps its start strictly feasible with an absolute margin of 1e-10, which for a
         # parameter of order 1e-16 (a laminar leak conductance, kg/(s Pa^2)) moved it to
         # the middle of its bounds before the first evaluation
-        sol = optimize.least_squares(lambda u: residual(u * scale), x0 / scale,
-                                     jac=lambda u: jacobian(u * scale) * scale,
+        sol = optimize.least_squares(fun, x0 / scale, jac=jac,
                                      bounds=(flo / scale, fhi / scale), method="trf",
                                      max_nfev=self.max_nfev, xtol=self.xtol, ftol=self.ftol)
         x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
@@ -261,12 +330,15 @@ class TrajectoryRefiner:
             if dead is not None:  # dr/dtheta = dr/dx dx/dtheta (chamber -> dead volume)
                 jac = jac @ _chamber_map(taken, theta, idx, dead, scale)
             n, p = r.size, idx.size
-            sigma2 = float(r @ r) / max(n - p, 1)
+            sigma2 = (float(r @ r) / max(n - p, 1) if self.anchor is None
+                      else self.anchor.error_Pa ** 2)
             # pseudo-inverse in scaled coordinates: the columns differ by many orders of
             # magnitude (areas ~1e-6 m^2, slopes ~10 /V), and pinv's cut-off is relative
             # to the largest singular value, so unscaled it drops informed directions too
             js = jac * scale
-            self.covariance_ = sigma2 * (scale[:, None] * np.linalg.pinv(js.T @ js)
+            # the prior's precision in the same scaled coordinates (w = error / sd)
+            prior_s = np.diag((w_prior * scale) ** 2)
+            self.covariance_ = sigma2 * (scale[:, None] * np.linalg.pinv(js.T @ js + prior_s)
                                          * scale[None, :])
             self.information_ = (jac.T @ jac) / sigma2
         self.params_ = model.as_dict(theta)
@@ -279,3 +351,26 @@ class TrajectoryRefiner:
         self.success_ = bool(sol.success)
         self.message_ = str(sol.message)
         return self
+
+    def _anchor_rows(self, free, taken, dead, theta0) -> tuple[np.ndarray, np.ndarray]:
+        """The anchor's weights ``error_Pa / sd`` (0: no row) and means, per free
+        parameter in the refiner's coordinates."""
+        w = np.zeros(len(free))
+        mu = np.zeros(len(free))
+        a = self.anchor
+        if a is None:
+            return w, mu
+        unknown = [n for n in a.sd if n not in free]
+        if unknown:
+            raise ValueError(f"anchor: {unknown} are not free parameters of the fit")
+        mean_theta = theta0.copy()
+        names = list(self.model.parameter_names)
+        for n in a.sd:
+            mean_theta[names.index(n)] = float(a.mean[n])
+        for j, n in enumerate(free):
+            if n in a.sd:
+                w[j] = a.error_Pa / float(a.sd[n])
+                mu[j] = float(a.mean[n])
+                if dead is not None and j == dead:
+                    mu[j] -= taken(mean_theta)
+        return w, mu

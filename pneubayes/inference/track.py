@@ -1,6 +1,8 @@
-"""Replay a recording as a stream through an :class:`~pneubayes.inference.online.OnlineTracker`
-(``pneubayes track``): per tick the varying quantities' quantiles and the error of the
-prediction ``horizon_s`` ahead from the measured pressure, next to the frozen fit's.
+"""Replay a recording as a stream (``pneubayes track``) through an
+:class:`~pneubayes.inference.online.OnlineTracker` (particles) or an
+:class:`~pneubayes.inference.online_refit.OnlineRefit` (the run so far refitted,
+anchored): per tick the varying quantities' quantiles and the error of the prediction
+``horizon_s`` ahead from the measured pressure, next to the frozen fit's.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.conformal import OnlineConformalBand
 from pneubayes.inference.fit_folder import card_preparation
 from pneubayes.inference.online import OnlineTracker, forecast
+from pneubayes.inference.online_refit import OnlineRefit
 from pneubayes.inference.population import LogNormalPrior, LogUniformPrior
 from pneubayes.io.plausibility import recorded_findings
 from pneubayes.io.preprocess import prepare_recording
@@ -20,16 +23,20 @@ from pneubayes.model import Model
 from pneubayes.run_folder import recorded_number
 from pneubayes.simulation import Inputs, SolverConfig
 
+#: ``pneubayes track``'s methods: the particle filter, or the anchored refit
+METHODS = ("particles", "refit")
 
-def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
+
+def replay(tracker: OnlineTracker | OnlineRefit, recording, horizon_s: float, tick_s: float,
            n_draws: int, rng: np.random.Generator, predict_every: int = 1,
            frozen=None) -> list[dict]:
     """Feed ``recording`` to ``tracker`` one tick of ``tick_s`` at a time.
 
     Parameters
     ----------
-    tracker : OnlineTracker
-        Already :meth:`~OnlineTracker.reset`.
+    tracker : OnlineTracker or OnlineRefit
+        Already reset. An :class:`OnlineRefit` is given the run up to each tick's last
+        sample (it refits every ``refit_every_s``); its errors' scale is ``error_Pa``.
     recording : Recording
     horizon_s : float
         Length of the predictions, s.
@@ -68,17 +75,21 @@ def replay(tracker: OnlineTracker, recording, horizon_s: float, tick_s: float,
     ue = recording.exhaust_command()
     x, ps = recording.position_or_fixed(), recording.supply_or_nominal()
     rig = recording.rig()
-    sigma = float(tracker.noise_std_Pa)
+    refit = isinstance(tracker, OnlineRefit)
+    sigma = float(tracker.error_Pa if refit else tracker.noise_std_Pa)
     band = OnlineConformalBand(coverage=0.9)
     out = []
     # ticks end on samples 0, m, 2m, ... (the first tick: the first sample alone)
     bounds = [0, *range(1, t.size, m), t.size]
     for j, (k0, k1) in enumerate(zip(bounds[:-1], bounds[1:])):
         c0 = time.perf_counter()
-        tracker.update(t[k0:k1], recording.command_V[k0:k1], p[k0:k1],
-                       None if ue is None else ue[k0:k1], x[k0:k1], ps[k0:k1])
+        if refit:
+            tracker.update(recording.slice(0, k1))
+        else:
+            tracker.update(t[k0:k1], recording.command_V[k0:k1], p[k0:k1],
+                           None if ue is None else ue[k0:k1], x[k0:k1], ps[k0:k1])
         rec = {"time_s": float(t[k1 - 1]), "update_ms": 1e3 * (time.perf_counter() - c0),
-               "ess": tracker.ess_, "quantiles": tracker.quantiles()}
+               "ess": None if refit else tracker.ess_, "quantiles": tracker.quantiles()}
         k = k1 - 1
         band.observe(k, p[:k + 1])
         if j % predict_every == 0 and k + h < t.size and k >= 1:
@@ -122,14 +133,21 @@ def _summary(ticks: list[dict]) -> dict:
 def run_track(run_dir, recording, vary, out_json, *, tick_s: float, horizon_s: float,
               n_particles: int, n_draws: int, seed: int, noise_std_Pa: float | None,
               prior: str, prior_log_sd: float, solver: SolverConfig,
-              predict_every: int = 1, tracker_options=None) -> dict:
+              predict_every: int = 1, tracker_options=None, method: str = "particles",
+              refit_options=None) -> dict:
     """Replay ``recording`` against the model of ``run_dir`` (its ``model.json``) with
     the quantities ``vary`` tracked, the others at the run's values; write the ticks and
     a summary to ``out_json`` (atomically) and return the summary.
 
-    ``prior``: ``"fit"`` (log-normal at the run's values, log-spread ``prior_log_sd``)
-    or ``"bounds"`` (log-uniform over the model's bounds). ``noise_std_Pa`` None: the
-    run's refined RMSE (its ``summary.json`` or ``discovery.json``)."""
+    ``method``: ``"particles"`` (:class:`OnlineTracker`, its options
+    ``tracker_options``) or ``"refit"`` (:class:`OnlineRefit` anchored at the run's
+    values, its options ``refit_options``: ``relative_sd``, ``refit_every_s``,
+    ``max_nfev``). ``prior`` (particles): ``"fit"`` (log-normal at the run's values,
+    log-spread ``prior_log_sd``) or ``"bounds"`` (log-uniform over the model's bounds).
+    ``noise_std_Pa`` None: the run's refined RMSE (its ``summary.json`` or
+    ``discovery.json``), the errors' scale of either method."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     run = Path(run_dir)
     card = Model.read_card(run / "model.json")
     model, params = Model.from_card(card, str(run / "model.json"))
@@ -143,26 +161,33 @@ def run_track(run_dir, recording, vary, out_json, *, tick_s: float, horizon_s: f
                          f"it has {', '.join(model.parameter_names)}")
     if noise_std_Pa is None:
         noise_std_Pa = run_rmse_Pa(run)
-    if prior == "fit":
-        pr = LogNormalPrior(model, names, {n: params[n] for n in names},
-                            {n: prior_log_sd for n in names})
-    else:
-        pr = LogUniformPrior(model, names)
     recording = prepare_recording(recording, card_preparation(card, run / "model.json"))
     rng = np.random.default_rng(seed)
-    tracker = OnlineTracker(model, params, pr, recording.rig(), solver, noise_std_Pa,
-                            n_particles=n_particles, **(tracker_options or {})).reset(rng)
+    settings = {"method": method, "vary": names, "tick_s": tick_s, "horizon_s": horizon_s,
+                "n_draws": n_draws, "seed": seed, "noise_std_Pa": noise_std_Pa,
+                "predict_every": predict_every}
+    if method == "refit":
+        opts = {"refit_every_s": horizon_s, **(refit_options or {})}
+        tracker = OnlineRefit(model, params, names, solver=solver, error_Pa=noise_std_Pa,
+                              horizon_s=horizon_s, **opts).reset()
+        settings["refit"] = {k: getattr(tracker, k) for k in (
+            "relative_sd", "error_Pa", "memory_s", "refit_every_s", "max_nfev")}
+    else:
+        if prior == "fit":
+            pr = LogNormalPrior(model, names, {n: params[n] for n in names},
+                                {n: prior_log_sd for n in names})
+        else:
+            pr = LogUniformPrior(model, names)
+        tracker = OnlineTracker(model, params, pr, recording.rig(), solver, noise_std_Pa,
+                                n_particles=n_particles, **(tracker_options or {})).reset(rng)
+        settings.update(n_particles=n_particles, prior=pr.describe(), tracker={
+            k: getattr(tracker, k) for k in (
+                "lookback_s", "warm_up_windows", "temper", "ess_threshold", "n_moves",
+                "move_scale", "move_floor_log", "memory_s", "history_s", "update_mode",
+                "pressure_gain")})
     ticks = replay(tracker, recording, horizon_s, tick_s, n_draws, rng, predict_every,
                    frozen=model.vector(params))
     summary = _summary(ticks)
-    settings = {"vary": names, "tick_s": tick_s, "horizon_s": horizon_s,
-                "n_particles": n_particles, "n_draws": n_draws, "seed": seed,
-                "noise_std_Pa": noise_std_Pa, "prior": pr.describe(),
-                "predict_every": predict_every,
-                "tracker": {k: getattr(tracker, k) for k in (
-                    "lookback_s", "warm_up_windows", "temper", "ess_threshold", "n_moves",
-                    "move_scale", "move_floor_log", "memory_s", "history_s",
-                    "update_mode", "pressure_gain")}}
     write_json_atomic(out_json, {"run": str(run), "recording": str(recording.source),
                                  "input_findings": recorded_findings([recording]),
                                  "settings": settings, "summary": summary,
