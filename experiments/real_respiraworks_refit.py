@@ -1,0 +1,214 @@
+"""Real recordings: the ventilator's whole card refitted online, anchored (issue 67).
+
+    python experiments/real_respiraworks_refit.py --out results/real_respiraworks_refit
+        [--sets OXY,AIR] [--smoke]
+
+The shipped card (two compartments, the exhale valve on its own command), the split of
+``real_respiraworks.py`` (runs 1-4 train, 5-6 held out) and the protocol of
+``real_respiraworks_online.py``: on each held-out run, at every 2-s window start from
+the run's first ``CAL_S`` s, the next 2 s are predicted from the measured pressure, the
+model brought there by warm-up windows. Per set:
+
+1. *Shared fit*: every quantity refined on the training runs (``shared_fit``).
+2. *Choice of the anchor, on the training runs only*: for each training run, a shared
+   fit of the other three, then :class:`~pneubayes.inference.online_refit.OnlineRefit`
+   through the run (every quantity of the card, refitted at each window start on the
+   run so far, anchored to that shared fit); the anchor's relative SD and error scale
+   (``GRID``) with the lowest error over the four runs are kept, and those runs'
+   prediction errors give the band's scale. The held-out runs choose nothing.
+3. *Held out*: the same through runs 5-6 from the shared fit of runs 1-4, with the
+   chosen anchor; the 90 % band is ``N_DRAWS`` Laplace draws' predictions plus Gaussian
+   errors of the band's scale (seeded). Beside it on the same windows: the set-point,
+   the frozen shared fit, and the same refit without the anchor.
+
+Writes OUT/real_respiraworks_refit.json (atomically, when a set is done; a set already
+in it is not rerun); each anchor's training score is kept in OUT/choice_SET.json as it
+finishes, so a stopped run resumes there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from real_respiraworks import DATA, HELD_OUT, HORIZON_S
+from real_respiraworks_forms import MAX_NFEV, form_card
+from real_respiraworks_online import CMH2O_PA, FORECAST_WARM, TICK_S, rmse, shared_fit, ticks_of
+
+from pneubayes.atomic import write_json_atomic
+from pneubayes.inference.online import forecast
+from pneubayes.inference.online_refit import OnlineRefit
+from pneubayes.inference.pipeline import FitSettings
+from pneubayes.inference.predictive import noise_floor_Pa
+from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.windows import WindowSet
+from pneubayes.io import read_recording
+from pneubayes.model import Model
+from pneubayes.provenance import provenance
+from pneubayes.simulation import Inputs, SolverConfig
+
+SEED = 67
+N_DRAWS = 64
+#: the anchor's relative SD and error scale (Pa) chosen among on the training runs
+GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0)}
+Z90 = 1.6448536269514722
+
+
+def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws=0,
+                band_sd=0.0, rng=None):
+    """Refit through run ``r`` at its protocol windows; per window the errors of the
+    mode's prediction, the set-point's and the frozen fit's, and (with ``draws``) whether
+    each sample lies in the 90 % band and the band's width."""
+    p = np.asarray(r.pressure_Pa, dtype=np.float64)
+    dt = float(np.median(np.diff(r.time_s)))
+    h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
+    _, protocol, _ = ticks_of(r, m, h)
+    inputs = Inputs.from_recording(r)
+    sp = r.extra_columns["pc_setpoint_cmH2O"].astype(float) * CMH2O_PA \
+        + r.metadata.atmospheric_pressure_Pa
+    names = list(model.parameter_names)
+    on = OnlineRefit(model, shared, names, knobs["relative_sd"], knobs["error_Pa"],
+                     solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev).reset()
+    out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
+           "refit_s": []}
+    start = dict(shared)
+    for k in protocol:
+        so_far = r.slice(0, k + 1)
+        if anchored:
+            on.update(so_far)
+            params = on.params_
+            out["refit_s"].append(on.refit_seconds_[-1])
+        else:
+            params = TrajectoryRefiner(model, solver, max_nfev=nfev, uncertainty=False).fit(
+                WindowSet([so_far], HORIZON_S, HORIZON_S), start).params_
+            start = dict(params)
+        y = p[k + 1:k + h + 1]
+        thetas = [model.vector(shared), model.vector(params)]
+        if draws:
+            thetas += list(on.draws(draws, rng))
+        pred = forecast(model, np.stack(thetas), inputs, r.rig(), k, h + 1, p, std,
+                        FORECAST_WARM)[:, 1:]
+        out["frozen"].append(y - pred[0])
+        out["refit"].append(y - pred[1])
+        out["setpoint"].append(y - sp[k + 1:k + h + 1])
+        if draws:
+            sims = pred[2:][np.all(np.isfinite(pred[2:]), axis=1)]
+            sims = sims + rng.normal(0.0, band_sd, sims.shape)
+            lo, hi = np.quantile(sims, [0.05, 0.95], axis=0)
+            out["inside"].append((y >= lo) & (y <= hi))
+            out["width"].append(hi - lo)
+    return out
+
+
+def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
+    card = form_card(kind, "two_compartment", "separate")
+    recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
+    train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
+    held = [r for r in recs if Path(r.source).stem in HELD_OUT]
+    model = Model(rig_card=card)
+    solver = FitSettings().refine_solver
+    std = SolverConfig.standard()
+    nfev = 10 if smoke else MAX_NFEV
+    grid = [{"relative_sd": a, "error_Pa": e} for a in GRID["relative_sd"]
+            for e in GRID["error_Pa"]]
+    if smoke:
+        grid, train = grid[:1], train[:2]
+    # the choice: each training run through from the shared fit of the other three
+    loo = {}
+    for i, r in enumerate(train):
+        others = [x for j, x in enumerate(train) if j != i]
+        loo[i] = shared_fit(kind, card, others, solver,
+                            out / f"shared_{kind}_without_{Path(r.source).stem}.json", nfev,
+                            log)
+    # each anchor's score is kept as it finishes (a rerun or a resumed run reads it)
+    cache = out / f"choice_{kind}.json"
+    key = json.dumps({"card": card.to_dict(), "max_nfev": nfev, "smoke": smoke},
+                     sort_keys=True)
+    done = json.loads(cache.read_text()) if cache.exists() else {}
+    if done.get("key") != key:
+        done = {"key": key, "scores": {}}
+    scores = []
+    for knobs in grid:
+        name = json.dumps(knobs, sort_keys=True)
+        if name not in done["scores"]:
+            t0 = time.perf_counter()
+            errs = [through_run(model, loo[i], r, knobs, solver, std, nfev)["refit"]
+                    for i, r in enumerate(train)]
+            done["scores"][name] = rmse([e for run in errs for e in run])
+            write_json_atomic(cache, done)
+            log(f"[{kind}] training runs, anchor {knobs}: {done['scores'][name]:.0f} Pa "
+                f"({time.perf_counter() - t0:.0f} s)")
+        scores.append(done["scores"][name])
+    chosen = grid[int(np.argmin(scores))]
+    band_sd = float(min(scores))
+    shared = shared_fit(kind, card, train, solver, out / f"shared_{kind}.json", nfev, log)
+    rng = np.random.default_rng([SEED, ord(kind[0])])
+    res = {"chosen": chosen, "band_sd_Pa": band_sd,
+           "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": s} for k, s in zip(grid, scores)],
+           "noise_floor_Pa": noise_floor_Pa(recs)}
+    runs = [through_run(model, shared, r, chosen, solver, std, nfev, draws=N_DRAWS,
+                        band_sd=band_sd, rng=rng) for r in held]
+    free = [through_run(model, shared, r, chosen, solver, std, nfev, anchored=False)
+            for r in held]
+
+    def pooled(key, source=runs):
+        return rmse([e for run in source for e in run[key]])
+
+    res["protocol_rmse_Pa"] = {"setpoint": pooled("setpoint"), "frozen": pooled("frozen"),
+                               "online_refit": pooled("refit"),
+                               "refit_without_anchor": pooled("refit", free)}
+    res["online_over_setpoint"] = res["protocol_rmse_Pa"]["online_refit"] / pooled("setpoint")
+    res["per_window_online_rmse_Pa"] = [rmse([e]) for run in runs for e in run["refit"]]
+    res["per_window_without_anchor_rmse_Pa"] = [rmse([e]) for run in free for e in run["refit"]]
+    res["coverage_90"] = float(np.mean(np.concatenate([x for run in runs
+                                                        for x in run["inside"]])))
+    res["band_90_median_width_Pa"] = float(np.median(np.concatenate(
+        [x for run in runs for x in run["width"]])))
+    secs = np.array([s for run in runs for s in run["refit_s"]])
+    res["refit_seconds"] = {"median": float(np.median(secs)), "max": float(secs.max()),
+                            "n": int(secs.size)}
+    res["n_windows"] = len(res["per_window_online_rmse_Pa"])
+    pr = res["protocol_rmse_Pa"]
+    log(f"[{kind}] held out ({res['n_windows']} windows): set-point {pr['setpoint']:.0f}, "
+        f"frozen {pr['frozen']:.0f}, online refit {pr['online_refit']:.0f} "
+        f"({res['online_over_setpoint']:.2f} x the set-point), without the anchor "
+        f"{pr['refit_without_anchor']:.0f} Pa; 90 % band covers {res['coverage_90']:.2f} at "
+        f"{res['band_90_median_width_Pa']:.0f} Pa; refit {res['refit_seconds']['median']:.2f} s "
+        f"median")
+    return res
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--sets", default="OXY,AIR")
+    ap.add_argument("--smoke", action="store_true", help="one anchor, two runs, 10 "
+                    "evaluations (a check that it runs)")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "real_respiraworks_refit.json"
+    doc = json.loads(path.read_text()) if path.exists() else {"sets": {}}
+    if doc.get("smoke", args.smoke) != args.smoke:
+        raise SystemExit(f"{path}: written with --smoke={doc['smoke']}; use another --out")
+
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    for kind in args.sets.split(","):
+        if kind in doc["sets"]:
+            log(f"[{kind}] done already in {path}")
+            continue
+        doc["sets"][kind] = run_set(kind, out, args.smoke, log)
+        doc.update(seed=SEED, smoke=args.smoke, grid=GRID, n_draws=N_DRAWS,
+                   provenance=provenance())
+        write_json_atomic(path, doc)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
