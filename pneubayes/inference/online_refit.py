@@ -34,6 +34,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from pneubayes.inference.flow_channels import flow_rows
 from pneubayes.inference.predictive import PressurePredictor
 from pneubayes.inference.refine import GaussianAnchor, TrajectoryRefiner
 from pneubayes.inference.windows import WindowSet
@@ -64,6 +65,9 @@ class OnlineRefit:
         :meth:`update` refits when this much of the run is new since the last refit.
     max_nfev : int
         The refit's budget of simulations.
+    channels : sequence of FlowChannel
+        Measured port flows (:mod:`~pneubayes.inference.flow_channels`) scored beside
+        the pressure (none: the pressure alone).
 
     Attributes
     ----------
@@ -79,7 +83,7 @@ class OnlineRefit:
     def __init__(self, model: Model, params: Mapping[str, float], names: Sequence[str],
                  relative_sd: float, error_Pa: float, solver: SolverConfig,
                  horizon_s: float = 2.0, memory_s: float | None = None,
-                 refit_every_s: float = 2.0, max_nfev: int = 100):
+                 refit_every_s: float = 2.0, max_nfev: int = 100, channels=()):
         self.model = model
         self.params = dict(params)
         self.names = tuple(names)
@@ -90,6 +94,7 @@ class OnlineRefit:
         self.memory_s = memory_s
         self.refit_every_s = refit_every_s
         self.max_nfev = max_nfev
+        self.channels = tuple(channels)
 
     def reset(self) -> "OnlineRefit":
         """Check the arguments; the posterior is the prior (the shared fit)."""
@@ -131,8 +136,13 @@ class OnlineRefit:
         if self.memory_s is not None and now - t[0] > self.memory_s:
             rec = recording.slice(int(np.searchsorted(t, now - self.memory_s)), None)
         started = time.perf_counter()
+        extra = None
+        if self.channels:
+            def extra(theta, rec=rec):
+                return flow_rows(self.model, theta, rec, self.channels)
         fit = TrajectoryRefiner(self.model, self.solver, free=self.names,
-                                max_nfev=self.max_nfev, anchor=self.anchor_).fit(
+                                max_nfev=self.max_nfev, anchor=self.anchor_,
+                                extra_residuals=extra).fit(
             WindowSet([rec], self.horizon_s, self.horizon_s), self.params_)
         self.refit_seconds_.append(time.perf_counter() - started)
         self.params_ = dict(fit.params_)

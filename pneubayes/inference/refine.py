@@ -147,16 +147,13 @@ class TrajectoryRefiner:
         Prediction windows (2 s, non-overlapping in the paper's metric).
     free : sequence of str or None
         Parameters to fit (default: all); the others stay at their start values.
-    relative_step : float
-        Finite-difference step relative to each parameter's scale.
-    max_nfev : int
-        Budget of residual evaluations (each Jacobian is one more batched call).
+    relative_step, max_nfev : float, int
+        Finite-difference step relative to each parameter's scale; budget of residual
+        evaluations (each Jacobian is one more batched call).
     jacobian_refresh : int
-        Accepted points per finite-difference Jacobian: 1 takes it at every accepted
-        point; k > 1 takes it at every k-th and updates it between by Broyden's rank-1
-        secant (in the scaled coordinates; Broyden 1965), from the residuals the trust
-        region already has, so k - 1 of k accepted points cost no extra simulation. The
-        information and covariance are always from a finite-difference Jacobian.
+        Accepted points per finite-difference Jacobian: k > 1 updates it between by
+        Broyden's rank-1 secant (scaled coordinates; Broyden 1965) from the residuals
+        the trust region has (the information and covariance: always differences).
     uncertainty : bool
         Take the information and covariance at the fitted point (one batched call of a
         simulation per free parameter, unless the last Jacobian was taken there);
@@ -167,6 +164,9 @@ class TrajectoryRefiner:
         actual fall of the cost both under ``ftol`` relative to it, ends the fit.
     anchor : GaussianAnchor or None
         A Gaussian prior (rows of the least squares): the fit is its posterior mode.
+    extra_residuals : callable or None
+        ``f(theta (B, P)) -> (B, M)`` more residual rows, Pa-equivalent (e.g. measured
+        flows, :func:`~pneubayes.inference.flow_channels.flow_rows`); not in ``rmse_Pa_``.
 
     After ``fit``: ``params_``; ``information_``, the Gauss-Newton Fisher information
     ``J^T J / sigma^2`` of the free parameters at ``params_`` (natural units), and
@@ -180,7 +180,10 @@ class TrajectoryRefiner:
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
                  stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
                  max_nfev: int = 60, jacobian_refresh: int = 1, uncertainty: bool = True,
-                 xtol: float = 1e-8, ftol: float = 1e-10, anchor: GaussianAnchor | None = None):
+                 xtol: float = 1e-8, ftol: float = 1e-10, anchor: GaussianAnchor | None = None,
+                 extra_residuals=None):
+        if extra_residuals is not None and not callable(extra_residuals):
+            raise TypeError("extra_residuals must be a callable or None")
         if anchor is not None and not isinstance(anchor, GaussianAnchor):
             raise TypeError(f"anchor must be a GaussianAnchor or None, got {anchor!r}")
         if int(jacobian_refresh) != jacobian_refresh or jacobian_refresh < 1:
@@ -201,6 +204,7 @@ class TrajectoryRefiner:
         self.xtol = float(xtol)
         self.ftol = float(ftol)
         self.anchor = anchor
+        self.extra_residuals = extra_residuals
 
     def _scales(self, theta0: np.ndarray) -> np.ndarray:
         lo, hi = self.model.bounds
@@ -301,15 +305,34 @@ class TrajectoryRefiner:
 
         w_prior, mu_prior = self._anchor_rows(free, taken, dead, theta0)
         anchored = np.flatnonzero(w_prior)
+        extra = self.extra_residuals
+
+        def extra_rows(x):
+            return extra(full(x)[None])[0]
+
+        def extra_jacobian(x):
+            # forward differences, the perturbed sets in one call (numpy, no simulation)
+            steps = self.relative_step * scale
+            steps = np.where(x + steps > fhi, -steps, steps)
+            rows = []
+            for j in range(x.size):
+                xj = x.copy()
+                xj[j] += steps[j]
+                rows.append(full(xj))
+            return (extra(np.array(rows)) - extra_rows(x)).T / steps
 
         def fun(u):
             r = residual(u * scale)
+            if extra is not None:
+                r = np.concatenate([r, extra_rows(u * scale)])
             if not anchored.size:
                 return r
             return np.concatenate([r, w_prior[anchored] * (u * scale - mu_prior)[anchored]])
 
         def jac(u):
             j = jacobian(u * scale) * scale
+            if extra is not None:
+                j = np.vstack([j, extra_jacobian(u * scale) * scale])
             if not anchored.size:
                 return j
             return np.vstack([j, np.diag(w_prior * scale)[anchored]])
@@ -327,6 +350,8 @@ class TrajectoryRefiner:
         self.covariance_ = self.information_ = None
         if self.uncertainty:
             jac = jacobian(x_sol, fresh=True)
+            if extra is not None:
+                jac = np.vstack([jac, extra_jacobian(x_sol)])
             if dead is not None:  # dr/dtheta = dr/dx dx/dtheta (chamber -> dead volume)
                 jac = jac @ _chamber_map(taken, theta, idx, dead, scale)
             n, p = r.size, idx.size
