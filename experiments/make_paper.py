@@ -693,6 +693,15 @@ def _refit_paragraph(path: Path) -> list[str]:
                     f"{pr['online_refit'] / s['noise_floor_Pa']:.0f} | "
                     f"{pr['refit_without_anchor']:.0f} | {s['coverage_90']:.2f} | "
                     f"{s['band_90_median_width_Pa']:.0f} | {s['refit_seconds']['median']:.2f} |")
+        fl = s.get("flows")
+        if fl:
+            rows.append(f"| {kind}, + measured flows ({fl['chosen']['flow_weight_Pa']:g} Pa "
+                        f"per unit) | {ch['relative_sd']:g}, {ch['error_Pa']:g} Pa | "
+                        f"{fl['band_sd_Pa']:.0f} | {pr['setpoint']:.0f} | {pr['frozen']:.0f} | "
+                        f"{fl['protocol_rmse_Pa']:.0f} | {fl['online_over_setpoint']:.2f} | "
+                        f"{fl['protocol_rmse_Pa'] / s['noise_floor_Pa']:.0f} | - | "
+                        f"{fl['coverage_90']:.2f} | {fl['band_90_median_width_Pa']:.0f} | "
+                        f"{fl['refit_seconds_median']:.2f} |")
     worst = {kind: sorted(s["per_window_online_rmse_Pa"])[-3:] for kind, s in r["sets"].items()}
     met = [k for k, s in r["sets"].items() if s["online_over_setpoint"] <= 0.5]
     missed = [k for k in r["sets"] if k not in met]
@@ -709,8 +718,13 @@ def _refit_paragraph(path: Path) -> list[str]:
             f"relative SD {', '.join(f'{v:g}' for v in r['grid']['relative_sd'])}, error "
             f"scale {', '.join(f'{v:g}' for v in r['grid']['error_Pa'])} Pa), and the band "
             "adds Gaussian errors of the chosen anchor's error on those runs to "
-            f"{r['n_draws']} posterior draws' predictions. Runs 5-6, the "
-            "protocol's windows:")
+            f"{r['n_draws']} posterior draws' predictions. "
+            + ("With the measured flows: the venturis' differential pressures "
+               "(`dp_inhale`, `dp_exhale`, uncalibrated) scored beside the pressure "
+               "(`FlowChannel`, law offset + gain q^2 with both refitted), their weight "
+               f"chosen on runs 1-4 among {', '.join(f'{w:g}' for w in r['flow_weights'])} "
+               "Pa per unit at the chosen anchor. " if "flow_weights" in r else "")
+            + "Runs 5-6, the protocol's windows:")
     after = [f"Measured: at most 0.5 x the set-point baseline on "
              f"{', '.join(met) or 'no set'}"
              + (f"; not on {', '.join(missed)}" if missed else "") + ". The three worst "
@@ -718,6 +732,17 @@ def _refit_paragraph(path: Path) -> list[str]:
                                           for k, v in worst.items())
              + ". The error is still misfit (x noise above), and the band's coverage is "
              "that of a band whose width the training runs' errors set."]
+    flows = {k: s["flows"] for k, s in r["sets"].items() if s.get("flows")}
+    if flows:
+        after.append("With the measured flows at the weight runs 1-4 chose: "
+                     + "; ".join(f"{k} {f['protocol_rmse_Pa']:.0f} Pa against "
+                                 f"{r['sets'][k]['protocol_rmse_Pa']['online_refit']:.0f} "
+                                 "without" for k, f in flows.items())
+                     + "; on runs 1-4 the larger weights scored "
+                     + "; ".join(f"{k} " + ", ".join(
+                         f"{x['rmse_Pa']:.0f}" for x in f["training_runs_rmse_Pa"])
+                         + " Pa" for k, f in flows.items()) + " (in the order of the "
+                     "weights).")
     return ["", text, "", *rows, "", " ".join(after), ""]
 
 

@@ -20,6 +20,10 @@ model brought there by warm-up windows. Per set:
    chosen anchor; the 90 % band is ``N_DRAWS`` Laplace draws' predictions plus Gaussian
    errors of the band's scale (seeded). Beside it on the same windows: the set-point,
    the frozen shared fit, and the same refit without the anchor.
+4. *The measured flows*: the venturis' differential pressures (``dp_inhale``,
+   ``dp_exhale``; uncalibrated, ``FlowChannel`` law ``square``) beside the pressure in
+   the refit, their weight (``FLOW_WEIGHTS``) chosen on runs 1-4 at the chosen anchor
+   as in 2, then runs 5-6 scored with it.
 
 Writes OUT/real_respiraworks_refit.json (atomically, when a set is done; a set already
 in it is not rerun); each anchor's training score is kept in OUT/choice_SET.json as it
@@ -40,6 +44,7 @@ from real_respiraworks_forms import MAX_NFEV, form_card
 from real_respiraworks_online import CMH2O_PA, FORECAST_WARM, TICK_S, rmse, shared_fit, ticks_of
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.inference.flow_channels import FlowChannel
 from pneubayes.inference.online import forecast
 from pneubayes.inference.online_refit import OnlineRefit
 from pneubayes.inference.pipeline import FitSettings
@@ -55,7 +60,18 @@ SEED = 67
 N_DRAWS = 64
 #: the anchor's relative SD and error scale (Pa) chosen among on the training runs
 GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0)}
+#: then, at the chosen anchor, the venturi channels' weight (Pa per unit of the
+#: uncalibrated differential pressure; flow_channels.FlowChannel) chosen among
+FLOW_WEIGHTS = (10.0, 30.0, 100.0)
 Z90 = 1.6448536269514722
+
+
+def channels_of(weight):
+    """The ventilator's two venturi channels at ``weight`` Pa per unit (none: None)."""
+    if weight is None:
+        return ()
+    return (FlowChannel("dp_inhale", "inlet", weight), FlowChannel("dp_exhale", "exhaust",
+                                                                   weight))
 
 
 def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws=0,
@@ -72,7 +88,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
         + r.metadata.atmospheric_pressure_Pa
     names = list(model.parameter_names)
     on = OnlineRefit(model, shared, names, knobs["relative_sd"], knobs["error_Pa"],
-                     solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev).reset()
+                     solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev,
+                     channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
     out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
            "refit_s": []}
     start = dict(shared)
@@ -145,6 +162,21 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
         scores.append(done["scores"][name])
     chosen = grid[int(np.argmin(scores))]
     band_sd = float(min(scores))
+    # then the measured flows beside the pressure, at the chosen anchor (same runs)
+    flow_scores = []
+    for w in FLOW_WEIGHTS[:1] if smoke else FLOW_WEIGHTS:
+        knobs = {**chosen, "flow_weight_Pa": w}
+        name = json.dumps(knobs, sort_keys=True)
+        if name not in done["scores"]:
+            t0 = time.perf_counter()
+            errs = [through_run(model, loo[i], r, knobs, solver, std, nfev)["refit"]
+                    for i, r in enumerate(train)]
+            done["scores"][name] = rmse([e for run in errs for e in run])
+            write_json_atomic(cache, done)
+            log(f"[{kind}] training runs, anchor {knobs}: {done['scores'][name]:.0f} Pa "
+                f"({time.perf_counter() - t0:.0f} s)")
+        flow_scores.append((done["scores"][name], knobs))
+    flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
     shared = shared_fit(kind, card, train, solver, out / f"shared_{kind}.json", nfev, log)
     rng = np.random.default_rng([SEED, ord(kind[0])])
     res = {"chosen": chosen, "band_sd_Pa": band_sd,
@@ -154,6 +186,8 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
                         band_sd=band_sd, rng=rng) for r in held]
     free = [through_run(model, shared, r, chosen, solver, std, nfev, anchored=False)
             for r in held]
+    flows = [through_run(model, shared, r, flow_chosen, solver, std, nfev, draws=N_DRAWS,
+                         band_sd=flow_sd, rng=rng) for r in held]
 
     def pooled(key, source=runs):
         return rmse([e for run in source for e in run[key]])
@@ -161,6 +195,17 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
     res["protocol_rmse_Pa"] = {"setpoint": pooled("setpoint"), "frozen": pooled("frozen"),
                                "online_refit": pooled("refit"),
                                "refit_without_anchor": pooled("refit", free)}
+    res["flows"] = {
+        "chosen": flow_chosen, "band_sd_Pa": flow_sd,
+        "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": v} for v, k in flow_scores],
+        "protocol_rmse_Pa": pooled("refit", flows),
+        "online_over_setpoint": pooled("refit", flows) / pooled("setpoint"),
+        "per_window_rmse_Pa": [rmse([e]) for run in flows for e in run["refit"]],
+        "coverage_90": float(np.mean(np.concatenate([x for run in flows
+                                                     for x in run["inside"]]))),
+        "band_90_median_width_Pa": float(np.median(np.concatenate(
+            [x for run in flows for x in run["width"]]))),
+        "refit_seconds_median": float(np.median([x for run in flows for x in run["refit_s"]]))}
     res["online_over_setpoint"] = res["protocol_rmse_Pa"]["online_refit"] / pooled("setpoint")
     res["per_window_online_rmse_Pa"] = [rmse([e]) for run in runs for e in run["refit"]]
     res["per_window_without_anchor_rmse_Pa"] = [rmse([e]) for run in free for e in run["refit"]]
@@ -179,6 +224,11 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
         f"{pr['refit_without_anchor']:.0f} Pa; 90 % band covers {res['coverage_90']:.2f} at "
         f"{res['band_90_median_width_Pa']:.0f} Pa; refit {res['refit_seconds']['median']:.2f} s "
         f"median")
+    fl = res["flows"]
+    log(f"[{kind}] with the measured flows (weight {flow_chosen['flow_weight_Pa']:g} Pa per "
+        f"unit, chosen on runs 1-4): {fl['protocol_rmse_Pa']:.0f} Pa "
+        f"({fl['online_over_setpoint']:.2f} x the set-point); 90 % band covers "
+        f"{fl['coverage_90']:.2f} at {fl['band_90_median_width_Pa']:.0f} Pa")
     return res
 
 
@@ -204,7 +254,8 @@ def main(argv=None) -> int:
             log(f"[{kind}] done already in {path}")
             continue
         doc["sets"][kind] = run_set(kind, out, args.smoke, log)
-        doc.update(seed=SEED, smoke=args.smoke, grid=GRID, n_draws=N_DRAWS,
+        doc.update(seed=SEED, smoke=args.smoke, grid=GRID, flow_weights=FLOW_WEIGHTS,
+                   n_draws=N_DRAWS,
                    provenance=provenance())
         write_json_atomic(path, doc)
     return 0
