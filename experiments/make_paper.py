@@ -684,7 +684,14 @@ def _refit_paragraph(path: Path) -> list[str]:
     rows = ["| set | anchor chosen on runs 1-4 (relative SD, error scale) | its error on "
             "runs 1-4 (Pa) | set-point (Pa) | frozen shared fit (Pa) | online refit (Pa) | "
             "x set-point | x noise | refit without the anchor (Pa) | 90 % band coverage | "
-            "band width (Pa) | refit (s, median) |", "|---" * 12 + "|"]
+            "band width (Pa) | online conformal band: coverage | its width (Pa) | "
+            "refit (s, median) |", "|---" * 14 + "|"]
+
+    def conformal(d):
+        if "conformal_coverage_90" not in d:
+            return "- | -"
+        return (f"{d['conformal_coverage_90']:.2f} | "
+                f"{d['conformal_band_90_median_width_Pa']:.0f}")
     for kind, s in r["sets"].items():
         pr, ch = s["protocol_rmse_Pa"], s["chosen"]
         rows.append(f"| {kind} | {ch['relative_sd']:g}, {ch['error_Pa']:g} Pa | "
@@ -692,7 +699,8 @@ def _refit_paragraph(path: Path) -> list[str]:
                     f"{pr['online_refit']:.0f} | {s['online_over_setpoint']:.2f} | "
                     f"{pr['online_refit'] / s['noise_floor_Pa']:.0f} | "
                     f"{pr['refit_without_anchor']:.0f} | {s['coverage_90']:.2f} | "
-                    f"{s['band_90_median_width_Pa']:.0f} | {s['refit_seconds']['median']:.2f} |")
+                    f"{s['band_90_median_width_Pa']:.0f} | {conformal(s)} | "
+                    f"{s['refit_seconds']['median']:.2f} |")
         fl = s.get("flows")
         if fl:
             rows.append(f"| {kind}, + measured flows ({fl['chosen']['flow_weight_Pa']:g} Pa "
@@ -701,7 +709,7 @@ def _refit_paragraph(path: Path) -> list[str]:
                         f"{fl['protocol_rmse_Pa']:.0f} | {fl['online_over_setpoint']:.2f} | "
                         f"{fl['protocol_rmse_Pa'] / s['noise_floor_Pa']:.0f} | - | "
                         f"{fl['coverage_90']:.2f} | {fl['band_90_median_width_Pa']:.0f} | "
-                        f"{fl['refit_seconds_median']:.2f} |")
+                        f"{conformal(fl)} | {fl['refit_seconds_median']:.2f} |")
     worst = {kind: sorted(s["per_window_online_rmse_Pa"])[-3:] for kind, s in r["sets"].items()}
     met = [k for k, s in r["sets"].items() if s["online_over_setpoint"] <= 0.5]
     missed = [k for k in r["sets"] if k not in met]
@@ -718,7 +726,10 @@ def _refit_paragraph(path: Path) -> list[str]:
             f"relative SD {', '.join(f'{v:g}' for v in r['grid']['relative_sd'])}, error "
             f"scale {', '.join(f'{v:g}' for v in r['grid']['error_Pa'])} Pa), and the band "
             "adds Gaussian errors of the chosen anchor's error on those runs to "
-            f"{r['n_draws']} posterior draws' predictions. "
+            f"{r['n_draws']} posterior draws' predictions; the online conformal band "
+            "rescales the draws' band by the run's own completed predictions (one every "
+            f"{r.get('band_every_s', 0.5):g} s; only outcomes measured before a prediction "
+            "enter its band). "
             + ("With the measured flows: the venturis' differential pressures "
                "(`dp_inhale`, `dp_exhale`, uncalibrated) scored beside the pressure "
                "(`FlowChannel`, law offset + gain q^2 with both refitted), their weight "

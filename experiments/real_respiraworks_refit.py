@@ -25,6 +25,12 @@ model brought there by warm-up windows. Per set:
    the refit, their weight (``FLOW_WEIGHTS``) chosen on runs 1-4 at the chosen anchor
    as in 2, then runs 5-6 scored with it.
 
+Beside the Gaussian band, the online conformal band
+(:class:`~pneubayes.inference.conformal.OnlineConformalBand`): the draws' band rescaled
+by the run's own completed predictions, fed one every ``BAND_EVERY_S`` from
+``BAND_FROM_S`` (with the latest posterior; only outcomes measured before a prediction
+enter its band).
+
 Writes OUT/real_respiraworks_refit.json (atomically, when a set is done; a set already
 in it is not rerun); each anchor's training score is kept in OUT/choice_SET.json as it
 finishes, so a stopped run resumes there.
@@ -44,6 +50,7 @@ from real_respiraworks_forms import MAX_NFEV, form_card
 from real_respiraworks_online import CMH2O_PA, FORECAST_WARM, TICK_S, rmse, shared_fit, ticks_of
 
 from pneubayes.atomic import write_json_atomic
+from pneubayes.inference.conformal import OnlineConformalBand
 from pneubayes.inference.flow_channels import FlowChannel
 from pneubayes.inference.online import forecast
 from pneubayes.inference.online_refit import OnlineRefit
@@ -63,7 +70,9 @@ GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0)}
 #: then, at the chosen anchor, the venturi channels' weight (Pa per unit of the
 #: uncalibrated differential pressure; flow_channels.FlowChannel) chosen among
 FLOW_WEIGHTS = (10.0, 30.0, 100.0)
-Z90 = 1.6448536269514722
+#: the online conformal band is fed a prediction every BAND_EVERY_S from BAND_FROM_S
+BAND_FROM_S = 1.0
+BAND_EVERY_S = 0.5
 
 
 def channels_of(weight):
@@ -78,11 +87,16 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
                 band_sd=0.0, rng=None):
     """Refit through run ``r`` at its protocol windows; per window the errors of the
     mode's prediction, the set-point's and the frozen fit's, and (with ``draws``) whether
-    each sample lies in the 90 % band and the band's width."""
+    each sample lies in the 90 % band and the band's width, and the same for the online
+    conformal band (fed the draws' predictions every ``BAND_EVERY_S`` from
+    ``BAND_FROM_S``, each with the latest posterior)."""
     p = np.asarray(r.pressure_Pa, dtype=np.float64)
     dt = float(np.median(np.diff(r.time_s)))
     h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
     _, protocol, _ = ticks_of(r, m, h)
+    every = int(round(BAND_EVERY_S / dt))
+    first = int(np.searchsorted(r.time_s, r.time_s[0] + BAND_FROM_S))
+    band_ticks = set(range(first, p.size - h, every)) if draws else set()
     inputs = Inputs.from_recording(r)
     sp = r.extra_columns["pc_setpoint_cmH2O"].astype(float) * CMH2O_PA \
         + r.metadata.atmospheric_pressure_Pa
@@ -90,10 +104,20 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     on = OnlineRefit(model, shared, names, knobs["relative_sd"], knobs["error_Pa"],
                      solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev,
                      channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
+    band = OnlineConformalBand(coverage=0.9)
     out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
-           "refit_s": []}
+           "refit_s": [], "inside_conformal": [], "width_conformal": []}
     start = dict(shared)
-    for k in protocol:
+    params = dict(shared)
+    for k in sorted(set(protocol) | band_ticks):
+        band.observe(k, p[:k + 1])
+        y = p[k + 1:k + h + 1]
+        if k not in protocol:  # a band tick: the latest posterior's draws, no refit
+            sims = forecast(model, on.draws(draws, rng), inputs, r.rig(), k, h + 1, p, std,
+                            FORECAST_WARM)[:, 1:]
+            sims = sims[np.all(np.isfinite(sims), axis=1)]
+            band.predict(k, *band.centre_and_scale(sims, band_sd))
+            continue
         so_far = r.slice(0, k + 1)
         if anchored:
             on.update(so_far)
@@ -103,7 +127,6 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
             params = TrajectoryRefiner(model, solver, max_nfev=nfev, uncertainty=False).fit(
                 WindowSet([so_far], HORIZON_S, HORIZON_S), start).params_
             start = dict(params)
-        y = p[k + 1:k + h + 1]
         thetas = [model.vector(shared), model.vector(params)]
         if draws:
             thetas += list(on.draws(draws, rng))
@@ -114,6 +137,9 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
         out["setpoint"].append(y - sp[k + 1:k + h + 1])
         if draws:
             sims = pred[2:][np.all(np.isfinite(pred[2:]), axis=1)]
+            c_lo, c_hi = band.predict(k, *band.centre_and_scale(sims, band_sd))
+            out["inside_conformal"].append((y >= c_lo) & (y <= c_hi))
+            out["width_conformal"].append(c_hi - c_lo)
             sims = sims + rng.normal(0.0, band_sd, sims.shape)
             lo, hi = np.quantile(sims, [0.05, 0.95], axis=0)
             out["inside"].append((y >= lo) & (y <= hi))
@@ -205,12 +231,20 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
                                                      for x in run["inside"]]))),
         "band_90_median_width_Pa": float(np.median(np.concatenate(
             [x for run in flows for x in run["width"]]))),
-        "refit_seconds_median": float(np.median([x for run in flows for x in run["refit_s"]]))}
+        "refit_seconds_median": float(np.median([x for run in flows for x in run["refit_s"]])),
+        "conformal_coverage_90": float(np.mean(np.concatenate(
+            [x for run in flows for x in run["inside_conformal"]]))),
+        "conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
+            [x for run in flows for x in run["width_conformal"]])))}
     res["online_over_setpoint"] = res["protocol_rmse_Pa"]["online_refit"] / pooled("setpoint")
     res["per_window_online_rmse_Pa"] = [rmse([e]) for run in runs for e in run["refit"]]
     res["per_window_without_anchor_rmse_Pa"] = [rmse([e]) for run in free for e in run["refit"]]
     res["coverage_90"] = float(np.mean(np.concatenate([x for run in runs
                                                         for x in run["inside"]])))
+    res["conformal_coverage_90"] = float(np.mean(np.concatenate(
+        [x for run in runs for x in run["inside_conformal"]])))
+    res["conformal_band_90_median_width_Pa"] = float(np.median(np.concatenate(
+        [x for run in runs for x in run["width_conformal"]])))
     res["band_90_median_width_Pa"] = float(np.median(np.concatenate(
         [x for run in runs for x in run["width"]])))
     secs = np.array([s for run in runs for s in run["refit_s"]])
@@ -222,8 +256,9 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
         f"frozen {pr['frozen']:.0f}, online refit {pr['online_refit']:.0f} "
         f"({res['online_over_setpoint']:.2f} x the set-point), without the anchor "
         f"{pr['refit_without_anchor']:.0f} Pa; 90 % band covers {res['coverage_90']:.2f} at "
-        f"{res['band_90_median_width_Pa']:.0f} Pa; refit {res['refit_seconds']['median']:.2f} s "
-        f"median")
+        f"{res['band_90_median_width_Pa']:.0f} Pa, the online conformal band "
+        f"{res['conformal_coverage_90']:.2f} at {res['conformal_band_90_median_width_Pa']:.0f}"
+        f" Pa; refit {res['refit_seconds']['median']:.2f} s median")
     fl = res["flows"]
     log(f"[{kind}] with the measured flows (weight {flow_chosen['flow_weight_Pa']:g} Pa per "
         f"unit, chosen on runs 1-4): {fl['protocol_rmse_Pa']:.0f} Pa "
@@ -255,6 +290,7 @@ def main(argv=None) -> int:
             continue
         doc["sets"][kind] = run_set(kind, out, args.smoke, log)
         doc.update(seed=SEED, smoke=args.smoke, grid=GRID, flow_weights=FLOW_WEIGHTS,
+                   band_every_s=BAND_EVERY_S, band_from_s=BAND_FROM_S,
                    n_draws=N_DRAWS,
                    provenance=provenance())
         write_json_atomic(path, doc)
