@@ -694,7 +694,8 @@ def _refit_paragraph(path: Path) -> list[str]:
                 f"{d['conformal_band_90_median_width_Pa']:.0f}")
     for kind, s in r["sets"].items():
         pr, ch = s["protocol_rmse_Pa"], s["chosen"]
-        rows.append(f"| {kind} | {ch['relative_sd']:g}, {ch['error_Pa']:g} Pa | "
+        label = kind + (f" (exhale valve: {s['exhaust']})" if "exhaust" in s else "")
+        rows.append(f"| {label} | {ch['relative_sd']:g}, {ch['error_Pa']:g} Pa | "
                     f"{s['band_sd_Pa']:.0f} | {pr['setpoint']:.0f} | {pr['frozen']:.0f} | "
                     f"{pr['online_refit']:.0f} | {s['online_over_setpoint']:.2f} | "
                     f"{pr['online_refit'] / s['noise_floor_Pa']:.0f} | "
@@ -718,7 +719,7 @@ def _refit_paragraph(path: Path) -> list[str]:
             f"{r['seed']}). In the table above, every quantity refined on a run's "
             "first half predicts its second half far better than the lung recalibrated "
             "alone does. `OnlineRefit` (`pneubayes track --method refit`) refits "
-            "every quantity of the shipped card on the run so far at each 2-s window start, "
+            "every quantity of the card on the run so far at each 2-s window start, "
             "from its last estimate, with a Gaussian prior centred on the shared fit of "
             "runs 1-4 (SD a fraction of each quantity's scale; the windows' errors Gaussian "
             "of a stated scale); its posterior is Laplace. The anchor's two knobs are chosen "
@@ -735,14 +736,32 @@ def _refit_paragraph(path: Path) -> list[str]:
                "(`FlowChannel`, law offset + gain q^2 with both refitted), their weight "
                f"chosen on runs 1-4 among {', '.join(f'{w:g}' for w in r['flow_weights'])} "
                "Pa per unit at the chosen anchor. " if "flow_weights" in r else "")
+            + ("The exhale valve is on its own command (the shipped card) or the inhale "
+               "command's exhaust port, whichever form's chosen anchor scores lower on runs "
+               "1-4. " if any("exhaust" in x for x in r["sets"].values()) else "")
             + "Runs 5-6, the protocol's windows:")
     after = [f"Measured: at most 0.5 x the set-point baseline on "
              f"{', '.join(met) or 'no set'}"
              + (f"; not on {', '.join(missed)}" if missed else "") + ". The three worst "
              "windows (Pa): " + "; ".join(f"{k} {', '.join(f'{x:.0f}' for x in v)}"
                                           for k, v in worst.items())
-             + ". The error is still misfit (x noise above), and the band's coverage is "
-             "that of a band whose width the training runs' errors set."]
+             + ". The error is still misfit (x noise above)."]
+    wide = [(k, s["band_90_median_width_Pa"] / s["protocol_rmse_Pa"]["online_refit"])
+            for k, s in r["sets"].items()
+            if s["band_90_median_width_Pa"] > 5 * s["protocol_rmse_Pa"]["online_refit"]]
+    if wide:
+        after.append("On " + ", ".join(f"{k} the band covers by being wide (its median "
+                                       f"width {x:.0f} x the error)" for k, x in wide)
+                     + ": the Laplace posterior's draws predict far apart where the "
+                     "posterior mode predicts well; that band is no guide.")
+    others = [(k, ex, o) for k, s in r["sets"].items()
+              for ex, o in s.get("other_forms", {}).items()]
+    if others:
+        after.append("The exhale valve's other form, not chosen on runs 1-4: " + "; ".join(
+            f"{k} {ex}: {o['band_sd_Pa']:.0f} Pa on runs 1-4 (against "
+            f"{r['sets'][k]['band_sd_Pa']:.0f}), {o['protocol_rmse_Pa']['online_refit']:.0f} "
+            f"Pa held out ({o['online_over_setpoint']:.2f} x the set-point)"
+            for k, ex, o in others) + ".")
     flows = {k: s["flows"] for k, s in r["sets"].items() if s.get("flows")}
     if flows:
         after.append("With the measured flows at the weight runs 1-4 chose: "

@@ -20,7 +20,10 @@ model brought there by warm-up windows. Per set:
    chosen anchor; the 90 % band is ``N_DRAWS`` Laplace draws' predictions plus Gaussian
    errors of the band's scale (seeded). Beside it on the same windows: the set-point,
    the frozen shared fit, and the same refit without the anchor.
-4. *The measured flows*: the venturis' differential pressures (``dp_inhale``,
+4. *The exhale valve's form*: on its own command (the shipped card) or as the inhale
+   command's exhaust port (``EXHAUSTS``); 2-3 run for each, and the form whose chosen
+   anchor scores lower on runs 1-4 is the one reported (the other beside it).
+5. *The measured flows*: the venturis' differential pressures (``dp_inhale``,
    ``dp_exhale``; uncalibrated, ``FlowChannel`` law ``square``) beside the pressure in
    the refit, their weight (``FLOW_WEIGHTS``) chosen on runs 1-4 at the chosen anchor
    as in 2, then runs 5-6 scored with it.
@@ -70,6 +73,8 @@ GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0)}
 #: then, at the chosen anchor, the venturi channels' weight (Pa per unit of the
 #: uncalibrated differential pressure; flow_channels.FlowChannel) chosen among
 FLOW_WEIGHTS = (10.0, 30.0, 100.0)
+#: the exhale valve's forms (real_respiraworks_forms.form_card), chosen among on runs 1-4
+EXHAUSTS = ("separate", "port")
 #: the online conformal band is fed a prediction every BAND_EVERY_S from BAND_FROM_S
 BAND_FROM_S = 1.0
 BAND_EVERY_S = 0.5
@@ -147,8 +152,9 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     return out
 
 
-def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
-    card = form_card(kind, "two_compartment", "separate")
+def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -> dict:
+    card = form_card(kind, "two_compartment", exhaust)
+    tag = kind if exhaust == "separate" else f"{kind}_{exhaust}"  # the caches' names
     recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
     train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
     held = [r for r in recs if Path(r.source).stem in HELD_OUT]
@@ -165,10 +171,10 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
     for i, r in enumerate(train):
         others = [x for j, x in enumerate(train) if j != i]
         loo[i] = shared_fit(kind, card, others, solver,
-                            out / f"shared_{kind}_without_{Path(r.source).stem}.json", nfev,
+                            out / f"shared_{tag}_without_{Path(r.source).stem}.json", nfev,
                             log)
     # each anchor's score is kept as it finishes (a rerun or a resumed run reads it)
-    cache = out / f"choice_{kind}.json"
+    cache = out / f"choice_{tag}.json"
     key = json.dumps({"card": card.to_dict(), "max_nfev": nfev, "smoke": smoke},
                      sort_keys=True)
     done = json.loads(cache.read_text()) if cache.exists() else {}
@@ -203,7 +209,7 @@ def run_set(kind: str, out: Path, smoke: bool, log) -> dict:
                 f"({time.perf_counter() - t0:.0f} s)")
         flow_scores.append((done["scores"][name], knobs))
     flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
-    shared = shared_fit(kind, card, train, solver, out / f"shared_{kind}.json", nfev, log)
+    shared = shared_fit(kind, card, train, solver, out / f"shared_{tag}.json", nfev, log)
     rng = np.random.default_rng([SEED, ord(kind[0])])
     res = {"chosen": chosen, "band_sd_Pa": band_sd,
            "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": s} for k, s in zip(grid, scores)],
@@ -288,7 +294,15 @@ def main(argv=None) -> int:
         if kind in doc["sets"]:
             log(f"[{kind}] done already in {path}")
             continue
-        doc["sets"][kind] = run_set(kind, out, args.smoke, log)
+        # the card's exhale valve on its own command, or as the inhale command's exhaust
+        # port: the form is chosen on runs 1-4 (the chosen anchor's score there)
+        by_form = {ex: run_set(kind, out, args.smoke, log, ex) for ex in EXHAUSTS}
+        chosen = min(by_form, key=lambda ex: by_form[ex]["band_sd_Pa"])
+        log(f"[{kind}] exhale valve form chosen on runs 1-4: {chosen} ("
+            + ", ".join(f"{ex} {r['band_sd_Pa']:.0f} Pa" for ex, r in by_form.items()) + ")")
+        doc["sets"][kind] = {**by_form[chosen], "exhaust": chosen,
+                             "other_forms": {ex: r for ex, r in by_form.items()
+                                             if ex != chosen}}
         doc.update(seed=SEED, smoke=args.smoke, grid=GRID, flow_weights=FLOW_WEIGHTS,
                    band_every_s=BAND_EVERY_S, band_from_s=BAND_FROM_S,
                    n_draws=N_DRAWS,
