@@ -668,6 +668,11 @@ def cmd_track(args) -> int:
     from pneubayes.model import Model
 
     model, _ = Model.load_card(run / "model.json")
+    if args.vary == ("all",):  # every parameter of the run's model
+        if args.method != "refit":
+            raise PneubayesError("--vary all: only with --method refit (the particle filter "
+                                 "tracks a few quantities with a lower bound > 0)")
+        args.vary = tuple(model.parameter_names)
     for name in args.vary if args.method == "particles" else ():
         if name in model.parameter_names and not model.parameter(name).lower > 0:
             raise PneubayesError(f"--vary {name}: its lower bound is "

@@ -490,7 +490,7 @@ def _add_track(sub) -> None:
     t.add_argument("--vary", type=_names, required=True, metavar="NAME[,NAME]",
                    help="the quantities tracked (model parameter names, e.g. "
                         "lung_compliance_m3_per_Pa,resistance_Pa_s_per_m3; particles: with "
-                        "a lower bound > 0)")
+                        "a lower bound > 0; refit: 'all' for every parameter)")
     t.add_argument("--method", choices=("particles", "refit"), default="particles",
                    help="particles (default): a particle filter over --vary; refit: "
                         "--vary refitted on the run so far every --refit-every seconds, "

@@ -270,6 +270,31 @@ def test_track_refit_method_finds_a_moved_quantity_and_records_its_knobs(
     assert all(r["ess"] is None for r in doc["ticks"])
 
 
+def test_track_refit_of_every_quantity_and_all_refused_for_particles(bench_run, tmp_path,
+                                                                     capsys):
+    # the recording's own truth as the run: every quantity refitted on the run so far
+    # (a refit on its first window alone is poorly informed; by the end it is not)
+    rec, run = bench_run
+
+    def argv(out):
+        return ["track", str(run), str(rec), "--vary", "all", "--out", str(out),
+                "--noise-std", "600", "--horizon", "0.5", "--draws", "8",
+                "--predict-every", "5"]
+
+    out = tmp_path / "all.json"
+    assert main([*argv(out), "--method", "refit", "--refit-every", "1",
+                 "--relative-sd", "0.1"]) == 0
+    doc = json.loads(out.read_text())
+    names = list(json.loads((run / "model.json").read_text())["parameters"])
+    assert sorted(doc["settings"]["vary"]) == sorted(names)
+    assert sorted(doc["final_quantiles"]) == sorted(names)
+    truth = json.loads((run / "model.json").read_text())["parameters"]
+    for n in ("dead_volume_m3", "inlet_a_m2", "exhaust_a_m2"):
+        assert doc["final_quantiles"][n][1] == pytest.approx(truth[n], rel=0.05), n
+    assert main(argv(tmp_path / "p.json")) == 2
+    assert "--vary all" in capsys.readouterr().err and not (tmp_path / "p.json").exists()
+
+
 @pytest.mark.parametrize("extra, says", [
     (["--vary", "no_such_quantity"], "--vary"),
     (["--vary", "inlet_offset_m2"], "lower bound"),

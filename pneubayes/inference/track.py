@@ -56,7 +56,8 @@ def replay(tracker: OnlineTracker | OnlineRefit, recording, horizon_s: float, ti
     list of dict
         One record per tick: ``time_s``, ``update_ms`` (the update's wall time),
         ``ess``, ``quantiles`` (each varying quantity's 5/50/95 %) and, where predicted,
-        ``prediction_rmse_Pa`` (of the mean of the draws' predictions from the measured
+        ``prediction_rmse_Pa`` (of the mean of the draws' predictions, or for an
+        :class:`OnlineRefit` of its posterior mode's prediction, from the measured
         pressure, :func:`~pneubayes.inference.online.forecast`), ``coverage_90`` and
         ``band_90_width_Pa`` (the draws' predictions plus the tracker's Gaussian
         errors), ``conformal_coverage_90`` and ``conformal_band_90_width_Pa`` (that band
@@ -100,7 +101,11 @@ def replay(tracker: OnlineTracker | OnlineRefit, recording, horizon_s: float, ti
             if sims.shape[0]:
                 noisy = sims + rng.normal(0.0, sigma, size=sims.shape)
                 lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
-                rec["prediction_rmse_Pa"] = float(np.sqrt(np.mean((sims.mean(0) - y) ** 2)))
+                point = sims.mean(0)
+                if refit:  # the refit's estimate is its posterior mode
+                    point = forecast(tracker.model, tracker.model.vector(tracker.params_)[None],
+                                     inputs, rig, k, h + 1, p, tracker.solver)[0, 1:]
+                rec["prediction_rmse_Pa"] = float(np.sqrt(np.mean((point - y) ** 2)))
                 rec["coverage_90"] = float(np.mean((y >= lo) & (y <= hi)))
                 rec["band_90_width_Pa"] = float(np.median(hi - lo))
                 c_lo, c_hi = band.predict(k, *band.centre_and_scale(sims, sigma))
