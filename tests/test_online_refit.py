@@ -83,6 +83,16 @@ def test_an_update_inside_the_refit_interval_refits_nothing(plant):
     assert on.n_refits_ == 1 and on.params_ == before
 
 
+def test_no_refit_before_the_run_holds_min_windows(plant):
+    on = _refit(plant, 1.0, min_windows=3)
+    on.update(plant["rec"].slice(0, 501))  # 5 s: two 2-s windows
+    assert on.n_refits_ == 0 and on.params_ == plant["params"]
+    on.update(plant["rec"].slice(0, 601))  # 6 s: three
+    assert on.n_refits_ == 1
+    with pytest.raises(ValueError, match="min_windows"):
+        _refit(plant, 1.0, min_windows=0)
+
+
 def test_a_narrow_anchor_holds_the_quantities_at_its_centre(plant):
     on = _refit(plant, 1e-4)
     on.update(plant["rec"].slice(0, 601))

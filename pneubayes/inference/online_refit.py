@@ -68,6 +68,9 @@ class OnlineRefit:
     channels : sequence of FlowChannel
         Measured port flows (:mod:`~pneubayes.inference.flow_channels`) scored beside
         the pressure (none: the pressure alone).
+    min_windows : int
+        Windows of ``horizon_s`` the run must hold before the first refit (>= 1): a
+        refit on one window alone is poorly informed under a wide anchor.
 
     Attributes
     ----------
@@ -83,7 +86,8 @@ class OnlineRefit:
     def __init__(self, model: Model, params: Mapping[str, float], names: Sequence[str],
                  relative_sd: float, error_Pa: float, solver: SolverConfig,
                  horizon_s: float = 2.0, memory_s: float | None = None,
-                 refit_every_s: float = 2.0, max_nfev: int = 100, channels=()):
+                 refit_every_s: float = 2.0, max_nfev: int = 100, channels=(),
+                 min_windows: int = 2):
         self.model = model
         self.params = dict(params)
         self.names = tuple(names)
@@ -95,6 +99,7 @@ class OnlineRefit:
         self.refit_every_s = refit_every_s
         self.max_nfev = max_nfev
         self.channels = tuple(channels)
+        self.min_windows = min_windows
 
     def reset(self) -> "OnlineRefit":
         """Check the arguments; the posterior is the prior (the shared fit)."""
@@ -108,6 +113,9 @@ class OnlineRefit:
                              f"{self.memory_s!r}")
         if not self.names:
             raise ValueError("OnlineRefit: names is empty")
+        if not (isinstance(self.min_windows, int) and self.min_windows >= 1):
+            raise ValueError(f"OnlineRefit: min_windows must be an integer >= 1, got "
+                             f"{self.min_windows!r}")
         missing = [n for n in self.model.parameter_names if n not in self.params]
         if missing:
             raise ValueError(f"OnlineRefit: params has no value for {missing}")
@@ -123,11 +131,12 @@ class OnlineRefit:
     def update(self, recording) -> "OnlineRefit":
         """Take the run so far (a :class:`~pneubayes.io.Recording` from its first sample
         to the latest) and refit when ``refit_every_s`` of it is new (or none was made);
-        a run shorter than one window (``horizon_s``) refits nothing yet."""
+        a run shorter than ``min_windows`` windows refits nothing yet."""
         if not hasattr(self, "anchor_"):
             raise RuntimeError("OnlineRefit: call reset() before update")
         t = np.asarray(recording.time_s, dtype=np.float64)
-        if t.size < 2 or t[-1] - t[0] < self.horizon_s:
+        # (a sample's rounding short of the windows counts as holding them)
+        if t.size < 2 or t[-1] - t[0] < self.min_windows * self.horizon_s - 1e-9:
             return self
         now = float(t[-1])
         if self.time_s_ is not None and now - self.time_s_ < self.refit_every_s:

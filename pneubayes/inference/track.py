@@ -176,7 +176,7 @@ def run_track(run_dir, recording, vary, out_json, *, tick_s: float, horizon_s: f
         tracker = OnlineRefit(model, params, names, solver=solver, error_Pa=noise_std_Pa,
                               horizon_s=horizon_s, **opts).reset()
         settings["refit"] = {k: getattr(tracker, k) for k in (
-            "relative_sd", "error_Pa", "memory_s", "refit_every_s", "max_nfev")}
+            "relative_sd", "error_Pa", "memory_s", "refit_every_s", "max_nfev", "min_windows")}
     else:
         if prior == "fit":
             pr = LogNormalPrior(model, names, {n: params[n] for n in names},
