@@ -180,8 +180,9 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
     done = json.loads(cache.read_text()) if cache.exists() else {}
     if done.get("key") != key:
         done = {"key": key, "scores": {}}
-    scores = []
-    for knobs in grid:
+
+    def training_score(knobs) -> float:
+        """The pooled error of ``knobs`` through runs 1-4 (each from the others' fit)."""
         name = json.dumps(knobs, sort_keys=True)
         if name not in done["scores"]:
             t0 = time.perf_counter()
@@ -191,23 +192,14 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
             write_json_atomic(cache, done)
             log(f"[{kind}] training runs, anchor {knobs}: {done['scores'][name]:.0f} Pa "
                 f"({time.perf_counter() - t0:.0f} s)")
-        scores.append(done["scores"][name])
+        return done["scores"][name]
+
+    scores = [training_score(knobs) for knobs in grid]
     chosen = grid[int(np.argmin(scores))]
     band_sd = float(min(scores))
     # then the measured flows beside the pressure, at the chosen anchor (same runs)
-    flow_scores = []
-    for w in FLOW_WEIGHTS[:1] if smoke else FLOW_WEIGHTS:
-        knobs = {**chosen, "flow_weight_Pa": w}
-        name = json.dumps(knobs, sort_keys=True)
-        if name not in done["scores"]:
-            t0 = time.perf_counter()
-            errs = [through_run(model, loo[i], r, knobs, solver, std, nfev)["refit"]
-                    for i, r in enumerate(train)]
-            done["scores"][name] = rmse([e for run in errs for e in run])
-            write_json_atomic(cache, done)
-            log(f"[{kind}] training runs, anchor {knobs}: {done['scores'][name]:.0f} Pa "
-                f"({time.perf_counter() - t0:.0f} s)")
-        flow_scores.append((done["scores"][name], knobs))
+    flow_scores = [(training_score(k), k) for k in (
+        {**chosen, "flow_weight_Pa": w} for w in (FLOW_WEIGHTS[:1] if smoke else FLOW_WEIGHTS))]
     flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
     shared = shared_fit(kind, card, train, solver, out / f"shared_{tag}.json", nfev, log)
     rng = np.random.default_rng([SEED, ord(kind[0])])

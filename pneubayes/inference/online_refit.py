@@ -33,6 +33,7 @@ import time
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from scipy.stats import norm
 
 from pneubayes.inference.flow_channels import flow_rows
 from pneubayes.inference.predictive import PressurePredictor
@@ -128,22 +129,24 @@ class OnlineRefit:
         self.refit_seconds_ = []
         return self
 
-    def update(self, recording) -> "OnlineRefit":
-        """Take the run so far (a :class:`~pneubayes.io.Recording` from its first sample
-        to the latest) and refit when ``refit_every_s`` of it is new (or none was made);
-        a run shorter than ``min_windows`` windows refits nothing yet."""
+    def update(self, recording, stop: int | None = None) -> "OnlineRefit":
+        """Take the run so far, a :class:`~pneubayes.io.Recording` from its first sample
+        to the latest (or, with ``stop``, its first ``stop`` samples: a replay need not
+        cut the recording at every tick), and refit when ``refit_every_s`` of it is new
+        (or none was made); a run shorter than ``min_windows`` windows refits nothing."""
         if not hasattr(self, "anchor_"):
             raise RuntimeError("OnlineRefit: call reset() before update")
-        t = np.asarray(recording.time_s, dtype=np.float64)
+        t = np.asarray(recording.time_s[:stop], dtype=np.float64)
         # (a sample's rounding short of the windows counts as holding them)
         if t.size < 2 or t[-1] - t[0] < self.min_windows * self.horizon_s - 1e-9:
             return self
         now = float(t[-1])
         if self.time_s_ is not None and now - self.time_s_ < self.refit_every_s:
             return self
-        rec = recording
+        first = 0
         if self.memory_s is not None and now - t[0] > self.memory_s:
-            rec = recording.slice(int(np.searchsorted(t, now - self.memory_s)), None)
+            first = int(np.searchsorted(t, now - self.memory_s))
+        rec = recording if first == 0 and stop is None else recording.slice(first, stop)
         started = time.perf_counter()
         extra = None
         if self.channels:
@@ -182,8 +185,6 @@ class OnlineRefit:
 
     def quantiles(self, q=(0.05, 0.5, 0.95)) -> dict[str, list[float]]:
         """Each refitted quantity's Laplace quantiles (its unit), ``{name: [...]}``."""
-        from scipy.stats import norm
-
         sd = np.sqrt(np.clip(np.diag(self.covariance_), 0.0, None))
         z = norm.ppf(np.asarray(q, dtype=np.float64))
         return {n: (self.params_[n] + z * s).tolist() for n, s in zip(self.names, sd)}

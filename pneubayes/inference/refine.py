@@ -80,9 +80,7 @@ class GaussianAnchor:
         magnitude, or 1 % of its bounds' width where larger: the refiner's own scale)."""
         if not (np.isfinite(relative_sd) and relative_sd > 0):
             raise ValueError(f"relative_sd must be > 0, got {relative_sd!r}")
-        theta = model.vector(params)
-        lo, hi = model.bounds
-        scale = np.maximum(np.abs(theta), 1e-2 * (hi - lo))
+        scale = parameter_scales(model, model.vector(params))
         all_names = list(model.parameter_names)
         unknown = [n for n in names if n not in all_names]
         if unknown:
@@ -91,6 +89,13 @@ class GaussianAnchor:
         return cls({n: float(params[n]) for n in names},
                    {n: float(relative_sd * scale[all_names.index(n)]) for n in names},
                    float(error_Pa))
+
+
+def parameter_scales(model: Model, theta: np.ndarray) -> np.ndarray:
+    """Each parameter's scale: its magnitude at ``theta``, or 1 % of its bounds' width
+    where larger (the refiner's coordinates are ``theta / scale``)."""
+    lo, hi = model.bounds
+    return np.maximum(np.abs(theta), 1e-2 * (hi - lo))
 
 
 def _volume_taken(model: Model, rig):
@@ -206,10 +211,6 @@ class TrajectoryRefiner:
         self.anchor = anchor
         self.extra_residuals = extra_residuals
 
-    def _scales(self, theta0: np.ndarray) -> np.ndarray:
-        lo, hi = self.model.bounds
-        return np.maximum(np.abs(theta0), 1e-2 * (hi - lo))
-
     def fit(self, recordings, start: dict) -> "TrajectoryRefiner":
         """Refine from ``start`` (a full parameter dict, e.g. the paper's least squares)."""
         model = self.model
@@ -224,7 +225,7 @@ class TrajectoryRefiner:
         idx = np.array([names.index(n) for n in free])
         lo, hi = model.bounds
         flo, fhi = lo[idx], hi[idx]
-        scale = self._scales(theta0)[idx]
+        scale = parameter_scales(model, theta0)[idx]
         taken = _volume_taken(model, data.blocks[0].rig)
         # the chamber's own volume moves in place of a free dead volume (module docstring)
         dead = free.index("dead_volume_m3") if (taken is not None
@@ -269,6 +270,18 @@ class TrajectoryRefiner:
 
         last: dict = {}  # the last Jacobian: its point (key, x), residuals there, age
 
+        def perturbed(x):
+            """Forward-difference steps (inward at the upper bound) and the perturbed
+            full parameter sets, one per free parameter."""
+            steps = self.relative_step * scale
+            steps = np.where(x + steps > fhi, -steps, steps)
+            rows = []
+            for j in range(x.size):
+                xj = x.copy()
+                xj[j] += steps[j]
+                rows.append(full(xj))
+            return steps, np.array(rows)
+
         def jacobian(x, fresh=False):
             key = x.tobytes()
             if last and last["key"] == key and not (fresh and last["age"]):
@@ -287,16 +300,9 @@ class TrajectoryRefiner:
                     js = js + np.outer(r0 - last["r"] - js @ ds, ds / den)
                 jac, age = js / scale, last["age"] + 1
             else:
-                steps = self.relative_step * scale
-                up = x + steps > fhi
-                steps = np.where(up, -steps, steps)  # step inward at the upper bound
-                rows = []
-                for j in range(x.size):
-                    xj = x.copy()
-                    xj[j] += steps[j]
-                    rows.append(full(xj))
+                steps, rows = perturbed(x)
                 # the perturbed copies in ONE batched call of the compiled simulator
-                r = data.residuals(model, np.array(rows), self.solver, on_failure="nan")
+                r = data.residuals(model, rows, self.solver, on_failure="nan")
                 r = r.reshape(r.shape[0], -1)
                 jac, age = (r - r0).T / steps, 0
                 jac[~np.isfinite(jac)] = 0.0
@@ -311,15 +317,8 @@ class TrajectoryRefiner:
             return extra(full(x)[None])[0]
 
         def extra_jacobian(x):
-            # forward differences, the perturbed sets in one call (numpy, no simulation)
-            steps = self.relative_step * scale
-            steps = np.where(x + steps > fhi, -steps, steps)
-            rows = []
-            for j in range(x.size):
-                xj = x.copy()
-                xj[j] += steps[j]
-                rows.append(full(xj))
-            return (extra(np.array(rows)) - extra_rows(x)).T / steps
+            steps, rows = perturbed(x)  # the same differences, in one call
+            return (extra(rows) - extra_rows(x)).T / steps
 
         def fun(u):
             r = residual(u * scale)

@@ -85,7 +85,7 @@ def replay(tracker: OnlineTracker | OnlineRefit, recording, horizon_s: float, ti
     for j, (k0, k1) in enumerate(zip(bounds[:-1], bounds[1:])):
         c0 = time.perf_counter()
         if refit:
-            tracker.update(recording.slice(0, k1))
+            tracker.update(recording, stop=k1)
         else:
             tracker.update(t[k0:k1], recording.command_V[k0:k1], p[k0:k1],
                            None if ue is None else ue[k0:k1], x[k0:k1], ps[k0:k1])
