@@ -20,7 +20,7 @@ Why: with many quantities free, particles spread thin and the posterior mode is 
 refit finds in a second; the prior keeps quantities the run has not yet informed where
 other runs put them (unanchored, a refit on a run's first seconds can move them anywhere
 the data allow, and mispredict the phases it has not seen). The cost is a refit per
-update (about a second for the ventilator's 13 quantities), so a controller refits every
+update (under a second for the ventilator's 13 quantities), so a controller refits every
 ``refit_every_s`` (e.g. in a background thread) and predicts from the latest posterior
 at every tick. A Gaussian posterior cannot show a bimodal one; the prior's centre and
 width are the user's (choose them on training runs, as ``experiments/real_respiraworks_refit.py``
