@@ -1,14 +1,16 @@
 """Independent reference: the same model integrated by scipy's ``solve_ivp``.
 
 Used by the tests (accuracy, step halving) and the benchmark (speed baseline). It shares
-only the lowered slots and the vectorised physics functions with the compiled
-integrator; the integration, input handling, the spool (an ODE state here, closed
-form there) and a sensor lag's reading (ODE states here, stepped exactly for a
-linear pressure there) are written separately. An open-form closure (effect
-``closure``) is evaluated by :func:`pneubayes.effects.closure_features.evaluate_feature`,
-not by the compiled features; a low-pass feature's state (``p_bar``, ``q_bar``) is an ODE
-state here (at rest at the start), stepped by splitting there.
-Slow: thousands of Python calls per second.
+only the lowered slots and some vectorised physics functions with the compiled
+integrator. The orifice law (eqs. 2-3), the Gompertz map (eq. 11) and the dead band are
+written out again here as scalar formulas; the integration, input handling, the spool
+(an ODE state here, closed form there) and a sensor lag's reading (ODE states here,
+stepped exactly for a linear pressure there) are written separately. An open-form
+closure (effect ``closure``) is evaluated by
+:func:`pneubayes.effects.closure_features.evaluate_feature`, not by the compiled
+features; a low-pass feature's state (``p_bar``, ``q_bar``) is an ODE state here (at
+rest at the start), stepped by splitting there. Slow: thousands of Python calls per
+second.
 """
 
 from __future__ import annotations
@@ -29,12 +31,41 @@ from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
 from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa
 from pneubayes.physics.cylinder import wall_area_m2
-from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.tube import churchill_fre
-from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
-from pneubayes.simulation.rates import dead_band
 from pneubayes.simulation.simulator import Inputs
+
+
+def _flow(p_up, p_down, alpha, beta, theta, kappa):
+    """Eqs. 2-3 as printed (reverse flow: the roles swap, NOTES.md), kg/(s m^2)."""
+    if p_up < p_down:
+        return -_flow(p_down, p_up, alpha, beta, theta, kappa)
+    if p_up > theta * p_down:  # choked
+        return beta * p_up
+    r = p_down / p_up
+    g = r ** (2.0 / kappa) - r ** ((kappa + 1.0) / kappa)
+    return alpha * p_up * math.sqrt(g) if g > 0.0 else 0.0
+
+
+def _gompertz(u, offset, a, b, c, d):
+    """Eq. 11, m^2."""
+    return offset + a * math.exp(-b * math.exp(-c * (u + d)))
+
+
+def _switching(u, inlet_open, exhaust_open):
+    """An on/off valve's port areas at opening u (clipped to [0, 1]), m^2."""
+    f = min(max(u, 0.0), 1.0)
+    return inlet_open * f, exhaust_open * (1.0 - f)
+
+
+def _dead_band(s, halfwidth, rounding):
+    """sign(s) phi(|s| - w), the corner rounded by a smoothstep slope over |z| < r."""
+    z = abs(s) - halfwidth
+    mag = max(z, 0.0)
+    if rounding > 0.0 and abs(z) < rounding:
+        t = (z + rounding) / (2.0 * rounding)
+        mag = 2.0 * rounding * t**3 * (1.0 - 0.5 * t)
+    return math.copysign(mag, s) if s != 0.0 else 0.0
 
 
 def low_passes(sl) -> list[tuple[float, float]]:
@@ -56,6 +87,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     g = rig.gas
     kappa, rs, t_s = g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K, g.temperature_K
     p_atm = rig.atmospheric_pressure_Pa
+    law = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, kappa)
     ins = [sl[S[k]] for k in ("inlet_offset_m2", "inlet_a_m2", "inlet_b", "inlet_c_per_V",
                               "inlet_d_V")]
     exs = [sl[S[k]] for k in ("exhaust_offset_m2", "exhaust_a_m2", "exhaust_b",
@@ -122,15 +154,15 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
         s = spool if tau_s > 0 or tau_dn > 0 or w_s > 0 else cmd
-        ueff = float(dead_band(s, dead, rounding))
-        a_in = gompertz_area(ueff, *ins)
+        ueff = _dead_band(float(s), dead, rounding)
+        a_in = _gompertz(ueff, *ins)
         if own_ex:  # a separate exhaust valve, on its own (undelayed) command
-            a_ex = (gompertz_area(cmd_ex, *exs)
+            a_ex = (_gompertz(cmd_ex, *exs)
                     + sl[S["exhaust_open_area_m2"]] * min(max(cmd_ex, 0.0), 1.0))
-            s_in, s_ex = switching_areas(ueff, sl[S["inlet_open_area_m2"]], 0.0)
+            s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]], 0.0)
         else:
-            a_ex = gompertz_area(ueff, *exs)
-            s_in, s_ex = switching_areas(ueff, sl[S["inlet_open_area_m2"]],
+            a_ex = _gompertz(ueff, *exs)
+            s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]],
                                          sl[S["exhaust_open_area_m2"]])
         if n_tab:  # a tabulated map, linear between its points
             s_in += np.interp(ueff, tab_c, tab_i)
@@ -143,23 +175,23 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             sa + fr * (sb - sa) - rig.supply_pressure_Pa)
         if tank_v > 0:  # a supply tank: its pressure is the last state
             psup = y[i_tank]
-        att = np.exp(-sl[S["flow_attenuation_Pa"]] / p)
+        att = math.exp(-sl[S["flow_attenuation_Pa"]] / p)
         k_lam = max(sl[S["leak_laminar_kg_per_s_Pa2"]]
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                     * (vol + v_line - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
         # each mass flow into the chamber (kg/s, negative = out)
-        f_in = f_in_raw = float(flow_function(psup, p_valve, g))
-        f_out = f_out_raw = float(flow_function(p_valve, p_atm, g))
+        f_in = f_in_raw = _flow(psup, p_valve, *law)
+        f_out = f_out_raw = _flow(p_valve, p_atm, *law)
         net_raw = float(a_in * f_in_raw - a_ex * f_out_raw)  # (a flow lag's signal)
         if net_flow_only:
             return net_raw
-        f_leak = float(flow_function(p, p_atm, g))
+        f_leak = _flow(p, p_atm, *law)
         if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1); an
             # acoustic line's gas is at the supply's temperature, and so its ports' gas
             if not nseg:
-                f_in = f_in * (np.sqrt(t_s / temp) if f_in < 0 else 1.0)
-                f_out = f_out * (np.sqrt(t_s / temp) if f_out > 0 else 1.0)
-            f_leak = f_leak * (np.sqrt(t_s / temp) if f_leak > 0 else 1.0)
+                f_in = f_in * (math.sqrt(t_s / temp) if f_in < 0 else 1.0)
+                f_out = f_out * (math.sqrt(t_s / temp) if f_out > 0 else 1.0)
+            f_leak = f_leak * (math.sqrt(t_s / temp) if f_leak > 0 else 1.0)
         port = [att * a_in * f_in, -att * a_ex * f_out]
         d_line = []
         if nseg:  # the ports feed the line's first cell; its last flow feeds the chamber
