@@ -43,9 +43,12 @@ def test_stationary_ar1_noise_is_stationary_from_the_first_sample():
     assert np.corrcoef(e[0, :, 0], e[0, :, 1])[0, 1] == pytest.approx(0.8, abs=0.02)
 
 
-@pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
-    root = tmp_path_factory.mktemp("pipeline")
+#: The chain's length of the fast tier's run folder: what its tests read is the folder's
+#: files and stamps, not the posterior (the slow tier's ``fitted`` runs 150 steps).
+QUICK_STEPS = "40"
+
+
+def _fit(root, steps):
     cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
                       duration_s=6.0, seed=8, positions=(0.5, 0.9), ranges_V=(5.0,))
     train = run_bench(cfg, root / "train")
@@ -54,9 +57,19 @@ def fitted(tmp_path_factory):
                      root / "held")
     run = root / "run"
     rc = main(["fit", *map(str, train.recordings), "--out", str(run), "--walkers", "32",
-               "--max-steps", "150", "--seed", "3", "-q"])
+               "--max-steps", steps, "--seed", "3", "-q"])
     assert rc == 0
     return run, train, held
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    return _fit(tmp_path_factory.mktemp("pipeline"), "150")
+
+
+@pytest.fixture(scope="module")
+def fitted_quick(tmp_path_factory):
+    return _fit(tmp_path_factory.mktemp("pipeline_quick"), QUICK_STEPS)
 
 
 @pytest.mark.slow
@@ -135,8 +148,8 @@ def test_controller_api_quantiles_are_ordered_and_respond_to_the_command(tmp_pat
     assert np.all(q[:, :, 0] == 2e5)
 
 
-def test_fit_method_lsq_writes_a_point_estimate(fitted, tmp_path, capsys):
-    _, train, _ = fitted
+def test_fit_method_lsq_writes_a_point_estimate(fitted_quick, tmp_path, capsys):
+    _, train, _ = fitted_quick
     out = tmp_path / "lsq"
     assert main(["fit", *map(str, train.recordings), "--out", str(out), "--method", "lsq",
                  "--supply-cutoff", "80", "--pressure-filter", "2:1000", "-q"]) == 0
@@ -204,10 +217,10 @@ def _snapshot(folder):
             if p.is_file()}
 
 
-def test_predict_never_combines_files_of_different_runs(fitted, tmp_path, capsys):
+def test_predict_never_combines_files_of_different_runs(fitted_quick, tmp_path, capsys):
     import shutil
 
-    run, _, held = fitted
+    run, _, held = fitted_quick
     copy = tmp_path / "copy"
     shutil.copytree(run, copy)
     rec = str(held.recordings[0])
@@ -232,9 +245,9 @@ def test_predict_never_combines_files_of_different_runs(fitted, tmp_path, capsys
     assert not out.exists()
 
 
-def test_predict_checks_its_output_names_and_options_before_any_work(fitted, tmp_path,
+def test_predict_checks_its_output_names_and_options_before_any_work(fitted_quick, tmp_path,
                                                                      capsys):
-    run, _, held = fitted
+    run, _, held = fitted_quick
     rec = str(held.recordings[0])
     capsys.readouterr()
     assert main(["predict", str(run), rec, "--out", str(tmp_path / "p.png")]) == 2
@@ -251,10 +264,10 @@ def test_predict_checks_its_output_names_and_options_before_any_work(fitted, tmp
     assert not (tmp_path / "q.csv").exists()
 
 
-def test_fit_refuses_to_mix_runs_and_overwrites_only_its_own_files(fitted, tmp_path, capsys):
+def test_fit_refuses_to_mix_runs_and_overwrites_only_its_own_files(fitted_quick, tmp_path, capsys):
     import shutil
 
-    run, train, held = fitted
+    run, train, held = fitted_quick
     copy = tmp_path / "copy"
     shutil.copytree(run, copy)
     recs = [str(p) for p in train.recordings]
@@ -284,10 +297,10 @@ def test_fit_refuses_to_mix_runs_and_overwrites_only_its_own_files(fitted, tmp_p
     assert "--walkers 1" in capsys.readouterr().err and not (tmp_path / "w").exists()
 
 
-def test_a_truncated_chain_is_a_message_naming_it(fitted, tmp_path, capsys):
+def test_a_truncated_chain_is_a_message_naming_it(fitted_quick, tmp_path, capsys):
     import shutil
 
-    run, train, _ = fitted
+    run, train, _ = fitted_quick
     copy = tmp_path / "copy"
     shutil.copytree(run, copy)
     data = (copy / "chain.h5").read_bytes()
@@ -295,7 +308,7 @@ def test_a_truncated_chain_is_a_message_naming_it(fitted, tmp_path, capsys):
     capsys.readouterr()
     # the same fit resumes (its least squares and refinement are saved) and meets the file
     rc = main(["fit", *map(str, train.recordings), "--out", str(copy), "--walkers", "32",
-               "--max-steps", "150", "--seed", "3", "-q", "--no-figures"])
+               "--max-steps", QUICK_STEPS, "--seed", "3", "-q", "--no-figures"])
     err = capsys.readouterr().err
     assert rc == 2 and "chain.h5" in err and "Traceback" not in err
 
@@ -331,17 +344,17 @@ def test_parameters_pushed_to_a_bound_are_named():
         ("dead_volume_m3", "upper"), ("leak_area_m2", "lower")}
 
 
-def test_an_edited_saved_stage_is_not_resumed(fitted, tmp_path, capsys):
+def test_an_edited_saved_stage_is_not_resumed(fitted_quick, tmp_path, capsys):
     """Issue 70: a finished fit's refined.json edited, then the same fit run again: the
     edited values are refused, not used."""
     import shutil
 
-    run, train, _ = fitted
+    run, train, _ = fitted_quick
     copy = tmp_path / "copy"
     shutil.copytree(run, copy)
     doc = json.loads((copy / "refined.json").read_text())
     (copy / "refined.json").write_text(json.dumps(doc) + "\n ")
     capsys.readouterr()
     assert main(["fit", *map(str, train.recordings), "--out", str(copy), "--walkers", "32",
-                 "--max-steps", "150", "--seed", "3", "-q"]) == 2
+                 "--max-steps", QUICK_STEPS, "--seed", "3", "-q"]) == 2
     assert "refined.json: not the file its run produced" in capsys.readouterr().err
