@@ -11,7 +11,13 @@ from pneubayes.physics.chamber import net_mass_flow, pressure_rate
 from pneubayes.physics.cylinder import CYLINDERS, chamber_volume, cylinder_preset
 from pneubayes.physics.gas import GasConstants
 from pneubayes.physics.orifice import flow_function, flow_partials, mass_flow
-from pneubayes.physics.valve import VALVES, gompertz_area, gompertz_scalar, valve_preset
+from pneubayes.physics.valve import (
+    VALVES,
+    gompertz_area,
+    gompertz_partials,
+    gompertz_scalar,
+    valve_preset,
+)
 
 GAS = GasConstants()
 P_ATM, P_SUP = 101325.0, 551325.0
@@ -218,6 +224,25 @@ def test_gompertz_hand_values_valve1():
     # at +5 V the inlet is near fully open (offset + a), the exhaust at its offset
     assert float(v.inlet.area(5.0)) == pytest.approx(2.9274e-08 + 5.501e-07, rel=2e-3)
     assert float(v.exhaust.area(5.0)) == pytest.approx(2.6076e-08, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", sorted(VALVES))
+def test_gompertz_partials_are_central_differences_of_the_map(name):
+    """The least squares' Jacobian (eq. 11 differentiated by hand) against central
+    differences with a step of 1e-6 of each parameter's size."""
+    u = np.linspace(-5, 5, 41)
+    for g in (valve_preset(name).inlet, valve_preset(name).exhaust):
+        theta = np.array([g.offset_m2, g.a_m2, g.b, g.c_per_V, g.d_V])
+        got = gompertz_partials(u, *theta)
+        assert got.shape == (41, 5)
+        for j in range(5):
+            h = 1e-6 * max(abs(theta[j]), 1e-3 if j >= 2 else 1e-9)
+            up, dn = theta.copy(), theta.copy()
+            up[j] += h
+            dn[j] -= h
+            fd = (gompertz_area(u, *up) - gompertz_area(u, *dn)) / (2 * h)
+            np.testing.assert_allclose(got[:, j], fd, rtol=1e-6,
+                                       atol=1e-9 * np.max(np.abs(fd)) + 1e-20)
 
 
 @pytest.mark.parametrize("name", sorted(VALVES))

@@ -30,7 +30,7 @@ from pneubayes.effects.base import Eq10Fit
 from pneubayes.inference.derivative import SavitzkyGolay, consistency_mask, switch_mask
 from pneubayes.model import Model
 from pneubayes.physics.orifice import flow_function
-from pneubayes.physics.valve import gompertz_area
+from pneubayes.physics.valve import gompertz_area, gompertz_partials
 
 _PORTS = ("inlet", "exhaust")
 _GOMPERTZ = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
@@ -77,6 +77,9 @@ def _fit_gompertz(u, area, se, port: str, model: Model, rng: np.random.Generator
         th = z * scale
         return w * (gompertz_area(u, *th) - area)
 
+    def jac(z):
+        return w[:, None] * gompertz_partials(u, *(z * scale)) * scale
+
     best = None
     sign = 1.0 if port == "inlet" else -1.0
     if warm is not None:
@@ -89,7 +92,7 @@ def _fit_gompertz(u, area, se, port: str, model: Model, rng: np.random.Generator
     for s in starts:
         z0 = np.clip(np.array(s), lo + 1e-12 * np.abs(lo), hi) / scale
         try:
-            r = optimize.least_squares(resid, z0, bounds=(lo / scale, hi / scale),
+            r = optimize.least_squares(resid, z0, jac=jac, bounds=(lo / scale, hi / scale),
                                        x_scale="jac", max_nfev=max_nfev, ftol=tolerance,
                                        xtol=tolerance, gtol=tolerance)
         except ValueError:

@@ -26,6 +26,17 @@ def gompertz_area(command_V, offset_m2, a_m2, b, c_per_V, d_V):
     return offset_m2 + a_m2 * np.exp(-b * np.exp(-c_per_V * (cmd + d_V)))
 
 
+def gompertz_partials(command_V, offset_m2, a_m2, b, c_per_V, d_V):
+    """Eq. 11's partial derivatives at each command, shape ``(n, 5)``: d area / d
+    (offset_m2, a_m2, b, c_per_V, d_V), in m^2 per each parameter's unit."""
+    cmd = np.asarray(command_V, dtype=np.float64)
+    inner = np.exp(-c_per_V * (cmd + d_V))
+    outer = np.exp(-b * inner)
+    abe = a_m2 * b * inner * outer
+    return np.stack((np.ones_like(cmd), outer, -a_m2 * inner * outer, abe * (cmd + d_V),
+                     abe * c_per_V), axis=-1)
+
+
 @njit(cache=True, inline="always")
 def switching_scalar(u, inlet_open_m2, exhaust_open_m2):
     """A switching (on/off) valve's port areas for opening ``u`` (0 closed, 1 open), m^2:
