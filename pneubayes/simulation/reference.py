@@ -23,7 +23,7 @@ from scipy.integrate import solve_ivp
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
-    combine_terms,
+    PORT_FACTOR_LIMITS,
     command_direction,
     evaluate_feature,
 )
@@ -66,6 +66,25 @@ def _dead_band(s, halfwidth, rounding):
         t = (z + rounding) / (2.0 * rounding)
         mag = 2.0 * rounding * t**3 * (1.0 - 0.5 * t)
     return math.copysign(mag, s) if s != 0.0 else 0.0
+
+
+def _closure_flow(terms) -> float:
+    """A closure's mass flow into the chamber (kg/s) from its terms ``(c, name_a, F_a,
+    name_b, F_b)`` at one state: a term that reads a port's flow (its first) scales that
+    port, the port's factor clipped so its flow does not reverse; any other adds
+    ``c F_a F_b``."""
+    free, factor, flow = 0.0, {}, {}
+    for c, name_a, fa, name_b, fb in terms:
+        if name_a in PORT_FACTOR_LIMITS:
+            factor[name_a], flow[name_a] = factor.get(name_a, 0.0) + c * fb, fa
+        elif name_b in PORT_FACTOR_LIMITS:
+            factor[name_b], flow[name_b] = factor.get(name_b, 0.0) + c * fa, fb
+        else:
+            free += c * fa * fb
+    for name, s in factor.items():
+        lo, hi = PORT_FACTOR_LIMITS[name]
+        free += flow[name] * min(max(s, lo), hi)
+    return free
 
 
 def low_passes(sl) -> list[tuple[float, float]]:
@@ -228,9 +247,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "pressure_history": _Held(y, code_p),
                        "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]
                                                           .code))}
-            flows.append(float(combine_terms(
-                [(c, fa, evaluate_feature(fa, signals, ta), fb,
-                  evaluate_feature(fb, signals, tb)) for c, fa, ta, fb, tb in closure])))
+            flows.append(_closure_flow(
+                [(c, fa, float(evaluate_feature(fa, signals, ta)), fb,
+                  float(evaluate_feature(fb, signals, tb))) for c, fa, ta, fb, tb in closure]))
         m_lung = 0.0
         if lung_v > 0:  # laminar flow into the second compartment (its pressure: last)
             m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[i_lung] ** 2)
