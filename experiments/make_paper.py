@@ -570,6 +570,9 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
               "", f"emcee converged: {conv}. Seed {g['seed']}.", ""]
         for f in g.get("figures", []):
             L += [_copy_fig(paper, f), ""]
+        L += _open_form_paragraph(g_path.parent / "discovery" / "discovery.json",
+                                  "The open-form stage on these trials", floor=3.0,
+                                  revision=(g.get("provenance") or {}).get("git_revision", ""))
     L += _tank_paragraph(out / f"real_gtdynamics_tank{suffix}" / "real_gtdynamics_tank.json")
     r_path = out / f"real_respiraworks{suffix}" / "real_respiraworks.json"
     if r_path.exists():
@@ -635,6 +638,48 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
         L += ["(not run: `python experiments/real_gtdynamics.py --out "
               f"{out}/real_gtdynamics` and `real_respiraworks.py`)", ""]
     return L
+
+
+def _open_form_paragraph(path: Path, title: str, floor: float | None = None,
+                         revision: str = "") -> list[str]:
+    """What the open-form stage tried on a run (its discovery ledger at ``path``, made at
+    git ``revision``): the closures refitted beside the named model, their training and
+    held-out errors, and what was kept; nothing when the stage did not run."""
+    if not path.exists():
+        return []
+    doc = json.loads(path.read_text())
+    trials = [e for e in doc["ledger"] if e["action"] in ("open form pass", "open form reject")]
+    searches = [e for e in doc["ledger"] if e["action"] == "open form search"]
+    if not searches:
+        return []
+    rev = revision
+    noise = doc["noise_floor_Pa"]
+    text = (f"**{title}** (the run's discovery ledger, `{path}`"
+            + (f", at `{rev[:7]}`" if rev else "") + f"). The stage searched the residual "
+            f"{len(searches)} time(s)")
+    if trials:
+        sets = sorted({"; ".join(t["term"] for t in e["terms"]) for e in trials})
+        train = [e["train_rmse_Pa"] for e in trials]
+        after = [e["heldout_rmse_after_Pa"] for e in trials]
+        better = [e["windows_improved"] for e in trials]
+        kept = [e for e in trials if e["action"] == "open form pass"]
+        text += (f" and refitted {len(trials)} closure(s) through the simulator beside the "
+                 f"named model ({', '.join(f'`{x}`' for x in sets)}): training "
+                 f"{min(train):.0f}-{max(train):.0f} Pa, held out "
+                 f"{trials[0]['heldout_rmse_before_Pa']:.0f} -> "
+                 f"{min(after):.0f}-{max(after):.0f} Pa (better in {min(better)}-"
+                 f"{max(better)} of {trials[0]['windows']} windows): "
+                 + (f"{len(kept)} kept." if kept else "all rejected."))
+    else:
+        text += "; no closure it proposed reached verification."
+    found = doc.get("found_terms") or []
+    if found:
+        text += " Found terms: " + "; ".join(f"`{t.get('term', t)}`" for t in found) + "."
+    final = doc["rmse_final_Pa"] / noise
+    text += (f" The held-out error ends at {doc['rmse_final_Pa']:.0f} Pa, {final:.1f} x the "
+             f"{noise:.0f}-Pa noise floor"
+             + (f" (issue 69's floor: {floor:g} x)" if floor is not None else "") + ".")
+    return [text, ""]
 
 
 def _tank_paragraph(path: Path) -> list[str]:

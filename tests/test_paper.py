@@ -132,6 +132,37 @@ def test_real_section_states_the_numbers_and_never_claims_a_fit_it_misses(tmp_pa
     assert "On OXY" not in text and "What the model lacks" not in text
 
 
+def test_open_form_paragraph_reads_the_ledger_and_states_the_floor(tmp_path):
+    def trial(action, terms, train, after, better):
+        return {"action": action, "terms": [{"term": t} for t in terms],
+                "train_rmse_Pa": train, "heldout_rmse_before_Pa": 8000.0,
+                "heldout_rmse_after_Pa": after, "windows_improved": better, "windows": 16}
+
+    doc = {"noise_floor_Pa": 1000.0, "rmse_final_Pa": 8000.0, "found_terms": [],
+           "ledger": [{"action": "open form search"},
+                      trial("open form reject", ["pressure_relaxation", "one"], 5000, 9000, 3),
+                      {"action": "open form search"},
+                      trial("open form reject", ["pressure_hinge"], 6000, 8500, 6)]}
+    path = tmp_path / "discovery.json"
+    path.write_text(json.dumps(doc))
+    text = make_paper._open_form_paragraph(path, "The stage", floor=3.0, revision="abc1234ff")[0]
+    assert "at `abc1234`" in text and "searched the residual 2 time(s)" in text
+    assert "`pressure_hinge`, `pressure_relaxation; one`" in text
+    assert "training 5000-6000 Pa, held out 8000 -> 8500-9000 Pa (better in 3-6 of 16" in text
+    assert "all rejected" in text and "8.0 x the 1000-Pa noise floor (issue 69's floor: 3 x)" \
+        in text
+    doc["ledger"][3]["action"] = "open form pass"
+    doc["found_terms"] = [{"term": "pressure_hinge"}]
+    path.write_text(json.dumps(doc))
+    text = make_paper._open_form_paragraph(path, "The stage")[0]
+    assert "1 kept" in text and "Found terms: `pressure_hinge`" in text
+    # a run whose stage never searched: no paragraph
+    doc["ledger"] = []
+    path.write_text(json.dumps(doc))
+    assert make_paper._open_form_paragraph(path, "The stage") == []
+    assert make_paper._open_form_paragraph(tmp_path / "missing.json", "The stage") == []
+
+
 def test_only_the_real_section_is_rewritten(tmp_path):
     paper = tmp_path / "paper"
     paper.mkdir()
