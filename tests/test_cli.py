@@ -129,8 +129,8 @@ def test_discover_rejects_a_bad_setting_before_reading(bench_dir, tmp_path, caps
 def test_discover_reads_one_tree_from_file_options_and_set_in_that_order(tmp_path):
     """The settings file, then the options, then ``--set``; the same names all the way
     down (a study's ``[settings.discovery]`` table is the same tree)."""
-    from pneubayes import cli_settings
-    from pneubayes.cli_args import build_parser
+    from pneubayes.cli import settings as cli_settings
+    from pneubayes.cli.args import build_parser
 
     f = tmp_path / "s.toml"
     f.write_text('seed = 5\n[rounds]\nmax_effects = 2\n[stages]\npair_members = 0\n'
@@ -157,8 +157,8 @@ def test_discover_reads_one_tree_from_file_options_and_set_in_that_order(tmp_pat
 
 
 def test_no_dense_output_gives_the_fits_the_stepping_at_every_sample():
-    from pneubayes import cli_settings
-    from pneubayes.cli_args import build_parser
+    from pneubayes.cli import settings as cli_settings
+    from pneubayes.cli.args import build_parser
     from pneubayes.simulation import SolverConfig
 
     parser = build_parser()
@@ -169,8 +169,8 @@ def test_no_dense_output_gives_the_fits_the_stepping_at_every_sample():
 
 
 def test_fit_reads_its_settings_file_and_its_options_override_it(tmp_path):
-    from pneubayes import cli_settings
-    from pneubayes.cli_args import build_parser
+    from pneubayes.cli import settings as cli_settings
+    from pneubayes.cli.args import build_parser
 
     f = tmp_path / "fit.toml"
     f.write_text("horizon_s = 0.5\nposition_cutoff_Hz = 20.0\n[sampler]\nmax_steps = 300\n")
@@ -192,7 +192,7 @@ DISCOVER_OPTIONS_FLOOR = 15  # issue 66: discover keeps about twelve flags
 def _visible_options(command: str) -> list[str]:
     import argparse
 
-    from pneubayes.cli_args import build_parser
+    from pneubayes.cli.args import build_parser
 
     sub = next(a for a in build_parser()._actions
                if isinstance(a, argparse._SubParsersAction)).choices[command]

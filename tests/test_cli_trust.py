@@ -201,9 +201,9 @@ def test_short_triggered_trials_fit_on_shorter_windows(tmp_path, capsys):
     assert "refined 0.2-s RMSE" in err and " 2-s" not in err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["settings"]["horizon_s"] == 0.2 and summary["settings"]["stride_s"] == 0.2
-    from pneubayes.cli import _run_horizon
+    from pneubayes.cli.common import run_horizon
 
-    assert _run_horizon(out) == 0.2 and _run_horizon(tmp_path) == 2.0
+    assert run_horizon(out) == 0.2 and run_horizon(tmp_path) == 2.0
     # bounds sized for another rig are set per run and recorded in the card
     wide = tmp_path / "wide"
     assert main(["fit", *recs, "--out", str(wide), "--method", "refine", "--horizon", "0.2",
