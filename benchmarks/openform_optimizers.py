@@ -18,7 +18,7 @@ import numpy as np
 from openform_synthetic import synthetic_signals
 
 from pneubayes.discovery.openform import OpenFormSearch
-from pneubayes.effects.closure_features import Term
+from pneubayes.effects.closure_terms import Term
 
 NOISE_KG_PER_S = 3e-5
 #: Planted terms: [(term, threshold_a, threshold_b, coefficient)]; [] the null control.

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from pneubayes.effects import closure_features as cf
+from pneubayes.effects import closure_terms as ct
 from pneubayes.effects import make_effect
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, N_SLOTS, SLOT_INDEX
 from pneubayes.model import Model
@@ -95,7 +96,7 @@ def test_lowering_writes_codes_thresholds_and_switches_off_at_zero(rig):
 def test_the_compiled_constants_are_the_feature_tables():
     from pneubayes.simulation import chamber
 
-    assert CLOSURE_MAX_TERMS == cf.CLOSURE_MAX_TERMS
+    assert CLOSURE_MAX_TERMS == ct.CLOSURE_MAX_TERMS
     assert chamber._AREA_SCALE == cf.AREA_SCALE_M2
     assert chamber._VOLUME_SCALE == cf.VOLUME_SCALE_M3
     assert [f.code for f in cf.FEATURES] == list(range(len(cf.FEATURES)))
@@ -247,7 +248,7 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
              "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05,
              "inlet_drop_hinge": 3.5, "spool_null_hinge": 4.5, "inlet_area_hinge": 0.1,
              "exhaust_area_hinge": 0.1}
-    term = cf.Term.parse(terms)
+    term = ct.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
                                             for side in term.hinges()})
@@ -718,11 +719,11 @@ def test_port_terms_add_to_their_ports_factor_which_is_clipped():
              (-0.2, "pressure_hinge", h, "inlet_flow", q_in),
              (0.5, "exhaust_flow", q_ex, "pressure_hinge", h),
              (-1e-4, "pressure_hinge", h, "one", 1.0)]
-    got = cf.combine_terms(terms)
+    got = ct.combine_terms(terms)
     s_in = np.maximum(-0.6 * h, -1.0)  # [-0.3, -1]
     s_ex = np.minimum(0.5 * h, 1.0)  # [0.25, 1]
     np.testing.assert_allclose(got, q_in * s_in + q_ex * s_ex - 1e-4 * h, rtol=1e-14)
-    assert [cf.modulated_port(t) for t in cf.parse_terms(
+    assert [ct.modulated_port(t) for t in ct.parse_terms(
         "pressure_hinge*exhaust_flow; net_flow*inlet_flow; spool")] == [
         "exhaust_flow", "net_flow", None]
 

@@ -166,7 +166,7 @@ def test_a_tube_simulated_as_a_line_goes_to_its_plainest_form_beside_a_closure(r
     beside a closure that reads no port the wave tube stays."""
     from pneubayes.discovery.openform.closure_model import beside_closure
     from pneubayes.effects import make_effect
-    from pneubayes.effects.closure_features import parse_terms
+    from pneubayes.effects.closure_terms import parse_terms
     from pneubayes.physics.valve import valve_preset
 
     wave = Model([make_effect("tube_delay", form="wave", segments=8)])
@@ -216,7 +216,7 @@ def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
     from pneubayes.discovery.openform.closure_model import families_at_bounds
     from pneubayes.discovery.openform.search import FoundTerm
     from pneubayes.discovery.stages.open_form import _clone
-    from pneubayes.effects.closure_features import Term
+    from pneubayes.effects.closure_terms import Term
 
     model = Model().with_effect(Closure(terms="one; inlet_flow*pressure_relaxation; "
                                               "pressure_ratio*net_flow"))
@@ -296,7 +296,7 @@ def test_a_second_round_extends_the_closure_the_model_already_has(rig):
     closure's included, were given to the model without it)."""
     from pneubayes.discovery.openform.search import FoundTerm
     from pneubayes.discovery.state import Ledger
-    from pneubayes.effects.closure_features import Term
+    from pneubayes.effects.closure_terms import Term
     from pneubayes.physics.valve import valve_preset
 
     model = Model().with_effect(Closure(terms="pressure_hinge"))
@@ -355,7 +355,7 @@ def test_a_closure_whose_fit_fails_from_every_start_is_in_the_ledger(rig):
     case's four fitted closures vanished from its ledger this way."""
     from pneubayes.discovery.openform.search import FoundTerm
     from pneubayes.discovery.state import Ledger
-    from pneubayes.effects.closure_features import Term
+    from pneubayes.effects.closure_terms import Term
     from pneubayes.errors import SimulationError
     from pneubayes.physics.valve import valve_preset
 
@@ -409,7 +409,7 @@ def test_pruning_keeps_a_term_whose_closure_would_stop_beating_the_current_model
 
 def test_a_closure_rewritten_starts_at_its_terms_values_with_bounds_that_reach_them():
     from pneubayes.discovery.openform.linear_hinge import ValuedTerm
-    from pneubayes.effects.closure_features import Term
+    from pneubayes.effects.closure_terms import Term
 
     model = Model().with_effect(Closure(terms="inlet_flow*inlet_drop_hinge"))
     params = {k: 0.5 * (model.parameter(k).lower + model.parameter(k).upper)
@@ -437,7 +437,7 @@ def test_a_hinge_threshold_bound_reaches_the_range_of_its_signal():
     from openform_synthetic import synthetic_signals
 
     from pneubayes.discovery.openform.closure_model import threshold_reach
-    from pneubayes.effects.closure_features import Term
+    from pneubayes.effects.closure_terms import Term
 
     s = synthetic_signals(4)
     high = dict(s, pressure_Pa=s["pressure_Pa"] * 3.0)  # up to ~21 bar
@@ -460,7 +460,7 @@ def test_the_sources_are_tried_in_turn_and_share_the_per_interval_residual(monke
     longer block's rows are the search's to make) and the windows read the first's."""
     from pneubayes.discovery.openform.search import FoundTerm
     from pneubayes.discovery.state import Ledger
-    from pneubayes.effects.closure_features import Term
+    from pneubayes.effects.closure_terms import Term
     from pneubayes.physics.valve import valve_preset
 
     stage = OpenForm()

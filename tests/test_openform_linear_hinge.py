@@ -8,7 +8,7 @@ import pytest
 from openform_synthetic import synthetic_signals
 
 from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
-from pneubayes.effects.closure_features import Term
+from pneubayes.effects.closure_terms import Term
 
 
 def _flow(terms, signals):

@@ -22,7 +22,11 @@ from pneubayes.discovery.openform.features import (
     hinge_partners,
 )
 from pneubayes.effects import closure_features as cf
-from pneubayes.effects.closure_features import SIGNALS, Term, parse_terms
+from pneubayes.effects.closure_features import SIGNALS
+from pneubayes.effects.closure_terms import (
+    Term,
+    parse_terms,
+)
 
 #: White noise on the per-interval target, kg/s (a 500-Pa sensor's one-step error in a
 #: 10-cm^3 chamber at 1 kHz is ~6e-5 kg/s; per 5-interval block this is ~1.3e-5 kg/s).

@@ -12,7 +12,7 @@ from pneubayes.discovery.openform import OpenFormSearch
 from pneubayes.discovery.openform.signals import path_signals
 from pneubayes.discovery.openform.trajectory import WindowResponse
 from pneubayes.effects.closure import Closure
-from pneubayes.effects.closure_features import Term
+from pneubayes.effects.closure_terms import Term
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io.recording import Recording, RecordingMetadata
 from pneubayes.model import Model

@@ -12,7 +12,10 @@ from dataclasses import dataclass, field
 import pneubayes
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.verification import StepFit
-from pneubayes.effects.closure_features import modulated_port, term_formula
+from pneubayes.effects.closure_terms import (
+    modulated_port,
+    term_formula,
+)
 from pneubayes.inference.fit import PosteriorDraws
 
 FORMAT = "pneubayes-discovery/1"

@@ -12,7 +12,7 @@ The flow enters eq. 5 as a port flow does (mass is conserved): at the supply's
 temperature when positive, leaving at the chamber's when negative (with a temperature
 state). A term that reads a port's flow modulates that port, its factor clipped where
 the port's flow would reverse
-(:data:`~pneubayes.effects.closure_features.PORT_FACTOR_LIMITS`). The compiled
+(:data:`~pneubayes.effects.closure_terms.PORT_FACTOR_LIMITS`). The compiled
 simulator evaluates it in
 :func:`pneubayes.simulation.chamber.chamber_rhs`; :func:`pneubayes.simulation.rates.rate_terms`
 gives its dp/dt at a given state and :mod:`pneubayes.simulation.reference` integrates it
@@ -34,7 +34,12 @@ from typing import ClassVar
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
-from pneubayes.effects.closure_features import Term, feature, parse_terms, reads_ports
+from pneubayes.effects.closure_features import feature
+from pneubayes.effects.closure_terms import (
+    Term,
+    parse_terms,
+    reads_ports,
+)
 from pneubayes.effects.path import CLOSURE_MAX_TERMS
 from pneubayes.rig import Rig
 
@@ -82,9 +87,9 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
 class Closure(Effect):
     """An open-form extra mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s).
 
-    ``terms``: one to :data:`~pneubayes.effects.closure_features.CLOSURE_MAX_TERMS`
+    ``terms``: one to :data:`~pneubayes.effects.closure_terms.CLOSURE_MAX_TERMS`
     terms joined by ``"; "``, each a feature or two joined by ``"*"``
-    (:func:`~pneubayes.effects.closure_features.parse_terms`)."""
+    (:func:`~pneubayes.effects.closure_terms.parse_terms`)."""
 
     name = "closure"
     acts_on: ClassVar[tuple[str, ...]] = (

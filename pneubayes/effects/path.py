@@ -135,8 +135,8 @@ SLOTS += (
      "P_atm + g (p - P_atm) + o (-)"),
 )
 
-#: Most terms of an open-form closure (:mod:`pneubayes.effects.closure`); the same as
-#: :data:`pneubayes.effects.closure_features.CLOSURE_MAX_TERMS`.
+#: Most terms of an open-form closure (:mod:`pneubayes.effects.closure`): the compiled
+#: simulator's slots, and what :func:`pneubayes.effects.closure_terms.parse_terms` accepts.
 CLOSURE_MAX_TERMS = 4
 
 SLOTS += (

@@ -202,7 +202,7 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in, f_ex, vol, compl,
     A term that reads a port's flow (``inlet_flow``, ``exhaust_flow``, ``net_flow``; its
     first such feature) modulates that port: the port's terms add to ``q s`` and the
     factor ``s`` is clipped so the port's flow never reverses
-    (:data:`pneubayes.effects.closure_features.PORT_FACTOR_LIMITS`)."""
+    (:data:`pneubayes.effects.closure_terms.PORT_FACTOR_LIMITS`)."""
     q_in, q_ex = a_in * f_in, a_ex * f_ex
     dq_in_dp, dq_ex_dp = a_in * df_in_dp, a_ex * df_ex_dp
     dq_in_dt, dq_ex_dt = a_in * df_in_dt + f_in * da_in, f_ex * da_ex

@@ -19,9 +19,9 @@ import numpy as np
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
-    combine_terms,
     evaluate_feature,
 )
+from pneubayes.effects.closure_terms import combine_terms
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, TABLE_MAX_POINTS
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function

@@ -23,10 +23,10 @@ from scipy.integrate import solve_ivp
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
-    PORT_FACTOR_LIMITS,
     command_direction,
     evaluate_feature,
 )
+from pneubayes.effects.closure_terms import PORT_FACTOR_LIMITS
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
 from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa

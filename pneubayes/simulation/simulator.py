@@ -15,7 +15,8 @@ from functools import cached_property
 
 import numpy as np
 
-from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS, FEATURES
+from pneubayes.effects.closure_features import FEATURES
+from pneubayes.effects.closure_terms import CLOSURE_MAX_TERMS
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 from pneubayes.model import Model

@@ -13,7 +13,7 @@ import numpy as np
 from pneubayes.discovery.openform.features import HINGE_SOURCES, hinge_source_values
 from pneubayes.effects import make_effect
 from pneubayes.effects.closure import Closure
-from pneubayes.effects.closure_features import reads_ports
+from pneubayes.effects.closure_terms import reads_ports
 from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
 

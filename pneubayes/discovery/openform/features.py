@@ -1,6 +1,6 @@
 """The open-form search's candidate library: closure terms with their thresholds.
 
-A candidate is a :class:`~pneubayes.effects.closure_features.Term` with the thresholds
+A candidate is a :class:`~pneubayes.effects.closure_terms.Term` with the thresholds
 of its hinge features. The library (:func:`candidate_terms`) holds
 
 - every base feature that is not a hinge (``one`` included);
@@ -43,7 +43,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.effects.closure_features import FEATURES, Term, evaluate_feature
+from pneubayes.effects.closure_features import (
+    FEATURES,
+    evaluate_feature,
+)
+from pneubayes.effects.closure_terms import Term
 
 #: Hinge features and the signal their thresholds are quantiles of (the null hinge's:
 #: of the spool's magnitude, :func:`hinge_source_values`).

@@ -19,7 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneubayes.discovery.openform.features import HINGE_SOURCES, MAGNITUDE_HINGES
-from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS, Term, evaluate_feature
+from pneubayes.effects.closure_features import evaluate_feature
+from pneubayes.effects.closure_terms import (
+    CLOSURE_MAX_TERMS,
+    Term,
+)
 
 #: Each hinge's side: +1 for ``max(0, x - theta)``, -1 for ``max(0, theta - x)``
 #: (the null hinge, ``max(0, theta - |s|)``, has no linear feature and is left out).

@@ -54,10 +54,12 @@ from pneubayes.discovery.openform.features import (
     relaxation_range,
 )
 from pneubayes.effects.closure_features import (
-    CLOSURE_MAX_TERMS,
     SIGNALS,
-    Term,
     feature,
+)
+from pneubayes.effects.closure_terms import (
+    CLOSURE_MAX_TERMS,
+    Term,
 )
 
 #: The pysindy optimizers the search can use.

@@ -27,7 +27,10 @@ import numpy as np
 
 from pneubayes.discovery.absorbers import sensitivity_points
 from pneubayes.discovery.openform.trajectory import phi1, pressure_gain
-from pneubayes.effects.closure_features import SignalHistory, held_direction
+from pneubayes.effects.closure_features import (
+    SignalHistory,
+    held_direction,
+)
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs

@@ -9,7 +9,7 @@ fitted values and the fitted values as bench defaults. Registering it is one lin
 
 from __future__ import annotations
 
-from pneubayes.effects.closure_features import term_formula
+from pneubayes.effects.closure_terms import term_formula
 
 
 def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",

@@ -28,8 +28,8 @@ from pneubayes.discovery.openform.signals import missing_mass_flow, path_signals
 from pneubayes.effects.closure_features import (
     evaluate_feature,
     feature,
-    term_formula,
 )
+from pneubayes.effects.closure_terms import term_formula
 
 
 def main_variable(term) -> str:

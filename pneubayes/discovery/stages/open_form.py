@@ -41,7 +41,8 @@ from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects.closure import Closure
-from pneubayes.effects.closure_features import CLOSURE_MAX_TERMS, PORT_FEATURES
+from pneubayes.effects.closure_features import PORT_FEATURES
+from pneubayes.effects.closure_terms import CLOSURE_MAX_TERMS
 from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
