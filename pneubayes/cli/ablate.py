@@ -5,9 +5,7 @@ from __future__ import annotations
 import sys
 
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import (
-    open_run_folder,
-)
+from pneubayes.run_folder import open_run_folder
 
 
 def cmd_ablate(args) -> int:

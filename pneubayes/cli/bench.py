@@ -6,9 +6,7 @@ import math
 import sys
 from pathlib import Path
 
-from pneubayes.cli.common import (
-    effect_names,
-)
+from pneubayes.cli.common import effect_names
 from pneubayes.errors import PneubayesError
 
 

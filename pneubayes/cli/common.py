@@ -10,9 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import (
-    recorded_number,
-)
+from pneubayes.run_folder import recorded_number
 
 #: A declared pressure filter's cutoff may lie at most this many times above a
 #: recording's sample rate (an oversampling DAQ filters before it decimates, so a cutoff
@@ -57,14 +55,6 @@ def effect_names(text: str, option: str = "--effects") -> list[str]:
         raise PneubayesError(f"{option}: unknown effect(s) {', '.join(unknown)}; the "
                              f"catalogue has {', '.join(sorted(CATALOGUE))}")
     return names
-
-
-def no_bound_twice(bounds) -> None:
-    names = [n for n, _ in bounds]
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise PneubayesError(f"--bounds: {', '.join(twice)} given more than once (which "
-                             "one did you mean?)")
 
 
 def check_windows(recs, horizon: float, stride: float | None, force: bool,
@@ -195,15 +185,6 @@ def recording_files(paths) -> list[Path]:
     return [f for p in paths for f in recording_paths(p)]
 
 
-def read_all(paths, accept, command, rig=None):
-    from pneubayes.io.recording import read_recording
-
-    recs = [read_recording(p, accept, rig) for p in paths]
-    print_findings(command, recs)
-    rig_card_of(recs)
-    return recs
-
-
 def rig_card_of(recs):
     """The one rig card the recordings share (None: the paper's cylinders); mixing
     rigs in one fit is an error naming two recordings that differ."""
@@ -217,54 +198,12 @@ def rig_card_of(recs):
     return first.rig_card
 
 
-def known_from(args):
-    """``(rig card, parameters)`` of the fit ``--known-from`` names (a run folder or its
-    model.json); --refit without it is a usage error."""
-    from pneubayes.model import Model
+def read_all(paths, accept, command, rig=None):
+    from pneubayes.io.recording import read_recording
 
-    if not args.known_from:
-        raise PneubayesError("--refit needs --known-from (the fit whose values the other "
-                             "quantities keep)")
-    path = Path(args.known_from)
-    if path.is_dir():
-        path = path / "model.json"
-    model, params = Model.load_card(path)
-    if model.rig_card is None:
-        raise PneubayesError(f"--known-from {path}: the model has no rig card (the paper's "
-                             "cylinders); --known-from fixes a rig card's quantities")
-    return model.rig_card, params, path
+    recs = [read_recording(p, accept, rig) for p in paths]
+    print_findings(command, recs)
+    rig_card_of(recs)
+    return recs
 
 
-def card_known_at(card, known, args):
-    """The recordings' card with its fitted quantities known at ``known``'s values but
-    those --refit names; errors name what does not match."""
-    from pneubayes.model import Model
-
-    known_card, params, path = known
-    if card != known_card:
-        raise PneubayesError(f"--known-from {path} was fitted on the rig "
-                             f"{known_card.name!r}, the recordings are of "
-                             + (f"the rig {card.name!r}" if card else "the paper's cylinders"))
-    fitted = Model(rig_card=card).parameter_names
-    stray = [n for n in args.refit if n not in fitted]
-    if stray:
-        raise PneubayesError(f"--refit: {stray} are not fitted quantities of the rig card "
-                             f"{card.name!r}; its are {list(fitted)}")
-    return card.known_at(params, keep_unknown=args.refit)
-
-
-def point_warnings(model, est: dict, summary: dict) -> None:
-    """A point estimate's misfit and parameters at their bounds, said as mcmc says them."""
-    from pneubayes.inference.fit import MISFIT_RATIO, at_bounds
-
-    rmse, noise = est.get("rmse_Pa"), summary.get("noise_floor_Pa")
-    if isinstance(rmse, (int, float)) and isinstance(noise, (int, float)) and noise > 0 \
-            and rmse > MISFIT_RATIO * noise:
-        print(f"  misfit: the model misses by {rmse / noise:.1f} x the noise floor "
-              f"({rmse:.0f} Pa against {noise:.0f} Pa)")
-    values = {k: {"q05": v, "q95": v} for k, v in est["parameters"].items()
-              if isinstance(v, (int, float))}
-    for b in at_bounds(model, values):
-        print(f"  at its {b['bound']} bound: {b['parameter']} = {b['q05']:.4g} (bound "
-              f"{b['value']:.4g}): the data push it there, or the bound is sized for "
-              "another rig (--bounds)")

@@ -6,14 +6,10 @@ import sys
 from pathlib import Path
 
 from pneubayes.cli.common import (
-    card_known_at,
     check_filter,
     check_windows,
     effect_names,
-    known_from,
-    no_bound_twice,
     not_an_input,
-    point_warnings,
     read_all,
     recording_files,
     rig_card_of,
@@ -26,10 +22,71 @@ from pneubayes.run_folder import (
     open_run_folder,
 )
 
-#: What each folder-writing command may write (removed by --overwrite when the folder
+#: What fit may write (removed by --overwrite when the folder
 #: has no stamp listing the earlier run's files).
 FIT_OUTPUTS = ("model.json", "summary.json", "posterior.nc", "chain.h5", "refined.json",
                "figures")
+
+
+def _no_bound_twice(bounds) -> None:
+    names = [n for n, _ in bounds]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise PneubayesError(f"--bounds: {', '.join(twice)} given more than once (which "
+                             "one did you mean?)")
+
+
+def _known_from(args):
+    """``(rig card, parameters)`` of the fit ``--known-from`` names (a run folder or its
+    model.json); --refit without it is a usage error."""
+    from pneubayes.model import Model
+
+    if not args.known_from:
+        raise PneubayesError("--refit needs --known-from (the fit whose values the other "
+                             "quantities keep)")
+    path = Path(args.known_from)
+    if path.is_dir():
+        path = path / "model.json"
+    model, params = Model.load_card(path)
+    if model.rig_card is None:
+        raise PneubayesError(f"--known-from {path}: the model has no rig card (the paper's "
+                             "cylinders); --known-from fixes a rig card's quantities")
+    return model.rig_card, params, path
+
+
+def _card_known_at(card, known, args):
+    """The recordings' card with its fitted quantities known at ``known``'s values but
+    those --refit names; errors name what does not match."""
+    from pneubayes.model import Model
+
+    known_card, params, path = known
+    if card != known_card:
+        raise PneubayesError(f"--known-from {path} was fitted on the rig "
+                             f"{known_card.name!r}, the recordings are of "
+                             + (f"the rig {card.name!r}" if card else "the paper's cylinders"))
+    fitted = Model(rig_card=card).parameter_names
+    stray = [n for n in args.refit if n not in fitted]
+    if stray:
+        raise PneubayesError(f"--refit: {stray} are not fitted quantities of the rig card "
+                             f"{card.name!r}; its are {list(fitted)}")
+    return card.known_at(params, keep_unknown=args.refit)
+
+
+def _point_warnings(model, est: dict, summary: dict) -> None:
+    """A point estimate's misfit and parameters at their bounds, said as mcmc says them."""
+    from pneubayes.inference.fit import MISFIT_RATIO, at_bounds
+
+    rmse, noise = est.get("rmse_Pa"), summary.get("noise_floor_Pa")
+    if isinstance(rmse, (int, float)) and isinstance(noise, (int, float)) and noise > 0 \
+            and rmse > MISFIT_RATIO * noise:
+        print(f"  misfit: the model misses by {rmse / noise:.1f} x the noise floor "
+              f"({rmse:.0f} Pa against {noise:.0f} Pa)")
+    values = {k: {"q05": v, "q95": v} for k, v in est["parameters"].items()
+              if isinstance(v, (int, float))}
+    for b in at_bounds(model, values):
+        print(f"  at its {b['bound']} bound: {b['parameter']} = {b['q05']:.4g} (bound "
+              f"{b['value']:.4g}): the data push it there, or the bound is sized for "
+              "another rig (--bounds)")
 
 
 def cmd_fit(args) -> int:
@@ -46,17 +103,17 @@ def cmd_fit(args) -> int:
     if args.leak_form is not None and "cylinder_leak" not in names:
         raise PneubayesError(f"--leak-form {args.leak_form}: only with cylinder_leak among "
                              "--effects (the fitted model has no leak)")
-    no_bound_twice(args.bounds)
+    _no_bound_twice(args.bounds)
     settings = fit_settings(args)
     sampler = settings.sampler
-    known = known_from(args) if args.known_from or args.refit else None
+    known = _known_from(args) if args.known_from or args.refit else None
     recs = read_all(args.recordings, args.accept, "fit", args.rig)
     check_filter(recs, settings.pressure_filter)
     check_windows(recs, settings.horizon_s, settings.stride_s, args.force,
                    windows=args.method != "lsq")
     card = rig_card_of(recs)
     if known is not None:  # the card's quantities known at another fit's values
-        card = card_known_at(card, known, args)
+        card = _card_known_at(card, known, args)
         recs = read_all(args.recordings, args.accept, "fit", card)
     if args.model:
         model, _ = Model.load_card(args.model)
@@ -100,7 +157,7 @@ def cmd_fit(args) -> int:
                 "options": {e.name: e.options() for e in model.effects},
                 "bounds": model.bound_overrides,
                 "rig": None if card is None else card.to_dict(),
-                "known_from": None if known is None else str(known[2]),
+                "_known_from": None if known is None else str(known[2]),
                 "method": args.method, "walkers": sampler.n_walkers, "seed": sampler.seed,
                 "windows": {"horizon_s": settings.horizon_s, "stride_s": settings.stride_s},
                 "refine_jacobian_refresh": settings.refine_jacobian_refresh,
@@ -130,7 +187,7 @@ def cmd_fit(args) -> int:
             print(f"  {name:32s} {v:12.5g}")
         for note in summary["start"]["notes"]:
             print(f"  note: {note}")
-        point_warnings(model, est, summary)
+        _point_warnings(model, est, summary)
         return 0
     how = (f"Laplace, {summary['draws']} draws, concave at the mode and its draws "
            f"reliable {summary['converged']}" if args.method == "laplace" else

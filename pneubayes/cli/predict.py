@@ -13,9 +13,7 @@ from pneubayes.cli.common import (
     run_horizon,
 )
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import (
-    check_file,
-)
+from pneubayes.run_folder import check_file
 
 #: The fewest posterior draws a prediction's bands are drawn from (--draws).
 MIN_DRAWS = 20

@@ -15,9 +15,7 @@ from pneubayes.cli.common import (
     run_horizon,
 )
 from pneubayes.errors import PneubayesError
-from pneubayes.run_folder import (
-    check_file,
-)
+from pneubayes.run_folder import check_file
 
 
 def cmd_track(args) -> int:
