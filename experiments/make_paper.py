@@ -652,11 +652,10 @@ def _open_form_paragraph(path: Path, title: str, floor: float | None = None,
     searches = [e for e in doc["ledger"] if e["action"] == "open form search"]
     if not searches:
         return []
-    rev = revision
     noise = doc["noise_floor_Pa"]
     text = (f"**{title}** (the run's discovery ledger, `{path}`"
-            + (f", at `{rev[:7]}`" if rev else "") + f"). The stage searched the residual "
-            f"{len(searches)} time(s)")
+            + (f", at `{revision[:7]}`" if revision else "")
+            + f"). The stage searched the residual {len(searches)} time(s)")
     if trials:
         sets = sorted({"; ".join(t["term"] for t in e["terms"]) for e in trials})
         train = [e["train_rmse_Pa"] for e in trials]

@@ -96,7 +96,10 @@ def test_lowering_writes_codes_thresholds_and_switches_off_at_zero(rig):
 def test_the_compiled_constants_are_the_feature_tables():
     from pneubayes.simulation import chamber
 
-    assert CLOSURE_MAX_TERMS == ct.CLOSURE_MAX_TERMS
+    # a closure parses as many terms as the compiled slots hold, and no more
+    assert len(ct.parse_terms("; ".join(["one"] * CLOSURE_MAX_TERMS))) == CLOSURE_MAX_TERMS
+    with pytest.raises(ValueError, match=f"1 to {CLOSURE_MAX_TERMS} terms"):
+        ct.parse_terms("; ".join(["one"] * (CLOSURE_MAX_TERMS + 1)))
     assert chamber._AREA_SCALE == cf.AREA_SCALE_M2
     assert chamber._VOLUME_SCALE == cf.VOLUME_SCALE_M3
     assert [f.code for f in cf.FEATURES] == list(range(len(cf.FEATURES)))

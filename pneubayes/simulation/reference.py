@@ -182,7 +182,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         else:
             a_ex = _gompertz(ueff, *exs)
             s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]],
-                                         sl[S["exhaust_open_area_m2"]])
+                                    sl[S["exhaust_open_area_m2"]])
         if n_tab:  # a tabulated map, linear between its points
             s_in += np.interp(ueff, tab_c, tab_i)
             s_ex += np.interp(ueff, tab_c, tab_e)
