@@ -195,7 +195,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     plans = _plans(cfg, cyl.stroke_m)
     calibration = model.effect("sensor_calibration") if model.has("sensor_calibration") \
         else None
-    calibration_neutral = calibration.neutral_values() if calibration is not None else {}
+    drift = model.effect("sensor_drift") if model.has("sensor_drift") else None
+    calibration_neutral = {**(calibration.neutral_values() if calibration is not None else {}),
+                           **(drift.neutral_values() if drift is not None else {})}
     seeds = np.random.SeedSequence(cfg.seed).spawn(len(plans))
     written, entries = [], []
     for plan, ss in zip(plans, seeds):
@@ -232,6 +234,8 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
                 p_true = form.read(t_fine, p_true)
         if calibration is not None:
             p_true = calibration.read(p_true, truth, ATMOSPHERE_PA)
+        if drift is not None:  # a drifting zero (sensor_drift), on the fine clock
+            p_true = drift.read(t_fine, p_true, truth)
         s = cfg.sensor
         p_meas = s.measure(t_fine, p_true, t_out, s.pressure_noise_Pa, rng,
                            s.pressure_quantum_Pa)

@@ -133,6 +133,12 @@ SLOTS += (
      "P_atm + g (p - P_atm) + o (its value at atmospheric pressure less P_atm; Pa)"),
     ("reading_gain_error", "the miscalibrated sensor's gain error: g - 1 in the reading "
      "P_atm + g (p - P_atm) + o (-)"),
+    ("reading_drift_Pa_per_s", "a drifting sensor zero: o grows by a t, t on the "
+     "recording's clock (Pa/s)"),
+    ("reading_warm_up_Pa", "a sensor zero that settles as the sensor warms: o grows by "
+     "b (1 - exp(-t / tau)), t >= 0 on the recording's clock (Pa)"),
+    ("reading_warm_up_time_constant_s", "the warming zero's time constant tau (read only "
+     "where reading_warm_up_Pa is not 0; s)"),
 )
 
 #: Most terms of an open-form closure (:mod:`pneubayes.effects.closure`): the compiled

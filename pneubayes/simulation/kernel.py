@@ -53,6 +53,8 @@ from pneubayes.effects.path import (
 )
 from pneubayes.physics.calibration import (
     pressure_behind_reading_scalar,
+    reading_zero_rate_scalar,
+    reading_zero_scalar,
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
@@ -180,6 +182,9 @@ _TAB_MAX = TABLE_MAX_POINTS
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
+_DRIFT = SLOT_INDEX["reading_drift_Pa_per_s"]
+_WARM = SLOT_INDEX["reading_warm_up_Pa"]
+_WARM_TAU = SLOT_INDEX["reading_warm_up_time_constant_s"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -336,7 +341,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
     n, p_atm = t.shape[0], cs[C_P_ATM]
     thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading, want_sens = (
         forms)
-    calibrated, cal_o, cal_g = calibration
+    calibrated, zero, cal_g = calibration
     delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead = spool_cfg
     lag_r, w_r, z_r, n_r, second = sensor
     cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val = closure
@@ -526,7 +531,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             out, sens, t, x, i0, kw, kn,
                             (t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p),
                             (chord, qstep, x0c, x1c, jf, c_c), v0, bore, kap, sl, p_atm,
-                            calibrated, cal_o, cal_g, want_sens)
+                            calibrated, zero, cal_g, want_sens)
                     if reading:
                         r, v_r, s_r, s_v = reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev,
                                                         s_p0, hh, zp, fp, vp, ep, dev_r,
@@ -546,7 +551,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                                       tau_s, w_s, rate_s, tau_dn)
         if k >= i0:
             value = r if reading else p
-            out[kn - i0] = (sensor_reading_scalar(value, p_atm, cal_o, cal_g) if calibrated
+            out[kn - i0] = (sensor_reading_scalar(value, p_atm, reading_zero_scalar(
+                zero, t[kn]), cal_g) if calibrated
                             else value)
             if want_sens:
                 sens[kn - i0] = s_r if reading else s_p0
@@ -608,14 +614,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         ``LINE_VOLUME``, ``NEEDS_GENERAL``, ``WAVE_HISTORY`` or ``CALIBRATION``.
     """
     n = t.shape[0]
-    # the sensor's calibration: reading = P_atm + cal_g (p - P_atm) + cal_o
+    # the sensor's calibration: reading = P_atm + cal_g (p - P_atm) + o(t)
     p_atm = cs[C_P_ATM]
-    cal_o, cal_g = sl[_CAL_OFFSET], 1.0 + sl[_CAL_GAIN]
-    calibrated = cal_o != 0.0 or cal_g != 1.0
+    # (its zero o(t) = o + a t + b (1 - exp(-t / tau)) on the recording's clock)
+    zero = (sl[_CAL_OFFSET], sl[_DRIFT], sl[_WARM], sl[_WARM_TAU])
+    cal_g = 1.0 + sl[_CAL_GAIN]
+    calibrated = zero[0] != 0.0 or cal_g != 1.0 or zero[1] != 0.0 or zero[2] != 0.0
     p0_read = p0
     if calibrated:
-        p0 = pressure_behind_reading_scalar(p0, p_atm, cal_o, cal_g)
-        rate0 = rate0 / cal_g
+        p0 = pressure_behind_reading_scalar(p0, p_atm, reading_zero_scalar(zero, t[i0]),
+                                            cal_g)
+        rate0 = (rate0 - reading_zero_rate_scalar(zero, t[i0])) / cal_g
         if not p0 > 0.0:
             return CALIBRATION
     # step budget: max_steps_per_s per simulated second, beyond the one step each
@@ -654,11 +663,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         return NEEDS_GENERAL
     lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
     k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
-                                           calibrated, p_atm, cal_o, cal_g)
+                                           calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
     for q in range(rx_n):  # a relaxation's p_bar from the reading's history; a flow's
         # low-pass at its first step's flow (at rest)
-        rx_val[q] = (relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, cal_o,
+        rx_val[q] = (relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, zero,
                                       cal_g) if rx_kind[q] == 16.0 else math.nan)
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0_read
@@ -719,7 +728,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general,
         (thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading,
          want_sens),
-        (calibrated, cal_o, cal_g),
+        (calibrated, zero, cal_g),
         (delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead),
         (lag_r, w_r, z_r, n_r, second),
         (cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val),

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
-from pneubayes.physics.calibration import pressure_behind_reading_Pa
+from pneubayes.physics.calibration import pressure_behind_reading_Pa, reading_zero_Pa
 from pneubayes.rig import Rig
 from pneubayes.simulation.rates import rate_terms
 
@@ -91,7 +91,9 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
          + frac * out[rows[b_idx], w, g - s0])
     # a miscalibrated sensor (effect sensor_calibration): the chamber's pressure behind
     # the reading, and the jump read through the sensor's gain
-    cal_o = slots[rows, S["reading_offset_Pa"]][:, None]
+    cal_o = reading_zero_Pa(tau, *(slots[rows, S[k]][:, None] for k in (
+        "reading_offset_Pa", "reading_drift_Pa_per_s", "reading_warm_up_Pa",
+        "reading_warm_up_time_constant_s")))
     cal_g = 1.0 + slots[rows, S["reading_gain_error"]][:, None]
     p = pressure_behind_reading_Pa(p, rig.atmospheric_pressure_Pa, cal_o, cal_g)
     x = np.interp(tau, t, inputs.position_m)

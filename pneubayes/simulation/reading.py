@@ -25,7 +25,7 @@ import math
 from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX
-from pneubayes.physics.calibration import pressure_behind_reading_scalar
+from pneubayes.physics.calibration import pressure_behind_reading_scalar, reading_zero_scalar
 from pneubayes.simulation.phi import phi123
 
 _SENSOR = SLOT_INDEX["sensor_time_constant_s"]
@@ -241,7 +241,7 @@ def reading_lags(sl, p0, p_atm):
 
 @njit(cache=True, error_model="numpy")
 def reading_start(t, pm, i0, p0, rate0, lagged, lead_s, settle_s, calibrated, p_atm,
-                  cal_o, cal_g):
+                  zero, cal_g):
     """``(k0, t_start, r, v_r, p)``: where a window's integration starts and the reading,
     its rate and the chamber pressure there.
 
@@ -259,7 +259,8 @@ def reading_start(t, pm, i0, p0, rate0, lagged, lead_s, settle_s, calibrated, p_
             k0 -= 1
         t_start = t[k0]
         if k0 < i0 and math.isfinite(pm[k0]):  # from the recorded reading there
-            r = (pressure_behind_reading_scalar(pm[k0], p_atm, cal_o, cal_g) if calibrated
+            r = (pressure_behind_reading_scalar(pm[k0], p_atm, reading_zero_scalar(
+                zero, t[k0]), cal_g) if calibrated
                  else pm[k0])
             p = r
         if k0 < i0 and t[k0 + 1] - t[k0] > 5.0 * settle_s:

@@ -330,13 +330,21 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     and so is every output.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
-    cal_o, cal_g = sl[S["reading_offset_Pa"]], 1.0 + sl[S["reading_gain_error"]]
-    calibrated = cal_o != 0.0 or cal_g != 1.0
+    cal_g = 1.0 + sl[S["reading_gain_error"]]
+    # the sensor's zero at each sample, o + a t + b (1 - exp(-t / tau)), and its rate
+    drift, warm, tau_w = (sl[S[k]] for k in ("reading_drift_Pa_per_s", "reading_warm_up_Pa",
+                                              "reading_warm_up_time_constant_s"))
+    t_on = np.maximum(inputs.time_s, 0.0)
+    cal_o = sl[S["reading_offset_Pa"]] + drift * inputs.time_s + (
+        warm * (1.0 - np.exp(-t_on / tau_w)) if warm != 0.0 else 0.0)
+    zero_rate = drift + (warm / tau_w * np.exp(-t_on[0] / tau_w)
+                         if warm != 0.0 and inputs.time_s[0] > 0.0 else 0.0)
+    calibrated = np.any(cal_o != 0.0) or cal_g != 1.0
     p_atm = rig.atmospheric_pressure_Pa
     if calibrated:  # the reading's start -> the chamber's
-        initial_pressure_Pa = pressure_behind_reading_Pa(initial_pressure_Pa, p_atm, cal_o,
-                                                         cal_g)
-        initial_rate_Pa_per_s = initial_rate_Pa_per_s / cal_g
+        initial_pressure_Pa = pressure_behind_reading_Pa(initial_pressure_Pa, p_atm,
+                                                         cal_o[0], cal_g)
+        initial_rate_Pa_per_s = (initial_rate_Pa_per_s - zero_rate) / cal_g
     if sl[S["closure_terms"]] > 0 and (sl[S["wave_length_m"]] > 0
                                         or sl[S["line_length_m"]] > 0):
         raise ValueError("reference_simulate: an open-form closure beside the tube's "

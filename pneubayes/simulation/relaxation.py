@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, SLOT_INDEX
-from pneubayes.physics.calibration import pressure_behind_reading_scalar
+from pneubayes.physics.calibration import pressure_behind_reading_scalar, reading_zero_scalar
 
 _CL_N = SLOT_INDEX["closure_terms"]
 _CL_FA = SLOT_INDEX["closure_feature_a_0"]
@@ -52,7 +52,7 @@ def relaxation_mid(pbar, p, rate, h, tau):
 
 
 @njit(cache=True, error_model="numpy")
-def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, cal_o, cal_g):
+def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, zero, cal_g):
     """``p_bar`` at sample ``k`` (Pa): the recorded reading ``pm`` (chamber pressures
     behind a miscalibrated sensor's readings when ``calibrated``) low-passed from
     :data:`RELAXATION_HISTORY` time constants before ``t[k]`` (or the record's start;
@@ -74,7 +74,8 @@ def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, cal_o, cal_g):
         if not math.isfinite(v):
             continue
         if calibrated:
-            v = pressure_behind_reading_scalar(v, p_atm, cal_o, cal_g)
+            v = pressure_behind_reading_scalar(v, p_atm, reading_zero_scalar(zero, t[i]),
+                                               cal_g)
         if math.isnan(pbar):
             pbar = v
         else:
