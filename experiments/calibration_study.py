@@ -1,5 +1,5 @@
-"""The sensor-calibration effect in the discovery loop: named where planted, not named
-where another effect is (the stand-ins it risks), with its terms switched on.
+"""The sensor-calibration and sensor-drift effects in the discovery loop: named where
+planted, not named where another effect is (the stand-ins they risk).
 
     python experiments/calibration_study.py --out results/calibration_study [--seeds 0]
     python experiments/calibration_study.py --out results/calibration_study --collect
@@ -13,7 +13,11 @@ loop from the plain model on the discovery study's six 20-s recordings per case
 - planted: the zero offset alone (5 kPa), the offset with a 3 % gain error, and the
   offset beside a laminar leak;
 - controls, no calibration planted: no effect, a laminar leak (the offset's stand-in
-  risk) and the supply fluctuation (the gain's).
+  risk) and the supply fluctuation (the gain's);
+- a drifting zero (``sensor_drift``, searched by default): a warm-up (the bench's 3 kPa
+  over 5 s), a linear drift (100 Pa/s) and the warm-up beside a laminar leak; run them
+  with ``--search off`` (the drift is in the default library either way) beside the
+  controls.
 
 With ``--search off`` the loop runs with its defaults (the calibration not searched):
 what it names instead where a calibration is planted.
@@ -54,6 +58,10 @@ CASES = {
     "none": ((), {}),
     "leak": ((("cylinder_leak", {"form": "laminar"}),), LEAK_OVERRIDE),
     "supply": ((("supply_fluctuation", {}),), {}),
+    "warm_up": ((("sensor_drift", {}),), {}),
+    "linear": ((("sensor_drift", {"form": "linear"}),), {"reading_drift_Pa_per_s": 100.0}),
+    "warm_up+leak": ((("sensor_drift", {}), ("cylinder_leak", {"form": "laminar"})),
+                     LEAK_OVERRIDE),
 }
 
 

@@ -32,7 +32,10 @@ Beside the Gaussian band, the online conformal band
 (:class:`~pneubayes.inference.conformal.OnlineConformalBand`): the draws' band rescaled
 by the run's own completed predictions, fed one every ``BAND_EVERY_S`` from
 ``BAND_FROM_S`` (with the latest posterior; only outcomes measured before a prediction
-enter its band).
+enter its band); and the mode's conformal band: the same rescaling around the online
+refit's own prediction (the posterior mode), its scale per step ahead the RMS error of
+the chosen anchor's predictions on runs 1-4 (the Laplace draws of a 13-quantity
+posterior under a wide anchor spread far wider than the mode's errors).
 
 Writes OUT/real_respiraworks_refit.json (atomically, when a set is done; a set already
 in it is not rerun); each anchor's training score is kept in OUT/choice_SET.json as it
@@ -89,12 +92,14 @@ def channels_of(weight):
 
 
 def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws=0,
-                band_sd=0.0, rng=None):
+                band_sd=0.0, rng=None, profile=None):
     """Refit through run ``r`` at its protocol windows; per window the errors of the
     mode's prediction, the set-point's and the frozen fit's, and (with ``draws``) whether
-    each sample lies in the 90 % band and the band's width, and the same for the online
-    conformal band (fed the draws' predictions every ``BAND_EVERY_S`` from
-    ``BAND_FROM_S``, each with the latest posterior)."""
+    each sample lies in the 90 % band and the band's width, and the same for two online
+    conformal bands fed a prediction every ``BAND_EVERY_S`` from ``BAND_FROM_S``, each
+    with the latest posterior: the draws' (their mean, their spread with ``band_sd`` in
+    quadrature) and the mode's (its prediction, with ``profile``, the training runs' RMS
+    error per step ahead, as the scale)."""
     p = np.asarray(r.pressure_Pa, dtype=np.float64)
     dt = float(np.median(np.diff(r.time_s)))
     h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
@@ -110,17 +115,22 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
                      solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev,
                      channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
     band = OnlineConformalBand(coverage=0.9)
+    mode_band = OnlineConformalBand(coverage=0.9)
     out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
-           "refit_s": [], "inside_conformal": [], "width_conformal": []}
+           "refit_s": [], "inside_conformal": [], "width_conformal": [],
+           "inside_mode": [], "width_mode": []}
     start = dict(shared)
     params = dict(shared)
     for k in sorted(set(protocol) | band_ticks):
         band.observe(k, p[:k + 1])
+        mode_band.observe(k, p[:k + 1])
         y = p[k + 1:k + h + 1]
         if k not in protocol:  # a band tick: the latest posterior's draws, no refit
-            sims = forecast(model, on.draws(draws, rng), inputs, r.rig(), k, h + 1, p, std,
-                            FORECAST_WARM)[:, 1:]
-            sims = sims[np.all(np.isfinite(sims), axis=1)]
+            sims = forecast(model, np.concatenate([model.vector(params)[None],
+                                                   on.draws(draws, rng)]),
+                            inputs, r.rig(), k, h + 1, p, std, FORECAST_WARM)[:, 1:]
+            mode_band.predict(k, sims[0], profile)
+            sims = sims[1:][np.all(np.isfinite(sims[1:]), axis=1)]
             band.predict(k, *band.centre_and_scale(sims, band_sd))
             continue
         so_far = r.slice(0, k + 1)
@@ -145,6 +155,9 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
             c_lo, c_hi = band.predict(k, *band.centre_and_scale(sims, band_sd))
             out["inside_conformal"].append((y >= c_lo) & (y <= c_hi))
             out["width_conformal"].append(c_hi - c_lo)
+            m_lo, m_hi = mode_band.predict(k, pred[1], profile)
+            out["inside_mode"].append((y >= m_lo) & (y <= m_hi))
+            out["width_mode"].append(m_hi - m_lo)
             sims = sims + rng.normal(0.0, band_sd, sims.shape)
             lo, hi = np.quantile(sims, [0.05, 0.95], axis=0)
             out["inside"].append((y >= lo) & (y <= hi))
@@ -180,19 +193,28 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
     done = json.loads(cache.read_text()) if cache.exists() else {}
     if done.get("key") != key:
         done = {"key": key, "scores": {}}
+    done.setdefault("profiles", {})
 
     def training_score(knobs) -> float:
-        """The pooled error of ``knobs`` through runs 1-4 (each from the others' fit)."""
+        """The pooled error of ``knobs`` through runs 1-4 (each from the others' fit);
+        its RMS per step ahead is kept beside it (``profile``)."""
         name = json.dumps(knobs, sort_keys=True)
-        if name not in done["scores"]:
+        if name not in done["scores"] or name not in done["profiles"]:
             t0 = time.perf_counter()
             errs = [through_run(model, loo[i], r, knobs, solver, std, nfev)["refit"]
                     for i, r in enumerate(train)]
             done["scores"][name] = rmse([e for run in errs for e in run])
+            done["profiles"][name] = np.sqrt(np.mean(np.square(
+                [e for run in errs for e in run]), axis=0)).tolist()
             write_json_atomic(cache, done)
             log(f"[{kind}] training runs, anchor {knobs}: {done['scores'][name]:.0f} Pa "
                 f"({time.perf_counter() - t0:.0f} s)")
         return done["scores"][name]
+
+    def profile(knobs) -> np.ndarray:
+        """The training runs' RMS error of ``knobs`` per step ahead (Pa, >= 1 Pa)."""
+        training_score(knobs)
+        return np.maximum(done["profiles"][json.dumps(knobs, sort_keys=True)], 1.0)
 
     scores = [training_score(knobs) for knobs in grid]
     chosen = grid[int(np.argmin(scores))]
@@ -207,11 +229,12 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
            "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": s} for k, s in zip(grid, scores)],
            "noise_floor_Pa": noise_floor_Pa(recs)}
     runs = [through_run(model, shared, r, chosen, solver, std, nfev, draws=N_DRAWS,
-                        band_sd=band_sd, rng=rng) for r in held]
+                        band_sd=band_sd, rng=rng, profile=profile(chosen)) for r in held]
     free = [through_run(model, shared, r, chosen, solver, std, nfev, anchored=False)
             for r in held]
     flows = [through_run(model, shared, r, flow_chosen, solver, std, nfev, draws=N_DRAWS,
-                         band_sd=flow_sd, rng=rng) for r in held]
+                         band_sd=flow_sd, rng=rng, profile=profile(flow_chosen))
+             for r in held]
 
     def pooled(key, source=runs):
         return rmse([e for run in source for e in run[key]])
@@ -245,6 +268,10 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
         [x for run in runs for x in run["width_conformal"]])))
     res["band_90_median_width_Pa"] = float(np.median(np.concatenate(
         [x for run in runs for x in run["width"]])))
+    res["mode_conformal_coverage_90"] = float(np.mean(np.concatenate(
+        [x for run in runs for x in run["inside_mode"]])))
+    res["mode_conformal_band_90_median_width_Pa"] = float(np.median(np.concatenate(
+        [x for run in runs for x in run["width_mode"]])))
     secs = np.array([s for run in runs for s in run["refit_s"]])
     res["refit_seconds"] = {"median": float(np.median(secs)), "max": float(secs.max()),
                             "n": int(secs.size)}
@@ -256,7 +283,9 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
         f"{pr['refit_without_anchor']:.0f} Pa; 90 % band covers {res['coverage_90']:.2f} at "
         f"{res['band_90_median_width_Pa']:.0f} Pa, the online conformal band "
         f"{res['conformal_coverage_90']:.2f} at {res['conformal_band_90_median_width_Pa']:.0f}"
-        f" Pa; refit {res['refit_seconds']['median']:.2f} s median")
+        f" Pa, the mode's conformal band {res['mode_conformal_coverage_90']:.2f} at "
+        f"{res['mode_conformal_band_90_median_width_Pa']:.0f} Pa; refit "
+        f"{res['refit_seconds']['median']:.2f} s median")
     fl = res["flows"]
     log(f"[{kind}] with the measured flows (weight {flow_chosen['flow_weight_Pa']:g} Pa per "
         f"unit, chosen on runs 1-4): {fl['protocol_rmse_Pa']:.0f} Pa "
