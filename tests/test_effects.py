@@ -83,8 +83,8 @@ def _sim(model, params, inputs, rig, p0=2e5, solver=None):
 def test_catalogue_names():
     assert list(CATALOGUE) == ["cylinder_leak", "tube_delay", "valve_deadzone",
                                "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
-                               "sensor_calibration", "sensor_drift", "valve_stiction",
-                               "closure"]
+                               "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
+                               "valve_stiction", "closure"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):

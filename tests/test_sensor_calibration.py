@@ -54,8 +54,8 @@ def test_the_calibration_maps_read_and_invert():
     np.testing.assert_allclose(pressure_behind_reading_Pa(r, P_ATM, CAL["reading_offset_Pa"],
                                                           g), p, rtol=1e-14)
     assert pressure_behind_reading_scalar(float(r[1]), P_ATM, CAL["reading_offset_Pa"],
-                                          g) == pytest.approx(2e5, rel=1e-14)
-    assert sensor_reading_scalar(2e5, P_ATM, 0.0, 1.0) == 2e5
+                                          (g, 0.0)) == pytest.approx(2e5, rel=1e-14)
+    assert sensor_reading_scalar(2e5, P_ATM, 0.0, (1.0, 0.0)) == 2e5
 
 
 def test_a_neutral_calibration_is_exactly_no_calibration(rig):

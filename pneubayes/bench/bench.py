@@ -196,8 +196,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     calibration = model.effect("sensor_calibration") if model.has("sensor_calibration") \
         else None
     drift = model.effect("sensor_drift") if model.has("sensor_drift") else None
-    calibration_neutral = {**(calibration.neutral_values() if calibration is not None else {}),
-                           **(drift.neutral_values() if drift is not None else {})}
+    curve = model.effect("sensor_nonlinearity") if model.has("sensor_nonlinearity") else None
+    calibration_neutral = {k: v for e in (calibration, drift, curve) if e is not None
+                           for k, v in e.neutral_values().items()}
     seeds = np.random.SeedSequence(cfg.seed).spawn(len(plans))
     written, entries = [], []
     for plan, ss in zip(plans, seeds):
@@ -232,6 +233,8 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for form in cfg.forms:  # a warming sensor's zero drifts over the recording
             if isinstance(form, SensorZeroDrift):
                 p_true = form.read(t_fine, p_true)
+        if curve is not None:  # a curved sensor (sensor_nonlinearity)
+            p_true = curve.read(p_true, truth, ATMOSPHERE_PA)
         if calibration is not None:
             p_true = calibration.read(p_true, truth, ATMOSPHERE_PA)
         if drift is not None:  # a drifting zero (sensor_drift), on the fine clock

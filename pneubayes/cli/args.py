@@ -277,7 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--effects", default="", help="comma-separated effects to plant, e.g. "
                    "tube_delay,spool_lag (catalogue: cylinder_leak, tube_delay, "
                    "valve_deadzone, supply_fluctuation, heat_transfer, spool_lag, sensor_lag, "
-                   "sensor_calibration, sensor_drift, valve_stiction)")
+                   "sensor_calibration, sensor_drift, sensor_nonlinearity, valve_stiction)")
     b.add_argument("--leak-form", default=None, choices=("orifice", "laminar"),
                    help="law of a planted cylinder_leak (default orifice, the paper's)")
     b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",

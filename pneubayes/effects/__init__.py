@@ -2,8 +2,8 @@
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
 ``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
-``sensor_calibration``, ``sensor_drift``, ``valve_stiction``, ``closure`` (an open-form
-extra mass flow, never searched for by the discovery library).
+``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
+``closure`` (an open-form extra mass flow, never searched for by the discovery library).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.sensor_calibration import SensorCalibration
 from pneubayes.effects.sensor_drift import SensorDrift
 from pneubayes.effects.sensor_lag import SensorLag
+from pneubayes.effects.sensor_nonlinearity import SensorNonlinearity
 from pneubayes.effects.spool_lag import SpoolLag
 from pneubayes.effects.supply_fluctuation import SupplyFluctuation
 from pneubayes.effects.thin_port import ThinPort
@@ -29,7 +30,8 @@ from pneubayes.effects.valve_stiction import ValveStiction
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
-                SpoolLag, SensorLag, SensorCalibration, SensorDrift, ValveStiction, Closure)
+                SpoolLag, SensorLag, SensorCalibration, SensorDrift,
+                SensorNonlinearity, ValveStiction, Closure)
 }
 
 
@@ -118,6 +120,7 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 
 
 __all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10Fit",
-           "HeatTransfer", "Parameter", "SensorCalibration", "SensorDrift", "SensorLag", "SpoolLag",
+           "HeatTransfer", "Parameter", "SensorCalibration", "SensorDrift", "SensorLag",
+           "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
            "catalogue_parameter_names", "make_effect"]

@@ -133,6 +133,9 @@ SLOTS += (
      "P_atm + g (p - P_atm) + o (its value at atmospheric pressure less P_atm; Pa)"),
     ("reading_gain_error", "the miscalibrated sensor's gain error: g - 1 in the reading "
      "P_atm + g (p - P_atm) + o (-)"),
+    ("reading_curvature_Pa", "a curved sensor's reading: k in P_atm + g y + k (y / 1 bar)^2 "
+     "+ o, y = p - P_atm (its reading's departure from its straight line at 1 bar "
+     "gauge; Pa)"),
     ("reading_drift_Pa_per_s", "a drifting sensor zero: o grows by a t, t on the "
      "recording's clock (Pa/s)"),
     ("reading_warm_up_Pa", "a sensor zero that settles as the sensor warms: o grows by "

@@ -14,7 +14,11 @@ import math
 
 from numba import njit
 
-from pneubayes.physics.calibration import reading_zero_scalar, sensor_reading_scalar
+from pneubayes.physics.calibration import (
+    reading_slope_scalar,
+    reading_zero_scalar,
+    sensor_reading_scalar,
+)
 from pneubayes.simulation.chord import off_chord, response_weights
 from pneubayes.simulation.phi import phi123
 
@@ -39,7 +43,7 @@ def dense_run(x, ps, k, k_last, reads_supply):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def dense_samples(out, sens, t, x, i0, kw, kn, step, chord_step, v0, bore, kap, sl, p_atm,
-                  calibrated, zero, cal_g, want_sens):
+                  calibrated, zero, cal_g, slope0, want_sens):
     """Write the readings (and dp/dp0) of the samples ``kw..kn - 1`` before the end of an
     accepted step that it crossed, read from its interpolant; returns the next sample to
     read.
@@ -51,8 +55,8 @@ def dense_samples(out, sens, t, x, i0, kw, kn, step, chord_step, v0, bore, kap, 
     m at its ends) a sample is read at its own position, not the chord's: adiabatically,
     less the flows' response to the chord so far (slope ``jf``, coupling ``c_c``), or as
     q / V^n at its own volume after a q step. ``calibrated``, ``zero`` (``(o, a, b, tau)``
-    of :func:`~pneubayes.physics.calibration.reading_zero_scalar`), ``cal_g``: the
-    reading's calibration.
+    of :func:`~pneubayes.physics.calibration.reading_zero_scalar`), ``cal_g`` (``(g, k)``)
+    and ``slope0`` (d(reading)/dp at the window's start): the reading's calibration.
     """
     t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p = step
     chord, qstep, x0c, x1c, jf, c_c = chord_step
@@ -83,5 +87,7 @@ def dense_samples(out, sens, t, x, i0, kw, kn, step, chord_step, v0, bore, kap, 
                         else value)
         if want_sens:
             sens[kw - i0] = s_prev * math.exp(th * zp) * sc0 / sc_k
+            if cal_g[1] != 0.0:  # a curved sensor: d(reading)/d(its start)
+                sens[kw - i0] *= reading_slope_scalar(value, p_atm, cal_g) / slope0
         kw += 1
     return kw

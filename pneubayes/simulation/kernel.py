@@ -53,6 +53,7 @@ from pneubayes.effects.path import (
 )
 from pneubayes.physics.calibration import (
     pressure_behind_reading_scalar,
+    reading_slope_scalar,
     reading_zero_rate_scalar,
     reading_zero_scalar,
     sensor_reading_scalar,
@@ -145,8 +146,9 @@ STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                               "(an internal error)",
                WAVE_HISTORY: f"more than {WAVE_CAPACITY} entries within one transit time "
                              "of the transmission-line tube (an internal error)",
-               CALIBRATION: "the sensor's calibration reads the measured start as a "
-                            "pressure <= 0 absolute"}
+               CALIBRATION: "the sensor's calibration reads the measured start as no "
+                            "pressure > 0 absolute (below vacuum, or beyond a curved "
+                            "sensor's turning point)"}
 #: Length of the state carried from one window to the next: the chamber temperature,
 #: an acoustic line's cell pressures and flows (NaN: start the line at rest) or a
 #: transmission-line tube's waves (:func:`~pneubayes.simulation.wave.wave_finish`), a
@@ -182,6 +184,7 @@ _TAB_MAX = TABLE_MAX_POINTS
 _ADVANCE = SLOT_INDEX["inputs_advance_s"]
 _CAL_OFFSET = SLOT_INDEX["reading_offset_Pa"]
 _CAL_GAIN = SLOT_INDEX["reading_gain_error"]
+_CURVATURE = SLOT_INDEX["reading_curvature_Pa"]
 _DRIFT = SLOT_INDEX["reading_drift_Pa_per_s"]
 _WARM = SLOT_INDEX["reading_warm_up_Pa"]
 _WARM_TAU = SLOT_INDEX["reading_warm_up_time_constant_s"]
@@ -341,7 +344,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
     n, p_atm = t.shape[0], cs[C_P_ATM]
     thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading, want_sens = (
         forms)
-    calibrated, zero, cal_g = calibration
+    calibrated, zero, cal_g, slope0 = calibration
     delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead = spool_cfg
     lag_r, w_r, z_r, n_r, second = sensor
     cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val = closure
@@ -531,7 +534,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             out, sens, t, x, i0, kw, kn,
                             (t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p),
                             (chord, qstep, x0c, x1c, jf, c_c), v0, bore, kap, sl, p_atm,
-                            calibrated, zero, cal_g, want_sens)
+                            calibrated, zero, cal_g, slope0, want_sens)
                     if reading:
                         r, v_r, s_r, s_v = reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev,
                                                         s_p0, hh, zp, fp, vp, ep, dev_r,
@@ -556,6 +559,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             else value)
             if want_sens:
                 sens[kn - i0] = s_r if reading else s_p0
+                if cal_g[1] != 0.0:  # a curved sensor: d(reading)/d(its start)
+                    sens[kn - i0] *= reading_slope_scalar(value, p_atm, cal_g) / slope0
         k = kn
     carry[0] = temp
     if general is not None and line:
@@ -614,17 +619,20 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         ``LINE_VOLUME``, ``NEEDS_GENERAL``, ``WAVE_HISTORY`` or ``CALIBRATION``.
     """
     n = t.shape[0]
-    # the sensor's calibration: reading = P_atm + cal_g (p - P_atm) + o(t)
+    # the sensor's calibration: reading = P_atm + g y + k (y / 1 bar)^2 + o(t), y = p - P_atm
     p_atm = cs[C_P_ATM]
     # (its zero o(t) = o + a t + b (1 - exp(-t / tau)) on the recording's clock)
     zero = (sl[_CAL_OFFSET], sl[_DRIFT], sl[_WARM], sl[_WARM_TAU])
-    cal_g = 1.0 + sl[_CAL_GAIN]
-    calibrated = zero[0] != 0.0 or cal_g != 1.0 or zero[1] != 0.0 or zero[2] != 0.0
+    cal_g = (1.0 + sl[_CAL_GAIN], sl[_CURVATURE])  # (g, k)
+    calibrated = (zero[0] != 0.0 or cal_g[0] != 1.0 or zero[1] != 0.0 or zero[2] != 0.0
+                  or cal_g[1] != 0.0)
+    slope0 = 1.0  # d(reading)/dp at the start (a curved sensor's sensitivity ratio)
     p0_read = p0
     if calibrated:
         p0 = pressure_behind_reading_scalar(p0, p_atm, reading_zero_scalar(zero, t[i0]),
                                             cal_g)
-        rate0 = (rate0 - reading_zero_rate_scalar(zero, t[i0])) / cal_g
+        slope0 = reading_slope_scalar(p0, p_atm, cal_g)
+        rate0 = (rate0 - reading_zero_rate_scalar(zero, t[i0])) / slope0
         if not p0 > 0.0:
             return CALIBRATION
     # step budget: max_steps_per_s per simulated second, beyond the one step each
@@ -728,7 +736,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general,
         (thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading,
          want_sens),
-        (calibrated, zero, cal_g),
+        (calibrated, zero, cal_g, slope0),
         (delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead),
         (lag_r, w_r, z_r, n_r, second),
         (cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val),

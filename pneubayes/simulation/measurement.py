@@ -27,7 +27,11 @@ from __future__ import annotations
 import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
-from pneubayes.physics.calibration import pressure_behind_reading_Pa, reading_zero_Pa
+from pneubayes.physics.calibration import (
+    CURVATURE_SCALE_PA,
+    pressure_behind_reading_Pa,
+    reading_zero_Pa,
+)
 from pneubayes.rig import Rig
 from pneubayes.simulation.rates import rate_terms
 
@@ -95,14 +99,17 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
         "reading_offset_Pa", "reading_drift_Pa_per_s", "reading_warm_up_Pa",
         "reading_warm_up_time_constant_s")))
     cal_g = 1.0 + slots[rows, S["reading_gain_error"]][:, None]
-    p = pressure_behind_reading_Pa(p, rig.atmospheric_pressure_Pa, cal_o, cal_g)
+    curv = slots[rows, S["reading_curvature_Pa"]][:, None]
+    p = pressure_behind_reading_Pa(p, rig.atmospheric_pressure_Pa, cal_o, cal_g, curv)
+    # the sensor's slope there (g, and a curved sensor's 2 k y / (1 bar)^2)
+    slope = cal_g + 2.0 * curv * (p - rig.atmospheric_pressure_Pa) / CURVATURE_SCALE_PA**2
     x = np.interp(tau, t, inputs.position_m)
     ps = np.interp(tau, t, inputs.supply_pressure_Pa)
     sl = slots[rows].T[:, :, None]  # (N_SLOTS, b, 1): broadcasts over the corners
     # the valve command's corners (a separate exhaust valve's command held as at j)
     ue = inputs.exhaust_command
     ue_j = None if ue is None else np.broadcast_to(ue[j], p.shape)
-    jump = cal_g * (_port_rate(sl, rig, p, u[j], x, ps, ue_j)
+    jump = slope * (_port_rate(sl, rig, p, u[j], x, ps, ue_j)
                     - _port_rate(sl, rig, p, u[j - 1], x, ps, ue_j))  # (b, P), Pa/s
     # the samples within the filter's reach of each corner
     dt_min = float(np.min(np.diff(t)))

@@ -29,7 +29,6 @@ from pneubayes.effects.closure_features import (
 from pneubayes.effects.closure_terms import PORT_FACTOR_LIMITS
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model
-from pneubayes.physics.calibration import pressure_behind_reading_Pa, sensor_reading_Pa
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.tube import churchill_fre
 from pneubayes.rig import Rig
@@ -330,7 +329,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     and so is every output.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
-    cal_g = 1.0 + sl[S["reading_gain_error"]]
+    cal_g, curv = 1.0 + sl[S["reading_gain_error"]], sl[S["reading_curvature_Pa"]]
     # the sensor's zero at each sample, o + a t + b (1 - exp(-t / tau)), and its rate
     drift, warm, tau_w = (sl[S[k]] for k in ("reading_drift_Pa_per_s", "reading_warm_up_Pa",
                                               "reading_warm_up_time_constant_s"))
@@ -339,12 +338,15 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         warm * (1.0 - np.exp(-t_on / tau_w)) if warm != 0.0 else 0.0)
     zero_rate = drift + (warm / tau_w * np.exp(-t_on[0] / tau_w)
                          if warm != 0.0 and inputs.time_s[0] > 0.0 else 0.0)
-    calibrated = np.any(cal_o != 0.0) or cal_g != 1.0
+    calibrated = np.any(cal_o != 0.0) or cal_g != 1.0 or curv != 0.0
     p_atm = rig.atmospheric_pressure_Pa
-    if calibrated:  # the reading's start -> the chamber's
-        initial_pressure_Pa = pressure_behind_reading_Pa(initial_pressure_Pa, p_atm,
-                                                         cal_o[0], cal_g)
-        initial_rate_Pa_per_s = (initial_rate_Pa_per_s - zero_rate) / cal_g
+    if calibrated:  # the reading's start -> the chamber's (r = P_atm + g y + k y^2 + o)
+        rr = initial_pressure_Pa - p_atm - cal_o[0]
+        y0 = rr / cal_g if curv == 0.0 else (
+            -cal_g + math.sqrt(cal_g**2 + 4.0 * curv / 1e10 * rr)) / (2.0 * curv / 1e10)
+        initial_pressure_Pa = p_atm + y0
+        initial_rate_Pa_per_s = (initial_rate_Pa_per_s - zero_rate) / (
+            cal_g + 2.0 * curv / 1e10 * y0)
     if sl[S["closure_terms"]] > 0 and (sl[S["wave_length_m"]] > 0
                                         or sl[S["line_length_m"]] > 0):
         raise ValueError("reference_simulate: an open-form closure beside the tube's "
@@ -451,5 +453,5 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             y = sol.y[:, -1]
         out[k + 1] = y[read]
     if calibrated:
-        out = sensor_reading_Pa(out, p_atm, cal_o, cal_g)
+        out = p_atm + cal_g * (out - p_atm) + curv * ((out - p_atm) / 1e5) ** 2 + cal_o
     return (out, nfev) if return_stats else out

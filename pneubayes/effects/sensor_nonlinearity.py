@@ -1,0 +1,59 @@
+"""A pressure sensor whose reading curves off its straight line.
+
+A transducer's reading is linear in the pressure only to its data sheet's accuracy: a
+bridge's or a diaphragm's response bends (a "non-linearity" or "BFSL" error of 0.1-0.5 %
+of full scale, a few kPa on a 10-bar sensor), and an uncalibrated gauge or a cheap
+board sensor bends more. To second order about atmospheric pressure the DAQ records
+
+    r = P_atm + g y + k (y / 1 bar)^2 + o,    y = p - P_atm,
+
+``k`` = ``reading_curvature_Pa`` (how far the reading departs from its straight line at
+1 bar gauge); ``g`` and ``o`` are :mod:`~pneubayes.effects.sensor_calibration`'s (a bow
+that vanishes at both ends of a sensor's range is a curvature with a gain error beside
+it: name both). The chamber's physics sees p; the simulator inverts each window's first
+reading on the curve's rising branch and reads every output (and the start
+sensitivity) through it (:mod:`pneubayes.simulation.kernel`).
+
+A curvature scales the reading's rate by g + 2 k y / (1 bar)^2: what a volume or a
+supply that changes with the pressure would also do, but here the flows are not
+touched, so a full exhaust still ends at atmosphere and a full inlet at the supply, read
+through the curve.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from pneubayes.effects.base import DirectEffect, Parameter
+from pneubayes.effects.discovery import TrialTerm
+from pneubayes.physics.calibration import sensor_reading_Pa
+
+
+class SensorNonlinearity(DirectEffect):
+    """The pressure reading's curvature ``reading_curvature_Pa`` (Pa at 1 bar gauge)."""
+
+    name = "sensor_nonlinearity"
+    parameter = Parameter("reading_curvature_Pa", "Pa", -20_000.0, 20_000.0, "uniform",
+                          "the sensor reading's departure from its straight line at 1 bar "
+                          "gauge, k in r = P_atm + g y + k (y / 1 bar)^2 + o", neutral=0.0)
+    slot = "reading_curvature_Pa"
+    bench_value = 1000.0
+    #: trial curvatures (Pa at 1 bar gauge; the regression's signed coefficient gives
+    #: the sign)
+    library_strengths = (500.0, 2000.0)
+
+    def library_terms(self, strengths):
+        """The model read through a curvature of each trial strength (Pa at 1 bar)."""
+        return tuple(TrialTerm(f"reading curvature {1e-3 * k:g} kPa/bar^2",
+                               {"reading_curvature_Pa": k}, values={"reading_curvature_Pa": k})
+                     for k in strengths)
+
+    @staticmethod
+    def read(pressure_Pa, values: Mapping[str, float], atmospheric_pressure_Pa: float):
+        """What the sensor records for the chamber pressure ``pressure_Pa`` (Pa) at the
+        parameter ``values`` (a missing curvature is 0), calibration aside."""
+        return sensor_reading_Pa(np.asarray(pressure_Pa, dtype=np.float64),
+                                 atmospheric_pressure_Pa, 0.0, 1.0,
+                                 float(values.get("reading_curvature_Pa", 0.0)))
