@@ -802,6 +802,7 @@ def test_a_long_history_is_read_strided_and_agrees_with_the_full_low_pass():
     assert 2500 // HISTORY_POINTS > 1  # (strided here)
     assert abs(got - full) < 1e-3 * 2e5
     # and a short one is read whole: the same as the low-pass of the record
-    short = relaxation_start(t, pm, 100, 0.01, np.nan, False, P_ATM, (0.0, 0.0, 0.0, 0.0), (1.0, 0.0))
+    short = relaxation_start(t, pm, 100, 0.01, np.nan, False, P_ATM, (0.0, 0.0, 0.0, 0.0),
+                             (1.0, 0.0))
     assert short == pytest.approx(cf.first_order_low_pass(t[50:101], pm[50:101], 0.01)[-1],
                                   rel=1e-12)

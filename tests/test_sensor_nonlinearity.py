@@ -48,7 +48,7 @@ def test_the_curved_maps_read_invert_and_slope():
         CAL["reading_curvature_Pa"]
     r = sensor_reading_Pa(p, P_ATM, o, g, k)
     np.testing.assert_allclose(r, _read(p), rtol=1e-15)
-    np.testing.assert_allclose(SensorNonlinearity.read(p, CAL, P_ATM) + o,
+    np.testing.assert_allclose(SensorNonlinearity().read(p, CAL, P_ATM) + o,
                                _read(p, dict(CAL, reading_gain_error=0.0)), rtol=1e-15)
     np.testing.assert_allclose(pressure_behind_reading_Pa(r, P_ATM, o, g, k), p, rtol=1e-12)
     for pi, ri in zip(p, r):

@@ -26,20 +26,52 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from pneubayes.effects.base import DirectEffect, Parameter
-from pneubayes.effects.discovery import TrialTerm
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.discovery import CandidateContext, TrialTerm
 from pneubayes.physics.calibration import sensor_reading_Pa
+from pneubayes.rig import Rig
+
+_FORMS = ("curvature", "curvature_gain")
+_CURVATURE = Parameter("reading_curvature_Pa", "Pa", -20_000.0, 20_000.0, "uniform",
+                       "the sensor reading's departure from its straight line at 1 bar "
+                       "gauge, k in r = P_atm + g y + k (y / 1 bar)^2 + o", neutral=0.0)
+_GAIN = Parameter("reading_curve_gain_error", "-", -0.2, 0.2, "uniform",
+                  "the curved sensor's gain error at atmospheric pressure, g - 1 (it adds "
+                  "to a sensor_calibration's)", neutral=0.0)
 
 
-class SensorNonlinearity(DirectEffect):
-    """The pressure reading's curvature ``reading_curvature_Pa`` (Pa at 1 bar gauge)."""
+class SensorNonlinearity(Effect):
+    """The pressure reading's curvature ``reading_curvature_Pa`` (Pa at 1 bar gauge) and,
+    in form ``curvature_gain``, the gain error beside it (``reading_curve_gain_error``:
+    a bow that vanishes at both ends of a range is both)."""
 
     name = "sensor_nonlinearity"
-    parameter = Parameter("reading_curvature_Pa", "Pa", -20_000.0, 20_000.0, "uniform",
-                          "the sensor reading's departure from its straight line at 1 bar "
-                          "gauge, k in r = P_atm + g y + k (y / 1 bar)^2 + o", neutral=0.0)
-    slot = "reading_curvature_Pa"
-    bench_value = 1000.0
+    forms = _FORMS
+    acts_on = ("reading_curvature_Pa", "reading_gain_error")
+
+    def __init__(self, form: str = "curvature"):
+        self.form = form
+
+    def options(self):
+        return {"form": self.form}
+
+    def parameters(self):
+        self._check()
+        return (_CURVATURE,) if self.form == "curvature" else (_CURVATURE, _GAIN)
+
+    def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
+        self._check()
+        out = {"reading_curvature_Pa": np.asarray(values["reading_curvature_Pa"], np.float64)}
+        if self.form == "curvature_gain":
+            out["reading_gain_error"] = np.asarray(values["reading_curve_gain_error"],
+                                                   np.float64)
+        return out
+
+    def bench_defaults(self):
+        """A curvature of 1 kPa at 1 bar gauge (and a 2 % gain error)."""
+        out = {"reading_curvature_Pa": 1000.0, "reading_curve_gain_error": 0.02}
+        return {p.name: out[p.name] for p in self.parameters()}
+
     #: trial curvatures (Pa at 1 bar gauge; the regression's signed coefficient gives
     #: the sign)
     library_strengths = (500.0, 2000.0)
@@ -50,10 +82,18 @@ class SensorNonlinearity(DirectEffect):
                                {"reading_curvature_Pa": k}, values={"reading_curvature_Pa": k})
                      for k in strengths)
 
-    @staticmethod
-    def read(pressure_Pa, values: Mapping[str, float], atmospheric_pressure_Pa: float):
+    def candidate_forms(self, ctx: CandidateContext):
+        """The curvature at the best term's, and the curvature with a gain error beside
+        it (started straight)."""
+        start = self.candidate_start(ctx.term_start)
+        if self.form != "curvature":
+            return [(self, start)]
+        return [(self, start), (SensorNonlinearity(form="curvature_gain"), start)]
+
+    def read(self, pressure_Pa, values: Mapping[str, float], atmospheric_pressure_Pa: float):
         """What the sensor records for the chamber pressure ``pressure_Pa`` (Pa) at the
-        parameter ``values`` (a missing curvature is 0), calibration aside."""
+        parameter ``values`` (missing ones 0), a calibration's offset and gain aside."""
         return sensor_reading_Pa(np.asarray(pressure_Pa, dtype=np.float64),
-                                 atmospheric_pressure_Pa, 0.0, 1.0,
+                                 atmospheric_pressure_Pa, 0.0,
+                                 1.0 + float(values.get("reading_curve_gain_error", 0.0)),
                                  float(values.get("reading_curvature_Pa", 0.0)))
