@@ -1,4 +1,4 @@
-"""The sensor-calibration and sensor-drift effects in the discovery loop: named where
+"""The sensor's calibration, drift and curvature in the discovery loop: named where
 planted, not named where another effect is (the stand-ins they risk).
 
     python experiments/calibration_study.py --out results/calibration_study [--seeds 0]
@@ -17,7 +17,10 @@ loop from the plain model on the discovery study's six 20-s recordings per case
 - a drifting zero (``sensor_drift``, searched by default): a warm-up (the bench's 3 kPa
   over 5 s), a linear drift (100 Pa/s) and the warm-up beside a laminar leak; run them
   with ``--search off`` (the drift is in the default library either way) beside the
-  controls.
+  controls;
+- a curved reading (``sensor_nonlinearity``, searched by default): -300 Pa at 1 bar
+  gauge (6 kPa at the AIR37 rig's full 4.5 bar), and a bow that vanishes at 0 and 6
+  bar gauge (the same curvature with the gain error +1.8 % that makes it so).
 
 With ``--search off`` the loop runs with its defaults (the calibration not searched):
 what it names instead where a calibration is planted.
@@ -62,6 +65,9 @@ CASES = {
     "linear": ((("sensor_drift", {"form": "linear"}),), {"reading_drift_Pa_per_s": 100.0}),
     "warm_up+leak": ((("sensor_drift", {}), ("cylinder_leak", {"form": "laminar"})),
                      LEAK_OVERRIDE),
+    "curvature": ((("sensor_nonlinearity", {}),), {"reading_curvature_Pa": -300.0}),
+    "bow": ((("sensor_nonlinearity", {"form": "curvature_gain"}),),
+            {"reading_curvature_Pa": -300.0, "reading_curve_gain_error": 0.018}),
 }
 
 

@@ -365,6 +365,7 @@ def assemble(out: Path, paper: Path, smoke: bool) -> Path:
     L += blind_section(out, paper, smoke)
     L += openform_section(out, paper, smoke)
     L += calibration_section(out, paper, smoke)
+    L += sensor_section(out, paper, smoke)
     # ---------------- real recordings
     L += real_section(out, paper, smoke)
     # ---------------- closed loop
@@ -1644,6 +1645,75 @@ def calibration_section(out: Path, paper: Path, smoke: bool) -> list[str]:
     return L
 
 
+SENSOR_HEAD = "## A sensor's zero that drifts, and a reading that curves"
+#: the sensor effects the section reports, and their parameters' formats
+SENSOR_EFFECTS = {"sensor_drift": (("reading_warm_up_Pa", "b = {:.0f} Pa"),
+                                   ("reading_warm_up_time_constant_s", "tau = {:.2g} s"),
+                                   ("reading_drift_Pa_per_s", "a = {:.1f} Pa/s")),
+                  "sensor_nonlinearity": (("reading_curvature_Pa", "k = {:.0f} Pa"),
+                                          ("reading_curve_gain_error", "g - 1 = {:+.4f}"))}
+
+
+def _sensor_estimates(r: dict) -> str:
+    """The named sensor effects' fitted values of a study case (medians or estimates)."""
+    parts = []
+    for effect, fields in SENSOR_EFFECTS.items():
+        est = r["estimates"].get(effect, {})
+        for name, fmt in fields:
+            q = est.get(name)
+            v = None if not q else q.get("median", q.get("estimate"))
+            if v is not None:
+                parts.append(fmt.format(v))
+    return ", ".join(parts) or "-"
+
+
+def sensor_section(out: Path, paper: Path, smoke: bool) -> list[str]:
+    """``sensor_drift`` and ``sensor_nonlinearity``, searched by default, on the bench
+    (``experiments/calibration_study.py --search off`` with their cases and the
+    controls, into ``OUT/sensor``): every case, the named set against the planted one."""
+    path = out / ("sensor-smoke" if smoke else "sensor") / "summary.json"
+    L = [SENSOR_HEAD, ""]
+    if not path.exists():
+        return L + [f"*Missing: `{path}` (run `python experiments/calibration_study.py "
+                    f"--search off --cases warm_up,linear,warm_up+leak,curvature,bow,none,"
+                    f"leak,supply --out {path.parent}`).*", ""]
+    doc = json.loads(path.read_text())
+    rows = [r for r in doc["results"] if "failed" not in r]
+    failed = [r for r in doc["results"] if "failed" in r]
+    mine = set(SENSOR_EFFECTS)
+    planted = [r for r in rows if mine & set(r["hidden"])]
+    controls = [r for r in rows if not mine & set(r["hidden"])]
+    L += ["Two effects at the sensor, both searched by default: `sensor_drift`, a zero "
+          "that moves during a recording (o(t) = o + a t + b (1 - exp(-t / tau)), t on the "
+          "recording's clock; the bench's warm-up 3 kPa over 5 s, and a drift of 100 "
+          "Pa/s), and `sensor_nonlinearity`, a reading that curves off its straight line "
+          "(+ k (y / 1 bar)^2, y gauge; -300 Pa, and the bow that vanishes at 0 and 6 bar "
+          "gauge with a +1.8 % gain error beside it). Controls plant none of them: no "
+          "effect, a laminar leak (which a drift could stand in for) and the supply "
+          "fluctuation (which a curvature could). Six 20-s recordings per case, from the "
+          "plain model, without the final posterior.", "",
+          "| case | rig | seed | git | planted | named | held-out RMSE (Pa) | x noise | "
+          "gap shrink | fitted |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        shrink = ("-" if r["gap_shrink"] is None or not r["hidden"]
+                  else _unsigned_zero(f"{100 * r['gap_shrink']:.0f}") + " %")
+        L.append(f"| {r['case'].split('@')[0]} | {r['rig']}/{r['valve']} | {r['seed']} | "
+                 f"`{str(r.get('git_revision'))[:7]}` | {', '.join(r['hidden']) or 'none'} "
+                 f"| {', '.join(r['named']) or 'none'} | {r['rmse_final_Pa']:.0f} | "
+                 f"{r['rmse_final_Pa'] / r['noise_floor_Pa']:.2f} | {shrink} | "
+                 f"{_sensor_estimates(r)} |")
+    right = sum(r["correct"] for r in planted)
+    clean = sum(not mine & set(r["named"]) for r in controls)
+    L += ["", f"Measured: the planted set named exactly in {right} of {len(planted)} cases "
+          f"with a sensor effect; in {clean} of {len(controls)} controls neither sensor "
+          f"effect is named ({sum(r['correct'] for r in controls)} of {len(controls)} "
+          "named exactly)" + (f"; {len(failed)} case(s) failed: " + "; ".join(
+              f"{r['case']} ({r['failed']})" for r in failed) if failed else "") + ".", "",
+          f"*Source: `{path}` (`experiments/calibration_study.py --search off`, the "
+          "revision of each case in its row).*", ""]
+    return L
+
+
 def _summary_table(cases: list[dict]) -> str:
     """The blind study's own tables (per case, then the floors per kind)."""
     return blind_study.summarise(cases)[1].rstrip("\n")
@@ -1694,7 +1764,8 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
                  "mpc": (mpc_section, MPC_HEAD),
                  "blind": (blind_section, BLIND_HEAD),
                  "openform": (openform_section, OPENFORM_HEAD),
-                 "calibration": (calibration_section, CALIBRATION_HEAD)}[which]
+                 "calibration": (calibration_section, CALIBRATION_HEAD),
+                 "sensor": (sensor_section, SENSOR_HEAD)}[which]
     new = build(out, paper, smoke)
     if head in lines:
         i = lines.index(head)
@@ -1704,8 +1775,9 @@ def update_section(which: str, out: Path, paper: Path, smoke: bool) -> Path:
         claims_head = "## The paper's claims, checked on our data"
         after = (["## Fig. 11: effect of volume and leakage"] if which == "table3" else []) \
             + ([CALIBRATION_HEAD] if which == "openform" else []) \
-            + (["## Real recordings"] if which in ("blind", "openform", "calibration")
-               else []) \
+            + ([SENSOR_HEAD] if which == "calibration" else []) \
+            + (["## Real recordings"] if which in ("blind", "openform", "calibration",
+                                                   "sensor") else []) \
             + [claims_head]
         before = next((h for h in after if h in lines), None)
         i = j = lines.index(before) if before else len(lines)
@@ -1721,13 +1793,13 @@ def main(argv=None) -> int:
     ap.add_argument("--smoke", action="store_true")
     ap.add_argument("--assemble-only", action="store_true")
     ap.add_argument("--only", choices=["table3", "real", "mpc", "blind", "openform",
-                                       "calibration"],
+                                       "calibration", "sensor"],
                     default=None,
                     help="with --assemble-only: rewrite only this section of an existing "
                          "report (table3: Table III and its discovery summary; real: the "
                          "real recordings; mpc: the closed loop; blind: the blind "
                          "discovery set; openform: the open-form blind sets; calibration: "
-                         "the sensor calibration)")
+                         "the sensor calibration; sensor: the sensor's drift and curvature)")
     args = ap.parse_args(argv)
     if args.only:
         if not args.assemble_only:

@@ -503,6 +503,46 @@ def test_calibration_section_counts_named_and_stand_ins_and_reads_the_real_ledge
     assert "`abcdef0`" in text
 
 
+def test_the_sensor_section_reports_each_case_its_fit_and_the_stand_ins(tmp_path):
+    """``--only sensor`` renders the drift and curvature study: each case with its
+    revision and fitted values, the planted sets named, the controls where a sensor
+    effect stood in; placed after the calibration and before the real recordings."""
+    out, paper = tmp_path / "out", tmp_path / "paper"
+    paper.mkdir()
+    (paper / "report.md").write_text("# Report\n\n" + make_paper.CALIBRATION_HEAD
+                                     + "\n\nkept\n\n## Real recordings\n\nreal\n")
+    assert any("*Missing: `" in line
+               for line in make_paper.sensor_section(out, paper, smoke=False))
+
+    def result(case, hidden, named, final, est=None, rev="1234567abc"):
+        return {"case": f"{case}@SMC-valve2-s0~off", "rig": "SMC", "valve": "valve2",
+                "seed": 0, "hidden": hidden, "named": named,
+                "correct": sorted(named) == sorted(hidden), "rmse_base_Pa": 3000.0,
+                "rmse_final_Pa": final, "noise_floor_Pa": 500.0, "gap_shrink": 0.95,
+                "estimates": est or {}, "git_revision": rev}
+
+    drift = {"sensor_drift": {"reading_warm_up_Pa": {"median": 2987.4},
+                              "reading_warm_up_time_constant_s": {"median": 4.93}}}
+    curve = {"sensor_nonlinearity": {"reading_curvature_Pa": {"estimate": -311.0},
+                                     "reading_curve_gain_error": {"estimate": 0.0182}}}
+    results = [result("warm_up", ["sensor_drift"], ["sensor_drift"], 520.0, drift),
+               result("bow", ["sensor_nonlinearity"], ["sensor_nonlinearity"], 530.0, curve,
+                      "89abcdef00"),
+               result("leak", ["cylinder_leak"], ["sensor_drift"], 700.0, drift),
+               result("none", [], [], 505.0)]
+    (out / "sensor").mkdir(parents=True)
+    (out / "sensor" / "summary.json").write_text(json.dumps({"results": results}))
+    assert make_paper.main(["--out", str(out), "--paper", str(paper), "--assemble-only",
+                            "--only", "sensor"]) == 0
+    text = (paper / "report.md").read_text()
+    assert text.index("kept") < text.index(make_paper.SENSOR_HEAD) < text.index("## Real")
+    assert ("| warm_up | SMC/valve2 | 0 | `1234567` | sensor_drift | sensor_drift | 520 | "
+            "1.04 | 95 % | b = 2987 Pa, tau = 4.9 s |") in text
+    assert "`89abcde`" in text and "k = -311 Pa, g - 1 = +0.0182" in text
+    assert "named exactly in 2 of 2 cases" in text
+    assert "in 1 of 2 controls neither sensor effect is named (1 of 2 named exactly)" in text
+
+
 def test_calibration_study_collects_the_cases_of_several_calls_and_names_bad_cases(tmp_path):
     """``--collect`` writes one summary from every cached case (other rigs, seeds, the
     search off) and runs nothing; an unknown case is a usage error naming it."""
