@@ -730,13 +730,18 @@ def _refit_paragraph(path: Path) -> list[str]:
             "runs 1-4 (Pa) | set-point (Pa) | frozen shared fit (Pa) | online refit (Pa) | "
             "x set-point | x noise | refit without the anchor (Pa) | 90 % band coverage | "
             "band width (Pa) | online conformal band: coverage | its width (Pa) | "
-            "refit (s, median) |", "|---" * 14 + "|"]
+            "the mode's conformal band: coverage | its width (Pa) | refit (s, median) |",
+            "|---" * 16 + "|"]
 
     def conformal(d):
-        if "conformal_coverage_90" not in d:
-            return "- | -"
-        return (f"{d['conformal_coverage_90']:.2f} | "
-                f"{d['conformal_band_90_median_width_Pa']:.0f}")
+        out = []
+        for key in ("conformal", "mode_conformal"):
+            if f"{key}_coverage_90" not in d:
+                out.append("- | -")
+                continue
+            out.append(f"{d[f'{key}_coverage_90']:.2f} | "
+                       f"{d[f'{key}_band_90_median_width_Pa']:.0f}")
+        return " | ".join(out)
     for kind, s in r["sets"].items():
         pr, ch = s["protocol_rmse_Pa"], s["chosen"]
         label = kind + (f" (exhale valve: {s['exhaust']})" if "exhaust" in s else "")
@@ -775,7 +780,9 @@ def _refit_paragraph(path: Path) -> list[str]:
             f"{r['n_draws']} posterior draws' predictions; the online conformal band "
             "rescales the draws' band by the run's own completed predictions (one every "
             f"{r.get('band_every_s', 0.5):g} s; only outcomes measured before a prediction "
-            "enter its band). "
+            "enter its band); the mode's conformal band does the same around the online "
+            "refit's own prediction, its scale per step ahead the chosen anchor's RMS error "
+            "on runs 1-4. "
             + ("With the measured flows: the venturis' differential pressures "
                "(`dp_inhale`, `dp_exhale`, uncalibrated) scored beside the pressure "
                "(`FlowChannel`, law offset + gain q^2 with both refitted), their weight "
@@ -799,6 +806,14 @@ def _refit_paragraph(path: Path) -> list[str]:
                                        f"width {x:.0f} x the error)" for k, x in wide)
                      + ": the Laplace posterior's draws predict far apart where the "
                      "posterior mode predicts well; that band is no guide.")
+    mode = [(k, s) for k, s in r["sets"].items() if "mode_conformal_coverage_90" in s]
+    if mode:
+        def width(s):
+            return s["mode_conformal_band_90_median_width_Pa"]
+        after.append("The mode's conformal band covers " + "; ".join(
+            f"{k} {s['mode_conformal_coverage_90']:.2f} at a median width of "
+            f"{width(s):.0f} Pa ({width(s) / s['protocol_rmse_Pa']['online_refit']:.1f}"
+            " x the online refit's error)" for k, s in mode) + " (target 0.90).")
     others = [(k, ex, o) for k, s in r["sets"].items()
               for ex, o in s.get("other_forms", {}).items()]
     if others:

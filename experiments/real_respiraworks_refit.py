@@ -256,7 +256,11 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
         "conformal_coverage_90": float(np.mean(np.concatenate(
             [x for run in flows for x in run["inside_conformal"]]))),
         "conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
-            [x for run in flows for x in run["width_conformal"]])))}
+            [x for run in flows for x in run["width_conformal"]]))),
+        "mode_conformal_coverage_90": float(np.mean(np.concatenate(
+            [x for run in flows for x in run["inside_mode"]]))),
+        "mode_conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
+            [x for run in flows for x in run["width_mode"]])))}
     res["online_over_setpoint"] = res["protocol_rmse_Pa"]["online_refit"] / pooled("setpoint")
     res["per_window_online_rmse_Pa"] = [rmse([e]) for run in runs for e in run["refit"]]
     res["per_window_without_anchor_rmse_Pa"] = [rmse([e]) for run in free for e in run["refit"]]

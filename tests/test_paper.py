@@ -776,3 +776,30 @@ def test_openform_section_reports_each_set_with_its_floors_and_revision(tmp_path
     assert "5000 -> 1500 | 500 | 78 % | 3.00 |" in text
     assert "no catalogue stand-in in 0 of 1" in text and "in 1 of 1 (floor: all)" in text
     assert "Not finished when the set was reported: t02." in text
+
+
+def test_the_refit_paragraph_gives_both_conformal_bands(tmp_path):
+    """The ventilator's online refit: the draws' conformal band and the mode's, each
+    with its coverage and width, in the table and the text (a set without the mode's
+    band, from an older run, shows dashes)."""
+    def one(mode=True):
+        s = {"protocol_rmse_Pa": {"setpoint": 272.0, "frozen": 421.0, "online_refit": 37.0,
+                                  "refit_without_anchor": 37.0},
+             "chosen": {"relative_sd": 1.0, "error_Pa": 30.0}, "band_sd_Pa": 43.0,
+             "online_over_setpoint": 0.136, "noise_floor_Pa": 7.0, "coverage_90": 1.0,
+             "band_90_median_width_Pa": 1464.0, "conformal_coverage_90": 0.96,
+             "conformal_band_90_median_width_Pa": 610.0, "refit_seconds": {"median": 0.86},
+             "per_window_online_rmse_Pa": [20.0, 30.0, 80.0]}
+        if mode:
+            s.update(mode_conformal_coverage_90=0.88,
+                     mode_conformal_band_90_median_width_Pa=111.0)
+        return s
+    path = tmp_path / "refit.json"
+    path.write_text(json.dumps({"seed": 67, "grid": {"relative_sd": [0.1, 1.0],
+                                                     "error_Pa": [30.0]}, "n_draws": 64,
+                                "sets": {"OXY": one(), "AIR": one(mode=False)}}))
+    text = "\n".join(make_paper._refit_paragraph(path))
+    assert "| 0.96 | 610 | 0.88 | 111 | 0.86 |" in text
+    assert "| 0.96 | 610 | - | - | 0.86 |" in text
+    assert ("The mode's conformal band covers OXY 0.88 at a median width of 111 Pa (3.0 x "
+            "the online refit's error) (target 0.90).") in text
