@@ -71,6 +71,11 @@ CASES = {
 }
 
 
+#: the revision the process imported its code from (a commit made while a study runs
+#: does not change the code it runs)
+STARTED_AT = provenance()
+
+
 def run_case(name, rig, valve, seed, search, args, root):
     planted, overrides = CASES[name.split("@")[0]]  # (the rig, seed and search follow)
     effects = tuple(make_effect(n, **o) for n, o in planted)
@@ -98,7 +103,8 @@ def run_case(name, rig, valve, seed, search, args, root):
             "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1 - gap1 / gap0,
             "estimates": {e["name"]: e["parameters"] for e in doc["effects"]},
             "wall_time_s": time.perf_counter() - t0,
-            "git_revision": provenance().get("git_revision")}
+            "git_revision": STARTED_AT.get("git_revision"),
+            "git_dirty": STARTED_AT.get("git_dirty")}
 
 
 def main(argv=None) -> int:
