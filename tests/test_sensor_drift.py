@@ -152,3 +152,39 @@ def test_a_planted_warm_up_is_recovered_from_windows(tmp_path):
     # and the fit is the drift's doing: without it the windows miss by far more
     base = residual([0.0, np.log(0.25)])
     assert np.sqrt(np.mean(base**2)) > 3 * np.sqrt(np.mean(fit.fun**2))
+
+
+def test_the_controller_predicts_every_candidate_from_now_on_the_recordings_clock(rig):
+    """A drifting zero is read on the recording's clock: the predictor simulates each
+    candidate from ``time_s`` (two equal candidates predict the same), as a window of
+    a recording starting then does; without a drift it batches the candidates."""
+    from pneubayes.inference.predictive import PressurePredictor
+
+    model = Model([make_effect("sensor_drift")])
+    params = valve1_params(reading_warm_up_Pa=5000.0, reading_warm_up_time_constant_s=0.5)
+    solver = SolverConfig.standard()
+    pred = PressurePredictor(model, model.as_matrix(params), rig, solver)
+    assert pred.clocked
+    dt, n = 5e-3, 80
+    u = np.where(np.arange(n) < 30, 2.0, -1.0)
+    got = pred.predict_draws(2.5e5, np.stack([u, u]), 0.01, dt, time_s=0.2)
+    assert np.array_equal(got[:, 0], got[:, 1])
+    # the same window on a recording's clock, from 0.2 s (its history held before)
+    n_h = int(np.ceil(pred.lookback_s / dt)) + 1
+    t = 0.2 + (np.arange(n_h + n + 1) - n_h) * dt
+    cmd = np.concatenate([np.full(n_h, u[0]), u, u[-1:]])
+    inputs = Inputs(t, cmd, np.full(t.size, 0.01), np.full(t.size, P_SUP))
+    want = simulate_windows(model, params, inputs, rig, np.array([n_h]), n + 1,
+                            np.array([2.5e5]), solver)[0, 0]
+    np.testing.assert_allclose(got[0, 0], want, rtol=0, atol=1e-6 * RANGE)
+    # which is the plain chamber started at the pressure the reading stands for now,
+    # read through the zero of each time
+    warm = dict(DRIFT, reading_drift_Pa_per_s=0.0, reading_warm_up_Pa=5000.0,
+                reading_warm_up_time_constant_s=0.5)
+    plain = simulate_windows(Model(), valve1_params(), inputs, rig, np.array([n_h]), n + 1,
+                             np.array([2.5e5 - _zero(0.2, d=warm)]), solver)[0, 0]
+    assert float(_zero(t[-1], d=warm) - _zero(0.2, d=warm)) > 1000.0
+    np.testing.assert_allclose(got[0, 0, 1:], plain[1:] + _zero(t[n_h + 1:], d=warm),
+                               rtol=0, atol=1e-6 * RANGE)
+    assert not PressurePredictor(Model(), Model().as_matrix(valve1_params()), rig,
+                                 solver).clocked

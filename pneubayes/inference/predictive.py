@@ -236,9 +236,14 @@ class PressurePredictor:
         ramp = np.where(rate > 0.0, RAMP_SPAN / np.where(rate > 0.0, rate, 1.0), 0.0)
         self.lookback_s = float(np.max(slots[:, SLOT_INDEX["command_delay_s"]]
                                        + 20.0 * spool_settle_s(slots) + ramp))
+        #: whether a draw's sensor zero moves on the recording's clock (sensor_drift):
+        #: then every candidate is simulated from ``time_s`` on its own
+        self.clocked = bool(np.any(slots[:, [SLOT_INDEX["reading_drift_Pa_per_s"],
+                                             SLOT_INDEX["reading_warm_up_Pa"]]] != 0.0))
 
     def predict_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
-                      supply_pressure_Pa=None, command_history_V=None) -> np.ndarray:
+                      supply_pressure_Pa=None, command_history_V=None,
+                      time_s: float = 0.0) -> np.ndarray:
         """Pressure of every draw under every candidate, ``(N, C, L + 1)`` Pa.
 
         ``commands_V`` is ``(C, L)`` (each held for ``dt_s``) or ``(L,)``; ``position_m``
@@ -248,16 +253,32 @@ class PressurePredictor:
         or lagging valve still sees); default: the candidate's first command, held. A
         history shorter than :attr:`lookback_s` is extended back by its oldest command.
         A sticking valve (``valve_stiction``) rests at the oldest command given: pass the
-        history since it last moved.
+        history since it last moved. ``time_s`` is now on the recording's clock, where a
+        drifting sensor's zero is read (:attr:`clocked`; ignored otherwise).
         """
-        args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
-                             command_history_V)
-        return simulate_windows(self.model, self.draws, *args, self.solver,
-                                check_bounds=False)
+        return self._each_candidate(
+            lambda *args: simulate_windows(self.model, self.draws, *args, self.solver,
+                                           check_bounds=False),
+            pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
+            command_history_V, time_s)
+
+    def _each_candidate(self, run, pressure_Pa, commands_V, position_m, dt_s,
+                        supply_pressure_Pa, command_history_V, time_s):
+        """``run(*window arguments)`` for all candidates at once, or (a clocked model)
+        for each from ``time_s``, joined along the candidate axis (1)."""
+        rest = (position_m, dt_s, supply_pressure_Pa, command_history_V, time_s)
+        if not self.clocked:
+            return run(*self._windows(pressure_Pa, commands_V, *rest))
+        u = np.atleast_2d(np.asarray(commands_V, dtype=np.float64))
+        outs = [run(*self._windows(pressure_Pa, u[c:c + 1], *rest))
+                for c in range(u.shape[0])]
+        if isinstance(outs[0], tuple):
+            return tuple(np.concatenate(parts, axis=1) for parts in zip(*outs))
+        return np.concatenate(outs, axis=1)
 
     def predictive_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
-                         noise_Pa, supply_pressure_Pa=None,
-                         command_history_V=None) -> tuple[np.ndarray, np.ndarray]:
+                         noise_Pa, supply_pressure_Pa=None, command_history_V=None,
+                         time_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """The posterior predictive of the *reading* under every candidate: returns
         ``(pressure_Pa, reading_Pa)``, both ``(N, C, L + 1)``: :meth:`predict_draws`'s
         pressure, and the same plus each draw's noise as the
@@ -271,19 +292,22 @@ class PressurePredictor:
         ``dt_s``); every candidate sees the same path (common random numbers). The other
         arguments are :meth:`predict_draws`'.
         """
-        args = self._windows(pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
-                             command_history_V)
         noise = np.asarray(noise_Pa, dtype=np.float64)
-        if noise.shape != (self.draws.shape[0], args[3]):
+        length = np.atleast_2d(np.asarray(commands_V)).shape[-1] + 1
+        if noise.shape != (self.draws.shape[0], length):
             raise ValueError(f"noise_Pa must be (draws, L + 1) = "
-                             f"{(self.draws.shape[0], args[3])}, got {noise.shape}")
-        sim, sens = simulate_windows_sensitivity(self.model, self.draws, *args, self.solver,
-                                                 check_bounds=False)
+                             f"{(self.draws.shape[0], length)}, got {noise.shape}")
+        sim, sens = self._each_candidate(
+            lambda *args: simulate_windows_sensitivity(self.model, self.draws, *args,
+                                                       self.solver, check_bounds=False),
+            pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
+            command_history_V, time_s)
         return sim, sim + window_noise(noise[:, None, :], sens)
 
     def _windows(self, pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
-                 command_history_V):
-        """(inputs, rig, starts, length, start pressures): one window per candidate."""
+                 command_history_V, time_s=0.0):
+        """(inputs, rig, starts, length, start pressures): one window per candidate, the
+        first starting at ``time_s``."""
         dt = float(dt_s)
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt_s must be finite and > 0, got {dt_s!r}")
@@ -312,7 +336,7 @@ class PressurePredictor:
         block = n_h + n_l + 1
         t_block = (np.arange(block) - n_h) * dt
         offsets = np.arange(n_c) * (block + 1) * dt
-        t = (offsets[:, None] + t_block[None, :]).reshape(-1)
+        t = float(time_s) + (offsets[:, None] + t_block[None, :]).reshape(-1)
         cmd = np.concatenate([hist, u, u[:, -1:]], axis=1).reshape(-1)
         pos = np.concatenate([np.full(n_h, x[0]), x])
         sp = np.concatenate([np.full(n_h, sup[0]), sup])
@@ -321,9 +345,10 @@ class PressurePredictor:
         return inputs, self.rig, starts, n_l + 1, np.full(n_c, float(pressure_Pa))
 
     def predict(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
-                supply_pressure_Pa=None, command_history_V=None) -> np.ndarray:
+                supply_pressure_Pa=None, command_history_V=None,
+                time_s: float = 0.0) -> np.ndarray:
         """Quantiles ``(C, Q, L + 1)`` of the pressure under each candidate (Pa); the
         arguments are :meth:`predict_draws`'."""
         sim = self.predict_draws(pressure_Pa, commands_V, position_m, dt_s,
-                                 supply_pressure_Pa, command_history_V)
+                                 supply_pressure_Pa, command_history_V, time_s)
         return np.moveaxis(draw_quantiles(sim, self.quantiles), 0, 1)
