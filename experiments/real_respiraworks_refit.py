@@ -165,7 +165,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     return out
 
 
-def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -> dict:
+def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
+            with_flows: bool = True) -> dict:
     card = form_card(kind, "two_compartment", exhaust)
     tag = kind if exhaust == "separate" else f"{kind}_{exhaust}"  # the caches' names
     recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
@@ -220,9 +221,11 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
     chosen = grid[int(np.argmin(scores))]
     band_sd = float(min(scores))
     # then the measured flows beside the pressure, at the chosen anchor (same runs)
-    flow_scores = [(training_score(k), k) for k in (
-        {**chosen, "flow_weight_Pa": w} for w in (FLOW_WEIGHTS[:1] if smoke else FLOW_WEIGHTS))]
-    flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
+    if with_flows:
+        flow_scores = [(training_score(k), k) for k in (
+            {**chosen, "flow_weight_Pa": w}
+            for w in (FLOW_WEIGHTS[:1] if smoke else FLOW_WEIGHTS))]
+        flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
     shared = shared_fit(kind, card, train, solver, out / f"shared_{tag}.json", nfev, log)
     rng = np.random.default_rng([SEED, ord(kind[0])])
     res = {"chosen": chosen, "band_sd_Pa": band_sd,
@@ -234,7 +237,7 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
             for r in held]
     flows = [through_run(model, shared, r, flow_chosen, solver, std, nfev, draws=N_DRAWS,
                          band_sd=flow_sd, rng=rng, profile=profile(flow_chosen))
-             for r in held]
+             for r in held] if with_flows else []
 
     def pooled(key, source=runs):
         return rmse([e for run in source for e in run[key]])
@@ -242,25 +245,26 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
     res["protocol_rmse_Pa"] = {"setpoint": pooled("setpoint"), "frozen": pooled("frozen"),
                                "online_refit": pooled("refit"),
                                "refit_without_anchor": pooled("refit", free)}
-    res["flows"] = {
-        "chosen": flow_chosen, "band_sd_Pa": flow_sd,
-        "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": v} for v, k in flow_scores],
-        "protocol_rmse_Pa": pooled("refit", flows),
-        "online_over_setpoint": pooled("refit", flows) / pooled("setpoint"),
-        "per_window_rmse_Pa": [rmse([e]) for run in flows for e in run["refit"]],
-        "coverage_90": float(np.mean(np.concatenate([x for run in flows
-                                                     for x in run["inside"]]))),
-        "band_90_median_width_Pa": float(np.median(np.concatenate(
-            [x for run in flows for x in run["width"]]))),
-        "refit_seconds_median": float(np.median([x for run in flows for x in run["refit_s"]])),
-        "conformal_coverage_90": float(np.mean(np.concatenate(
-            [x for run in flows for x in run["inside_conformal"]]))),
-        "conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
-            [x for run in flows for x in run["width_conformal"]]))),
-        "mode_conformal_coverage_90": float(np.mean(np.concatenate(
-            [x for run in flows for x in run["inside_mode"]]))),
-        "mode_conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
-            [x for run in flows for x in run["width_mode"]])))}
+    if with_flows:
+        res["flows"] = {
+            "chosen": flow_chosen, "band_sd_Pa": flow_sd,
+            "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": v} for v, k in flow_scores],
+            "protocol_rmse_Pa": pooled("refit", flows),
+            "online_over_setpoint": pooled("refit", flows) / pooled("setpoint"),
+            "per_window_rmse_Pa": [rmse([e]) for run in flows for e in run["refit"]],
+            "coverage_90": float(np.mean(np.concatenate([x for run in flows
+                                                         for x in run["inside"]]))),
+            "band_90_median_width_Pa": float(np.median(np.concatenate(
+                [x for run in flows for x in run["width"]]))),
+            "refit_seconds_median": float(np.median([x for run in flows for x in run["refit_s"]])),
+            "conformal_coverage_90": float(np.mean(np.concatenate(
+                [x for run in flows for x in run["inside_conformal"]]))),
+            "conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
+                [x for run in flows for x in run["width_conformal"]]))),
+            "mode_conformal_coverage_90": float(np.mean(np.concatenate(
+                [x for run in flows for x in run["inside_mode"]]))),
+            "mode_conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
+                [x for run in flows for x in run["width_mode"]])))}
     res["online_over_setpoint"] = res["protocol_rmse_Pa"]["online_refit"] / pooled("setpoint")
     res["per_window_online_rmse_Pa"] = [rmse([e]) for run in runs for e in run["refit"]]
     res["per_window_without_anchor_rmse_Pa"] = [rmse([e]) for run in free for e in run["refit"]]
@@ -290,11 +294,12 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate") -
         f" Pa, the mode's conformal band {res['mode_conformal_coverage_90']:.2f} at "
         f"{res['mode_conformal_band_90_median_width_Pa']:.0f} Pa; refit "
         f"{res['refit_seconds']['median']:.2f} s median")
-    fl = res["flows"]
-    log(f"[{kind}] with the measured flows (weight {flow_chosen['flow_weight_Pa']:g} Pa per "
-        f"unit, chosen on runs 1-4): {fl['protocol_rmse_Pa']:.0f} Pa "
-        f"({fl['online_over_setpoint']:.2f} x the set-point); 90 % band covers "
-        f"{fl['coverage_90']:.2f} at {fl['band_90_median_width_Pa']:.0f} Pa")
+    if with_flows:
+        fl = res["flows"]
+        log(f"[{kind}] with the measured flows (weight {flow_chosen['flow_weight_Pa']:g} Pa per "
+            f"unit, chosen on runs 1-4): {fl['protocol_rmse_Pa']:.0f} Pa "
+            f"({fl['online_over_setpoint']:.2f} x the set-point); 90 % band covers "
+            f"{fl['coverage_90']:.2f} at {fl['band_90_median_width_Pa']:.0f} Pa")
     return res
 
 
@@ -304,6 +309,11 @@ def main(argv=None) -> int:
     ap.add_argument("--sets", default="OXY,AIR")
     ap.add_argument("--smoke", action="store_true", help="one anchor, two runs, 10 "
                     "evaluations (a check that it runs)")
+    ap.add_argument("--exhausts", default=",".join(EXHAUSTS),
+                    help="the exhale valve's forms to choose among on runs 1-4 (one: "
+                         "taken as given, e.g. the form a full run chose there)")
+    ap.add_argument("--no-flows", action="store_true",
+                    help="leave out the measured flows' variant (its three weights)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -321,11 +331,15 @@ def main(argv=None) -> int:
             continue
         # the card's exhale valve on its own command, or as the inhale command's exhaust
         # port: the form is chosen on runs 1-4 (the chosen anchor's score there)
-        by_form = {ex: run_set(kind, out, args.smoke, log, ex) for ex in EXHAUSTS}
+        forms = args.exhausts.split(",")
+        if not set(forms) <= set(EXHAUSTS):
+            ap.error(f"--exhausts: the forms are {list(EXHAUSTS)}, got {forms}")
+        by_form = {ex: run_set(kind, out, args.smoke, log, ex, not args.no_flows)
+                   for ex in forms}
         chosen = min(by_form, key=lambda ex: by_form[ex]["band_sd_Pa"])
         log(f"[{kind}] exhale valve form chosen on runs 1-4: {chosen} ("
             + ", ".join(f"{ex} {r['band_sd_Pa']:.0f} Pa" for ex, r in by_form.items()) + ")")
-        doc["sets"][kind] = {**by_form[chosen], "exhaust": chosen,
+        doc["sets"][kind] = {**by_form[chosen], "exhaust": chosen, "exhausts_tried": forms,
                              "other_forms": {ex: r for ex, r in by_form.items()
                                              if ex != chosen}}
         doc.update(seed=SEED, smoke=args.smoke, grid=GRID, flow_weights=FLOW_WEIGHTS,
