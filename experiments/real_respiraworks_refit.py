@@ -35,7 +35,9 @@ by the run's own completed predictions, fed one every ``BAND_EVERY_S`` from
 enter its band); and the mode's conformal band: the same rescaling around the online
 refit's own prediction (the posterior mode), its scale per step ahead the RMS error of
 the chosen anchor's predictions on runs 1-4 (the Laplace draws of a 13-quantity
-posterior under a wide anchor spread far wider than the mode's errors).
+posterior under a wide anchor spread far wider than the mode's errors), fed only the
+refit's predictions (from the run's first refit on: the shared fit's errors before it,
+several times larger, would widen it for the rest of the run).
 
 Writes OUT/real_respiraworks_refit.json (atomically, when a set is done; a set already
 in it is not rerun); each anchor's training score is kept in OUT/choice_SET.json as it
@@ -99,7 +101,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     conformal bands fed a prediction every ``BAND_EVERY_S`` from ``BAND_FROM_S``, each
     with the latest posterior: the draws' (their mean, their spread with ``band_sd`` in
     quadrature) and the mode's (its prediction, with ``profile``, the training runs' RMS
-    error per step ahead, as the scale)."""
+    error per step ahead, as the scale; fed from the first refit on, not the shared
+    fit's predictions before it)."""
     p = np.asarray(r.pressure_Pa, dtype=np.float64)
     dt = float(np.median(np.diff(r.time_s)))
     h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
@@ -129,7 +132,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
             sims = forecast(model, np.concatenate([model.vector(params)[None],
                                                    on.draws(draws, rng)]),
                             inputs, r.rig(), k, h + 1, p, std, FORECAST_WARM)[:, 1:]
-            mode_band.predict(k, sims[0], profile)
+            if k > protocol[0]:  # the mode's band: the online refit's predictions only
+                mode_band.predict(k, sims[0], profile)
             sims = sims[1:][np.all(np.isfinite(sims[1:]), axis=1)]
             band.predict(k, *band.centre_and_scale(sims, band_sd))
             continue
