@@ -10,7 +10,7 @@ import pytest
 from conftest import moving_step_inputs, valve1_params
 
 from pneubayes.bench import BenchConfig, run_bench
-from pneubayes.effects import SensorCalibration, make_effect
+from pneubayes.effects import make_effect
 from pneubayes.errors import SimulationError
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -48,8 +48,6 @@ def test_the_calibration_maps_read_and_invert():
     g = 1.0 + CAL["reading_gain_error"]
     r = sensor_reading_Pa(p, P_ATM, CAL["reading_offset_Pa"], g)
     np.testing.assert_allclose(r, _read(p, CAL), rtol=1e-15)
-    np.testing.assert_allclose(SensorCalibration.read(p, CAL, P_ATM), _read(p, CAL),
-                               rtol=1e-15)
     assert r[0] == P_ATM + CAL["reading_offset_Pa"]  # atmosphere reads P_atm + o
     np.testing.assert_allclose(pressure_behind_reading_Pa(r, P_ATM, CAL["reading_offset_Pa"],
                                                           g), p, rtol=1e-14)

@@ -11,7 +11,7 @@ from conftest import moving_step_inputs, valve1_params
 from scipy.optimize import least_squares
 
 from pneubayes.bench import BenchConfig, run_bench
-from pneubayes.effects import SensorDrift, make_effect
+from pneubayes.effects import make_effect
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.physics.calibration import (
@@ -123,7 +123,8 @@ def test_the_bench_plants_the_drift_in_the_reading(tmp_path):
     np.testing.assert_allclose(got.pressure_Pa - want.pressure_Pa, _zero(got.time_s, d=d),
                                atol=0.11)
     assert res.truth["parameters"]["reading_warm_up_Pa"] == -4000.0
-    assert SensorDrift().read([0.0], [P_ATM], truth)[0] == P_ATM
+    assert reading_zero_Pa(0.0, 0.0, 0.0, truth["reading_warm_up_Pa"],
+                           truth["reading_warm_up_time_constant_s"]) == 0.0
 
 
 def test_a_planted_warm_up_is_recovered_from_windows(tmp_path):

@@ -10,7 +10,7 @@ import pytest
 from conftest import moving_step_inputs, valve1_params
 
 from pneubayes.bench import BenchConfig, run_bench
-from pneubayes.effects import SensorNonlinearity, make_effect
+from pneubayes.effects import make_effect
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.physics.calibration import (
@@ -48,7 +48,7 @@ def test_the_curved_maps_read_invert_and_slope():
         CAL["reading_curvature_Pa"]
     r = sensor_reading_Pa(p, P_ATM, o, g, k)
     np.testing.assert_allclose(r, _read(p), rtol=1e-15)
-    np.testing.assert_allclose(SensorNonlinearity().read(p, CAL, P_ATM) + o,
+    np.testing.assert_allclose(sensor_reading_Pa(p, P_ATM, o, 1.0, k),
                                _read(p, dict(CAL, reading_gain_error=0.0)), rtol=1e-15)
     np.testing.assert_allclose(pressure_behind_reading_Pa(r, P_ATM, o, g, k), p, rtol=1e-12)
     for pi, ri in zip(p, r):
@@ -146,3 +146,23 @@ def test_the_bench_plants_the_curvature_in_the_reading(tmp_path):
     y = want - P_ATM
     assert np.max(np.abs(got - want - 2500.0 * (y / 1e5) ** 2)) < 250.0
     assert np.max(got - want) > 20_000.0
+
+
+def test_the_bench_reads_the_calibration_and_the_curve_as_the_simulator_does(tmp_path):
+    """With a calibration's offset and gain beside the curve the bench records P_atm +
+    g y + k (y / 1 bar)^2 + o (the simulator's map, not the curve read again through the
+    gain)."""
+    kw = dict(protocol="fixed", duration_s=0.3, seed=4, ranges_V=(3.0,), positions=(0.5,))
+    effects = (make_effect("sensor_calibration", form="offset_gain"),
+               make_effect("sensor_nonlinearity"))
+    res = run_bench(BenchConfig("AIR37", "valve1", effects, overrides=CAL, **kw),
+                    tmp_path / "both")
+    plain = run_bench(BenchConfig("AIR37", "valve1", (), **kw), tmp_path / "plain")
+    got, want = (read_recording(r.recordings[0]).pressure_Pa for r in (res, plain))
+    # noise (~500 Pa, times a slope within 2 % of 1.02 of it) and filtered corners
+    assert np.max(np.abs(got - _read(want))) < 250.0
+    # the curve read again through the gain (g (y + k (y / 1 bar)^2) + o) misses it
+    y = want - P_ATM
+    again = (P_ATM + (1.0 + CAL["reading_gain_error"])
+             * (y + CAL["reading_curvature_Pa"] * (y / 1e5) ** 2) + CAL["reading_offset_Pa"])
+    assert np.max(np.abs(got - again)) > 300.0

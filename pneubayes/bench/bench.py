@@ -43,8 +43,10 @@ from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.bench.protocols import piston_motion, step_commands
 from pneubayes.bench.sensors import SensorChain
 from pneubayes.effects import CATALOGUE, Effect, effects_from_names  # noqa: F401 (re-exported)
+from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.io.recording import Recording, RecordingMetadata, write_recording
 from pneubayes.model import Model
+from pneubayes.physics.calibration import reading_zero_Pa, sensor_reading_Pa
 from pneubayes.physics.cylinder import cylinder_preset
 from pneubayes.physics.gas import GasConstants
 from pneubayes.physics.valve import valve_preset
@@ -172,6 +174,24 @@ def accepted_rules(pressure_Pa) -> tuple[str, ...]:
     return ("pressure-low",) if low else ()
 
 
+#: The catalogue effects that act on the reading alone (the chamber's physics sees p).
+_SENSOR_EFFECTS = ("sensor_calibration", "sensor_drift", "sensor_nonlinearity")
+
+
+def _sensor_read(model: Model, truth: Mapping[str, float], rig: Rig):
+    """``read(time_s, pressure_Pa)``: what the sensor of ``model`` at ``truth`` records,
+    through the zero, gain and curvature its effects lower
+    (:func:`~pneubayes.physics.calibration.sensor_reading_Pa`)."""
+    sl = model.lower(model.as_matrix(truth), rig)[0]
+    zero = [sl[SLOT_INDEX[k]] for k in ("reading_offset_Pa", "reading_drift_Pa_per_s",
+                                        "reading_warm_up_Pa",
+                                        "reading_warm_up_time_constant_s")]
+    gain = 1.0 + sl[SLOT_INDEX["reading_gain_error"]]
+    curvature = sl[SLOT_INDEX["reading_curvature_Pa"]]
+    return lambda t, p: sensor_reading_Pa(np.asarray(p, dtype=np.float64), ATMOSPHERE_PA,
+                                          reading_zero_Pa(t, *zero), gain, curvature)
+
+
 def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
               progress: Callable[[str], None] | None = None) -> BenchResult:
     """Generate the recordings of ``cfg`` into ``out_dir`` and write ``truth.json``."""
@@ -193,12 +213,11 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     t_out = np.arange(n_out) / fs_out
     t_fine = np.arange((n_out - 1) * step + 1) / cfg.fine_rate_Hz
     plans = _plans(cfg, cyl.stroke_m)
-    calibration = model.effect("sensor_calibration") if model.has("sensor_calibration") \
-        else None
-    drift = model.effect("sensor_drift") if model.has("sensor_drift") else None
-    curve = model.effect("sensor_nonlinearity") if model.has("sensor_nonlinearity") else None
-    calibration_neutral = {k: v for e in (calibration, drift, curve) if e is not None
-                           for k, v in e.neutral_values().items()}
+    # the sensor's effects (calibration, drift, curvature) are simulated neutral and the
+    # true pressure read through their lowered slots, as the simulator reads it
+    sensor = [model.effect(n) for n in _SENSOR_EFFECTS if model.has(n)]
+    sensor_neutral = {k: v for e in sensor for k, v in e.neutral_values().items()}
+    read = _sensor_read(model, truth, rig) if sensor else None
     seeds = np.random.SeedSequence(cfg.seed).spawn(len(plans))
     written, entries = [], []
     for plan, ss in zip(plans, seeds):
@@ -222,7 +241,7 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
                                   cfg.plant_solver, effects=model.effects)
             p_true, supply_fine = traj.pressure_Pa, traj.supply_at_valve_Pa
         else:
-            p_true = simulate(model, {**truth, **calibration_neutral}, inputs, rig,
+            p_true = simulate(model, {**truth, **sensor_neutral}, inputs, rig,
                               ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
         for form in cfg.forms:  # a sensor behind a capillary reads its cavity
             if isinstance(form, CapillarySensorPort):
@@ -233,12 +252,8 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for form in cfg.forms:  # a warming sensor's zero drifts over the recording
             if isinstance(form, SensorZeroDrift):
                 p_true = form.read(t_fine, p_true)
-        if curve is not None:  # a curved sensor (sensor_nonlinearity)
-            p_true = curve.read(p_true, truth, ATMOSPHERE_PA)
-        if calibration is not None:
-            p_true = calibration.read(p_true, truth, ATMOSPHERE_PA)
-        if drift is not None:  # a drifting zero (sensor_drift), on the fine clock
-            p_true = drift.read(t_fine, p_true, truth)
+        if read is not None:
+            p_true = read(t_fine, p_true)
         s = cfg.sensor
         p_meas = s.measure(t_fine, p_true, t_out, s.pressure_noise_Pa, rng,
                            s.pressure_quantum_Pa)

@@ -39,7 +39,6 @@ import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
 from pneubayes.effects.discovery import CandidateContext, TrialTerm
-from pneubayes.physics.calibration import sensor_reading_Pa
 from pneubayes.rig import Rig
 
 _FORMS = ("offset", "offset_gain")
@@ -74,15 +73,6 @@ class SensorCalibration(Effect):
         if self.form == "offset_gain":
             out["reading_gain_error"] = np.asarray(values["reading_gain_error"], np.float64)
         return out
-
-    @staticmethod
-    def read(pressure_Pa, values: Mapping[str, float], atmospheric_pressure_Pa: float):
-        """What the sensor records for the chamber pressure ``pressure_Pa`` (Pa) at the
-        parameter ``values`` (a missing gain error is 0): P_atm + g (p - P_atm) + o."""
-        return sensor_reading_Pa(np.asarray(pressure_Pa, dtype=np.float64),
-                                 atmospheric_pressure_Pa,
-                                 float(values.get("reading_offset_Pa", 0.0)),
-                                 1.0 + float(values.get("reading_gain_error", 0.0)))
 
     def bench_defaults(self):
         """A zero offset of 0.5 % of a 10-bar sensor's span (and a 3 % span error)."""

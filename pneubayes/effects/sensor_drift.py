@@ -32,7 +32,6 @@ import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
 from pneubayes.effects.discovery import CandidateContext, TrialTerm
-from pneubayes.physics.calibration import reading_zero_Pa
 from pneubayes.rig import Rig
 
 _FORMS = ("warm_up", "linear", "linear_warm_up")
@@ -68,15 +67,6 @@ class SensorDrift(Effect):
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
         return {p.name: np.asarray(values[p.name], np.float64) for p in self.parameters()}
-
-    def read(self, time_s, pressure_Pa, values: Mapping[str, float]):
-        """The reading (Pa) of ``pressure_Pa`` at ``time_s`` (s, the recording's clock)
-        moved by this drift at the parameter ``values`` (missing ones 0; a missing time
-        constant its neutral value)."""
-        return np.asarray(pressure_Pa, dtype=np.float64) + reading_zero_Pa(
-            time_s, 0.0, float(values.get("reading_drift_Pa_per_s", 0.0)),
-            float(values.get("reading_warm_up_Pa", 0.0)),
-            float(values.get("reading_warm_up_time_constant_s", _TAU.neutral)))
 
     def bench_defaults(self):
         """A zero that settles 3 kPa (0.3 % of a 10-bar span) over 5 s, and/or drifts

@@ -28,7 +28,6 @@ import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
 from pneubayes.effects.discovery import CandidateContext, TrialTerm
-from pneubayes.physics.calibration import sensor_reading_Pa
 from pneubayes.rig import Rig
 
 _FORMS = ("curvature", "curvature_gain")
@@ -89,11 +88,3 @@ class SensorNonlinearity(Effect):
         if self.form != "curvature":
             return [(self, start)]
         return [(self, start), (SensorNonlinearity(form="curvature_gain"), start)]
-
-    def read(self, pressure_Pa, values: Mapping[str, float], atmospheric_pressure_Pa: float):
-        """What the sensor records for the chamber pressure ``pressure_Pa`` (Pa) at the
-        parameter ``values`` (missing ones 0), a calibration's offset and gain aside."""
-        return sensor_reading_Pa(np.asarray(pressure_Pa, dtype=np.float64),
-                                 atmospheric_pressure_Pa, 0.0,
-                                 1.0 + float(values.get("reading_curve_gain_error", 0.0)),
-                                 float(values.get("reading_curvature_Pa", 0.0)))
