@@ -1,111 +1,30 @@
-"""The command line's arguments: option types that check their values, the option
-groups several commands share, and the parser (:func:`build_parser`).
+"""The command line's arguments: the option groups several commands share and the
+parser (:func:`build_parser`).
 
-Every numeric option is a checked type, so a bad value is a usage error before any work
-starts; :func:`check_single_values` closes argparse's one gap (``--opt=--``).
+Every option with a value has a checked type (:mod:`pneubayes.cli.values`), so a bad
+value is a usage error before any work starts; :func:`check_single_values` closes
+argparse's one gap (``--opt=--``).
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 
-
-def _floats(text: str, what: str) -> tuple[float, ...]:
-    try:
-        return tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{what}: expected comma-separated numbers, "
-                                         f"got {text!r}") from None
-
-
-def _number(kind: str, low: float, strict: bool):
-    """An argparse type: a finite number > low (strict) or >= low, named in errors."""
-    def parse(text: str):
-        try:
-            v = int(text) if kind == "integer" else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {'an' if kind == 'integer' else 'a'} "
-                                             f"{kind}, got {text!r}") from None
-        if not math.isfinite(v) or (v <= low if strict else v < low):
-            raise argparse.ArgumentTypeError(
-                f"must be {'>' if strict else '>='} {low:g}, got {text!r}")
-        return v
-    return parse
-
-
-POSITIVE = _number("number", 0.0, strict=True)
-NON_NEGATIVE = _number("number", 0.0, strict=False)
-POSITIVE_INT = _number("integer", 0, strict=True)
-NON_NEGATIVE_INT = _number("integer", 0, strict=False)
-
-
-def _share(text: str) -> float:
-    v = NON_NEGATIVE(text)
-    if v > 1.0:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
-    return v
-
-
-def _bound(text: str) -> tuple[str, tuple[float, float]]:
-    """NAME=LOWER:UPPER, two finite numbers with lower < upper."""
-    name, sep, rest = text.partition("=")
-    lo, colon, hi = rest.partition(":")
-    try:
-        if not (sep and colon and name.strip()):
-            raise ValueError
-        pair = (float(lo), float(hi))
-        if not (all(math.isfinite(v) for v in pair) and pair[0] < pair[1]):
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--bounds expects NAME=LOWER:UPPER with finite "
-                                         f"LOWER < UPPER, got {text!r}") from None
-    return name.strip(), pair
-
-
-def _setting(text: str) -> tuple[str, float]:
-    name, sep, value = text.partition("=")
-    try:
-        if not sep:
-            raise ValueError
-        return name.strip(), float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--set expects NAME=VALUE, got {text!r}") from None
-
-
-def _assignment(text: str):
-    from pneubayes.settings_tree import SettingsError, assignment
-
-    try:
-        return assignment(text)
-    except SettingsError as exc:
-        raise argparse.ArgumentTypeError(f"--set {exc}") from None
-
-
-def _names(text: str) -> tuple[str, ...]:
-    names = tuple(v.strip() for v in text.split(",") if v.strip())
-    if not names:
-        raise argparse.ArgumentTypeError("give one or more parameter names, comma-separated")
-    return names
-
-
-def _accept(text: str) -> tuple[str, ...]:
-    from pneubayes.io.plausibility import check_accept
-
-    try:
-        return check_accept([v.strip() for v in text.split(",") if v.strip()], "--accept")
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def _rig(text: str):
-    from pneubayes.errors import RigCardError
-    from pneubayes.rigcard import load_rig_card
-
-    try:
-        return load_rig_card(text)
-    except RigCardError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+from pneubayes.cli.values import (
+    NON_NEGATIVE,
+    NON_NEGATIVE_INT,
+    POSITIVE,
+    POSITIVE_INT,
+    accepted_rules,
+    assignment,
+    bound,
+    floats,
+    parameter_names,
+    pressure_filter,
+    rig_card,
+    setting,
+    share,
+)
 
 
 def _add_limits(p) -> None:
@@ -119,10 +38,10 @@ def _add_limits(p) -> None:
 
 def _add_accept(p) -> None:
     _add_limits(p)
-    p.add_argument("--rig", type=_rig, default=None, metavar="CARD",
+    p.add_argument("--rig", type=rig_card, default=None, metavar="CARD",
                    help="a rig card (pneubayes-rig/1, .json or .toml) describing the rig of "
                         "every recording (instead of the one a sidecar's 'rig' key names)")
-    p.add_argument("--accept", type=_accept, default=(), metavar="RULE[,RULE]",
+    p.add_argument("--accept", type=accepted_rules, default=(), metavar="RULE[,RULE]",
                    help="accept these plausibility rules for every recording (an unusual "
                         "but real rig, e.g. sample-interval,pressure-span); a recording's "
                         "JSON can list them in accept_unusual")
@@ -197,7 +116,7 @@ def _add_run_options(p) -> None:
 
 
 def _add_bounds(p) -> None:
-    p.add_argument("--bounds", action="append", type=_bound, default=[],
+    p.add_argument("--bounds", action="append", type=bound, default=[],
                    metavar="NAME=LOWER:UPPER",
                    help="replace a parameter's bounds, in its unit (a rig unlike the "
                         "paper's: e.g. dead_volume_m3=1e-5:5e-3 for a 1-L chamber); "
@@ -218,15 +137,6 @@ def _add_windows(p) -> None:
                         "overlap)")
 
 
-def _pressure_filter(text: str):
-    from pneubayes.physics.sensor_filter import PressureFilter
-
-    try:
-        return PressureFilter.parse(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"--pressure-filter: {exc}") from None
-
-
 def _add_cutoffs(p) -> None:
     p.add_argument("--position-cutoff", type=NON_NEGATIVE, default=None, metavar="HZ",
                    help="position_cutoff_Hz: zero-phase low-pass of the measured position "
@@ -238,7 +148,7 @@ def _add_cutoffs(p) -> None:
 
 
 def _add_pressure_filter(p) -> None:
-    p.add_argument("--pressure-filter", type=_pressure_filter, default=None,
+    p.add_argument("--pressure-filter", type=pressure_filter, default=None,
                    metavar="ORDER:HZ",
                    help="pressure_filter: the pressure channel's zero-phase "
                         "(delay-compensated) Butterworth anti-alias filter, e.g. 2:1000 "
@@ -280,7 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "sensor_calibration, sensor_drift, sensor_nonlinearity, valve_stiction)")
     b.add_argument("--leak-form", default=None, choices=("orifice", "laminar"),
                    help="law of a planted cylinder_leak (default orifice, the paper's)")
-    b.add_argument("--set", action="append", type=_setting, metavar="NAME=VALUE",
+    b.add_argument("--set", action="append", type=setting, metavar="NAME=VALUE",
                    help="override a true parameter, e.g. --set tube_delay_s=0.005")
     b.add_argument("--protocol", default="fixed", choices=("fixed", "moving"),
                    help="fixed: random steps at fixed positions; moving: aggressive piston "
@@ -288,9 +198,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--duration", type=POSITIVE, default=20.0, help="seconds per recording")
     b.add_argument("--seed", type=NON_NEGATIVE_INT, required=True,
                    help="random seed (recorded in truth)")
-    b.add_argument("--ranges", type=lambda s: _floats(s, "--ranges"), default=None,
+    b.add_argument("--ranges", type=lambda s: floats(s, "--ranges"), default=None,
                    help="fixed protocol: command ranges in V (default 5,3,0.5)")
-    b.add_argument("--positions", type=lambda s: _floats(s, "--positions"),
+    b.add_argument("--positions", type=lambda s: floats(s, "--positions"),
                    default=None,
                    help="fixed protocol: positions as fractions of stroke (default 0.1,0.5,0.9)")
     b.add_argument("--count", type=POSITIVE_INT, default=None,
@@ -342,7 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "card's fitted quantities are known at that fit's values, except "
                         "those named by --refit (a valve identified once; a lung "
                         "recalibrated per recording)")
-    f.add_argument("--refit", type=_names, default=(), metavar="NAME[,NAME]",
+    f.add_argument("--refit", type=parameter_names, default=(), metavar="NAME[,NAME]",
                    help="with --known-from: the card quantities (parameter names) fitted "
                         "again")
     f.add_argument("--method", default="mcmc", choices=("lsq", "refine", "mcmc", "laplace"),
@@ -390,7 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "(data.holdout_fraction, 1/3)")
     _add_settings_file(d, "DiscoverySettings: [data], [search], [verify], [rounds], "
                           "[forms], [stages], [fit], [posterior], seed; docs/discovery.md")
-    d.add_argument("--set", action="append", type=_assignment, default=[],
+    d.add_argument("--set", action="append", type=assignment, default=[],
                    metavar="KEY=VALUE",
                    help="one setting of the tree by its dotted name, applied last; "
                         "repeatable; e.g. rounds.max_effects=2, stages.pair_members=0, "
@@ -487,7 +397,7 @@ def _add_track(sub) -> None:
                     "band's coverage. Nothing is written over an input.")
     t.add_argument("run", help="run folder with a model.json ('pneubayes fit' or 'discover')")
     t.add_argument("recording", help="recording .csv/.json path or stem")
-    t.add_argument("--vary", type=_names, required=True, metavar="NAME[,NAME]",
+    t.add_argument("--vary", type=parameter_names, required=True, metavar="NAME[,NAME]",
                    help="the quantities tracked (model parameter names, e.g. "
                         "lung_compliance_m3_per_Pa,resistance_Pa_s_per_m3; particles: with "
                         "a lower bound > 0; refit: 'all' for every parameter)")
@@ -520,14 +430,14 @@ def _add_track(sub) -> None:
                    help="the fit prior's standard deviation of the log (0.5)")
     t.add_argument("--lookback", type=POSITIVE, default=1.0,
                    help="each tick's predictions start this many seconds back (1.0)")
-    t.add_argument("--temper", type=_share, default=0.1,
+    t.add_argument("--temper", type=share, default=0.1,
                    help="the likelihood's power in (0, 1] (0.1: correlated model errors)")
     t.add_argument("--update-mode", choices=("lookback", "carried"), default="lookback",
                    help="lookback (default): every tick re-simulates --lookback seconds; "
                         "carried: each particle carries its model state and a tick "
                         "simulates only its new samples (a cost that does not grow with "
                         "--lookback, which then sets the moves' memory)")
-    t.add_argument("--pressure-gain", type=_share, default=1.0,
+    t.add_argument("--pressure-gain", type=share, default=1.0,
                    help="carried mode: the share of a particle's error by which its "
                         "pressure moves to the measured one at each tick (1: the measured; "
                         "0: its own, open loop)")
