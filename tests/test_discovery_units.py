@@ -491,6 +491,13 @@ def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_
     *_, outpaced = fit_round_forms(options, fit, 0.0, current_Pa=1936.0, min_share=0.8)
     assert ("line", 1862.0) not in calls and set(outpaced) == {"tube_delay", "heat_transfer"}
     assert outpaced["tube_delay"] == (74.0, 99.0)
+    # an effect whose later forms are cheap is never skipped so (the SMC bow: a
+    # curvature's form with the gain beside it had been left out at a 37-Pa first gain)
+    calls.clear()
+    *_, outpaced = fit_round_forms(options, fit, 0.0, current_Pa=1936.0, min_share=0.8,
+                                   cheap={"heat_transfer"})
+    assert ("convective", 1936.0) in calls and ("line", 1862.0) not in calls
+    assert set(outpaced) == {"tube_delay"}
     # no share (or no current RMSE): every form, as before
     calls.clear()
     *_, outpaced = fit_round_forms(options, fit, 0.0)
@@ -1193,3 +1200,17 @@ def test_the_backward_step_removes_at_a_looser_level_than_an_effect_enters():
         runner.prune(current, accepted)
         assert [a["name"] for a in accepted] == (["sensor_lag", "tube_delay"] if kept
                                                  else ["tube_delay"])
+
+
+def test_cheap_forms_are_declared_by_the_effects_whose_forms_are_maps():
+    """``cheap_forms`` is declared by effects whose forms are maps of a slot or of the
+    reading; the tube, the spool's and the sensor's lags (whose later forms add states or
+    a finer grid) keep the screening rule."""
+    from pneubayes.effects import make_effect
+
+    cheap = {"sensor_nonlinearity", "sensor_drift", "sensor_calibration", "cylinder_leak",
+             "valve_deadzone", "heat_transfer"}
+    for name in cheap:
+        assert make_effect(name).cheap_forms, name
+    for name in ("tube_delay", "spool_lag", "sensor_lag", "valve_stiction"):
+        assert not make_effect(name).cheap_forms, name

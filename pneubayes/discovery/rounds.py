@@ -23,7 +23,7 @@ class TrialFitFailed(Exception):
 
 def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
                     current_Pa: float | None = None, min_share: float = 0.0,
-                    screen_share: float = 1.0):
+                    screen_share: float = 1.0, cheap=frozenset()):
     """Fit a round's candidate forms: ``options`` maps each effect to its forms
     ``[(model, start), ...]`` in order; ``fit(effect, model, start, beat_Pa)`` fits one;
     for a later form ``beat_Pa`` is the training RMSE a fit may stop early above
@@ -43,7 +43,9 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     largest first-form gain of the round: a later form refines the shape of an effect,
     and one whose plainest form explains a small share of what another explains is not
     where the round's misfit is (on a dead zone and a drooping supply, an acoustic line
-    for a tube that is not there cost 40 minutes). A form that cannot be simulated from its
+    for a tube that is not there cost 40 minutes). The effects in ``cheap`` (whose later
+    forms cost a fit about what the first does: a curvature with a gain beside it) are
+    never skipped so. A form that cannot be simulated from its
     start or at its fitted point (``FloatingPointError`` from the refinement,
     :class:`~pneubayes.errors.SimulationError`) is a failed trial, not a failed loop.
 
@@ -85,7 +87,7 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         best = max(gain.values(), default=0.0)
         if best > 0:
             outpaced = {g: (gain[g], best) for g, forms in options.items()
-                        if len(forms) > 1 and gain[g] < min_share * best}
+                        if len(forms) > 1 and g not in cheap and gain[g] < min_share * best}
     def screen(g):
         if first_Pa[g] is None or current_Pa is None:
             return first_Pa[g]

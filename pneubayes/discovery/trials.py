@@ -257,7 +257,9 @@ class TrialRunner:
                                              s.forms.tube_line_cutoff_Hz,
                                              s.forms.tube_line_form),
             current_Pa=current.train_rmse_Pa, min_share=s.forms.later_min_share,
-            screen_share=s.forms.later_screen_share)
+            screen_share=s.forms.later_screen_share,
+            cheap={g for g, forms in options.items()
+                   if forms and forms[0][0].effect(g).cheap_forms})
         for g in groups:
             forms = round_forms[g]
             forms_info = self._forms_info(g, forms, options[g], failed[g], outpaced, settled)

@@ -175,6 +175,12 @@ class Effect(Component):
     #: False for an effect the simulator cannot carry beside a tube's acoustic line
     #: (the loop then proposes no line form beside it).
     beside_line: ClassVar[bool] = True
+    #: True for an effect whose every form costs a fit about what its first form costs
+    #: (no state, no finer time grid: a map of the reading or of a slot). The loop fits
+    #: such an effect's later forms even when its first form gained little beside the
+    #: round's best (:func:`~pneubayes.discovery.rounds.fit_round_forms`), a rule that
+    #: is there to spare minutes-long forms (an acoustic line), not a second parameter.
+    cheap_forms: ClassVar[bool] = False
 
     def beside_tube(self, form: str) -> bool:
         """Whether the simulator carries this effect beside a tube simulated as ``form``

@@ -56,6 +56,7 @@ class CylinderLeak(Effect):
     name = "cylinder_leak"
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
+    cheap_forms = True
     acts_on = ("leak_orifice_area_m2", "leak_laminar_kg_per_s_Pa2",
                "leak_laminar_gradient_kg_per_s_Pa2_m")
 

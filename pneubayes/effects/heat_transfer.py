@@ -53,6 +53,7 @@ class HeatTransfer(Effect):
     name = "heat_transfer"
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
+    cheap_forms = True
     acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K")
     #: the chamber temperature: a state no recording measures
     needs_warmup = True

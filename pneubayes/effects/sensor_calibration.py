@@ -55,6 +55,7 @@ class SensorCalibration(Effect):
 
     name = "sensor_calibration"
     forms = _FORMS
+    cheap_forms = True
     acts_on = ("reading_offset_Pa", "reading_gain_error")
 
     def __init__(self, form: str = "offset"):

@@ -50,6 +50,7 @@ class SensorDrift(Effect):
 
     name = "sensor_drift"
     forms = _FORMS
+    cheap_forms = True
     acts_on = ("reading_drift_Pa_per_s", "reading_warm_up_Pa",
                "reading_warm_up_time_constant_s")
 

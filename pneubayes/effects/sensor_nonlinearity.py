@@ -46,6 +46,7 @@ class SensorNonlinearity(Effect):
 
     name = "sensor_nonlinearity"
     forms = _FORMS
+    cheap_forms = True
     acts_on = ("reading_curvature_Pa", "reading_gain_error")
 
     def __init__(self, form: str = "curvature"):

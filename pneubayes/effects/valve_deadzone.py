@@ -34,6 +34,7 @@ class ValveDeadzone(Effect):
 
     name = "valve_deadzone"
     forms = _FORMS
+    cheap_forms = True
     acts_on = ("deadband_halfwidth_V", "deadband_rounding_V")
     bench_value = 0.3
 
