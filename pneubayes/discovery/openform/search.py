@@ -33,8 +33,6 @@ needs numpyro, which is not installed.
 
 from __future__ import annotations
 
-import math
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -53,6 +51,12 @@ from pneubayes.discovery.openform.features import (
     hinge_thresholds,
     relaxation_range,
 )
+from pneubayes.discovery.openform.sparse import (
+    OPTIMIZERS,
+    bag_coefficients,
+    candidate_rank,
+    least_squares,
+)
 from pneubayes.effects.closure_features import (
     SIGNALS,
     feature,
@@ -61,9 +65,6 @@ from pneubayes.effects.closure_terms import (
     CLOSURE_MAX_TERMS,
     Term,
 )
-
-#: The pysindy optimizers the search can use.
-OPTIMIZERS = ("frols", "stlsq", "sr3", "sbr")
 
 
 @dataclass(frozen=True)
@@ -93,15 +94,6 @@ class FoundTerm:
 def closure_spec(terms: Sequence[FoundTerm]) -> str:
     """The ``Closure(terms=...)`` text of found terms, e.g. ``"inlet_flow; one"``."""
     return "; ".join(str(t.term) for t in terms)
-
-
-def _rank(candidate: Candidate) -> int:
-    """A candidate's complexity: 0 the constant, 1 another base feature, 2 a hinge,
-    3 a product, 4 a product with a hinge."""
-    term = candidate.term
-    if term.b == "one":
-        return 0 if term.a == "one" else (2 if term.hinges() else 1)
-    return 4 if term.hinges() else 3
 
 
 #: A candidate keeps at least this share of its norm outside the nuisance columns' span,
@@ -134,7 +126,7 @@ class OpenFormSearch:
     quantiles, duplicate_tolerance, swap_min_gain : sequence of float, float, float
         The hinge thresholds' quantiles; a column within this of |cos| 1 of an earlier
         one is dropped; FROLS swaps a bag's column for a better or simpler one
-        (:meth:`_swap`).
+        (:func:`~pneubayes.discovery.openform.sparse.swap_columns`).
     refine_thresholds, exclude, without_features : bool, sequence of str, idem
         Refine the kept hinges' thresholds; families left out (a search again); base
         features no candidate reads (beside a wave tube, the valve's ports).
@@ -257,114 +249,15 @@ class OpenFormSearch:
         return col if self._basis is None else project_out(self._basis, col)
 
     def _sparse(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
-        """Coefficients of one bag on unit-RMS columns (zeros: not selected); columns
-        that vanish in the bag (a hinge no drawn row reaches) take no part."""
-        live = np.linalg.norm(x, axis=0) > 1e-9 * math.sqrt(y.size)
-        coef = np.zeros(x.shape[1])
-        if live.any():
-            coef[live] = self._sparse_live(x[:, live], y, rank[live])
-        return coef
-
-    def _sparse_live(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray) -> np.ndarray:
-        import pysindy as ps
-
-        n = y.size
-        xn, yn = x / math.sqrt(n), y / math.sqrt(n)  # unit-norm columns and target
-        if self.optimizer == "frols":
-            opt = ps.FROLS(max_iter=self.max_terms, alpha=self.ridge, unbias=False)
-            opt.fit(xn, yn)
-            err = opt.ERR_global[:, 0]
-            k = 0
-            most = min(self.max_terms, len(opt.history_) - 1)
-            while k < most and err[k] >= self.min_explained_fraction:
-                k += 1
-            if k == 0:
-                return np.zeros(x.shape[1])
-            # history_[k] holds the first k selected terms; refit them unregularised
-            sel = self._swap(xn, yn, rank, list(np.nonzero(np.asarray(opt.history_[k]).ravel()
-                                                     != 0)[0]))
-            coef = np.zeros(x.shape[1])
-            coef[sel] = np.linalg.lstsq(xn[:, sel], yn, rcond=None)[0]
-            return coef
-        if self.optimizer == "stlsq":
-            opt = ps.STLSQ(threshold=self.threshold, alpha=self.ridge, max_iter=20,
-                           unbias=True)
-        elif self.optimizer == "sr3":
-            # L0 prox with relax_coeff_nu 1 thresholds at sqrt(2 lam): lam = thr^2 / 2
-            opt = ps.SR3(reg_weight_lam=0.5 * self.threshold**2, regularizer="L0",
-                         relax_coeff_nu=1.0, max_iter=100, unbias=True)
-        else:
-            try:
-                import numpyro  # noqa: F401
-            except ImportError:
-                raise ValueError("optimizer 'sbr' needs numpyro, which is not installed"
-                                 ) from None
-            opt = ps.SBR(num_warmup=200, num_samples=500)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # "eliminated all coefficients": an answer
-            opt.fit(xn, yn)
-        coef = np.asarray(opt.coef_, dtype=np.float64).ravel()
-        if self.optimizer == "sbr":  # posterior means: keep those above the threshold
-            coef = np.where(np.abs(coef) >= self.threshold, coef, 0.0)
-        return coef
-
-    def _swap(self, x: np.ndarray, y: np.ndarray, rank: np.ndarray, sel: list[int]
-              ) -> list[int]:
-        """Exchange selected columns for better or simpler ones (unit-norm ``x`` and
-        ``y``): each selected column in turn is replaced by the column that, with the
-        others held, explains most, when that gains more than ``swap_min_gain`` times
-        the fit's residual sum of squares, else by the best simpler column (lower
-        ``rank``, :func:`_rank`) when that loses less; passes repeat until nothing
-        changes (at most ``len(sel) + 1`` passes). A greedy forward pick can take a
-        column that stands in for two true terms at first (a spool offset for a constant
-        beside a flow term) and keep it; and a nearly constant product (``volume *
-        volume``) is not to be preferred to the constant on less evidence than that. The
-        margin is the residual's, not the target's: a strong term (a laminar leak's
-        ``p^2``) is not given up for a simpler one that fits it a little worse."""
-        sel = list(sel)
-        for _ in range(len(sel) + 1):
-            changed = False
-            for i in range(len(sel)):
-                others = sel[:i] + sel[i + 1:]
-                if others:
-                    q, _ = np.linalg.qr(x[:, others])
-                    r = y - q @ (q.T @ y)
-                    xp = x - q @ (q.T @ x)
-                else:
-                    r, xp = y, x
-                norm2 = np.sum(xp * xp, axis=0)
-                gain = np.where(norm2 > 1e-12, (xp.T @ r) ** 2 / np.where(
-                    norm2 > 1e-12, norm2, 1.0), 0.0)
-                gain[others] = 0.0
-                best = int(np.argmax(gain))
-                # the residual sum of squares of the bag's fit as it stands
-                margin = self.swap_min_gain * max(float(r @ r) - gain[sel[i]], 0.0)
-                if best != sel[i] and gain[best] > gain[sel[i]] + margin:
-                    sel[i] = best
-                    changed = True
-                    continue
-                simpler = np.nonzero(rank < rank[sel[i]])[0]
-                simpler = simpler[~np.isin(simpler, others)]
-                if simpler.size:
-                    b = int(simpler[np.argmax(gain[simpler])])
-                    if gain[b] > gain[sel[i]] - margin:
-                        sel[i] = b
-                        changed = True
-            if not changed:
-                break
-        return sel
+        """One bag's coefficients on unit-RMS columns (:func:`~pneubayes.discovery.
+        openform.sparse.bag_coefficients` with this search's settings)."""
+        return bag_coefficients(x, y, rank, optimizer=self.optimizer,
+                                max_terms=self.max_terms, ridge=self.ridge,
+                                threshold=self.threshold,
+                                min_explained_fraction=self.min_explained_fraction,
+                                swap_min_gain=self.swap_min_gain)
 
     # ------------------------------------------------------------------ refit
-    @staticmethod
-    def _refit(cols: list[np.ndarray], y: np.ndarray):
-        """``(coef, rss)`` of least squares on the given columns (scaled internally)."""
-        x = np.column_stack(cols)
-        s = np.sqrt(np.mean(x * x, axis=0))
-        s = np.where(s > 0, s, 1.0)
-        c = np.linalg.lstsq(x / s, y, rcond=None)[0] / s
-        r = y - x @ c
-        return c, float(r @ r)
-
     def _refine(self, sel: list[Candidate], cols: list[np.ndarray], y, signals_list,
                 finite, grid: dict, ranges: dict) -> None:
         """Refine each hinge threshold of ``sel`` in place (one pass, others held)."""
@@ -386,7 +279,7 @@ class OpenFormSearch:
                 def rss(v, j=j, with_threshold=with_threshold):
                     col = self._rows(with_threshold(v), signals_list, finite)
                     trial = cols[:j] + [col] + cols[j + 1:]
-                    return self._refit(trial, y)[1]
+                    return least_squares(trial, y)[1]
 
                 best = minimize_scalar(rss, bounds=(lo, hi), method="bounded",
                                        options={"xatol": 1e-4 * (hi - lo)})
@@ -516,7 +409,7 @@ class OpenFormSearch:
         if y.size < 2 or y_rms == 0.0 or not cands:
             return self
         xs = x / np.sqrt(np.mean(x * x, axis=0))
-        rank = np.array([_rank(c) for c in cands])
+        rank = np.array([candidate_rank(c) for c in cands])
         ys = y / y_rms
         n = y.size
         n_chunks = max(1, n // self.chunk_rows)
@@ -558,8 +451,8 @@ class OpenFormSearch:
         while sel:
             if self.refine_thresholds:
                 self._refine(sel, cols, y, signals_list, finite, grid, ranges)
-            coef, rss = self._refit(cols, y)
-            drop = np.array([(self._refit(cols[:j] + cols[j + 1:], y)[1] if len(cols) > 1
+            coef, rss = least_squares(cols, y)
+            drop = np.array([(least_squares(cols[:j] + cols[j + 1:], y)[1] if len(cols) > 1
                               else tss) - rss for j in range(len(cols))]) / tss
             worst = int(np.argmin(drop))
             if len(sel) > self.max_terms or drop[worst] < self.min_explained_fraction:
