@@ -28,7 +28,7 @@ from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings
 from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.provenance import provenance
 

@@ -23,7 +23,8 @@ from pneubayes.bench.bench import identification_sets
 from pneubayes.effects import effects_from_names
 from pneubayes.inference.fit import FitSettings
 from pneubayes.inference.refine import TrajectoryRefiner
-from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
+from pneubayes.inference.sampler import BayesianIdentification
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model

@@ -41,7 +41,7 @@ from pneubayes.inference.fit import FitSettings, identify
 from pneubayes.inference.fit_folder import write_fit
 from pneubayes.inference.pipeline import run_predict
 from pneubayes.inference.predictive import PressurePredictor
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig

@@ -67,7 +67,7 @@ from pneubayes.discovery.settings import (
     SearchSettings,
 )
 from pneubayes.inference.pipeline import FitSettings
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.provenance import provenance
 

@@ -20,7 +20,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import identification_sets
 from pneubayes.effects import effects_from_names
 from pneubayes.inference.pipeline import FitSettings, run_fit, run_predict
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.provenance import provenance

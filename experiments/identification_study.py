@@ -37,7 +37,7 @@ from pneubayes.effects import effects_from_names
 from pneubayes.inference.fit import Fit, FitSettings, identify
 from pneubayes.inference.fit_folder import write_fit
 from pneubayes.inference.pipeline import run_predict
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.provenance import provenance

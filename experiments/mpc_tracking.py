@@ -96,7 +96,7 @@ from pneubayes.inference.fit_folder import read_fit, write_fit
 from pneubayes.inference.online import OnlineTracker
 from pneubayes.inference.population import LogNormalPrior
 from pneubayes.inference.predictive import PressurePredictor, ar1_noise, draw_quantiles
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.provenance import provenance

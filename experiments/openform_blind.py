@@ -114,7 +114,7 @@ from pneubayes.bench.sensors import SensorChain
 from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DiscoverySettings, PosteriorSettings, SearchSettings
 from pneubayes.inference.pipeline import FitSettings
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.physics.cylinder import cylinder_preset
 from pneubayes.provenance import provenance

@@ -40,7 +40,7 @@ from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DataSettings, DiscoverySettings, SearchSettings
 from pneubayes.effects import SensorCalibration
 from pneubayes.inference.pipeline import FitSettings
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.io.importers.gtdynamics import ATMOSPHERE_PA
 from pneubayes.provenance import provenance

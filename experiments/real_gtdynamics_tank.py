@@ -39,7 +39,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.pipeline import FitSettings, run_fit
 from pneubayes.inference.predictive import noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model

@@ -31,7 +31,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DataSettings, DiscoverySettings, RoundSettings
 from pneubayes.inference.pipeline import FitSettings, at_bounds
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.provenance import provenance

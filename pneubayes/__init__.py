@@ -40,7 +40,7 @@ _PUBLIC = {
     "write_fit": "pneubayes.inference.fit_folder",
     "read_fit": "pneubayes.inference.fit_folder",
     "FitSettings": "pneubayes.inference.fit",
-    "SamplerSettings": "pneubayes.inference.sampler",
+    "SamplerSettings": "pneubayes.inference.sampler_settings",
     "PressurePredictor": "pneubayes.inference.predictive",
     "Discovery": "pneubayes.discovery.loop",
     "discover": "pneubayes.discovery.loop",

@@ -120,7 +120,7 @@ def identify(folder: Path, out: Path, seed: int, steps: int,
              pressure_filter: PressureFilter | None) -> dict:
     """Fit the paper's model to a set's fixed recordings; predict its moving ones."""
     from pneubayes.inference.pipeline import FitSettings, run_fit, run_predict
-    from pneubayes.inference.sampler import SamplerSettings
+    from pneubayes.inference.sampler_settings import SamplerSettings
 
     fixed = [read_recording(p) for p in sorted((folder / "fixed").glob("*.csv"))]
     moving = [read_recording(p) for p in sorted((folder / "moving").glob("*.csv"))]
@@ -164,7 +164,7 @@ def discover_story(folder: Path, out: Path, seed: int, steps: int,
     from pneubayes.discovery.report import run_discover
     from pneubayes.discovery.settings import DataSettings, DiscoverySettings
     from pneubayes.inference.pipeline import FitSettings, run_predict
-    from pneubayes.inference.sampler import SamplerSettings
+    from pneubayes.inference.sampler_settings import SamplerSettings
 
     paths = sorted(folder.glob("*/*.csv"))
     recs = [read_recording(p) for p in paths]

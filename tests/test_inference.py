@@ -20,9 +20,9 @@ from pneubayes.inference.likelihood import (
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler import (
     BayesianIdentification,
-    SamplerSettings,
     settle_solver,
 )
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.walker_start import posterior_centre, sampling_jacobian, walker_ball
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording

@@ -4,7 +4,7 @@ import pytest
 
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.inference.fit import FitSettings
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.physics.sensor_filter import PressureFilter
 from pneubayes.settings_tree import SettingsError, build, override
 from pneubayes.simulation import SolverConfig

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.fit import FitSettings
-from pneubayes.inference.sampler import SamplerSettings
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.settings_tree import FieldError
 
 METHODS = ("lsq", "refine", "mcmc")

@@ -28,7 +28,8 @@ from pneubayes.inference.laplace import LAPLACE_DRAWS, LaplaceIdentification
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.inference.predictive import PressurePredictor, noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
-from pneubayes.inference.sampler import BayesianIdentification, SamplerSettings
+from pneubayes.inference.sampler import BayesianIdentification
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io.plausibility import recorded_findings
 from pneubayes.io.preprocess import prepare_recording

@@ -48,7 +48,8 @@ import numpy as np
 
 from pneubayes.inference.importance import importance_check
 from pneubayes.inference.likelihood import WindowLikelihood
-from pneubayes.inference.sampler import ChainDraws, SamplerSettings, arviz, settle_solver
+from pneubayes.inference.sampler import ChainDraws, arviz, settle_solver
+from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.walker_start import (
     curvature_stencil,
     gaussian_draws,
