@@ -17,7 +17,6 @@ import inspect
 
 import numpy as np
 
-from pneubayes.discovery.one_step import one_step_data
 from pneubayes.discovery.openform.closure_model import (
     CLOSURE,
     beside_closure,
@@ -29,13 +28,8 @@ from pneubayes.discovery.openform.closure_model import (
     without_term,
 )
 from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
+from pneubayes.discovery.openform.residual import one_step_residual, window_residual
 from pneubayes.discovery.openform.search import OpenFormSearch
-from pneubayes.discovery.openform.signals import (
-    missing_mass_flow,
-    parameter_flows,
-    path_signals,
-)
-from pneubayes.discovery.openform.trajectory import WindowResponse
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
@@ -247,58 +241,18 @@ class OpenForm(Stage):
 
     # ------------------------------------------------------------------ search
     def _residual(self, state: RoundState, runner):
-        """``(signals, targets, None, nuisance)``: per training recording, the current
-        model's signals along its path, the mass flow into the chamber it misses (kg/s,
-        per interval; the search sums its block of them per row) and, with
-        ``refit_base``, its parameter sensitivities as mass flows (else None)."""
-        s = runner.settings
-        current = state.current
-        signals, targets, nuisance = [], [], []
-        for rec in runner.data.train:
-            d = one_step_data(rec, 1)  # (per interval: the search makes the rows)
-            e = d.errors(current.model, current.params, s.search.solver)[0]
-            sig = path_signals(current.model, current.params, rec, d)
-            signals.append(sig)  # (its "valid" leaves out intervals touching a bad sample)
-            targets.append(missing_mass_flow(sig, e, d.rig))
-            if self.refit_base:
-                nuisance.append(parameter_flows(current.model, current.params, d,
-                                                s.search.solver, sig))
-        return signals, targets, None, (nuisance if self.refit_base else None)
+        """The one-step residual of the training recordings
+        (:func:`~pneubayes.discovery.openform.residual.one_step_residual`)."""
+        return one_step_residual(state.current.model, state.current.params,
+                                 runner.data.train, runner.settings.search.solver,
+                                 self.refit_base)
 
     def _window_residual(self, state: RoundState, runner, path, path_nuisance=None):
-        """``(signals, targets, row maps, nuisance)`` of the training windows: per
-        recording with windows, the current model's signals along its path (``path``:
-        per training recording, in order), the windows' residual (measured minus
-        predicted, Pa) every few samples, the map from a per-interval mass flow to its
-        first-order effect there (:mod:`~pneubayes.discovery.openform.trajectory`), and
-        ``path_nuisance``'s arrays (per training recording, in order; or None) matched
-        to them."""
-        current = state.current
-        ws = runner.data.train_ws
-        theta = current.model.vector(current.params)[None]
-        missing = -ws.residuals(current.model, theta, runner.settings.fit.refine_solver)[0]
-        extra = [None] * len(path) if path_nuisance is None else list(path_nuisance)
-        if len(ws.blocks) == len(path):  # (the window set keeps the recordings' order)
-            paths, nuisance = list(path), extra
-        else:  # a recording without a window is left out of the window set
-            by_source = {str(rec.source): (sig, z)
-                         for rec, sig, z in zip(runner.data.train, path, extra)}
-            if len(by_source) != len(path):
-                raise ValueError("the training recordings' sources repeat, so their "
-                                 "windows cannot be matched to them")
-            paths = [by_source[b.source][0] for b in ws.blocks]
-            nuisance = [by_source[b.source][1] for b in ws.blocks]
-        every = max(1, (ws.length - 1) // self.window_rows)
-        signals, targets, maps = [], [], []
-        n0 = 0
-        for b, sig in zip(ws.blocks, paths):
-            w = b.starts.size
-            response = WindowResponse(sig, b.starts, ws.length, b.rig, every)
-            signals.append(sig)
-            maps.append(response)
-            targets.append(response.sample(missing[n0:n0 + w]))
-            n0 += w
-        return signals, targets, maps, (None if path_nuisance is None else nuisance)
+        """The training windows' residual
+        (:func:`~pneubayes.discovery.openform.residual.window_residual`)."""
+        return window_residual(state.current.model, state.current.params, runner.data.train,
+                               runner.data.train_ws, runner.settings.fit.refine_solver, path,
+                               self.window_rows, path_nuisance)
 
     def _search(self, search, signals, targets, maps, current, nuisance=None):
         """``(terms, search)``: the search fitted (beside ``nuisance``), its terms as
