@@ -912,6 +912,47 @@ def test_a_trial_whose_held_out_gain_its_control_shares_is_not_passed(monkeypatc
         assert entry["not_better_than_control"] is (not passes)
 
 
+def test_a_tentative_trial_must_close_the_last_resorts_share_of_the_gap(monkeypatch):
+    """Blind set 7's SMC cushion: a graded leak, tried on weak evidence (inclusion 0.25)
+    far above the noise, gained 9082 -> 8407 Pa in 18 of 18 windows, 8 % of the gap, and
+    stood in for the cushion; the last resort had refused it for that share. A share
+    asked per group applies to that group only; the round asks the last resort's share of
+    its tentative groups."""
+    import pneubayes.discovery.trials as trials
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.discovery.verification import StepFit
+
+    rng = np.random.default_rng(2)
+    base_mse = 900.0**2 * (1 + 0.1 * rng.random(18))
+    leak = Model(effects=effects_from_names(["cylinder_leak"]))
+    names = leak.parameter_names
+
+    def fit(model, held_mse, train):
+        return StepFit(model, dict.fromkeys(names, 1e-17), train,
+                       float(np.sqrt(held_mse.mean())), -held_mse / 1e4, held_mse, 500.0,
+                       0.0)
+
+    current = fit(Model(), base_mse, 710.0)
+    trial = fit(leak, base_mse * 0.9, 705.0)  # every window better, under 25 % of the gap
+    monkeypatch.setattr(trials, "effect_candidates", lambda *a, **k: [(leak, {})])
+    monkeypatch.setattr(trials, "fit_round_forms", lambda options, *a, **k: (
+        {g: [(trial, leak, dict.fromkeys(names, 1e-17))] for g in options}, None,
+        {g: [] for g in options}, {}))
+    sindy = type("S", (), {"evidence_": {"cylinder_leak": {"inclusion_probability": 0.25}}})()
+    train = [type("R", (), {"rig": lambda self: None})()]
+    for share, passes in ((None, True), ({"spool_lag": 0.25}, True),
+                          ({"cylinder_leak": 0.25}, False), (0.25, False)):
+        runner = _runner(DiscoverySettings(), train=train)
+        monkeypatch.setattr(runner, "fit", lambda *a, **k: current)  # the control
+        args = () if share is None else (share,)
+        passing = runner.trials(["cylinder_leak"], _round(current, sindy), *args)
+        assert bool(passing) is passes, share
+        (entry,) = [e for e in runner.ledger if e["action"] in ("pass", "reject")]
+        assert entry["short_of_gap"] is (not passes)
+        assert entry["min_gap_closed"] == (0.25 if not passes else 0.0)
+        assert 0.0 < entry["gap_closed"] < 0.25
+
+
 def test_only_trials_that_beat_the_current_fit_get_a_control(monkeypatch):
     """A control costs a full refit (tens of seconds beside a wave tube) and only a
     passing trial is asked whether its gain is its basin's: a trial that does not beat

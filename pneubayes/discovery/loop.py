@@ -205,7 +205,12 @@ class Discovery:
         empty = not candidates and not any(st.opens_empty_round(state) for st in stages)
         state.exhausted = empty
         if not empty:
-            state.passing = runner.trials(candidates, state)
+            # a tentative group (tried on weak evidence, far above the noise) must close
+            # the share of the gap an effect the last resort tries must: weak evidence
+            # and a small gain is how a stand-in enters
+            state.passing = runner.trials(
+                candidates, state,
+                {g: self.settings.stages.last_resort_min_gap_closed for g in state.tentative})
         for stage in stages:
             if empty and not stage.reshapes:
                 continue

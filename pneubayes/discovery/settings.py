@@ -249,8 +249,9 @@ class StageSettings:
     last_resort : bool
         LastResort: every catalogue group when nothing (or little) passed.
     last_resort_min_gap_closed, last_resort_best_gap_closed : float
-        The gap share a last resort, runner-up or pair must close; the last resort also
-        runs when the best passing trial closes less than this (0: only if none passed).
+        The gap share a last resort, runner-up, pair or a round's tentative trial (tried
+        on weak evidence) must close; the last resort also runs when the best passing
+        trial closes less than this (0: only if none passed).
     runner_ups : bool
         RunnerUps: passing trials not added are revisited before the loop stops.
     pair_members : int

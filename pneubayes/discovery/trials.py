@@ -226,13 +226,14 @@ class TrialRunner:
                                if max_p_value is None else max_p_value)
 
     # ------------------------------------------------------------------ trials
-    def trials(self, groups, state: RoundState, min_gap_closed: float = 0.0) -> list:
+    def trials(self, groups, state: RoundState, min_gap_closed: float | dict = 0.0) -> list:
         """Fit each of ``groups``' forms beside ``state.current``, control every trial
         that beats it (:meth:`controls`), and verify each against the final current fit.
 
         A trial that passes must also close ``min_gap_closed`` of the held-out RMSE's
-        gap above the noise floor (with no gap left, none can) and gain the least the
-        settings ask (:func:`~pneubayes.discovery.rounds.min_gain_Pa`). Records each
+        gap above the noise floor (one share for all, or per group, 0 for a group not
+        listed; with no gap left, none can) and gain the least the settings ask
+        (:func:`~pneubayes.discovery.rounds.min_gain_Pa`). Records each
         trial in the ledger, each effect's fitted forms in ``state.tried`` and may
         replace ``state.current`` (a better optimum of the current model).
 
@@ -284,7 +285,9 @@ class TrialRunner:
         # than the current fit at no better training error: that gain is the basin's,
         # not the effect's); the best that passes both is added
         controls = self.controls([(t[0], t[3]) for t in trials], state)
-        return [p for p in (self._verdict(t, control, state, min_gap_closed)
+        share = (min_gap_closed if isinstance(min_gap_closed, dict)
+                 else {t[0]: min_gap_closed for t in trials})
+        return [p for p in (self._verdict(t, control, state, share.get(t[0], 0.0))
                             for t, control in zip(trials, controls)) if p is not None]
 
     def _forms_info(self, g, forms, options, failed, outpaced, settled) -> dict:
@@ -340,7 +343,7 @@ class TrialRunner:
         self.ledger.record(
             "pass" if ok else "reject", effect=g,
             gap_closed=closed, short_of_gap=bool(small), gain_under_floor=bool(tiny),
-            min_gain_Pa=least,
+            min_gain_Pa=least, min_gap_closed=min_gap_closed,
             effect_options=model2.effect(g).options(), forms=forms_info,
             start={k: start2[k] for k in names},
             fitted={k: trial.params[k] for k in names},
