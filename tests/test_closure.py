@@ -102,7 +102,6 @@ def test_the_compiled_constants_are_the_feature_tables():
         ct.parse_terms("; ".join(["one"] * (CLOSURE_MAX_TERMS + 1)))
     assert chamber._AREA_SCALE == cf.AREA_SCALE_M2
     assert chamber._VOLUME_SCALE == cf.VOLUME_SCALE_M3
-    assert chamber._STEP_WIDTH_SHARE == cf.STEP_WIDTH_SHARE
     assert [f.code for f in cf.FEATURES] == list(range(len(cf.FEATURES)))
 
 
@@ -235,8 +234,7 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
                          + ["inlet_flow*pressure_hinge", "exhaust_flow*volume_rate",
                             "net_flow*pressure_hinge_down", "inlet_flux*spool_null_hinge",
                             "net_flux*spool_null_hinge", "inlet_flux*inlet_area_hinge",
-                            "exhaust_flux*exhaust_area_hinge",
-                            "exhaust_flow*volume_step_down"])
+                            "exhaust_flux*exhaust_area_hinge"])
 @pytest.mark.parametrize("hconv", [0.0, 30.0])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig):
@@ -252,7 +250,7 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
              "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2,
              "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05,
              "inlet_drop_hinge": 3.5, "spool_null_hinge": 4.5, "inlet_area_hinge": 0.1,
-             "exhaust_area_hinge": 0.1, "volume_step_up": 2.45, "volume_step_down": 2.55}
+             "exhaust_area_hinge": 0.1}
     term = ct.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
@@ -289,8 +287,7 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
 # ---------------------------------------------------------------- against the reference
 #: (a threshold where the inlet's drop hinge opens on these inputs: p_s - p < 3 P_atm)
 _SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0,
-                      "inlet_area_hinge": 0.2, "exhaust_area_hinge": 0.2,
-                      "volume_step_up": 3.4, "volume_step_down": 3.4}
+                      "inlet_area_hinge": 0.2, "exhaust_area_hinge": 0.2}
 CASES = [(f.name, {"closure_threshold_0_a": _SINGLE_THRESHOLDS[f.name]}
           if f.name in _SINGLE_THRESHOLDS else {}) for f in cf.FEATURES] + [
     ("inlet_flux*spool_null_hinge; exhaust_flux*spool_null_hinge; net_flux",  # _FLUX_CASE
@@ -304,12 +301,6 @@ CASES = [(f.name, {"closure_threshold_0_a": _SINGLE_THRESHOLDS[f.name]}
     ("exhaust_flow*spool; volume_rate*volume; one", {}),
     ("net_flow*pressure_hinge_down", {"closure_threshold_0_b": 3.0}),
     ("command_direction*inlet_flow", {}),
-    # a cushion (the exhaust throttled to a needle's area as the volume passes 3.4 cm^3
-    # on its way down) and a leak the piston uncovers on its way up
-    ("exhaust_flow*volume_step_down; exhaust_flux*volume_step_down; "
-     "pressure_ratio*volume_step_up",
-     {"closure_threshold_0_b": 3.4, "closure_threshold_1_b": 3.4,
-      "closure_threshold_2_b": 3.4}),
 ]
 
 

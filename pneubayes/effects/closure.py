@@ -59,7 +59,7 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "volume_hinge_down": 100.0, "net_flow_lag": 1e-3, "inlet_drop": 10.0,
     "inlet_drop_hinge": 3.0, "inlet_flux": 1e-3, "exhaust_flux": 1e-3,
     "spool_null_hinge": 2.0, "net_flux": 1e-3, "inlet_area_hinge": 0.5,
-    "exhaust_area_hinge": 0.5, "volume_step_up": 1.0, "volume_step_down": 1.0,
+    "exhaust_area_hinge": 0.5,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
@@ -81,8 +81,6 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "spool_null_hinge": (0.0, 10.0, 1.0, 0.5),
     "inlet_area_hinge": (0.0, 100.0, 1.0, 0.3),
     "exhaust_area_hinge": (0.0, 100.0, 1.0, 0.3),
-    "volume_step_up": (0.01, 1000.0, 10.0, 3.0),
-    "volume_step_down": (0.01, 1000.0, 10.0, 30.0),
 }
 
 

@@ -35,19 +35,6 @@ from scipy.signal import lfilter
 AREA_SCALE_M2 = 1e-6
 #: Scale of the volume feature: volumes enter in cm^3.
 VOLUME_SCALE_M3 = 1e-6
-#: A volume step's width as a share of its threshold: the step is
-#: ``(1 + tanh((V - theta) / (2 w))) / 2`` with ``w = STEP_WIDTH_SHARE theta``, smooth
-#: enough for the fit to move theta and the integrator to step across it, sharp beside
-#: a stroke (2 % of a 5-cm^3 chamber: 0.1 cm^3, 1 mm of a 37-mm bore).
-STEP_WIDTH_SHARE = 0.02
-
-
-def volume_step(volume_cm3, theta_cm3: float, side: float):
-    """A volume step's value and its slope in the volume (1/cm^3): rising past
-    ``theta_cm3`` for ``side`` +1, falling for -1 (:data:`STEP_WIDTH_SHARE`)."""
-    w = STEP_WIDTH_SHARE * max(abs(theta_cm3), 1e-12)
-    t = np.tanh(side * (np.asarray(volume_cm3, dtype=np.float64) - theta_cm3) / (2.0 * w))
-    return 0.5 * (1.0 + t), side * 0.25 * (1.0 - t * t) / w
 
 
 @dataclass(frozen=True)
@@ -141,13 +128,6 @@ FEATURES: tuple[Feature, ...] = (
             "exhaust area beyond theta; times exhaust_flux with c = 1 the exhaust passes "
             "no more than theta (a silencer, a meter-out needle, a fitting)", hinge=True,
             port=True),
-    Feature("volume_step_up", 28, "-", "a smooth step from 0 to 1 as V / 1e-6 m^3 rises "
-            "past theta (cm^3; width STEP_WIDTH_SHARE x theta): what switches on as the "
-            "piston passes a place (a port it uncovers, a seal that leaves its groove)",
-            hinge=True),
-    Feature("volume_step_down", 29, "-", "a smooth step from 0 to 1 as V / 1e-6 m^3 falls "
-            "past theta (cm^3): what switches on near the end of the stroke (a cushion "
-            "whose spear closes the port, an end stop)", hinge=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -329,8 +309,6 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return flux * AREA_SCALE_M2 + 0.0 * p
     if f.code == 24:
         return np.maximum(threshold - np.abs(spool), 0.0)
-    if f.code in (28, 29):
-        return volume_step(vol / VOLUME_SCALE_M3, threshold, 1.0 if f.code == 28 else -1.0)[0]
     if f.code in (26, 27):
         area = np.asarray(s["inlet_area_m2" if f.code == 26 else "exhaust_area_m2"],
                           dtype=np.float64)

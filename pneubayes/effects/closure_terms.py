@@ -153,8 +153,6 @@ SYMBOLS: dict[str, str] = {
     "inlet_area_hinge": "max(0, a_in / 1 mm^2 - {theta})",
     "exhaust_area_hinge": "max(0, a_ex / 1 mm^2 - {theta})",
     "net_flux": "((f(p_s, p) - f(p, P_atm)) x 1 mm^2)",
-    "volume_step_up": "(1 + tanh((V / 1 cm^3 - {theta}) / (0.04 {theta}))) / 2",
-    "volume_step_down": "(1 + tanh(({theta} - V / 1 cm^3) / (0.04 {theta}))) / 2",
 }
 
 

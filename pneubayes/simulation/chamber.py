@@ -42,12 +42,10 @@ _CL_TB = SLOT_INDEX["closure_threshold_b_0"]
 _CL_C = SLOT_INDEX["closure_coefficient_0"]
 _CL_RA = SLOT_INDEX["closure_relaxed_a_0"]
 _CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
-#: The closure's area and volume features' scales (m^2 and m^3 per feature unit) and
-#: a volume step's width share (the values of
-#: :mod:`pneubayes.effects.closure_features`, which a test checks).
+#: The closure's area and volume features' scales (m^2 and m^3 per feature unit; the
+#: values of :mod:`pneubayes.effects.closure_features`, which a test checks).
 _AREA_SCALE = 1e-6
 _VOLUME_SCALE = 1e-6
-_STEP_WIDTH_SHARE = 0.02
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -190,12 +188,6 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         z = theta - vol / _VOLUME_SCALE
         return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0
                 else (0.0, 0.0, 0.0))
-    if code == 28 or code == 29:  # the volume's smooth steps, up and down
-        side = 1.0 if code == 28 else -1.0
-        w = _STEP_WIDTH_SHARE * max(abs(theta), 1e-12)
-        t = math.tanh(side * (vol / _VOLUME_SCALE - theta) / (2.0 * w))
-        slope = side * 0.25 * (1.0 - t * t) / w
-        return 0.5 * (1.0 + t), slope * compl / _VOLUME_SCALE, slope * vdot / _VOLUME_SCALE
     return cdir, 0.0, 0.0
 
 

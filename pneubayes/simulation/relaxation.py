@@ -91,9 +91,9 @@ def closure_plan(sl):
 
     Returns ``(spool, volume_rate, direction, n, slot, kind, tau, value)``: whether a term
     reads the spool (codes 3, 11, 12) or the command's direction (code 15; both change
-    only with the command), or the volume rate (code 9; a volume hinge's or step's rate,
-    codes 17, 18, 28 and 29); and its ``n`` low-passes (code 16 the pressure's, 19 the
-    net port flow's): each one's slot, signal code, time constant (s) and value (NaN until started).
+    only with the command), or the volume rate (code 9; a volume hinge's rate, codes 17
+    and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port flow's):
+    each one's slot, signal code, time constant (s) and value (NaN until started).
     """
     cl_spool, cl_vdot, cl_dir = False, False, False
     rx_n = 0
@@ -107,7 +107,7 @@ def closure_plan(sl):
                 cl_spool = True
             if code == 15.0:
                 cl_spool, cl_dir = True, True
-            if code == 9.0 or code == 17.0 or code == 18.0 or code == 28.0 or code == 29.0:
+            if code == 9.0 or code == 17.0 or code == 18.0:
                 cl_vdot = True
         for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
                                (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):

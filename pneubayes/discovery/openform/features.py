@@ -19,9 +19,6 @@ of its hinge features. The library (:func:`candidate_terms`) holds
   ``inlet_flux``, ``exhaust_flux`` and ``net_flux`` (a port area, or an equal area at
   both ports, that opens with the spool), but the port-area hinges, which enter times
   their own port's flow function only (a port capped by a restriction in series);
-- the volume's two smooth steps (what switches at a place on the stroke) at quantiles
-  of the volume, alone and times ``inlet_flow``, ``exhaust_flow`` and
-  ``exhaust_flux``;
 - the low-passes ``pressure_relaxation`` and ``net_flow_lag`` at each time constant of a
   fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
   the same three partners (a time constant is its feature's "threshold": a family keeps
@@ -58,8 +55,7 @@ HINGE_SOURCES = {"pressure_hinge": "pressure_ratio", "spool_hinge_up": "spool",
                  "spool_hinge_down": "spool", "pressure_hinge_down": "pressure_ratio",
                  "volume_hinge_up": "volume", "volume_hinge_down": "volume",
                  "inlet_drop_hinge": "inlet_drop", "spool_null_hinge": "spool",
-                 "inlet_area_hinge": "inlet_area", "exhaust_area_hinge": "exhaust_area",
-                 "volume_step_up": "volume", "volume_step_down": "volume"}
+                 "inlet_area_hinge": "inlet_area", "exhaust_area_hinge": "exhaust_area"}
 #: Hinges whose threshold is compared with their source's magnitude.
 MAGNITUDE_HINGES = frozenset({"spool_null_hinge"})
 #: The time constants (s) a relaxation (``pressure_relaxation``) is tried at, those
@@ -82,20 +78,10 @@ AREA_HINGE_PARTNERS = {"inlet_area_hinge": ("inlet_flux",),
                        "exhaust_area_hinge": ("exhaust_flux",)}
 
 
-#: The partners of the volume's steps: the port flows (a port a place on the stroke
-#: throttles) and the exhaust's flow function (an area to atmosphere that it opens or
-#: shuts: a needle that takes over the exhaust in a cushion, a vent the piston
-#: uncovers).
-STEP_PARTNERS = ("inlet_flow", "exhaust_flow", "exhaust_flux")
-VOLUME_STEPS = frozenset({"volume_step_up", "volume_step_down"})
-
-
 def hinge_partners(hinge: str) -> tuple[str, ...]:
-    """The features a hinge (or a step) is multiplied with in the library."""
+    """The features a hinge is multiplied with in the library."""
     if hinge in AREA_HINGE_PARTNERS:
         return AREA_HINGE_PARTNERS[hinge]
-    if hinge in VOLUME_STEPS:
-        return STEP_PARTNERS
     return HINGE_PARTNERS + (SPOOL_HINGE_PARTNERS if hinge in SPOOL_HINGES else ())
 #: The default quantiles of the hinge thresholds.
 DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
