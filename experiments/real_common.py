@@ -13,7 +13,7 @@ from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig, simulate_windows
-from pneubayes.simulation.simulator import Inputs
+from pneubayes.simulation.drive import Inputs
 
 
 def plain_fit(train, horizon_s: float, solver: SolverConfig, max_nfev: int = 60) -> dict:

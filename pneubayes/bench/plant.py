@@ -91,7 +91,7 @@ from pneubayes.physics.orifice import flow_terms
 from pneubayes.physics.tube import churchill_fre
 from pneubayes.physics.valve import gompertz_scalar
 from pneubayes.rig import Rig
-from pneubayes.simulation.simulator import Inputs
+from pneubayes.simulation.drive import Inputs
 
 # ---------------------------------------------------------------- constant layout
 (K_KAPPA, K_RS, K_TS, K_ALPHA, K_BETA, K_THETA, K_PATM, K_PNOM, K_ABORE, K_BORE) = range(10)

@@ -1,8 +1,8 @@
 """Simulation layer: the compiled exponential integrator and its Python entry points."""
 
 from pneubayes.simulation.config import SolverConfig
+from pneubayes.simulation.drive import Inputs
 from pneubayes.simulation.simulator import (
-    Inputs,
     Trajectory,
     fresh_carry,
     rig_constants,

@@ -32,7 +32,7 @@ from pneubayes.model import Model
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.tube import churchill_fre
 from pneubayes.rig import Rig
-from pneubayes.simulation.simulator import Inputs
+from pneubayes.simulation.drive import Inputs
 
 
 def _flow(p_up, p_down, alpha, beta, theta, kappa):
