@@ -37,7 +37,11 @@ refit's own prediction (the posterior mode), its scale per step ahead the RMS er
 the chosen anchor's predictions on runs 1-4 (the Laplace draws of a 13-quantity
 posterior under a wide anchor spread far wider than the mode's errors), fed only the
 refit's predictions (from the run's first refit on: the shared fit's errors before it,
-several times larger, would widen it for the rest of the run).
+several times larger, would widen it for the rest of the run). That band's adaptive
+conformal step and memory (``BAND_GRID``) are chosen on runs 1-4 at the chosen anchor
+by the mean interval score of its 90 % band over the protocol's windows (each run
+through from the others' fit); runs 5-6 are scored once with the choice, and with the
+class's defaults beside it.
 
 Writes OUT/real_respiraworks_refit.json (atomically, when a set is done; a set already
 in it is not rerun); each anchor's training score is kept in OUT/choice_SET.json as it
@@ -83,6 +87,41 @@ EXHAUSTS = ("separate", "port")
 #: the online conformal band is fed a prediction every BAND_EVERY_S from BAND_FROM_S
 BAND_FROM_S = 1.0
 BAND_EVERY_S = 0.5
+#: the mode's conformal band: adaptive conformal inference's step and the completed
+#: predictions kept (None: all), chosen among on runs 1-4 by the interval score
+BAND_GRID = {"step": (0.0, 0.01, 0.03, 0.1), "memory": (None, 60, 20)}
+BAND_ALPHA = 0.1
+
+
+def mode_band(p, preds, profile, step, memory) -> dict:
+    """Replay the mode's online conformal band (``step``, ``memory``) over a run's mode
+    predictions ``preds`` ((start sample, prediction, protocol window?), in time order;
+    the measured pressure ``p``, Pa): per protocol window whether each sample lies in
+    the 90 % band, its width and the interval score (Gneiting and Raftery 2007: width
+    plus 2 / alpha times the miss, Pa), each prediction's band from the outcomes
+    measured before it."""
+    band = OnlineConformalBand(coverage=1.0 - BAND_ALPHA, step=step, memory=memory)
+    out = {"inside": [], "width": [], "score": []}
+    for k, pred, protocol in preds:
+        band.observe(k, p[:k + 1])
+        lo, hi = band.predict(k, pred, profile)
+        if protocol:
+            y = p[k + 1:k + 1 + len(pred)]
+            miss = np.maximum(lo - y, 0.0) + np.maximum(y - hi, 0.0)
+            out["inside"].append((y >= lo) & (y <= hi))
+            out["width"].append(hi - lo)
+            out["score"].append(hi - lo + 2.0 / BAND_ALPHA * miss)
+    return out
+
+
+def pooled_band(runs) -> dict:
+    """Coverage, median width and mean interval score (Pa) of :func:`mode_band`'s
+    output over runs."""
+    cat = {key: np.concatenate([x for run in runs for x in run[key]])
+           for key in ("inside", "width", "score")}
+    return {"coverage_90": float(np.mean(cat["inside"])),
+            "median_width_Pa": float(np.median(cat["width"])),
+            "interval_score_Pa": float(np.mean(cat["score"]))}
 
 
 def channels_of(weight):
@@ -94,7 +133,7 @@ def channels_of(weight):
 
 
 def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws=0,
-                band_sd=0.0, rng=None, profile=None):
+                band_sd=0.0, rng=None, profile=None, mode_ticks=False):
     """Refit through run ``r`` at its protocol windows; per window the errors of the
     mode's prediction, the set-point's and the frozen fit's, and (with ``draws``) whether
     each sample lies in the 90 % band and the band's width, and the same for two online
@@ -102,14 +141,17 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     with the latest posterior: the draws' (their mean, their spread with ``band_sd`` in
     quadrature) and the mode's (its prediction, with ``profile``, the training runs' RMS
     error per step ahead, as the scale; fed from the first refit on, not the shared
-    fit's predictions before it)."""
+    fit's predictions before it). The mode's predictions that band is fed are kept in
+    ``mode_preds`` as (start sample, prediction, protocol window or not), for
+    :func:`mode_band` to replay at any of its settings; ``mode_ticks`` feeds them (the mode
+    alone forecast at the band's ticks) without ``draws``."""
     p = np.asarray(r.pressure_Pa, dtype=np.float64)
     dt = float(np.median(np.diff(r.time_s)))
     h, m = int(round(HORIZON_S / dt)), int(round(TICK_S / dt))
     _, protocol, _ = ticks_of(r, m, h)
     every = int(round(BAND_EVERY_S / dt))
     first = int(np.searchsorted(r.time_s, r.time_s[0] + BAND_FROM_S))
-    band_ticks = set(range(first, p.size - h, every)) if draws else set()
+    band_ticks = set(range(first, p.size - h, every)) if draws or mode_ticks else set()
     inputs = Inputs.from_recording(r)
     sp = r.extra_columns["pc_setpoint_cmH2O"].astype(float) * CMH2O_PA \
         + r.metadata.atmospheric_pressure_Pa
@@ -118,24 +160,24 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
                      solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev,
                      channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
     band = OnlineConformalBand(coverage=0.9)
-    mode_band = OnlineConformalBand(coverage=0.9)
     out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
-           "refit_s": [], "inside_conformal": [], "width_conformal": [],
-           "inside_mode": [], "width_mode": []}
+           "refit_s": [], "inside_conformal": [], "width_conformal": [], "mode_preds": []}
     start = dict(shared)
     params = dict(shared)
     for k in sorted(set(protocol) | band_ticks):
         band.observe(k, p[:k + 1])
-        mode_band.observe(k, p[:k + 1])
         y = p[k + 1:k + h + 1]
         if k not in protocol:  # a band tick: the latest posterior's draws, no refit
-            sims = forecast(model, np.concatenate([model.vector(params)[None],
-                                                   on.draws(draws, rng)]),
-                            inputs, r.rig(), k, h + 1, p, std, FORECAST_WARM)[:, 1:]
-            if k > protocol[0]:  # the mode's band: the online refit's predictions only
-                mode_band.predict(k, sims[0], profile)
-            sims = sims[1:][np.all(np.isfinite(sims[1:]), axis=1)]
-            band.predict(k, *band.centre_and_scale(sims, band_sd))
+            thetas = model.vector(params)[None]
+            if draws:
+                thetas = np.concatenate([thetas, on.draws(draws, rng)])
+            sims = forecast(model, thetas, inputs, r.rig(), k, h + 1, p, std,
+                            FORECAST_WARM)[:, 1:]
+            if k > protocol[0] and profile is not None:  # the online refit's predictions
+                out["mode_preds"].append((k, sims[0], False))
+            if draws:
+                sims = sims[1:][np.all(np.isfinite(sims[1:]), axis=1)]
+                band.predict(k, *band.centre_and_scale(sims, band_sd))
             continue
         so_far = r.slice(0, k + 1)
         if anchored:
@@ -154,14 +196,13 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
         out["frozen"].append(y - pred[0])
         out["refit"].append(y - pred[1])
         out["setpoint"].append(y - sp[k + 1:k + h + 1])
+        if profile is not None:
+            out["mode_preds"].append((k, pred[1], True))
         if draws:
             sims = pred[2:][np.all(np.isfinite(pred[2:]), axis=1)]
             c_lo, c_hi = band.predict(k, *band.centre_and_scale(sims, band_sd))
             out["inside_conformal"].append((y >= c_lo) & (y <= c_hi))
             out["width_conformal"].append(c_hi - c_lo)
-            m_lo, m_hi = mode_band.predict(k, pred[1], profile)
-            out["inside_mode"].append((y >= m_lo) & (y <= m_hi))
-            out["width_mode"].append(m_hi - m_lo)
             sims = sims + rng.normal(0.0, band_sd, sims.shape)
             lo, hi = np.quantile(sims, [0.05, 0.95], axis=0)
             out["inside"].append((y >= lo) & (y <= hi))
@@ -221,6 +262,38 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
         training_score(knobs)
         return np.maximum(done["profiles"][json.dumps(knobs, sort_keys=True)], 1.0)
 
+    def band_choice(knobs) -> tuple[dict, list]:
+        """The mode band's (step, memory) with the lowest interval score on runs 1-4 at
+        ``knobs`` (each run through from the others' fit, the mode forecast at the
+        band's ticks too), and every setting's pooled result there."""
+        name = json.dumps(knobs, sort_keys=True)
+        rec = done.setdefault("band_records", {})
+        if name not in rec:
+            rec[name] = [[(int(k), np.asarray(m).tolist(), bool(pr)) for k, m, pr in
+                          through_run(model, loo[i], r, knobs, solver, std, nfev,
+                                      profile=profile(knobs), mode_ticks=True)["mode_preds"]]
+                         for i, r in enumerate(train)]
+            write_json_atomic(cache, done)
+        tried = []
+        for step in BAND_GRID["step"]:
+            for memory in BAND_GRID["memory"]:
+                runs = [mode_band(np.asarray(r.pressure_Pa, dtype=np.float64),
+                                  [(k, np.asarray(m), pr) for k, m, pr in preds],
+                                  profile(knobs), step, memory)
+                        for r, preds in zip(train, rec[name])]
+                tried.append({"step": step, "memory": memory, **pooled_band(runs)})
+        best = min(tried, key=lambda x: x["interval_score_Pa"])
+        log(f"[{kind}] the mode band on runs 1-4: step {best['step']:g}, memory "
+            f"{best['memory']} (interval score {best['interval_score_Pa']:.0f} Pa, coverage "
+            f"{best['coverage_90']:.2f})")
+        return {"step": best["step"], "memory": best["memory"]}, tried
+
+    def held_band(source, knobs, band) -> dict:
+        """The mode band at ``band``'s settings over the held-out runs ``source``."""
+        return pooled_band([mode_band(np.asarray(r.pressure_Pa, dtype=np.float64),
+                                      run["mode_preds"], profile(knobs), band["step"],
+                                      band["memory"]) for r, run in zip(held, source)])
+
     scores = [training_score(knobs) for knobs in grid]
     chosen = grid[int(np.argmin(scores))]
     band_sd = float(min(scores))
@@ -242,6 +315,15 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
     flows = [through_run(model, shared, r, flow_chosen, solver, std, nfev, draws=N_DRAWS,
                          band_sd=flow_sd, rng=rng, profile=profile(flow_chosen))
              for r in held] if with_flows else []
+
+    band, band_tried = band_choice(chosen)
+    res["mode_band"] = {"chosen": band, "training_runs": band_tried,
+                        "held_out": held_band(runs, chosen, band),
+                        "held_out_default": held_band(runs, chosen,
+                                                      {"step": 0.02, "memory": None})}
+    if with_flows:
+        flow_band, _ = band_choice(flow_chosen)
+        flow_mode = held_band(flows, flow_chosen, flow_band)
 
     def pooled(key, source=runs):
         return rmse([e for run in source for e in run[key]])
@@ -265,10 +347,9 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
                 [x for run in flows for x in run["inside_conformal"]]))),
             "conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
                 [x for run in flows for x in run["width_conformal"]]))),
-            "mode_conformal_coverage_90": float(np.mean(np.concatenate(
-                [x for run in flows for x in run["inside_mode"]]))),
-            "mode_conformal_band_90_median_width_Pa": float(np.median(np.concatenate(
-                [x for run in flows for x in run["width_mode"]])))}
+            "mode_band_chosen": flow_band,
+            "mode_conformal_coverage_90": flow_mode["coverage_90"],
+            "mode_conformal_band_90_median_width_Pa": flow_mode["median_width_Pa"]}
     res["online_over_setpoint"] = res["protocol_rmse_Pa"]["online_refit"] / pooled("setpoint")
     res["per_window_online_rmse_Pa"] = [rmse([e]) for run in runs for e in run["refit"]]
     res["per_window_without_anchor_rmse_Pa"] = [rmse([e]) for run in free for e in run["refit"]]
@@ -280,10 +361,9 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
         [x for run in runs for x in run["width_conformal"]])))
     res["band_90_median_width_Pa"] = float(np.median(np.concatenate(
         [x for run in runs for x in run["width"]])))
-    res["mode_conformal_coverage_90"] = float(np.mean(np.concatenate(
-        [x for run in runs for x in run["inside_mode"]])))
-    res["mode_conformal_band_90_median_width_Pa"] = float(np.median(np.concatenate(
-        [x for run in runs for x in run["width_mode"]])))
+    res["mode_conformal_coverage_90"] = res["mode_band"]["held_out"]["coverage_90"]
+    res["mode_conformal_band_90_median_width_Pa"] = res["mode_band"]["held_out"][
+        "median_width_Pa"]
     secs = np.array([s for run in runs for s in run["refit_s"]])
     res["refit_seconds"] = {"median": float(np.median(secs)), "max": float(secs.max()),
                             "n": int(secs.size)}
@@ -347,7 +427,7 @@ def main(argv=None) -> int:
                              "other_forms": {ex: r for ex, r in by_form.items()
                                              if ex != chosen}}
         doc.update(seed=SEED, smoke=args.smoke, grid=GRID, flow_weights=FLOW_WEIGHTS,
-                   band_every_s=BAND_EVERY_S, band_from_s=BAND_FROM_S,
+                   band_every_s=BAND_EVERY_S, band_from_s=BAND_FROM_S, band_grid=BAND_GRID,
                    n_draws=N_DRAWS,
                    provenance=provenance())
         write_json_atomic(path, doc)
