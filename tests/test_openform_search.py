@@ -108,6 +108,9 @@ CASES = {
                                         0.1, 1.0),
     "inlet_flux*inlet_area_hinge": (Term("inlet_flux", "inlet_area_hinge"), 0.0, 0.15,
                                     -1.0),
+    # an inlet whose area follows the command through a 20-ms lag on top of its map's:
+    # 0.02 mm^2 per volt of the command not yet followed
+    "inlet_flux*command_lag": (Term("inlet_flux", "command_lag"), 0.0, 0.02, 0.02),
 }
 #: The cases planted on other synthetic signals. The null hinge on a spool that crosses
 #: its null (the synthetic spool spans 0-10 V; on it the null hinge is the spool's down
@@ -156,8 +159,12 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
     if term.b == "volume_hinge_up":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
-    if term.a in ("pressure_relaxation", "net_flow_lag"):  # (either side of a product)
-        tau = found.threshold_a if found.term.a == term.a else found.threshold_b
+    lows = ("pressure_relaxation", "net_flow_lag", "command_lag")
+    if term.a in lows or term.b in lows:  # (either side of a product)
+        side = "a" if term.a in lows else "b"
+        ta = ta if side == "a" else tb
+        name = getattr(term, side)
+        tau = found.threshold_a if found.term.a == name else found.threshold_b
         assert 1 / TIME_CONSTANT_FACTOR < tau / ta < TIME_CONSTANT_FACTOR
     # the answer unpacks as a closure's start values
     term_, th_a, th_b, coef, p_inc, share = found
@@ -234,7 +241,8 @@ def test_the_library_is_typed_and_bounded():
     plain = [f.name for f in cf.FEATURES if not f.hinge]
     paired = [n for n in plain if n != "one" and "flux" not in n]
     most = (len(plain) + len(paired) * (len(paired) + 1) // 2
-            + sum(19 * (1 + len(hinge_partners(h))) for h in HINGE_SOURCES) + 8 * 8)
+            + sum(19 * (1 + len(hinge_partners(h))) for h in HINGE_SOURCES) + 8 * 8
+            + 8 * (1 + len(hinge_partners("command_lag"))))
     assert 100 < len(cands) <= most
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
@@ -252,7 +260,11 @@ def test_the_library_is_typed_and_bounded():
     assert not any("flux" in f and "spool" not in f for f in families
                    if f not in ("inlet_flux", "exhaust_flux", "net_flux",
                                 "inlet_flux*inlet_area_hinge",
-                                "exhaust_flux*exhaust_area_hinge"))
+                                "exhaust_flux*exhaust_area_hinge", "inlet_flux*command_lag",
+                                "exhaust_flux*command_lag", "net_flux*command_lag"))
+    # the command's lag alone and with the ports' flow functions and flows
+    assert {"command_lag", "inlet_flux*command_lag", "exhaust_flow*command_lag"} <= families
+    assert sorted({c.threshold_a for c in cands if c.term.a == "command_lag"}) == taus
     assert {f for f in families if "area_hinge" in f} <= {
         "inlet_area_hinge", "exhaust_area_hinge", "inlet_flux*inlet_area_hinge",
         "exhaust_flux*exhaust_area_hinge"}

@@ -13,11 +13,12 @@ the unit ``kg/s / (unit_a unit_b)``. The hinge features carry a threshold ``thet
 The same table is evaluated in two places that must agree to rounding: in numpy by
 :func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
 in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
-Three features have memory: ``command_direction``, the sign of the delayed command's
+Four features have memory: ``command_direction``, the sign of the delayed command's
 last change (:func:`held_direction`; the kernel tracks it as it walks the command);
 ``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
 with a fitted time constant (:func:`first_order_low_pass`; the kernel carries ``p_bar`` as a
-state); and ``net_flow_lag``, the net port flow's low-pass less the flow itself. The
+state); ``net_flow_lag``, the net port flow's low-pass less the flow itself; and
+``command_lag``, the spool position's low-pass less the position. The
 relaxation is what a chamber shows when something behind it follows the pressure with a
 lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
 exactly, to first order in the passage's law), a wall that creeps after a pressure
@@ -128,6 +129,11 @@ FEATURES: tuple[Feature, ...] = (
             "exhaust area beyond theta; times exhaust_flux with c = 1 the exhaust passes "
             "no more than theta (a silencer, a meter-out needle, a fitting)", hinge=True,
             port=True),
+    Feature("command_lag", 28, "command unit", "s_bar - s, s_bar the spool position s "
+            "low-passed with time constant theta (s): how far the command has moved that "
+            "a slower part of the valve has not followed yet; times a port's flux, an area "
+            "that lags the command (a pilot stage, a solenoid slower than its map, with "
+            "command_direction one way only)", hinge=True, time_constant=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -146,10 +152,13 @@ SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spoo
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
            "exhaust_flow_kg_per_s", "inlet_flux_kg_per_s_m2", "exhaust_flux_kg_per_s_m2",
            "volume_m3", "volume_rate_m3_per_s", "command_direction")
-#: The low-pass features (``pressure_relaxation``, ``net_flow_lag``) read their signal's
-#: history too: ``"pressure_history"`` / ``"net_flow_history"``, :class:`SignalHistory`
-#: objects along the signals' points, or else the points' times ``"time_s"`` (s) to
-#: low-pass the signal along.
+#: The low-pass features (``pressure_relaxation``, ``net_flow_lag``, ``command_lag``) read
+#: their signal's history too: ``"pressure_history"`` / ``"net_flow_history"`` /
+#: ``"spool_history"``, :class:`SignalHistory` objects along the signals' points, or else
+#: the points' times ``"time_s"`` (s) to low-pass the signal along.
+LOW_PASS_HISTORIES: dict[str, str] = {"pressure_relaxation": "pressure_history",
+                                      "net_flow_lag": "net_flow_history",
+                                      "command_lag": "spool_history"}
 
 
 def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray:
@@ -309,6 +318,8 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return flux * AREA_SCALE_M2 + 0.0 * p
     if f.code == 24:
         return np.maximum(threshold - np.abs(spool), 0.0)
+    if f.code == 28:
+        return _relaxed(s, threshold, "spool_history", spool) - spool
     if f.code in (26, 27):
         area = np.asarray(s["inlet_area_m2" if f.code == 26 else "exhaust_area_m2"],
                           dtype=np.float64)

@@ -153,6 +153,7 @@ SYMBOLS: dict[str, str] = {
     "inlet_area_hinge": "max(0, a_in / 1 mm^2 - {theta})",
     "exhaust_area_hinge": "max(0, a_ex / 1 mm^2 - {theta})",
     "net_flux": "((f(p_s, p) - f(p, P_atm)) x 1 mm^2)",
+    "command_lag": "(s_bar[{theta}] - s)",
 }
 
 

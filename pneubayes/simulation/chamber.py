@@ -112,7 +112,8 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     hinge's threshold. The volume rate's explicit derivative holds ``vdot`` fixed (the
     position is linear between samples). ``cdir`` is the delayed command's direction
     (+1, -1 or 0), constant between the command's changes; ``pbar`` a low-pass feature's
-    low-passed value (a relaxation's pressure, Pa; a flow lag's net flow, kg/s), which
+    low-passed value (a relaxation's pressure, Pa; a flow lag's net flow, kg/s; a command
+    lag's spool position, command unit), which
     the kernel holds over a step at its value half-way through (so its explicit time
     derivative is taken as 0). ``f_in``, ``f_ex`` are the ports' flow functions (kg/(s
     m^2), the flows per unit area), ``df_*_dp`` their slopes in p and ``df_in_dt`` the
@@ -156,6 +157,8 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         return (p - pbar) / p_atm, 1.0 / p_atm, 0.0
     if code == 19:
         return pbar - (q_in - q_ex), -(dq_in_dp - dq_ex_dp), -(dq_in_dt - dq_ex_dt)
+    if code == 28:
+        return pbar - spool, 0.0, -dspool
     if code == 17:
         z = vol / _VOLUME_SCALE - theta
         return ((z, compl / _VOLUME_SCALE, vdot / _VOLUME_SCALE) if z > 0.0

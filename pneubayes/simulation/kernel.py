@@ -107,6 +107,7 @@ from pneubayes.simulation.reading import (
 )
 from pneubayes.simulation.relaxation import (
     closure_plan,
+    command_relaxation_start,
     relaxation_start,
     relaxations_accept,
     relaxations_mid,
@@ -445,7 +446,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                 if cl_relax:
                     rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
                     relaxations_mid(sl, rx_n, rx_idx, rx_kind, rx_tau, rx_val, p, rx_rate,
-                                    rx_q0, rx_qrate, hh)
+                                    rx_q0, rx_qrate, s_at, ds_at, hh)
                 err = 10.0
                 pn, tn = p, temp
                 p_tank_new, p_lung_new = p_tank, p_lung
@@ -511,7 +512,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     if cl_relax:
                         rx_rate, rx_qrate = relaxations_accept(
                             rx_n, rx_kind, rx_tau, rx_val, p_prev, p, rx_q0,
-                            net_port_flow(p, a_in2, a_ex2, psup2, cs), tau - t_prev)
+                            net_port_flow(p, a_in2, a_ex2, psup2, cs), s_at, s_at2,
+                            tau - t_prev)
                     # dp/dp0: through the line's propagator, the chamber and the arriving
                     # wave, the (p, second state) propagator, or the pressure step's e^{hJ}
                     if general is not None and line:
@@ -724,6 +726,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     if lagged and k0 > 0:
         spool, v_s = spool_at_start(t, u, j, t_start, delay, tau_s, w_s, z_s, rate_s,
                                     tau_dn)
+    for q in range(rx_n):  # a command lag's s_bar from the command's history
+        if rx_kind[q] == 28.0:
+            rx_val[q] = command_relaxation_start(t, u, j, t_start, delay, rx_tau[q])
     # the pressure is the only state (a lagged reading follows its own exponential
     # over a step, as it does the (p, T) step's pressure part; the other steps start
     # from the chord between their ends)

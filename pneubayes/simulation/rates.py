@@ -19,6 +19,7 @@ import numpy as np
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
+    LOW_PASS_HISTORIES,
     evaluate_feature,
 )
 from pneubayes.effects.closure_terms import combine_terms
@@ -200,8 +201,8 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     (+1, -1 or 0: the delayed command's last change,
     :func:`~pneubayes.effects.closure_features.held_direction`), which must be given
     when a term reads it. A low-pass feature (``pressure_relaxation``,
-    ``net_flow_lag``) reads its signal's history: ``histories`` maps
-    ``"pressure_history"`` / ``"net_flow_history"`` to
+    ``net_flow_lag``, ``command_lag``) reads its signal's history: ``histories`` maps
+    ``"pressure_history"`` / ``"net_flow_history"`` / ``"spool_history"`` to
     :class:`~pneubayes.effects.closure_features.SignalHistory` objects along the
     evaluation points (held as given: the slope in ``pressure_Pa`` is the instant's);
     without one, ``time_s`` (the points' times, s) low-passes the given pressure and
@@ -246,8 +247,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                              "command_direction (closure_features.held_direction of the "
                              "command at the evaluation times)")
         histories = dict(histories or {})
-        for name, key in (("pressure_relaxation", "pressure_history"),
-                          ("net_flow_lag", "net_flow_history")):
+        for name, key in LOW_PASS_HISTORIES.items():
             if key not in histories and time_s is None and _reads_feature(sl, name):
                 raise ValueError(f"rate_terms: the closure reads feature {name!r}, a "
                                  f"low-pass; give histories[{key!r}] (a SignalHistory "

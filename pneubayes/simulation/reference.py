@@ -23,6 +23,7 @@ from scipy.integrate import solve_ivp
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
+    LOW_PASS_HISTORIES,
     command_direction,
     evaluate_feature,
 )
@@ -88,9 +89,9 @@ def _closure_flow(terms) -> float:
 
 def low_passes(sl) -> list[tuple[float, float]]:
     """The distinct ``(feature code, time constant s)`` of a slot row's live low-pass
-    features (``pressure_relaxation``, ``net_flow_lag``), in order of appearance."""
-    codes = (float(FEATURE_BY_NAME["pressure_relaxation"].code),
-             float(FEATURE_BY_NAME["net_flow_lag"].code))
+    features (``pressure_relaxation``, ``net_flow_lag``, ``command_lag``), in order of
+    appearance."""
+    codes = tuple(float(FEATURE_BY_NAME[name].code) for name in LOW_PASS_HISTORIES)
     out: list[tuple[float, float]] = []
     for k in range(int(sl[S["closure_terms"]])):
         for side in "ab":
@@ -157,6 +158,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     n_read = (2 if w_r > 0 else 1) if (w_r > 0 or lag > 0) else 0
     i_relax = i_read + n_read + (1 if w_s > 0 else 0)
     code_p = float(FEATURE_BY_NAME["pressure_relaxation"].code)
+    code_s = float(FEATURE_BY_NAME["command_lag"].code)
 
     class _Held:  # a low-pass from the states, for evaluate_feature
         def __init__(self, y, code):
@@ -245,7 +247,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "volume_rate_m3_per_s": vdot, "command_direction": cdir,
                        "pressure_history": _Held(y, code_p),
                        "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]
-                                                          .code))}
+                                                          .code)),
+                       "spool_history": _Held(y, code_s)}
             flows.append(_closure_flow(
                 [(c, fa, float(evaluate_feature(fa, signals, ta)), fb,
                   float(evaluate_feature(fb, signals, tb))) for c, fa, ta, fb, tb in closure]))
@@ -288,8 +291,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             # (a pressure-dependent lag: tau (2 P_atm / (p + r))^n, n its exponent)
             tau_r = lag * (2 * p_atm / (p + y[i_read])) ** n_lag if lag > 0 else 0.0
             d_reading = [float(p - y[i_read]) / tau_r] if lag > 0 else []
-        d_relax = [float((p if code == code_p else net_raw) - y[i_relax + q]) / tau
-                   for q, (code, tau) in enumerate(passes)]
+        d_relax = [float((p if code == code_p else s if code == code_s else net_raw)
+                         - y[i_relax + q]) / tau for q, (code, tau) in enumerate(passes)]
         return ([float(dp), float(dtemp), float(dspool)] + [float(d) for d in d_line]
                 + d_tank + d_reading + d_spool_v + d_relax)
 
@@ -406,12 +409,12 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         y = np.append(y, 0.0)
         atols.append(1e-9 * w_s)
     passes = low_passes(sl)  # a low-pass: at rest (p_bar at the chamber's pressure, a
-    for _ in passes:  # flow's at the first flow, set below)
-        y = np.append(y, y[0])
-        atols.append(atol)
+    for code, _ in passes:  # spool's s_bar at the spool, a flow's at the first flow, set
+        lag = code == FEATURE_BY_NAME["command_lag"].code  # below)
+        y = np.append(y, y[2] if lag else y[0])
+        atols.append(1e-9 if lag else atol)
     i_pass = y.size - len(passes)
-    flows_pending = any(code != FEATURE_BY_NAME["pressure_relaxation"].code
-                        for code, _ in passes)
+    flows_pending = any(code == FEATURE_BY_NAME["net_flow_lag"].code for code, _ in passes)
     out[0] = y[read]
     nfev = 0
     # position and supply are read at t + adv (a filter on every channel, effect
@@ -441,7 +444,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                                directions[jj] if jj >= 0 else 0.0)
             if flows_pending:  # a flow lag starts at rest at the first flow
                 for q, (code, _) in enumerate(passes):
-                    if code != FEATURE_BY_NAME["pressure_relaxation"].code:
+                    if code == FEATURE_BY_NAME["net_flow_lag"].code:
                         y[i_pass + q] = rhs(a, y, net_flow_only=True)
                         atols[i_pass + q] = 1e-12
                 flows_pending = False

@@ -90,10 +90,11 @@ def closure_plan(sl):
     reuse of a step's end must respect, and its low-passes.
 
     Returns ``(spool, volume_rate, direction, n, slot, kind, tau, value)``: whether a term
-    reads the spool (codes 3, 11, 12) or the command's direction (code 15; both change
-    only with the command), or the volume rate (code 9; a volume hinge's rate, codes 17
-    and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port flow's):
-    each one's slot, signal code, time constant (s) and value (NaN until started).
+    reads the spool (codes 3, 11, 12, 28) or the command's direction (code 15; both
+    change only with the command), or the volume rate (code 9; a volume hinge's rate,
+    codes 17 and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port
+    flow's, 28 the spool's): each one's slot, signal code, time constant (s) and value
+    (NaN until started).
     """
     cl_spool, cl_vdot, cl_dir = False, False, False
     rx_n = 0
@@ -103,7 +104,7 @@ def closure_plan(sl):
     rx_val = np.zeros(2 * CLOSURE_MAX_TERMS)
     for kc in range(int(sl[_CL_N])):
         for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
-            if code == 3.0 or code == 11.0 or code == 12.0:
+            if code == 3.0 or code == 11.0 or code == 12.0 or code == 28.0:
                 cl_spool = True
             if code == 15.0:
                 cl_spool, cl_dir = True, True
@@ -111,20 +112,42 @@ def closure_plan(sl):
                 cl_vdot = True
         for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
                                (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):
-            if code == 16.0 or code == 19.0:
+            if code == 16.0 or code == 19.0 or code == 28.0:
                 rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
                 rx_n += 1
     return cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val
 
 
+@njit(cache=True, error_model="numpy")
+def command_relaxation_start(t, u, j, t_start, delay, tau):
+    """``s_bar`` at ``t_start`` (command unit): the delayed command (held between
+    samples; ``j`` the sample in force at ``t_start``) low-passed exactly from
+    :data:`RELAXATION_HISTORY` time constants before (or the record's start, at rest
+    there). A lagged spool is read as the command it follows (its lag taken as short
+    beside ``tau``)."""
+    jj = j
+    while jj > 0 and t_start - (t[jj] + delay) < RELAXATION_HISTORY * tau:
+        jj -= 1
+    sbar = u[jj]
+    for k in range(jj, j):
+        sbar = u[k] + (sbar - u[k]) * math.exp(-(t[k + 1] - t[k]) / tau)
+    h = t_start - (t[j] + delay)
+    if h > 0.0 and j > jj:
+        sbar = u[j] + (sbar - u[j]) * math.exp(-h / tau)
+    return sbar
+
+
 @njit(cache=True, inline="always", error_model="numpy")
-def relaxations_mid(sl, n, slot, kind, tau, value, p, rate, q0, q_rate, h):
+def relaxations_mid(sl, n, slot, kind, tau, value, p, rate, q0, q_rate, s0, s_rate, h):
     """Hold each low-pass over a step of ``h`` s at its midpoint value, written into its
     slot of ``sl``: the pressure's from ``p`` Pa at ``rate`` Pa/s, the net port flow's
-    from ``q0`` kg/s at ``q_rate`` kg/s^2 (started there when new)."""
+    from ``q0`` kg/s at ``q_rate`` kg/s^2 (started there when new), the spool's from
+    ``s0`` at ``s_rate`` per s."""
     for q in range(n):
         if kind[q] == 16.0:
             sl[slot[q]] = relaxation_mid(value[q], p, rate, h, tau[q])
+        elif kind[q] == 28.0:
+            sl[slot[q]] = relaxation_mid(value[q], s0, s_rate, h, tau[q])
         else:
             if math.isnan(value[q]):
                 value[q] = q0
@@ -132,13 +155,16 @@ def relaxations_mid(sl, n, slot, kind, tau, value, p, rate, q0, q_rate, h):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def relaxations_accept(n, kind, tau, value, p0, p1, q0, q1, h):
+def relaxations_accept(n, kind, tau, value, p0, p1, q0, q1, s0, s1, h):
     """Move each low-pass over an accepted step of ``h`` s (the pressure from ``p0`` to
-    ``p1`` Pa, the net port flow from ``q0`` to ``q1`` kg/s, linear between); returns
-    the step's mean rates of both (Pa/s, kg/s^2)."""
+    ``p1`` Pa, the net port flow from ``q0`` to ``q1`` kg/s, the spool from ``s0`` to
+    ``s1``, linear between); returns the step's mean rates of the first two (Pa/s,
+    kg/s^2)."""
     for q in range(n):
         if kind[q] == 16.0:
             value[q] = relaxation_step(value[q], p0, p1, h, tau[q])
+        elif kind[q] == 28.0:
+            value[q] = relaxation_step(value[q], s0, s1, h, tau[q])
         else:
             value[q] = relaxation_step(value[q], q0, q1, h, tau[q])
     return (p1 - p0) / h, (q1 - q0) / h

@@ -22,7 +22,8 @@ of its hinge features. The library (:func:`candidate_terms`) holds
 - the low-passes ``pressure_relaxation`` and ``net_flow_lag`` at each time constant of a
   fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
   the same three partners (a time constant is its feature's "threshold": a family keeps
-  one).
+  one); ``command_lag`` likewise, times the ports' flow functions and flows
+  (:data:`COMMAND_LAG_PARTNERS`: a port that lags the command).
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
@@ -78,10 +79,18 @@ AREA_HINGE_PARTNERS = {"inlet_area_hinge": ("inlet_flux",),
                        "exhaust_area_hinge": ("exhaust_flux",)}
 
 
+#: The command lag's partners: the ports' flow functions (an area that lags the command)
+#: and their flows (a port whose flow lags it).
+COMMAND_LAG_PARTNERS = ("inlet_flux", "exhaust_flux", "net_flux", "inlet_flow",
+                        "exhaust_flow")
+
+
 def hinge_partners(hinge: str) -> tuple[str, ...]:
     """The features a hinge is multiplied with in the library."""
     if hinge in AREA_HINGE_PARTNERS:
         return AREA_HINGE_PARTNERS[hinge]
+    if hinge == "command_lag":
+        return COMMAND_LAG_PARTNERS
     return HINGE_PARTNERS + (SPOOL_HINGE_PARTNERS if hinge in SPOOL_HINGES else ())
 #: The default quantiles of the hinge thresholds.
 DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
@@ -157,8 +166,8 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     -------
     dict
         Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit), and
-        ``"pressure_relaxation"`` and ``"net_flow_lag"`` -> their time constants (s,
-        :func:`relaxation_times`).
+        ``"pressure_relaxation"``, ``"net_flow_lag"`` and ``"command_lag"`` -> their time
+        constants (s, :func:`relaxation_times`).
     """
     q = np.asarray(quantiles, dtype=np.float64)
     if q.size == 0 or np.any(~((q > 0) & (q < 1))):
@@ -173,7 +182,8 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
         lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 0.0)
         margin = INTERIOR_MARGIN * (hi - lo)
         out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
-    out["pressure_relaxation"] = out["net_flow_lag"] = relaxation_times(signals_list)
+    out["pressure_relaxation"] = out["net_flow_lag"] = out["command_lag"] = relaxation_times(
+        signals_list)
     return out
 
 

@@ -179,10 +179,12 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     vol = (sl[S["volume_m3"]] + rig.bore_area_m2 * x
            + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol)
     vdot = rig.bore_area_m2 * xdot
-    # the low-pass features' histories: the measured pressure's and the net port flow
-    # along it (held in the slope below, as the simulator holds them over a step)
+    # the low-pass features' histories: the measured pressure's, the net port flow
+    # along it and the spool's (held in the slope below, as the simulator holds them
+    # over a step)
     histories = {"pressure_history": SignalHistory(mid, p),
-                 "net_flow_history": SignalHistory(mid, inlet - exhaust)}
+                 "net_flow_history": SignalHistory(mid, inlet - exhaust),
+                 "spool_history": SignalHistory(mid, spool)}
     dp = JACOBIAN_STEP * p
     rates = [rate_terms(sl, rig, p + s * dp, spool, x, xdot, ps_meas, ue, direction,
                         histories).total
