@@ -132,8 +132,8 @@ FEATURES: tuple[Feature, ...] = (
     Feature("command_lag", 28, "command unit", "s_bar - s, s_bar the spool position s "
             "low-passed with time constant theta (s): how far the command has moved that "
             "a slower part of the valve has not followed yet; times a port's flux, an area "
-            "that lags the command (a pilot stage, a solenoid slower than its map, with "
-            "command_direction one way only)", hinge=True, time_constant=True),
+            "that lags the command (a pilot stage, a solenoid slower than its map)",
+            hinge=True, time_constant=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
