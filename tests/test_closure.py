@@ -250,7 +250,8 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
              "pressure_hinge_down": 3.5, "pressure_relaxation": 0.2,
              "volume_hinge_up": 2.0, "volume_hinge_down": 3.0, "net_flow_lag": 0.05,
              "inlet_drop_hinge": 3.5, "spool_null_hinge": 4.5, "inlet_area_hinge": 0.1,
-             "exhaust_area_hinge": 0.1, "command_lag": 0.01}
+             "exhaust_area_hinge": 0.1, "command_lag": 0.01, "command_lag_fall": 0.01,
+             "command_lag_rise": 0.01}
     term = ct.Term.parse(terms)
     e, values = _closure(terms, scale=0.1 * sign, thresholds={f"closure_threshold_0_{side}":
                                             theta[getattr(term, side)]
@@ -261,8 +262,10 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     sl[SLOT_INDEX["compliance_m3_per_Pa"]] = 0.0 if hconv else 1e-12
     for slot, v in e.lower({k: np.asarray(v) for k, v in values.items()}, rig).items():
         sl[SLOT_INDEX[slot]] = v
-    sl[SLOT_INDEX["closure_relaxed_a_0"]] = {"net_flow_lag": 1e-5,
-                                             "command_lag": 2.0}.get(terms, 2.3e5)
+    # (a command lag's s_bar at 2 or 4 against the spool's 3: each lag open)
+    sl[SLOT_INDEX["closure_relaxed_a_0"]] = {"net_flow_lag": 1e-5, "command_lag": 2.0,
+                                             "command_lag_fall": 4.0,
+                                             "command_lag_rise": 2.0}.get(terms, 2.3e5)
     cs = rig_constants(rig)
     args = (3e-7, 2e-7, 2.5e-6, 1e-5, P_SUP)  # a_in, a_ex, vol, vdot, p_sup
     p, temp, d = 2.6e5, 300.0, 1.0
@@ -290,7 +293,8 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
 _SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0,
                       "inlet_area_hinge": 0.2, "exhaust_area_hinge": 0.2}
 CASES = [(f.name, {"closure_threshold_0_a": _SINGLE_THRESHOLDS[f.name]}
-          if f.name in _SINGLE_THRESHOLDS else {}) for f in cf.FEATURES] + [
+          if f.name in _SINGLE_THRESHOLDS else {}) for f in cf.FEATURES
+         if f.name not in ("command_lag_fall", "command_lag_rise")] + [  # (below)
     ("inlet_flux*spool_null_hinge; exhaust_flux*spool_null_hinge; net_flux",  # _FLUX_CASE
      {"closure_threshold_0_b": 2.0, "closure_threshold_1_b": 1.0}),
     ("inlet_flow*inlet_drop_hinge", {"closure_threshold_0_b": 2.5}),
@@ -340,6 +344,29 @@ def test_every_feature_agrees_with_the_reference_solver(terms, thresholds, rig, 
     effect = np.max(np.abs(got - plain))
     tol = 2e-4 * effect if "command_lag" in terms else 5e-5 * effect if low_pass else 0.05
     assert np.max(np.abs(got - ref)) < tol
+
+
+@pytest.mark.parametrize("terms", ["inlet_flux*command_lag_fall",
+                                   "exhaust_flux*command_lag_rise"])
+def test_the_command_lags_one_way_parts_agree_with_the_reference(terms, rig, valve_params,
+                                                                 inputs):
+    """Each one-way part of the command lag acts after its own direction only: on a
+    command that rises, falls and rises again, against the reference, moving the
+    pressure by > 300 Pa where it acts and not at all before its first change."""
+    u = np.where(inputs.time_s < 0.05, -2.0, np.where(inputs.time_s < 0.12, 1.0, -3.0))
+    u = np.where(inputs.time_s < 0.17, u, 0.5)
+    steps = Inputs(inputs.time_s, u, inputs.position_m, inputs.supply_pressure_Pa)
+    e, values = _closure(terms, thresholds={"closure_threshold_0_b": 0.01})
+    model = Model([e])
+    params = dict(valve_params, **values)
+    got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
+    plain = simulate(Model([]), valve_params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    effect = np.abs(got - plain)
+    first = 120 if "fall" in terms else 50  # (ms: its direction's first change)
+    assert np.max(effect[:first + 1]) < 1e-6 * np.max(effect)
+    assert np.max(effect) > 300.0
+    assert np.max(np.abs(got - ref)) < 2e-4 * np.max(effect)
 
 
 def test_the_command_lags_splitting_converges(rig, valve_params, inputs):

@@ -111,6 +111,10 @@ CASES = {
     # an inlet whose area follows the command through a 20-ms lag on top of its map's:
     # 0.02 mm^2 per volt of the command not yet followed
     "inlet_flux*command_lag": (Term("inlet_flux", "command_lag"), 0.0, 0.02, 0.02),
+    # an exhaust that opens late after a fall only (a solenoid that releases slowly):
+    # 0.03 mm^2 less per volt of the fall not yet followed through 10 ms
+    "exhaust_flux*command_lag_fall": (Term("exhaust_flux", "command_lag_fall"), 0.0, 0.01,
+                                      -0.03),
 }
 #: The cases planted on other synthetic signals. The null hinge on a spool that crosses
 #: its null (the synthetic spool spans 0-10 V; on it the null hinge is the spool's down
@@ -159,7 +163,8 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
     if term.b == "volume_hinge_up":
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
-    lows = ("pressure_relaxation", "net_flow_lag", "command_lag")
+    lows = ("pressure_relaxation", "net_flow_lag", "command_lag", "command_lag_fall",
+            "command_lag_rise")
     if term.a in lows or term.b in lows:  # (either side of a product)
         side = "a" if term.a in lows else "b"
         ta = ta if side == "a" else tb
@@ -242,7 +247,8 @@ def test_the_library_is_typed_and_bounded():
     paired = [n for n in plain if n != "one" and "flux" not in n]
     most = (len(plain) + len(paired) * (len(paired) + 1) // 2
             + sum(19 * (1 + len(hinge_partners(h))) for h in HINGE_SOURCES) + 8 * 8
-            + 8 * (1 + len(hinge_partners("command_lag"))))
+            + 8 * (1 + len(hinge_partners("command_lag")))
+            + 2 * 8 * len(hinge_partners("command_lag_fall")))
     assert 100 < len(cands) <= most
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
@@ -261,9 +267,15 @@ def test_the_library_is_typed_and_bounded():
                    if f not in ("inlet_flux", "exhaust_flux", "net_flux",
                                 "inlet_flux*inlet_area_hinge",
                                 "exhaust_flux*exhaust_area_hinge", "inlet_flux*command_lag",
-                                "exhaust_flux*command_lag", "net_flux*command_lag"))
+                                "exhaust_flux*command_lag", "net_flux*command_lag",
+                                "inlet_flux*command_lag_fall", "exhaust_flux*command_lag_fall",
+                                "inlet_flux*command_lag_rise",
+                                "exhaust_flux*command_lag_rise"))
     # the command's lag alone and with the ports' flow functions and flows
-    assert {"command_lag", "inlet_flux*command_lag", "exhaust_flow*command_lag"} <= families
+    assert {"command_lag", "inlet_flux*command_lag", "exhaust_flow*command_lag",
+            "inlet_flux*command_lag_fall", "exhaust_flux*command_lag_rise"} <= families
+    # its one-way parts only with the ports' flow functions
+    assert not {"command_lag_fall", "command_lag_rise"} & families
     assert sorted({c.threshold_a for c in cands if c.term.a == "command_lag"}) == taus
     assert {f for f in families if "area_hinge" in f} <= {
         "inlet_area_hinge", "exhaust_area_hinge", "inlet_flux*inlet_area_hinge",

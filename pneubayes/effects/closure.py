@@ -59,7 +59,8 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "volume_hinge_down": 100.0, "net_flow_lag": 1e-3, "inlet_drop": 10.0,
     "inlet_drop_hinge": 3.0, "inlet_flux": 1e-3, "exhaust_flux": 1e-3,
     "spool_null_hinge": 2.0, "net_flux": 1e-3, "inlet_area_hinge": 0.5,
-    "exhaust_area_hinge": 0.5, "command_lag": 10.0,
+    "exhaust_area_hinge": 0.5, "command_lag": 10.0, "command_lag_fall": 10.0,
+    "command_lag_rise": 10.0,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
@@ -82,6 +83,8 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "inlet_area_hinge": (0.0, 100.0, 1.0, 0.3),
     "exhaust_area_hinge": (0.0, 100.0, 1.0, 0.3),
     "command_lag": (1e-4, 10.0, 0.01, 0.005),
+    "command_lag_fall": (1e-4, 10.0, 0.01, 0.005),
+    "command_lag_rise": (1e-4, 10.0, 0.01, 0.005),
 }
 
 

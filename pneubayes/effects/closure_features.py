@@ -18,7 +18,8 @@ last change (:func:`held_direction`; the kernel tracks it as it walks the comman
 ``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
 with a fitted time constant (:func:`first_order_low_pass`; the kernel carries ``p_bar`` as a
 state); ``net_flow_lag``, the net port flow's low-pass less the flow itself; and
-``command_lag``, the spool position's low-pass less the position. The
+``command_lag``, the spool position's low-pass less the position (and its two one-way
+parts, ``command_lag_fall`` and ``command_lag_rise``). The
 relaxation is what a chamber shows when something behind it follows the pressure with a
 lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
 exactly, to first order in the passage's law), a wall that creeps after a pressure
@@ -134,6 +135,14 @@ FEATURES: tuple[Feature, ...] = (
             "a slower part of the valve has not followed yet; times a port's flux, an area "
             "that lags the command (a pilot stage, a solenoid slower than its map)",
             hinge=True, time_constant=True),
+    Feature("command_lag_fall", 29, "command unit", "max(0, s_bar - s), s_bar as in "
+            "command_lag: the part of a fall that a slower part of the valve has not "
+            "followed yet (times a port's flux, a port that closes or opens late after a "
+            "fall only: a solenoid that releases slower than it pulls)", hinge=True,
+            time_constant=True),
+    Feature("command_lag_rise", 30, "command unit", "max(0, s - s_bar): the part of a rise "
+            "not followed yet (a port that lags after a rise only)", hinge=True,
+            time_constant=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -158,7 +167,9 @@ SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spoo
 #: the points' times ``"time_s"`` (s) to low-pass the signal along.
 LOW_PASS_HISTORIES: dict[str, str] = {"pressure_relaxation": "pressure_history",
                                       "net_flow_lag": "net_flow_history",
-                                      "command_lag": "spool_history"}
+                                      "command_lag": "spool_history",
+                                      "command_lag_fall": "spool_history",
+                                      "command_lag_rise": "spool_history"}
 
 
 def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray:
@@ -318,8 +329,9 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return flux * AREA_SCALE_M2 + 0.0 * p
     if f.code == 24:
         return np.maximum(threshold - np.abs(spool), 0.0)
-    if f.code == 28:
-        return _relaxed(s, threshold, "spool_history", spool) - spool
+    if f.code in (28, 29, 30):
+        lag = _relaxed(s, threshold, "spool_history", spool) - spool
+        return lag if f.code == 28 else np.maximum(lag if f.code == 29 else -lag, 0.0)
     if f.code in (26, 27):
         area = np.asarray(s["inlet_area_m2" if f.code == 26 else "exhaust_area_m2"],
                           dtype=np.float64)

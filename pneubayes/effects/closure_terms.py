@@ -154,6 +154,8 @@ SYMBOLS: dict[str, str] = {
     "exhaust_area_hinge": "max(0, a_ex / 1 mm^2 - {theta})",
     "net_flux": "((f(p_s, p) - f(p, P_atm)) x 1 mm^2)",
     "command_lag": "(s_bar[{theta}] - s)",
+    "command_lag_fall": "max(0, s_bar[{theta}] - s)",
+    "command_lag_rise": "max(0, s - s_bar[{theta}])",
 }
 
 

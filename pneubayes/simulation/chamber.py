@@ -159,6 +159,12 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         return pbar - (q_in - q_ex), -(dq_in_dp - dq_ex_dp), -(dq_in_dt - dq_ex_dt)
     if code == 28:
         return pbar - spool, 0.0, -dspool
+    if code == 29:  # its one-way parts: the fall not yet followed, the rise
+        z = pbar - spool
+        return (z, 0.0, -dspool) if z > 0.0 else (0.0, 0.0, 0.0)
+    if code == 30:
+        z = spool - pbar
+        return (z, 0.0, dspool) if z > 0.0 else (0.0, 0.0, 0.0)
     if code == 17:
         z = vol / _VOLUME_SCALE - theta
         return ((z, compl / _VOLUME_SCALE, vdot / _VOLUME_SCALE) if z > 0.0

@@ -91,13 +91,19 @@ def low_passes(sl) -> list[tuple[float, float]]:
     """The distinct ``(feature code, time constant s)`` of a slot row's live low-pass
     features (``pressure_relaxation``, ``net_flow_lag``, ``command_lag``), in order of
     appearance."""
-    codes = tuple(float(FEATURE_BY_NAME[name].code) for name in LOW_PASS_HISTORIES)
+    # every command lag (and its one-way parts) low-passes the spool: one state per time
+    # constant, under command_lag's code
+    state = {float(FEATURE_BY_NAME[name].code): float(FEATURE_BY_NAME[
+        "command_lag" if key == "spool_history" else name].code)
+        for name, key in LOW_PASS_HISTORIES.items()}
     out: list[tuple[float, float]] = []
     for k in range(int(sl[S["closure_terms"]])):
         for side in "ab":
             code = float(sl[S[f"closure_feature_{side}_{k}"]])
-            entry = (code, float(sl[S[f"closure_threshold_{side}_{k}"]]))
-            if code in codes and entry not in out:
+            if code not in state:
+                continue
+            entry = (state[code], float(sl[S[f"closure_threshold_{side}_{k}"]]))
+            if entry not in out:
                 out.append(entry)
     return out
 

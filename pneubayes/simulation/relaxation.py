@@ -90,10 +90,11 @@ def closure_plan(sl):
     reuse of a step's end must respect, and its low-passes.
 
     Returns ``(spool, volume_rate, direction, n, slot, kind, tau, value)``: whether a term
-    reads the spool (codes 3, 11, 12, 28) or the command's direction (code 15; both
+    reads the spool (codes 3, 11, 12, 28-30) or the command's direction (code 15; both
     change only with the command), or the volume rate (code 9; a volume hinge's rate,
     codes 17 and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port
-    flow's, 28 the spool's): each one's slot, signal code, time constant (s) and value
+    flow's, 28 the spool's, for codes 28-30): each one's slot, signal code, time constant
+    (s) and value
     (NaN until started).
     """
     cl_spool, cl_vdot, cl_dir = False, False, False
@@ -104,7 +105,7 @@ def closure_plan(sl):
     rx_val = np.zeros(2 * CLOSURE_MAX_TERMS)
     for kc in range(int(sl[_CL_N])):
         for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
-            if code == 3.0 or code == 11.0 or code == 12.0 or code == 28.0:
+            if code == 3.0 or code == 11.0 or code == 12.0 or 28.0 <= code <= 30.0:
                 cl_spool = True
             if code == 15.0:
                 cl_spool, cl_dir = True, True
@@ -112,8 +113,9 @@ def closure_plan(sl):
                 cl_vdot = True
         for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
                                (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):
-            if code == 16.0 or code == 19.0 or code == 28.0:
-                rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
+            if code == 16.0 or code == 19.0 or 28.0 <= code <= 30.0:
+                # (the command lag's one-way parts low-pass the spool as it does)
+                rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, min(code, 28.0), tc
                 rx_n += 1
     return cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val
 

@@ -23,7 +23,9 @@ of its hinge features. The library (:func:`candidate_terms`) holds
   fixed grid (:data:`RELAXATION_TIMES_S`, those the recordings resolve), alone and times
   the same three partners (a time constant is its feature's "threshold": a family keeps
   one); ``command_lag`` likewise, times the ports' flow functions and flows
-  (:data:`COMMAND_LAG_PARTNERS`: a port that lags the command).
+  (:data:`COMMAND_LAG_PARTNERS`: a port that lags the command), and its one-way parts
+  ``command_lag_fall`` and ``command_lag_rise`` times the ports' flow functions only (a
+  port that lags after a fall or a rise only).
 
 The count stays manageable because hinges enter only at a grid of quantiles
 (``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
@@ -80,9 +82,14 @@ AREA_HINGE_PARTNERS = {"inlet_area_hinge": ("inlet_flux",),
 
 
 #: The command lag's partners: the ports' flow functions (an area that lags the command)
-#: and their flows (a port whose flow lags it).
+#: and their flows (a port whose flow lags it); its one-way parts' (which enter only
+#: with them): the ports' flow functions.
 COMMAND_LAG_PARTNERS = ("inlet_flux", "exhaust_flux", "net_flux", "inlet_flow",
                         "exhaust_flow")
+ONE_WAY_LAG_PARTNERS = ("inlet_flux", "exhaust_flux")
+#: Hinges that enter only with their partners (a mass flow in proportion to them alone
+#: means nothing).
+PAIRED_ONLY = frozenset({"command_lag_fall", "command_lag_rise"})
 
 
 def hinge_partners(hinge: str) -> tuple[str, ...]:
@@ -91,6 +98,8 @@ def hinge_partners(hinge: str) -> tuple[str, ...]:
         return AREA_HINGE_PARTNERS[hinge]
     if hinge == "command_lag":
         return COMMAND_LAG_PARTNERS
+    if hinge in PAIRED_ONLY:
+        return ONE_WAY_LAG_PARTNERS
     return HINGE_PARTNERS + (SPOOL_HINGE_PARTNERS if hinge in SPOOL_HINGES else ())
 #: The default quantiles of the hinge thresholds.
 DEFAULT_QUANTILES = tuple(round(0.05 * k, 2) for k in range(1, 20))
@@ -182,8 +191,9 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
         lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 0.0)
         margin = INTERIOR_MARGIN * (hi - lo)
         out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
-    out["pressure_relaxation"] = out["net_flow_lag"] = out["command_lag"] = relaxation_times(
-        signals_list)
+    taus = relaxation_times(signals_list)
+    for name in ("pressure_relaxation", "net_flow_lag", "command_lag", *sorted(PAIRED_ONLY)):
+        out[name] = taus
     return out
 
 
@@ -216,7 +226,8 @@ def candidate_terms(signals_list: Sequence[dict],
     out += [Candidate(Term(a, b)) for i, a in enumerate(paired) for b in paired[i:]]
     grid = hinge_thresholds(signals_list, quantiles)
     for hinge, thresholds in grid.items():
-        out += [Candidate(Term(hinge), float(th)) for th in thresholds]
+        if hinge not in PAIRED_ONLY:
+            out += [Candidate(Term(hinge), float(th)) for th in thresholds]
     for hinge, thresholds in grid.items():
         out += [Candidate(Term(partner, hinge), 0.0, float(th))
                 for partner in hinge_partners(hinge) for th in thresholds]

@@ -445,8 +445,9 @@ class OpenFormSearch:
         for h in HINGE_SOURCES:
             v = np.concatenate([hinge_source_values(h, s) for s in signals_list])
             ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
-        ranges["pressure_relaxation"] = ranges["net_flow_lag"] = ranges["command_lag"] = (
-            relaxation_range(signals_list))
+        for name in ("pressure_relaxation", "net_flow_lag", "command_lag",
+                     "command_lag_fall", "command_lag_rise"):
+            ranges[name] = relaxation_range(signals_list)
         tss = float(y @ y)
         while sel:
             if self.refine_thresholds:
