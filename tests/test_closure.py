@@ -338,7 +338,7 @@ def test_every_feature_agrees_with_the_reference_solver(terms, thresholds, rig, 
     # Pa (the plain model: 2.4e-3 Pa); a low-pass feature's state is stepped by
     # splitting (held over each step): measured 2.2e-6 of its effect for the relaxation
     # (2.7 Pa of the 1.2 MPa its positive feedback builds here), 2.4e-5 for the flow lag
-    # (0.58 Pa of 24 kPa), 9e-5 for the command lag (0.44 Pa of 4.9 kPa; it converges:
+    # (0.58 Pa of 24 kPa), 7e-5 for the command lag (1.7 Pa of 24 kPa; it converges:
     # test_the_command_lags_splitting_converges)
     low_pass = any(n in terms for n in ("pressure_relaxation", "net_flow_lag"))
     effect = np.max(np.abs(got - plain))
@@ -378,7 +378,7 @@ def test_the_command_lags_splitting_converges(rig, valve_params, inputs):
     ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
     err = [np.max(np.abs(simulate(model, params, inputs, rig, 2e5, _tight(rt)).pressure_Pa[0]
                          - ref)) for rt in (1e-8, 1e-10)]
-    assert err[1] < 0.1 * err[0]  # measured 0.49 and 0.030 Pa
+    assert err[1] < 0.2 * err[0]  # measured 2.4 and 0.21 Pa
 
 
 @pytest.mark.parametrize("others, extra, terms", [
