@@ -49,8 +49,8 @@ from pneubayes.rig import Rig
 #: port's flux times it may take the coefficient +-1 that caps the port), port flows up
 #: to 1e-3 kg/s (and per mm^2 of area), volumes up to 100 cm^3, relative volume rates up
 #: to 100 1/s, a command's lag 2 units (a lagged port's area then changes by up to 0.5
-#: mm^2 per command unit within the bound). A coefficient's bound is :data:`FLOW_BOUND_KG_PER_S` over the product of
-#: its features' magnitudes.
+#: mm^2 per command unit within the bound). A coefficient's bound is
+#: :data:`FLOW_BOUND_KG_PER_S` over the product of its features' magnitudes.
 TYPICAL_MAGNITUDE: dict[str, float] = {
     "one": 1.0, "pressure_ratio": 10.0, "supply_ratio": 10.0, "spool": 10.0,
     "inlet_area": 5.0, "exhaust_area": 5.0, "inlet_flow": 1e-3, "exhaust_flow": 1e-3,
