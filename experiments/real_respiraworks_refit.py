@@ -14,8 +14,9 @@ model brought there by warm-up windows. Per set:
    fit of the other three, then :class:`~pneubayes.inference.online_refit.OnlineRefit`
    through the run (every quantity of the card, refitted at each window start on the
    run so far, anchored to that shared fit); the anchor's relative SD and error scale
-   (``GRID``) with the lowest error over the four runs are kept, and those runs'
-   prediction errors give the band's scale. The held-out runs choose nothing.
+   and the refit's evaluations per window (``GRID``) with the lowest error over the four
+   runs are kept, and those runs' prediction errors give the band's scale. The held-out
+   runs choose nothing.
 3. *Held out*: the same through runs 5-6 from the shared fit of runs 1-4, with the
    chosen anchor; the 90 % band is ``N_DRAWS`` Laplace draws' predictions plus Gaussian
    errors of the band's scale (seeded). Beside it on the same windows: the set-point,
@@ -77,8 +78,11 @@ from pneubayes.simulation import Inputs, SolverConfig
 
 SEED = 67
 N_DRAWS = 64
-#: the anchor's relative SD and error scale (Pa) chosen among on the training runs
-GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0)}
+#: the anchor's relative SD and error scale (Pa), and the online refit's evaluations per
+#: window (MAX_NFEV, or fewer: a refit that moves less from its last estimate), chosen
+#: among on the training runs
+GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0),
+        "refit_nfev": (MAX_NFEV, 30, 10)}
 #: then, at the chosen anchor, the venturi channels' weight (Pa per unit of the
 #: uncalibrated differential pressure; flow_channels.FlowChannel) chosen among
 FLOW_WEIGHTS = (10.0, 30.0, 100.0)
@@ -157,7 +161,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
         + r.metadata.atmospheric_pressure_Pa
     names = list(model.parameter_names)
     on = OnlineRefit(model, shared, names, knobs["relative_sd"], knobs["error_Pa"],
-                     solver, HORIZON_S, refit_every_s=HORIZON_S, max_nfev=nfev,
+                     solver, HORIZON_S, refit_every_s=HORIZON_S,
+                     max_nfev=knobs.get("refit_nfev", nfev),
                      channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
     band = OnlineConformalBand(coverage=0.9)
     out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
@@ -221,7 +226,10 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
     solver = FitSettings().refine_solver
     std = SolverConfig.standard()
     nfev = 10 if smoke else MAX_NFEV
-    grid = [{"relative_sd": a, "error_Pa": e} for a in GRID["relative_sd"]
+    # (the refit's evaluations are a knob only below the default, so that the anchors'
+    # cached scores at the default are read again)
+    grid = [{"relative_sd": a, "error_Pa": e, **({} if n == MAX_NFEV else {"refit_nfev": n})}
+            for n in GRID["refit_nfev"] for a in GRID["relative_sd"]
             for e in GRID["error_Pa"]]
     if smoke:
         grid, train = grid[:1], train[:2]
