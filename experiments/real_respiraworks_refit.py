@@ -282,13 +282,14 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
                                       profile=profile(knobs), mode_ticks=True)["mode_preds"]]
                          for i, r in enumerate(train)]
             write_json_atomic(cache, done)
+        scale = profile(knobs)
+        series = [(np.asarray(r.pressure_Pa, dtype=np.float64),
+                   [(k, np.asarray(m), pr) for k, m, pr in preds])
+                  for r, preds in zip(train, rec[name])]
         tried = []
         for step in BAND_GRID["step"]:
             for memory in BAND_GRID["memory"]:
-                runs = [mode_band(np.asarray(r.pressure_Pa, dtype=np.float64),
-                                  [(k, np.asarray(m), pr) for k, m, pr in preds],
-                                  profile(knobs), step, memory)
-                        for r, preds in zip(train, rec[name])]
+                runs = [mode_band(p, preds, scale, step, memory) for p, preds in series]
                 tried.append({"step": step, "memory": memory, **pooled_band(runs)})
         best = min(tried, key=lambda x: x["interval_score_Pa"])
         log(f"[{kind}] the mode band on runs 1-4: step {best['step']:g}, memory "

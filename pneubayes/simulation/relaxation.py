@@ -94,8 +94,7 @@ def closure_plan(sl):
     change only with the command), or the volume rate (code 9; a volume hinge's rate,
     codes 17 and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port
     flow's, 28 the spool's, for codes 28-30): each one's slot, signal code, time constant
-    (s) and value
-    (NaN until started).
+    (s) and value (NaN until started).
     """
     cl_spool, cl_vdot, cl_dir = False, False, False
     rx_n = 0

@@ -48,6 +48,7 @@ import numpy as np
 
 from pneubayes.effects.closure_features import (
     FEATURES,
+    LOW_PASS_HISTORIES,
     evaluate_feature,
 )
 from pneubayes.effects.closure_terms import Term
@@ -175,8 +176,8 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     -------
     dict
         Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit), and
-        ``"pressure_relaxation"``, ``"net_flow_lag"`` and ``"command_lag"`` -> their time
-        constants (s, :func:`relaxation_times`).
+        each low-pass feature (``LOW_PASS_HISTORIES``) -> its time constants (s,
+        :func:`relaxation_times`).
     """
     q = np.asarray(quantiles, dtype=np.float64)
     if q.size == 0 or np.any(~((q > 0) & (q < 1))):
@@ -192,7 +193,7 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
         margin = INTERIOR_MARGIN * (hi - lo)
         out[hinge] = grid[(grid > lo + margin) & (grid < hi - margin)]
     taus = relaxation_times(signals_list)
-    for name in ("pressure_relaxation", "net_flow_lag", "command_lag", *sorted(PAIRED_ONLY)):
+    for name in LOW_PASS_HISTORIES:
         out[name] = taus
     return out
 

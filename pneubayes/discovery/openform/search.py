@@ -58,6 +58,7 @@ from pneubayes.discovery.openform.sparse import (
     least_squares,
 )
 from pneubayes.effects.closure_features import (
+    LOW_PASS_HISTORIES,
     SIGNALS,
     feature,
 )
@@ -445,9 +446,8 @@ class OpenFormSearch:
         for h in HINGE_SOURCES:
             v = np.concatenate([hinge_source_values(h, s) for s in signals_list])
             ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
-        for name in ("pressure_relaxation", "net_flow_lag", "command_lag",
-                     "command_lag_fall", "command_lag_rise"):
-            ranges[name] = relaxation_range(signals_list)
+        tau_range = relaxation_range(signals_list)
+        ranges.update((name, tau_range) for name in LOW_PASS_HISTORIES)
         tss = float(y @ y)
         while sel:
             if self.refine_thresholds:
