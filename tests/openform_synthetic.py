@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pneubayes.effects.closure_features import command_direction
+from pneubayes.effects.closure_features import HeldCommand, command_direction
 from pneubayes.physics.gas import GasConstants
 from pneubayes.physics.orifice import flow_function, flow_terms
 
@@ -38,8 +38,11 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3,
     for k in range(1, n):
         s[k] = u[k - 1] + (s[k - 1] - u[k - 1]) * a
     amax = 0.25e-6
-    a_in = amax / (1.0 + np.exp(-(s - 6.0) / 0.5))
-    a_ex = amax / (1.0 + np.exp((s - 4.0) / 0.5))
+
+    def areas(spool):
+        return (amax / (1.0 + np.exp(-(spool - 6.0) / 0.5)),
+                amax / (1.0 + np.exp((spool - 4.0) / 0.5)))
+    a_in, a_ex = areas(s)
     p_sup = supply_Pa + 1.0e4 * np.sin(2 * np.pi * 0.7 * t + rng.uniform(0, 6.3))
     bore = np.pi / 4 * 0.009**2
     x = 0.015 + 0.01 * np.sin(2 * np.pi * 2.0 * t)
@@ -68,4 +71,5 @@ def synthetic_signals(seed: int, n: int = 4000, dt_s: float = 1e-3,
             "exhaust_flux_kg_per_s_m2": flow_function(p, P_ATM, gas),
             "volume_m3": vol, "volume_rate_m3_per_s": vdot,
             "command_direction": command_direction(u), "time_s": t,
+            "held_command": HeldCommand(t, t, u, 0.0, None, areas),
             "interval_s": np.full(n, dt_s)}

@@ -17,6 +17,7 @@ from pneubayes.discovery.openform import (
     path_signals,
 )
 from pneubayes.discovery.openform.features import (
+    DEAD_TIMES_S,
     HINGE_SOURCES,
     distinct_columns,
     hinge_partners,
@@ -115,6 +116,14 @@ CASES = {
     # 0.03 mm^2 less per volt of the fall not yet followed through 10 ms
     "exhaust_flux*command_lag_fall": (Term("exhaust_flux", "command_lag_fall"), 0.0, 0.01,
                                       -0.03),
+    # a valve that releases 7 ms late: after each fall the inlet keeps the area of the
+    # command's highest value over the last 7 ms (its own map: c = 1)
+    "inlet_flux*inlet_area_late_fall": (Term("inlet_flux", "inlet_area_late_fall"), 0.0,
+                                        0.007, 1.0),
+    # an exhaust that follows rises 15 ms late: after each rise it keeps the area of the
+    # command's lowest value over the last 15 ms (c = -1: that extra area lets gas out)
+    "exhaust_flux*exhaust_area_late_rise": (Term("exhaust_flux", "exhaust_area_late_rise"),
+                                            0.0, 0.015, -1.0),
 }
 #: The cases planted on other synthetic signals. The null hinge on a spool that crosses
 #: its null (the synthetic spool spans 0-10 V; on it the null hinge is the spool's down
@@ -164,7 +173,7 @@ def test_a_planted_term_is_recovered_with_its_coefficient(case):
         th = found.threshold_b if found.term.b == term.b else found.threshold_a
         assert abs(th - tb) < 0.1  # cm^3 (the volume spans 10.3-11.6 cm^3)
     lows = ("pressure_relaxation", "net_flow_lag", "command_lag", "command_lag_fall",
-            "command_lag_rise")
+            "command_lag_rise", *cf.DEAD_TIME_FEATURES)
     if term.a in lows or term.b in lows:  # (either side of a product)
         side = "a" if term.a in lows else "b"
         ta = ta if side == "a" else tb
@@ -248,7 +257,8 @@ def test_the_library_is_typed_and_bounded():
     most = (len(plain) + len(paired) * (len(paired) + 1) // 2
             + sum(19 * (1 + len(hinge_partners(h))) for h in HINGE_SOURCES) + 8 * 8
             + 8 * (1 + len(hinge_partners("command_lag")))
-            + 2 * 8 * len(hinge_partners("command_lag_fall")))
+            + 2 * 8 * len(hinge_partners("command_lag_fall"))
+            + 4 * len(DEAD_TIMES_S))  # (each late area times its own port's flux)
     assert 100 < len(cands) <= most
     taus = sorted({c.threshold_a for c in cands if c.term.a == "pressure_relaxation"})
     assert taus == [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
@@ -270,7 +280,17 @@ def test_the_library_is_typed_and_bounded():
                                 "exhaust_flux*command_lag", "net_flux*command_lag",
                                 "inlet_flux*command_lag_fall", "exhaust_flux*command_lag_fall",
                                 "inlet_flux*command_lag_rise",
-                                "exhaust_flux*command_lag_rise"))
+                                "exhaust_flux*command_lag_rise",
+                                *(f"{port}_flux*{port}_area_late_{late}"
+                                  for port in ("inlet", "exhaust")
+                                  for late in ("fall", "rise"))))
+    # a late valve's areas each with its own port's flow function only, at the dead
+    # times from one sample interval (1 ms) to 0.2 s
+    late = {c.family for c in cands if "late" in c.family}
+    assert late == {f"{port}_flux*{port}_area_late_{d}" for port in ("inlet", "exhaust")
+                    for d in ("fall", "rise")}
+    assert sorted({c.threshold_b for c in cands if c.term.b == "inlet_area_late_fall"}
+                  ) == [0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2]
     # the command's lag alone and with the ports' flow functions and flows
     assert {"command_lag", "inlet_flux*command_lag", "exhaust_flow*command_lag",
             "inlet_flux*command_lag_fall", "exhaust_flux*command_lag_rise"} <= families

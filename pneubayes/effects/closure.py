@@ -46,7 +46,8 @@ from pneubayes.rig import Rig
 #: The largest magnitude each feature typically takes on a rig (its unit): pressure
 #: ratios up to 10, commands within +-10 (a hinge's reach up to 20; the null hinge's up
 #: to 2), port areas up to 5 mm^2 (an area beyond a cap's threshold 0.5 mm^2, so that a
-#: port's flux times it may take the coefficient +-1 that caps the port), port flows up
+#: port's flux times it may take the coefficient +-1 that caps the port; a late valve's
+#: area change likewise), port flows up
 #: to 1e-3 kg/s (and per mm^2 of area), volumes up to 100 cm^3, relative volume rates up
 #: to 100 1/s, a command's lag 2 units (a lagged port's area then changes by up to 0.5
 #: mm^2 per command unit within the bound). A coefficient's bound is
@@ -61,7 +62,8 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "inlet_drop_hinge": 3.0, "inlet_flux": 1e-3, "exhaust_flux": 1e-3,
     "spool_null_hinge": 2.0, "net_flux": 1e-3, "inlet_area_hinge": 0.5,
     "exhaust_area_hinge": 0.5, "command_lag": 2.0, "command_lag_fall": 2.0,
-    "command_lag_rise": 2.0,
+    "command_lag_rise": 2.0, "inlet_area_late_fall": 0.5, "exhaust_area_late_fall": 0.5,
+    "inlet_area_late_rise": 0.5, "exhaust_area_late_rise": 0.5,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).
@@ -86,6 +88,10 @@ THRESHOLDS: dict[str, tuple[float, float, float, float]] = {
     "command_lag": (1e-4, 10.0, 0.01, 0.005),
     "command_lag_fall": (1e-4, 10.0, 0.01, 0.005),
     "command_lag_rise": (1e-4, 10.0, 0.01, 0.005),
+    "inlet_area_late_fall": (1e-4, 1.0, 0.01, 0.005),
+    "exhaust_area_late_fall": (1e-4, 1.0, 0.01, 0.005),
+    "inlet_area_late_rise": (1e-4, 1.0, 0.01, 0.005),
+    "exhaust_area_late_rise": (1e-4, 1.0, 0.01, 0.005),
 }
 
 
@@ -139,9 +145,11 @@ class Closure(Effect):
             for side in t.hinges():
                 f = feature(getattr(t, side))
                 lo, hi, mid, _ = THRESHOLDS[f.name]
-                what = "time constant" if f.time_constant else "threshold"
+                what = ("time constant" if f.time_constant else "dead time" if f.dead_time
+                        else "threshold")
+                timed = f.time_constant or f.dead_time
                 out.append(Parameter(f"closure_threshold_{k}_{side}", f.parameter_unit, lo,
-                                     hi, "log-uniform" if f.time_constant else "uniform",
+                                     hi, "log-uniform" if timed else "uniform",
                                      f"closure term {k} ({t}): the {what} of its {f.name} "
                                      "feature (the term vanishes with its coefficient "
                                      f"whatever the {what})", neutral=mid))

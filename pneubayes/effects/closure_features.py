@@ -13,13 +13,15 @@ the unit ``kg/s / (unit_a unit_b)``. The hinge features carry a threshold ``thet
 The same table is evaluated in two places that must agree to rounding: in numpy by
 :func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
 in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
-Four features have memory: ``command_direction``, the sign of the delayed command's
+Some features have memory: ``command_direction``, the sign of the delayed command's
 last change (:func:`held_direction`; the kernel tracks it as it walks the command);
 ``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
 with a fitted time constant (:func:`first_order_low_pass`; the kernel carries ``p_bar`` as a
 state); ``net_flow_lag``, the net port flow's low-pass less the flow itself; and
 ``command_lag``, the spool position's low-pass less the position (and its two one-way
-parts, ``command_lag_fall`` and ``command_lag_rise``). The
+parts, ``command_lag_fall`` and ``command_lag_rise``); the dead-time features, a port's
+area at the command's extreme over the last theta s less its area now
+(:class:`HeldCommand`: a valve that follows the command's falls, or rises, late). The
 relaxation is what a chamber shows when something behind it follows the pressure with a
 lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
 exactly, to first order in the passage's law), a wall that creeps after a pressure
@@ -48,7 +50,9 @@ class Feature:
     a hinge's threshold (in ``unit``) or, with ``time_constant``, a relaxation's time
     constant (s); ``port`` whether it reads the valve's ports as the chamber sees them
     (their areas, flows or flow functions at the chamber's pressure), which a tube
-    simulated as a line puts at its far end (:data:`PORT_FEATURES`)."""
+    simulated as a line puts at its far end (:data:`PORT_FEATURES`); ``dead_time``
+    whether its parameter is a dead time (s) over which it remembers the command
+    (:class:`HeldCommand`)."""
 
     name: str
     code: int
@@ -57,11 +61,13 @@ class Feature:
     hinge: bool = False
     time_constant: bool = False
     port: bool = False
+    dead_time: bool = False
 
     @property
     def parameter_unit(self) -> str:
-        """The unit of its fitted parameter (a threshold's or a time constant's)."""
-        return "s" if self.time_constant else self.unit
+        """The unit of its fitted parameter (a threshold's, a time constant's or a dead
+        time's)."""
+        return "s" if self.time_constant or self.dead_time else self.unit
 
 
 FEATURES: tuple[Feature, ...] = (
@@ -143,6 +149,22 @@ FEATURES: tuple[Feature, ...] = (
     Feature("command_lag_rise", 30, "command unit", "max(0, s - s_bar): the part of a rise "
             "not followed yet (a port that lags after a rise only)", hinge=True,
             time_constant=True),
+    Feature("inlet_area_late_fall", 31, "mm^2", "(a_in(u_hi) - a_in(u)) / 1e-6 m^2, u the "
+            "delayed command and u_hi its highest value over the last theta s, both "
+            "through the valve's map (s): the inlet area a valve that follows the "
+            "command's falls theta s late still shows; times inlet_flux with c = 1 (a "
+            "solenoid that releases later than it pulls)", hinge=True, port=True,
+            dead_time=True),
+    Feature("exhaust_area_late_fall", 32, "mm^2", "(a_ex(u_hi) - a_ex(u)) / 1e-6 m^2: the "
+            "exhaust area of a valve that follows falls theta s late less its own; times "
+            "exhaust_flux with c = -1", hinge=True, port=True, dead_time=True),
+    Feature("inlet_area_late_rise", 33, "mm^2", "(a_in(u_lo) - a_in(u)) / 1e-6 m^2, u_lo "
+            "the command's lowest value over the last theta s: the inlet area of a valve "
+            "that follows rises theta s late less its own; times inlet_flux with c = 1",
+            hinge=True, port=True, dead_time=True),
+    Feature("exhaust_area_late_rise", 34, "mm^2", "(a_ex(u_lo) - a_ex(u)) / 1e-6 m^2: the "
+            "exhaust area of a valve that follows rises theta s late less its own; times "
+            "exhaust_flux with c = -1", hinge=True, port=True, dead_time=True),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -170,6 +192,9 @@ LOW_PASS_HISTORIES: dict[str, str] = {"pressure_relaxation": "pressure_history",
                                       "command_lag": "spool_history",
                                       "command_lag_fall": "spool_history",
                                       "command_lag_rise": "spool_history"}
+#: The dead-time features (``*_late_fall``, ``*_late_rise``) read the delayed command's
+#: history and the valve's map: ``"held_command"``, a :class:`HeldCommand`.
+DEAD_TIME_FEATURES: tuple[str, ...] = tuple(f.name for f in FEATURES if f.dead_time)
 
 
 def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray:
@@ -246,6 +271,72 @@ class SignalHistory:
                 self._cache.clear()
             self._cache[key] = first_order_low_pass(self.time_s, self.values, key)
         return self._cache[key]
+
+
+class HeldCommand:
+    """The delayed command's extremes over a trailing window and the valve's port areas
+    there: what the dead-time features read.
+
+    The command is held between its samples and takes effect ``delay_s`` after each
+    (before the first: ``before``, else the first sample's). At a time t its highest
+    (lowest) value over ``[t - d, t]`` is the position of a valve that follows the
+    command's falls (rises) ``d`` s late and its other changes at once.
+
+    Parameters
+    ----------
+    times_s : (M,) array
+        Where the features are evaluated, s.
+    command_times_s, command : (N,) arrays
+        The command's sample times (s, increasing) and values (the command's unit).
+    delay_s : float
+        The command's delay (s).
+    before : float or None
+        The command held before its first sample.
+    port_areas : callable
+        ``port_areas(command_values) -> (a_in, a_ex)``, m^2, the valve's map at the
+        evaluation points (e.g. :func:`pneubayes.simulation.rates.port_areas` of a slot
+        row).
+    """
+
+    def __init__(self, times_s, command_times_s, command, delay_s: float, before,
+                 port_areas):
+        self.times_s = np.asarray(times_s, dtype=np.float64)
+        u = np.asarray(command, dtype=np.float64)
+        # index 0: the command held before the first sample takes effect
+        self._held = np.concatenate(([u[0] if before is None else float(before)], u))
+        self._shifted = np.asarray(command_times_s, dtype=np.float64) + float(delay_s)
+        self._port_areas = port_areas
+        self._now_index = np.searchsorted(self._shifted, self.times_s, side="right")
+        self._now_areas = None
+        self._cache: dict[tuple[float, str], tuple[np.ndarray, np.ndarray]] = {}
+
+    def extreme(self, dead_time_s: float, late: str) -> np.ndarray:
+        """The command's highest (``late="fall"``) or lowest (``"rise"``) value over the
+        last ``dead_time_s`` s at each evaluation time."""
+        if late not in ("fall", "rise"):
+            raise ValueError(f"HeldCommand: late must be 'fall' or 'rise', got {late!r}")
+        if not (np.isfinite(dead_time_s) and dead_time_s > 0):
+            raise ValueError(f"HeldCommand: dead_time_s must be > 0, got {dead_time_s!r}")
+        now = self._now_index
+        old = np.searchsorted(self._shifted, self.times_s - dead_time_s, side="right")
+        pick = np.maximum if late == "fall" else np.minimum
+        out = self._held[now]
+        for k in range(int(np.max(now - old, initial=0))):  # (short windows: a few samples)
+            out = pick(out, self._held[np.minimum(old + k, now)])
+        return out
+
+    def area_change(self, dead_time_s: float, port: str, late: str) -> np.ndarray:
+        """``port``'s (``"inlet"`` or ``"exhaust"``) area at :meth:`extreme` less its area
+        at the command now, m^2."""
+        key = (float(dead_time_s), late)
+        if key not in self._cache:
+            if len(self._cache) > 64:
+                self._cache.clear()
+            if self._now_areas is None:
+                self._now_areas = self._port_areas(self._held[self._now_index])
+            a_in, a_ex = self._port_areas(self.extreme(dead_time_s, late))
+            self._cache[key] = (a_in - self._now_areas[0], a_ex - self._now_areas[1])
+        return self._cache[key][0 if port == "inlet" else 1]
 
 
 def _relaxed(signals: dict, tau_s: float, key: str, values) -> np.ndarray:
@@ -332,6 +423,14 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
     if f.code in (28, 29, 30):
         lag = _relaxed(s, threshold, "spool_history", spool) - spool
         return lag if f.code == 28 else np.maximum(lag if f.code == 29 else -lag, 0.0)
+    if f.dead_time:
+        held = s.get("held_command")
+        if held is None:
+            raise ValueError(f"closure feature {name!r} needs the command's history: give "
+                             "signals 'held_command' (a HeldCommand)")
+        late = "fall" if f.code in (31, 32) else "rise"
+        return (held.area_change(threshold, "inlet" if f.code in (31, 33) else "exhaust",
+                                 late) / AREA_SCALE_M2 + 0.0 * p)
     if f.code in (26, 27):
         area = np.asarray(s["inlet_area_m2" if f.code == 26 else "exhaust_area_m2"],
                           dtype=np.float64)

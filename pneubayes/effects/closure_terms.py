@@ -156,6 +156,10 @@ SYMBOLS: dict[str, str] = {
     "command_lag": "(s_bar[{theta}] - s)",
     "command_lag_fall": "max(0, s_bar[{theta}] - s)",
     "command_lag_rise": "max(0, s - s_bar[{theta}])",
+    "inlet_area_late_fall": "((a_in(u_hi[{theta}]) - a_in(u)) / 1 mm^2)",
+    "exhaust_area_late_fall": "((a_ex(u_hi[{theta}]) - a_ex(u)) / 1 mm^2)",
+    "inlet_area_late_rise": "((a_in(u_lo[{theta}]) - a_in(u)) / 1 mm^2)",
+    "exhaust_area_late_rise": "((a_ex(u_lo[{theta}]) - a_ex(u)) / 1 mm^2)",
 }
 
 

@@ -113,11 +113,12 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
     position is linear between samples). ``cdir`` is the delayed command's direction
     (+1, -1 or 0), constant between the command's changes; ``pbar`` a low-pass feature's
     low-passed value (a relaxation's pressure, Pa; a flow lag's net flow, kg/s; a command
-    lag's spool position, command unit), which
-    the kernel holds over a step at its value half-way through (so its explicit time
-    derivative is taken as 0). ``f_in``, ``f_ex`` are the ports' flow functions (kg/(s
-    m^2), the flows per unit area), ``df_*_dp`` their slopes in p and ``df_in_dt`` the
-    inlet's explicit rate (the supply's)."""
+    lag's spool position, command unit; a dead-time feature's port area change, m^2,
+    constant between the command's changes), which the kernel holds over a step at its
+    value half-way through (so its explicit time derivative is taken as 0). ``f_in``,
+    ``f_ex`` are the ports' flow functions (kg/(s m^2), the flows per unit area),
+    ``df_*_dp`` their slopes in p and ``df_in_dt`` the inlet's explicit rate (the
+    supply's)."""
     if code == 0:
         return 1.0, 0.0, 0.0
     if code == 1:
@@ -197,6 +198,8 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         z = theta - vol / _VOLUME_SCALE
         return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0
                 else (0.0, 0.0, 0.0))
+    if code >= 31:  # a late valve's area change (m^2; the kernel's, per command stretch)
+        return pbar / _AREA_SCALE, 0.0, 0.0
     return cdir, 0.0, 0.0
 
 

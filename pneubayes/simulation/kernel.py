@@ -68,6 +68,7 @@ from pneubayes.simulation.chamber_step import (
 )
 from pneubayes.simulation.chord import position_at
 from pneubayes.simulation.dense import dense_run, dense_samples
+from pneubayes.simulation.held import held_start, held_windows
 from pneubayes.simulation.inputs import command_hold, delayed_command, input_segment
 from pneubayes.simulation.layout import (  # noqa: F401  (N_CONSTS, N_SOLVER re-exported)
     C_ALPHA,
@@ -238,6 +239,22 @@ def _areas(spool, dead, sl):
 
 
 @njit(cache=True, error_model="numpy")
+def _held_areas(sl, t, u, j, cmd, delay, tau, t_end, dead, closure):
+    """Write each dead-time window's port area change at ``tau`` into its slot (m^2: the
+    port's area at the window's extreme command less at ``cmd``, :mod:`.held`) and
+    return the stretch's end ``t_end`` cut where a window's extreme may next change."""
+    rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr = closure[3:9]
+    t_end = held_windows(t, u, j, delay, tau, t_end, rx_n, rx_kind, rx_tau, rx_val, rx_ptr)
+    a_in, a_ex = _areas(cmd, dead, sl)
+    for q in range(rx_n):
+        if rx_kind[q] >= 31.0:
+            h_in, h_ex = _areas(rx_val[q], dead, sl)
+            odd = rx_kind[q] == 31.0 or rx_kind[q] == 33.0  # (the inlet's)
+            sl[rx_idx[q]] = h_in - a_in if odd else h_ex - a_ex
+    return t_end
+
+
+@njit(cache=True, error_model="numpy")
 def _own_exhaust_area(ue, sl):
     """A separately commanded exhaust valve's area at its command ``ue``, m^2: the exhaust
     map (eq. 11) of ue plus the open area times clip(ue, 0, 1); 0 without one."""
@@ -348,7 +365,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
     calibrated, zero, cal_g, slope0 = calibration
     delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead = spool_cfg
     lag_r, w_r, z_r, n_r, second = sensor
-    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val = closure
+    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held = closure
     k0, t_start, max_steps, r, v_r, p, temp, p_tank, p_lung, s_t0, j, cdir, spool, v_s, m = (
         start)
     nseg, ny, y, y_new, s_vec, prop, line_work = line_state
@@ -404,6 +421,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                                                                   t_end, kn == k + 1)
             if general is not None and wave and grid[1] < t_end - w_near:
                 t_end = grid[1]  # the tube's ends update on their grid
+            if held:  # a late valve's area changes, constant over the stretch
+                t_end = _held_areas(sl, t, u, j, cmd, delay, tau, t_end, dead, closure)
             vdot = bore * (xb - xa) * inv_seg
             dsup = gain * (sb - sa) * inv_seg
             m_ch = m  # the chord's pointer: the segment holding tau
@@ -660,7 +679,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lung_from_p0 = lung and math.isnan(p_lung)
     # an open-form closure's reads and low-passes, stepped on the kernel's own copy of
     # the slots
-    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val = closure_plan(sl)
+    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held = (
+        closure_plan(sl))
     cl_relax = rx_n > 0
     if cl_relax:
         sl = sl.copy()
@@ -729,6 +749,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     for q in range(rx_n):  # a command lag's s_bar from the command's history
         if rx_kind[q] == 28.0:
             rx_val[q] = command_relaxation_start(t, u, j, t_start, delay, rx_tau[q])
+    held_start(t, u, delay, t_start, rx_n, rx_kind, rx_tau, rx_ptr)
     # the pressure is the only state (a lagged reading follows its own exponential
     # over a step, as it does the (p, T) step's pressure part; the other steps start
     # from the chord between their ends)
@@ -744,7 +765,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         (calibrated, zero, cal_g, slope0),
         (delay, tau_s, tau_dn, w_s, z_s, rate_s, spool2, lagged, dead),
         (lag_r, w_r, z_r, n_r, second),
-        (cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val),
+        (cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held),
         (k0, t_start, max_steps, r, v_r, p, temp, p_tank, p_lung, s_t0, j, cdir, spool, v_s,
          m),
         (nseg, ny, y, y_new, s_vec, prop, line_work), (w_work, tube, grid, w_near),

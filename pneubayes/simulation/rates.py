@@ -17,9 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneubayes.effects.closure_features import (
+    DEAD_TIME_FEATURES,
     FEATURE_BY_NAME,
     FEATURES,
     LOW_PASS_HISTORIES,
+    HeldCommand,
     evaluate_feature,
 )
 from pneubayes.effects.closure_terms import combine_terms
@@ -206,7 +208,10 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     :class:`~pneubayes.effects.closure_features.SignalHistory` objects along the
     evaluation points (held as given: the slope in ``pressure_Pa`` is the instant's);
     without one, ``time_s`` (the points' times, s) low-passes the given pressure and
-    the flows computed here along them.
+    the flows computed here along them. A dead-time feature (``*_late_fall``,
+    ``*_late_rise``) reads ``histories["held_command"]`` (a
+    :class:`~pneubayes.effects.closure_features.HeldCommand`); without one, ``time_s``
+    holds ``spool_V`` between the points as the command.
     ``include_closure=False`` leaves a closure's term at zero (for callers that read
     only the ports' terms). A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
@@ -252,6 +257,14 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
                 raise ValueError(f"rate_terms: the closure reads feature {name!r}, a "
                                  f"low-pass; give histories[{key!r}] (a SignalHistory "
                                  "along the evaluation points) or time_s")
+        if "held_command" not in histories and any(_reads_feature(sl, name)
+                                                   for name in DEAD_TIME_FEATURES):
+            if time_s is None:
+                raise ValueError("rate_terms: the closure reads a dead-time feature; give "
+                                 "histories['held_command'] (a HeldCommand) or time_s")
+            histories["held_command"] = HeldCommand(
+                time_s, time_s, spool_V, 0.0, None,
+                lambda u: port_areas(sl, u, exhaust_command))
         signals = {"pressure_Pa": p, "supply_pressure_Pa": p_sup,
                    "atmospheric_pressure_Pa": p_atm, "spool": np.asarray(spool_V, float),
                    "inlet_area_m2": a_in, "exhaust_area_m2": a_ex,

@@ -108,7 +108,31 @@ def low_passes(sl) -> list[tuple[float, float]]:
     return out
 
 
-def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=0.0):
+class _HeldAt:
+    """A dead-time feature's area changes over one hold interval (m^2), for
+    evaluate_feature: ``{(port, late, dead time s): change}``."""
+
+    def __init__(self, changes):
+        self.changes = changes
+
+    def area_change(self, dead_time_s, port, late):
+        return self.changes[(port, late, float(dead_time_s))]
+
+
+def dead_times(sl) -> list[float]:
+    """The distinct dead times (s) of a slot row's live dead-time features."""
+    out: list[float] = []
+    for k in range(int(sl[S["closure_terms"]])):
+        for side in "ab":
+            if FEATURES[int(sl[S[f"closure_feature_{side}_{k}"]])].dead_time:
+                d = float(sl[S[f"closure_threshold_{side}_{k}"]])
+                if d not in out:
+                    out.append(d)
+    return out
+
+
+def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=0.0,
+                 extremes=None):
     g = rig.gas
     kappa, rs, t_s = g.heat_capacity_ratio, g.specific_gas_constant_J_per_kg_K, g.temperature_K
     p_atm = rig.atmospheric_pressure_Pa
@@ -166,6 +190,26 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     code_p = float(FEATURE_BY_NAME["pressure_relaxation"].code)
     code_s = float(FEATURE_BY_NAME["command_lag"].code)
 
+    def valve_areas(s):
+        """The valve's port areas at spool ``s`` (a separate exhaust valve's: 0)."""
+        ueff = _dead_band(float(s), dead, rounding)
+        a_in = _gompertz(ueff, *ins)
+        a_ex = 0.0 if own_ex else _gompertz(ueff, *exs)
+        s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]],
+                                0.0 if own_ex else sl[S["exhaust_open_area_m2"]])
+        if n_tab:  # a tabulated map, linear between its points
+            s_in += np.interp(ueff, tab_c, tab_i)
+            s_ex += 0.0 if own_ex else np.interp(ueff, tab_c, tab_e)
+        return a_in + s_in, a_ex + s_ex
+
+    # the dead-time features' area changes: each window's extreme command against cmd
+    held_changes = {}
+    for (late, d), ext in (extremes or {}).items():
+        now, then = valve_areas(cmd), valve_areas(ext)
+        held_changes[("inlet", late, d)] = then[0] - now[0]
+        held_changes[("exhaust", late, d)] = then[1] - now[1]
+    held_at = _HeldAt(held_changes)
+
     class _Held:  # a low-pass from the states, for evaluate_feature
         def __init__(self, y, code):
             self.y, self.code = y, code
@@ -180,20 +224,12 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
         p_valve = cells[0] if nseg else p
         s = spool if tau_s > 0 or tau_dn > 0 or w_s > 0 else cmd
-        ueff = _dead_band(float(s), dead, rounding)
-        a_in = _gompertz(ueff, *ins)
+        a_in, a_ex = valve_areas(s)
         if own_ex:  # a separate exhaust valve, on its own (undelayed) command
             a_ex = (_gompertz(cmd_ex, *exs)
                     + sl[S["exhaust_open_area_m2"]] * min(max(cmd_ex, 0.0), 1.0))
-            s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]], 0.0)
-        else:
-            a_ex = _gompertz(ueff, *exs)
-            s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]],
-                                    sl[S["exhaust_open_area_m2"]])
-        if n_tab:  # a tabulated map, linear between its points
-            s_in += np.interp(ueff, tab_c, tab_i)
-            s_ex += np.interp(ueff, tab_c, tab_e)
-        a_in, a_ex = a_in + s_in, a_ex + s_ex
+            if n_tab:
+                a_ex += np.interp(_dead_band(float(s), dead, rounding), tab_c, tab_e)
         fr = (t - ta) / seg
         vol = (sl[S["volume_m3"]] - v_line
                + rig.bore_area_m2 * (xa + fr * vdot * seg / rig.bore_area_m2))
@@ -254,7 +290,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "pressure_history": _Held(y, code_p),
                        "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]
                                                           .code)),
-                       "spool_history": _Held(y, code_s)}
+                       "spool_history": _Held(y, code_s), "held_command": held_at}
             flows.append(_closure_flow(
                 [(c, fa, float(evaluate_feature(fa, signals, ta)), fb,
                   float(evaluate_feature(fb, signals, tb))) for c, fa, ta, fb, tb in closure]))
@@ -323,7 +359,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                        initial_rate_Pa_per_s: float = 0.0):
     """Simulate one parameter set with ``solve_ivp`` on every hold interval separately.
 
-    Break points are the sample times and the delayed-command switch times; on each
+    Break points are the sample times, the delayed-command switch times and, for a
+    closure's dead-time feature, where a changed command leaves its window; on each
     interval the command is constant and position and supply are linear, as in the
     compiled integrator (with a sensor lag on every channel, position and supply read
     ahead by its group delay, whose shifted sample times are break points too). A
@@ -437,17 +474,31 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         seg = t[m + 1] - t[m]
         return (x[m], rig.bore_area_m2 * (x[m + 1] - x[m]) / seg, early[m], seg, ps[m],
                 ps[m + 1])
+    shifted = t + delay
+    # a dead-time window's extreme changes where a changed value leaves it
+    changed = np.concatenate(([False], u[1:] != u[:-1]))
+    windows = [(d, shifted + d) for d in dead_times(sl)]
+    leaves = np.concatenate([w[changed] for _, w in windows]) if windows else np.zeros(0)
+
+    def extremes(a, jj):
+        """Each window's (highest, lowest) command at time ``a`` (``jj`` in force)."""
+        out = {}
+        for d, w in windows:
+            vals = [held(i) for i in range(int(np.searchsorted(w, a, side="right") - 1),
+                                           jj + 1)]
+            out[("fall", d)], out[("rise", d)] = max(vals), min(vals)
+        return out
     for k in range(t.size - 1):
         ta, tb = t[k], t[k + 1]
-        shifted = t + delay
-        cuts = np.union1d(shifted[(shifted > ta) & (shifted < tb)],
-                          early[(early > ta) & (early < tb)])
+        cuts = np.union1d(np.union1d(shifted[(shifted > ta) & (shifted < tb)],
+                                     early[(early > ta) & (early < tb)]),
+                          leaves[(leaves > ta) & (leaves < tb)])
         edges = np.concatenate([[ta], cuts, [tb]])
         for a, b in zip(edges[:-1], edges[1:]):
             jj = int(np.searchsorted(shifted, a, side="right") - 1)
             cmd = held(jj)
             rhs = _rhs_factory(sl, rig, cmd, *measured(a), ue[k],
-                               directions[jj] if jj >= 0 else 0.0)
+                               directions[jj] if jj >= 0 else 0.0, extremes(a, jj))
             if flows_pending:  # a flow lag starts at rest at the first flow
                 for q, (code, _) in enumerate(passes):
                     if code == FEATURE_BY_NAME["net_flow_lag"].code:

@@ -89,12 +89,15 @@ def closure_plan(sl):
     """What an open-form closure in the lowered slots ``sl`` reads, which the kernel's
     reuse of a step's end must respect, and its low-passes.
 
-    Returns ``(spool, volume_rate, direction, n, slot, kind, tau, value)``: whether a term
-    reads the spool (codes 3, 11, 12, 28-30) or the command's direction (code 15; both
-    change only with the command), or the volume rate (code 9; a volume hinge's rate,
-    codes 17 and 18); and its ``n`` low-passes (code 16 the pressure's, 19 the net port
-    flow's, 28 the spool's, for codes 28-30): each one's slot, signal code, time constant
-    (s) and value (NaN until started).
+    Returns ``(spool, volume_rate, direction, n, slot, kind, tau, value, pointer,
+    held)``: whether a term reads the spool (codes 3, 11, 12, 28-30) or the command's
+    direction (code 15; both change only with the command), or the volume rate (code 9;
+    a volume hinge's rate, codes 17 and 18); its ``n`` low-passes (code 16 the
+    pressure's, 19 the net port flow's, 28 the spool's, for codes 28-30) and dead-time
+    windows (codes 31-34, :mod:`pneubayes.simulation.held`): each one's slot, code, time
+    constant or dead time (s), value (NaN until started; a window's: the command's
+    extreme over it) and a window's command sample at its start; and whether there is
+    a window (``held``).
     """
     cl_spool, cl_vdot, cl_dir = False, False, False
     rx_n = 0
@@ -102,6 +105,8 @@ def closure_plan(sl):
     rx_kind = np.zeros(2 * CLOSURE_MAX_TERMS)
     rx_tau = np.zeros(2 * CLOSURE_MAX_TERMS)
     rx_val = np.zeros(2 * CLOSURE_MAX_TERMS)
+    rx_ptr = np.zeros(2 * CLOSURE_MAX_TERMS, dtype=np.int64)
+    held = False
     for kc in range(int(sl[_CL_N])):
         for code in (sl[_CL_FA + kc], sl[_CL_FB + kc]):
             if code == 3.0 or code == 11.0 or code == 12.0 or 28.0 <= code <= 30.0:
@@ -116,7 +121,11 @@ def closure_plan(sl):
                 # (the command lag's one-way parts low-pass the spool as it does)
                 rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, min(code, 28.0), tc
                 rx_n += 1
-    return cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val
+            elif 31.0 <= code <= 34.0:
+                rx_idx[rx_n], rx_kind[rx_n], rx_tau[rx_n] = slot, code, tc
+                rx_n += 1
+                held = True
+    return cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held
 
 
 @njit(cache=True, error_model="numpy")
@@ -149,7 +158,7 @@ def relaxations_mid(sl, n, slot, kind, tau, value, p, rate, q0, q_rate, s0, s_ra
             sl[slot[q]] = relaxation_mid(value[q], p, rate, h, tau[q])
         elif kind[q] == 28.0:
             sl[slot[q]] = relaxation_mid(value[q], s0, s_rate, h, tau[q])
-        else:
+        elif kind[q] == 19.0:
             if math.isnan(value[q]):
                 value[q] = q0
             sl[slot[q]] = relaxation_mid(value[q], q0, q_rate, h, tau[q])
@@ -166,6 +175,6 @@ def relaxations_accept(n, kind, tau, value, p0, p1, q0, q1, s0, s1, h):
             value[q] = relaxation_step(value[q], p0, p1, h, tau[q])
         elif kind[q] == 28.0:
             value[q] = relaxation_step(value[q], s0, s1, h, tau[q])
-        else:
+        elif kind[q] == 19.0:
             value[q] = relaxation_step(value[q], q0, q1, h, tau[q])
     return (p1 - p0) / h, (q1 - q0) / h

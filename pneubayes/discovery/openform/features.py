@@ -25,15 +25,15 @@ of its hinge features. The library (:func:`candidate_terms`) holds
   one); ``command_lag`` likewise, times the ports' flow functions and flows
   (:data:`COMMAND_LAG_PARTNERS`: a port that lags the command), and its one-way parts
   ``command_lag_fall`` and ``command_lag_rise`` times the ports' flow functions only (a
-  port that lags after a fall or a rise only).
+  port that lags after a fall or a rise only);
+- a late valve's areas (``*_area_late_fall``, ``*_area_late_rise``) at each dead time
+  of :data:`DEAD_TIMES_S` the recordings resolve, each times its own port's flow
+  function only (at coefficient 1, -1 at the exhaust, that port's late area exactly).
 
-The count stays manageable because hinges enter only at a grid of quantiles
-(``quantiles``, every 5 % from 5 to 95 % by default, repeated values merged) and only
-with the partners above: about a thousand candidates at most, and eight per low-pass
-time constant. (A coarser grid saves columns but a
-hinge between its points is then better fitted by a product with a hinge.)
-Columns that are zero or repeat an earlier column (a constant supply's ``supply_ratio``
-is ``one`` again) are dropped by :func:`design_matrix`.
+Hinges enter only at a grid of quantiles (``quantiles``, every 5 % from 5 to 95 % by
+default, repeated values merged) and only with the partners above: about a thousand
+candidates at most. Columns that are zero or repeat an earlier column (a constant
+supply's ``supply_ratio`` is ``one`` again) are dropped by :func:`design_matrix`.
 
 A candidate's *family* is its term without thresholds (``"inlet_flow*pressure_hinge"``):
 the search keeps at most one threshold per family.
@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneubayes.effects.closure_features import (
+    DEAD_TIME_FEATURES,
     FEATURES,
     LOW_PASS_HISTORIES,
     evaluate_feature,
@@ -90,13 +91,20 @@ COMMAND_LAG_PARTNERS = ("inlet_flux", "exhaust_flux", "net_flux", "inlet_flow",
 ONE_WAY_LAG_PARTNERS = ("inlet_flux", "exhaust_flux")
 #: Hinges that enter only with their partners (a mass flow in proportion to them alone
 #: means nothing).
-PAIRED_ONLY = frozenset({"command_lag_fall", "command_lag_rise"})
+PAIRED_ONLY = frozenset({"command_lag_fall", "command_lag_rise", *DEAD_TIME_FEATURES})
+#: The dead times (s) a late valve's features are tried at, those the recordings
+#: resolve (:func:`dead_time_range`).
+DEAD_TIMES_S = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
+#: Longest dead time tried, s.
+DEAD_TIME_MAX_S = 0.2
 
 
 def hinge_partners(hinge: str) -> tuple[str, ...]:
     """The features a hinge is multiplied with in the library."""
     if hinge in AREA_HINGE_PARTNERS:
         return AREA_HINGE_PARTNERS[hinge]
+    if hinge in DEAD_TIME_FEATURES:  # its own port's flow function
+        return ("inlet_flux",) if hinge.startswith("inlet") else ("exhaust_flux",)
     if hinge == "command_lag":
         return COMMAND_LAG_PARTNERS
     if hinge in PAIRED_ONLY:
@@ -159,6 +167,16 @@ def relaxation_times(signals_list: Sequence[dict]) -> np.ndarray:
     return g[(g >= lo) & (g <= hi)]
 
 
+def dead_time_range(signals_list: Sequence[dict]) -> tuple[float, float]:
+    """The dead times (s) the recordings resolve: from one median sample interval to
+    :data:`RELAXATION_MAX_SHARE` of the shortest recording, at most
+    :data:`DEAD_TIME_MAX_S`; ``(0, 0)`` when a recording's signals carry no intervals."""
+    lo, hi = relaxation_range(signals_list)
+    if hi <= 0.0:
+        return (0.0, 0.0)
+    return (lo / RELAXATION_MIN_INTERVALS, min(hi, DEAD_TIME_MAX_S))
+
+
 def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
                      ) -> dict[str, np.ndarray]:
     """Per hinge feature, its grid of thresholds: the ``quantiles`` of its source
@@ -175,9 +193,9 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     Returns
     -------
     dict
-        Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit), and
-        each low-pass feature (``LOW_PASS_HISTORIES``) -> its time constants (s,
-        :func:`relaxation_times`).
+        Hinge name -> increasing thresholds (``p / P_atm`` or the command's unit), each
+        low-pass feature (``LOW_PASS_HISTORIES``) -> its time constants (s,
+        :func:`relaxation_times`) and each dead-time feature -> its dead times (s).
     """
     q = np.asarray(quantiles, dtype=np.float64)
     if q.size == 0 or np.any(~((q > 0) & (q < 1))):
@@ -195,6 +213,10 @@ def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
     taus = relaxation_times(signals_list)
     for name in LOW_PASS_HISTORIES:
         out[name] = taus
+    lo, hi = dead_time_range(signals_list)
+    g = np.asarray(DEAD_TIMES_S, dtype=np.float64)
+    for name in DEAD_TIME_FEATURES:
+        out[name] = g[(g >= lo) & (g <= hi)]
     return out
 
 

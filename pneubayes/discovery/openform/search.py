@@ -45,6 +45,7 @@ from pneubayes.discovery.openform.features import (
     HINGE_SOURCES,
     Candidate,
     candidate_terms,
+    dead_time_range,
     design_matrix,
     distinct_columns,
     hinge_source_values,
@@ -58,6 +59,7 @@ from pneubayes.discovery.openform.sparse import (
     least_squares,
 )
 from pneubayes.effects.closure_features import (
+    DEAD_TIME_FEATURES,
     LOW_PASS_HISTORIES,
     SIGNALS,
     feature,
@@ -448,6 +450,7 @@ class OpenFormSearch:
             ranges[h] = (float(np.nanmin(v)), float(np.nanmax(v)))
         tau_range = relaxation_range(signals_list)
         ranges.update((name, tau_range) for name in LOW_PASS_HISTORIES)
+        ranges.update((name, dead_time_range(signals_list)) for name in DEAD_TIME_FEATURES)
         tss = float(y @ y)
         while sel:
             if self.refine_thresholds:

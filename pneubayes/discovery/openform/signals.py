@@ -28,6 +28,7 @@ import numpy as np
 from pneubayes.discovery.absorbers import sensitivity_points
 from pneubayes.discovery.openform.trajectory import phi1, pressure_gain
 from pneubayes.effects.closure_features import (
+    HeldCommand,
     SignalHistory,
     held_direction,
 )
@@ -135,7 +136,8 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
         array (absolute pressures Pa, spool in the command's unit, areas m^2, port flows
         kg/s, their flow functions kg/(s m^2), volume m^3, volume rate m^3/s, the
         command's direction, the measured pressure's and the net port flow's histories
-        for the low-pass features), plus
+        for the low-pass features, the delayed command's for the dead-time features:
+        ``"held_command"``), plus
         ``"time_s"`` (the midpoints, s), ``"interval_s"`` (each interval's length, s),
         ``"compliance_m3_per_Pa"`` (dV/dp of a compliant chamber, 0 if rigid) and
         ``"jacobian_per_s"`` (the model's d(dp/dt)/dp there, 1/s), which
@@ -166,10 +168,9 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     xdot = np.diff(inputs.position_m) / h  # the position is linear between samples
     spool = spool_at(mid, inputs, sl)
     # the delayed command's direction (its last change's sign) at the midpoints
-    direction = held_direction(mid, t, valve_command_of(inputs.command_V,
-                                                        _held_before(inputs), sl),
-                               float(sl[S["command_delay_s"]]),
-                               inputs.command_before_start)
+    valve_u = valve_command_of(inputs.command_V, _held_before(inputs), sl)
+    delay = float(sl[S["command_delay_s"]])
+    direction = held_direction(mid, t, valve_u, delay, inputs.command_before_start)
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
     f_in, f_ex = flow_function(p_sup, p, g), flow_function(p, p_atm, g)
@@ -184,7 +185,10 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     # over a step)
     histories = {"pressure_history": SignalHistory(mid, p),
                  "net_flow_history": SignalHistory(mid, inlet - exhaust),
-                 "spool_history": SignalHistory(mid, spool)}
+                 "spool_history": SignalHistory(mid, spool),
+                 "held_command": HeldCommand(mid, t, valve_u, delay,
+                                             inputs.command_before_start,
+                                             lambda u: port_areas(sl, u, ue))}
     dp = JACOBIAN_STEP * p
     rates = [rate_terms(sl, rig, p + s * dp, spool, x, xdot, ps_meas, ue, direction,
                         histories).total
