@@ -423,7 +423,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
 
 @njit(cache=True, error_model="numpy")
 def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
-                spool, dspool, cdir):
+                spool, dspool, cdir, with_closure=True):
     """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
 
     ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
@@ -449,16 +449,19 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     delay and the spool's lag, before the dead band; moving at ``dspool`` per second,
     which enters ``v_p``) and ``cdir`` (the delayed command's direction, +1, -1 or 0,
     constant between its changes). With ``closure_terms`` 0 none of it is evaluated: the
-    closure is stepped by a copy of this body, :func:`_chamber_rhs_closure`.
+    closure is stepped by a copy of this body, :func:`_chamber_rhs_closure`. With
+    ``with_closure`` None it is not compiled either (the pressure-only kernel's
+    specialization: a closure runs in the general one, :func:`~.kernel.needs_general`).
 
     Compiled as a function of its own, not inlined at numba's IR level into its callers:
     inlined at the pressure-only step's two call sites it made the kernel's cold compile
     about 1.6 x longer (numba's type inference and SSA over the copies) for 0-5 % of the
     step's speed.
     """
-    if sl[_CL_N] > 0.0:
-        return _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j,
-                                    dsup, da_in, da_ex, spool, dspool, cdir)
+    if with_closure is not None:
+        if sl[_CL_N] > 0.0:
+            return _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h,
+                                        need_j, dsup, da_in, da_ex, spool, dspool, cdir)
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)

@@ -38,7 +38,7 @@ NO_REUSE = (False, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
 
 @njit(cache=True, inline="always", error_model="numpy")
 def start_rates(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_at, ds_at,
-                cdir, sl, cs, fs, m, varying, relaxing, reads_spool, any_segment):
+                cdir, sl, cs, fs, m, varying, relaxing, reads_spool, any_segment, general):
     """``(F, J, dF/dt, fs)`` at the step's start and the first-same-as-last cache.
 
     ``fs`` = ``(ok, F, J, dF/dt, vdot, m, a_in, a_ex, spool)``: the last accepted step's
@@ -49,7 +49,7 @@ def start_rates(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_
     (:func:`~pneubayes.simulation.chamber.chamber_rhs`). ``varying``: the inputs move
     within the step (a moving spool, a chord), so nothing is reused or cached;
     ``relaxing``: a closure's low-pass moves, so nothing is reused; ``reads_spool``: a
-    closure reads the spool.
+    closure reads the spool; ``general`` None: the pressure-only kernel (no closure).
     """
     ok, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m, fs_ain, fs_aex, fs_s = fs
     if (ok and not relaxing and not varying and a_in == fs_ain and a_ex == fs_aex
@@ -65,7 +65,7 @@ def start_rates(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_
     else:
         fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs,
                                                 hh, True, dsup, da_in, da_ex, s_at, ds_at,
-                                                cdir)
+                                                cdir, general)
     if varying:
         return fp, jp, vp, (False, fs_fp, fs_jp, fs_vp, fs_vdot, fs_m, fs_ain, fs_aex, fs_s)
     return fp, jp, vp, (True, fp, jp, vp, vdot, m, a_in, a_ex, s_at)
@@ -73,13 +73,14 @@ def start_rates(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_
 
 @njit(cache=True, inline="always", error_model="numpy")
 def chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2, a_ex2, vol2, psup2, dsup,
-                 s_at2, cdir, sl, cs, kap, rigid, chord, fsal, atol_p, rtol):
+                 s_at2, cdir, sl, cs, kap, rigid, chord, fsal, atol_p, rtol, general):
     """One exprb32 step of ``hh`` s from ``p`` Pa with start rates ``(fp, jp, vp)``.
 
     ``vol``/``vol2`` and ``a_in2``, ``a_ex2``, ``psup2``, ``s_at2`` are the volume and
     the second stage's inputs; ``chord``: the position moves over a step that crosses
     samples; ``fsal``: the start rates will be reused, so the second stage takes its
-    slope too. ``ep`` is returned unchanged where the step fails.
+    slope too. ``ep`` is returned unchanged where the step fails. ``general`` as
+    :func:`start_rates` takes it.
 
     Returns ``(err, pn, fp, vp, ep, zp, phi3p, qstep, sc0, sc1, ff, jf, c_ok, c_fp,
     c_jp, c_vp)``: the error against the tolerance (10: failed), the end pressure, the
@@ -105,7 +106,7 @@ def chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2, a_ex2, vol2, psu
         up = uq / sc1
         if up > 0.0 and math.isfinite(up):
             fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False,
-                              0.0, 0.0, 0.0, s_at2, 0.0, cdir)[0]
+                              0.0, 0.0, 0.0, s_at2, 0.0, cdir, general)[0]
             ep = 2.0 * hh * phi3p * (sc1 * (fp2 + kap * up * vdot / vol2)
                                      - fp - jf * (uq - p * sc0) - hh * vp)
             pn = (uq + ep) / sc1
@@ -119,10 +120,10 @@ def chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2, a_ex2, vol2, psu
             if fsal:
                 fp2, jp2, _, _, vp2, _, _, _ = chamber_rhs(
                     up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, True, dsup, 0.0,
-                    0.0, s_at2, 0.0, cdir)
+                    0.0, s_at2, 0.0, cdir, general)
             else:
                 fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh,
-                                  False, 0.0, 0.0, 0.0, s_at2, 0.0, cdir)[0]
+                                  False, 0.0, 0.0, 0.0, s_at2, 0.0, cdir, general)[0]
             ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
             pn = up + ep
             err = abs(ep) / (atol_p + rtol * max(abs(p), abs(pn)))

@@ -109,6 +109,7 @@ from pneubayes.simulation.reading import (
 from pneubayes.simulation.relaxation import (
     closure_plan,
     command_relaxation_start,
+    no_closure_plan,
     relaxation_start,
     relaxations_accept,
     relaxations_mid,
@@ -178,6 +179,7 @@ _OPEN_EX = SLOT_INDEX["exhaust_open_area_m2"]
 _OWN_EX = SLOT_INDEX["exhaust_own_command"]
 _TANK = SLOT_INDEX["tank_volume_m3"]
 _LUNG = SLOT_INDEX["lung_volume_m3"]
+_CL_N = SLOT_INDEX["closure_terms"]
 _TAB_N = SLOT_INDEX["table_points"]
 _TAB_C = SLOT_INDEX["table_command_0"]
 _TAB_I = SLOT_INDEX["table_inlet_m2_0"]
@@ -421,7 +423,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                                                                   t_end, kn == k + 1)
             if general is not None and wave and grid[1] < t_end - w_near:
                 t_end = grid[1]  # the tube's ends update on their grid
-            if held:  # a late valve's area changes, constant over the stretch
+            if general is not None and held:  # a late valve's areas, held over the stretch
                 t_end = _held_areas(sl, t, u, j, cmd, delay, tau, t_end, dead, closure)
             vdot = bore * (xb - xa) * inv_seg
             dsup = gain * (sb - sa) * inv_seg
@@ -462,7 +464,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     x1c = position_at(t, x, n, m_ch, tau + hh)[1]
                     vol, vol2 = v0 + bore * x0c, v0 + bore * x1c
                     vdot = bore * (x1c - x0c) / hh
-                if cl_relax:
+                if general is not None and cl_relax:
                     rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
                     relaxations_mid(sl, rx_n, rx_idx, rx_kind, rx_tau, rx_val, p, rx_rate,
                                     rx_q0, rx_qrate, s_at, ds_at, hh)
@@ -507,11 +509,12 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     fp, jp, vp, fs = start_rates(
                         p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_at,
                         ds_at, cdir, sl, cs, fs, m, moving or chord, cl_relax, cl_spool,
-                        rigid and gain == 0.0 and not cl_vdot)
+                        rigid and gain == 0.0 and not cl_vdot, general)
                     (err, pn, fp, vp, ep, zp, phi3p, qstep, sc0, sc1, ff, jf, c_ok, c_fp,
                      c_jp, c_vp) = chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2,
                                                 a_ex2, vol2, psup2, dsup, s_at2, cdir, sl, cs,
-                                                kap, rigid, chord, fs[0], atol_p, rtol)
+                                                kap, rigid, chord, fs[0], atol_p, rtol,
+                                                general)
                     if err < 10.0 and chord and m_ch + 1 < n and t[m_ch + 1] < tau + hh:
                         err, pn, c_c = chord_corrected(err, pn, p, t, x, m_ch, tau, hh, x0c,
                                                        x1c, ff, jf, vol, bore, kap, sc0, sc1,
@@ -528,7 +531,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     p_prev, s_prev = p, s_p0
                     p_tank, p_lung = p_tank_new, p_lung_new
                     p, temp = pn, tn
-                    if cl_relax:
+                    if general is not None and cl_relax:
                         rx_rate, rx_qrate = relaxations_accept(
                             rx_n, rx_kind, rx_tau, rx_val, p_prev, p, rx_q0,
                             net_port_flow(p, a_in2, a_ex2, psup2, cs), s_at, s_at2,
@@ -679,10 +682,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lung_from_p0 = lung and math.isnan(p_lung)
     # an open-form closure's reads and low-passes, stepped on the kernel's own copy of
     # the slots
-    cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held = (
-        closure_plan(sl))
+    # (the pressure-only kernel compiles none of it: a closure runs in the general one)
+    if general is not None:
+        cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held = (
+            closure_plan(sl))
+    else:
+        if sl[_CL_N] > 0.0:
+            return NEEDS_GENERAL
+        cl_spool, cl_vdot, cl_dir, rx_n, rx_idx, rx_kind, rx_tau, rx_val, rx_ptr, held = (
+            no_closure_plan())
     cl_relax = rx_n > 0
-    if cl_relax:
+    if general is not None and cl_relax:
         sl = sl.copy()
         for q in range(rx_n):
             if not rx_tau[q] > 0.0:
@@ -695,10 +705,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
                                            calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
-    for q in range(rx_n):  # a relaxation's p_bar from the reading's history; a flow's
-        # low-pass at its first step's flow (at rest)
-        rx_val[q] = (relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, zero,
-                                      cal_g) if rx_kind[q] == 16.0 else math.nan)
+    if general is not None:  # a relaxation's p_bar from the reading's history; a flow's
+        for q in range(rx_n):  # low-pass at its first step's flow (at rest)
+            rx_val[q] = (relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, zero,
+                                          cal_g) if rx_kind[q] == 16.0 else math.nan)
     temp = carry[0] if thermal else cs[C_T_SUPPLY]
     out[0] = p0_read
     want_sens = sens.shape[0] > 0
@@ -746,10 +756,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     if lagged and k0 > 0:
         spool, v_s = spool_at_start(t, u, j, t_start, delay, tau_s, w_s, z_s, rate_s,
                                     tau_dn)
-    for q in range(rx_n):  # a command lag's s_bar from the command's history
-        if rx_kind[q] == 28.0:
-            rx_val[q] = command_relaxation_start(t, u, j, t_start, delay, rx_tau[q])
-    held_start(t, u, delay, t_start, rx_n, rx_kind, rx_tau, rx_ptr)
+    if general is not None:  # a command lag's s_bar from the command's history
+        for q in range(rx_n):
+            if rx_kind[q] == 28.0:
+                rx_val[q] = command_relaxation_start(t, u, j, t_start, delay, rx_tau[q])
+        held_start(t, u, delay, t_start, rx_n, rx_kind, rx_tau, rx_ptr)
     # the pressure is the only state (a lagged reading follows its own exponential
     # over a step, as it does the (p, T) step's pressure part; the other steps start
     # from the chord between their ends)
@@ -901,14 +912,15 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
 
 
 def needs_general(slots) -> bool:
-    """True when a parameter set (row of ``slots``) has a second state: heat transfer, an
+    """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
-    compartment."""
+    compartment) or an open-form closure (whose code the pressure-only kernel leaves out,
+    so that the plain model's first call compiles less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
-#: The slots of the forms with a second state (:func:`needs_general`).
-GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG])
+#: The slots of the forms with a second state or a closure (:func:`needs_general`).
+GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N])
 
 
 @njit(cache=True, error_model="numpy")

@@ -129,6 +129,16 @@ def closure_plan(sl):
 
 
 @njit(cache=True, error_model="numpy")
+def no_closure_plan():
+    """:func:`closure_plan` of a slot row without a closure (the pressure-only kernel's,
+    which compiles no closure code)."""
+    return (False, False, False, 0, np.zeros(2 * CLOSURE_MAX_TERMS, dtype=np.int64),
+            np.zeros(2 * CLOSURE_MAX_TERMS), np.zeros(2 * CLOSURE_MAX_TERMS),
+            np.zeros(2 * CLOSURE_MAX_TERMS), np.zeros(2 * CLOSURE_MAX_TERMS, dtype=np.int64),
+            False)
+
+
+@njit(cache=True, error_model="numpy")
 def command_relaxation_start(t, u, j, t_start, delay, tau):
     """``s_bar`` at ``t_start`` (command unit): the delayed command (held between
     samples; ``j`` the sample in force at ``t_start``) low-passed exactly from

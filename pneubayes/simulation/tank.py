@@ -51,16 +51,16 @@ def tank_step(p, pt, hh, a_in, a_ex, vol, vdot, da_in, da_ex, a_in2, a_ex2, vol2
     """
     temp = cs[C_T_SUPPLY]
     fp, jpp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, pt, sl, cs, hh,
-                                             True, 0.0, da_in, da_ex, spool, dspool, cdir)
+                                             True, 0.0, da_in, da_ex, spool, dspool, cdir, True)
     vp_ramp = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, pt, sl, cs, hh, True, 1.0, da_in,
-                          da_ex, spool, dspool, cdir)[4]
+                          da_ex, spool, dspool, cdir, True)[4]
     jpt = vp_ramp - vp
     ft, jtp, jtt, vt = tank_rhs(p, pt, a_in, cs, c_tank, abs(fp) * hh, True, da_in)
     up, ut, f3, prop = exprb2_predict(p, pt, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, pt, prop
     fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, ut, sl, cs, hh, False, 0.0, 0.0,
-                      0.0, spool2, 0.0, cdir)[0]
+                      0.0, spool2, 0.0, cdir, True)[0]
     ft2 = tank_rhs(up, ut, a_in2, cs, c_tank, 0.0, False, 0.0)[0]
     err, pn, tn = exprb2_correct(p, pt, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp, jtt,
                                  vp, vt, atol_p, atol_p, rtol)

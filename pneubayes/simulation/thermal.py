@@ -69,12 +69,12 @@ def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a
     """
     fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup,
                                                      sl, cs, hh, True, dsup, da_in, da_ex,
-                                                     spool, dspool, cdir)
+                                                     spool, dspool, cdir, True)
     up, ut, f3, prop = exprb2_predict(p, temp, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, temp, prop, fp, jpp, vp
     fp2, _, ft2, _, _, _, _, _ = chamber_rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
-                                             cs, hh, False, 0.0, 0.0, 0.0, spool2, 0.0, cdir)
+                                             cs, hh, False, 0.0, 0.0, 0.0, spool2, 0.0, cdir, True)
     err, pn, tn = exprb2_correct(p, temp, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp,
                                  jtt, vp, vt, atol_p, atol_t, rtol)
     return err, pn, tn, prop, fp, jpp, vp

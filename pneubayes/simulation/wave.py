@@ -461,7 +461,7 @@ def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_a
     swb1 = s0 + (s1 - s0) * (tau + hh - t_a) * w_inv
     zc = z + 0.5 * wave_resistance(q_c, p, cs, area, seg_len, dia, mu)
     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot, psup, sl, cs, hh,
-                                            True, 0.0, 0.0, 0.0, s_at, ds_at, cdir)
+                                            True, 0.0, 0.0, 0.0, s_at, ds_at, cdir, True)
     gw = wave_gain(p, vol, sl, cs) / zc
     fp += gw * (wb0 - p)
     jp -= gw
@@ -472,7 +472,7 @@ def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_a
     err, pn = 10.0, p
     if up > 0.0 and math.isfinite(up):
         fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh, False, 0.0,
-                           0.0, 0.0, s_at2, 0.0, cdir)[0]
+                           0.0, 0.0, s_at2, 0.0, cdir, True)[0]
                + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
         ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
         pn = up + ep
