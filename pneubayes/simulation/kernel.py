@@ -145,8 +145,8 @@ STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
                LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume",
-               NEEDS_GENERAL: "a form with a second state reached the pressure-only kernel "
-                              "(an internal error)",
+               NEEDS_GENERAL: "a form with a second state or a closure reached the "
+                              "pressure-only kernel (an internal error)",
                WAVE_HISTORY: f"more than {WAVE_CAPACITY} entries within one transit time "
                              "of the transmission-line tube (an internal error)",
                CALIBRATION: "the sensor's calibration reads the measured start as no "
