@@ -891,3 +891,25 @@ def test_a_long_history_is_read_strided_and_agrees_with_the_full_low_pass():
                              (1.0, 0.0))
     assert short == pytest.approx(cf.first_order_low_pass(t[50:101], pm[50:101], 0.01)[-1],
                                   rel=1e-12)
+
+
+def test_the_pressure_only_kernel_refuses_a_closure_rather_than_dropping_it(rig, valve_params,
+                                                                          inputs):
+    """A closure runs in the general kernel (``needs_general``); handed to the
+    pressure-only kernel it is refused with ``NEEDS_GENERAL``, not silently left out."""
+    from pneubayes.simulation import kernel
+    from pneubayes.simulation.simulator import rig_constants
+
+    e, values = _closure("inlet_flow*pressure_ratio")
+    model = Model([e])
+    slots = model.lower(model.as_matrix(dict(valve_params, **values)), rig)
+    assert kernel.needs_general(slots)
+    t, u, ue, x, ps, pm, _ = inputs.kernel_arrays()
+    args = (np.ascontiguousarray(slots), rig_constants(rig), _tight().as_array(), t, u, ue,
+            x, ps, np.zeros(1, np.int64), t.size, np.array([2e5]))
+    out, status = kernel.simulate_windows(*args, general=False)
+    assert status[0, 0] == kernel.NEEDS_GENERAL
+    out, status = kernel.simulate_windows(*args, general=True)
+    assert status[0, 0] == kernel.OK
+    got = simulate(model, dict(valve_params, **values), inputs, rig, 2e5, _tight())
+    assert np.array_equal(out[0, 0], got.pressure_Pa[0])
