@@ -208,6 +208,26 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
     assert newly_at_bounds(fit, current) == []
 
 
+def test_an_earlier_effect_switched_off_beside_a_closure_is_not_a_bound():
+    """Beside a closure an earlier effect's parameter that reaches its neutral value at a
+    bound (a spool lag's time constant at 0: set 6's late release, whose spool-lag
+    stand-in the closure's late areas replaced) is the effect switched off, which the
+    backward step removes, not a closure at its limits; at its other bound it is."""
+    from pneubayes.discovery.openform.closure_model import newly_at_bounds
+
+    model = Model(["spool_lag"]).with_effect(Closure(terms="pressure_hinge"))
+    tau = model.parameter("spool_time_constant_s")
+    assert tau.neutral == tau.lower
+    base = {k: 0.5 * (model.parameter(k).lower + model.parameter(k).upper)
+            for k in model.parameter_names}
+    current = SimpleNamespace(params={k: base[k] for k in Model(["spool_lag"])
+                                      .parameter_names})
+    fit = SimpleNamespace(model=model, params={**base, "spool_time_constant_s": tau.lower})
+    assert newly_at_bounds(fit, current) == []
+    fit.params["spool_time_constant_s"] = tau.upper
+    assert newly_at_bounds(fit, current) == ["spool_time_constant_s"]
+
+
 def test_a_closure_at_its_bounds_leaves_its_families_out_of_the_next_search():
     """The retry after a closure rejected at a bound searches without the families
     whose parameters hit it (all of the new ones when a base parameter did), and a

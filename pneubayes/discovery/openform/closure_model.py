@@ -132,7 +132,10 @@ def families_at_bounds(fit, bounded: list[str], terms) -> tuple[str, ...]:
 def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
     """Parameters of ``fit`` within ``share`` of their bounds' span of a bound that were
     not there in ``current`` (the closure's own always count): a closure that only fits
-    by driving parameters to their limits stands in for what it cannot express."""
+    by driving parameters to their limits stands in for what it cannot express. An
+    earlier effect's parameter that reaches its neutral value at a bound (a spool lag's
+    time constant at 0) does not count: the closure explains what that effect stood in
+    for, and the loop's backward step removes it."""
     out = []
     for name in fit.model.parameter_names:
         p = fit.model.parameter(name)
@@ -141,7 +144,12 @@ def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
         def at(v, p=p, tol=tol):
             return v - p.lower <= tol or p.upper - v <= tol
 
-        if at(fit.params[name]) and not (name in current.params and at(current.params[name])):
+        value = fit.params[name]
+        if not at(value) or (name in current.params and at(current.params[name])):
+            continue
+        switched_off = (not name.startswith("closure_") and p.neutral is not None
+                        and at(p.neutral) and abs(value - p.neutral) <= tol)
+        if not switched_off:
             out.append(name)
     return out
 
