@@ -145,8 +145,8 @@ STATUS_TEXT = {OK: "ok", STEP_UNDERFLOW: "step size fell below min_step_s",
                STEP_BUDGET: "more steps in one window than max_steps_per_s allows",
                NONFINITE: "state became non-finite",
                LINE_VOLUME: "the acoustic line's volume is not smaller than the dead volume",
-               NEEDS_GENERAL: "a form with a second state, a lagged reading or a closure "
-                              "reached the pressure-only kernel (an internal error)",
+               NEEDS_GENERAL: "a form with a second state or a closure reached the "
+                              "pressure-only kernel (an internal error)",
                WAVE_HISTORY: f"more than {WAVE_CAPACITY} entries within one transit time "
                              "of the transmission-line tube (an internal error)",
                CALIBRATION: "the sensor's calibration reads the measured start as no "
@@ -180,8 +180,6 @@ _OWN_EX = SLOT_INDEX["exhaust_own_command"]
 _TANK = SLOT_INDEX["tank_volume_m3"]
 _LUNG = SLOT_INDEX["lung_volume_m3"]
 _CL_N = SLOT_INDEX["closure_terms"]
-_SENSOR_TAU = SLOT_INDEX["sensor_time_constant_s"]
-_SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
 _TAB_N = SLOT_INDEX["table_points"]
 _TAB_C = SLOT_INDEX["table_command_0"]
 _TAB_I = SLOT_INDEX["table_inlet_m2_0"]
@@ -561,7 +559,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             (t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p),
                             (chord, qstep, x0c, x1c, jf, c_c), v0, bore, kap, sl, p_atm,
                             calibrated, zero, cal_g, slope0, want_sens)
-                    if general is not None and reading:
+                    if reading:
                         r, v_r, s_r, s_v = reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev,
                                                         s_p0, hh, zp, fp, vp, ep, dev_r,
                                                         second, w_r, z_r, lag_r, n_r, p_atm,
@@ -701,10 +699,9 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 return NONFINITE
     if lung_from_p0:
         p_lung = p0
-    lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
-    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0
-                            or reading):
+    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
         return NEEDS_GENERAL
+    lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
     k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
                                            calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
@@ -916,15 +913,14 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
 
 def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
-    acoustic line, a transmission-line tube's waves, a supply tank, a second compartment
-    or a lagged sensor's reading) or an open-form closure: the pressure-only kernel
-    leaves their code out, so that the paper's model's first call compiles less."""
+    acoustic line, a transmission-line tube's waves, a supply tank or a second
+    compartment) or an open-form closure (whose code the pressure-only kernel leaves out,
+    so that the plain model's first call compiles less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`).
-GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N, _SENSOR_TAU,
-                          _SENSOR_W])
+GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N])
 
 
 @njit(cache=True, error_model="numpy")

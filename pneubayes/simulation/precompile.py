@@ -12,7 +12,7 @@ The kernel has four compiled variants, one per combination of
 
 - the state it steps: the chamber's pressure alone, or the *general* kernel with a
   second state (heat transfer, an acoustic or wave line, a supply tank, a second
-  compartment), a lagged reading or an open-form closure
+  compartment) or an open-form closure
   (:func:`pneubayes.simulation.kernel.needs_general`);
 - the loop: on the calling thread, or spread over numba's threads (more than one
   parameter set or window, and more than one thread);

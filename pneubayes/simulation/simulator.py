@@ -65,10 +65,9 @@ def _check_solver(solver) -> SolverConfig:
 _FORM_COLUMNS = {name: i for i, name in enumerate((
     "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
-    "lung_volume_m3", "closure_terms", "sensor_time_constant_s",
-    "sensor_natural_frequency_rad_per_s"))}
+    "lung_volume_m3", "closure_terms"))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
-#: The form columns the general kernel steps (:func:`kernel.needs_general`).
+#: The form columns of the states besides the pressure (:func:`kernel.needs_general`).
 _GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
 
 
