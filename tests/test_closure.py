@@ -140,9 +140,9 @@ def test_the_closures_copy_of_the_right_hand_side_is_the_plain_one(extra, rig):
         rest = (rng.uniform(1e-6, 1e-3), bool(rng.integers(2)), rng.uniform(-1e6, 1e6),
                 rng.uniform(-1e-4, 1e-4), rng.uniform(-1e-4, 1e-4), rng.uniform(-5, 5),
                 rng.uniform(-100, 100), float(rng.integers(-1, 2)))
-        want = chamber_rhs(*args, sl, cs, *rest)
+        want = chamber_rhs(*args, sl, cs, *rest, True)
         assert np.array_equal(_chamber_rhs_closure(*args, zero, cs, *rest), want)
-        assert np.array_equal(chamber_rhs(*args, zero, cs, *rest), want)
+        assert np.array_equal(chamber_rhs(*args, zero, cs, *rest, True), want)
 
 
 # ---------------------------------------------------------------- closed forms
@@ -224,7 +224,7 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
     for p, temp in ((2e5, 320.0), (4e5, 270.0)):
         vol = 2.4e-6
         fp, _, ft, *_ = chamber_rhs(p, temp, 0.0, 0.0, vol, 0.0, P_SUP, sl, cs, 1e-4, True,
-                                    0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                                    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, True)
         dm = vol / (rs * temp) * (fp - p * ft / temp)
         assert dm == pytest.approx(c, rel=1e-12)
 
@@ -272,23 +272,24 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     cs = rig_constants(rig)
     args = (3e-7, 2e-7, 2.5e-6, 1e-5, P_SUP)  # a_in, a_ex, vol, vdot, p_sup
     p, temp, d = 2.6e5, 300.0, 1.0
-    out = chamber_rhs(p, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
-    up = chamber_rhs(p + d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
-    dn = chamber_rhs(p - d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
+    out = chamber_rhs(p, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0, True)
+    up = chamber_rhs(p + d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0, True)
+    dn = chamber_rhs(p - d, temp, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0, True)
     assert out[1] == pytest.approx((up[0] - dn[0]) / (2 * d), rel=1e-5, abs=1e-6)
     if hconv:
         assert out[6] == pytest.approx((up[2] - dn[2]) / (2 * d), rel=1e-5, abs=1e-8)
         # and the slopes in T (a negative closure's outflow leaves at T)
         dt = 1e-3
-        hot = chamber_rhs(p, temp + dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
-        cold = chamber_rhs(p, temp - dt, *args, sl, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0)
+        rest = (0.0, True, 0.0, 0.0, 0.0, 3.0, 0.0, 1.0, True)
+        hot = chamber_rhs(p, temp + dt, *args, sl, cs, *rest)
+        cold = chamber_rhs(p, temp - dt, *args, sl, cs, *rest)
         assert out[5] == pytest.approx((hot[0] - cold[0]) / (2 * dt), rel=1e-5, abs=1e-3)
         assert out[3] == pytest.approx((hot[2] - cold[2]) / (2 * dt), rel=1e-5, abs=1e-6)
     # and the closure moves the rate at all here
     bare = sl.copy()
     bare[SLOT_INDEX["closure_terms"]] = 0.0
     assert abs(out[0] - chamber_rhs(p, temp, *args, bare, cs, 0.0, True, 0.0, 0.0, 0.0, 3.0,
-                                    0.0, 1.0)[0]) > 1.0
+                                    0.0, 1.0, True)[0]) > 1.0
 
 
 # ---------------------------------------------------------------- against the reference
@@ -782,7 +783,7 @@ def test_rate_terms_match_the_compiled_right_hand_side(strong, rig, valve_params
         fp = chamber_rhs(p, rig.gas.temperature_K, float(a_in[0]), float(a_ex[0]),
                          valve_params["dead_volume_m3"] + rig.bore_area_m2 * x,
                          rig.bore_area_m2 * v, P_SUP, sl, cs, 0.0, False, 0.0, 0.0, 0.0, s,
-                         0.0, 0.0)[0]
+                         0.0, 0.0, True)[0]
         assert fp == pytest.approx(float(r.total[0]), rel=1e-9, abs=1e-3)
         if strong:  # the inlet's term cancels its flow, the exhaust's its outflow
             q_in = float(a_in[0] * flow_function(P_SUP, p, rig.gas))

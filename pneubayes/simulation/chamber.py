@@ -423,7 +423,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
 
 @njit(cache=True, error_model="numpy")
 def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_in, da_ex,
-                spool, dspool, cdir, with_closure=True):
+                spool, dspool, cdir, with_closure):
     """Chamber right-hand side: ``(dp/dt, J_pp, dT/dt, J_TT, v_p, J_pT, J_Tp, v_T)``.
 
     ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
@@ -451,7 +451,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     constant between its changes). With ``closure_terms`` 0 none of it is evaluated: the
     closure is stepped by a copy of this body, :func:`_chamber_rhs_closure`. With
     ``with_closure`` None it is not compiled either (the pressure-only kernel's
-    specialization: a closure runs in the general one, :func:`~.kernel.needs_general`).
+    specialization: a closure runs in the general one, :func:`~.kernel.needs_general`);
+    the general kernel passes True (one compiled specialization: a caller passing
+    another type compiles another, tens of seconds).
 
     Compiled as a function of its own, not inlined at numba's IR level into its callers:
     inlined at the pressure-only step's two call sites it made the kernel's cold compile

@@ -488,22 +488,23 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
                                                             vdot, da_in, da_ex, a_in2, a_ex2,
                                                             vol2, sl, cs, c_tank, atol_p,
-                                                            rtol, s_at, ds_at, s_at2, cdir)
+                                                            rtol, s_at, ds_at, s_at2, cdir,
+                                                            general)
                 elif general is not None and lung:
                     err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
                                                             vdot, psup, dsup, da_in, da_ex,
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
                                                             atol_p, rtol, s_at, ds_at, s_at2,
-                                                            cdir)
+                                                            cdir, general)
                 elif general is not None and wave:
                     err, pn, fp, jp, vp, ep, zp, phi3p, w_gain = wave_chamber_step(
                         p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_at, s_at2,
-                        cdir, sl, cs, grid, tube, w_work[2][2], ep, atol_p, rtol)
+                        cdir, sl, cs, grid, tube, w_work[2][2], ep, atol_p, rtol, general)
                 elif general is not None and thermal:
                     err, pn, tn, prop_t, fp, jp, vp = thermal_step(
                         p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
                         a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2,
-                        cdir)
+                        cdir, general)
                     zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
                 else:
                     fp, jp, vp, fs = start_rates(

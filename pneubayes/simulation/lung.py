@@ -62,16 +62,17 @@ def lung_terms(p, pl, vol, vdot, sl, cs, need_j):
 
 @njit(cache=True, error_model="numpy")
 def lung_step(p, pl, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2, a_ex2,
-              vol2, psup2, sl, cs, atol_p, rtol, spool, dspool, spool2, cdir):
+              vol2, psup2, sl, cs, atol_p, rtol, spool, dspool, spool2, cdir, general):
     """One exprb32 step of (p, p_L) with the full 2 x 2 Jacobian; ``spool`` (moving at
     ``dspool``) and ``spool2`` the spool at the step's start and end, ``cdir`` the
-    command's direction (a closure's features).
+    command's direction (a closure's features), ``general`` the general kernel's flag
+    (``chamber_rhs``'s ``with_closure``).
 
     Returns ``(err, p_new, p_L_new, exp(h J))``, the propagator row-major; ``err`` <= 1
     accepts the step."""
     temp = cs[C_T_SUPPLY]
     fc, jc, _, _, vc, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup, sl, cs, hh,
-                                            True, dsup, da_in, da_ex, spool, dspool, cdir, True)
+                                            True, dsup, da_in, da_ex, spool, dspool, cdir, general)
     fa, fl, ja, jpl, jlp, jll, va = lung_terms(p, pl, vol, vdot, sl, cs, True)
     fp, jpp, vp = fc + fa, jc + ja, vc + va
     up, ul, f3, prop = exprb2_predict(p, pl, hh, fp, fl, jpp, jpl, jlp, jll, vp, 0.0)
@@ -79,7 +80,7 @@ def lung_step(p, pl, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
         return 10.0, p, pl, prop
     fa2, fl2, _, _, _, _, _ = lung_terms(up, ul, vol2, vdot, sl, cs, False)
     fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, psup2, sl, cs, hh, False, 0.0, 0.0,
-                      0.0, spool2, 0.0, cdir, True)[0] + fa2
+                      0.0, spool2, 0.0, cdir, general)[0] + fa2
     err, pn, ln = exprb2_correct(p, pl, up, ul, hh, f3, fp, fl, fp2, fl2, jpp, jpl, jlp, jll,
                                  vp, 0.0, atol_p, atol_p, rtol)
     return err, pn, ln, prop

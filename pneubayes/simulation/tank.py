@@ -39,10 +39,11 @@ def tank_rhs(p, pt, a_in, cs, c_tank, dp_floor, need_j, da_in):
 
 @njit(cache=True, error_model="numpy")
 def tank_step(p, pt, hh, a_in, a_ex, vol, vdot, da_in, da_ex, a_in2, a_ex2, vol2, sl, cs,
-              c_tank, atol_p, rtol, spool, dspool, spool2, cdir):
+              c_tank, atol_p, rtol, spool, dspool, spool2, cdir, general):
     """One exprb32 step of (p, P_tank) with the full 2 x 2 Jacobian; ``spool`` (moving at
     ``dspool``) and ``spool2`` the spool at the step's start and end, ``cdir`` the
-    command's direction (a closure's features).
+    command's direction (a closure's features), ``general`` the general kernel's flag
+    (``chamber_rhs``'s ``with_closure``).
     A closure's flow does not draw from the tank.
 
     Returns ``(err, p_new, P_tank_new, exp(h J))``, the propagator row-major; ``err`` <= 1
@@ -51,16 +52,16 @@ def tank_step(p, pt, hh, a_in, a_ex, vol, vdot, da_in, da_ex, a_in2, a_ex2, vol2
     """
     temp = cs[C_T_SUPPLY]
     fp, jpp, _, _, vp, _, _, _ = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, pt, sl, cs, hh,
-                                             True, 0.0, da_in, da_ex, spool, dspool, cdir, True)
+                                             True, 0.0, da_in, da_ex, spool, dspool, cdir, general)
     vp_ramp = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, pt, sl, cs, hh, True, 1.0, da_in,
-                          da_ex, spool, dspool, cdir, True)[4]
+                          da_ex, spool, dspool, cdir, general)[4]
     jpt = vp_ramp - vp
     ft, jtp, jtt, vt = tank_rhs(p, pt, a_in, cs, c_tank, abs(fp) * hh, True, da_in)
     up, ut, f3, prop = exprb2_predict(p, pt, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, pt, prop
     fp2 = chamber_rhs(up, temp, a_in2, a_ex2, vol2, vdot, ut, sl, cs, hh, False, 0.0, 0.0,
-                      0.0, spool2, 0.0, cdir, True)[0]
+                      0.0, spool2, 0.0, cdir, general)[0]
     ft2 = tank_rhs(up, ut, a_in2, cs, c_tank, 0.0, False, 0.0)[0]
     err, pn, tn = exprb2_correct(p, pt, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp, jtt,
                                  vp, vt, atol_p, atol_p, rtol)

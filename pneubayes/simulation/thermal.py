@@ -55,12 +55,14 @@ def exprb2_correct(p, q, up, uq, hh, f3, fp, fq, fp2, fq2, jpp, jpq, jqp, jqq, v
 
 @njit(cache=True, error_model="numpy")
 def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2, a_ex2,
-                 vol2, psup2, sl, cs, atol_p, atol_t, rtol, spool, dspool, spool2, cdir):
+                 vol2, psup2, sl, cs, atol_p, atol_t, rtol, spool, dspool, spool2, cdir,
+                 general):
     """One exprb32 step of the state (p, T) with its full 2 x 2 Jacobian
     (:func:`exprb2_predict`, :func:`exprb2_correct`). ``spool`` (moving at ``dspool``)
     and ``spool2`` are the spool's position at the step's start and end, ``cdir`` the
     command's direction (a closure's features,
-    :func:`~pneubayes.simulation.chamber.chamber_rhs`).
+    :func:`~pneubayes.simulation.chamber.chamber_rhs`), ``general`` the general kernel's
+    flag (its ``with_closure``).
 
     Returns ``(err, p_new, T_new, exp(h J), f_p, J_pp, v_p)``: the propagator as a
     row-major 4-tuple (``err`` <= 1 accepts the step), then the pressure's rate, its slope
@@ -69,12 +71,13 @@ def thermal_step(p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a
     """
     fp, jpp, ft, jtt, vp, jpt, jtp, vt = chamber_rhs(p, temp, a_in, a_ex, vol, vdot, psup,
                                                      sl, cs, hh, True, dsup, da_in, da_ex,
-                                                     spool, dspool, cdir, True)
+                                                     spool, dspool, cdir, general)
     up, ut, f3, prop = exprb2_predict(p, temp, hh, fp, ft, jpp, jpt, jtp, jtt, vp, vt)
     if not (up > 0.0 and math.isfinite(up) and ut > 0.0 and math.isfinite(ut)):
         return 10.0, p, temp, prop, fp, jpp, vp
     fp2, _, ft2, _, _, _, _, _ = chamber_rhs(up, ut, a_in2, a_ex2, vol2, vdot, psup2, sl,
-                                             cs, hh, False, 0.0, 0.0, 0.0, spool2, 0.0, cdir, True)
+                                             cs, hh, False, 0.0, 0.0, 0.0, spool2, 0.0, cdir,
+                                             general)
     err, pn, tn = exprb2_correct(p, temp, up, ut, hh, f3, fp, ft, fp2, ft2, jpp, jpt, jtp,
                                  jtt, vp, vt, atol_p, atol_t, rtol)
     return err, pn, tn, prop, fp, jpp, vp

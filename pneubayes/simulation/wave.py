@@ -441,11 +441,12 @@ def wave_switch(work, tube, switch, tau, t_end, p, s_p, p_sup, a_in, a_ex, w_nea
 
 @njit(cache=True, inline="always", error_model="numpy")
 def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_at, s_at2,
-                      cdir, sl, cs, grid, tube, q_c, ep, atol_p, rtol):
+                      cdir, sl, cs, grid, tube, q_c, ep, atol_p, rtol, general):
     """One exprb32 step of the chamber at the tube's end, driven by the valve's wave
     arriving, A_K(t - tau) linear over the grid interval the step lies in, through the
     inflow ``(A_K - p) / (Z + r/2)`` of eq. 5 (``q_c``: the chamber end's last flow,
-    for the friction ``r``).
+    for the friction ``r``; ``general``: the general kernel's flag, ``chamber_rhs``'s
+    ``with_closure``).
 
     Returns ``(err, pn, fp, jp, vp, ep, zp, phi3p, s_gain)``: the error against the
     tolerance (10: failed; ``ep`` then unchanged), the end pressure, the start's rate,
@@ -461,7 +462,7 @@ def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_a
     swb1 = s0 + (s1 - s0) * (tau + hh - t_a) * w_inv
     zc = z + 0.5 * wave_resistance(q_c, p, cs, area, seg_len, dia, mu)
     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot, psup, sl, cs, hh,
-                                            True, 0.0, 0.0, 0.0, s_at, ds_at, cdir, True)
+                                            True, 0.0, 0.0, 0.0, s_at, ds_at, cdir, general)
     gw = wave_gain(p, vol, sl, cs) / zc
     fp += gw * (wb0 - p)
     jp -= gw
@@ -472,7 +473,7 @@ def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_a
     err, pn = 10.0, p
     if up > 0.0 and math.isfinite(up):
         fp2 = (chamber_rhs(up, temp, 0.0, 0.0, vol2, vdot, psup2, sl, cs, hh, False, 0.0,
-                           0.0, 0.0, s_at2, 0.0, cdir, True)[0]
+                           0.0, 0.0, s_at2, 0.0, cdir, general)[0]
                + wave_gain(up, vol2, sl, cs) / zc * (wb1 - up))
         ep = 2.0 * hh * phi3p * (fp2 - fp - jp * (up - p) - hh * vp)
         pn = up + ep
