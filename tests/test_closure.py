@@ -351,6 +351,19 @@ def test_every_feature_agrees_with_the_reference_solver(terms, thresholds, rig, 
     assert np.max(np.abs(got - ref)) < tol
 
 
+def _on_rise_fall_rise(model, params, rig, valve_params, inputs):
+    """``(compiled, reference, plain model, command)`` on ``inputs`` with the command
+    rising at 50 ms, falling at 120 ms and rising again at 170 ms."""
+    t = inputs.time_s
+    u = np.where(t < 0.05, -2.0, np.where(t < 0.12, 1.0, -3.0))
+    u = np.where(t < 0.17, u, 0.5)
+    steps = Inputs(t, u, inputs.position_m, inputs.supply_pressure_Pa)
+    got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
+    plain = simulate(Model([]), valve_params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    return got, ref, plain, u
+
+
 @pytest.mark.parametrize("terms", ["inlet_flux*command_lag_fall",
                                    "exhaust_flux*command_lag_rise"])
 def test_the_command_lags_one_way_parts_agree_with_the_reference(terms, rig, valve_params,
@@ -358,15 +371,9 @@ def test_the_command_lags_one_way_parts_agree_with_the_reference(terms, rig, val
     """Each one-way part of the command lag acts after its own direction only: on a
     command that rises, falls and rises again, against the reference, moving the
     pressure by > 300 Pa where it acts and not at all before its first change."""
-    u = np.where(inputs.time_s < 0.05, -2.0, np.where(inputs.time_s < 0.12, 1.0, -3.0))
-    u = np.where(inputs.time_s < 0.17, u, 0.5)
-    steps = Inputs(inputs.time_s, u, inputs.position_m, inputs.supply_pressure_Pa)
     e, values = _closure(terms, thresholds={"closure_threshold_0_b": 0.01})
-    model = Model([e])
-    params = dict(valve_params, **values)
-    got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
-    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
-    plain = simulate(Model([]), valve_params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    got, ref, plain = _on_rise_fall_rise(Model([e]), dict(valve_params, **values), rig,
+                                         valve_params, inputs)[:3]
     effect = np.abs(got - plain)
     first = 120 if "fall" in terms else 50  # (ms: its direction's first change)
     assert np.max(effect[:first + 1]) < 1e-6 * np.max(effect)
@@ -383,19 +390,14 @@ def test_a_late_valves_area_agrees_with_the_reference_and_acts_after_its_directi
     between the breaks the kernel takes where a value leaves the window),
     moving the pressure by > 300 Pa and not at all before its direction's first change,
     nor more than one dead time after the last change."""
-    t = inputs.time_s
-    u = np.where(t < 0.05, -2.0, np.where(t < 0.12, 1.0, -3.0))
-    u = np.where(t < 0.17, u, 0.5)
-    steps = Inputs(t, u, inputs.position_m, inputs.supply_pressure_Pa)
     terms = f"inlet_flux*inlet_area_late_{late}; exhaust_flux*exhaust_area_late_{late}"
     e, values = _closure(terms, thresholds={"closure_threshold_0_b": 0.0075,
                                             "closure_threshold_1_b": 0.0075})
     values.update(closure_coefficient_0=1.0, closure_coefficient_1=-1.0)
     model = Model([e])
     params = dict(valve_params, **values)
-    got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
-    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
-    plain = simulate(Model([]), valve_params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    got, ref, plain, u = _on_rise_fall_rise(model, params, rig, valve_params, inputs)
+    t = inputs.time_s
     effect = np.abs(got - plain)
     first = 120 if late == "fall" else 50  # (ms: its direction's first change)
     assert np.max(effect[:first + 1]) < 1e-6 * np.max(effect)

@@ -95,8 +95,6 @@ PAIRED_ONLY = frozenset({"command_lag_fall", "command_lag_rise", *DEAD_TIME_FEAT
 #: The dead times (s) a late valve's features are tried at, those the recordings
 #: resolve (:func:`dead_time_range`).
 DEAD_TIMES_S = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
-#: Longest dead time tried, s.
-DEAD_TIME_MAX_S = 0.2
 
 
 def hinge_partners(hinge: str) -> tuple[str, ...]:
@@ -169,12 +167,12 @@ def relaxation_times(signals_list: Sequence[dict]) -> np.ndarray:
 
 def dead_time_range(signals_list: Sequence[dict]) -> tuple[float, float]:
     """The dead times (s) the recordings resolve: from one median sample interval to
-    :data:`RELAXATION_MAX_SHARE` of the shortest recording, at most
-    :data:`DEAD_TIME_MAX_S`; ``(0, 0)`` when a recording's signals carry no intervals."""
+    :data:`RELAXATION_MAX_SHARE` of the shortest recording, at most the grid's
+    longest; ``(0, 0)`` when a recording's signals carry no intervals."""
     lo, hi = relaxation_range(signals_list)
     if hi <= 0.0:
         return (0.0, 0.0)
-    return (lo / RELAXATION_MIN_INTERVALS, min(hi, DEAD_TIME_MAX_S))
+    return (lo / RELAXATION_MIN_INTERVALS, min(hi, max(DEAD_TIMES_S)))
 
 
 def hinge_thresholds(signals_list: Sequence[dict], quantiles: Sequence[float]
