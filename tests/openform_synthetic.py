@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pneubayes.effects.closure_features import HeldCommand, command_direction
+from pneubayes.effects.closure_histories import HeldCommand, command_direction
 from pneubayes.physics.gas import GasConstants
 from pneubayes.physics.orifice import flow_function, flow_terms
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from pneubayes.effects import closure_features as cf
+from pneubayes.effects import closure_histories as ch
 from pneubayes.effects import closure_terms as ct
 from pneubayes.effects import make_effect
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, N_SLOTS, SLOT_INDEX
@@ -406,7 +407,7 @@ def test_a_late_valves_area_agrees_with_the_reference_and_acts_after_its_directi
     # the numpy twin: the area change at the interval midpoints is nonzero within the
     # 7.5 ms after each change in its direction only (the 8th midpoint on the edge)
     sl = model.lower(model.as_matrix(params), rig)[0]
-    held = cf.HeldCommand(t[:-1] + 5e-4, t, u, 0.0, None, lambda v: port_areas(sl, v))
+    held = ch.HeldCommand(t[:-1] + 5e-4, t, u, 0.0, None, lambda v: port_areas(sl, v))
     on = set(np.nonzero(held.area_change(0.0075, "inlet", late))[0])
     changes = [120] if late == "fall" else [50, 170]
     assert set().union(*(range(c, c + 7) for c in changes)) <= on
@@ -551,7 +552,7 @@ def test_a_relaxation_starts_from_the_readings_history(rig, valve_params, inputs
         return simulate_windows(model, params, inp, rig, np.array([100]), 3, 2.0e5,
                                 _tight())[0, 0]
     got, at_rest = run(reading), run(np.full(n, 2.0e5))
-    pbar = cf.first_order_low_pass(inputs.time_s[:101], reading[:101], 0.05)[-1]
+    pbar = ch.first_order_low_pass(inputs.time_s[:101], reading[:101], 0.05)[-1]
     assert pbar < 2.0e5 - 1e4  # the history is remembered
     # p > p_bar: the relaxation draws mass out, so the pressure falls faster than at rest
     assert got[1] < at_rest[1] - 1.0
@@ -634,7 +635,7 @@ def _expected_direction(times, before=None):
 @pytest.mark.parametrize("before", [None, 0.7])
 def test_the_direction_signal_follows_the_delayed_commands_last_change(before, rig,
                                                                          closable_params):
-    """cf.held_direction, path_signals (at the interval midpoints), rate_terms (which
+    """ch.held_direction, path_signals (at the interval midpoints), rate_terms (which
     refuses a closure reading the direction without it) and the compiled simulator
     (valve shut, rigid chamber: term ``command_direction`` of c kg/s moves the pressure
     at exactly n Rs T c dir / V, a piecewise straight line, vs the reference)."""
@@ -646,7 +647,7 @@ def test_the_direction_signal_follows_the_delayed_commands_last_change(before, r
     inputs = _rise_hold_fall(before)
     t = inputs.time_s
     want = _expected_direction(PROBES_S, before)
-    got = cf.held_direction(PROBES_S, t, inputs.command_V, DELAY_S, before)
+    got = ch.held_direction(PROBES_S, t, inputs.command_V, DELAY_S, before)
     np.testing.assert_array_equal(got, want)
     c = 2e-6
     e = make_effect("closure", terms="command_direction")
@@ -885,14 +886,14 @@ def test_a_long_history_is_read_strided_and_agrees_with_the_full_low_pass():
 
     t = np.arange(4001) * 1e-3
     pm = 3e5 + 1e5 * np.sin(2 * np.pi * 2.0 * t)
-    full = cf.first_order_low_pass(t[1500:], pm[1500:], 0.5)[-1]  # 2.5 s = 5 tau of it
+    full = ch.first_order_low_pass(t[1500:], pm[1500:], 0.5)[-1]  # 2.5 s = 5 tau of it
     got = relaxation_start(t, pm, 4000, 0.5, np.nan, False, P_ATM, (0.0, 0.0, 0.0, 0.0), (1.0, 0.0))
     assert 2500 // HISTORY_POINTS > 1  # (strided here)
     assert abs(got - full) < 1e-3 * 2e5
     # and a short one is read whole: the same as the low-pass of the record
     short = relaxation_start(t, pm, 100, 0.01, np.nan, False, P_ATM, (0.0, 0.0, 0.0, 0.0),
                              (1.0, 0.0))
-    assert short == pytest.approx(cf.first_order_low_pass(t[50:101], pm[50:101], 0.01)[-1],
+    assert short == pytest.approx(ch.first_order_low_pass(t[50:101], pm[50:101], 0.01)[-1],
                                   rel=1e-12)
 
 

@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 from pneubayes.effects import CATALOGUE
-from pneubayes.effects.closure_features import first_order_low_pass
+from pneubayes.effects.closure_histories import first_order_low_pass
 from pneubayes.physics.cylinder import cylinder_preset
 from pneubayes.physics.gas import GasConstants
 

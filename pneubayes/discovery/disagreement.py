@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.effects.closure_features import command_direction
+from pneubayes.effects.closure_histories import command_direction
 from pneubayes.model import Model
 from pneubayes.simulation.rates import rate_terms
 

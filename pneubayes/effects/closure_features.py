@@ -14,18 +14,18 @@ The same table is evaluated in two places that must agree to rounding: in numpy 
 :func:`evaluate_features` (the residual search, :mod:`pneubayes.discovery.openform`), and
 in the compiled simulator by the feature codes (:mod:`pneubayes.simulation.chamber`).
 Some features have memory: ``command_direction``, the sign of the delayed command's
-last change (:func:`held_direction`; the kernel tracks it as it walks the command);
-``pressure_relaxation``, the chamber pressure less its first-order low-pass ``p_bar``
-with a fitted time constant (:func:`first_order_low_pass`; the kernel carries ``p_bar`` as a
-state); ``net_flow_lag``, the net port flow's low-pass less the flow itself; and
-``command_lag``, the spool position's low-pass less the position (and its two one-way
-parts, ``command_lag_fall`` and ``command_lag_rise``); the dead-time features, a port's
-area at the command's extreme over the last theta s less its area now
-(:class:`HeldCommand`: a valve that follows the command's falls, or rises, late). The
-relaxation is what a chamber shows when something behind it follows the pressure with a
-lag: a side volume behind a narrow passage (``m = -k (p - p_bar)``
-exactly, to first order in the passage's law), a wall that creeps after a pressure
-step, gas that trades heat with the wall.
+last change (the kernel tracks it as it walks the command); ``pressure_relaxation``,
+the chamber pressure less its first-order low-pass ``p_bar`` with a fitted time
+constant (the kernel carries ``p_bar`` as a state); ``net_flow_lag``, the net port
+flow's low-pass less the flow itself; ``command_lag``, the spool position's low-pass
+less the position (and its two one-way parts, ``command_lag_fall`` and
+``command_lag_rise``); and the dead-time features, a port's area at the command's
+extreme over the last theta s less its area now (a valve that follows the command's
+falls, or rises, late). Their memories are in :mod:`pneubayes.effects.closure_histories`.
+The relaxation is what a chamber shows when something behind it follows the pressure
+with a lag: a side volume behind a narrow passage (``m = -k (p - p_bar)`` exactly, to
+first order in the passage's law), a wall that creeps after a pressure step, gas that
+trades heat with the wall.
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
+
+from pneubayes.effects.closure_histories import SignalHistory
 
 #: Scale of the area features: areas enter in mm^2 so coefficients are O(flow).
 AREA_SCALE_M2 = 1e-6
@@ -52,7 +53,7 @@ class Feature:
     (their areas, flows or flow functions at the chamber's pressure), which a tube
     simulated as a line puts at its far end (:data:`PORT_FEATURES`); ``dead_time``
     whether its parameter is a dead time (s) over which it remembers the command
-    (:class:`HeldCommand`)."""
+    (:class:`~pneubayes.effects.closure_histories.HeldCommand`)."""
 
     name: str
     code: int
@@ -178,165 +179,24 @@ PORT_FEATURES: frozenset[str] = frozenset(f.name for f in FEATURES if f.port)
 #: pressures in Pa, the spool in the command's unit, areas in m^2, port mass flows in
 #: kg/s, the ports' flow functions f(p_s, p) and f(p, P_atm) (eqs. 1-3, the flow per unit
 #: area) in kg/(s m^2), the volume in m^3 and its rate in m^3/s, the command's direction
-#: (+1, -1 or 0; :func:`command_direction`).
+#: (+1, -1 or 0; :func:`~pneubayes.effects.closure_histories.command_direction`).
 SIGNALS = ("pressure_Pa", "supply_pressure_Pa", "atmospheric_pressure_Pa", "spool",
            "inlet_area_m2", "exhaust_area_m2", "inlet_flow_kg_per_s",
            "exhaust_flow_kg_per_s", "inlet_flux_kg_per_s_m2", "exhaust_flux_kg_per_s_m2",
            "volume_m3", "volume_rate_m3_per_s", "command_direction")
 #: The low-pass features (``pressure_relaxation``, ``net_flow_lag``, ``command_lag``) read
 #: their signal's history too: ``"pressure_history"`` / ``"net_flow_history"`` /
-#: ``"spool_history"``, :class:`SignalHistory` objects along the signals' points, or else
-#: the points' times ``"time_s"`` (s) to low-pass the signal along.
+#: ``"spool_history"``, ``SignalHistory`` objects
+#: (:mod:`pneubayes.effects.closure_histories`) along the signals' points, or else the
+#: points' times ``"time_s"`` (s) to low-pass the signal along.
 LOW_PASS_HISTORIES: dict[str, str] = {"pressure_relaxation": "pressure_history",
                                       "net_flow_lag": "net_flow_history",
                                       "command_lag": "spool_history",
                                       "command_lag_fall": "spool_history",
                                       "command_lag_rise": "spool_history"}
 #: The dead-time features (``*_late_fall``, ``*_late_rise``) read the delayed command's
-#: history and the valve's map: ``"held_command"``, a :class:`HeldCommand`.
+#: history and the valve's map: ``"held_command"``, a ``HeldCommand``.
 DEAD_TIME_FEATURES: tuple[str, ...] = tuple(f.name for f in FEATURES if f.dead_time)
-
-
-def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray:
-    """The first-order low-pass ``y`` of a series (a pressure's ``p_bar``, a flow's
-    ``q_bar``; the series' unit): ``tau dy/dt = v - y`` stepped exactly for ``v`` linear
-    between its samples, from ``y = start`` (None: the first finite sample, at rest). A
-    non-finite sample holds ``y`` (the interval is skipped and the next finite sample
-    starts a new segment).
-
-    Parameters
-    ----------
-    time_s, values : (N,) arrays
-        Sample times (s, increasing) and the series.
-    tau_s : float
-        The time constant, s (> 0).
-    start : float or None
-
-    Returns
-    -------
-    (N,) array
-    """
-    t = np.asarray(time_s, dtype=np.float64)
-    p = np.asarray(values, dtype=np.float64)
-    if t.shape != p.shape or t.ndim != 1:
-        raise ValueError(f"first_order_low_pass: time_s and values must be 1-D of one "
-                         f"length, got {t.shape} and {p.shape}")
-    if not (np.isfinite(tau_s) and tau_s > 0):
-        raise ValueError(f"first_order_low_pass: tau_s must be > 0, got {tau_s!r}")
-    out = np.empty_like(p)
-    if p.size == 0:
-        return out
-    finite = np.isfinite(p)
-    if start is None:
-        start = p[np.argmax(finite)] if finite.any() else np.nan
-    h = np.diff(t)
-    ok = finite[1:] & finite[:-1]
-    a = np.exp(-h / tau_s)
-    # p linear over [t_k, t_k+1] at slope s: p_bar' = p' - s tau + (p_bar - p + s tau) a
-    s = np.where(ok, (p[1:] - p[:-1]) / np.where(h > 0, h, 1.0), 0.0)
-    b = np.where(ok, p[1:] - s * tau_s - a * (p[:-1] - s * tau_s), 0.0)
-    a = np.where(ok, a, 1.0)  # a skipped interval holds p_bar
-    out[0] = float(start)
-    if h.size and np.all(a == a[0]):  # uniform sampling, no gap: one linear filter
-        out[1:] = lfilter([1.0], [1.0, -a[0]], b, zi=[a[0] * out[0]])[0]
-        return out
-    y = out[0]
-    for k in range(h.size):  # (a first-order recursion)
-        y = a[k] * y + b[k]
-        out[k + 1] = y
-    return out
-
-
-class SignalHistory:
-    """A signal's series whose first-order low-passes :func:`first_order_low_pass` gives per
-    time constant (cached: a search evaluates one time constant many times).
-
-    Parameters
-    ----------
-    time_s, values : (N,) arrays
-        The series (s; the signal's unit), e.g. the measured chamber pressure at a
-        recording's interval midpoints.
-    """
-
-    def __init__(self, time_s, values):
-        self.time_s = np.asarray(time_s, dtype=np.float64)
-        self.values = np.asarray(values, dtype=np.float64)
-        self._cache: dict[float, np.ndarray] = {}
-
-    def relaxed(self, tau_s: float) -> np.ndarray:
-        """The low-pass at the series' points for time constant ``tau_s`` (s)."""
-        key = float(tau_s)
-        if key not in self._cache:
-            if len(self._cache) > 64:
-                self._cache.clear()
-            self._cache[key] = first_order_low_pass(self.time_s, self.values, key)
-        return self._cache[key]
-
-
-class HeldCommand:
-    """The delayed command's extremes over a trailing window and the valve's port areas
-    there: what the dead-time features read.
-
-    The command is held between its samples and takes effect ``delay_s`` after each
-    (before the first: ``before``, else the first sample's). At a time t its highest
-    (lowest) value over ``[t - d, t]`` is the position of a valve that follows the
-    command's falls (rises) ``d`` s late and its other changes at once.
-
-    Parameters
-    ----------
-    times_s : (M,) array
-        Where the features are evaluated, s.
-    command_times_s, command : (N,) arrays
-        The command's sample times (s, increasing) and values (the command's unit).
-    delay_s : float
-        The command's delay (s).
-    before : float or None
-        The command held before its first sample.
-    port_areas : callable
-        ``port_areas(command_values) -> (a_in, a_ex)``, m^2, the valve's map at the
-        evaluation points (e.g. :func:`pneubayes.simulation.rates.port_areas` of a slot
-        row).
-    """
-
-    def __init__(self, times_s, command_times_s, command, delay_s: float, before,
-                 port_areas):
-        self.times_s = np.asarray(times_s, dtype=np.float64)
-        u = np.asarray(command, dtype=np.float64)
-        # index 0: the command held before the first sample takes effect
-        self._held = np.concatenate(([u[0] if before is None else float(before)], u))
-        self._shifted = np.asarray(command_times_s, dtype=np.float64) + float(delay_s)
-        self._port_areas = port_areas
-        self._now_index = np.searchsorted(self._shifted, self.times_s, side="right")
-        self._now_areas = None
-        self._cache: dict[tuple[float, str], tuple[np.ndarray, np.ndarray]] = {}
-
-    def extreme(self, dead_time_s: float, late: str) -> np.ndarray:
-        """The command's highest (``late="fall"``) or lowest (``"rise"``) value over the
-        last ``dead_time_s`` s at each evaluation time."""
-        if late not in ("fall", "rise"):
-            raise ValueError(f"HeldCommand: late must be 'fall' or 'rise', got {late!r}")
-        if not (np.isfinite(dead_time_s) and dead_time_s > 0):
-            raise ValueError(f"HeldCommand: dead_time_s must be > 0, got {dead_time_s!r}")
-        now = self._now_index
-        old = np.searchsorted(self._shifted, self.times_s - dead_time_s, side="right")
-        pick = np.maximum if late == "fall" else np.minimum
-        out = self._held[now]
-        for k in range(int(np.max(now - old, initial=0))):  # (short windows: a few samples)
-            out = pick(out, self._held[np.minimum(old + k, now)])
-        return out
-
-    def area_change(self, dead_time_s: float, port: str, late: str) -> np.ndarray:
-        """``port``'s (``"inlet"`` or ``"exhaust"``) area at :meth:`extreme` less its area
-        at the command now, m^2."""
-        key = (float(dead_time_s), late)
-        if key not in self._cache:
-            if len(self._cache) > 64:
-                self._cache.clear()
-            if self._now_areas is None:
-                self._now_areas = self._port_areas(self._held[self._now_index])
-            a_in, a_ex = self._port_areas(self.extreme(dead_time_s, late))
-            self._cache[key] = (a_in - self._now_areas[0], a_ex - self._now_areas[1])
-        return self._cache[key][0 if port == "inlet" else 1]
 
 
 def _relaxed(signals: dict, tau_s: float, key: str, values) -> np.ndarray:
@@ -436,41 +296,3 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
                           dtype=np.float64)
         return np.maximum(area / AREA_SCALE_M2 - threshold, 0.0) + 0.0 * p
     return np.asarray(s["command_direction"], dtype=np.float64) + 0.0 * p
-
-
-def command_direction(command, before=None) -> np.ndarray:
-    """The held command's direction once each sample is in force: the sign of its last
-    change up to and including sample k (+1 a rise, -1 a fall, 0 none yet).
-
-    Parameters
-    ----------
-    command : (N,) array
-        The command samples (held between them).
-    before : float or None
-        The command held before the first sample (``Inputs.command_before_start``; its
-        change to sample 0 counts); None: none.
-
-    Returns
-    -------
-    (N,) array of -1.0, 0.0 or 1.0
-    """
-    u = np.asarray(command, dtype=np.float64)
-    prev = np.concatenate(([u[0] if before is None else float(before)], u[:-1]))
-    step = np.sign(u - prev)
-    changed = np.nonzero(step)[0]
-    if not changed.size:
-        return np.zeros(u.size)
-    last = np.searchsorted(changed, np.arange(u.size), side="right") - 1
-    return np.where(last >= 0, step[changed[np.maximum(last, 0)]], 0.0)
-
-
-def held_direction(times_s, time_s, command, delay_s=0.0, before=None) -> np.ndarray:
-    """:func:`command_direction` of the command delayed by ``delay_s`` at ``times_s``:
-    the direction of the sample in force, the last j with ``time_s[j] + delay_s <= t``
-    (0 before the first sample takes over, as the pre-trigger command is held)."""
-    d = command_direction(command, before)
-    j = np.searchsorted(np.asarray(time_s, dtype=np.float64) + delay_s,
-                        np.asarray(times_s, dtype=np.float64), side="right") - 1
-    return np.where(j >= 0, d[np.maximum(j, 0)], 0.0)
-
-

@@ -1,6 +1,6 @@
 """A closure's dead-time windows in the compiled kernel (the features ``*_late_fall``
 and ``*_late_rise`` of :mod:`pneubayes.effects.closure_features`, whose numpy twin is
-:class:`~pneubayes.effects.closure_features.HeldCommand`).
+:class:`~pneubayes.effects.closure_histories.HeldCommand`).
 
 At a time t a window of d s covers the delayed command over ``[t - d, t]``: the samples
 from the one in force at ``t - d`` (the window's pointer) to the one in force at t. Its

@@ -21,9 +21,9 @@ from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
     LOW_PASS_HISTORIES,
-    HeldCommand,
     evaluate_feature,
 )
+from pneubayes.effects.closure_histories import HeldCommand
 from pneubayes.effects.closure_terms import combine_terms
 from pneubayes.effects.path import CLOSURE_MAX_TERMS, TABLE_MAX_POINTS
 from pneubayes.effects.path import SLOT_INDEX as S
@@ -201,16 +201,16 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     attenuation, the volume after compliance and ``velocity_m_per_s`` times the bore's
     area as the volume rate (:func:`closure_mass_flow`), and ``command_direction``
     (+1, -1 or 0: the delayed command's last change,
-    :func:`~pneubayes.effects.closure_features.held_direction`), which must be given
+    :func:`~pneubayes.effects.closure_histories.held_direction`), which must be given
     when a term reads it. A low-pass feature (``pressure_relaxation``,
     ``net_flow_lag``, ``command_lag``) reads its signal's history: ``histories`` maps
     ``"pressure_history"`` / ``"net_flow_history"`` / ``"spool_history"`` to
-    :class:`~pneubayes.effects.closure_features.SignalHistory` objects along the
+    :class:`~pneubayes.effects.closure_histories.SignalHistory` objects along the
     evaluation points (held as given: the slope in ``pressure_Pa`` is the instant's);
     without one, ``time_s`` (the points' times, s) low-passes the given pressure and
     the flows computed here along them. A dead-time feature (``*_late_fall``,
     ``*_late_rise``) reads ``histories["held_command"]`` (a
-    :class:`~pneubayes.effects.closure_features.HeldCommand`); without one, ``time_s``
+    :class:`~pneubayes.effects.closure_histories.HeldCommand`); without one, ``time_s``
     holds ``spool_V`` between the points as the command.
     ``include_closure=False`` leaves a closure's term at zero (for callers that read
     only the ports' terms). A supply tank
@@ -249,7 +249,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     if include_closure and np.any(sl[S["closure_terms"]] > 0):
         if command_direction is None and _reads_feature(sl, "command_direction"):
             raise ValueError("rate_terms: the closure reads the command's direction; give "
-                             "command_direction (closure_features.held_direction of the "
+                             "command_direction (closure_histories.held_direction of the "
                              "command at the evaluation times)")
         histories = dict(histories or {})
         for name, key in LOW_PASS_HISTORIES.items():

@@ -24,9 +24,9 @@ from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
     FEATURES,
     LOW_PASS_HISTORIES,
-    command_direction,
     evaluate_feature,
 )
+from pneubayes.effects.closure_histories import command_direction
 from pneubayes.effects.closure_terms import PORT_FACTOR_LIMITS
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.model import Model

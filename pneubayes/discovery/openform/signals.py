@@ -27,7 +27,7 @@ import numpy as np
 
 from pneubayes.discovery.absorbers import sensitivity_points
 from pneubayes.discovery.openform.trajectory import phi1, pressure_gain
-from pneubayes.effects.closure_features import (
+from pneubayes.effects.closure_histories import (
     HeldCommand,
     SignalHistory,
     held_direction,
