@@ -1,8 +1,9 @@
 """One bag's sparse regression of the open-form search, and the least squares around it.
 
 :func:`bag_coefficients` fits one bootstrap bag's unit-RMS columns with a pysindy
-optimizer (FROLS by default, stopped where the next term's error reduction falls under
-a share; see :mod:`~pneubayes.discovery.openform.search` for why FROLS);
+optimizer (FROLS by default, as :class:`~pneubayes.discovery.openform.frols.ArrayFROLS`,
+stopped where the next term's error reduction falls under a share; see
+:mod:`~pneubayes.discovery.openform.search` for why FROLS);
 :func:`swap_columns` lets a greedy pick give way to a better or a simpler column;
 :func:`least_squares` refits the kept physical columns; :func:`candidate_rank` is the
 complexity order the swap prefers.
@@ -54,7 +55,9 @@ def _live_coefficients(x, y, rank, optimizer, max_terms, ridge, threshold,
     n = y.size
     xn, yn = x / math.sqrt(n), y / math.sqrt(n)  # unit-norm columns and target
     if optimizer == "frols":
-        opt = ps.FROLS(max_iter=max_terms, alpha=ridge, unbias=False)
+        from pneubayes.discovery.openform.frols import ArrayFROLS
+
+        opt = ArrayFROLS(max_iter=max_terms, alpha=ridge, unbias=False)
         opt.fit(xn, yn)
         err = opt.ERR_global[:, 0]
         k = 0
