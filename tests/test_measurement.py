@@ -213,3 +213,30 @@ def test_one_step_errors_start_from_readings_without_the_sensor_term(tmp_path):
     declared = prepare_recording(rec, {"pressure_filter": FILTER})
     assert declared.rig().pressure_filter == FILTER
     assert one_step_data(declared, 5).rig.pressure_filter is None
+
+
+def test_a_reading_that_stands_for_no_pressure_fails_its_parameter_set(rig, base_params,
+                                                                       step_command,
+                                                                       make_inputs):
+    """A parameter set whose simulated reading at a corner stands for no chamber
+    pressure (finite but below vacuum here) becomes a failed set (NaN), as a failed
+    simulation does; the other set is read as before."""
+    from pneubayes.simulation.measurement import sensor_reading
+
+    model = Model()
+    params = {k: v for k, v in base_params.items() if k in model.parameter_names}
+    t = np.arange(401) * 1e-3
+    inputs = make_inputs(t, step_command(2, t.size, 1e-3, hold_s=(0.01, 0.05)))
+    filtered = dataclasses.replace(rig, pressure_filter=FILTER)
+    theta = model.as_matrix(params)
+    slots = np.repeat(model.lower(theta, filtered), 2, axis=0)
+    sim = simulate_windows(model, params, inputs, rig, np.array([0]), t.size,
+                           np.array([3e5]), SolverConfig.standard())
+    both = np.concatenate([sim, sim])
+    good = sensor_reading(both[:1].copy(), slots[:1], filtered, inputs, np.array([0]),
+                          t.size)
+    assert not np.array_equal(good[0], sim[0])  # (the filter rounds corners here)
+    both[1, 0, 1:] = -5e5  # absurd: no chamber pressure reads this
+    out = sensor_reading(both, slots, filtered, inputs, np.array([0]), t.size)
+    np.testing.assert_array_equal(out[0], good[0])
+    assert np.all(np.isnan(out[1]))

@@ -51,7 +51,9 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     ``slots`` ``(B, N_SLOTS)`` on ``inputs`` (:class:`~pneubayes.simulation.Inputs`)
     and windows ``starts``; it is returned unchanged when ``rig.pressure_filter`` is
     None. Each window's first sample is its start pressure (the measured one) and stays
-    as it is; NaN rows (failed simulations) stay NaN.
+    as it is; NaN rows (failed simulations) stay NaN, and a parameter set whose reading
+    at a corner stands for no chamber pressure (beyond a curved sensor's turning point)
+    becomes one.
     """
     filt = rig.pressure_filter
     if filt is None:
@@ -101,6 +103,10 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     cal_g = 1.0 + slots[rows, S["reading_gain_error"]][:, None]
     curv = slots[rows, S["reading_curvature_Pa"]][:, None]
     p = pressure_behind_reading_Pa(p, rig.atmospheric_pressure_Pa, cal_o, cal_g, curv)
+    # a reading beyond a curved sensor's turning point stands for no pressure: that
+    # parameter set fails, as a simulation that fails does (its rows become NaN)
+    unread = ~np.all(np.isfinite(p) & (p > 0.0), axis=1)  # (b,)
+    p = np.where(unread[:, None], rig.atmospheric_pressure_Pa, p)
     # the sensor's slope there (g, and a curved sensor's 2 k y / (1 bar)^2)
     slope = cal_g + 2.0 * curv * (p - rig.atmospheric_pressure_Pa) / CURVATURE_SCALE_PA**2
     x = np.interp(tau, t, inputs.position_m)
@@ -123,4 +129,5 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     np.add.at(out, (np.broadcast_to(rows[:, None, None], shape),
                     np.broadcast_to(w[None, :, None], shape), idx - s0[:, None]),
               np.where(ok, kr * jump[..., None], 0.0))
+    out[rows[unread]] = np.nan
     return out

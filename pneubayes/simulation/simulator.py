@@ -208,7 +208,19 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         raise SimulationError(f"simulation failed for {failed.size} parameter set(s){more}:\n  "
                               + "\n  ".join(lines))
     # the sensor point: what a declared anti-alias filter reads of the chamber pressure
+    read = np.isfinite(arrays[0]).all(axis=(1, 2))
     arrays[0] = sensor_reading(arrays[0], slots, rig, inputs, starts, length)
+    unread = np.nonzero(read & ~np.isfinite(arrays[0]).all(axis=(1, 2)))[0]
+    if len(unread) and on_failure == "nan":
+        for a in arrays[1:]:
+            a[unread] = np.nan
+    elif len(unread):
+        vals = ", ".join(f"{n}={v:.6g}" for n, v in zip(model.parameter_names,
+                                                        theta[unread[0]]))
+        raise SimulationError(f"simulation failed for {unread.size} parameter set(s): a "
+                              f"reading at a corner the declared pressure filter rounds "
+                              f"stands for no chamber pressure (beyond the curved "
+                              f"sensor's turning point); parameter set {unread[0]}: {vals}")
     return arrays
 
 
