@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in six sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in eight sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -35,7 +35,11 @@ limiter at the inlet, and a solenoid that releases late, cases ``w00``-``w09``. 
 written or any case ran): a worn piston seal into the cylinder's other chamber behind a
 breather, a pressure-energised seal whose leak peaks at low pressure, a pressure
 sensor whose zero drifts as it warms, and an end-of-stroke cushion, cases
-``x00``-``x09``. Each form is planted
+``x00``-``x09``. Set 8 (seed 1796395770, drawn from the clock on 2026-12-04 and recorded
+before its forms were written or any case ran): a quick-exhaust valve at the chamber's
+port, a gas-charged accumulator on the chamber, laminar leaks across the spool's lands,
+and a pressure sensor whose diaphragm's temperature transient overshoots a step, cases
+``y00``-``y09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -86,6 +90,7 @@ from pneubayes.bench.forms import (
     EnergisedSealLeak,
     ExhaustCheckValve,
     ExhaustSilencer,
+    GasAccumulator,
     InletFlowForce,
     InletFlowLimiter,
     Iso6358Ports,
@@ -95,13 +100,16 @@ from pneubayes.bench.forms import (
     MeterOutThrottle,
     PilotInletValve,
     PistonSealBypass,
+    QuickExhaustValve,
     ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
     SeatLeak,
     SensorBow,
+    SensorThermalShock,
     SensorZeroDrift,
     SpoolHysteresis,
+    SpoolLandLeak,
     SpoolSlewLimit,
     SpoolStiction,
     SpoolUnderlap,
@@ -136,6 +144,9 @@ OPENFORM_SEED_6 = 1796267760
 #: Set 7's seed: ``date +%s`` at 2026-12-03 08:22:03 UTC, fixed before its forms were
 #: written or any case ran.
 OPENFORM_SEED_7 = 1796286123
+#: Set 8's seed: ``date +%s`` at 2026-12-04 14:49:30 UTC, fixed before its forms were
+#: written or any case ran.
+OPENFORM_SEED_8 = 1796395770
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -146,10 +157,11 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              5: ("SpringReturnSpool", "WarmingCoil", "CapillarySensorPort",
                  "LaggingPositionSensor"),
              6: ("ExhaustCheckValve", "SeatLeak", "InletFlowLimiter", "ReleaseDelay"),
-             7: ("PistonSealBypass", "EnergisedSealLeak", "SensorZeroDrift", "EndCushion")}
+             7: ("PistonSealBypass", "EnergisedSealLeak", "SensorZeroDrift", "EndCushion"),
+             8: ("QuickExhaustValve", "GasAccumulator", "SpoolLandLeak", "SensorThermalShock")}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
-             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7}
-SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x"}
+             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -238,7 +250,16 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
     - SensorZeroDrift (set 7): 2-15 kPa (log-uniform, either sign) with a 3-30 s time
       constant (log-uniform);
     - EndCushion (set 7): over the last 5-20 % of the stroke, a needle of 2e-8-2e-7 m^2
-      (log-uniform; about 3-30 % of the Table II exhausts), edges of 1-3 % of it.
+      (log-uniform; about 3-30 % of the Table II exhausts), edges of 1-3 % of it;
+    - QuickExhaustValve (set 8): its exhaust 1-4 x the valve's full exhaust area and its
+      passage 1-3 x the valve's full inlet area (log-uniform), switching over 5-30 kPa,
+      a line of 0.2-2 cm^3 (log-uniform);
+    - GasAccumulator (set 8): 20-100 % of the swept volume (log-uniform), precharged at
+      1-3 bar gauge, n 1.0-1.4;
+    - SpoolLandLeak (set 8): 0.01-0.05 g/s at the null into 3 bar (log-uniform), the
+      sealing length doubled 0.2-1 V from the null;
+    - SensorThermalShock (set 8): an overshoot of 1-5 % of a step (log-uniform, either
+      sign), settling in 0.1-1 s (log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -341,6 +362,34 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
         sign = 1.0 if rng.uniform() < 0.5 else -1.0
         return SensorZeroDrift(drift_Pa=sign * _log_uniform(rng, 2e3, 15e3),
                                time_constant_s=_log_uniform(rng, 3.0, 30.0))
+    if name == "QuickExhaustValve":
+        from pneubayes.physics.valve import gompertz_scalar, valve_preset
+
+        v = valve_preset(valve).parameters()
+
+        def full(port, u):
+            return gompertz_scalar(u, *(v[f"{port}_{k}"] for k in (
+                "offset_m2", "a_m2", "b", "c_per_V", "d_V")))
+
+        return QuickExhaustValve(
+            exhaust_area_m2=full("exhaust", -5.0) * _log_uniform(rng, 1.0, 4.0),
+            passage_area_m2=full("inlet", 5.0) * _log_uniform(rng, 1.0, 3.0),
+            switch_band_Pa=rng.uniform(5e3, 30e3),
+            line_volume_m3=_log_uniform(rng, 2e-7, 2e-6))
+    if name == "GasAccumulator":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return GasAccumulator(volume_m3=swept * _log_uniform(rng, 0.2, 1.0),
+                              precharge_Pa=ATMOSPHERE_PA + rng.uniform(1e5, 3e5),
+                              polytropic_index=rng.uniform(1.0, 1.4))
+    if name == "SpoolLandLeak":
+        at_null = _log_uniform(rng, 1e-5, 5e-5)  # kg/s into a chamber at 3 bar
+        return SpoolLandLeak(conductance_kg_per_s_Pa2=at_null / (SUPPLY_PA**2 - 3e5**2),
+                             overlap_scale_V=rng.uniform(0.2, 1.0))
+    if name == "SensorThermalShock":
+        sign = 1.0 if rng.uniform() < 0.5 else -1.0
+        return SensorThermalShock(gain=sign * _log_uniform(rng, 0.01, 0.05),
+                                  time_constant_s=_log_uniform(rng, 0.1, 1.0))
     if name == "EndCushion":
         stroke = cylinder_preset(cylinder).stroke_m
         return EndCushion(length_m=rng.uniform(0.05, 0.2) * stroke,
@@ -510,7 +559,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="results folder (cases cached there)")
     ap.add_argument("--set", type=int, choices=sorted(SET_FORMS), default=1, dest="blind_set",
-                    help="the blind set, 1-5, each with its recorded seed ("
+                    help="the blind set, each with its recorded seed ("
                          + ", ".join(f"{k}: {v}" for k, v in SET_SEEDS.items())
                          + "); default 1")
     ap.add_argument("--seed", type=int, default=None,

@@ -20,6 +20,7 @@ from pneubayes.bench.forms import (
     EnergisedSealLeak,
     ExhaustCheckValve,
     ExhaustSilencer,
+    GasAccumulator,
     InletFlowForce,
     InletFlowLimiter,
     Iso6358Ports,
@@ -29,13 +30,16 @@ from pneubayes.bench.forms import (
     MeterOutThrottle,
     PilotInletValve,
     PistonSealBypass,
+    QuickExhaustValve,
     ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
     SeatLeak,
     SensorBow,
+    SensorThermalShock,
     SensorZeroDrift,
     SpoolHysteresis,
+    SpoolLandLeak,
     SpoolSlewLimit,
     SpoolStiction,
     SpoolUnderlap,
@@ -115,7 +119,9 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "LaggingPositionSensor", "ExhaustCheckValve",
                                      "SeatLeak", "InletFlowLimiter", "ReleaseDelay",
                                      "PistonSealBypass", "EnergisedSealLeak",
-                                     "SensorZeroDrift", "EndCushion"}
+                                     "SensorZeroDrift", "EndCushion", "QuickExhaustValve",
+                                     "GasAccumulator", "SpoolLandLeak",
+                                     "SensorThermalShock"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -184,6 +190,15 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (EnergisedSealLeak, {"conductance_kg_per_s_Pa2": 1e-15, "energising_pressure_Pa": 0.0},
      "energising_pressure_Pa"),
     (EndCushion, {"length_m": 0.005, "needle_area_m2": 1e-7, "edge_m": 0.0}, "edge_m"),
+    (QuickExhaustValve, {"exhaust_area_m2": -1e-6}, "exhaust_area_m2"),
+    (QuickExhaustValve, {"exhaust_area_m2": 1e-6, "line_volume_m3": 0.0}, "line_volume_m3"),
+    (GasAccumulator, {"volume_m3": float("nan")}, "volume_m3"),
+    (GasAccumulator, {"volume_m3": 1e-6, "polytropic_index": 1.6}, "polytropic_index"),
+    (SpoolLandLeak, {"conductance_kg_per_s_Pa2": -1e-16}, "conductance_kg_per_s_Pa2"),
+    (SpoolLandLeak, {"conductance_kg_per_s_Pa2": 1e-16, "overlap_scale_V": 0.0},
+     "overlap_scale_V"),
+    (SensorThermalShock, {"gain": float("inf")}, "gain"),
+    (SensorThermalShock, {"gain": 0.02, "time_constant_s": -0.1}, "time_constant_s"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -219,7 +234,9 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     PistonSealBypass(conductance_kg_per_s_Pa2=0.0, vent_area_m2=3e-8,
                      opposite_volume_m3=3e-6),
     EnergisedSealLeak(conductance_kg_per_s_Pa2=0.0, energising_pressure_Pa=1.5e5),
-    EndCushion(length_m=0.1 * STROKE, needle_area_m2=0.0, edge_m=0.02 * STROKE)],
+    EndCushion(length_m=0.1 * STROKE, needle_area_m2=0.0, edge_m=0.02 * STROKE),
+    QuickExhaustValve(exhaust_area_m2=0.0), GasAccumulator(volume_m3=0.0),
+    SpoolLandLeak(conductance_kg_per_s_Pa2=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -896,3 +913,88 @@ def test_an_end_cushion_throttles_the_vent_near_the_end_only(rig, base):
     with pytest.raises(ValueError, match="EndCushion cannot be planted beside"):
         _run(params, (cushion, out_of_catalogue_defaults("MeterOutThrottle")),
              _held(0.01, (0.0,)), rig)
+
+
+def test_a_quick_exhaust_valve_vents_the_chamber_itself_and_keeps_the_limits(rig):
+    """Shut (0 V): line and chamber keep their pressure. Venting (-5 V) from 4 bar: the
+    valve empties the small line, the QEV opens and the chamber falls at the rate of its
+    own exhaust a_q f(p, P_atm), faster than through the valve's port, to the atmosphere.
+    Full inlet (+5 V): the chamber fills through the line, a little behind the plain
+    port (the passage in series)."""
+    qev = QuickExhaustValve(exhaust_area_m2=1.5e-6, passage_area_m2=1.5e-6,
+                            switch_band_Pa=1e4, line_volume_m3=2e-7)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    shut = _run(params, (qev,), _held(0.05, (0.0,)), rig, p0=4e5)
+    np.testing.assert_allclose(shut, 4e5, rtol=0, atol=1e-3)
+    vent, plain = (_run(params, f, _held(0.1, (-5.0,)), rig, p0=4e5) for f in ((qev,), ()))
+    g = rig.gas
+    k = int(0.001 / DT)  # (the line is empty and the QEV open within 0.5 ms)
+    mid = 0.5 * (vent[k] + vent[k + 1])
+    mdot = -1.5e-6 * flow_terms(mid, P_ATM, g.alpha_s_per_m, g.beta_s_per_m, g.theta,
+                                g.heat_capacity_ratio)[0]
+    got = (vent[k + 1] - vent[k]) / DT
+    _, want = _rate0(vent, VOLUME, rig, mdot)
+    assert got == pytest.approx(want, rel=0.02)
+    assert _time_to(-vent, -(P_ATM + 5e4)) < 0.7 * _time_to(-plain, -(P_ATM + 5e4))
+    assert vent[-1] == pytest.approx(P_ATM, abs=50.0)
+    fill, plain = (_run(params, f, _held(0.008, (5.0,)), rig) for f in ((qev,), ()))
+    assert np.all(np.diff(fill) > 0) and 0.8 * (plain[-1] - P_ATM) < fill[-1] - P_ATM < (
+        plain[-1] - P_ATM)
+    with pytest.raises(ValueError, match="QuickExhaustValve cannot be planted beside"):
+        _run(params, (qev, out_of_catalogue_defaults("EndCushion")), _held(0.01, (0.0,)), rig)
+
+
+def test_a_gas_accumulator_adds_its_compliance_above_its_precharge_only(rig):
+    """Full inlet from two starts at the same inflow: below the precharge the rate is the
+    plain chamber's; above it eq. 5 with V + V_a (1 - (p0/p)^(1/n)) and dV/dp solved in."""
+    acc = GasAccumulator(volume_m3=2e-7, precharge_Pa=2.5e5, polytropic_index=1.2)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    inputs = _held(0.002, (5.0,))
+    below = _run(params, (acc,), inputs, rig, p0=2e5)
+    np.testing.assert_allclose(below[:3], _run(params, (), inputs, rig, p0=2e5)[:3],
+                               rtol=0, atol=1e-6)
+    p0 = 3e5
+    with_acc, plain = _run(params, (acc,), inputs, rig, p0=p0), _run(params, (), inputs,
+                                                                      rig, p0=p0)
+    r = (2.5e5 / p0) ** (1 / 1.2)
+    v_tot = VOLUME + 2e-7 * (1 - r)
+    dvdp = 2e-7 * r / (1.2 * p0)
+    kappa = rig.gas.heat_capacity_ratio
+    ratio = (with_acc[1] - with_acc[0]) / (plain[1] - plain[0])
+    assert ratio == pytest.approx(VOLUME / (v_tot + kappa * p0 * dvdp), rel=0.01)
+    assert with_acc[-1] < plain[-1]
+
+
+def test_spool_land_leaks_settle_a_shut_chamber_between_supply_and_atmosphere(rig):
+    """At the null (0 V, both ports shut) the two land leaks k (p_s^2 - p^2) and
+    k (p^2 - P_atm^2) balance at p^2 = (p_s^2 + P_atm^2) / 2, from either side; at -2 V
+    the inlet land is 1 + 2 / s_L times longer and the balance moves down."""
+    lands = SpoolLandLeak(conductance_kg_per_s_Pa2=4e-15, overlap_scale_V=0.5)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    settle = np.sqrt((P_SUP**2 + P_ATM**2) / 2)
+    for p0 in (P_ATM, P_SUP):
+        p = _run(params, (lands,), _held(1.0, (0.0,)), rig, p0=p0)
+        assert p[-1] == pytest.approx(settle, abs=100.0)
+    p = _run(params, (lands,), _held(0.02, (0.0,)), rig, p0=3e5)
+    mid = 0.5 * (p[0] + p[1])
+    got, want = _rate0(p, VOLUME, rig, 4e-15 * (P_SUP**2 + P_ATM**2 - 2 * mid**2))
+    assert got == pytest.approx(want, rel=0.01)
+    low = _run(params, (lands,), _held(1.0, (-1.2,)), rig, p0=3e5)  # (ports still shut)
+    k_in = 1.0 / (1.0 + 1.2 / 0.5)
+    assert low[-1] == pytest.approx(np.sqrt((k_in * P_SUP**2 + P_ATM**2) / (1 + k_in)),
+                                    abs=100.0)
+
+
+def test_a_thermally_shocked_sensor_overshoots_a_step_and_settles():
+    """A pressure step of D read through the transient: (1 + g) D at once, then back to
+    D as exp(-t / tau); no change, no transient; gain 0 reads true."""
+    shock = SensorThermalShock(gain=0.04, time_constant_s=0.2)
+    t = np.linspace(0.0, 2.0, 2001)
+    p = np.where(t >= 0.5, 4e5, 1e5)
+    r = shock.read(t, p)
+    np.testing.assert_array_equal(r[t < 0.5], 1e5)
+    after = t >= 0.5
+    want = 4e5 + 0.04 * 3e5 * np.exp(-(t[after] - t[after][0]) / 0.2)
+    # (the low-pass sees the step as linear over its one sample interval)
+    np.testing.assert_allclose(r[after][1:], want[1:], rtol=0, atol=0.04 * 3e5 * 0.003)
+    np.testing.assert_array_equal(SensorThermalShock(gain=0.0).read(t, p), p)

@@ -35,6 +35,7 @@ from pneubayes.bench.forms import (
     LaggingPositionSensor,
     PlantForm,
     SensorBow,
+    SensorThermalShock,
     SensorZeroDrift,
     catalogue_names_of,
     check_forms,
@@ -251,6 +252,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
                 p_true = form.read(p_true, ATMOSPHERE_PA)
         for form in cfg.forms:  # a warming sensor's zero drifts over the recording
             if isinstance(form, SensorZeroDrift):
+                p_true = form.read(t_fine, p_true)
+        for form in cfg.forms:  # a sensor whose diaphragm warms with the gas overshoots
+            if isinstance(form, SensorThermalShock):
                 p_true = form.read(t_fine, p_true)
         if read is not None:
             p_true = read(t_fine, p_true)

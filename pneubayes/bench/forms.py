@@ -18,7 +18,9 @@ the first, the second (:class:`ExhaustSilencer`, :class:`ScoredBarrelLeak`,
 developed against the second, the third (:class:`Iso6358Ports`, :class:`SpoolSlewLimit`,
 :class:`SpoolUnderlap`, :class:`MeterOutThrottle`), and, built after the stage had been
 developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynoldsPorts`,
-:class:`SpoolStiction`, :class:`SensorBow`).
+:class:`SpoolStiction`, :class:`SensorBow`); the later sets' forms are listed in
+:data:`FORMS` in the order they were written (the eighth: :class:`QuickExhaustValve`,
+:class:`GasAccumulator`, :class:`SpoolLandLeak`, :class:`SensorThermalShock`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -1075,6 +1077,113 @@ class EndCushion(PlantForm):
         _positive(self, "length_m", "edge_m")
 
 
+@dataclass(frozen=True)
+class QuickExhaustValve(PlantForm):
+    """A quick-exhaust valve (QEV) at the chamber's port, fed by the valve through a
+    line of volume ``line_volume_m3``. Its diaphragm passes air from the line into the
+    chamber; when the chamber is above the line it seals the line and opens its own
+    exhaust straight to the atmosphere::
+
+        w = smoothstep((p - p_l) / switch_band_Pa),
+        m_chamber = a_p (1 - w) f(p_l, p) - a_q w f(p, P_atm),
+        dp_l/dt = kappa Rs T_s / V_l (m_in(p_l) - m_ex(p_l) - a_p (1 - w) f(p_l, p)),
+
+    p_l the line's pressure (the valve's ports see it), ``a_q = exhaust_area_m2``,
+    ``a_p = passage_area_m2``, f eqs. 1-3 (signed; through the passage linear in the
+    drop below 1 kPa, laminar). ``exhaust_area_m2 = 0`` is no QEV (the port as without
+    it).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    exhaust_area_m2: float
+    passage_area_m2: float = 1.5e-6
+    switch_band_Pa: float = 1e4
+    line_volume_m3: float = 5e-7
+
+    def __post_init__(self):
+        _non_negative(self, "exhaust_area_m2")
+        _positive(self, "passage_area_m2", "switch_band_Pa", "line_volume_m3")
+
+
+@dataclass(frozen=True)
+class GasAccumulator(PlantForm):
+    """A gas-charged accumulator (a bladder pulsation damper) on the chamber: its gas,
+    ``volume_m3`` at the precharge pressure ``precharge_Pa`` (absolute), is compressed
+    polytropically once the chamber is above the precharge, and the chamber's air takes
+    the room it gives up::
+
+        V = V_dead + A x + V_a (1 - (p_0 / p)^(1 / n))   (p > p_0; else no change),
+
+    n = ``polytropic_index`` (1: slow, isothermal; 1.4: fast, adiabatic). Below the
+    precharge the bladder rests on its poppet. ``volume_m3 = 0`` is no accumulator.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    volume_m3: float
+    precharge_Pa: float = 2.5e5
+    polytropic_index: float = 1.2
+
+    def __post_init__(self):
+        _non_negative(self, "volume_m3")
+        _positive(self, "precharge_Pa", "polytropic_index")
+        if not 1.0 <= self.polytropic_index <= 1.4:
+            raise ValueError(f"GasAccumulator.polytropic_index must be in [1, 1.4], got "
+                             f"{self.polytropic_index!r}")
+
+
+@dataclass(frozen=True)
+class SpoolLandLeak(PlantForm):
+    """Internal leakage across the spool's lands (the radial clearance of a spool in
+    its sleeve): laminar, compressible, from the supply into the chamber across the
+    inlet land and from the chamber to the exhaust across the exhaust land, each through
+    a sealing length that grows as the spool moves to close its port::
+
+        m_in += k (p_s^2 - p_v^2) / (1 + max(0, -s) / s_L),
+        m_ex += k (p_v^2 - P_atm^2) / (1 + max(0, s) / s_L),
+
+    s the spool position (V, after the dead band's input), p_v the port's pressure,
+    ``k = conductance_kg_per_s_Pa2`` (the leak at the null), ``s_L =
+    overlap_scale_V``. ``conductance_kg_per_s_Pa2 = 0`` is a tight spool.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    conductance_kg_per_s_Pa2: float
+    overlap_scale_V: float = 0.5
+
+    def __post_init__(self):
+        _non_negative(self, "conductance_kg_per_s_Pa2")
+        _positive(self, "overlap_scale_V")
+
+
+@dataclass(frozen=True)
+class SensorThermalShock(PlantForm):
+    """A pressure sensor whose diaphragm warms and cools with the gas it sees: after a
+    pressure change its reading overshoots (``gain > 0``) or undershoots and settles as
+    the diaphragm's temperature relaxes::
+
+        r = p + gain (p - p_bar),   tau dp_bar/dt = p - p_bar  (p_bar = p at the start),
+
+    ``tau = time_constant_s``. ``gain = 0`` is a sensor without the transient.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    gain: float
+    time_constant_s: float = 0.3
+
+    def __post_init__(self):
+        _finite(self, "gain")
+        _positive(self, "time_constant_s")
+
+    def read(self, time_s, pressure_Pa):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa`` at the
+        times ``time_s`` (s)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if self.gain == 0.0:
+            return p.copy()
+        return p + self.gain * (p - first_order_low_pass(t, p, self.time_constant_s))
+
+
 FORMS: dict[str, type[PlantForm]] = {
     cls.__name__: cls for cls in (AcousticTube, RoundedDeadzone, ClearanceLeak, RegulatorDroop,
                                   SecondOrderSpool, WallHeatTransfer, BladderVolume,
@@ -1086,7 +1195,9 @@ FORMS: dict[str, type[PlantForm]] = {
                                   SpringReturnSpool, WarmingCoil, CapillarySensorPort,
                                   LaggingPositionSensor, ExhaustCheckValve, SeatLeak,
                                   InletFlowLimiter, ReleaseDelay, PistonSealBypass,
-                                  EnergisedSealLeak, SensorZeroDrift, EndCushion)
+                                  EnergisedSealLeak, SensorZeroDrift, EndCushion,
+                                  QuickExhaustValve, GasAccumulator, SpoolLandLeak,
+                                  SensorThermalShock)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -1226,7 +1337,13 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``EnergisedSealLeak``: 8e-15 kg/(s Pa^2), the gap halved at 1.5 bar gauge (the
       leak largest near there, about 0.05 g/s);
     - ``SensorZeroDrift``: 5 kPa, 10 s;
-    - ``EndCushion``: the last 10 % of the stroke, a 5e-8 m^2 needle, 2 % edges.
+    - ``EndCushion``: the last 10 % of the stroke, a 5e-8 m^2 needle, 2 % edges;
+    - ``QuickExhaustValve``: a 1.5e-6 m^2 exhaust, a 1.5e-6 m^2 passage, switching over
+      10 kPa, a 0.5 cm^3 line;
+    - ``GasAccumulator``: half the swept volume, precharged at 2 bar gauge, n = 1.2;
+    - ``SpoolLandLeak``: 1e-16 kg/(s Pa^2) (0.02 g/s at the null into 3 bar), the
+      sealing length doubled 0.5 V from the null;
+    - ``SensorThermalShock``: 3 % overshoot, settling in 0.3 s.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -1298,5 +1415,15 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     if name == "EndCushion":
         return EndCushion(length_m=0.1 * cyl.stroke_m, needle_area_m2=5e-8,
                           edge_m=0.02 * cyl.stroke_m)
+    if name == "QuickExhaustValve":
+        return QuickExhaustValve(exhaust_area_m2=1.5e-6)
+    if name == "GasAccumulator":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return GasAccumulator(volume_m3=0.5 * swept,
+                              precharge_Pa=atmospheric_pressure_Pa + 200_000.0)
+    if name == "SpoolLandLeak":
+        return SpoolLandLeak(conductance_kg_per_s_Pa2=1e-16)
+    if name == "SensorThermalShock":
+        return SensorThermalShock(gain=0.03)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

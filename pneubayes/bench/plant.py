@@ -10,13 +10,14 @@ State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), 
 as the forms and effects require: chamber temperature, spool position and velocity,
 regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
 silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting, a
-supply hose's pressure, a solenoid coil's heat and the cylinder's other chamber behind a
-worn piston seal (:mod:`pneubayes.bench.forms` documents each form's equations). A
-sticking spool (SpoolStiction) changes the command the valve sees, a late release
-(ReleaseDelay) when it acts; the bench applies the reading-side forms (SensorBow,
-CapillarySensorPort, SensorZeroDrift; LaggingPositionSensor on the position) to the
-plant's output. The other out-of-catalogue forms act in the same
-right-hand side; at zero strength each leaves it as it was.
+supply hose's pressure, a solenoid coil's heat, the cylinder's other chamber behind a
+worn piston seal and a quick-exhaust valve's line (:mod:`pneubayes.bench.forms`
+documents each form's equations). A sticking spool (SpoolStiction) changes the command
+the valve sees, a late release (ReleaseDelay) when it acts; the bench applies the
+reading-side forms (SensorBow, CapillarySensorPort, SensorZeroDrift, SensorThermalShock;
+LaggingPositionSensor on the position) to the plant's output. The other
+out-of-catalogue forms act in the same right-hand side; at zero strength each leaves it
+as it was.
 
 Catalogue effects may be planted beside the forms: the plant reads their lowered
 signal-path slots (:mod:`pneubayes.effects.path`) with the meanings the model gives
@@ -58,6 +59,7 @@ from pneubayes.bench.forms import (
     EnergisedSealLeak,
     ExhaustCheckValve,
     ExhaustSilencer,
+    GasAccumulator,
     InletFlowForce,
     InletFlowLimiter,
     Iso6358Ports,
@@ -67,6 +69,7 @@ from pneubayes.bench.forms import (
     PilotInletValve,
     PistonSealBypass,
     PlantForm,
+    QuickExhaustValve,
     RegulatorDroop,
     ReleaseDelay,
     ReliefValve,
@@ -75,6 +78,7 @@ from pneubayes.bench.forms import (
     SeatLeak,
     SecondOrderSpool,
     SpoolHysteresis,
+    SpoolLandLeak,
     SpoolSlewLimit,
     SpoolStiction,
     SpoolUnderlap,
@@ -134,15 +138,21 @@ K_XC_P, K_SE_A, K_SE_D, K_FL_M = 82, 83, 84, 85
 K_PB_K, K_PB_A, K_PB_V = 86, 87, 88
 K_ES_K, K_ES_P = 89, 90
 K_EC_L, K_EC_N, K_EC_E = 91, 92, 93
-N_K = 94
-#: Below this drop (Pa) a MeterOutThrottle's flow is laminar (linear in the drop).
+# the eighth blind set's forms (all 0: absent; SensorThermalShock acts on the reading,
+# outside the right-hand side)
+K_QE_A, K_QE_P, K_QE_B, K_QE_V = 94, 95, 96, 97
+K_GA_V, K_GA_P, K_GA_N = 98, 99, 100
+K_LL_K, K_LL_S = 101, 102
+N_K = 103
+#: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
+#: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
 # Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
 # (SpringReturnSpool).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB) = range(20)
-N_L = 20
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ) = range(21)
+N_L = 21
 
 
 @njit(cache=True)
@@ -280,6 +290,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     pv = y[L[L_ITP]] if nseg > 0 else p
     if L[L_IF] >= 0:  # a meter-out throttle's fitting between the valve and the chamber
         pv = y[L[L_IF]]
+    if L[L_IQ] >= 0:  # a quick-exhaust valve's line between the valve and the chamber
+        pv = y[L[L_IQ]]
     if P[K_FF] > 0.0:  # flow forces close the inlet with the drop across it
         a_in = a_in / (1.0 + P[K_FF] * max(p_up - pv, 0.0) / p_atm)
     if P[K_PI_D] > 0.0:  # a pilot-operated inlet shuts below its minimum drop
@@ -294,7 +306,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     else:
         f_in = flow_terms(p_up, pv, alpha, beta, theta, kappa)[0]
         f_ex = flow_terms(pv, p_exd, alpha, beta, theta, kappa)[0]
-    hot = heat == 2 and nseg == 0 and L[L_IF] < 0  # (a fitting holds supply-temperature gas)
+    # (a fitting or a QEV's line holds supply-temperature gas)
+    hot = heat == 2 and nseg == 0 and L[L_IF] < 0 and L[L_IQ] < 0
     if hot and f_in < 0.0:
         f_in *= math.sqrt(ts / temp)
     if hot and f_ex > 0.0:
@@ -303,6 +316,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         f_ex = 0.0
     m_in = a_in * f_in
     m_ex = a_ex * f_ex
+    if P[K_LL_K] > 0.0:  # laminar leaks across the spool's lands, longer as a port closes
+        m_in += P[K_LL_K] * (p_up * p_up - pv * pv) / (1.0 + max(0.0, -s) / P[K_LL_S])
+        m_ex += P[K_LL_K] * (pv * pv - p_exd * p_exd) / (1.0 + max(0.0, s) / P[K_LL_S])
     if P[K_RE_C] > 0.0:  # viscous losses at low Reynolds numbers
         m_in = low_reynolds_flow(m_in, a_in, P[K_RE_C], P[K_RE_MU])
         m_ex = low_reynolds_flow(m_ex, a_ex, P[K_RE_C], P[K_RE_MU])
@@ -363,6 +379,24 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         inflow = sign * area * f * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
         dy[L[L_IF]] = kappa * rs * ts / P[K_MO_V] * (att * (m_in - m_ex) - inflow)
         h_in = inflow * (ts if inflow > 0.0 else temp)
+    elif L[L_IQ] >= 0:  # the QEV: the line feeds the chamber, or the chamber vents itself
+        w = smoothstep((p - pv) / P[K_QE_B])
+        # the passage: eqs. 1-3 from the higher side, linear in the drop below
+        # MO_LAMINAR_DROP_PA (laminar; the orifice law's slope is infinite at no drop)
+        drop = pv - p
+        up, sign = (pv, 1.0) if drop >= 0.0 else (p, -1.0)
+        f_lc = sign * flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), alpha, beta,
+                                 theta, kappa)[0] * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
+        if heat == 2 and f_lc < 0.0:
+            f_lc *= math.sqrt(ts / temp)
+        m_lc = P[K_QE_P] * (1.0 - w) * f_lc
+        f_q = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
+        if heat == 2 and f_q > 0.0:
+            f_q *= math.sqrt(ts / temp)
+        m_q = P[K_QE_A] * w * f_q
+        dy[L[L_IQ]] = kappa * rs * ts / P[K_QE_V] * (att * (m_in - m_ex) - m_lc)
+        inflow = m_lc - m_q
+        h_in = m_lc * (ts if m_lc > 0.0 else temp) - m_q * (temp if m_q > 0.0 else ts)
     else:
         inflow = att * (m_in - m_ex)
         h_in = att * (m_in * (ts if m_in > 0.0 else temp) - m_ex * (temp if m_ex > 0.0 else ts))
@@ -418,6 +452,10 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             den = 1.0 - 4.0 * g
             vol += P[K_BL_DV] * g / den
             dvdp = P[K_BL_DV] / (P[K_BL_PS] * den * den)
+    if P[K_GA_V] > 0.0 and p > P[K_GA_P]:  # an accumulator's gas, compressed
+        r_ga = (P[K_GA_P] / p) ** (1.0 / P[K_GA_N])
+        vol += P[K_GA_V] * (1.0 - r_ga)
+        dvdp += P[K_GA_V] * r_ga / (P[K_GA_N] * p)
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
@@ -656,6 +694,20 @@ def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> Non
                              "through them)")
         P[K_EC_L], P[K_EC_N], P[K_EC_E] = (cushion.length_m, cushion.needle_area_m2,
                                            cushion.edge_m)
+    qev = by.get(QuickExhaustValve)
+    if qev is not None and qev.exhaust_area_m2 > 0:
+        if AcousticTube in by or MeterOutThrottle in by or EndCushion in by:
+            raise ValueError("plant: a QuickExhaustValve cannot be planted beside an "
+                             "AcousticTube, a MeterOutThrottle or an EndCushion (they sit "
+                             "on the same port)")
+        P[K_QE_A], P[K_QE_P] = qev.exhaust_area_m2, qev.passage_area_m2
+        P[K_QE_B], P[K_QE_V] = qev.switch_band_Pa, qev.line_volume_m3
+    acc = by.get(GasAccumulator)
+    if acc is not None and acc.volume_m3 > 0:
+        P[K_GA_V], P[K_GA_P], P[K_GA_N] = acc.volume_m3, acc.precharge_Pa, acc.polytropic_index
+    lands = by.get(SpoolLandLeak)
+    if lands is not None and lands.conductance_kg_per_s_Pa2 > 0:
+        P[K_LL_K], P[K_LL_S] = lands.conductance_kg_per_s_Pa2, lands.overlap_scale_V
     coil = by.get(WarmingCoil)
     if coil is not None and coil.resistance_rise > 0:
         P[K_WC_K], P[K_WC_TAU] = coil.resistance_rise, coil.time_constant_s
@@ -843,6 +895,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         atol.append(cfg.atol_Pa)
         scale.append(1e5)
         extra[L_IB] = rig.atmospheric_pressure_Pa
+    if P[K_QE_A] > 0:  # the QEV's line pressure
+        L[L_IQ] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
@@ -870,6 +927,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[L_IH]] = u0  # the play's output starts at the first command
     if L[L_IF] >= 0:
         y[L[L_IF]] = p0  # the throttle's fitting at the chamber's pressure
+    if L[L_IQ] >= 0:
+        y[L[L_IQ]] = p0  # the QEV's line at the chamber's pressure
     if L[L_IC] >= 0:  # the creeping wall in equilibrium with the initial pressure
         y[L[L_IC]] = su.P[K_CW_C] * (p0 - su.P[K_PATM])
     if L[L_NSEG] > 0:
