@@ -63,6 +63,23 @@ def test_the_stage_runs_only_above_its_noise_ratio_and_beside_a_weak_catalogue_t
     weak = (2000.0, "heat_transfer", None, 1.0, 0.001)
     runs, best = stage._applies(_state(far, [weak, (2200.0, "x", None, 0.5, 0.01)]), 500.0)
     assert runs and best is weak
+    # a strong trial that fits only with a parameter driven to its bound: a possible
+    # stand-in, the closure competes with it (a parameter at its neutral bound is an
+    # effect switched off, and one already at a bound in the current fit is not new)
+    model = Model(["cylinder_leak"])
+    hi = model.parameter("leak_area_m2").upper
+    base = {k: 0.5 * (model.parameter(k).lower + model.parameter(k).upper)
+            for k in model.parameter_names}
+    far_fit = SimpleNamespace(heldout_rmse_Pa=2500.0, model=Model(),
+                              params={k: base[k] for k in Model().parameter_names})
+    pinned = (1000.0, "cylinder_leak",
+              SimpleNamespace(model=model, params={**base, "leak_area_m2": hi}), 1.0, 0.001)
+    runs, best = stage._applies(_state(far_fit, [pinned]), 500.0)
+    assert runs and best is pinned
+    inside = (1000.0, "cylinder_leak",
+              SimpleNamespace(model=model, params={**base, "leak_area_m2": 0.5 * hi}), 1.0,
+              0.001)
+    assert stage._applies(_state(far_fit, [inside]), 500.0)[0] is False
     # a closure already holding every term it can: nothing more to add
     full = SimpleNamespace(heldout_rmse_Pa=2500.0, model=Model().with_effect(
         Closure(terms="one; pressure_ratio; spool; volume")))

@@ -45,13 +45,22 @@ from pneubayes.errors import SimulationError
 WINDOWS = "windows"
 
 
+def _at_bounds(trial, current) -> list[str]:
+    """The parameters a passing trial ``(held-out RMSE, group, fit, ...)`` drove to a
+    bound (none without its fit)."""
+    fit = trial[2]
+    return [] if fit is None else newly_at_bounds(fit, current)
+
+
 class OpenForm(Stage):
     """Search the residual for open-form terms and add them as a closure.
 
     Runs when the held-out error is above ``min_noise_ratio`` x the noise floor and no
     catalogue trial of the round passed, or the best that passed closes under
-    ``compete_below_gap_closed`` of the gap (it may be a stand-in: the closure then
-    replaces it only if it beats it on the held-out windows by the verification test).
+    ``compete_below_gap_closed`` of the gap or fits with parameters driven to a bound
+    (:func:`~pneubayes.discovery.openform.closure_model.newly_at_bounds`): it may be a
+    stand-in; the closure then replaces it only if it beats it on the held-out windows
+    by the verification test.
 
     Parameters
     ----------
@@ -141,13 +150,18 @@ class OpenForm(Stage):
         best = min(state.passing, key=lambda t: t[0])
         gap = current.heldout_rmse_Pa - noise
         closed = (current.heldout_rmse_Pa - best[0]) / gap
-        return closed < self.compete_below_gap_closed, best
+        return closed < self.compete_below_gap_closed or bool(_at_bounds(best, current)), best
 
     def run(self, state: RoundState, runner) -> None:
         noise = runner.data.noise_Pa
         runs, best = self._applies(state, noise)
         if not runs:
             return
+        at = _at_bounds(best, state.current) if best is not None else []
+        if at:
+            runner.log(f"discover: open form: the round's best catalogue trial ({best[1]}) "
+                       f"fits with {', '.join(at)} at a bound: a possible stand-in, the "
+                       "open form competes with it")
         try:
             self._run(state, runner, best)
         except (ValueError, FloatingPointError, SimulationError) as exc:
