@@ -8,10 +8,12 @@ from pneubayes.cli import main
 from pneubayes.simulation.precompile import STATES, compile_kernels, compile_variant
 
 
-def test_the_command_builds_both_states_and_says_how_long(capsys):
+def test_the_command_builds_both_states_and_the_bench_and_says_how_long(capsys):
     assert main(["compile", "--jobs", "1"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert [line.split(":")[0] for line in lines] == [f"kernel ({s} state)" for s in STATES]
+    assert [line.split(":")[0] for line in lines] == [
+        "bench plant" if s == "bench" else f"kernel ({s} state)" for s in STATES]
+    assert "bench" in STATES
     assert all(float(line.split(":")[1].removesuffix(" s")) >= 0.0 for line in lines)
 
 

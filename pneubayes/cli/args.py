@@ -451,10 +451,11 @@ def _add_compile(sub) -> None:
     k = sub.add_parser(
         "compile", help="compile the simulator's kernels now, so the first fit does not "
                         "wait for the compiler",
-        description="Compile every variant of the simulation kernel into numba's cache "
-                    "beside the package (once per install or upgrade; about a minute and a "
-                    "half on one core), the variants in parallel processes. Later "
-                    "processes load the cache instead of compiling.")
+        description="Compile every variant of the simulation kernel, and the virtual "
+                    "test bench's plant, into numba's cache beside the package (once per "
+                    "install or upgrade; about two minutes on one core), the variants in "
+                    "parallel processes. Later processes load the cache instead of "
+                    "compiling.")
     k.add_argument("--jobs", type=POSITIVE_INT, default=2,
                    help="processes compiling at once (default 2)")
 

@@ -18,10 +18,11 @@ The kernel has four compiled variants, one per combination of
   parameter set or window, and more than one thread);
 
 and per state the carried chain (:func:`pneubayes.simulation.simulate_carried`, the
-online tracker's carried mode; on the calling thread).
+online tracker's carried mode; on the calling thread). The virtual test bench's plant
+(:mod:`pneubayes.bench.plant`, ``pneubayes bench``) is compiled too, as a third entry.
 
-:func:`compile_variant` builds one state's two loops by running a tiny simulation of it;
-:func:`compile_kernels` runs the states in parallel processes.
+:func:`compile_variant` builds one state's two loops (or the bench's plant) by running a
+tiny simulation of it; :func:`compile_kernels` runs them in parallel processes.
 """
 
 from __future__ import annotations
@@ -32,13 +33,18 @@ from multiprocessing import get_context
 
 import numpy as np
 
-#: The kernel's states: which model compiles each (its effects) and a parameter set.
-STATES = ("pressure", "general")
+#: What :func:`compile_variant` compiles: the kernel's states (which model compiles
+#: each: its effects) and the bench's plant.
+STATES = ("pressure", "general", "bench")
+#: The order :func:`compile_kernels` starts them in: the longest first, so it never waits
+#: for a free process, and the short ones after each other beside it.
+_LONGEST_FIRST = ("general", "pressure", "bench")
 
 
 def compile_variant(state: str) -> float:
     """Compile (or load from the cache) the kernel stepping ``state`` (one of
-    :data:`STATES`), on one thread and on numba's threads; returns the seconds it took."""
+    :data:`STATES`), on one thread and on numba's threads, or (``"bench"``) the bench's
+    plant; returns the seconds it took."""
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
     from pneubayes.rig import Rig
@@ -60,6 +66,12 @@ def compile_variant(state: str) -> float:
                     np.full_like(t, supply_Pa))
     values = dict(valve_preset("valve1").parameters(), dead_volume_m3=2.4e-6,
                   heat_transfer_rate_per_s=20.0)
+    if state == "bench":
+        from pneubayes.bench.plant import PlantConfig, simulate_plant
+
+        base = {k: v for k, v in values.items() if k != "heat_transfer_rate_per_s"}
+        simulate_plant(base, (), inputs, rig, 2e5, PlantConfig.reference())
+        return time.perf_counter() - start
     model = Model(["heat_transfer"] if state == "general" else [])
     row = [values[name] for name in model.parameter_names]
     for sets in (1, 2):  # one set: the serial loop; two: the threaded one
@@ -70,8 +82,8 @@ def compile_variant(state: str) -> float:
 
 
 def compile_kernels(jobs: int = 2) -> dict[str, float]:
-    """Compile every variant of the kernel, the states in up to ``jobs`` processes at
-    once; returns the seconds each state took (its process's own wall time)."""
+    """Compile every variant of the kernel and the bench's plant, in up to ``jobs``
+    processes at once; returns the seconds each took (its process's own wall time)."""
     if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
     if jobs == 1:
@@ -79,6 +91,5 @@ def compile_kernels(jobs: int = 2) -> dict[str, float]:
     # fresh interpreters: a forked child would inherit this process's numba state
     with ProcessPoolExecutor(max_workers=min(jobs, len(STATES)),
                              mp_context=get_context("spawn")) as pool:
-        # the largest variant first, so it never waits for a free process
-        futures = {state: pool.submit(compile_variant, state) for state in reversed(STATES)}
+        futures = {state: pool.submit(compile_variant, state) for state in _LONGEST_FIRST}
         return {state: futures[state].result() for state in STATES}
