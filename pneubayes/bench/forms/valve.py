@@ -1,0 +1,397 @@
+"""Out-of-catalogue forms of the valve: its spool's motion and memory, its ports' flow
+laws and leaks, its solenoid."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from pneubayes.bench.forms.base import (
+    AIR_VISCOSITY_PA_S,
+    PlantForm,
+    _finite,
+    _non_negative,
+    _positive,
+    _smoothstep,
+)
+
+
+@dataclass(frozen=True)
+class SpoolHysteresis(PlantForm):
+    """Backlash (play) between the command and the spool, with memory of direction.
+
+    The effective spool s_h follows the spool s only once s leaves the band
+    ``[s_h - b, s_h + b]``, ``b = half_band_V``; smoothed as a fast first-order play::
+
+        ds_h/dt = (s - b - s_h) / tau  if s > s_h + b
+                  (s + b - s_h) / tau  if s < s_h - b,  else 0
+
+    with ``tau = time_constant_s`` (much faster than the spool). The area maps see s_h.
+    ``half_band_V = 0`` is no play (the state is omitted). s_h starts at the first
+    command.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    half_band_V: float
+    time_constant_s: float = 2e-4
+
+    def __post_init__(self):
+        _non_negative(self, "half_band_V")
+        _positive(self, "time_constant_s")
+
+
+@dataclass(frozen=True)
+class InletFlowForce(PlantForm):
+    """Flow forces on the spool shrink the inlet's opening with the pressure drop.
+
+    ``a_in_eff = a_in / (1 + k_ff max(p_s - p, 0) / P_atm)``, ``k_ff =
+    flow_force_coefficient`` (per atmosphere of drop across the inlet, p_s the supply
+    at the valve inlet, p the chamber). The exhaust is unaffected; 0 is no flow force.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    flow_force_coefficient: float
+
+    def __post_init__(self):
+        _non_negative(self, "flow_force_coefficient")
+
+
+@dataclass(frozen=True)
+class PilotInletValve(PlantForm):
+    """A pilot-operated inlet stage that needs a minimum pressure difference to stay open.
+
+    The inlet's main stage (a diaphragm or poppet) is held open by the pressure
+    difference across it against its spring; it closes when the difference
+    ``|p_s - p|`` (supply at the valve inlet against the chamber) falls below
+    ``dp_min = min_pressure_difference_Pa``. The inlet area is scaled by
+
+        phi = S((|p_s - p| - dp_min) / w + 1/2),   w = transition_fraction dp_min,
+
+    S the C1 smoothstep: fully open above ``dp_min + w / 2``, shut below
+    ``dp_min - w / 2`` (so shut at no difference, as ``transition_fraction <= 2``). A
+    full fill stalls about ``dp_min`` below the supply; a chamber the piston compresses
+    above the supply blows back through the inlet once the difference lifts the
+    diaphragm. The exhaust is unaffected; ``min_pressure_difference_Pa = 0`` is a
+    direct-acting valve (no pilot stage).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    min_pressure_difference_Pa: float
+    transition_fraction: float = 0.5
+
+    def __post_init__(self):
+        _non_negative(self, "min_pressure_difference_Pa")
+        _positive(self, "transition_fraction")
+        if self.transition_fraction > 2.0:
+            raise ValueError(f"PilotInletValve.transition_fraction must be in (0, 2], got "
+                             f"{self.transition_fraction!r}")
+
+    def opening(self, drop_Pa: float) -> float:
+        """phi at a drop ``p_s - p`` across the inlet (1 without a pilot stage)."""
+        if self.min_pressure_difference_Pa == 0.0:
+            return 1.0
+        w = self.transition_fraction * self.min_pressure_difference_Pa
+        return _smoothstep((abs(drop_Pa) - self.min_pressure_difference_Pa) / w + 0.5)
+
+
+@dataclass(frozen=True)
+class Iso6358Ports(PlantForm):
+    """Both ports follow the ISO 6358 flow law instead of eqs. 1-3's isentropic shape.
+
+    Real valves are rated by a sonic conductance C, a critical pressure ratio ``b`` and a
+    subsonic index ``m`` (ISO 6358-1): at a ratio ``r = p_down / p_up``
+
+        f = beta p_up                                   r <= b (choked),
+        f = beta p_up (1 - ((r - b) / (1 - b))^2)^m     r > b,
+
+    and reversed flow swaps the ends. The choked flow is the thin port's ``beta p_up``
+    (the Gompertz area is the sonic conductance), so only the subsonic shape differs:
+    with ``b`` 0.2-0.4, as catalogued valves have, the flow starts to fall at a lower
+    ratio than the isentropic 0.528 and falls more gradually. ``b = 0.528``, ``m = 0.5``
+    is close to eqs. 1-3.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    critical_pressure_ratio: float
+    subsonic_index: float = 0.5
+
+    def __post_init__(self):
+        if not 0.0 < self.critical_pressure_ratio < 1.0:
+            raise ValueError("Iso6358Ports.critical_pressure_ratio must be in (0, 1), got "
+                             f"{self.critical_pressure_ratio!r}")
+        _positive(self, "subsonic_index")
+
+
+@dataclass(frozen=True)
+class SpoolSlewLimit(PlantForm):
+    """A spool whose speed saturates: a proportional valve's current-limited driver.
+
+    The spool position s (V of command) follows the command u with a smooth rate limit::
+
+        ds/dt = r tanh((u - s) / (tau r)),   r = slew_rate_V_per_s, tau = time_constant_s
+
+    A small step is a first-order lag of ``tau``; a large one is a ramp at ``r`` (a full
+    10-V swing takes ``10 / r`` s). Unlike the catalogue's linear spool lags, the delay
+    grows with the step. ``slew_rate_V_per_s = 0`` is no limit (the state is omitted);
+    it replaces the catalogue's spool stages and cannot be planted beside them.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    slew_rate_V_per_s: float
+    time_constant_s: float = 5e-4
+
+    def __post_init__(self):
+        _non_negative(self, "slew_rate_V_per_s")
+        _positive(self, "time_constant_s")
+
+
+@dataclass(frozen=True)
+class SpoolUnderlap(PlantForm):
+    """An underlapped spool: both ports stay a little open around the null.
+
+    Where the lands are narrower than the ports, supply and exhaust both connect to the
+    chamber near the null (a crossport leak through the valve). Each port's area gains::
+
+        a_u(s) = area_m2 (1 - S(|s| / width_V)),   S the C1 smoothstep,
+
+    at the spool position s (V): ``area_m2`` at the null, nothing beyond ``width_V``. A
+    chamber held at the null settles between the supply and the atmosphere instead of
+    holding its pressure. Unlike the Gompertz maps' constant offsets the extra opening is
+    confined to the null. ``area_m2 = 0`` is a critically lapped spool.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    area_m2: float
+    width_V: float = 0.5
+
+    def __post_init__(self):
+        _non_negative(self, "area_m2")
+        _positive(self, "width_V")
+
+    def opening(self, spool_V: float) -> float:
+        """a_u(s), m^2."""
+        return self.area_m2 * (1.0 - _smoothstep(abs(spool_V) / self.width_V))
+
+
+@dataclass(frozen=True)
+class LowReynoldsPorts(PlantForm):
+    """Valve ports whose discharge falls at low Reynolds numbers (viscous losses in a
+    small or barely open port, at a small pressure difference).
+
+    Each port's thin-port flow m_0 = a f (eqs. 1-3) is scaled by a discharge factor that
+    rises with the port's Reynolds number Re = 4 |m_0| / (pi mu d), d = sqrt(4 a / pi)
+    the port's equivalent diameter::
+
+        mdot = m_0 Re / (Re + Re_c),   Re_c = ``critical_reynolds``,
+
+    so the flow falls off where it is small: near a port's pressure balance (the last
+    part of a fill or a vent) and through the ports' leakage at the null.
+    ``critical_reynolds = 0`` is the thin-port law.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    critical_reynolds: float
+    air_viscosity_Pa_s: float = AIR_VISCOSITY_PA_S
+
+    def __post_init__(self):
+        _non_negative(self, "critical_reynolds")
+        _positive(self, "air_viscosity_Pa_s")
+
+
+@dataclass(frozen=True)
+class SpoolStiction(PlantForm):
+    """A sticking spool (static friction without dither): it stays put until the
+    command moves ``breakaway_V`` away from where it stuck, then slides and stops short
+    of the command by ``stop_V``.
+
+    At each change of the (delayed) command u_k the spool's target s_k becomes::
+
+        s_k = s_(k-1)                          if |u_k - s_(k-1)| < breakaway_V,
+        s_k = u_k - sign(u_k - s_(k-1)) stop_V  otherwise,
+
+    from s_0 = u_0, and the valve sees s_k for as long as u_k is held. Small command
+    steps are ignored entirely; a large one is followed but for ``stop_V`` on the side
+    it came from. ``breakaway_V = 0`` (with ``stop_V = 0``) is a free spool.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    breakaway_V: float
+    stop_V: float = 0.0
+
+    def __post_init__(self):
+        _non_negative(self, "breakaway_V", "stop_V")
+        if self.stop_V > self.breakaway_V:
+            raise ValueError(f"SpoolStiction.stop_V must be <= breakaway_V "
+                             f"({self.breakaway_V}), got {self.stop_V}")
+
+    def targets(self, command_V):
+        """The spool's held positions for a held command series (V)."""
+        u = [float(v) for v in command_V]
+        out = list(u)
+        s = u[0] if u else 0.0
+        for k, v in enumerate(u):
+            if k and abs(v - s) >= self.breakaway_V and v != s:
+                s = v - math.copysign(self.stop_V, v - s)
+            out[k] = s
+        return out
+
+
+@dataclass(frozen=True)
+class SpringReturnSpool(PlantForm):
+    """A single-solenoid spool returned by its spring: it moves up (towards a larger
+    command, the solenoid pulling) with one time constant and down (the spring
+    returning it against the spool's friction) with another::
+
+        ds/dt = (u - s) / tau_up    if u > s,
+        ds/dt = (u - s) / tau_down  otherwise,
+
+    s the spool position (V of command). Unlike the catalogue's linear spool lags the
+    response depends on the direction of travel: a square wave's mean position shifts
+    towards the faster side. ``rise_time_constant_s = 0`` (with the fall 0 too) is a
+    free spool (the state is omitted); it replaces the catalogue's spool stages and
+    cannot be planted beside them.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    rise_time_constant_s: float
+    fall_time_constant_s: float = 0.0
+
+    def __post_init__(self):
+        _non_negative(self, "rise_time_constant_s", "fall_time_constant_s")
+        if (self.rise_time_constant_s > 0) != (self.fall_time_constant_s > 0):
+            raise ValueError("SpringReturnSpool.fall_time_constant_s must be > 0 exactly "
+                             "when rise_time_constant_s is (both 0: a free spool), got "
+                             f"{self.fall_time_constant_s!r}")
+
+
+@dataclass(frozen=True)
+class WarmingCoil(PlantForm):
+    """A voltage-driven proportional solenoid whose coil warms as it works: its
+    resistance rises with its temperature (copper: +0.39 %/K), so the same command
+    drives less current and the spool sits nearer its zero-current end.
+
+    The command u (V) drives the coil from ``command_min_V`` (no current) over
+    ``command_span_V``; with the coil's heat theta (1: the steady heat of the full
+    command on a cold coil) the valve acts on::
+
+        u_eff = u_min + (u - u_min) / (1 + k theta),
+        dtheta/dt = (((u - u_min) / span)^2 / (1 + k theta) - theta) / tau_th,
+
+    ``k = resistance_rise`` (the resistance's fractional rise at theta = 1) and
+    ``tau_th = time_constant_s`` the coil's thermal time constant. A recording starts
+    with a cold coil; a held command drifts the spool's position over seconds (at the
+    null the coil still carries half its current). ``resistance_rise = 0`` is a coil at
+    constant resistance (the state is omitted).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    resistance_rise: float
+    time_constant_s: float = 5.0
+    command_min_V: float = -5.0
+    command_span_V: float = 10.0
+
+    def __post_init__(self):
+        _non_negative(self, "resistance_rise")
+        _positive(self, "time_constant_s", "command_span_V")
+        _finite(self, "command_min_V")
+
+
+@dataclass(frozen=True)
+class SeatLeak(PlantForm):
+    """A worn inlet seat that passes supply air into the chamber whatever the spool
+    does, through a crack short enough that its flow follows the incompressible
+    orifice law with the upstream density::
+
+        mdot = C A sign(d) sqrt(2 rho_up |d|),   d = p_s - p,   rho_up = p_up / (R T_s),
+
+    linear in d below ``laminar_drop_Pa`` (a smooth crossing). ``area_m2`` is C A;
+    0 is a tight seat. Unlike eqs. 1-3 it never chokes.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    area_m2: float
+    laminar_drop_Pa: float = 500.0
+
+    def __post_init__(self):
+        _non_negative(self, "area_m2")
+        _positive(self, "laminar_drop_Pa")
+
+
+@dataclass(frozen=True)
+class InletFlowLimiter(PlantForm):
+    """A flow limiter at the valve's inlet (a pressure-compensated flow-control valve,
+    a flow fuse): the inlet's mass flow saturates at ``max_flow_kg_per_s``::
+
+        mdot_in = m_max tanh(a_in f(p_s, p) / m_max),
+
+    so a large opening fills at a fixed rate while a small one is as the valve's map.
+    ``max_flow_kg_per_s = 0`` is no limiter.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    max_flow_kg_per_s: float
+
+    def __post_init__(self):
+        _non_negative(self, "max_flow_kg_per_s")
+
+
+@dataclass(frozen=True)
+class ReleaseDelay(PlantForm):
+    """A solenoid that releases late: the valve acts on a falling command
+    ``delay_s`` later than on a rising one (the armature's residual magnetism, the
+    driver's flyback), on top of any delay both share. A rise that comes before a
+    pending fall has acted cancels it. ``delay_s = 0`` acts on both alike.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    delay_s: float
+
+    def __post_init__(self):
+        _non_negative(self, "delay_s")
+
+    def switches(self, time_s, command, shared_delay_s: float = 0.0):
+        """``(times, values)``: when (s) the valve takes each held value of
+        ``command`` (sampled at ``time_s``), ``times[0] = -inf`` holding the first; a
+        change acts ``shared_delay_s`` after its sample, a fall ``delay_s`` later
+        still, and a change superseded before it acts is dropped."""
+        t = np.asarray(time_s, dtype=np.float64)
+        u = np.asarray(command, dtype=np.float64)
+        times, values = [-math.inf], [float(u[0])]
+        for k in np.nonzero(np.diff(u) != 0)[0] + 1:
+            at = t[k] + shared_delay_s + (self.delay_s if u[k] < u[k - 1] else 0.0)
+            while len(times) > 1 and times[-1] >= at:  # pending changes it overtakes
+                times.pop()
+                values.pop()
+            times.append(at)
+            values.append(float(u[k]))
+        return np.array(times), np.array(values)
+
+
+# ------------------------------------------ out-of-catalogue forms, the seventh blind set
+
+
+@dataclass(frozen=True)
+class SpoolLandLeak(PlantForm):
+    """Internal leakage across the spool's lands (the radial clearance of a spool in
+    its sleeve): laminar, compressible, from the supply into the chamber across the
+    inlet land and from the chamber to the exhaust across the exhaust land, each through
+    a sealing length that grows as the spool moves to close its port::
+
+        m_in += k (p_s^2 - p_v^2) / (1 + max(0, -s) / s_L),
+        m_ex += k (p_v^2 - P_atm^2) / (1 + max(0, s) / s_L),
+
+    s the spool position (V, after the dead band's input), p_v the port's pressure,
+    ``k = conductance_kg_per_s_Pa2`` (the leak at the null), ``s_L =
+    overlap_scale_V``. ``conductance_kg_per_s_Pa2 = 0`` is a tight spool.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    conductance_kg_per_s_Pa2: float
+    overlap_scale_V: float = 0.5
+
+    def __post_init__(self):
+        _non_negative(self, "conductance_kg_per_s_Pa2")
+        _positive(self, "overlap_scale_V")
