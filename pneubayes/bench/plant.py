@@ -216,6 +216,28 @@ def low_reynolds_flow(m0, area, re_c, mu):
 
 
 @njit(cache=True)
+def quick_exhaust_flows(p, pv, P, hot):
+    """A QuickExhaustValve's flows (kg/s): from its line (at ``pv``) into the chamber
+    (at ``p``) through the passage, and from the chamber to the atmosphere through its
+    exhaust (:class:`~pneubayes.bench.forms.QuickExhaustValve`); ``hot`` is
+    sqrt(T_s / T) for chamber gas that leaves at the chamber's temperature T (else 1).
+    The passage follows eqs. 1-3 from the higher side, linear in the drop below
+    ``MO_LAMINAR_DROP_PA`` (laminar; the orifice law's slope is infinite at no drop)."""
+    alpha, beta, theta, kappa = P[K_ALPHA], P[K_BETA], P[K_THETA], P[K_KAPPA]
+    w = smoothstep((p - pv) / P[K_QE_B])
+    drop = pv - p
+    up, sign = (pv, 1.0) if drop >= 0.0 else (p, -1.0)
+    f_lc = sign * flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), alpha, beta,
+                             theta, kappa)[0] * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
+    if f_lc < 0.0:
+        f_lc *= hot
+    f_q = flow_terms(p, P[K_PATM], alpha, beta, theta, kappa)[0]
+    if f_q > 0.0:
+        f_q *= hot
+    return P[K_QE_P] * (1.0 - w) * f_lc, P[K_QE_A] * w * f_q
+
+
+@njit(cache=True)
 def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     """Right-hand side of the plant into ``dy``; returns the supply a sensor reads, Pa
     (at the valve's inlet; with a SupplyHose at the regulator, upstream of it).
@@ -380,20 +402,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         dy[L[L_IF]] = kappa * rs * ts / P[K_MO_V] * (att * (m_in - m_ex) - inflow)
         h_in = inflow * (ts if inflow > 0.0 else temp)
     elif L[L_IQ] >= 0:  # the QEV: the line feeds the chamber, or the chamber vents itself
-        w = smoothstep((p - pv) / P[K_QE_B])
-        # the passage: eqs. 1-3 from the higher side, linear in the drop below
-        # MO_LAMINAR_DROP_PA (laminar; the orifice law's slope is infinite at no drop)
-        drop = pv - p
-        up, sign = (pv, 1.0) if drop >= 0.0 else (p, -1.0)
-        f_lc = sign * flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), alpha, beta,
-                                 theta, kappa)[0] * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
-        if heat == 2 and f_lc < 0.0:
-            f_lc *= math.sqrt(ts / temp)
-        m_lc = P[K_QE_P] * (1.0 - w) * f_lc
-        f_q = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
-        if heat == 2 and f_q > 0.0:
-            f_q *= math.sqrt(ts / temp)
-        m_q = P[K_QE_A] * w * f_q
+        m_lc, m_q = quick_exhaust_flows(p, pv, P, math.sqrt(ts / temp) if heat == 2 else 1.0)
         dy[L[L_IQ]] = kappa * rs * ts / P[K_QE_V] * (att * (m_in - m_ex) - m_lc)
         inflow = m_lc - m_q
         h_in = m_lc * (ts if m_lc > 0.0 else temp) - m_q * (temp if m_q > 0.0 else ts)
@@ -454,8 +463,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             dvdp = P[K_BL_DV] / (P[K_BL_PS] * den * den)
     if P[K_GA_V] > 0.0 and p > P[K_GA_P]:  # an accumulator's gas, compressed
         r_ga = (P[K_GA_P] / p) ** (1.0 / P[K_GA_N])
-        vol += P[K_GA_V] * (1.0 - r_ga)
-        dvdp += P[K_GA_V] * r_ga / (P[K_GA_N] * p)
+        vol, dvdp = vol + P[K_GA_V] * (1.0 - r_ga), dvdp + P[K_GA_V] * r_ga / (P[K_GA_N] * p)
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)

@@ -57,10 +57,8 @@ class OpenForm(Stage):
 
     Runs when the held-out error is above ``min_noise_ratio`` x the noise floor and no
     catalogue trial of the round passed, or the best that passed closes under
-    ``compete_below_gap_closed`` of the gap or fits with parameters driven to a bound
-    (:func:`~pneubayes.discovery.openform.closure_model.newly_at_bounds`): it may be a
-    stand-in; the closure then replaces it only if it beats it on the held-out windows
-    by the verification test.
+    ``compete_below_gap_closed`` of the gap or drives a parameter to a bound: a possible
+    stand-in, which the closure replaces only if it beats it on the held-out windows.
 
     Parameters
     ----------
@@ -76,8 +74,7 @@ class OpenForm(Stage):
         Drop each term whose removal the held-out test cannot tell apart.
     coefficient_reach : float
         A term whose searched coefficient times this exceeds the closure's default
-        bound gets its bounds widened to +- this x the searched coefficient (the
-        defaults are sized for typical flows; a relief path can carry ten times more).
+        bound gets its bounds widened to +- this x the searched coefficient.
     retries : int
         Searches again, each without the families of the last closure, when that
         closure was rejected with its parameters at a bound (a stand-in); before that,
