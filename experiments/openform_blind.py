@@ -185,11 +185,9 @@ def _full_inlet_flow(valve: str) -> float:
     supply into the atmosphere (choked; eqs. 1-3 with the Table II map)."""
     from pneubayes.physics.gas import GasConstants
     from pneubayes.physics.orifice import flow_terms
-    from pneubayes.physics.valve import gompertz_scalar, valve_preset
+    from pneubayes.physics.valve import valve_preset
 
-    v = valve_preset(valve).parameters()
-    area = gompertz_scalar(5.0, *(v[f"inlet_{k}"] for k in ("offset_m2", "a_m2", "b", "c_per_V",
-                                                             "d_V")))
+    area = float(valve_preset(valve).inlet.area(5.0))
     g = GasConstants()
     return float(area * flow_terms(SUPPLY_PA, ATMOSPHERE_PA, g.alpha_s_per_m, g.beta_s_per_m,
                                    g.theta, g.heat_capacity_ratio)[0])
@@ -363,17 +361,12 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
         return SensorZeroDrift(drift_Pa=sign * _log_uniform(rng, 2e3, 15e3),
                                time_constant_s=_log_uniform(rng, 3.0, 30.0))
     if name == "QuickExhaustValve":
-        from pneubayes.physics.valve import gompertz_scalar, valve_preset
+        from pneubayes.physics.valve import valve_preset
 
-        v = valve_preset(valve).parameters()
-
-        def full(port, u):
-            return gompertz_scalar(u, *(v[f"{port}_{k}"] for k in (
-                "offset_m2", "a_m2", "b", "c_per_V", "d_V")))
-
+        maps = valve_preset(valve)
         return QuickExhaustValve(
-            exhaust_area_m2=full("exhaust", -5.0) * _log_uniform(rng, 1.0, 4.0),
-            passage_area_m2=full("inlet", 5.0) * _log_uniform(rng, 1.0, 3.0),
+            exhaust_area_m2=float(maps.exhaust.area(-5.0)) * _log_uniform(rng, 1.0, 4.0),
+            passage_area_m2=float(maps.inlet.area(5.0)) * _log_uniform(rng, 1.0, 3.0),
             switch_band_Pa=rng.uniform(5e3, 30e3),
             line_volume_m3=_log_uniform(rng, 2e-7, 2e-6))
     if name == "GasAccumulator":

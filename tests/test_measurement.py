@@ -233,10 +233,12 @@ def test_a_reading_that_stands_for_no_pressure_fails_its_parameter_set(rig, base
     sim = simulate_windows(model, params, inputs, rig, np.array([0]), t.size,
                            np.array([3e5]), SolverConfig.standard())
     both = np.concatenate([sim, sim])
-    good = sensor_reading(both[:1].copy(), slots[:1], filtered, inputs, np.array([0]),
-                          t.size)
+    good, failed = sensor_reading(both[:1].copy(), slots[:1], filtered, inputs,
+                                  np.array([0]), t.size)
+    assert failed.size == 0
     assert not np.array_equal(good[0], sim[0])  # (the filter rounds corners here)
     both[1, 0, 1:] = -5e5  # absurd: no chamber pressure reads this
-    out = sensor_reading(both, slots, filtered, inputs, np.array([0]), t.size)
+    out, failed = sensor_reading(both, slots, filtered, inputs, np.array([0]), t.size)
+    np.testing.assert_array_equal(failed, [1])
     np.testing.assert_array_equal(out[0], good[0])
     assert np.all(np.isnan(out[1]))

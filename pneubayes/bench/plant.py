@@ -216,22 +216,29 @@ def low_reynolds_flow(m0, area, re_c, mu):
 
 
 @njit(cache=True)
+def laminar_tail_flux(p_from, p_to, P):
+    """Signed flow per unit area (kg/(s m^2)) from ``p_from`` to ``p_to`` (Pa) through a
+    passage: eqs. 1-3 from the higher side, linear in the drop below
+    ``MO_LAMINAR_DROP_PA`` (laminar; the orifice law's slope is infinite at no drop)."""
+    drop = p_from - p_to
+    up, sign = (p_from, 1.0) if drop >= 0.0 else (p_to, -1.0)
+    return sign * flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), P[K_ALPHA],
+                             P[K_BETA], P[K_THETA], P[K_KAPPA])[0] * min(
+        abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
+
+
+@njit(cache=True)
 def quick_exhaust_flows(p, pv, P, hot):
     """A QuickExhaustValve's flows (kg/s): from its line (at ``pv``) into the chamber
     (at ``p``) through the passage, and from the chamber to the atmosphere through its
     exhaust (:class:`~pneubayes.bench.forms.QuickExhaustValve`); ``hot`` is
     sqrt(T_s / T) for chamber gas that leaves at the chamber's temperature T (else 1).
-    The passage follows eqs. 1-3 from the higher side, linear in the drop below
-    ``MO_LAMINAR_DROP_PA`` (laminar; the orifice law's slope is infinite at no drop)."""
-    alpha, beta, theta, kappa = P[K_ALPHA], P[K_BETA], P[K_THETA], P[K_KAPPA]
+    The passage follows :func:`laminar_tail_flux`."""
     w = smoothstep((p - pv) / P[K_QE_B])
-    drop = pv - p
-    up, sign = (pv, 1.0) if drop >= 0.0 else (p, -1.0)
-    f_lc = sign * flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), alpha, beta,
-                             theta, kappa)[0] * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
+    f_lc = laminar_tail_flux(pv, p, P)
     if f_lc < 0.0:
         f_lc *= hot
-    f_q = flow_terms(p, P[K_PATM], alpha, beta, theta, kappa)[0]
+    f_q = flow_terms(p, P[K_PATM], P[K_ALPHA], P[K_BETA], P[K_THETA], P[K_KAPPA])[0]
     if f_q > 0.0:
         f_q *= hot
     return P[K_QE_P] * (1.0 - w) * f_lc, P[K_QE_A] * w * f_q
@@ -391,14 +398,10 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     elif L[L_IF] >= 0:  # the fitting fills from the valve, the chamber from the fitting
         drop = pv - p
         area = P[K_MO_N] + P[K_MO_C] * smoothstep((drop - P[K_MO_P]) / P[K_MO_P] + 0.5)
-        # eqs. 1-3 from the higher side, linear in the drop below MO_LAMINAR_DROP_PA
-        # (laminar); chamber gas leaving at its own temperature
-        up, sign = (pv, 1.0) if drop >= 0.0 else (p, -1.0)
-        f = flow_terms(up, up - max(abs(drop), MO_LAMINAR_DROP_PA), alpha, beta, theta,
-                       kappa)[0]
+        f = laminar_tail_flux(pv, p, P)  # (chamber gas leaving at its own temperature)
         if drop < 0.0 and heat == 2:
             f *= math.sqrt(ts / temp)
-        inflow = sign * area * f * min(abs(drop) / MO_LAMINAR_DROP_PA, 1.0)
+        inflow = area * f
         dy[L[L_IF]] = kappa * rs * ts / P[K_MO_V] * (att * (m_in - m_ex) - inflow)
         h_in = inflow * (ts if inflow > 0.0 else temp)
     elif L[L_IQ] >= 0:  # the QEV: the line feeds the chamber, or the chamber vents itself

@@ -44,8 +44,9 @@ def _port_rate(sl, rig, p, spool_V, position_m, supply_Pa, exhaust_command):
 
 
 def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs, starts,
-                   length: int) -> np.ndarray:
-    """The declared pressure filter's reading of simulated windows, ``(B, W, length)`` Pa.
+                   length: int) -> tuple[np.ndarray, np.ndarray]:
+    """The declared pressure filter's reading of simulated windows, ``(B, W, length)`` Pa,
+    and the parameter sets (row indices) whose reading failed.
 
     ``pressure_Pa`` is the simulator's ``(B, W, length)`` output for the lowered
     ``slots`` ``(B, N_SLOTS)`` on ``inputs`` (:class:`~pneubayes.simulation.Inputs`)
@@ -53,11 +54,12 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     None. Each window's first sample is its start pressure (the measured one) and stays
     as it is; NaN rows (failed simulations) stay NaN, and a parameter set whose reading
     at a corner stands for no chamber pressure (beyond a curved sensor's turning point)
-    becomes one.
+    becomes one: those are the rows returned.
     """
     filt = rig.pressure_filter
+    none = np.zeros(0, dtype=np.int64)
     if filt is None:
-        return pressure_Pa
+        return pressure_Pa, none
     t, u = inputs.time_s, inputs.command_V
     switch = np.nonzero(u[1:] != u[:-1])[0] + 1  # sample j: u[j - 1] -> u[j]
     finite = np.all(np.isfinite(pressure_Pa), axis=(1, 2))
@@ -69,7 +71,7 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
                       & (slots[:, S["sensor_natural_frequency_rad_per_s"]] <= 0.0)
                       & finite)[0]
     if switch.size == 0 or rows.size == 0 or length < 2:
-        return pressure_Pa
+        return pressure_Pa, none
     s_tab, k_tab = filt.kink_response
     reach_lo, reach_hi = s_tab[0], s_tab[-1]
     starts = np.asarray(starts, dtype=np.int64)
@@ -82,7 +84,7 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     k_hi = np.searchsorted(t_switch + delay.min(), t_last - reach_lo, side="left")
     count = np.maximum(k_hi - k_lo, 0)
     if not count.sum():
-        return pressure_Pa
+        return pressure_Pa, none
     w = np.repeat(np.arange(starts.size), count)  # (P,)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + k_lo[w]
     j = switch[k]
@@ -130,4 +132,4 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
                     np.broadcast_to(w[None, :, None], shape), idx - s0[:, None]),
               np.where(ok, kr * jump[..., None], 0.0))
     out[rows[unread]] = np.nan
-    return out
+    return out, rows[unread]

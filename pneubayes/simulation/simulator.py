@@ -208,9 +208,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         raise SimulationError(f"simulation failed for {failed.size} parameter set(s){more}:\n  "
                               + "\n  ".join(lines))
     # the sensor point: what a declared anti-alias filter reads of the chamber pressure
-    read = np.isfinite(arrays[0]).all(axis=(1, 2))
-    arrays[0] = sensor_reading(arrays[0], slots, rig, inputs, starts, length)
-    unread = np.nonzero(read & ~np.isfinite(arrays[0]).all(axis=(1, 2)))[0]
+    arrays[0], unread = sensor_reading(arrays[0], slots, rig, inputs, starts, length)
     if len(unread) and on_failure == "nan":
         for a in arrays[1:]:
             a[unread] = np.nan
