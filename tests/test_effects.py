@@ -38,12 +38,14 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
             ("sensor_lag", {"form": "second_order", "channels": "all"}),
             ("sensor_lag", {"form": "pressure_dependent"}),
             ("closure", {}), ("closure", {"terms": "inlet_flow*pressure_hinge; "
-                                                   "spool_hinge_down; one"})]
+                                                   "spool_hinge_down; one"}),
+            ("reading_closure", {}), ("reading_closure", {"terms": 2})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
        "valve_deadzone",
        "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
        "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all",
-       "sensor_lag_pressure", "closure", "closure_hinges"]
+       "sensor_lag_pressure", "closure", "closure_hinges", "reading_closure",
+       "reading_closure_2"]
 
 
 def _tight():
@@ -84,7 +86,7 @@ def test_catalogue_names():
     assert list(CATALOGUE) == ["cylinder_leak", "tube_delay", "valve_deadzone",
                                "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
                                "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
-                               "valve_stiction", "closure"]
+                               "valve_stiction", "closure", "reading_closure"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -134,7 +136,9 @@ def test_lower_writes_only_declared_slots(effect, rig, valve_params):
     changed = {name for name, j in SLOT_INDEX.items()
                if not np.array_equal(with_effect[:, j], without[:, j])}
     assert changed <= set(effect.acts_on)
-    assert changed  # random draws in the bounds do something
+    # random draws in the bounds do something (a reading closure acts after the kernel,
+    # on no slot: what it does, test_bench_defaults_have_an_effect)
+    assert changed or not effect.acts_on
 
 
 def test_neutral_values_reproduce_the_base_model_exactly(effect, rig, valve_params,

@@ -3,7 +3,8 @@
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
 ``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
 ``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
-``closure`` (an open-form extra mass flow, never searched for by the discovery library).
+``closure`` (an open-form extra mass flow) and ``reading_closure`` (open-form relaxations
+of the reading), never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pneubayes.effects.base import Component, Effect, Eq10Fit, Parameter
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
+from pneubayes.effects.reading_closure import ReadingClosure
 from pneubayes.effects.sensor_calibration import SensorCalibration
 from pneubayes.effects.sensor_drift import SensorDrift
 from pneubayes.effects.sensor_lag import SensorLag
@@ -31,7 +33,7 @@ CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
-                SensorNonlinearity, ValveStiction, Closure)
+                SensorNonlinearity, ValveStiction, Closure, ReadingClosure)
 }
 
 
@@ -120,7 +122,8 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 
 
 __all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10Fit",
-           "HeatTransfer", "Parameter", "SensorCalibration", "SensorDrift", "SensorLag",
+           "HeatTransfer", "Parameter", "ReadingClosure", "SensorCalibration", "SensorDrift",
+           "SensorLag",
            "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
            "catalogue_parameter_names", "make_effect"]

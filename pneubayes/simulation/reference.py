@@ -372,7 +372,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     the pressures (the reading, with a sensor lag) ``(N,)`` in Pa (and the rhs count if
     asked). A miscalibrated sensor (effect ``sensor_calibration``) reads P_atm + g (p -
     P_atm) + o: ``initial_pressure_Pa`` and ``initial_rate_Pa_per_s`` are such readings,
-    and so is every output.
+    and so is every output. A reading closure's relaxations (effect
+    ``reading_closure``) are ODE states that follow that reading from rest.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     cal_g, curv = 1.0 + sl[S["reading_gain_error"]], sl[S["reading_curvature_Pa"]]
@@ -386,6 +387,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          if warm != 0.0 and inputs.time_s[0] > 0.0 else 0.0)
     calibrated = np.any(cal_o != 0.0) or cal_g != 1.0 or curv != 0.0
     p_atm = rig.atmospheric_pressure_Pa
+    initial_reading = initial_pressure_Pa
     if calibrated:  # the reading's start -> the chamber's (r = P_atm + g y + k y^2 + o)
         rr = initial_pressure_Pa - p_atm - cal_o[0]
         y0 = rr / cal_g if curv == 0.0 else (
@@ -459,6 +461,21 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     i_pass = y.size - len(passes)
     flows_pending = any(code == FEATURE_BY_NAME["net_flow_lag"].code for code, _ in passes)
     out[0] = y[read]
+    # a reading closure's p_bar_k: the last states, following the (calibrated) reading
+    n_main = y.size
+    gains, taus = _reading_relaxations(model, params)
+    y = np.append(y, [initial_reading] * gains.size)
+    atols += [atol] * gains.size
+    rel = np.empty((t.size, gains.size))
+    rel[0] = y[n_main:]
+
+    def reading(a, yy):
+        r = yy[read]
+        if not calibrated:
+            return r
+        o = sl[S["reading_offset_Pa"]] + drift * a + (
+            warm * (1.0 - math.exp(-max(a, 0.0) / tau_w)) if warm != 0.0 else 0.0)
+        return p_atm + cal_g * (r - p_atm) + curv * ((r - p_atm) / 1e5) ** 2 + o
     nfev = 0
     # position and supply are read at t + adv (a filter on every channel, effect
     # sensor_lag), linear between their samples, held after the last
@@ -497,14 +514,18 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         for a, b in zip(edges[:-1], edges[1:]):
             jj = int(np.searchsorted(shifted, a, side="right") - 1)
             cmd = held(jj)
-            rhs = _rhs_factory(sl, rig, cmd, *measured(a), ue[k],
-                               directions[jj] if jj >= 0 else 0.0, extremes(a, jj))
+            chamber = _rhs_factory(sl, rig, cmd, *measured(a), ue[k],
+                                   directions[jj] if jj >= 0 else 0.0, extremes(a, jj))
             if flows_pending:  # a flow lag starts at rest at the first flow
                 for q, (code, _) in enumerate(passes):
                     if code == FEATURE_BY_NAME["net_flow_lag"].code:
-                        y[i_pass + q] = rhs(a, y, net_flow_only=True)
+                        y[i_pass + q] = chamber(a, y[:n_main], net_flow_only=True)
                         atols[i_pass + q] = 1e-12
                 flows_pending = False
+
+            def rhs(tt, yy, chamber=chamber):
+                return np.concatenate((chamber(tt, yy[:n_main]),
+                                       (reading(tt, yy) - yy[n_main:]) / taus))
             sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol,
                             atol=atols)
             if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
@@ -512,6 +533,19 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             nfev += sol.nfev
             y = sol.y[:, -1]
         out[k + 1] = y[read]
+        rel[k + 1] = y[n_main:]
     if calibrated:
         out = p_atm + cal_g * (out - p_atm) + curv * ((out - p_atm) / 1e5) ** 2 + cal_o
+    out = out + (gains * (out[:, None] - rel)).sum(axis=1)
     return (out, nfev) if return_stats else out
+
+
+def _reading_relaxations(model: Model, params) -> tuple[np.ndarray, np.ndarray]:
+    """``(gains, time constants)`` of ``model``'s reading closure (empty without one)."""
+    if not model.has("reading_closure"):
+        return np.zeros(0), np.ones(0)
+    effect = model.effect("reading_closure")
+    theta = model.as_matrix(params)[0]
+    g, tau = effect.relaxations({n: theta[model.parameter_names.index(n)]
+                                 for n in effect.parameter_names()})
+    return g[0], tau[0]

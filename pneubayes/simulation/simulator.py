@@ -24,6 +24,7 @@ from pneubayes.simulation import kernel
 from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.drive import Inputs, kernel_ready_arrays
 from pneubayes.simulation.measurement import sensor_reading
+from pneubayes.simulation.reading_closure import read_windows, relaxations_of, start_state
 from pneubayes.simulation.stiction import sticks, valve_commands
 
 
@@ -181,17 +182,26 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                              "'exhaust_command' column, or the column its rig card names)")
         _check_exclusive_forms(forms, slots)
         general = bool(forms[:, _GENERAL_COLUMNS].any())
+    # a reading closure: each window's chamber starts where it reads the measured start
+    # (pneubayes.simulation.reading_closure), each set moved to its own along the start
+    # sensitivity, which the kernel then computes
+    read_through = model.has("reading_closure")
+    call = kernel.simulate_windows_sensitivity if read_through else kernel_fn
+    if read_through:
+        relax = relaxations_of(model, theta)
+        start, bar0 = start_state(*relax, inputs, starts, p0)
+        p0 = start.mean(axis=0)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = kernel_ready_arrays(
         slots, rig_constants(rig), solver.as_array(), starts + offset, p0, rate0)
     if sticks(slots).any():  # a sticking valve: each set's own command
         *arrays, status = _each_valve_command(
-            slots, u, lambda rows, uu: kernel_fn(
+            slots, u, lambda rows, uu: call(
                 np.ascontiguousarray(slots[rows]), consts, sv, t, uu, ue, x, ps, kstarts,
                 length, p0, np.ascontiguousarray(rate0[rows]), pm, general))
     else:
-        *arrays, status = kernel_fn(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
-                                    rate0, pm, general)
+        *arrays, status = call(slots, consts, sv, t, u, ue, x, ps, kstarts, length, p0,
+                               rate0, pm, general)
     failed = np.nonzero(status.any(axis=1))[0] if status.any() else ()
     if len(failed) and on_failure == "nan":
         for a in arrays:
@@ -219,6 +229,9 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                               f"reading at a corner the declared pressure filter rounds "
                               f"stands for no chamber pressure (beyond the curved "
                               f"sensor's turning point); parameter set {unread[0]}: {vals}")
+    if read_through:  # an open-form term at the reading (effect reading_closure)
+        out, sens = read_windows(*relax, inputs, starts, *arrays[:2], p0, start, bar0)
+        arrays = [out, sens] if kernel_fn is kernel.simulate_windows_sensitivity else [out]
     return arrays
 
 
@@ -322,6 +335,9 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
     if rig.pressure_filter is not None:
         raise ValueError("simulate_carried: a declared pressure filter's reading is "
                          "computed over whole windows and cannot be carried")
+    if model.has("reading_closure"):
+        raise ValueError("simulate_carried: a reading closure's relaxations start at each "
+                         "window's start and are not carried from chunk to chunk")
     if not (isinstance(gain, (int, float)) and not isinstance(gain, bool)
             and 0.0 <= gain <= 1.0):
         raise ValueError(f"simulate_carried: gain must be a number in [0, 1], got {gain!r}")
