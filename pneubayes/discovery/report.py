@@ -211,7 +211,18 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                       "the final model misses without it on the training recordings (grey: "
                       "binned means and standard errors):", "",
                       f"![found terms](figures/{figs['found_terms']})"]
-    if doc["effects"] or doc.get("found_terms"):
+    if doc.get("found_reading_terms"):
+        lines += ["", "Open-form relaxations of the reading found (they change what the sensor "
+                  "reports, not the chamber; in no catalogue form):", "",
+                  "| term | formula | parameter | unit | estimate | 90 % interval |",
+                  "|---|---|---|---|---|---|"]
+        for t in doc["found_reading_terms"]:
+            for n, p in t["parameters"].items():
+                est = p.get("median", p.get("estimate"))
+                iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
+                lines.append(f"| {t['term']} | {_md(t['formula'])} | {n} | {_md(p['unit'])} | "
+                             f"{est:.4g} | {iv} |")
+    if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms"):
         found = True
     elif final <= MISFIT_RATIO * noise:
         found = False
@@ -296,6 +307,13 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
             fitted = ", ".join(f"{t['term']}: " + ", ".join(
                 f"{k}={v:.4g}" for k, v in t.items() if k != "term") for t in e["terms"])
             lines.append(f"| {e['step']} | {e['action']} | closure | {_md(fitted)} | "
+                         f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
+                         f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
+                         f"p = {e['score_p_value']:.2g}) |")
+        elif e["action"] in ("reading form pass", "reading form reject"):
+            fitted = ", ".join(f"g={r['gain']:.4g}, tau={r['time_constant_s']:.4g} s"
+                               for r in e["relaxations"])
+            lines.append(f"| {e['step']} | {e['action']} | reading_closure | {_md(fitted)} | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
                          f"p = {e['score_p_value']:.2g}) |")

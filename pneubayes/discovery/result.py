@@ -115,13 +115,39 @@ class DiscoveryResult(PosteriorDraws):
                         "formula": term_formula(term, k), "parameters": values})
         return out
 
+    def found_reading_terms(self) -> list[dict]:
+        """The final model's open-form relaxations of the reading (effect
+        ``reading_closure``; empty without one): each relaxation's formula, its gain and
+        time constant (the posterior's median and 90 % interval when one was sampled,
+        else the estimate), and where it acts."""
+        model = self.final.model
+        if not model.has("reading_closure"):
+            return []
+        post = self.posterior_summary
+        out = []
+        for k in range(model.effect("reading_closure").terms):
+            values = {}
+            for n in (f"reading_closure_gain_{k}", f"reading_closure_time_constant_{k}"):
+                p = model.parameter(n)
+                if post is not None and n in post:
+                    values[n] = {"unit": p.unit, **{q: post[n][q]
+                                                    for q in ("median", "q05", "q95")}}
+                else:
+                    values[n] = {"unit": p.unit, "estimate": self.final.params[n]}
+            out.append({"term": f"relaxation {k}", "acts_on": "the pressure reading (Pa)",
+                        "formula": f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = "
+                                   f"p - p_bar_{k} (g_{k} = reading_closure_gain_{k}, tau_{k} "
+                                   f"= reading_closure_time_constant_{k}, s)",
+                        "parameters": values})
+        return out
+
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
         post = self.posterior_summary
         effects = []
         for a in self.accepted:
-            if a["name"] == "closure":  # open-form terms: listed apart, as found_terms
-                continue
+            if a["name"] in ("closure", "reading_closure"):  # open-form terms: listed
+                continue  # apart, as found_terms and found_reading_terms
             eff = self.final.model.effect(a["name"])
             params = {}
             for n in eff.parameter_names():
@@ -139,6 +165,7 @@ class DiscoveryResult(PosteriorDraws):
                             "rmse_before_Pa": a["rmse_before_Pa"],
                             "rmse_after_Pa": a["rmse_after_Pa"]})
         doc = {"format": FORMAT, "effects": effects, "found_terms": self.found_terms(),
+               "found_reading_terms": self.found_reading_terms(),
                "rmse_base_Pa": self.base.heldout_rmse_Pa,
                "rmse_final_Pa": self.final.heldout_rmse_Pa,
                "noise_floor_Pa": self.noise_floor_Pa, "range_Pa": self.range_Pa,

@@ -260,6 +260,9 @@ class StageSettings:
         OtherForms: the named effects' other forms, at most this many swaps (0: off).
     open_form_min_noise_ratio : float
         OpenForm: an open-form closure while above this x the noise floor (0: off).
+    reading_form_min_noise_ratio : float
+        ReadingForm: open-form relaxations of the reading while above this x the noise
+        floor (0: off).
     """
 
     more_supported: bool = True
@@ -270,6 +273,7 @@ class StageSettings:
     pair_members: int = 3
     max_form_swaps: int = 2
     open_form_min_noise_ratio: float = 1.5
+    reading_form_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
         _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
@@ -283,6 +287,10 @@ class StageSettings:
                 or self.open_form_min_noise_ratio >= 1.0):
             raise ValueError("open_form_min_noise_ratio must be 0 (off) or >= 1, got "
                              f"{self.open_form_min_noise_ratio}")
+        if not (self.reading_form_min_noise_ratio == 0.0
+                or self.reading_form_min_noise_ratio >= 1.0):
+            raise ValueError("reading_form_min_noise_ratio must be 0 (off) or >= 1, got "
+                             f"{self.reading_form_min_noise_ratio}")
 
 
 @dataclass(frozen=True)

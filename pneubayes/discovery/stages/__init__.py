@@ -15,6 +15,7 @@ from pneubayes.discovery.stages.more_supported import MoreSupported
 from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
+from pneubayes.discovery.stages.reading_form import ReadingForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
 
 
@@ -22,7 +23,7 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open-form closure."""
+    effects' other forms, then the open-form closure and the reading's relaxations."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -37,8 +38,10 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(OtherForms(s.max_form_swaps))
     if s.open_form_min_noise_ratio:
         stages.append(OpenForm(s.open_form_min_noise_ratio))
+    if s.reading_form_min_noise_ratio:
+        stages.append(ReadingForm(s.reading_form_min_noise_ratio))
     return stages
 
 
 __all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
-           "OpenForm", "default_stages"]
+           "OpenForm", "ReadingForm", "default_stages"]

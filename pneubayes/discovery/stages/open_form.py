@@ -30,8 +30,8 @@ from pneubayes.discovery.openform.closure_model import (
 from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
 from pneubayes.discovery.openform.residual import one_step_residual, window_residual
 from pneubayes.discovery.openform.search import OpenFormSearch
-from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.stages.weighing import weigh
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects.closure import Closure
@@ -417,50 +417,23 @@ class OpenForm(Stage):
     # ------------------------------------------------------------------ verify
     def _verify(self, fit, state: RoundState, runner, best, search):
         """Weigh the closure's fit against the current model (and the round's best
-        passing catalogue trial); ``(passed, parameters newly at a bound)``."""
-        s, noise = runner.settings, runner.data.noise_Pa
-        controls = runner.controls([(CLOSURE, fit)], state)
-        current = state.current
-        control = controls[0]
-        ok, gain, pval, diff = runner.better(fit, current)
-        basin = bool(ok and control is not None and control is not current
-                     and not runner.better(fit, control)[0])
-        gap_Pa = current.heldout_rmse_Pa - noise
-        drop_Pa = current.heldout_rmse_Pa - fit.heldout_rmse_Pa
-        least = min_gain_Pa(noise, gap_Pa, s)
-        closed, _, under = gain_shortfall(drop_Pa, gap_Pa, 0.0, least)
-        bounded = newly_at_bounds(fit, current)
-        ok = ok and not basin and not under and not bounded
-        beats = None
-        if ok and best is not None:
-            beats = bool(runner.better(fit, best[2])[0])
-            ok = beats
+        passing catalogue trial, :func:`~pneubayes.discovery.stages.weighing.weigh`);
+        ``(passed, parameters newly at a bound)``."""
+        w = weigh(fit, state, runner, best, CLOSURE)
         terms = existing_terms(fit.model)
         runner.ledger.record(
-            "open form pass" if ok else "open form reject", effect=CLOSURE,
+            "open form pass" if w.passed else "open form reject", effect=CLOSURE,
             terms=[{"term": str(t), **{n: fit.params[n] for n in names}}
                    for t, names in terms],
-            gap_closed=closed, gain_under_floor=bool(under), min_gain_Pa=least,
-            train_rmse_Pa=fit.train_rmse_Pa,
-            heldout_rmse_before_Pa=current.heldout_rmse_Pa,
-            heldout_rmse_after_Pa=fit.heldout_rmse_Pa,
-            score_gain=gain, score_p_value=pval,
-            control_heldout_rmse_Pa=None if control is None else control.heldout_rmse_Pa,
-            not_better_than_control=basin, at_bounds=bounded,
-            catalogue_best=None if best is None else {
-                "effect": best[1], "heldout_rmse_Pa": best[0], "closure_better": beats},
-            windows_improved=int(np.sum(diff > 0)), windows=int(diff.size),
-            wall_time_s=fit.wall_time_s)
-        why = ([] if not basin else ["its gain is its basin's"]) + (
-            [f"{', '.join(bounded)} at a bound"] if bounded else []) + (
-            [f"it gains {drop_Pa:.1f} Pa, under {least:.1f} Pa"] if under else []) + (
-            [f"not better than {best[1]}"] if beats is False else [])
-        runner.log(f"discover: {'passes' if ok else 'reject'} open form: held-out RMSE "
-                   f"{current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa, better "
-                   f"in {int(np.sum(diff > 0))}/{diff.size} windows (p = {pval:.2g})"
-                   + ("" if ok or not why else "; " + "; ".join(why)))
-        if not ok:
-            return False, bounded
+            **w.record(fit, state.current, best))
+        why = w.reasons(best)
+        runner.log(f"discover: {'passes' if w.passed else 'reject'} open form: held-out RMSE "
+                   f"{state.current.heldout_rmse_Pa:.0f} -> {fit.heldout_rmse_Pa:.0f} Pa, "
+                   f"better in {int(np.sum(w.window_gains > 0))}/{w.window_gains.size} "
+                   f"windows (p = {w.p_value:.2g})"
+                   + ("" if w.passed or not why else "; " + "; ".join(why)))
+        if not w.passed:
+            return False, w.bounded
         if best is not None:
             runner.log(f"discover: open form: the closure explains the residual better "
                        f"than {best[1]}, which it replaces as the round's candidate")
@@ -470,8 +443,8 @@ class OpenForm(Stage):
             else 0.0,
             "t_max": None, "best_term": "; ".join(str(t) for t, _ in terms),
             "best_term_start": None}
-        state.passing = [(fit.heldout_rmse_Pa, CLOSURE, fit, gain, pval)]
-        return True, bounded
+        state.passing = [(fit.heldout_rmse_Pa, CLOSURE, fit, w.gain, w.p_value)]
+        return True, w.bounded
 
 
 def _source_label(source) -> str:
