@@ -317,6 +317,31 @@ def plot_evidence(searches, path) -> Path:
     return _save(fig, path)
 
 
+def plot_found_reading_terms(views, path) -> Path:
+    """Each relaxation of the reading against its variable ``p - p_bar``, beside the
+    reading the model misses without it (binned means with standard errors;
+    :func:`pneubayes.discovery.openform.reading_view.reading_views`)."""
+    plt = _pyplot()
+    n = len(views)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(3.4 * max(n, 1), 3.0), squeeze=False)
+    for k, v in enumerate(views):
+        ax = axes[0, k]
+        x = np.asarray(v["bin_centre"]) / 1e3
+        ax.errorbar(x, np.asarray(v["missing_Pa"]) / 1e3,
+                    yerr=np.asarray(v["missing_sem_Pa"]) / 1e3, fmt="o", ms=3,
+                    color="tab:gray", label="missing without it")
+        ax.plot(x, np.asarray(v["term_Pa"]) / 1e3, "-", color="tab:red", label="the term")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel(f"{v['variable']} (kPa)", fontsize=7)
+        ax.set_ylabel("reading, measured - predicted (kPa)", fontsize=7)
+        ax.set_title(f"{v['formula']}\nexplains {100 * v['explained_fraction']:.0f} % of "
+                     "the missing reading's sum of squares", fontsize=7)
+        ax.tick_params(labelsize=6)
+        if k == 0:
+            ax.legend(fontsize=6)
+    return _save(fig, path)
+
+
 def plot_found_terms(views, path) -> Path:
     """Each open-form term's mass flow against its main variable, beside the mass flow
     the model misses without it (binned means with standard errors;

@@ -198,6 +198,10 @@ def test_found_relaxations_are_listed_apart_with_their_formula():
 def relaxing_recordings():
     """Four 8-s valve1 recordings (1 kHz, 200 Pa noise) read through a sensor that
     reads a change 4 % high at first and settles in 0.35 s."""
+    return _relaxing(4, 8001)
+
+
+def _relaxing(count, n):
     from conftest import BORE, P_ATM, P_SUP, STROKE, random_steps
 
     from pneubayes.io.recording import Recording, RecordingMetadata
@@ -210,9 +214,9 @@ def relaxing_recordings():
     md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
                            position_m=0.015)
     recs = []
-    for seed in range(4):
+    for seed in range(count):
         rng = np.random.default_rng(10 + seed)
-        n, dt = 8001, 1e-3
+        dt = 1e-3
         t = np.arange(n) * dt
         u = random_steps(rng, n, dt, hold_s=(0.1, 0.6))
         blank = Recording(md, t, u, np.full(n, P_ATM))
@@ -243,5 +247,25 @@ def test_discovery_finds_a_planted_relaxation_of_the_reading(relaxing_recordings
     assert g == pytest.approx(GAIN, rel=0.1) and tau == pytest.approx(TAU, rel=0.15)
     assert doc["effects"] == [] and doc["found_terms"] == []
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
-    write_discovery(result, recs, tmp_path, figures=False)
-    assert "relaxations of the reading found" in (tmp_path / "report.md").read_text()
+    write_discovery(result, recs, tmp_path)
+    report = (tmp_path / "report.md").read_text()
+    assert "relaxations of the reading found" in report
+    assert "![found relaxations](figures/found_reading_terms.png)" in report
+    assert (tmp_path / "figures" / "found_reading_terms.png").stat().st_size > 0
+
+
+def test_a_true_relaxation_follows_the_reading_the_model_misses_without_it():
+    """The report's view: on recordings read through a relaxation, the truth's term
+    explains nearly all of the reading the model misses without it, bin by bin."""
+    from pneubayes.discovery.openform.reading_view import reading_views
+    from pneubayes.simulation import SolverConfig
+
+    recs, truth = _relaxing(2, 3001)
+    model = Model().with_effect(ReadingClosure())
+    (view,) = reading_views(model, truth, recs, 1.0, SolverConfig.standard())
+    assert view["explained_fraction"] > 0.95
+    np.testing.assert_allclose(view["term_Pa"], GAIN * np.asarray(view["bin_centre"]),
+                               rtol=0.2, atol=50.0)
+    np.testing.assert_allclose(view["missing_Pa"], view["term_Pa"], rtol=0, atol=300.0)
+    with pytest.raises(ValueError, match="no reading closure"):
+        reading_views(Model(), truth, recs, 1.0, SolverConfig.standard())

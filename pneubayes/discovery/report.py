@@ -95,6 +95,14 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
                            result.settings.search.solver)
         figs["found_terms"] = plot_found_terms(views,
                                                out / "figures" / "found_terms.png").name
+    if figures and doc.get("found_reading_terms"):
+        from pneubayes.discovery.openform.reading_view import reading_views
+        from pneubayes.plotting import plot_found_reading_terms
+
+        views = reading_views(result.model, result.params, result.train,
+                              result.settings.fit.horizon_s, result.settings.fit.refine_solver)
+        figs["found_reading_terms"] = plot_found_reading_terms(
+            views, out / "figures" / "found_reading_terms.png").name
     write_text_atomic(out / "report.md", _report(doc, result, figs))
     return doc
 
@@ -222,6 +230,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                 iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
                 lines.append(f"| {t['term']} | {_md(t['formula'])} | {n} | {_md(p['unit'])} | "
                              f"{est:.4g} | {iv} |")
+        if "found_reading_terms" in figs:
+            lines += ["", "Each relaxation against its variable p - p_bar (red), beside the "
+                      "reading the final model misses without it on the training windows "
+                      "(grey: binned means and standard errors):", "",
+                      f"![found relaxations](figures/{figs['found_reading_terms']})"]
     if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms"):
         found = True
     elif final <= MISFIT_RATIO * noise:

@@ -87,6 +87,28 @@ class ReadingWindows:
         return col[:, 1:].reshape(-1)
 
 
+def reading_windows(window_set, model, params, solver) -> list[ReadingWindows]:
+    """The windows of ``window_set`` (a :class:`~pneubayes.inference.windows.WindowSet`)
+    as ``model`` at ``params`` (one set) predicts them by ``solver``, one
+    :class:`ReadingWindows` per recording, each with the recording's reading as its
+    history."""
+    ws = window_set
+    resid, sens = ws.residuals_and_sensitivity(model, model.vector(params)[None], solver)
+    out, n0 = [], 0
+    for b in ws.blocks:
+        w = b.starts.size
+        r = -resid[0, n0:n0 + w]  # measured minus predicted
+        t_all = np.asarray(b.inputs.time_s, dtype=np.float64)
+        reading = b.inputs.reading_Pa
+        out.append(ReadingWindows(
+            t_all[b.starts[:, None] + np.arange(ws.length)],
+            np.concatenate([b.measured[:, :1], b.measured[:, 1:] - r], axis=1), r,
+            sens[0, n0:n0 + w],
+            None if reading is None else (t_all, np.asarray(reading, np.float64), b.starts)))
+        n0 += w
+    return out
+
+
 def relaxation_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.ndarray:
     """:meth:`ReadingWindows.column` of each block, in block order (Pa)."""
     return np.concatenate([b.column(tau_s) for b in blocks])

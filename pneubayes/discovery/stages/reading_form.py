@@ -17,7 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pneubayes.discovery.openform.reading import ReadingSearch, ReadingWindows
+from pneubayes.discovery.openform.reading import (
+    ReadingSearch,
+    ReadingWindows,
+    reading_windows,
+)
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.stages.weighing import weigh
 from pneubayes.discovery.state import RoundState
@@ -101,27 +105,10 @@ class ReadingForm(Stage):
             runner.ledger.record("reading form failed", round=state.number, error=why)
 
     def _residual(self, state: RoundState, runner) -> list[ReadingWindows]:
-        """Per training recording: its windows' times, the current model's prediction,
-        residual (measured minus predicted) and start sensitivity, and the recorded
-        reading the relaxations start warm from."""
-        ws, current = runner.data.train_ws, state.current
-        theta = current.model.vector(current.params)[None]
-        resid, sens = ws.residuals_and_sensitivity(current.model, theta,
-                                                   runner.settings.fit.refine_solver)
-        out, n0 = [], 0
-        for b in ws.blocks:
-            w = b.starts.size
-            r = -resid[0, n0:n0 + w]  # measured minus predicted
-            t_all = np.asarray(b.inputs.time_s, dtype=np.float64)
-            reading = b.inputs.reading_Pa
-            out.append(ReadingWindows(
-                t_all[b.starts[:, None] + np.arange(ws.length)],
-                np.concatenate([b.measured[:, :1], b.measured[:, 1:] - r], axis=1), r,
-                sens[0, n0:n0 + w],
-                None if reading is None else (t_all, np.asarray(reading, np.float64),
-                                              b.starts)))
-            n0 += w
-        return out
+        """The training windows as the current model predicts them
+        (:func:`~pneubayes.discovery.openform.reading.reading_windows`)."""
+        return reading_windows(runner.data.train_ws, state.current.model,
+                               state.current.params, runner.settings.fit.refine_solver)
 
     def _run(self, state: RoundState, runner, best) -> None:
         search = self.search if self.search is not None else ReadingSearch()
