@@ -269,3 +269,31 @@ def test_a_true_relaxation_follows_the_reading_the_model_misses_without_it():
     np.testing.assert_allclose(view["missing_Pa"], view["term_Pa"], rtol=0, atol=300.0)
     with pytest.raises(ValueError, match="no reading closure"):
         reading_views(Model(), truth, recs, 1.0, SolverConfig.standard())
+
+
+def test_a_controllers_prediction_starts_the_relaxation_warm_from_the_readings(rig, hand):
+    """PressurePredictor with the readings before now predicts a recording read through
+    a relaxation from mid-transient as the recording's own simulation does; without them
+    it starts the relaxation at rest and misses by the transient."""
+    from pneubayes.inference.predictive import PressurePredictor
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+
+    n, now, horizon = 1201, 600, 400
+    t = np.arange(n) * 1e-3
+    u = hand.random_steps(np.random.default_rng(5), n, 1e-3, hold_s=(0.05, 0.2))
+    inputs = Inputs(t, u, np.full(n, 0.015), np.full(n, rig.supply_pressure_Pa))
+    model = Model().with_effect(ReadingClosure())
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+              "reading_closure_gain_0": GAIN, "reading_closure_time_constant_0": TAU}
+    solver = SolverConfig.standard()
+    whole = simulate_windows(model, params, inputs, rig, np.array([0]), n, 2e5, solver)[0, 0]
+    predictor = PressurePredictor(model, model.vector(params)[None], rig, solver)
+    args = (whole[now], u[now:now + horizon], 0.015, 1e-3)
+    warm = predictor.predict_draws(*args, command_history_V=u[:now],
+                                   reading_history_Pa=whole[:now])[0, 0]
+    rest = predictor.predict_draws(*args, command_history_V=u[:now])[0, 0]
+    truth = whole[now:now + horizon + 1]
+    assert np.max(np.abs(warm - truth)) < 50.0 < 0.05 * np.max(np.abs(rest - truth))
+    with pytest.raises(ValueError, match="reading_history_Pa"):
+        predictor.predict_draws(*args, reading_history_Pa=[np.nan])

@@ -243,7 +243,7 @@ class PressurePredictor:
 
     def predict_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                       supply_pressure_Pa=None, command_history_V=None,
-                      time_s: float = 0.0) -> np.ndarray:
+                      time_s: float = 0.0, reading_history_Pa=None) -> np.ndarray:
         """Pressure of every draw under every candidate, ``(N, C, L + 1)`` Pa.
 
         ``commands_V`` is ``(C, L)`` (each held for ``dt_s``) or ``(L,)``; ``position_m``
@@ -255,18 +255,23 @@ class PressurePredictor:
         A sticking valve (``valve_stiction``) rests at the oldest command given: pass the
         history since it last moved. ``time_s`` is now on the recording's clock, where a
         drifting sensor's zero is read (:attr:`clocked`; ignored otherwise).
+        ``reading_history_Pa`` holds the readings before now, oldest first, one per
+        ``dt_s``: a model with a reading closure starts its relaxations warm from them and
+        ``pressure_Pa`` (default: at rest at ``pressure_Pa``).
         """
         return self._each_candidate(
             lambda *args: simulate_windows(self.model, self.draws, *args, self.solver,
                                            check_bounds=False),
             pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
-            command_history_V, time_s)
+            command_history_V, time_s, reading_history_Pa)
 
     def _each_candidate(self, run, pressure_Pa, commands_V, position_m, dt_s,
-                        supply_pressure_Pa, command_history_V, time_s):
+                        supply_pressure_Pa, command_history_V, time_s,
+                        reading_history_Pa=None):
         """``run(*window arguments)`` for all candidates at once, or (a clocked model)
         for each from ``time_s``, joined along the candidate axis (1)."""
-        rest = (position_m, dt_s, supply_pressure_Pa, command_history_V, time_s)
+        rest = (position_m, dt_s, supply_pressure_Pa, command_history_V, time_s,
+                reading_history_Pa)
         if not self.clocked:
             return run(*self._windows(pressure_Pa, commands_V, *rest))
         u = np.atleast_2d(np.asarray(commands_V, dtype=np.float64))
@@ -278,7 +283,8 @@ class PressurePredictor:
 
     def predictive_draws(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                          noise_Pa, supply_pressure_Pa=None, command_history_V=None,
-                         time_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                         time_s: float = 0.0,
+                         reading_history_Pa=None) -> tuple[np.ndarray, np.ndarray]:
         """The posterior predictive of the *reading* under every candidate: returns
         ``(pressure_Pa, reading_Pa)``, both ``(N, C, L + 1)``: :meth:`predict_draws`'s
         pressure, and the same plus each draw's noise as the
@@ -301,11 +307,11 @@ class PressurePredictor:
             lambda *args: simulate_windows_sensitivity(self.model, self.draws, *args,
                                                        self.solver, check_bounds=False),
             pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
-            command_history_V, time_s)
+            command_history_V, time_s, reading_history_Pa)
         return sim, sim + window_noise(noise[:, None, :], sens)
 
     def _windows(self, pressure_Pa, commands_V, position_m, dt_s, supply_pressure_Pa,
-                 command_history_V, time_s=0.0):
+                 command_history_V, time_s=0.0, reading_history_Pa=None):
         """(inputs, rig, starts, length, start pressures): one window per candidate, the
         first starting at ``time_s``."""
         dt = float(dt_s)
@@ -326,6 +332,20 @@ class PressurePredictor:
             n_h = max(n_h, h.size)
             h = np.concatenate([np.full(n_h - h.size, h[0]), h])
             hist = np.broadcast_to(h, (n_c, n_h))
+        reading = None
+        if reading_history_Pa is not None:
+            r = np.asarray(reading_history_Pa, dtype=np.float64).reshape(-1)
+            if r.size == 0 or not np.all(np.isfinite(r)):
+                raise ValueError("reading_history_Pa must be a non-empty array of finite "
+                                 "readings (Pa), oldest first")
+            if r.size > n_h:  # (the command history reaches as far back, held)
+                hist = np.concatenate([np.repeat(hist[:, :1], r.size - n_h, axis=1), hist],
+                                      axis=1)
+                n_h = r.size
+            # each candidate's history block: the readings and now's, NaN before them and
+            # after now (each block's relaxations warm up from its own first reading)
+            reading = np.concatenate([np.full(n_h - r.size, np.nan), r,
+                                      [float(pressure_Pa)], np.full(n_l, np.nan)])
         x = np.broadcast_to(np.asarray(position_m, dtype=np.float64), (n_l + 1,))
         sup = np.broadcast_to(np.asarray(self.rig.supply_pressure_Pa if supply_pressure_Pa
                                          is None else supply_pressure_Pa, np.float64),
@@ -340,15 +360,17 @@ class PressurePredictor:
         cmd = np.concatenate([hist, u, u[:, -1:]], axis=1).reshape(-1)
         pos = np.concatenate([np.full(n_h, x[0]), x])
         sp = np.concatenate([np.full(n_h, sup[0]), sup])
-        inputs = Inputs(t, cmd, np.tile(pos, n_c), np.tile(sp, n_c))
+        inputs = Inputs(t, cmd, np.tile(pos, n_c), np.tile(sp, n_c),
+                        reading_Pa=None if reading is None else np.tile(reading, n_c))
         starts = np.arange(n_c) * block + n_h
         return inputs, self.rig, starts, n_l + 1, np.full(n_c, float(pressure_Pa))
 
     def predict(self, pressure_Pa: float, commands_V, position_m, dt_s: float,
                 supply_pressure_Pa=None, command_history_V=None,
-                time_s: float = 0.0) -> np.ndarray:
+                time_s: float = 0.0, reading_history_Pa=None) -> np.ndarray:
         """Quantiles ``(C, Q, L + 1)`` of the pressure under each candidate (Pa); the
         arguments are :meth:`predict_draws`'."""
         sim = self.predict_draws(pressure_Pa, commands_V, position_m, dt_s,
-                                 supply_pressure_Pa, command_history_V, time_s)
+                                 supply_pressure_Pa, command_history_V, time_s,
+                                 reading_history_Pa)
         return np.moveaxis(draw_quantiles(sim, self.quantiles), 0, 1)

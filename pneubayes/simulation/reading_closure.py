@@ -100,16 +100,26 @@ def relaxed_reading(time_s, pressure_Pa, gains, time_constants_s,
 
 def history_low_pass(time_s, reading_Pa, time_constants_s, starts) -> np.ndarray:
     """The recorded reading's first-order low-pass at the samples ``starts``, from rest at
-    its first finite sample, for each time constant: ``(B, K, W)`` for
-    ``time_constants_s`` ``(B, K)`` (NaN where the reading has no finite sample yet)."""
+    the first sample of the stretch of finite readings each start lies in, for each time
+    constant: ``(B, K, W)`` for ``time_constants_s`` ``(B, K)`` (NaN where the reading at
+    a start is not finite)."""
     tau = np.asarray(time_constants_s, dtype=np.float64)
     starts = np.asarray(starts, dtype=np.int64)
+    t = np.asarray(time_s, dtype=np.float64)
+    r = np.asarray(reading_Pa, dtype=np.float64)
+    finite = np.isfinite(r)
+    # the stretches of finite readings: [first, end) each
+    edges = np.diff(np.concatenate(([0], finite.astype(np.int8), [0])))
+    firsts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     out = np.empty((*tau.shape, starts.size))
     memo: dict[float, np.ndarray] = {}
     for idx in np.ndindex(tau.shape):
         v = float(tau[idx])
         if v not in memo:
-            memo[v] = first_order_low_pass(time_s, reading_Pa, v)[starts]
+            y = np.full(r.shape, np.nan)
+            for a, b in zip(firsts, ends):
+                y[a:b] = first_order_low_pass(t[a:b], r[a:b], v)
+            memo[v] = y[starts]
         out[idx] = memo[v]
     return out
 

@@ -110,8 +110,10 @@ def reading_windows(window_set, model, params, solver) -> list[ReadingWindows]:
 
 
 def relaxation_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.ndarray:
-    """:meth:`ReadingWindows.column` of each block, in block order (Pa)."""
-    return np.concatenate([b.column(tau_s) for b in blocks])
+    """:meth:`ReadingWindows.column` of each block, in block order (Pa; 0 where a
+    prediction failed)."""
+    x = np.concatenate([b.column(tau_s) for b in blocks])
+    return np.where(np.isfinite(x), x, 0.0)
 
 
 class ReadingSearch:

@@ -99,7 +99,8 @@ class ReadingForm(Stage):
             return
         try:
             self._run(state, runner, best)
-        except (ValueError, FloatingPointError, SimulationError) as exc:
+        except (ValueError, FloatingPointError, SimulationError,
+                np.linalg.LinAlgError) as exc:
             why = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
             runner.log(f"discover: reading form: not possible beside this model ({why})")
             runner.ledger.record("reading form failed", round=state.number, error=why)
