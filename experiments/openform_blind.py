@@ -51,8 +51,9 @@ the value read as TOML, else as text) sets one :class:`DiscoverySettings` key, e
 are recorded.
 
 Reported per case: the catalogue effects named, the open-form terms found (the
-discovery document's ``found_terms``, from an effect named ``closure``; none when the
-loop has no open-form stage), the held-out RMSE before and after (Pa), the noise floor,
+discovery document's ``found_terms``, from an effect named ``closure``, and its
+``found_reading_terms``, relaxations of the reading; none when the loop has no open-form
+stage), the held-out RMSE before and after (Pa), the noise floor,
 the gap shrink and final / noise. The issue's floors: out-of-catalogue cases name no
 catalogue stand-in in >= 8 of 10, median gap shrink >= 70 %, median final <= 2 x the
 noise floor; null controls find no open-form term and name nothing beyond the sensor
@@ -445,7 +446,7 @@ def classify(named: list[str], found_terms: list, hidden: list[str]) -> dict:
     effect named ``closure`` is the open-form stage's and counts as found terms), the
     stand-ins among them (for an out-of-catalogue case, every catalogue effect but the
     sensor chain's real lags; for a control the same), and the open-form terms."""
-    catalogue = [n for n in named if n != "closure"]
+    catalogue = [n for n in named if n not in ("closure", "reading_closure")]
     stand_ins = [n for n in catalogue if n not in CONTROL_ALLOWED]
     terms = [t.get("term", str(t)) if isinstance(t, dict) else str(t)
              for t in (found_terms or [])]
@@ -472,8 +473,10 @@ def run_case(case: dict, args, root: Path) -> dict:
     gap1 = max(doc["rmse_final_Pa"] - noise, 0.0)
     return _public(case) | {
         "recordings": [paths[i].name for i in keep], "named": named,
-        **classify(named, doc.get("found_terms", []), case["hidden"]),
-        "found_terms_detail": doc.get("found_terms", []),
+        **classify(named, doc.get("found_terms", []) + [
+            f"reading: {t['formula'].split(',')[0]}"
+            for t in doc.get("found_reading_terms", [])], case["hidden"]),
+        "found_terms_detail": doc.get("found_terms", []) + doc.get("found_reading_terms", []),
         "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
         "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1.0 - gap1 / gap0,
         "final_over_noise": doc["rmse_final_Pa"] / noise,
