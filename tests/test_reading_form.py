@@ -297,3 +297,24 @@ def test_a_controllers_prediction_starts_the_relaxation_warm_from_the_readings(r
     assert np.max(np.abs(warm - truth)) < 50.0 < 0.05 * np.max(np.abs(rest - truth))
     with pytest.raises(ValueError, match="reading_history_Pa"):
         predictor.predict_draws(*args, reading_history_Pa=[np.nan])
+
+
+def test_the_gains_keep_a_reading_that_moves_with_the_pressure(rig):
+    """A relaxation of gain -1 reads only the low-pass (a pure lag, sensor_lag's): the
+    bounds keep the gains' sum above -1, and the simulator names a set below it."""
+    from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+
+    two = ReadingClosure(terms=2)
+    lows = [p.lower for p in two.parameters() if p.name.startswith("reading_closure_gain")]
+    assert len(lows) == 2 and 1.0 + sum(lows) > 0.0
+    n = 50
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, np.full(n, 5.0), np.full(n, 0.015), np.full(n, rig.supply_pressure_Pa))
+    model = Model().with_effect(ReadingClosure())
+    from pneubayes.physics.valve import valve_preset
+
+    params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+              "reading_closure_gain_0": -1.0, "reading_closure_time_constant_0": TAU}
+    with pytest.raises(ValueError, match="sum to more than -1"):
+        simulate_windows(model, params, inputs, rig, np.array([0]), n, 2e5,
+                         SolverConfig.standard(), check_bounds=False)

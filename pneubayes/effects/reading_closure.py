@@ -34,8 +34,11 @@ from pneubayes.rig import Rig
 
 #: The most relaxations one reading closure carries.
 READING_MAX_TERMS = 2
-#: A gain's bounds (-): a reading off by up to the whole change at first.
-GAIN_BOUND = 1.0
+#: A gain's bounds (-): a reading up to twice a change at first, or down to 55 % of it;
+#: with both relaxations at the lower bound it still moves 10 % of a change at once (``1 +
+#: sum_k g_k > 0``: at -1 a relaxation is a pure lag, which is ``sensor_lag``'s, and
+#: the reading at a window's start no longer tells the chamber's pressure).
+GAIN_BOUNDS = (-0.45, 1.0)
 #: A time constant's bounds and start, s.
 TIME_CONSTANT_BOUNDS_S = (1e-3, 20.0)
 TIME_CONSTANT_START_S = 0.1
@@ -74,7 +77,7 @@ class ReadingClosure(Effect):
         lo, hi = TIME_CONSTANT_BOUNDS_S
         out = []
         for k in range(self.terms):
-            out.append(Parameter(gain_name(k), "-", -GAIN_BOUND, GAIN_BOUND, "uniform",
+            out.append(Parameter(gain_name(k), "-", *GAIN_BOUNDS, "uniform",
                                  f"reading relaxation {k}: its gain g, the reading being "
                                  "p + g (p - p_bar)", neutral=0.0))
             out.append(Parameter(time_constant_name(k), "s", lo, hi, "log-uniform",

@@ -150,6 +150,10 @@ def start_state(gains, time_constants_s, inputs, starts, reading0_Pa):
     p_bar``; for two, to second order in the gains), at rest where it has no finite
     sample; without it, every ``p_bar_k`` at the start reading."""
     g = np.asarray(gains, dtype=np.float64)
+    if np.any(1.0 + np.sum(g, axis=1) <= 0.0):
+        raise ValueError("reading closure: the gains must sum to more than -1 (a reading "
+                         "that still moves with the pressure at once), got "
+                         f"{np.sum(g, axis=1).min():.3g}")
     r0 = np.asarray(reading0_Pa, dtype=np.float64)
     bar0 = np.broadcast_to(r0, (*g.shape, r0.size)).copy()
     if inputs.reading_Pa is not None:
