@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pneubayes.discovery.openform.reading import reading_windows
+from pneubayes.discovery.openform.term_view import binned
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.inference.windows import WindowSet
 
@@ -60,22 +61,10 @@ def reading_views(model, params: dict, recordings, horizon_s: float, solver,
         ok = np.isfinite(x) & np.isfinite(m)
         x, m = x[ok], m[ok]
         f = g * x
-        edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, n_bins + 1)))
-        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, max(edges.size - 2, 0))
-        centre, term, miss, sem = [], [], [], []
-        for j in range(max(edges.size - 1, 1)):
-            sel = idx == j
-            if not np.any(sel):
-                continue
-            centre.append(float(np.median(x[sel])))
-            term.append(float(np.mean(f[sel])))
-            miss.append(float(np.mean(m[sel])))
-            sem.append(float(np.std(m[sel]) / np.sqrt(sel.sum())))
-        ss = float(m @ m)
+        centre, term, miss, sem, explained = binned(x, f, m, n_bins)
         out.append({"term": f"relaxation {k}",
                     "formula": f"{g:+.3g} (p - p_bar), tau = {tau:.3g} s",
                     "variable": f"p - p_bar_{k}", "unit": "Pa", "bin_centre": centre,
                     "term_Pa": term, "missing_Pa": miss, "missing_sem_Pa": sem,
-                    "explained_fraction": (1.0 - float((m - f) @ (m - f)) / ss if ss > 0
-                                           else float("nan"))})
+                    "explained_fraction": explained})
     return out

@@ -106,22 +106,32 @@ def term_views(model, params: dict, recordings: Sequence, block: int, solver,
         x, f, m = (np.concatenate(v) for v in (xs, flows, missing))
         ok = np.isfinite(x) & np.isfinite(f) & np.isfinite(m)
         x, f, m = x[ok], f[ok], m[ok]
-        edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, n_bins + 1)))
-        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, max(edges.size - 2, 0))
-        centre, term_mean, miss_mean, miss_sem = [], [], [], []
-        for b in range(max(edges.size - 1, 1)):
-            sel = idx == b
-            if not np.any(sel):
-                continue
-            centre.append(float(np.median(x[sel])))
-            term_mean.append(float(np.mean(f[sel])))
-            miss_mean.append(float(np.mean(m[sel])))
-            miss_sem.append(float(np.std(m[sel]) / np.sqrt(max(sel.sum(), 1))))
-        ss = float(m @ m)
+        centre, term_mean, miss_mean, miss_sem, explained = binned(x, f, m, n_bins)
         out.append({"term": str(term), "formula": term_formula(term, k), "variable": variable,
                     "unit": feature(variable).unit, "bin_centre": centre,
                     "term_kg_per_s": term_mean, "missing_kg_per_s": miss_mean,
                     "missing_sem_kg_per_s": miss_sem,
-                    "explained_fraction": (1.0 - float((m - f) @ (m - f)) / ss if ss > 0
-                                           else float("nan"))})
+                    "explained_fraction": explained})
     return out
+
+
+def binned(x, term, missing, n_bins: int):
+    """``(centres, term means, missing means, missing standard errors, explained
+    fraction)``: ``term`` and ``missing`` (same unit) binned along ``x`` in ``n_bins``
+    bins of equal counts (each bin's median ``x``), and 1 - the sum of squares of
+    missing minus term over that of missing on every sample (NaN when missing is 0)."""
+    edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, n_bins + 1)))
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, max(edges.size - 2, 0))
+    centre, term_mean, miss_mean, miss_sem = [], [], [], []
+    for b in range(max(edges.size - 1, 1)):
+        sel = idx == b
+        if not np.any(sel):
+            continue
+        centre.append(float(np.median(x[sel])))
+        term_mean.append(float(np.mean(term[sel])))
+        miss_mean.append(float(np.mean(missing[sel])))
+        miss_sem.append(float(np.std(missing[sel]) / np.sqrt(sel.sum())))
+    ss = float(missing @ missing)
+    r = missing - term
+    explained = 1.0 - float(r @ r) / ss if ss > 0 else float("nan")
+    return centre, term_mean, miss_mean, miss_sem, explained
