@@ -31,7 +31,7 @@ from pneubayes.discovery.openform.linear_hinge import ValuedTerm, linear_terms
 from pneubayes.discovery.openform.residual import one_step_residual, window_residual
 from pneubayes.discovery.openform.search import OpenFormSearch
 from pneubayes.discovery.stages.base import Stage
-from pneubayes.discovery.stages.weighing import weigh
+from pneubayes.discovery.stages.weighing import competes, weigh
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects.closure import Closure
@@ -142,12 +142,7 @@ class OpenForm(Stage):
             return False, None
         if len(existing_terms(current.model)) >= CLOSURE_MAX_TERMS:
             return False, None
-        if not state.passing:
-            return True, None
-        best = min(state.passing, key=lambda t: t[0])
-        gap = current.heldout_rmse_Pa - noise
-        closed = (current.heldout_rmse_Pa - best[0]) / gap
-        return closed < self.compete_below_gap_closed or bool(_at_bounds(best, current)), best
+        return competes(state, noise, self.compete_below_gap_closed)
 
     def run(self, state: RoundState, runner) -> None:
         noise = runner.data.noise_Pa

@@ -23,7 +23,7 @@ from pneubayes.discovery.openform.reading import (
     reading_windows,
 )
 from pneubayes.discovery.stages.base import Stage
-from pneubayes.discovery.stages.weighing import weigh
+from pneubayes.discovery.stages.weighing import competes, weigh
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects.reading_closure import (
@@ -43,8 +43,8 @@ class ReadingForm(Stage):
 
     Runs when the held-out error is above ``min_noise_ratio`` x the noise floor, the
     model has no reading closure yet, and no trial of the round passed, or the best that
-    passed closes under ``compete_below_gap_closed`` of the gap (it then replaces that
-    one only if it beats it on the held-out windows).
+    passed closes under ``compete_below_gap_closed`` of the gap or drives a parameter to
+    a bound (it then replaces that one only if it beats it on the held-out windows).
 
     Parameters
     ----------
@@ -86,12 +86,7 @@ class ReadingForm(Stage):
         if current.heldout_rmse_Pa <= self.min_noise_ratio * noise \
                 or current.model.has(READING):
             return False, None
-        if not state.passing:
-            return True, None
-        best = min(state.passing, key=lambda t: t[0])
-        gap = current.heldout_rmse_Pa - noise
-        closed = (current.heldout_rmse_Pa - best[0]) / gap if gap > 0 else 1.0
-        return closed < self.compete_below_gap_closed, best
+        return competes(state, noise, self.compete_below_gap_closed)
 
     def run(self, state: RoundState, runner) -> None:
         runs, best = self._applies(state, runner.data.noise_Pa)

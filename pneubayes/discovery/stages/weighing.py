@@ -83,3 +83,19 @@ def weigh(fit, state, runner, best, label: str) -> Weighing:
     return Weighing(bool(ok), gain, pval, diff, closed, bool(under), least, drop_Pa,
                     bounded, basin, beats,
                     None if control is None else control.heldout_rmse_Pa)
+
+
+def competes(state, noise_Pa: float, compete_below_gap_closed: float):
+    """``(runs, the round's best passing trial or None)`` for an open-form stage: it runs
+    when nothing passed, or the best passing trial closes under
+    ``compete_below_gap_closed`` of the held-out gap above the noise or drives a
+    parameter newly to a bound (a possible stand-in, which the open form then
+    replaces only by beating it)."""
+    if not state.passing:
+        return True, None
+    current = state.current
+    best = min(state.passing, key=lambda t: t[0])
+    gap = current.heldout_rmse_Pa - noise_Pa
+    closed = (current.heldout_rmse_Pa - best[0]) / gap if gap > 0 else 1.0
+    at = [] if best[2] is None else newly_at_bounds(best[2], current)
+    return closed < compete_below_gap_closed or bool(at), best
