@@ -312,6 +312,24 @@ class Model:
                     written.add(k)
         return np.ascontiguousarray(slots_t.T)
 
+    @property
+    def relaxes_reading(self) -> bool:
+        """Whether an effect relaxes the reading (:meth:`reading_relaxations`)."""
+        return any(e.relaxes_reading for e in self.effects)
+
+    def reading_relaxations(self, params) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains (-), time constants (s))``, each ``(B, K)``: the relaxations of the
+        reading of every effect that relaxes it, side by side (``K`` 0 without one)."""
+        theta = self.as_matrix(params)
+        names = self.parameter_names
+        parts = [e.reading_relaxations({n: theta[:, names.index(n)]
+                                        for n in e.parameter_names()})
+                 for e in self.effects if e.relaxes_reading]
+        if not parts:
+            return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
+        return (np.concatenate([g for g, _ in parts], axis=1),
+                np.concatenate([tau for _, tau in parts], axis=1))
+
     # ------------------------------------------------------------------ model card
     def to_card(self, values: Mapping[str, float], extra: Mapping | None = None) -> dict:
         """The model card dict for these parameter values."""

@@ -199,3 +199,15 @@ def test_carried_mode_arguments(vent):
     carried_tracker(v, memory_s=2.0, lookback_s=0.5)
     with pytest.raises(ValueError, match="memory_s"):
         carried_tracker(v, memory_s=2.0, lookback_s=0.5, update_mode="lookback")
+    # a relaxation of the reading starts warm from each window's readings: lookback only
+    from pneubayes.effects.reading_closure import ReadingClosure
+
+    relaxing = {**v, "model": v["model"].with_effect(ReadingClosure()),
+                "params": {**v["params"], "reading_closure_gain_0": 0.03,
+                           "reading_closure_time_constant_0": 0.3}}
+    with pytest.raises(ValueError, match="reading_closure.*'lookback'"):
+        carried_tracker(relaxing)
+    tr = carried_tracker(relaxing, update_mode="lookback", n_moves=0)
+    feed(tr, relaxing, 300, [50])  # (its windows read the buffered readings)
+    assert tr.time_s_ == pytest.approx(v["t"][299])
+    assert np.all(np.isfinite(tr.log_weights_))  # every particle's windows simulated

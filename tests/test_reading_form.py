@@ -3,6 +3,7 @@ their search in the windows' residual and the stage that adds them."""
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -252,6 +253,9 @@ def test_discovery_finds_a_planted_relaxation_of_the_reading(relaxing_recordings
     assert "relaxations of the reading found" in report
     assert "![found relaxations](figures/found_reading_terms.png)" in report
     assert (tmp_path / "figures" / "found_reading_terms.png").stat().st_size > 0
+    assert (tmp_path / "found_reading.py").exists()
+    assert json.loads((tmp_path / "discovery.json").read_text())["found_reading_effect"] \
+        == "found_reading.py"
 
 
 def test_a_true_relaxation_follows_the_reading_the_model_misses_without_it():
@@ -318,3 +322,56 @@ def test_the_gains_keep_a_reading_that_moves_with_the_pressure(rig):
     with pytest.raises(ValueError, match="sum to more than -1"):
         simulate_windows(model, params, inputs, rig, np.array([0]), n, 2e5,
                          SolverConfig.standard(), check_bounds=False)
+
+
+def test_found_relaxations_become_an_effect_plug_in_a_user_can_name(rig, hand):
+    """The reading's skeleton is Python that defines an effect of the user's name
+    that relaxes the reading: a model with it simulates exactly as the model with the
+    found reading closure, beside a second such effect the relaxations add up, and the
+    reference solver agrees."""
+    from pneubayes.discovery.openform.skeleton import reading_effect_skeleton
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate_windows
+    from pneubayes.simulation.reference import reference_simulate
+
+    model = Model().with_effect(ReadingClosure(terms=2))
+    base = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    params = {**base, "reading_closure_gain_0": 0.05, "reading_closure_time_constant_0": 0.3,
+              "reading_closure_gain_1": -0.03, "reading_closure_time_constant_1": 0.02}
+    text = reading_effect_skeleton(model, params, "DiaphragmWarming", "diaphragm_warming")
+    assert "g_0 = 0.05, tau_0 = 0.3 s" in text
+    ns: dict = {}
+    exec(compile(text, "found_reading.py", "exec"), ns)  # noqa: S102
+    eff = ns["DiaphragmWarming"]()
+    assert eff.name == "diaphragm_warming" and eff.relaxes_reading
+    assert eff.bench_defaults() == {"relaxation0_gain": 0.05, "relaxation0_time_constant_s": 0.3,
+                                    "relaxation1_gain": -0.03,
+                                    "relaxation1_time_constant_s": 0.02}
+    units = {p.name: (p.unit, p.prior) for p in eff.parameters()}
+    assert units["relaxation1_time_constant_s"] == ("s", "log-uniform")
+    mine = Model([eff])
+    mine_params = {**base, **eff.bench_defaults()}
+
+    n = 1201
+    t = np.arange(n) * 1e-3
+    u = hand.random_steps(np.random.default_rng(7), n, 1e-3, hold_s=(0.05, 0.2))
+    inputs = Inputs(t, u, np.full(n, 0.015), np.full(n, rig.supply_pressure_Pa))
+    starts, solver = np.array([0, 400]), SolverConfig.standard()
+    theirs = simulate_windows(model, params, inputs, rig, starts, 600, 2e5, solver)
+    ours = simulate_windows(mine, mine_params, inputs, rig, starts, 600, 2e5, solver)
+    np.testing.assert_array_equal(ours, theirs)
+    plain = simulate_windows(Model(), base, inputs, rig, starts, 600, 2e5, solver)
+    assert np.max(np.abs(ours - plain)) > 1000.0
+    # two effects that relax the reading: their relaxations side by side
+    one = Model().with_effect(ReadingClosure(terms=1))
+    both = one.with_effect(ns["DiaphragmWarming"]())
+    both_params = {**mine_params, "reading_closure_gain_0": 0.02,
+                   "reading_closure_time_constant_0": 1.0}
+    g, tau = both.reading_relaxations(both_params)
+    np.testing.assert_array_equal(g, [[0.02, 0.05, -0.03]])
+    np.testing.assert_array_equal(tau, [[1.0, 0.3, 0.02]])
+    sim = simulate_windows(both, both_params, inputs, rig, np.array([0]), n, 2e5, solver)[0, 0]
+    ref = reference_simulate(both, both_params, inputs, rig, 2e5, rtol=1e-9, atol=1e-6)
+    assert np.max(np.abs(sim - ref)) < 20.0
+    with pytest.raises(ValueError, match="no reading closure"):
+        reading_effect_skeleton(Model(), {})

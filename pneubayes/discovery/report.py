@@ -74,6 +74,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
 
         write_text_atomic(out / "found_effect.py", effect_skeleton(result.model, result.params))
         doc["found_effect"] = "found_effect.py"
+    if doc.get("found_reading_terms"):  # and the reading's relaxations as another
+        from pneubayes.discovery.openform.skeleton import reading_effect_skeleton
+
+        write_text_atomic(out / "found_reading.py",
+                          reading_effect_skeleton(result.model, result.params))
+        doc["found_reading_effect"] = "found_reading.py"
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
     if figures and result.maps:  # (no search round, no map: max_effects 0)

@@ -181,6 +181,9 @@ class Effect(Component):
     #: round's best (:func:`~pneubayes.discovery.rounds.fit_round_forms`), a rule that
     #: is there to spare minutes-long forms (an acoustic line), not a second parameter.
     cheap_forms: ClassVar[bool] = False
+    #: True for an effect that relaxes the reading (it defines
+    #: :meth:`reading_relaxations`; it writes no slot of the kernel).
+    relaxes_reading: ClassVar[bool] = False
 
     def beside_tube(self, form: str) -> bool:
         """Whether the simulator carries this effect beside a tube simulated as ``form``
@@ -194,6 +197,15 @@ class Effect(Component):
         if self.forms and getattr(self, "form", None) not in self.forms:
             raise ValueError(f"{self.name}: form must be one of {self.forms}, got "
                              f"{getattr(self, 'form', None)!r}")
+
+    def reading_relaxations(self, values: Mapping[str, np.ndarray]) \
+            -> tuple[np.ndarray, np.ndarray] | None:
+        """For an effect that relaxes the reading, ``r = p + sum_k g_k (p - p_bar_k)``
+        with ``tau_k dp_bar_k/dt = p - p_bar_k``: ``(gains (-), time constants (s))``,
+        each ``(B, K)``, at a batch of its parameter ``values``; None (the default) for
+        an effect that does not. The simulator reads every window's pressure through
+        the relaxations of all such effects (:mod:`pneubayes.simulation.reading_closure`)."""
+        return None
 
     def reading_lead_parameter(self) -> str | None:
         """The parameter that is a lagged reading's group delay at DC, s (how far the

@@ -62,6 +62,7 @@ class ReadingClosure(Effect):
     acts_on = ()  # (the simulator applies it after the kernel, on the windows' pressure)
     library_searched = False
     cheap_forms = True
+    relaxes_reading = True
 
     def __init__(self, terms: int = 1):
         if isinstance(terms, bool) or not isinstance(terms, int) \
@@ -89,13 +90,22 @@ class ReadingClosure(Effect):
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         return {}  # (no slot of the kernel: see the module's docstring)
 
-    def relaxations(self, values: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    def reading_relaxations(self, values: Mapping[str, np.ndarray]) \
+            -> tuple[np.ndarray, np.ndarray]:
         """``(gains, time constants)``, each ``(B, terms)``, of a batch of values."""
-        g = np.stack([np.atleast_1d(np.asarray(values[gain_name(k)], np.float64))
-                      for k in range(self.terms)], axis=-1)
-        tau = np.stack([np.atleast_1d(np.asarray(values[time_constant_name(k)], np.float64))
-                        for k in range(self.terms)], axis=-1)
-        return np.broadcast_arrays(g, tau)
+        return self.relaxations_named(values, [gain_name(k) for k in range(self.terms)],
+                                      [time_constant_name(k) for k in range(self.terms)])
+
+    @staticmethod
+    def relaxations_named(values: Mapping[str, np.ndarray], gains: list[str],
+                          time_constants: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains, time constants)``, each ``(B, K)``, read from ``values`` under the
+        parameter names ``gains`` and ``time_constants`` (one per relaxation)."""
+        g = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in gains],
+                     axis=-1)
+        tau = np.stack([np.atleast_1d(np.asarray(values[n], np.float64))
+                        for n in time_constants], axis=-1)
+        return tuple(np.broadcast_arrays(g, tau))
 
     def bench_defaults(self):
         """A reading 3 % high at first after a change, settling in 0.3 s (a second term

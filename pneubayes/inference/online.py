@@ -183,6 +183,12 @@ class OnlineTracker:
             raise ValueError("OnlineTracker: update_mode 'carried' cannot carry a declared "
                              "pressure filter's reading (computed over whole windows); use "
                              "'lookback'")
+        if self.update_mode == "carried" and self.model.relaxes_reading:
+            raise ValueError("OnlineTracker: update_mode 'carried' cannot carry a "
+                             "relaxation of the reading (its effect "
+                             f"{[e.name for e in self.model.effects if e.relaxes_reading]} "
+                             "starts warm from each window's recorded readings); use "
+                             "'lookback'")
         for name in ("n_moves", "warm_up_windows"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0):

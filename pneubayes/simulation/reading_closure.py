@@ -132,15 +132,6 @@ def reading_start(gains, bar_start_Pa, reading0_Pa) -> np.ndarray:
     return (reading0_Pa + np.sum(g * bar_start_Pa, axis=1)) / (1.0 + np.sum(g, axis=1))
 
 
-def relaxations_of(model, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(gains, time constants)``, each ``(B, K)``, of ``model``'s reading closure at the
-    parameter batch ``theta``."""
-    effect = model.effect("reading_closure")
-    names = model.parameter_names
-    return effect.relaxations({n: theta[:, names.index(n)]
-                               for n in effect.parameter_names()})
-
-
 def start_state(gains, time_constants_s, inputs, starts, reading0_Pa):
     """``(p0, p_bar0)``: the chamber's start ``(B, W)`` and each relaxation's ``(B, K, W)``
     for windows starting at the samples ``starts`` from the readings ``reading0_Pa``

@@ -541,11 +541,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
 
 
 def _reading_relaxations(model: Model, params) -> tuple[np.ndarray, np.ndarray]:
-    """``(gains, time constants)`` of ``model``'s reading closure (empty without one)."""
-    if not model.has("reading_closure"):
-        return np.zeros(0), np.ones(0)
-    effect = model.effect("reading_closure")
-    theta = model.as_matrix(params)[0]
-    g, tau = effect.relaxations({n: theta[model.parameter_names.index(n)]
-                                 for n in effect.parameter_names()})
+    """``(gains, time constants)`` of ``model``'s relaxations of the reading (empty
+    without one)."""
+    g, tau = model.reading_relaxations(params)
     return g[0], tau[0]

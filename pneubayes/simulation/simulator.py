@@ -24,7 +24,7 @@ from pneubayes.simulation import kernel
 from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.drive import Inputs, kernel_ready_arrays
 from pneubayes.simulation.measurement import sensor_reading
-from pneubayes.simulation.reading_closure import read_windows, relaxations_of, start_state
+from pneubayes.simulation.reading_closure import read_windows, start_state
 from pneubayes.simulation.stiction import sticks, valve_commands
 
 
@@ -185,10 +185,10 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     # a reading closure: each window's chamber starts where it reads the measured start
     # (pneubayes.simulation.reading_closure), each set moved to its own along the start
     # sensitivity, which the kernel then computes
-    read_through = model.has("reading_closure")
+    read_through = model.relaxes_reading
     call = kernel.simulate_windows_sensitivity if read_through else kernel_fn
     if read_through:
-        relax = relaxations_of(model, theta)
+        relax = model.reading_relaxations(theta)
         start, bar0 = start_state(*relax, inputs, starts, p0)
         p0 = start.mean(axis=0)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
@@ -335,7 +335,7 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
     if rig.pressure_filter is not None:
         raise ValueError("simulate_carried: a declared pressure filter's reading is "
                          "computed over whole windows and cannot be carried")
-    if model.has("reading_closure"):
+    if model.relaxes_reading:
         raise ValueError("simulate_carried: a reading closure's relaxations start at each "
                          "window's start and are not carried from chunk to chunk")
     if not (isinstance(gain, (int, float)) and not isinstance(gain, bool)

@@ -1,15 +1,18 @@
-"""A found closure as the source of an effect plug-in a user can name and edit.
+"""Found open-form terms as the source of effect plug-ins a user can name and edit.
 
 :func:`effect_skeleton` writes a Python module defining an
 :class:`~pneubayes.effects.Effect` that lowers onto the closure's slots with the found
-terms fixed: its parameters carry the user's names (to be edited), bounds around the
-fitted values and the fitted values as bench defaults. Registering it is one line in
-``pneubayes.effects.CATALOGUE`` (or ``Model([FoundEffect()])`` directly).
+terms fixed; :func:`reading_effect_skeleton` one that relaxes the reading as the found
+reading closure does. Their parameters carry the user's names (to be edited), the
+closure's bounds and priors, and the fitted values as bench defaults. Registering one
+is one line in ``pneubayes.effects.CATALOGUE`` (or ``Model([FoundEffect()])``
+directly).
 """
 
 from __future__ import annotations
 
 from pneubayes.effects.closure_terms import term_formula
+from pneubayes.effects.reading_closure import gain_name, time_constant_name
 
 
 def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",
@@ -87,4 +90,91 @@ class {class_name}(Effect):
 '''
 
 
-__all__ = ["effect_skeleton"]
+def reading_effect_skeleton(model, params: dict, class_name: str = "FoundReading",
+                            effect_name: str = "found_reading") -> str:
+    """The module text of an effect plug-in for ``model``'s reading closure at
+    ``params``: an effect that relaxes the reading
+    (:meth:`~pneubayes.effects.Effect.reading_relaxations`) with the found number of
+    relaxations, each a gain (-) and a time constant (s) under the user's names.
+
+    Parameters
+    ----------
+    model : Model
+        A model with a ``reading_closure`` component.
+    params : dict
+        Its fitted parameter values.
+    class_name, effect_name : str
+        The class's and the catalogue's name for the new effect (edit them).
+
+    Returns
+    -------
+    str
+        Python source; ``exec`` of it defines ``class_name``.
+    """
+    if not model.has("reading_closure"):
+        raise ValueError("reading_effect_skeleton: the model has no reading closure (no "
+                         "found relaxation of the reading)")
+    terms = model.effect("reading_closure").terms
+    names, lines = {}, []
+    for k in range(terms):
+        g, tau = gain_name(k), time_constant_name(k)
+        lines.append(f"#   relaxation {k}: r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt "
+                     f"= p - p_bar_{k}; g_{k} = {float(params[g]):.6g}, tau_{k} = "
+                     f"{float(params[tau]):.6g} s")
+        names[f"relaxation{k}_gain"] = g
+        names[f"relaxation{k}_time_constant_s"] = tau
+    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs in names.items())
+    defaults = "\n".join(f"        {mine!r}: {float(params[theirs])!r},"
+                         for mine, theirs in names.items())
+    gains = [m for m in names if m.endswith("_gain")]
+    taus = [m for m in names if m.endswith("_time_constant_s")]
+    return f'''"""{effect_name}: relaxations of the pressure reading found by pneubayes discover.
+
+Found as an open-form term at the reading (the chamber's pressure p is unchanged; its
+reading r is):
+{chr(10).join(lines)}
+Edit the names, the descriptions and the bounds to say what it is (a diaphragm's
+temperature, a transducer's creep, a cavity before the gauge). Register it with one
+line in pneubayes.effects.CATALOGUE, or use it directly: ``Model([{class_name}()])``.
+"""
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.reading_closure import ReadingClosure
+
+
+class {class_name}(Effect):
+    """Found relaxations of the reading (edit this description)."""
+
+    name = {effect_name!r}
+    acts_on = ()  # (the simulator reads each window's pressure through it)
+    relaxes_reading = True
+    library_searched = False
+    #: This effect's parameter -> the reading closure's.
+    NAMES = {{
+{mapping}
+    }}
+    GAINS = {gains!r}
+    TIME_CONSTANTS = {taus!r}
+
+    def parameters(self):
+        found = {{p.name: p for p in ReadingClosure(terms={terms}).parameters()}}
+        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
+                               found[theirs].upper, found[theirs].prior,
+                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
+                     for mine, theirs in self.NAMES.items())
+
+    def lower(self, values, rig):
+        return {{}}  # (no slot of the kernel)
+
+    def reading_relaxations(self, values):
+        return ReadingClosure.relaxations_named(values, self.GAINS, self.TIME_CONSTANTS)
+
+    def bench_defaults(self):
+        """The values discovery fitted."""
+        return {{
+{defaults}
+        }}
+'''
+
+
+__all__ = ["effect_skeleton", "reading_effect_skeleton"]
