@@ -468,11 +468,12 @@ def run_case(case: dict, args, root: Path) -> dict:
     t0 = time.perf_counter()
     doc = run_discover(recs, settings, work / "run", log=lambda m: None, figures=False)
     named = [e["name"] for e in doc["effects"]]
+    kept = [e["name"] for e in doc.get("stand_ins", [])]  # in the model, not named
     noise = doc["noise_floor_Pa"]
     gap0 = max(doc["rmse_base_Pa"] - noise, 0.0)
     gap1 = max(doc["rmse_final_Pa"] - noise, 0.0)
     return _public(case) | {
-        "recordings": [paths[i].name for i in keep], "named": named,
+        "recordings": [paths[i].name for i in keep], "named": named, "kept_at_bound": kept,
         **classify(named, doc.get("found_terms", []) + [
             f"reading: {t['formula'].split(',')[0]}"
             for t in doc.get("found_reading_terms", [])], case["hidden"]),
@@ -498,6 +499,7 @@ def summarise(results: list[dict]) -> tuple[dict, str]:
             "cases": len(ooc), "errors": sum(bool(r["hidden"]) and "error" in r
                                              for r in results),
             "no_stand_in_cases": clean, "no_stand_in_needed": need,
+            "kept_at_bound_cases": sum(bool(r.get("kept_at_bound")) for r in ooc),
             "with_found_terms": sum(bool(r["found_terms"]) for r in ooc),
             "gap_shrink_median": med, "final_over_noise_median": fon,
             "meets": {"no_stand_in": clean >= need,
@@ -520,8 +522,11 @@ def summarise(results: list[dict]) -> tuple[dict, str]:
                          f"| | | | | |")
             continue
         sh = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
+        kept = r.get("kept_at_bound") or []
+        kept_note = f" (kept at a bound, not named: {', '.join(kept)})" if kept else ""
         lines.append(f"| {r['name']} | {rig} | {hidden} | "
-                     f"{', '.join(r['named_catalogue']) or '-'} | "
+                     f"{', '.join(r['named_catalogue']) or '-'}"
+                     f"{kept_note} | "
                      f"{'; '.join(r['found_terms']) or '-'} | "
                      f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
                      f"{r['noise_floor_Pa']:.0f} | {sh} | {r['final_over_noise']:.2f} |")
@@ -531,7 +536,8 @@ def summarise(results: list[dict]) -> tuple[dict, str]:
         med = d["gap_shrink_median"]
         lines.append(
             f"| out of catalogue | {d['cases']} | no catalogue stand-in in "
-            f"{d['no_stand_in_cases']} of {d['cases']} (floor {d['no_stand_in_needed']}), "
+            f"{d['no_stand_in_cases']} of {d['cases']} (floor {d['no_stand_in_needed']}; "
+            f"{d['kept_at_bound_cases']} with a stand-in kept at a bound, not named), "
             f"open-form terms found in {d['with_found_terms']}, median gap shrink "
             f"{'n/a' if med is None else f'{100 * med:.0f} %'} (floor 70 %), median final "
             f"/ noise {d['final_over_noise_median']:.2f} (floor 2) |")

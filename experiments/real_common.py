@@ -16,6 +16,18 @@ from pneubayes.simulation import SolverConfig, simulate_windows
 from pneubayes.simulation.drive import Inputs
 
 
+def added_names(doc: dict) -> list[str]:
+    """What a discovery document added to the model: the named effects, the stand-ins
+    kept at a bound (marked), and the open-form terms' components."""
+    out = [e["name"] for e in doc["effects"]]
+    out += [f"{e['name']} (stand-in)" for e in doc.get("stand_ins", [])]
+    if doc.get("found_terms"):
+        out.append("closure")
+    if doc.get("found_reading_terms"):
+        out.append("reading relaxation")
+    return out
+
+
 def plain_fit(train, horizon_s: float, solver: SolverConfig, max_nfev: int = 60) -> dict:
     """The rig card's plain model refined on the training windows from the card's start
     (the discovery loop's base fit, repeated here to draw it)."""

@@ -32,7 +32,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from real_common import plain_fit, prediction_figure
+from real_common import added_names, plain_fit, prediction_figure
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.library import LibraryGrid
@@ -101,7 +101,7 @@ def main(argv=None) -> int:
     fig, predictive = prediction_figure(
         held, plain, out / "discovery", HORIZON_S, out / "figures" / "gtdynamics_heldout.png",
         "GTDynamics held-out trials: plain rig-card model (orange) and after discovery "
-        f"({', '.join(e['name'] for e in doc['effects']) or 'nothing added'}; blue)",
+        f"({', '.join(added_names(doc)) or 'nothing added'}; blue)",
         SEED)
     figs = [str(fig)]
     result = {
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
         "held_out_rmse_final_Pa": doc["rmse_final_Pa"],
         "ratio_final_over_plain": doc["rmse_final_Pa"] / doc["rmse_base_Pa"],
         "final_over_noise": doc["rmse_final_Pa"] / noise,
-        "effects": doc["effects"],
+        "effects": doc["effects"], "stand_ins": doc.get("stand_ins", []),
         "posterior": doc.get("posterior"),
         "plain_parameters": plain,
         # the muscles' reading before the valves open (gauge): an offset or a residue

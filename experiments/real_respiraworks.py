@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from real_common import plain_fit, prediction_figure
+from real_common import added_names, plain_fit, prediction_figure
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.report import run_discover
@@ -83,7 +83,7 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
     fig, predictive = prediction_figure(
         held, plain, out / kind, HORIZON_S, out / "figures" / f"respiraworks_{kind}.png",
         f"RespiraWorks {kind}, held-out runs: plain rig-card model (orange) and after "
-        f"discovery ({', '.join(e['name'] for e in doc['effects']) or 'nothing added'}; "
+        f"discovery ({', '.join(added_names(doc)) or 'nothing added'}; "
         "blue)", SEED)
     return {
         "train": [str(r.source) for r in train], "held_out": [str(r.source) for r in held],
@@ -93,6 +93,7 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
         "final_over_noise": doc["rmse_final_Pa"] / noise,
         "setpoint_baseline_rmse_Pa": setpoint_rmse_Pa(held, HORIZON_S),
         "effects": [e["name"] for e in doc["effects"]],
+        "stand_ins": [e["name"] for e in doc.get("stand_ins", [])],
         "posterior": post,
         "converged": (doc.get("posterior") or {}).get("converged"),
         "at_bounds": [b["parameter"] for b in at_bounds(Model(rig_card=recs[0].rig_card),

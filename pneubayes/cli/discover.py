@@ -55,7 +55,7 @@ def cmd_discover(args) -> int:
     print(f"{args.out}/discovery.json: base held-out {settings.fit.horizon_s:g}-s RMSE "
           f"{doc['rmse_base_Pa']:.0f} Pa, "
           f"final {doc['rmse_final_Pa']:.0f} Pa (noise floor {doc['noise_floor_Pa']:.0f} Pa)")
-    if not doc["effects"]:
+    if not doc["effects"] and not doc.get("stand_ins"):
         print("  no missing effect is supported")
     for e in doc["effects"]:
         ps = ", ".join(
@@ -65,5 +65,9 @@ def cmd_discover(args) -> int:
         print(f"  + {e['name']}: {ps}; inclusion "
               f"{e['evidence']['inclusion_probability']:.2f}, RMSE {e['rmse_before_Pa']:.0f}"
               f" -> {e['rmse_after_Pa']:.0f} Pa")
+    for e in doc.get("stand_ins", []):
+        where = ", ".join(f"{b['parameter']} at its {b['bound']} bound" for b in e["at_bounds"])
+        print(f"  ~ {e['name']}: kept as a stand-in, not named ({where}); RMSE "
+              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
     print(f"{args.out}/report.md")
     return 0

@@ -241,7 +241,17 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                       "reading the final model misses without it on the training windows "
                       "(grey: binned means and standard errors):", "",
                       f"![found relaxations](figures/{figs['found_reading_terms']})"]
-    if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms"):
+    if doc.get("stand_ins"):
+        lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
+                  "prediction only with a parameter of their own at a bound, a strained "
+                  "form standing in for something it cannot express:", ""]
+        for e in doc["stand_ins"]:
+            where = "; ".join(f"{b['parameter']} at its {b['bound']} bound {b['value']:.4g}"
+                              for b in e["at_bounds"])
+            lines.append(f"- {e['name']} ({where}): held-out RMSE {e['rmse_before_Pa']:.0f} "
+                         f"-> {e['rmse_after_Pa']:.0f} Pa")
+    if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms") \
+            or doc.get("stand_ins"):
         found = True
     elif final <= MISFIT_RATIO * noise:
         found = False

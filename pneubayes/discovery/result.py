@@ -16,7 +16,7 @@ from pneubayes.effects.closure_terms import (
     modulated_port,
     term_formula,
 )
-from pneubayes.inference.fit import PosteriorDraws
+from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
 
@@ -82,8 +82,36 @@ class DiscoveryResult(PosteriorDraws):
 
     @property
     def effect_names(self) -> list[str]:
-        """The effects the loop added, in order."""
+        """The effects the loop added, in order (stand-ins included: :meth:`stand_ins`)."""
         return [a["name"] for a in self.accepted]
+
+    def stand_ins(self) -> dict[str, list[dict]]:
+        """The added catalogue effects the final fit keeps only by driving a parameter of
+        their own to a bound (other than the value that switches the effect off): each
+        name -> its parameters there (:func:`~pneubayes.inference.fit.at_bounds`: the
+        posterior's 90 % interval, or the refined point without one, within 1 % of the
+        bounds' width, decades judged in log space). Such an effect improves the
+        prediction but its form is strained: it stands in for something it cannot
+        express, and the loop does not name it."""
+        model = self.final.model
+        post = self.posterior_summary
+        out = {}
+        for a in self.accepted:
+            if a["name"] in ("closure", "reading_closure"):
+                continue
+            names = model.effect(a["name"]).parameter_names()
+            summary = {n: (post[n] if post is not None and n in post else
+                           {"q05": self.final.params[n], "q95": self.final.params[n]})
+                       for n in names}
+            hits = []
+            for b in at_bounds(model, summary):
+                neutral = model.parameter(b["parameter"]).neutral
+                if neutral is not None and neutral == b["value"]:
+                    continue  # (at the value that switches it off: not a strained form)
+                hits.append(b)
+            if hits:
+                out[a["name"]] = hits
+        return out
 
     def found_terms(self) -> list[dict]:
         """The final model's open-form closure terms (empty without one): each term's
@@ -144,7 +172,8 @@ class DiscoveryResult(PosteriorDraws):
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
         post = self.posterior_summary
-        effects = []
+        strained = self.stand_ins()
+        effects, stand_ins = [], []
         for a in self.accepted:
             if a["name"] in ("closure", "reading_closure"):  # open-form terms: listed
                 continue  # apart, as found_terms and found_reading_terms
@@ -155,16 +184,19 @@ class DiscoveryResult(PosteriorDraws):
                     params[n] = {k: post[n][k] for k in ("median", "q05", "q95")}
                 else:
                     params[n] = {"estimate": self.final.params[n]}
-            effects.append({"name": a["name"], "options": eff.options(), "parameters": params,
-                            "evidence": {"inclusion_probability":
-                                         a["evidence"]["inclusion_probability"],
-                                         "t_max": a["evidence"]["t_max"],
-                                         "best_term": a["evidence"]["best_term"],
-                                         "score_gain": a["score_gain"],
-                                         "score_p_value": a["score_p_value"]},
-                            "rmse_before_Pa": a["rmse_before_Pa"],
-                            "rmse_after_Pa": a["rmse_after_Pa"]})
-        doc = {"format": FORMAT, "effects": effects, "found_terms": self.found_terms(),
+            ev = a["evidence"]
+            entry = {"name": a["name"], "options": eff.options(), "parameters": params,
+                     "evidence": {"inclusion_probability": ev["inclusion_probability"],
+                                  "t_max": ev["t_max"], "best_term": ev["best_term"],
+                                  "score_gain": a["score_gain"],
+                                  "score_p_value": a["score_p_value"]},
+                     "rmse_before_Pa": a["rmse_before_Pa"], "rmse_after_Pa": a["rmse_after_Pa"]}
+            if a["name"] in strained:  # kept in the model, not named
+                stand_ins.append({**entry, "at_bounds": strained[a["name"]]})
+            else:
+                effects.append(entry)
+        doc = {"format": FORMAT, "effects": effects, "stand_ins": stand_ins,
+               "found_terms": self.found_terms(),
                "found_reading_terms": self.found_reading_terms(),
                "rmse_base_Pa": self.base.heldout_rmse_Pa,
                "rmse_final_Pa": self.final.heldout_rmse_Pa,
