@@ -441,18 +441,22 @@ def settings_for(case: dict, args, sensor: SensorChain) -> DiscoverySettings:
     return override(settings, args.settings, "--setting") if args.settings else settings
 
 
-def classify(named: list[str], found_terms: list, hidden: list[str]) -> dict:
+def classify(named: list[str], found_terms: list, hidden: list[str], kept=()) -> dict:
     """What a case's discovery named, against what it should: catalogue effects (an
     effect named ``closure`` is the open-form stage's and counts as found terms), the
     stand-ins among them (for an out-of-catalogue case, every catalogue effect but the
-    sensor chain's real lags; for a control the same), and the open-form terms."""
+    sensor chain's real lags; for a control the same), and the open-form terms. ``kept``:
+    the effects kept in the model at a bound, not named (a control with one is not
+    clean)."""
     catalogue = [n for n in named if n not in ("closure", "reading_closure")]
     stand_ins = [n for n in catalogue if n not in CONTROL_ALLOWED]
     terms = [t.get("term", str(t)) if isinstance(t, dict) else str(t)
              for t in (found_terms or [])]
     return {"named_catalogue": catalogue, "stand_ins": stand_ins, "found_terms": terms,
             "no_stand_in": not stand_ins,
-            "clean_control": None if hidden else (not stand_ins and not terms)}
+            "clean_control": None if hidden else (not stand_ins and not terms
+                                                  and not [k for k in kept
+                                                           if k not in CONTROL_ALLOWED])}
 
 
 def run_case(case: dict, args, root: Path) -> dict:
@@ -476,7 +480,7 @@ def run_case(case: dict, args, root: Path) -> dict:
         "recordings": [paths[i].name for i in keep], "named": named, "kept_at_bound": kept,
         **classify(named, doc.get("found_terms", []) + [
             f"reading: {t['formula'].split(',')[0]}"
-            for t in doc.get("found_reading_terms", [])], case["hidden"]),
+            for t in doc.get("found_reading_terms", [])], case["hidden"], kept),
         "found_terms_detail": doc.get("found_terms", []) + doc.get("found_reading_terms", []),
         "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
         "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1.0 - gap1 / gap0,

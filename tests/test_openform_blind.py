@@ -111,7 +111,13 @@ def test_classify_and_floors():
     assert o["no_stand_in_cases"] == 8 and o["meets"] == {
         "no_stand_in": True, "gap_shrink": True, "final_over_noise": True}
     assert floors["control"] == {"cases": 2, "errors": 0, "clean": 1, "meets": False}
-    assert "no catalogue stand-in in 8 of 10 (floor 8)" in md
+    assert "no catalogue stand-in in 8 of 10 (floor 8; 0 with a stand-in kept at a bound" in md
+    # a stand-in kept at a bound is not named, but it is listed, and it spoils a control
+    kept = {**res(["LipSealLeak"], [], [], 0.5, 3.0), "kept_at_bound": ["cylinder_leak"]}
+    floors, md = openform_blind.summarise([kept])
+    assert floors["out_of_catalogue"]["kept_at_bound_cases"] == 1
+    assert "(kept at a bound, not named: cylinder_leak)" in md
+    assert openform_blind.classify([], [], [], ["heat_transfer"])["clean_control"] is False
     assert openform_blind.parse_settings(["rounds.max_effects=2"]) == {
         "rounds": {"max_effects": 2}}
     with pytest.raises(ValueError, match="--setting.nope: unknown key"):
