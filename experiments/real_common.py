@@ -25,6 +25,8 @@ def added_names(doc: dict) -> list[str]:
         out.append("closure")
     if doc.get("found_reading_terms"):
         out.append("reading relaxation")
+    if doc.get("found_volume_terms"):
+        out.append("volume hinge")
     return out
 
 

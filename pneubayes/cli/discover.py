@@ -21,7 +21,8 @@ from pneubayes.run_folder import (
 #: What the command may write (removed by --overwrite when the folder has no stamp
 #: listing the earlier run's files).
 DISCOVER_OUTPUTS = ("discovery.json", "model.json", "posterior.nc", "chain.h5",
-                    "disagreement.json", "report.md", "figures", "steps", "found_effect.py")
+                    "disagreement.json", "report.md", "figures", "steps", "found_effect.py",
+                    "found_reading.py", "found_volume.py")
 
 
 def cmd_discover(args) -> int:

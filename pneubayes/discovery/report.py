@@ -74,6 +74,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
 
         write_text_atomic(out / "found_effect.py", effect_skeleton(result.model, result.params))
         doc["found_effect"] = "found_effect.py"
+    if doc.get("found_volume_terms"):  # the volume's hinges as another
+        from pneubayes.discovery.openform.skeleton import volume_effect_skeleton
+
+        write_text_atomic(out / "found_volume.py",
+                          volume_effect_skeleton(result.model, result.params))
+        doc["found_volume_effect"] = "found_volume.py"
     if doc.get("found_reading_terms"):  # and the reading's relaxations as another
         from pneubayes.discovery.openform.skeleton import reading_effect_skeleton
 
@@ -183,6 +189,19 @@ def tried_effects(ledger) -> list[tuple[str, str]]:
     return out
 
 
+def _terms_table(title: str, terms: list) -> list[str]:
+    """A table of found open-form terms: each parameter's unit, estimate and interval."""
+    lines = ["", title, "", "| term | formula | parameter | unit | estimate | 90 % interval |",
+             "|---|---|---|---|---|---|"]
+    for t in terms:
+        for n, p in t["parameters"].items():
+            est = p.get("median", p.get("estimate"))
+            iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
+            lines.append(f"| {t['term']} | {_md(t['formula'])} | {n} | {_md(p['unit'])} | "
+                         f"{est:.4g} | {iv} |")
+    return lines
+
+
 def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     horizon = result.settings.fit.horizon_s
     noise = doc["noise_floor_Pa"]
@@ -226,21 +245,18 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                       "binned means and standard errors):", "",
                       f"![found terms](figures/{figs['found_terms']})"]
     if doc.get("found_reading_terms"):
-        lines += ["", "Open-form relaxations of the reading found (they change what the sensor "
-                  "reports, not the chamber; in no catalogue form):", "",
-                  "| term | formula | parameter | unit | estimate | 90 % interval |",
-                  "|---|---|---|---|---|---|"]
-        for t in doc["found_reading_terms"]:
-            for n, p in t["parameters"].items():
-                est = p.get("median", p.get("estimate"))
-                iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
-                lines.append(f"| {t['term']} | {_md(t['formula'])} | {n} | {_md(p['unit'])} | "
-                             f"{est:.4g} | {iv} |")
+        lines += _terms_table("Open-form relaxations of the reading found (they change what "
+                              "the sensor reports, not the chamber; in no catalogue form):",
+                              doc["found_reading_terms"])
         if "found_reading_terms" in figs:
             lines += ["", "Each relaxation against its variable p - p_bar (red), beside the "
                       "reading the final model misses without it on the training windows "
                       "(grey: binned means and standard errors):", "",
                       f"![found relaxations](figures/{figs['found_reading_terms']})"]
+    if doc.get("found_volume_terms"):
+        lines += _terms_table("Open-form hinges of the chamber's volume found (the chamber "
+                              "holds more gas above a pressure than its fixed volume; in no "
+                              "catalogue form):", doc["found_volume_terms"])
     if doc.get("stand_ins"):
         lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
                   "prediction only with a parameter of their own at a bound, a strained "
@@ -251,7 +267,7 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
             lines.append(f"- {e['name']} ({where}): held-out RMSE {e['rmse_before_Pa']:.0f} "
                          f"-> {e['rmse_after_Pa']:.0f} Pa")
     if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms") \
-            or doc.get("stand_ins"):
+            or doc.get("found_volume_terms") or doc.get("stand_ins"):
         found = True
     elif final <= MISFIT_RATIO * noise:
         found = False
@@ -339,10 +355,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
                          f"p = {e['score_p_value']:.2g}) |")
-        elif e["action"] in ("reading form pass", "reading form reject"):
-            fitted = ", ".join(f"g={r['gain']:.4g}, tau={r['time_constant_s']:.4g} s"
-                               for r in e["relaxations"])
-            lines.append(f"| {e['step']} | {e['action']} | reading_closure | {_md(fitted)} | "
+        elif e["action"] in ("reading form pass", "reading form reject",
+                             "volume form pass", "volume form reject"):
+            fitted = "; ".join(", ".join(f"{k}={v:.4g}" for k, v in t.items())
+                               for t in e["fitted_terms"])
+            lines.append(f"| {e['step']} | {e['action']} | {e['effect']} | {_md(fitted)} | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          f" | {e['score_gain']:.1f} ({e['windows_improved']}/{e['windows']}, "
                          f"p = {e['score_p_value']:.2g}) |")

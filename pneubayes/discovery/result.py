@@ -19,6 +19,8 @@ from pneubayes.effects.closure_terms import (
 from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
+#: The open-form components: their terms are listed apart from the named effects.
+OPEN_FORM = ("closure", "reading_closure", "volume_closure")
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +99,7 @@ class DiscoveryResult(PosteriorDraws):
         post = self.posterior_summary
         out = {}
         for a in self.accepted:
-            if a["name"] in ("closure", "reading_closure"):
+            if a["name"] in OPEN_FORM:
                 continue
             names = model.effect(a["name"]).parameter_names()
             summary = {n: (post[n] if post is not None and n in post else
@@ -121,19 +123,10 @@ class DiscoveryResult(PosteriorDraws):
         model = self.final.model
         if not model.has("closure"):
             return []
-        post = self.posterior_summary
         out = []
         for k, term in enumerate(model.effect("closure").term_list()):
-            names = [f"closure_coefficient_{k}"] + [f"closure_threshold_{k}_{side}"
-                                                    for side in term.hinges()]
-            values = {}
-            for n in names:
-                p = model.parameter(n)
-                if post is not None and n in post:
-                    values[n] = {"unit": p.unit, **{q: post[n][q]
-                                                    for q in ("median", "q05", "q95")}}
-                else:
-                    values[n] = {"unit": p.unit, "estimate": self.final.params[n]}
+            values = self._values([f"closure_coefficient_{k}"]
+                                  + [f"closure_threshold_{k}_{side}" for side in term.hinges()])
             port = modulated_port(term)
             acts = ("mass flow into the chamber (kg/s)" if port is None else
                     f"mass flow into the chamber (kg/s), as a change of the {port}'s "
@@ -141,6 +134,19 @@ class DiscoveryResult(PosteriorDraws):
                     "reverse)")
             out.append({"term": str(term), "acts_on": acts,
                         "formula": term_formula(term, k), "parameters": values})
+        return out
+
+    def _values(self, names) -> dict:
+        """Each of ``names``' unit and its posterior median and 90 % interval when one
+        was sampled, else the estimate."""
+        model, post = self.final.model, self.posterior_summary
+        out = {}
+        for n in names:
+            p = model.parameter(n)
+            if post is not None and n in post:
+                out[n] = {"unit": p.unit, **{q: post[n][q] for q in ("median", "q05", "q95")}}
+            else:
+                out[n] = {"unit": p.unit, "estimate": self.final.params[n]}
         return out
 
     def found_reading_terms(self) -> list[dict]:
@@ -151,23 +157,28 @@ class DiscoveryResult(PosteriorDraws):
         model = self.final.model
         if not model.has("reading_closure"):
             return []
-        post = self.posterior_summary
-        out = []
-        for k in range(model.effect("reading_closure").terms):
-            values = {}
-            for n in (f"reading_closure_gain_{k}", f"reading_closure_time_constant_{k}"):
-                p = model.parameter(n)
-                if post is not None and n in post:
-                    values[n] = {"unit": p.unit, **{q: post[n][q]
-                                                    for q in ("median", "q05", "q95")}}
-                else:
-                    values[n] = {"unit": p.unit, "estimate": self.final.params[n]}
-            out.append({"term": f"relaxation {k}", "acts_on": "the pressure reading (Pa)",
-                        "formula": f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = "
-                                   f"p - p_bar_{k} (g_{k} = reading_closure_gain_{k}, tau_{k} "
-                                   f"= reading_closure_time_constant_{k}, s)",
-                        "parameters": values})
-        return out
+        return [{"term": f"relaxation {k}", "acts_on": "the pressure reading (Pa)",
+                 "formula": f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = "
+                            f"p - p_bar_{k} (g_{k} = reading_closure_gain_{k}, tau_{k} "
+                            f"= reading_closure_time_constant_{k}, s)",
+                 "parameters": self._values((f"reading_closure_gain_{k}",
+                                             f"reading_closure_time_constant_{k}"))}
+                for k in range(model.effect("reading_closure").terms)]
+
+    def found_volume_terms(self) -> list[dict]:
+        """The final model's open-form hinges of the chamber's volume (effect
+        ``volume_closure``; empty without one): each hinge's formula, its compliance and
+        threshold (as :meth:`found_reading_terms` gives them), and where it acts."""
+        model = self.final.model
+        if not model.has("volume_closure"):
+            return []
+        return [{"term": f"hinge {k}", "acts_on": "the chamber's volume (m^3)",
+                 "formula": f"V(p) = V_0 + C_{k} max(0, p - theta_{k}) (C_{k} = "
+                            f"volume_closure_compliance_{k}, m^3/Pa; theta_{k} = "
+                            f"volume_closure_threshold_{k}, Pa absolute)",
+                 "parameters": self._values((f"volume_closure_compliance_{k}",
+                                             f"volume_closure_threshold_{k}"))}
+                for k in range(model.effect("volume_closure").terms)]
 
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
@@ -175,8 +186,8 @@ class DiscoveryResult(PosteriorDraws):
         strained = self.stand_ins()
         effects, stand_ins = [], []
         for a in self.accepted:
-            if a["name"] in ("closure", "reading_closure"):  # open-form terms: listed
-                continue  # apart, as found_terms and found_reading_terms
+            if a["name"] in OPEN_FORM:  # open-form terms: listed apart, as found_terms,
+                continue  # found_reading_terms and found_volume_terms
             eff = self.final.model.effect(a["name"])
             params = {}
             for n in eff.parameter_names():
@@ -198,6 +209,7 @@ class DiscoveryResult(PosteriorDraws):
         doc = {"format": FORMAT, "effects": effects, "stand_ins": stand_ins,
                "found_terms": self.found_terms(),
                "found_reading_terms": self.found_reading_terms(),
+               "found_volume_terms": self.found_volume_terms(),
                "rmse_base_Pa": self.base.heldout_rmse_Pa,
                "rmse_final_Pa": self.final.heldout_rmse_Pa,
                "noise_floor_Pa": self.noise_floor_Pa, "range_Pa": self.range_Pa,

@@ -263,6 +263,9 @@ class StageSettings:
     reading_form_min_noise_ratio : float
         ReadingForm: open-form relaxations of the reading while above this x the noise
         floor (0: off).
+    volume_form_min_noise_ratio : float
+        VolumeForm: open-form hinges of the chamber's volume in its pressure while above
+        this x the noise floor (0: off).
     """
 
     more_supported: bool = True
@@ -274,6 +277,7 @@ class StageSettings:
     max_form_swaps: int = 2
     open_form_min_noise_ratio: float = 1.5
     reading_form_min_noise_ratio: float = 1.5
+    volume_form_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
         _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
@@ -283,14 +287,11 @@ class StageSettings:
         if not _int_at_least(self.max_form_swaps, 0):
             raise ValueError("max_form_swaps must be an integer >= 0, got "
                              f"{self.max_form_swaps!r}")
-        if not (self.open_form_min_noise_ratio == 0.0
-                or self.open_form_min_noise_ratio >= 1.0):
-            raise ValueError("open_form_min_noise_ratio must be 0 (off) or >= 1, got "
-                             f"{self.open_form_min_noise_ratio}")
-        if not (self.reading_form_min_noise_ratio == 0.0
-                or self.reading_form_min_noise_ratio >= 1.0):
-            raise ValueError("reading_form_min_noise_ratio must be 0 (off) or >= 1, got "
-                             f"{self.reading_form_min_noise_ratio}")
+        for name in ("open_form_min_noise_ratio", "reading_form_min_noise_ratio",
+                     "volume_form_min_noise_ratio"):
+            v = getattr(self, name)
+            if not (v == 0.0 or v >= 1.0):
+                raise ValueError(f"{name} must be 0 (off) or >= 1, got {v}")
 
 
 @dataclass(frozen=True)

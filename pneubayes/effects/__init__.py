@@ -3,8 +3,9 @@
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
 ``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
 ``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
-``closure`` (an open-form extra mass flow) and ``reading_closure`` (open-form relaxations
-of the reading), never searched for by the discovery library.
+``closure`` (an open-form extra mass flow), ``reading_closure`` (open-form relaxations
+of the reading) and ``volume_closure`` (open-form hinges of the chamber's volume in its
+pressure), the last three never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -28,12 +29,13 @@ from pneubayes.effects.thin_port import ThinPort
 from pneubayes.effects.tube_delay import TubeDelay
 from pneubayes.effects.valve_deadzone import ValveDeadzone
 from pneubayes.effects.valve_stiction import ValveStiction
+from pneubayes.effects.volume_closure import VolumeClosure
 
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
-                SensorNonlinearity, ValveStiction, Closure, ReadingClosure)
+                SensorNonlinearity, ValveStiction, Closure, ReadingClosure, VolumeClosure)
 }
 
 
@@ -126,4 +128,4 @@ __all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10F
            "SensorLag",
            "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
-           "catalogue_parameter_names", "make_effect"]
+           "VolumeClosure", "catalogue_parameter_names", "make_effect"]

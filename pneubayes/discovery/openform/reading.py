@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
+from pneubayes.discovery.openform.clustered import last_column_fit
 from pneubayes.effects.reading_closure import READING_MAX_TERMS, TIME_CONSTANT_BOUNDS_S
 from pneubayes.simulation.reading_closure import history_low_pass, relaxed_reading
 
@@ -258,19 +259,5 @@ class ReadingSearch:
     def _term(cols, y, ok, windows, tau, total) -> ReadingTerm:
         """The last of ``cols`` fitted beside the others: its gain, its own share of the
         sum of squares (beside them) and its window-clustered t."""
-        x = np.stack(cols, axis=1)
-        yy = np.where(ok, y, 0.0)
-        g, *_ = np.linalg.lstsq(x, yy, rcond=None)
-        e = yy - x @ g
-        # the last column's part orthogonal to the others, its sandwich variance by window
-        last = x[:, -1]
-        if x.shape[1] > 1:
-            last = last - x[:, :-1] @ np.linalg.lstsq(x[:, :-1], last, rcond=None)[0]
-        xx = float(last @ last)
-        if xx <= 0.0:
-            return ReadingTerm(0.0, tau, 0.0, 0.0)
-        sums = np.bincount(windows, weights=last * e)
-        se = float(np.sqrt(np.sum(sums**2))) / xx
-        gain = float(g[-1])
-        explained = float(last @ yy) ** 2 / xx / total
-        return ReadingTerm(gain, tau, explained, gain / se if se > 0 else np.inf)
+        gain, explained, t = last_column_fit(cols, y, ok, windows, total)
+        return ReadingTerm(gain, tau, explained, t)

@@ -2,17 +2,19 @@
 
 :func:`effect_skeleton` writes a Python module defining an
 :class:`~pneubayes.effects.Effect` that lowers onto the closure's slots with the found
-terms fixed; :func:`reading_effect_skeleton` one that relaxes the reading as the found
-reading closure does. Their parameters carry the user's names (to be edited), the
-closure's bounds and priors, and the fitted values as bench defaults. Registering one
-is one line in ``pneubayes.effects.CATALOGUE`` (or ``Model([FoundEffect()])``
-directly).
+terms fixed; :func:`volume_effect_skeleton` one that lowers onto the chamber's volume
+table as the found volume closure does; :func:`reading_effect_skeleton` one that relaxes
+the reading as the found reading closure does. Their parameters carry the user's names
+(to be edited), the found component's bounds and priors, and the fitted values as bench
+defaults. Registering one is one line in ``pneubayes.effects.CATALOGUE`` (or
+``Model([FoundEffect()])`` directly).
 """
 
 from __future__ import annotations
 
 from pneubayes.effects.closure_terms import term_formula
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
+from pneubayes.effects.volume_closure import compliance_name, threshold_name
 
 
 def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",
@@ -42,45 +44,80 @@ def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",
         names[f"term{k}_coefficient"] = f"closure_coefficient_{k}"
         for side in term.hinges():
             names[f"term{k}_threshold_{side}"] = f"closure_threshold_{k}_{side}"
-    values = {mine: float(params[theirs]) for mine, theirs in names.items()}
-    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs in names.items())
-    defaults = "\n".join(f"        {mine!r}: {v!r}," for mine, v in values.items())
-    terms = closure.options()["terms"]
-    return f'''"""{effect_name}: a mass flow into the chamber found by pneubayes discover.
+    return _delegating_module(
+        class_name, effect_name, "a mass flow into the chamber",
+        "an open-form closure term (kg/s into the chamber)", lines,
+        "from pneubayes.effects.closure import Closure",
+        f"Closure(terms={closure.options()['terms']!r})", names, params)
 
-Found as an open-form closure term (kg/s into the chamber):
+
+def volume_effect_skeleton(model, params: dict, class_name: str = "FoundVolume",
+                           effect_name: str = "found_volume") -> str:
+    """The module text of an effect plug-in for ``model``'s volume closure at ``params``
+    (its hinges of the chamber's volume in its pressure, under the user's names);
+    parameters and return as :func:`effect_skeleton`'s."""
+    if not model.has("volume_closure"):
+        raise ValueError("volume_effect_skeleton: the model has no volume closure (no found "
+                         "hinge of the chamber's volume)")
+    terms = model.effect("volume_closure").terms
+    names, lines = {}, []
+    for k in range(terms):
+        c, th = compliance_name(k), threshold_name(k)
+        lines.append(f"#   hinge {k}: V(p) = V_0 + C_{k} max(0, p - theta_{k}); C_{k} = "
+                     f"{float(params[c]):.6g} m^3/Pa, theta_{k} = {float(params[th]):.6g} Pa")
+        names[f"hinge{k}_compliance_m3_per_Pa"] = c
+        names[f"hinge{k}_threshold_Pa"] = th
+    return _delegating_module(
+        class_name, effect_name, "a chamber volume that grows with its pressure",
+        "open-form hinges of the chamber's volume", lines,
+        "from pneubayes.effects.volume_closure import VolumeClosure",
+        f"VolumeClosure(terms={terms})", names, params)
+
+
+def _delegating_module(class_name, effect_name, what, found_as, lines, import_line,
+                       component, names, params) -> str:
+    """A plug-in module whose effect renames ``component``'s parameters (``names``: its
+    own -> the component's) and lowers through it, its bench defaults the fitted
+    ``params``."""
+    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs in names.items())
+    defaults = "\n".join(f"        {mine!r}: {float(params[theirs])!r},"
+                         for mine, theirs in names.items())
+    return f'''"""{effect_name}: {what} found by pneubayes discover.
+
+Found as {found_as}:
 {chr(10).join(lines)}
 Edit the names, the descriptions and the bounds to say what it is; ``lower`` keeps
-writing the closure's slots. Register it with one line in pneubayes.effects.CATALOGUE,
-or use it directly: ``Model([{class_name}()])``.
+writing the found component's slots. Register it with one line in
+pneubayes.effects.CATALOGUE, or use it directly: ``Model([{class_name}()])``.
 """
 
 from pneubayes.effects.base import Effect, Parameter
-from pneubayes.effects.closure import Closure
+{import_line}
+
+FOUND = {component}
 
 
 class {class_name}(Effect):
-    """A found mass flow into the chamber (edit this description)."""
+    """Found: {what} (edit this description)."""
 
     name = {effect_name!r}
-    acts_on = Closure.acts_on
-    #: The closure terms this effect is built from.
-    TERMS = {terms!r}
-    #: This effect's parameter -> the closure's.
+    acts_on = FOUND.acts_on
+    beside_line = FOUND.beside_line
+    #: This effect's parameter -> the found component's.
     NAMES = {{
 {mapping}
     }}
 
     def parameters(self):
-        closure = {{p.name: p for p in Closure(terms=self.TERMS).parameters()}}
-        return tuple(Parameter(mine, closure[theirs].unit, closure[theirs].lower,
-                               closure[theirs].upper, closure[theirs].prior,
-                               f"found: {{theirs}} (edit)", neutral=closure[theirs].neutral)
+        found = {{p.name: p for p in FOUND.parameters()}}
+        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
+                               found[theirs].upper, found[theirs].prior,
+                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
                      for mine, theirs in self.NAMES.items())
 
     def lower(self, values, rig):
-        return Closure(terms=self.TERMS).lower(
-            {{theirs: values[mine] for mine, theirs in self.NAMES.items()}}, rig)
+        return FOUND.lower({{theirs: values[mine] for mine, theirs in self.NAMES.items()}},
+                           rig)
 
     def bench_defaults(self):
         """The values discovery fitted."""
@@ -177,4 +214,4 @@ class {class_name}(Effect):
 '''
 
 
-__all__ = ["effect_skeleton", "reading_effect_skeleton"]
+__all__ = ["effect_skeleton", "reading_effect_skeleton", "volume_effect_skeleton"]

@@ -17,13 +17,15 @@ from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
 from pneubayes.discovery.stages.reading_form import ReadingForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
+from pneubayes.discovery.stages.volume_form import VolumeForm
 
 
 def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open-form closure and the reading's relaxations."""
+    effects' other forms, then the open-form closure, the reading's relaxations and the
+    volume's hinges."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -40,8 +42,10 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(OpenForm(s.open_form_min_noise_ratio))
     if s.reading_form_min_noise_ratio:
         stages.append(ReadingForm(s.reading_form_min_noise_ratio))
+    if s.volume_form_min_noise_ratio:
+        stages.append(VolumeForm(s.volume_form_min_noise_ratio))
     return stages
 
 
 __all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
-           "OpenForm", "ReadingForm", "default_stages"]
+           "OpenForm", "ReadingForm", "VolumeForm", "default_stages"]

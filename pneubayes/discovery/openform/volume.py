@@ -1,0 +1,218 @@
+"""The open-form search on the chamber's volume: hinges of the volume in the pressure in
+the prediction windows' residual.
+
+A volume closure (:class:`~pneubayes.effects.volume_closure.VolumeClosure`) adds ``C
+max(0, p - theta)`` to the chamber's volume. A hinge that matters changes the chamber's
+capacity by a sizeable share (an accumulator can hold several times the dead volume),
+so its effect on a window is far from linear in ``C``: the search simulates instead of
+linearising. :class:`VolumeSearch` scores a grid of thresholds and compliances in one
+batch of window simulations (:class:`VolumeProblem`), keeps the pair with the least sum
+of squares, and then, beside it, the best second hinge. A hinge is kept when it removes
+at least ``min_explained_fraction`` of the residual's sum of squares and the windows'
+reductions are ``min_t`` standard errors above zero (a window's residual is one
+correlated trace: the windows are the independent units).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.volume_closure import (
+    COMPLIANCE_BOUNDS_M3_PER_PA,
+    THRESHOLD_BOUNDS_PA,
+    VOLUME_MAX_TERMS,
+    VolumeClosure,
+    compliance_name,
+    threshold_name,
+)
+
+
+@dataclass(frozen=True)
+class VolumeTerm:
+    """A kept hinge: ``compliance_m3_per_Pa``, ``threshold_Pa``, the share of the
+    residual's sum of squares it removes beside the hinges kept before it
+    (``explained``) and the windows' mean reduction over its standard error (``t``)."""
+
+    compliance_m3_per_Pa: float
+    threshold_Pa: float
+    explained: float
+    t: float
+
+    def __str__(self) -> str:
+        return (f"{self.compliance_m3_per_Pa * 1e11:.4g} cm^3/bar above "
+                f"{self.threshold_Pa / 1e5:.4g} bar")
+
+
+def threshold_grid(window_set, count: int = 16) -> np.ndarray:
+    """``count`` thresholds (Pa absolute) over the windows' measured pressures: one below
+    them all (a compliance at every pressure) and the rest evenly spaced between the
+    pressures' 2 % and 98 % quantiles (a recording that dwells at the supply and the
+    atmosphere still has its thresholds spread over the range it crosses)."""
+    p = np.asarray(window_set.measured, dtype=np.float64)
+    p = p[np.isfinite(p)]
+    lo, hi = THRESHOLD_BOUNDS_PA
+    q_lo, q_hi = np.quantile(p, [0.02, 0.98])
+    below = max(lo, float(p.min()) - 1e4)
+    return np.unique(np.clip(np.concatenate([[below], np.linspace(q_lo, q_hi, count - 1)]),
+                             lo, hi))
+
+
+@dataclass(frozen=True)
+class VolumeProblem:
+    """What the search simulates: the training windows, the current model and its
+    parameters, and the solver."""
+
+    window_set: object
+    model: object
+    params: dict
+    solver: object
+
+    def check(self) -> None:
+        """Raise ValueError where a volume closure cannot join the model."""
+        if self.model.has("volume_closure"):
+            raise ValueError("the model already has a volume closure")
+        base = self.model.lower(self.model.vector(self.params)[None], self.rig)[0]
+        if base[SLOT_INDEX["volume_table_points"]] > 0 \
+                or base[SLOT_INDEX["compliance_m3_per_Pa"]] > 0:
+            raise ValueError("the model's chamber is already compliant (its rig card's); a "
+                             "volume closure would replace its table")
+
+    @property
+    def rig(self):
+        return self.window_set.blocks[0].rig
+
+    def volume_scale_m3_per_Pa(self) -> float:
+        """The chamber's volume per the supply's pressure over the heat capacity ratio
+        (m^3/Pa): a compliance of this size doubles the chamber's capacity at the
+        supply."""
+        base = self.model.lower(self.model.vector(self.params)[None], self.rig)[0]
+        rig = self.rig
+        return float(base[SLOT_INDEX["volume_m3"]]
+                     / (rig.gas.heat_capacity_ratio * rig.supply_pressure_Pa))
+
+    def window_sse(self, hinges: Sequence[Sequence[tuple[float, float]]]) -> np.ndarray:
+        """Each window's sum of squared residuals ``(S, W)`` (Pa^2; inf where a
+        simulation failed) for ``S`` sets of hinges, each a sequence of ``(compliance,
+        threshold)`` (an empty one: the current model)."""
+        k = max(1, max(len(h) for h in hinges))
+        trial = self.model.with_effect(VolumeClosure(terms=k))
+        rows = []
+        for h in hinges:
+            values = dict(self.params)
+            for j in range(k):
+                c, th = h[j] if j < len(h) else (0.0, THRESHOLD_BOUNDS_PA[0])
+                values[compliance_name(j)] = c
+                values[threshold_name(j)] = th
+            rows.append(trial.vector(values))
+        resid = self.window_set.residuals(trial, np.stack(rows), self.solver, on_failure="nan")
+        sse = np.sum(resid**2, axis=2)
+        return np.where(np.isfinite(sse), sse, np.inf)
+
+
+class VolumeSearch:
+    """Grid search of volume hinges in the windows' residual (scikit-learn contract:
+    settings in the constructor, :meth:`fit` sets the ``_`` attributes).
+
+    Parameters
+    ----------
+    thresholds : int
+        How many thresholds are tried (:func:`threshold_grid`).
+    compliance_shares : sequence of float
+        The compliances tried, as multiples of the chamber's volume per the supply's
+        pressure (:meth:`VolumeProblem.volume_scale_m3_per_Pa`).
+    max_terms : int
+        Most hinges kept (1..2, the volume closure's room).
+    min_explained_fraction : float
+        A kept hinge's least share of the residual's sum of squares.
+    min_t : float
+        A kept hinge's least mean window reduction over its standard error.
+
+    Attributes
+    ----------
+    terms_ : list of VolumeTerm
+        Kept hinges, in the order found.
+    explained_fraction_ : float
+        Share of the residual's sum of squares the kept hinges remove together.
+    best_ : VolumeTerm or None
+        The best first hinge, kept or not (what the search saw).
+    """
+
+    def __init__(self, thresholds: int = 16,
+                 compliance_shares: Sequence[float] = tuple(np.geomspace(0.03, 30.0, 13)),
+                 max_terms: int = VOLUME_MAX_TERMS, min_explained_fraction: float = 0.02,
+                 min_t: float = 4.0):
+        self.thresholds = thresholds
+        self.compliance_shares = compliance_shares
+        self.max_terms = max_terms
+        self.min_explained_fraction = min_explained_fraction
+        self.min_t = min_t
+
+    def _validate(self, problem):
+        if isinstance(self.thresholds, bool) or not isinstance(self.thresholds, int) \
+                or self.thresholds < 2:
+            raise ValueError(f"thresholds must be an integer >= 2, got {self.thresholds!r}")
+        shares = np.asarray(self.compliance_shares, dtype=np.float64)
+        if shares.ndim != 1 or not shares.size or not np.all(shares > 0):
+            raise ValueError(f"compliance_shares must be positive numbers, got "
+                             f"{self.compliance_shares!r}")
+        if not (isinstance(self.max_terms, int) and 1 <= self.max_terms <= VOLUME_MAX_TERMS):
+            raise ValueError(f"max_terms must be an integer in 1..{VOLUME_MAX_TERMS}, got "
+                             f"{self.max_terms!r}")
+        if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0:
+            raise ValueError("min_explained_fraction must be in (0, 1) and min_t > 0, got "
+                             f"{self.min_explained_fraction!r}, {self.min_t!r}")
+        if not isinstance(problem, VolumeProblem):
+            raise ValueError("fit takes a VolumeProblem")
+        problem.check()
+        return shares
+
+    def fit(self, problem: VolumeProblem) -> "VolumeSearch":
+        """Search the training windows of ``problem``."""
+        shares = self._validate(problem)
+        lo, hi = COMPLIANCE_BOUNDS_M3_PER_PA
+        comps = np.clip(shares * problem.volume_scale_m3_per_Pa(), lo, hi)
+        ths = threshold_grid(problem.window_set, self.thresholds)
+        grid = [(float(c), float(th)) for th in ths for c in comps]
+        self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
+        kept: list[tuple[float, float]] = []
+        current = problem.window_sse([()])[0]
+        total = float(np.sum(current))
+        if not np.isfinite(total) or total <= 0.0:
+            return self
+        for _ in range(self.max_terms):
+            sse = problem.window_sse([kept + [h] for h in grid])
+            j = int(np.argmin(np.sum(sse, axis=1)))
+            if not np.isfinite(sse[j]).all():
+                break
+            d = current - sse[j]  # each window's reduction
+            explained = float(np.sum(d)) / total
+            se = float(np.std(d, ddof=1)) / np.sqrt(d.size) if d.size > 1 else 0.0
+            t = float(np.mean(d)) / se if se > 0 else np.inf
+            term = VolumeTerm(grid[j][0], grid[j][1], explained, t)
+            if self.best_ is None:
+                self.best_ = term
+            if explained < self.min_explained_fraction or t < self.min_t:
+                break
+            kept.append(grid[j])
+            self.terms_.append(term)
+            current = sse[j]
+        if kept:
+            self.explained_fraction_ = 1.0 - float(np.sum(current)) / total
+        return self
+
+
+def searched_values(terms: Sequence[VolumeTerm]) -> dict[str, float]:
+    """The volume closure's parameter values the kept ``terms`` stand for."""
+    out = {}
+    for k, t in enumerate(terms):
+        out[compliance_name(k)] = t.compliance_m3_per_Pa
+        out[threshold_name(k)] = t.threshold_Pa
+    return out
+
+
+__all__ = ["VolumeProblem", "VolumeSearch", "VolumeTerm", "searched_values",
+           "threshold_grid"]
