@@ -29,6 +29,19 @@ def test_the_hinges_table_is_their_sum_with_flat_and_extended_ends():
         VolumeClosure(terms=3)
 
 
+def test_the_stage_s_knobs_and_its_switch():
+    from pneubayes.discovery.settings import DiscoverySettings, StageSettings
+    from pneubayes.discovery.stages import default_stages
+
+    with pytest.raises(ValueError, match="min_noise_ratio"):
+        VolumeForm(min_noise_ratio=0.5)
+    assert VolumeForm(search=VolumeSearch(thresholds=8)).options()["search"]["thresholds"] == 8
+    off = default_stages(DiscoverySettings(stages=StageSettings(volume_form_min_noise_ratio=0)))
+    assert "VolumeForm" not in [type(s).__name__ for s in off]
+    with pytest.raises(ValueError, match="volume_form_min_noise_ratio"):
+        StageSettings(volume_form_min_noise_ratio=0.5)
+
+
 def test_a_volume_closure_is_refused_where_the_chamber_cannot_be_compliant(rig, hand):
     from pneubayes.physics.valve import valve_preset
     from pneubayes.simulation import Inputs, simulate
