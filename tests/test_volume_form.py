@@ -15,7 +15,7 @@ from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
-C_TRUE, THETA_TRUE = 6e-12, 3.2e5  # m^3/Pa, Pa: 0.6 cm^3 per bar above 3.2 bar
+C_TRUE, THETA_TRUE = 2e-11, 3.2e5  # m^3/Pa, Pa: 2 cm^3 per bar above 3.2 bar
 
 
 def test_the_hinges_table_is_their_sum_with_flat_and_extended_ends():
@@ -59,8 +59,8 @@ def test_a_volume_closure_is_refused_where_the_chamber_cannot_be_compliant(rig, 
 
 @pytest.fixture(scope="module")
 def swelling_recordings():
-    """Four 8-s valve1 recordings (1 kHz, 200 Pa noise) of a chamber that takes 2 cm^3
-    per bar above 3.2 bar, and three 6-s ones of a rigid chamber."""
+    """Four 8-s valve1 recordings (1 kHz, 200 Pa noise) of a 2.4-cm^3 chamber that takes
+    2 cm^3 more per bar above 3.2 bar, and three 6-s ones of a rigid chamber."""
     return (_recordings(Model().with_effect(VolumeClosure()),
                         {"volume_closure_compliance_0": C_TRUE,
                          "volume_closure_threshold_0": THETA_TRUE}, 4, 8001),
@@ -93,7 +93,7 @@ def _recordings(model, extra, count=3, n=6001):
 def test_the_search_finds_a_planted_hinge_and_none_in_a_rigid_chamber(swelling_recordings):
     (swelling, base), (rigid, _) = swelling_recordings
     solver = SolverConfig.standard()
-    ws = WindowSet(swelling, 2.0, 2.0)
+    ws = WindowSet(swelling[:2], 2.0, 2.0)
     grid = threshold_grid(ws, 16)
     assert grid[0] < 1.1e5 and np.all(np.diff(grid) > 0) and grid.size == 16
     found = VolumeSearch().fit(VolumeProblem(ws, Model(), base, solver))
@@ -102,7 +102,8 @@ def test_the_search_finds_a_planted_hinge_and_none_in_a_rigid_chamber(swelling_r
     assert abs(term.threshold_Pa - THETA_TRUE) <= step
     assert 0.5 * C_TRUE <= term.compliance_m3_per_Pa <= 2.0 * C_TRUE
     assert found.explained_fraction_ > 0.9
-    none = VolumeSearch().fit(VolumeProblem(WindowSet(rigid, 2.0, 2.0), Model(), base, solver))
+    none = VolumeSearch().fit(VolumeProblem(WindowSet(rigid[:2], 2.0, 2.0), Model(), base,
+                                            solver))
     assert none.terms_ == [] and none.best_.explained < 0.02
     with pytest.raises(ValueError, match="already has a volume closure"):
         VolumeSearch().fit(VolumeProblem(ws, Model().with_effect(VolumeClosure()),
@@ -129,7 +130,9 @@ def test_discovery_finds_a_planted_hinge_of_the_chamber_s_volume(swelling_record
     c = term["parameters"]["volume_closure_compliance_0"]["estimate"]
     th = term["parameters"]["volume_closure_threshold_0"]["estimate"]
     # (with the valve's areas free, only the compliance per dead volume is seen, and the
-    # Gompertz maps' shapes trade some of it: 2.03e-6 against 2.5e-6 /Pa when written)
+    # Gompertz maps' shapes trade some of it: 7.3e-6 against 8.3e-6 /Pa when written;
+    # the base model, fitted without the hinge, missed by 28 kPa with a dead volume
+    # 4.5 x the true one)
     per_volume = c / result.params["dead_volume_m3"]
     assert per_volume == pytest.approx(C_TRUE / 2.4e-6, rel=0.25)
     assert th == pytest.approx(THETA_TRUE, rel=0.03)

@@ -5,9 +5,12 @@ A volume closure (:class:`~pneubayes.effects.volume_closure.VolumeClosure`) adds
 max(0, p - theta)`` to the chamber's volume. A hinge that matters changes the chamber's
 capacity by a sizeable share (an accumulator can hold several times the dead volume),
 so its effect on a window is far from linear in ``C``: the search simulates instead of
-linearising. :class:`VolumeSearch` scores a grid of thresholds and compliances in one
-batch of window simulations (:class:`VolumeProblem`), keeps the pair with the least sum
-of squares, and then, beside it, the best second hinge. A hinge is kept when it removes
+linearising. And a model fitted without the hinge has taken a dead volume between the
+chamber's volumes below and above it, which the hinge's own volume must replace: the
+grid scales the dead volume too. :class:`VolumeSearch` scores a grid of thresholds,
+compliances and dead-volume scales in one batch of window simulations
+(:class:`VolumeProblem`), keeps the set with the least sum of squares, and then, beside
+it, the best second hinge. A hinge is kept when it removes
 at least ``min_explained_fraction`` of the residual's sum of squares and the windows'
 reductions are ``min_t`` standard errors above zero (a window's residual is one
 correlated trace: the windows are the independent units).
@@ -35,16 +38,20 @@ from pneubayes.effects.volume_closure import (
 class VolumeTerm:
     """A kept hinge: ``compliance_m3_per_Pa``, ``threshold_Pa``, the share of the
     residual's sum of squares it removes beside the hinges kept before it
-    (``explained``) and the windows' mean reduction over its standard error (``t``)."""
+    (``explained``), the windows' mean reduction over its standard error (``t``) and the
+    dead volume's scale it was found with (``dead_volume_scale``)."""
 
     compliance_m3_per_Pa: float
     threshold_Pa: float
     explained: float
     t: float
+    dead_volume_scale: float = 1.0
 
     def __str__(self) -> str:
+        scaled = ("" if self.dead_volume_scale == 1.0 else
+                  f", the dead volume x {self.dead_volume_scale:g}")
         return (f"{self.compliance_m3_per_Pa * 1e11:.4g} cm^3/bar above "
-                f"{self.threshold_Pa / 1e5:.4g} bar")
+                f"{self.threshold_Pa / 1e5:.4g} bar{scaled}")
 
 
 def threshold_grid(window_set, count: int = 16) -> np.ndarray:
@@ -94,15 +101,25 @@ class VolumeProblem:
         return float(base[SLOT_INDEX["volume_m3"]]
                      / (rig.gas.heat_capacity_ratio * rig.supply_pressure_Pa))
 
-    def window_sse(self, hinges: Sequence[Sequence[tuple[float, float]]]) -> np.ndarray:
+    @property
+    def scales_dead_volume(self) -> bool:
+        """Whether the model fits the dead volume (``dead_volume_m3``), which the grid
+        may then scale."""
+        return "dead_volume_m3" in self.model.parameter_names
+
+    def window_sse(self, hinges: Sequence[Sequence[tuple[float, float]]],
+                   scales: Sequence[float] | None = None) -> np.ndarray:
         """Each window's sum of squared residuals ``(S, W)`` (Pa^2; inf where a
         simulation failed) for ``S`` sets of hinges, each a sequence of ``(compliance,
-        threshold)`` (an empty one: the current model)."""
+        threshold)`` (an empty one: the current model), each with the dead volume
+        times its entry of ``scales`` (None: all 1)."""
         k = max(1, max(len(h) for h in hinges))
         trial = self.model.with_effect(VolumeClosure(terms=k))
         rows = []
-        for h in hinges:
+        for i, h in enumerate(hinges):
             values = dict(self.params)
+            if scales is not None and scales[i] != 1.0:
+                values["dead_volume_m3"] = values["dead_volume_m3"] * scales[i]
             for j in range(k):
                 c, th = h[j] if j < len(h) else (0.0, THRESHOLD_BOUNDS_PA[0])
                 values[compliance_name(j)] = c
@@ -124,6 +141,8 @@ class VolumeSearch:
     compliance_shares : sequence of float
         The compliances tried, as multiples of the chamber's volume per the supply's
         pressure (:meth:`VolumeProblem.volume_scale_m3_per_Pa`).
+    dead_volume_scales : sequence of float
+        The dead volume's scales tried with the first hinge (where the model fits it).
     max_terms : int
         Most hinges kept (1..2, the volume closure's room).
     min_explained_fraction : float
@@ -143,10 +162,12 @@ class VolumeSearch:
 
     def __init__(self, thresholds: int = 16,
                  compliance_shares: Sequence[float] = tuple(np.geomspace(0.03, 30.0, 13)),
+                 dead_volume_scales: Sequence[float] = (0.35, 0.5, 0.7, 1.0),
                  max_terms: int = VOLUME_MAX_TERMS, min_explained_fraction: float = 0.02,
                  min_t: float = 4.0):
         self.thresholds = thresholds
         self.compliance_shares = compliance_shares
+        self.dead_volume_scales = dead_volume_scales
         self.max_terms = max_terms
         self.min_explained_fraction = min_explained_fraction
         self.min_t = min_t
@@ -159,6 +180,10 @@ class VolumeSearch:
         if shares.ndim != 1 or not shares.size or not np.all(shares > 0):
             raise ValueError(f"compliance_shares must be positive numbers, got "
                              f"{self.compliance_shares!r}")
+        scales = np.asarray(self.dead_volume_scales, dtype=np.float64)
+        if scales.ndim != 1 or not scales.size or not np.all(scales > 0):
+            raise ValueError(f"dead_volume_scales must be positive numbers, got "
+                             f"{self.dead_volume_scales!r}")
         if not (isinstance(self.max_terms, int) and 1 <= self.max_terms <= VOLUME_MAX_TERMS):
             raise ValueError(f"max_terms must be an integer in 1..{VOLUME_MAX_TERMS}, got "
                              f"{self.max_terms!r}")
@@ -176,15 +201,21 @@ class VolumeSearch:
         lo, hi = COMPLIANCE_BOUNDS_M3_PER_PA
         comps = np.clip(shares * problem.volume_scale_m3_per_Pa(), lo, hi)
         ths = threshold_grid(problem.window_set, self.thresholds)
-        grid = [(float(c), float(th)) for th in ths for c in comps]
+        scales = (tuple(float(v) for v in self.dead_volume_scales)
+                  if problem.scales_dead_volume else (1.0,))
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
         kept: list[tuple[float, float]] = []
+        scale = 1.0
         current = problem.window_sse([()])[0]
         total = float(np.sum(current))
         if not np.isfinite(total) or total <= 0.0:
             return self
         for _ in range(self.max_terms):
-            sse = problem.window_sse([kept + [h] for h in grid])
+            # the first hinge with each dead-volume scale; a second beside it at its scale
+            grid = [(float(c), float(th), v) for v in (scales if not kept else (scale,))
+                    for th in ths for c in comps]
+            sse = problem.window_sse([kept + [(c, th)] for c, th, _ in grid],
+                                     [v for *_, v in grid])
             j = int(np.argmin(np.sum(sse, axis=1)))
             if not np.isfinite(sse[j]).all():
                 break
@@ -192,12 +223,13 @@ class VolumeSearch:
             explained = float(np.sum(d)) / total
             se = float(np.std(d, ddof=1)) / np.sqrt(d.size) if d.size > 1 else 0.0
             t = float(np.mean(d)) / se if se > 0 else np.inf
-            term = VolumeTerm(grid[j][0], grid[j][1], explained, t)
+            term = VolumeTerm(grid[j][0], grid[j][1], explained, t, grid[j][2])
             if self.best_ is None:
                 self.best_ = term
             if explained < self.min_explained_fraction or t < self.min_t:
                 break
-            kept.append(grid[j])
+            kept.append(grid[j][:2])
+            scale = grid[j][2]
             self.terms_.append(term)
             current = sse[j]
         if kept:
@@ -205,12 +237,15 @@ class VolumeSearch:
         return self
 
 
-def searched_values(terms: Sequence[VolumeTerm]) -> dict[str, float]:
-    """The volume closure's parameter values the kept ``terms`` stand for."""
+def searched_values(terms: Sequence[VolumeTerm], params: dict) -> dict[str, float]:
+    """The parameter values the kept ``terms`` stand for beside the current ``params``:
+    the volume closure's, and the dead volume scaled as the first was found."""
     out = {}
     for k, t in enumerate(terms):
         out[compliance_name(k)] = t.compliance_m3_per_Pa
         out[threshold_name(k)] = t.threshold_Pa
+    if terms and "dead_volume_m3" in params:
+        out["dead_volume_m3"] = params["dead_volume_m3"] * terms[0].dead_volume_scale
     return out
 
 

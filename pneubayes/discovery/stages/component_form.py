@@ -62,8 +62,9 @@ class ComponentForm(Stage):
         """Term ``k``'s parameter names, its strength first."""
         raise NotImplementedError
 
-    def _searched_values(self, terms) -> dict[str, float]:
-        """The component's parameter values the search's kept ``terms`` stand for."""
+    def _searched_values(self, terms, params) -> dict[str, float]:
+        """The parameter values the search's kept ``terms`` stand for beside the current
+        ``params`` (the component's, and any of the model's the search moved)."""
         raise NotImplementedError
 
     def _term_record(self, t) -> dict:
@@ -120,10 +121,12 @@ class ComponentForm(Stage):
         current = state.current
         model = current.model.with_effect(self._component(len(terms)))
         searched = dict(current.params)
-        for name, v in self._searched_values(terms).items():
+        for name, v in self._searched_values(terms, current.params).items():
             p = model.parameter(name)
             searched[name] = float(np.clip(v, p.lower, p.upper))
-        zero = {**searched, **{self._term_names(k)[0]: 0.0 for k in range(len(terms))}}
+        # the current fit itself beside the component at zero strength (the nested start)
+        zero = {**searched, **current.params,
+                **{self._term_names(k)[0]: 0.0 for k in range(len(terms))}}
         fits = []
         for label, start in (("the search's values", searched), ("zero strength", zero)):
             try:

@@ -81,7 +81,7 @@ class ReadingForm(ComponentForm):
     def _term_names(self, k: int) -> tuple[str, ...]:
         return gain_name(k), time_constant_name(k)
 
-    def _searched_values(self, terms) -> dict[str, float]:
+    def _searched_values(self, terms, params) -> dict[str, float]:
         out = {}
         for k, t in enumerate(terms):
             out[gain_name(k)] = t.gain

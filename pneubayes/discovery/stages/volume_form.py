@@ -56,6 +56,7 @@ class VolumeForm(ComponentForm):
                 "search": None if s is None else {
                     "thresholds": s.thresholds,
                     "compliance_shares": [float(v) for v in s.compliance_shares],
+                    "dead_volume_scales": [float(v) for v in s.dead_volume_scales],
                     "max_terms": s.max_terms, "min_explained_fraction": s.min_explained_fraction,
                     "min_t": s.min_t}}
 
@@ -64,7 +65,8 @@ class VolumeForm(ComponentForm):
         problem = VolumeProblem(runner.data.train_ws, state.current.model, state.current.params,
                                 runner.settings.fit.refine_solver)
         return type(s)(thresholds=s.thresholds, compliance_shares=s.compliance_shares,
-                       max_terms=s.max_terms, min_explained_fraction=s.min_explained_fraction,
+                       dead_volume_scales=s.dead_volume_scales, max_terms=s.max_terms,
+                       min_explained_fraction=s.min_explained_fraction,
                        min_t=s.min_t).fit(problem)
 
     def _component(self, terms: int):
@@ -73,9 +75,10 @@ class VolumeForm(ComponentForm):
     def _term_names(self, k: int) -> tuple[str, ...]:
         return compliance_name(k), threshold_name(k)
 
-    def _searched_values(self, terms) -> dict[str, float]:
-        return searched_values(terms)
+    def _searched_values(self, terms, params) -> dict[str, float]:
+        return searched_values(terms, params)
 
     def _term_record(self, t) -> dict:
         return {"compliance_m3_per_Pa": t.compliance_m3_per_Pa, "threshold_Pa": t.threshold_Pa,
-                "explained_fraction": t.explained, "t": t.t}
+                "dead_volume_scale": t.dead_volume_scale, "explained_fraction": t.explained,
+                "t": t.t}
