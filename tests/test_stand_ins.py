@@ -46,6 +46,11 @@ def test_an_effect_at_a_bound_of_its_own_is_kept_as_a_stand_in_not_named():
     text = _report({**doc, "recordings": ["a.csv"]}, result, {})
     assert "Kept as stand-ins, not named" in text
     assert "sensor_pressure_exponent at its upper bound 3" in text
+    from pneubayes.cli.discover import summary_lines
+
+    (line,) = summary_lines(doc)
+    assert line.startswith("  ~ sensor_lag: kept as a stand-in, not named")
+    assert summary_lines({"effects": []}) == ["  no missing effect is supported"]
 
 
 def test_an_effect_inside_its_bounds_or_switched_off_is_named():

@@ -138,6 +138,10 @@ def test_discovery_finds_a_planted_hinge_of_the_chamber_s_volume(swelling_record
     assert th == pytest.approx(THETA_TRUE, rel=0.03)
     assert doc["effects"] == [] and doc["found_terms"] == [] and doc["stand_ins"] == []
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+    from pneubayes.cli.discover import summary_lines
+
+    (line,) = summary_lines(doc)
+    assert line.startswith("  * open form, on the chamber's volume (m^3): V(p) = V_0 + C_0")
     write_discovery(result, recs, tmp_path, figures=False)
     report = (tmp_path / "report.md").read_text()
     assert "hinges of the chamber's volume found" in report

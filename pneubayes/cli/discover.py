@@ -56,19 +56,34 @@ def cmd_discover(args) -> int:
     print(f"{args.out}/discovery.json: base held-out {settings.fit.horizon_s:g}-s RMSE "
           f"{doc['rmse_base_Pa']:.0f} Pa, "
           f"final {doc['rmse_final_Pa']:.0f} Pa (noise floor {doc['noise_floor_Pa']:.0f} Pa)")
-    if not doc["effects"] and not doc.get("stand_ins"):
-        print("  no missing effect is supported")
+    for line in summary_lines(doc):
+        print(line)
+    print(f"{args.out}/report.md")
+    return 0
+
+
+def summary_lines(doc: dict) -> list[str]:
+    """What a discovery added, one line each: the named effects (+), the open-form terms
+    (*) and the stand-ins kept at a bound (~)."""
+    if not any(doc.get(k) for k in ("effects", "stand_ins", "found_terms",
+                                     "found_reading_terms", "found_volume_terms")):
+        return ["  no missing effect is supported"]
+    out = []
     for e in doc["effects"]:
         ps = ", ".join(
             f"{n} = {p.get('median', p.get('estimate')):.4g}"
             + (f" [{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "")
             for n, p in e["parameters"].items())
-        print(f"  + {e['name']}: {ps}; inclusion "
-              f"{e['evidence']['inclusion_probability']:.2f}, RMSE {e['rmse_before_Pa']:.0f}"
-              f" -> {e['rmse_after_Pa']:.0f} Pa")
+        out.append(f"  + {e['name']}: {ps}; inclusion "
+                   f"{e['evidence']['inclusion_probability']:.2f}, RMSE "
+                   f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
+    for key in ("found_terms", "found_reading_terms", "found_volume_terms"):
+        for t in doc.get(key, []):
+            ps = ", ".join(f"{n} = {p.get('median', p.get('estimate')):.4g} {p['unit']}"
+                           for n, p in t["parameters"].items())
+            out.append(f"  * open form, on {t['acts_on']}: {t['formula']}; {ps}")
     for e in doc.get("stand_ins", []):
         where = ", ".join(f"{b['parameter']} at its {b['bound']} bound" for b in e["at_bounds"])
-        print(f"  ~ {e['name']}: kept as a stand-in, not named ({where}); RMSE "
-              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
-    print(f"{args.out}/report.md")
-    return 0
+        out.append(f"  ~ {e['name']}: kept as a stand-in, not named ({where}); RMSE "
+                   f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
+    return out
