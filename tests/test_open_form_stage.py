@@ -91,8 +91,8 @@ def test_the_stage_checks_its_knobs_and_the_settings_switch_it():
         OpenForm(min_noise_ratio=0.5)
     with pytest.raises(ValueError, match="compete_below_gap_closed"):
         OpenForm(compete_below_gap_closed=1.5)
-    assert isinstance(default_stages(DiscoverySettings())[-3], OpenForm)  # (then the reading
-    # and the volume)
+    assert isinstance(default_stages(DiscoverySettings())[-1], OpenForm)  # (after the
+    # reading's and the volume's)
     off = default_stages(DiscoverySettings(stages=StageSettings(open_form_min_noise_ratio=0.0)))
     assert not any(isinstance(s, OpenForm) for s in off)
     with pytest.raises(ValueError, match="open_form_min_noise_ratio"):

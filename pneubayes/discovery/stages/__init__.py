@@ -24,8 +24,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open-form closure, the reading's relaxations and the
-    volume's hinges."""
+    effects' other forms, then the open forms: the reading's relaxations, the volume's
+    hinges and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -38,12 +38,16 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(Pairs(s.pair_members, s.last_resort_min_gap_closed))
     if s.max_form_swaps:
         stages.append(OtherForms(s.max_form_swaps))
-    if s.open_form_min_noise_ratio:
-        stages.append(OpenForm(s.open_form_min_noise_ratio))
+    # the open forms with a few physical parameters first (the reading's relaxations, the
+    # volume's hinges), then the closure's library, which competes with them where they
+    # close under half the gap: a generic closure that passes first would absorb what a
+    # physical form expresses exactly (an accumulator's compliance, as pressure relaxations)
     if s.reading_form_min_noise_ratio:
         stages.append(ReadingForm(s.reading_form_min_noise_ratio))
     if s.volume_form_min_noise_ratio:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
+    if s.open_form_min_noise_ratio:
+        stages.append(OpenForm(s.open_form_min_noise_ratio))
     return stages
 
 
