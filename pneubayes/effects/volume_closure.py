@@ -10,8 +10,11 @@ volume ``K`` hinges of its pressure::
 
     V(p) = V_0 + sum_k C_k max(0, p - theta_k),
 
-``C_k`` (``volume_closure_compliance_{k}``, m^3/Pa, >= 0) and ``theta_k``
-(``volume_closure_threshold_{k}``, Pa absolute). Eq. 5 then reads ``dp/dt = n (Rs T
+``C_k`` (``volume_closure_compliance_{k}``, m^3/Pa) and ``theta_k``
+(``volume_closure_threshold_{k}``, Pa absolute). A negative second hinge above a positive
+first makes the volume's growth saturate (an accumulator's gas spring, stiffening as it
+is compressed); a volume that shrinks as the pressure rises fails to simulate where it
+reaches nothing. Eq. 5 then reads ``dp/dt = n (Rs T
 mdot - p vdot) / (V(p) + n p dV/dp)``. Every compliance 0 is the chamber without the
 component, whatever the thresholds.
 
@@ -36,9 +39,9 @@ from pneubayes.rig import Rig
 
 #: The most hinges one volume closure carries.
 VOLUME_MAX_TERMS = 2
-#: A compliance's bounds, m^3/Pa (up to 100 cm^3 per bar: far above any chamber's dead
-#: volume per bar on the benches and rigs the toolkit serves).
-COMPLIANCE_BOUNDS_M3_PER_PA = (0.0, 1e-9)
+#: A compliance's bounds, m^3/Pa (up to 100 cm^3 per bar either way: far beyond any
+#: chamber's dead volume per bar on the benches and rigs the toolkit serves).
+COMPLIANCE_BOUNDS_M3_PER_PA = (-1e-9, 1e-9)
 #: A threshold's bounds and start, Pa absolute.
 THRESHOLD_BOUNDS_PA = (2e4, 3e6)
 THRESHOLD_START_PA = 101325.0
@@ -114,7 +117,8 @@ class VolumeClosure(Effect):
         for k in range(self.terms):
             out.append(Parameter(compliance_name(k), "m^3/Pa", *COMPLIANCE_BOUNDS_M3_PER_PA,
                                  "uniform", f"volume hinge {k}: the chamber's added volume "
-                                 "per pascal above its threshold", neutral=0.0))
+                                 "per pascal above its threshold (negative: less growth)",
+                                 neutral=0.0))
             out.append(Parameter(threshold_name(k), "Pa", *THRESHOLD_BOUNDS_PA, "uniform",
                                  f"volume hinge {k}: the absolute pressure above which the "
                                  "chamber grows (the term vanishes with its compliance "

@@ -10,10 +10,10 @@ chamber's volumes below and above it, which the hinge's own volume must replace:
 grid scales the dead volume too. :class:`VolumeSearch` scores a grid of thresholds,
 compliances and dead-volume scales in one batch of window simulations
 (:class:`VolumeProblem`), keeps the set with the least sum of squares, and then, beside
-it, the best second hinge. A hinge is kept when it removes
-at least ``min_explained_fraction`` of the residual's sum of squares and the windows'
-reductions are ``min_t`` standard errors above zero (a window's residual is one
-correlated trace: the windows are the independent units).
+it, the best second hinge (which may take growth away: a volume that saturates). A
+hinge is kept when it removes at least ``min_explained_fraction`` of the residual's sum
+of squares and the windows' reductions are ``min_t`` standard errors above zero (a
+window's residual is one correlated trace: the windows are the independent units).
 """
 
 from __future__ import annotations
@@ -199,7 +199,7 @@ class VolumeSearch:
         """Search the training windows of ``problem``."""
         shares = self._validate(problem)
         lo, hi = COMPLIANCE_BOUNDS_M3_PER_PA
-        comps = np.clip(shares * problem.volume_scale_m3_per_Pa(), lo, hi)
+        comps = np.clip(shares * problem.volume_scale_m3_per_Pa(), 0.0, hi)
         ths = threshold_grid(problem.window_set, self.thresholds)
         scales = (tuple(float(v) for v in self.dead_volume_scales)
                   if problem.scales_dead_volume else (1.0,))
@@ -212,8 +212,11 @@ class VolumeSearch:
             return self
         for _ in range(self.max_terms):
             # the first hinge with each dead-volume scale; a second beside it at its scale
-            grid = [(float(c), float(th), v) for v in (scales if not kept else (scale,))
-                    for th in ths for c in comps]
+            # (a second hinge may also take growth away: a saturating volume)
+            grid = ([(float(c), float(th), v) for v in scales for th in ths for c in comps]
+                    if not kept else
+                    [(float(sign * c), float(th), scale) for sign in (1.0, -1.0)
+                     for th in ths for c in np.clip(comps, 0.0, -lo)])
             sse = problem.window_sse([kept + [(c, th)] for c, th, _ in grid],
                                      [v for *_, v in grid])
             j = int(np.argmin(np.sum(sse, axis=1)))
