@@ -13,8 +13,8 @@ volume ``K`` hinges of its pressure::
 ``C_k`` (``volume_closure_compliance_{k}``, m^3/Pa) and ``theta_k``
 (``volume_closure_threshold_{k}``, Pa absolute). A negative second hinge above a positive
 first makes the volume's growth saturate (an accumulator's gas spring, stiffening as it
-is compressed); a volume that shrinks as the pressure rises fails to simulate where it
-reaches nothing. Eq. 5 then reads ``dp/dt = n (Rs T
+is compressed); where the compliances summed up to a hinge fall below 0 the volume stays
+flat above it (a chamber does not shrink as its pressure rises). Eq. 5 then reads ``dp/dt = n (Rs T
 mdot - p vdot) / (V(p) + n p dV/dp)``. Every compliance 0 is the chamber without the
 component, whatever the thresholds.
 
@@ -72,7 +72,8 @@ def hinge_table(compliances, thresholds) -> tuple[np.ndarray, np.ndarray]:
     """The tabulated volume change of ``sum_k C_k max(0, p - theta_k)``: ``(pressures,
     volumes)``, each ``(B, K + 2)`` (Pa, increasing; m^3), from ``compliances`` and
     ``thresholds`` ``(B, K)``: a point below the lowest hinge, one at each hinge, one
-    above the highest."""
+    above the highest. Where the compliances summed up to a hinge fall below 0 the
+    volume stays flat above it instead."""
     c = np.atleast_2d(np.asarray(compliances, dtype=np.float64))
     th = np.atleast_2d(np.asarray(thresholds, dtype=np.float64))
     c, th = np.broadcast_arrays(c, th)
@@ -85,9 +86,12 @@ def hinge_table(compliances, thresholds) -> tuple[np.ndarray, np.ndarray]:
         th[:, k] = np.maximum(th[:, k], th[:, k - 1] + MIN_HINGE_GAP_PA)
     pts = np.concatenate([th[:, :1] - TABLE_MARGIN_PA, th,
                           th[:, -1:] + TABLE_MARGIN_PA], axis=1)
+    # the slope above each hinge, never below 0: a chamber's volume does not shrink as
+    # its pressure rises (a negative hinge saturates the growth, down to none)
+    slopes = np.maximum(0.0, np.cumsum(c, axis=1))
     vol = np.zeros_like(pts)
-    for j in range(1, pts.shape[1]):  # the volume at each point, hinge by hinge
-        vol[:, j] = np.sum(c * np.maximum(0.0, pts[:, j:j + 1] - th), axis=1)
+    for j in range(2, pts.shape[1]):  # the volume at each point, segment by segment
+        vol[:, j] = vol[:, j - 1] + slopes[:, j - 2] * (pts[:, j] - pts[:, j - 1])
     return pts, vol
 
 

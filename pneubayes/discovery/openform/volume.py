@@ -212,11 +212,13 @@ class VolumeSearch:
             return self
         for _ in range(self.max_terms):
             # the first hinge with each dead-volume scale; a second beside it at its scale
-            # (a second hinge may also take growth away: a saturating volume)
+            # (a second hinge may also take the first's growth away, up to all of it:
+            # a saturating volume)
             grid = ([(float(c), float(th), v) for v in scales for th in ths for c in comps]
                     if not kept else
-                    [(float(sign * c), float(th), scale) for sign in (1.0, -1.0)
-                     for th in ths for c in np.clip(comps, 0.0, -lo)])
+                    [(float(c), float(th), scale) for th in ths for c in comps]
+                    + [(-float(c), float(th), scale) for th in ths if th > kept[0][1]
+                       for c in comps if c <= kept[0][0]])
             sse = problem.window_sse([kept + [(c, th)] for c, th, _ in grid],
                                      [v for *_, v in grid])
             j = int(np.argmin(np.sum(sse, axis=1)))
