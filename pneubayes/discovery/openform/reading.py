@@ -151,6 +151,11 @@ class ReadingSearch:
         self.min_explained_fraction = min_explained_fraction
         self.min_t = min_t
 
+    def get_params(self) -> dict:
+        """The constructor's settings (scikit-learn's contract)."""
+        return {"time_constants_s": self.time_constants_s, "max_terms": self.max_terms,
+                "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t}
+
     def _validate(self, blocks):
         taus = np.asarray(self.time_constants_s, dtype=np.float64)
         lo, hi = TIME_CONSTANT_BOUNDS_S

@@ -172,6 +172,12 @@ class VolumeSearch:
         self.min_explained_fraction = min_explained_fraction
         self.min_t = min_t
 
+    def get_params(self) -> dict:
+        """The constructor's settings (scikit-learn's contract)."""
+        return {"thresholds": self.thresholds, "compliance_shares": self.compliance_shares,
+                "dead_volume_scales": self.dead_volume_scales, "max_terms": self.max_terms,
+                "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t}
+
     def _validate(self, problem):
         if isinstance(self.thresholds, bool) or not isinstance(self.thresholds, int) \
                 or self.thresholds < 2:

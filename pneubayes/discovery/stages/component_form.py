@@ -13,6 +13,8 @@ every trial passes (:func:`~pneubayes.discovery.stages.weighing.weigh`).
 
 from __future__ import annotations
 
+from abc import abstractmethod
+from dataclasses import asdict
 from typing import ClassVar
 
 import numpy as np
@@ -38,8 +40,11 @@ class ComponentForm(Stage):
     #: The ledger's and the log's word for the stage ("reading form") and for one term.
     label: ClassVar[str]
     term_word: ClassVar[str]
+    #: The residual search a stage without its own ``search`` uses (default settings).
+    search_class: ClassVar[type]
 
-    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5):
+    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
+                 search=None):
         cls = type(self).__name__
         if min_noise_ratio < 1.0:
             raise ValueError(f"{cls}: min_noise_ratio must be >= 1, got {min_noise_ratio}")
@@ -48,28 +53,33 @@ class ComponentForm(Stage):
                              f"{compete_below_gap_closed}")
         self.min_noise_ratio = min_noise_ratio
         self.compete_below_gap_closed = compete_below_gap_closed
+        self.search = search
+
+    def options(self):
+        s = self.search
+        return {"min_noise_ratio": self.min_noise_ratio,
+                "compete_below_gap_closed": self.compete_below_gap_closed,
+                "search": None if s is None else {
+                    k: [float(x) for x in v] if isinstance(v, (list, tuple, np.ndarray)) else v
+                    for k, v in s.get_params().items()}}
 
     # ------------------------------------------------------------------ the subclass's
-    def _search(self, state: RoundState, runner):
-        """The fitted search (``terms_``, ``best_``, ``explained_fraction_``)."""
-        raise NotImplementedError
+    @abstractmethod
+    def _search_data(self, state: RoundState, runner):
+        """What the search fits: the current model's training windows, as it reads them."""
 
+    @abstractmethod
     def _component(self, terms: int):
         """The component with ``terms`` terms."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _term_names(self, k: int) -> tuple[str, ...]:
         """Term ``k``'s parameter names, its strength first."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _searched_values(self, terms, params) -> dict[str, float]:
         """The parameter values the search's kept ``terms`` stand for beside the current
         ``params`` (the component's, and any of the model's the search moved)."""
-        raise NotImplementedError
-
-    def _term_record(self, t) -> dict:
-        """A searched term for the ledger."""
-        raise NotImplementedError
 
     # ------------------------------------------------------------------ shared
     def _applies(self, state: RoundState, noise: float):
@@ -95,12 +105,12 @@ class ComponentForm(Stage):
             runner.ledger.record(f"{self.label} failed", round=state.number, error=why)
 
     def _run(self, state: RoundState, runner, best) -> None:
-        search = self._search(state, runner)
+        s = self.search if self.search is not None else self.search_class()
+        search = type(s)(**s.get_params()).fit(self._search_data(state, runner))
         terms = search.terms_
         runner.ledger.record(f"{self.label} search", round=state.number,
-                             terms=[self._term_record(t) for t in terms],
-                             best={} if search.best_ is None else
-                             self._term_record(search.best_),
+                             terms=[_term_record(t) for t in terms],
+                             best={} if search.best_ is None else _term_record(search.best_),
                              explained_fraction=search.explained_fraction_)
         if not terms:
             b = search.best_
@@ -202,3 +212,8 @@ class ComponentForm(Stage):
             "best_term": "; ".join(str(t) for t in search.terms_), "best_term_start": None}
         state.passing = [(fit.heldout_rmse_Pa, self.component, fit, w.gain, w.p_value)]
         return True
+
+
+def _term_record(t) -> dict:
+    """A searched term (a dataclass with ``explained``) for the ledger."""
+    return {("explained_fraction" if k == "explained" else k): v for k, v in asdict(t).items()}

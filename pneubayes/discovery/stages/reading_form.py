@@ -48,32 +48,13 @@ class ReadingForm(ComponentForm):
     component = READING
     label = "reading form"
     term_word = "relaxation of the reading"
+    search_class = ReadingSearch
 
-    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
-                 search: ReadingSearch | None = None):
-        super().__init__(min_noise_ratio, compete_below_gap_closed)
-        self.search = search
-
-    def options(self):
-        s = self.search
-        return {"min_noise_ratio": self.min_noise_ratio,
-                "compete_below_gap_closed": self.compete_below_gap_closed,
-                "search": None if s is None else {
-                    "time_constants_s": [float(v) for v in s.time_constants_s],
-                    "max_terms": s.max_terms,
-                    "min_explained_fraction": s.min_explained_fraction, "min_t": s.min_t}}
-
-    def _residual(self, state: RoundState, runner) -> list[ReadingWindows]:
+    def _search_data(self, state: RoundState, runner) -> list[ReadingWindows]:
         """The training windows as the current model predicts them
         (:func:`~pneubayes.discovery.openform.reading.reading_windows`)."""
         return reading_windows(runner.data.train_ws, state.current.model,
                                state.current.params, runner.settings.fit.refine_solver)
-
-    def _search(self, state, runner):
-        s = self.search if self.search is not None else ReadingSearch()
-        return type(s)(time_constants_s=s.time_constants_s, max_terms=s.max_terms,
-                       min_explained_fraction=s.min_explained_fraction,
-                       min_t=s.min_t).fit(self._residual(state, runner))
 
     def _component(self, terms: int):
         return ReadingClosure(terms=terms)
@@ -87,7 +68,3 @@ class ReadingForm(ComponentForm):
             out[gain_name(k)] = t.gain
             out[time_constant_name(k)] = t.time_constant_s
         return out
-
-    def _term_record(self, t) -> dict:
-        return {"gain": t.gain, "time_constant_s": t.time_constant_s,
-                "explained_fraction": t.explained, "t": t.t}

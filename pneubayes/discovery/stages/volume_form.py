@@ -43,31 +43,11 @@ class VolumeForm(ComponentForm):
     component = VOLUME
     label = "volume form"
     term_word = "hinge of the chamber's volume"
+    search_class = VolumeSearch
 
-    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
-                 search: VolumeSearch | None = None):
-        super().__init__(min_noise_ratio, compete_below_gap_closed)
-        self.search = search
-
-    def options(self):
-        s = self.search
-        return {"min_noise_ratio": self.min_noise_ratio,
-                "compete_below_gap_closed": self.compete_below_gap_closed,
-                "search": None if s is None else {
-                    "thresholds": s.thresholds,
-                    "compliance_shares": [float(v) for v in s.compliance_shares],
-                    "dead_volume_scales": [float(v) for v in s.dead_volume_scales],
-                    "max_terms": s.max_terms, "min_explained_fraction": s.min_explained_fraction,
-                    "min_t": s.min_t}}
-
-    def _search(self, state, runner):
-        s = self.search if self.search is not None else VolumeSearch()
-        problem = VolumeProblem(runner.data.train_ws, state.current.model, state.current.params,
-                                runner.settings.fit.refine_solver)
-        return type(s)(thresholds=s.thresholds, compliance_shares=s.compliance_shares,
-                       dead_volume_scales=s.dead_volume_scales, max_terms=s.max_terms,
-                       min_explained_fraction=s.min_explained_fraction,
-                       min_t=s.min_t).fit(problem)
+    def _search_data(self, state, runner) -> VolumeProblem:
+        return VolumeProblem(runner.data.train_ws, state.current.model, state.current.params,
+                             runner.settings.fit.refine_solver)
 
     def _component(self, terms: int):
         return VolumeClosure(terms=terms)
@@ -77,8 +57,3 @@ class VolumeForm(ComponentForm):
 
     def _searched_values(self, terms, params) -> dict[str, float]:
         return searched_values(terms, params)
-
-    def _term_record(self, t) -> dict:
-        return {"compliance_m3_per_Pa": t.compliance_m3_per_Pa, "threshold_Pa": t.threshold_Pa,
-                "dead_volume_scale": t.dead_volume_scale, "explained_fraction": t.explained,
-                "t": t.t}
