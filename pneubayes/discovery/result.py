@@ -16,6 +16,8 @@ from pneubayes.effects.closure_terms import (
     modulated_port,
     term_formula,
 )
+from pneubayes.effects.reading_closure import gain_name, time_constant_name
+from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
@@ -149,36 +151,38 @@ class DiscoveryResult(PosteriorDraws):
                 out[n] = {"unit": p.unit, "estimate": self.final.params[n]}
         return out
 
+    def _component_terms(self, component: str, label: str, acts_on: str, formula,
+                         names) -> list[dict]:
+        """Each term ``k`` of the final model's ``component`` (empty without one): its
+        label, ``formula(k)`` and the values of ``names(k)`` (:meth:`_values`)."""
+        model = self.final.model
+        if not model.has(component):
+            return []
+        return [{"term": f"{label} {k}", "acts_on": acts_on, "formula": formula(k),
+                 "parameters": self._values(names(k))}
+                for k in range(model.effect(component).terms)]
+
     def found_reading_terms(self) -> list[dict]:
         """The final model's open-form relaxations of the reading (effect
         ``reading_closure``; empty without one): each relaxation's formula, its gain and
         time constant (the posterior's median and 90 % interval when one was sampled,
         else the estimate), and where it acts."""
-        model = self.final.model
-        if not model.has("reading_closure"):
-            return []
-        return [{"term": f"relaxation {k}", "acts_on": "the pressure reading (Pa)",
-                 "formula": f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = "
-                            f"p - p_bar_{k} (g_{k} = reading_closure_gain_{k}, tau_{k} "
-                            f"= reading_closure_time_constant_{k}, s)",
-                 "parameters": self._values((f"reading_closure_gain_{k}",
-                                             f"reading_closure_time_constant_{k}"))}
-                for k in range(model.effect("reading_closure").terms)]
+        return self._component_terms(
+            "reading_closure", "relaxation", "the pressure reading (Pa)",
+            lambda k: (f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = p - p_bar_{k} "
+                       f"(g_{k} = {gain_name(k)}, tau_{k} = {time_constant_name(k)}, s)"),
+            lambda k: (gain_name(k), time_constant_name(k)))
 
     def found_volume_terms(self) -> list[dict]:
         """The final model's open-form hinges of the chamber's volume (effect
         ``volume_closure``; empty without one): each hinge's formula, its compliance and
         threshold (as :meth:`found_reading_terms` gives them), and where it acts."""
-        model = self.final.model
-        if not model.has("volume_closure"):
-            return []
-        return [{"term": f"hinge {k}", "acts_on": "the chamber's volume (m^3)",
-                 "formula": f"V(p) = V_0 + C_{k} max(0, p - theta_{k}) (C_{k} = "
-                            f"volume_closure_compliance_{k}, m^3/Pa; theta_{k} = "
-                            f"volume_closure_threshold_{k}, Pa absolute)",
-                 "parameters": self._values((f"volume_closure_compliance_{k}",
-                                             f"volume_closure_threshold_{k}"))}
-                for k in range(model.effect("volume_closure").terms)]
+        return self._component_terms(
+            "volume_closure", "hinge", "the chamber's volume (m^3)",
+            lambda k: (f"V(p) = V_0 + C_{k} max(0, p - theta_{k}) (C_{k} = "
+                       f"{compliance_name(k)}, m^3/Pa; theta_{k} = {threshold_name(k)}, "
+                       "Pa absolute)"),
+            lambda k: (compliance_name(k), threshold_name(k)))
 
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""

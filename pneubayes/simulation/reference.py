@@ -463,7 +463,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     out[0] = y[read]
     # a reading closure's p_bar_k: the last states, following the (calibrated) reading
     n_main = y.size
-    gains, taus = _reading_relaxations(model, params)
+    gains, taus = (a[0] for a in model.reading_relaxations(params))
     y = np.append(y, [initial_reading] * gains.size)
     atols += [atol] * gains.size
     rel = np.empty((t.size, gains.size))
@@ -538,10 +538,3 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         out = p_atm + cal_g * (out - p_atm) + curv * ((out - p_atm) / 1e5) ** 2 + cal_o
     out = out + (gains * (out[:, None] - rel)).sum(axis=1)
     return (out, nfev) if return_stats else out
-
-
-def _reading_relaxations(model: Model, params) -> tuple[np.ndarray, np.ndarray]:
-    """``(gains, time constants)`` of ``model``'s relaxations of the reading (empty
-    without one)."""
-    g, tau = model.reading_relaxations(params)
-    return g[0], tau[0]

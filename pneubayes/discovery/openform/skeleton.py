@@ -132,22 +132,8 @@ def reading_effect_skeleton(model, params: dict, class_name: str = "FoundReading
     """The module text of an effect plug-in for ``model``'s reading closure at
     ``params``: an effect that relaxes the reading
     (:meth:`~pneubayes.effects.Effect.reading_relaxations`) with the found number of
-    relaxations, each a gain (-) and a time constant (s) under the user's names.
-
-    Parameters
-    ----------
-    model : Model
-        A model with a ``reading_closure`` component.
-    params : dict
-        Its fitted parameter values.
-    class_name, effect_name : str
-        The class's and the catalogue's name for the new effect (edit them).
-
-    Returns
-    -------
-    str
-        Python source; ``exec`` of it defines ``class_name``.
-    """
+    relaxations, each a gain (-) and a time constant (s) under the user's names;
+    parameters and return as :func:`effect_skeleton`'s."""
     if not model.has("reading_closure"):
         raise ValueError("reading_effect_skeleton: the model has no reading closure (no "
                          "found relaxation of the reading)")

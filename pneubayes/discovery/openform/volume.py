@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -78,11 +79,16 @@ class VolumeProblem:
     params: dict
     solver: object
 
+    @cached_property
+    def _slots(self) -> np.ndarray:
+        """The current model's lowered slots at its parameters."""
+        return self.model.lower(self.model.vector(self.params)[None], self.rig)[0]
+
     def check(self) -> None:
         """Raise ValueError where a volume closure cannot join the model."""
         if self.model.has("volume_closure"):
             raise ValueError("the model already has a volume closure")
-        base = self.model.lower(self.model.vector(self.params)[None], self.rig)[0]
+        base = self._slots
         if base[SLOT_INDEX["volume_table_points"]] > 0 \
                 or base[SLOT_INDEX["compliance_m3_per_Pa"]] > 0:
             raise ValueError("the model's chamber is already compliant (its rig card's); a "
@@ -96,9 +102,8 @@ class VolumeProblem:
         """The chamber's volume per the supply's pressure over the heat capacity ratio
         (m^3/Pa): a compliance of this size doubles the chamber's capacity at the
         supply."""
-        base = self.model.lower(self.model.vector(self.params)[None], self.rig)[0]
         rig = self.rig
-        return float(base[SLOT_INDEX["volume_m3"]]
+        return float(self._slots[SLOT_INDEX["volume_m3"]]
                      / (rig.gas.heat_capacity_ratio * rig.supply_pressure_Pa))
 
     @property
@@ -204,8 +209,8 @@ class VolumeSearch:
     def fit(self, problem: VolumeProblem) -> "VolumeSearch":
         """Search the training windows of ``problem``."""
         shares = self._validate(problem)
-        lo, hi = COMPLIANCE_BOUNDS_M3_PER_PA
-        comps = np.clip(shares * problem.volume_scale_m3_per_Pa(), 0.0, hi)
+        comps = np.clip(shares * problem.volume_scale_m3_per_Pa(), 0.0,
+                        COMPLIANCE_BOUNDS_M3_PER_PA[1])
         ths = threshold_grid(problem.window_set, self.thresholds)
         scales = (tuple(float(v) for v in self.dead_volume_scales)
                   if problem.scales_dead_volume else (1.0,))
