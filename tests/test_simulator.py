@@ -336,6 +336,31 @@ def test_start_sensitivity_matches_finite_differences(rig, hand, standard):
     assert np.max(np.abs(sens - fd)) < 0.03
 
 
+def test_start_sensitivity_across_a_kink_of_the_volume_table_matches_fd(rig, hand):
+    """Where the pressure crosses a point of a compliant chamber's volume table, dV/dp
+    and so dp/dt jump: the start's sensitivity jumps by the ratio of the rates (the
+    saltation), which the step's e^{hJ} alone misses (by 0.74 here)."""
+    from pneubayes.effects.volume_closure import VolumeClosure
+
+    model = Model([VolumeClosure()])
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=5e-7,
+                  volume_closure_compliance_0=1e-11, volume_closure_threshold_0=2.5e5)
+    n = 801
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(np.random.default_rng(4), n, 1e-3, levels=(-1.0, 1.0)),
+                    np.full(n, 0.01), np.full(n, 6.0e5))
+    starts, p0 = np.array([0, 400]), np.array([2.0e5, 4.0e5])
+    tight = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=1e-6, max_step_s=1e-3,
+                         min_step_s=1e-14, max_steps_per_s=5e6)
+    out, sens = simulate_windows_sensitivity(model, params, inputs, rig, starts, 400, p0, tight)
+    d = 20.0
+    fd = (simulate_windows(model, params, inputs, rig, starts, 400, p0 + d, tight)
+          - simulate_windows(model, params, inputs, rig, starts, 400, p0 - d, tight)) / (2 * d)
+    crossed = np.diff(np.sign(out - 2.5e5), axis=-1) != 0
+    assert crossed.sum() >= 2  # the windows cross the hinge, both ways
+    assert np.max(np.abs(sens - fd)) < 0.01
+
+
 def test_start_sensitivity_is_one_in_a_closed_fixed_chamber(rig, standard):
     # both ports shut, no leak, fixed volume: dp/dt = 0, so a start error never decays
     n = 501

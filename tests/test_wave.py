@@ -351,3 +351,106 @@ def test_a_closure_beside_the_wave_tube_adds_its_mass_flow(rig, make_inputs, clo
     with pytest.raises(ValueError, match="inlet_flow"):
         simulate(ported, dict(params, closure_coefficient_0=0.1),
                  make_inputs(t, np.zeros(t.size)), rig, 3.3e5, SolverConfig.reference())
+
+
+# ---------------------------------------------------------------- a compliant chamber
+def _bladder_card(rig, dead_m3, dv_max_m3, scale_Pa, points=16):
+    """A rig card of valve 1 and a ``compliant_table`` chamber tabulating the plant's
+    BladderVolume at ``points`` pressures (its own formula, written apart)."""
+    from pneubayes.rigcard import RigCard
+
+    p = np.linspace(P_ATM - 2e4, P_SUP + 2e4, points)
+    y = (p - P_ATM) / scale_Pa
+    dv = np.where(y >= 0, dv_max_m3 * (1 - np.exp(-y)), dv_max_m3 * y / (1 - 4 * y))
+    card = {"format": "pneubayes-rig/1", "name": "valve 1, tube and bladder",
+            "atmospheric_pressure_Pa": P_ATM, "temperature_K": rig.gas.temperature_K,
+            "command": {"unit": "V", "range": [-5.0, 5.0]},
+            "chamber": {"kind": "compliant_table", "dead_volume_m3": dead_m3,
+                        "pressure_Pa": p.tolist(), "volume_change_m3": dv.tolist()},
+            "valve": {"kind": "gompertz", **{k: v for k, v in valve_preset(
+                "valve1").parameters().items() if k != "dead_volume_m3"}},
+            "supply": {"kind": "constant", "pressure_Pa": P_SUP}}
+    return RigCard.from_dict(card, "card.json")
+
+
+def test_a_compliant_chamber_behind_the_wave_tube_agrees_with_the_plants_bladder(rig):
+    """A bladder that takes 1.5 cm^3 as it fills (the plant's BladderVolume, 48-cell tube,
+    LSODA) behind a 1-m tube: the wave tube beside the card's tabulated V(p) agrees to a
+    few hundred Pa RMS (as the rigid chamber does), where the wave tube into a rigid
+    chamber misses by tens of kPa."""
+    from pneubayes.bench.forms import BladderVolume
+
+    dt = 1e-4
+    t = np.arange(6001) * dt
+    inputs = Inputs(t, _steps(1, t.size, dt), np.full(t.size, 0.01875), np.full(t.size, P_SUP))
+    base = dict(valve_preset("valve1").parameters(), dead_volume_m3=1.5e-7)
+    bladder = BladderVolume(dV_max_m3=1.5e-6, pressure_scale_Pa=1.5e5)
+    ref = simulate_plant(base, (AcousticTube(1.0, 0.002, segments=48), bladder), inputs, rig,
+                         P_ATM, PlantConfig.reference()).pressure_Pa
+    params, _ = _params(rig, 1.0, 0.002)
+    card = _bladder_card(rig, params["dead_volume_m3"], 1.5e-6, 1.5e5)
+    tube = {k: params[k] for k in ("tube_delay_s", "tube_diameter_m")}
+    model = Model([make_effect("tube_delay", form="wave", segments=8)], rig_card=card)
+    got = simulate(model, tube, inputs, rig, P_ATM, SolverConfig.reference()).pressure_Pa[0]
+    rigid = simulate(_wave(), params, inputs, rig, P_ATM,
+                     SolverConfig.reference()).pressure_Pa[0]
+    rms = float(np.sqrt(np.mean((got - ref) ** 2)))
+    assert rms < 250.0, f"wave + bladder vs plant: {rms:.0f} Pa RMS"
+    assert float(np.sqrt(np.mean((rigid - ref) ** 2))) > 20.0 * rms
+    assert np.ptp(ref) > 0.5 * (P_SUP - P_ATM)
+
+
+def _hinged(rig, compliance=2e-11, threshold=3.0e5):
+    from pneubayes.effects.volume_closure import VolumeClosure
+
+    params, _ = _params(rig, 1.5, 0.002)
+    params.update(volume_closure_compliance_0=compliance,
+                  volume_closure_threshold_0=threshold)
+    return _wave().with_effect(VolumeClosure()), params
+
+
+def test_a_volume_hinge_behind_the_wave_tube_converges_and_keeps_a_shut_chamber(
+        rig, make_inputs, closable_params):
+    """Step halving as for the rigid chamber; with the valve shut and no leak a
+    compliant chamber behind the tube keeps its pressure; compliance 0 is the rigid
+    wave tube exactly."""
+    model, params = _hinged(rig)
+    dt = 1e-3
+    t = np.arange(1501) * dt
+    inputs = make_inputs(t, _steps(3, t.size, dt), position=0.015)
+
+    def run(rtol, values=params, m=model):
+        cfg = SolverConfig(rtol=rtol, atol_Pa=rtol * 3e5, atol_K=0.01, max_step_s=0.02,
+                           min_step_s=1e-12, max_steps_per_s=1e7)
+        return simulate(m, values, inputs, rig, P_ATM, cfg).pressure_Pa[0]
+
+    tight = run(1e-9)
+    errs = [float(np.max(np.abs(run(r) - tight))) for r in (3e-5, 1e-7)]
+    assert errs[0] < 1e-3 * (P_SUP - P_ATM) and errs[1] <= errs[0] + 1e-6, errs
+    rigid = run(1e-9, {**params, "volume_closure_compliance_0": 0.0})
+    np.testing.assert_array_equal(rigid, run(1e-9, {k: v for k, v in params.items()
+                                                    if "closure" not in k}, _wave()))
+    assert np.max(np.abs(rigid - tight)) > 5e3  # the hinge matters above 3 bar
+    shut = {**_params(rig, 1.5, 0.002, valve=closable_params)[0],
+            **{k: v for k, v in params.items() if "closure" in k}}
+    p = simulate(model, shut, make_inputs(t, np.zeros(t.size)), rig, 3.6e5,
+                 SolverConfig.standard()).pressure_Pa[0]
+    assert np.max(np.abs(p - 3.6e5)) < 1e-6
+
+
+def test_start_sensitivity_through_the_wave_tube_into_a_compliant_chamber(rig, hand):
+    model, params = _hinged(rig, compliance=1e-11, threshold=2.5e5)
+    n = 801
+    t = np.arange(n) * 1e-3
+    inputs = Inputs(t, hand.random_steps(np.random.default_rng(4), n, 1e-3,
+                                         levels=(-1.0, 1.0)),
+                    np.full(n, 0.01), np.full(n, 6.0e5))
+    starts, p0 = np.array([0, 400]), np.array([2.0e5, 4.0e5])
+    cfg = SolverConfig(rtol=1e-9, atol_Pa=1e-4, atol_K=0.01, max_step_s=0.02,
+                       min_step_s=1e-12, max_steps_per_s=1e7)
+    _, sens = simulate_windows_sensitivity(model, params, inputs, rig, starts, 400, p0, cfg)
+    d = 20.0
+    fd = (simulate_windows(model, params, inputs, rig, starts, 400, p0 + d, cfg)
+          - simulate_windows(model, params, inputs, rig, starts, 400, p0 - d, cfg)) / (2 * d)
+    assert np.max(np.abs(sens - fd)) < 0.03
+    assert np.max(np.abs(fd)) > 0.5

@@ -156,7 +156,8 @@ class TubeDelay(Effect):
     def candidate_forms(self, ctx: CandidateContext):
         """This form (the paper's transport delay) and an acoustic line (outside tubes
         are lines, which lag and ring; none where the model has no room for the line's
-        states), both at the best term's delay. The line's cells follow its length
+        states, the transmission line also beside a compliant chamber), both at the best
+        term's delay. The line's cells follow its length
         (:meth:`line_cells`: ``ctx.line_cutoff_Hz``, at most ``ctx.line_segments``); with
         ``ctx.line_form`` "wave" it is the transmission-line tube (8 elements) instead,
         except beside heat transfer (the wave tube has no temperature state; the line does).
@@ -166,14 +167,19 @@ class TubeDelay(Effect):
         long tube into a small chamber holds most of the dead volume)."""
         start = self.candidate_start(ctx.term_start)
         out = [(self, start)]
-        if self.form in _TUBE_FORMS or ctx.line_segments == 0 or not ctx.second_state_free:
+        if self.form in _TUBE_FORMS or ctx.line_segments == 0:
+            return out
+        # (the transmission line carries no temperature state: not beside heat transfer;
+        # it carries a compliant chamber, not a tank or a second compartment)
+        heated = ctx.slot("heat_rate_per_s") > 0 or ctx.slot("heat_coefficient_W_per_m2_K") > 0
+        wave = ctx.line_form == "wave" and not heated \
+            and ctx.slot("tank_volume_m3") == 0 and ctx.slot("lung_volume_m3") == 0
+        if not (ctx.second_state_free or wave):
             return out
         # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
-        # (the transmission line carries no temperature state: not beside heat transfer)
-        heated = ctx.slot("heat_rate_per_s") > 0 or ctx.slot("heat_coefficient_W_per_m2_K") > 0
-        if ctx.line_form == "wave" and not heated:  # the transmission line: no cells
+        if wave:  # the transmission line: no cells
             line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8})
         else:
             cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)

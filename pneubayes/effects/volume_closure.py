@@ -21,8 +21,8 @@ component, whatever the thresholds.
 It lowers onto the compiled simulator's tabulated volume (slots ``volume_table_*``,
 :func:`pneubayes.simulation.chamber.compliant_volume`): a chamber stepped with its
 pressure as its only state, so it cannot be combined with heat transfer, the tube's
-acoustic or wave line, a supply tank or a second compartment, nor with a rig card whose
-chamber is already compliant. The discovery library never searches for it: the
+acoustic line (form ``"line"``; its transmission line, ``"wave"``, carries it), a supply
+tank or a second compartment, nor with a rig card whose chamber is already compliant. The discovery library never searches for it: the
 open-form stage on the volume
 (:class:`~pneubayes.discovery.stages.volume_form.VolumeForm`) proposes it.
 """
@@ -115,6 +115,11 @@ class VolumeClosure(Effect):
 
     def options(self):
         return {"terms": self.terms}
+
+    def beside_tube(self, form: str) -> bool:
+        """The transmission-line tube (``"wave"``) steps a compliant chamber; the
+        acoustic line's cells (``"line"``) do not."""
+        return form == "wave"
 
     def parameters(self):
         out = []

@@ -69,6 +69,47 @@ def compliant_volume(p, vol, sl, p_atm):
     return vol, compl
 
 
+@njit(cache=True, error_model="numpy")
+def table_crossing_factor(p_from, p_to, vol, sl, p_atm, kappa):
+    """The jump of dp/dp0 where a step from ``p_from`` to ``p_to`` (Pa) crosses the
+    points of a compliant chamber's volume table, at ``vol`` (m^3, before compliance).
+
+    There dV/dp jumps, so eq. 5's rate ``N / (V + n p dV/dp)`` jumps with its numerator
+    ``N`` continuous, and a trajectory's sensitivity to its start is scaled by the rates'
+    ratio after and before (the saltation of a piecewise-smooth ODE): the product over
+    the crossed points ``p_k`` of ``(V + n p_k C_before) / (V + n p_k C_after)``. 1 without
+    a table or a crossing."""
+    n = int(sl[_VT_N])
+    f = 1.0
+    if n < 3 or p_from == p_to:
+        return f
+    lo, hi = min(p_from, p_to), max(p_from, p_to)
+    for k in range(1, n - 1):
+        pk = sl[_VT_P + k]
+        if lo < pk <= hi:
+            below = ((sl[_VT_V + k] - sl[_VT_V + k - 1])
+                     / (sl[_VT_P + k] - sl[_VT_P + k - 1]))
+            above = ((sl[_VT_V + k + 1] - sl[_VT_V + k])
+                     / (sl[_VT_P + k + 1] - sl[_VT_P + k]))
+            v = vol + sl[_COMPL] * (pk - p_atm) + sl[_VT_V + k]
+            c_lo = sl[_COMPL] + below
+            c_hi = sl[_COMPL] + above
+            if p_to > p_from:
+                f *= (v + kappa * pk * c_lo) / (v + kappa * pk * c_hi)
+            else:
+                f *= (v + kappa * pk * c_hi) / (v + kappa * pk * c_lo)
+    return f
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def crossed_tables(s, rigid, p_from, p_to, vol, sl, p_atm, kappa):
+    """A step's dp/dp0 ``s`` after its jumps at the volume table's points
+    (:func:`table_crossing_factor`; ``s`` itself for a ``rigid`` chamber)."""
+    if rigid:
+        return s
+    return s * table_crossing_factor(p_from, p_to, vol, sl, p_atm, kappa)
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def rigid_chamber(sl):
     """Whether the chamber's volume is independent of its pressure (no compliance, no

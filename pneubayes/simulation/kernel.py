@@ -59,7 +59,7 @@ from pneubayes.physics.calibration import (
     sensor_reading_scalar,
 )
 from pneubayes.physics.valve import gompertz_scalar, switching_scalar, table_scalar
-from pneubayes.simulation.chamber import net_port_flow, rigid_chamber
+from pneubayes.simulation.chamber import crossed_tables, net_port_flow, rigid_chamber
 from pneubayes.simulation.chamber_step import (
     NO_REUSE,
     chamber_step,
@@ -542,7 +542,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     if general is not None and line:
                         s_p0 = line_accept(y, y_new, prop, s_vec, want_sens, line_work)
                     elif general is not None and wave:
-                        s_p0 = math.exp(zp) * s_p0 + w_gain
+                        s_p0 = crossed_tables(math.exp(zp) * s_p0 + w_gain, rigid, p_prev, p,
+                                              vol2, sl, p_atm, kap)
                         ok, w_switch, grid = wave_accept(w_work, tube, w_switch, grid, t[0],
                                                          tau, p, s_p0, psup2, a_in2, a_ex2,
                                                          w_near, cs)
@@ -553,7 +554,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             s_p0, s_t0 = (prop_t[0] * s_p0 + prop_t[1] * s_t0,
                                           prop_t[2] * s_p0 + prop_t[3] * s_t0)
                     elif want_sens:
-                        s_p0 *= math.exp(zp) * sc0 / sc1
+                        s_p0 = crossed_tables(s_p0 * math.exp(zp) * sc0 / sc1, rigid, p_prev,
+                                              p, vol2, sl, p_atm, kap)
                     if kn > k + 1:
                         kw = dense_samples(
                             out, sens, t, x, i0, kw, kn,

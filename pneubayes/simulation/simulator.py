@@ -108,8 +108,10 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
     hot = has("heat_rate_per_s") | has("heat_coefficient_W_per_m2_K")
     # states the kernel steps with the pressure, one at a time: what each excludes
     tank = has("tank_volume_m3")
+    # (a compliant chamber keeps the pressure the only state: the transmission line's
+    # chamber step carries its V(p) and dV/dp, tests/test_wave.py)
     exclusive = (
-        (has("compliance_m3_per_Pa") | has("volume_table_points"), line | hot,
+        (has("compliance_m3_per_Pa") | has("volume_table_points"), has("line_length_m") | hot,
          "a compliant chamber is simulated with the pressure as its only state"),
         (tank, line | hot,
          "a supply tank is simulated with the chamber's pressure and the tank's as the states"),
@@ -128,8 +130,10 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                          "combined with heat_transfer or an acoustic line in one model")
     for present, others, what in exclusive:
         if np.any(present & others):
-            raise ValueError(f"{what}: it cannot be combined with heat_transfer, the tube's "
-                             "acoustic line or wave line (tube_delay forms 'line', 'wave') "
+            beside = ("the tube's acoustic line (tube_delay form 'line')" if what.startswith(
+                "a compliant") else "the tube's acoustic line or wave line (tube_delay "
+                "forms 'line', 'wave')")
+            raise ValueError(f"{what}: it cannot be combined with heat_transfer, {beside} "
                              "or another second state "
                              "(a supply tank, a second compartment) in one model")
 

@@ -463,10 +463,16 @@ def wave_chamber_step(p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_a
     zc = z + 0.5 * wave_resistance(q_c, p, cs, area, seg_len, dia, mu)
     fp, jp, _, _, vp, _, _, _ = chamber_rhs(p, temp, 0.0, 0.0, vol, vdot, psup, sl, cs, hh,
                                             True, 0.0, 0.0, 0.0, s_at, ds_at, cdir, general)
-    gw = wave_gain(p, vol, sl, cs) / zc
-    fp += gw * (wb0 - p)
-    jp -= gw
-    vp += gw * (wb1 - wb0) / hh
+    # the wave's inflow gw (A_K - p), gw = n Rs T / (Z_c D), D = V + n p dV/dp: its slope
+    # in p (D grows by (1 + n) dV/dp) and its time derivative (A_K moves, V with the
+    # piston)
+    v, compl = compliant_volume(p, vol, sl, cs[C_P_ATM])
+    den = v + cs[C_KAPPA] * p * compl
+    gw = cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY] / den / zc
+    fw = gw * (wb0 - p)
+    fp += fw
+    jp -= gw + fw * compl * (1.0 + cs[C_KAPPA]) / den
+    vp += gw * (wb1 - wb0) / hh - fw * vdot / den
     zp = hh * jp
     phi1p, phi2p, phi3p = phi123(zp)
     up = p + hh * (phi1p * fp + hh * phi2p * vp)

@@ -25,8 +25,8 @@ class VolumeForm(ComponentForm):
     """Search the training windows' residual for hinges of the chamber's volume in its
     pressure and add them as a volume closure (when it runs: :class:`ComponentForm`).
     Beside what the simulator cannot step with a compliant chamber (heat transfer, the
-    tube's line, a tank, a second compartment, a compliant rig card) it logs itself not
-    possible.
+    tube's acoustic line, a tank, a second compartment, a compliant rig card) it logs
+    itself not possible; beside the transmission-line tube it runs.
 
     Parameters
     ----------
