@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in eight sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in nine sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -39,7 +39,11 @@ sensor whose zero drifts as it warms, and an end-of-stroke cushion, cases
 before its forms were written or any case ran): a quick-exhaust valve at the chamber's
 port, a gas-charged accumulator on the chamber, laminar leaks across the spool's lands,
 and a pressure sensor whose diaphragm's temperature transient overshoots a step, cases
-``y00``-``y09``. Each form is planted
+``y00``-``y09``. Set 9 (seed 1796427610, drawn from the clock on 2026-12-04 and recorded
+before its forms were written or any case ran): on/off valves driven by pulse-width
+modulation of the command, a valve driver that samples and holds the command at a low
+rate with a latency, a pressure sensor with play in its diaphragm (hysteresis), and a
+piston seal whose leak grows with the piston's speed, cases ``z00``-``z09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -102,12 +106,15 @@ from pneubayes.bench.forms import (
     MeterOutThrottle,
     PilotInletValve,
     PistonSealBypass,
+    PwmValve,
     QuickExhaustValve,
     ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
+    SealSpeedLeak,
     SeatLeak,
     SensorBow,
+    SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
     SpoolHysteresis,
@@ -118,6 +125,7 @@ from pneubayes.bench.forms import (
     SpringReturnSpool,
     SupplyHose,
     WarmingCoil,
+    ZohDriver,
     check_forms,
 )
 from pneubayes.bench.sensors import SensorChain
@@ -149,6 +157,9 @@ OPENFORM_SEED_7 = 1796286123
 #: Set 8's seed: ``date +%s`` at 2026-12-04 14:49:30 UTC, fixed before its forms were
 #: written or any case ran.
 OPENFORM_SEED_8 = 1796395770
+#: Set 9's seed: ``date +%s`` at 2026-12-04 23:40:10 UTC, fixed before its forms were
+#: written or any case ran.
+OPENFORM_SEED_9 = 1796427610
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -160,10 +171,12 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
                  "LaggingPositionSensor"),
              6: ("ExhaustCheckValve", "SeatLeak", "InletFlowLimiter", "ReleaseDelay"),
              7: ("PistonSealBypass", "EnergisedSealLeak", "SensorZeroDrift", "EndCushion"),
-             8: ("QuickExhaustValve", "GasAccumulator", "SpoolLandLeak", "SensorThermalShock")}
+             8: ("QuickExhaustValve", "GasAccumulator", "SpoolLandLeak", "SensorThermalShock"),
+             9: ("PwmValve", "ZohDriver", "SensorHysteresis", "SealSpeedLeak")}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
-             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8}
-SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y"}
+             5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8,
+             9: OPENFORM_SEED_9}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -390,6 +403,19 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
         return EndCushion(length_m=rng.uniform(0.05, 0.2) * stroke,
                           needle_area_m2=_log_uniform(rng, 2e-8, 2e-7),
                           edge_m=rng.uniform(0.01, 0.03) * stroke)
+    if name == "PwmValve":
+        return PwmValve(frequency_Hz=_log_uniform(rng, 20.0, 100.0),
+                        opening_delay_s=_log_uniform(rng, 1.5e-3, 6e-3),
+                        closing_delay_s=_log_uniform(rng, 1e-3, 4e-3))
+    if name == "ZohDriver":
+        return ZohDriver(update_period_s=_log_uniform(rng, 4e-3, 25e-3),
+                         latency_s=rng.uniform(0.0, 10e-3), phase=rng.uniform(0.0, 1.0))
+    if name == "SensorHysteresis":
+        return SensorHysteresis(half_width_Pa=_log_uniform(rng, 1e3, 6e3))
+    if name == "SealSpeedLeak":
+        at_ref = _log_uniform(rng, 1e-5, 8e-5)  # kg/s at 0.1 m/s and 4 bar gauge
+        p = ATMOSPHERE_PA + 4e5
+        return SealSpeedLeak(conductance_kg_per_s_Pa2=at_ref / (p**2 - ATMOSPHERE_PA**2))
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 

@@ -30,12 +30,15 @@ from pneubayes.bench.forms import (
     MeterOutThrottle,
     PilotInletValve,
     PistonSealBypass,
+    PwmValve,
     QuickExhaustValve,
     ReleaseDelay,
     ReliefValve,
     ScoredBarrelLeak,
+    SealSpeedLeak,
     SeatLeak,
     SensorBow,
+    SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
     SpoolHysteresis,
@@ -46,6 +49,7 @@ from pneubayes.bench.forms import (
     SpringReturnSpool,
     SupplyHose,
     WarmingCoil,
+    ZohDriver,
     catalogue_names_of,
     check_forms,
     form_from_dict,
@@ -121,7 +125,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "PistonSealBypass", "EnergisedSealLeak",
                                      "SensorZeroDrift", "EndCushion", "QuickExhaustValve",
                                      "GasAccumulator", "SpoolLandLeak",
-                                     "SensorThermalShock"}
+                                     "SensorThermalShock", "PwmValve", "ZohDriver",
+                                     "SensorHysteresis", "SealSpeedLeak"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -198,6 +203,15 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (SpoolLandLeak, {"conductance_kg_per_s_Pa2": 1e-16, "overlap_scale_V": 0.0},
      "overlap_scale_V"),
     (SensorThermalShock, {"gain": float("inf")}, "gain"),
+    (PwmValve, {"frequency_Hz": -50.0}, "frequency_Hz"),
+    (PwmValve, {"frequency_Hz": 50.0, "full_command_V": 0.0}, "full_command_V"),
+    (ZohDriver, {"update_period_s": float("nan")}, "update_period_s"),
+    (ZohDriver, {"update_period_s": 0.01, "phase": 1.0}, "phase"),
+    (SensorHysteresis, {"half_width_Pa": -1.0}, "half_width_Pa"),
+    (SensorHysteresis, {"half_width_Pa": 1e3, "plays": 2.0}, "plays"),
+    (SealSpeedLeak, {"conductance_kg_per_s_Pa2": float("inf")}, "conductance_kg_per_s_Pa2"),
+    (SealSpeedLeak, {"conductance_kg_per_s_Pa2": 1e-16, "reference_speed_m_per_s": 0.0},
+     "reference_speed_m_per_s"),
     (SensorThermalShock, {"gain": 0.02, "time_constant_s": -0.1}, "time_constant_s"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
@@ -236,7 +250,8 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     EnergisedSealLeak(conductance_kg_per_s_Pa2=0.0, energising_pressure_Pa=1.5e5),
     EndCushion(length_m=0.1 * STROKE, needle_area_m2=0.0, edge_m=0.02 * STROKE),
     QuickExhaustValve(exhaust_area_m2=0.0), GasAccumulator(volume_m3=0.0),
-    SpoolLandLeak(conductance_kg_per_s_Pa2=0.0)],
+    SpoolLandLeak(conductance_kg_per_s_Pa2=0.0), PwmValve(frequency_Hz=0.0),
+    ZohDriver(update_period_s=0.0), SealSpeedLeak(conductance_kg_per_s_Pa2=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -998,3 +1013,85 @@ def test_a_thermally_shocked_sensor_overshoots_a_step_and_settles():
     # (the low-pass sees the step as linear over its one sample interval)
     np.testing.assert_allclose(r[after][1:], want[1:], rtol=0, atol=0.04 * 3e5 * 0.003)
     np.testing.assert_array_equal(SensorThermalShock(gain=0.0).read(t, p), p)
+
+
+# ---------------------------------------------------------------- the ninth blind set
+def test_a_pwm_driver_pulses_by_duty_drops_short_pulses_and_holds_full_duty_open(rig, base):
+    """At 100 Hz with 1-ms opening and 0.5-ms closing: 2.5 V is half of each period
+    (1 to 5.5 ms), 0.05 V's 0.1-ms pulse never opens the valve, full duty stays open
+    across periods, and a pulse of the other sign opens the exhaust."""
+    pwm = PwmValve(frequency_Hz=100.0, opening_delay_s=1e-3, closing_delay_s=5e-4)
+    t = np.arange(50) * 1e-3
+    u = np.full(t.size, 2.5)
+    u[20:], u[35:], u[40:] = 5.0, -0.05, -5.0
+    times, values = pwm.switches(t, u)
+    np.testing.assert_allclose(times[:7], [-np.inf, 1e-3, 5.5e-3, 11e-3, 15.5e-3, 21e-3,
+                                           40.5e-3])
+    np.testing.assert_array_equal(values[:8], [0.0, 5.0, 0.0, 5.0, 0.0, 5.0, 0.0, -5.0])
+    assert pwm.switches(t, np.full(t.size, 0.05))[0].size == 1  # never opens
+    # the plant: a full command is the plain valve at 5 V, opening 1 ms late
+    full = _run(base, (pwm,), _held(0.05, (5.0,)), rig)
+    late = _run(base, (), _held(0.05, (0.0, 5.0), (0.0, 1e-3)), rig)
+    np.testing.assert_allclose(full, late, rtol=0, atol=1.0)
+    # half duty fills slower than full, in steps: between pulses the closable valve is
+    # shut and the pressure holds
+    shut = dict(CLOSABLE, dead_volume_m3=3e-6)
+    half = _run(shut, (pwm,), _held(0.05, (2.5,)), rig)
+    assert P_ATM + 5e3 < half[-1] < _run(shut, (pwm,), _held(0.05, (5.0,)), rig)[-1] - 5e3
+    rate = np.diff(half)
+    assert np.sum(np.abs(rate) < 0.5) > 0.3 * rate.size
+
+
+def test_a_sampling_driver_acts_at_its_next_update_after_its_latency(rig, base):
+    """Updates every 10 ms from 3 ms (phase 0.3), 2 ms latency: a step at 23.5 ms acts
+    at 35 ms, a blip between two updates never acts; the plant is the plain valve
+    commanded then."""
+    zoh = ZohDriver(update_period_s=0.01, latency_s=2e-3, phase=0.3)
+    t = np.arange(60) * 1e-3
+    u = np.zeros(t.size)
+    u[24:], u[44:46] = 4.0, -4.0
+    times, values = zoh.switches(t, u)
+    np.testing.assert_allclose(times, [-np.inf, 35e-3])
+    np.testing.assert_array_equal(values, [0.0, 4.0])
+    got = _run(base, (zoh,), _held(0.06, (0.0, 4.0), (0.0, 0.0234)), rig)
+    want = _run(base, (), _held(0.06, (0.0, 4.0), (0.0, 0.035)), rig)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1.0)
+
+
+def test_a_hysteretic_sensor_trails_a_rise_leads_a_fall_and_ignores_the_rate():
+    """Four plays of half-widths b/4 .. b: on a long ramp the reading trails by the mean
+    half-width (5 b / 8), after the turn it holds until the pressure has come back by
+    2 b / 4 per play, then leads by as much; the same ramp sampled 10 x finer reads the
+    same at the shared samples; width 0 reads true."""
+    b = 2000.0
+    hyst = SensorHysteresis(half_width_Pa=b)
+    p = np.concatenate([np.linspace(1e5, 3e5, 201), np.linspace(3e5, 1e5, 201)[1:]])
+    r = hyst.read(p)
+    np.testing.assert_allclose(r[100], p[100] - 5 * b / 8)
+    np.testing.assert_allclose(r[300], p[300] + 5 * b / 8)
+    assert r[201] == r[200]  # just after the turn nothing moves
+    fine = np.concatenate([np.linspace(1e5, 3e5, 2001), np.linspace(3e5, 1e5, 2001)[1:]])
+    np.testing.assert_allclose(hyst.read(fine)[::10], r, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(SensorHysteresis(half_width_Pa=0.0).read(p), p)
+
+
+def test_a_speed_lifted_seal_leaks_only_while_the_piston_moves(rig):
+    """Valve shut (0 V on the closable valve): with the piston held the chamber keeps its
+    pressure; moving at 0.2 m/s it loses k (v / v_ref)^1.5 (p^2 - P_atm^2) more than the
+    plain chamber (eq. 5's rate)."""
+    seal = SealSpeedLeak(conductance_kg_per_s_Pa2=2e-16, reference_speed_m_per_s=0.1)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    held = _run(params, (seal,), _held(0.02, (0.0,)), rig, p0=4e5)
+    np.testing.assert_allclose(held, 4e5, rtol=0, atol=1e-3)
+    t = np.arange(21) * DT
+    x = 0.2 * STROKE + 0.2 * t  # (1 mm in 2 ms: not yet the stroke's end)
+    inputs = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    got = _run(params, (seal,), inputs, rig, p0=4e5)
+    plain = _run(params, (), inputs, rig, p0=4e5)
+    volume = 1.5e-7 + np.pi / 4 * BORE**2 * 0.5 * (x[0] + x[1])  # (mid-step)
+    mid = 0.5 * (got[0] + got[1])
+    leak = 2e-16 * 2.0**1.5 * (mid**2 - P_ATM**2)
+    g = rig.gas
+    want = (g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K
+            * leak / volume)
+    assert (plain[1] - got[1]) / DT == pytest.approx(want, rel=0.02)

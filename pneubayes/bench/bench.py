@@ -35,6 +35,7 @@ from pneubayes.bench.forms import (
     LaggingPositionSensor,
     PlantForm,
     SensorBow,
+    SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
     catalogue_names_of,
@@ -256,6 +257,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for form in cfg.forms:  # a sensor whose diaphragm warms with the gas overshoots
             if isinstance(form, SensorThermalShock):
                 p_true = form.read(t_fine, p_true)
+        for form in cfg.forms:  # a sensor with play in its diaphragm's linkage
+            if isinstance(form, SensorHysteresis):
+                p_true = form.read(p_true)
         if read is not None:
             p_true = read(t_fine, p_true)
         s = cfg.sensor

@@ -13,9 +13,10 @@ silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitti
 supply hose's pressure, a solenoid coil's heat, the cylinder's other chamber behind a
 worn piston seal and a quick-exhaust valve's line (:mod:`pneubayes.bench.forms`
 documents each form's equations). A sticking spool (SpoolStiction) changes the command
-the valve sees, a late release (ReleaseDelay) when it acts; the bench applies the
-reading-side forms (SensorBow, CapillarySensorPort, SensorZeroDrift, SensorThermalShock;
-LaggingPositionSensor on the position) to the plant's output. The other
+the valve sees; a late release (ReleaseDelay), a PWM driver (PwmValve) and a sampling
+driver (ZohDriver) when and what it takes (one of them at a time); the bench applies the
+reading-side forms (SensorBow, CapillarySensorPort, SensorZeroDrift, SensorThermalShock,
+SensorHysteresis; LaggingPositionSensor on the position) to the plant's output. The other
 out-of-catalogue forms act in the same right-hand side; at zero strength each leaves it
 as it was.
 
@@ -69,12 +70,14 @@ from pneubayes.bench.forms import (
     PilotInletValve,
     PistonSealBypass,
     PlantForm,
+    PwmValve,
     QuickExhaustValve,
     RegulatorDroop,
     ReleaseDelay,
     ReliefValve,
     RoundedDeadzone,
     ScoredBarrelLeak,
+    SealSpeedLeak,
     SeatLeak,
     SecondOrderSpool,
     SpoolHysteresis,
@@ -86,6 +89,7 @@ from pneubayes.bench.forms import (
     SupplyHose,
     WallHeatTransfer,
     WarmingCoil,
+    ZohDriver,
     check_forms,
 )
 from pneubayes.effects import Effect
@@ -143,7 +147,10 @@ K_EC_L, K_EC_N, K_EC_E = 91, 92, 93
 K_QE_A, K_QE_P, K_QE_B, K_QE_V = 94, 95, 96, 97
 K_GA_V, K_GA_P, K_GA_N = 98, 99, 100
 K_LL_K, K_LL_S = 101, 102
-N_K = 103
+# the ninth blind set's forms (all 0: absent; PwmValve and ZohDriver act on the
+# command's switching, SensorHysteresis on the reading, outside the right-hand side)
+K_SS_K, K_SS_V = 103, 104
+N_K = 105
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
@@ -443,6 +450,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     if P[K_ES_K] > 0.0:  # a pressure-energised seal: its gap closes as p rises
         g_e = max(p - p_atm, -0.5 * P[K_ES_P])
         leak += P[K_ES_K] * (p * p - p_atm * p_atm) / (1.0 + g_e / P[K_ES_P]) ** 3
+    if P[K_SS_K] > 0.0:  # a seal whose film thickens with the piston's speed
+        leak += P[K_SS_K] * (abs(xdot) / P[K_SS_V]) ** 1.5 * (p * p - p_atm * p_atm)
     mdot = inflow - leak
     # chamber (eq. 5, or the energy equation)
     vol = P[K_VDEAD] + P[K_ABORE] * x
@@ -719,6 +728,9 @@ def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> Non
     lands = by.get(SpoolLandLeak)
     if lands is not None and lands.conductance_kg_per_s_Pa2 > 0:
         P[K_LL_K], P[K_LL_S] = lands.conductance_kg_per_s_Pa2, lands.overlap_scale_V
+    film = by.get(SealSpeedLeak)
+    if film is not None and film.conductance_kg_per_s_Pa2 > 0:
+        P[K_SS_K], P[K_SS_V] = film.conductance_kg_per_s_Pa2, film.reference_speed_m_per_s
     coil = by.get(WarmingCoil)
     if coil is not None and coil.resistance_rise > 0:
         P[K_WC_K], P[K_WC_TAU] = coil.resistance_rise, coil.time_constant_s
@@ -947,6 +959,20 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
     return y
 
 
+#: The forms that decide when (and with what value) the valve takes the command.
+_DRIVERS = (ReleaseDelay, PwmValve, ZohDriver)
+
+
+def _driver_acts(form) -> bool:
+    """Whether a driver form changes when the valve takes the command (at zero
+    strength the plant steps the command as without it)."""
+    if isinstance(form, ReleaseDelay):
+        return form.delay_s > 0
+    if isinstance(form, PwmValve):
+        return form.frequency_Hz > 0
+    return form.update_period_s > 0 or form.latency_s > 0
+
+
 def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inputs: Inputs,
                    rig: Rig, initial_pressure_Pa: float, config: PlantConfig,
                    effects: Sequence[Effect] = ()) -> PlantTrajectory:
@@ -993,8 +1019,12 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
         u = np.asarray(stiction.targets(u), dtype=np.float64)
     xx, ss = _spline_rows(t, inputs.position_m), _spline_rows(t, inputs.supply_pressure_Pa)
     delay = su.delay_s
-    release = next((f for f in forms if isinstance(f, ReleaseDelay)), None)
-    if release is not None and release.delay_s > 0:  # falls act late, and may not at all
+    drivers = [f for f in forms if isinstance(f, _DRIVERS)]
+    if len(drivers) > 1:
+        raise ValueError(f"plant: {[type(f).__name__ for f in drivers]} each decide when "
+                         "the valve takes the command; plant one of them")
+    release = drivers[0] if drivers else None
+    if release is not None and _driver_acts(release):  # when the valve takes it
         sw_t, sw_u = release.switches(t, u, delay)
 
         def command_at(tau):

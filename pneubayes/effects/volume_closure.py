@@ -22,8 +22,8 @@ It lowers onto the compiled simulator's tabulated volume (slots ``volume_table_*
 :func:`pneubayes.simulation.chamber.compliant_volume`): a chamber stepped with its
 pressure as its only state, so it cannot be combined with heat transfer, the tube's
 acoustic line (form ``"line"``; its transmission line, ``"wave"``, carries it), a supply
-tank or a second compartment, nor with a rig card whose chamber is already compliant. The discovery library never searches for it: the
-open-form stage on the volume
+tank or a second compartment, nor with a rig card whose chamber is already compliant.
+The discovery library never searches for it: the open-form stage on the volume
 (:class:`~pneubayes.discovery.stages.volume_form.VolumeForm`) proposes it.
 """
 

@@ -20,7 +20,9 @@ developed against the second, the third (:class:`Iso6358Ports`, :class:`SpoolSle
 developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynoldsPorts`,
 :class:`SpoolStiction`, :class:`SensorBow`); the later sets' forms are listed in
 :data:`FORMS` in the order they were written (the eighth: :class:`QuickExhaustValve`,
-:class:`GasAccumulator`, :class:`SpoolLandLeak`, :class:`SensorThermalShock`).
+:class:`GasAccumulator`, :class:`SpoolLandLeak`, :class:`SensorThermalShock`; the ninth:
+:class:`PwmValve`, :class:`ZohDriver`, :class:`SensorHysteresis`,
+:class:`SealSpeedLeak`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -53,6 +55,7 @@ from pneubayes.bench.forms.chamber import (
     PistonSealBypass,
     ReliefValve,
     ScoredBarrelLeak,
+    SealSpeedLeak,
 )
 from pneubayes.bench.forms.ports import (
     ExhaustCheckValve,
@@ -65,6 +68,7 @@ from pneubayes.bench.forms.reading import (
     CapillarySensorPort,
     LaggingPositionSensor,
     SensorBow,
+    SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
 )
@@ -74,6 +78,7 @@ from pneubayes.bench.forms.valve import (
     Iso6358Ports,
     LowReynoldsPorts,
     PilotInletValve,
+    PwmValve,
     ReleaseDelay,
     SeatLeak,
     SpoolHysteresis,
@@ -83,6 +88,7 @@ from pneubayes.bench.forms.valve import (
     SpoolUnderlap,
     SpringReturnSpool,
     WarmingCoil,
+    ZohDriver,
 )
 from pneubayes.effects import CATALOGUE
 from pneubayes.physics.cylinder import cylinder_preset
@@ -101,7 +107,8 @@ FORMS: dict[str, type[PlantForm]] = {
                                   InletFlowLimiter, ReleaseDelay, PistonSealBypass,
                                   EnergisedSealLeak, SensorZeroDrift, EndCushion,
                                   QuickExhaustValve, GasAccumulator, SpoolLandLeak,
-                                  SensorThermalShock)
+                                  SensorThermalShock, PwmValve, ZohDriver, SensorHysteresis,
+                                  SealSpeedLeak)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -247,7 +254,11 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``GasAccumulator``: half the swept volume, precharged at 2 bar gauge, n = 1.2;
     - ``SpoolLandLeak``: 1e-16 kg/(s Pa^2) (0.02 g/s at the null into 3 bar), the
       sealing length doubled 0.5 V from the null;
-    - ``SensorThermalShock``: 3 % overshoot, settling in 0.3 s.
+    - ``SensorThermalShock``: 3 % overshoot, settling in 0.3 s;
+    - ``PwmValve``: 50 Hz, opening 3 ms and closing 2 ms after the pulse's ends;
+    - ``ZohDriver``: updates every 10 ms, 2 ms latency;
+    - ``SensorHysteresis``: 2 kPa half-width, four plays;
+    - ``SealSpeedLeak``: 1e-16 kg/(s Pa^2) at 0.1 m/s (0.02 g/s at 4 bar gauge).
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -329,5 +340,13 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return SpoolLandLeak(conductance_kg_per_s_Pa2=1e-16)
     if name == "SensorThermalShock":
         return SensorThermalShock(gain=0.03)
+    if name == "PwmValve":
+        return PwmValve(frequency_Hz=50.0)
+    if name == "ZohDriver":
+        return ZohDriver(update_period_s=0.01, latency_s=2e-3)
+    if name == "SensorHysteresis":
+        return SensorHysteresis(half_width_Pa=2000.0)
+    if name == "SealSpeedLeak":
+        return SealSpeedLeak(conductance_kg_per_s_Pa2=1e-16)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

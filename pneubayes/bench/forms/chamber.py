@@ -231,3 +231,27 @@ class GasAccumulator(PlantForm):
         if not 1.0 <= self.polytropic_index <= 1.4:
             raise ValueError(f"GasAccumulator.polytropic_index must be in [1, 1.4], got "
                              f"{self.polytropic_index!r}")
+
+
+# ------------------------------------------ out-of-catalogue forms, the ninth blind set
+
+
+@dataclass(frozen=True)
+class SealSpeedLeak(PlantForm):
+    """A piston seal whose lubricating film thickens with the piston's speed and leaks
+    through it: hydrodynamic lift gives a film ``h ~ sqrt(|v|)``, and the compressible
+    laminar flow through it ``~ h^3 (p^2 - P_atm^2)``::
+
+        mdot_out = k (|dx/dt| / v_ref)^1.5 (p^2 - P_atm^2),
+
+    ``k = conductance_kg_per_s_Pa2`` at ``v_ref = reference_speed_m_per_s``; nothing
+    while the piston rests. ``conductance_kg_per_s_Pa2 = 0`` is a dry seal.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    conductance_kg_per_s_Pa2: float
+    reference_speed_m_per_s: float = 0.1
+
+    def __post_init__(self):
+        _non_negative(self, "conductance_kg_per_s_Pa2")
+        _positive(self, "reference_speed_m_per_s")

@@ -179,3 +179,54 @@ class SensorThermalShock(PlantForm):
         if self.gain == 0.0:
             return p.copy()
         return p + self.gain * (p - first_order_low_pass(t, p, self.time_constant_s))
+
+
+# ------------------------------------------ out-of-catalogue forms, the ninth blind set
+
+
+@dataclass(frozen=True)
+class SensorHysteresis(PlantForm):
+    """A pressure sensor whose diaphragm has mechanical hysteresis (friction in its
+    linkage, a gauge's play): the reading is the mean of ``plays`` play operators
+    (Prandtl-Ishlinskii) of half-widths ``b (i + 1) / plays``, i = 0 .. plays - 1,
+    ``b = half_width_Pa``::
+
+        y_i = min(max(y_i, p - b_i), p + b_i)   (each sample, y_i = p at the start),
+
+    so after a rise the reading trails the pressure by up to about ``b (plays + 1) /
+    (2 plays)`` and after a fall leads it back by as much: a loop, independent of the
+    rate. ``half_width_Pa = 0`` reads true.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    half_width_Pa: float
+    plays: int = 4
+
+    def __post_init__(self):
+        _non_negative(self, "half_width_Pa")
+        if isinstance(self.plays, bool) or not isinstance(self.plays, int) \
+                or not 1 <= self.plays <= 16:
+            raise ValueError(f"SensorHysteresis.plays must be an integer in 1..16, got "
+                             f"{self.plays!r}")
+
+    def read(self, pressure_Pa):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa``
+        (sampled in order)."""
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if self.half_width_Pa == 0.0 or p.size == 0:
+            return p.copy()
+        widths = self.half_width_Pa * np.arange(1, self.plays + 1) / self.plays
+        return np.mean([_play(p, b) for b in widths], axis=0)
+
+
+def _play(p: np.ndarray, half_width: float) -> np.ndarray:
+    """The play operator of ``half_width`` on the samples ``p``, starting at ``p[0]``."""
+    out = np.empty_like(p)
+    y = float(p[0])
+    for i, v in enumerate(p.tolist()):
+        if v - half_width > y:
+            y = v - half_width
+        elif v + half_width < y:
+            y = v + half_width
+        out[i] = y
+    return out

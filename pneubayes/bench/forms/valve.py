@@ -395,3 +395,128 @@ class SpoolLandLeak(PlantForm):
     def __post_init__(self):
         _non_negative(self, "conductance_kg_per_s_Pa2")
         _positive(self, "overlap_scale_V")
+
+
+# ------------------------------------------ out-of-catalogue forms, the ninth blind set
+
+
+def _held_at(time_s: np.ndarray, command: np.ndarray, at: np.ndarray,
+             shared_delay_s: float) -> np.ndarray:
+    """The held command (sampled at ``time_s``) that a driver reading it at the times
+    ``at`` sees, the command reaching it ``shared_delay_s`` late (the first value before
+    the first sample)."""
+    k = np.searchsorted(time_s + shared_delay_s, at, side="right") - 1
+    return command[np.clip(k, 0, command.size - 1)]
+
+
+@dataclass(frozen=True)
+class PwmValve(PlantForm):
+    """On/off valves driven by pulse-width modulation of the command, in place of a
+    proportional valve.
+
+    The driver runs at ``frequency_Hz`` from the recording's first sample; at each
+    period's start it reads the command u and opens the inlet (u > 0) or the exhaust
+    (u < 0) fully, as the proportional valve at ``+-full_command_V``, for the duty
+    ``min(|u| / full_command_V, 1)`` of the period; between pulses both are shut (the
+    valve at 0 V). A solenoid opens ``opening_delay_s`` after its pulse starts and closes
+    ``closing_delay_s`` after it ends, so a pulse shorter than the difference never
+    opens the valve and pulses that overlap merge. ``frequency_Hz = 0`` is the
+    proportional valve (no modulation).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    frequency_Hz: float
+    opening_delay_s: float = 3e-3
+    closing_delay_s: float = 2e-3
+    full_command_V: float = 5.0
+
+    def __post_init__(self):
+        _non_negative(self, "frequency_Hz", "opening_delay_s", "closing_delay_s")
+        _positive(self, "full_command_V")
+
+    def switches(self, time_s, command, shared_delay_s: float = 0.0):
+        """``(times, values)``: when (s) the valve takes each command value (V), as
+        :meth:`ReleaseDelay.switches` (``times[0] = -inf``)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        u = np.asarray(command, dtype=np.float64)
+        if self.frequency_Hz == 0.0:
+            return ReleaseDelay(0.0).switches(t, u, shared_delay_s)
+        period = 1.0 / self.frequency_Hz
+        starts = t[0] + period * np.arange(int(math.ceil((t[-1] - t[0]) / period)) + 1)
+        held = _held_at(t, u, starts, shared_delay_s)
+        duty = np.minimum(np.abs(held) / self.full_command_V, 1.0)
+        # the driver's signal: a pulse from each period's start, adjacent pulses of one
+        # sign one (at full duty the signal never falls)
+        signal = []
+        for s, d, v in zip(starts, duty, held):
+            if d == 0.0:
+                continue
+            value = math.copysign(self.full_command_V, v)
+            if signal and signal[-1][1] >= s and signal[-1][2] == value:
+                signal[-1] = (signal[-1][0], s + d * period, value)
+            else:
+                signal.append((s, s + d * period, value))
+        # the solenoid: open after the opening delay, shut after the closing delay; a
+        # pulse too short never opens it, one that reopens it before it shut merges,
+        # and a pulse of the other sign cuts the last short where it opens its port
+        pulses = []
+        for a, b, value in signal:
+            on, off = a + self.opening_delay_s, b + self.closing_delay_s
+            if off <= on:
+                continue
+            if pulses and pulses[-1][1] >= on:
+                last = pulses[-1]
+                if last[2] == value:
+                    pulses[-1] = (last[0], max(last[1], off), value)
+                    continue
+                pulses[-1] = (last[0], on, last[2])
+            pulses.append((on, off, value))
+        times, values = [-math.inf], [0.0]
+        for on, off, value in pulses:
+            if times[-1] == on:
+                values[-1] = value
+            else:
+                times.append(on)
+                values.append(value)
+            times.append(off)
+            values.append(0.0)
+        return np.array(times), np.array(values)
+
+
+@dataclass(frozen=True)
+class ZohDriver(PlantForm):
+    """A networked valve driver (a fieldbus, a USB DAQ): it takes the command only every
+    ``update_period_s``, at ``phase`` of a period after the recording's first sample,
+    holds it, and applies it ``latency_s`` later. A command change waits between 0 and
+    one period for the next update. ``update_period_s = 0`` is a driver that follows
+    the command at once.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    update_period_s: float
+    latency_s: float = 0.0
+    phase: float = 0.0
+
+    def __post_init__(self):
+        _non_negative(self, "update_period_s", "latency_s")
+        _finite(self, "phase")
+        if not 0.0 <= self.phase < 1.0:
+            raise ValueError(f"ZohDriver.phase must be in [0, 1), got {self.phase!r}")
+
+    def switches(self, time_s, command, shared_delay_s: float = 0.0):
+        """``(times, values)``: when (s) the valve takes each command value (V), as
+        :meth:`ReleaseDelay.switches` (``times[0] = -inf``)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        u = np.asarray(command, dtype=np.float64)
+        if self.update_period_s == 0.0:
+            return ReleaseDelay(0.0).switches(t, u, shared_delay_s + self.latency_s)
+        period = self.update_period_s
+        ticks = t[0] + period * (self.phase + np.arange(
+            int(math.ceil((t[-1] - t[0]) / period)) + 1))
+        held = _held_at(t, u, ticks, shared_delay_s)
+        times, values = [-math.inf], [float(_held_at(t, u, t[:1], shared_delay_s)[0])]
+        for at, v in zip(ticks + self.latency_s, held):
+            if v != values[-1]:
+                times.append(float(at))
+                values.append(float(v))
+        return np.array(times), np.array(values)
