@@ -1,7 +1,7 @@
 """Real recordings: the GTDynamics jumping robot's muscle fills, plain model -> discovery.
 
     python experiments/real_gtdynamics.py --out results/real_gtdynamics [--smoke]
-        [--calibration]
+        [--calibration] [--wave-grid GRID_S PER_ELEMENT]
 
 Data: ``data/real/gtdynamics/`` (``pneubayes import gtdynamics`` of the five shared
 trials; four muscles each, 500 Hz, raw psi gauge; licence file beside them). The rig
@@ -37,7 +37,12 @@ from real_common import added_names, plain_fit, prediction_figure
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.library import LibraryGrid
 from pneubayes.discovery.report import run_discover
-from pneubayes.discovery.settings import DataSettings, DiscoverySettings, SearchSettings
+from pneubayes.discovery.settings import (
+    DataSettings,
+    DiscoverySettings,
+    FormSettings,
+    SearchSettings,
+)
 from pneubayes.effects import SensorCalibration
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.sampler_settings import SamplerSettings
@@ -81,6 +86,11 @@ def main(argv=None) -> int:
     ap.add_argument("--calibration", action="store_true",
                     help="let the loop search for sensor_calibration too (its terms are off "
                          "by default; the muscles read 18-24 kPa gauge at rest)")
+    ap.add_argument("--wave-grid", nargs=2, type=float, metavar=("GRID_S", "PER_ELEMENT"),
+                    default=(1e-4, 1),
+                    help="the transmission-line tube's grid: at most GRID_S s and an "
+                         "element's transit over PER_ELEMENT (default 1e-4 1; the 500-Hz "
+                         "recordings allow 5e-4 4, about 5 x fewer grid steps)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     train, held = load(Path(args.data))
@@ -91,6 +101,8 @@ def main(argv=None) -> int:
     settings = DiscoverySettings(
         data=DataSettings(holdout_recordings=len(held)), seed=SEED,
         search=SearchSettings(grid=grid),
+        forms=FormSettings(tube_wave_grid_s=args.wave_grid[0],
+                           tube_wave_grid_per_element=int(args.wave_grid[1])),
         fit=FitSettings(horizon_s=HORIZON_S, stride_s=HORIZON_S, sampler=sampler,
                         supply_cutoff_Hz=None))
     doc = run_discover(train + held, settings, out / "discovery",
@@ -126,6 +138,7 @@ def main(argv=None) -> int:
         "posterior_predictive": predictive,
         "figures": figs,
         "seed": SEED, "smoke": args.smoke, "calibration_searched": args.calibration,
+        "wave_grid": list(args.wave_grid),
         "provenance": provenance(),
     }
     write_json_atomic(out / "real_gtdynamics.json", result)

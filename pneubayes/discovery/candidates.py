@@ -26,8 +26,10 @@ _STATE_SLOTS = ("compliance_m3_per_Pa", "tank_volume_m3", "lung_volume_m3",
 
 def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       line_segments: int = 8, line_cutoff_Hz: float = 300.0,
-                      line_form: str = "line") -> CandidateContext:
-    """What the named group's effect needs to propose its candidates beside ``fit``."""
+                      line_form: str = "line", *,
+                      wave_grid: tuple[float, int] = (1e-4, 1)) -> CandidateContext:
+    """What the named group's effect needs to propose its candidates beside ``fit``
+    (``wave_grid``: a transmission-line tube's ``(grid_s, grid_per_element)``)."""
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
     if not all(e.beside_tube(line_form) for e in fit.model.effects):
@@ -37,17 +39,17 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                             second_state_free=not taken, line_segments=line_segments,
                             dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]),
                             line_cutoff_Hz=line_cutoff_Hz, line_form=line_form,
-                            slots=slots)
+                            slots=slots, wave_grid=tuple(wave_grid))
 
 
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       line_segments: int = 8, line_cutoff_Hz: float = 300.0,
-                      line_form: str = "line"):
+                      line_form: str = "line", *, wave_grid: tuple[float, int] = (1e-4, 1)):
     """``[(model, start), ...]``: the group's effect form(s) beside ``fit.model``, each
     with start values (the fit's, the effect's neutral values, then the effect's own
     starts moved just inside the bounds)."""
     ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz,
-                            line_form)
+                            line_form, wave_grid=wave_grid)
     effect = make_effect(group, **fit.model.effect_options(group))
     return [_started(fit, form, {**fit.params, **form.neutral_values()}, values)
             for form, values in effect.candidate_forms(ctx)]
@@ -64,12 +66,12 @@ def _started(fit: StepFit, effect, base: dict, values: dict):
 
 def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params: dict,
               line_segments: int = 8, line_cutoff_Hz: float = 300.0,
-              line_form: str = "line"):
+              line_form: str = "line", *, wave_grid: tuple[float, int] = (1e-4, 1)):
     """``(model, start)`` of the form the named group's effect asks to fit next from
     ``model`` fitted at ``params`` beside ``fit`` (:meth:`~pneubayes.effects.Effect.
     form_after_fit`), started at ``params``; None when it asks for none."""
     ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz,
-                            line_form)
+                            line_form, wave_grid=wave_grid)
     nxt = model.effect(group).form_after_fit(params, ctx)
     if nxt is None:
         return None

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 
 from pneubayes.discovery.disagreement import RegimeSettings
 from pneubayes.discovery.library import LibraryGrid
-from pneubayes.effects import catalogue_parameter_names
+from pneubayes.effects import TubeDelay, catalogue_parameter_names
 from pneubayes.effects.path import LINE_MAX_SEGMENTS
 from pneubayes.inference.importance import IMPORTANCE_CHECK_DRAWS
 from pneubayes.inference.laplace import LAPLACE_DRAWS, check_draw_counts
@@ -201,6 +201,10 @@ class FormSettings:
     tube_line_segments, tube_line_cutoff_Hz, tube_line_form : int, float, str
         A tube's outside form: ``"wave"``, or ``"line"`` with the fewest cells (3 to the
         segments) whose cut-off n / (pi T) reaches this; 0 segments: transport only.
+    tube_wave_grid_s, tube_wave_grid_per_element : float, int
+        The transmission-line tube's grid: the shorter of this step (s) and an element's
+        transit time over this count (``tube_delay``'s ``grid_s``, ``grid_per_element``;
+        a coarser grid is faster and smears the waves more, docs/discovery.md).
     settled_ratio : float
         Later forms are fitted while no trial is within this x the noise floor (0: every
         form always).
@@ -216,6 +220,8 @@ class FormSettings:
     tube_line_segments: int = 8
     tube_line_cutoff_Hz: float = 300.0
     tube_line_form: str = "wave"
+    tube_wave_grid_s: float = 1e-4
+    tube_wave_grid_per_element: int = 1
     settled_ratio: float = 1.05
     later_min_share: float = 0.25
     later_screen_share: float = 0.5
@@ -231,10 +237,18 @@ class FormSettings:
         if self.tube_line_form not in ("line", "wave"):
             raise ValueError(f"tube_line_form must be 'line' or 'wave', got "
                              f"{self.tube_line_form!r}")
+        # (the tube's own check: one message for both places the grid is set)
+        TubeDelay(form="wave", grid_s=self.tube_wave_grid_s,
+                  grid_per_element=self.tube_wave_grid_per_element).parameters()
         if not (self.settled_ratio == 0.0 or self.settled_ratio >= 1.0):
             raise ValueError(f"settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.settled_ratio}")
         _check_shares(self, "later_min_share", "later_screen_share", "nested_min_gain_share")
+
+    @property
+    def tube_wave_grid(self) -> tuple[float, int]:
+        """``(tube_wave_grid_s, tube_wave_grid_per_element)``."""
+        return self.tube_wave_grid_s, self.tube_wave_grid_per_element
 
 
 @dataclass(frozen=True)

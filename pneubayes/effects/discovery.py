@@ -84,7 +84,8 @@ class CandidateContext:
     should reach; dead_volume_m3: the fitted chamber volume at position 0; line_form:
     the outside tube's form, ``"line"`` (lumped cells) or ``"wave"`` (a transmission
     line); slots: the current fit's lowered slot row (:data:`~pneubayes.effects.path.
-    SLOT_INDEX`), which an effect reads (:meth:`slot`) for what else the model holds.
+    SLOT_INDEX`), which an effect reads (:meth:`slot`) for what else the model holds;
+    wave_grid: the transmission line's ``(grid_s, grid_per_element)``.
     """
 
     model: Any
@@ -97,6 +98,7 @@ class CandidateContext:
     line_cutoff_Hz: float = 300.0
     line_form: str = "line"
     slots: Any = None
+    wave_grid: tuple = (1e-4, 1)
 
     def slot(self, name: str) -> float:
         """The current fit's value of slot ``name`` (0 without ``slots``)."""

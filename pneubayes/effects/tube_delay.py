@@ -31,12 +31,12 @@ acoustic line; a pure delay cannot lag and ring as one does.
 with the same two parameters as the line: ``segments`` (default 8) lossless elements in
 a row whose waves cross each unchanged in its share of the transit time and reflect at
 the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
-hold the waves, so the cost does not grow with the tube's length, and a front is spread
-by about the 0.1-ms update grid, however long the tube (accuracy and cost against the
-lines: ``benchmarks/tube_forms.py``, floors in ``tests/test_wave.py``, measurements in
-``docs/history.md``). Its output moves continuously with the transit time (a fit's
-need). Not beside heat transfer (it has no temperature state). Its volume leaves the
-chamber's, as the line's does.
+hold the waves, so the cost does not grow with the tube's length; the junctions update
+on a grid (``grid_s``, default 0.1 ms, or an element's transit over ``grid_per_element``
+if shorter): a coarser grid costs less and smears the waves more (``benchmarks/
+tube_forms.py``, ``tests/test_wave.py``, ``docs/history.md``). Its output moves
+continuously with the transit time (a fit's need). Not beside heat transfer (it has no
+temperature state). Its volume leaves the chamber's, as the line's does.
 """
 
 from __future__ import annotations
@@ -63,13 +63,17 @@ class TubeDelay(Effect):
     forms = _FORMS
     acts_on = ("command_delay_s", "flow_attenuation_Pa", "line_length_m", "line_diameter_m",
                "line_segments", "line_viscosity_Pa_s", "wave_length_m", "wave_diameter_m",
-               "wave_viscosity_Pa_s", "wave_segments")
+               "wave_viscosity_Pa_s", "wave_segments", "wave_grid_s",
+               "wave_grid_per_element")
 
     def __init__(self, tube_diameter_m: float = 0.002, air_viscosity_Pa_s: float = 1.81e-5,
-                 form: str = "transport", segments: int = 0):
+                 form: str = "transport", segments: int = 0, grid_s: float = 1e-4,
+                 grid_per_element: int = 1):
         self.tube_diameter_m = tube_diameter_m
         self.air_viscosity_Pa_s = air_viscosity_Pa_s
         self.form = form
+        self.grid_s = grid_s
+        self.grid_per_element = grid_per_element
         # 0: the form's own count, the line's 3 cells or the wave tube's 8 elements
         self.segments = segments if segments != 0 else (8 if form == "wave" else 3)
 
@@ -82,12 +86,23 @@ class TubeDelay(Effect):
                 or not 1 <= self.segments <= most):
             raise ValueError(f"tube_delay: segments must be an integer in 1..{most}, "
                              f"got {self.segments!r}")
+        if isinstance(self.grid_s, bool) or not isinstance(self.grid_s, (int, float)) \
+                or not 1e-5 <= self.grid_s <= 1e-2:
+            raise ValueError(f"tube_delay: grid_s must be a number in [1e-5, 1e-2] s, got "
+                             f"{self.grid_s!r}")
+        if isinstance(self.grid_per_element, bool) or not isinstance(
+                self.grid_per_element, int) or not 1 <= self.grid_per_element <= 64:
+            raise ValueError(f"tube_delay: grid_per_element must be an integer in 1..64, "
+                             f"got {self.grid_per_element!r}")
 
     def options(self):
         opts = {"tube_diameter_m": self.tube_diameter_m,
                 "air_viscosity_Pa_s": self.air_viscosity_Pa_s, "form": self.form}
         if self.form in _TUBE_FORMS:
             opts["segments"] = self.segments
+        if self.form == "wave":
+            opts["grid_s"] = self.grid_s
+            opts["grid_per_element"] = self.grid_per_element
         return opts
 
     def parameters(self):
@@ -114,7 +129,10 @@ class TubeDelay(Effect):
             dia = np.asarray(values["tube_diameter_m"], dtype=np.float64)
             return {"wave_length_m": length, "wave_diameter_m": dia,
                     "wave_viscosity_Pa_s": np.full(delay.shape, self.air_viscosity_Pa_s),
-                    "wave_segments": np.full(delay.shape, float(self.segments))}
+                    "wave_segments": np.full(delay.shape, float(self.segments)),
+                    "wave_grid_s": np.full(delay.shape, float(self.grid_s)),
+                    "wave_grid_per_element": np.full(delay.shape,
+                                                     float(self.grid_per_element))}
         if self.form == "line":
             dia = np.asarray(values["tube_diameter_m"], dtype=np.float64)
             return {"line_length_m": length, "line_diameter_m": dia,
@@ -180,7 +198,9 @@ class TubeDelay(Effect):
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
         if wave:  # the transmission line: no cells
-            line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8})
+            line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8,
+                                "grid_s": ctx.wave_grid[0],
+                                "grid_per_element": ctx.wave_grid[1]})
         else:
             cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
             line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})

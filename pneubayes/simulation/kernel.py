@@ -738,7 +738,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     wave = general is not None and sl[_WLEN] > 0.0
     hist, ring, w_rd, w_row = wave_workspace(wave)
     w_work = (hist, ring, np.zeros(2 + max(int(sl[_WSEG]), 1)), w_rd, w_row)
-    tube = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1)
+    tube = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1, 1e-4)
     grid = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     if general is not None and wave:
         tube = wave_constants(sl, cs)
@@ -747,8 +747,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
             return LINE_VOLUME
         wave_start(hist, ring, carry, t_start, p, tube[0], tube[6], w_work[2], w_row)
         grid = wave_grid(w_work, tube, t[0], math.floor((t_start - t[0]) / wave_grid_step(
-            tube[0]) + 1e-6) + 1.0, t_start)
-    w_near = 1e-6 * wave_grid_step(tube[0])
+            tube) + 1e-6) + 1.0, t_start)
+    w_near = 1e-6 * wave_grid_step(tube)
     # the delayed command's sample (and its direction, read by a closure's code 15),
     # the spool there, and the position/supply segment holding t + adv
     j, cdir = delayed_command(t, u, delay, t_start, cl_dir)

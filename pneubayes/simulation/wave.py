@@ -27,7 +27,7 @@ t, with every wave read at t - tau:
 Without friction a valve step reaches the chamber after exactly T, undispersed (no
 cells). The tube's volume ``A L`` leaves the chamber's dead volume, as the line's does.
 
-The junctions and ends update on a fixed grid (``WAVE_GRID_S``, or ``tau`` if shorter:
+The junctions and ends update on a fixed grid (slot ``wave_grid_s``, or ``tau`` if shorter:
 :func:`wave_grid_step`; anchored at the recording's first sample), the waves kept at
 its points in a ring buffer (time, the 2K waves and their derivatives in the window's
 initial pressure). A read at ``t - tau`` is linear between entries, so the output moves
@@ -65,9 +65,9 @@ _WLEN = SLOT_INDEX["wave_length_m"]
 _WDIA = SLOT_INDEX["wave_diameter_m"]
 _WMU = SLOT_INDEX["wave_viscosity_Pa_s"]
 _WSEG = SLOT_INDEX["wave_segments"]
+_WGRID = SLOT_INDEX["wave_grid_s"]
+_WGRID_N = SLOT_INDEX["wave_grid_per_element"]
 
-#: Longest grid step of the junctions and ends (s).
-WAVE_GRID_S = 1e-4
 #: Entries of the wave history (a transit time of the longest element on the grid).
 WAVE_CAPACITY = 1024
 #: Shortest element transit time the step is limited to (s): below it a read past the
@@ -82,14 +82,17 @@ WAVE_CARRY = WAVE_CARRY_HEAD + 2 * WAVE_MAX_SEGMENTS * WAVE_CARRY_POINTS
 
 @njit(cache=True, error_model="numpy")
 def wave_constants(sl, cs):
-    """``(tau, Z, area, element length, diameter, viscosity, K)``: an element's transit
-    time (s), the characteristic impedance (Pa s/kg), the section (m^2), L / K (m), the
-    bore (m), the viscosity (Pa s) and the number of elements."""
+    """``(tau, Z, area, element length, diameter, viscosity, K, grid)``: an element's
+    transit time (s), the characteristic impedance (Pa s/kg), the section (m^2), L / K
+    (m), the bore (m), the viscosity (Pa s), the number of elements and the grid's step
+    (s; :func:`wave_grid_step`)."""
     k = int(sl[_WSEG])
     length, dia, mu = sl[_WLEN], sl[_WDIA], sl[_WMU]
     c = math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
     area = 0.25 * math.pi * dia * dia
-    return length / (c * k), c / area, area, length / k, dia, mu, k
+    tau = length / (c * k)
+    grid = min(sl[_WGRID], max(tau / max(sl[_WGRID_N], 1.0), WAVE_MIN_TRANSIT_S))
+    return tau, c / area, area, length / k, dia, mu, k, grid
 
 
 @njit(cache=True, error_model="numpy")
@@ -143,13 +146,15 @@ def friction_flow(d, z_lin, q0, p, share, cs, area, length, dia, mu):
 
 
 @njit(cache=True, error_model="numpy")
-def wave_grid_step(tau_s):
-    """The grid step (s) the junctions and ends update on: ``WAVE_GRID_S``, or an
-    element's transit time ``tau`` if shorter (every read at ``t - tau`` is then of the
-    past), at least ``WAVE_MIN_TRANSIT_S``. It does not otherwise depend on ``tau``: the
-    reads fall between grid points and are linear there, so the output moves
-    continuously with the transit time."""
-    return min(WAVE_GRID_S, max(tau_s, WAVE_MIN_TRANSIT_S))
+def wave_grid_step(tube):
+    """The grid step (s) the junctions and ends update on (``tube``:
+    :func:`wave_constants`): the slot ``wave_grid_s``, or an element's transit time
+    ``tau`` over ``wave_grid_per_element`` if shorter (every read at ``t - tau`` is then
+    of the past; each read interpolates, and the waves smear by about a step per
+    element), at least ``WAVE_MIN_TRANSIT_S``. The reads fall
+    between grid points and are linear there, so the output moves continuously with the
+    transit time."""
+    return tube[7]
 
 
 @njit(cache=True, error_model="numpy")
@@ -389,7 +394,7 @@ def wave_gain(p, vol, sl, cs):
 
 # The kernel's side of the tube, window by window: ``tube`` is the tuple of
 # :func:`wave_constants` (transit time, impedance, area, element length, bore,
-# viscosity, elements), ``work`` the tuple ``(hist, ring, state, rd, row)`` of
+# viscosity, elements, grid step), ``work`` the tuple ``(hist, ring, state, rd, row)`` of
 # :func:`wave_workspace` and the last flows, ``grid`` the tuple ``(n, t_grid, t_a, A_a,
 # dA_a, A_b, dA_b)``: the next grid point's number and time, and the chamber's forcing
 # A_K(t - tau) (with dA/dp0) read at the ends of the grid interval ``[t_a, t_grid]``;
@@ -402,7 +407,7 @@ def wave_gain(p, vol, sl, cs):
 def _send(work, tube, t_now, p, s_p, p_sup, a_in, a_ex, cs):
     """:func:`wave_ends` with the kernel's tuples."""
     hist, ring, state, rd, row = work
-    tau, z, area, seg_len, dia, mu, k = tube
+    tau, z, area, seg_len, dia, mu, k, _ = tube
     return wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
                      seg_len, dia, mu, state, rd, row)
 
@@ -412,7 +417,7 @@ def wave_grid(work, tube, t0, n, t_a):
     """The ``grid`` tuple for grid point ``n`` (anchored at the recording's first sample
     ``t0``, every window of it shares the grid) with its interval starting at ``t_a``."""
     hist, ring = work[0], work[1]
-    t_grid = t0 + wave_grid_step(tube[0]) * n
+    t_grid = t0 + wave_grid_step(tube) * n
     a0, s0 = wave_arriving(hist, ring, t_a - tube[0], tube[6])
     a1, s1 = wave_arriving(hist, ring, t_grid - tube[0], tube[6])
     return n, t_grid, t_a, a0, s0, a1, s1
@@ -425,7 +430,7 @@ def wave_switch(work, tube, switch, tau, t_end, p, s_p, p_sup, a_in, a_ex, w_nea
     ramp to the new ones over a grid step (whose end cuts ``t_end``). ``ok`` False: the
     history is full."""
     t_sw, o_in, o_ex, l_in, l_ex = switch
-    w_dt = wave_grid_step(tube[0])
+    w_dt = wave_grid_step(tube)
     if (not math.isnan(l_in) and abs(a_in - l_in) + abs(a_ex - l_ex)
             > 1e-9 * (a_in + a_ex + l_in + l_ex)):
         r_in, r_ex = wave_ramped(tau, l_in, l_ex, t_sw, w_dt, o_in, o_ex)
@@ -496,7 +501,7 @@ def wave_accept(work, tube, switch, grid, t0, tau, p, s_p, p_sup, a_in, a_ex, w_
     grid point the grid moves on. ``ok`` False: the history is full."""
     t_sw, o_in, o_ex = switch[0], switch[1], switch[2]
     switch = (t_sw, o_in, o_ex, a_in, a_ex)
-    w_dt = wave_grid_step(tube[0])
+    w_dt = wave_grid_step(tube)
     on_grid = tau >= grid[1] - w_near
     if on_grid or abs(tau - t_sw - w_dt) <= w_near:
         v_in, v_ex = wave_ramped(tau, a_in, a_ex, t_sw, w_dt, o_in, o_ex)
@@ -515,7 +520,7 @@ def wave_window_end(work, tube, switch, carry, t_last, p, s_p, p_sup, a_in, a_ex
     the history is full."""
     hist, ring, state, rd, _ = work
     if wave_newest_time(hist, ring) < t_last - w_near:
-        v_in, v_ex = wave_ramped(t_last, a_in, a_ex, switch[0], wave_grid_step(tube[0]),
+        v_in, v_ex = wave_ramped(t_last, a_in, a_ex, switch[0], wave_grid_step(tube),
                                  switch[1], switch[2])
         if not _send(work, tube, t_last, p, s_p, p_sup, v_in, v_ex, cs):
             return False
