@@ -88,9 +88,9 @@ def main(argv=None) -> int:
                          "by default; the muscles read 18-24 kPa gauge at rest)")
     ap.add_argument("--wave-grid", nargs=2, type=float, metavar=("GRID_S", "PER_ELEMENT"),
                     default=(1e-4, 1),
-                    help="the transmission-line tube's grid: at most GRID_S s and an "
-                         "element's transit over PER_ELEMENT (default 1e-4 1; the 500-Hz "
-                         "recordings allow 5e-4 4, about 5 x fewer grid steps)")
+                    help="the transmission-line tube's grid, fixed when its trial starts: "
+                         "the start's element transit over PER_ELEMENT, between 0.1 ms and "
+                         "GRID_S s (default 1e-4 1: 0.1 ms)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     train, held = load(Path(args.data))

@@ -202,9 +202,10 @@ class FormSettings:
         A tube's outside form: ``"wave"``, or ``"line"`` with the fewest cells (3 to the
         segments) whose cut-off n / (pi T) reaches this; 0 segments: transport only.
     tube_wave_grid_s, tube_wave_grid_per_element : float, int
-        The transmission-line tube's grid: the shorter of this step (s) and an element's
-        transit time over this count (``tube_delay``'s ``grid_s``, ``grid_per_element``;
-        a coarser grid is faster and smears the waves more, docs/discovery.md).
+        The transmission-line tube's grid (``tube_delay``'s ``grid_s``), fixed when its
+        trial starts: the start's element transit time over this count, between 0.1 ms
+        and this step (s); a coarser grid is faster and smears the waves more
+        (docs/discovery.md).
     settled_ratio : float
         Later forms are fitted while no trial is within this x the noise floor (0: every
         form always).
@@ -237,9 +238,12 @@ class FormSettings:
         if self.tube_line_form not in ("line", "wave"):
             raise ValueError(f"tube_line_form must be 'line' or 'wave', got "
                              f"{self.tube_line_form!r}")
-        # (the tube's own check: one message for both places the grid is set)
-        TubeDelay(form="wave", grid_s=self.tube_wave_grid_s,
-                  grid_per_element=self.tube_wave_grid_per_element).parameters()
+        # (the tube's own check of the step)
+        TubeDelay(form="wave", grid_s=self.tube_wave_grid_s).parameters()
+        if isinstance(self.tube_wave_grid_per_element, bool) or not isinstance(
+                self.tube_wave_grid_per_element, int) or not 1 <= self.tube_wave_grid_per_element:
+            raise ValueError(f"tube_wave_grid_per_element must be an integer >= 1, got "
+                             f"{self.tube_wave_grid_per_element!r}")
         if not (self.settled_ratio == 0.0 or self.settled_ratio >= 1.0):
             raise ValueError(f"settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.settled_ratio}")

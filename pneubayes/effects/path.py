@@ -127,10 +127,8 @@ SLOTS += (
     ("wave_segments", "line elements of the transmission-line tube, its friction lumped "
      "at their junctions (count)"),
     ("wave_grid_s", "the transmission-line tube's grid: its junctions and ends update at "
-     "most this far apart, and a front is spread by about one step (s)"),
-    ("wave_grid_per_element", "the transmission-line tube's grid steps per element transit "
-     "time at least (its grid is the shorter of wave_grid_s and the transit over this; "
-     "count >= 1)"),
+     "most this far apart (an element's transit time if shorter), and a front is spread "
+     "by about one step per element (s)"),
 )
 
 SLOTS += (

@@ -32,9 +32,9 @@ with the same two parameters as the line: ``segments`` (default 8) lossless elem
 a row whose waves cross each unchanged in its share of the transit time and reflect at
 the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
 hold the waves, so the cost does not grow with the tube's length; the junctions update
-on a grid (``grid_s``, default 0.1 ms, or an element's transit over ``grid_per_element``
-if shorter): a coarser grid costs less and smears the waves more (``benchmarks/
-tube_forms.py``, ``tests/test_wave.py``, ``docs/history.md``). Its output moves
+on a grid (``grid_s``, default 0.1 ms, or an element's transit if shorter): a coarser
+grid costs less and smears the waves more (``benchmarks/tube_forms.py``,
+``tests/test_wave.py``, ``docs/history.md``). Its output moves
 continuously with the transit time (a fit's need). Not beside heat transfer (it has no
 temperature state). Its volume leaves the chamber's, as the line's does.
 """
@@ -63,17 +63,14 @@ class TubeDelay(Effect):
     forms = _FORMS
     acts_on = ("command_delay_s", "flow_attenuation_Pa", "line_length_m", "line_diameter_m",
                "line_segments", "line_viscosity_Pa_s", "wave_length_m", "wave_diameter_m",
-               "wave_viscosity_Pa_s", "wave_segments", "wave_grid_s",
-               "wave_grid_per_element")
+               "wave_viscosity_Pa_s", "wave_segments", "wave_grid_s")
 
     def __init__(self, tube_diameter_m: float = 0.002, air_viscosity_Pa_s: float = 1.81e-5,
-                 form: str = "transport", segments: int = 0, grid_s: float = 1e-4,
-                 grid_per_element: int = 1):
+                 form: str = "transport", segments: int = 0, grid_s: float = 1e-4):
         self.tube_diameter_m = tube_diameter_m
         self.air_viscosity_Pa_s = air_viscosity_Pa_s
         self.form = form
         self.grid_s = grid_s
-        self.grid_per_element = grid_per_element
         # 0: the form's own count, the line's 3 cells or the wave tube's 8 elements
         self.segments = segments if segments != 0 else (8 if form == "wave" else 3)
 
@@ -90,10 +87,6 @@ class TubeDelay(Effect):
                 or not 1e-5 <= self.grid_s <= 1e-2:
             raise ValueError(f"tube_delay: grid_s must be a number in [1e-5, 1e-2] s, got "
                              f"{self.grid_s!r}")
-        if isinstance(self.grid_per_element, bool) or not isinstance(
-                self.grid_per_element, int) or not 1 <= self.grid_per_element <= 64:
-            raise ValueError(f"tube_delay: grid_per_element must be an integer in 1..64, "
-                             f"got {self.grid_per_element!r}")
 
     def options(self):
         opts = {"tube_diameter_m": self.tube_diameter_m,
@@ -102,7 +95,6 @@ class TubeDelay(Effect):
             opts["segments"] = self.segments
         if self.form == "wave":
             opts["grid_s"] = self.grid_s
-            opts["grid_per_element"] = self.grid_per_element
         return opts
 
     def parameters(self):
@@ -130,9 +122,7 @@ class TubeDelay(Effect):
             return {"wave_length_m": length, "wave_diameter_m": dia,
                     "wave_viscosity_Pa_s": np.full(delay.shape, self.air_viscosity_Pa_s),
                     "wave_segments": np.full(delay.shape, float(self.segments)),
-                    "wave_grid_s": np.full(delay.shape, float(self.grid_s)),
-                    "wave_grid_per_element": np.full(delay.shape,
-                                                     float(self.grid_per_element))}
+                    "wave_grid_s": np.full(delay.shape, float(self.grid_s))}
         if self.form == "line":
             dia = np.asarray(values["tube_diameter_m"], dtype=np.float64)
             return {"line_length_m": length, "line_diameter_m": dia,
@@ -171,6 +161,15 @@ class TubeDelay(Effect):
         need = math.ceil(math.pi * transit_s * cutoff_Hz - 1e-9)
         return int(min(most, max(3, need)))
 
+    @staticmethod
+    def wave_grid_s(transit_s: float, segments: int, most_s: float, per_element: int) -> float:
+        """The grid (s) of a transmission line of ``segments`` elements started at the
+        transit time ``transit_s``: an element's transit over ``per_element``, between
+        0.1 ms and ``most_s`` (0.1 ms when ``most_s`` is). Fixed for the fit: a grid
+        that moved with the transit time made the fit's objective rough."""
+        fine = 1e-4
+        return float(min(max(most_s, fine), max(fine, transit_s / (segments * per_element))))
+
     def candidate_forms(self, ctx: CandidateContext):
         """This form (the paper's transport delay) and an acoustic line (outside tubes
         are lines, which lag and ring; none where the model has no room for the line's
@@ -197,10 +196,9 @@ class TubeDelay(Effect):
         # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
-        if wave:  # the transmission line: no cells
+        if wave:  # the transmission line: no cells, on a grid fixed by its start
             line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8,
-                                "grid_s": ctx.wave_grid[0],
-                                "grid_per_element": ctx.wave_grid[1]})
+                                "grid_s": self.wave_grid_s(delay, 8, *ctx.wave_grid)})
         else:
             cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
             line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})
