@@ -959,18 +959,9 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
     return y
 
 
-#: The forms that decide when (and with what value) the valve takes the command.
+#: The forms that decide when (and with what value) the valve takes the command: each
+#: has ``switches(time_s, command, shared_delay_s)`` and ``acts`` (False at zero strength).
 _DRIVERS = (ReleaseDelay, PwmValve, ZohDriver)
-
-
-def _driver_acts(form) -> bool:
-    """Whether a driver form changes when the valve takes the command (at zero
-    strength the plant steps the command as without it)."""
-    if isinstance(form, ReleaseDelay):
-        return form.delay_s > 0
-    if isinstance(form, PwmValve):
-        return form.frequency_Hz > 0
-    return form.update_period_s > 0 or form.latency_s > 0
 
 
 def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inputs: Inputs,
@@ -1024,7 +1015,7 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
         raise ValueError(f"plant: {[type(f).__name__ for f in drivers]} each decide when "
                          "the valve takes the command; plant one of them")
     release = drivers[0] if drivers else None
-    if release is not None and _driver_acts(release):  # when the valve takes it
+    if release is not None and release.acts:  # when the valve takes the command
         sw_t, sw_u = release.switches(t, u, delay)
 
         def command_at(tau):

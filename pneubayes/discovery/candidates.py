@@ -29,7 +29,8 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                       line_form: str = "line", *,
                       wave_grid: tuple[float, int] = (1e-4, 1)) -> CandidateContext:
     """What the named group's effect needs to propose its candidates beside ``fit``
-    (``wave_grid``: a transmission-line tube's ``(grid_s, grid_per_element)``)."""
+    (``wave_grid``: the transmission-line candidate's longest grid step (s) and steps
+    per element transit, :meth:`~pneubayes.effects.TubeDelay.wave_grid_s`)."""
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
     if not all(e.beside_tube(line_form) for e in fit.model.effects):

@@ -85,7 +85,8 @@ class CandidateContext:
     the outside tube's form, ``"line"`` (lumped cells) or ``"wave"`` (a transmission
     line); slots: the current fit's lowered slot row (:data:`~pneubayes.effects.path.
     SLOT_INDEX`), which an effect reads (:meth:`slot`) for what else the model holds;
-    wave_grid: the transmission line's ``(grid_s, grid_per_element)``.
+    wave_grid: the transmission line's longest grid step (s) and steps per element transit
+    (:meth:`~pneubayes.effects.TubeDelay.wave_grid_s`).
     """
 
     model: Any

@@ -110,13 +110,17 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
     tank = has("tank_volume_m3")
     # (a compliant chamber keeps the pressure the only state: the transmission line's
     # chamber step carries its V(p) and dV/dp, tests/test_wave.py)
+    acoustic = "the tube's acoustic line (tube_delay form 'line')"
+    lines = "the tube's acoustic line or wave line (tube_delay forms 'line', 'wave')"
     exclusive = (
         (has("compliance_m3_per_Pa") | has("volume_table_points"), has("line_length_m") | hot,
-         "a compliant chamber is simulated with the pressure as its only state"),
+         "a compliant chamber is simulated with the pressure as its only state", acoustic),
         (tank, line | hot,
-         "a supply tank is simulated with the chamber's pressure and the tank's as the states"),
+         "a supply tank is simulated with the chamber's pressure and the tank's as the states",
+         lines),
         (has("lung_volume_m3"), line | hot | tank,
-         "a two-compartment chamber is simulated with the two pressures as the states"),
+         "a two-compartment chamber is simulated with the two pressures as the states",
+         lines),
     )
     if np.any(has("closure_terms") & has("line_length_m")):
         raise ValueError("an open-form closure (effect 'closure') is part of the chamber's "
@@ -128,11 +132,8 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
         raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
                          "with the chamber's pressure as its only state: it cannot be "
                          "combined with heat_transfer or an acoustic line in one model")
-    for present, others, what in exclusive:
+    for present, others, what, beside in exclusive:
         if np.any(present & others):
-            beside = ("the tube's acoustic line (tube_delay form 'line')" if what.startswith(
-                "a compliant") else "the tube's acoustic line or wave line (tube_delay "
-                "forms 'line', 'wave')")
             raise ValueError(f"{what}: it cannot be combined with heat_transfer, {beside} "
                              "or another second state "
                              "(a supply tank, a second compartment) in one model")

@@ -352,6 +352,11 @@ class ReleaseDelay(PlantForm):
     def __post_init__(self):
         _non_negative(self, "delay_s")
 
+    @property
+    def acts(self) -> bool:
+        """Whether it changes when the valve takes the command (not at zero strength)."""
+        return self.delay_s > 0
+
     def switches(self, time_s, command, shared_delay_s: float = 0.0):
         """``(times, values)``: when (s) the valve takes each held value of
         ``command`` (sampled at ``time_s``), ``times[0] = -inf`` holding the first; a
@@ -434,6 +439,11 @@ class PwmValve(PlantForm):
         _non_negative(self, "frequency_Hz", "opening_delay_s", "closing_delay_s")
         _positive(self, "full_command_V")
 
+    @property
+    def acts(self) -> bool:
+        """Whether it changes when the valve takes the command (not at zero strength)."""
+        return self.frequency_Hz > 0
+
     def switches(self, time_s, command, shared_delay_s: float = 0.0):
         """``(times, values)``: when (s) the valve takes each command value (V), as
         :meth:`ReleaseDelay.switches` (``times[0] = -inf``)."""
@@ -502,6 +512,11 @@ class ZohDriver(PlantForm):
         _finite(self, "phase")
         if not 0.0 <= self.phase < 1.0:
             raise ValueError(f"ZohDriver.phase must be in [0, 1), got {self.phase!r}")
+
+    @property
+    def acts(self) -> bool:
+        """Whether it changes when the valve takes the command (not at zero strength)."""
+        return self.update_period_s > 0 or self.latency_s > 0
 
     def switches(self, time_s, command, shared_delay_s: float = 0.0):
         """``(times, values)``: when (s) the valve takes each command value (V), as
