@@ -47,10 +47,10 @@ from pneubayes.rig import Rig
 #: ratios up to 10, commands within +-10 (a hinge's reach up to 20; the null hinge's up
 #: to 2), port areas up to 5 mm^2 (an area beyond a cap's threshold 0.5 mm^2, so that a
 #: port's flux times it may take the coefficient +-1 that caps the port; a late valve's
-#: area change likewise), port flows up
-#: to 1e-3 kg/s (and per mm^2 of area), volumes up to 100 cm^3, relative volume rates up
-#: to 100 1/s, a command's lag 2 units (a lagged port's area then changes by up to 0.5
-#: mm^2 per command unit within the bound). A coefficient's bound is
+#: area change likewise), port flows up to 1e-3 kg/s (and per mm^2 of area), volumes up
+#: to 100 cm^3, relative volume rates up to 100 1/s, swept-volume speeds up to 100
+#: cm^3/s, a command's lag 2 units (a lagged port's area then changes by up to 0.5 mm^2
+#: per command unit within the bound). A coefficient's bound is
 #: :data:`FLOW_BOUND_KG_PER_S` over the product of its features' magnitudes.
 TYPICAL_MAGNITUDE: dict[str, float] = {
     "one": 1.0, "pressure_ratio": 10.0, "supply_ratio": 10.0, "spool": 10.0,
@@ -63,7 +63,7 @@ TYPICAL_MAGNITUDE: dict[str, float] = {
     "spool_null_hinge": 2.0, "net_flux": 1e-3, "inlet_area_hinge": 0.5,
     "exhaust_area_hinge": 0.5, "command_lag": 2.0, "command_lag_fall": 2.0,
     "command_lag_rise": 2.0, "inlet_area_late_fall": 0.5, "exhaust_area_late_fall": 0.5,
-    "inlet_area_late_rise": 0.5, "exhaust_area_late_rise": 0.5,
+    "inlet_area_late_rise": 0.5, "exhaust_area_late_rise": 0.5, "volume_speed": 100.0,
 }
 #: The largest closure flow a coefficient's bound allows at typical feature magnitudes,
 #: kg/s (ten times a port's typical 1e-4 kg/s).

@@ -166,6 +166,9 @@ FEATURES: tuple[Feature, ...] = (
     Feature("exhaust_area_late_rise", 34, "mm^2", "(a_ex(u_lo) - a_ex(u)) / 1e-6 m^2: the "
             "exhaust area of a valve that follows rises theta s late less its own; times "
             "exhaust_flux with c = -1", hinge=True, port=True, dead_time=True),
+    Feature("volume_speed", 35, "cm^3/s", "the piston's swept-volume speed whichever its "
+            "direction, |dV/dt| / 1e-6 m^3/s: what a seal or a wiper does in motion "
+            "only (a film that lifts and leaks, friction's heat)"),
 )
 
 FEATURE_BY_NAME: dict[str, Feature] = {f.name: f for f in FEATURES}
@@ -249,6 +252,9 @@ def evaluate_feature(name: str, signals: dict, threshold: float = 0.0) -> np.nda
         return vol / VOLUME_SCALE_M3
     if f.code == 9:
         return np.asarray(s["volume_rate_m3_per_s"], dtype=np.float64) / vol
+    if f.code == 35:
+        return np.abs(np.asarray(s["volume_rate_m3_per_s"], dtype=np.float64)
+                      ) / VOLUME_SCALE_M3 + 0.0 * p
     if f.code == 10:
         return np.maximum(p / p_atm - threshold, 0.0)
     if f.code == 11:

@@ -239,7 +239,9 @@ def closure_feature(code, theta, p, p_atm, p_sup, spool, a_in, a_ex, q_in, q_ex,
         z = theta - vol / _VOLUME_SCALE
         return ((z, -compl / _VOLUME_SCALE, -vdot / _VOLUME_SCALE) if z > 0.0
                 else (0.0, 0.0, 0.0))
-    if code >= 31:  # a late valve's area change (m^2; the kernel's, per command stretch)
+    if code == 35:  # |dV/dt| (the piston's: vdot held over the step)
+        return abs(vdot) / _VOLUME_SCALE, 0.0, 0.0
+    if 31 <= code <= 34:  # a late valve's area change (m^2; the kernel's, per command stretch)
         return pbar / _AREA_SCALE, 0.0, 0.0
     return cdir, 0.0, 0.0
 

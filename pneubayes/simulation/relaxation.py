@@ -113,7 +113,7 @@ def closure_plan(sl):
                 cl_spool = True
             if code == 15.0:
                 cl_spool, cl_dir = True, True
-            if code == 9.0 or code == 17.0 or code == 18.0:
+            if code == 9.0 or code == 17.0 or code == 18.0 or code == 35.0:
                 cl_vdot = True
         for code, slot, tc in ((sl[_CL_FA + kc], _CL_RA + kc, sl[_CL_TA + kc]),
                                (sl[_CL_FB + kc], _CL_RB + kc, sl[_CL_TB + kc])):
