@@ -92,6 +92,10 @@ CASES = {
     # a leak the piston uncovers past 11 cm^3 (a scored barrel, a port)
     "pressure_ratio*volume_hinge_up": (Term("pressure_ratio", "volume_hinge_up"), 0.0,
                                        11.0, -1e-5),
+    # a seal whose film lifts in motion either way and leaks in proportion to the
+    # pressure: 4e-7 kg/s per cm^3/s swept at P_atm (the piston sweeps up to 8 cm^3/s)
+    "pressure_ratio*volume_speed": (Term("pressure_ratio", "volume_speed"), 0.0, 0.0,
+                                    -4e-7),
     # a pilot inlet that shuts as the difference across it falls under 0.5 P_atm
     "inlet_flow*inlet_drop_hinge": (Term("inlet_flow", "inlet_drop_hinge"), 0.0, 0.5,
                                     -0.8),
