@@ -314,7 +314,8 @@ class Model:
 
     @property
     def relaxes_reading(self) -> bool:
-        """Whether an effect relaxes the reading (:meth:`reading_relaxations`)."""
+        """Whether an effect reads the pressure through a map after the kernel
+        (:meth:`reading_relaxations`, :meth:`reading_plays`)."""
         return any(e.relaxes_reading for e in self.effects)
 
     def reading_relaxations(self, params) -> tuple[np.ndarray, np.ndarray]:
@@ -329,6 +330,20 @@ class Model:
             return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
         return (np.concatenate([g for g, _ in parts], axis=1),
                 np.concatenate([tau for _, tau in parts], axis=1))
+
+    def reading_plays(self, params) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains (-), half-widths (Pa))``, each ``(B, J)``: the plays of the reading
+        (:mod:`pneubayes.simulation.reading_play`) of every effect that has them, side
+        by side (``J`` 0 without one)."""
+        theta = self.as_matrix(params)
+        names = self.parameter_names
+        parts = [e.reading_plays({n: theta[:, names.index(n)] for n in e.parameter_names()})
+                 for e in self.effects if e.relaxes_reading]
+        parts = [x for x in parts if x is not None]
+        if not parts:
+            return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
+        return (np.concatenate([h for h, _ in parts], axis=1),
+                np.concatenate([w for _, w in parts], axis=1))
 
     # ------------------------------------------------------------------ model card
     def to_card(self, values: Mapping[str, float], extra: Mapping | None = None) -> dict:

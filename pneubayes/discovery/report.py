@@ -80,7 +80,7 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_text_atomic(out / "found_volume.py",
                           volume_effect_skeleton(result.model, result.params))
         doc["found_volume_effect"] = "found_volume.py"
-    if doc.get("found_reading_terms"):  # and the reading's relaxations as another
+    if result.model.has("reading_closure"):  # and the reading's relaxations as another
         from pneubayes.discovery.openform.skeleton import reading_effect_skeleton
 
         write_text_atomic(out / "found_reading.py",
@@ -107,7 +107,7 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
                            result.settings.search.solver)
         figs["found_terms"] = plot_found_terms(views,
                                                out / "figures" / "found_terms.png").name
-    if figures and doc.get("found_reading_terms"):
+    if figures and result.model.has("reading_closure"):
         from pneubayes.discovery.openform.reading_view import reading_views
         from pneubayes.plotting import plot_found_reading_terms
 
@@ -245,8 +245,9 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                       "binned means and standard errors):", "",
                       f"![found terms](figures/{figs['found_terms']})"]
     if doc.get("found_reading_terms"):
-        lines += _terms_table("Open-form relaxations of the reading found (they change what "
-                              "the sensor reports, not the chamber; in no catalogue form):",
+        lines += _terms_table("Open-form terms at the reading found (relaxations, plays: "
+                              "they change what the sensor reports, not the chamber; in no "
+                              "catalogue form):",
                               doc["found_reading_terms"])
         if "found_reading_terms" in figs:
             lines += ["", "Each relaxation against its variable p - p_bar (red), beside the "

@@ -181,8 +181,9 @@ class Effect(Component):
     #: round's best (:func:`~pneubayes.discovery.rounds.fit_round_forms`), a rule that
     #: is there to spare minutes-long forms (an acoustic line), not a second parameter.
     cheap_forms: ClassVar[bool] = False
-    #: True for an effect that relaxes the reading (it defines
-    #: :meth:`reading_relaxations`; it writes no slot of the kernel).
+    #: True for an effect that reads the pressure through a map after the kernel (it
+    #: defines :meth:`reading_relaxations` and may define :meth:`reading_plays`; it
+    #: writes no slot of the kernel).
     relaxes_reading: ClassVar[bool] = False
 
     def beside_tube(self, form: str) -> bool:
@@ -205,6 +206,15 @@ class Effect(Component):
         each ``(B, K)``, at a batch of its parameter ``values``; None (the default) for
         an effect that does not. The simulator reads every window's pressure through
         the relaxations of all such effects (:mod:`pneubayes.simulation.reading_closure`)."""
+        return None
+
+    def reading_plays(self, values: Mapping[str, np.ndarray]) \
+            -> tuple[np.ndarray, np.ndarray] | None:
+        """For an effect that adds plays to the reading, ``r = p + sum_j h_j (p - y_j)``
+        with ``y_j`` the play of half-width ``w_j`` of ``p``: ``(gains (-), half-widths
+        (Pa))``, each ``(B, J)``; None (the default) for an effect that does not
+        (:mod:`pneubayes.simulation.reading_play`; such an effect sets
+        :attr:`relaxes_reading` too)."""
         return None
 
     def reading_lead_parameter(self) -> str | None:

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from pneubayes.effects.closure_histories import first_order_low_pass
+from pneubayes.simulation.reading_play import history_play, played_reading
 
 
 def _low_pass_rows(time_s: np.ndarray, values: np.ndarray, tau_s: float,
@@ -132,45 +133,63 @@ def reading_start(gains, bar_start_Pa, reading0_Pa) -> np.ndarray:
     return (reading0_Pa + np.sum(g * bar_start_Pa, axis=1)) / (1.0 + np.sum(g, axis=1))
 
 
-def start_state(gains, time_constants_s, inputs, starts, reading0_Pa):
-    """``(p0, p_bar0)``: the chamber's start ``(B, W)`` and each relaxation's ``(B, K, W)``
-    for windows starting at the samples ``starts`` from the readings ``reading0_Pa``
-    ``(W,)``, Pa. With the inputs' recorded reading, ``p_bar_k`` is its low-pass with
-    time constant ``tau_k (1 + sum_j g_j)`` (exact for one relaxation: with ``p = (r + g
-    p_bar) / (1 + g)``, ``tau dp_bar/dt = p - p_bar`` is ``tau (1 + g) dp_bar/dt = r -
-    p_bar``; for two, to second order in the gains), at rest where it has no finite
-    sample; without it, every ``p_bar_k`` at the start reading."""
+def start_state(gains, time_constants_s, inputs, starts, reading0_Pa, plays=None):
+    """``(p0, p_bar0, y0)``: the chamber's start ``(B, W)``, each relaxation's ``(B, K,
+    W)`` and each play's ``(B, J, W)`` (:mod:`pneubayes.simulation.reading_play`;
+    ``plays``: ``(gains, half-widths Pa)``, each ``(B, J)``, or None) for windows
+    starting at the samples ``starts`` from the readings ``reading0_Pa`` ``(W,)``, Pa.
+    With the inputs' recorded reading, ``p_bar_k`` is its low-pass with time constant
+    ``tau_k (1 + G)`` and ``y_j`` its play of half-width ``w_j (1 + G)``, ``G`` the sum
+    of every gain (exact for one term alone: with ``p = (r + g p_bar) / (1 + g)``, ``tau
+    dp_bar/dt = p - p_bar`` is ``tau (1 + g) dp_bar/dt = r - p_bar``; for two, to second
+    order in the gains), at rest where it has no finite sample; without it, every
+    ``p_bar_k`` and ``y_j`` at the start reading."""
     g = np.asarray(gains, dtype=np.float64)
-    if np.any(1.0 + np.sum(g, axis=1) <= 0.0):
+    h, w = ((np.zeros((g.shape[0], 0)), np.ones((g.shape[0], 0))) if plays is None
+            else (np.asarray(a, dtype=np.float64) for a in plays))
+    total = np.sum(g, axis=1) + np.sum(h, axis=1)
+    if np.any(1.0 + total <= 0.0):
         raise ValueError("reading closure: the gains must sum to more than -1 (a reading "
                          "that still moves with the pressure at once), got "
-                         f"{np.sum(g, axis=1).min():.3g}")
+                         f"{total.min():.3g}")
     r0 = np.asarray(reading0_Pa, dtype=np.float64)
     bar0 = np.broadcast_to(r0, (*g.shape, r0.size)).copy()
+    y0 = np.broadcast_to(r0, (*h.shape, r0.size)).copy()
     if inputs.reading_Pa is not None:
-        tau = np.asarray(time_constants_s, dtype=np.float64)
-        warm = history_low_pass(inputs.time_s, inputs.reading_Pa,
-                                tau * (1.0 + np.sum(g, axis=1, keepdims=True)), starts)
-        bar0 = np.where(np.isfinite(warm), warm, bar0)
-    return reading_start(g, bar0, r0), bar0
+        stretch = (1.0 + total)[:, None]
+        if g.shape[1]:
+            warm = history_low_pass(inputs.time_s, inputs.reading_Pa,
+                                    np.asarray(time_constants_s, np.float64) * stretch, starts)
+            bar0 = np.where(np.isfinite(warm), warm, bar0)
+        if h.shape[1]:
+            played = history_play(inputs.time_s, inputs.reading_Pa, w * stretch, starts)
+            y0 = np.where(np.isfinite(played), played, y0)
+    return (reading_start(np.concatenate([g, h], axis=1),
+                          np.concatenate([bar0, y0], axis=1), r0), bar0, y0)
 
 
 def read_windows(gains, time_constants_s, inputs, starts, pressure_Pa, sensitivity,
-                 kernel_start_Pa, start_Pa, bar_start_Pa) -> tuple[np.ndarray, np.ndarray]:
+                 kernel_start_Pa, start_Pa, bar_start_Pa, plays=None, play_start_Pa=None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """The kernel's windows ``(B, W, L)`` (``pressure_Pa``, simulated from
     ``kernel_start_Pa`` ``(W,)``, and ``sensitivity``, dp/dp0) moved to each parameter
     set's own chamber start ``start_Pa`` ``(B, W)`` to first order, and read through the
-    relaxations (``gains``, ``time_constants_s``: ``(B, K)``) from ``bar_start_Pa``
-    (:func:`start_state`): the reading and its sensitivity to the window's start
-    reading."""
+    relaxations (``gains``, ``time_constants_s``: ``(B, K)``) from ``bar_start_Pa`` and
+    the plays (``plays``: ``(gains, half-widths)``, ``(B, J)``, or None) from
+    ``play_start_Pa`` (:func:`start_state`): the reading and its sensitivity to the
+    window's start reading."""
     g = np.asarray(gains, dtype=np.float64)
     starts = np.asarray(starts, dtype=np.int64)
     t = np.asarray(inputs.time_s, dtype=np.float64)[
         starts[:, None] + np.arange(pressure_Pa.shape[-1])]
     p = pressure_Pa + sensitivity * (start_Pa - kernel_start_Pa[None])[:, :, None]
     reading = relaxed_reading(t, p, g, time_constants_s, bar_start_Pa)
-    # d reading / d r0: the chamber's start moves by 1 / (1 + sum g), p_bar_k's not
-    scale = 1.0 / (1.0 + np.sum(g, axis=1))[:, None, None]
-    sens = relaxed_reading(t, sensitivity, g, time_constants_s,
-                           np.zeros_like(bar_start_Pa)) * scale
-    return reading, sens
+    # d reading / d r0: the chamber's start moves by 1 / (1 + sum of gains), the
+    # relaxations' and plays' starts do not
+    sens = relaxed_reading(t, sensitivity, g, time_constants_s, np.zeros_like(bar_start_Pa))
+    total = np.sum(g, axis=1)
+    if plays is not None and np.shape(plays[0])[1]:
+        part, slope = played_reading(p, sensitivity, *plays, play_start_Pa)
+        reading, sens = reading + part, sens + slope
+        total = total + np.sum(plays[0], axis=1)
+    return reading, sens / (1.0 + total)[:, None, None]

@@ -373,7 +373,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     asked). A miscalibrated sensor (effect ``sensor_calibration``) reads P_atm + g (p -
     P_atm) + o: ``initial_pressure_Pa`` and ``initial_rate_Pa_per_s`` are such readings,
     and so is every output. A reading closure's relaxations (effect
-    ``reading_closure``) are ODE states that follow that reading from rest.
+    ``reading_closure``) are ODE states that follow that reading from rest; a reading
+    play's (effect ``reading_play``) follows it at the samples from rest.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     cal_g, curv = 1.0 + sl[S["reading_gain_error"]], sl[S["reading_curvature_Pa"]]
@@ -536,5 +537,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         rel[k + 1] = y[n_main:]
     if calibrated:
         out = p_atm + cal_g * (out - p_atm) + curv * ((out - p_atm) / 1e5) ** 2 + cal_o
-    out = out + (gains * (out[:, None] - rel)).sum(axis=1)
+    read = out.copy()  # a reading play follows the samples (linear between them)
+    out = out + (gains * (read[:, None] - rel)).sum(axis=1)
+    for h, w in zip(*(a[0] for a in model.reading_plays(params))):
+        y = read[0]
+        for k, v in enumerate(read):
+            y = min(v + w, max(v - w, y))
+            out[k] += h * (v - y)
     return (out, nfev) if return_stats else out

@@ -193,8 +193,14 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     read_through = model.relaxes_reading
     call = kernel.simulate_windows_sensitivity if read_through else kernel_fn
     if read_through:
-        relax = model.reading_relaxations(theta)
-        start, bar0 = start_state(*relax, inputs, starts, p0)
+        relax, plays = model.reading_relaxations(theta), model.reading_plays(theta)
+        # (gains summing to -1 or less leave a reading that does not tell the pressure:
+        # such a set fails, as a failed simulation does)
+        unreadable = 1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1) <= 0.0
+        if unreadable.any() and on_failure == "nan":
+            relax = (np.where(unreadable[:, None], 0.0, relax[0]), relax[1])
+            plays = (np.where(unreadable[:, None], 0.0, plays[0]), plays[1])
+        start, bar0, y0 = start_state(*relax, inputs, starts, p0, plays)
         p0 = start.mean(axis=0)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = kernel_ready_arrays(
@@ -235,7 +241,9 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                               f"stands for no chamber pressure (beyond the curved "
                               f"sensor's turning point); parameter set {unread[0]}: {vals}")
     if read_through:  # an open-form term at the reading (effect reading_closure)
-        out, sens = read_windows(*relax, inputs, starts, *arrays[:2], p0, start, bar0)
+        out, sens = read_windows(*relax, inputs, starts, *arrays[:2], p0, start, bar0,
+                                 plays, y0)
+        out[unreadable], sens[unreadable] = np.nan, np.nan
         arrays = [out, sens] if kernel_fn is kernel.simulate_windows_sensitivity else [out]
     return arrays
 

@@ -29,6 +29,7 @@ from scipy.optimize import minimize, minimize_scalar
 from pneubayes.discovery.openform.clustered import last_column_fit
 from pneubayes.effects.reading_closure import READING_MAX_TERMS, TIME_CONSTANT_BOUNDS_S
 from pneubayes.simulation.reading_closure import history_low_pass, relaxed_reading
+from pneubayes.simulation.reading_play import history_play, play_rows
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,23 @@ class ReadingWindows:
         return col[:, 1:].reshape(-1)
 
 
+    def play_column(self, width_Pa: float) -> np.ndarray:
+        """d(reading)/dh at h = 0 for a play of half-width ``width_Pa``
+        (:mod:`pneubayes.simulation.reading_play`): ``p - y`` plus the chamber's start
+        moved by ``y(start) - r0`` along the start sensitivity; as :meth:`column`."""
+        p = np.asarray(self.predicted_Pa, dtype=np.float64)
+        r0 = p[:, 0]
+        y0 = r0
+        if self.history is not None:
+            t_all, reading, starts = self.history
+            warm = history_play(t_all, reading, np.full((1, 1), float(width_Pa)), starts)[0, 0]
+            y0 = np.where(np.isfinite(warm), warm, r0)
+        y, _ = play_rows(p, np.zeros_like(p), float(width_Pa), y0)
+        sens = 1.0 if self.sensitivity is None else np.asarray(self.sensitivity)
+        col = p - y + sens * (y0 - r0)[:, None]
+        return col[:, 1:].reshape(-1)
+
+
 def reading_windows(window_set, model, params, solver) -> list[ReadingWindows]:
     """The windows of ``window_set`` (a :class:`~pneubayes.inference.windows.WindowSet`)
     as ``model`` at ``params`` (one set) predicts them by ``solver``, one
@@ -114,6 +132,13 @@ def relaxation_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.nda
     """:meth:`ReadingWindows.column` of each block, in block order (Pa; 0 where a
     prediction failed)."""
     x = np.concatenate([b.column(tau_s) for b in blocks])
+    return np.where(np.isfinite(x), x, 0.0)
+
+
+def play_columns(blocks: Sequence[ReadingWindows], width_Pa: float) -> np.ndarray:
+    """:meth:`ReadingWindows.play_column` of each block, in block order (Pa; 0 where a
+    prediction failed)."""
+    x = np.concatenate([b.play_column(width_Pa) for b in blocks])
     return np.where(np.isfinite(x), x, 0.0)
 
 
@@ -156,15 +181,24 @@ class ReadingSearch:
         return {"time_constants_s": self.time_constants_s, "max_terms": self.max_terms,
                 "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t}
 
-    def _validate(self, blocks):
+    #: The most terms the component holds.
+    max_terms_allowed = READING_MAX_TERMS
+
+    def _checked_grid(self) -> np.ndarray:
+        """The searched grid, checked."""
         taus = np.asarray(self.time_constants_s, dtype=np.float64)
         lo, hi = TIME_CONSTANT_BOUNDS_S
         if taus.ndim != 1 or taus.size < 3 or np.any(np.diff(taus) <= 0) \
                 or taus[0] < lo or taus[-1] > hi:
             raise ValueError(f"time_constants_s must be at least 3 increasing values within "
                              f"[{lo}, {hi}] s, got {self.time_constants_s!r}")
-        if not (isinstance(self.max_terms, int) and 1 <= self.max_terms <= READING_MAX_TERMS):
-            raise ValueError(f"max_terms must be an integer in 1..{READING_MAX_TERMS}, got "
+        return taus
+
+    def _validate(self, blocks):
+        taus = self._checked_grid()
+        most = self.max_terms_allowed
+        if not (isinstance(self.max_terms, int) and 1 <= self.max_terms <= most):
+            raise ValueError(f"max_terms must be an integer in 1..{most}, got "
                              f"{self.max_terms!r}")
         if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0:
             raise ValueError("min_explained_fraction must be in (0, 1) and min_t > 0, got "
@@ -201,7 +235,7 @@ class ReadingSearch:
             basis = np.stack(kept_cols, axis=1) if kept_cols else None
 
             def score(log_tau, basis=basis):  # the sum of squares it adds beside the kept
-                x = relaxation_columns(blocks, float(np.exp(log_tau)))
+                x = self._columns(blocks, float(np.exp(log_tau)))
                 x = np.where(ok, x, 0.0)
                 own = float(x @ x)
                 if basis is not None:
@@ -217,7 +251,7 @@ class ReadingSearch:
                                    options={"xatol": 1e-3})
             log_tau = best.x if -best.fun > gains[j] else logs[j]
             tau = float(np.exp(log_tau))
-            col = np.where(ok, relaxation_columns(blocks, tau), 0.0)
+            col = np.where(ok, self._columns(blocks, tau), 0.0)
             term = self._term(kept_cols + [col], y, ok, windows, tau, total)
             if self.best_ is None:
                 self.best_ = term
@@ -232,7 +266,7 @@ class ReadingSearch:
             g = np.linalg.lstsq(x, np.where(ok, y, 0.0), rcond=None)[0]
             e = np.where(ok, y, 0.0) - x @ g
             self.explained_fraction_ = 1.0 - float(e @ e) / total
-            self.terms_ = [ReadingTerm(float(gk), k.time_constant_s, k.explained, k.t)
+            self.terms_ = [self._new_term(float(gk), self._value_of(k), k.explained, k.t)
                            for gk, k in zip(g, self.terms_)]
         return self
 
@@ -243,14 +277,14 @@ class ReadingSearch:
         lo, hi = np.log(taus[0]), np.log(taus[-1])
 
         def columns(logs):
-            return [np.where(ok, relaxation_columns(blocks, float(np.exp(np.clip(v, lo, hi)))),
+            return [np.where(ok, self._columns(blocks, float(np.exp(np.clip(v, lo, hi)))),
                              0.0) for v in logs]
 
         def sse(logs):
             x = np.stack(columns(logs), axis=1)
             e = yy - x @ np.linalg.lstsq(x, yy, rcond=None)[0]
             return float(e @ e) / total
-        start = np.log([k.time_constant_s for k in self.terms_])
+        start = np.log([self._value_of(k) for k in self.terms_])
         best = minimize(sse, start, method="Nelder-Mead",
                         options={"xatol": 1e-3, "fatol": 1e-9, "maxiter": 200})
         logs = np.clip(best.x, lo, hi) if best.fun < sse(start) else start
@@ -260,9 +294,21 @@ class ReadingSearch:
                        for k in range(len(cols))]
         return cols
 
-    @staticmethod
-    def _term(cols, y, ok, windows, tau, total) -> ReadingTerm:
+    def _term(self, cols, y, ok, windows, value, total):
         """The last of ``cols`` fitted beside the others: its gain, its own share of the
         sum of squares (beside them) and its window-clustered t."""
         gain, explained, t = last_column_fit(cols, y, ok, windows, total)
-        return ReadingTerm(gain, tau, explained, t)
+        return self._new_term(gain, value, explained, t)
+
+    # the kind of term searched: a subclass searches another (PlaySearch)
+    @staticmethod
+    def _columns(blocks, value):
+        return relaxation_columns(blocks, value)
+
+    @staticmethod
+    def _new_term(gain, value, explained, t):
+        return ReadingTerm(gain, value, explained, t)
+
+    @staticmethod
+    def _value_of(term):
+        return term.time_constant_s

@@ -16,6 +16,7 @@ from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
 from pneubayes.discovery.stages.reading_form import ReadingForm
+from pneubayes.discovery.stages.reading_play_form import ReadingPlayForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
 from pneubayes.discovery.stages.volume_form import VolumeForm
 
@@ -24,8 +25,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open forms: the reading's relaxations, the volume's
-    hinges and the closure."""
+    effects' other forms, then the open forms: the reading's relaxations and plays, the
+    volume's hinges and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -44,6 +45,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     # physical form expresses exactly (an accumulator's compliance, as pressure relaxations)
     if s.reading_form_min_noise_ratio:
         stages.append(ReadingForm(s.reading_form_min_noise_ratio))
+    if s.reading_play_min_noise_ratio:
+        stages.append(ReadingPlayForm(s.reading_play_min_noise_ratio))
     if s.volume_form_min_noise_ratio:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
     if s.open_form_min_noise_ratio:
@@ -52,4 +55,4 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 
 
 __all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
-           "OpenForm", "ReadingForm", "VolumeForm", "default_stages"]
+           "OpenForm", "ReadingForm", "ReadingPlayForm", "VolumeForm", "default_stages"]
