@@ -326,6 +326,7 @@ class Model:
         parts = [e.reading_relaxations({n: theta[:, names.index(n)]
                                         for n in e.parameter_names()})
                  for e in self.effects if e.relaxes_reading]
+        parts = [x for x in parts if x is not None]  # (an effect with plays only)
         if not parts:
             return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
         return (np.concatenate([g for g, _ in parts], axis=1),

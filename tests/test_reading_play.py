@@ -210,3 +210,41 @@ def test_the_play_stage_is_in_the_pipeline_and_its_terms_are_listed_apart():
     (term,) = doc["found_reading_terms"]
     assert term["term"] == "play 0" and term["formula"].startswith("r = p + h_0 (p - y_0)")
     assert term["parameters"]["reading_play_width_0"] == {"unit": "Pa", "estimate": WIDTH}
+
+
+def test_found_plays_become_an_effect_plug_in_beside_a_relaxation(rig, hand):
+    """The play's skeleton is Python that defines an effect of the user's name: a model
+    with it simulates exactly as the model with the found reading play; beside a
+    relaxation of the reading both act (the reference solver agrees); a model without a
+    play is named."""
+    from pneubayes.discovery.openform.skeleton import play_effect_skeleton
+    from pneubayes.effects import ReadingClosure
+    from pneubayes.simulation import SolverConfig, simulate_windows
+    from pneubayes.simulation.reference import reference_simulate
+
+    inputs, base, params = _setup(rig, hand, n=601)
+    model = Model().with_effect(ReadingPlay())
+    text = play_effect_skeleton(model, params, "GaugePlay", "gauge_play")
+    assert f"h_0 = {GAIN:g}, w_0 = {WIDTH:g} Pa" in text
+    ns: dict = {}
+    exec(compile(text, "found_reading_play.py", "exec"), ns)  # noqa: S102
+    eff = ns["GaugePlay"]()
+    assert eff.name == "gauge_play" and eff.relaxes_reading
+    assert eff.bench_defaults() == {"play0_gain": GAIN, "play0_half_width_Pa": WIDTH}
+    mine = Model([eff])
+    mine_params = {**base, **eff.bench_defaults()}
+    starts, solver = np.array([0, 300]), SolverConfig.standard()
+    theirs = simulate_windows(model, params, inputs, rig, starts, 300, 2e5, solver)
+    ours = simulate_windows(mine, mine_params, inputs, rig, starts, 300, 2e5, solver)
+    np.testing.assert_array_equal(ours, theirs)
+    both = Model().with_effect(ReadingClosure()).with_effect(eff)
+    both_params = {**mine_params, "reading_closure_gain_0": 0.05,
+                   "reading_closure_time_constant_0": 0.2}
+    n = 601
+    sim = simulate_windows(both, both_params, inputs, rig, np.array([0]), n, 2e5, solver)[0, 0]
+    ref = reference_simulate(both, both_params, inputs, rig, 2e5, rtol=1e-8, atol=1e-5)
+    alone = simulate_windows(mine, mine_params, inputs, rig, np.array([0]), n, 2e5,
+                             solver)[0, 0]
+    assert np.max(np.abs(sim - ref)) < 20.0 < np.max(np.abs(sim - alone))
+    with pytest.raises(ValueError, match="no reading play"):
+        play_effect_skeleton(Model(), {})

@@ -86,6 +86,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_text_atomic(out / "found_reading.py",
                           reading_effect_skeleton(result.model, result.params))
         doc["found_reading_effect"] = "found_reading.py"
+    if result.model.has("reading_play"):  # and its plays as another
+        from pneubayes.discovery.openform.skeleton import play_effect_skeleton
+
+        write_text_atomic(out / "found_reading_play.py",
+                          play_effect_skeleton(result.model, result.params))
+        doc["found_reading_play_effect"] = "found_reading_play.py"
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
     if figures and result.maps:  # (no search round, no map: max_effects 0)

@@ -87,19 +87,21 @@ class ReadingPlay(Effect):
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         return {}  # (no slot of the kernel: see the module's docstring)
 
-    def reading_relaxations(self, values: Mapping[str, np.ndarray]) \
-            -> tuple[np.ndarray, np.ndarray]:
-        """None of its own: ``(B, 0)`` arrays."""
-        b = np.atleast_1d(np.asarray(values[play_gain_name(0)], np.float64)).shape[0]
-        return np.zeros((b, 0)), np.ones((b, 0))
-
     def reading_plays(self, values: Mapping[str, np.ndarray]) \
             -> tuple[np.ndarray, np.ndarray]:
         """``(gains, half-widths)``, each ``(B, terms)``, of a batch of values."""
-        h = np.stack([np.atleast_1d(np.asarray(values[play_gain_name(j)], np.float64))
-                      for j in range(self.terms)], axis=-1)
-        w = np.stack([np.atleast_1d(np.asarray(values[play_width_name(j)], np.float64))
-                      for j in range(self.terms)], axis=-1)
+        return self.plays_named(values, [play_gain_name(j) for j in range(self.terms)],
+                                [play_width_name(j) for j in range(self.terms)])
+
+    @staticmethod
+    def plays_named(values: Mapping[str, np.ndarray], gains: list[str],
+                    widths: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains, half-widths)``, each ``(B, J)``, read from ``values`` under the
+        parameter names ``gains`` and ``widths`` (one per play)."""
+        h = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in gains],
+                     axis=-1)
+        w = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in widths],
+                     axis=-1)
         return tuple(np.broadcast_arrays(h, w))
 
     def bench_defaults(self):

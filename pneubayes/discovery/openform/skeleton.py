@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from pneubayes.effects.closure_terms import term_formula
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
+from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 
 
@@ -200,4 +201,79 @@ class {class_name}(Effect):
 '''
 
 
-__all__ = ["effect_skeleton", "reading_effect_skeleton", "volume_effect_skeleton"]
+def play_effect_skeleton(model, params: dict, class_name: str = "FoundReadingPlay",
+                         effect_name: str = "found_reading_play") -> str:
+    """The module text of an effect plug-in for ``model``'s reading play at ``params``:
+    an effect that adds plays to the reading
+    (:meth:`~pneubayes.effects.Effect.reading_plays`) with the found number of plays,
+    each a gain (-) and a half-width (Pa) under the user's names; parameters and return
+    as :func:`effect_skeleton`'s."""
+    if not model.has("reading_play"):
+        raise ValueError("play_effect_skeleton: the model has no reading play (no found "
+                         "play of the reading)")
+    terms = model.effect("reading_play").terms
+    names, lines = {}, []
+    for k in range(terms):
+        h, w = play_gain_name(k), play_width_name(k)
+        lines.append(f"#   play {k}: r = p + h_{k} (p - y_{k}), y_{k} = min(p + w_{k}, max(p - "
+                     f"w_{k}, y_{k} before)); h_{k} = {float(params[h]):.6g}, w_{k} = "
+                     f"{float(params[w]):.6g} Pa")
+        names[f"play{k}_gain"] = h
+        names[f"play{k}_half_width_Pa"] = w
+    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs in names.items())
+    defaults = "\n".join(f"        {mine!r}: {float(params[theirs])!r},"
+                         for mine, theirs in names.items())
+    gains = [m for m in names if m.endswith("_gain")]
+    widths = [m for m in names if m.endswith("_half_width_Pa")]
+    return f'''"""{effect_name}: plays (backlash) of the pressure reading found by pneubayes
+discover.
+
+Found as an open-form term at the reading (the chamber's pressure p is unchanged; its
+reading r is):
+{chr(10).join(lines)}
+Edit the names, the descriptions and the bounds to say what it is (play in a gauge's
+linkage, a diaphragm held by friction). Register it with one line in
+pneubayes.effects.CATALOGUE, or use it directly: ``Model([{class_name}()])``.
+"""
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.reading_play import ReadingPlay
+
+
+class {class_name}(Effect):
+    """Found plays of the reading (edit this description)."""
+
+    name = {effect_name!r}
+    acts_on = ()  # (the simulator reads each window's pressure through it)
+    relaxes_reading = True
+    library_searched = False
+    #: This effect's parameter -> the reading play's.
+    NAMES = {{
+{mapping}
+    }}
+    GAINS = {gains!r}
+    WIDTHS = {widths!r}
+
+    def parameters(self):
+        found = {{p.name: p for p in ReadingPlay(terms={terms}).parameters()}}
+        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
+                               found[theirs].upper, found[theirs].prior,
+                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
+                     for mine, theirs in self.NAMES.items())
+
+    def lower(self, values, rig):
+        return {{}}  # (no slot of the kernel)
+
+    def reading_plays(self, values):
+        return ReadingPlay.plays_named(values, self.GAINS, self.WIDTHS)
+
+    def bench_defaults(self):
+        """The values discovery fitted."""
+        return {{
+{defaults}
+        }}
+'''
+
+
+__all__ = ["effect_skeleton", "play_effect_skeleton", "reading_effect_skeleton",
+           "volume_effect_skeleton"]
