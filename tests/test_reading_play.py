@@ -248,3 +248,25 @@ def test_found_plays_become_an_effect_plug_in_beside_a_relaxation(rig, hand):
     assert np.max(np.abs(sim - ref)) < 20.0 < np.max(np.abs(sim - alone))
     with pytest.raises(ValueError, match="no reading play"):
         play_effect_skeleton(Model(), {})
+
+
+def test_a_controllers_prediction_starts_the_play_where_the_readings_left_it(rig, hand):
+    """PressurePredictor with the readings before now predicts a recording read through
+    a play from mid-recording as the recording's own simulation does; without them it
+    starts the play at rest and misses by part of the width."""
+    from pneubayes.inference.predictive import PressurePredictor
+    from pneubayes.simulation import SolverConfig, simulate_windows
+
+    inputs, _, params = _setup(rig, hand)
+    n, now, horizon = inputs.time_s.size, 600, 400
+    u = inputs.command_V
+    model = Model().with_effect(ReadingPlay())
+    solver = SolverConfig.standard()
+    whole = simulate_windows(model, params, inputs, rig, np.array([0]), n, 2e5, solver)[0, 0]
+    predictor = PressurePredictor(model, model.vector(params)[None], rig, solver)
+    args = (whole[now], u[now:now + horizon], 0.015, 1e-3)
+    warm = predictor.predict_draws(*args, command_history_V=u[:now],
+                                   reading_history_Pa=whole[:now])[0, 0]
+    rest = predictor.predict_draws(*args, command_history_V=u[:now])[0, 0]
+    truth = whole[now:now + horizon + 1]
+    assert np.max(np.abs(warm - truth)) < 50.0 < 0.2 * np.max(np.abs(rest - truth))
