@@ -37,6 +37,19 @@ def _play_series(values, width, y0):
     return out
 
 
+@njit(cache=True, error_model="numpy")
+def _play_rows(v, s, width, y0, out, dout):
+    """:func:`play_rows`' recursion, row by row into ``out`` and ``dout``."""
+    for i in range(v.shape[0]):
+        y, dy = y0[i], 0.0
+        for k in range(v.shape[1]):
+            if y < v[i, k] - width:
+                y, dy = v[i, k] - width, s[i, k]
+            elif y > v[i, k] + width:
+                y, dy = v[i, k] + width, s[i, k]
+            out[i, k], dout[i, k] = y, dy
+
+
 def play_rows(values, sensitivity, width_Pa: float, start_Pa):
     """Each row's play and its slope in the window's start pressure.
 
@@ -56,17 +69,11 @@ def play_rows(values, sensitivity, width_Pa: float, start_Pa):
     -------
     (y, dy) : two (W, L) arrays
     """
-    v = np.asarray(values, dtype=np.float64)
-    s = np.asarray(sensitivity, dtype=np.float64)
-    y = np.asarray(start_Pa, dtype=np.float64).copy()
-    dy = np.zeros_like(y)
+    v = np.ascontiguousarray(values, dtype=np.float64)
+    s = np.ascontiguousarray(np.broadcast_to(sensitivity, v.shape), dtype=np.float64)
+    y0 = np.ascontiguousarray(np.broadcast_to(start_Pa, v.shape[:1]), dtype=np.float64)
     out, dout = np.empty_like(v), np.empty_like(v)
-    for k in range(v.shape[1]):  # (a recursion along the window, every row at once)
-        lo, hi = v[:, k] - width_Pa, v[:, k] + width_Pa
-        up, down = y < lo, y > hi
-        y = np.where(up, lo, np.where(down, hi, y))
-        dy = np.where(up | down, s[:, k], dy)
-        out[:, k], dout[:, k] = y, dy
+    _play_rows(v, s, float(width_Pa), y0, out, dout)
     return out, dout
 
 
