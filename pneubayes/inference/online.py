@@ -185,7 +185,7 @@ class OnlineTracker:
                              "'lookback'")
         if self.update_mode == "carried" and self.model.relaxes_reading:
             raise ValueError("OnlineTracker: update_mode 'carried' cannot carry a "
-                             "relaxation of the reading (its effect "
+                             "relaxation or a play of the reading (its effect "
                              f"{[e.name for e in self.model.effects if e.relaxes_reading]} "
                              "starts warm from each window's recorded readings); use "
                              "'lookback'")

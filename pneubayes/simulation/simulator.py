@@ -349,8 +349,9 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
         raise ValueError("simulate_carried: a declared pressure filter's reading is "
                          "computed over whole windows and cannot be carried")
     if model.relaxes_reading:
-        raise ValueError("simulate_carried: a reading closure's relaxations start at each "
-                         "window's start and are not carried from chunk to chunk")
+        raise ValueError("simulate_carried: a reading closure's relaxations (or a reading "
+                         "play's plays) start at each window's start and are not carried "
+                         "from chunk to chunk")
     if not (isinstance(gain, (int, float)) and not isinstance(gain, bool)
             and 0.0 <= gain <= 1.0):
         raise ValueError(f"simulate_carried: gain must be a number in [0, 1], got {gain!r}")
