@@ -50,7 +50,7 @@ def test_a_play_lags_a_reversal_by_its_width_whatever_the_rate():
     assert np.all(d0[0, :first] == 0.0) and d0[0, first] == s[0, first]
     reading = np.r_[np.nan, tri, np.nan, tri[::-1]]
     starts = np.array([1 + top, tri.size + 2 + 50])
-    h = history_play(np.arange(reading.size), reading, np.array([[w]]), starts)[0, 0]
+    h = history_play(reading, np.array([[w]]), starts)[0, 0]
     assert h[0] == pytest.approx(_naive_play(tri, w, tri[0])[top])
     assert h[1] == pytest.approx(_naive_play(tri[::-1], w, tri[-1])[50])
 

@@ -162,7 +162,7 @@ def start_state(gains, time_constants_s, inputs, starts, reading0_Pa, plays=None
                                     np.asarray(time_constants_s, np.float64) * stretch, starts)
             bar0 = np.where(np.isfinite(warm), warm, bar0)
         if h.shape[1]:
-            played = history_play(inputs.time_s, inputs.reading_Pa, w * stretch, starts)
+            played = history_play(inputs.reading_Pa, w * stretch, starts)
             y0 = np.where(np.isfinite(played), played, y0)
     return (reading_start(np.concatenate([g, h], axis=1),
                           np.concatenate([bar0, y0], axis=1), r0), bar0, y0)

@@ -77,13 +77,11 @@ def play_rows(values, sensitivity, width_Pa: float, start_Pa):
     return out, dout
 
 
-def history_play(time_s, reading_Pa, widths_Pa, starts) -> np.ndarray:
+def history_play(reading_Pa, widths_Pa, starts) -> np.ndarray:
     """The recorded reading's play at the samples ``starts``, from rest at the first
     sample of the stretch of finite readings each start lies in, for each half-width:
     ``(B, J, W)`` for ``widths_Pa`` ``(B, J)`` (NaN where the reading at a start is not
-    finite). ``time_s`` is unused (a play does not depend on time) but kept beside
-    :func:`~pneubayes.simulation.reading_closure.history_low_pass`'s signature."""
-    del time_s
+    finite; a play does not depend on the times, only on the samples' order)."""
     w = np.asarray(widths_Pa, dtype=np.float64)
     starts = np.asarray(starts, dtype=np.int64)
     r = np.asarray(reading_Pa, dtype=np.float64)

@@ -97,8 +97,8 @@ class ReadingWindows:
         r0 = p[:, 0]
         y0 = r0
         if self.history is not None:
-            t_all, reading, starts = self.history
-            warm = history_play(t_all, reading, np.full((1, 1), float(width_Pa)), starts)[0, 0]
+            _, reading, starts = self.history
+            warm = history_play(reading, np.full((1, 1), float(width_Pa)), starts)[0, 0]
             y0 = np.where(np.isfinite(warm), warm, r0)
         y, _ = play_rows(p, np.zeros_like(p), float(width_Pa), y0)
         sens = 1.0 if self.sensitivity is None else np.asarray(self.sensitivity)
