@@ -250,7 +250,7 @@ def test_discovery_finds_a_planted_relaxation_of_the_reading(relaxing_recordings
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
     write_discovery(result, recs, tmp_path)
     report = (tmp_path / "report.md").read_text()
-    assert "relaxations of the reading found" in report
+    assert "terms at the reading found (relaxations, plays" in report
     assert "![found relaxations](figures/found_reading_terms.png)" in report
     assert (tmp_path / "figures" / "found_reading_terms.png").stat().st_size > 0
     assert (tmp_path / "found_reading.py").exists()

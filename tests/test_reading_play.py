@@ -270,3 +270,49 @@ def test_a_controllers_prediction_starts_the_play_where_the_readings_left_it(rig
     rest = predictor.predict_draws(*args, command_history_V=u[:now])[0, 0]
     truth = whole[now:now + horizon + 1]
     assert np.max(np.abs(warm - truth)) < 50.0 < 0.2 * np.max(np.abs(rest - truth))
+
+
+@pytest.mark.slow
+def test_discovery_finds_a_planted_play_of_the_reading(tmp_path):
+    """The loop with the play stage alone, on four 8-s valve1 recordings read through a
+    play: the play is found with its gain and half-width, verified on held-out windows,
+    the held-out error falls to about the noise floor, and the report lists it with the
+    reading's terms and writes its plug-in."""
+    from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
+
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.report import write_discovery
+    from pneubayes.discovery.stages import ReadingPlayForm
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    truth_model = Model().with_effect(ReadingPlay())
+    truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+             "reading_play_gain_0": GAIN, "reading_play_width_0": WIDTH}
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    recs, n = [], 8001
+    for seed in range(4):
+        rng = np.random.default_rng(10 + seed)
+        t = np.arange(n) * 1e-3
+        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
+        blank = Recording(md, t, u, np.full(n, P_ATM))
+        p = simulate(truth_model, truth, Inputs.from_recording(blank), blank.rig(), P_ATM,
+                     SolverConfig.standard()).pressure_Pa[0]
+        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
+                              source=f"playing_{seed}.csv"))
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    result = Discovery(settings, None, log=None, stages=[ReadingPlayForm()]).fit(recs).result_
+    doc = result.to_dict()
+    (term,) = doc["found_reading_terms"]
+    h = term["parameters"]["reading_play_gain_0"]["estimate"]
+    w = term["parameters"]["reading_play_width_0"]["estimate"]
+    assert h == pytest.approx(GAIN, rel=0.1) and w == pytest.approx(WIDTH, rel=0.1)
+    assert doc["effects"] == [] and doc["found_terms"] == []
+    assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+    write_discovery(result, recs, tmp_path)
+    assert "terms at the reading found" in (tmp_path / "report.md").read_text()
+    assert (tmp_path / "found_reading_play.py").exists()
