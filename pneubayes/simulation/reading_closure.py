@@ -15,6 +15,8 @@ reading's low-pass at the window's start (from rest at the recording's first sam
 simulates each window from the parameter sets' mean ``p0`` (exactly for one set);
 :func:`read_windows` moves each set to its own to first order with the kernel's start
 sensitivity dp/dp0. Without the recorded reading, every ``p_bar_k`` starts at rest.
+:func:`start_state` and :func:`read_windows` also take a model's plays of the reading
+(:mod:`pneubayes.simulation.reading_play`), whose gains join the sums above.
 """
 
 from __future__ import annotations
