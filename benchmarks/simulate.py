@@ -91,6 +91,8 @@ EFFECT_FORMS = (
     ("valve_deadzone", "valve_deadzone", {}),
     ("valve_stiction", "valve_stiction", {}),
     ("heat_transfer", "heat_transfer", {}),
+    ("reading_closure", "reading_closure", {}),
+    ("reading_play", "reading_play", {}),
 )
 
 

@@ -22,6 +22,7 @@ sensitivity dp/dp0. Without the recorded reading, every ``p_bar_k`` starts at re
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.signal import lfilter
 
 from pneubayes.effects.closure_histories import first_order_low_pass
@@ -41,15 +42,28 @@ def _low_pass_rows(time_s: np.ndarray, values: np.ndarray, tau_s: float,
     out[:, 0] = values[:, 0] if start is None else start
     if not h.size:
         return out
-    if np.all(a == a.flat[0]):  # uniform sampling: one linear filter along the rows
+    # uniform sampling (to rounding: a grid built as k * dt differs in its last bits):
+    # one linear filter along the rows
+    if np.all(np.abs(a - a.flat[0]) <= UNIFORM_RTOL * a.flat[0]):
         out[:, 1:] = lfilter([1.0], [1.0, -a.flat[0]], b, axis=-1,
                              zi=a.flat[0] * out[:, :1])[0]
         return out
-    y = out[:, 0].copy()
-    for k in range(h.shape[-1]):  # (a first-order recursion, each row at once)
-        y = a[:, k] * y + b[:, k]
-        out[:, k + 1] = y
+    _recursion(np.ascontiguousarray(a), np.ascontiguousarray(b), out)
     return out
+
+
+#: Sample intervals whose decay factors agree to this share count as one (uniform).
+UNIFORM_RTOL = 1e-9
+
+
+@njit(cache=True, error_model="numpy")
+def _recursion(a, b, out):
+    """``out[:, k + 1] = a[:, k] out[:, k] + b[:, k]`` along each row (from ``out[:, 0]``)."""
+    for i in range(out.shape[0]):
+        y = out[i, 0]
+        for k in range(a.shape[1]):
+            y = a[i, k] * y + b[i, k]
+            out[i, k + 1] = y
 
 
 def relaxed_reading(time_s, pressure_Pa, gains, time_constants_s,
