@@ -321,30 +321,26 @@ class Model:
     def reading_relaxations(self, params) -> tuple[np.ndarray, np.ndarray]:
         """``(gains (-), time constants (s))``, each ``(B, K)``: the relaxations of the
         reading of every effect that relaxes it, side by side (``K`` 0 without one)."""
-        theta = self.as_matrix(params)
-        names = self.parameter_names
-        parts = [e.reading_relaxations({n: theta[:, names.index(n)]
-                                        for n in e.parameter_names()})
-                 for e in self.effects if e.relaxes_reading]
-        parts = [x for x in parts if x is not None]  # (an effect with plays only)
-        if not parts:
-            return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
-        return (np.concatenate([g for g, _ in parts], axis=1),
-                np.concatenate([tau for _, tau in parts], axis=1))
+        return self._reading_maps(params, "reading_relaxations")
 
     def reading_plays(self, params) -> tuple[np.ndarray, np.ndarray]:
         """``(gains (-), half-widths (Pa))``, each ``(B, J)``: the plays of the reading
         (:mod:`pneubayes.simulation.reading_play`) of every effect that has them, side
         by side (``J`` 0 without one)."""
+        return self._reading_maps(params, "reading_plays")
+
+    def _reading_maps(self, params, method: str) -> tuple[np.ndarray, np.ndarray]:
+        """Every reading effect's ``method`` pairs side by side (an effect that returns
+        None has none of that kind)."""
         theta = self.as_matrix(params)
         names = self.parameter_names
-        parts = [e.reading_plays({n: theta[:, names.index(n)] for n in e.parameter_names()})
+        parts = [getattr(e, method)({n: theta[:, names.index(n)] for n in e.parameter_names()})
                  for e in self.effects if e.relaxes_reading]
         parts = [x for x in parts if x is not None]
         if not parts:
             return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
-        return (np.concatenate([h for h, _ in parts], axis=1),
-                np.concatenate([w for _, w in parts], axis=1))
+        return (np.concatenate([a for a, _ in parts], axis=1),
+                np.concatenate([b for _, b in parts], axis=1))
 
     # ------------------------------------------------------------------ model card
     def to_card(self, values: Mapping[str, float], extra: Mapping | None = None) -> dict:

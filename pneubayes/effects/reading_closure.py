@@ -44,6 +44,16 @@ TIME_CONSTANT_BOUNDS_S = (1e-3, 20.0)
 TIME_CONSTANT_START_S = 0.1
 
 
+def named_pairs(values: Mapping[str, np.ndarray], first: list[str],
+                second: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """``(first, second)``, each ``(B, K)``: a reading map's per-term parameters (a gain
+    and its time constant or half-width) read from ``values`` under the names
+    ``first`` and ``second`` (one per term), broadcast to one batch."""
+    a = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in first], axis=-1)
+    b = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in second], axis=-1)
+    return tuple(np.broadcast_arrays(a, b))
+
+
 def gain_name(k: int) -> str:
     """Relaxation ``k``'s gain parameter."""
     return f"reading_closure_gain_{k}"
@@ -101,11 +111,7 @@ class ReadingClosure(Effect):
                           time_constants: list[str]) -> tuple[np.ndarray, np.ndarray]:
         """``(gains, time constants)``, each ``(B, K)``, read from ``values`` under the
         parameter names ``gains`` and ``time_constants`` (one per relaxation)."""
-        g = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in gains],
-                     axis=-1)
-        tau = np.stack([np.atleast_1d(np.asarray(values[n], np.float64))
-                        for n in time_constants], axis=-1)
-        return tuple(np.broadcast_arrays(g, tau))
+        return named_pairs(values, gains, time_constants)
 
     def bench_defaults(self):
         """A reading 3 % high at first after a change, settling in 0.3 s (a second term

@@ -28,6 +28,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.reading_closure import named_pairs
 from pneubayes.rig import Rig
 
 #: The most plays one component carries.
@@ -98,11 +99,7 @@ class ReadingPlay(Effect):
                     widths: list[str]) -> tuple[np.ndarray, np.ndarray]:
         """``(gains, half-widths)``, each ``(B, J)``, read from ``values`` under the
         parameter names ``gains`` and ``widths`` (one per play)."""
-        h = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in gains],
-                     axis=-1)
-        w = np.stack([np.atleast_1d(np.asarray(values[n], np.float64)) for n in widths],
-                     axis=-1)
-        return tuple(np.broadcast_arrays(h, w))
+        return named_pairs(values, gains, widths)
 
     def bench_defaults(self):
         """A reading with half of a 2-kPa play (a second: a quarter of a 500-Pa one)."""

@@ -26,7 +26,11 @@ from numba import njit
 from scipy.signal import lfilter
 
 from pneubayes.effects.closure_histories import first_order_low_pass
-from pneubayes.simulation.reading_play import history_play, played_reading
+from pneubayes.simulation.reading_play import (
+    history_at_starts,
+    history_play,
+    played_reading,
+)
 
 
 def _low_pass_rows(time_s: np.ndarray, values: np.ndarray, tau_s: float,
@@ -120,25 +124,10 @@ def history_low_pass(time_s, reading_Pa, time_constants_s, starts) -> np.ndarray
     the first sample of the stretch of finite readings each start lies in, for each time
     constant: ``(B, K, W)`` for ``time_constants_s`` ``(B, K)`` (NaN where the reading at
     a start is not finite)."""
-    tau = np.asarray(time_constants_s, dtype=np.float64)
-    starts = np.asarray(starts, dtype=np.int64)
     t = np.asarray(time_s, dtype=np.float64)
     r = np.asarray(reading_Pa, dtype=np.float64)
-    finite = np.isfinite(r)
-    # the stretches of finite readings: [first, end) each
-    edges = np.diff(np.concatenate(([0], finite.astype(np.int8), [0])))
-    firsts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    out = np.empty((*tau.shape, starts.size))
-    memo: dict[float, np.ndarray] = {}
-    for idx in np.ndindex(tau.shape):
-        v = float(tau[idx])
-        if v not in memo:
-            y = np.full(r.shape, np.nan)
-            for a, b in zip(firsts, ends):
-                y[a:b] = first_order_low_pass(t[a:b], r[a:b], v)
-            memo[v] = y[starts]
-        out[idx] = memo[v]
-    return out
+    return history_at_starts(r, time_constants_s, starts,
+                             lambda a, b, tau: first_order_low_pass(t[a:b], r[a:b], tau))
 
 
 def reading_start(gains, bar_start_Pa, reading0_Pa) -> np.ndarray:

@@ -77,28 +77,38 @@ def play_rows(values, sensitivity, width_Pa: float, start_Pa):
     return out, dout
 
 
+def history_at_starts(reading_Pa, parameters, starts, follow) -> np.ndarray:
+    """A map of the recorded reading (``follow(first, end, value)``: its series over the
+    stretch ``[first, end)`` of finite readings, from rest at ``first``, for the
+    parameter ``value``) at the samples ``starts``, for each of ``parameters``: ``(B, K,
+    W)`` for ``(B, K)`` (NaN where the reading at a start is not finite; each distinct
+    value walked once)."""
+    par = np.asarray(parameters, dtype=np.float64)
+    starts = np.asarray(starts, dtype=np.int64)
+    r = np.asarray(reading_Pa, dtype=np.float64)
+    edges = np.diff(np.concatenate(([0], np.isfinite(r).astype(np.int8), [0])))
+    firsts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.empty((*par.shape, starts.size))
+    memo: dict[float, np.ndarray] = {}
+    for idx in np.ndindex(par.shape):
+        v = float(par[idx])
+        if v not in memo:
+            y = np.full(r.shape, np.nan)
+            for a, b in zip(firsts, ends):
+                y[a:b] = follow(a, b, v)
+            memo[v] = y[starts]
+        out[idx] = memo[v]
+    return out
+
+
 def history_play(reading_Pa, widths_Pa, starts) -> np.ndarray:
     """The recorded reading's play at the samples ``starts``, from rest at the first
     sample of the stretch of finite readings each start lies in, for each half-width:
     ``(B, J, W)`` for ``widths_Pa`` ``(B, J)`` (NaN where the reading at a start is not
     finite; a play does not depend on the times, only on the samples' order)."""
-    w = np.asarray(widths_Pa, dtype=np.float64)
-    starts = np.asarray(starts, dtype=np.int64)
     r = np.asarray(reading_Pa, dtype=np.float64)
-    finite = np.isfinite(r)
-    edges = np.diff(np.concatenate(([0], finite.astype(np.int8), [0])))
-    firsts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    out = np.empty((*w.shape, starts.size))
-    memo: dict[float, np.ndarray] = {}
-    for idx in np.ndindex(w.shape):
-        v = float(w[idx])
-        if v not in memo:
-            y = np.full(r.shape, np.nan)
-            for a, b in zip(firsts, ends):
-                y[a:b] = _play_series(r[a:b], v, r[a])
-            memo[v] = y[starts]
-        out[idx] = memo[v]
-    return out
+    return history_at_starts(r, widths_Pa, starts,
+                             lambda a, b, w: _play_series(r[a:b], w, r[a]))
 
 
 def played_reading(pressure_Pa, sensitivity, gains, widths_Pa, start_Pa):

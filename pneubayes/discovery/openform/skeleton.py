@@ -128,6 +128,69 @@ class {class_name}(Effect):
 '''
 
 
+def _reading_skeleton(component: str, terms: int, names: dict, lines: list[str],
+                      kind: dict, class_name: str, effect_name: str) -> str:
+    """The module text of an effect plug-in for a found component at the reading
+    (``component``, ``terms`` terms): ``names`` maps the user's parameter names to the
+    component's (value pairs in order: a gain, then its second parameter) with their
+    fitted values, ``lines`` describes each term, ``kind`` says what the terms are (its
+    words, the component's class and module, the second parameter's list and the
+    effect method and helper that read them)."""
+    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs, _ in names)
+    defaults = "\n".join(f"        {mine!r}: {value!r}," for mine, _, value in names)
+    gains = [m for m, _, _ in names][0::2]
+    seconds = [m for m, _, _ in names][1::2]
+    cls, method, helper, second = (kind["class"], kind["method"], kind["helper"],
+                                   kind["second"])
+    return f'''"""{effect_name}: {kind["title"]}
+
+Found as an open-form term at the reading (the chamber's pressure p is unchanged; its
+reading r is):
+{chr(10).join(lines)}
+{kind["edit"]}
+Register it with one line in pneubayes.effects.CATALOGUE, or use it directly:
+``Model([{class_name}()])``.
+"""
+
+from pneubayes.effects.base import Effect, Parameter
+from {kind["module"]} import {cls}
+
+
+class {class_name}(Effect):
+    """Found {kind["words"]} of the reading (edit this description)."""
+
+    name = {effect_name!r}
+    acts_on = ()  # (the simulator reads each window's pressure through it)
+    relaxes_reading = True
+    library_searched = False
+    #: This effect's parameter -> the {component.replace("_", " ")}'s.
+    NAMES = {{
+{mapping}
+    }}
+    GAINS = {gains!r}
+    {second} = {seconds!r}
+
+    def parameters(self):
+        found = {{p.name: p for p in {cls}(terms={terms}).parameters()}}
+        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
+                               found[theirs].upper, found[theirs].prior,
+                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
+                     for mine, theirs in self.NAMES.items())
+
+    def lower(self, values, rig):
+        return {{}}  # (no slot of the kernel)
+
+    def {method}(self, values):
+        return {cls}.{helper}(values, self.GAINS, self.{second})
+
+    def bench_defaults(self):
+        """The values discovery fitted."""
+        return {{
+{defaults}
+        }}
+'''
+
+
 def reading_effect_skeleton(model, params: dict, class_name: str = "FoundReading",
                             effect_name: str = "found_reading") -> str:
     """The module text of an effect plug-in for ``model``'s reading closure at
@@ -139,66 +202,22 @@ def reading_effect_skeleton(model, params: dict, class_name: str = "FoundReading
         raise ValueError("reading_effect_skeleton: the model has no reading closure (no "
                          "found relaxation of the reading)")
     terms = model.effect("reading_closure").terms
-    names, lines = {}, []
+    names, lines = [], []
     for k in range(terms):
         g, tau = gain_name(k), time_constant_name(k)
         lines.append(f"#   relaxation {k}: r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt "
                      f"= p - p_bar_{k}; g_{k} = {float(params[g]):.6g}, tau_{k} = "
                      f"{float(params[tau]):.6g} s")
-        names[f"relaxation{k}_gain"] = g
-        names[f"relaxation{k}_time_constant_s"] = tau
-    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs in names.items())
-    defaults = "\n".join(f"        {mine!r}: {float(params[theirs])!r},"
-                         for mine, theirs in names.items())
-    gains = [m for m in names if m.endswith("_gain")]
-    taus = [m for m in names if m.endswith("_time_constant_s")]
-    return f'''"""{effect_name}: relaxations of the pressure reading found by pneubayes discover.
-
-Found as an open-form term at the reading (the chamber's pressure p is unchanged; its
-reading r is):
-{chr(10).join(lines)}
-Edit the names, the descriptions and the bounds to say what it is (a diaphragm's
-temperature, a transducer's creep, a cavity before the gauge). Register it with one
-line in pneubayes.effects.CATALOGUE, or use it directly: ``Model([{class_name}()])``.
-"""
-
-from pneubayes.effects.base import Effect, Parameter
-from pneubayes.effects.reading_closure import ReadingClosure
-
-
-class {class_name}(Effect):
-    """Found relaxations of the reading (edit this description)."""
-
-    name = {effect_name!r}
-    acts_on = ()  # (the simulator reads each window's pressure through it)
-    relaxes_reading = True
-    library_searched = False
-    #: This effect's parameter -> the reading closure's.
-    NAMES = {{
-{mapping}
-    }}
-    GAINS = {gains!r}
-    TIME_CONSTANTS = {taus!r}
-
-    def parameters(self):
-        found = {{p.name: p for p in ReadingClosure(terms={terms}).parameters()}}
-        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
-                               found[theirs].upper, found[theirs].prior,
-                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
-                     for mine, theirs in self.NAMES.items())
-
-    def lower(self, values, rig):
-        return {{}}  # (no slot of the kernel)
-
-    def reading_relaxations(self, values):
-        return ReadingClosure.relaxations_named(values, self.GAINS, self.TIME_CONSTANTS)
-
-    def bench_defaults(self):
-        """The values discovery fitted."""
-        return {{
-{defaults}
-        }}
-'''
+        names += [(f"relaxation{k}_gain", g, float(params[g])),
+                  (f"relaxation{k}_time_constant_s", tau, float(params[tau]))]
+    return _reading_skeleton("reading_closure", terms, names, lines, {
+        "title": "relaxations of the pressure reading found by pneubayes discover.",
+        "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
+                "diaphragm's\ntemperature, a transducer's creep, a cavity before the gauge).",
+        "words": "relaxations", "class": "ReadingClosure",
+        "module": "pneubayes.effects.reading_closure", "second": "TIME_CONSTANTS",
+        "method": "reading_relaxations", "helper": "relaxations_named"},
+        class_name, effect_name)
 
 
 def play_effect_skeleton(model, params: dict, class_name: str = "FoundReadingPlay",
@@ -212,67 +231,21 @@ def play_effect_skeleton(model, params: dict, class_name: str = "FoundReadingPla
         raise ValueError("play_effect_skeleton: the model has no reading play (no found "
                          "play of the reading)")
     terms = model.effect("reading_play").terms
-    names, lines = {}, []
+    names, lines = [], []
     for k in range(terms):
         h, w = play_gain_name(k), play_width_name(k)
         lines.append(f"#   play {k}: r = p + h_{k} (p - y_{k}), y_{k} = min(p + w_{k}, max(p - "
                      f"w_{k}, y_{k} before)); h_{k} = {float(params[h]):.6g}, w_{k} = "
                      f"{float(params[w]):.6g} Pa")
-        names[f"play{k}_gain"] = h
-        names[f"play{k}_half_width_Pa"] = w
-    mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs in names.items())
-    defaults = "\n".join(f"        {mine!r}: {float(params[theirs])!r},"
-                         for mine, theirs in names.items())
-    gains = [m for m in names if m.endswith("_gain")]
-    widths = [m for m in names if m.endswith("_half_width_Pa")]
-    return f'''"""{effect_name}: plays (backlash) of the pressure reading found by pneubayes
-discover.
-
-Found as an open-form term at the reading (the chamber's pressure p is unchanged; its
-reading r is):
-{chr(10).join(lines)}
-Edit the names, the descriptions and the bounds to say what it is (play in a gauge's
-linkage, a diaphragm held by friction). Register it with one line in
-pneubayes.effects.CATALOGUE, or use it directly: ``Model([{class_name}()])``.
-"""
-
-from pneubayes.effects.base import Effect, Parameter
-from pneubayes.effects.reading_play import ReadingPlay
-
-
-class {class_name}(Effect):
-    """Found plays of the reading (edit this description)."""
-
-    name = {effect_name!r}
-    acts_on = ()  # (the simulator reads each window's pressure through it)
-    relaxes_reading = True
-    library_searched = False
-    #: This effect's parameter -> the reading play's.
-    NAMES = {{
-{mapping}
-    }}
-    GAINS = {gains!r}
-    WIDTHS = {widths!r}
-
-    def parameters(self):
-        found = {{p.name: p for p in ReadingPlay(terms={terms}).parameters()}}
-        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
-                               found[theirs].upper, found[theirs].prior,
-                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
-                     for mine, theirs in self.NAMES.items())
-
-    def lower(self, values, rig):
-        return {{}}  # (no slot of the kernel)
-
-    def reading_plays(self, values):
-        return ReadingPlay.plays_named(values, self.GAINS, self.WIDTHS)
-
-    def bench_defaults(self):
-        """The values discovery fitted."""
-        return {{
-{defaults}
-        }}
-'''
+        names += [(f"play{k}_gain", h, float(params[h])),
+                  (f"play{k}_half_width_Pa", w, float(params[w]))]
+    return _reading_skeleton("reading_play", terms, names, lines, {
+        "title": "plays (backlash) of the pressure reading found by pneubayes\ndiscover.",
+        "edit": "Edit the names, the descriptions and the bounds to say what it is (play "
+                "in a gauge's\nlinkage, a diaphragm held by friction).",
+        "words": "plays", "class": "ReadingPlay",
+        "module": "pneubayes.effects.reading_play", "second": "WIDTHS",
+        "method": "reading_plays", "helper": "plays_named"}, class_name, effect_name)
 
 
 __all__ = ["effect_skeleton", "play_effect_skeleton", "reading_effect_skeleton",
