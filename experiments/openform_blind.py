@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in nine sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in ten sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -43,7 +43,12 @@ and a pressure sensor whose diaphragm's temperature transient overshoots a step,
 before its forms were written or any case ran): on/off valves driven by pulse-width
 modulation of the command, a valve driver that samples and holds the command at a low
 rate with a latency, a pressure sensor with play in its diaphragm (hysteresis), and a
-piston seal whose leak grows with the piston's speed, cases ``z00``-``z09``. Each form is planted
+piston seal whose leak grows with the piston's speed, cases ``z00``-``z09``. Set 10 (seed
+1796445175, drawn from the clock on 2026-12-05 and recorded before its forms were written
+or any case ran): a flexible wall whose give is held by friction (a hysteretic volume), a
+sensor grounded through the solenoid driver's return (its zero moves with the coil's
+current), a solenoid held shut by the inlet's drop (it opens slower into an empty
+chamber) and a sensor port facing the inlet's jet, cases ``k00``-``k09``. Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -90,6 +95,7 @@ from pneubayes.bench.bench import ATMOSPHERE_PA, SUPPLY_PA
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    BraidFriction,
     CapillarySensorPort,
     CreepingWall,
     EndCushion,
@@ -99,6 +105,7 @@ from pneubayes.bench.forms import (
     GasAccumulator,
     InletFlowForce,
     InletFlowLimiter,
+    InletJetAtSensor,
     Iso6358Ports,
     LaggingPositionSensor,
     LipSealLeak,
@@ -106,6 +113,7 @@ from pneubayes.bench.forms import (
     MeterOutThrottle,
     PilotInletValve,
     PistonSealBypass,
+    PressureHeldSolenoid,
     PwmValve,
     QuickExhaustValve,
     ReleaseDelay,
@@ -117,6 +125,7 @@ from pneubayes.bench.forms import (
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SolenoidGroundShift,
     SpoolHysteresis,
     SpoolLandLeak,
     SpoolSlewLimit,
@@ -160,6 +169,9 @@ OPENFORM_SEED_8 = 1796395770
 #: Set 9's seed: ``date +%s`` at 2026-12-04 23:40:10 UTC, fixed before its forms were
 #: written or any case ran.
 OPENFORM_SEED_9 = 1796427610
+#: Set 10's seed: ``date +%s`` at 2026-12-05 04:32:55 UTC, fixed before its forms were
+#: written or any case ran.
+OPENFORM_SEED_10 = 1796445175
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -172,11 +184,14 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              6: ("ExhaustCheckValve", "SeatLeak", "InletFlowLimiter", "ReleaseDelay"),
              7: ("PistonSealBypass", "EnergisedSealLeak", "SensorZeroDrift", "EndCushion"),
              8: ("QuickExhaustValve", "GasAccumulator", "SpoolLandLeak", "SensorThermalShock"),
-             9: ("PwmValve", "ZohDriver", "SensorHysteresis", "SealSpeedLeak")}
+             9: ("PwmValve", "ZohDriver", "SensorHysteresis", "SealSpeedLeak"),
+             10: ("BraidFriction", "SolenoidGroundShift", "PressureHeldSolenoid",
+                  "InletJetAtSensor")}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
              5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8,
-             9: OPENFORM_SEED_9}
-SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z"}
+             9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10}
+SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z",
+              10: "k"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -272,7 +287,18 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
     - SpoolLandLeak (set 8): 0.01-0.05 g/s at the null into 3 bar (log-uniform), the
       sealing length doubled 0.2-1 V from the null;
     - SensorThermalShock (set 8): an overshoot of 1-5 % of a step (log-uniform, either
-      sign), settling in 0.1-1 s (log-uniform).
+      sign), settling in 0.1-1 s (log-uniform);
+    - PwmValve (set 9): 20-100 Hz, opening 1.5-6 ms, closing 1-4 ms late (log-uniform);
+    - ZohDriver (set 9): every 4-25 ms (log-uniform), 0-10 ms late, any phase;
+    - SensorHysteresis (set 9): a half-width of 1-6 kPa (log-uniform);
+    - SealSpeedLeak (set 9): 0.01-0.08 g/s at 0.1 m/s and 4 bar gauge (log-uniform);
+    - BraidFriction (set 10): the wall gives 5-25 % of the swept volume over 4.5 bar
+      (log-uniform), held by a band of 10-60 kPa (log-uniform);
+    - SolenoidGroundShift (set 10): 1-8 kPa at full current (log-uniform, either sign),
+      the coil's L / R 2-20 ms (log-uniform);
+    - PressureHeldSolenoid (set 10): 0.3-1 ms, slowed by 0.5-3 per atm of drop (both
+      log-uniform: opening 1.7-14 x slower at the full drop);
+    - InletJetAtSensor (set 10): 1-8 kPa at 0.5 g/s (log-uniform, either sign).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -416,6 +442,22 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
         at_ref = _log_uniform(rng, 1e-5, 8e-5)  # kg/s at 0.1 m/s and 4 bar gauge
         p = ATMOSPHERE_PA + 4e5
         return SealSpeedLeak(conductance_kg_per_s_Pa2=at_ref / (p**2 - ATMOSPHERE_PA**2))
+    if name == "BraidFriction":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return BraidFriction(compliance_m3_per_Pa=swept * _log_uniform(rng, 0.05, 0.25) / 4.5e5,
+                             friction_band_Pa=_log_uniform(rng, 10e3, 60e3))
+    if name == "SolenoidGroundShift":
+        sign = 1.0 if rng.uniform() < 0.5 else -1.0
+        return SolenoidGroundShift(shift_Pa=sign * _log_uniform(rng, 1e3, 8e3),
+                                   time_constant_s=_log_uniform(rng, 2e-3, 20e-3))
+    if name == "PressureHeldSolenoid":
+        return PressureHeldSolenoid(time_constant_s=_log_uniform(rng, 3e-4, 1e-3),
+                                    slowing_per_atm=_log_uniform(rng, 0.5, 3.0))
+    if name == "InletJetAtSensor":
+        sign = 1.0 if rng.uniform() < 0.5 else -1.0
+        return InletJetAtSensor(shift_Pa=sign * _log_uniform(rng, 1e3, 8e3),
+                                reference_flow_kg_per_s=5e-4)
     raise ValueError(f"draw_openform: unknown out-of-catalogue form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")
 

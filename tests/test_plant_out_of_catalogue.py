@@ -14,6 +14,7 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    BraidFriction,
     CapillarySensorPort,
     CreepingWall,
     EndCushion,
@@ -23,6 +24,7 @@ from pneubayes.bench.forms import (
     GasAccumulator,
     InletFlowForce,
     InletFlowLimiter,
+    InletJetAtSensor,
     Iso6358Ports,
     LaggingPositionSensor,
     LipSealLeak,
@@ -30,6 +32,7 @@ from pneubayes.bench.forms import (
     MeterOutThrottle,
     PilotInletValve,
     PistonSealBypass,
+    PressureHeldSolenoid,
     PwmValve,
     QuickExhaustValve,
     ReleaseDelay,
@@ -41,6 +44,7 @@ from pneubayes.bench.forms import (
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SolenoidGroundShift,
     SpoolHysteresis,
     SpoolLandLeak,
     SpoolSlewLimit,
@@ -126,7 +130,9 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "SensorZeroDrift", "EndCushion", "QuickExhaustValve",
                                      "GasAccumulator", "SpoolLandLeak",
                                      "SensorThermalShock", "PwmValve", "ZohDriver",
-                                     "SensorHysteresis", "SealSpeedLeak"}
+                                     "SensorHysteresis", "SealSpeedLeak", "BraidFriction",
+                                     "SolenoidGroundShift", "PressureHeldSolenoid",
+                                     "InletJetAtSensor"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -213,6 +219,17 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (SealSpeedLeak, {"conductance_kg_per_s_Pa2": 1e-16, "reference_speed_m_per_s": 0.0},
      "reference_speed_m_per_s"),
     (SensorThermalShock, {"gain": 0.02, "time_constant_s": -0.1}, "time_constant_s"),
+    (BraidFriction, {"compliance_m3_per_Pa": -1e-12}, "compliance_m3_per_Pa"),
+    (BraidFriction, {"compliance_m3_per_Pa": 1e-12, "friction_band_Pa": 0.0},
+     "friction_band_Pa"),
+    (SolenoidGroundShift, {"shift_Pa": float("nan")}, "shift_Pa"),
+    (SolenoidGroundShift, {"shift_Pa": 1e3, "time_constant_s": 0.0}, "time_constant_s"),
+    (PressureHeldSolenoid, {"time_constant_s": -1e-3}, "time_constant_s"),
+    (PressureHeldSolenoid, {"time_constant_s": 1e-3, "slowing_per_atm": float("inf")},
+     "slowing_per_atm"),
+    (InletJetAtSensor, {"shift_Pa": float("inf")}, "shift_Pa"),
+    (InletJetAtSensor, {"shift_Pa": 1e3, "reference_flow_kg_per_s": 0.0},
+     "reference_flow_kg_per_s"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -251,7 +268,8 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     EndCushion(length_m=0.1 * STROKE, needle_area_m2=0.0, edge_m=0.02 * STROKE),
     QuickExhaustValve(exhaust_area_m2=0.0), GasAccumulator(volume_m3=0.0),
     SpoolLandLeak(conductance_kg_per_s_Pa2=0.0), PwmValve(frequency_Hz=0.0),
-    ZohDriver(update_period_s=0.0), SealSpeedLeak(conductance_kg_per_s_Pa2=0.0)],
+    ZohDriver(update_period_s=0.0), SealSpeedLeak(conductance_kg_per_s_Pa2=0.0),
+    BraidFriction(compliance_m3_per_Pa=0.0), PressureHeldSolenoid(time_constant_s=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -1095,3 +1113,110 @@ def test_a_speed_lifted_seal_leaks_only_while_the_piston_moves(rig):
     want = (g.heat_capacity_ratio * g.specific_gas_constant_J_per_kg_K * g.temperature_K
             * leak / volume)
     assert (plain[1] - got[1]) / DT == pytest.approx(want, rel=0.02)
+
+
+# ---------------------------------------------------------------- the tenth blind set
+def test_a_friction_held_wall_gives_only_past_its_band_and_keeps_p_v_kappa(rig):
+    """Valve shut, the piston pushed in and drawn back to where it started: a closed,
+    adiabatic chamber, ``dp/dt = -kappa p A dx/dt / (V + kappa p C g)`` and ``dy/dt = g
+    dp/dt`` with g the smoothed gate of the play (an independent two-state reference,
+    solved here), so p (V + C y)^kappa stays at its start; the rigid chamber returns to
+    its pressure, the friction-held one does not (the wall ends displaced); until the
+    pressure first nears the band's edge it is the rigid chamber."""
+    from scipy.integrate import solve_ivp
+
+    c, w = 2e-12, 30e3
+    wall = BraidFriction(compliance_m3_per_Pa=c, friction_band_Pa=w)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    t = np.arange(4001) * 1e-4
+    omega = np.pi / t[-1]
+    x = 0.6 * STROKE - 0.4 * STROKE * np.sin(omega * t) ** 2  # in and back
+    inputs = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    p0 = 2e5
+    got = _run(params, (wall,), inputs, rig, p0=p0)
+    stuck = 1.5e-7 + c * (p0 - P_ATM)  # the wall's give at the start: V_0 + C y_0
+    rigid = _run(dict(params, dead_volume_m3=stuck), (), inputs, rig, p0=p0)
+    area, kappa = np.pi / 4 * BORE**2, rig.gas.heat_capacity_ratio
+
+    def rhs(tau, state):
+        p, y = state
+        xdot = -0.4 * STROKE * omega * np.sin(2 * omega * tau)
+        x_now = 0.6 * STROKE - 0.4 * STROKE * np.sin(omega * tau) ** 2
+        lead = (p - P_ATM - y) * (1.0 if xdot < 0 else -1.0)  # compressing: p rises
+        z = min(max((lead - w) / (0.1 * w) + 0.5, 0.0), 1.0)
+        g = z * z * (3 - 2 * z) if xdot != 0 and lead > 0 else 0.0
+        dp = -kappa * p * area * xdot / (1.5e-7 + area * x_now + c * y + kappa * p * c * g)
+        return [dp, g * dp]
+
+    ref = solve_ivp(rhs, (0, t[-1]), [p0, p0 - P_ATM], t_eval=t, rtol=1e-10, atol=1e-6,
+                    method="LSODA", max_step=1e-4)
+    np.testing.assert_allclose(got, ref.y[0], rtol=2e-5)
+    invariant = ref.y[0] * (1.5e-7 + area * x + c * ref.y[1]) ** kappa
+    np.testing.assert_allclose(invariant, invariant[0], rtol=1e-6)
+    before = slice(0, int(np.argmax(rigid > p0 + 0.9 * w)))  # until it first nears w
+    np.testing.assert_allclose(got[before], rigid[before], rtol=0, atol=1.0)
+    assert abs(rigid[-1] - p0) < 1.0
+    assert got[-1] < p0 - 0.2 * w  # the wall gave on the way in and holds on the way out
+
+
+def test_a_shared_ground_shifts_the_reading_with_the_coils_current():
+    """A step from 0 to 5 V at 10 ms: the reading shifts by s (1 - exp(-(t - 10 ms) /
+    tau)) after it; at half command half as far; shift 0 reads true."""
+    t = np.arange(400) * 1e-4
+    p = np.full(t.size, 3e5)
+    u = np.where(t >= 0.01 - 1e-12, 5.0, 0.0)
+    shift = SolenoidGroundShift(shift_Pa=-4000.0, time_constant_s=4e-3, full_command_V=5.0)
+    after = t >= 0.01 - 1e-12
+    want = p - 4000.0 * np.where(after, -np.expm1(-(t - 0.01) / 4e-3), 0.0)
+    np.testing.assert_allclose(shift.read(t, u, p), want, rtol=0, atol=1e-6)
+    half = shift.read(t, np.full(t.size, -2.5), p)  # either coil: |u|
+    np.testing.assert_allclose(half, p - 2000.0, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(SolenoidGroundShift(shift_Pa=0.0).read(t, u, p), p)
+
+
+def test_a_pressure_held_solenoid_opens_slower_into_an_empty_chamber(rig):
+    """Without slowing it is the catalogue's first-order spool lag, bit for bit; with it
+    an opening step into the empty chamber fills later, a closing step (the spring and
+    the pressure together) is the plain lag's, bit for bit."""
+    from pneubayes.effects import make_effect
+
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    lag = (make_effect("spool_lag"),)
+    opening = _held(0.05, (-5.0, 5.0), at=(0.0, 0.01))
+    closing = _held(0.05, (5.0, -5.0), at=(0.0, 0.01))
+    plain = PressureHeldSolenoid(time_constant_s=1e-3, slowing_per_atm=0.0)
+    held = PressureHeldSolenoid(time_constant_s=1e-3, slowing_per_atm=2.0)
+    first = simulate_plant(dict(params, spool_time_constant_s=1e-3), (), opening, rig,
+                           P_ATM, REF, effects=lag).pressure_Pa
+    np.testing.assert_array_equal(_run(params, (plain,), opening, rig), first)
+    slow = _run(params, (held,), opening, rig)
+    k = int(round(0.013 / DT))
+    assert slow[k] < first[k] - 20e3  # 3 ms after the step the held one lags far behind
+    np.testing.assert_allclose(slow[-1], first[-1], rtol=0, atol=500.0)  # both full
+    np.testing.assert_array_equal(_run(params, (held,), closing, rig, p0=P_SUP - 1e3),
+                                  _run(params, (plain,), closing, rig, p0=P_SUP - 1e3))
+    with pytest.raises(ValueError, match="PressureHeldSolenoid is the spool's stage"):
+        _run(params, (held, forms_from_names(["spool_lag"])[0]), _held(0.02, (1.0,)), rig)
+
+
+def test_a_sensor_facing_the_inlets_jet_reads_the_square_of_the_inflow(rig, base):
+    """The plant returns the inlet's mass flow (eqs. 1-3 at the sampled pressures); the
+    reading adds s (q / q_ref)^2 of the inflow only; shift 0 reads true."""
+    inputs = _held(0.05, (5.0, -5.0), at=(0.0, 0.025))
+    traj = simulate_plant(base, (), inputs, rig, P_ATM, REF)
+    from pneubayes.physics.valve import gompertz_scalar
+
+    area = gompertz_scalar(5.0, *(base[n] for n in ("inlet_offset_m2", "inlet_a_m2",
+                                                    "inlet_b", "inlet_c_per_V",
+                                                    "inlet_d_V")))
+    g = rig.gas
+    want = [area * flow_terms(P_SUP, p, g.alpha_s_per_m, g.beta_s_per_m, g.theta,
+                              g.heat_capacity_ratio)[0] for p in traj.pressure_Pa[1:200]]
+    np.testing.assert_allclose(traj.inlet_flow_kg_per_s[1:200], want, rtol=1e-9)
+    jet = InletJetAtSensor(shift_Pa=2000.0, reference_flow_kg_per_s=5e-4)
+    r = jet.read(traj.inlet_flow_kg_per_s, traj.pressure_Pa)
+    q = np.maximum(traj.inlet_flow_kg_per_s, 0.0)
+    np.testing.assert_allclose(r - traj.pressure_Pa, 2000.0 * (q / 5e-4) ** 2, rtol=1e-12)
+    assert (r - traj.pressure_Pa)[10] > 100.0  # filling: a visible shift
+    np.testing.assert_array_equal(InletJetAtSensor(shift_Pa=0.0).read(q, traj.pressure_Pa),
+                                  traj.pressure_Pa)

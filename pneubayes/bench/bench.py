@@ -32,12 +32,14 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.forms import (
     AcousticTube,
     CapillarySensorPort,
+    InletJetAtSensor,
     LaggingPositionSensor,
     PlantForm,
     SensorBow,
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SolenoidGroundShift,
     catalogue_names_of,
     check_forms,
 )
@@ -242,6 +244,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
             traj = simulate_plant(plant_truth, cfg.forms, inputs, rig, ATMOSPHERE_PA,
                                   cfg.plant_solver, effects=model.effects)
             p_true, supply_fine = traj.pressure_Pa, traj.supply_at_valve_Pa
+            for form in cfg.forms:  # a sensor port facing the inlet's jet
+                if isinstance(form, InletJetAtSensor):
+                    p_true = form.read(traj.inlet_flow_kg_per_s, p_true)
         else:
             p_true = simulate(model, {**truth, **sensor_neutral}, inputs, rig,
                               ATMOSPHERE_PA, cfg.solver).pressure_Pa[0]
@@ -260,6 +265,9 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for form in cfg.forms:  # a sensor with play in its diaphragm's linkage
             if isinstance(form, SensorHysteresis):
                 p_true = form.read(p_true)
+        for form in cfg.forms:  # a sensor grounded through the solenoid driver's return
+            if isinstance(form, SolenoidGroundShift):
+                p_true = form.read(t_fine, u_fine, p_true)
         if read is not None:
             p_true = read(t_fine, p_true)
         s = cfg.sensor

@@ -11,12 +11,14 @@ as the forms and effects require: chamber temperature, spool position and veloci
 regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
 silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting, a
 supply hose's pressure, a solenoid coil's heat, the cylinder's other chamber behind a
-worn piston seal and a quick-exhaust valve's line (:mod:`pneubayes.bench.forms`
+worn piston seal, a quick-exhaust valve's line and a friction-held wall's give
+(:mod:`pneubayes.bench.forms`
 documents each form's equations). A sticking spool (SpoolStiction) changes the command
 the valve sees; a late release (ReleaseDelay), a PWM driver (PwmValve) and a sampling
 driver (ZohDriver) when and what it takes (one of them at a time); the bench applies the
 reading-side forms (SensorBow, CapillarySensorPort, SensorZeroDrift, SensorThermalShock,
-SensorHysteresis; LaggingPositionSensor on the position) to the plant's output. The other
+SensorHysteresis, SolenoidGroundShift, InletJetAtSensor: the last with the inlet's flow
+the plant returns; LaggingPositionSensor on the position) to the plant's output. The other
 out-of-catalogue forms act in the same right-hand side; at zero strength each leaves it
 as it was.
 
@@ -54,6 +56,7 @@ from scipy.interpolate import CubicSpline
 from pneubayes.bench.forms import (
     AcousticTube,
     BladderVolume,
+    BraidFriction,
     ClearanceLeak,
     CreepingWall,
     EndCushion,
@@ -70,6 +73,7 @@ from pneubayes.bench.forms import (
     PilotInletValve,
     PistonSealBypass,
     PlantForm,
+    PressureHeldSolenoid,
     PwmValve,
     QuickExhaustValve,
     RegulatorDroop,
@@ -150,16 +154,20 @@ K_LL_K, K_LL_S = 101, 102
 # the ninth blind set's forms (all 0: absent; PwmValve and ZohDriver act on the
 # command's switching, SensorHysteresis on the reading, outside the right-hand side)
 K_SS_K, K_SS_V = 103, 104
-N_K = 105
+# the tenth blind set's forms (all 0: absent; SolenoidGroundShift and InletJetAtSensor
+# act on the reading, outside the right-hand side)
+K_BF_C, K_BF_W = 105, 106
+K_PH_TAU, K_PH_K = 107, 108
+N_K = 109
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
 # Integer layout: modes and state indices (-1 = absent). Spool modes: 0 none, 1 first
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
-# (SpringReturnSpool).
+# (SpringReturnSpool), 5 held by the inlet's drop (PressureHeldSolenoid).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ) = range(21)
-N_L = 21
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF) = range(22)
+N_L = 22
 
 
 @njit(cache=True)
@@ -254,7 +262,8 @@ def quick_exhaust_flows(p, pv, P, hot):
 @njit(cache=True)
 def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     """Right-hand side of the plant into ``dy``; returns the supply a sensor reads, Pa
-    (at the valve's inlet; with a SupplyHose at the regulator, upstream of it).
+    (at the valve's inlet; with a SupplyHose at the regulator, upstream of it), and the
+    mass flow through the valve's inlet port, kg/s.
 
     ``u`` is the held command (V); ``xx`` and ``ss`` are the cubic-spline coefficients
     (ascending powers of t - tt[k], one row per sample interval k) of the position (m)
@@ -294,9 +303,11 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         s = y[L[L_IS]]
         r = P[K_SL_R]
         dy[L[L_IS]] = r * math.tanh((u - s) / (P[K_SL_TAU] * r))
-    else:  # a spring-returned spool (SpringReturnSpool): up and down at their own rates
+    elif mode == 4:  # a spring-returned spool (SpringReturnSpool): up and down apart
         s = y[L[L_IS]]
         dy[L[L_IS]] = (u - s) / (P[K_SR_UP] if u > s else P[K_SR_DN])
+    else:  # held by the inlet's drop (PressureHeldSolenoid): its rate once pv is known
+        s = y[L[L_IS]]
     if L[L_IH] >= 0:  # spool play (SpoolHysteresis): held inside the band
         sh = y[L[L_IH]]
         band = P[K_HY_B]
@@ -328,6 +339,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         pv = y[L[L_IF]]
     if L[L_IQ] >= 0:  # a quick-exhaust valve's line between the valve and the chamber
         pv = y[L[L_IQ]]
+    if mode == 5:  # the armature held by the drop across the inlet opens slower
+        slow = 1.0 + P[K_PH_K] * max(p_up - pv, 0.0) / p_atm if u > s else 1.0
+        dy[L[L_IS]] = (u - s) / (P[K_PH_TAU] * slow)
     if P[K_FF] > 0.0:  # flow forces close the inlet with the drop across it
         a_in = a_in / (1.0 + P[K_FF] * max(p_up - pv, 0.0) / p_atm)
     if P[K_PI_D] > 0.0:  # a pilot-operated inlet shuts below its minimum drop
@@ -374,6 +388,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         d0 = P[K_SE_D]
         mag = math.sqrt(2.0 * rho * max(abs(drop), d0))
         m_in += P[K_SE_A] * mag * (drop / d0 if abs(drop) < d0 else math.copysign(1.0, drop))
+    m_inlet = m_in
     if L[L_IHS] >= 0:  # the hose refills through its restriction, the inlet draws it
         f_r = flow_terms(p_sensed, p_up, alpha, beta, theta, kappa)[0]
         dy[L[L_IHS]] = kappa * rs * ts / P[K_SH_V] * (P[K_SH_A] * f_r - m_in)
@@ -476,6 +491,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     if P[K_GA_V] > 0.0 and p > P[K_GA_P]:  # an accumulator's gas, compressed
         r_ga = (P[K_GA_P] / p) ** (1.0 / P[K_GA_N])
         vol, dvdp = vol + P[K_GA_V] * (1.0 - r_ga), dvdp + P[K_GA_V] * r_ga / (P[K_GA_N] * p)
+    if L[L_IBF] >= 0:  # a friction-held wall: its give, held inside the band
+        vol += P[K_BF_C] * y[L[L_IBF]]
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
@@ -487,13 +504,22 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         dp = kappa / vol * (rs * enth - p * vdot)
         if heat == 1:
             dp += p * P[K_HEAT] * (ts - temp) / temp
+    slide = 0.0
+    if L[L_IBF] >= 0:  # the wall slides with the pressure once past its band
+        lead = (p - p_atm - y[L[L_IBF]]) * (1.0 if dp > 0.0 else -1.0)
+        band = P[K_BF_W]
+        if dp != 0.0 and lead > 0.0:
+            slide = smoothstep((lead - band) / (0.1 * band) + 0.5)
+        dvdp += P[K_BF_C] * slide
     if dvdp > 0.0:  # dV/dt = A dx/dt + dV/dp dp/dt, solved for dp/dt
         dp = dp / (1.0 + kappa * p * dvdp / vol)
         vdot += dvdp * dp
     dy[0] = dp
+    if L[L_IBF] >= 0:
+        dy[L[L_IBF]] = slide * dp
     if heat > 0:
         dy[L[L_IT]] = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
-    return p_sensed
+    return p_sensed, m_inlet
 
 
 @njit(cache=True)
@@ -523,13 +549,16 @@ def _jac(t, y, u, P, L, tt, xx, ss, scale):
 
 
 @njit(cache=True)
-def _supply_trace(ts_out, ys, P, L, tt, xx, ss):
-    """Valve-inlet supply (Pa) at each output time from the states ``ys`` (N, n)."""
-    out = np.empty(ts_out.shape[0])
+def _sensor_traces(ts_out, ys, us, P, L, tt, xx, ss):
+    """``(supply Pa, inlet flow kg/s)``: the valve-inlet supply and the inlet port's mass
+    flow at each output time from the states ``ys`` (N, n) under the held commands
+    ``us`` (N,)."""
+    supply = np.empty(ts_out.shape[0])
+    inflow = np.empty(ts_out.shape[0])
     dy = np.empty(ys.shape[1])
     for i in range(ts_out.shape[0]):
-        out[i] = _rhs_into(ts_out[i], ys[i], 0.0, P, L, tt, xx, ss, dy)
-    return out
+        supply[i], inflow[i] = _rhs_into(ts_out[i], ys[i], us[i], P, L, tt, xx, ss, dy)
+    return supply, inflow
 
 
 # ---------------------------------------------------------------- Python interface
@@ -600,7 +629,8 @@ class PlantTrajectory:
     supply at the valve inlet (what a supply sensor there reads; with a SupplyHose the
     regulator's, where its sensor sits),
     ``chamber_temperature_K`` (N,) or None without a temperature state; ``stats`` holds
-    the solver's counts (``nfev``, ``njev``, ``spans``).
+    the solver's counts (``nfev``, ``njev``, ``spans``); ``inlet_flow_kg_per_s`` (N,)
+    the mass flow through the valve's inlet port (at the command held at each sample).
     """
 
     time_s: np.ndarray
@@ -610,6 +640,7 @@ class PlantTrajectory:
     config: PlantConfig
     forms: tuple[PlantForm, ...]
     stats: dict
+    inlet_flow_kg_per_s: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -731,6 +762,15 @@ def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> Non
     film = by.get(SealSpeedLeak)
     if film is not None and film.conductance_kg_per_s_Pa2 > 0:
         P[K_SS_K], P[K_SS_V] = film.conductance_kg_per_s_Pa2, film.reference_speed_m_per_s
+    wall = by.get(BraidFriction)
+    if wall is not None and wall.compliance_m3_per_Pa > 0:
+        P[K_BF_C], P[K_BF_W] = wall.compliance_m3_per_Pa, wall.friction_band_Pa
+    held = by.get(PressureHeldSolenoid)
+    if held is not None and held.time_constant_s > 0:
+        if L[L_SPOOL] != 0:
+            raise ValueError("plant: PressureHeldSolenoid is the spool's stage; it cannot "
+                             "be planted beside a spool_lag effect or another spool form")
+        P[K_PH_TAU], P[K_PH_K], L[L_SPOOL] = held.time_constant_s, held.slowing_per_atm, 5
     coil = by.get(WarmingCoil)
     if coil is not None and coil.resistance_rise > 0:
         P[K_WC_K], P[K_WC_TAU] = coil.resistance_rise, coil.time_constant_s
@@ -923,6 +963,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 1
         atol.append(cfg.atol_Pa)
         scale.append(1e5)
+    if P[K_BF_C] > 0:  # the friction-held wall's gauge pressure, Pa
+        L[L_IBF] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
@@ -952,6 +997,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[L_IF]] = p0  # the throttle's fitting at the chamber's pressure
     if L[L_IQ] >= 0:
         y[L[L_IQ]] = p0  # the QEV's line at the chamber's pressure
+    if L[L_IBF] >= 0:
+        y[L[L_IBF]] = p0 - su.P[K_PATM]  # the wall stuck where the pressure starts
     if L[L_IC] >= 0:  # the creeping wall in equilibrium with the initial pressure
         y[L[L_IC]] = su.P[K_CW_C] * (p0 - su.P[K_PATM])
     if L[L_NSEG] > 0:
@@ -1065,8 +1112,9 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
         ys[i0:i1] = got if at_sample else got[:-1]
         y = got[-1].copy()
     elapsed = time.perf_counter() - start
-    supply = _supply_trace(t, ys, P, L, t, xx, ss)
+    held = np.array([command_at(tau) for tau in t])
+    supply, inflow = _sensor_traces(t, ys, held, P, L, t, xx, ss)
     temp = ys[:, L[L_IT]].copy() if L[L_HEAT] > 0 else None
     return PlantTrajectory(t.copy(), ys[:, 0].copy(), supply, temp, config, forms,
                            {"nfev": int(nfev), "njev": int(njev), "spans": int(edges.size - 1),
-                            "seconds": elapsed})
+                            "seconds": elapsed}, inflow)

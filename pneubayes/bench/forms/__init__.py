@@ -22,7 +22,8 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 :data:`FORMS` in the order they were written (the eighth: :class:`QuickExhaustValve`,
 :class:`GasAccumulator`, :class:`SpoolLandLeak`, :class:`SensorThermalShock`; the ninth:
 :class:`PwmValve`, :class:`ZohDriver`, :class:`SensorHysteresis`,
-:class:`SealSpeedLeak`).
+:class:`SealSpeedLeak`; the tenth: :class:`BraidFriction`, :class:`SolenoidGroundShift`,
+:class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -47,6 +48,7 @@ from pneubayes.bench.forms.catalogue import (
 )
 from pneubayes.bench.forms.chamber import (
     BladderVolume,
+    BraidFriction,
     CreepingWall,
     EndCushion,
     EnergisedSealLeak,
@@ -66,11 +68,13 @@ from pneubayes.bench.forms.ports import (
 )
 from pneubayes.bench.forms.reading import (
     CapillarySensorPort,
+    InletJetAtSensor,
     LaggingPositionSensor,
     SensorBow,
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SolenoidGroundShift,
 )
 from pneubayes.bench.forms.valve import (
     InletFlowForce,
@@ -78,6 +82,7 @@ from pneubayes.bench.forms.valve import (
     Iso6358Ports,
     LowReynoldsPorts,
     PilotInletValve,
+    PressureHeldSolenoid,
     PwmValve,
     ReleaseDelay,
     SeatLeak,
@@ -108,7 +113,8 @@ FORMS: dict[str, type[PlantForm]] = {
                                   EnergisedSealLeak, SensorZeroDrift, EndCushion,
                                   QuickExhaustValve, GasAccumulator, SpoolLandLeak,
                                   SensorThermalShock, PwmValve, ZohDriver, SensorHysteresis,
-                                  SealSpeedLeak)
+                                  SealSpeedLeak, BraidFriction, SolenoidGroundShift,
+                                  PressureHeldSolenoid, InletJetAtSensor)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -254,7 +260,10 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
     - ``SensorThermalShock``: 3 % overshoot, settling in 0.3 s; ``PwmValve``: 50 Hz,
       opening 3 ms, closing 2 ms; ``ZohDriver``: every 10 ms, 2 ms late;
     - ``SensorHysteresis``: 2 kPa half-width, four plays; ``SealSpeedLeak``: 1e-16
-      kg/(s Pa^2) at 0.1 m/s (0.02 g/s at 4 bar gauge).
+      kg/(s Pa^2) at 0.1 m/s (0.02 g/s at 4 bar gauge);
+    - ``BraidFriction``: 10 % of the swept volume over 4.5 bar, a 30 kPa band;
+      ``SolenoidGroundShift``: 3 kPa at full current, 5 ms; ``PressureHeldSolenoid``:
+      0.5 ms, 1.5 per atm of drop; ``InletJetAtSensor``: 3 kPa at 0.5 g/s.
     """
     cyl = cylinder_preset(cylinder)
     if name == "BladderVolume":
@@ -344,5 +353,15 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return SensorHysteresis(half_width_Pa=2000.0)
     if name == "SealSpeedLeak":
         return SealSpeedLeak(conductance_kg_per_s_Pa2=1e-16)
+    if name == "BraidFriction":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return BraidFriction(compliance_m3_per_Pa=0.1 * swept / 450_000.0,
+                             friction_band_Pa=30e3)
+    if name == "SolenoidGroundShift":
+        return SolenoidGroundShift(shift_Pa=3000.0, time_constant_s=5e-3)
+    if name == "PressureHeldSolenoid":
+        return PressureHeldSolenoid(time_constant_s=5e-4, slowing_per_atm=1.5)
+    if name == "InletJetAtSensor":
+        return InletJetAtSensor(shift_Pa=3000.0, reference_flow_kg_per_s=5e-4)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

@@ -255,3 +255,30 @@ class SealSpeedLeak(PlantForm):
     def __post_init__(self):
         _non_negative(self, "conductance_kg_per_s_Pa2")
         _positive(self, "reference_speed_m_per_s")
+
+
+# ------------------------------------------ out-of-catalogue forms, the tenth blind set
+
+
+@dataclass(frozen=True)
+class BraidFriction(PlantForm):
+    """A flexible part of the chamber's wall (a rolling diaphragm, a bellows, a braided
+    sleeve) whose give is held by Coulomb friction: its volume follows the gauge
+    pressure only once the pressure has moved the friction band past where the wall
+    stuck, so the volume's loop over the pressure is rate-independent::
+
+        V = V_0 + C y,   y follows p - P_atm where |p - P_atm - y| reaches w, in the
+                         direction the pressure moves; otherwise y holds,
+
+    ``C = compliance_m3_per_Pa``, ``w = friction_band_Pa`` (the stuck wall starts at the
+    initial gauge pressure; the band's edge is smoothed over 10 % of it).
+    ``compliance_m3_per_Pa = 0`` is a rigid wall.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    compliance_m3_per_Pa: float
+    friction_band_Pa: float = 30e3
+
+    def __post_init__(self):
+        _non_negative(self, "compliance_m3_per_Pa")
+        _positive(self, "friction_band_Pa")

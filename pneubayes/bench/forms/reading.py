@@ -230,3 +230,88 @@ def _play(p: np.ndarray, half_width: float) -> np.ndarray:
             y = v + half_width
         out[i] = y
     return out
+
+
+# ------------------------------------------ out-of-catalogue forms, the tenth blind set
+
+
+@dataclass(frozen=True)
+class SolenoidGroundShift(PlantForm):
+    """A pressure sensor that shares its ground return with the valve's solenoid driver:
+    the coil's current through the common wire shifts the sensor's zero, so the reading
+    moves with the command, not with the pressure::
+
+        r = p + shift_Pa i,   tau di/dt = min(|u| / full_command_V, 1) - i,
+
+    ``i`` the coil's current as a fraction of full (the coil's L / R is ``tau =
+    time_constant_s``; i starts at its steady value for the first command), u the
+    command (V) the driver receives. ``shift_Pa`` (either sign) is the shift at full
+    current. ``shift_Pa = 0`` is a sensor with its own ground.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    shift_Pa: float
+    time_constant_s: float = 5e-3
+    full_command_V: float = 5.0
+
+    def __post_init__(self):
+        _finite(self, "shift_Pa")
+        _positive(self, "time_constant_s", "full_command_V")
+
+    def current(self, time_s, command_V):
+        """The coil's current (fraction of full) at the times ``time_s`` (s) for the
+        command ``command_V`` (V, held between samples as the driver holds it)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        drive = np.minimum(np.abs(np.asarray(command_V, dtype=np.float64))
+                           / self.full_command_V, 1.0)
+        if t.size == 0:
+            return drive.copy()
+        # a held command: the exact lag of a piecewise-constant drive
+        out = np.empty_like(drive)
+        i = float(drive[0])
+        out[0] = i
+        decay = np.exp(-np.diff(t) / self.time_constant_s)
+        for k in range(1, t.size):
+            i = drive[k - 1] + (i - drive[k - 1]) * decay[k - 1]
+            out[k] = i
+        return out
+
+    def read(self, time_s, command_V, pressure_Pa):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa`` at the
+        times ``time_s`` (s) under the command ``command_V`` (V)."""
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if self.shift_Pa == 0.0:
+            return p.copy()
+        return p + self.shift_Pa * self.current(time_s, command_V)
+
+
+@dataclass(frozen=True)
+class InletJetAtSensor(PlantForm):
+    """A pressure sensor whose port faces the jet from the valve's inlet: it reads the
+    chamber's pressure plus a share of the jet's dynamic pressure, which grows with the
+    square of the inflow (a port beside the jet, where the jet entrains the gas, reads
+    low instead)::
+
+        r = p + shift_Pa (max(mdot_in, 0) / reference_flow_kg_per_s)^2,
+
+    ``mdot_in`` the mass flow through the valve's inlet port (kg/s; the plant's), the
+    exhaust drawing from the whole chamber without a jet. ``shift_Pa`` (either sign) is
+    the shift at the reference flow. ``shift_Pa = 0`` is a sensor away from the jet.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    shift_Pa: float
+    reference_flow_kg_per_s: float = 5e-4
+
+    def __post_init__(self):
+        _finite(self, "shift_Pa")
+        _positive(self, "reference_flow_kg_per_s")
+
+    def read(self, inlet_flow_kg_per_s, pressure_Pa):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa`` with the
+        inlet's mass flows ``inlet_flow_kg_per_s`` (kg/s) at the same samples."""
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if self.shift_Pa == 0.0:
+            return p.copy()
+        q = np.maximum(np.asarray(inlet_flow_kg_per_s, dtype=np.float64), 0.0)
+        return p + self.shift_Pa * (q / self.reference_flow_kg_per_s) ** 2

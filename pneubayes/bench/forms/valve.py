@@ -268,6 +268,31 @@ class SpringReturnSpool(PlantForm):
 
 
 @dataclass(frozen=True)
+class PressureHeldSolenoid(PlantForm):
+    """A solenoid whose armature is held against its seat by the pressure across the
+    inlet: opening (the command above the spool) starts slower the larger the drop,
+    closing (the spring and the pressure together) is fast::
+
+        ds/dt = (u - s) / (tau (1 + k max(p_s - p_v, 0) / P_atm))   if u > s,
+        ds/dt = (u - s) / tau                                       otherwise,
+
+    s the spool position (V of command), ``tau = time_constant_s``, ``k =
+    slowing_per_atm``, p_s the supply at the valve and p_v the pressure at its work
+    port. Unlike the catalogue's spool lags its time constant depends on the pressures,
+    so a valve that opens into an empty chamber lags more than into a full one.
+    ``time_constant_s = 0`` is a free spool (the state is omitted); it replaces the
+    catalogue's spool stages and cannot be planted beside them.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    time_constant_s: float
+    slowing_per_atm: float = 1.0
+
+    def __post_init__(self):
+        _non_negative(self, "time_constant_s", "slowing_per_atm")
+
+
+@dataclass(frozen=True)
 class WarmingCoil(PlantForm):
     """A voltage-driven proportional solenoid whose coil warms as it works: its
     resistance rises with its temperature (copper: +0.39 %/K), so the same command
