@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from pneubayes.discovery.settings import FormSettings
 from pneubayes.effects import closure_features as cf
 from pneubayes.effects import closure_histories as ch
 from pneubayes.effects import closure_terms as ct
@@ -601,7 +602,7 @@ def test_discovery_proposes_no_tube_line_beside_a_closure(rig, valve_params):
         params = {k: params[k] for k in model.parameter_names}
         fit = StepFit(model, params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
         ctx = candidate_context(fit, "tube_delay", {"best_term_start": None}, rig,
-                                line_form=line_form)
+                                FormSettings(tube_line_form=line_form))
         return [c.form for c, _ in make_effect("tube_delay").candidate_forms(ctx)]
 
     assert proposed(None, "line") == ["transport", "line"]

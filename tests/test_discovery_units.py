@@ -9,6 +9,7 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.discovery.disagreement import RegimeSettings, _bins, flagged_bins
 from pneubayes.discovery.library import CandidateLibrary, LibraryGrid, _terms, build_library
 from pneubayes.discovery.one_step import first_order_lag, one_step_data
+from pneubayes.discovery.settings import FormSettings
 from pneubayes.discovery.sindy import GroupedSINDy, cluster_se
 from pneubayes.effects import CATALOGUE, effects_from_names
 from pneubayes.io import read_recording
@@ -268,7 +269,8 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
     fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     tube_4ms = {"best_term_start": {"tube_delay_s": 0.004}}
-    cands = effect_candidates(fit, "tube_delay", tube_4ms, rig, 3)
+    line3 = FormSettings(tube_line_segments=3, tube_line_form="line")
+    cands = effect_candidates(fit, "tube_delay", tube_4ms, rig, line3)
     forms = [m.effect("tube_delay").options()["form"] for m, _ in cands]
     assert forms == ["transport", "line"]
     assert cands[0][1]["tube_delay_s"] == pytest.approx(0.004)
@@ -286,12 +288,13 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     hot = StepFit(Model([make_effect("heat_transfer")]), dict(params, heat_transfer_rate_per_s=5.0),
                   1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     assert [m.effect("tube_delay").form for m, _ in
-            effect_candidates(hot, "tube_delay", tube_4ms, rig, 3)] == [
+            effect_candidates(hot, "tube_delay", tube_4ms, rig, line3)] == [
         "transport", "line"]
     lined = StepFit(line_model, dict(line_start), 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
     assert [m.effect("heat_transfer").form for m, _ in
-            effect_candidates(lined, "heat_transfer", heat_10, rig, 3)] == ["rate", "convective"]
+            effect_candidates(lined, "heat_transfer", heat_10, rig, line3)] == [
+        "rate", "convective"]
 
 
 def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():
@@ -641,7 +644,7 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
         fit = SimpleNamespace(model=model, params=params)
         term = term or {"tube_delay_s": 0.004}
         return candidate_context(fit, "x", {"best_term_start": term}, rig,
-                                 line_segments=8, line_form="wave")
+                                 FormSettings(tube_line_segments=8, tube_line_form="wave"))
 
     ctx = context(Model([make_effect("tube_delay", form="wave", segments=8)]),
                   {"heat_transfer_rate_per_s": 5.0})
@@ -689,7 +692,8 @@ def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-5)
     current = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     evidence = {"best_term_start": {"tube_delay_s": 0.004}}
-    options = {"tube_delay": effect_candidates(current, "tube_delay", evidence, rig)}
+    lines = FormSettings(tube_line_form="line")
+    options = {"tube_delay": effect_candidates(current, "tube_delay", evidence, rig, lines)}
     fitted_delay = {"transport": 0.004, "line": 0.0087}
     calls = []
 
@@ -701,7 +705,7 @@ def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(
 
     forms, settled, *_ = fit_round_forms(
         options, fit, 0.0,
-        follow=lambda g, m, f: follow_up(current, g, evidence, rig, m, f.params))
+        follow=lambda g, m, f: follow_up(current, g, evidence, rig, m, f.params, lines))
     assert calls[0][0] == "transport" and calls[1][:2] == ("line", 4)
     assert calls[2] == ("line", 8, pytest.approx(0.0087))
     assert len(calls) == 3 and settled is None

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from pneubayes.discovery.settings import FormSettings
 from pneubayes.effects import CATALOGUE, Effect, make_effect
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.model import Model
@@ -765,7 +766,8 @@ def test_every_effect_proposes_candidates_that_start_inside_their_bounds(name, r
     for term in (None, *effect.library_terms(effect.library_strengths
                                              or effect.opt_in_strengths)):
         evidence = {"best_term_start": None if term is None else term.start}
-        cands = effect_candidates(fit, name, evidence, rig, 3)
+        cands = effect_candidates(fit, name, evidence, rig,
+                                  FormSettings(tube_line_segments=3, tube_line_form="line"))
         assert cands, name
         for model, start in cands:
             assert model.effect_names == (name,)

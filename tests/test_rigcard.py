@@ -429,6 +429,7 @@ def test_discovery_proposes_no_heat_or_line_beside_a_compliant_chamber():
     offers neither heat transfer nor the tube's acoustic line there (the tube's
     transport delay has no state and stays)."""
     from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.settings import FormSettings
     from pneubayes.discovery.verification import StepFit
 
     c = card(chamber={"kind": "compliant", "volume_m3": 1e-3,
@@ -436,10 +437,12 @@ def test_discovery_proposes_no_heat_or_line_beside_a_compliant_chamber():
     fit = StepFit(Model(rig_card=c), {"valve_open_area_m2": 1e-7}, 1.0, 1.0, np.zeros(1),
                   np.zeros(1), 500.0, 0.0)
     heat = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
-    assert effect_candidates(fit, "heat_transfer", heat, _rig(c), 3) == []
+    line3 = FormSettings(tube_line_segments=3, tube_line_form="line")
+    assert effect_candidates(fit, "heat_transfer", heat, _rig(c), line3) == []
     tube = {"best_term_start": {"tube_delay_s": 0.004}}
     assert [m.effect("tube_delay").form
-            for m, _ in effect_candidates(fit, "tube_delay", tube, _rig(c), 3)] == ["transport"]
+            for m, _ in effect_candidates(fit, "tube_delay", tube, _rig(c), line3)] == [
+        "transport"]
 
 
 RW = ROOT / "data" / "real" / "respiraworks"
@@ -640,6 +643,7 @@ def test_discovery_offers_a_compliant_chamber_only_forms_it_can_simulate():
     """Heat transfer and the acoustic line need states a compliant chamber's integration
     does not carry: discovery offers neither beside it (the transport delay it can)."""
     from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.settings import FormSettings
     from pneubayes.discovery.verification import StepFit
 
     c = card(chamber={"kind": "compliant", "volume_m3": 1e-3,
@@ -651,7 +655,7 @@ def test_discovery_offers_a_compliant_chamber_only_forms_it_can_simulate():
     rig = _rig(c)
     assert effect_candidates(fit, "heat_transfer", {}, rig) == []
     tubes = effect_candidates(fit, "tube_delay", {"best_term_start": {"tube_delay_s": 0.004}},
-                              rig)
+                              rig, FormSettings(tube_line_form="line"))
     assert [mm.effect("tube_delay").form for mm, _ in tubes] == ["transport"]
     fixed = Model(rig_card=card())
     fit2 = StepFit(fixed, {"valve_open_area_m2": 1e-6, "dead_volume_m3": 1e-4},

@@ -506,9 +506,7 @@ def test_the_discovery_setting_fixes_the_wave_candidates_grid_from_its_start(rig
 
     def grid(forms, delay_s):
         cands = effect_candidates(fit, "tube_delay",
-                                  {"best_term_start": {"tube_delay_s": delay_s}}, rig,
-                                  forms.tube_line_segments, forms.tube_line_cutoff_Hz,
-                                  forms.tube_line_form, wave_grid=forms.tube_wave_grid)
+                                  {"best_term_start": {"tube_delay_s": delay_s}}, rig, forms)
         return [m.effect("tube_delay").grid_s for m, _ in cands
                 if m.effect("tube_delay").form == "wave"]
 

@@ -10,6 +10,7 @@ the current fit and moves the start values inside the bounds.
 
 from __future__ import annotations
 
+from pneubayes.discovery.settings import FormSettings
 from pneubayes.discovery.verification import StepFit
 from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext, inside_bounds
@@ -25,32 +26,32 @@ _STATE_SLOTS = ("compliance_m3_per_Pa", "tank_volume_m3", "lung_volume_m3",
 
 
 def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
-                      line_segments: int = 8, line_cutoff_Hz: float = 300.0,
-                      line_form: str = "line", *,
-                      wave_grid: tuple[float, int] = (1e-4, 1)) -> CandidateContext:
-    """What the named group's effect needs to propose its candidates beside ``fit``
-    (``wave_grid``: the transmission-line candidate's longest grid step (s) and steps
-    per element transit, :meth:`~pneubayes.effects.TubeDelay.wave_grid_s`)."""
+                      forms: FormSettings | None = None) -> CandidateContext:
+    """What the named group's effect needs to propose its candidates beside ``fit``;
+    ``forms``: the tube's outside form, its line's cells and cut-off and the
+    transmission line's grid (None: :class:`~pneubayes.discovery.settings.FormSettings`'
+    defaults)."""
+    forms = FormSettings() if forms is None else forms
     slots = fit.model.lower(fit.model.vector(fit.params)[None, :], rig)[0]
     taken = any(slots[SLOT_INDEX[s]] > 0 for s in _STATE_SLOTS)
-    if not all(e.beside_tube(line_form) for e in fit.model.effects):
+    line_segments = forms.tube_line_segments
+    if not all(e.beside_tube(forms.tube_line_form) for e in fit.model.effects):
         line_segments = 0  # the simulator cannot carry the tube's line beside one of them
     return CandidateContext(model=fit.model, params=dict(fit.params), rig=rig,
                             term_start=evidence.get("best_term_start"),
                             second_state_free=not taken, line_segments=line_segments,
                             dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]),
-                            line_cutoff_Hz=line_cutoff_Hz, line_form=line_form,
-                            slots=slots, wave_grid=tuple(wave_grid))
+                            line_cutoff_Hz=forms.tube_line_cutoff_Hz,
+                            line_form=forms.tube_line_form, slots=slots,
+                            wave_grid=forms.tube_wave_grid)
 
 
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,
-                      line_segments: int = 8, line_cutoff_Hz: float = 300.0,
-                      line_form: str = "line", *, wave_grid: tuple[float, int] = (1e-4, 1)):
+                      forms: FormSettings | None = None):
     """``[(model, start), ...]``: the group's effect form(s) beside ``fit.model``, each
     with start values (the fit's, the effect's neutral values, then the effect's own
-    starts moved just inside the bounds)."""
-    ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz,
-                            line_form, wave_grid=wave_grid)
+    starts moved just inside the bounds); ``forms`` as :func:`candidate_context`."""
+    ctx = candidate_context(fit, group, evidence, rig, forms)
     effect = make_effect(group, **fit.model.effect_options(group))
     return [_started(fit, form, {**fit.params, **form.neutral_values()}, values)
             for form, values in effect.candidate_forms(ctx)]
@@ -66,13 +67,12 @@ def _started(fit: StepFit, effect, base: dict, values: dict):
 
 
 def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params: dict,
-              line_segments: int = 8, line_cutoff_Hz: float = 300.0,
-              line_form: str = "line", *, wave_grid: tuple[float, int] = (1e-4, 1)):
+              forms: FormSettings | None = None):
     """``(model, start)`` of the form the named group's effect asks to fit next from
     ``model`` fitted at ``params`` beside ``fit`` (:meth:`~pneubayes.effects.Effect.
-    form_after_fit`), started at ``params``; None when it asks for none."""
-    ctx = candidate_context(fit, group, evidence, rig, line_segments, line_cutoff_Hz,
-                            line_form, wave_grid=wave_grid)
+    form_after_fit`), started at ``params``; None when it asks for none; ``forms`` as
+    :func:`candidate_context`."""
+    ctx = candidate_context(fit, group, evidence, rig, forms)
     nxt = model.effect(group).form_after_fit(params, ctx)
     if nxt is None:
         return None

@@ -247,18 +247,13 @@ class TrialRunner:
         current = state.current
         rig = d.rig()
         trials = []
-        options = {g: effect_candidates(current, g, evidence[g], rig, s.forms.tube_line_segments,
-                                        s.forms.tube_line_cutoff_Hz, s.forms.tube_line_form,
-                                        wave_grid=s.forms.tube_wave_grid)
+        options = {g: effect_candidates(current, g, evidence[g], rig, s.forms)
                    for g in groups}
         round_forms, settled, failed, outpaced = fit_round_forms(
             options, lambda g, m, x, beat: self.fit_trial(g, m, x, current, beat),
             s.forms.settled_ratio * d.noise_Pa,
             follow=lambda g, m, f: follow_up(current, g, evidence[g], rig, m, f.params,
-                                             s.forms.tube_line_segments,
-                                             s.forms.tube_line_cutoff_Hz,
-                                             s.forms.tube_line_form,
-                                             wave_grid=s.forms.tube_wave_grid),
+                                             s.forms),
             current_Pa=current.train_rmse_Pa, min_share=s.forms.later_min_share,
             screen_share=s.forms.later_screen_share,
             cheap={g for g, forms in options.items()

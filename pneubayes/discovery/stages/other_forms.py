@@ -61,9 +61,7 @@ class OtherForms(Stage):
             here = SimpleNamespace(model=rest, params={k: current.params[k]
                                                        for k in rest.parameter_names})
             for m, start in effect_candidates(here, g, {"best_term_start": term or None},
-                                              rig, s.forms.tube_line_segments,
-                                              s.forms.tube_line_cutoff_Hz, s.forms.tube_line_form,
-                                              wave_grid=s.forms.tube_wave_grid):
+                                              rig, s.forms):
                 if form_label(m, g) == form_label(current.model, g):
                     continue
                 # the rest of the model where it was fitted; the new form's own values

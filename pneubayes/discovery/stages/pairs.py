@@ -149,9 +149,7 @@ class Pairs(Stage):
         s, rig = runner.settings, runner.data.rig()
 
         def proposed(g, beside):
-            forms = effect_candidates(beside, g, search.evidence_[g], rig,
-                                      s.forms.tube_line_segments, s.forms.tube_line_cutoff_Hz,
-                                      s.forms.tube_line_form, wave_grid=s.forms.tube_wave_grid)
+            forms = effect_candidates(beside, g, search.evidence_[g], rig, s.forms)
             return {m.effect(g).options().get("form") for m, _ in forms}
 
         combos = sorted(((x, y) for x in tried[a] for y in tried[b]),
