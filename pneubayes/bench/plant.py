@@ -7,18 +7,12 @@ eqs. 1-3, the Gompertz map of eq. 11 and the tube's friction correlation from
 LSODA) with explicit tolerances.
 
 State: chamber pressure p (eq. 5 with the volume ``V = V_dead + A_bore x(t)``), and
-as the forms and effects require: chamber temperature, spool position and velocity,
-regulator droop, the acoustic tube's cell pressures and mass flows, a spool's play, a
-silencer body's pressure, a creeping wall's volume, a meter-out throttle's fitting, a
-supply hose's pressure, a solenoid coil's heat, the cylinder's other chamber behind a
-worn piston seal, a quick-exhaust valve's line and a friction-held wall's give
-(:mod:`pneubayes.bench.forms`
-documents each form's equations). A sticking spool (SpoolStiction) changes the command
-the valve sees; a late release (ReleaseDelay), a PWM driver (PwmValve) and a sampling
-driver (ZohDriver) when and what it takes (one of them at a time); the bench applies the
-reading-side forms (SensorBow, CapillarySensorPort, SensorZeroDrift, SensorThermalShock,
-SensorHysteresis, SolenoidGroundShift, InletJetAtSensor: the last with the inlet's flow
-the plant returns; LaggingPositionSensor on the position) to the plant's output. The other
+what the forms and effects add (:mod:`pneubayes.bench.forms` documents each form's
+equations; the ``L_I*`` constants index them). A sticking spool (SpoolStiction) changes
+the command the valve sees; a late release (ReleaseDelay), a PWM driver (PwmValve) and
+a sampling driver (ZohDriver) when and what it takes (one of them at a time); the bench
+applies the reading-side forms (its :mod:`~pneubayes.bench.forms.reading`, with the
+inlet's flow the plant returns) to the plant's output. The other
 out-of-catalogue forms act in the same right-hand side; at zero strength each leaves it
 as it was.
 
@@ -260,6 +254,49 @@ def quick_exhaust_flows(p, pv, P, hot):
 
 
 @njit(cache=True)
+def _leaks_out(p, x, xdot, y, dy, P, L, heat, temp):
+    """The chamber's leaks (kg/s, out) at pressure ``p`` and piston position ``x`` (m,
+    moving at ``xdot`` m/s): the catalogue's orifice and laminar leaks and the
+    out-of-catalogue seals and valves; a worn piston seal's other chamber's rate goes
+    into ``dy``."""
+    kappa, rs, ts, p_atm = P[K_KAPPA], P[K_RS], P[K_TS], P[K_PATM]
+    alpha, beta, theta = P[K_ALPHA], P[K_BETA], P[K_THETA]
+    f_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0] if P[K_LEAKO] > 0.0 else 0.0
+    if heat == 2 and f_l > 0.0:
+        f_l *= math.sqrt(ts / temp)
+    k_lam = P[K_LEAKL]
+    if L[L_CLEAR] == 1:
+        k_lam += P[K_CL_C] / (P[K_CL_L0] + P[K_CL_SLOPE] * x)
+    leak = P[K_LEAKO] * f_l + k_lam * (p * p - p_atm * p_atm)
+    if p > P[K_RV_P] and P[K_RV_K] > 0.0:  # relief valve
+        leak += P[K_RV_K] * (p - P[K_RV_P]) ** 1.5
+    if p > P[K_LS_P] and P[K_LS_K] > 0.0:  # lip seal lifted
+        leak += P[K_LS_K] * (p - P[K_LS_P]) ** 2
+    if P[K_SB_A] > 0.0:  # the seal over a scored section of the barrel
+        win = (smoothstep((x - P[K_SB_X1]) / P[K_SB_E] + 0.5)
+               * smoothstep((P[K_SB_X2] - x) / P[K_SB_E] + 0.5))
+        if win > 0.0:
+            f_s = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
+            if heat == 2 and f_s > 0.0:
+                f_s *= math.sqrt(ts / temp)
+            leak += P[K_SB_A] * win * f_s
+    if L[L_IB] >= 0:  # a worn piston seal into the other chamber, which breathes out
+        p_b = y[L[L_IB]]
+        m_s = P[K_PB_K] * (p * p - p_b * p_b)
+        f_v = flow_terms(p_b, p_atm, alpha, beta, theta, kappa)[0]
+        v_b = P[K_PB_V] - P[K_ABORE] * x
+        dy[L[L_IB]] = kappa * (rs * ts * (m_s - P[K_PB_A] * f_v)
+                               + p_b * P[K_ABORE] * xdot) / v_b
+        leak += m_s
+    if P[K_ES_K] > 0.0:  # a pressure-energised seal: its gap closes as p rises
+        g_e = max(p - p_atm, -0.5 * P[K_ES_P])
+        leak += P[K_ES_K] * (p * p - p_atm * p_atm) / (1.0 + g_e / P[K_ES_P]) ** 3
+    if P[K_SS_K] > 0.0:  # a seal whose film thickens with the piston's speed
+        leak += P[K_SS_K] * (abs(xdot) / P[K_SS_V]) ** 1.5 * (p * p - p_atm * p_atm)
+    return leak
+
+
+@njit(cache=True)
 def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     """Right-hand side of the plant into ``dy``; returns the supply a sensor reads, Pa
     (at the valve's inlet; with a SupplyHose at the regulator, upstream of it), and the
@@ -434,39 +471,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     else:
         inflow = att * (m_in - m_ex)
         h_in = att * (m_in * (ts if m_in > 0.0 else temp) - m_ex * (temp if m_ex > 0.0 else ts))
-    # leaks to atmosphere
-    f_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0] if P[K_LEAKO] > 0.0 else 0.0
-    if heat == 2 and f_l > 0.0:
-        f_l *= math.sqrt(ts / temp)
-    k_lam = P[K_LEAKL]
-    if L[L_CLEAR] == 1:
-        k_lam += P[K_CL_C] / (P[K_CL_L0] + P[K_CL_SLOPE] * x)
-    leak = P[K_LEAKO] * f_l + k_lam * (p * p - p_atm * p_atm)
-    if p > P[K_RV_P] and P[K_RV_K] > 0.0:  # relief valve
-        leak += P[K_RV_K] * (p - P[K_RV_P]) ** 1.5
-    if p > P[K_LS_P] and P[K_LS_K] > 0.0:  # lip seal lifted
-        leak += P[K_LS_K] * (p - P[K_LS_P]) ** 2
-    if P[K_SB_A] > 0.0:  # the seal over a scored section of the barrel
-        win = (smoothstep((x - P[K_SB_X1]) / P[K_SB_E] + 0.5)
-               * smoothstep((P[K_SB_X2] - x) / P[K_SB_E] + 0.5))
-        if win > 0.0:
-            f_s = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
-            if heat == 2 and f_s > 0.0:
-                f_s *= math.sqrt(ts / temp)
-            leak += P[K_SB_A] * win * f_s
-    if L[L_IB] >= 0:  # a worn piston seal into the other chamber, which breathes out
-        p_b = y[L[L_IB]]
-        m_s = P[K_PB_K] * (p * p - p_b * p_b)
-        f_v = flow_terms(p_b, p_atm, alpha, beta, theta, kappa)[0]
-        v_b = P[K_PB_V] - P[K_ABORE] * x
-        dy[L[L_IB]] = kappa * (rs * ts * (m_s - P[K_PB_A] * f_v)
-                               + p_b * P[K_ABORE] * xdot) / v_b
-        leak += m_s
-    if P[K_ES_K] > 0.0:  # a pressure-energised seal: its gap closes as p rises
-        g_e = max(p - p_atm, -0.5 * P[K_ES_P])
-        leak += P[K_ES_K] * (p * p - p_atm * p_atm) / (1.0 + g_e / P[K_ES_P]) ** 3
-    if P[K_SS_K] > 0.0:  # a seal whose film thickens with the piston's speed
-        leak += P[K_SS_K] * (abs(xdot) / P[K_SS_V]) ** 1.5 * (p * p - p_atm * p_atm)
+    leak = _leaks_out(p, x, xdot, y, dy, P, L, heat, temp)  # to the atmosphere
     mdot = inflow - leak
     # chamber (eq. 5, or the energy equation)
     vol = P[K_VDEAD] + P[K_ABORE] * x
