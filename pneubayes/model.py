@@ -315,7 +315,7 @@ class Model:
     @property
     def relaxes_reading(self) -> bool:
         """Whether an effect reads the pressure through a map after the kernel
-        (:meth:`reading_relaxations`, :meth:`reading_plays`)."""
+        (:meth:`reading_relaxations`, :meth:`reading_plays`, :meth:`reading_commands`)."""
         return any(e.relaxes_reading for e in self.effects)
 
     def reading_relaxations(self, params) -> tuple[np.ndarray, np.ndarray]:
@@ -328,6 +328,13 @@ class Model:
         (:mod:`pneubayes.simulation.reading_play`) of every effect that has them, side
         by side (``J`` 0 without one)."""
         return self._reading_maps(params, "reading_plays")
+
+    def reading_commands(self, params) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains (Pa per command unit), time constants (s))``, each ``(B, K)``: the
+        lags of the command's magnitude in the reading
+        (:mod:`pneubayes.simulation.reading_command`) of every effect that has them,
+        side by side (``K`` 0 without one)."""
+        return self._reading_maps(params, "reading_commands")
 
     def _reading_maps(self, params, method: str) -> tuple[np.ndarray, np.ndarray]:
         """Every reading effect's ``method`` pairs side by side (an effect that returns

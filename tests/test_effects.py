@@ -89,7 +89,7 @@ def test_catalogue_names():
                                "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
                                "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
                                "valve_stiction", "closure", "reading_closure",
-                               "reading_play", "volume_closure"]
+                               "reading_play", "reading_command", "volume_closure"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):

@@ -92,6 +92,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_text_atomic(out / "found_reading_play.py",
                           play_effect_skeleton(result.model, result.params))
         doc["found_reading_play_effect"] = "found_reading_play.py"
+    if result.model.has("reading_command"):  # and its lags of the command as another
+        from pneubayes.discovery.openform.skeleton import command_effect_skeleton
+
+        write_text_atomic(out / "found_reading_command.py",
+                          command_effect_skeleton(result.model, result.params))
+        doc["found_reading_command_effect"] = "found_reading_command.py"
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
     if figures and result.maps:  # (no search round, no map: max_effects 0)

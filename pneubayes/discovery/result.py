@@ -17,13 +17,14 @@ from pneubayes.effects.closure_terms import (
     term_formula,
 )
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
+from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
 #: The open-form components: their terms are listed apart from the named effects.
-OPEN_FORM = ("closure", "reading_closure", "reading_play", "volume_closure")
+OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "volume_closure")
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,10 +165,11 @@ class DiscoveryResult(PosteriorDraws):
                 for k in range(model.effect(component).terms)]
 
     def found_reading_terms(self) -> list[dict]:
-        """The final model's open-form terms at the reading (effects ``reading_closure``
-        and ``reading_play``; empty without them): each relaxation's or play's formula,
-        its gain and time constant or half-width (the posterior's median and 90 %
-        interval when one was sampled, else the estimate), and where it acts."""
+        """The final model's open-form terms at the reading (effects ``reading_closure``,
+        ``reading_play`` and ``reading_command``; empty without them): each relaxation's,
+        play's or command lag's formula, its gain and time constant or half-width (the
+        posterior's median and 90 % interval when one was sampled, else the estimate),
+        and where it acts."""
         return self._component_terms(
             "reading_closure", "relaxation", "the pressure reading (Pa)",
             lambda k: (f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = p - p_bar_{k} "
@@ -177,7 +179,12 @@ class DiscoveryResult(PosteriorDraws):
             lambda k: (f"r = p + h_{k} (p - y_{k}), y_{k} = min(p + w_{k}, max(p - w_{k}, "
                        f"y_{k} before)) (h_{k} = {play_gain_name(k)}, w_{k} = "
                        f"{play_width_name(k)}, Pa)"),
-            lambda k: (play_gain_name(k), play_width_name(k)))
+            lambda k: (play_gain_name(k), play_width_name(k))) + self._component_terms(
+            "reading_command", "command lag", "the pressure reading (Pa)",
+            lambda k: (f"r = p + c_{k} l_{k}, tau_{k} dl_{k}/dt = |u| - l_{k} (c_{k} = "
+                       f"{command_gain_name(k)}, Pa per command unit; tau_{k} = "
+                       f"{command_time_constant_name(k)}, s)"),
+            lambda k: (command_gain_name(k), command_time_constant_name(k)))
 
     def found_volume_terms(self) -> list[dict]:
         """The final model's open-form hinges of the chamber's volume (effect

@@ -284,6 +284,9 @@ class StageSettings:
     reading_play_min_noise_ratio : float
         ReadingPlayForm: open-form plays (backlash) of the reading while above this x
         the noise floor (0: off).
+    reading_command_min_noise_ratio : float
+        ReadingCommandForm: open-form lags of the command's magnitude in the reading
+        while above this x the noise floor (0: off).
     volume_form_min_noise_ratio : float
         VolumeForm: open-form hinges of the chamber's volume in its pressure while above
         this x the noise floor (0: off).
@@ -299,6 +302,7 @@ class StageSettings:
     open_form_min_noise_ratio: float = 1.5
     reading_form_min_noise_ratio: float = 1.5
     reading_play_min_noise_ratio: float = 1.5
+    reading_command_min_noise_ratio: float = 1.5
     volume_form_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
@@ -310,7 +314,8 @@ class StageSettings:
             raise ValueError("max_form_swaps must be an integer >= 0, got "
                              f"{self.max_form_swaps!r}")
         for name in ("open_form_min_noise_ratio", "reading_form_min_noise_ratio",
-                     "reading_play_min_noise_ratio", "volume_form_min_noise_ratio"):
+                     "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
+                     "volume_form_min_noise_ratio"):
             v = getattr(self, name)
             if not (v == 0.0 or v >= 1.0):
                 raise ValueError(f"{name} must be 0 (off) or >= 1, got {v}")

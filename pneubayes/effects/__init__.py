@@ -4,9 +4,10 @@ Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_de
 ``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
 ``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
 ``closure`` (an open-form extra mass flow), ``reading_closure`` (open-form relaxations
-of the reading), ``reading_play`` (open-form plays, backlash, of the reading) and
+of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
+``reading_command`` (open-form lags of the command's magnitude in the reading) and
 ``volume_closure`` (open-form hinges of the chamber's volume in its pressure), the last
-four never searched for by the discovery library.
+five never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pneubayes.effects.closure import Closure
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.reading_closure import ReadingClosure
+from pneubayes.effects.reading_command import ReadingCommand
 from pneubayes.effects.reading_play import ReadingPlay
 from pneubayes.effects.sensor_calibration import SensorCalibration
 from pneubayes.effects.sensor_drift import SensorDrift
@@ -38,7 +40,7 @@ CATALOGUE: dict[str, type[Effect]] = {
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
-                VolumeClosure)
+                ReadingCommand, VolumeClosure)
 }
 
 
@@ -127,7 +129,8 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 
 
 __all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10Fit",
-           "HeatTransfer", "Parameter", "ReadingClosure", "ReadingPlay", "SensorCalibration",
+           "HeatTransfer", "Parameter", "ReadingClosure", "ReadingCommand", "ReadingPlay",
+           "SensorCalibration",
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",

@@ -142,7 +142,8 @@ def start_state(gains, time_constants_s, inputs, starts, reading0_Pa, plays=None
     """``(p0, p_bar0, y0)``: the chamber's start ``(B, W)``, each relaxation's ``(B, K,
     W)`` and each play's ``(B, J, W)`` (:mod:`pneubayes.simulation.reading_play`;
     ``plays``: ``(gains, half-widths Pa)``, each ``(B, J)``, or None) for windows
-    starting at the samples ``starts`` from the readings ``reading0_Pa`` ``(W,)``, Pa.
+    starting at the samples ``starts`` from the readings ``reading0_Pa`` (``(W,)``, or
+    each parameter set's ``(B, W)``), Pa.
     With the inputs' recorded reading, ``p_bar_k`` is its low-pass with time constant
     ``tau_k (1 + G)`` and ``y_j`` its play of half-width ``w_j (1 + G)``, ``G`` the sum
     of every gain (exact for one term alone: with ``p = (r + g p_bar) / (1 + g)``, ``tau
@@ -158,8 +159,9 @@ def start_state(gains, time_constants_s, inputs, starts, reading0_Pa, plays=None
                          "that still moves with the pressure at once), got "
                          f"{total.min():.3g}")
     r0 = np.asarray(reading0_Pa, dtype=np.float64)
-    bar0 = np.broadcast_to(r0, (*g.shape, r0.size)).copy()
-    y0 = np.broadcast_to(r0, (*h.shape, r0.size)).copy()
+    r0 = np.broadcast_to(r0, (g.shape[0], r0.shape[-1]))  # (W,) or each set's (B, W)
+    bar0 = np.broadcast_to(r0[:, None, :], (*g.shape, r0.shape[1])).copy()
+    y0 = np.broadcast_to(r0[:, None, :], (*h.shape, r0.shape[1])).copy()
     if inputs.reading_Pa is not None:
         stretch = (1.0 + total)[:, None]
         if g.shape[1]:

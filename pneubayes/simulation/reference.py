@@ -374,7 +374,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     P_atm) + o: ``initial_pressure_Pa`` and ``initial_rate_Pa_per_s`` are such readings,
     and so is every output. A reading closure's relaxations (effect
     ``reading_closure``) are ODE states that follow that reading from rest; a reading
-    play's (effect ``reading_play``) follows it at the samples from rest.
+    play's (effect ``reading_play``) follows it at the samples from rest; lags of the
+    command (effect ``reading_command``) add to it, warm from before the first sample.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     cal_g, curv = 1.0 + sl[S["reading_gain_error"]], sl[S["reading_curvature_Pa"]]
@@ -388,6 +389,18 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          if warm != 0.0 and inputs.time_s[0] > 0.0 else 0.0)
     calibrated = np.any(cal_o != 0.0) or cal_g != 1.0 or curv != 0.0
     p_atm = rig.atmospheric_pressure_Pa
+    # lags of the command's magnitude in the reading (effect reading_command), stepped
+    # exactly under the held command; the rest of the reading starts r0 less them
+    commands = np.zeros(inputs.time_s.size)
+    for c, tau in zip(*(a[0] for a in model.reading_commands(params))):
+        before = inputs.command_before_start
+        lag = abs(float(inputs.command_V[0] if before is None else before))
+        for k in range(inputs.time_s.size):
+            if k:
+                a = math.exp(-(inputs.time_s[k] - inputs.time_s[k - 1]) / tau)
+                lag = a * lag + (1.0 - a) * abs(float(inputs.command_V[k - 1]))
+            commands[k] += c * lag
+    initial_pressure_Pa = initial_pressure_Pa - commands[0]
     initial_reading = initial_pressure_Pa
     if calibrated:  # the reading's start -> the chamber's (r = P_atm + g y + k y^2 + o)
         rr = initial_pressure_Pa - p_atm - cal_o[0]
@@ -544,4 +557,5 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         for k, v in enumerate(read):
             y = min(v + w, max(v - w, y))
             out[k] += h * (v - y)
+    out = out + commands
     return (out, nfev) if return_stats else out

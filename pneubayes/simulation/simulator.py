@@ -25,6 +25,7 @@ from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.drive import Inputs, kernel_ready_arrays
 from pneubayes.simulation.measurement import sensor_reading
 from pneubayes.simulation.reading_closure import read_windows, start_state
+from pneubayes.simulation.reading_command import command_offsets
 from pneubayes.simulation.stiction import sticks, valve_commands
 
 
@@ -200,7 +201,9 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         if unreadable.any() and on_failure == "nan":
             relax = (np.where(unreadable[:, None], 0.0, relax[0]), relax[1])
             plays = (np.where(unreadable[:, None], 0.0, plays[0]), plays[1])
-        start, bar0, y0 = start_state(*relax, inputs, starts, p0, plays)
+        # (lags of the command add to the reading: the chamber reads r0 less them)
+        offsets = command_offsets(inputs, starts, length, *model.reading_commands(theta))
+        start, bar0, y0 = start_state(*relax, inputs, starts, p0 - offsets[:, :, 0], plays)
         p0 = start.mean(axis=0)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = kernel_ready_arrays(
@@ -243,6 +246,7 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if read_through:  # an open-form term at the reading (effect reading_closure)
         out, sens = read_windows(*relax, inputs, starts, *arrays[:2], p0, start, bar0,
                                  plays, y0)
+        out = out + offsets
         out[unreadable], sens[unreadable] = np.nan, np.nan
         arrays = [out, sens] if kernel_fn is kernel.simulate_windows_sensitivity else [out]
     return arrays

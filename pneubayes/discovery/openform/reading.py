@@ -29,6 +29,7 @@ from scipy.optimize import minimize, minimize_scalar
 from pneubayes.discovery.openform.clustered import last_column_fit
 from pneubayes.effects.reading_closure import READING_MAX_TERMS, TIME_CONSTANT_BOUNDS_S
 from pneubayes.simulation.reading_closure import history_low_pass, relaxed_reading
+from pneubayes.simulation.reading_command import command_lag
 from pneubayes.simulation.reading_play import history_play, play_rows
 
 
@@ -63,6 +64,10 @@ class ReadingWindows:
         ``(time_s, reading_Pa, starts)``: the whole recording's times and reading and
         the windows' first samples, from which each relaxation starts warm (as the
         simulator starts it, :mod:`pneubayes.simulation.reading_closure`); None: at rest.
+    command : tuple or None
+        ``(time_s, command, before, starts)``: the whole recording's times, command and
+        the command held before it, and the windows' first samples, for the lags of the
+        command (:meth:`command_column`); None: none searched.
     """
 
     time_s: np.ndarray
@@ -70,6 +75,20 @@ class ReadingWindows:
     residual_Pa: np.ndarray
     sensitivity: np.ndarray | None = None
     history: tuple | None = None
+    command: tuple | None = None
+
+    def command_column(self, tau_s: float) -> np.ndarray:
+        """d(reading)/dc at c = 0 for a lag of the command's magnitude with time constant
+        ``tau_s`` (:mod:`pneubayes.simulation.reading_command`): ``l`` at the window's
+        samples less the chamber's start moved by ``l(start)`` along the start
+        sensitivity; as :meth:`column` (zeros without the ``command``)."""
+        if self.command is None:
+            return np.zeros(self.residual_Pa.size)
+        t_all, command, before, starts = self.command
+        lag = command_lag(t_all, command, float(tau_s), before)
+        at = lag[np.asarray(starts)[:, None] + np.arange(np.shape(self.time_s)[1])]
+        sens = 1.0 if self.sensitivity is None else np.asarray(self.sensitivity)
+        return (at - sens * at[:, :1])[:, 1:].reshape(-1)
 
     def column(self, tau_s: float) -> np.ndarray:
         """d(reading)/dg at g = 0 for a relaxation of time constant ``tau_s``: ``p - p_bar``
@@ -123,7 +142,9 @@ def reading_windows(window_set, model, params, solver) -> list[ReadingWindows]:
             t_all[b.starts[:, None] + np.arange(ws.length)],
             np.concatenate([b.measured[:, :1], b.measured[:, 1:] - r], axis=1), r,
             sens[0, n0:n0 + w],
-            None if reading is None else (t_all, np.asarray(reading, np.float64), b.starts)))
+            None if reading is None else (t_all, np.asarray(reading, np.float64), b.starts),
+            (t_all, np.asarray(b.inputs.command_V, np.float64),
+             b.inputs.command_before_start, b.starts)))
         n0 += w
     return out
 
@@ -132,6 +153,13 @@ def relaxation_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.nda
     """:meth:`ReadingWindows.column` of each block, in block order (Pa; 0 where a
     prediction failed)."""
     x = np.concatenate([b.column(tau_s) for b in blocks])
+    return np.where(np.isfinite(x), x, 0.0)
+
+
+def command_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.ndarray:
+    """:meth:`ReadingWindows.command_column` of each block, in block order (Pa per command
+    unit; 0 where a prediction failed)."""
+    x = np.concatenate([b.command_column(tau_s) for b in blocks])
     return np.where(np.isfinite(x), x, 0.0)
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from pneubayes.effects.closure_terms import term_formula
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
+from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 
@@ -248,5 +249,35 @@ def play_effect_skeleton(model, params: dict, class_name: str = "FoundReadingPla
         "method": "reading_plays", "helper": "plays_named"}, class_name, effect_name)
 
 
-__all__ = ["effect_skeleton", "play_effect_skeleton", "reading_effect_skeleton",
-           "volume_effect_skeleton"]
+def command_effect_skeleton(model, params: dict, class_name: str = "FoundReadingCommand",
+                            effect_name: str = "found_reading_command") -> str:
+    """The module text of an effect plug-in for ``model``'s reading command lags at
+    ``params``: an effect that adds lags of the command's magnitude to the reading
+    (:meth:`~pneubayes.effects.Effect.reading_commands`) with the found number of lags,
+    each a gain (Pa per command unit) and a time constant (s) under the user's names;
+    parameters and return as :func:`effect_skeleton`'s."""
+    if not model.has("reading_command"):
+        raise ValueError("command_effect_skeleton: the model has no reading command lag "
+                         "(no found lag of the command in the reading)")
+    terms = model.effect("reading_command").terms
+    names, lines = [], []
+    for k in range(terms):
+        c, tau = command_gain_name(k), command_time_constant_name(k)
+        lines.append(f"#   lag {k}: r = p + c_{k} l_{k}, tau_{k} dl_{k}/dt = |u| - l_{k}; c_{k} "
+                     f"= {float(params[c]):.6g} Pa per command unit, tau_{k} = "
+                     f"{float(params[tau]):.6g} s")
+        names += [(f"command{k}_gain_Pa", c, float(params[c])),
+                  (f"command{k}_time_constant_s", tau, float(params[tau]))]
+    return _reading_skeleton("reading_command", terms, names, lines, {
+        "title": "lags of the command's magnitude in the pressure reading found by\n"
+                 "pneubayes discover.",
+        "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
+                "ground shared\nwith the solenoid's driver, the coil's field or heat at "
+                "the gauge).",
+        "words": "command lags", "class": "ReadingCommand",
+        "module": "pneubayes.effects.reading_command", "second": "TIME_CONSTANTS",
+        "method": "reading_commands", "helper": "commands_named"}, class_name, effect_name)
+
+
+__all__ = ["command_effect_skeleton", "effect_skeleton", "play_effect_skeleton",
+           "reading_effect_skeleton", "volume_effect_skeleton"]

@@ -15,6 +15,7 @@ from pneubayes.discovery.stages.more_supported import MoreSupported
 from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
+from pneubayes.discovery.stages.reading_command_form import ReadingCommandForm
 from pneubayes.discovery.stages.reading_form import ReadingForm
 from pneubayes.discovery.stages.reading_play_form import ReadingPlayForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
@@ -25,8 +26,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open forms: the reading's relaxations and plays, the
-    volume's hinges and the closure."""
+    effects' other forms, then the open forms: the reading's relaxations, plays and lags
+    of the command, the volume's hinges and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -47,6 +48,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(ReadingForm(s.reading_form_min_noise_ratio))
     if s.reading_play_min_noise_ratio:
         stages.append(ReadingPlayForm(s.reading_play_min_noise_ratio))
+    if s.reading_command_min_noise_ratio:
+        stages.append(ReadingCommandForm(s.reading_command_min_noise_ratio))
     if s.volume_form_min_noise_ratio:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
     if s.open_form_min_noise_ratio:
@@ -55,4 +58,5 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 
 
 __all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
-           "OpenForm", "ReadingForm", "ReadingPlayForm", "VolumeForm", "default_stages"]
+           "OpenForm", "ReadingForm", "ReadingPlayForm", "ReadingCommandForm", "VolumeForm",
+           "default_stages"]
