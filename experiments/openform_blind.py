@@ -61,10 +61,10 @@ are recorded.
 
 Reported per case: the catalogue effects named, the open-form terms found (the
 discovery document's ``found_terms``, from an effect named ``closure``, and its
-``found_reading_terms``, relaxations of the reading, and ``found_volume_terms``, hinges
-of the chamber's volume; none when the loop has no open-form
-stage), the held-out RMSE before and after (Pa), the noise floor,
-the gap shrink and final / noise. The issue's floors: out-of-catalogue cases name no
+``found_reading_terms``, relaxations, plays and command lags of the reading, and
+``found_volume_terms``, hinges of the chamber's volume; none when the loop has no
+open-form stage), the held-out RMSE before and after (Pa), the noise floor, the gap
+shrink and final / noise. The issue's floors: out-of-catalogue cases name no
 catalogue stand-in in >= 8 of 10, median gap shrink >= 70 %, median final <= 2 x the
 noise floor; null controls find no open-form term and name nothing beyond the sensor
 chain's real lags (none here). Cases are cached in OUT/cases/NAME.json (an interrupted
