@@ -211,6 +211,7 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
     parameter newly at one, stands in for what it cannot express: flagged (and rejected
     by the stage); a base parameter already at its bound in the current fit is not."""
     from pneubayes.discovery.openform.closure_model import newly_at_bounds
+    from pneubayes.effects import make_effect
 
     model = Model().with_effect(Closure(terms="pressure_hinge"))
     lo_v = model.parameter("dead_volume_m3").lower
@@ -224,6 +225,20 @@ def test_a_closure_that_drives_parameters_to_their_bounds_is_flagged():
     assert newly_at_bounds(fit, current) == ["dead_volume_m3"]
     current.params["dead_volume_m3"] = lo_v
     assert newly_at_bounds(fit, current) == []
+    # bounds over decades are judged in log space: a 2-ms time constant is not at a
+    # 0.1-ms lower bound (1e-4 of the linear span, 2 ms, would have called it so), its
+    # bound itself is (blind set 10's ground shift, k02: the right lag, tau 2.03 ms
+    # against the planted 2.01, rejected as at its bound)
+    lags = Model().with_effect(make_effect("reading_command"))
+    tau = lags.parameter("reading_command_time_constant_0")
+    assert tau.lower == 1e-4 and tau.upper / tau.lower > 100
+    start = {k: 0.5 * (lags.parameter(k).lower + lags.parameter(k).upper)
+             for k in lags.parameter_names}
+    current = SimpleNamespace(params={k: start[k] for k in Model().parameter_names})
+    lag = SimpleNamespace(model=lags, params={**start, tau.name: 2.03e-3})
+    assert newly_at_bounds(lag, current) == []
+    lag.params[tau.name] = tau.lower
+    assert newly_at_bounds(lag, current) == [tau.name]
 
 
 def test_an_earlier_effect_switched_off_beside_a_closure_is_not_a_bound():

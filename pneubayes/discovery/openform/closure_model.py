@@ -130,8 +130,9 @@ def families_at_bounds(fit, bounded: list[str], terms) -> tuple[str, ...]:
 
 
 def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
-    """Parameters of ``fit`` within ``share`` of their bounds' span of a bound that were
-    not there in ``current`` (the closure's own always count): a closure that only fits
+    """Parameters of ``fit`` within ``share`` of their bounds' span (in log space for
+    bounds over two decades) of a bound that were not there in ``current`` (the
+    closure's own always count): a closure that only fits
     by driving parameters to their limits stands in for what it cannot express. An
     earlier effect's parameter that reaches its neutral value at a bound (a spool lag's
     time constant at 0) does not count: the closure explains what that effect stood in
@@ -139,10 +140,13 @@ def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
     out = []
     for name in fit.model.parameter_names:
         p = fit.model.parameter(name)
-        tol = share * (p.upper - p.lower)
+        # bounds over decades (a time constant, 1e-4..20 s) are judged in log space, as
+        # the posterior's are (inference.fit.at_bounds): 2 ms is not at a 0.1-ms bound
+        f = np.log10 if p.lower > 0 and p.upper / p.lower > 100 else (lambda v: v)
+        tol = share * (f(p.upper) - f(p.lower))
 
-        def at(v, p=p, tol=tol):
-            return v - p.lower <= tol or p.upper - v <= tol
+        def at(v, p=p, tol=tol, f=f):
+            return f(v) - f(p.lower) <= tol or f(p.upper) - f(v) <= tol
 
         value = fit.params[name]
         if not at(value) or (name in current.params and at(current.params[name])):
