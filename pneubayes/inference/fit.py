@@ -185,6 +185,13 @@ ABSORBING_AR1 = 0.9
 BOUND_FRACTION = 0.01
 
 
+def bound_scale(lower: float, upper: float):
+    """The scale a parameter's closeness to its bounds is judged on: ``log10`` for
+    bounds over two decades (a dead volume, 1e-8..1e-4 m^3; a time constant, 1e-4..20
+    s), else the value itself."""
+    return np.log10 if lower > 0 and upper / lower > 100 else (lambda v: v)
+
+
 def at_bounds(model: Model, summary: dict) -> list[dict]:
     """Parameters whose posterior 90 % interval reaches within ``BOUND_FRACTION`` of the
     bounds' width of a bound: the data push them there (an effect the data do not show
@@ -195,8 +202,7 @@ def at_bounds(model: Model, summary: dict) -> list[dict]:
         s = summary.get(name)
         if s is None or not (np.isfinite(a) and np.isfinite(b)) or b <= a:
             continue
-        # bounds over decades (a dead volume, 1e-8..1e-4 m^3) are judged in log space
-        f = np.log10 if a > 0 and b / a > 100 else (lambda v: v)
+        f = bound_scale(a, b)
         tol = BOUND_FRACTION * (f(b) - f(a))
         q05, q95 = max(s["q05"], a), min(s["q95"], b)
         if f(q95) - f(q05) > 0.5 * (f(b) - f(a)):

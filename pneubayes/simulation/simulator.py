@@ -202,8 +202,11 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
             relax = (np.where(unreadable[:, None], 0.0, relax[0]), relax[1])
             plays = (np.where(unreadable[:, None], 0.0, plays[0]), plays[1])
         # (lags of the command add to the reading: the chamber reads r0 less them)
-        offsets = command_offsets(inputs, starts, length, *model.reading_commands(theta))
-        start, bar0, y0 = start_state(*relax, inputs, starts, p0 - offsets[:, :, 0], plays)
+        commands = model.reading_commands(theta)
+        offsets = (command_offsets(inputs, starts, length, *commands)
+                   if commands[0].shape[1] else None)
+        start, bar0, y0 = start_state(*relax, inputs, starts,
+                                      p0 if offsets is None else p0 - offsets[:, :, 0], plays)
         p0 = start.mean(axis=0)
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = kernel_ready_arrays(
@@ -246,7 +249,8 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     if read_through:  # an open-form term at the reading (effect reading_closure)
         out, sens = read_windows(*relax, inputs, starts, *arrays[:2], p0, start, bar0,
                                  plays, y0)
-        out = out + offsets
+        if offsets is not None:
+            out = out + offsets
         out[unreadable], sens[unreadable] = np.nan, np.nan
         arrays = [out, sens] if kernel_fn is kernel.simulate_windows_sensitivity else [out]
     return arrays

@@ -16,6 +16,7 @@ from pneubayes.effects.closure import Closure
 from pneubayes.effects.closure_terms import reads_ports
 from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.inference.fit import bound_scale
 
 #: The name of the closure component in a model and in the ledger.
 CLOSURE = "closure"
@@ -140,9 +141,7 @@ def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
     out = []
     for name in fit.model.parameter_names:
         p = fit.model.parameter(name)
-        # bounds over decades (a time constant, 1e-4..20 s) are judged in log space, as
-        # the posterior's are (inference.fit.at_bounds): 2 ms is not at a 0.1-ms bound
-        f = np.log10 if p.lower > 0 and p.upper / p.lower > 100 else (lambda v: v)
+        f = bound_scale(p.lower, p.upper)  # (2 ms is not at a 0.1-ms bound of 20 s's)
         tol = share * (f(p.upper) - f(p.lower))
 
         def at(v, p=p, tol=tol, f=f):

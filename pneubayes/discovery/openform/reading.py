@@ -211,11 +211,13 @@ class ReadingSearch:
 
     #: The most terms the component holds.
     max_terms_allowed = READING_MAX_TERMS
+    #: The component's time constants' bounds, s (what the grid must lie within).
+    time_constant_bounds_s = TIME_CONSTANT_BOUNDS_S
 
     def _checked_grid(self) -> np.ndarray:
         """The searched grid, checked."""
         taus = np.asarray(self.time_constants_s, dtype=np.float64)
-        lo, hi = TIME_CONSTANT_BOUNDS_S
+        lo, hi = self.time_constant_bounds_s
         if taus.ndim != 1 or taus.size < 3 or np.any(np.diff(taus) <= 0) \
                 or taus[0] < lo or taus[-1] > hi:
             raise ValueError(f"time_constants_s must be at least 3 increasing values within "

@@ -18,20 +18,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.discovery.openform.reading import ReadingSearch, command_columns
+from pneubayes.discovery.openform.reading import ReadingSearch, ReadingTerm, command_columns
 from pneubayes.effects.reading_command import COMMAND_MAX_TERMS, COMMAND_TIME_CONSTANT_BOUNDS_S
 
 
 @dataclass(frozen=True)
-class CommandLagTerm:
+class CommandLagTerm(ReadingTerm):
     """A kept lag: ``gain`` (Pa per command unit), ``time_constant_s`` (s), the share of
     the residual's uncentred sum of squares it explains on its own (``explained``) and
     its gain over its window-clustered standard error (``t``)."""
-
-    gain: float
-    time_constant_s: float
-    explained: float
-    t: float
 
     def __str__(self) -> str:
         return (f"{self.gain:+.4g} Pa per command unit x l, l the lag of |u| with tau = "
@@ -60,23 +55,12 @@ class CommandLagSearch(ReadingSearch):
     """
 
     max_terms_allowed = COMMAND_MAX_TERMS
+    time_constant_bounds_s = COMMAND_TIME_CONSTANT_BOUNDS_S
 
     def __init__(self, time_constants_s: Sequence[float] = tuple(np.geomspace(3e-4, 10.0, 30)),
                  max_terms: int = COMMAND_MAX_TERMS, min_explained_fraction: float = 0.02,
                  min_t: float = 4.0):
-        self.time_constants_s = time_constants_s
-        self.max_terms = max_terms
-        self.min_explained_fraction = min_explained_fraction
-        self.min_t = min_t
-
-    def _checked_grid(self) -> np.ndarray:
-        taus = np.asarray(self.time_constants_s, dtype=np.float64)
-        lo, hi = COMMAND_TIME_CONSTANT_BOUNDS_S
-        if taus.ndim != 1 or taus.size < 3 or np.any(np.diff(taus) <= 0) \
-                or taus[0] < lo or taus[-1] > hi:
-            raise ValueError(f"time_constants_s must be at least 3 increasing values within "
-                             f"[{lo}, {hi}] s, got {self.time_constants_s!r}")
-        return taus
+        super().__init__(time_constants_s, max_terms, min_explained_fraction, min_t)
 
     @staticmethod
     def _columns(blocks, value):

@@ -129,14 +129,22 @@ class {class_name}(Effect):
 '''
 
 
-def _reading_skeleton(component: str, terms: int, names: dict, lines: list[str],
-                      kind: dict, class_name: str, effect_name: str) -> str:
-    """The module text of an effect plug-in for a found component at the reading
-    (``component``, ``terms`` terms): ``names`` maps the user's parameter names to the
-    component's (value pairs in order: a gain, then its second parameter) with their
-    fitted values, ``lines`` describes each term, ``kind`` says what the terms are (its
-    words, the component's class and module, the second parameter's list and the
-    effect method and helper that read them)."""
+def _reading_skeleton(model, params: dict, component: str, missing: str, term, kind: dict,
+                      class_name: str, effect_name: str) -> str:
+    """The module text of an effect plug-in for ``model``'s found ``component`` at the
+    reading at ``params`` (ValueError ``missing`` without one): ``term(k, params)`` gives
+    term ``k``'s description line and its two ``(user's name, component's name)``
+    pairs (a gain, then its second parameter); ``kind`` says what the terms are (its
+    words, the component's class and module, the second parameter's list and the effect
+    method and helper that read them)."""
+    if not model.has(component):
+        raise ValueError(missing)
+    terms = model.effect(component).terms
+    names, lines = [], []
+    for k in range(terms):
+        line, pairs = term(k, params)
+        lines.append(line)
+        names += [(mine, theirs, float(params[theirs])) for mine, theirs in pairs]
     mapping = "\n".join(f"        {mine!r}: {theirs!r}," for mine, theirs, _ in names)
     defaults = "\n".join(f"        {mine!r}: {value!r}," for mine, _, value in names)
     gains = [m for m, _, _ in names][0::2]
@@ -199,25 +207,22 @@ def reading_effect_skeleton(model, params: dict, class_name: str = "FoundReading
     (:meth:`~pneubayes.effects.Effect.reading_relaxations`) with the found number of
     relaxations, each a gain (-) and a time constant (s) under the user's names;
     parameters and return as :func:`effect_skeleton`'s."""
-    if not model.has("reading_closure"):
-        raise ValueError("reading_effect_skeleton: the model has no reading closure (no "
-                         "found relaxation of the reading)")
-    terms = model.effect("reading_closure").terms
-    names, lines = [], []
-    for k in range(terms):
+    def term(k, params):
         g, tau = gain_name(k), time_constant_name(k)
-        lines.append(f"#   relaxation {k}: r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt "
-                     f"= p - p_bar_{k}; g_{k} = {float(params[g]):.6g}, tau_{k} = "
-                     f"{float(params[tau]):.6g} s")
-        names += [(f"relaxation{k}_gain", g, float(params[g])),
-                  (f"relaxation{k}_time_constant_s", tau, float(params[tau]))]
-    return _reading_skeleton("reading_closure", terms, names, lines, {
-        "title": "relaxations of the pressure reading found by pneubayes discover.",
-        "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
-                "diaphragm's\ntemperature, a transducer's creep, a cavity before the gauge).",
-        "words": "relaxations", "class": "ReadingClosure",
-        "module": "pneubayes.effects.reading_closure", "second": "TIME_CONSTANTS",
-        "method": "reading_relaxations", "helper": "relaxations_named"},
+        return (f"#   relaxation {k}: r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt "
+                f"= p - p_bar_{k}; g_{k} = {float(params[g]):.6g}, tau_{k} = "
+                f"{float(params[tau]):.6g} s",
+                [(f"relaxation{k}_gain", g), (f"relaxation{k}_time_constant_s", tau)])
+    return _reading_skeleton(
+        model, params, "reading_closure", "reading_effect_skeleton: the model has no "
+        "reading closure (no found relaxation of the reading)", term, {
+            "title": "relaxations of the pressure reading found by pneubayes discover.",
+            "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
+                    "diaphragm's\ntemperature, a transducer's creep, a cavity before the "
+                    "gauge).",
+            "words": "relaxations", "class": "ReadingClosure",
+            "module": "pneubayes.effects.reading_closure", "second": "TIME_CONSTANTS",
+            "method": "reading_relaxations", "helper": "relaxations_named"},
         class_name, effect_name)
 
 
@@ -228,25 +233,21 @@ def play_effect_skeleton(model, params: dict, class_name: str = "FoundReadingPla
     (:meth:`~pneubayes.effects.Effect.reading_plays`) with the found number of plays,
     each a gain (-) and a half-width (Pa) under the user's names; parameters and return
     as :func:`effect_skeleton`'s."""
-    if not model.has("reading_play"):
-        raise ValueError("play_effect_skeleton: the model has no reading play (no found "
-                         "play of the reading)")
-    terms = model.effect("reading_play").terms
-    names, lines = [], []
-    for k in range(terms):
+    def term(k, params):
         h, w = play_gain_name(k), play_width_name(k)
-        lines.append(f"#   play {k}: r = p + h_{k} (p - y_{k}), y_{k} = min(p + w_{k}, max(p - "
-                     f"w_{k}, y_{k} before)); h_{k} = {float(params[h]):.6g}, w_{k} = "
-                     f"{float(params[w]):.6g} Pa")
-        names += [(f"play{k}_gain", h, float(params[h])),
-                  (f"play{k}_half_width_Pa", w, float(params[w]))]
-    return _reading_skeleton("reading_play", terms, names, lines, {
-        "title": "plays (backlash) of the pressure reading found by pneubayes\ndiscover.",
-        "edit": "Edit the names, the descriptions and the bounds to say what it is (play "
-                "in a gauge's\nlinkage, a diaphragm held by friction).",
-        "words": "plays", "class": "ReadingPlay",
-        "module": "pneubayes.effects.reading_play", "second": "WIDTHS",
-        "method": "reading_plays", "helper": "plays_named"}, class_name, effect_name)
+        return (f"#   play {k}: r = p + h_{k} (p - y_{k}), y_{k} = min(p + w_{k}, max(p - "
+                f"w_{k}, y_{k} before)); h_{k} = {float(params[h]):.6g}, w_{k} = "
+                f"{float(params[w]):.6g} Pa",
+                [(f"play{k}_gain", h), (f"play{k}_half_width_Pa", w)])
+    return _reading_skeleton(
+        model, params, "reading_play", "play_effect_skeleton: the model has no reading play "
+        "(no found play of the reading)", term, {
+            "title": "plays (backlash) of the pressure reading found by pneubayes\ndiscover.",
+            "edit": "Edit the names, the descriptions and the bounds to say what it is (play "
+                    "in a gauge's\nlinkage, a diaphragm held by friction).",
+            "words": "plays", "class": "ReadingPlay",
+            "module": "pneubayes.effects.reading_play", "second": "WIDTHS",
+            "method": "reading_plays", "helper": "plays_named"}, class_name, effect_name)
 
 
 def command_effect_skeleton(model, params: dict, class_name: str = "FoundReadingCommand",
@@ -256,27 +257,24 @@ def command_effect_skeleton(model, params: dict, class_name: str = "FoundReading
     (:meth:`~pneubayes.effects.Effect.reading_commands`) with the found number of lags,
     each a gain (Pa per command unit) and a time constant (s) under the user's names;
     parameters and return as :func:`effect_skeleton`'s."""
-    if not model.has("reading_command"):
-        raise ValueError("command_effect_skeleton: the model has no reading command lag "
-                         "(no found lag of the command in the reading)")
-    terms = model.effect("reading_command").terms
-    names, lines = [], []
-    for k in range(terms):
+    def term(k, params):
         c, tau = command_gain_name(k), command_time_constant_name(k)
-        lines.append(f"#   lag {k}: r = p + c_{k} l_{k}, tau_{k} dl_{k}/dt = |u| - l_{k}; c_{k} "
-                     f"= {float(params[c]):.6g} Pa per command unit, tau_{k} = "
-                     f"{float(params[tau]):.6g} s")
-        names += [(f"command{k}_gain_Pa", c, float(params[c])),
-                  (f"command{k}_time_constant_s", tau, float(params[tau]))]
-    return _reading_skeleton("reading_command", terms, names, lines, {
-        "title": "lags of the command's magnitude in the pressure reading found by\n"
-                 "pneubayes discover.",
-        "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
-                "ground shared\nwith the solenoid's driver, the coil's field or heat at "
-                "the gauge).",
-        "words": "command lags", "class": "ReadingCommand",
-        "module": "pneubayes.effects.reading_command", "second": "TIME_CONSTANTS",
-        "method": "reading_commands", "helper": "commands_named"}, class_name, effect_name)
+        return (f"#   lag {k}: r = p + c_{k} l_{k}, tau_{k} dl_{k}/dt = |u| - l_{k}; c_{k} "
+                f"= {float(params[c]):.6g} Pa per command unit, tau_{k} = "
+                f"{float(params[tau]):.6g} s",
+                [(f"command{k}_gain_Pa", c), (f"command{k}_time_constant_s", tau)])
+    return _reading_skeleton(
+        model, params, "reading_command", "command_effect_skeleton: the model has no "
+        "reading command lag (no found lag of the command in the reading)", term, {
+            "title": "lags of the command's magnitude in the pressure reading found by\n"
+                     "pneubayes discover.",
+            "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
+                    "ground shared\nwith the solenoid's driver, the coil's field or heat "
+                    "at the gauge).",
+            "words": "command lags", "class": "ReadingCommand",
+            "module": "pneubayes.effects.reading_command", "second": "TIME_CONSTANTS",
+            "method": "reading_commands", "helper": "commands_named"},
+        class_name, effect_name)
 
 
 __all__ = ["command_effect_skeleton", "effect_skeleton", "play_effect_skeleton",
