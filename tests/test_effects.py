@@ -41,13 +41,15 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
             ("closure", {}), ("closure", {"terms": "inlet_flow*pressure_hinge; "
                                                    "spool_hinge_down; one"}),
             ("reading_closure", {}), ("reading_closure", {"terms": 2}),
-            ("volume_closure", {}), ("volume_closure", {"terms": 2})]
+            ("volume_closure", {}), ("volume_closure", {"terms": 2}),
+            ("volume_play", {}), ("volume_play", {"terms": 2})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
        "valve_deadzone",
        "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
        "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all",
        "sensor_lag_pressure", "closure", "closure_hinges", "reading_closure",
-       "reading_closure_2", "volume_closure", "volume_closure_2"]
+       "reading_closure_2", "volume_closure", "volume_closure_2", "volume_play",
+       "volume_play_2"]
 
 
 def _tight():
@@ -89,7 +91,8 @@ def test_catalogue_names():
                                "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
                                "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
                                "valve_stiction", "closure", "reading_closure",
-                               "reading_play", "reading_command", "volume_closure"]
+                               "reading_play", "reading_command", "volume_closure",
+                               "volume_play"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -183,6 +186,10 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
         with pytest.raises(ValueError, match="plant's finely lumped acoustic tube"):
             reference_simulate(model, params, inputs, rig, 2e5)
         return  # its independent reference: tests/test_wave.py
+    if effect.name == "volume_play":  # a play: no ODE reference
+        with pytest.raises(ValueError, match="plant's friction-held wall"):
+            reference_simulate(model, params, inputs, rig, 2e5)
+        return  # its independent reference: tests/test_volume_play.py
     method = "DOP853" if getattr(effect, "form", None) == "line" else "Radau"
     ref = reference_simulate(model, params, inputs, rig, 2e5, method=method, rtol=1e-10)
     got = _sim(model, params, inputs, rig)
@@ -192,9 +199,9 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
 @pytest.mark.slow
 def test_all_effects_together_agree_with_the_reference_solver(rig, valve_params, hand):
     """Delay break points, spool lag, dead band, heat state, leak and supply all at once
-    (all but the volume closure, whose compliant chamber the simulator steps with the
-    pressure as its only state: not beside the heat state)."""
-    model = Model([n for n in CATALOGUE if n != "volume_closure"])
+    (all but the volume's closure and play, whose compliant chamber the simulator steps
+    with the pressure as its only state: not beside the heat state)."""
+    model = Model([n for n in CATALOGUE if n not in ("volume_closure", "volume_play")])
     params = dict(valve_params, dead_volume_m3=1e-6)
     for e in model.effects:
         params.update(e.bench_defaults())
@@ -797,8 +804,8 @@ def test_what_the_fits_and_the_loop_ask_of_an_effect_is_on_the_effect():
     """Warm-up windows, the line's company and a lagged reading's lead are the effect's
     own declarations: no code outside ``effects/`` names the effect to ask."""
     assert {n for n, c in CATALOGUE.items() if c.needs_warmup} == {"heat_transfer"}
-    assert {n for n, c in CATALOGUE.items() if not c.beside_line} == {"closure",
-                                                                      "volume_closure"}
+    assert {n for n, c in CATALOGUE.items() if not c.beside_line} == {
+        "closure", "volume_closure", "volume_play"}
     for form in ("first_order", "second_order", "pressure_dependent"):
         lag = make_effect("sensor_lag", form=form)
         assert lag.reading_lead_parameter() in lag.parameter_names()

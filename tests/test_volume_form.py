@@ -144,7 +144,7 @@ def test_discovery_finds_a_planted_hinge_of_the_chamber_s_volume(swelling_record
     assert line.startswith("  * open form, on the chamber's volume (m^3): V(p) = V_0 + C_0")
     write_discovery(result, recs, tmp_path, figures=False)
     report = (tmp_path / "report.md").read_text()
-    assert "hinges of the chamber's volume found" in report
+    assert "terms on the chamber's volume found" in report
     assert "volume form pass" in report
     assert (tmp_path / "found_volume.py").exists()
 

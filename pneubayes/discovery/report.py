@@ -74,7 +74,7 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
 
         write_text_atomic(out / "found_effect.py", effect_skeleton(result.model, result.params))
         doc["found_effect"] = "found_effect.py"
-    if doc.get("found_volume_terms"):  # the volume's hinges as another
+    if doc.get("found_volume_terms"):  # the volume's hinges or walls as another
         from pneubayes.discovery.openform.skeleton import volume_effect_skeleton
 
         write_text_atomic(out / "found_volume.py",
@@ -267,9 +267,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                       "(grey: binned means and standard errors):", "",
                       f"![found relaxations](figures/{figs['found_reading_terms']})"]
     if doc.get("found_volume_terms"):
-        lines += _terms_table("Open-form hinges of the chamber's volume found (the chamber "
-                              "holds more gas above a pressure than its fixed volume; in no "
-                              "catalogue form):", doc["found_volume_terms"])
+        lines += _terms_table("Open-form terms on the chamber's volume found (a hinge: the "
+                              "chamber holds more gas above a pressure than its fixed "
+                              "volume; a wall: its give is held by friction, a loop over "
+                              "the pressure; in no catalogue form):",
+                              doc["found_volume_terms"])
     if doc.get("stand_ins"):
         lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
                   "prediction only with a parameter of their own at a bound, a strained "

@@ -20,11 +20,14 @@ from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
+from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
+from pneubayes.effects.volume_play import half_width_name
 from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
 #: The open-form components: their terms are listed apart from the named effects.
-OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "volume_closure")
+OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "volume_closure",
+             "volume_play")
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,15 +190,21 @@ class DiscoveryResult(PosteriorDraws):
             lambda k: (command_gain_name(k), command_time_constant_name(k)))
 
     def found_volume_terms(self) -> list[dict]:
-        """The final model's open-form hinges of the chamber's volume (effect
-        ``volume_closure``; empty without one): each hinge's formula, its compliance and
-        threshold (as :meth:`found_reading_terms` gives them), and where it acts."""
+        """The final model's open-form terms on the chamber's volume (effects
+        ``volume_closure`` and ``volume_play``; empty without them): each hinge's or
+        friction-held wall's formula, its compliance and threshold or half-width (as
+        :meth:`found_reading_terms` gives them), and where it acts."""
         return self._component_terms(
             "volume_closure", "hinge", "the chamber's volume (m^3)",
             lambda k: (f"V(p) = V_0 + C_{k} max(0, p - theta_{k}) (C_{k} = "
                        f"{compliance_name(k)}, m^3/Pa; theta_{k} = {threshold_name(k)}, "
                        "Pa absolute)"),
-            lambda k: (compliance_name(k), threshold_name(k)))
+            lambda k: (compliance_name(k), threshold_name(k))) + self._component_terms(
+            "volume_play", "wall", "the chamber's volume (m^3)",
+            lambda k: (f"V = V_0 + C_{k} (w_{k} - P_atm), w_{k} = min(p + r_{k}, max(p - "
+                       f"r_{k}, w_{k} before)) (C_{k} = {wall_compliance_name(k)}, m^3/Pa; "
+                       f"r_{k} = {half_width_name(k)}, Pa)"),
+            lambda k: (wall_compliance_name(k), half_width_name(k)))
 
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""

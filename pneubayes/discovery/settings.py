@@ -290,6 +290,9 @@ class StageSettings:
     volume_form_min_noise_ratio : float
         VolumeForm: open-form hinges of the chamber's volume in its pressure while above
         this x the noise floor (0: off).
+    volume_play_min_noise_ratio : float
+        VolumePlayForm: open-form friction-held walls (plays of the chamber's volume)
+        while above this x the noise floor (0: off).
     """
 
     more_supported: bool = True
@@ -304,6 +307,7 @@ class StageSettings:
     reading_play_min_noise_ratio: float = 1.5
     reading_command_min_noise_ratio: float = 1.5
     volume_form_min_noise_ratio: float = 1.5
+    volume_play_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
         _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
@@ -315,7 +319,7 @@ class StageSettings:
                              f"{self.max_form_swaps!r}")
         for name in ("open_form_min_noise_ratio", "reading_form_min_noise_ratio",
                      "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
-                     "volume_form_min_noise_ratio"):
+                     "volume_form_min_noise_ratio", "volume_play_min_noise_ratio"):
             v = getattr(self, name)
             if not (v == 0.0 or v >= 1.0):
                 raise ValueError(f"{name} must be 0 (off) or >= 1, got {v}")

@@ -5,9 +5,10 @@ Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_de
 ``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
 ``closure`` (an open-form extra mass flow), ``reading_closure`` (open-form relaxations
 of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
-``reading_command`` (open-form lags of the command's magnitude in the reading) and
-``volume_closure`` (open-form hinges of the chamber's volume in its pressure), the last
-five never searched for by the discovery library.
+``reading_command`` (open-form lags of the command's magnitude in the reading),
+``volume_closure`` (open-form hinges of the chamber's volume in its pressure) and
+``volume_play`` (open-form friction-held walls: plays of the chamber's volume), the last
+six never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -34,13 +35,14 @@ from pneubayes.effects.tube_delay import TubeDelay
 from pneubayes.effects.valve_deadzone import ValveDeadzone
 from pneubayes.effects.valve_stiction import ValveStiction
 from pneubayes.effects.volume_closure import VolumeClosure
+from pneubayes.effects.volume_play import VolumePlay
 
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
-                ReadingCommand, VolumeClosure)
+                ReadingCommand, VolumeClosure, VolumePlay)
 }
 
 
@@ -134,4 +136,4 @@ __all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10F
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
-           "VolumeClosure", "catalogue_parameter_names", "make_effect"]
+           "VolumeClosure", "VolumePlay", "catalogue_parameter_names", "make_effect"]

@@ -199,6 +199,22 @@ SLOTS += (
      "a laminar passage, n = 1); 0 = a constant time constant (-)"),
 )
 
+#: Most plays of an open-form volume play (:mod:`pneubayes.effects.volume_play`).
+VOLUME_PLAY_MAX_TERMS = 2
+
+SLOTS += tuple(
+    (f"volume_play_compliance_m3_per_Pa_{k}", f"volume play {k}: a wall whose give is "
+     "held by friction adds C_k (w_k - P_atm) to the chamber's volume, w_k the play of the "
+     "chamber pressure (it moves only where |p - w_k| reaches the half-width, with p); 0 = "
+     "none (m^3/Pa)") for k in range(VOLUME_PLAY_MAX_TERMS)) + tuple(
+    (f"volume_play_half_width_Pa_{k}", f"volume play {k}: its half-width r_k, the pressure "
+     "change that moves the held wall (Pa)") for k in range(VOLUME_PLAY_MAX_TERMS)) + tuple(
+    (f"volume_play_anchor_Pa_{k}", f"volume play {k}: the simulator's working anchor, the "
+     "play state w_k where it last laid the volume table (Pa), written by the compiled "
+     "simulator on its own copy of the slots as it steps "
+     "(:mod:`pneubayes.simulation.volume_play`); lowered as 0")
+    for k in range(VOLUME_PLAY_MAX_TERMS))
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -29,10 +29,11 @@ class Inputs:
         samples; the recording's ``exhaust_command`` column); None when the exhaust is a
         port of the one valve.
     reading_Pa : (N,) or None
-        The recorded pressure reading, Pa; read only where a lagged reading's window
-        warms up (effect ``sensor_lag``: from the reading 5 settling times before the
-        window's start). None: unknown (the warm-up starts from the window's own
-        initial pressure).
+        The recorded pressure reading, Pa; read only for what a window inherits from
+        before its start: a lagged reading's warm-up (effect ``sensor_lag``: from the
+        reading 5 settling times before the window's start), the reading's relaxations
+        and plays, a volume play's walls. None: unknown (they start at rest at the
+        window's own initial pressure).
     """
 
     time_s: np.ndarray

@@ -50,6 +50,7 @@ from pneubayes.effects.path import (
     LINE_MAX_SEGMENTS,
     SLOT_INDEX,
     TABLE_MAX_POINTS,
+    VOLUME_PLAY_MAX_TERMS,
 )
 from pneubayes.physics.calibration import (
     pressure_behind_reading_scalar,
@@ -123,6 +124,7 @@ from pneubayes.simulation.spool import (
 )
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
+from pneubayes.simulation.volume_play import play_accept, play_on, play_start
 from pneubayes.simulation.wave import (
     WAVE_CAPACITY,
     WAVE_CARRY,
@@ -373,7 +375,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
     nseg, ny, y, y_new, s_vec, prop, line_work = line_state
     w_work, tube, grid, w_near = wave_state
     v0, bore, gain, adv, p_nom, c_tank = chamber
-    cl_relax = rx_n > 0
+    cl_relax, play = rx_n > 0, play_on(sl)
     # the last accepted step's mean rates of p (Pa/s) and of the net port flow
     # (kg/s^2), at which a relaxation's midpoint value takes them on
     rx_rate, rx_qrate, rx_q0 = 0.0, 0.0, 0.0
@@ -529,9 +531,10 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     tau = tau + hh if hh < t_end - tau else t_end
                     if moving and spool2:
                         s_cur, v_cur = s2, v2
-                    p_prev, s_prev = p, s_p0
-                    p_tank, p_lung = p_tank_new, p_lung_new
+                    p_prev, s_prev, p_tank, p_lung = p, s_p0, p_tank_new, p_lung_new
                     p, temp = pn, tn
+                    if general is not None and play and play_accept(sl, p_prev, p, p_atm):
+                        fs = NO_REUSE  # the table was laid again at a play's turn
                     if general is not None and cl_relax:
                         rx_rate, rx_qrate = relaxations_accept(
                             rx_n, rx_kind, rx_tau, rx_val, p_prev, p, rx_q0,
@@ -771,6 +774,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     shaped = plain or thermal
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and plain)
+    if play_on(sl):  # a volume play lays its table on the kernel's own copy of the slots
+        if general is None:
+            return NEEDS_GENERAL
+        sl = sl.copy()
+        play_start(sl, pm, k0, p, p_atm)
     rigid = rigid_chamber(sl)  # no compliance, no volume table: a q = p V^n step
     return _march(
         sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general,
@@ -923,7 +931,8 @@ def needs_general(slots) -> bool:
 
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`).
-GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N])
+GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N] + [
+    SLOT_INDEX[f"volume_play_compliance_m3_per_Pa_{k}"] for k in range(VOLUME_PLAY_MAX_TERMS)])
 
 
 @njit(cache=True, error_model="numpy")

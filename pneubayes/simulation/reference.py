@@ -29,6 +29,7 @@ from pneubayes.effects.closure_features import (
 from pneubayes.effects.closure_histories import command_direction
 from pneubayes.effects.closure_terms import PORT_FACTOR_LIMITS
 from pneubayes.effects.path import SLOT_INDEX as S
+from pneubayes.effects.path import VOLUME_PLAY_MAX_TERMS
 from pneubayes.model import Model
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.tube import churchill_fre
@@ -419,6 +420,13 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "'wave') is a delay system this ODE reference does not solve; its "
                          "independent reference is the plant's finely lumped acoustic tube "
                          "(pneubayes.bench.plant, tests/test_wave.py)")
+    if any(sl[S[f"volume_play_compliance_m3_per_Pa_{k}"]] != 0
+           for k in range(VOLUME_PLAY_MAX_TERMS)):
+        raise ValueError("reference_simulate: a volume play (effect 'volume_play') has a "
+                         "state that only moves at its band's edges, which this ODE "
+                         "reference does not solve; its independent reference is the "
+                         "plant's friction-held wall (pneubayes.bench.forms.BraidFriction, "
+                         "tests/test_volume_play.py)")
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0

@@ -17,6 +17,8 @@ from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
+from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
+from pneubayes.effects.volume_play import half_width_name
 
 
 def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",
@@ -56,8 +58,11 @@ def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",
 def volume_effect_skeleton(model, params: dict, class_name: str = "FoundVolume",
                            effect_name: str = "found_volume") -> str:
     """The module text of an effect plug-in for ``model``'s volume closure at ``params``
-    (its hinges of the chamber's volume in its pressure, under the user's names);
-    parameters and return as :func:`effect_skeleton`'s."""
+    (its hinges of the chamber's volume in its pressure, under the user's names), or for
+    its volume play (its friction-held walls); parameters and return as
+    :func:`effect_skeleton`'s."""
+    if model.has("volume_play"):
+        return _wall_skeleton(model, params, class_name, effect_name)
     if not model.has("volume_closure"):
         raise ValueError("volume_effect_skeleton: the model has no volume closure (no found "
                          "hinge of the chamber's volume)")
@@ -74,6 +79,24 @@ def volume_effect_skeleton(model, params: dict, class_name: str = "FoundVolume",
         "open-form hinges of the chamber's volume", lines,
         "from pneubayes.effects.volume_closure import VolumeClosure",
         f"VolumeClosure(terms={terms})", names, params)
+
+
+def _wall_skeleton(model, params: dict, class_name: str, effect_name: str) -> str:
+    """:func:`volume_effect_skeleton` for a volume play."""
+    terms = model.effect("volume_play").terms
+    names, lines = {}, []
+    for k in range(terms):
+        c, r = wall_compliance_name(k), half_width_name(k)
+        lines.append(f"#   wall {k}: V = V_0 + C_{k} (w_{k} - P_atm), w_{k} the play of p of "
+                     f"half-width r_{k}; C_{k} = {float(params[c]):.6g} m^3/Pa, r_{k} = "
+                     f"{float(params[r]):.6g} Pa")
+        names[f"wall{k}_compliance_m3_per_Pa"] = c
+        names[f"wall{k}_half_width_Pa"] = r
+    return _delegating_module(
+        class_name, effect_name, "a chamber wall whose give is held by friction",
+        "open-form plays of the chamber's volume", lines,
+        "from pneubayes.effects.volume_play import VolumePlay",
+        f"VolumePlay(terms={terms})", names, params)
 
 
 def _delegating_module(class_name, effect_name, what, found_as, lines, import_line,

@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from typing import ClassVar
 
 import numpy as np
 
@@ -72,12 +73,19 @@ def threshold_grid(window_set, count: int = 16) -> np.ndarray:
 @dataclass(frozen=True)
 class VolumeProblem:
     """What the search simulates: the training windows, the current model and its
-    parameters, and the solver."""
+    parameters, and the solver. The component a term joins as, and a term's parameter
+    names, are class attributes (a subclass searches another volume component)."""
 
     window_set: object
     model: object
     params: dict
     solver: object
+
+    #: The component the terms join as, and term k's (strength, shape) parameter names.
+    component: ClassVar[type] = VolumeClosure
+    term_names: ClassVar[tuple] = (compliance_name, threshold_name)
+    #: An unused term's (strength, shape).
+    unused_term: ClassVar[tuple[float, float]] = (0.0, THRESHOLD_BOUNDS_PA[0])
 
     @cached_property
     def _slots(self) -> np.ndarray:
@@ -85,14 +93,16 @@ class VolumeProblem:
         return self.model.lower(self.model.vector(self.params)[None], self.rig)[0]
 
     def check(self) -> None:
-        """Raise ValueError where a volume closure cannot join the model."""
-        if self.model.has("volume_closure"):
-            raise ValueError("the model already has a volume closure")
+        """Raise ValueError where a volume component cannot join the model."""
+        for name, what in (("volume_closure", "a volume closure"),
+                           ("volume_play", "a volume play")):
+            if self.model.has(name):
+                raise ValueError(f"the model already has {what}")
         base = self._slots
         if base[SLOT_INDEX["volume_table_points"]] > 0 \
                 or base[SLOT_INDEX["compliance_m3_per_Pa"]] > 0:
             raise ValueError("the model's chamber is already compliant (its rig card's); a "
-                             "volume closure would replace its table")
+                             "volume component would replace its table")
 
     @property
     def rig(self):
@@ -115,20 +125,19 @@ class VolumeProblem:
     def window_sse(self, hinges: Sequence[Sequence[tuple[float, float]]],
                    scales: Sequence[float] | None = None) -> np.ndarray:
         """Each window's sum of squared residuals ``(S, W)`` (Pa^2; inf where a
-        simulation failed) for ``S`` sets of hinges, each a sequence of ``(compliance,
-        threshold)`` (an empty one: the current model), each with the dead volume
-        times its entry of ``scales`` (None: all 1)."""
+        simulation failed) for ``S`` sets of terms, each a sequence of ``(strength,
+        shape)`` (a hinge's compliance and threshold; an empty one: the current model),
+        each with the dead volume times its entry of ``scales`` (None: all 1)."""
         k = max(1, max(len(h) for h in hinges))
-        trial = self.model.with_effect(VolumeClosure(terms=k))
+        trial = self.model.with_effect(self.component(terms=k))
         rows = []
         for i, h in enumerate(hinges):
             values = dict(self.params)
             if scales is not None and scales[i] != 1.0:
                 values["dead_volume_m3"] = values["dead_volume_m3"] * scales[i]
             for j in range(k):
-                c, th = h[j] if j < len(h) else (0.0, THRESHOLD_BOUNDS_PA[0])
-                values[compliance_name(j)] = c
-                values[threshold_name(j)] = th
+                for name, v in zip(self.term_names, h[j] if j < len(h) else self.unused_term):
+                    values[name(j)] = v
             rows.append(trial.vector(values))
         resid = self.window_set.residuals(trial, np.stack(rows), self.solver, on_failure="nan")
         sse = np.sum(resid**2, axis=2)
@@ -201,8 +210,8 @@ class VolumeSearch:
         if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0:
             raise ValueError("min_explained_fraction must be in (0, 1) and min_t > 0, got "
                              f"{self.min_explained_fraction!r}, {self.min_t!r}")
-        if not isinstance(problem, VolumeProblem):
-            raise ValueError("fit takes a VolumeProblem")
+        if not isinstance(problem, VolumeProblem) or problem.component is not VolumeClosure:
+            raise ValueError("fit takes a VolumeProblem (of hinges: a VolumeClosure's)")
         problem.check()
         return shares
 
@@ -235,10 +244,7 @@ class VolumeSearch:
             j = int(np.argmin(np.sum(sse, axis=1)))
             if not np.isfinite(sse[j]).all():
                 break
-            d = current - sse[j]  # each window's reduction
-            explained = float(np.sum(d)) / total
-            se = float(np.std(d, ddof=1)) / np.sqrt(d.size) if d.size > 1 else 0.0
-            t = float(np.mean(d)) / se if se > 0 else np.inf
+            explained, t = window_reduction(current, sse[j], total)
             term = VolumeTerm(grid[j][0], grid[j][1], explained, t, grid[j][2])
             if self.best_ is None:
                 self.best_ = term
@@ -251,6 +257,23 @@ class VolumeSearch:
         if kept:
             self.explained_fraction_ = 1.0 - float(np.sum(current)) / total
         return self
+
+
+def window_reduction(current: np.ndarray, trial: np.ndarray, total: float,
+                     relative: bool = False) -> tuple[float, float]:
+    """``(explained, t)``: the share of ``total`` (the current model's sum of squares,
+    Pa^2) that a trial's windows' sums of squares ``trial`` remove below ``current``
+    (each ``(W,)``), and their mean reduction over its standard error (a window's
+    residual is one correlated trace: the windows are the independent units); with
+    ``relative``, of each window's reduction as a share of its own sum of squares (a
+    term that removes a like share everywhere is not judged by the spread of the
+    windows' sizes)."""
+    d = current - trial
+    explained = float(np.sum(d)) / total
+    if relative:
+        d = d / np.maximum(current, np.finfo(float).tiny)
+    se = float(np.std(d, ddof=1)) / np.sqrt(d.size) if d.size > 1 else 0.0
+    return explained, float(np.mean(d)) / se if se > 0 else np.inf
 
 
 def searched_values(terms: Sequence[VolumeTerm], params: dict) -> dict[str, float]:
@@ -266,4 +289,4 @@ def searched_values(terms: Sequence[VolumeTerm], params: dict) -> dict[str, floa
 
 
 __all__ = ["VolumeProblem", "VolumeSearch", "VolumeTerm", "searched_values",
-           "threshold_grid"]
+           "threshold_grid", "window_reduction"]

@@ -20,6 +20,7 @@ from pneubayes.discovery.stages.reading_form import ReadingForm
 from pneubayes.discovery.stages.reading_play_form import ReadingPlayForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
 from pneubayes.discovery.stages.volume_form import VolumeForm
+from pneubayes.discovery.stages.volume_play_form import VolumePlayForm
 
 
 def default_stages(settings: DiscoverySettings) -> list[Stage]:
@@ -27,7 +28,7 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
     effects' other forms, then the open forms: the reading's relaxations, plays and lags
-    of the command, the volume's hinges and the closure."""
+    of the command, the volume's hinges and its friction-held walls, and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -52,6 +53,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(ReadingCommandForm(s.reading_command_min_noise_ratio))
     if s.volume_form_min_noise_ratio:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
+    if s.volume_play_min_noise_ratio:
+        stages.append(VolumePlayForm(s.volume_play_min_noise_ratio))
     if s.open_form_min_noise_ratio:
         stages.append(OpenForm(s.open_form_min_noise_ratio))
     return stages
@@ -59,4 +62,4 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 
 __all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
            "OpenForm", "ReadingForm", "ReadingPlayForm", "ReadingCommandForm", "VolumeForm",
-           "default_stages"]
+           "VolumePlayForm", "default_stages"]

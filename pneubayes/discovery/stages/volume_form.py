@@ -45,6 +45,11 @@ class VolumeForm(ComponentForm):
     term_word = "hinge of the chamber's volume"
     search_class = VolumeSearch
 
+    def _applies(self, state, noise: float):
+        if state.current.model.has("volume_play"):
+            return False, None
+        return super()._applies(state, noise)
+
     def _search_data(self, state, runner) -> VolumeProblem:
         return VolumeProblem(runner.data.train_ws, state.current.model, state.current.params,
                              runner.settings.fit.refine_solver)
