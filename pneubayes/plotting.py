@@ -342,6 +342,24 @@ def plot_found_reading_terms(views, path) -> Path:
     return _save(fig, path)
 
 
+def plot_found_volume_terms(views, path) -> Path:
+    """Each found term on the chamber's volume: the volume it adds against the simulated
+    pressure along the training recordings (a hinge's curve, a wall's loop;
+    :func:`pneubayes.discovery.openform.volume_view.volume_views`)."""
+    plt = _pyplot()
+    n = len(views)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(3.4 * max(n, 1), 3.0), squeeze=False)
+    for k, v in enumerate(views):
+        ax = axes[0, k]
+        for p, vol in zip(v["pressure_Pa"], v["volume_m3"]):
+            ax.plot(np.asarray(p) / 1e5, np.asarray(vol) * 1e6, "-", lw=0.6)
+        ax.set_xlabel("chamber pressure (bar absolute)", fontsize=7)
+        ax.set_ylabel("added volume (cm^3)", fontsize=7)
+        ax.set_title(f"{v['term']}: {v['formula']}", fontsize=7)
+        ax.tick_params(labelsize=6)
+    return _save(fig, path)
+
+
 def plot_found_terms(views, path) -> Path:
     """Each open-form term's mass flow against its main variable, beside the mass flow
     the model misses without it (binned means with standard errors;

@@ -207,8 +207,11 @@ def test_discovery_finds_a_planted_wall_where_hinges_only_average_it(wall_record
     assert r == pytest.approx(R_TRUE, rel=0.15)
     assert doc["effects"] == [] and doc["found_terms"] == [] and doc["stand_ins"] == []
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
-    write_discovery(result, recs, tmp_path, figures=False)
-    assert "terms on the chamber's volume found" in (tmp_path / "report.md").read_text()
+    write_discovery(result, recs, tmp_path, figures=True)
+    report = (tmp_path / "report.md").read_text()
+    assert "terms on the chamber's volume found" in report
+    assert "figures/found_volume_terms.png" in report
+    assert (tmp_path / "figures" / "found_volume_terms.png").stat().st_size > 0
     assert "VolumePlay(terms=1)" in (tmp_path / "found_volume.py").read_text()
 
 
@@ -227,3 +230,30 @@ def test_a_found_wall_becomes_an_effect_plug_in_a_user_can_name(rig):
     mine = Model([eff])
     ours = mine.lower(mine.as_matrix({**BASE, **eff.bench_defaults()}), rig)
     np.testing.assert_array_equal(ours, model.lower(model.as_matrix(params), rig))
+
+
+def test_the_volume_view_traces_a_wall_s_loop(rig, tmp_path):
+    """The report's view: the play operator closes a triangle's loop (up r behind, flat
+    for 2 r at each turn), and a wall's added volume along a recording is C (w - P_atm)."""
+    from pneubayes.discovery.openform.volume_view import play, volume_views
+    from pneubayes.io.recording import Recording, RecordingMetadata
+
+    tri = np.concatenate([np.linspace(1e5, 5e5, 401), np.linspace(5e5, 1e5, 401)[1:]])
+    w = play(tri, 5e4)
+    np.testing.assert_allclose(w[:51], 1e5)  # held until p is r past where it stuck
+    np.testing.assert_allclose(w[100:401], tri[100:401] - 5e4)
+    np.testing.assert_allclose(w[401:501], 4.5e5)  # held for 2 r after the turn
+    np.testing.assert_allclose(w[600:], tri[600:] + 5e4)
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    inputs = _inputs(9, 1501)
+    p = simulate(Model([VolumePlay()]), {**BASE, **WALL}, inputs, rig, P_ATM,
+                 SolverConfig.standard()).pressure_Pa[0]
+    rec = Recording(md, inputs.time_s, inputs.command_V, p)
+    (view,) = volume_views(Model([VolumePlay()]), {**BASE, **WALL}, [rec],
+                           SolverConfig.standard())
+    assert view["term"] == "wall 0"
+    np.testing.assert_allclose(view["pressure_Pa"][0], p)
+    np.testing.assert_allclose(view["volume_m3"][0], C_TRUE * (play(p, R_TRUE) - P_ATM))
+    with pytest.raises(ValueError, match="no volume closure or volume play"):
+        volume_views(Model(), BASE, [rec], SolverConfig.standard())

@@ -127,6 +127,14 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
                               result.settings.fit.horizon_s, result.settings.fit.refine_solver)
         figs["found_reading_terms"] = plot_found_reading_terms(
             views, out / "figures" / "found_reading_terms.png").name
+    if figures and doc.get("found_volume_terms"):
+        from pneubayes.discovery.openform.volume_view import volume_views
+        from pneubayes.plotting import plot_found_volume_terms
+
+        views = volume_views(result.model, result.params, result.train,
+                             result.settings.fit.refine_solver)
+        figs["found_volume_terms"] = plot_found_volume_terms(
+            views, out / "figures" / "found_volume_terms.png").name
     write_text_atomic(out / "report.md", _report(doc, result, figs))
     return doc
 
@@ -272,6 +280,10 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                               "volume; a wall: its give is held by friction, a loop over "
                               "the pressure; in no catalogue form):",
                               doc["found_volume_terms"])
+        if "found_volume_terms" in figs:
+            lines += ["", "The volume each adds along the final model's pressure on the "
+                      "training recordings (a hinge's curve, a wall's loop):", "",
+                      f"![found volume terms](figures/{figs['found_volume_terms']})"]
     if doc.get("stand_ins"):
         lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
                   "prediction only with a parameter of their own at a bound, a strained "
