@@ -170,7 +170,7 @@ def test_the_stage_s_knobs_and_its_switch():
     from pneubayes.discovery.settings import DiscoverySettings, StageSettings
     from pneubayes.discovery.stages import VolumePlayForm, default_stages
 
-    assert VolumePlayForm().compete_below_gap_closed == 1.0
+    assert VolumePlayForm().compete_below_gap_closed == 0.9
     with pytest.raises(ValueError, match="min_noise_ratio"):
         VolumePlayForm(min_noise_ratio=0.5)
     names = [type(s).__name__ for s in default_stages(DiscoverySettings())]

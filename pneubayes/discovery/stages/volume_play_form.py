@@ -8,10 +8,10 @@ stage searches the training windows' residual for plays of the chamber's volume
 (:class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`) and adds the kept
 ones as one :class:`~pneubayes.effects.volume_play.VolumePlay`, fitted, pruned and
 weighed as :class:`~pneubayes.discovery.stages.component_form.ComponentForm` does. It
-runs after the hinges' stage and challenges a passing trial unless that closes the whole
-gap (``compete_below_gap_closed`` 1 by default): a hinge that averages a loop, or a
-catalogue effect that stands in for it, is replaced where the wall predicts the held-out
-windows better.
+runs after the hinges' stage and challenges a passing trial unless that closes 90 % of
+the gap (``compete_below_gap_closed`` 0.9 by default, where the other open forms take
+0.5): a hinge that averages a loop, or a catalogue effect that stands in for it, is
+replaced where the wall predicts the held-out windows better.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ class VolumePlayForm(ComponentForm):
         The stage runs only while the held-out RMSE exceeds this x the noise floor.
     compete_below_gap_closed : float
         With a passing trial, the stage runs only if the best closes less than this share
-        of the held-out gap above the noise floor (1: unless it closes all of it).
+        of the held-out gap above the noise floor.
     search : VolumePlaySearch or None
         The residual search (its settings); None: ``VolumePlaySearch()``.
     """
@@ -52,7 +52,7 @@ class VolumePlayForm(ComponentForm):
     term_word = "friction-held wall"
     search_class = VolumePlaySearch
 
-    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 1.0,
+    def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.9,
                  search=None):
         super().__init__(min_noise_ratio, compete_below_gap_closed, search)
 
