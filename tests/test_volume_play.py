@@ -257,3 +257,39 @@ def test_the_volume_view_traces_a_wall_s_loop(rig, tmp_path):
     np.testing.assert_allclose(view["volume_m3"][0], C_TRUE * (play(p, R_TRUE) - P_ATM))
     with pytest.raises(ValueError, match="no volume closure or volume play"):
         volume_views(Model(), BASE, [rec], SolverConfig.standard())
+
+
+def test_a_wall_behind_the_wave_tube_agrees_with_the_plant(rig):
+    """A friction-held wall behind a 1-m tube (the plant: 48-cell tube, BraidFriction,
+    LSODA): the wave tube beside the play within a few hundred Pa RMS (what the wave
+    tube reaches into a rigid chamber), where the rigid chamber behind it misses by
+    tens of kPa."""
+    from pneubayes.bench.forms import AcousticTube
+    from pneubayes.bench.forms.chamber import BraidFriction
+    from pneubayes.bench.plant import PlantConfig, simulate_plant
+    from pneubayes.effects import make_effect
+
+    dt = 1e-4
+    t = np.arange(6001) * dt
+    rng = np.random.default_rng(1)
+    u, i = np.empty(t.size), 0
+    while i < t.size:
+        hold = int(rng.integers(300, 1501))
+        u[i:i + hold] = rng.uniform(-5.0, 5.0)
+        i += hold
+    inputs = Inputs(t, u, np.full(t.size, 0.015), np.full(t.size, P_SUP))
+    dead, c, r = 1.5e-7, 3e-12, 2e4
+    tube = AcousticTube(1.0, 0.002)
+    base = {**valve_preset("valve1").parameters(), "dead_volume_m3": dead}
+    ref = simulate_plant(base, (AcousticTube(1.0, 0.002, segments=48), BraidFriction(c, r)),
+                         inputs, rig, P_ATM, PlantConfig.reference()).pressure_Pa
+    params = {**base, "dead_volume_m3": dead + tube.volume_m3,
+              "tube_delay_s": tube.transit_time_s(rig.gas), "tube_diameter_m": 0.002}
+    wave = Model([make_effect("tube_delay", form="wave", segments=8)])
+    got = simulate(wave.with_effect(VolumePlay()), {**params, "volume_play_compliance_0": c,
+                                                    "volume_play_half_width_0": r},
+                   inputs, rig, P_ATM, SolverConfig.reference()).pressure_Pa[0]
+    rigid = simulate(wave, params, inputs, rig, P_ATM, SolverConfig.reference()).pressure_Pa[0]
+    rms = float(np.sqrt(np.mean((got - ref) ** 2)))
+    assert rms < 400.0, f"wave + wall vs plant: {rms:.0f} Pa RMS"
+    assert float(np.sqrt(np.mean((rigid - ref) ** 2))) > 10.0 * rms
