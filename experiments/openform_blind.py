@@ -95,6 +95,7 @@ from pneubayes.bench.bench import ATMOSPHERE_PA, SUPPLY_PA
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    BoucWenWall,
     BraidFriction,
     CapillarySensorPort,
     CreepingWall,
@@ -172,6 +173,10 @@ OPENFORM_SEED_9 = 1796427610
 #: Set 10's seed: ``date +%s`` at 2026-12-05 04:32:55 UTC, fixed before its forms were
 #: written or any case ran.
 OPENFORM_SEED_10 = 1796445175
+#: Set 11's seed (a check of the volume's plays on a loop no play sum is: one form on
+#: the two rigs and the controls): ``date +%s`` at 2026-12-05 08:10:49 UTC, fixed before
+#: its form was written or any case ran.
+OPENFORM_SEED_11 = 1796458249
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -186,12 +191,13 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              8: ("QuickExhaustValve", "GasAccumulator", "SpoolLandLeak", "SensorThermalShock"),
              9: ("PwmValve", "ZohDriver", "SensorHysteresis", "SealSpeedLeak"),
              10: ("BraidFriction", "SolenoidGroundShift", "PressureHeldSolenoid",
-                  "InletJetAtSensor")}
+                  "InletJetAtSensor"),
+             11: ("BoucWenWall",)}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
              5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8,
-             9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10}
+             9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10, 11: OPENFORM_SEED_11}
 SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z",
-              10: "k"}
+              10: "k", 11: "m"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -298,7 +304,10 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
       the coil's L / R 2-20 ms (log-uniform);
     - PressureHeldSolenoid (set 10): 0.3-1 ms, slowed by 0.5-3 per atm of drop (both
       log-uniform: opening 1.7-14 x slower at the full drop);
-    - InletJetAtSensor (set 10): 1-8 kPa at 0.5 g/s (log-uniform, either sign).
+    - InletJetAtSensor (set 10): 1-8 kPa at 0.5 g/s (log-uniform, either sign);
+    - BoucWenWall (set 11): an elastic give of 1-10 % of the swept volume over 4.5 bar
+      and a loop of 3-15 % of it (both log-uniform), a memory of 20-100 kPa
+      (log-uniform), an exponent of 1-3 (uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -454,6 +463,13 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
     if name == "PressureHeldSolenoid":
         return PressureHeldSolenoid(time_constant_s=_log_uniform(rng, 3e-4, 1e-3),
                                     slowing_per_atm=_log_uniform(rng, 0.5, 3.0))
+    if name == "BoucWenWall":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return BoucWenWall(
+            elastic_compliance_m3_per_Pa=swept * _log_uniform(rng, 0.01, 0.1) / 4.5e5,
+            loop_volume_m3=swept * _log_uniform(rng, 0.03, 0.15),
+            memory_Pa=_log_uniform(rng, 20e3, 100e3), exponent=rng.uniform(1.0, 3.0))
     if name == "InletJetAtSensor":
         sign = 1.0 if rng.uniform() < 0.5 else -1.0
         return InletJetAtSensor(shift_Pa=sign * _log_uniform(rng, 1e3, 8e3),

@@ -14,6 +14,7 @@ from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
     BladderVolume,
+    BoucWenWall,
     BraidFriction,
     CapillarySensorPort,
     CreepingWall,
@@ -132,7 +133,7 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "SensorThermalShock", "PwmValve", "ZohDriver",
                                      "SensorHysteresis", "SealSpeedLeak", "BraidFriction",
                                      "SolenoidGroundShift", "PressureHeldSolenoid",
-                                     "InletJetAtSensor"}
+                                     "InletJetAtSensor", "BoucWenWall"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -222,6 +223,12 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (BraidFriction, {"compliance_m3_per_Pa": -1e-12}, "compliance_m3_per_Pa"),
     (BraidFriction, {"compliance_m3_per_Pa": 1e-12, "friction_band_Pa": 0.0},
      "friction_band_Pa"),
+    (BoucWenWall, {"elastic_compliance_m3_per_Pa": -1e-12, "loop_volume_m3": 1e-7},
+     "elastic_compliance_m3_per_Pa"),
+    (BoucWenWall, {"elastic_compliance_m3_per_Pa": 0.0, "loop_volume_m3": 1e-7,
+                   "memory_Pa": 0.0}, "memory_Pa"),
+    (BoucWenWall, {"elastic_compliance_m3_per_Pa": 0.0, "loop_volume_m3": 1e-7,
+                   "exponent": 0.5}, "exponent"),
     (SolenoidGroundShift, {"shift_Pa": float("nan")}, "shift_Pa"),
     (SolenoidGroundShift, {"shift_Pa": 1e3, "time_constant_s": 0.0}, "time_constant_s"),
     (PressureHeldSolenoid, {"time_constant_s": -1e-3}, "time_constant_s"),
@@ -269,7 +276,8 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     QuickExhaustValve(exhaust_area_m2=0.0), GasAccumulator(volume_m3=0.0),
     SpoolLandLeak(conductance_kg_per_s_Pa2=0.0), PwmValve(frequency_Hz=0.0),
     ZohDriver(update_period_s=0.0), SealSpeedLeak(conductance_kg_per_s_Pa2=0.0),
-    BraidFriction(compliance_m3_per_Pa=0.0), PressureHeldSolenoid(time_constant_s=0.0)],
+    BraidFriction(compliance_m3_per_Pa=0.0), PressureHeldSolenoid(time_constant_s=0.0),
+    BoucWenWall(elastic_compliance_m3_per_Pa=0.0, loop_volume_m3=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -1221,3 +1229,47 @@ def test_a_sensor_facing_the_inlets_jet_reads_the_square_of_the_inflow(rig, base
     assert (r - traj.pressure_Pa)[10] > 100.0  # filling: a visible shift
     np.testing.assert_array_equal(InletJetAtSensor(shift_Pa=0.0).read(q, traj.pressure_Pa),
                                   traj.pressure_Pa)
+
+
+def test_a_bouc_wen_wall_conserves_a_shut_chamber_s_gas_and_keeps_a_loop(rig):
+    """Valve shut, the piston pushed in and drawn back: an independent two-state
+    reference (p and z, solved here) with ``p (V + C_e y + V_h z / z_max)^kappa``
+    conserved; the wall's hysteretic part ends displaced (a loop), never past its
+    memory, where a purely elastic wall returns to its start."""
+    from scipy.integrate import solve_ivp
+
+    ce, vh, zm, n = 1e-12, 3e-7, 40e3, 2.0
+    wall = BoucWenWall(elastic_compliance_m3_per_Pa=ce, loop_volume_m3=vh, memory_Pa=zm,
+                       exponent=n)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    t = np.arange(4001) * 1e-4
+    omega = np.pi / t[-1]
+    x = 0.6 * STROKE - 0.4 * STROKE * np.sin(omega * t) ** 2  # in and back
+    inputs = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    p0 = 2e5
+    got = _run(params, (wall,), inputs, rig, p0=p0)
+    area, kappa = np.pi / 4 * BORE**2, rig.gas.heat_capacity_ratio
+
+    def volume(tau, p, z):
+        x_now = 0.6 * STROKE - 0.4 * STROKE * np.sin(omega * tau) ** 2
+        return 1.5e-7 + area * x_now + ce * (p - P_ATM) + vh * z / zm
+
+    def rhs(tau, state):
+        p, z = state
+        xdot = -0.4 * STROKE * omega * np.sin(2 * omega * tau)
+        rising = xdot < 0  # compressing: p rises
+        g = 1.0 - (abs(z) / zm) ** n if (z > 0) == rising and z != 0 else 1.0
+        dp = -kappa * p * area * xdot / (volume(tau, p, z) + kappa * p * (ce + vh * g / zm))
+        return [dp, g * dp]
+
+    ref = solve_ivp(rhs, (0, t[-1]), [p0, 0.0], t_eval=t, rtol=1e-10, atol=1e-6,
+                    method="LSODA", max_step=1e-4)
+    np.testing.assert_allclose(got, ref.y[0], rtol=2e-5)
+    invariant = ref.y[0] * np.array([volume(a, b, c) for a, b, c in
+                                     zip(t, ref.y[0], ref.y[1])]) ** kappa
+    np.testing.assert_allclose(invariant, invariant[0], rtol=1e-6)
+    assert np.max(np.abs(ref.y[1])) < zm
+    assert abs(ref.y[1][-1]) > 0.2 * zm and abs(got[-1] - p0) > 1e3  # displaced: a loop
+    elastic = _run(params, (BoucWenWall(elastic_compliance_m3_per_Pa=ce,
+                                        loop_volume_m3=0.0),), inputs, rig, p0=p0)
+    assert abs(elastic[-1] - p0) < 1.0

@@ -50,6 +50,7 @@ from scipy.interpolate import CubicSpline
 from pneubayes.bench.forms import (
     AcousticTube,
     BladderVolume,
+    BoucWenWall,
     BraidFriction,
     ClearanceLeak,
     CreepingWall,
@@ -152,7 +153,9 @@ K_SS_K, K_SS_V = 103, 104
 # act on the reading, outside the right-hand side)
 K_BF_C, K_BF_W = 105, 106
 K_PH_TAU, K_PH_K = 107, 108
-N_K = 109
+# the eleventh set's form
+K_BW_CE, K_BW_VH, K_BW_Z, K_BW_N = 109, 110, 111, 112
+N_K = 113
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
@@ -160,8 +163,8 @@ MO_LAMINAR_DROP_PA = 1000.0
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
 # (SpringReturnSpool), 5 held by the inlet's drop (PressureHeldSolenoid).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF) = range(22)
-N_L = 22
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF, L_IBW) = range(23)
+N_L = 23
 
 
 @njit(cache=True)
@@ -498,6 +501,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         vol, dvdp = vol + P[K_GA_V] * (1.0 - r_ga), dvdp + P[K_GA_V] * r_ga / (P[K_GA_N] * p)
     if L[L_IBF] >= 0:  # a friction-held wall: its give, held inside the band
         vol += P[K_BF_C] * y[L[L_IBF]]
+    if L[L_IBW] >= 0:  # a Bouc-Wen wall: elastic, and its hysteretic part z
+        vol += P[K_BW_CE] * (p - p_atm) + P[K_BW_VH] * y[L[L_IBW]] / P[K_BW_Z]
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
@@ -516,12 +521,20 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         if dp != 0.0 and lead > 0.0:
             slide = smoothstep((lead - band) / (0.1 * band) + 0.5)
         dvdp += P[K_BF_C] * slide
+    gate = 1.0
+    if L[L_IBW] >= 0:  # z's rate per dp/dt: slowed only while pushed towards its memory
+        z = y[L[L_IBW]]
+        if z * dp > 0.0:
+            gate = 1.0 - (abs(z) / P[K_BW_Z]) ** P[K_BW_N]
+        dvdp += P[K_BW_CE] + P[K_BW_VH] * gate / P[K_BW_Z]
     if dvdp > 0.0:  # dV/dt = A dx/dt + dV/dp dp/dt, solved for dp/dt
         dp = dp / (1.0 + kappa * p * dvdp / vol)
         vdot += dvdp * dp
     dy[0] = dp
     if L[L_IBF] >= 0:
         dy[L[L_IBF]] = slide * dp
+    if L[L_IBW] >= 0:
+        dy[L[L_IBW]] = gate * dp
     if heat > 0:
         dy[L[L_IT]] = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
     return p_sensed, m_inlet
@@ -770,6 +783,10 @@ def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> Non
     wall = by.get(BraidFriction)
     if wall is not None and wall.compliance_m3_per_Pa > 0:
         P[K_BF_C], P[K_BF_W] = wall.compliance_m3_per_Pa, wall.friction_band_Pa
+    bw = by.get(BoucWenWall)
+    if bw is not None and (bw.elastic_compliance_m3_per_Pa > 0 or bw.loop_volume_m3 > 0):
+        P[K_BW_CE], P[K_BW_VH] = bw.elastic_compliance_m3_per_Pa, bw.loop_volume_m3
+        P[K_BW_Z], P[K_BW_N] = bw.memory_Pa, bw.exponent
     held = by.get(PressureHeldSolenoid)
     if held is not None and held.time_constant_s > 0:
         if L[L_SPOOL] != 0:
@@ -970,6 +987,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         scale.append(1e5)
     if P[K_BF_C] > 0:  # the friction-held wall's gauge pressure, Pa
         L[L_IBF] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
+    if P[K_BW_Z] > 0:  # the Bouc-Wen wall's hysteretic part z, Pa (starts at 0)
+        L[L_IBW] = n
         n += 1
         atol.append(cfg.atol_Pa)
         scale.append(1e5)

@@ -23,7 +23,8 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 :class:`GasAccumulator`, :class:`SpoolLandLeak`, :class:`SensorThermalShock`; the ninth:
 :class:`PwmValve`, :class:`ZohDriver`, :class:`SensorHysteresis`,
 :class:`SealSpeedLeak`; the tenth: :class:`BraidFriction`, :class:`SolenoidGroundShift`,
-:class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`).
+:class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`; the eleventh, a check of the
+volume's plays on a loop that is not one: :class:`BoucWenWall`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -48,6 +49,7 @@ from pneubayes.bench.forms.catalogue import (
 )
 from pneubayes.bench.forms.chamber import (
     BladderVolume,
+    BoucWenWall,
     BraidFriction,
     CreepingWall,
     EndCushion,
@@ -114,7 +116,7 @@ FORMS: dict[str, type[PlantForm]] = {
                                   QuickExhaustValve, GasAccumulator, SpoolLandLeak,
                                   SensorThermalShock, PwmValve, ZohDriver, SensorHysteresis,
                                   SealSpeedLeak, BraidFriction, SolenoidGroundShift,
-                                  PressureHeldSolenoid, InletJetAtSensor)
+                                  PressureHeldSolenoid, InletJetAtSensor, BoucWenWall)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -323,6 +325,10 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
                              friction_band_Pa=30e3)
     if name == "SolenoidGroundShift":
         return SolenoidGroundShift(shift_Pa=3000.0, time_constant_s=5e-3)
+    if name == "BoucWenWall":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return BoucWenWall(elastic_compliance_m3_per_Pa=0.05 * swept / 450_000.0,
+                           loop_volume_m3=0.05 * swept, memory_Pa=50e3)
     if name == "PressureHeldSolenoid":
         return PressureHeldSolenoid(time_constant_s=5e-4, slowing_per_atm=1.5)
     if name == "InletJetAtSensor":

@@ -282,3 +282,34 @@ class BraidFriction(PlantForm):
     def __post_init__(self):
         _non_negative(self, "compliance_m3_per_Pa")
         _positive(self, "friction_band_Pa")
+
+
+@dataclass(frozen=True)
+class BoucWenWall(PlantForm):
+    """A wall whose give has a smooth, saturating hysteresis (a rubber sleeve with
+    internal friction, a fabric bellows whose fibres slip and bind): an elastic part that
+    follows the gauge pressure and a hysteretic part ``z`` (Bouc-Wen, beta = gamma) that
+    moves with the pressure at a rate that falls as it nears its memory ``z_max`` while
+    the pressure keeps pushing it there, and at the full rate once the pressure turns::
+
+        V = V_0 + C_e y + V_h z / z_max,   y = p - P_atm,
+        dz/dt = (1 - (|z| / z_max)^n) dy/dt   where z dy/dt > 0, else dy/dt,
+
+    ``C_e = elastic_compliance_m3_per_Pa``, ``V_h = loop_volume_m3`` (half the loop's
+    height at saturation), ``z_max = memory_Pa``, ``n = exponent`` (a sharper knee as it
+    grows). ``z`` starts at 0 (the wall relaxed at the initial pressure).
+    ``elastic_compliance_m3_per_Pa = loop_volume_m3 = 0`` is a rigid wall.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    elastic_compliance_m3_per_Pa: float
+    loop_volume_m3: float
+    memory_Pa: float = 50e3
+    exponent: float = 1.0
+
+    def __post_init__(self):
+        _non_negative(self, "elastic_compliance_m3_per_Pa", "loop_volume_m3")
+        _positive(self, "memory_Pa")
+        if not (isinstance(self.exponent, (int, float)) and 1.0 <= self.exponent <= 8.0):
+            raise ValueError(f"BoucWenWall.exponent must be in [1, 8], got "
+                             f"{self.exponent!r}")
