@@ -235,7 +235,11 @@ def test_a_found_wall_becomes_an_effect_plug_in_a_user_can_name(rig):
 def test_the_volume_view_traces_a_wall_s_loop(rig, tmp_path):
     """The report's view: the play operator closes a triangle's loop (up r behind, flat
     for 2 r at each turn), and a wall's added volume along a recording is C (w - P_atm)."""
-    from pneubayes.discovery.openform.volume_view import play, volume_views
+    from pneubayes.discovery.openform.volume_view import volume_views
+    from pneubayes.simulation.reading_play import play_series
+
+    def play(p, r):
+        return play_series(np.asarray(p, dtype=np.float64), r, float(p[0]))
     from pneubayes.io.recording import Recording, RecordingMetadata
 
     tri = np.concatenate([np.linspace(1e5, 5e5, 401), np.linspace(5e5, 1e5, 401)[1:]])

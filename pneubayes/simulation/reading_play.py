@@ -23,7 +23,7 @@ from numba import njit
 
 
 @njit(cache=True, error_model="numpy")
-def _play_series(values, width, y0):
+def play_series(values, width, y0):
     """The play of half-width ``width`` of the 1-D ``values`` from ``y0``."""
     out = np.empty_like(values)
     y = y0
@@ -108,7 +108,7 @@ def history_play(reading_Pa, widths_Pa, starts) -> np.ndarray:
     finite; a play does not depend on the times, only on the samples' order)."""
     r = np.asarray(reading_Pa, dtype=np.float64)
     return history_at_starts(r, widths_Pa, starts,
-                             lambda a, b, w: _play_series(r[a:b], w, r[a]))
+                             lambda a, b, w: play_series(r[a:b], w, r[a]))
 
 
 def played_reading(pressure_Pa, sensitivity, gains, widths_Pa, start_Pa):

@@ -19,7 +19,7 @@ window's residual is one correlated trace: the windows are the independent units
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from functools import cached_property
 from typing import ClassVar
 
@@ -276,13 +276,16 @@ def window_reduction(current: np.ndarray, trial: np.ndarray, total: float,
     return explained, float(np.mean(d)) / se if se > 0 else np.inf
 
 
-def searched_values(terms: Sequence[VolumeTerm], params: dict) -> dict[str, float]:
-    """The parameter values the kept ``terms`` stand for beside the current ``params``:
-    the volume closure's, and the dead volume scaled as the first was found."""
+def searched_values(terms: Sequence, params: dict,
+                    term_names: tuple = (compliance_name, threshold_name)) -> dict[str, float]:
+    """The parameter values the kept ``terms`` (each a dataclass whose first two fields
+    are its strength and shape) stand for beside the current ``params``: the component's,
+    under ``term_names`` (a :class:`VolumeProblem`'s; default the volume closure's), and
+    the dead volume scaled as the first was found."""
     out = {}
     for k, t in enumerate(terms):
-        out[compliance_name(k)] = t.compliance_m3_per_Pa
-        out[threshold_name(k)] = t.threshold_Pa
+        for name, v in zip(term_names, astuple(t)[:2]):
+            out[name(k)] = v
     if terms and "dead_volume_m3" in params:
         out["dead_volume_m3"] = params["dead_volume_m3"] * terms[0].dead_volume_scale
     return out

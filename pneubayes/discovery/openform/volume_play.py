@@ -226,17 +226,4 @@ def _refined(problem, kept, centre, sse, steps, passes):
     return centre, sse
 
 
-def searched_play_values(terms: Sequence[WallTerm], params: dict) -> dict[str, float]:
-    """The parameter values the kept ``terms`` stand for beside the current ``params``:
-    the volume play's, and the dead volume scaled as the first was found."""
-    out = {}
-    for k, t in enumerate(terms):
-        out[compliance_name(k)] = t.compliance_m3_per_Pa
-        out[half_width_name(k)] = t.half_width_Pa
-    if terms and "dead_volume_m3" in params:
-        out["dead_volume_m3"] = params["dead_volume_m3"] * terms[0].dead_volume_scale
-    return out
-
-
-__all__ = ["VolumePlayProblem", "VolumePlaySearch", "WallTerm", "half_width_grid",
-           "searched_play_values"]
+__all__ = ["VolumePlayProblem", "VolumePlaySearch", "WallTerm", "half_width_grid"]

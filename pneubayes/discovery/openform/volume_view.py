@@ -16,19 +16,7 @@ from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
 from pneubayes.effects.volume_play import half_width_name
 from pneubayes.simulation import Inputs, simulate
-
-
-def play(pressure_Pa: np.ndarray, half_width_Pa: float) -> np.ndarray:
-    """The play operator of a pressure series (Pa), half-width ``half_width_Pa``, from
-    rest at its first sample: ``w`` holds while ``|p - w| < r`` and moves with ``p``,
-    ``r`` behind it, beyond."""
-    p = np.asarray(pressure_Pa, dtype=np.float64)
-    w = np.empty_like(p)
-    if p.size:
-        w[0] = p[0]
-        for i in range(1, p.size):
-            w[i] = min(max(w[i - 1], p[i] - half_width_Pa), p[i] + half_width_Pa)
-    return w
+from pneubayes.simulation.reading_play import play_series
 
 
 def volume_views(model, params: dict, recordings, solver) -> list[dict]:
@@ -36,25 +24,22 @@ def volume_views(model, params: dict, recordings, solver) -> list[dict]:
     ``params``: ``term``, ``formula``, and per training recording its simulated
     ``pressure_Pa`` and the term's added ``volume_m3`` along it (lists of arrays)."""
     terms = []
-    p_atm = None
     if model.has("volume_closure"):
         for k in range(model.effect("volume_closure").terms):
             c, th = params[compliance_name(k)], params[threshold_name(k)]
             terms.append((f"hinge {k}", f"{c * 1e11:.3g} cm^3/bar above {th / 1e5:.4g} bar",
-                          lambda p, c=c, th=th: c * np.maximum(0.0, p - th)))
+                          lambda p, p_atm, c=c, th=th: c * np.maximum(0.0, p - th)))
     if model.has("volume_play"):
         for k in range(model.effect("volume_play").terms):
             c, r = params[wall_compliance_name(k)], params[half_width_name(k)]
             terms.append((f"wall {k}", f"{c * 1e11:.3g} cm^3/bar past a "
                           f"{2 * r / 1e5:.3g}-bar band",
-                          lambda p, c=c, r=r: c * (play(p, r) - p_atm)))
+                          lambda p, p_atm, c=c, r=r: c * (play_series(p, r, p[0]) - p_atm)))
     if not terms:
         raise ValueError("volume_views: the model has no volume closure or volume play")
-    pressures = []
-    for rec in recordings:
-        p_atm = rec.rig().atmospheric_pressure_Pa
-        p0 = float(rec.pressure_Pa[0])
-        pressures.append(simulate(model, params, Inputs.from_recording(rec), rec.rig(), p0,
-                                  solver).pressure_Pa[0])
-    return [{"term": name, "formula": formula, "pressure_Pa": pressures,
-             "volume_m3": [added(p) for p in pressures]} for name, formula, added in terms]
+    runs = [(simulate(model, params, Inputs.from_recording(rec), rec.rig(),
+                      float(rec.pressure_Pa[0]), solver).pressure_Pa[0],
+             rec.rig().atmospheric_pressure_Pa) for rec in recordings]
+    return [{"term": name, "formula": formula, "pressure_Pa": [p for p, _ in runs],
+             "volume_m3": [added(p, p_atm) for p, p_atm in runs]}
+            for name, formula, added in terms]

@@ -30,9 +30,10 @@ class ComponentForm(Stage):
     """Base of a stage that adds one open-form component of 1..2 terms.
 
     Runs when the held-out error is above ``min_noise_ratio`` x the noise floor, the
-    model has no such component yet, and no trial of the round passed, or the best that
-    passed closes under ``compete_below_gap_closed`` of the gap or drives a parameter to
-    a bound (it then replaces that one only if it beats it on the held-out windows).
+    model has no such component yet (nor one it ``excludes``), and no trial of the round
+    passed, or the best that passed closes under ``compete_below_gap_closed`` of the gap
+    or drives a parameter to a bound (it then replaces that one only if it beats it on
+    the held-out windows).
     """
 
     #: The component's name in a model and in the ledger.
@@ -42,6 +43,8 @@ class ComponentForm(Stage):
     term_word: ClassVar[str]
     #: The residual search a stage without its own ``search`` uses (default settings).
     search_class: ClassVar[type]
+    #: Components the stage's cannot join (the stage does not run beside them).
+    excludes: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
                  search=None):
@@ -86,7 +89,7 @@ class ComponentForm(Stage):
         """``(runs, the best passing trial or None)``."""
         current = state.current
         if current.heldout_rmse_Pa <= self.min_noise_ratio * noise \
-                or current.model.has(self.component):
+                or any(current.model.has(c) for c in (self.component, *self.excludes)):
             return False, None
         return competes(state, noise, self.compete_below_gap_closed)
 

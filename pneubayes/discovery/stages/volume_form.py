@@ -43,12 +43,8 @@ class VolumeForm(ComponentForm):
     component = VOLUME
     label = "volume form"
     term_word = "hinge of the chamber's volume"
+    excludes = ("volume_play",)  # (both lay the chamber's volume table)
     search_class = VolumeSearch
-
-    def _applies(self, state, noise: float):
-        if state.current.model.has("volume_play"):
-            return False, None
-        return super()._applies(state, noise)
 
     def _search_data(self, state, runner) -> VolumeProblem:
         return VolumeProblem(runner.data.train_ws, state.current.model, state.current.params,

@@ -16,11 +16,8 @@ replaced where the wall predicts the held-out windows better.
 
 from __future__ import annotations
 
-from pneubayes.discovery.openform.volume_play import (
-    VolumePlayProblem,
-    VolumePlaySearch,
-    searched_play_values,
-)
+from pneubayes.discovery.openform.volume import searched_values
+from pneubayes.discovery.openform.volume_play import VolumePlayProblem, VolumePlaySearch
 from pneubayes.discovery.stages.component_form import ComponentForm
 from pneubayes.effects.volume_play import VolumePlay, compliance_name, half_width_name
 
@@ -50,16 +47,12 @@ class VolumePlayForm(ComponentForm):
     component = VOLUME_PLAY
     label = "volume play form"
     term_word = "friction-held wall"
+    excludes = ("volume_closure",)  # (both lay the chamber's volume table)
     search_class = VolumePlaySearch
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.9,
                  search=None):
         super().__init__(min_noise_ratio, compete_below_gap_closed, search)
-
-    def _applies(self, state, noise: float):
-        if state.current.model.has("volume_closure"):
-            return False, None
-        return super()._applies(state, noise)
 
     def _search_data(self, state, runner) -> VolumePlayProblem:
         return VolumePlayProblem(runner.data.train_ws, state.current.model,
@@ -72,4 +65,4 @@ class VolumePlayForm(ComponentForm):
         return compliance_name(k), half_width_name(k)
 
     def _searched_values(self, terms, params) -> dict[str, float]:
-        return searched_play_values(terms, params)
+        return searched_values(terms, params, VolumePlayProblem.term_names)
