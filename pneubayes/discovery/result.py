@@ -21,7 +21,7 @@ from pneubayes.effects.reading_command import command_gain_name, command_time_co
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
-from pneubayes.effects.volume_play import half_width_name
+from pneubayes.effects.volume_play import half_width_name, held_compliance_name
 from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
@@ -192,7 +192,7 @@ class DiscoveryResult(PosteriorDraws):
     def found_volume_terms(self) -> list[dict]:
         """The final model's open-form terms on the chamber's volume (effects
         ``volume_closure`` and ``volume_play``; empty without them): each hinge's or
-        friction-held wall's formula, its compliance and threshold or half-width (as
+        friction-held wall's formula, its compliances and threshold or half-width (as
         :meth:`found_reading_terms` gives them), and where it acts."""
         return self._component_terms(
             "volume_closure", "hinge", "the chamber's volume (m^3)",
@@ -201,10 +201,11 @@ class DiscoveryResult(PosteriorDraws):
                        "Pa absolute)"),
             lambda k: (compliance_name(k), threshold_name(k))) + self._component_terms(
             "volume_play", "wall", "the chamber's volume (m^3)",
-            lambda k: (f"V = V_0 + C_{k} (w_{k} - P_atm), w_{k} = min(p + r_{k}, max(p - "
-                       f"r_{k}, w_{k} before)) (C_{k} = {wall_compliance_name(k)}, m^3/Pa; "
-                       f"r_{k} = {half_width_name(k)}, Pa)"),
-            lambda k: (wall_compliance_name(k), half_width_name(k)))
+            lambda k: (f"V = V_0 + C_{k} (w_{k} - P_atm) + H_{k} (p - w_{k}), w_{k} = min(p + "
+                       f"r_{k}, max(p - r_{k}, w_{k} before)) (C_{k} = "
+                       f"{wall_compliance_name(k)}, H_{k} = {held_compliance_name(k)}, "
+                       f"m^3/Pa; r_{k} = {half_width_name(k)}, Pa)"),
+            lambda k: (wall_compliance_name(k), held_compliance_name(k), half_width_name(k)))
 
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""

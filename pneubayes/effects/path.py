@@ -209,6 +209,10 @@ SLOTS += tuple(
      "none (m^3/Pa)") for k in range(VOLUME_PLAY_MAX_TERMS)) + tuple(
     (f"volume_play_half_width_Pa_{k}", f"volume play {k}: its half-width r_k, the pressure "
      "change that moves the held wall (Pa)") for k in range(VOLUME_PLAY_MAX_TERMS)) + tuple(
+    (f"volume_play_held_compliance_m3_per_Pa_{k}", f"volume play {k}: the wall's give "
+     "while friction holds it (a stop: an elastic give that the held wall takes back once "
+     "it slides), adding C_h,k (p - w_k) to the chamber's volume; 0 = none (m^3/Pa)")
+    for k in range(VOLUME_PLAY_MAX_TERMS)) + tuple(
     (f"volume_play_anchor_Pa_{k}", f"volume play {k}: the simulator's working anchor, the "
      "play state w_k where it last laid the volume table (Pa), written by the compiled "
      "simulator on its own copy of the slots as it steps "

@@ -932,7 +932,8 @@ def needs_general(slots) -> bool:
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`).
 GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N] + [
-    SLOT_INDEX[f"volume_play_compliance_m3_per_Pa_{k}"] for k in range(VOLUME_PLAY_MAX_TERMS)])
+    SLOT_INDEX[f"volume_play_{what}compliance_m3_per_Pa_{k}"] for what in ("", "held_")
+    for k in range(VOLUME_PLAY_MAX_TERMS)])
 
 
 @njit(cache=True, error_model="numpy")

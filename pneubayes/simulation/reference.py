@@ -420,12 +420,13 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "'wave') is a delay system this ODE reference does not solve; its "
                          "independent reference is the plant's finely lumped acoustic tube "
                          "(pneubayes.bench.plant, tests/test_wave.py)")
-    if any(sl[S[f"volume_play_compliance_m3_per_Pa_{k}"]] != 0
-           for k in range(VOLUME_PLAY_MAX_TERMS)):
+    if any(sl[S[f"volume_play_{what}compliance_m3_per_Pa_{k}"]] != 0
+           for what in ("", "held_") for k in range(VOLUME_PLAY_MAX_TERMS)):
         raise ValueError("reference_simulate: a volume play (effect 'volume_play') has a "
                          "state that only moves at its band's edges, which this ODE "
                          "reference does not solve; its independent reference is the "
-                         "plant's friction-held wall (pneubayes.bench.forms.BraidFriction, "
+                         "plant's friction-held wall and Bouc-Wen wall "
+                         "(pneubayes.bench.forms.BraidFriction, BoucWenWall; "
                          "tests/test_volume_play.py)")
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]

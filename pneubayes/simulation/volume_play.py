@@ -1,12 +1,13 @@
 """Compiled parts of the volume play (effect ``volume_play``): a chamber wall whose give
 is held by friction.
 
-Play k adds ``C_k (w_k - P_atm)`` to the chamber's volume, its state ``w_k`` the play
-operator of the chamber pressure p with half-width ``r_k``: w_k holds while ``|p - w_k| <
-r_k`` and moves with p, ``r_k`` behind it, once p pushes past. Given w_k, the volume is a
-piecewise-linear function of p: flat inside ``[w_k - r_k, w_k + r_k]``, growing with
-slope C_k beyond either edge, which is exactly the play's volume for as long as p keeps
-moving one way. The simulator lays that function onto its tabulated volume (slots
+Play k adds ``C_k (w_k - P_atm) + H_k (p - w_k)`` to the chamber's volume, its state
+``w_k`` the play operator of the chamber pressure p with half-width ``r_k``: w_k holds
+while ``|p - w_k| < r_k`` and moves with p, ``r_k`` behind it, once p pushes past. Given
+w_k, the volume is a piecewise-linear function of p: growing with slope H_k (the held
+wall's give) inside ``[w_k - r_k, w_k + r_k]`` and with slope C_k (the sliding wall's)
+beyond either edge, which is exactly the play's volume for as long as p keeps moving one
+way. The simulator lays that function onto its tabulated volume (slots
 ``volume_table_*``, read by :func:`pneubayes.simulation.chamber.compliant_volume`, whose
 step and sensitivity already handle a table's kinks) on its own copy of the slots, with
 w_k at its *anchor* (slot ``volume_play_anchor_Pa_k``). After each accepted step
@@ -32,6 +33,7 @@ _VT_N = SLOT_INDEX["volume_table_points"]
 _VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
 _VT_V = SLOT_INDEX["volume_table_volume_m3_0"]
 _C = SLOT_INDEX["volume_play_compliance_m3_per_Pa_0"]
+_H = SLOT_INDEX["volume_play_held_compliance_m3_per_Pa_0"]
 _R = SLOT_INDEX["volume_play_half_width_Pa_0"]
 _A = SLOT_INDEX["volume_play_anchor_Pa_0"]
 #: How far the table's outer points lie beyond its edges, Pa (the end segments extend).
@@ -46,9 +48,15 @@ SLIDING_TOLERANCE = 1e-9
 def play_on(sl) -> bool:
     """Whether a parameter set carries a volume play (a compliance that is not 0)."""
     for k in range(VOLUME_PLAY_MAX_TERMS):
-        if sl[_C + k] != 0.0:
+        if _term_on(sl, k):
             return True
     return False
+
+
+@njit(cache=True, error_model="numpy")
+def _term_on(sl, k) -> bool:
+    """Whether play ``k`` gives at all (its sliding or its held compliance not 0)."""
+    return sl[_C + k] != 0.0 or sl[_H + k] != 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -56,10 +64,10 @@ def _play_volume(sl, q, p_atm):
     """The plays' volume (m^3) at pressure ``q`` (Pa) with every play at its anchor."""
     v = 0.0
     for k in range(VOLUME_PLAY_MAX_TERMS):
-        c = sl[_C + k]
-        if c != 0.0:
+        if _term_on(sl, k):
             a, r = sl[_A + k], sl[_R + k]
-            v += c * (min(max(a, q - r), q + r) - p_atm)
+            w = min(max(a, q - r), q + r)
+            v += sl[_C + k] * (w - p_atm) + sl[_H + k] * (q - w)
     return v
 
 
@@ -69,7 +77,7 @@ def play_table(sl, p_atm) -> None:
     ``a_k -+ r_k`` a point (sorted), one point beyond each end."""
     n = 0
     for k in range(VOLUME_PLAY_MAX_TERMS):
-        if sl[_C + k] != 0.0:
+        if _term_on(sl, k):
             for side in (-1.0, 1.0):
                 q = sl[_A + k] + side * sl[_R + k]
                 i = n + 1  # insertion sort into points 1..n
@@ -95,7 +103,7 @@ def play_start(sl, pm, k0, p, p_atm) -> None:
     at its first known one (none known: at ``p``), then moved to within its half-width
     of ``p``; and lay the table."""
     for k in range(VOLUME_PLAY_MAX_TERMS):
-        if sl[_C + k] == 0.0:
+        if not _term_on(sl, k):
             continue
         r = sl[_R + k]
         w = math.nan
@@ -115,7 +123,7 @@ def play_accept(sl, p_prev, p, p_atm) -> bool:
     table was laid again (rates computed before it are stale)."""
     relaid = False
     for k in range(VOLUME_PLAY_MAX_TERMS):
-        if sl[_C + k] == 0.0:
+        if not _term_on(sl, k):
             continue
         a, r = sl[_A + k], sl[_R + k]
         tol = SLIDING_TOLERANCE * r

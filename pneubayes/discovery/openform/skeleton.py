@@ -18,7 +18,7 @@ from pneubayes.effects.reading_command import command_gain_name, command_time_co
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
-from pneubayes.effects.volume_play import half_width_name
+from pneubayes.effects.volume_play import half_width_name, held_compliance_name
 
 
 def effect_skeleton(model, params: dict, class_name: str = "FoundEffect",
@@ -86,11 +86,13 @@ def _wall_skeleton(model, params: dict, class_name: str, effect_name: str) -> st
     terms = model.effect("volume_play").terms
     names, lines = {}, []
     for k in range(terms):
-        c, r = wall_compliance_name(k), half_width_name(k)
-        lines.append(f"#   wall {k}: V = V_0 + C_{k} (w_{k} - P_atm), w_{k} the play of p of "
-                     f"half-width r_{k}; C_{k} = {float(params[c]):.6g} m^3/Pa, r_{k} = "
+        c, r, h = wall_compliance_name(k), half_width_name(k), held_compliance_name(k)
+        lines.append(f"#   wall {k}: V = V_0 + C_{k} (w_{k} - P_atm) + H_{k} (p - w_{k}), w_{k} "
+                     f"the play of p of half-width r_{k}; C_{k} = {float(params[c]):.6g} "
+                     f"m^3/Pa, H_{k} = {float(params[h]):.6g} m^3/Pa, r_{k} = "
                      f"{float(params[r]):.6g} Pa")
         names[f"wall{k}_compliance_m3_per_Pa"] = c
+        names[f"wall{k}_held_compliance_m3_per_Pa"] = h
         names[f"wall{k}_half_width_Pa"] = r
     return _delegating_module(
         class_name, effect_name, "a chamber wall whose give is held by friction",

@@ -81,10 +81,11 @@ class VolumeProblem:
     params: dict
     solver: object
 
-    #: The component the terms join as, and term k's (strength, shape) parameter names.
+    #: The component the terms join as, and term k's (strength, shape) parameter names
+    #: (a subclass's term may have more).
     component: ClassVar[type] = VolumeClosure
     term_names: ClassVar[tuple] = (compliance_name, threshold_name)
-    #: An unused term's (strength, shape).
+    #: An unused term's values under ``term_names``.
     unused_term: ClassVar[tuple[float, float]] = (0.0, THRESHOLD_BOUNDS_PA[0])
 
     @cached_property
@@ -126,7 +127,8 @@ class VolumeProblem:
                    scales: Sequence[float] | None = None) -> np.ndarray:
         """Each window's sum of squared residuals ``(S, W)`` (Pa^2; inf where a
         simulation failed) for ``S`` sets of terms, each a sequence of ``(strength,
-        shape)`` (a hinge's compliance and threshold; an empty one: the current model),
+        shape)`` (a hinge's compliance and threshold; a subclass's values under its
+        ``term_names``; an empty one: the current model),
         each with the dead volume times its entry of ``scales`` (None: all 1)."""
         k = max(1, max(len(h) for h in hinges))
         trial = self.model.with_effect(self.component(terms=k))
@@ -278,13 +280,13 @@ def window_reduction(current: np.ndarray, trial: np.ndarray, total: float,
 
 def searched_values(terms: Sequence, params: dict,
                     term_names: tuple = (compliance_name, threshold_name)) -> dict[str, float]:
-    """The parameter values the kept ``terms`` (each a dataclass whose first two fields
-    are its strength and shape) stand for beside the current ``params``: the component's,
-    under ``term_names`` (a :class:`VolumeProblem`'s; default the volume closure's), and
-    the dead volume scaled as the first was found."""
+    """The parameter values the kept ``terms`` (each a dataclass whose first fields are
+    its values under ``term_names``: its strength and shape) stand for beside the current
+    ``params``: the component's, under ``term_names`` (a :class:`VolumeProblem`'s; default
+    the volume closure's), and the dead volume scaled as the first was found."""
     out = {}
     for k, t in enumerate(terms):
-        for name, v in zip(term_names, astuple(t)[:2]):
+        for name, v in zip(term_names, astuple(t)[:len(term_names)]):
             out[name(k)] = v
     if terms and "dead_volume_m3" in params:
         out["dead_volume_m3"] = params["dead_volume_m3"] * terms[0].dead_volume_scale

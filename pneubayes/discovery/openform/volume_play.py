@@ -1,14 +1,16 @@
 """The open-form search on the chamber's volume with memory: friction-held walls (plays
 of the volume) in the prediction windows' residual.
 
-A volume play (:class:`~pneubayes.effects.volume_play.VolumePlay`) adds ``C (w - P_atm)``
-to the chamber's volume, ``w`` the play of the pressure of half-width ``r``: a wall that
-gives only once the pressure has moved ``r`` past where it stuck. As with the volume's
-hinges (:mod:`pneubayes.discovery.openform.volume`), a wall that matters changes the
-chamber's capacity by a sizeable share, so the search simulates a grid instead of
-linearising: half-widths, compliances and dead-volume scales in one batch of window
-simulations (:class:`VolumePlayProblem`); it refines the set with the least sum of
-squares locally and then, beside it, looks for the best second wall. A wall is kept
+A volume play (:class:`~pneubayes.effects.volume_play.VolumePlay`) adds ``C (w - P_atm) +
+H (p - w)`` to the chamber's volume, ``w`` the play of the pressure of half-width ``r``:
+as a play (``H = 0``), a wall that gives only once the pressure has moved ``r`` past
+where it stuck; as a stop (``C = 0``), an elastic give that saturates there. As with the
+volume's hinges (:mod:`pneubayes.discovery.openform.volume`), a wall that matters changes
+the chamber's capacity by a sizeable share, so the search simulates a grid instead of
+linearising: both kinds, half-widths, compliances and dead-volume scales in one batch of
+window simulations (:class:`VolumePlayProblem`); it refines the set with the least sum of
+squares locally and then, beside it, looks for the best second wall (an elastic give
+beside a saturating loop is a stop and a narrow play). A wall is kept
 when it removes at least ``min_explained_fraction`` of the residual's sum of squares and
 the windows' reductions, each as a share of the window's own sum of squares, are
 ``min_t`` standard errors above zero (a wall acts on every window that swings the
@@ -29,21 +31,25 @@ from pneubayes.effects.volume_play import (
     COMPLIANCE_BOUNDS_M3_PER_PA,
     HALF_WIDTH_BOUNDS_PA,
     HALF_WIDTH_START_PA,
+    KINDS,
     VolumePlay,
     compliance_name,
     half_width_name,
+    held_compliance_name,
 )
 
 
 @dataclass(frozen=True)
 class WallTerm:
-    """A kept wall: ``compliance_m3_per_Pa``, ``half_width_Pa``, the share of the
-    residual's sum of squares it removes beside the walls kept before it
-    (``explained``), the windows' mean reduction over its standard error (``t``) and the
-    dead volume's scale it was found with (``dead_volume_scale``)."""
+    """A kept wall: ``compliance_m3_per_Pa`` (sliding), ``half_width_Pa``,
+    ``held_compliance_m3_per_Pa``, the share of the residual's sum of squares it removes
+    beside the walls kept before it (``explained``), the windows' mean reduction over its
+    standard error (``t``) and the dead volume's scale it was found with
+    (``dead_volume_scale``)."""
 
     compliance_m3_per_Pa: float
     half_width_Pa: float
+    held_compliance_m3_per_Pa: float
     explained: float
     t: float
     dead_volume_scale: float = 1.0
@@ -51,8 +57,14 @@ class WallTerm:
     def __str__(self) -> str:
         scaled = ("" if self.dead_volume_scale == 1.0 else
                   f", the dead volume x {self.dead_volume_scale:g}")
+        width = f"{self.half_width_Pa / 1e5:.4g} bar"
+        held = self.held_compliance_m3_per_Pa * 1e11
+        if self.compliance_m3_per_Pa == 0.0:
+            return (f"a give of {held:.4g} cm^3/bar saturating {width} past where it "
+                    f"stuck{scaled}")
+        what = "" if held == 0.0 else f" ({held:.4g} cm^3/bar while held)"
         return (f"a wall giving {self.compliance_m3_per_Pa * 1e11:.4g} cm^3/bar once "
-                f"{self.half_width_Pa / 1e5:.4g} bar past where it stuck{scaled}")
+                f"{width} past where it stuck{what}{scaled}")
 
 
 def half_width_grid(window_set, count: int = 8) -> np.ndarray:
@@ -68,11 +80,11 @@ def half_width_grid(window_set, count: int = 8) -> np.ndarray:
 @dataclass(frozen=True)
 class VolumePlayProblem(VolumeProblem):
     """What the search simulates (as :class:`VolumeProblem`), a term joining as a volume
-    play: ``(compliance, half-width)``."""
+    play: ``(compliance, half-width, held compliance)``."""
 
     component: ClassVar[type] = VolumePlay
-    term_names: ClassVar[tuple] = (compliance_name, half_width_name)
-    unused_term: ClassVar[tuple[float, float]] = (0.0, HALF_WIDTH_START_PA)
+    term_names: ClassVar[tuple] = (compliance_name, half_width_name, held_compliance_name)
+    unused_term: ClassVar[tuple[float, float, float]] = (0.0, HALF_WIDTH_START_PA, 0.0)
 
 
 class VolumePlaySearch:
@@ -81,6 +93,9 @@ class VolumePlaySearch:
 
     Parameters
     ----------
+    kinds : sequence of str
+        The kinds of wall tried (``"play"``: its give once freed; ``"stop"``: its give
+        while held, saturating).
     half_widths : int
         How many half-widths are tried (:func:`half_width_grid`).
     compliance_shares : sequence of float
@@ -109,12 +124,13 @@ class VolumePlaySearch:
         The best first wall, kept or not (what the search saw).
     """
 
-    def __init__(self, half_widths: int = 8,
+    def __init__(self, kinds: Sequence[str] = KINDS, half_widths: int = 8,
                  compliance_shares: Sequence[float] = tuple(np.geomspace(0.03, 30.0, 13)),
                  dead_volume_scales: Sequence[float] = (0.35, 0.5, 0.7, 1.0),
                  max_terms: int = VOLUME_PLAY_MAX_TERMS,
                  min_explained_fraction: float = 0.02, min_t: float = 4.0,
                  refine_passes: int = 3):
+        self.kinds = kinds
         self.half_widths = half_widths
         self.refine_passes = refine_passes
         self.compliance_shares = compliance_shares
@@ -125,12 +141,17 @@ class VolumePlaySearch:
 
     def get_params(self) -> dict:
         """The constructor's settings (scikit-learn's contract)."""
-        return {"half_widths": self.half_widths, "compliance_shares": self.compliance_shares,
+        return {"kinds": self.kinds, "half_widths": self.half_widths,
+                "compliance_shares": self.compliance_shares,
                 "dead_volume_scales": self.dead_volume_scales, "max_terms": self.max_terms,
                 "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t,
                 "refine_passes": self.refine_passes}
 
     def _validate(self, problem):
+        if isinstance(self.kinds, str) or not len(self.kinds) \
+                or any(k not in KINDS for k in self.kinds):
+            raise ValueError(f"kinds must be a non-empty sequence of {KINDS}, got "
+                             f"{self.kinds!r}")
         if isinstance(self.half_widths, bool) or not isinstance(self.half_widths, int) \
                 or self.half_widths < 1:
             raise ValueError(f"half_widths must be an integer >= 1, got {self.half_widths!r}")
@@ -171,7 +192,7 @@ class VolumePlaySearch:
         scales = (tuple(float(v) for v in self.dead_volume_scales)
                   if problem.scales_dead_volume else (1.0,))
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
-        kept: list[tuple[float, float]] = []
+        kept: list[tuple[float, float, float]] = []
         scale = 1.0
         current = problem.window_sse([()])[0]
         total = float(np.sum(current))
@@ -179,10 +200,10 @@ class VolumePlaySearch:
             return self
         for _ in range(self.max_terms):
             # the first wall with each dead-volume scale; a second beside it at its scale
-            grid = [(float(c), float(r), v) for v in (scales if not kept else (scale,))
-                    for r in widths for c in comps]
-            sse = problem.window_sse([kept + [(c, r)] for c, r, _ in grid],
-                                     [v for *_, v in grid])
+            grid = [(_term(kind, float(c), float(r)), v)
+                    for v in (scales if not kept else (scale,))
+                    for kind in self.kinds for r in widths for c in comps]
+            sse = problem.window_sse([kept + [w] for w, _ in grid], [v for _, v in grid])
             j = int(np.argmin(np.sum(sse, axis=1)))
             if not np.isfinite(sse[j]).all():
                 break
@@ -191,13 +212,13 @@ class VolumePlaySearch:
                      0.15 if not kept and len(scales) > 1 else 0.0)
             best, best_sse = self._refine(problem, kept, grid[j], sse[j], steps)
             explained, t = window_reduction(current, best_sse, total, relative=True)
-            term = WallTerm(best[0], best[1], explained, t, best[2])
+            term = WallTerm(*best[0], explained, t, best[1])
             if self.best_ is None:
                 self.best_ = term
             if explained < self.min_explained_fraction or t < self.min_t:
                 break
-            kept.append(best[:2])
-            scale = best[2]
+            kept.append(best[0])
+            scale = best[1]
             self.terms_.append(term)
             current = best_sse
         if kept:
@@ -205,20 +226,28 @@ class VolumePlaySearch:
         return self
 
 
+def _term(kind: str, compliance: float, half_width: float) -> tuple[float, float, float]:
+    """A wall of ``kind`` as ``(compliance, half-width, held compliance)``: a play gives
+    ``compliance`` once freed, a stop while held."""
+    return ((compliance, half_width, 0.0) if kind == "play"
+            else (0.0, half_width, compliance))
+
+
 def _refined(problem, kept, centre, sse, steps, passes):
-    """Local refinement of a grid's best wall ``centre`` = (compliance, half-width,
-    dead-volume scale) with windows' sums of squares ``sse``: ``passes`` rounds of the
-    3 x 3 (x 3) neighbours at ``steps`` (the compliance's and the half-width's factors,
-    the scale's relative step; 0: held), each round's steps halved in log; the best
-    kept. Returns ``(centre, sse)``."""
+    """Local refinement of a grid's best wall ``centre`` = ((compliance, half-width, held
+    compliance), dead-volume scale) with windows' sums of squares ``sse``: ``passes``
+    rounds of the 3 x 3 (x 3) neighbours at ``steps`` (the compliances' and the
+    half-width's factors, the scale's relative step; 0: held), each round's steps halved
+    in log; the best kept. Returns ``(centre, sse)``."""
     f_c, f_r, d_v = steps
+    lo, hi = COMPLIANCE_BOUNDS_M3_PER_PA
     for _ in range(passes):
-        c0, r0, v0 = centre
-        cand = [(float(np.clip(c0 * a, *COMPLIANCE_BOUNDS_M3_PER_PA)),
-                 float(np.clip(r0 * b, *HALF_WIDTH_BOUNDS_PA)), v0 * (1.0 + d))
+        (c0, r0, h0), v0 = centre
+        cand = [((float(np.clip(c0 * a, lo, hi)), float(np.clip(r0 * b, *HALF_WIDTH_BOUNDS_PA)),
+                  float(np.clip(h0 * a, lo, hi))), v0 * (1.0 + d))
                 for a in (1.0 / f_c, 1.0, f_c) for b in (1.0 / f_r, 1.0, f_r)
                 for d in ((-d_v, 0.0, d_v) if d_v else (0.0,))]
-        got = problem.window_sse([kept + [(c, r)] for c, r, _ in cand], [v for *_, v in cand])
+        got = problem.window_sse([kept + [w] for w, _ in cand], [v for _, v in cand])
         j = int(np.argmin(np.sum(got, axis=1)))
         if np.isfinite(got[j]).all() and np.sum(got[j]) < np.sum(sse):
             centre, sse = cand[j], got[j]

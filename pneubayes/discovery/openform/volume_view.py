@@ -14,7 +14,7 @@ import numpy as np
 
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
-from pneubayes.effects.volume_play import half_width_name
+from pneubayes.effects.volume_play import half_width_name, held_compliance_name
 from pneubayes.simulation import Inputs, simulate
 from pneubayes.simulation.reading_play import play_series
 
@@ -32,9 +32,10 @@ def volume_views(model, params: dict, recordings, solver) -> list[dict]:
     if model.has("volume_play"):
         for k in range(model.effect("volume_play").terms):
             c, r = params[wall_compliance_name(k)], params[half_width_name(k)]
+            h = params[held_compliance_name(k)]
             terms.append((f"wall {k}", f"{c * 1e11:.3g} cm^3/bar past a "
-                          f"{2 * r / 1e5:.3g}-bar band",
-                          lambda p, p_atm, c=c, r=r: c * (play_series(p, r, p[0]) - p_atm)))
+                          f"{2 * r / 1e5:.3g}-bar band, {h * 1e11:.3g} cm^3/bar inside it",
+                          lambda p, p_atm, c=c, r=r, h=h: _wall_volume(p, p_atm, c, r, h)))
     if not terms:
         raise ValueError("volume_views: the model has no volume closure or volume play")
     runs = [(simulate(model, params, Inputs.from_recording(rec), rec.rig(),
@@ -43,3 +44,10 @@ def volume_views(model, params: dict, recordings, solver) -> list[dict]:
     return [{"term": name, "formula": formula, "pressure_Pa": [p for p, _ in runs],
              "volume_m3": [added(p, p_atm) for p, p_atm in runs]}
             for name, formula, added in terms]
+
+
+def _wall_volume(p, p_atm, c, r, h):
+    """A wall's added volume (m^3) along the pressure ``p`` (Pa): ``C (w - P_atm) + H (p -
+    w)``, ``w`` its play from ``p[0]``."""
+    w = play_series(p, r, p[0])
+    return c * (w - p_atm) + h * (p - w)

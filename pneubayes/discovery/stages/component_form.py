@@ -79,6 +79,10 @@ class ComponentForm(Stage):
     def _term_names(self, k: int) -> tuple[str, ...]:
         """Term ``k``'s parameter names, its strength first."""
 
+    def _strength_names(self, k: int) -> tuple[str, ...]:
+        """Term ``k``'s strengths (all 0 switches it off): its first name."""
+        return self._term_names(k)[:1]
+
     @abstractmethod
     def _searched_values(self, terms, params) -> dict[str, float]:
         """The parameter values the search's kept ``terms`` stand for beside the current
@@ -139,7 +143,7 @@ class ComponentForm(Stage):
             searched[name] = float(np.clip(v, p.lower, p.upper))
         # the current fit itself beside the component at zero strength (the nested start)
         zero = {**searched, **current.params,
-                **{self._term_names(k)[0]: 0.0 for k in range(len(terms))}}
+                **{n: 0.0 for k in range(len(terms)) for n in self._strength_names(k)}}
         fits = []
         for label, start in (("the search's values", searched), ("zero strength", zero)):
             try:

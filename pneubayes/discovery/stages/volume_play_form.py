@@ -19,7 +19,12 @@ from __future__ import annotations
 from pneubayes.discovery.openform.volume import searched_values
 from pneubayes.discovery.openform.volume_play import VolumePlayProblem, VolumePlaySearch
 from pneubayes.discovery.stages.component_form import ComponentForm
-from pneubayes.effects.volume_play import VolumePlay, compliance_name, half_width_name
+from pneubayes.effects.volume_play import (
+    VolumePlay,
+    compliance_name,
+    half_width_name,
+    held_compliance_name,
+)
 
 #: The component's name in a model and in the ledger.
 VOLUME_PLAY = "volume_play"
@@ -62,7 +67,10 @@ class VolumePlayForm(ComponentForm):
         return VolumePlay(terms=terms)
 
     def _term_names(self, k: int) -> tuple[str, ...]:
-        return compliance_name(k), half_width_name(k)
+        return compliance_name(k), half_width_name(k), held_compliance_name(k)
+
+    def _strength_names(self, k: int) -> tuple[str, ...]:
+        return compliance_name(k), held_compliance_name(k)
 
     def _searched_values(self, terms, params) -> dict[str, float]:
         return searched_values(terms, params, VolumePlayProblem.term_names)
