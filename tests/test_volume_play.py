@@ -232,6 +232,45 @@ def test_the_search_finds_a_planted_stop_as_a_stop(rig):
         VolumePlaySearch(kinds=("spring",)).fit(problem)
 
 
+def test_a_wall_that_removes_most_of_the_residual_earns_its_trial_however_uneven():
+    """The gate: a wall that removes 90 % of the residual, most of it on two large
+    windows while the small ones gain or lose a little (relative t about 1), is kept at
+    the default strong share and not where only t counts; one that loses on the mean
+    window is never kept."""
+
+    small = [0.7, 1.3, 0.6, 1.2, 0.8, 1.1, 0.7, 1.2]  # gains a little on the mean
+
+    class Uneven(VolumePlayProblem):
+        def check(self):
+            pass
+
+        def volume_scale_m3_per_Pa(self):
+            return 1e-11
+
+        @property
+        def scales_dead_volume(self):
+            return False
+
+        def window_sse(self, hinges, scales=None):
+            current = np.array([100.0, 100.0] + [1.0] * 8)
+            gain = np.array([10.0, 10.0] + small)
+            return np.stack([current if not h else gain for h in hinges])
+
+    class Windows:
+        measured = np.linspace(1e5, 6e5, 100)
+
+    probe = Uneven(Windows(), Model(), BASE, SolverConfig.standard())
+    kept = VolumePlaySearch(max_terms=1).fit(probe)
+    assert len(kept.terms_) == 1 and 0.0 < kept.best_.t < VolumePlaySearch().min_t
+    assert kept.best_.explained > 0.85
+    strict = VolumePlaySearch(max_terms=1, strong_explained_fraction=1.0).fit(probe)
+    assert strict.terms_ == []
+    small[:] = [1.9, 0.9, 1.8, 1.6, 0.8, 1.7, 1.5, 1.6]  # loses on the mean window
+    assert VolumePlaySearch(max_terms=1).fit(probe).terms_ == []
+    with pytest.raises(ValueError, match="strong_explained_fraction"):
+        VolumePlaySearch(strong_explained_fraction=0.01).fit(probe)
+
+
 def test_the_stage_s_knobs_and_its_switch():
     from pneubayes.discovery.settings import DiscoverySettings, StageSettings
     from pneubayes.discovery.stages import VolumePlayForm, default_stages

@@ -14,7 +14,10 @@ beside a saturating loop is a stop and a narrow play). A wall is kept
 when it removes at least ``min_explained_fraction`` of the residual's sum of squares and
 the windows' reductions, each as a share of the window's own sum of squares, are
 ``min_t`` standard errors above zero (a wall acts on every window that swings the
-pressure, while the windows' residuals differ in size by orders).
+pressure, while the windows' residuals differ in size by orders), or when it removes at
+least ``strong_explained_fraction`` of it and the windows' mean reduction is above zero
+(a term that removes most of the residual earns the held-out test, whose verdict is the
+one that counts, however unevenly the windows share the gain).
 """
 
 from __future__ import annotations
@@ -109,6 +112,9 @@ class VolumePlaySearch:
         A kept wall's least share of the residual's sum of squares.
     min_t : float
         A kept wall's least mean relative window reduction over its standard error.
+    strong_explained_fraction : float
+        A wall that removes this share of the residual's sum of squares is kept at any
+        ``t`` above 0.
     refine_passes : int
         Rounds of local refinement of the grid's best (its compliance, half-width and
         dead-volume scale, each round's steps halved; 0: the grid's best as it is): a
@@ -129,7 +135,7 @@ class VolumePlaySearch:
                  dead_volume_scales: Sequence[float] = (0.35, 0.5, 0.7, 1.0),
                  max_terms: int = VOLUME_PLAY_MAX_TERMS,
                  min_explained_fraction: float = 0.02, min_t: float = 4.0,
-                 refine_passes: int = 3):
+                 strong_explained_fraction: float = 0.5, refine_passes: int = 3):
         self.kinds = kinds
         self.half_widths = half_widths
         self.refine_passes = refine_passes
@@ -138,6 +144,7 @@ class VolumePlaySearch:
         self.max_terms = max_terms
         self.min_explained_fraction = min_explained_fraction
         self.min_t = min_t
+        self.strong_explained_fraction = strong_explained_fraction
 
     def get_params(self) -> dict:
         """The constructor's settings (scikit-learn's contract)."""
@@ -145,6 +152,7 @@ class VolumePlaySearch:
                 "compliance_shares": self.compliance_shares,
                 "dead_volume_scales": self.dead_volume_scales, "max_terms": self.max_terms,
                 "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t,
+                "strong_explained_fraction": self.strong_explained_fraction,
                 "refine_passes": self.refine_passes}
 
     def _validate(self, problem):
@@ -165,9 +173,12 @@ class VolumePlaySearch:
                 and 1 <= self.max_terms <= VOLUME_PLAY_MAX_TERMS):
             raise ValueError(f"max_terms must be an integer in 1..{VOLUME_PLAY_MAX_TERMS}, "
                              f"got {self.max_terms!r}")
-        if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0:
-            raise ValueError("min_explained_fraction must be in (0, 1) and min_t > 0, got "
-                             f"{self.min_explained_fraction!r}, {self.min_t!r}")
+        if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0 \
+                or not self.min_explained_fraction <= self.strong_explained_fraction <= 1.0:
+            raise ValueError("min_explained_fraction must be in (0, 1), min_t > 0 and "
+                             "strong_explained_fraction in [min_explained_fraction, 1], got "
+                             f"{self.min_explained_fraction!r}, {self.min_t!r}, "
+                             f"{self.strong_explained_fraction!r}")
         if isinstance(self.refine_passes, bool) or not isinstance(self.refine_passes, int) \
                 or self.refine_passes < 0:
             raise ValueError(f"refine_passes must be an integer >= 0, got "
@@ -215,7 +226,9 @@ class VolumePlaySearch:
             term = WallTerm(*best[0], explained, t, best[1])
             if self.best_ is None:
                 self.best_ = term
-            if explained < self.min_explained_fraction or t < self.min_t:
+            if explained < self.min_explained_fraction or not (
+                    t >= self.min_t or (explained >= self.strong_explained_fraction
+                                        and t > 0.0)):
                 break
             kept.append(best[0])
             scale = best[1]

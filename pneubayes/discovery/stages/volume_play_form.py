@@ -3,8 +3,9 @@ when neither the catalogue nor the volume's hinges close the gap.
 
 A wall held by friction (a braided sleeve, a rolling diaphragm, a clamped hose) gives
 only once the pressure has moved past its friction band: its volume over the pressure is
-a loop, which the volume's hinges (a function of the pressure) can only average. This
-stage searches the training windows' residual for plays of the chamber's volume
+a loop, which the volume's hinges (a function of the pressure) can only average; a give
+that saturates while held (a stop) is the same loop turned the other way. This stage
+searches the training windows' residual for plays and stops of the chamber's volume
 (:class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`) and adds the kept
 ones as one :class:`~pneubayes.effects.volume_play.VolumePlay`, fitted, pruned and
 weighed as :class:`~pneubayes.discovery.stages.component_form.ComponentForm` does. It
