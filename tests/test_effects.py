@@ -42,14 +42,15 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
                                                    "spool_hinge_down; one"}),
             ("reading_closure", {}), ("reading_closure", {"terms": 2}),
             ("volume_closure", {}), ("volume_closure", {"terms": 2}),
-            ("volume_play", {}), ("volume_play", {"terms": 2})]
+            ("volume_play", {}), ("volume_play", {"terms": 2}),
+            ("command_clock", {}), ("command_clock", {"form": "pwm"})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
        "valve_deadzone",
        "valve_deadzone_rounded", "supply_fluctuation", "heat_rate", "heat_convective",
        "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all",
        "sensor_lag_pressure", "closure", "closure_hinges", "reading_closure",
        "reading_closure_2", "volume_closure", "volume_closure_2", "volume_play",
-       "volume_play_2"]
+       "volume_play_2", "command_clock", "command_clock_pwm"]
 
 
 def _tight():
@@ -92,7 +93,7 @@ def test_catalogue_names():
                                "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
                                "valve_stiction", "closure", "reading_closure",
                                "reading_play", "reading_command", "volume_closure",
-                               "volume_play"]
+                               "volume_play", "command_clock"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -190,6 +191,10 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
         with pytest.raises(ValueError, match="plant's friction-held wall"):
             reference_simulate(model, params, inputs, rig, 2e5)
         return  # its independent reference: tests/test_volume_play.py
+    if effect.name == "command_clock":  # switches between samples: no ODE reference
+        with pytest.raises(ValueError, match="plant's driver"):
+            reference_simulate(model, params, inputs, rig, 2e5)
+        return  # its independent reference: tests/test_command_clock.py
     method = "DOP853" if getattr(effect, "form", None) == "line" else "Radau"
     ref = reference_simulate(model, params, inputs, rig, 2e5, method=method, rtol=1e-10)
     got = _sim(model, params, inputs, rig)
@@ -200,8 +205,10 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
 def test_all_effects_together_agree_with_the_reference_solver(rig, valve_params, hand):
     """Delay break points, spool lag, dead band, heat state, leak and supply all at once
     (all but the volume's closure and play, whose compliant chamber the simulator steps
-    with the pressure as its only state: not beside the heat state)."""
-    model = Model([n for n in CATALOGUE if n not in ("volume_closure", "volume_play")])
+    with the pressure as its only state: not beside the heat state; and the driver's
+    clock, which the reference does not step)."""
+    model = Model([n for n in CATALOGUE
+                   if n not in ("volume_closure", "volume_play", "command_clock")])
     params = dict(valve_params, dead_volume_m3=1e-6)
     for e in model.effects:
         params.update(e.bench_defaults())

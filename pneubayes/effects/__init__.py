@@ -7,8 +7,9 @@ Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_de
 of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
 ``reading_command`` (open-form lags of the command's magnitude in the reading),
 ``volume_closure`` (open-form hinges of the chamber's volume in its pressure) and
-``volume_play`` (open-form friction-held walls: plays of the chamber's volume), the last
-six never searched for by the discovery library.
+``volume_play`` (open-form friction-held walls: plays and stops of the chamber's
+volume) and ``command_clock`` (an open-form valve driver on its own clock), the last
+seven never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numbers
 
 from pneubayes.effects.base import Component, Effect, Eq10Fit, Parameter
 from pneubayes.effects.closure import Closure
+from pneubayes.effects.command_clock import CommandClock
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.reading_closure import ReadingClosure
@@ -42,7 +44,7 @@ CATALOGUE: dict[str, type[Effect]] = {
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
-                ReadingCommand, VolumeClosure, VolumePlay)
+                ReadingCommand, VolumeClosure, VolumePlay, CommandClock)
 }
 
 
@@ -130,7 +132,8 @@ def _check_options(cls: type[Effect], options: dict) -> None:
                              f"{value!r}")
 
 
-__all__ = ["CATALOGUE", "Closure", "Component", "CylinderLeak", "Effect", "Eq10Fit",
+__all__ = ["CATALOGUE", "Closure", "CommandClock", "Component", "CylinderLeak", "Effect",
+           "Eq10Fit",
            "HeatTransfer", "Parameter", "ReadingClosure", "ReadingCommand", "ReadingPlay",
            "SensorCalibration",
            "SensorDrift", "SensorLag",

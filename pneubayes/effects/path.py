@@ -219,6 +219,23 @@ SLOTS += tuple(
      "(:mod:`pneubayes.simulation.volume_play`); lowered as 0")
     for k in range(VOLUME_PLAY_MAX_TERMS))
 
+SLOTS += (
+    ("command_clock_period_s", "the valve's driver takes the command on a clock of this "
+     "period (its ticks at (phase + k) periods on the recording's clock); 0 = the valve "
+     "follows the command at once (s)"),
+    ("command_clock_phase", "the driver clock's first tick, as a share of its period after "
+     "the recording's time 0 (-)"),
+    ("command_clock_latency_s", "the driver's latency: a command taken at a tick reaches "
+     "the valve this much later (s)"),
+    ("command_clock_pwm", "1: the driver modulates the pulses' width (an on/off valve open "
+     "fully for |u| / full of each period, at the command's sign); 0: it holds the taken "
+     "command over the period"),
+    ("command_clock_full_command_V", "the modulating driver's full scale: a command of this "
+     "magnitude keeps the valve open over the whole period (V)"),
+    ("command_clock_pulse_trim_s", "the modulating driver's pulses reach the valve this much "
+     "shorter (a solenoid that opens later than it closes; negative: longer) (s)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -229,12 +229,14 @@ class PressurePredictor:
         self.quantiles = tuple(quantiles)
         slots = model.lower(self.draws, rig)
         #: how far back (s) the valve still sees the command: the longest transport delay
-        #: plus 20 spool time constants (or settling times of a second-order spool),
-        #: and a speed-limited spool's ramp across :data:`RAMP_SPAN` command units, over
-        #: the draws
+        #: and driver clock's period and latency plus 20 spool time constants (or
+        #: settling times of a second-order spool), and a speed-limited spool's ramp
+        #: across :data:`RAMP_SPAN` command units, over the draws
         rate = slots[:, SLOT_INDEX["spool_rate_limit_V_per_s"]]
         ramp = np.where(rate > 0.0, RAMP_SPAN / np.where(rate > 0.0, rate, 1.0), 0.0)
         self.lookback_s = float(np.max(slots[:, SLOT_INDEX["command_delay_s"]]
+                                       + slots[:, SLOT_INDEX["command_clock_period_s"]]
+                                       + slots[:, SLOT_INDEX["command_clock_latency_s"]]
                                        + 20.0 * spool_settle_s(slots) + ramp))
         #: whether a draw's sensor zero moves on the recording's clock (sensor_drift):
         #: then every candidate is simulated from ``time_s`` on its own

@@ -4,12 +4,15 @@ The command is held between samples (zero-order hold) and read ``command_delay_s
 late; the position and supply are linear between samples and read ``inputs_advance_s``
 early. A step never crosses a break of either, except with dense output, where a step
 runs over the samples that repeat the command and the supply
-(:func:`pneubayes.simulation.dense.dense_run`).
+(:func:`pneubayes.simulation.dense.dense_run`). A driver's clock
+(:mod:`pneubayes.simulation.command_clock`) takes the command at its ticks instead.
 """
 
 from __future__ import annotations
 
 from numba import njit
+
+from pneubayes.simulation.command_clock import clock_on, clocked_hold
 
 
 @njit(cache=True, error_model="numpy")
@@ -39,10 +42,15 @@ def delayed_command(t, u, delay, t_start, track_direction):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def command_hold(t, u, j, cdir, track_direction, delay, tau, tb, crossing):
+def command_hold(sl, t, u, j, cdir, track_direction, delay, tau, tb, crossing):
     """``(j, direction, command, t_end)``: the delayed command held from ``tau`` (its
     index ``j`` moved on, the direction tracked) and where it next changes before ``tb``
-    (else ``tb``); ``crossing`` (dense output): past the samples that repeat it."""
+    (else ``tb``); ``crossing`` (dense output): past the samples that repeat it. Where
+    the slots ``sl`` carry a driver's clock, as it takes the command
+    (:func:`~pneubayes.simulation.command_clock.clocked_hold`; direction untracked)."""
+    if clock_on(sl):
+        j, cmd, t_end = clocked_hold(sl, t, u, j, delay, tau, tb)
+        return j, cdir, cmd, t_end
     n = t.shape[0]
     while j + 1 < n and t[j + 1] + delay <= tau:
         j += 1

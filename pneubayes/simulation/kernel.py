@@ -419,7 +419,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
         while tau < tb:
             # a stretch [tau, t_end) on which the delayed command is constant, and the
             # position and supply linear from (ta, xa / sa)
-            j, cdir, cmd, t_end = command_hold(t, u, j, cdir, cl_dir, delay, tau, tb,
+            j, cdir, cmd, t_end = command_hold(sl, t, u, j, cdir, cl_dir, delay, tau, tb,
                                                kn > k + 1)
             m, ta, inv_seg, xa, xb, sa, sb, t_end = input_segment(t, x, ps, m, tau, adv,
                                                                   t_end, kn == k + 1)

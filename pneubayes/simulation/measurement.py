@@ -64,6 +64,7 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     switch = np.nonzero(u[1:] != u[:-1])[0] + 1  # sample j: u[j - 1] -> u[j]
     finite = np.all(np.isfinite(pressure_Pa), axis=(1, 2))
     rows = np.nonzero((slots[:, S["spool_time_constant_s"]] <= 0.0)
+                      & (slots[:, S["command_clock_period_s"]] <= 0.0)
                       & (slots[:, S["spool_fall_time_constant_s"]] <= 0.0)
                       & (slots[:, S["spool_natural_frequency_rad_per_s"]] <= 0.0)
                       & (slots[:, S["line_length_m"]] <= 0.0)

@@ -428,6 +428,12 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "plant's friction-held wall and Bouc-Wen wall "
                          "(pneubayes.bench.forms.BraidFriction, BoucWenWall; "
                          "tests/test_volume_play.py)")
+    if sl[S["command_clock_period_s"]] > 0:
+        raise ValueError("reference_simulate: a driver's clock (effect 'command_clock') "
+                         "switches the valve between samples, where this reference steps "
+                         "from sample to sample; its independent reference is the bench "
+                         "plant's driver (pneubayes.bench.forms.ZohDriver, PwmValve; "
+                         "tests/test_command_clock.py)")
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
