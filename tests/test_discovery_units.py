@@ -661,6 +661,18 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
     plain = context(Model(), {"heat_transfer_rate_per_s": 5.0})
     assert [f.form for f, _ in make_effect("heat_transfer").candidate_forms(plain)] == [
         "rate", "convective"]
+    # a friction-held wall (whose table the simulator lays itself, so no slot shows a
+    # table) takes the second state too: no heat beside it (a loop that had found a wall
+    # stopped with the simulator's error when it tried heat transfer beside it)
+    wall = context(Model([make_effect("volume_play")]), {"heat_transfer_rate_per_s": 5.0})
+    assert not wall.second_state_free
+    assert make_effect("heat_transfer").candidate_forms(wall) == []
+    stop = Model([make_effect("volume_play")])  # a stop alone: only its held give
+    params = {**{k: v for k, v in base_params.items() if k in stop.parameter_names},
+              **stop.effect("volume_play").bench_defaults(), "volume_play_compliance_0": 0.0}
+    ctx = candidate_context(SimpleNamespace(model=stop, params=params), "x",
+                            {"best_term_start": {"heat_transfer_rate_per_s": 5.0}}, rig)
+    assert not ctx.second_state_free
 
 
 def test_a_named_sensor_lag_is_fitted_in_both_orders_on_every_channel_and_pressure_dependent(

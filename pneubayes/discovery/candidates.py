@@ -14,15 +14,18 @@ from pneubayes.discovery.settings import FormSettings
 from pneubayes.discovery.verification import StepFit
 from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext, inside_bounds
-from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.path import SLOT_INDEX, VOLUME_PLAY_MAX_TERMS
 from pneubayes.model import Model
 from pneubayes.rig import Rig
 
 #: Slots whose non-zero value gives the chamber a state besides its pressure, or a
 #: pressure law the temperature and line states do not cover (a rig card's compliant
-#: chamber, supply tank, second compartment or tabulated V(p)).
+#: chamber, supply tank, second compartment or tabulated V(p), and a volume play, whose
+#: table the simulator lays itself).
 _STATE_SLOTS = ("compliance_m3_per_Pa", "tank_volume_m3", "lung_volume_m3",
-                "volume_table_points")
+                "volume_table_points") + tuple(
+    f"volume_play_{what}compliance_m3_per_Pa_{k}" for what in ("", "held_")
+    for k in range(VOLUME_PLAY_MAX_TERMS))
 
 
 def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
