@@ -90,10 +90,22 @@ def test_windows_continue_the_run_and_the_step_halves(rig):
     tight = simulate(model, params, inputs, rig, P_ATM,
                      SolverConfig.standard().tightened(100.0)).pressure_Pa[0]
     assert np.max(np.abs(whole - tight)) < 5e-4 * RANGE
-    off = simulate(model, {**params, "command_clock_period": 0.0}, inputs, rig, P_ATM,
+    off = simulate(model, {**params, "command_clock_period": 0.0,
+                           "command_clock_latency": 0.0}, inputs, rig, P_ATM,
                    SolverConfig.standard()).pressure_Pa[0]
     plain = simulate(Model(), BASE, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
     np.testing.assert_array_equal(off, plain)
+    # with no clock the latency (4 ms) is a pure delay: the command recorded 4 samples late
+    late = simulate(model, {**params, "command_clock_period": 0.0}, inputs, rig, P_ATM,
+                    SolverConfig.standard()).pressure_Pa[0]
+    u = np.concatenate([np.full(4, inputs.command_V[0]), inputs.command_V[:-4]])
+    shifted = Inputs(inputs.time_s, u, inputs.position_m, inputs.supply_pressure_Pa)
+    delayed = simulate(Model(), BASE, shifted, rig, P_ATM,
+                       SolverConfig.standard()).pressure_Pa[0]
+    np.testing.assert_allclose(late, delayed, rtol=0, atol=1e-6 * RANGE)
+    windows = simulate_windows(model, {**params, "command_clock_period": 0.0}, inputs, rig,
+                               starts, length, late[starts], SolverConfig.standard())[0]
+    assert np.max(np.abs(windows - late[starts[:, None] + np.arange(length)])) < 2e-3 * RANGE
 
 
 def test_the_driver_is_refused_by_the_ode_reference_and_checks_its_form(rig):

@@ -20,7 +20,8 @@ between ticks). This component puts the driver between the command and the valve
 period), ``L`` (``command_clock_latency``, s), and for the PWM driver ``U``
 (``command_clock_full_command``, V) and ``e`` (``command_clock_pulse_trim``, s: a
 solenoid that opens later than it closes shortens every pulse). Option ``form``:
-``"hold"`` or ``"pwm"``. A period of 0 is the valve without a driver.
+``"hold"`` or ``"pwm"``. A period of 0 is a driver that follows the command at once,
+``L`` later (a pure delay); period and latency 0, the valve without a driver.
 
 The compiled simulator reads the command through the clock as it steps
 (:mod:`pneubayes.simulation.command_clock`); a spool lag's or a closure's warm-up before
@@ -79,7 +80,7 @@ class CommandClock(Effect):
 
     def parameters(self):
         out = [Parameter(PERIOD, "s", *PERIOD_BOUNDS_S, "uniform",
-                         "the driver clock's period (0: no driver)", neutral=0.0),
+                         "the driver clock's period (0: no clock)", neutral=0.0),
                Parameter(PHASE, "-", 0.0, 1.0, "uniform", "the driver clock's first tick "
                          "after the recording's time 0, as a share of its period",
                          neutral=0.0),

@@ -6,7 +6,8 @@ recording's clock (its ``time_s``); at each tick it takes the command sample hel
 and, ``L`` later (latency), drives the valve with it: holding it over the period, or
 (pulse-width modulation) at the full command ``+-U`` of its sign for ``min(|u| / U, 1)``
 of the period less a trim, and shut (0) for the rest. The chamber sees the valve a
-transport delay later still. :func:`clocked_hold` is the kernel's held command under the
+transport delay later still. With no clock (period 0) the latency is a pure delay of the
+command. :func:`clocked_hold` is the kernel's held command under the
 clock: what the valve takes from ``tau`` and when it next changes.
 """
 
@@ -32,6 +33,12 @@ TICK_TOLERANCE = 1e-9
 def clock_on(sl) -> bool:
     """Whether a parameter set's valve takes the command on a driver's clock."""
     return sl[_T] > 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def clock_latency(sl) -> float:
+    """The driver's latency (s): with no clock (period 0), a pure delay of the command."""
+    return sl[_LAT]
 
 
 @njit(cache=True, error_model="numpy")

@@ -428,7 +428,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "plant's friction-held wall and Bouc-Wen wall "
                          "(pneubayes.bench.forms.BraidFriction, BoucWenWall; "
                          "tests/test_volume_play.py)")
-    if sl[S["command_clock_period_s"]] > 0:
+    if sl[S["command_clock_period_s"]] > 0 or sl[S["command_clock_latency_s"]] > 0:
         raise ValueError("reference_simulate: a driver's clock (effect 'command_clock') "
                          "switches the valve between samples, where this reference steps "
                          "from sample to sample; its independent reference is the bench "
