@@ -62,7 +62,8 @@ are recorded.
 Reported per case: the catalogue effects named, the open-form terms found (the
 discovery document's ``found_terms``, from an effect named ``closure``, and its
 ``found_reading_terms``, relaxations, plays and command lags of the reading, and
-``found_volume_terms``, hinges of the chamber's volume; none when the loop has no
+``found_volume_terms``, hinges and walls of the chamber's volume, and
+``found_command_terms``, a valve driver's clock; none when the loop has no
 open-form stage), the held-out RMSE before and after (Pa), the noise floor, the gap
 shrink and final / noise. The issue's floors: out-of-catalogue cases name no
 catalogue stand-in in >= 8 of 10, median gap shrink >= 70 %, median final <= 2 x the
@@ -567,9 +568,12 @@ def run_case(case: dict, args, root: Path) -> dict:
             f"reading: {t['formula'].split(',')[0]}"
             for t in doc.get("found_reading_terms", [])] + [
             f"volume: {t['formula'].split(' (')[0]}"
-            for t in doc.get("found_volume_terms", [])], case["hidden"], kept),
+            for t in doc.get("found_volume_terms", [])] + [
+            f"command: {t['term']}" for t in doc.get("found_command_terms", [])],
+            case["hidden"], kept),
         "found_terms_detail": (doc.get("found_terms", []) + doc.get("found_reading_terms", [])
-                               + doc.get("found_volume_terms", [])),
+                               + doc.get("found_volume_terms", [])
+                               + doc.get("found_command_terms", [])),
         "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
         "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1.0 - gap1 / gap0,
         "final_over_noise": doc["rmse_final_Pa"] / noise,

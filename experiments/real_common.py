@@ -25,8 +25,10 @@ def added_names(doc: dict) -> list[str]:
         out.append("closure")
     if doc.get("found_reading_terms"):
         out.append("reading relaxation")
-    if doc.get("found_volume_terms"):
-        out.append("volume hinge")
+    for t in doc.get("found_volume_terms", []):
+        out.append(f"volume {t['term']}")
+    if doc.get("found_command_terms"):
+        out.append("driver clock")
     return out
 
 

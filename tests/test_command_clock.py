@@ -135,3 +135,105 @@ def test_a_full_duty_pulse_holds_the_valve_open_and_none_shuts_it(rig):
                       SolverConfig.standard()).pressure_Pa[0]
     at_zero = simulate(Model(), BASE, shut, rig, 3e5, SolverConfig.standard()).pressure_Pa[0]
     np.testing.assert_allclose(closed, at_zero, rtol=0, atol=1e-6 * RANGE)
+
+
+def _plant_recordings(form, count=2, n=8001):
+    """``count`` recordings (1 kHz, 200 Pa noise) of valve 1 on a 2.4-cm^3 chamber
+    behind the bench plant's driver ``form`` (None: none)."""
+    from conftest import BORE, STROKE
+
+    from pneubayes.bench.plant import PlantConfig, simulate_plant
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.rig import Rig
+
+    rig = Rig(BORE, P_ATM, P_SUP, stroke_m=STROKE)
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    out = []
+    for seed in range(count):
+        rng = np.random.default_rng(60 + seed)
+        inputs = _inputs(60 + seed, n)
+        p = simulate_plant(BASE, () if form is None else (form,), inputs, rig, P_ATM,
+                           PlantConfig.reference()).pressure_Pa
+        out.append(Recording(md, inputs.time_s, inputs.command_V,
+                             p + rng.normal(0.0, 200.0, n), source=f"driver_{seed}.csv"))
+    return out
+
+
+def test_the_search_reads_a_planted_clock_and_none_from_a_valve_without_one():
+    """A sampling driver (12.3 ms, 3 ms late) and a PWM valve (50 Hz, its solenoid 3 ms
+    to open, 2 ms to close), each from the bench plant: the period to 1e-4, the driver's
+    form, nearly all of the residual; a valve without a driver: none kept."""
+    from pneubayes.bench.forms.valve import PwmValve, ZohDriver
+    from pneubayes.discovery.openform.command_clock import (
+        CommandClockProblem,
+        CommandClockSearch,
+    )
+    from pneubayes.inference.windows import WindowSet
+
+    def search(form, **kw):
+        ws = WindowSet(_plant_recordings(form), 2.0, 2.0)
+        return CommandClockSearch(**kw).fit(
+            CommandClockProblem(ws, Model(), BASE, SolverConfig.standard()))
+
+    zoh = search(ZohDriver(0.0123, 0.003, 0.37))
+    (term,) = zoh.terms_
+    assert term.form == "hold" and term.period_s == pytest.approx(0.0123, rel=1e-4)
+    assert term.explained > 0.95 and zoh.coherence_ > 0.9
+    # the ticks plus the latency where the plant has them, to a tenth of a millisecond
+    offset = (term.phase * term.period_s + term.latency_s) % term.period_s
+    assert abs(offset - (0.37 * 0.0123 + 0.003)) < 1e-4
+    pwm = search(PwmValve(50.0, 3e-3, 2e-3, 5.0))
+    (term,) = pwm.terms_
+    assert term.form == "pwm" and term.period_s == pytest.approx(0.02, rel=1e-4)
+    assert term.explained > 0.95 and "PWM" in str(term)
+    none = search(None)
+    assert none.terms_ == [] and none.best_.explained < 0.02
+    with pytest.raises(ValueError, match="forms"):
+        search(None, forms=("square",))
+    with pytest.raises(ValueError, match="CommandClockProblem"):
+        CommandClockSearch().fit(object())
+
+
+def test_the_stage_runs_first_among_the_open_forms_and_can_be_switched_off():
+    from pneubayes.discovery.settings import DiscoverySettings, StageSettings
+    from pneubayes.discovery.stages import CommandClockForm, default_stages
+
+    assert CommandClockForm().compete_below_gap_closed == 0.9
+    names = [type(s).__name__ for s in default_stages(DiscoverySettings())]
+    assert names.index("OtherForms") < names.index("CommandClockForm") \
+        < names.index("ReadingForm")
+    off = default_stages(DiscoverySettings(stages=StageSettings(
+        command_clock_min_noise_ratio=0)))
+    assert "CommandClockForm" not in [type(s).__name__ for s in off]
+    with pytest.raises(ValueError, match="command_clock_min_noise_ratio"):
+        StageSettings(command_clock_min_noise_ratio=0.5)
+
+
+@pytest.mark.slow
+def test_discovery_finds_a_sampling_driver_and_names_no_stand_in(tmp_path):
+    """The loop on four recordings behind the plant's sampling driver: no catalogue
+    effect named, the driver listed as a term on the command with its period, and the
+    held-out error at about the noise floor."""
+    from conftest import discovery_settings
+
+    from pneubayes.bench.forms.valve import ZohDriver
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.report import write_discovery
+    from pneubayes.discovery.stages import CommandClockForm
+
+    recs = _plant_recordings(ZohDriver(0.0123, 0.003, 0.37), count=4)
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    result = Discovery(settings, None, log=None,
+                       stages=[CommandClockForm()]).fit(recs).result_
+    doc = result.to_dict()
+    (term,) = doc["found_command_terms"]
+    assert term["term"] == "driver clock (hold)"
+    period = term["parameters"]["command_clock_period"]["estimate"]
+    assert period == pytest.approx(0.0123, rel=1e-4)
+    assert doc["effects"] == [] and doc["stand_ins"] == []
+    assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+    write_discovery(result, recs, tmp_path, figures=False)
+    assert "An open-form term on the command found" in (tmp_path / "report.md").read_text()

@@ -66,7 +66,8 @@ def summary_lines(doc: dict) -> list[str]:
     """What a discovery added, one line each: the named effects (+), the open-form terms
     (*) and the stand-ins kept at a bound (~)."""
     if not any(doc.get(k) for k in ("effects", "stand_ins", "found_terms",
-                                     "found_reading_terms", "found_volume_terms")):
+                                     "found_reading_terms", "found_volume_terms",
+                                     "found_command_terms")):
         return ["  no missing effect is supported"]
     out = []
     for e in doc["effects"]:
@@ -77,7 +78,8 @@ def summary_lines(doc: dict) -> list[str]:
         out.append(f"  + {e['name']}: {ps}; inclusion "
                    f"{e['evidence']['inclusion_probability']:.2f}, RMSE "
                    f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
-    for key in ("found_terms", "found_reading_terms", "found_volume_terms"):
+    for key in ("found_terms", "found_reading_terms", "found_volume_terms",
+                "found_command_terms"):
         for t in doc.get(key, []):
             ps = ", ".join(f"{n} = {p.get('median', p.get('estimate')):.4g} {p['unit']}"
                            for n, p in t["parameters"].items())

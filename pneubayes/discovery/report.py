@@ -284,6 +284,10 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
             lines += ["", "The volume each adds along the final model's pressure on the "
                       "training recordings (a hinge's curve, a wall's loop):", "",
                       f"![found volume terms](figures/{figs['found_volume_terms']})"]
+    if doc.get("found_command_terms"):
+        lines += _terms_table("An open-form term on the command found (the valve takes it "
+                              "through a driver on its own clock; in no catalogue form):",
+                              doc["found_command_terms"])
     if doc.get("stand_ins"):
         lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
                   "prediction only with a parameter of their own at a bound, a strained "
@@ -294,7 +298,8 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
             lines.append(f"- {e['name']} ({where}): held-out RMSE {e['rmse_before_Pa']:.0f} "
                          f"-> {e['rmse_after_Pa']:.0f} Pa")
     if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms") \
-            or doc.get("found_volume_terms") or doc.get("stand_ins"):
+            or doc.get("found_volume_terms") or doc.get("found_command_terms") \
+            or doc.get("stand_ins"):
         found = True
     elif final <= MISFIT_RATIO * noise:
         found = False

@@ -27,7 +27,7 @@ from pneubayes.inference.fit import PosteriorDraws, at_bounds
 FORMAT = "pneubayes-discovery/1"
 #: The open-form components: their terms are listed apart from the named effects.
 OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "volume_closure",
-             "volume_play")
+             "volume_play", "command_clock")
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,6 +207,25 @@ class DiscoveryResult(PosteriorDraws):
                        f"m^3/Pa; r_{k} = {half_width_name(k)}, Pa)"),
             lambda k: (wall_compliance_name(k), held_compliance_name(k), half_width_name(k)))
 
+    def found_command_terms(self) -> list[dict]:
+        """The final model's open-form term on the command (effect ``command_clock``;
+        empty without it): the driver's formula, its parameters (as
+        :meth:`found_reading_terms` gives them) and where it acts."""
+        model = self.final.model
+        if not model.has("command_clock"):
+            return []
+        eff = model.effect("command_clock")
+        formula = ("the valve takes u(t_k) at ticks t_k = (phi + k) T and holds it from "
+                   "t_k + L" if eff.form == "hold" else
+                   "the valve at +-U (the sign of u(t_k)) from t_k + L for min(|u(t_k)| / "
+                   "U, 1) T - e, shut for the rest of the period, t_k = (phi + k) T")
+        return [{"term": f"driver clock ({eff.form})", "acts_on": "the valve's command (V)",
+                 "formula": formula + " (T = command_clock_period, s; phi = "
+                 "command_clock_phase; L = command_clock_latency, s"
+                 + ("; U = command_clock_full_command, V; e = command_clock_pulse_trim, s)"
+                    if eff.form == "pwm" else ")"),
+                 "parameters": self._values(eff.parameter_names())}]
+
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
         post = self.posterior_summary
@@ -214,7 +233,7 @@ class DiscoveryResult(PosteriorDraws):
         effects, stand_ins = [], []
         for a in self.accepted:
             if a["name"] in OPEN_FORM:  # open-form terms: listed apart, as found_terms,
-                continue  # found_reading_terms and found_volume_terms
+                continue  # found_reading_terms, found_volume_terms, found_command_terms
             eff = self.final.model.effect(a["name"])
             params = {}
             for n in eff.parameter_names():
@@ -237,6 +256,7 @@ class DiscoveryResult(PosteriorDraws):
                "found_terms": self.found_terms(),
                "found_reading_terms": self.found_reading_terms(),
                "found_volume_terms": self.found_volume_terms(),
+               "found_command_terms": self.found_command_terms(),
                "rmse_base_Pa": self.base.heldout_rmse_Pa,
                "rmse_final_Pa": self.final.heldout_rmse_Pa,
                "noise_floor_Pa": self.noise_floor_Pa, "range_Pa": self.range_Pa,

@@ -293,6 +293,9 @@ class StageSettings:
     volume_play_min_noise_ratio : float
         VolumePlayForm: open-form friction-held walls (plays of the chamber's volume)
         while above this x the noise floor (0: off).
+    command_clock_min_noise_ratio : float
+        CommandClockForm: an open-form valve driver on its own clock while above this x
+        the noise floor (0: off).
     """
 
     more_supported: bool = True
@@ -308,6 +311,7 @@ class StageSettings:
     reading_command_min_noise_ratio: float = 1.5
     volume_form_min_noise_ratio: float = 1.5
     volume_play_min_noise_ratio: float = 1.5
+    command_clock_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
         _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
@@ -319,7 +323,8 @@ class StageSettings:
                              f"{self.max_form_swaps!r}")
         for name in ("open_form_min_noise_ratio", "reading_form_min_noise_ratio",
                      "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
-                     "volume_form_min_noise_ratio", "volume_play_min_noise_ratio"):
+                     "volume_form_min_noise_ratio", "volume_play_min_noise_ratio",
+                     "command_clock_min_noise_ratio"):
             v = getattr(self, name)
             if not (v == 0.0 or v >= 1.0):
                 raise ValueError(f"{name} must be 0 (off) or >= 1, got {v}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.stages.command_clock_form import CommandClockForm
 from pneubayes.discovery.stages.last_resort import LastResort
 from pneubayes.discovery.stages.more_supported import MoreSupported
 from pneubayes.discovery.stages.open_form import OpenForm
@@ -27,8 +28,9 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open forms: the reading's relaxations, plays and lags
-    of the command, the volume's hinges and its friction-held walls, and the closure."""
+    effects' other forms, then the open forms: the valve driver's clock, the reading's
+    relaxations, plays and lags of the command, the volume's hinges and its
+    friction-held walls, and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -45,6 +47,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     # volume's hinges), then the closure's library, which competes with them where they
     # close under half the gap: a generic closure that passes first would absorb what a
     # physical form expresses exactly (an accumulator's compliance, as pressure relaxations)
+    if s.command_clock_min_noise_ratio:  # (a wait locked to a clock, before what it bends)
+        stages.append(CommandClockForm(s.command_clock_min_noise_ratio))
     if s.reading_form_min_noise_ratio:
         stages.append(ReadingForm(s.reading_form_min_noise_ratio))
     if s.reading_play_min_noise_ratio:
@@ -60,6 +64,7 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     return stages
 
 
-__all__ = ["Stage", "MoreSupported", "LastResort", "RunnerUps", "Pairs", "OtherForms",
+__all__ = ["Stage", "CommandClockForm", "MoreSupported", "LastResort", "RunnerUps", "Pairs",
+           "OtherForms",
            "OpenForm", "ReadingForm", "ReadingPlayForm", "ReadingCommandForm", "VolumeForm",
            "VolumePlayForm", "default_stages"]

@@ -79,6 +79,10 @@ class ComponentForm(Stage):
     def _term_names(self, k: int) -> tuple[str, ...]:
         """Term ``k``'s parameter names, its strength first."""
 
+    def _component_for(self, terms):
+        """The component for the search's kept ``terms`` (by default: with as many)."""
+        return self._component(len(terms))
+
     def _strength_names(self, k: int) -> tuple[str, ...]:
         """Term ``k``'s strengths (all 0 switches it off): its first name."""
         return self._term_names(k)[:1]
@@ -136,7 +140,7 @@ class ComponentForm(Stage):
         from zero strength; the lower training RMSE kept (None: both failed, or the fit
         ended worse than the model it contains)."""
         current = state.current
-        model = current.model.with_effect(self._component(len(terms)))
+        model = current.model.with_effect(self._component_for(terms))
         searched = dict(current.params)
         for name, v in self._searched_values(terms, current.params).items():
             p = model.parameter(name)
@@ -172,7 +176,7 @@ class ComponentForm(Stage):
         that the held-out test cannot tell apart from the pair, and that still beats the
         current model, replaces the pair (the search's second term may be what its
         linearisation left of the first)."""
-        if fit.model.effect(self.component).terms < 2 \
+        if _terms(fit.model.effect(self.component)) < 2 \
                 or not runner.better(fit, state.current)[0]:
             return fit
         model = fit.model.without(self.component).with_effect(self._component(1))
@@ -200,7 +204,7 @@ class ComponentForm(Stage):
     def _verify(self, fit, state: RoundState, runner, best, search) -> bool:
         """Weigh the fit; on a pass it becomes the round's only passing trial."""
         w = weigh(fit, state, runner, best, self.component)
-        n = fit.model.effect(self.component).terms
+        n = _terms(fit.model.effect(self.component))
         fitted = [{name: fit.params[name] for name in self._term_names(k)} for k in range(n)]
         runner.ledger.record(f"{self.label} pass" if w.passed else f"{self.label} reject",
                              effect=self.component, fitted_terms=fitted,
@@ -219,6 +223,11 @@ class ComponentForm(Stage):
             "best_term": "; ".join(str(t) for t in search.terms_), "best_term_start": None}
         state.passing = [(fit.heldout_rmse_Pa, self.component, fit, w.gain, w.p_value)]
         return True
+
+
+def _terms(component) -> int:
+    """How many terms a component carries (one without a ``terms`` option)."""
+    return getattr(component, "terms", 1)
 
 
 def _term_record(t) -> dict:

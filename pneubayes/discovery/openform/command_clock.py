@@ -1,0 +1,411 @@
+"""The open-form search on the command: a valve driver on its own clock in the prediction
+windows' residual.
+
+A driver that takes the command at the ticks of its clock
+(:class:`~pneubayes.effects.command_clock.CommandClock`) makes every command change wait
+a share of a period that depends on where it falls between the ticks, and a
+pulse-width-modulated valve fill and vent in bursts within each period. The ticks are
+locked to a clock the recording does not carry, and over a 20-s recording a period must
+be known to a part in 10^5 for them to stay in phase: no grid of simulations reaches
+that. The search reads the clock from the data instead (:class:`CommandClockSearch`):
+
+1. each command change's wait: the windows simulated with the command delayed by each
+   of a grid of waits (one batch), and per change the wait whose residual over the
+   samples after it is least (its gain over no wait its weight);
+2. the clock: where the valve took each change (its time plus its wait) falls on the
+   driver's ticks plus the latency, so the period is the one at which those times are
+   most in phase (the weighted mean of ``exp(2 pi i t / T)`` over a fine grid of
+   frequencies, the longest period among its near-equals: a tick pattern is also in
+   phase at its period's fractions), and the phase of that mean is where the ticks fall;
+3. the driver itself: both forms at latencies that split the phase between the clock
+   and the latency (the shortest waits bound the latency), simulated, the best refined
+   locally.
+
+A driver is kept when it removes at least ``min_explained_fraction`` of the residual's
+sum of squares and the windows' reductions, each as a share of the window's own sum of
+squares, are ``min_t`` standard errors above zero, or when it removes
+``strong_explained_fraction`` of it at a mean reduction above zero (as the volume's
+walls are, :mod:`pneubayes.discovery.openform.volume_play`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pneubayes.discovery.openform.volume import window_reduction
+from pneubayes.effects.command_clock import (
+    FORMS,
+    FULL_COMMAND,
+    FULL_COMMAND_BOUNDS_V,
+    LATENCY,
+    LATENCY_BOUNDS_S,
+    PERIOD,
+    PERIOD_BOUNDS_S,
+    PHASE,
+    PULSE_TRIM,
+    PULSE_TRIM_BOUNDS_S,
+    CommandClock,
+)
+
+
+@dataclass(frozen=True)
+class ClockTerm:
+    """A kept driver: its ``form``, ``period_s``, ``phase``, ``latency_s`` and (PWM)
+    ``full_command_V`` and ``pulse_trim_s``, the share of the residual's sum of squares it removes
+    (``explained``) and the windows' mean relative reduction over its standard error
+    (``t``)."""
+
+    form: str
+    period_s: float
+    phase: float
+    latency_s: float
+    full_command_V: float
+    pulse_trim_s: float
+    explained: float
+    t: float
+
+    def values(self) -> dict[str, float]:
+        """The component's parameter values the term stands for."""
+        out = {PERIOD: self.period_s, PHASE: self.phase, LATENCY: self.latency_s}
+        if self.form == "pwm":
+            out.update({FULL_COMMAND: self.full_command_V, PULSE_TRIM: self.pulse_trim_s})
+        return out
+
+    def __str__(self) -> str:
+        what = ("a driver holding the command" if self.form == "hold" else
+                f"a PWM driver (full at {self.full_command_V:.3g} V)")
+        return (f"{what} on a {self.period_s * 1e3:.3g}-ms clock (phase "
+                f"{self.phase:.2f}, latency {self.latency_s * 1e3:.3g} ms)")
+
+
+@dataclass(frozen=True)
+class CommandClockProblem:
+    """What the search simulates: the training windows, the current model and its
+    parameters, and the solver."""
+
+    window_set: object
+    model: object
+    params: dict
+    solver: object
+
+    def check(self) -> None:
+        """Raise ValueError where a driver's clock cannot join the model."""
+        if self.model.has(CommandClock.name):
+            raise ValueError("the model already has a driver's clock")
+
+    def full_command_V(self) -> float:
+        """The largest command magnitude the windows' recordings carry (V): a PWM
+        driver's full scale to start from."""
+        u = np.concatenate([np.abs(b.inputs.command_V) for b in self.window_set.blocks])
+        return float(np.clip(np.max(u), *FULL_COMMAND_BOUNDS_V))
+
+    def window_residuals(self, form: str, rows: Sequence[dict]) -> np.ndarray:
+        """Prediction minus measurement ``(S, W, L - 1)`` (Pa; NaN where a simulation
+        failed) for ``S`` drivers of ``form``, each a dict of the component's values (an
+        empty one: the current model)."""
+        trial = self.model.with_effect(CommandClock(form))
+        off = {**self.params, **CommandClock(form).neutral_values()}
+        theta = np.stack([trial.vector({**off, **r}) for r in rows])
+        return self.window_set.residuals(trial, theta, self.solver, on_failure="nan")
+
+    def window_sse(self, form: str, rows: Sequence[dict]) -> np.ndarray:
+        """Each window's sum of squared residuals ``(S, W)`` (Pa^2; inf where a
+        simulation failed), as :meth:`window_residuals`."""
+        sse = np.sum(self.window_residuals(form, rows) ** 2, axis=2)
+        return np.where(np.isfinite(sse), sse, np.inf)
+
+    def changes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The command's changes inside the windows: ``(window, sample, time_s)``, each
+        ``(C,)``: the window's index (block order), the window sample (>= 1) from which
+        the new command holds, and its time on the recording's clock."""
+        out, w0 = [], 0
+        for b in self.window_set.blocks:
+            t, u = b.inputs.time_s, b.inputs.command_V
+            n = self.window_set.length
+            for w, s in enumerate(b.starts):
+                i = np.flatnonzero(u[s + 1:s + n] != u[s:s + n - 1]) + 1
+                out += [(w0 + w, k, t[s + k]) for k in i]
+            w0 += b.starts.size
+        if not out:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        w, k, tc = zip(*out)
+        return np.array(w), np.array(k), np.array(tc, dtype=np.float64)
+
+    def residual_times_s(self) -> np.ndarray:
+        """The times (s, on each recording's clock) of the residuals ``(W, L - 1)``."""
+        n = self.window_set.length
+        return np.concatenate([b.inputs.time_s[b.starts[:, None] + np.arange(1, n)]
+                               for b in self.window_set.blocks])
+
+    def sample_interval_s(self) -> float:
+        """The recordings' median sample interval (s)."""
+        return float(np.median(np.diff(self.window_set.blocks[0].inputs.time_s)))
+
+    def duration_s(self) -> float:
+        """The longest recording's span on its clock (s)."""
+        return max(float(b.inputs.time_s[-1]) for b in self.window_set.blocks)
+
+
+class CommandClockSearch:
+    """A valve driver's clock read from the windows' residual (scikit-learn contract:
+    settings in the constructor, :meth:`fit` sets the ``_`` attributes).
+
+    Parameters
+    ----------
+    forms : sequence of str
+        The drivers tried (``"hold"``, ``"pwm"``).
+    longest_wait_s : float
+        The longest wait of a command change tried (a period and a latency).
+    after_change_s : float
+        How long after a change its wait is judged (s; cut at the next change).
+    shortest_period_s, longest_period_s : float
+        The periods the clock may have.
+    latencies : int
+        How many splits of the ticks' phase between the clock and the latency are
+        simulated.
+    refine_passes : int
+        Rounds of local refinement of the best (its frequency, phase and latency, each
+        round's steps halved; 0: as found).
+    min_explained_fraction, min_t, strong_explained_fraction : float
+        The gate (as :class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`).
+
+    Attributes
+    ----------
+    terms_ : list of ClockTerm
+        The kept driver (one at most).
+    explained_fraction_ : float
+        Share of the residual's sum of squares it removes.
+    best_ : ClockTerm or None
+        The best driver, kept or not (what the search saw).
+    coherence_ : float
+        How much in phase the changes' takes are at the found period (0-1).
+    """
+
+    def __init__(self, forms: Sequence[str] = FORMS, longest_wait_s: float = 0.06,
+                 after_change_s: float = 0.08, shortest_period_s: float = 2e-3,
+                 longest_period_s: float = 0.05, latencies: int = 8, refine_passes: int = 3,
+                 min_explained_fraction: float = 0.02, min_t: float = 4.0,
+                 strong_explained_fraction: float = 0.5):
+        self.forms = forms
+        self.longest_wait_s = longest_wait_s
+        self.after_change_s = after_change_s
+        self.shortest_period_s = shortest_period_s
+        self.longest_period_s = longest_period_s
+        self.latencies = latencies
+        self.refine_passes = refine_passes
+        self.min_explained_fraction = min_explained_fraction
+        self.min_t = min_t
+        self.strong_explained_fraction = strong_explained_fraction
+
+    def get_params(self) -> dict:
+        """The constructor's settings (scikit-learn's contract)."""
+        return {k: getattr(self, k) for k in (
+            "forms", "longest_wait_s", "after_change_s", "shortest_period_s",
+            "longest_period_s", "latencies", "refine_passes", "min_explained_fraction",
+            "min_t", "strong_explained_fraction")}
+
+    def _validate(self, problem):
+        if isinstance(self.forms, str) or not len(self.forms) \
+                or any(f not in FORMS for f in self.forms):
+            raise ValueError(f"forms must be a non-empty sequence of {FORMS}, got "
+                             f"{self.forms!r}")
+        for name in ("latencies", "refine_passes"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (name == "latencies"):
+                raise ValueError(f"{name} must be an integer >= "
+                                 f"{int(name == 'latencies')}, got {v!r}")
+        if not 0.0 < self.shortest_period_s < self.longest_period_s <= PERIOD_BOUNDS_S[1]:
+            raise ValueError("need 0 < shortest_period_s < longest_period_s <= "
+                             f"{PERIOD_BOUNDS_S[1]} s, got {self.shortest_period_s!r}, "
+                             f"{self.longest_period_s!r}")
+        if not 0.0 < self.longest_wait_s <= LATENCY_BOUNDS_S[1] + PERIOD_BOUNDS_S[1] \
+                or not self.after_change_s > 0.0:
+            raise ValueError("longest_wait_s and after_change_s must be > 0, got "
+                             f"{self.longest_wait_s!r}, {self.after_change_s!r}")
+        if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0 \
+                or not self.min_explained_fraction <= self.strong_explained_fraction <= 1.0:
+            raise ValueError("min_explained_fraction must be in (0, 1), min_t > 0 and "
+                             "strong_explained_fraction in [min_explained_fraction, 1], got "
+                             f"{self.min_explained_fraction!r}, {self.min_t!r}, "
+                             f"{self.strong_explained_fraction!r}")
+        if not isinstance(problem, CommandClockProblem):
+            raise ValueError("fit takes a CommandClockProblem")
+        problem.check()
+
+    def fit(self, problem: CommandClockProblem) -> "CommandClockSearch":
+        """Search the training windows of ``problem``."""
+        self._validate(problem)
+        self.terms_, self.best_, self.explained_fraction_, self.coherence_ = [], None, 0.0, 0.0
+        dt = problem.sample_interval_s()
+        waits = np.arange(0.0, self.longest_wait_s + 0.5 * dt, dt)
+        resid = problem.window_residuals("hold", [{LATENCY: float(w)} for w in waits])
+        current = np.sum(resid[0] ** 2, axis=1)
+        total = float(np.sum(current))
+        if not np.isfinite(total) or total <= 0.0:
+            return self
+        took, weight = _takes(problem, resid, waits, self.after_change_s / dt)
+        if took.size < 3:
+            return self
+        duration = problem.duration_s()
+        period, offset, self.coherence_ = _clock(took[:, 0], weight, self.shortest_period_s,
+                                                 self.longest_period_s, duration)
+        full = problem.full_command_V()
+        # the latency: at most the shortest waits (a change taken at once waits it alone)
+        most = float(np.quantile(took[:, 1], 0.1, weights=weight, method="inverted_cdf"))
+        held = []
+        for k in range(self.latencies):
+            lat = min(max(most - (k / self.latencies) * period, 0.0), LATENCY_BOUNDS_S[1])
+            held.append({PERIOD: period, PHASE: float(((offset - lat) / period) % 1.0),
+                         LATENCY: lat})
+        # a modulating driver's ripple: the residual's strongest lines, at phases spread
+        pulsed = [{PERIOD: p, PHASE: k / self.latencies, LATENCY: 0.0, FULL_COMMAND: full}
+                  for p in _ripple(problem.residual_times_s(), resid[0], dt,
+                                   self.shortest_period_s, self.longest_period_s, duration)
+                  for k in range(self.latencies)]
+        best = None
+        for form in self.forms:
+            rows = (pulsed + [{**r, FULL_COMMAND: full} for r in held] if form == "pwm"
+                    else held)
+            sse = problem.window_sse(form, rows)
+            total_sse = np.sum(sse, axis=1)
+            # the best row of each period found, refined (a period's best phase on the
+            # grid may lose to another period's before either is refined)
+            for period_s in sorted({r[PERIOD] for r in rows}):
+                mine = [i for i, r in enumerate(rows) if r[PERIOD] == period_s]
+                j = mine[int(np.argmin(total_sse[mine]))]
+                if not np.isfinite(sse[j]).all():
+                    continue
+                row, row_sse = _refined(problem, form, rows[j], sse[j], self.refine_passes,
+                                        0.02 / duration)
+                if best is None or np.sum(row_sse) < np.sum(best[2]):
+                    best = (form, row, row_sse)
+        if best is None:
+            return self
+        form, row, row_sse = best
+        explained, t = window_reduction(current, row_sse, total, relative=True)
+        self.best_ = ClockTerm(form, row[PERIOD], row[PHASE], row[LATENCY],
+                               row.get(FULL_COMMAND, full), row.get(PULSE_TRIM, 0.0),
+                               explained, t)
+        if explained >= self.min_explained_fraction and (
+                t >= self.min_t or (explained >= self.strong_explained_fraction
+                                    and t > 0.0)):
+            self.terms_ = [self.best_]
+            self.explained_fraction_ = explained
+        return self
+
+
+def _takes(problem, resid, waits, after):
+    """Each command change's take: ``(C, 2)`` of (its time plus its best wait, the wait)
+    in s, and its weight (the share of the change's residual the wait removes), for the
+    changes a wait improves. ``resid`` is ``(waits, W, L - 1)``; ``after`` the samples
+    after a change judged."""
+    win, k, tc = problem.changes()
+    took, weight = [], []
+    n = resid.shape[2]
+    for i in range(win.size):
+        nxt = k[(win == win[i]) & (k > k[i])]
+        end = min(int(k[i] + after), int(nxt.min()) if nxt.size else n + 1, n + 1)
+        seg = resid[:, win[i], k[i] - 1:end - 1]  # (residual j is window sample j + 1)
+        sse = np.sum(seg**2, axis=1)
+        if not np.all(np.isfinite(sse)) or sse[0] <= 0.0:
+            continue
+        j = int(np.argmin(sse))
+        gain = 1.0 - sse[j] / sse[0]
+        if j > 0 and gain > 0.0:
+            wait = waits[j]
+            if j + 1 < waits.size:  # between the grid's waits: the parabola's vertex
+                curv = sse[j - 1] - 2.0 * sse[j] + sse[j + 1]
+                if curv > 0.0:
+                    wait += 0.5 * (waits[1] - waits[0]) * (sse[j - 1] - sse[j + 1]) / curv
+            took.append((tc[i] + wait, wait))
+            weight.append(gain)
+    return np.array(took).reshape(-1, 2), np.array(weight)
+
+
+def _clock(times, weight, shortest, longest, duration):
+    """``(period s, offset s, coherence)``: the period at which ``times`` are most in
+    phase (weighted; frequencies every 0.02 / ``duration``, the best sharpened 40 times
+    finer), the longest among those within 5 % of the best (a tick pattern is in phase at
+    its period's fractions too), and where in the period the ticks fall."""
+    step = 0.02 / max(duration, 1.0)
+    freqs = np.arange(1.0 / longest, 1.0 / shortest + step, step)
+    w = weight / np.sum(weight)
+    coh = np.empty(freqs.size)
+    for a in range(0, freqs.size, 4096):
+        f = freqs[a:a + 4096]
+        coh[a:a + 4096] = np.abs(np.exp(2j * np.pi * np.outer(f, times)) @ w)
+    j = int(np.argmax(coh))
+    for m in (4, 3, 2):  # the fundamental of the best, if as much in phase
+        i = int(np.argmin(np.abs(freqs - freqs[j] / m)))
+        if freqs[j] / m >= freqs[0] and coh[i] >= 0.95 * coh[j]:
+            j = i
+            break
+    fine = np.linspace(freqs[j] - step, freqs[j] + step, 81)  # between the grid's steps
+    f = fine[int(np.argmax(np.abs(np.exp(2j * np.pi * np.outer(fine, times)) @ w)))]
+    angle = float(np.angle(np.exp(2j * np.pi * f * times) @ w))
+    return 1.0 / f, (angle / (2.0 * np.pi) % 1.0) / f, float(coh[j])
+
+
+def _ripple(times, resid, dt, shortest, longest, duration, lines=2):
+    """Candidate periods (s) of a ripple locked to a clock in the residual ``resid`` (Pa,
+    at ``times`` s, both ``(W, L - 1)``): the ``lines`` strongest lines of the windows'
+    mean power spectrum between the periods' bounds (each over the spectrum's running
+    median), each sharpened on the whole record (where the windows' ripples add in
+    phase, frequencies every 0.02 / ``duration``), and its periods doubled and tripled (a
+    line may be the ripple's harmonic)."""
+    r = np.where(np.isfinite(resid), resid, 0.0)
+    r = r - np.mean(r, axis=1, keepdims=True)
+    power = np.mean(np.abs(np.fft.rfft(r, axis=1)) ** 2, axis=0)
+    freqs = np.fft.rfftfreq(r.shape[1], dt)
+    band = np.flatnonzero((freqs >= 1.0 / longest) & (freqs <= 1.0 / shortest))
+    if band.size < 5:
+        return []
+    half = 8
+    base = np.array([np.median(power[max(0, i - half):i + half + 1]) for i in band])
+    score = power[band] / np.maximum(base, np.finfo(float).tiny)
+    out, taken = [], []
+    for i in np.argsort(score)[::-1]:
+        f0 = freqs[band[i]]
+        if any(abs(f0 - f) < 2.0 * (freqs[1] - freqs[0]) for f in taken):
+            continue
+        taken.append(f0)
+        width = 2.0 * (freqs[1] - freqs[0])
+        fine = np.arange(f0 - width, f0 + width, 0.02 / max(duration, 1.0))
+        amp = [abs(np.sum(r * np.exp(2j * np.pi * g * times))) for g in fine]
+        f = fine[int(np.argmax(amp))]
+        out += [float(m / f) for m in (1, 2, 3) if f / m >= 1.0 / longest]
+        if len(taken) == lines:
+            break
+    return out
+
+
+def _refined(problem, form, centre, sse, passes, freq_step):
+    """Local refinement of a driver ``centre`` (the component's values) with windows'
+    sums of squares ``sse``: ``passes`` rounds of the 3 x 3 x 3 neighbours in frequency
+    (``freq_step`` Hz at first), phase (1/16) and latency (1/16 period) and, for a PWM
+    driver, the 3 x 3 of its full command (x 1.1) and pulse trim (1/16 period), each
+    round's steps halved; the best kept. Returns ``(centre, sse)``."""
+    d_f, d_ph, d_l, f_u = freq_step, 1.0 / 16.0, 1.0 / 16.0, 1.1
+    for _ in range(passes):
+        f0, ph0, l0 = 1.0 / centre[PERIOD], centre[PHASE], centre[LATENCY]
+        cand = [{**centre, PERIOD: float(1.0 / (f0 + a)), PHASE: float((ph0 + b) % 1.0),
+                 LATENCY: float(np.clip(l0 + c / f0, *LATENCY_BOUNDS_S))}
+                for a in (-d_f, 0.0, d_f) for b in (-d_ph, 0.0, d_ph)
+                for c in (-d_l, 0.0, d_l)]
+        if form == "pwm":  # and the pulses: their full command and trim
+            u0, e0 = centre[FULL_COMMAND], centre.get(PULSE_TRIM, 0.0)
+            cand += [{**centre, FULL_COMMAND: float(np.clip(u0 * a, *FULL_COMMAND_BOUNDS_V)),
+                      PULSE_TRIM: float(np.clip(e0 + c / f0, *PULSE_TRIM_BOUNDS_S))}
+                     for a in (1.0 / f_u, 1.0, f_u) for c in (-d_l, 0.0, d_l)]
+        got = problem.window_sse(form, cand)
+        j = int(np.argmin(np.sum(got, axis=1)))
+        if np.isfinite(got[j]).all() and np.sum(got[j]) < np.sum(sse):
+            centre, sse = cand[j], got[j]
+        d_f, d_ph, d_l, f_u = 0.5 * d_f, 0.5 * d_ph, 0.5 * d_l, np.sqrt(f_u)
+    return centre, sse
+
+
+__all__ = ["ClockTerm", "CommandClockProblem", "CommandClockSearch"]
