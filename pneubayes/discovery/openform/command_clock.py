@@ -171,6 +171,10 @@ class CommandClockSearch:
         round's steps halved; 0: as found).
     min_explained_fraction, min_t, strong_explained_fraction : float
         The gate (as :class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`).
+    max_p_value : float
+        A driver whose changes' takes are in phase beyond this chance (:attr:`p_value_`)
+        is kept at any ``t`` above 0: a model whose valve maps have absorbed the waits
+        gains little from the clock before it is refitted, which the trial does.
 
     Attributes
     ----------
@@ -182,14 +186,17 @@ class CommandClockSearch:
         The best driver, kept or not (what the search saw).
     coherence_ : float
         How much in phase the changes' takes are at the found period (0-1).
+    p_value_ : float
+        The chance that takes without a clock are as much in phase at some period.
     """
 
     def __init__(self, forms: Sequence[str] = FORMS, longest_wait_s: float = 0.06,
                  after_change_s: float = 0.08, shortest_period_s: float = 2e-3,
                  longest_period_s: float = 0.05, latencies: int = 8, refine_passes: int = 3,
                  min_explained_fraction: float = 0.02, min_t: float = 4.0,
-                 strong_explained_fraction: float = 0.5):
+                 strong_explained_fraction: float = 0.5, max_p_value: float = 1e-3):
         self.forms = forms
+        self.max_p_value = max_p_value
         self.longest_wait_s = longest_wait_s
         self.after_change_s = after_change_s
         self.shortest_period_s = shortest_period_s
@@ -205,7 +212,7 @@ class CommandClockSearch:
         return {k: getattr(self, k) for k in (
             "forms", "longest_wait_s", "after_change_s", "shortest_period_s",
             "longest_period_s", "latencies", "refine_passes", "min_explained_fraction",
-            "min_t", "strong_explained_fraction")}
+            "min_t", "strong_explained_fraction", "max_p_value")}
 
     def _validate(self, problem):
         if isinstance(self.forms, str) or not len(self.forms) \
@@ -231,6 +238,8 @@ class CommandClockSearch:
                              "strong_explained_fraction in [min_explained_fraction, 1], got "
                              f"{self.min_explained_fraction!r}, {self.min_t!r}, "
                              f"{self.strong_explained_fraction!r}")
+        if not 0.0 <= self.max_p_value <= 1.0:
+            raise ValueError(f"max_p_value must be in [0, 1], got {self.max_p_value!r}")
         if not isinstance(problem, CommandClockProblem):
             raise ValueError("fit takes a CommandClockProblem")
         problem.check()
@@ -238,7 +247,8 @@ class CommandClockSearch:
     def fit(self, problem: CommandClockProblem) -> "CommandClockSearch":
         """Search the training windows of ``problem``."""
         self._validate(problem)
-        self.terms_, self.best_, self.explained_fraction_, self.coherence_ = [], None, 0.0, 0.0
+        self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
+        self.coherence_, self.p_value_ = 0.0, 1.0
         dt = problem.sample_interval_s()
         waits = np.arange(0.0, self.longest_wait_s + 0.5 * dt, dt)
         resid = problem.window_residuals("hold", [{LATENCY: float(w)} for w in waits])
@@ -246,20 +256,26 @@ class CommandClockSearch:
         total = float(np.sum(current))
         if not np.isfinite(total) or total <= 0.0:
             return self
-        took, weight = _takes(problem, resid, waits, self.after_change_s / dt)
-        if took.size < 3:
-            return self
         duration = problem.duration_s()
-        period, offset, self.coherence_ = _clock(took[:, 0], weight, self.shortest_period_s,
-                                                 self.longest_period_s, duration)
-        full = problem.full_command_V()
-        # the latency: at most the shortest waits (a change taken at once waits it alone)
-        most = float(np.quantile(took[:, 1], 0.1, weights=weight, method="inverted_cdf"))
         held = []
-        for k in range(self.latencies):
-            lat = min(max(most - (k / self.latencies) * period, 0.0), LATENCY_BOUNDS_S[1])
-            held.append({PERIOD: period, PHASE: float(((offset - lat) / period) % 1.0),
-                         LATENCY: lat})
+        # the changes' takes as the current model sees them, and their onsets in the
+        # measured pressure (which a model whose valve maps the wait has bent misses)
+        for took, weight in (_takes(problem, resid, waits, self.after_change_s / dt),
+                             _onsets(problem, int(round(self.longest_wait_s / dt)))):
+            if took.shape[0] < 3:
+                continue
+            period, offset, coherence, p_value = _clock(
+                took[:, 0], weight, self.shortest_period_s, self.longest_period_s, duration)
+            if coherence > self.coherence_:
+                self.coherence_, self.p_value_ = coherence, p_value
+            # the latency: at most the shortest waits (a change taken at once waits it
+            # alone)
+            most = float(np.quantile(took[:, 1], 0.1, weights=weight, method="inverted_cdf"))
+            for k in range(self.latencies):
+                lat = min(max(most - (k / self.latencies) * period, 0.0), LATENCY_BOUNDS_S[1])
+                held.append({PERIOD: period, PHASE: float(((offset - lat) / period) % 1.0),
+                             LATENCY: lat})
+        full = problem.full_command_V()
         # a modulating driver's ripple: the residual's strongest lines, at phases spread
         pulsed = [{PERIOD: p, PHASE: k / self.latencies, LATENCY: 0.0, FULL_COMMAND: full}
                   for p in _ripple(problem.residual_times_s(), resid[0], dt,
@@ -271,11 +287,12 @@ class CommandClockSearch:
                     else held)
             sse = problem.window_sse(form, rows)
             total_sse = np.sum(sse, axis=1)
-            # the best row of each period found, refined (a period's best phase on the
-            # grid may lose to another period's before either is refined)
-            for period_s in sorted({r[PERIOD] for r in rows}):
-                mine = [i for i, r in enumerate(rows) if r[PERIOD] == period_s]
-                j = mine[int(np.argmin(total_sse[mine]))]
+            # the best row of each of the two best periods found, refined (a period's
+            # best phase on the grid may lose to another period's before either is)
+            firsts = {}
+            for i in np.argsort(total_sse):
+                firsts.setdefault(rows[i][PERIOD], int(i))
+            for j in list(firsts.values())[:2]:
                 if not np.isfinite(sse[j]).all():
                     continue
                 row, row_sse = _refined(problem, form, rows[j], sse[j], self.refine_passes,
@@ -290,8 +307,8 @@ class CommandClockSearch:
                                row.get(FULL_COMMAND, full), row.get(PULSE_TRIM, 0.0),
                                explained, t)
         if explained >= self.min_explained_fraction and (
-                t >= self.min_t or (explained >= self.strong_explained_fraction
-                                    and t > 0.0)):
+                t >= self.min_t or (t > 0.0 and (explained >= self.strong_explained_fraction
+                                                 or self.p_value_ <= self.max_p_value))):
             self.terms_ = [self.best_]
             self.explained_fraction_ = explained
         return self
@@ -301,15 +318,24 @@ def _takes(problem, resid, waits, after):
     """Each command change's take: ``(C, 2)`` of (its time plus its best wait, the wait)
     in s, and its weight (the share of the change's residual the wait removes), for the
     changes a wait improves. ``resid`` is ``(waits, W, L - 1)``; ``after`` the samples
-    after a change judged."""
+    after a change judged. A change's simulated departure from the sample before it is
+    scaled to fit the measured one's (least squares, per wait): its timing is judged, not
+    the size a model whose valve maps the wait has bent gives it."""
     win, k, tc = problem.changes()
+    measured = problem.window_set.measured
     took, weight = [], []
     n = resid.shape[2]
     for i in range(win.size):
+        if k[i] < 2:
+            continue
         nxt = k[(win == win[i]) & (k > k[i])]
         end = min(int(k[i] + after), int(nxt.min()) if nxt.size else n + 1, n + 1)
-        seg = resid[:, win[i], k[i] - 1:end - 1]  # (residual j is window sample j + 1)
-        sse = np.sum(seg**2, axis=1)
+        y = measured[win[i], k[i]:end] - measured[win[i], k[i] - 1]
+        sim = resid[:, win[i], k[i] - 2:end - 1] + measured[None, win[i], k[i] - 1:end]
+        x = sim[:, 1:] - sim[:, :1]  # (residual j is window sample j + 1)
+        xx = np.sum(x * x, axis=1)
+        scale = np.where(xx > 0.0, np.sum(x * y, axis=1) / np.where(xx > 0.0, xx, 1.0), 0.0)
+        sse = np.sum((y - scale[:, None] * x) ** 2, axis=1)
         if not np.all(np.isfinite(sse)) or sse[0] <= 0.0:
             continue
         j = int(np.argmin(sse))
@@ -325,11 +351,44 @@ def _takes(problem, resid, waits, after):
     return np.array(took).reshape(-1, 2), np.array(weight)
 
 
+def _onsets(problem, most):
+    """Each command change's onset in the measured pressure: ``(C, 2)`` of (the time
+    the pressure leaves the line it followed before the change, back-extrapolated along
+    its first departure; its wait after the change) in s, and weights (1), for the
+    changes whose pressure departs by six noise deviations within ``most`` samples."""
+    win, k, tc = problem.changes()
+    measured = problem.window_set.measured
+    times = problem.residual_times_s()
+    d = np.diff(measured, axis=1)
+    sigma = float(np.median(np.abs(d - np.median(d)))) / 0.6745 / np.sqrt(2.0)
+    level = 6.0 * max(sigma, 1.0)
+    n, out = measured.shape[1], []
+    for w, i, t0 in zip(win, k, tc):
+        if i < 6 or i + most + 4 >= n:
+            continue
+        x = np.arange(-6, most + 4)
+        a, b = np.polyfit(x[:6], measured[w, i - 6:i], 1)
+        dev = np.abs(measured[w, i - 6:i + most + 4] - (a * x + b))[6:]
+        over = np.flatnonzero((dev[:-2] > level) & (dev[1:-1] > level) & (dev[2:] > level))
+        if not over.size or over[0] == 0:
+            continue
+        m = int(over[0])
+        slope = (dev[m + 2] - dev[m]) / 2.0  # Pa per sample, along the departure
+        if not slope > 0.0:
+            continue
+        dt = times[w, i] - times[w, i - 1]
+        onset = t0 + dt * max(m - dev[m] / slope, 0.0)
+        out.append((onset, onset - t0))
+    return np.array(out).reshape(-1, 2), np.ones(len(out))
+
+
 def _clock(times, weight, shortest, longest, duration):
-    """``(period s, offset s, coherence)``: the period at which ``times`` are most in
+    """``(period s, offset s, coherence, p)``: the period at which ``times`` are most in
     phase (weighted; frequencies every 0.02 / ``duration``, the best sharpened 40 times
     finer), the longest among those within 5 % of the best (a tick pattern is in phase at
-    its period's fractions too), and where in the period the ticks fall."""
+    its period's fractions too), where in the period the ticks fall, and the chance that
+    times without a clock are as much in phase at some frequency of the grid (Rayleigh's
+    ``exp(-N R^2)`` over the grid's frequencies, ``N`` the weights' effective count)."""
     step = 0.02 / max(duration, 1.0)
     freqs = np.arange(1.0 / longest, 1.0 / shortest + step, step)
     w = weight / np.sum(weight)
@@ -346,7 +405,9 @@ def _clock(times, weight, shortest, longest, duration):
     fine = np.linspace(freqs[j] - step, freqs[j] + step, 81)  # between the grid's steps
     f = fine[int(np.argmax(np.abs(np.exp(2j * np.pi * np.outer(fine, times)) @ w)))]
     angle = float(np.angle(np.exp(2j * np.pi * f * times) @ w))
-    return 1.0 / f, (angle / (2.0 * np.pi) % 1.0) / f, float(coh[j])
+    n_eff = float(np.sum(weight) ** 2 / np.sum(weight**2))
+    p = min(1.0, freqs.size * float(np.exp(-n_eff * coh[j] ** 2)))
+    return 1.0 / f, (angle / (2.0 * np.pi) % 1.0) / f, float(coh[j]), p
 
 
 def _ripple(times, resid, dt, shortest, longest, duration, lines=2):
