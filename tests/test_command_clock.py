@@ -95,6 +95,10 @@ def test_windows_continue_the_run_and_the_step_halves(rig):
                    SolverConfig.standard()).pressure_Pa[0]
     plain = simulate(Model(), BASE, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
     np.testing.assert_array_equal(off, plain)
+    fast = simulate(model, {**params, "command_clock_period": 5e-5,
+                            "command_clock_latency": 0.0}, inputs, rig, P_ATM,
+                    SolverConfig.standard()).pressure_Pa[0]  # (faster than 10 kHz)
+    np.testing.assert_array_equal(fast, plain)
     # with no clock the latency (4 ms) is a pure delay: the command recorded 4 samples late
     late = simulate(model, {**params, "command_clock_period": 0.0}, inputs, rig, P_ATM,
                     SolverConfig.standard()).pressure_Pa[0]

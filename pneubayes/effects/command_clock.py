@@ -20,8 +20,9 @@ between ticks). This component puts the driver between the command and the valve
 period), ``L`` (``command_clock_latency``, s), and for the PWM driver ``U``
 (``command_clock_full_command``, V) and ``e`` (``command_clock_pulse_trim``, s: a
 solenoid that opens later than it closes shortens every pulse). Option ``form``:
-``"hold"`` or ``"pwm"``. A period of 0 is a driver that follows the command at once,
-``L`` later (a pure delay); period and latency 0, the valve without a driver.
+``"hold"`` or ``"pwm"``. A period of 0 (below 0.1 ms) is a driver that follows the
+command at once, ``L`` later (a pure delay); period and latency 0, the valve without a
+driver.
 
 The compiled simulator reads the command through the clock as it steps
 (:mod:`pneubayes.simulation.command_clock`); a spool lag's or a closure's warm-up before
@@ -44,6 +45,10 @@ from pneubayes.rig import Rig
 FORMS = ("hold", "pwm")
 #: A period's bounds, s (up to a 5-Hz loop; 0: no driver).
 PERIOD_BOUNDS_S = (0.0, 0.2)
+#: A period below this (s) is lowered as no clock: a driver updating faster than 10 kHz
+#: is a driver that follows the command at once (and a fit that starts a period near
+#: its bound of 0 does not simulate ticks every few nanoseconds).
+SHORTEST_PERIOD_S = 1e-4
 #: A latency's bounds, s.
 LATENCY_BOUNDS_S = (0.0, 0.05)
 #: A PWM driver's full command's bounds, V.
@@ -96,7 +101,7 @@ class CommandClock(Effect):
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         period = np.asarray(values[PERIOD], np.float64)
-        out = {"command_clock_period_s": period,
+        out = {"command_clock_period_s": np.where(period < SHORTEST_PERIOD_S, 0.0, period),
                "command_clock_phase": np.asarray(values[PHASE], np.float64),
                "command_clock_latency_s": np.asarray(values[LATENCY], np.float64)}
         if self.form == "pwm":
