@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from conftest import P_ATM, P_SUP, random_steps
 
+from pneubayes.effects import make_effect
 from pneubayes.effects.command_clock import CommandClock
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
@@ -175,10 +176,10 @@ def test_the_search_reads_a_planted_clock_and_none_from_a_valve_without_one():
     )
     from pneubayes.inference.windows import WindowSet
 
-    def search(form, **kw):
+    def search(form, model=None, params=BASE, **kw):
         ws = WindowSet(_plant_recordings(form), 2.0, 2.0)
-        return CommandClockSearch(**kw).fit(
-            CommandClockProblem(ws, Model(), BASE, SolverConfig.standard()))
+        return CommandClockSearch(**kw).fit(CommandClockProblem(
+            ws, Model() if model is None else model, params, SolverConfig.standard()))
 
     zoh = search(ZohDriver(0.0123, 0.003, 0.37))
     (term,) = zoh.terms_
@@ -187,6 +188,14 @@ def test_the_search_reads_a_planted_clock_and_none_from_a_valve_without_one():
     # the ticks plus the latency where the plant has them, to a tenth of a millisecond
     offset = (term.phase * term.period_s + term.latency_s) % term.period_s
     assert abs(offset - (0.37 * 0.0123 + 0.003)) < 1e-4
+    # beside a transport delay fitted for the waits' mean the driver's latency carries
+    # the delay (the search cannot read negative waits), and its term clears the tube's
+    tube = Model([make_effect("tube_delay", form="transport")])
+    late = search(ZohDriver(0.0123, 0.003, 0.37), tube,
+                  {**BASE, **tube.neutral_values(), "tube_delay_s": 0.009})
+    (term,) = late.terms_
+    assert term.period_s == pytest.approx(0.0123, rel=1e-4) and term.explained > 0.9
+    assert term.values()["tube_delay_s"] == 0.0
     pwm = search(PwmValve(50.0, 3e-3, 2e-3, 5.0))
     (term,) = pwm.terms_
     assert term.form == "pwm" and term.period_s == pytest.approx(0.02, rel=1e-4)

@@ -54,9 +54,9 @@ from pneubayes.effects.command_clock import (
 @dataclass(frozen=True)
 class ClockTerm:
     """A kept driver: its ``form``, ``period_s``, ``phase``, ``latency_s`` and (PWM)
-    ``full_command_V`` and ``pulse_trim_s``, the share of the residual's sum of squares it removes
-    (``explained``) and the windows' mean relative reduction over its standard error
-    (``t``)."""
+    ``full_command_V`` and ``pulse_trim_s``, the share of the residual's sum of squares
+    it removes (``explained``), the windows' mean relative reduction over its standard
+    error (``t``) and the model's values it replaces (``cleared``, name-value pairs)."""
 
     form: str
     period_s: float
@@ -66,10 +66,13 @@ class ClockTerm:
     pulse_trim_s: float
     explained: float
     t: float
+    cleared: tuple = ()
 
     def values(self) -> dict[str, float]:
-        """The component's parameter values the term stands for."""
-        out = {PERIOD: self.period_s, PHASE: self.phase, LATENCY: self.latency_s}
+        """The parameter values the term stands for: the component's, and the model's
+        it replaces (``cleared``: a transport delay the latency carries)."""
+        out = {PERIOD: self.period_s, PHASE: self.phase, LATENCY: self.latency_s,
+               **dict(self.cleared)}
         if self.form == "pwm":
             out.update({FULL_COMMAND: self.full_command_V, PULSE_TRIM: self.pulse_trim_s})
         return out
@@ -102,12 +105,25 @@ class CommandClockProblem:
         u = np.concatenate([np.abs(b.inputs.command_V) for b in self.window_set.blocks])
         return float(np.clip(np.max(u), *FULL_COMMAND_BOUNDS_V))
 
-    def window_residuals(self, form: str, rows: Sequence[dict]) -> np.ndarray:
+    @property
+    def cleared(self) -> dict[str, float]:
+        """The model's values a driver replaces: a transport delay of the command (the
+        tube's, fitted before the driver for the waits' mean), which the driver's
+        latency then carries (the waits the search reads cannot be negative)."""
+        if self.model.has("tube_delay") and self.model.effect("tube_delay").form \
+                == "transport":
+            return {"tube_delay_s": 0.0}
+        return {}
+
+    def window_residuals(self, form: str, rows: Sequence[dict],
+                         current: bool = False) -> np.ndarray:
         """Prediction minus measurement ``(S, W, L - 1)`` (Pa; NaN where a simulation
         failed) for ``S`` drivers of ``form``, each a dict of the component's values (an
-        empty one: the current model)."""
+        empty one: the model without a driver, its :attr:`cleared` values cleared unless
+        ``current``)."""
         trial = self.model.with_effect(CommandClock(form))
-        off = {**self.params, **CommandClock(form).neutral_values()}
+        off = {**self.params, **CommandClock(form).neutral_values(),
+               **({} if current else self.cleared)}
         theta = np.stack([trial.vector({**off, **r}) for r in rows])
         return self.window_set.residuals(trial, theta, self.solver, on_failure="nan")
 
@@ -252,7 +268,8 @@ class CommandClockSearch:
         dt = problem.sample_interval_s()
         waits = np.arange(0.0, self.longest_wait_s + 0.5 * dt, dt)
         resid = problem.window_residuals("hold", [{LATENCY: float(w)} for w in waits])
-        current = np.sum(resid[0] ** 2, axis=1)
+        current = np.sum(problem.window_residuals("hold", [{}], current=True)[0] ** 2,
+                         axis=1)
         total = float(np.sum(current))
         if not np.isfinite(total) or total <= 0.0:
             return self
@@ -305,7 +322,7 @@ class CommandClockSearch:
         explained, t = window_reduction(current, row_sse, total, relative=True)
         self.best_ = ClockTerm(form, row[PERIOD], row[PHASE], row[LATENCY],
                                row.get(FULL_COMMAND, full), row.get(PULSE_TRIM, 0.0),
-                               explained, t)
+                               explained, t, tuple(problem.cleared.items()))
         if explained >= self.min_explained_fraction and (
                 t >= self.min_t or (t > 0.0 and (explained >= self.strong_explained_fraction
                                                  or self.p_value_ <= self.max_p_value))):
