@@ -414,7 +414,7 @@ def _clock(times, weight, shortest, longest, duration):
         f = freqs[a:a + 4096]
         coh[a:a + 4096] = np.abs(np.exp(2j * np.pi * np.outer(f, times)) @ w)
     j = int(np.argmax(coh))
-    for m in (4, 3, 2):  # the fundamental of the best, if as much in phase
+    for m in (6, 5, 4, 3, 2):  # the fundamental of the best, if as much in phase
         i = int(np.argmin(np.abs(freqs - freqs[j] / m)))
         if freqs[j] / m >= freqs[0] and coh[i] >= 0.95 * coh[j]:
             j = i
@@ -432,8 +432,8 @@ def _ripple(times, resid, dt, shortest, longest, duration, lines=2):
     at ``times`` s, both ``(W, L - 1)``): the ``lines`` strongest lines of the windows'
     mean power spectrum between the periods' bounds (each over the spectrum's running
     median), each sharpened on the whole record (where the windows' ripples add in
-    phase, frequencies every 0.02 / ``duration``), and its periods doubled and tripled (a
-    line may be the ripple's harmonic)."""
+    phase, frequencies every 0.02 / ``duration``), and its periods' multiples up to six
+    (a line may be the ripple's harmonic)."""
     r = np.where(np.isfinite(resid), resid, 0.0)
     r = r - np.mean(r, axis=1, keepdims=True)
     power = np.mean(np.abs(np.fft.rfft(r, axis=1)) ** 2, axis=0)
@@ -454,7 +454,7 @@ def _ripple(times, resid, dt, shortest, longest, duration, lines=2):
         fine = np.arange(f0 - width, f0 + width, 0.02 / max(duration, 1.0))
         amp = [abs(np.sum(r * np.exp(2j * np.pi * g * times))) for g in fine]
         f = fine[int(np.argmax(amp))]
-        out += [float(m / f) for m in (1, 2, 3) if f / m >= 1.0 / longest]
+        out += [float(m / f) for m in range(1, 7) if f / m >= 1.0 / longest]
         if len(taken) == lines:
             break
     return out
