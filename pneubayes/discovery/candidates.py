@@ -14,7 +14,7 @@ from pneubayes.discovery.settings import FormSettings
 from pneubayes.discovery.verification import StepFit
 from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext, inside_bounds
-from pneubayes.effects.path import SLOT_INDEX, VOLUME_PLAY_MAX_TERMS
+from pneubayes.effects.path import SLOT_INDEX, VOLUME_PLAY_COMPLIANCE_SLOTS
 from pneubayes.model import Model
 from pneubayes.rig import Rig
 
@@ -23,9 +23,7 @@ from pneubayes.rig import Rig
 #: chamber, supply tank, second compartment or tabulated V(p), and a volume play, whose
 #: table the simulator lays itself).
 _STATE_SLOTS = ("compliance_m3_per_Pa", "tank_volume_m3", "lung_volume_m3",
-                "volume_table_points") + tuple(
-    f"volume_play_{what}compliance_m3_per_Pa_{k}" for what in ("", "held_")
-    for k in range(VOLUME_PLAY_MAX_TERMS))
+                "volume_table_points") + VOLUME_PLAY_COMPLIANCE_SLOTS
 
 
 def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,

@@ -39,6 +39,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.rig import Rig
 
 #: The driver's forms: a sample-and-hold output, a pulse-width modulator.
@@ -61,6 +62,14 @@ PHASE = "command_clock_phase"
 LATENCY = "command_clock_latency"
 FULL_COMMAND = "command_clock_full_command"
 PULSE_TRIM = "command_clock_pulse_trim"
+
+
+def command_delay_s(slots: np.ndarray) -> np.ndarray:
+    """The command's delay (s) in lowered ``slots`` (``(..., N_SLOTS)``): the transport
+    delay plus a driver's latency, as the compiled simulator reads it (with a clock, the
+    delay after each tick)."""
+    return (slots[..., SLOT_INDEX["command_delay_s"]]
+            + slots[..., SLOT_INDEX["command_clock_latency_s"]])
 
 
 class CommandClock(Effect):

@@ -218,6 +218,10 @@ SLOTS += tuple(
      "simulator on its own copy of the slots as it steps "
      "(:mod:`pneubayes.simulation.volume_play`); lowered as 0")
     for k in range(VOLUME_PLAY_MAX_TERMS))
+#: The volume plays' compliance slots (sliding and held): any of them not 0 is a play.
+VOLUME_PLAY_COMPLIANCE_SLOTS = tuple(f"volume_play_{what}compliance_m3_per_Pa_{k}"
+                                     for what in ("", "held_")
+                                     for k in range(VOLUME_PLAY_MAX_TERMS))
 
 SLOTS += (
     ("command_clock_period_s", "the valve's driver takes the command on a clock of this "

@@ -35,7 +35,8 @@ from pneubayes.simulation.rates import port_areas
 #: The laws that map a port's mass flow to the sensor's reading (before offset, gain).
 LAWS = ("square", "linear")
 #: Slots whose nonzero value means the valve's spool is not the sampled command.
-_SPOOL_SLOTS = ("command_delay_s", "spool_time_constant_s", "spool_fall_time_constant_s",
+_SPOOL_SLOTS = ("command_delay_s", "command_clock_period_s", "command_clock_latency_s",
+                "spool_time_constant_s", "spool_fall_time_constant_s",
                 "spool_natural_frequency_rad_per_s", "spool_rate_limit_V_per_s",
                 "stiction_band_V")
 

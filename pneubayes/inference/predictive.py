@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pneubayes.effects.command_clock import command_delay_s
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.effects.spool_lag import spool_settle_s
 from pneubayes.evaluation import window_starts
@@ -234,9 +235,8 @@ class PressurePredictor:
         #: across :data:`RAMP_SPAN` command units, over the draws
         rate = slots[:, SLOT_INDEX["spool_rate_limit_V_per_s"]]
         ramp = np.where(rate > 0.0, RAMP_SPAN / np.where(rate > 0.0, rate, 1.0), 0.0)
-        self.lookback_s = float(np.max(slots[:, SLOT_INDEX["command_delay_s"]]
+        self.lookback_s = float(np.max(command_delay_s(slots)
                                        + slots[:, SLOT_INDEX["command_clock_period_s"]]
-                                       + slots[:, SLOT_INDEX["command_clock_latency_s"]]
                                        + 20.0 * spool_settle_s(slots) + ramp))
         #: whether a draw's sensor zero moves on the recording's clock (sensor_drift):
         #: then every candidate is simulated from ``time_s`` on its own

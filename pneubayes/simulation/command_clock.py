@@ -6,8 +6,9 @@ recording's clock (its ``time_s``); at each tick it takes the command sample hel
 and, ``L`` later (latency), drives the valve with it: holding it over the period, or
 (pulse-width modulation) at the full command ``+-U`` of its sign for ``min(|u| / U, 1)``
 of the period less a trim, and shut (0) for the rest. The chamber sees the valve a
-transport delay later still. With no clock (period 0) the latency is a pure delay of the
-command. :func:`clocked_hold` is the kernel's held command under the
+transport delay later still; the kernel reads the latency with that delay
+(:func:`~pneubayes.simulation.spool.spool_settings`), so with no clock (period 0) it is a
+pure delay of the command. :func:`clocked_hold` is the kernel's held command under the
 clock: what the valve takes from ``tau`` and when it next changes.
 """
 
@@ -21,7 +22,6 @@ from pneubayes.effects.path import SLOT_INDEX
 
 _T = SLOT_INDEX["command_clock_period_s"]
 _PHASE = SLOT_INDEX["command_clock_phase"]
-_LAT = SLOT_INDEX["command_clock_latency_s"]
 _PWM = SLOT_INDEX["command_clock_pwm"]
 _FULL = SLOT_INDEX["command_clock_full_command_V"]
 _TRIM = SLOT_INDEX["command_clock_pulse_trim_s"]
@@ -35,20 +35,16 @@ def clock_on(sl) -> bool:
     return sl[_T] > 0.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def clock_latency(sl) -> float:
-    """The driver's latency (s): with no clock (period 0), a pure delay of the command."""
-    return sl[_LAT]
-
-
 @njit(cache=True, error_model="numpy")
 def clocked_hold(sl, t, u, j, delay, tau, tb):
     """``(j, command, t_end)`` under the driver's clock: the command the valve holds from
-    ``tau`` (s, the chamber's time; ``delay`` s the transport delay after the valve), the
+    ``tau`` (s, the chamber's time; ``delay`` s the driver's latency and the transport
+    delay after the valve, as :func:`~pneubayes.simulation.spool.spool_settings` gives
+    it), the
     index ``j`` of the sample the driver took, and where the held value next changes
     before ``tb`` (else ``tb``)."""
     period, trim = sl[_T], sl[_TRIM]
-    s = tau - delay - sl[_LAT]  # the driver's time
+    s = tau - delay  # the driver's time
     k = math.floor(s / period - sl[_PHASE])
     tick = (sl[_PHASE] + k) * period
     if tick + period - s <= TICK_TOLERANCE * period:  # at the next tick, to rounding
@@ -67,5 +63,5 @@ def clocked_hold(sl, t, u, j, delay, tau, tb):
             cmd = 0.0
         else:
             cmd, end = math.copysign(full, cmd), tick + min(on, period)
-    t_end = end + delay + sl[_LAT]
+    t_end = end + delay
     return j, cmd, t_end if t_end < tb else tb

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from pneubayes.simulation.command_clock import clock_latency, clock_on, clocked_hold
+from pneubayes.simulation.command_clock import clock_on, clocked_hold
 
 
 @njit(cache=True, error_model="numpy")
@@ -51,7 +51,6 @@ def command_hold(sl, t, u, j, cdir, track_direction, delay, tau, tb, crossing):
     if clock_on(sl):
         j, cmd, t_end = clocked_hold(sl, t, u, j, delay, tau, tb)
         return j, cdir, cmd, t_end
-    delay += clock_latency(sl)  # (a driver without a clock: its latency, a pure delay)
     n = t.shape[0]
     while j + 1 < n and t[j + 1] + delay <= tau:
         j += 1

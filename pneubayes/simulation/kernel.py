@@ -50,7 +50,7 @@ from pneubayes.effects.path import (
     LINE_MAX_SEGMENTS,
     SLOT_INDEX,
     TABLE_MAX_POINTS,
-    VOLUME_PLAY_MAX_TERMS,
+    VOLUME_PLAY_COMPLIANCE_SLOTS,
 )
 from pneubayes.physics.calibration import (
     pressure_behind_reading_scalar,
@@ -68,7 +68,6 @@ from pneubayes.simulation.chamber_step import (
     start_rates,
 )
 from pneubayes.simulation.chord import position_at
-from pneubayes.simulation.command_clock import clock_latency
 from pneubayes.simulation.dense import dense_run, dense_samples
 from pneubayes.simulation.held import held_start, held_windows
 from pneubayes.simulation.inputs import command_hold, delayed_command, input_segment
@@ -755,7 +754,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     w_near = 1e-6 * wave_grid_step(tube)
     # the delayed command's sample (and its direction, read by a closure's code 15),
     # the spool there, and the position/supply segment holding t + adv
-    j, cdir = delayed_command(t, u, delay + clock_latency(sl), t_start, cl_dir)
+    j, cdir = delayed_command(t, u, delay, t_start, cl_dir)
     spool, v_s = u[j], 0.0
     m = k0 if adv >= 0.0 else 0
     while m + 1 < n and t[m + 1] - adv <= t_start:
@@ -933,8 +932,7 @@ def needs_general(slots) -> bool:
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`).
 GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N] + [
-    SLOT_INDEX[f"volume_play_{what}compliance_m3_per_Pa_{k}"] for what in ("", "held_")
-    for k in range(VOLUME_PLAY_MAX_TERMS)])
+    SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS])
 
 
 @njit(cache=True, error_model="numpy")

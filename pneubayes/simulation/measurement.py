@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneubayes.effects.command_clock import command_delay_s
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.calibration import (
     CURVATURE_SCALE_PA,
@@ -77,7 +78,7 @@ def sensor_reading(pressure_Pa: np.ndarray, slots: np.ndarray, rig: Rig, inputs,
     reach_lo, reach_hi = s_tab[0], s_tab[-1]
     starts = np.asarray(starts, dtype=np.int64)
     out = np.array(pressure_Pa, dtype=np.float64, copy=True)
-    delay = slots[rows, S["command_delay_s"]]
+    delay = command_delay_s(slots[rows])
     t_switch = t[switch]
     # (window, switch) pairs whose corner, for some row, reaches samples 1..length-1
     t_first, t_last = t[starts + 1], t[starts + length - 1]

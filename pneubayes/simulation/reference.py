@@ -29,7 +29,7 @@ from pneubayes.effects.closure_features import (
 from pneubayes.effects.closure_histories import command_direction
 from pneubayes.effects.closure_terms import PORT_FACTOR_LIMITS
 from pneubayes.effects.path import SLOT_INDEX as S
-from pneubayes.effects.path import VOLUME_PLAY_MAX_TERMS
+from pneubayes.effects.path import VOLUME_PLAY_COMPLIANCE_SLOTS
 from pneubayes.model import Model
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.tube import churchill_fre
@@ -420,8 +420,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "'wave') is a delay system this ODE reference does not solve; its "
                          "independent reference is the plant's finely lumped acoustic tube "
                          "(pneubayes.bench.plant, tests/test_wave.py)")
-    if any(sl[S[f"volume_play_{what}compliance_m3_per_Pa_{k}"]] != 0
-           for what in ("", "held_") for k in range(VOLUME_PLAY_MAX_TERMS)):
+    if any(sl[S[name]] != 0 for name in VOLUME_PLAY_COMPLIANCE_SLOTS):
         raise ValueError("reference_simulate: a volume play (effect 'volume_play') has a "
                          "state that only moves at its band's edges, which this ODE "
                          "reference does not solve; its independent reference is the "

@@ -16,7 +16,7 @@ import numpy as np
 
 from pneubayes.effects.closure_features import FEATURES
 from pneubayes.effects.closure_terms import CLOSURE_MAX_TERMS
-from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.path import SLOT_INDEX, VOLUME_PLAY_COMPLIANCE_SLOTS
 from pneubayes.errors import SimulationError
 from pneubayes.model import Model
 from pneubayes.rig import Rig
@@ -67,9 +67,7 @@ def _check_solver(solver) -> SolverConfig:
 _FORM_COLUMNS = {name: i for i, name in enumerate((
     "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
-    "lung_volume_m3", "closure_terms", "volume_play_compliance_m3_per_Pa_0",
-    "volume_play_compliance_m3_per_Pa_1", "volume_play_held_compliance_m3_per_Pa_0",
-    "volume_play_held_compliance_m3_per_Pa_1"))}
+    "lung_volume_m3", "closure_terms", *VOLUME_PLAY_COMPLIANCE_SLOTS))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
 #: The form columns of the states besides the pressure (:func:`kernel.needs_general`).
 _GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
@@ -115,9 +113,7 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
     # chamber step carries its V(p) and dV/dp, tests/test_wave.py)
     acoustic = "the tube's acoustic line (tube_delay form 'line')"
     lines = "the tube's acoustic line or wave line (tube_delay forms 'line', 'wave')"
-    play = (has("volume_play_compliance_m3_per_Pa_0") | has("volume_play_compliance_m3_per_Pa_1")
-            | has("volume_play_held_compliance_m3_per_Pa_0")
-            | has("volume_play_held_compliance_m3_per_Pa_1"))
+    play = np.logical_or.reduce([has(name) for name in VOLUME_PLAY_COMPLIANCE_SLOTS])
     if np.any(play & (has("volume_table_points") | tank | has("lung_volume_m3"))):
         raise ValueError("a volume play (effect 'volume_play') lays the chamber's volume "
                          "table itself: it cannot be combined with a volume closure, "

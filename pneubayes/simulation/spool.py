@@ -21,6 +21,7 @@ from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.simulation.reading import second_order_step
 
 _DELAY = SLOT_INDEX["command_delay_s"]
+_CLOCK_LATENCY = SLOT_INDEX["command_clock_latency_s"]
 _SPOOL = SLOT_INDEX["spool_time_constant_s"]
 _SPOOL_RATE = SLOT_INDEX["spool_rate_limit_V_per_s"]
 _SPOOL_FALL = SLOT_INDEX["spool_fall_time_constant_s"]
@@ -85,10 +86,11 @@ def spool_settle_s(tau, w, z):
 @njit(cache=True, inline="always", error_model="numpy")
 def spool_settings(sl):
     """``(delay s, tau s, tau_down s, w rad/s, z, rate V/s, second_order, lagged)`` of
-    one parameter set's lowered slots: a second-order spool (``w`` > 0) overrides the
-    first-order lag (its ``tau`` and ``tau_down`` read as 0), whose speed limit applies
-    only with a rise time constant."""
-    delay, tau_s = sl[_DELAY], sl[_SPOOL]
+    one parameter set's lowered slots (the delay: the command's transport delay and a
+    valve driver's latency, :mod:`pneubayes.simulation.command_clock`): a second-order
+    spool (``w`` > 0) overrides the first-order lag (its ``tau`` and ``tau_down`` read
+    as 0), whose speed limit applies only with a rise time constant."""
+    delay, tau_s = sl[_DELAY] + sl[_CLOCK_LATENCY], sl[_SPOOL]
     w_s, z_s = sl[_SPOOL_W], sl[_SPOOL_Z]
     tau_dn = sl[_SPOOL_FALL]  # the first-order spool's fall, if its own
     spool2 = w_s > 0.0

@@ -32,6 +32,7 @@ from pneubayes.effects.closure_histories import (
     SignalHistory,
     held_direction,
 )
+from pneubayes.effects.command_clock import command_delay_s
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs
@@ -77,7 +78,7 @@ def spool_at(times_s: np.ndarray, inputs: Inputs, slots: np.ndarray) -> np.ndarr
     t, u = inputs.time_s, inputs.command_V
     before = _held_before(inputs)
     u = valve_command_of(u, before, slots)  # (a sticking valve: where it stuck)
-    delay = float(slots[S["command_delay_s"]])
+    delay = float(command_delay_s(slots))
     tau = float(slots[S["spool_time_constant_s"]])
     rate = float(slots[S["spool_rate_limit_V_per_s"]])
     tau_dn = float(slots[S["spool_fall_time_constant_s"]])
@@ -169,7 +170,7 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     spool = spool_at(mid, inputs, sl)
     # the delayed command's direction (its last change's sign) at the midpoints
     valve_u = valve_command_of(inputs.command_V, _held_before(inputs), sl)
-    delay = float(sl[S["command_delay_s"]])
+    delay = float(command_delay_s(sl))
     direction = held_direction(mid, t, valve_u, delay, inputs.command_before_start)
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
