@@ -28,6 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from pneubayes.discovery.openform.gate import check_gate, earns_trial
 from pneubayes.discovery.openform.volume import VolumeProblem, window_reduction
 from pneubayes.effects.path import VOLUME_PLAY_MAX_TERMS
 from pneubayes.effects.volume_play import (
@@ -173,12 +174,7 @@ class VolumePlaySearch:
                 and 1 <= self.max_terms <= VOLUME_PLAY_MAX_TERMS):
             raise ValueError(f"max_terms must be an integer in 1..{VOLUME_PLAY_MAX_TERMS}, "
                              f"got {self.max_terms!r}")
-        if not 0.0 < self.min_explained_fraction < 1.0 or not self.min_t > 0.0 \
-                or not self.min_explained_fraction <= self.strong_explained_fraction <= 1.0:
-            raise ValueError("min_explained_fraction must be in (0, 1), min_t > 0 and "
-                             "strong_explained_fraction in [min_explained_fraction, 1], got "
-                             f"{self.min_explained_fraction!r}, {self.min_t!r}, "
-                             f"{self.strong_explained_fraction!r}")
+        check_gate(self.min_explained_fraction, self.min_t, self.strong_explained_fraction)
         if isinstance(self.refine_passes, bool) or not isinstance(self.refine_passes, int) \
                 or self.refine_passes < 0:
             raise ValueError(f"refine_passes must be an integer >= 0, got "
@@ -226,9 +222,8 @@ class VolumePlaySearch:
             term = WallTerm(*best[0], explained, t, best[1])
             if self.best_ is None:
                 self.best_ = term
-            if explained < self.min_explained_fraction or not (
-                    t >= self.min_t or (explained >= self.strong_explained_fraction
-                                        and t > 0.0)):
+            if not earns_trial(explained, t, self.min_explained_fraction, self.min_t,
+                               self.strong_explained_fraction):
                 break
             kept.append(best[0])
             scale = best[1]

@@ -1,0 +1,148 @@
+"""Reading a clock the recording does not carry from when things happen: the valve
+driver's ticks behind the command changes' takes, and a pulse-width modulator's ripple
+in the residual (the steps of
+:class:`~pneubayes.discovery.openform.command_clock.CommandClockSearch`).
+
+Over a 20-s recording a clock's period must be known to about a part in 10^5 for its
+ticks to stay in phase, so the period is read where the times are most in phase on a
+fine frequency grid (:func:`clock_in_phase`), from each change's take as the current
+model sees it (:func:`change_takes`) or as the measured pressure shows it
+(:func:`change_onsets`), or from the residual's spectral lines (:func:`ripple_periods`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def change_takes(changes, measured, resid, waits, after):
+    """Each command change's take: ``(C, 2)`` of (its time plus its best wait, the wait)
+    in s, and its weight (the share of the change's residual the wait removes), for the
+    changes a wait improves. ``changes`` is ``(window, sample, time_s)`` of each command
+    change (:meth:`~pneubayes.discovery.openform.command_clock.CommandClockProblem.changes`),
+    ``measured`` the windows' pressure ``(W, L)`` (Pa), ``resid`` the residuals ``(waits, W,
+    L - 1)`` at each of ``waits`` (s); ``after`` the samples after a change judged. A
+    change's simulated departure from the sample before it is
+    scaled to fit the measured one's (least squares, per wait): its timing is judged, not
+    the size a model whose valve maps the wait has bent gives it."""
+    win, k, tc = changes
+    took, weight = [], []
+    n = resid.shape[2]
+    for i in range(win.size):
+        if k[i] < 2:
+            continue
+        nxt = k[(win == win[i]) & (k > k[i])]
+        end = min(int(k[i] + after), int(nxt.min()) if nxt.size else n + 1, n + 1)
+        y = measured[win[i], k[i]:end] - measured[win[i], k[i] - 1]
+        sim = resid[:, win[i], k[i] - 2:end - 1] + measured[None, win[i], k[i] - 1:end]
+        x = sim[:, 1:] - sim[:, :1]  # (residual j is window sample j + 1)
+        xx = np.sum(x * x, axis=1)
+        scale = np.where(xx > 0.0, np.sum(x * y, axis=1) / np.where(xx > 0.0, xx, 1.0), 0.0)
+        sse = np.sum((y - scale[:, None] * x) ** 2, axis=1)
+        if not np.all(np.isfinite(sse)) or sse[0] <= 0.0:
+            continue
+        j = int(np.argmin(sse))
+        gain = 1.0 - sse[j] / sse[0]
+        if j > 0 and gain > 0.0:
+            wait = waits[j]
+            if j + 1 < waits.size:  # between the grid's waits: the parabola's vertex
+                curv = sse[j - 1] - 2.0 * sse[j] + sse[j + 1]
+                if curv > 0.0:
+                    wait += 0.5 * (waits[1] - waits[0]) * (sse[j - 1] - sse[j + 1]) / curv
+            took.append((tc[i] + wait, wait))
+            weight.append(gain)
+    return np.array(took).reshape(-1, 2), np.array(weight)
+
+
+def change_onsets(changes, measured, most, dt):
+    """Each command change's onset in the measured pressure: ``(C, 2)`` of (the time
+    the pressure leaves the line it followed before the change, back-extrapolated along
+    its first departure; its wait after the change) in s, and weights (1), for the
+    changes whose pressure departs by six noise deviations within ``most`` samples;
+    ``changes`` and ``measured`` as :func:`change_takes` takes them, ``dt`` the sample
+    interval (s)."""
+    win, k, tc = changes
+    d = np.diff(measured, axis=1)
+    sigma = float(np.median(np.abs(d - np.median(d)))) / 0.6745 / np.sqrt(2.0)
+    level = 6.0 * max(sigma, 1.0)
+    n, out = measured.shape[1], []
+    for w, i, t0 in zip(win, k, tc):
+        if i < 6 or i + most + 4 >= n:
+            continue
+        x = np.arange(-6, most + 4)
+        a, b = np.polyfit(x[:6], measured[w, i - 6:i], 1)
+        dev = np.abs(measured[w, i - 6:i + most + 4] - (a * x + b))[6:]
+        over = np.flatnonzero((dev[:-2] > level) & (dev[1:-1] > level) & (dev[2:] > level))
+        if not over.size or over[0] == 0:
+            continue
+        m = int(over[0])
+        slope = (dev[m + 2] - dev[m]) / 2.0  # Pa per sample, along the departure
+        if not slope > 0.0:
+            continue
+        onset = t0 + dt * max(m - dev[m] / slope, 0.0)
+        out.append((onset, onset - t0))
+    return np.array(out).reshape(-1, 2), np.ones(len(out))
+
+
+def clock_in_phase(times, weight, shortest, longest, duration):
+    """``(period s, offset s, coherence, p)``: the period at which ``times`` are most in
+    phase (weighted; frequencies every 0.02 / ``duration``, the best sharpened 40 times
+    finer), the longest among those within 5 % of the best (a tick pattern is in phase at
+    its period's fractions too), where in the period the ticks fall, and the chance that
+    times without a clock are as much in phase at some frequency of the grid (Rayleigh's
+    ``exp(-N R^2)`` over the grid's frequencies, ``N`` the weights' effective count)."""
+    step = 0.02 / max(duration, 1.0)
+    freqs = np.arange(1.0 / longest, 1.0 / shortest + step, step)
+    w = weight / np.sum(weight)
+    coh = np.empty(freqs.size)
+    for a in range(0, freqs.size, 4096):
+        f = freqs[a:a + 4096]
+        coh[a:a + 4096] = np.abs(np.exp(2j * np.pi * np.outer(f, times)) @ w)
+    j = int(np.argmax(coh))
+    for m in (6, 5, 4, 3, 2):  # the fundamental of the best, if as much in phase
+        i = int(np.argmin(np.abs(freqs - freqs[j] / m)))
+        if freqs[j] / m >= freqs[0] and coh[i] >= 0.95 * coh[j]:
+            j = i
+            break
+    fine = np.linspace(freqs[j] - step, freqs[j] + step, 81)  # between the grid's steps
+    f = fine[int(np.argmax(np.abs(np.exp(2j * np.pi * np.outer(fine, times)) @ w)))]
+    angle = float(np.angle(np.exp(2j * np.pi * f * times) @ w))
+    n_eff = float(np.sum(weight) ** 2 / np.sum(weight**2))
+    p = min(1.0, freqs.size * float(np.exp(-n_eff * coh[j] ** 2)))
+    return 1.0 / f, (angle / (2.0 * np.pi) % 1.0) / f, float(coh[j]), p
+
+
+def ripple_periods(times, resid, dt, shortest, longest, duration, lines=2):
+    """Candidate periods (s) of a ripple locked to a clock in the residual ``resid`` (Pa,
+    at ``times`` s, both ``(W, L - 1)``): the ``lines`` strongest lines of the windows'
+    mean power spectrum between the periods' bounds (each over the spectrum's running
+    median), each sharpened on the whole record (where the windows' ripples add in
+    phase, frequencies every 0.02 / ``duration``), and its periods' multiples up to six
+    (a line may be the ripple's harmonic)."""
+    r = np.where(np.isfinite(resid), resid, 0.0)
+    r = r - np.mean(r, axis=1, keepdims=True)
+    power = np.mean(np.abs(np.fft.rfft(r, axis=1)) ** 2, axis=0)
+    freqs = np.fft.rfftfreq(r.shape[1], dt)
+    band = np.flatnonzero((freqs >= 1.0 / longest) & (freqs <= 1.0 / shortest))
+    if band.size < 5:
+        return []
+    half = 8
+    base = np.array([np.median(power[max(0, i - half):i + half + 1]) for i in band])
+    score = power[band] / np.maximum(base, np.finfo(float).tiny)
+    out, taken = [], []
+    for i in np.argsort(score)[::-1]:
+        f0 = freqs[band[i]]
+        if any(abs(f0 - f) < 2.0 * (freqs[1] - freqs[0]) for f in taken):
+            continue
+        taken.append(f0)
+        width = 2.0 * (freqs[1] - freqs[0])
+        fine = np.arange(f0 - width, f0 + width, 0.02 / max(duration, 1.0))
+        amp = [abs(np.sum(r * np.exp(2j * np.pi * g * times))) for g in fine]
+        f = fine[int(np.argmax(amp))]
+        out += [float(m / f) for m in range(1, 7) if f / m >= 1.0 / longest]
+        if len(taken) == lines:
+            break
+    return out
+
+
+__all__ = ["change_onsets", "change_takes", "clock_in_phase", "ripple_periods"]
