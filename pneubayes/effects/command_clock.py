@@ -26,8 +26,9 @@ driver.
 
 The compiled simulator reads the command through the clock as it steps
 (:mod:`pneubayes.simulation.command_clock`); a spool lag's or a closure's warm-up before
-a window reads the command without it. The clock's phase is on the recording's clock:
-a prediction from a new time origin (the controller's) does not know the driver's phase.
+a window reads the command at the latency but without the ticks. The clock's phase is
+on the recording's clock: a prediction from a new time origin (the controller's) does
+not know the driver's phase.
 The discovery library never searches for it: the open-form stage on the command
 (:class:`~pneubayes.discovery.stages.command_clock_form.CommandClockForm`) proposes it.
 """
