@@ -132,6 +132,13 @@ class TrialRunner:
             params = self._refine(model, start, first, beat_Pa)
             if path is not None:
                 write_json_atomic(path, {"model": model.to_card(params), "params": params})
+        return self.score(model, params, t0)
+
+    def score(self, model: Model, params: dict, t0: float | None = None) -> StepFit:
+        """``model`` at ``params`` as it stands (no refinement), scored on the training
+        and held-out windows; ``t0`` (a ``perf_counter`` reading) starts its wall time."""
+        s, d = self.settings, self.data
+        t0 = time.perf_counter() if t0 is None else t0
         theta = model.vector(params)[None]
         r_tr = d.train_ws.residuals(model, theta, s.fit.refine_solver)
         sig, rho = ar1_noise_mode(ar1_sums(r_tr)[0], r_tr[0].size)

@@ -145,4 +145,29 @@ def ripple_periods(times, resid, dt, shortest, longest, duration, lines=2):
     return out
 
 
-__all__ = ["change_onsets", "change_takes", "clock_in_phase", "ripple_periods"]
+def ticks_centred(change_times_s, period_s, phase, latency_s, latency_bounds_s):
+    """``(phase, latency_s)`` with the driver's ticks moved to the middle of the span in
+    which every command change of ``change_times_s`` (s, on the recording's clock) is
+    still taken at the same tick, the latency moved the other way (the valve switches
+    when it did, within ``latency_bounds_s``).
+
+    The windows fix when the valve switches (the ticks plus the latency) sharply, but
+    where between the changes the ticks fall only as far as no change crosses one: a
+    fit leaves the ticks anywhere in that span, and a change of new data that falls
+    between the fitted ticks and the true ones is taken a period early or late. The
+    middle is the split the data support most widely. No changes (or no period): as
+    given."""
+    t = np.asarray(change_times_s, dtype=np.float64)
+    if not period_s > 0.0 or not t.size:
+        return phase, latency_s
+    # each change's lead on the tick that takes it: ticks later by up to
+    # period - max(lead) keep every take, earlier by up to min(lead)
+    lead = (phase * period_s - t) % period_s
+    shift = 0.5 * (period_s - float(np.max(lead)) - float(np.min(lead)))
+    lo, hi = latency_bounds_s
+    shift = float(np.clip(shift, latency_s - hi, latency_s - lo))
+    return float((phase + shift / period_s) % 1.0), float(latency_s - shift)
+
+
+__all__ = ["change_onsets", "change_takes", "clock_in_phase", "ripple_periods",
+           "ticks_centred"]
