@@ -288,3 +288,24 @@ def test_the_stage_s_joint_passes_are_checked_and_recorded():
             CommandClockForm(joint_passes=bad)
     with pytest.raises(ValueError, match="joint_min_gain"):
         CommandClockForm(joint_min_gain=1.0)
+
+
+def test_a_command_logged_on_a_coarse_grid_is_not_read_as_a_clock():
+    """Changes logged every 10 ms and taken after a fixed delay are in phase at 10 ms
+    (and its fractions) without any driver: those periods are not read. Takes of a
+    12.3-ms driver behind the same changes still are."""
+    from pneubayes.discovery.openform.clock_reading import clock_in_phase
+
+    rng = np.random.default_rng(5)
+    changes = np.sort(rng.choice(np.arange(2000), 300, replace=False)) * 0.01  # 20 s
+    delayed = changes + 0.0031
+    period, _, coherence, p = clock_in_phase(delayed, np.ones(300), 2e-3, 0.05, 20.0)
+    assert coherence > 0.99 and p < 1e-100  # read as a clock where not masked
+    period, _, coherence, p = clock_in_phase(delayed, np.ones(300), 2e-3, 0.05, 20.0,
+                                             changes)
+    assert not np.isfinite(period) or p > 1e-3
+    ticks = (np.ceil(changes / 0.0123 - 0.37) + 0.37) * 0.0123 + 0.003
+    period, offset, coherence, p = clock_in_phase(ticks, np.ones(300), 2e-3, 0.05, 20.0,
+                                                  changes)
+    assert period == pytest.approx(0.0123, rel=1e-5) and coherence > 0.99 and p < 1e-100
+    assert offset == pytest.approx((0.37 * 0.0123 + 0.003) % 0.0123, abs=1e-5)

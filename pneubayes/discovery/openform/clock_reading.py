@@ -84,20 +84,38 @@ def change_onsets(changes, measured, most, dt):
     return np.array(out).reshape(-1, 2), np.ones(len(out))
 
 
-def clock_in_phase(times, weight, shortest, longest, duration):
+def clock_in_phase(times, weight, shortest, longest, duration, changes=None,
+                   max_change_coherence=0.5):
     """``(period s, offset s, coherence, p)``: the period at which ``times`` are most in
     phase (weighted; frequencies every 0.02 / ``duration``, the best sharpened 40 times
     finer), the longest among those within 5 % of the best (a tick pattern is in phase at
     its period's fractions too), where in the period the ticks fall, and the chance that
     times without a clock are as much in phase at some frequency of the grid (Rayleigh's
-    ``exp(-N R^2)`` over the grid's frequencies, ``N`` the weights' effective count)."""
+    ``exp(-N R^2)`` over the grid's frequencies, ``N`` the weights' effective count).
+
+    Frequencies at which the command's ``changes`` themselves (s) are in phase beyond
+    ``max_change_coherence`` x the ``times``' coherence are not read (a driver's ticks put
+    the takes in phase, not the changes): a command logged every 10 ms changes only on
+    that grid, so its changes taken after a fixed delay are in phase at 10 ms, its
+    fractions and the sides of their peaks without any driver. No frequency left:
+    ``(nan, nan, 0, 1)``."""
     step = 0.02 / max(duration, 1.0)
     freqs = np.arange(1.0 / longest, 1.0 / shortest + step, step)
     w = weight / np.sum(weight)
-    coh = np.empty(freqs.size)
-    for a in range(0, freqs.size, 4096):
-        f = freqs[a:a + 4096]
-        coh[a:a + 4096] = np.abs(np.exp(2j * np.pi * np.outer(f, times)) @ w)
+
+    def in_phase(f, t, wt):
+        out = np.empty(f.size)
+        for a in range(0, f.size, 4096):
+            out[a:a + 4096] = np.abs(np.exp(2j * np.pi * np.outer(f[a:a + 4096], t)) @ wt)
+        return out
+
+    coh = in_phase(freqs, times, w)
+    if changes is not None and np.size(changes):
+        c = np.asarray(changes, dtype=np.float64)
+        own = in_phase(freqs, c, np.full(c.size, 1.0 / c.size))
+        coh = np.where(own > max_change_coherence * coh, 0.0, coh)
+    if not np.any(coh > 0.0):
+        return float("nan"), float("nan"), 0.0, 1.0
     j = int(np.argmax(coh))
     for m in (6, 5, 4, 3, 2):  # the fundamental of the best, if as much in phase
         i = int(np.argmin(np.abs(freqs - freqs[j] / m)))

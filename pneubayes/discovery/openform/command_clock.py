@@ -25,7 +25,9 @@ A driver is kept when it removes at least ``min_explained_fraction`` of the resi
 sum of squares and the windows' reductions, each as a share of the window's own sum of
 squares, are ``min_t`` standard errors above zero, or when it removes
 ``strong_explained_fraction`` of it at a mean reduction above zero (as the volume's
-walls are, :mod:`pneubayes.discovery.openform.volume_play`).
+walls are, :mod:`pneubayes.discovery.openform.volume_play`), or when the takes are in
+phase beyond a chance the valve maps cannot fake (a model fitted without the driver
+bends them to take part of the waits; the stage's trial refits them).
 """
 
 from __future__ import annotations
@@ -198,6 +200,13 @@ class CommandClockSearch:
         A driver whose changes' takes are in phase beyond this chance (:attr:`p_value_`)
         is kept at any ``t`` above 0: a model whose valve maps have absorbed the waits
         gains little from the clock before it is refitted, which the trial does.
+    any_t_p_value : float
+        Beyond this chance it is kept whatever it removes beside the current model
+        (beside maps bent far enough, a driver first adds to the residual).
+    max_change_coherence : float
+        Periods at which the command's changes are themselves in phase this share of
+        their takes' coherence are not read
+        (:func:`~pneubayes.discovery.openform.clock_reading.clock_in_phase`).
 
     Attributes
     ----------
@@ -217,9 +226,12 @@ class CommandClockSearch:
                  after_change_s: float = 0.08, shortest_period_s: float = 2e-3,
                  longest_period_s: float = 0.05, latencies: int = 8, refine_passes: int = 3,
                  min_explained_fraction: float = 0.02, min_t: float = 4.0,
-                 strong_explained_fraction: float = 0.5, max_p_value: float = 1e-3):
+                 strong_explained_fraction: float = 0.5, max_p_value: float = 1e-3,
+                 any_t_p_value: float = 1e-6, max_change_coherence: float = 0.5):
         self.forms = forms
         self.max_p_value = max_p_value
+        self.any_t_p_value = any_t_p_value
+        self.max_change_coherence = max_change_coherence
         self.longest_wait_s = longest_wait_s
         self.after_change_s = after_change_s
         self.shortest_period_s = shortest_period_s
@@ -235,7 +247,8 @@ class CommandClockSearch:
         return {k: getattr(self, k) for k in (
             "forms", "longest_wait_s", "after_change_s", "shortest_period_s",
             "longest_period_s", "latencies", "refine_passes", "min_explained_fraction",
-            "min_t", "strong_explained_fraction", "max_p_value")}
+            "min_t", "strong_explained_fraction", "max_p_value", "any_t_p_value",
+            "max_change_coherence")}
 
     def _validate(self, problem):
         if isinstance(self.forms, str) or not len(self.forms) \
@@ -256,8 +269,9 @@ class CommandClockSearch:
             raise ValueError("longest_wait_s and after_change_s must be > 0, got "
                              f"{self.longest_wait_s!r}, {self.after_change_s!r}")
         check_gate(self.min_explained_fraction, self.min_t, self.strong_explained_fraction)
-        if not 0.0 <= self.max_p_value <= 1.0:
-            raise ValueError(f"max_p_value must be in [0, 1], got {self.max_p_value!r}")
+        for name in ("max_p_value", "any_t_p_value", "max_change_coherence"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
         if not isinstance(problem, CommandClockProblem):
             raise ValueError("fit takes a CommandClockProblem")
         problem.check()
@@ -286,7 +300,10 @@ class CommandClockSearch:
             if took.shape[0] < 3:
                 continue
             period, offset, coherence, p_value = clock_in_phase(
-                took[:, 0], weight, self.shortest_period_s, self.longest_period_s, duration)
+                took[:, 0], weight, self.shortest_period_s, self.longest_period_s, duration,
+                changes[2], self.max_change_coherence)
+            if not np.isfinite(period):
+                continue
             if coherence > self.coherence_:
                 self.coherence_, self.p_value_ = coherence, p_value
             # the latency: at most the shortest waits (a change taken at once waits it
@@ -329,7 +346,8 @@ class CommandClockSearch:
                                row.get(FULL_COMMAND, full), row.get(PULSE_TRIM, 0.0),
                                explained, t, tuple(problem.cleared.items()))
         if earns_trial(explained, t, self.min_explained_fraction, self.min_t,
-                       self.strong_explained_fraction, self.p_value_ <= self.max_p_value):
+                       self.strong_explained_fraction, self.p_value_ <= self.max_p_value) \
+                or self.p_value_ <= self.any_t_p_value:
             self.terms_ = [self.best_]
             self.explained_fraction_ = explained
         return self

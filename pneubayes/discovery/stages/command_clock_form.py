@@ -96,6 +96,9 @@ class CommandClockForm(ComponentForm):
     def _term_names(self, k: int) -> tuple[str, ...]:
         return PERIOD, PHASE, LATENCY
 
+    def _search_record(self, search) -> dict:
+        return {"coherence": search.coherence_, "p_value": search.p_value_}
+
     def _strength_names(self, k: int) -> tuple[str, ...]:
         return PERIOD, LATENCY
 

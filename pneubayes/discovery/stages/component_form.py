@@ -83,6 +83,10 @@ class ComponentForm(Stage):
         """The component for the search's kept ``terms`` (by default: with as many)."""
         return self._component(len(terms))
 
+    def _search_record(self, search) -> dict:
+        """What else of the fitted ``search`` the ledger records (by default nothing)."""
+        return {}
+
     def _strength_names(self, k: int) -> tuple[str, ...]:
         """Term ``k``'s strengths (all 0 switches it off): its first name."""
         return self._term_names(k)[:1]
@@ -122,7 +126,8 @@ class ComponentForm(Stage):
         runner.ledger.record(f"{self.label} search", round=state.number,
                              terms=[_term_record(t) for t in terms],
                              best={} if search.best_ is None else _term_record(search.best_),
-                             explained_fraction=search.explained_fraction_)
+                             explained_fraction=search.explained_fraction_,
+                             **self._search_record(search))
         if not terms:
             b = search.best_
             runner.log(f"discover: {self.label}: no {self.term_word} is supported"
