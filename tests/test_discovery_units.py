@@ -1271,3 +1271,43 @@ def test_cheap_forms_are_declared_by_the_effects_whose_forms_are_maps():
         assert make_effect(name).cheap_forms, name
     for name in ("tube_delay", "spool_lag", "sensor_lag", "valve_stiction"):
         assert not make_effect(name).cheap_forms, name
+
+
+def test_a_form_that_fits_the_training_windows_worse_is_not_swapped_in(monkeypatch):
+    """OtherForms passes a form as a trial passes, and not when its training RMSE ends
+    more than ``max_train_rise`` above the current fit's (a held-out gain from an
+    optimum the training data do not prefer); within it, the form is swapped in."""
+    from types import SimpleNamespace
+
+    from conftest import discovery_settings
+
+    import pneubayes.discovery.stages.other_forms as other_forms
+    from pneubayes.discovery.stages.other_forms import OtherForms
+    from pneubayes.discovery.state import Ledger
+
+    monkeypatch.setattr(other_forms, "form_label", lambda m, g: "x")
+    monkeypatch.setattr(other_forms, "first_free", lambda m, g: None)
+
+    def fit_of(train, held):
+        return SimpleNamespace(train_rmse_Pa=train, heldout_rmse_Pa=held, wall_time_s=0.0,
+                               params={}, model=None)
+
+    current = fit_of(5151.0, 4873.0)
+
+    def swapped(form_train):
+        form = fit_of(form_train, 3863.0)
+        model = SimpleNamespace(effect=lambda g: SimpleNamespace(
+            parameter_names=lambda: [], options=lambda: {}))
+        runner = SimpleNamespace(
+            settings=discovery_settings(), ledger=Ledger(), log=lambda m: None,
+            data=SimpleNamespace(noise_Pa=500.0),
+            fit=lambda m, start, first: form,
+            better=lambda new, old: (True, 10.0, 1e-3, np.ones(8)))
+        stage = OtherForms()
+        stage._options = lambda cur, run: [("sensor_lag", model, {})]
+        return stage._swap(current, runner)
+
+    assert swapped(9609.0) is None
+    assert swapped(5300.0) is not None  # 3 % worse in training: within the 10 %
+    with pytest.raises(ValueError, match="max_train_rise"):
+        OtherForms(max_train_rise=-0.1)
