@@ -309,3 +309,37 @@ def test_a_command_logged_on_a_coarse_grid_is_not_read_as_a_clock():
                                                   changes)
     assert period == pytest.approx(0.0123, rel=1e-5) and coherence > 0.99 and p < 1e-100
     assert offset == pytest.approx((0.37 * 0.0123 + 0.003) % 0.0123, abs=1e-5)
+
+
+def test_a_period_a_few_parts_in_1e5_off_is_polished_on_a_fine_scan():
+    """At the valve's true maps, a driver whose period is 6e-5 of itself off (its ticks
+    drift by 0.3 ms from the windows' middle to their ends, 30 x the noise; the
+    trajectory refinement's finite differences step over the optimum) is moved to the
+    planted period by the stage's fine scan, the tick at the windows' mean time kept,
+    and the training error falls to the noise."""
+    from conftest import discovery_settings
+
+    from pneubayes.bench.forms.valve import ZohDriver
+    from pneubayes.discovery.loop import Discovery, noise_floor_Pa
+    from pneubayes.discovery.stages import CommandClockForm
+    from pneubayes.discovery.state import Ledger, LoopData
+    from pneubayes.discovery.trials import TrialRunner
+
+    recs = _plant_recordings(ZohDriver(0.0123, 0.003, 0.37), count=4)
+    settings = discovery_settings(data={"holdout_recordings": 2})
+    data = Discovery(settings, None, log=None)._data(recs)
+    runner = TrialRunner(settings, LoopData(*data[1:5], data[5], noise_floor_Pa(data[0])),
+                         Ledger(), None, log=lambda m: None)
+    model = Model([CommandClock()])
+    off = 0.0123 * (1.0 + 6e-5)
+    # the same tick at 4 s (the windows' middle) on the longer period
+    n = np.floor(4.0 / 0.0123 - 0.37)
+    phase = ((0.37 + n) * 0.0123 / off - n) % 1.0
+    start = {**BASE, "command_clock_period": off, "command_clock_phase": phase,
+             "command_clock_latency": 0.003}
+    fit = runner.score(model, start)
+    assert fit.train_rmse_Pa > 20.0 * runner.data.noise_Pa
+    got = CommandClockForm()._period_polished(fit, runner, "hold")
+    assert got.params["command_clock_period"] == pytest.approx(0.0123, rel=3e-6)
+    assert got.train_rmse_Pa < 1.2 * runner.data.noise_Pa
+    assert CommandClockForm(polish_steps=0)._period_polished(fit, runner, "hold") is fit
