@@ -182,31 +182,25 @@ class CommandClockSearch:
     ----------
     forms : sequence of str
         The drivers tried (``"hold"``, ``"pwm"``).
-    longest_wait_s : float
-        The longest wait of a command change tried (a period and a latency).
-    after_change_s : float
-        How long after a change its wait is judged (s; cut at the next change).
+    longest_wait_s, after_change_s : float
+        The longest wait of a command change tried (a period and a latency), s; how
+        long after a change its wait is judged (s; cut at the next change).
     shortest_period_s, longest_period_s : float
         The periods the clock may have.
     latencies : int
-        How many splits of the ticks' phase between the clock and the latency are
-        simulated.
+        How many splits of the ticks' phase between the clock and the latency are tried.
     refine_passes : int
-        Rounds of local refinement of the best (its frequency, phase and latency, each
-        round's steps halved; 0: as found).
+        Rounds of local refinement of the best (steps halved each round; 0: as found).
     min_explained_fraction, min_t, strong_explained_fraction : float
         The gate (as :class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`).
-    max_p_value : float
-        A driver whose changes' takes are in phase beyond this chance (:attr:`p_value_`)
-        is kept at any ``t`` above 0: a model whose valve maps have absorbed the waits
-        gains little from the clock before it is refitted, which the trial does.
-    any_t_p_value : float
-        Beyond this chance it is kept whatever it removes beside the current model
-        (beside maps bent far enough, a driver first adds to the residual).
+    max_p_value, any_t_p_value : float
+        A driver whose changes' takes are in phase beyond the first chance
+        (:attr:`p_value_`) is kept at any ``t`` above 0, beyond the second whatever it
+        removes: beside valve maps bent to take the waits it gains little, or loses,
+        until the trial refits them.
     max_change_coherence : float
-        Periods at which the command's changes are themselves in phase this share of
-        their takes' coherence are not read
-        (:func:`~pneubayes.discovery.openform.clock_reading.clock_in_phase`).
+        Periods where the changes themselves are in phase this share of their takes'
+        coherence are not read (:func:`.clock_reading.clock_in_phase`).
 
     Attributes
     ----------
