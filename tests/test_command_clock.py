@@ -343,3 +343,24 @@ def test_a_period_a_few_parts_in_1e5_off_is_polished_on_a_fine_scan():
     assert got.params["command_clock_period"] == pytest.approx(0.0123, rel=3e-6)
     assert got.train_rmse_Pa < 1.2 * runner.data.noise_Pa
     assert CommandClockForm(polish_steps=0)._period_polished(fit, runner, "hold") is fit
+
+
+def test_no_clock_faster_than_half_the_sampling_rate_is_read():
+    """A 100-Hz recording (the ventilator's rate) of a valve without a driver: no period
+    under 20 ms is read (faster clocks show only at their aliases on a 10-ms grid), and
+    a search whose periods all lie under two sample intervals reads nothing."""
+    from pneubayes.discovery.openform.command_clock import (
+        CommandClockProblem,
+        CommandClockSearch,
+    )
+    from pneubayes.inference.windows import WindowSet
+    from pneubayes.io.recording import Recording
+
+    recs = [Recording(r.metadata, r.time_s[::10], r.command_V[::10], r.pressure_Pa[::10],
+                      source=r.source) for r in _plant_recordings(None)]
+    problem = CommandClockProblem(WindowSet(recs, 2.0, 2.0), Model(), BASE,
+                                  SolverConfig.standard())
+    search = CommandClockSearch().fit(problem)
+    assert search.best_ is None or search.best_.period_s >= 0.02
+    fast = CommandClockSearch(longest_period_s=0.015).fit(problem)
+    assert fast.best_ is None and fast.terms_ == []

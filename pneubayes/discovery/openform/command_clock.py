@@ -186,7 +186,7 @@ class CommandClockSearch:
         The longest wait of a command change tried (a period and a latency), s; how
         long after a change its wait is judged (s; cut at the next change).
     shortest_period_s, longest_period_s : float
-        The periods the clock may have.
+        The periods the clock may have (not under two sample intervals).
     latencies : int
         How many splits of the ticks' phase between the clock and the latency are tried.
     refine_passes : int
@@ -276,6 +276,10 @@ class CommandClockSearch:
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
         self.coherence_, self.p_value_ = 0.0, 1.0
         dt = problem.sample_interval_s()
+        # a clock faster than half the sampling rate is read at its aliases
+        shortest = max(self.shortest_period_s, 2.0 * dt)
+        if shortest >= self.longest_period_s:
+            return self
         waits = np.arange(0.0, self.longest_wait_s + 0.5 * dt, dt)
         resid = problem.window_residuals("hold", [{LATENCY: float(w)} for w in waits])
         current = np.sum(problem.window_residuals("hold", [{}], current=True)[0] ** 2,
@@ -294,7 +298,7 @@ class CommandClockSearch:
             if took.shape[0] < 3:
                 continue
             period, offset, coherence, p_value = clock_in_phase(
-                took[:, 0], weight, self.shortest_period_s, self.longest_period_s, duration,
+                took[:, 0], weight, shortest, self.longest_period_s, duration,
                 changes[2], self.max_change_coherence)
             if not np.isfinite(period):
                 continue
@@ -311,7 +315,7 @@ class CommandClockSearch:
         # a modulating driver's ripple: the residual's strongest lines, at phases spread
         pulsed = [{PERIOD: p, PHASE: k / self.latencies, LATENCY: 0.0, FULL_COMMAND: full}
                   for p in ripple_periods(problem.residual_times_s(), resid[0], dt,
-                                          self.shortest_period_s, self.longest_period_s,
+                                          shortest, self.longest_period_s,
                                           duration)
                   for k in range(self.latencies)]
         best, pivot = None, float(np.mean(problem.residual_times_s()))
