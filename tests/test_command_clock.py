@@ -364,3 +364,16 @@ def test_no_clock_faster_than_half_the_sampling_rate_is_read():
     assert search.best_ is None or search.best_.period_s >= 0.02
     fast = CommandClockSearch(longest_period_s=0.015).fit(problem)
     assert fast.best_ is None and fast.terms_ == []
+
+
+def test_a_clock_fitted_to_no_period_is_neither_polished_nor_centred():
+    """A trial that ends with the period at 0 (a pure delay) is left as it is."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.stages import CommandClockForm
+
+    fit = SimpleNamespace(params={"command_clock_period": 0.0, "command_clock_phase": 0.3,
+                                  "command_clock_latency": 0.004})
+    stage = CommandClockForm()
+    assert stage._period_polished(fit, None, "hold") is fit
+    assert stage._centred(fit, None) is fit

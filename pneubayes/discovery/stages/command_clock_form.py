@@ -32,6 +32,7 @@ from pneubayes.effects.command_clock import (
     LATENCY_BOUNDS_S,
     PERIOD,
     PHASE,
+    SHORTEST_PERIOD_S,
     CommandClock,
 )
 from pneubayes.errors import SimulationError
@@ -164,6 +165,8 @@ class CommandClockForm(ComponentForm):
         by far more than the width of its optimum (a period off by 1e-5 of itself
         drifts the ticks by a quarter of a millisecond over 20 s), so it does not move
         it."""
+        if not fit.params[PERIOD] >= SHORTEST_PERIOD_S or not self.polish_steps:
+            return fit  # no clock (a pure delay), or no scan
         without = fit.model.without(COMMAND_CLOCK)
         problem = CommandClockProblem(runner.data.train_ws, without,
                                       {n: fit.params[n] for n in without.parameter_names},
@@ -196,6 +199,8 @@ class CommandClockForm(ComponentForm):
     def _centred(self, fit, runner):
         """``fit`` with its ticks in the middle of the span the training changes allow,
         kept if its training RMSE stays within the nested tolerance."""
+        if not fit.params[PERIOD] >= SHORTEST_PERIOD_S:
+            return fit
         changes = CommandClockProblem(runner.data.train_ws, fit.model, fit.params,
                                       None).changes()[2]
         phase, latency = ticks_centred(changes, fit.params[PERIOD], fit.params[PHASE],
