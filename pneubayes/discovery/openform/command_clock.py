@@ -318,7 +318,7 @@ class CommandClockSearch:
                                           shortest, self.longest_period_s,
                                           duration)
                   for k in range(self.latencies)]
-        best, pivot = None, float(np.mean(problem.residual_times_s()))
+        best = None
         for form in self.forms:
             rows = (pulsed + [{**r, FULL_COMMAND: full} for r in held] if form == "pwm"
                     else held)
@@ -333,7 +333,7 @@ class CommandClockSearch:
                 if not np.isfinite(sse[j]).all():
                     continue
                 row, row_sse = _refined(problem, form, rows[j], sse[j], self.refine_passes,
-                                        0.02 / duration, pivot)
+                                        0.02 / duration)
                 if best is None or np.sum(row_sse) < np.sum(best[2]):
                     best = (form, row, row_sse)
         if best is None:
@@ -351,24 +351,19 @@ class CommandClockSearch:
         return self
 
 
-def _refined(problem, form, centre, sse, passes, freq_step, pivot_s, reach=3):
+def _refined(problem, form, centre, sse, passes, freq_step):
     """Local refinement of a driver ``centre`` (the component's values) with windows'
-    sums of squares ``sse``: ``passes`` rounds of the neighbours in frequency (``reach``
-    steps of ``freq_step`` Hz either side at first, then one), phase (1/16) and latency
-    (1/16 period) and, for a PWM driver, the 3 x 3 of its full command (x 1.1) and pulse
-    trim (1/16 period), each round's steps halved; the best kept. A change of period
-    keeps the tick nearest ``pivot_s`` (s, the windows' mean time) where it was, so a
-    period read a few steps off is not also a phase lost over the record. Returns
-    ``(centre, sse)``."""
+    sums of squares ``sse``: ``passes`` rounds of the 3 x 3 x 3 neighbours in frequency
+    (``freq_step`` Hz at first), phase (1/16) and latency (1/16 period) and, for a PWM
+    driver, the 3 x 3 of its full command (x 1.1) and pulse trim (1/16 period), each
+    round's steps halved; the best kept. Returns ``(centre, sse)``."""
     d_f, d_ph, d_l, f_u = freq_step, 1.0 / 16.0, 1.0 / 16.0, 1.1
-    for k in range(passes):
+    for _ in range(passes):
         f0, ph0, l0 = 1.0 / centre[PERIOD], centre[PHASE], centre[LATENCY]
-        n = np.floor(pivot_s * f0 - ph0)  # the tick at the pivot: (ph0 + n) / f0
-        steps = range(-reach, reach + 1) if k == 0 else (-1, 0, 1)
-        cand = [{**centre, PERIOD: float(1.0 / (f0 + a * d_f)),
-                 PHASE: float(((ph0 + n) * (f0 + a * d_f) / f0 - n + b) % 1.0),
+        cand = [{**centre, PERIOD: float(1.0 / (f0 + a)), PHASE: float((ph0 + b) % 1.0),
                  LATENCY: float(np.clip(l0 + c / f0, *LATENCY_BOUNDS_S))}
-                for a in steps for b in (-d_ph, 0.0, d_ph) for c in (-d_l, 0.0, d_l)]
+                for a in (-d_f, 0.0, d_f) for b in (-d_ph, 0.0, d_ph)
+                for c in (-d_l, 0.0, d_l)]
         if form == "pwm":  # and the pulses: their full command and trim
             u0, e0 = centre[FULL_COMMAND], centre.get(PULSE_TRIM, 0.0)
             cand += [{**centre, FULL_COMMAND: float(np.clip(u0 * a, *FULL_COMMAND_BOUNDS_V)),

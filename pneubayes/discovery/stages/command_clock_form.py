@@ -119,34 +119,34 @@ class CommandClockForm(ComponentForm):
         fit = super()._fit(state, runner, terms)
         if fit is None:
             return None
-        fit = self._joint(self._period_polished(fit, runner, terms[0].form), runner,
-                          terms[0].form)
+        fit = self._joint(self._period_polished(fit, runner, terms[0].form), runner)
         return self._centred(fit, runner)
 
-    def _joint(self, fit, runner, form):
+    def _joint(self, fit, runner):
         """Read the clock again beside ``fit``'s model (the driver taken out, the other
-        parameters as fitted) and refit from there, while a round gains
+        parameters as fitted; in every form the search tries, so a PWM valve first read
+        as a holding driver can change form) and refit from there, while a round gains
         ``joint_min_gain`` of the training RMSE."""
         s = self.search if self.search is not None else self.search_class()
-        settings = {**s.get_params(), "forms": (form,)}
         solver = runner.settings.fit.refine_solver
         for k in range(self.joint_passes):
             without = fit.model.without(COMMAND_CLOCK)
-            search = type(s)(**settings).fit(CommandClockProblem(
+            search = type(s)(**s.get_params()).fit(CommandClockProblem(
                 runner.data.train_ws, without,
                 {n: fit.params[n] for n in without.parameter_names}, solver))
             if search.best_ is None:
                 break
-            start = dict(fit.params)
+            model = without.with_effect(CommandClock(search.best_.form))
+            start = {**model.neutral_values(), **fit.params}
             for name, v in search.best_.values().items():
-                p = fit.model.parameter(name)
+                p = model.parameter(name)
                 start[name] = float(np.clip(v, p.lower, p.upper))
             try:
-                again = runner.fit(fit.model, start)
+                again = runner.fit(model, {n: start[n] for n in model.parameter_names})
             except (FloatingPointError, SimulationError) as exc:
                 runner.log(f"discover: {self.label}: reading {k + 2}: {type(exc).__name__}")
                 break
-            again = self._period_polished(again, runner, form)
+            again = self._period_polished(again, runner, search.best_.form)
             runner.log(f"discover: {self.label}: read again beside the fitted model "
                        f"({search.best_}), training RMSE {fit.train_rmse_Pa:.0f} -> "
                        f"{again.train_rmse_Pa:.0f} Pa")
