@@ -246,7 +246,7 @@ def test_the_loop_finds_a_sampling_driver_beside_maps_fitted_without_it():
     ledger = list(result.ledger)
     (search, *_) = [e for e in ledger if e["action"] == "command clock form search"]
     (term,) = search["terms"]
-    assert term["form"] == "hold" and term["period_s"] == pytest.approx(0.0123, rel=2e-4)
+    assert term["form"] == "hold" and term["period_s"] == pytest.approx(0.0123, rel=1e-4)
     assert [a["name"] for a in result.accepted] == ["command_clock"]
     p = result.final.params
     assert result.final.heldout_rmse_Pa < 1.2 * result.noise_floor_Pa
