@@ -282,8 +282,10 @@ class CommandClockSearch:
             return self
         waits = np.arange(0.0, self.longest_wait_s + 0.5 * dt, dt)
         resid = problem.window_residuals("hold", [{LATENCY: float(w)} for w in waits])
-        current = np.sum(problem.window_residuals("hold", [{}], current=True)[0] ** 2,
-                         axis=1)
+        # the current model is the scan's zero wait unless the scan cleared its values
+        now = resid[0] if not problem.cleared else \
+            problem.window_residuals("hold", [{}], current=True)[0]
+        current = np.sum(now**2, axis=1)
         total = float(np.sum(current))
         if not np.isfinite(total) or total <= 0.0:
             return self

@@ -25,7 +25,7 @@ import numpy as np
 
 from pneubayes.discovery.openform.clock_reading import ticks_centred
 from pneubayes.discovery.openform.command_clock import CommandClockProblem, CommandClockSearch
-from pneubayes.discovery.stages.component_form import ComponentForm
+from pneubayes.discovery.stages.component_form import ComponentForm, clipped_start
 from pneubayes.discovery.trials import NESTED_TOLERANCE
 from pneubayes.effects.command_clock import (
     LATENCY,
@@ -122,25 +122,29 @@ class CommandClockForm(ComponentForm):
         fit = self._joint(self._period_polished(fit, runner, terms[0].form), runner)
         return self._centred(fit, runner)
 
+    @staticmethod
+    def _problem(fit, runner) -> CommandClockProblem:
+        """The search's problem beside ``fit``'s model, its driver taken out (the other
+        parameters as fitted)."""
+        without = fit.model.without(COMMAND_CLOCK)
+        return CommandClockProblem(runner.data.train_ws, without,
+                                   {n: fit.params[n] for n in without.parameter_names},
+                                   runner.settings.fit.refine_solver)
+
     def _joint(self, fit, runner):
         """Read the clock again beside ``fit``'s model (the driver taken out, the other
         parameters as fitted; in every form the search tries, so a PWM valve first read
         as a holding driver can change form) and refit from there, while a round gains
         ``joint_min_gain`` of the training RMSE."""
         s = self.search if self.search is not None else self.search_class()
-        solver = runner.settings.fit.refine_solver
         for k in range(self.joint_passes):
-            without = fit.model.without(COMMAND_CLOCK)
-            search = type(s)(**s.get_params()).fit(CommandClockProblem(
-                runner.data.train_ws, without,
-                {n: fit.params[n] for n in without.parameter_names}, solver))
+            problem = self._problem(fit, runner)
+            search = type(s)(**s.get_params()).fit(problem)
             if search.best_ is None:
                 break
-            model = without.with_effect(CommandClock(search.best_.form))
-            start = {**model.neutral_values(), **fit.params}
-            for name, v in search.best_.values().items():
-                p = model.parameter(name)
-                start[name] = float(np.clip(v, p.lower, p.upper))
+            model = problem.model.with_effect(CommandClock(search.best_.form))
+            start = clipped_start(model, {**model.neutral_values(), **fit.params},
+                                  search.best_.values())
             try:
                 again = runner.fit(model, {n: start[n] for n in model.parameter_names})
             except (FloatingPointError, SimulationError) as exc:
@@ -167,10 +171,7 @@ class CommandClockForm(ComponentForm):
         it."""
         if not fit.params[PERIOD] >= SHORTEST_PERIOD_S or not self.polish_steps:
             return fit  # no clock (a pure delay), or no scan
-        without = fit.model.without(COMMAND_CLOCK)
-        problem = CommandClockProblem(runner.data.train_ws, without,
-                                      {n: fit.params[n] for n in without.parameter_names},
-                                      runner.settings.fit.refine_solver)
+        problem = self._problem(fit, runner)
         names = CommandClock(form).parameter_names()
         clock = {n: fit.params[n] for n in names}
         f0, ph0 = 1.0 / clock[PERIOD], clock[PHASE]
@@ -201,8 +202,7 @@ class CommandClockForm(ComponentForm):
         kept if its training RMSE stays within the nested tolerance."""
         if not fit.params[PERIOD] >= SHORTEST_PERIOD_S:
             return fit
-        changes = CommandClockProblem(runner.data.train_ws, fit.model, fit.params,
-                                      None).changes()[2]
+        changes = self._problem(fit, runner).changes()[2]
         phase, latency = ticks_centred(changes, fit.params[PERIOD], fit.params[PHASE],
                                        fit.params[LATENCY], LATENCY_BOUNDS_S)
         if (phase, latency) == (fit.params[PHASE], fit.params[LATENCY]):

@@ -146,10 +146,8 @@ class ComponentForm(Stage):
         ended worse than the model it contains)."""
         current = state.current
         model = current.model.with_effect(self._component_for(terms))
-        searched = dict(current.params)
-        for name, v in self._searched_values(terms, current.params).items():
-            p = model.parameter(name)
-            searched[name] = float(np.clip(v, p.lower, p.upper))
+        searched = clipped_start(model, current.params,
+                                 self._searched_values(terms, current.params))
         # the current fit itself beside the component at zero strength (the nested start)
         zero = {**searched, **current.params,
                 **{n: 0.0 for k in range(len(terms)) for n in self._strength_names(k)}}
@@ -228,6 +226,16 @@ class ComponentForm(Stage):
             "best_term": "; ".join(str(t) for t in search.terms_), "best_term_start": None}
         state.passing = [(fit.heldout_rmse_Pa, self.component, fit, w.gain, w.p_value)]
         return True
+
+
+def clipped_start(model, params: dict, values: dict) -> dict:
+    """``params`` with ``values`` laid over them, each clipped into ``model``'s bounds
+    (a search's values where a refinement of ``model`` starts)."""
+    start = dict(params)
+    for name, v in values.items():
+        p = model.parameter(name)
+        start[name] = float(np.clip(v, p.lower, p.upper))
+    return start
 
 
 def _terms(component) -> int:
