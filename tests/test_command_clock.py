@@ -311,12 +311,12 @@ def test_a_command_logged_on_a_coarse_grid_is_not_read_as_a_clock():
     assert offset == pytest.approx((0.37 * 0.0123 + 0.003) % 0.0123, abs=1e-5)
 
 
-def test_a_period_a_few_parts_in_1e5_off_is_polished_on_a_fine_scan():
+def test_a_driver_s_timing_a_fraction_of_a_millisecond_off_is_polished():
     """At the valve's true maps, a driver whose period is 6e-5 of itself off (its ticks
-    drift by 0.3 ms from the windows' middle to their ends, 30 x the noise; the
-    trajectory refinement's finite differences step over the optimum) is moved to the
-    planted period by the stage's fine scan, the tick at the windows' mean time kept,
-    and the training error falls to the noise."""
+    drift by 0.3 ms from the windows' middle to their ends) and whose latency is 0.2 ms
+    late (together 30 x the noise; the trajectory refinement's finite differences do
+    not move either) is moved to the planted timing by the stage's compass search, and
+    the training error falls to the noise."""
     from conftest import discovery_settings
 
     from pneubayes.bench.forms.valve import ZohDriver
@@ -336,13 +336,14 @@ def test_a_period_a_few_parts_in_1e5_off_is_polished_on_a_fine_scan():
     n = np.floor(4.0 / 0.0123 - 0.37)
     phase = ((0.37 + n) * 0.0123 / off - n) % 1.0
     start = {**BASE, "command_clock_period": off, "command_clock_phase": phase,
-             "command_clock_latency": 0.003}
+             "command_clock_latency": 0.0032}
     fit = runner.score(model, start)
     assert fit.train_rmse_Pa > 20.0 * runner.data.noise_Pa
-    got = CommandClockForm()._period_polished(fit, runner, "hold")
+    got = CommandClockForm()._polished(fit, runner, "hold")
     assert got.params["command_clock_period"] == pytest.approx(0.0123, rel=3e-6)
+    assert got.params["command_clock_latency"] == pytest.approx(0.003, abs=3e-5)
     assert got.train_rmse_Pa < 1.2 * runner.data.noise_Pa
-    assert CommandClockForm(polish_steps=0)._period_polished(fit, runner, "hold") is fit
+    assert CommandClockForm(polish_halvings=0)._polished(fit, runner, "hold") is fit
 
 
 def test_no_clock_faster_than_half_the_sampling_rate_is_read():
@@ -375,5 +376,5 @@ def test_a_clock_fitted_to_no_period_is_neither_polished_nor_centred():
     fit = SimpleNamespace(params={"command_clock_period": 0.0, "command_clock_phase": 0.3,
                                   "command_clock_latency": 0.004})
     stage = CommandClockForm()
-    assert stage._period_polished(fit, None, "hold") is fit
+    assert stage._polished(fit, None, "hold") is fit
     assert stage._centred(fit, None) is fit

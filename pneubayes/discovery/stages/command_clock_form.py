@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneubayes.discovery.openform.clock_polish import polish_clock
 from pneubayes.discovery.openform.clock_reading import ticks_centred
 from pneubayes.discovery.openform.command_clock import CommandClockProblem, CommandClockSearch
 from pneubayes.discovery.stages.component_form import ComponentForm, clipped_start
@@ -59,9 +60,9 @@ class CommandClockForm(ComponentForm):
         the fitted model and refitting from there (0: the first fit only).
     joint_min_gain : float
         A round that lowers the training RMSE by less than this share ends them.
-    polish_steps : int
-        After each fit, the period is scanned this many tenths of the search's
-        frequency step either side (0: not scanned).
+    polish_halvings : int
+        After each fit, the driver's timing is polished by a compass search whose steps
+        are halved this many times (0: not polished).
     """
 
     name = "command_clock_form"
@@ -72,7 +73,7 @@ class CommandClockForm(ComponentForm):
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.9,
                  search=None, joint_passes: int = 3, joint_min_gain: float = 0.02,
-                 polish_steps: int = 30):
+                 polish_halvings: int = 6):
         super().__init__(min_noise_ratio, compete_below_gap_closed, search)
         if isinstance(joint_passes, bool) or not isinstance(joint_passes, int) \
                 or joint_passes < 0:
@@ -81,17 +82,17 @@ class CommandClockForm(ComponentForm):
         if not 0.0 <= joint_min_gain < 1.0:
             raise ValueError(f"CommandClockForm: joint_min_gain must be in [0, 1), got "
                              f"{joint_min_gain!r}")
-        if isinstance(polish_steps, bool) or not isinstance(polish_steps, int) \
-                or polish_steps < 0:
-            raise ValueError(f"CommandClockForm: polish_steps must be an integer >= 0, got "
-                             f"{polish_steps!r}")
+        if isinstance(polish_halvings, bool) or not isinstance(polish_halvings, int) \
+                or polish_halvings < 0:
+            raise ValueError(f"CommandClockForm: polish_halvings must be an integer >= 0, "
+                             f"got {polish_halvings!r}")
         self.joint_passes = joint_passes
         self.joint_min_gain = joint_min_gain
-        self.polish_steps = polish_steps
+        self.polish_halvings = polish_halvings
 
     def options(self):
         return {**super().options(), "joint_passes": self.joint_passes,
-                "joint_min_gain": self.joint_min_gain, "polish_steps": self.polish_steps}
+                "joint_min_gain": self.joint_min_gain, "polish_halvings": self.polish_halvings}
 
     def _search_data(self, state, runner) -> CommandClockProblem:
         return CommandClockProblem(runner.data.train_ws, state.current.model,
@@ -119,7 +120,7 @@ class CommandClockForm(ComponentForm):
         fit = super()._fit(state, runner, terms)
         if fit is None:
             return None
-        fit = self._joint(self._period_polished(fit, runner, terms[0].form), runner)
+        fit = self._joint(self._polished(fit, runner, terms[0].form), runner)
         return self._centred(fit, runner)
 
     @staticmethod
@@ -150,7 +151,7 @@ class CommandClockForm(ComponentForm):
             except (FloatingPointError, SimulationError) as exc:
                 runner.log(f"discover: {self.label}: reading {k + 2}: {type(exc).__name__}")
                 break
-            again = self._period_polished(again, runner, search.best_.form)
+            again = self._polished(again, runner, search.best_.form)
             runner.log(f"discover: {self.label}: read again beside the fitted model "
                        f"({search.best_}), training RMSE {fit.train_rmse_Pa:.0f} -> "
                        f"{again.train_rmse_Pa:.0f} Pa")
@@ -161,41 +162,43 @@ class CommandClockForm(ComponentForm):
                 break
         return fit
 
-    def _period_polished(self, fit, runner, form):
-        """``fit`` with its period moved to the best of a fine scan (``polish_steps``
-        either side, a tenth of the search's frequency step apart), the tick at the
-        windows' mean time kept in place, the rest as fitted; refitted from there if
-        the scan gained. The trajectory refinement's finite differences step the period
-        by far more than the width of its optimum (a period off by 1e-5 of itself
-        drifts the ticks by a quarter of a millisecond over 20 s), so it does not move
-        it."""
-        if not fit.params[PERIOD] >= SHORTEST_PERIOD_S or not self.polish_steps:
-            return fit  # no clock (a pure delay), or no scan
-        problem = self._problem(fit, runner)
-        names = CommandClock(form).parameter_names()
-        clock = {n: fit.params[n] for n in names}
-        f0, ph0 = 1.0 / clock[PERIOD], clock[PHASE]
-        pivot = float(np.mean(problem.residual_times_s()))
-        n = np.floor(pivot * f0 - ph0)
-        step = 0.1 * 0.02 / max(problem.duration_s(), 1.0)
-        rows = []
-        for k in range(-self.polish_steps, self.polish_steps + 1):
-            f = f0 + k * step
-            rows.append({**clock, PERIOD: float(1.0 / f),
-                         PHASE: float(((ph0 + n) * f / f0 - n) % 1.0)})
-        sse = np.sum(problem.window_residuals(form, rows, current=True) ** 2, axis=(1, 2))
-        sse = np.where(np.isfinite(sse), sse, np.inf)
-        j = int(np.argmin(sse))
-        if j == self.polish_steps or not sse[j] < sse[self.polish_steps]:
-            return fit
-        try:
-            again = runner.fit(fit.model, {**fit.params, **rows[j]})
-        except (FloatingPointError, SimulationError):
-            return fit
-        runner.log(f"discover: {self.label}: period {clock[PERIOD] * 1e3:.6g} -> "
-                   f"{rows[j][PERIOD] * 1e3:.6g} ms on a fine scan, training RMSE "
-                   f"{fit.train_rmse_Pa:.0f} -> {again.train_rmse_Pa:.0f} Pa")
-        return again if again.train_rmse_Pa < fit.train_rmse_Pa else fit
+    def _polished(self, fit, runner, form):
+        """``fit`` with the driver's timing polished beside the rest as fitted
+        (:func:`~pneubayes.discovery.openform.clock_polish.polish_clock`, its steps halved
+        ``polish_halvings`` times) and refitted from there, in turn while a round lowers
+        the training RMSE by ``joint_min_gain`` (at most ``joint_passes`` rounds). The
+        trajectory refinement's finite differences do not move a driver's timing (a
+        staircase: each tick takes the sample held there), so the polish does."""
+        if not fit.params[PERIOD] >= SHORTEST_PERIOD_S or not self.polish_halvings:
+            return fit  # no clock (a pure delay), or no polish
+        for _ in range(max(self.joint_passes, 1)):
+            problem = self._problem(fit, runner)
+            names = CommandClock(form).parameter_names()
+            bounds = {n: (fit.model.parameter(n).lower, fit.model.parameter(n).upper)
+                      for n in names}
+            clock, before, after = polish_clock(
+                _training_rmse(problem, form), {n: fit.params[n] for n in names}, bounds,
+                float(np.mean(problem.residual_times_s())), problem.duration_s(),
+                self.polish_halvings)
+            if not after < before:
+                return fit
+            try:
+                again = runner.fit(fit.model, {**fit.params, **clock})
+            except (FloatingPointError, SimulationError):
+                again = runner.score(fit.model, {**fit.params, **clock})
+            runner.log(f"discover: {self.label}: timing polished (period "
+                       f"{fit.params[PERIOD] * 1e3:.6g} -> {clock[PERIOD] * 1e3:.6g} ms, "
+                       f"latency {fit.params[LATENCY] * 1e3:.3f} -> "
+                       f"{clock[LATENCY] * 1e3:.3f} ms), training RMSE "
+                       f"{fit.train_rmse_Pa:.0f} -> {after:.0f} Pa, refitted "
+                       f"{again.train_rmse_Pa:.0f} Pa")
+            if not again.train_rmse_Pa < fit.train_rmse_Pa:
+                return fit
+            gained = again.train_rmse_Pa < fit.train_rmse_Pa * (1.0 - self.joint_min_gain)
+            fit = again
+            if not gained:
+                break
+        return fit
 
     def _centred(self, fit, runner):
         """``fit`` with its ticks in the middle of the span the training changes allow,
@@ -215,3 +218,12 @@ class CommandClockForm(ComponentForm):
                    f"{fit.params[LATENCY] * 1e3:.2f} -> {latency * 1e3:.2f} ms), training "
                    f"RMSE {fit.train_rmse_Pa:.0f} -> {centred.train_rmse_Pa:.0f} Pa")
         return centred
+
+
+def _training_rmse(problem: CommandClockProblem, form: str):
+    """``rows -> (S,)``: the training RMSE (Pa; NaN where a simulation failed) of
+    ``problem``'s model with each row's driver of ``form``."""
+    def rmse(rows):
+        r = problem.window_residuals(form, rows, current=True)
+        return np.sqrt(np.mean(r**2, axis=(1, 2)))
+    return rmse
