@@ -288,6 +288,10 @@ def test_the_stage_s_joint_passes_are_checked_and_recorded():
             CommandClockForm(joint_passes=bad)
     with pytest.raises(ValueError, match="joint_min_gain"):
         CommandClockForm(joint_min_gain=1.0)
+    assert CommandClockForm(polish_halvings=2).options()["polish_halvings"] == 2
+    for bad in (-1, 2.0, False):
+        with pytest.raises(ValueError, match="polish_halvings"):
+            CommandClockForm(polish_halvings=bad)
 
 
 def test_a_command_logged_on_a_coarse_grid_is_not_read_as_a_clock():
