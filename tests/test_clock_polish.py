@@ -6,6 +6,7 @@ import pytest
 
 from pneubayes.discovery.openform.clock_polish import first_steps, moved, polish_clock
 from pneubayes.effects.command_clock import (
+    ALIGNMENT,
     FULL_COMMAND,
     LATENCY,
     PERIOD,
@@ -55,6 +56,10 @@ def test_each_coordinate_moves_what_its_name_says():
     assert moved(clock, "latency", 1e-4, PIVOT_S)[LATENCY] == pytest.approx(0.00185)
     assert moved(clock, "full_command", 0.1, PIVOT_S)[FULL_COMMAND] == pytest.approx(5.1)
     assert moved(clock, "pulse_trim", 1e-4, PIVOT_S)[PULSE_TRIM] == pytest.approx(-0.00027)
+    aligned = moved({**clock, ALIGNMENT: 0.0}, "alignment", 0.25, PIVOT_S)
+    assert aligned[ALIGNMENT] == 0.25
+    assert "alignment" in first_steps(aligned, 20.0) and "alignment" not in first_steps(
+        clock, 20.0)
     with pytest.raises(ValueError, match="unknown clock coordinate"):
         moved(clock, "phase", 0.1, PIVOT_S)
     assert set(first_steps({PERIOD: 0.01, PHASE: 0.0, LATENCY: 0.0}, 20.0)) \

@@ -54,26 +54,37 @@ def test_a_holding_driver_agrees_with_the_plant_s_sampling_driver(rig, period, l
     assert _rms(plain, ref) > 3e-3 * RANGE
 
 
-@pytest.mark.parametrize("frequency_Hz, opening_s, closing_s", [(50.0, 3e-3, 2e-3),
-                                                                (20.0, 1e-3, 1e-3)])
+@pytest.mark.parametrize("frequency_Hz, opening_s, closing_s, alignment",
+                         [(50.0, 3e-3, 2e-3, 0.0), (20.0, 1e-3, 1e-3, 0.0),
+                          (50.0, 3e-3, 2e-3, 0.5), (27.7, 1.7e-3, 2.1e-3, 0.25)])
 def test_a_modulating_driver_agrees_with_the_plant_s_pwm_valve(rig, frequency_Hz, opening_s,
-                                                              closing_s):
+                                                              closing_s, alignment):
     """Against the bench plant's PwmValve (solenoid delays on its pulses, LSODA): the
-    pulses' latency is the opening delay and their trim the opening less the closing
-    delay; within 1e-5 of the range where the proportional valve misses by over 5 %."""
+    pulses' latency is the opening delay, their trim the opening less the closing delay
+    and their alignment the driver's (from the period's start, centred, between); within
+    1e-5 of the range where the proportional valve, and a driver aligned otherwise, miss
+    by over 5 % and 0.5 %."""
     from pneubayes.bench.forms.valve import PwmValve
     from pneubayes.bench.plant import PlantConfig, simulate_plant
 
     inputs = _inputs(3, 2501)
-    ref = simulate_plant(BASE, (PwmValve(frequency_Hz, opening_s, closing_s, 5.0),), inputs,
-                         rig, P_ATM, PlantConfig.reference()).pressure_Pa
+    # shut over the first 50 ms: the plant's driver starts at the first sample, the
+    # model's has ticked before it (a pulse ending at the next tick would reach into it)
+    inputs = Inputs(inputs.time_s, np.where(inputs.time_s < 0.05, 0.0, inputs.command_V),
+                    inputs.position_m, inputs.supply_pressure_Pa)
+    ref = simulate_plant(BASE, (PwmValve(frequency_Hz, opening_s, closing_s, 5.0, alignment),),
+                         inputs, rig, P_ATM, PlantConfig.reference()).pressure_Pa
     params = {**_hold(1.0 / frequency_Hz, 0.0, opening_s), "command_clock_full_command": 5.0,
-              "command_clock_pulse_trim": opening_s - closing_s}
-    got = simulate(Model([CommandClock("pwm")]), params, inputs, rig, P_ATM,
-                   SolverConfig.standard()).pressure_Pa[0]
+              "command_clock_pulse_trim": opening_s - closing_s,
+              "command_clock_pulse_alignment": alignment}
+    model = Model([CommandClock("pwm")])
+    got = simulate(model, params, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
     plain = simulate(Model(), BASE, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
+    other = simulate(model, {**params, "command_clock_pulse_alignment": 0.5 - alignment / 1.6},
+                     inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
     assert _rms(got, ref) < 1e-5 * RANGE
     assert _rms(plain, ref) > 0.05 * RANGE
+    assert _rms(other, ref) > 0.005 * RANGE
 
 
 def test_windows_continue_the_run_and_the_step_halves(rig):
@@ -125,12 +136,13 @@ def test_the_driver_is_refused_by_the_ode_reference_and_checks_its_form(rig):
 
 def test_a_full_duty_pulse_holds_the_valve_open_and_none_shuts_it(rig):
     """At the full command the PWM valve is the proportional valve at full command from
-    the first tick (no gap between periods); at 0 it is shut."""
+    the first tick (no gap between periods, wherever its pulses are aligned); at 0 it is
+    shut."""
     n = 801
     t = np.arange(n) * 1e-3
     full = Inputs(t, np.full(n, 5.0), np.full(n, 0.015), np.full(n, P_SUP))
     params = {**_hold(0.02, 0.0, 0.0), "command_clock_full_command": 5.0,
-              "command_clock_pulse_trim": 0.002}
+              "command_clock_pulse_trim": 0.002, "command_clock_pulse_alignment": 0.4}
     pwm = simulate(Model([CommandClock("pwm")]), params, full, rig, P_ATM,
                    SolverConfig.standard()).pressure_Pa[0]
     plain = simulate(Model(), BASE, full, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
@@ -348,6 +360,34 @@ def test_a_driver_s_timing_a_fraction_of_a_millisecond_off_is_polished():
     assert got.params["command_clock_latency"] == pytest.approx(0.003, abs=3e-5)
     assert got.train_rmse_Pa < 1.2 * runner.data.noise_Pa
     assert CommandClockForm(polish_halvings=0)._polished(fit, runner, "hold") is fit
+
+
+def test_a_centred_pwm_pulse_is_polished_from_one_read_at_the_tick():
+    """A phase-correct (centred) 27.7-Hz PWM valve from the bench plant, the valve's true
+    maps, and the driver read with its pulses from the tick (alignment 0, the search's
+    start): the stage's compass moves the pulses to the centre of their periods and the
+    training error to the noise."""
+    from conftest import discovery_settings
+
+    from pneubayes.bench.forms.valve import PwmValve
+    from pneubayes.discovery.loop import Discovery, noise_floor_Pa
+    from pneubayes.discovery.stages import CommandClockForm
+    from pneubayes.discovery.state import Ledger, LoopData
+    from pneubayes.discovery.trials import TrialRunner
+
+    recs = _plant_recordings(PwmValve(27.7, 1.7e-3, 2.1e-3, 5.0, 0.5), count=4)
+    settings = discovery_settings(data={"holdout_recordings": 2})
+    data = Discovery(settings, None, log=None)._data(recs)
+    runner = TrialRunner(settings, LoopData(*data[1:5], data[5], noise_floor_Pa(data[0])),
+                         Ledger(), None, log=lambda m: None)
+    model = Model([CommandClock("pwm")])
+    start = {**_hold(1.0 / 27.7, 0.0, 1.7e-3), "command_clock_full_command": 5.0,
+             "command_clock_pulse_trim": -4e-4, "command_clock_pulse_alignment": 0.0}
+    fit = runner.score(model, start)
+    assert fit.train_rmse_Pa > 5.0 * runner.data.noise_Pa
+    got = CommandClockForm()._polished(fit, runner, "pwm")
+    assert got.params["command_clock_pulse_alignment"] == pytest.approx(0.5, abs=0.02)
+    assert got.train_rmse_Pa < 1.2 * runner.data.noise_Pa
 
 
 def test_no_clock_faster_than_half_the_sampling_rate_is_read():

@@ -217,13 +217,14 @@ class DiscoveryResult(PosteriorDraws):
         eff = model.effect("command_clock")
         formula = ("the valve takes u(t_k) at ticks t_k = (phi + k) T and holds it from "
                    "t_k + L" if eff.form == "hold" else
-                   "the valve at +-U (the sign of u(t_k)) from t_k + L for min(|u(t_k)| / "
-                   "U, 1) T - e, shut for the rest of the period, t_k = (phi + k) T")
+                   "the valve at +-U (the sign of u(t_k)) from t_k + L + a (1 - d_k) T for "
+                   "d_k T - e, d_k = min(|u(t_k)| / U, 1), shut for the rest of the period, "
+                   "t_k = (phi + k) T")
         return [{"term": f"driver clock ({eff.form})", "acts_on": "the valve's command (V)",
                  "formula": formula + " (T = command_clock_period, s; phi = "
                  "command_clock_phase; L = command_clock_latency, s"
-                 + ("; U = command_clock_full_command, V; e = command_clock_pulse_trim, s)"
-                    if eff.form == "pwm" else ")"),
+                 + ("; U = command_clock_full_command, V; e = command_clock_pulse_trim, s; "
+                    "a = command_clock_pulse_alignment)" if eff.form == "pwm" else ")"),
                  "parameters": self._values(eff.parameter_names())}]
 
     def to_dict(self) -> dict:

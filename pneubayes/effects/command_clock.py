@@ -12,14 +12,18 @@ between ticks). This component puts the driver between the command and the valve
 
     ticks at t_k = (phi + k) T on the recording's clock (its time_s),
     hold:  the valve takes u(t_k) over [t_k + L, t_k+1 + L),
-    pwm:   it is at +-U (the sign of u(t_k)) over [t_k + L, t_k + L + d_k T - e) and shut
-           (0) for the rest of the period, d_k = min(|u(t_k)| / U, 1) (d_k = 1: open
-           over the whole period),
+    pwm:   it is at +-U (the sign of u(t_k)) over [t_k + L + s_k, t_k + L + s_k + w_k)
+           and shut (0) for the rest of the period, w_k = d_k T - e the pulse's width,
+           d_k = min(|u(t_k)| / U, 1) (d_k = 1: open over the whole period), and
+           s_k = a (1 - d_k) T where the driver's pulse lies in its period,
 
 ``T`` (``command_clock_period``, s), ``phi`` (``command_clock_phase``, a share of the
 period), ``L`` (``command_clock_latency``, s), and for the PWM driver ``U``
-(``command_clock_full_command``, V) and ``e`` (``command_clock_pulse_trim``, s: a
-solenoid that opens later than it closes shortens every pulse). Option ``form``:
+(``command_clock_full_command``, V), ``e`` (``command_clock_pulse_trim``, s: a
+solenoid that opens later than it closes shortens every pulse) and ``a``
+(``command_clock_pulse_alignment``, 0 to 0.5: 0 a pulse from the tick, as a timer's
+edge-aligned "fast" PWM; 0.5 centred in its period, as a phase-correct or centre-aligned
+one). Option ``form``:
 ``"hold"`` or ``"pwm"``. A period of 0 (below 0.1 ms) is a driver that follows the
 command at once, ``L`` later (a pure delay); period and latency 0, the valve without a
 driver.
@@ -57,12 +61,17 @@ LATENCY_BOUNDS_S = (0.0, 0.05)
 FULL_COMMAND_BOUNDS_V = (0.1, 20.0)
 #: A PWM pulse's trim's bounds, s.
 PULSE_TRIM_BOUNDS_S = (-0.01, 0.01)
+#: A PWM pulse's alignment's bounds: from the tick to centred (a pulse that ends at the
+#: next tick would reach into the next period by a slow solenoid's closing, which the
+#: kernel's held command, one period at a time, does not carry).
+ALIGNMENT_BOUNDS = (0.0, 0.5)
 
 PERIOD = "command_clock_period"
 PHASE = "command_clock_phase"
 LATENCY = "command_clock_latency"
 FULL_COMMAND = "command_clock_full_command"
 PULSE_TRIM = "command_clock_pulse_trim"
+ALIGNMENT = "command_clock_pulse_alignment"
 
 
 def command_delay_s(slots: np.ndarray) -> np.ndarray:
@@ -81,7 +90,7 @@ class CommandClock(Effect):
     name = "command_clock"
     acts_on = ("command_clock_period_s", "command_clock_phase", "command_clock_latency_s",
                "command_clock_pwm", "command_clock_full_command_V",
-               "command_clock_pulse_trim_s")
+               "command_clock_pulse_trim_s", "command_clock_pulse_alignment")
     library_searched = False
     cheap_forms = True
     forms = FORMS
@@ -106,7 +115,11 @@ class CommandClock(Effect):
                               "the command that keeps the valve open over the whole period",
                               neutral=5.0),
                     Parameter(PULSE_TRIM, "s", *PULSE_TRIM_BOUNDS_S, "uniform", "how much "
-                              "shorter each pulse reaches the valve", neutral=0.0)]
+                              "shorter each pulse reaches the valve", neutral=0.0),
+                    Parameter(ALIGNMENT, "-", *ALIGNMENT_BOUNDS, "uniform", "where each pulse lies "
+                              "in its period: its start after the tick, as a share of the "
+                              "period's shut time (0: at the tick, 0.5: centred)",
+                              neutral=0.0)]
         return tuple(out)
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
@@ -119,12 +132,13 @@ class CommandClock(Effect):
             out["command_clock_full_command_V"] = np.asarray(values[FULL_COMMAND],
                                                              np.float64)
             out["command_clock_pulse_trim_s"] = np.asarray(values[PULSE_TRIM], np.float64)
+            out["command_clock_pulse_alignment"] = np.asarray(values[ALIGNMENT], np.float64)
         return out
 
     def bench_defaults(self):
         """A driver updating every 10 ms at a third of a period, 2 ms late (PWM: open over
-        the whole period at 4 V, its pulses 1 ms short)."""
+        the whole period at 4 V, its pulses 1 ms short and centred in their periods)."""
         out = {PERIOD: 0.01, PHASE: 0.3, LATENCY: 0.002}
         if self.form == "pwm":
-            out.update({FULL_COMMAND: 4.0, PULSE_TRIM: 0.001})
+            out.update({FULL_COMMAND: 4.0, PULSE_TRIM: 0.001, ALIGNMENT: 0.5})
         return out

@@ -238,6 +238,9 @@ SLOTS += (
      "magnitude keeps the valve open over the whole period (V)"),
     ("command_clock_pulse_trim_s", "the modulating driver's pulses reach the valve this much "
      "shorter (a solenoid that opens later than it closes; negative: longer) (s)"),
+    ("command_clock_pulse_alignment", "where in its period the modulating driver's pulse "
+     "lies: it starts this share of the period's shut time (1 - duty) after the tick (0: at the "
+     "tick, 0.5: centred) (-)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

@@ -5,7 +5,8 @@ With period ``T`` and phase ``phi`` the driver's ticks fall at ``(phi + k) T`` o
 recording's clock (its ``time_s``); at each tick it takes the command sample held there
 and, ``L`` later (latency), drives the valve with it: holding it over the period, or
 (pulse-width modulation) at the full command ``+-U`` of its sign for ``min(|u| / U, 1)``
-of the period less a trim, and shut (0) for the rest. The chamber sees the valve a
+of the period less a trim, the pulse starting a share (its alignment) of the period's
+shut time after the tick, and shut (0) for the rest. The chamber sees the valve a
 transport delay later still; the kernel reads the latency with that delay
 (:func:`~pneubayes.simulation.spool.spool_settings`), so with no clock (period 0) it is a
 pure delay of the command. :func:`clocked_hold` is the kernel's held command under the
@@ -25,6 +26,7 @@ _PHASE = SLOT_INDEX["command_clock_phase"]
 _PWM = SLOT_INDEX["command_clock_pwm"]
 _FULL = SLOT_INDEX["command_clock_full_command_V"]
 _TRIM = SLOT_INDEX["command_clock_pulse_trim_s"]
+_ALIGN = SLOT_INDEX["command_clock_pulse_alignment"]
 #: A hold shorter than this share of the period is taken as its end (rounding at a tick).
 TICK_TOLERANCE = 1e-9
 
@@ -58,10 +60,14 @@ def clocked_hold(sl, t, u, j, delay, tau, tb):
     if sl[_PWM] != 0.0:
         full = sl[_FULL]
         duty = min(abs(cmd) / full, 1.0)
-        on = period if duty >= 1.0 else duty * period - trim
-        if cmd == 0.0 or on <= 0.0 or s >= tick + on - TICK_TOLERANCE * period:
+        on = period if duty >= 1.0 else min(duty * period - trim, period)
+        lead = sl[_ALIGN] * (1.0 - duty) * period  # the driver's pulse starts
+        tol = TICK_TOLERANCE * period
+        if cmd == 0.0 or on <= 0.0 or s >= tick + lead + on - tol:
             cmd = 0.0
+        elif s < tick + lead - tol:  # shut until the pulse starts
+            cmd, end = 0.0, tick + lead
         else:
-            cmd, end = math.copysign(full, cmd), tick + min(on, period)
+            cmd, end = math.copysign(full, cmd), tick + lead + on
     t_end = end + delay
     return j, cmd, t_end if t_end < tb else tb

@@ -450,8 +450,10 @@ class PwmValve(PlantForm):
     ``min(|u| / full_command_V, 1)`` of the period; between pulses both are shut (the
     valve at 0 V). A solenoid opens ``opening_delay_s`` after its pulse starts and closes
     ``closing_delay_s`` after it ends, so a pulse shorter than the difference never
-    opens the valve and pulses that overlap merge. ``frequency_Hz = 0`` is the
-    proportional valve (no modulation).
+    opens the valve and pulses that overlap merge. ``alignment`` places each pulse in its
+    period: it starts that share of the period's shut time after the period's start (0:
+    from the start, a timer's edge-aligned PWM; 0.5: centred, a phase-correct one).
+    ``frequency_Hz = 0`` is the proportional valve (no modulation).
     """
 
     catalogue_name: ClassVar[str | None] = None
@@ -459,10 +461,14 @@ class PwmValve(PlantForm):
     opening_delay_s: float = 3e-3
     closing_delay_s: float = 2e-3
     full_command_V: float = 5.0
+    alignment: float = 0.0
 
     def __post_init__(self):
         _non_negative(self, "frequency_Hz", "opening_delay_s", "closing_delay_s")
         _positive(self, "full_command_V")
+        _finite(self, "alignment")
+        if not 0.0 <= self.alignment <= 1.0:
+            raise ValueError(f"PwmValve.alignment must be in [0, 1], got {self.alignment!r}")
 
     @property
     def acts(self) -> bool:
@@ -480,12 +486,13 @@ class PwmValve(PlantForm):
         starts = t[0] + period * np.arange(int(math.ceil((t[-1] - t[0]) / period)) + 1)
         held = _held_at(t, u, starts, shared_delay_s)
         duty = np.minimum(np.abs(held) / self.full_command_V, 1.0)
-        # the driver's signal: a pulse from each period's start, adjacent pulses of one
-        # sign one (at full duty the signal never falls)
+        # the driver's signal: a pulse in each period (from its start at alignment 0),
+        # adjacent pulses of one sign one (at full duty the signal never falls)
         signal = []
         for s, d, v in zip(starts, duty, held):
             if d == 0.0:
                 continue
+            s = s + self.alignment * (1.0 - d) * period
             value = math.copysign(self.full_command_V, v)
             if signal and signal[-1][1] >= s and signal[-1][2] == value:
                 signal[-1] = (signal[-1][0], s + d * period, value)

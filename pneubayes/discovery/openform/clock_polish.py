@@ -14,7 +14,8 @@ search; Kolda, Lewis and Torczon 2003). The coordinates, in the driver's own ter
 - ``ticks``: the ticks and the latency moved against each other (which command samples
   are taken changes, when the valve acts does not);
 - ``latency``: when the valve acts after each tick;
-- for a pulse-width modulator, ``full_command`` (V, the duty's scale) and ``pulse_trim``.
+- for a pulse-width modulator, ``full_command`` (V, the duty's scale), ``pulse_trim``
+  and ``alignment`` (where the pulse lies in its period).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from pneubayes.effects.command_clock import (
+    ALIGNMENT,
     FULL_COMMAND,
     LATENCY,
     PERIOD,
@@ -49,6 +51,8 @@ def moved(clock: dict, coordinate: str, step: float, pivot_s: float) -> dict:
         out[FULL_COMMAND] = clock[FULL_COMMAND] + step
     elif coordinate == "pulse_trim":
         out[PULSE_TRIM] = clock[PULSE_TRIM] + step
+    elif coordinate == "alignment":
+        out[ALIGNMENT] = clock[ALIGNMENT] + step
     else:
         raise ValueError(f"unknown clock coordinate {coordinate!r}")
     return out
@@ -57,12 +61,15 @@ def moved(clock: dict, coordinate: str, step: float, pivot_s: float) -> dict:
 def first_steps(clock: dict, duration_s: float) -> dict[str, float]:
     """The compass's first step per coordinate: a period step that moves the ticks at the
     windows' ends by about a five-hundredth of a period, timing steps of a 360th of a
-    period, a full command step of 0.4 %."""
+    period, a full command step of 0.4 %, an alignment step of 1/32 (polled 16 steps
+    away: the centre from the edge)."""
     period = clock[PERIOD]
     steps = {"period": 0.004 * period**2 / max(duration_s, period),
              "ticks": period / 360.0, "latency": period / 360.0}
     if FULL_COMMAND in clock:
         steps.update(full_command=0.004 * clock[FULL_COMMAND], pulse_trim=period / 360.0)
+    if ALIGNMENT in clock:
+        steps["alignment"] = 1.0 / 32.0
     return steps
 
 

@@ -46,6 +46,8 @@ from pneubayes.discovery.openform.clock_reading import (
 from pneubayes.discovery.openform.gate import check_gate, earns_trial
 from pneubayes.discovery.openform.volume import window_reduction
 from pneubayes.effects.command_clock import (
+    ALIGNMENT,
+    ALIGNMENT_BOUNDS,
     FORMS,
     FULL_COMMAND,
     FULL_COMMAND_BOUNDS_V,
@@ -63,9 +65,10 @@ from pneubayes.effects.command_clock import (
 @dataclass(frozen=True)
 class ClockTerm:
     """A kept driver: its ``form``, ``period_s``, ``phase``, ``latency_s`` and (PWM)
-    ``full_command_V`` and ``pulse_trim_s``, the share of the residual's sum of squares
-    it removes (``explained``), the windows' mean relative reduction over its standard
-    error (``t``) and the model's values it replaces (``cleared``, name-value pairs)."""
+    ``full_command_V``, ``pulse_trim_s`` and ``alignment``, the share of the residual's
+    sum of squares it removes (``explained``), the windows' mean relative reduction over
+    its standard error (``t``) and the model's values it replaces (``cleared``,
+    name-value pairs)."""
 
     form: str
     period_s: float
@@ -76,6 +79,7 @@ class ClockTerm:
     explained: float
     t: float
     cleared: tuple = ()
+    alignment: float = 0.0
 
     def values(self) -> dict[str, float]:
         """The parameter values the term stands for: the component's, and the model's
@@ -83,7 +87,8 @@ class ClockTerm:
         out = {PERIOD: self.period_s, PHASE: self.phase, LATENCY: self.latency_s,
                **dict(self.cleared)}
         if self.form == "pwm":
-            out.update({FULL_COMMAND: self.full_command_V, PULSE_TRIM: self.pulse_trim_s})
+            out.update({FULL_COMMAND: self.full_command_V, PULSE_TRIM: self.pulse_trim_s,
+                        ALIGNMENT: self.alignment})
         return out
 
     def __str__(self) -> str:
@@ -344,7 +349,8 @@ class CommandClockSearch:
         explained, t = window_reduction(current, row_sse, total, relative=True)
         self.best_ = ClockTerm(form, row[PERIOD], row[PHASE], row[LATENCY],
                                row.get(FULL_COMMAND, full), row.get(PULSE_TRIM, 0.0),
-                               explained, t, tuple(problem.cleared.items()))
+                               explained, t, tuple(problem.cleared.items()),
+                               row.get(ALIGNMENT, 0.0))
         if earns_trial(explained, t, self.min_explained_fraction, self.min_t,
                        self.strong_explained_fraction, self.p_value_ <= self.max_p_value) \
                 or self.p_value_ <= self.any_t_p_value:
@@ -357,25 +363,29 @@ def _refined(problem, form, centre, sse, passes, freq_step):
     """Local refinement of a driver ``centre`` (the component's values) with windows'
     sums of squares ``sse``: ``passes`` rounds of the 3 x 3 x 3 neighbours in frequency
     (``freq_step`` Hz at first), phase (1/16) and latency (1/16 period) and, for a PWM
-    driver, the 3 x 3 of its full command (x 1.1) and pulse trim (1/16 period), each
-    round's steps halved; the best kept. Returns ``(centre, sse)``."""
-    d_f, d_ph, d_l, f_u = freq_step, 1.0 / 16.0, 1.0 / 16.0, 1.1
+    driver, the 3 x 3 of its full command (x 1.1) and pulse trim (1/16 period) and its
+    alignment either way (1/4), each round's steps halved; the best kept. Returns
+    ``(centre, sse)``."""
+    d_f, d_ph, d_l, f_u, d_a = freq_step, 1.0 / 16.0, 1.0 / 16.0, 1.1, 0.25
     for _ in range(passes):
         f0, ph0, l0 = 1.0 / centre[PERIOD], centre[PHASE], centre[LATENCY]
         cand = [{**centre, PERIOD: float(1.0 / (f0 + a)), PHASE: float((ph0 + b) % 1.0),
                  LATENCY: float(np.clip(l0 + c / f0, *LATENCY_BOUNDS_S))}
                 for a in (-d_f, 0.0, d_f) for b in (-d_ph, 0.0, d_ph)
                 for c in (-d_l, 0.0, d_l)]
-        if form == "pwm":  # and the pulses: their full command and trim
+        if form == "pwm":  # and the pulses: their full command, trim and alignment
             u0, e0 = centre[FULL_COMMAND], centre.get(PULSE_TRIM, 0.0)
+            a0 = centre.get(ALIGNMENT, 0.0)
             cand += [{**centre, FULL_COMMAND: float(np.clip(u0 * a, *FULL_COMMAND_BOUNDS_V)),
                       PULSE_TRIM: float(np.clip(e0 + c / f0, *PULSE_TRIM_BOUNDS_S))}
                      for a in (1.0 / f_u, 1.0, f_u) for c in (-d_l, 0.0, d_l)]
+            cand += [{**centre, ALIGNMENT: float(np.clip(a0 + b, *ALIGNMENT_BOUNDS))}
+                     for b in (-d_a, d_a)]
         got = problem.window_sse(form, cand)
         j = int(np.argmin(np.sum(got, axis=1)))
         if np.isfinite(got[j]).all() and np.sum(got[j]) < np.sum(sse):
             centre, sse = cand[j], got[j]
-        d_f, d_ph, d_l, f_u = 0.5 * d_f, 0.5 * d_ph, 0.5 * d_l, np.sqrt(f_u)
+        d_f, d_ph, d_l, f_u, d_a = 0.5 * d_f, 0.5 * d_ph, 0.5 * d_l, np.sqrt(f_u), 0.5 * d_a
     return centre, sse
 
 
