@@ -18,8 +18,8 @@ that. The search reads the clock from the data instead (:class:`CommandClockSear
    frequencies, the longest period among its near-equals: a tick pattern is also in
    phase at its period's fractions), and the phase of that mean is where the ticks fall;
 3. the driver itself: both forms at latencies that split the phase between the clock
-   and the latency (the shortest waits bound the latency), simulated, the best refined
-   locally.
+   and the latency (the shortest waits bound the latency), a modulator's pulses from
+   the tick and centred, simulated, the best refined locally.
 
 A driver is kept when it removes at least ``min_explained_fraction`` of the residual's
 sum of squares and the windows' reductions, each as a share of the window's own sum of
@@ -327,8 +327,11 @@ class CommandClockSearch:
                   for k in range(self.latencies)]
         best = None
         for form in self.forms:
-            rows = (pulsed + [{**r, FULL_COMMAND: full} for r in held] if form == "pwm"
-                    else held)
+            # a modulator's pulses from the tick (an edge-aligned timer) or centred (a
+            # phase-correct one)
+            rows = ([{**r, ALIGNMENT: a} for r in pulsed + [{**r, FULL_COMMAND: full}
+                                                          for r in held]
+                     for a in (0.0, ALIGNMENT_BOUNDS[1])] if form == "pwm" else held)
             sse = problem.window_sse(form, rows)
             total_sse = np.sum(sse, axis=1)
             # the best row of each of the two best periods found, refined (a period's
