@@ -86,6 +86,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -500,6 +501,17 @@ def draw_cases(seed: int, blind_set: int = 1) -> list[dict]:
     return cases
 
 
+def realigned(case: dict, alignment: float) -> dict:
+    """``case`` with its PWM valves' pulses at ``alignment`` (a development variant, named
+    with an ``-a<alignment>`` suffix); a case without one as it is."""
+    if not any(isinstance(o, PwmValve) for o in case["_objects"]):
+        return case
+    objs = tuple(replace(o, alignment=alignment) if isinstance(o, PwmValve) else o
+                 for o in case["_objects"])
+    return {**case, "name": f"{case['name']}-a{alignment:g}",
+            "forms": {type(o).__name__: o.to_dict() for o in objs}, "_objects": objs}
+
+
 def _public(case: dict) -> dict:
     """The case's JSON-ready record (without its form objects)."""
     return {k: v for k, v in case.items() if not k.startswith("_")}
@@ -678,6 +690,10 @@ def main(argv=None) -> int:
                          "result are listed as not finished)")
     ap.add_argument("--smoke", action="store_true",
                     help="one short case from a tuning draw (not the blind set)")
+    ap.add_argument("--pwm-alignment", type=float, default=None, metavar="A",
+                    help="development: the draw's PWM valves with their pulses at alignment "
+                         "A (0 from the period's start, as drawn; 0.5 centred); the cases "
+                         "are named with a '-aA' suffix (not the blind set)")
     args = ap.parse_args(argv)
     if args.smoke:  # a tuning draw of set 1's forms
         args.seed, args.duration, args.recordings = SMOKE_SEED, 13.0, 4
@@ -693,6 +709,11 @@ def main(argv=None) -> int:
     except ValueError as exc:
         ap.error(str(exc))
     cases = draw_cases(args.seed, args.blind_set)
+    if args.pwm_alignment is not None:
+        try:
+            cases = [realigned(c, args.pwm_alignment) for c in cases]
+        except ValueError as exc:
+            ap.error(f"--pwm-alignment: {exc}")
     if args.smoke:
         cases = [c for c in cases if c["hidden"] == ["ReliefValve"]][:1]
     if args.list:
