@@ -171,11 +171,11 @@ class CommandClockForm(ComponentForm):
         staircase: each tick takes the sample held there), so the polish does."""
         if not fit.params[PERIOD] >= SHORTEST_PERIOD_S or not self.polish_halvings:
             return fit  # no clock (a pure delay), or no polish
+        names = CommandClock(form).parameter_names()
+        bounds = {n: (fit.model.parameter(n).lower, fit.model.parameter(n).upper)
+                  for n in names}
         for _ in range(max(self.joint_passes, 1)):
             problem = self._problem(fit, runner)
-            names = CommandClock(form).parameter_names()
-            bounds = {n: (fit.model.parameter(n).lower, fit.model.parameter(n).upper)
-                      for n in names}
             clock, before, after = polish_clock(
                 _training_rmse(problem, form), {n: fit.params[n] for n in names}, bounds,
                 float(np.mean(problem.residual_times_s())), problem.duration_s(),
