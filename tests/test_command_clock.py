@@ -422,3 +422,19 @@ def test_a_clock_fitted_to_no_period_is_neither_polished_nor_centred():
     stage = CommandClockForm()
     assert stage._polished(fit, None, "hold") is fit
     assert stage._centred(fit, None) is fit
+
+
+def test_phase_sums_agree_with_the_direct_sums_over_many_blocks():
+    """The blocked recurrence against one complex exponential per frequency and time:
+    random times over 120 s, a grid longer than several blocks."""
+    from pneubayes.discovery.openform.clock_reading import PHASE_BLOCK, phase_sums
+
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 120.0, 400))
+    w = rng.uniform(0.1, 1.0, 400)
+    n = 3 * PHASE_BLOCK + 17
+    f = 20.0 + np.arange(n) * (0.02 / 120.0)
+    direct = np.abs(np.exp(2j * np.pi * np.outer(f, t)) @ w)
+    fast = phase_sums(20.0, 0.02 / 120.0, n, t, w)
+    assert fast.shape == (n,)
+    np.testing.assert_allclose(fast, direct, rtol=0.0, atol=1e-9 * direct.max())
