@@ -315,7 +315,8 @@ class Model:
     @property
     def relaxes_reading(self) -> bool:
         """Whether an effect reads the pressure through a map after the kernel
-        (:meth:`reading_relaxations`, :meth:`reading_plays`, :meth:`reading_commands`)."""
+        (:meth:`reading_relaxations`, :meth:`reading_plays`, :meth:`reading_commands`,
+        :meth:`reading_flows`)."""
         return any(e.relaxes_reading for e in self.effects)
 
     def reading_relaxations(self, params) -> tuple[np.ndarray, np.ndarray]:
@@ -335,6 +336,20 @@ class Model:
         (:mod:`pneubayes.simulation.reading_command`) of every effect that has them,
         side by side (``K`` 0 without one)."""
         return self._reading_maps(params, "reading_commands")
+
+    def reading_flows(self, params) -> tuple[np.ndarray, tuple[str, ...]]:
+        """``(gains (B, K) in Pa per feature unit, the K feature names)``: the terms of the
+        ports' mass flows in the reading (:mod:`pneubayes.simulation.reading_flow`) of
+        every effect that has them, side by side (``K`` 0 without one)."""
+        theta = self.as_matrix(params)
+        names = self.parameter_names
+        parts = [e.reading_flows({n: theta[:, names.index(n)] for n in e.parameter_names()})
+                 for e in self.effects if e.relaxes_reading]
+        parts = [x for x in parts if x is not None]
+        if not parts:
+            return np.zeros((theta.shape[0], 0)), ()
+        return (np.concatenate([g for g, _ in parts], axis=1),
+                tuple(f for _, feats in parts for f in feats))
 
     def _reading_maps(self, params, method: str) -> tuple[np.ndarray, np.ndarray]:
         """Every reading effect's ``method`` pairs side by side (an effect that returns

@@ -92,7 +92,8 @@ def test_catalogue_names():
                                "supply_fluctuation", "heat_transfer", "spool_lag", "sensor_lag",
                                "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
                                "valve_stiction", "closure", "reading_closure",
-                               "reading_play", "reading_command", "volume_closure",
+                               "reading_play", "reading_command", "reading_flow",
+                               "volume_closure",
                                "volume_play", "command_clock"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name

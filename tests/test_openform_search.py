@@ -479,9 +479,9 @@ def test_a_term_the_models_own_parameters_absorb_is_not_kept():
 def test_the_spool_is_the_command_delayed_and_lagged(rig):
     """A step of the command reaches the spool after the tube's delay, then as the
     first-order lag's exponential (closed form), and not at all before."""
-    from pneubayes.discovery.openform.signals import spool_at
     from pneubayes.model import Model
     from pneubayes.simulation import Inputs
+    from pneubayes.simulation.spool_path import spool_at
 
     model = Model(["tube_delay", "spool_lag"])
     from pneubayes.physics.valve import valve_preset

@@ -11,7 +11,6 @@ from conftest import fluctuating_supply, moving_position, valve1_params
 
 from pneubayes.bench.forms import SpoolStiction
 from pneubayes.bench.plant import PlantConfig, simulate_plant
-from pneubayes.discovery.openform.signals import spool_at
 from pneubayes.effects import make_effect
 from pneubayes.effects.discovery import CandidateContext
 from pneubayes.effects.path import SLOT_INDEX as S
@@ -28,6 +27,7 @@ from pneubayes.simulation import (
     simulate_windows,
 )
 from pneubayes.simulation.reference import reference_simulate
+from pneubayes.simulation.spool_path import spool_at
 from pneubayes.simulation.stiction import stuck_command, valve_commands
 
 P_ATM, P_SUP = 101325.0, 551325.0

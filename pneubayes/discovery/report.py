@@ -98,6 +98,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_text_atomic(out / "found_reading_command.py",
                           command_effect_skeleton(result.model, result.params))
         doc["found_reading_command_effect"] = "found_reading_command.py"
+    if result.model.has("reading_flow"):  # and its terms of the port flows as another
+        from pneubayes.discovery.openform.skeleton import flow_effect_skeleton
+
+        write_text_atomic(out / "found_reading_flow.py",
+                          flow_effect_skeleton(result.model, result.params))
+        doc["found_reading_flow_effect"] = "found_reading_flow.py"
     write_json_atomic(out / "discovery.json", doc)
     figs = {}
     if figures and result.maps:  # (no search round, no map: max_effects 0)

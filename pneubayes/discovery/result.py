@@ -18,6 +18,7 @@ from pneubayes.effects.closure_terms import (
 )
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
+from pneubayes.effects.reading_flow import FLOW_FEATURE_UNITS, flow_gain_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
@@ -26,7 +27,8 @@ from pneubayes.inference.fit import PosteriorDraws, at_bounds
 
 FORMAT = "pneubayes-discovery/1"
 #: The open-form components: their terms are listed apart from the named effects.
-OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "volume_closure",
+OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "reading_flow",
+             "volume_closure",
              "volume_play", "command_clock")
 
 
@@ -169,10 +171,10 @@ class DiscoveryResult(PosteriorDraws):
 
     def found_reading_terms(self) -> list[dict]:
         """The final model's open-form terms at the reading (effects ``reading_closure``,
-        ``reading_play`` and ``reading_command``; empty without them): each relaxation's,
-        play's or command lag's formula, its gain and time constant or half-width (the
-        posterior's median and 90 % interval when one was sampled, else the estimate),
-        and where it acts."""
+        ``reading_play``, ``reading_command`` and ``reading_flow``; empty without them):
+        each relaxation's, play's, command lag's or port flow term's formula, its gain and
+        time constant or half-width (the posterior's median and 90 % interval when one was
+        sampled, else the estimate), and where it acts."""
         return self._component_terms(
             "reading_closure", "relaxation", "the pressure reading (Pa)",
             lambda k: (f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = p - p_bar_{k} "
@@ -187,7 +189,18 @@ class DiscoveryResult(PosteriorDraws):
             lambda k: (f"r = p + c_{k} l_{k}, tau_{k} dl_{k}/dt = |u| - l_{k} (c_{k} = "
                        f"{command_gain_name(k)}, Pa per command unit; tau_{k} = "
                        f"{command_time_constant_name(k)}, s)"),
-            lambda k: (command_gain_name(k), command_time_constant_name(k)))
+            lambda k: (command_gain_name(k), command_time_constant_name(k))
+        ) + self._component_terms(
+            "reading_flow", "port flow term", "the pressure reading (Pa)",
+            lambda k: (f"r = p + c_{k} F_{k}, F_{k} = {self._flow_feature(k)} "
+                       f"({FLOW_FEATURE_UNITS[self._flow_feature(k)]}; q_in = A_in f(p_s, p), "
+                       f"q_ex = A_ex f(p, P_atm), eqs. 1-3) (c_{k} = {flow_gain_name(k)}, Pa "
+                       f"per {FLOW_FEATURE_UNITS[self._flow_feature(k)]})"),
+            lambda k: (flow_gain_name(k),))
+
+    def _flow_feature(self, k: int) -> str:
+        """The feature of the final model's reading flow term ``k``."""
+        return self.final.model.effect("reading_flow").features[k]
 
     def found_volume_terms(self) -> list[dict]:
         """The final model's open-form terms on the chamber's volume (effects

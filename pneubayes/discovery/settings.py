@@ -278,15 +278,11 @@ class StageSettings:
         OtherForms: the named effects' other forms, at most this many swaps (0: off).
     open_form_min_noise_ratio : float
         OpenForm: an open-form closure while above this x the noise floor (0: off).
-    reading_form_min_noise_ratio : float
-        ReadingForm: open-form relaxations of the reading while above this x the noise
-        floor (0: off).
-    reading_play_min_noise_ratio : float
-        ReadingPlayForm: open-form plays (backlash) of the reading while above this x
-        the noise floor (0: off).
-    reading_command_min_noise_ratio : float
-        ReadingCommandForm: open-form lags of the command's magnitude in the reading
-        while above this x the noise floor (0: off).
+    reading_form_min_noise_ratio, reading_play_min_noise_ratio, \
+    reading_command_min_noise_ratio, reading_flow_min_noise_ratio : float
+        ReadingForm, ReadingPlayForm, ReadingCommandForm, ReadingFlowForm: open-form
+        relaxations, plays (backlash), lags of the command's magnitude and terms of the
+        valve's port flows in the reading while above this x the noise floor (0: off).
     volume_form_min_noise_ratio : float
         VolumeForm: open-form hinges of the chamber's volume in its pressure while above
         this x the noise floor (0: off).
@@ -309,6 +305,7 @@ class StageSettings:
     reading_form_min_noise_ratio: float = 1.5
     reading_play_min_noise_ratio: float = 1.5
     reading_command_min_noise_ratio: float = 1.5
+    reading_flow_min_noise_ratio: float = 1.5
     volume_form_min_noise_ratio: float = 1.5
     volume_play_min_noise_ratio: float = 1.5
     command_clock_min_noise_ratio: float = 1.5
@@ -323,6 +320,7 @@ class StageSettings:
                              f"{self.max_form_swaps!r}")
         for name in ("open_form_min_noise_ratio", "reading_form_min_noise_ratio",
                      "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
+                     "reading_flow_min_noise_ratio",
                      "volume_form_min_noise_ratio", "volume_play_min_noise_ratio",
                      "command_clock_min_noise_ratio"):
             v = getattr(self, name)

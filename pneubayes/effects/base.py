@@ -182,8 +182,8 @@ class Effect(Component):
     #: is there to spare minutes-long forms (an acoustic line), not a second parameter.
     cheap_forms: ClassVar[bool] = False
     #: True for an effect that reads the pressure through a map after the kernel (it
-    #: defines :meth:`reading_relaxations`, :meth:`reading_plays` or
-    #: :meth:`reading_commands`; it writes no slot of the kernel).
+    #: defines :meth:`reading_relaxations`, :meth:`reading_plays`,
+    #: :meth:`reading_commands` or :meth:`reading_flows`; it writes no slot of the kernel).
     relaxes_reading: ClassVar[bool] = False
 
     def beside_tube(self, form: str) -> bool:
@@ -223,6 +223,15 @@ class Effect(Component):
         p + sum_k c_k l_k`` with ``tau_k dl_k/dt = |u| - l_k``: ``(gains (Pa per command
         unit), time constants (s))``, each ``(B, K)``; None (the default) for an effect
         that does not (:mod:`pneubayes.simulation.reading_command`; such an effect sets
+        :attr:`relaxes_reading` too)."""
+        return None
+
+    def reading_flows(self, values: Mapping[str, np.ndarray]) \
+            -> tuple[np.ndarray, tuple[str, ...]] | None:
+        """For an effect that adds terms of the ports' mass flows to the reading, ``r = p +
+        sum_k c_k F_k``: ``(gains (B, K) in Pa per feature unit, the K feature names)``;
+        None (the default) for an effect that does not
+        (:mod:`pneubayes.simulation.reading_flow`; such an effect sets
         :attr:`relaxes_reading` too)."""
         return None
 

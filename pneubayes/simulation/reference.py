@@ -433,6 +433,10 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "from sample to sample; its independent reference is the bench "
                          "plant's driver (pneubayes.bench.forms.ZohDriver, PwmValve; "
                          "tests/test_command_clock.py)")
+    flow_gains, flow_features = (a if i else a[0] for i, a in
+                                 enumerate(model.reading_flows(params)))
+    if len(flow_features):
+        _check_flow_reading(model, params, sl, calibrated, inputs)
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
@@ -475,6 +479,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     directions = command_direction(u, before)  # (a closure's direction feature)
     j = int(np.searchsorted(t + delay, t[0], side="right") - 1)
     y[2] = held(j)
+    if len(flow_features):  # the chamber starts where it reads the start through them
+        r0 = float(y[0])
+        for _ in range(50):
+            y[0] = r0 - _flow_terms(sl, rig, y[2:3], y[0:1], ps[:1], flow_gains,
+                                    flow_features)[0]
     out = np.empty(t.size)
     read = (y.size - 2 if w_r > 0 else y.size - 1) if (w_r > 0 or lag > 0) else 0
     w_s = sl[S["spool_natural_frequency_rad_per_s"]]
@@ -489,6 +498,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     i_pass = y.size - len(passes)
     flows_pending = any(code == FEATURE_BY_NAME["net_flow_lag"].code for code, _ in passes)
     out[0] = y[read]
+    spools = np.empty(t.size)  # the spool (the held command without a lag) at the samples
+    lagged = (sl[S["spool_time_constant_s"]] > 0 or sl[S["spool_fall_time_constant_s"]] > 0
+              or w_s > 0)
+    spools[0] = y[2] if lagged else held(int(np.searchsorted(shifted_at := t + delay, t[0],
+                                                             side="right") - 1))
     # a reading closure's p_bar_k: the last states, following the (calibrated) reading
     n_main = y.size
     gains, taus = (a[0] for a in model.reading_relaxations(params))
@@ -562,6 +576,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             y = sol.y[:, -1]
         out[k + 1] = y[read]
         rel[k + 1] = y[n_main:]
+        spools[k + 1] = y[2] if lagged else held(
+            int(np.searchsorted(shifted_at, tb, side="right") - 1))
     if calibrated:
         out = p_atm + cal_g * (out - p_atm) + curv * ((out - p_atm) / 1e5) ** 2 + cal_o
     read = out.copy()  # a reading play follows the samples (linear between them)
@@ -572,4 +588,41 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
             y = min(v + w, max(v - w, y))
             out[k] += h * (v - y)
     out = out + commands
+    if len(flow_features):  # terms of the port flows at the samples (effect reading_flow)
+        out = out + _flow_terms(sl, rig, spools, out, ps, flow_gains, flow_features)
     return (out, nfev) if return_stats else out
+
+
+def _check_flow_reading(model, params, sl, calibrated, inputs) -> None:
+    """Refuse what the reference does not combine with the port flows' reading terms."""
+    other = (model.reading_relaxations(params)[0].size or model.reading_plays(params)[0].size
+             or model.reading_commands(params)[0].size)
+    if (calibrated or other or sl[S["sensor_time_constant_s"]] > 0
+            or sl[S["sensor_natural_frequency_rad_per_s"]] > 0
+            or sl[S["exhaust_own_command"]] != 0 or sl[S["table_points"]] > 0
+            or sl[S["stiction_band_V"]] > 0 or inputs.command_before_start is not None):
+        raise ValueError("reference_simulate: the port flows' terms in the reading (effect "
+                         "'reading_flow') are solved here only on the chamber's own reading "
+                         "(no sensor lag, calibration or other reading term), one valve's "
+                         "maps, a free spool and no pre-trigger command")
+
+
+def _flow_terms(sl, rig, spools, pressure, supply, gains, features) -> np.ndarray:
+    """``sum_k c_k F_k`` (Pa) at the samples from the valve's port flows at the spools
+    ``spools`` and chamber pressures ``pressure`` (eqs. 1-3 and 11, written here)."""
+    g = rig.gas
+    consts = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, g.heat_capacity_ratio)
+    ins = tuple(sl[S[f"inlet_{k}"]] for k in ("offset_m2", "a_m2", "b", "c_per_V", "d_V"))
+    exs = tuple(sl[S[f"exhaust_{k}"]] for k in ("offset_m2", "a_m2", "b", "c_per_V", "d_V"))
+    p_nom, gain = rig.supply_pressure_Pa, sl[S["supply_gain"]]
+    out = np.zeros(pressure.size)
+    for k, (s, p, p_meas) in enumerate(zip(spools, pressure, supply)):
+        ueff = _dead_band(float(s), sl[S["deadband_halfwidth_V"]], sl[S["deadband_rounding_V"]])
+        s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]], sl[S["exhaust_open_area_m2"]])
+        a_in, a_ex = _gompertz(ueff, *ins) + s_in, _gompertz(ueff, *exs) + s_ex
+        q_in = a_in * _flow(p_nom + gain * (p_meas - p_nom), p, *consts) * 1e3  # g/s
+        q_ex = a_ex * _flow(p, rig.atmospheric_pressure_Pa, *consts) * 1e3
+        for c, name in zip(gains, features):
+            q = q_in if name.startswith("inlet") else q_ex
+            out[k] += c * (q * abs(q) if name.endswith("_square") else q)
+    return out

@@ -26,6 +26,7 @@ from pneubayes.simulation.drive import Inputs, kernel_ready_arrays
 from pneubayes.simulation.measurement import sensor_reading
 from pneubayes.simulation.reading_closure import read_windows, start_state
 from pneubayes.simulation.reading_command import command_offsets
+from pneubayes.simulation.reading_flow import PortFlows, flow_reading, flow_start
 from pneubayes.simulation.stiction import sticks, valve_commands
 
 
@@ -212,9 +213,16 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         commands = model.reading_commands(theta)
         offsets = (command_offsets(inputs, starts, length, *commands)
                    if commands[0].shape[1] else None)
-        start, bar0, y0 = start_state(*relax, inputs, starts,
-                                      p0 if offsets is None else p0 - offsets[:, :, 0], plays)
+        reading0 = p0 if offsets is None else p0 - offsets[:, :, 0]
+        # (terms of the port flows add to the reading too: the chamber reads r0 less
+        # them at its own start, pneubayes.simulation.reading_flow)
+        flow_gains, flow_features = model.reading_flows(theta)
+        flows = PortFlows(inputs, rig, starts, length) if len(flow_features) else None
+        if flows is not None:
+            reading0 = flow_start(flows, slots, reading0, flow_gains, flow_features)
+        start, bar0, y0 = start_state(*relax, inputs, starts, reading0, plays)
         p0 = start.mean(axis=0)
+        lowered = slots
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     slots, consts, sv, kstarts, p0, rate0 = kernel_ready_arrays(
         slots, rig_constants(rig), solver.as_array(), starts + offset, p0, rate0)
@@ -258,9 +266,29 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
                                  plays, y0)
         if offsets is not None:
             out = out + offsets
+        if flows is not None:
+            out, sens = _read_flows(out, sens, arrays[0], arrays[1], p0, start, flows,
+                                    lowered, flow_gains, flow_features,
+                                    1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1))
         out[unreadable], sens[unreadable] = np.nan, np.nan
         arrays = [out, sens] if kernel_fn is kernel.simulate_windows_sensitivity else [out]
     return arrays
+
+
+def _read_flows(out, sens, pressure, sensitivity, kernel_start, start, flows, slots, gains,
+                features, stretch):
+    """The windows' reading ``out`` and its sensitivity ``sens`` (to the start reading)
+    with the port flows' terms added (:mod:`pneubayes.simulation.reading_flow`) along
+    each parameter set's own pressure: the kernel's ``pressure`` moved along its
+    ``sensitivity`` from ``kernel_start`` to the set's ``start``. The chamber's start
+    moves by ``1 / (1 + sum_k c_k dF_k/dp)`` per unit of the start reading and the terms'
+    own slope adds to what the relaxations and plays (``stretch``: one plus their
+    gains) read."""
+    p = pressure + sensitivity * (start - kernel_start[None])[:, :, None]
+    shift, slope = flow_reading(flows, slots, p, gains, features)
+    stretch = np.where(stretch > 0.0, stretch, 1.0)  # (an unreadable set is NaN after)
+    sens = (sens + slope * sensitivity / stretch[:, None, None]) / (1.0 + slope[:, :, :1])
+    return out + shift, sens
 
 
 def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, length: int,

@@ -15,6 +15,7 @@ from __future__ import annotations
 from pneubayes.effects.closure_terms import term_formula
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
+from pneubayes.effects.reading_flow import FLOW_FEATURE_UNITS, flow_gain_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
@@ -302,5 +303,80 @@ def command_effect_skeleton(model, params: dict, class_name: str = "FoundReading
         class_name, effect_name)
 
 
-__all__ = ["command_effect_skeleton", "effect_skeleton", "play_effect_skeleton",
-           "reading_effect_skeleton", "volume_effect_skeleton"]
+_FLOW_TEMPLATE = '''"""{effect_name}: terms of the valve's port flows in the pressure reading
+found by pneubayes discover.
+
+Found as an open-form term at the reading (the chamber's pressure p is unchanged; its
+reading r is):
+{lines}
+Edit the names, the descriptions and the bounds to say what it is (a fitting or hose
+between the chamber and the sensor, a sensor port facing the inlet's jet).
+Register it with one line in pneubayes.effects.CATALOGUE, or use it directly:
+``Model([{class_name}()])``.
+"""
+
+from pneubayes.effects.base import Effect, Parameter
+from pneubayes.effects.reading_flow import ReadingFlow
+
+
+class {class_name}(Effect):
+    """Found port-flow terms of the reading (edit this description)."""
+
+    name = {effect_name!r}
+    acts_on = ()  # (the simulator reads each window's pressure through it)
+    relaxes_reading = True
+    library_searched = False
+    #: This effect's parameter -> the reading flow component's.
+    NAMES = {{
+{mapping}
+    }}
+    GAINS = {gains!r}
+    FEATURES = {features!r}
+
+    def parameters(self):
+        found = {{p.name: p for p in ReadingFlow(features=self.FEATURES).parameters()}}
+        return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
+                               found[theirs].upper, found[theirs].prior,
+                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
+                     for mine, theirs in self.NAMES.items())
+
+    def lower(self, values, rig):
+        return {{}}  # (no slot of the kernel)
+
+    def reading_flows(self, values):
+        return ReadingFlow.flows_named(values, self.GAINS, self.FEATURES)
+
+    def bench_defaults(self):
+        """The values discovery fitted."""
+        return {{
+{defaults}
+        }}
+'''
+
+
+def flow_effect_skeleton(model, params: dict, class_name: str = "FoundReadingFlow",
+                         effect_name: str = "found_reading_flow") -> str:
+    """The module text of an effect plug-in for ``model``'s reading flow terms at
+    ``params``: an effect that adds terms of the port flows to the reading
+    (:meth:`~pneubayes.effects.Effect.reading_flows`) with the found features, each a
+    gain (Pa per the feature's unit) under the user's names; parameters and return as
+    :func:`effect_skeleton`'s."""
+    if not model.has("reading_flow"):
+        raise ValueError("flow_effect_skeleton: the model has no reading flow component (no "
+                         "found term of the port flows in the reading)")
+    features = model.effect("reading_flow").features
+    names = [(f"{f}_gain", flow_gain_name(k), float(params[flow_gain_name(k)]))
+             for k, f in enumerate(features)]
+    lines = "\n".join(f"#   term {k}: r = p + c_{k} F_{k}, F_{k} = {f} "
+                      f"({FLOW_FEATURE_UNITS[f]}); c_{k} = {v:.6g} Pa per "
+                      f"{FLOW_FEATURE_UNITS[f]}"
+                      for k, (f, (_, _, v)) in enumerate(zip(features, names)))
+    return _FLOW_TEMPLATE.format(
+        effect_name=effect_name, class_name=class_name, lines=lines,
+        mapping="\n".join(f"        {m!r}: {t!r}," for m, t, _ in names),
+        defaults="\n".join(f"        {m!r}: {v!r}," for m, _, v in names),
+        gains=[m for m, _, _ in names], features=list(features))
+
+
+__all__ = ["command_effect_skeleton", "effect_skeleton", "flow_effect_skeleton",
+           "play_effect_skeleton", "reading_effect_skeleton", "volume_effect_skeleton"]

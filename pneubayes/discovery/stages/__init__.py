@@ -17,6 +17,7 @@ from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
 from pneubayes.discovery.stages.reading_command_form import ReadingCommandForm
+from pneubayes.discovery.stages.reading_flow_form import ReadingFlowForm
 from pneubayes.discovery.stages.reading_form import ReadingForm
 from pneubayes.discovery.stages.reading_play_form import ReadingPlayForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
@@ -29,7 +30,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
     effects' other forms, then the open forms: the valve driver's clock, the reading's
-    relaxations, plays and lags of the command, the volume's hinges and its
+    relaxations, plays, lags of the command and terms of the port flows, the volume's
+    hinges and its
     friction-held walls, and the closure."""
     s = settings.stages
     stages: list[Stage] = []
@@ -55,6 +57,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(ReadingPlayForm(s.reading_play_min_noise_ratio))
     if s.reading_command_min_noise_ratio:
         stages.append(ReadingCommandForm(s.reading_command_min_noise_ratio))
+    if s.reading_flow_min_noise_ratio:
+        stages.append(ReadingFlowForm(s.reading_flow_min_noise_ratio))
     if s.volume_form_min_noise_ratio:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
     if s.volume_play_min_noise_ratio:
@@ -66,5 +70,6 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 
 __all__ = ["Stage", "CommandClockForm", "MoreSupported", "LastResort", "RunnerUps", "Pairs",
            "OtherForms",
-           "OpenForm", "ReadingForm", "ReadingPlayForm", "ReadingCommandForm", "VolumeForm",
+           "OpenForm", "ReadingForm", "ReadingPlayForm", "ReadingCommandForm", "ReadingFlowForm",
+           "VolumeForm",
            "VolumePlayForm", "default_stages"]

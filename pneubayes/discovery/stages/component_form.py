@@ -83,6 +83,11 @@ class ComponentForm(Stage):
         """The component for the search's kept ``terms`` (by default: with as many)."""
         return self._component(len(terms))
 
+    def _one_term(self, component, k: int):
+        """The component with term ``k`` of ``component`` alone, as its term 0 (by
+        default: one term; its values are laid over from term ``k``'s)."""
+        return self._component(1)
+
     def _search_record(self, search) -> dict:
         """What else of the fitted ``search`` the ledger records (by default nothing)."""
         return {}
@@ -182,9 +187,10 @@ class ComponentForm(Stage):
         if _terms(fit.model.effect(self.component)) < 2 \
                 or not runner.better(fit, state.current)[0]:
             return fit
-        model = fit.model.without(self.component).with_effect(self._component(1))
         alone = []
         for k in range(2):
+            model = fit.model.without(self.component).with_effect(
+                self._one_term(fit.model.effect(self.component), k))
             start = {n: fit.params[n] for n in model.parameter_names if n in fit.params}
             for mine, theirs in zip(self._term_names(0), self._term_names(k)):
                 start[mine] = fit.params[theirs]
