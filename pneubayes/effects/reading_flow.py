@@ -42,9 +42,10 @@ FLOW_FEATURE_UNITS = {"inlet_flow": "g/s", "exhaust_flow": "g/s",
                       "inlet_flow_square": "(g/s)^2", "exhaust_flow_square": "(g/s)^2"}
 #: The most terms one component carries.
 FLOW_MAX_TERMS = 2
-#: A gain's bounds, Pa per feature unit (a port's flows are a few g/s at most on the
-#: library's valves: tens of kPa at the bounds).
-FLOW_GAIN_BOUNDS_PA = (-2.0e4, 2.0e4)
+#: A gain's bounds, Pa per feature unit. A jet's dynamic pressure at a port is large
+#: for the flows of small valves (0.5 g/s through 1 mm^2 is sonic: hundreds of kPa at the
+#: jet's core), so a sensor facing it may read tens of kPa per (g/s)^2.
+FLOW_GAIN_BOUNDS_PA = (-1.0e6, 1.0e6)
 
 
 def flow_gain_name(k: int) -> str:
