@@ -318,21 +318,24 @@ def plot_evidence(searches, path) -> Path:
 
 
 def plot_found_reading_terms(views, path) -> Path:
-    """Each relaxation of the reading against its variable ``p - p_bar``, beside the
-    reading the model misses without it (binned means with standard errors;
-    :func:`pneubayes.discovery.openform.reading_view.reading_views`)."""
+    """Each term of the reading (a relaxation against ``p - p_bar``, a port flow term
+    against its feature) beside the reading the model misses without it (binned means
+    with standard errors; :func:`pneubayes.discovery.openform.reading_view.reading_views`,
+    :func:`pneubayes.discovery.openform.flow_view.flow_views`). A view's variable is
+    drawn in kPa, or in its ``unit`` where it gives an ``x_scale``."""
     plt = _pyplot()
     n = len(views)
     fig, axes = plt.subplots(1, max(n, 1), figsize=(3.4 * max(n, 1), 3.0), squeeze=False)
     for k, v in enumerate(views):
         ax = axes[0, k]
-        x = np.asarray(v["bin_centre"]) / 1e3
+        x = np.asarray(v["bin_centre"]) / v.get("x_scale", 1e3)
         ax.errorbar(x, np.asarray(v["missing_Pa"]) / 1e3,
                     yerr=np.asarray(v["missing_sem_Pa"]) / 1e3, fmt="o", ms=3,
                     color="tab:gray", label="missing without it")
         ax.plot(x, np.asarray(v["term_Pa"]) / 1e3, "-", color="tab:red", label="the term")
         ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_xlabel(f"{v['variable']} (kPa)", fontsize=7)
+        ax.set_xlabel(f"{v['variable']} ({v['unit'] if 'x_scale' in v else 'kPa'})",
+                      fontsize=7)
         ax.set_ylabel("reading, measured - predicted (kPa)", fontsize=7)
         ax.set_title(f"{v['formula']}\nexplains {100 * v['explained_fraction']:.0f} % of "
                      "the missing reading's sum of squares", fontsize=7)

@@ -149,11 +149,9 @@ def test_a_flow_shifted_reading_agrees_with_the_reference_solver(rig, hand):
             {**params, "sensor_time_constant_s": 1e-3}, inputs, rig, 2e5)
 
 
-def _flow_blocks(rig, hand, gain, seed=0, noise_Pa=100.0, n=6001):
-    """A recording whose reading carries ``gain`` x the inlet flow's square (and noise),
-    cut into 500-ms windows and read by the plain model at the true maps."""
-    from pneubayes.discovery.openform.reading_flow import flow_windows
-    from pneubayes.inference.windows import WindowSet
+def _jet_recording(rig, hand, gain, seed=0, noise_Pa=100.0, n=6001):
+    """``(recording, the true maps)``: a recording whose reading carries ``gain`` x the
+    inlet flow's square, and noise."""
     from pneubayes.io.recording import Recording, RecordingMetadata
     from pneubayes.physics.valve import valve_preset
     from pneubayes.simulation import Inputs, SolverConfig, simulate
@@ -169,9 +167,38 @@ def _flow_blocks(rig, hand, gain, seed=0, noise_Pa=100.0, n=6001):
     blank = Recording(md, t, u, np.full(n, 2e5))
     p = simulate(truth, {**base, "reading_flow_gain_0": gain}, Inputs.from_recording(blank),
                  blank.rig(), 2e5, SolverConfig.standard()).pressure_Pa[0]
-    rec = Recording(md, t, u, p + rng.normal(0.0, noise_Pa, n), source="jet.csv")
-    ws = WindowSet([rec], 0.5, 0.5)
-    return flow_windows(ws, Model(), base, SolverConfig.standard())
+    return Recording(md, t, u, p + rng.normal(0.0, noise_Pa, n), source="jet.csv"), base
+
+
+def _flow_blocks(rig, hand, gain, seed=0):
+    """:func:`_jet_recording` cut into 500-ms windows, read by the plain model at the true
+    maps."""
+    from pneubayes.discovery.openform.reading_flow import flow_windows
+    from pneubayes.inference.windows import WindowSet
+    from pneubayes.simulation import SolverConfig
+
+    rec, base = _jet_recording(rig, hand, gain, seed)
+    return flow_windows(WindowSet([rec], 0.5, 0.5), Model(), base, SolverConfig.standard())
+
+
+def test_a_found_flow_terms_view_follows_what_the_model_misses_without_it(rig, hand,
+                                                                           tmp_path):
+    """The report's view of a port flow term at the planted gain: along its feature the
+    term follows the binned reading the model misses without it, and it draws."""
+    from pneubayes.discovery.openform.flow_view import flow_views
+    from pneubayes.plotting import plot_found_reading_terms
+    from pneubayes.simulation import SolverConfig
+
+    rec, base = _jet_recording(rig, hand, 4.0 * GAIN)
+    model = Model().with_effect(ReadingFlow())
+    (view,) = flow_views(model, {**base, "reading_flow_gain_0": 4.0 * GAIN}, [rec], 0.5,
+                         SolverConfig.standard())
+    assert view["unit"] == "(g/s)^2" and view["explained_fraction"] > 0.8
+    np.testing.assert_allclose(view["term_Pa"], view["missing_Pa"], rtol=0,
+                               atol=4.0 * max(view["missing_sem_Pa"]) + 20.0)
+    assert plot_found_reading_terms([view], tmp_path / "f.png").exists()
+    with pytest.raises(ValueError, match="no reading flow component"):
+        flow_views(Model(), base, [rec], 0.5, SolverConfig.standard())
 
 
 def test_the_search_recovers_a_planted_flow_term_and_finds_none_in_noise(rig, hand):
@@ -314,3 +341,4 @@ def test_discovery_finds_a_planted_jet_in_the_reading(tmp_path):
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
     write_discovery(result, recs, tmp_path)
     assert (tmp_path / "found_reading_flow.py").exists()
+    assert (tmp_path / "figures" / "found_reading_terms.png").exists()

@@ -125,12 +125,16 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
                            result.settings.search.solver)
         figs["found_terms"] = plot_found_terms(views,
                                                out / "figures" / "found_terms.png").name
-    if figures and result.model.has("reading_closure"):
+    if figures and (result.model.has("reading_closure") or result.model.has("reading_flow")):
+        from pneubayes.discovery.openform.flow_view import flow_views
         from pneubayes.discovery.openform.reading_view import reading_views
         from pneubayes.plotting import plot_found_reading_terms
 
-        views = reading_views(result.model, result.params, result.train,
-                              result.settings.fit.horizon_s, result.settings.fit.refine_solver)
+        views = [v for has, fn in (("reading_closure", reading_views),
+                                   ("reading_flow", flow_views))
+                 if result.model.has(has)
+                 for v in fn(result.model, result.params, result.train,
+                             result.settings.fit.horizon_s, result.settings.fit.refine_solver)]
         figs["found_reading_terms"] = plot_found_reading_terms(
             views, out / "figures" / "found_reading_terms.png").name
     if figures and doc.get("found_volume_terms"):
