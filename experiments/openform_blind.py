@@ -48,7 +48,11 @@ piston seal whose leak grows with the piston's speed, cases ``z00``-``z09``. Set
 or any case ran): a flexible wall whose give is held by friction (a hysteretic volume), a
 sensor grounded through the solenoid driver's return (its zero moves with the coil's
 current), a solenoid held shut by the inlet's drop (it opens slower into an empty
-chamber) and a sensor port facing the inlet's jet, cases ``k00``-``k09``. Each form is planted
+chamber) and a sensor port facing the inlet's jet, cases ``k00``-``k09``. Sets 11 and 12
+are one form each, on both rigs beside the two controls: a wall with a Bouc-Wen loop
+(seed 1796458249, cases ``m00``-``m03``) and a wall that carries a load, a mass on a
+spring (seed 1796499138, drawn from the clock on 2026-12-05 and recorded before its form
+was written or any case ran; cases ``j00``-``j03``). Each form is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -112,6 +116,7 @@ from pneubayes.bench.forms import (
     Iso6358Ports,
     LaggingPositionSensor,
     LipSealLeak,
+    LoadedWall,
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
@@ -179,6 +184,10 @@ OPENFORM_SEED_10 = 1796445175
 #: the two rigs and the controls): ``date +%s`` at 2026-12-05 08:10:49 UTC, fixed before
 #: its form was written or any case ran.
 OPENFORM_SEED_11 = 1796458249
+#: Set 12's seed (one form, a wall that carries a load, on the two rigs and the
+#: controls): ``date +%s`` at 2026-12-05 19:32:18 UTC, fixed before its form was written
+#: or any case ran.
+OPENFORM_SEED_12 = 1796499138
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -194,12 +203,13 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              9: ("PwmValve", "ZohDriver", "SensorHysteresis", "SealSpeedLeak"),
              10: ("BraidFriction", "SolenoidGroundShift", "PressureHeldSolenoid",
                   "InletJetAtSensor"),
-             11: ("BoucWenWall",)}
+             11: ("BoucWenWall",), 12: ("LoadedWall",)}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
              5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8,
-             9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10, 11: OPENFORM_SEED_11}
+             9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10, 11: OPENFORM_SEED_11,
+             12: OPENFORM_SEED_12}
 SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z",
-              10: "k", 11: "m"}
+              10: "k", 11: "m", 12: "j"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -309,7 +319,9 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
     - InletJetAtSensor (set 10): 1-8 kPa at 0.5 g/s (log-uniform, either sign);
     - BoucWenWall (set 11): an elastic give of 1-10 % of the swept volume over 4.5 bar
       and a loop of 3-15 % of it (both log-uniform), a memory of 20-100 kPa
-      (log-uniform), an exponent of 1-3 (uniform).
+      (log-uniform), an exponent of 1-3 (uniform);
+    - LoadedWall (set 12): a static give of 5-30 % of the swept volume over 4.5 bar, a
+      natural frequency of 6-40 Hz and a damping ratio of 0.05-0.5 (all log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -472,6 +484,12 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
             elastic_compliance_m3_per_Pa=swept * _log_uniform(rng, 0.01, 0.1) / 4.5e5,
             loop_volume_m3=swept * _log_uniform(rng, 0.03, 0.15),
             memory_Pa=_log_uniform(rng, 20e3, 100e3), exponent=rng.uniform(1.0, 3.0))
+    if name == "LoadedWall":
+        cyl = cylinder_preset(cylinder)
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return LoadedWall(compliance_m3_per_Pa=swept * _log_uniform(rng, 0.05, 0.3) / 4.5e5,
+                          natural_frequency_Hz=_log_uniform(rng, 6.0, 40.0),
+                          damping_ratio=_log_uniform(rng, 0.05, 0.5))
     if name == "InletJetAtSensor":
         sign = 1.0 if rng.uniform() < 0.5 else -1.0
         return InletJetAtSensor(shift_Pa=sign * _log_uniform(rng, 1e3, 8e3),

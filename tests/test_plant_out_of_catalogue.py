@@ -29,6 +29,7 @@ from pneubayes.bench.forms import (
     Iso6358Ports,
     LaggingPositionSensor,
     LipSealLeak,
+    LoadedWall,
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
@@ -237,6 +238,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (InletJetAtSensor, {"shift_Pa": float("inf")}, "shift_Pa"),
     (InletJetAtSensor, {"shift_Pa": 1e3, "reference_flow_kg_per_s": 0.0},
      "reference_flow_kg_per_s"),
+    (LoadedWall, {"compliance_m3_per_Pa": -1e-12}, "compliance_m3_per_Pa"),
+    (LoadedWall, {"compliance_m3_per_Pa": 1e-12, "damping_ratio": 0.0}, "damping_ratio"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -277,7 +280,8 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     SpoolLandLeak(conductance_kg_per_s_Pa2=0.0), PwmValve(frequency_Hz=0.0),
     ZohDriver(update_period_s=0.0), SealSpeedLeak(conductance_kg_per_s_Pa2=0.0),
     BraidFriction(compliance_m3_per_Pa=0.0), PressureHeldSolenoid(time_constant_s=0.0),
-    BoucWenWall(elastic_compliance_m3_per_Pa=0.0, loop_volume_m3=0.0)],
+    BoucWenWall(elastic_compliance_m3_per_Pa=0.0, loop_volume_m3=0.0),
+    LoadedWall(compliance_m3_per_Pa=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -1273,3 +1277,47 @@ def test_a_bouc_wen_wall_conserves_a_shut_chamber_s_gas_and_keeps_a_loop(rig):
     elastic = _run(params, (BoucWenWall(elastic_compliance_m3_per_Pa=ce,
                                         loop_volume_m3=0.0),), inputs, rig, p0=p0)
     assert abs(elastic[-1] - p0) < 1.0
+
+
+def test_a_loaded_wall_rings_and_conserves_a_shut_chamber_s_gas(rig):
+    """Valve shut, the piston pushed in and drawn back: an independent three-state
+    reference (p, the give and its rate, solved here) with ``p (V + dV)^kappa``
+    conserved; after the piston stops the give rings at the wall's damped frequency
+    about its static give, which a rigid wall does not."""
+    from scipy.integrate import solve_ivp
+
+    c, f, z = 2e-12, 20.0, 0.1
+    wall = LoadedWall(compliance_m3_per_Pa=c, natural_frequency_Hz=f, damping_ratio=z)
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    t = np.arange(4001) * 1e-4
+    x = np.where(t < 0.05, 0.6 * STROKE - 0.3 * STROKE * np.sin(np.pi * t / 0.1) ** 2,
+                 0.3 * STROKE)  # pushed in over 50 ms, then held
+    inputs = Inputs(t, np.zeros(t.size), x, np.full(t.size, P_SUP))
+    p0 = 2e5
+    got = _run(params, (wall,), inputs, rig, p0=p0)
+    area, kappa, w = np.pi / 4 * BORE**2, rig.gas.heat_capacity_ratio, 2 * np.pi * f
+
+    def position(tau):
+        if tau >= 0.05:
+            return 0.3 * STROKE, 0.0
+        return (0.6 * STROKE - 0.3 * STROKE * np.sin(np.pi * tau / 0.1) ** 2,
+                -0.3 * STROKE * np.pi / 0.1 * np.sin(2 * np.pi * tau / 0.1))
+
+    def rhs(tau, state):
+        p, dv, rate = state
+        xx, xdot = position(tau)
+        vol = 1.5e-7 + area * xx + dv
+        return [-kappa * p * (area * xdot + rate) / vol, rate,
+                w * w * (c * (p - P_ATM) - dv) - 2 * z * w * rate]
+
+    ref = solve_ivp(rhs, (0, t[-1]), [p0, c * (p0 - P_ATM), 0.0], t_eval=t, rtol=1e-10,
+                    atol=[1e-6, 1e-18, 1e-15], method="LSODA", max_step=1e-4)
+    np.testing.assert_allclose(got, ref.y[0], rtol=2e-5)
+    vols = 1.5e-7 + area * np.array([position(a)[0] for a in t]) + ref.y[1]
+    invariant = ref.y[0] * vols ** kappa
+    np.testing.assert_allclose(invariant, invariant[0], rtol=1e-6)
+    late = got[t > 0.06] - np.mean(got[t > 0.3])
+    crossings = np.count_nonzero(np.diff(np.sign(late)) != 0)
+    assert crossings >= 4  # it rings (20 Hz, lightly damped) after the piston stops
+    rigid = _run(params, (), inputs, rig, p0=p0)
+    assert np.ptp(rigid[t > 0.06]) < 1.0

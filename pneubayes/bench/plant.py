@@ -63,6 +63,7 @@ from pneubayes.bench.forms import (
     InletFlowLimiter,
     Iso6358Ports,
     LipSealLeak,
+    LoadedWall,
     LowReynoldsPorts,
     MeterOutThrottle,
     PilotInletValve,
@@ -155,7 +156,9 @@ K_BF_C, K_BF_W = 105, 106
 K_PH_TAU, K_PH_K = 107, 108
 # the eleventh set's form
 K_BW_CE, K_BW_VH, K_BW_Z, K_BW_N = 109, 110, 111, 112
-N_K = 113
+# the twelfth set's form
+K_LW_C, K_LW_W, K_LW_Z = 113, 114, 115
+N_K = 116
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
@@ -163,8 +166,8 @@ MO_LAMINAR_DROP_PA = 1000.0
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
 # (SpringReturnSpool), 5 held by the inlet's drop (PressureHeldSolenoid).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF, L_IBW) = range(23)
-N_L = 23
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF, L_IBW, L_ILW) = range(24)
+N_L = 24
 
 
 @njit(cache=True)
@@ -503,6 +506,9 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         vol += P[K_BF_C] * y[L[L_IBF]]
     if L[L_IBW] >= 0:  # a Bouc-Wen wall: elastic, and its hysteretic part z
         vol += P[K_BW_CE] * (p - p_atm) + P[K_BW_VH] * y[L[L_IBW]] / P[K_BW_Z]
+    if L[L_ILW] >= 0:  # a loaded wall: its give and the give's rate (states)
+        vol += y[L[L_ILW]]
+        vdot += y[L[L_ILW] + 1]
     # inflow at its source's temperature, outflow at the chamber's (T = T_s without a
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
@@ -535,6 +541,11 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         dy[L[L_IBF]] = slide * dp
     if L[L_IBW] >= 0:
         dy[L[L_IBW]] = gate * dp
+    if L[L_ILW] >= 0:  # the give's mass on its spring, driven by the gauge pressure
+        w = P[K_LW_W]
+        dy[L[L_ILW]] = y[L[L_ILW] + 1]
+        dy[L[L_ILW] + 1] = (w * w * (P[K_LW_C] * (p - p_atm) - y[L[L_ILW]])
+                            - 2.0 * P[K_LW_Z] * w * y[L[L_ILW] + 1])
     if heat > 0:
         dy[L[L_IT]] = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
     return p_sensed, m_inlet
@@ -787,6 +798,10 @@ def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> Non
     if bw is not None and (bw.elastic_compliance_m3_per_Pa > 0 or bw.loop_volume_m3 > 0):
         P[K_BW_CE], P[K_BW_VH] = bw.elastic_compliance_m3_per_Pa, bw.loop_volume_m3
         P[K_BW_Z], P[K_BW_N] = bw.memory_Pa, bw.exponent
+    loaded = by.get(LoadedWall)
+    if loaded is not None and loaded.compliance_m3_per_Pa > 0:
+        P[K_LW_C], P[K_LW_Z] = loaded.compliance_m3_per_Pa, loaded.damping_ratio
+        P[K_LW_W] = 2.0 * math.pi * loaded.natural_frequency_Hz
     held = by.get(PressureHeldSolenoid)
     if held is not None and held.time_constant_s > 0:
         if L[L_SPOOL] != 0:
@@ -995,6 +1010,12 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 1
         atol.append(cfg.atol_Pa)
         scale.append(1e5)
+    if P[K_LW_C] > 0:  # a loaded wall's give (m^3) and its rate (m^3/s): at rest
+        L[L_ILW] = n
+        n += 2
+        v_scale = P[K_LW_C] * 1e5
+        atol += [cfg.atol_Pa * P[K_LW_C], cfg.atol_Pa * P[K_LW_C] * P[K_LW_W]]
+        scale += [v_scale, v_scale * P[K_LW_W]]
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
@@ -1028,6 +1049,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[L_IBF]] = p0 - su.P[K_PATM]  # the wall stuck where the pressure starts
     if L[L_IC] >= 0:  # the creeping wall in equilibrium with the initial pressure
         y[L[L_IC]] = su.P[K_CW_C] * (p0 - su.P[K_PATM])
+    if L[L_ILW] >= 0:  # the loaded wall at rest at its static give (its rate 0)
+        y[L[L_ILW]] = su.P[K_LW_C] * (p0 - su.P[K_PATM])
     if L[L_NSEG] > 0:
         y[L[L_ITP]:L[L_ITP] + L[L_NSEG]] = p0  # tube at rest at the chamber's pressure
     return y

@@ -24,7 +24,8 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 :class:`PwmValve`, :class:`ZohDriver`, :class:`SensorHysteresis`,
 :class:`SealSpeedLeak`; the tenth: :class:`BraidFriction`, :class:`SolenoidGroundShift`,
 :class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`; the eleventh, a check of the
-volume's plays on a loop that is not one: :class:`BoucWenWall`).
+volume's plays on a loop that is not one: :class:`BoucWenWall`; the twelfth, a wall that
+carries a load: :class:`LoadedWall`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -56,6 +57,7 @@ from pneubayes.bench.forms.chamber import (
     EnergisedSealLeak,
     GasAccumulator,
     LipSealLeak,
+    LoadedWall,
     PistonSealBypass,
     ReliefValve,
     ScoredBarrelLeak,
@@ -116,7 +118,8 @@ FORMS: dict[str, type[PlantForm]] = {
                                   QuickExhaustValve, GasAccumulator, SpoolLandLeak,
                                   SensorThermalShock, PwmValve, ZohDriver, SensorHysteresis,
                                   SealSpeedLeak, BraidFriction, SolenoidGroundShift,
-                                  PressureHeldSolenoid, InletJetAtSensor, BoucWenWall)
+                                  PressureHeldSolenoid, InletJetAtSensor, BoucWenWall,
+                                  LoadedWall)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -329,6 +332,9 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
         return BoucWenWall(elastic_compliance_m3_per_Pa=0.05 * swept / 450_000.0,
                            loop_volume_m3=0.05 * swept, memory_Pa=50e3)
+    if name == "LoadedWall":
+        swept = math.pi / 4.0 * cyl.bore_m**2 * cyl.stroke_m
+        return LoadedWall(compliance_m3_per_Pa=0.1 * swept / 450_000.0)
     if name == "PressureHeldSolenoid":
         return PressureHeldSolenoid(time_constant_s=5e-4, slowing_per_atm=1.5)
     if name == "InletJetAtSensor":

@@ -313,3 +313,26 @@ class BoucWenWall(PlantForm):
         if not (isinstance(self.exponent, (int, float)) and 1.0 <= self.exponent <= 8.0):
             raise ValueError(f"BoucWenWall.exponent must be in [1, 8], got "
                              f"{self.exponent!r}")
+
+
+@dataclass(frozen=True)
+class LoadedWall(PlantForm):
+    """A flexible part of the chamber's wall that carries a load (a soft finger's skin
+    with its payload, a bellows pushing a sprung mass): its give ``dV`` is a mass on a
+    spring, driven by the gauge pressure, so the volume lags the pressure and rings::
+
+        dV'' + 2 z w dV' + w^2 dV = w^2 C (p - P_atm),   V = V_0 + dV,
+
+    ``C = compliance_m3_per_Pa`` (the static give per pascal), ``w = 2 pi
+    natural_frequency_Hz``, ``z = damping_ratio``; the wall starts at rest at its static
+    give under the initial pressure. ``compliance_m3_per_Pa = 0`` is a rigid wall.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    compliance_m3_per_Pa: float
+    natural_frequency_Hz: float = 15.0
+    damping_ratio: float = 0.2
+
+    def __post_init__(self):
+        _non_negative(self, "compliance_m3_per_Pa")
+        _positive(self, "natural_frequency_Hz", "damping_ratio")
