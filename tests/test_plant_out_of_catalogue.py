@@ -134,7 +134,7 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "SensorThermalShock", "PwmValve", "ZohDriver",
                                      "SensorHysteresis", "SealSpeedLeak", "BraidFriction",
                                      "SolenoidGroundShift", "PressureHeldSolenoid",
-                                     "InletJetAtSensor", "BoucWenWall"}
+                                     "InletJetAtSensor", "BoucWenWall", "LoadedWall"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
