@@ -341,24 +341,24 @@ class Model:
         """``(gains (B, K) in Pa per feature unit, the K feature names)``: the terms of the
         ports' mass flows in the reading (:mod:`pneubayes.simulation.reading_flow`) of
         every effect that has them, side by side (``K`` 0 without one)."""
-        theta = self.as_matrix(params)
-        names = self.parameter_names
-        parts = [e.reading_flows({n: theta[:, names.index(n)] for n in e.parameter_names()})
-                 for e in self.effects if e.relaxes_reading]
-        parts = [x for x in parts if x is not None]
+        theta, parts = self._reading_parts(params, "reading_flows")
         if not parts:
             return np.zeros((theta.shape[0], 0)), ()
         return (np.concatenate([g for g, _ in parts], axis=1),
                 tuple(f for _, feats in parts for f in feats))
 
-    def _reading_maps(self, params, method: str) -> tuple[np.ndarray, np.ndarray]:
-        """Every reading effect's ``method`` pairs side by side (an effect that returns
-        None has none of that kind)."""
+    def _reading_parts(self, params, method: str) -> tuple[np.ndarray, list]:
+        """``(theta, what each reading effect's method returns)`` (an effect that returns
+        None has none of that kind and is left out)."""
         theta = self.as_matrix(params)
         names = self.parameter_names
         parts = [getattr(e, method)({n: theta[:, names.index(n)] for n in e.parameter_names()})
                  for e in self.effects if e.relaxes_reading]
-        parts = [x for x in parts if x is not None]
+        return theta, [x for x in parts if x is not None]
+
+    def _reading_maps(self, params, method: str) -> tuple[np.ndarray, np.ndarray]:
+        """Every reading effect's ``method`` pairs side by side."""
+        theta, parts = self._reading_parts(params, method)
         if not parts:
             return np.zeros((theta.shape[0], 0)), np.ones((theta.shape[0], 0))
         return (np.concatenate([a for a, _ in parts], axis=1),

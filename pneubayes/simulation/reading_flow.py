@@ -79,6 +79,7 @@ class PortFlows:
         self.samples = np.unique(self.idx)
         self.where = np.searchsorted(self.samples, self.idx)
         self._spools: dict[bytes, np.ndarray] = {}
+        self._ports: dict[bytes, tuple] = {}
 
     def _spool(self, slots_row: np.ndarray) -> np.ndarray:
         key = slots_row[SPOOL_SLOTS].tobytes()
@@ -87,24 +88,23 @@ class PortFlows:
             self._spools[key] = spool_at(t, self.inputs, slots_row)[self.where]
         return self._spools[key]
 
-    def areas(self, slots_row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The ports' areas (m^2) at the windows' samples, each ``(W, L)``."""
-        ue = self.inputs.exhaust_command
-        return port_areas(slots_row, self._spool(slots_row),
-                          None if ue is None else np.asarray(ue, np.float64)[self.idx])
+    def ports(self, slots_row: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(inlet area, exhaust area, supply)`` at the windows' samples (m^2, m^2, Pa; each
+        ``(W, L)``) for one parameter set, computed once per set."""
+        key = slots_row.tobytes()
+        if key not in self._ports:
+            ue = self.inputs.exhaust_command
+            a_in, a_ex = port_areas(slots_row, self._spool(slots_row),
+                                    None if ue is None else np.asarray(ue, np.float64)[self.idx])
+            p_nom = self.rig.supply_pressure_Pa
+            ps = np.asarray(self.inputs.supply_pressure_Pa, dtype=np.float64)[self.idx]
+            self._ports[key] = (a_in, a_ex, p_nom + slots_row[S["supply_gain"]] * (ps - p_nom))
+        return self._ports[key]
 
-    def supply(self, slots_row: np.ndarray) -> np.ndarray:
-        """The supply the valve sees at the windows' samples (Pa), ``(W, L)``."""
-        p_nom = self.rig.supply_pressure_Pa
-        ps = np.asarray(self.inputs.supply_pressure_Pa, dtype=np.float64)[self.idx]
-        return p_nom + slots_row[S["supply_gain"]] * (ps - p_nom)
-
-    def flows(self, slots_row: np.ndarray, pressure_Pa, areas=None, supply=None
-              ) -> tuple[np.ndarray, np.ndarray]:
+    def flows(self, slots_row: np.ndarray, pressure_Pa) -> tuple[np.ndarray, np.ndarray]:
         """``(q_in, q_ex)`` (kg/s) at the chamber pressures ``pressure_Pa`` (``(W, L)``,
         or ``(W,)`` at the windows' first samples)."""
-        a_in, a_ex = self.areas(slots_row) if areas is None else areas
-        p_sup = self.supply(slots_row) if supply is None else supply
+        a_in, a_ex, p_sup = self.ports(slots_row)
         p = np.asarray(pressure_Pa, dtype=np.float64)
         if p.ndim == 1:
             a_in, a_ex, p_sup = a_in[:, 0], a_ex[:, 0], p_sup[:, 0]
@@ -127,11 +127,10 @@ def flow_reading(port_flows: PortFlows, slots, pressure_Pa, gains, features
         if not np.any(g[b] != 0.0):
             continue
         row = slots[b]
-        areas, supply = port_flows.areas(row), port_flows.supply(row)
         ok = np.isfinite(p[b]) & (p[b] > 0.0)  # (a failed simulation's NaN stays NaN)
         pb = np.where(ok, p[b], 1.0e5)
         dp = SLOPE_STEP * pb
-        at = [port_flows.flows(row, pb + s * dp, areas, supply) for s in (0.0, 1.0, -1.0)]
+        at = [port_flows.flows(row, pb + s * dp) for s in (0.0, 1.0, -1.0)]
         out[b][~ok], slope[b][~ok] = np.nan, np.nan
         for c, name in zip(g[b], features):
             if c == 0.0:

@@ -433,8 +433,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "from sample to sample; its independent reference is the bench "
                          "plant's driver (pneubayes.bench.forms.ZohDriver, PwmValve; "
                          "tests/test_command_clock.py)")
-    flow_gains, flow_features = (a if i else a[0] for i, a in
-                                 enumerate(model.reading_flows(params)))
+    flow_gains, flow_features = model.reading_flows(params)
+    flow_gains = flow_gains[0]
     if len(flow_features):
         _check_flow_reading(model, params, sl, calibrated, inputs)
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
@@ -498,11 +498,11 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     i_pass = y.size - len(passes)
     flows_pending = any(code == FEATURE_BY_NAME["net_flow_lag"].code for code, _ in passes)
     out[0] = y[read]
+    shifted = t + delay
     spools = np.empty(t.size)  # the spool (the held command without a lag) at the samples
     lagged = (sl[S["spool_time_constant_s"]] > 0 or sl[S["spool_fall_time_constant_s"]] > 0
               or w_s > 0)
-    spools[0] = y[2] if lagged else held(int(np.searchsorted(shifted_at := t + delay, t[0],
-                                                             side="right") - 1))
+    spools[0] = y[2]  # (the spool starts at the held command, lag or not)
     # a reading closure's p_bar_k: the last states, following the (calibrated) reading
     n_main = y.size
     gains, taus = (a[0] for a in model.reading_relaxations(params))
@@ -533,7 +533,6 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         seg = t[m + 1] - t[m]
         return (x[m], rig.bore_area_m2 * (x[m + 1] - x[m]) / seg, early[m], seg, ps[m],
                 ps[m + 1])
-    shifted = t + delay
     # a dead-time window's extreme changes where a changed value leaves it
     changed = np.concatenate(([False], u[1:] != u[:-1]))
     windows = [(d, shifted + d) for d in dead_times(sl)]
@@ -577,7 +576,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         out[k + 1] = y[read]
         rel[k + 1] = y[n_main:]
         spools[k + 1] = y[2] if lagged else held(
-            int(np.searchsorted(shifted_at, tb, side="right") - 1))
+            int(np.searchsorted(shifted, tb, side="right") - 1))
     if calibrated:
         out = p_atm + cal_g * (out - p_atm) + curv * ((out - p_atm) / 1e5) ** 2 + cal_o
     read = out.copy()  # a reading play follows the samples (linear between them)

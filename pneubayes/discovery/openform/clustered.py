@@ -49,4 +49,16 @@ def last_column_fit(cols, y, ok, windows, total: float) -> tuple[float, float, f
     return coef, explained, coef / se if se > 0 else np.inf
 
 
-__all__ = ["last_column_fit"]
+def stacked_residual(residuals) -> tuple[np.ndarray, np.ndarray]:
+    """``(y, windows)``: the recordings' window residuals (each ``(W, L - 1)``) flattened
+    into one vector in order, and each sample's window (the clusters: windows numbered
+    across the recordings)."""
+    y = np.concatenate([np.asarray(r, dtype=np.float64).reshape(-1) for r in residuals])
+    sizes = [np.shape(r) for r in residuals]
+    first = np.cumsum([0] + [w for w, _ in sizes[:-1]])
+    windows = np.concatenate([np.repeat(np.arange(w) + f, n)
+                              for f, (w, n) in zip(first, sizes)])
+    return y, windows
+
+
+__all__ = ["last_column_fit", "stacked_residual"]

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from pneubayes.discovery.openform.clustered import last_column_fit
+from pneubayes.discovery.openform.clustered import last_column_fit, stacked_residual
 from pneubayes.effects.reading_closure import READING_MAX_TERMS, TIME_CONSTANT_BOUNDS_S
 from pneubayes.simulation.reading_closure import history_low_pass, relaxed_reading
 from pneubayes.simulation.reading_command import command_lag
@@ -250,11 +250,7 @@ class ReadingSearch:
         """Search the windows' residual, one :class:`ReadingWindows` per recording."""
         taus = self._validate(blocks)
         blocks = list(blocks)
-        y = np.concatenate([np.asarray(b.residual_Pa, dtype=np.float64).reshape(-1)
-                            for b in blocks])
-        sizes = [np.shape(b.residual_Pa) for b in blocks]
-        windows = np.concatenate([np.repeat(np.arange(w) + sum(v[0] for v in sizes[:i]), n)
-                                  for i, (w, n) in enumerate(sizes)])
+        y, windows = stacked_residual([b.residual_Pa for b in blocks])
         ok = np.isfinite(y)
         total = float(y[ok] @ y[ok])
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pneubayes.discovery.openform.clustered import last_column_fit
+from pneubayes.discovery.openform.clustered import last_column_fit, stacked_residual
 from pneubayes.discovery.openform.reading import ReadingWindows, reading_windows
 from pneubayes.effects.reading_flow import FLOW_FEATURE_UNITS, FLOW_FEATURES, FLOW_MAX_TERMS
 from pneubayes.simulation.reading_flow import PortFlows, feature_values
@@ -139,11 +139,7 @@ class FlowSearch:
         """Search the windows' residual, one :class:`FlowWindows` per recording."""
         feats = self._validate(blocks)
         blocks = list(blocks)
-        y = np.concatenate([np.asarray(b.windows.residual_Pa, np.float64).reshape(-1)
-                            for b in blocks])
-        sizes = [np.shape(b.windows.residual_Pa) for b in blocks]
-        windows = np.concatenate([np.repeat(np.arange(w) + sum(v[0] for v in sizes[:i]), n)
-                                  for i, (w, n) in enumerate(sizes)])
+        y, windows = stacked_residual([b.windows.residual_Pa for b in blocks])
         raw = {n: np.concatenate([b.column(n) for b in blocks]) for n in feats}
         ok = np.isfinite(y) & np.all([np.isfinite(x) for x in raw.values()], axis=0)
         cols = {n: np.where(ok, x, 0.0) for n, x in raw.items()}
