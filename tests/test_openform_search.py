@@ -318,6 +318,32 @@ def test_the_library_is_typed_and_bounded():
     assert distinct_columns(x, 1e-9).tolist() == [True, False, True]
 
 
+def test_distinct_columns_across_blocks():
+    """Duplicates (a multiple, a sign flip, one within the tolerance) kept out across the
+    blocks the cosines are taken in, zero and non-finite columns left out; the same
+    columns a column-by-column check against every kept column keeps."""
+    from pneubayes.discovery.openform.features import DISTINCT_BLOCK
+
+    rng = np.random.default_rng(11)
+    m = 2 * DISTINCT_BLOCK + 37
+    x = rng.normal(size=(120, m))
+    x[:, DISTINCT_BLOCK + 5] = -4.0 * x[:, 3]  # in the next block
+    x[:, m - 1] = 0.5 * x[:, DISTINCT_BLOCK + 9] + 1e-7 * x[:, 0]  # within 1e-9 of cos 1
+    x[:, 40] = 0.0
+    x[7, 41] = np.nan
+    x[:, 42] = 2.0 * x[:, 40]  # the multiple of a zero column is zero
+    keep = distinct_columns(x, 1e-9)
+    kept = []
+    for j in range(m):
+        if not np.all(np.isfinite(x[:, j])) or not np.any(x[:, j]):
+            continue
+        unit = x[:, j] / np.linalg.norm(x[:, j])
+        if all(abs(x[:, k] @ unit) <= (1.0 - 1e-9) * np.linalg.norm(x[:, k]) for k in kept):
+            kept.append(j)
+    assert np.nonzero(keep)[0].tolist() == kept
+    assert not keep[[DISTINCT_BLOCK + 5, m - 1, 40, 41, 42]].any() and keep[3]
+
+
 def test_an_excluded_family_is_left_out_of_the_library():
     """``exclude``: the planted hinge's family is not searched (its columns gone, not
     found), the rest of the library unchanged."""

@@ -255,6 +255,10 @@ def candidate_terms(signals_list: Sequence[dict],
     return out
 
 
+#: Columns whose cosines :func:`distinct_columns` takes from one matrix product.
+DISTINCT_BLOCK = 256
+
+
 def design_matrix(candidates: Sequence[Candidate], signals: dict) -> np.ndarray:
     """The candidates' values on one recording's signals, ``(M, n_candidates)``."""
     return np.column_stack([c.evaluate(signals) for c in candidates])
@@ -263,6 +267,10 @@ def design_matrix(candidates: Sequence[Candidate], signals: dict) -> np.ndarray:
 def distinct_columns(x: np.ndarray, duplicate_tolerance: float) -> np.ndarray:
     """Which columns of ``x`` to keep: not zero, and not a multiple of an earlier kept
     column (``|cos| > 1 - duplicate_tolerance`` between the uncentred columns).
+
+    The cosines come a block of columns at a time from one matrix product (a column's
+    cosines against every later column), so the cost is the Gram matrix's, not one pass
+    over the rows per column.
 
     Parameters
     ----------
@@ -277,10 +285,13 @@ def distinct_columns(x: np.ndarray, duplicate_tolerance: float) -> np.ndarray:
     norms = np.linalg.norm(x, axis=0)
     keep = (norms > 0) & np.all(np.isfinite(x), axis=0)
     unit = np.where(keep, x / np.where(norms > 0, norms, 1.0), 0.0)
-    kept: list[int] = []
-    for j in np.nonzero(keep)[0]:
-        if kept and np.max(np.abs(unit[:, kept].T @ unit[:, j])) > 1.0 - duplicate_tolerance:
-            keep[j] = False
-        else:
-            kept.append(j)
+    same = 1.0 - duplicate_tolerance
+    m = keep.size
+    for start in range(0, m, DISTINCT_BLOCK):
+        stop = min(start + DISTINCT_BLOCK, m)
+        cos = np.abs(unit[:, start:stop].T @ unit[:, start:])  # (block, m - start)
+        for i in range(stop - start):
+            if keep[start + i]:  # kept: every later column this close is a duplicate
+                later = cos[i, i + 1:] > same
+                keep[start + i + 1:] &= ~later
     return keep
