@@ -44,7 +44,7 @@ def pressure_behind_reading_Pa(reading_Pa, atmospheric_Pa, offset_Pa, gain, curv
             np.maximum(disc, 0.0))), np.nan)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def sensor_reading_scalar(pressure_Pa, atmospheric_Pa, offset_Pa, gain):
     """:func:`sensor_reading_Pa` for one pressure, ``gain`` = ``(g, k)``."""
     y = pressure_Pa - atmospheric_Pa
@@ -52,7 +52,7 @@ def sensor_reading_scalar(pressure_Pa, atmospheric_Pa, offset_Pa, gain):
     return atmospheric_Pa + g * y + k * (y / CURVATURE_SCALE_PA) ** 2 + offset_Pa
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def pressure_behind_reading_scalar(reading_Pa, atmospheric_Pa, offset_Pa, gain):
     """:func:`pressure_behind_reading_Pa` for one reading, ``gain`` = ``(g, k)``."""
     rr = reading_Pa - atmospheric_Pa - offset_Pa
@@ -65,7 +65,7 @@ def pressure_behind_reading_scalar(reading_Pa, atmospheric_Pa, offset_Pa, gain):
     return atmospheric_Pa + 2.0 * rr / (g + math.sqrt(disc))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def reading_slope_scalar(pressure_Pa, atmospheric_Pa, gain):
     """d(reading)/dp at one pressure, ``gain`` = ``(g, k)``: g + 2 k y / (1 bar)^2."""
     g, k = gain
@@ -84,7 +84,7 @@ def reading_zero_Pa(time_s, offset_Pa, rate_Pa_per_s, warm_up_Pa, warm_up_time_c
     return zero
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def reading_zero_scalar(zero, t):
     """:func:`reading_zero_Pa` at one time ``t`` (s) for ``zero = (o, a, b, tau)``."""
     o, a, b, tau = zero
@@ -93,7 +93,7 @@ def reading_zero_scalar(zero, t):
     return o + a * t
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def reading_zero_rate_scalar(zero, t):
     """The zero's rate do/dt at time ``t`` (Pa/s) for ``zero = (o, a, b, tau)``."""
     _, a, b, tau = zero

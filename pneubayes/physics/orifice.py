@@ -24,7 +24,7 @@ from pneubayes.physics.gas import GasConstants
 _SQRT_G_FLOOR = 1e-12
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def z_terms(p_up, p_down, alpha, beta, theta, kappa):
     """Eq. 3 for ``p_up >= p_down``: ``(z, sqrt_g, dg_dr, r)``.
 
@@ -42,7 +42,7 @@ def z_terms(p_up, p_down, alpha, beta, theta, kappa):
     return alpha * p_up * sg, sg, dg_dr, r
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def z_slopes(p_up, sg, dg_dr, r, alpha, beta, kappa, dp_floor):
     """Partials ``(dz/dp_up, dz/dp_down)`` from :func:`z_terms`' output.
 
@@ -61,7 +61,7 @@ def z_slopes(p_up, sg, dg_dr, r, alpha, beta, kappa, dp_floor):
     return alpha * sg - r * dz_dpd, dz_dpd
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def flow_terms(p_up, p_down, alpha, beta, theta, kappa):
     """Signed eq. 2, ``(f, sqrt_g, dg_dr, r, reversed)``: f > 0 from p_up to p_down.
 
@@ -74,7 +74,7 @@ def flow_terms(p_up, p_down, alpha, beta, theta, kappa):
     return -z, sg, dg, r, True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def flow_slopes(p_up, p_down, sg, dg_dr, r, rev, alpha, beta, kappa, dp_floor):
     """Partials ``(df/dp_up, df/dp_down)`` of the signed flow from :func:`flow_terms`."""
     if not rev:

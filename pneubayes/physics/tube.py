@@ -64,7 +64,7 @@ _FRE_SLOPE = (_churchill_fre_array(np.exp(_LN_RE + 1e-6))
               - _churchill_fre_array(np.exp(_LN_RE - 1e-6))) / 2e-6 * _LN_STEP
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _table_cell(re):
     """The table interval of ``re`` (>= 1000): its first point and the position in it."""
     x = (math.log(re) - _LN_RE0) / _LN_STEP
@@ -72,7 +72,7 @@ def _table_cell(re):
     return i, x - i
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _table_value(i, t):
     """The cubic Hermite of the table at position ``t`` in interval ``i``."""
     t2 = t * t

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def gompertz_scalar(cmd, offset, a, b, c, d):
     """Eq. 11 for one command value, m^2."""
     return offset + a * math.exp(-b * math.exp(-c * (cmd + d)))
@@ -37,7 +37,7 @@ def gompertz_partials(command_V, offset_m2, a_m2, b, c_per_V, d_V):
                      abe * c_per_V), axis=-1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def switching_scalar(u, inlet_open_m2, exhaust_open_m2):
     """A switching (on/off) valve's port areas for opening ``u`` (0 closed, 1 open), m^2:
     the inlet ``A_in clip(u, 0, 1)``, the exhaust ``A_ex clip(1 - u, 0, 1)``."""
@@ -51,7 +51,7 @@ def switching_areas(u, inlet_open_m2, exhaust_open_m2):
     return inlet_open_m2 * f, exhaust_open_m2 * (1.0 - f)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def table_scalar(u, commands, areas, n):
     """A tabulated map's area at command ``u``, m^2: linear between the first ``n``
     points ``(commands[k], areas[k])`` (commands increasing), held flat beyond the ends.

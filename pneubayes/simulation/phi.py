@@ -9,7 +9,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def phi123(z):
     """phi_k(z) = (e^z - sum_{j<k} z^j/j!) / z^k for k = 1, 2, 3; stable for all z <= ~0."""
     if abs(z) < 0.1:
