@@ -12,7 +12,8 @@ all columns at once:
 
 - the library is orthogonalised incrementally: after each selection every column loses
   its projection on the newly selected orthogonal function, which is the modified
-  Gram-Schmidt sequence pysindy applies to each column afresh;
+  Gram-Schmidt sequence pysindy applies to each column afresh, done in place as one
+  BLAS rank-1 update (no library-sized temporary);
 - every column's coefficient ``<q_m, y> / <q_m, q_m>`` and error reduction
   ``g_m^2 <q_m, q_m> / <y, y>`` in one product;
 - no full least-squares start and no condition number unless ``kappa`` is set.
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 from pysindy import FROLS
+from scipy.linalg.blas import dger
 from sklearn.linear_model import ridge_regression
 
 _DEPENDENT = "Trying to orthogonalize linearly dependent columns created NaNs"
@@ -75,7 +77,7 @@ class _Forward:
 
     def __init__(self, x: np.ndarray):
         self.x = x
-        self.qs = np.array(x, dtype=x.dtype, order="F", copy=True)
+        self.qs = np.array(x, dtype=x.dtype, order="C", copy=True)
         self.order: list[int] = []
         self.g: list[float] = []
         self.a = np.zeros((x.shape[1], x.shape[1]), dtype=x.dtype)
@@ -84,16 +86,25 @@ class _Forward:
     def select(self, y: np.ndarray) -> float:
         """Pick the next column (largest error reduction); returns its reduction."""
         i = len(self.order)
+        real = not np.iscomplexobj(self.qs)
         if i:  # remove every column's projection on the newest orthogonal function
             qn = self.q[-1]
-            self.qs -= np.outer(qn, (np.conj(qn) @ self.qs) / _norm2(qn))
-        norm2 = np.real(np.einsum("ij,ij->j", np.conj(self.qs), self.qs))
+            c = (qn @ self.qs if real else np.conj(qn) @ self.qs) / _norm2(qn)
+            if real and self.qs.dtype == np.float64 and self.qs.flags.c_contiguous:
+                # in place on the transpose (Fortran order), no (n, m) temporary
+                self.qs = dger(-1.0, c, qn, a=self.qs.T, overwrite_a=True).T
+            else:
+                self.qs -= np.outer(qn, c)
+        qs = self.qs
+        norm2 = (np.einsum("ij,ij->j", qs, qs) if real
+                 else np.real(np.einsum("ij,ij->j", np.conj(qs), qs)))
         live = np.ones(self.x.shape[1], dtype=bool)
         live[self.order] = False
         if np.any(norm2[live] == 0) or not np.all(np.isfinite(norm2[live])):
             raise ValueError(_DEPENDENT)
         g = np.zeros(self.x.shape[1], dtype=np.result_type(self.x, y))
-        g[live] = (np.conj(self.qs[:, live]).T @ y) / norm2[live]
+        proj = qs.T @ y if real else np.conj(qs).T @ y
+        g[live] = proj[live] / norm2[live]
         err = np.zeros(self.x.shape[1])
         err[live] = np.abs(g[live]) ** 2 * norm2[live] / np.real(np.vdot(y, y))
         best = int(np.argmax(err))
@@ -102,7 +113,7 @@ class _Forward:
         self.a[i, i] = 1.0
         self.order.append(best)
         self.g.append(g[best])
-        self.q.append(self.qs[:, best].copy())
+        self.q.append(qs[:, best].copy())
         return float(err[best])
 
     def coefficients(self, alpha: float, ridge_kw: dict) -> np.ndarray:
