@@ -114,6 +114,64 @@ def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
     assert "explains" not in text
 
 
+def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
+    """``rounds.max_seconds``: spent during a round's first stage, the next stage does
+    not start, the round ends with what it had, no further round starts, and the ledger
+    and the report say where the loop stopped; spent before round 1, the base model is
+    the result. A budget that is not a finite number of seconds >= 0 is refused."""
+    import pneubayes.discovery.loop as loop_module
+    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.settings import RoundSettings
+    from pneubayes.discovery.stages.base import Stage
+
+    paths, _ = _bench(tmp_path / "bench", [], seed=31)
+    recs = [read_recording(p) for p in paths]
+    late = {"by_s": 0.0}
+    real_clock = loop_module.time.perf_counter
+
+    class _Clock:
+        @staticmethod
+        def perf_counter():
+            return real_clock() + late["by_s"]
+
+    monkeypatch.setattr(loop_module, "time", _Clock)
+    ran = []
+
+    class _Spend(Stage):
+        name = "spend"
+        reshapes = True  # runs whatever the round's search supported
+
+        def run(self, state, runner):
+            ran.append(self.name)
+            late["by_s"] = 1e6  # the budget is spent while this stage runs
+
+    class _Never(_Spend):
+        name = "never"
+
+    settings = _settings(rounds={"max_seconds": 3600.0})
+    d = Discovery(settings, None, log=lambda m: None, stages=[_Spend(), _Never()]).fit(recs)
+    doc = d.result_.to_dict()
+    stops = [e for e in doc["ledger"] if e["action"] == "time budget"]
+    assert ran == ["spend"]
+    assert len(stops) == 1 and stops[0]["where"] == "round 1, before stage never"
+    assert sum(e["action"] == "search" for e in doc["ledger"]) == 1  # no round 2
+    doc["recordings"] = [str(p) for p in paths]
+    text = _report(doc, d.result_, {})
+    assert "stopped at its time budget (3600 s" in text and "before stage never" in text
+
+    late["by_s"] = 0.0
+    ran.clear()
+    tiny = _settings(rounds={"max_seconds": 1e-9})
+    doc = Discovery(tiny, None, log=lambda m: None,
+                    stages=[_Spend()]).fit(recs).result_.to_dict()
+    assert ran == [] and doc["effects"] == [] and doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
+    assert [e["where"] for e in doc["ledger"] if e["action"] == "time budget"] == [
+        "before round 1"]
+    for bad in (-1.0, float("inf"), float("nan"), True, "1h"):
+        with pytest.raises(ValueError, match="max_seconds"):
+            RoundSettings(max_seconds=bad)
+
+
 def test_discover_refuses_a_held_out_set_too_small_to_test(tmp_path):
     cfg = BenchConfig("AIR37", "valve1", (), protocol="fixed", duration_s=7.0, seed=1,
                       positions=(0.5, 0.9), ranges_V=(5.0,))

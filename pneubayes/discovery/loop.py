@@ -132,6 +132,9 @@ class Discovery:
     def fit(self, recordings) -> "Discovery":
         s = self.settings
         t_start = time.perf_counter()
+        self._deadline = (t_start + s.rounds.max_seconds if s.rounds.max_seconds > 0
+                          else math.inf)
+        self._stopped_for_time = False
         recs, train, held, train_ws, held_ws, data_key = self._data(recordings)
         noise = noise_floor_Pa(recs)
         lo, hi = np.percentile(np.concatenate([r.pressure_Pa for r in recs]), [1, 99])
@@ -162,6 +165,8 @@ class Discovery:
         maps, searches, counts = [], [], {}
         round_, adds = 0, 0
         while adds < s.rounds.max_effects:
+            if self._out_of_time(ledger, f"before round {round_ + 1}"):
+                break
             round_ += 1
             try:
                 state = self._round_search(current, round_, runner, maps, searches, counts)
@@ -194,6 +199,19 @@ class Discovery:
             stages=tuple({"stage": st.name, **st.options()} for st in stages), **post)
         return self
 
+    def _out_of_time(self, ledger: Ledger, where: str) -> bool:
+        """Whether ``rounds.max_seconds`` is spent; the first time, logged and recorded
+        (where the loop stopped)."""
+        if time.perf_counter() <= self._deadline:
+            return False
+        if not self._stopped_for_time:
+            self._stopped_for_time = True
+            budget = self.settings.rounds.max_seconds
+            self.log(f"discover: the time budget ({budget:g} s, rounds.max_seconds) is "
+                     f"spent {where}: no further stage or round starts")
+            ledger.record("time budget", max_seconds=budget, where=where)
+        return True
+
     def _run_round(self, state: RoundState, stages: list[Stage], runner: TrialRunner
                    ) -> StepFit:
         """The round's first trials, then its stages in order (until one reshapes the
@@ -214,6 +232,9 @@ class Discovery:
         for stage in stages:
             if empty and not stage.reshapes:
                 continue
+            if self._out_of_time(runner.ledger, f"round {state.number}, before stage "
+                                 f"{stage.name}"):
+                break
             stage.run(state, runner)
             if state.replacement is not None:
                 return state.replacement

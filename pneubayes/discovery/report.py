@@ -245,6 +245,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     lines += [f"Recordings: {len(doc['recordings'])} ({how}). Noise floor (sensor) "
               f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa.", ""]
     lines += ["## Result", ""]
+    stop = next((e for e in doc["ledger"] if e["action"] == "time budget"), None)
+    if stop is not None:
+        lines += [f"The loop stopped at its time budget ({stop['max_seconds']:g} s, "
+                  f"`rounds.max_seconds`), {stop['where']}: what follows is the model it "
+                  "had then, not where its search would have ended.", ""]
     if doc["effects"]:
         lines += ["| effect | parameter | estimate | 90 % interval | inclusion | "
                   "held-out RMSE before -> after (Pa) | log predictive gain (p of the RMSE drop) |",
@@ -413,6 +418,9 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
             lines.append(f"| {e['step']} | open form prune | {_md(e['term'])} | | "
                          f"{e['heldout_rmse_before_Pa']:.0f} -> {e['heldout_rmse_after_Pa']:.0f}"
                          " | |")
+        elif e["action"] == "time budget":
+            lines.append(f"| {e['step']} | time budget | spent {_md(e['where'])} "
+                         f"({e['max_seconds']:g} s) | | | |")
         elif e["action"] == "search":
             lines.append(f"| {e['step']} | search | {', '.join(e['supported']) or 'none'} "
                          "supported | | | |")

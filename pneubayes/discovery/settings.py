@@ -167,6 +167,12 @@ class RoundSettings:
     gap_fallback_ratio : float
         A model is *far* above this x the noise floor (0: never): less supported groups
         are tried (``search.fallback_min_inclusion``).
+    max_seconds : float
+        Time budget of the loop, s of this process's wall clock (0: none). Once spent, no
+        further stage or round starts: the round under way adds what its trials passed,
+        and the loop ends with the model it has (the ledger records the stop). A stage
+        or a trial that has started runs to its end; a resumed run's replayed steps
+        cost next to nothing.
     """
 
     max_effects: int = 4
@@ -174,6 +180,7 @@ class RoundSettings:
     max_refine_restarts: int = 3
     refine_restart_min_gain: float = 1e-4
     gap_fallback_ratio: float = 2.0
+    max_seconds: float = 0.0
 
     def __post_init__(self):
         if not _int_at_least(self.max_effects, 0):
@@ -190,6 +197,10 @@ class RoundSettings:
         if not (self.gap_fallback_ratio == 0.0 or self.gap_fallback_ratio >= 1.0):
             raise ValueError(f"gap_fallback_ratio must be 0 (off) or >= 1, got "
                              f"{self.gap_fallback_ratio}")
+        if isinstance(self.max_seconds, bool) or not isinstance(self.max_seconds, (int, float)) \
+                or not (math.isfinite(self.max_seconds) and self.max_seconds >= 0.0):
+            raise ValueError(f"max_seconds must be a finite number of seconds >= 0 (0: no "
+                             f"budget), got {self.max_seconds!r}")
 
 
 @dataclass(frozen=True)
