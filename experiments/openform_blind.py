@@ -126,6 +126,7 @@ from pneubayes.bench.forms import (
     QuickExhaustValve,
     ReleaseDelay,
     ReliefValve,
+    SaturatingSensor,
     ScoredBarrelLeak,
     SealSpeedLeak,
     SeatLeak,
@@ -133,6 +134,7 @@ from pneubayes.bench.forms import (
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SkewedPressureChannel,
     SolenoidGroundShift,
     SpoolHysteresis,
     SpoolLandLeak,
@@ -188,6 +190,10 @@ OPENFORM_SEED_11 = 1796458249
 #: controls): ``date +%s`` at 2026-12-05 19:32:18 UTC, fixed before its form was written
 #: or any case ran.
 OPENFORM_SEED_12 = 1796499138
+#: Set 13's seed (two forms of the logged reading, a rail and a late channel, on the two
+#: rigs and the controls): ``date +%s`` at 2026-12-05 21:54:27 UTC, fixed before its
+#: forms were written or any case ran.
+OPENFORM_SEED_13 = 1796507667
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -203,13 +209,14 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              9: ("PwmValve", "ZohDriver", "SensorHysteresis", "SealSpeedLeak"),
              10: ("BraidFriction", "SolenoidGroundShift", "PressureHeldSolenoid",
                   "InletJetAtSensor"),
-             11: ("BoucWenWall",), 12: ("LoadedWall",)}
+             11: ("BoucWenWall",), 12: ("LoadedWall",),
+             13: ("SaturatingSensor", "SkewedPressureChannel")}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
              5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8,
              9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10, 11: OPENFORM_SEED_11,
-             12: OPENFORM_SEED_12}
+             12: OPENFORM_SEED_12, 13: OPENFORM_SEED_13}
 SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z",
-              10: "k", 11: "m", 12: "j"}
+              10: "k", 11: "m", 12: "j", 13: "g"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -321,7 +328,10 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
       and a loop of 3-15 % of it (both log-uniform), a memory of 20-100 kPa
       (log-uniform), an exponent of 1-3 (uniform);
     - LoadedWall (set 12): a static give of 5-30 % of the swept volume over 4.5 bar, a
-      natural frequency of 6-40 Hz and a damping ratio of 0.05-0.5 (all log-uniform).
+      natural frequency of 6-40 Hz and a damping ratio of 0.05-0.5 (all log-uniform);
+    - SaturatingSensor (set 13): a rail at 55-90 % of the supply's 4.5 bar gauge, a knee of
+      2-20 kPa (both log-uniform);
+    - SkewedPressureChannel (set 13): the pressure logged 2-15 ms late (log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -490,6 +500,11 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
         return LoadedWall(compliance_m3_per_Pa=swept * _log_uniform(rng, 0.05, 0.3) / 4.5e5,
                           natural_frequency_Hz=_log_uniform(rng, 6.0, 40.0),
                           damping_ratio=_log_uniform(rng, 0.05, 0.5))
+    if name == "SaturatingSensor":
+        return SaturatingSensor(full_scale_Pa=4.5e5 * _log_uniform(rng, 0.55, 0.9),
+                                knee_Pa=_log_uniform(rng, 2e3, 20e3))
+    if name == "SkewedPressureChannel":
+        return SkewedPressureChannel(delay_s=_log_uniform(rng, 2e-3, 15e-3))
     if name == "InletJetAtSensor":
         sign = 1.0 if rng.uniform() < 0.5 else -1.0
         return InletJetAtSensor(shift_Pa=sign * _log_uniform(rng, 1e3, 8e3),

@@ -39,6 +39,7 @@ from pneubayes.bench.forms import (
     QuickExhaustValve,
     ReleaseDelay,
     ReliefValve,
+    SaturatingSensor,
     ScoredBarrelLeak,
     SealSpeedLeak,
     SeatLeak,
@@ -46,6 +47,7 @@ from pneubayes.bench.forms import (
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SkewedPressureChannel,
     SolenoidGroundShift,
     SpoolHysteresis,
     SpoolLandLeak,
@@ -134,7 +136,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "SensorThermalShock", "PwmValve", "ZohDriver",
                                      "SensorHysteresis", "SealSpeedLeak", "BraidFriction",
                                      "SolenoidGroundShift", "PressureHeldSolenoid",
-                                     "InletJetAtSensor", "BoucWenWall", "LoadedWall"}
+                                     "InletJetAtSensor", "BoucWenWall", "LoadedWall",
+                                     "SaturatingSensor", "SkewedPressureChannel"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -183,6 +186,10 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (SpoolStiction, {"breakaway_V": -0.1}, "breakaway_V"),
     (SpoolStiction, {"breakaway_V": 0.1, "stop_V": 0.2}, "stop_V"),
     (SensorBow, {"bow_Pa": float("inf")}, "bow_Pa"),
+    (SaturatingSensor, {"full_scale_Pa": 0.0}, "full_scale_Pa"),
+    (SaturatingSensor, {"full_scale_Pa": float("nan")}, "full_scale_Pa"),
+    (SaturatingSensor, {"full_scale_Pa": 3e5, "knee_Pa": 0.0}, "knee_Pa"),
+    (SkewedPressureChannel, {"delay_s": -1e-3}, "delay_s"),
     (SensorBow, {"bow_Pa": 1e3, "span_Pa": 0.0}, "span_Pa"),
     (SpringReturnSpool, {"rise_time_constant_s": -1e-3}, "rise_time_constant_s"),
     (SpringReturnSpool, {"rise_time_constant_s": 1e-3}, "fall_time_constant_s"),
@@ -669,6 +676,64 @@ def test_a_bowed_sensor_reads_true_at_its_ends_and_off_at_mid_range(tmp_path):
     a, b = (read_recording(r.recordings[0]) for r in res)
     np.testing.assert_allclose(b.pressure_Pa, bow.read(a.pressure_Pa, P_ATM), atol=5.0)
     assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 500.0
+
+
+# ---------------------------------------------------------------- the thirteenth set's
+def test_a_saturating_sensor_reads_true_below_its_rail_and_flat_above(tmp_path):
+    """Below the knee the reading is the pressure (to w e^-(F - y)/w), far above it the
+    rail, monotone between; the bench reads its recordings through it."""
+    rail = SaturatingSensor(full_scale_Pa=3e5, knee_Pa=5e3)
+    p = P_ATM + np.array([0.0, 1e5, 2.5e5, 3e5, 3.5e5, 6e5])
+    r = rail.read(p, P_ATM)
+    np.testing.assert_allclose(r[:3], p[:3], atol=5e3 * np.exp(-10.0) + 1e-6)
+    assert r[3] == pytest.approx(P_ATM + 3e5 - 5e3 * np.log(2.0), rel=1e-12)
+    np.testing.assert_allclose(r[-1], P_ATM + 3e5, atol=1e-6)
+    fine = P_ATM + np.linspace(0.0, 6e5, 2001)
+    rise = np.diff(rail.read(fine, P_ATM))
+    assert np.all(rise >= 0.0) and np.all(rise[fine[1:] < P_ATM + 3.5e5] > 0.0)
+    assert np.all(rail.read(fine, P_ATM) <= fine + 1e-6)
+    np.testing.assert_array_equal(SaturatingSensor(float("inf")).read(p, P_ATM), p)
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.io import read_recording
+
+    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    kw = dict(protocol="fixed", duration_s=1.5, positions=(0.5,), ranges_V=(5.0,),
+              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
+    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
+           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(rail,))), tmp_path / "b")]
+    a, b = (read_recording(x.recordings[0]) for x in res)
+    assert a.pressure_Pa.max() > P_ATM + 4e5  # the fill reaches past the rail
+    assert b.pressure_Pa.max() < P_ATM + 3e5 + 500.0  # (the DAQ filter rings a little)
+    # the bench reads the rail before its DAQ filter: they differ only at the fastest edges
+    miss = np.abs(b.pressure_Pa - rail.read(a.pressure_Pa, P_ATM))
+    assert miss.max() < 300.0 and np.median(miss) < 1.0
+
+
+def test_a_skewed_channel_logs_the_pressure_late(tmp_path):
+    """The logged pressure at t is the sensor's at t - d (its first value before the
+    record); d = 0 is the sensor's own; on the bench a recording is the unskewed one
+    shifted by d (the skew a whole number of output samples here)."""
+    t = np.arange(0.0, 0.1, 1e-4)
+    p = P_ATM + 1e5 * (t >= 0.05) + 2e5 * t
+    late = SkewedPressureChannel(delay_s=0.01).read(t, p)
+    np.testing.assert_allclose(late[t >= 0.01 + 1e-9], np.interp(t[t >= 0.01 + 1e-9] - 0.01,
+                                                                 t, p), atol=1e-9)
+    np.testing.assert_array_equal(late[t < 0.01 - 1e-9], p[0])
+    assert np.argmax(np.diff(late)) == np.argmax(np.diff(p)) + 100
+    np.testing.assert_array_equal(SkewedPressureChannel(0.0).read(t, p), p)
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.io import read_recording
+
+    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    kw = dict(protocol="fixed", duration_s=1.5, positions=(0.5,), ranges_V=(5.0,),
+              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
+    skew = SkewedPressureChannel(delay_s=0.004)
+    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
+           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(skew,))), tmp_path / "b")]
+    a, b = (read_recording(x.recordings[0]) for x in res)
+    k = int(round(0.004 / (a.time_s[1] - a.time_s[0])))
+    np.testing.assert_allclose(b.pressure_Pa[k + 3:], a.pressure_Pa[3:-k], atol=30.0)
+    assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 1e4
 
 
 # ---------------------------------------------------------------- the fifth set's forms

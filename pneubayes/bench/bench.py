@@ -35,10 +35,12 @@ from pneubayes.bench.forms import (
     InletJetAtSensor,
     LaggingPositionSensor,
     PlantForm,
+    SaturatingSensor,
     SensorBow,
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SkewedPressureChannel,
     SolenoidGroundShift,
     catalogue_names_of,
     check_forms,
@@ -268,6 +270,12 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         for form in cfg.forms:  # a sensor grounded through the solenoid driver's return
             if isinstance(form, SolenoidGroundShift):
                 p_true = form.read(t_fine, u_fine, p_true)
+        for form in cfg.forms:  # a sensor whose output saturates at its full scale
+            if isinstance(form, SaturatingSensor):
+                p_true = form.read(p_true, ATMOSPHERE_PA)
+        for form in cfg.forms:  # a pressure channel logged late against the others
+            if isinstance(form, SkewedPressureChannel):
+                p_true = form.read(t_fine, p_true)
         if read is not None:
             p_true = read(t_fine, p_true)
         s = cfg.sensor

@@ -25,7 +25,8 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 :class:`SealSpeedLeak`; the tenth: :class:`BraidFriction`, :class:`SolenoidGroundShift`,
 :class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`; the eleventh, a check of the
 volume's plays on a loop that is not one: :class:`BoucWenWall`; the twelfth, a wall that
-carries a load: :class:`LoadedWall`).
+carries a load: :class:`LoadedWall`; the thirteenth, readings logged through a rail and
+late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -74,10 +75,12 @@ from pneubayes.bench.forms.reading import (
     CapillarySensorPort,
     InletJetAtSensor,
     LaggingPositionSensor,
+    SaturatingSensor,
     SensorBow,
     SensorHysteresis,
     SensorThermalShock,
     SensorZeroDrift,
+    SkewedPressureChannel,
     SolenoidGroundShift,
 )
 from pneubayes.bench.forms.valve import (
@@ -119,7 +122,7 @@ FORMS: dict[str, type[PlantForm]] = {
                                   SensorThermalShock, PwmValve, ZohDriver, SensorHysteresis,
                                   SealSpeedLeak, BraidFriction, SolenoidGroundShift,
                                   PressureHeldSolenoid, InletJetAtSensor, BoucWenWall,
-                                  LoadedWall)
+                                  LoadedWall, SaturatingSensor, SkewedPressureChannel)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -339,5 +342,9 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return PressureHeldSolenoid(time_constant_s=5e-4, slowing_per_atm=1.5)
     if name == "InletJetAtSensor":
         return InletJetAtSensor(shift_Pa=3000.0, reference_flow_kg_per_s=5e-4)
+    if name == "SaturatingSensor":
+        return SaturatingSensor(full_scale_Pa=3.5e5, knee_Pa=5e3)
+    if name == "SkewedPressureChannel":
+        return SkewedPressureChannel(delay_s=5e-3)
     raise ValueError(f"out_of_catalogue_defaults: unknown form {name!r}; known "
                      f"{list(OUT_OF_CATALOGUE)}")

@@ -315,3 +315,67 @@ class InletJetAtSensor(PlantForm):
             return p.copy()
         q = np.maximum(np.asarray(inlet_flow_kg_per_s, dtype=np.float64), 0.0)
         return p + self.shift_Pa * (q / self.reference_flow_kg_per_s) ** 2
+
+
+@dataclass(frozen=True)
+class SaturatingSensor(PlantForm):
+    """A pressure sensor (or the amplifier or ADC behind it) whose output saturates at the
+    top of its range: the rig's supply is above the sensor's full scale, so the top of a
+    fill is read flat. The output bends into its rail over a knee (an amplifier's soft
+    saturation)::
+
+        r = P_atm + F - w ln(1 + exp((F - y) / w)),   y = p - P_atm,
+
+    ``F = full_scale_Pa`` (gauge) the rail, ``w = knee_Pa`` the knee's width. Well below
+    the rail ``r = p`` to within ``w exp(-(F - y) / w)``; well above it ``r = P_atm + F``.
+    ``full_scale_Pa = inf`` is a sensor that never saturates.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    full_scale_Pa: float
+    knee_Pa: float = 5e3
+
+    def __post_init__(self):
+        if not (self.full_scale_Pa > 0.0):  # inf allowed: no rail
+            raise ValueError(f"SaturatingSensor.full_scale_Pa must be > 0 (inf: no rail), "
+                             f"got {self.full_scale_Pa!r}")
+        _positive(self, "knee_Pa")
+
+    def read(self, pressure_Pa, atmospheric_pressure_Pa: float):
+        """The reading (Pa, absolute) of the absolute pressures ``pressure_Pa``."""
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if not np.isfinite(self.full_scale_Pa):
+            return p.copy()
+        y = p - atmospheric_pressure_Pa
+        w = self.knee_Pa
+        return (atmospheric_pressure_Pa + self.full_scale_Pa
+                - w * np.logaddexp(0.0, (self.full_scale_Pa - y) / w))
+
+
+@dataclass(frozen=True)
+class SkewedPressureChannel(PlantForm):
+    """A pressure channel logged late against the command and the position (a digital
+    transmitter's processing and bus delay, a data logger whose pressure channel is
+    buffered or read after a multiplexer settles): the recording's pressure at t is the
+    sensor's at ``t - d``::
+
+        r(t) = p(t - d),
+
+    with the chamber at rest (its first value) before the record. ``delay_s = d``;
+    ``delay_s = 0`` is a channel in step with the others.
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    delay_s: float
+
+    def __post_init__(self):
+        _non_negative(self, "delay_s")
+
+    def read(self, time_s, pressure_Pa):
+        """The logged pressures (Pa) at ``time_s`` (s, increasing) of the sensor's
+        ``pressure_Pa`` at the same times, linear between them."""
+        t = np.asarray(time_s, dtype=np.float64)
+        p = np.asarray(pressure_Pa, dtype=np.float64)
+        if self.delay_s == 0.0 or p.size == 0:
+            return p.copy()
+        return np.interp(t - self.delay_s, t, p)
