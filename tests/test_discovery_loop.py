@@ -135,6 +135,8 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
             return real_clock() + late["by_s"]
 
     monkeypatch.setattr(loop_module, "time", _Clock)
+    # the round's own trials pass nothing (this test is about where the loop stops)
+    monkeypatch.setattr(loop_module.TrialRunner, "trials", lambda self, *a, **k: [])
     ran = []
 
     class _Spend(Stage):
@@ -149,7 +151,9 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
         name = "never"
 
     settings = _settings(rounds={"max_seconds": 3600.0})
-    d = Discovery(settings, None, log=lambda m: None, stages=[_Spend(), _Never()]).fit(recs)
+    # (one run folder: the second loop takes the base fit from the first's steps)
+    d = Discovery(settings, tmp_path / "run", log=lambda m: None,
+                  stages=[_Spend(), _Never()]).fit(recs)
     doc = d.result_.to_dict()
     stops = [e for e in doc["ledger"] if e["action"] == "time budget"]
     assert ran == ["spend"]
@@ -162,7 +166,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     late["by_s"] = 0.0
     ran.clear()
     tiny = _settings(rounds={"max_seconds": 1e-9})
-    doc = Discovery(tiny, None, log=lambda m: None,
+    doc = Discovery(tiny, tmp_path / "run", log=lambda m: None,
                     stages=[_Spend()]).fit(recs).result_.to_dict()
     assert ran == [] and doc["effects"] == [] and doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
     assert [e["where"] for e in doc["ledger"] if e["action"] == "time budget"] == [
