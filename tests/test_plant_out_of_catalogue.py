@@ -660,20 +660,28 @@ def test_a_sticking_spool_ignores_small_steps_and_stops_short_of_large_ones(rig)
                                   _run(params, (), short, rig, p0=2e5))
 
 
+def _read_plain_and_through(tmp_path, form, duration_s=1.5):
+    """Noise-free AIR37 / valve 1 recordings of one fixed-piston plan (50 % of the stroke,
+    +-5 V), read plainly and through the reading ``form`` (the supply hose off in both):
+    ``(plain, through)``."""
+    from pneubayes.bench.sensors import SensorChain
+    from pneubayes.io import read_recording
+
+    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
+    kw = dict(protocol="fixed", duration_s=duration_s, positions=(0.5,), ranges_V=(5.0,),
+              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
+    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "plain"),
+           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(form,))),
+                     tmp_path / "through")]
+    return tuple(read_recording(r.recordings[0]) for r in res)
+
+
 def test_a_bowed_sensor_reads_true_at_its_ends_and_off_at_mid_range(tmp_path):
     bow = SensorBow(bow_Pa=-2000.0, span_Pa=6e5)
     p = np.array([P_ATM - 1e4, P_ATM, P_ATM + 1.5e5, P_ATM + 3e5, P_ATM + 6e5, P_ATM + 7e5])
     np.testing.assert_allclose(bow.read(p, P_ATM) - p, [0, 0, -1500, -2000, 0, 0], atol=1e-9)
     # the bench reads its recordings through it (noise-free: the difference is the bow)
-    from pneubayes.bench.sensors import SensorChain
-    from pneubayes.io import read_recording
-
-    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
-    kw = dict(protocol="fixed", duration_s=1.5, positions=(0.5,), ranges_V=(5.0,),
-              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
-    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
-           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(bow,))), tmp_path / "b")]
-    a, b = (read_recording(r.recordings[0]) for r in res)
+    a, b = _read_plain_and_through(tmp_path, bow)
     np.testing.assert_allclose(b.pressure_Pa, bow.read(a.pressure_Pa, P_ATM), atol=5.0)
     assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 500.0
 
@@ -693,15 +701,7 @@ def test_a_saturating_sensor_reads_true_below_its_rail_and_flat_above(tmp_path):
     assert np.all(rise >= 0.0) and np.all(rise[fine[1:] < P_ATM + 3.5e5] > 0.0)
     assert np.all(rail.read(fine, P_ATM) <= fine + 1e-6)
     np.testing.assert_array_equal(SaturatingSensor(float("inf")).read(p, P_ATM), p)
-    from pneubayes.bench.sensors import SensorChain
-    from pneubayes.io import read_recording
-
-    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
-    kw = dict(protocol="fixed", duration_s=1.5, positions=(0.5,), ranges_V=(5.0,),
-              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
-    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
-           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(rail,))), tmp_path / "b")]
-    a, b = (read_recording(x.recordings[0]) for x in res)
+    a, b = _read_plain_and_through(tmp_path, rail)
     assert a.pressure_Pa.max() > P_ATM + 4e5  # the fill reaches past the rail
     assert b.pressure_Pa.max() < P_ATM + 3e5 + 500.0  # (the DAQ filter rings a little)
     # the bench reads the rail before its DAQ filter: they differ only at the fastest edges
@@ -721,16 +721,7 @@ def test_a_skewed_channel_logs_the_pressure_late(tmp_path):
     np.testing.assert_array_equal(late[t < 0.01 - 1e-9], p[0])
     assert np.argmax(np.diff(late)) == np.argmax(np.diff(p)) + 100
     np.testing.assert_array_equal(SkewedPressureChannel(0.0).read(t, p), p)
-    from pneubayes.bench.sensors import SensorChain
-    from pneubayes.io import read_recording
-
-    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
-    kw = dict(protocol="fixed", duration_s=1.5, positions=(0.5,), ranges_V=(5.0,),
-              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
-    skew = SkewedPressureChannel(delay_s=0.004)
-    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
-           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(skew,))), tmp_path / "b")]
-    a, b = (read_recording(x.recordings[0]) for x in res)
+    a, b = _read_plain_and_through(tmp_path, SkewedPressureChannel(delay_s=0.004))
     k = int(round(0.004 / (a.time_s[1] - a.time_s[0])))
     np.testing.assert_allclose(b.pressure_Pa[k + 3:], a.pressure_Pa[3:-k], atol=30.0)
     assert np.max(np.abs(b.pressure_Pa - a.pressure_Pa)) > 1e4
@@ -966,17 +957,8 @@ def test_an_energised_seal_leaks_most_at_low_pressure(rig):
 def test_the_bench_reads_through_a_drifting_sensor(tmp_path):
     """Noise-free fixed-piston recordings with and without a drifting zero: they differ
     by the drift (the DAQ's zero-phase filter passes its slow rise; the log's 0.1 Pa)."""
-    from pneubayes.bench.sensors import SensorChain
-    from pneubayes.io import read_recording
-
-    quiet = SensorChain(pressure_noise_Pa=0.0, supply_noise_Pa=0.0, position_noise_m=0.0)
     drift = SensorZeroDrift(drift_Pa=2e3, time_constant_s=0.2)
-    kw = dict(protocol="fixed", duration_s=0.5, positions=(0.5,), ranges_V=(5.0,),
-              sensor=quiet, forms=(SupplyHose(restriction_area_m2=0.0),))
-    res = [run_bench(BenchConfig("AIR37", "valve1", **kw), tmp_path / "a"),
-           run_bench(BenchConfig("AIR37", "valve1", **dict(kw, forms=(drift,))),
-                     tmp_path / "b")]
-    a, b = (read_recording(r.recordings[0]) for r in res)
+    a, b = _read_plain_and_through(tmp_path, drift, duration_s=0.5)
     want = 2e3 * -np.expm1(-(a.time_s - a.time_s[0]) / 0.2)
     np.testing.assert_allclose(b.pressure_Pa - a.pressure_Pa, want, atol=2.0)
 
