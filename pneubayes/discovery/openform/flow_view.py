@@ -13,10 +13,8 @@ follows the binned means of the missing reading.
 
 from __future__ import annotations
 
-import numpy as np
-
 from pneubayes.discovery.openform.reading_flow import flow_windows
-from pneubayes.discovery.openform.term_view import binned
+from pneubayes.discovery.openform.reading_view import binned_reading_term
 from pneubayes.effects.reading_flow import FLOW_FEATURE_UNITS, flow_gain_name
 from pneubayes.inference.windows import WindowSet
 
@@ -52,14 +50,10 @@ def flow_views(model, params: dict, recordings, horizon_s: float, solver,
     for k, name in enumerate(model.effect("reading_flow").features):
         c = params[flow_gain_name(k)]
         blocks = flow_windows(ws, model, dict(params, **{flow_gain_name(k): 0.0}), solver)
-        x = np.concatenate([b.column(name) for b in blocks])
-        m = np.concatenate([np.asarray(b.windows.residual_Pa).reshape(-1) for b in blocks])
-        ok = np.isfinite(x) & np.isfinite(m)
-        x, m = x[ok], m[ok]
-        centre, term, miss, sem, explained = binned(x, c * x, m, n_bins)
         unit = FLOW_FEATURE_UNITS[name]
         out.append({"term": f"port flow term {k}", "formula": f"{c:+.3g} Pa per {unit} x {name}",
                     "variable": f"{name} (less its start)", "unit": unit, "x_scale": 1.0,
-                    "bin_centre": centre, "term_Pa": term, "missing_Pa": miss,
-                    "missing_sem_Pa": sem, "explained_fraction": explained})
+                    **binned_reading_term([b.column(name) for b in blocks],
+                                          [b.windows.residual_Pa for b in blocks], c,
+                                          n_bins)})
     return out

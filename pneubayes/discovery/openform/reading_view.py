@@ -55,16 +55,24 @@ def reading_views(model, params: dict, recordings, horizon_s: float, solver,
         g, tau = params[gain_name(k)], params[time_constant_name(k)]
         without = dict(params, **{gain_name(k): 0.0})
         blocks = reading_windows(ws, model, without, solver)
-        xs = [b.column(tau) for b in blocks]
-        missing = [np.asarray(b.residual_Pa).reshape(-1) for b in blocks]
-        x, m = np.concatenate(xs), np.concatenate(missing)
-        ok = np.isfinite(x) & np.isfinite(m)
-        x, m = x[ok], m[ok]
-        f = g * x
-        centre, term, miss, sem, explained = binned(x, f, m, n_bins)
         out.append({"term": f"relaxation {k}",
                     "formula": f"{g:+.3g} (p - p_bar), tau = {tau:.3g} s",
-                    "variable": f"p - p_bar_{k}", "unit": "Pa", "bin_centre": centre,
-                    "term_Pa": term, "missing_Pa": miss, "missing_sem_Pa": sem,
-                    "explained_fraction": explained})
+                    "variable": f"p - p_bar_{k}", "unit": "Pa",
+                    **binned_reading_term([b.column(tau) for b in blocks],
+                                          [b.residual_Pa for b in blocks], g, n_bins)})
     return out
+
+
+def binned_reading_term(columns, missing, gain: float, n_bins: int) -> dict:
+    """A reading term ``gain x`` against the reading missed without it, binned along
+    ``x``: the per-window variables ``columns`` and missed readings ``missing`` (Pa, any
+    shape, the same samples) joined, non-finite samples left out, and :func:`binned`'s
+    results as ``bin_centre``, ``term_Pa``, ``missing_Pa``, ``missing_sem_Pa`` and
+    ``explained_fraction``."""
+    x = np.concatenate([np.asarray(c, dtype=np.float64).reshape(-1) for c in columns])
+    m = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1) for v in missing])
+    ok = np.isfinite(x) & np.isfinite(m)
+    x, m = x[ok], m[ok]
+    centre, term, miss, sem, explained = binned(x, gain * x, m, n_bins)
+    return {"bin_centre": centre, "term_Pa": term, "missing_Pa": miss,
+            "missing_sem_Pa": sem, "explained_fraction": explained}
