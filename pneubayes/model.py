@@ -316,7 +316,7 @@ class Model:
     def relaxes_reading(self) -> bool:
         """Whether an effect reads the pressure through a map after the kernel
         (:meth:`reading_relaxations`, :meth:`reading_plays`, :meth:`reading_commands`,
-        :meth:`reading_flows`)."""
+        :meth:`reading_flows`, :meth:`reading_hinges`)."""
         return any(e.relaxes_reading for e in self.effects)
 
     def reading_relaxations(self, params) -> tuple[np.ndarray, np.ndarray]:
@@ -336,6 +336,12 @@ class Model:
         (:mod:`pneubayes.simulation.reading_command`) of every effect that has them,
         side by side (``K`` 0 without one)."""
         return self._reading_maps(params, "reading_commands")
+
+    def reading_hinges(self, params) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains (-), thresholds (Pa absolute))``, each ``(B, J)``: the hinges through
+        which the reading is read last (:mod:`pneubayes.simulation.reading_hinge`) of
+        every effect that has them, side by side (``J`` 0 without one)."""
+        return self._reading_maps(params, "reading_hinges")
 
     def reading_flows(self, params) -> tuple[np.ndarray, tuple[str, ...]]:
         """``(gains (B, K) in Pa per feature unit, the K feature names)``: the terms of the

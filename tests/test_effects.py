@@ -93,7 +93,7 @@ def test_catalogue_names():
                                "sensor_calibration", "sensor_drift", "sensor_nonlinearity",
                                "valve_stiction", "closure", "reading_closure",
                                "reading_play", "reading_command", "reading_flow",
-                               "volume_closure",
+                               "reading_hinge", "volume_closure",
                                "volume_play", "command_clock"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name

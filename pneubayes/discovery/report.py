@@ -98,6 +98,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_text_atomic(out / "found_reading_command.py",
                           command_effect_skeleton(result.model, result.params))
         doc["found_reading_command_effect"] = "found_reading_command.py"
+    if result.model.has("reading_hinge"):  # and its knees as another
+        from pneubayes.discovery.openform.skeleton import hinge_effect_skeleton
+
+        write_text_atomic(out / "found_reading_hinge.py",
+                          hinge_effect_skeleton(result.model, result.params))
+        doc["found_reading_hinge_effect"] = "found_reading_hinge.py"
     if result.model.has("reading_flow"):  # and its terms of the port flows as another
         from pneubayes.discovery.openform.skeleton import flow_effect_skeleton
 
@@ -125,13 +131,16 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
                            result.settings.search.solver)
         figs["found_terms"] = plot_found_terms(views,
                                                out / "figures" / "found_terms.png").name
-    if figures and (result.model.has("reading_closure") or result.model.has("reading_flow")):
+    if figures and any(result.model.has(c) for c in ("reading_closure", "reading_flow",
+                                                      "reading_hinge")):
         from pneubayes.discovery.openform.flow_view import flow_views
+        from pneubayes.discovery.openform.hinge_view import hinge_views
         from pneubayes.discovery.openform.reading_view import reading_views
         from pneubayes.plotting import plot_found_reading_terms
 
         views = [v for has, fn in (("reading_closure", reading_views),
-                                   ("reading_flow", flow_views))
+                                   ("reading_flow", flow_views),
+                                   ("reading_hinge", hinge_views))
                  if result.model.has(has)
                  for v in fn(result.model, result.params, result.train,
                              result.settings.fit.horizon_s, result.settings.fit.refine_solver)]

@@ -19,6 +19,7 @@ from pneubayes.effects.closure_terms import (
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
 from pneubayes.effects.reading_flow import FLOW_FEATURE_UNITS, flow_gain_name
+from pneubayes.effects.reading_hinge import hinge_gain_name, hinge_threshold_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
@@ -28,6 +29,7 @@ from pneubayes.inference.fit import PosteriorDraws, at_bounds
 FORMAT = "pneubayes-discovery/1"
 #: The open-form components: their terms are listed apart from the named effects.
 OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "reading_flow",
+             "reading_hinge",
              "volume_closure",
              "volume_play", "command_clock")
 
@@ -171,10 +173,11 @@ class DiscoveryResult(PosteriorDraws):
 
     def found_reading_terms(self) -> list[dict]:
         """The final model's open-form terms at the reading (effects ``reading_closure``,
-        ``reading_play``, ``reading_command`` and ``reading_flow``; empty without them):
-        each relaxation's, play's, command lag's or port flow term's formula, its gain and
-        time constant or half-width (the posterior's median and 90 % interval when one was
-        sampled, else the estimate), and where it acts."""
+        ``reading_play``, ``reading_command``, ``reading_flow`` and ``reading_hinge``;
+        empty without them): each relaxation's, play's, command lag's, port flow term's or
+        knee's formula, its gain and time constant, half-width or knee (the posterior's
+        median and 90 % interval when one was sampled, else the estimate), and where it
+        acts."""
         return self._component_terms(
             "reading_closure", "relaxation", "the pressure reading (Pa)",
             lambda k: (f"r = p + g_{k} (p - p_bar_{k}), tau_{k} dp_bar_{k}/dt = p - p_bar_{k} "
@@ -196,7 +199,12 @@ class DiscoveryResult(PosteriorDraws):
                        f"({FLOW_FEATURE_UNITS[self._flow_feature(k)]}; q_in = A_in f(p_s, p), "
                        f"q_ex = A_ex f(p, P_atm), eqs. 1-3) (c_{k} = {flow_gain_name(k)}, Pa "
                        f"per {FLOW_FEATURE_UNITS[self._flow_feature(k)]})"),
-            lambda k: (flow_gain_name(k),))
+            lambda k: (flow_gain_name(k),)) + self._component_terms(
+            "reading_hinge", "knee", "the pressure reading (Pa), read last",
+            lambda k: (f"r = z + c_{k} max(0, z - theta_{k}), z the reading without the "
+                       f"knees (c_{k} = {hinge_gain_name(k)}; theta_{k} = "
+                       f"{hinge_threshold_name(k)}, Pa absolute)"),
+            lambda k: (hinge_gain_name(k), hinge_threshold_name(k)))
 
     def _flow_feature(self, k: int) -> str:
         """The feature of the final model's reading flow term ``k``."""

@@ -289,11 +289,13 @@ class StageSettings:
         OtherForms: the named effects' other forms, at most this many swaps (0: off).
     open_form_min_noise_ratio : float
         OpenForm: an open-form closure while above this x the noise floor (0: off).
-    reading_form_min_noise_ratio, reading_play_min_noise_ratio, \
-    reading_command_min_noise_ratio, reading_flow_min_noise_ratio : float
-        ReadingForm, ReadingPlayForm, ReadingCommandForm, ReadingFlowForm: open-form
-        relaxations, plays (backlash), lags of the command's magnitude and terms of the
-        valve's port flows in the reading while above this x the noise floor (0: off).
+    reading_hinge_min_noise_ratio, reading_form_min_noise_ratio, \
+    reading_play_min_noise_ratio, reading_command_min_noise_ratio, \
+    reading_flow_min_noise_ratio : float
+        ReadingHingeForm, ReadingForm, ReadingPlayForm, ReadingCommandForm,
+        ReadingFlowForm: open-form knees (a static map read last), relaxations, plays
+        (backlash), lags of the command's magnitude and terms of the valve's port flows
+        in the reading while above this x the noise floor (0: off).
     volume_form_min_noise_ratio : float
         VolumeForm: open-form hinges of the chamber's volume in its pressure while above
         this x the noise floor (0: off).
@@ -313,6 +315,7 @@ class StageSettings:
     pair_members: int = 3
     max_form_swaps: int = 2
     open_form_min_noise_ratio: float = 1.5
+    reading_hinge_min_noise_ratio: float = 1.5
     reading_form_min_noise_ratio: float = 1.5
     reading_play_min_noise_ratio: float = 1.5
     reading_command_min_noise_ratio: float = 1.5
@@ -329,7 +332,8 @@ class StageSettings:
         if not _int_at_least(self.max_form_swaps, 0):
             raise ValueError("max_form_swaps must be an integer >= 0, got "
                              f"{self.max_form_swaps!r}")
-        for name in ("open_form_min_noise_ratio", "reading_form_min_noise_ratio",
+        for name in ("open_form_min_noise_ratio", "reading_hinge_min_noise_ratio",
+                     "reading_form_min_noise_ratio",
                      "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
                      "reading_flow_min_noise_ratio",
                      "volume_form_min_noise_ratio", "volume_play_min_noise_ratio",

@@ -7,10 +7,11 @@ Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_de
 of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
 ``reading_command`` (open-form lags of the command's magnitude in the reading),
 ``reading_flow`` (open-form terms of the ports' mass flows in the reading),
+``reading_hinge`` (open-form knees of the reading, read last),
 ``volume_closure`` (open-form hinges of the chamber's volume in its pressure),
 ``volume_play`` (open-form friction-held walls: plays and stops of the chamber's
 volume) and ``command_clock`` (an open-form valve driver on its own clock), the last
-eight never searched for by the discovery library.
+nine never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.reading_closure import ReadingClosure
 from pneubayes.effects.reading_command import ReadingCommand
 from pneubayes.effects.reading_flow import ReadingFlow
+from pneubayes.effects.reading_hinge import ReadingHinge
 from pneubayes.effects.reading_play import ReadingPlay
 from pneubayes.effects.sensor_calibration import SensorCalibration
 from pneubayes.effects.sensor_drift import SensorDrift
@@ -46,7 +48,7 @@ CATALOGUE: dict[str, type[Effect]] = {
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
-                ReadingCommand, ReadingFlow, VolumeClosure, VolumePlay, CommandClock)
+                ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, CommandClock)
 }
 
 
@@ -137,7 +139,7 @@ def _check_options(cls: type[Effect], options: dict) -> None:
 __all__ = ["CATALOGUE", "Closure", "CommandClock", "Component", "CylinderLeak", "Effect",
            "Eq10Fit",
            "HeatTransfer", "Parameter", "ReadingClosure", "ReadingCommand", "ReadingFlow",
-           "ReadingPlay",
+           "ReadingHinge", "ReadingPlay",
            "SensorCalibration",
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",

@@ -183,7 +183,8 @@ class Effect(Component):
     cheap_forms: ClassVar[bool] = False
     #: True for an effect that reads the pressure through a map after the kernel (it
     #: defines :meth:`reading_relaxations`, :meth:`reading_plays`,
-    #: :meth:`reading_commands` or :meth:`reading_flows`; it writes no slot of the kernel).
+    #: :meth:`reading_commands`, :meth:`reading_flows` or :meth:`reading_hinges`; it
+    #: writes no slot of the kernel).
     relaxes_reading: ClassVar[bool] = False
 
     def beside_tube(self, form: str) -> bool:
@@ -232,6 +233,15 @@ class Effect(Component):
         sum_k c_k F_k``: ``(gains (B, K) in Pa per feature unit, the K feature names)``;
         None (the default) for an effect that does not
         (:mod:`pneubayes.simulation.reading_flow`; such an effect sets
+        :attr:`relaxes_reading` too)."""
+        return None
+
+    def reading_hinges(self, values: Mapping[str, np.ndarray]) \
+            -> tuple[np.ndarray, np.ndarray] | None:
+        """For an effect that reads the reading through hinges last, ``r = z + sum_j c_j
+        max(0, z - theta_j)``: ``(gains (-), thresholds (Pa absolute))``, each ``(B,
+        J)``; None (the default) for an effect that does not
+        (:mod:`pneubayes.simulation.reading_hinge`; such an effect sets
         :attr:`relaxes_reading` too)."""
         return None
 

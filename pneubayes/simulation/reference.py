@@ -35,6 +35,11 @@ from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.tube import churchill_fre
 from pneubayes.rig import Rig
 from pneubayes.simulation.drive import Inputs
+from pneubayes.simulation.reading_hinge import (
+    hinged_reading,
+    hinges_readable,
+    unhinged_reading,
+)
 
 
 def _flow(p_up, p_down, alpha, beta, theta, kappa):
@@ -376,7 +381,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     and so is every output. A reading closure's relaxations (effect
     ``reading_closure``) are ODE states that follow that reading from rest; a reading
     play's (effect ``reading_play``) follows it at the samples from rest; lags of the
-    command (effect ``reading_command``) add to it, warm from before the first sample.
+    command (effect ``reading_command``) add to it, warm from before the first sample;
+    hinges (effect ``reading_hinge``) read the whole of it last.
     """
     sl = model.lower(model.as_matrix(params), rig)[0]
     cal_g, curv = 1.0 + sl[S["reading_gain_error"]], sl[S["reading_curvature_Pa"]]
@@ -392,6 +398,16 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     p_atm = rig.atmospheric_pressure_Pa
     # lags of the command's magnitude in the reading (effect reading_command), stepped
     # exactly under the held command; the rest of the reading starts r0 less them
+    # the reading's hinges read last (effect reading_hinge): the rest starts at H^-1(r0)
+    hinges = tuple(a[:1] for a in model.reading_hinges(params))
+    if hinges[0].shape[1]:
+        if not hinges_readable(*hinges)[0]:
+            raise ValueError("reference_simulate: the reading hinges' map is not increasing "
+                             "everywhere (its reading does not tell the pressure)")
+        z0 = float(unhinged_reading(np.full((1, 1), initial_pressure_Pa), *hinges)[0, 0])
+        initial_rate_Pa_per_s = initial_rate_Pa_per_s / float(
+            hinged_reading(np.full((1, 1), z0), *hinges)[1][0, 0])
+        initial_pressure_Pa = z0
     commands = np.zeros(inputs.time_s.size)
     for c, tau in zip(*(a[0] for a in model.reading_commands(params))):
         before = inputs.command_before_start
@@ -589,13 +605,16 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     out = out + commands
     if len(flow_features):  # terms of the port flows at the samples (effect reading_flow)
         out = out + _flow_terms(sl, rig, spools, out, ps, flow_gains, flow_features)
+    if hinges[0].shape[1]:
+        out = hinged_reading(out[None], *hinges)[0][0]
     return (out, nfev) if return_stats else out
 
 
 def _check_flow_reading(model, params, sl, calibrated, inputs) -> None:
     """Refuse what the reference does not combine with the port flows' reading terms."""
     other = (model.reading_relaxations(params)[0].size or model.reading_plays(params)[0].size
-             or model.reading_commands(params)[0].size)
+             or model.reading_commands(params)[0].size
+             or model.reading_hinges(params)[0].size)
     if (calibrated or other or sl[S["sensor_time_constant_s"]] > 0
             or sl[S["sensor_natural_frequency_rad_per_s"]] > 0
             or sl[S["exhaust_own_command"]] != 0 or sl[S["table_points"]] > 0

@@ -27,6 +27,11 @@ from pneubayes.simulation.measurement import sensor_reading
 from pneubayes.simulation.reading_closure import read_windows, start_state
 from pneubayes.simulation.reading_command import command_offsets
 from pneubayes.simulation.reading_flow import PortFlows, flow_reading, flow_start
+from pneubayes.simulation.reading_hinge import (
+    hinged_reading,
+    hinges_readable,
+    unhinged_reading,
+)
 from pneubayes.simulation.stiction import sticks, valve_commands
 
 
@@ -203,17 +208,32 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
     call = kernel.simulate_windows_sensitivity if read_through else kernel_fn
     if read_through:
         relax, plays = model.reading_relaxations(theta), model.reading_plays(theta)
-        # (gains summing to -1 or less leave a reading that does not tell the pressure:
-        # such a set fails, as a failed simulation does)
-        unreadable = 1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1) <= 0.0
+        hinges = model.reading_hinges(theta)
+        # (gains summing to -1 or less, or hinges whose map is not increasing, leave a
+        # reading that does not tell the pressure: such a set fails, as a failed
+        # simulation does)
+        unreadable = (1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1) <= 0.0) \
+            | ~hinges_readable(*hinges)
+        if not hinges_readable(*hinges).all() and on_failure != "nan":
+            b = int(np.flatnonzero(~hinges_readable(*hinges))[0])
+            raise ValueError(f"reading hinges: parameter set {b}'s map is not increasing "
+                             f"everywhere (gains {hinges[0][b].tolist()} at thresholds "
+                             f"{hinges[1][b].tolist()} Pa): its reading does not tell the "
+                             "pressure")
         if unreadable.any() and on_failure == "nan":
             relax = (np.where(unreadable[:, None], 0.0, relax[0]), relax[1])
             plays = (np.where(unreadable[:, None], 0.0, plays[0]), plays[1])
+            hinges = (np.where(unreadable[:, None], 0.0, hinges[0]), hinges[1])
+        # (the hinges read last: the rest of the reading starts at H^-1(r0))
+        hinged = hinges[0].shape[1] > 0
+        reading0 = p0 if not hinged else unhinged_reading(
+            np.broadcast_to(p0, (theta.shape[0], starts.size)), *hinges)
         # (lags of the command add to the reading: the chamber reads r0 less them)
         commands = model.reading_commands(theta)
         offsets = (command_offsets(inputs, starts, length, *commands)
                    if commands[0].shape[1] else None)
-        reading0 = p0 if offsets is None else p0 - offsets[:, :, 0]
+        if offsets is not None:
+            reading0 = reading0 - offsets[:, :, 0]
         # (terms of the port flows add to the reading too: the chamber reads r0 less
         # them at its own start, pneubayes.simulation.reading_flow)
         flow_gains, flow_features = model.reading_flows(theta)
@@ -270,6 +290,10 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
             out, sens = _read_flows(out, sens, arrays[0], arrays[1], p0, start, flows,
                                     lowered, flow_gains, flow_features,
                                     1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1))
+        if hinged:  # the reading's last map, and the start's slope through it
+            z0 = out[:, :, :1].copy()
+            out, slope = hinged_reading(out, *hinges)
+            sens = sens * slope / hinged_reading(z0, *hinges)[1]
         out[unreadable], sens[unreadable] = np.nan, np.nan
         arrays = [out, sens] if kernel_fn is kernel.simulate_windows_sensitivity else [out]
     return arrays

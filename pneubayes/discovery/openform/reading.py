@@ -125,6 +125,18 @@ class ReadingWindows:
         return col[:, 1:].reshape(-1)
 
 
+    def hinge_column(self, threshold_Pa: float) -> np.ndarray:
+        """d(reading)/dc at c = 0 for a knee of the reading at ``threshold_Pa`` (Pa
+        absolute; :mod:`pneubayes.simulation.reading_hinge`): ``max(0, p - theta)`` less
+        the chamber's start moved by ``max(0, r0 - theta)`` along the start sensitivity;
+        as :meth:`column`."""
+        p = np.asarray(self.predicted_Pa, dtype=np.float64)
+        sens = 1.0 if self.sensitivity is None else np.asarray(self.sensitivity)
+        col = np.maximum(p - threshold_Pa, 0.0) \
+            - sens * np.maximum(p[:, :1] - threshold_Pa, 0.0)
+        return col[:, 1:].reshape(-1)
+
+
 def reading_windows(window_set, model, params, solver) -> list[ReadingWindows]:
     """The windows of ``window_set`` (a :class:`~pneubayes.inference.windows.WindowSet`)
     as ``model`` at ``params`` (one set) predicts them by ``solver``, one
@@ -160,6 +172,13 @@ def command_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.ndarra
     """:meth:`ReadingWindows.command_column` of each block, in block order (Pa per command
     unit; 0 where a prediction failed)."""
     x = np.concatenate([b.command_column(tau_s) for b in blocks])
+    return np.where(np.isfinite(x), x, 0.0)
+
+
+def hinge_columns(blocks: Sequence[ReadingWindows], threshold_Pa: float) -> np.ndarray:
+    """:meth:`ReadingWindows.hinge_column` of each block, in block order (Pa; 0 where a
+    prediction failed)."""
+    x = np.concatenate([b.hinge_column(threshold_Pa) for b in blocks])
     return np.where(np.isfinite(x), x, 0.0)
 
 

@@ -16,6 +16,7 @@ from pneubayes.effects.closure_terms import term_formula
 from pneubayes.effects.reading_closure import gain_name, time_constant_name
 from pneubayes.effects.reading_command import command_gain_name, command_time_constant_name
 from pneubayes.effects.reading_flow import FLOW_FEATURE_UNITS, flow_gain_name
+from pneubayes.effects.reading_hinge import hinge_gain_name, hinge_threshold_name
 from pneubayes.effects.reading_play import play_gain_name, play_width_name
 from pneubayes.effects.volume_closure import compliance_name, threshold_name
 from pneubayes.effects.volume_play import compliance_name as wall_compliance_name
@@ -301,6 +302,30 @@ def command_effect_skeleton(model, params: dict, class_name: str = "FoundReading
             "module": "pneubayes.effects.reading_command", "second": "TIME_CONSTANTS",
             "method": "reading_commands", "helper": "commands_named"},
         class_name, effect_name)
+
+
+def hinge_effect_skeleton(model, params: dict, class_name: str = "FoundReadingHinge",
+                          effect_name: str = "found_reading_hinge") -> str:
+    """The module text of an effect plug-in for ``model``'s reading hinge at ``params``:
+    an effect that reads the reading through knees last
+    (:meth:`~pneubayes.effects.Effect.reading_hinges`) with the found number of knees,
+    each a gain (-) and a threshold (Pa absolute) under the user's names; parameters and
+    return as :func:`effect_skeleton`'s."""
+    def term(k, params):
+        c, th = hinge_gain_name(k), hinge_threshold_name(k)
+        return (f"#   knee {k}: r = z + c_{k} max(0, z - theta_{k}); c_{k} = "
+                f"{float(params[c]):.6g}, theta_{k} = {float(params[th]):.6g} Pa",
+                [(f"knee{k}_gain", c), (f"knee{k}_threshold_Pa", th)])
+    return _reading_skeleton(
+        model, params, "reading_hinge", "hinge_effect_skeleton: the model has no reading "
+        "hinge (no found knee of the reading)", term, {
+            "title": "knees of the pressure reading (a static map read last) found by\n"
+                     "pneubayes discover.",
+            "edit": "Edit the names, the descriptions and the bounds to say what it is (a "
+                    "transducer's\nrail, an ADC's full scale, a gauge spring's stop).",
+            "words": "knees", "class": "ReadingHinge",
+            "module": "pneubayes.effects.reading_hinge", "second": "THRESHOLDS",
+            "method": "reading_hinges", "helper": "hinges_named"}, class_name, effect_name)
 
 
 _FLOW_TEMPLATE = '''"""{effect_name}: terms of the valve's port flows in the pressure reading

@@ -19,6 +19,7 @@ from pneubayes.discovery.stages.pairs import Pairs
 from pneubayes.discovery.stages.reading_command_form import ReadingCommandForm
 from pneubayes.discovery.stages.reading_flow_form import ReadingFlowForm
 from pneubayes.discovery.stages.reading_form import ReadingForm
+from pneubayes.discovery.stages.reading_hinge_form import ReadingHingeForm
 from pneubayes.discovery.stages.reading_play_form import ReadingPlayForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
 from pneubayes.discovery.stages.volume_form import VolumeForm
@@ -30,7 +31,7 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
     effects' other forms, then the open forms: the valve driver's clock, the reading's
-    relaxations, plays, lags of the command and terms of the port flows, the volume's
+    knees, relaxations, plays, lags of the command and terms of the port flows, the volume's
     hinges and its
     friction-held walls, and the closure."""
     s = settings.stages
@@ -51,6 +52,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     # physical form expresses exactly (an accumulator's compliance, as pressure relaxations)
     if s.command_clock_min_noise_ratio:  # (a wait locked to a clock, before what it bends)
         stages.append(CommandClockForm(s.command_clock_min_noise_ratio))
+    if s.reading_hinge_min_noise_ratio:  # (the reading's static map before its dynamics)
+        stages.append(ReadingHingeForm(s.reading_hinge_min_noise_ratio))
     if s.reading_form_min_noise_ratio:
         stages.append(ReadingForm(s.reading_form_min_noise_ratio))
     if s.reading_play_min_noise_ratio:
@@ -70,6 +73,7 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 
 __all__ = ["Stage", "CommandClockForm", "MoreSupported", "LastResort", "RunnerUps", "Pairs",
            "OtherForms",
-           "OpenForm", "ReadingForm", "ReadingPlayForm", "ReadingCommandForm", "ReadingFlowForm",
+           "OpenForm", "ReadingForm", "ReadingHingeForm", "ReadingPlayForm",
+           "ReadingCommandForm", "ReadingFlowForm",
            "VolumeForm",
            "VolumePlayForm", "default_stages"]

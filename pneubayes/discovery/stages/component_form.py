@@ -31,9 +31,9 @@ class ComponentForm(Stage):
 
     Runs when the held-out error is above ``min_noise_ratio`` x the noise floor, the
     model has no such component yet (nor one it ``excludes``), and no trial of the round
-    passed, or the best that passed closes under ``compete_below_gap_closed`` of the gap
-    or drives a parameter to a bound (it then replaces that one only if it beats it on
-    the held-out windows).
+    passed, or the best that passed closes under ``compete_below_gap_closed`` of the gap,
+    drives a parameter to a bound or is one of its ``rivals`` (it then replaces that one
+    only if it beats it on the held-out windows).
     """
 
     #: The component's name in a model and in the ledger.
@@ -45,6 +45,10 @@ class ComponentForm(Stage):
     search_class: ClassVar[type]
     #: Components the stage's cannot join (the stage does not run beside them).
     excludes: ClassVar[tuple[str, ...]] = ()
+    #: Catalogue effects that express the same kind of term (a curvature of the reading
+    #: beside its knees): when the round's best passing trial is one, the stage runs
+    #: however much of the gap it closes, and replaces it only by beating it.
+    rivals: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.5,
                  search=None):
@@ -108,7 +112,8 @@ class ComponentForm(Stage):
         if current.heldout_rmse_Pa <= self.min_noise_ratio * noise \
                 or any(current.model.has(c) for c in (self.component, *self.excludes)):
             return False, None
-        return competes(state, noise, self.compete_below_gap_closed)
+        runs, best = competes(state, noise, self.compete_below_gap_closed)
+        return runs or (best is not None and best[1] in self.rivals), best
 
     def run(self, state: RoundState, runner) -> None:
         runs, best = self._applies(state, runner.data.noise_Pa)
