@@ -685,11 +685,11 @@ def test_a_named_sensor_lag_is_fitted_in_both_orders_on_every_channel_and_pressu
     forms = make_effect("sensor_lag").candidate_forms(ctx)
     assert [(f.form, f.channels) for f, _ in forms] == [
         ("first_order", "pressure"), ("second_order", "pressure"), ("first_order", "all"),
-        ("second_order", "all"), ("pressure_dependent", "pressure")]
+        ("second_order", "all"), ("pressure_dependent", "pressure"), ("delay", "pressure")]
     # every form starts at the best term's group delay (the pressure-dependent lag as the
-    # first-order one, its exponent 0)
-    assert [s[f.reading_lead_parameter()] for f, s in forms] == [8e-4] * 5
-    assert forms[-1][1]["sensor_pressure_exponent"] == 0.0
+    # first-order one, its exponent 0; the delay as long as the lag)
+    assert [s[f.reading_lead_parameter()] for f, s in forms] == [8e-4] * 6
+    assert forms[-2][1]["sensor_pressure_exponent"] == 0.0
 
 
 def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(rig):

@@ -2,8 +2,9 @@
 
 The command is held between samples (zero-order hold) and read ``command_delay_s``
 late; the position and supply are linear between samples and read ``inputs_advance_s``
-early. A step never crosses a break of either, except with dense output, where a step
-runs over the samples that repeat the command and the supply
+early (late where it is negative: before the first sample they hold its values). A step
+never crosses a break of either, except with dense output, where a step runs over the
+samples that repeat the command and the supply
 (:func:`pneubayes.simulation.dense.dense_run`). A driver's clock
 (:mod:`pneubayes.simulation.command_clock`) takes the command at its ticks instead.
 """
@@ -76,6 +77,10 @@ def input_segment(t, x, ps, m, tau, adv, t_end, single):
     n = t.shape[0]
     while m + 1 < n and t[m + 1] - adv <= tau:
         m += 1
+    if m == 0 and tau < t[0] - adv:  # read before the first sample (read late): its values,
+        if t[0] - adv < t_end:  # held, until the first sample is reached
+            t_end = t[0] - adv
+        return m, tau, 0.0, x[0], x[0], ps[0], ps[0], t_end
     if m + 1 < n:
         ta = t[m] - adv
         inv_seg = 1.0 / (t[m + 1] - t[m])

@@ -400,14 +400,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     # exactly under the held command; the rest of the reading starts r0 less them
     # the reading's hinges read last (effect reading_hinge): the rest starts at H^-1(r0)
     hinges = tuple(a[:1] for a in model.reading_hinges(params))
-    if hinges[0].shape[1]:
-        if not hinges_readable(*hinges)[0]:
-            raise ValueError("reference_simulate: the reading hinges' map is not increasing "
-                             "everywhere (its reading does not tell the pressure)")
-        z0 = float(unhinged_reading(np.full((1, 1), initial_pressure_Pa), *hinges)[0, 0])
-        initial_rate_Pa_per_s = initial_rate_Pa_per_s / float(
-            hinged_reading(np.full((1, 1), z0), *hinges)[1][0, 0])
-        initial_pressure_Pa = z0
+    initial_pressure_Pa, initial_rate_Pa_per_s = _unhinged_start(
+        hinges, initial_pressure_Pa, initial_rate_Pa_per_s)
     commands = np.zeros(inputs.time_s.size)
     for c, tau in zip(*(a[0] for a in model.reading_commands(params))):
         before = inputs.command_before_start
@@ -536,7 +530,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         return p_atm + cal_g * (r - p_atm) + curv * ((r - p_atm) / 1e5) ** 2 + o
     nfev = 0
     # position and supply are read at t + adv (a filter on every channel, effect
-    # sensor_lag), linear between their samples, held after the last
+    # sensor_lag; a late reading: adv < 0), linear between their samples, held after the
+    # last and before the first
     adv = sl[S["inputs_advance_s"]]
     early = t - adv
 
@@ -544,6 +539,8 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
         """(x, dx/dt * bore area, segment start, its length, supply at both ends) of the
         input segment holding time ``a + adv``."""
         m = int(np.searchsorted(early, a, side="right") - 1)
+        if m < 0:  # (read late, before the first sample: its values, held)
+            return x[0], 0.0, a, 1.0, ps[0], ps[0]
         if m + 1 >= t.size:
             return x[-1], 0.0, a, 1.0, ps[-1], ps[-1]
         seg = t[m + 1] - t[m]
@@ -608,6 +605,18 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     if hinges[0].shape[1]:
         out = hinged_reading(out[None], *hinges)[0][0]
     return (out, nfev) if return_stats else out
+
+
+def _unhinged_start(hinges, reading_Pa: float, rate_Pa_per_s: float) -> tuple[float, float]:
+    """The start reading and its rate before the reading's hinges ``(gains, thresholds)``
+    (each ``(1, J)``; as they are without one): ``H^-1(r0)`` and the rate over ``H'``."""
+    if not hinges[0].shape[1]:
+        return reading_Pa, rate_Pa_per_s
+    if not hinges_readable(*hinges)[0]:
+        raise ValueError("reference_simulate: the reading hinges' map is not increasing "
+                         "everywhere (its reading does not tell the pressure)")
+    z0 = float(unhinged_reading(np.full((1, 1), reading_Pa), *hinges)[0, 0])
+    return z0, rate_Pa_per_s / float(hinged_reading(np.full((1, 1), z0), *hinges)[1][0, 0])
 
 
 def _check_flow_reading(model, params, sl, calibrated, inputs) -> None:

@@ -110,6 +110,10 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
     def has(name):
         return forms[:, _FORM_COLUMNS[name]]
 
+    if np.any(has("exhaust_own_command") & (slots[:, SLOT_INDEX["inputs_advance_s"]] < 0.0)):
+        raise ValueError("a late reading (sensor_lag form 'delay') is simulated in the "
+                         "reading's time, which an exhaust valve's own command (read "
+                         "undelayed) does not follow: not simulated")
     wave = has("wave_length_m")
     line = has("line_length_m") | wave
     hot = has("heat_rate_per_s") | has("heat_coefficient_W_per_m2_K")
