@@ -432,7 +432,7 @@ def test_two_effects_that_each_fail_alone_are_named_as_a_pair(tmp_path):
     SMC / valve 2. The dead zone alone shuts the valve around 0 V and leaves the wrong
     leak to drift further over the held-out holds (pooled RMSE worse), the leak alone
     improves too few windows to pass: nothing was named. The pair stage fits them
-    jointly and names both, near the noise floor; switched off, nothing is named."""
+    jointly and names both, near the noise floor; switched off, no effect is named."""
     from pneubayes.bench.forms import ClearanceLeak, RoundedDeadzone
     from pneubayes.bench.sensors import SensorChain
     forms = (RoundedDeadzone(halfwidth_V=0.10077, rounding_V=0.03905),
@@ -448,15 +448,16 @@ def test_two_effects_that_each_fail_alone_are_named_as_a_pair(tmp_path):
     assert sorted(result.effect_names) == ["cylinder_leak", "valve_deadzone"]
     singles = {e["effect"]: e for e in doc["ledger"] if e["action"] == "reject"}
     assert {"cylinder_leak", "valve_deadzone"} <= set(singles)  # each failed alone
-    (pair,) = [e for e in doc["ledger"] if e["action"] == "pair"]
-    assert pair["passed"] and pair["windows_improved"] >= 17
+    # (the pair stage tries every pair of the supported trials: one passes)
+    (pair,) = [e for e in doc["ledger"] if e["action"] == "pair" and e["passed"]]
+    assert pair["windows_improved"] >= 17
     assert pair["members_needed"] == {"valve_deadzone": True, "cylinder_leak": True}
     assert doc["rmse_final_Pa"] < 3.0 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"] / 5
     # the planted dead zone's half-width, within 10 %
     assert abs(pair["fitted"]["deadzone_halfwidth_V"] - 0.10077) < 0.01
     off = Discovery(_settings(kw, stages={"pair_members": 0}), run,
                     log=lambda m: None).fit(recs).result_
-    assert off.effect_names == []
+    assert off.to_dict()["effects"] == []  # (an open-form closure may take some of it)
 
 
 @pytest.mark.slow
