@@ -319,3 +319,43 @@ def test_discovery_finds_a_planted_rail_in_the_reading(tmp_path):
     assert "terms at the reading found" in (tmp_path / "report.md").read_text()
     assert (tmp_path / "found_reading_hinge.py").exists()
     assert (tmp_path / "figures" / "found_reading_terms.png").exists()
+
+
+@pytest.mark.slow
+def test_a_true_curvature_is_kept_against_its_rival_knees():
+    """The rival rule's other side: four valve1 recordings read through the catalogue's
+    curvature (-8 kPa at 1 bar gauge). The curvature passes; the knee stage runs beside
+    it (its rival), loses to it on the held-out windows, and the curvature is named."""
+    from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
+
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.effects import make_effect
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    truth_model = Model([make_effect("sensor_nonlinearity")])
+    truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+             "reading_curvature_Pa": -8000.0}
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    recs, n = [], 8001
+    for seed in range(4):
+        rng = np.random.default_rng(10 + seed)
+        t = np.arange(n) * 1e-3
+        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
+        blank = Recording(md, t, u, np.full(n, P_ATM))
+        p = simulate(truth_model, truth, Inputs.from_recording(blank), blank.rig(),
+                     P_ATM, SolverConfig.standard()).pressure_Pa[0]
+        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
+                              source=f"curved_{seed}.csv"))
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    result = Discovery(settings, None, log=None).fit(recs).result_
+    doc = result.to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["sensor_nonlinearity"]
+    assert doc["found_reading_terms"] == []
+    rejected = [e for e in doc["ledger"] if e["action"] == "reading hinge form reject"]
+    assert rejected  # (it ran beside the curvature and lost)
+    assert doc["rmse_final_Pa"] < 1.2 * doc["noise_floor_Pa"]
