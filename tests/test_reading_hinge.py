@@ -359,3 +359,72 @@ def test_a_true_curvature_is_kept_against_its_rival_knees():
     rejected = [e for e in doc["ledger"] if e["action"] == "reading hinge form reject"]
     assert rejected  # (it ran beside the curvature and lost)
     assert doc["rmse_final_Pa"] < 1.2 * doc["noise_floor_Pa"]
+
+
+def test_a_knee_flat_as_a_rail_is_a_limit_not_a_stand_in():
+    """The knee's gain at its lower bound (a rail) is the physics' limit: a fit there is
+    not counted at a bound, while its threshold at a bound still is; a bad limit is
+    named."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.openform.closure_model import newly_at_bounds
+    from pneubayes.effects.base import Parameter
+    from pneubayes.effects.reading_hinge import HINGE_GAIN_BOUNDS, HINGE_THRESHOLD_BOUNDS_PA
+
+    model = Model().with_effect(ReadingHinge())
+    base = {n: 1.0 for n in Model().parameter_names}
+    current = SimpleNamespace(params=base)
+    rail = SimpleNamespace(model=model, params={**base, "reading_hinge_gain_0":
+                                                HINGE_GAIN_BOUNDS[0],
+                                                "reading_hinge_threshold_0": 3e5})
+    assert newly_at_bounds(rail, current) == []
+    edge = SimpleNamespace(model=model, params={**rail.params, "reading_hinge_threshold_0":
+                                                HINGE_THRESHOLD_BOUNDS_PA[1]})
+    assert newly_at_bounds(edge, current) == ["reading_hinge_threshold_0"]
+    steep = SimpleNamespace(model=model, params={**rail.params, "reading_hinge_gain_0":
+                                                 HINGE_GAIN_BOUNDS[1]})
+    assert newly_at_bounds(steep, current) == ["reading_hinge_gain_0"]
+    with pytest.raises(ValueError, match="limit must be"):
+        Parameter("x", "-", 0.0, 1.0, "uniform", "x", limit="both")
+
+
+@pytest.mark.slow
+def test_discovery_names_a_hard_clip_as_a_knee_at_its_limit():
+    """Four valve1 recordings whose reading is clipped flat at 3 bar (an ADC's full
+    scale; no map of the library is exactly flat): the knee is named at its gain's limit
+    (a rail), not rejected as a stand-in, near 3 bar; the held-out error falls from
+    ~140 kPa to within 2.5 x the noise floor (a window that starts on the rail cannot
+    tell its chamber's pressure)."""
+    from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
+
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.stages import ReadingHingeForm
+    from pneubayes.effects.reading_hinge import HINGE_GAIN_BOUNDS
+    from pneubayes.io.recording import Recording, RecordingMetadata
+    from pneubayes.physics.valve import valve_preset
+    from pneubayes.simulation import Inputs, SolverConfig, simulate
+
+    truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    recs, n = [], 8001
+    for seed in range(4):
+        rng = np.random.default_rng(10 + seed)
+        t = np.arange(n) * 1e-3
+        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
+        blank = Recording(md, t, u, np.full(n, P_ATM))
+        p = simulate(Model(), truth, Inputs.from_recording(blank), blank.rig(), P_ATM,
+                     SolverConfig.standard()).pressure_Pa[0]
+        recs.append(Recording(md, t, u, np.minimum(p, 3.0e5) + rng.normal(0.0, 200.0, n),
+                              source=f"clipped_{seed}.csv"))
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    doc = Discovery(settings, None, log=None,
+                    stages=[ReadingHingeForm()]).fit(recs).result_.to_dict()
+    (term,) = doc["found_reading_terms"]
+    c = term["parameters"]["reading_hinge_gain_0"]["estimate"]
+    theta = term["parameters"]["reading_hinge_threshold_0"]["estimate"]
+    assert c == pytest.approx(HINGE_GAIN_BOUNDS[0], abs=1e-3)
+    assert theta == pytest.approx(3.0e5, rel=0.02)
+    assert doc["rmse_final_Pa"] < 2.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"] / 100

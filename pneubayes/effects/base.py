@@ -22,6 +22,9 @@ class Parameter:
 
     ``prior`` is ``"uniform"`` on [lower, upper] or ``"log-uniform"`` (lower > 0).
     ``neutral`` is the value at which the component has no effect (None for the base).
+    ``limit`` (``"lower"``, ``"upper"`` or None) names a bound where the physics itself
+    ends (a knee's gain at a flat rail), kept a little inside for the numerics: a fit
+    there is that limit, not a sign that the component stands in for something else.
     """
 
     name: str
@@ -31,10 +34,14 @@ class Parameter:
     prior: str
     description: str
     neutral: float | None = None
+    limit: str | None = None
 
     def __post_init__(self):
         if not self.lower < self.upper:
             raise ValueError(f"Parameter {self.name}: lower {self.lower} >= upper {self.upper}")
+        if self.limit not in (None, "lower", "upper"):
+            raise ValueError(f"Parameter {self.name}: limit must be 'lower', 'upper' or None, "
+                             f"got {self.limit!r}")
         if self.prior not in ("uniform", "log-uniform"):
             raise ValueError(f"Parameter {self.name}: unknown prior {self.prior!r}")
         if self.prior == "log-uniform" and self.lower <= 0:

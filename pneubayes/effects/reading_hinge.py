@@ -38,7 +38,8 @@ from pneubayes.rig import Rig
 #: The most hinges one component carries.
 HINGE_MAX_TERMS = 2
 #: A gain's bounds (-): down to a reading whose slope above the knee is 1 % of the
-#: slope below (a rail that still tells the pressure), up to one four times as steep.
+#: slope below (a rail that still tells the pressure; a fit there is a rail, the
+#: physics' limit, not a stand-in), up to one four times as steep.
 HINGE_GAIN_BOUNDS = (-0.99, 3.0)
 #: A threshold's bounds and start, Pa absolute.
 HINGE_THRESHOLD_BOUNDS_PA = (5.0e4, 2.0e6)
@@ -81,7 +82,8 @@ class ReadingHinge(Effect):
         for j in range(self.terms):
             out.append(Parameter(hinge_gain_name(j), "-", *HINGE_GAIN_BOUNDS, "uniform",
                                  f"reading hinge {j}: the change c of the reading's slope "
-                                 "above its knee (-1: a flat rail)", neutral=0.0))
+                                 "above its knee (-1: a flat rail)", neutral=0.0,
+                                 limit="lower"))
             out.append(Parameter(hinge_threshold_name(j), "Pa", lo, hi, "uniform",
                                  f"reading hinge {j}: the reading's knee theta, Pa absolute "
                                  "(the term vanishes with its gain whatever its knee)",

@@ -137,15 +137,17 @@ def newly_at_bounds(fit, current, share: float = 1e-4) -> list[str]:
     by driving parameters to their limits stands in for what it cannot express. An
     earlier effect's parameter that reaches its neutral value at a bound (a spool lag's
     time constant at 0) does not count: the closure explains what that effect stood in
-    for, and the loop's backward step removes it."""
+    for, and the loop's backward step removes it. Nor does a bound that is the physics'
+    own limit (:attr:`~pneubayes.effects.base.Parameter.limit`: a knee flat as a rail)."""
     out = []
     for name in fit.model.parameter_names:
         p = fit.model.parameter(name)
         f = bound_scale(p.lower, p.upper)  # (2 ms is not at a 0.1-ms bound of 20 s's)
         tol = share * (f(p.upper) - f(p.lower))
 
-        def at(v, p=p, tol=tol, f=f):
-            return f(v) - f(p.lower) <= tol or f(p.upper) - f(v) <= tol
+        def at(v, p=p, tol=tol, f=f):  # (a bound where the physics ends does not count)
+            return (p.limit != "lower" and f(v) - f(p.lower) <= tol) \
+                or (p.limit != "upper" and f(p.upper) - f(v) <= tol)
 
         value = fit.params[name]
         if not at(value) or (name in current.params and at(current.params[name])):
