@@ -193,6 +193,8 @@ def test_the_search_recovers_a_planted_knee_and_finds_none_in_noise():
         HingeSearch(thresholds_Pa=(3e5, 2e5, 4e5)).fit(blocks)
     with pytest.raises(ValueError, match="n_thresholds"):
         HingeSearch(n_thresholds=2).fit(blocks)
+    with pytest.raises(ValueError, match="list of ReadingWindows"):
+        HingeSearch().fit([object()])
 
 
 def test_the_hinge_stage_competes_with_the_catalogues_curvature():
@@ -273,24 +275,16 @@ def test_found_knees_become_an_effect_plug_in(rig, hand):
         hinge_effect_skeleton(Model(), {})
 
 
-@pytest.mark.slow
-def test_discovery_finds_a_planted_rail_in_the_reading(tmp_path):
-    """The loop with the hinge stage alone, on four 8-s valve1 recordings read through a
-    transducer that bends to a fifth of its slope above 3 bar: the knee is found with
-    its gain and threshold, verified on held-out windows, the held-out error falls to
-    about the noise floor, and the report lists it, draws it and writes its plug-in."""
+def _valve1_runs(model, params, name, read=None):
+    """Four 8-s valve1 recordings (fixed piston, random command steps) of ``model`` at
+    ``params`` from the atmosphere, each reading passed through ``read`` (None: as it
+    is) with 200 Pa of noise; and the loop's settings for them (two held out, no
+    posterior, at most two additions)."""
     from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
 
-    from pneubayes.discovery.loop import Discovery
-    from pneubayes.discovery.report import write_discovery
-    from pneubayes.discovery.stages import ReadingHingeForm
     from pneubayes.io.recording import Recording, RecordingMetadata
-    from pneubayes.physics.valve import valve_preset
     from pneubayes.simulation import Inputs, SolverConfig, simulate
 
-    truth_model = Model().with_effect(ReadingHinge())
-    truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
-             "reading_hinge_gain_0": -0.8, "reading_hinge_threshold_0": 3.0e5}
     md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
                            position_m=0.015)
     recs, n = [], 8001
@@ -299,13 +293,31 @@ def test_discovery_finds_a_planted_rail_in_the_reading(tmp_path):
         t = np.arange(n) * 1e-3
         u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
         blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(truth_model, truth, Inputs.from_recording(blank), blank.rig(),
-                     P_ATM, SolverConfig.standard()).pressure_Pa[0]
+        p = simulate(model, params, Inputs.from_recording(blank), blank.rig(), P_ATM,
+                     SolverConfig.standard()).pressure_Pa[0]
+        p = p if read is None else read(p)
         recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
-                              source=f"railed_{seed}.csv"))
+                              source=f"{name}_{seed}.csv"))
     settings = discovery_settings(posterior={"method": "none"},
                                   forms={"tube_line_segments": 0},
                                   data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    return recs, settings
+
+
+@pytest.mark.slow
+def test_discovery_finds_a_planted_rail_in_the_reading(tmp_path):
+    """The loop with the hinge stage alone, on four 8-s valve1 recordings read through a
+    transducer that bends to a fifth of its slope above 3 bar: the knee is found with
+    its gain and threshold, verified on held-out windows, the held-out error falls to
+    about the noise floor, and the report lists it, draws it and writes its plug-in."""
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.report import write_discovery
+    from pneubayes.discovery.stages import ReadingHingeForm
+    from pneubayes.physics.valve import valve_preset
+
+    truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
+             "reading_hinge_gain_0": -0.8, "reading_hinge_threshold_0": 3.0e5}
+    recs, settings = _valve1_runs(Model().with_effect(ReadingHinge()), truth, "railed")
     result = Discovery(settings, None, log=None,
                        stages=[ReadingHingeForm()]).fit(recs).result_
     doc = result.to_dict()
@@ -326,32 +338,14 @@ def test_a_true_curvature_is_kept_against_its_rival_knees():
     """The rival rule's other side: four valve1 recordings read through the catalogue's
     curvature (-8 kPa at 1 bar gauge). The curvature passes; the knee stage runs beside
     it (its rival), loses to it on the held-out windows, and the curvature is named."""
-    from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
-
     from pneubayes.discovery.loop import Discovery
     from pneubayes.effects import make_effect
-    from pneubayes.io.recording import Recording, RecordingMetadata
     from pneubayes.physics.valve import valve_preset
-    from pneubayes.simulation import Inputs, SolverConfig, simulate
 
-    truth_model = Model([make_effect("sensor_nonlinearity")])
     truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
              "reading_curvature_Pa": -8000.0}
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    recs, n = [], 8001
-    for seed in range(4):
-        rng = np.random.default_rng(10 + seed)
-        t = np.arange(n) * 1e-3
-        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
-        blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(truth_model, truth, Inputs.from_recording(blank), blank.rig(),
-                     P_ATM, SolverConfig.standard()).pressure_Pa[0]
-        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
-                              source=f"curved_{seed}.csv"))
-    settings = discovery_settings(posterior={"method": "none"},
-                                  forms={"tube_line_segments": 0},
-                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    recs, settings = _valve1_runs(Model([make_effect("sensor_nonlinearity")]), truth,
+                                  "curved")
     result = Discovery(settings, None, log=None).fit(recs).result_
     doc = result.to_dict()
     assert [e["name"] for e in doc["effects"]] == ["sensor_nonlinearity"]
@@ -395,31 +389,14 @@ def test_discovery_names_a_hard_clip_as_a_knee_at_its_limit():
     (a rail), not rejected as a stand-in, near 3 bar; the held-out error falls from
     ~140 kPa to within 2.5 x the noise floor (a window that starts on the rail cannot
     tell its chamber's pressure)."""
-    from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
-
     from pneubayes.discovery.loop import Discovery
     from pneubayes.discovery.stages import ReadingHingeForm
     from pneubayes.effects.reading_hinge import HINGE_GAIN_BOUNDS
-    from pneubayes.io.recording import Recording, RecordingMetadata
     from pneubayes.physics.valve import valve_preset
-    from pneubayes.simulation import Inputs, SolverConfig, simulate
 
     truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    recs, n = [], 8001
-    for seed in range(4):
-        rng = np.random.default_rng(10 + seed)
-        t = np.arange(n) * 1e-3
-        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
-        blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(Model(), truth, Inputs.from_recording(blank), blank.rig(), P_ATM,
-                     SolverConfig.standard()).pressure_Pa[0]
-        recs.append(Recording(md, t, u, np.minimum(p, 3.0e5) + rng.normal(0.0, 200.0, n),
-                              source=f"clipped_{seed}.csv"))
-    settings = discovery_settings(posterior={"method": "none"},
-                                  forms={"tube_line_segments": 0},
-                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    recs, settings = _valve1_runs(Model(), truth, "clipped",
+                                  read=lambda p: np.minimum(p, 3.0e5))
     doc = Discovery(settings, None, log=None,
                     stages=[ReadingHingeForm()]).fit(recs).result_.to_dict()
     (term,) = doc["found_reading_terms"]

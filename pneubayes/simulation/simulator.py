@@ -216,10 +216,10 @@ def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa
         # (gains summing to -1 or less, or hinges whose map is not increasing, leave a
         # reading that does not tell the pressure: such a set fails, as a failed
         # simulation does)
-        unreadable = (1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1) <= 0.0) \
-            | ~hinges_readable(*hinges)
-        if not hinges_readable(*hinges).all() and on_failure != "nan":
-            b = int(np.flatnonzero(~hinges_readable(*hinges))[0])
+        bent = ~hinges_readable(*hinges)
+        unreadable = (1.0 + relax[0].sum(axis=1) + plays[0].sum(axis=1) <= 0.0) | bent
+        if bent.any() and on_failure != "nan":
+            b = int(np.flatnonzero(bent)[0])
             raise ValueError(f"reading hinges: parameter set {b}'s map is not increasing "
                              f"everywhere (gains {hinges[0][b].tolist()} at thresholds "
                              f"{hinges[1][b].tolist()} Pa): its reading does not tell the "

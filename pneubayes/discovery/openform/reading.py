@@ -245,6 +245,12 @@ class ReadingSearch:
 
     def _validate(self, blocks):
         taus = self._checked_grid()
+        self._check_blocks(blocks)
+        return taus
+
+    def _check_blocks(self, blocks) -> None:
+        """Raise ValueError unless the settings besides the grid and ``blocks`` (a list
+        of :class:`ReadingWindows`, shapes consistent) are valid."""
         most = self.max_terms_allowed
         if not (isinstance(self.max_terms, int) and 1 <= self.max_terms <= most):
             raise ValueError(f"max_terms must be an integer in 1..{most}, got "
@@ -263,7 +269,6 @@ class ReadingSearch:
                 raise ValueError(f"block {i}: times {t.shape}, predicted {p.shape}, residual "
                                  f"{y.shape} and sensitivity {np.shape(b.sensitivity)} must be "
                                  "(W, L), (W, L), (W, L - 1) and (W, L) or None")
-        return taus
 
     def fit(self, blocks: Sequence[ReadingWindows]) -> "ReadingSearch":
         """Search the windows' residual, one :class:`ReadingWindows` per recording."""

@@ -89,6 +89,7 @@ class HingeSearch(ReadingSearch):
     def fit(self, blocks) -> "HingeSearch":
         """Search the windows' residual, one
         :class:`~pneubayes.discovery.openform.reading.ReadingWindows` per recording."""
+        self._check_blocks(blocks)
         self.thresholds_searched_ = self._grid(blocks)
         if self.thresholds_searched_.size == 0:  # (nothing to bend: no range)
             self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
@@ -105,11 +106,7 @@ class HingeSearch(ReadingSearch):
                 or not 0.0 <= q0 < q1 <= 1.0:
             raise ValueError(f"n_thresholds must be an integer >= 3 and quantiles two "
                              f"increasing values in [0, 1], got {n!r}, {self.quantiles!r}")
-        try:
-            p = np.concatenate([np.asarray(b.predicted_Pa, np.float64).ravel()
-                                for b in blocks])
-        except (AttributeError, TypeError, ValueError):
-            return np.asarray([], dtype=np.float64)  # (the base's check names the input)
+        p = np.concatenate([np.asarray(b.predicted_Pa, np.float64).ravel() for b in blocks])
         p = p[np.isfinite(p)]
         if p.size < 2:
             return np.asarray([], dtype=np.float64)
