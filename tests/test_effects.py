@@ -42,7 +42,7 @@ VARIANTS = [("cylinder_leak", {"form": "orifice"}), ("cylinder_leak", {"form": "
                                                    "spool_hinge_down; one"}),
             ("reading_closure", {}), ("reading_closure", {"terms": 2}),
             ("volume_closure", {}), ("volume_closure", {"terms": 2}),
-            ("volume_play", {}), ("volume_play", {"terms": 2}),
+            ("volume_play", {}), ("volume_play", {"terms": 2}), ("loaded_wall", {}),
             ("command_clock", {}), ("command_clock", {"form": "pwm"})]
 IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line", "tube_wave",
        "valve_deadzone",
@@ -50,7 +50,7 @@ IDS = ["leak_orifice", "leak_laminar", "leak_graded", "tube_delay", "tube_line",
        "spool_lag", "spool_lag_2", "sensor_lag", "sensor_lag_2", "sensor_lag_2_all",
        "sensor_lag_pressure", "closure", "closure_hinges", "reading_closure",
        "reading_closure_2", "volume_closure", "volume_closure_2", "volume_play",
-       "volume_play_2", "command_clock", "command_clock_pwm"]
+       "volume_play_2", "loaded_wall", "command_clock", "command_clock_pwm"]
 
 
 def _tight():
@@ -94,7 +94,7 @@ def test_catalogue_names():
                                "valve_stiction", "closure", "reading_closure",
                                "reading_play", "reading_command", "reading_flow",
                                "reading_hinge", "volume_closure",
-                               "volume_play", "command_clock"]
+                               "volume_play", "loaded_wall", "command_clock"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -192,6 +192,10 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
         with pytest.raises(ValueError, match="plant's friction-held wall"):
             reference_simulate(model, params, inputs, rig, 2e5)
         return  # its independent reference: tests/test_volume_play.py
+    if effect.name == "loaded_wall":  # two more states: no ODE reference
+        with pytest.raises(ValueError, match="plant's loaded wall"):
+            reference_simulate(model, params, inputs, rig, 2e5)
+        return  # its independent reference: tests/test_loaded_wall.py
     if effect.name == "command_clock":  # switches between samples: no ODE reference
         with pytest.raises(ValueError, match="plant's driver"):
             reference_simulate(model, params, inputs, rig, 2e5)
@@ -206,12 +210,13 @@ def test_bench_defaults_agree_with_the_reference_solver(effect, rig, valve_param
 def test_all_effects_together_agree_with_the_reference_solver(rig, valve_params, hand):
     """Delay break points, spool lag, dead band, heat state, leak and supply all at once
     (all but the volume's closure and play, whose compliant chamber the simulator steps
-    with the pressure as its only state: not beside the heat state; the driver's clock,
+    with the pressure as its only state: not beside the heat state; the loaded wall, which
+    the reference does not step, nor the simulator beside a compliant chamber; the driver's clock,
     which the reference does not step; and the port flows' terms in the reading, which it
     solves only on the chamber's own reading: tests/test_reading_flow.py)."""
     model = Model([n for n in CATALOGUE
-                   if n not in ("volume_closure", "volume_play", "command_clock",
-                                "reading_flow")])
+                   if n not in ("volume_closure", "volume_play", "loaded_wall",
+                                "command_clock", "reading_flow")])
     params = dict(valve_params, dead_volume_m3=1e-6)
     for e in model.effects:
         params.update(e.bench_defaults())
@@ -815,7 +820,7 @@ def test_what_the_fits_and_the_loop_ask_of_an_effect_is_on_the_effect():
     own declarations: no code outside ``effects/`` names the effect to ask."""
     assert {n for n, c in CATALOGUE.items() if c.needs_warmup} == {"heat_transfer"}
     assert {n for n, c in CATALOGUE.items() if not c.beside_line} == {
-        "closure", "volume_closure", "volume_play"}
+        "closure", "volume_closure", "volume_play", "loaded_wall"}
     for form in ("first_order", "second_order", "pressure_dependent"):
         lag = make_effect("sensor_lag", form=form)
         assert lag.reading_lead_parameter() in lag.parameter_names()

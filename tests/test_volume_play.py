@@ -366,7 +366,7 @@ def test_the_volume_view_traces_a_wall_s_loop(rig, tmp_path):
     assert view["term"] == "wall 0"
     np.testing.assert_allclose(view["pressure_Pa"][0], p)
     np.testing.assert_allclose(view["volume_m3"][0], C_TRUE * (play(p, R_TRUE) - P_ATM))
-    with pytest.raises(ValueError, match="no volume closure or volume play"):
+    with pytest.raises(ValueError, match="no volume closure, volume play"):
         volume_views(Model(), BASE, [rec], SolverConfig.standard())
 
 

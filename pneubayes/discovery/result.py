@@ -31,7 +31,7 @@ FORMAT = "pneubayes-discovery/1"
 OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "reading_flow",
              "reading_hinge",
              "volume_closure",
-             "volume_play", "command_clock")
+             "volume_play", "loaded_wall", "command_clock")
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,8 +212,8 @@ class DiscoveryResult(PosteriorDraws):
 
     def found_volume_terms(self) -> list[dict]:
         """The final model's open-form terms on the chamber's volume (effects
-        ``volume_closure`` and ``volume_play``; empty without them): each hinge's or
-        friction-held wall's formula, its compliances and threshold or half-width (as
+        ``volume_closure``, ``volume_play`` and ``loaded_wall``; empty without them): each
+        hinge's, friction-held wall's or loaded wall's formula, its parameters (as
         :meth:`found_reading_terms` gives them), and where it acts."""
         return self._component_terms(
             "volume_closure", "hinge", "the chamber's volume (m^3)",
@@ -226,7 +226,14 @@ class DiscoveryResult(PosteriorDraws):
                        f"r_{k}, max(p - r_{k}, w_{k} before)) (C_{k} = "
                        f"{wall_compliance_name(k)}, H_{k} = {held_compliance_name(k)}, "
                        f"m^3/Pa; r_{k} = {half_width_name(k)}, Pa)"),
-            lambda k: (wall_compliance_name(k), held_compliance_name(k), half_width_name(k)))
+            lambda k: (wall_compliance_name(k), held_compliance_name(k), half_width_name(k))
+        ) + self._component_terms(
+            "loaded_wall", "loaded wall", "the chamber's volume (m^3)",
+            lambda k: ("V = V_0 + C x, x'' + 2 z w x' + w^2 x = w^2 (p - P_atm) (C = "
+                       "loaded_wall_compliance, m^3/Pa; w / 2 pi = loaded_wall_frequency, "
+                       "Hz; z = loaded_wall_damping)"),
+            lambda k: ("loaded_wall_compliance", "loaded_wall_frequency",
+                       "loaded_wall_damping"))
 
     def found_command_terms(self) -> list[dict]:
         """The final model's open-form term on the command (effect ``command_clock``;

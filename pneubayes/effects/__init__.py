@@ -10,8 +10,9 @@ of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
 ``reading_hinge`` (open-form knees of the reading, read last),
 ``volume_closure`` (open-form hinges of the chamber's volume in its pressure),
 ``volume_play`` (open-form friction-held walls: plays and stops of the chamber's
-volume) and ``command_clock`` (an open-form valve driver on its own clock), the last
-nine never searched for by the discovery library.
+volume), ``loaded_wall`` (an open-form wall with inertia: the chamber's volume as a
+mass on a spring) and ``command_clock`` (an open-form valve driver on its own clock),
+the last ten never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pneubayes.effects.closure import Closure
 from pneubayes.effects.command_clock import CommandClock
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
+from pneubayes.effects.loaded_wall import LoadedWall
 from pneubayes.effects.reading_closure import ReadingClosure
 from pneubayes.effects.reading_command import ReadingCommand
 from pneubayes.effects.reading_flow import ReadingFlow
@@ -48,7 +50,8 @@ CATALOGUE: dict[str, type[Effect]] = {
     for cls in (CylinderLeak, TubeDelay, ValveDeadzone, SupplyFluctuation, HeatTransfer,
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
-                ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, CommandClock)
+                ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, LoadedWall,
+                CommandClock)
 }
 
 
@@ -144,4 +147,5 @@ __all__ = ["CATALOGUE", "Closure", "CommandClock", "Component", "CylinderLeak", 
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
-           "VolumeClosure", "VolumePlay", "catalogue_parameter_names", "make_effect"]
+           "VolumeClosure", "VolumePlay", "LoadedWall", "catalogue_parameter_names",
+           "make_effect"]

@@ -243,6 +243,14 @@ SLOTS += (
      "tick, 0.5: centred) (-)"),
 )
 
+SLOTS += (
+    ("loaded_wall_compliance_m3_per_Pa", "a wall that carries a load (a mass on a spring "
+     "driven by the gauge pressure) adds C x to the chamber's volume, x'' + 2 z w x' + w^2 x "
+     "= w^2 (p - P_atm): C its static give per pascal; 0 = none (m^3/Pa)"),
+    ("loaded_wall_frequency_Hz", "the loaded wall's natural frequency w / (2 pi) (Hz)"),
+    ("loaded_wall_damping_ratio", "the loaded wall's damping ratio z (-)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

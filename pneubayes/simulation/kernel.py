@@ -26,7 +26,8 @@ order in the p-T coupling). With the tube as an acoustic line, the state is the
 chamber's pressure and the line's cells and flows (with heat transfer, and the chamber's
 temperature: the line's gas is at the supply's temperature), stepped by the same method
 with the full Jacobian (:mod:`pneubayes.simulation.line`). A lagged sensor reading is
-stepped in closed form after each accepted step (:mod:`pneubayes.simulation.reading`).
+stepped in closed form after each accepted step (:mod:`pneubayes.simulation.reading`), a
+loaded wall beside the pressure step (:mod:`pneubayes.simulation.loaded_wall`).
 
 Status codes per task: 0 ok, 1 step size underflow, 2 step budget exhausted,
 3 non-finite state, 4 an acoustic line not smaller than the dead volume. This module,
@@ -99,6 +100,14 @@ from pneubayes.simulation.line import (
     line_step,
     line_volume,
     line_workspace,
+)
+from pneubayes.simulation.loaded_wall import (
+    wall_accept,
+    wall_chord,
+    wall_constants,
+    wall_max_step,
+    wall_on,
+    wall_start,
 )
 from pneubayes.simulation.lung import lung_step
 from pneubayes.simulation.reading import (
@@ -355,15 +364,17 @@ def _grown_step(h, hh, err, err_last, crossing, hmax):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, general, forms,
-           calibration, spool_cfg, sensor, closure, start, line_state, wave_state, chamber):
+           calibration, spool_cfg, sensor, closure, start, line_state, wave_state, chamber,
+           wall):
     """Step one window :func:`_window` prepared (the arguments as it takes them) to its
     end, writing ``out``, ``sens`` and ``carry``; returns its status. The tuples, as
     :func:`_window` builds them: the forms present, the reading's calibration, the
     delayed command and spool, the sensor's lag, a closure's reads and low-passes, the
-    start state, a tube's workspaces and the chamber's constants."""
+    start state, a tube's workspaces, the chamber's constants and a loaded wall's
+    (``loaded_wall.py``)."""
     rtol, atol_p, atol_t = sv[S_RTOL], sv[S_ATOL_P], sv[S_ATOL_T]
     hmax, hmin = sv[S_MAX_STEP], sv[S_MIN_STEP]
-    n, p_atm = t.shape[0], cs[C_P_ATM]
+    n, p_atm, kap = t.shape[0], cs[C_P_ATM], cs[C_KAPPA]
     thermal, own_ex, tank, lung, line, wave, plain, shaped, dense, rigid, reading, want_sens = (
         forms)
     calibrated, zero, cal_g, slope0 = calibration
@@ -375,6 +386,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
     nseg, ny, y, y_new, s_vec, prop, line_work = line_state
     w_work, tube, grid, w_near = wave_state
     v0, bore, gain, adv, p_nom, c_tank = chamber
+    walled, w_consts, w_state, w_hmax = wall
+    w_rate = 0.0  # the last accepted step's mean rate of p (Pa/s), which the wall takes on
     cl_relax, play = rx_n > 0, play_on(sl)
     # the last accepted step's mean rates of p (Pa/s) and of the net port flow
     # (kg/s^2), at which a relaxation's midpoint value takes them on
@@ -385,15 +398,11 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
     a_in2, a_ex2, psup2 = 0.0, 0.0, 0.0
     x0c, x1c = 0.0, 0.0  # a chord step's positions at its ends (dense output), m
     c_c = 0.0  # its coupling (Pa / (m s)); the flows' slope is jf
-    kap = cs[C_KAPPA]
     qstep = False  # the pressure step's variable is q = p V^n
     sc0, sc1 = 1.0, 1.0  # its scale V^n (1 for p) at the step's ends
     jf = 0.0  # the flows' slope (1/s) over a chord
-    h = hmax
-    err_last = 0.0  # the last accepted step's error estimate
-    steps = 0
-    s_cached, cmd_cached = math.nan, math.nan
-    a_in_c, a_ex_c = 0.0, 0.0
+    h, err_last, steps = hmax, 0.0, 0  # (err_last: the last accepted step's estimate)
+    s_cached, cmd_cached, a_in_c, a_ex_c = math.nan, math.nan, 0.0, 0.0
     k_last = i0 + length - 1
     fp, vp, ep = 0.0, 0.0, 0.0  # the last step's rate, its rate of change, its correction
     zp, phi3p = 0.0, 1.0
@@ -447,6 +456,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                 if not ok:
                     return WAVE_HISTORY
             while tau < t_end:
+                if walled and h > w_hmax:
+                    h = w_hmax
                 hh = h if h < t_end - tau else t_end - tau
                 if t_end - tau - hh < 1e-3 * hh:
                     hh = t_end - tau
@@ -466,6 +477,9 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     x1c = position_at(t, x, n, m_ch, tau + hh)[1]
                     vol, vol2 = v0 + bore * x0c, v0 + bore * x1c
                     vdot = bore * (x1c - x0c) / hh
+                # the step's volume rate (m^3/s): the position's and a loaded wall's
+                vol, vol2, vd = wall_chord(walled, w_state, p, w_rate, hh, vol, vol2, vdot,
+                                           p_atm, w_consts)
                 if general is not None and cl_relax:
                     rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
                     relaxations_mid(sl, rx_n, rx_idx, rx_kind, rx_tau, rx_val, p, rx_rate,
@@ -476,7 +490,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                 zp = 0.0
                 dev_r = 0.0  # a first-order reading's departure from the chord's
                 if general is not None and line:
-                    err = line_step(y, nseg, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in,
+                    err = line_step(y, nseg, hh, a_in, a_ex, vol, vd, psup, dsup, da_in,
                                     da_ex, a_in2, a_ex2, vol2, psup2, sl, cs, atol_p,
                                     atol_t, rtol, y_new, prop, line_work)
                     pn = y_new[0]
@@ -488,33 +502,34 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             atol_p, rtol)
                 elif general is not None and tank:
                     err, pn, p_tank_new, prop_t = tank_step(p, p_tank, hh, a_in, a_ex, vol,
-                                                            vdot, da_in, da_ex, a_in2, a_ex2,
+                                                            vd, da_in, da_ex, a_in2, a_ex2,
                                                             vol2, sl, cs, c_tank, atol_p,
                                                             rtol, s_at, ds_at, s_at2, cdir,
                                                             general)
                 elif general is not None and lung:
                     err, pn, p_lung_new, prop_t = lung_step(p, p_lung, hh, a_in, a_ex, vol,
-                                                            vdot, psup, dsup, da_in, da_ex,
+                                                            vd, psup, dsup, da_in, da_ex,
                                                             a_in2, a_ex2, vol2, psup2, sl, cs,
                                                             atol_p, rtol, s_at, ds_at, s_at2,
                                                             cdir, general)
                 elif general is not None and wave:
                     err, pn, fp, jp, vp, ep, zp, phi3p, w_gain = wave_chamber_step(
-                        p, temp, hh, tau, vol, vdot, psup, vol2, psup2, s_at, ds_at, s_at2,
+                        p, temp, hh, tau, vol, vd, psup, vol2, psup2, s_at, ds_at, s_at2,
                         cdir, sl, cs, grid, tube, w_work[2][2], ep, atol_p, rtol, general)
                 elif general is not None and thermal:
                     err, pn, tn, prop_t, fp, jp, vp = thermal_step(
-                        p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, a_in2,
+                        p, temp, hh, a_in, a_ex, vol, vd, psup, dsup, da_in, da_ex, a_in2,
                         a_ex2, vol2, psup2, sl, cs, atol_p, atol_t, rtol, s_at, ds_at, s_at2,
                         cdir, general)
                     zp = hh * jp  # (the pressure's own part: a lagged reading's shape)
                 else:
                     fp, jp, vp, fs = start_rates(
-                        p, temp, hh, a_in, a_ex, vol, vdot, psup, dsup, da_in, da_ex, s_at,
-                        ds_at, cdir, sl, cs, fs, m, moving or chord, cl_relax, cl_spool,
+                        p, temp, hh, a_in, a_ex, vol, vd, psup, dsup, da_in, da_ex, s_at,
+                        ds_at, cdir, sl, cs, fs, m, moving or chord or walled, cl_relax,
+                        cl_spool,
                         rigid and gain == 0.0 and not cl_vdot, general)
                     (err, pn, fp, vp, ep, zp, phi3p, qstep, sc0, sc1, ff, jf, c_ok, c_fp,
-                     c_jp, c_vp) = chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2,
+                     c_jp, c_vp) = chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vd, a_in2,
                                                 a_ex2, vol2, psup2, dsup, s_at2, cdir, sl, cs,
                                                 kap, rigid, chord, fs[0], atol_p, rtol,
                                                 general)
@@ -533,6 +548,8 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                         s_cur, v_cur = s2, v2
                     p_prev, s_prev, p_tank, p_lung = p, s_p0, p_tank_new, p_lung_new
                     p, temp = pn, tn
+                    w_state, w_rate = wall_accept(walled, w_state, p_prev, p, tau - t_prev,
+                                                  p_atm, w_consts)
                     if general is not None and play and play_accept(sl, p_prev, p, p_atm):
                         fs = NO_REUSE  # the table was laid again at a play's turn
                     if general is not None and cl_relax:
@@ -583,27 +600,32 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
             spool, v_s = spool_at_end(spool2, s_cur, v_cur, spool_a, v_s, cmd, t_end - t_sub,
                                       tau_s, w_s, rate_s, tau_dn)
         if k >= i0:
-            value = r if reading else p
-            out[kn - i0] = (sensor_reading_scalar(value, p_atm, reading_zero_scalar(
-                zero, t[kn]), cal_g) if calibrated
-                            else value)
-            if want_sens:
-                sens[kn - i0] = s_r if reading else s_p0
-                if cal_g[1] != 0.0:  # a curved sensor: d(reading)/d(its start)
-                    sens[kn - i0] *= reading_slope_scalar(value, p_atm, cal_g) / slope0
+            _write_sample(out, sens, kn - i0, r if reading else p, s_r if reading else s_p0,
+                          t[kn], calibration, p_atm, want_sens)
         k = kn
     carry[0] = temp
     if general is not None and line:
         line_finish(y, carry, nseg)
-    if general is not None and wave:
-        if not wave_window_end(w_work, tube, w_switch, carry, t[i0 + length - 1], p, s_p0,
-                               psup2, a_in2, a_ex2, w_near, cs):
-            return WAVE_HISTORY
-    if tank:
-        carry[CARRY_TANK] = p_tank
-    if lung:
-        carry[CARRY_LUNG] = p_lung
+    if general is not None and wave and not wave_window_end(
+            w_work, tube, w_switch, carry, t[i0 + length - 1], p, s_p0, psup2, a_in2, a_ex2,
+            w_near, cs):
+        return WAVE_HISTORY
+    carry[CARRY_TANK] = p_tank if tank else carry[CARRY_TANK]
+    carry[CARRY_LUNG] = p_lung if lung else carry[CARRY_LUNG]
     return OK
+
+
+@njit(cache=True, error_model="numpy")
+def _write_sample(out, sens, i, value, s, t_i, calibration, p_atm, want_sens):
+    """Write output sample ``i``: the reading of the state ``value`` (Pa; through the
+    sensor's calibration at time ``t_i``) and its sensitivity ``s`` to the start."""
+    calibrated, zero, cal_g, slope0 = calibration
+    out[i] = (sensor_reading_scalar(value, p_atm, reading_zero_scalar(zero, t_i), cal_g)
+              if calibrated else value)
+    if want_sens:
+        sens[i] = s
+        if cal_g[1] != 0.0:  # a curved sensor: d(reading)/d(its start)
+            sens[i] *= reading_slope_scalar(value, p_atm, cal_g) / slope0
 
 
 @njit(cache=True, error_model="numpy")
@@ -774,6 +796,17 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     shaped = plain or thermal
     dense = (sv.shape[0] > S_DENSE and sv[S_DENSE] > 0.0 and not reading and not own_ex
              and adv == 0.0 and plain)
+    walled = wall_on(sl)
+    w_c, w_w, w_z = wall_constants(sl)
+    w_x, w_v, w_hmax = 0.0, 0.0, math.inf
+    if walled:  # a loaded wall: where the reading's history leaves it, its step bound
+        if general is None:
+            return NEEDS_GENERAL
+        if not (w_w > 0.0 and w_z > 0.0):
+            return NONFINITE
+        w_x, w_v = wall_start(t, pm, k0, w_w, w_z, p, calibrated, p_atm, zero, cal_g)
+        w_hmax = wall_max_step(w_c, w_w, v0, p_nom, cs[C_KAPPA])
+        dense = False
     if play_on(sl):  # a volume play lays its table on the kernel's own copy of the slots
         if general is None:
             return NEEDS_GENERAL
@@ -791,7 +824,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         (k0, t_start, max_steps, r, v_r, p, temp, p_tank, p_lung, s_t0, j, cdir, spool, v_s,
          m),
         (nseg, ny, y, y_new, s_vec, prop, line_work), (w_work, tube, grid, w_near),
-        (v0, bore, gain, adv, p_nom, c_tank))
+        (v0, bore, gain, adv, p_nom, c_tank), (walled, (w_c, w_w, w_z), (w_x, w_v), w_hmax))
 
 
 @njit(cache=True, error_model="numpy")
@@ -932,7 +965,8 @@ def needs_general(slots) -> bool:
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`).
 GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N] + [
-    SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS])
+    SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
+    SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"]])
 
 
 @njit(cache=True, error_model="numpy")

@@ -359,6 +359,23 @@ def _stuck(u, before, band, slip):
     return np.array(out)
 
 
+def _refuse_moving_walls(sl) -> None:
+    """Raise where a parameter set's chamber has a wall with a state of its own (a volume
+    play, a loaded wall), which this reference does not solve."""
+    if any(sl[S[name]] != 0 for name in VOLUME_PLAY_COMPLIANCE_SLOTS):
+        raise ValueError("reference_simulate: a volume play (effect 'volume_play') has a "
+                         "state that only moves at its band's edges, which this ODE "
+                         "reference does not solve; its independent reference is the "
+                         "plant's friction-held wall and Bouc-Wen wall "
+                         "(pneubayes.bench.forms.BraidFriction, BoucWenWall; "
+                         "tests/test_volume_play.py)")
+    if sl[S["loaded_wall_compliance_m3_per_Pa"]] > 0:
+        raise ValueError("reference_simulate: a loaded wall (effect 'loaded_wall') is two "
+                         "more states, which this ODE reference does not carry; its "
+                         "independent reference is the plant's loaded wall "
+                         "(pneubayes.bench.forms.LoadedWall; tests/test_loaded_wall.py)")
+
+
 def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                        initial_pressure_Pa: float, method: str = "Radau", rtol: float = 1e-10,
                        atol: float = 1e-6, return_stats: bool = False,
@@ -430,13 +447,7 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
                          "'wave') is a delay system this ODE reference does not solve; its "
                          "independent reference is the plant's finely lumped acoustic tube "
                          "(pneubayes.bench.plant, tests/test_wave.py)")
-    if any(sl[S[name]] != 0 for name in VOLUME_PLAY_COMPLIANCE_SLOTS):
-        raise ValueError("reference_simulate: a volume play (effect 'volume_play') has a "
-                         "state that only moves at its band's edges, which this ODE "
-                         "reference does not solve; its independent reference is the "
-                         "plant's friction-held wall and Bouc-Wen wall "
-                         "(pneubayes.bench.forms.BraidFriction, BoucWenWall; "
-                         "tests/test_volume_play.py)")
+    _refuse_moving_walls(sl)
     if sl[S["command_clock_period_s"]] > 0 or sl[S["command_clock_latency_s"]] > 0:
         raise ValueError("reference_simulate: a driver's clock (effect 'command_clock') "
                          "switches the valve between samples, where this reference steps "

@@ -73,7 +73,8 @@ def _check_solver(solver) -> SolverConfig:
 _FORM_COLUMNS = {name: i for i, name in enumerate((
     "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
-    "lung_volume_m3", "closure_terms", *VOLUME_PLAY_COMPLIANCE_SLOTS))}
+    "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
+    *VOLUME_PLAY_COMPLIANCE_SLOTS))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
 #: The form columns of the states besides the pressure (:func:`kernel.needs_general`).
 _GENERAL_COLUMNS = np.flatnonzero(np.isin(_FORM_SLOTS, kernel.GENERAL_SLOTS))
@@ -129,6 +130,13 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                          "table itself: it cannot be combined with a volume closure, "
                          "another tabulated volume, a supply tank or a second compartment "
                          "in one model")
+    wall = has("loaded_wall_compliance_m3_per_Pa")
+    if np.any(wall & (has("compliance_m3_per_Pa") | has("volume_table_points") | play | tank
+                      | has("lung_volume_m3") | has("line_length_m"))):
+        raise ValueError("a loaded wall (effect 'loaded_wall') moves a rigid chamber's volume "
+                         "as a piston does: it cannot be combined with a compliant chamber, "
+                         "a volume closure or play, a supply tank, a second compartment or "
+                         f"{acoustic} in one model")
     exclusive = (
         (has("compliance_m3_per_Pa") | has("volume_table_points") | play,
          has("line_length_m") | hot,

@@ -65,6 +65,19 @@ def volume_effect_skeleton(model, params: dict, class_name: str = "FoundVolume",
     :func:`effect_skeleton`'s."""
     if model.has("volume_play"):
         return _wall_skeleton(model, params, class_name, effect_name)
+    if model.has("loaded_wall"):
+        lines = [f"#   V = V_0 + C x, x'' + 2 z w x' + w^2 x = w^2 (p - P_atm); C = "
+                 f"{float(params['loaded_wall_compliance']):.6g} m^3/Pa, w / 2 pi = "
+                 f"{float(params['loaded_wall_frequency']):.6g} Hz, z = "
+                 f"{float(params['loaded_wall_damping']):.6g}"]
+        names = {"wall_compliance_m3_per_Pa": "loaded_wall_compliance",
+                 "wall_frequency_Hz": "loaded_wall_frequency",
+                 "wall_damping_ratio": "loaded_wall_damping"}
+        return _delegating_module(
+            class_name, effect_name, "a chamber wall that carries a load",
+            "an open-form loaded wall of the chamber's volume", lines,
+            "from pneubayes.effects.loaded_wall import LoadedWall", "LoadedWall()", names,
+            params)
     if not model.has("volume_closure"):
         raise ValueError("volume_effect_skeleton: the model has no volume closure (no found "
                          "hinge of the chamber's volume)")

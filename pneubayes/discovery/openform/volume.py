@@ -130,6 +130,14 @@ class VolumeProblem:
         shape)`` (a hinge's compliance and threshold; a subclass's values under its
         ``term_names``; an empty one: the current model),
         each with the dead volume times its entry of ``scales`` (None: all 1)."""
+        resid = self.window_residuals(hinges, scales)
+        sse = np.sum(resid**2, axis=2)
+        return np.where(np.isfinite(sse), sse, np.inf)
+
+    def window_residuals(self, hinges: Sequence[Sequence[tuple[float, float]]],
+                         scales: Sequence[float] | None = None) -> np.ndarray:
+        """Each window's residual ``(S, W, L)`` (Pa; NaN where a simulation failed) for
+        the sets of terms and scales :meth:`window_sse` takes."""
         k = max(1, max(len(h) for h in hinges))
         trial = self.model.with_effect(self.component(terms=k))
         rows = []
@@ -141,9 +149,7 @@ class VolumeProblem:
                 for name, v in zip(self.term_names, h[j] if j < len(h) else self.unused_term):
                     values[name(j)] = v
             rows.append(trial.vector(values))
-        resid = self.window_set.residuals(trial, np.stack(rows), self.solver, on_failure="nan")
-        sse = np.sum(resid**2, axis=2)
-        return np.where(np.isfinite(sse), sse, np.inf)
+        return self.window_set.residuals(trial, np.stack(rows), self.solver, on_failure="nan")
 
 
 class VolumeSearch:

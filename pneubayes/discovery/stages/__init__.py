@@ -12,6 +12,7 @@ from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.stages.command_clock_form import CommandClockForm
 from pneubayes.discovery.stages.last_resort import LastResort
+from pneubayes.discovery.stages.loaded_wall_form import LoadedWallForm
 from pneubayes.discovery.stages.more_supported import MoreSupported
 from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
@@ -66,6 +67,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
     if s.volume_play_min_noise_ratio:
         stages.append(VolumePlayForm(s.volume_play_min_noise_ratio))
+    if s.loaded_wall_min_noise_ratio:
+        stages.append(LoadedWallForm(s.loaded_wall_min_noise_ratio))
     if s.open_form_min_noise_ratio:
         stages.append(OpenForm(s.open_form_min_noise_ratio))
     return stages
@@ -76,4 +79,4 @@ __all__ = ["Stage", "CommandClockForm", "MoreSupported", "LastResort", "RunnerUp
            "OpenForm", "ReadingForm", "ReadingHingeForm", "ReadingPlayForm",
            "ReadingCommandForm", "ReadingFlowForm",
            "VolumeForm",
-           "VolumePlayForm", "default_stages"]
+           "VolumePlayForm", "LoadedWallForm", "default_stages"]
