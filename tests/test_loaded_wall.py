@@ -201,6 +201,30 @@ def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_record
         LoadedWallSearch().fit(object())
 
 
+def test_a_residual_that_asks_for_less_volume_proposes_no_wall():
+    """Where every pair's wall would have to take volume away (the least squares give it
+    a negative compliance), the screen keeps none and the search ends without a term."""
+
+    class Shrinking(LoadedWallProblem):
+        def check(self):
+            pass
+
+        def volume_scale_m3_per_Pa(self):
+            return 1e-11
+
+        @property
+        def scales_dead_volume(self):
+            return False
+
+        def window_residuals(self, hinges, scales=None):
+            base = np.linspace(1.0, 2.0, 40).reshape(4, 10)
+            return np.stack([base if not h else 1.1 * base for h in hinges])
+
+    probe = Shrinking(None, Model(), BASE, SolverConfig.standard())
+    found = LoadedWallSearch(frequencies_Hz=(5.0, 10.0), damping_ratios=(0.3,)).fit(probe)
+    assert found.terms_ == [] and found.best_ is None and found.explained_fraction_ == 0.0
+
+
 def test_the_stage_s_knobs_and_its_switch():
     from pneubayes.discovery.settings import DiscoverySettings, StageSettings
     from pneubayes.discovery.stages import LoadedWallForm, default_stages

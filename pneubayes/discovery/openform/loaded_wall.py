@@ -190,6 +190,8 @@ class LoadedWallSearch:
         if not np.isfinite(total) or total <= 0.0:
             return self
         pairs = self._screen(problem, freqs, zetas)
+        if not pairs:  # (no pair's wall gives volume where the residual asks for it)
+            return self
         grid = [((float(c), f, z), v) for v in scales for f, z in pairs for c in comps]
         sse = problem.window_sse([[w] for w, _ in grid], [v for _, v in grid])
         j = int(np.argmin(np.sum(sse, axis=1)))
