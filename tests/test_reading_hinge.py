@@ -53,6 +53,32 @@ def test_the_map_its_slope_and_its_inverse_by_hand():
         hinges_readable(g, th[:, :1])
 
 
+def test_knees_below_bend_the_reading_under_them_and_invert():
+    """A knee below (its threshold negated in the map's arrays): ``min(0, z - theta)``,
+    written out piece by piece beside a knee above; the inverse is exact on every piece;
+    a floor steeper than flat is unreadable; the effect's option negates its
+    thresholds."""
+    g = np.array([[-0.6, 0.5], [-1.2, 0.0]])
+    th = np.array([[-2e5, 4e5], [-2e5, 4e5]])
+    z = np.array([1.0e5, 2e5, 3e5, 4e5, 5e5])[None].repeat(2, axis=0)
+    r, s = hinged_reading(z, g, th)
+    want = [1e5 - 0.6 * (1e5 - 2e5), 2e5, 3e5, 4e5, 5e5 + 0.5e5]
+    np.testing.assert_allclose(r[0], want, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(s[0], [0.4, 1.0, 1.0, 1.5, 1.5])
+    assert hinges_readable(g, th).tolist() == [True, False]
+    dense = np.linspace(1.05e5, 6e5, 2001)[None]
+    np.testing.assert_allclose(unhinged_reading(hinged_reading(dense, g[:1], th[:1])[0],
+                                                g[:1], th[:1]), dense, rtol=0, atol=1e-6)
+    assert np.all(np.isnan(unhinged_reading(r[1:], g[1:], th[1:])))
+    floor = ReadingHinge(below=True)
+    gains, knees = floor.reading_hinges({"reading_hinge_gain_0": np.array([-0.5]),
+                                         "reading_hinge_threshold_0": np.array([2e5])})
+    assert gains.tolist() == [[-0.5]] and knees.tolist() == [[-2e5]]
+    assert floor.options() == {"terms": 1, "below": True}
+    with pytest.raises(ValueError, match="'below' must be True or False"):
+        ReadingHinge(below=1)
+
+
 def test_the_simulator_reads_the_plain_pressure_through_the_knee(rig, hand):
     """A model with the component predicts H of the plain model's pressure started at
     H^-1 of the first reading, on windows that cross the knee; its start sensitivity is
@@ -197,6 +223,29 @@ def test_the_search_recovers_a_planted_knee_and_finds_none_in_noise():
         HingeSearch().fit([object()])
 
 
+def test_the_search_tells_a_floor_from_a_knee_above():
+    """A floor planted in the windows' residual (a knee below: ``min(0, p - theta)``) is
+    found as a knee below with its gain and threshold; searching knees above only, the
+    search explains less of it."""
+    from pneubayes.discovery.openform.reading import ReadingWindows
+    from pneubayes.discovery.openform.reading_hinge import HingeSearch
+
+    (b,) = _windows(0.0, 3.2e5, 4)
+    floor = np.minimum(b.predicted_Pa - 2.2e5, 0.0) \
+        - b.sensitivity * np.minimum(b.predicted_Pa[:, :1] - 2.2e5, 0.0)
+    blocks = [ReadingWindows(b.time_s, b.predicted_Pa, b.residual_Pa - 0.6 * floor[:, 1:],
+                             b.sensitivity)]
+    s = HingeSearch(max_terms=1).fit(blocks)
+    (term,) = s.terms_
+    assert term.below and "min(0" in str(term)
+    assert term.gain == pytest.approx(-0.6, rel=0.05)
+    assert term.threshold_Pa == pytest.approx(2.2e5, rel=0.01)
+    above = HingeSearch(max_terms=1, sides=("above",)).fit(blocks)
+    assert above.explained_fraction_ < s.explained_fraction_ - 0.05
+    with pytest.raises(ValueError, match="sides"):
+        HingeSearch(sides=("left",)).fit(blocks)
+
+
 def test_the_hinge_stage_competes_with_the_catalogues_curvature():
     """A curvature of the reading that closes most of the gap does not keep the stage
     from running (its rival: the knees replace it only by beating it); another effect
@@ -273,6 +322,16 @@ def test_found_knees_become_an_effect_plug_in(rig, hand):
     np.testing.assert_array_equal(ours, theirs)
     with pytest.raises(ValueError, match="no reading hinge"):
         hinge_effect_skeleton(Model(), {})
+    floor = Model().with_effect(ReadingHinge(below=True))  # a floor's plug-in reads below
+    text = hinge_effect_skeleton(floor, params, "Floor", "floor")
+    assert "min(0, z - theta_0)" in text
+    ns = {}
+    exec(compile(text, "floor.py", "exec"), ns)  # noqa: S102
+    eff = ns["Floor"]()
+    np.testing.assert_array_equal(
+        simulate_windows(Model([eff]), {**base, **eff.bench_defaults()}, inputs, rig, starts,
+                         300, 3.5e5, solver),
+        simulate_windows(floor, params, inputs, rig, starts, 300, 3.5e5, solver))
 
 
 def _valve1_runs(model, params, name, read=None):
@@ -331,6 +390,32 @@ def test_discovery_finds_a_planted_rail_in_the_reading(tmp_path):
     assert "terms at the reading found" in (tmp_path / "report.md").read_text()
     assert (tmp_path / "found_reading_hinge.py").exists()
     assert (tmp_path / "figures" / "found_reading_terms.png").exists()
+
+
+@pytest.mark.slow
+def test_discovery_finds_a_planted_floor_in_the_reading():
+    """The loop with the hinge stage alone, on four valve1 recordings read through a
+    transducer that reads half its slope below 2 bar (a floor): the knee is found below,
+    with its gain and threshold, and the held-out error falls to about the noise
+    floor."""
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.stages import ReadingHingeForm
+    from pneubayes.physics.valve import valve_preset
+
+    truth = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    recs, settings = _valve1_runs(  # (the chamber from the atmosphere, read through it)
+        Model(), truth, "floored",
+        read=lambda p: hinged_reading(p[None], [[-0.5]], [[-2.0e5]])[0][0])
+    result = Discovery(settings, None, log=None,
+                       stages=[ReadingHingeForm()]).fit(recs).result_
+    doc = result.to_dict()
+    (term,) = doc["found_reading_terms"]
+    assert "min(0, z - theta_0)" in term["formula"]
+    c = term["parameters"]["reading_hinge_gain_0"]["estimate"]
+    theta = term["parameters"]["reading_hinge_threshold_0"]["estimate"]
+    assert c == pytest.approx(-0.5, abs=0.03) and theta == pytest.approx(2.0e5, rel=0.02)
+    assert doc["effects"] == [] and doc["found_terms"] == []
+    assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
 
 
 @pytest.mark.slow

@@ -201,10 +201,14 @@ class DiscoveryResult(PosteriorDraws):
                        f"per {FLOW_FEATURE_UNITS[self._flow_feature(k)]})"),
             lambda k: (flow_gain_name(k),)) + self._component_terms(
             "reading_hinge", "knee", "the pressure reading (Pa), read last",
-            lambda k: (f"r = z + c_{k} max(0, z - theta_{k}), z the reading without the "
-                       f"knees (c_{k} = {hinge_gain_name(k)}; theta_{k} = "
+            lambda k: (f"r = z + c_{k} {self._knee_side()}(0, z - theta_{k}), z the reading "
+                       f"without the knees (c_{k} = {hinge_gain_name(k)}; theta_{k} = "
                        f"{hinge_threshold_name(k)}, Pa absolute)"),
             lambda k: (hinge_gain_name(k), hinge_threshold_name(k)))
+
+    def _knee_side(self) -> str:
+        """``max`` for the final model's knees above, ``min`` for knees below."""
+        return "min" if self.final.model.effect("reading_hinge").below else "max"
 
     def _flow_feature(self, k: int) -> str:
         """The feature of the final model's reading flow term ``k``."""

@@ -14,8 +14,9 @@ knee; -1 is a flat rail) and ``theta_j`` (``reading_hinge_threshold_{j}``, Pa
 absolute), ``z`` what the chamber's pressure reads through every other reading term. It
 is the reading's last map (a rail clips what the sensor's dynamics and its pick-ups
 deliver). Every gain 0 is the reading without the component, whatever the thresholds.
-A knee can only bend the reading above it: a rail below a threshold is a hinge beside a
-gain and an offset (:mod:`pneubayes.effects.sensor_calibration`).
+With ``below=True`` the knees bend the reading below them instead, ``r = z + sum_j c_j
+min(0, z - theta_j)`` (a floor: a transducer whose output clips at its lower rail, a
+gauge that reads nothing until its spring's preload is passed; -1 is flat below).
 
 The chamber's physics is unchanged: the simulator reads each window through the hinges
 after the kernel (:mod:`pneubayes.simulation.reading_hinge`) and starts the chamber at
@@ -66,15 +67,19 @@ class ReadingHinge(Effect):
     cheap_forms = True
     relaxes_reading = True
 
-    def __init__(self, terms: int = 1):
+    def __init__(self, terms: int = 1, below: bool = False):
         if isinstance(terms, bool) or not isinstance(terms, int) \
                 or not 1 <= terms <= HINGE_MAX_TERMS:
             raise ValueError(f"reading_hinge: option 'terms' must be an integer in "
                              f"1..{HINGE_MAX_TERMS}, got {terms!r}")
+        if not isinstance(below, bool):
+            raise ValueError(f"reading_hinge: option 'below' must be True or False, got "
+                             f"{below!r}")
         self.terms = terms
+        self.below = below
 
     def options(self):
-        return {"terms": self.terms}
+        return {"terms": self.terms, "below": self.below}
 
     def parameters(self):
         lo, hi = HINGE_THRESHOLD_BOUNDS_PA
@@ -82,7 +87,8 @@ class ReadingHinge(Effect):
         for j in range(self.terms):
             out.append(Parameter(hinge_gain_name(j), "-", *HINGE_GAIN_BOUNDS, "uniform",
                                  f"reading hinge {j}: the change c of the reading's slope "
-                                 "above its knee (-1: a flat rail)", neutral=0.0,
+                                 f"{'below' if self.below else 'above'} its knee (-1: a "
+                                 "flat rail)", neutral=0.0,
                                  limit="lower"))
             out.append(Parameter(hinge_threshold_name(j), "Pa", lo, hi, "uniform",
                                  f"reading hinge {j}: the reading's knee theta, Pa absolute "
@@ -95,16 +101,21 @@ class ReadingHinge(Effect):
 
     def reading_hinges(self, values: Mapping[str, np.ndarray]) \
             -> tuple[np.ndarray, np.ndarray]:
-        """``(gains, thresholds Pa)``, each ``(B, terms)``, of a batch of values."""
+        """``(gains, thresholds Pa)``, each ``(B, terms)``, of a batch of values (knees
+        below as their thresholds negated: :mod:`pneubayes.simulation.reading_hinge`)."""
         return self.hinges_named(values, [hinge_gain_name(j) for j in range(self.terms)],
-                                 [hinge_threshold_name(j) for j in range(self.terms)])
+                                 [hinge_threshold_name(j) for j in range(self.terms)],
+                                 self.below)
 
     @staticmethod
     def hinges_named(values: Mapping[str, np.ndarray], gains: list[str],
-                     thresholds: list[str]) -> tuple[np.ndarray, np.ndarray]:
+                     thresholds: list[str], below: bool = False
+                     ) -> tuple[np.ndarray, np.ndarray]:
         """``(gains, thresholds)``, each ``(B, J)``, read from ``values`` under the
-        parameter names ``gains`` and ``thresholds`` (one per hinge)."""
-        return named_pairs(values, gains, thresholds)
+        parameter names ``gains`` and ``thresholds`` (one per hinge; with ``below``, knees
+        that bend the reading below them, their thresholds negated)."""
+        g, th = named_pairs(values, gains, thresholds)
+        return g, -th if below else th
 
     def bench_defaults(self):
         """A reading that bends to a fifth of its slope above 3 bar (a second: to a

@@ -28,14 +28,15 @@ def hinge_views(model, params: dict, recordings, horizon_s: float, solver,
     if n_bins < 2:
         raise ValueError(f"n_bins must be >= 2, got {n_bins}")
     ws = WindowSet(recordings, horizon_s, horizon_s)
-    out = []
+    out, below = [], model.effect("reading_hinge").below
+    side = "min" if below else "max"
     for k in range(model.effect("reading_hinge").terms):
         c, theta = params[hinge_gain_name(k)], params[hinge_threshold_name(k)]
         blocks = reading_windows(ws, model, dict(params, **{hinge_gain_name(k): 0.0}),
                                  solver)
         out.append({"term": f"knee {k}",
-                    "formula": f"{c:+.3g} max(0, p - theta), theta = {theta / 1e3:.4g} kPa",
-                    "variable": f"max(0, p - theta_{k}) less its start", "unit": "Pa",
-                    **binned_reading_term([b.hinge_column(theta) for b in blocks],
+                    "formula": f"{c:+.3g} {side}(0, p - theta), theta = {theta / 1e3:.4g} kPa",
+                    "variable": f"{side}(0, p - theta_{k}) less its start", "unit": "Pa",
+                    **binned_reading_term([b.hinge_column(theta, below) for b in blocks],
                                           [b.residual_Pa for b in blocks], c, n_bins)})
     return out

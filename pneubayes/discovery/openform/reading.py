@@ -125,15 +125,15 @@ class ReadingWindows:
         return col[:, 1:].reshape(-1)
 
 
-    def hinge_column(self, threshold_Pa: float) -> np.ndarray:
+    def hinge_column(self, threshold_Pa: float, below: bool = False) -> np.ndarray:
         """d(reading)/dc at c = 0 for a knee of the reading at ``threshold_Pa`` (Pa
         absolute; :mod:`pneubayes.simulation.reading_hinge`): ``max(0, p - theta)`` less
-        the chamber's start moved by ``max(0, r0 - theta)`` along the start sensitivity;
-        as :meth:`column`."""
+        the chamber's start moved by ``max(0, r0 - theta)`` along the start sensitivity
+        (with ``below``, a knee below: ``min``); as :meth:`column`."""
         p = np.asarray(self.predicted_Pa, dtype=np.float64)
         sens = 1.0 if self.sensitivity is None else np.asarray(self.sensitivity)
-        col = np.maximum(p - threshold_Pa, 0.0) \
-            - sens * np.maximum(p[:, :1] - threshold_Pa, 0.0)
+        side = np.minimum if below else np.maximum
+        col = side(p - threshold_Pa, 0.0) - sens * side(p[:, :1] - threshold_Pa, 0.0)
         return col[:, 1:].reshape(-1)
 
 
@@ -175,10 +175,11 @@ def command_columns(blocks: Sequence[ReadingWindows], tau_s: float) -> np.ndarra
     return np.where(np.isfinite(x), x, 0.0)
 
 
-def hinge_columns(blocks: Sequence[ReadingWindows], threshold_Pa: float) -> np.ndarray:
+def hinge_columns(blocks: Sequence[ReadingWindows], threshold_Pa: float,
+                  below: bool = False) -> np.ndarray:
     """:meth:`ReadingWindows.hinge_column` of each block, in block order (Pa; 0 where a
     prediction failed)."""
-    x = np.concatenate([b.hinge_column(threshold_Pa) for b in blocks])
+    x = np.concatenate([b.hinge_column(threshold_Pa, below) for b in blocks])
     return np.where(np.isfinite(x), x, 0.0)
 
 

@@ -9,7 +9,9 @@ sensitivity (:meth:`~pneubayes.discovery.openform.reading.ReadingWindows.hinge_c
 :class:`HingeSearch` is :class:`~pneubayes.discovery.openform.reading.ReadingSearch`
 over a grid of knees instead of time constants, the grid spread over the pressures the
 windows predict (a knee outside them has nothing to bend): the same greedy pick,
-refinement, joint refinement of two and keeping rule.
+refinement, joint refinement of two and keeping rule. It searches knees above
+(``max``) and knees below (``min``, a floor) apart and keeps the side whose terms
+explain more (a component's knees bend one side).
 """
 
 from __future__ import annotations
@@ -22,21 +24,27 @@ import numpy as np
 from pneubayes.discovery.openform.reading import ReadingSearch, hinge_columns
 from pneubayes.effects.reading_hinge import HINGE_MAX_TERMS, HINGE_THRESHOLD_BOUNDS_PA
 
+#: The sides a knee may bend the reading on.
+SIDES = ("above", "below")
+
 
 @dataclass(frozen=True)
 class HingeTerm:
-    """A kept knee: ``gain`` (-, the change of the reading's slope above it),
-    ``threshold_Pa`` (Pa absolute), the share of the residual's uncentred sum of
-    squares it explains on its own (``explained``) and its gain over its
+    """A kept knee: ``gain`` (-, the change of the reading's slope above it, or below it
+    where ``below``), ``threshold_Pa`` (Pa absolute), the share of the residual's
+    uncentred sum of squares it explains on its own (``explained``) and its gain over its
     window-clustered standard error (``t``)."""
 
     gain: float
     threshold_Pa: float
     explained: float
     t: float
+    below: bool = False
 
     def __str__(self) -> str:
-        return f"{self.gain:+.4g} max(0, p - theta), knee theta = {self.threshold_Pa:.5g} Pa"
+        side = "min" if self.below else "max"
+        return (f"{self.gain:+.4g} {side}(0, p - theta), knee theta = "
+                f"{self.threshold_Pa:.5g} Pa")
 
 
 class HingeSearch(ReadingSearch):
@@ -55,6 +63,9 @@ class HingeSearch(ReadingSearch):
         The predicted pressures' quantiles the data grid spans.
     max_terms : int
         Most terms kept (1..2, the reading hinge's room).
+    sides : sequence of str
+        The knees searched: ``"above"`` (bending the reading above them), ``"below"``
+        (below them: a floor), or both (each apart, the one that explains more kept).
     min_explained_fraction, min_t : float
         As :class:`~pneubayes.discovery.openform.reading.ReadingSearch`'s.
 
@@ -72,7 +83,8 @@ class HingeSearch(ReadingSearch):
     def __init__(self, thresholds_Pa: Sequence[float] | None = None, n_thresholds: int = 30,
                  quantiles: tuple[float, float] = (0.02, 0.98),
                  max_terms: int = HINGE_MAX_TERMS, min_explained_fraction: float = 0.02,
-                 min_t: float = 4.0):
+                 min_t: float = 4.0, sides: Sequence[str] = SIDES):
+        self.sides = sides
         self.thresholds_Pa = thresholds_Pa
         self.n_thresholds = n_thresholds
         self.quantiles = quantiles
@@ -84,17 +96,31 @@ class HingeSearch(ReadingSearch):
         """The constructor's settings (scikit-learn's contract)."""
         return {"thresholds_Pa": self.thresholds_Pa, "n_thresholds": self.n_thresholds,
                 "quantiles": self.quantiles, "max_terms": self.max_terms,
-                "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t}
+                "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t,
+                "sides": self.sides}
 
     def fit(self, blocks) -> "HingeSearch":
         """Search the windows' residual, one
         :class:`~pneubayes.discovery.openform.reading.ReadingWindows` per recording."""
         self._check_blocks(blocks)
+        if isinstance(self.sides, str) or not len(self.sides) \
+                or any(s not in SIDES for s in self.sides):
+            raise ValueError(f"sides must be a non-empty sequence of {SIDES}, got "
+                             f"{self.sides!r}")
         self.thresholds_searched_ = self._grid(blocks)
+        self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
         if self.thresholds_searched_.size == 0:  # (nothing to bend: no range)
-            self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
             return self
-        return super().fit(blocks)
+        found = []
+        for side in dict.fromkeys(self.sides):
+            self._below = side == "below"
+            super().fit(blocks)
+            found.append((self.explained_fraction_ if self.terms_ else 0.0,
+                          self.best_.explained if self.best_ is not None else 0.0,
+                          self.terms_, self.best_, self.explained_fraction_))
+        best = max(found, key=lambda f: (f[0], f[1]))
+        self.terms_, self.best_, self.explained_fraction_ = best[2:]
+        return self
 
     def _grid(self, blocks) -> np.ndarray:
         """The knees searched: the given ones, or the data grid."""
@@ -124,14 +150,13 @@ class HingeSearch(ReadingSearch):
                              f"[{lo}, {hi}] Pa, got {self.thresholds_Pa!r}")
         return th
 
-    @staticmethod
-    def _columns(blocks, value):
-        return hinge_columns(blocks, value)
+    def _columns(self, blocks, value):
+        return hinge_columns(blocks, value, getattr(self, "_below", False))
 
-    @staticmethod
-    def _new_term(gain, value, explained, t):
-        return HingeTerm(gain, value, explained, t)
+    def _new_term(self, gain, value, explained, t):
+        return HingeTerm(gain, value, explained, t, getattr(self, "_below", False))
 
     @staticmethod
     def _value_of(term):
         return term.threshold_Pa
+

@@ -223,14 +223,15 @@ class {class_name}(Effect):
         found = {{p.name: p for p in {cls}(terms={terms}).parameters()}}
         return tuple(Parameter(mine, found[theirs].unit, found[theirs].lower,
                                found[theirs].upper, found[theirs].prior,
-                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral)
+                               f"found: {{theirs}} (edit)", neutral=found[theirs].neutral,
+                               limit=found[theirs].limit)
                      for mine, theirs in self.NAMES.items())
 
     def lower(self, values, rig):
         return {{}}  # (no slot of the kernel)
 
     def {method}(self, values):
-        return {cls}.{helper}(values, self.GAINS, self.{second})
+        return {cls}.{helper}(values, self.GAINS, self.{second}{kind.get("helper_args", "")})
 
     def bench_defaults(self):
         """The values discovery fitted."""
@@ -324,10 +325,12 @@ def hinge_effect_skeleton(model, params: dict, class_name: str = "FoundReadingHi
     (:meth:`~pneubayes.effects.Effect.reading_hinges`) with the found number of knees,
     each a gain (-) and a threshold (Pa absolute) under the user's names; parameters and
     return as :func:`effect_skeleton`'s."""
+    below = model.has("reading_hinge") and model.effect("reading_hinge").below
+
     def term(k, params):
         c, th = hinge_gain_name(k), hinge_threshold_name(k)
-        return (f"#   knee {k}: r = z + c_{k} max(0, z - theta_{k}); c_{k} = "
-                f"{float(params[c]):.6g}, theta_{k} = {float(params[th]):.6g} Pa",
+        return (f"#   knee {k}: r = z + c_{k} {'min' if below else 'max'}(0, z - theta_{k}); "
+                f"c_{k} = {float(params[c]):.6g}, theta_{k} = {float(params[th]):.6g} Pa",
                 [(f"knee{k}_gain", c), (f"knee{k}_threshold_Pa", th)])
     return _reading_skeleton(
         model, params, "reading_hinge", "hinge_effect_skeleton: the model has no reading "
@@ -338,7 +341,8 @@ def hinge_effect_skeleton(model, params: dict, class_name: str = "FoundReadingHi
                     "transducer's\nrail, an ADC's full scale, a gauge spring's stop).",
             "words": "knees", "class": "ReadingHinge",
             "module": "pneubayes.effects.reading_hinge", "second": "THRESHOLDS",
-            "method": "reading_hinges", "helper": "hinges_named"}, class_name, effect_name)
+            "method": "reading_hinges", "helper": "hinges_named",
+            "helper_args": ", below=True" if below else ""}, class_name, effect_name)
 
 
 _FLOW_TEMPLATE = '''"""{effect_name}: terms of the valve's port flows in the pressure reading

@@ -59,6 +59,13 @@ class ReadingHingeForm(ComponentForm):
     def _component(self, terms: int):
         return ReadingHinge(terms=terms)
 
+    def _component_for(self, terms):
+        """Knees on the side the search kept them."""
+        return ReadingHinge(terms=len(terms), below=bool(terms[0].below))
+
+    def _one_term(self, component, k: int):
+        return ReadingHinge(terms=1, below=component.below)
+
     def _term_names(self, k: int) -> tuple[str, ...]:
         return hinge_gain_name(k), hinge_threshold_name(k)
 
