@@ -104,7 +104,10 @@ class LoadedWallSearch:
     dead_volume_scales : sequence of float
         The dead volume's scales tried (where the model fits it).
     min_explained_fraction, min_t, strong_explained_fraction : float
-        The gate (as :class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`).
+        The gate (as :class:`~pneubayes.discovery.openform.volume_play.VolumePlaySearch`),
+        its strong share 0.3: a ring shows only in the windows whose pressure swings, so
+        the windows' relative reductions scatter even where a wall explains a large
+        share.
     refine_passes : int
         Rounds of local refinement of the grid's best (a compass search, :func:`_refined`).
 
@@ -124,7 +127,7 @@ class LoadedWallSearch:
                  compliance_shares: Sequence[float] = tuple(np.geomspace(0.03, 10.0, 8)),
                  dead_volume_scales: Sequence[float] = (0.5, 0.7, 1.0),
                  min_explained_fraction: float = 0.02, min_t: float = 4.0,
-                 strong_explained_fraction: float = 0.5, refine_passes: int = 8):
+                 strong_explained_fraction: float = 0.3, refine_passes: int = 8):
         self.frequencies_Hz = frequencies_Hz
         self.damping_ratios = damping_ratios
         self.shortlist = shortlist
