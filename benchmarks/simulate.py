@@ -93,6 +93,7 @@ EFFECT_FORMS = (
     ("heat_transfer", "heat_transfer", {}),
     ("reading_closure", "reading_closure", {}),
     ("reading_play", "reading_play", {}),
+    ("loaded_wall", "loaded_wall", {}),
 )
 
 
