@@ -225,15 +225,15 @@ def _recordings(model, extra, count=3, n=6001):
 def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_recordings):
     walls, rigid = wall_recordings
     solver = SolverConfig.standard()
-    ws = WindowSet(walls[:2], 2.0, 2.0)
+    ws = WindowSet(walls[:1], 2.0, 2.0)
     found = LoadedWallSearch().fit(LoadedWallProblem(ws, Model(), BASE, solver))
     (term,) = found.terms_
     assert term.frequency_Hz == pytest.approx(F_TRUE, rel=0.15)
     assert 0.5 * C_TRUE <= term.compliance_m3_per_Pa <= 2.0 * C_TRUE
     assert 0.5 * Z_TRUE <= term.damping_ratio <= 2.0 * Z_TRUE
     assert found.explained_fraction_ > 0.9 and "Hz" in str(term)
-    none = LoadedWallSearch().fit(LoadedWallProblem(WindowSet(rigid, 2.0, 2.0), Model(),
-                                                    BASE, solver))
+    none = LoadedWallSearch().fit(LoadedWallProblem(WindowSet(rigid[:1], 2.0, 2.0),
+                                                    Model(), BASE, solver))
     assert none.terms_ == [] and none.best_.explained < 0.02
     with pytest.raises(ValueError, match="already has a loaded wall"):
         LoadedWallSearch().fit(LoadedWallProblem(ws, Model([LoadedWall()]),

@@ -187,7 +187,7 @@ def _recordings(model, extra, count=3, n=6001):
 def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_recordings):
     walls, rigid = wall_recordings
     solver = SolverConfig.standard()
-    ws = WindowSet(walls[:2], 2.0, 2.0)
+    ws = WindowSet(walls[:1], 2.0, 2.0)
     grid = half_width_grid(ws, 8)
     assert grid.size == 8 and np.all(np.diff(grid) > 0)
     found = VolumePlaySearch().fit(VolumePlayProblem(ws, Model(), BASE, solver))
