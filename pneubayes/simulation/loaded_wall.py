@@ -22,7 +22,7 @@ import math
 from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX
-from pneubayes.physics.calibration import pressure_behind_reading_scalar, reading_zero_scalar
+from pneubayes.simulation.relaxation import recorded_pressure
 
 _LW_C = SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"]
 _LW_F = SLOT_INDEX["loaded_wall_frequency_Hz"]
@@ -122,13 +122,9 @@ def wall_start(t, pm, k, w, z, p_start, calibrated, p_atm, zero, cal_g):
     x, v = math.nan, 0.0
     y_prev, t_prev = 0.0, 0.0
     for i in range(j, k + 1):
-        y = pm[i]
-        if not math.isfinite(y):
+        y = recorded_pressure(t, pm, i, calibrated, p_atm, zero, cal_g) - p_atm
+        if math.isnan(y):
             continue
-        if calibrated:
-            y = pressure_behind_reading_scalar(y, p_atm, reading_zero_scalar(zero, t[i]),
-                                               cal_g)
-        y -= p_atm
         if math.isnan(x):
             x = y
         else:

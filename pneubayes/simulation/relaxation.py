@@ -52,6 +52,18 @@ def relaxation_mid(pbar, p, rate, h, tau):
 
 
 @njit(cache=True, error_model="numpy")
+def recorded_pressure(t, pm, i, calibrated, p_atm, zero, cal_g):
+    """The chamber pressure the recorded reading ``pm[i]`` stands for (Pa): the reading,
+    or with ``calibrated`` the pressure behind a miscalibrated sensor's reading at
+    ``t[i]``; NaN where the sample is not finite."""
+    v = pm[i]
+    if math.isfinite(v) and calibrated:
+        return pressure_behind_reading_scalar(v, p_atm, reading_zero_scalar(zero, t[i]),
+                                              cal_g)
+    return v if math.isfinite(v) else math.nan
+
+
+@njit(cache=True, error_model="numpy")
 def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, zero, cal_g):
     """``p_bar`` at sample ``k`` (Pa): the recorded reading ``pm`` (chamber pressures
     behind a miscalibrated sensor's readings when ``calibrated``) low-passed from
@@ -70,12 +82,9 @@ def relaxation_start(t, pm, k, tau, p_start, calibrated, p_atm, zero, cal_g):
     p_prev = math.nan
     t_prev = 0.0
     for i in range(j, k + 1, stride):
-        v = pm[i]
-        if not math.isfinite(v):
+        v = recorded_pressure(t, pm, i, calibrated, p_atm, zero, cal_g)
+        if math.isnan(v):
             continue
-        if calibrated:
-            v = pressure_behind_reading_scalar(v, p_atm, reading_zero_scalar(zero, t[i]),
-                                               cal_g)
         if math.isnan(pbar):
             pbar = v
         else:

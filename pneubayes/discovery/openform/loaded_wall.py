@@ -150,16 +150,15 @@ class LoadedWallSearch:
                 "refine_passes": self.refine_passes}
 
     def _validate(self, problem):
-        out = []
+        out = []  # each a non-empty sequence of positive numbers within its bounds
         for name, (lo, hi) in (("frequencies_Hz", FREQUENCY_BOUNDS_HZ),
                                ("damping_ratios", DAMPING_BOUNDS),
                                ("compliance_shares", (0.0, np.inf)),
                                ("dead_volume_scales", (0.0, np.inf))):
             v = np.asarray(getattr(self, name), dtype=np.float64)
-            if v.ndim != 1 or not v.size or not np.all((v > lo) if lo == 0.0 else (v >= lo)) \
-                    or not np.all(v <= hi):
-                raise ValueError(f"{name} must be a non-empty sequence of numbers in "
-                                 f"[{lo:g}, {hi:g}] (positive), got {getattr(self, name)!r}")
+            if v.ndim != 1 or not v.size or not np.all((v > 0.0) & (v >= lo) & (v <= hi)):
+                raise ValueError(f"{name} must be a non-empty sequence of positive numbers "
+                                 f"in [{lo:g}, {hi:g}], got {getattr(self, name)!r}")
             out.append(v)
         if isinstance(self.shortlist, bool) or not isinstance(self.shortlist, int) \
                 or self.shortlist < 1:

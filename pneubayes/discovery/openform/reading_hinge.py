@@ -150,11 +150,12 @@ class HingeSearch(ReadingSearch):
                              f"[{lo}, {hi}] Pa, got {self.thresholds_Pa!r}")
         return th
 
+    # (the side being searched: set by fit before each side's search)
     def _columns(self, blocks, value):
-        return hinge_columns(blocks, value, getattr(self, "_below", False))
+        return hinge_columns(blocks, value, self._below)
 
     def _new_term(self, gain, value, explained, t):
-        return HingeTerm(gain, value, explained, t, getattr(self, "_below", False))
+        return HingeTerm(gain, value, explained, t, self._below)
 
     @staticmethod
     def _value_of(term):

@@ -18,17 +18,17 @@ ring is replaced where the wall predicts the held-out windows better.
 from __future__ import annotations
 
 from pneubayes.discovery.openform.loaded_wall import LoadedWallProblem, LoadedWallSearch
-from pneubayes.discovery.openform.volume import searched_values
-from pneubayes.discovery.stages.component_form import ComponentForm
-from pneubayes.effects.loaded_wall import COMPLIANCE, DAMPING, FREQUENCY, LoadedWall
+from pneubayes.discovery.stages.volume_form import VolumeComponentForm
+from pneubayes.effects.loaded_wall import LoadedWall
 
 #: The component's name in a model and in the ledger.
 LOADED_WALL = "loaded_wall"
 
 
-class LoadedWallForm(ComponentForm):
+class LoadedWallForm(VolumeComponentForm):
     """Search the training windows' residual for a loaded wall of the chamber and add it
-    (when it runs: :class:`ComponentForm`). Beside what the simulator cannot step with a
+    (when it runs: :class:`~pneubayes.discovery.stages.component_form.ComponentForm`).
+    Beside what the simulator cannot step with a
     moving wall (a compliant chamber or rig card, a volume closure or play, the tube's
     acoustic line, a tank, a second compartment) it logs itself not possible; beside the
     transmission-line tube and heat transfer it runs.
@@ -50,20 +50,11 @@ class LoadedWallForm(ComponentForm):
     term_word = "loaded wall"
     excludes = ("volume_closure", "volume_play")  # (a moving wall on a rigid chamber)
     search_class = LoadedWallSearch
+    problem_class = LoadedWallProblem
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.9,
                  search=None):
         super().__init__(min_noise_ratio, compete_below_gap_closed, search)
 
-    def _search_data(self, state, runner) -> LoadedWallProblem:
-        return LoadedWallProblem(runner.data.train_ws, state.current.model,
-                                 state.current.params, runner.settings.fit.refine_solver)
-
     def _component(self, terms: int):
         return LoadedWall(terms=terms)
-
-    def _term_names(self, k: int) -> tuple[str, ...]:
-        return COMPLIANCE, FREQUENCY, DAMPING
-
-    def _searched_values(self, terms, params) -> dict[str, float]:
-        return searched_values(terms, params, LoadedWallProblem.term_names)

@@ -13,15 +13,36 @@ does.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pneubayes.discovery.openform.volume import VolumeProblem, VolumeSearch, searched_values
 from pneubayes.discovery.stages.component_form import ComponentForm
-from pneubayes.effects.volume_closure import VolumeClosure, compliance_name, threshold_name
+from pneubayes.effects.volume_closure import VolumeClosure
 
 #: The component's name in a model and in the ledger.
 VOLUME = "volume_closure"
 
 
-class VolumeForm(ComponentForm):
+class VolumeComponentForm(ComponentForm):
+    """Base of the stages whose search simulates the training windows with a component
+    on the chamber's volume (a :class:`~pneubayes.discovery.openform.volume.VolumeProblem`
+    of ``problem_class``, whose ``term_names`` are the component's parameter names per
+    term, the strength first)."""
+
+    problem_class: ClassVar[type] = VolumeProblem
+
+    def _search_data(self, state, runner) -> VolumeProblem:
+        return self.problem_class(runner.data.train_ws, state.current.model,
+                                  state.current.params, runner.settings.fit.refine_solver)
+
+    def _term_names(self, k: int) -> tuple[str, ...]:
+        return tuple(name(k) for name in self.problem_class.term_names)
+
+    def _searched_values(self, terms, params) -> dict[str, float]:
+        return searched_values(terms, params, self.problem_class.term_names)
+
+
+class VolumeForm(VolumeComponentForm):
     """Search the training windows' residual for hinges of the chamber's volume in its
     pressure and add them as a volume closure (when it runs: :class:`ComponentForm`).
     Beside what the simulator cannot step with a compliant chamber (heat transfer, the
@@ -46,15 +67,5 @@ class VolumeForm(ComponentForm):
     excludes = ("volume_play",)  # (both lay the chamber's volume table)
     search_class = VolumeSearch
 
-    def _search_data(self, state, runner) -> VolumeProblem:
-        return VolumeProblem(runner.data.train_ws, state.current.model, state.current.params,
-                             runner.settings.fit.refine_solver)
-
     def _component(self, terms: int):
         return VolumeClosure(terms=terms)
-
-    def _term_names(self, k: int) -> tuple[str, ...]:
-        return compliance_name(k), threshold_name(k)
-
-    def _searched_values(self, terms, params) -> dict[str, float]:
-        return searched_values(terms, params)

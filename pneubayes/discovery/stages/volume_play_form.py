@@ -17,23 +17,18 @@ replaced where the wall predicts the held-out windows better.
 
 from __future__ import annotations
 
-from pneubayes.discovery.openform.volume import searched_values
 from pneubayes.discovery.openform.volume_play import VolumePlayProblem, VolumePlaySearch
-from pneubayes.discovery.stages.component_form import ComponentForm
-from pneubayes.effects.volume_play import (
-    VolumePlay,
-    compliance_name,
-    half_width_name,
-    held_compliance_name,
-)
+from pneubayes.discovery.stages.volume_form import VolumeComponentForm
+from pneubayes.effects.volume_play import VolumePlay, compliance_name, held_compliance_name
 
 #: The component's name in a model and in the ledger.
 VOLUME_PLAY = "volume_play"
 
 
-class VolumePlayForm(ComponentForm):
+class VolumePlayForm(VolumeComponentForm):
     """Search the training windows' residual for friction-held walls of the chamber and
-    add them as a volume play (when it runs: :class:`ComponentForm`). Beside what the
+    add them as a volume play (when it runs:
+    :class:`~pneubayes.discovery.stages.component_form.ComponentForm`). Beside what the
     simulator cannot step with a compliant chamber (heat transfer, the tube's acoustic
     line, a tank, a second compartment, a compliant rig card, a volume closure) it logs
     itself not possible; beside the transmission-line tube it runs.
@@ -55,23 +50,14 @@ class VolumePlayForm(ComponentForm):
     term_word = "friction-held wall"
     excludes = ("volume_closure",)  # (both lay the chamber's volume table)
     search_class = VolumePlaySearch
+    problem_class = VolumePlayProblem
 
     def __init__(self, min_noise_ratio: float = 1.5, compete_below_gap_closed: float = 0.9,
                  search=None):
         super().__init__(min_noise_ratio, compete_below_gap_closed, search)
 
-    def _search_data(self, state, runner) -> VolumePlayProblem:
-        return VolumePlayProblem(runner.data.train_ws, state.current.model,
-                                 state.current.params, runner.settings.fit.refine_solver)
-
     def _component(self, terms: int):
         return VolumePlay(terms=terms)
 
-    def _term_names(self, k: int) -> tuple[str, ...]:
-        return compliance_name(k), half_width_name(k), held_compliance_name(k)
-
     def _strength_names(self, k: int) -> tuple[str, ...]:
         return compliance_name(k), held_compliance_name(k)
-
-    def _searched_values(self, terms, params) -> dict[str, float]:
-        return searched_values(terms, params, VolumePlayProblem.term_names)
