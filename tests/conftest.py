@@ -152,6 +152,29 @@ def valve1_params(volume=2.4e-6, **extra):
     return {**valve_preset("valve1").parameters(), "dead_volume_m3": volume, **extra}
 
 
+def valve1_recordings(model, params, name, seed0, count=3, n=6001, read=None):
+    """``count`` recordings of ``n`` samples at 1 kHz from the atmosphere (AIR37, valve
+    1, fixed piston at 15 mm; random command steps held 0.1-0.6 s): ``model`` at
+    ``params`` simulated, each reading passed through ``read`` (None: as it is) with
+    200 Pa of noise; recording ``i`` seeded ``seed0 + i`` and named ``{name}_{i}.csv``."""
+    from pneubayes.simulation import simulate
+
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    recs = []
+    for i in range(count):
+        rng = np.random.default_rng(seed0 + i)
+        t = np.arange(n) * 1e-3
+        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
+        blank = Recording(md, t, u, np.full(n, P_ATM))
+        p = simulate(model, params, Inputs.from_recording(blank), blank.rig(), P_ATM,
+                     SolverConfig.standard()).pressure_Pa[0]
+        p = p if read is None else read(p)
+        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
+                              source=f"{name}_{i}.csv"))
+    return recs
+
+
 # ---------------------------------------------------------------- fixtures
 @pytest.fixture(scope="session")
 def rig():

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
+from conftest import P_ATM, P_SUP, discovery_settings, random_steps, valve1_recordings
 from scipy.linalg import expm
 
 from pneubayes.discovery.openform.loaded_wall import LoadedWallProblem, LoadedWallSearch
@@ -201,25 +201,8 @@ def test_a_wall_behind_the_wave_tube_agrees_with_the_plant(rig):
 def wall_recordings():
     """Four 8-s valve1 recordings (1 kHz, 200 Pa noise) of a 2.4-cm^3 chamber with a
     loaded wall (1 cm^3 per bar at 12 Hz, damping ratio 0.3), and two of a rigid one."""
-    return _recordings(Model([LoadedWall()]), WALL, 4, 8001), _recordings(Model(), {}, 2)
-
-
-def _recordings(model, extra, count=3, n=6001):
-    from pneubayes.io.recording import Recording, RecordingMetadata
-
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    recs = []
-    for seed in range(count):
-        rng = np.random.default_rng(80 + seed)
-        t = np.arange(n) * 1e-3
-        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
-        blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(model, {**BASE, **extra}, Inputs.from_recording(blank), blank.rig(),
-                     P_ATM, SolverConfig.standard()).pressure_Pa[0]
-        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
-                              source=f"loaded_{seed}.csv"))
-    return recs
+    return (valve1_recordings(Model([LoadedWall()]), {**BASE, **WALL}, "loaded", 80, 4, 8001),
+            valve1_recordings(Model(), BASE, "loaded", 80, 2))
 
 
 def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_recordings):

@@ -339,24 +339,9 @@ def _valve1_runs(model, params, name, read=None):
     ``params`` from the atmosphere, each reading passed through ``read`` (None: as it
     is) with 200 Pa of noise; and the loop's settings for them (two held out, no
     posterior, at most two additions)."""
-    from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
+    from conftest import discovery_settings, valve1_recordings
 
-    from pneubayes.io.recording import Recording, RecordingMetadata
-    from pneubayes.simulation import Inputs, SolverConfig, simulate
-
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    recs, n = [], 8001
-    for seed in range(4):
-        rng = np.random.default_rng(10 + seed)
-        t = np.arange(n) * 1e-3
-        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
-        blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(model, params, Inputs.from_recording(blank), blank.rig(), P_ATM,
-                     SolverConfig.standard()).pressure_Pa[0]
-        p = p if read is None else read(p)
-        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
-                              source=f"{name}_{seed}.csv"))
+    recs = valve1_recordings(model, params, name, 10, 4, 8001, read)
     settings = discovery_settings(posterior={"method": "none"},
                                   forms={"tube_line_segments": 0},
                                   data={"holdout_recordings": 2}, rounds={"max_effects": 2})

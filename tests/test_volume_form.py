@@ -68,26 +68,10 @@ def swelling_recordings():
 
 
 def _recordings(model, extra, count=3, n=6001):
-    from conftest import BORE, P_ATM, P_SUP, STROKE, random_steps
+    from conftest import valve1_params, valve1_recordings
 
-    from pneubayes.io.recording import Recording, RecordingMetadata
-    from pneubayes.physics.valve import valve_preset
-    from pneubayes.simulation import Inputs, simulate
-
-    base = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    recs = []
-    for seed in range(count):
-        rng = np.random.default_rng(40 + seed)
-        t = np.arange(n) * 1e-3
-        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
-        blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(model, {**base, **extra}, Inputs.from_recording(blank), blank.rig(),
-                     P_ATM, SolverConfig.standard()).pressure_Pa[0]
-        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
-                              source=f"swelling_{seed}.csv"))
-    return recs, base
+    base = valve1_params()
+    return valve1_recordings(model, {**base, **extra}, "swelling", 40, count, n), base
 
 
 def test_the_search_finds_a_planted_hinge_and_none_in_a_rigid_chamber(swelling_recordings):

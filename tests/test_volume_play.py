@@ -6,7 +6,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import BORE, P_ATM, P_SUP, STROKE, discovery_settings, random_steps
+from conftest import (
+    BORE,
+    P_ATM,
+    P_SUP,
+    STROKE,
+    discovery_settings,
+    random_steps,
+    valve1_recordings,
+)
 
 from pneubayes.discovery.openform.volume_play import (
     VolumePlayProblem,
@@ -163,25 +171,9 @@ def test_a_wall_is_refused_beside_another_table_and_its_options_are_checked(rig)
 def wall_recordings():
     """Four 8-s valve1 recordings (1 kHz, 200 Pa noise) of a 2.4-cm^3 chamber with a
     friction-held wall (2 cm^3 per bar past a 0.3-bar band), and three of a rigid one."""
-    return _recordings(Model([VolumePlay()]), WALL, 4, 8001), _recordings(Model(), {})
+    return (valve1_recordings(Model([VolumePlay()]), {**BASE, **WALL}, "wall", 60, 4, 8001),
+            valve1_recordings(Model(), BASE, "wall", 60))
 
-
-def _recordings(model, extra, count=3, n=6001):
-    from pneubayes.io.recording import Recording, RecordingMetadata
-
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    recs = []
-    for seed in range(count):
-        rng = np.random.default_rng(60 + seed)
-        t = np.arange(n) * 1e-3
-        u = random_steps(rng, n, 1e-3, hold_s=(0.1, 0.6))
-        blank = Recording(md, t, u, np.full(n, P_ATM))
-        p = simulate(model, {**BASE, **extra}, Inputs.from_recording(blank), blank.rig(),
-                     P_ATM, SolverConfig.standard()).pressure_Pa[0]
-        recs.append(Recording(md, t, u, p + rng.normal(0.0, 200.0, n),
-                              source=f"wall_{seed}.csv"))
-    return recs
 
 
 def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_recordings):
@@ -217,7 +209,7 @@ def test_the_search_finds_a_planted_stop_as_a_stop(rig):
     freed the wall) is found as a stop, its held give and half-width near the truth; with
     plays only, the search finds less of it."""
     stop = {**WALL, "volume_play_compliance_0": 0.0, "volume_play_held_compliance_0": C_TRUE}
-    recs = _recordings(Model([VolumePlay()]), stop, 2, 6001)
+    recs = valve1_recordings(Model([VolumePlay()]), {**BASE, **stop}, "wall", 60, 2)
     ws, solver = WindowSet(recs, 2.0, 2.0), SolverConfig.standard()
     problem = VolumePlayProblem(ws, Model(), BASE, solver)
     found = VolumePlaySearch(max_terms=1).fit(problem)
