@@ -127,12 +127,15 @@ def test_a_wall_without_give_is_the_rigid_chamber(rig):
     np.testing.assert_array_equal(none, rigid)
 
 
-def test_windows_start_the_wall_where_the_recorded_reading_left_it(rig):
+@pytest.mark.parametrize("ring", [{}, {"loaded_wall_frequency": 2.0,
+                                        "loaded_wall_damping": 0.1}])
+def test_windows_start_the_wall_where_the_recorded_reading_left_it(rig, ring):
     """Windows started from the recorded pressure, with the wall stepped over the
     reading's history, continue the one-window simulation; started at rest they do
-    not."""
+    not. A slow ring (2 Hz, z 0.1: seconds of history) is read through a strided history
+    as well."""
     inputs = _inputs(7, 4001)
-    model, params = Model([LoadedWall()]), {**BASE, **WALL}
+    model, params = Model([LoadedWall()]), {**BASE, **WALL, **ring}
     whole = simulate(model, params, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0]
     starts, length = np.arange(500, 3501, 500), 401
     idx = starts[:, None] + np.arange(length)

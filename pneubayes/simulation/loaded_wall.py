@@ -31,9 +31,13 @@ _LW_Z = SLOT_INDEX["loaded_wall_damping_ratio"]
 #: How far back, in the wall's slowest time constants, its start reads the reading's
 #: history (the start's weight there is e^-6).
 WALL_HISTORY = 6.0
-#: Most samples of that history stepped (the latest ones; before them the wall starts at
-#: rest under the first pressure read).
-WALL_HISTORY_POINTS = 20000
+#: Most samples of that history stepped, evenly strided (a one-step prediction at every
+#: sample must not walk seconds of history each); before them the wall starts at rest
+#: under the first pressure read.
+WALL_HISTORY_POINTS = 512
+#: The stride's longest time as a share of the wall's natural period (a ring read through
+#: a coarser stride would alias): where the history needs more, it is cut shorter.
+WALL_HISTORY_STRIDE_PERIODS = 0.05
 #: The step's bound as a share of the coupled wall's period over 2 pi (``h w_c``).
 WALL_STEP_SHARE = 0.2
 
@@ -112,16 +116,22 @@ def wall_start(t, pm, k, w, z, p_start, calibrated, p_atm, zero, cal_g):
     """The wall's ``(x, v)`` at sample ``k``: stepped exactly over the recorded reading
     ``pm`` (the chamber pressures behind a miscalibrated sensor's readings when
     ``calibrated``), linear between its finite samples, from :data:`WALL_HISTORY` of its
-    slowest time constants before ``t[k]`` (at most :data:`WALL_HISTORY_POINTS` samples),
-    at rest under the first pressure read; at rest under ``p_start`` (Pa) where no sample
-    there is finite."""
+    slowest time constants before ``t[k]`` (at most :data:`WALL_HISTORY_POINTS` samples,
+    strided no coarser than :data:`WALL_HISTORY_STRIDE_PERIODS` of its period), at rest
+    under the first pressure read; at rest under ``p_start`` (Pa) where no sample there is
+    finite."""
     span = WALL_HISTORY * wall_slowest_time_s(w, z)
-    j = k
-    while j > 0 and k - j < WALL_HISTORY_POINTS and t[k] - t[j - 1] <= span:
+    dt = t[k] - t[k - 1] if k > 0 else 0.0
+    most = 1 if not dt > 0.0 else max(1, int(WALL_HISTORY_STRIDE_PERIODS * 2.0 * math.pi
+                                              / (w * dt)))
+    j, j_min = k, max(0, k - WALL_HISTORY_POINTS * most)
+    while j > j_min and t[k] - t[j - 1] <= span:
         j -= 1
+    stride = max(1, -(-(k - j) // WALL_HISTORY_POINTS))
+    j = k - ((k - j) // stride) * stride
     x, v = math.nan, 0.0
     y_prev, t_prev = 0.0, 0.0
-    for i in range(j, k + 1):
+    for i in range(j, k + 1, stride):
         y = recorded_pressure(t, pm, i, calibrated, p_atm, zero, cal_g) - p_atm
         if math.isnan(y):
             continue
