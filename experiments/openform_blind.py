@@ -614,11 +614,13 @@ def run_case(case: dict, args, root: Path) -> dict:
             for t in doc.get("found_reading_terms", [])] + [
             f"volume: {t['formula'].split(' (')[0]}"
             for t in doc.get("found_volume_terms", [])] + [
-            f"command: {t['term']}" for t in doc.get("found_command_terms", [])],
+            f"command: {t['term']}" for t in doc.get("found_command_terms", [])] + [
+            f"port: {t['term']}" for t in doc.get("found_port_terms", [])],
             case["hidden"], kept),
         "found_terms_detail": (doc.get("found_terms", []) + doc.get("found_reading_terms", [])
                                + doc.get("found_volume_terms", [])
-                               + doc.get("found_command_terms", [])),
+                               + doc.get("found_command_terms", [])
+                               + doc.get("found_port_terms", [])),
         "rmse_base_Pa": doc["rmse_base_Pa"], "rmse_final_Pa": doc["rmse_final_Pa"],
         "noise_floor_Pa": noise, "gap_shrink": None if gap0 <= 0 else 1.0 - gap1 / gap0,
         "final_over_noise": doc["rmse_final_Pa"] / noise,

@@ -29,6 +29,8 @@ def added_names(doc: dict) -> list[str]:
         out.append(f"volume {t['term']}")
     if doc.get("found_command_terms"):
         out.append("driver clock")
+    if doc.get("found_port_terms"):
+        out.append("port restriction")
     return out
 
 

@@ -67,7 +67,7 @@ def summary_lines(doc: dict) -> list[str]:
     (*) and the stand-ins kept at a bound (~)."""
     if not any(doc.get(k) for k in ("effects", "stand_ins", "found_terms",
                                      "found_reading_terms", "found_volume_terms",
-                                     "found_command_terms")):
+                                     "found_command_terms", "found_port_terms")):
         return ["  no missing effect is supported"]
     out = []
     for e in doc["effects"]:
@@ -79,7 +79,7 @@ def summary_lines(doc: dict) -> list[str]:
                    f"{e['evidence']['inclusion_probability']:.2f}, RMSE "
                    f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
     for key in ("found_terms", "found_reading_terms", "found_volume_terms",
-                "found_command_terms"):
+                "found_command_terms", "found_port_terms"):
         for t in doc.get(key, []):
             ps = ", ".join(f"{n} = {p.get('median', p.get('estimate')):.4g} {p['unit']}"
                            for n, p in t["parameters"].items())

@@ -312,6 +312,10 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
         lines += _terms_table("An open-form term on the command found (the valve takes it "
                               "through a driver on its own clock; in no catalogue form):",
                               doc["found_command_terms"])
+    if doc.get("found_port_terms"):
+        lines += _terms_table("An open-form term at the chamber's port found (a restriction "
+                              "in series with the valve: a fitting, a flow control's needle; "
+                              "in no catalogue form):", doc["found_port_terms"])
     if doc.get("stand_ins"):
         lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
                   "prediction only with a parameter of their own at a bound, a strained "
@@ -323,6 +327,7 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                          f"-> {e['rmse_after_Pa']:.0f} Pa")
     if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms") \
             or doc.get("found_volume_terms") or doc.get("found_command_terms") \
+            or doc.get("found_port_terms") \
             or doc.get("stand_ins"):
         found = True
     elif final <= MISFIT_RATIO * noise:

@@ -31,7 +31,7 @@ FORMAT = "pneubayes-discovery/1"
 OPEN_FORM = ("closure", "reading_closure", "reading_play", "reading_command", "reading_flow",
              "reading_hinge",
              "volume_closure",
-             "volume_play", "loaded_wall", "command_clock")
+             "volume_play", "loaded_wall", "port_restriction", "command_clock")
 
 
 @dataclass(frozen=True, eq=False)
@@ -259,6 +259,23 @@ class DiscoveryResult(PosteriorDraws):
                     "a = command_clock_pulse_alignment)" if eff.form == "pwm" else ")"),
                  "parameters": self._values(eff.parameter_names())}]
 
+    def found_port_terms(self) -> list[dict]:
+        """The final model's open-form term at the chamber's port (effect
+        ``port_restriction``; empty without it): its formula, its parameters (as
+        :meth:`found_reading_terms` gives them) and where it acts."""
+        model = self.final.model
+        if not model.has("port_restriction"):
+            return []
+        eff = model.effect("port_restriction")
+        return [{"term": "port restriction",
+                 "acts_on": "the valve's ports, which see the pressure x between them and "
+                            "the restriction (Pa)",
+                 "formula": "a_in f(p_s, x) - a_ex f(x, P_atm) = A f(x, p), A = 1 / k_f "
+                            "into the chamber (x > p), 1 / k_v out of it (k_f = "
+                            "port_restriction_fill, k_v = port_restriction_vent, 1/m^2; 0: "
+                            "that direction unrestricted)",
+                 "parameters": self._values(eff.parameter_names())}]
+
     def to_dict(self) -> dict:
         """The ``pneubayes-discovery/1`` document (JSON-ready but for numpy scalars)."""
         post = self.posterior_summary
@@ -266,7 +283,7 @@ class DiscoveryResult(PosteriorDraws):
         effects, stand_ins = [], []
         for a in self.accepted:
             if a["name"] in OPEN_FORM:  # open-form terms: listed apart, as found_terms,
-                continue  # found_reading_terms, found_volume_terms, found_command_terms
+                continue  # found_reading_terms, found_volume_terms, found_port_terms, ...
             eff = self.final.model.effect(a["name"])
             params = {}
             for n in eff.parameter_names():
@@ -290,6 +307,7 @@ class DiscoveryResult(PosteriorDraws):
                "found_reading_terms": self.found_reading_terms(),
                "found_volume_terms": self.found_volume_terms(),
                "found_command_terms": self.found_command_terms(),
+               "found_port_terms": self.found_port_terms(),
                "rmse_base_Pa": self.base.heldout_rmse_Pa,
                "rmse_final_Pa": self.final.heldout_rmse_Pa,
                "noise_floor_Pa": self.noise_floor_Pa, "range_Pa": self.range_Pa,

@@ -296,12 +296,12 @@ class StageSettings:
         ReadingFlowForm: open-form knees (a static map read last), relaxations, plays
         (backlash), lags of the command's magnitude and terms of the valve's port flows
         in the reading while above this x the noise floor (0: off).
-    volume_form_min_noise_ratio, volume_play_min_noise_ratio, \
-    loaded_wall_min_noise_ratio : float
-        VolumeForm, VolumePlayForm, LoadedWallForm: open-form hinges of the chamber's
-        volume in its pressure, friction-held walls (plays of the volume) and a wall that
-        carries a load (the volume as a mass on a spring) while above this x the noise
-        floor (0: off).
+    port_restriction_min_noise_ratio, volume_form_min_noise_ratio, \
+    volume_play_min_noise_ratio, loaded_wall_min_noise_ratio : float
+        PortRestrictionForm, VolumeForm, VolumePlayForm, LoadedWallForm: an open-form
+        restriction in series at the chamber's port, hinges of the chamber's volume in its
+        pressure, friction-held walls (plays of the volume) and a wall that carries a load
+        (the volume as a mass on a spring) while above this x the noise floor (0: off).
     command_clock_min_noise_ratio : float
         CommandClockForm: an open-form valve driver on its own clock while above this x
         the noise floor (0: off).
@@ -324,6 +324,7 @@ class StageSettings:
     volume_play_min_noise_ratio: float = 1.5
     loaded_wall_min_noise_ratio: float = 1.5
     command_clock_min_noise_ratio: float = 1.5
+    port_restriction_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
         _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
@@ -338,7 +339,8 @@ class StageSettings:
                      "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
                      "reading_flow_min_noise_ratio",
                      "volume_form_min_noise_ratio", "volume_play_min_noise_ratio",
-                     "loaded_wall_min_noise_ratio", "command_clock_min_noise_ratio"):
+                     "loaded_wall_min_noise_ratio", "command_clock_min_noise_ratio",
+                     "port_restriction_min_noise_ratio"):
             v = getattr(self, name)
             if not (v == 0.0 or v >= 1.0):
                 raise ValueError(f"{name} must be 0 (off) or >= 1, got {v}")

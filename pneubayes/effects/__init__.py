@@ -11,8 +11,9 @@ of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
 ``volume_closure`` (open-form hinges of the chamber's volume in its pressure),
 ``volume_play`` (open-form friction-held walls: plays and stops of the chamber's
 volume), ``loaded_wall`` (an open-form wall with inertia: the chamber's volume as a
-mass on a spring) and ``command_clock`` (an open-form valve driver on its own clock),
-the last ten never searched for by the discovery library.
+mass on a spring), ``port_restriction`` (an open-form restriction in series at the
+chamber's port) and ``command_clock`` (an open-form valve driver on its own clock),
+the last eleven never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pneubayes.effects.command_clock import CommandClock
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.loaded_wall import LoadedWall
+from pneubayes.effects.port_restriction import PortRestriction
 from pneubayes.effects.reading_closure import ReadingClosure
 from pneubayes.effects.reading_command import ReadingCommand
 from pneubayes.effects.reading_flow import ReadingFlow
@@ -51,7 +53,7 @@ CATALOGUE: dict[str, type[Effect]] = {
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
                 ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, LoadedWall,
-                CommandClock)
+                PortRestriction, CommandClock)
 }
 
 
@@ -147,5 +149,6 @@ __all__ = ["CATALOGUE", "Closure", "CommandClock", "Component", "CylinderLeak", 
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",
            "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
-           "VolumeClosure", "VolumePlay", "LoadedWall", "catalogue_parameter_names",
+           "VolumeClosure", "VolumePlay", "LoadedWall", "PortRestriction",
+           "catalogue_parameter_names",
            "make_effect"]

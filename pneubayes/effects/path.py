@@ -251,6 +251,14 @@ SLOTS += (
     ("loaded_wall_damping_ratio", "the loaded wall's damping ratio z (-)"),
 )
 
+SLOTS += (
+    ("restriction_fill_inverse_area_per_m2", "a restriction in series at the chamber's port "
+     "(a fitting, a flow-control needle, a check valve): 1 / its area for flow into the "
+     "chamber; the valve's ports see the pressure between the two; 0 = none (1/m^2)"),
+    ("restriction_vent_inverse_area_per_m2", "the port's restriction: 1 / its area for flow "
+     "out of the chamber; 0 = none (1/m^2)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -22,6 +22,7 @@ from pneubayes.simulation.layout import (
     C_T_SUPPLY,
     C_THETA,
 )
+from pneubayes.simulation.restriction import node_pressure, series_slopes
 
 _VOL = SLOT_INDEX["volume_m3"]
 _ATT = SLOT_INDEX["flow_attenuation_Pa"]
@@ -35,6 +36,8 @@ _VT_N = SLOT_INDEX["volume_table_points"]
 _VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
 _VT_V = SLOT_INDEX["volume_table_volume_m3_0"]
 _CL_N = SLOT_INDEX["closure_terms"]
+_RES_F = SLOT_INDEX["restriction_fill_inverse_area_per_m2"]
+_RES_V = SLOT_INDEX["restriction_vent_inverse_area_per_m2"]
 _CL_FA = SLOT_INDEX["closure_feature_a_0"]
 _CL_FB = SLOT_INDEX["closure_feature_b_0"]
 _CL_TA = SLOT_INDEX["closure_threshold_a_0"]
@@ -324,8 +327,11 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     by about 4 %). ``tests/test_closure.py`` checks that the two bodies agree."""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
-    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    x = p  # the valve's ports' pressure: a restriction's node in series, or the chamber
+    if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
+        x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs)
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
     f_in0, f_ex0 = f_in, f_ex  # (before the convective scaling: the closure's features)
     t_wall = cs[C_T_SUPPLY]
     hconv = sl[_HCONV]
@@ -395,6 +401,10 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    share = 1.0  # the part of a port area's change that reaches the chamber's flow
+    if x != p:
+        dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(x, p, p_sup, a_in, a_ex,
+                                                          sl[_RES_F], sl[_RES_V], cs, dfloor)
     dcl_dp, dcl_dt = 0.0, 0.0
     if closure:  # (the port flows' slopes before the convective scaling)
         _, dcl_dp, dcl_dt = closure_flow(
@@ -415,7 +425,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
-    dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup + share * (f_in * da_in - f_ex * da_ex))
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     if closure:
@@ -431,10 +441,10 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     dmout_dt = 0.0
     if f_ex > 0.0:
         dmout_dp += phi * a_ex * dfex_dp
-        dmout_dt += phi * f_ex * da_ex
+        dmout_dt += phi * share * f_ex * da_ex
     if f_in < 0.0:
         dmout_dp -= phi * a_in * dfin_dp
-        dmout_dt -= phi * (f_in * da_in + a_in * dfin_dsup * dsup)
+        dmout_dt -= phi * (share * f_in * da_in + a_in * dfin_dsup * dsup)
     if leak_out > 0.0:
         dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
@@ -477,7 +487,11 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
 
     Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
     (a rate, or a convective coefficient on the wall area with orifice outflows at the
-    chamber's temperature; see :mod:`pneubayes.effects.heat_transfer`).
+    chamber's temperature; see :mod:`pneubayes.effects.heat_transfer`). A restriction in
+    series at the port (:mod:`pneubayes.simulation.restriction`; the general kernel
+    only) has the valve's ports pass their flows at its node's pressure; with heat
+    transfer the node's exhaust flow is taken as the chamber's outflow (exact unless
+    both ports pass at once).
     ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
     a port at pressure balance is replaced by the secant over the step's expected
     movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
@@ -509,8 +523,12 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
                                         need_j, dsup, da_in, da_ex, spool, dspool, cdir)
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p, alpha, beta, theta, kappa)
-    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    x = p  # the valve's ports' pressure: a restriction's node in series, or the chamber
+    if with_closure is not None:
+        if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
+            x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs)
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
     t_wall = cs[C_T_SUPPLY]
     hconv = sl[_HCONV]
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
@@ -571,6 +589,11 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    share = 1.0  # the part of a port area's change that reaches the chamber's flow
+    if with_closure is not None:
+        if x != p:
+            dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
+                x, p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs, dfloor)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
     dfex_dp *= sq_ex
@@ -584,7 +607,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if heat > 0.0:
         jp += heat * (t_wall - temp) / temp
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
-    dmdot_dt = phi * (a_in * dfin_dsup * dsup + f_in * da_in - f_ex * da_ex)
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup + share * (f_in * da_in - f_ex * da_ex))
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
@@ -598,10 +621,10 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dmout_dt = 0.0
     if f_ex > 0.0:
         dmout_dp += phi * a_ex * dfex_dp
-        dmout_dt += phi * f_ex * da_ex
+        dmout_dt += phi * share * f_ex * da_ex
     if f_in < 0.0:
         dmout_dp -= phi * a_in * dfin_dp
-        dmout_dt -= phi * (f_in * da_in + a_in * dfin_dsup * dsup)
+        dmout_dt -= phi * (share * f_in * da_in + a_in * dfin_dsup * dsup)
     if leak_out > 0.0:
         dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam

@@ -958,15 +958,18 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
 def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
-    compartment) or an open-form closure (whose code the pressure-only kernel leaves out,
-    so that the plain model's first call compiles less)."""
+    compartment), an open-form closure or a restriction at the port (whose code the
+    pressure-only kernel leaves out, so that the plain model's first call compiles
+    less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`).
 GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N] + [
     SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
-    SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"]])
+    SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"],
+    SLOT_INDEX["restriction_fill_inverse_area_per_m2"],
+    SLOT_INDEX["restriction_vent_inverse_area_per_m2"]])
 
 
 @njit(cache=True, error_model="numpy")

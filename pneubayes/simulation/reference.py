@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 from pneubayes.effects.closure_features import (
     FEATURE_BY_NAME,
@@ -51,6 +52,23 @@ def _flow(p_up, p_down, alpha, beta, theta, kappa):
     r = p_down / p_up
     g = r ** (2.0 / kappa) - r ** ((kappa + 1.0) / kappa)
     return alpha * p_up * math.sqrt(g) if g > 0.0 else 0.0
+
+
+def _node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, law, p_atm):
+    """The pressure between the valve's ports and a restriction in series at the port
+    (inverse areas ``k_fill`` into, ``k_vent`` out of the chamber): the root of the
+    node's mass balance by Brent's method."""
+    def surplus(x):
+        return (a_in * _flow(p_sup, x, *law) - a_ex * _flow(x, p_atm, *law)
+                - area * _flow(x, p, *law))
+
+    area = 0.0
+    h0 = surplus(p)
+    if h0 == 0.0 or (h0 > 0 and k_fill <= 0) or (h0 < 0 and k_vent <= 0):
+        return p
+    area = 1.0 / (k_fill if h0 > 0 else k_vent)
+    lo, hi = (p, max(p_sup, p_atm, p)) if h0 > 0 else (min(p_sup, p_atm, p), p)
+    return brentq(surplus, lo, hi, xtol=1e-9, rtol=4 * np.finfo(float).eps)
 
 
 def _gompertz(u, offset, a, b, c, d):
@@ -166,6 +184,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     else:
         v_line = 0.0
 
+    k_fill = sl[S["restriction_fill_inverse_area_per_m2"]]  # a port's restriction
+    k_vent = sl[S["restriction_vent_inverse_area_per_m2"]]
     own_ex = sl[S["exhaust_own_command"]] != 0
     tank_v = sl[S["tank_volume_m3"]]
     lung_v = sl[S["lung_volume_m3"]]
@@ -247,6 +267,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         k_lam = max(sl[S["leak_laminar_kg_per_s_Pa2"]]
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                     * (vol + v_line - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
+        if (k_fill > 0 or k_vent > 0) and not nseg:  # the ports see the node's pressure
+            p_valve = _node_pressure(p, psup, a_in, a_ex, k_fill, k_vent, law, p_atm)
         # each mass flow into the chamber (kg/s, negative = out)
         f_in = f_in_raw = _flow(psup, p_valve, *law)
         f_out = f_out_raw = _flow(p_valve, p_atm, *law)

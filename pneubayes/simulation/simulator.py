@@ -74,6 +74,7 @@ _FORM_COLUMNS = {name: i for i, name in enumerate((
     "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
     "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
+    "restriction_fill_inverse_area_per_m2", "restriction_vent_inverse_area_per_m2",
     *VOLUME_PLAY_COMPLIANCE_SLOTS))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
 #: The form columns of the states besides the pressure (:func:`kernel.needs_general`).
@@ -154,6 +155,13 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                          "'line') replaces: it cannot be combined with it in one model")
     if np.any(has("closure_terms") & wave):
         _check_closure_beside_wave(slots, np.flatnonzero(has("closure_terms") & wave))
+    restricted = has("restriction_fill_inverse_area_per_m2") | has(
+        "restriction_vent_inverse_area_per_m2")
+    if np.any(restricted & (line | tank | has("lung_volume_m3"))):
+        raise ValueError("a restriction at the chamber's port (effect 'port_restriction') "
+                         "sits between the valve's ports and the chamber: it cannot be "
+                         f"combined with {lines}, a supply tank or a second compartment in "
+                         "one model")
     if np.any(wave & (hot | has("line_length_m"))):
         raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
                          "with the chamber's pressure as its only state: it cannot be "

@@ -17,6 +17,7 @@ from pneubayes.discovery.stages.more_supported import MoreSupported
 from pneubayes.discovery.stages.open_form import OpenForm
 from pneubayes.discovery.stages.other_forms import OtherForms
 from pneubayes.discovery.stages.pairs import Pairs
+from pneubayes.discovery.stages.port_restriction_form import PortRestrictionForm
 from pneubayes.discovery.stages.reading_command_form import ReadingCommandForm
 from pneubayes.discovery.stages.reading_flow_form import ReadingFlowForm
 from pneubayes.discovery.stages.reading_form import ReadingForm
@@ -32,9 +33,9 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the runner-ups, pairs and the named
     effects' other forms, then the open forms: the valve driver's clock, the reading's
-    knees, relaxations, plays, lags of the command and terms of the port flows, the volume's
-    hinges and its
-    friction-held walls, and the closure."""
+    knees, relaxations, plays, lags of the command and terms of the port flows, a
+    restriction at the port, the volume's hinges, its friction-held walls and a loaded
+    wall, and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -63,6 +64,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(ReadingCommandForm(s.reading_command_min_noise_ratio))
     if s.reading_flow_min_noise_ratio:
         stages.append(ReadingFlowForm(s.reading_flow_min_noise_ratio))
+    if s.port_restriction_min_noise_ratio:  # (the ports' flows before the volume's)
+        stages.append(PortRestrictionForm(s.port_restriction_min_noise_ratio))
     if s.volume_form_min_noise_ratio:
         stages.append(VolumeForm(s.volume_form_min_noise_ratio))
     if s.volume_play_min_noise_ratio:
@@ -77,6 +80,6 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 __all__ = ["Stage", "CommandClockForm", "MoreSupported", "LastResort", "RunnerUps", "Pairs",
            "OtherForms",
            "OpenForm", "ReadingForm", "ReadingHingeForm", "ReadingPlayForm",
-           "ReadingCommandForm", "ReadingFlowForm",
+           "ReadingCommandForm", "ReadingFlowForm", "PortRestrictionForm",
            "VolumeForm",
            "VolumePlayForm", "LoadedWallForm", "default_stages"]

@@ -92,6 +92,10 @@ class ComponentForm(Stage):
         default: one term; its values are laid over from term ``k``'s)."""
         return self._component(1)
 
+    def _fallback_terms(self, search) -> list:
+        """Terms to fit when the search keeps none (by default none: the stage ends)."""
+        return []
+
     def _search_record(self, search) -> dict:
         """What else of the fitted ``search`` the ledger records (by default nothing)."""
         return {}
@@ -140,15 +144,21 @@ class ComponentForm(Stage):
                              **self._search_record(search))
         if not terms:
             b = search.best_
+            terms = self._fallback_terms(search)
             runner.log(f"discover: {self.label}: no {self.term_word} is supported"
                        + ("" if b is None else f" (the best, {b}, explains "
-                          f"{b.explained:.1%} at t = {b.t:.1f})"))
-            return
-        runner.log(f"discover: {self.label}: the search proposes "
-                   + ", ".join(f"{t} ({t.explained:.0%} of the residual)" for t in terms))
+                          f"{b.explained:.1%} at t = {b.t:.1f})")
+                       + ("" if not terms else "; fitting " + ", ".join(map(str, terms))
+                          + " from the search's generic start"))
+            if not terms:
+                return
+        else:
+            runner.log(f"discover: {self.label}: the search proposes "
+                       + ", ".join(f"{t} ({t.explained:.0%} of the residual)"
+                                   for t in terms))
         fit = self._fit(state, runner, terms)
         if fit is not None:
-            self._verify(self._prune(fit, state, runner), state, runner, best, search)
+            self._verify(self._prune(fit, state, runner), state, runner, best, terms)
 
     def _fit(self, state: RoundState, runner, terms):
         """The current model with the component, refitted from the search's values and
@@ -215,7 +225,7 @@ class ComponentForm(Stage):
                              heldout_rmse_after_Pa=one.heldout_rmse_Pa)
         return one
 
-    def _verify(self, fit, state: RoundState, runner, best, search) -> bool:
+    def _verify(self, fit, state: RoundState, runner, best, terms) -> bool:
         """Weigh the fit; on a pass it becomes the round's only passing trial."""
         w = weigh(fit, state, runner, best, self.component)
         n = _terms(fit.model.effect(self.component))
@@ -233,8 +243,8 @@ class ComponentForm(Stage):
             return False
         state.evidence[self.component] = {
             "inclusion_probability": None,
-            "t_max": float(max(abs(t.t) for t in search.terms_)),
-            "best_term": "; ".join(str(t) for t in search.terms_), "best_term_start": None}
+            "t_max": float(max(abs(t.t) for t in terms)),
+            "best_term": "; ".join(str(t) for t in terms), "best_term_start": None}
         state.passing = [(fit.heldout_rmse_Pa, self.component, fit, w.gain, w.p_value)]
         return True
 

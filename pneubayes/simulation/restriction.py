@@ -1,0 +1,116 @@
+"""A restriction in series at the chamber's port: the pressure between it and the valve.
+
+A fitting, a flow-control needle or a check valve between the valve and the chamber
+(effect ``port_restriction``; slots ``restriction_fill_inverse_area_per_m2`` and
+``restriction_vent_inverse_area_per_m2``) passes the chamber's net flow through one more
+thin port (eqs. 1-3), of area ``A_f`` for flow into the chamber and ``A_v`` out of it.
+The small volume between the two holds no air of its own (quasi-static), so the node's
+pressure ``x`` balances the valve's ports against the restriction::
+
+    a_in f(p_s, x) - a_ex f(x, P_atm) = A f(x, p),    A = A_f if x > p else A_v,
+
+one root in ``x`` (the left side falls with ``x``, the right rises). The valve's ports
+then pass their flows at ``x`` and the chamber receives their sum. An inverse area of 0
+is no restriction in that direction (``x = p``).
+
+:func:`node_pressure` solves for ``x`` (Newton's method kept inside a bracket);
+:func:`series_slopes` gives the slopes of the node's port flows in the chamber's
+pressure and the supply's, by the implicit function theorem, for the exponential
+method's Jacobian (:func:`pneubayes.simulation.chamber.chamber_rhs`).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from pneubayes.physics.orifice import flow_slopes, flow_terms
+from pneubayes.simulation.layout import C_ALPHA, C_BETA, C_KAPPA, C_P_ATM, C_THETA
+
+#: Newton's iterations at most (each bisects where its step leaves the bracket).
+NODE_MAX_ITERATIONS = 80
+#: The node's pressure is solved to this share of itself.
+NODE_RELATIVE_TOLERANCE = 1e-13
+#: The secant floor (Pa) of the square-root slopes inside the node's Newton steps.
+_NEWTON_FLOOR_PA = 1e-6
+
+
+@njit(cache=True, error_model="numpy")
+def _balance(x, p, p_sup, a_in, a_ex, area, cs):
+    """The node's surplus ``a_in f(p_s, x) - a_ex f(x, P_atm) - A f(x, p)`` (kg/s) and its
+    slope in ``x`` (negative)."""
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    f_in, sg, dg, r, rev = flow_terms(p_sup, x, alpha, beta, theta, kappa)
+    _, din = flow_slopes(p_sup, x, sg, dg, r, rev, alpha, beta, kappa, _NEWTON_FLOOR_PA)
+    f_ex, sg, dg, r, rev = flow_terms(x, cs[C_P_ATM], alpha, beta, theta, kappa)
+    dex, _ = flow_slopes(x, cs[C_P_ATM], sg, dg, r, rev, alpha, beta, kappa,
+                         _NEWTON_FLOOR_PA)
+    f_r, sg, dg, r, rev = flow_terms(x, p, alpha, beta, theta, kappa)
+    dr, _ = flow_slopes(x, p, sg, dg, r, rev, alpha, beta, kappa, _NEWTON_FLOOR_PA)
+    return a_in * f_in - a_ex * f_ex - area * f_r, a_in * din - a_ex * dex - area * dr
+
+
+@njit(cache=True, error_model="numpy")
+def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
+    """The pressure between the valve and the restriction (Pa; ``p`` where the flow's
+    direction has no restriction or nothing flows). ``k_fill``, ``k_vent``: the
+    restriction's inverse areas (1/m^2) into and out of the chamber."""
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    p_atm = cs[C_P_ATM]
+    h0 = (a_in * flow_terms(p_sup, p, alpha, beta, theta, kappa)[0]
+          - a_ex * flow_terms(p, p_atm, alpha, beta, theta, kappa)[0])
+    if h0 > 0.0:  # a fill: the node above the chamber, below the highest source
+        if k_fill <= 0.0:
+            return p
+        area, lo, hi = 1.0 / k_fill, p, max(p_sup, p_atm, p)
+    elif h0 < 0.0:
+        if k_vent <= 0.0:
+            return p
+        area, lo, hi = 1.0 / k_vent, min(p_sup, p_atm, p), p
+    else:
+        return p
+    x = 0.5 * (lo + hi)
+    for _ in range(NODE_MAX_ITERATIONS):
+        h, dh = _balance(x, p, p_sup, a_in, a_ex, area, cs)
+        if h > 0.0:
+            lo = x
+        elif h < 0.0:
+            hi = x
+        else:
+            return x
+        if hi - lo <= NODE_RELATIVE_TOLERANCE * hi:
+            break
+        xn = x - h / dh if dh < 0.0 else 0.5 * (lo + hi)
+        if not lo < xn < hi:
+            xn = 0.5 * (lo + hi)
+        if abs(xn - x) <= NODE_RELATIVE_TOLERANCE * x:
+            return xn
+        x = xn
+    return x
+
+
+@njit(cache=True, error_model="numpy")
+def series_slopes(x, p, p_sup, a_in, a_ex, k_fill, k_vent, cs, dp_floor):
+    """The node's port flow functions' slopes ``(df_in/dp_s, df_in/dp, df_ex/dp, share)``
+    at the node pressure ``x``, ``f_in = f(p_s, x)``, ``f_ex = f(x, P_atm)`` (kg/(s m^2
+    Pa)), with ``x`` following ``p`` (and ``p_s``: the first is the net flow's slope in the
+    supply per unit inlet area, where the plain ports' is the inlet's own), and ``share``
+    the part of a port area's change that reaches the chamber's flow (1 without a
+    restriction).
+    ``dp_floor`` (Pa) is the secant floor of the square-root slopes (the chamber's)."""
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    p_atm = cs[C_P_ATM]
+    _, sg, dg, r, rev = flow_terms(p_sup, x, alpha, beta, theta, kappa)
+    din_s, din_x = flow_slopes(p_sup, x, sg, dg, r, rev, alpha, beta, kappa, dp_floor)
+    _, sg, dg, r, rev = flow_terms(x, p_atm, alpha, beta, theta, kappa)
+    dex_x, _ = flow_slopes(x, p_atm, sg, dg, r, rev, alpha, beta, kappa, dp_floor)
+    k = k_fill if x > p else k_vent
+    if x == p or k <= 0.0:  # no restriction in this direction: the node is the chamber
+        return din_s, din_x, dex_x, 1.0
+    _, sg, dg, r, rev = flow_terms(x, p, alpha, beta, theta, kappa)
+    dr_x, dr_p = flow_slopes(x, p, sg, dg, r, rev, alpha, beta, kappa, dp_floor)
+    dr_x, dr_p = dr_x / k, dr_p / k
+    den = a_in * din_x - a_ex * dex_x - dr_x  # the surplus' slope in x (< 0)
+    dx_dp = dr_p / den
+    share = -dr_x / den
+    # the supply's slope of the net flow a_in f_in - a_ex f_ex, carried on the inlet's
+    return din_s * share, din_x * dx_dp, dex_x * dx_dp, share

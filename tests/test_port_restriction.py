@@ -1,0 +1,272 @@
+"""A restriction in series at the chamber's port (effect ``port_restriction``): the node's
+mass balance, the compiled simulator against the scipy reference, limits and slopes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import discovery_settings, valve1_recordings
+
+from pneubayes.discovery.openform.port_restriction import (
+    PortRestrictionProblem,
+    PortRestrictionSearch,
+)
+from pneubayes.effects import PortRestriction, TubeDelay
+from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.inference.windows import WindowSet
+from pneubayes.model import Model
+from pneubayes.physics.orifice import flow_function
+from pneubayes.physics.valve import valve_preset
+from pneubayes.simulation import Inputs, SolverConfig, simulate
+from pneubayes.simulation.chamber import chamber_rhs
+from pneubayes.simulation.reference import reference_simulate
+from pneubayes.simulation.restriction import node_pressure, series_slopes
+from pneubayes.simulation.simulator import rig_constants
+
+P_ATM, P_SUP = 101325.0, 551325.0
+
+
+def _tight(rtol=1e-8):
+    return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=1e-6, max_step_s=0.02,
+                        min_step_s=1e-14, max_steps_per_s=2.5e7)
+
+
+@pytest.fixture
+def valve_params():
+    return {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+
+
+@pytest.fixture
+def steps(rig):
+    """Steps between full inlet, closed, full exhaust and a half opening: 0.3 s."""
+    t = np.arange(301) * 1e-3
+    u = np.select([t < 0.08, t < 0.12, t < 0.2, t < 0.25], [3.0, 0.0, -3.0, 0.6], -0.6)
+    return Inputs(t, u, np.full(t.size, 0.05), np.full(t.size, P_SUP))
+
+
+def _cs(rig):
+    return rig_constants(rig)
+
+
+@pytest.mark.parametrize("p, k_fill, k_vent, a_in, a_ex", [
+    (2e5, 1e6, 5e6, 1.2e-6, 0.0),      # a fill through a 1 mm^2 restriction
+    (4.5e5, 1e6, 5e6, 0.0, 1.0e-6),    # a vent through 0.2 mm^2
+    (3e5, 2e6, 2e6, 0.6e-6, 0.4e-6),   # both ports open
+    (1.2e5, 0.0, 1e7, 0.0, 0.8e-6),    # a vent near the atmosphere
+    (5.4e5, 1e6, 0.0, 1.2e-6, 0.0),    # a fill near the supply
+])
+def test_the_node_balances_the_valve_against_the_restriction(rig, p, k_fill, k_vent, a_in,
+                                                             a_ex):
+    """The node's pressure: what the valve's ports pass equals what the restriction
+    passes (eqs. 1-3 each, numpy's law), and it lies between the chamber and the source."""
+    cs = _cs(rig)
+    x = node_pressure(p, P_SUP, a_in, a_ex, k_fill, k_vent, cs)
+    g = rig.gas
+    valve = (a_in * flow_function(P_SUP, x, g) - a_ex * flow_function(x, P_ATM, g))
+    k = k_fill if x > p else k_vent
+    through = flow_function(x, p, g) / k if k > 0 else valve
+    assert valve == pytest.approx(through, rel=1e-9, abs=1e-15)
+    plain = a_in * flow_function(P_SUP, p, g) - a_ex * flow_function(p, P_ATM, g)
+    if k > 0:
+        assert abs(valve) < abs(plain)  # the restriction slows the flow
+        assert (x - p) * plain > 0  # the node sits on the source's side
+    else:
+        assert x == p
+
+
+def test_no_restriction_in_a_direction_leaves_the_ports_at_the_chamber(rig):
+    cs = _cs(rig)
+    assert node_pressure(3e5, P_SUP, 1e-6, 0.0, 0.0, 1e6, cs) == 3e5  # a fill, vent only
+    assert node_pressure(3e5, P_SUP, 0.0, 1e-6, 1e6, 0.0, cs) == 3e5  # a vent, fill only
+    assert node_pressure(3e5, P_SUP, 0.0, 0.0, 1e6, 1e6, cs) == 3e5  # nothing flows
+
+
+@pytest.mark.parametrize("p, a_in, a_ex", [(2e5, 1.2e-6, 0.0), (4.5e5, 0.0, 1e-6),
+                                           (3e5, 0.6e-6, 0.4e-6)])
+def test_the_slopes_are_the_node_flows_derivatives(rig, p, a_in, a_ex):
+    """The net flow's slopes in p and p_s and an area's share, against central
+    differences of the node's solution."""
+    cs = _cs(rig)
+    g = rig.gas
+    kf, kv = 1e6, 3e6
+
+    def net(pp, ps=P_SUP, ai=a_in, ae=a_ex):
+        x = node_pressure(pp, ps, ai, ae, kf, kv, cs)
+        return ai * flow_function(ps, x, g) - ae * flow_function(x, P_ATM, g)
+
+    x = node_pressure(p, P_SUP, a_in, a_ex, kf, kv, cs)
+    d_sup, d_in, d_ex, share = series_slopes(x, p, P_SUP, a_in, a_ex, kf, kv, cs, 0.0)
+    dp = 1.0
+    assert a_in * d_in - a_ex * d_ex == pytest.approx((net(p + dp) - net(p - dp)) / (2 * dp),
+                                                      rel=1e-5)
+    if a_in > 0:
+        assert a_in * d_sup == pytest.approx(
+            (net(p, P_SUP + dp) - net(p, P_SUP - dp)) / (2 * dp), rel=1e-5)
+        da = 1e-10
+        assert share * flow_function(P_SUP, x, g) == pytest.approx(
+            (net(p, ai=a_in + da) - net(p, ai=a_in - da)) / (2 * da), rel=1e-5)
+    assert 0.0 <= share < 1.0  # (0: the restriction chokes; its flow is its own)
+
+
+@pytest.mark.parametrize("hot", [False, True])
+def test_the_chamber_rate_and_its_jacobian_with_a_restriction(rig, hot):
+    """chamber_rhs' dp/dt beside a restriction is the node's net flow in eq. 5, and its
+    slope in p (and in T with convective heat) matches central differences."""
+    cs = _cs(rig)
+    sl = np.zeros(max(SLOT_INDEX.values()) + 1)
+    sl[SLOT_INDEX["volume_m3"]] = 2.4e-6
+    sl[SLOT_INDEX["restriction_fill_inverse_area_per_m2"]] = 1e6
+    sl[SLOT_INDEX["restriction_vent_inverse_area_per_m2"]] = 4e6
+    if hot:
+        sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] = 30.0
+    temp = 310.0 if hot else rig.gas.temperature_K
+    for p, a_in, a_ex in ((2e5, 1.2e-6, 0.0), (4e5, 0.0, 1e-6)):
+        args = (a_in, a_ex, 2.4e-6, 0.0, P_SUP, sl, cs, 1e-5, True, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0, True)
+        out = chamber_rhs(p, temp, *args)
+        d = 1.0
+        up, dn = chamber_rhs(p + d, temp, *args), chamber_rhs(p - d, temp, *args)
+        assert out[1] == pytest.approx((up[0] - dn[0]) / (2 * d), rel=1e-4)
+        x = node_pressure(p, P_SUP, a_in, a_ex, 1e6, 4e6, cs)
+        net = a_in * flow_function(P_SUP, x, rig.gas) - a_ex * flow_function(x, P_ATM, rig.gas)
+        if not hot:
+            kappa, rs = rig.gas.heat_capacity_ratio, rig.gas.specific_gas_constant_J_per_kg_K
+            assert out[0] == pytest.approx(kappa * rs * rig.gas.temperature_K * net / 2.4e-6,
+                                           rel=1e-12)
+        else:
+            dt = 1e-3
+            hot_, cold = chamber_rhs(p, temp + dt, *args), chamber_rhs(p, temp - dt, *args)
+            assert out[5] == pytest.approx((hot_[0] - cold[0]) / (2 * dt), rel=1e-4)
+
+
+@pytest.mark.parametrize("k_fill, k_vent", [(2e6, 5e6), (0.0, 3e6), (3e6, 0.0)])
+def test_the_simulator_agrees_with_the_reference(rig, steps, valve_params, k_fill, k_vent):
+    """The compiled simulator beside a restriction vs scipy Radau (rtol 1e-10, the node by
+    Brent's method), where the restriction moves the pressure by tens of kPa."""
+    model = Model([PortRestriction()])
+    params = dict(valve_params, port_restriction_fill=k_fill, port_restriction_vent=k_vent)
+    got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
+    plain = simulate(Model([]), valve_params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    assert np.max(np.abs(got - plain)) > 1e4
+    assert np.max(np.abs(got - ref)) < 0.5
+
+
+def test_limits_and_conservation(rig, valve_params):
+    """With a restriction the full inlet still reaches the supply and the full exhaust
+    the atmosphere; shut ports keep the pressure; no restriction is the plain model."""
+    t = np.arange(10001) * 1e-3
+    model = Model([PortRestriction()])
+    params = dict(valve_params, port_restriction_fill=3e6, port_restriction_vent=3e6)
+    for u, p0, end in ((5.0, 2e5, P_SUP), (-5.0, 4e5, P_ATM)):
+        inp = Inputs(t, np.full(t.size, u), np.full(t.size, 0.05), np.full(t.size, P_SUP))
+        p = simulate(model, params, inp, rig, p0, _tight(1e-6)).pressure_Pa[0]
+        plain = simulate(Model([]), valve_params, inp, rig, p0, _tight(1e-6)).pressure_Pa[0]
+        # (the valve's other port leaks a little: both settle where the flows balance)
+        assert abs(p[-1] - end) < 2000.0 and abs(p[-1] - plain[-1]) < 1.0
+        assert np.max(np.abs(p - plain)) > 1e4  # (it got there more slowly)
+    sl = np.zeros(max(SLOT_INDEX.values()) + 1)
+    sl[SLOT_INDEX["restriction_fill_inverse_area_per_m2"]] = 3e6
+    sl[SLOT_INDEX["restriction_vent_inverse_area_per_m2"]] = 3e6
+    shut = chamber_rhs(3e5, rig.gas.temperature_K, 0.0, 0.0, 2.4e-6, 0.0, P_SUP, sl,
+                       _cs(rig), 1e-5, True, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, True)
+    assert shut[0] == 0.0
+    inp = Inputs(t[:301], np.sin(40 * t[:301]) * 3, np.full(301, 0.05), np.full(301, P_SUP))
+    # (the general kernel's path with the restriction's slots at 0 is the plain one too)
+    none = dict(valve_params, port_restriction_fill=0.0, port_restriction_vent=0.0)
+    a = simulate(model, none, inp, rig, 2e5, _tight()).pressure_Pa[0]
+    b = simulate(Model([]), valve_params, inp, rig, 2e5, _tight()).pressure_Pa[0]
+    assert np.max(np.abs(a - b)) < 1e-6
+
+
+def test_refused_beside_the_tubes_lines(rig, valve_params, steps):
+    model = Model([PortRestriction(), TubeDelay(form="wave")])
+    params = dict(valve_params, port_restriction_fill=1e6, port_restriction_vent=1e6,
+                  tube_delay_s=0.005, tube_diameter_m=0.004)
+    with pytest.raises(ValueError, match="restriction at the chamber's port"):
+        simulate(model, params, steps, rig, 2e5, _tight())
+
+
+# ---------------------------------------------------------------- search and stage
+#: A meter-out flow control planted on valve 1 (full ports about 0.58 mm^2): the fill
+#: through 0.5 mm^2, the vent through 0.17 mm^2.
+PLANTED = {"port_restriction_fill": 2e6, "port_restriction_vent": 6e6}
+
+
+@pytest.fixture(scope="module")
+def restricted_recordings():
+    """Four 8-s valve1 recordings (1 kHz, 200 Pa noise) through a planted meter-out
+    restriction, and one of the plain valve."""
+    base = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    return (valve1_recordings(Model([PortRestriction()]), {**base, **PLANTED}, "restricted",
+                              90, 4, 8001),
+            valve1_recordings(Model(), base, "restricted", 90, 1), base)
+
+
+def test_the_search_finds_a_planted_restriction_and_none_without(restricted_recordings):
+    recs, plain, base = restricted_recordings
+    solver = SolverConfig.standard()
+    found = PortRestrictionSearch().fit(
+        PortRestrictionProblem(WindowSet(recs[:1], 2.0, 2.0), Model(), base, solver))
+    (term,) = found.terms_
+    assert term.vent_per_m2 == pytest.approx(PLANTED["port_restriction_vent"], rel=0.3)
+    assert term.fill_per_m2 == pytest.approx(PLANTED["port_restriction_fill"], rel=0.5)
+    assert found.explained_fraction_ > 0.9 and "mm^2" in str(term)
+    none = PortRestrictionSearch().fit(
+        PortRestrictionProblem(WindowSet(plain, 2.0, 2.0), Model(), base, solver))
+    assert none.terms_ == [] and none.best_.explained < 0.02
+    with pytest.raises(ValueError, match="already has a port restriction"):
+        PortRestrictionSearch().fit(PortRestrictionProblem(
+            WindowSet(recs[:1], 2.0, 2.0), Model([PortRestriction()]), {**base, **PLANTED},
+            solver))
+    with pytest.raises(ValueError, match="area_shares"):
+        PortRestrictionSearch(area_shares=(-1.0,)).fit(object())
+    with pytest.raises(ValueError, match="PortRestrictionProblem"):
+        PortRestrictionSearch().fit(object())
+
+
+def test_the_stage_s_knobs_and_its_switch():
+    from pneubayes.discovery.settings import DiscoverySettings, StageSettings
+    from pneubayes.discovery.stages import PortRestrictionForm, default_stages
+
+    assert PortRestrictionForm().compete_below_gap_closed == 0.9
+    names = [type(s).__name__ for s in default_stages(DiscoverySettings())]
+    assert names.index("ReadingFlowForm") < names.index("PortRestrictionForm") \
+        < names.index("VolumeForm")
+    off = default_stages(DiscoverySettings(
+        stages=StageSettings(port_restriction_min_noise_ratio=0)))
+    assert "PortRestrictionForm" not in [type(s).__name__ for s in off]
+    with pytest.raises(ValueError, match="port_restriction_min_noise_ratio"):
+        StageSettings(port_restriction_min_noise_ratio=0.5)
+
+
+@pytest.mark.slow
+def test_discovery_finds_a_planted_restriction(restricted_recordings, tmp_path):
+    """The loop with the port's stage: the restriction is found, verified on the held-out
+    recordings, and the held-out error falls to about the noise floor; the report lists
+    it as a term at the port."""
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.report import write_discovery
+    from pneubayes.discovery.stages import PortRestrictionForm
+
+    recs, _, _ = restricted_recordings
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    result = Discovery(settings, None, log=print, stages=[PortRestrictionForm()]
+                       ).fit(recs).result_
+    doc = result.to_dict()
+    (term,) = doc["found_port_terms"]
+    assert term["term"] == "port restriction"
+    # on a fixed piston only the areas over the dead volume are identified: the vent's
+    # restriction against the valve's full exhaust (k_v a_ex) is the physics it finds
+    got, true = result.final.params, {**valve_preset("valve1").parameters(), **PLANTED}
+
+    def vent_over_exhaust(v):
+        return v["port_restriction_vent"] * (v["exhaust_offset_m2"] + v["exhaust_a_m2"])
+
+    assert vent_over_exhaust(got) == pytest.approx(vent_over_exhaust(true), rel=0.1)
+    assert doc["effects"] == [] and doc["found_terms"] == [] and doc["stand_ins"] == []
+    assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+    write_discovery(result, recs, tmp_path, figures=False)
+    assert "port restriction" in (tmp_path / "report.md").read_text()
