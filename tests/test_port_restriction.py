@@ -206,13 +206,15 @@ def restricted_recordings():
 def test_the_search_finds_a_planted_restriction_and_none_without(restricted_recordings):
     recs, plain, base = restricted_recordings
     solver = SolverConfig.standard()
-    found = PortRestrictionSearch().fit(
+    # (the valve's maps and dead volume as planted: the dead volume's scales held)
+    search = PortRestrictionSearch(dead_volume_scales=(1.0,), refine_passes=4)
+    found = search.fit(
         PortRestrictionProblem(WindowSet(recs[:1], 2.0, 2.0), Model(), base, solver))
     (term,) = found.terms_
     assert term.vent_per_m2 == pytest.approx(PLANTED["port_restriction_vent"], rel=0.3)
     assert term.fill_per_m2 == pytest.approx(PLANTED["port_restriction_fill"], rel=0.5)
     assert found.explained_fraction_ > 0.9 and "mm^2" in str(term)
-    none = PortRestrictionSearch().fit(
+    none = search.fit(
         PortRestrictionProblem(WindowSet(plain, 2.0, 2.0), Model(), base, solver))
     assert none.terms_ == [] and none.best_.explained < 0.02
     with pytest.raises(ValueError, match="already has a port restriction"):
@@ -270,3 +272,22 @@ def test_discovery_finds_a_planted_restriction(restricted_recordings, tmp_path):
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
     write_discovery(result, recs, tmp_path, figures=False)
     assert "port restriction" in (tmp_path / "report.md").read_text()
+    assert "PortRestriction()" in (tmp_path / "found_port.py").read_text()
+
+
+def test_a_found_restriction_becomes_an_effect_plug_in_a_user_can_name(rig, steps,
+                                                                       valve_params):
+    from pneubayes.discovery.openform.skeleton import port_effect_skeleton
+
+    text = port_effect_skeleton(Model([PortRestriction()]), {**valve_params, **PLANTED},
+                                "SpeedController", "speed_controller")
+    namespace: dict = {}
+    exec(compile(text, "speed_controller.py", "exec"), namespace)
+    effect = namespace["SpeedController"]()
+    assert effect.name == "speed_controller"
+    assert "vent_inverse_area_per_m2" in effect.parameter_names()
+    mine = simulate(Model([effect]), {**valve_params, **effect.bench_defaults()}, steps, rig,
+                    2e5, _tight()).pressure_Pa[0]
+    theirs = simulate(Model([PortRestriction()]), {**valve_params, **PLANTED}, steps, rig,
+                      2e5, _tight()).pressure_Pa[0]
+    np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-6)

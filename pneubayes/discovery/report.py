@@ -80,6 +80,12 @@ def write_discovery(result: DiscoveryResult, recordings, out_dir,
         write_text_atomic(out / "found_volume.py",
                           volume_effect_skeleton(result.model, result.params))
         doc["found_volume_effect"] = "found_volume.py"
+    if doc.get("found_port_terms"):  # the port's restriction as another
+        from pneubayes.discovery.openform.skeleton import port_effect_skeleton
+
+        write_text_atomic(out / "found_port.py",
+                          port_effect_skeleton(result.model, result.params))
+        doc["found_port_effect"] = "found_port.py"
     if result.model.has("reading_closure"):  # and the reading's relaxations as another
         from pneubayes.discovery.openform.skeleton import reading_effect_skeleton
 

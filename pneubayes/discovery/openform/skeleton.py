@@ -96,6 +96,29 @@ def volume_effect_skeleton(model, params: dict, class_name: str = "FoundVolume",
         f"VolumeClosure(terms={terms})", names, params)
 
 
+def port_effect_skeleton(model, params: dict, class_name: str = "FoundPort",
+                         effect_name: str = "found_port") -> str:
+    """The module text of an effect plug-in for ``model``'s port restriction at
+    ``params`` (a restriction in series at the chamber's port, under the user's names);
+    parameters and return as :func:`effect_skeleton`'s."""
+    if not model.has("port_restriction"):
+        raise ValueError("port_effect_skeleton: the model has no port restriction")
+
+    def area(k):
+        return "none" if k <= 0.0 else f"{1.0 / k:.6g} m^2"
+
+    kf, kv = float(params["port_restriction_fill"]), float(params["port_restriction_vent"])
+    lines = [f"#   a_in f(p_s, x) - a_ex f(x, P_atm) = A f(x, p); A = {area(kf)} into the "
+             f"chamber, {area(kv)} out of it"]
+    names = {"fill_inverse_area_per_m2": "port_restriction_fill",
+             "vent_inverse_area_per_m2": "port_restriction_vent"}
+    return _delegating_module(
+        class_name, effect_name, "a restriction in series at the chamber's port",
+        "an open-form restriction at the chamber's port", lines,
+        "from pneubayes.effects.port_restriction import PortRestriction", "PortRestriction()",
+        names, params)
+
+
 def _wall_skeleton(model, params: dict, class_name: str, effect_name: str) -> str:
     """:func:`volume_effect_skeleton` for a volume play."""
     terms = model.effect("volume_play").terms
