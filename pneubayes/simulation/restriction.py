@@ -13,13 +13,16 @@ one root in ``x`` (the left side falls with ``x``, the right rises). The valve's
 then pass their flows at ``x`` and the chamber receives their sum. An inverse area of 0
 is no restriction in that direction (``x = p``).
 
-:func:`node_pressure` solves for ``x`` (Newton's method kept inside a bracket);
+:func:`node_pressure` solves for ``x`` (Newton's method in ``sqrt|x - p|`` kept inside a
+bracket);
 :func:`series_slopes` gives the slopes of the node's port flows in the chamber's
 pressure and the supply's, by the implicit function theorem, for the exponential
 method's Jacobian (:func:`pneubayes.simulation.chamber.chamber_rhs`).
 """
 
 from __future__ import annotations
+
+import math
 
 from numba import njit
 
@@ -28,32 +31,39 @@ from pneubayes.simulation.layout import C_ALPHA, C_BETA, C_KAPPA, C_P_ATM, C_THE
 
 #: Newton's iterations at most (each bisects where its step leaves the bracket).
 NODE_MAX_ITERATIONS = 80
-#: The node's pressure is solved to this share of itself.
-NODE_RELATIVE_TOLERANCE = 1e-13
+#: The node's drop's square root is solved to this share of its bracket.
+NODE_RELATIVE_TOLERANCE = 1e-12
 #: The secant floor (Pa) of the square-root slopes inside the node's Newton steps.
 _NEWTON_FLOOR_PA = 1e-6
 
 
 @njit(cache=True, error_model="numpy")
-def _balance(x, p, p_sup, a_in, a_ex, area, cs):
-    """The node's surplus ``a_in f(p_s, x) - a_ex f(x, P_atm) - A f(x, p)`` (kg/s) and its
-    slope in ``x`` (negative)."""
+def _balance(s, sign, p, p_sup, a_in, a_ex, area, cs):
+    """The node's surplus ``a_in f(p_s, x) - a_ex f(x, P_atm) - A f(x, p)`` (kg/s) at
+    ``x = p + sign s^2`` and its slope in ``s``: in ``s`` the restriction's square-root
+    flow near ``x = p`` is smooth, so Newton's method does not crawl there."""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
+    x = p + sign * s * s
     f_in, sg, dg, r, rev = flow_terms(p_sup, x, alpha, beta, theta, kappa)
     _, din = flow_slopes(p_sup, x, sg, dg, r, rev, alpha, beta, kappa, _NEWTON_FLOOR_PA)
     f_ex, sg, dg, r, rev = flow_terms(x, cs[C_P_ATM], alpha, beta, theta, kappa)
     dex, _ = flow_slopes(x, cs[C_P_ATM], sg, dg, r, rev, alpha, beta, kappa,
                          _NEWTON_FLOOR_PA)
     f_r, sg, dg, r, rev = flow_terms(x, p, alpha, beta, theta, kappa)
-    dr, _ = flow_slopes(x, p, sg, dg, r, rev, alpha, beta, kappa, _NEWTON_FLOOR_PA)
-    return a_in * f_in - a_ex * f_ex - area * f_r, a_in * din - a_ex * dex - area * dr
+    dr, _ = flow_slopes(x, p, sg, dg, r, rev, alpha, beta, kappa, 0.0)
+    dx_ds = 2.0 * sign * s
+    return (a_in * f_in - a_ex * f_ex - area * f_r,
+            (a_in * din - a_ex * dex) * dx_ds - area * dr * dx_ds)
 
 
 @njit(cache=True, error_model="numpy")
 def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
     """The pressure between the valve and the restriction (Pa; ``p`` where the flow's
     direction has no restriction or nothing flows). ``k_fill``, ``k_vent``: the
-    restriction's inverse areas (1/m^2) into and out of the chamber."""
+    restriction's inverse areas (1/m^2) into and out of the chamber.
+
+    Solved in ``s = sqrt(|x - p|)`` by Newton's method kept inside a bracket, from the
+    split two incompressible orifices in series would make of the drop."""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
     h0 = (a_in * flow_terms(p_sup, p, alpha, beta, theta, kappa)[0]
@@ -61,31 +71,34 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
     if h0 > 0.0:  # a fill: the node above the chamber, below the highest source
         if k_fill <= 0.0:
             return p
-        area, lo, hi = 1.0 / k_fill, p, max(p_sup, p_atm, p)
+        sign, area, far, a_v = 1.0, 1.0 / k_fill, max(p_sup, p_atm, p) - p, a_in
     elif h0 < 0.0:
         if k_vent <= 0.0:
             return p
-        area, lo, hi = 1.0 / k_vent, min(p_sup, p_atm, p), p
+        sign, area, far, a_v = -1.0, 1.0 / k_vent, p - min(p_sup, p_atm, p), a_ex
     else:
         return p
-    x = 0.5 * (lo + hi)
+    lo, hi = 0.0, math.sqrt(far)  # sign x the surplus: > 0 at lo, <= 0 at hi (in s)
+    tol = NODE_RELATIVE_TOLERANCE * hi
+    share = a_v * a_v / (a_v * a_v + area * area) if a_v > 0.0 else 0.5
+    s = hi * math.sqrt(min(max(share, 1e-6), 1.0 - 1e-6))
     for _ in range(NODE_MAX_ITERATIONS):
-        h, dh = _balance(x, p, p_sup, a_in, a_ex, area, cs)
+        h, dh = _balance(s, sign, p, p_sup, a_in, a_ex, area, cs)
+        h, dh = sign * h, sign * dh  # (falling in s on both sides)
         if h > 0.0:
-            lo = x
+            lo = s
         elif h < 0.0:
-            hi = x
+            hi = s
         else:
-            return x
-        if hi - lo <= NODE_RELATIVE_TOLERANCE * hi:
             break
-        xn = x - h / dh if dh < 0.0 else 0.5 * (lo + hi)
-        if not lo < xn < hi:
-            xn = 0.5 * (lo + hi)
-        if abs(xn - x) <= NODE_RELATIVE_TOLERANCE * x:
-            return xn
-        x = xn
-    return x
+        if dh < 0.0 and abs(h) <= -dh * tol:  # Newton's last step is below the tolerance
+            s -= h / dh
+            break
+        if hi - lo <= tol:
+            break
+        sn = s - h / dh if dh < 0.0 else 0.5 * (lo + hi)
+        s = sn if lo < sn < hi else 0.5 * (lo + hi)
+    return p + sign * s * s
 
 
 @njit(cache=True, error_model="numpy")
