@@ -94,6 +94,7 @@ EFFECT_FORMS = (
     ("reading_closure", "reading_closure", {}),
     ("reading_play", "reading_play", {}),
     ("loaded_wall", "loaded_wall", {}),
+    ("port_restriction", "port_restriction", {}),
 )
 
 

@@ -11,8 +11,8 @@ limit, and the node's pressure between them, which the valve's ports see, none.
 The search simulates the training windows (:class:`PortRestrictionProblem`, the volume
 forms' :class:`~pneubayes.discovery.openform.volume.VolumeProblem` with another
 component): each direction alone over areas from a tenth to six times the valve's
-largest port, then the best few of each together and with the dead volume scaled, and a
-compass refinement of the best; it is kept by the gate the volume's forms use
+largest port and over the dead volume's scales, then the best few of each together, and
+a compass refinement of the best; it is kept by the gate the volume's forms use
 (:func:`~pneubayes.discovery.openform.gate.earns_trial`).
 """
 
@@ -35,25 +35,19 @@ from pneubayes.effects.port_restriction import (
 )
 from pneubayes.simulation.rates import port_areas
 
-#: A port's map is widened behind a restriction only while its largest area is under this
-#: share of the restriction's (a wider map would grow without bound).
-WIDEST_SHARE = 0.95
-
 
 @dataclass(frozen=True)
 class RestrictionTerm:
     """A kept restriction: its inverse areas ``fill_per_m2`` and ``vent_per_m2`` (1/m^2,
     0 none), the share of the residual's sum of squares it removes (``explained``), the
     windows' mean relative reduction over its standard error (``t``) and the dead
-    volume's scale it was found with (``dead_volume_scale``) and whether the valve's port
-    maps were widened behind it (``widened``, :meth:`PortRestrictionProblem.widened`)."""
+    volume's scale it was found with (``dead_volume_scale``)."""
 
     fill_per_m2: float
     vent_per_m2: float
     explained: float
     t: float
     dead_volume_scale: float = 1.0
-    widened: bool = False
 
     def __str__(self) -> str:
         def side(k):
@@ -61,9 +55,8 @@ class RestrictionTerm:
 
         scaled = ("" if self.dead_volume_scale == 1.0 else
                   f", the dead volume x {self.dead_volume_scale:.3g}")
-        wide = ", the valve's maps widened behind it" if self.widened else ""
         return (f"a restriction at the port (fill through {side(self.fill_per_m2)}, vent "
-                f"through {side(self.vent_per_m2)}{scaled}{wide})")
+                f"through {side(self.vent_per_m2)}{scaled})")
 
 
 @dataclass(frozen=True)
@@ -97,50 +90,6 @@ class PortRestrictionProblem(VolumeProblem):
             a_in_max = max(a_in_max, float(np.max(a_in)))
             a_ex_max = max(a_ex_max, float(np.max(a_ex)))
         return a_in_max, a_ex_max
-
-    def widened(self, fill: float, vent: float) -> dict[str, float]:
-        """The valve's port-map parameters widened so that, behind a restriction of
-        inverse areas ``fill`` and ``vent``, each port's largest area in series with it
-        is the current map's: the base fit has narrowed the maps to a restriction it
-        could not express. Each port's map (Gompertz and switching areas) scales by
-        ``1 / sqrt(1 - (a_max k)^2)``; a port whose restriction is not wider than its
-        largest area keeps its map (empty: neither)."""
-        out = {}
-        for k, a_max, port in zip((fill, vent), self.largest_port_areas_m2(),
-                                  ("inlet", "exhaust")):
-            ratio = a_max * k
-            if k <= 0.0 or not ratio < WIDEST_SHARE:
-                continue
-            scale = 1.0 / np.sqrt(1.0 - ratio * ratio)
-            for name in (f"{port}_a_m2", f"{port}_offset_m2", f"{port}_open_area_m2"):
-                if name in self.params and name in self.model.parameter_names:
-                    out[name] = float(self.params[name] * scale)
-        return out
-
-    def window_residuals(self, hinges, scales=None, widen=None):
-        """As :meth:`VolumeProblem.window_residuals`, with the port maps of set ``i``
-        widened to its restriction where ``widen[i]`` (None: none)."""
-        if widen is None or not any(widen):
-            return super().window_residuals(hinges, scales)
-        trial = self.model.with_effect(self.component(terms=1))
-        rows = []
-        for i, h in enumerate(hinges):
-            values = dict(self.params)
-            if scales is not None and scales[i] != 1.0:
-                values["dead_volume_m3"] = values["dead_volume_m3"] * scales[i]
-            term = h[0] if h else self.unused_term
-            for name, v in zip(self.term_names, term):
-                values[name(0)] = v
-            if widen[i]:
-                values.update(self.widened(*term))
-            rows.append(trial.vector(values))
-        return self.window_set.residuals(trial, np.stack(rows), self.solver, on_failure="nan")
-
-    def window_sse(self, hinges, scales=None, widen=None):
-        """As :meth:`VolumeProblem.window_sse`, with ``widen`` as
-        :meth:`window_residuals` takes it."""
-        sse = np.sum(self.window_residuals(hinges, scales, widen) ** 2, axis=2)
-        return np.where(np.isfinite(sse), sse, np.inf)
 
 
 class PortRestrictionSearch:
@@ -233,12 +182,10 @@ class PortRestrictionSearch:
         n = len(alone) // 2
         fills = _shortlist(alone[:n], sse[:n], 0, self.shortlist)
         vents = _shortlist(alone[n:], sse[n:], 1, self.shortlist)
-        # together, with the valve's maps as they are and widened behind it
-        grid = [((f, v), s, w) for s in scales for w in (False, True)
-                for f in (0.0, *fills) for v in (0.0, *vents)
-                if (f > 0.0 or v > 0.0) and (not w or problem.widened(f, v))]
-        got = problem.window_sse([[g[0]] for g in grid], [g[1] for g in grid],
-                                 [g[2] for g in grid])
+        # together
+        grid = [((f, v), s) for s in scales for f in (0.0, *fills) for v in (0.0, *vents)
+                if f > 0.0 or v > 0.0]
+        got = problem.window_sse([[g[0]] for g in grid], [g[1] for g in grid])
         j = int(np.argmin(np.sum(got, axis=1)))
         if not np.isfinite(got[j]).all():
             return self
@@ -248,7 +195,7 @@ class PortRestrictionSearch:
             best, best_sse = _refined(problem, best, best_sse, step,
                                       0.15 if len(scales) > 1 else 0.0, self.refine_passes)
         explained, t = window_reduction(current, best_sse, total, relative=True)
-        self.best_ = RestrictionTerm(*best[0], explained, t, best[1], best[2])
+        self.best_ = RestrictionTerm(*best[0], explained, t, best[1])
         if earns_trial(explained, t, self.min_explained_fraction, self.min_t,
                        self.strong_explained_fraction):
             self.terms_ = [self.best_]
@@ -271,21 +218,20 @@ def _shortlist(trials, sse, side, count):
 
 
 def _refined(problem, centre, sse, step, d_v, passes):
-    """Local refinement of the grid's best ``centre`` = ((fill, vent), dead-volume scale,
-    widened): ``passes`` rounds of its neighbours, each restricted direction's inverse
-    area times ``step`` or over it (an open direction stays open) and the scale by
-    ``d_v`` relative, moving to the best where it is better and else taking the steps'
-    square roots (a compass search). Returns ``(centre, sse)``."""
+    """Local refinement of the grid's best ``centre`` = ((fill, vent), dead-volume
+    scale): ``passes`` rounds of its neighbours, each restricted direction's inverse area
+    times ``step`` or over it (an open direction stays open) and the scale by ``d_v``
+    relative, moving to the best where it is better and else taking the steps' square
+    roots (a compass search). Returns ``(centre, sse)``."""
     lo, hi = INVERSE_AREA_BOUNDS_PER_M2
     for _ in range(passes):
-        (f0, v0), s0, w0 = centre
+        (f0, v0), s0 = centre
         cand = [((float(np.clip(f0 * a, lo, hi)), float(np.clip(v0 * b, lo, hi))),
-                 s0 * (1.0 + d), w0)
+                 s0 * (1.0 + d))
                 for a in ((1.0 / step, 1.0, step) if f0 > 0 else (1.0,))
                 for b in ((1.0 / step, 1.0, step) if v0 > 0 else (1.0,))
                 for d in ((-d_v, 0.0, d_v) if d_v else (0.0,))]
-        got = problem.window_sse([[c[0]] for c in cand], [c[1] for c in cand],
-                                 [c[2] for c in cand])
+        got = problem.window_sse([[c[0]] for c in cand], [c[1] for c in cand])
         j = int(np.argmin(np.sum(got, axis=1)))
         if np.isfinite(got[j]).all() and np.sum(got[j]) < np.sum(sse) \
                 and cand[j] != centre:

@@ -79,11 +79,3 @@ class PortRestrictionForm(VolumeComponentForm):
     def _search_data(self, state, runner) -> PortRestrictionProblem:
         self._problem = super()._search_data(state, runner)
         return self._problem
-
-    def _searched_values(self, terms, params) -> dict[str, float]:
-        """The restriction's values, the dead volume scaled and, where the search widened
-        the valve's maps behind it, the widened maps."""
-        out = super()._searched_values(terms, params)
-        if terms and terms[0].widened:
-            out.update(self._problem.widened(terms[0].fill_per_m2, terms[0].vent_per_m2))
-        return out
