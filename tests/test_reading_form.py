@@ -167,9 +167,9 @@ def test_the_stage_runs_above_its_noise_ratio_once_and_beside_a_weak_trial():
     with pytest.raises(ValueError, match="compete_below_gap_closed"):
         ReadingForm(compete_below_gap_closed=2.0)
     names = [type(s).__name__ for s in default_stages(DiscoverySettings())]
-    assert names[-9:] == ["ReadingHingeForm", "ReadingForm", "ReadingPlayForm",
-                          "ReadingCommandForm", "ReadingFlowForm", "VolumeForm",
-                          "VolumePlayForm", "LoadedWallForm", "OpenForm"]
+    assert names[-10:] == ["ReadingHingeForm", "ReadingForm", "ReadingPlayForm",
+                           "ReadingCommandForm", "ReadingFlowForm", "PortRestrictionForm",
+                           "VolumeForm", "VolumePlayForm", "LoadedWallForm", "OpenForm"]
     off = default_stages(DiscoverySettings(stages=StageSettings(
         reading_form_min_noise_ratio=0.0)))
     assert "ReadingForm" not in [type(s).__name__ for s in off]
