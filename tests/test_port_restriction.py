@@ -156,6 +156,18 @@ def test_the_simulator_agrees_with_the_reference(rig, steps, valve_params, k_fil
     assert np.max(np.abs(got - ref)) < 0.5
 
 
+@pytest.mark.parametrize("other", ["cylinder_leak", "heat_transfer"])
+def test_beside_a_leak_and_heat_it_agrees_with_the_reference(rig, steps, valve_params, other):
+    """The cylinder's leak leaves the chamber itself, not through the node (it was once
+    read at the node: 12.9 kPa off beside the orifice leak)."""
+    model = Model([PortRestriction(), other])
+    params = dict(valve_params, port_restriction_fill=2e6, port_restriction_vent=5e6)
+    params.update(model.effect(other).bench_defaults())
+    got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
+    assert np.max(np.abs(got - ref)) < 1.0
+
+
 def test_limits_and_conservation(rig, valve_params):
     """With a restriction the full inlet still reaches the supply and the full exhaust
     the atmosphere; shut ports keep the pressure; no restriction is the plain model."""

@@ -345,6 +345,13 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
             sq_ex = sq
         f_in *= sq_in
         f_ex *= sq_ex
+    # the leak's flow function: the chamber's own to the atmosphere (the ports' at a
+    # restriction's node); its convective scaling as the exhaust's
+    f_lk, sq_lk = f_ex, sq_ex
+    if x != p:
+        f_lk = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
+        sq_lk = math.sqrt(t_wall / temp) if hconv > 0.0 and f_lk > 0.0 else 1.0
+        f_lk *= sq_lk
     valve = a_in * f_in - a_ex * f_ex
     att = sl[_ATT]
     phi = math.exp(-att / p) if att > 0.0 else 1.0
@@ -356,7 +363,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if leak_l < 0.0:
         leak_l, leak_g = 0.0, 0.0
     lam = p * p - p_atm * p_atm
-    mdot = phi * valve - leak_o * f_ex - leak_l * lam
+    mdot = phi * valve - leak_o * f_lk - leak_l * lam
     rs = cs[C_RS]
     rs_t = rs * t_wall
     # a compliant chamber, V = vol + C (p - P_atm): eq. 5 with dV/dt = vdot + C dp/dt
@@ -377,7 +384,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
     # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
     m_out = 0.0
-    leak_out = leak_o * f_ex + leak_l * lam
+    leak_out = leak_o * f_lk + leak_l * lam
     if thermal:
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
@@ -401,6 +408,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dflk_dp = dfex_dp  # (the leak's: the chamber's own)
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     if x != p:
         dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(x, p, p_sup, a_in, a_ex,
@@ -412,9 +420,14 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
             dfin_dp, dfex_dp, dsup, dspool, da_in, da_ex, dfin_dsup * dsup, cdir)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
+    if x != p:  # (the leak's slope at the chamber, not through the node)
+        _, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+        dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                              dfloor)[0]
     dfex_dp *= sq_ex
+    dflk_dp *= sq_lk
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
-    dmdot = phi * dvalve - leak_o * dfex_dp - 2.0 * leak_l * p
+    dmdot = phi * dvalve - leak_o * dflk_dp - 2.0 * leak_l * p
     if att > 0.0:
         dmdot += phi * att / (p * p) * valve
     if closure:
@@ -446,7 +459,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         dmout_dp -= phi * a_in * dfin_dp
         dmout_dt -= phi * (share * f_in * da_in + a_in * dfin_dsup * dsup)
     if leak_out > 0.0:
-        dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
+        dmout_dp += leak_o * dflk_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
     if m_cl < 0.0:
         dmout_dp -= dcl_dp
@@ -459,8 +472,11 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
             dmdot_dT += phi * a_in * f_in * half
             dmout_dT -= phi * a_in * f_in * half
         if f_ex > 0.0:
-            dmdot_dT -= (phi * a_ex + leak_o) * f_ex * half
-            dmout_dT += (phi * a_ex + leak_o) * f_ex * half
+            dmdot_dT -= phi * a_ex * f_ex * half
+            dmout_dT += phi * a_ex * f_ex * half
+        if f_lk > 0.0:
+            dmdot_dT -= leak_o * f_lk * half
+            dmout_dT += leak_o * f_lk * half
     jp += n_over_v * rs * (t_wall - temp) * dmout_dp
     vp += n_over_v * rs * (t_wall - temp) * dmout_dt
     jpt = n_over_v * (rs_t * dmdot_dT - rs * m_out + rs * (t_wall - temp) * dmout_dT) - c_wall
@@ -541,6 +557,14 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             sq_ex = sq
         f_in *= sq_in
         f_ex *= sq_ex
+    # the leak's flow function: the chamber's own to the atmosphere (the ports' at a
+    # restriction's node); its convective scaling as the exhaust's
+    f_lk, sq_lk = f_ex, sq_ex
+    if with_closure is not None:
+        if x != p:
+            f_lk = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
+            sq_lk = math.sqrt(t_wall / temp) if hconv > 0.0 and f_lk > 0.0 else 1.0
+            f_lk *= sq_lk
     valve = a_in * f_in - a_ex * f_ex
     att = sl[_ATT]
     phi = math.exp(-att / p) if att > 0.0 else 1.0
@@ -552,7 +576,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if leak_l < 0.0:
         leak_l, leak_g = 0.0, 0.0
     lam = p * p - p_atm * p_atm
-    mdot = phi * valve - leak_o * f_ex - leak_l * lam
+    mdot = phi * valve - leak_o * f_lk - leak_l * lam
     rs = cs[C_RS]
     rs_t = rs * t_wall
     # a compliant chamber, V = vol + C (p - P_atm): eq. 5 with dV/dt = vdot + C dp/dt
@@ -567,7 +591,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
     # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
     m_out = 0.0
-    leak_out = leak_o * f_ex + leak_l * lam
+    leak_out = leak_o * f_lk + leak_l * lam
     if thermal:
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
@@ -589,6 +613,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dflk_dp = dfex_dp  # (the leak's: the chamber's own)
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     if with_closure is not None:
         if x != p:
@@ -596,9 +621,15 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
                 x, p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs, dfloor)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
+    if with_closure is not None:
+        if x != p:  # (the leak's slope at the chamber, not through the node)
+            _, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+            dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                                  dfloor)[0]
     dfex_dp *= sq_ex
+    dflk_dp *= sq_lk
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
-    dmdot = phi * dvalve - leak_o * dfex_dp - 2.0 * leak_l * p
+    dmdot = phi * dvalve - leak_o * dflk_dp - 2.0 * leak_l * p
     if att > 0.0:
         dmdot += phi * att / (p * p) * valve
     jp = n_over_v * (rs_t * dmdot - vdot)
@@ -626,7 +657,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
         dmout_dp -= phi * a_in * dfin_dp
         dmout_dt -= phi * (share * f_in * da_in + a_in * dfin_dsup * dsup)
     if leak_out > 0.0:
-        dmout_dp += leak_o * dfex_dp + 2.0 * leak_l * p
+        dmout_dp += leak_o * dflk_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
     # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
@@ -636,8 +667,11 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             dmdot_dT += phi * a_in * f_in * half
             dmout_dT -= phi * a_in * f_in * half
         if f_ex > 0.0:
-            dmdot_dT -= (phi * a_ex + leak_o) * f_ex * half
-            dmout_dT += (phi * a_ex + leak_o) * f_ex * half
+            dmdot_dT -= phi * a_ex * f_ex * half
+            dmout_dT += phi * a_ex * f_ex * half
+        if f_lk > 0.0:
+            dmdot_dT -= leak_o * f_lk * half
+            dmout_dT += leak_o * f_lk * half
     jp += n_over_v * rs * (t_wall - temp) * dmout_dp
     vp += n_over_v * rs * (t_wall - temp) * dmout_dt
     jpt = n_over_v * (rs_t * dmdot_dT - rs * m_out + rs * (t_wall - temp) * dmout_dT) - c_wall
