@@ -168,6 +168,22 @@ def test_beside_a_leak_and_heat_it_agrees_with_the_reference(rig, steps, valve_p
     assert np.max(np.abs(got - ref)) < 1.0
 
 
+def test_a_piston_pushing_the_chamber_above_the_supply_agrees_with_the_reference(
+        rig, valve_params):
+    """A full inlet while the piston compresses the chamber past the supply: the node sits
+    at the inlet's own square root (x near p_s), across which Newton's method bounced
+    until it ran out of iterations (once 697 Pa off the reference here)."""
+    t = np.arange(301) * 1e-3
+    inputs = Inputs(t, np.full(t.size, 2.8), 0.015 + 0.005 * np.sin(2 * np.pi * 3 * t),
+                    np.full(t.size, P_SUP))
+    model = Model([PortRestriction()])
+    params = dict(valve_params, port_restriction_fill=0.0, port_restriction_vent=5e6)
+    got = simulate(model, params, inputs, rig, 4e5, _tight()).pressure_Pa[0]
+    ref = reference_simulate(model, params, inputs, rig, 4e5, rtol=1e-10)
+    assert np.max(ref) > P_SUP + 1e3
+    assert np.max(np.abs(got - ref)) < 1.0
+
+
 def test_limits_and_conservation(rig, valve_params):
     """With a restriction the full inlet still reaches the supply and the full exhaust
     the atmosphere; shut ports keep the pressure; no restriction is the plain model."""

@@ -62,8 +62,9 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
     direction has no restriction or nothing flows). ``k_fill``, ``k_vent``: the
     restriction's inverse areas (1/m^2) into and out of the chamber.
 
-    Solved in ``s = sqrt(|x - p|)`` by Newton's method kept inside a bracket, from the
-    split two incompressible orifices in series would make of the drop."""
+    Solved in ``s = sqrt(|x - p|)`` by Newton's method kept inside a bracket (bisecting
+    where it leaves the bracket or does not halve its step before last), from the split
+    two incompressible orifices in series would make of the drop."""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
     h0 = (a_in * flow_terms(p_sup, p, alpha, beta, theta, kappa)[0]
@@ -82,6 +83,7 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
     tol = NODE_RELATIVE_TOLERANCE * hi
     share = a_v * a_v / (a_v * a_v + area * area) if a_v > 0.0 else 0.5
     s = hi * math.sqrt(min(max(share, 1e-6), 1.0 - 1e-6))
+    step_old = step = hi - lo
     for _ in range(NODE_MAX_ITERATIONS):
         h, dh = _balance(s, sign, p, p_sup, a_in, a_ex, area, cs)
         h, dh = sign * h, sign * dh  # (falling in s on both sides)
@@ -91,13 +93,15 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
             hi = s
         else:
             break
-        if dh < 0.0 and abs(h) <= -dh * tol:  # Newton's last step is below the tolerance
-            s -= h / dh
+        # Newton's step, or a bisection where it would leave the bracket or does not
+        # halve the step before last (the valve's ports have square roots of their own,
+        # across which Newton's method bounces)
+        newton = dh < 0.0 and lo < s - h / dh < hi and abs(2.0 * h) <= abs(step_old * dh)
+        step_old = step
+        step = h / dh if newton else s - 0.5 * (lo + hi)
+        s -= step
+        if abs(step) <= tol or hi - lo <= tol:
             break
-        if hi - lo <= tol:
-            break
-        sn = s - h / dh if dh < 0.0 else 0.5 * (lo + hi)
-        s = sn if lo < sn < hi else 0.5 * (lo + hi)
     return p + sign * s * s
 
 
