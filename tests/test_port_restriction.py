@@ -15,7 +15,7 @@ from pneubayes.effects import PortRestriction, TubeDelay
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
-from pneubayes.physics.orifice import flow_function
+from pneubayes.physics.orifice import flow_function, flow_partials
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import Inputs, SolverConfig, simulate
 from pneubayes.simulation.chamber import chamber_rhs
@@ -95,7 +95,11 @@ def test_the_slopes_are_the_node_flows_derivatives(rig, p, a_in, a_ex):
         return ai * flow_function(ps, x, g) - ae * flow_function(x, P_ATM, g)
 
     x = node_pressure(p, P_SUP, a_in, a_ex, kf, kv, cs)
-    d_sup, d_in, d_ex, share = series_slopes(x, p, P_SUP, a_in, a_ex, kf, kv, cs, 0.0)
+    law = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, g.heat_capacity_ratio, 0.0)
+    _, din_s, din_x = flow_partials(P_SUP, x, *law)  # the ports' own slopes at the node
+    _, dex_x, _ = flow_partials(x, P_ATM, *law)
+    d_sup, d_in, d_ex, share = series_slopes(x, p, a_in, a_ex, kf, kv, din_s, din_x, dex_x,
+                                             cs, 0.0)
     dp = 1.0
     assert a_in * d_in - a_ex * d_ex == pytest.approx((net(p + dp) - net(p - dp)) / (2 * dp),
                                                       rel=1e-5)

@@ -332,25 +332,25 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs)
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
+    # the leak's: the chamber's own flow function to the atmosphere
+    f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
+    if x != p:
+        f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     f_in0, f_ex0 = f_in, f_ex  # (before the convective scaling: the closure's features)
     t_wall = cs[C_T_SUPPLY]
     hconv = sl[_HCONV]
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
-    sq_in, sq_ex = 1.0, 1.0
+    sq_in, sq_ex, sq_lk = 1.0, 1.0, 1.0
     if hconv > 0.0:
         sq = math.sqrt(t_wall / temp)
         if f_in < 0.0:
             sq_in = sq
         if f_ex > 0.0:
             sq_ex = sq
+        if f_lk > 0.0:
+            sq_lk = sq
         f_in *= sq_in
         f_ex *= sq_ex
-    # the leak's flow function: the chamber's own to the atmosphere (the ports' at a
-    # restriction's node); its convective scaling as the exhaust's
-    f_lk, sq_lk = f_ex, sq_ex
-    if x != p:
-        f_lk = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
-        sq_lk = math.sqrt(t_wall / temp) if hconv > 0.0 and f_lk > 0.0 else 1.0
         f_lk *= sq_lk
     valve = a_in * f_in - a_ex * f_ex
     att = sl[_ATT]
@@ -405,14 +405,17 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if not need_j:
         return fp, 0.0, ft, 0.0, 0.0, 0.0, 0.0, 0.0
     dfloor = abs(fp) * h
-    dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+    dfin_dsup, dfin_dp = flow_slopes(p_sup, x, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
-    dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dfex_dp, _ = flow_slopes(x, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dflk_dp = dfex_dp  # (the leak's: the chamber's own)
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
-    if x != p:
-        dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(x, p, p_sup, a_in, a_ex,
-                                                          sl[_RES_F], sl[_RES_V], cs, dfloor)
+    if x != p:  # the ports' slopes through the node; the leak's at the chamber
+        dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
+            x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], dfin_dsup, dfin_dp, dfex_dp, cs,
+            dfloor)
+        dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                              dfloor)[0]
     dcl_dp, dcl_dt = 0.0, 0.0
     if closure:  # (the port flows' slopes before the convective scaling)
         _, dcl_dp, dcl_dt = closure_flow(
@@ -420,10 +423,6 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
             dfin_dp, dfex_dp, dsup, dspool, da_in, da_ex, dfin_dsup * dsup, cdir)
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
-    if x != p:  # (the leak's slope at the chamber, not through the node)
-        _, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
-        dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
-                              dfloor)[0]
     dfex_dp *= sq_ex
     dflk_dp *= sq_lk
     dvalve = a_in * dfin_dp - a_ex * dfex_dp
@@ -545,26 +544,26 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs)
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
+    # the leak's: the chamber's own flow function to the atmosphere
+    f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
+    if with_closure is not None:
+        if x != p:
+            f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     t_wall = cs[C_T_SUPPLY]
     hconv = sl[_HCONV]
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
-    sq_in, sq_ex = 1.0, 1.0
+    sq_in, sq_ex, sq_lk = 1.0, 1.0, 1.0
     if hconv > 0.0:
         sq = math.sqrt(t_wall / temp)
         if f_in < 0.0:
             sq_in = sq
         if f_ex > 0.0:
             sq_ex = sq
+        if f_lk > 0.0:
+            sq_lk = sq
         f_in *= sq_in
         f_ex *= sq_ex
-    # the leak's flow function: the chamber's own to the atmosphere (the ports' at a
-    # restriction's node); its convective scaling as the exhaust's
-    f_lk, sq_lk = f_ex, sq_ex
-    if with_closure is not None:
-        if x != p:
-            f_lk = flow_terms(p, p_atm, alpha, beta, theta, kappa)[0]
-            sq_lk = math.sqrt(t_wall / temp) if hconv > 0.0 and f_lk > 0.0 else 1.0
-            f_lk *= sq_lk
+        f_lk *= sq_lk
     valve = a_in * f_in - a_ex * f_ex
     att = sl[_ATT]
     phi = math.exp(-att / p) if att > 0.0 else 1.0
@@ -610,22 +609,20 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if not need_j:
         return fp, 0.0, ft, 0.0, 0.0, 0.0, 0.0, 0.0
     dfloor = abs(fp) * h
-    dfin_dsup, dfin_dp = flow_slopes(p_sup, p, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+    dfin_dsup, dfin_dp = flow_slopes(p_sup, x, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
-    dfex_dp, _ = flow_slopes(p, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
+    dfex_dp, _ = flow_slopes(x, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dflk_dp = dfex_dp  # (the leak's: the chamber's own)
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     if with_closure is not None:
-        if x != p:
+        if x != p:  # the ports' slopes through the node; the leak's at the chamber
             dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
-                x, p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs, dfloor)
-    dfin_dp *= sq_in
-    dfin_dsup *= sq_in
-    if with_closure is not None:
-        if x != p:  # (the leak's slope at the chamber, not through the node)
-            _, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+                x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], dfin_dsup, dfin_dp, dfex_dp, cs,
+                dfloor)
             dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
                                   dfloor)[0]
+    dfin_dp *= sq_in
+    dfin_dsup *= sq_in
     dfex_dp *= sq_ex
     dflk_dp *= sq_lk
     dvalve = a_in * dfin_dp - a_ex * dfex_dp

@@ -106,23 +106,18 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, cs):
 
 
 @njit(cache=True, error_model="numpy")
-def series_slopes(x, p, p_sup, a_in, a_ex, k_fill, k_vent, cs, dp_floor):
+def series_slopes(x, p, a_in, a_ex, k_fill, k_vent, din_s, din_x, dex_x, cs, dp_floor):
     """The node's port flow functions' slopes ``(df_in/dp_s, df_in/dp, df_ex/dp, share)``
-    at the node pressure ``x``, ``f_in = f(p_s, x)``, ``f_ex = f(x, P_atm)`` (kg/(s m^2
-    Pa)), with ``x`` following ``p`` (and ``p_s``: the first is the net flow's slope in the
-    supply per unit inlet area, where the plain ports' is the inlet's own), and ``share``
-    the part of a port area's change that reaches the chamber's flow (1 without a
-    restriction).
+    with ``x`` following ``p`` (and ``p_s``: the first is the net flow's slope in the
+    supply per unit inlet area, where the plain ports' is the inlet's own), from their
+    partial slopes at the node ``din_s = df(p_s, x)/dp_s``, ``din_x = df(p_s, x)/dx``,
+    ``dex_x = df(x, P_atm)/dx`` (kg/(s m^2 Pa)); ``share`` is the part of a port area's
+    change that reaches the chamber's flow (1 without a restriction).
     ``dp_floor`` (Pa) is the secant floor of the square-root slopes (the chamber's)."""
-    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
-    p_atm = cs[C_P_ATM]
-    _, sg, dg, r, rev = flow_terms(p_sup, x, alpha, beta, theta, kappa)
-    din_s, din_x = flow_slopes(p_sup, x, sg, dg, r, rev, alpha, beta, kappa, dp_floor)
-    _, sg, dg, r, rev = flow_terms(x, p_atm, alpha, beta, theta, kappa)
-    dex_x, _ = flow_slopes(x, p_atm, sg, dg, r, rev, alpha, beta, kappa, dp_floor)
     k = k_fill if x > p else k_vent
     if x == p or k <= 0.0:  # no restriction in this direction: the node is the chamber
         return din_s, din_x, dex_x, 1.0
+    alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     _, sg, dg, r, rev = flow_terms(x, p, alpha, beta, theta, kappa)
     dr_x, dr_p = flow_slopes(x, p, sg, dg, r, rev, alpha, beta, kappa, dp_floor)
     dr_x, dr_p = dr_x / k, dr_p / k

@@ -80,16 +80,16 @@ class PortRestrictionProblem(VolumeProblem):
             if base[SLOT_INDEX[slot]] > 0:
                 raise ValueError(f"a port restriction cannot sit beside {what}")
 
-    def largest_port_areas_m2(self) -> tuple[float, float]:
-        """The valve's largest inlet and exhaust areas over the windows' commands (m^2)."""
-        a_in_max, a_ex_max = 0.0, 0.0
+    def largest_port_area_m2(self) -> float:
+        """The valve's largest port area (inlet or exhaust) over the windows' commands
+        (m^2)."""
+        best = 0.0
         for block in self.window_set.blocks:
             u = np.asarray(block.inputs.command_V, dtype=np.float64)
-            ue = getattr(block.inputs, "exhaust_command", None)
+            ue = block.inputs.exhaust_command
             a_in, a_ex = port_areas(self._slots, u, None if ue is None else np.asarray(ue))
-            a_in_max = max(a_in_max, float(np.max(a_in)))
-            a_ex_max = max(a_ex_max, float(np.max(a_ex)))
-        return a_in_max, a_ex_max
+            best = max(best, float(np.max(a_in)), float(np.max(a_ex)))
+        return best
 
 
 class PortRestrictionSearch:
@@ -119,6 +119,9 @@ class PortRestrictionSearch:
         Share of the residual's sum of squares the kept restriction removes.
     best_ : RestrictionTerm or None
         The best restriction, kept or not (what the search saw).
+    port_area_m2_ : float
+        The valve's largest port area over the windows' commands (m^2), which the areas
+        tried are shares of.
     """
 
     def __init__(self, area_shares: Sequence[float] = tuple(np.geomspace(0.1, 6.0, 9)),
@@ -165,7 +168,7 @@ class PortRestrictionSearch:
         """Search the training windows of ``problem``."""
         shares, scales = self._validate(problem)
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
-        a_max = max(problem.largest_port_areas_m2())
+        self.port_area_m2_ = a_max = problem.largest_port_area_m2()
         current = problem.window_sse([()])[0]
         total = float(np.sum(current))
         if not np.isfinite(total) or total <= 0.0 or not a_max > 0.0:

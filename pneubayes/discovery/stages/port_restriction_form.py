@@ -67,15 +67,11 @@ class PortRestrictionForm(VolumeComponentForm):
 
     def _fallback_terms(self, search) -> list:
         """A restriction as wide as the valve's largest port in both directions: a base
-        fit without it narrows the maps and grows the dead volume to a restriction it
+        fit without it bends the maps and grows the dead volume towards a restriction it
         cannot express, where no restriction on top predicts better; the fit through the
         simulator moves them back (the held-out test still decides)."""
-        a_max = max(self._problem.largest_port_areas_m2())
+        a_max = search.port_area_m2_
         if not a_max > 0.0:
             return []
         k = float(min(1.0 / a_max, INVERSE_AREA_BOUNDS_PER_M2[1]))
         return [RestrictionTerm(k, k, 0.0, 0.0)]
-
-    def _search_data(self, state, runner) -> PortRestrictionProblem:
-        self._problem = super()._search_data(state, runner)
-        return self._problem
