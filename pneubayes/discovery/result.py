@@ -273,7 +273,10 @@ class DiscoveryResult(PosteriorDraws):
                  "formula": "a_in f(p_s, x) - a_ex f(x, P_atm) = A f(x, p), A = 1 / k_f "
                             "into the chamber (x > p), 1 / k_v out of it (k_f = "
                             "port_restriction_fill, k_v = port_restriction_vent, 1/m^2; 0: "
-                            "that direction unrestricted)",
+                            "that direction unrestricted); with a check valve (c = "
+                            "port_restriction_crack, Pa, > 0) the wider direction passes "
+                            "the narrower's area below a drop |x - p| of c, its own above "
+                            "2 c",
                  "parameters": self._values(eff.parameter_names())}]
 
     def to_dict(self) -> dict:

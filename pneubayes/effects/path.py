@@ -257,6 +257,9 @@ SLOTS += (
      "chamber; the valve's ports see the pressure between the two; 0 = none (1/m^2)"),
     ("restriction_vent_inverse_area_per_m2", "the port's restriction: 1 / its area for flow "
      "out of the chamber; 0 = none (1/m^2)"),
+    ("restriction_crack_Pa", "the port restriction's check valve: its wider direction passes "
+     "only the narrower one's area below this drop, opening to its own over 1-2 x it; "
+     "0 = none (Pa)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

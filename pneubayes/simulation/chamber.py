@@ -38,6 +38,7 @@ _VT_V = SLOT_INDEX["volume_table_volume_m3_0"]
 _CL_N = SLOT_INDEX["closure_terms"]
 _RES_F = SLOT_INDEX["restriction_fill_inverse_area_per_m2"]
 _RES_V = SLOT_INDEX["restriction_vent_inverse_area_per_m2"]
+_RES_C = SLOT_INDEX["restriction_crack_Pa"]
 _CL_FA = SLOT_INDEX["closure_feature_a_0"]
 _CL_FB = SLOT_INDEX["closure_feature_b_0"]
 _CL_TA = SLOT_INDEX["closure_threshold_a_0"]
@@ -329,7 +330,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     p_atm = cs[C_P_ATM]
     x = p  # the valve's ports' pressure: a restriction's node in series, or the chamber
     if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
-        x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs)
+        x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
     # the leak's: the chamber's own flow function to the atmosphere
@@ -412,8 +413,8 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     if x != p:  # the ports' slopes through the node; the leak's at the chamber
         dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
-            x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], dfin_dsup, dfin_dp, dfex_dp, cs,
-            dfloor)
+            x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], dfin_dsup, dfin_dp,
+            dfex_dp, cs, dfloor)
         dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
                               dfloor)[0]
     dcl_dp, dcl_dt = 0.0, 0.0
@@ -541,7 +542,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     x = p  # the valve's ports' pressure: a restriction's node in series, or the chamber
     if with_closure is not None:
         if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
-            x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], cs)
+            x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
     # the leak's: the chamber's own flow function to the atmosphere
@@ -617,8 +618,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if with_closure is not None:
         if x != p:  # the ports' slopes through the node; the leak's at the chamber
             dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
-                x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], dfin_dsup, dfin_dp, dfex_dp, cs,
-                dfloor)
+                x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], dfin_dsup, dfin_dp,
+                dfex_dp, cs, dfloor)
             dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
                                   dfloor)[0]
     dfin_dp *= sq_in

@@ -54,19 +54,34 @@ def _flow(p_up, p_down, alpha, beta, theta, kappa):
     return alpha * p_up * math.sqrt(g) if g > 0.0 else 0.0
 
 
-def _node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, law, p_atm):
+def _restriction_area(drop, k_own, k_other, crack):
+    """A restricted direction's area (m^2) at the forward drop ``drop`` (Pa): ``1 /
+    k_own``, or where a check valve cracking at ``crack`` passes the wider direction
+    beside the narrower one's needle, the needle's below ``crack``, its own above
+    ``2 crack`` and a smoothstep between (an unrestricted direction: 1e-3 m^2)."""
+    if crack <= 0 or not k_own < k_other:
+        return 1.0 / k_own
+    wide, needle = (1.0 / k_own if k_own > 0 else 1e-3), 1.0 / k_other
+    z = min(max(drop / crack - 1.0, 0.0), 1.0)
+    return needle + (wide - needle) * (3.0 * z**2 - 2.0 * z**3)
+
+
+def _node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, law, p_atm):
     """The pressure between the valve's ports and a restriction in series at the port
-    (inverse areas ``k_fill`` into, ``k_vent`` out of the chamber): the root of the
-    node's mass balance by Brent's method."""
+    (inverse areas ``k_fill`` into, ``k_vent`` out of the chamber; its check valve's
+    cracking drop ``crack``, Pa): the root of the node's mass balance by Brent's
+    method."""
     def surplus(x):
+        area = 0.0 if x == p else _restriction_area(abs(x - p), *own)
         return (a_in * _flow(p_sup, x, *law) - a_ex * _flow(x, p_atm, *law)
                 - area * _flow(x, p, *law))
 
-    area = 0.0
+    own = (k_fill, k_vent, crack)
     h0 = surplus(p)
-    if h0 == 0.0 or (h0 > 0 and k_fill <= 0) or (h0 < 0 and k_vent <= 0):
+    if h0 < 0:
+        own = (k_vent, k_fill, crack)
+    if h0 == 0.0 or not (own[0] > 0 or (crack > 0 and own[1] > 0)):
         return p
-    area = 1.0 / (k_fill if h0 > 0 else k_vent)
     lo, hi = (p, max(p_sup, p_atm, p)) if h0 > 0 else (min(p_sup, p_atm, p), p)
     return brentq(surplus, lo, hi, xtol=1e-9, rtol=4 * np.finfo(float).eps)
 
@@ -186,6 +201,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
 
     k_fill = sl[S["restriction_fill_inverse_area_per_m2"]]  # a port's restriction
     k_vent = sl[S["restriction_vent_inverse_area_per_m2"]]
+    crack = sl[S["restriction_crack_Pa"]]
     own_ex = sl[S["exhaust_own_command"]] != 0
     tank_v = sl[S["tank_volume_m3"]]
     lung_v = sl[S["lung_volume_m3"]]
@@ -268,7 +284,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                     + sl[S["leak_laminar_gradient_kg_per_s_Pa2_m"]]
                     * (vol + v_line - sl[S["volume_m3"]]) / rig.bore_area_m2, 0.0)
         if (k_fill > 0 or k_vent > 0) and not nseg:  # the ports see the node's pressure
-            p_valve = _node_pressure(p, psup, a_in, a_ex, k_fill, k_vent, law, p_atm)
+            p_valve = _node_pressure(p, psup, a_in, a_ex, k_fill, k_vent, crack, law, p_atm)
         # each mass flow into the chamber (kg/s, negative = out)
         f_in = f_in_raw = _flow(psup, p_valve, *law)
         f_out = f_out_raw = _flow(p_valve, p_atm, *law)

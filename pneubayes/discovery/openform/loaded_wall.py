@@ -27,6 +27,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from pneubayes.discovery.openform.compass import compass_refine
 from pneubayes.discovery.openform.gate import check_gate, earns_trial
 from pneubayes.discovery.openform.volume import VolumeProblem, window_reduction
 from pneubayes.effects.loaded_wall import (
@@ -109,7 +110,8 @@ class LoadedWallSearch:
         the windows' relative reductions scatter even where a wall explains a large
         share.
     refine_passes : int
-        Rounds of local refinement of the grid's best (a compass search, :func:`_refined`).
+        Rounds of local refinement of the grid's best (a compass search,
+        :func:`~pneubayes.discovery.openform.compass.compass_refine`).
 
     Attributes
     ----------
@@ -202,9 +204,10 @@ class LoadedWallSearch:
         steps = tuple(float(g[1] / g[0]) if g.size > 1 else 2.0 for g in (comps, freqs, zetas))
         best, best_sse = grid[j], sse[j]
         if self.refine_passes:
-            best, best_sse = _refined(problem, best, best_sse,
-                                      (*steps, 0.15 if len(scales) > 1 else 0.0),
-                                      self.refine_passes)
+            best, best_sse = compass_refine(
+                problem, best, best_sse, steps,
+                (COMPLIANCE_BOUNDS_M3_PER_PA, FREQUENCY_BOUNDS_HZ, DAMPING_BOUNDS),
+                0.15 if len(scales) > 1 else 0.0, self.refine_passes)
         explained, t = window_reduction(current, best_sse, total, relative=True)
         self.best_ = LoadedWallTerm(*best[0], explained, t, best[1])
         if earns_trial(explained, t, self.min_explained_fraction, self.min_t,
@@ -242,29 +245,6 @@ def _screened(problem, freqs, zetas, probe, shortlist):
         scores.append(float(np.sum((base[good] + a[good] @ coef) ** 2)))
     order = np.argsort(scores, kind="stable")[:shortlist]
     return [pairs[i] for i in order if np.isfinite(scores[i])]
-
-
-def _refined(problem, centre, sse, steps, passes):
-    """Local refinement of the grid's best wall ``centre`` = ((compliance, frequency,
-    damping), dead-volume scale): ``passes`` rounds of its 3^4 neighbours at ``steps``
-    (the three values' factors, the scale's relative step; 0: held), moving to the best
-    where it is better and else halving the steps in log (a compass search: a ring's
-    valley runs across the grid's axes). Returns ``(centre, sse)``."""
-    f_c, f_f, f_z, d_v = steps
-    for _ in range(passes):
-        (c0, q0, z0), v0 = centre
-        cand = [((float(np.clip(c0 * a, *COMPLIANCE_BOUNDS_M3_PER_PA)),
-                  float(np.clip(q0 * b, *FREQUENCY_BOUNDS_HZ)),
-                  float(np.clip(z0 * c, *DAMPING_BOUNDS))), v0 * (1.0 + d))
-                for a in (1.0 / f_c, 1.0, f_c) for b in (1.0 / f_f, 1.0, f_f)
-                for c in (1.0 / f_z, 1.0, f_z) for d in ((-d_v, 0.0, d_v) if d_v else (0.0,))]
-        got = problem.window_sse([[w] for w, _ in cand], [v for _, v in cand])
-        j = int(np.argmin(np.sum(got, axis=1)))
-        if np.isfinite(got[j]).all() and np.sum(got[j]) < np.sum(sse) and j != len(cand) // 2:
-            centre, sse = cand[j], got[j]  # moved: the same steps again
-        else:
-            f_c, f_f, f_z, d_v = np.sqrt(f_c), np.sqrt(f_f), np.sqrt(f_z), 0.5 * d_v
-    return centre, sse
 
 
 __all__ = ["LoadedWallProblem", "LoadedWallSearch", "LoadedWallTerm"]

@@ -12,8 +12,10 @@ The search simulates the training windows (:class:`PortRestrictionProblem`, the 
 forms' :class:`~pneubayes.discovery.openform.volume.VolumeProblem` with another
 component): each direction alone over areas from a tenth to six times the valve's
 largest port and over the dead volume's scales, then the best few of each together, and
-a compass refinement of the best; it is kept by the gate the volume's forms use
-(:func:`~pneubayes.discovery.openform.gate.earns_trial`).
+a compass refinement of the best; then a one-way flow control's check valve, its
+cracking drops a few hundredths of the supply's gauge pressure beside wider areas of the
+wider direction, refined with it where it is better; it is kept by the gate the
+volume's forms use (:func:`~pneubayes.discovery.openform.gate.earns_trial`).
 """
 
 from __future__ import annotations
@@ -24,10 +26,13 @@ from typing import ClassVar
 
 import numpy as np
 
+from pneubayes.discovery.openform.compass import compass_refine
 from pneubayes.discovery.openform.gate import check_gate, earns_trial
 from pneubayes.discovery.openform.volume import VolumeProblem, window_reduction
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.effects.port_restriction import (
+    CRACK,
+    CRACK_BOUNDS_PA,
     FILL,
     INVERSE_AREA_BOUNDS_PER_M2,
     VENT,
@@ -39,12 +44,14 @@ from pneubayes.simulation.rates import port_areas
 @dataclass(frozen=True)
 class RestrictionTerm:
     """A kept restriction: its inverse areas ``fill_per_m2`` and ``vent_per_m2`` (1/m^2,
-    0 none), the share of the residual's sum of squares it removes (``explained``), the
-    windows' mean relative reduction over its standard error (``t``) and the dead
-    volume's scale it was found with (``dead_volume_scale``)."""
+    0 none), its check valve's cracking drop ``crack_Pa`` (0 none), the share of the
+    residual's sum of squares it removes (``explained``), the windows' mean relative
+    reduction over its standard error (``t``) and the dead volume's scale it was found
+    with (``dead_volume_scale``)."""
 
     fill_per_m2: float
     vent_per_m2: float
+    crack_Pa: float
     explained: float
     t: float
     dead_volume_scale: float = 1.0
@@ -55,18 +62,20 @@ class RestrictionTerm:
 
         scaled = ("" if self.dead_volume_scale == 1.0 else
                   f", the dead volume x {self.dead_volume_scale:.3g}")
+        crack = (f", its check valve cracking at {self.crack_Pa:.3g} Pa" if self.crack_Pa > 0.0
+                 else "")
         return (f"a restriction at the port (fill through {side(self.fill_per_m2)}, vent "
-                f"through {side(self.vent_per_m2)}{scaled})")
+                f"through {side(self.vent_per_m2)}{crack}{scaled})")
 
 
 @dataclass(frozen=True)
 class PortRestrictionProblem(VolumeProblem):
     """What the search simulates (as :class:`VolumeProblem`), a term joining as a port
-    restriction: ``(fill inverse area, vent inverse area)``."""
+    restriction: ``(fill inverse area, vent inverse area, crack)``."""
 
     component: ClassVar[type] = PortRestriction
-    term_names: ClassVar[tuple] = (lambda k: FILL, lambda k: VENT)
-    unused_term: ClassVar[tuple[float, float]] = (0.0, 0.0)
+    term_names: ClassVar[tuple] = (lambda k: FILL, lambda k: VENT, lambda k: CRACK)
+    unused_term: ClassVar[tuple[float, float, float]] = (0.0, 0.0, 0.0)
 
     def check(self) -> None:
         """Raise ValueError where a port restriction cannot join the model."""
@@ -91,6 +100,11 @@ class PortRestrictionProblem(VolumeProblem):
             best = max(best, float(np.max(a_in)), float(np.max(a_ex)))
         return best
 
+    def supply_gauge_Pa(self) -> float:
+        """The rig's supply pressure above the atmosphere (Pa)."""
+        rig = self.rig
+        return float(rig.supply_pressure_Pa - rig.atmospheric_pressure_Pa)
+
 
 class PortRestrictionSearch:
     """Grid search of a restriction at the chamber's port in the windows' residual
@@ -106,6 +120,9 @@ class PortRestrictionSearch:
         How many of each direction's best areas (besides none) the joint grid pairs.
     dead_volume_scales : sequence of float
         The dead volume's scales tried with each restriction (where the model fits it).
+    crack_shares : sequence of float
+        The check valve's cracking drops tried, as shares of the supply's gauge pressure
+        (empty: no check valve).
     min_explained_fraction, min_t, strong_explained_fraction : float
         The gate (:func:`~pneubayes.discovery.openform.gate.earns_trial`).
     refine_passes : int
@@ -127,11 +144,13 @@ class PortRestrictionSearch:
     def __init__(self, area_shares: Sequence[float] = tuple(np.geomspace(0.1, 6.0, 9)),
                  shortlist: int = 3,
                  dead_volume_scales: Sequence[float] = tuple(np.geomspace(0.2, 1.25, 6)),
+                 crack_shares: Sequence[float] = (0.01, 0.02, 0.04, 0.08),
                  min_explained_fraction: float = 0.02, min_t: float = 4.0,
                  strong_explained_fraction: float = 0.3, refine_passes: int = 6):
         self.area_shares = area_shares
         self.shortlist = shortlist
         self.dead_volume_scales = dead_volume_scales
+        self.crack_shares = crack_shares
         self.min_explained_fraction = min_explained_fraction
         self.min_t = min_t
         self.strong_explained_fraction = strong_explained_fraction
@@ -141,17 +160,20 @@ class PortRestrictionSearch:
         """The constructor's settings (scikit-learn's contract)."""
         return {"area_shares": self.area_shares, "shortlist": self.shortlist,
                 "dead_volume_scales": self.dead_volume_scales,
+                "crack_shares": self.crack_shares,
                 "min_explained_fraction": self.min_explained_fraction, "min_t": self.min_t,
                 "strong_explained_fraction": self.strong_explained_fraction,
                 "refine_passes": self.refine_passes}
 
     def _validate(self, problem):
         out = []
-        for name in ("area_shares", "dead_volume_scales"):
+        for name in ("area_shares", "dead_volume_scales", "crack_shares"):
             v = np.asarray(getattr(self, name), dtype=np.float64)
-            if v.ndim != 1 or not v.size or not np.all(np.isfinite(v) & (v > 0.0)):
-                raise ValueError(f"{name} must be a non-empty sequence of positive numbers, "
-                                 f"got {getattr(self, name)!r}")
+            empty_ok = name == "crack_shares"
+            if v.ndim != 1 or not (v.size or empty_ok) \
+                    or not np.all(np.isfinite(v) & (v > 0.0)):
+                raise ValueError(f"{name} must be a {'' if empty_ok else 'non-empty '}"
+                                 f"sequence of positive numbers, got {getattr(self, name)!r}")
             out.append(v)
         for name in ("shortlist", "refine_passes"):
             v = getattr(self, name)
@@ -166,7 +188,7 @@ class PortRestrictionSearch:
 
     def fit(self, problem: PortRestrictionProblem) -> "PortRestrictionSearch":
         """Search the training windows of ``problem``."""
-        shares, scales = self._validate(problem)
+        shares, scales, cracks = self._validate(problem)
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
         self.port_area_m2_ = a_max = problem.largest_port_area_m2()
         current = problem.window_sse([()])[0]
@@ -178,25 +200,33 @@ class PortRestrictionSearch:
         # each direction alone over the dead volume's scales (a base fit without the
         # restriction slows the chamber by growing its dead volume, severalfold)
         scales = tuple(float(v) for v in scales) if problem.scales_dead_volume else (1.0,)
-        alone = [((k, 0.0), s) for s in scales for k in ks] + [
-            ((0.0, k), s) for s in scales for k in ks]
+        alone = [((k, 0.0, 0.0), s) for s in scales for k in ks] + [
+            ((0.0, k, 0.0), s) for s in scales for k in ks]
         sse = np.sum(problem.window_sse([[a] for a, _ in alone], [s for _, s in alone]),
                      axis=1)
         n = len(alone) // 2
         fills = _shortlist(alone[:n], sse[:n], 0, self.shortlist)
         vents = _shortlist(alone[n:], sse[n:], 1, self.shortlist)
         # together
-        grid = [((f, v), s) for s in scales for f in (0.0, *fills) for v in (0.0, *vents)
-                if f > 0.0 or v > 0.0]
+        grid = [((f, v, 0.0), s) for s in scales for f in (0.0, *fills)
+                for v in (0.0, *vents) if f > 0.0 or v > 0.0]
         got = problem.window_sse([[g[0]] for g in grid], [g[1] for g in grid])
         j = int(np.argmin(np.sum(got, axis=1)))
         if not np.isfinite(got[j]).all():
             return self
         best, best_sse = grid[j], got[j]
+        step = float(shares[1] / shares[0]) if shares.size > 1 else 2.0
+        d_v = 0.15 if len(scales) > 1 else 0.0
+        bounds = (INVERSE_AREA_BOUNDS_PER_M2, INVERSE_AREA_BOUNDS_PER_M2, CRACK_BOUNDS_PA)
         if self.refine_passes:
-            step = float(shares[1] / shares[0]) if shares.size > 1 else 2.0
-            best, best_sse = _refined(problem, best, best_sse, step,
-                                      0.15 if len(scales) > 1 else 0.0, self.refine_passes)
+            best, best_sse = compass_refine(problem, best, best_sse, (step, step, 1.0),
+                                            bounds, d_v, self.refine_passes)
+        cracked, cracked_sse = _with_check_valve(problem, best, cracks, step)
+        if cracked is not None and np.sum(cracked_sse) < np.sum(best_sse):
+            best, best_sse = cracked, cracked_sse
+            if self.refine_passes:
+                best, best_sse = compass_refine(problem, best, best_sse, (step, step, 2.0),
+                                                bounds, d_v, self.refine_passes)
         explained, t = window_reduction(current, best_sse, total, relative=True)
         self.best_ = RestrictionTerm(*best[0], explained, t, best[1])
         if earns_trial(explained, t, self.min_explained_fraction, self.min_t,
@@ -220,28 +250,28 @@ def _shortlist(trials, sse, side, count):
     return out
 
 
-def _refined(problem, centre, sse, step, d_v, passes):
-    """Local refinement of the grid's best ``centre`` = ((fill, vent), dead-volume
-    scale): ``passes`` rounds of its neighbours, each restricted direction's inverse area
-    times ``step`` or over it (an open direction stays open) and the scale by ``d_v``
-    relative, moving to the best where it is better and else taking the steps' square
-    roots (a compass search). Returns ``(centre, sse)``."""
-    lo, hi = INVERSE_AREA_BOUNDS_PER_M2
-    for _ in range(passes):
-        (f0, v0), s0 = centre
-        cand = [((float(np.clip(f0 * a, lo, hi)), float(np.clip(v0 * b, lo, hi))),
-                 s0 * (1.0 + d))
-                for a in ((1.0 / step, 1.0, step) if f0 > 0 else (1.0,))
-                for b in ((1.0 / step, 1.0, step) if v0 > 0 else (1.0,))
-                for d in ((-d_v, 0.0, d_v) if d_v else (0.0,))]
-        got = problem.window_sse([[c[0]] for c in cand], [c[1] for c in cand])
-        j = int(np.argmin(np.sum(got, axis=1)))
-        if np.isfinite(got[j]).all() and np.sum(got[j]) < np.sum(sse) \
-                and cand[j] != centre:
-            centre, sse = cand[j], got[j]
-        else:
-            step, d_v = float(np.sqrt(step)), 0.5 * d_v
-    return centre, sse
+def _with_check_valve(problem, centre, cracks, step):
+    """The best of ``centre`` = ((fill, vent, 0), dead-volume scale) with a check valve
+    cracking at each share of ``cracks`` of the supply's gauge pressure, the wider
+    direction's area (the check's) times 1, ``step`` or ``step^2`` (an open one stays
+    open): ``(centre, sse)``, or ``(None, None)`` where no check valve can act (both
+    directions alike) or every simulation failed."""
+    (f, v, _), scale = centre
+    if f == v or not cracks.size:
+        return None, None
+    wide = 0 if f < v else 1
+    gauge = problem.supply_gauge_Pa()
+    cand = []
+    for c in cracks:
+        for m in (1.0, step, step * step) if (f, v)[wide] > 0.0 else (1.0,):
+            ks = [f, v]
+            ks[wide] = max(ks[wide] / m, INVERSE_AREA_BOUNDS_PER_M2[0])
+            cand.append(((ks[0], ks[1], float(min(c * gauge, CRACK_BOUNDS_PA[1]))), scale))
+    got = problem.window_sse([[c[0]] for c in cand], [c[1] for c in cand])
+    j = int(np.argmin(np.sum(got, axis=1)))
+    if not np.isfinite(got[j]).all():
+        return None, None
+    return cand[j], got[j]
 
 
 __all__ = ["PortRestrictionProblem", "PortRestrictionSearch", "RestrictionTerm"]

@@ -108,10 +108,15 @@ def port_effect_skeleton(model, params: dict, class_name: str = "FoundPort",
         return "none" if k <= 0.0 else f"{1.0 / k:.6g} m^2"
 
     kf, kv = float(params["port_restriction_fill"]), float(params["port_restriction_vent"])
+    crack = float(params.get("port_restriction_crack", 0.0))
     lines = [f"#   a_in f(p_s, x) - a_ex f(x, P_atm) = A f(x, p); A = {area(kf)} into the "
              f"chamber, {area(kv)} out of it"]
+    if crack > 0.0:
+        lines.append(f"#   a check valve in the wider direction cracks at a drop of "
+                     f"{crack:.6g} Pa (the narrower's area below it, its own above 2 x)")
     names = {"fill_inverse_area_per_m2": "port_restriction_fill",
-             "vent_inverse_area_per_m2": "port_restriction_vent"}
+             "vent_inverse_area_per_m2": "port_restriction_vent",
+             "crack_Pa": "port_restriction_crack"}
     return _delegating_module(
         class_name, effect_name, "a restriction in series at the chamber's port",
         "an open-form restriction at the chamber's port", lines,

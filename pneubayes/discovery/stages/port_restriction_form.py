@@ -74,4 +74,4 @@ class PortRestrictionForm(VolumeComponentForm):
         if not a_max > 0.0:
             return []
         k = float(min(1.0 / a_max, INVERSE_AREA_BOUNDS_PER_M2[1]))
-        return [RestrictionTerm(k, k, 0.0, 0.0)]
+        return [RestrictionTerm(k, k, 0.0, 0.0, 0.0)]
