@@ -451,6 +451,30 @@ def test_discovery_finds_a_planted_restriction(restricted_recordings, tmp_path):
     assert "PortRestriction()" in (tmp_path / "found_port.py").read_text()
 
 
+@pytest.mark.slow
+def test_discovery_finds_a_check_valve_s_crack(tmp_path):
+    """The loop on a meter-out flow control whose fill passes a check valve cracking at
+    20 kPa: the restriction is found with its crack and the held-out error falls to
+    about the noise floor."""
+    from pneubayes.discovery.loop import Discovery
+    from pneubayes.discovery.stages import PortRestrictionForm
+
+    base = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+    planted = {"port_restriction_fill": 1e6, "port_restriction_vent": 6e6,
+               "port_restriction_crack": 2e4}
+    recs = valve1_recordings(Model([PortRestriction()]), {**base, **planted}, "checked", 91,
+                             4, 8001)
+    settings = discovery_settings(posterior={"method": "none"},
+                                  forms={"tube_line_segments": 0},
+                                  data={"holdout_recordings": 2}, rounds={"max_effects": 2})
+    result = Discovery(settings, None, log=print, stages=[PortRestrictionForm()]
+                       ).fit(recs).result_
+    doc = result.to_dict()
+    assert [t["term"] for t in doc["found_port_terms"]] == ["port restriction"]
+    assert result.final.params["port_restriction_crack"] == pytest.approx(2e4, rel=0.3)
+    assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+
+
 def test_a_found_restriction_becomes_an_effect_plug_in_a_user_can_name(rig, steps,
                                                                        valve_params):
     from pneubayes.discovery.openform.skeleton import port_effect_skeleton

@@ -221,7 +221,7 @@ class PortRestrictionSearch:
         if self.refine_passes:
             best, best_sse = compass_refine(problem, best, best_sse, (step, step, 1.0),
                                             bounds, d_v, self.refine_passes)
-        cracked, cracked_sse = _with_check_valve(problem, best, cracks, step)
+        cracked, cracked_sse = with_check_valve(problem, best, cracks, step)
         if cracked is not None and np.sum(cracked_sse) < np.sum(best_sse):
             best, best_sse = cracked, cracked_sse
             if self.refine_passes:
@@ -250,7 +250,7 @@ def _shortlist(trials, sse, side, count):
     return out
 
 
-def _with_check_valve(problem, centre, cracks, step):
+def with_check_valve(problem, centre, cracks, step):
     """The best of ``centre`` = ((fill, vent, 0), dead-volume scale) with a check valve
     cracking at each share of ``cracks`` of the supply's gauge pressure, the wider
     direction's area (the check's) times 1, ``step`` or ``step^2`` (an open one stays
@@ -274,4 +274,5 @@ def _with_check_valve(problem, centre, cracks, step):
     return cand[j], got[j]
 
 
-__all__ = ["PortRestrictionProblem", "PortRestrictionSearch", "RestrictionTerm"]
+__all__ = ["PortRestrictionProblem", "PortRestrictionSearch", "RestrictionTerm",
+           "with_check_valve"]

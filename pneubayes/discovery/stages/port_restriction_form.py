@@ -18,13 +18,23 @@ forms and challenges a passing trial unless that closes 90 % of the gap
 
 from __future__ import annotations
 
+import numpy as np
+
 from pneubayes.discovery.openform.port_restriction import (
     PortRestrictionProblem,
     PortRestrictionSearch,
     RestrictionTerm,
+    with_check_valve,
 )
 from pneubayes.discovery.stages.volume_form import VolumeComponentForm
-from pneubayes.effects.port_restriction import INVERSE_AREA_BOUNDS_PER_M2, PortRestriction
+from pneubayes.effects.port_restriction import (
+    CRACK,
+    FILL,
+    INVERSE_AREA_BOUNDS_PER_M2,
+    VENT,
+    PortRestriction,
+)
+from pneubayes.errors import SimulationError
 
 #: The component's name in a model and in the ledger.
 PORT_RESTRICTION = "port_restriction"
@@ -75,3 +85,39 @@ class PortRestrictionForm(VolumeComponentForm):
             return []
         k = float(min(1.0 / a_max, INVERSE_AREA_BOUNDS_PER_M2[1]))
         return [RestrictionTerm(k, k, 0.0, 0.0, 0.0)]
+
+    def _fit(self, state, runner, terms):
+        """:meth:`ComponentForm._fit`; then, where the fitted restriction's directions
+        differ and it has no check valve, the search's cracks tried on it over the
+        training windows (:func:`with_check_valve`) and the best refitted, kept where its
+        training RMSE is lower (the fit cannot grow a crack from none: the area's slope
+        in it vanishes there)."""
+        fit = super()._fit(state, runner, terms)
+        if fit is None:
+            return None
+        p = fit.params
+        s = self.search if self.search is not None else self.search_class()
+        cracks = np.asarray(s.crack_shares, dtype=np.float64)
+        if p[CRACK] > 0.0 or p[FILL] == p[VENT] or not cracks.size:
+            return fit
+        base = {k: v for k, v in p.items() if k not in (FILL, VENT, CRACK)}
+        problem = PortRestrictionProblem(runner.data.train_ws, state.current.model, base,
+                                         runner.settings.fit.refine_solver)
+        centre = ((p[FILL], p[VENT], 0.0), 1.0)
+        shares = np.asarray(s.area_shares, dtype=np.float64)
+        step = float(shares[1] / shares[0]) if shares.size > 1 else 2.0
+        cracked, sse = with_check_valve(problem, centre, cracks, step)
+        if cracked is None or np.sum(sse) >= np.sum(problem.window_sse([[centre[0]]])[0]):
+            return fit
+        start = {**p, FILL: cracked[0][0], VENT: cracked[0][1], CRACK: cracked[0][2]}
+        try:
+            again = runner.fit(fit.model, start)
+        except (FloatingPointError, SimulationError) as exc:
+            runner.log(f"discover: {self.label} with a check valve: {type(exc).__name__}: "
+                       f"{str(exc).splitlines()[0]}")
+            return fit
+        runner.log(f"discover: {self.label} with a check valve cracking at "
+                   f"{again.params[CRACK]:.3g} Pa: training RMSE {fit.train_rmse_Pa:.0f} -> "
+                   f"{again.train_rmse_Pa:.0f} Pa, held-out {fit.heldout_rmse_Pa:.0f} -> "
+                   f"{again.heldout_rmse_Pa:.0f} Pa")
+        return again if again.train_rmse_Pa < fit.train_rmse_Pa else fit
