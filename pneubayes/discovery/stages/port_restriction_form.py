@@ -11,8 +11,9 @@ it as one :class:`~pneubayes.effects.port_restriction.PortRestriction`, fitted a
 weighed as :class:`~pneubayes.discovery.stages.component_form.ComponentForm` does; where
 the search keeps none (a base fit that narrowed the valve's maps and grew the dead
 volume to the restriction leaves no residual a restriction on top explains), it fits one
-from a generic start, as wide as the valve's largest port. It runs before the volume's
-forms and challenges a passing trial unless that closes 90 % of the gap
+from a generic start, as wide as the valve's largest port. A fitted restriction
+without a check valve has the search's cracks tried on it as a second start. It runs
+before the volume's forms and challenges a passing trial unless that closes 90 % of the gap
 (``compete_below_gap_closed``).
 """
 
@@ -90,8 +91,8 @@ class PortRestrictionForm(VolumeComponentForm):
         """:meth:`ComponentForm._fit`; then, where the fitted restriction's directions
         differ and it has no check valve, the search's cracks tried on it over the
         training windows (:func:`with_check_valve`) and the best refitted, kept where its
-        training RMSE is lower (the fit cannot grow a crack from none: the area's slope
-        in it vanishes there)."""
+        training RMSE is lower (a second start: from no crack the fit sees the crack only
+        over its first difference step, the area's slope in it being zero there)."""
         fit = super()._fit(state, runner, terms)
         if fit is None:
             return None
