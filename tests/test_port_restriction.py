@@ -86,34 +86,43 @@ def test_no_restriction_in_a_direction_leaves_the_ports_at_the_chamber(rig):
     assert node_pressure(3e5, P_SUP, 0.0, 0.0, 1e6, 1e6, 0.0, cs) == 3e5  # nothing flows
 
 
+def _slopes_against_differences(rig, p, a_in, a_ex, kf, kv, crack, rel, exhaust_share):
+    """The net flow's slopes in p and p_s and the inlet's share (series_slopes), and with
+    ``exhaust_share`` the exhaust's where the inlet is shut, against central differences
+    of the node's solution, to ``rel``; returns the share."""
+    cs = _cs(rig)
+    g = rig.gas
+
+    def net(pp, ps=P_SUP, ai=a_in, ae=a_ex):
+        x = node_pressure(pp, ps, ai, ae, kf, kv, crack, cs)
+        return ai * flow_function(ps, x, g) - ae * flow_function(x, P_ATM, g)
+
+    x = node_pressure(p, P_SUP, a_in, a_ex, kf, kv, crack, cs)
+    law = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, g.heat_capacity_ratio, 0.0)
+    _, din_s, din_x = flow_partials(P_SUP, x, *law)  # the ports' own slopes at the node
+    _, dex_x, _ = flow_partials(x, P_ATM, *law)
+    d_sup, d_in, d_ex, share = series_slopes(x, p, a_in, a_ex, kf, kv, crack, din_s, din_x,
+                                             dex_x, cs, 0.0)
+    dp, da = 1.0, 1e-10
+    assert a_in * d_in - a_ex * d_ex == pytest.approx((net(p + dp) - net(p - dp)) / (2 * dp),
+                                                      rel=rel)
+    if a_in > 0:
+        assert a_in * d_sup == pytest.approx(
+            (net(p, P_SUP + dp) - net(p, P_SUP - dp)) / (2 * dp), rel=rel)
+        assert share * flow_function(P_SUP, x, g) == pytest.approx(
+            (net(p, ai=a_in + da) - net(p, ai=a_in - da)) / (2 * da), rel=rel)
+    elif exhaust_share:
+        assert a_ex > 0 and share * flow_function(x, P_ATM, g) == pytest.approx(
+            (net(p, ae=a_ex - da) - net(p, ae=a_ex + da)) / (2 * da), rel=rel)
+    return share
+
+
 @pytest.mark.parametrize("p, a_in, a_ex", [(2e5, 1.2e-6, 0.0), (4.5e5, 0.0, 1e-6),
                                            (3e5, 0.6e-6, 0.4e-6)])
 def test_the_slopes_are_the_node_flows_derivatives(rig, p, a_in, a_ex):
     """The net flow's slopes in p and p_s and an area's share, against central
     differences of the node's solution."""
-    cs = _cs(rig)
-    g = rig.gas
-    kf, kv = 1e6, 3e6
-
-    def net(pp, ps=P_SUP, ai=a_in, ae=a_ex):
-        x = node_pressure(pp, ps, ai, ae, kf, kv, 0.0, cs)
-        return ai * flow_function(ps, x, g) - ae * flow_function(x, P_ATM, g)
-
-    x = node_pressure(p, P_SUP, a_in, a_ex, kf, kv, 0.0, cs)
-    law = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, g.heat_capacity_ratio, 0.0)
-    _, din_s, din_x = flow_partials(P_SUP, x, *law)  # the ports' own slopes at the node
-    _, dex_x, _ = flow_partials(x, P_ATM, *law)
-    d_sup, d_in, d_ex, share = series_slopes(x, p, a_in, a_ex, kf, kv, 0.0, din_s, din_x,
-                                             dex_x, cs, 0.0)
-    dp = 1.0
-    assert a_in * d_in - a_ex * d_ex == pytest.approx((net(p + dp) - net(p - dp)) / (2 * dp),
-                                                      rel=1e-5)
-    if a_in > 0:
-        assert a_in * d_sup == pytest.approx(
-            (net(p, P_SUP + dp) - net(p, P_SUP - dp)) / (2 * dp), rel=1e-5)
-        da = 1e-10
-        assert share * flow_function(P_SUP, x, g) == pytest.approx(
-            (net(p, ai=a_in + da) - net(p, ai=a_in - da)) / (2 * da), rel=1e-5)
+    share = _slopes_against_differences(rig, p, a_in, a_ex, 1e6, 3e6, 0.0, 1e-5, False)
     assert 0.0 <= share < 1.0  # (0: the restriction chokes; its flow is its own)
 
 
@@ -287,34 +296,7 @@ def test_the_node_balances_through_the_check_valve(rig, p, a_in, a_ex, k_fill, k
 def test_the_slopes_through_the_check_valve(rig, p, a_in, a_ex, k_fill, k_vent, crack):
     """The net flow's slopes in p and p_s, and an area's share, where the check's area
     moves with the drop, against central differences of the node's solution."""
-    cs = _cs(rig)
-    g = rig.gas
-
-    def net(pp, ps=P_SUP, ai=a_in, ae=a_ex):
-        x = node_pressure(pp, ps, ai, ae, k_fill, k_vent, crack, cs)
-        return ai * flow_function(ps, x, g) - ae * flow_function(x, P_ATM, g)
-
-    x = node_pressure(p, P_SUP, a_in, a_ex, k_fill, k_vent, crack, cs)
-    law = (g.alpha_s_per_m, g.beta_s_per_m, g.theta, g.heat_capacity_ratio, 0.0)
-    _, din_s, din_x = flow_partials(P_SUP, x, *law)
-    _, dex_x, _ = flow_partials(x, P_ATM, *law)
-    d_sup, d_in, d_ex, share = series_slopes(x, p, a_in, a_ex, k_fill, k_vent, crack, din_s,
-                                             din_x, dex_x, cs, 0.0)
-    dp = 1.0
-    assert a_in * d_in - a_ex * d_ex == pytest.approx((net(p + dp) - net(p - dp)) / (2 * dp),
-                                                      rel=1e-4)
-    if a_in > 0:
-        assert a_in * d_sup == pytest.approx(
-            (net(p, P_SUP + dp) - net(p, P_SUP - dp)) / (2 * dp), rel=1e-4)
-    port = a_in if a_in > 0 else a_ex
-    da = 1e-10
-
-    def moved(d):
-        return net(p, ai=a_in + d) if a_in > 0 else -net(p, ae=a_ex + d)
-
-    f_port = flow_function(P_SUP, x, g) if a_in > 0 else flow_function(x, P_ATM, g)
-    assert port > 0 and share * f_port == pytest.approx((moved(da) - moved(-da)) / (2 * da),
-                                                        rel=1e-4)
+    _slopes_against_differences(rig, p, a_in, a_ex, k_fill, k_vent, crack, 1e-4, True)
 
 
 @pytest.mark.parametrize("k_fill, k_vent, crack", [(5e5, 5e6, 1.5e4), (5e6, 5e5, 1.5e4),
