@@ -923,6 +923,26 @@ def test_trajectory_records_solver_and_parameters(leak_model, base_params, rig, 
     assert math.isclose(traj.time_s[-1], 0.02)
 
 
+@pytest.mark.parametrize("threads", [2, 3, 7])
+def test_threads_give_the_serial_answer_for_every_task(rig, base_params, leak_model,
+                                                       make_inputs, monkeypatch, threads):
+    """The tasks (parameter set x window) are cut into chunks that Python threads take as
+    they come free; on any thread count every task runs once and gives the one-thread
+    answer bit for bit (a skipped task would leave its row as np.empty's garbage)."""
+    t = np.arange(301) * 1e-3
+    inputs = make_inputs(t, 3.0 * np.sin(2 * np.pi * 7 * t))
+    theta = np.repeat(leak_model.vector(base_params)[None, :], 11, axis=0)
+    theta[:, leak_model.parameter_names.index("dead_volume_m3")] *= np.linspace(0.5, 2, 11)
+    starts = np.array([0, 60, 120, 180, 240])
+
+    def run(n):
+        monkeypatch.setattr(kernel.numba, "get_num_threads", lambda: n)
+        return simulate_windows(leak_model, theta, inputs, rig, starts, 61,
+                                np.full(5, 2e5), SolverConfig.standard())
+
+    np.testing.assert_array_equal(run(threads), run(1))
+
+
 def test_read_only_inputs_reuse_the_one_compiled_kernel(rig, base_params, leak_model,
                                                          make_inputs):
     """A recording's arrays are read-only; numba would compile a new copy of the kernel
@@ -933,7 +953,7 @@ def test_read_only_inputs_reuse_the_one_compiled_kernel(rig, base_params, leak_m
     for a in (inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa):
         a.flags.writeable = False
     def signatures():
-        return set(kernel._simulate_serial.signatures) | set(kernel._simulate_parallel.signatures)
+        return set(kernel._simulate_tasks.signatures)
 
     before = signatures()
     ro = simulate(leak_model, base_params, inputs, rig, P_ATM, SolverConfig.standard())

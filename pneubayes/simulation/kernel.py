@@ -41,11 +41,13 @@ compiled code of the simulator.
 
 from __future__ import annotations
 
+import itertools
 import math
+import threading
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from pneubayes.effects.path import (
     LINE_MAX_SEGMENTS,
@@ -844,23 +846,55 @@ def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, le
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _simulate_serial(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0,
-                     out, sens, status, general, per_task):
-    """Every (parameter set, window) pair on the calling thread (the GIL released: calls
-    from several Python threads run at once,
-    :meth:`pneubayes.inference.windows.WindowSet.simulate`)."""
-    for task in range(slots.shape[0] * (starts.shape[0] // per_task)):
+def _simulate_tasks(first, last, slots, consts, solver, t, u, ue, x, ps, pm, starts, length,
+                    p0, rate0, out, sens, status, general, per_task):
+    """Tasks ``first..last - 1`` (a task: one parameter set's windows, :func:`_task`) on
+    the calling thread, the GIL released, so several threads run disjoint ranges at once
+    (:func:`_run_tasks`)."""
+    for task in range(first, last):
         _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
               rate0, out, sens, status, general)
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def _simulate_parallel(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
-                       rate0, out, sens, status, general, per_task):
-    """Every (parameter set, window) pair, tasks spread over numba's threads."""
-    for task in prange(slots.shape[0] * (starts.shape[0] // per_task)):
-        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
-              rate0, out, sens, status, general)
+#: Chunks per thread :func:`_run_tasks` cuts the tasks into: the threads take chunks as
+#: they finish, so a thread slowed by another process on its core takes fewer.
+CHUNKS_PER_THREAD = 4
+
+
+def _run_tasks(n_tasks: int, threads: int, args: tuple) -> None:
+    """Run tasks ``0..n_tasks - 1`` of :func:`_simulate_tasks` (``args``: its arguments
+    after the range) on ``threads`` threads, the calling one among them.
+
+    The tasks are cut into about ``CHUNKS_PER_THREAD`` chunks per thread, handed out in
+    order as threads come free (a dynamic schedule: on a shared machine a thread whose
+    core is busy does less, instead of the batch waiting for its fixed share). Python
+    threads around the one compiled loop, not a numba ``prange`` loop: that would be a
+    second compiled copy of the whole kernel, which a cold start compiles too."""
+    threads = max(1, min(threads, n_tasks))
+    if threads == 1:
+        _simulate_tasks(0, n_tasks, *args)
+        return
+    size = -(-n_tasks // (threads * CHUNKS_PER_THREAD))
+    edges = list(range(0, n_tasks, size)) + [n_tasks]
+    taken = itertools.count()  # next() on a count is atomic under the GIL
+
+    errors = []
+
+    def work():
+        try:
+            while (i := next(taken)) < len(edges) - 1:
+                _simulate_tasks(edges[i], edges[i + 1], *args)
+        except BaseException as e:  # raised again on the calling thread below
+            errors.append(e)
+
+    helpers = [threading.Thread(target=work) for _ in range(threads - 1)]
+    for h in helpers:
+        h.start()
+    work()
+    for h in helpers:
+        h.join()
+    if errors:
+        raise errors[0]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -929,9 +963,9 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
               with_sensitivity, general):
     """Every (parameter set, window) pair; see :func:`simulate_windows`.
 
-    Compiled variants are chosen here and built on first use: the pressure-only kernel
-    unless a parameter set has a second state, and the multi-threaded loop only when
-    numba has more than one thread and there is more than one task.
+    The compiled variant is chosen here and built on first use: the pressure-only kernel
+    unless a parameter set has a second state. The tasks run on numba's thread count
+    (``numba.set_num_threads``) of Python threads (:func:`_run_tasks`).
     """
     nb, nw = slots.shape[0], starts.shape[0]
     out = np.empty((nb, nw, length))
@@ -943,15 +977,13 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
     # state run in order in one task per parameter set, carrying it; else a task each
     chained = nw > 1 and bool(np.all(np.diff(starts) == length - 1))
     per_task = nw if chained and hidden else 1
-    run = _simulate_serial
-    if nb * nw > 1 and numba.get_num_threads() > 1:
-        run = _simulate_parallel
     if rate0 is None:
         rate0 = np.full((nb, nw), np.nan)
     if pm is None:
         pm = np.full(t.shape, np.nan)
-    run(slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0, out, sens,
-        status, True if hidden else None, per_task)
+    _run_tasks(nb * (nw // per_task), numba.get_num_threads(),
+               (slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0, out,
+                sens, status, True if hidden else None, per_task))
     return out, sens, status
 
 

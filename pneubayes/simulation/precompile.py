@@ -8,16 +8,12 @@ variants in separate processes at once, moves that wait out of the first fit and
 several later processes (test workers, ablation workers) load the same cache instead of
 each compiling its own copy.
 
-The kernel has four compiled variants, one per combination of
-
-- the state it steps: the chamber's pressure alone, or the *general* kernel with a
-  second state (heat transfer, an acoustic or wave line, a supply tank, a second
-  compartment) or an open-form closure
-  (:func:`pneubayes.simulation.kernel.needs_general`);
-- the loop: on the calling thread, or spread over numba's threads (more than one
-  parameter set or window, and more than one thread);
-
-and per state the carried chain (:func:`pneubayes.simulation.simulate_carried`, the
+The kernel has two compiled variants, one per state it steps: the chamber's pressure
+alone, or the *general* kernel with a second state (heat transfer, an acoustic or wave
+line, a supply tank, a second compartment) or an open-form closure
+(:func:`pneubayes.simulation.kernel.needs_general`); the same compiled loop runs on one
+thread or on several (:func:`pneubayes.simulation.kernel._run_tasks`). Per state there
+is also the carried chain (:func:`pneubayes.simulation.simulate_carried`, the
 online tracker's carried mode; on the calling thread). The virtual test bench's plant
 (:mod:`pneubayes.bench.plant`, ``pneubayes bench``) is compiled too, as a third entry.
 
@@ -43,8 +39,8 @@ _LONGEST_FIRST = ("general", "pressure", "bench")
 
 def compile_variant(state: str) -> float:
     """Compile (or load from the cache) the kernel stepping ``state`` (one of
-    :data:`STATES`), on one thread and on numba's threads, or (``"bench"``) the bench's
-    plant; returns the seconds it took."""
+    :data:`STATES`) and its carried chain, or (``"bench"``) the bench's plant; returns
+    the seconds it took."""
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
     from pneubayes.rig import Rig
@@ -74,8 +70,7 @@ def compile_variant(state: str) -> float:
         return time.perf_counter() - start
     model = Model(["heat_transfer"] if state == "general" else [])
     row = [values[name] for name in model.parameter_names]
-    for sets in (1, 2):  # one set: the serial loop; two: the threaded one
-        simulate(model, np.array([row] * sets), inputs, rig, 2e5, SolverConfig.standard())
+    simulate(model, np.array([row]), inputs, rig, 2e5, SolverConfig.standard())
     simulate_carried(model, np.array([row]), inputs, rig, [0, 10, 20], 2e5, fresh_carry(1, rig),
                      np.full(t.shape, 2e5), 1.0, SolverConfig.standard())
     return time.perf_counter() - start
