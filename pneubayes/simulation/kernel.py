@@ -41,9 +41,7 @@ compiled code of the simulator.
 
 from __future__ import annotations
 
-import itertools
 import math
-import threading
 
 import numba
 import numpy as np
@@ -134,6 +132,7 @@ from pneubayes.simulation.spool import (
     spool_step,
 )
 from pneubayes.simulation.tank import tank_step
+from pneubayes.simulation.task_threads import run_chunks
 from pneubayes.simulation.thermal import thermal_step
 from pneubayes.simulation.volume_play import play_accept, play_on, play_start
 from pneubayes.simulation.wave import (
@@ -863,38 +862,19 @@ CHUNKS_PER_THREAD = 4
 
 def _run_tasks(n_tasks: int, threads: int, args: tuple) -> None:
     """Run tasks ``0..n_tasks - 1`` of :func:`_simulate_tasks` (``args``: its arguments
-    after the range) on ``threads`` threads, the calling one among them.
-
-    The tasks are cut into about ``CHUNKS_PER_THREAD`` chunks per thread, handed out in
-    order as threads come free (a dynamic schedule: on a shared machine a thread whose
-    core is busy does less, instead of the batch waiting for its fixed share). Python
-    threads around the one compiled loop, not a numba ``prange`` loop: that would be a
-    second compiled copy of the whole kernel, which a cold start compiles too."""
+    after the range) on ``threads`` threads, the calling one among them, in about
+    ``CHUNKS_PER_THREAD`` chunks per thread taken as threads come free
+    (:func:`pneubayes.simulation.task_threads.run_chunks`). Python threads around the one
+    compiled loop, not a numba ``prange`` loop: that would be a second compiled copy of
+    the whole kernel, which a cold start compiles too."""
     threads = max(1, min(threads, n_tasks))
     if threads == 1:
         _simulate_tasks(0, n_tasks, *args)
         return
     size = -(-n_tasks // (threads * CHUNKS_PER_THREAD))
-    edges = list(range(0, n_tasks, size)) + [n_tasks]
-    taken = itertools.count()  # next() on a count is atomic under the GIL
-
-    errors = []
-
-    def work():
-        try:
-            while (i := next(taken)) < len(edges) - 1:
-                _simulate_tasks(edges[i], edges[i + 1], *args)
-        except BaseException as e:  # raised again on the calling thread below
-            errors.append(e)
-
-    helpers = [threading.Thread(target=work) for _ in range(threads - 1)]
-    for h in helpers:
-        h.start()
-    work()
-    for h in helpers:
-        h.join()
-    if errors:
-        raise errors[0]
+    n_chunks = -(-n_tasks // size)
+    run_chunks(lambda i: _simulate_tasks(i * size, min(n_tasks, (i + 1) * size), *args),
+               n_chunks, threads)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
