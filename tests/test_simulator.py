@@ -969,6 +969,33 @@ def test_read_only_inputs_reuse_the_one_compiled_kernel(rig, base_params, leak_m
     assert all(not arg.readonly for sig in new for arg in sig if hasattr(arg, "readonly"))
 
 
+def test_the_carried_chain_has_one_signature_for_scalar_array_and_read_only_starts(
+        rig, base_params, leak_model, make_inputs):
+    """A scalar start for one set broadcasts to a read-only view, an array start may be a
+    recording's read-only column; each would be another compiled copy of the carried
+    chain (seconds each) unless the simulator hands the kernel writeable copies."""
+    from pneubayes.simulation import fresh_carry, simulate_carried
+
+    t = np.arange(101) * 1e-3
+    inputs = make_inputs(t, np.where(t < 0.05, 3.0, -3.0))
+    measured = np.full(t.shape, 2e5)
+    measured.flags.writeable = False
+    before = set(kernel._chain_carried.signatures)
+    runs = []
+    for nb, p_start in ((1, 2e5), (2, 2e5), (2, np.array([2e5, 2e5])), (1, np.array([2e5]))):
+        if isinstance(p_start, np.ndarray):
+            p_start.flags.writeable = False
+        theta = np.repeat(leak_model.vector(base_params)[None, :], nb, axis=0)
+        out, _ = simulate_carried(leak_model, theta, inputs, rig, [0, 50, 100], p_start,
+                                  fresh_carry(nb, rig), measured, 0.0,
+                                  SolverConfig.standard())
+        runs.append(out[0])
+    new = set(kernel._chain_carried.signatures) - before
+    assert len(new) <= 1, new
+    for other in runs[1:]:
+        np.testing.assert_array_equal(other, runs[0])
+
+
 def test_numba_cache_is_cleared_when_any_compiled_source_changes(tmp_path):
     """numba checks only a cached function's own file; an edit to a file it calls must
     clear the cache too (pneubayes.compile_cache)."""

@@ -828,31 +828,26 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         (v0, bore, gain, adv, p_nom, c_tank), (walled, (w_c, w_w, w_z), (w_x, w_v), w_hmax))
 
 
-@njit(cache=True, error_model="numpy")
-def _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
-          rate0, out, sens, status, general):
-    """One task: parameter set ``task // (W / per_task)``, its windows from
-    ``(task % (W / per_task)) * per_task`` on, carrying the unmeasured states."""
-    tasks_per_set = starts.shape[0] // per_task
-    b = task // tasks_per_set
-    w0 = (task % tasks_per_set) * per_task
-    carry = _fresh_carry(consts)
-    for w in range(w0, w0 + per_task):
-        status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, pm, starts[w], length,
-                               p0[w], rate0[b, w], out[b, w], sens[b, w], carry, general)
-        if status[b, w] != OK:
-            carry = _fresh_carry(consts)
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _simulate_tasks(first, last, slots, consts, solver, t, u, ue, x, ps, pm, starts, length,
                     p0, rate0, out, sens, status, general, per_task):
-    """Tasks ``first..last - 1`` (a task: one parameter set's windows, :func:`_task`) on
-    the calling thread, the GIL released, so several threads run disjoint ranges at once
-    (:func:`_run_tasks`)."""
+    """Tasks ``first..last - 1`` on the calling thread, the GIL released, so several
+    threads run disjoint ranges at once (:func:`_run_tasks`). Task ``k`` is parameter set
+    ``k // (W / per_task)``, its windows from ``(k % (W / per_task)) * per_task`` on,
+    carrying the unmeasured states from window to window. (One compiled function, not a
+    loop around a per-task one: each level of calls around the window costs the cold
+    compile seconds.)"""
+    tasks_per_set = starts.shape[0] // per_task
     for task in range(first, last):
-        _task(task, per_task, slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0,
-              rate0, out, sens, status, general)
+        b = task // tasks_per_set
+        w0 = (task % tasks_per_set) * per_task
+        carry = _fresh_carry(consts)
+        for w in range(w0, w0 + per_task):
+            status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, pm, starts[w],
+                                   length, p0[w], rate0[b, w], out[b, w], sens[b, w], carry,
+                                   general)
+            if status[b, w] != OK:
+                carry = _fresh_carry(consts)
 
 
 #: Chunks per thread :func:`_run_tasks` cuts the tasks into: the threads take chunks as

@@ -472,9 +472,9 @@ def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
     t, u, ue, x, ps, pm, offset = inputs.kernel_arrays()
     if offset:
         measured = np.concatenate(([np.nan], measured))
-    slots, consts, sv, kb, measured = kernel_ready_arrays(
+    slots, consts, sv, kb, measured, p0 = kernel_ready_arrays(
         slots, rig_constants(rig), solver.as_array(), bounds + offset,
-        np.ascontiguousarray(measured))
+        np.ascontiguousarray(measured), p0)
     general = bool(forms[:, _GENERAL_COLUMNS].any()) if forms.any() else None
     if not sticks(slots).any():
         out, p_end, _status = kernel.simulate_carried(
