@@ -124,6 +124,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     from pneubayes.discovery.settings import RoundSettings
     from pneubayes.discovery.stages.base import Stage
 
+    # (few bags: the round's search is run, not read)
     paths, _ = _bench(tmp_path / "bench", [], seed=31)
     recs = [read_recording(p) for p in paths]
     late = {"by_s": 0.0}
@@ -150,7 +151,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     class _Never(_Spend):
         name = "never"
 
-    settings = _settings(rounds={"max_seconds": 3600.0})
+    settings = _settings(rounds={"max_seconds": 3600.0}, search={"n_bags": 4})
     # (one run folder: the second loop takes the base fit from the first's steps)
     d = Discovery(settings, tmp_path / "run", log=lambda m: None,
                   stages=[_Spend(), _Never()]).fit(recs)
@@ -165,7 +166,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
 
     late["by_s"] = 0.0
     ran.clear()
-    tiny = _settings(rounds={"max_seconds": 1e-9})
+    tiny = _settings(rounds={"max_seconds": 1e-9}, search={"n_bags": 4})
     doc = Discovery(tiny, tmp_path / "run", log=lambda m: None,
                     stages=[_Spend()]).fit(recs).result_.to_dict()
     assert ran == [] and doc["effects"] == [] and doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
