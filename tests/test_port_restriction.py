@@ -163,6 +163,42 @@ def test_the_chamber_rate_and_its_jacobian_with_a_restriction(rig, hot, crack):
                                            abs=1e-9 * abs(out[0]))
 
 
+@pytest.mark.parametrize("crack", [0.0, 2e4])
+def test_the_rates_along_a_path_are_the_simulator_s(rig, valve_params, crack):
+    """rate_terms (the rates along a measured pressure: the least-squares fit on dp/dt,
+    the open-form search's residual) passes the ports' flows at the node as the
+    simulator's chamber_rhs does, where the restriction changes the rate several-fold
+    (it once read them at the chamber: the restriction in the model was then part of
+    the residual the search saw)."""
+    from pneubayes.simulation.rates import port_areas, rate_terms
+
+    model = Model([PortRestriction(), "cylinder_leak"])
+    params = dict(valve_params, port_restriction_fill=2e6, port_restriction_vent=5e6,
+                  port_restriction_crack=crack, **model.effect("cylinder_leak")
+                  .bench_defaults())
+    sl = model.lower(model.as_matrix(params), rig)[0]
+    plain = Model(["cylinder_leak"])
+    sl_plain = plain.lower(plain.as_matrix({k: v for k, v in params.items()
+                                            if not k.startswith("port_")}), rig)[0]
+    p = np.array([1.3e5, 2e5, 3e5, 4.5e5, 5.3e5])
+    for spool in (3.0, 0.4, -0.5, -3.0):
+        got = rate_terms(sl, rig, p, np.full(p.size, spool), np.full(p.size, 0.02),
+                         np.full(p.size, 0.01), np.full(p.size, P_SUP))
+        total = got.inlet + got.exhaust + got.leak + got.volume + got.closure
+        a_in, a_ex = port_areas(sl, np.array([spool]), None)
+        vol = 2.4e-6 + rig.bore_area_m2 * 0.02
+        for i, pi in enumerate(p):
+            want = chamber_rhs(pi, rig.gas.temperature_K, a_in[0], a_ex[0], vol,
+                               rig.bore_area_m2 * 0.01, P_SUP, sl, _cs(rig), 1e-5, False,
+                               0.0, 0.0, 0.0, spool, 0.0, 0.0, True)[0]
+            assert total[i] == pytest.approx(want, rel=1e-9, abs=1e-6), (spool, pi)
+        unrestricted = rate_terms(sl_plain, rig, p, np.full(p.size, spool),
+                                  np.full(p.size, 0.02), np.full(p.size, 0.01),
+                                  np.full(p.size, P_SUP))
+        if spool == 3.0:  # the fill, slowed by the restriction at every pressure
+            assert np.all(np.abs(got.inlet) < 0.8 * np.abs(unrestricted.inlet))
+
+
 @pytest.mark.parametrize("k_fill, k_vent", [(2e6, 5e6), (0.0, 3e6), (3e6, 0.0)])
 def test_the_simulator_agrees_with_the_reference(rig, steps, valve_params, k_fill, k_vent):
     """The compiled simulator beside a restriction vs scipy Radau (rtol 1e-10, the node by
@@ -188,6 +224,27 @@ def test_beside_a_leak_and_heat_it_agrees_with_the_reference(rig, steps, valve_p
     got = simulate(model, params, steps, rig, 2e5, _tight()).pressure_Pa[0]
     ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
     assert np.max(np.abs(got - ref)) < 1.0
+
+
+def test_a_flow_lag_low_passes_the_flow_through_the_node(rig, steps, valve_params):
+    """An open-form flow lag (``net_flow_lag``) low-passes the ports' net flow; beside a
+    restriction the ports pass it at the node, and so does the lag (it once read the
+    ports at the chamber's pressure)."""
+    from pneubayes.effects import make_effect
+
+    model = Model([PortRestriction(), make_effect("closure", terms="net_flow_lag")])
+    params = dict(valve_params, port_restriction_fill=2e6, port_restriction_vent=5e6,
+                  port_restriction_crack=0.0, closure_coefficient_0=0.5,
+                  closure_threshold_0_a=0.02)
+    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-11)
+    errs = [float(np.max(np.abs(simulate(model, params, steps, rig, 2e5, _tight(r))
+                                .pressure_Pa[0] - ref))) for r in (1e-4, 1e-8, 1e-10)]
+    assert errs[0] > errs[1] > errs[2], errs
+    assert errs[-1] < 5.0, errs  # (measured 2.8 Pa; 145 kPa when read at the chamber)
+    alone = simulate(Model([PortRestriction()]), {
+        k: v for k, v in params.items() if not k.startswith("closure")}, steps, rig, 2e5,
+        _tight()).pressure_Pa[0]
+    assert np.max(np.abs(ref - alone)) > 1e4  # the lag's own share is large
 
 
 def test_a_piston_pushing_the_chamber_above_the_supply_agrees_with_the_reference(

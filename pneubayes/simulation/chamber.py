@@ -132,13 +132,19 @@ def wall_exchange(kappa, hconv, bore_a, vol):
 
 
 @njit(cache=True, error_model="numpy")
-def net_port_flow(p, a_in, a_ex, p_sup, cs):
-    """The ports' net mass flow into the chamber ``a_in f(p_s, p) - a_ex f(p, P_atm)``
+def net_port_flow(p, a_in, a_ex, p_sup, cs, sl):
+    """The ports' net mass flow into the chamber ``a_in f(p_s, x) - a_ex f(x, P_atm)``
     (kg/s; eqs. 1-3, before the attenuation and the convective form's temperature
-    scaling), as a closure's flow features read it."""
+    scaling), as a closure's flow features read it: ``x`` the pressure the ports see, a
+    restriction's node in series (slots ``sl``) or the chamber's ``p``. (An acoustic or
+    wave line's first cell is not read here: beside a line the features read the ports
+    at the chamber.)"""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
-    return (a_in * flow_terms(p_sup, p, alpha, beta, theta, kappa)[0]
-            - a_ex * flow_terms(p, cs[C_P_ATM], alpha, beta, theta, kappa)[0])
+    x = p
+    if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
+        x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
+    return (a_in * flow_terms(p_sup, x, alpha, beta, theta, kappa)[0]
+            - a_ex * flow_terms(x, cs[C_P_ATM], alpha, beta, theta, kappa)[0])
 
 
 @njit(cache=True, error_model="numpy")

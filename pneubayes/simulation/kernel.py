@@ -482,7 +482,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                 vol, vol2, vd = wall_chord(walled, w_state, p, w_rate, hh, vol, vol2, vdot,
                                            p_atm, w_consts)
                 if general is not None and cl_relax:
-                    rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs)
+                    rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs, sl)
                     relaxations_mid(sl, rx_n, rx_idx, rx_kind, rx_tau, rx_val, p, rx_rate,
                                     rx_q0, rx_qrate, s_at, ds_at, hh)
                 err = 10.0
@@ -556,7 +556,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     if general is not None and cl_relax:
                         rx_rate, rx_qrate = relaxations_accept(
                             rx_n, rx_kind, rx_tau, rx_val, p_prev, p, rx_q0,
-                            net_port_flow(p, a_in2, a_ex2, psup2, cs), s_at, s_at2,
+                            net_port_flow(p, a_in2, a_ex2, psup2, cs, sl), s_at, s_at2,
                             tau - t_prev)
                     # dp/dp0: through the line's propagator, the chamber and the arriving
                     # wave, the (p, second state) propagator, or the pressure step's e^{hJ}

@@ -30,6 +30,8 @@ from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
+from pneubayes.simulation.layout import rig_constants
+from pneubayes.simulation.restriction import node_pressures
 
 _PORT = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
 
@@ -213,7 +215,10 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     :class:`~pneubayes.effects.closure_histories.HeldCommand`); without one, ``time_s``
     holds ``spool_V`` between the points as the command.
     ``include_closure=False`` leaves a closure's term at zero (for callers that read
-    only the ports' terms). A supply tank
+    only the ports' terms). Beside a restriction at the port (``port_restriction``) the
+    ports pass their flows at its node's pressure
+    (:func:`pneubayes.simulation.restriction.node_pressures`); the leak and the closure's
+    flows read as the simulator reads them. A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
     does a second compartment's pressure (slot ``lung_volume_m3``): its flow is left out
     here (the simulator carries it).
@@ -235,7 +240,13 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     vol = vol + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol  # a compliant chamber
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
-    f_in, f_ex = flow_function(p_sup, p, g), flow_function(p, p_atm, g)
+    x = p  # the pressure the valve's ports see: a restriction's node in series, or p
+    k_fill, k_vent = sl[S["restriction_fill_inverse_area_per_m2"]], \
+        sl[S["restriction_vent_inverse_area_per_m2"]]
+    if k_fill > 0.0 or k_vent > 0.0:
+        x = node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent,
+                           sl[S["restriction_crack_Pa"]], rig_constants(rig))
+    f_in, f_ex = flow_function(p_sup, x, g), flow_function(x, p_atm, g)
     q_in, q_ex = a_in * f_in, a_ex * f_ex
     inlet = scale * atten * q_in
     exhaust = -scale * atten * q_ex
@@ -279,4 +290,4 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
         closure = scale * closure_mass_flow(sl, signals)
     crit = (2.0 / (kappa + 1.0)) ** (kappa / (kappa - 1.0))
     return RateTerms(inlet, exhaust, leak, volume, closure,
-                     inlet_choked=p < crit * p_sup, exhaust_choked=p_atm < crit * p)
+                     inlet_choked=x < crit * p_sup, exhaust_choked=p_atm < crit * x)

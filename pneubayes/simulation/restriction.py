@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from pneubayes.physics.orifice import flow_slopes, flow_terms
@@ -149,6 +150,25 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, cs):
         if abs(step) <= tol or hi - lo <= tol:
             break
     return p + sign * s * s
+
+
+@njit(cache=True, error_model="numpy")
+def _node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, cs, out):
+    for i in range(p.shape[0]):
+        out[i] = node_pressure(p[i], p_sup[i], a_in[i], a_ex[i], k_fill, k_vent, crack, cs)
+
+
+def node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, cs):
+    """:func:`node_pressure` elementwise over broadcast arrays (Pa; the inputs as there):
+    the pressure the valve's ports see along a path of states, for the rates along a
+    measured pressure (:func:`pneubayes.simulation.rates.rate_terms`)."""
+    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64)
+                                   for a in (p, p_sup, a_in, a_ex)))
+    flat = [np.ascontiguousarray(a.ravel()) for a in arrays]
+    out = np.empty(flat[0].shape[0])
+    _node_pressures(*flat, float(k_fill), float(k_vent), float(crack),
+                    np.ascontiguousarray(cs, dtype=np.float64), out)
+    return out.reshape(arrays[0].shape)
 
 
 @njit(cache=True, error_model="numpy")

@@ -23,6 +23,7 @@ from pneubayes.rig import Rig
 from pneubayes.simulation import kernel
 from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.drive import Inputs, kernel_ready_arrays
+from pneubayes.simulation.layout import rig_constants
 from pneubayes.simulation.measurement import sensor_reading
 from pneubayes.simulation.reading_closure import read_windows, start_state
 from pneubayes.simulation.reading_command import command_offsets
@@ -44,22 +45,6 @@ class Trajectory:
     solver: SolverConfig
     parameter_names: tuple[str, ...]
     parameters: np.ndarray
-
-
-def rig_constants(rig: Rig) -> np.ndarray:
-    """Rig and gas constants in the kernel's layout."""
-    g = rig.gas
-    c = np.empty(kernel.N_CONSTS)
-    c[kernel.C_BORE_AREA] = rig.bore_area_m2
-    c[kernel.C_P_ATM] = rig.atmospheric_pressure_Pa
-    c[kernel.C_P_NOM] = rig.supply_pressure_Pa
-    c[kernel.C_T_SUPPLY] = g.temperature_K
-    c[kernel.C_ALPHA] = g.alpha_s_per_m
-    c[kernel.C_BETA] = g.beta_s_per_m
-    c[kernel.C_THETA] = g.theta
-    c[kernel.C_KAPPA] = g.heat_capacity_ratio
-    c[kernel.C_RS] = g.specific_gas_constant_J_per_kg_K
-    return c
 
 
 def _check_solver(solver) -> SolverConfig:
