@@ -13,8 +13,9 @@ eq. 11 and a switching valve's opening: :func:`~pneubayes.simulation.rates.port_
 (:func:`~pneubayes.simulation.spool_path.spool_at`), ``p_s = P_nom + g (p_meas - P_nom)``
 the supply the valve sees (``g`` the model's supply gain), all at the sample instants
 along each parameter set's own predicted pressure. They are the valve's port flows, so
-a tube's pressure drop, a heat-transfer model's temperature scaling and a closure's
-extra flow are not in them; beside a sensor lag or a declared filter they are evaluated
+a tube's pressure drop, a restriction's node at the port (the flows here are at the
+chamber's pressure), a heat-transfer model's temperature scaling and a closure's extra
+flow are not in them; beside a sensor lag or a declared filter they are evaluated
 along the lagged (filtered) pressure the kernel returns, and the terms are not lagged.
 
 The chamber starts at the pressure that reads the window's first reading: ``p0 = r0 -
