@@ -197,6 +197,15 @@ def test_the_rates_along_a_path_are_the_simulator_s(rig, valve_params, crack):
                                   np.full(p.size, P_SUP))
         if spool == 3.0:  # the fill, slowed by the restriction at every pressure
             assert np.all(np.abs(got.inlet) < 0.8 * np.abs(unrestricted.inlet))
+        # a batch's slot rows broadcast against the states (as the sensor point's
+        # corners pass them), one row restricted and one not: each row's own rates
+        both = np.stack([sl, sl.copy()])
+        both[1, SLOT_INDEX["restriction_fill_inverse_area_per_m2"]] = 0.0
+        both[1, SLOT_INDEX["restriction_vent_inverse_area_per_m2"]] = 0.0
+        rows = rate_terms(both.T[:, :, None], rig, p[None, :], spool, 0.02, 0.01, P_SUP)
+        np.testing.assert_allclose(rows.inlet[0], got.inlet, rtol=1e-12)
+        unr = rate_terms(both[1], rig, p, spool, 0.02, 0.01, P_SUP)
+        np.testing.assert_allclose(rows.inlet[1], unr.inlet, rtol=1e-12)
 
 
 @pytest.mark.parametrize("k_fill, k_vent", [(2e6, 5e6), (0.0, 3e6), (3e6, 0.0)])

@@ -243,7 +243,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     x = p  # the pressure the valve's ports see: a restriction's node in series, or p
     k_fill, k_vent = sl[S["restriction_fill_inverse_area_per_m2"]], \
         sl[S["restriction_vent_inverse_area_per_m2"]]
-    if k_fill > 0.0 or k_vent > 0.0:
+    if np.any(k_fill > 0.0) or np.any(k_vent > 0.0):
         x = node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent,
                            sl[S["restriction_crack_Pa"]], rig_constants(rig))
     f_in, f_ex = flow_function(p_sup, x, g), flow_function(x, p_atm, g)

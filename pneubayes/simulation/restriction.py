@@ -155,19 +155,20 @@ def node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, cs):
 @njit(cache=True, error_model="numpy")
 def _node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, cs, out):
     for i in range(p.shape[0]):
-        out[i] = node_pressure(p[i], p_sup[i], a_in[i], a_ex[i], k_fill, k_vent, crack, cs)
+        out[i] = node_pressure(p[i], p_sup[i], a_in[i], a_ex[i], k_fill[i], k_vent[i],
+                               crack[i], cs)
 
 
 def node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, cs):
-    """:func:`node_pressure` elementwise over broadcast arrays (Pa; the inputs as there):
-    the pressure the valve's ports see along a path of states, for the rates along a
-    measured pressure (:func:`pneubayes.simulation.rates.rate_terms`)."""
-    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64)
-                                   for a in (p, p_sup, a_in, a_ex)))
+    """:func:`node_pressure` elementwise over broadcast arrays (Pa; the inputs as there,
+    the restriction's too: one per parameter set of a batch): the pressure the valve's
+    ports see along a path of states, for the rates along a measured pressure
+    (:func:`pneubayes.simulation.rates.rate_terms`)."""
+    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (
+        p, p_sup, a_in, a_ex, k_fill, k_vent, crack)))
     flat = [np.ascontiguousarray(a.ravel()) for a in arrays]
     out = np.empty(flat[0].shape[0])
-    _node_pressures(*flat, float(k_fill), float(k_vent), float(crack),
-                    np.ascontiguousarray(cs, dtype=np.float64), out)
+    _node_pressures(*flat, np.ascontiguousarray(cs, dtype=np.float64), out)
     return out.reshape(arrays[0].shape)
 
 

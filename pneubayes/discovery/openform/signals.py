@@ -117,7 +117,7 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     ports = p  # the ports' pressure: a restriction's node in series (as the simulator)
     k_fill = sl[S["restriction_fill_inverse_area_per_m2"]]
     k_vent = sl[S["restriction_vent_inverse_area_per_m2"]]
-    if k_fill > 0.0 or k_vent > 0.0:
+    if np.any(k_fill > 0.0) or np.any(k_vent > 0.0):
         ports = node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent,
                                sl[S["restriction_crack_Pa"]], rig_constants(rig))
     f_in, f_ex = flow_function(p_sup, ports, g), flow_function(ports, p_atm, g)
