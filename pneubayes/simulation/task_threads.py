@@ -71,6 +71,17 @@ _helpers: _Helpers | None = None
 _helpers_lock = threading.Lock()
 
 
+def _forget_in_child() -> None:
+    """In a forked child: the parent's helpers are not there, and a lock another thread
+    held at the fork would never be released."""
+    global _helpers, _helpers_lock
+    _helpers, _helpers_lock = None, threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_in_child)
+
+
 def _process_helpers() -> _Helpers:
     global _helpers
     with _helpers_lock:
