@@ -853,16 +853,23 @@ def _simulate_tasks(first, last, slots, consts, solver, t, u, ue, x, ps, pm, sta
 #: Chunks per thread :func:`_run_tasks` cuts the tasks into: the threads take chunks as
 #: they finish, so a thread slowed by another process on its core takes fewer.
 CHUNKS_PER_THREAD = 4
+#: Samples (windows' lengths summed over the tasks) per thread below which a batch runs
+#: on fewer threads: handing a chunk to a thread costs about what simulating a few
+#: hundred samples does (``benchmarks/batch_threads.py``).
+MIN_SAMPLES_PER_THREAD = 500
 
 
-def _run_tasks(n_tasks: int, threads: int, args: tuple) -> None:
+def _run_tasks(n_tasks: int, samples_per_task: int, threads: int, args: tuple) -> None:
     """Run tasks ``0..n_tasks - 1`` of :func:`_simulate_tasks` (``args``: its arguments
-    after the range) on ``threads`` threads, the calling one among them, in about
+    after the range; ``samples_per_task``: a task's windows' lengths summed) on up to
+    ``threads`` threads (fewer for a short batch: :data:`MIN_SAMPLES_PER_THREAD`), the
+    calling one among them, in about
     ``CHUNKS_PER_THREAD`` chunks per thread taken as threads come free
     (:func:`pneubayes.simulation.task_threads.run_chunks`). Python threads around the one
     compiled loop, not a numba ``prange`` loop: that would be a second compiled copy of
     the whole kernel, which a cold start compiles too."""
-    threads = max(1, min(threads, n_tasks))
+    threads = max(1, min(threads, n_tasks,
+                         n_tasks * samples_per_task // MIN_SAMPLES_PER_THREAD))
     if threads == 1:
         _simulate_tasks(0, n_tasks, *args)
         return
@@ -956,7 +963,7 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
         rate0 = np.full((nb, nw), np.nan)
     if pm is None:
         pm = np.full(t.shape, np.nan)
-    _run_tasks(nb * (nw // per_task), numba.get_num_threads(),
+    _run_tasks(nb * (nw // per_task), per_task * length, numba.get_num_threads(),
                (slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0, out,
                 sens, status, True if hidden else None, per_task))
     return out, sens, status
