@@ -208,6 +208,36 @@ def test_the_rates_along_a_path_are_the_simulator_s(rig, valve_params, crack):
         np.testing.assert_allclose(rows.inlet[1], unr.inlet, rtol=1e-12)
 
 
+def test_the_search_s_path_signals_read_the_ports_at_the_node(rig, valve_params):
+    """The open-form search's port flows along a recording (path_signals), beside a
+    restriction in the model: each the valve's port at the node's pressure, the node
+    solved at the sample's chamber pressure, supply and areas; the net flow's history
+    (the flow lag's) the same flows."""
+    from pneubayes.discovery.one_step import one_step_data
+    from pneubayes.discovery.openform.signals import path_signals
+
+    model = Model([PortRestriction()])
+    params = dict(valve_params, port_restriction_fill=2e6, port_restriction_vent=5e6,
+                  port_restriction_crack=1e4)
+    (rec,) = valve1_recordings(model, params, "signals", 7, count=1, n=1501)
+    sig = path_signals(model, params, rec, one_step_data(rec, 5))
+    cs, g = _cs(rig), rig.gas
+    moved = 0
+    for i in range(0, rec.n_samples - 1, 37):
+        p, ps = sig["pressure_Pa"][i], sig["supply_pressure_Pa"][i]
+        a_in, a_ex = sig["inlet_area_m2"][i], sig["exhaust_area_m2"][i]
+        x = node_pressure(p, ps, a_in, a_ex, 2e6, 5e6, 1e4, cs)
+        assert sig["inlet_flow_kg_per_s"][i] == pytest.approx(
+            a_in * flow_function(ps, x, g), rel=1e-12, abs=1e-15)
+        assert sig["exhaust_flow_kg_per_s"][i] == pytest.approx(
+            a_ex * flow_function(x, P_ATM, g), rel=1e-12, abs=1e-15)
+        moved += abs(x - p) > 1e3
+    assert moved > 5  # (the node differs from the chamber at many of the samples)
+    net = sig["net_flow_history"]
+    np.testing.assert_allclose(net.values, sig["inlet_flow_kg_per_s"]
+                               - sig["exhaust_flow_kg_per_s"], rtol=1e-12)
+
+
 @pytest.mark.parametrize("k_fill, k_vent", [(2e6, 5e6), (0.0, 3e6), (3e6, 0.0)])
 def test_the_simulator_agrees_with_the_reference(rig, steps, valve_params, k_fill, k_vent):
     """The compiled simulator beside a restriction vs scipy Radau (rtol 1e-10, the node by
