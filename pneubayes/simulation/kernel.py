@@ -863,11 +863,10 @@ def _run_tasks(n_tasks: int, samples_per_task: int, threads: int, args: tuple) -
     """Run tasks ``0..n_tasks - 1`` of :func:`_simulate_tasks` (``args``: its arguments
     after the range; ``samples_per_task``: a task's windows' lengths summed) on up to
     ``threads`` threads (fewer for a short batch: :data:`MIN_SAMPLES_PER_THREAD`), the
-    calling one among them, in about
-    ``CHUNKS_PER_THREAD`` chunks per thread taken as threads come free
-    (:func:`pneubayes.simulation.task_threads.run_chunks`). Python threads around the one
-    compiled loop, not a numba ``prange`` loop: that would be a second compiled copy of
-    the whole kernel, which a cold start compiles too."""
+    calling one among them, in about ``CHUNKS_PER_THREAD`` chunks per thread taken as
+    threads come free (:func:`pneubayes.simulation.task_threads.run_chunks`). Python
+    threads around the one compiled loop, not a numba ``prange`` loop: that would be a
+    second compiled copy of the whole kernel, which a cold start compiles too."""
     threads = max(1, min(threads, n_tasks,
                          n_tasks * samples_per_task // MIN_SAMPLES_PER_THREAD))
     if threads == 1:

@@ -117,6 +117,20 @@ def closure_mass_flow(slots: np.ndarray, signals: dict) -> np.ndarray:
     return np.broadcast_to(combine_terms(terms), shape).copy() if terms else np.zeros(shape)
 
 
+def port_pressure(slots: np.ndarray, rig: Rig, pressure_Pa, supply_Pa, inlet_area_m2,
+                  exhaust_area_m2):
+    """The pressure (Pa) the valve's ports see at chamber pressures ``pressure_Pa``: a
+    port restriction's node in series where the slot row (or rows, broadcast as the
+    other arguments) has one (:func:`pneubayes.simulation.restriction.node_pressures`),
+    else the chamber's own."""
+    k_fill = slots[S["restriction_fill_inverse_area_per_m2"]]
+    k_vent = slots[S["restriction_vent_inverse_area_per_m2"]]
+    if not (np.any(k_fill > 0.0) or np.any(k_vent > 0.0)):
+        return pressure_Pa
+    return node_pressures(pressure_Pa, supply_Pa, inlet_area_m2, exhaust_area_m2, k_fill,
+                          k_vent, slots[S["restriction_crack_Pa"]], rig_constants(rig))
+
+
 def port_areas(slots: np.ndarray, spool_V, exhaust_command=None
                ) -> tuple[np.ndarray, np.ndarray]:
     """Inlet and exhaust areas (m^2) for one slot row at spool positions ``spool_V`` (in
@@ -240,12 +254,7 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     vol = vol + sl[S["compliance_m3_per_Pa"]] * (p - p_atm) + dvol  # a compliant chamber
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
-    x = p  # the pressure the valve's ports see: a restriction's node in series, or p
-    k_fill, k_vent = sl[S["restriction_fill_inverse_area_per_m2"]], \
-        sl[S["restriction_vent_inverse_area_per_m2"]]
-    if np.any(k_fill > 0.0) or np.any(k_vent > 0.0):
-        x = node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent,
-                           sl[S["restriction_crack_Pa"]], rig_constants(rig))
+    x = port_pressure(sl, rig, p, p_sup, a_in, a_ex)
     f_in, f_ex = flow_function(p_sup, x, g), flow_function(x, p_atm, g)
     q_in, q_ex = a_in * f_in, a_ex * f_ex
     inlet = scale * atten * q_in

@@ -49,7 +49,6 @@ class _Helpers:
     """Daemon threads taking jobs from one queue; grown to the most ever asked for."""
 
     def __init__(self):
-        self.pid = os.getpid()
         self.queue: queue.SimpleQueue = queue.SimpleQueue()
         self.threads: list[threading.Thread] = []
         self.lock = threading.Lock()
@@ -85,7 +84,7 @@ if hasattr(os, "register_at_fork"):
 def _process_helpers() -> _Helpers:
     global _helpers
     with _helpers_lock:
-        if _helpers is None or _helpers.pid != os.getpid():
+        if _helpers is None:
             _helpers = _Helpers()
         return _helpers
 

@@ -36,9 +36,12 @@ from pneubayes.effects.command_clock import command_delay_s
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs
-from pneubayes.simulation.layout import rig_constants
-from pneubayes.simulation.rates import port_areas, rate_terms, tabulated_volume
-from pneubayes.simulation.restriction import node_pressures
+from pneubayes.simulation.rates import (
+    port_areas,
+    port_pressure,
+    rate_terms,
+    tabulated_volume,
+)
 from pneubayes.simulation.spool_path import held_before, spool_at
 from pneubayes.simulation.stiction import valve_command_of
 
@@ -114,12 +117,7 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     direction = held_direction(mid, t, valve_u, delay, inputs.command_before_start)
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
-    ports = p  # the ports' pressure: a restriction's node in series (as the simulator)
-    k_fill = sl[S["restriction_fill_inverse_area_per_m2"]]
-    k_vent = sl[S["restriction_vent_inverse_area_per_m2"]]
-    if np.any(k_fill > 0.0) or np.any(k_vent > 0.0):
-        ports = node_pressures(p, p_sup, a_in, a_ex, k_fill, k_vent,
-                               sl[S["restriction_crack_Pa"]], rig_constants(rig))
+    ports = port_pressure(sl, rig, p, p_sup, a_in, a_ex)  # (a restriction's node)
     f_in, f_ex = flow_function(p_sup, ports, g), flow_function(ports, p_atm, g)
     inlet, exhaust = a_in * f_in, a_ex * f_ex
     dvol, slope = tabulated_volume(sl, p)
