@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import os
 import stat
+from contextlib import contextmanager
 from pathlib import Path
 
 from pneubayes.errors import PneubayesError
@@ -45,11 +46,17 @@ MAX_BENCH_SAMPLES = 2e8
 _max_file_mb: float | None = None
 
 
-def set_max_file_mb(mb: float | None) -> None:
-    """Override the input-file limit for this process (``--max-file-mb``); None: the
-    environment's ``PNEUBAYES_MAX_FILE_MB`` or the default."""
+@contextmanager
+def max_file_mb(mb: float | None):
+    """The input-file limit while the block runs (a command's ``--max-file-mb``), the
+    previous one restored after; None: the environment's ``PNEUBAYES_MAX_FILE_MB`` or
+    the default."""
     global _max_file_mb
-    _max_file_mb = mb
+    before, _max_file_mb = _max_file_mb, mb
+    try:
+        yield
+    finally:
+        _max_file_mb = before
 
 
 def max_file_bytes() -> float:

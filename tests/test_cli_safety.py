@@ -172,6 +172,13 @@ def test_only_regular_files_of_bounded_size_are_read(rec, tmp_path, capsys, monk
     assert "over the input limit of 0.001 MB" in capsys.readouterr().out
     monkeypatch.delenv("PNEUBAYES_MAX_FILE_MB")
     assert main(["check", str(rec)]) == 0
+    # a command's option lasts the command: the process's next reader has the default
+    from pneubayes.io import read_recording
+    from pneubayes.limits import MAX_FILE_MB, max_file_bytes
+
+    assert main(["check", str(rec), "--max-file-mb", "0.001"]) == 1
+    assert max_file_bytes() == MAX_FILE_MB * 1e6
+    read_recording(rec)
 
 
 @pytest.mark.parametrize("argv, says", [

@@ -91,13 +91,12 @@ def main(argv=None) -> int:
         return 2
     from pneubayes import limits
 
-    limits.set_max_file_mb(getattr(args, "max_file_mb", None))
-
     def fail(message: str, code: int = 2) -> int:
         print(f"pneubayes {args.command}: error: {message}", file=sys.stderr)
         return code
     try:
-        with interrupt.stop_on_signals():
+        with interrupt.stop_on_signals(), limits.max_file_mb(getattr(args, "max_file_mb",
+                                                                         None)):
             return args.func(args)
     except interrupt.Interrupted as exc:
         print(_stopped_message(args, exc), file=sys.stderr)
