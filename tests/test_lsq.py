@@ -235,3 +235,30 @@ def test_an_effect_defined_elsewhere_supplies_its_eq10_column_and_estimate(tmp_p
     _, leak_columns, _ = PaperLeastSquares(leak_model, SavitzkyGolay(0.005, 3),
                                            noise_std_Pa=1.0)._solve_holds(recs)
     assert leak_columns == {0: toy.seen.column}
+
+
+def test_the_bounded_solve_is_dense_bvls_on_a_design_taller_than_one_block():
+    """The design reduced block by block to its triangular factor: the same minimiser as
+    bounded-variable least squares on the whole dense design (some bounds active), on a
+    sparse design of two-column blocks and shared columns taller than one QR block."""
+    from scipy import optimize, sparse
+
+    from pneubayes.inference.lsq import _QR_BLOCK_ROWS, _nonnegative_least_squares
+
+    rng = np.random.default_rng(4)
+    n_rows, n_blocks = _QR_BLOCK_ROWS + 123, 20
+    rows = np.arange(n_rows)
+    block = rows * n_blocks // n_rows
+    a = sparse.csr_matrix((rng.normal(size=n_rows), (rows, 2 * block)),
+                          shape=(n_rows, 2 * n_blocks + 2))
+    a = a + sparse.csr_matrix((rng.normal(size=n_rows), (rows, 2 * block + 1)), shape=a.shape)
+    a = a + sparse.csr_matrix((rng.normal(size=(n_rows, 2)).ravel(),
+                               (np.repeat(rows, 2), np.tile([2 * n_blocks, 2 * n_blocks + 1],
+                                                            n_rows))), shape=a.shape)
+    truth = rng.normal(size=a.shape[1])  # about half of them negative: bounds active
+    y = a @ truth + 0.1 * rng.normal(size=n_rows)
+    got = _nonnegative_least_squares(a, y)
+    want = optimize.lsq_linear(a.toarray(), y, bounds=(0.0, np.inf), method="bvls",
+                               tol=1e-12).x
+    assert np.sum(want == 0.0) >= 10 and np.all(got >= 0.0)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9 * np.max(np.abs(want)))

@@ -33,6 +33,24 @@ from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.valve import gompertz_area, gompertz_partials
 
 _PORTS = ("inlet", "exhaust")
+#: Rows of the design densified at a time when it is reduced to its triangular factor.
+_QR_BLOCK_ROWS = 4096
+
+
+def _nonnegative_least_squares(A, y) -> np.ndarray:
+    """``argmin |A x - y|`` over ``x >= 0`` for a tall sparse ``A``: the design is reduced
+    block by block (Householder QR of the running factor stacked on the next rows) to a
+    square factor ``R`` and ``z`` with ``|A x - y|^2 = |R x - z|^2 + const``, and the
+    small problem is solved exactly by the Lawson-Hanson active set (``nnls``)."""
+    A = sparse.csr_matrix(A)
+    n = A.shape[1]
+    r = np.zeros((0, n + 1))
+    for start in range(0, A.shape[0], _QR_BLOCK_ROWS):
+        rows = slice(start, start + _QR_BLOCK_ROWS)
+        block = np.column_stack([A[rows].toarray(), y[rows]])
+        r = np.linalg.qr(np.vstack([r, block]), mode="r")[: n + 1]
+    r = np.vstack([r, np.zeros((max(n + 1 - r.shape[0], 0), n + 1))])
+    return optimize.nnls(r[:n, :n], r[:n, n])[0]
 _GOMPERTZ = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
 
 
@@ -233,9 +251,7 @@ class PaperLeastSquares:
         norms[norms == 0] = 1.0
         As = (A @ sparse.diags(1.0 / norms)).tocsc()
         if effect_cols:
-            sol = optimize.lsq_linear(As, y, bounds=(0.0, np.inf), method="trf",
-                                      lsmr_tol="auto", tol=1e-12, max_iter=5000)
-            x = sol.x / norms
+            x = _nonnegative_least_squares(As, y) / norms
         else:  # block diagonal: one 2-column NNLS per hold
             x = np.zeros(A.shape[1])
             row = 0
