@@ -94,16 +94,16 @@ def marginal_log_likelihood(mu, tau, log_mean, log_precision) -> np.ndarray:
     run's values integrated out: ``sum_j log N(m_j; mu, P_j^-1 + diag(tau^2))`` in the
     precision form (valid for a singular ``P_j``), up to a constant in ``P_j`` alone."""
     mu, tau = np.atleast_2d(mu), np.atleast_2d(tau)
+    m, p = np.asarray(log_mean), np.asarray(log_precision)
     tinv = np.einsum("wi,ik->wik", tau ** -2.0, np.eye(mu.shape[1]))
-    lp = np.zeros(mu.shape[0])
-    for m, p in zip(log_mean, log_precision):
-        a = p[None] + tinv                                      # (W, k, k)
-        pd = (m[None] - mu) @ p                                 # (W, k)
-        q = np.einsum("wk,wk->w", pd, m[None] - mu) - np.einsum(
-            "wk,wk->w", pd, np.linalg.solve(a, pd[..., None])[..., 0])
-        # log det(I + T P) = log det(A) + log det(T)
-        lp -= 0.5 * (q + np.linalg.slogdet(a)[1] + np.sum(np.log(tau ** 2), axis=1))
-    return lp
+    a = p[None] + tinv[:, None]                                 # (W, J, k, k)
+    d = m[None] - mu[:, None]                                   # (W, J, k)
+    pd = np.einsum("wjk,jkl->wjl", d, p)                        # (W, J, k)
+    q = np.einsum("wjk,wjk->wj", pd, d) - np.einsum(
+        "wjk,wjk->wj", pd, np.linalg.solve(a, pd[..., None])[..., 0])
+    # log det(I + T P) = log det(A) + log det(T)
+    return -0.5 * np.sum(q + np.linalg.slogdet(a)[1], axis=1) - 0.5 * m.shape[0] * np.sum(
+        np.log(tau ** 2), axis=1)
 
 
 class HierarchicalPopulation:
