@@ -158,13 +158,11 @@ def plot_corner(names, samples, path, max_points: int = 2000, title: str = "",
     labels = [f"{n}\n({'' if e == 0 else f'x 1e{e} '}{u})".replace("()", "")
               for n, e, u in zip(names, exps, units)]
     size = max(1.9 * d if d <= 6 else 1.25 * d + 4.0, 4.0)
-    fig, axes = plt.subplots(d, d, figsize=(size, size), squeeze=False)
+    fig = plt.figure(figsize=(size, size))
+    grid = fig.add_gridspec(d, d)
     for i in range(d):
-        for j in range(d):
-            ax = axes[i, j]
-            if j > i:
-                ax.axis("off")
-                continue
+        for j in range(i + 1):  # the lower triangle only: the upper one stays empty
+            ax = fig.add_subplot(grid[i, j])
             ax.xaxis.set_major_locator(MaxNLocator(3))
             ax.yaxis.set_major_locator(MaxNLocator(3))
             if i == j:
@@ -184,16 +182,17 @@ def plot_corner(names, samples, path, max_points: int = 2000, title: str = "",
             ax.yaxis.get_offset_text().set_fontsize(5)
             if i == d - 1:
                 ax.set_xlabel(labels[j], fontsize=6, rotation=20, ha="right")
+                ax.xaxis.set_label_coords(0.5, -0.45)  # aligned along the bottom row
                 ax.tick_params(axis="x", labelrotation=45)
             else:
                 ax.set_xticklabels([])
             if j == 0 and i > 0:
                 ax.set_ylabel(labels[i], fontsize=6, rotation=70, ha="right")
+                ax.yaxis.set_label_coords(-0.45, 0.5)  # aligned along the first column
             elif i != j:
                 ax.set_yticklabels([])
     if title:
         fig.suptitle(title, fontsize=8)
-    fig.align_labels()
     return _save(fig, path)
 
 
