@@ -120,12 +120,14 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     and the report say where the loop stopped; spent before round 1, the base model is
     the result. A budget that is not a finite number of seconds >= 0 is refused."""
     import pneubayes.discovery.loop as loop_module
+    from pneubayes.discovery.library import LibraryGrid
     from pneubayes.discovery.report import _report
     from pneubayes.discovery.settings import RoundSettings
     from pneubayes.discovery.stages.base import Stage
 
-    # (few bags: the round's search is run, not read)
-    paths, _ = _bench(tmp_path / "bench", [], seed=31)
+    # (few bags, one strength per candidate and shorter recordings: the round's search
+    # is run, not read)
+    paths, _ = _bench(tmp_path / "bench", [], seed=31, duration_s=8.0)
     recs = [read_recording(p) for p in paths]
     late = {"by_s": 0.0}
     real_clock = loop_module.time.perf_counter
@@ -151,7 +153,12 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     class _Never(_Spend):
         name = "never"
 
-    settings = _settings(rounds={"max_seconds": 3600.0}, search={"n_bags": 4})
+    one = {name: strengths[len(strengths) // 2:][:1]
+           for name, strengths in LibraryGrid().to_dict().items() if strengths}
+    quick = {"n_bags": 4, "grid": {"strengths": one}}
+    # (one held-out window per recording: the trials, stubbed, test nothing)
+    settings = _settings(rounds={"max_seconds": 3600.0}, search=quick,
+                         verify={"max_p_value": 0.02})
     # (one run folder: the second loop takes the base fit from the first's steps)
     d = Discovery(settings, tmp_path / "run", log=lambda m: None,
                   stages=[_Spend(), _Never()]).fit(recs)
@@ -166,7 +173,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
 
     late["by_s"] = 0.0
     ran.clear()
-    tiny = _settings(rounds={"max_seconds": 1e-9}, search={"n_bags": 4})
+    tiny = _settings(rounds={"max_seconds": 1e-9}, search=quick, verify={"max_p_value": 0.02})
     doc = Discovery(tiny, tmp_path / "run", log=lambda m: None,
                     stages=[_Spend()]).fit(recs).result_.to_dict()
     assert ran == [] and doc["effects"] == [] and doc["rmse_final_Pa"] == doc["rmse_base_Pa"]

@@ -591,24 +591,24 @@ def test_adaptation_ends_after_the_first_round_whose_proposal_is_accepted(bench,
     """With ``adapt_acceptance`` reached, production starts after round 1 (the first with
     a proposal), and a resumed chain keeps that start; unreachable, all rounds run."""
     recs, model, truth = bench
-    common = dict(n_walkers=32, check_every=10, adapt_rounds=3, adapt_steps=15,
+    common = dict(n_walkers=32, check_every=10, adapt_rounds=3, adapt_steps=10,
                   readapt_below_acceptance=0.0, seed=5)
     path = tmp_path / "early.h5"
     early = BayesianIdentification(
-        model, SolverConfig.standard(), SamplerSettings(max_steps=50, adapt_acceptance=0.0,
+        model, SolverConfig.standard(), SamplerSettings(max_steps=30, adapt_acceptance=0.0,
                                                         **common),
         backend_path=path, progress=False).fit(recs[:1], truth)
-    assert early.sampler_.iteration == 50 and early.burn_ == 30
+    assert early.sampler_.iteration == 30 and early.burn_ == 20
     again = BayesianIdentification(
-        model, SolverConfig.standard(), SamplerSettings(max_steps=60, adapt_acceptance=0.0,
+        model, SolverConfig.standard(), SamplerSettings(max_steps=40, adapt_acceptance=0.0,
                                                         **common),
         backend_path=path, progress=False).fit(recs[:1], truth)
-    assert again.resumed_ and again.sampler_.iteration == 60 and again.burn_ == 30
+    assert again.resumed_ and again.sampler_.iteration == 40 and again.burn_ == 20
     full = BayesianIdentification(
-        model, SolverConfig.standard(), SamplerSettings(max_steps=60, adapt_acceptance=1.5,
+        model, SolverConfig.standard(), SamplerSettings(max_steps=40, adapt_acceptance=1.5,
                                                         **common),
         progress=False).fit(recs[:1], truth)
-    assert full.burn_ == 45
+    assert full.burn_ == 30
 
 
 def _laplace_start_case(prn_leak_bench):

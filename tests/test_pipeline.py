@@ -43,12 +43,13 @@ def test_stationary_ar1_noise_is_stationary_from_the_first_sample():
     assert np.corrcoef(e[0, :, 0], e[0, :, 1])[0, 1] == pytest.approx(0.8, abs=0.02)
 
 
-#: The chain's length of the fast tier's run folder: what its tests read is the folder's
-#: files and stamps, not the posterior (the slow tier's ``fitted`` runs 150 steps).
+#: The chain's length of the fast tier's run folder, which has no figures: what its tests
+#: read is the folder's files and stamps, not the posterior (the slow tier's ``fitted``
+#: runs 150 steps and draws the figures).
 QUICK_STEPS = "40"
 
 
-def _fit(root, steps):
+def _fit(root, steps, *options):
     cfg = BenchConfig("PRN", "valve1", effects_from_names(["cylinder_leak"]), protocol="fixed",
                       duration_s=6.0, seed=8, positions=(0.5, 0.9), ranges_V=(5.0,))
     train = run_bench(cfg, root / "train")
@@ -57,7 +58,7 @@ def _fit(root, steps):
                      root / "held")
     run = root / "run"
     rc = main(["fit", *map(str, train.recordings), "--out", str(run), "--walkers", "32",
-               "--max-steps", steps, "--seed", "3", "-q"])
+               "--max-steps", steps, "--seed", "3", "-q", *options])
     assert rc == 0
     return run, train, held
 
@@ -69,7 +70,7 @@ def fitted(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def fitted_quick(tmp_path_factory):
-    return _fit(tmp_path_factory.mktemp("pipeline_quick"), QUICK_STEPS)
+    return _fit(tmp_path_factory.mktemp("pipeline_quick"), QUICK_STEPS, "--no-figures")
 
 
 @pytest.mark.slow
