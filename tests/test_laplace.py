@@ -211,7 +211,7 @@ def test_discover_with_a_laplace_posterior_writes_one_predict_reads(tmp_path, ca
     paths = [str(p) for p in run_bench(cfg, tmp_path / "bench").recordings]
     run = tmp_path / "run"
     assert cli_main(["discover", *paths, "--out", str(run), "--posterior", "laplace",
-                     "--set", "rounds.max_effects=0", "-q"]) == 0
+                     "--set", "rounds.max_effects=0", "--no-figures", "-q"]) == 0
     doc = json.loads((run / "discovery.json").read_text())
     assert doc["posterior"]["method"] == "laplace" and doc["posterior"]["steps"] == 0
     assert doc["settings"]["posterior"]["method"] == "laplace"
