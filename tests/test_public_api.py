@@ -66,7 +66,7 @@ def test_posterior_in_memory_gives_draws_and_a_predictor(small_bench, tmp_path):
     recs, _ = small_bench
     model = pb.Model(pb.effects_from_names(["cylinder_leak"]))
     settings = pb.FitSettings(refine_max_nfev=15,
-                              sampler=pb.SamplerSettings(n_walkers=32, max_steps=120, seed=2))
+                              sampler=pb.SamplerSettings(n_walkers=32, max_steps=40, seed=2))
     fit = pb.identify(recs, model, settings, checkpoint_dir=tmp_path / "ckpt")
     assert fit.posterior is not None and (tmp_path / "ckpt" / "chain.h5").exists()
     draws, noise = fit.draws(16, np.random.default_rng(0))
