@@ -130,7 +130,7 @@ def test_a_flow_shifted_reading_agrees_with_the_reference_solver(rig, hand):
     from pneubayes.simulation import SolverConfig, simulate_windows
     from pneubayes.simulation.reference import reference_simulate
 
-    inputs, base, _, _ = _setup(rig, hand, n=801)
+    inputs, base, _, _ = _setup(rig, hand, n=601)  # (five steps)
     model = Model([SpoolLag(), ReadingFlow(("inlet_flow_square", "exhaust_flow"))])
     params = {**base, "spool_time_constant_s": 4e-3, "reading_flow_gain_0": GAIN,
               "reading_flow_gain_1": -400.0}

@@ -117,20 +117,22 @@ def test_the_simulator_reads_windows_through_the_play(rig, hand):
 
 def test_a_played_reading_agrees_with_the_reference_solver(rig, hand):
     """One window from the recording's first sample: the compiled simulator with a play
-    against the reference solver (scipy, its play a plain loop over the samples)."""
+    against the reference solver (scipy at rtol 1e-8, its play a plain loop over the
+    samples), over 0.4 s and three steps."""
     from pneubayes.simulation import SolverConfig, simulate_windows
     from pneubayes.simulation.reference import reference_simulate
 
-    inputs, _, params = _setup(rig, hand, n=801)
+    inputs, _, params = _setup(rig, hand, n=401)
     model = Model().with_effect(ReadingPlay(terms=2))
     params = {**params, "reading_play_gain_1": 0.3, "reading_play_width_1": 1500.0}
-    ours = simulate_windows(model, params, inputs, rig, np.array([0]), 801, 2e5,
+    ours = simulate_windows(model, params, inputs, rig, np.array([0]), 401, 2e5,
                             SolverConfig.standard())[0, 0]
-    ref = reference_simulate(model, params, inputs, rig, 2e5)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-8)
     span = np.ptp(ref)
     assert np.max(np.abs(ours - ref)) < 1e-3 * span
     plain = reference_simulate(Model(), {k: v for k, v in params.items()
-                                         if not k.startswith("reading_play")}, inputs, rig, 2e5)
+                                         if not k.startswith("reading_play")}, inputs, rig, 2e5,
+                               rtol=1e-8)
     assert np.max(np.abs(ref - plain)) > 2000.0
 
 

@@ -58,11 +58,11 @@ def test_a_zero_delay_simulates_as_the_plain_model(rig):
 def test_the_spool_agrees_with_the_reference_solvers_ode_states(rig, delay, damping,
                                                                 volume):
     """The compiled integrator steps the spool exactly under the held command; the
-    reference integrates its position and velocity as two more states."""
-    inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.01, 0.05))
+    reference integrates its position and velocity as two more states (rtol 1e-8)."""
+    inputs = moving_step_inputs(5, 151, 1e-3, hold_s=(0.01, 0.05))
     model = Model([make_effect("tube_delay"), SECOND])
     params = valve1_params(volume, tube_delay_s=0.0013, spool_delay_s=delay, spool_damping=damping)
-    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-8)
     got = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]
     assert np.max(np.abs(got - ref)) <= 1e-3 * RANGE
     # and the spool matters here: without it the chamber differs by far more
@@ -207,7 +207,7 @@ def test_the_speed_limited_spool_agrees_with_the_reference_and_is_slower(rig):
     inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.02, 0.06))
     params = valve1_params(2e-5, spool_time_constant_s=0.002, spool_rate_limit_V_per_s=250.0)
     model = Model([LIMITED])
-    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-8)  # (45 Pa asserted)
     got = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
     first = simulate(Model(["spool_lag"]), valve1_params(2e-5, spool_time_constant_s=0.002),
                      inputs, rig, 2e5, TIGHT).pressure_Pa[0]
@@ -268,7 +268,7 @@ def test_the_asymmetric_spool_agrees_with_the_reference_and_the_plant(rig):
     inputs = moving_step_inputs(5, 301, 1e-3, hold_s=(0.02, 0.06))
     params = valve1_params(2e-5, spool_time_constant_s=0.001, spool_fall_time_constant_s=0.005)
     model = Model([ASYM])
-    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-10)
+    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-8)  # (45 Pa asserted)
     got = simulate(model, params, inputs, rig, 2e5, TIGHT).pressure_Pa[0]
     plant = simulate_plant(params, [], inputs, rig, 2e5,
                            PlantConfig("LSODA", 1e-9, 0.01, 1e-6, 1e-9, 0.005),
