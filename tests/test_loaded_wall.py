@@ -208,8 +208,11 @@ def wall_recordings():
             valve1_recordings(Model(), BASE, "loaded", 80, 2))
 
 
-def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_recordings):
-    walls, rigid = wall_recordings
+def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber():
+    """The search on the fixture's first recordings, simulated alone (one 8-s of the
+    wall, one 6-s of a rigid chamber)."""
+    walls = valve1_recordings(Model([LoadedWall()]), {**BASE, **WALL}, "loaded", 80, 1, 8001)
+    rigid = valve1_recordings(Model(), BASE, "loaded", 80, 1)
     solver = SolverConfig.standard()
     ws = WindowSet(walls[:1], 2.0, 2.0)
     found = LoadedWallSearch().fit(LoadedWallProblem(ws, Model(), BASE, solver))

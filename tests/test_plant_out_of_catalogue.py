@@ -982,13 +982,13 @@ def test_an_end_cushion_throttles_the_vent_near_the_end_only(rig, base):
     cushion = EndCushion(length_m=0.2 * STROKE, needle_area_m2=1e-7, edge_m=0.01 * STROKE)
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
 
-    def at(x, u, p0):
-        t = np.arange(301) * DT
+    def at(x, u, p0, n):
+        t = np.arange(n) * DT
         inputs = Inputs(t, np.full(t.size, u), np.full(t.size, x), np.full(t.size, P_SUP))
         return (_run(params, (cushion,), inputs, rig, p0=p0),
                 _run(params, (), inputs, rig, p0=p0))
 
-    inside, plain = at(0.05 * STROKE, -5.0, 4e5)
+    inside, plain = at(0.05 * STROKE, -5.0, 4e5, 11)  # (the first step's rate)
     a_ex, a_n = CLOSABLE["exhaust_a_m2"], 1e-7
     g = rig.gas
     volume = 1.5e-7 + np.pi / 4 * BORE**2 * 0.05 * STROKE
@@ -998,9 +998,10 @@ def test_an_end_cushion_throttles_the_vent_near_the_end_only(rig, base):
                                  g.heat_capacity_ratio)[0]
         got, want = _rate0(p, volume, rig, -mdot)
         assert got == pytest.approx(want, rel=0.01)
-    outside, plain = at(0.5 * STROKE, -5.0, 4e5)
+    outside, plain = at(0.5 * STROKE, -5.0, 4e5, 301)  # (to the atmosphere)
     np.testing.assert_allclose(outside, plain, rtol=0, atol=1e-6)
-    fill, plain = at(0.05 * STROKE, 5.0, P_ATM)  # (at the supply: the solvers' 0.1 Pa)
+    # (full by 2.7 ms; at the supply the solvers' 0.1 Pa, and many steps: 6 ms)
+    fill, plain = at(0.05 * STROKE, 5.0, P_ATM, 61)
     np.testing.assert_allclose(fill, plain, rtol=0, atol=0.5)
     with pytest.raises(ValueError, match="EndCushion cannot be planted beside"):
         _run(params, (cushion, out_of_catalogue_defaults("MeterOutThrottle")),
@@ -1018,7 +1019,8 @@ def test_a_quick_exhaust_valve_vents_the_chamber_itself_and_keeps_the_limits(rig
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
     shut = _run(params, (qev,), _held(0.05, (0.0,)), rig, p0=4e5)
     np.testing.assert_allclose(shut, 4e5, rtol=0, atol=1e-3)
-    vent, plain = (_run(params, f, _held(0.1, (-5.0,)), rig, p0=4e5) for f in ((qev,), ()))
+    # (the QEV vents to the atmosphere in 11 ms, the valve's port in 19 ms)
+    vent, plain = (_run(params, f, _held(0.03, (-5.0,)), rig, p0=4e5) for f in ((qev,), ()))
     g = rig.gas
     k = int(0.001 / DT)  # (the line is empty and the QEV open within 0.5 ms)
     mid = 0.5 * (vent[k] + vent[k + 1])
@@ -1241,15 +1243,16 @@ def test_a_pressure_held_solenoid_opens_slower_into_an_empty_chamber(rig):
 
     params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
     lag = (make_effect("spool_lag"),)
-    opening = _held(0.05, (-5.0, 5.0), at=(0.0, 0.01))
-    closing = _held(0.05, (5.0, -5.0), at=(0.0, 0.01))
+    # (steps at 3 ms; the held one is full 30 ms after it, the closing's empty in 24 ms)
+    opening = _held(0.035, (-5.0, 5.0), at=(0.0, 0.003))
+    closing = _held(0.03, (5.0, -5.0), at=(0.0, 0.003))
     plain = PressureHeldSolenoid(time_constant_s=1e-3, slowing_per_atm=0.0)
     held = PressureHeldSolenoid(time_constant_s=1e-3, slowing_per_atm=2.0)
     first = simulate_plant(dict(params, spool_time_constant_s=1e-3), (), opening, rig,
                            P_ATM, REF, effects=lag).pressure_Pa
     np.testing.assert_array_equal(_run(params, (plain,), opening, rig), first)
     slow = _run(params, (held,), opening, rig)
-    k = int(round(0.013 / DT))
+    k = int(round(0.006 / DT))
     assert slow[k] < first[k] - 20e3  # 3 ms after the step the held one lags far behind
     np.testing.assert_allclose(slow[-1], first[-1], rtol=0, atol=500.0)  # both full
     np.testing.assert_array_equal(_run(params, (held,), closing, rig, p0=P_SUP - 1e3),

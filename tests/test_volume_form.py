@@ -74,10 +74,15 @@ def _recordings(model, extra, count=3, n=6001):
     return valve1_recordings(model, {**base, **extra}, "swelling", 40, count, n), base
 
 
-def test_the_search_finds_a_planted_hinge_and_none_in_a_rigid_chamber(swelling_recordings):
-    (swelling, base), (rigid, _) = swelling_recordings
+def test_the_search_finds_a_planted_hinge_and_none_in_a_rigid_chamber():
+    """The search on two 4-s recordings of the swelling chamber (as the fixture's,
+    shorter) and on two 4-s ones of a rigid chamber."""
+    swelling, base = _recordings(Model().with_effect(VolumeClosure()),
+                                 {"volume_closure_compliance_0": C_TRUE,
+                                  "volume_closure_threshold_0": THETA_TRUE}, 2, 4001)
+    rigid, _ = _recordings(Model(), {}, 2, 4001)
     solver = SolverConfig.standard()
-    ws = WindowSet(swelling[:2], 2.0, 2.0)
+    ws = WindowSet(swelling, 2.0, 2.0)
     grid = threshold_grid(ws, 16)
     assert grid[0] < 1.1e5 and np.all(np.diff(grid) > 0) and grid.size == 16
     found = VolumeSearch().fit(VolumeProblem(ws, Model(), base, solver))
@@ -86,7 +91,7 @@ def test_the_search_finds_a_planted_hinge_and_none_in_a_rigid_chamber(swelling_r
     assert abs(term.threshold_Pa - THETA_TRUE) <= step
     assert 0.5 * C_TRUE <= term.compliance_m3_per_Pa <= 2.0 * C_TRUE
     assert found.explained_fraction_ > 0.9
-    none = VolumeSearch().fit(VolumeProblem(WindowSet(rigid[:2], 2.0, 2.0), Model(), base,
+    none = VolumeSearch().fit(VolumeProblem(WindowSet(rigid, 2.0, 2.0), Model(), base,
                                             solver))
     assert none.terms_ == [] and none.best_.explained < 0.02
     with pytest.raises(ValueError, match="already has a volume closure"):

@@ -176,8 +176,11 @@ def wall_recordings():
 
 
 
-def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_recordings):
-    walls, rigid = wall_recordings
+def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber():
+    """The search on one 4-s recording of the wall (as the fixture's, shorter) and on two
+    4-s ones of a rigid chamber."""
+    walls = valve1_recordings(Model([VolumePlay()]), {**BASE, **WALL}, "wall", 60, 1, 4001)
+    rigid = valve1_recordings(Model(), BASE, "wall", 60, 2, 4001)
     solver = SolverConfig.standard()
     ws = WindowSet(walls[:1], 2.0, 2.0)
     grid = half_width_grid(ws, 8)
@@ -206,10 +209,10 @@ def test_the_search_finds_a_planted_wall_and_none_in_a_rigid_chamber(wall_record
 
 def test_the_search_finds_a_planted_stop_as_a_stop(rig):
     """A give that saturates (a stop: 1 cm^3 per bar while held, none once 0.3 bar has
-    freed the wall) is found as a stop, its held give and half-width near the truth; with
-    plays only, the search finds less of it."""
+    freed the wall) is found as a stop in a 4-s recording, its held give and half-width
+    near the truth; with plays only, the search finds less of it."""
     stop = {**WALL, "volume_play_compliance_0": 0.0, "volume_play_held_compliance_0": C_TRUE}
-    recs = valve1_recordings(Model([VolumePlay()]), {**BASE, **stop}, "wall", 60, 2)
+    recs = valve1_recordings(Model([VolumePlay()]), {**BASE, **stop}, "wall", 60, 1, 4001)
     ws, solver = WindowSet(recs, 2.0, 2.0), SolverConfig.standard()
     problem = VolumePlayProblem(ws, Model(), BASE, solver)
     found = VolumePlaySearch(max_terms=1).fit(problem)
