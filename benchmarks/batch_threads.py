@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 from pathlib import Path
 
 import numpy as np
+from timing import time_calls
 
 #: (samples at 1 kHz, parameter sets) per case
 GRID = ((21, 2), (21, 8), (21, 64), (201, 2), (201, 8), (201, 64), (2001, 2), (2001, 8),
@@ -29,13 +29,7 @@ GRID = ((21, 2), (21, 8), (21, 64), (201, 2), (201, 8), (201, 64), (2001, 2), (2
 
 def _median_call(fn, seconds: float) -> float:
     fn()  # (compiled, or loaded from the cache, before timing)
-    times = []
-    start = time.perf_counter()
-    while time.perf_counter() - start < seconds or len(times) < 5:
-        a = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - a)
-    return float(np.median(times))
+    return time_calls(fn, seconds, min_calls=5)["median_s"]
 
 
 def main(argv=None) -> int:

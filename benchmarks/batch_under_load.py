@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import time_calls
 
 HERE = Path(__file__).resolve().parent
 #: forms of simulate.py's section 4 timed here (label, effect, options)
@@ -70,17 +71,6 @@ def _cases():
     return out
 
 
-def _time(fn, per: int, seconds: float) -> dict:
-    times = []
-    start = time.perf_counter()
-    while time.perf_counter() - start < seconds or len(times) < 3:
-        a = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - a) / per)
-    return {"median_s": float(np.median(times)), "min_s": float(min(times)),
-            "calls": len(times)}
-
-
 def main(argv=None) -> int:
     import numba
 
@@ -106,8 +96,8 @@ def main(argv=None) -> int:
             for threads in (1, 2):
                 numba.set_num_threads(threads)
                 for label, fns in cases.items():
-                    one = _time(fns[1], 1, args.seconds)
-                    many = _time(fns[64], 64, args.seconds)
+                    one = time_calls(fns[1], args.seconds)
+                    many = time_calls(fns[64], args.seconds, per=64)
                     rows.append({"case": label, "busy_processes": busy, "threads": threads,
                                  "batch1": one, "batch64": many,
                                  "ratio_median": many["median_s"] / one["median_s"],

@@ -26,7 +26,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -38,6 +37,7 @@ def _worker(seconds: float) -> dict:
 
     sys.path.insert(0, str(HERE))
     import simulate as bench  # the workload's definitions (this tree's benchmark)
+    from timing import time_calls
 
     from pneubayes.effects import make_effect
     from pneubayes.model import Model
@@ -78,15 +78,7 @@ def _worker(seconds: float) -> dict:
     out = {}
     for label, fn in cases.items():
         fn()  # compile (not timed)
-        times = []
-        start = time.perf_counter()
-        while time.perf_counter() - start < seconds or len(times) < 3:
-            a = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - a)
-        per = 64 if "batch 64" in label else 1
-        out[label] = {"min_s": min(times) / per, "median_s": float(np.median(times)) / per,
-                      "calls": len(times)}
+        out[label] = time_calls(fn, seconds, per=64 if "batch 64" in label else 1)
     return out
 
 
