@@ -153,7 +153,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     class _Never(_Spend):
         name = "never"
 
-    one = {name: strengths[len(strengths) // 2:][:1]
+    one = {name: [strengths[len(strengths) // 2]]
            for name, strengths in LibraryGrid().to_dict().items() if strengths}
     quick = {"n_bags": 4, "grid": {"strengths": one}}
     # (one held-out window per recording: the trials, stubbed, test nothing)

@@ -33,6 +33,7 @@ from pneubayes.physics.orifice import flow_function
 from pneubayes.physics.valve import gompertz_area, gompertz_partials
 
 _PORTS = ("inlet", "exhaust")
+_GOMPERTZ = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
 #: Rows of the design densified at a time when it is reduced to its triangular factor.
 _QR_BLOCK_ROWS = 4096
 
@@ -51,7 +52,6 @@ def _nonnegative_least_squares(A, y) -> np.ndarray:
         r = np.linalg.qr(np.vstack([r, block]), mode="r")[: n + 1]
     r = np.vstack([r, np.zeros((max(n + 1 - r.shape[0], 0), n + 1))])
     return optimize.nnls(r[:n, :n], r[:n, n])[0]
-_GOMPERTZ = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
 
 
 @dataclass(frozen=True)
