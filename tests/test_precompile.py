@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+import time
+
 import pytest
 
 from pneubayes.cli import main
+from pneubayes.compile_cache import first_call
 from pneubayes.simulation.precompile import STATES, compile_kernels, compile_variant
 
 
@@ -33,3 +40,73 @@ def test_the_command_refuses_zero_jobs(capsys):
         main(["compile", "--jobs", "0"])
     assert exc.value.code == 2
     assert "--jobs" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- first-call locks
+_HOLDER = """
+import sys, time
+from pneubayes.compile_cache import hold_first_calls
+with hold_first_calls([sys.argv[1]]):
+    print("held", flush=True)
+    time.sleep(float(sys.argv[2]))
+"""
+
+
+def _hold(name, seconds):
+    """A process holding ``name``'s first-call lock for ``seconds`` (once it prints)."""
+    proc = subprocess.Popen([sys.executable, "-c", _HOLDER, name, str(seconds)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "held"
+    return proc
+
+
+def test_a_first_call_waits_while_another_process_compiles_that_variant(tmp_path,
+                                                                        monkeypatch):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    holder = _hold("test-variant", 1.5)
+    start = time.perf_counter()
+    with first_call("test-variant"):
+        waited = time.perf_counter() - start
+    holder.communicate()
+    assert holder.returncode == 0
+    assert waited > 0.5
+    # the variant is in this process now: its later calls take no lock
+    holder = _hold("test-variant", 1.5)
+    start = time.perf_counter()
+    with first_call("test-variant"):
+        assert time.perf_counter() - start < 0.5
+    holder.communicate()
+
+
+def test_a_first_call_stops_waiting_after_its_limit(tmp_path, monkeypatch):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    holder = _hold("test-stuck", 3.0)
+    start = time.perf_counter()
+    with first_call("test-stuck", wait_s=0.2):
+        waited = time.perf_counter() - start
+    assert 0.15 < waited < 2.0  # gave up, then ran the body without the lock
+    holder.communicate()
+
+
+# ---------------------------------------------------------------- the shared compile
+_CALLEES_THEN_KERNEL = """
+import json
+from pneubayes.simulation.general_callees import CALLEES, compile_general_callees
+from pneubayes.simulation.precompile import compile_variant
+compile_general_callees()
+before = {f.py_func.__name__: len(f.signatures) for f in CALLEES}
+compile_variant("general")
+print(json.dumps([before, {f.py_func.__name__: len(f.signatures) for f in CALLEES}]))
+"""
+
+
+@pytest.mark.slow
+def test_the_general_kernel_calls_its_callees_with_the_types_compiled_beside_it(tmp_path):
+    # a fresh cache: the kernel compiles, reusing the callees only if its types match
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", _CALLEES_THEN_KERNEL], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    before, after = json.loads(out.splitlines()[-1])
+    assert before == after
+    assert before["chamber_rhs"] == 2 and all(
+        n == 1 for name, n in before.items() if name != "chamber_rhs")

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 
 def cmd_compile(args) -> int:
-    from pneubayes.simulation.precompile import compile_kernels
+    from pneubayes.simulation.precompile import CALLEES_JOB, compile_kernels
 
     for state, seconds in compile_kernels(args.jobs).items():
-        what = "bench plant" if state == "bench" else f"kernel ({state} state)"
+        what = {"bench": "bench plant", CALLEES_JOB: "general kernel's callees (beside it)"
+                }.get(state, f"kernel ({state} state)")
         print(f"{what}: {seconds:.1f} s")
     return 0

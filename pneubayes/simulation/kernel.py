@@ -47,6 +47,7 @@ import numba
 import numpy as np
 from numba import njit
 
+from pneubayes.compile_cache import first_call, kernel_first_call
 from pneubayes.effects.path import (
     LINE_MAX_SEGMENTS,
     SLOT_INDEX,
@@ -934,9 +935,10 @@ def simulate_carried(slots, consts, solver, t, u, ue, x, ps, bounds, measured, g
     hidden = needs_general(slots) if general is None else bool(general)
     if pm is None:
         pm = np.full(t.shape, np.nan)
-    _chain_carried(slots, consts, solver, t, u, ue, x, ps, pm, bounds, measured,
-                   float(gain), p_start, carry, out, p_end, status,
-                   True if hidden else None)
+    with first_call(kernel_first_call("carried", hidden)):
+        _chain_carried(slots, consts, solver, t, u, ue, x, ps, pm, bounds, measured,
+                       float(gain), p_start, carry, out, p_end, status,
+                       True if hidden else None)
     return out, p_end, status
 
 
@@ -962,9 +964,10 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
         rate0 = np.full((nb, nw), np.nan)
     if pm is None:
         pm = np.full(t.shape, np.nan)
-    _run_tasks(nb * (nw // per_task), per_task * length, numba.get_num_threads(),
-               (slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0, out,
-                sens, status, True if hidden else None, per_task))
+    with first_call(kernel_first_call("simulate", hidden)):
+        _run_tasks(nb * (nw // per_task), per_task * length, numba.get_num_threads(),
+                   (slots, consts, solver, t, u, ue, x, ps, pm, starts, length, p0, rate0,
+                    out, sens, status, True if hidden else None, per_task))
     return out, sens, status
 
 

@@ -18,30 +18,47 @@ online tracker's carried mode; on the calling thread). The virtual test bench's 
 (:mod:`pneubayes.bench.plant`, ``pneubayes bench``) is compiled too, as a third entry.
 
 :func:`compile_variant` builds one state's two loops (or the bench's plant) by running a
-tiny simulation of it; :func:`compile_kernels` runs them in parallel processes.
+tiny simulation of it; :func:`compile_kernels` runs them in parallel processes, the
+general kernel's largest callees (:mod:`pneubayes.simulation.general_callees`) in the
+second process while the first compiles that kernel, which then loads them from the
+cache: the general kernel's compile, the longest, is shared by both.
 """
 
 from __future__ import annotations
 
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from multiprocessing import get_context
 
 import numpy as np
 
+from pneubayes.compile_cache import PLANT_FIRST_CALL, hold_first_calls, kernel_first_call
+from pneubayes.simulation.general_callees import compile_general_callees
+
 #: What :func:`compile_variant` compiles: the kernel's states (which model compiles
 #: each: its effects) and the bench's plant.
 STATES = ("pressure", "general", "bench")
-#: The order :func:`compile_kernels` starts them in: the longest first, so it never waits
-#: for a free process, and the short ones after each other beside it.
-_LONGEST_FIRST = ("general", "pressure", "bench")
+#: :func:`compile_kernels`' job compiling the general kernel's largest callees beside it.
+CALLEES_JOB = "general callees"
 
 
-def compile_variant(state: str) -> float:
+def first_call_names(state: str) -> tuple[str, ...]:
+    """The first-call locks (:func:`pneubayes.compile_cache.first_call`) of what
+    :func:`compile_variant` compiles for ``state``."""
+    if state == "bench":
+        return (PLANT_FIRST_CALL,)
+    general = state == "general"
+    return kernel_first_call("simulate", general), kernel_first_call("carried", general)
+
+
+def compile_variant(state: str, locks_held_by_caller: bool = False) -> float:
     """Compile (or load from the cache) the kernel stepping ``state`` (one of
     :data:`STATES`) and its carried chain, or (``"bench"``) the bench's plant; returns
-    the seconds it took."""
+    the seconds it took. ``locks_held_by_caller``: the process that started this one
+    holds the variant's first-call locks (:func:`compile_kernels`), so this one must
+    not wait on them."""
+    from pneubayes.compile_cache import assume_first_calls
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
     from pneubayes.rig import Rig
@@ -55,6 +72,8 @@ def compile_variant(state: str) -> float:
 
     if state not in STATES:
         raise ValueError(f"state must be one of {STATES}, got {state!r}")
+    if locks_held_by_caller:
+        assume_first_calls(first_call_names(state))
     start = time.perf_counter()
     supply_Pa, atmosphere_Pa = 551325.0, 101325.0
     rig = Rig(0.009, atmosphere_Pa, supply_Pa, stroke_m=0.03)
@@ -83,13 +102,36 @@ def compile_variant(state: str) -> float:
 
 def compile_kernels(jobs: int = 2) -> dict[str, float]:
     """Compile every variant of the kernel and the bench's plant, in up to ``jobs``
-    processes at once; returns the seconds each took (its process's own wall time)."""
+    processes at once; returns the seconds each took (its process's own wall time), with
+    more than one job also those of the general kernel's callees (:data:`CALLEES_JOB`).
+
+    It holds each variant's first-call lock until that variant is in the cache
+    (:mod:`pneubayes.compile_cache`): a process starting cold beside it waits for the
+    variant it needs instead of compiling its own copy."""
     if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    if jobs == 1:
-        return {state: compile_variant(state) for state in STATES}
-    # fresh interpreters: a forked child would inherit this process's numba state
-    with ProcessPoolExecutor(max_workers=min(jobs, len(STATES)),
-                             mp_context=get_context("spawn")) as pool:
-        futures = {state: pool.submit(compile_variant, state) for state in _LONGEST_FIRST}
-        return {state: futures[state].result() for state in STATES}
+    names = {state: first_call_names(state) for state in STATES}
+    with hold_first_calls([n for state in STATES for n in names[state]]) as release:
+        if jobs == 1:
+            seconds = {}
+            for state in STATES:
+                seconds[state] = compile_variant(state)
+                for name in names[state]:
+                    release(name)
+            return seconds
+        # fresh interpreters: a forked child would inherit this process's numba state.
+        # The second process first compiles the general kernel's largest callees, which
+        # the first loads from the cache when its compile reaches them
+        # (:mod:`pneubayes.simulation.general_callees`); the shorter jobs follow.
+        with ProcessPoolExecutor(max_workers=min(jobs, len(STATES) + 1),
+                                 mp_context=get_context("spawn")) as pool:
+            futures = {pool.submit(compile_variant, "general", True): "general",
+                       pool.submit(compile_general_callees): CALLEES_JOB}
+            futures.update({pool.submit(compile_variant, state, True): state
+                            for state in STATES if state != "general"})
+            seconds = {}
+            for done in as_completed(futures):
+                seconds[futures[done]] = done.result()
+                for name in names.get(futures[done], ()):
+                    release(name)
+            return {job: seconds[job] for job in (*STATES, CALLEES_JOB)}
