@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from pathlib import Path
 
 import pytest
@@ -309,6 +310,23 @@ def test_local_process_pool(tmp_path):
     assert "planted failure" in doc["cells"][1]["traceback"]
     with pytest.raises(ValueError, match="workers"):
         LocalExecutor(0)
+
+
+def worker_threads(_):
+    """The thread pools a worker process runs (numba, then each BLAS library's)."""
+    import numba
+    from threadpoolctl import threadpool_info
+
+    return numba.get_num_threads(), [pool["num_threads"] for pool in threadpool_info()]
+
+
+def test_local_workers_share_the_cores_instead_of_each_taking_them_all():
+    with LocalExecutor(2, threads_per_worker=1) as ex:
+        numba_threads, blas_threads = ex.submit(worker_threads, 0).result()
+    assert numba_threads == 1 and blas_threads and set(blas_threads) == {1}
+    assert LocalExecutor(2).threads_per_worker == max(1, (os.cpu_count() or 1) // 2)
+    with pytest.raises(ValueError, match="threads_per_worker"):
+        LocalExecutor(2, threads_per_worker=0)
 
 
 def test_dask_local_cluster(tmp_path):

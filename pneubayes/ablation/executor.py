@@ -7,8 +7,9 @@ block on an exception, e.g. Ctrl-C, cancels what has not finished). A future has
 
 - :class:`LocalExecutor` (default): ``workers`` processes
   (:class:`concurrent.futures.ProcessPoolExecutor`, started with ``spawn``; workers
-  ignore Ctrl-C, which the parent handles); ``workers=1`` runs each task in this process
-  when :meth:`as_completed` reaches it.
+  ignore Ctrl-C, which the parent handles, and each runs its BLAS and numba thread pools
+  on its share of the cores); ``workers=1`` runs each task in this process when
+  :meth:`as_completed` reaches it.
 - :class:`DaskExecutor`: a ``dask.distributed`` cluster at a scheduler address (or a
   cluster object such as ``LocalCluster``). Dask is imported only here (``pip install
   pneubayes[dask]``).
@@ -17,6 +18,7 @@ block on an exception, e.g. Ctrl-C, cancels what has not finished). A future has
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
@@ -65,22 +67,44 @@ class _DeferredFuture(cf.Future):
             self.set_exception(exc)
 
 
-def _ignore_sigint() -> None:
+def _start_worker(threads: int) -> None:
+    """A worker process's start: Ctrl-C is the parent's; its BLAS and numba thread pools
+    get ``threads`` threads (each would start one per core, and the workers' threads
+    together would outnumber the cores: OpenBLAS threads then spin waiting for each
+    other)."""
+    import numba
+    from threadpoolctl import threadpool_limits
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # numba first: it loads its threading layer (an OpenMP library), which the limit
+    # then covers too
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    threadpool_limits(limits=threads)
 
 
 class LocalExecutor(Executor):
-    """Run tasks on this machine: ``workers`` processes, or in-process for ``workers=1``."""
+    """Run tasks on this machine: ``workers`` processes, or in-process for ``workers=1``.
 
-    def __init__(self, workers: int = 1):
+    ``threads_per_worker``: the BLAS and numba threads of each worker process (None: the
+    cores divided among the workers, at least one; ignored for ``workers=1``).
+    """
+
+    def __init__(self, workers: int = 1, threads_per_worker: int | None = None):
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"LocalExecutor: workers must be an integer >= 1, got {workers!r}")
+        if threads_per_worker is None:
+            threads_per_worker = max(1, (os.cpu_count() or 1) // workers)
+        if (isinstance(threads_per_worker, bool) or not isinstance(threads_per_worker, int)
+                or threads_per_worker < 1):
+            raise ValueError("LocalExecutor: threads_per_worker must be an integer >= 1, "
+                             f"got {threads_per_worker!r}")
         self.workers = workers
+        self.threads_per_worker = threads_per_worker
         self._pool = None
         if workers > 1:
             self._pool = cf.ProcessPoolExecutor(
                 max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=_ignore_sigint)
+                initializer=_start_worker, initargs=(threads_per_worker,))
 
     def submit(self, fn: Callable, *args):
         if self._pool is None:
