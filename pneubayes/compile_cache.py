@@ -93,10 +93,6 @@ def clear_stale_package_cache() -> int:
                           root / "simulation" / "__pycache__" / STAMP_NAME)
 
 
-#: The bench plant's first-call lock (:func:`pneubayes.bench.plant.simulate_plant`).
-PLANT_FIRST_CALL = "bench-plant"
-
-
 def kernel_first_call(entry: str, general: bool) -> str:
     """The first-call lock of one compiled variant of the simulation kernel: ``entry``
     "simulate" (:func:`pneubayes.simulation.kernel.simulate_windows`) or "carried"

@@ -92,7 +92,6 @@ from pneubayes.bench.forms import (
     ZohDriver,
     check_forms,
 )
-from pneubayes.compile_cache import PLANT_FIRST_CALL, first_call
 from pneubayes.effects import Effect
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
@@ -1136,37 +1135,35 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
     P, L, scale = su.P, su.L, su.scale
     nfev = njev = 0
     start = time.perf_counter()
-    # the first call compiles the plant's functions: one process at a time
-    with first_call(PLANT_FIRST_CALL):
-        for a, b in zip(edges[:-1], edges[1:]):
-            cmd = command_at(a)
-            i0 = int(np.searchsorted(t, a, side="right"))
-            i1 = int(np.searchsorted(t, b, side="right"))  # samples i0..i1-1 lie in (a, b]
-            t_eval = t[i0:i1]
-            at_sample = t_eval.size > 0 and t_eval[-1] == b
-            if not at_sample:
-                t_eval = np.append(t_eval, b)
+    for a, b in zip(edges[:-1], edges[1:]):
+        cmd = command_at(a)
+        i0 = int(np.searchsorted(t, a, side="right"))
+        i1 = int(np.searchsorted(t, b, side="right"))  # samples i0..i1-1 lie in (a, b]
+        t_eval = t[i0:i1]
+        at_sample = t_eval.size > 0 and t_eval[-1] == b
+        if not at_sample:
+            t_eval = np.append(t_eval, b)
 
-            def fun(tau, yy, cmd=cmd):
-                return _rhs(tau, yy, cmd, P, L, t, xx, ss)
+        def fun(tau, yy, cmd=cmd):
+            return _rhs(tau, yy, cmd, P, L, t, xx, ss)
 
-            def jac(tau, yy, cmd=cmd):
-                return _jac(tau, yy, cmd, P, L, t, xx, ss, scale)
+        def jac(tau, yy, cmd=cmd):
+            return _jac(tau, yy, cmd, P, L, t, xx, ss, scale)
 
-            sol = solve_ivp(fun, (a, b), y, method=config.method, t_eval=t_eval, jac=jac,
-                            rtol=config.rtol, atol=su.atol, max_step=config.max_step_s)
-            if sol.status != 0 or not np.all(np.isfinite(sol.y)):
-                raise SimulationError(f"plant: {config.method} failed between t={a:.6f} s and "
-                                      f"{b:.6f} s ({sol.message}); forms "
-                                      f"{[type(f).__name__ for f in forms]}")
-            nfev += sol.nfev
-            njev += sol.njev
-            got = sol.y.T
-            ys[i0:i1] = got if at_sample else got[:-1]
-            y = got[-1].copy()
-        elapsed = time.perf_counter() - start
-        held = np.array([command_at(tau) for tau in t])
-        supply, inflow = _sensor_traces(t, ys, held, P, L, t, xx, ss)
+        sol = solve_ivp(fun, (a, b), y, method=config.method, t_eval=t_eval, jac=jac,
+                        rtol=config.rtol, atol=su.atol, max_step=config.max_step_s)
+        if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+            raise SimulationError(f"plant: {config.method} failed between t={a:.6f} s and "
+                                  f"{b:.6f} s ({sol.message}); forms "
+                                  f"{[type(f).__name__ for f in forms]}")
+        nfev += sol.nfev
+        njev += sol.njev
+        got = sol.y.T
+        ys[i0:i1] = got if at_sample else got[:-1]
+        y = got[-1].copy()
+    elapsed = time.perf_counter() - start
+    held = np.array([command_at(tau) for tau in t])
+    supply, inflow = _sensor_traces(t, ys, held, P, L, t, xx, ss)
     temp = ys[:, L[L_IT]].copy() if L[L_HEAT] > 0 else None
     return PlantTrajectory(t.copy(), ys[:, 0].copy(), supply, temp, config, forms,
                            {"nfev": int(nfev), "njev": int(njev), "spans": int(edges.size - 1),

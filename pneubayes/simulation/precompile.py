@@ -33,7 +33,7 @@ from multiprocessing import get_context
 
 import numpy as np
 
-from pneubayes.compile_cache import PLANT_FIRST_CALL, hold_first_calls, kernel_first_call
+from pneubayes.compile_cache import hold_first_calls, kernel_first_call
 from pneubayes.simulation.general_callees import compile_general_callees
 
 #: What :func:`compile_variant` compiles: the kernel's states (which model compiles
@@ -46,8 +46,8 @@ CALLEES_JOB = "general callees"
 def first_call_names(state: str) -> tuple[str, ...]:
     """The first-call locks (:func:`pneubayes.compile_cache.first_call`) of what
     :func:`compile_variant` compiles for ``state``."""
-    if state == "bench":
-        return (PLANT_FIRST_CALL,)
+    if state == "bench":  # its first call is a whole recording: not worth a wait
+        return ()
     general = state == "general"
     return kernel_first_call("simulate", general), kernel_first_call("carried", general)
 
