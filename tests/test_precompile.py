@@ -110,3 +110,16 @@ def test_the_general_kernel_calls_its_callees_with_the_types_compiled_beside_it(
     assert before == after
     assert before["chamber_rhs"] == 2 and all(
         n == 1 for name, n in before.items() if name != "chamber_rhs")
+
+
+def test_a_script_without_a_main_guard_fails_at_once_instead_of_waiting(tmp_path):
+    # with spawn, each worker re-runs the script: its compile_kernels must not wait on
+    # the locks its parent holds, but reach multiprocessing's bootstrapping error
+    script = tmp_path / "unguarded.py"
+    script.write_text("from pneubayes.simulation.precompile import compile_kernels\n"
+                      "compile_kernels(2)\n")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, str(script)], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode != 0
+    assert "bootstrapping phase" in proc.stderr or "BrokenProcessPool" in proc.stderr

@@ -111,7 +111,10 @@ def compile_kernels(jobs: int = 2) -> dict[str, float]:
     if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
     names = {state: first_call_names(state) for state in STATES}
-    with hold_first_calls([n for state in STATES for n in names[state]]) as release:
+    # no wait for a lock another process holds (another compile: both then compile; a
+    # child re-running a script's unguarded call must reach multiprocessing's error)
+    with hold_first_calls([n for state in STATES for n in names[state]],
+                          wait_s=0.0) as release:
         if jobs == 1:
             seconds = {}
             for state in STATES:
