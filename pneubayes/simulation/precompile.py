@@ -33,7 +33,7 @@ from multiprocessing import get_context
 
 import numpy as np
 
-from pneubayes.compile_cache import hold_first_calls, kernel_first_call
+from pneubayes.compile_cache import assume_first_calls, hold_first_calls, kernel_first_call
 from pneubayes.simulation.general_callees import compile_general_callees
 
 #: What :func:`compile_variant` compiles: the kernel's states (which model compiles
@@ -58,7 +58,6 @@ def compile_variant(state: str, locks_held_by_caller: bool = False) -> float:
     the seconds it took. ``locks_held_by_caller``: the process that started this one
     holds the variant's first-call locks (:func:`compile_kernels`), so this one must
     not wait on them."""
-    from pneubayes.compile_cache import assume_first_calls
     from pneubayes.model import Model
     from pneubayes.physics.valve import valve_preset
     from pneubayes.rig import Rig
