@@ -1139,3 +1139,33 @@ def test_the_wrapper_sees_every_second_state_the_kernel_steps():
         slots[1, k] = 1.0
         forms = slots[:, sim._FORM_SLOTS] > 0
         assert forms[:, sim._GENERAL_COLUMNS].any() == kernel.needs_general(slots)
+
+
+@pytest.mark.parametrize("form", [
+    {"sensor_time_constant_s": 2e-3},
+    {"sensor_natural_frequency_rad_per_s": 900.0, "sensor_damping": 0.7},
+    {"spool_natural_frequency_rad_per_s": 900.0, "spool_damping": 0.7},
+    {"command_clock_period_s": 7e-3}], ids=["sensor", "sensor2", "spool2", "clock"])
+def test_the_pressure_only_kernel_refuses_the_rarer_forms(rig, form):
+    """A lagged sensor, a second-order spool and a valve driver's clock run in the
+    general kernel (``needs_general``); handed to the pressure-only kernel they are
+    refused with ``NEEDS_GENERAL``, not silently left out, and the general kernel's
+    result differs from the form's absence (the form is stepped)."""
+    t = np.arange(301) * 1e-3
+    u = np.where(t < 0.1, 5.0, -5.0)
+    sl = _closed_slots(2.4e-6)
+    for port in ("inlet", "exhaust"):  # ports that open
+        sl[0, SLOT_INDEX[f"{port}_a_m2"]] = 1e-6
+    args = (rig_constants(rig), SolverConfig.standard().as_array(), t, u, np.zeros_like(t),
+            np.zeros_like(t), np.full(t.size, P_SUP), np.array([0], dtype=np.int64),
+            t.size, np.array([2e5]))
+    plain, status = kernel.simulate_windows(np.ascontiguousarray(sl), *args)
+    assert not status.any() and not kernel.needs_general(sl)
+    for name, value in form.items():
+        sl[0, SLOT_INDEX[name]] = value
+    assert kernel.needs_general(sl)
+    _, status = kernel.simulate_windows(np.ascontiguousarray(sl), *args, general=False)
+    assert status[0, 0] == kernel.NEEDS_GENERAL
+    out, status = kernel.simulate_windows(np.ascontiguousarray(sl), *args, general=True)
+    assert status[0, 0] == kernel.OK
+    assert np.max(np.abs(out[0, 0] - plain[0, 0])) > 100.0

@@ -136,7 +136,7 @@ def chamber_step(p, temp, hh, fp, jp, vp, ep, vol, vdot, a_in2, a_ex2, vol2, psu
             c_vp)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def chord_corrected(err, pn, p, t, x, m_ch, tau, hh, x0c, x1c, ff, jf, vol, bore, kap, sc0,
                     sc1, atol_p, rtol):
     """``(err, pn, c_c)``: a step over a chord that crossed a sample of the position

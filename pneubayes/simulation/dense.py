@@ -41,7 +41,7 @@ def dense_run(x, ps, k, k_last, reads_supply):
     return kn, chord
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def dense_samples(out, sens, t, x, i0, kw, kn, step, chord_step, v0, bore, kap, sl, p_atm,
                   calibrated, zero, cal_g, slope0, want_sens):
     """Write the readings (and dp/dp0) of the samples ``kw..kn - 1`` before the end of an

@@ -43,13 +43,14 @@ def delayed_command(t, u, delay, t_start, track_direction):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def command_hold(sl, t, u, j, cdir, track_direction, delay, tau, tb, crossing):
+def command_hold(sl, t, u, j, cdir, track_direction, delay, tau, tb, crossing, general):
     """``(j, direction, command, t_end)``: the delayed command held from ``tau`` (its
     index ``j`` moved on, the direction tracked) and where it next changes before ``tb``
     (else ``tb``); ``crossing`` (dense output): past the samples that repeat it. Where
     the slots ``sl`` carry a driver's clock, as it takes the command
-    (:func:`~pneubayes.simulation.command_clock.clocked_hold`; direction untracked)."""
-    if clock_on(sl):
+    (:func:`~pneubayes.simulation.command_clock.clocked_hold`; direction untracked; the
+    general kernel only, ``general`` not None)."""
+    if general is not None and clock_on(sl):
         j, cmd, t_end = clocked_hold(sl, t, u, j, delay, tau, tb)
         return j, cdir, cmd, t_end
     n = t.shape[0]

@@ -205,6 +205,10 @@ _CURVATURE = SLOT_INDEX["reading_curvature_Pa"]
 _DRIFT = SLOT_INDEX["reading_drift_Pa_per_s"]
 _WARM = SLOT_INDEX["reading_warm_up_Pa"]
 _WARM_TAU = SLOT_INDEX["reading_warm_up_time_constant_s"]
+_SENSOR = SLOT_INDEX["sensor_time_constant_s"]
+_SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
+_SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
+_CLOCK_T = SLOT_INDEX["command_clock_period_s"]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -305,20 +309,21 @@ def _area_rates(spool, spool_rate, dead, sl):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _spool_areas(moving, s_cur, v_cur, s_start, cmd, tau, t_sub, hh, spool_cfg, sl, a_own,
-                 a_in, a_ex, s_eff):
+                 a_in, a_ex, s_eff, general):
     """The port areas, their rates and the spool at ``tau`` and ``tau + hh`` of a held
     command's stretch from ``t_sub`` (a moving spool: stepped from ``(s_cur, v_cur)`` in
     the second order, in closed form from ``s_start`` in the first; else the cached
     areas at ``s_eff``; ``spool_cfg`` as :func:`_march` takes it). Returns ``(a_in,
     a_ex, da_in, da_ex, s_at, ds_at, a_in2, a_ex2, s_at2, s2, v2)``, ``(s2, v2)`` the
-    second-order spool's state at ``tau + hh``."""
+    second-order spool's state at ``tau + hh`` (a second-order spool: the general kernel
+    only, ``general`` not None)."""
     _, tau_s, tau_dn, w_s, z_s, rate_s, spool2, _, dead = spool_cfg
     da_in, da_ex = 0.0, 0.0
     s_at, ds_at = s_eff, 0.0
     s2, v2 = s_eff, v_cur
     if not moving:
         return a_in, a_ex, da_in, da_ex, s_at, ds_at, a_in, a_ex, s_at, s2, v2
-    if spool2:
+    if general is not None and spool2:
         s_at, ds_at = s_cur, v_cur
         s2, v2 = spool_step(s_cur, v_cur, cmd, hh, 0.0, w_s, z_s, 0.0, 0.0)
     else:
@@ -431,7 +436,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
             # a stretch [tau, t_end) on which the delayed command is constant, and the
             # position and supply linear from (ta, xa / sa)
             j, cdir, cmd, t_end = command_hold(sl, t, u, j, cdir, cl_dir, delay, tau, tb,
-                                               kn > k + 1)
+                                               kn > k + 1, general)
             m, ta, inv_seg, xa, xb, sa, sb, t_end = input_segment(t, x, ps, m, tau, adv,
                                                                   t_end, kn == k + 1)
             if general is not None and wave and grid[1] < t_end - w_near:
@@ -473,7 +478,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                 psup2 = p_nom + gain * (sa + fr2 * (sb - sa) - p_nom)
                 (a_in, a_ex, da_in, da_ex, s_at, ds_at, a_in2, a_ex2, s_at2, s2,
                  v2) = _spool_areas(moving, s_cur, v_cur, spool_a, cmd, tau, t_sub, hh,
-                                    spool_cfg, sl, a_own, a_in, a_ex, s_eff)
+                                    spool_cfg, sl, a_own, a_in, a_ex, s_eff, general)
                 if chord:  # dense output over a moving position: the step reads its chord
                     m_ch, x0c = position_at(t, x, n, m_ch, tau)
                     x1c = position_at(t, x, n, m_ch, tau + hh)[1]
@@ -481,7 +486,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     vdot = bore * (x1c - x0c) / hh
                 # the step's volume rate (m^3/s): the position's and a loaded wall's
                 vol, vol2, vd = wall_chord(walled, w_state, p, w_rate, hh, vol, vol2, vdot,
-                                           p_atm, w_consts)
+                                           p_atm, w_consts, general)
                 if general is not None and cl_relax:
                     rx_q0 = net_port_flow(p, a_in, a_ex, psup, cs, sl)
                     relaxations_mid(sl, rx_n, rx_idx, rx_kind, rx_tau, rx_val, p, rx_rate,
@@ -551,7 +556,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                     p_prev, s_prev, p_tank, p_lung = p, s_p0, p_tank_new, p_lung_new
                     p, temp = pn, tn
                     w_state, w_rate = wall_accept(walled, w_state, p_prev, p, tau - t_prev,
-                                                  p_atm, w_consts)
+                                                  p_atm, w_consts, general)
                     if general is not None and play and play_accept(sl, p_prev, p, p_atm):
                         fs = NO_REUSE  # the table was laid again at a play's turn
                     if general is not None and cl_relax:
@@ -584,7 +589,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             (t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p),
                             (chord, qstep, x0c, x1c, jf, c_c), v0, bore, kap, sl, p_atm,
                             calibrated, zero, cal_g, slope0, want_sens)
-                    if reading:
+                    if general is not None and reading:
                         r, v_r, s_r, s_v = reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev,
                                                         s_p0, hh, zp, fp, vp, ep, dev_r,
                                                         second, w_r, z_r, lag_r, n_r, p_atm,
@@ -732,6 +737,8 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
         return NEEDS_GENERAL
     lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
+    if general is None and (reading or spool2 or sl[_CLOCK_T] > 0.0):
+        return NEEDS_GENERAL
     k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
                                            calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
@@ -974,14 +981,19 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
 def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
-    compartment), an open-form closure or a restriction at the port (whose code the
-    pressure-only kernel leaves out, so that the plain model's first call compiles
-    less)."""
+    compartment), an open-form closure, a restriction at the port, a loaded wall, a
+    volume play, a lagged sensor, a second-order spool or a valve driver's clock (whose
+    code the pressure-only kernel leaves out, so that the plain model's first call
+    compiles less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
-#: The slots of the forms with a second state or a closure (:func:`needs_general`).
-GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N] + [
+#: The slots of the forms with a second state or a closure (:func:`needs_general`), and
+#: of the rarer forms the pressure-only kernel leaves out so that the paper's model
+#: compiles less on its first call: a sensor's lag (the reading's own state), a
+#: second-order spool and a valve driver's clock.
+GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N, _SENSOR,
+                          _SENSOR_W, _SPOOL_W, _CLOCK_T] + [
     SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
     SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"],
     SLOT_INDEX["restriction_fill_inverse_area_per_m2"],

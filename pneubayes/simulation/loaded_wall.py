@@ -146,12 +146,13 @@ def wall_start(t, pm, k, w, z, p_start, calibrated, p_atm, zero, cal_g):
 
 
 @njit(cache=True, error_model="numpy")
-def wall_chord(walled, wall_state, p, rate, hh, vol, vol2, vdot, p_atm, wall):
+def wall_chord(walled, wall_state, p, rate, hh, vol, vol2, vdot, p_atm, wall, general):
     """A step's ``(vol, vol2, vdot)`` with the wall's volume laid on (unchanged without
     one): the wall ``wall_state = (x, v)`` advanced over ``hh`` s under the pressure
     ``p`` (Pa) moving at ``rate`` (Pa/s), its volume linear between the step's ends;
-    ``wall`` = ``(C, w, z)``."""
-    if not walled:
+    ``wall`` = ``(C, w, z)``. The general kernel's only (``general`` not None; the
+    pressure-only kernel compiles none of it)."""
+    if general is None or not walled:
         return vol, vol2, vdot
     c, w, z = wall
     x = wall_state[0]
@@ -160,10 +161,11 @@ def wall_chord(walled, wall_state, p, rate, hh, vol, vol2, vdot, p_atm, wall):
 
 
 @njit(cache=True, error_model="numpy")
-def wall_accept(walled, wall_state, p_prev, p, h, p_atm, wall):
+def wall_accept(walled, wall_state, p_prev, p, h, p_atm, wall, general):
     """The wall's ``(x, v)`` and the pressure's mean rate (Pa/s) after an accepted step
-    of ``h`` s from ``p_prev`` to ``p`` (Pa), the pressure linear over it."""
-    if not walled:
+    of ``h`` s from ``p_prev`` to ``p`` (Pa), the pressure linear over it (the general
+    kernel's only, as :func:`wall_chord`)."""
+    if general is None or not walled:
         return wall_state, 0.0
     x, v = wall_advance(wall_state[0], wall_state[1], p_prev - p_atm, p - p_atm, h, wall[1],
                         wall[2])
