@@ -739,8 +739,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
     if general is None and (reading or spool2 or sl[_CLOCK_T] > 0.0):
         return NEEDS_GENERAL
-    k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
-                                           calibrated, p_atm, zero, cal_g)
+    k0, t_start, r, v_r, p = i0, t[i0], p0, 0.0, p0  # (an unlagged reading's)
+    if general is not None:
+        k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s,
+                                               settle_s, calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
     if general is not None:  # a relaxation's p_bar from the reading's history; a flow's
         for q in range(rx_n):  # low-pass at its first step's flow (at rest)
