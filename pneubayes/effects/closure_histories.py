@@ -10,7 +10,6 @@ there (:class:`HeldCommand`, the dead-time features) and the command's direction
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 
 def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray:
@@ -54,6 +53,8 @@ def first_order_low_pass(time_s, values, tau_s: float, start=None) -> np.ndarray
     a = np.where(ok, a, 1.0)  # a skipped interval holds p_bar
     out[0] = float(start)
     if h.size and np.all(a == a[0]):  # uniform sampling, no gap: one linear filter
+        from scipy.signal import lfilter  # (imported here: scipy.signal costs the
+        # simulator's import about a second, and a plain simulation needs none of it)
         out[1:] = lfilter([1.0], [1.0, -a[0]], b, zi=[a[0] * out[0]])[0]
         return out
     y = out[0]

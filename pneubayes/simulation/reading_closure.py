@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.signal import lfilter
 
 from pneubayes.effects.closure_histories import first_order_low_pass
 from pneubayes.simulation.reading_play import (
@@ -49,6 +48,7 @@ def _low_pass_rows(time_s: np.ndarray, values: np.ndarray, tau_s: float,
     # uniform sampling (to rounding: a grid built as k * dt differs in its last bits):
     # one linear filter along the rows
     if np.all(np.abs(a - a.flat[0]) <= UNIFORM_RTOL * a.flat[0]):
+        from scipy.signal import lfilter  # (here: see closure_histories.py)
         out[:, 1:] = lfilter([1.0], [1.0, -a.flat[0]], b, axis=-1,
                              zi=a.flat[0] * out[:, :1])[0]
         return out

@@ -16,7 +16,6 @@ kernel and the reading's other maps (:mod:`pneubayes.simulation.reading_closure`
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 from pneubayes.simulation.reading_closure import UNIFORM_RTOL, _recursion
 
@@ -36,6 +35,7 @@ def command_lag(time_s, command, tau_s: float, before=None) -> np.ndarray:
         return out
     a = np.exp(-np.diff(t) / tau_s)
     if np.all(np.abs(a - a[0]) <= UNIFORM_RTOL * a[0]):
+        from scipy.signal import lfilter  # (here: see closure_histories.py)
         out[1:] = lfilter([1.0 - a[0]], [1.0, -a[0]], d[:-1], zi=[a[0] * out[0]])[0]
         return out
     row = out[None].copy()
