@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import logging
 import os
+import threading
 import time
 from pathlib import Path
 
@@ -106,6 +108,10 @@ def kernel_first_call(entry: str, general: bool) -> str:
 FIRST_CALL_WAIT_S = 1800.0
 #: How often a waiting process tries the lock again (s).
 _POLL_S = 0.05
+#: How long a first call runs (s) before :func:`first_call` says that it is compiling:
+#: loading a variant from numba's cache takes a second or two, compiling one 15 s or more.
+COMPILE_NOTICE_AFTER_S = 5.0
+_LOG = logging.getLogger(__name__)
 #: Variants whose first call this process has made (or whose lock it holds): their
 #: compiled code is in numba's in-process dispatcher from then on, so the lock is not
 #: taken again (this mirrors that per-process state of numba's own).
@@ -149,22 +155,33 @@ def _lock(name: str, wait_s: float):
 
 
 @contextlib.contextmanager
-def first_call(name: str, wait_s: float = FIRST_CALL_WAIT_S):
+def first_call(name: str, wait_s: float = FIRST_CALL_WAIT_S,
+               notice_after_s: float = COMPILE_NOTICE_AFTER_S):
     """Run the body (a compiled entry point's call) holding ``name``'s first-call lock,
     the first time this process calls it; later calls run without it.
 
     ``name`` is one compiled variant (e.g. ``"simulate-general"``). If another process
     holds the lock (compiling that variant), this waits up to ``wait_s`` seconds for it,
-    then the body loads the variant from numba's cache.
+    then the body loads the variant from numba's cache. A first call still running
+    after ``notice_after_s`` seconds (waiting or compiling, not loading) logs a warning
+    that says so, once, on the ``pneubayes.compile_cache`` logger (shown on stderr when
+    logging is not configured), so a long first call is not taken for a hang.
     """
     if name in _FIRST_CALLS_DONE:
         yield
         return
+    notice = threading.Timer(notice_after_s, _LOG.warning, (
+        "pneubayes: compiling the simulator's %s kernel for its first use since "
+        "installing or updating (once: 20 s to 2 min, then cached; `pneubayes compile` "
+        "does it ahead of time)", name))
+    notice.daemon = True
+    notice.start()
     fd = _lock(name, wait_s)
     try:
         yield
         _FIRST_CALLS_DONE.add(name)
     finally:
+        notice.cancel()
         if fd is not None:
             os.close(fd)  # closing the descriptor releases the lock
 

@@ -88,6 +88,25 @@ def test_a_first_call_stops_waiting_after_its_limit(tmp_path, monkeypatch):
     holder.communicate()
 
 
+def test_a_long_first_call_says_it_is_compiling_and_a_short_one_does_not(
+        tmp_path, monkeypatch, caplog):
+    """A first call still running after ``notice_after_s`` (a compile, or a wait for
+    another process's) logs one warning naming the variant; one that ends before it (a
+    load from the cache) logs nothing, and neither does a later call."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    with caplog.at_level("WARNING", logger="pneubayes.compile_cache"):
+        with first_call("test-slow", notice_after_s=0.1):
+            time.sleep(0.5)
+        with first_call("test-fast", notice_after_s=1.0):
+            pass
+        time.sleep(1.2)  # past the fast call's timer: it was cancelled
+        with first_call("test-slow", notice_after_s=0.1):
+            time.sleep(0.3)
+    messages = [r.getMessage() for r in caplog.records]
+    assert len(messages) == 1
+    assert "compiling the simulator's test-slow kernel" in messages[0]
+
+
 # ---------------------------------------------------------------- the shared compile
 _CALLEES_THEN_KERNEL = """
 import json
