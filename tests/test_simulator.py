@@ -1141,16 +1141,9 @@ def test_the_wrapper_sees_every_second_state_the_kernel_steps():
         assert forms[:, sim._GENERAL_COLUMNS].any() == kernel.needs_general(slots)
 
 
-@pytest.mark.parametrize("form", [
-    {"sensor_time_constant_s": 2e-3},
-    {"sensor_natural_frequency_rad_per_s": 900.0, "sensor_damping": 0.7},
-    {"spool_natural_frequency_rad_per_s": 900.0, "spool_damping": 0.7},
-    {"command_clock_period_s": 7e-3}], ids=["sensor", "sensor2", "spool2", "clock"])
-def test_the_pressure_only_kernel_refuses_the_rarer_forms(rig, form):
-    """A lagged sensor, a second-order spool and a valve driver's clock run in the
-    general kernel (``needs_general``); handed to the pressure-only kernel they are
-    refused with ``NEEDS_GENERAL``, not silently left out, and the general kernel's
-    result differs from the form's absence (the form is stepped)."""
+def _form_windows(rig, form, general):
+    """A valve with open ports stepped through one window without and with ``form``
+    (slot values) in the kernel ``general`` chooses: ``(plain, (out, status), needs)``."""
     t = np.arange(301) * 1e-3
     u = np.where(t < 0.1, 5.0, -5.0)
     sl = _closed_slots(2.4e-6)
@@ -1163,9 +1156,35 @@ def test_the_pressure_only_kernel_refuses_the_rarer_forms(rig, form):
     assert not status.any() and not kernel.needs_general(sl)
     for name, value in form.items():
         sl[0, SLOT_INDEX[name]] = value
-    assert kernel.needs_general(sl)
-    _, status = kernel.simulate_windows(np.ascontiguousarray(sl), *args, general=False)
-    assert status[0, 0] == kernel.NEEDS_GENERAL
-    out, status = kernel.simulate_windows(np.ascontiguousarray(sl), *args, general=True)
+    return (plain, kernel.simulate_windows(np.ascontiguousarray(sl), *args, general=general),
+            kernel.needs_general(sl))
+
+
+@pytest.mark.parametrize("form", [
+    {"spool_natural_frequency_rad_per_s": 900.0, "spool_damping": 0.7},
+    {"command_clock_period_s": 7e-3}], ids=["spool2", "clock"])
+def test_the_pressure_only_kernel_refuses_the_rarer_forms(rig, form):
+    """A second-order spool and a valve driver's clock run in the general kernel
+    (``needs_general``); handed to the pressure-only kernel they are refused with
+    ``NEEDS_GENERAL``, not silently left out, and the general kernel steps them (its
+    result differs from the form's absence)."""
+    _, (_, status), needs = _form_windows(rig, form, False)
+    assert needs and status[0, 0] == kernel.NEEDS_GENERAL
+    plain, (out, status), _ = _form_windows(rig, form, True)
     assert status[0, 0] == kernel.OK
     assert np.max(np.abs(out[0, 0] - plain[0, 0])) > 100.0
+
+
+@pytest.mark.parametrize("form", [
+    {"sensor_time_constant_s": 2e-3},
+    {"sensor_natural_frequency_rad_per_s": 900.0, "sensor_damping": 0.7}],
+    ids=["sensor", "sensor2"])
+def test_a_lagged_sensor_runs_in_the_pressure_only_kernel_as_in_the_general_one(rig, form):
+    """A lagged reading (first or second order) is stepped by the pressure-only kernel
+    (``needs_general`` false), as the general kernel steps it, and it lags."""
+    plain, (out, status), needs = _form_windows(rig, form, False)
+    assert not needs and status[0, 0] == kernel.OK
+    assert np.max(np.abs(out[0, 0] - plain[0, 0])) > 100.0
+    _, (general, status), _ = _form_windows(rig, form, True)
+    assert status[0, 0] == kernel.OK
+    np.testing.assert_allclose(out[0, 0], general[0, 0], rtol=1e-9)

@@ -589,7 +589,7 @@ def _march(sl, cs, sv, t, u, ue, x, ps, i0, length, p0, out, sens, carry, genera
                             (t_prev, tau, hh, p_prev, s_prev, sc0, zp, fp, vp, ep, phi3p),
                             (chord, qstep, x0c, x1c, jf, c_c), v0, bore, kap, sl, p_atm,
                             calibrated, zero, cal_g, slope0, want_sens)
-                    if general is not None and reading:
+                    if reading:
                         r, v_r, s_r, s_v = reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev,
                                                         s_p0, hh, zp, fp, vp, ep, dev_r,
                                                         second, w_r, z_r, lag_r, n_r, p_atm,
@@ -737,12 +737,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
         return NEEDS_GENERAL
     lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
-    if general is None and (reading or spool2 or sl[_CLOCK_T] > 0.0):
+    if general is None and (spool2 or sl[_CLOCK_T] > 0.0):
         return NEEDS_GENERAL
-    k0, t_start, r, v_r, p = i0, t[i0], p0, 0.0, p0  # (an unlagged reading's)
-    if general is not None:
-        k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s,
-                                               settle_s, calibrated, p_atm, zero, cal_g)
+    k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
+                                           calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
     if general is not None:  # a relaxation's p_bar from the reading's history; a flow's
         for q in range(rx_n):  # low-pass at its first step's flow (at rest)
@@ -984,7 +982,7 @@ def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
     compartment), an open-form closure, a restriction at the port, a loaded wall, a
-    volume play, a lagged sensor, a second-order spool or a valve driver's clock (whose
+    volume play, a second-order spool or a valve driver's clock (whose
     code the pressure-only kernel leaves out, so that the plain model's first call
     compiles less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
@@ -992,10 +990,9 @@ def needs_general(slots) -> bool:
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`), and
 #: of the rarer forms the pressure-only kernel leaves out so that the paper's model
-#: compiles less on its first call: a sensor's lag (the reading's own state), a
-#: second-order spool and a valve driver's clock.
-GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N, _SENSOR,
-                          _SENSOR_W, _SPOOL_W, _CLOCK_T] + [
+#: compiles less on its first call: a second-order spool and a valve driver's clock.
+GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
+                          _SPOOL_W, _CLOCK_T] + [
     SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
     SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"],
     SLOT_INDEX["restriction_fill_inverse_area_per_m2"],

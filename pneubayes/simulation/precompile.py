@@ -10,7 +10,7 @@ each compiling its own copy.
 
 The kernel has two compiled variants: the chamber's pressure alone, or the *general*
 kernel with a second state (heat transfer, an acoustic or wave line, a supply tank, a
-second compartment, a lagged sensor's reading), an open-form closure or one of the rarer
+second compartment), an open-form closure or one of the rarer
 forms (:func:`pneubayes.simulation.kernel.needs_general`); the same compiled loop runs on one
 thread or on several (:func:`pneubayes.simulation.kernel._run_tasks`). Per state there
 is also the carried chain (:func:`pneubayes.simulation.simulate_carried`, the

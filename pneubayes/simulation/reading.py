@@ -288,7 +288,7 @@ def line_reading_deviation(err, p, pn, rates, h, r, sensor, p_atm, atol_p, rtol)
     return dev_r, max(err, abs(dev_r) / (atol_p + rtol * max(abs(p), abs(pn))))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def reading_step(r, v_r, s_r, s_v, p_prev, p, s_prev, s_p0, h, zp, fp, vp, ep, dev_r, second,
                  w_r, z_r, lag_r, n_r, p_atm, plain, shaped, want_sens):
     """``(r, v_r, s_r, s_v)``: the lagged reading, its rate and their sensitivities to the

@@ -60,7 +60,6 @@ _FORM_COLUMNS = {name: i for i, name in enumerate((
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
     "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
     "restriction_fill_inverse_area_per_m2", "restriction_vent_inverse_area_per_m2",
-    "sensor_time_constant_s", "sensor_natural_frequency_rad_per_s",
     "spool_natural_frequency_rad_per_s", "command_clock_period_s",
     *VOLUME_PLAY_COMPLIANCE_SLOTS))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
