@@ -70,6 +70,7 @@ from pneubayes.simulation.chamber_step import (
     start_rates,
 )
 from pneubayes.simulation.chord import position_at
+from pneubayes.simulation.command_clock import clock_on
 from pneubayes.simulation.dense import dense_run, dense_samples
 from pneubayes.simulation.held import held_start, held_windows
 from pneubayes.simulation.inputs import command_hold, delayed_command, input_segment
@@ -205,8 +206,6 @@ _CURVATURE = SLOT_INDEX["reading_curvature_Pa"]
 _DRIFT = SLOT_INDEX["reading_drift_Pa_per_s"]
 _WARM = SLOT_INDEX["reading_warm_up_Pa"]
 _WARM_TAU = SLOT_INDEX["reading_warm_up_time_constant_s"]
-_SENSOR = SLOT_INDEX["sensor_time_constant_s"]
-_SENSOR_W = SLOT_INDEX["sensor_natural_frequency_rad_per_s"]
 _SPOOL_W = SLOT_INDEX["spool_natural_frequency_rad_per_s"]
 _CLOCK_T = SLOT_INDEX["command_clock_period_s"]
 
@@ -734,11 +733,10 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
                 return NONFINITE
     if lung_from_p0:
         p_lung = p0
-    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0):
+    if general is None and (thermal or tank or lung or sl[_LLEN] > 0.0 or sl[_WLEN] > 0.0
+                            or spool2 or clock_on(sl)):
         return NEEDS_GENERAL
     lag_r, w_r, z_r, n_r, second, reading, lead_s, settle_s = reading_lags(sl, p0, p_atm)
-    if general is None and (spool2 or sl[_CLOCK_T] > 0.0):
-        return NEEDS_GENERAL
     k0, t_start, r, v_r, p = reading_start(t, pm, i0, p0, rate0, reading, lead_s, settle_s,
                                            calibrated, p_atm, zero, cal_g)
     max_steps += i0 - k0
@@ -982,9 +980,9 @@ def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
     compartment), an open-form closure, a restriction at the port, a loaded wall, a
-    volume play, a second-order spool or a valve driver's clock (whose
-    code the pressure-only kernel leaves out, so that the plain model's first call
-    compiles less)."""
+    volume play, a second-order spool or a valve driver's clock (whose code the
+    pressure-only kernel leaves out, so that the plain model's first call compiles
+    less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 

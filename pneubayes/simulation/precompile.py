@@ -10,8 +10,8 @@ each compiling its own copy.
 
 The kernel has two compiled variants: the chamber's pressure alone, or the *general*
 kernel with a second state (heat transfer, an acoustic or wave line, a supply tank, a
-second compartment), an open-form closure or one of the rarer
-forms (:func:`pneubayes.simulation.kernel.needs_general`); the same compiled loop runs on one
+second compartment), an open-form closure or one of the rarer forms
+(:func:`pneubayes.simulation.kernel.needs_general`); the same compiled loop runs on one
 thread or on several (:func:`pneubayes.simulation.kernel._run_tasks`). Per state there
 is also the carried chain (:func:`pneubayes.simulation.simulate_carried`, the
 online tracker's carried mode; on the calling thread). The virtual test bench's plant
