@@ -281,12 +281,13 @@ class StageSettings:
         The gap share a last resort, runner-up, pair or a round's tentative trial (tried
         on weak evidence) must close; the last resort also runs when the best passing
         trial closes less than this (0: only if none passed).
+    catalogue_sweep_min_noise_ratio, catalogue_sweep_min_gap_closed : float
+        CatalogueSweep: the untried groups above this x the floor (0: off), each to
+        close this share of the gap.
     runner_ups : bool
         RunnerUps: passing trials not added are revisited before the loop stops.
-    pair_members : int
-        Pairs of at most this many trials (0: off).
-    max_form_swaps : int
-        OtherForms: the named effects' other forms, at most this many swaps (0: off).
+    pair_members, max_form_swaps : int
+        Pairs of at most this many trials; OtherForms: at most this many swaps (0: off).
     open_form_min_noise_ratio : float
         OpenForm: an open-form closure while above this x the noise floor (0: off).
     reading_hinge_min_noise_ratio, reading_form_min_noise_ratio, \
@@ -311,6 +312,8 @@ class StageSettings:
     last_resort: bool = True
     last_resort_min_gap_closed: float = 0.25
     last_resort_best_gap_closed: float = 0.25
+    catalogue_sweep_min_noise_ratio: float = 1.1
+    catalogue_sweep_min_gap_closed: float = 0.5
     runner_ups: bool = True
     pair_members: int = 3
     max_form_swaps: int = 2
@@ -327,14 +330,16 @@ class StageSettings:
     port_restriction_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
-        _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed")
+        _check_shares(self, "last_resort_min_gap_closed", "last_resort_best_gap_closed",
+                      "catalogue_sweep_min_gap_closed")
         if not _int_at_least(self.pair_members, 0) or self.pair_members == 1:
             raise ValueError("pair_members must be 0 (off) or an integer >= 2, got "
                              f"{self.pair_members!r}")
         if not _int_at_least(self.max_form_swaps, 0):
             raise ValueError("max_form_swaps must be an integer >= 0, got "
                              f"{self.max_form_swaps!r}")
-        for name in ("open_form_min_noise_ratio", "reading_hinge_min_noise_ratio",
+        for name in ("catalogue_sweep_min_noise_ratio",
+                     "open_form_min_noise_ratio", "reading_hinge_min_noise_ratio",
                      "reading_form_min_noise_ratio",
                      "reading_play_min_noise_ratio", "reading_command_min_noise_ratio",
                      "reading_flow_min_noise_ratio",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.stages.catalogue_sweep import CatalogueSweep
 from pneubayes.discovery.stages.command_clock_form import CommandClockForm
 from pneubayes.discovery.stages.last_resort import LastResort
 from pneubayes.discovery.stages.loaded_wall_form import LoadedWallForm
@@ -31,17 +32,20 @@ from pneubayes.discovery.stages.volume_play_form import VolumePlayForm
 def default_stages(settings: DiscoverySettings) -> list[Stage]:
     """The pipeline ``settings.stages``
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
-    the other supported groups, the last resort, the runner-ups, pairs and the named
-    effects' other forms, then the open forms: the valve driver's clock, the reading's
-    knees, relaxations, plays, lags of the command and terms of the port flows, a
-    restriction at the port, the volume's hinges, its friction-held walls and a loaded
-    wall, and the closure."""
+    the other supported groups, the last resort, the catalogue's sweep near the noise
+    floor, the runner-ups, pairs and the named effects' other forms, then the open forms:
+    the valve driver's clock, the reading's knees, relaxations, plays, lags of the command
+    and terms of the port flows, a restriction at the port, the volume's hinges, its
+    friction-held walls and a loaded wall, and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
         stages.append(MoreSupported())
     if s.last_resort:
         stages.append(LastResort(s.last_resort_min_gap_closed, s.last_resort_best_gap_closed))
+    if s.catalogue_sweep_min_noise_ratio:
+        stages.append(CatalogueSweep(s.catalogue_sweep_min_noise_ratio,
+                                     s.catalogue_sweep_min_gap_closed))
     if s.runner_ups:
         stages.append(RunnerUps(s.last_resort_min_gap_closed))
     if s.pair_members:
@@ -77,9 +81,7 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     return stages
 
 
-__all__ = ["Stage", "CommandClockForm", "MoreSupported", "LastResort", "RunnerUps", "Pairs",
-           "OtherForms",
-           "OpenForm", "ReadingForm", "ReadingHingeForm", "ReadingPlayForm",
-           "ReadingCommandForm", "ReadingFlowForm", "PortRestrictionForm",
-           "VolumeForm",
-           "VolumePlayForm", "LoadedWallForm", "default_stages"]
+__all__ = ["Stage", "CatalogueSweep", "CommandClockForm", "MoreSupported", "LastResort",
+           "RunnerUps", "Pairs", "OtherForms", "OpenForm", "ReadingForm", "ReadingHingeForm",
+           "ReadingPlayForm", "ReadingCommandForm", "ReadingFlowForm", "PortRestrictionForm",
+           "VolumeForm", "VolumePlayForm", "LoadedWallForm", "default_stages"]
