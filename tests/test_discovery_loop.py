@@ -49,13 +49,13 @@ def _blind_case_recordings(out, cylinder, valve, forms, seed):
     return [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
 
 
-def _leak_recordings(out):
+def _leak_recordings(out, conductance=1.9e-16):
     """Fixed-volume AIR37 recordings with a hidden laminar leak (a slow effect the
-    one-step search sees weakly)."""
+    one-step search sees weakly) of ``conductance`` (kg/(s Pa^2))."""
     eff = effects_from_names(["cylinder_leak"], "laminar")
     fixed = run_bench(BenchConfig("AIR37", "valve1", eff, protocol="fixed", duration_s=14.0,
                                   seed=13, positions=(0.5, 0.9), ranges_V=(5.0, 0.5),
-                                  overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
+                                  overrides={"leak_conductance_kg_per_s_Pa2": conductance}),
                       out / "fixed")
     return [read_recording(p) for p in fixed.recordings]
 
@@ -276,6 +276,37 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
     assert [step["effect"] for step in added] == ["cylinder_leak"]
     assert added[0]["gap_closed"] >= 0.25
     off = Discovery(_settings(rounds={"max_effects": 1}, stages={"last_resort": False}), None,
+                    log=lambda m: None).fit(recs).result_.to_dict()
+    assert off["effects"] == []
+
+
+@pytest.mark.slow
+def test_near_the_noise_a_round_that_supports_nothing_sweeps_the_catalogue(tmp_path,
+                                                                           monkeypatch):
+    """The catalogue sweep: a small leak (1.4 x the noise floor, under the last
+    resort's 2 x) that the search does not support is still tried, and named, where
+    the loop used to stop; each swept group must close half the gap. Switched off,
+    nothing is named."""
+    import pneubayes.discovery.loop as loop
+
+    class Blind(loop.GroupedSINDy):
+        def supported(self, min_inclusion):
+            return []
+
+    monkeypatch.setattr(loop, "GroupedSINDy", Blind)
+    recs = _leak_recordings(tmp_path, conductance=4e-17)
+    doc = Discovery(_settings(rounds={"max_effects": 1}), None,
+                    log=lambda m: None).fit(recs).result_.to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
+    sweep = [step for step in doc["ledger"] if step["action"] == "catalogue sweep"]
+    assert len(sweep) == 1 and "cylinder_leak" in sweep[0]["groups"]
+    assert 1.1 < sweep[0]["heldout_over_noise"] < 2.0
+    assert "last resort" not in [step["action"] for step in doc["ledger"]]
+    passed = [step for step in doc["ledger"] if step["action"] == "pass"]
+    assert [step["effect"] for step in passed] == ["cylinder_leak"]
+    assert passed[0]["gap_closed"] >= 0.5
+    off = Discovery(_settings(rounds={"max_effects": 1},
+                              stages={"catalogue_sweep_min_noise_ratio": 0.0}), None,
                     log=lambda m: None).fit(recs).result_.to_dict()
     assert off["effects"] == []
 
