@@ -15,7 +15,8 @@ into the chamber, searched over a generic typed library),
 :mod:`~pneubayes.discovery.trials` (fitting and verifying trials, their basin controls),
 :mod:`~pneubayes.discovery.state` (the data, the ledger and a round's state),
 :mod:`~pneubayes.discovery.stages` (the pipeline after a round's trials: the other
-supported groups, the last resort, runner-ups, pairs, the named effects' other forms),
+supported groups, the last resort, the catalogue sweep, runner-ups, pairs, the named
+effects' other forms),
 :mod:`~pneubayes.discovery.settings` (every setting, saved with the result) and
 :mod:`~pneubayes.discovery.loop` (fit, map, search, name, add, verify, repeat;
 :func:`~pneubayes.discovery.loop.discover`), :mod:`~pneubayes.discovery.result` (what it

@@ -13,7 +13,8 @@ Starting from the plain thin-port model (eqs. 1-5 with Gompertz maps):
    the forms they propose, refitted, and verified on the held-out windows against the
    current fit and their control (:mod:`~pneubayes.discovery.trials`).
 5. **Stages**: the pipeline's stages, in order (:mod:`~pneubayes.discovery.stages`:
-   the other supported groups, the last resort, runner-ups, pairs, other forms).
+   the other supported groups, the last resort, the catalogue sweep, runner-ups, pairs,
+   other forms).
 6. **Add** the passing trial with the lowest held-out RMSE and **prune** each earlier
    effect the newcomer made unnecessary; **repeat** until nothing passes.
 
@@ -216,8 +217,9 @@ class Discovery:
                    ) -> StepFit:
         """The round's first trials, then its stages in order (until one reshapes the
         model). A round whose search supported nothing goes on only if a stage opens it
-        (the last resort, far above the noise floor); otherwise only the stages that
-        reshape the model run. Returns the round's current fit, or the replacement."""
+        (the last resort far above the noise floor, the catalogue sweep near it); otherwise
+        only the stages that reshape the model run. Returns the round's current fit, or
+        the replacement."""
         candidates = state.supported[: self.settings.rounds.max_trials_per_round] + state.tentative
         state.candidates = list(candidates)
         empty = not candidates and not any(st.opens_empty_round(state) for st in stages)
