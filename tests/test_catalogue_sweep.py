@@ -59,15 +59,30 @@ def test_near_the_noise_the_untried_groups_are_tried_in_the_searchs_order():
 @pytest.mark.parametrize("rmse_Pa, passing, started_far", [
     (540.0, (), False),    # 1.08 x the noise: at the floor, nothing to sweep for
     (1500.0, (), True),    # far above: the last resort's zone, not this stage's
-    (780.0, [(700.0, "spool_lag", None, 1.0, 0.001)], False),  # something passed
+    (780.0, [(700.0, "spool_lag", None, 1.0, 0.001)], False),  # one closing 29 % passed
 ])
-def test_the_sweep_stays_out_at_the_floor_far_above_it_and_when_a_trial_passed(
+def test_the_sweep_stays_out_at_the_floor_far_above_it_and_when_a_trial_closed_enough(
         rmse_Pa, passing, started_far):
     state = _state(rmse_Pa, candidates=["spool_lag"], passing=passing,
                    started_far=started_far)
     runner = _Runner()
     CatalogueSweep(1.1, 0.5).run(state, runner)
     assert runner.calls == [] and runner.ledger.events == []
+
+
+def test_a_trial_that_passed_closing_little_of_the_gap_does_not_stop_the_sweep():
+    small = (750.0, "sensor_lag", None, 1.0, 0.001)  # closes 11 % of the 280-Pa gap
+    state = _state(780.0, candidates=["spool_lag", "sensor_lag"], passing=[small])
+    runner = _Runner(passing=[(560.0, "cylinder_leak", None, 1.0, 0.001)])
+    CatalogueSweep(1.1, 0.5, best_gap_closed=0.25).run(state, runner)
+    assert runner.calls == [(["cylinder_leak", "heat_transfer", "sensor_drift"], 0.5)]
+    assert [t[1] for t in state.passing] == ["sensor_lag", "cylinder_leak"]
+    assert runner.ledger.events[0][1]["best_gap_closed_before"] == pytest.approx(30 / 280)
+    # with the share at 0 the stage runs only when nothing passed
+    state = _state(780.0, candidates=["spool_lag", "sensor_lag"], passing=[small])
+    runner = _Runner()
+    CatalogueSweep(1.1, 0.5, best_gap_closed=0.0).run(state, runner)
+    assert runner.calls == []
 
 
 def test_every_group_tried_already_leaves_nothing_to_sweep():
@@ -84,7 +99,8 @@ def test_the_default_pipeline_sweeps_after_the_last_resort_and_the_setting_switc
     assert kinds.index(CatalogueSweep) < kinds.index(OpenForm)
     sweep = next(st for st in default_stages(DiscoverySettings())
                  if isinstance(st, CatalogueSweep))
-    assert sweep.options() == {"min_noise_ratio": 1.1, "min_gap_closed": 0.5}
+    assert sweep.options() == {"min_noise_ratio": 1.1, "min_gap_closed": 0.5,
+                               "best_gap_closed": 0.25}
     off = DiscoverySettings(stages=StageSettings(catalogue_sweep_min_noise_ratio=0.0))
     assert CatalogueSweep not in [type(st) for st in default_stages(off)]
 

@@ -45,7 +45,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
         stages.append(LastResort(s.last_resort_min_gap_closed, s.last_resort_best_gap_closed))
     if s.catalogue_sweep_min_noise_ratio:
         stages.append(CatalogueSweep(s.catalogue_sweep_min_noise_ratio,
-                                     s.catalogue_sweep_min_gap_closed))
+                                     s.catalogue_sweep_min_gap_closed,
+                                     s.last_resort_best_gap_closed))
     if s.runner_ups:
         stages.append(RunnerUps(s.last_resort_min_gap_closed))
     if s.pair_members:
