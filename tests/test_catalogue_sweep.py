@@ -114,3 +114,17 @@ def test_bad_sweep_settings_are_named(kw, message):
         StageSettings(**kw)
     with pytest.raises(ValueError, match="CatalogueSweep"):
         CatalogueSweep(min_noise_ratio=0.9)
+
+
+def test_a_trial_is_not_fitted_once_the_runs_time_budget_is_spent(monkeypatch):
+    """A stage that tries many groups (the sweep, the last resort) beside a slow model
+    stops fitting them at the budget: each is a failed form, not a fit."""
+    from pneubayes.discovery.rounds import TrialFitFailed
+    from pneubayes.discovery.trials import TrialRunner
+
+    spent = TrialRunner(DiscoverySettings(), None, None, log=lambda m: None, deadline_s=0.0)
+    with pytest.raises(TrialFitFailed, match="time budget"):
+        spent._fit_in_budget("cylinder_leak", None, {}, None, None)
+    free = TrialRunner(DiscoverySettings(), None, None, log=lambda m: None)
+    monkeypatch.setattr(free, "fit_trial", lambda *a: "fitted")
+    assert free._fit_in_budget("cylinder_leak", None, {}, None, None) == "fitted"

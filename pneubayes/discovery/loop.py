@@ -147,7 +147,8 @@ class Discovery:
         stages = default_stages(s) if self.stages is None else list(self.stages)
         ledger = Ledger()
         runner = TrialRunner(s, LoopData(tuple(train), tuple(held), train_ws, held_ws,
-                                         data_key, noise), ledger, self.out_dir, self.log)
+                                         data_key, noise), ledger, self.out_dir, self.log,
+                             deadline_s=self._deadline)
         model = Model(rig_card=card)
         start, notes, how = starting_point(model, train, s.fit, noise)
         self.log("discover: base model ("

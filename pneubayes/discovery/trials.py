@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from pathlib import Path
 
@@ -81,15 +82,20 @@ class TrialRunner:
         nothing.
     log : callable
         Progress messages.
+    deadline_s : float
+        ``time.perf_counter()`` after which a trial's forms not yet fitted are not
+        fitted (failed forms: the run's time budget, ``rounds.max_seconds``, is spent);
+        inf: none.
     """
 
     def __init__(self, settings: DiscoverySettings, data: LoopData, ledger: Ledger,
-                 out_dir=None, log=print):
+                 out_dir=None, log=print, deadline_s: float = math.inf):
         self.settings = settings
         self.data = data
         self.ledger = ledger
         self.out_dir = None if out_dir is None else Path(out_dir)
         self.log = log
+        self.deadline_s = deadline_s
 
     # ------------------------------------------------------------------ one fit
     def _cache_path(self, key: str) -> Path | None:
@@ -187,6 +193,14 @@ class TrialRunner:
                 break
         return params
 
+    def _fit_in_budget(self, group: str, model: Model, start: dict, current: StepFit,
+                       beat_Pa: float | None) -> StepFit:
+        """:meth:`fit_trial`, unless the run's time budget is spent (a failed form)."""
+        if time.perf_counter() > self.deadline_s:
+            raise TrialFitFailed("not fitted: the time budget (rounds.max_seconds) is "
+                                 "spent")
+        return self.fit_trial(group, model, start, current, beat_Pa)
+
     def fit_trial(self, group: str, model: Model, start: dict, current: StepFit,
                   beat_Pa: float | None = None) -> StepFit:
         """A trial that cannot lose: ``model`` (``current``'s model with ``group``'s
@@ -257,7 +271,7 @@ class TrialRunner:
         options = {g: effect_candidates(current, g, evidence[g], rig, s.forms)
                    for g in groups}
         round_forms, settled, failed, outpaced = fit_round_forms(
-            options, lambda g, m, x, beat: self.fit_trial(g, m, x, current, beat),
+            options, lambda g, m, x, beat: self._fit_in_budget(g, m, x, current, beat),
             s.forms.settled_ratio * d.noise_Pa,
             follow=lambda g, m, f: follow_up(current, g, evidence[g], rig, m, f.params,
                                              s.forms),
@@ -269,7 +283,9 @@ class TrialRunner:
             forms = round_forms[g]
             forms_info = self._forms_info(g, forms, options[g], failed[g], outpaced, settled)
             if not forms:
-                self.log(f"discover: {g} has no form that fits beside "
+                self.log(f"discover: {g}: not fitted, the time budget is spent; skipped"
+                         if time.perf_counter() > self.deadline_s else
+                         f"discover: {g} has no form that fits beside "
                          f"{list(current.model.effect_names)}; skipped")
                 continue
             # the effect's form that fits the training data best (never the held-out),
