@@ -170,9 +170,9 @@ class RoundSettings:
     max_seconds : float
         Time budget of the loop, s of this process's wall clock (0: none). Once spent, no
         further stage or round starts: the round under way adds what its trials passed,
-        and the loop ends with the model it has (the ledger records the stop). A stage
-        or a trial that has started runs to its end; a resumed run's replayed steps
-        cost next to nothing.
+        and the loop ends with the model it has (the ledger records the stop); no
+        trial's form starts fitting either. A fit that has started runs to its end; a
+        resumed run's replayed steps cost next to nothing.
     """
 
     max_effects: int = 4
