@@ -176,8 +176,7 @@ def _fmt(v, spec=".4g"):
 #: ledger actions that try a list of groups, and why the loop tried them
 _GROUP_ACTIONS = {
     "last resort": "tried (the gap stayed large)",
-    "catalogue sweep": "tried (nothing passed above the noise floor; each to close half "
-                       "the gap)",
+    "catalogue sweep": "tried (near the noise floor nothing, or too little, passed)",
     "more supported": "tried (the round's first supported effects all failed)",
     "revisit": "tried again (significant in an earlier round, not added; nothing else "
                "passed)",

@@ -279,8 +279,8 @@ class StageSettings:
         LastResort: every catalogue group when nothing (or little) passed.
     last_resort_min_gap_closed, last_resort_best_gap_closed : float
         The gap share a last resort, runner-up, pair or a round's tentative trial (tried
-        on weak evidence) must close; the last resort also runs when the best passing
-        trial closes less than this (0: only if none passed).
+        on weak evidence) must close; the last resort and the catalogue sweep also run
+        when the best passing trial closes less than this (0: only if none passed).
     catalogue_sweep_min_noise_ratio, catalogue_sweep_min_gap_closed : float
         CatalogueSweep: the untried groups above this x the floor (0: off), each to
         close this share of the gap.

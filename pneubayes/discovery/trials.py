@@ -283,9 +283,7 @@ class TrialRunner:
             forms = round_forms[g]
             forms_info = self._forms_info(g, forms, options[g], failed[g], outpaced, settled)
             if not forms:
-                self.log(f"discover: {g}: not fitted, the time budget is spent; skipped"
-                         if time.perf_counter() > self.deadline_s else
-                         f"discover: {g} has no form that fits beside "
+                self.log(f"discover: {g} has no form that fits beside "
                          f"{list(current.model.effect_names)}; skipped")
                 continue
             # the effect's form that fits the training data best (never the held-out),

@@ -3,15 +3,14 @@ floor but not far above it and nothing (or little) passed."""
 
 from __future__ import annotations
 
-from pneubayes.discovery.rounds import last_resort_reason
-from pneubayes.discovery.stages.base import Stage
+from pneubayes.discovery.stages.last_resort import LastResort
 from pneubayes.discovery.state import RoundState
 
 
-class CatalogueSweep(Stage):
-    """Below the last resort's zone (:meth:`RoundState.far`) and above
-    ``min_noise_ratio`` x the noise floor, when no trial of the round passed or the best
-    that passed closes under ``best_gap_closed`` of the gap, fit and verify the
+class CatalogueSweep(LastResort):
+    """The last resort nearer the noise floor: below its zone (:meth:`RoundState.far`)
+    and above ``min_noise_ratio`` x the noise floor, when no trial of the round passed or
+    the best that passed closes under ``best_gap_closed`` of the gap, fit and verify the
     catalogue's groups the round has not tried, in the order of the search's evidence
     (ledger action ``catalogue sweep``).
 
@@ -36,46 +35,27 @@ class CatalogueSweep(Stage):
     """
 
     name = "catalogue_sweep"
+    action = "catalogue sweep"
 
     def __init__(self, min_noise_ratio: float = 1.1, min_gap_closed: float = 0.5,
                  best_gap_closed: float = 0.25):
         if not min_noise_ratio >= 1.0:
             raise ValueError(f"CatalogueSweep: min_noise_ratio must be >= 1, got "
                              f"{min_noise_ratio}")
-        if not 0.0 <= min_gap_closed <= 1.0:
-            raise ValueError(f"CatalogueSweep: min_gap_closed must be in [0, 1], got "
-                             f"{min_gap_closed}")
-        if not 0.0 <= best_gap_closed <= 1.0:
-            raise ValueError(f"CatalogueSweep: best_gap_closed must be in [0, 1], got "
-                             f"{best_gap_closed}")
+        for name, share in (("min_gap_closed", min_gap_closed),
+                            ("best_gap_closed", best_gap_closed)):
+            if not 0.0 <= share <= 1.0:
+                raise ValueError(f"CatalogueSweep: {name} must be in [0, 1], got {share}")
+        super().__init__(min_gap_closed, best_gap_closed)
         self.min_noise_ratio = min_noise_ratio
-        self.min_gap_closed = min_gap_closed
-        self.best_gap_closed = best_gap_closed
 
     def options(self):
-        return {"min_noise_ratio": self.min_noise_ratio,
-                "min_gap_closed": self.min_gap_closed, "best_gap_closed": self.best_gap_closed}
+        return {"min_noise_ratio": self.min_noise_ratio, **super().options()}
 
-    def _above(self, state: RoundState) -> bool:
-        return state.current.heldout_rmse_Pa > self.min_noise_ratio * state.noise_Pa
+    def _in_zone(self, state: RoundState) -> bool:
+        """Above ``min_noise_ratio`` x the noise floor, not far above it."""
+        return (state.current.heldout_rmse_Pa > self.min_noise_ratio * state.noise_Pa
+                and not state.far())
 
     def opens_empty_round(self, state: RoundState) -> bool:
-        return self._above(state) and not state.far()
-
-    def run(self, state: RoundState, runner) -> None:
-        if state.far() or not self._above(state):
-            return
-        why, closed = last_resort_reason([t[0] for t in state.passing],
-                                         state.current.heldout_rmse_Pa, state.noise_Pa,
-                                         self.best_gap_closed)
-        rest = [g for g in state.search.ranking_ if g not in state.candidates]
-        if not (why and rest):
-            return
-        ratio = state.current.heldout_rmse_Pa / state.noise_Pa
-        runner.log(f"discover: {why} at {ratio:.2f} x the noise floor: trying the "
-                   f"catalogue's untried groups ({', '.join(rest)}), each to close "
-                   f"{self.min_gap_closed:.0%} of the gap")
-        runner.ledger.record("catalogue sweep", round=state.number, groups=rest,
-                             heldout_over_noise=ratio, best_gap_closed_before=closed)
-        state.passing = state.passing + runner.trials(rest, state, self.min_gap_closed)
-        state.candidates = state.candidates + rest
+        return self._in_zone(state)

@@ -25,6 +25,8 @@ class LastResort(Stage):
     """
 
     name = "last_resort"
+    #: The ledger's action for the stage's trials.
+    action = "last resort"
 
     def __init__(self, min_gap_closed: float = 0.25, best_gap_closed: float = 0.25):
         self.min_gap_closed = min_gap_closed
@@ -36,17 +38,23 @@ class LastResort(Stage):
     def opens_empty_round(self, state: RoundState) -> bool:
         return state.started_far
 
+    def _in_zone(self, state: RoundState) -> bool:
+        """Whether the held-out error is where this stage acts: far above the noise."""
+        return state.far()
+
     def run(self, state: RoundState, runner) -> None:
-        noise = runner.data.noise_Pa
+        noise = state.noise_Pa
         rest = [g for g in state.search.ranking_ if g not in state.candidates]
         why, closed = last_resort_reason([t[0] for t in state.passing],
                                          state.current.heldout_rmse_Pa, noise,
                                          self.best_gap_closed)
-        if not (why and state.far() and rest):
+        if not (why and self._in_zone(state) and rest):
             return
-        runner.log(f"discover: the held-out error is still "
-                   f"{state.current.heldout_rmse_Pa / noise:.1f} x the noise floor and "
-                   f"{why}: trying the rest ({', '.join(rest)})")
-        runner.ledger.record("last resort", round=state.number, groups=rest,
-                             best_gap_closed_before=closed)
+        ratio = state.current.heldout_rmse_Pa / noise
+        runner.log(f"discover: {self.action}: the held-out error is {ratio:.2f} x the noise "
+                   f"floor and {why}: trying the rest ({', '.join(rest)}), each to close "
+                   f"{self.min_gap_closed:.0%} of the gap")
+        runner.ledger.record(self.action, round=state.number, groups=rest,
+                             heldout_over_noise=ratio, best_gap_closed_before=closed)
         state.passing = state.passing + runner.trials(rest, state, self.min_gap_closed)
+        state.candidates = state.candidates + rest
