@@ -1,5 +1,6 @@
-"""Shared by the real-recording experiments: the plain model's refit and the figure of
-measured pressure against the plain model and the discovered model's posterior band."""
+"""Shared by the real-recording experiments: which recordings train and which are held
+out (``--data``, ``--held-out``), the plain model's refit and the figure of measured
+pressure against the plain model and the discovered model's posterior band."""
 
 from __future__ import annotations
 
@@ -14,6 +15,41 @@ from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig, simulate_windows
 from pneubayes.simulation.drive import Inputs
+
+
+def add_split_arguments(ap, data: Path, held_out: tuple, what: str) -> None:
+    """``--data`` (default ``data``) and ``--held-out NAME`` (repeatable; default
+    ``held_out``) on the parser ``ap``; ``what`` names a held-out unit in the help (a
+    trial, a run). Every recording not held out trains."""
+    ap.add_argument("--data", default=str(data),
+                    help=f"the imported recordings (default {data})")
+    ap.add_argument("--held-out", action="append", default=None, metavar="NAME",
+                    help=f"a {what} held out whole (repeatable; default "
+                         f"{', '.join(held_out)}); every other {what} trains")
+
+
+def split_held_out(items, names, key, where: str, prefix: bool = False) -> tuple:
+    """``(train, held)``: ``items`` whose ``key(item)`` is one of ``names`` (or, with
+    ``prefix``, starts with one: a trial folder named with its date) are held out, the
+    rest train. A name that matches nothing, or a split that leaves nothing to train on
+    or nothing held out, stops with an error naming ``where`` and the names there."""
+    names = tuple(names)
+    keys = [key(i) for i in items]
+
+    def held(k):
+        return k.startswith(names) if prefix else k in names
+
+    unmatched = [n for n in names
+                 if not any((k.startswith(n) if prefix else k == n) for k in keys)]
+    if unmatched:
+        raise SystemExit(f"{where}: --held-out {', '.join(unmatched)} matches no recording "
+                         f"there (they are: {', '.join(sorted(set(keys)))})")
+    train = [i for i, k in zip(items, keys) if not held(k)]
+    out = [i for i, k in zip(items, keys) if held(k)]
+    if not train or not out:
+        raise SystemExit(f"{where}: holding out {', '.join(names)} leaves "
+                         + ("nothing to train on" if not train else "nothing held out"))
+    return train, out
 
 
 def added_names(doc: dict) -> list[str]:

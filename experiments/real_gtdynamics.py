@@ -1,7 +1,8 @@
 """Real recordings: the GTDynamics jumping robot's muscle fills, plain model -> discovery.
 
     python experiments/real_gtdynamics.py --out results/real_gtdynamics [--smoke]
-        [--calibration] [--wave-grid GRID_S PER_ELEMENT]
+        [--calibration] [--wave-grid GRID_S PER_ELEMENT] [--data DIR]
+        [--held-out TRIAL ...]
 
 Data: ``data/real/gtdynamics/`` (``pneubayes import gtdynamics`` of the five shared
 trials; four muscles each, 500 Hz, raw psi gauge; licence file beside them). The rig
@@ -16,7 +17,9 @@ was not recorded; that part is not fitted, and the report says so). Horizon 44 m
 
 Hold-out: whole trials. Train on three trials (12 recordings), hold out the 65-psi
 0.09-s trial and the 80-psi 0.06-s trial (8 recordings, 16 windows): one of each
-source pressure. Discovery starts from the card's plain model; the result records the
+source pressure. ``--held-out`` names other trials (a folder name or its start, e.g.
+``0p00_0p12_hipknee-80source``; repeatable), ``--data`` another import's folder: every
+trial not held out trains. Discovery starts from the card's plain model; the result records the
 held-out RMSE before and after against the noise floor (Pa and % of the measured span),
 the named effects with their posterior intervals, and writes figures of measured
 against predicted pressure with 90 % bands, before and after.
@@ -32,7 +35,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from real_common import added_names, plain_fit, prediction_figure
+from real_common import (
+    add_split_arguments,
+    added_names,
+    plain_fit,
+    prediction_figure,
+    split_held_out,
+)
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.library import LibraryGrid
@@ -67,21 +76,22 @@ def fill_phase(rec):
     return rec.slice(0, n)
 
 
-def load(data: Path):
+def load(data: Path, held_out=HELD_OUT):
+    """``(train, held)``: the fill phases of the recordings under ``data``, those of the
+    trials whose folder names start with one of ``held_out`` held out."""
     paths = sorted(data.glob("*/*.csv"))
     if not paths:
         raise SystemExit(f"{data}: no recordings (run 'pneubayes import gtdynamics ...')")
-    train, held = [], []
-    for p in paths:
-        rec = fill_phase(read_recording(p))
-        (held if p.parent.name.startswith(HELD_OUT) else train).append(rec)
-    return train, held
+    train, held = split_held_out(paths, held_out, lambda p: p.parent.name, str(data),
+                                 prefix=True)
+    return ([fill_phase(read_recording(p)) for p in train],
+            [fill_phase(read_recording(p)) for p in held])
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True)
-    ap.add_argument("--data", default=str(DATA))
+    add_split_arguments(ap, DATA, HELD_OUT, "trial")
     ap.add_argument("--smoke", action="store_true", help="short sampler (a check it runs)")
     ap.add_argument("--calibration", action="store_true",
                     help="let the loop search for sensor_calibration too (its terms are off "
@@ -93,7 +103,8 @@ def main(argv=None) -> int:
                          "GRID_S s (default 1e-4 1: 0.1 ms)")
     args = ap.parse_args(argv)
     out = Path(args.out)
-    train, held = load(Path(args.data))
+    held_out = tuple(args.held_out or HELD_OUT)
+    train, held = load(Path(args.data), held_out)
     sampler = (SamplerSettings(n_walkers=16, max_steps=300, seed=SEED) if args.smoke
                else SamplerSettings(seed=SEED, max_steps=MAX_STEPS))
     grid = LibraryGrid({"sensor_calibration": SensorCalibration.opt_in_strengths}
@@ -119,6 +130,7 @@ def main(argv=None) -> int:
     result = {
         "data": str(Path(args.data).relative_to(ROOT)) if Path(args.data).is_relative_to(ROOT)
         else args.data,
+        "held_out_trials": list(held_out),
         "train_recordings": [str(r.source) for r in train],
         "held_out_recordings": [str(r.source) for r in held],
         "window": {"after_close_s": AFTER_CLOSE_S, "horizon_s": HORIZON_S},

@@ -1,6 +1,7 @@
 """Real recordings: the GTDynamics muscle fills without the supply log -- a draining tank.
 
     python experiments/real_gtdynamics_tank.py --out results/real_gtdynamics_tank [--smoke]
+        [--data DIR] [--held-out TRIAL ...]
 
 The robot's four muscles fill at once from one source tank that is not refilled, and
 its pressure falls by about 25 % during a fill. ``real_gtdynamics.py`` drives the model
@@ -19,7 +20,8 @@ against ``measured`` (the logged pressure drives the inlet, as in real_gtdynamic
 Each is fitted plain and with the tube's delay (``tube_delay``, transport form: the
 acoustic line keeps its own states and is not combined with a tank state), by
 multiple shooting on the training trials' 44-ms windows; the held-out RMSE is measured
-on the two held-out trials (the same split as real_gtdynamics.py). The tank model with
+on the two held-out trials (the same split as real_gtdynamics.py, and its ``--data`` and
+``--held-out``). The tank model with
 the delay is then sampled with emcee (seed 0): the posterior of the tank's volume,
 against the 1.475e-3 m^3 the data authors document (``robot_config.yaml``), and of the
 delay. Writes OUT/real_gtdynamics_tank.json.
@@ -33,6 +35,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from real_common import add_split_arguments, split_held_out
 from real_gtdynamics import DATA, HELD_OUT, HORIZON_S, SEED, fill_phase
 
 from pneubayes.atomic import write_json_atomic
@@ -58,19 +61,23 @@ SUPPLIES = {
 }
 
 
-def card_with(supply: dict) -> RigCard:
-    d = load_rig_card(DATA / "gtdynamics-muscle.rig.json").to_dict()
+def card_with(supply: dict, data: Path = DATA) -> RigCard:
+    d = load_rig_card(data / "gtdynamics-muscle.rig.json").to_dict()
     d["supply"] = copy.deepcopy(supply)
     d["name"] += f" (supply: {supply['kind']})"
     return RigCard.from_dict(d, f"gtdynamics card, supply {supply}")
 
 
-def load(card: RigCard):
-    train, held = [], []
-    for p in sorted(DATA.glob("*/*.csv")):
-        rec = fill_phase(read_recording(p, rig_card=card))
-        (held if p.parent.name.startswith(HELD_OUT) else train).append(rec)
-    return train, held
+def load(card: RigCard, data: Path = DATA, held_out=HELD_OUT):
+    """``(train, held)``: the fill phases read with ``card``, split as real_gtdynamics.py
+    splits them."""
+    paths = sorted(data.glob("*/*.csv"))
+    if not paths:
+        raise SystemExit(f"{data}: no recordings (run 'pneubayes import gtdynamics ...')")
+    train, held = split_held_out(paths, held_out, lambda p: p.parent.name, str(data),
+                                 prefix=True)
+    return ([fill_phase(read_recording(p, rig_card=card)) for p in train],
+            [fill_phase(read_recording(p, rig_card=card)) for p in held])
 
 
 def held_out_rmse(model, params, recs) -> float:
@@ -83,14 +90,16 @@ def held_out_rmse(model, params, recs) -> float:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True)
+    add_split_arguments(ap, DATA, HELD_OUT, "trial")
     ap.add_argument("--smoke", action="store_true", help="short sampler (a check it runs)")
     args = ap.parse_args(argv)
-    out = Path(args.out)
+    out, data = Path(args.out), Path(args.data)
+    held_out = tuple(args.held_out or HELD_OUT)
     solver = FitSettings().refine_solver
     rows, recs_by = {}, {}
     for name, supply in SUPPLIES.items():
-        card = card_with(supply)
-        train, held = load(card)
+        card = card_with(supply, data)
+        train, held = load(card, data, held_out)
         recs_by[name] = (train, held)
         for effects in ((), ("tube_delay",)):
             model = Model(effects, rig_card=card)  # tube_delay: the transport form
@@ -107,7 +116,7 @@ def main(argv=None) -> int:
     noise = noise_floor_Pa(train + held)
     span = float(max(np.ptp(r.pressure_Pa) for r in held))
     # the tank and the delay, sampled
-    card = card_with(SUPPLIES["tank"])
+    card = card_with(SUPPLIES["tank"], data)
     train, held = recs_by["tank"]
     model = Model(["tube_delay"], rig_card=card)
     sampler = (SamplerSettings(n_walkers=16, max_steps=300, seed=SEED) if args.smoke
@@ -118,7 +127,7 @@ def main(argv=None) -> int:
     post = fit["parameters"]
     vol = post["tank_volume_m3"]
     result = {
-        "window_s": HORIZON_S, "held_out_trials": list(HELD_OUT),
+        "window_s": HORIZON_S, "held_out_trials": list(held_out),
         "noise_floor_Pa": noise, "held_out_span_Pa": span,
         "fits": rows,
         "tank_posterior": {

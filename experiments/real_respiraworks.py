@@ -2,6 +2,7 @@
 discovery, whole runs held out, against the set-point as a baseline.
 
     python experiments/real_respiraworks.py --out results/real_respiraworks [--smoke]
+        [--sets OXY,AIR] [--data DIR] [--held-out RUN ...]
 
 Data: ``data/real/respiraworks/`` (``pneubayes import respiraworks`` of the twelve
 shared runs, 100 Hz, kPa gauge; licence file beside them). Each gas path has its rig
@@ -10,7 +11,8 @@ a Gompertz inhale map and exhale map of the inhale command (the exhale pinch val
 commanded in closed loop from it), a constant supply (OXY: 400 kPa absolute assumed;
 AIR: the blower's 5 kPa gauge).
 
-Per set: train on runs 1-4, hold out runs 5 and 6 whole; 2-s windows (11 per run,
+Per set: train on runs 1-4, hold out runs 5 and 6 whole (``--held-out`` names others,
+e.g. ``covent_pc_7``, repeatable: every run not held out trains); 2-s windows (11 per run,
 22 held out), each started from the measured pressure. The result records the held-out
 RMSE of the plain model and after discovery, in Pa and against the noise floor and the
 measured span, next to the set-point baseline (predicting the controller's set-point,
@@ -25,7 +27,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from real_common import added_names, plain_fit, prediction_figure
+from real_common import (
+    add_split_arguments,
+    added_names,
+    plain_fit,
+    prediction_figure,
+    split_held_out,
+)
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.discovery.report import run_discover
@@ -61,13 +69,18 @@ def setpoint_rmse_Pa(recs, horizon_s: float) -> float:
     return float(np.sqrt(np.mean(e ** 2)))
 
 
-def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
+def split_runs(recs, held_out, where) -> tuple:
+    """``(train, held)``: the runs whose file stems are in ``held_out`` held out
+    (:func:`real_common.split_held_out`; ``where`` names the folder in its errors)."""
+    return split_held_out(recs, held_out, lambda r: Path(r.source).stem, str(where))
+
+
+def run_set(kind: str, data: Path, out: Path, smoke: bool, held_out=HELD_OUT) -> dict:
     paths = sorted((data / kind).glob("*.csv"))
     if not paths:
         raise SystemExit(f"{data / kind}: no recordings (run 'pneubayes import respiraworks')")
     recs = [read_recording(p) for p in paths]
-    train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
-    held = [r for r in recs if Path(r.source).stem in HELD_OUT]
+    train, held = split_runs(recs, held_out, data / kind)
     sampler = (SamplerSettings(n_walkers=32, max_steps=200, seed=SEED) if smoke
                else SamplerSettings(seed=SEED, max_steps=MAX_STEPS))
     settings = DiscoverySettings(
@@ -106,15 +119,16 @@ def run_set(kind: str, data: Path, out: Path, smoke: bool) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True)
-    ap.add_argument("--data", default=str(DATA))
+    add_split_arguments(ap, DATA, HELD_OUT, "run")
     ap.add_argument("--sets", default="OXY,AIR")
     ap.add_argument("--smoke", action="store_true", help="short sampler (a check it runs)")
     args = ap.parse_args(argv)
     out = Path(args.out)
-    result = {"horizon_s": HORIZON_S, "seed": SEED, "smoke": args.smoke, "sets": {},
-              "provenance": provenance()}
+    held_out = tuple(args.held_out or HELD_OUT)
+    result = {"horizon_s": HORIZON_S, "seed": SEED, "smoke": args.smoke,
+              "held_out": list(held_out), "sets": {}, "provenance": provenance()}
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
-        result["sets"][kind] = res = run_set(kind, Path(args.data), out, args.smoke)
+        result["sets"][kind] = res = run_set(kind, Path(args.data), out, args.smoke, held_out)
         write_json_atomic(out / "real_respiraworks.json", result)
         print(f"{kind}: held-out {HORIZON_S:g}-s RMSE plain {res['held_out_rmse_plain_Pa']:.0f}"
               f" Pa -> {res['held_out_rmse_final_Pa']:.0f} Pa ({res['final_over_noise']:.1f} x "

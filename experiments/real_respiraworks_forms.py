@@ -1,11 +1,12 @@
 """Real recordings: what the RespiraWorks ventilator's model lacks, form by form.
 
     python experiments/real_respiraworks_forms.py --out results/paper/real_respiraworks_forms
+        [--sets OXY,AIR] [--data DIR] [--held-out RUN ...]
 
 The ventilator's plain model (``real_respiraworks.py``) misses its held-out runs by far
 more than the sensor noise and loses to predicting the set-point. Three causes are
-tested here, each as a rig-card form, on the same split (runs 1-4 train, 5-6 held out)
-and 2-s windows as ``real_respiraworks.py``:
+tested here, each as a rig-card form, on the same split (runs 1-4 train, 5-6 held out;
+``--held-out`` and ``--data`` as there) and 2-s windows as ``real_respiraworks.py``:
 
 1. the chamber: one compliant chamber, or two compartments (the circuit at the sensor
    and the test lung behind its airway resistance; chamber kind ``two_compartment``);
@@ -37,7 +38,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa
+from real_common import add_split_arguments
+from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa, split_runs
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.pipeline import FitSettings
@@ -63,9 +65,9 @@ CAL_S = 4.0
 MAX_NFEV = 100
 
 
-def form_card(kind: str, chamber: str, exhaust: str) -> RigCard:
+def form_card(kind: str, chamber: str, exhaust: str, data: Path = DATA) -> RigCard:
     """The shipped card (two compartments, separate exhaust) or one of its reductions."""
-    d = load_rig_card(DATA / f"respiraworks-{kind.lower()}.rig.json").to_dict()
+    d = load_rig_card(data / f"respiraworks-{kind.lower()}.rig.json").to_dict()
     if chamber == "compliant":
         d["chamber"] = {"kind": "compliant",
                         "volume_m3": {"prior": "log-uniform", "bounds": [2e-4, 1e-2]},
@@ -85,12 +87,11 @@ def rmse(model, params, recs) -> float:
     return float(np.sqrt(np.mean(r ** 2)))
 
 
-def run_form(kind: str, name: str, log) -> dict:
+def run_form(kind: str, name: str, log, data: Path = DATA, held_out=HELD_OUT) -> dict:
     chamber, exhaust = FORMS[name]
-    card = form_card(kind, chamber, exhaust)
-    recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
-    train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
-    held = [r for r in recs if Path(r.source).stem in HELD_OUT]
+    card = form_card(kind, chamber, exhaust, data)
+    recs = [read_recording(p, rig_card=card) for p in sorted((data / kind).glob("*.csv"))]
+    train, held = split_runs(recs, held_out, data / kind)
     model = Model(rig_card=card)
     solver = FitSettings().refine_solver
     shared = TrajectoryRefiner(model, solver, max_nfev=MAX_NFEV).fit(
@@ -107,7 +108,7 @@ def run_form(kind: str, name: str, log) -> dict:
             WindowSet([cal], HORIZON_S, HORIZON_S), {k: shared.params_[k] for k in lung})
         stem = Path(r.source).stem
         per_run[stem] = {k: fit.params_[k] for k in lung}
-        if stem in HELD_OUT:
+        if stem in held_out:
             rests.append(r.slice(n_cal, None))
             cal_err.append(WindowSet([rest], HORIZON_S, HORIZON_S).residuals(
                 local, fit.params_, SolverConfig.standard()))
@@ -151,16 +152,18 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True)
     ap.add_argument("--sets", default="OXY,AIR")
+    add_split_arguments(ap, DATA, HELD_OUT, "run")
     args = ap.parse_args(argv)
     path = Path(args.out) / "real_respiraworks_forms.json"
-    result = {"horizon_s": HORIZON_S, "held_out": list(HELD_OUT), "max_nfev": MAX_NFEV,
+    held_out, data = tuple(args.held_out or HELD_OUT), Path(args.data)
+    result = {"horizon_s": HORIZON_S, "held_out": list(held_out), "max_nfev": MAX_NFEV,
               "calibration_s": CAL_S, "forms": list(FORMS), "sets": {},
               "provenance": provenance()}
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
         result["sets"][kind] = {}
         for name in FORMS:
-            result["sets"][kind][name] = run_form(kind, name,
-                                                  lambda m: print(m, file=sys.stderr))
+            result["sets"][kind][name] = run_form(
+                kind, name, lambda m: print(m, file=sys.stderr), data, held_out)
             write_json_atomic(path, result)
     return 0
 

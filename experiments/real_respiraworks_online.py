@@ -3,9 +3,11 @@
     python experiments/real_respiraworks_online.py --out results/real_respiraworks_online
         [--sets OXY,AIR] [--select] [--seeds 0,1,2] [--quick] [--smoke]
         [--population point|hierarchical] [--modes lookback,carried]
+        [--data DIR] [--held-out RUN ...]
 
 The shipped card (two compartments, the exhale valve on its own command), the split of
-``real_respiraworks.py`` (runs 1-4 train, 5-6 held out) and its 2-s windows. Per set:
+``real_respiraworks.py`` (runs 1-4 train, 5-6 held out; ``--held-out`` and ``--data`` as
+there) and its 2-s windows. Per set:
 
 1. *Shared fit*: every quantity refined on the training runs from the card's start
    (``real_respiraworks_forms.py``'s refinement, ``MAX_NFEV`` evaluations).
@@ -57,7 +59,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa
+from real_common import add_split_arguments
+from real_respiraworks import DATA, HELD_OUT, HORIZON_S, setpoint_rmse_Pa, split_runs
 from real_respiraworks_forms import CAL_S, LUNG, MAX_NFEV, form_card
 
 from pneubayes.atomic import write_json_atomic
@@ -102,10 +105,13 @@ def refit_lung(local: Model, recs, start: dict, solver, max_nfev: int):
 
 
 def shared_fit(kind, card, train, solver, cache: Path, max_nfev: int, log) -> dict:
-    """The shared fit's parameters (read from ``cache`` when it holds this set's)."""
+    """The shared fit's parameters (read from ``cache`` when it holds this set's: the
+    same card, budget and training runs)."""
+    runs = [Path(r.source).name for r in train]
     if cache.exists():
         doc = json.loads(cache.read_text())
-        if doc.get("card") == card.to_dict() and doc.get("max_nfev") == max_nfev:
+        if doc.get("card") == card.to_dict() and doc.get("max_nfev") == max_nfev \
+                and doc.get("train") == runs:
             log(f"[{kind}] shared fit read from {cache}")
             return doc["params"]
     model = Model(rig_card=card)
@@ -115,7 +121,8 @@ def shared_fit(kind, card, train, solver, cache: Path, max_nfev: int, log) -> di
     log(f"[{kind}] shared fit: train RMSE {fit.rmse_Pa_:.0f} Pa "
         f"({time.perf_counter() - t0:.0f} s)")
     write_json_atomic(cache, {"card": card.to_dict(), "params": fit.params_,
-                              "train_rmse_Pa": fit.rmse_Pa_, "max_nfev": max_nfev})
+                              "train_rmse_Pa": fit.rmse_Pa_, "max_nfev": max_nfev,
+                              "train": runs})
     return fit.params_
 
 
@@ -207,12 +214,12 @@ def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) ->
 
 
 def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
-            log, population: str = "point", modes=None) -> dict:
-    card = form_card(kind, "two_compartment", "separate")
+            log, population: str = "point", modes=None, data: Path = DATA,
+            held_out=HELD_OUT) -> dict:
+    card = form_card(kind, "two_compartment", "separate", data)
     lung = LUNG["two_compartment"]
-    recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
-    train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
-    held = [r for r in recs if Path(r.source).stem in HELD_OUT]
+    recs = [read_recording(p, rig_card=card) for p in sorted((data / kind).glob("*.csv"))]
+    train, held = split_runs(recs, held_out, data / kind)
     if smoke:
         held = held[:1]
     model = Model(rig_card=card)
@@ -395,7 +402,9 @@ def main(argv=None) -> int:
     ap.add_argument("--modes", default=None,
                     help="comma-separated update modes to run the tracker in (lookback, "
                          "carried; default: TRACKER's update_mode)")
+    add_split_arguments(ap, DATA, HELD_OUT, "run")
     args = ap.parse_args(argv)
+    held_out = tuple(args.held_out or HELD_OUT)
     modes = [m.strip() for m in args.modes.split(",") if m.strip()] if args.modes else None
     if modes and any(m not in ("lookback", "carried") for m in modes):
         ap.error(f"--modes {args.modes}: lookback and/or carried")
@@ -409,7 +418,7 @@ def main(argv=None) -> int:
     seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
     out = Path(args.out)
     path = out / "real_respiraworks_online.json"
-    result = {"horizon_s": HORIZON_S, "held_out": list(HELD_OUT), "calibration_s": CAL_S,
+    result = {"horizon_s": HORIZON_S, "held_out": list(held_out), "calibration_s": CAL_S,
               "tick_s": TICK_S, "n_particles": N_PARTICLES, "n_draws": N_DRAWS,
               "floor_log_sd": FLOOR_LOG_SD, "tracker": TRACKER,
               "forecast_warm_up_windows": FORECAST_WARM, "seed": SEED,
@@ -421,7 +430,7 @@ def main(argv=None) -> int:
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
         result["sets"][kind] = run_set(kind, out, args.quick, args.smoke, args.select, seeds,
                                        lambda msg: print(msg, file=sys.stderr),
-                                       args.population, modes)
+                                       args.population, modes, Path(args.data), held_out)
         write_json_atomic(path, result)
     return 0
 

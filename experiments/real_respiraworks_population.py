@@ -2,10 +2,11 @@
 item 1), a hierarchical fit with R-hat and ESS.
 
     python experiments/real_respiraworks_population.py --out DIR [--sets OXY,AIR]
-        [--quick] [--shared-from DIR] [--at-bound drop|keep]
+        [--quick] [--shared-from DIR] [--at-bound drop|keep] [--data DIR] [--held-out RUN ...]
 
 The shipped card (two compartments, the exhale valve on its own command) and the split of
-``real_respiraworks_online.py`` (runs 1-4 train, 5-6 held out, not read). Per set:
+``real_respiraworks_online.py`` (runs 1-4 train, 5-6 held out, not read; ``--held-out``
+and ``--data`` as there). Per set:
 
 1. *Shared fit*: every quantity refined on the training runs (``shared_fit`` of
    ``real_respiraworks_online.py``; read from ``--shared-from DIR/shared_SET.json`` or
@@ -41,7 +42,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from real_respiraworks import DATA, HELD_OUT, HORIZON_S
+from real_common import add_split_arguments
+from real_respiraworks import DATA, HELD_OUT, HORIZON_S, split_runs
 from real_respiraworks_forms import LUNG, MAX_NFEV, form_card
 from real_respiraworks_online import FLOOR_LOG_SD, shared_fit
 
@@ -145,10 +147,11 @@ def hierarchical_prior(kind, card, shared, train, nfev, log, policy: str = POLIC
                                             "population": hp.summary()}
 
 
-def run_set(kind, out, shared_from, quick, at_bound, log) -> dict:
-    card = form_card(kind, "two_compartment", "separate")
-    recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
-    train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
+def run_set(kind, out, shared_from, quick, at_bound, log, data: Path = DATA,
+            held_out=HELD_OUT) -> dict:
+    card = form_card(kind, "two_compartment", "separate", data)
+    recs = [read_recording(p, rig_card=card) for p in sorted((data / kind).glob("*.csv"))]
+    train, _ = split_runs(recs, held_out, data / kind)
     model = Model(rig_card=card)
     solver = FitSettings().refine_solver
     cache = (Path(shared_from) / f"shared_{kind}.json"
@@ -237,10 +240,12 @@ def main(argv=None) -> int:
                     help="a folder holding shared_SET.json from real_respiraworks_online.py")
     ap.add_argument("--at-bound", choices=POLICIES, default=POLICIES[0],
                     help="the policy reported first (all are computed and written)")
+    add_split_arguments(ap, DATA, HELD_OUT, "run")
     args = ap.parse_args(argv)
+    held_out = tuple(args.held_out or HELD_OUT)
     out = Path(args.out)
     path = out / "real_respiraworks_population.json"
-    result = {"horizon_s": HORIZON_S, "held_out": list(HELD_OUT), "max_nfev": MAX_NFEV,
+    result = {"horizon_s": HORIZON_S, "held_out": list(held_out), "max_nfev": MAX_NFEV,
               "quick": args.quick, "seed": SEED, "bound_tol_log": BOUND_TOL, "sets": {},
               "provenance": provenance()}
 
@@ -250,7 +255,7 @@ def main(argv=None) -> int:
     tables = []
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
         result["sets"][kind] = res = run_set(kind, out, args.shared_from, args.quick,
-                                             args.at_bound, log)
+                                             args.at_bound, log, Path(args.data), held_out)
         write_json_atomic(path, result)
         tables.append(table(kind, res))
         log(tables[-1])

@@ -1,10 +1,11 @@
 """Real recordings: the ventilator's whole card refitted online, anchored (issue 67).
 
     python experiments/real_respiraworks_refit.py --out results/real_respiraworks_refit
-        [--sets OXY,AIR] [--smoke]
+        [--sets OXY,AIR] [--smoke] [--data DIR] [--held-out RUN ...]
 
 The shipped card (two compartments, the exhale valve on its own command), the split of
-``real_respiraworks.py`` (runs 1-4 train, 5-6 held out) and the protocol of
+``real_respiraworks.py`` (runs 1-4 train, 5-6 held out; ``--held-out`` and ``--data`` as
+there) and the protocol of
 ``real_respiraworks_online.py``: on each held-out run, at every 2-s window start from
 the run's first ``CAL_S`` s, the next 2 s are predicted from the measured pressure, the
 model brought there by warm-up windows. Per set:
@@ -58,7 +59,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from real_respiraworks import DATA, HELD_OUT, HORIZON_S
+from real_common import add_split_arguments
+from real_respiraworks import DATA, HELD_OUT, HORIZON_S, split_runs
 from real_respiraworks_forms import MAX_NFEV, form_card
 from real_respiraworks_online import CMH2O_PA, FORECAST_WARM, TICK_S, rmse, shared_fit, ticks_of
 
@@ -216,12 +218,11 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
 
 
 def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
-            with_flows: bool = True) -> dict:
-    card = form_card(kind, "two_compartment", exhaust)
+            with_flows: bool = True, data: Path = DATA, held_out=HELD_OUT) -> dict:
+    card = form_card(kind, "two_compartment", exhaust, data)
     tag = kind if exhaust == "separate" else f"{kind}_{exhaust}"  # the caches' names
-    recs = [read_recording(p, rig_card=card) for p in sorted((DATA / kind).glob("*.csv"))]
-    train = [r for r in recs if Path(r.source).stem not in HELD_OUT]
-    held = [r for r in recs if Path(r.source).stem in HELD_OUT]
+    recs = [read_recording(p, rig_card=card) for p in sorted((data / kind).glob("*.csv"))]
+    train, held = split_runs(recs, held_out, data / kind)
     model = Model(rig_card=card)
     solver = FitSettings().refine_solver
     std = SolverConfig.standard()
@@ -242,8 +243,8 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
                             log)
     # each anchor's score is kept as it finishes (a rerun or a resumed run reads it)
     cache = out / f"choice_{tag}.json"
-    key = json.dumps({"card": card.to_dict(), "max_nfev": nfev, "smoke": smoke},
-                     sort_keys=True)
+    key = json.dumps({"card": card.to_dict(), "max_nfev": nfev, "smoke": smoke,
+                      "train": [Path(r.source).name for r in train]}, sort_keys=True)
     done = json.loads(cache.read_text()) if cache.exists() else {}
     if done.get("key") != key:
         done = {"key": key, "scores": {}}
@@ -407,13 +408,18 @@ def main(argv=None) -> int:
                          "taken as given, e.g. the form a full run chose there)")
     ap.add_argument("--no-flows", action="store_true",
                     help="leave out the measured flows' variant (its three weights)")
+    add_split_arguments(ap, DATA, HELD_OUT, "run")
     args = ap.parse_args(argv)
+    held_out = tuple(args.held_out or HELD_OUT)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "real_respiraworks_refit.json"
     doc = json.loads(path.read_text()) if path.exists() else {"sets": {}}
     if doc.get("smoke", args.smoke) != args.smoke:
         raise SystemExit(f"{path}: written with --smoke={doc['smoke']}; use another --out")
+    if doc.get("held_out", list(held_out)) != list(held_out):
+        raise SystemExit(f"{path}: written with --held-out {' '.join(doc['held_out'])}; "
+                         "use another --out")
 
     def log(msg):
         print(msg, file=sys.stderr, flush=True)
@@ -427,7 +433,8 @@ def main(argv=None) -> int:
         forms = args.exhausts.split(",")
         if not set(forms) <= set(EXHAUSTS):
             ap.error(f"--exhausts: the forms are {list(EXHAUSTS)}, got {forms}")
-        by_form = {ex: run_set(kind, out, args.smoke, log, ex, not args.no_flows)
+        by_form = {ex: run_set(kind, out, args.smoke, log, ex, not args.no_flows,
+                               Path(args.data), held_out)
                    for ex in forms}
         chosen = min(by_form, key=lambda ex: by_form[ex]["band_sd_Pa"])
         log(f"[{kind}] exhale valve form chosen on runs 1-4: {chosen} ("
@@ -435,7 +442,8 @@ def main(argv=None) -> int:
         doc["sets"][kind] = {**by_form[chosen], "exhaust": chosen, "exhausts_tried": forms,
                              "other_forms": {ex: r for ex, r in by_form.items()
                                              if ex != chosen}}
-        doc.update(seed=SEED, smoke=args.smoke, grid=GRID, flow_weights=FLOW_WEIGHTS,
+        doc.update(seed=SEED, smoke=args.smoke, held_out=list(held_out), grid=GRID,
+                   flow_weights=FLOW_WEIGHTS,
                    band_every_s=BAND_EVERY_S, band_from_s=BAND_FROM_S, band_grid=BAND_GRID,
                    n_draws=N_DRAWS,
                    provenance=provenance())
