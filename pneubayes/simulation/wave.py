@@ -32,11 +32,11 @@ The junctions and ends update on a fixed grid (slot ``wave_grid_s``, or ``tau`` 
 its points in a ring buffer (time, the 2K waves and their derivatives in the window's
 initial pressure). A read at ``t - tau`` is linear between entries, so the output moves
 continuously with the transit time (a fit moves T), a front spread by about a grid
-step. A port-area switch reaches the valve end as a ramp over one grid step from its
-own time (:func:`wave_ramped`), continuous in the switch's time too; the chamber's
-forcing A_K is linear between the grid points, where its steps break. A window starts
-with the tube at rest at its initial pressure, or where the previous contiguous window
-ended (:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
+step. A port-area switch reaches the valve end as a ramp centred on it (:func:`wave_switch`),
+continuous in the switch's time too; A_K forces the chamber linearly between grid points.
+A window starts with the tube at rest at its initial pressure (its first areas from its
+start: a ramp centred there would send flow before it), or where the previous contiguous
+window ended (:func:`wave_finish`, resampled on ``WAVE_CARRY_POINTS`` per element).
 """
 
 from __future__ import annotations
@@ -161,6 +161,21 @@ def wave_grid_step(tube):
 def wave_newest_time(hist, ring):
     """Time (s) of the history's newest entry."""
     return hist[(ring[0] + ring[1] - 1) % WAVE_CAPACITY, 0]
+
+
+@njit(cache=True, error_model="numpy")
+def wave_entry_time(hist, ring, back):
+    """Time (s) of the history's entry ``back`` before its newest (0: the newest)."""
+    return hist[(ring[0] + ring[1] - 1 - back) % WAVE_CAPACITY, 0]
+
+
+@njit(cache=True, error_model="numpy")
+def wave_pop(ring):
+    """Drop the history's newest entry (to send it again); the read cursor stays on an
+    entry that remains."""
+    ring[1] -= 1
+    if ring[2] > ring[1] - 1:
+        ring[2] = max(ring[1] - 1, 0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -426,17 +441,26 @@ def wave_grid(work, tube, t0, n, t_a):
 @njit(cache=True, inline="always", error_model="numpy")
 def wave_switch(work, tube, switch, tau, t_end, p, s_p, p_sup, a_in, a_ex, w_near, cs):
     """``(ok, switch, t_end)`` at the start of a held input's stretch at ``tau``: where
-    the port areas switched, the valve end's entry there with the areas before, then a
-    ramp to the new ones over a grid step (whose end cuts ``t_end``). ``ok`` False: the
-    history is full."""
+    the port areas switched, the valve end's entry there (sent again if the grid put one
+    there) with the areas a share ``g / (g + d)`` of the way from those before to the new
+    ones (``g`` the grid step, ``d`` the time since the entry before it), then a ramp to
+    the new ones over a grid step (whose end cuts ``t_end``): the areas' mean change
+    falls at the switch. ``ok`` False: the history is full."""
     t_sw, o_in, o_ex, l_in, l_ex = switch
     w_dt = wave_grid_step(tube)
     if (not math.isnan(l_in) and abs(a_in - l_in) + abs(a_ex - l_ex)
             > 1e-9 * (a_in + a_ex + l_in + l_ex)):
         r_in, r_ex = wave_ramped(tau, l_in, l_ex, t_sw, w_dt, o_in, o_ex)
-        if wave_newest_time(work[0], work[1]) < tau - w_near:
-            if not _send(work, tube, tau, p, s_p, p_sup, r_in, r_ex, cs):
-                return False, switch, t_end
+        hist, ring = work[0], work[1]
+        if wave_newest_time(hist, ring) >= tau - w_near and ring[1] > 1:
+            d = tau - wave_entry_time(hist, ring, 1)
+            wave_pop(ring)  # (the entry at the switch is sent again below)
+        else:
+            d = tau - wave_newest_time(hist, ring)
+        f = w_dt / (w_dt + max(d, 0.0))
+        r_in, r_ex = r_in + f * (a_in - r_in), r_ex + f * (a_ex - r_ex)
+        if not _send(work, tube, tau, p, s_p, p_sup, r_in, r_ex, cs):
+            return False, switch, t_end
         t_sw, o_in, o_ex = tau, r_in, r_ex
         l_in, l_ex = a_in, a_ex
     if tau < t_sw + w_dt - w_near and t_sw + w_dt < t_end - w_near:
