@@ -188,7 +188,8 @@ def track_online(model, shared, prior, sigma, band_sigma, knobs, r, seed, every_
     return out, protocol, every
 
 
-def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) -> dict:
+def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind,
+                 tracker_knobs=None) -> dict:
     """Leave one training run out: the population and error scale from the other three,
     the tracker through the left-out run; every setting of ``SELECT_GRID`` pooled over
     the four runs (the protocol's windows). The held-out runs are not read."""
@@ -196,7 +197,8 @@ def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) ->
     table = []
     for temper in SELECT_GRID["temper"]:
         for floor in SELECT_GRID["move_floor_log"]:
-            knobs = {**TRACKER, "temper": temper, "move_floor_log": floor}
+            knobs = {**(tracker_knobs or TRACKER), "temper": temper,
+                     "move_floor_log": floor}
             errs = []
             for j, r in enumerate(train):
                 others = [f for i, f in enumerate(fits) if i != j]
@@ -215,7 +217,7 @@ def select_knobs(model, shared, fits, fit_rmse, band_sigma, train, log, kind) ->
 
 def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
             log, population: str = "point", modes=None, data: Path = DATA,
-            held_out=HELD_OUT) -> dict:
+            held_out=HELD_OUT, tracker_knobs=None) -> dict:
     card = form_card(kind, "two_compartment", "separate", data)
     lung = LUNG["two_compartment"]
     recs = [read_recording(p, rig_card=card) for p in sorted((data / kind).glob("*.csv"))]
@@ -264,10 +266,10 @@ def run_set(kind: str, out: Path, quick: bool, smoke: bool, select: bool, seeds,
            "per_run_lung_fits": fits,
            "per_run_lung_fit_rmse_Pa": fit_rmse, "noise_std_Pa": sigma,
            "band_std_Pa": band_sigma, "shared_parameters": shared, "runs": {}}
-    knobs = dict(TRACKER)
+    knobs = dict(tracker_knobs or TRACKER)
     if select:
         res["selection"] = select_knobs(model, shared, fits, fit_rmse, band_sigma, train,
-                                        log, kind)
+                                        log, kind, knobs)
         knobs.update(res["selection"]["chosen"])
     res["tracker"] = knobs
     # the baselines on the same windows (no random numbers)
@@ -398,7 +400,8 @@ def main(argv=None) -> int:
                     help="the tracker's prior: the point fits' log-normal, or the posterior "
                          "predictive of real_respiraworks_population.py's hierarchical fit")
     ap.add_argument("--set", action="append", default=[], metavar="KNOB=VALUE",
-                    help="override a tracker knob of TRACKER (recorded in the result)")
+                    help="override a tracker knob of TRACKER for this run (recorded in "
+                         "the result)")
     ap.add_argument("--modes", default=None,
                     help="comma-separated update modes to run the tracker in (lookback, "
                          "carried; default: TRACKER's update_mode)")
@@ -408,19 +411,23 @@ def main(argv=None) -> int:
     modes = [m.strip() for m in args.modes.split(",") if m.strip()] if args.modes else None
     if modes and any(m not in ("lookback", "carried") for m in modes):
         ap.error(f"--modes {args.modes}: lookback and/or carried")
+    tracker = dict(TRACKER)  # (this run's knobs; the module's defaults stay as they are)
     for item in args.set:
         key, _, value = item.partition("=")
-        if key not in TRACKER:
-            ap.error(f"--set {item}: not a knob of {sorted(TRACKER)}")
-        kind = type(TRACKER[key])
-        TRACKER[key] = value if kind is str else kind(
-            float(value) if kind is float else int(value))
+        if key not in tracker:
+            ap.error(f"--set {item}: not a knob of {sorted(tracker)}")
+        kind = type(tracker[key])
+        try:
+            tracker[key] = value if kind is str else kind(
+                float(value) if kind is float else int(value))
+        except ValueError:
+            ap.error(f"--set {item}: {key} takes a {kind.__name__}, got {value!r}")
     seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
     out = Path(args.out)
     path = out / "real_respiraworks_online.json"
     result = {"horizon_s": HORIZON_S, "held_out": list(held_out), "calibration_s": CAL_S,
               "tick_s": TICK_S, "n_particles": N_PARTICLES, "n_draws": N_DRAWS,
-              "floor_log_sd": FLOOR_LOG_SD, "tracker": TRACKER,
+              "floor_log_sd": FLOOR_LOG_SD, "tracker": tracker,
               "forecast_warm_up_windows": FORECAST_WARM, "seed": SEED,
               "max_nfev": MAX_NFEV, "quick": args.quick, "smoke": args.smoke,
               "select": args.select, "population": args.population,
@@ -430,7 +437,8 @@ def main(argv=None) -> int:
     for kind in [k.strip() for k in args.sets.split(",") if k.strip()]:
         result["sets"][kind] = run_set(kind, out, args.quick, args.smoke, args.select, seeds,
                                        lambda msg: print(msg, file=sys.stderr),
-                                       args.population, modes, Path(args.data), held_out)
+                                       args.population, modes, Path(args.data), held_out,
+                                       tracker)
         write_json_atomic(path, result)
     return 0
 

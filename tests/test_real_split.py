@@ -102,3 +102,18 @@ def test_both_gtdynamics_scripts_name_a_held_out_trial_they_do_not_have(common, 
     with pytest.raises(SystemExit, match=r"--held-out 0p00_0p12_hipknee-80source matches "
                                          r"no recording there \(they are: 0p00_0p06"):
         mod.main(["--out", str(tmp_path), "--held-out", "0p00_0p12_hipknee-80source"])
+
+
+def test_the_online_script_s_knobs_are_its_run_s_own(common, tmp_path):
+    """``--set`` changes this run's tracker knobs, not the module's defaults (a second
+    run in the same process starts from the defaults), and a value of the wrong type is
+    named."""
+    mod = load_experiment("real_respiraworks_online")
+    before = dict(mod.TRACKER)
+    with pytest.raises(SystemExit):  # the split's error, after the knobs were read
+        mod.main(["--out", str(tmp_path), "--sets", "OXY", "--held-out", "covent_pc_9",
+                  "--set", "temper=0.3"])
+    assert mod.TRACKER == before
+    with pytest.raises(SystemExit) as exc:
+        mod.main(["--out", str(tmp_path), "--sets", "OXY", "--set", "temper=warm"])
+    assert exc.value.code == 2
