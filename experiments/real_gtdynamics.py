@@ -76,16 +76,17 @@ def fill_phase(rec):
     return rec.slice(0, n)
 
 
-def load(data: Path, held_out=HELD_OUT):
-    """``(train, held)``: the fill phases of the recordings under ``data``, those of the
-    trials whose folder names start with one of ``held_out`` held out."""
+def load(data: Path, held_out=HELD_OUT, rig_card=None):
+    """``(train, held)``: the fill phases of the recordings under ``data`` (read with
+    ``rig_card``, None: the card their sidecars name), those of the trials whose folder
+    names start with one of ``held_out`` held out."""
     paths = sorted(data.glob("*/*.csv"))
     if not paths:
         raise SystemExit(f"{data}: no recordings (run 'pneubayes import gtdynamics ...')")
     train, held = split_held_out(paths, held_out, lambda p: p.parent.name, str(data),
                                  prefix=True)
-    return ([fill_phase(read_recording(p)) for p in train],
-            [fill_phase(read_recording(p)) for p in held])
+    return ([fill_phase(read_recording(p, rig_card=rig_card)) for p in train],
+            [fill_phase(read_recording(p, rig_card=rig_card)) for p in held])
 
 
 def main(argv=None) -> int:

@@ -35,8 +35,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from real_common import add_split_arguments, split_held_out
-from real_gtdynamics import DATA, HELD_OUT, HORIZON_S, SEED, fill_phase
+from real_common import add_split_arguments
+from real_gtdynamics import DATA, HELD_OUT, HORIZON_S, SEED, load
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.pipeline import FitSettings, run_fit
@@ -44,7 +44,6 @@ from pneubayes.inference.predictive import noise_floor_Pa
 from pneubayes.inference.refine import TrajectoryRefiner
 from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.windows import WindowSet
-from pneubayes.io import read_recording
 from pneubayes.model import Model
 from pneubayes.provenance import provenance
 from pneubayes.rigcard import RigCard, load_rig_card
@@ -68,18 +67,6 @@ def card_with(supply: dict, data: Path = DATA) -> RigCard:
     return RigCard.from_dict(d, f"gtdynamics card, supply {supply}")
 
 
-def load(card: RigCard, data: Path = DATA, held_out=HELD_OUT):
-    """``(train, held)``: the fill phases read with ``card``, split as real_gtdynamics.py
-    splits them."""
-    paths = sorted(data.glob("*/*.csv"))
-    if not paths:
-        raise SystemExit(f"{data}: no recordings (run 'pneubayes import gtdynamics ...')")
-    train, held = split_held_out(paths, held_out, lambda p: p.parent.name, str(data),
-                                 prefix=True)
-    return ([fill_phase(read_recording(p, rig_card=card)) for p in train],
-            [fill_phase(read_recording(p, rig_card=card)) for p in held])
-
-
 def held_out_rmse(model, params, recs) -> float:
     """RMSE of the 44-ms windows of ``recs`` (window starts excluded), Pa."""
     r = WindowSet(recs, HORIZON_S, HORIZON_S).residuals(model, params,
@@ -99,7 +86,7 @@ def main(argv=None) -> int:
     rows, recs_by = {}, {}
     for name, supply in SUPPLIES.items():
         card = card_with(supply, data)
-        train, held = load(card, data, held_out)
+        train, held = load(data, held_out, rig_card=card)
         recs_by[name] = (train, held)
         for effects in ((), ("tube_delay",)):
             model = Model(effects, rig_card=card)  # tube_delay: the transport form

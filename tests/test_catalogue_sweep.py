@@ -128,3 +128,14 @@ def test_a_trial_is_not_fitted_once_the_runs_time_budget_is_spent(monkeypatch):
     free = TrialRunner(DiscoverySettings(), None, None, log=lambda m: None)
     monkeypatch.setattr(free, "fit_trial", lambda *a: "fitted")
     assert free._fit_in_budget("cylinder_leak", None, {}, None, None) == "fitted"
+
+
+def test_the_last_resort_names_a_share_outside_zero_to_one():
+    """The share checks live on the last resort, so the sweep (its subclass) and it
+    both name a bad one."""
+    from pneubayes.discovery.stages.last_resort import LastResort
+
+    with pytest.raises(ValueError, match=r"LastResort: best_gap_closed must be in \[0, 1\]"):
+        LastResort(0.25, 1.5)
+    with pytest.raises(ValueError, match=r"CatalogueSweep: min_gap_closed must be in"):
+        CatalogueSweep(1.1, -0.1)

@@ -42,11 +42,7 @@ class CatalogueSweep(LastResort):
         if not min_noise_ratio >= 1.0:
             raise ValueError(f"CatalogueSweep: min_noise_ratio must be >= 1, got "
                              f"{min_noise_ratio}")
-        for name, share in (("min_gap_closed", min_gap_closed),
-                            ("best_gap_closed", best_gap_closed)):
-            if not 0.0 <= share <= 1.0:
-                raise ValueError(f"CatalogueSweep: {name} must be in [0, 1], got {share}")
-        super().__init__(min_gap_closed, best_gap_closed)
+        super().__init__(min_gap_closed, best_gap_closed)  # (checks the two shares)
         self.min_noise_ratio = min_noise_ratio
 
     def options(self):

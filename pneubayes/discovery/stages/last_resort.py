@@ -29,6 +29,11 @@ class LastResort(Stage):
     action = "last resort"
 
     def __init__(self, min_gap_closed: float = 0.25, best_gap_closed: float = 0.25):
+        for name, share in (("min_gap_closed", min_gap_closed),
+                            ("best_gap_closed", best_gap_closed)):
+            if not 0.0 <= share <= 1.0:
+                raise ValueError(f"{type(self).__name__}: {name} must be in [0, 1], got "
+                                 f"{share}")
         self.min_gap_closed = min_gap_closed
         self.best_gap_closed = best_gap_closed
 
