@@ -70,9 +70,12 @@ MAX_STEPS = 2500
 
 
 def fill_phase(rec):
-    """The recording from the trigger to AFTER_CLOSE_S after its valve closed."""
-    t_close = float(rec.metadata.extra["import"]["valve_close_s"])
-    n = int(np.searchsorted(rec.time_s, t_close + AFTER_CLOSE_S, side="right"))
+    """The recording from the trigger to AFTER_CLOSE_S after its valve closed (all of
+    it where the valve did not close within the record: a null close time)."""
+    t_close = rec.metadata.extra["import"]["valve_close_s"]
+    if t_close is None:
+        return rec
+    n = int(np.searchsorted(rec.time_s, float(t_close) + AFTER_CLOSE_S, side="right"))
     return rec.slice(0, n)
 
 

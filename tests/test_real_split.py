@@ -6,6 +6,7 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import load_experiment
 
@@ -63,6 +64,29 @@ def test_a_new_trial_in_a_copied_import_is_held_out_by_name(common, tmp_path):
     assert (len(train), len(held)) == (20, 4)
     with pytest.raises(SystemExit, match="0p02_knee-0p09_inf-65source matches no"):
         gtd.load(data, ("0p02_knee-0p09_inf-65source",))
+
+
+def test_a_muscle_whose_valve_never_closes_keeps_its_whole_record(common, tmp_path):
+    """The fill phase ends 30 ms after each muscle's own close; a valve not closed
+    within the record (a null close time in the import) keeps the whole recording."""
+    gtd = load_experiment("real_gtdynamics")
+    data = tmp_path / "gtd"
+    trial = "0p00_0p06_hipknee-80source_2021-04-05_11-31-55"
+    shutil.copytree(gtd.DATA / trial, data / trial)
+    shutil.copy(gtd.DATA / "gtdynamics-muscle.rig.json", data)
+    sidecar = data / trial / "knee_left.json"
+    doc = json.loads(sidecar.read_text())
+    doc["import"]["valve_close_s"] = None
+    sidecar.write_text(json.dumps(doc))
+    (data / "other").mkdir()
+    for name in ("knee_right.csv", "knee_right.json"):  # something to train on
+        shutil.copy(data / trial / name, data / "other" / name)
+    _, held = gtd.load(data, (trial,))
+    lengths = {Path(r.source).stem: len(r.time_s) for r in held}
+    times = np.genfromtxt(data / trial / "knee_left.csv", delimiter=",", names=True)["time_s"]
+    assert lengths["knee_left"] == times.size
+    # the others: to 30 ms after their close (0.06 s)
+    assert lengths["knee_right"] == lengths["hip_left"] == np.sum(times <= 0.09 + 1e-9) < 60
 
 
 def test_respiraworks_runs_split_by_their_stems(common):

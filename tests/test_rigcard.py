@@ -523,6 +523,36 @@ def test_import_gtdynamics_writes_recordings_and_their_card(tmp_path, capsys):
     assert "--overwrite" in capsys.readouterr().err
 
 
+def test_import_gtdynamics_of_staggered_valves_and_one_that_never_closes(tmp_path, capsys):
+    """The source's staggered trial kind: each muscle's command follows its own open and
+    close times; a close time of inf (not closed within the record) is a command held
+    open to the end and a null close time in the sidecar, not an error or a guess."""
+    from pneubayes.cli import main
+
+    trial = _fake_trial(tmp_path / "in", "0p02_knee-0p09_inf-80source_x")
+    (trial / "t_valve.csv").write_text("# knee_right, hip_right, hip_left, knee_left\n"
+                                       "0.02, 0.00, 0.00, 0.02\ninf, 0.09, 0.09, inf\n")
+    assert main(["import", "gtdynamics", str(trial), "--out", str(tmp_path / "out")]) == 0
+    for path in sorted((tmp_path / "out").glob("*/*.csv")):
+        rec = read_recording(path)
+        knee = path.stem.startswith("knee")
+        opened, closed = (0.02, np.inf) if knee else (0.0, 0.09)
+        np.testing.assert_array_equal(
+            rec.command_V, ((rec.time_s >= opened) & (rec.time_s < closed)).astype(float))
+        meta = rec.metadata.extra["import"]
+        assert meta["valve_open_s"] == opened
+        assert meta["valve_close_s"] == (None if knee else 0.09)
+    # a close before the open, or a time that is not a number, is named
+    for rows, message in (("0, 0, 0, 0\n0.05, 0.05, -0.01, 0.05\n",
+                           "hip_left closes at -0.01 s, before it opens at 0.0 s"),
+                          ("0, nan, 0, 0\n0.05, 0.05, 0.05, 0.05\n",
+                           "hip_right's open and close times must be numbers")):
+        (trial / "t_valve.csv").write_text(rows)
+        assert main(["import", "gtdynamics", str(trial), "--out",
+                     str(tmp_path / "bad")]) == 2
+        assert message in capsys.readouterr().err
+
+
 def test_import_of_a_folder_that_is_no_trial_is_a_message(tmp_path, capsys):
     from pneubayes.cli import main
 

@@ -11,7 +11,10 @@ out in ``realdata/gtdynamics-jumping-robot/trials/<trial>/``. Per trial and musc
 - ``supply_pressure_psi_gauge``: the raw source-tank channel (the tank drains during the
   fill; it is measured, so the rig card's supply is ``measured``);
 - ``command_V``: the muscle's valve, 1 between its recorded open and close times, else
-  0 (binary; the rig card declares it), with ``command_before_start`` 0;
+  0 (binary; the rig card declares it), with ``command_before_start`` 0; a time of
+  ``inf`` in ``t_valve.csv`` is a valve that does not open (or close) within the record
+  (null in the sidecar's ``valve_open_s`` / ``valve_close_s``); muscles may open and
+  close at different times;
 - ``cam_travel_m`` (an extra column the model does not read; where the trial folder
   has its video's ``angle_pre_rad.csv`` and ``vid_time_s.txt``): the cam's travel (m)
   from the video's joint angles, the cam's constant radius 0.045 m (``robot_config``:
@@ -115,6 +118,10 @@ def _read_matrix(path: Path, ncols: int) -> np.ndarray:
     return np.array(rows)
 
 
+def _finite_or_none(seconds: float) -> float | None:
+    return float(seconds) if math.isfinite(seconds) else None
+
+
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -162,6 +169,14 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
     if valve.shape[0] != 2:
         raise ValueError(f"{valve_path}: expected 2 rows (open, close times), got "
                          f"{valve.shape[0]}")
+    for j, joint in enumerate(JOINTS):
+        t_open, t_close = float(valve[0, j]), float(valve[1, j])
+        if np.isnan(t_open) or np.isnan(t_close) or t_open == -np.inf:
+            raise ValueError(f"{valve_path}: {joint}'s open and close times must be numbers "
+                             f"or inf (never), got {t_open!r}, {t_close!r}")
+        if t_close < t_open:
+            raise ValueError(f"{valve_path}: {joint} closes at {t_close!r} s, before it "
+                             f"opens at {t_open!r} s")
     keep = raw[:, 0] <= end_s
     if keep.sum() < 20:
         raise ValueError(f"{raw_path}: fewer than 20 samples before end_s = {end_s} s")
@@ -194,7 +209,10 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
                 **SOURCE, "trial": trial.name, "channel": joint,
                 "files": {f.name: _sha256(f) for f in (raw_path, valve_path)
                           + ((angle_path, video_path) if video else ())},
-                "valve_open_s": float(t_open), "valve_close_s": float(t_close),
+                # null: inf in t_valve (the valve did not open, or did not close,
+                # within the record)
+                "valve_open_s": _finite_or_none(t_open),
+                "valve_close_s": _finite_or_none(t_close),
                 "rows": f"t <= {end_s} s of {int(keep.size)} (venting after it is not "
                         "in the recorded command)",
                 "conversion": "raw psi gauge columns kept in psi gauge (format 2); the "
