@@ -141,6 +141,42 @@ def test_reference_preset_converges_under_tighter_tolerances(rig, base):
     assert err_ref < 5.0 and err_loose > 2 * err_ref, (err_ref, err_loose)
 
 
+def test_the_tubes_unsteady_weighting_follows_zielkes_short_time_series():
+    """Schohl's five exponentials within 6 % of Zielke's (1968) series of the laminar
+    weighting function, exact for t' <= 0.02 (t' = nu t / R^2)."""
+    from pneubayes.bench.plant import UNSTEADY_M, UNSTEADY_N
+
+    tt = np.geomspace(1e-4, 2e-2, 40)
+    series = (0.282095 / np.sqrt(tt) - 1.25 + 1.057855 * np.sqrt(tt) + 0.9375 * tt
+              + 0.396696 * tt ** 1.5 - 0.351563 * tt ** 2)
+    approx = np.exp(-np.outer(tt, UNSTEADY_N)) @ UNSTEADY_M
+    assert np.max(np.abs(approx / series - 1.0)) < 0.06  # (its largest: 5.4 %)
+
+
+def test_unsteady_friction_damps_a_tubes_ring_and_keeps_a_shut_tube_still(rig):
+    """A valve that fills a 2-m line and a small chamber for 20 ms and shuts leaves the
+    line ringing; Zielke's unsteady shear (unsteady_friction 1) damps that ring faster
+    than the quasi-steady shear alone; a shut valve keeps the pressure either way."""
+    t = np.arange(1201) * DT
+    shut = dict(CLOSABLE, dead_volume_m3=2e-5)
+    inputs = Inputs(t, np.where(t < 0.02, 5.0, 0.0), np.full(t.size, 0.5 * STROKE),
+                    np.full(t.size, P_SUP))
+
+    def run(weight, command=None):
+        tube = AcousticTube(2.0, 0.004, segments=12, unsteady_friction=weight)
+        inp = inputs if command is None else Inputs(t, command, inputs.position_m,
+                                                    inputs.supply_pressure_Pa)
+        return simulate_plant(shut, (tube,), inp, rig, 3e5, REF).pressure_Pa
+
+    ring = {w: run(w)[t >= 0.08] for w in (0.0, 1.0)}
+    left = {w: float(np.std(r)) for w, r in ring.items()}
+    assert left[0.0] > 100.0 and left[1.0] < 0.75 * left[0.0], left
+    still = run(1.0, np.zeros(t.size))
+    assert np.max(np.abs(still - 3e5)) < 1.0
+    with pytest.raises(ValueError, match="unsteady_friction must be a number >= 0"):
+        AcousticTube(1.0, unsteady_friction=-0.5)
+
+
 # ---------------------------------------------------------------- limits
 def test_rounded_deadband_is_c1_and_hard_outside_its_corners():
     w, r = 0.3, 0.1

@@ -158,7 +158,9 @@ K_PH_TAU, K_PH_K = 107, 108
 K_BW_CE, K_BW_VH, K_BW_Z, K_BW_N = 109, 110, 111, 112
 # the twelfth set's form
 K_LW_C, K_LW_W, K_LW_Z = 113, 114, 115
-N_K = 116
+# an AcousticTube's unsteady friction (0: quasi-steady only)
+K_TUBE_UF = 116
+N_K = 117
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
@@ -166,8 +168,46 @@ MO_LAMINAR_DROP_PA = 1000.0
 # order, 2 second order, 3 slew-limited (SpoolSlewLimit), 4 spring return
 # (SpringReturnSpool), 5 held by the inlet's drop (PressureHeldSolenoid).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
- L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF, L_IBW, L_ILW) = range(24)
-N_L = 24
+ L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF, L_IBW, L_ILW,
+ L_ITY) = range(25)
+N_L = 25
+
+
+#: Schohl's (2003) five exponentials of Zielke's (1968) laminar weighting function,
+#: W(t') ~ sum m_k exp(-n_k t'), t' = nu t / R^2 (the model's wave tube uses Trikha's
+#: three: another approximation of the same function).
+UNSTEADY_M = np.array([1.051, 2.358, 9.021, 29.47, 79.55])
+UNSTEADY_N = np.array([26.65, 100.0, 669.0, 6497.0, 57990.0])
+
+
+@njit(cache=True)
+def vardy_brown_cutoff(re):
+    """Vardy and Brown's (2003) smooth-pipe turbulent cut-off B* of the weighting
+    function (W_turb = W_lam exp(-B* t')): ``Re^k / 12.86``, ``k = log10(15.29 /
+    Re^0.0567)``, faded in over Re 2000-4000 (0 in laminar flow)."""
+    if re <= 2000.0:
+        return 0.0
+    k = math.log10(15.29 / re ** 0.0567)
+    return re ** k / 12.86 * smoothstep((re - 2000.0) / 2000.0)
+
+
+@njit(cache=True)
+def unsteady_friction_rates(y, dy, iy, dq, q, rho, re, area, dia, mu, weight):
+    """A tube link's mass-flow rate ``dq`` (kg/s^2) less ``weight`` times Zielke's
+    unsteady wall shear over its length, ``4 pi mu sum y_k`` per unit length, and the
+    rates of its five states ``y[iy:iy + 5]`` (m/s): ``y_k' = -(n_k + B*) nu / R^2 y_k +
+    m_k dV/dt``, V = q / (rho A) the mean velocity (:data:`UNSTEADY_M`,
+    :func:`vardy_brown_cutoff`). Returns the link's rate."""
+    total = 0.0
+    for k in range(5):
+        total += y[iy + k]
+    dq = dq - weight * 4.0 * math.pi * mu * total
+    dv = dq / (rho * area)
+    rate = mu / rho * 4.0 / (dia * dia)
+    cut = vardy_brown_cutoff(re)
+    for k in range(5):
+        dy[iy + k] = -(UNSTEADY_N[k] + cut) * rate * y[iy + k] + UNSTEADY_M[k] * dv
+    return dq
 
 
 @njit(cache=True)
@@ -455,8 +495,12 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             rho = 0.5 * (p_i + p_next) / (rs * ts)
             re = abs(q) * dia / (area * mu)
             link = dx if i < nseg - 1 else 0.5 * dx  # staggered: cell centre to chamber
-            dy[itq + i] = (area / link * (p_i - p_next)
-                           - churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
+            dq = (area / link * (p_i - p_next)
+                  - churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
+            if L[L_ITY] >= 0:  # Zielke's unsteady wall shear (AcousticTube)
+                dq = unsteady_friction_rates(y, dy, L[L_ITY] + 5 * i, dq, q, rho, re,
+                                             area, dia, mu, P[K_TUBE_UF])
+            dy[itq + i] = dq
             q_prev = q
         inflow = q_prev
         h_in = inflow * (ts if inflow > 0.0 else temp)
@@ -917,6 +961,7 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if tube is not None:
         P[K_TUBE_A], P[K_TUBE_DX] = tube.area_m2, tube.length_m / tube.segments
         P[K_TUBE_D], P[K_TUBE_MU] = tube.diameter_m, tube.air_viscosity_Pa_s
+        P[K_TUBE_UF] = tube.unsteady_friction
         L[L_NSEG] = tube.segments
     # (a bladder's volume at atmosphere is 0; it only grows above)
     vmin = P[K_VDEAD] + P[K_ABORE] * float(inputs.position_m.min())
@@ -956,6 +1001,13 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         n += 2 * tube.segments
         atol += [cfg.atol_Pa] * tube.segments + [cfg.atol_Pa * tube.area_m2 / c] * tube.segments
         scale += [1e5] * tube.segments + [1e5 * tube.area_m2 / c] * tube.segments
+        if tube.unsteady_friction > 0:  # the links' shear states: velocities, m/s
+            L[L_ITY] = n
+            n += 5 * tube.segments
+            rho_c = rig.atmospheric_pressure_Pa / (g.specific_gas_constant_J_per_kg_K
+                                                 * g.temperature_K) * c
+            atol += [cfg.atol_Pa / rho_c] * (5 * tube.segments)
+            scale += [1e5 / rho_c] * (5 * tube.segments)
     if P[K_HY_B] > 0:
         L[L_IH] = n
         n += 1

@@ -37,6 +37,13 @@ class AcousticTube(PlantForm):
     (Mach < 0.2). Waves travel at ``c = sqrt(kappa Rs T)`` and reflect at the chamber.
     The valve's port flows enter the first cell; the tube's volume ``A L`` adds to the
     compressed volume.
+
+    ``unsteady_friction`` > 0 adds that share of Zielke's (1968) unsteady wall shear
+    to each link, ``(4 mu / D) integral W(t - u) dV/du du`` (V the mean velocity), which
+    damps a line's ringing faster than the quasi-steady shear alone: the laminar
+    weighting function in Schohl's (2003) five exponentials, cut off in turbulent flow
+    as Vardy and Brown (2003) give (:func:`pneubayes.bench.plant.unsteady_friction_rates`;
+    five states per link). 0 (the default) is the quasi-steady tube above.
     """
 
     catalogue_name: ClassVar[str] = "tube_delay"
@@ -44,9 +51,13 @@ class AcousticTube(PlantForm):
     diameter_m: float = 0.002
     segments: int = 8
     air_viscosity_Pa_s: float = AIR_VISCOSITY_PA_S
+    unsteady_friction: float = 0.0
 
     def __post_init__(self):
         _positive(self, "length_m", "diameter_m", "air_viscosity_Pa_s")
+        if isinstance(self.unsteady_friction, bool) or not self.unsteady_friction >= 0:
+            raise ValueError(f"AcousticTube.unsteady_friction must be a number >= 0, "
+                             f"got {self.unsteady_friction!r}")
         if isinstance(self.segments, bool) or not isinstance(self.segments, int) \
                 or self.segments < 1:
             raise ValueError(f"AcousticTube.segments must be an integer >= 1, "
