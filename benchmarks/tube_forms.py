@@ -14,7 +14,8 @@ reference (Pa), and milliseconds per simulated second (the median of 3 calls aft
 compiling one). At 10 kHz every model steps at least every 0.1 ms, so the costs there
 are a simulator's on fine inputs; the second table is the cost on what recordings are,
 1-kHz inputs (5 s, the same kind of command, fixed volume): the plain chamber takes a
-step per sample there, the wave tube one per grid step (0.1 ms at most by default). Seeded;
+step per sample there, the wave tube one per grid step (0.1 ms at most by default), also
+with its unsteady shear at weight 1 (the quasi-steady tube's cost beside it). Seeded;
 nothing is asserted here (``tests/test_wave.py`` holds the floors).
 """
 
@@ -46,7 +47,9 @@ COST_FORMS = (("line, 3 cells", {"form": "line", "segments": 3}),) + (
     ("line, 8 cells", {"form": "line", "segments": 8}),
     ("wave, 4 elements", {"form": "wave", "segments": 4}),
     ("wave, 8 elements", {"form": "wave", "segments": 8}),
-    ("wave, 8 elements, 0.25-ms grid", _COARSE))
+    ("wave, 8 elements, 0.25-ms grid", _COARSE),
+    ("wave, 8 elements, unsteady shear", {"form": "wave", "segments": 8,
+                                          "unsteady_friction": True}))
 FORMS = (("wave, 4 elements", {"form": "wave", "segments": 4}),
          ("wave, 8 elements", {"form": "wave", "segments": 8}),
          ("wave, 8 elements, 0.25-ms grid", _COARSE),
@@ -120,8 +123,10 @@ def main(argv=None) -> int:
         params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia,
                       dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
         plain = {k: v for k, v in params.items() if not k.startswith("tube_")}
+        shear = dict(params, tube_unsteady_friction=1.0)  # (weight 1: Zielke's)
         for label, model, theta in ([("bare chamber", Model(), plain)]
-                                    + [(lab, Model([make_effect("tube_delay", **o)]), params)
+                                    + [(lab, Model([make_effect("tube_delay", **o)]),
+                                        shear if o.get("unsteady_friction") else params)
                                        for lab, o in COST_FORMS]):
             _, sec = _timed(lambda model=model, theta=theta: simulate(
                 model, theta, slow, rig, P_ATM, SolverConfig.standard()))

@@ -18,6 +18,7 @@ from pneubayes.bench.plant import PlantConfig, simulate_plant
 from pneubayes.effects import make_effect
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
+from pneubayes.rig import Rig
 from pneubayes.simulation import (
     Inputs,
     SolverConfig,
@@ -80,6 +81,62 @@ def test_the_wave_tube_agrees_with_the_plants_finely_lumped_tube(rig, length_m, 
     # one element lumps the friction at the two ends only: worse
     one = simulate(_wave(1), params, inputs, rig, P_ATM, SolverConfig.reference()).pressure_Pa[0]
     assert float(np.sqrt(np.mean((one - ref) ** 2))) > 2.0 * rms
+
+
+@pytest.fixture(scope="module")
+def shut_fill(rig):
+    """An on/off fill of a 1.88-m x 4-mm line into 4.2e-5 m^3 from 6.5 bar, shut at 60
+    ms so the line rings: the inputs, the model's parameters and the plant's 48-cell
+    tube with and without Zielke's unsteady shear (Schohl's five exponentials)."""
+    from test_plant import CLOSABLE
+
+    p_sup = P_ATM + 80 * 6895.0
+    frig = Rig(rig.bore_m, P_ATM, p_sup)
+    t = np.arange(1501) * 1e-4
+    base = dict(CLOSABLE, inlet_a_m2=3e-6, dead_volume_m3=4.24e-5)
+    inputs = Inputs(t, np.where(t < 0.06, 5.0, 0.0), np.full(t.size, 0.01),
+                    np.full(t.size, p_sup))
+    ref = {w: simulate_plant(base, (AcousticTube(1.88, 0.004, segments=48,
+                                                 unsteady_friction=w),), inputs, frig,
+                             P_ATM + 2e4, PlantConfig.reference()).pressure_Pa
+           for w in (0.0, 1.0)}
+    tube = AcousticTube(1.88, 0.004)
+    params = dict(base, tube_delay_s=tube.transit_time_s(frig.gas), tube_diameter_m=0.004,
+                  dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
+    return frig, inputs, params, ref
+
+
+def _unsteady_run(shut_fill, weight):
+    frig, inputs, params, _ = shut_fill
+    return simulate(_wave(unsteady_friction=True), dict(params, tube_unsteady_friction=weight),
+                    inputs, frig, P_ATM + 2e4, SolverConfig.reference()).pressure_Pa[0]
+
+
+def test_the_wave_tubes_unsteady_shear_agrees_with_the_plants(shut_fill):
+    """The wave tube's unsteady shear (Trikha's three exponentials at its junctions) and
+    the plant's (Schohl's five in each of 48 cells), written apart: with it the two agree
+    as closely as the quasi-steady pair do, and several times closer than the
+    quasi-steady wave tube does to the unsteady line (the ring after the shut damps
+    faster)."""
+    ref = shut_fill[3]
+    rms = {w: {v: float(np.sqrt(np.mean((_unsteady_run(shut_fill, w) - ref[v]) ** 2)))
+               for v in ref} for w in (0.0, 1.0)}
+    assert np.sqrt(np.mean((ref[1.0] - ref[0.0]) ** 2)) > 1000.0  # the shear matters here
+    assert rms[0.0][0.0] < 500.0 and rms[1.0][1.0] < 500.0, rms
+    assert rms[1.0][1.0] < 0.3 * rms[0.0][1.0], rms
+
+
+def test_the_unsteady_shears_weight_is_recovered_from_the_plants_line(shut_fill):
+    """Fitted alone on the plant's pressure, the weight comes out near 1 on the unsteady
+    line and near 0 on the quasi-steady one."""
+    from scipy.optimize import minimize_scalar
+
+    ref = shut_fill[3]
+    for truth in (0.0, 1.0):
+        fit = minimize_scalar(lambda w, tr=truth: float(np.mean(
+            (_unsteady_run(shut_fill, w) - ref[tr]) ** 2)), bounds=(0.0, 3.0),
+            method="bounded", options={"xatol": 1e-3})
+        assert abs(fit.x - truth) < 0.25, (truth, fit.x)
 
 
 @pytest.mark.parametrize("grid_s", [1e-3, 5e-4])
@@ -165,12 +222,17 @@ def test_through_the_wave_tube_the_chamber_settles_at_the_bare_chambers_balance(
     assert (p[-1] > 0.95 * P_SUP) if supply_side else (p[-1] < 1.05 * P_ATM)
 
 
-def test_a_shut_valve_and_no_leak_keep_the_pressure(rig, make_inputs, closable_params):
+@pytest.mark.parametrize("unsteady", [False, True])
+def test_a_shut_valve_and_no_leak_keep_the_pressure(rig, make_inputs, closable_params,
+                                                    unsteady):
     """Both ports shut (command 0 on the closable valve), no leak, tube at rest: nothing
-    moves, to rounding."""
+    moves, to rounding (with the unsteady shear too)."""
     params, _ = _params(rig, 1.0, 0.002, valve=closable_params)
+    model = _wave(unsteady_friction=True) if unsteady else _wave()
+    if unsteady:
+        params["tube_unsteady_friction"] = 1.0
     t = np.arange(2001) * 1e-3
-    p = simulate(_wave(), params, make_inputs(t, np.zeros(t.size)), rig, 3.3e5,
+    p = simulate(model, params, make_inputs(t, np.zeros(t.size)), rig, 3.3e5,
                  SolverConfig.standard()).pressure_Pa[0]
     assert np.max(np.abs(p - 3.3e5)) < 1e-6
 
@@ -226,21 +288,25 @@ def test_the_output_moves_smoothly_with_the_transit_time(rig, make_inputs, grid)
     assert wave.max() < 3.0 * np.median(line), (wave, line)
 
 
-def test_contiguous_windows_carry_the_waves(rig, make_inputs):
+@pytest.mark.parametrize("unsteady", [False, True])
+def test_contiguous_windows_carry_the_waves(rig, make_inputs, unsteady):
     """The tube's waves are a state no recording measures: contiguous windows restarted
     from the full run's own pressures reproduce it (to the carried state's resampling)
-    only because each starts from the waves the previous one left; apart, each starts
-    with the tube at rest and misses by kPa."""
+    only because each starts from the waves the previous one left (and the unsteady
+    shear's memories); apart, each starts with the tube at rest and misses by kPa."""
     params, _ = _params(rig, 2.0, 0.002)
+    model = _wave(unsteady_friction=True) if unsteady else _wave()
+    if unsteady:
+        params["tube_unsteady_friction"] = 1.0
     n = 1201
     t = np.arange(n) * 1e-3
     inputs = make_inputs(t, _steps(5, n, 1e-3), position=0.015)
     cfg = SolverConfig.reference()
-    full = simulate(_wave(), params, inputs, rig, 2e5, cfg).pressure_Pa[0]
+    full = simulate(model, params, inputs, rig, 2e5, cfg).pressure_Pa[0]
     length = 301
     starts = np.arange(0, n - length + 1, length - 1)
-    win = simulate_windows(_wave(), params, inputs, rig, starts, length, full[starts], cfg)[0]
-    apart = np.array([simulate_windows(_wave(), params, inputs, rig, starts[w:w + 1], length,
+    win = simulate_windows(model, params, inputs, rig, starts, length, full[starts], cfg)[0]
+    apart = np.array([simulate_windows(model, params, inputs, rig, starts[w:w + 1], length,
                                        full[starts[w:w + 1]], cfg)[0, 0]
                       for w in range(starts.size)])
     err = max(float(np.max(np.abs(win[w] - full[s:s + length])))
@@ -542,3 +608,31 @@ def test_the_discovery_setting_fixes_the_wave_candidates_grid_from_its_start(rig
     assert grid(FormSettings(), 0.02) == [1e-4]
     with pytest.raises(ValueError, match="tube_wave_grid_per_element"):
         FormSettings(tube_wave_grid_per_element=0)
+
+
+def test_the_discovery_setting_lets_the_wave_candidate_fit_the_unsteady_shear(rig):
+    """``forms.tube_wave_unsteady``: the loop's transmission line carries the unsteady
+    shear's weight as a parameter, started at 0 (the quasi-steady tube it nests); by
+    default it does not."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.candidates import effect_candidates
+    from pneubayes.discovery.settings import FormSettings
+
+    fit = SimpleNamespace(model=Model(), params=dict(valve_preset("valve1").parameters(),
+                                                     dead_volume_m3=2.4e-6))
+
+    def wave(forms):
+        cands = effect_candidates(fit, "tube_delay",
+                                  {"best_term_start": {"tube_delay_s": 4e-3}}, rig, forms)
+        return [(m, start) for m, start in cands if m.effect("tube_delay").form == "wave"]
+
+    [(model, start)] = wave(FormSettings(tube_wave_unsteady=True))
+    assert "tube_unsteady_friction" in model.parameter_names
+    assert start.get("tube_unsteady_friction", 0.0) == 0.0
+    [(model, _)] = wave(FormSettings())
+    assert "tube_unsteady_friction" not in model.parameter_names
+    with pytest.raises(ValueError, match="tube_wave_unsteady must be true or false"):
+        FormSettings(tube_wave_unsteady=1)
+    with pytest.raises(ValueError, match="an option of the 'wave' form"):
+        make_effect("tube_delay", form="line", unsteady_friction=True).parameters()

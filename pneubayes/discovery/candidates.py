@@ -44,7 +44,8 @@ def candidate_context(fit: StepFit, group: str, evidence: dict, rig: Rig,
                             dead_volume_m3=float(slots[SLOT_INDEX["volume_m3"]]),
                             line_cutoff_Hz=forms.tube_line_cutoff_Hz,
                             line_form=forms.tube_line_form, slots=slots,
-                            wave_grid=forms.tube_wave_grid)
+                            wave_grid=forms.tube_wave_grid,
+                            wave_unsteady=forms.tube_wave_unsteady)
 
 
 def effect_candidates(fit: StepFit, group: str, evidence: dict, rig: Rig,

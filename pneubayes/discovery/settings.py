@@ -217,6 +217,10 @@ class FormSettings:
         trial starts: the start's element transit time over this count, between 0.1 ms
         and this step (s); a coarser grid is faster and smears the waves more
         (docs/discovery.md).
+    tube_wave_unsteady : bool
+        The transmission-line tube also fits the weight of Zielke's unsteady wall shear
+        (``tube_delay``'s ``unsteady_friction``; from 0, its quasi-steady tube): a line
+        that rings after a sharp switch and damps faster than steady friction says.
     settled_ratio : float
         Later forms are fitted while no trial is within this x the noise floor (0: every
         form always).
@@ -234,6 +238,7 @@ class FormSettings:
     tube_line_form: str = "wave"
     tube_wave_grid_s: float = 1e-4
     tube_wave_grid_per_element: int = 1
+    tube_wave_unsteady: bool = False
     settled_ratio: float = 1.05
     later_min_share: float = 0.25
     later_screen_share: float = 0.5
@@ -255,6 +260,9 @@ class FormSettings:
                 self.tube_wave_grid_per_element, int) or not 1 <= self.tube_wave_grid_per_element:
             raise ValueError(f"tube_wave_grid_per_element must be an integer >= 1, got "
                              f"{self.tube_wave_grid_per_element!r}")
+        if not isinstance(self.tube_wave_unsteady, bool):
+            raise ValueError(f"tube_wave_unsteady must be true or false, got "
+                             f"{self.tube_wave_unsteady!r}")
         if not (self.settled_ratio == 0.0 or self.settled_ratio >= 1.0):
             raise ValueError(f"settled_ratio must be 0 (fit every form) or >= 1, got "
                              f"{self.settled_ratio}")

@@ -108,10 +108,12 @@ def effects_from_names(names, leak_form: str = "orifice") -> tuple[Effect, ...]:
 
 
 def catalogue_parameter_names() -> frozenset[str]:
-    """Every parameter name of every catalogue effect, in every form."""
+    """Every parameter name of every catalogue effect, in every form (and the option
+    sets an effect lists in its ``option_variants``)."""
     names = set()
     for cls in CATALOGUE.values():
-        for options in ([{"form": f} for f in cls.forms] or [{}]):
+        for options in ([{"form": f} for f in cls.forms] or [{}]) + list(
+                getattr(cls, "option_variants", ())):
             names.update(cls(**options).parameter_names())
     return frozenset(names)
 

@@ -86,7 +86,8 @@ class CandidateContext:
     line); slots: the current fit's lowered slot row (:data:`~pneubayes.effects.path.
     SLOT_INDEX`), which an effect reads (:meth:`slot`) for what else the model holds;
     wave_grid: the transmission line's longest grid step (s) and steps per element transit
-    (:meth:`~pneubayes.effects.TubeDelay.wave_grid_s`).
+    (:meth:`~pneubayes.effects.TubeDelay.wave_grid_s`); wave_unsteady: whether the
+    transmission line fits Zielke's unsteady wall shear's weight too.
     """
 
     model: Any
@@ -100,6 +101,7 @@ class CandidateContext:
     line_form: str = "line"
     slots: Any = None
     wave_grid: tuple = (1e-4, 1)
+    wave_unsteady: bool = False
 
     def slot(self, name: str) -> float:
         """The current fit's value of slot ``name`` (0 without ``slots``)."""

@@ -129,6 +129,9 @@ SLOTS += (
     ("wave_grid_s", "the transmission-line tube's grid: its junctions and ends update at "
      "most this far apart (an element's transit time if shorter), and a front is spread "
      "by about one step per element (s)"),
+    ("wave_unsteady_friction", "the transmission-line tube's unsteady wall shear: this "
+     "share of Zielke's frequency-dependent friction beside the quasi-steady one; 0 = "
+     "none (-)"),
 )
 
 SLOTS += (

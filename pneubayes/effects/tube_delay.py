@@ -23,20 +23,20 @@ cell (the last: the chamber) a mass flow q with inertia and smooth-pipe friction
 (:mod:`pneubayes.physics.tube`), on a staggered grid: the link l is L / n between cell
 centres and L / (2 n) from the last cell's centre to the chamber (the centred lumping;
 :mod:`pneubayes.simulation.line`). The valve's port flows enter the first cell and see
-its pressure, not the chamber's; waves travel and reflect. The line's volume is part of
-``dead_volume_m3`` (as above) and is taken out of the chamber's. An outside tube is an
-acoustic line; a pure delay cannot lag and ring as one does.
+its pressure, not the chamber's; waves travel and reflect (a pure delay cannot lag and
+ring as an outside tube does). Its volume, in ``dead_volume_m3``, leaves the chamber's.
 
 ``form="wave"``: the tube as a transmission line (TLM; :mod:`pneubayes.simulation.wave`),
-with the same two parameters as the line: ``segments`` (default 8) lossless elements in
-a row whose waves cross each unchanged in its share of the transit time and reflect at
-the ends, the friction (the same smooth-pipe law) lumped at the junctions. No cells
-hold the waves, so the cost does not grow with the tube's length; the junctions update
-on a grid (``grid_s``, default 0.1 ms, or an element's transit if shorter): a coarser
-grid costs less and smears the waves more (``benchmarks/tube_forms.py``,
-``tests/test_wave.py``, ``docs/history.md``). Its output moves
-continuously with the transit time (a fit's need). Not beside heat transfer (it has no
-temperature state). Its volume leaves the chamber's, as the line's does.
+with the line's two parameters: ``segments`` (default 8) lossless elements whose waves
+cross each in its share of the transit time and reflect at the ends, the same friction
+lumped at the junctions; no cells, so the cost does not grow with the length. The
+junctions update on a grid (``grid_s``, default 0.1 ms, or an element's transit if
+shorter; coarser is faster and smears more: ``benchmarks/tube_forms.py``). Its output
+moves continuously with the transit time. Not beside heat transfer; its volume leaves
+the chamber's. ``unsteady_friction=True`` adds ``tube_unsteady_friction`` (0-3, 0 the
+quasi-steady tube), the weight of Zielke's frequency-dependent wall shear (Trikha's
+three exponentials, Vardy and Brown's turbulent cut-off): a line's ring after a sharp
+switch damps faster (:func:`pneubayes.simulation.wave.unsteady_shear`).
 """
 
 from __future__ import annotations
@@ -61,13 +61,18 @@ class TubeDelay(Effect):
     name = "tube_delay"
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
+    #: Options beside the forms that add a parameter (for the catalogue's names).
+    option_variants = ({"form": "wave", "unsteady_friction": True},)
     acts_on = ("command_delay_s", "flow_attenuation_Pa", "line_length_m", "line_diameter_m",
                "line_segments", "line_viscosity_Pa_s", "wave_length_m", "wave_diameter_m",
-               "wave_viscosity_Pa_s", "wave_segments", "wave_grid_s")
+               "wave_viscosity_Pa_s", "wave_segments", "wave_grid_s",
+               "wave_unsteady_friction")
 
     def __init__(self, tube_diameter_m: float = 0.002, air_viscosity_Pa_s: float = 1.81e-5,
-                 form: str = "transport", segments: int = 0, grid_s: float = 1e-4):
+                 form: str = "transport", segments: int = 0, grid_s: float = 1e-4,
+                 unsteady_friction: bool = False):
         self.tube_diameter_m = tube_diameter_m
+        self.unsteady_friction = unsteady_friction
         self.air_viscosity_Pa_s = air_viscosity_Pa_s
         self.form = form
         self.grid_s = grid_s
@@ -87,6 +92,12 @@ class TubeDelay(Effect):
                 or not 1e-5 <= self.grid_s <= 1e-2:
             raise ValueError(f"tube_delay: grid_s must be a number in [1e-5, 1e-2] s, got "
                              f"{self.grid_s!r}")
+        if not isinstance(self.unsteady_friction, bool):
+            raise ValueError(f"tube_delay: unsteady_friction must be true or false, got "
+                             f"{self.unsteady_friction!r}")
+        if self.unsteady_friction and self.form != "wave":
+            raise ValueError(f"tube_delay: unsteady_friction is an option of the 'wave' "
+                             f"form, not of {self.form!r}")
 
     def options(self):
         opts = {"tube_diameter_m": self.tube_diameter_m,
@@ -95,6 +106,8 @@ class TubeDelay(Effect):
             opts["segments"] = self.segments
         if self.form == "wave":
             opts["grid_s"] = self.grid_s
+        if self.unsteady_friction:
+            opts["unsteady_friction"] = True
         return opts
 
     def parameters(self):
@@ -108,9 +121,15 @@ class TubeDelay(Effect):
                               "acoustic transit time L/c of the valve-chamber tube",
                               neutral=0.0)
         # any diameter is neutral at zero length
-        return (delay, Parameter("tube_diameter_m", "m", 5e-4, 1e-2, "log-uniform",
-                                 "inner diameter of the valve-chamber tube",
-                                 neutral=self.tube_diameter_m))
+        bore = Parameter("tube_diameter_m", "m", 5e-4, 1e-2, "log-uniform",
+                         "inner diameter of the valve-chamber tube",
+                         neutral=self.tube_diameter_m)
+        if not self.unsteady_friction:
+            return (delay, bore)
+        return (delay, bore, Parameter(
+            "tube_unsteady_friction", "-", 0.0, 3.0, "uniform",
+            "share of Zielke's unsteady wall shear in the transmission-line tube",
+            neutral=0.0))
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
@@ -122,7 +141,10 @@ class TubeDelay(Effect):
             return {"wave_length_m": length, "wave_diameter_m": dia,
                     "wave_viscosity_Pa_s": np.full(delay.shape, self.air_viscosity_Pa_s),
                     "wave_segments": np.full(delay.shape, float(self.segments)),
-                    "wave_grid_s": np.full(delay.shape, float(self.grid_s))}
+                    "wave_grid_s": np.full(delay.shape, float(self.grid_s)),
+                    "wave_unsteady_friction": np.asarray(
+                        values["tube_unsteady_friction"], dtype=np.float64)
+                    if self.unsteady_friction else np.zeros(delay.shape)}
         if self.form == "line":
             dia = np.asarray(values["tube_diameter_m"], dtype=np.float64)
             return {"line_length_m": length, "line_diameter_m": dia,
@@ -198,7 +220,8 @@ class TubeDelay(Effect):
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])
         if wave:  # the transmission line: no cells, on a grid fixed by its start
             line = TubeDelay(**{**self.options(), "form": "wave", "segments": 8,
-                                "grid_s": self.wave_grid_s(delay, 8, *ctx.wave_grid)})
+                                "grid_s": self.wave_grid_s(delay, 8, *ctx.wave_grid),
+                                "unsteady_friction": ctx.wave_unsteady})
         else:
             cells = self.line_cells(delay, ctx.line_cutoff_Hz, ctx.line_segments)
             line = TubeDelay(**{**self.options(), "form": "line", "segments": cells})

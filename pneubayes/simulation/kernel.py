@@ -146,6 +146,7 @@ from pneubayes.simulation.wave import (
     wave_grid,
     wave_grid_step,
     wave_start,
+    wave_state,
     wave_switch,
     wave_volume,
     wave_window_end,
@@ -187,7 +188,6 @@ _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _LLEN = SLOT_INDEX["line_length_m"]
 _LSEG = SLOT_INDEX["line_segments"]
 _WLEN = SLOT_INDEX["wave_length_m"]
-_WSEG = SLOT_INDEX["wave_segments"]
 _OPEN_IN = SLOT_INDEX["inlet_open_area_m2"]
 _OPEN_EX = SLOT_INDEX["exhaust_open_area_m2"]
 _OWN_EX = SLOT_INDEX["exhaust_own_command"]
@@ -769,7 +769,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     # grid point is on it)
     wave = general is not None and sl[_WLEN] > 0.0
     hist, ring, w_rd, w_row = wave_workspace(wave)
-    w_work = (hist, ring, np.zeros(2 + max(int(sl[_WSEG]), 1)), w_rd, w_row)
+    w_work = (hist, ring, wave_state(sl), w_rd, w_row)
     tube = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1, 1e-4)
     grid = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     if general is not None and wave:

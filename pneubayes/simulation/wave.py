@@ -8,10 +8,8 @@ A = pi D^2 / 4). The tube's friction is lumped between them: a resistance ``r`` 
 junction and ``r / 2`` at either end, ``r = f Re mu (L / K) / (2 rho A D^2)`` (Poiseuille's
 ``32 mu (L / K) / (rho A D^2)`` in laminar flow, Churchill's smooth-pipe ``f Re`` beyond,
 tabulated: :func:`pneubayes.physics.tube.churchill_fre_table`) at the local density:
-at each junction and at the chamber end at the step's own flow (:func:`friction_flow`,
-implicit; one step late it rang where friction dominates the impedance), at the valve end
-at the flow of the last accepted step. At steady flow the drop from valve to chamber is
-``R q`` (R = K r).
+at each junction and at the chamber end at the step's own flow (:func:`friction_flow`),
+at the valve end at the last accepted step's. Steady flow drops ``R q`` (R = K r).
 
 In element i two waves cross unchanged in ``tau``: ``A_i = p + Z q`` leaves its valve
 side, ``B_i = p - Z q`` its chamber side (q: the mass flow towards the chamber). At time
@@ -24,8 +22,10 @@ t, with every wave read at t - tau:
 * chamber end: ``q_c (Z + r(q_c)/2) = A_K - p`` enters eq. 5 as the port flow; it sends
   ``B_K = p + (r/2 - Z) q_c``.
 
-Without friction a valve step reaches the chamber after exactly T, undispersed (no
-cells). The tube's volume ``A L`` leaves the chamber's dead volume, as the line's does.
+A weight w > 0 (:func:`wave_state`) adds Zielke's unsteady shear at the valve end and
+the junctions (:func:`unsteady_shear`, linear in the step's flow). Without friction a
+valve step reaches the chamber after exactly T, undispersed. The tube's volume ``A L``
+leaves the chamber's dead volume, as the line's does.
 
 The junctions and ends update on a fixed grid (slot ``wave_grid_s``, or ``tau`` if shorter:
 :func:`wave_grid_step`; anchored at the recording's first sample), the waves kept at
@@ -66,6 +66,7 @@ _WDIA = SLOT_INDEX["wave_diameter_m"]
 _WMU = SLOT_INDEX["wave_viscosity_Pa_s"]
 _WSEG = SLOT_INDEX["wave_segments"]
 _WGRID = SLOT_INDEX["wave_grid_s"]
+_WUNST = SLOT_INDEX["wave_unsteady_friction"]
 
 #: Entries of the wave history (a transit time of the longest element on the grid).
 WAVE_CAPACITY = 1024
@@ -74,8 +75,12 @@ WAVE_CAPACITY = 1024
 WAVE_MIN_TRANSIT_S = 5e-5
 #: Width of a history row: time, then A_1..A_K, B_1..B_K, their derivatives in p0.
 WAVE_WIDTH = 1 + 4 * WAVE_MAX_SEGMENTS
-#: Carried state: [span, q_a, p_v, q_c, q_1..q_{K-1}, waves resampled].
-WAVE_CARRY_HEAD = 4 + WAVE_MAX_SEGMENTS
+#: Trikha's (1975) three exponentials of Zielke's laminar weighting function,
+#: W(t') ~ sum m_k exp(-n_k t'), t' = nu t / R^2: the unsteady wall shear's memory.
+UNSTEADY_M = (1.0, 8.1, 40.0)
+UNSTEADY_N = (26.4, 200.0, 8000.0)
+#: Carried state: [span, then the tube's state (:func:`wave_state`), waves resampled].
+WAVE_CARRY_HEAD = 5 + 4 * WAVE_MAX_SEGMENTS
 WAVE_CARRY = WAVE_CARRY_HEAD + 2 * WAVE_MAX_SEGMENTS * WAVE_CARRY_POINTS
 
 
@@ -92,6 +97,78 @@ def wave_constants(sl, cs):
     tau = length / (c * k)
     grid = min(sl[_WGRID], max(tau, WAVE_MIN_TRANSIT_S))
     return tau, c / area, area, length / k, dia, mu, k, grid
+
+
+@njit(cache=True, error_model="numpy")
+def wave_state(sl):
+    """The tube's state between grid steps for ``K`` elements: ``[q_a, p_v, q_c,
+    q_1..q_{K-1}, t_last, y, w]``: the last flows (kg/s) and valve-end pressure (Pa), the
+    time of the last send (s), the unsteady shear's memories ``y`` (m/s; three per
+    element: the valve end's, then each junction's) and their weight ``w`` (the slot
+    ``wave_unsteady_friction``; 0: quasi-steady friction only)."""
+    k = max(int(sl[_WSEG]), 1)
+    state = np.zeros(4 * k + 4)
+    state[4 * k + 3] = sl[_WUNST]
+    return state
+
+
+@njit(cache=True, error_model="numpy")
+def vardy_brown_cutoff(re):
+    """Vardy and Brown's (2003) smooth-pipe turbulent cut-off B* of the weighting
+    function (W_turb = W_lam exp(-B* t')): ``Re^k / 12.86``, ``k = log10(15.29 /
+    Re^0.0567)``, faded in over Re 2000-4000 (0 in laminar flow)."""
+    if re <= 2000.0:
+        return 0.0
+    k = math.log10(15.29 / re ** 0.0567)
+    z = (re - 2000.0) / 2000.0
+    return re ** k / 12.86 * (1.0 if z >= 1.0 else z * z * (3.0 - 2.0 * z))
+
+
+@njit(cache=True, error_model="numpy")
+def unsteady_factors(h, q0, p, cs, area, dia, mu):
+    """``(rho, e, f)`` of the unsteady shear's memories over a step of ``h`` s at a
+    junction or end whose last flow was ``q0`` (kg/s) at pressure ``p`` (Pa): the
+    density (kg/m^3) and, per memory ``y_k`` (decaying at ``x_k / h = (n_k + B*) nu /
+    R^2``), its decay ``e_k = exp(-x_k)`` and ``f_k = (1 - e_k) / x_k`` (the weight of a
+    velocity change spread evenly over the step), as tuples."""
+    rho = p / (cs[C_RS] * cs[C_T_SUPPLY])
+    rate = 4.0 * mu / (rho * dia * dia) * h
+    cut = vardy_brown_cutoff(abs(q0) * dia / (area * mu))
+    x0 = (UNSTEADY_N[0] + cut) * rate
+    x1 = (UNSTEADY_N[1] + cut) * rate
+    x2 = (UNSTEADY_N[2] + cut) * rate
+    e0, e1, e2 = math.exp(-x0), math.exp(-x1), math.exp(-x2)
+    return rho, (e0, e1, e2), (_spread(x0, e0), _spread(x1, e1), _spread(x2, e2))
+
+
+@njit(cache=True, error_model="numpy")
+def _spread(x, e):
+    """``(1 - e^-x) / x`` (1 at x = 0)."""
+    return (1.0 - e) / x if x > 1e-9 else 1.0 - 0.5 * x
+
+
+@njit(cache=True, error_model="numpy")
+def unsteady_shear(state, iy, factors, area, gain):
+    """The unsteady wall shear's pressure drop over a step at a junction or end (its
+    memories ``state[iy:iy + 3]``; ``factors`` from :func:`unsteady_factors`), linear
+    in the step's flow q: ``U = s + r_u (q - q0)``; returns ``(s, r_u)`` (Pa, Pa s/kg).
+    ``gain`` is ``w 16 mu l / D^2`` for the length ``l`` it stands for (Zielke: ``tau_u
+    = (4 mu / D) sum y_k``, ``dp = 4 l tau / D``)."""
+    rho, e, f = factors
+    s = e[0] * state[iy] + e[1] * state[iy + 1] + e[2] * state[iy + 2]
+    r_u = UNSTEADY_M[0] * f[0] + UNSTEADY_M[1] * f[1] + UNSTEADY_M[2] * f[2]
+    return gain * s, gain * r_u / (rho * area)
+
+
+@njit(cache=True, error_model="numpy")
+def unsteady_update(state, iy, factors, q0, q, area):
+    """Advance the memories ``state[iy:iy + 3]`` over the step in which the flow went
+    from ``q0`` to ``q`` (the mean velocity's change ``(q - q0) / (rho A)``)."""
+    rho, e, f = factors
+    dv = (q - q0) / (rho * area)
+    state[iy] = e[0] * state[iy] + UNSTEADY_M[0] * f[0] * dv
+    state[iy + 1] = e[1] * state[iy + 1] + UNSTEADY_M[1] * f[1] * dv
+    state[iy + 2] = e[2] * state[iy + 2] + UNSTEADY_M[2] * f[2] * dv
 
 
 @njit(cache=True, error_model="numpy")
@@ -314,24 +391,48 @@ def wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
               dia, mu, state, rd, row):
     """An accepted step ending at ``t_now`` with chamber pressure ``p`` (dp/dp0 ``s_p``):
     the valve end, the junctions and the chamber end send their waves (the module's
-    equations), appended to the history. ``state`` = [q_a, p_v, q_c, q_1..q_{K-1}] (the
-    last flows, for the friction; updated). Returns False if the history is full."""
+    equations), appended to the history. ``state``: :func:`wave_state` (the last flows,
+    for the friction, and the unsteady shear's memories; updated). Returns False if the
+    history is full."""
     m = WAVE_MAX_SEGMENTS
     wave_read_k(hist, ring, t_now - tau, rd, k, 4)
     row[0] = t_now
+    # the unsteady shear (weight w; 0: none): a full element's at each junction and a
+    # half's at the valve end, scaled so that the K elements' whole is carried
+    w = state[4 * k + 3]
+    h = max(t_now - state[k + 2], 0.0)
+    gain = w * 16.0 * mu * seg_len / (dia * dia) * k / (k - 0.5)
+    state[k + 2] = t_now
     # valve end: B_1 arrives
     zv = z + 0.5 * wave_resistance(state[0], state[1], cs, area, seg_len, dia, mu)
-    p_v, q_a, dq = valve_end(rd[m + 1], zv, a_in, a_ex, p_sup, cs, state[1])
+    w_a = rd[m + 1]
+    fac = (1.0, (1.0, 1.0, 1.0), (1.0, 1.0, 1.0))  # (none: w = 0)
+    if w > 0.0:
+        fac = unsteady_factors(h, state[0], state[1], cs, area, dia, mu)
+        s_u, r_u = unsteady_shear(state, k + 3, fac, area, 0.5 * gain)
+        w_a += s_u - r_u * state[0]
+        zv += r_u
+    p_v, q_a, dq = valve_end(w_a, zv, a_in, a_ex, p_sup, cs, state[1])
     row[1] = rd[m + 1] + 2.0 * z * q_a
     row[2 * m + 1] = rd[3 * m + 1] * (1.0 + 2.0 * z * dq)
+    if w > 0.0:
+        unsteady_update(state, k + 3, fac, state[0], q_a, area)
     state[0], state[1] = q_a, p_v
     # junctions: A_j and B_{j+1} arrive (columns: A_i at i, B_i at m + i, their
     # derivatives at 2m + i and 3m + i)
     for j in range(1, k):
         a_j, b_n = rd[j], rd[m + j + 1]
         sa_j, sb_n = rd[2 * m + j], rd[3 * m + j + 1]
-        q, r, dd_dq = friction_flow(a_j - b_n, 2.0 * z, state[2 + j], 0.5 * (a_j + b_n),
-                                    1.0, cs, area, seg_len, dia, mu)
+        d, z_lin, p_j = a_j - b_n, 2.0 * z, 0.5 * (a_j + b_n)
+        if w > 0.0:
+            fac = unsteady_factors(h, state[2 + j], p_j, cs, area, dia, mu)
+            s_u, r_u = unsteady_shear(state, k + 3 + 3 * j, fac, area, gain)
+            d += r_u * state[2 + j] - s_u
+            z_lin += r_u
+        q, r, dd_dq = friction_flow(d, z_lin, state[2 + j], p_j, 1.0, cs, area, seg_len,
+                                    dia, mu)
+        if w > 0.0:
+            unsteady_update(state, k + 3 + 3 * j, fac, state[2 + j], q, area)
         sq = (sa_j - sb_n) / dd_dq
         row[m + j] = a_j - 2.0 * z * q
         row[j + 1] = b_n + 2.0 * z * q
@@ -362,9 +463,10 @@ def wave_start(hist, ring, carry, t0, p0, tau, k, state, row):
         for c in range(1, 1 + 2 * m):
             row[c] = p0
             row[2 * m + c] = 1.0
-        for i in range(state.shape[0]):
+        for i in range(state.shape[0] - 1):  # (its last entry: the shear's weight)
             state[i] = 0.0
         state[1] = p0
+        state[k + 2] = t0
         for tt in (t0 - tau, t0):
             row[0] = tt
             wave_push(hist, ring, row, k)
