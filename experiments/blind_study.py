@@ -16,7 +16,8 @@ valve) and, for each planted effect, a realistic plant form
 (:mod:`pneubayes.bench.forms`) whose parameters are drawn from wide physical ranges
 instead of the bench defaults the loop was tuned on -- a tube of 0.4-3 m and 1.5-4 mm
 bore (in 8-24 cells as the bench's, or ``--min-tube-cells 32`` for a near-continuous
-tube unlike the bench's), a rounded dead zone of 0.1-0.5 V, a regulator drooping
+tube unlike the bench's; ``--tube-unsteady-friction 1`` gives it a line's unsteady
+wall shear too), a rounded dead zone of 0.1-0.5 V, a regulator drooping
 15-70 kPa per g/s with a 15-120 ms time constant, a clearance leak 0.5-3 x the
 bench's, a 2nd-order spool at 70-220 Hz, wall convection of 10-80 W/(m^2 K) and an
 undeclared causal Butterworth anti-alias filter at 120-600 Hz for a sensor lag. The
@@ -86,15 +87,17 @@ def _log_uniform(rng, lo, hi) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def draw_form(name: str, cylinder: str, rng, min_tube_cells: int = 8):
+def draw_form(name: str, cylinder: str, rng, min_tube_cells: int = 8,
+              tube_unsteady_friction: float = 0.0):
     """A realistic plant form of catalogue effect ``name`` with drawn parameters (the
     sensor lag is a SensorChain, not a plant form). A tube has 8 cells per metre,
-    8-24 of them (the bench's rule), or ``min_tube_cells`` if that is more."""
+    8-24 of them (the bench's rule), or ``min_tube_cells`` if that is more, and
+    ``tube_unsteady_friction`` times Zielke's unsteady wall shear (not drawn)."""
     if name == "tube_delay":
         length = _log_uniform(rng, 0.4, 3.0)
         cells = max(int(min_tube_cells), int(min(24, max(8, math.ceil(8 * length)))))
         return AcousticTube(length_m=length, diameter_m=_log_uniform(rng, 0.0015, 0.004),
-                            segments=cells)
+                            segments=cells, unsteady_friction=float(tube_unsteady_friction))
     if name == "valve_deadzone":
         w = rng.uniform(0.1, 0.5)
         return RoundedDeadzone(halfwidth_V=w, rounding_V=w * rng.uniform(0.1, 0.6))
@@ -118,10 +121,12 @@ def draw_form(name: str, cylinder: str, rng, min_tube_cells: int = 8):
     raise ValueError(f"draw_form: unknown effect {name!r}")
 
 
-def draw_cases(seed: int, min_tube_cells: int = 8) -> list[dict]:
+def draw_cases(seed: int, min_tube_cells: int = 8,
+               tube_unsteady_friction: float = 0.0) -> list[dict]:
     """The blind set: controls, every single effect, pairs and four-effect rigs, each
-    with a drawn rig, forms and bench seed (a JSON-ready list). ``min_tube_cells`` sets
-    the plant tube's fewest cells (:func:`draw_form`); the draws do not depend on it."""
+    with a drawn rig, forms and bench seed (a JSON-ready list). ``min_tube_cells`` and
+    ``tube_unsteady_friction`` set the plant tube's fewest cells and unsteady shear
+    (:func:`draw_form`); the draws do not depend on them."""
     rng = np.random.default_rng(seed)
     sets: list[tuple[str, ...]] = [()] * N_CONTROLS + [(s,) for s in SINGLES]
     pairs = [(a, b) for i, a in enumerate(SINGLES) for b in SINGLES[i + 1:]]
@@ -132,7 +137,8 @@ def draw_cases(seed: int, min_tube_cells: int = 8) -> list[dict]:
     for i, hidden in enumerate(sets):
         rig = RIGS[int(rng.integers(len(RIGS)))]
         cylinder, valve = rig.split(":")
-        forms = {h: draw_form(h, cylinder, rng, min_tube_cells) for h in hidden}
+        forms = {h: draw_form(h, cylinder, rng, min_tube_cells, tube_unsteady_friction)
+                 for h in hidden}
         cases.append({"name": f"b{i:02d}_{cylinder}_{valve}_{'+'.join(hidden) or 'none'}",
                       "cylinder": cylinder, "valve": valve, "hidden": list(hidden),
                       "bench_seed": int(rng.integers(1000, 100000)),
@@ -161,7 +167,8 @@ def run_case(case: dict, args, root: Path) -> dict:
         posterior=PosteriorSettings(method="none" if args.posterior == "off"
                                     else args.posterior),
         seed=seed, search=SearchSettings(n_bags=40),
-        forms=FormSettings(tube_line_form=args.tube_line_form),
+        forms=FormSettings(tube_line_form=args.tube_line_form,
+                           tube_wave_unsteady=args.wave_unsteady),
         fit=FitSettings(sampler=SamplerSettings(n_walkers=32, max_steps=400, seed=seed),
                         pressure_filter=sensor.declared_filter()))
     t0 = time.perf_counter()
@@ -298,6 +305,12 @@ def main(argv=None) -> int:
                     help="the plant tube's fewest cells (default 8: the bench's rule of 8 "
                          "per metre, 8-24; 32 makes a near-continuous tube, unlike the "
                          "bench's; the plant costs about 4x more)")
+    ap.add_argument("--tube-unsteady-friction", type=float, default=0.0, metavar="W",
+                    help="the plant tubes' share of Zielke's unsteady wall shear (default 0: "
+                         "quasi-steady, as the model's tube; 1: a line's own)")
+    ap.add_argument("--wave-unsteady", action="store_true",
+                    help="the loop's wave tube fits the unsteady shear's weight too "
+                         "(FormSettings.tube_wave_unsteady)")
     ap.add_argument("--posterior", choices=("off", "emcee", "laplace"), default="off",
                     help="the final model's posterior (off: the loop alone, as the blind "
                          "sets ran; its time is part of the issue's loop floor)")
@@ -308,7 +321,9 @@ def main(argv=None) -> int:
         args.seed, args.duration = SMOKE_SEED, 16.0
     if args.min_tube_cells < 1:
         ap.error(f"--min-tube-cells: must be at least 1, got {args.min_tube_cells}")
-    cases = draw_cases(args.seed, args.min_tube_cells)
+    if not args.tube_unsteady_friction >= 0:
+        ap.error(f"--tube-unsteady-friction: must be >= 0, got {args.tube_unsteady_friction}")
+    cases = draw_cases(args.seed, args.min_tube_cells, args.tube_unsteady_friction)
     if args.smoke:
         cases = [c for c in cases if c["hidden"] == ["tube_delay"]]
     if args.list:

@@ -29,8 +29,9 @@ def test_the_draw_is_fixed_by_its_seed_and_covers_every_kind():
         assert f"{c['cylinder']}:{c['valve']}" in blind_study.RIGS
 
 
-def test_a_finer_plant_tube_changes_only_the_tubes_cell_count():
-    bench, fine = blind_study.draw_cases(123), blind_study.draw_cases(123, min_tube_cells=32)
+def test_a_finer_plant_tube_changes_only_the_tubes_cell_count_and_shear():
+    bench = blind_study.draw_cases(123)
+    fine = blind_study.draw_cases(123, min_tube_cells=32, tube_unsteady_friction=1.0)
     assert [c["name"] for c in bench] == [c["name"] for c in fine]
     tubes = 0
     for a, b in zip(bench, fine):
@@ -40,6 +41,8 @@ def test_a_finer_plant_tube_changes_only_the_tubes_cell_count():
             if h == "tube_delay":
                 tubes += 1
                 assert 8 <= fa.pop("segments") <= 24 and fb.pop("segments") == 32
+                assert fa.pop("unsteady_friction") == 0.0 and fb.pop("unsteady_friction") == 1.0
+                assert b["_objects"][h].unsteady_friction == 1.0
             assert fa == fb
     assert tubes >= 1
 
