@@ -330,3 +330,19 @@ def test_the_tabulated_friction_slope_matches_the_formulas():
     assert np.max(np.abs(table - exact)) < 1e-5
     assert slope(999.0) == 0.0  # laminar: f Re = 64
     assert 0.7 < slope(1e6) < 0.9  # turbulent: about Re^0.75
+
+
+def test_the_unsteady_frictions_turbulent_cutoff_is_vardy_and_browns():
+    """0 in laminar flow; from Re 4000 ``Re^k / 12.86`` with ``k = log10(15.29 /
+    Re^0.0567)`` (Vardy and Brown 2003: about 525 at Re 1e4); continuous and rising
+    across the fade-in."""
+    from pneubayes.physics.tube import vardy_brown_cutoff
+
+    assert vardy_brown_cutoff(500.0) == 0.0 and vardy_brown_cutoff(2000.0) == 0.0
+    for re in (4000.0, 1e4, 1e5):
+        k = math.log10(15.29 / re ** 0.0567)
+        assert vardy_brown_cutoff(re) == pytest.approx(re ** k / 12.86, rel=1e-12)
+    assert vardy_brown_cutoff(1e4) == pytest.approx(525.0, rel=0.01)
+    re = np.linspace(1990.0, 1e5, 20001)
+    b = np.array([vardy_brown_cutoff(r) for r in re])
+    assert np.all(np.diff(b) >= 0.0) and np.max(np.abs(np.diff(b))) < 1.0

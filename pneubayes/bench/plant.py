@@ -96,7 +96,7 @@ from pneubayes.effects import Effect
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.errors import SimulationError
 from pneubayes.physics.orifice import flow_terms
-from pneubayes.physics.tube import churchill_fre
+from pneubayes.physics.tube import churchill_fre, vardy_brown_cutoff
 from pneubayes.physics.valve import gompertz_scalar
 from pneubayes.rig import Rig
 from pneubayes.simulation.drive import Inputs
@@ -178,17 +178,6 @@ N_L = 25
 #: three: another approximation of the same function).
 UNSTEADY_M = np.array([1.051, 2.358, 9.021, 29.47, 79.55])
 UNSTEADY_N = np.array([26.65, 100.0, 669.0, 6497.0, 57990.0])
-
-
-@njit(cache=True)
-def vardy_brown_cutoff(re):
-    """Vardy and Brown's (2003) smooth-pipe turbulent cut-off B* of the weighting
-    function (W_turb = W_lam exp(-B* t')): ``Re^k / 12.86``, ``k = log10(15.29 /
-    Re^0.0567)``, faded in over Re 2000-4000 (0 in laminar flow)."""
-    if re <= 2000.0:
-        return 0.0
-    k = math.log10(15.29 / re ** 0.0567)
-    return re ** k / 12.86 * smoothstep((re - 2000.0) / 2000.0)
 
 
 @njit(cache=True)

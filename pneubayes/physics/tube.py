@@ -4,7 +4,8 @@ The momentum balance of a tube segment of length dx and section A carrying mass 
 (Richer & Hurmuzlu 2000, lumped) is ``dq/dt = A / dx (p_i - p_{i+1}) - f Re mu q /
 (2 rho D^2)``; ``f Re`` is 64 in laminar flow (Poiseuille) and grows with Re once the
 flow turns turbulent. The 2-mm tubes of the paper carry 1 g/s at Re ~ 3e4, so the
-turbulent branch matters.
+turbulent branch matters. A fast-changing flow also meets Zielke's unsteady wall shear,
+whose memory turbulence shortens (:func:`vardy_brown_cutoff`).
 """
 
 from __future__ import annotations
@@ -111,3 +112,16 @@ def churchill_fre_and_slope_table(re):
             + (3.0 * t * t - 4.0 * t + 1.0) * _FRE_SLOPE[i]
             + (3.0 * t * t - 2.0 * t) * _FRE_SLOPE[i + 1])
     return value, d_dt / (_LN_STEP * value)
+
+
+@njit(cache=True, error_model="numpy")
+def vardy_brown_cutoff(re):
+    """Vardy and Brown's (2003) smooth-pipe turbulent cut-off B* of Zielke's unsteady
+    friction weighting function (W_turb = W_lam exp(-B* t'), t' = nu t / R^2):
+    ``Re^k / 12.86``, ``k = log10(15.29 / Re^0.0567)``, faded in over Re 2000-4000 by a
+    C1 smoothstep (0 in laminar flow)."""
+    if re <= 2000.0:
+        return 0.0
+    k = math.log10(15.29 / re ** 0.0567)
+    z = (re - 2000.0) / 2000.0
+    return re ** k / 12.86 * (1.0 if z >= 1.0 else z * z * (3.0 - 2.0 * z))

@@ -48,7 +48,11 @@ from numba import njit
 
 from pneubayes.effects.path import SLOT_INDEX, WAVE_CARRY_POINTS, WAVE_MAX_SEGMENTS
 from pneubayes.physics.orifice import flow_slopes, flow_terms
-from pneubayes.physics.tube import churchill_fre_and_slope_table, churchill_fre_table
+from pneubayes.physics.tube import (
+    churchill_fre_and_slope_table,
+    churchill_fre_table,
+    vardy_brown_cutoff,
+)
 from pneubayes.simulation.chamber import chamber_rhs, compliant_volume
 from pneubayes.simulation.layout import (
     C_ALPHA,
@@ -110,18 +114,6 @@ def wave_state(sl):
     state = np.zeros(4 * k + 4)
     state[4 * k + 3] = sl[_WUNST]
     return state
-
-
-@njit(cache=True, error_model="numpy")
-def vardy_brown_cutoff(re):
-    """Vardy and Brown's (2003) smooth-pipe turbulent cut-off B* of the weighting
-    function (W_turb = W_lam exp(-B* t')): ``Re^k / 12.86``, ``k = log10(15.29 /
-    Re^0.0567)``, faded in over Re 2000-4000 (0 in laminar flow)."""
-    if re <= 2000.0:
-        return 0.0
-    k = math.log10(15.29 / re ** 0.0567)
-    z = (re - 2000.0) / 2000.0
-    return re ** k / 12.86 * (1.0 if z >= 1.0 else z * z * (3.0 - 2.0 * z))
 
 
 @njit(cache=True, error_model="numpy")
