@@ -30,6 +30,7 @@ from scipy.optimize import minimize_scalar
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.forms import AcousticTube
 from pneubayes.bench.plant import PlantConfig, simulate_plant
+from pneubayes.bench.protocols import step_commands
 from pneubayes.effects import make_effect
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
@@ -61,12 +62,7 @@ def random_steps():
     """The same for valve 1's random steps."""
     p_sup = 551_325.0
     t = np.arange(2001) * 1e-3
-    rng = np.random.default_rng(1)
-    u, i = np.empty(t.size), 0
-    while i < t.size:
-        hold = int(rng.integers(40, 200))
-        u[i:i + hold] = rng.uniform(-5.0, 5.0)
-        i += hold
+    u = step_commands(t, np.random.default_rng(1), 5.0, hold_s=(0.04, 0.2), clock_s=1e-3)
     inputs = Inputs(t, u, np.full(t.size, 0.01875), np.full(t.size, p_sup))
     return (Rig(BORE_M, P_ATM, p_sup), inputs,
             dict(valve_preset("valve1").parameters(), dead_volume_m3=5e-5), P_ATM, 2.4, 0.004)
