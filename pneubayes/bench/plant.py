@@ -181,7 +181,7 @@ UNSTEADY_N = np.array([26.65, 100.0, 669.0, 6497.0, 57990.0])
 
 
 @njit(cache=True)
-def unsteady_friction_rates(y, dy, iy, dq, q, rho, re, area, dia, mu, weight):
+def unsteady_friction_rates(y, dy, iy, dq, rho, re, area, dia, mu, weight):
     """A tube link's mass-flow rate ``dq`` (kg/s^2) less ``weight`` times Zielke's
     unsteady wall shear over its length, ``4 pi mu sum y_k`` per unit length, and the
     rates of its five states ``y[iy:iy + 5]`` (m/s): ``y_k' = -(n_k + B*) nu / R^2 y_k +
@@ -487,8 +487,8 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
             dq = (area / link * (p_i - p_next)
                   - churchill_fre(re) * mu * q / (2.0 * rho * dia * dia))
             if L[L_ITY] >= 0:  # Zielke's unsteady wall shear (AcousticTube)
-                dq = unsteady_friction_rates(y, dy, L[L_ITY] + 5 * i, dq, q, rho, re,
-                                             area, dia, mu, P[K_TUBE_UF])
+                dq = unsteady_friction_rates(y, dy, L[L_ITY] + 5 * i, dq, rho, re, area,
+                                             dia, mu, P[K_TUBE_UF])
             dy[itq + i] = dq
             q_prev = q
         inflow = q_prev

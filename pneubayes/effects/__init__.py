@@ -112,8 +112,7 @@ def catalogue_parameter_names() -> frozenset[str]:
     sets an effect lists in its ``option_variants``)."""
     names = set()
     for cls in CATALOGUE.values():
-        for options in ([{"form": f} for f in cls.forms] or [{}]) + list(
-                getattr(cls, "option_variants", ())):
+        for options in ([{"form": f} for f in cls.forms] or [{}]) + list(cls.option_variants):
             names.update(cls(**options).parameter_names())
     return frozenset(names)
 

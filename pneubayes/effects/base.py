@@ -160,6 +160,9 @@ class Effect(Component):
 
     #: The forms of an effect with a ``form`` option (empty: one form only).
     forms: ClassVar[tuple[str, ...]] = ()
+    #: Option sets beside the forms that add parameters (every parameter name the effect
+    #: can have: :func:`pneubayes.effects.catalogue_parameter_names`).
+    option_variants: ClassVar[tuple[dict, ...]] = ()
     #: Default trial strengths of the effect's library terms (the unit of the
     #: parameter its terms vary; a :class:`~pneubayes.discovery.library.LibraryGrid`
     #: may replace them).

@@ -61,7 +61,6 @@ class TubeDelay(Effect):
     name = "tube_delay"
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
-    #: Options beside the forms that add a parameter (for the catalogue's names).
     option_variants = ({"form": "wave", "unsteady_friction": True},)
     acts_on = ("command_delay_s", "flow_attenuation_Pa", "line_length_m", "line_diameter_m",
                "line_segments", "line_viscosity_Pa_s", "wave_length_m", "wave_diameter_m",

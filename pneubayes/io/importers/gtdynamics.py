@@ -118,10 +118,6 @@ def _read_matrix(path: Path, ncols: int) -> np.ndarray:
     return np.array(rows)
 
 
-def _finite_or_none(seconds: float) -> float | None:
-    return float(seconds) if math.isfinite(seconds) else None
-
-
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -209,10 +205,9 @@ def import_trial(trial_dir, out_dir, end_s: float = 0.33) -> list[Path]:
                 **SOURCE, "trial": trial.name, "channel": joint,
                 "files": {f.name: _sha256(f) for f in (raw_path, valve_path)
                           + ((angle_path, video_path) if video else ())},
-                # null: inf in t_valve (the valve did not open, or did not close,
-                # within the record)
-                "valve_open_s": _finite_or_none(t_open),
-                "valve_close_s": _finite_or_none(t_close),
+                # (inf in t_valve, a valve not opened or not closed within the
+                # record, is written null: write_json_atomic's json_safe)
+                "valve_open_s": t_open, "valve_close_s": t_close,
                 "rows": f"t <= {end_s} s of {int(keep.size)} (venting after it is not "
                         "in the recorded command)",
                 "conversion": "raw psi gauge columns kept in psi gauge (format 2); the "
