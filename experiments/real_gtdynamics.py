@@ -23,9 +23,10 @@ trial not held out trains. Discovery starts from the card's plain model; the res
 held-out RMSE before and after against the noise floor (Pa and % of the measured span),
 the named effects with their posterior intervals, and writes figures of measured
 against predicted pressure with 90 % bands, before and after. Then each muscle's volume,
-tube bore and transit time are refitted on its own training recordings (four muscles,
-each with its own tube and fittings; the rest of the discovered model shared) and
-scored on its held-out recordings beside the shared estimate.
+tube bore and transit time (and its valve's dead time, where the loop found one) are
+refitted on its own training recordings (four muscles, each with its own valve, tube and
+fittings; the rest of the discovered model shared) and scored on its held-out recordings
+beside the shared estimate.
 
 The measured source pressure drives the model raw (its 80-90 Hz ringing is in the
 band a 100-Hz low-pass keeps). Seed 0 (recorded). Writes OUT/real_gtdynamics.json and OUT/figures/.
@@ -73,9 +74,10 @@ HORIZON_S = 0.044
 SEED = 0
 #: emcee's step budget (about 15 min on 2 cores); the result records convergence
 MAX_STEPS = 2500
-#: Each muscle's own quantities, refitted per muscle beside the shared fit: its volume,
-#: its tube's bore and transit time (each has its own tube and fittings)
-UNIT_QUANTITIES = ("dead_volume_m3", "tube_diameter_m", "tube_delay_s")
+#: Each muscle's own quantities, refitted per muscle beside the shared fit (those the
+#: model has): its volume, its tube's bore and transit time and its valve's dead time
+#: (each has its own valve, tube and fittings)
+UNIT_QUANTITIES = ("dead_volume_m3", "tube_diameter_m", "tube_delay_s", "valve_dead_time_s")
 
 
 def fill_phase(rec):

@@ -94,7 +94,8 @@ def test_catalogue_names():
                                "valve_stiction", "closure", "reading_closure",
                                "reading_play", "reading_command", "reading_flow",
                                "reading_hinge", "volume_closure",
-                               "volume_play", "loaded_wall", "port_restriction", "command_clock"]
+                               "volume_play", "loaded_wall", "port_restriction", "command_clock",
+                               "valve_dead_time"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):

@@ -311,8 +311,9 @@ class StageSettings:
         restriction in series at the chamber's port, hinges of the chamber's volume in its
         pressure, friction-held walls (plays of the volume) and a wall that carries a load
         (the volume as a mass on a spring) while above this x the noise floor (0: off).
-    command_clock_min_noise_ratio : float
-        CommandClockForm: an open-form valve driver on its own clock while above this x
+    command_clock_min_noise_ratio, valve_dead_time_min_noise_ratio : float
+        CommandClockForm, ValveDeadTimeForm: a valve driver on its own clock, a dead time
+        that depends on the supply (recordings at different supplies) while above this x
         the noise floor (0: off).
     """
 
@@ -335,6 +336,7 @@ class StageSettings:
     volume_play_min_noise_ratio: float = 1.5
     loaded_wall_min_noise_ratio: float = 1.5
     command_clock_min_noise_ratio: float = 1.5
+    valve_dead_time_min_noise_ratio: float = 1.5
     port_restriction_min_noise_ratio: float = 1.5
 
     def __post_init__(self):
@@ -353,7 +355,7 @@ class StageSettings:
                      "reading_flow_min_noise_ratio",
                      "volume_form_min_noise_ratio", "volume_play_min_noise_ratio",
                      "loaded_wall_min_noise_ratio", "command_clock_min_noise_ratio",
-                     "port_restriction_min_noise_ratio"):
+                     "valve_dead_time_min_noise_ratio", "port_restriction_min_noise_ratio"):
             v = getattr(self, name)
             if not (v == 0.0 or v >= 1.0):
                 raise ValueError(f"{name} must be 0 (off) or >= 1, got {v}")

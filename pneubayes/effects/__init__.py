@@ -12,8 +12,9 @@ of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
 ``volume_play`` (open-form friction-held walls: plays and stops of the chamber's
 volume), ``loaded_wall`` (an open-form wall with inertia: the chamber's volume as a
 mass on a spring), ``port_restriction`` (an open-form restriction in series at the
-chamber's port) and ``command_clock`` (an open-form valve driver on its own clock),
-the last eleven never searched for by the discovery library.
+chamber's port), ``command_clock`` (an open-form valve driver on its own clock) and
+``valve_dead_time`` (a valve's dead time that depends on the supply pressure), the last
+twelve never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from pneubayes.effects.spool_lag import SpoolLag
 from pneubayes.effects.supply_fluctuation import SupplyFluctuation
 from pneubayes.effects.thin_port import ThinPort
 from pneubayes.effects.tube_delay import TubeDelay
+from pneubayes.effects.valve_dead_time import ValveDeadTime
 from pneubayes.effects.valve_deadzone import ValveDeadzone
 from pneubayes.effects.valve_stiction import ValveStiction
 from pneubayes.effects.volume_closure import VolumeClosure
@@ -53,7 +55,7 @@ CATALOGUE: dict[str, type[Effect]] = {
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
                 ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, LoadedWall,
-                PortRestriction, CommandClock)
+                PortRestriction, CommandClock, ValveDeadTime)
 }
 
 

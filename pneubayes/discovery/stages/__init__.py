@@ -25,6 +25,7 @@ from pneubayes.discovery.stages.reading_form import ReadingForm
 from pneubayes.discovery.stages.reading_hinge_form import ReadingHingeForm
 from pneubayes.discovery.stages.reading_play_form import ReadingPlayForm
 from pneubayes.discovery.stages.runner_ups import RunnerUps
+from pneubayes.discovery.stages.valve_dead_time_form import ValveDeadTimeForm
 from pneubayes.discovery.stages.volume_form import VolumeForm
 from pneubayes.discovery.stages.volume_play_form import VolumePlayForm
 
@@ -34,9 +35,10 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     (:class:`~pneubayes.discovery.settings.StageSettings`) describes, in the loop's order:
     the other supported groups, the last resort, the catalogue's sweep near the noise
     floor, the runner-ups, pairs and the named effects' other forms, then the open forms:
-    the valve driver's clock, the reading's knees, relaxations, plays, lags of the command
-    and terms of the port flows, a restriction at the port, the volume's hinges, its
-    friction-held walls and a loaded wall, and the closure."""
+    the valve driver's clock, a dead time that depends on the supply, the reading's
+    knees, relaxations, plays, lags of the command and terms of the port flows, a
+    restriction at the port, the volume's hinges, its friction-held walls and a loaded
+    wall, and the closure."""
     s = settings.stages
     stages: list[Stage] = []
     if s.more_supported:
@@ -59,6 +61,8 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
     # physical form expresses exactly (an accumulator's compliance, as pressure relaxations)
     if s.command_clock_min_noise_ratio:  # (a wait locked to a clock, before what it bends)
         stages.append(CommandClockForm(s.command_clock_min_noise_ratio))
+    if s.valve_dead_time_min_noise_ratio:  # (the valve's timing, as the clock's)
+        stages.append(ValveDeadTimeForm(s.valve_dead_time_min_noise_ratio))
     if s.reading_hinge_min_noise_ratio:  # (the reading's static map before its dynamics)
         stages.append(ReadingHingeForm(s.reading_hinge_min_noise_ratio))
     if s.reading_form_min_noise_ratio:
@@ -85,4 +89,5 @@ def default_stages(settings: DiscoverySettings) -> list[Stage]:
 __all__ = ["Stage", "CatalogueSweep", "CommandClockForm", "MoreSupported", "LastResort",
            "RunnerUps", "Pairs", "OtherForms", "OpenForm", "ReadingForm", "ReadingHingeForm",
            "ReadingPlayForm", "ReadingCommandForm", "ReadingFlowForm", "PortRestrictionForm",
-           "VolumeForm", "VolumePlayForm", "LoadedWallForm", "default_stages"]
+           "VolumeForm", "VolumePlayForm", "LoadedWallForm", "ValveDeadTimeForm",
+           "default_stages"]
