@@ -125,6 +125,20 @@ def test_supply_fluctuation_shows_in_the_supply_column(tmp_path):
     assert supply_std(["supply_fluctuation"], "fluct") > 4000.0
 
 
+def test_a_bench_at_another_supply_records_it(tmp_path):
+    supply = 101_325.0 + 3e5
+    cfg = BenchConfig("AIR37", "valve1", (), protocol="moving", duration_s=1.0, seed=1,
+                      count=1, supply_Pa=supply)
+    res = run_bench(cfg, tmp_path)
+    rec = read_recording(res.recordings[0])
+    assert rec.metadata.supply_pressure_Pa == supply
+    assert abs(np.median(rec.supply_pressure_Pa) - supply) < 1e3
+    assert res.truth["bench"]["rig"]["supply_pressure_Pa"] == supply
+    assert np.max(rec.pressure_Pa) < supply + 3e3  # the chamber never passes its supply
+    with pytest.raises(ValueError, match="supply_Pa must be above the atmosphere"):
+        BenchConfig("AIR37", "valve1", supply_Pa=101_325.0)
+
+
 def test_bench_refuses_to_overwrite_and_rejects_unknown_override(tmp_path, fixed_set):
     cfg = BenchConfig("AIR37", "valve1", (), protocol="moving", duration_s=0.5, seed=1,
                       count=1)

@@ -13,6 +13,7 @@ import pytest
 from pneubayes.bench.bench import BenchConfig, run_bench
 from pneubayes.bench.forms import (
     OUT_OF_CATALOGUE,
+    ArmatureDeadTime,
     BladderVolume,
     BoucWenWall,
     BraidFriction,
@@ -205,6 +206,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (SeatLeak, {"area_m2": 1e-8, "laminar_drop_Pa": 0.0}, "laminar_drop_Pa"),
     (InletFlowLimiter, {"max_flow_kg_per_s": -1e-4}, "max_flow_kg_per_s"),
     (ReleaseDelay, {"delay_s": float("nan")}, "delay_s"),
+    (ArmatureDeadTime, {"travel_s": -1e-3}, "travel_s"),
+    (ArmatureDeadTime, {"travel_s": 1e-3, "reference_gauge_Pa": 0.0}, "reference_gauge_Pa"),
     (PistonSealBypass, {"conductance_kg_per_s_Pa2": 1e-16, "vent_area_m2": -1e-8,
                         "opposite_volume_m3": 1e-6}, "vent_area_m2"),
     (EnergisedSealLeak, {"conductance_kg_per_s_Pa2": 1e-15, "energising_pressure_Pa": 0.0},
@@ -903,6 +906,38 @@ def test_a_late_release_moves_falls_not_rises_and_a_quick_rise_cancels_a_fall(ri
     np.testing.assert_allclose(late, shifted, rtol=0, atol=1.0)
     plain = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
     assert np.max(np.abs(late - plain)) > 10e3
+
+
+def test_a_supply_driven_armature_acts_later_at_a_lower_supply(rig, base):
+    arm = ArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=5e5)
+    assert arm.catalogue_name == "valve_dead_time" and arm.acts
+    assert not ArmatureDeadTime(travel_s=0.0, coil_s=0.0).acts
+    t = np.arange(6) * 1e-3
+    times, values = arm.switches(t, [0.0, 2.0, 2.0, 0.0, 0.0, 0.0],
+                                 supply_gauge_at=lambda tau: 5e5 if tau < 2.5e-3 else 20e5)
+    # the rise at 1 ms is due 2 + 8 ms later; the fall at 3 ms, at 4 x the gauge supply,
+    # 2 + 4 ms later, overtakes it
+    np.testing.assert_allclose(times, [-np.inf, 9e-3], atol=1e-12)
+    np.testing.assert_array_equal(values, [0.0, 0.0])
+    times, values = arm.switches(t, [0.0, 2.0, 2.0, 0.0, 0.0, 0.0],
+                                 supply_gauge_at=lambda tau: 5e5)
+    np.testing.assert_allclose(times, [-np.inf, 11e-3, 13e-3], atol=1e-12)
+    with pytest.raises(ValueError, match="gauge supply at"):
+        arm.switches(t, [0.0, 2.0, 2.0, 2.0, 2.0, 2.0], supply_gauge_at=lambda tau: 0.0)
+    # the plant at the rig's supply (gauge 5 bar = the reference): the plain plant's vent
+    # commanded 10 ms later (the fill, held from the start, is no change)
+    gauge = rig.supply_pressure_Pa - rig.atmospheric_pressure_Pa
+    arm = ArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=gauge)
+    late = _run(base, (arm,), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
+    shifted = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.11)), rig)
+    np.testing.assert_allclose(late, shifted, rtol=0, atol=1.0)
+    plain = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
+    assert np.max(np.abs(late - plain)) > 10e3
+    # at 4 x the reference the travel halves: 2 + 4 ms
+    quarter = ArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=gauge / 4)
+    later = _run(base, (quarter,), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
+    shifted = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.106)), rig)
+    np.testing.assert_allclose(later, shifted, rtol=0, atol=1.0)
 
 
 def _rate0(p, volume_m3, rig, mdot_kg_per_s):

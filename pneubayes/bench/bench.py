@@ -111,7 +111,7 @@ class BenchConfig:
     ``ranges_V`` and ``positions`` (fractions of the stroke) define the fixed-volume
     recordings (one per pair); ``count`` the number of moving-volume recordings.
     ``forms`` (realistic effect forms) switch the truth to the high-fidelity plant,
-    integrated with ``plant_solver``.
+    integrated with ``plant_solver``. ``supply_Pa`` is the regulated supply (absolute).
     """
 
     cylinder: str
@@ -130,6 +130,7 @@ class BenchConfig:
     solver: SolverConfig = field(default_factory=SolverConfig.reference)
     forms: tuple[PlantForm, ...] = ()
     plant_solver: PlantConfig = field(default_factory=PlantConfig.reference)
+    supply_Pa: float = SUPPLY_PA
 
     def __post_init__(self):
         object.__setattr__(self, "forms", check_forms(self.forms,
@@ -141,6 +142,9 @@ class BenchConfig:
             raise ValueError(f"protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        if not self.supply_Pa > ATMOSPHERE_PA:
+            raise ValueError(f"supply_Pa must be above the atmosphere ({ATMOSPHERE_PA:g} Pa, "
+                             f"absolute), got {self.supply_Pa!r}")
         ratio = self.fine_rate_Hz / self.sensor.sample_rate_Hz
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError("fine_rate_Hz must be an integer multiple of the sample rate")
@@ -209,7 +213,7 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
     out.mkdir(parents=True, exist_ok=True)
     cyl = cylinder_preset(cfg.cylinder)
     model = cfg.model
-    rig = Rig(cyl.bore_m, ATMOSPHERE_PA, SUPPLY_PA, GasConstants(temperature_K=TEMPERATURE_K),
+    rig = Rig(cyl.bore_m, ATMOSPHERE_PA, cfg.supply_Pa, GasConstants(temperature_K=TEMPERATURE_K),
               stroke_m=cyl.stroke_m)
     truth = truth_parameters(model, cfg.cylinder, cfg.valve, rig, cfg.overrides)
     truth, plant_truth = _form_truth(cfg, truth)
@@ -236,7 +240,7 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
             x_fine = piston_motion(t_fine, rng, cyl.stroke_m)
         else:
             x_fine = np.full(t_fine.size, plan["position_m"])
-        supply_fine = np.full(t_fine.size, SUPPLY_PA)
+        supply_fine = np.full(t_fine.size, cfg.supply_Pa)
         for e in model.effects:
             supply_fine = e.perturb_inputs(t_fine, supply_fine, rig, rng)
         inputs = Inputs(t_fine, u_fine, x_fine, supply_fine)
@@ -285,7 +289,7 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
                              s.pressure_quantum_Pa)
         meta = RecordingMetadata(
             cylinder=cfg.cylinder, valve=cfg.valve, bore_m=cyl.bore_m, stroke_m=cyl.stroke_m,
-            atmospheric_pressure_Pa=ATMOSPHERE_PA, supply_pressure_Pa=SUPPLY_PA,
+            atmospheric_pressure_Pa=ATMOSPHERE_PA, supply_pressure_Pa=cfg.supply_Pa,
             temperature_K=TEMPERATURE_K, position_m=plan["position_m"],
             extra={"source": "pneubayes virtual bench", "protocol": cfg.protocol,
                    "command_range_V": plan["range_V"]},
@@ -322,7 +326,7 @@ def run_bench(cfg: BenchConfig, out_dir, overwrite: bool = False,
         "fine_rate_Hz": cfg.fine_rate_Hz, "sensor": cfg.sensor.to_dict(),
         "solver": cfg.solver.to_dict(), "initial_pressure_Pa": ATMOSPHERE_PA,
         "rig": {"bore_m": cyl.bore_m, "stroke_m": cyl.stroke_m,
-                "atmospheric_pressure_Pa": ATMOSPHERE_PA, "supply_pressure_Pa": SUPPLY_PA,
+                "atmospheric_pressure_Pa": ATMOSPHERE_PA, "supply_pressure_Pa": cfg.supply_Pa,
                 "temperature_K": TEMPERATURE_K},
         "recordings": entries, "pneubayes_version": pneubayes.__version__}})
     write_json_atomic(truth_path, card)

@@ -49,6 +49,7 @@ from scipy.interpolate import CubicSpline
 
 from pneubayes.bench.forms import (
     AcousticTube,
+    ArmatureDeadTime,
     BladderVolume,
     BoucWenWall,
     BraidFriction,
@@ -1099,7 +1100,7 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
 
 #: The forms that decide when (and with what value) the valve takes the command: each
 #: has ``switches(time_s, command, shared_delay_s)`` and ``acts`` (False at zero strength).
-_DRIVERS = (ReleaseDelay, PwmValve, ZohDriver)
+_DRIVERS = (ReleaseDelay, PwmValve, ZohDriver, ArmatureDeadTime)
 
 
 def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inputs: Inputs,
@@ -1154,7 +1155,12 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
                          "the valve takes the command; plant one of them")
     release = drivers[0] if drivers else None
     if release is not None and release.acts:  # when the valve takes the command
-        sw_t, sw_u = release.switches(t, u, delay)
+        kw = {}
+        if getattr(release, "reads_supply", False):  # the supply where a change reaches it
+            supply = np.asarray(inputs.supply_pressure_Pa, dtype=np.float64)
+            kw["supply_gauge_at"] = lambda tau: float(
+                np.interp(tau, t, supply)) - rig.atmospheric_pressure_Pa
+        sw_t, sw_u = release.switches(t, u, delay, **kw)
 
         def command_at(tau):
             return float(sw_u[int(np.searchsorted(sw_t, tau, side="right")) - 1])

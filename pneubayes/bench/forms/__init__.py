@@ -26,7 +26,8 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 :class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`; the eleventh, a check of the
 volume's plays on a loop that is not one: :class:`BoucWenWall`; the twelfth, a wall that
 carries a load: :class:`LoadedWall`; the thirteenth, readings logged through a rail and
-late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`).
+late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`). :class:`ArmatureDeadTime`
+is a realistic form of the catalogue's ``valve_dead_time`` (a supply-driven armature).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -84,6 +85,7 @@ from pneubayes.bench.forms.reading import (
     SolenoidGroundShift,
 )
 from pneubayes.bench.forms.valve import (
+    ArmatureDeadTime,
     InletFlowForce,
     InletFlowLimiter,
     Iso6358Ports,
@@ -122,7 +124,8 @@ FORMS: dict[str, type[PlantForm]] = {
                                   SensorThermalShock, PwmValve, ZohDriver, SensorHysteresis,
                                   SealSpeedLeak, BraidFriction, SolenoidGroundShift,
                                   PressureHeldSolenoid, InletJetAtSensor, BoucWenWall,
-                                  LoadedWall, SaturatingSensor, SkewedPressureChannel)
+                                  LoadedWall, SaturatingSensor, SkewedPressureChannel,
+                                  ArmatureDeadTime)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -193,7 +196,9 @@ def forms_from_names(names: Sequence[str], cylinder: str = "AIR37",
       full inlet flow) with a 50 ms regulator time constant;
     - ``spool_lag``: 125 Hz natural frequency (the valve's bandwidth), damping 0.7;
     - ``heat_transfer``: wall convection h = 30 W/(m^2 K) (a wall time constant of
-      about 0.1 s in a small chamber at 3 bar).
+      about 0.1 s in a small chamber at 3 bar);
+    - ``valve_dead_time``: a supply-driven armature, 2 ms of coil and 8 ms of travel at 5
+      bar gauge.
     """
     cyl = cylinder_preset(cylinder)
     gas = gas or GasConstants()
@@ -216,6 +221,8 @@ def forms_from_names(names: Sequence[str], cylinder: str = "AIR37",
             out.append(SecondOrderSpool(natural_frequency_Hz=125.0, damping=0.7))
         elif n == "heat_transfer":
             out.append(WallHeatTransfer(h_W_per_m2_K=30.0))
+        elif n == "valve_dead_time":
+            out.append(ArmatureDeadTime(travel_s=8e-3))
         else:
             raise ValueError(f"forms_from_names: unknown effect {n!r}; the catalogue has "
                              f"{sorted(CATALOGUE)}")

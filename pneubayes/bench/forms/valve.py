@@ -400,6 +400,59 @@ class ReleaseDelay(PlantForm):
         return np.array(times), np.array(values)
 
 
+@dataclass(frozen=True)
+class ArmatureDeadTime(PlantForm):
+    """A solenoid valve whose moving part the supply drives: each command change acts
+    after the coil's own delay and the part's travel, a part moved from rest over a fixed
+    stroke by a force proportional to the gauge supply (a pilot-operated valve's main
+    stage)::
+
+        d = coil_s + travel_s sqrt(reference_gauge_Pa / (p_s - P_atm)),
+
+    p_s the supply at the moment the change reaches the valve (not the recording's
+    nominal). A change overtaken by a later one that acts first is dropped. Both 0 is a
+    valve that follows the command at once. (The catalogue's ``valve_dead_time`` is a
+    power law of the nominal supply, without the coil's offset.)
+    """
+
+    catalogue_name: ClassVar[str | None] = "valve_dead_time"
+    travel_s: float
+    coil_s: float = 0.002
+    reference_gauge_Pa: float = 5e5
+    #: The plant passes the supply to :meth:`switches`.
+    reads_supply: ClassVar[bool] = True
+
+    def __post_init__(self):
+        _non_negative(self, "travel_s", "coil_s")
+        _positive(self, "reference_gauge_Pa")
+
+    @property
+    def acts(self) -> bool:
+        """Whether it changes when the valve takes the command (not at zero strength)."""
+        return self.travel_s > 0 or self.coil_s > 0
+
+    def switches(self, time_s, command, shared_delay_s: float = 0.0, supply_gauge_at=None):
+        """``(times, values)``: when (s) the valve takes each held value of ``command``
+        (``times[0] = -inf``), ``supply_gauge_at(t)`` the gauge supply (Pa) at time t."""
+        t = np.asarray(time_s, dtype=np.float64)
+        u = np.asarray(command, dtype=np.float64)
+        times, values = [-math.inf], [float(u[0])]
+        for k in np.nonzero(np.diff(u) != 0)[0] + 1:
+            reach = t[k] + shared_delay_s
+            gauge = float(supply_gauge_at(reach))
+            if not gauge > 0:
+                raise ValueError(f"ArmatureDeadTime: the gauge supply at {reach:g} s is "
+                                 f"{gauge:g} Pa; the travel needs a positive one")
+            at = reach + self.coil_s + self.travel_s * math.sqrt(
+                self.reference_gauge_Pa / gauge)
+            while len(times) > 1 and times[-1] >= at:  # pending changes it overtakes
+                times.pop()
+                values.pop()
+            times.append(at)
+            values.append(float(u[k]))
+        return np.array(times), np.array(values)
+
+
 # ------------------------------------------ out-of-catalogue forms, the seventh blind set
 
 
