@@ -119,3 +119,33 @@ def test_the_stage_is_in_the_pipeline_and_can_be_switched_off():
     assert not any(isinstance(s, ValveDeadTimeForm) for s in default_stages(off))
     with pytest.raises(ValueError, match="valve_dead_time_min_noise_ratio"):
         StageSettings(valve_dead_time_min_noise_ratio=0.5)
+
+
+def test_a_named_dead_time_a_stage_proposed_is_reported():
+    """The stage's evidence has no inclusion probability (no library search proposed
+    it): the report and the command line's summary say '-' there."""
+    from types import SimpleNamespace
+
+    from pneubayes.cli.discover import summary_lines
+    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.result import DiscoveryResult
+
+    model = Model([ValveDeadTime()])
+    params = {**valve1_params(), "valve_dead_time_s": 0.01, "valve_dead_time_exponent": 0.4}
+    final = SimpleNamespace(model=model, params=params, heldout_rmse_Pa=505.0)
+    evidence = {"inclusion_probability": None, "t_max": 0.0,
+                "best_term": "dead time 2 ms x (p_ref / p_s)^0.5 (gauge supplies)",
+                "best_term_start": None}
+    result = DiscoveryResult(
+        settings=DiscoverySettings(), base=final, final=final,
+        accepted=({"name": "valve_dead_time", "evidence": evidence, "score_gain": 50.0,
+                   "score_p_value": 0.0002, "rmse_before_Pa": 5132.0,
+                   "rmse_after_Pa": 505.0},),
+        ledger=(), maps=(), searches=(), params=params, estimate="refined",
+        noise_floor_Pa=517.0, range_Pa=4.5e5, span_Pa=4e5, posterior_summary=None)
+    doc = result.to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["valve_dead_time"]
+    text = _report({**doc, "recordings": ["a.csv"]}, result, {})
+    assert "| valve_dead_time | valve_dead_time_s | 0.01 | - | - | 5132 -> 505 |" in text
+    (line,) = summary_lines(doc)
+    assert "inclusion -, RMSE 5132 -> 505 Pa" in line

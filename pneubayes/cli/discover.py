@@ -75,8 +75,9 @@ def summary_lines(doc: dict) -> list[str]:
             f"{n} = {p.get('median', p.get('estimate')):.4g}"
             + (f" [{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "")
             for n, p in e["parameters"].items())
+        incl = e["evidence"]["inclusion_probability"]  # (None: a stage proposed it)
         out.append(f"  + {e['name']}: {ps}; inclusion "
-                   f"{e['evidence']['inclusion_probability']:.2f}, RMSE "
+                   f"{'-' if incl is None else format(incl, '.2f')}, RMSE "
                    f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} Pa")
     for key in ("found_terms", "found_reading_terms", "found_volume_terms",
                 "found_command_terms", "found_port_terms"):
