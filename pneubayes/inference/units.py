@@ -47,10 +47,17 @@ class UnitRefit:
     max_nfev : int
         Each unit's budget of residual evaluations.
 
-    After ``fit(recordings, start)``: ``shared_`` (the start), ``units_`` (unit name ->
-    full parameter dict), ``sd_`` (unit name -> the Laplace SDs of ``names``, natural
-    units; NaN where the recordings do not inform one), ``rmse_Pa_`` (unit name -> its
-    training windows' RMSE, Pa) and ``recordings_`` (unit name -> how many).
+    Attributes
+    ----------
+    shared_ : dict
+        The start (after ``fit``, as every attribute below).
+    units_ : dict
+        Unit name -> full parameter dict.
+    sd_ : dict
+        Unit name -> the Laplace SDs of ``names`` (natural units; NaN where the
+        recordings do not inform one).
+    rmse_Pa_, recordings_ : dict
+        Unit name -> its training windows' RMSE (Pa); how many recordings it has.
     """
 
     def __init__(self, model: Model, solver: SolverConfig, names: Sequence[str],
