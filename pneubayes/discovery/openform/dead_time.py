@@ -47,10 +47,17 @@ class DeadTimeSearch:
     start_dead_time_s, start_exponent : float
         The generic start the proposal carries.
 
-    After ``fit(windows)``: ``terms_`` (always empty: nothing is kept by a search),
-    ``best_`` (None), ``explained_fraction_`` (0), ``supplies_gauge_Pa_`` (the blocks'
-    nominal gauge supplies), ``supply_spread_`` and ``proposal_`` (a
-    :class:`DeadTimeTerm`, or None where the spread is under ``min_supply_spread``).
+    Attributes
+    ----------
+    terms_, best_, explained_fraction_ : list, None, float
+        Empty, None and 0 (after ``fit``, as every attribute here): the search keeps
+        nothing of its own.
+    supplies_gauge_Pa_ : ndarray
+        The blocks' nominal gauge supplies, Pa.
+    supply_spread_ : float
+        Their range over their mean.
+    proposal_ : DeadTimeTerm or None
+        The generic start, or None where the spread is under ``min_supply_spread``.
     """
 
     def __init__(self, min_supply_spread: float = 0.05, start_dead_time_s: float = 0.002,
