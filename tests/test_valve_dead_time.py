@@ -149,3 +149,19 @@ def test_a_named_dead_time_a_stage_proposed_is_reported():
     assert "| valve_dead_time | valve_dead_time_s | 0.01 | - | - | 5132 -> 505 |" in text
     (line,) = summary_lines(doc)
     assert "inclusion -, RMSE 5132 -> 505 Pa" in line
+
+
+def test_the_stage_says_why_it_stops_at_one_supply():
+    from types import SimpleNamespace
+
+    model = Model()
+    params = valve1_params()
+    one = [_recording(4e5, 7, model, params, n=501), _recording(4e5, 8, model, params, n=501)]
+    said = []
+    runner = SimpleNamespace(data=SimpleNamespace(train_ws=WindowSet(one, 0.2, 0.2)),
+                             log=said.append,
+                             fit=lambda *a: pytest.fail("no fit at one supply"))
+    ValveDeadTimeForm()._run(None, runner, None)
+    assert said == ["discover: valve dead time form: the training recordings' supplies "
+                    "spread by 0.0% of their mean (under 5%): no law of the dead time in the "
+                    "supply to tell from a fixed delay"]

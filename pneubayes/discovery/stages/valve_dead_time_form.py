@@ -43,6 +43,18 @@ class ValveDeadTimeForm(ComponentForm):
     term_word = "dead time law"
     search_class = DeadTimeSearch
 
+    def _run(self, state: RoundState, runner, best) -> None:
+        """Say so and stop where the training supplies do not differ; else fit the law."""
+        s = self.search if self.search is not None else self.search_class()
+        search = type(s)(**s.get_params()).fit(self._search_data(state, runner))
+        if search.proposal_ is None:
+            runner.log(f"discover: {self.label}: the training recordings' supplies spread "
+                       f"by {search.supply_spread_:.1%} of their mean (under "
+                       f"{s.min_supply_spread:.0%}): no law of the dead time in the supply to "
+                       "tell from a fixed delay")
+            return
+        super()._run(state, runner, best)
+
     def _search_data(self, state: RoundState, runner):
         """The training windows (the search reads their recordings' nominal supplies)."""
         return runner.data.train_ws
