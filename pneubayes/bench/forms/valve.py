@@ -389,15 +389,23 @@ class ReleaseDelay(PlantForm):
         still, and a change superseded before it acts is dropped."""
         t = np.asarray(time_s, dtype=np.float64)
         u = np.asarray(command, dtype=np.float64)
-        times, values = [-math.inf], [float(u[0])]
-        for k in np.nonzero(np.diff(u) != 0)[0] + 1:
-            at = t[k] + shared_delay_s + (self.delay_s if u[k] < u[k - 1] else 0.0)
-            while len(times) > 1 and times[-1] >= at:  # pending changes it overtakes
-                times.pop()
-                values.pop()
-            times.append(at)
-            values.append(float(u[k]))
-        return np.array(times), np.array(values)
+        return _changes_acting(u, lambda k: t[k] + shared_delay_s
+                               + (self.delay_s if u[k] < u[k - 1] else 0.0))
+
+
+def _changes_acting(u: np.ndarray, act_time) -> tuple[np.ndarray, np.ndarray]:
+    """``(times, values)``: each change of the held command ``u`` (at sample k) acting at
+    ``act_time(k)`` (s), ``times[0] = -inf`` holding the first value; a change that a
+    later one overtakes (acts at or before it) is dropped."""
+    times, values = [-math.inf], [float(u[0])]
+    for k in np.nonzero(np.diff(u) != 0)[0] + 1:
+        at = act_time(k)
+        while len(times) > 1 and times[-1] >= at:  # pending changes it overtakes
+            times.pop()
+            values.pop()
+        times.append(at)
+        values.append(float(u[k]))
+    return np.array(times), np.array(values)
 
 
 @dataclass(frozen=True)
@@ -436,21 +444,17 @@ class ArmatureDeadTime(PlantForm):
         (``times[0] = -inf``), ``supply_gauge_at(t)`` the gauge supply (Pa) at time t."""
         t = np.asarray(time_s, dtype=np.float64)
         u = np.asarray(command, dtype=np.float64)
-        times, values = [-math.inf], [float(u[0])]
-        for k in np.nonzero(np.diff(u) != 0)[0] + 1:
+
+        def act_time(k):
             reach = t[k] + shared_delay_s
             gauge = float(supply_gauge_at(reach))
             if not gauge > 0:
                 raise ValueError(f"ArmatureDeadTime: the gauge supply at {reach:g} s is "
                                  f"{gauge:g} Pa; the travel needs a positive one")
-            at = reach + self.coil_s + self.travel_s * math.sqrt(
+            return reach + self.coil_s + self.travel_s * math.sqrt(
                 self.reference_gauge_Pa / gauge)
-            while len(times) > 1 and times[-1] >= at:  # pending changes it overtakes
-                times.pop()
-                values.pop()
-            times.append(at)
-            values.append(float(u[k]))
-        return np.array(times), np.array(values)
+
+        return _changes_acting(u, act_time)
 
 
 # ------------------------------------------ out-of-catalogue forms, the seventh blind set
