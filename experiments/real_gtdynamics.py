@@ -26,7 +26,8 @@ against predicted pressure with 90 % bands, before and after. Then each muscle's
 tube bore and transit time (and its valve's dead time, where the loop found one) are
 refitted on its own training recordings (four muscles, each with its own valve, tube and
 fittings; the rest of the discovered model shared) and scored on its held-out recordings
-beside the shared estimate.
+beside the shared estimate; each muscle's point estimate is written as a run folder of
+its own (OUT/units/).
 
 The measured source pressure drives the model raw (its 80-90 Hz ringing is in the
 band a 100-Hz low-pass keeps). Seed 0 (recorded). Writes OUT/real_gtdynamics.json and OUT/figures/.
@@ -103,21 +104,26 @@ def load(data: Path, held_out=HELD_OUT, rig_card=None):
             [fill_phase(read_recording(p, rig_card=rig_card)) for p in held])
 
 
-def per_muscle(fit, train, held) -> dict:
+def per_muscle(fit, train, held, folder: Path) -> dict:
     """The discovered model's ``UNIT_QUANTITIES`` refitted per muscle on its training
     recordings (the rest at the shared point estimate), scored on the held-out ones
-    beside the shared estimate on the same windows and solver."""
+    beside the shared estimate on the same windows and solver; each muscle's card
+    written under ``folder`` (a run folder of its point estimate per muscle)."""
     solver = FitSettings().refine_solver
     names = [n for n in UNIT_QUANTITIES if n in fit.model.parameter_names]
     units = UnitRefit(fit.model, solver, names, HORIZON_S, HORIZON_S,
                       max_nfev=100).fit(train, fit.params)
     shared = WindowSet(held, HORIZON_S, HORIZON_S).residuals(fit.model, fit.params, solver)
+    # (each card's estimate is a refinement beside the shared one; the same preparation)
+    folders = units.write_units(folder, extra={"fit": {"estimate": "refine",
+                                                       **fit.preparation}})
     return {"quantities": names,
             "held_out_rmse_shared_Pa": float(np.sqrt(np.mean(shared ** 2))),
             "held_out_rmse_Pa": float(np.sqrt(np.mean(units.residuals(held) ** 2))),
             "units": {u: {"values": {n: units.units_[u][n] for n in names},
                           "sd": units.sd_[u], "train_rmse_Pa": units.rmse_Pa_[u],
-                          "train_recordings": units.recordings_[u]}
+                          "train_recordings": units.recordings_[u],
+                          "run_folder": str(folders[u])}
                       for u in units.units_}}
 
 
@@ -154,7 +160,7 @@ def main(argv=None) -> int:
     noise = doc["noise_floor_Pa"]
     span = doc.get("span_Pa")
     plain = plain_fit(train, HORIZON_S, FitSettings().refine_solver)
-    units = per_muscle(read_fit(out / "discovery"), train, held)
+    units = per_muscle(read_fit(out / "discovery"), train, held, out / "units")
     fig, predictive = prediction_figure(
         held, plain, out / "discovery", HORIZON_S, out / "figures" / "gtdynamics_heldout.png",
         "GTDynamics held-out trials: plain rig-card model (orange) and after discovery "

@@ -81,3 +81,24 @@ def test_unknown_unit_and_bad_names_are_named(units):
     with pytest.raises(ValueError, match="no value for"):
         UnitRefit(model, SOLVER, ["dead_volume_m3"], 1.0, 1.0).fit(
             train, {"dead_volume_m3": 3e-6})
+
+
+def test_each_unit_is_written_as_a_run_folder_a_fit_reads(units, tmp_path):
+    from pneubayes.inference.fit_folder import read_fit
+
+    model, train, held, shared, refit = units
+    folders = refit.write_units(tmp_path / "units", extra={"fit": {"estimate": "refine"}})
+    assert {k: v.name for k, v in folders.items()} == {
+        "AIR37-a / valve1": "AIR37-a_valve1", "AIR37-b / valve1": "AIR37-b_valve1"}
+    for name, folder in folders.items():
+        fit = read_fit(folder)
+        assert fit.params["dead_volume_m3"] == pytest.approx(
+            refit.units_[name]["dead_volume_m3"], rel=1e-12)
+        card = model.read_card(folder / "model.json")
+        assert card["unit"]["name"] == name and card["unit"]["train_recordings"] == 2
+        assert card["fit"] == {"estimate": "refine"}
+    clash = UnitRefit(model, SOLVER, ["dead_volume_m3"], 1.0, 1.0,
+                      unit=lambda r: "a/b" if str(r.source).startswith("a") else "a b",
+                      max_nfev=5).fit(train, shared)
+    with pytest.raises(ValueError, match="write the same folder"):
+        clash.write_units(tmp_path / "clash")

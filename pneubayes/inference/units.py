@@ -9,12 +9,17 @@ unit on that unit's recordings (:class:`~pneubayes.inference.refine.TrajectoryRe
 on the same windows), so a new recording of a known unit is predicted with its own
 values. A unit is named by its recordings' metadata (``cylinder`` and ``valve``: one
 chamber of one cylinder behind one valve, the recording format's own identity) or by a
-caller's function.
+caller's function. :meth:`UnitRefit.write_units` writes each unit's values as a run
+folder of its own: a model card of its point estimate, which
+:func:`~pneubayes.inference.fit_folder.read_fit` and ``Model.from_card`` read (no
+posterior: ``pneubayes predict``, which draws from one, does not take it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import re
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -120,3 +125,29 @@ class UnitRefit:
             self.model, self.params_for(rec), self.solver).reshape(-1)
             for rec in recordings]
         return np.concatenate(out) if out else np.empty(0)
+
+    def write_units(self, folder, extra: Mapping | None = None) -> dict[str, Path]:
+        """Write each unit's parameters as a run folder ``folder/<unit>/model.json`` (the
+        unit's name with every run of characters other than letters, digits, ``.``,
+        ``_`` and ``-`` as ``_``), ``extra`` laid over each card (e.g. the shared fit's
+        ``Fit.card_extra()``: how its recordings were prepared) and the card's ``unit``
+        entry saying which unit, which quantities were refitted, their SDs and the
+        unit's training RMSE. Returns unit name -> folder."""
+        folders: dict[str, Path] = {}
+        for name in self.units_:
+            slug = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "unit"
+            path = Path(folder) / slug
+            if path in folders.values():
+                raise ValueError(f"units {name!r} and "
+                                 f"{next(n for n, p in folders.items() if p == path)!r} "
+                                 f"write the same folder {path}; name the units apart "
+                                 "(UnitRefit's unit=)")
+            folders[name] = path
+        for name, path in folders.items():
+            path.mkdir(parents=True, exist_ok=True)
+            self.model.save_card(self.units_[name], path / "model.json", extra={
+                **(dict(extra) if extra else {}),
+                "unit": {"name": name, "quantities": list(self.names), "sd": self.sd_[name],
+                         "train_rmse_Pa": self.rmse_Pa_[name],
+                         "train_recordings": self.recordings_[name]}})
+        return folders
