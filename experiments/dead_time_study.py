@@ -10,7 +10,9 @@ through the high-fidelity plant. ``armature`` plants
 :class:`~pneubayes.bench.forms.ArmatureDeadTime` (a coil delay of 2 ms and an
 armature's travel of 8 ms at 5 bar gauge, scaled as the inverse square root of the
 supply at each command change: not the catalogue's power law of the nominal supply);
-``none`` plants nothing (a null control: the stage may run, and must name nothing).
+``held`` plants :class:`~pneubayes.bench.forms.HeldArmatureDeadTime` (the same at 5 bar,
+a poppet the supply holds back, which cannot open at 10 bar: its dead time rises with
+the supply); ``none`` plants nothing (a null control: the stage may run, and must name nothing).
 The first recording of each supply trains, the second is held out. Discovery runs with
 its default stages; the result records what it named, the held-out error before and
 after against the noise floor, and the fitted dead times at the three supplies beside
@@ -30,7 +32,7 @@ from discovery_study import cached_cases
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.bench.bench import ATMOSPHERE_PA, BenchConfig, run_bench
-from pneubayes.bench.forms import ArmatureDeadTime
+from pneubayes.bench.forms import ArmatureDeadTime, HeldArmatureDeadTime
 from pneubayes.discovery.report import run_discover
 from pneubayes.discovery.settings import DataSettings, DiscoverySettings, PosteriorSettings
 from pneubayes.effects import ValveDeadTime
@@ -40,10 +42,15 @@ from pneubayes.rig import Rig
 
 #: The regulated supplies, gauge Pa.
 SUPPLIES_GAUGE_PA = (3e5, 4.5e5, 6e5)
-#: The planted armature.
-ARMATURE = ArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=5e5)
-CASES = {"armature_AIR37": ("AIR37", "valve1", True), "none_AIR37": ("AIR37", "valve1", False),
-         "armature_SMC": ("SMC", "valve2", True), "none_SMC": ("SMC", "valve2", False)}
+#: The planted armatures: one the supply drives (a pilot stage), one it holds back (a
+#: direct-acting poppet that cannot open at 10 bar gauge).
+ARMATURES = {"armature": ArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=5e5),
+             "held": HeldArmatureDeadTime(travel_s=8e-3, coil_s=2e-3,
+                                          reference_gauge_Pa=5e5, limit_gauge_Pa=1e6)}
+CASES = {"armature_AIR37": ("AIR37", "valve1", "armature"),
+         "none_AIR37": ("AIR37", "valve1", None),
+         "armature_SMC": ("SMC", "valve2", "armature"), "none_SMC": ("SMC", "valve2", None),
+         "held_AIR37": ("AIR37", "valve1", "held"), "held_SMC": ("SMC", "valve2", "held")}
 
 
 def recordings(cylinder, valve, planted, seed, duration_s, work: Path):
@@ -53,7 +60,7 @@ def recordings(cylinder, valve, planted, seed, duration_s, work: Path):
         res = run_bench(BenchConfig(cylinder, valve, protocol="fixed", seed=seed + i,
                                     positions=(0.5,), ranges_V=(5.0, 3.0),
                                     duration_s=duration_s,
-                                    forms=(ARMATURE,) if planted else (),
+                                    forms=(ARMATURES[planted],) if planted else (),
                                     supply_Pa=ATMOSPHERE_PA + gauge),
                         work / f"supply{gauge / 1e5:g}bar", overwrite=True)
         first, second = [read_recording(p) for p in res.recordings]
@@ -62,11 +69,12 @@ def recordings(cylinder, valve, planted, seed, duration_s, work: Path):
     return train, held
 
 
-def planted_dead_times_s(planted: bool) -> list[float]:
-    """The armature's dead time at each supply (its supply is constant), s."""
-    return [ARMATURE.coil_s + ARMATURE.travel_s * float(np.sqrt(ARMATURE.reference_gauge_Pa
-                                                                 / g)) if planted else 0.0
-            for g in SUPPLIES_GAUGE_PA]
+def planted_dead_times_s(planted: str | None) -> list[float]:
+    """The planted armature's dead time at each supply (its supply is constant), s."""
+    if planted is None:
+        return [0.0] * len(SUPPLIES_GAUGE_PA)
+    a = ARMATURES[planted]
+    return [a.coil_s + a.travel_s * a.travel_factor(g) for g in SUPPLIES_GAUGE_PA]
 
 
 def fitted_dead_times_s(doc: dict) -> list[float] | None:

@@ -24,6 +24,7 @@ from pneubayes.bench.forms import (
     ExhaustCheckValve,
     ExhaustSilencer,
     GasAccumulator,
+    HeldArmatureDeadTime,
     InletFlowForce,
     InletFlowLimiter,
     InletJetAtSensor,
@@ -207,6 +208,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     (InletFlowLimiter, {"max_flow_kg_per_s": -1e-4}, "max_flow_kg_per_s"),
     (ReleaseDelay, {"delay_s": float("nan")}, "delay_s"),
     (ArmatureDeadTime, {"travel_s": -1e-3}, "travel_s"),
+    (HeldArmatureDeadTime, {"travel_s": 1e-3, "limit_gauge_Pa": float("nan")},
+     "limit_gauge_Pa"),
     (ArmatureDeadTime, {"travel_s": 1e-3, "reference_gauge_Pa": 0.0}, "reference_gauge_Pa"),
     (PistonSealBypass, {"conductance_kg_per_s_Pa2": 1e-16, "vent_area_m2": -1e-8,
                         "opposite_volume_m3": 1e-6}, "vent_area_m2"),
@@ -938,6 +941,30 @@ def test_a_supply_driven_armature_acts_later_at_a_lower_supply(rig, base):
     later = _run(base, (quarter,), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
     shifted = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.106)), rig)
     np.testing.assert_allclose(later, shifted, rtol=0, atol=1.0)
+
+
+def test_a_held_armature_acts_later_at_a_higher_supply(rig, base):
+    held = HeldArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=5e5,
+                                limit_gauge_Pa=1e6)
+    assert held.catalogue_name == "valve_dead_time"
+    assert held.travel_factor(5e5) == pytest.approx(1.0)
+    assert held.travel_factor(7.5e5) == pytest.approx(np.sqrt(2.0))
+    assert held.travel_factor(2.5e5) < 1.0
+    with pytest.raises(ValueError, match="holds the valve shut"):
+        held.travel_factor(1e6)
+    with pytest.raises(ValueError, match="limit_gauge_Pa must exceed"):
+        HeldArmatureDeadTime(travel_s=1e-3, reference_gauge_Pa=5e5, limit_gauge_Pa=4e5)
+    # the plant at the rig's 4.5-bar gauge supply, limit 7 bar, reference 2.5 bar: the
+    # travel is 8 ms x sqrt(4.5 / 2.5); the vent acts 2 ms + that late
+    late_s = 2e-3 + 8e-3 * np.sqrt(4.5 / 2.5)
+    arm = HeldArmatureDeadTime(travel_s=8e-3, coil_s=2e-3, reference_gauge_Pa=2.5e5,
+                               limit_gauge_Pa=7e5)
+    got = _run(base, (arm,), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
+    times, _ = arm.switches(np.arange(3) * 1e-3, [5.0, -5.0, -5.0],
+                            supply_gauge_at=lambda tau: 4.5e5)
+    np.testing.assert_allclose(times, [-np.inf, 1e-3 + late_s], atol=1e-12)
+    plain = _run(base, (), _held(0.2, (5.0, -5.0), (0.0, 0.1)), rig)
+    assert np.max(np.abs(got - plain)) > 10e3
 
 
 def _rate0(p, volume_m3, rig, mdot_kg_per_s):

@@ -27,7 +27,8 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 volume's plays on a loop that is not one: :class:`BoucWenWall`; the twelfth, a wall that
 carries a load: :class:`LoadedWall`; the thirteenth, readings logged through a rail and
 late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`). :class:`ArmatureDeadTime`
-is a realistic form of the catalogue's ``valve_dead_time`` (a supply-driven armature).
+and :class:`HeldArmatureDeadTime` are realistic forms of the catalogue's
+``valve_dead_time`` (an armature the supply drives, or holds back).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -86,6 +87,7 @@ from pneubayes.bench.forms.reading import (
 )
 from pneubayes.bench.forms.valve import (
     ArmatureDeadTime,
+    HeldArmatureDeadTime,
     InletFlowForce,
     InletFlowLimiter,
     Iso6358Ports,
@@ -125,7 +127,7 @@ FORMS: dict[str, type[PlantForm]] = {
                                   SealSpeedLeak, BraidFriction, SolenoidGroundShift,
                                   PressureHeldSolenoid, InletJetAtSensor, BoucWenWall,
                                   LoadedWall, SaturatingSensor, SkewedPressureChannel,
-                                  ArmatureDeadTime)
+                                  ArmatureDeadTime, HeldArmatureDeadTime)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()

@@ -451,10 +451,45 @@ class ArmatureDeadTime(PlantForm):
             if not gauge > 0:
                 raise ValueError(f"ArmatureDeadTime: the gauge supply at {reach:g} s is "
                                  f"{gauge:g} Pa; the travel needs a positive one")
-            return reach + self.coil_s + self.travel_s * math.sqrt(
-                self.reference_gauge_Pa / gauge)
+            return reach + self.coil_s + self.travel_s * self.travel_factor(gauge)
 
         return _changes_acting(u, act_time)
+
+    def travel_factor(self, gauge_Pa: float) -> float:
+        """The travel time at gauge supply ``gauge_Pa`` over that at the reference: the
+        inverse square root of the driving force's ratio."""
+        return math.sqrt(self.reference_gauge_Pa / gauge_Pa)
+
+
+@dataclass(frozen=True)
+class HeldArmatureDeadTime(ArmatureDeadTime):
+    """A direct-acting solenoid valve whose poppet the supply holds shut: the coil's
+    force less the supply's on the seat drives the armature, ``F = A (p_lim - g)`` for
+    gauge supply g, so the travel lengthens as the supply rises and the valve cannot open
+    at ``limit_gauge_Pa`` (p_lim)::
+
+        d = coil_s + travel_s sqrt((p_lim - p_ref) / (p_lim - g)),
+
+    at each command change, as :class:`ArmatureDeadTime` (a realistic form of
+    ``valve_dead_time`` whose dead time rises with the supply).
+    """
+
+    limit_gauge_Pa: float = 1e6
+
+    def __post_init__(self):
+        super().__post_init__()
+        _positive(self, "limit_gauge_Pa")
+        if not self.limit_gauge_Pa > self.reference_gauge_Pa:
+            raise ValueError(f"HeldArmatureDeadTime.limit_gauge_Pa must exceed "
+                             f"reference_gauge_Pa ({self.reference_gauge_Pa:g}), got "
+                             f"{self.limit_gauge_Pa!r}")
+
+    def travel_factor(self, gauge_Pa: float) -> float:
+        if not gauge_Pa < self.limit_gauge_Pa:
+            raise ValueError(f"HeldArmatureDeadTime: a gauge supply of {gauge_Pa:g} Pa holds "
+                             f"the valve shut (its limit {self.limit_gauge_Pa:g} Pa)")
+        return math.sqrt((self.limit_gauge_Pa - self.reference_gauge_Pa)
+                         / (self.limit_gauge_Pa - gauge_Pa))
 
 
 # ------------------------------------------ out-of-catalogue forms, the seventh blind set
