@@ -550,3 +550,38 @@ def test_a_named_tube_is_refitted_as_a_line_beside_the_heat_transfer_it_was_pair
                     log=lambda m: None).fit(recs).result_
     assert off.model.effect("tube_delay").options()["form"] == "transport"
     assert off.final.heldout_rmse_Pa > 2.0 * result.final.heldout_rmse_Pa
+
+
+def test_a_laplace_posterior_that_cannot_be_taken_leaves_the_refined_point(tmp_path,
+                                                                           monkeypatch):
+    """The final Laplace posterior raising FloatingPointError (no finite density near
+    the mode) does not lose the discovery: the refined point is the result, and the log,
+    the ledger and the estimate say the posterior failed; emcee's errors still raise."""
+    paths, _ = _bench(tmp_path / "bench", [], seed=33, duration_s=8.0)
+    recs = [read_recording(p) for p in paths]
+
+    def fails(self, fit, train_ws):
+        raise FloatingPointError("laplace: points 0.25 SDs from the centre have no finite "
+                                 "posterior density\nmore")
+
+    monkeypatch.setattr(Discovery, "_posterior", fails)
+    said = []
+    # (a budget spent before round 1: the base model is the final one)
+    settings = _settings(rounds={"max_seconds": 1e-9}, posterior={"method": "laplace"},
+                         verify={"max_p_value": 0.02})
+    d = Discovery(settings, None, log=said.append).fit(recs)
+    doc = d.result_.to_dict()
+    assert d.result_.posterior is None and "posterior" not in doc
+    assert d.result_.estimate == "refined (multiple shooting; the Laplace posterior failed)"
+    (entry,) = [e for e in doc["ledger"] if e["action"] == "posterior failed"]
+    assert entry["error"] == ("laplace: points 0.25 SDs from the centre have no finite "
+                              "posterior density")
+    assert any("the Laplace posterior failed" in m for m in said)
+    from pneubayes.discovery.report import _report
+
+    text = _report({**doc, "recordings": [str(p) for p in paths]}, d.result_, {})
+    assert "posterior failed" in text
+    emcee = _settings(rounds={"max_seconds": 1e-9}, posterior={"method": "emcee"},
+                      verify={"max_p_value": 0.02})
+    with pytest.raises(FloatingPointError, match="no finite posterior density"):
+        Discovery(emcee, None, log=lambda m: None).fit(recs)

@@ -190,7 +190,7 @@ class Discovery:
                 break
             adds += 1
             current = self._add(state, accepted, runner)
-        params, estimate, post = self._estimate(current, train_ws)
+        params, estimate, post = self._estimate(current, train_ws, ledger)
         self.result_ = DiscoveryResult(
             settings=s, base=base, final=current, accepted=tuple(accepted),
             ledger=ledger.events(), maps=tuple(maps), searches=tuple(searches),
@@ -306,14 +306,27 @@ class Discovery:
                              "rmse_after_Pa": trial.heldout_rmse_Pa})
         return runner.prune(trial, accepted, newest=len(names))
 
-    def _estimate(self, current: StepFit, train_ws: WindowSet):
+    def _estimate(self, current: StepFit, train_ws: WindowSet, ledger: Ledger):
         """The final model's parameters: ``(params, how they were estimated, the posterior
         fields of the result)``: the refined point, or with ``posterior`` the posterior
-        median and the posterior itself."""
+        median and the posterior itself. A Laplace posterior that cannot be taken (no
+        finite density near the mode) leaves the refined point, said in the log, the
+        ledger and the estimate: the discovery stands without its posterior."""
         s = self.settings
         if not s.posterior.sampled:
             return dict(current.params), "refined (multiple shooting)", {}
-        bi = self._posterior(current, train_ws)
+        try:
+            bi = self._posterior(current, train_ws)
+        except FloatingPointError as exc:
+            if s.posterior.method != "laplace":
+                raise
+            why = str(exc).splitlines()[0]
+            self.log(f"discover: the Laplace posterior failed ({why}); the result is the "
+                     "refined point, without a posterior (posterior.method 'emcee' samples "
+                     "it)")
+            ledger.record("posterior failed", method="laplace", error=why)
+            return (dict(current.params),
+                    "refined (multiple shooting; the Laplace posterior failed)", {})
         params = bi.median_params()
         post = {"posterior": bi.inference_data({
                     "seed": s.seed, "pneubayes_version": pneubayes.__version__,
