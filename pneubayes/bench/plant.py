@@ -1156,7 +1156,7 @@ def simulate_plant(params: Mapping[str, float], forms: Sequence[PlantForm], inpu
     release = drivers[0] if drivers else None
     if release is not None and release.acts:  # when the valve takes the command
         kw = {}
-        if getattr(release, "reads_supply", False):  # the supply where a change reaches it
+        if release.reads_supply:  # the supply where a change reaches the valve
             supply = np.asarray(inputs.supply_pressure_Pa, dtype=np.float64)
             kw["supply_gauge_at"] = lambda tau: float(
                 np.interp(tau, t, supply)) - rig.atmospheric_pressure_Pa

@@ -275,9 +275,9 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                 est = p.get("median", p.get("estimate"))
                 iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
                 ev = e["evidence"]
-                incl = ev.get("inclusion_probability")  # (None: a stage proposed it)
                 lines.append(f"| {e['name']} | {n} | {est:.4g} | {iv} | "
-                             f"{'-' if incl is None else format(incl, '.2f')} | "
+                             # (None: a stage, not the library's search, proposed it)
+                             f"{_fmt(ev['inclusion_probability'], '.2f')} | "
                              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} | "
                              f"{ev['score_gain']:.1f} ({ev['score_p_value']:.2g}) |")
     if doc.get("found_terms"):

@@ -40,6 +40,8 @@ class PlantForm:
     #: The catalogue effect this form is a realistic version of; None for an effect
     #: outside the catalogue (discovery should name no catalogue effect for it).
     catalogue_name: ClassVar[str | None]
+    #: Whether a valve driver's ``switches`` takes the supply (``supply_gauge_at``).
+    reads_supply: ClassVar[bool] = False
 
     def to_dict(self) -> dict:
         """``{"form": class name, "catalogue_name": ..., **fields}`` (JSON-ready)."""

@@ -427,7 +427,6 @@ class ArmatureDeadTime(PlantForm):
     travel_s: float
     coil_s: float = 0.002
     reference_gauge_Pa: float = 5e5
-    #: The plant passes the supply to :meth:`switches`.
     reads_supply: ClassVar[bool] = True
 
     def __post_init__(self):
@@ -478,7 +477,7 @@ class HeldArmatureDeadTime(ArmatureDeadTime):
 
     def __post_init__(self):
         super().__post_init__()
-        _positive(self, "limit_gauge_Pa")
+        _positive(self, "limit_gauge_Pa")  # (the forms' shared message for a bad number)
         if not self.limit_gauge_Pa > self.reference_gauge_Pa:
             raise ValueError(f"HeldArmatureDeadTime.limit_gauge_Pa must exceed "
                              f"reference_gauge_Pa ({self.reference_gauge_Pa:g}), got "

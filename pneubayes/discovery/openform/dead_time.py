@@ -79,8 +79,7 @@ class DeadTimeSearch:
         gauge = np.array([b.rig.supply_pressure_Pa - b.rig.atmospheric_pressure_Pa
                           for b in windows.blocks])
         self.supplies_gauge_Pa_ = gauge
-        self.supply_spread_ = float(np.ptp(gauge) / np.mean(gauge)) \
-            if gauge.size and np.all(gauge > 0) else 0.0
+        self.supply_spread_ = float(np.ptp(gauge) / np.mean(gauge))  # (a Rig's is > 0)
         self.terms_, self.best_, self.explained_fraction_ = [], None, 0.0
         self.proposal_ = (DeadTimeTerm(self.start_dead_time_s, self.start_exponent)
                           if self.supply_spread_ >= self.min_supply_spread else None)

@@ -134,8 +134,17 @@ class ComponentForm(Stage):
             runner.ledger.record(f"{self.label} failed", round=state.number, error=why)
 
     def _run(self, state: RoundState, runner, best) -> None:
+        self._run_search(self._fitted_search(state, runner), state, runner, best)
+
+    def _fitted_search(self, state: RoundState, runner):
+        """A fresh copy of the stage's search (its settings), fitted on the training
+        windows as :meth:`_search_data` gives them."""
         s = self.search if self.search is not None else self.search_class()
-        search = type(s)(**s.get_params()).fit(self._search_data(state, runner))
+        return type(s)(**s.get_params()).fit(self._search_data(state, runner))
+
+    def _run_search(self, search, state: RoundState, runner, best) -> None:
+        """Record the fitted ``search``, then fit, prune and weigh its terms (or its
+        fallback terms)."""
         terms = search.terms_
         runner.ledger.record(f"{self.label} search", round=state.number,
                              terms=[_term_record(t) for t in terms],

@@ -21,9 +21,6 @@ from pneubayes.discovery.stages.component_form import ComponentForm
 from pneubayes.discovery.state import RoundState
 from pneubayes.effects.valve_dead_time import ValveDeadTime
 
-#: The component's name in a model and in the ledger.
-DEAD_TIME = "valve_dead_time"
-
 
 class ValveDeadTimeForm(ComponentForm):
     """Add a supply-dependent valve dead time where the training supplies differ (when
@@ -38,22 +35,21 @@ class ValveDeadTimeForm(ComponentForm):
     """
 
     name = "valve_dead_time_form"
-    component = DEAD_TIME
+    component = ValveDeadTime.name
     label = "valve dead time form"
     term_word = "dead time law"
     search_class = DeadTimeSearch
 
     def _run(self, state: RoundState, runner, best) -> None:
         """Say so and stop where the training supplies do not differ; else fit the law."""
-        s = self.search if self.search is not None else self.search_class()
-        search = type(s)(**s.get_params()).fit(self._search_data(state, runner))
+        search = self._fitted_search(state, runner)
         if search.proposal_ is None:
             runner.log(f"discover: {self.label}: the training recordings' supplies spread "
                        f"by {search.supply_spread_:.1%} of their mean (under "
-                       f"{s.min_supply_spread:.0%}): no law of the dead time in the supply to "
-                       "tell from a fixed delay")
+                       f"{search.min_supply_spread:.0%}): no law of the dead time in the "
+                       "supply to tell from a fixed delay")
             return
-        super()._run(state, runner, best)
+        self._run_search(search, state, runner, best)
 
     def _search_data(self, state: RoundState, runner):
         """The training windows (the search reads their recordings' nominal supplies)."""
