@@ -226,6 +226,7 @@ def test_the_closure_conserves_mass_with_a_temperature_state(rig, c):
     sl = np.zeros(N_SLOTS)
     sl[SLOT_INDEX["volume_m3"]] = 2.4e-6
     sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] = 30.0
+    sl[SLOT_INDEX["heat_coupling"]] = 0.5  # (mass is the gas law's at any coupling)
     sl[SLOT_INDEX["closure_terms"]] = 1.0
     sl[SLOT_INDEX["closure_coefficient_0"]] = c
     cs = rig_constants(rig)
@@ -268,6 +269,7 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
     sl = np.zeros(N_SLOTS)
     sl[SLOT_INDEX["volume_m3"]] = 2.4e-6
     sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] = hconv
+    sl[SLOT_INDEX["heat_coupling"]] = 0.7 if hconv else 0.0
     sl[SLOT_INDEX["compliance_m3_per_Pa"]] = 0.0 if hconv else 1e-12
     for slot, v in e.lower({k: np.asarray(v) for k, v in values.items()}, rig).items():
         sl[SLOT_INDEX[slot]] = v
@@ -439,7 +441,7 @@ def test_the_command_lags_splitting_converges(rig, valve_params, inputs):
 
 @pytest.mark.parametrize("others, extra, terms", [
     ([make_effect("heat_transfer", form="convective")],
-     {"heat_transfer_coefficient_W_per_m2_K": 30.0},
+     {"heat_transfer_coefficient_W_per_m2_K": 30.0, "heat_transfer_coupling": 1.0},
      "exhaust_flow*pressure_ratio; one"),
     (["spool_lag"], {"spool_time_constant_s": 0.004}, "spool*inlet_area; spool_hinge_down"),
 ], ids=["convective_heat", "spool_lag"])

@@ -155,7 +155,8 @@ def test_dense_output_behind_a_lagging_spool_and_a_delay_agrees_with_the_referen
 
 @pytest.mark.parametrize("effects,extra", [
     (("cylinder_leak", "sensor_lag"), {"sensor_time_constant_s": 0.004}),
-    (("cylinder_leak", "heat_transfer"), {"heat_transfer_rate_per_s": 20.0}),
+    (("cylinder_leak", "heat_transfer"), {"heat_transfer_rate_per_s": 20.0,
+                                          "heat_transfer_coupling": 1.0}),
 ])
 def test_models_dense_output_does_not_cover_step_as_without_it(effects, extra):
     rng = np.random.default_rng(4)

@@ -226,7 +226,7 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
 
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-6)
     fit = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-    heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
+    heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0, "heat_transfer_coupling": 1.0}}
     cands = effect_candidates(fit, "heat_transfer", heat_10, rig)
     forms = [m.effect("heat_transfer").options()["form"] for m, _ in cands]
     assert forms == ["rate", "convective"]
@@ -285,13 +285,14 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     assert first_free(line_model, "tube_delay") == ("tube_delay_s", "tube_diameter_m",
                                                     "dead_volume_m3")
     assert first_free(cands[0][0], "tube_delay") is None
-    hot = StepFit(Model([make_effect("heat_transfer")]), dict(params, heat_transfer_rate_per_s=5.0),
+    hot = StepFit(Model([make_effect("heat_transfer")]), dict(params, heat_transfer_rate_per_s=5.0,
+                                                              heat_transfer_coupling=1.0),
                   1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
     assert [m.effect("tube_delay").form for m, _ in
             effect_candidates(hot, "tube_delay", tube_4ms, rig, line3)] == [
         "transport", "line"]
     lined = StepFit(line_model, dict(line_start), 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
-    heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
+    heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0, "heat_transfer_coupling": 1.0}}
     assert [m.effect("heat_transfer").form for m, _ in
             effect_candidates(lined, "heat_transfer", heat_10, rig, line3)] == [
         "rate", "convective"]
@@ -647,7 +648,7 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
                                  FormSettings(tube_line_segments=8, tube_line_form="wave"))
 
     ctx = context(Model([make_effect("tube_delay", form="wave", segments=8)]),
-                  {"heat_transfer_rate_per_s": 5.0})
+                  {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0})
     assert ctx.slot("wave_length_m") > 0 and ctx.slot("heat_rate_per_s") == 0
     assert make_effect("heat_transfer").candidate_forms(ctx) == []
     ctx = context(Model([make_effect("heat_transfer")]))
@@ -658,20 +659,22 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
     plain = context(Model())
     assert [f.form for f, _ in make_effect("tube_delay").candidate_forms(plain)] == [
         "transport", "wave"]
-    plain = context(Model(), {"heat_transfer_rate_per_s": 5.0})
+    plain = context(Model(), {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0})
     assert [f.form for f, _ in make_effect("heat_transfer").candidate_forms(plain)] == [
         "rate", "convective"]
     # a friction-held wall (whose table the simulator lays itself, so no slot shows a
     # table) takes the second state too: no heat beside it (a loop that had found a wall
     # stopped with the simulator's error when it tried heat transfer beside it)
-    wall = context(Model([make_effect("volume_play")]), {"heat_transfer_rate_per_s": 5.0})
+    wall = context(Model([make_effect("volume_play")]), {"heat_transfer_rate_per_s": 5.0,
+                                                         "heat_transfer_coupling": 1.0})
     assert not wall.second_state_free
     assert make_effect("heat_transfer").candidate_forms(wall) == []
     stop = Model([make_effect("volume_play")])  # a stop alone: only its held give
     params = {**{k: v for k, v in base_params.items() if k in stop.parameter_names},
               **stop.effect("volume_play").bench_defaults(), "volume_play_compliance_0": 0.0}
     ctx = candidate_context(SimpleNamespace(model=stop, params=params), "x",
-                            {"best_term_start": {"heat_transfer_rate_per_s": 5.0}}, rig)
+                            {"best_term_start": {"heat_transfer_rate_per_s": 5.0,
+                                                 "heat_transfer_coupling": 1.0}}, rig)
     assert not ctx.second_state_free
 
 
@@ -1110,7 +1113,8 @@ def test_a_pair_takes_the_best_forms_that_can_be_simulated_together(rig, base_pa
     convective = trial(make_effect("heat_transfer", form="convective"), 7600.0)
     rate = trial(make_effect("heat_transfer", form="rate"), 7900.0)
     evidence = {"tube_delay": {"best_term_start": {"tube_delay_s": 0.004}},
-                "heat_transfer": {"best_term_start": {"heat_transfer_rate_per_s": 5.0}}}
+                "heat_transfer": {"best_term_start": {"heat_transfer_rate_per_s": 5.0,
+                                                      "heat_transfer_coupling": 1.0}}}
     sindy = SimpleNamespace(evidence_=evidence)
     runner = _runner(DiscoverySettings(posterior=PosteriorSettings(method="none")),
                      train=[SimpleNamespace(rig=lambda: rig)])

@@ -193,7 +193,8 @@ def test_one_parameter_set_runs_its_recordings_at_once_with_the_same_pressures(b
     data = WindowSet(recs, 2.0, 2.0)
     model = Model([make_effect("heat_transfer", form="convective")])
     theta = model.vector({k: truth[k] for k in model.parameter_names
-                          if k in truth} | {"heat_transfer_coefficient_W_per_m2_K": 40.0})[None]
+                          if k in truth} | {"heat_transfer_coefficient_W_per_m2_K": 40.0,
+                                            "heat_transfer_coupling": 1.0})[None]
     seen = []
 
     def note(block):
@@ -229,7 +230,7 @@ def test_held_out_windows_are_warmed_up_on_the_recording_before_them(rig, hand):
 
     model = Model([make_effect("heat_transfer", form="convective")])
     params = dict(valve_preset("valve1").parameters(), dead_volume_m3=5e-7,
-                  heat_transfer_coefficient_W_per_m2_K=60.0)
+                  heat_transfer_coefficient_W_per_m2_K=60.0, heat_transfer_coupling=1.0)
     n = 1601
     t = np.arange(n) * 1e-3
     u = hand.random_steps(np.random.default_rng(11), n, 1e-3, hold_s=(0.02, 0.08))

@@ -108,7 +108,7 @@ def test_the_wall_beside_heat_transfer_agrees_with_the_plant(rig):
     ref = simulate_plant(BASE, (PlantWall(1e-11, 12.0, 0.3), WallHeatTransfer(30.0)), inputs,
                          rig, P_ATM, PlantConfig.reference()).pressure_Pa
     heat = Model([make_effect("heat_transfer", form="convective")])
-    hot = {**BASE, "heat_transfer_coefficient_W_per_m2_K": 30.0}
+    hot = {**BASE, "heat_transfer_coefficient_W_per_m2_K": 30.0, "heat_transfer_coupling": 1.0}
     got = simulate(heat.with_effect(LoadedWall()),
                    {**hot, "loaded_wall_compliance": 1e-11, "loaded_wall_frequency": 12.0,
                     "loaded_wall_damping": 0.3}, inputs, rig, P_ATM,

@@ -196,7 +196,7 @@ def test_canonical_order_and_equality():
     assert a.parameter_names == b.parameter_names
     assert a.effect_names == tuple(ALL)
     assert Model(["cylinder_leak"]) != Model([make_effect("cylinder_leak", form="laminar")])
-    assert a.n_parameters == 11 + 6
+    assert a.n_parameters == 11 + 7  # (heat transfer: its rate and its coupling)
     assert len(set(a.parameter_names)) == a.n_parameters
 
 

@@ -147,6 +147,7 @@ def test_the_chamber_rate_and_its_jacobian_with_a_restriction(rig, hot, crack):
     sl[SLOT_INDEX["restriction_crack_Pa"]] = crack
     if hot:
         sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] = 30.0
+        sl[SLOT_INDEX["heat_coupling"]] = 0.8
     temp = 310.0 if hot else rig.gas.temperature_K
     for p, a_in, a_ex in ((2e5, 1.2e-6, 0.0), (4e5, 0.0, 1e-6), (5.35e5, 1.2e-6, 0.0)):
         args = (a_in, a_ex, 2.4e-6, 0.0, P_SUP, sl, cs, 1e-5, True, 0.0, 0.0, 0.0, 0.0, 0.0,

@@ -420,7 +420,8 @@ def test_compliance_cannot_join_a_heat_or_line_model():
     m = Model(["heat_transfer"], rig_card=c)
     t = np.arange(11) * 1e-3
     with pytest.raises(ValueError, match="compliant chamber"):
-        simulate(m, {"valve_open_area_m2": 1e-7, "heat_transfer_rate_per_s": 5.0},
+        simulate(m, {"valve_open_area_m2": 1e-7, "heat_transfer_rate_per_s": 5.0,
+                     "heat_transfer_coupling": 1.0},
                  _inputs(t, 0 * t), _rig(c), P_ATM, TIGHT)
 
 
@@ -436,7 +437,7 @@ def test_discovery_proposes_no_heat_or_line_beside_a_compliant_chamber():
                       "compliance_m3_per_Pa": 2e-7})
     fit = StepFit(Model(rig_card=c), {"valve_open_area_m2": 1e-7}, 1.0, 1.0, np.zeros(1),
                   np.zeros(1), 500.0, 0.0)
-    heat = {"best_term_start": {"heat_transfer_rate_per_s": 10.0}}
+    heat = {"best_term_start": {"heat_transfer_rate_per_s": 10.0, "heat_transfer_coupling": 1.0}}
     line3 = FormSettings(tube_line_segments=3, tube_line_form="line")
     assert effect_candidates(fit, "heat_transfer", heat, _rig(c), line3) == []
     tube = {"best_term_start": {"tube_delay_s": 0.004}}

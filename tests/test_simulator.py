@@ -293,7 +293,7 @@ def test_windows_equal_simulations_started_at_those_samples(rig, hand, standard)
     model = Model(["cylinder_leak", "valve_deadzone", "supply_fluctuation", "heat_transfer"])
     params = valve_preset("valve2").parameters()
     params.update(dead_volume_m3=1.5e-6, leak_area_m2=3e-8, deadzone_halfwidth_V=0.3,
-                  supply_gain=1.0, heat_transfer_rate_per_s=5.0)
+                  supply_gain=1.0, heat_transfer_rate_per_s=5.0, heat_transfer_coupling=1.0)
     n = 1201
     t = np.arange(n) * 1e-3
     inputs = Inputs(t, hand.random_steps(np.random.default_rng(8), n, 1e-3),
@@ -416,10 +416,12 @@ _LINE = ("tube_delay", "line", {"tube_delay_s": 0.002, "tube_diameter_m": 0.002}
 
 
 @pytest.mark.parametrize("forms", [
-    [("heat_transfer", "rate", {"heat_transfer_rate_per_s": 20.0})],
-    [("heat_transfer", "convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0})],
+    [("heat_transfer", "rate", {"heat_transfer_rate_per_s": 20.0, "heat_transfer_coupling": 1.0})],
+    [("heat_transfer", "convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0,
+                                      "heat_transfer_coupling": 1.0})],
     [_LINE],
-    [_LINE, ("heat_transfer", "convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0})],
+    [_LINE, ("heat_transfer", "convective", {"heat_transfer_coefficient_W_per_m2_K": 60.0,
+                                             "heat_transfer_coupling": 1.0})],
 ], ids=["heat rate", "heat convective", "line", "line and heat"])
 def test_contiguous_windows_carry_the_unmeasured_states(rig, hand, forms):
     """The temperature and an acoustic line's cells are states no recording measures.
@@ -551,6 +553,7 @@ def test_start_sensitivity_through_an_acoustic_line_matches_finite_differences(r
     if heat:  # the temperature joins the line's state and its propagator
         model = model.with_effect(make_effect("heat_transfer", form=heat))
         params["heat_transfer_coefficient_W_per_m2_K"] = 60.0
+        params["heat_transfer_coupling"] = 1.0
     n = 801
     t = np.arange(n) * 1e-3
     inputs = Inputs(t, hand.random_steps(np.random.default_rng(4), n, 1e-3, levels=(-1.0, 1.0)),
@@ -580,6 +583,7 @@ def _hot_line_slots(form):
         sl[SLOT_INDEX["heat_rate_per_s"]] = 8.0
     else:
         sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] = 40.0
+    sl[SLOT_INDEX["heat_coupling"]] = 0.6  # (a partial coupling: every term of it)
     return sl
 
 
@@ -644,7 +648,7 @@ def test_an_acoustic_line_beside_heat_transfer_agrees_with_radau(rig, form, key,
     model = Model(["cylinder_leak", make_effect("tube_delay", form="line", segments=3),
                    make_effect("heat_transfer", form=form)])
     params = dict(valve_preset("valve1").parameters(), leak_area_m2=3e-9, tube_delay_s=0.003,
-                  tube_diameter_m=0.002, **{key: value})
+                  tube_diameter_m=0.002, **{key: value, "heat_transfer_coupling": 1.0})
     params["dead_volume_m3"] = 1e-6 + float(model.effect("tube_delay").tube_volume_m3(params,
                                                                                      rig))
     ref = reference_simulate(model, params, inputs, rig, P_ATM, rtol=1e-10)
@@ -655,7 +659,8 @@ def test_an_acoustic_line_beside_heat_transfer_agrees_with_radau(rig, form, key,
     tight = simulate(model, params, inputs, rig, P_ATM, standard.tightened(100)).pressure_Pa[0]
     assert np.max(np.abs(tight - ref)) <= 2e-6 * RANGE
     iso = Model(["cylinder_leak", make_effect("tube_delay", form="line", segments=3)])
-    plain = simulate(iso, {k: v for k, v in params.items() if k != key}, inputs, rig, P_ATM,
+    plain = simulate(iso, {k: v for k, v in params.items() if not k.startswith("heat_")},
+                     inputs, rig, P_ATM,
                      standard).pressure_Pa[0]
     assert np.max(np.abs(plain - ref)) > 0.03 * RANGE  # the heat transfer matters here
 
@@ -715,11 +720,13 @@ def test_a_shut_line_and_chamber_compressed_with_fast_wall_exchange_keep_pv(rig,
     total = params["dead_volume_m3"] - v_line + rig.bore_area_m2 * x + v_line / kappa
     p0 = 1.5e5
     tight = _config(1e-8)
-    fast = simulate(model, dict(params, heat_transfer_rate_per_s=1e5), inputs, rig, p0,
+    fast = simulate(model, dict(params, heat_transfer_rate_per_s=1e5,
+                                heat_transfer_coupling=1.0), inputs, rig, p0,
                     tight).pressure_Pa[0]
     # (3e-4 at the start: the piston starts at once and the line rings)
     np.testing.assert_allclose(fast * total, p0 * total[0], rtol=5e-4)
-    slow = simulate(model, dict(params, heat_transfer_rate_per_s=1e-3), inputs, rig, p0,
+    slow = simulate(model, dict(params, heat_transfer_rate_per_s=1e-3,
+                                heat_transfer_coupling=1.0), inputs, rig, p0,
                     tight).pressure_Pa[0]
     assert slow[-1] * total[-1] > 1.03 * p0 * total[0]  # (4 %: 80 times the tolerance)
 
@@ -1098,11 +1105,11 @@ def test_the_line_steps_third_order_correction_is_phi3_within_a_fifth():
 
 
 @pytest.mark.parametrize("first, second, message", [
-    ("wave_length_m", "heat_rate_per_s", "transmission-line tube"),
+    ("wave_length_m", "heat_coupling", "transmission-line tube"),
     ("wave_length_m", "line_length_m", "transmission-line tube"),
     ("compliance_m3_per_Pa", "line_length_m", "compliant chamber"),
-    ("volume_table_points", "heat_coefficient_W_per_m2_K", "compliant chamber"),
-    ("tank_volume_m3", "heat_rate_per_s", "supply tank"),
+    ("volume_table_points", "heat_coupling", "compliant chamber"),
+    ("tank_volume_m3", "heat_coupling", "supply tank"),
     ("tank_volume_m3", "wave_length_m", "supply tank"),
     ("lung_volume_m3", "tank_volume_m3", "two-compartment"),
     ("lung_volume_m3", "line_length_m", "two-compartment"),

@@ -72,3 +72,17 @@ def test_with_a_posterior_the_interval_decides():
     assert _result(model, params, ["sensor_lag"], near).stand_ins() != {}
     clear = dict(near, sensor_pressure_exponent={"median": 2.0, "q05": 1.5, "q95": 2.5})
     assert _result(model, params, ["sensor_lag"], clear).stand_ins() == {}
+
+
+def test_a_parameter_at_its_physical_limit_is_no_strain():
+    """Heat transfer's coupling at 1 is the energy equation itself (its ``limit``), not a
+    form stretched to its bound; its exchange rate at the upper bound still is."""
+    from pneubayes.effects.heat_transfer import HeatTransfer
+
+    model = Model().with_effect(HeatTransfer())
+    full = _params(model, heat_transfer_rate_per_s=12.0, heat_transfer_coupling=1.0)
+    doc = _result(model, full, ["heat_transfer"]).to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["heat_transfer"] and doc["stand_ins"] == []
+    pinned = _params(model, heat_transfer_rate_per_s=100.0, heat_transfer_coupling=1.0)
+    (hit,) = _result(model, pinned, ["heat_transfer"]).stand_ins()["heat_transfer"]
+    assert hit["parameter"] == "heat_transfer_rate_per_s" and hit["bound"] == "upper"

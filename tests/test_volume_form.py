@@ -52,6 +52,7 @@ def test_a_volume_closure_is_refused_where_the_chamber_cannot_be_compliant(rig, 
     model = Model(["heat_transfer"]).with_effect(VolumeClosure())
     params = {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6,
               **model.neutral_values(), "heat_transfer_rate_per_s": 20.0,
+                  "heat_transfer_coupling": 1.0,
               **VolumeClosure().bench_defaults()}
     with pytest.raises(ValueError, match="compliant chamber"):
         simulate(model, params, inputs, rig, 2e5, SolverConfig.standard())

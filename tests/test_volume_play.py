@@ -160,6 +160,7 @@ def test_a_wall_is_refused_beside_another_table_and_its_options_are_checked(rig)
     heat = Model(["heat_transfer", VolumePlay()])
     with pytest.raises(ValueError, match="compliant chamber"):
         simulate(heat, {**BASE, **heat.neutral_values(), "heat_transfer_rate_per_s": 20.0,
+                        "heat_transfer_coupling": 1.0,
                         **VolumePlay().bench_defaults()}, inputs, rig, 2e5,
                  SolverConfig.standard())
     for bad in (0, 3, True, 1.0):

@@ -350,6 +350,7 @@ def test_what_the_wave_tube_cannot_be_combined_with_is_an_error(rig, make_inputs
     params, _ = _params(rig, 1.0, 0.002)
     model = _wave().with_effect(make_effect("heat_transfer"))
     params["heat_transfer_rate_per_s"] = 20.0
+    params["heat_transfer_coupling"] = 1.0
     t = np.arange(11) * 1e-3
     with pytest.raises(ValueError, match="tube_delay form 'wave'.*heat_transfer"):
         simulate(model, params, make_inputs(t, np.zeros(t.size)), rig, P_ATM,

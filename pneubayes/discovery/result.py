@@ -100,7 +100,8 @@ class DiscoveryResult(PosteriorDraws):
 
     def stand_ins(self) -> dict[str, list[dict]]:
         """The added catalogue effects the final fit keeps only by driving a parameter of
-        their own to a bound (other than the value that switches the effect off): each
+        their own to a bound (other than the value that switches the effect off or a
+        parameter's physical :attr:`~pneubayes.effects.base.Parameter.limit`): each
         name -> its parameters there (:func:`~pneubayes.inference.fit.at_bounds`: the
         posterior's 90 % interval, or the refined point without one, within 1 % of the
         bounds' width, decades judged in log space). Such an effect improves the
@@ -118,9 +119,11 @@ class DiscoveryResult(PosteriorDraws):
                        for n in names}
             hits = []
             for b in at_bounds(model, summary):
-                neutral = model.parameter(b["parameter"]).neutral
-                if neutral is not None and neutral == b["value"]:
+                param = model.parameter(b["parameter"])
+                if param.neutral is not None and param.neutral == b["value"]:
                     continue  # (at the value that switches it off: not a strained form)
+                if param.limit == b["bound"]:
+                    continue  # (where its physics ends: that limit, not a strained form)
                 hits.append(b)
             if hits:
                 out[a["name"]] = hits

@@ -24,13 +24,17 @@ A, holding volume V), and orifice flows leaving the chamber scaled by sqrt(T_w /
 ``(kappa - 1) h A_w T / (p V)``, is fastest in small volumes and at low pressure, as in
 real chambers; the rate form cannot change its rate along a stroke.
 
-At zero strength (rate 0, h = 0) the pressure equation is eq. 5 exactly -- but not as
-a limit. Any positive strength makes T a state, and as the strength tends to 0 the
-model tends to an *adiabatic* chamber whose outflow leaves at its own temperature; eq. 5
-instead keeps the flows at the supply's temperature. So the family does not pass
-continuously through the plain model: a fit that drives the strength to 0+ describes
-that adiabatic chamber (on a realistic AIR200 case its training RMSE was 4x the plain
-model's), and a comparison with the plain model is not a nested test near zero.
+Both forms have a coupling ``heat_transfer_coupling`` c in [0, 1]: the pressure equation
+reads ``T_w + c (T - T_w)`` wherever it reads T (the outflow's enthalpy, the wall's heat
+and the outflows' sqrt(T_w / T)); T itself follows the gas law. c = 1 is the energy
+equation above; c = 0 is eq. 5 exactly, and the family passes through it continuously,
+so the plain model is this effect at zero strength (c = 0) and a fit of the effect
+contains the fit without it. The exchange alone cannot do that: as the rate or h falls
+to 0 at c = 1 the chamber becomes *adiabatic* with outflow at its own temperature, which
+is not eq. 5 (on a realistic AIR200 case its training RMSE was 4x the plain model's).
+A real chamber with a warm or cold wall, a nonuniform gas, or heat exchange in the
+valve's body sits between the two; c < 1 says that the pressure follows its temperature
+less than a well-mixed chamber at the wall's temperature would.
 """
 
 from __future__ import annotations
@@ -54,7 +58,7 @@ class HeatTransfer(Effect):
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
     cheap_forms = True
-    acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K")
+    acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K", "heat_coupling")
     #: the chamber temperature: a state no recording measures
     needs_warmup = True
 
@@ -66,31 +70,40 @@ class HeatTransfer(Effect):
 
     def parameters(self):
         self._check()
+        coupling = Parameter("heat_transfer_coupling", "1", 0.0, 1.0, "uniform",
+                             "share of the chamber temperature's departure from the wall's "
+                             "that the pressure feels (0: eq. 5, 1: the energy equation)",
+                             neutral=0.0, limit="upper")
         if self.form == "rate":
             return (Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
-                              "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),)
+                              "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),
+                    coupling)
         return (Parameter("heat_transfer_coefficient_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
                           "uniform", "convective heat-transfer coefficient to the wall",
-                          neutral=0.0),)
+                          neutral=0.0), coupling)
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
+        coupling = np.asarray(values["heat_transfer_coupling"], dtype=np.float64)
         if self.form == "rate":
             return {"heat_rate_per_s": np.asarray(values["heat_transfer_rate_per_s"],
-                                                  dtype=np.float64)}
+                                                  dtype=np.float64),
+                    "heat_coupling": coupling}
         return {"heat_coefficient_W_per_m2_K": np.asarray(
-            values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64)}
+            values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64),
+            "heat_coupling": coupling}
 
     # ------------------------------------------------------------------ discovery
     library_strengths = (1.0, 3.0, 10.0, 30.0, 100.0)
-    discovery_fallback = {"heat_transfer_rate_per_s": 5.0}
+    discovery_fallback = {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0}
 
     def library_terms(self, strengths):
         """A one-step prediction starts at the wall temperature, so it cannot show heat
         transfer: after a fill or a vent the air relaxes to the wall temperature and, to
         first order, the pressure error is a high-passed pressure at each trial rate
         (1/s)."""
-        return tuple(RelaxationTerm(f"heat {r:g}/s", {"heat_transfer_rate_per_s": r},
+        return tuple(RelaxationTerm(f"heat {r:g}/s", {"heat_transfer_rate_per_s": r,
+                                                     "heat_transfer_coupling": 1.0},
                                     rate_per_s=r) for r in strengths)
 
     def candidate_forms(self, ctx: CandidateContext):
@@ -112,12 +125,13 @@ class HeatTransfer(Effect):
         gas = rig.gas
         h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
         conv = HeatTransfer(**{**self.options(), "form": "convective"})
-        return [(rate_form, {"heat_transfer_rate_per_s": rate}),
-                (conv, {"heat_transfer_coefficient_W_per_m2_K": h})]
+        return [(rate_form, {"heat_transfer_rate_per_s": rate, "heat_transfer_coupling": 1.0}),
+                (conv, {"heat_transfer_coefficient_W_per_m2_K": h,
+                        "heat_transfer_coupling": 1.0})]
 
     def bench_defaults(self):
         if self.form == "rate":
             # a wall time constant of 0.2 s, typical of small cylinders
-            return {"heat_transfer_rate_per_s": 5.0}
+            return {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0}
         # natural to weakly forced convection in a small cylinder
-        return {"heat_transfer_coefficient_W_per_m2_K": 30.0}
+        return {"heat_transfer_coefficient_W_per_m2_K": 30.0, "heat_transfer_coupling": 1.0}

@@ -39,10 +39,10 @@ SLOTS: tuple[tuple[str, str], ...] = (
     ("leak_laminar_kg_per_s_Pa2", "laminar leak k (p^2 - P_atm^2) at position 0 (kg/(s Pa^2))"),
     ("leak_laminar_gradient_kg_per_s_Pa2_m",
      "change of the laminar leak's k per metre of piston position (kg/(s Pa^2 m))"),
-    ("heat_rate_per_s", "wall heat exchange rate 1/tau; > 0 makes temperature a state (1/s)"),
+    ("heat_rate_per_s", "wall heat exchange rate 1/tau (1/s)"),
     ("heat_coefficient_W_per_m2_K",
-     "convective wall coefficient h on the chamber's wall area; > 0 makes temperature a "
-     "state and scales orifice outflows by sqrt(T_w / T) (W/(m^2 K))"),
+     "convective wall coefficient h on the chamber's wall area; > 0 scales orifice "
+     "outflows by sqrt(T_w / T) (W/(m^2 K))"),
     ("line_length_m", "valve-chamber tube as a lumped acoustic line of this length; > 0 "
      "makes its cell pressures and flows states, its volume leaves the chamber's (m)"),
     ("line_diameter_m", "inner diameter of the acoustic line (m)"),
@@ -263,6 +263,10 @@ SLOTS += (
     ("restriction_crack_Pa", "the port restriction's check valve: its wider direction passes "
      "only the narrower one's area below this drop, opening to its own over 1-2 x it; "
      "0 = none (Pa)"),
+    ("heat_coupling", "the share of the chamber temperature's departure from the wall's "
+     "that the pressure equation feels (the outflow's enthalpy, the wall's heat, the "
+     "outflows' sqrt(T_w / T)): 0 = eq. 5, 1 = the energy equation; > 0 makes the "
+     "temperature a state (-)"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

@@ -209,7 +209,7 @@ class TubeDelay(Effect):
             return out
         # (the transmission line carries no temperature state: not beside heat transfer;
         # it carries a compliant chamber, not a tank or a second compartment)
-        heated = ctx.slot("heat_rate_per_s") > 0 or ctx.slot("heat_coefficient_W_per_m2_K") > 0
+        heated = ctx.slot("heat_coupling") > 0
         wave = ctx.line_form == "wave" and not heated \
             and ctx.slot("tank_volume_m3") == 0 and ctx.slot("lung_volume_m3") == 0
         if not (ctx.second_state_free or wave):

@@ -31,6 +31,7 @@ _LEAK_L = SLOT_INDEX["leak_laminar_kg_per_s_Pa2"]
 _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
+_HCOUP = SLOT_INDEX["heat_coupling"]
 _COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
 _VT_N = SLOT_INDEX["volume_table_points"]
 _VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
@@ -345,11 +346,17 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     f_in0, f_ex0 = f_in, f_ex  # (before the convective scaling: the closure's features)
     t_wall = cs[C_T_SUPPLY]
-    hconv = sl[_HCONV]
+    # The temperature is a state where the pressure feels it (a coupling c > 0); the
+    # pressure equation reads te = T_w + c (T - T_w) for T (eq. 5 at c = 0)
+    coup = sl[_HCOUP]
+    thermal = coup > 0.0
+    te = t_wall + coup * (temp - t_wall) if thermal else t_wall
+    hconv = sl[_HCONV] if thermal else 0.0
+    heat = sl[_HEAT] if thermal else 0.0
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
     sq_in, sq_ex, sq_lk = 1.0, 1.0, 1.0
     if hconv > 0.0:
-        sq = math.sqrt(t_wall / temp)
+        sq = math.sqrt(t_wall / te)
         if f_in < 0.0:
             sq_in = sq
         if f_ex > 0.0:
@@ -385,11 +392,9 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     denom = vol + kappa * p * compl
     inv_denom = 1.0 / denom
     n_over_v = kappa * inv_denom
-    heat = sl[_HEAT]
-    thermal = heat > 0.0 or hconv > 0.0
     # With a temperature state, air leaving the chamber carries the chamber's enthalpy
-    # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
-    # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
+    # (te), air entering the supply's (T_w): Rs (T_w m_in - te m_out) = Rs T_w mdot +
+    # Rs (T_w - te) m_out. Without it te = T_w and this is eq. 5.
     m_out = 0.0
     leak_out = leak_o * f_lk + leak_l * lam
     if thermal:
@@ -397,16 +402,16 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
                  + max(leak_out, 0.0))
         if m_cl < 0.0:  # a closure's outflow leaves at the chamber's temperature
             m_out -= m_cl
-    fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
+    fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - te) * m_out - p * vdot)
     fp = fp_eq5
     ft = 0.0
     # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
     c_wall, dc_wall_dv = 0.0, 0.0
     if hconv > 0.0:
         c_wall, dc_wall_dv = wall_exchange(kappa, hconv, cs[C_BORE_AREA], vol)
-        fp += c_wall * (t_wall - temp)
+        fp += c_wall * (t_wall - te)
     if heat > 0.0:
-        fp += p * heat * (t_wall - temp) / temp
+        fp += p * heat * (t_wall - te) / te
     if thermal:
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
@@ -442,7 +447,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if compl > 0.0:  # d(denominator)/dp = C (1 + n)
         jp -= fp_eq5 * compl * (1.0 + kappa) / denom
     if heat > 0.0:
-        jp += heat * (t_wall - temp) / temp
+        jp += heat * (t_wall - te) / te
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = phi * (a_in * dfin_dsup * dsup + share * (f_in * da_in - f_ex * da_ex))
     if leak_g != 0.0:
@@ -451,7 +456,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         dmdot_dt += dcl_dt
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
     if hconv > 0.0:
-        vp += dc_wall_dv * vdot * (t_wall - temp)
+        vp += dc_wall_dv * vdot * (t_wall - te)
     if not thermal:
         return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
     # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).
@@ -470,10 +475,10 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if m_cl < 0.0:
         dmout_dp -= dcl_dp
         dmout_dt -= dcl_dt
-    # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
+    # the convective form's outflows scale by sqrt(T_w / te): d/dT = -c / (2 te) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
     if hconv > 0.0:
-        half = -0.5 / temp
+        half = -0.5 * coup / te
         if f_in < 0.0:
             dmdot_dT += phi * a_in * f_in * half
             dmout_dT -= phi * a_in * f_in * half
@@ -483,11 +488,12 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         if f_lk > 0.0:
             dmdot_dT -= leak_o * f_lk * half
             dmout_dT += leak_o * f_lk * half
-    jp += n_over_v * rs * (t_wall - temp) * dmout_dp
-    vp += n_over_v * rs * (t_wall - temp) * dmout_dt
-    jpt = n_over_v * (rs_t * dmdot_dT - rs * m_out + rs * (t_wall - temp) * dmout_dT) - c_wall
+    jp += n_over_v * rs * (t_wall - te) * dmout_dp
+    vp += n_over_v * rs * (t_wall - te) * dmout_dt
+    jpt = (n_over_v * (rs_t * dmdot_dT - coup * rs * m_out + rs * (t_wall - te) * dmout_dT)
+           - coup * c_wall)
     if heat > 0.0:
-        jpt -= p * heat * t_wall / (temp * temp)
+        jpt -= coup * p * heat * t_wall / (te * te)
     # ft = T (fp / p + vdot / V - Rs T mdot / (p V))
     g = rs * temp / (p * vol)
     jtp = temp * (jp / p - fp / (p * p) - g * dmdot + g * mdot / p)
@@ -504,16 +510,16 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     ``v_p`` and ``v_T`` are the explicit time derivatives of dp/dt and dT/dt at fixed
     state, from the volume changing at ``vdot``, the supply ramping at ``dsup`` Pa/s and
     the port areas moving at ``da_in``, ``da_ex`` m^2/s (the non-autonomous terms of the
-    exponential method). ``J_xy`` is d(dx/dt)/dy; the temperature's entries and ``v_T``
-    are 0 without heat transfer.
+    exponential method). ``J_xy`` is d(dx/dt)/dy (the temperature's and ``v_T``: 0 without
+    a temperature state).
 
     Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
     (a rate, or a convective coefficient on the wall area with orifice outflows at the
-    chamber's temperature; see :mod:`pneubayes.effects.heat_transfer`). A restriction in
-    series at the port (:mod:`pneubayes.simulation.restriction`; the general kernel
-    only) has the valve's ports pass their flows at its node's pressure; with heat
-    transfer the node's exhaust flow is taken as the chamber's outflow (exact unless
-    both ports pass at once).
+    chamber's temperature, felt at the share ``heat_coupling``;
+    :mod:`pneubayes.effects.heat_transfer`). A restriction in series at the port
+    (:mod:`pneubayes.simulation.restriction`; the general kernel only) has the valve's
+    ports pass their flows at its node's pressure; with heat transfer the node's exhaust
+    flow is taken as the chamber's outflow (exact unless both ports pass at once).
     ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
     a port at pressure balance is replaced by the secant over the step's expected
     movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
@@ -557,11 +563,17 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
         if x != p:
             f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     t_wall = cs[C_T_SUPPLY]
-    hconv = sl[_HCONV]
+    # The temperature is a state where the pressure feels it (a coupling c > 0); the
+    # pressure equation reads te = T_w + c (T - T_w) for T (eq. 5 at c = 0)
+    coup = sl[_HCOUP]
+    thermal = coup > 0.0
+    te = t_wall + coup * (temp - t_wall) if thermal else t_wall
+    hconv = sl[_HCONV] if thermal else 0.0
+    heat = sl[_HEAT] if thermal else 0.0
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
     sq_in, sq_ex, sq_lk = 1.0, 1.0, 1.0
     if hconv > 0.0:
-        sq = math.sqrt(t_wall / temp)
+        sq = math.sqrt(t_wall / te)
         if f_in < 0.0:
             sq_in = sq
         if f_ex > 0.0:
@@ -591,26 +603,24 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     denom = vol + kappa * p * compl
     inv_denom = 1.0 / denom
     n_over_v = kappa * inv_denom
-    heat = sl[_HEAT]
-    thermal = heat > 0.0 or hconv > 0.0
     # With a temperature state, air leaving the chamber carries the chamber's enthalpy
-    # (T), air entering the supply's (T_w): Rs (T_w m_in - T m_out) = Rs T_w mdot +
-    # Rs (T_w - T) m_out. Without it T = T_w and this is eq. 5.
+    # (te), air entering the supply's (T_w): Rs (T_w m_in - te m_out) = Rs T_w mdot +
+    # Rs (T_w - te) m_out. Without it te = T_w and this is eq. 5.
     m_out = 0.0
     leak_out = leak_o * f_lk + leak_l * lam
     if thermal:
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
-    fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - temp) * m_out - p * vdot)
+    fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - te) * m_out - p * vdot)
     fp = fp_eq5
     ft = 0.0
     # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
     c_wall, dc_wall_dv = 0.0, 0.0
     if hconv > 0.0:
         c_wall, dc_wall_dv = wall_exchange(kappa, hconv, cs[C_BORE_AREA], vol)
-        fp += c_wall * (t_wall - temp)
+        fp += c_wall * (t_wall - te)
     if heat > 0.0:
-        fp += p * heat * (t_wall - temp) / temp
+        fp += p * heat * (t_wall - te) / te
     if thermal:
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
@@ -640,14 +650,14 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if compl > 0.0:  # d(denominator)/dp = C (1 + n)
         jp -= fp_eq5 * compl * (1.0 + kappa) / denom
     if heat > 0.0:
-        jp += heat * (t_wall - temp) / temp
+        jp += heat * (t_wall - te) / te
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = phi * (a_in * dfin_dsup * dsup + share * (f_in * da_in - f_ex * da_ex))
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
     if hconv > 0.0:
-        vp += dc_wall_dv * vdot * (t_wall - temp)
+        vp += dc_wall_dv * vdot * (t_wall - te)
     if not thermal:
         return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
     # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).
@@ -663,10 +673,10 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if leak_out > 0.0:
         dmout_dp += leak_o * dflk_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
-    # the convective form's outflows scale by sqrt(T_w / T): d/dT = -1 / (2 T) of each
+    # the convective form's outflows scale by sqrt(T_w / te): d/dT = -c / (2 te) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
     if hconv > 0.0:
-        half = -0.5 / temp
+        half = -0.5 * coup / te
         if f_in < 0.0:
             dmdot_dT += phi * a_in * f_in * half
             dmout_dT -= phi * a_in * f_in * half
@@ -676,11 +686,12 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
         if f_lk > 0.0:
             dmdot_dT -= leak_o * f_lk * half
             dmout_dT += leak_o * f_lk * half
-    jp += n_over_v * rs * (t_wall - temp) * dmout_dp
-    vp += n_over_v * rs * (t_wall - temp) * dmout_dt
-    jpt = n_over_v * (rs_t * dmdot_dT - rs * m_out + rs * (t_wall - temp) * dmout_dT) - c_wall
+    jp += n_over_v * rs * (t_wall - te) * dmout_dp
+    vp += n_over_v * rs * (t_wall - te) * dmout_dt
+    jpt = (n_over_v * (rs_t * dmdot_dT - coup * rs * m_out + rs * (t_wall - te) * dmout_dT)
+           - coup * c_wall)
     if heat > 0.0:
-        jpt -= p * heat * t_wall / (temp * temp)
+        jpt -= coup * p * heat * t_wall / (te * te)
     # ft = T (fp / p + vdot / V - Rs T mdot / (p V))
     g = rs * temp / (p * vol)
     jtp = temp * (jp / p - fp / (p * p) - g * dmdot + g * mdot / p)

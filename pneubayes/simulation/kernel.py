@@ -20,7 +20,7 @@ position and supply are linear between samples. A transport delay shifts the hel
 command, which adds one break point inside some sample intervals; the integrator
 stops exactly on every break point. The spool lag (first or second order) is integrated
 in closed form under the held command. With
-heat transfer on (either form), the chamber temperature is a second state, stepped by
+heat transfer (``heat_coupling`` > 0), the chamber temperature is a second state, stepped by
 the same method with the full 2 x 2 Jacobian (a diagonal one leaves the method first
 order in the p-T coupling). With the tube as an acoustic line, the state is the
 chamber's pressure and the line's cells and flows (with heat transfer, and the chamber's
@@ -183,8 +183,7 @@ _VOL = SLOT_INDEX["volume_m3"]
 _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
 _ROUND = SLOT_INDEX["deadband_rounding_V"]
 _SUPG = SLOT_INDEX["supply_gain"]
-_HEAT = SLOT_INDEX["heat_rate_per_s"]
-_HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
+_HCOUP = SLOT_INDEX["heat_coupling"]
 _LLEN = SLOT_INDEX["line_length_m"]
 _LSEG = SLOT_INDEX["line_segments"]
 _WLEN = SLOT_INDEX["wave_length_m"]
@@ -703,7 +702,7 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
     adv = sl[_ADVANCE]
     p_nom = cs[C_P_NOM]
     v0, bore = sl[_VOL], cs[C_BORE_AREA]
-    thermal = sl[_HEAT] > 0.0 or sl[_HCONV] > 0.0
+    thermal = sl[_HCOUP] > 0.0  # the pressure feels the temperature: a state
     own_ex = sl[_OWN_EX] != 0.0
     tank = sl[_TANK] > 0.0
     # a tank's pressure falls by c_tank per kg drawn (polytropic index n, air at T_s)
@@ -989,7 +988,7 @@ def needs_general(slots) -> bool:
 #: The slots of the forms with a second state or a closure (:func:`needs_general`), and
 #: of the rarer forms the pressure-only kernel leaves out so that the paper's model
 #: compiles less on its first call: a second-order spool and a valve driver's clock.
-GENERAL_SLOTS = np.array([_HEAT, _HCONV, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
+GENERAL_SLOTS = np.array([_HCOUP, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
                           _SPOOL_W, _CLOCK_T] + [
     SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
     SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"],

@@ -68,6 +68,7 @@ _DIA = SLOT_INDEX["line_diameter_m"]
 _MU = SLOT_INDEX["line_viscosity_Pa_s"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
+_HCOUP = SLOT_INDEX["heat_coupling"]
 
 _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
                / (math.factorial(12) * math.factorial(k) * math.factorial(6 - k))
@@ -376,7 +377,8 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
 
     with ``mdot = q_n - m_leak``, ``m_out`` the mass leaving, and the wall term of either
     heat form, as :func:`pneubayes.simulation.chamber.chamber_rhs` has them (the
-    convective form's leak orifice passes gas at T: its flow scales by sqrt(T_w / T)).
+    convective form's leak orifice passes gas at T: its flow scales by sqrt(T_w / T)),
+    the pressure's row reading ``T_w + c (T - T_w)`` for T (c the slot ``heat_coupling``).
     Writes rows 0 and -1 of ``f``, ``jac`` and ``vt``.
     """
     kappa, p_atm, rs, t_w = cs[C_KAPPA], cs[C_P_ATM], cs[C_RS], cs[C_T_SUPPLY]
@@ -386,23 +388,24 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     it = y.shape[0] - 1
     iqn = 2 * nseg
     p, temp = y[0], y[it]
-    heat, hconv = sl[_HEAT], sl[_HCONV]
+    heat, hconv, coup = sl[_HEAT], sl[_HCONV], sl[_HCOUP]
+    te = t_w + coup * (temp - t_w)  # the temperature the pressure feels
     sq = 1.0
     if hconv > 0.0 and f_l > 0.0:
-        sq = math.sqrt(t_w / temp)
+        sq = math.sqrt(t_w / te)
     leak_out = leak_o * f_l * sq + leak_l * lam
     mdot = q - leak_out
     m_out = max(-q, 0.0) + max(leak_out, 0.0)
     n_v = kappa / vol
-    fp_eq5 = n_v * (rs_t * mdot + rs * (t_w - temp) * m_out - p * vdot)
+    fp_eq5 = n_v * (rs_t * mdot + rs * (t_w - te) * m_out - p * vdot)
     fp = fp_eq5
     # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
     c_wall, dc_wall_dv = 0.0, 0.0
     if hconv > 0.0:
         c_wall, dc_wall_dv = wall_exchange(kappa, hconv, bore, vol)
-        fp += c_wall * (t_w - temp)
+        fp += c_wall * (t_w - te)
     if heat > 0.0:
-        fp += p * heat * (t_w - temp) / temp
+        fp += p * heat * (t_w - te) / te
     g = rs * temp / (p * vol)
     ft = temp * (fp / p + vdot / vol - g * mdot)
     f[0] = fp
@@ -416,18 +419,19 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
                                 abs(fp) * h)
         dleak_dp += leak_o * sq * dfl_dp
         if sq != 1.0:
-            dleak_dt = -0.5 * leak_o * f_l * sq / temp
+            dleak_dt = -0.5 * coup * leak_o * f_l * sq / te
     dmout_dp, dmout_dt, dmout_dq = 0.0, 0.0, 0.0
     if leak_out > 0.0:
         dmout_dp, dmout_dt = dleak_dp, dleak_dt
     if q < 0.0:
         dmout_dq = -1.0
-    jpp = n_v * (rs_t * (-dleak_dp) + rs * (t_w - temp) * dmout_dp - vdot)
-    jpq = n_v * (rs_t + rs * (t_w - temp) * dmout_dq)
-    jpt = n_v * (-rs_t * dleak_dt - rs * m_out + rs * (t_w - temp) * dmout_dt) - c_wall
+    jpp = n_v * (rs_t * (-dleak_dp) + rs * (t_w - te) * dmout_dp - vdot)
+    jpq = n_v * (rs_t + rs * (t_w - te) * dmout_dq)
+    jpt = (n_v * (-rs_t * dleak_dt - coup * rs * m_out + rs * (t_w - te) * dmout_dt)
+           - coup * c_wall)
     if heat > 0.0:
-        jpp += heat * (t_w - temp) / temp
-        jpt -= p * heat * t_w / (temp * temp)
+        jpp += heat * (t_w - te) / te
+        jpt -= coup * p * heat * t_w / (te * te)
     jac[0, 0] += jpp
     jac[0, iqn] += jpq
     jac[0, it] += jpt
@@ -437,8 +441,8 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     # explicit time dependence: the volume (eq. 5's V, the wall's area, the graded leak)
     dleak_dtime = leak_g * vdot / bore * lam
     dmout_dtime = dleak_dtime if leak_out > 0.0 else 0.0
-    vp = (-fp_eq5 / vol * vdot + n_v * (-rs_t * dleak_dtime + rs * (t_w - temp) * dmout_dtime))
-    vp += dc_wall_dv * vdot * (t_w - temp)
+    vp = (-fp_eq5 / vol * vdot + n_v * (-rs_t * dleak_dtime + rs * (t_w - te) * dmout_dtime))
+    vp += dc_wall_dv * vdot * (t_w - te)
     vt[0] = vp
     vt[it] = temp * (vp / p - (vdot / vol) ** 2 + g * dleak_dtime + g * mdot * vdot / vol)
 

@@ -80,11 +80,11 @@ def compile_variant(state: str, locks_held_by_caller: bool = False) -> float:
     inputs = Inputs(t, np.where(t < 0.01, 3.0, -3.0), np.zeros_like(t),
                     np.full_like(t, supply_Pa))
     values = dict(valve_preset("valve1").parameters(), dead_volume_m3=2.4e-6,
-                  heat_transfer_rate_per_s=20.0)
+                  heat_transfer_rate_per_s=20.0, heat_transfer_coupling=1.0)
     if state == "bench":
         from pneubayes.bench.plant import PlantConfig, simulate_plant
 
-        base = {k: v for k, v in values.items() if k != "heat_transfer_rate_per_s"}
+        base = {k: v for k, v in values.items() if not k.startswith("heat_transfer")}
         simulate_plant(base, (), inputs, rig, 2e5, PlantConfig.reference())
         # an implicit method calls the plant's Jacobian, which LSODA's stiff switch does
         # on a small chamber: compiled here, not in the first such recording

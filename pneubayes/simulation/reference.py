@@ -189,7 +189,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
-    thermal = heat > 0 or h_wall > 0
+    coup = sl[S["heat_coupling"]]
+    thermal = coup > 0
+    if not thermal:
+        heat = h_wall = 0.0
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
     if nseg:
         dia, mu = sl[S["line_diameter_m"]], sl[S["line_viscosity_Pa_s"]]
@@ -261,6 +264,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
 
     def rhs(t, y, net_flow_only=False):
         p, temp, spool = y[:3]
+        t_felt = t_s + coup * (temp - t_s)  # the temperature the pressure feels
         # a second-order spool's velocity: after the reading
         v_spool = y[i_read + n_read] if w_s > 0 else 0.0
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
@@ -295,9 +299,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1); an
             # acoustic line's gas is at the supply's temperature, and so its ports' gas
             if not nseg:
-                f_in = f_in * (math.sqrt(t_s / temp) if f_in < 0 else 1.0)
-                f_out = f_out * (math.sqrt(t_s / temp) if f_out > 0 else 1.0)
-            f_leak = f_leak * (math.sqrt(t_s / temp) if f_leak > 0 else 1.0)
+                f_in = f_in * (math.sqrt(t_s / t_felt) if f_in < 0 else 1.0)
+                f_out = f_out * (math.sqrt(t_s / t_felt) if f_out > 0 else 1.0)
+            f_leak = f_leak * (math.sqrt(t_s / t_felt) if f_leak > 0 else 1.0)
         port = [att * a_in * f_in, -att * a_ex * f_out]
         d_line = []
         if nseg:  # the ports feed the line's first cell; its last flow feeds the chamber
@@ -343,17 +347,16 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[i_lung] ** 2)
             flows.append(-m_lung)
         mdot = float(sum(flows))
-        # enthalpy: inflow at the supply temperature, outflow at the chamber's (T = T_s
-        # without heat exchange, where this is eq. 5)
-        t_chamber = temp if thermal else t_s
-        enthalpy = sum(rs * (t_s if q > 0 else t_chamber) * q for q in map(float, flows))
+        # enthalpy: inflow at the supply temperature, outflow at the chamber's as the
+        # pressure feels it (T_s at coupling 0, where this is eq. 5)
+        enthalpy = sum(rs * (t_s if q > 0 else t_felt) * q for q in map(float, flows))
         dp = kappa * (enthalpy - p * vdot) / (v_c + kappa * p * compl)
         dtemp = 0.0
         if heat > 0:
-            dp = dp + p * heat * (t_s - temp) / temp
+            dp = dp + p * heat * (t_s - t_felt) / t_felt
         if h_wall > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel
             dp = dp + ((kappa - 1.0) * h_wall * float(wall_area_m2(vol, rig.bore_area_m2))
-                       * (t_s - temp) / vol)
+                       * (t_s - t_felt) / vol)
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         tau_now = tau_dn if tau_dn > 0 and cmd < spool else tau_s

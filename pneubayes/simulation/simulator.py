@@ -56,7 +56,7 @@ def _check_solver(solver) -> SolverConfig:
 
 #: Slot columns whose presence (> 0) ``_window_call`` checks, gathered in one pass.
 _FORM_COLUMNS = {name: i for i, name in enumerate((
-    "wave_length_m", "line_length_m", "heat_rate_per_s", "heat_coefficient_W_per_m2_K",
+    "wave_length_m", "line_length_m", "heat_coupling",
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
     "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
     "restriction_fill_inverse_area_per_m2", "restriction_vent_inverse_area_per_m2",
@@ -105,7 +105,7 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                          "undelayed) does not follow: not simulated")
     wave = has("wave_length_m")
     line = has("line_length_m") | wave
-    hot = has("heat_rate_per_s") | has("heat_coefficient_W_per_m2_K")
+    hot = has("heat_coupling")
     # states the kernel steps with the pressure, one at a time: what each excludes
     tank = has("tank_volume_m3")
     # (a compliant chamber keeps the pressure the only state: the transmission line's
