@@ -249,7 +249,10 @@ def test_a_large_gap_also_tries_weak_groups_beside_supported_ones(tmp_path, monk
     assert doc["ledger"][1]["supported"] == ["spool_lag"]
     assert doc["ledger"][1]["tentative"]  # (the leak ranks under the sensor's effects)
     assert [e["name"] for e in doc["effects"]] == ["cylinder_leak"]
-    off = Discovery(_settings(rounds={"max_effects": 1, "gap_fallback_ratio": 0.0}),
+    # (switched off, and the catalogue's sweep near the noise floor too, which tries the
+    # leak as well once spool_lag fails)
+    off = Discovery(_settings(rounds={"max_effects": 1, "gap_fallback_ratio": 0.0},
+                              stages={"catalogue_sweep_min_noise_ratio": 0.0}),
                     None, log=lambda m: None).fit(recs).result_.to_dict()
     assert "cylinder_leak" not in [e["name"] for e in off["effects"]]
 
@@ -452,7 +455,10 @@ def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch)
                                   overrides={"leak_conductance_kg_per_s_Pa2": 1.9e-16}),
                       tmp_path / "fixed")
     recs = [read_recording(p) for p in fixed.recordings]
-    kw = {"rounds": {"max_effects": 2, "gap_fallback_ratio": 0.0}}
+    # (the catalogue's sweep near the noise floor, which tries every untried group and so
+    # the leak before the runner-ups, off: this is the runner-ups' test)
+    kw = {"rounds": {"max_effects": 2, "gap_fallback_ratio": 0.0},
+          "stages": {"catalogue_sweep_min_noise_ratio": 0.0}}
     result = Discovery(_settings(kw), None, log=lambda m: None).fit(recs).result_
     doc = result.to_dict()
     round1 = [e for e in doc["ledger"] if e.get("effect") == "cylinder_leak"][0]
@@ -465,7 +471,8 @@ def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch)
     text = _report(dict(doc, recordings=[str(r.source) for r in recs]), result, {})
     assert f"| {revisit[0]['step']} | revisit | cylinder_leak tried again" in text
     calls.clear()
-    off = Discovery(_settings(kw, stages={"runner_ups": False}), None,
+    off = Discovery(_settings(kw, stages={"runner_ups": False,
+                                          "catalogue_sweep_min_noise_ratio": 0.0}), None,
                     log=lambda m: None).fit(recs).result_.to_dict()
     assert [e["name"] for e in off["effects"]] == ["tube_delay"]
 
