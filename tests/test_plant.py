@@ -127,6 +127,16 @@ def test_catalogue_effects_in_the_plant_agree_with_the_compiled_simulator(rig, b
     assert np.allclose(plant.supply_at_valve_Pa, supply)  # supply_gain 1
 
 
+def test_the_plant_refuses_a_partial_heat_coupling(rig, base):
+    """The plant's chamber feels its whole temperature or none: the catalogue's
+    heat_transfer at a coupling between is an error that says so, not a silent 1."""
+    model = Model(effects_from_names(["heat_transfer"], "orifice"))
+    params = dict(base, heat_transfer_rate_per_s=5.0, heat_transfer_coupling=0.4)
+    with pytest.raises(ValueError, match="partial coupling"):
+        simulate_plant(params, (), _inputs(0.05, 1, False), rig, P_ATM, REF,
+                       effects=model.effects)
+
+
 def test_reference_preset_converges_under_tighter_tolerances(rig, base):
     """Tube (the hardest form): the preset is within a few Pa of rtol 1e-11; a looser
     setting is further away."""
@@ -279,6 +289,27 @@ def test_closed_chamber_with_wall_heat_is_adiabatic_at_h0_and_isothermal_at_larg
     assert np.max(np.abs(pv / pv[0] - 1)) < 5e-3
     iso_inv = iso.pressure_Pa * vol**1.4
     assert np.ptp(iso_inv / iso_inv[0]) > 0.5  # the two limits are far apart here
+
+
+def test_a_fills_jet_forces_convection_only_while_it_fills(rig):
+    """A 30-ms fill of a small chamber, then a hold: with the inflow's jet stirring the
+    gas (``jet_h_W_per_m2_K``) the fill ends cooler, so the hold's pressure falls less
+    as the gas relaxes to the wall; a vent with nothing flowing in is unchanged by it."""
+    t = np.arange(4001) * DT
+    fill = Inputs(t, np.where(t < 0.03, 5.0, 0.0), np.full(t.size, 0.5 * STROKE),
+                  np.full(t.size, P_SUP))
+    params = dict(CLOSABLE, dead_volume_m3=2e-6)
+    still, jet = WallHeatTransfer(10.0), WallHeatTransfer(10.0, jet_h_W_per_m2_K=300.0)
+    a, b = (simulate_plant(params, (f,), fill, rig, P_ATM, REF) for f in (still, jet))
+    end = int(round(0.032 / DT))
+    assert b.chamber_temperature_K[end] < a.chamber_temperature_K[end] - 5.0
+    drop_a, drop_b = (o.pressure_Pa[end] - o.pressure_Pa[-1] for o in (a, b))
+    assert drop_a > 0.0 and drop_b < 0.8 * drop_a
+    vent = Inputs(t, np.full(t.size, -5.0), fill.position_m, fill.supply_pressure_Pa)
+    va, vb = (simulate_plant(params, (f,), vent, rig, 4e5, REF) for f in (still, jet))
+    assert np.array_equal(va.pressure_Pa, vb.pressure_Pa)
+    with pytest.raises(ValueError, match="jet_flow_kg_per_s"):
+        WallHeatTransfer(10.0, jet_flow_kg_per_s=0.0)
 
 
 def test_clearance_leak_matches_its_closed_form_at_a_position(rig):

@@ -161,7 +161,9 @@ K_BW_CE, K_BW_VH, K_BW_Z, K_BW_N = 109, 110, 111, 112
 K_LW_C, K_LW_W, K_LW_Z = 113, 114, 115
 # an AcousticTube's unsteady friction (0: quasi-steady only)
 K_TUBE_UF = 116
-N_K = 117
+# a WallHeatTransfer's forced convection by the inflow's jet
+K_HJ, K_HJ_Q = 117, 118
+N_K = 119
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
@@ -287,6 +289,18 @@ def quick_exhaust_flows(p, pv, P, hot):
     if f_q > 0.0:
         f_q *= hot
     return P[K_QE_P] * (1.0 - w) * f_lc, P[K_QE_A] * w * f_q
+
+
+@njit(cache=True)
+def _wall_heat_flow(P, vol, temp, inflow):
+    """A WallHeatTransfer's heat flow into the gas, W: ``h A_w (T_w - T)`` on the end caps
+    and barrel of a cylinder holding ``vol``, h raised by the inflow's jet (kg/s) while
+    the chamber fills."""
+    a_wall = 2.0 * P[K_ABORE] + math.pi * P[K_BORE] * vol / P[K_ABORE]
+    h_wall = P[K_H]
+    if P[K_HJ] > 0.0 and inflow > 0.0:
+        h_wall += P[K_HJ] * (inflow / P[K_HJ_Q]) ** 0.8
+    return h_wall * a_wall * (P[K_TWALL] - temp)
 
 
 @njit(cache=True)
@@ -547,8 +561,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     # temperature state, where this is eq. 5)
     enth = h_in - leak * (temp if leak > 0.0 else ts)
     if heat == 2:
-        a_wall = 2.0 * P[K_ABORE] + math.pi * P[K_BORE] * vol / P[K_ABORE]
-        q_heat = P[K_H] * a_wall * (P[K_TWALL] - temp)
+        q_heat = _wall_heat_flow(P, vol, temp, inflow)
         dp = kappa / vol * (rs * enth - p * vdot) + (kappa - 1.0) * q_heat / vol
     else:
         dp = kappa / vol * (rs * enth - p * vdot)
@@ -878,6 +891,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
         raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
                          "here; plant a WallHeatTransfer form instead")
+    coupling = float(sl[SLOT_INDEX["heat_coupling"]])
+    if coupling not in (0.0, 1.0):
+        raise ValueError(f"plant: the catalogue heat_transfer's partial coupling "
+                         f"({coupling:g}) is not simulated here: the plant's chamber feels "
+                         "its whole temperature (1) or none (0)")
     if sl[SLOT_INDEX["spool_rate_limit_V_per_s"]] != 0.0:
         raise ValueError("plant: the catalogue's speed-limited spool_lag is not simulated "
                          "here; plant a SpoolSlewLimit form instead")
@@ -919,7 +937,7 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         L[L_SPOOL] = 2
     if fall > 0.0:  # the catalogue's asymmetric spool, stepped as the plant's own
         P[K_SR_UP], P[K_SR_DN], L[L_SPOOL] = P[K_TAU], fall, 4
-    L[L_HEAT] = 1 if P[K_HEAT] > 0 else 0
+    L[L_HEAT] = 1 if coupling > 0 else 0
     by = {type(f): f for f in forms}
     if RoundedDeadzone in by:
         f = by[RoundedDeadzone]
@@ -930,6 +948,7 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if WallHeatTransfer in by:
         f = by[WallHeatTransfer]
         P[K_H], L[L_HEAT] = f.h_W_per_m2_K, 2
+        P[K_HJ], P[K_HJ_Q] = f.jet_h_W_per_m2_K, f.jet_flow_kg_per_s
         P[K_TWALL] = g.temperature_K if f.wall_temperature_K is None else f.wall_temperature_K
     if ClearanceLeak in by:
         f = by[ClearanceLeak]

@@ -202,14 +202,23 @@ class WallHeatTransfer(PlantForm):
     Orifice flows leaving the chamber scale with sqrt(T_s / T) (eq. 1's upstream
     temperature). The wall is at ``wall_temperature_K`` (None = the supply temperature).
     At h = 0 the chamber is adiabatic; as h grows it tends to isothermal.
+
+    ``jet_h_W_per_m2_K`` > 0 adds forced convection while the chamber fills: the inflow's
+    jet stirs the gas against the wall, ``h = h_0 + h_jet (m_in / m_ref)^0.8`` (a
+    Dittus-Boelter exponent on the jet's Reynolds number; ``m_ref`` is
+    ``jet_flow_kg_per_s``), so the exchange is fast during a fill and slow in a hold or a
+    vent, which no single coefficient or time constant gives.
     """
 
     catalogue_name: ClassVar[str] = "heat_transfer"
     h_W_per_m2_K: float
     wall_temperature_K: float | None = None
+    jet_h_W_per_m2_K: float = 0.0
+    jet_flow_kg_per_s: float = 1e-3
 
     def __post_init__(self):
-        _non_negative(self, "h_W_per_m2_K")
+        _non_negative(self, "h_W_per_m2_K", "jet_h_W_per_m2_K")
+        _positive(self, "jet_flow_kg_per_s")
         if self.wall_temperature_K is not None:
             _positive(self, "wall_temperature_K")
 
