@@ -240,6 +240,14 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     p_mid = 0.5 * (rig.supply_pressure_Pa + rig.atmospheric_pressure_Pa)
     rate = (gas.heat_capacity_ratio - 1.0) * h * wall_per_vol * gas.temperature_K / p_mid
     assert rate == pytest.approx(10.0, rel=1e-9)
+    assert rate_start["heat_transfer_coupling"] == conv_start["heat_transfer_coupling"] == 1.0
+    # a start naming only the coupling (the other form's fit, when the loop swaps forms)
+    # keeps it, the rate from the fallback
+    partial = effect_candidates(fit, "heat_transfer",
+                                {"best_term_start": {"heat_transfer_coupling": 0.6}}, rig)
+    (_, rate_start), (_, conv_start) = partial
+    assert rate_start == {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 0.6}
+    assert conv_start["heat_transfer_coupling"] == 0.6
     # other effects keep a single candidate (the spool: first and second order; the
     # dead zone: hard and rounded corners)
     bands = effect_candidates(fit, "valve_deadzone",

@@ -116,8 +116,12 @@ class HeatTransfer(Effect):
         if not ctx.second_state_free or ctx.slot("wave_length_m") > 0:
             return []
         rate_form = HeatTransfer(**{**self.options(), "form": "rate"})
+        # (a start may name only some of them: the other form's fitted coupling)
+        start = {**self.discovery_fallback, **self.candidate_start(ctx.term_start)}
         rate = ctx.inside(rate_form, "heat_transfer_rate_per_s",
-                          self.candidate_start(ctx.term_start)["heat_transfer_rate_per_s"])
+                          start["heat_transfer_rate_per_s"])
+        coupling = ctx.inside(rate_form, "heat_transfer_coupling",
+                              start["heat_transfer_coupling"])
         rig = ctx.rig
         vol = ctx.dead_volume_m3 + rig.bore_area_m2 * 0.5 * (rig.stroke_m or 0.0)
         wall = float(wall_area_m2(vol, rig.bore_area_m2))
@@ -125,9 +129,10 @@ class HeatTransfer(Effect):
         gas = rig.gas
         h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
         conv = HeatTransfer(**{**self.options(), "form": "convective"})
-        return [(rate_form, {"heat_transfer_rate_per_s": rate, "heat_transfer_coupling": 1.0}),
+        return [(rate_form, {"heat_transfer_rate_per_s": rate,
+                             "heat_transfer_coupling": coupling}),
                 (conv, {"heat_transfer_coefficient_W_per_m2_K": h,
-                        "heat_transfer_coupling": 1.0})]
+                        "heat_transfer_coupling": coupling})]
 
     def bench_defaults(self):
         if self.form == "rate":
