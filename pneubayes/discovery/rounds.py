@@ -23,7 +23,7 @@ class TrialFitFailed(Exception):
 
 def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
                     current_Pa: float | None = None, min_share: float = 0.0,
-                    screen_share: float = 1.0, cheap=frozenset()):
+                    screen_share: float = 1.0, cheap=frozenset(), passed=frozenset()):
     """Fit a round's candidate forms: ``options`` maps each effect to its forms
     ``[(model, start), ...]`` in order; ``fit(effect, model, start, beat_Pa)`` fits one;
     for a later form ``beat_Pa`` is the training RMSE a fit may stop early above
@@ -45,7 +45,11 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     where the round's misfit is (on a dead zone and a drooping supply, an acoustic line
     for a tube that is not there cost 40 minutes). The effects in ``cheap`` (whose later
     forms cost a fit about what the first does: a curvature with a gain beside it) are
-    never skipped so. A form that cannot be simulated from its
+    never skipped so. The effects in ``passed`` (which passed verification in an earlier
+    round and were not added) have every form fitted in full, neither skipped nor
+    screened: an effect added before them may have taken what their plainest form
+    explained (a spool lag what a tube's delay did), not what their fuller form does (the
+    tube's waves). A form that cannot be simulated from its
     start or at its fitted point (``FloatingPointError`` from the refinement,
     :class:`~pneubayes.errors.SimulationError`) is a failed trial, not a failed loop.
 
@@ -87,7 +91,8 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         best = max(gain.values(), default=0.0)
         if best > 0:
             outpaced = {g: (gain[g], best) for g, forms in options.items()
-                        if len(forms) > 1 and g not in cheap and gain[g] < min_share * best}
+                        if len(forms) > 1 and g not in cheap and g not in passed
+                        and gain[g] < min_share * best}
     def screen(g):
         if first_Pa[g] is None or current_Pa is None:
             return first_Pa[g]
@@ -98,7 +103,7 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         for model, start in forms[1:]:
             if settled is not None:
                 break
-            run(g, model, start, screen(g))
+            run(g, model, start, None if g in passed else screen(g))
     return fitted, settled, failed, outpaced
 
 

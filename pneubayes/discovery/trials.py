@@ -270,6 +270,9 @@ class TrialRunner:
         trials = []
         options = {g: effect_candidates(current, g, evidence[g], rig, s.forms)
                    for g in groups}
+        # (passed in an earlier round, not added: every form in full)
+        passed = {e["effect"] for e in self.ledger if e["action"] == "pass"} \
+            - set(current.model.effect_names)
         round_forms, settled, failed, outpaced = fit_round_forms(
             options, lambda g, m, x, beat: self._fit_in_budget(g, m, x, current, beat),
             s.forms.settled_ratio * d.noise_Pa,
@@ -278,7 +281,8 @@ class TrialRunner:
             current_Pa=current.train_rmse_Pa, min_share=s.forms.later_min_share,
             screen_share=s.forms.later_screen_share,
             cheap={g for g, forms in options.items()
-                   if forms and forms[0][0].effect(g).cheap_forms})
+                   if forms and forms[0][0].effect(g).cheap_forms},
+            passed=passed & set(groups))
         for g in groups:
             forms = round_forms[g]
             forms_info = self._forms_info(g, forms, options[g], failed[g], outpaced, settled)
