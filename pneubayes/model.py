@@ -408,6 +408,10 @@ class Model:
         if stray:
             raise ModelCardError(f"{source}: key 'effect_options' names effect(s) {stray} "
                                  f"that are not in 'effects' {names}")
+        # (a card written before one of its effects' parameters existed)
+        for n in names:
+            if n in CATALOGUE:
+                params = {**CATALOGUE[n].card_defaults(params), **params}
         rig_card = None
         if "rig" in card:
             from pneubayes.errors import RigCardError

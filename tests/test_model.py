@@ -61,6 +61,24 @@ def test_card_infers_the_laminar_leak_form():
     assert model.effect("cylinder_leak").form == "laminar"
 
 
+def test_a_heat_card_from_before_the_coupling_loads_as_it_meant():
+    """A card with heat_transfer written before its coupling: the energy equation at an
+    exchange > 0 (in its form: the convective one from its coefficient), eq. 5 at 0."""
+    base = {k: v for k, v in EXAMPLE_CARD["parameters"].items() if k != "leak_area_m2"}
+    for key, form in (("heat_transfer_rate_per_s", "rate"),
+                      ("heat_transfer_coefficient_W_per_m2_K", "convective")):
+        model, values = Model.from_card(_card(effects=["heat_transfer"],
+                                              parameters={**base, key: 30.0}))
+        assert model.effect("heat_transfer").form == form
+        assert values["heat_transfer_coupling"] == 1.0
+        _, off = Model.from_card(_card(effects=["heat_transfer"],
+                                       parameters={**base, key: 0.0}))
+        assert off["heat_transfer_coupling"] == 0.0
+    _, given = Model.from_card(_card(effects=["heat_transfer"], parameters={
+        **base, "heat_transfer_rate_per_s": 30.0, "heat_transfer_coupling": 0.4}))
+    assert given["heat_transfer_coupling"] == 0.4
+
+
 # ---------------------------------------------------------------- card errors
 def _error(card) -> str:
     with pytest.raises(ModelCardError) as info:

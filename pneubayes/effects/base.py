@@ -305,6 +305,12 @@ class Effect(Component):
         return {}, []
 
     @classmethod
+    def card_defaults(cls, params: Mapping) -> dict[str, float]:
+        """Values for parameters a card written before they existed lacks, as that card
+        meant them (``params``: the card's parameters); none by default."""
+        return {}
+
+    @classmethod
     def form_from_parameters(cls, names) -> str | None:
         """The form a card with these parameter names describes: of the forms whose
         parameters are all among ``names``, the one with the most parameters (the

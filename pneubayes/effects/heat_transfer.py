@@ -68,6 +68,16 @@ class HeatTransfer(Effect):
     def options(self):
         return {"form": self.form}
 
+    @classmethod
+    def card_defaults(cls, params):
+        """A card from before the coupling meant the energy equation at any exchange > 0
+        and eq. 5 at 0."""
+        strength = params.get("heat_transfer_rate_per_s",
+                              params.get("heat_transfer_coefficient_W_per_m2_K"))
+        if "heat_transfer_coupling" in params or not isinstance(strength, (int, float)):
+            return {}
+        return {"heat_transfer_coupling": 1.0 if strength > 0 else 0.0}
+
     def parameters(self):
         self._check()
         coupling = Parameter("heat_transfer_coupling", "1", 0.0, 1.0, "uniform",
