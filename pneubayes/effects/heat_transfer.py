@@ -31,7 +31,7 @@ equation above; c = 0 is eq. 5 exactly, and the family passes through it continu
 so the plain model is this effect at zero strength (c = 0) and a fit of the effect
 contains the fit without it. The exchange alone cannot do that: as the rate or h falls
 to 0 at c = 1 the chamber becomes *adiabatic* with outflow at its own temperature, which
-is not eq. 5 (on a realistic AIR200 case its training RMSE was 4x the plain model's).
+is not eq. 5 (docs/history.md, 2026-12-07, has how far apart the two are).
 A real chamber with a warm or cold wall, a nonuniform gas, or heat exchange in the
 valve's body sits between the two; c < 1 says that the pressure follows its temperature
 less than a well-mixed chamber at the wall's temperature would.

@@ -264,7 +264,9 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
 
     def rhs(t, y, net_flow_only=False):
         p, temp, spool = y[:3]
-        t_felt = t_s + coup * (temp - t_s)  # the temperature the pressure feels
+        # the temperature the pressure feels (without a temperature state its row is
+        # inert, and a stiff solver's trial values there must not reach the pressure)
+        t_felt = t_s + coup * (temp - t_s) if thermal else t_s
         # a second-order spool's velocity: after the reading
         v_spool = y[i_read + n_read] if w_s > 0 else 0.0
         cells, flows_q = y[3:3 + nseg], y[3 + nseg:3 + 2 * nseg]
