@@ -303,6 +303,48 @@ def test_the_closures_slope_in_the_pressure_is_the_rates(terms, hconv, sign, rig
                                     0.0, 1.0, True)[0]) > 1.0
 
 
+@pytest.mark.parametrize("terms", ["inlet_flow*pressure_ratio", "exhaust_flow*pressure_ratio",
+                                   "net_flow*pressure_ratio", "one"])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_closures_temperature_slopes_with_the_inlet_reversed(terms, sign, rig):
+    """Above the supply (the inlet blows back, at the chamber's temperature) with both
+    ports open and a temperature state: every Jacobian entry and ``v_p``, ``v_T`` of
+    chamber_rhs against central differences (the areas move in time)."""
+    from pneubayes.simulation.chamber import chamber_rhs
+    from pneubayes.simulation.simulator import rig_constants
+
+    sl = np.zeros(N_SLOTS)
+    sl[SLOT_INDEX["volume_m3"]] = 2.4e-6
+    sl[SLOT_INDEX["heat_rate_per_s"]] = 20.0
+    sl[SLOT_INDEX["heat_coupling"]] = 0.6
+    e = make_effect("closure", terms=terms)
+    bound = next(p.upper for p in e.parameters() if p.name == "closure_coefficient_0")
+    values = {"closure_coefficient_0": np.asarray(0.2 * sign * bound)}
+    for slot, v in e.lower(values, rig).items():
+        sl[SLOT_INDEX[slot]] = v
+    cs = rig_constants(rig)
+    p, temp, p_sup, vol, vdot = 3.2e5, 330.0, 2.8e5, 2.5e-6, 1e-5
+    a_in, a_ex, da_in, da_ex = 3e-7, 2e-7, 4e-5, -3e-5
+
+    def rhs(p, temp, a_in=a_in, a_ex=a_ex, vol=vol):
+        return chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, 0.0, True, 0.0,
+                           da_in, da_ex, 0.0, 0.0, 0.0, True)
+
+    out = rhs(p, temp)
+    d, dt, h = 1.0, 1e-3, 1e-7
+    up, dn = rhs(p + d, temp), rhs(p - d, temp)
+    hot, cold = rhs(p, temp + dt), rhs(p, temp - dt)
+    # in time: the areas and the volume move at their rates
+    fw = rhs(p, temp, a_in + h * da_in, a_ex + h * da_ex, vol + h * vdot)
+    bw = rhs(p, temp, a_in - h * da_in, a_ex - h * da_ex, vol - h * vdot)
+    assert out[1] == pytest.approx((up[0] - dn[0]) / (2 * d), rel=1e-5)
+    assert out[6] == pytest.approx((up[2] - dn[2]) / (2 * d), rel=1e-5)
+    assert out[5] == pytest.approx((hot[0] - cold[0]) / (2 * dt), rel=1e-5)
+    assert out[3] == pytest.approx((hot[2] - cold[2]) / (2 * dt), rel=1e-5)
+    assert out[4] == pytest.approx((fw[0] - bw[0]) / (2 * h), rel=1e-4)
+    assert out[7] == pytest.approx((fw[2] - bw[2]) / (2 * h), rel=1e-4)
+
+
 # ---------------------------------------------------------------- against the reference
 #: (a threshold where the inlet's drop hinge opens on these inputs: p_s - p < 3 P_atm)
 _SINGLE_THRESHOLDS = {"inlet_drop_hinge": 3.0, "spool_null_hinge": 2.0,
@@ -447,8 +489,8 @@ def test_the_command_lags_splitting_converges(rig, valve_params, inputs):
 ], ids=["convective_heat", "spool_lag"])
 def test_the_closure_beside_a_temperature_state_or_a_moving_spool(others, extra, terms, rig,
                                                                    valve_params, inputs):
-    """With a temperature state (inflow at the supply's temperature, a negative term's
-    outflow at the chamber's) and behind a lagged spool (the spool and its rate), over
+    """With a temperature state (each part of the closure's flow at its enthalpy) and
+    behind a lagged spool (the spool and its rate), over
     the fixture's first 0.12 s (its step and the response)."""
     inputs = _first(inputs)
     model = Model(others)
@@ -465,6 +507,37 @@ def test_the_closure_beside_a_temperature_state_or_a_moving_spool(others, extra,
                        _tight()).pressure_Pa[0]
     assert np.max(np.abs(got - without)) > 300.0
     assert np.max(np.abs(got - ref)) < 0.1  # Pa
+
+
+@pytest.mark.parametrize("terms, c, scaled", [
+    ("inlet_flow", -0.4, ("inlet",)), ("exhaust_flow", 0.3, ("exhaust",)),
+    ("exhaust_flow", -0.5, ("exhaust",)), ("net_flow", -0.3, ("inlet", "exhaust"))])
+def test_a_port_term_is_that_port_scaled_with_its_enthalpy(terms, c, scaled, rig,
+                                                          valve_params, inputs):
+    """Beside a temperature state (heat at a rate, coupling 1) a constant port term
+    ``c q`` is the port's area scaled by 1 + c (1 - c for the exhaust's outflow), its
+    air at the port's temperature: an inlet's share that does not come is not air
+    leaving at the chamber's, an exhaust's share that stays had the chamber's. The
+    fixture's steps, piston and supply; compiled and reference."""
+    heat = make_effect("heat_transfer")
+    extra = {"heat_transfer_rate_per_s": 40.0, "heat_transfer_coupling": 1.0}
+    e = make_effect("closure", terms=terms)
+    with_term = simulate(Model([heat, e]), dict(valve_params, **extra,
+                                                closure_coefficient_0=c),
+                         inputs, rig, 2e5, _tight()).pressure_Pa[0]
+    factor = 1.0 - c if scaled == ("exhaust",) else 1.0 + c
+    areas = {f"{port}_{k}": valve_params[f"{port}_{k}"] * factor
+             for port in scaled for k in ("offset_m2", "a_m2")}
+    as_area = simulate(Model([heat]), dict(valve_params, **extra, **areas), inputs, rig,
+                       2e5, _tight()).pressure_Pa[0]
+    plain = simulate(Model([heat]), dict(valve_params, **extra), inputs, rig, 2e5,
+                     _tight()).pressure_Pa[0]
+    assert np.max(np.abs(as_area - plain)) > 3e3  # the term matters here
+    np.testing.assert_allclose(with_term, as_area, rtol=0, atol=0.05)  # Pa
+    ref = reference_simulate(Model([heat, e]), dict(valve_params, **extra,
+                                                    closure_coefficient_0=c),
+                             inputs, rig, 2e5, rtol=1e-10)
+    np.testing.assert_allclose(ref, as_area, rtol=0, atol=0.2)
 
 
 def test_a_spool_term_follows_commands_inside_the_dead_band(rig, valve_params, make_inputs):

@@ -262,13 +262,19 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in, f_ex, vol, compl,
                  df_in_dp, df_ex_dp, dsup, dspool, da_in, da_ex, df_in_dt, cdir):
     """The closure's mass flow into the chamber, ``sum_k c_k F_a F_b`` (kg/s; slots
     ``closure_*``), with its slope in p (kg/(s Pa)) and its explicit time derivative
-    (kg/s^2); the arguments as :func:`closure_feature` takes them, the port flows
-    ``q = a f`` formed here from the areas and the flow functions.
+    (kg/s^2), then the part of it that leaves at the chamber's temperature (kg/s, an
+    outflow positive) with its two slopes; the arguments as :func:`closure_feature`
+    takes them, the port flows ``q = a f`` formed here from the areas and the flow
+    functions.
 
     A term that reads a port's flow (``inlet_flow``, ``exhaust_flow``, ``net_flow``; its
     first such feature) modulates that port: the port's terms add to ``q s`` and the
     factor ``s`` is clipped so the port's flow never reverses
-    (:data:`pneubayes.effects.closure_terms.PORT_FACTOR_LIMITS`)."""
+    (:data:`pneubayes.effects.closure_terms.PORT_FACTOR_LIMITS`). Such a term carries
+    its port's enthalpy: ``q s`` is more or less of an inflow (at the supply's
+    temperature) or of an outflow (at the chamber's), whatever its sign; ``net_flow``'s
+    factor scales both parts. Any other term's flow leaves at the chamber's temperature
+    when negative."""
     q_in, q_ex = a_in * f_in, a_ex * f_ex
     dq_in_dp, dq_ex_dp = a_in * df_in_dp, a_ex * df_ex_dp
     dq_in_dt, dq_ex_dt = a_in * df_in_dt + f_in * da_in, f_ex * da_ex
@@ -313,10 +319,28 @@ def closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in, f_ex, vol, compl,
         s_e, se_p, se_t = 1.0, 0.0, 0.0
     if s_n < -1.0:
         s_n, sn_p, sn_t = -1.0, 0.0, 0.0
+    # the outflow at the chamber's temperature: the free terms' when they take air out,
+    # a reversed inlet's or an exhaust's change, the net flow's share of the outflows
+    o, o_p, o_t = 0.0, 0.0, 0.0
+    if m < 0.0:
+        o, o_p, o_t = -m, -dm_dp, -dm_dt
+    if q_i < 0.0:
+        o, o_p, o_t = (o - q_i * s_i, o_p - qi_p * s_i - q_i * si_p,
+                       o_t - qi_t * s_i - q_i * si_t)
+    if q_e > 0.0:
+        o, o_p, o_t = (o - q_e * s_e, o_p - qe_p * s_e - q_e * se_p,
+                       o_t - qe_t * s_e - q_e * se_t)
+    if s_n != 0.0:
+        ov, ov_p, ov_t = 0.0, 0.0, 0.0
+        if q_ex > 0.0:
+            ov, ov_p, ov_t = q_ex, dq_ex_dp, dq_ex_dt
+        if q_in < 0.0:
+            ov, ov_p, ov_t = ov - q_in, ov_p - dq_in_dp, ov_t - dq_in_dt
+        o, o_p, o_t = o + s_n * ov, o_p + sn_p * ov + s_n * ov_p, o_t + sn_t * ov + s_n * ov_t
     m += q_i * s_i + q_e * s_e + q_n * s_n
     dm_dp += qi_p * s_i + q_i * si_p + qe_p * s_e + q_e * se_p + qn_p * s_n + q_n * sn_p
     dm_dt += qi_t * s_i + q_i * si_t + qe_t * s_e + q_e * se_t + qn_t * s_n + q_n * sn_t
-    return m, dm_dp, dm_dt
+    return m, dm_dp, dm_dt, o, o_p, o_t
 
 
 @njit(cache=True, inline="always")
@@ -384,10 +408,11 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     # gives dp/dt = n (Rs T mdot - p vdot) / (V + n p C)
     vol, compl = compliant_volume(p, vol, sl, p_atm)
     closure = sl[_CL_N] > 0.0
-    m_cl = 0.0
+    m_cl, o_cl = 0.0, 0.0
     if closure:
-        m_cl = closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in0, f_ex0, vol,
-                            compl, vdot, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, cdir)[0]
+        m_cl, _, _, o_cl, _, _ = closure_flow(sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in0,
+                                              f_ex0, vol, compl, vdot, 0.0, 0.0, 0.0, 0.0,
+                                              0.0, 0.0, 0.0, cdir)
         mdot += m_cl
     denom = vol + kappa * p * compl
     inv_denom = 1.0 / denom
@@ -400,8 +425,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if thermal:
         m_out = (phi * (a_ex * max(f_ex, 0.0) + a_in * max(-f_in, 0.0))
                  + max(leak_out, 0.0))
-        if m_cl < 0.0:  # a closure's outflow leaves at the chamber's temperature
-            m_out -= m_cl
+        m_out += o_cl  # (the closure's part at the chamber's temperature)
     fp_eq5 = n_over_v * (rs_t * mdot + rs * (t_wall - te) * m_out - p * vdot)
     fp = fp_eq5
     ft = 0.0
@@ -428,9 +452,9 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
             dfex_dp, cs, dfloor)
         dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
                               dfloor)[0]
-    dcl_dp, dcl_dt = 0.0, 0.0
+    dcl_dp, dcl_dt, dcl_out_dp, dcl_out_dt = 0.0, 0.0, 0.0, 0.0
     if closure:  # (the port flows' slopes before the convective scaling)
-        _, dcl_dp, dcl_dt = closure_flow(
+        _, dcl_dp, dcl_dt, _, dcl_out_dp, dcl_out_dt = closure_flow(
             sl, p, p_atm, p_sup, spool, a_in, a_ex, f_in0, f_ex0, vol, compl, vdot,
             dfin_dp, dfex_dp, dsup, dspool, da_in, da_ex, dfin_dsup * dsup, cdir)
     dfin_dp *= sq_in
@@ -472,9 +496,8 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if leak_out > 0.0:
         dmout_dp += leak_o * dflk_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
-    if m_cl < 0.0:
-        dmout_dp -= dcl_dp
-        dmout_dt -= dcl_dt
+    dmout_dp += dcl_out_dp
+    dmout_dt += dcl_out_dt
     # the convective form's outflows scale by sqrt(T_w / te): d/dT = -c / (2 te) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
     if hconv > 0.0:
@@ -527,10 +550,10 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     Jacobians are only computed when ``need_j``.
 
     An open-form closure (slot ``closure_terms`` > 0; :func:`closure_flow`) adds its mass
-    flow to the chamber's, entering at the supply's temperature when positive and
-    leaving at the chamber's when negative. Its features read the port flows ``a f``
-    before the attenuation and the convective form's sqrt(T_w / T) (so they do not
-    depend on T), the volume after compliance, and ``spool`` (the command after the
+    flow to the chamber's, each part at its enthalpy (a port's term at its port's, any
+    other inflow at the supply's, outflow at the chamber's). Its features read the port
+    flows ``a f`` before the attenuation and the convective form's sqrt(T_w / T) (so not
+    on T), the volume after compliance, and ``spool`` (the command after the
     delay and the spool's lag, before the dead band; moving at ``dspool`` per second,
     which enters ``v_p``) and ``cdir`` (the delayed command's direction, +1, -1 or 0,
     constant between its changes). With ``closure_terms`` 0 none of it is evaluated: the

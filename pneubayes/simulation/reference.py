@@ -107,11 +107,14 @@ def _dead_band(s, halfwidth, rounding):
     return math.copysign(mag, s) if s != 0.0 else 0.0
 
 
-def _closure_flow(terms) -> float:
-    """A closure's mass flow into the chamber (kg/s) from its terms ``(c, name_a, F_a,
-    name_b, F_b)`` at one state: a term that reads a port's flow (its first) scales that
-    port, the port's factor clipped so its flow does not reverse; any other adds
-    ``c F_a F_b``."""
+def _closure_flow(terms, q_in: float, q_ex: float) -> tuple[float, float]:
+    """A closure's mass flow into the chamber and the part of it that leaves at the
+    chamber's temperature (kg/s each, the second an outflow) from its terms ``(c,
+    name_a, F_a, name_b, F_b)`` at one state, the valve's port flows ``q_in`` (in) and
+    ``q_ex`` (out): a term that reads a port's flow (its first) scales that port, the
+    port's factor clipped so its flow does not reverse, the change carrying the port's
+    enthalpy (``net_flow``'s both); any other adds ``c F_a F_b``, an outflow when
+    negative."""
     free, factor, flow = 0.0, {}, {}
     for c, name_a, fa, name_b, fb in terms:
         if name_a in PORT_FACTOR_LIMITS:
@@ -120,10 +123,16 @@ def _closure_flow(terms) -> float:
             factor[name_b], flow[name_b] = factor.get(name_b, 0.0) + c * fa, fb
         else:
             free += c * fa * fb
+    out = max(-free, 0.0)
+    # each port's outflow that its factor scales: a reversed inlet, the exhaust, both
+    leaving = {"inlet_flow": max(-q_in, 0.0), "exhaust_flow": max(q_ex, 0.0),
+               "net_flow": max(-q_in, 0.0) + max(q_ex, 0.0)}
     for name, s in factor.items():
         lo, hi = PORT_FACTOR_LIMITS[name]
-        free += flow[name] * min(max(s, lo), hi)
-    return free
+        s = min(max(s, lo), hi)
+        free += flow[name] * s
+        out += (-1.0 if name == "exhaust_flow" else 1.0) * leaving[name] * s
+    return free, out
 
 
 def low_passes(sl) -> list[tuple[float, float]]:
@@ -328,6 +337,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             k = min(max(int(np.searchsorted(vt_p, p)) - 1, 0), n_vt - 2)
             slope = (vt_v[k + 1] - vt_v[k]) / (vt_p[k + 1] - vt_p[k])
             v_c, compl = v_c + vt_v[k] + slope * (p - vt_p[k]), compl + slope
+        m_cl, out_cl = 0.0, 0.0
         if closure:  # its features: the port flows before attenuation and temperature
             signals = {"pressure_Pa": p, "supply_pressure_Pa": psup,
                        "atmospheric_pressure_Pa": p_atm, "spool": s,
@@ -341,17 +351,19 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
                        "net_flow_history": _Held(y, float(FEATURE_BY_NAME["net_flow_lag"]
                                                           .code)),
                        "spool_history": _Held(y, code_s), "held_command": held_at}
-            flows.append(_closure_flow(
+            m_cl, out_cl = _closure_flow(
                 [(c, fa, float(evaluate_feature(fa, signals, ta)), fb,
-                  float(evaluate_feature(fb, signals, tb))) for c, fa, ta, fb, tb in closure]))
+                  float(evaluate_feature(fb, signals, tb))) for c, fa, ta, fb, tb in closure],
+                float(a_in * f_in_raw), float(a_ex * f_out_raw))
         m_lung = 0.0
         if lung_v > 0:  # laminar flow into the second compartment (its pressure: last)
             m_lung = sl[S["lung_conductance_kg_per_s_Pa2"]] * (p * p - y[i_lung] ** 2)
             flows.append(-m_lung)
-        mdot = float(sum(flows))
+        mdot = float(sum(flows)) + m_cl
         # enthalpy: inflow at the supply temperature, outflow at the chamber's as the
         # pressure feels it (T_s at coupling 0, where this is eq. 5)
         enthalpy = sum(rs * (t_s if q > 0 else t_felt) * q for q in map(float, flows))
+        enthalpy += rs * (t_s * (m_cl + out_cl) - t_felt * out_cl)
         dp = kappa * (enthalpy - p * vdot) / (v_c + kappa * p * compl)
         dtemp = 0.0
         if heat > 0:
