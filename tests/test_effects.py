@@ -95,7 +95,7 @@ def test_catalogue_names():
                                "reading_play", "reading_command", "reading_flow",
                                "reading_hinge", "volume_closure",
                                "volume_play", "loaded_wall", "port_restriction", "command_clock",
-                               "valve_dead_time"]
+                               "valve_dead_time", "supply_restriction"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -885,7 +885,8 @@ def test_what_the_fits_and_the_loop_ask_of_an_effect_is_on_the_effect():
     own declarations: no code outside ``effects/`` names the effect to ask."""
     assert {n for n, c in CATALOGUE.items() if c.needs_warmup} == {"heat_transfer"}
     assert {n for n, c in CATALOGUE.items() if not c.beside_line} == {
-        "closure", "volume_closure", "volume_play", "loaded_wall", "port_restriction"}
+        "closure", "volume_closure", "volume_play", "loaded_wall", "port_restriction",
+        "supply_restriction"}
     for form in ("first_order", "second_order", "pressure_dependent"):
         lag = make_effect("sensor_lag", form=form)
         assert lag.reading_lead_parameter() in lag.parameter_names()

@@ -1,7 +1,8 @@
 """The effect catalogue: each physical effect is one small object behind one interface.
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
-``supply_fluctuation``, ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
+``supply_fluctuation``, ``supply_restriction`` (a restriction upstream of the valve's
+inlet), ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
 ``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
 ``closure`` (an open-form extra mass flow), ``reading_closure`` (open-form relaxations
 of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
@@ -14,7 +15,7 @@ volume), ``loaded_wall`` (an open-form wall with inertia: the chamber's volume a
 mass on a spring), ``port_restriction`` (an open-form restriction in series at the
 chamber's port), ``command_clock`` (an open-form valve driver on its own clock) and
 ``valve_dead_time`` (a valve's dead time that depends on the supply pressure), the last
-twelve never searched for by the discovery library.
+twelve, and ``supply_restriction``, never searched for by the discovery library.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from pneubayes.effects.sensor_lag import SensorLag
 from pneubayes.effects.sensor_nonlinearity import SensorNonlinearity
 from pneubayes.effects.spool_lag import SpoolLag
 from pneubayes.effects.supply_fluctuation import SupplyFluctuation
+from pneubayes.effects.supply_restriction import SupplyRestriction
 from pneubayes.effects.thin_port import ThinPort
 from pneubayes.effects.tube_delay import TubeDelay
 from pneubayes.effects.valve_dead_time import ValveDeadTime
@@ -55,7 +57,7 @@ CATALOGUE: dict[str, type[Effect]] = {
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
                 ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, LoadedWall,
-                PortRestriction, CommandClock, ValveDeadTime)
+                PortRestriction, CommandClock, ValveDeadTime, SupplyRestriction)
 }
 
 
@@ -151,7 +153,8 @@ __all__ = ["CATALOGUE", "Closure", "CommandClock", "Component", "CylinderLeak", 
            "SensorCalibration",
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",
-           "SupplyFluctuation", "ThinPort", "TubeDelay", "ValveDeadzone", "ValveStiction",
+           "SupplyFluctuation", "SupplyRestriction", "ThinPort", "TubeDelay",
+           "ValveDeadzone", "ValveStiction",
            "VolumeClosure", "VolumePlay", "LoadedWall", "PortRestriction",
            "catalogue_parameter_names",
            "make_effect"]

@@ -269,6 +269,12 @@ SLOTS += (
      "temperature a state (-)"),
 )
 
+SLOTS += (
+    ("supply_restriction_inverse_area_per_m2", "a restriction in series upstream of the "
+     "valve's inlet (a supply hose or fitting, a regulator's or a blower's flow limit): "
+     "1 / its area; the inlet sees the pressure between the two; 0 = none (1/m^2)"),
+)
+
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -30,7 +30,7 @@ import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
-from pneubayes.simulation.rates import port_areas
+from pneubayes.simulation.rates import inlet_supply, port_areas
 
 #: The laws that map a port's mass flow to the sensor's reading (before offset, gain).
 LAWS = ("square", "linear")
@@ -94,7 +94,8 @@ def port_flows(model, theta, recording) -> tuple[np.ndarray, np.ndarray]:
     for sl in slots:
         a_in, a_ex = port_areas(sl, u, ue)
         p_sup = p_nom + sl[S["supply_gain"]] * (ps - p_nom)
-        inlet.append(a_in * flow_function(p_sup, p, rig.gas))
+        inlet.append(a_in * flow_function(inlet_supply(sl, rig, p_sup, p, a_in), p,
+                                          rig.gas))
         exhaust.append(a_ex * f_ex)
     return np.array(inlet), np.array(exhaust)
 

@@ -23,6 +23,7 @@ from pneubayes.simulation.layout import (
     C_THETA,
 )
 from pneubayes.simulation.restriction import node_pressure, series_slopes
+from pneubayes.simulation.supply_restriction import supply_node, supply_slopes
 
 _VOL = SLOT_INDEX["volume_m3"]
 _ATT = SLOT_INDEX["flow_attenuation_Pa"]
@@ -40,6 +41,7 @@ _CL_N = SLOT_INDEX["closure_terms"]
 _RES_F = SLOT_INDEX["restriction_fill_inverse_area_per_m2"]
 _RES_V = SLOT_INDEX["restriction_vent_inverse_area_per_m2"]
 _RES_C = SLOT_INDEX["restriction_crack_Pa"]
+_SUP_R = SLOT_INDEX["supply_restriction_inverse_area_per_m2"]
 _CL_FA = SLOT_INDEX["closure_feature_a_0"]
 _CL_FB = SLOT_INDEX["closure_feature_b_0"]
 _CL_TA = SLOT_INDEX["closure_threshold_a_0"]
@@ -137,13 +139,15 @@ def net_port_flow(p, a_in, a_ex, p_sup, cs, sl):
     """The ports' net mass flow into the chamber ``a_in f(p_s, x) - a_ex f(x, P_atm)``
     (kg/s; eqs. 1-3, before the attenuation and the convective form's temperature
     scaling), as a closure's flow features read it: ``x`` the pressure the ports see, a
-    restriction's node in series (slots ``sl``) or the chamber's ``p``. (An acoustic or
-    wave line's first cell is not read here: beside a line the features read the ports
-    at the chamber.)"""
+    restriction's node in series (slots ``sl``) or the chamber's ``p``; the inlet fed
+    at a supply restriction's node where there is one. (An acoustic or wave line's first
+    cell is not read here: beside a line the features read the ports at the chamber.)"""
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     x = p
     if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
         x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
+    if sl[_SUP_R] > 0.0:
+        p_sup = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
     return (a_in * flow_terms(p_sup, x, alpha, beta, theta, kappa)[0]
             - a_ex * flow_terms(x, cs[C_P_ATM], alpha, beta, theta, kappa)[0])
 
@@ -362,7 +366,10 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     x = p  # the valve's ports' pressure: a restriction's node in series, or the chamber
     if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
         x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
+    p_in = p_sup  # the inlet's upstream pressure: a supply restriction's node, or p_s
+    if sl[_SUP_R] > 0.0:
+        p_in = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
     # the leak's: the chamber's own flow function to the atmosphere
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
@@ -441,8 +448,12 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if not need_j:
         return fp, 0.0, ft, 0.0, 0.0, 0.0, 0.0, 0.0
     dfloor = abs(fp) * h
-    dfin_dsup, dfin_dp = flow_slopes(p_sup, x, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+    dfin_dsup, dfin_dp = flow_slopes(p_in, x, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
+    share_in = 1.0  # (the inlet's through a supply restriction's node)
+    if p_in != p_sup:
+        dfin_dsup, dfin_dp, share_in = supply_slopes(p_sup, p_in, x, a_in, sl[_SUP_R],
+                                                     dfin_dsup, dfin_dp, cs, dfloor)
     dfex_dp, _ = flow_slopes(x, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dflk_dp = dfex_dp  # (the leak's: the chamber's own)
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
@@ -473,7 +484,8 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if heat > 0.0:
         jp += heat * (t_wall - te) / te
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
-    dmdot_dt = phi * (a_in * dfin_dsup * dsup + share * (f_in * da_in - f_ex * da_ex))
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup
+                      + share * (share_in * f_in * da_in - f_ex * da_ex))
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     if closure:
@@ -492,7 +504,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         dmout_dt += phi * share * f_ex * da_ex
     if f_in < 0.0:
         dmout_dp -= phi * a_in * dfin_dp
-        dmout_dt -= phi * (share * f_in * da_in + a_in * dfin_dsup * dsup)
+        dmout_dt -= phi * (share * share_in * f_in * da_in + a_in * dfin_dsup * dsup)
     if leak_out > 0.0:
         dmout_dp += leak_o * dflk_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
@@ -575,10 +587,13 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     alpha, beta, theta, kappa = cs[C_ALPHA], cs[C_BETA], cs[C_THETA], cs[C_KAPPA]
     p_atm = cs[C_P_ATM]
     x = p  # the valve's ports' pressure: a restriction's node in series, or the chamber
+    p_in = p_sup  # the inlet's upstream pressure: a supply restriction's node, or p_s
     if with_closure is not None:
         if sl[_RES_F] > 0.0 or sl[_RES_V] > 0.0:
             x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, x, alpha, beta, theta, kappa)
+        if sl[_SUP_R] > 0.0:
+            p_in = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
     # the leak's: the chamber's own flow function to the atmosphere
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
@@ -649,12 +664,16 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if not need_j:
         return fp, 0.0, ft, 0.0, 0.0, 0.0, 0.0, 0.0
     dfloor = abs(fp) * h
-    dfin_dsup, dfin_dp = flow_slopes(p_sup, x, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
+    dfin_dsup, dfin_dp = flow_slopes(p_in, x, sg_i, dg_i, r_i, rev_i, alpha, beta, kappa,
                                      dfloor)
     dfex_dp, _ = flow_slopes(x, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dflk_dp = dfex_dp  # (the leak's: the chamber's own)
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
+    share_in = 1.0  # (the inlet's through a supply restriction's node)
     if with_closure is not None:
+        if p_in != p_sup:
+            dfin_dsup, dfin_dp, share_in = supply_slopes(p_sup, p_in, x, a_in, sl[_SUP_R],
+                                                         dfin_dsup, dfin_dp, cs, dfloor)
         if x != p:  # the ports' slopes through the node; the leak's at the chamber
             dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
                 x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], dfin_dsup, dfin_dp,
@@ -675,7 +694,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if heat > 0.0:
         jp += heat * (t_wall - te) / te
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
-    dmdot_dt = phi * (a_in * dfin_dsup * dsup + share * (f_in * da_in - f_ex * da_ex))
+    dmdot_dt = phi * (a_in * dfin_dsup * dsup
+                      + share * (share_in * f_in * da_in - f_ex * da_ex))
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
@@ -692,7 +712,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
         dmout_dt += phi * share * f_ex * da_ex
     if f_in < 0.0:
         dmout_dp -= phi * a_in * dfin_dp
-        dmout_dt -= phi * (share * f_in * da_in + a_in * dfin_dsup * dsup)
+        dmout_dt -= phi * (share * share_in * f_in * da_in + a_in * dfin_dsup * dsup)
     if leak_out > 0.0:
         dmout_dp += leak_o * dflk_dp + 2.0 * leak_l * p
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam

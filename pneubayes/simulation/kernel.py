@@ -978,10 +978,10 @@ def _simulate(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0,
 def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
-    compartment), an open-form closure, a restriction at the port, a loaded wall, a
-    volume play, a second-order spool or a valve driver's clock (whose code the
-    pressure-only kernel leaves out, so that the plain model's first call compiles
-    less)."""
+    compartment), an open-form closure, a restriction at the port or upstream of the
+    inlet, a loaded wall, a volume play, a second-order spool or a valve driver's clock
+    (whose code the pressure-only kernel leaves out, so that the plain model's first
+    call compiles less)."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
@@ -993,7 +993,8 @@ GENERAL_SLOTS = np.array([_HCOUP, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
     SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
     SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"],
     SLOT_INDEX["restriction_fill_inverse_area_per_m2"],
-    SLOT_INDEX["restriction_vent_inverse_area_per_m2"]])
+    SLOT_INDEX["restriction_vent_inverse_area_per_m2"],
+    SLOT_INDEX["supply_restriction_inverse_area_per_m2"]])
 
 
 @njit(cache=True, error_model="numpy")

@@ -32,6 +32,7 @@ from pneubayes.physics.valve import gompertz_area, switching_areas
 from pneubayes.rig import Rig
 from pneubayes.simulation.layout import rig_constants
 from pneubayes.simulation.restriction import node_pressures
+from pneubayes.simulation.supply_restriction import supply_nodes
 
 _PORT = ("offset_m2", "a_m2", "b", "c_per_V", "d_V")
 
@@ -129,6 +130,17 @@ def port_pressure(slots: np.ndarray, rig: Rig, pressure_Pa, supply_Pa, inlet_are
         return pressure_Pa
     return node_pressures(pressure_Pa, supply_Pa, inlet_area_m2, exhaust_area_m2, k_fill,
                           k_vent, slots[S["restriction_crack_Pa"]], rig_constants(rig))
+
+
+def inlet_supply(slots: np.ndarray, rig: Rig, supply_Pa, port_Pa, inlet_area_m2):
+    """The pressure (Pa) the valve's inlet is fed at: a supply restriction's node where
+    the slot row (or rows, broadcast as the other arguments) has one
+    (:func:`pneubayes.simulation.supply_restriction.supply_nodes`), else the supply;
+    ``port_Pa`` the pressure the ports see (:func:`port_pressure`)."""
+    k = slots[S["supply_restriction_inverse_area_per_m2"]]
+    if not np.any(k > 0.0):
+        return supply_Pa
+    return supply_nodes(supply_Pa, port_Pa, inlet_area_m2, k, rig_constants(rig))
 
 
 def port_areas(slots: np.ndarray, spool_V, exhaust_command=None
@@ -231,8 +243,9 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     ``include_closure=False`` leaves a closure's term at zero (for callers that read
     only the ports' terms). Beside a restriction at the port (``port_restriction``) the
     ports pass their flows at its node's pressure
-    (:func:`pneubayes.simulation.restriction.node_pressures`); the leak and the closure's
-    flows read as the simulator reads them. A supply tank
+    (:func:`pneubayes.simulation.restriction.node_pressures`), the inlet at a supply
+    restriction's node (:func:`inlet_supply`); the leak and the closure's flows read as
+    the simulator reads them. A supply tank
     (slot ``tank_volume_m3``) needs a trajectory: here the supply is the given one; so
     does a second compartment's pressure (slot ``lung_volume_m3``): its flow is left out
     here (the simulator carries it).
@@ -255,7 +268,8 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
     x = port_pressure(sl, rig, p, p_sup, a_in, a_ex)
-    f_in, f_ex = flow_function(p_sup, x, g), flow_function(x, p_atm, g)
+    f_in = flow_function(inlet_supply(sl, rig, p_sup, x, a_in), x, g)
+    f_ex = flow_function(x, p_atm, g)
     q_in, q_ex = a_in * f_in, a_ex * f_ex
     inlet = scale * atten * q_in
     exhaust = -scale * atten * q_ex

@@ -86,6 +86,20 @@ def _node_pressure(p, p_sup, a_in, a_ex, k_fill, k_vent, crack, law, p_atm):
     return brentq(surplus, lo, hi, xtol=1e-9, rtol=4 * np.finfo(float).eps)
 
 
+def _supply_node(p_sup, x, a_in, k, law):
+    """The pressure between a restriction of inverse area ``k`` upstream of the valve's
+    inlet and the inlet (area ``a_in``, its port at ``x``): the root of the node's mass
+    balance by Brent's method (``p_sup`` where nothing flows)."""
+    if not (k > 0 and a_in > 0) or p_sup == x:
+        return p_sup
+
+    def surplus(n):
+        return _flow(p_sup, n, *law) / k - a_in * _flow(n, x, *law)
+
+    return brentq(surplus, min(p_sup, x), max(p_sup, x), xtol=1e-9,
+                  rtol=4 * np.finfo(float).eps)
+
+
 def _gompertz(u, offset, a, b, c, d):
     """Eq. 11, m^2."""
     return offset + a * math.exp(-b * math.exp(-c * (u + d)))
@@ -211,6 +225,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     else:
         v_line = 0.0
 
+    k_supply = sl[S["supply_restriction_inverse_area_per_m2"]]  # upstream of the inlet
     k_fill = sl[S["restriction_fill_inverse_area_per_m2"]]  # a port's restriction
     k_vent = sl[S["restriction_vent_inverse_area_per_m2"]]
     crack = sl[S["restriction_crack_Pa"]]
@@ -301,7 +316,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         if (k_fill > 0 or k_vent > 0) and not nseg:  # the ports see the node's pressure
             p_valve = _node_pressure(p, psup, a_in, a_ex, k_fill, k_vent, crack, law, p_atm)
         # each mass flow into the chamber (kg/s, negative = out)
-        f_in = f_in_raw = _flow(psup, p_valve, *law)
+        p_in = _supply_node(psup, p_valve, a_in, k_supply, law)
+        f_in = f_in_raw = _flow(p_in, p_valve, *law)
         f_out = f_out_raw = _flow(p_valve, p_atm, *law)
         net_raw = float(a_in * f_in_raw - a_ex * f_out_raw)  # (a flow lag's signal)
         if net_flow_only:

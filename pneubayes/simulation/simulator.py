@@ -60,7 +60,8 @@ _FORM_COLUMNS = {name: i for i, name in enumerate((
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
     "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
     "restriction_fill_inverse_area_per_m2", "restriction_vent_inverse_area_per_m2",
-    "spool_natural_frequency_rad_per_s", "command_clock_period_s",
+    "supply_restriction_inverse_area_per_m2", "spool_natural_frequency_rad_per_s",
+    "command_clock_period_s",
     *VOLUME_PLAY_COMPLIANCE_SLOTS))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
 #: The form columns the pressure-only kernel leaves to the general one
@@ -149,6 +150,12 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                          "sits between the valve's ports and the chamber: it cannot be "
                          f"combined with {lines}, a supply tank or a second compartment in "
                          "one model")
+    supplied = has("supply_restriction_inverse_area_per_m2")
+    if np.any(supplied & (line | tank | restricted)):
+        raise ValueError("a restriction upstream of the valve's inlet (effect "
+                         "'supply_restriction') feeds the inlet as the chamber's ports see "
+                         f"it: it cannot be combined with {lines}, a supply tank or a "
+                         "restriction at the port in one model")
     if np.any(wave & (hot | has("line_length_m"))):
         raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
                          "with the chamber's pressure as its only state: it cannot be "

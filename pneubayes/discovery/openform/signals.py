@@ -37,6 +37,7 @@ from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
 from pneubayes.simulation import Inputs
 from pneubayes.simulation.rates import (
+    inlet_supply,
     port_areas,
     port_pressure,
     rate_terms,
@@ -118,7 +119,8 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
     ports = port_pressure(sl, rig, p, p_sup, a_in, a_ex)  # (a restriction's node)
-    f_in, f_ex = flow_function(p_sup, ports, g), flow_function(ports, p_atm, g)
+    f_in = flow_function(inlet_supply(sl, rig, p_sup, ports, a_in), ports, g)
+    f_ex = flow_function(ports, p_atm, g)
     inlet, exhaust = a_in * f_in, a_ex * f_ex
     dvol, slope = tabulated_volume(sl, p)
     compliance = sl[S["compliance_m3_per_Pa"]] + slope
