@@ -296,3 +296,63 @@ def test_a_planted_restriction_is_recovered_by_a_trajectory_fit(rig, valve_param
                             max_nfev=40, uncertainty=False).fit(
         [rec], dict(truth, supply_restriction=1e6))
     assert fit.params_["supply_restriction"] == pytest.approx(2.5e6, rel=1e-2)
+
+
+# ---------------------------------------------------------------- the rig card's kind
+_CARD = {
+    "format": "pneubayes-rig/1", "name": "a valve behind a supply hose",
+    "atmospheric_pressure_Pa": P_ATM, "temperature_K": 296.0,
+    "command": {"unit": "duty", "range": [0.0, 1.0]},
+    "chamber": {"kind": "fixed", "volume_m3": 5e-5},
+    "valve": {"kind": "gompertz", "inlet_offset_m2": 0.0, "inlet_a_m2": 2e-6,
+              "inlet_b": 5.0, "inlet_c_per_V": 10.0, "inlet_d_V": -0.3,
+              "exhaust_offset_m2": 0.0, "exhaust_a_m2": 3e-6, "exhaust_b": 5.0,
+              "exhaust_c_per_V": -10.0, "exhaust_d_V": -0.7},
+    "supply": {"kind": "restricted", "restriction_area_m2": 1e-6, "pressure_Pa": P_SUP},
+}
+
+
+def test_a_restricted_supply_card_is_the_effect_at_its_area():
+    """Supply kind ``restricted`` lowers to the effect's slot at 1 / its area: the same
+    pressures as the constant supply beside ``supply_restriction``; a prior on the area
+    makes it the fitted ``supply_restriction_area_m2``; it round-trips."""
+    import json
+
+    from rig_helpers import edited_card
+
+    from pneubayes.physics.gas import GasConstants
+    from pneubayes.rig import Rig
+    from pneubayes.rigcard import RigCard
+
+    rig = Rig(0.01, P_ATM, P_SUP, gas=GasConstants(temperature_K=296.0))
+    t = np.arange(301) * 1e-3
+    inp = Inputs(t, 0.5 + 0.5 * np.sin(2 * np.pi * 5 * t), np.zeros_like(t),
+                 np.full(t.size, P_SUP))
+    c = edited_card(_CARD)
+    assert RigCard.from_dict(json.loads(json.dumps(c.to_dict()))) == c
+    got = simulate(Model(rig_card=c), np.zeros((1, 0)), inp, rig, 2e5, _tight()).pressure_Pa[0]
+    plain = edited_card(_CARD, supply={"kind": "constant", "pressure_Pa": P_SUP})
+    want = simulate(Model([SupplyRestriction()], rig_card=plain), {"supply_restriction": 1e6},
+                    inp, rig, 2e5, _tight()).pressure_Pa[0]
+    free = simulate(Model(rig_card=plain), np.zeros((1, 0)), inp, rig, 2e5,
+                    _tight()).pressure_Pa[0]
+    np.testing.assert_array_equal(got, want)
+    assert np.max(np.abs(got - free)) > 1e4
+    fitted = edited_card(_CARD, supply__restriction_area_m2={"prior": "log-uniform",
+                                                             "bounds": [1e-8, 1e-4]})
+    assert Model(rig_card=fitted).parameter_names == ("supply_restriction_area_m2",)
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"supply__restriction_area_m2": -1e-6}, ["'restriction_area_m2'", "> 0"]),
+    ({"supply__pressure_Pa": "gauge"}, ["'pressure_Pa'", "measured"]),
+])
+def test_a_bad_restricted_supply_names_the_key(changes, words):
+    from rig_helpers import edited_card
+
+    from pneubayes.errors import RigCardError
+
+    with pytest.raises(RigCardError) as err:
+        edited_card(_CARD, **changes)
+    for w in words:
+        assert w in str(err.value), (w, str(err.value))

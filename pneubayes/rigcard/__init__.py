@@ -3,8 +3,8 @@
 Importing this package registers the shipped kinds (one module each):
 chamber ``fixed``, ``compliant``, ``compliant_table``, ``piston``, ``polynomial``,
 ``table`` and ``two_compartment``; valve ``gompertz``, ``switching`` and ``table``;
-supply ``measured``, ``constant`` and ``tank``; a separate exhaust valve ``gompertz``
-and ``linear``.
+supply ``measured``, ``constant``, ``tank`` and ``restricted``; a separate exhaust
+valve ``gompertz`` and ``linear``.
 """
 
 from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
@@ -19,6 +19,7 @@ from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
     exhaust_linear,
     supply_constant,
     supply_measured,
+    supply_restricted,
     supply_tank,
     valve_gompertz,
     valve_switching,
