@@ -229,8 +229,8 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0, "heat_transfer_coupling": 1.0}}
     cands = effect_candidates(fit, "heat_transfer", heat_10, rig)
     forms = [m.effect("heat_transfer").options()["form"] for m, _ in cands]
-    assert forms == ["rate", "convective"]
-    (_, rate_start), (_, conv_start) = cands
+    assert forms == ["rate", "convective", "forced"]
+    (_, rate_start), (_, conv_start), _ = cands
     assert rate_start["heat_transfer_rate_per_s"] == pytest.approx(10.0)
     h = conv_start["heat_transfer_coefficient_W_per_m2_K"]
     gas = rig.gas
@@ -247,7 +247,7 @@ def test_a_named_heat_exchange_is_tried_in_both_forms_at_the_same_strength(rig):
     # keeps it, the rate from the fallback
     partial = effect_candidates(fit, "heat_transfer",
                                 {"best_term_start": {"heat_transfer_coupling": 0.6}}, rig)
-    (_, rate_start), (_, conv_start) = partial
+    (_, rate_start), (_, conv_start), _ = partial
     assert rate_start["heat_transfer_rate_per_s"] == 5.0
     assert rate_start["heat_transfer_coupling"] == 0.6
     assert conv_start["heat_transfer_coupling"] == 0.6
@@ -679,7 +679,7 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
         "transport", "wave"]
     plain = context(Model(), {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0})
     assert [f.form for f, _ in make_effect("heat_transfer").candidate_forms(plain)] == [
-        "rate", "convective"]
+        "rate", "convective", "forced"]
     # a friction-held wall (whose table the simulator lays itself, so no slot shows a
     # table) takes the second state too: no heat beside it (a loop that had found a wall
     # stopped with the simulator's error when it tried heat transfer beside it)

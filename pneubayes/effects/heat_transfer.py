@@ -1,15 +1,13 @@
-"""Heat exchange between the chamber air and its wall (Richer & Hurmuzlu 2000), in two forms.
+"""Heat exchange between the chamber air and its wall (Richer & Hurmuzlu 2000), in three forms.
 
-The paper's eq. 5 is isentropic with the temperature fixed at the supply's. Both forms
-make the chamber temperature T a state, with the wall at the supply temperature T_w:
+Eq. 5 is isentropic with the temperature fixed at the supply's. Every form makes the
+chamber temperature T a state, with the wall at the supply temperature T_w:
 
 - ``dp/dt = kappa / V (Rs (T_w m_in - T m_out) - p dV/dt) + (kappa - 1) Q / V``: eq. 5
   with the air that leaves carrying the chamber's temperature (inflow at the supply's),
   plus the wall heat flow Q;
 - ``dT/dt = T (dp/dt / p + dV/dt / V - Rs T mdot / (p V))`` (ideal gas, mass balance).
-
-(Outflow at the supply's enthalpy, as an earlier version had it, makes T run away once
-it exceeds kappa T_w -- after a compression -- whenever the chamber vents.)
+  (Outflow at the supply's enthalpy makes T run away after a compression when it vents.)
 
 ``form="rate"``: ``Q = m c_v (T_w - T) / tau``, i.e. ``(kappa - 1) Q / V = p (T_w - T) /
 (T tau)``, with the exchange rate ``heat_transfer_rate_per_s`` = 1/tau. The orifice mass
@@ -24,7 +22,11 @@ A, holding volume V), and orifice flows leaving the chamber scaled by sqrt(T_w /
 ``(kappa - 1) h A_w T / (p V)``, is fastest in small volumes and at low pressure, as in
 real chambers; the rate form cannot change its rate along a stroke.
 
-Both forms have a coupling ``heat_transfer_coupling`` c in [0, 1]: the pressure equation
+``form="forced"``: the convective form with ``h = h_0 + h_j m_in / (1 g/s)``
+(``heat_transfer_jet_W_per_m2_K`` h_j; ``m_in`` the valve's inflow): a fill's jet stirs
+the gas (forced convection), more exchange while it fills. ``h_j = 0`` is convective.
+
+Every form has a coupling ``heat_transfer_coupling`` c in [0, 1]: the pressure equation
 reads ``T_w + c (T - T_w)`` wherever it reads T (the outflow's enthalpy, the wall's heat
 and the outflows' sqrt(T_w / T)); T itself follows the gas law. c = 1 is the energy
 equation above; c = 0 is eq. 5 exactly, and the family passes through it continuously,
@@ -32,9 +34,8 @@ so the plain model is this effect at zero strength (c = 0) and a fit of the effe
 contains the fit without it. The exchange alone cannot do that: as the rate or h falls
 to 0 at c = 1 the chamber becomes *adiabatic* with outflow at its own temperature, which
 is not eq. 5 (docs/history.md, 2026-12-07, has how far apart the two are).
-A real chamber with a warm or cold wall, a nonuniform gas, or heat exchange in the
-valve's body sits between the two; c < 1 says that the pressure follows its temperature
-less than a well-mixed chamber at the wall's temperature would.
+A warm or cold wall, a nonuniform gas or exchange in the valve's body sit between (c <
+1: the pressure follows its temperature less than a well-mixed chamber would).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from pneubayes.effects.discovery import CandidateContext, RelaxationTerm
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.rig import Rig
 
-_FORMS = ("rate", "convective")
+_FORMS = ("rate", "convective", "forced")
 
 
 class HeatTransfer(Effect):
@@ -58,7 +59,8 @@ class HeatTransfer(Effect):
     #: The forms (``form`` option) this effect has; the first is the default.
     forms = _FORMS
     cheap_forms = True
-    acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K", "heat_coupling")
+    acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K", "heat_coupling",
+               "heat_jet_coefficient_W_per_m2_K")
     #: the chamber temperature: a state no recording measures
     needs_warmup = True
 
@@ -88,9 +90,14 @@ class HeatTransfer(Effect):
             return (Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
                               "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),
                     coupling)
-        return (Parameter("heat_transfer_coefficient_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
-                          "uniform", "convective heat-transfer coefficient to the wall",
-                          neutral=0.0), coupling)
+        h = Parameter("heat_transfer_coefficient_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
+                      "uniform", "convective heat-transfer coefficient to the wall",
+                      neutral=0.0)
+        if self.form == "convective":
+            return (h, coupling)
+        return (h, Parameter("heat_transfer_jet_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
+                             "uniform", "the coefficient's growth at an inflow of 1 g/s "
+                             "(forced convection by the fill's jet)", neutral=0.0), coupling)
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
@@ -99,9 +106,13 @@ class HeatTransfer(Effect):
             return {"heat_rate_per_s": np.asarray(values["heat_transfer_rate_per_s"],
                                                   dtype=np.float64),
                     "heat_coupling": coupling}
-        return {"heat_coefficient_W_per_m2_K": np.asarray(
+        out = {"heat_coefficient_W_per_m2_K": np.asarray(
             values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64),
             "heat_coupling": coupling}
+        if self.form == "forced":
+            out["heat_jet_coefficient_W_per_m2_K"] = np.asarray(
+                values["heat_transfer_jet_W_per_m2_K"], dtype=np.float64)
+        return out
 
     # ------------------------------------------------------------------ discovery
     library_strengths = (1.0, 3.0, 10.0, 30.0, 100.0)
@@ -117,14 +128,16 @@ class HeatTransfer(Effect):
                                     rate_per_s=r) for r in strengths)
 
     def candidate_forms(self, ctx: CandidateContext):
-        """Both forms, the rate at the best term's and the convective coefficient giving
+        """Every form, the rate at the best term's and the convective coefficient giving
         that rate, ``(kappa - 1) h (A_w / V) T / p = rate``, at mid-stroke and mid-range
-        pressure, so neither starts handicapped. None where the model has no room for
+        pressure, so neither starts handicapped; the forced form at that coefficient
+        and a jet that doubles it at 1 g/s. None where the model has no room for
         the temperature state (a rig card's compliant chamber, tank or second
         compartment, or a transmission-line tube); beside an acoustic line the
         temperature joins the line's state."""
         if not ctx.second_state_free or ctx.slot("wave_length_m") > 0:
             return []
+        lined = ctx.slot("line_length_m") > 0  # (the forced form is not stepped there)
         rate_form = HeatTransfer(**{**self.options(), "form": "rate"})
         # (a start may name only some of them: the other form's fitted coupling)
         start = {**self.discovery_fallback, **self.candidate_start(ctx.term_start)}
@@ -139,14 +152,23 @@ class HeatTransfer(Effect):
         gas = rig.gas
         h = rate * p_mid * vol / ((gas.heat_capacity_ratio - 1.0) * gas.temperature_K * wall)
         conv = HeatTransfer(**{**self.options(), "form": "convective"})
+        forced = HeatTransfer(**{**self.options(), "form": "forced"})
+        h = ctx.inside(conv, "heat_transfer_coefficient_W_per_m2_K", h)
         return [(rate_form, {"heat_transfer_rate_per_s": rate,
                              "heat_transfer_coupling": coupling}),
                 (conv, {"heat_transfer_coefficient_W_per_m2_K": h,
-                        "heat_transfer_coupling": coupling})]
+                        "heat_transfer_coupling": coupling})] + ([] if lined else [
+                (forced, {"heat_transfer_coefficient_W_per_m2_K": h,
+                          "heat_transfer_jet_W_per_m2_K": ctx.inside(
+                              forced, "heat_transfer_jet_W_per_m2_K", h),
+                          "heat_transfer_coupling": coupling})])
 
     def bench_defaults(self):
         if self.form == "rate":
             # a wall time constant of 0.2 s, typical of small cylinders
             return {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0}
+        if self.form == "forced":  # still air, and a fill's jet of 1 g/s: 4 x
+            return {"heat_transfer_coefficient_W_per_m2_K": 20.0,
+                    "heat_transfer_jet_W_per_m2_K": 60.0, "heat_transfer_coupling": 1.0}
         # natural to weakly forced convection in a small cylinder
         return {"heat_transfer_coefficient_W_per_m2_K": 30.0, "heat_transfer_coupling": 1.0}

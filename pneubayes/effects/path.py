@@ -273,6 +273,9 @@ SLOTS += (
     ("supply_restriction_inverse_area_per_m2", "a restriction in series upstream of the "
      "valve's inlet (a supply hose or fitting, a regulator's or a blower's flow limit): "
      "1 / its area; the inlet sees the pressure between the two; 0 = none (1/m^2)"),
+    ("heat_jet_coefficient_W_per_m2_K", "forced convection by the fill's jet: the wall "
+     "heat-transfer coefficient grows by this at an inflow of 1 g/s, linearly in the "
+     "inflow (heat_transfer form 'forced'; 0 = none) (W/(m^2 K))"),
 )
 
 #: Most cells of an acoustic line the compiled simulator holds.

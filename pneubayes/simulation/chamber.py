@@ -33,6 +33,7 @@ _LEAK_LG = SLOT_INDEX["leak_laminar_gradient_kg_per_s_Pa2_m"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _HCOUP = SLOT_INDEX["heat_coupling"]
+_HJET = SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]
 _COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
 _VT_N = SLOT_INDEX["volume_table_points"]
 _VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
@@ -53,6 +54,8 @@ _CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
 #: values of :mod:`pneubayes.effects.closure_features`, which a test checks).
 _AREA_SCALE = 1e-6
 _VOLUME_SCALE = 1e-6
+#: The inflow at which the forced heat form's coefficient adds ``heat_jet`` (kg/s).
+JET_FLOW_REF_KG_PER_S = 1e-3
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -383,10 +386,12 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     thermal = coup > 0.0
     te = t_wall + coup * (temp - t_wall) if thermal else t_wall
     hconv = sl[_HCONV] if thermal else 0.0
+    hjet = sl[_HJET] if thermal else 0.0
+    conv = hconv > 0.0 or hjet > 0.0
     heat = sl[_HEAT] if thermal else 0.0
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
     sq_in, sq_ex, sq_lk = 1.0, 1.0, 1.0
-    if hconv > 0.0:
+    if conv:
         sq = math.sqrt(t_wall / te)
         if f_in < 0.0:
             sq_in = sq
@@ -438,8 +443,12 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     ft = 0.0
     # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
     c_wall, dc_wall_dv = 0.0, 0.0
-    if hconv > 0.0:
-        c_wall, dc_wall_dv = wall_exchange(kappa, hconv, cs[C_BORE_AREA], vol)
+    stir = 0.0  # the inflow that stirs the gas (the forced form's coefficient), kg/s
+    if conv:
+        if hjet > 0.0 and f_in > 0.0:
+            stir = phi * a_in * f_in
+        c_wall, dc_wall_dv = wall_exchange(kappa, hconv + hjet * stir / JET_FLOW_REF_KG_PER_S,
+                                           cs[C_BORE_AREA], vol)
         fp += c_wall * (t_wall - te)
     if heat > 0.0:
         fp += p * heat * (t_wall - te) / te
@@ -491,8 +500,13 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if closure:
         dmdot_dt += dcl_dt
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
-    if hconv > 0.0:
+    if conv:
         vp += dc_wall_dv * vdot * (t_wall - te)
+    if stir > 0.0:  # the forced form's coefficient follows the inflow in p and t
+        g_jet = (hjet / JET_FLOW_REF_KG_PER_S * (t_wall - te)
+                 * wall_exchange(kappa, 1.0, cs[C_BORE_AREA], vol)[0])
+        jp += g_jet * phi * a_in * (dfin_dp + att / (p * p) * f_in)
+        vp += g_jet * phi * (a_in * dfin_dsup * dsup + share * share_in * f_in * da_in)
     if not thermal:
         return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
     # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).
@@ -512,7 +526,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     dmout_dt += dcl_out_dt
     # the convective form's outflows scale by sqrt(T_w / te): d/dT = -c / (2 te) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
-    if hconv > 0.0:
+    if conv:
         half = -0.5 * coup / te
         if f_in < 0.0:
             dmdot_dT += phi * a_in * f_in * half
@@ -607,10 +621,14 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     thermal = coup > 0.0
     te = t_wall + coup * (temp - t_wall) if thermal else t_wall
     hconv = sl[_HCONV] if thermal else 0.0
+    hjet = 0.0
+    if with_closure is not None:
+        hjet = sl[_HJET] if thermal else 0.0
+    conv = hconv > 0.0 or hjet > 0.0
     heat = sl[_HEAT] if thermal else 0.0
     # convective form: orifice flows leaving the chamber at T scale by sqrt(T_w / T)
     sq_in, sq_ex, sq_lk = 1.0, 1.0, 1.0
-    if hconv > 0.0:
+    if conv:
         sq = math.sqrt(t_wall / te)
         if f_in < 0.0:
             sq_in = sq
@@ -654,8 +672,12 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     ft = 0.0
     # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
     c_wall, dc_wall_dv = 0.0, 0.0
-    if hconv > 0.0:
-        c_wall, dc_wall_dv = wall_exchange(kappa, hconv, cs[C_BORE_AREA], vol)
+    stir = 0.0  # the inflow that stirs the gas (the forced form's coefficient), kg/s
+    if conv:
+        if hjet > 0.0 and f_in > 0.0:
+            stir = phi * a_in * f_in
+        c_wall, dc_wall_dv = wall_exchange(kappa, hconv + hjet * stir / JET_FLOW_REF_KG_PER_S,
+                                           cs[C_BORE_AREA], vol)
         fp += c_wall * (t_wall - te)
     if heat > 0.0:
         fp += p * heat * (t_wall - te) / te
@@ -699,8 +721,13 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if leak_g != 0.0:
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
-    if hconv > 0.0:
+    if conv:
         vp += dc_wall_dv * vdot * (t_wall - te)
+    if stir > 0.0:  # the forced form's coefficient follows the inflow in p and t
+        g_jet = (hjet / JET_FLOW_REF_KG_PER_S * (t_wall - te)
+                 * wall_exchange(kappa, 1.0, cs[C_BORE_AREA], vol)[0])
+        jp += g_jet * phi * a_in * (dfin_dp + att / (p * p) * f_in)
+        vp += g_jet * phi * (a_in * dfin_dsup * dsup + share * share_in * f_in * da_in)
     if not thermal:
         return fp, jp, ft, 0.0, vp, 0.0, 0.0, 0.0
     # The temperature's entries (the full 2 x 2 Jacobian keeps the method's order).
@@ -718,7 +745,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
         dmout_dt += leak_g * vdot / cs[C_BORE_AREA] * lam
     # the convective form's outflows scale by sqrt(T_w / te): d/dT = -c / (2 te) of each
     dmdot_dT, dmout_dT = 0.0, 0.0
-    if hconv > 0.0:
+    if conv:
         half = -0.5 * coup / te
         if f_in < 0.0:
             dmdot_dT += phi * a_in * f_in * half

@@ -212,10 +212,11 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     w_r, z_r = sl[S["sensor_natural_frequency_rad_per_s"]], sl[S["sensor_damping"]]
     heat = sl[S["heat_rate_per_s"]]
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
+    h_jet = sl[S["heat_jet_coefficient_W_per_m2_K"]]  # per g/s of inflow
     coup = sl[S["heat_coupling"]]
     thermal = coup > 0
     if not thermal:
-        heat = h_wall = 0.0
+        heat = h_wall = h_jet = 0.0
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
     if nseg:
         dia, mu = sl[S["line_diameter_m"]], sl[S["line_viscosity_Pa_s"]]
@@ -323,7 +324,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         if net_flow_only:
             return net_raw
         f_leak = _flow(p, p_atm, *law)
-        if h_wall > 0:  # orifice outflows at the chamber's temperature (eq. 1); an
+        if h_wall > 0 or h_jet > 0:  # orifice outflows at the chamber's temperature; an
             # acoustic line's gas is at the supply's temperature, and so its ports' gas
             if not nseg:
                 f_in = f_in * (math.sqrt(t_s / t_felt) if f_in < 0 else 1.0)
@@ -384,8 +385,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         dtemp = 0.0
         if heat > 0:
             dp = dp + p * heat * (t_s - t_felt) / t_felt
-        if h_wall > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel
-            dp = dp + ((kappa - 1.0) * h_wall * float(wall_area_m2(vol, rig.bore_area_m2))
+        if h_wall > 0 or h_jet > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel;
+            # the forced form's h grows with the inflow (per g/s)
+            h = h_wall + h_jet * max(float(port[0]), 0.0) / 1e-3
+            dp = dp + ((kappa - 1.0) * h * float(wall_area_m2(vol, rig.bore_area_m2))
                        * (t_s - t_felt) / vol)
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))

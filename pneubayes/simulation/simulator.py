@@ -60,7 +60,8 @@ _FORM_COLUMNS = {name: i for i, name in enumerate((
     "exhaust_own_command", "tank_volume_m3", "compliance_m3_per_Pa", "volume_table_points",
     "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
     "restriction_fill_inverse_area_per_m2", "restriction_vent_inverse_area_per_m2",
-    "supply_restriction_inverse_area_per_m2", "spool_natural_frequency_rad_per_s",
+    "supply_restriction_inverse_area_per_m2", "heat_jet_coefficient_W_per_m2_K",
+    "spool_natural_frequency_rad_per_s",
     "command_clock_period_s",
     *VOLUME_PLAY_COMPLIANCE_SLOTS))}
 _FORM_SLOTS = np.array([SLOT_INDEX[name] for name in _FORM_COLUMNS])
@@ -150,6 +151,9 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                          "sits between the valve's ports and the chamber: it cannot be "
                          f"combined with {lines}, a supply tank or a second compartment in "
                          "one model")
+    if np.any(has("heat_jet_coefficient_W_per_m2_K") & line):
+        raise ValueError("forced convection by the fill's jet (heat_transfer form "
+                         f"'forced') is stepped in the chamber's body: not beside {lines}")
     supplied = has("supply_restriction_inverse_area_per_m2")
     if np.any(supplied & (line | tank | restricted)):
         raise ValueError("a restriction upstream of the valve's inlet (effect "
