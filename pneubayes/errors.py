@@ -58,6 +58,17 @@ class ModelCardError(PneubayesError, ValueError):
     """
 
 
+class FormCombinationError(PneubayesError, ValueError):
+    """A model combines forms the simulator cannot step together (two that each need
+    the chamber's second state, a closure reading ports a tube puts out of reach, ...).
+
+    Parameters
+    ----------
+    message : str
+        The forms, and why they cannot be stepped together.
+    """
+
+
 class SimulationError(PneubayesError, RuntimeError):
     """The integrator failed.
 

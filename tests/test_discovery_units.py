@@ -461,6 +461,29 @@ def test_later_forms_are_skipped_once_any_trial_of_the_round_fits_at_the_noise_f
         FormSettings(settled_ratio=0.5)
 
 
+def test_a_form_the_simulator_cannot_combine_is_a_failed_trial_not_a_failed_loop():
+    """A candidate form the simulator refuses beside the model (FormCombinationError:
+    the forced heat form beside an acoustic line ended two development loops before the
+    candidates knew of it) is recorded as that effect's failed form; the round goes on."""
+    from types import SimpleNamespace
+
+    from pneubayes.discovery.rounds import fit_round_forms
+    from pneubayes.errors import FormCombinationError
+
+    def fit(g, model, start, beat=None):
+        if model == "line":
+            raise FormCombinationError("the line cannot sit beside that\nsecond line")
+        return SimpleNamespace(train_rmse_Pa=900.0)
+
+    forms, settled, failed, _ = fit_round_forms(
+        {"tube_delay": [("transport", {}), ("line", {})], "heat_transfer": [("rate", {})]},
+        fit, 0.0)
+    assert [m for _, m, _ in forms["tube_delay"]] == ["transport"]
+    assert [m for _, m, _ in forms["heat_transfer"]] == ["rate"]
+    assert failed["tube_delay"] == [("line", "FormCombinationError: the line cannot sit "
+                                             "beside that")]
+
+
 def test_later_forms_only_for_effects_whose_first_form_keeps_up_with_the_rounds_best():
     """An effect's later (costly) forms are fitted only when its first form's training
     gain is at least ``min_share`` of the round's best first-form gain; a later form is
@@ -673,6 +696,17 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
     assert ctx.slot("heat_rate_per_s") > 0 and ctx.slot("wave_length_m") == 0
     forms = make_effect("tube_delay").candidate_forms(ctx)
     assert [f.form for f, _ in forms] == ["transport", "line"]
+    # beside the forced form (a fill's jet, stepped in the chamber's body only) no line,
+    # and beside a line no forced form (a jet case's loop stopped with the simulator's
+    # error when it tried the line beside it)
+    ctx = context(Model([make_effect("heat_transfer", form="forced")]))
+    assert ctx.slot("heat_jet_coefficient_W_per_m2_K") > 0
+    assert [f.form for f, _ in make_effect("tube_delay").candidate_forms(ctx)] == [
+        "transport"]
+    lined = context(Model([make_effect("tube_delay", form="line", segments=3)]),
+                    {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0})
+    assert [f.form for f, _ in make_effect("heat_transfer").candidate_forms(lined)] == [
+        "rate", "convective"]
     # with nothing in the way, line_form "wave" proposes the wave tube
     plain = context(Model())
     assert [f.form for f, _ in make_effect("tube_delay").candidate_forms(plain)] == [

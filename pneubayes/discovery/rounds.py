@@ -12,7 +12,7 @@ from __future__ import annotations
 from itertools import combinations
 
 from pneubayes.discovery.settings import DiscoverySettings
-from pneubayes.errors import SimulationError
+from pneubayes.errors import FormCombinationError, SimulationError
 
 
 class TrialFitFailed(Exception):
@@ -70,7 +70,7 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         nonlocal settled
         try:
             f = fit(g, model, start, beat_Pa)
-        except (FloatingPointError, SimulationError, TrialFitFailed) as exc:
+        except (FloatingPointError, SimulationError, FormCombinationError, TrialFitFailed) as exc:
             failed[g].append((model, f"{type(exc).__name__}: {str(exc).splitlines()[0]}"))
             return
         fitted[g].append((f, model, start))

@@ -17,7 +17,7 @@ import numpy as np
 from pneubayes.effects.closure_features import FEATURES
 from pneubayes.effects.closure_terms import CLOSURE_MAX_TERMS
 from pneubayes.effects.path import SLOT_INDEX, VOLUME_PLAY_COMPLIANCE_SLOTS
-from pneubayes.errors import SimulationError
+from pneubayes.errors import FormCombinationError, SimulationError
 from pneubayes.model import Model
 from pneubayes.rig import Rig
 from pneubayes.simulation import kernel
@@ -86,7 +86,7 @@ def _check_closure_beside_wave(slots: np.ndarray, rows: np.ndarray) -> None:
     hit = used & np.isin(codes, list(_PORT_CODES))
     if hit.any():
         r, j = np.argwhere(hit)[0]
-        raise ValueError(
+        raise FormCombinationError(
             f"an open-form closure beside the wave tube (tube_delay form 'wave') reads "
             f"feature {_PORT_CODES[int(codes[r, j])]!r} (term {j // 2}): the valve's ports "
             "sit at the tube's far end, where the chamber does not see them; a closure "
@@ -102,9 +102,10 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
         return forms[:, _FORM_COLUMNS[name]]
 
     if np.any(has("exhaust_own_command") & (slots[:, SLOT_INDEX["inputs_advance_s"]] < 0.0)):
-        raise ValueError("a late reading (sensor_lag form 'delay') is simulated in the "
-                         "reading's time, which an exhaust valve's own command (read "
-                         "undelayed) does not follow: not simulated")
+        raise FormCombinationError(
+            "a late reading (sensor_lag form 'delay') is simulated in the "
+            "reading's time, which an exhaust valve's own command (read "
+            "undelayed) does not follow: not simulated")
     wave = has("wave_length_m")
     line = has("line_length_m") | wave
     hot = has("heat_coupling")
@@ -116,17 +117,19 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
     lines = "the tube's acoustic line or wave line (tube_delay forms 'line', 'wave')"
     play = np.logical_or.reduce([has(name) for name in VOLUME_PLAY_COMPLIANCE_SLOTS])
     if np.any(play & (has("volume_table_points") | tank | has("lung_volume_m3"))):
-        raise ValueError("a volume play (effect 'volume_play') lays the chamber's volume "
-                         "table itself: it cannot be combined with a volume closure, "
-                         "another tabulated volume, a supply tank or a second compartment "
-                         "in one model")
+        raise FormCombinationError(
+            "a volume play (effect 'volume_play') lays the chamber's volume "
+            "table itself: it cannot be combined with a volume closure, "
+            "another tabulated volume, a supply tank or a second compartment "
+            "in one model")
     wall = has("loaded_wall_compliance_m3_per_Pa")
     if np.any(wall & (has("compliance_m3_per_Pa") | has("volume_table_points") | play | tank
                       | has("lung_volume_m3") | has("line_length_m"))):
-        raise ValueError("a loaded wall (effect 'loaded_wall') moves a rigid chamber's volume "
-                         "as a piston does: it cannot be combined with a compliant chamber, "
-                         "a volume closure or play, a supply tank, a second compartment or "
-                         f"{acoustic} in one model")
+        raise FormCombinationError(
+            "a loaded wall (effect 'loaded_wall') moves a rigid chamber's volume "
+            "as a piston does: it cannot be combined with a compliant chamber, "
+            "a volume closure or play, a supply tank, a second compartment or "
+            f"{acoustic} in one model")
     exclusive = (
         (has("compliance_m3_per_Pa") | has("volume_table_points") | play,
          has("line_length_m") | hot,
@@ -139,36 +142,42 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
          lines),
     )
     if np.any(has("closure_terms") & has("line_length_m")):
-        raise ValueError("an open-form closure (effect 'closure') is part of the chamber's "
-                         "right-hand side, which the tube's acoustic line (tube_delay form "
-                         "'line') replaces: it cannot be combined with it in one model")
+        raise FormCombinationError(
+            "an open-form closure (effect 'closure') is part of the chamber's "
+            "right-hand side, which the tube's acoustic line (tube_delay form "
+            "'line') replaces: it cannot be combined with it in one model")
     if np.any(has("closure_terms") & wave):
         _check_closure_beside_wave(slots, np.flatnonzero(has("closure_terms") & wave))
     restricted = has("restriction_fill_inverse_area_per_m2") | has(
         "restriction_vent_inverse_area_per_m2")
     if np.any(restricted & (line | tank | has("lung_volume_m3"))):
-        raise ValueError("a restriction at the chamber's port (effect 'port_restriction') "
-                         "sits between the valve's ports and the chamber: it cannot be "
-                         f"combined with {lines}, a supply tank or a second compartment in "
-                         "one model")
+        raise FormCombinationError(
+            "a restriction at the chamber's port (effect 'port_restriction') "
+            "sits between the valve's ports and the chamber: it cannot be "
+            f"combined with {lines}, a supply tank or a second compartment in "
+            "one model")
     if np.any(has("heat_jet_coefficient_W_per_m2_K") & line):
-        raise ValueError("forced convection by the fill's jet (heat_transfer form "
-                         f"'forced') is stepped in the chamber's body: not beside {lines}")
+        raise FormCombinationError(
+            "forced convection by the fill's jet (heat_transfer form "
+            f"'forced') is stepped in the chamber's body: not beside {lines}")
     supplied = has("supply_restriction_inverse_area_per_m2")
     if np.any(supplied & (line | tank | restricted)):
-        raise ValueError("a restriction upstream of the valve's inlet (effect "
-                         "'supply_restriction') feeds the inlet as the chamber's ports see "
-                         f"it: it cannot be combined with {lines}, a supply tank or a "
-                         "restriction at the port in one model")
+        raise FormCombinationError(
+            "a restriction upstream of the valve's inlet (effect "
+            "'supply_restriction') feeds the inlet as the chamber's ports see "
+            f"it: it cannot be combined with {lines}, a supply tank or a "
+            "restriction at the port in one model")
     if np.any(wave & (hot | has("line_length_m"))):
-        raise ValueError("a transmission-line tube (tube_delay form 'wave') is simulated "
-                         "with the chamber's pressure as its only state: it cannot be "
-                         "combined with heat_transfer or an acoustic line in one model")
+        raise FormCombinationError(
+            "a transmission-line tube (tube_delay form 'wave') is simulated "
+            "with the chamber's pressure as its only state: it cannot be "
+            "combined with heat_transfer or an acoustic line in one model")
     for present, others, what, beside in exclusive:
         if np.any(present & others):
-            raise ValueError(f"{what}: it cannot be combined with heat_transfer, {beside} "
-                             "or another second state "
-                             "(a supply tank, a second compartment) in one model")
+            raise FormCombinationError(
+                f"{what}: it cannot be combined with heat_transfer, {beside} "
+                "or another second state "
+                "(a supply tank, a second compartment) in one model")
 
 
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
