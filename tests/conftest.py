@@ -175,7 +175,20 @@ def valve1_recordings(model, params, name, seed0, count=3, n=6001, read=None):
     return recs
 
 
+def tight_solver(rtol: float = 1e-8) -> SolverConfig:
+    """A solver far tighter than the standard preset, for checks against a reference
+    solver: ``rtol`` and an absolute pressure tolerance of ``rtol`` x 1e5 Pa."""
+    return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=1e-6, max_step_s=0.02,
+                        min_step_s=1e-14, max_steps_per_s=2.5e7)
+
+
 # ---------------------------------------------------------------- fixtures
+@pytest.fixture
+def valve_params():
+    """Valve 1 of Table II and a 2.4e-6 m^3 dead volume."""
+    return {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
+
+
 @pytest.fixture(scope="session")
 def rig():
     return Rig(BORE, P_ATM, P_SUP, stroke_m=STROKE)

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import tight_solver as _tight
 
 from pneubayes.discovery.settings import FormSettings
 from pneubayes.effects import closure_features as cf
@@ -23,10 +24,6 @@ from pneubayes.simulation.reference import reference_simulate
 
 P_ATM, P_SUP = 101325.0, 551325.0
 
-
-def _tight(rtol=1e-8):
-    return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=1e-6, max_step_s=0.02,
-                        min_step_s=1e-14, max_steps_per_s=2.5e7)
 
 
 @pytest.fixture
@@ -44,12 +41,6 @@ def _first(inputs, n=121):
     return Inputs(inputs.time_s[:n], inputs.command_V[:n], inputs.position_m[:n],
                   inputs.supply_pressure_Pa[:n])
 
-
-@pytest.fixture
-def valve_params():
-    from pneubayes.physics.valve import valve_preset
-
-    return {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
 
 
 def _closure(terms, scale=0.1, thresholds=None):

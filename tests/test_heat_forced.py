@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import tight_solver as _tight
 
 from pneubayes.effects import TubeDelay, make_effect
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
-from pneubayes.simulation import Inputs, SolverConfig, simulate
+from pneubayes.simulation import Inputs, simulate
 from pneubayes.simulation.chamber import JET_FLOW_REF_KG_PER_S, chamber_rhs, wall_exchange
 from pneubayes.simulation.reference import reference_simulate
 from pneubayes.simulation.simulator import rig_constants
@@ -19,14 +20,6 @@ from pneubayes.simulation.simulator import rig_constants
 P_SUP = 551325.0
 
 
-def _tight(rtol=1e-8):
-    return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=1e-6, max_step_s=0.02,
-                        min_step_s=1e-14, max_steps_per_s=2.5e7)
-
-
-@pytest.fixture
-def valve_params():
-    return {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
 
 
 @pytest.fixture

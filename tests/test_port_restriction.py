@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import discovery_settings, valve1_recordings
+from conftest import tight_solver as _tight
 
 from pneubayes.discovery.openform.port_restriction import (
     PortRestrictionProblem,
@@ -31,14 +32,6 @@ from pneubayes.simulation.simulator import rig_constants
 P_ATM, P_SUP = 101325.0, 551325.0
 
 
-def _tight(rtol=1e-8):
-    return SolverConfig(rtol=rtol, atol_Pa=rtol * 1e5, atol_K=1e-6, max_step_s=0.02,
-                        min_step_s=1e-14, max_steps_per_s=2.5e7)
-
-
-@pytest.fixture
-def valve_params():
-    return {**valve_preset("valve1").parameters(), "dead_volume_m3": 2.4e-6}
 
 
 @pytest.fixture
