@@ -213,11 +213,12 @@ def test_all_effects_together_agree_with_the_reference_solver(rig, valve_params,
     (all but the volume's closure and play, whose compliant chamber the simulator steps
     with the pressure as its only state: not beside the heat state; the loaded wall, which
     the reference does not step, nor the simulator beside a compliant chamber; the driver's clock,
-    which the reference does not step; and the port flows' terms in the reading, which it
-    solves only on the chamber's own reading: tests/test_reading_flow.py)."""
+    which the reference does not step; the port flows' terms in the reading, which it
+    solves only on the chamber's own reading: tests/test_reading_flow.py; and the supply's
+    restriction, not beside the port's: tests/test_supply_restriction.py)."""
     model = Model([n for n in CATALOGUE
                    if n not in ("volume_closure", "volume_play", "loaded_wall",
-                                "command_clock", "reading_flow")])
+                                "command_clock", "reading_flow", "supply_restriction")])
     params = dict(valve_params, dead_volume_m3=1e-6)
     for e in model.effects:
         params.update(e.bench_defaults())
