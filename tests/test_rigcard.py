@@ -691,7 +691,8 @@ def test_discovery_offers_a_compliant_chamber_only_forms_it_can_simulate():
     fixed = Model(rig_card=card())
     fit2 = StepFit(fixed, {"valve_open_area_m2": 1e-6, "dead_volume_m3": 1e-4},
                    1.0, 1.0, np.zeros(1), np.zeros(1), 1.0, 0.0)
-    assert len(effect_candidates(fit2, "heat_transfer", {}, rig)) == 2
+    assert [mm.effect("heat_transfer").form for mm, _ in effect_candidates(
+        fit2, "heat_transfer", {}, rig)] == ["rate", "convective", "forced"]
 
 
 def test_components_compare_and_hash_by_their_tables():
