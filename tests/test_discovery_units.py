@@ -306,7 +306,7 @@ def test_a_named_tube_is_tried_as_a_transport_delay_and_as_an_acoustic_line(rig)
     heat_10 = {"best_term_start": {"heat_transfer_rate_per_s": 10.0, "heat_transfer_coupling": 1.0}}
     assert [m.effect("heat_transfer").form for m, _ in
             effect_candidates(lined, "heat_transfer", heat_10, rig, line3)] == [
-        "rate", "convective"]
+        "rate", "convective", "forced"]
 
 
 def test_crossfit_score_is_each_windows_density_under_the_other_windows_scale():
@@ -696,17 +696,16 @@ def test_the_loop_never_proposes_a_wave_tube_beside_heat_transfer(rig, base_para
     assert ctx.slot("heat_rate_per_s") > 0 and ctx.slot("wave_length_m") == 0
     forms = make_effect("tube_delay").candidate_forms(ctx)
     assert [f.form for f, _ in forms] == ["transport", "line"]
-    # beside the forced form (a fill's jet, stepped in the chamber's body only) no line,
-    # and beside a line no forced form (a jet case's loop stopped with the simulator's
-    # error when it tried the line beside it)
+    # beside heat's forced form (the jet: the line's inflow) the line too, and beside a
+    # line every heat form
     ctx = context(Model([make_effect("heat_transfer", form="forced")]))
     assert ctx.slot("heat_jet_coefficient_W_per_m2_K") > 0
     assert [f.form for f, _ in make_effect("tube_delay").candidate_forms(ctx)] == [
-        "transport"]
+        "transport", "line"]
     lined = context(Model([make_effect("tube_delay", form="line", segments=3)]),
                     {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0})
     assert [f.form for f, _ in make_effect("heat_transfer").candidate_forms(lined)] == [
-        "rate", "convective"]
+        "rate", "convective", "forced"]
     # with nothing in the way, line_form "wave" proposes the wave tube
     plain = context(Model())
     assert [f.form for f, _ in make_effect("tube_delay").candidate_forms(plain)] == [

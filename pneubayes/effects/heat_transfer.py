@@ -137,7 +137,6 @@ class HeatTransfer(Effect):
         temperature joins the line's state."""
         if not ctx.second_state_free or ctx.slot("wave_length_m") > 0:
             return []
-        lined = ctx.slot("line_length_m") > 0  # (the forced form is not stepped there)
         rate_form = HeatTransfer(**{**self.options(), "form": "rate"})
         # (a start may name only some of them: the other form's fitted coupling)
         start = {**self.discovery_fallback, **self.candidate_start(ctx.term_start)}
@@ -157,11 +156,11 @@ class HeatTransfer(Effect):
         return [(rate_form, {"heat_transfer_rate_per_s": rate,
                              "heat_transfer_coupling": coupling}),
                 (conv, {"heat_transfer_coefficient_W_per_m2_K": h,
-                        "heat_transfer_coupling": coupling})] + ([] if lined else [
+                        "heat_transfer_coupling": coupling}),
                 (forced, {"heat_transfer_coefficient_W_per_m2_K": h,
                           "heat_transfer_jet_W_per_m2_K": ctx.inside(
                               forced, "heat_transfer_jet_W_per_m2_K", h),
-                          "heat_transfer_coupling": coupling})])
+                          "heat_transfer_coupling": coupling})]
 
     def bench_defaults(self):
         if self.form == "rate":

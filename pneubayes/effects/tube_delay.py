@@ -214,8 +214,6 @@ class TubeDelay(Effect):
             and ctx.slot("tank_volume_m3") == 0 and ctx.slot("lung_volume_m3") == 0
         if not (ctx.second_state_free or wave):
             return out
-        if not wave and ctx.slot("heat_jet_coefficient_W_per_m2_K") > 0:
-            return out  # (the line's chamber has no fill's jet: heat's forced form)
         # (the delay's bounds do not depend on the cells)
         probe = TubeDelay(**{**self.options(), "form": "line", "segments": 1})
         delay = ctx.inside(probe, "tube_delay_s", start["tube_delay_s"])

@@ -47,7 +47,7 @@ from numba import njit
 from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.physics.tube import churchill_fre_and_slope_table
-from pneubayes.simulation.chamber import wall_exchange
+from pneubayes.simulation.chamber import JET_FLOW_REF_KG_PER_S, wall_exchange
 from pneubayes.simulation.layout import (
     C_ALPHA,
     C_BETA,
@@ -69,6 +69,7 @@ _MU = SLOT_INDEX["line_viscosity_Pa_s"]
 _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _HCOUP = SLOT_INDEX["heat_coupling"]
+_HJET = SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]
 
 _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
                / (math.factorial(12) * math.factorial(k) * math.factorial(6 - k))
@@ -375,10 +376,11 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
         dp/dt = kappa / V (Rs T_w mdot + Rs (T_w - T) m_out - p dV/dt) + Q_wall
         dT/dt = T (dp/dt / p + dV/dt / V - Rs T mdot / (p V))
 
-    with ``mdot = q_n - m_leak``, ``m_out`` the mass leaving, and the wall term of either
+    with ``mdot = q_n - m_leak``, ``m_out`` the mass leaving, and the wall term of each
     heat form, as :func:`pneubayes.simulation.chamber.chamber_rhs` has them (the
-    convective form's leak orifice passes gas at T: its flow scales by sqrt(T_w / T)),
-    the pressure's row reading ``T_w + c (T - T_w)`` for T (c the slot ``heat_coupling``).
+    convective form's leak orifice passes gas at T: its flow scales by sqrt(T_w / T);
+    the forced form's jet is the line's inflow ``q_n``), the pressure's row reading
+    ``T_w + c (T - T_w)`` for T (c the slot ``heat_coupling``).
     Writes rows 0 and -1 of ``f``, ``jac`` and ``vt``.
     """
     kappa, p_atm, rs, t_w = cs[C_KAPPA], cs[C_P_ATM], cs[C_RS], cs[C_T_SUPPLY]
@@ -388,10 +390,12 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     it = y.shape[0] - 1
     iqn = 2 * nseg
     p, temp = y[0], y[it]
-    heat, hconv, coup = sl[_HEAT], sl[_HCONV], sl[_HCOUP]
+    heat, hconv, coup, hjet = sl[_HEAT], sl[_HCONV], sl[_HCOUP], sl[_HJET]
     te = t_w + coup * (temp - t_w)  # the temperature the pressure feels
+    conv = hconv > 0.0 or hjet > 0.0
+    stir = max(q, 0.0) if hjet > 0.0 else 0.0  # the forced form's jet: the line's inflow
     sq = 1.0
-    if hconv > 0.0 and f_l > 0.0:
+    if conv and f_l > 0.0:
         sq = math.sqrt(t_w / te)
     leak_out = leak_o * f_l * sq + leak_l * lam
     mdot = q - leak_out
@@ -401,8 +405,9 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     fp = fp_eq5
     # wall heat flow (kappa - 1) Q / V of the convective form: Q = h A_w (T_w - T)
     c_wall, dc_wall_dv = 0.0, 0.0
-    if hconv > 0.0:
-        c_wall, dc_wall_dv = wall_exchange(kappa, hconv, bore, vol)
+    if conv:
+        c_wall, dc_wall_dv = wall_exchange(kappa, hconv + hjet * stir / JET_FLOW_REF_KG_PER_S,
+                                           bore, vol)
         fp += c_wall * (t_w - te)
     if heat > 0.0:
         fp += p * heat * (t_w - te) / te
@@ -427,6 +432,9 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
         dmout_dq = -1.0
     jpp = n_v * (rs_t * (-dleak_dp) + rs * (t_w - te) * dmout_dp - vdot)
     jpq = n_v * (rs_t + rs * (t_w - te) * dmout_dq)
+    if stir > 0.0:  # the forced form's coefficient follows the line's inflow
+        jpq += (hjet / JET_FLOW_REF_KG_PER_S * (t_w - te)
+                * wall_exchange(kappa, 1.0, bore, vol)[0])
     jpt = (n_v * (-rs_t * dleak_dt - coup * rs * m_out + rs * (t_w - te) * dmout_dt)
            - coup * c_wall)
     if heat > 0.0:

@@ -156,10 +156,6 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
             "sits between the valve's ports and the chamber: it cannot be "
             f"combined with {lines}, a supply tank or a second compartment in "
             "one model")
-    if np.any(has("heat_jet_coefficient_W_per_m2_K") & line):
-        raise FormCombinationError(
-            "forced convection by the fill's jet (heat_transfer form "
-            f"'forced') is stepped in the chamber's body: not beside {lines}")
     supplied = has("supply_restriction_inverse_area_per_m2")
     if np.any(supplied & (line | tank | restricted)):
         raise FormCombinationError(
