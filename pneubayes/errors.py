@@ -81,3 +81,9 @@ class SimulationError(PneubayesError, RuntimeError):
 
 class RigCardError(PneubayesError, ValueError):
     """A rig card (``pneubayes-rig/1``) that breaks its contract; names the file and key."""
+
+
+#: What a failed fit raises: a floating-point error in the refinement, the integrator's
+#: failure, or forms the simulator cannot step together. The discovery loop records
+#: any of them as that trial's failure and goes on.
+FIT_FAILURES = (FloatingPointError, SimulationError, FormCombinationError)

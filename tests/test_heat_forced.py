@@ -9,11 +9,11 @@ import pytest
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import TubeDelay, make_effect
-from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.path import JET_FLOW_REF_KG_PER_S, SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import Inputs, simulate
-from pneubayes.simulation.chamber import JET_FLOW_REF_KG_PER_S, chamber_rhs, wall_exchange
+from pneubayes.simulation.chamber import chamber_rhs, wall_exchange
 from pneubayes.simulation.reference import reference_simulate
 from pneubayes.simulation.simulator import rig_constants
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from itertools import combinations
 
 from pneubayes.discovery.settings import DiscoverySettings
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES
 
 
 class TrialFitFailed(Exception):
@@ -49,9 +49,9 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
     round and were not added) have every form fitted in full, neither skipped nor
     screened: an effect added before them may have taken what their plainest form
     explained (a spool lag what a tube's delay did), not what their fuller form does (the
-    tube's waves). A form that cannot be simulated from its
-    start or at its fitted point (``FloatingPointError`` from the refinement,
-    :class:`~pneubayes.errors.SimulationError`) is a failed trial, not a failed loop.
+    tube's waves). A form that cannot be simulated from its start or at its fitted
+    point, or beside the model's other forms (:data:`~pneubayes.errors.FIT_FAILURES`),
+    is a failed trial, not a failed loop.
 
     Returns ``({effect: [(fit, model, start), ...]}`` in form order, the ``(effect,
     model, fit)`` that settled the round or None, ``{effect: [(model, why), ...]}`` of
@@ -70,7 +70,7 @@ def fit_round_forms(options: dict, fit, settled_Pa: float, follow=None,
         nonlocal settled
         try:
             f = fit(g, model, start, beat_Pa)
-        except (FloatingPointError, SimulationError, FormCombinationError, TrialFitFailed) as exc:
+        except (*FIT_FAILURES, TrialFitFailed) as exc:
             failed[g].append((model, f"{type(exc).__name__}: {str(exc).splitlines()[0]}"))
             return
         fitted[g].append((f, model, start))

@@ -40,7 +40,7 @@ from pneubayes.discovery.verification import (
     crossfit_window_lpd,
 )
 from pneubayes.effects.discovery import inside_bounds
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES
 from pneubayes.inference.likelihood import ar1_sums
 from pneubayes.inference.refine import TrajectoryRefiner, late_gain
 from pneubayes.model import Model
@@ -426,7 +426,7 @@ class TrialRunner:
             # keeps its current value)
             control = self.fit(current.model, {k: trial.params.get(k, current.params[k])
                                                for k in current.model.parameter_names})
-        except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+        except FIT_FAILURES as exc:
             # the trial's point leaves the current model's simulable region: no better
             # optimum of the current model there
             self.log(f"discover: {label}: no control fit from the trial's point "

@@ -278,6 +278,9 @@ SLOTS += (
      "inflow (heat_transfer form 'forced'; 0 = none) (W/(m^2 K))"),
 )
 
+#: The inflow (kg/s) at which heat's forced form adds ``heat_jet_coefficient_W_per_m2_K``
+#: to the wall's coefficient (the slot's unit: W/(m^2 K) per this inflow).
+JET_FLOW_REF_KG_PER_S = 1e-3
 #: Most cells of an acoustic line the compiled simulator holds.
 LINE_MAX_SEGMENTS = 8
 #: Most line elements of a transmission-line tube.

@@ -10,7 +10,7 @@ import math
 
 from numba import njit
 
-from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.path import JET_FLOW_REF_KG_PER_S, SLOT_INDEX
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.simulation.layout import (
     C_ALPHA,
@@ -54,8 +54,6 @@ _CL_RB = SLOT_INDEX["closure_relaxed_b_0"]
 #: values of :mod:`pneubayes.effects.closure_features`, which a test checks).
 _AREA_SCALE = 1e-6
 _VOLUME_SCALE = 1e-6
-#: The inflow at which the forced heat form's coefficient adds ``heat_jet`` (kg/s).
-JET_FLOW_REF_KG_PER_S = 1e-3
 
 
 @njit(cache=True, inline="always", error_model="numpy")

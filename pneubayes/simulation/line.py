@@ -44,10 +44,10 @@ import math
 import numpy as np
 from numba import njit
 
-from pneubayes.effects.path import SLOT_INDEX
+from pneubayes.effects.path import JET_FLOW_REF_KG_PER_S, SLOT_INDEX
 from pneubayes.physics.orifice import flow_slopes, flow_terms
 from pneubayes.physics.tube import churchill_fre_and_slope_table
-from pneubayes.simulation.chamber import JET_FLOW_REF_KG_PER_S, wall_exchange
+from pneubayes.simulation.chamber import wall_exchange
 from pneubayes.simulation.layout import (
     C_ALPHA,
     C_BETA,

@@ -29,8 +29,8 @@ from pneubayes.effects.closure_features import (
 )
 from pneubayes.effects.closure_histories import command_direction
 from pneubayes.effects.closure_terms import PORT_FACTOR_LIMITS
+from pneubayes.effects.path import JET_FLOW_REF_KG_PER_S, VOLUME_PLAY_COMPLIANCE_SLOTS
 from pneubayes.effects.path import SLOT_INDEX as S
-from pneubayes.effects.path import VOLUME_PLAY_COMPLIANCE_SLOTS
 from pneubayes.model import Model
 from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.physics.tube import churchill_fre
@@ -386,8 +386,8 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         if heat > 0:
             dp = dp + p * heat * (t_s - t_felt) / t_felt
         if h_wall > 0 or h_jet > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel;
-            # the forced form's h grows with the inflow (per g/s)
-            h = h_wall + h_jet * max(float(port[0]), 0.0) / 1e-3
+            # the forced form's h grows with the inflow
+            h = h_wall + h_jet * max(float(port[0]), 0.0) / JET_FLOW_REF_KG_PER_S
             dp = dp + ((kappa - 1.0) * h * float(wall_area_m2(vol, rig.bore_area_m2))
                        * (t_s - t_felt) / vol)
         if thermal:

@@ -36,7 +36,7 @@ from pneubayes.effects.command_clock import (
     SHORTEST_PERIOD_S,
     CommandClock,
 )
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES
 
 #: The component's name in a model and in the ledger.
 COMMAND_CLOCK = "command_clock"
@@ -148,7 +148,7 @@ class CommandClockForm(ComponentForm):
                                   search.best_.values())
             try:
                 again = runner.fit(model, {n: start[n] for n in model.parameter_names})
-            except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+            except FIT_FAILURES as exc:
                 runner.log(f"discover: {self.label}: reading {k + 2}: {type(exc).__name__}")
                 break
             again = self._polished(again, runner, search.best_.form)
@@ -184,7 +184,7 @@ class CommandClockForm(ComponentForm):
                 return fit
             try:
                 again = runner.fit(fit.model, {**fit.params, **clock})
-            except (FloatingPointError, SimulationError, FormCombinationError):
+            except FIT_FAILURES:
                 again = runner.score(fit.model, {**fit.params, **clock})
             runner.log(f"discover: {self.label}: timing polished (period "
                        f"{fit.params[PERIOD] * 1e3:.6g} -> {clock[PERIOD] * 1e3:.6g} ms, "

@@ -23,7 +23,7 @@ from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.stages.weighing import competes, weigh
 from pneubayes.discovery.state import RoundState
 from pneubayes.discovery.trials import NESTED_TOLERANCE
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES, SimulationError
 
 
 class ComponentForm(Stage):
@@ -184,7 +184,7 @@ class ComponentForm(Stage):
         for label, start in (("the search's values", searched), ("zero strength", zero)):
             try:
                 fits.append(runner.fit(model, {k: start[k] for k in model.parameter_names}))
-            except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+            except FIT_FAILURES as exc:
                 runner.log(f"discover: {self.label} from {label}: {type(exc).__name__}: "
                            f"{str(exc).splitlines()[0]}")
         if not fits:
@@ -220,7 +220,7 @@ class ComponentForm(Stage):
                 start[mine] = fit.params[theirs]
             try:
                 alone.append(runner.fit(model, start))
-            except (FloatingPointError, SimulationError, FormCombinationError):
+            except FIT_FAILURES:
                 continue
         kept = [a for a in alone if not runner.better(fit, a)[0]
                 and runner.better(a, state.current)[0]]

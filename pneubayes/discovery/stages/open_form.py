@@ -39,7 +39,7 @@ from pneubayes.effects.closure_features import PORT_FEATURES
 from pneubayes.effects.closure_terms import CLOSURE_MAX_TERMS
 from pneubayes.effects.discovery import inside_bounds
 from pneubayes.effects.path import SLOT_INDEX
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES, SimulationError
 
 #: The search source whose rows are the prediction windows' residual.
 WINDOWS = "windows"
@@ -316,7 +316,7 @@ class OpenForm(Stage):
             start = {k: start[k] for k in model.parameter_names}
             try:
                 fits.append(runner.fit(model, start))
-            except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+            except FIT_FAILURES as exc:
                 why = f"from {label}: {type(exc).__name__}: {str(exc).splitlines()[0]}"
                 failures.append(why)
                 runner.log(f"discover: open form {why}")
@@ -355,7 +355,7 @@ class OpenForm(Stage):
                 reduced, start = without_term(fit, k)
                 try:
                     smaller = runner.fit(reduced, start)
-                except (FloatingPointError, SimulationError, FormCombinationError):
+                except FIT_FAILURES:
                     continue
                 needed = (runner.better(fit, smaller)[0]
                           or not runner.better(smaller, state.current)[0])
@@ -396,7 +396,7 @@ class OpenForm(Stage):
                    f"hinge's signal; refitting as '{spec}'")
         try:
             linear = runner.fit(model, start)
-        except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+        except FIT_FAILURES as exc:
             runner.log(f"discover: open form: the linear closure failed to fit "
                        f"({type(exc).__name__})")
             return None

@@ -11,7 +11,7 @@ from pneubayes.discovery.rounds import min_gain_Pa
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
 from pneubayes.effects import make_effect
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES
 
 
 class OtherForms(Stage):
@@ -94,7 +94,7 @@ class OtherForms(Stage):
         for g, m, start in options:
             try:
                 fit = runner.fit(m, start, first_free(m, g))
-            except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+            except FIT_FAILURES as exc:
                 runner.log(f"discover: {g} {form_label(m, g)} failed ({type(exc).__name__})")
                 continue
             ok, gain, pval, diff = runner.better(fit, current)

@@ -8,7 +8,7 @@ from pneubayes.discovery.candidates import effect_candidates
 from pneubayes.discovery.rounds import gain_shortfall, min_gain_Pa, pairs_to_try
 from pneubayes.discovery.stages.base import Stage
 from pneubayes.discovery.state import RoundState
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES
 
 
 class Pairs(Stage):
@@ -86,7 +86,7 @@ class Pairs(Stage):
         for start in starts:
             try:
                 fits.append((runner.fit(model, start), start))
-            except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+            except FIT_FAILURES as exc:
                 runner.log(f"discover: pair {a} + {b} from {len(fits) + 1} of "
                            f"{len(starts)} start(s) failed ({type(exc).__name__})")
         if not fits:

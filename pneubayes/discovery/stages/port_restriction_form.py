@@ -35,7 +35,7 @@ from pneubayes.effects.port_restriction import (
     VENT,
     PortRestriction,
 )
-from pneubayes.errors import FormCombinationError, SimulationError
+from pneubayes.errors import FIT_FAILURES
 
 #: The component's name in a model and in the ledger.
 PORT_RESTRICTION = "port_restriction"
@@ -113,7 +113,7 @@ class PortRestrictionForm(VolumeComponentForm):
         start = {**p, FILL: cracked[0][0], VENT: cracked[0][1], CRACK: cracked[0][2]}
         try:
             again = runner.fit(fit.model, start)
-        except (FloatingPointError, SimulationError, FormCombinationError) as exc:
+        except FIT_FAILURES as exc:
             runner.log(f"discover: {self.label} with a check valve: {type(exc).__name__}: "
                        f"{str(exc).splitlines()[0]}")
             return fit
