@@ -47,7 +47,7 @@ from pneubayes.model import Model
 from pneubayes.provenance import provenance
 
 EFFECTS = ("tube_delay", "spool_lag", "valve_deadzone", "supply_fluctuation", "cylinder_leak",
-           "heat_transfer", "sensor_lag")
+           "heat_transfer", "sensor_lag", "critical_ratio")
 #: The realistic form of a sensor lag: the DAQ's anti-alias filter is an analogue
 #: (causal) 2nd-order Butterworth at 250 Hz, group delay 0.90 ms, which the user does
 #: not declare; the catalogue's form is a first-order lag.

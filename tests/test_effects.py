@@ -95,7 +95,7 @@ def test_catalogue_names():
                                "reading_play", "reading_command", "reading_flow",
                                "reading_hinge", "volume_closure",
                                "volume_play", "loaded_wall", "port_restriction", "command_clock",
-                               "valve_dead_time", "supply_restriction"]
+                               "valve_dead_time", "supply_restriction", "critical_ratio"]
     for name, cls in CATALOGUE.items():
         assert cls.name == name
     with pytest.raises(ValueError):
@@ -215,10 +215,12 @@ def test_all_effects_together_agree_with_the_reference_solver(rig, valve_params,
     the reference does not step, nor the simulator beside a compliant chamber; the driver's clock,
     which the reference does not step; the port flows' terms in the reading, which it
     solves only on the chamber's own reading: tests/test_reading_flow.py; and the supply's
-    restriction, not beside the port's: tests/test_supply_restriction.py)."""
+    restriction and the ports' critical ratio, not beside the port's restriction:
+    tests/test_supply_restriction.py, tests/test_critical_ratio.py)."""
     model = Model([n for n in CATALOGUE
                    if n not in ("volume_closure", "volume_play", "loaded_wall",
-                                "command_clock", "reading_flow", "supply_restriction")])
+                                "command_clock", "reading_flow", "supply_restriction",
+                                "critical_ratio")])
     params = dict(valve_params, dead_volume_m3=1e-6)
     for e in model.effects:
         params.update(e.bench_defaults())

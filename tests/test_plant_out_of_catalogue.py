@@ -126,7 +126,7 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
     assert set(OUT_OF_CATALOGUE) == {"BladderVolume", "SpoolHysteresis", "ReliefValve",
                                      "InletFlowForce", "LipSealLeak", "ExhaustSilencer",
                                      "ScoredBarrelLeak", "CreepingWall", "PilotInletValve",
-                                     "Iso6358Ports", "SpoolSlewLimit", "SpoolUnderlap",
+                                     "SpoolSlewLimit", "SpoolUnderlap",
                                      "MeterOutThrottle", "SupplyHose", "LowReynoldsPorts",
                                      "SpoolStiction", "SensorBow", "SpringReturnSpool",
                                      "WarmingCoil", "CapillarySensorPort",

@@ -2,7 +2,8 @@
 
 Names are exactly the catalogue's: ``cylinder_leak``, ``tube_delay``, ``valve_deadzone``,
 ``supply_fluctuation``, ``supply_restriction`` (a restriction upstream of the valve's
-inlet), ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
+inlet), ``critical_ratio`` (ports that choke at their own pressure ratio, ISO 6358's
+``b``), ``heat_transfer``, ``spool_lag``, ``sensor_lag``,
 ``sensor_calibration``, ``sensor_drift``, ``sensor_nonlinearity``, ``valve_stiction``,
 ``closure`` (an open-form extra mass flow), ``reading_closure`` (open-form relaxations
 of the reading), ``reading_play`` (open-form plays, backlash, of the reading),
@@ -27,6 +28,7 @@ import numbers
 from pneubayes.effects.base import Component, Effect, Eq10Fit, Parameter
 from pneubayes.effects.closure import Closure
 from pneubayes.effects.command_clock import CommandClock
+from pneubayes.effects.critical_ratio import CriticalRatio
 from pneubayes.effects.cylinder_leak import CylinderLeak
 from pneubayes.effects.heat_transfer import HeatTransfer
 from pneubayes.effects.loaded_wall import LoadedWall
@@ -57,7 +59,8 @@ CATALOGUE: dict[str, type[Effect]] = {
                 SpoolLag, SensorLag, SensorCalibration, SensorDrift,
                 SensorNonlinearity, ValveStiction, Closure, ReadingClosure, ReadingPlay,
                 ReadingCommand, ReadingFlow, ReadingHinge, VolumeClosure, VolumePlay, LoadedWall,
-                PortRestriction, CommandClock, ValveDeadTime, SupplyRestriction)
+                PortRestriction, CommandClock, ValveDeadTime, SupplyRestriction,
+                CriticalRatio)
 }
 
 
@@ -153,7 +156,7 @@ __all__ = ["CATALOGUE", "Closure", "CommandClock", "Component", "CylinderLeak", 
            "SensorCalibration",
            "SensorDrift", "SensorLag",
            "SensorNonlinearity", "SpoolLag",
-           "SupplyFluctuation", "SupplyRestriction", "ThinPort", "TubeDelay",
+           "SupplyFluctuation", "SupplyRestriction", "CriticalRatio", "ThinPort", "TubeDelay",
            "ValveDeadzone", "ValveStiction",
            "VolumeClosure", "VolumePlay", "LoadedWall", "PortRestriction",
            "catalogue_parameter_names",

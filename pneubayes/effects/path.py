@@ -278,6 +278,17 @@ SLOTS += (
      "inflow (heat_transfer form 'forced'; 0 = none) (W/(m^2 K))"),
 )
 
+SLOTS += (
+    ("inlet_critical_ratio", "the inlet's own critical pressure ratio p_d / p_u (ISO "
+     "6358's b): choked below it, eq. 3's subsonic curve laid over the rest; 0 = eq. 3's "
+     "1 / theta (-)"),
+    ("exhaust_critical_ratio", "the exhaust's critical pressure ratio, as the inlet's; "
+     "0 = eq. 3's (-)"),
+    ("port_subsonic_index", "beside the ports' critical ratios, ISO 6358's subsonic index "
+     "m: the subsonic flow's share of the choked one raised to 2 m; 0 = 1/2, eq. 3's "
+     "shape (-)"),
+)
+
 #: The inflow (kg/s) at which heat's forced form adds ``heat_jet_coefficient_W_per_m2_K``
 #: to the wall's coefficient (the slot's unit: W/(m^2 K) per this inflow).
 JET_FLOW_REF_KG_PER_S = 1e-3

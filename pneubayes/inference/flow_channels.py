@@ -30,7 +30,7 @@ import numpy as np
 
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.physics.orifice import flow_function
-from pneubayes.simulation.rates import inlet_supply, port_areas
+from pneubayes.simulation.rates import inlet_supply, port_areas, port_laws
 
 #: The laws that map a port's mass flow to the sensor's reading (before offset, gain).
 LAWS = ("square", "linear")
@@ -89,14 +89,15 @@ def port_flows(model, theta, recording) -> tuple[np.ndarray, np.ndarray]:
     ue = recording.exhaust_command()
     p_nom = rig.supply_pressure_Pa
     ps = np.asarray(recording.supply_or_nominal(), dtype=np.float64)
-    f_ex = flow_function(p, rig.atmospheric_pressure_Pa, rig.gas)
     inlet, exhaust = [], []
     for sl in slots:
         a_in, a_ex = port_areas(sl, u, ue)
         p_sup = p_nom + sl[S["supply_gain"]] * (ps - p_nom)
+        b_in, b_ex, m_sub = port_laws(sl)
         inlet.append(a_in * flow_function(inlet_supply(sl, rig, p_sup, p, a_in), p,
-                                          rig.gas))
-        exhaust.append(a_ex * f_ex)
+                                          rig.gas, b_in, m_sub))
+        exhaust.append(a_ex * flow_function(p, rig.atmospheric_pressure_Pa, rig.gas,
+                                            b_ex, m_sub))
     return np.array(inlet), np.array(exhaust)
 
 

@@ -43,6 +43,9 @@ _RES_F = SLOT_INDEX["restriction_fill_inverse_area_per_m2"]
 _RES_V = SLOT_INDEX["restriction_vent_inverse_area_per_m2"]
 _RES_C = SLOT_INDEX["restriction_crack_Pa"]
 _SUP_R = SLOT_INDEX["supply_restriction_inverse_area_per_m2"]
+_B_IN = SLOT_INDEX["inlet_critical_ratio"]
+_B_EX = SLOT_INDEX["exhaust_critical_ratio"]
+_M_SUB = SLOT_INDEX["port_subsonic_index"]
 _CL_FA = SLOT_INDEX["closure_feature_a_0"]
 _CL_FB = SLOT_INDEX["closure_feature_b_0"]
 _CL_TA = SLOT_INDEX["closure_threshold_a_0"]
@@ -149,8 +152,10 @@ def net_port_flow(p, a_in, a_ex, p_sup, cs, sl):
         x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
     if sl[_SUP_R] > 0.0:
         p_sup = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
-    return (a_in * flow_terms(p_sup, x, alpha, beta, theta, kappa)[0]
-            - a_ex * flow_terms(x, cs[C_P_ATM], alpha, beta, theta, kappa)[0])
+    m_sub = sl[_M_SUB]
+    return (a_in * flow_terms(p_sup, x, alpha, beta, theta, kappa, sl[_B_IN], m_sub)[0]
+            - a_ex * flow_terms(x, cs[C_P_ATM], alpha, beta, theta, kappa, sl[_B_EX],
+                                m_sub)[0])
 
 
 @njit(cache=True, error_model="numpy")
@@ -370,11 +375,12 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     p_in = p_sup  # the inlet's upstream pressure: a supply restriction's node, or p_s
     if sl[_SUP_R] > 0.0:
         p_in = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa)
-    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
-    # the leak's: the chamber's own flow function to the atmosphere
+    b_in, b_ex, m_sub = sl[_B_IN], sl[_B_EX], sl[_M_SUB]  # (the ports' laws; 0 eq. 3's)
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa, b_in, m_sub)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa, b_ex, m_sub)
+    # the leak's: the chamber's own flow function to the atmosphere (eq. 3's ratio)
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
-    if x != p:
+    if x != p or sl[_B_EX] > 0.0:
         f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     f_in0, f_ex0 = f_in, f_ex  # (before the convective scaling: the closure's features)
     t_wall = cs[C_T_SUPPLY]
@@ -463,6 +469,9 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
                                                      dfin_dsup, dfin_dp, cs, dfloor)
     dfex_dp, _ = flow_slopes(x, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dflk_dp = dfex_dp  # (the leak's: the chamber's own)
+    if sl[_B_EX] > 0.0:  # (the exhaust's own ratio: the leak's is eq. 3's)
+        dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                              dfloor)[0]
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     if x != p:  # the ports' slopes through the node; the leak's at the chamber
         dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
@@ -607,11 +616,18 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             p_in = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
-    # the leak's: the chamber's own flow function to the atmosphere
+    # the leak's: the chamber's own flow function to the atmosphere (eq. 3's ratio)
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
     if with_closure is not None:
         if x != p:
             f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+        # the ports' own critical pressure ratios (general kernel only)
+        if sl[_B_IN] > 0.0:
+            f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa,
+                                                      sl[_B_IN], sl[_M_SUB])
+        if sl[_B_EX] > 0.0:
+            f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa,
+                                                      sl[_B_EX], sl[_M_SUB])
     t_wall = cs[C_T_SUPPLY]
     # The temperature is a state where the pressure feels it (a coupling c > 0); the
     # pressure equation reads te = T_w + c (T - T_w) for T (eq. 5 at c = 0)
@@ -691,6 +707,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     share_in = 1.0  # (the inlet's through a supply restriction's node)
     if with_closure is not None:
+        if sl[_B_EX] > 0.0:  # (the exhaust's own ratio: the leak's is eq. 3's)
+            dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                                  dfloor)[0]
         if p_in != p_sup:
             dfin_dsup, dfin_dp, share_in = supply_slopes(p_sup, p_in, x, a_in, sl[_SUP_R],
                                                          dfin_dsup, dfin_dp, cs, dfloor)

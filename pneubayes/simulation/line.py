@@ -70,6 +70,9 @@ _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _HCOUP = SLOT_INDEX["heat_coupling"]
 _HJET = SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]
+_B_IN = SLOT_INDEX["inlet_critical_ratio"]
+_B_EX = SLOT_INDEX["exhaust_critical_ratio"]
+_M_SUB = SLOT_INDEX["port_subsonic_index"]
 
 _PADE6 = tuple(math.factorial(12 - k) * math.factorial(6)
                / (math.factorial(12) * math.factorial(k) * math.factorial(6 - k))
@@ -297,8 +300,9 @@ def line_rhs(y, nseg, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, da_
     inert = area / dx
     p = y[0]
     p1 = y[1]
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p1, alpha, beta, theta, kappa)
-    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p1, p_atm, alpha, beta, theta, kappa)
+    b_in, b_ex, m_sub = sl[_B_IN], sl[_B_EX], sl[_M_SUB]  # (the ports' own laws; 0 eq. 3's)
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, p1, alpha, beta, theta, kappa, b_in, m_sub)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(p1, p_atm, alpha, beta, theta, kappa, b_ex, m_sub)
     m_valve = a_in * f_in - a_ex * f_ex
     iq = 1 + nseg
     q_prev = m_valve

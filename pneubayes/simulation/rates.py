@@ -132,6 +132,14 @@ def port_pressure(slots: np.ndarray, rig: Rig, pressure_Pa, supply_Pa, inlet_are
                           k_vent, slots[S["restriction_crack_Pa"]], rig_constants(rig))
 
 
+def port_laws(slots: np.ndarray) -> tuple:
+    """The valve's ports' own flow law in a slot row (or rows): ``(inlet critical ratio,
+    exhaust critical ratio, subsonic index)``, 0 for eq. 3's (effect ``critical_ratio``;
+    :func:`pneubayes.physics.orifice.flow_function`'s arguments)."""
+    return (slots[S["inlet_critical_ratio"]], slots[S["exhaust_critical_ratio"]],
+            slots[S["port_subsonic_index"]])
+
+
 def inlet_supply(slots: np.ndarray, rig: Rig, supply_Pa, port_Pa, inlet_area_m2):
     """The pressure (Pa) the valve's inlet is fed at: a supply restriction's node where
     the slot row (or rows, broadcast as the other arguments) has one
@@ -268,8 +276,9 @@ def rate_terms(slots: np.ndarray, rig: Rig, pressure_Pa, spool_V, position_m,
     denom = vol + kappa * p * compl
     scale = kappa * rs_t / denom
     x = port_pressure(sl, rig, p, p_sup, a_in, a_ex)
-    f_in = flow_function(inlet_supply(sl, rig, p_sup, x, a_in), x, g)
-    f_ex = flow_function(x, p_atm, g)
+    b_in, b_ex, m_sub = port_laws(sl)
+    f_in = flow_function(inlet_supply(sl, rig, p_sup, x, a_in), x, g, b_in, m_sub)
+    f_ex = flow_function(x, p_atm, g, b_ex, m_sub)
     q_in, q_ex = a_in * f_in, a_ex * f_ex
     inlet = scale * atten * q_in
     exhaust = -scale * atten * q_ex

@@ -31,7 +31,7 @@ import numpy as np
 from pneubayes.effects.path import SLOT_INDEX as S
 from pneubayes.effects.reading_flow import FLOW_FEATURES
 from pneubayes.physics.orifice import flow_function
-from pneubayes.simulation.rates import inlet_supply, port_areas
+from pneubayes.simulation.rates import inlet_supply, port_areas, port_laws
 from pneubayes.simulation.spool_path import spool_at
 
 #: The flows' unit in the features, kg/s (the features are in g/s).
@@ -110,9 +110,10 @@ class PortFlows:
         if p.ndim == 1:
             a_in, a_ex, p_sup = a_in[:, 0], a_ex[:, 0], p_sup[:, 0]
         g = self.rig.gas
+        b_in, b_ex, m_sub = port_laws(slots_row)
         return (a_in * flow_function(inlet_supply(slots_row, self.rig, p_sup, p, a_in), p,
-                                     g),
-                a_ex * flow_function(p, self.rig.atmospheric_pressure_Pa, g))
+                                     g, b_in, m_sub),
+                a_ex * flow_function(p, self.rig.atmospheric_pressure_Pa, g, b_ex, m_sub))
 
 
 def flow_reading(port_flows: PortFlows, slots, pressure_Pa, gains, features

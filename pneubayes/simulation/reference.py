@@ -43,13 +43,24 @@ from pneubayes.simulation.reading_hinge import (
 )
 
 
-def _flow(p_up, p_down, alpha, beta, theta, kappa):
-    """Eqs. 2-3 as printed (reverse flow: the roles swap, NOTES.md), kg/(s m^2)."""
+def _flow(p_up, p_down, alpha, beta, theta, kappa, b_crit=0.0, m_sub=0.0):
+    """Eqs. 2-3 as printed (reverse flow: the roles swap, NOTES.md), kg/(s m^2); with a
+    port's own critical ratio ``b_crit`` > 0, choked below it and eq. 3's subsonic
+    curve stretched over ``[b_crit, 1]``, its share of the choked flow raised to ``2
+    m_sub`` (``pneubayes.effects.critical_ratio``)."""
     if p_up < p_down:
-        return -_flow(p_down, p_up, alpha, beta, theta, kappa)
+        return -_flow(p_down, p_up, alpha, beta, theta, kappa, b_crit, m_sub)
+    r = p_down / p_up
+    if b_crit > 0.0:
+        if r < b_crit:
+            return beta * p_up
+        # where r sits between b_crit and 1, at the same share between 1/theta and 1
+        r = 1.0 - (1.0 - r) * (1.0 - 1.0 / theta) / (1.0 - b_crit)
+        g = r ** (2.0 / kappa) - r ** ((kappa + 1.0) / kappa)
+        share = alpha * math.sqrt(max(g, 0.0)) / beta  # of the choked flow
+        return beta * p_up * share ** (2.0 * (m_sub or 0.5))
     if p_up > theta * p_down:  # choked
         return beta * p_up
-    r = p_down / p_up
     g = r ** (2.0 / kappa) - r ** ((kappa + 1.0) / kappa)
     return alpha * p_up * math.sqrt(g) if g > 0.0 else 0.0
 
@@ -318,8 +329,10 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
             p_valve = _node_pressure(p, psup, a_in, a_ex, k_fill, k_vent, crack, law, p_atm)
         # each mass flow into the chamber (kg/s, negative = out)
         p_in = _supply_node(psup, p_valve, a_in, k_supply, law)
-        f_in = f_in_raw = _flow(p_in, p_valve, *law)
-        f_out = f_out_raw = _flow(p_valve, p_atm, *law)
+        m_sub = sl[S["port_subsonic_index"]]
+        f_in = f_in_raw = _flow(p_in, p_valve, *law, sl[S["inlet_critical_ratio"]], m_sub)
+        f_out = f_out_raw = _flow(p_valve, p_atm, *law, sl[S["exhaust_critical_ratio"]],
+                                  m_sub)
         net_raw = float(a_in * f_in_raw - a_ex * f_out_raw)  # (a flow lag's signal)
         if net_flow_only:
             return net_raw
@@ -732,8 +745,11 @@ def _flow_terms(sl, rig, spools, pressure, supply, gains, features) -> np.ndarra
         ueff = _dead_band(float(s), sl[S["deadband_halfwidth_V"]], sl[S["deadband_rounding_V"]])
         s_in, s_ex = _switching(ueff, sl[S["inlet_open_area_m2"]], sl[S["exhaust_open_area_m2"]])
         a_in, a_ex = _gompertz(ueff, *ins) + s_in, _gompertz(ueff, *exs) + s_ex
-        q_in = a_in * _flow(p_nom + gain * (p_meas - p_nom), p, *consts) * 1e3  # g/s
-        q_ex = a_ex * _flow(p, rig.atmospheric_pressure_Pa, *consts) * 1e3
+        m_sub = sl[S["port_subsonic_index"]]
+        q_in = a_in * _flow(p_nom + gain * (p_meas - p_nom), p, *consts,
+                            sl[S["inlet_critical_ratio"]], m_sub) * 1e3  # g/s
+        q_ex = a_ex * _flow(p, rig.atmospheric_pressure_Pa, *consts,
+                            sl[S["exhaust_critical_ratio"]], m_sub) * 1e3
         for c, name in zip(gains, features):
             q = q_in if name.startswith("inlet") else q_ex
             out[k] += c * (q * abs(q) if name.endswith("_square") else q)

@@ -61,6 +61,7 @@ _FORM_COLUMNS = {name: i for i, name in enumerate((
     "lung_volume_m3", "closure_terms", "loaded_wall_compliance_m3_per_Pa",
     "restriction_fill_inverse_area_per_m2", "restriction_vent_inverse_area_per_m2",
     "supply_restriction_inverse_area_per_m2", "heat_jet_coefficient_W_per_m2_K",
+    "inlet_critical_ratio", "exhaust_critical_ratio", "port_subsonic_index",
     "spool_natural_frequency_rad_per_s",
     "command_clock_period_s",
     *VOLUME_PLAY_COMPLIANCE_SLOTS))}
@@ -163,6 +164,14 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
             "'supply_restriction') feeds the inlet as the chamber's ports see "
             f"it: it cannot be combined with {lines}, a supply tank or a "
             "restriction at the port in one model")
+    critical = (has("inlet_critical_ratio") | has("exhaust_critical_ratio")
+                | has("port_subsonic_index"))
+    if np.any(critical & (tank | restricted | supplied)):
+        raise FormCombinationError(
+            "a port's own critical pressure ratio (effect 'critical_ratio') is stepped "
+            "where the valve's ports meet the chamber or a tube: it cannot be combined "
+            "with a supply tank, a restriction at the port or upstream of the inlet in "
+            "one model")
     if np.any(wave & (hot | has("line_length_m"))):
         raise FormCombinationError(
             "a transmission-line tube (tube_delay form 'wave') is simulated "

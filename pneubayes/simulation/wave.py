@@ -71,6 +71,9 @@ _WMU = SLOT_INDEX["wave_viscosity_Pa_s"]
 _WSEG = SLOT_INDEX["wave_segments"]
 _WGRID = SLOT_INDEX["wave_grid_s"]
 _WUNST = SLOT_INDEX["wave_unsteady_friction"]
+_B_IN = SLOT_INDEX["inlet_critical_ratio"]
+_B_EX = SLOT_INDEX["exhaust_critical_ratio"]
+_M_SUB = SLOT_INDEX["port_subsonic_index"]
 
 #: Entries of the wave history (a transit time of the longest element on the grid).
 WAVE_CAPACITY = 1024
@@ -90,17 +93,19 @@ WAVE_CARRY = WAVE_CARRY_HEAD + 2 * WAVE_MAX_SEGMENTS * WAVE_CARRY_POINTS
 
 @njit(cache=True, error_model="numpy")
 def wave_constants(sl, cs):
-    """``(tau, Z, area, element length, diameter, viscosity, K, grid)``: an element's
-    transit time (s), the characteristic impedance (Pa s/kg), the section (m^2), L / K
-    (m), the bore (m), the viscosity (Pa s), the number of elements and the grid's step
-    (s; :func:`wave_grid_step`)."""
+    """``(tau, Z, area, element length, diameter, viscosity, K, grid, b_in, b_ex, m)``:
+    an element's transit time (s), the characteristic impedance (Pa s/kg), the section
+    (m^2), L / K (m), the bore (m), the viscosity (Pa s), the number of elements, the
+    grid's step (s; :func:`wave_grid_step`), the valve's ports' critical pressure
+    ratios and their subsonic index (0: eq. 3's)."""
     k = int(sl[_WSEG])
     length, dia, mu = sl[_WLEN], sl[_WDIA], sl[_WMU]
     c = math.sqrt(cs[C_KAPPA] * cs[C_RS] * cs[C_T_SUPPLY])
     area = 0.25 * math.pi * dia * dia
     tau = length / (c * k)
     grid = min(sl[_WGRID], max(tau, WAVE_MIN_TRANSIT_S))
-    return tau, c / area, area, length / k, dia, mu, k, grid
+    return (tau, c / area, area, length / k, dia, mu, k, grid, sl[_B_IN], sl[_B_EX],
+            sl[_M_SUB])
 
 
 @njit(cache=True, error_model="numpy")
@@ -334,10 +339,11 @@ def wave_read_k(hist, ring, tq, out, k, blocks):
 
 
 @njit(cache=True, error_model="numpy")
-def valve_end(w_a, z_v, a_in, a_ex, p_sup, cs, p_guess):
+def valve_end(w_a, z_v, a_in, a_ex, p_sup, cs, p_guess, b_in, b_ex, m_sub):
     """Solve the valve end: the pressure ``p_v`` (Pa) at which the ports' net mass flow
     into the tube, ``m(p_v) = a_in f(p_sup, p_v) - a_ex f(p_v, P_atm)`` (eqs. 1-3), equals
-    ``(p_v - w_a) / z_v``. Returns ``(p_v, q_a, dq_a/dw_a)``.
+    ``(p_v - w_a) / z_v``. Returns ``(p_v, q_a, dq_a/dw_a)``. ``b_in``, ``b_ex``,
+    ``m_sub``: the ports' critical pressure ratios and subsonic index (0: eq. 3's).
 
     ``(p_v - w_a) / z_v - m(p_v)`` rises strictly with p_v, and changes sign on
     [min(P_atm, w_a), max(p_sup, w_a)]; Newton steps from ``p_guess`` that leave the
@@ -352,8 +358,10 @@ def valve_end(w_a, z_v, a_in, a_ex, p_sup, cs, p_guess):
     pv = min(max(p_guess, lo), hi)
     dm = 0.0
     for _ in range(100):
-        f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, pv, alpha, beta, theta, kappa)
-        f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(pv, p_atm, alpha, beta, theta, kappa)
+        f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_sup, pv, alpha, beta, theta, kappa, b_in,
+                                                  m_sub)
+        f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(pv, p_atm, alpha, beta, theta, kappa, b_ex,
+                                                  m_sub)
         m = a_in * f_in - a_ex * f_ex
         g = (pv - w_a) / z_v - m
         # the slopes as secants over 1 Pa (finite at a port's pressure balance)
@@ -380,7 +388,7 @@ def valve_end(w_a, z_v, a_in, a_ex, p_sup, cs, p_guess):
 
 @njit(cache=True, error_model="numpy")
 def wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area, seg_len,
-              dia, mu, state, rd, row):
+              dia, mu, state, rd, row, b_in, b_ex, m_sub):
     """An accepted step ending at ``t_now`` with chamber pressure ``p`` (dp/dp0 ``s_p``):
     the valve end, the junctions and the chamber end send their waves (the module's
     equations), appended to the history. ``state``: :func:`wave_state` (the last flows,
@@ -404,7 +412,8 @@ def wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
         s_u, r_u = unsteady_shear(state, k + 3, fac, area, 0.5 * gain)
         w_a += s_u - r_u * state[0]
         zv += r_u
-    p_v, q_a, dq = valve_end(w_a, zv, a_in, a_ex, p_sup, cs, state[1])
+    p_v, q_a, dq = valve_end(w_a, zv, a_in, a_ex, p_sup, cs, state[1], b_in, b_ex,
+                             m_sub)
     row[1] = rd[m + 1] + 2.0 * z * q_a
     row[2 * m + 1] = rd[3 * m + 1] * (1.0 + 2.0 * z * dq)
     if w > 0.0:
@@ -516,9 +525,9 @@ def wave_gain(p, vol, sl, cs):
 def _send(work, tube, t_now, p, s_p, p_sup, a_in, a_ex, cs):
     """:func:`wave_ends` with the kernel's tuples."""
     hist, ring, state, rd, row = work
-    tau, z, area, seg_len, dia, mu, k, _ = tube
+    tau, z, area, seg_len, dia, mu, k, _, b_in, b_ex, m_sub = tube
     return wave_ends(hist, ring, t_now, tau, z, k, p, s_p, p_sup, a_in, a_ex, cs, area,
-                     seg_len, dia, mu, state, rd, row)
+                     seg_len, dia, mu, state, rd, row, b_in, b_ex, m_sub)
 
 
 @njit(cache=True, inline="always", error_model="numpy")

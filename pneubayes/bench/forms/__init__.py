@@ -28,7 +28,10 @@ volume's plays on a loop that is not one: :class:`BoucWenWall`; the twelfth, a w
 carries a load: :class:`LoadedWall`; the thirteenth, readings logged through a rail and
 late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`). :class:`ArmatureDeadTime`
 and :class:`HeldArmatureDeadTime` are realistic forms of the catalogue's
-``valve_dead_time`` (an armature the supply drives, or holds back).
+``valve_dead_time`` (an armature the supply drives, or holds back). :class:`Iso6358Ports`,
+out of the catalogue in the third set, is a realistic form of ``critical_ratio`` since
+that effect was added (ISO 6358's ellipse and subsonic index against the effect's
+stretched eq. 3).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -200,7 +203,9 @@ def forms_from_names(names: Sequence[str], cylinder: str = "AIR37",
     - ``heat_transfer``: wall convection h = 30 W/(m^2 K) (a wall time constant of
       about 0.1 s in a small chamber at 3 bar);
     - ``valve_dead_time``: a supply-driven armature, 2 ms of coil and 8 ms of travel at 5
-      bar gauge.
+      bar gauge;
+    - ``critical_ratio``: both ports by ISO 6358 at b = 0.3 and a subsonic index of
+      0.45 (the catalogue's form has 1/2).
     """
     cyl = cylinder_preset(cylinder)
     gas = gas or GasConstants()
@@ -225,6 +230,8 @@ def forms_from_names(names: Sequence[str], cylinder: str = "AIR37",
             out.append(WallHeatTransfer(h_W_per_m2_K=30.0))
         elif n == "valve_dead_time":
             out.append(ArmatureDeadTime(travel_s=8e-3))
+        elif n == "critical_ratio":
+            out.append(Iso6358Ports(critical_pressure_ratio=0.3, subsonic_index=0.45))
         else:
             raise ValueError(f"forms_from_names: unknown effect {n!r}; the catalogue has "
                              f"{sorted(CATALOGUE)}")

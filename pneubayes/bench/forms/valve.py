@@ -111,10 +111,12 @@ class Iso6358Ports(PlantForm):
     (the Gompertz area is the sonic conductance), so only the subsonic shape differs:
     with ``b`` 0.2-0.4, as catalogued valves have, the flow starts to fall at a lower
     ratio than the isentropic 0.528 and falls more gradually. ``b = 0.528``, ``m = 0.5``
-    is close to eqs. 1-3.
+    is close to eqs. 1-3. A realistic form of the catalogue's ``critical_ratio`` (whose
+    subsonic curve is eq. 3's stretched over ``[b, 1]``, at a subsonic index of 1/2
+    only).
     """
 
-    catalogue_name: ClassVar[str | None] = None
+    catalogue_name: ClassVar[str | None] = "critical_ratio"
     critical_pressure_ratio: float
     subsonic_index: float = 0.5
 

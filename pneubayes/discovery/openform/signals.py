@@ -39,6 +39,7 @@ from pneubayes.simulation import Inputs
 from pneubayes.simulation.rates import (
     inlet_supply,
     port_areas,
+    port_laws,
     port_pressure,
     rate_terms,
     tabulated_volume,
@@ -119,8 +120,9 @@ def path_signals(model, params, recording, data, rig=None) -> dict:
     ue = None if inputs.exhaust_command is None else inputs.exhaust_command[:-1]
     a_in, a_ex = port_areas(sl, spool, ue)
     ports = port_pressure(sl, rig, p, p_sup, a_in, a_ex)  # (a restriction's node)
-    f_in = flow_function(inlet_supply(sl, rig, p_sup, ports, a_in), ports, g)
-    f_ex = flow_function(ports, p_atm, g)
+    b_in, b_ex, m_sub = port_laws(sl)
+    f_in = flow_function(inlet_supply(sl, rig, p_sup, ports, a_in), ports, g, b_in, m_sub)
+    f_ex = flow_function(ports, p_atm, g, b_ex, m_sub)
     inlet, exhaust = a_in * f_in, a_ex * f_ex
     dvol, slope = tabulated_volume(sl, p)
     compliance = sl[S["compliance_m3_per_Pa"]] + slope
