@@ -52,6 +52,7 @@ from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.bench.forms import (
     AcousticTube,
     ClearanceLeak,
+    Iso6358Ports,
     RegulatorDroop,
     RoundedDeadzone,
     SecondOrderSpool,
@@ -118,6 +119,9 @@ def draw_form(name: str, cylinder: str, rng, min_tube_cells: int = 8,
         return WallHeatTransfer(h_W_per_m2_K=_log_uniform(rng, 10.0, 80.0))
     if name == "sensor_lag":
         return SensorChain(phase="causal", cutoff_Hz=_log_uniform(rng, 120.0, 600.0))
+    if name == "critical_ratio":  # (not among SINGLES: the recorded seeds' draws stay)
+        return Iso6358Ports(critical_pressure_ratio=rng.uniform(0.15, 0.45),
+                            subsonic_index=rng.uniform(0.35, 0.75))
     raise ValueError(f"draw_form: unknown effect {name!r}")
 
 

@@ -1,0 +1,103 @@
+"""A blind check of ``critical_ratio``: valves rated by ISO 6358 on rigs and at values
+the effect was not developed on, run once and reported once.
+
+    python experiments/critical_ratio_blind.py --list --seed S
+    python experiments/critical_ratio_blind.py --out results/cr_blind --seed S
+
+The effect was written beside two development cases (AIR37 / valve 1 and SMC / valve 2,
+b = 0.3, m = 0.45; ``discovery_study.py --conditions critical_ratio --forms realistic``).
+This set draws from ``--seed`` (record it; draw it from the clock before looking): four
+single cases on the other rigs, the ISO 6358 ports' ``b`` in 0.15-0.45 and ``m`` in
+0.35-0.75 (:func:`blind_study.draw_form`); two pairs beside effects that also shape a
+fill's end (a regulator's droop, a tube); one null control. Each runs the bench's six
+20-s recordings and ``pneubayes discover`` from the plain model (``blind_study.run_case``);
+cases are cached in OUT/cases/NAME.json (a stopped run resumes), the table written to
+OUT/summary.md with the seed and git revision.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from blind_study import _public, draw_form, run_case
+from discovery_study import cached_cases
+
+from pneubayes.atomic import write_text_atomic
+from pneubayes.provenance import provenance
+
+#: The rigs of the singles: not the development cases' AIR37 / valve 1, SMC / valve 2.
+SINGLE_RIGS = ("AIR37:valve2", "SMC:valve1", "PRN:valve1", "AIR200:valve2")
+PAIRS = (("critical_ratio", "supply_fluctuation"), ("critical_ratio", "tube_delay"))
+PAIR_RIGS = ("PRN:valve2", "AIR200:valve1")
+
+
+def draw_cases(seed: int) -> list[dict]:
+    """The set's cases (each a rig, the planted effects' drawn forms and a bench seed)."""
+    rng = np.random.default_rng(seed)
+    plan = ([(r, ("critical_ratio",)) for r in SINGLE_RIGS]
+            + list(zip(PAIR_RIGS, PAIRS)) + [("AIR37:valve2", ())])
+    cases = []
+    for i, (rig, hidden) in enumerate(plan):
+        cylinder, valve = rig.split(":")
+        forms = {h: draw_form(h, cylinder, rng) for h in hidden}
+        cases.append({"name": f"c{i:02d}_{cylinder}_{valve}_{'+'.join(hidden) or 'none'}",
+                      "cylinder": cylinder, "valve": valve, "hidden": list(hidden),
+                      "bench_seed": int(rng.integers(1000, 100000)),
+                      "forms": {h: f.to_dict() for h, f in forms.items()},
+                      "_objects": forms})
+    return cases
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out")
+    ap.add_argument("--seed", type=int, required=True, help="the draw's seed (record it)")
+    ap.add_argument("--list", action="store_true", help="print the cases and stop")
+    args = ap.parse_args(argv)
+    cases = draw_cases(args.seed)
+    if args.list:
+        for c in cases:
+            print(json.dumps(_public(c)))
+        return 0
+    if not args.out:
+        ap.error("--out is required unless --list")
+    root = Path(args.out)
+    opts = argparse.Namespace(duration=20.0, posterior="off", tube_line_form="wave",
+                              wave_unsteady=False)
+
+    def describe(r):
+        if "error" in r:
+            return f"FAILED {r['error']}"
+        return (f"named {r['named']} ({'correct' if r['correct'] else 'WRONG'}), "
+                f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} Pa, "
+                f"{r['final_over_noise']:.2f} x the noise, {r['wall_time_s']:.0f} s")
+
+    results = cached_cases([(c["name"], c) for c in cases], root,
+                           lambda name, c: run_case(c, opts, root),
+                           lambda name, c, err: _public(c) | {"error": err}, describe)
+    lines = [f"critical_ratio blind check, seed {args.seed}", "",
+             "| case | planted (b, m) | named | held-out RMSE (Pa) | x noise | shrink |",
+             "|---|---|---|---|---|---|"]
+    for r in results:
+        iso = r["forms"].get("critical_ratio")
+        bm = (f"{iso['critical_pressure_ratio']:.3f}, {iso['subsonic_index']:.3f}"
+              if iso else "-")
+        if "error" in r:
+            lines.append(f"| {r['name']} | {bm} | failed: {r['error']} | - | - | - |")
+            continue
+        shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
+        lines.append(f"| {r['name']} | {bm} | {', '.join(r['named']) or '-'} | "
+                     f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
+                     f"{r['final_over_noise']:.2f} | {shrink} |")
+    lines += ["", f"provenance: {json.dumps(provenance())}"]
+    write_text_atomic(root / "summary.md", "\n".join(lines) + "\n")
+    print("\n".join(lines[:-2]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
