@@ -52,6 +52,20 @@ def draw_cases(seed: int) -> list[dict]:
     return cases
 
 
+def _fitted(root: Path, name: str) -> str:
+    """The named effect's fitted ratios and index from the case's discovery.json."""
+    path = root / "work" / name / "run" / "discovery.json"
+    if not path.exists():
+        return "-"
+    for e in json.loads(path.read_text())["effects"]:
+        if e["name"] == "critical_ratio":
+            p = {k: v["estimate"] for k, v in e["parameters"].items()}
+            b_in = p.get("inlet_critical_ratio", p.get("critical_ratio"))
+            b_ex = p.get("exhaust_critical_ratio", p.get("critical_ratio"))
+            return f"{b_in:.3f}, {b_ex:.3f}, {p.get('subsonic_index', 0.5):.3f}"
+    return "-"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out")
@@ -80,17 +94,18 @@ def main(argv=None) -> int:
                            lambda name, c: run_case(c, opts, root),
                            lambda name, c, err: _public(c) | {"error": err}, describe)
     lines = [f"critical_ratio blind check, seed {args.seed}", "",
-             "| case | planted (b, m) | named | held-out RMSE (Pa) | x noise | shrink |",
-             "|---|---|---|---|---|---|"]
+             "| case | planted (b, m) | fitted (b in, b out, m) | named | held-out RMSE (Pa) "
+             "| x noise | shrink |", "|---|---|---|---|---|---|---|"]
     for r in results:
         iso = r["forms"].get("critical_ratio")
         bm = (f"{iso['critical_pressure_ratio']:.3f}, {iso['subsonic_index']:.3f}"
               if iso else "-")
         if "error" in r:
-            lines.append(f"| {r['name']} | {bm} | failed: {r['error']} | - | - | - |")
+            lines.append(f"| {r['name']} | {bm} | - | failed: {r['error']} | - | - | - |")
             continue
         shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
-        lines.append(f"| {r['name']} | {bm} | {', '.join(r['named']) or '-'} | "
+        lines.append(f"| {r['name']} | {bm} | {_fitted(root, r['name'])} | "
+                     f"{', '.join(r['named']) or '-'} | "
                      f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
                      f"{r['final_over_noise']:.2f} | {shrink} |")
     lines += ["", f"provenance: {json.dumps(provenance())}"]

@@ -182,7 +182,38 @@ def tight_solver(rtol: float = 1e-8) -> SolverConfig:
                         min_step_s=1e-14, max_steps_per_s=2.5e7)
 
 
+def refit_planted(model, truth: dict, name: str, start: float, seed: int) -> float:
+    """A planted value of parameter ``name`` refitted alone: 2 s of noise-free fills and
+    vents (valve steps of 50 ms at 0.015 m, from 2e5 Pa) simulated at ``truth``, the
+    trajectory refinement started with ``name`` at ``start``; returns its estimate."""
+    from pneubayes.inference.refine import TrajectoryRefiner
+    from pneubayes.simulation import simulate
+
+    t = np.arange(2001) * 1e-3
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.choice([-4.0, -0.5, 0.3, 1.0, 4.0], 41), 50)[:t.size]
+    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
+                           position_m=0.015)
+    blank = Recording(md, t, u, np.full(t.size, P_ATM))
+    p = simulate(model, truth, Inputs.from_recording(blank), blank.rig(), 2e5,
+                 tight_solver(1e-9)).pressure_Pa[0]
+    fit = TrajectoryRefiner(model, tight_solver(1e-7), 0.5, 0.5, free=[name], max_nfev=40,
+                            uncertainty=False).fit([Recording(md, t, u, p)],
+                                                   dict(truth, **{name: start}))
+    return fit.params_[name]
+
+
 # ---------------------------------------------------------------- fixtures
+@pytest.fixture
+def sagging_steps():
+    """Steps between full inlet, closed, full exhaust and a half opening, a piston at
+    2 Hz and a supply that sags and recovers: 0.15 s."""
+    t = np.arange(151) * 1e-3
+    u = np.select([t < 0.04, t < 0.06, t < 0.1, t < 0.125], [3.0, 0.0, -3.0, 0.6], -0.6)
+    x = 0.05 + 0.01 * np.sin(2 * np.pi * 2 * t)
+    return Inputs(t, u, x, P_SUP - 3e4 * np.sin(np.pi * t / 0.15))
+
+
 @pytest.fixture
 def valve_params():
     """Valve 1 of Table II and a 2.4e-6 m^3 dead volume."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import refit_planted
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import CriticalRatio, make_effect
@@ -19,17 +20,17 @@ from pneubayes.simulation import Inputs, SolverConfig, simulate
 from pneubayes.simulation.reference import reference_simulate
 
 P_ATM, P_SUP = 101325.0, 551325.0
-GAS = GasConstants()
 
 
 @pytest.fixture
-def steps():
-    """Steps between full inlet, closed, full exhaust and a half opening, a piston at
-    2 Hz and a supply that sags and recovers: 0.15 s."""
-    t = np.arange(151) * 1e-3
-    u = np.select([t < 0.04, t < 0.06, t < 0.1, t < 0.125], [3.0, 0.0, -3.0, 0.6], -0.6)
-    x = 0.05 + 0.01 * np.sin(2 * np.pi * 2 * t)
-    return Inputs(t, u, x, P_SUP - 3e4 * np.sin(np.pi * t / 0.15))
+def steps(sagging_steps):
+    """(conftest's sagging_steps)"""
+    return sagging_steps
+
+
+GAS = GasConstants()
+
+
 
 
 def _iso6358(r, b, m=0.5):
@@ -244,23 +245,7 @@ def test_each_later_form_starts_from_the_last_ones_fit():
 def test_a_planted_ratio_is_recovered_by_a_trajectory_fit(rig, valve_params):
     """Noise-free fills and vents of valve 1 at b = 0.32: the trajectory refinement of the
     ratio alone from eq. 3's finds it within 1 %."""
-    from conftest import BORE, STROKE
-
-    from pneubayes.inference.refine import TrajectoryRefiner
-    from pneubayes.io import Recording, RecordingMetadata
-
-    t = np.arange(2001) * 1e-3
-    rng = np.random.default_rng(12)
-    u = np.repeat(rng.choice([-4.0, -0.5, 0.3, 1.0, 4.0], 41), 50)[:t.size]
     model = Model([CriticalRatio()])
-    truth = dict(valve_params, critical_ratio=0.32)
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    blank = Recording(md, t, u, np.full(t.size, P_ATM))
-    p = simulate(model, truth, Inputs.from_recording(blank), blank.rig(), 2e5,
-                 _tight(1e-9)).pressure_Pa[0]
-    rec = Recording(md, t, u, p)
-    fit = TrajectoryRefiner(model, _tight(1e-7), 0.5, 0.5, free=["critical_ratio"],
-                            max_nfev=40, uncertainty=False).fit(
-        [rec], dict(truth, critical_ratio=0.5))
-    assert fit.params_["critical_ratio"] == pytest.approx(0.32, rel=1e-2)
+    got = refit_planted(model, dict(valve_params, critical_ratio=0.32), "critical_ratio",
+                        0.5, seed=12)
+    assert got == pytest.approx(0.32, rel=1e-2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import refit_planted
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import SupplyRestriction, TubeDelay
@@ -20,16 +21,10 @@ from pneubayes.simulation.supply_restriction import supply_node, supply_slopes
 P_ATM, P_SUP = 101325.0, 551325.0
 
 
-
-
 @pytest.fixture
-def steps():
-    """Steps between full inlet, closed, full exhaust and a half opening, a piston at
-    2 Hz and a supply that sags and recovers: 0.15 s."""
-    t = np.arange(151) * 1e-3
-    u = np.select([t < 0.04, t < 0.06, t < 0.1, t < 0.125], [3.0, 0.0, -3.0, 0.6], -0.6)
-    x = 0.05 + 0.01 * np.sin(2 * np.pi * 2 * t)
-    return Inputs(t, u, x, P_SUP - 3e4 * np.sin(np.pi * t / 0.15))
+def steps(sagging_steps):
+    """(conftest's sagging_steps)"""
+    return sagging_steps
 
 
 def _slots(k, **extra):
@@ -268,26 +263,10 @@ def test_a_planted_restriction_is_recovered_by_a_trajectory_fit(rig, valve_param
     """Noise-free fills and vents through 0.4 mm^2 upstream of valve 1's inlet (about
     0.58 mm^2 open): the trajectory refinement of the restriction alone from 1 mm^2
     finds the planted inverse area within 1 %."""
-    from conftest import BORE, STROKE
-
-    from pneubayes.inference.refine import TrajectoryRefiner
-    from pneubayes.io import Recording, RecordingMetadata
-
-    t = np.arange(2001) * 1e-3
-    rng = np.random.default_rng(11)
-    u = np.repeat(rng.choice([-4.0, -0.5, 0.3, 1.0, 4.0], 41), 50)[:t.size]
-    model = Model([SupplyRestriction()])
-    truth = dict(valve_params, supply_restriction=2.5e6)
-    md = RecordingMetadata("AIR37", "valve1", BORE, STROKE, P_ATM, P_SUP, 293.15,
-                           position_m=0.015)
-    blank = Recording(md, t, u, np.full(t.size, P_ATM))
-    p = simulate(model, truth, Inputs.from_recording(blank), blank.rig(), 2e5,
-                 _tight(1e-9)).pressure_Pa[0]
-    rec = Recording(md, t, u, p)
-    fit = TrajectoryRefiner(model, _tight(1e-7), 0.5, 0.5, free=["supply_restriction"],
-                            max_nfev=40, uncertainty=False).fit(
-        [rec], dict(truth, supply_restriction=1e6))
-    assert fit.params_["supply_restriction"] == pytest.approx(2.5e6, rel=1e-2)
+    got = refit_planted(Model([SupplyRestriction()]),
+                        dict(valve_params, supply_restriction=2.5e6), "supply_restriction",
+                        1e6, seed=11)
+    assert got == pytest.approx(2.5e6, rel=1e-2)
 
 
 # ---------------------------------------------------------------- the rig card's kind
