@@ -95,6 +95,7 @@ EFFECT_FORMS = (
     ("reading_play", "reading_play", {}),
     ("loaded_wall", "loaded_wall", {}),
     ("port_restriction", "port_restriction", {}),
+    ("critical_ratio iso6358", "critical_ratio", {"form": "iso6358"}),
 )
 
 
