@@ -26,7 +26,7 @@ from pneubayes.simulation.line import line_step, line_workspace
 from pneubayes.simulation.lung import lung_step
 from pneubayes.simulation.tank import tank_step
 from pneubayes.simulation.thermal import thermal_step
-from pneubayes.simulation.wave import wave_window_end, wave_workspace
+from pneubayes.simulation.wave import wave_constants, wave_window_end, wave_workspace
 
 #: The callees :func:`compile_general_callees` compiles, in the order it compiles them
 #: (the order the kernel's compile reaches them in).
@@ -43,7 +43,7 @@ def _typed_calls(n, flag, x):
     sl, cs, carry = np.empty(n), np.empty(n), np.empty(n)
     hist, ring, w_rd, w_row = wave_workspace(flag)
     w_work = (hist, ring, np.zeros(n), w_rd, w_row)
-    tube = (f, f, f, f, f, f, n, f)
+    tube = wave_constants(sl, cs)  # (typed as the kernel's, whatever its length)
     wave_window_end(w_work, tube, (f, f, f, f, f), carry, f, f, f, f, f, f, f, cs)
     y, y_new, prop = np.empty(n), np.empty(n), np.empty((n, n))
     line_step(y, n, f, f, f, f, f, f, f, f, f, f, f, f, f, sl, cs, f, f, f, y_new, prop,
