@@ -778,6 +778,31 @@ def test_a_line_whose_fitted_transit_needs_more_cells_is_fitted_again_with_them(
     assert [m.effect("tube_delay").segments for _, m, _ in forms["tube_delay"][1:]] == [4, 8]
 
 
+def test_a_later_forms_new_parameter_without_a_start_starts_neutral(rig):
+    """An effect whose next form adds a parameter it gives no start for (here the ISO
+    index after a ratio per port) starts that parameter at its neutral value."""
+    from pneubayes.discovery.candidates import follow_up
+    from pneubayes.discovery.verification import StepFit
+    from pneubayes.effects import CriticalRatio
+    from pneubayes.physics.valve import valve_preset
+
+    class Terse(CriticalRatio):
+        def form_after_fit(self, params, ctx):
+            if self.form != "ports":
+                return None
+            return CriticalRatio(form="iso6358"), {"inlet_critical_ratio": 0.31}
+
+    params = dict(valve_preset("valve1").parameters(), dead_volume_m3=2e-5)
+    current = StepFit(Model(), params, 1.0, 1.0, np.zeros(1), np.zeros(1), 500.0, 0.0)
+    model = Model([Terse(form="ports")])
+    fitted = dict(params, inlet_critical_ratio=0.3, exhaust_critical_ratio=0.33)
+    nxt, start = follow_up(current, "critical_ratio", {}, rig, model, fitted)
+    assert nxt.effect("critical_ratio").form == "iso6358"
+    assert set(start) == set(nxt.parameter_names)
+    assert start["subsonic_index"] == 0.5 and start["exhaust_critical_ratio"] == 0.33
+    assert start["inlet_critical_ratio"] == pytest.approx(0.31)
+
+
 def _stub_refiner(monkeypatch, trials, refiner):
     """The trial runner's ``fit`` with ``refiner`` in place of the trajectory refiner and
     its noise and score computations stubbed (the tests count refinement stages)."""

@@ -72,14 +72,15 @@ def follow_up(fit: StepFit, group: str, evidence: dict, rig: Rig, model, params:
               forms: FormSettings | None = None):
     """``(model, start)`` of the form the named group's effect asks to fit next from
     ``model`` fitted at ``params`` beside ``fit`` (:meth:`~pneubayes.effects.Effect.
-    form_after_fit`), started at ``params``; None when it asks for none; ``forms`` as
+    form_after_fit`), started at ``params`` (a parameter the new form adds and the
+    effect gives no start for: neutral); None when it asks for none; ``forms`` as
     :func:`candidate_context`."""
     ctx = candidate_context(fit, group, evidence, rig, forms)
     nxt = model.effect(group).form_after_fit(params, ctx)
     if nxt is None:
         return None
     effect, values = nxt
-    return _started(fit, effect, params, values)
+    return _started(fit, effect, {**effect.neutral_values(), **params}, values)
 
 
 def form_label(model: Model, group: str) -> str:
