@@ -380,7 +380,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa, b_ex, m_sub)
     # the leak's: the chamber's own flow function to the atmosphere (eq. 3's ratio)
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
-    if x != p or sl[_B_EX] > 0.0:
+    if x != p or b_ex > 0.0:
         f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     f_in0, f_ex0 = f_in, f_ex  # (before the convective scaling: the closure's features)
     t_wall = cs[C_T_SUPPLY]
@@ -469,14 +469,12 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
                                                      dfin_dsup, dfin_dp, cs, dfloor)
     dfex_dp, _ = flow_slopes(x, p_atm, sg_e, dg_e, r_e, rev_e, alpha, beta, kappa, dfloor)
     dflk_dp = dfex_dp  # (the leak's: the chamber's own)
-    if sl[_B_EX] > 0.0:  # (the exhaust's own ratio: the leak's is eq. 3's)
-        dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
-                              dfloor)[0]
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
-    if x != p:  # the ports' slopes through the node; the leak's at the chamber
+    if x != p:  # the ports' slopes through the node
         dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
             x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], dfin_dsup, dfin_dp,
             dfex_dp, cs, dfloor)
+    if x != p or b_ex > 0.0:  # the leak's at the chamber, by eq. 3
         dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
                               dfloor)[0]
     dcl_dp, dcl_dt, dcl_out_dp, dcl_out_dt = 0.0, 0.0, 0.0, 0.0
@@ -614,20 +612,16 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
         if sl[_SUP_R] > 0.0:
             p_in = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
-    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa)
-    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa)
+    b_in, b_ex, m_sub = 0.0, 0.0, 0.0  # the ports' own laws (general kernel only)
+    if with_closure is not None:
+        b_in, b_ex, m_sub = sl[_B_IN], sl[_B_EX], sl[_M_SUB]
+    f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa, b_in, m_sub)
+    f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa, b_ex, m_sub)
     # the leak's: the chamber's own flow function to the atmosphere (eq. 3's ratio)
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
     if with_closure is not None:
-        if x != p:
+        if x != p or b_ex > 0.0:
             f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
-        # the ports' own critical pressure ratios (general kernel only)
-        if sl[_B_IN] > 0.0:
-            f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa,
-                                                      sl[_B_IN], sl[_M_SUB])
-        if sl[_B_EX] > 0.0:
-            f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa,
-                                                      sl[_B_EX], sl[_M_SUB])
     t_wall = cs[C_T_SUPPLY]
     # The temperature is a state where the pressure feels it (a coupling c > 0); the
     # pressure equation reads te = T_w + c (T - T_w) for T (eq. 5 at c = 0)
@@ -707,16 +701,14 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     share = 1.0  # the part of a port area's change that reaches the chamber's flow
     share_in = 1.0  # (the inlet's through a supply restriction's node)
     if with_closure is not None:
-        if sl[_B_EX] > 0.0:  # (the exhaust's own ratio: the leak's is eq. 3's)
-            dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
-                                  dfloor)[0]
         if p_in != p_sup:
             dfin_dsup, dfin_dp, share_in = supply_slopes(p_sup, p_in, x, a_in, sl[_SUP_R],
                                                          dfin_dsup, dfin_dp, cs, dfloor)
-        if x != p:  # the ports' slopes through the node; the leak's at the chamber
+        if x != p:  # the ports' slopes through the node
             dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
                 x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], dfin_dsup, dfin_dp,
                 dfex_dp, cs, dfloor)
+        if x != p or b_ex > 0.0:  # the leak's at the chamber, by eq. 3
             dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
                                   dfloor)[0]
     dfin_dp *= sq_in
