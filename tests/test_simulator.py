@@ -1184,11 +1184,15 @@ def test_the_pressure_only_kernel_refuses_the_rarer_forms(rig, form):
 
 @pytest.mark.parametrize("form", [
     {"sensor_time_constant_s": 2e-3},
-    {"sensor_natural_frequency_rad_per_s": 900.0, "sensor_damping": 0.7}],
-    ids=["sensor", "sensor2"])
-def test_a_lagged_sensor_runs_in_the_pressure_only_kernel_as_in_the_general_one(rig, form):
-    """A lagged reading (first or second order) is stepped by the pressure-only kernel
-    (``needs_general`` false), as the general kernel steps it, and it lags."""
+    {"sensor_natural_frequency_rad_per_s": 900.0, "sensor_damping": 0.7},
+    {"inlet_critical_ratio": 0.3, "exhaust_critical_ratio": 0.25},
+    {"inlet_critical_ratio": 0.3, "exhaust_critical_ratio": 0.3,
+     "port_subsonic_index": 0.4}],
+    ids=["sensor", "sensor2", "critical_ratio", "iso6358"])
+def test_a_form_runs_in_the_pressure_only_kernel_as_in_the_general_one(rig, form):
+    """A lagged reading (first or second order) and the ports' own critical ratios (and
+    subsonic index) are stepped by the pressure-only kernel (``needs_general`` false),
+    as the general kernel steps them, and they change the pressure."""
     plain, (out, status), needs = _form_windows(rig, form, False)
     assert not needs and status[0, 0] == kernel.OK
     assert np.max(np.abs(out[0, 0] - plain[0, 0])) > 100.0

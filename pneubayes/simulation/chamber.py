@@ -612,16 +612,13 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             x = node_pressure(p, p_sup, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], cs)
         if sl[_SUP_R] > 0.0:
             p_in = supply_node(p_sup, x, a_in, sl[_SUP_R], cs)
-    b_in, b_ex, m_sub = 0.0, 0.0, 0.0  # the ports' own laws (general kernel only)
-    if with_closure is not None:
-        b_in, b_ex, m_sub = sl[_B_IN], sl[_B_EX], sl[_M_SUB]
+    b_in, b_ex, m_sub = sl[_B_IN], sl[_B_EX], sl[_M_SUB]  # (the ports' laws; 0 eq. 3's)
     f_in, sg_i, dg_i, r_i, rev_i = flow_terms(p_in, x, alpha, beta, theta, kappa, b_in, m_sub)
     f_ex, sg_e, dg_e, r_e, rev_e = flow_terms(x, p_atm, alpha, beta, theta, kappa, b_ex, m_sub)
     # the leak's: the chamber's own flow function to the atmosphere (eq. 3's ratio)
     f_lk, sg_l, dg_l, r_l, rev_l = f_ex, sg_e, dg_e, r_e, rev_e
-    if with_closure is not None:
-        if x != p or b_ex > 0.0:
-            f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
+    if x != p or b_ex > 0.0:
+        f_lk, sg_l, dg_l, r_l, rev_l = flow_terms(p, p_atm, alpha, beta, theta, kappa)
     t_wall = cs[C_T_SUPPLY]
     # The temperature is a state where the pressure feels it (a coupling c > 0); the
     # pressure equation reads te = T_w + c (T - T_w) for T (eq. 5 at c = 0)
@@ -708,9 +705,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             dfin_dsup, dfin_dp, dfex_dp, share = series_slopes(
                 x, p, a_in, a_ex, sl[_RES_F], sl[_RES_V], sl[_RES_C], dfin_dsup, dfin_dp,
                 dfex_dp, cs, dfloor)
-        if x != p or b_ex > 0.0:  # the leak's at the chamber, by eq. 3
-            dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
-                                  dfloor)[0]
+    if x != p or b_ex > 0.0:  # the leak's at the chamber, by eq. 3
+        dflk_dp = flow_slopes(p, p_atm, sg_l, dg_l, r_l, rev_l, alpha, beta, kappa,
+                              dfloor)[0]
     dfin_dp *= sq_in
     dfin_dsup *= sq_in
     dfex_dp *= sq_ex

@@ -979,25 +979,22 @@ def needs_general(slots) -> bool:
     """True when a parameter set (row of ``slots``) has a second state (heat transfer, an
     acoustic line, a transmission-line tube's waves, a supply tank or a second
     compartment), an open-form closure, a restriction at the port or upstream of the
-    inlet, a loaded wall, a volume play, a second-order spool, a valve driver's clock or
-    a port's own critical pressure ratio (whose code the pressure-only kernel leaves
-    out, so that the plain model's first call compiles less)."""
+    inlet, a loaded wall, a volume play, a second-order spool or a valve driver's clock
+    (whose code the pressure-only kernel leaves out, so that the plain model's first
+    call compiles less). The ports' own critical ratios are stepped by both."""
     return bool((np.asarray(slots)[:, GENERAL_SLOTS] > 0.0).any())
 
 
 #: The slots of the forms with a second state or a closure (:func:`needs_general`), and
 #: of the rarer forms the pressure-only kernel leaves out so that the paper's model
-#: compiles less on its first call: a second-order spool, a valve driver's clock and
-#: the ports' own critical pressure ratios.
+#: compiles less on its first call: a second-order spool and a valve driver's clock.
 GENERAL_SLOTS = np.array([_HCOUP, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
                           _SPOOL_W, _CLOCK_T] + [
     SLOT_INDEX[name] for name in VOLUME_PLAY_COMPLIANCE_SLOTS] + [
     SLOT_INDEX["loaded_wall_compliance_m3_per_Pa"],
     SLOT_INDEX["restriction_fill_inverse_area_per_m2"],
     SLOT_INDEX["restriction_vent_inverse_area_per_m2"],
-    SLOT_INDEX["supply_restriction_inverse_area_per_m2"],
-    SLOT_INDEX["inlet_critical_ratio"], SLOT_INDEX["exhaust_critical_ratio"],
-    SLOT_INDEX["port_subsonic_index"]])
+    SLOT_INDEX["supply_restriction_inverse_area_per_m2"]])
 
 
 @njit(cache=True, error_model="numpy")
