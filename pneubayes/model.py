@@ -21,7 +21,7 @@ import numpy as np
 from pneubayes.atomic import write_json_atomic
 from pneubayes.effects import CATALOGUE, Effect, Parameter, ThinPort, make_effect
 from pneubayes.effects.path import N_SLOTS, SLOT_INDEX
-from pneubayes.errors import ModelCardError, ParameterError
+from pneubayes.errors import FormCombinationError, ModelCardError, ParameterError
 from pneubayes.rig import Rig
 
 CARD_FORMAT = "pneubayes-model/1"
@@ -78,6 +78,11 @@ class Model:
         for e in built:
             if not isinstance(e, Effect):
                 raise TypeError(f"Model: {e!r} is not an Effect")
+            if rig_card is not None and rig_card.covers(e.name):
+                raise FormCombinationError(
+                    f"Model: the rig card {rig_card.name!r} states what effect {e.name!r} "
+                    "would fit (the ports' rating writes the same slots); give the card's "
+                    "quantities as priors instead")
         # Canonical order: catalogue order, so equal models have equal parameter order
         # (an effect of the user's not registered in the catalogue after it, by name)
         order = list(CATALOGUE)
@@ -171,6 +176,11 @@ class Model:
 
     def has(self, name: str) -> bool:
         return name in self.effect_names
+
+    def covers(self, name: str) -> bool:
+        """Whether the model has effect ``name`` or its rig card states what the effect
+        would fit (:meth:`RigCard.covers`): the discovery loop proposes neither."""
+        return self.has(name) or (self.rig_card is not None and self.rig_card.covers(name))
 
     def effect(self, name: str) -> Effect:
         for e in self.effects:

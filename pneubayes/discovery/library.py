@@ -152,10 +152,11 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
                   groups: Sequence[str] | None = None) -> CandidateLibrary:
     """Candidate terms and absorbers for ``model`` at ``params`` on ``data``.
 
-    ``groups`` defaults to every catalogue effect the model does not already have.
+    ``groups`` defaults to every catalogue effect the model does not already have (nor
+    its rig card state: :meth:`Model.covers`).
     """
     if groups is None:
-        groups = [g for g in CATALOGUE if not model.has(g)]
+        groups = [g for g in CATALOGUE if not model.covers(g)]
     theta = model.vector(params)
     sens_points, widths, steps = sensitivity_points(model, theta)
     terms = _terms(model, groups, grid)

@@ -4,7 +4,7 @@ Importing this package registers the shipped kinds (one module each):
 chamber ``fixed``, ``compliant``, ``compliant_table``, ``piston``, ``polynomial``,
 ``table`` and ``two_compartment``; valve ``gompertz``, ``switching`` and ``table``;
 supply ``measured``, ``constant``, ``tank`` and ``restricted``; a separate exhaust
-valve ``gompertz`` and ``linear``.
+valve ``gompertz`` and ``linear``; the ports' datasheet rating ``iso6358``.
 """
 
 from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
@@ -17,6 +17,7 @@ from pneubayes.rigcard import (  # noqa: F401  (each module registers its kind)
     chamber_two_compartment,
     exhaust_gompertz,
     exhaust_linear,
+    ports_iso6358,
     supply_constant,
     supply_measured,
     supply_restricted,

@@ -21,6 +21,10 @@ A JSON or TOML file (see the README's "Your own rig")::
     opening_time_constant_s = 1e-3
     [supply]                   # kind "measured", "constant" or "tank"
     kind = "measured"
+    [ports]                    # optional: the valve's ISO 6358 rating
+    kind = "iso6358"
+    inlet_critical_ratio = 0.32
+    exhaust_critical_ratio = {prior = "uniform", bounds = [0.2, 0.45]}
     [tube]                     # optional: the valve-chamber tube
     length_m = 1.88
     inner_diameter_m = 0.004
@@ -81,13 +85,20 @@ class RigCard:
     notes: str = ""
     source: str = "rig card"
     exhaust: RigComponent | None = None
+    ports: RigComponent | None = None
 
     @property
     def components(self) -> tuple[RigComponent, ...]:
         """The model's base components: valve, chamber, supply (and a separate exhaust
-        valve)."""
-        extra = () if self.exhaust is None else (self.exhaust,)
+        valve, the ports' rating)."""
+        extra = tuple(c for c in (self.exhaust, self.ports) if c is not None)
         return (self.valve, self.chamber, self.supply) + extra
+
+    def covers(self, name: str) -> bool:
+        """Whether a component of this card writes the slots of catalogue effect
+        ``name`` (the ports' rating those of ``critical_ratio``): a model with the card
+        refuses that effect."""
+        return any(name in c.covers_effects for c in self.components)
 
     def effect_options(self, name: str) -> dict:
         """Options this rig gives a catalogue effect (the tube's bore for tube_delay)."""
@@ -104,6 +115,8 @@ class RigCard:
                "supply": self.supply.to_table()}
         if self.exhaust is not None:
             out["exhaust"] = self.exhaust.to_table()
+        if self.ports is not None:
+            out["ports"] = self.ports.to_table()
         if self.tube is not None:
             out["tube"] = {"length_m": self.tube.length_m,
                            "inner_diameter_m": self.tube.inner_diameter_m}
@@ -174,6 +187,14 @@ class RigCard:
         if "exhaust" in card:  # a separate exhaust valve: the valve keeps no exhaust
             exhaust = _component(card, "exhaust", source)
             parts["valve"] = parts["valve"].without_exhaust(f"{source} key 'valve'")
+        ports = None
+        if "ports" in card:
+            ports = _component(card, "ports", source)
+            if parts["supply"].kind in ("tank", "restricted"):
+                raise RigCardError(
+                    f"{source} key 'ports': a port's own critical ratio is stepped where "
+                    f"the valve meets the chamber; the simulator cannot combine it with a "
+                    f"supply of kind {parts['supply'].kind!r}")
         tube = None
         if "tube" in card:
             t = card["tube"]
@@ -193,7 +214,7 @@ class RigCard:
             raise RigCardError(f"{source} key 'notes': must be a string")
         made = cls(name, atm, temp, read_command(card.get("command"), f"{source} key 'command'"),
                    parts["chamber"], parts["valve"], parts["supply"], tube, bounds, notes,
-                   source, exhaust)
+                   source, exhaust, ports)
         if bounds:
             from pneubayes.effects import catalogue_parameter_names
 

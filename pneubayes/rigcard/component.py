@@ -7,7 +7,8 @@ writes itself back. Its known quantities are lowered as constants; its unknown o
 
 Kinds register themselves with :func:`register`; :data:`KINDS` maps
 ``(role, kind)`` to the class. Roles: ``chamber``, ``valve``, ``supply`` (each card
-has one) and ``exhaust`` (optional: a separately commanded exhaust valve).
+has one), ``exhaust`` (optional: a separately commanded exhaust valve) and ``ports``
+(optional: the valve's flow paths as a datasheet rates them).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pneubayes.errors import RigCardError
 from pneubayes.rigcard.values import Unknown, to_card
 
 ROLES = ("chamber", "valve", "supply")
-OPTIONAL_ROLES = ("exhaust",)
+OPTIONAL_ROLES = ("exhaust", "ports")
 KINDS: dict[tuple[str, str], type["RigComponent"]] = {}
 
 
@@ -61,6 +62,9 @@ class RigComponent(Component):
     #: card key -> the value (a number or an Unknown prior) of a quantity the card may
     #: leave out; a quantity not named here is required
     defaults: ClassVar[dict] = {}
+    #: catalogue effects whose slots this component writes: a model with the component
+    #: refuses them and the discovery loop does not propose them
+    covers_effects: ClassVar[tuple[str, ...]] = ()
     #: the recording's ``position_m`` column is a coordinate this component maps to the
     #: equivalent piston's position and checks against its own range (``bind_columns``),
     #: so the reader's stroke rule, which reads a piston position, does not apply to it
