@@ -34,8 +34,15 @@ so the plain model is this effect at zero strength (c = 0) and a fit of the effe
 contains the fit without it. The exchange alone cannot do that: as the rate or h falls
 to 0 at c = 1 the chamber becomes *adiabatic* with outflow at its own temperature, which
 is not eq. 5 (docs/history.md, 2026-12-07, has how far apart the two are).
-A warm or cold wall, a nonuniform gas or exchange in the valve's body sit between (c <
-1: the pressure follows its temperature less than a well-mixed chamber would).
+A nonuniform gas or exchange in the valve's body sit between (c < 1: the pressure
+follows its temperature less than a well-mixed chamber would).
+
+Option ``wall_offset`` (any form) adds ``heat_transfer_wall_offset_K`` dT_w: the wall
+held at ``T_s + dT_w`` (a valve body or a room warmer or colder than the supply's air;
+its heat capacity taken as large), which the exchange drives the gas toward; the
+pressure equation reads ``T_s + c dT_w`` for the wall, so c = 0 is eq. 5 whatever the
+offset and dT_w = 0 is the form without it. Discovery fits it after the convective
+and forced forms, from their fit.
 """
 
 from __future__ import annotations
@@ -50,6 +57,8 @@ from pneubayes.physics.cylinder import wall_area_m2
 from pneubayes.rig import Rig
 
 _FORMS = ("rate", "convective", "forced")
+#: The wall offset's bounds, K (either side of the supply's temperature).
+WALL_OFFSET_K = 50.0
 
 
 class HeatTransfer(Effect):
@@ -60,15 +69,18 @@ class HeatTransfer(Effect):
     forms = _FORMS
     cheap_forms = True
     acts_on = ("heat_rate_per_s", "heat_coefficient_W_per_m2_K", "heat_coupling",
-               "heat_jet_coefficient_W_per_m2_K")
+               "heat_jet_coefficient_W_per_m2_K", "heat_wall_offset_K")
     #: the chamber temperature: a state no recording measures
     needs_warmup = True
 
-    def __init__(self, form: str = "rate"):
+    option_variants = ({"form": "convective", "wall_offset": True},)
+
+    def __init__(self, form: str = "rate", wall_offset: bool = False):
         self.form = form
+        self.wall_offset = bool(wall_offset)
 
     def options(self):
-        return {"form": self.form}
+        return {"form": self.form, **({"wall_offset": True} if self.wall_offset else {})}
 
     @classmethod
     def card_defaults(cls, params):
@@ -86,29 +98,35 @@ class HeatTransfer(Effect):
                              "share of the chamber temperature's departure from the wall's "
                              "that the pressure feels (0: eq. 5, 1: the energy equation)",
                              neutral=0.0, limit="upper")
+        wall = (Parameter("heat_transfer_wall_offset_K", "K", -WALL_OFFSET_K, WALL_OFFSET_K,
+                          "uniform", "the wall's temperature above the supply's",
+                          neutral=0.0),) if self.wall_offset else ()
         if self.form == "rate":
             return (Parameter("heat_transfer_rate_per_s", "1/s", 0.0, 100.0, "uniform",
                               "wall heat-exchange rate, 1 / wall time constant", neutral=0.0),
-                    coupling)
+                    coupling) + wall
         h = Parameter("heat_transfer_coefficient_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
                       "uniform", "convective heat-transfer coefficient to the wall",
                       neutral=0.0)
         if self.form == "convective":
-            return (h, coupling)
+            return (h, coupling) + wall
         return (h, Parameter("heat_transfer_jet_W_per_m2_K", "W/(m^2 K)", 0.0, 1000.0,
                              "uniform", "the coefficient's growth at an inflow of 1 g/s "
-                             "(forced convection by the fill's jet)", neutral=0.0), coupling)
+                             "(forced convection by the fill's jet)", neutral=0.0),
+                coupling) + wall
 
     def lower(self, values: Mapping[str, np.ndarray], rig: Rig):
         self._check()
-        coupling = np.asarray(values["heat_transfer_coupling"], dtype=np.float64)
+        out = {"heat_coupling": np.asarray(values["heat_transfer_coupling"], np.float64)}
+        if self.wall_offset:
+            out["heat_wall_offset_K"] = np.asarray(values["heat_transfer_wall_offset_K"],
+                                                   np.float64)
         if self.form == "rate":
-            return {"heat_rate_per_s": np.asarray(values["heat_transfer_rate_per_s"],
-                                                  dtype=np.float64),
-                    "heat_coupling": coupling}
-        out = {"heat_coefficient_W_per_m2_K": np.asarray(
-            values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64),
-            "heat_coupling": coupling}
+            out["heat_rate_per_s"] = np.asarray(values["heat_transfer_rate_per_s"],
+                                                np.float64)
+            return out
+        out["heat_coefficient_W_per_m2_K"] = np.asarray(
+            values["heat_transfer_coefficient_W_per_m2_K"], dtype=np.float64)
         if self.form == "forced":
             out["heat_jet_coefficient_W_per_m2_K"] = np.asarray(
                 values["heat_transfer_jet_W_per_m2_K"], dtype=np.float64)
@@ -162,12 +180,24 @@ class HeatTransfer(Effect):
                               forced, "heat_transfer_jet_W_per_m2_K", h),
                           "heat_transfer_coupling": coupling})]
 
+    def form_after_fit(self, params, ctx):
+        """The convective or forced form with the wall's offset, from its fit (the offset
+        at 0: the fitted form itself)."""
+        if self.wall_offset or self.form == "rate":
+            return None
+        return (HeatTransfer(form=self.form, wall_offset=True),
+                {"heat_transfer_wall_offset_K": 0.0})
+
     def bench_defaults(self):
+        # (with the offset: a wall 15 K above the supply, a valve body or a warm room)
+        wall = {"heat_transfer_wall_offset_K": 15.0} if self.wall_offset else {}
         if self.form == "rate":
             # a wall time constant of 0.2 s, typical of small cylinders
-            return {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0}
+            return {"heat_transfer_rate_per_s": 5.0, "heat_transfer_coupling": 1.0, **wall}
         if self.form == "forced":  # still air, and a fill's jet of 1 g/s: 4 x
             return {"heat_transfer_coefficient_W_per_m2_K": 20.0,
-                    "heat_transfer_jet_W_per_m2_K": 60.0, "heat_transfer_coupling": 1.0}
+                    "heat_transfer_jet_W_per_m2_K": 60.0, "heat_transfer_coupling": 1.0,
+                    **wall}
         # natural to weakly forced convection in a small cylinder
-        return {"heat_transfer_coefficient_W_per_m2_K": 30.0, "heat_transfer_coupling": 1.0}
+        return {"heat_transfer_coefficient_W_per_m2_K": 30.0, "heat_transfer_coupling": 1.0,
+                **wall}

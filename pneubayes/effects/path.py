@@ -289,6 +289,12 @@ SLOTS += (
      "shape (-)"),
 )
 
+SLOTS += (
+    ("heat_wall_offset_K", "beside heat exchange, the wall's temperature above the "
+     "supply's (a warm body, a cold room); the pressure feels the coupling's share of it, "
+     "as of the chamber's departure (K)"),
+)
+
 #: The inflow (kg/s) at which heat's forced form adds ``heat_jet_coefficient_W_per_m2_K``
 #: to the wall's coefficient (the slot's unit: W/(m^2 K) per this inflow).
 JET_FLOW_REF_KG_PER_S = 1e-3

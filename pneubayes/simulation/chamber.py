@@ -34,6 +34,7 @@ _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _HCOUP = SLOT_INDEX["heat_coupling"]
 _HJET = SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]
+_HWOFF = SLOT_INDEX["heat_wall_offset_K"]
 _COMPL = SLOT_INDEX["compliance_m3_per_Pa"]
 _VT_N = SLOT_INDEX["volume_table_points"]
 _VT_P = SLOT_INDEX["volume_table_pressure_Pa_0"]
@@ -389,6 +390,9 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     coup = sl[_HCOUP]
     thermal = coup > 0.0
     te = t_wall + coup * (temp - t_wall) if thermal else t_wall
+    # the wall's temperature as the heat terms read it: the coupling's share of its
+    # offset above the supply's, T_w + c dT_w (eq. 5 at c = 0)
+    t_hot = t_wall + coup * sl[_HWOFF] if thermal else t_wall
     hconv = sl[_HCONV] if thermal else 0.0
     hjet = sl[_HJET] if thermal else 0.0
     conv = hconv > 0.0 or hjet > 0.0
@@ -453,9 +457,9 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
             stir = phi * a_in * f_in
         c_wall, dc_wall_dv = wall_exchange(kappa, hconv + hjet * stir / JET_FLOW_REF_KG_PER_S,
                                            cs[C_BORE_AREA], vol)
-        fp += c_wall * (t_wall - te)
+        fp += c_wall * (t_hot - te)
     if heat > 0.0:
-        fp += p * heat * (t_wall - te) / te
+        fp += p * heat * (t_hot - te) / te
     if thermal:
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
@@ -496,7 +500,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     if compl > 0.0:  # d(denominator)/dp = C (1 + n)
         jp -= fp_eq5 * compl * (1.0 + kappa) / denom
     if heat > 0.0:
-        jp += heat * (t_wall - te) / te
+        jp += heat * (t_hot - te) / te
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = phi * (a_in * dfin_dsup * dsup
                       + share * (share_in * f_in * da_in - f_ex * da_ex))
@@ -506,9 +510,9 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
         dmdot_dt += dcl_dt
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
     if conv:
-        vp += dc_wall_dv * vdot * (t_wall - te)
+        vp += dc_wall_dv * vdot * (t_hot - te)
     if stir > 0.0:  # the forced form's coefficient follows the inflow in p and t
-        g_jet = (hjet / JET_FLOW_REF_KG_PER_S * (t_wall - te)
+        g_jet = (hjet / JET_FLOW_REF_KG_PER_S * (t_hot - te)
                  * wall_exchange(kappa, 1.0, cs[C_BORE_AREA], vol)[0])
         jp += g_jet * phi * a_in * (dfin_dp + att / (p * p) * f_in)
         vp += g_jet * phi * (a_in * dfin_dsup * dsup + share * share_in * f_in * da_in)
@@ -547,7 +551,7 @@ def _chamber_rhs_closure(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_
     jpt = (n_over_v * (rs_t * dmdot_dT - coup * rs * m_out + rs * (t_wall - te) * dmout_dT)
            - coup * c_wall)
     if heat > 0.0:
-        jpt -= coup * p * heat * t_wall / (te * te)
+        jpt -= coup * p * heat * t_hot / (te * te)
     # ft = T (fp / p + vdot / V - Rs T mdot / (p V))
     g = rs * temp / (p * vol)
     jtp = temp * (jp / p - fp / (p * p) - g * dmdot + g * mdot / p)
@@ -569,7 +573,8 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
 
     Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
     (a rate, or a convective coefficient on the wall area with orifice outflows at the
-    chamber's temperature, felt at the share ``heat_coupling``;
+    chamber's temperature, felt at the share ``heat_coupling``, toward a wall at the
+    supply's temperature plus ``heat_wall_offset_K``;
     :mod:`pneubayes.effects.heat_transfer`). A restriction in series at the port
     (:mod:`pneubayes.simulation.restriction`; the general kernel only) has the valve's
     ports pass their flows at its node's pressure; with heat transfer the node's exhaust
@@ -625,6 +630,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     coup = sl[_HCOUP]
     thermal = coup > 0.0
     te = t_wall + coup * (temp - t_wall) if thermal else t_wall
+    # the wall's temperature as the heat terms read it: the coupling's share of its
+    # offset above the supply's, T_w + c dT_w (eq. 5 at c = 0)
+    t_hot = t_wall + coup * sl[_HWOFF] if thermal else t_wall
     hconv = sl[_HCONV] if thermal else 0.0
     hjet = 0.0
     if with_closure is not None:
@@ -683,9 +691,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
             stir = phi * a_in * f_in
         c_wall, dc_wall_dv = wall_exchange(kappa, hconv + hjet * stir / JET_FLOW_REF_KG_PER_S,
                                            cs[C_BORE_AREA], vol)
-        fp += c_wall * (t_wall - te)
+        fp += c_wall * (t_hot - te)
     if heat > 0.0:
-        fp += p * heat * (t_wall - te) / te
+        fp += p * heat * (t_hot - te) / te
     if thermal:
         ft = temp * (fp / p + vdot / vol - rs * temp * mdot / (p * vol))
     if not need_j:
@@ -720,7 +728,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     if compl > 0.0:  # d(denominator)/dp = C (1 + n)
         jp -= fp_eq5 * compl * (1.0 + kappa) / denom
     if heat > 0.0:
-        jp += heat * (t_wall - te) / te
+        jp += heat * (t_hot - te) / te
     # explicit time dependence: d(eq. 5)/dV * dV/dt + inputs moving the flows
     dmdot_dt = phi * (a_in * dfin_dsup * dsup
                       + share * (share_in * f_in * da_in - f_ex * da_ex))
@@ -728,9 +736,9 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
         dmdot_dt -= leak_g * vdot / cs[C_BORE_AREA] * lam
     vp = n_over_v * rs_t * dmdot_dt - fp_eq5 * inv_denom * vdot
     if conv:
-        vp += dc_wall_dv * vdot * (t_wall - te)
+        vp += dc_wall_dv * vdot * (t_hot - te)
     if stir > 0.0:  # the forced form's coefficient follows the inflow in p and t
-        g_jet = (hjet / JET_FLOW_REF_KG_PER_S * (t_wall - te)
+        g_jet = (hjet / JET_FLOW_REF_KG_PER_S * (t_hot - te)
                  * wall_exchange(kappa, 1.0, cs[C_BORE_AREA], vol)[0])
         jp += g_jet * phi * a_in * (dfin_dp + att / (p * p) * f_in)
         vp += g_jet * phi * (a_in * dfin_dsup * dsup + share * share_in * f_in * da_in)
@@ -767,7 +775,7 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     jpt = (n_over_v * (rs_t * dmdot_dT - coup * rs * m_out + rs * (t_wall - te) * dmout_dT)
            - coup * c_wall)
     if heat > 0.0:
-        jpt -= coup * p * heat * t_wall / (te * te)
+        jpt -= coup * p * heat * t_hot / (te * te)
     # ft = T (fp / p + vdot / V - Rs T mdot / (p V))
     g = rs * temp / (p * vol)
     jtp = temp * (jp / p - fp / (p * p) - g * dmdot + g * mdot / p)

@@ -70,6 +70,7 @@ _HEAT = SLOT_INDEX["heat_rate_per_s"]
 _HCONV = SLOT_INDEX["heat_coefficient_W_per_m2_K"]
 _HCOUP = SLOT_INDEX["heat_coupling"]
 _HJET = SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]
+_HWOFF = SLOT_INDEX["heat_wall_offset_K"]
 _B_IN = SLOT_INDEX["inlet_critical_ratio"]
 _B_EX = SLOT_INDEX["exhaust_critical_ratio"]
 _M_SUB = SLOT_INDEX["port_subsonic_index"]
@@ -384,7 +385,8 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     heat form, as :func:`pneubayes.simulation.chamber.chamber_rhs` has them (the
     convective form's leak orifice passes gas at T: its flow scales by sqrt(T_w / T);
     the forced form's jet is the line's inflow ``q_n``), the pressure's row reading
-    ``T_w + c (T - T_w)`` for T (c the slot ``heat_coupling``).
+    ``T_w + c (T - T_w)`` for T (c the slot ``heat_coupling``) and ``T_w + c dT_w`` for
+    the wall (slot ``heat_wall_offset_K``).
     Writes rows 0 and -1 of ``f``, ``jac`` and ``vt``.
     """
     kappa, p_atm, rs, t_w = cs[C_KAPPA], cs[C_P_ATM], cs[C_RS], cs[C_T_SUPPLY]
@@ -396,6 +398,7 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     p, temp = y[0], y[it]
     heat, hconv, coup, hjet = sl[_HEAT], sl[_HCONV], sl[_HCOUP], sl[_HJET]
     te = t_w + coup * (temp - t_w)  # the temperature the pressure feels
+    t_hot = t_w + coup * sl[_HWOFF]  # and the wall's: T_w + c dT_w
     conv = hconv > 0.0 or hjet > 0.0
     stir = max(q, 0.0) if hjet > 0.0 else 0.0  # the forced form's jet: the line's inflow
     sq = 1.0
@@ -412,9 +415,9 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     if conv:
         c_wall, dc_wall_dv = wall_exchange(kappa, hconv + hjet * stir / JET_FLOW_REF_KG_PER_S,
                                            bore, vol)
-        fp += c_wall * (t_w - te)
+        fp += c_wall * (t_hot - te)
     if heat > 0.0:
-        fp += p * heat * (t_w - te) / te
+        fp += p * heat * (t_hot - te) / te
     g = rs * temp / (p * vol)
     ft = temp * (fp / p + vdot / vol - g * mdot)
     f[0] = fp
@@ -437,13 +440,13 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     jpp = n_v * (rs_t * (-dleak_dp) + rs * (t_w - te) * dmout_dp - vdot)
     jpq = n_v * (rs_t + rs * (t_w - te) * dmout_dq)
     if stir > 0.0:  # the forced form's coefficient follows the line's inflow
-        jpq += (hjet / JET_FLOW_REF_KG_PER_S * (t_w - te)
+        jpq += (hjet / JET_FLOW_REF_KG_PER_S * (t_hot - te)
                 * wall_exchange(kappa, 1.0, bore, vol)[0])
     jpt = (n_v * (-rs_t * dleak_dt - coup * rs * m_out + rs * (t_w - te) * dmout_dt)
            - coup * c_wall)
     if heat > 0.0:
-        jpp += heat * (t_w - te) / te
-        jpt -= coup * p * heat * t_w / (te * te)
+        jpp += heat * (t_hot - te) / te
+        jpt -= coup * p * heat * t_hot / (te * te)
     jac[0, 0] += jpp
     jac[0, iqn] += jpq
     jac[0, it] += jpt
@@ -454,7 +457,7 @@ def _thermal_chamber(y, nseg, vol, vdot, sl, cs, h, need_j, q, f_l, sg_l, dg_l, 
     dleak_dtime = leak_g * vdot / bore * lam
     dmout_dtime = dleak_dtime if leak_out > 0.0 else 0.0
     vp = (-fp_eq5 / vol * vdot + n_v * (-rs_t * dleak_dtime + rs * (t_w - te) * dmout_dtime))
-    vp += dc_wall_dv * vdot * (t_w - te)
+    vp += dc_wall_dv * vdot * (t_hot - te)
     vt[0] = vp
     vt[it] = temp * (vp / p - (vdot / vol) ** 2 + g * dleak_dtime + g * mdot * vdot / vol)
 

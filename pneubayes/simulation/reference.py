@@ -225,6 +225,7 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
     h_wall = sl[S["heat_coefficient_W_per_m2_K"]]
     h_jet = sl[S["heat_jet_coefficient_W_per_m2_K"]]  # per g/s of inflow
     coup = sl[S["heat_coupling"]]
+    wall_offset = sl[S["heat_wall_offset_K"]]  # the wall above the supply, K
     thermal = coup > 0
     if not thermal:
         heat = h_wall = h_jet = 0.0
@@ -396,13 +397,14 @@ def _rhs_factory(sl, rig: Rig, cmd, xa, vdot, ta, seg, sa, sb, cmd_ex=0.0, cdir=
         enthalpy += rs * (t_s * (m_cl + out_cl) - t_felt * out_cl)
         dp = kappa * (enthalpy - p * vdot) / (v_c + kappa * p * compl)
         dtemp = 0.0
+        t_hot = t_s + coup * wall_offset  # the wall as the pressure feels it
         if heat > 0:
-            dp = dp + p * heat * (t_s - t_felt) / t_felt
+            dp = dp + p * heat * (t_hot - t_felt) / t_felt
         if h_wall > 0 or h_jet > 0:  # Q = h A_w (T_w - T), wall = end caps + barrel;
             # the forced form's h grows with the inflow
             h = h_wall + h_jet * max(float(port[0]), 0.0) / JET_FLOW_REF_KG_PER_S
             dp = dp + ((kappa - 1.0) * h * float(wall_area_m2(vol, rig.bore_area_m2))
-                       * (t_s - t_felt) / vol)
+                       * (t_hot - t_felt) / vol)
         if thermal:
             dtemp = temp * (dp / p + vdot / vol - rs * temp * mdot / (p * vol))
         tau_now = tau_dn if tau_dn > 0 and cmd < spool else tau_s
