@@ -184,6 +184,7 @@ _DEAD = SLOT_INDEX["deadband_halfwidth_V"]
 _ROUND = SLOT_INDEX["deadband_rounding_V"]
 _SUPG = SLOT_INDEX["supply_gain"]
 _HCOUP = SLOT_INDEX["heat_coupling"]
+_HWOFF = SLOT_INDEX["heat_wall_offset_K"]
 _LLEN = SLOT_INDEX["line_length_m"]
 _LSEG = SLOT_INDEX["line_segments"]
 _WLEN = SLOT_INDEX["wave_length_m"]
@@ -743,7 +744,11 @@ def _window(sl, cs, sv, t, u, ue, x, ps, pm, i0, length, p0, rate0, out, sens, c
         for q in range(rx_n):  # low-pass at its first step's flow (at rest)
             rx_val[q] = (relaxation_start(t, pm, k0, rx_tau[q], p, calibrated, p_atm, zero,
                                           cal_g) if rx_kind[q] == 16.0 else math.nan)
-    temp = carry[0] if thermal else cs[C_T_SUPPLY]
+    temp = cs[C_T_SUPPLY]
+    if thermal:
+        temp = carry[0]
+        if math.isnan(temp):  # a recording's start: the gas at rest at its wall's
+            temp = cs[C_T_SUPPLY] + sl[_HWOFF]
     out[0] = p0_read
     want_sens = sens.shape[0] > 0
     s_t0 = 1.0 if lung_from_p0 else 0.0  # d(second state)/dp0
@@ -999,21 +1004,21 @@ GENERAL_SLOTS = np.array([_HCOUP, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
 
 @njit(cache=True, error_model="numpy")
 def _fresh_carry(consts):
-    """Unmeasured states at a recording's start: supply temperature, line at rest, a
-    tank at the window's supply, a second compartment at the first window's p0."""
-    carry = np.full(N_CARRY, np.nan)
-    carry[0] = consts[C_T_SUPPLY]
-    return carry
+    """Unmeasured states at a recording's start, all NaN: the gas at its wall's
+    temperature (the supply's plus ``heat_wall_offset_K``), a line at rest, a tank at the
+    window's supply, a second compartment at the first window's p0."""
+    return np.full(N_CARRY, np.nan)
 
 
 def simulate_windows(slots, consts, solver, t, u, ue, x, ps, starts, length, p0, rate0=None,
                      pm=None, general=None):
     """Simulate every (parameter set, window) pair.
 
-    The chamber temperature (a state only with heat transfer) starts at the supply's in
-    the first window, an acoustic line at rest at the chamber's pressure; when every
-    window starts on the previous one's last sample, each later window starts from the
-    temperature, line and tank state the previous one ended with.
+    The chamber temperature (a state only with heat transfer) starts at its wall's (the
+    supply's plus ``heat_wall_offset_K``) in the first window, an acoustic line at rest
+    at the chamber's pressure; when every window starts on the previous one's last
+    sample, each later window starts from the temperature, line and tank state the
+    previous one ended with.
 
     Parameters
     ----------

@@ -550,8 +550,10 @@ def reference_simulate(model: Model, params, inputs: Inputs, rig: Rig,
     t, u, x, ps = inputs.time_s, inputs.command_V, inputs.position_m, inputs.supply_pressure_Pa
     delay = sl[S["command_delay_s"]]
     nseg = int(sl[S["line_segments"]]) if sl[S["line_length_m"]] > 0 else 0
-    # an acoustic line starts at rest at the chamber's pressure
-    y = np.array([initial_pressure_Pa, rig.gas.temperature_K, 0.0]
+    # an acoustic line starts at rest at the chamber's pressure, the gas at its wall's
+    # temperature (the supply's plus a heat exchange's wall offset)
+    y = np.array([initial_pressure_Pa, rig.gas.temperature_K + (
+        sl[S["heat_wall_offset_K"]] if sl[S["heat_coupling"]] > 0 else 0.0), 0.0]
                  + [initial_pressure_Pa] * nseg + [0.0] * nseg)
     atols = [atol, atol * 1e-4, 1e-9] + [atol] * nseg
     if nseg:

@@ -395,12 +395,10 @@ def simulate_windows(model: Model, params, inputs: Inputs, rig: Rig, starts, len
 
 def fresh_carry(n: int, rig: Rig) -> np.ndarray:
     """``(n, N_CARRY)`` unmeasured states at a stream's start, as a recording's first
-    window starts them (the chamber at the supply's temperature, a line at rest, a tank
-    at the supply, a second compartment at the start's pressure): the ``carry`` of
-    :func:`simulate_carried`."""
-    carry = np.full((int(n), kernel.N_CARRY), np.nan)
-    carry[:, 0] = rig.gas.temperature_K
-    return carry
+    window starts them (all NaN: the chamber's gas at its wall's temperature, a line at
+    rest, a tank at the supply, a second compartment at the start's pressure): the
+    ``carry`` of :func:`simulate_carried`. ``rig`` is not read (kept for callers)."""
+    return np.full((int(n), kernel.N_CARRY), np.nan)
 
 
 def simulate_carried(model: Model, params, inputs: Inputs, rig: Rig, bounds,
