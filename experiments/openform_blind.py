@@ -8,7 +8,7 @@ random, run once and reported once, never looked at while the open-form stage is
     python experiments/openform_blind.py --set 2 --out results/blind2 --case n00
 
 The hidden effects are the out-of-catalogue plant forms of
-:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in ten sets (``--set``, each
+:mod:`pneubayes.bench.forms` (``catalogue_name`` None), in fourteen sets (``--set``, each
 drawn once from its own seed, :data:`SET_SEEDS`). Set 1 (the default; seed 69069, run
 on 2026-12-01 and since spent on the stage's development): a compliant bladder volume,
 spool play (backlash), a relief valve, inlet flow forces and a lip-seal leak, cases
@@ -52,7 +52,11 @@ chamber) and a sensor port facing the inlet's jet, cases ``k00``-``k09``. Sets 1
 are one form each, on both rigs beside the two controls: a wall with a Bouc-Wen loop
 (seed 1796458249, cases ``m00``-``m03``) and a wall that carries a load, a mass on a
 spring (seed 1796499138, drawn from the clock on 2026-12-05 and recorded before its form
-was written or any case ran; cases ``j00``-``j03``). Each form is planted
+was written or any case ran; cases ``j00``-``j03``). Set 13 (two forms: readings
+logged through a rail and late) has cases ``g00``-``g05``; set 14 (seed 1796657361,
+drawn from the clock on 2026-12-07 before its form was written) one form, a spool
+pushed back by its delivered pressure through a pilot, cases ``f00``-``f03``. Each form
+is planted
 on two rigs (AIR37 / valve 1 and SMC / valve 2) with its parameters drawn from wide
 physical ranges (:func:`draw_openform`) from ``--seed`` (default: the set's, recorded);
 two null controls hide nothing. Every case runs the bench (``discovery_study``'s six
@@ -119,6 +123,7 @@ from pneubayes.bench.forms import (
     LoadedWall,
     LowReynoldsPorts,
     MeterOutThrottle,
+    PilotFedSpool,
     PilotInletValve,
     PistonSealBypass,
     PressureHeldSolenoid,
@@ -194,6 +199,10 @@ OPENFORM_SEED_12 = 1796499138
 #: rigs and the controls): ``date +%s`` at 2026-12-05 21:54:27 UTC, fixed before its
 #: forms were written or any case ran.
 OPENFORM_SEED_13 = 1796507667
+#: Set 14's seed (one form, a spool pushed back by its delivered pressure through a
+#: pilot, on the two rigs and the controls): ``date +%s`` at 2026-12-07 15:29:21 UTC,
+#: fixed before its form was written or any case ran.
+OPENFORM_SEED_14 = 1796657361
 SMOKE_SEED = 11
 #: The out-of-catalogue forms of each blind set, and the set's seed and case prefix.
 SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowForce",
@@ -210,13 +219,13 @@ SET_FORMS = {1: ("BladderVolume", "SpoolHysteresis", "ReliefValve", "InletFlowFo
              10: ("BraidFriction", "SolenoidGroundShift", "PressureHeldSolenoid",
                   "InletJetAtSensor"),
              11: ("BoucWenWall",), 12: ("LoadedWall",),
-             13: ("SaturatingSensor", "SkewedPressureChannel")}
+             13: ("SaturatingSensor", "SkewedPressureChannel"), 14: ("PilotFedSpool",)}
 SET_SEEDS = {1: OPENFORM_SEED, 2: OPENFORM_SEED_2, 3: OPENFORM_SEED_3, 4: OPENFORM_SEED_4,
              5: OPENFORM_SEED_5, 6: OPENFORM_SEED_6, 7: OPENFORM_SEED_7, 8: OPENFORM_SEED_8,
              9: OPENFORM_SEED_9, 10: OPENFORM_SEED_10, 11: OPENFORM_SEED_11,
-             12: OPENFORM_SEED_12, 13: OPENFORM_SEED_13}
+             12: OPENFORM_SEED_12, 13: OPENFORM_SEED_13, 14: OPENFORM_SEED_14}
 SET_PREFIX = {1: "o", 2: "n", 3: "t", 4: "q", 5: "v", 6: "w", 7: "x", 8: "y", 9: "z",
-              10: "k", 11: "m", 12: "j", 13: "g"}
+              10: "k", 11: "m", 12: "j", 13: "g", 14: "f"}
 #: Each out-of-catalogue form is planted on both rigs.
 RIGS = ("AIR37:valve1", "SMC:valve2")
 N_CONTROLS = 2
@@ -331,7 +340,9 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
       natural frequency of 6-40 Hz and a damping ratio of 0.05-0.5 (all log-uniform);
     - SaturatingSensor (set 13): a rail at 55-90 % of the supply's 4.5 bar gauge, a knee of
       2-20 kPa (both log-uniform);
-    - SkewedPressureChannel (set 13): the pressure logged 2-15 ms late (log-uniform).
+    - SkewedPressureChannel (set 13): the pressure logged 2-15 ms late (log-uniform);
+    - PilotFedSpool (set 14): 0.05-0.3 V of spool per bar (log-uniform) above a preload of
+      0.3-2.5 bar (uniform), the pilot's lag 1-20 ms (log-uniform).
     """
     if name == "BladderVolume":
         cyl = cylinder_preset(cylinder)
@@ -505,6 +516,10 @@ def draw_openform(name: str, cylinder: str, rng, valve: str = "valve1"):
                                 knee_Pa=_log_uniform(rng, 2e3, 20e3))
     if name == "SkewedPressureChannel":
         return SkewedPressureChannel(delay_s=_log_uniform(rng, 2e-3, 15e-3))
+    if name == "PilotFedSpool":
+        return PilotFedSpool(feedback_V_per_bar=_log_uniform(rng, 0.05, 0.3),
+                             preload_Pa=rng.uniform(0.3e5, 2.5e5),
+                             pilot_time_constant_s=_log_uniform(rng, 1e-3, 20e-3))
     if name == "InletJetAtSensor":
         sign = 1.0 if rng.uniform() < 0.5 else -1.0
         return InletJetAtSensor(shift_Pa=sign * _log_uniform(rng, 1e3, 8e3),

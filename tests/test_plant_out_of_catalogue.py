@@ -34,6 +34,7 @@ from pneubayes.bench.forms import (
     LoadedWall,
     LowReynoldsPorts,
     MeterOutThrottle,
+    PilotFedSpool,
     PilotInletValve,
     PistonSealBypass,
     PressureHeldSolenoid,
@@ -139,7 +140,8 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
                                      "SensorHysteresis", "SealSpeedLeak", "BraidFriction",
                                      "SolenoidGroundShift", "PressureHeldSolenoid",
                                      "InletJetAtSensor", "BoucWenWall", "LoadedWall",
-                                     "SaturatingSensor", "SkewedPressureChannel"}
+                                     "SaturatingSensor", "SkewedPressureChannel",
+                                     "PilotFedSpool"}
     for cyl in ("AIR37", "SMC"):
         forms = [out_of_catalogue_defaults(n, cyl) for n in OUT_OF_CATALOGUE]
         assert check_forms(forms) == tuple(forms)  # all of them together: no clash
@@ -253,6 +255,9 @@ def test_out_of_catalogue_forms_name_no_catalogue_effect_and_round_trip():
      "reference_flow_kg_per_s"),
     (LoadedWall, {"compliance_m3_per_Pa": -1e-12}, "compliance_m3_per_Pa"),
     (LoadedWall, {"compliance_m3_per_Pa": 1e-12, "damping_ratio": 0.0}, "damping_ratio"),
+    (PilotFedSpool, {"feedback_V_per_bar": -0.1}, "feedback_V_per_bar"),
+    (PilotFedSpool, {"feedback_V_per_bar": 0.1, "pilot_time_constant_s": 0.0},
+     "pilot_time_constant_s"),
 ])
 def test_forms_validate_their_fields_by_name(cls, kwargs, field):
     with pytest.raises(ValueError, match=rf"{cls.__name__}\.{field} must be"):
@@ -294,7 +299,7 @@ def test_bench_plants_no_catalogue_effect_for_an_out_of_catalogue_form(tmp_path)
     ZohDriver(update_period_s=0.0), SealSpeedLeak(conductance_kg_per_s_Pa2=0.0),
     BraidFriction(compliance_m3_per_Pa=0.0), PressureHeldSolenoid(time_constant_s=0.0),
     BoucWenWall(elastic_compliance_m3_per_Pa=0.0, loop_volume_m3=0.0),
-    LoadedWall(compliance_m3_per_Pa=0.0)],
+    LoadedWall(compliance_m3_per_Pa=0.0), PilotFedSpool(feedback_V_per_bar=0.0)],
     ids=lambda f: type(f).__name__)
 def test_zero_strength_is_the_plant_without_the_form(rig, base, form):
     inputs = _moving()
@@ -1433,3 +1438,25 @@ def test_a_loaded_wall_rings_and_conserves_a_shut_chamber_s_gas(rig):
     assert crossings >= 4  # it rings (20 Hz, lightly damped) after the piston stops
     rigid = _run(params, (), inputs, rig, p0=p0)
     assert np.ptp(rigid[t > 0.06]) < 1.0
+
+
+def test_a_pilot_fed_spool_stalls_a_fill_where_its_shift_shuts_the_inlet(rig):
+    """A full command (5 V) on a valve whose inlet shuts below about 2.7 V: with 1 V of
+    spool per bar above a 1-bar preload the fill stalls between 2.9 and 3.5 bar gauge
+    (where the shift shuts the inlet), far below the supply the plain valve reaches, and
+    below the preload it fills as the plain valve does. A slower pilot (50 ms) shifts the
+    spool only after the small chamber has filled far past that stall, and then shuts
+    the inlet without opening the exhaust: the chamber is held above it."""
+    params = dict(CLOSABLE, dead_volume_m3=1.5e-7)
+    fill = _held(0.6, (5.0,))
+    plain = _run(params, (), fill, rig)
+    fed = PilotFedSpool(feedback_V_per_bar=1.0, preload_Pa=1e5, pilot_time_constant_s=1e-3)
+    got = _run(params, (fed,), fill, rig)
+    assert plain[-1] > P_SUP - 1e3
+    assert 2.9e5 < got[-1] - P_ATM < 3.5e5
+    below = got - P_ATM < 0.9e5
+    assert below.sum() > 5
+    np.testing.assert_allclose(got[below], plain[below], rtol=1e-6)
+    slow = _run(params, (replace(fed, pilot_time_constant_s=0.05),), fill, rig)
+    assert slow[-1] > got[-1] + 5e4
+    assert np.ptp(slow[-1000:]) < 1.0  # (shut: held for the last 0.1 s)

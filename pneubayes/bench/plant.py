@@ -67,6 +67,7 @@ from pneubayes.bench.forms import (
     LoadedWall,
     LowReynoldsPorts,
     MeterOutThrottle,
+    PilotFedSpool,
     PilotInletValve,
     PistonSealBypass,
     PlantForm,
@@ -163,7 +164,9 @@ K_LW_C, K_LW_W, K_LW_Z = 113, 114, 115
 K_TUBE_UF = 116
 # a WallHeatTransfer's forced convection by the inflow's jet
 K_HJ, K_HJ_Q = 117, 118
-N_K = 119
+# the fourteenth set's form (0: absent)
+K_PF_K, K_PF_Q0, K_PF_TAU = 119, 120, 121
+N_K = 122
 #: Below this drop (Pa) a MeterOutThrottle's flow, and a QuickExhaustValve's passage's,
 #: is laminar (linear in the drop).
 MO_LAMINAR_DROP_PA = 1000.0
@@ -172,8 +175,8 @@ MO_LAMINAR_DROP_PA = 1000.0
 # (SpringReturnSpool), 5 held by the inlet's drop (PressureHeldSolenoid).
 (L_SPOOL, L_IS, L_ISV, L_DZ_ROUND, L_HEAT, L_IT, L_DROOP, L_ID, L_CLEAR, L_NSEG, L_ITP,
  L_ITQ, L_N, L_IH, L_IM, L_IC, L_IF, L_IHS, L_IW, L_IB, L_IQ, L_IBF, L_IBW, L_ILW,
- L_ITY) = range(25)
-N_L = 25
+ L_ITY, L_IPF) = range(26)
+N_L = 26
 
 
 #: Schohl's (2003) five exponentials of Zielke's (1968) laminar weighting function,
@@ -403,6 +406,10 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         elif s < sh - band:
             dy[L[L_IH]] = (s + band - sh) / P[K_HY_TAU]
         s = sh
+    if L[L_IPF] >= 0:  # a pilot-fed spool (PilotFedSpool): pushed back by its pilot
+        q = y[L[L_IPF]]
+        dy[L[L_IPF]] = (y[0] - P[K_PATM] - q) / P[K_PF_TAU]
+        s -= P[K_PF_K] * max(q - P[K_PF_Q0], 0.0) / 1e5
     ue = rounded_deadband(s, P[K_DEAD], P[K_ROUND] if L[L_DZ_ROUND] == 1 else 0.0)
     a_in = gompertz_scalar(ue, P[K_IN], P[K_IN + 1], P[K_IN + 2], P[K_IN + 3], P[K_IN + 4])
     a_ex = gompertz_scalar(ue, P[K_EX], P[K_EX + 1], P[K_EX + 2], P[K_EX + 3], P[K_EX + 4])
@@ -878,6 +885,10 @@ def _out_of_catalogue_constants(P, L, by: dict, rig: Rig, inputs: Inputs) -> Non
     hyst = by.get(SpoolHysteresis)
     if hyst is not None and hyst.half_band_V > 0:
         P[K_HY_B], P[K_HY_TAU] = hyst.half_band_V, hyst.time_constant_s
+    pilot = by.get(PilotFedSpool)
+    if pilot is not None and pilot.feedback_V_per_bar > 0:
+        P[K_PF_K], P[K_PF_Q0] = pilot.feedback_V_per_bar, pilot.preload_Pa
+        P[K_PF_TAU] = pilot.pilot_time_constant_s
 
 
 def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -> _Setup:
@@ -891,6 +902,10 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
         raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
                          "here; plant a WallHeatTransfer form instead")
+    if sl[SLOT_INDEX["heat_wall_offset_K"]] != 0.0:
+        raise ValueError("plant: the catalogue heat_transfer's wall offset is not "
+                         "simulated here; plant a WallHeatTransfer form with its "
+                         "wall_temperature_K instead")
     coupling = float(sl[SLOT_INDEX["heat_coupling"]])
     if coupling not in (0.0, 1.0):
         raise ValueError(f"plant: the catalogue heat_transfer's partial coupling "
@@ -1077,6 +1092,11 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
         v_scale = P[K_LW_C] * 1e5
         atol += [cfg.atol_Pa * P[K_LW_C], cfg.atol_Pa * P[K_LW_C] * P[K_LW_W]]
         scale += [v_scale, v_scale * P[K_LW_W]]
+    if P[K_PF_K] > 0:  # the pilot chamber's gauge pressure, Pa
+        L[L_IPF] = n
+        n += 1
+        atol.append(cfg.atol_Pa)
+        scale.append(1e5)
     L[L_N] = n
     return _Setup(P, L, extra, np.array(atol), np.array(scale),
                   float(sl[SLOT_INDEX["command_delay_s"]]), stiction)
@@ -1112,6 +1132,8 @@ def _initial_state(su: _Setup, p0: float, u0: float) -> np.ndarray:
         y[L[L_IC]] = su.P[K_CW_C] * (p0 - su.P[K_PATM])
     if L[L_ILW] >= 0:  # the loaded wall at rest at its static give (its rate 0)
         y[L[L_ILW]] = su.P[K_LW_C] * (p0 - su.P[K_PATM])
+    if L[L_IPF] >= 0:  # the pilot at the chamber's gauge pressure
+        y[L[L_IPF]] = p0 - su.P[K_PATM]
     if L[L_NSEG] > 0:
         y[L[L_ITP]:L[L_ITP] + L[L_NSEG]] = p0  # tube at rest at the chamber's pressure
     return y

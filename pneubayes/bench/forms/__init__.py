@@ -26,12 +26,13 @@ developed against the third, the fourth (:class:`SupplyHose`, :class:`LowReynold
 :class:`PressureHeldSolenoid`, :class:`InletJetAtSensor`; the eleventh, a check of the
 volume's plays on a loop that is not one: :class:`BoucWenWall`; the twelfth, a wall that
 carries a load: :class:`LoadedWall`; the thirteenth, readings logged through a rail and
-late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`). :class:`ArmatureDeadTime`
-and :class:`HeldArmatureDeadTime` are realistic forms of the catalogue's
-``valve_dead_time`` (an armature the supply drives, or holds back). :class:`Iso6358Ports`,
-out of the catalogue in the third set, is a realistic form of ``critical_ratio`` since
-that effect was added (ISO 6358's ellipse and subsonic index against the effect's
-stretched eq. 3).
+late: :class:`SaturatingSensor`, :class:`SkewedPressureChannel`; the fourteenth, a
+spool pushed back by its delivered pressure through a pilot: :class:`PilotFedSpool`).
+:class:`ArmatureDeadTime` and :class:`HeldArmatureDeadTime` are realistic forms of the
+catalogue's ``valve_dead_time`` (an armature the supply drives, or holds back).
+:class:`Iso6358Ports`, out of the catalogue in the third set, is a realistic form of
+``critical_ratio`` since that effect was added (ISO 6358's ellipse and subsonic index
+against the effect's stretched eq. 3).
 
 Every form is a small frozen dataclass with SI units in its field names; it validates
 its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
@@ -95,6 +96,7 @@ from pneubayes.bench.forms.valve import (
     InletFlowLimiter,
     Iso6358Ports,
     LowReynoldsPorts,
+    PilotFedSpool,
     PilotInletValve,
     PressureHeldSolenoid,
     PwmValve,
@@ -130,7 +132,7 @@ FORMS: dict[str, type[PlantForm]] = {
                                   SealSpeedLeak, BraidFriction, SolenoidGroundShift,
                                   PressureHeldSolenoid, InletJetAtSensor, BoucWenWall,
                                   LoadedWall, SaturatingSensor, SkewedPressureChannel,
-                                  ArmatureDeadTime, HeldArmatureDeadTime)
+                                  ArmatureDeadTime, HeldArmatureDeadTime, PilotFedSpool)
 }
 #: The out-of-catalogue forms (``catalogue_name`` None), by class name.
 OUT_OF_CATALOGUE: tuple[str, ...] = tuple(n for n, c in FORMS.items()
@@ -356,6 +358,9 @@ def out_of_catalogue_defaults(name: str, cylinder: str = "AIR37",
         return LoadedWall(compliance_m3_per_Pa=0.1 * swept / 450_000.0)
     if name == "PressureHeldSolenoid":
         return PressureHeldSolenoid(time_constant_s=5e-4, slowing_per_atm=1.5)
+    if name == "PilotFedSpool":
+        return PilotFedSpool(feedback_V_per_bar=0.15, preload_Pa=1.0e5,
+                             pilot_time_constant_s=5e-3)
     if name == "InletJetAtSensor":
         return InletJetAtSensor(shift_Pa=3000.0, reference_flow_kg_per_s=5e-4)
     if name == "SaturatingSensor":

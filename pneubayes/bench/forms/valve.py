@@ -295,6 +295,33 @@ class PressureHeldSolenoid(PlantForm):
 
 
 @dataclass(frozen=True)
+class PilotFedSpool(PlantForm):
+    """A proportional spool pushed back by the delivered pressure: a pilot passage feeds
+    the work port's pressure onto an unbalanced end of the spool, against the solenoid,
+    and a preloaded spring holds the pilot's piston until the pressure lifts it::
+
+        s_eff = s - k max(q - q_0, 0) / (1 bar),   dq/dt = ((p - P_atm) - q) / tau_q,
+
+    s the spool position (V of command, after any spool stage), q the pilot chamber's
+    gauge pressure (a first-order lag of the work port's through the pilot orifice),
+    ``k = feedback_V_per_bar``, ``q_0 = preload_Pa`` and ``tau_q =
+    pilot_time_constant_s``. The valve delivers less than its command asks at high
+    pressure (a fill slows, then stalls where the shifted spool closes the inlet) and
+    vents harder there: part of a pressure regulator's loop inside a directional valve.
+    ``feedback_V_per_bar = 0`` is a plain spool (the state is omitted).
+    """
+
+    catalogue_name: ClassVar[str | None] = None
+    feedback_V_per_bar: float
+    preload_Pa: float = 1.0e5
+    pilot_time_constant_s: float = 5e-3
+
+    def __post_init__(self):
+        _non_negative(self, "feedback_V_per_bar", "preload_Pa")
+        _positive(self, "pilot_time_constant_s")
+
+
+@dataclass(frozen=True)
 class WarmingCoil(PlantForm):
     """A voltage-driven proportional solenoid whose coil warms as it works: its
     resistance rises with its temperature (copper: +0.39 %/K), so the same command
