@@ -187,6 +187,17 @@ UNSTEADY_N = np.array([26.65, 100.0, 669.0, 6497.0, 57990.0])
 
 
 @njit(cache=True)
+def _pilot_fed(s, y, dy, L, P):
+    """The spool ``s`` less a :class:`PilotFedSpool`'s shift, its pilot's rate written to
+    ``dy`` (``s`` itself where there is none)."""
+    if L[L_IPF] < 0:
+        return s
+    q = y[L[L_IPF]]
+    dy[L[L_IPF]] = (y[0] - P[K_PATM] - q) / P[K_PF_TAU]
+    return s - P[K_PF_K] * max(q - P[K_PF_Q0], 0.0) / 1e5
+
+
+@njit(cache=True)
 def unsteady_friction_rates(y, dy, iy, dq, rho, re, area, dia, mu, weight):
     """A tube link's mass-flow rate ``dq`` (kg/s^2) less ``weight`` times Zielke's
     unsteady wall shear over its length, ``4 pi mu sum y_k`` per unit length, and the
@@ -406,10 +417,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
         elif s < sh - band:
             dy[L[L_IH]] = (s + band - sh) / P[K_HY_TAU]
         s = sh
-    if L[L_IPF] >= 0:  # a pilot-fed spool (PilotFedSpool): pushed back by its pilot
-        q = y[L[L_IPF]]
-        dy[L[L_IPF]] = (y[0] - P[K_PATM] - q) / P[K_PF_TAU]
-        s -= P[K_PF_K] * max(q - P[K_PF_Q0], 0.0) / 1e5
+    s = _pilot_fed(s, y, dy, L, P)  # a spool pushed back by its pilot (PilotFedSpool)
     ue = rounded_deadband(s, P[K_DEAD], P[K_ROUND] if L[L_DZ_ROUND] == 1 else 0.0)
     a_in = gompertz_scalar(ue, P[K_IN], P[K_IN + 1], P[K_IN + 2], P[K_IN + 3], P[K_IN + 4])
     a_ex = gompertz_scalar(ue, P[K_EX], P[K_EX + 1], P[K_EX + 2], P[K_EX + 3], P[K_EX + 4])

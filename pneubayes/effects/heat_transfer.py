@@ -7,7 +7,6 @@ chamber temperature T a state, with the wall at the supply temperature T_w:
   with the air that leaves carrying the chamber's temperature (inflow at the supply's),
   plus the wall heat flow Q;
 - ``dT/dt = T (dp/dt / p + dV/dt / V - Rs T mdot / (p V))`` (ideal gas, mass balance).
-  (Outflow at the supply's enthalpy makes T run away after a compression when it vents.)
 
 ``form="rate"``: ``Q = m c_v (T_w - T) / tau``, i.e. ``(kappa - 1) Q / V = p (T_w - T) /
 (T tau)``, with the exchange rate ``heat_transfer_rate_per_s`` = 1/tau. The orifice mass
@@ -29,20 +28,15 @@ the gas (forced convection), more exchange while it fills. ``h_j = 0`` is convec
 Every form has a coupling ``heat_transfer_coupling`` c in [0, 1]: the pressure equation
 reads ``T_w + c (T - T_w)`` wherever it reads T (the outflow's enthalpy, the wall's heat
 and the outflows' sqrt(T_w / T)); T itself follows the gas law. c = 1 is the energy
-equation above; c = 0 is eq. 5 exactly, and the family passes through it continuously,
-so the plain model is this effect at zero strength (c = 0) and a fit of the effect
-contains the fit without it. The exchange alone cannot do that: as the rate or h falls
-to 0 at c = 1 the chamber becomes *adiabatic* with outflow at its own temperature, which
-is not eq. 5 (docs/history.md, 2026-12-07, has how far apart the two are).
-A nonuniform gas or exchange in the valve's body sit between (c < 1: the pressure
-follows its temperature less than a well-mixed chamber would).
+equation above; c = 0 is eq. 5 exactly, so a fit of the effect contains the fit without
+it (the exchange alone cannot: as the rate or h falls to 0 at c = 1 the chamber becomes
+*adiabatic*, not eq. 5). A nonuniform gas or exchange in the valve's body sit between.
 
-Option ``wall_offset`` (any form) adds ``heat_transfer_wall_offset_K`` dT_w: the wall
-held at ``T_s + dT_w`` (a valve body or a room warmer or colder than the supply's air;
-its heat capacity taken as large), which the exchange drives the gas toward; the
-pressure equation reads ``T_s + c dT_w`` for the wall, so c = 0 is eq. 5 whatever the
-offset and dT_w = 0 is the form without it. Discovery fits it after the convective
-and forced forms, from their fit.
+Option ``wall_offset`` adds ``heat_transfer_wall_offset_K`` dT_w: the wall at ``T_s +
+dT_w`` (a valve body or a room warmer or colder than the supply's air), the gas starting
+there at rest; the pressure equation reads ``T_s + c dT_w`` for the wall, so c = 0 is eq.
+5 and dT_w = 0 the form without it. Discovery fits it after the convective and forced
+forms, from their fit.
 """
 
 from __future__ import annotations

@@ -571,19 +571,18 @@ def chamber_rhs(p, temp, a_in, a_ex, vol, vdot, p_sup, sl, cs, h, need_j, dsup, 
     exponential method). ``J_xy`` is d(dx/dt)/dy (the temperature's and ``v_T``: 0 without
     a temperature state).
 
-    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange
-    (a rate, or a convective coefficient on the wall area with orifice outflows at the
-    chamber's temperature, felt at the share ``heat_coupling``, toward a wall at the
-    supply's temperature plus ``heat_wall_offset_K``;
-    :mod:`pneubayes.effects.heat_transfer`). A restriction in series at the port
-    (:mod:`pneubayes.simulation.restriction`; the general kernel only) has the valve's
-    ports pass their flows at its node's pressure; with heat transfer the node's exhaust
-    flow is taken as the chamber's outflow (exact unless both ports pass at once).
-    ``J_p`` approximates d(dp/dt)/dp: exact except that the square-root singularity of
-    a port at pressure balance is replaced by the secant over the step's expected
-    movement ``|dp/dt| h``, so a chamber starting exactly at a port's pressure is not
-    frozen by an infinite slope (a W-method Jacobian; the error control checks it).
-    Jacobians are only computed when ``need_j``.
+    Eqs. 1-5 and 9, plus the laminar leak, tube attenuation and wall heat exchange (a
+    rate, or a convective coefficient on the wall area with orifice outflows at the
+    chamber's temperature, felt at the share ``heat_coupling``, toward a wall at T_s +
+    ``heat_wall_offset_K``; :mod:`pneubayes.effects.heat_transfer`). A restriction in
+    series at the port (:mod:`pneubayes.simulation.restriction`; the general kernel
+    only) has the valve's ports pass their flows at its node's pressure; with heat
+    transfer the node's exhaust flow is taken as the chamber's outflow (exact unless
+    both ports pass at once). ``J_p`` approximates d(dp/dt)/dp: exact except that the
+    square-root singularity of a port at pressure balance is replaced by the secant over
+    the step's expected movement ``|dp/dt| h``, so a chamber starting exactly at a
+    port's pressure is not frozen by an infinite slope (a W-method Jacobian; the error
+    control checks it). Jacobians are only computed when ``need_j``.
 
     An open-form closure (slot ``closure_terms`` > 0; :func:`closure_flow`) adds its mass
     flow to the chamber's, each part at its enthalpy (a port's term at its port's, any

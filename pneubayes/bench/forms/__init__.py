@@ -34,10 +34,9 @@ catalogue's ``valve_dead_time`` (an armature the supply drives, or holds back).
 ``critical_ratio`` since that effect was added (ISO 6358's ellipse and subsonic index
 against the effect's stretched eq. 3).
 
-Every form is a small frozen dataclass with SI units in its field names; it validates
-its fields on construction (errors name the field) and :meth:`PlantForm.to_dict` gives
-the record written to ``truth.json``. :func:`forms_from_names` builds realistic
-defaults per rig, :func:`form_from_dict` reads a record back.
+Every form is a small frozen dataclass with SI units in its field names, validating its
+fields on construction; :meth:`PlantForm.to_dict` gives the record written to
+``truth.json``, :func:`form_from_dict` reads it back.
 """
 
 from __future__ import annotations
