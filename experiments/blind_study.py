@@ -284,6 +284,70 @@ def _is_case(case: dict, key: str) -> bool:
     return case["name"] == key or case["name"].split("_")[0] == key
 
 
+def check_case(name: str, rig: str, hidden, forms: dict, rng) -> dict:
+    """A one-effect blind check's case ``name`` on ``rig`` (``"CYL:valveN"``), its planted
+    forms by catalogue name and a bench seed drawn from ``rng``."""
+    cylinder, valve = rig.split(":")
+    return {"name": name, "cylinder": cylinder, "valve": valve, "hidden": list(hidden),
+            "bench_seed": int(rng.integers(1000, 100000)),
+            "forms": {h: f.to_dict() for h, f in forms.items()}, "_objects": forms}
+
+
+def fitted_effect(root: Path, name: str, effect: str) -> tuple[dict, dict] | None:
+    """A case's named ``effect``: its options and fitted values from the case's
+    discovery.json (None: not named, or the case not run)."""
+    path = root / "work" / name / "run" / "discovery.json"
+    if not path.exists():
+        return None
+    for e in json.loads(path.read_text())["effects"]:
+        if e["name"] == effect:
+            return (e.get("options", {}),
+                    {k: v["estimate"] for k, v in e["parameters"].items()})
+    return None
+
+
+def check_summary(root: Path, title: str, columns: tuple[str, str], results, planted,
+                  fitted) -> str:
+    """A one-effect blind check's table (``planted(result)`` and ``fitted(root, name)``
+    give its two columns, headed ``columns``), written to ROOT/summary.md with the
+    provenance; returns the table."""
+    lines = [title, "", f"| case | {columns[0]} | {columns[1]} | named | held-out RMSE (Pa) "
+             "| x noise | shrink |", "|---|---|---|---|---|---|---|"]
+    for r in results:
+        if "error" in r:
+            lines.append(f"| {r['name']} | {planted(r)} | - | failed: {r['error']} | - | - "
+                         "| - |")
+            continue
+        shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
+        lines.append(f"| {r['name']} | {planted(r)} | {fitted(root, r['name'])} | "
+                     f"{', '.join(r['named']) or '-'} | "
+                     f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
+                     f"{r['final_over_noise']:.2f} | {shrink} |")
+    table = "\n".join(lines)
+    write_text_atomic(root / "summary.md",
+                      table + f"\n\nprovenance: {json.dumps(provenance())}\n")
+    return table
+
+
+def run_check(cases, root: Path) -> list[dict]:
+    """A one-effect blind check's cases (``critical_ratio_blind``, ``heat_wall_blind``):
+    each run as the blind study runs it (20-s recordings, no posterior, the wave tube)
+    into ROOT/cases, or read from there, one line per case as it finishes."""
+    opts = argparse.Namespace(duration=20.0, posterior="off", tube_line_form="wave",
+                              wave_unsteady=False)
+
+    def describe(r):
+        if "error" in r:
+            return f"FAILED {r['error']}"
+        return (f"named {r['named']} ({'correct' if r['correct'] else 'WRONG'}), "
+                f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} Pa, "
+                f"{r['final_over_noise']:.2f} x the noise, {r['wall_time_s']:.0f} s")
+
+    return cached_cases([(c["name"], c) for c in cases], root,
+                        lambda name, c: run_case(c, opts, root),
+                        lambda name, c, err: _public(c) | {"error": err}, describe)
+
+
 def _run_cached(cases, args, root: Path) -> list[dict]:
     """Each case's result from ROOT/cases (run and cached when missing), one word per
     case: the blind results are read once, in the summary."""

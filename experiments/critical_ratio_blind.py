@@ -23,11 +23,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from blind_study import _public, draw_form, run_case
-from discovery_study import cached_cases
-
-from pneubayes.atomic import write_text_atomic
-from pneubayes.provenance import provenance
+from blind_study import _public, check_case, check_summary, draw_form, fitted_effect, run_check
 
 #: The rigs of the singles: not the development cases' AIR37 / valve 1, SMC / valve 2.
 SINGLE_RIGS = ("AIR37:valve2", "SMC:valve1", "PRN:valve1", "AIR200:valve2")
@@ -44,26 +40,25 @@ def draw_cases(seed: int) -> list[dict]:
     for i, (rig, hidden) in enumerate(plan):
         cylinder, valve = rig.split(":")
         forms = {h: draw_form(h, cylinder, rng) for h in hidden}
-        cases.append({"name": f"c{i:02d}_{cylinder}_{valve}_{'+'.join(hidden) or 'none'}",
-                      "cylinder": cylinder, "valve": valve, "hidden": list(hidden),
-                      "bench_seed": int(rng.integers(1000, 100000)),
-                      "forms": {h: f.to_dict() for h, f in forms.items()},
-                      "_objects": forms})
+        cases.append(check_case(f"c{i:02d}_{cylinder}_{valve}_{'+'.join(hidden) or 'none'}",
+                                rig, hidden, forms, rng))
     return cases
 
 
 def _fitted(root: Path, name: str) -> str:
     """The named effect's fitted ratios and index from the case's discovery.json."""
-    path = root / "work" / name / "run" / "discovery.json"
-    if not path.exists():
+    got = fitted_effect(root, name, "critical_ratio")
+    if got is None:
         return "-"
-    for e in json.loads(path.read_text())["effects"]:
-        if e["name"] == "critical_ratio":
-            p = {k: v["estimate"] for k, v in e["parameters"].items()}
-            b_in = p.get("inlet_critical_ratio", p.get("critical_ratio"))
-            b_ex = p.get("exhaust_critical_ratio", p.get("critical_ratio"))
-            return f"{b_in:.3f}, {b_ex:.3f}, {p.get('subsonic_index', 0.5):.3f}"
-    return "-"
+    p = got[1]
+    b_in = p.get("inlet_critical_ratio", p.get("critical_ratio"))
+    b_ex = p.get("exhaust_critical_ratio", p.get("critical_ratio"))
+    return f"{b_in:.3f}, {b_ex:.3f}, {p.get('subsonic_index', 0.5):.3f}"
+
+
+def _planted(r: dict) -> str:
+    iso = r["forms"].get("critical_ratio")
+    return f"{iso['critical_pressure_ratio']:.3f}, {iso['subsonic_index']:.3f}" if iso else "-"
 
 
 def main(argv=None) -> int:
@@ -80,37 +75,10 @@ def main(argv=None) -> int:
     if not args.out:
         ap.error("--out is required unless --list")
     root = Path(args.out)
-    opts = argparse.Namespace(duration=20.0, posterior="off", tube_line_form="wave",
-                              wave_unsteady=False)
-
-    def describe(r):
-        if "error" in r:
-            return f"FAILED {r['error']}"
-        return (f"named {r['named']} ({'correct' if r['correct'] else 'WRONG'}), "
-                f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} Pa, "
-                f"{r['final_over_noise']:.2f} x the noise, {r['wall_time_s']:.0f} s")
-
-    results = cached_cases([(c["name"], c) for c in cases], root,
-                           lambda name, c: run_case(c, opts, root),
-                           lambda name, c, err: _public(c) | {"error": err}, describe)
-    lines = [f"critical_ratio blind check, seed {args.seed}", "",
-             "| case | planted (b, m) | fitted (b in, b out, m) | named | held-out RMSE (Pa) "
-             "| x noise | shrink |", "|---|---|---|---|---|---|---|"]
-    for r in results:
-        iso = r["forms"].get("critical_ratio")
-        bm = (f"{iso['critical_pressure_ratio']:.3f}, {iso['subsonic_index']:.3f}"
-              if iso else "-")
-        if "error" in r:
-            lines.append(f"| {r['name']} | {bm} | - | failed: {r['error']} | - | - | - |")
-            continue
-        shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
-        lines.append(f"| {r['name']} | {bm} | {_fitted(root, r['name'])} | "
-                     f"{', '.join(r['named']) or '-'} | "
-                     f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
-                     f"{r['final_over_noise']:.2f} | {shrink} |")
-    lines += ["", f"provenance: {json.dumps(provenance())}"]
-    write_text_atomic(root / "summary.md", "\n".join(lines) + "\n")
-    print("\n".join(lines[:-2]))
+    results = run_check(cases, root)
+    print(check_summary(root, f"critical_ratio blind check, seed {args.seed}",
+                        ("planted (b, m)", "fitted (b in, b out, m)"), results, _planted,
+                        _fitted))
     return 0
 
 

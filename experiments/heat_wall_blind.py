@@ -26,13 +26,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from blind_study import _public, draw_form, run_case
-from discovery_study import cached_cases
+from blind_study import _public, check_case, check_summary, draw_form, fitted_effect, run_check
 
-from pneubayes.atomic import write_text_atomic
 from pneubayes.bench.forms import WallHeatTransfer
 from pneubayes.physics.gas import GasConstants
-from pneubayes.provenance import provenance
 
 #: The rigs of the singles: not the development cases' AIR200 / valve 1, SMC / valve 2.
 SINGLE_RIGS = ("AIR37:valve2", "SMC:valve1", "PRN:valve1", "AIR200:valve2")
@@ -61,31 +58,21 @@ def draw_cases(seed: int) -> list[dict]:
         cylinder, valve = rig.split(":")
         forms = {h: (_wall(rng, offset) if h == "heat_transfer" else draw_form(h, cylinder, rng))
                  for h in hidden}
-        tag = "+".join(hidden) or "none"
-        if hidden and not offset:
-            tag += "-nowall"
-        cases.append({"name": f"h{i:02d}_{cylinder}_{valve}_{tag}", "cylinder": cylinder,
-                      "valve": valve, "hidden": list(hidden),
-                      "bench_seed": int(rng.integers(1000, 100000)),
-                      "forms": {h: f.to_dict() for h, f in forms.items()},
-                      "_objects": forms})
+        tag = ("+".join(hidden) or "none") + ("-nowall" if hidden and not offset else "")
+        cases.append(check_case(f"h{i:02d}_{cylinder}_{valve}_{tag}", rig, hidden, forms, rng))
     return cases
 
 
 def _fitted(root: Path, name: str) -> str:
     """The named heat exchange's form, coefficient and wall offset."""
-    path = root / "work" / name / "run" / "discovery.json"
-    if not path.exists():
+    got = fitted_effect(root, name, "heat_transfer")
+    if got is None:
         return "-"
-    for e in json.loads(path.read_text())["effects"]:
-        if e["name"] == "heat_transfer":
-            p = {k: v["estimate"] for k, v in e["parameters"].items()}
-            strength = p.get("heat_transfer_coefficient_W_per_m2_K",
-                             p.get("heat_transfer_rate_per_s"))
-            off = p.get("heat_transfer_wall_offset_K")
-            return (f"{e.get('options', {}).get('form', '-')}, {strength:.1f}, "
-                    f"{'-' if off is None else f'{off:+.2f} K'}")
-    return "-"
+    options, p = got
+    strength = p.get("heat_transfer_coefficient_W_per_m2_K", p.get("heat_transfer_rate_per_s"))
+    off = p.get("heat_transfer_wall_offset_K")
+    return (f"{options.get('form', '-')}, {strength:.1f}, "
+            f"{'-' if off is None else f'{off:+.2f} K'}")
 
 
 def _planted(r: dict) -> str:
@@ -115,35 +102,10 @@ def main(argv=None) -> int:
     if args.case:
         cases = [c for c in cases if any(c["name"].startswith(k) for k in args.case)]
     root = Path(args.out)
-    opts = argparse.Namespace(duration=20.0, posterior="off", tube_line_form="wave",
-                              wave_unsteady=False)
-
-    def describe(r):
-        if "error" in r:
-            return f"FAILED {r['error']}"
-        return (f"named {r['named']} ({'correct' if r['correct'] else 'WRONG'}), "
-                f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} Pa, "
-                f"{r['final_over_noise']:.2f} x the noise, {r['wall_time_s']:.0f} s")
-
-    results = cached_cases([(c["name"], c) for c in cases], root,
-                           lambda name, c: run_case(c, opts, root),
-                           lambda name, c, err: _public(c) | {"error": err}, describe)
-    lines = [f"heat_transfer wall-offset blind check, seed {args.seed}", "",
-             "| case | planted (h W/(m^2 K), wall - supply) | fitted (form, h, offset) | named "
-             "| held-out RMSE (Pa) | x noise | shrink |", "|---|---|---|---|---|---|---|"]
-    for r in results:
-        if "error" in r:
-            lines.append(f"| {r['name']} | {_planted(r)} | - | failed: {r['error']} | - | - "
-                         "| - |")
-            continue
-        shrink = "-" if r["gap_shrink"] is None else f"{100 * r['gap_shrink']:.0f} %"
-        lines.append(f"| {r['name']} | {_planted(r)} | {_fitted(root, r['name'])} | "
-                     f"{', '.join(r['named']) or '-'} | "
-                     f"{r['rmse_base_Pa']:.0f} -> {r['rmse_final_Pa']:.0f} | "
-                     f"{r['final_over_noise']:.2f} | {shrink} |")
-    lines += ["", f"provenance: {json.dumps(provenance())}"]
-    write_text_atomic(root / "summary.md", "\n".join(lines) + "\n")
-    print("\n".join(lines[:-2]))
+    results = run_check(cases, root)
+    print(check_summary(root, f"heat_transfer wall-offset blind check, seed {args.seed}",
+                        ("planted (h W/(m^2 K), wall - supply)", "fitted (form, h, offset)"),
+                        results, _planted, _fitted))
     return 0
 
 

@@ -182,6 +182,40 @@ def tight_solver(rtol: float = 1e-8) -> SolverConfig:
                         min_step_s=1e-14, max_steps_per_s=2.5e7)
 
 
+def filling_rhs(sl, cs, p_sup: float, a_in: float = 5e-7):
+    """``rhs(p, temp, tt)``: :func:`~pneubayes.simulation.chamber.chamber_rhs` of a
+    2.4e-6-m^3 chamber filling through ``a_in`` m^2 (exhaust 1e-8 m^2) from ``p_sup``,
+    ``tt`` s from the point with the inlet opening at 4e-5 m^2/s, the supply rising at 3
+    MPa/s and the volume growing at 1e-6 m^3/s (the inputs the slopes' ``v`` terms
+    follow)."""
+    from pneubayes.simulation.chamber import chamber_rhs
+
+    da_in, dsup, vdot = 4e-5, 3e6, 1e-6
+
+    def rhs(p, temp, tt=0.0):
+        return chamber_rhs(p, temp, a_in + tt * da_in, 1e-8, 2.4e-6 + tt * vdot, vdot,
+                           p_sup + tt * dsup, sl, cs, 1e-5, True, dsup, da_in, 0.0, 0.0,
+                           0.0, 0.0, True)
+    return rhs
+
+
+def assert_chamber_slopes(rhs, p: float, temp: float) -> None:
+    """The chamber right-hand side's slopes (:func:`~pneubayes.simulation.chamber.
+    chamber_rhs`'s ``J_pp``, ``J_Tp``, ``J_pT``, ``J_TT``, ``v_p``, ``v_T``) against
+    central differences of ``rhs(p, temp, tt)`` (``tt`` the time from the point, the
+    inputs moving with it) at ``(p, temp)``."""
+    out = rhs(p, temp)
+    d, dt, h = 1.0, 1e-3, 1e-7
+    for k, a, b, w, rel in ((1, (p + d, temp), (p - d, temp), d, 1e-5),
+                            (6, (p + d, temp), (p - d, temp), d, 1e-5),
+                            (5, (p, temp + dt), (p, temp - dt), dt, 1e-5),
+                            (3, (p, temp + dt), (p, temp - dt), dt, 1e-5),
+                            (4, (p, temp, h), (p, temp, -h), h, 1e-4),
+                            (7, (p, temp, h), (p, temp, -h), h, 1e-4)):
+        row = 0 if k in (1, 5, 4) else 2  # dp/dt's slopes, then dT/dt's
+        assert out[k] == pytest.approx((rhs(*a)[row] - rhs(*b)[row]) / (2 * w), rel=rel), k
+
+
 def refit_planted(model, truth: dict, name: str, start: float, seed: int) -> float:
     """A planted value of parameter ``name`` refitted alone: 2 s of noise-free fills and
     vents (valve steps of 50 ms at 0.015 m, from 2e5 Pa) simulated at ``truth``, the

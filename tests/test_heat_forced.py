@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import assert_chamber_slopes, filling_rhs
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import TubeDelay, make_effect
@@ -13,7 +14,7 @@ from pneubayes.effects.path import JET_FLOW_REF_KG_PER_S, SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import Inputs, simulate
-from pneubayes.simulation.chamber import chamber_rhs, wall_exchange
+from pneubayes.simulation.chamber import wall_exchange
 from pneubayes.simulation.reference import reference_simulate
 from pneubayes.simulation.simulator import rig_constants
 
@@ -60,19 +61,12 @@ def test_the_rate_its_jacobian_and_time_derivatives(rig, closure):
     if closure:  # (a constant of zero flow: the closure's body, the same rate)
         sl[SLOT_INDEX["closure_terms"]] = 1.0
         sl[SLOT_INDEX["closure_coefficient_0"]] = 0.0
-    da_in, dsup, vdot = 4e-5, 3e6, 1e-6
     p, temp, a_in = 2.6e5, 340.0, 5e-7
-
-    def rhs(p, temp, tt=0.0):
-        return chamber_rhs(p, temp, a_in + tt * da_in, 1e-8, 2.4e-6 + tt * vdot, vdot,
-                           P_SUP + tt * dsup, sl, cs, 1e-5, True, dsup, da_in, 0.0, 0.0,
-                           0.0, 0.0, True)
-
+    rhs = filling_rhs(sl, cs, P_SUP, a_in)
     out = rhs(p, temp)
     plain = sl.copy()
     plain[SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]] = 0.0
-    base = chamber_rhs(p, temp, a_in, 1e-8, 2.4e-6, vdot, P_SUP, plain, cs, 1e-5, True, dsup,
-                       da_in, 0.0, 0.0, 0.0, 0.0, True)
+    base = filling_rhs(plain, cs, P_SUP, a_in)(p, temp)
     from pneubayes.physics.orifice import flow_function
     m_in = a_in * flow_function(P_SUP, p, rig.gas)
     t_w = rig.gas.temperature_K
@@ -81,19 +75,7 @@ def test_the_rate_its_jacobian_and_time_derivatives(rig, closure):
                           rig.bore_area_m2, 2.4e-6)[0] * (t_w - te)
     assert out[0] - base[0] == pytest.approx(extra, rel=1e-9)
     assert abs(extra) > 0.02 * abs(base[0])  # (the jet matters here: 4.7 %)
-    d, dt, h = 1.0, 1e-3, 1e-7
-    assert out[1] == pytest.approx((rhs(p + d, temp)[0] - rhs(p - d, temp)[0]) / (2 * d),
-                                   rel=1e-5)
-    assert out[6] == pytest.approx((rhs(p + d, temp)[2] - rhs(p - d, temp)[2]) / (2 * d),
-                                   rel=1e-5)
-    assert out[5] == pytest.approx((rhs(p, temp + dt)[0] - rhs(p, temp - dt)[0]) / (2 * dt),
-                                   rel=1e-5)
-    assert out[3] == pytest.approx((rhs(p, temp + dt)[2] - rhs(p, temp - dt)[2]) / (2 * dt),
-                                   rel=1e-5)
-    assert out[4] == pytest.approx((rhs(p, temp, h)[0] - rhs(p, temp, -h)[0]) / (2 * h),
-                                   rel=1e-4)
-    assert out[7] == pytest.approx((rhs(p, temp, h)[2] - rhs(p, temp, -h)[2]) / (2 * h),
-                                   rel=1e-4)
+    assert_chamber_slopes(rhs, p, temp)
 
 
 def test_the_simulator_agrees_with_the_reference(rig, valve_params, steps):

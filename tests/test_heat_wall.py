@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import refit_planted
+from conftest import assert_chamber_slopes, filling_rhs, refit_planted
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import TubeDelay, make_effect
@@ -15,7 +15,6 @@ from pneubayes.effects.path import SLOT_INDEX
 from pneubayes.model import Model
 from pneubayes.physics.valve import valve_preset
 from pneubayes.simulation import Inputs, simulate
-from pneubayes.simulation.chamber import chamber_rhs
 from pneubayes.simulation.reference import reference_simulate
 from pneubayes.simulation.simulator import rig_constants
 
@@ -98,32 +97,12 @@ def test_the_slopes_match_differences_with_a_warm_wall(rig, form):
         sl[SLOT_INDEX["heat_jet_coefficient_W_per_m2_K"]] = 200.0
     sl[SLOT_INDEX["heat_coupling"]] = 0.7
     sl[SLOT_INDEX["heat_wall_offset_K"]] = 25.0
-    da_in, dsup, vdot = 4e-5, 3e6, 1e-6
-    p, temp, a_in = 2.6e5, 330.0, 5e-7
-
-    def rhs(p, temp, tt=0.0):
-        return chamber_rhs(p, temp, a_in + tt * da_in, 1e-8, 2.4e-6 + tt * vdot, vdot,
-                           P_SUP + tt * dsup, sl, cs, 1e-5, True, dsup, da_in, 0.0, 0.0,
-                           0.0, 0.0, True)
-
-    out = rhs(p, temp)
+    p, temp = 2.6e5, 330.0
+    rhs = filling_rhs(sl, cs, P_SUP)
     cool = sl.copy()
     cool[SLOT_INDEX["heat_wall_offset_K"]] = 0.0
-    assert out[0] - chamber_rhs(p, temp, a_in, 1e-8, 2.4e-6, vdot, P_SUP, cool, cs, 1e-5,
-                                True, dsup, da_in, 0.0, 0.0, 0.0, 0.0, True)[0] > 0.0
-    d, dt, h = 1.0, 1e-3, 1e-7
-    assert out[1] == pytest.approx((rhs(p + d, temp)[0] - rhs(p - d, temp)[0]) / (2 * d),
-                                   rel=1e-5)
-    assert out[6] == pytest.approx((rhs(p + d, temp)[2] - rhs(p - d, temp)[2]) / (2 * d),
-                                   rel=1e-5)
-    assert out[5] == pytest.approx((rhs(p, temp + dt)[0] - rhs(p, temp - dt)[0]) / (2 * dt),
-                                   rel=1e-5)
-    assert out[3] == pytest.approx((rhs(p, temp + dt)[2] - rhs(p, temp - dt)[2]) / (2 * dt),
-                                   rel=1e-5)
-    assert out[4] == pytest.approx((rhs(p, temp, h)[0] - rhs(p, temp, -h)[0]) / (2 * h),
-                                   rel=1e-4)
-    assert out[7] == pytest.approx((rhs(p, temp, h)[2] - rhs(p, temp, -h)[2]) / (2 * h),
-                                   rel=1e-4)
+    assert rhs(p, temp)[0] - filling_rhs(cool, cs, P_SUP)(p, temp)[0] > 0.0  # (warmed)
+    assert_chamber_slopes(rhs, p, temp)
 
 
 @pytest.mark.parametrize("form", ["convective", "rate"])
