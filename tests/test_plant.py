@@ -127,6 +127,20 @@ def test_catalogue_effects_in_the_plant_agree_with_the_compiled_simulator(rig, b
     assert np.allclose(plant.supply_at_valve_Pa, supply)  # supply_gain 1
 
 
+def test_the_catalogues_warm_wall_in_the_plant_agrees_with_the_compiled_simulator(rig, base):
+    """heat_transfer's rate form with its wall offset (bench defaults: 5 /s, 15 K): the
+    plant, which starts its gas at the wall's temperature too, agrees with the compiled
+    simulator, and the offset moves the pressure by 15 x their difference's bound."""
+    model = Model([make_effect("heat_transfer", form="rate", wall_offset=True)])
+    truth = dict(base, **model.effect("heat_transfer").bench_defaults())
+    inputs = _inputs(1.0, 3, True)
+    plant = simulate_plant(truth, (), inputs, rig, P_ATM, REF, effects=model.effects)
+    err = np.max(np.abs(plant.pressure_Pa - _compiled(model, truth, inputs, rig)))
+    assert err < 20.0, f"plant vs compiled, a warm wall: {err:.1f} Pa"
+    cool = _compiled(model, dict(truth, heat_transfer_wall_offset_K=0.0), inputs, rig)
+    assert np.max(np.abs(plant.pressure_Pa - cool)) > 300.0  # (measured 502 Pa)
+
+
 def test_the_plant_refuses_a_partial_heat_coupling(rig, base):
     """The plant's chamber feels its whole temperature or none: the catalogue's
     heat_transfer at a coupling between is an error that says so, not a silent 1."""

@@ -581,7 +581,7 @@ def _rhs_into(t, y, u, P, L, tt, xx, ss, dy):
     else:
         dp = kappa / vol * (rs * enth - p * vdot)
         if heat == 1:
-            dp += p * P[K_HEAT] * (ts - temp) / temp
+            dp += p * P[K_HEAT] * (P[K_TWALL] - temp) / temp
     slide = 0.0
     if L[L_IBF] >= 0:  # the wall slides with the pressure once past its band
         lead = (p - p_atm - y[L[L_IBF]]) * (1.0 if dp > 0.0 else -1.0)
@@ -910,10 +910,6 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if sl[SLOT_INDEX["heat_coefficient_W_per_m2_K"]] != 0.0:
         raise ValueError("plant: the catalogue's convective heat_transfer is not simulated "
                          "here; plant a WallHeatTransfer form instead")
-    if sl[SLOT_INDEX["heat_wall_offset_K"]] != 0.0:
-        raise ValueError("plant: the catalogue heat_transfer's wall offset is not "
-                         "simulated here; plant a WallHeatTransfer form with its "
-                         "wall_temperature_K instead")
     coupling = float(sl[SLOT_INDEX["heat_coupling"]])
     if coupling not in (0.0, 1.0):
         raise ValueError(f"plant: the catalogue heat_transfer's partial coupling "
@@ -961,6 +957,8 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if fall > 0.0:  # the catalogue's asymmetric spool, stepped as the plant's own
         P[K_SR_UP], P[K_SR_DN], L[L_SPOOL] = P[K_TAU], fall, 4
     L[L_HEAT] = 1 if coupling > 0 else 0
+    # the catalogue's wall: at the supply's temperature plus its offset
+    P[K_TWALL] = g.temperature_K + float(sl[SLOT_INDEX["heat_wall_offset_K"]])
     by = {type(f): f for f in forms}
     if RoundedDeadzone in by:
         f = by[RoundedDeadzone]
@@ -1006,7 +1004,7 @@ def _setup(params, effects, forms, rig: Rig, inputs: Inputs, cfg: PlantConfig) -
     if L[L_HEAT] > 0:
         L[L_IT] = n
         n += 1
-        t0 = P[K_TWALL] if L[L_HEAT] == 2 else g.temperature_K
+        t0 = P[K_TWALL]  # the gas at rest at its wall's temperature
         extra[L_IT] = t0
         atol.append(cfg.atol_K)
         scale.append(300.0)

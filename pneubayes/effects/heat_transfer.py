@@ -183,7 +183,8 @@ class HeatTransfer(Effect):
                 {"heat_transfer_wall_offset_K": 0.0})
 
     def bench_defaults(self):
-        # (with the offset: a wall 15 K above the supply, a valve body or a warm room)
+        # (with the offset: a wall 15 K above the supply, a valve body or a warm room;
+        # the bench's plant steps the rate form's, its WallHeatTransfer the others')
         wall = {"heat_transfer_wall_offset_K": 15.0} if self.wall_offset else {}
         if self.form == "rate":
             # a wall time constant of 0.2 s, typical of small cylinders
