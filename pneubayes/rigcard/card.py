@@ -187,14 +187,11 @@ class RigCard:
         if "exhaust" in card:  # a separate exhaust valve: the valve keeps no exhaust
             exhaust = _component(card, "exhaust", source)
             parts["valve"] = parts["valve"].without_exhaust(f"{source} key 'valve'")
-        ports = None
-        if "ports" in card:
-            ports = _component(card, "ports", source)
-            if parts["supply"].kind in ("tank", "restricted"):
-                raise RigCardError(
-                    f"{source} key 'ports': a port's own critical ratio is stepped where "
-                    f"the valve meets the chamber; the simulator cannot combine it with a "
-                    f"supply of kind {parts['supply'].kind!r}")
+        ports = _component(card, "ports", source) if "ports" in card else None
+        every = {**parts, "exhaust": exhaust, "ports": ports}
+        for role, comp in every.items():
+            if comp is not None:
+                comp.check_beside(every, f"{source} key {role!r}")
         tube = None
         if "tube" in card:
             t = card["tube"]

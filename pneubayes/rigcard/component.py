@@ -113,6 +113,10 @@ class RigComponent(Component):
     def check(self, where: str) -> None:
         """Checks across quantities and options (raise RigCardError naming ``where``)."""
 
+    def check_beside(self, parts: Mapping[str, "RigComponent | None"], where: str) -> None:
+        """Checks against the card's other components, by role (None: absent); raise
+        RigCardError naming ``where``."""
+
     def to_table(self) -> dict:
         out = {"kind": self.kind}
         out.update({k: to_card(v) for k, v in self.values.items()})

@@ -96,6 +96,13 @@ class Iso6358Ports(RigComponent):
                 raise RigCardError(f"{where} key {key!r}: its {what} must lie in {rng}, "
                                    f"got {list(span) if isinstance(v, Unknown) else v!r}")
 
+    def check_beside(self, parts, where):
+        supply = parts["supply"].kind
+        if supply in ("tank", "restricted"):
+            raise RigCardError(f"{where}: a port's own critical ratio is stepped where the "
+                               "valve meets the chamber; the simulator cannot combine it "
+                               f"with a supply of kind {supply!r}")
+
     def to_table(self):
         out = super().to_table()
         return {k: v for k, v in out.items() if v is not None}

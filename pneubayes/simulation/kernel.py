@@ -851,13 +851,13 @@ def _simulate_tasks(first, last, slots, consts, solver, t, u, ue, x, ps, pm, sta
     for task in range(first, last):
         b = task // tasks_per_set
         w0 = (task % tasks_per_set) * per_task
-        carry = _fresh_carry(consts)
+        carry = _fresh_carry()
         for w in range(w0, w0 + per_task):
             status[b, w] = _window(slots[b], consts, solver, t, u, ue, x, ps, pm, starts[w],
                                    length, p0[w], rate0[b, w], out[b, w], sens[b, w], carry,
                                    general)
             if status[b, w] != OK:
-                carry = _fresh_carry(consts)
+                carry = _fresh_carry()
 
 
 #: Chunks per thread :func:`_run_tasks` cuts the tasks into: the threads take chunks as
@@ -1003,7 +1003,7 @@ GENERAL_SLOTS = np.array([_HCOUP, _LLEN, _WLEN, _TANK, _LUNG, _CL_N,
 
 
 @njit(cache=True, error_model="numpy")
-def _fresh_carry(consts):
+def _fresh_carry():
     """Unmeasured states at a recording's start, all NaN: the gas at its wall's
     temperature (the supply's plus ``heat_wall_offset_K``), a line at rest, a tank at the
     window's supply, a second compartment at the first window's p0."""
