@@ -46,7 +46,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from discovery_study import cached_cases, six_recordings
+from discovery_study import cached_cases, results_root, six_recordings
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.bench.forms import (
@@ -394,13 +394,9 @@ def main(argv=None) -> int:
     cases = draw_cases(args.seed, args.min_tube_cells, args.tube_unsteady_friction)
     if args.smoke:
         cases = [c for c in cases if c["hidden"] == ["tube_delay"]]
-    if args.list:
-        for c in cases:
-            print(json.dumps(_public(c)))
+    root = results_root(ap, args, cases, _public)
+    if root is None:
         return 0
-    if not args.out:
-        ap.error("--out is required unless --list")
-    root = Path(args.out)
     if args.case:
         missing = [k for k in args.case if not any(_is_case(c, k) for c in cases)]
         if missing:

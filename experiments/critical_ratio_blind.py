@@ -18,12 +18,12 @@ OUT/summary.md with the seed and git revision.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 from blind_study import _public, check_case, check_summary, draw_form, fitted_effect, run_check
+from discovery_study import results_root
 
 #: The rigs of the singles: not the development cases' AIR37 / valve 1, SMC / valve 2.
 SINGLE_RIGS = ("AIR37:valve2", "SMC:valve1", "PRN:valve1", "AIR200:valve2")
@@ -68,13 +68,9 @@ def main(argv=None) -> int:
     ap.add_argument("--list", action="store_true", help="print the cases and stop")
     args = ap.parse_args(argv)
     cases = draw_cases(args.seed)
-    if args.list:
-        for c in cases:
-            print(json.dumps(_public(c)))
+    root = results_root(ap, args, cases, _public)
+    if root is None:
         return 0
-    if not args.out:
-        ap.error("--out is required unless --list")
-    root = Path(args.out)
     results = run_check(cases, root)
     print(check_summary(root, f"critical_ratio blind check, seed {args.seed}",
                         ("planted (b, m)", "fitted (b in, b out, m)"), results, _planted,

@@ -89,6 +89,18 @@ def six_recordings(rig: str, valve: str, seed: int, out: Path, **bench):
     return list(fixed.recordings) + list(moving.recordings), fixed.truth
 
 
+def results_root(ap, args, cases, public) -> Path | None:
+    """A study's results folder, ``--out``; None after printing ``public(case)`` of each
+    case as JSON with ``--list`` (an argparse error when neither is given)."""
+    if args.list:
+        for c in cases:
+            print(json.dumps(public(c)))
+        return None
+    if not args.out:
+        ap.error("--out is required unless --list")
+    return Path(args.out)
+
+
 def cached_cases(cases, root: Path, run, failed, describe) -> list[dict]:
     """Each ``(name, case)``'s result: read from ROOT/cases/NAME.json when there (an
     interrupted study resumes), else ``run(name, case)``, or ``failed(name, case,

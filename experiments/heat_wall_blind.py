@@ -20,13 +20,13 @@ with the seed and git revision.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
 from blind_study import _public, check_case, check_summary, draw_form, fitted_effect, run_check
+from discovery_study import results_root
 
 from pneubayes.bench.forms import WallHeatTransfer
 from pneubayes.physics.gas import GasConstants
@@ -93,15 +93,11 @@ def main(argv=None) -> int:
                     help="run only this case (name prefix; repeatable)")
     args = ap.parse_args(argv)
     cases = draw_cases(args.seed)
-    if args.list:
-        for c in cases:
-            print(json.dumps(_public(c)))
+    root = results_root(ap, args, cases, _public)
+    if root is None:
         return 0
-    if not args.out:
-        ap.error("--out is required unless --list")
     if args.case:
         cases = [c for c in cases if any(c["name"].startswith(k) for k in args.case)]
-    root = Path(args.out)
     results = run_check(cases, root)
     print(check_summary(root, f"heat_transfer wall-offset blind check, seed {args.seed}",
                         ("planted (h W/(m^2 K), wall - supply)", "fitted (form, h, offset)"),

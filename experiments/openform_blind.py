@@ -98,7 +98,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from discovery_study import cached_cases, six_recordings
+from discovery_study import cached_cases, results_root, six_recordings
 
 from pneubayes.atomic import write_json_atomic, write_text_atomic
 from pneubayes.bench.bench import ATMOSPHERE_PA, SUPPLY_PA
@@ -766,13 +766,9 @@ def main(argv=None) -> int:
             ap.error(f"--pwm-alignment: {exc}")
     if args.smoke:
         cases = [c for c in cases if c["hidden"] == ["ReliefValve"]][:1]
-    if args.list:
-        for c in cases:
-            print(json.dumps(_public(c)))
+    root = results_root(ap, args, cases, _public)
+    if root is None:
         return 0
-    if not args.out:
-        ap.error("--out is required unless --list")
-    root = Path(args.out)
     if args.case:
         missing = [k for k in args.case if not any(_is_case(c, k) for c in cases)]
         if missing:

@@ -182,6 +182,20 @@ def tight_solver(rtol: float = 1e-8) -> SolverConfig:
                         min_step_s=1e-14, max_steps_per_s=2.5e7)
 
 
+def reference_errors(model, params, inputs, rig, p0: float, rtols=(1e-6, 1e-9),
+                     ref_rtol: float = 1e-10):
+    """``(ref, errs)``: scipy Radau's trajectory at ``ref_rtol`` and the compiled
+    simulator's largest error against it (Pa) at each of ``rtols``
+    (:func:`tight_solver`), from ``p0``."""
+    from pneubayes.simulation import simulate
+    from pneubayes.simulation.reference import reference_simulate
+
+    ref = reference_simulate(model, params, inputs, rig, p0, rtol=ref_rtol)
+    errs = [float(np.max(np.abs(simulate(model, params, inputs, rig, p0, tight_solver(r))
+                                .pressure_Pa[0] - ref))) for r in rtols]
+    return ref, errs
+
+
 def filling_rhs(sl, cs, p_sup: float, a_in: float = 5e-7):
     """``rhs(p, temp, tt)``: :func:`~pneubayes.simulation.chamber.chamber_rhs` of a
     2.4e-6-m^3 chamber filling through ``a_in`` m^2 (exhaust 1e-8 m^2) from ``p_sup``,

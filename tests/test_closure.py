@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import reference_errors
 from conftest import tight_solver as _tight
 
 from pneubayes.discovery.settings import FormSettings
@@ -579,9 +580,8 @@ def test_the_error_falls_with_the_tolerance(rig, valve_params, inputs):
                          thresholds={"closure_threshold_0_b": 1.8})
     model = Model([e])
     params = dict(valve_params, **values)
-    ref = reference_simulate(model, params, inputs, rig, 2e5, rtol=1e-11)
-    errs = [float(np.max(np.abs(simulate(model, params, inputs, rig, 2e5, _tight(r))
-                                .pressure_Pa[0] - ref))) for r in (1e-4, 1e-5, 1e-6, 1e-7)]
+    ref, errs = reference_errors(model, params, inputs, rig, 2e5, (1e-4, 1e-5, 1e-6, 1e-7),
+                                 ref_rtol=1e-11)
     assert all(b < a for a, b in zip(errs, errs[1:])), errs
     assert errs[0] > 20 * errs[-1], errs
     std = simulate(model, params, inputs, rig, 2e5, SolverConfig.standard()).pressure_Pa[0]

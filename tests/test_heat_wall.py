@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import assert_chamber_slopes, filling_rhs, refit_planted
+from conftest import assert_chamber_slopes, filling_rhs, reference_errors, refit_planted
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import TubeDelay, make_effect
@@ -113,9 +113,7 @@ def test_the_simulator_agrees_with_the_reference(rig, valve_params, steps, form)
     params = _params(valve_params, 20.0)
     if form == "rate":
         params["heat_transfer_rate_per_s"] = params.pop("heat_transfer_coefficient_W_per_m2_K")
-    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
-    errs = [float(np.max(np.abs(simulate(model, params, steps, rig, 2e5, _tight(r))
-                                .pressure_Pa[0] - ref))) for r in (1e-6, 1e-9)]
+    ref, errs = reference_errors(model, params, steps, rig, 2e5)
     cool = simulate(model, dict(params, heat_transfer_wall_offset_K=0.0), steps, rig, 2e5,
                     _tight()).pressure_Pa[0]
     assert np.max(np.abs(ref - cool)) > 1e3

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import refit_planted
+from conftest import reference_errors, refit_planted
 from conftest import tight_solver as _tight
 
 from pneubayes.effects import SupplyRestriction, TubeDelay
@@ -153,9 +153,7 @@ def test_the_simulator_agrees_with_the_reference(rig, steps, valve_params, other
     params = dict(valve_params, supply_restriction=2e6)
     for other in others:
         params.update(model.effect(other).bench_defaults())
-    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
-    errs = [float(np.max(np.abs(simulate(model, params, steps, rig, 2e5, _tight(r))
-                                .pressure_Pa[0] - ref))) for r in (1e-6, 1e-9)]
+    ref, errs = reference_errors(model, params, steps, rig, 2e5)
     plain = simulate(Model(list(others)), {k: v for k, v in params.items()
                                           if k != "supply_restriction"},
                      steps, rig, 2e5, _tight()).pressure_Pa[0]
