@@ -732,13 +732,21 @@ def _tank_paragraph(path: Path) -> list[str]:
     return [text, "", *rows, "", post, ""]
 
 
+def _anchor_label(knobs) -> str:
+    """An online refit's anchor: one relative SD, or the per-run spread times a factor;
+    then the error scale."""
+    width = (f"{knobs['spread_factor']:g} x the runs' spread" if "spread_factor" in knobs
+             else f"{knobs['relative_sd']:g}")
+    return f"{width}, {knobs['error_Pa']:g} Pa"
+
+
 def _refit_paragraph(path: Path) -> list[str]:
     """RespiraWorks: every quantity of the card refitted online, anchored to the shared
     fit (``experiments/real_respiraworks_refit.py``)."""
     if not path.exists():
         return []
     r = json.loads(path.read_text())
-    rows = ["| set | anchor chosen on runs 1-4 (relative SD, error scale) | its error on "
+    rows = ["| set | anchor chosen on runs 1-4 (width, error scale) | its error on "
             "runs 1-4 (Pa) | set-point (Pa) | frozen shared fit (Pa) | online refit (Pa) | "
             "x set-point | x noise | refit without the anchor (Pa) | 90 % band coverage | "
             "band width (Pa) | online conformal band: coverage | its width (Pa) | "
@@ -757,7 +765,7 @@ def _refit_paragraph(path: Path) -> list[str]:
     for kind, s in r["sets"].items():
         pr, ch = s["protocol_rmse_Pa"], s["chosen"]
         label = kind + (f" (exhale valve: {s['exhaust']})" if "exhaust" in s else "")
-        rows.append(f"| {label} | {ch['relative_sd']:g}, {ch['error_Pa']:g} Pa | "
+        rows.append(f"| {label} | {_anchor_label(ch)} | "
                     f"{s['band_sd_Pa']:.0f} | {pr['setpoint']:.0f} | {pr['frozen']:.0f} | "
                     f"{pr['online_refit']:.0f} | {s['online_over_setpoint']:.2f} | "
                     f"{pr['online_refit'] / s['noise_floor_Pa']:.0f} | "
@@ -767,7 +775,7 @@ def _refit_paragraph(path: Path) -> list[str]:
         fl = s.get("flows")
         if fl:
             rows.append(f"| {kind}, + measured flows ({fl['chosen']['flow_weight_Pa']:g} Pa "
-                        f"per unit) | {ch['relative_sd']:g}, {ch['error_Pa']:g} Pa | "
+                        f"per unit) | {_anchor_label(ch)} | "
                         f"{fl['band_sd_Pa']:.0f} | {pr['setpoint']:.0f} | {pr['frozen']:.0f} | "
                         f"{fl['protocol_rmse_Pa']:.0f} | {fl['online_over_setpoint']:.2f} | "
                         f"{fl['protocol_rmse_Pa'] / s['noise_floor_Pa']:.0f} | - | "
@@ -786,8 +794,14 @@ def _refit_paragraph(path: Path) -> list[str]:
             "runs 1-4 (SD a fraction of each quantity's scale; the windows' errors Gaussian "
             "of a stated scale); its posterior is Laplace. The anchor's two knobs are chosen "
             "on runs 1-4 alone (each run through from a shared fit of the other three; "
-            f"relative SD {', '.join(f'{v:g}' for v in r['grid']['relative_sd'])}, error "
-            f"scale {', '.join(f'{v:g}' for v in r['grid']['error_Pa'])} Pa), and the band "
+            f"relative SD {', '.join(f'{v:g}' for v in r['grid']['relative_sd'])}"
+            + (", or each quantity's own: its spread over fits of each other run alone "
+               "(root mean square about the shared fit, as a fraction of its scale, at "
+               "least 0.01) times "
+               f"{', '.join(f'{v:g}' for v in r['grid']['spread_factor'])}"
+               if "spread_factor" in r["grid"] else "")
+            + f"; error scale {', '.join(f'{v:g}' for v in r['grid']['error_Pa'])} Pa), "
+            "and the band "
             "adds Gaussian errors of the chosen anchor's error on those runs to "
             f"{r['n_draws']} posterior draws' predictions; the online conformal band "
             "rescales the draws' band by the run's own completed predictions (one every "

@@ -1,7 +1,7 @@
 """Real recordings: the ventilator's whole card refitted online, anchored (issue 67).
 
     python experiments/real_respiraworks_refit.py --out results/real_respiraworks_refit
-        [--sets OXY,AIR] [--smoke] [--data DIR] [--held-out RUN ...]
+        [--sets OXY,AIR] [--smoke] [--spread-anchors] [--data DIR] [--held-out RUN ...]
 
 The shipped card (two compartments, the exhale valve on its own command), the split of
 ``real_respiraworks.py`` (runs 1-4 train, 5-6 held out; ``--held-out`` and ``--data`` as
@@ -17,7 +17,10 @@ model brought there by warm-up windows. Per set:
    run so far, anchored to that shared fit); the anchor's relative SD and error scale
    and the refit's evaluations per window (``GRID``) with the lowest error over the four
    runs are kept, and those runs' prediction errors give the band's scale. The held-out
-   runs choose nothing.
+   runs choose nothing. With ``--spread-anchors`` the choice is also among anchors of
+   each quantity's own width: how far it moves from run to run, the spread of fits of
+   each other training run alone about the shared fit
+   (:func:`~pneubayes.inference.refine.relative_spread`), times ``SPREAD_FACTORS``.
 3. *Held out*: the same through runs 5-6 from the shared fit of runs 1-4, with the
    chosen anchor; the 90 % band is ``N_DRAWS`` Laplace draws' predictions plus Gaussian
    errors of the band's scale (seeded). Beside it on the same windows: the set-point,
@@ -71,7 +74,7 @@ from pneubayes.inference.online import forecast
 from pneubayes.inference.online_refit import OnlineRefit
 from pneubayes.inference.pipeline import FitSettings
 from pneubayes.inference.predictive import noise_floor_Pa
-from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.refine import TrajectoryRefiner, relative_spread
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -85,6 +88,12 @@ N_DRAWS = 64
 #: among on the training runs
 GRID = {"relative_sd": (0.1, 0.3, 1.0), "error_Pa": (30.0, 100.0, 300.0),
         "refit_nfev": (MAX_NFEV, 30, 10)}
+#: with --spread-anchors, anchors of each quantity's own width beside them: its spread
+#: over fits of each other training run alone (relative_spread) times a factor among
+SPREAD_FACTORS = (0.5, 1.0, 2.0)
+#: the spread anchors' floor (a fraction of each quantity's scale): a quantity the
+#: per-run fits agree on is still free to move this much
+SPREAD_FLOOR = 0.01
 #: then, at the chosen anchor, the venturi channels' weight (Pa per unit of the
 #: uncalibrated differential pressure; flow_channels.FlowChannel) chosen among
 FLOW_WEIGHTS = (10.0, 30.0, 100.0)
@@ -138,8 +147,41 @@ def channels_of(weight):
                                                                    weight))
 
 
+def run_fits(kind, card, runs, centre, solver, out: Path, tag: str, nfev: int, log) -> list:
+    """Every quantity of the card refitted on each of ``runs`` alone from ``centre``
+    (each read from OUT when it holds this run's from this centre)."""
+    model = Model(rig_card=card)
+    fits = []
+    for r in runs:
+        cache = out / f"run_{tag}_{Path(r.source).stem}.json"
+        key = {"card": card.to_dict(), "max_nfev": nfev, "centre": centre}
+        doc = json.loads(cache.read_text()) if cache.exists() else {}
+        hit = [f for f in doc.get("fits", []) if f["key"] == json.loads(json.dumps(key))]
+        if hit:
+            fits.append(hit[0]["params"])
+            continue
+        t0 = time.perf_counter()
+        fit = TrajectoryRefiner(model, solver, max_nfev=nfev, uncertainty=False).fit(
+            WindowSet([r], HORIZON_S, HORIZON_S), centre)
+        log(f"[{kind}] {Path(r.source).stem} alone: RMSE {fit.rmse_Pa_:.0f} Pa "
+            f"({time.perf_counter() - t0:.0f} s)")
+        doc.setdefault("fits", []).append({"key": key, "params": fit.params_})
+        write_json_atomic(cache, doc)
+        fits.append(fit.params_)
+    return fits
+
+
+def anchor_widths(knobs, names, spread) -> float | dict:
+    """The anchor's relative SD of ``knobs``: one for all (``relative_sd``) or each
+    quantity's spread over per-run fits (``spread``, :func:`relative_spread`) times
+    ``spread_factor``."""
+    if "spread_factor" in knobs:
+        return {n: knobs["spread_factor"] * spread[n] for n in names}
+    return knobs["relative_sd"]
+
+
 def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws=0,
-                band_sd=0.0, rng=None, profile=None, mode_ticks=False):
+                band_sd=0.0, rng=None, profile=None, mode_ticks=False, spread=None):
     """Refit through run ``r`` at its protocol windows; per window the errors of the
     mode's prediction, the set-point's and the frozen fit's, and (with ``draws``) whether
     each sample lies in the 90 % band and the band's width, and the same for two online
@@ -162,7 +204,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     sp = r.extra_columns["pc_setpoint_cmH2O"].astype(float) * CMH2O_PA \
         + r.metadata.atmospheric_pressure_Pa
     names = list(model.parameter_names)
-    on = OnlineRefit(model, shared, names, knobs["relative_sd"], knobs["error_Pa"],
+    on = OnlineRefit(model, shared, names, anchor_widths(knobs, names, spread),
+                     knobs["error_Pa"],
                      solver, HORIZON_S, refit_every_s=HORIZON_S,
                      max_nfev=knobs.get("refit_nfev", nfev),
                      channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
@@ -218,7 +261,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
 
 
 def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
-            with_flows: bool = True, data: Path = DATA, held_out=HELD_OUT) -> dict:
+            with_flows: bool = True, data: Path = DATA, held_out=HELD_OUT,
+            spread_anchors: bool = False) -> dict:
     card = form_card(kind, "two_compartment", exhaust, data)
     tag = kind if exhaust == "separate" else f"{kind}_{exhaust}"  # the caches' names
     recs = [read_recording(p, rig_card=card) for p in sorted((data / kind).glob("*.csv"))]
@@ -232,8 +276,11 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
     grid = [{"relative_sd": a, "error_Pa": e, **({} if n == MAX_NFEV else {"refit_nfev": n})}
             for n in GRID["refit_nfev"] for a in GRID["relative_sd"]
             for e in GRID["error_Pa"]]
+    if spread_anchors:
+        grid += [{"spread_factor": k, "error_Pa": e} for k in SPREAD_FACTORS
+                 for e in GRID["error_Pa"]]
     if smoke:
-        grid, train = grid[:1], train[:2]
+        grid, train = grid[:1] + (grid[-1:] if spread_anchors else []), train[:2]
     # the choice: each training run through from the shared fit of the other three
     loo = {}
     for i, r in enumerate(train):
@@ -241,6 +288,11 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
         loo[i] = shared_fit(kind, card, others, solver,
                             out / f"shared_{tag}_without_{Path(r.source).stem}.json", nfev,
                             log)
+    # how far each quantity moves from run to run: each other run fitted alone
+    names = list(model.parameter_names)
+    loo_spread = {i: relative_spread(model, loo[i], run_fits(
+        kind, card, [x for j, x in enumerate(train) if j != i], loo[i], solver, out, tag,
+        nfev, log), names, SPREAD_FLOOR) if spread_anchors else None for i in loo}
     # each anchor's score is kept as it finishes (a rerun or a resumed run reads it)
     cache = out / f"choice_{tag}.json"
     key = json.dumps({"card": card.to_dict(), "max_nfev": nfev, "smoke": smoke,
@@ -256,7 +308,8 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
         name = json.dumps(knobs, sort_keys=True)
         if name not in done["scores"] or name not in done["profiles"]:
             t0 = time.perf_counter()
-            errs = [through_run(model, loo[i], r, knobs, solver, std, nfev)["refit"]
+            errs = [through_run(model, loo[i], r, knobs, solver, std, nfev,
+                                spread=loo_spread[i])["refit"]
                     for i, r in enumerate(train)]
             done["scores"][name] = rmse([e for run in errs for e in run])
             done["profiles"][name] = np.sqrt(np.mean(np.square(
@@ -280,7 +333,8 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
         if name not in rec:
             rec[name] = [[(int(k), np.asarray(m).tolist(), bool(pr)) for k, m, pr in
                           through_run(model, loo[i], r, knobs, solver, std, nfev,
-                                      profile=profile(knobs), mode_ticks=True)["mode_preds"]]
+                                      profile=profile(knobs), mode_ticks=True,
+                                      spread=loo_spread[i])["mode_preds"]]
                          for i, r in enumerate(train)]
             write_json_atomic(cache, done)
         scale = profile(knobs)
@@ -314,16 +368,23 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
             for w in (FLOW_WEIGHTS[:1] if smoke else FLOW_WEIGHTS))]
         flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
     shared = shared_fit(kind, card, train, solver, out / f"shared_{tag}.json", nfev, log)
+    spread = relative_spread(model, shared, run_fits(
+        kind, card, train, shared, solver, out, tag, nfev, log), names,
+        SPREAD_FLOOR) if spread_anchors else None
     rng = np.random.default_rng([SEED, ord(kind[0])])
     res = {"chosen": chosen, "band_sd_Pa": band_sd,
            "training_runs_rmse_Pa": [{"anchor": k, "rmse_Pa": s} for k, s in zip(grid, scores)],
            "noise_floor_Pa": noise_floor_Pa(recs)}
+    if spread_anchors:
+        res["spread"] = spread
     runs = [through_run(model, shared, r, chosen, solver, std, nfev, draws=N_DRAWS,
-                        band_sd=band_sd, rng=rng, profile=profile(chosen)) for r in held]
-    free = [through_run(model, shared, r, chosen, solver, std, nfev, anchored=False)
+                        band_sd=band_sd, rng=rng, profile=profile(chosen), spread=spread)
             for r in held]
+    free = [through_run(model, shared, r, chosen, solver, std, nfev, anchored=False,
+                        spread=spread) for r in held]
     flows = [through_run(model, shared, r, flow_chosen, solver, std, nfev, draws=N_DRAWS,
-                         band_sd=flow_sd, rng=rng, profile=profile(flow_chosen))
+                         band_sd=flow_sd, rng=rng, profile=profile(flow_chosen),
+                         spread=spread)
              for r in held] if with_flows else []
 
     band, band_tried = band_choice(chosen)
@@ -406,6 +467,9 @@ def main(argv=None) -> int:
     ap.add_argument("--exhausts", default=",".join(EXHAUSTS),
                     help="the exhale valve's forms to choose among on runs 1-4 (one: "
                          "taken as given, e.g. the form a full run chose there)")
+    ap.add_argument("--spread-anchors", action="store_true",
+                    help="anchors of each quantity's own width (its spread over fits of "
+                         "each other training run alone) beside the grid's")
     ap.add_argument("--no-flows", action="store_true",
                     help="leave out the measured flows' variant (its three weights)")
     add_split_arguments(ap, DATA, HELD_OUT, "run")
@@ -434,7 +498,7 @@ def main(argv=None) -> int:
         if not set(forms) <= set(EXHAUSTS):
             ap.error(f"--exhausts: the forms are {list(EXHAUSTS)}, got {forms}")
         by_form = {ex: run_set(kind, out, args.smoke, log, ex, not args.no_flows,
-                               Path(args.data), held_out)
+                               Path(args.data), held_out, args.spread_anchors)
                    for ex in forms}
         chosen = min(by_form, key=lambda ex: by_form[ex]["band_sd_Pa"])
         log(f"[{kind}] exhale valve form chosen on runs 1-4: {chosen} ("
@@ -442,7 +506,8 @@ def main(argv=None) -> int:
         doc["sets"][kind] = {**by_form[chosen], "exhaust": chosen, "exhausts_tried": forms,
                              "other_forms": {ex: r for ex, r in by_form.items()
                                              if ex != chosen}}
-        doc.update(seed=SEED, smoke=args.smoke, held_out=list(held_out), grid=GRID,
+        grid = {**GRID, **({"spread_factor": SPREAD_FACTORS} if args.spread_anchors else {})}
+        doc.update(seed=SEED, smoke=args.smoke, held_out=list(held_out), grid=grid,
                    flow_weights=FLOW_WEIGHTS,
                    band_every_s=BAND_EVERY_S, band_from_s=BAND_FROM_S, band_grid=BAND_GRID,
                    n_draws=N_DRAWS,

@@ -10,7 +10,12 @@ import pytest
 
 from pneubayes.inference.online import forecast
 from pneubayes.inference.online_refit import OnlineRefit
-from pneubayes.inference.refine import GaussianAnchor, TrajectoryRefiner
+from pneubayes.inference.refine import (
+    GaussianAnchor,
+    TrajectoryRefiner,
+    parameter_scales,
+    relative_spread,
+)
 from pneubayes.inference.windows import WindowSet
 from pneubayes.io import read_recording
 from pneubayes.model import Model
@@ -101,6 +106,45 @@ def test_a_narrow_anchor_holds_the_quantities_at_its_centre(plant):
         assert abs(on.params_[n] - plant["params"][n]) < 5 * sd, n
         # the posterior no wider than the prior
         assert np.sqrt(on.covariance_[NAMES.index(n), NAMES.index(n)]) <= sd * (1 + 1e-9)
+
+
+def test_each_quantity_its_own_anchor_width(plant):
+    """A centre right in the lung, wrong in the inhale area (the plant's is 0.6 x): with
+    the area's anchor wide and the lung's narrow, the lung stays at the centre and the
+    area is found."""
+    truth = plant["truth"]
+    centre = {**truth, NAMES[2]: plant["params"][NAMES[2]]}
+    widths = {NAMES[0]: 1e-4, NAMES[1]: 1e-4, NAMES[2]: 3.0}
+    on = OnlineRefit(plant["model"], centre, NAMES, widths, 50.0, SolverConfig.standard(),
+                     max_nfev=30).reset()
+    sd = on.anchor_.sd
+    on.update(plant["rec"].slice(0, 801))
+    for n in NAMES[:2]:
+        assert abs(on.params_[n] - centre[n]) < 5 * sd[n], n
+    assert abs(np.log(on.params_[NAMES[2]] / truth[NAMES[2]])) < 0.05
+    narrow = _refit(plant, 1e-4)  # one narrow width for all: the area held too
+    assert narrow.anchor_.sd[NAMES[2]] < 1e-4 * sd[NAMES[2]]
+    with pytest.raises(ValueError, match="no value for"):
+        _refit(plant, {NAMES[0]: 1.0})
+    with pytest.raises(ValueError, match="must be > 0"):
+        _refit(plant, {**widths, NAMES[1]: 0.0})
+
+
+def test_relative_spread_is_the_runs_rms_over_the_scale(plant):
+    model, centre = plant["model"], plant["params"]
+    scale = dict(zip(model.parameter_names, parameter_scales(model, model.vector(centre))))
+    a, b = NAMES[0], NAMES[2]
+    fits = [{**centre, a: centre[a] + 0.3 * scale[a]},
+            {**centre, a: centre[a] - 0.4 * scale[a]}]
+    out = relative_spread(model, centre, fits, (a, b), floor=0.01)
+    assert out[a] == pytest.approx(np.sqrt((0.09 + 0.16) / 2), rel=1e-12)
+    assert out[b] == 0.01  # the runs agree on it: the floor
+    with pytest.raises(ValueError, match="no per-run fits"):
+        relative_spread(model, centre, [], (a,), floor=0.01)
+    with pytest.raises(ValueError, match="floor"):
+        relative_spread(model, centre, fits, (a,), floor=0.0)
+    with pytest.raises(ValueError, match="not a parameter"):
+        relative_spread(model, centre, fits, ("nope",), floor=0.01)
 
 
 def test_the_laplace_covariance_adds_the_anchors_precision(plant):

@@ -805,7 +805,16 @@ def test_the_refit_paragraph_gives_both_conformal_bands(tmp_path):
                                                      "error_Pa": [30.0]}, "n_draws": 64,
                                 "sets": {"OXY": one(), "AIR": one(mode=False)}}))
     text = "\n".join(make_paper._refit_paragraph(path))
+    assert "| OXY | 1, 30 Pa | 43 |" in text
     assert "| 0.96 | 610 | 0.88 | 111 | 0.86 |" in text
     assert "| 0.96 | 610 | - | - | 0.86 |" in text
     assert ("The mode's conformal band covers OXY 0.88 at a median width of 111 Pa (3.0 x "
             "the online refit's error) (target 0.90).") in text
+    # an anchor of each quantity's spread over the other runs' own fits
+    doc = json.loads(path.read_text())
+    doc["grid"]["spread_factor"] = [0.5, 1.0]
+    doc["sets"]["AIR"]["chosen"] = {"spread_factor": 0.5, "error_Pa": 100.0}
+    path.write_text(json.dumps(doc))
+    text = "\n".join(make_paper._refit_paragraph(path))
+    assert "| AIR | 0.5 x the runs' spread, 100 Pa | 43 |" in text
+    assert "at least 0.01) times 0.5, 1; error scale 30 Pa" in text

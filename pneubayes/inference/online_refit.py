@@ -7,7 +7,8 @@ as its lung), it refits every chosen quantity on the run so far, each time from 
 estimate:
 
 1. *Prior*: Gaussian, centred on a shared fit (other runs'), each quantity's SD a
-   fraction ``relative_sd`` of its scale
+   fraction ``relative_sd`` of its scale (one for all, or each its own: how far per-run
+   fits of the other runs spread, :func:`~pneubayes.inference.refine.relative_spread`)
    (:meth:`~pneubayes.inference.refine.GaussianAnchor.relative`); the run's windows
    are scored with Gaussian errors of ``error_Pa``.
 2. *Update*: the posterior mode, by multiple shooting on the run's 2-s windows (the
@@ -53,8 +54,9 @@ class OnlineRefit:
         Every parameter's value (a shared fit): the prior's centre and the first start.
     names : sequence of str
         The quantities refitted (the others stay at ``params``).
-    relative_sd : float
-        Each prior SD as a fraction of the quantity's scale (> 0).
+    relative_sd : float or mapping of str to float
+        Each prior SD as a fraction of the quantity's scale (> 0): one for all, or each
+        refitted quantity's own.
     error_Pa : float
         Scale of the windows' Gaussian errors, Pa (the model's, not the sensor's).
     solver : SolverConfig
@@ -85,7 +87,8 @@ class OnlineRefit:
     """
 
     def __init__(self, model: Model, params: Mapping[str, float], names: Sequence[str],
-                 relative_sd: float, error_Pa: float, solver: SolverConfig,
+                 relative_sd: float | Mapping[str, float], error_Pa: float,
+                 solver: SolverConfig,
                  horizon_s: float = 2.0, memory_s: float | None = None,
                  refit_every_s: float = 2.0, max_nfev: int = 100, channels=(),
                  min_windows: int = 2):

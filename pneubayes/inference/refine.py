@@ -74,21 +74,55 @@ class GaussianAnchor:
             raise ValueError(f"GaussianAnchor: no mean for {missing}")
 
     @classmethod
-    def relative(cls, model: Model, params: Mapping[str, float], names, relative_sd: float,
-                 error_Pa: float) -> "GaussianAnchor":
+    def relative(cls, model: Model, params: Mapping[str, float], names,
+                 relative_sd: float | Mapping[str, float], error_Pa: float) -> "GaussianAnchor":
         """Centred on ``params`` with ``sd = relative_sd x`` each parameter's scale (its
-        magnitude, or 1 % of its bounds' width where larger: the refiner's own scale)."""
-        if not (np.isfinite(relative_sd) and relative_sd > 0):
-            raise ValueError(f"relative_sd must be > 0, got {relative_sd!r}")
-        scale = parameter_scales(model, model.vector(params))
+        magnitude, or 1 % of its bounds' width where larger: the refiner's own scale).
+        ``relative_sd`` is one fraction for all, or each name's own (a mapping: e.g. the
+        spread of per-run fits, :func:`relative_spread`)."""
         all_names = list(model.parameter_names)
         unknown = [n for n in names if n not in all_names]
         if unknown:
             raise ValueError(f"GaussianAnchor.relative: {unknown} are not parameters of "
                              f"{model}")
+        if isinstance(relative_sd, Mapping):
+            missing = [n for n in names if n not in relative_sd]
+            if missing:
+                raise ValueError(f"GaussianAnchor.relative: relative_sd has no value for "
+                                 f"{missing}")
+            fraction = {n: float(relative_sd[n]) for n in names}
+        else:
+            fraction = {n: float(relative_sd) for n in names}
+        bad = {n: v for n, v in fraction.items() if not (np.isfinite(v) and v > 0)}
+        if bad:
+            raise ValueError(f"relative_sd must be > 0, got {bad}")
+        scale = parameter_scales(model, model.vector(params))
         return cls({n: float(params[n]) for n in names},
-                   {n: float(relative_sd * scale[all_names.index(n)]) for n in names},
+                   {n: fraction[n] * float(scale[all_names.index(n)]) for n in names},
                    float(error_Pa))
+
+
+def relative_spread(model: Model, centre: Mapping[str, float], fits, names,
+                    floor: float) -> dict[str, float]:
+    """Each of ``names``' spread over per-run fits about ``centre``, as a fraction of its
+    scale (:func:`parameter_scales` at ``centre``): the root mean square of
+    ``(fit - centre) / scale`` over ``fits`` (mappings of every parameter), at least
+    ``floor`` (> 0). What the other runs teach of how far a quantity moves from run to
+    run: :meth:`GaussianAnchor.relative`'s per-quantity ``relative_sd``."""
+    fits = list(fits)
+    if not fits:
+        raise ValueError("relative_spread: no per-run fits")
+    if not (np.isfinite(floor) and floor > 0):
+        raise ValueError(f"relative_spread: floor must be > 0, got {floor!r}")
+    all_names = list(model.parameter_names)
+    scale = parameter_scales(model, model.vector(centre))
+    out = {}
+    for n in names:
+        if n not in all_names:
+            raise ValueError(f"relative_spread: {n!r} is not a parameter of {model}")
+        z = [(float(f[n]) - float(centre[n])) / scale[all_names.index(n)] for f in fits]
+        out[n] = max(float(np.sqrt(np.mean(np.square(z)))), float(floor))
+    return out
 
 
 def parameter_scales(model: Model, theta: np.ndarray) -> np.ndarray:
