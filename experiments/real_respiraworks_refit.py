@@ -206,8 +206,8 @@ def through_run(model, shared, r, knobs, solver, std, nfev, anchored=True, draws
     names = list(model.parameter_names)
     on = OnlineRefit(model, shared, names, anchor_widths(knobs, names, spread),
                      knobs["error_Pa"],
-                     solver, HORIZON_S, refit_every_s=HORIZON_S,
-                     max_nfev=knobs.get("refit_nfev", nfev),
+                     solver, HORIZON_S, memory_s=knobs.get("memory_s"),
+                     refit_every_s=HORIZON_S, max_nfev=knobs.get("refit_nfev", nfev),
                      channels=channels_of(knobs.get("flow_weight_Pa"))).reset()
     band = OnlineConformalBand(coverage=0.9)
     out = {"refit": [], "setpoint": [], "frozen": [], "inside": [], "width": [],
