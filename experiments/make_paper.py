@@ -576,8 +576,10 @@ def real_section(out: Path, paper: Path, smoke: bool) -> list[str]:
                   "tendon's stretch is not in it)"
                   + (", and the muscles' reading at rest, "
                      f"{g['rest_gauge_Pa'][0] / 1e3:.0f}-{g['rest_gauge_Pa'][1] / 1e3:.0f} kPa "
-                     "gauge before the valves open (an undocumented sensor offset or "
-                     "residual pressure)" if "rest_gauge_Pa" in g else "") + ".")
+                     "gauge before the valves open, taken as pressure in the muscle (read as "
+                     "a sensor's zero offset, the shared fit missed the training and the "
+                     "held-out fills by more; docs/history.md 2026-12-07)"
+                     if "rest_gauge_Pa" in g else "") + ".")
         conv = (g.get("posterior") or {}).get("converged")
         L += ["", _predictive_sentence(g.get("posterior_predictive")),
               "", f"emcee converged: {conv}. Seed {g['seed']}.", ""]
