@@ -107,8 +107,9 @@ def relative_spread(model: Model, centre: Mapping[str, float], fits, names,
     """Each of ``names``' spread over per-run fits about ``centre``, as a fraction of its
     scale (:func:`parameter_scales` at ``centre``): the root mean square of
     ``(fit - centre) / scale`` over ``fits`` (mappings of every parameter), at least
-    ``floor`` (> 0). What the other runs teach of how far a quantity moves from run to
-    run: :meth:`GaussianAnchor.relative`'s per-quantity ``relative_sd``."""
+    ``floor`` (> 0): :meth:`GaussianAnchor.relative`'s per-quantity ``relative_sd``.
+    Where one run alone pins a quantity poorly its fits wander, and the spread measures
+    that as well as how the plant varies between runs."""
     fits = list(fits)
     if not fits:
         raise ValueError("relative_spread: no per-run fits")
