@@ -147,16 +147,17 @@ def channels_of(weight):
                                                                    weight))
 
 
-def run_fits(kind, card, runs, centre, solver, out: Path, tag: str, nfev: int, log) -> list:
-    """Every quantity of the card refitted on each of ``runs`` alone from ``centre``
-    (each read from OUT when it holds this run's from this centre)."""
-    model = Model(rig_card=card)
+def run_fits(kind, model, runs, centre, solver, out: Path, tag: str, nfev: int, log) -> list:
+    """Every quantity of ``model`` (the card's) refitted on each of ``runs`` alone from
+    ``centre`` (each read from OUT when it holds this run's from this centre)."""
+    # (as JSON stores it: a cached key compares equal)
+    key = json.loads(json.dumps({"card": model.rig_card.to_dict(), "max_nfev": nfev,
+                                 "centre": centre}))
     fits = []
     for r in runs:
         cache = out / f"run_{tag}_{Path(r.source).stem}.json"
-        key = {"card": card.to_dict(), "max_nfev": nfev, "centre": centre}
         doc = json.loads(cache.read_text()) if cache.exists() else {}
-        hit = [f for f in doc.get("fits", []) if f["key"] == json.loads(json.dumps(key))]
+        hit = [f for f in doc.get("fits", []) if f["key"] == key]
         if hit:
             fits.append(hit[0]["params"])
             continue
@@ -291,7 +292,7 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
     # how far each quantity moves from run to run: each other run fitted alone
     names = list(model.parameter_names)
     loo_spread = {i: relative_spread(model, loo[i], run_fits(
-        kind, card, [x for j, x in enumerate(train) if j != i], loo[i], solver, out, tag,
+        kind, model, [x for j, x in enumerate(train) if j != i], loo[i], solver, out, tag,
         nfev, log), names, SPREAD_FLOOR) if spread_anchors else None for i in loo}
     # each anchor's score is kept as it finishes (a rerun or a resumed run reads it)
     cache = out / f"choice_{tag}.json"
@@ -369,7 +370,7 @@ def run_set(kind: str, out: Path, smoke: bool, log, exhaust: str = "separate",
         flow_sd, flow_chosen = min(flow_scores, key=lambda x: x[0])
     shared = shared_fit(kind, card, train, solver, out / f"shared_{tag}.json", nfev, log)
     spread = relative_spread(model, shared, run_fits(
-        kind, card, train, shared, solver, out, tag, nfev, log), names,
+        kind, model, train, shared, solver, out, tag, nfev, log), names,
         SPREAD_FLOOR) if spread_anchors else None
     rng = np.random.default_rng([SEED, ord(kind[0])])
     res = {"chosen": chosen, "band_sd_Pa": band_sd,

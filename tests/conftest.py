@@ -182,6 +182,29 @@ def tight_solver(rtol: float = 1e-8) -> SolverConfig:
                         min_step_s=1e-14, max_steps_per_s=2.5e7)
 
 
+def heat_beside_line(heat, params, steps, rig, switched_off: dict) -> tuple[float, float]:
+    """The heat form ``heat`` behind a 3-cell acoustic line (2 ms, 1.5-mm bore) over the
+    first 111 samples of ``steps``, from 2e5 Pa: ``(largest |Radau - the compiled
+    simulator with switched_off's values|, largest |compiled - Radau|)``, Pa: how far the
+    part switched off moves the pressure, and how closely the compiled simulator follows
+    the reference (tolerance 1e-9, Radau at 1e-10)."""
+    from pneubayes.effects import TubeDelay
+    from pneubayes.model import Model
+    from pneubayes.simulation import Inputs, simulate
+    from pneubayes.simulation.reference import reference_simulate
+
+    steps = Inputs(steps.time_s[:111], steps.command_V[:111], steps.position_m[:111],
+                   steps.supply_pressure_Pa[:111])
+    model = Model([heat, TubeDelay(form="line", segments=3)])
+    params = dict(params, tube_delay_s=0.002, tube_diameter_m=0.0015)
+    params = {k: v for k, v in params.items() if k in model.parameter_names}
+    ref = reference_simulate(model, params, steps, rig, 2e5, rtol=1e-10)
+    got = simulate(model, params, steps, rig, 2e5, tight_solver(1e-9)).pressure_Pa[0]
+    off = simulate(model, dict(params, **switched_off), steps, rig, 2e5,
+                   tight_solver(1e-9)).pressure_Pa[0]
+    return float(np.max(np.abs(ref - off))), float(np.max(np.abs(got - ref)))
+
+
 def reference_errors(model, params, inputs, rig, p0: float, rtols=(1e-6, 1e-9),
                      ref_rtol: float = 1e-10):
     """``(ref, errs)``: scipy Radau's trajectory at ``ref_rtol`` and the compiled
