@@ -539,8 +539,35 @@ def test_smooth_position_off_and_bad_cutoffs():
     rec, _ = _moving_recording(1e-5)
     assert smooth_position(rec, None) is rec and smooth_position(rec, 0) is rec
     with pytest.raises(ValueError, match=r"mem.csv: position cutoff 600 Hz must be in .*"
-                       r"set --position-cutoff \(0: raw\)"):
+                       r"fit's --position-cutoff \(0: raw\), discover's --set "
+                       r"fit.position_cutoff_Hz=0"):
         smooth_position(rec, 600.0)
+
+
+def test_a_default_cutoff_above_a_slow_recordings_nyquist_says_how_discover_sets_it():
+    """A 200-Hz recording under discover's default supply low-pass (100 Hz, its Nyquist
+    frequency) is refused naming the setting; the advised ``--set`` reaches the settings
+    and the supply then drives the model raw."""
+    from dataclasses import replace
+
+    from pneubayes.cli import settings as cli_settings
+    from pneubayes.cli.args import build_parser
+    from pneubayes.discovery.settings import DiscoverySettings
+    from pneubayes.io import smooth_inputs
+
+    rec, _ = _moving_recording(0.0)
+    slow = replace(rec, time_s=np.arange(rec.time_s.size) * 5e-3,
+                   supply_pressure_Pa=np.full(rec.time_s.size, 551325.0))
+    default = DiscoverySettings().fit
+    with pytest.raises(ValueError, match=r"mem.csv: supply cutoff 100 Hz must be in \(0, 100\)"
+                       r".*discover's --set fit.supply_cutoff_Hz=0"):
+        smooth_inputs(slow, default.preparation())
+    args = build_parser().parse_args(["discover", "r.csv", "--out", "o", "--set",
+                                      "fit.supply_cutoff_Hz=0"])
+    fit = cli_settings.discovery_settings(args).fit
+    out = smooth_inputs(slow, fit.preparation())
+    assert np.array_equal(out.supply_pressure_Pa, slow.supply_pressure_Pa)
+    assert not np.array_equal(out.position_m, slow.position_m)  # the position's 50 Hz stays
 
 
 def test_smooth_supply_removes_sensor_noise_keeps_the_wander_and_composes():

@@ -45,7 +45,9 @@ def _lowpass_column(recording: Recording, column: str, cutoff_Hz: float | None,
     if not 0 < cutoff_Hz < 0.5 * fs:
         raise ValueError(f"{where}: {what} cutoff {cutoff_Hz:g} Hz must be in (0, "
                          f"{0.5 * fs:g}) Hz (below the Nyquist frequency of this "
-                         f"{fs:.3g}-Hz recording); set --{what}-cutoff (0: raw)")
+                         f"{fs:.3g}-Hz recording); set a lower one or 0 for the raw "
+                         f"{what}: fit's --{what}-cutoff (0: raw), discover's --set "
+                         f"fit.{what}_cutoff_Hz=0")
     sos = signal.butter(order, cutoff_Hz, fs=fs, output="sos")
     # odd extension over 10 filter time constants, so the ends settle (value and slope);
     # a short recording (a triggered trial) is extended by as much as it has
