@@ -279,3 +279,24 @@ def test_unit_slips_experiment_smoke(tmp_path):
     assert table["correct"]["caught"] == 0 and table["correct"]["n"] == 2
     for slip in mod.SLIPS:
         assert table[slip]["caught"] == table[slip]["named"] == 2, slip
+
+
+def test_isolated_pressure_spikes_are_a_warning_naming_their_rows(tmp_path, capsys):
+    """Three one-sample glitches of 8-20 kPa on a noisy chamber (300 Pa) are found with
+    their rows; the clean recording, whose valve reversals bend the pressure at one
+    sample, has none, and neither has one ringing at 0.4 x its sample rate (every sample
+    departs: texture, not glitches)."""
+    rec = chamber_recording(duration_s=3.0)
+    assert not [f for f in read_recording(_slip(tmp_path, "clean", rec)).findings
+                if f.rule == "pressure-spikes"]
+    p = rec.pressure_Pa.copy()
+    rows = (700, 1500, 2300)  # samples; rows of the CSV are one more than 1-based
+    for k, h in zip(rows, (8e3, -12e3, 20e3)):
+        p[k] += h
+    rc, out = _check_output(capsys, _slip(tmp_path, "spiky", replace(rec, pressure_Pa=p)))
+    line = next(x for x in out.splitlines() if "[pressure-spikes]" in x)
+    assert rc == 0 and "3 isolated sample(s)" in line and "warning" in line
+    assert "rows 702, 1502, 2302" in line, line
+    ring = rec.pressure_Pa + 2e4 * np.sin(2 * np.pi * 0.4 * np.arange(p.size))
+    assert not [f for f in read_recording(_slip(tmp_path, "ring", replace(
+        rec, pressure_Pa=ring))).findings if f.rule == "pressure-spikes"]

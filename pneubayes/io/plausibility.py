@@ -26,6 +26,9 @@ rule                      finding
                           range + 5 kPa (warning: a gauge supply?)
 ``pressure-span``         chamber pressure spans less than 10 kPa (warning)
 ``sample-interval``       median sample interval above 5 ms, below 200 Hz (warning)
+``pressure-spikes``       isolated samples of the chamber pressure that depart from both
+                          neighbours by over 10 x the sample-to-sample noise and 1 kPa,
+                          in at most 5 % of the samples (warning: sensor glitches)
 ``time-unit``             samples >= 0.1 s apart and the pressure needs >= 2 s to cross
                           its span at its steepest (1 % of steps): milliseconds written
                           as seconds (error)
@@ -60,6 +63,7 @@ RULES: dict[str, str] = {
     "pressure-above-supply": "chamber pressure well above the supply",
     "pressure-span": "chamber pressure spans less than 10 kPa",
     "sample-interval": "sample interval above 5 ms",
+    "pressure-spikes": "isolated one-sample spikes in the chamber pressure",
     "time-unit": "time stamps that look like milliseconds",
     "time-gap": "one sample interval far longer than the others",
     "bore": "bore outside 0.5 mm - 0.35 m",
@@ -76,6 +80,12 @@ WORKING_RANGE_MIN_Pa = 10e3
 PRESSURE_MAX_Pa = 10e6
 PRESSURE_SPAN_MIN_Pa = 10e3
 SAMPLE_INTERVAL_MAX_s = 5e-3
+#: A spike departs from both neighbours' mean by this many robust SDs of that departure
+#: (over all samples) and by at least SPIKE_MIN_Pa; more than SPIKE_MAX_SHARE of the
+#: samples so flagged is the signal's texture (ringing at the sample rate), not glitches.
+SPIKE_NOISE_MULTIPLE = 10.0
+SPIKE_MIN_Pa = 1e3
+SPIKE_MAX_SHARE = 0.05
 TIME_UNIT_INTERVAL_s = 0.1
 TIME_UNIT_RESPONSE_s = 2.0
 TIME_GAP_RATIO = 1000.0
@@ -241,6 +251,37 @@ def _pressure_column_findings(p: np.ndarray, location: str, atm: float,
     return out
 
 
+def _spike_findings(p: np.ndarray, csv_name: str, accept) -> list[Finding]:
+    """The rule ``pressure-spikes``: one sample off the line of its neighbours while they
+    sit on it. A sample's departure from its neighbours' mean, ``d_i``; a spike of height
+    h has ``d_i = h`` and ``d_{i-1} = d_{i+1} = -h / 2`` (a turn of the pressure, where a
+    valve reverses, bends at one sample and leaves its neighbours' departures near 0)."""
+    if p.size < 5:
+        return []
+    departure = p[1:-1] - 0.5 * (p[:-2] + p[2:])  # d at samples 1 .. n-2
+    sd = 1.4826 * float(np.median(np.abs(departure - np.median(departure))))
+    limit = max(SPIKE_NOISE_MULTIPLE * sd, SPIKE_MIN_Pa)
+    mid, side_a, side_b = departure[1:-1], departure[:-2], departure[2:]
+    spike = (np.abs(mid) > limit)
+    for side in (side_a, side_b):
+        share = -side / np.where(mid == 0.0, 1.0, mid)
+        spike &= (share > 0.25) & (share < 0.75)
+    count = int(np.count_nonzero(spike))
+    if count == 0 or count > SPIKE_MAX_SHARE * p.size:
+        return []
+    idx = np.flatnonzero(spike) + 2  # the samples' indices
+    sizes = np.abs(departure[idx - 1])
+    rows = ", ".join(str(k + 2) for k in idx[:5]) + (", ..." if count > 5 else "")
+    return [_finding("pressure-spikes", "warning", f"{csv_name} column 'pressure_Pa'",
+                     f"{count} isolated sample(s) depart from both neighbours by "
+                     f"{sizes.min():.3g}-{sizes.max():.3g} Pa, over {limit:.3g} Pa "
+                     f"({SPIKE_NOISE_MULTIPLE:g} x the sample-to-sample scatter, "
+                     f"{sd:.3g} Pa), and return (rows {rows}): sensor glitches? Every fit "
+                     "weighs them in its error (0.2 % of the samples at 20 kPa add about "
+                     "900 Pa to an RMSE); if they are, replace each by its neighbours' mean",
+                     accept)]
+
+
 def _response_time_s(t: np.ndarray, p: np.ndarray) -> float:
     """Seconds the pressure needs to cross its 1-99 % span at its steepest 1 % of steps."""
     dt = np.diff(t)
@@ -325,6 +366,8 @@ def _recording_findings(rec, csv_name: str, json_name: str, accept: set,
                                 "percentile)", accept))
     if rec.n_samples >= 3:
         out += _time_findings(rec.time_s, p, csv_name, accept)
+        if not impossible:
+            out += _spike_findings(p, csv_name, accept)
     if rec.position_m is not None and not position_is_coordinate:
         limit = 1.5 * md.stroke_m + 5e-3
         far = float(np.max(np.abs(rec.position_m)))
