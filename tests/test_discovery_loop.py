@@ -170,6 +170,14 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     doc["recordings"] = [str(p) for p in paths]
     text = _report(doc, d.result_, {})
     assert "stopped at its time budget (3600 s" in text and "before stage never" in text
+    # a misfit beside inputs the check found glitches in says so; without them it does not
+    spike = {"recording": str(paths[0]), "rule": "pressure-spikes", "severity": "warning",
+             "location": "x", "message": "m", "accepted": False}
+    missing = dict(doc, rmse_final_Pa=3.0 * doc["noise_floor_Pa"], input_findings=[spike])
+    text = _report(missing, d.result_, {})
+    assert "isolated one-sample spikes in 1 recording(s) (rule `pressure-spikes`" in text
+    assert paths[0].name in text.split("one-sample spikes")[1]
+    assert "one-sample spikes" not in _report(dict(missing, input_findings=[]), d.result_, {})
 
     late["by_s"] = 0.0
     ran.clear()

@@ -353,6 +353,14 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
     if found and final > MISFIT_RATIO * noise:
         lines.append(f"\nThe final model still misses by {final / noise:.1f} x the noise "
                      "floor: the named effects do not explain everything.")
+    spiky = sorted({f["recording"] for f in doc.get("input_findings", ())
+                    if f["rule"] == "pressure-spikes"})
+    if spiky and final > MISFIT_RATIO * noise:
+        lines.append(f"\nThe input check found isolated one-sample spikes in {len(spiky)} "
+                     "recording(s) (rule `pressure-spikes`; the noise floor is estimated "
+                     "past them): no model follows a glitch, and each weighs in the "
+                     "held-out error. " + "; ".join(_md(Path(r).name) for r in spiky[:5])
+                     + ("; ..." if len(spiky) > 5 else ""))
     shrink = "" if gap0 <= 0 else f" ({100 * (1 - gap1 / gap0):.0f} % of the gap closed)"
     span = doc.get("span_Pa")
     of_span = "" if not span else f" ({100 * final / span:.2f} % of the measured span)"
