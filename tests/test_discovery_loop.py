@@ -178,6 +178,12 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     assert "isolated one-sample spikes in 1 recording(s) (rule `pressure-spikes`" in text
     assert paths[0].name in text.split("one-sample spikes")[1]
     assert "one-sample spikes" not in _report(dict(missing, input_findings=[]), d.result_, {})
+    import dataclasses  # a loop that despiked its recordings says its errors are theirs
+
+    fit = dataclasses.replace(settings.fit, despike_pressure=True)
+    despiked = dataclasses.replace(d.result_, settings=dataclasses.replace(settings, fit=fit))
+    assert "against the despiked recordings" in _report(doc, despiked, {})
+    assert "despiked" not in _report(doc, d.result_, {})
 
     late["by_s"] = 0.0
     ran.clear()

@@ -164,7 +164,7 @@ def test_fit_method_lsq_writes_a_point_estimate(fitted_quick, tmp_path, capsys):
     assert card["fit"]["position_cutoff_Hz"] == 50.0 and card["fit"]["supply_cutoff_Hz"] == 80.0
     declared = {"order": 2, "cutoff_Hz": 1000.0, "phase": "zero"}
     assert run_preparation(out) == {"position_cutoff_Hz": 50.0, "supply_cutoff_Hz": 80.0,
-                                    "pressure_filter": declared}
+                                    "pressure_filter": declared, "despike_pressure": False}
     rec = prepare_recording(read_recording(train.recordings[0]), run_preparation(out))
     assert rec.rig().pressure_filter == PressureFilter(2, 1000.0)
     del card["fit"]["supply_cutoff_Hz"]  # a card from before the supply's low-pass: raw

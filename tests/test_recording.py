@@ -596,3 +596,42 @@ def test_smooth_supply_removes_sensor_noise_keeps_the_wander_and_composes():
     assert smooth_supply(noisy, None) is noisy
     with pytest.raises(ValueError, match=r"mem.csv: supply cutoff 600 Hz must be in"):
         smooth_supply(noisy, 600.0)
+
+
+def test_despiking_replaces_each_glitch_by_its_neighbours_mean_when_asked():
+    """Three one-sample glitches on a noisy chamber with valve reversals: despiking puts
+    each back on its neighbours' mean and touches nothing else; a clean recording comes
+    back as it was; the fit's preparation despikes only when its setting says so, and a
+    model card records it (absent in an older card: not; not a bool: refused)."""
+    from dataclasses import replace
+
+    from conftest import chamber_recording
+
+    from pneubayes.errors import ModelCardError
+    from pneubayes.inference.fit import FitSettings
+    from pneubayes.inference.fit_folder import card_preparation
+    from pneubayes.io import despike_pressure, prepare_recording
+    from pneubayes.settings_tree import FieldError
+
+    rec = chamber_recording(duration_s=3.0, position=False)
+    assert despike_pressure(rec) is rec
+    p = rec.pressure_Pa.copy()
+    glitches = np.array([700, 1500, 2300])
+    p[glitches] += np.array([8e3, -12e3, 20e3])
+    spiky = replace(rec, pressure_Pa=p)
+    out = despike_pressure(spiky).pressure_Pa
+    expected = p.copy()
+    expected[glitches] = 0.5 * (p[glitches - 1] + p[glitches + 1])
+    assert np.array_equal(out, expected)
+    assert np.array_equal(spiky.pressure_Pa, p)  # (the input is not modified)
+    raw = FitSettings(position_cutoff_Hz=None, supply_cutoff_Hz=None)
+    asked = replace(raw, despike_pressure=True)
+    assert np.array_equal(prepare_recording(spiky, raw.preparation()).pressure_Pa, p)
+    assert np.array_equal(prepare_recording(spiky, asked.preparation()).pressure_Pa,
+                          expected)
+    assert card_preparation({"fit": asked.preparation()}, "m.json")["despike_pressure"]
+    assert card_preparation({"fit": {}}, "m.json")["despike_pressure"] is False
+    with pytest.raises(ModelCardError, match="m.json: key 'fit' -> 'despike_pressure'"):
+        card_preparation({"fit": {"despike_pressure": "yes"}}, "m.json")
+    with pytest.raises(FieldError, match="despike_pressure"):
+        FitSettings(despike_pressure=1)

@@ -259,7 +259,11 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
            f"each split in time: the first {1 - result.settings.data.holdout_fraction:.0%} to fit "
            "and search, the rest to verify")
     lines += [f"Recordings: {len(doc['recordings'])} ({how}). Noise floor (sensor) "
-              f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa.", ""]
+              f"{noise:.0f} Pa; working range {doc['range_Pa'] / 1e3:.0f} kPa."
+              + (" The pressure's isolated one-sample spikes were replaced by their "
+                 "neighbours' mean before fitting and scoring (`fit.despike_pressure`): "
+                 "every error below is against the despiked recordings."
+                 if result.settings.fit.despike_pressure else ""), ""]
     lines += ["## Result", ""]
     stop = next((e for e in doc["ledger"] if e["action"] == "time budget"), None)
     if stop is not None:

@@ -66,6 +66,9 @@ class FitSettings:
         The emcee run.
     position_cutoff_Hz, supply_cutoff_Hz : float or None
         Zero-phase low-passes of the measured position and supply, Hz (None: raw).
+    despike_pressure : bool
+        Replace isolated one-sample spikes of the measured pressure by their
+        neighbours' mean (off by default).
     pressure_filter : PressureFilter or None
         The pressure channel's declared anti-alias filter (None: none).
     """
@@ -92,6 +95,10 @@ class FitSettings:
     #: supply_fluctuation), Hz (None: raw); see :func:`pneubayes.io.smooth_supply`.
     #: Saved in the model card like the position's.
     supply_cutoff_Hz: float | None = 100.0
+    #: replace each isolated one-sample spike of the measured pressure by its neighbours'
+    #: mean before fitting (:func:`pneubayes.io.spikes.find_spikes`; glitches no model
+    #: follows). Off by default; saved in the model card like the cutoffs.
+    despike_pressure: bool = False
     #: the pressure channel's zero-phase anti-alias filter (None: the reading is the
     #: chamber pressure). The recording format does not carry it; declare the DAQ's
     #: (the bench's: order 2 at 1 kHz). Saved in the model card like the cutoffs.
@@ -102,6 +109,9 @@ class FitSettings:
                 or self.refine_jacobian_refresh < 1):
             raise FieldError("refine_jacobian_refresh",
                              f"must be an integer >= 1, got {self.refine_jacobian_refresh!r}")
+        if not isinstance(self.despike_pressure, bool):
+            raise FieldError("despike_pressure",
+                             f"must be true or false, got {self.despike_pressure!r}")
         if self.pressure_filter is not None and not isinstance(self.pressure_filter,
                                                                PressureFilter):
             raise TypeError("FitSettings.pressure_filter must be a PressureFilter or None, "
@@ -115,6 +125,7 @@ class FitSettings:
         input low-passes and the declared pressure filter, as the model card records them."""
         return {"position_cutoff_Hz": self.position_cutoff_Hz,
                 "supply_cutoff_Hz": self.supply_cutoff_Hz,
+                "despike_pressure": self.despike_pressure,
                 "pressure_filter": (None if self.pressure_filter is None
                                     else self.pressure_filter.to_dict())}
 

@@ -156,8 +156,8 @@ def folder_draws(fit: Fit, run_dir, n_draws: int, rng: np.random.Generator):
 
 def run_preparation(run_dir) -> dict:
     """How a run prepared its recordings (its model card): the input low-passes, Hz (None
-    or absent, as in a card written before the supply's: raw), and the declared pressure
-    filter (None or absent: none)."""
+    or absent, as in a card written before the supply's: raw), whether the pressure was
+    despiked (absent: not), and the declared pressure filter (None or absent: none)."""
     path = Path(run_dir) / "model.json"
     return card_preparation(Model.read_card(path), path)
 
@@ -171,6 +171,10 @@ def card_preparation(card, path) -> dict:
         raise ModelCardError(f"{path}: key 'fit' must be an object, got {fit!r}")
     out = {k: fit.get(k) for k in ("position_cutoff_Hz", "supply_cutoff_Hz",
                                     "pressure_filter")}
+    out["despike_pressure"] = fit.get("despike_pressure", False)  # (absent: older cards)
+    if not isinstance(out["despike_pressure"], bool):
+        raise ModelCardError(f"{path}: key 'fit' -> 'despike_pressure' must be true or "
+                             f"false, got {out['despike_pressure']!r}")
     for key in ("position_cutoff_Hz", "supply_cutoff_Hz"):
         v = out[key]
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))

@@ -1,6 +1,7 @@
 """Reading and writing measured data in the project's interchange format."""
 
 from pneubayes.io.preprocess import (
+    despike_pressure,
     prepare_recording,
     smooth_inputs,
     smooth_position,
@@ -24,6 +25,7 @@ __all__ = [
     "Recording",
     "RecordingMetadata",
     "check_recording",
+    "despike_pressure",
     "inspect_recording",
     "prepare_recording",
     "read_recording",

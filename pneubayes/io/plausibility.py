@@ -47,6 +47,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from pneubayes.io.spikes import SPIKE_NOISE_MULTIPLE, find_spikes
 from pneubayes.io.units import LENGTH_UNITS, TEMPERATURE_UNITS, pressure_readings
 
 #: Rule id -> what it checks (the module docstring has the limits).
@@ -77,12 +78,6 @@ WORKING_RANGE_MIN_Pa = 10e3
 PRESSURE_MAX_Pa = 10e6
 PRESSURE_SPAN_MIN_Pa = 10e3
 SAMPLE_INTERVAL_MAX_s = 5e-3
-#: A spike departs from both neighbours' mean by this many robust SDs of that departure
-#: (over all samples) and by at least SPIKE_MIN_Pa; more than SPIKE_MAX_SHARE of the
-#: samples so flagged is the signal's texture (ringing at the sample rate), not glitches.
-SPIKE_NOISE_MULTIPLE = 10.0
-SPIKE_MIN_Pa = 1e3
-SPIKE_MAX_SHARE = 0.05
 TIME_UNIT_INTERVAL_s = 0.1
 TIME_UNIT_RESPONSE_s = 2.0
 TIME_GAP_RATIO = 1000.0
@@ -249,33 +244,21 @@ def _pressure_column_findings(p: np.ndarray, location: str, atm: float,
 
 
 def _spike_findings(p: np.ndarray, csv_name: str, accept) -> list[Finding]:
-    """The rule ``pressure-spikes``: one sample off the line of its neighbours while they
-    sit on it. A sample's departure from its neighbours' mean, ``d_i``; a spike of height
-    h has ``d_i = h`` and ``d_{i-1} = d_{i+1} = -h / 2`` (a turn of the pressure, where a
-    valve reverses, bends at one sample and leaves its neighbours' departures near 0)."""
-    if p.size < 5:
+    """The rule ``pressure-spikes`` (:func:`pneubayes.io.spikes.find_spikes`)."""
+    spikes = find_spikes(p)
+    count = int(spikes.indices.size)
+    if count == 0:
         return []
-    departure = p[1:-1] - 0.5 * (p[:-2] + p[2:])  # d at samples 1 .. n-2
-    sd = 1.4826 * float(np.median(np.abs(departure - np.median(departure))))
-    limit = max(SPIKE_NOISE_MULTIPLE * sd, SPIKE_MIN_Pa)
-    mid, side_a, side_b = departure[1:-1], departure[:-2], departure[2:]
-    spike = (np.abs(mid) > limit)
-    for side in (side_a, side_b):
-        share = -side / np.where(mid == 0.0, 1.0, mid)
-        spike &= (share > 0.25) & (share < 0.75)
-    count = int(np.count_nonzero(spike))
-    if count == 0 or count > SPIKE_MAX_SHARE * p.size:
-        return []
-    idx = np.flatnonzero(spike) + 2  # the samples' indices
-    sizes = np.abs(departure[idx - 1])
-    rows = ", ".join(str(k + 2) for k in idx[:5]) + (", ..." if count > 5 else "")
+    rows = ", ".join(str(k + 2) for k in spikes.indices[:5]) + (", ..." if count > 5 else "")
     return [_finding("pressure-spikes", "warning", f"{csv_name} column 'pressure_Pa'",
                      f"{count} isolated sample(s) depart from both neighbours by "
-                     f"{sizes.min():.3g}-{sizes.max():.3g} Pa, over {limit:.3g} Pa "
-                     f"({SPIKE_NOISE_MULTIPLE:g} x the sample-to-sample scatter, "
-                     f"{sd:.3g} Pa), and return (rows {rows}): sensor glitches? Every fit "
-                     "weighs them in its error (0.2 % of the samples at 20 kPa add about "
-                     "900 Pa to an RMSE); if they are, replace each by its neighbours' mean",
+                     f"{spikes.sizes_Pa.min():.3g}-{spikes.sizes_Pa.max():.3g} Pa, over "
+                     f"{spikes.limit_Pa:.3g} Pa ({SPIKE_NOISE_MULTIPLE:g} x the "
+                     f"sample-to-sample scatter, {spikes.scatter_Pa:.3g} Pa), and return "
+                     f"(rows {rows}): sensor glitches? Every fit weighs them in its error "
+                     "(0.2 % of the samples at 20 kPa add about 900 Pa to an RMSE); if they "
+                     "are, replace each by its neighbours' mean (a fit's setting "
+                     "despike_pressure = true; discover: --set fit.despike_pressure=true)",
                      accept)]
 
 

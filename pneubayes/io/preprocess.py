@@ -16,8 +16,10 @@ Its sensor noise is noise in a regressor, which pulls the fitted supply gain tow
 hose varies slowly, so the supply column is low-passed too.
 
 :func:`prepare_recording` applies a fit's whole preparation, as its model card records
-it: both low-passes, and the pressure channel's anti-alias filter when one is declared
-(the recording format does not carry it; the simulator then predicts the reading).
+it: both low-passes, the pressure's isolated one-sample spikes replaced by their
+neighbours' mean where the fit asked for it (:func:`despike_pressure`), and the
+pressure channel's anti-alias filter when one is declared (the recording format does
+not carry it; the simulator then predicts the reading).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import numpy as np
 from scipy import signal
 
 from pneubayes.io.recording import Recording
+from pneubayes.io.spikes import despiked
 from pneubayes.physics.sensor_filter import PressureFilter
 
 
@@ -86,12 +89,24 @@ def smooth_supply(recording: Recording, cutoff_Hz: float | None, order: int = 2)
     return _lowpass_column(recording, "supply_pressure_Pa", cutoff_Hz, order)
 
 
+def despike_pressure(recording: Recording) -> Recording:
+    """The recording with each isolated one-sample spike of its pressure
+    (:func:`pneubayes.io.spikes.find_spikes`) replaced by its neighbours' mean (the same
+    recording where there is none)."""
+    p, idx = despiked(recording.pressure_Pa)
+    return recording if idx.size == 0 else replace(recording, pressure_Pa=p)
+
+
 def prepare_recording(recording: Recording, preparation: Mapping) -> Recording:
     """The recording as a fit uses it: :func:`smooth_inputs` with
-    ``preparation``'s cutoffs, and ``preparation["pressure_filter"]`` (a
+    ``preparation``'s cutoffs, its pressure despiked where
+    ``preparation["despike_pressure"]`` is true (:func:`despike_pressure`; absent:
+    not), and ``preparation["pressure_filter"]`` (a
     :class:`~pneubayes.physics.sensor_filter.PressureFilter`, its dict form, or
     None/absent: the reading is the chamber pressure) declared on it."""
     out = smooth_inputs(recording, preparation)
+    if preparation.get("despike_pressure"):
+        out = despike_pressure(out)
     filt = preparation.get("pressure_filter")
     if filt is not None and not isinstance(filt, PressureFilter):
         filt = PressureFilter.from_dict(filt, source=recording.source or "recording")
