@@ -183,6 +183,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     fit = dataclasses.replace(settings.fit, despike_pressure=True)
     despiked = dataclasses.replace(d.result_, settings=dataclasses.replace(settings, fit=fit))
     assert "against the despiked recordings" in _report(doc, despiked, {})
+    assert "one-sample spikes in" not in _report(missing, despiked, {})  # (replaced)
     assert "despiked" not in _report(doc, d.result_, {})
 
     late["by_s"] = 0.0

@@ -359,7 +359,7 @@ def _report(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                      "floor: the named effects do not explain everything.")
     spiky = sorted({f["recording"] for f in doc.get("input_findings", ())
                     if f["rule"] == "pressure-spikes"})
-    if spiky and final > MISFIT_RATIO * noise:
+    if spiky and final > MISFIT_RATIO * noise and not result.settings.fit.despike_pressure:
         lines.append(f"\nThe input check found isolated one-sample spikes in {len(spiky)} "
                      "recording(s) (rule `pressure-spikes`; the noise floor is estimated "
                      "past them): no model follows a glitch, and each weighs in the "
