@@ -236,8 +236,13 @@ def test_a_large_gap_tries_weakly_supported_effects(tmp_path, monkeypatch):
     tried = [e for e in doc["ledger"] if e["action"] in ("pass", "reject")
              and e["effect"] in doc["ledger"][1]["tentative"]]
     assert tried and all(e["min_gap_closed"] == share for e in tried)
-    (passed,) = [e for e in doc["ledger"] if e["action"] == "pass"]
-    assert passed["effect"] == "cylinder_leak" and passed["gap_closed"] >= share
+    # (a port's own critical ratio passes too, closing about two thirds of the gap: a
+    # weaker stand-in the loop does not add)
+    passed = {e["effect"]: e for e in doc["ledger"] if e["action"] == "pass"}
+    assert passed["cylinder_leak"]["gap_closed"] >= share
+    assert all(e["gap_closed"] < passed["cylinder_leak"]["gap_closed"]
+               for name, e in passed.items() if name != "cylinder_leak")
+    assert [e["effect"] for e in doc["ledger"] if e["action"] == "add"] == ["cylinder_leak"]
     off = Discovery(_settings(rounds={"gap_fallback_ratio": 0.0},
                               stages={"catalogue_sweep_min_noise_ratio": 0.0}), None,
                     log=lambda m: None).fit(recs)
@@ -293,9 +298,12 @@ def test_a_large_gap_that_no_candidate_explains_tries_every_other_group(tmp_path
     assert "last resort" in actions
     last = doc["ledger"][actions.index("last resort")]
     assert "cylinder_leak" in last["groups"]
-    added = [step for step in doc["ledger"] if step["action"] == "pass"]
-    assert [step["effect"] for step in added] == ["cylinder_leak"]
-    assert added[0]["gap_closed"] >= 0.25
+    # (a port's own critical ratio passes too, closing less of the gap; it is not added)
+    passed = {step["effect"]: step for step in doc["ledger"] if step["action"] == "pass"}
+    assert passed["cylinder_leak"]["gap_closed"] >= 0.25
+    assert all(e["gap_closed"] < passed["cylinder_leak"]["gap_closed"]
+               for name, e in passed.items() if name != "cylinder_leak")
+    assert [s["effect"] for s in doc["ledger"] if s["action"] == "add"] == ["cylinder_leak"]
     off = Discovery(_settings(rounds={"max_effects": 1}, stages={"last_resort": False}), None,
                     log=lambda m: None).fit(recs).result_.to_dict()
     assert off["effects"] == []
