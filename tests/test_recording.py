@@ -562,6 +562,12 @@ def test_a_default_cutoff_above_a_slow_recordings_nyquist_says_how_discover_sets
     with pytest.raises(ValueError, match=r"mem.csv: supply cutoff 100 Hz must be in \(0, 100\)"
                        r".*discover's --set fit.supply_cutoff_Hz=0"):
         smooth_inputs(slow, default.preparation())
+    # a run's recorded preparation (predict, track) names the card to refit
+    from pneubayes.inference.fit_folder import prepare_as_fitted
+
+    with pytest.raises(ValueError, match=r"supply cutoff 100 Hz.*The run's model card "
+                       r"run/model.json prepared its recordings so: refit"):
+        prepare_as_fitted(slow, default.preparation(), "run/model.json")
     args = build_parser().parse_args(["discover", "r.csv", "--out", "o", "--set",
                                       "fit.supply_cutoff_Hz=0"])
     fit = cli_settings.discovery_settings(args).fit

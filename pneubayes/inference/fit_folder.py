@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,7 @@ from pneubayes.atomic import write_json_atomic
 from pneubayes.errors import ModelCardError
 from pneubayes.inference.fit import Fit, posterior_draws
 from pneubayes.inference.sampler import arviz
+from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 from pneubayes.physics.sensor_filter import PressureFilter
 
@@ -152,6 +154,18 @@ def folder_draws(fit: Fit, run_dir, n_draws: int, rng: np.random.Generator):
                          "method 'mcmc')")
     draws, noise = posterior_draws(fit.model, fit.posterior, n_draws, rng, str(path))
     return fit.model, draws, noise
+
+
+def prepare_as_fitted(recording, preparation: Mapping, card_path):
+    """:func:`~pneubayes.io.prepare_recording` with a run's recorded ``preparation``; a
+    preparation that cannot apply to ``recording`` (a cutoff above its Nyquist
+    frequency) is refused naming the model card that holds it."""
+    try:
+        return prepare_recording(recording, preparation)
+    except ValueError as exc:
+        raise ValueError(f"{exc}. The run's model card {card_path} prepared its recordings "
+                         "so: refit with a cutoff this recording allows to use the model "
+                         "on it") from None
 
 
 def run_preparation(run_dir) -> dict:

@@ -32,6 +32,7 @@ from pneubayes.inference.fit import (  # noqa: E402,F401
 from pneubayes.inference.fit_folder import (  # noqa: F401
     folder_draws,
     load_posterior,
+    prepare_as_fitted,
     read_fit,
     run_preparation,
     write_fit,
@@ -39,7 +40,6 @@ from pneubayes.inference.fit_folder import (  # noqa: F401
 )
 from pneubayes.inference.predictive import PosteriorPredictive
 from pneubayes.io.plausibility import recorded_findings
-from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 from pneubayes.simulation import SolverConfig
 
@@ -80,7 +80,7 @@ def run_predict(run_dir, recording, horizon_s: float, out_csv, n_draws: int, see
         raise ValueError(f"{recording.source} describes {rig(recording.rig_card)}, the run "
                          f"{run_dir} {rig(model.rig_card)}: predict on the rig it was "
                          "fitted to (give --rig CARD if the sidecar names none)")
-    recording = prepare_recording(recording, fit.preparation)
+    recording = prepare_as_fitted(recording, fit.preparation, Path(run_dir) / "model.json")
     pp = PosteriorPredictive(model, draws, noise, solver)
     bands = pp.bands(recording, horizon_s, stride_s or horizon_s, rng)
     metrics = bands.metrics()

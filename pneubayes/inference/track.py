@@ -13,12 +13,11 @@ import numpy as np
 
 from pneubayes.atomic import write_json_atomic
 from pneubayes.inference.conformal import OnlineConformalBand
-from pneubayes.inference.fit_folder import card_preparation
+from pneubayes.inference.fit_folder import card_preparation, prepare_as_fitted
 from pneubayes.inference.online import OnlineTracker, forecast
 from pneubayes.inference.online_refit import OnlineRefit
 from pneubayes.inference.population import LogNormalPrior, LogUniformPrior
 from pneubayes.io.plausibility import recorded_findings
-from pneubayes.io.preprocess import prepare_recording
 from pneubayes.model import Model
 from pneubayes.run_folder import recorded_number
 from pneubayes.simulation import Inputs, SolverConfig
@@ -166,7 +165,8 @@ def run_track(run_dir, recording, vary, out_json, *, tick_s: float, horizon_s: f
                          f"it has {', '.join(model.parameter_names)}")
     if noise_std_Pa is None:
         noise_std_Pa = run_rmse_Pa(run)
-    recording = prepare_recording(recording, card_preparation(card, run / "model.json"))
+    recording = prepare_as_fitted(recording, card_preparation(card, run / "model.json"),
+                                  run / "model.json")
     rng = np.random.default_rng(seed)
     settings = {"method": method, "vary": names, "tick_s": tick_s, "horizon_s": horizon_s,
                 "n_draws": n_draws, "seed": seed, "noise_std_Pa": noise_std_Pa,
