@@ -641,3 +641,24 @@ def test_despiking_replaces_each_glitch_by_its_neighbours_mean_when_asked():
         card_preparation({"fit": {"despike_pressure": "yes"}}, "m.json")
     with pytest.raises(FieldError, match="despike_pressure"):
         FitSettings(despike_pressure=1)
+
+
+def test_a_0_to_10_volt_command_is_named_once_with_its_likely_convention(tmp_path):
+    """Commands of a 0-10 V valve (neutral at 5 V) break the -5..+5 V rule in most rows:
+    the first three are named, the rest counted, and the message says to subtract 5 V;
+    a command merely out of range on the negative side gets no such hint."""
+    volts = (5.0, 7.5, 10.0, 9.0, 6.0, 8.0)  # (5 V: the neutral, inside the range)
+    shifted = [",".join([r.split(",")[0], repr(v), *r.split(",")[2:]])
+               for r, v in zip(ROWS, volts)]
+    stem = make_files(tmp_path, csv_text="\n".join([HEADER, *shifted]) + "\n")
+    with pytest.raises(RecordingError) as err:
+        read_recording(stem)
+    text = str(err.value)
+    assert text.count("is outside -5..+5 V") == 3, text
+    assert "subtract 5 V" in text and "(and 2 more row(s) like it)" in text
+    stem = make_files(tmp_path, csv_text=rows_with(3, "0.001,-7.0,150000.0,551000.0,0.011"),
+                      stem="neg")
+    with pytest.raises(RecordingError) as err:
+        read_recording(stem)
+    assert "-7.0 V is outside -5..+5 V" in str(err.value)
+    assert "subtract" not in str(err.value)

@@ -349,9 +349,16 @@ def check_columns(cols: dict, bad: dict, lines, name: str, labels=None) -> list:
                 "(10 MPa absolute); another unit, or a corrupt value?"))
                 for i in high[:_ROWS_NAMED]], high.size)
         if si_col == "command_V":
-            for i in np.flatnonzero(finite & (np.abs(x) > COMMAND_LIMIT_V + COMMAND_TOLERANCE_V)):
-                problems.append((at(i), (f"column 'command_V': {show_value(x[i])} V is outside "
-                                        f"-5..+5 V")))
+            out = np.flatnonzero(finite & (np.abs(x) > COMMAND_LIMIT_V + COMMAND_TOLERANCE_V))
+            # a 0-10 V valve's convention (neutral at 5 V) is the likeliest slip
+            hint = ("; a 0-10 V command (neutral at 5 V)? command_V is the valve's "
+                    "command about its neutral, -5..+5 V: subtract 5 V"
+                    if out.size and np.all(x[finite] >= -COMMAND_TOLERANCE_V)
+                    and np.all(x[finite] <= 2 * COMMAND_LIMIT_V + COMMAND_TOLERANCE_V)
+                    else "")
+            problems += _first_rows([(at(i), (
+                f"column 'command_V': {show_value(x[i])} V is outside -5..+5 V{hint}"))
+                for i in out[:_ROWS_NAMED]], out.size)
         if si_col == "time_s":
             idx = np.flatnonzero(finite)
             t = x[idx]
