@@ -89,6 +89,16 @@ def _timed(fn):
     return out, float(np.median(times))
 
 
+def _tube_params(rig: Rig, base: dict, length: float, dia: float) -> tuple[dict, dict]:
+    """The model's parameters for a tube of ``length`` x ``dia`` (m): its transit time and
+    bore, its volume added to the dead volume; and the bare chamber's (the tube's volume
+    kept, the tube's parameters dropped)."""
+    tube = AcousticTube(length, dia)
+    params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia,
+                  dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
+    return params, {k: v for k, v in params.items() if not k.startswith("tube_")}
+
+
 def _pareto(rig: Rig, base: dict, cells: int, seed: int) -> list[dict]:
     """The third table: accuracy and cost of the wave tube by K and grid, 1-kHz inputs."""
     rows = []
@@ -96,10 +106,7 @@ def _pareto(rig: Rig, base: dict, cells: int, seed: int) -> list[dict]:
         inputs = _inputs(seed, False, dt_s=1e-3, duration_s=2.0)
         ref = simulate_plant(base, (AcousticTube(length, dia, segments=cells),), inputs, rig,
                              P_ATM, PlantConfig.reference()).pressure_Pa
-        tube = AcousticTube(length, dia)
-        params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia,
-                      dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
-        plain = {k: v for k, v in params.items() if not k.startswith("tube_")}
+        params, plain = _tube_params(rig, base, length, dia)
         _, bare_s = _timed(lambda plain=plain, inputs=inputs: simulate(
             Model(), plain, inputs, rig, P_ATM, SolverConfig.standard()))
         for k, grid in PARETO:
@@ -136,14 +143,10 @@ def main(argv=None) -> int:
             inputs = _inputs(args.seed, moving)
             ref = simulate_plant(base, (AcousticTube(length, dia, segments=args.cells),),
                                  inputs, rig, P_ATM, PlantConfig.reference()).pressure_Pa
-            tube = AcousticTube(length, dia)
-            params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas),
-                          tube_diameter_m=dia,
-                          dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
+            params, plain = _tube_params(rig, base, length, dia)
             models = [(label, Model([make_effect("tube_delay", **opts)]), params)
                       for label, opts in FORMS]
-            models.append(("bare chamber (the tube's volume)", Model(),
-                           {k: v for k, v in params.items() if not k.startswith("tube_")}))
+            models.append(("bare chamber (the tube's volume)", Model(), plain))
             for label, model, theta in models:
                 y, sec = _timed(lambda model=model, theta=theta, inputs=inputs: simulate(
                     model, theta, inputs, rig, P_ATM, SolverConfig.standard()).pressure_Pa[0])
@@ -159,10 +162,7 @@ def main(argv=None) -> int:
     costs = []
     slow = _inputs(args.seed, False, dt_s=1e-3, duration_s=5.0)
     for length, dia in TUBES:
-        tube = AcousticTube(length, dia)
-        params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia,
-                      dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
-        plain = {k: v for k, v in params.items() if not k.startswith("tube_")}
+        params, plain = _tube_params(rig, base, length, dia)
         shear = dict(params, tube_unsteady_friction=1.0)  # (weight 1: Zielke's)
         for label, model, theta in ([("bare chamber", Model(), plain)]
                                     + [(lab, Model([make_effect("tube_delay", **o)]),

@@ -147,9 +147,7 @@ def main(argv=None) -> int:
         inputs = tf._inputs(args.seed, False, dt_s=args.dt)
         ref = simulate_plant(base, (AcousticTube(length, dia, segments=64),), inputs, rig,
                              tf.P_ATM, PlantConfig.reference()).pressure_Pa
-        tube = AcousticTube(length, dia)
-        params = dict(base, tube_delay_s=tube.transit_time_s(rig.gas), tube_diameter_m=dia,
-                      dead_volume_m3=base["dead_volume_m3"] + tube.volume_m3)
+        params, _ = tf._tube_params(rig, base, length, dia)
         wave = simulate(Model([make_effect("tube_delay", form="wave", segments=8)]), params,
                         inputs, rig, tf.P_ATM, SolverConfig.standard()).pressure_Pa[0]
         cases = [("wave, 8 elements", wave)] + [

@@ -103,7 +103,7 @@ def test_discover_adds_nothing_when_nothing_is_hidden(tmp_path):
     assert doc["rmse_final_Pa"] == doc["rmse_base_Pa"]
     assert doc["rmse_base_Pa"] < 1.2 * doc["noise_floor_Pa"]
     # the report says what was measured: within the noise here; misfit when it is not
-    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.report_text import report_markdown as _report
 
     doc["recordings"] = [str(p) for p in paths]  # as run_discover adds them
     text = _report(doc, d.result_, {})
@@ -121,7 +121,7 @@ def test_a_time_budget_stops_the_loop_where_it_is(tmp_path, monkeypatch):
     the result. A budget that is not a finite number of seconds >= 0 is refused."""
     import pneubayes.discovery.loop as loop_module
     from pneubayes.discovery.library import LibraryGrid
-    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.report_text import report_markdown as _report
     from pneubayes.discovery.settings import RoundSettings
     from pneubayes.discovery.stages.base import Stage
 
@@ -489,7 +489,7 @@ def test_a_runner_up_is_tried_again_before_the_loop_stops(tmp_path, monkeypatch)
     assert [e["name"] for e in doc["effects"]] == ["tube_delay", "cylinder_leak"]
     revisit = [e for e in doc["ledger"] if e["action"] == "revisit"]
     assert revisit and revisit[0]["groups"] == ["cylinder_leak"]
-    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.report_text import report_markdown as _report
 
     text = _report(dict(doc, recordings=[str(r.source) for r in recs]), result, {})
     assert f"| {revisit[0]['step']} | revisit | cylinder_leak tried again" in text
@@ -607,7 +607,7 @@ def test_a_laplace_posterior_that_cannot_be_taken_leaves_the_refined_point(tmp_p
     assert entry["error"] == ("laplace: points 0.25 SDs from the centre have no finite "
                               "posterior density")
     assert any("the Laplace posterior failed" in m for m in said)
-    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.report_text import report_markdown as _report
 
     text = _report({**doc, "recordings": [str(p) for p in paths]}, d.result_, {})
     assert "posterior failed" in text

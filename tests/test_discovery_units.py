@@ -1267,7 +1267,7 @@ def test_a_trial_that_ends_worse_than_the_model_it_contains_is_refitted_from_it(
 def test_the_report_says_why_each_catalogue_effect_tried_was_not_enough():
     """tried_effects reads each effect's last verdict: named, removed, passed but beaten,
     its basin's gain, too small a gain, too little of the gap, or not better."""
-    from pneubayes.discovery.report import tried_effects
+    from pneubayes.discovery.report_text import tried_effects
 
     def verdict(effect, action="reject", **kw):
         e = {"action": action, "effect": effect, "heldout_rmse_before_Pa": 2000.0,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from pneubayes.discovery.report import _report
+from pneubayes.discovery.report_text import report_markdown as _report
 from pneubayes.discovery.result import DiscoveryResult
 from pneubayes.discovery.settings import DiscoverySettings
 from pneubayes.effects.sensor_lag import SensorLag

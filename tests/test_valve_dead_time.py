@@ -127,7 +127,7 @@ def test_a_named_dead_time_a_stage_proposed_is_reported():
     from types import SimpleNamespace
 
     from pneubayes.cli.discover import summary_lines
-    from pneubayes.discovery.report import _report
+    from pneubayes.discovery.report_text import report_markdown as _report
     from pneubayes.discovery.result import DiscoveryResult
 
     model = Model([ValveDeadTime()])

@@ -122,7 +122,8 @@ class FitSettings:
 
     def preparation(self) -> dict:
         """How the recordings are prepared (:func:`pneubayes.io.prepare_recording`): the
-        input low-passes and the declared pressure filter, as the model card records them."""
+        input low-passes, the pressure's despiking and the declared pressure filter, as the
+        model card records them."""
         return {"position_cutoff_Hz": self.position_cutoff_Hz,
                 "supply_cutoff_Hz": self.supply_cutoff_Hz,
                 "despike_pressure": self.despike_pressure,
