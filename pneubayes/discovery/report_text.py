@@ -84,17 +84,23 @@ def tried_effects(ledger) -> list[tuple[str, str]]:
     return out
 
 
-def _terms_table(title: str, terms: list) -> list[str]:
-    """A table of found open-form terms: each parameter's unit, estimate and interval."""
-    lines = ["", title, "", "| term | formula | parameter | unit | estimate | 90 % interval |",
-             "|---|---|---|---|---|---|"]
+def _terms_table(title: str, terms: list, formula: str = "formula") -> list[str]:
+    """A table of found open-form terms: each parameter's unit, estimate and interval
+    (``formula``: the formula column's heading)."""
+    lines = ["", title, "", f"| term | {formula} | parameter | unit | estimate | "
+             "90 % interval |", "|---|---|---|---|---|---|"]
     for t in terms:
         for n, p in t["parameters"].items():
             est = p.get("median", p.get("estimate"))
             iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
-            lines.append(f"| {t['term']} | {_md(t['formula'])} | {n} | {_md(p['unit'])} | "
-                         f"{est:.4g} | {iv} |")
+            lines.append(f"| {_md(t['term'])} | {_md(t['formula'])} | {n} | "
+                         f"{_md(p['unit'])} | {est:.4g} | {iv} |")
     return lines
+
+
+def _captioned(figs: dict, key: str, alt: str, caption: str) -> list[str]:
+    """A drawn figure's lines under its caption (none where ``figs`` lacks ``key``)."""
+    return ["", caption, "", f"![{alt}](figures/{figs[key]})"] if key in figs else []
 
 
 def report_markdown(doc: dict, result: DiscoveryResult, figs: dict) -> str:
@@ -136,41 +142,32 @@ def report_markdown(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} | "
                              f"{ev['score_gain']:.1f} ({ev['score_p_value']:.2g}) |")
     if doc.get("found_terms"):
-        lines += ["", "Open-form terms found (an extra mass flow into the chamber, kg/s, "
-                  "in no catalogue form; each term's parameters with their units):", "",
-                  "| term | formula (kg/s into the chamber) | parameter | unit | estimate | "
-                  "90 % interval |", "|---|---|---|---|---|---|"]
-        for t in doc["found_terms"]:
-            for n, p in t["parameters"].items():
-                est = p.get("median", p.get("estimate"))
-                iv = f"[{p['q05']:.4g}, {p['q95']:.4g}]" if "q05" in p else "-"
-                lines.append(f"| {_md(t['term'])} | {_md(t['formula'])} | {n} | "
-                             f"{_md(p['unit'])} | {est:.4g} | {iv} |")
-        if "found_terms" in figs:
-            lines += ["", "Each term against its main variable (red), beside the mass flow "
-                      "the final model misses without it on the training recordings (grey: "
-                      "binned means and standard errors):", "",
-                      f"![found terms](figures/{figs['found_terms']})"]
+        lines += _terms_table("Open-form terms found (an extra mass flow into the chamber, "
+                              "kg/s, in no catalogue form; each term's parameters with their "
+                              "units):", doc["found_terms"],
+                              formula="formula (kg/s into the chamber)")
+        lines += _captioned(figs, "found_terms", "found terms",
+                            "Each term against its main variable (red), beside the mass flow "
+                            "the final model misses without it on the training recordings "
+                            "(grey: binned means and standard errors):")
     if doc.get("found_reading_terms"):
         lines += _terms_table("Open-form terms at the reading found (relaxations, plays: "
                               "they change what the sensor reports, not the chamber; in no "
                               "catalogue form):",
                               doc["found_reading_terms"])
-        if "found_reading_terms" in figs:
-            lines += ["", "Each relaxation against its variable p - p_bar (red), beside the "
-                      "reading the final model misses without it on the training windows "
-                      "(grey: binned means and standard errors):", "",
-                      f"![found relaxations](figures/{figs['found_reading_terms']})"]
+        lines += _captioned(figs, "found_reading_terms", "found relaxations",
+                            "Each relaxation against its variable p - p_bar (red), beside the "
+                            "reading the final model misses without it on the training "
+                            "windows (grey: binned means and standard errors):")
     if doc.get("found_volume_terms"):
         lines += _terms_table("Open-form terms on the chamber's volume found (a hinge: the "
                               "chamber holds more gas above a pressure than its fixed "
                               "volume; a wall: its give is held by friction, a loop over "
                               "the pressure; in no catalogue form):",
                               doc["found_volume_terms"])
-        if "found_volume_terms" in figs:
-            lines += ["", "The volume each adds along the final model's pressure on the "
-                      "training recordings (a hinge's curve, a wall's loop):", "",
-                      f"![found volume terms](figures/{figs['found_volume_terms']})"]
+        lines += _captioned(figs, "found_volume_terms", "found volume terms",
+                            "The volume each adds along the final model's pressure on the "
+                            "training recordings (a hinge's curve, a wall's loop):")
     if doc.get("found_command_terms"):
         lines += _terms_table("An open-form term on the command found (the valve takes it "
                               "through a driver on its own clock; in no catalogue form):",
