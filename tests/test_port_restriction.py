@@ -343,6 +343,25 @@ def test_refused_beside_the_tubes_lines(rig, valve_params, steps):
         simulate(model, params, steps, rig, 2e5, _tight())
 
 
+
+def test_the_search_proposes_no_effect_the_simulator_refuses_beside_it(rig, valve_params):
+    """A port's own critical ratio is not stepped beside a restriction at the port: the
+    search's library leaves it out there (it crashed the round after a restriction was
+    named), and keeps it beside the plain model; the refusal's reason is the
+    simulator's."""
+    from pneubayes.discovery.library import steppable_beside
+    from pneubayes.simulation import combination_error
+    model = Model([PortRestriction()])
+    params = dict(valve_params, port_restriction_fill=1e6, port_restriction_vent=1e6,
+                  port_restriction_crack=0.0)
+    assert not steppable_beside(model, params, "critical_ratio", rig)
+    assert steppable_beside(model, params, "cylinder_leak", rig)
+    assert steppable_beside(Model([]), valve_params, "critical_ratio", rig)
+    both = Model([PortRestriction(), "critical_ratio"])
+    reason = combination_error(both, {**both.neutral_values(), **params}, rig)
+    assert "critical pressure ratio" in reason and "restriction at the port" in reason
+    assert combination_error(model, params, rig) is None
+
 # ---------------------------------------------------------------- the check valve
 def test_the_check_valve_s_area_cracks_opens_and_is_smooth():
     """The wider direction passes the needle's area below the crack, its own above twice

@@ -235,3 +235,13 @@ def test_a_tank_measured_at_start_needs_a_supply_column_and_the_exhaust_its_colu
     (tmp_path / "d.json").write_text(json.dumps(SIDECAR))
     rec = read_recording(tmp_path / "d.csv")
     assert np.all(Inputs.from_recording(rec).exhaust_command == 0.25)
+
+
+def test_discovery_proposes_no_critical_ratio_beside_a_supply_tank():
+    """A port's own critical ratio is not stepped beside a supply tank: the search's
+    library leaves it out (the loop crashed in its first round), and keeps the effects
+    the simulator steps there."""
+    from pneubayes.discovery.library import steppable_beside
+    model = Model(rig_card=card())
+    assert not steppable_beside(model, {}, "critical_ratio", RIG)
+    assert steppable_beside(model, {}, "cylinder_leak", RIG)

@@ -38,7 +38,7 @@ from pneubayes.effects.discovery import (
     TrialTerm,
 )
 from pneubayes.model import Model
-from pneubayes.simulation import SolverConfig
+from pneubayes.simulation import SolverConfig, combination_error
 
 #: The order of the kinds of term among the library's columns.
 _KIND_ORDER = (TrialTerm, FormTrialTerm, InputLagTerm, RelaxationTerm)
@@ -147,16 +147,28 @@ def _column(term: LibraryTerm, sim, d: OneStepData, base_pred: np.ndarray, p: np
     return d.rows(-0.5 * (hp[1:] + hp[:-1]) * dt)
 
 
+def steppable_beside(model: Model, params: dict, name: str, rig) -> bool:
+    """Whether the simulator steps catalogue effect ``name`` (neutral, with the rig
+    card's options) beside ``model`` at ``params`` on ``rig``
+    (:func:`pneubayes.simulation.combination_error`): a port's own critical ratio is
+    not stepped beside a restriction at the port, for one; the loop proposes no such
+    pair."""
+    aug, base = _augmented(model, params, [make_effect(name, **model.effect_options(name))])
+    return combination_error(aug, base, rig) is None
+
+
 def build_library(model: Model, params: dict, data: Sequence[OneStepData],
                   grid: LibraryGrid, solver: SolverConfig,
                   groups: Sequence[str] | None = None) -> CandidateLibrary:
     """Candidate terms and absorbers for ``model`` at ``params`` on ``data``.
 
     ``groups`` defaults to every catalogue effect the model does not already have (nor
-    its rig card state: :meth:`Model.covers`).
+    its rig card state: :meth:`Model.covers`) that the simulator can step beside it
+    (:func:`steppable_beside`).
     """
     if groups is None:
-        groups = [g for g in CATALOGUE if not model.covers(g)]
+        groups = [g for g in CATALOGUE if not model.covers(g)
+                  and steppable_beside(model, params, g, data[0].rig)]
     theta = model.vector(params)
     sens_points, widths, steps = sensitivity_points(model, theta)
     terms = _terms(model, groups, grid)

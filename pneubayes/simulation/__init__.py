@@ -4,6 +4,7 @@ from pneubayes.simulation.config import SolverConfig
 from pneubayes.simulation.drive import Inputs
 from pneubayes.simulation.simulator import (
     Trajectory,
+    combination_error,
     fresh_carry,
     rig_constants,
     simulate,
@@ -12,5 +13,6 @@ from pneubayes.simulation.simulator import (
     simulate_windows_sensitivity,
 )
 
-__all__ = ["Inputs", "SolverConfig", "Trajectory", "fresh_carry", "rig_constants", "simulate",
-           "simulate_carried", "simulate_windows", "simulate_windows_sensitivity"]
+__all__ = ["Inputs", "SolverConfig", "Trajectory", "combination_error", "fresh_carry",
+           "rig_constants", "simulate", "simulate_carried", "simulate_windows",
+           "simulate_windows_sensitivity"]

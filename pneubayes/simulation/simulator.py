@@ -10,6 +10,7 @@ pressure) are simulated in one compiled call with :func:`simulate_windows`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -183,6 +184,22 @@ def _check_exclusive_forms(forms: np.ndarray, slots: np.ndarray) -> None:
                 f"{what}: it cannot be combined with heat_transfer, {beside} "
                 "or another second state "
                 "(a supply tank, a second compartment) in one model")
+
+
+def combination_error(model: Model, params, rig: Rig) -> str | None:
+    """Why the simulator refuses to step ``model`` at ``params`` (a dict, or a vector
+    in ``model.parameter_names``' order) on ``rig``: the message of the
+    :class:`~pneubayes.errors.FormCombinationError` a simulation would raise (forms the
+    kernel cannot step together, e.g. a port's own critical ratio beside a restriction
+    at the port), or None where it can."""
+    theta = np.atleast_2d(model.vector(params) if isinstance(params, Mapping) else
+                          np.asarray(params, dtype=np.float64))
+    slots = model.lower(theta, rig)
+    try:
+        _check_exclusive_forms(slots[:, _FORM_SLOTS] > 0, slots)
+    except FormCombinationError as err:
+        return str(err)
+    return None
 
 
 def _window_call(model, params, inputs, rig, starts, length, initial_pressure_Pa, solver,
