@@ -329,7 +329,8 @@ class PosteriorDraws:
         """``(model draws (N, P), noise draws (N, 2))`` from the posterior."""
         if self.posterior is None:
             raise ValueError(f"a {self.method!r} result has no posterior; sample one "
-                             "(fit: method 'mcmc'; discovery: posterior=True) for draws")
+                             "(fit: method 'mcmc'; discovery: posterior method 'emcee' "
+                             "or 'laplace', `pneubayes discover --posterior`) for draws")
         return posterior_draws(self.model, self.posterior, n_draws, rng)
 
     def predictor(self, rig, solver: SolverConfig, n_draws: int,
