@@ -2,12 +2,13 @@
 loop with the final emcee posterior, at most 15 minutes on 2 cores (aim 5).
 
     python benchmarks/discovery.py --json OUT.json [--seed 0] [--hidden tube_delay]
-        [--posterior emcee|laplace]
+        [--posterior emcee|laplace] [--no-baseline]
 
 The bench hides ``--hidden`` (comma-separated catalogue effects) in AIR37/valve1 data:
 fixed at 50 % and 90 % of the stroke with ranges +-5 and +-0.5 V, plus two moving-piston
 recordings. Reports the wall time of each phase and the result; times are reported,
-never asserted. A baseline in the same run: the same loop without the posterior.
+never asserted. A baseline in the same run: the same loop without the posterior
+(``--no-baseline`` skips it, for a case whose loop alone takes many minutes).
 ``--posterior laplace`` gives the final model a Laplace posterior
 (:mod:`pneubayes.inference.laplace`) instead of emcee's chain: an emcee chain on a model
 with a transmission-line tube and 80 s of training windows takes hours on 2 cores.
@@ -42,6 +43,8 @@ def main(argv=None) -> int:
     ap.add_argument("--valve", default="valve1")
     ap.add_argument("--posterior", choices=("emcee", "laplace"), default="emcee",
                     help="the final model's posterior (default emcee)")
+    ap.add_argument("--no-baseline", action="store_true",
+                    help="skip the baseline run of the loop without the posterior")
     args = ap.parse_args(argv)
     hidden = [h for h in args.hidden.split(",") if h]
     eff = effects_from_names(hidden, leak_form="laminar")
@@ -55,8 +58,9 @@ def main(argv=None) -> int:
     recs = [read_recording(p) for p in list(fixed.recordings) + list(moving.recordings)]
     timings = {}
     docs = {}
-    for label, posterior in (("loop without posterior (baseline)", False),
-                             ("whole loop with posterior", True)):
+    runs = (("loop without posterior (baseline)", False),
+            ("whole loop with posterior", True))
+    for label, posterior in runs[args.no_baseline:]:
         # the bench DAQ's zero-phase anti-alias filter, declared as a user declares theirs
         settings = DiscoverySettings(posterior=PosteriorSettings(
                                          method=args.posterior if posterior else "none"),
