@@ -545,6 +545,10 @@ def test_discovery_finds_a_planted_restriction(restricted_recordings, tmp_path):
     assert vent_over_exhaust(got) == pytest.approx(vent_over_exhaust(true), rel=0.1)
     assert doc["effects"] == [] and doc["found_terms"] == [] and doc["stand_ins"] == []
     assert doc["rmse_final_Pa"] < 1.5 * doc["noise_floor_Pa"] < doc["rmse_base_Pa"]
+    # beside the restriction the next round's search leaves out what cannot join it
+    searches = [e for e in doc["ledger"] if e["action"] == "search"]
+    assert searches[0]["not_steppable"] == []
+    assert searches[-1]["not_steppable"] == ["critical_ratio"]
     write_discovery(result, recs, tmp_path, figures=False)
     assert "port restriction" in (tmp_path / "report.md").read_text()
     assert "PortRestriction()" in (tmp_path / "found_port.py").read_text()
