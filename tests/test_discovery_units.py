@@ -1298,6 +1298,17 @@ def test_the_report_says_why_each_catalogue_effect_tried_was_not_enough():
                                             "2100 Pa")
     assert why["supply_fluctuation"].startswith("named, then removed")
     assert tried_effects([{"action": "fit base"}]) == []
+    # what a round's search left out beside the model, unless verified before
+    searched = [{"action": "search", "round": 1, "not_steppable": []},
+                {"action": "search", "round": 2, "not_steppable": ["critical_ratio",
+                                                                   "tube_delay"]},
+                {"action": "search", "round": 3, "not_steppable": ["critical_ratio"]}]
+    why = dict(tried_effects(ledger + searched))
+    assert list(why)[-1] == "critical_ratio" and why["tube_delay"].startswith("named")
+    assert why["critical_ratio"] == ("not searched from round 2 on: the simulator cannot "
+                                     "step it beside the model")
+    assert why["tube_delay"].endswith("; not searched from round 2 on: the simulator "
+                                      "cannot step it beside the model")
 
 
 def test_the_backward_step_removes_at_a_looser_level_than_an_effect_enters():

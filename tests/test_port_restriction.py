@@ -550,7 +550,10 @@ def test_discovery_finds_a_planted_restriction(restricted_recordings, tmp_path):
     assert searches[0]["not_steppable"] == []
     assert searches[-1]["not_steppable"] == ["critical_ratio"]
     write_discovery(result, recs, tmp_path, figures=False)
-    assert "port restriction" in (tmp_path / "report.md").read_text()
+    report = (tmp_path / "report.md").read_text()
+    assert "port restriction" in report
+    assert ("; not searched from round 2 on: the simulator cannot step it beside the "
+            "model |") in report
     assert "PortRestriction()" in (tmp_path / "found_port.py").read_text()
 
 

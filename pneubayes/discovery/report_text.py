@@ -46,12 +46,16 @@ def _trial_row(e: dict, action: str, what: str) -> str:
 
 def tried_effects(ledger) -> list[tuple[str, str]]:
     """Each catalogue effect the loop verified, with why it was named or not: its last
-    verdict in the ledger (``pass`` / ``reject`` entries) and whether it was added.
+    verdict in the ledger (``pass`` / ``reject`` entries) and whether it was added, and
+    whether a later round's search left it out because the simulator cannot step it
+    beside the model then (the ``search`` entries' ``not_steppable``; such an effect
+    never verified is listed after the others).
 
     Returns
     -------
     list of (str, str)
-        ``(effect, reason)`` in the order the effects were first tried.
+        ``(effect, reason)`` in the order the effects were first tried, the left-out
+        ones after them.
     """
     last: dict[str, dict] = {}
     added = {e["effect"] for e in ledger if e.get("action") == "add"}
@@ -81,7 +85,15 @@ def tried_effects(ledger) -> list[tuple[str, str]]:
         else:
             why = f"not better on held-out data: {moves}"
         out.append((g, why))
-    return out
+    apart: dict[str, int] = {}
+    for e in ledger:
+        if e.get("action") == "search":
+            for g in e.get("not_steppable", ()):
+                apart.setdefault(g, e.get("round"))
+    note = {g: (f"not searched from round {r} on: the simulator cannot step it beside "
+                "the model") for g, r in apart.items()}
+    out = [(g, f"{why}; {note[g]}" if g in note else why) for g, why in out]
+    return out + [(g, why) for g, why in note.items() if g not in last]
 
 
 def _terms_table(title: str, terms: list, formula: str = "formula") -> list[str]:
