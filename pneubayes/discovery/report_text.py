@@ -110,6 +110,42 @@ def _terms_table(title: str, terms: list, formula: str = "formula") -> list[str]
     return lines
 
 
+#: The open-form terms' sections of discovery.json and the report, in the report's
+#: order: ``(key, title, formula column's heading, (figure's alt text, caption) or None)``
+#: (the figure is the one drawn under the same key).
+FOUND_TERM_SECTIONS = (
+    ("found_terms",
+     "Open-form terms found (an extra mass flow into the chamber, kg/s, in no catalogue "
+     "form; each term's parameters with their units):",
+     "formula (kg/s into the chamber)",
+     ("found terms", "Each term against its main variable (red), beside the mass flow "
+      "the final model misses without it on the training recordings (grey: binned means "
+      "and standard errors):")),
+    ("found_reading_terms",
+     "Open-form terms at the reading found (relaxations, plays: they change what the "
+     "sensor reports, not the chamber; in no catalogue form):",
+     "formula",
+     ("found relaxations", "Each relaxation against its variable p - p_bar (red), beside "
+      "the reading the final model misses without it on the training windows (grey: "
+      "binned means and standard errors):")),
+    ("found_volume_terms",
+     "Open-form terms on the chamber's volume found (a hinge: the chamber holds more gas "
+     "above a pressure than its fixed volume; a wall: its give is held by friction, a "
+     "loop over the pressure; in no catalogue form):",
+     "formula",
+     ("found volume terms", "The volume each adds along the final model's pressure on "
+      "the training recordings (a hinge's curve, a wall's loop):")),
+    ("found_command_terms",
+     "An open-form term on the command found (the valve takes it through a driver on its "
+     "own clock; in no catalogue form):",
+     "formula", None),
+    ("found_port_terms",
+     "An open-form term at the chamber's port found (a restriction in series with the "
+     "valve: a fitting, a flow control's needle; in no catalogue form):",
+     "formula", None),
+)
+
+
 def _captioned(figs: dict, key: str, alt: str, caption: str) -> list[str]:
     """A drawn figure's lines under its caption (none where ``figs`` lacks ``key``)."""
     return ["", caption, "", f"![{alt}](figures/{figs[key]})"] if key in figs else []
@@ -153,41 +189,11 @@ def report_markdown(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                              f"{_fmt(ev['inclusion_probability'], '.2f')} | "
                              f"{e['rmse_before_Pa']:.0f} -> {e['rmse_after_Pa']:.0f} | "
                              f"{ev['score_gain']:.1f} ({ev['score_p_value']:.2g}) |")
-    if doc.get("found_terms"):
-        lines += _terms_table("Open-form terms found (an extra mass flow into the chamber, "
-                              "kg/s, in no catalogue form; each term's parameters with their "
-                              "units):", doc["found_terms"],
-                              formula="formula (kg/s into the chamber)")
-        lines += _captioned(figs, "found_terms", "found terms",
-                            "Each term against its main variable (red), beside the mass flow "
-                            "the final model misses without it on the training recordings "
-                            "(grey: binned means and standard errors):")
-    if doc.get("found_reading_terms"):
-        lines += _terms_table("Open-form terms at the reading found (relaxations, plays: "
-                              "they change what the sensor reports, not the chamber; in no "
-                              "catalogue form):",
-                              doc["found_reading_terms"])
-        lines += _captioned(figs, "found_reading_terms", "found relaxations",
-                            "Each relaxation against its variable p - p_bar (red), beside the "
-                            "reading the final model misses without it on the training "
-                            "windows (grey: binned means and standard errors):")
-    if doc.get("found_volume_terms"):
-        lines += _terms_table("Open-form terms on the chamber's volume found (a hinge: the "
-                              "chamber holds more gas above a pressure than its fixed "
-                              "volume; a wall: its give is held by friction, a loop over "
-                              "the pressure; in no catalogue form):",
-                              doc["found_volume_terms"])
-        lines += _captioned(figs, "found_volume_terms", "found volume terms",
-                            "The volume each adds along the final model's pressure on the "
-                            "training recordings (a hinge's curve, a wall's loop):")
-    if doc.get("found_command_terms"):
-        lines += _terms_table("An open-form term on the command found (the valve takes it "
-                              "through a driver on its own clock; in no catalogue form):",
-                              doc["found_command_terms"])
-    if doc.get("found_port_terms"):
-        lines += _terms_table("An open-form term at the chamber's port found (a restriction "
-                              "in series with the valve: a fitting, a flow control's needle; "
-                              "in no catalogue form):", doc["found_port_terms"])
+    for key, title, formula, figure in FOUND_TERM_SECTIONS:
+        if doc.get(key):
+            lines += _terms_table(title, doc[key], formula=formula)
+            if figure is not None:
+                lines += _captioned(figs, key, *figure)
     if doc.get("stand_ins"):
         lines += ["", "Kept as stand-ins, not named: catalogue effects that improve the "
                   "prediction only with a parameter of their own at a bound, a strained "
@@ -197,10 +203,8 @@ def report_markdown(doc: dict, result: DiscoveryResult, figs: dict) -> str:
                               for b in e["at_bounds"])
             lines.append(f"- {e['name']} ({where}): held-out RMSE {e['rmse_before_Pa']:.0f} "
                          f"-> {e['rmse_after_Pa']:.0f} Pa")
-    if doc["effects"] or doc.get("found_terms") or doc.get("found_reading_terms") \
-            or doc.get("found_volume_terms") or doc.get("found_command_terms") \
-            or doc.get("found_port_terms") \
-            or doc.get("stand_ins"):
+    if doc["effects"] or doc.get("stand_ins") \
+            or any(doc.get(key) for key, *_ in FOUND_TERM_SECTIONS):
         found = True
     elif final <= MISFIT_RATIO * noise:
         found = False
