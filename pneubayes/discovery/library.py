@@ -164,11 +164,13 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
 
     ``groups`` defaults to every catalogue effect the model does not already have (nor
     its rig card state: :meth:`Model.covers`) that the simulator can step beside it
-    (:func:`steppable_beside`).
+    (:func:`steppable_beside`); those it cannot are in ``meta["not_steppable"]``.
     """
+    apart = []
     if groups is None:
-        groups = [g for g in CATALOGUE if not model.covers(g)
-                  and steppable_beside(model, params, g, data[0].rig)]
+        missing = [g for g in CATALOGUE if not model.covers(g)]
+        apart = [g for g in missing if not steppable_beside(model, params, g, data[0].rig)]
+        groups = [g for g in missing if g not in apart]
     theta = model.vector(params)
     sens_points, widths, steps = sensitivity_points(model, theta)
     terms = _terms(model, groups, grid)
@@ -201,5 +203,5 @@ def build_library(model: Model, params: dict, data: Sequence[OneStepData],
         absorbers=np.concatenate(absorbers)[k],
         absorber_labels=[f"d/d {n}" for n in model.parameter_names],
         row_recording=np.concatenate(rec_idx)[k], row_sample=np.concatenate(first)[k],
-        meta={"grid": grid.to_dict(), "groups": list(groups)},
+        meta={"grid": grid.to_dict(), "groups": list(groups), "not_steppable": apart},
         starts=[dict(t.start) for _, t in terms])

@@ -44,7 +44,6 @@ from pneubayes.discovery.stages import Stage, default_stages
 from pneubayes.discovery.state import Ledger, LoopData, RoundState
 from pneubayes.discovery.trials import TrialRunner, fingerprint
 from pneubayes.discovery.verification import StepFit, split_recordings
-from pneubayes.effects import CATALOGUE
 from pneubayes.errors import SimulationError
 from pneubayes.inference.chain_store import set_aside_other_chain
 from pneubayes.inference.laplace import LaplaceIdentification
@@ -278,8 +277,7 @@ class Discovery:
                          f"{current.heldout_rmse_Pa / noise:.1f} x the noise floor: also "
                          f"trying {', '.join(tentative)} (inclusion below "
                          f"{s.search.min_inclusion:g})")
-        apart = [g for g in CATALOGUE if not current.model.covers(g)
-                 and g not in lib.meta["groups"]]
+        apart = lib.meta["not_steppable"]
         if apart:
             self.log(f"discover: not searched: {', '.join(apart)} (the simulator cannot "
                      "step them beside this model)")
