@@ -850,7 +850,7 @@ def test_a_later_form_whose_own_parameters_do_not_beat_its_first_form_is_screene
 
     class Refiner:
         def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1,
-                     uncertainty=True):
+                     uncertainty=True, stall=None):
             assert not uncertainty  # the loop never asks its fits for the covariance
             self.free = free
 
@@ -924,7 +924,7 @@ def test_a_refinement_that_crawls_at_its_budget_is_not_restarted(monkeypatch):
         traces = []
 
         def __init__(self, model, solver, free=None, max_nfev=None, jacobian_refresh=1,
-                     uncertainty=True):
+                     uncertainty=True, stall=None):
             assert not uncertainty  # the loop never asks its fits for the covariance
             pass
 

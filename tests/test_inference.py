@@ -358,6 +358,57 @@ def test_refinement_stopping_tolerances_are_the_estimators_own(bench, monkeypatc
             TrajectoryRefiner(model, TIGHT, **bad)
 
 
+def test_stall_rule_reads_the_trace_of_best_rmse():
+    """A trace whose best fell by under the tolerance over the last evaluations has
+    stalled, only after ``after`` evaluations; a plateau that ends in a fall has not."""
+    from pneubayes.inference.refine import Stall
+
+    rule = Stall(evaluations=3, tolerance=1e-3, after=5)
+    flat = [100.0, 50.0, 40.0, 39.99, 39.99, 39.99]
+    assert rule.reached(flat)
+    assert not rule.reached(flat[:4])                      # before ``after``
+    assert not rule.reached(flat[:5] + [30.0])             # the plateau ended in a fall
+    # rejected points (higher) in the last evaluations do not count as a fall
+    assert rule.reached([100.0, 50.0, 40.0, 41.0, 60.0, 39.995])
+    assert not Stall(evaluations=3, tolerance=1e-4, after=5).reached(
+        [100.0, 50.0, 40.0, 40.0, 40.0, 39.99])          # 2.5e-4 > 1e-4: still falling
+    for bad in ({"evaluations": 0}, {"tolerance": 0.0}, {"after": 2.5}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            Stall(**bad)
+    from pneubayes.inference.fit import FitSettings
+    assert FitSettings(refine_stall_evaluations=0).stall() is None
+    assert FitSettings().stall() == Stall(10, 1e-4, 25)
+    for bad in ({"refine_stall_evaluations": -1}, {"refine_stall_tolerance": 2.0},
+                {"refine_stall_after": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            FitSettings(**bad)
+
+
+def test_a_stalled_refinement_ends_sooner_near_the_same_fit(bench):
+    """The stall rule ends a fit whose best RMSE has stopped falling: fewer evaluations,
+    a success, the RMSE within a fraction of a percent of the fit run to its end."""
+    from pneubayes.inference.refine import Stall
+
+    recs, model, truth = bench
+    start = dict(truth)
+    for k, f in (("inlet_a_m2", 1.15), ("exhaust_a_m2", 0.85), ("dead_volume_m3", 1.3),
+                 ("inlet_c_per_V", 1.2)):
+        start[k] = truth[k] * f
+    data = WindowSet(recs, 2.0, 2.0)
+    full = TrajectoryRefiner(model, TIGHT, max_nfev=40, jacobian_refresh=4,
+                             uncertainty=False).fit(data, start)
+    rule = Stall(evaluations=4, tolerance=1e-3, after=8)
+    quick = TrajectoryRefiner(model, TIGHT, max_nfev=40, jacobian_refresh=4,
+                              uncertainty=False, stall=rule).fit(data, start)
+    assert not full.stalled_
+    assert quick.stalled_ and quick.success_ and "stalled" in quick.message_
+    assert quick.n_evaluations_ < full.n_evaluations_
+    assert rule.reached(list(quick.rmse_trace_))
+    assert quick.rmse_Pa_ == pytest.approx(full.rmse_Pa_, rel=5e-3)
+    with pytest.raises(TypeError, match="stall"):
+        TrajectoryRefiner(model, TIGHT, stall=(4, 1e-3, 8))
+
+
 def test_refinement_survives_trial_steps_that_do_not_simulate(bench, monkeypatch):
     # the first trial step "cannot be simulated": least squares must back off and go on
     recs, model, truth = bench

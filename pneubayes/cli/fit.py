@@ -161,6 +161,8 @@ def cmd_fit(args) -> int:
                 "method": args.method, "walkers": sampler.n_walkers, "seed": sampler.seed,
                 "windows": {"horizon_s": settings.horizon_s, "stride_s": settings.stride_s},
                 "refine_jacobian_refresh": settings.refine_jacobian_refresh,
+                "refine_stall": [settings.refine_stall_evaluations,
+                                 settings.refine_stall_tolerance, settings.refine_stall_after],
                 # a chain is never resumed with another likelihood solver
                 "sample_solver": settings.sample_solver.to_dict(),
                 "preparation": settings.preparation(), "accept": list(args.accept)}

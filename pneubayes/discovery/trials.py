@@ -167,7 +167,7 @@ class TrialRunner:
             return TrajectoryRefiner(model, s.fit.refine_solver, free=free,
                                      max_nfev=s.fit.refine_max_nfev,
                                      jacobian_refresh=s.fit.refine_jacobian_refresh,
-                                     uncertainty=False)
+                                     uncertainty=False, stall=s.fit.stall())
 
         params, screened = start, False
         if first:

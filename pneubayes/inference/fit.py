@@ -27,7 +27,7 @@ from pneubayes.inference.importance import IMPORTANCE_CHECK_DRAWS
 from pneubayes.inference.laplace import LAPLACE_DRAWS, LaplaceIdentification
 from pneubayes.inference.lsq import PaperLeastSquares
 from pneubayes.inference.predictive import PressurePredictor, noise_floor_Pa
-from pneubayes.inference.refine import TrajectoryRefiner
+from pneubayes.inference.refine import Stall, TrajectoryRefiner
 from pneubayes.inference.sampler import BayesianIdentification
 from pneubayes.inference.sampler_settings import SamplerSettings
 from pneubayes.inference.windows import WindowSet
@@ -60,6 +60,11 @@ class FitSettings:
     refine_max_nfev, refine_jacobian_refresh : int
         Residual evaluations of the refinement (multiple shooting); accepted points per
         finite-difference Jacobian, Broyden's update between (1: every point).
+    refine_stall_evaluations, refine_stall_tolerance, refine_stall_after : int, float, int
+        The refinement ends where its best RMSE fell by under ``refine_stall_tolerance``
+        of itself over its last ``refine_stall_evaluations`` evaluations, after at least
+        ``refine_stall_after`` (:class:`~pneubayes.inference.refine.Stall`); 0
+        evaluations: never (the budget and the trust region's tolerances only).
     refine_solver, sample_solver : SolverConfig
         The refinement's solver; the likelihood's for emcee and the Laplace posterior.
     sampler : SamplerSettings
@@ -82,6 +87,11 @@ class FitSettings:
     #: update between (:class:`~pneubayes.inference.refine.TrajectoryRefiner`); 1: a
     #: finite-difference Jacobian at every accepted point (4: docs/history.md, 2026-11-28)
     refine_jacobian_refresh: int = 4
+    #: the refinement's stall rule (:class:`~pneubayes.inference.refine.Stall`; 0
+    #: evaluations: off; the choice: docs/history.md, 2026-12-08)
+    refine_stall_evaluations: int = 10
+    refine_stall_tolerance: float = 1e-4
+    refine_stall_after: int = 25
     refine_solver: SolverConfig = field(default_factory=SolverConfig.refinement)
     #: the likelihood's solver for emcee and the Laplace posterior (dense output: a
     #: step crosses the samples where the command holds; :meth:`SolverConfig.sampling`)
@@ -109,6 +119,17 @@ class FitSettings:
                 or self.refine_jacobian_refresh < 1):
             raise FieldError("refine_jacobian_refresh",
                              f"must be an integer >= 1, got {self.refine_jacobian_refresh!r}")
+        if not (isinstance(self.refine_stall_evaluations, int)
+                and self.refine_stall_evaluations >= 0):
+            raise FieldError("refine_stall_evaluations", "must be an integer >= 0, got "
+                             f"{self.refine_stall_evaluations!r}")
+        if not (isinstance(self.refine_stall_tolerance, (int, float))
+                and 0.0 < self.refine_stall_tolerance < 1.0):
+            raise FieldError("refine_stall_tolerance", "must be a number in (0, 1), got "
+                             f"{self.refine_stall_tolerance!r}")
+        if not (isinstance(self.refine_stall_after, int) and self.refine_stall_after >= 1):
+            raise FieldError("refine_stall_after", "must be an integer >= 1, got "
+                             f"{self.refine_stall_after!r}")
         if not isinstance(self.despike_pressure, bool):
             raise FieldError("despike_pressure",
                              f"must be true or false, got {self.despike_pressure!r}")
@@ -116,6 +137,13 @@ class FitSettings:
                                                                PressureFilter):
             raise TypeError("FitSettings.pressure_filter must be a PressureFilter or None, "
                             f"got {type(self.pressure_filter).__name__}")
+
+    def stall(self) -> Stall | None:
+        """The refinement's stall rule (None: off)."""
+        if not self.refine_stall_evaluations:
+            return None
+        return Stall(self.refine_stall_evaluations, self.refine_stall_tolerance,
+                     self.refine_stall_after)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -451,8 +479,8 @@ def identify(recordings, model: Model, settings: FitSettings, method: str = "mcm
     else:
         ref = TrajectoryRefiner(model, settings.refine_solver,
                                 max_nfev=settings.refine_max_nfev,
-                                jacobian_refresh=settings.refine_jacobian_refresh
-                                ).fit(data, start)
+                                jacobian_refresh=settings.refine_jacobian_refresh,
+                                stall=settings.stall()).fit(data, start)
         log(f"fit: refined {settings.horizon_s:g}-s RMSE {ref.start_rmse_Pa_:.0f} -> "
             f"{ref.rmse_Pa_:.0f} Pa "
             f"({ref.n_evaluations_} evaluations)")

@@ -126,6 +126,39 @@ def relative_spread(model: Model, centre: Mapping[str, float], fits, names,
     return out
 
 
+@dataclass(frozen=True)
+class Stall:
+    """When a refinement has stopped gaining: after at least ``after`` residual
+    evaluations, the best RMSE of the points simulated fell by under ``tolerance`` of
+    itself over the last ``evaluations`` of them (rejected trial points count). A trust
+    region in a curved valley crawls towards its optimum long after it is within a
+    fraction of a pascal of it; a plateau early in a fit can still end in a fall, so the
+    rule waits ``after`` evaluations (the choice: docs/history.md, 2026-12-08).
+    """
+
+    evaluations: int = 10
+    tolerance: float = 1e-4
+    after: int = 25
+
+    def __post_init__(self):
+        for name in ("evaluations", "after"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
+                raise ValueError(f"Stall.{name} must be an integer >= 1, got {v!r}")
+        if not (isinstance(self.tolerance, (int, float)) and 0.0 < self.tolerance < 1.0):
+            raise ValueError(f"Stall.tolerance must be a number in (0, 1), got "
+                             f"{self.tolerance!r}")
+
+    def reached(self, rmse_trace) -> bool:
+        """True when ``rmse_trace`` (the RMSE of each point simulated, in order) has
+        stalled."""
+        n = len(rmse_trace)
+        if n < max(self.after, self.evaluations + 1):
+            return False
+        before = min(rmse_trace[: n - self.evaluations])
+        return not min(rmse_trace[n - self.evaluations:]) < before * (1.0 - self.tolerance)
+
+
 def parameter_scales(model: Model, theta: np.ndarray) -> np.ndarray:
     """Each parameter's scale: its magnitude at ``theta``, or 1 % of its bounds' width
     where larger (the refiner's coordinates are ``theta / scale``)."""
@@ -180,9 +213,8 @@ class TrajectoryRefiner:
 
     Parameters
     ----------
-    model : Model
-    solver : SolverConfig
-        Solver for the predictions; tighter than the finite-difference steps' effect.
+    model, solver : Model, SolverConfig
+        The model; the predictions' solver (tighter than the finite differences' steps).
     horizon_s, stride_s : float
         Prediction windows (2 s, non-overlapping in the paper's metric).
     free : sequence of str or None
@@ -195,13 +227,13 @@ class TrajectoryRefiner:
         Broyden's rank-1 secant (scaled coordinates; Broyden 1965) from the residuals
         the trust region has (the information and covariance: always differences).
     uncertainty : bool
-        Take the information and covariance at the fitted point (one batched call of a
-        simulation per free parameter, unless the last Jacobian was taken there);
-        False: both None, for a caller that needs only the fit.
+        Take the information and covariance at the fitted point (one more Jacobian
+        unless the last was taken there); False: both None.
     xtol, ftol : float
         The trust region's stopping tolerances (scipy's ``least_squares``, scaled
-        coordinates): a step under ``xtol`` relative to the point, or a predicted and an
-        actual fall of the cost both under ``ftol`` relative to it, ends the fit.
+        coordinates: a step, or a predicted and an actual fall of the cost, under them).
+    stall : Stall or None
+        Also end the fit where its best RMSE stopped falling (:class:`Stall`).
     anchor : GaussianAnchor or None
         A Gaussian prior (rows of the least squares): the fit is its posterior mode.
     extra_residuals : callable or None
@@ -214,14 +246,17 @@ class TrajectoryRefiner:
     ``uncertainty``; with an anchor, the information at ``anchor.error_Pa`` and the
     covariance with the anchor's precision added); ``rmse_Pa_``;
     ``rmse_trace_``, the RMSE (Pa) of every point simulated, in order (rejected trials
-    too, failed ones left out); ``success_``: False when the budget ended the fit.
+    too, failed ones left out); ``success_``: False when the budget ended the fit
+    (``stalled_``: ``stall`` ended it, a success).
     """
 
     def __init__(self, model: Model, solver: SolverConfig, horizon_s: float = PAPER_HORIZON_S,
                  stride_s: float = PAPER_HORIZON_S, free=None, relative_step: float = 1e-3,
                  max_nfev: int = 60, jacobian_refresh: int = 1, uncertainty: bool = True,
                  xtol: float = 1e-8, ftol: float = 1e-10, anchor: GaussianAnchor | None = None,
-                 extra_residuals=None):
+                 extra_residuals=None, stall: "Stall | None" = None):
+        if stall is not None and not isinstance(stall, Stall):
+            raise TypeError(f"stall must be a Stall or None, got {stall!r}")
         if extra_residuals is not None and not callable(extra_residuals):
             raise TypeError("extra_residuals must be a callable or None")
         if anchor is not None and not isinstance(anchor, GaussianAnchor):
@@ -245,6 +280,7 @@ class TrajectoryRefiner:
         self.ftol = float(ftol)
         self.anchor = anchor
         self.extra_residuals = extra_residuals
+        self.stall = stall
 
     def fit(self, recordings, start: dict) -> "TrajectoryRefiner":
         """Refine from ``start`` (a full parameter dict, e.g. the paper's least squares)."""
@@ -375,9 +411,17 @@ class TrajectoryRefiner:
         # keeps its start strictly feasible with an absolute margin of 1e-10, which for a
         # parameter of order 1e-16 (a laminar leak conductance, kg/(s Pa^2)) moved it to
         # the middle of its bounds before the first evaluation
+        stalled = []
+
+        def callback(x):  # after each accepted step: StopIteration ends the trust region
+            if self.stall is not None and self.stall.reached(trace):
+                stalled.append(True)
+                raise StopIteration
+
         sol = optimize.least_squares(fun, x0 / scale, jac=jac,
                                      bounds=(flo / scale, fhi / scale), method="trf",
-                                     max_nfev=self.max_nfev, xtol=self.xtol, ftol=self.ftol)
+                                     max_nfev=self.max_nfev, xtol=self.xtol, ftol=self.ftol,
+                                     callback=callback)
         x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
         theta = full(x_sol)
         r = residual(x_sol)
@@ -407,8 +451,11 @@ class TrajectoryRefiner:
         self.start_rmse_Pa_ = float(np.sqrt(np.mean(r0 * r0)))
         self.n_evaluations_ = int(sol.nfev)
         self.rmse_trace_ = np.array(trace)
-        self.success_ = bool(sol.success)
-        self.message_ = str(sol.message)
+        self.stalled_ = bool(stalled)
+        self.success_ = bool(sol.success) or self.stalled_
+        self.message_ = (f"stalled: the best RMSE fell by under {self.stall.tolerance:g} of "
+                         f"itself over the last {self.stall.evaluations} evaluations"
+                         if self.stalled_ else str(sol.message))
         return self
 
     def _anchor_rows(self, free, taken, dead, theta0) -> tuple[np.ndarray, np.ndarray]:
