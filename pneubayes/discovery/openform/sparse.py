@@ -109,19 +109,23 @@ def swap_columns(x: np.ndarray, y: np.ndarray, rank: np.ndarray, sel: list[int],
     not the target's: a strong term (a laminar leak's ``p^2``) is not given up for a
     simpler one that fits it a little worse."""
     sel = list(sel)
+    # each column's gain beside the others, (x_p . r)^2 / |x_p|^2 with x_p its part
+    # orthogonal to them (orthonormal basis q), from the products with q alone: r is
+    # orthogonal to q, so x_p . r = x . y - (q'x) . (q'y), and |x_p|^2 = |x|^2 - |q'x|^2
+    # (the projected candidate matrix is never formed)
+    xy, xx = x.T @ y, np.sum(x * x, axis=0)
     for _ in range(len(sel) + 1):
         changed = False
         for i in range(len(sel)):
             others = sel[:i] + sel[i + 1:]
             if others:
                 q, _ = np.linalg.qr(x[:, others])
-                r = y - q @ (q.T @ y)
-                xp = x - q @ (q.T @ x)
+                qy, qx = q.T @ y, q.T @ x
+                r = y - q @ qy
+                xr, norm2 = xy - qx.T @ qy, xx - np.sum(qx * qx, axis=0)
             else:
-                r, xp = y, x
-            norm2 = np.sum(xp * xp, axis=0)
-            gain = np.where(norm2 > 1e-12, (xp.T @ r) ** 2 / np.where(
-                norm2 > 1e-12, norm2, 1.0), 0.0)
+                r, xr, norm2 = y, xy, xx
+            gain = np.where(norm2 > 1e-12, xr**2 / np.where(norm2 > 1e-12, norm2, 1.0), 0.0)
             gain[others] = 0.0
             best = int(np.argmax(gain))
             # the residual sum of squares of the bag's fit as it stands
