@@ -256,12 +256,18 @@ def test_held_out_windows_are_warmed_up_on_the_recording_before_them(rig, hand):
                                   sliced.residuals(base, base.vector(bp)[None], TIGHT))
 
 
-def test_refinement_recovers_a_perturbed_start(bench):
-    recs, model, truth = bench
+def _perturbed(truth: dict) -> dict:
+    """The planted parameters with four of them moved off (the refinements' start)."""
     start = dict(truth)
     for k, f in (("inlet_a_m2", 1.15), ("exhaust_a_m2", 0.85), ("dead_volume_m3", 1.3),
                  ("inlet_c_per_V", 1.2)):
         start[k] = truth[k] * f
+    return start
+
+
+def test_refinement_recovers_a_perturbed_start(bench):
+    recs, model, truth = bench
+    start = _perturbed(truth)
     ref = TrajectoryRefiner(model, TIGHT, max_nfev=40).fit(recs, start)
     assert ref.rmse_Pa_ < 0.5 * ref.start_rmse_Pa_
     assert ref.rmse_Pa_ < 600.0
@@ -279,10 +285,7 @@ def test_broyden_refinement_recovers_the_start_with_fewer_simulations(bench, mon
     the information at the end from a finite-difference Jacobian (the same as a fit that
     ends there at once)."""
     recs, model, truth = bench
-    start = dict(truth)
-    for k, f in (("inlet_a_m2", 1.15), ("exhaust_a_m2", 0.85), ("dead_volume_m3", 1.3),
-                 ("inlet_c_per_V", 1.2)):
-        start[k] = truth[k] * f
+    start = _perturbed(truth)
     data = WindowSet(recs, 2.0, 2.0)
     real = WindowSet.residuals
     simulated = []
@@ -390,10 +393,7 @@ def test_a_stalled_refinement_ends_sooner_near_the_same_fit(bench):
     from pneubayes.inference.refine import Stall
 
     recs, model, truth = bench
-    start = dict(truth)
-    for k, f in (("inlet_a_m2", 1.15), ("exhaust_a_m2", 0.85), ("dead_volume_m3", 1.3),
-                 ("inlet_c_per_V", 1.2)):
-        start[k] = truth[k] * f
+    start = _perturbed(truth)
     data = WindowSet(recs, 2.0, 2.0)
     full = TrajectoryRefiner(model, TIGHT, max_nfev=40, jacobian_refresh=4,
                              uncertainty=False).fit(data, start)
