@@ -119,17 +119,14 @@ class FitSettings:
                 or self.refine_jacobian_refresh < 1):
             raise FieldError("refine_jacobian_refresh",
                              f"must be an integer >= 1, got {self.refine_jacobian_refresh!r}")
-        if not (isinstance(self.refine_stall_evaluations, int)
-                and self.refine_stall_evaluations >= 0):
-            raise FieldError("refine_stall_evaluations", "must be an integer >= 0, got "
-                             f"{self.refine_stall_evaluations!r}")
-        if not (isinstance(self.refine_stall_tolerance, (int, float))
-                and 0.0 < self.refine_stall_tolerance < 1.0):
-            raise FieldError("refine_stall_tolerance", "must be a number in (0, 1), got "
-                             f"{self.refine_stall_tolerance!r}")
-        if not (isinstance(self.refine_stall_after, int) and self.refine_stall_after >= 1):
-            raise FieldError("refine_stall_after", "must be an integer >= 1, got "
-                             f"{self.refine_stall_after!r}")
+        n = self.refine_stall_evaluations
+        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 0):
+            raise FieldError("refine_stall_evaluations",
+                             f"must be an integer >= 0 (0: off), got {n!r}")
+        try:  # the rule checks its other fields (with 0, off, as well)
+            Stall(n or 1, self.refine_stall_tolerance, self.refine_stall_after)
+        except FieldError as e:
+            raise FieldError(f"refine_stall_{e.key}", e.message) from None
         if not isinstance(self.despike_pressure, bool):
             raise FieldError("despike_pressure",
                              f"must be true or false, got {self.despike_pressure!r}")

@@ -37,6 +37,7 @@ from pneubayes import interrupt
 from pneubayes.evaluation import PAPER_HORIZON_S
 from pneubayes.inference.windows import WindowSet
 from pneubayes.model import Model
+from pneubayes.settings_tree import FieldError
 from pneubayes.simulation import SolverConfig
 
 #: Residual (Pa) returned for a trial point that does not simulate: far above any real
@@ -144,9 +145,9 @@ class Stall:
         for name in ("evaluations", "after"):
             v = getattr(self, name)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
-                raise ValueError(f"Stall.{name} must be an integer >= 1, got {v!r}")
+                raise FieldError(name, f"must be an integer >= 1, got {v!r}")
         if not (isinstance(self.tolerance, (int, float)) and 0.0 < self.tolerance < 1.0):
-            raise ValueError(f"Stall.tolerance must be a number in (0, 1), got "
+            raise FieldError("tolerance", f"must be a number in (0, 1), got "
                              f"{self.tolerance!r}")
 
     def reached(self, rmse_trace) -> bool:
@@ -411,17 +412,15 @@ class TrajectoryRefiner:
         # keeps its start strictly feasible with an absolute margin of 1e-10, which for a
         # parameter of order 1e-16 (a laminar leak conductance, kg/(s Pa^2)) moved it to
         # the middle of its bounds before the first evaluation
-        stalled = []
-
-        def callback(x):  # after each accepted step: StopIteration ends the trust region
-            if self.stall is not None and self.stall.reached(trace):
-                stalled.append(True)
+        def stop_if_stalled(x):  # after each accepted step (scipy's status -2)
+            if self.stall.reached(trace):
                 raise StopIteration
 
         sol = optimize.least_squares(fun, x0 / scale, jac=jac,
                                      bounds=(flo / scale, fhi / scale), method="trf",
                                      max_nfev=self.max_nfev, xtol=self.xtol, ftol=self.ftol,
-                                     callback=callback)
+                                     callback=None if self.stall is None
+                                     else stop_if_stalled)
         x_sol = np.clip(sol.x * scale, flo, fhi)  # the product may round past a bound
         theta = full(x_sol)
         r = residual(x_sol)
@@ -451,7 +450,7 @@ class TrajectoryRefiner:
         self.start_rmse_Pa_ = float(np.sqrt(np.mean(r0 * r0)))
         self.n_evaluations_ = int(sol.nfev)
         self.rmse_trace_ = np.array(trace)
-        self.stalled_ = bool(stalled)
+        self.stalled_ = sol.status == -2  # StopIteration from stop_if_stalled
         self.success_ = bool(sol.success) or self.stalled_
         self.message_ = (f"stalled: the best RMSE fell by under {self.stall.tolerance:g} of "
                          f"itself over the last {self.stall.evaluations} evaluations"
